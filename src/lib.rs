@@ -1,0 +1,21 @@
+//! # robocal
+//!
+//! Kinematic calibration of serial robot arms by ordinary and weighted (Gauss-Markov) least
+//! squares, after G. Zak, B. Benhabib, R. G. Fenton and I. Saban, "Application of the
+//! Weighted Least Squares Parameter Estimation Method to the Robot Calibration", ASME J.
+//! Mechanical Design.
+//!
+//! The errors of a robot's kinematic parameters `x` are found from measured end-effector
+//! positions or poses through the linearised model `y = H x + e` (the paper's Eq. 1).
+//!
+//! The modules, in the order the dependencies flow:
+//! - [`model`]: robot models (DH conventions with Hayati's beta, base, tool, limits), their
+//!   TOML format, and the named error parameters.
+//! - [`kinematics`]: forward kinematics, the manipulator Jacobian `J` and the identification
+//!   Jacobian `H`, analytic and allocation-free.
+//!
+//! Units inside the library are millimetres and radians; degrees appear only at the edges.
+//! The library does no I/O: reading files is the job of the binary's `io` layer.
+
+pub mod kinematics;
+pub mod model;

@@ -1,0 +1,312 @@
+//! The TOML model file: what people write, in mm and degrees, with named fields.
+
+use super::{Convention, Joint, JointKind, Placement, RobotModel, Tool};
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+/// Why a model file could not be read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ModelError {
+    /// The text is not valid TOML or does not have the fields of a model file. The message
+    /// names the line, the column and the field.
+    #[error("{0}")]
+    Syntax(String),
+    /// A field has a value that makes no model.
+    #[error("field `{field}`: {expected}")]
+    Invalid {
+        /// Path of the field, e.g. `joints[2].limits_deg`.
+        field: String,
+        /// What was expected there.
+        expected: String,
+    },
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ModelFile {
+    name: String,
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    description: String,
+    convention: ConventionName,
+    #[serde(default)]
+    base: PlacementFile,
+    tool: ToolFile,
+    joints: Vec<JointFile>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+enum ConventionName {
+    StandardDh,
+    ModifiedDh,
+}
+
+#[derive(Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct PlacementFile {
+    xyz_mm: [f64; 3],
+    #[serde(default)]
+    rpy_deg: [f64; 3],
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ToolFile {
+    xyz_mm: [f64; 3],
+    /// Present: the tool is a frame (pose measurable). Absent: a point.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    rpy_deg: Option<[f64; 3]>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct JointFile {
+    name: String,
+    #[serde(rename = "type")]
+    kind: KindName,
+    theta_deg: f64,
+    d_mm: f64,
+    a_mm: f64,
+    alpha_deg: f64,
+    #[serde(default)]
+    beta_deg: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    limits_deg: Option<[f64; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    limits_mm: Option<[f64; 2]>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum KindName {
+    Revolute,
+    Prismatic,
+}
+
+pub(super) fn parse(text: &str) -> Result<RobotModel, ModelError> {
+    let file: ModelFile = toml::from_str(text).map_err(|e| ModelError::Syntax(e.to_string()))?;
+    let model = RobotModel {
+        name: file.name,
+        description: file.description,
+        convention: match file.convention {
+            ConventionName::StandardDh => Convention::StandardDh,
+            ConventionName::ModifiedDh => Convention::ModifiedDh,
+        },
+        base: placement("base", &file.base.xyz_mm, &file.base.rpy_deg)?,
+        tool: match file.tool.rpy_deg {
+            None => Tool::Point(vector("tool.xyz_mm", &file.tool.xyz_mm)?),
+            Some(rpy) => Tool::Frame(placement("tool", &file.tool.xyz_mm, &rpy)?),
+        },
+        joints: file
+            .joints
+            .into_iter()
+            .enumerate()
+            .map(|(i, j)| joint(i, j))
+            .collect::<Result<_, _>>()?,
+    };
+    validate(&model)?;
+    Ok(model)
+}
+
+fn invalid(field: impl Into<String>, expected: impl Into<String>) -> ModelError {
+    ModelError::Invalid {
+        field: field.into(),
+        expected: expected.into(),
+    }
+}
+
+fn finite(field: &str, value: f64) -> Result<f64, ModelError> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(invalid(field, format!("a finite number, found {value}")))
+    }
+}
+
+fn vector(field: &str, v: &[f64; 3]) -> Result<Vector3<f64>, ModelError> {
+    for &x in v {
+        finite(field, x)?;
+    }
+    Ok(Vector3::from(*v))
+}
+
+fn placement(field: &str, xyz_mm: &[f64; 3], rpy_deg: &[f64; 3]) -> Result<Placement, ModelError> {
+    Ok(Placement {
+        xyz: vector(&format!("{field}.xyz_mm"), xyz_mm)?,
+        rpy: vector(&format!("{field}.rpy_deg"), rpy_deg)?.map(f64::to_radians),
+    })
+}
+
+fn joint(index: usize, j: JointFile) -> Result<Joint, ModelError> {
+    let at = |field: &str| format!("joints[{index}].{field}");
+    let kind = match j.kind {
+        KindName::Revolute => JointKind::Revolute,
+        KindName::Prismatic => JointKind::Prismatic,
+    };
+    let limits = match (kind, j.limits_deg, j.limits_mm) {
+        (JointKind::Revolute, Some(l), None) => l.map(f64::to_radians),
+        (JointKind::Prismatic, None, Some(l)) => l,
+        (JointKind::Revolute, _, _) => {
+            return Err(invalid(
+                at("limits_deg"),
+                "a revolute joint's limits as `limits_deg = [lower, upper]` (and no `limits_mm`)",
+            ));
+        }
+        (JointKind::Prismatic, _, _) => {
+            return Err(invalid(
+                at("limits_mm"),
+                "a prismatic joint's limits as `limits_mm = [lower, upper]` (and no `limits_deg`)",
+            ));
+        }
+    };
+    let limits_field = at(if kind == JointKind::Revolute {
+        "limits_deg"
+    } else {
+        "limits_mm"
+    });
+    finite(&limits_field, limits[0])?;
+    finite(&limits_field, limits[1])?;
+    if limits[0] >= limits[1] {
+        return Err(invalid(limits_field, "[lower, upper] with lower < upper"));
+    }
+    Ok(Joint {
+        name: j.name,
+        kind,
+        theta: finite(&at("theta_deg"), j.theta_deg)?.to_radians(),
+        d: finite(&at("d_mm"), j.d_mm)?,
+        a: finite(&at("a_mm"), j.a_mm)?,
+        alpha: finite(&at("alpha_deg"), j.alpha_deg)?.to_radians(),
+        beta: finite(&at("beta_deg"), j.beta_deg)?.to_radians(),
+        limits,
+    })
+}
+
+fn validate(model: &RobotModel) -> Result<(), ModelError> {
+    if model.joints.is_empty() {
+        return Err(invalid("joints", "at least one [[joints]] table"));
+    }
+    for (i, joint) in model.joints.iter().enumerate() {
+        let ok_name = !joint.name.is_empty()
+            && joint
+                .name
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+        if !ok_name {
+            return Err(invalid(
+                format!("joints[{i}].name"),
+                format!(
+                    "a non-empty name of letters, digits, `_` or `-`, found {:?}",
+                    joint.name
+                ),
+            ));
+        }
+        if ["base", "tool"].contains(&joint.name.as_str()) {
+            return Err(invalid(
+                format!("joints[{i}].name"),
+                "a name other than `base` or `tool`",
+            ));
+        }
+        if model.joints[..i]
+            .iter()
+            .any(|other| other.name == joint.name)
+        {
+            return Err(invalid(
+                format!("joints[{i}].name"),
+                format!("a unique name, `{}` is used twice", joint.name),
+            ));
+        }
+    }
+    Ok(())
+}
+
+pub(super) fn write(model: &RobotModel) -> String {
+    let deg3 = |v: &Vector3<f64>| [degrees(v.x), degrees(v.y), degrees(v.z)];
+    let file = ModelFile {
+        name: model.name.clone(),
+        description: model.description.clone(),
+        convention: match model.convention {
+            Convention::StandardDh => ConventionName::StandardDh,
+            Convention::ModifiedDh => ConventionName::ModifiedDh,
+        },
+        base: PlacementFile {
+            xyz_mm: model.base.xyz.into(),
+            rpy_deg: deg3(&model.base.rpy),
+        },
+        tool: match &model.tool {
+            Tool::Point(p) => ToolFile {
+                xyz_mm: (*p).into(),
+                rpy_deg: None,
+            },
+            Tool::Frame(f) => ToolFile {
+                xyz_mm: f.xyz.into(),
+                rpy_deg: Some(deg3(&f.rpy)),
+            },
+        },
+        joints: model
+            .joints
+            .iter()
+            .map(|j| {
+                let revolute = j.kind == JointKind::Revolute;
+                JointFile {
+                    name: j.name.clone(),
+                    kind: if revolute {
+                        KindName::Revolute
+                    } else {
+                        KindName::Prismatic
+                    },
+                    theta_deg: degrees(j.theta),
+                    d_mm: j.d,
+                    a_mm: j.a,
+                    alpha_deg: degrees(j.alpha),
+                    beta_deg: degrees(j.beta),
+                    limits_deg: revolute.then(|| j.limits.map(degrees)),
+                    limits_mm: (!revolute).then_some(j.limits),
+                }
+            })
+            .collect(),
+    };
+    toml::to_string(&file).expect("a model always serialises")
+}
+
+/// The shortest decimal number of degrees that reads back as exactly `radians`, so that a
+/// written model reads back bit for bit and `90` is written as `90`, not `90.00000000000001`.
+/// Every angle read from degrees has such a number; for any other, the nearest is returned.
+pub(crate) fn degrees(radians: f64) -> f64 {
+    let approx = radians.to_degrees();
+    let shortest = (1..=17)
+        .map(|digits| {
+            format!("{approx:.*e}", digits - 1)
+                .parse::<f64>()
+                .unwrap_or(approx)
+        })
+        .find(|d| d.to_radians() == radians);
+    // `to_degrees` can land an ulp or two off the value that was read: look beside it.
+    let beside = || {
+        (1..=8u64)
+            .flat_map(|k| {
+                [
+                    approx.to_bits().wrapping_add(k),
+                    approx.to_bits().wrapping_sub(k),
+                ]
+            })
+            .map(f64::from_bits)
+            .find(|d| d.to_radians() == radians)
+    };
+    shortest.or_else(beside).unwrap_or(approx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn degrees_are_short_and_exact() {
+        assert_eq!(degrees(90f64.to_radians()), 90.0);
+        assert_eq!(degrees((-0.007f64).to_radians()), -0.007);
+        for i in 0..100_000 {
+            let read = (i as f64 * 0.7131).sin() * 270.0 + 1e-9 * i as f64;
+            let r = read.to_radians();
+            assert_eq!(degrees(r).to_radians(), r, "read as {read} deg");
+        }
+    }
+}

@@ -1,0 +1,147 @@
+//! Robot models: a serial chain of revolute and prismatic joints with a base and a tool.
+//!
+//! Inside the library every length is in millimetres and every angle in radians. Degrees
+//! appear only in files and on the command line, in fields named so (`alpha_deg`).
+//!
+//! Each joint's geometry follows the model's [`Convention`], both extended with Hayati's
+//! rotation `beta` about y (Hayati and Mirmirani 1985), which keeps the parameterisation well
+//! conditioned where consecutive axes are nearly parallel (PUMA 560 joints 2 and 3):
+//!
+//! - standard DH:  `T_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i) Ry(beta_i)`
+//! - modified DH (Craig): `T_i = Rx(alpha_i) Tx(a_i) Ry(beta_i) Rz(theta_i) Tz(d_i)`, where
+//!   `alpha_i`, `a_i` are Craig's `alpha_{i-1}`, `a_{i-1}`: they lead to joint i's axis.
+//!
+//! A revolute joint's variable adds to `theta`, a prismatic joint's to `d`. The whole chain is
+//! `base * T_1 * ... * T_n * tool`.
+
+mod file;
+mod params;
+
+pub use file::ModelError;
+pub use params::{ParamInfo, ParamKind, ParamOwner, ParamSet, Selection, SelectionError};
+
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+/// How a joint's geometry is described; see the [module documentation](self).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Convention {
+    /// Standard Denavit-Hartenberg: `Rz(theta) Tz(d) Tx(a) Rx(alpha) Ry(beta)`.
+    StandardDh,
+    /// Modified Denavit-Hartenberg (Craig): `Rx(alpha) Tx(a) Ry(beta) Rz(theta) Tz(d)`.
+    ModifiedDh,
+}
+
+/// Whether a joint turns (its variable adds to `theta`) or slides (adds to `d`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    /// Rotation about the joint axis; joint variable in radians.
+    Revolute,
+    /// Translation along the joint axis; joint variable in millimetres.
+    Prismatic,
+}
+
+/// One joint's nominal geometry (mm, rad) and travel limits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Joint {
+    /// Name used in reports and parameter names (`j3` gives `j3.beta`).
+    pub name: String,
+    /// Revolute or prismatic.
+    pub kind: JointKind,
+    /// Rotation about z (rad); for a revolute joint, its zero offset.
+    pub theta: f64,
+    /// Translation along z (mm); for a prismatic joint, its zero offset.
+    pub d: f64,
+    /// Translation along x (mm).
+    pub a: f64,
+    /// Rotation about x (rad).
+    pub alpha: f64,
+    /// Hayati's rotation about y (rad), nominally zero.
+    pub beta: f64,
+    /// Lower and upper travel limit of the joint variable (rad, or mm if prismatic).
+    pub limits: [f64; 2],
+}
+
+/// A rigid placement: translation (mm) then roll-pitch-yaw rotation (rad),
+/// `T = Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll)` (the URDF convention).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Placement {
+    /// Translation (mm).
+    pub xyz: Vector3<f64>,
+    /// Roll, pitch, yaw (rad).
+    pub rpy: Vector3<f64>,
+}
+
+impl Placement {
+    /// The placement as an isometry.
+    pub fn isometry(&self) -> Isometry3<f64> {
+        let rotation = UnitQuaternion::from_euler_angles(self.rpy.x, self.rpy.y, self.rpy.z);
+        Isometry3::from_parts(Translation3::from(self.xyz), rotation)
+    }
+}
+
+/// What the measuring device sees at the end of the chain.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Tool {
+    /// A point (mm) in the last joint frame, such as a tracker reflector: position only.
+    Point(Vector3<f64>),
+    /// A frame fixed to the last joint frame: position and orientation.
+    Frame(Placement),
+}
+
+/// A serial robot: base placement, joints, tool.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotModel {
+    /// Short name (`puma560`).
+    pub name: String,
+    /// Free text: where the numbers come from.
+    pub description: String,
+    /// How the joints' geometry is described.
+    pub convention: Convention,
+    /// Measuring frame to the first joint's frame.
+    pub base: Placement,
+    /// The joints, base to tip.
+    pub joints: Vec<Joint>,
+    /// Last joint frame to the measured point or frame.
+    pub tool: Tool,
+}
+
+impl RobotModel {
+    /// Number of joints.
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// The named error parameters of this model, in their canonical order.
+    pub fn params(&self) -> ParamSet {
+        ParamSet::new(self)
+    }
+
+    /// Whether every joint value lies within its limits.
+    pub fn within_limits(&self, q: &[f64]) -> bool {
+        q.len() == self.joints.len()
+            && self
+                .joints
+                .iter()
+                .zip(q)
+                .all(|(joint, &v)| joint.limits[0] <= v && v <= joint.limits[1])
+    }
+
+    /// Read a model from TOML text (lengths in mm, angles in degrees; see `docs/formats.md`).
+    pub fn from_toml_str(text: &str) -> Result<Self, ModelError> {
+        file::parse(text)
+    }
+
+    /// Write the model as TOML; [`RobotModel::from_toml_str`] reads it back exactly.
+    pub fn to_toml_string(&self) -> String {
+        file::write(self)
+    }
+
+    /// A model shipped with robocal, by name; see [`PRESETS`].
+    pub fn preset(name: &str) -> Option<Self> {
+        let text = PRESETS.iter().find(|(n, _)| *n == name)?.1;
+        Some(Self::from_toml_str(text).expect("embedded presets are valid"))
+    }
+}
+
+/// The models embedded in robocal: `(name, TOML text)`.
+pub const PRESETS: &[(&str, &str)] = &[("puma560", include_str!("../../presets/puma560.toml"))];

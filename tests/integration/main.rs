@@ -1,0 +1,4 @@
+//! robocal's integration tests, gathered in one test binary.
+
+mod kinematics;
+mod model_files;

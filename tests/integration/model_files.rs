@@ -1,0 +1,115 @@
+//! Model files: exact round trip and clear errors.
+
+use proptest::prelude::*;
+use robocal::model::{ModelError, RobotModel};
+
+const PUMA: &str = include_str!("../../presets/puma560.toml");
+
+#[test]
+fn puma_preset_reads_with_the_papers_numbers() {
+    let model = RobotModel::preset("puma560").unwrap();
+    assert_eq!(model.dof(), 6);
+    assert_eq!(model.joints[2].d, 150.05);
+    assert_eq!(model.joints[3].alpha, 90f64.to_radians());
+    assert_eq!(
+        model.joints[1].limits,
+        [-45f64.to_radians(), 225f64.to_radians()]
+    );
+}
+
+#[test]
+fn written_model_reads_back_exactly() {
+    let model = RobotModel::from_toml_str(PUMA).unwrap();
+    let text = model.to_toml_string();
+    assert_eq!(RobotModel::from_toml_str(&text).unwrap(), model);
+    assert!(
+        text.contains("alpha_deg = 90.0"),
+        "degrees are written short:\n{text}"
+    );
+    assert_eq!(
+        RobotModel::from_toml_str(&text).unwrap().to_toml_string(),
+        text
+    );
+}
+
+proptest! {
+    /// Any angle read from degrees is written back to the same radians, bit for bit.
+    #[test]
+    fn any_degrees_round_trip(values in prop::collection::vec(-400.0..400.0f64, 6)) {
+        let mut model = RobotModel::from_toml_str(PUMA).unwrap();
+        for (joint, deg) in model.joints.iter_mut().zip(&values) {
+            joint.alpha = deg.to_radians();
+            joint.beta = (deg / 7.0).to_radians();
+        }
+        prop_assert_eq!(RobotModel::from_toml_str(&model.to_toml_string()).unwrap(), model);
+    }
+}
+
+fn error_of(text: &str) -> String {
+    RobotModel::from_toml_str(text).unwrap_err().to_string()
+}
+
+#[test]
+fn misspelled_field_is_named_with_its_line() {
+    let message = error_of(&PUMA.replacen("a_mm = 431.8", "a_m = 431.8", 1));
+    assert!(
+        message.contains("a_m") && message.contains("line"),
+        "{message}"
+    );
+}
+
+#[test]
+fn missing_field_is_named() {
+    let message = error_of(&PUMA.replacen("d_mm = 150.05\n", "", 1));
+    assert!(message.contains("d_mm"), "{message}");
+}
+
+#[test]
+fn unknown_convention_says_what_is_allowed() {
+    let message = error_of(&PUMA.replace("standard-dh", "dh"));
+    assert!(
+        message.contains("standard-dh") && message.contains("modified-dh"),
+        "{message}"
+    );
+}
+
+#[test]
+fn reversed_limits_are_rejected() {
+    let err =
+        RobotModel::from_toml_str(&PUMA.replace("[-160.0, 160.0]", "[160.0, -160.0]")).unwrap_err();
+    assert_eq!(
+        err,
+        ModelError::Invalid {
+            field: "joints[0].limits_deg".into(),
+            expected: "[lower, upper] with lower < upper".into()
+        }
+    );
+}
+
+#[test]
+fn not_a_number_is_rejected() {
+    let message = error_of(&PUMA.replacen("a_mm = 20.3", "a_mm = nan", 1));
+    assert_eq!(
+        message,
+        "field `joints[2].a_mm`: a finite number, found NaN"
+    );
+}
+
+#[test]
+fn prismatic_joint_needs_limits_in_mm() {
+    let text = PUMA.replacen("type = \"revolute\"", "type = \"prismatic\"", 1);
+    assert!(
+        error_of(&text).contains("joints[0].limits_mm"),
+        "{}",
+        error_of(&text)
+    );
+}
+
+#[test]
+fn duplicate_joint_names_are_rejected() {
+    let message = error_of(&PUMA.replace("name = \"j2\"", "name = \"j1\""));
+    assert!(
+        message.contains("joints[1].name") && message.contains("twice"),
+        "{message}"
+    );
+}
