@@ -14,8 +14,14 @@
 //! - [`kinematics`]: forward kinematics, the manipulator Jacobian `J` and the identification
 //!   Jacobian `H`, analytic and allocation-free.
 //!
+//! - [`io`]: reading files, with errors that name the file.
+//! - [`report`]: text reports at fixed precision.
+//!
 //! Units inside the library are millimetres and radians; degrees appear only at the edges.
-//! The library does no I/O: reading files is the job of the binary's `io` layer.
+//! The core (model, kinematics and, to come, estimation and simulation) does no I/O: files
+//! are read and written only in [`io`].
 
+pub mod io;
 pub mod kinematics;
 pub mod model;
+pub mod report;

@@ -12,14 +12,16 @@
 //! - translation: `de/dv = u`,           `dω/dv = 0`
 //!
 //! where `ω` is the small rotation of the end frame in world coordinates (see [`pose_error`]).
-//! Nothing here allocates: the Jacobians are written into views the caller owns.
+//! [`Chain::with_errors`] applies a parameter vector once (and with it the trigonometry of every
+//! step no joint moves); evaluating a point then allocates nothing: the Jacobians are written
+//! into views the caller owns.
 
 use crate::model::{
-    Convention, JointKind, ParamKind, ParamOwner, ParamSet, RobotModel, Selection, Tool,
+    Convention, JointKind, ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, Tool,
 };
 use nalgebra::{
-    DMatrixViewMut, Isometry3, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion,
-    Vector3, Vector6,
+    DMatrix, DMatrixViewMut, Isometry3, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3,
+    Vector6,
 };
 
 /// What a measurement observes at each point, and so how many rows it adds to y and H.
@@ -63,21 +65,17 @@ struct Frame {
 }
 
 impl Frame {
-    fn apply(&mut self, motion: Motion, v: f64) {
-        if v == 0.0 {
-            return;
-        }
-        match motion {
-            Motion::Translate(k) => self.p += self.r.column(k) * v,
-            Motion::Rotate(k) => {
-                // Post-multiplying by a rotation about axis k mixes the other two columns.
-                let (i, j) = ((k + 1) % 3, (k + 2) % 3);
-                let (s, c) = v.sin_cos();
-                let (ci, cj) = (self.r.column(i).into_owned(), self.r.column(j).into_owned());
-                self.r.set_column(i, &(ci * c + cj * s));
-                self.r.set_column(j, &(cj * c - ci * s));
-            }
-        }
+    fn translate(&mut self, k: usize, v: f64) {
+        self.p += self.r.column(k) * v;
+    }
+
+    /// Post-multiply by the rotation about axis k whose sine and cosine are `s`, `c`: it mixes
+    /// the other two columns.
+    fn rotate(&mut self, k: usize, s: f64, c: f64) {
+        let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+        let (ci, cj) = (self.r.column(i).into_owned(), self.r.column(j).into_owned());
+        self.r.set_column(i, &(ci * c + cj * s));
+        self.r.set_column(j, &(cj * c - ci * s));
     }
 
     /// Linear and angular velocity of the end point `e` per unit of `motion`.
@@ -88,6 +86,65 @@ impl Frame {
                 let u = self.r.column(k).into_owned();
                 (u.cross(&(e - self.p)), u)
             }
+        }
+    }
+}
+
+/// A step with its parameter error applied: the value `nominal + x[param]`, and its sine and
+/// cosine when it is a rotation no joint moves, so that only joint steps need trigonometry.
+#[derive(Debug, Clone, Copy)]
+struct Resolved {
+    step: Step,
+    value: f64,
+    sin_cos: (f64, f64),
+}
+
+/// The motion of each parameter kind: about or along which axis of the current frame.
+fn motion_of(kind: ParamKind) -> Motion {
+    use ParamKind::*;
+    match kind {
+        X | A => Motion::Translate(0),
+        Y => Motion::Translate(1),
+        Z | D => Motion::Translate(2),
+        Rx | Alpha => Motion::Rotate(0),
+        Ry | Beta => Motion::Rotate(1),
+        Rz | Theta => Motion::Rotate(2),
+    }
+}
+
+/// Builds the steps of a chain in order, naming each error parameter in the [`ParamSet`].
+struct Builder {
+    params: ParamSet,
+    steps: Vec<Step>,
+}
+
+impl Builder {
+    /// A step that carries error parameter `kind` of `owner` and may be moved by a joint.
+    fn step(&mut self, nominal: f64, joint: Option<usize>, owner: ParamOwner, kind: ParamKind) {
+        let param = Some(self.params.index_of(owner, kind).expect("the ParamSet names every step"));
+        self.steps.push(Step { motion: motion_of(kind), nominal, joint, param });
+    }
+
+    /// A nominal placement `Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll)`, then the error
+    /// displacement `Trans(x, y, z) Rx(rx) Ry(ry) Rz(rz)` limited to `kinds`.
+    fn placement(&mut self, owner: ParamOwner, nominal: &Placement, kinds: &[ParamKind]) {
+        let (t, r) = (nominal.xyz, nominal.rpy);
+        let fixed = [
+            (0, t.x, false),
+            (1, t.y, false),
+            (2, t.z, false),
+            (2, r.z, true),
+            (1, r.y, true),
+            (0, r.x, true),
+        ];
+        for (k, value, rotation) in fixed {
+            let motion = if rotation { Motion::Rotate(k) } else { Motion::Translate(k) };
+            if value != 0.0 {
+                self.steps.push(Step { motion, nominal: value, joint: None, param: None });
+            }
+        }
+        for &kind in kinds {
+            self.step(0.0, None, owner, kind);
         }
     }
 }
@@ -103,105 +160,31 @@ pub struct Chain {
 impl Chain {
     /// Compile `model`.
     pub fn new(model: &RobotModel) -> Self {
-        let params = model.params();
-        let mut steps = Vec::new();
-        let mut push = |motion, nominal, joint, param: Option<(ParamOwner, ParamKind)>| {
-            let param =
-                param.map(|(owner, kind)| params.index_of(owner, kind).expect("ParamSet has it"));
-            steps.push(Step {
-                motion,
-                nominal,
-                joint,
-                param,
-            });
-        };
-        use Motion::{Rotate, Translate};
-        let (x, y, z) = (0, 1, 2);
-
-        let placement =
-            |push: &mut dyn FnMut(Motion, f64, Option<usize>, Option<(ParamOwner, ParamKind)>),
-             owner: ParamOwner,
-             xyz: Vector3<f64>,
-             rpy: Vector3<f64>,
-             kinds: &[ParamKind]| {
-                // Nominal: Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll); then the error displacement.
-                for (k, v) in [(x, xyz.x), (y, xyz.y), (z, xyz.z)] {
-                    push(Translate(k), v, None, None);
-                }
-                for (k, v) in [(z, rpy.z), (y, rpy.y), (x, rpy.x)] {
-                    push(Rotate(k), v, None, None);
-                }
-                for &kind in kinds {
-                    let motion = match kind {
-                        ParamKind::X => Translate(x),
-                        ParamKind::Y => Translate(y),
-                        ParamKind::Z => Translate(z),
-                        ParamKind::Rx => Rotate(x),
-                        ParamKind::Ry => Rotate(y),
-                        _ => Rotate(z),
-                    };
-                    push(motion, 0.0, None, Some((owner, kind)));
-                }
-            };
-
-        placement(
-            &mut push,
-            ParamOwner::Base,
-            model.base.xyz,
-            model.base.rpy,
-            &ParamKind::PLACEMENT,
-        );
+        let mut builder = Builder { params: model.params(), steps: Vec::new() };
+        builder.placement(ParamOwner::Base, &model.base, &ParamKind::PLACEMENT);
         for (i, joint) in model.joints.iter().enumerate() {
-            let owner = ParamOwner::Joint(i);
-            let (on_theta, on_d) = match joint.kind {
-                JointKind::Revolute => (Some(i), None),
-                JointKind::Prismatic => (None, Some(i)),
-            };
-            let theta = (
-                Rotate(z),
-                joint.theta,
-                on_theta,
-                Some((owner, ParamKind::Theta)),
-            );
-            let d = (Translate(z), joint.d, on_d, Some((owner, ParamKind::D)));
-            let a = (Translate(x), joint.a, None, Some((owner, ParamKind::A)));
-            let alpha = (
-                Rotate(x),
-                joint.alpha,
-                None,
-                Some((owner, ParamKind::Alpha)),
-            );
-            let beta = (Rotate(y), joint.beta, None, Some((owner, ParamKind::Beta)));
+            let moves = |kind| Some(i).filter(|_| kind == joint.kind);
+            let theta = (ParamKind::Theta, joint.theta, moves(JointKind::Revolute));
+            let d = (ParamKind::D, joint.d, moves(JointKind::Prismatic));
+            let a = (ParamKind::A, joint.a, None);
+            let alpha = (ParamKind::Alpha, joint.alpha, None);
+            let beta = (ParamKind::Beta, joint.beta, None);
             let order = match model.convention {
                 Convention::StandardDh => [theta, d, a, alpha, beta],
                 Convention::ModifiedDh => [alpha, a, beta, theta, d],
             };
-            for (motion, nominal, joint, param) in order {
-                push(motion, nominal, joint, param);
+            for (kind, nominal, moved_by) in order {
+                builder.step(nominal, moved_by, ParamOwner::Joint(i), kind);
             }
         }
-        match model.tool {
-            Tool::Point(p) => placement(
-                &mut push,
-                ParamOwner::Tool,
-                p,
-                Vector3::zeros(),
-                &ParamKind::PLACEMENT[..3],
-            ),
-            Tool::Frame(f) => placement(
-                &mut push,
-                ParamOwner::Tool,
-                f.xyz,
-                f.rpy,
-                &ParamKind::PLACEMENT,
-            ),
+        match &model.tool {
+            Tool::Point(p) => {
+                let at = Placement { xyz: *p, rpy: Vector3::zeros() };
+                builder.placement(ParamOwner::Tool, &at, &ParamKind::PLACEMENT[..3]);
+            }
+            Tool::Frame(f) => builder.placement(ParamOwner::Tool, f, &ParamKind::PLACEMENT),
         }
-        steps.retain(|s| s.nominal != 0.0 || s.joint.is_some() || s.param.is_some());
-        Self {
-            steps,
-            params,
-            dof: model.dof(),
-        }
+        Self { steps: builder.steps, params: builder.params, dof: model.dof() }
     }
 
     /// Number of joints.
@@ -214,98 +197,124 @@ impl Chain {
         &self.params
     }
 
-    /// Walk the chain at joint values `q` and parameter errors `x`, calling `visit` with each
-    /// step and the frame it acts in; returns the end frame.
-    fn walk(&self, q: &[f64], x: &[f64], mut visit: impl FnMut(&Step, &Frame)) -> Frame {
+    /// The chain with parameter errors `x` (mm, rad; indexed like [`Chain::params`]) applied,
+    /// ready to evaluate at any number of joint configurations.
+    ///
+    /// # Panics
+    /// If `x` has the wrong length.
+    pub fn with_errors(&self, x: &[f64]) -> ChainAt {
+        assert_eq!(x.len(), self.params.len(), "x has one value per error parameter");
+        let steps = self
+            .steps
+            .iter()
+            .map(|&step| {
+                let value = step.nominal + step.param.map_or(0.0, |i| x[i]);
+                Resolved { step, value, sin_cos: value.sin_cos() }
+            })
+            .collect();
+        ChainAt { steps, dof: self.dof }
+    }
+}
+
+/// A [`Chain`] with its parameter errors applied: forward kinematics and Jacobians at any
+/// joint values `q` (rad for revolute joints, mm for prismatic ones).
+///
+/// All methods panic if `q` or an output has the wrong size.
+#[derive(Debug, Clone)]
+pub struct ChainAt {
+    steps: Vec<Resolved>,
+    dof: usize,
+}
+
+impl ChainAt {
+    /// Walk the chain at `q`, calling `visit` with each step and the frame it acts in;
+    /// returns the end frame.
+    fn walk(&self, q: &[f64], mut visit: impl FnMut(&Step, &Frame)) -> Frame {
         assert_eq!(q.len(), self.dof, "q has one value per joint");
-        assert_eq!(
-            x.len(),
-            self.params.len(),
-            "x has one value per error parameter"
-        );
-        let mut frame = Frame {
-            r: Matrix3::identity(),
-            p: Vector3::zeros(),
-        };
-        for step in &self.steps {
+        let mut frame = Frame { r: Matrix3::identity(), p: Vector3::zeros() };
+        for resolved in &self.steps {
+            let step = &resolved.step;
             visit(step, &frame);
-            let v =
-                step.nominal + step.joint.map_or(0.0, |j| q[j]) + step.param.map_or(0.0, |i| x[i]);
-            frame.apply(step.motion, v);
+            match (step.motion, step.joint) {
+                (Motion::Translate(k), joint) => {
+                    frame.translate(k, resolved.value + joint.map_or(0.0, |j| q[j]))
+                }
+                (Motion::Rotate(k), None) => frame.rotate(k, resolved.sin_cos.0, resolved.sin_cos.1),
+                (Motion::Rotate(k), Some(j)) => {
+                    let (s, c) = (resolved.value + q[j]).sin_cos();
+                    frame.rotate(k, s, c);
+                }
+            }
         }
         frame
     }
 
-    /// Position of the tool point (mm) at joint values `q` (rad, or mm for prismatic joints)
-    /// with parameter errors `x`.
-    ///
-    /// # Panics
-    /// If `q` or `x` has the wrong length.
-    pub fn position(&self, q: &[f64], x: &[f64]) -> Vector3<f64> {
-        self.walk(q, x, |_, _| {}).p
+    /// Position of the tool point (mm).
+    pub fn position(&self, q: &[f64]) -> Vector3<f64> {
+        self.walk(q, |_, _| {}).p
     }
 
-    /// Pose of the tool frame: `base * T_1(q_1) * ... * T_n(q_n) * tool`, with errors `x`.
-    ///
-    /// # Panics
-    /// If `q` or `x` has the wrong length.
-    pub fn pose(&self, q: &[f64], x: &[f64]) -> Isometry3<f64> {
-        let end = self.walk(q, x, |_, _| {});
-        let rotation =
-            UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(end.r));
+    /// Pose of the tool frame: `base * T_1(q_1) * ... * T_n(q_n) * tool`.
+    pub fn pose(&self, q: &[f64]) -> Isometry3<f64> {
+        let end = self.walk(q, |_, _| {});
+        let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(end.r));
         Isometry3::from_parts(Translation3::from(end.p), rotation)
     }
 
     /// The manipulator Jacobian `J = d(pose)/dq` (6 x dof: linear rows in mm per joint unit,
     /// then angular rows in rad per joint unit), written into `out`; returns the tool position.
-    ///
-    /// # Panics
-    /// If `q`, `x` or `out` has the wrong size.
-    pub fn manipulator_jacobian(
-        &self,
-        q: &[f64],
-        x: &[f64],
-        out: &mut Matrix6xX<f64>,
-    ) -> Vector3<f64> {
-        assert_eq!(out.ncols(), self.dof, "J has one column per joint");
-        let e = self.position(q, x);
-        self.walk(q, x, |step, frame| {
-            if let Some(j) = step.joint {
-                let (linear, angular) = frame.screw(step.motion, &e);
-                out.fixed_view_mut::<3, 1>(0, j).copy_from(&linear);
-                out.fixed_view_mut::<3, 1>(3, j).copy_from(&angular);
-            }
-        });
-        e
+    pub fn manipulator_jacobian(&self, q: &[f64], out: &mut Matrix6xX<f64>) -> Vector3<f64> {
+        let mut no_h = DMatrix::zeros(0, 0);
+        let empty = Selection::empty();
+        self.jacobians(q, &empty, Measured::Position, no_h.view_mut((0, 0), (0, 0)), Some(out))
     }
 
     /// The identification Jacobian of one point, `H_k = d(pose)/dx` for the selected
     /// parameters (Wu 1984; the paper's Eq. 1), written into `out` (`measured.rows()` x
     /// `selection.len()`); returns the tool position.
-    ///
-    /// # Panics
-    /// If `q`, `x` or `out` has the wrong size.
     pub fn identification_jacobian(
         &self,
         q: &[f64],
-        x: &[f64],
         selection: &Selection,
         measured: Measured,
-        mut out: DMatrixViewMut<'_, f64>,
+        out: DMatrixViewMut<'_, f64>,
     ) -> Vector3<f64> {
-        assert_eq!(
-            out.shape(),
-            (measured.rows(), selection.len()),
-            "H block is rows x selected"
-        );
-        let e = self.position(q, x);
-        self.walk(q, x, |step, frame| {
-            if let Some(column) = step.param.and_then(|i| selection.column(i)) {
-                let (linear, angular) = frame.screw(step.motion, &e);
-                out.fixed_view_mut::<3, 1>(0, column).copy_from(&linear);
+        self.jacobians(q, selection, measured, out, None)
+    }
+
+    /// `H_k` into `h` as [`ChainAt::identification_jacobian`] does and, if asked, `J` into `j`
+    /// in the same walk; returns the tool position.
+    pub fn jacobians(
+        &self,
+        q: &[f64],
+        selection: &Selection,
+        measured: Measured,
+        mut h: DMatrixViewMut<'_, f64>,
+        mut j: Option<&mut Matrix6xX<f64>>,
+    ) -> Vector3<f64> {
+        if h.ncols() > 0 {
+            assert_eq!(h.shape(), (measured.rows(), selection.len()), "H block is rows x selected");
+        }
+        if let Some(j) = &j {
+            assert_eq!(j.ncols(), self.dof, "J has one column per joint");
+        }
+        let e = self.position(q);
+        self.walk(q, |step, frame| {
+            let column = step.param.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
+            let joint = step.joint.filter(|_| j.is_some());
+            if column.is_none() && joint.is_none() {
+                return;
+            }
+            let (linear, angular) = frame.screw(step.motion, &e);
+            if let Some(c) = column {
+                h.fixed_view_mut::<3, 1>(0, c).copy_from(&linear);
                 if measured == Measured::Pose {
-                    out.fixed_view_mut::<3, 1>(3, column).copy_from(&angular);
+                    h.fixed_view_mut::<3, 1>(3, c).copy_from(&angular);
                 }
+            }
+            if let (Some(col), Some(j)) = (joint, j.as_deref_mut()) {
+                j.fixed_view_mut::<3, 1>(0, col).copy_from(&linear);
+                j.fixed_view_mut::<3, 1>(3, col).copy_from(&angular);
             }
         });
         e

@@ -97,30 +97,18 @@ pub(super) fn parse(text: &str) -> Result<RobotModel, ModelError> {
             None => Tool::Point(vector("tool.xyz_mm", &file.tool.xyz_mm)?),
             Some(rpy) => Tool::Frame(placement("tool", &file.tool.xyz_mm, &rpy)?),
         },
-        joints: file
-            .joints
-            .into_iter()
-            .enumerate()
-            .map(|(i, j)| joint(i, j))
-            .collect::<Result<_, _>>()?,
+        joints: file.joints.into_iter().enumerate().map(|(i, j)| joint(i, j)).collect::<Result<_, _>>()?,
     };
     validate(&model)?;
     Ok(model)
 }
 
 fn invalid(field: impl Into<String>, expected: impl Into<String>) -> ModelError {
-    ModelError::Invalid {
-        field: field.into(),
-        expected: expected.into(),
-    }
+    ModelError::Invalid { field: field.into(), expected: expected.into() }
 }
 
 fn finite(field: &str, value: f64) -> Result<f64, ModelError> {
-    if value.is_finite() {
-        Ok(value)
-    } else {
-        Err(invalid(field, format!("a finite number, found {value}")))
-    }
+    if value.is_finite() { Ok(value) } else { Err(invalid(field, format!("a finite number, found {value}"))) }
 }
 
 fn vector(field: &str, v: &[f64; 3]) -> Result<Vector3<f64>, ModelError> {
@@ -159,11 +147,7 @@ fn joint(index: usize, j: JointFile) -> Result<Joint, ModelError> {
             ));
         }
     };
-    let limits_field = at(if kind == JointKind::Revolute {
-        "limits_deg"
-    } else {
-        "limits_mm"
-    });
+    let limits_field = at(if kind == JointKind::Revolute { "limits_deg" } else { "limits_mm" });
     finite(&limits_field, limits[0])?;
     finite(&limits_field, limits[1])?;
     if limits[0] >= limits[1] {
@@ -187,29 +171,17 @@ fn validate(model: &RobotModel) -> Result<(), ModelError> {
     }
     for (i, joint) in model.joints.iter().enumerate() {
         let ok_name = !joint.name.is_empty()
-            && joint
-                .name
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
+            && joint.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-');
         if !ok_name {
             return Err(invalid(
                 format!("joints[{i}].name"),
-                format!(
-                    "a non-empty name of letters, digits, `_` or `-`, found {:?}",
-                    joint.name
-                ),
+                format!("a non-empty name of letters, digits, `_` or `-`, found {:?}", joint.name),
             ));
         }
         if ["base", "tool"].contains(&joint.name.as_str()) {
-            return Err(invalid(
-                format!("joints[{i}].name"),
-                "a name other than `base` or `tool`",
-            ));
+            return Err(invalid(format!("joints[{i}].name"), "a name other than `base` or `tool`"));
         }
-        if model.joints[..i]
-            .iter()
-            .any(|other| other.name == joint.name)
-        {
+        if model.joints[..i].iter().any(|other| other.name == joint.name) {
             return Err(invalid(
                 format!("joints[{i}].name"),
                 format!("a unique name, `{}` is used twice", joint.name),
@@ -228,19 +200,10 @@ pub(super) fn write(model: &RobotModel) -> String {
             Convention::StandardDh => ConventionName::StandardDh,
             Convention::ModifiedDh => ConventionName::ModifiedDh,
         },
-        base: PlacementFile {
-            xyz_mm: model.base.xyz.into(),
-            rpy_deg: deg3(&model.base.rpy),
-        },
+        base: PlacementFile { xyz_mm: model.base.xyz.into(), rpy_deg: deg3(&model.base.rpy) },
         tool: match &model.tool {
-            Tool::Point(p) => ToolFile {
-                xyz_mm: (*p).into(),
-                rpy_deg: None,
-            },
-            Tool::Frame(f) => ToolFile {
-                xyz_mm: f.xyz.into(),
-                rpy_deg: Some(deg3(&f.rpy)),
-            },
+            Tool::Point(p) => ToolFile { xyz_mm: (*p).into(), rpy_deg: None },
+            Tool::Frame(f) => ToolFile { xyz_mm: f.xyz.into(), rpy_deg: Some(deg3(&f.rpy)) },
         },
         joints: model
             .joints
@@ -249,11 +212,7 @@ pub(super) fn write(model: &RobotModel) -> String {
                 let revolute = j.kind == JointKind::Revolute;
                 JointFile {
                     name: j.name.clone(),
-                    kind: if revolute {
-                        KindName::Revolute
-                    } else {
-                        KindName::Prismatic
-                    },
+                    kind: if revolute { KindName::Revolute } else { KindName::Prismatic },
                     theta_deg: degrees(j.theta),
                     d_mm: j.d,
                     a_mm: j.a,
@@ -271,24 +230,15 @@ pub(super) fn write(model: &RobotModel) -> String {
 /// The shortest decimal number of degrees that reads back as exactly `radians`, so that a
 /// written model reads back bit for bit and `90` is written as `90`, not `90.00000000000001`.
 /// Every angle read from degrees has such a number; for any other, the nearest is returned.
-pub(crate) fn degrees(radians: f64) -> f64 {
+pub fn degrees(radians: f64) -> f64 {
     let approx = radians.to_degrees();
     let shortest = (1..=17)
-        .map(|digits| {
-            format!("{approx:.*e}", digits - 1)
-                .parse::<f64>()
-                .unwrap_or(approx)
-        })
+        .map(|digits| format!("{approx:.*e}", digits - 1).parse::<f64>().unwrap_or(approx))
         .find(|d| d.to_radians() == radians);
     // `to_degrees` can land an ulp or two off the value that was read: look beside it.
     let beside = || {
         (1..=8u64)
-            .flat_map(|k| {
-                [
-                    approx.to_bits().wrapping_add(k),
-                    approx.to_bits().wrapping_sub(k),
-                ]
-            })
+            .flat_map(|k| [approx.to_bits().wrapping_add(k), approx.to_bits().wrapping_sub(k)])
             .map(f64::from_bits)
             .find(|d| d.to_radians() == radians)
     };

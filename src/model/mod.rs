@@ -17,7 +17,7 @@
 mod file;
 mod params;
 
-pub use file::ModelError;
+pub use file::{ModelError, degrees};
 pub use params::{ParamInfo, ParamKind, ParamOwner, ParamSet, Selection, SelectionError};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -114,16 +114,6 @@ impl RobotModel {
     /// The named error parameters of this model, in their canonical order.
     pub fn params(&self) -> ParamSet {
         ParamSet::new(self)
-    }
-
-    /// Whether every joint value lies within its limits.
-    pub fn within_limits(&self, q: &[f64]) -> bool {
-        q.len() == self.joints.len()
-            && self
-                .joints
-                .iter()
-                .zip(q)
-                .all(|(joint, &v)| joint.limits[0] <= v && v <= joint.limits[1])
     }
 
     /// Read a model from TOML text (lengths in mm, angles in degrees; see `docs/formats.md`).

@@ -65,10 +65,7 @@ impl ParamKind {
 
     /// Whether the parameter is an angle (rad); otherwise a length (mm).
     pub fn is_angle(self) -> bool {
-        matches!(
-            self,
-            Self::Rx | Self::Ry | Self::Rz | Self::Theta | Self::Alpha | Self::Beta
-        )
+        matches!(self, Self::Rx | Self::Ry | Self::Rz | Self::Theta | Self::Alpha | Self::Beta)
     }
 }
 
@@ -115,12 +112,7 @@ impl ParamSet {
         let mut params = Vec::new();
         let mut push = |owner, kind: ParamKind, prefix: &str, is_offset| {
             let name = format!("{prefix}.{}", kind.label());
-            params.push(ParamInfo {
-                owner,
-                kind,
-                name,
-                is_offset,
-            });
+            params.push(ParamInfo { owner, kind, name, is_offset });
         };
         for kind in ParamKind::PLACEMENT {
             push(ParamOwner::Base, kind, "base", false);
@@ -166,9 +158,7 @@ impl ParamSet {
 
     /// Index of the parameter of `owner` and `kind`, if the model has it.
     pub fn index_of(&self, owner: ParamOwner, kind: ParamKind) -> Option<usize> {
-        self.params
-            .iter()
-            .position(|p| p.owner == owner && p.kind == kind)
+        self.params.iter().position(|p| p.owner == owner && p.kind == kind)
     }
 
     /// Index of the parameter called `name`.
@@ -207,13 +197,16 @@ impl Selection {
         for i in indices {
             columns[i] = Some(0);
         }
-        let indices: Vec<usize> = (0..params.len())
-            .filter(|&i| columns[i].is_some())
-            .collect();
+        let indices: Vec<usize> = (0..params.len()).filter(|&i| columns[i].is_some()).collect();
         for (column, &i) in indices.iter().enumerate() {
             columns[i] = Some(column);
         }
         Self { indices, columns }
+    }
+
+    /// No parameter.
+    pub(crate) fn empty() -> Self {
+        Self { indices: Vec::new(), columns: Vec::new() }
     }
 
     /// Every parameter of the model.
@@ -237,12 +230,9 @@ impl Selection {
         let mut chosen = Vec::new();
         for pattern in names.iter().map(AsRef::as_ref) {
             let before = chosen.len();
-            chosen
-                .extend((0..params.len()).filter(|&i| name_matches(pattern, &params.get(i).name)));
+            chosen.extend((0..params.len()).filter(|&i| name_matches(pattern, &params.get(i).name)));
             if chosen.len() == before {
-                return Err(SelectionError {
-                    pattern: pattern.to_string(),
-                });
+                return Err(SelectionError { pattern: pattern.to_string() });
             }
         }
         Ok(Self::from_indices(params, chosen))
@@ -277,9 +267,7 @@ impl Selection {
 /// run of characters within that part (`j*.theta`, `base.*`).
 fn name_matches(pattern: &str, name: &str) -> bool {
     let part = |p: &str, n: &str| match p.split_once('*') {
-        Some((pre, post)) => {
-            n.len() >= pre.len() + post.len() && n.starts_with(pre) && n.ends_with(post)
-        }
+        Some((pre, post)) => n.len() >= pre.len() + post.len() && n.starts_with(pre) && n.ends_with(post),
         None => p == n,
     };
     match (pattern.split_once('.'), name.split_once('.')) {
@@ -305,17 +293,10 @@ mod tests {
     fn names_and_patterns_select_in_canonical_order() {
         let params = RobotModel::preset("puma560").unwrap().params();
         let sel = Selection::by_names(&params, &["tool.*", "j*.theta", "base.x"]).unwrap();
-        let names: Vec<_> = sel
-            .indices()
-            .iter()
-            .map(|&i| params.get(i).name.as_str())
-            .collect();
+        let names: Vec<_> = sel.indices().iter().map(|&i| params.get(i).name.as_str()).collect();
         assert_eq!(names[..3], ["base.x", "j1.theta", "j2.theta"]);
         assert_eq!(names.len(), 1 + 6 + 3);
-        assert_eq!(
-            sel.column(params.index_by_name("j1.theta").unwrap()),
-            Some(1)
-        );
+        assert_eq!(sel.column(params.index_by_name("j1.theta").unwrap()), Some(1));
         assert_eq!(sel.column(params.index_by_name("j1.d").unwrap()), None);
         let err = Selection::by_names(&params, &["j7.theta"]).unwrap_err();
         assert!(err.to_string().contains("`j7.theta`"), "{err}");

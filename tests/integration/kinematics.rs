@@ -12,34 +12,22 @@ fn puma() -> RobotModel {
 /// A random serial robot of the given convention; `beta` decides whether the Hayati angles
 /// are used (non-zero) or left at zero.
 fn robot(convention: Convention, beta: bool) -> impl Strategy<Value = RobotModel> {
-    let joint =
-        (any::<bool>(), prop::array::uniform5(-1.0..1.0f64)).prop_map(move |(prismatic, u)| {
-            Joint {
-                name: String::new(),
-                kind: if prismatic {
-                    JointKind::Prismatic
-                } else {
-                    JointKind::Revolute
-                },
-                theta: u[0] * 3.0,
-                d: u[1] * 400.0,
-                a: u[2] * 400.0,
-                alpha: u[3] * 3.0,
-                beta: if beta { u[4] * 0.5 } else { 0.0 },
-                limits: [-3.0, 3.0],
-            }
-        });
+    let joint = (any::<bool>(), prop::array::uniform5(-1.0..1.0f64)).prop_map(move |(prismatic, u)| Joint {
+        name: String::new(),
+        kind: if prismatic { JointKind::Prismatic } else { JointKind::Revolute },
+        theta: u[0] * 3.0,
+        d: u[1] * 400.0,
+        a: u[2] * 400.0,
+        alpha: u[3] * 3.0,
+        beta: if beta { u[4] * 0.5 } else { 0.0 },
+        limits: [-3.0, 3.0],
+    });
     let placement = prop::array::uniform6(-1.0..1.0f64).prop_map(|u| Placement {
         xyz: Vector3::new(u[0], u[1], u[2]) * 300.0,
         rpy: Vector3::new(u[3], u[4], u[5]) * 3.0,
     });
-    (
-        prop::collection::vec(joint, 1..=7),
-        placement.clone(),
-        placement,
-        any::<bool>(),
-    )
-        .prop_map(move |(mut joints, base, tool, frame)| {
+    (prop::collection::vec(joint, 1..=7), placement.clone(), placement, any::<bool>()).prop_map(
+        move |(mut joints, base, tool, frame)| {
             for (i, joint) in joints.iter_mut().enumerate() {
                 joint.name = format!("j{}", i + 1);
             }
@@ -49,13 +37,10 @@ fn robot(convention: Convention, beta: bool) -> impl Strategy<Value = RobotModel
                 convention,
                 base,
                 joints,
-                tool: if frame {
-                    Tool::Frame(tool)
-                } else {
-                    Tool::Point(tool.xyz)
-                },
+                tool: if frame { Tool::Frame(tool) } else { Tool::Point(tool.xyz) },
             }
-        })
+        },
+    )
 }
 
 /// Joint values (rad or mm) and small parameter errors for `model`, from unit draws.
@@ -64,13 +49,7 @@ fn point(model: &RobotModel, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
         .joints
         .iter()
         .zip(u)
-        .map(|(j, u)| {
-            if j.kind == JointKind::Revolute {
-                u * 3.0
-            } else {
-                u * 200.0
-            }
-        })
+        .map(|(j, u)| if j.kind == JointKind::Revolute { u * 3.0 } else { u * 200.0 })
         .collect();
     let params = model.params();
     let x = params
@@ -103,50 +82,32 @@ fn check_jacobians(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
     let chain = Chain::new(model);
     let (q, x) = point(model, u);
     let params = chain.params();
+    let at = chain.with_errors(&x);
 
-    let selection = Selection::all(params);
-    let mut h = DMatrix::zeros(6, selection.len());
-    let e = chain.identification_jacobian(
-        &q,
-        &x,
-        &selection,
-        Measured::Pose,
-        h.view_mut((0, 0), (6, selection.len())),
-    );
-    prop_assert!((e - chain.position(&q, &x)).amax() < 1e-12);
+    let all = Selection::all(params);
+    let mut h = DMatrix::zeros(6, all.len());
+    let mut j = Matrix6xX::zeros(model.dof());
+    let e = at.jacobians(&q, &all, Measured::Pose, h.view_mut((0, 0), (6, all.len())), Some(&mut j));
+    prop_assert!((e - at.position(&q)).amax() < 1e-12);
+
     let h_fd = DMatrix::from_fn(6, params.len(), |r, c| {
-        central_difference(&x, c, |x| chain.pose(&q, x))[r]
+        central_difference(&x, c, |x| chain.with_errors(x).pose(&q))[r]
     });
     let err = relative_error(&h, &h_fd);
-    prop_assert!(
-        err < 1e-6,
-        "H vs finite differences: relative error {err:e}"
-    );
+    prop_assert!(err < 1e-6, "H vs finite differences: relative error {err:e}");
 
-    let mut j = Matrix6xX::zeros(model.dof());
-    chain.manipulator_jacobian(&q, &x, &mut j);
-    let j_fd = DMatrix::from_fn(6, model.dof(), |r, c| {
-        central_difference(&q, c, |q| chain.pose(q, &x))[r]
-    });
-    let err = relative_error(
-        &DMatrix::from_column_slice(6, model.dof(), j.as_slice()),
-        &j_fd,
-    );
-    prop_assert!(
-        err < 1e-6,
-        "J vs finite differences: relative error {err:e}"
-    );
+    let j_fd = DMatrix::from_fn(6, model.dof(), |r, c| central_difference(&q, c, |q| at.pose(q))[r]);
+    let err = relative_error(&DMatrix::from_column_slice(6, model.dof(), j.as_slice()), &j_fd);
+    prop_assert!(err < 1e-6, "J vs finite differences: relative error {err:e}");
 
-    // Position rows of a partial selection are the matching rows and columns of the full H.
+    // The single-Jacobian calls give the same numbers; position rows of a partial selection
+    // are the matching rows and columns of the full H.
+    let mut j_alone = Matrix6xX::zeros(model.dof());
+    at.manipulator_jacobian(&q, &mut j_alone);
+    prop_assert_eq!(&j_alone, &j);
     let partial = Selection::joints(params);
     let mut h3 = DMatrix::zeros(3, partial.len());
-    chain.identification_jacobian(
-        &q,
-        &x,
-        &partial,
-        Measured::Position,
-        h3.view_mut((0, 0), (3, partial.len())),
-    );
+    at.identification_jacobian(&q, &partial, Measured::Position, h3.view_mut((0, 0), (3, partial.len())));
     for (column, &index) in partial.indices().iter().enumerate() {
         prop_assert_eq!(h3.column(column), h.fixed_view::<3, 1>(0, index));
     }
@@ -187,12 +148,12 @@ proptest! {
     fn standard_and_modified_dh_describe_the_same_robot(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 8)) {
         let modified = to_modified_dh(&model);
         let q: Vec<f64> = u.iter().take(model.dof()).map(|u| u * 3.0).collect();
-        let (a, b) = (Chain::new(&model), Chain::new(&modified));
-        let (xa, xb) = (vec![0.0; a.params().len()], vec![0.0; b.params().len()]);
+        let a = Chain::new(&model).with_errors(&vec![0.0; model.params().len()]);
+        let b = Chain::new(&modified).with_errors(&vec![0.0; modified.params().len()]);
         // A tool point carries no orientation of its own: the last joint frames differ.
         let err = match model.tool {
-            Tool::Point(_) => (a.position(&q, &xa) - b.position(&q, &xb)).amax(),
-            Tool::Frame(_) => pose_error(&a.pose(&q, &xa), &b.pose(&q, &xb)).amax(),
+            Tool::Point(_) => (a.position(&q) - b.position(&q)).amax(),
+            Tool::Frame(_) => pose_error(&a.pose(&q), &b.pose(&q)).amax(),
         };
         prop_assert!(err < 1e-9, "tools differ by {err:e}");
     }
@@ -217,10 +178,7 @@ fn to_modified_dh(model: &RobotModel) -> RobotModel {
         Tool::Frame(f) => {
             let iso = tool(f);
             let (roll, pitch, yaw) = iso.rotation.euler_angles();
-            Tool::Frame(Placement {
-                xyz: iso.translation.vector,
-                rpy: Vector3::new(roll, pitch, yaw),
-            })
+            Tool::Frame(Placement { xyz: iso.translation.vector, rpy: Vector3::new(roll, pitch, yaw) })
         }
     };
     modified
@@ -236,49 +194,27 @@ fn puma_by_hand(q2: f64, q3: f64, tool: Vector3<f64>) -> Vector3<f64> {
     let (a2, a3, d3, d4) = (431.8, 20.3, 150.05, 431.8);
     let (c2, s2) = (q2.cos(), q2.sin());
     let (c23, s23) = ((q2 + q3).cos(), (q2 + q3).sin());
-    let wrist = Vector3::new(
-        a2 * c2 + a3 * c23 - d4 * s23,
-        -d3,
-        a2 * s2 + a3 * s23 + d4 * c23,
-    );
-    let rotated = Vector3::new(
-        c23 * tool.x - s23 * tool.z,
-        tool.y,
-        s23 * tool.x + c23 * tool.z,
-    );
+    let wrist = Vector3::new(a2 * c2 + a3 * c23 - d4 * s23, -d3, a2 * s2 + a3 * s23 + d4 * c23);
+    let rotated = Vector3::new(c23 * tool.x - s23 * tool.z, tool.y, s23 * tool.x + c23 * tool.z);
     wrist + rotated
 }
 
 #[test]
 fn puma560_named_poses_match_the_closed_form() {
     let model = puma();
-    let Tool::Point(tool) = model.tool else {
-        panic!("the PUMA preset has a tool point")
-    };
-    let chain = Chain::new(&model);
-    let x = vec![0.0; chain.params().len()];
+    let Tool::Point(tool) = model.tool else { panic!("the PUMA preset has a tool point") };
+    let chain = Chain::new(&model).with_errors(&vec![0.0; model.params().len()]);
     let deg = f64::to_radians;
     for (name, q2, q3, expected) in [
         ("zero", 0.0, 0.0, Vector3::new(502.1, -150.05, 581.8)),
         ("ready", 90.0, -90.0, Vector3::new(70.3, -150.05, 1013.6)),
-        (
-            "stretched",
-            0.0,
-            -90.0,
-            Vector3::new(1013.6, -150.05, -70.3),
-        ),
+        ("stretched", 0.0, -90.0, Vector3::new(1013.6, -150.05, -70.3)),
     ] {
         let q = [0.0, deg(q2), deg(q3), 0.0, 0.0, 0.0];
         let by_hand = puma_by_hand(deg(q2), deg(q3), tool);
-        assert!(
-            (by_hand - expected).amax() < 1e-9,
-            "{name}: by hand {by_hand} vs {expected}"
-        );
-        let fk = chain.position(&q, &x);
-        assert!(
-            (fk - by_hand).amax() < 1e-9,
-            "{name}: fk {fk} vs by hand {by_hand}"
-        );
+        assert!((by_hand - expected).amax() < 1e-9, "{name}: by hand {by_hand} vs {expected}");
+        let fk = chain.position(&q);
+        assert!((fk - by_hand).amax() < 1e-9, "{name}: fk {fk} vs by hand {by_hand}");
     }
 }
 
@@ -286,18 +222,15 @@ fn puma560_named_poses_match_the_closed_form() {
 fn puma560_wrist_centre_matches_the_closed_form_everywhere() {
     let mut model = puma();
     model.tool = Tool::Point(Vector3::zeros());
-    let chain = Chain::new(&model);
-    let x = vec![0.0; chain.params().len()];
+    let chain = Chain::new(&model).with_errors(&vec![0.0; model.params().len()]);
     let (a2, a3, d3, d4) = (431.8, 20.3, 150.05, 431.8);
     for i in 0..200 {
-        let q: Vec<f64> = (0..6)
-            .map(|k| ((i * 7 + k * 13) as f64 * 0.37).sin() * 3.0)
-            .collect();
+        let q: Vec<f64> = (0..6).map(|k| ((i * 7 + k * 13) as f64 * 0.37).sin() * 3.0).collect();
         let (c1, s1) = (q[0].cos(), q[0].sin());
         let big_x = a2 * q[1].cos() + a3 * (q[1] + q[2]).cos() - d4 * (q[1] + q[2]).sin();
         let big_y = a2 * q[1].sin() + a3 * (q[1] + q[2]).sin() + d4 * (q[1] + q[2]).cos();
         let by_hand = Vector3::new(c1 * big_x + s1 * d3, s1 * big_x - c1 * d3, big_y);
-        assert!((chain.position(&q, &x) - by_hand).amax() < 1e-9);
+        assert!((chain.position(&q) - by_hand).amax() < 1e-9);
     }
 }
 
@@ -308,9 +241,7 @@ fn spread_points(model: &RobotModel, n: usize) -> Vec<Vec<f64>> {
             let joints = model.joints.iter().enumerate();
             joints
                 .map(|(j, joint)| {
-                    let u = (((k * 6 + j) as f64 * 12.9898).sin() * 43758.5453)
-                        .fract()
-                        .abs();
+                    let u = (((k * 6 + j) as f64 * 12.9898).sin() * 43758.5453).fract().abs();
                     joint.limits[0] + u * (joint.limits[1] - joint.limits[0])
                 })
                 .collect()
@@ -328,16 +259,10 @@ fn puma560_thirty_parameter_position_rank_is_23() {
     let params = chain.params();
     let selection = Selection::joints(params);
     let points = spread_points(&model, 50);
-    let x = vec![0.0; params.len()];
+    let at = chain.with_errors(&vec![0.0; params.len()]);
     let mut h = DMatrix::zeros(3 * points.len(), selection.len());
     for (k, q) in points.iter().enumerate() {
-        chain.identification_jacobian(
-            q,
-            &x,
-            &selection,
-            Measured::Position,
-            h.view_mut((3 * k, 0), (3, 30)),
-        );
+        at.identification_jacobian(q, &selection, Measured::Position, h.view_mut((3 * k, 0), (3, 30)));
     }
     let mut scaled = h.clone();
     for mut column in scaled.column_iter_mut() {
@@ -345,20 +270,13 @@ fn puma560_thirty_parameter_position_rank_is_23() {
     }
     let mut sv: Vec<f64> = scaled.singular_values().iter().copied().collect();
     sv.sort_by(|a, b| b.total_cmp(a));
-    assert!(
-        sv[22] > 1e-2 && sv[23] < 1e-12 * sv[0],
-        "singular values {sv:?}"
-    );
+    assert!(sv[22] > 1e-2 && sv[23] < 1e-12 * sv[0], "singular values {sv:?}");
 
     let (a3, tool_x, tool_z) = (20.3, 50.0, 150.0);
     let null_combinations: [&[(&str, f64)]; 7] = [
         &[("j1.theta", -1.0), ("j1.beta", 1.0)],
         &[("j2.d", -1.0), ("j3.d", 1.0)],
-        &[
-            ("j3.theta", -1.0 / a3),
-            ("j3.beta", -1.0 / a3),
-            ("j4.d", 1.0),
-        ],
+        &[("j3.theta", -1.0 / a3), ("j3.beta", -1.0 / a3), ("j4.d", 1.0)],
         &[("j4.theta", -1.0), ("j4.beta", 1.0)],
         &[("j5.theta", 1.0), ("j5.beta", 1.0)],
         &[("j6.theta", tool_z / tool_x), ("j6.alpha", 1.0)],
@@ -367,14 +285,9 @@ fn puma560_thirty_parameter_position_rank_is_23() {
     for combination in null_combinations {
         let mut v = nalgebra::DVector::zeros(30);
         for &(name, coefficient) in combination {
-            v[selection
-                .column(params.index_by_name(name).unwrap())
-                .unwrap()] = coefficient;
+            v[selection.column(params.index_by_name(name).unwrap()).unwrap()] = coefficient;
         }
         let moved = (&h * &v).amax();
-        assert!(
-            moved < 1e-9,
-            "{combination:?} moves the tool by {moved:e} mm"
-        );
+        assert!(moved < 1e-9, "{combination:?} moves the tool by {moved:e} mm");
     }
 }

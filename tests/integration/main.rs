@@ -1,4 +1,5 @@
 //! robocal's integration tests, gathered in one test binary.
 
+mod cli;
 mod kinematics;
 mod model_files;

@@ -11,10 +11,7 @@ fn puma_preset_reads_with_the_papers_numbers() {
     assert_eq!(model.dof(), 6);
     assert_eq!(model.joints[2].d, 150.05);
     assert_eq!(model.joints[3].alpha, 90f64.to_radians());
-    assert_eq!(
-        model.joints[1].limits,
-        [-45f64.to_radians(), 225f64.to_radians()]
-    );
+    assert_eq!(model.joints[1].limits, [-45f64.to_radians(), 225f64.to_radians()]);
 }
 
 #[test]
@@ -22,14 +19,8 @@ fn written_model_reads_back_exactly() {
     let model = RobotModel::from_toml_str(PUMA).unwrap();
     let text = model.to_toml_string();
     assert_eq!(RobotModel::from_toml_str(&text).unwrap(), model);
-    assert!(
-        text.contains("alpha_deg = 90.0"),
-        "degrees are written short:\n{text}"
-    );
-    assert_eq!(
-        RobotModel::from_toml_str(&text).unwrap().to_toml_string(),
-        text
-    );
+    assert!(text.contains("alpha_deg = 90.0"), "degrees are written short:\n{text}");
+    assert_eq!(RobotModel::from_toml_str(&text).unwrap().to_toml_string(), text);
 }
 
 proptest! {
@@ -52,10 +43,7 @@ fn error_of(text: &str) -> String {
 #[test]
 fn misspelled_field_is_named_with_its_line() {
     let message = error_of(&PUMA.replacen("a_mm = 431.8", "a_m = 431.8", 1));
-    assert!(
-        message.contains("a_m") && message.contains("line"),
-        "{message}"
-    );
+    assert!(message.contains("a_m") && message.contains("line"), "{message}");
 }
 
 #[test]
@@ -67,16 +55,12 @@ fn missing_field_is_named() {
 #[test]
 fn unknown_convention_says_what_is_allowed() {
     let message = error_of(&PUMA.replace("standard-dh", "dh"));
-    assert!(
-        message.contains("standard-dh") && message.contains("modified-dh"),
-        "{message}"
-    );
+    assert!(message.contains("standard-dh") && message.contains("modified-dh"), "{message}");
 }
 
 #[test]
 fn reversed_limits_are_rejected() {
-    let err =
-        RobotModel::from_toml_str(&PUMA.replace("[-160.0, 160.0]", "[160.0, -160.0]")).unwrap_err();
+    let err = RobotModel::from_toml_str(&PUMA.replace("[-160.0, 160.0]", "[160.0, -160.0]")).unwrap_err();
     assert_eq!(
         err,
         ModelError::Invalid {
@@ -89,27 +73,17 @@ fn reversed_limits_are_rejected() {
 #[test]
 fn not_a_number_is_rejected() {
     let message = error_of(&PUMA.replacen("a_mm = 20.3", "a_mm = nan", 1));
-    assert_eq!(
-        message,
-        "field `joints[2].a_mm`: a finite number, found NaN"
-    );
+    assert_eq!(message, "field `joints[2].a_mm`: a finite number, found NaN");
 }
 
 #[test]
 fn prismatic_joint_needs_limits_in_mm() {
     let text = PUMA.replacen("type = \"revolute\"", "type = \"prismatic\"", 1);
-    assert!(
-        error_of(&text).contains("joints[0].limits_mm"),
-        "{}",
-        error_of(&text)
-    );
+    assert!(error_of(&text).contains("joints[0].limits_mm"), "{}", error_of(&text));
 }
 
 #[test]
 fn duplicate_joint_names_are_rejected() {
     let message = error_of(&PUMA.replace("name = \"j2\"", "name = \"j1\""));
-    assert!(
-        message.contains("joints[1].name") && message.contains("twice"),
-        "{message}"
-    );
+    assert!(message.contains("joints[1].name") && message.contains("twice"), "{message}");
 }

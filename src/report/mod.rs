@@ -1,0 +1,58 @@
+//! Text reports, formatted at fixed precision so that they can be snapshot-tested.
+
+use crate::model::{JointKind, RobotModel, degrees};
+use nalgebra::Isometry3;
+use std::fmt::Write;
+
+/// The tool pose at joint values `q` (rad or mm) as a person checks it against a controller:
+/// position (mm), roll-pitch-yaw (deg, `R = Rz(yaw) Ry(pitch) Rx(roll)`), quaternion and the
+/// homogeneous transform.
+pub fn tool_pose(model: &RobotModel, q: &[f64], pose: &Isometry3<f64>) -> String {
+    let joints: Vec<String> = model
+        .joints
+        .iter()
+        .zip(q)
+        .map(|(joint, &v)| match joint.kind {
+            JointKind::Revolute => format!("{} deg", degrees(v)),
+            JointKind::Prismatic => format!("{v} mm"),
+        })
+        .collect();
+    let p = pose.translation.vector.map(|v| tidy(v, 6));
+    let (roll, pitch, yaw) = pose.rotation.euler_angles();
+    let (roll, pitch, yaw) =
+        (tidy(roll.to_degrees(), 6), tidy(pitch.to_degrees(), 6), tidy(yaw.to_degrees(), 6));
+    let quat = pose.rotation.quaternion().coords.map(|v| tidy(v, 9));
+    let m = pose.to_homogeneous().map(|v| tidy(v, 9));
+    let mut out = String::new();
+    let _ = writeln!(out, "model       {}", model.name);
+    let _ = writeln!(out, "joints      {}", joints.join(", "));
+    let _ = writeln!(out, "position    x = {:.6} mm, y = {:.6} mm, z = {:.6} mm", p.x, p.y, p.z);
+    let _ = writeln!(
+        out,
+        "rotation    roll = {:.6} deg, pitch = {:.6} deg, yaw = {:.6} deg  (R = Rz(yaw) Ry(pitch) Rx(roll))",
+        roll, pitch, yaw
+    );
+    let _ = writeln!(
+        out,
+        "quaternion  w = {:.9}, x = {:.9}, y = {:.9}, z = {:.9}",
+        quat.w, quat.x, quat.y, quat.z
+    );
+    let _ = writeln!(out, "transform   (rotation | translation in mm)");
+    for r in 0..3 {
+        let _ = writeln!(
+            out,
+            "            {:>12.9} {:>12.9} {:>12.9} | {:>12.6}",
+            m[(r, 0)],
+            m[(r, 1)],
+            m[(r, 2)],
+            m[(r, 3)]
+        );
+    }
+    out
+}
+
+/// `v` with anything that prints as zero at `decimals` places made a plain zero, so reports
+/// never show `-0.000`.
+fn tidy(v: f64, decimals: i32) -> f64 {
+    if v.abs() < 0.5 * 10f64.powi(-decimals) { 0.0 } else { v }
+}

@@ -1,0 +1,74 @@
+//! The `robocal` command: outputs snapshot-tested, errors and exit codes.
+
+use assert_cmd::Command;
+
+fn robocal() -> Command {
+    Command::cargo_bin("robocal").unwrap()
+}
+
+fn stderr_of(args: &[&str]) -> String {
+    let output = robocal().args(args).output().unwrap();
+    assert_eq!(output.status.code(), Some(1), "exit code 1 for bad input");
+    String::from_utf8(output.stderr).unwrap()
+}
+
+#[test]
+fn fk_prints_the_tool_pose() {
+    let output = robocal().args(["fk", "--model", "puma560", "--q", "0,90,-90,0,0,0"]).output().unwrap();
+    assert!(output.status.success());
+    insta::assert_snapshot!(String::from_utf8(output.stdout).unwrap());
+}
+
+#[test]
+fn fk_warns_outside_the_limits() {
+    let output = robocal().args(["fk", "--model", "puma560", "--q", "0 45 180 0 45 0"]).output().unwrap();
+    assert!(output.status.success());
+    assert_eq!(String::from_utf8(output.stderr).unwrap(), "warning: joint j3 lies outside its limits\n");
+}
+
+#[test]
+fn fk_rejects_a_wrong_number_of_joint_values() {
+    let message = stderr_of(&["fk", "--model", "puma560", "--q", "0,45"]);
+    assert!(message.contains("puma560 has 6 joints, got 2 values"), "{message}");
+}
+
+#[test]
+fn fk_rejects_a_non_number() {
+    let message = stderr_of(&["fk", "--model", "puma560", "--q", "0,4x5,0,0,0,0"]);
+    assert!(message.contains("--q: value 2 `4x5` is not a number"), "{message}");
+}
+
+#[test]
+fn unknown_model_lists_the_presets() {
+    let message = stderr_of(&["model", "show", "puma561"]);
+    assert!(message.contains("no model `puma561`: not a preset (puma560)"), "{message}");
+}
+
+#[test]
+fn bad_model_file_is_named_with_the_field() {
+    let dir = std::env::temp_dir().join(format!("robocal-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("bad.toml");
+    let text = include_str!("../../presets/puma560.toml").replacen("a_mm = 20.3", "a_mm = \"20.3\"", 1);
+    std::fs::write(&path, text).unwrap();
+    let message = stderr_of(&["model", "show", path.to_str().unwrap()]);
+    assert!(message.contains("bad.toml") && message.contains("a_mm"), "{message}");
+}
+
+#[test]
+fn model_show_prints_a_model_that_reads_back() {
+    let output = robocal().args(["model", "show", "puma560"]).output().unwrap();
+    let text = String::from_utf8(output.stdout).unwrap();
+    let model = robocal::model::RobotModel::from_toml_str(&text).unwrap();
+    assert_eq!(model, robocal::model::RobotModel::preset("puma560").unwrap());
+}
+
+#[test]
+fn usage_errors_exit_with_2() {
+    assert_eq!(robocal().args(["fk"]).output().unwrap().status.code(), Some(2));
+}
+
+#[test]
+fn reproduce_runs() {
+    assert!(robocal().arg("reproduce").output().unwrap().status.success());
+}
