@@ -14,14 +14,19 @@
 //! - [`kinematics`]: forward kinematics, the manipulator Jacobian `J` and the identification
 //!   Jacobian `H`, analytic and allocation-free.
 //!
+//! - [`estimation`]: the noise model (`V_k = J_k Sigma_q J_k^T + Sigma_m,k`), OLS and weighted
+//!   (Gauss-Markov) least squares by whitening, rank-deficient solves, identifiability,
+//!   covariance, and Gauss-Newton refinement.
 //! - [`io`]: reading files, with errors that name the file.
 //! - [`report`]: text reports at fixed precision.
 //!
 //! Units inside the library are millimetres and radians; degrees appear only at the edges.
-//! The core (model, kinematics and, to come, estimation and simulation) does no I/O: files
+//! The core (model, kinematics, estimation and, to come, simulation) does no I/O: files
 //! are read and written only in [`io`].
 
+pub mod estimation;
 pub mod io;
 pub mod kinematics;
+mod linalg;
 pub mod model;
 pub mod report;

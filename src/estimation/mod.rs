@@ -1,0 +1,305 @@
+//! Estimation of the parameter errors from `y = H x + e` (the paper's Eq. 1).
+//!
+//! - [`Estimator::Ols`]: ordinary least squares.
+//! - [`Estimator::Wls`]: the Gauss-Markov estimator `x = (H^T V^-1 H)^-1 H^T V^-1 y` (Eq. 4),
+//!   and for rank `r < p` its extension `x = M^+ H^T V^-1 y`, `M = H^T V^-1 H` (Eq. 6), with the
+//!   full blocks `V_k = J_k Sigma_q J_k^T + Sigma_m,k` (Eq. 10, per point).
+//! - [`Estimator::WlsDiag`]: weights from the diagonal of each `V_k` only.
+//! - [`Estimator::WlsSigma`]: weights `1/sigma` instead of `1/sigma^2` (the paper says it tried
+//!   such alternatives and found them no better).
+//!
+//! Every weighted estimator is computed by whitening, never with a dense `N_m x N_m` matrix:
+//! each block of rows is multiplied by `S_k` (for Gauss-Markov `S_k = L_k^-1`, with
+//! `V_k = L_k L_k^T`), and the whitened least-squares problem is solved by a rank-revealing
+//! factorisation (see [`LinearEstimate`]). `M^+ H^T V^-1 y = pinv(S H) S y` exactly, so this
+//! is Eq. 6 itself. The paper's normalisation `W = sigma_max^2 V^-1` (before Eq. 18) is applied;
+//! it scales every weight by one constant and leaves `x` unchanged.
+
+mod noise;
+mod problem;
+mod refine;
+mod solve;
+
+pub use noise::{MeasurementNoise, NoiseModel, point_covariance};
+pub use problem::PointProblem;
+pub use refine::{Iteration, RefineOptions, Refined, Residuals, refine};
+pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE};
+
+use nalgebra::{DMatrix, DVector, SMatrix};
+use std::fmt;
+use std::str::FromStr;
+
+/// The weighting of the least-squares problem.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Estimator {
+    /// Ordinary least squares: every row weighted alike.
+    Ols,
+    /// Gauss-Markov: the inverse of the full covariance blocks `V_k` (Eqs. 4, 6).
+    Wls,
+    /// The inverse of the diagonal of each `V_k` (each coordinate's variance).
+    WlsDiag,
+    /// `1/sigma` of each coordinate instead of `1/sigma^2`.
+    WlsSigma,
+}
+
+impl Estimator {
+    /// Every estimator, in the order reports list them.
+    pub const ALL: [Estimator; 4] = [Self::Ols, Self::Wls, Self::WlsDiag, Self::WlsSigma];
+
+    /// The name on the command line and in reports: `ols`, `wls`, `wls-diag`, `wls-sigma`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Ols => "ols",
+            Self::Wls => "wls",
+            Self::WlsDiag => "wls-diag",
+            Self::WlsSigma => "wls-sigma",
+        }
+    }
+}
+
+impl fmt::Display for Estimator {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Estimator {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::ALL.into_iter().find(|e| e.name() == s).ok_or_else(|| {
+            let names: Vec<_> = Self::ALL.iter().map(|e| e.name()).collect();
+            format!("unknown estimator `{s}`, expected one of: {}", names.join(", "))
+        })
+    }
+}
+
+/// Why an estimate could not be computed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EstimationError {
+    /// A value in y, H or V is NaN or infinite.
+    #[error("{what} row {row} holds {value}: expected finite numbers")]
+    NonFinite {
+        /// `y`, `H` or `V`.
+        what: &'static str,
+        /// The row (0-based) of the stacked system.
+        row: usize,
+        /// The offending value.
+        value: f64,
+    },
+    /// A covariance block `V_k` has no Cholesky factor.
+    #[error("the covariance V_k of point {point} is not positive definite")]
+    NotPositiveDefinite {
+        /// The point (0-based).
+        point: usize,
+    },
+    /// The parts of the system do not fit together.
+    #[error("mismatched dimensions: {0}")]
+    Dimensions(String),
+    /// Fewer equations than the rank the parameters need.
+    #[error(
+        "{equations} equations cannot identify {parameters} parameters: the rank ({rank}) is limited by the \
+         number of equations; measure more points or identify fewer parameters"
+    )]
+    TooFewEquations {
+        /// Rows of y.
+        equations: usize,
+        /// Columns of H.
+        parameters: usize,
+        /// The numerical rank found.
+        rank: usize,
+    },
+    /// The singular value decomposition did not converge (non-finite or extreme values).
+    #[error("the singular value decomposition of the weighted H did not converge")]
+    NoConvergence,
+    /// A weighted estimator was asked for without a noise covariance.
+    #[error("estimator `{0}` needs the noise covariance (Sigma_q and Sigma_m)")]
+    NoiseRequired(Estimator),
+    /// The noise model does not fit the robot or the points.
+    #[error("noise model: {0}")]
+    Noise(String),
+}
+
+/// The linear model of `N_p` points, `y = H x + e` (Eq. 1), with the covariance of `e`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LinearSystem {
+    /// Identification Jacobian, `N_m x p` (rows point by point).
+    pub h: DMatrix<f64>,
+    /// Pose errors: measured minus predicted, `N_m`.
+    pub y: DVector<f64>,
+    /// Rows per point: 3 (position) or 6 (pose).
+    pub rows_per_point: usize,
+    /// The blocks `V_k`, stacked: `N_m x rows_per_point`, rows of point k at `k * rows_per_point`.
+    /// `None` when the noise is unknown (then only OLS, with the variance from the residuals).
+    pub v: Option<DMatrix<f64>>,
+}
+
+impl LinearSystem {
+    /// Number of points.
+    pub fn points(&self) -> usize {
+        self.y.len() / self.rows_per_point
+    }
+
+    /// Check dimensions and finiteness.
+    pub fn validate(&self) -> Result<(), EstimationError> {
+        let (rows, b) = (self.y.len(), self.rows_per_point);
+        let dims = |s: String| Err(EstimationError::Dimensions(s));
+        if b != 3 && b != 6 {
+            return dims(format!("{b} rows per point, expected 3 (position) or 6 (pose)"));
+        }
+        if rows % b != 0 || self.h.nrows() != rows {
+            return dims(format!("y has {rows} rows and H {}; both must be {b} per point", self.h.nrows()));
+        }
+        if let Some(v) = &self.v
+            && v.shape() != (rows, b)
+        {
+            return dims(format!("V blocks are {:?}, expected {rows} x {b}", v.shape()));
+        }
+        let check = |what: &'static str, m: &DMatrix<f64>| match m.iter().position(|v| !v.is_finite()) {
+            Some(i) => Err(EstimationError::NonFinite { what, row: i % m.nrows(), value: m[i] }),
+            None => Ok(()),
+        };
+        check("y", &DMatrix::from_column_slice(rows, 1, self.y.as_slice()))?;
+        check("H", &self.h)?;
+        if let Some(v) = &self.v {
+            check("V", v)?;
+        }
+        Ok(())
+    }
+}
+
+/// The whitened problem `min |b - A x|^2`, `A = S H`, `b = S y`, and the covariance of `b`,
+/// `S_k V_k S_k^T` stacked like `V` (identity blocks for Gauss-Markov).
+pub(crate) struct Whitened {
+    pub a: DMatrix<f64>,
+    pub b: DVector<f64>,
+    pub noise: Option<DMatrix<f64>>,
+}
+
+/// The whitening operator `S = blockdiag(S_k)` of an estimator, with the paper's normalisation.
+#[derive(Debug, Clone)]
+pub(crate) struct Weights {
+    /// `S_k` stacked (`N_m x rows`); `None` for OLS (the identity).
+    s: Option<DMatrix<f64>>,
+    /// `S_k V_k S_k^T` stacked, if `V` is known.
+    noise: Option<DMatrix<f64>>,
+    rows: usize,
+}
+
+impl Weights {
+    /// The weights of `estimator` for blocks `v` (`N_m x rows`, stacked `V_k`), normalised
+    /// as the paper does (`W = sigma_max^2 V^-1`) if `normalise`.
+    pub(crate) fn new(
+        v: Option<&DMatrix<f64>>,
+        rows: usize,
+        estimator: Estimator,
+        normalise: bool,
+    ) -> Result<Self, EstimationError> {
+        let Some(v) = v else {
+            return match estimator {
+                Estimator::Ols => Ok(Self { s: None, noise: None, rows }),
+                _ => Err(EstimationError::NoiseRequired(estimator)),
+            };
+        };
+        if estimator == Estimator::Ols {
+            return Ok(Self { s: None, noise: Some(v.clone()), rows });
+        }
+        let mut s = match rows {
+            3 => block_weights::<3>(v, estimator)?,
+            _ => block_weights::<6>(v, estimator)?,
+        };
+        if normalise {
+            // W = sigma_max^2 V^-1: S scaled by sigma_max (by its square root for 1/sigma weights).
+            let sigma_max = (0..v.nrows()).map(|r| v[(r, r % rows)]).fold(0.0, f64::max).sqrt();
+            let c = if estimator == Estimator::WlsSigma { sigma_max.sqrt() } else { sigma_max };
+            if c > 0.0 {
+                s *= c;
+            }
+        }
+        let mut weights = Self { s: Some(s), noise: None, rows };
+        let mut noise = v.clone();
+        weights.apply(&mut noise);
+        for k in 0..v.nrows() / rows {
+            // (S_k V_k) S_k^T: the rows are whitened, now the columns.
+            let s_k = weights.s.as_ref().expect("set above").rows(k * rows, rows).transpose();
+            let block = noise.rows(k * rows, rows) * s_k;
+            noise.rows_mut(k * rows, rows).copy_from(&block);
+        }
+        weights.noise = Some(noise);
+        Ok(weights)
+    }
+
+    /// Multiply `m` (`N_m` rows) by `S` in place, block by block, without allocating.
+    pub(crate) fn apply<C: nalgebra::Dim, St: nalgebra::StorageMut<f64, nalgebra::Dyn, C>>(
+        &self,
+        m: &mut nalgebra::Matrix<f64, nalgebra::Dyn, C, St>,
+    ) {
+        let Some(s) = &self.s else { return };
+        match self.rows {
+            3 => apply_blocks::<3, C, St>(s, m),
+            _ => apply_blocks::<6, C, St>(s, m),
+        }
+    }
+
+    /// `A = S H`, `b = S y` and the whitened noise blocks of `system`.
+    pub(crate) fn whiten(&self, system: &LinearSystem) -> Whitened {
+        let (mut a, mut b) = (system.h.clone(), system.y.clone());
+        self.apply(&mut a);
+        self.apply(&mut b);
+        Whitened { a, b, noise: self.noise.clone() }
+    }
+}
+
+fn block_weights<const B: usize>(
+    v: &DMatrix<f64>,
+    estimator: Estimator,
+) -> Result<DMatrix<f64>, EstimationError> {
+    let mut s = DMatrix::zeros(v.nrows(), B);
+    for k in 0..v.nrows() / B {
+        let v_k: SMatrix<f64, B, B> = v.fixed_view::<B, B>(k * B, 0).into_owned();
+        let s_k: SMatrix<f64, B, B> = match estimator {
+            Estimator::Ols => SMatrix::identity(),
+            Estimator::Wls => {
+                let l = v_k.cholesky().ok_or(EstimationError::NotPositiveDefinite { point: k })?.unpack();
+                l.try_inverse().ok_or(EstimationError::NotPositiveDefinite { point: k })?
+            }
+            Estimator::WlsDiag | Estimator::WlsSigma => {
+                if v_k.diagonal().iter().any(|&d| d <= 0.0) {
+                    return Err(EstimationError::NotPositiveDefinite { point: k });
+                }
+                let power = if estimator == Estimator::WlsDiag { -0.5 } else { -0.25 };
+                SMatrix::from_diagonal(&v_k.diagonal().map(|d| d.powf(power)))
+            }
+        };
+        s.fixed_view_mut::<B, B>(k * B, 0).copy_from(&s_k);
+    }
+    Ok(s)
+}
+
+fn apply_blocks<const B: usize, C: nalgebra::Dim, St: nalgebra::StorageMut<f64, nalgebra::Dyn, C>>(
+    s: &DMatrix<f64>,
+    m: &mut nalgebra::Matrix<f64, nalgebra::Dyn, C, St>,
+) {
+    for k in 0..s.nrows() / B {
+        let s_k: SMatrix<f64, B, B> = s.fixed_view::<B, B>(k * B, 0).into_owned();
+        for c in 0..m.ncols() {
+            let column: nalgebra::SVector<f64, B> = m.fixed_view::<B, 1>(k * B, c).into_owned();
+            m.fixed_view_mut::<B, 1>(k * B, c).copy_from(&(s_k * column));
+        }
+    }
+}
+
+/// Estimate `x` from `system` with `estimator` in one linear step (Eqs. 4-6), with the
+/// diagnostics and covariance of [`LinearEstimate`]. `rank_tolerance` is relative to the
+/// largest singular value of the column-scaled whitened `H` ([`RANK_TOLERANCE`] by default).
+pub fn estimate(
+    system: &LinearSystem,
+    estimator: Estimator,
+    rank_tolerance: f64,
+) -> Result<LinearEstimate, EstimationError> {
+    system.validate()?;
+    let weights = Weights::new(system.v.as_ref(), system.rows_per_point, estimator, true)?;
+    solve::solve(&weights.whiten(system), rank_tolerance)
+}
+
+#[cfg(test)]
+mod tests;

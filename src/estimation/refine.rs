@@ -1,0 +1,195 @@
+//! Nonlinear refinement: the paper's linear step, repeated about the updated parameters
+//! (Gauss-Newton), with Levenberg-Marquardt damping when a step fails to lower the weighted
+//! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
+
+use super::solve::{LinearEstimate, RANK_TOLERANCE, factorise};
+use super::{EstimationError, Estimator, LinearSystem, Weights};
+use nalgebra::{DMatrix, DVector};
+
+/// A least-squares problem that can be linearised about any parameter values.
+pub trait Residuals {
+    /// Rows per point: 3 (position) or 6 (pose).
+    fn rows_per_point(&self) -> usize;
+    /// Rows of `y`: `N_m`.
+    fn equations(&self) -> usize;
+    /// The covariance blocks `V_k`, stacked, held fixed over the iterations; `None` if unknown.
+    fn covariance(&self) -> Option<&DMatrix<f64>>;
+    /// The residual `y(x)` (measured minus predicted) and, if `h` is given, the Jacobian
+    /// `H(x) = d(prediction)/dx` written into it.
+    fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64>;
+}
+
+/// When to stop iterating.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RefineOptions {
+    /// At most this many linear steps; 1 is the paper's one-step estimate.
+    pub max_iterations: usize,
+    /// Stop when no whitened residual moves by more than this in a step.
+    pub step_tolerance: f64,
+    /// Stop when a step lowers the weighted cost by less than this fraction.
+    pub cost_tolerance: f64,
+    /// Relative rank tolerance of each linear solve ([`RANK_TOLERANCE`]).
+    pub rank_tolerance: f64,
+}
+
+impl Default for RefineOptions {
+    fn default() -> Self {
+        Self {
+            max_iterations: 50,
+            step_tolerance: 1e-9,
+            cost_tolerance: 1e-12,
+            rank_tolerance: RANK_TOLERANCE,
+        }
+    }
+}
+
+/// One linear step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Iteration {
+    /// Weighted cost before the step.
+    pub cost: f64,
+    /// Weighted cost after it.
+    pub cost_after: f64,
+    /// Largest change of a whitened prediction the step made.
+    pub step: f64,
+    /// Levenberg-Marquardt damping that was needed (0: a plain Gauss-Newton step).
+    pub damping: f64,
+}
+
+/// The refined estimate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Refined {
+    /// The estimate at the last parameters, with the covariance and diagnostics of the last
+    /// linearisation; `estimate.x` holds the parameter values (not a step).
+    pub estimate: LinearEstimate,
+    /// Every step taken.
+    pub history: Vec<Iteration>,
+    /// Whether a stopping rule was met before `max_iterations`.
+    pub converged: bool,
+}
+
+/// Refine `x0` by Gauss-Newton with Levenberg-Marquardt damping, each step the weighted
+/// (or ordinary) least-squares solution of the system linearised about the current `x`.
+pub fn refine(
+    problem: &impl Residuals,
+    estimator: Estimator,
+    x0: DVector<f64>,
+    options: &RefineOptions,
+) -> Result<Refined, EstimationError> {
+    let rows = problem.rows_per_point();
+    let weights = Weights::new(problem.covariance(), rows, estimator, true)?;
+    let cost_at = |x: &DVector<f64>| {
+        let mut y = problem.evaluate(x, None);
+        weights.apply(&mut y);
+        y.norm_squared()
+    };
+    let mut x = x0;
+    let mut history = Vec::new();
+    loop {
+        let mut h = DMatrix::zeros(problem.equations(), x.len());
+        let y = problem.evaluate(&x, Some(&mut h));
+        let system = LinearSystem { h, y, rows_per_point: rows, v: problem.covariance().cloned() };
+        system.validate()?;
+        let whitened = weights.whiten(&system);
+        let factorised = factorise(&whitened.a, options.rank_tolerance)?;
+        let cost = whitened.b.norm_squared();
+        let gauss_newton = &factorised.pinv * &whitened.b;
+
+        let one_step = options.max_iterations == 1;
+        let taken = if one_step {
+            // The paper's estimate: the linear solution, taken as it is.
+            Some((gauss_newton, f64::NAN, 0.0))
+        } else {
+            // Gauss-Newton, damped more and more until the cost falls, as Levenberg-Marquardt.
+            let mut trial = (gauss_newton, 0.0);
+            loop {
+                let cost_after = cost_at(&(&x + &trial.0));
+                if cost_after <= cost {
+                    break Some((trial.0, cost_after, trial.1));
+                }
+                if trial.1 >= 1e12 {
+                    break None;
+                }
+                let damping = if trial.1 == 0.0 { 1e-4 } else { trial.1 * 10.0 };
+                trial = (damped_step(&whitened.a, &whitened.b, damping, options.rank_tolerance)?, damping);
+            }
+        };
+        let (converged, final_cost) = match taken {
+            Some((step, cost_after, damping)) => {
+                let moved = (&whitened.a * &step).amax();
+                x += &step;
+                history.push(Iteration { cost, cost_after, step: moved, damping });
+                let small =
+                    moved <= options.step_tolerance || cost - cost_after <= options.cost_tolerance * cost;
+                (!one_step && small, if one_step { cost } else { cost_after })
+            }
+            None => (true, cost),
+        };
+        if converged || history.len() >= options.max_iterations {
+            let covariance = factorised.covariance(&whitened.a, whitened.noise.as_ref(), cost);
+            let estimate =
+                LinearEstimate { x, covariance, cost: final_cost, diagnostics: factorised.diagnostics };
+            return Ok(Refined { estimate, history, converged });
+        }
+    }
+}
+
+/// The Levenberg-Marquardt step: `min |b - A d|^2 + damping |diag(|A_j|) d|^2` (Marquardt's
+/// scaling, so the damping is the same for mm and rad), by the same rank-revealing solve.
+fn damped_step(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    damping: f64,
+    tolerance: f64,
+) -> Result<DVector<f64>, EstimationError> {
+    let (m, p) = a.shape();
+    let mut augmented = DMatrix::zeros(m + p, p);
+    augmented.rows_mut(0, m).copy_from(a);
+    for (j, column) in a.column_iter().enumerate() {
+        augmented[(m + j, j)] = damping.sqrt() * column.norm();
+    }
+    let mut rhs = DVector::zeros(m + p);
+    rhs.rows_mut(0, m).copy_from(b);
+    Ok(factorise(&augmented, tolerance)?.pinv * rhs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One point measuring `atan(x)` in its first coordinate, observed as 0: Gauss-Newton
+    /// from x = 3 overshoots (it diverges for |x| > 1.39), so damping must take over.
+    struct Arctangent;
+
+    impl Residuals for Arctangent {
+        fn rows_per_point(&self) -> usize {
+            3
+        }
+        fn equations(&self) -> usize {
+            3
+        }
+        fn covariance(&self) -> Option<&DMatrix<f64>> {
+            None
+        }
+        fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
+            if let Some(h) = h {
+                h.fill(0.0);
+                h[(0, 0)] = 1.0 / (1.0 + x[0] * x[0]);
+            }
+            DVector::from_vec(vec![-x[0].atan(), 0.0, 0.0])
+        }
+    }
+
+    #[test]
+    fn damping_rescues_a_diverging_gauss_newton() {
+        let start = DVector::from_vec(vec![3.0]);
+        let refined = refine(&Arctangent, Estimator::Ols, start.clone(), &RefineOptions::default()).unwrap();
+        assert!(refined.converged && refined.estimate.x[0].abs() < 1e-8, "{:?}", refined.history);
+        assert!(refined.history[0].damping > 0.0, "the first step needs damping: {:?}", refined.history);
+        assert!(refined.history.windows(2).all(|w| w[1].cost <= w[0].cost), "the cost never rises");
+
+        let one = RefineOptions { max_iterations: 1, ..RefineOptions::default() };
+        let paper = refine(&Arctangent, Estimator::Ols, start, &one).unwrap();
+        assert!((paper.estimate.x[0] - (3.0 - 3f64.atan() * 10.0)).abs() < 1e-12, "one undamped step");
+    }
+}

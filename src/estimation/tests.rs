@@ -1,0 +1,48 @@
+use super::*;
+
+/// A small system with a known answer: 4 points of 3 rows, 2 parameters.
+fn small_system() -> LinearSystem {
+    let h = DMatrix::from_fn(12, 2, |r, c| ((r * 7 + c * 3) as f64 * 0.91).sin() + c as f64);
+    let y = &h * DVector::from_vec(vec![0.5, -2.0]) + DVector::from_fn(12, |r, _| 0.01 * (r as f64).cos());
+    let v = DMatrix::from_fn(12, 3, |r, c| {
+        let k = (r / 3) as f64 + 1.0;
+        if r % 3 == c { k * k } else { 0.1 * k }
+    });
+    LinearSystem { h, y, rows_per_point: 3, v: Some(v) }
+}
+
+#[test]
+fn the_papers_normalisation_leaves_the_estimate_unchanged() {
+    let system = small_system();
+    for estimator in [Estimator::Wls, Estimator::WlsDiag, Estimator::WlsSigma] {
+        let solve = |normalise| {
+            let weights = Weights::new(system.v.as_ref(), 3, estimator, normalise).unwrap();
+            let whitened = weights.whiten(&system);
+            (whitened.b.norm(), solve::solve(&whitened, RANK_TOLERANCE).unwrap())
+        };
+        let ((a_plain, plain), (a_normalised, normalised)) = (solve(false), solve(true));
+        assert!((a_plain - a_normalised).abs() > 1e-3, "{estimator}: the normalisation must scale the rows");
+        let change = (&plain.x - &normalised.x).amax() / plain.x.amax();
+        assert!(change < 1e-12, "{estimator}: x changed by {change:e}");
+        let cov_change = (&plain.covariance - &normalised.covariance).amax() / plain.covariance.amax();
+        assert!(cov_change < 1e-12, "{estimator}: covariance changed by {cov_change:e}");
+    }
+}
+
+#[test]
+fn gauss_markov_whitening_gives_identity_noise() {
+    let system = small_system();
+    let weights = Weights::new(system.v.as_ref(), 3, Estimator::Wls, false).unwrap();
+    let noise = weights.whiten(&system).noise.unwrap();
+    for k in 0..4 {
+        assert!((noise.rows(3 * k, 3) - DMatrix::identity(3, 3)).amax() < 1e-12);
+    }
+}
+
+#[test]
+fn estimator_names_round_trip() {
+    for e in Estimator::ALL {
+        assert_eq!(e.name().parse::<Estimator>().unwrap(), e);
+    }
+    assert!("gls".parse::<Estimator>().unwrap_err().contains("ols, wls, wls-diag, wls-sigma"));
+}
