@@ -17,11 +17,13 @@
 //! - [`estimation`]: the noise model (`V_k = J_k Sigma_q J_k^T + Sigma_m,k`), OLS and weighted
 //!   (Gauss-Markov) least squares by whitening, rank-deficient solves, identifiability,
 //!   covariance, and Gauss-Newton refinement.
+//! - [`simulation`]: the Monte Carlo simulation of a calibration campaign (the paper's steps
+//!   1-8), studies as data, reproducible on any number of threads.
 //! - [`io`]: reading files, with errors that name the file.
 //! - [`report`]: text reports at fixed precision.
 //!
 //! Units inside the library are millimetres and radians; degrees appear only at the edges.
-//! The core (model, kinematics, estimation and, to come, simulation) does no I/O: files
+//! The core (model, kinematics, estimation, simulation) does no I/O: files
 //! are read and written only in [`io`].
 
 pub mod estimation;
@@ -30,3 +32,4 @@ pub mod kinematics;
 mod linalg;
 pub mod model;
 pub mod report;
+pub mod simulation;

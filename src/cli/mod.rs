@@ -2,9 +2,13 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
 use robocal::kinematics::Chain;
 use robocal::model::{JointKind, PRESETS, RobotModel};
+use robocal::simulation::{self, Study};
 use robocal::{io, report};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// Kinematic calibration of robot arms by ordinary and weighted least squares.
 ///
@@ -19,11 +23,25 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Command {
-    /// Run the paper's study on the embedded PUMA 560 (Tables 1-2, Figures 1-4).
+    /// Run the paper's two studies on the embedded PUMA 560: Tables 1-2, Figures 1-4.
     Reproduce {
-        /// Folder for the CSV samples and the figures.
+        /// Folder for the tables, the CSV samples and the SVG figures.
         #[arg(long, default_value = "robocal-out")]
-        out: std::path::PathBuf,
+        out: PathBuf,
+        /// Worker threads (default: all cores). The numbers do not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
+    },
+    /// Run a study: a TOML file, or an embedded one (paper-table1, paper-table2).
+    Simulate {
+        /// The study file or name.
+        study: String,
+        /// Folder for the tables, the CSV samples and the SVG figures.
+        #[arg(long, default_value = "robocal-out")]
+        out: PathBuf,
+        /// Worker threads (default: all cores). The numbers do not depend on it.
+        #[arg(long)]
+        threads: Option<usize>,
     },
     /// Forward kinematics: the tool pose of a model at given joint values.
     Fk {
@@ -75,13 +93,50 @@ pub fn run(cli: Cli) -> Result<()> {
                 println!("{name:<12} {}", model.description);
             }
         }
-        Command::Reproduce { out: _ } => {
-            let model = RobotModel::preset("puma560").expect("presets are valid");
-            println!("The paper's Monte Carlo study is not implemented yet: this prints the embedded");
-            println!("PUMA 560 model it will run on.\n");
-            print!("{}", model.to_toml_string());
+        Command::Reproduce { out, threads } => {
+            let started = Instant::now();
+            let studies = ["paper-table1", "paper-table2"]
+                .map(io::load_study)
+                .into_iter()
+                .collect::<Result<Vec<_>, _>>()?;
+            for study in &studies {
+                simulate(study, &out, threads)?;
+            }
+            println!(
+                "The paper's figures: Fig. 1a-e paper-table1/histogram-wls-np{{12,24,48,96,192}}-sigma0.svg,"
+            );
+            println!(
+                "Fig. 2 paper-table1/improvement-vs-points-wls.svg, Fig. 3 paper-table2/improvement-vs-sigma-wls.svg,"
+            );
+            println!(
+                "Fig. 4a-c paper-table2/histogram-wls-np48-sigma{{0.025,0.05,0.1}}.svg (and the same for wls-diag)."
+            );
+            println!("Both studies in {:.2} s.", started.elapsed().as_secs_f64());
         }
+        Command::Simulate { study, out, threads } => simulate(&io::load_study(&study)?, &out, threads)?,
     }
+    Ok(())
+}
+
+/// Run `study` with a progress bar, print its tables, and write them with the CSV samples and
+/// the figures into `out/<study name>/`.
+fn simulate(study: &Study, out: &Path, threads: Option<usize>) -> Result<()> {
+    let runs = study.cases.len() * study.point_sets * study.runs_per_set;
+    let bar = ProgressBar::new(runs as u64).with_message(study.name.clone());
+    bar.set_style(ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} runs").expect("a valid template"));
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build()?;
+    let results = pool.install(|| simulation::run(study, &|| bar.inc(1)))?;
+    bar.finish_and_clear();
+    let tables = report::study::tables(study, &results);
+    println!("{tables}");
+    let mut files = vec![
+        ("tables.txt".to_string(), tables),
+        ("samples.csv".to_string(), report::study::samples_csv(study, &results)),
+    ];
+    files.extend(report::figures::study_figures(study, &results)?);
+    let folder = out.join(&study.name);
+    io::write_files(&folder, &files)?;
+    println!("wrote {} files to {}\n", files.len(), folder.display());
     Ok(())
 }
 

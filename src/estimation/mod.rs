@@ -301,5 +301,43 @@ pub fn estimate(
     solve::solve(&weights.whiten(system), rank_tolerance)
 }
 
+/// An estimator factored for one `H` and `V`: the estimate for any `y` is then one product,
+/// `x = pinv(S H) S y`. This is how a Monte Carlo study solves many runs on one point set.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    weights: Weights,
+    factorised: solve::Factorised,
+}
+
+impl Prepared {
+    /// Factor `h` (`N_m x p`) for `estimator`, with the stacked blocks `v` (`N_m x rows`).
+    pub fn new(
+        h: &DMatrix<f64>,
+        v: Option<&DMatrix<f64>>,
+        rows_per_point: usize,
+        estimator: Estimator,
+        rank_tolerance: f64,
+    ) -> Result<Self, EstimationError> {
+        let system =
+            LinearSystem { h: h.clone(), y: DVector::zeros(h.nrows()), rows_per_point, v: v.cloned() };
+        system.validate()?;
+        let weights = Weights::new(v, rows_per_point, estimator, true)?;
+        let factorised = solve::factorise(&weights.whiten(&system).a, rank_tolerance)?;
+        Ok(Self { weights, factorised })
+    }
+
+    /// The estimate for pose errors `y` (Eqs. 4-6).
+    pub fn estimate(&self, y: &DVector<f64>) -> DVector<f64> {
+        let mut b = y.clone();
+        self.weights.apply(&mut b);
+        &self.factorised.pinv * b
+    }
+
+    /// Rank, singular values and identifiability of the factored system.
+    pub fn diagnostics(&self) -> &Diagnostics {
+        &self.factorised.diagnostics
+    }
+}
+
 #[cfg(test)]
 mod tests;

@@ -137,9 +137,11 @@ pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, 
         DMatrix::from_diagonal(&DVector::from_iterator(rank, svd.s[..rank].iter().map(|s| 1.0 / s)));
     let pinv = (&pdv * &inverse_s * svd.u.columns(0, rank).transpose()).columns(0, m).into_owned();
     let pg = &pdv * &inverse_s * &inverse_s * svd.v.columns(0, rank).transpose() * &d;
+    // A_s = U (S V^T) with U orthonormal: S V^T has the same column norms and inner products,
+    // so pivoting on it picks the same columns at p x p cost.
+    let sv_t = DMatrix::from_diagonal(&DVector::from_column_slice(&svd.s)) * svd.v.transpose();
+    let identifiable = pivoted_columns(&sv_t, rank);
     let singular_values = svd.s;
-
-    let identifiable = pivoted_columns(&scaled, rank);
     let not_identifiable = combinations(&null_basis, &identifiable);
     let condition_number = if rank > 0 { largest / singular_values[rank - 1] } else { f64::INFINITY };
     let diagnostics = Diagnostics { rank, singular_values, condition_number, identifiable, not_identifiable };
@@ -228,18 +230,18 @@ impl Factorised {
     ) -> DMatrix<f64> {
         let c = match noise {
             Some(blocks) => {
+                // C = A^T (N A), with N A formed block by block into one matrix.
                 let b = blocks.ncols();
-                let mut c = DMatrix::zeros(a.ncols(), a.ncols());
+                let mut na = DMatrix::zeros(a.nrows(), a.ncols());
                 for k in 0..a.nrows() / b {
-                    let a_k = a.rows(k * b, b);
-                    c += a_k.transpose() * blocks.rows(k * b, b) * a_k;
+                    blocks.rows(k * b, b).mul_to(&a.rows(k * b, b), &mut na.rows_mut(k * b, b));
                 }
-                c
+                a.tr_mul(&na)
             }
             None => {
                 let dof = a.nrows().saturating_sub(self.diagnostics.rank);
                 let sigma2 = if dof > 0 { cost / dof as f64 } else { f64::NAN };
-                a.transpose() * a * sigma2
+                a.tr_mul(a) * sigma2
             }
         };
         &self.pg * c * self.pg.transpose()

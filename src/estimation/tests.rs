@@ -46,3 +46,14 @@ fn estimator_names_round_trip() {
     }
     assert!("gls".parse::<Estimator>().unwrap_err().contains("ols, wls, wls-diag, wls-sigma"));
 }
+
+#[test]
+fn prepared_estimator_equals_the_one_off_estimate() {
+    let system = small_system();
+    for estimator in Estimator::ALL {
+        let prepared = Prepared::new(&system.h, system.v.as_ref(), 3, estimator, RANK_TOLERANCE).unwrap();
+        let once = estimate(&system, estimator, RANK_TOLERANCE).unwrap();
+        assert!((prepared.estimate(&system.y) - &once.x).amax() < 1e-14, "{estimator}");
+        assert_eq!(prepared.diagnostics(), &once.diagnostics);
+    }
+}

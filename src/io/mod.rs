@@ -4,6 +4,7 @@
 //! kinematics, estimation, simulation) works on values.
 
 use crate::model::{ModelError, PRESETS, RobotModel};
+use crate::simulation::{STUDIES, Study, StudyError};
 use std::path::{Path, PathBuf};
 
 /// A file that could not be read or understood.
@@ -25,6 +26,14 @@ pub enum InputError {
         /// What is wrong, with line or field.
         source: ModelError,
     },
+    /// The file is not a valid study.
+    #[error("{path}: {source}")]
+    Study {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, with line or field.
+        source: StudyError,
+    },
     /// Neither a preset nor an existing file.
     #[error("no model `{name}`: not a preset ({presets}) and no such file")]
     UnknownModel {
@@ -33,6 +42,39 @@ pub enum InputError {
         /// The preset names, comma-separated.
         presets: String,
     },
+}
+
+/// A file that could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: cannot write: {source}")]
+pub struct OutputError {
+    /// The file or folder.
+    pub path: PathBuf,
+    /// What the system said.
+    pub source: std::io::Error,
+}
+
+/// Write `files` (name, contents) into `folder`, creating it if needed.
+pub fn write_files(folder: &Path, files: &[(String, String)]) -> Result<(), OutputError> {
+    std::fs::create_dir_all(folder).map_err(|source| OutputError { path: folder.into(), source })?;
+    for (name, contents) in files {
+        let path = folder.join(name);
+        std::fs::write(&path, contents).map_err(|source| OutputError { path, source })?;
+    }
+    Ok(())
+}
+
+/// A study by name (`paper-table1`, see [`STUDIES`]) or from a TOML file; its `robot` field
+/// is loaded by [`load_model`].
+pub fn load_study(name_or_path: &str) -> Result<Study, InputError> {
+    let robot = |name: &str| load_model(name).map_err(|e| e.to_string());
+    if let Some((_, text)) = STUDIES.iter().find(|(n, _)| *n == name_or_path) {
+        return Ok(Study::from_toml_str(text, robot).expect("embedded studies are valid"));
+    }
+    let path = Path::new(name_or_path);
+    let text =
+        std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })?;
+    Study::from_toml_str(&text, robot).map_err(|source| InputError::Study { path: path.into(), source })
 }
 
 /// A model by preset name (`puma560`) or from a TOML file.

@@ -1,4 +1,8 @@
-//! Text reports, formatted at fixed precision so that they can be snapshot-tested.
+//! Reports: text at fixed precision (so that it can be snapshot-tested), CSV and SVG. Nothing
+//! here touches a file: [`crate::io`] writes what these functions return.
+
+pub mod figures;
+pub mod study;
 
 use crate::model::{JointKind, RobotModel, degrees};
 use nalgebra::Isometry3;

@@ -1,0 +1,365 @@
+//! Monte Carlo simulation of a calibration campaign: the paper's steps 1-8.
+//!
+//! For each case (`N_p`, `sigma_me`) and point set:
+//! 1. `N_p` joint configurations uniform within the joint limits;
+//!
+//! and for each run on that set:
+//! 2. a "real" robot: the nominal parameters plus geometric errors;
+//! 3. its forward kinematics at `q + n_q`, the joint noise drawn anew at every point;
+//! 4. plus measurement noise `n_m`: the measured positions (or poses);
+//! 5. pose errors: measured minus the nominal forward kinematics at the commanded `q`;
+//! 6. `y` and `H` (at the nominal parameters; `H` and `V` are the set's, factored once);
+//! 7. the estimate of every compared estimator from the same `y` (common random numbers);
+//! 8. each estimated model's position error against the real robot's noise-free kinematics
+//!    over a test set of configurations separate from the measurement points: `E_p`.
+//!
+//! Random numbers: every stream is ChaCha8 seeded with the study's master seed, on a stream
+//! number made of (`N_p`, set, run); see [`stream`]. Cases that differ only in `sigma_me` so
+//! share their point sets and standard normal draws, as the paper's tables share their
+//! `N_p = 48`, `sigma_me = 0` row. Runs are spread over threads with rayon, and the results
+//! are the same, bit for bit, for any number of threads.
+
+mod stats;
+mod study;
+
+pub use stats::{Summary, t_quantile_975};
+pub use study::{Case, ErrorSizes, Redraw, Reference, STUDIES, Study, StudyError};
+
+use crate::estimation::{
+    EstimationError, MeasurementNoise, NoiseModel, PointProblem, Prepared, RANK_TOLERANCE, RefineOptions,
+    refine,
+};
+use crate::kinematics::{Chain, ChainAt, Measured, pose_error};
+use crate::model::{ParamKind, RobotModel};
+use nalgebra::{DVector, Isometry3, Translation3, UnitQuaternion, Vector3};
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
+
+/// The stream of a point set (`run = None`) or of one run: `N_p` in bits 42 and up, the set in
+/// bits 21-41, the run plus one in bits 0-20.
+pub fn stream(points: usize, set: usize, run: Option<usize>) -> u64 {
+    ((points as u64) << 42) | ((set as u64) << 21) | run.map_or(0, |r| r as u64 + 1)
+}
+
+/// The stream of the test set.
+pub const TEST_STREAM: u64 = u64::MAX;
+/// The stream that measures the error caused by joint noise alone.
+pub const JOINT_NOISE_STREAM: u64 = u64::MAX - 1;
+
+fn rng(seed: u64, stream: u64) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(stream);
+    rng
+}
+
+fn normal(rng: &mut ChaCha8Rng) -> f64 {
+    StandardNormal.sample(rng)
+}
+
+/// `n` configurations uniform within the joint limits.
+pub fn uniform_configurations(model: &RobotModel, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
+    (0..n)
+        .map(|_| model.joints.iter().map(|j| rng.random_range(j.limits[0]..=j.limits[1])).collect())
+        .collect()
+}
+
+/// How accurate a calibrated model is over the test set.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Accuracy {
+    /// Mean position error `E_p` (mm).
+    pub mean: f64,
+    /// Root mean square position error (mm).
+    pub rms: f64,
+    /// Largest position error (mm).
+    pub max: f64,
+    /// Mean orientation error `E_r` (rad) when poses are measured; NaN otherwise.
+    pub orientation: f64,
+}
+
+/// One run: the accuracy of every compared estimator, from the same random numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Run {
+    /// Index into [`Study::cases`].
+    pub case: usize,
+    /// Point set within the case.
+    pub set: usize,
+    /// Run within the set.
+    pub run: usize,
+    /// One per estimator, in the study's order.
+    pub accuracy: Vec<Accuracy>,
+}
+
+impl Run {
+    /// `dE = 100 (E_p - E_p^w) / E_p` (the paper's Eq. 18) of estimator `e` against the
+    /// baseline, the study's first estimator.
+    pub fn improvement(&self, e: usize) -> f64 {
+        improvement(self.accuracy[0].mean, self.accuracy[e].mean)
+    }
+}
+
+/// The paper's Eq. 18: `dE = 100 (E_p - E_p^w) / E_p`, in percent.
+pub fn improvement(baseline: f64, weighted: f64) -> f64 {
+    100.0 * (baseline - weighted) / baseline
+}
+
+/// Everything a study produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StudyResults {
+    /// Every run, case by case, set by set.
+    pub runs: Vec<Run>,
+    /// Numerical rank of the baseline's `H` at each point set, `(case, set, rank)`.
+    pub ranks: Vec<(usize, usize, usize)>,
+    /// Mean end-effector position error (mm) that the joint noise alone causes, over the
+    /// test set: the robot's repeatability in the paper's sense.
+    pub joint_noise_error: f64,
+}
+
+impl StudyResults {
+    /// The dE samples of estimator `e` in case `case`.
+    pub fn improvements(&self, case: usize, e: usize) -> Vec<f64> {
+        self.runs.iter().filter(|r| r.case == case).map(|r| r.improvement(e)).collect()
+    }
+
+    /// Mean dE of estimator `e` on each point set of `case`.
+    pub fn set_means(&self, case: usize, e: usize) -> Vec<f64> {
+        let sets = self.runs.iter().filter(|r| r.case == case).map(|r| r.set + 1).max().unwrap_or(0);
+        (0..sets)
+            .map(|s| {
+                let values: Vec<f64> = self
+                    .runs
+                    .iter()
+                    .filter(|r| r.case == case && r.set == s)
+                    .map(|r| r.improvement(e))
+                    .collect();
+                values.iter().sum::<f64>() / values.len() as f64
+            })
+            .collect()
+    }
+
+    /// Mean `E_p` (mm) of estimator `e` in case `case`.
+    pub fn mean_error(&self, case: usize, e: usize) -> f64 {
+        let values: Vec<f64> =
+            self.runs.iter().filter(|r| r.case == case).map(|r| r.accuracy[e].mean).collect();
+        values.iter().sum::<f64>() / values.len() as f64
+    }
+}
+
+/// One point set, ready for its runs.
+struct PointSet {
+    case: usize,
+    set: usize,
+    joints: Vec<Vec<f64>>,
+    nominal: Vec<Isometry3<f64>>,
+    noise: NoiseModel,
+    /// One per estimator (one-step studies only).
+    prepared: Vec<Prepared>,
+    /// The real robot's errors when drawn once per set.
+    errors: Option<Vec<f64>>,
+    rank: usize,
+}
+
+/// The test set and the study's compiled robot.
+struct Bench<'a> {
+    study: &'a Study,
+    chain: Chain,
+    nominal: ChainAt,
+    test: Vec<Vec<f64>>,
+}
+
+/// Run `study`, calling `progress` once per finished run (from any thread).
+pub fn run(study: &Study, progress: &(dyn Fn() + Sync)) -> Result<StudyResults, EstimationError> {
+    let chain = Chain::new(&study.robot);
+    let nominal = chain.with_errors(&vec![0.0; chain.params().len()]);
+    let test = uniform_configurations(&study.robot, study.test_points, &mut rng(study.seed, TEST_STREAM));
+    let bench = Bench { study, chain, nominal, test };
+
+    let sets: Vec<(usize, usize)> =
+        (0..study.cases.len()).flat_map(|c| (0..study.point_sets).map(move |s| (c, s))).collect();
+    let sets: Vec<PointSet> =
+        sets.par_iter().map(|&(c, s)| bench.point_set(c, s)).collect::<Result<_, _>>()?;
+    let runs: Vec<(usize, usize)> =
+        (0..sets.len()).flat_map(|i| (0..study.runs_per_set).map(move |r| (i, r))).collect();
+    let runs: Vec<Run> = runs
+        .par_iter()
+        .map(|&(i, r)| {
+            let run = bench.run(&sets[i], r);
+            progress();
+            run
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(StudyResults {
+        runs,
+        ranks: sets.iter().map(|s| (s.case, s.set, s.rank)).collect(),
+        joint_noise_error: bench.joint_noise_error(),
+    })
+}
+
+impl Bench<'_> {
+    /// Step 1, and what every run on the set shares: `H`, `V` and the factored estimators.
+    fn point_set(&self, case: usize, set: usize) -> Result<PointSet, EstimationError> {
+        let study = self.study;
+        let Case { points, sigma_me } = study.cases[case];
+        let mut rng = rng(study.seed, stream(points, set, None));
+        let joints = uniform_configurations(&study.robot, points, &mut rng);
+        let errors = (study.errors.redraw == Redraw::Set).then(|| self.draw_errors(&mut rng));
+        let nominal: Vec<Isometry3<f64>> = joints.iter().map(|q| self.nominal.pose(q)).collect();
+        let noise = NoiseModel::diagonal(
+            &study.joint_sigmas,
+            MeasurementNoise::isotropic(sigma_me, study.sigma_orientation),
+        );
+        let zero = vec![0.0; self.chain.params().len()];
+        let problem = PointProblem::new(
+            &self.chain,
+            &study.selection,
+            study.measured,
+            joints.clone(),
+            nominal.clone(),
+            zero,
+            Some(&noise),
+        )?;
+        let system = problem.system(&problem.start());
+        let mut prepared = Vec::new();
+        if study.iterations == 1 {
+            for &estimator in &study.estimators {
+                let rows = system.rows_per_point;
+                prepared.push(Prepared::new(&system.h, system.v.as_ref(), rows, estimator, RANK_TOLERANCE)?);
+            }
+        }
+        let rank = match prepared.first() {
+            Some(p) => p.diagnostics().rank,
+            None => {
+                crate::estimation::estimate(&system, study.estimators[0], RANK_TOLERANCE)?.diagnostics.rank
+            }
+        };
+        Ok(PointSet { case, set, joints, nominal, noise, prepared, errors, rank })
+    }
+
+    /// Step 2: the real robot's errors, for the identified parameters.
+    fn draw_errors(&self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        let sizes = &self.study.errors;
+        let params = self.chain.params();
+        let mut x = vec![0.0; params.len()];
+        for &i in self.study.selection.indices() {
+            let p = params.get(i);
+            let size = match p.kind {
+                ParamKind::Theta if p.is_offset => sizes.offset,
+                kind if kind.is_angle() => sizes.angle,
+                _ => sizes.length,
+            };
+            x[i] = size * normal(rng);
+        }
+        x
+    }
+
+    /// Steps 2-8 of one run.
+    fn run(&self, set: &PointSet, run: usize) -> Result<Run, EstimationError> {
+        let study = self.study;
+        let Case { points, sigma_me } = study.cases[set.case];
+        let mut rng = rng(study.seed, stream(points, set.set, Some(run)));
+        let truth = match &set.errors {
+            Some(errors) => errors.clone(),
+            None => self.draw_errors(&mut rng),
+        };
+        let real = self.chain.with_errors(&truth);
+        let rows = study.measured.rows();
+        let mut y = DVector::zeros(points * rows);
+        let mut observed = Vec::with_capacity(points);
+        let mut q_noisy = vec![0.0; study.robot.dof()];
+        for (k, (q, nominal)) in set.joints.iter().zip(&set.nominal).enumerate() {
+            for ((noisy, &q), &sigma) in q_noisy.iter_mut().zip(q).zip(&study.joint_sigmas) {
+                *noisy = q + sigma * normal(&mut rng);
+            }
+            let measured = self.measure(&real, &q_noisy, sigma_me, &mut rng);
+            match study.measured {
+                Measured::Position => y
+                    .fixed_rows_mut::<3>(3 * k)
+                    .copy_from(&(measured.translation.vector - nominal.translation.vector)),
+                Measured::Pose => y.fixed_rows_mut::<6>(6 * k).copy_from(&pose_error(&measured, nominal)),
+            }
+            observed.push(measured);
+        }
+        let truth_at_test: Vec<Isometry3<f64>> = self.test.iter().map(|q| real.pose(q)).collect();
+        let mut accuracy = Vec::with_capacity(study.estimators.len());
+        for (e, &estimator) in study.estimators.iter().enumerate() {
+            let estimate = match set.prepared.get(e) {
+                Some(prepared) => prepared.estimate(&y),
+                None => {
+                    let zero = vec![0.0; self.chain.params().len()];
+                    let problem = PointProblem::new(
+                        &self.chain,
+                        &study.selection,
+                        study.measured,
+                        set.joints.clone(),
+                        observed.clone(),
+                        zero,
+                        Some(&set.noise),
+                    )?;
+                    let options =
+                        RefineOptions { max_iterations: study.iterations, ..RefineOptions::default() };
+                    refine(&problem, estimator, problem.start(), &options)?.estimate.x
+                }
+            };
+            let mut full = vec![0.0; self.chain.params().len()];
+            for (&i, &v) in study.selection.indices().iter().zip(estimate.iter()) {
+                full[i] = v;
+            }
+            accuracy.push(self.accuracy(&self.chain.with_errors(&full), &truth_at_test));
+        }
+        Ok(Run { case: set.case, set: set.set, run, accuracy })
+    }
+
+    /// Steps 3-4 at one point: the real robot's pose at the noisy joints, measured with noise.
+    /// Always draws the same number of normals, whatever the sigmas, so that the streams of
+    /// cases differing only in noise stay aligned.
+    fn measure(&self, real: &ChainAt, q: &[f64], sigma_me: f64, rng: &mut ChaCha8Rng) -> Isometry3<f64> {
+        let pose = real.pose(q);
+        let dp = Vector3::new(normal(rng), normal(rng), normal(rng)) * sigma_me;
+        let translation = Translation3::from(pose.translation.vector + dp);
+        match self.study.measured {
+            Measured::Position => Isometry3::from_parts(translation, pose.rotation),
+            Measured::Pose => {
+                let omega =
+                    Vector3::new(normal(rng), normal(rng), normal(rng)) * self.study.sigma_orientation;
+                Isometry3::from_parts(translation, UnitQuaternion::from_scaled_axis(omega) * pose.rotation)
+            }
+        }
+    }
+
+    /// Step 8: the calibrated model against the real robot over the test set.
+    fn accuracy(&self, model: &ChainAt, truth: &[Isometry3<f64>]) -> Accuracy {
+        let (mut sum, mut sum_sq, mut max, mut angle) = (0.0, 0.0, 0.0f64, 0.0);
+        for (q, real) in self.test.iter().zip(truth) {
+            let error = match self.study.measured {
+                Measured::Position => (model.position(q) - real.translation.vector).norm(),
+                Measured::Pose => {
+                    let pose = model.pose(q);
+                    angle += pose.rotation.angle_to(&real.rotation);
+                    (pose.translation.vector - real.translation.vector).norm()
+                }
+            };
+            sum += error;
+            sum_sq += error * error;
+            max = max.max(error);
+        }
+        let n = self.test.len() as f64;
+        let orientation = if self.study.measured == Measured::Pose { angle / n } else { f64::NAN };
+        Accuracy { mean: sum / n, rms: (sum_sq / n).sqrt(), max, orientation }
+    }
+
+    /// Mean position error caused by the joint noise alone, over the test set.
+    fn joint_noise_error(&self) -> f64 {
+        let mut rng = rng(self.study.seed, JOINT_NOISE_STREAM);
+        let total: f64 = self
+            .test
+            .iter()
+            .map(|q| {
+                let noisy: Vec<f64> =
+                    q.iter().zip(&self.study.joint_sigmas).map(|(q, s)| q + s * normal(&mut rng)).collect();
+                (self.nominal.position(&noisy) - self.nominal.position(q)).norm()
+            })
+            .sum();
+        total / self.test.len() as f64
+    }
+}

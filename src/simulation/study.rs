@@ -1,0 +1,319 @@
+//! The study file (TOML): a calibration campaign to simulate, as data.
+
+use crate::estimation::Estimator;
+use crate::kinematics::Measured;
+use crate::model::{JointKind, RobotModel, Selection, SelectionError};
+use serde::Deserialize;
+
+/// Why a study file could not be used.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StudyError {
+    /// Not valid TOML, or missing, misspelled or mistyped fields (the message names the line).
+    #[error("{0}")]
+    Syntax(String),
+    /// A field with a value that makes no study.
+    #[error("field `{field}`: {expected}")]
+    Invalid {
+        /// The field, e.g. `cases.points`.
+        field: String,
+        /// What was expected.
+        expected: String,
+    },
+    /// The robot could not be loaded.
+    #[error("field `robot`: {0}")]
+    Robot(String),
+}
+
+/// When the "real" robot's geometric errors are drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Redraw {
+    /// A new real robot every run.
+    Run,
+    /// One real robot per point set, shared by its runs.
+    Set,
+}
+
+/// Standard deviations of the real robot's geometric errors (normal, zero mean), drawn for the
+/// identified parameters only: the others are exact.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ErrorSizes {
+    /// Revolute joint offsets (rad).
+    pub offset: f64,
+    /// Every other angle: alpha, beta, revolute-joint-free rotations of base and tool (rad).
+    pub angle: f64,
+    /// Every length: d, a, base and tool translations, prismatic offsets (mm).
+    pub length: f64,
+    /// When they are drawn.
+    pub redraw: Redraw,
+}
+
+/// One case of a study: how many points, how much measurement noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Case {
+    /// Measurement points `N_p`.
+    pub points: usize,
+    /// Measurement noise `sigma_me` (mm), isotropic.
+    pub sigma_me: f64,
+}
+
+/// A published result to print beside ours: one row of the paper's tables.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Reference {
+    /// `N_p` of the row.
+    pub points: usize,
+    /// `sigma_me` (mm) of the row.
+    pub sigma_me_mm: f64,
+    /// Mean dE (%).
+    pub mean: f64,
+    /// Standard deviation of dE (%).
+    pub sd: f64,
+    /// Lowest dE (%).
+    pub lowest: f64,
+    /// Highest dE (%).
+    pub highest: f64,
+    /// Share of runs with dE > 0 (%).
+    pub above_zero: f64,
+}
+
+/// A validated study: everything a simulation needs, in mm and rad.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Study {
+    /// Short name, used in file names.
+    pub name: String,
+    /// What the study shows.
+    pub description: String,
+    /// The nominal robot.
+    pub robot: RobotModel,
+    /// Position or pose measurements.
+    pub measured: Measured,
+    /// The identified parameters.
+    pub selection: Selection,
+    /// Joint noise standard deviations (rad, mm for prismatic joints).
+    pub joint_sigmas: Vec<f64>,
+    /// Orientation measurement noise (rad), for pose measurements.
+    pub sigma_orientation: f64,
+    /// The real robot's geometric errors.
+    pub errors: ErrorSizes,
+    /// The cases: every `N_p` with every `sigma_me`.
+    pub cases: Vec<Case>,
+    /// Point sets per case.
+    pub point_sets: usize,
+    /// Runs per point set.
+    pub runs_per_set: usize,
+    /// Configurations in the test set that measures the calibrated accuracy.
+    pub test_points: usize,
+    /// The estimators compared; the first is the baseline of dE.
+    pub estimators: Vec<Estimator>,
+    /// Linear steps per estimate: 1 is the paper's one-step estimate.
+    pub iterations: usize,
+    /// Master seed of every random stream.
+    pub seed: u64,
+    /// Published values to print beside ours.
+    pub reference: Vec<Reference>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StudyFile {
+    name: String,
+    #[serde(default)]
+    description: String,
+    robot: String,
+    measured: MeasuredName,
+    parameters: Parameters,
+    estimators: Vec<String>,
+    #[serde(default = "one")]
+    iterations: usize,
+    seed: u64,
+    point_sets: usize,
+    runs_per_set: usize,
+    test_points: usize,
+    noise: NoiseFile,
+    errors: ErrorsFile,
+    cases: CasesFile,
+    #[serde(default)]
+    reference: Vec<Reference>,
+}
+
+fn one() -> usize {
+    1
+}
+
+#[derive(Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum MeasuredName {
+    Position,
+    Pose,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum Parameters {
+    Named(String),
+    List(Vec<String>),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoiseFile {
+    /// One per joint: degrees for revolute joints, mm for prismatic ones.
+    joint_sigma: Vec<f64>,
+    #[serde(default)]
+    sigma_orientation_deg: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ErrorsFile {
+    offset_deg: f64,
+    angle_deg: f64,
+    length_mm: f64,
+    redraw: Redraw,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CasesFile {
+    points: Vec<usize>,
+    sigma_me_mm: Vec<f64>,
+}
+
+impl Study {
+    /// Read a study from TOML text; `load_robot` turns the `robot` field (a preset name or a
+    /// file) into a model. See `docs/formats.md` for the fields.
+    pub fn from_toml_str(
+        text: &str,
+        load_robot: impl FnOnce(&str) -> Result<RobotModel, String>,
+    ) -> Result<Self, StudyError> {
+        let file: StudyFile = toml::from_str(text).map_err(|e| StudyError::Syntax(e.to_string()))?;
+        let robot = load_robot(&file.robot).map_err(StudyError::Robot)?;
+        let invalid =
+            |field: &str, expected: String| Err(StudyError::Invalid { field: field.into(), expected });
+        if file.name.is_empty()
+            || !file.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+        {
+            return invalid(
+                "name",
+                format!("letters, digits, `-` or `_` (it names files), found {:?}", file.name),
+            );
+        }
+        let params = robot.params();
+        let selection = match &file.parameters {
+            Parameters::Named(name) if name == "joints" => Selection::joints(&params),
+            Parameters::Named(name) if name == "all" => Selection::all(&params),
+            Parameters::Named(name) if name == "offsets" => Selection::offsets(&params),
+            Parameters::Named(name) => Selection::by_names(&params, &[name]).map_err(selection_error)?,
+            Parameters::List(names) => Selection::by_names(&params, names).map_err(selection_error)?,
+        };
+        let estimators: Vec<Estimator> = file
+            .estimators
+            .iter()
+            .map(|e| e.parse())
+            .collect::<Result<_, String>>()
+            .map_err(|e| StudyError::Invalid { field: "estimators".into(), expected: e })?;
+        if estimators.len() < 2 {
+            return invalid(
+                "estimators",
+                "at least two, the first the baseline of dE (e.g. [\"ols\", \"wls\"])".into(),
+            );
+        }
+        if file.noise.joint_sigma.len() != robot.dof() {
+            return invalid(
+                "noise.joint_sigma",
+                format!("{} values, one per joint of {}", robot.dof(), robot.name),
+            );
+        }
+        let joint_sigmas = robot
+            .joints
+            .iter()
+            .zip(&file.noise.joint_sigma)
+            .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
+            .collect::<Vec<_>>();
+        let non_negative = [
+            ("noise.joint_sigma", file.noise.joint_sigma.iter().copied().fold(0.0, f64::min)),
+            ("noise.sigma_orientation_deg", file.noise.sigma_orientation_deg),
+            ("errors.offset_deg", file.errors.offset_deg),
+            ("errors.angle_deg", file.errors.angle_deg),
+            ("errors.length_mm", file.errors.length_mm),
+            ("cases.sigma_me_mm", file.cases.sigma_me_mm.iter().copied().fold(0.0, f64::min)),
+        ];
+        for (field, value) in non_negative {
+            if !(value >= 0.0 && value.is_finite()) {
+                return invalid(field, format!("finite values >= 0, found {value}"));
+            }
+        }
+        let all_finite = file.noise.joint_sigma.iter().chain(&file.cases.sigma_me_mm).all(|v| v.is_finite());
+        if !all_finite {
+            return invalid("noise.joint_sigma / cases.sigma_me_mm", "finite values".into());
+        }
+        for (field, count) in [
+            ("point_sets", file.point_sets),
+            ("runs_per_set", file.runs_per_set),
+            ("test_points", file.test_points),
+            ("iterations", file.iterations),
+        ] {
+            if count == 0 {
+                return invalid(field, "at least 1".into());
+            }
+        }
+        if file.cases.points.is_empty() || file.cases.sigma_me_mm.is_empty() {
+            return invalid("cases", "at least one value in `points` and in `sigma_me_mm`".into());
+        }
+        if file.cases.points.iter().any(|&n| n == 0 || n >= 1 << 20) {
+            return invalid("cases.points", "point counts from 1 to 1048575".into());
+        }
+        if file.point_sets >= 1 << 20 || file.runs_per_set >= 1 << 20 {
+            return invalid("point_sets / runs_per_set", "fewer than 1048576".into());
+        }
+        let cases = file
+            .cases
+            .points
+            .iter()
+            .flat_map(|&points| file.cases.sigma_me_mm.iter().map(move |&sigma_me| Case { points, sigma_me }))
+            .collect();
+        Ok(Self {
+            name: file.name,
+            description: file.description,
+            measured: match file.measured {
+                MeasuredName::Position => Measured::Position,
+                MeasuredName::Pose => Measured::Pose,
+            },
+            selection,
+            joint_sigmas,
+            sigma_orientation: file.noise.sigma_orientation_deg.to_radians(),
+            errors: ErrorSizes {
+                offset: file.errors.offset_deg.to_radians(),
+                angle: file.errors.angle_deg.to_radians(),
+                length: file.errors.length_mm,
+                redraw: file.errors.redraw,
+            },
+            cases,
+            point_sets: file.point_sets,
+            runs_per_set: file.runs_per_set,
+            test_points: file.test_points,
+            estimators,
+            iterations: file.iterations,
+            seed: file.seed,
+            reference: file.reference,
+            robot,
+        })
+    }
+
+    /// The published row for `case`, if the study has one.
+    pub fn reference_for(&self, case: &Case) -> Option<&Reference> {
+        self.reference.iter().find(|r| r.points == case.points && r.sigma_me_mm == case.sigma_me)
+    }
+}
+
+fn selection_error(e: SelectionError) -> StudyError {
+    StudyError::Invalid { field: "parameters".into(), expected: e.to_string() }
+}
+
+/// The studies shipped with robocal: `(name, TOML text)`. `paper-table1` and `paper-table2`
+/// are the paper's two studies; `robocal reproduce` runs both.
+pub const STUDIES: &[(&str, &str)] = &[
+    ("paper-table1", include_str!("../../presets/paper-table1.toml")),
+    ("paper-table2", include_str!("../../presets/paper-table2.toml")),
+];
