@@ -4,3 +4,4 @@ mod cli;
 mod estimation;
 mod kinematics;
 mod model_files;
+mod simulation;
