@@ -111,6 +111,7 @@ fn histogram(title: &str, values: &[f64]) -> Result<String, String> {
             .configure_mesh()
             .x_desc("dE (%)")
             .y_desc("number of runs N_r")
+            .y_label_formatter(&|v| format!("{v:.0}"))
             .draw()
             .map_err(|e| e.to_string())?;
         let bars = counts.iter().enumerate().map(|(i, &n)| {
