@@ -131,9 +131,20 @@ pub struct LinearSystem {
     /// The blocks `V_k`, stacked: `N_m x rows_per_point`, rows of point k at `k * rows_per_point`.
     /// `None` when the noise is unknown (then only OLS, with the variance from the residuals).
     pub v: Option<DMatrix<f64>>,
+    /// The name of each column's parameter (`j3.beta`); empty for `x1`, `x2`, ...
+    pub names: Vec<String>,
 }
 
 impl LinearSystem {
+    /// The column names, `x1`, `x2`, ... where none are given.
+    pub fn column_names(&self) -> Vec<String> {
+        if self.names.is_empty() {
+            (1..=self.h.ncols()).map(|i| format!("x{i}")).collect()
+        } else {
+            self.names.clone()
+        }
+    }
+
     /// Number of points.
     pub fn points(&self) -> usize {
         self.y.len() / self.rows_per_point
@@ -148,6 +159,9 @@ impl LinearSystem {
         }
         if rows % b != 0 || self.h.nrows() != rows {
             return dims(format!("y has {rows} rows and H {}; both must be {b} per point", self.h.nrows()));
+        }
+        if !self.names.is_empty() && self.names.len() != self.h.ncols() {
+            return dims(format!("{} names for {} columns of H", self.names.len(), self.h.ncols()));
         }
         if let Some(v) = &self.v
             && v.shape() != (rows, b)
@@ -298,7 +312,7 @@ pub fn estimate(
 ) -> Result<LinearEstimate, EstimationError> {
     system.validate()?;
     let weights = Weights::new(system.v.as_ref(), system.rows_per_point, estimator, true)?;
-    solve::solve(&weights.whiten(system), rank_tolerance)
+    solve::solve(&weights.whiten(system), rank_tolerance, system.column_names())
 }
 
 /// An estimator factored for one `H` and `V`: the estimate for any `y` is then one product,
@@ -318,8 +332,8 @@ impl Prepared {
         estimator: Estimator,
         rank_tolerance: f64,
     ) -> Result<Self, EstimationError> {
-        let system =
-            LinearSystem { h: h.clone(), y: DVector::zeros(h.nrows()), rows_per_point, v: v.cloned() };
+        let (y, names) = (DVector::zeros(h.nrows()), Vec::new());
+        let system = LinearSystem { h: h.clone(), y, rows_per_point, v: v.cloned(), names };
         system.validate()?;
         let weights = Weights::new(v, rows_per_point, estimator, true)?;
         let factorised = solve::factorise(&weights.whiten(&system).a, rank_tolerance)?;

@@ -91,13 +91,17 @@ impl<'a> PointProblem<'a> {
     pub fn system(&self, x: &DVector<f64>) -> LinearSystem {
         let mut h = DMatrix::zeros(self.joints.len() * self.measured.rows(), self.selection.len());
         let y = self.evaluate(x, Some(&mut h));
-        LinearSystem { h, y, rows_per_point: self.measured.rows(), v: self.v.clone() }
+        LinearSystem { h, y, rows_per_point: self.measured.rows(), v: self.v.clone(), names: self.names() }
     }
 }
 
 impl Residuals for PointProblem<'_> {
     fn rows_per_point(&self) -> usize {
         self.measured.rows()
+    }
+
+    fn names(&self) -> Vec<String> {
+        self.selection.indices().iter().map(|&i| self.chain.params().get(i).name.clone()).collect()
     }
 
     fn equations(&self) -> usize {

@@ -14,6 +14,10 @@ pub trait Residuals {
     fn equations(&self) -> usize;
     /// The covariance blocks `V_k`, stacked, held fixed over the iterations; `None` if unknown.
     fn covariance(&self) -> Option<&DMatrix<f64>>;
+    /// The name of each parameter (`j3.beta`); by default `x1`, `x2`, ...
+    fn names(&self) -> Vec<String> {
+        Vec::new()
+    }
     /// The residual `y(x)` (measured minus predicted) and, if `h` is given, the Jacobian
     /// `H(x) = d(prediction)/dx` written into it.
     fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64>;
@@ -88,7 +92,8 @@ pub fn refine(
     loop {
         let mut h = DMatrix::zeros(problem.equations(), x.len());
         let y = problem.evaluate(&x, Some(&mut h));
-        let system = LinearSystem { h, y, rows_per_point: rows, v: problem.covariance().cloned() };
+        let v = problem.covariance().cloned();
+        let system = LinearSystem { h, y, rows_per_point: rows, v, names: problem.names() };
         system.validate()?;
         let whitened = weights.whiten(&system);
         let factorised = factorise(&whitened.a, options.rank_tolerance)?;
@@ -127,8 +132,13 @@ pub fn refine(
         };
         if converged || history.len() >= options.max_iterations {
             let covariance = factorised.covariance(&whitened.a, whitened.noise.as_ref(), cost);
-            let estimate =
-                LinearEstimate { x, covariance, cost: final_cost, diagnostics: factorised.diagnostics };
+            let estimate = LinearEstimate {
+                names: system.column_names(),
+                x,
+                covariance,
+                cost: final_cost,
+                diagnostics: factorised.diagnostics,
+            };
             return Ok(Refined { estimate, history, converged });
         }
     }

@@ -74,6 +74,8 @@ pub struct Diagnostics {
 /// A linear estimate with its uncertainty.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LinearEstimate {
+    /// The parameter of each column of `H`, by name (`j3.beta`).
+    pub names: Vec<String>,
     /// The estimated parameter errors, column by column of `H` (mm, rad).
     pub x: DVector<f64>,
     /// Covariance of `x` (the sandwich; `M^+` for Gauss-Markov). Without a noise model, OLS
@@ -211,12 +213,16 @@ fn combinations(null_basis: &DMatrix<f64>, identifiable: &[usize]) -> Vec<Combin
 }
 
 /// Solve the whitened problem: estimate, covariance, cost and diagnostics.
-pub(crate) fn solve(w: &Whitened, tolerance: f64) -> Result<LinearEstimate, EstimationError> {
+pub(crate) fn solve(
+    w: &Whitened,
+    tolerance: f64,
+    names: Vec<String>,
+) -> Result<LinearEstimate, EstimationError> {
     let f = factorise(&w.a, tolerance)?;
     let x = &f.pinv * &w.b;
     let cost = (&w.b - &w.a * &x).norm_squared();
     let covariance = f.covariance(&w.a, w.noise.as_ref(), cost);
-    Ok(LinearEstimate { x, covariance, cost, diagnostics: f.diagnostics })
+    Ok(LinearEstimate { names, x, covariance, cost, diagnostics: f.diagnostics })
 }
 
 impl Factorised {

@@ -8,7 +8,7 @@ fn small_system() -> LinearSystem {
         let k = (r / 3) as f64 + 1.0;
         if r % 3 == c { k * k } else { 0.1 * k }
     });
-    LinearSystem { h, y, rows_per_point: 3, v: Some(v) }
+    LinearSystem { h, y, rows_per_point: 3, v: Some(v), names: Vec::new() }
 }
 
 #[test]
@@ -18,7 +18,7 @@ fn the_papers_normalisation_leaves_the_estimate_unchanged() {
         let solve = |normalise| {
             let weights = Weights::new(system.v.as_ref(), 3, estimator, normalise).unwrap();
             let whitened = weights.whiten(&system);
-            (whitened.b.norm(), solve::solve(&whitened, RANK_TOLERANCE).unwrap())
+            (whitened.b.norm(), solve::solve(&whitened, RANK_TOLERANCE, system.column_names()).unwrap())
         };
         let ((a_plain, plain), (a_normalised, normalised)) = (solve(false), solve(true));
         assert!((a_plain - a_normalised).abs() > 1e-3, "{estimator}: the normalisation must scale the rows");

@@ -39,7 +39,7 @@ fn dense_system(rng: &mut ChaCha8Rng, points: usize, p: usize, dependent: bool) 
     for k in 0..points {
         v.rows_mut(3 * k, 3).copy_from(&spd(rng, 3));
     }
-    LinearSystem { h, y, rows_per_point: 3, v: Some(v) }
+    LinearSystem { h, y, rows_per_point: 3, v: Some(v), names: Vec::new() }
 }
 
 /// `V` as the dense block-diagonal matrix: only for checking against the literal equations.
@@ -390,6 +390,7 @@ fn puma560_diagnostics_name_the_non_identifiable_combinations() {
     let described: Vec<String> =
         wls.diagnostics.not_identifiable.iter().map(|c| c.describe(&names)).collect();
     assert_eq!(wls.diagnostics.rank, 23);
+    assert_eq!(wls.names[..3], ["j1.theta", "j1.d", "j1.a"]);
     assert_eq!(
         described,
         [
