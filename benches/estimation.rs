@@ -39,9 +39,16 @@ fn estimators(c: &mut Criterion) {
         let joints = points(&model, n);
         let observed: Vec<Isometry3<f64>> = joints.iter().map(|q| real.pose(q)).collect();
         let zero = vec![0.0; chain.params().len()];
-        let problem =
-            PointProblem::new(&chain, &selection, Measured::Position, joints, observed, zero, Some(&noise))
-                .unwrap();
+        let problem = PointProblem::new(
+            std::slice::from_ref(&chain),
+            &selection,
+            Measured::Position,
+            joints,
+            observed,
+            zero,
+            Some(&noise),
+        )
+        .unwrap();
         let system = problem.system(&problem.start());
         for estimator in Estimator::ALL {
             group.bench_with_input(BenchmarkId::new(estimator.name(), n), &system, |b, s| {

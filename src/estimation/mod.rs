@@ -126,7 +126,7 @@ pub struct LinearSystem {
     pub h: DMatrix<f64>,
     /// Pose errors: measured minus predicted, `N_m`.
     pub y: DVector<f64>,
-    /// Rows per point: 3 (position) or 6 (pose).
+    /// Rows per point: 3 (position), 6 (pose), or 3 per marker when several are measured.
     pub rows_per_point: usize,
     /// The blocks `V_k`, stacked: `N_m x rows_per_point`, rows of point k at `k * rows_per_point`.
     /// `None` when the noise is unknown (then only OLS, with the variance from the residuals).
@@ -154,8 +154,8 @@ impl LinearSystem {
     pub fn validate(&self) -> Result<(), EstimationError> {
         let (rows, b) = (self.y.len(), self.rows_per_point);
         let dims = |s: String| Err(EstimationError::Dimensions(s));
-        if b != 3 && b != 6 {
-            return dims(format!("{b} rows per point, expected 3 (position) or 6 (pose)"));
+        if b == 0 {
+            return dims("0 rows per point".into());
         }
         if rows % b != 0 || self.h.nrows() != rows {
             return dims(format!("y has {rows} rows and H {}; both must be {b} per point", self.h.nrows()));
@@ -176,6 +176,12 @@ impl LinearSystem {
         check("H", &self.h)?;
         if let Some(v) = &self.v {
             check("V", v)?;
+            for k in 0..self.points() {
+                let block = v.rows(k * b, b);
+                if (&block - block.transpose()).amax() > 1e-9 * block.amax() {
+                    return Err(EstimationError::Dimensions(format!("V_k of point {k} is not symmetric")));
+                }
+            }
         }
         Ok(())
     }
@@ -217,10 +223,7 @@ impl Weights {
         if estimator == Estimator::Ols {
             return Ok(Self { s: None, noise: Some(v.clone()), rows });
         }
-        let mut s = match rows {
-            3 => block_weights::<3>(v, estimator)?,
-            _ => block_weights::<6>(v, estimator)?,
-        };
+        let mut s = block_weights(v, rows, estimator)?;
         if normalise {
             // W = sigma_max^2 V^-1: S scaled by sigma_max (by its square root for 1/sigma weights).
             let sigma_max = (0..v.nrows()).map(|r| v[(r, r % rows)]).fold(0.0, f64::max).sqrt();
@@ -250,7 +253,13 @@ impl Weights {
         let Some(s) = &self.s else { return };
         match self.rows {
             3 => apply_blocks::<3, C, St>(s, m),
-            _ => apply_blocks::<6, C, St>(s, m),
+            6 => apply_blocks::<6, C, St>(s, m),
+            b => {
+                for k in 0..s.nrows() / b {
+                    let block = s.rows(k * b, b) * m.rows(k * b, b);
+                    m.rows_mut(k * b, b).copy_from(&block);
+                }
+            }
         }
     }
 
@@ -263,28 +272,24 @@ impl Weights {
     }
 }
 
-fn block_weights<const B: usize>(
-    v: &DMatrix<f64>,
-    estimator: Estimator,
-) -> Result<DMatrix<f64>, EstimationError> {
-    let mut s = DMatrix::zeros(v.nrows(), B);
-    for k in 0..v.nrows() / B {
-        let v_k: SMatrix<f64, B, B> = v.fixed_view::<B, B>(k * B, 0).into_owned();
-        let s_k: SMatrix<f64, B, B> = match estimator {
-            Estimator::Ols => SMatrix::identity(),
-            Estimator::Wls => {
-                let l = v_k.cholesky().ok_or(EstimationError::NotPositiveDefinite { point: k })?.unpack();
-                l.try_inverse().ok_or(EstimationError::NotPositiveDefinite { point: k })?
-            }
+/// `S_k` of every block: `L_k^-1` (Cholesky) for Gauss-Markov, a diagonal for the others.
+fn block_weights(v: &DMatrix<f64>, b: usize, estimator: Estimator) -> Result<DMatrix<f64>, EstimationError> {
+    let mut s = DMatrix::zeros(v.nrows(), b);
+    for k in 0..v.nrows() / b {
+        let v_k = v.rows(k * b, b).into_owned();
+        let not_pd = EstimationError::NotPositiveDefinite { point: k };
+        let s_k = match estimator {
+            Estimator::Ols => DMatrix::identity(b, b),
+            Estimator::Wls => v_k.cholesky().ok_or(not_pd.clone())?.l().try_inverse().ok_or(not_pd)?,
             Estimator::WlsDiag | Estimator::WlsSigma => {
                 if v_k.diagonal().iter().any(|&d| d <= 0.0) {
-                    return Err(EstimationError::NotPositiveDefinite { point: k });
+                    return Err(not_pd);
                 }
                 let power = if estimator == Estimator::WlsDiag { -0.5 } else { -0.25 };
-                SMatrix::from_diagonal(&v_k.diagonal().map(|d| d.powf(power)))
+                DMatrix::from_diagonal(&v_k.diagonal().map(|d| d.powf(power)))
             }
         };
-        s.fixed_view_mut::<B, B>(k * B, 0).copy_from(&s_k);
+        s.rows_mut(k * b, b).copy_from(&s_k);
     }
     Ok(s)
 }

@@ -3,7 +3,7 @@
 
 use super::EstimationError;
 use crate::kinematics::Measured;
-use nalgebra::{DMatrix, Matrix6xX};
+use nalgebra::{DMatrix, DVector};
 
 /// Measurement noise `Sigma_m,k` of each point.
 #[derive(Debug, Clone, PartialEq)]
@@ -43,8 +43,8 @@ impl NoiseModel {
         Self { joint: DMatrix::from_diagonal(&variances.into()), measurement }
     }
 
-    /// Check the model against the robot's `dof`, the number of points and what is measured.
-    pub fn validate(&self, dof: usize, points: usize, measured: Measured) -> Result<(), EstimationError> {
+    /// Check the model against the robot's `dof`, the number of points and the rows per point.
+    pub fn validate(&self, dof: usize, points: usize, rows: usize) -> Result<(), EstimationError> {
         let bad = |what: String| Err(EstimationError::Noise(what));
         if self.joint.shape() != (dof, dof) {
             return bad(format!("Sigma_q is {:?}, expected {dof} x {dof}", self.joint.shape()));
@@ -55,14 +55,10 @@ impl NoiseModel {
         if (&self.joint - self.joint.transpose()).amax() > 1e-12 * self.joint.amax() {
             return bad("Sigma_q must be symmetric".into());
         }
-        let rows = measured.rows();
         match &self.measurement {
             MeasurementNoise::PerAxis(sigmas) => {
-                if sigmas[..rows].iter().any(|s| !s.is_finite() || *s < 0.0) {
-                    return bad(format!(
-                        "measurement sigmas must be finite and >= 0, got {:?}",
-                        &sigmas[..rows]
-                    ));
+                if sigmas.iter().any(|s| !s.is_finite() || *s < 0.0) {
+                    return bad(format!("measurement sigmas must be finite and >= 0, got {sigmas:?}"));
                 }
             }
             MeasurementNoise::PerPoint(blocks) => {
@@ -72,22 +68,27 @@ impl NoiseModel {
                 if let Some(k) = blocks.iter().position(|b| b.shape() != (rows, rows)) {
                     return bad(format!("measurement covariance of point {k} is not {rows} x {rows}"));
                 }
+                if let Some(k) = blocks.iter().position(|b| b.iter().any(|v| !v.is_finite())) {
+                    return bad(format!("measurement covariance of point {k} is not finite"));
+                }
             }
         }
         Ok(())
     }
 
-    /// `V_k` of point `k` from its manipulator Jacobian, by [`point_covariance`].
-    pub fn point_covariance(&self, k: usize, jacobian: &Matrix6xX<f64>, measured: Measured) -> DMatrix<f64> {
-        let rows = measured.rows();
+    /// `V_k` of point `k` from the measured rows of its manipulator Jacobians stacked (3 per
+    /// marker, or 6 for a tool pose), by [`point_covariance`]. Per-axis sigmas apply to every
+    /// marker's x, y, z alike.
+    pub fn pose_covariance(&self, k: usize, jacobian: &DMatrix<f64>, measured: Measured) -> DMatrix<f64> {
+        let rows = jacobian.nrows();
         let sigma_m = match &self.measurement {
-            MeasurementNoise::PerAxis(sigmas) => DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
-                rows,
-                sigmas[..rows].iter().map(|s| s * s),
-            )),
+            MeasurementNoise::PerAxis(sigmas) => {
+                let per = measured.rows();
+                DMatrix::from_diagonal(&DVector::from_fn(rows, |r, _| sigmas[r % per].powi(2)))
+            }
             MeasurementNoise::PerPoint(blocks) => blocks[k].clone(),
         };
-        point_covariance(&jacobian.rows(0, rows).clone_owned(), &self.joint, &sigma_m)
+        point_covariance(jacobian, &self.joint, &sigma_m)
     }
 }
 

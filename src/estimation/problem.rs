@@ -1,5 +1,5 @@
-//! The calibration problem of measured points: the robot, its joint values and what was
-//! measured at each point, linearised about any parameter values.
+//! The calibration problem of measured poses: the robot, its joint values and what was
+//! measured at each pose, linearised about any parameter values.
 
 use super::refine::Residuals;
 use super::{EstimationError, LinearSystem, NoiseModel};
@@ -7,11 +7,12 @@ use crate::kinematics::{Chain, Measured, pose_error};
 use crate::model::Selection;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX};
 
-/// Points measured on a robot: `y(x) = measured - f(q, x)` for the selected parameters `x`,
-/// the others held at fixed values.
+/// Poses measured on a robot: `y(x) = measured - f(q, x)` for the selected parameters `x`,
+/// the others held at fixed values. Each pose is one point of the estimators: the positions of
+/// all its markers (3 rows each), or one tool pose (6 rows).
 #[derive(Debug, Clone)]
 pub struct PointProblem<'a> {
-    chain: &'a Chain,
+    chains: &'a [Chain],
     selection: &'a Selection,
     measured: Measured,
     joints: Vec<Vec<f64>>,
@@ -21,12 +22,14 @@ pub struct PointProblem<'a> {
 }
 
 impl<'a> PointProblem<'a> {
-    /// The problem of `observed` poses (for position measurements only the translation is
-    /// used) at joint values `joints`, with every parameter error at `fixed` (full vector; the
-    /// selected ones are where iterations start). With a `noise` model, `V_k` is computed
-    /// once, from the manipulator Jacobian at `fixed` (Eq. 10).
+    /// The problem of `observed` poses at joint values `joints`, with every parameter error at
+    /// `fixed` (full vector; the selected ones are where iterations start). `chains` holds one
+    /// chain per measured marker ([`Chain::markers`]) or the single chain of a tool; `observed`
+    /// holds, pose by pose, where each chain's end was measured (for position measurements
+    /// only the translation is used). With a `noise` model, `V_k` is computed once, from the
+    /// manipulator Jacobians at `fixed` (Eq. 10).
     pub fn new(
-        chain: &'a Chain,
+        chains: &'a [Chain],
         selection: &'a Selection,
         measured: Measured,
         joints: Vec<Vec<f64>>,
@@ -35,19 +38,16 @@ impl<'a> PointProblem<'a> {
         noise: Option<&NoiseModel>,
     ) -> Result<Self, EstimationError> {
         let dims = |s: String| Err(EstimationError::Dimensions(s));
-        if observed.len() != joints.len() {
-            return dims(format!(
-                "{} measurements for {} joint configurations",
-                observed.len(),
-                joints.len()
-            ));
+        let Some(chain) = chains.first() else { return dims("no chain to measure".into()) };
+        if measured == Measured::Pose && chains.len() > 1 {
+            return dims("pose measurements take one tool frame, not several markers".into());
+        }
+        if observed.len() != joints.len() * chains.len() {
+            let (o, j, m) = (observed.len(), joints.len(), chains.len());
+            return dims(format!("{o} measurements for {j} joint configurations of {m} markers"));
         }
         if let Some(k) = joints.iter().position(|q| q.len() != chain.dof()) {
-            return dims(format!(
-                "point {k} has {} joint values, the robot {}",
-                joints[k].len(),
-                chain.dof()
-            ));
+            return dims(format!("pose {k} has {} joint values, the robot {}", joints[k].len(), chain.dof()));
         }
         if fixed.len() != chain.params().len() {
             return dims(format!("{} parameter values for {} parameters", fixed.len(), chain.params().len()));
@@ -55,22 +55,30 @@ impl<'a> PointProblem<'a> {
         if let Some((k, _)) = joints.iter().enumerate().find(|(_, q)| q.iter().any(|v| !v.is_finite())) {
             return Err(EstimationError::NonFinite { what: "joint values", row: k, value: f64::NAN });
         }
-        let v = match noise {
-            None => None,
-            Some(noise) => {
-                noise.validate(chain.dof(), joints.len(), measured)?;
-                let rows = measured.rows();
-                let at = chain.with_errors(&fixed);
-                let mut jacobian = Matrix6xX::zeros(chain.dof());
-                let mut v = DMatrix::zeros(rows * joints.len(), rows);
-                for (k, q) in joints.iter().enumerate() {
-                    at.manipulator_jacobian(q, &mut jacobian);
-                    v.rows_mut(k * rows, rows).copy_from(&noise.point_covariance(k, &jacobian, measured));
-                }
-                Some(v)
+        let mut problem = Self { chains, selection, measured, joints, observed, fixed, v: None };
+        if let Some(noise) = noise {
+            problem.v = Some(problem.covariance_blocks(noise)?);
+        }
+        Ok(problem)
+    }
+
+    /// `V_k` of every pose at the fixed parameters, stacked.
+    fn covariance_blocks(&self, noise: &NoiseModel) -> Result<DMatrix<f64>, EstimationError> {
+        let (per, rows) = (self.measured.rows(), self.rows_per_point());
+        let dof = self.chains[0].dof();
+        noise.validate(dof, self.joints.len(), rows)?;
+        let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(&self.fixed)).collect();
+        let mut jacobian = Matrix6xX::zeros(dof);
+        let mut stacked = DMatrix::zeros(rows, dof);
+        let mut v = DMatrix::zeros(rows * self.joints.len(), rows);
+        for (k, q) in self.joints.iter().enumerate() {
+            for (m, at) in at.iter().enumerate() {
+                at.manipulator_jacobian(q, &mut jacobian);
+                stacked.rows_mut(m * per, per).copy_from(&jacobian.rows(0, per));
             }
-        };
-        Ok(Self { chain, selection, measured, joints, observed, fixed, v })
+            v.rows_mut(k * rows, rows).copy_from(&noise.pose_covariance(k, &stacked, self.measured));
+        }
+        Ok(v)
     }
 
     /// The selected parameters' values in `fixed`: where iterations start.
@@ -89,23 +97,27 @@ impl<'a> PointProblem<'a> {
 
     /// The linear system `y = H dx` about `x` (Eq. 1).
     pub fn system(&self, x: &DVector<f64>) -> LinearSystem {
-        let mut h = DMatrix::zeros(self.joints.len() * self.measured.rows(), self.selection.len());
+        let mut h = DMatrix::zeros(self.equations(), self.selection.len());
         let y = self.evaluate(x, Some(&mut h));
-        LinearSystem { h, y, rows_per_point: self.measured.rows(), v: self.v.clone(), names: self.names() }
+        LinearSystem { h, y, rows_per_point: self.rows_per_point(), v: self.v.clone(), names: self.names() }
     }
 }
 
 impl Residuals for PointProblem<'_> {
     fn rows_per_point(&self) -> usize {
-        self.measured.rows()
-    }
-
-    fn names(&self) -> Vec<String> {
-        self.selection.indices().iter().map(|&i| self.chain.params().get(i).name.clone()).collect()
+        self.measured.rows() * self.chains.len()
     }
 
     fn equations(&self) -> usize {
-        self.joints.len() * self.measured.rows()
+        self.joints.len() * self.rows_per_point()
+    }
+
+    fn parameters(&self) -> usize {
+        self.selection.len()
+    }
+
+    fn names(&self) -> Vec<String> {
+        self.selection.indices().iter().map(|&i| self.chains[0].params().get(i).name.clone()).collect()
     }
 
     fn covariance(&self) -> Option<&DMatrix<f64>> {
@@ -113,22 +125,29 @@ impl Residuals for PointProblem<'_> {
     }
 
     fn evaluate(&self, x: &DVector<f64>, mut h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
-        let rows = self.measured.rows();
-        let at = self.chain.with_errors(&self.full(x));
-        let mut y = DVector::zeros(self.joints.len() * rows);
-        for (k, (q, observed)) in self.joints.iter().zip(&self.observed).enumerate() {
-            let position = match h.as_deref_mut() {
-                Some(h) => {
-                    let block = h.view_mut((k * rows, 0), (rows, self.selection.len()));
-                    at.identification_jacobian(q, self.selection, self.measured, block)
+        let (per, rows) = (self.measured.rows(), self.rows_per_point());
+        let full = self.full(x);
+        let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
+        let mut y = DVector::zeros(self.equations());
+        for (k, q) in self.joints.iter().enumerate() {
+            for (m, at) in at.iter().enumerate() {
+                let row = k * rows + m * per;
+                let observed = &self.observed[k * self.chains.len() + m];
+                let position = match h.as_deref_mut() {
+                    Some(h) => {
+                        let block = h.view_mut((row, 0), (per, self.selection.len()));
+                        at.identification_jacobian(q, self.selection, self.measured, block)
+                    }
+                    None => at.position(q),
+                };
+                match self.measured {
+                    Measured::Position => {
+                        y.fixed_rows_mut::<3>(row).copy_from(&(observed.translation.vector - position))
+                    }
+                    Measured::Pose => {
+                        y.fixed_rows_mut::<6>(row).copy_from(&pose_error(observed, &at.pose(q)))
+                    }
                 }
-                None => at.position(q),
-            };
-            match self.measured {
-                Measured::Position => {
-                    y.fixed_rows_mut::<3>(k * 3).copy_from(&(observed.translation.vector - position));
-                }
-                Measured::Pose => y.fixed_rows_mut::<6>(k * 6).copy_from(&pose_error(observed, &at.pose(q))),
             }
         }
         y

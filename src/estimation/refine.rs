@@ -12,6 +12,8 @@ pub trait Residuals {
     fn rows_per_point(&self) -> usize;
     /// Rows of `y`: `N_m`.
     fn equations(&self) -> usize;
+    /// Number of parameters: the length of `x`.
+    fn parameters(&self) -> usize;
     /// The covariance blocks `V_k`, stacked, held fixed over the iterations; `None` if unknown.
     fn covariance(&self) -> Option<&DMatrix<f64>>;
     /// The name of each parameter (`j3.beta`); by default `x1`, `x2`, ...
@@ -81,6 +83,18 @@ pub fn refine(
     options: &RefineOptions,
 ) -> Result<Refined, EstimationError> {
     let rows = problem.rows_per_point();
+    let dims = |s: String| Err(EstimationError::Dimensions(s));
+    if x0.len() != problem.parameters() {
+        return dims(format!("{} start values for {} parameters", x0.len(), problem.parameters()));
+    }
+    if rows == 0 || problem.equations() % rows != 0 {
+        return dims(format!("{} equations in points of {rows} rows", problem.equations()));
+    }
+    if let Some(v) = problem.covariance()
+        && v.shape() != (problem.equations(), rows)
+    {
+        return dims(format!("V blocks are {:?}, expected {} x {rows}", v.shape(), problem.equations()));
+    }
     let weights = Weights::new(problem.covariance(), rows, estimator, true)?;
     let cost_at = |x: &DVector<f64>| {
         let mut y = problem.evaluate(x, None);
@@ -102,8 +116,10 @@ pub fn refine(
 
         let one_step = options.max_iterations == 1;
         let taken = if one_step {
-            // The paper's estimate: the linear solution, taken as it is.
-            Some((gauss_newton, f64::NAN, 0.0))
+            // The paper's estimate: the linear solution, taken as it is; its cost is the
+            // linearised residual's.
+            let linearised = (&whitened.b - &whitened.a * &gauss_newton).norm_squared();
+            Some((gauss_newton, linearised, 0.0))
         } else {
             // Gauss-Newton, damped more and more until the cost falls, as Levenberg-Marquardt.
             let mut trial = (gauss_newton, 0.0);
@@ -126,12 +142,12 @@ pub fn refine(
                 history.push(Iteration { cost, cost_after, step: moved, damping });
                 let small =
                     moved <= options.step_tolerance || cost - cost_after <= options.cost_tolerance * cost;
-                (!one_step && small, if one_step { cost } else { cost_after })
+                (!one_step && small, cost_after)
             }
             None => (true, cost),
         };
         if converged || history.len() >= options.max_iterations {
-            let covariance = factorised.covariance(&whitened.a, whitened.noise.as_ref(), cost);
+            let covariance = factorised.covariance(&whitened.a, whitened.noise.as_ref(), final_cost);
             let estimate = LinearEstimate {
                 names: system.column_names(),
                 x,
@@ -177,6 +193,9 @@ mod tests {
         }
         fn equations(&self) -> usize {
             3
+        }
+        fn parameters(&self) -> usize {
+            1
         }
         fn covariance(&self) -> Option<&DMatrix<f64>> {
             None

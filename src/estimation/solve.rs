@@ -81,8 +81,9 @@ pub struct LinearEstimate {
     /// Covariance of `x` (the sandwich; `M^+` for Gauss-Markov). Without a noise model, OLS
     /// uses `sigma^2 (H^T H)^+` with `sigma^2` from the residuals (NaN without redundancy).
     pub covariance: DMatrix<f64>,
-    /// The weighted residual sum of squares `|S (y - H x)|^2` (chi-squared with
-    /// `N_m - rank` degrees of freedom for Gauss-Markov, before the paper's normalisation).
+    /// The weighted residual sum of squares `|S (y - H x)|^2`. For Gauss-Markov it is
+    /// `sigma_max^2` times a chi-squared with `N_m - rank` degrees of freedom: the paper's
+    /// normalisation `W = sigma_max^2 V^-1` scales it.
     pub cost: f64,
     /// Rank, singular values, identifiable subset, non-identifiable combinations.
     pub diagnostics: Diagnostics,
@@ -118,6 +119,12 @@ pub(crate) struct Factorised {
 /// Factor the whitened `a` as described in the [module documentation](self).
 pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, EstimationError> {
     let (m, p) = a.shape();
+    if m == 0 || p == 0 {
+        return Err(EstimationError::Dimensions(format!("H is {m} x {p}: no equations or no parameters")));
+    }
+    if !(0.0..1.0).contains(&tolerance) {
+        return Err(EstimationError::Dimensions(format!("rank tolerance {tolerance}: expected 0 <= t < 1")));
+    }
     let scales = DVector::from_iterator(
         p,
         a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }),

@@ -147,6 +147,11 @@ impl Builder {
             self.step(0.0, None, owner, kind);
         }
     }
+
+    /// A point at `xyz` (mm) with its 3 translation errors.
+    fn point(&mut self, owner: ParamOwner, xyz: &Vector3<f64>) {
+        self.placement(owner, &Placement { xyz: *xyz, rpy: Vector3::zeros() }, &ParamKind::PLACEMENT[..3]);
+    }
 }
 
 /// A robot model compiled for fast kinematics; see the [module documentation](self).
@@ -158,9 +163,34 @@ pub struct Chain {
 }
 
 impl Chain {
-    /// Compile `model`.
+    /// Compile `model`, ending at its tool.
     pub fn new(model: &RobotModel) -> Self {
-        let mut builder = Builder { params: model.params(), steps: Vec::new() };
+        let mut builder = Self::arm(model, model.params());
+        match &model.tool {
+            Tool::Point(p) => builder.point(ParamOwner::Tool, p),
+            Tool::Frame(f) => builder.placement(ParamOwner::Tool, f, &ParamKind::PLACEMENT),
+        }
+        Self { steps: builder.steps, params: builder.params, dof: model.dof() }
+    }
+
+    /// One chain per marker, each ending at its marker (nominal position `markers[k]`, mm, in
+    /// the last joint frame), all indexed by [`ParamSet::with_markers`]: they share the base
+    /// and joint parameters, and each has its own `marker<k>.x/y/z`. The model's tool is
+    /// not used.
+    pub fn markers(model: &RobotModel, markers: &[Vector3<f64>]) -> Vec<Self> {
+        let params = ParamSet::with_markers(model, markers.len());
+        (0..markers.len())
+            .map(|k| {
+                let mut builder = Self::arm(model, params.clone());
+                builder.point(ParamOwner::Marker(k), &markers[k]);
+                Self { steps: builder.steps, params: builder.params, dof: model.dof() }
+            })
+            .collect()
+    }
+
+    /// The steps of the base and the joints.
+    fn arm(model: &RobotModel, params: ParamSet) -> Builder {
+        let mut builder = Builder { params, steps: Vec::new() };
         builder.placement(ParamOwner::Base, &model.base, &ParamKind::PLACEMENT);
         for (i, joint) in model.joints.iter().enumerate() {
             let moves = |kind| Some(i).filter(|_| kind == joint.kind);
@@ -177,14 +207,7 @@ impl Chain {
                 builder.step(nominal, moved_by, ParamOwner::Joint(i), kind);
             }
         }
-        match &model.tool {
-            Tool::Point(p) => {
-                let at = Placement { xyz: *p, rpy: Vector3::zeros() };
-                builder.placement(ParamOwner::Tool, &at, &ParamKind::PLACEMENT[..3]);
-            }
-            Tool::Frame(f) => builder.placement(ParamOwner::Tool, f, &ParamKind::PLACEMENT),
-        }
-        Self { steps: builder.steps, params: builder.params, dof: model.dof() }
+        builder
     }
 
     /// Number of joints.

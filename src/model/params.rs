@@ -78,6 +78,8 @@ pub enum ParamOwner {
     Joint(usize),
     /// The tool (last joint frame to measured point or frame).
     Tool,
+    /// Marker `k` (0-based) on the last link, when several points are measured (`marker1.x`).
+    Marker(usize),
 }
 
 /// One named error parameter.
@@ -107,8 +109,18 @@ pub struct ParamSet {
 }
 
 impl ParamSet {
-    /// The parameters of `model`.
+    /// The parameters of `model`, with its tool.
     pub fn new(model: &RobotModel) -> Self {
+        Self::build(model, None)
+    }
+
+    /// The parameters of `model` with `markers` measured points on its last link in place of
+    /// its tool: `marker1.x`, `marker1.y`, `marker1.z`, `marker2.x`, ... (mm).
+    pub fn with_markers(model: &RobotModel, markers: usize) -> Self {
+        Self::build(model, Some(markers))
+    }
+
+    fn build(model: &RobotModel, markers: Option<usize>) -> Self {
         let mut params = Vec::new();
         let mut push = |owner, kind: ParamKind, prefix: &str, is_offset| {
             let name = format!("{prefix}.{}", kind.label());
@@ -126,12 +138,23 @@ impl ParamSet {
                 push(ParamOwner::Joint(i), kind, &joint.name, kind == offset);
             }
         }
-        let tool_kinds = match model.tool {
-            Tool::Point(_) => &ParamKind::PLACEMENT[..3],
-            Tool::Frame(_) => &ParamKind::PLACEMENT[..],
-        };
-        for &kind in tool_kinds {
-            push(ParamOwner::Tool, kind, "tool", false);
+        match markers {
+            Some(n) => {
+                for k in 0..n {
+                    for &kind in &ParamKind::PLACEMENT[..3] {
+                        push(ParamOwner::Marker(k), kind, &format!("marker{}", k + 1), false);
+                    }
+                }
+            }
+            None => {
+                let tool_kinds = match model.tool {
+                    Tool::Point(_) => &ParamKind::PLACEMENT[..3],
+                    Tool::Frame(_) => &ParamKind::PLACEMENT[..],
+                };
+                for &kind in tool_kinds {
+                    push(ParamOwner::Tool, kind, "tool", false);
+                }
+            }
         }
         Self { params }
     }

@@ -211,7 +211,7 @@ impl Bench<'_> {
         );
         let zero = vec![0.0; self.chain.params().len()];
         let problem = PointProblem::new(
-            &self.chain,
+            std::slice::from_ref(&self.chain),
             &study.selection,
             study.measured,
             joints.clone(),
@@ -288,7 +288,7 @@ impl Bench<'_> {
                 None => {
                     let zero = vec![0.0; self.chain.params().len()];
                     let problem = PointProblem::new(
-                        &self.chain,
+                        std::slice::from_ref(&self.chain),
                         &study.selection,
                         study.measured,
                         set.joints.clone(),

@@ -207,6 +207,12 @@ impl Study {
             Parameters::Named(name) => Selection::by_names(&params, &[name]).map_err(selection_error)?,
             Parameters::List(names) => Selection::by_names(&params, names).map_err(selection_error)?,
         };
+        if selection.is_empty() {
+            return Err(StudyError::Invalid {
+                field: "parameters".into(),
+                expected: "at least one parameter".into(),
+            });
+        }
         let estimators: Vec<Estimator> = file
             .estimators
             .iter()
@@ -257,6 +263,12 @@ impl Study {
             if count == 0 {
                 return invalid(field, "at least 1".into());
             }
+        }
+        if file.point_sets * file.runs_per_set < 2 {
+            return invalid(
+                "runs_per_set",
+                "at least 2 runs per case (point_sets x runs_per_set) for a spread".into(),
+            );
         }
         if file.cases.points.is_empty() || file.cases.sigma_me_mm.is_empty() {
             return invalid("cases", "at least one value in `points` and in `sigma_me_mm`".into());

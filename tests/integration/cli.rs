@@ -69,6 +69,28 @@ fn usage_errors_exit_with_2() {
 }
 
 #[test]
-fn reproduce_runs() {
-    assert!(robocal().arg("reproduce").output().unwrap().status.success());
+fn simulate_writes_tables_csv_and_figures() {
+    let out = std::env::temp_dir().join(format!("robocal-simulate-{}", std::process::id()));
+    let output =
+        robocal().args(["simulate", "paper-table2", "--out", out.to_str().unwrap()]).output().unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let folder = out.join("paper-table2");
+    let tables = std::fs::read_to_string(folder.join("tables.txt")).unwrap();
+    assert!(tables.contains("dE (%) = 100 (E_p[ols] - E_p[wls]) / E_p[ols]"), "{tables}");
+    let csv = std::fs::read_to_string(folder.join("samples.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 4 * 96);
+    let svg = std::fs::read_to_string(folder.join("improvement-vs-sigma-wls.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("dE (%)"));
+    assert!(String::from_utf8(output.stdout).unwrap().contains(&tables));
+}
+
+#[test]
+fn simulate_names_a_bad_study_file() {
+    let dir = std::env::temp_dir().join(format!("robocal-cli-study-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("study.toml");
+    let text = include_str!("../../presets/paper-table1.toml").replace("seed = 1991", "seed = -1");
+    std::fs::write(&path, text).unwrap();
+    let message = stderr_of(&["simulate", path.to_str().unwrap()]);
+    assert!(message.contains("study.toml") && message.contains("seed"), "{message}");
 }

@@ -142,8 +142,16 @@ fn recovers_without_noise(
     let joints = random_joints(model, 60, &mut rng);
     let observed = joints.iter().map(|q| real.pose(q)).collect();
     let zero = vec![0.0; chain.params().len()];
-    let problem =
-        PointProblem::new(&chain, &selection, Measured::Position, joints, observed, zero, None).unwrap();
+    let problem = PointProblem::new(
+        std::slice::from_ref(&chain),
+        &selection,
+        Measured::Position,
+        joints,
+        observed,
+        zero,
+        None,
+    )
+    .unwrap();
     let refined = refine(&problem, Estimator::Ols, problem.start(), &RefineOptions::default()).unwrap();
     assert!(refined.converged, "history {:?}", refined.history);
     let estimated = chain.with_errors(&problem.full(&refined.estimate.x));
@@ -205,10 +213,11 @@ fn one_step_is_the_first_iterate_and_equals_the_linear_estimate() {
     let selection = Selection::joints(chain.params());
     let real = chain.with_errors(&true_errors(&chain, &selection, &mut rng));
     let joints = random_joints(&model, 30, &mut rng);
-    let observed = joints.iter().map(|q| real.pose(q)).collect();
+    let observed: Vec<Isometry3<f64>> = joints.iter().map(|q| real.pose(q)).collect();
+    let (joints_again, observed_again) = (joints.clone(), observed.clone());
     let noise = puma_noise(0.01);
     let problem = PointProblem::new(
-        &chain,
+        std::slice::from_ref(&chain),
         &selection,
         Measured::Position,
         joints,
@@ -223,6 +232,28 @@ fn one_step_is_the_first_iterate_and_equals_the_linear_estimate() {
     assert_eq!(refined.history.len(), 1);
     assert!((&refined.estimate.x - &linear.x).amax() < 1e-15);
     assert_eq!(refined.estimate.covariance, linear.covariance);
+    assert!(
+        (refined.estimate.cost - linear.cost).abs() <= 1e-12 * linear.cost,
+        "the linearised residual's cost"
+    );
+    // Without a noise model the covariance comes from the residual: the same for both.
+    let ols_system = LinearSystem { v: None, ..problem.system(&problem.start()) };
+    let ols_linear = estimate(&ols_system, Estimator::Ols, RANK_TOLERANCE).unwrap();
+    let unweighted = PointProblem::new(
+        std::slice::from_ref(&chain),
+        &selection,
+        Measured::Position,
+        joints_again,
+        observed_again,
+        vec![0.0; chain.params().len()],
+        None,
+    )
+    .unwrap();
+    let ols_one = refine(&unweighted, Estimator::Ols, unweighted.start(), &one).unwrap();
+    assert!((&ols_one.estimate.x - &ols_linear.x).amax() < 1e-15);
+    let spread =
+        (&ols_one.estimate.covariance - &ols_linear.covariance).amax() / ols_linear.covariance.amax();
+    assert!(spread < 1e-12, "covariance from the linearised residual: {spread:e}");
 }
 
 /// The paper's joint noise (0.007 deg for joints 1-3, 0.002 deg for 4-6) and isotropic
@@ -256,9 +287,16 @@ fn predicted_covariance_matches_the_monte_carlo_spread() {
             .map(|q| DMatrix::identity(3, 3) * (0.02 * at.position(q).norm() / 1000.0).powi(2))
             .collect(),
     );
-    let problem =
-        PointProblem::new(&chain, &selection, Measured::Position, joints, observed, zero, Some(&noise))
-            .unwrap();
+    let problem = PointProblem::new(
+        std::slice::from_ref(&chain),
+        &selection,
+        Measured::Position,
+        joints,
+        observed,
+        zero,
+        Some(&noise),
+    )
+    .unwrap();
     let system = problem.system(&problem.start());
     let v = system.v.clone().unwrap();
     let factors: Vec<DMatrix<f64>> =
@@ -348,6 +386,19 @@ fn bad_input_gives_typed_errors() {
         Err(EstimationError::NoiseRequired(Estimator::Wls))
     );
 
+    let nothing = LinearSystem { h: DMatrix::zeros(18, 0), names: Vec::new(), ..system.clone() };
+    assert!(matches!(
+        estimate(&nothing, Estimator::Ols, RANK_TOLERANCE),
+        Err(EstimationError::Dimensions(_))
+    ));
+    assert!(matches!(estimate(&system, Estimator::Ols, f64::NAN), Err(EstimationError::Dimensions(_))));
+    let mut asymmetric = system.clone();
+    asymmetric.v.as_mut().unwrap()[(0, 1)] += 0.5;
+    assert!(matches!(
+        estimate(&asymmetric, Estimator::Wls, RANK_TOLERANCE),
+        Err(EstimationError::Dimensions(_))
+    ));
+
     let few = dense_system(&mut rng, 1, 5, false);
     let err = estimate(&few, Estimator::Ols, RANK_TOLERANCE).unwrap_err();
     assert!(
@@ -365,8 +416,16 @@ fn noise_model_must_fit_the_robot() {
     let observed = vec![Isometry3::identity(); 4];
     let noise = NoiseModel::diagonal(&[1e-4; 5], MeasurementNoise::isotropic(0.01, 0.0));
     let zero = vec![0.0; chain.params().len()];
-    let err = PointProblem::new(&chain, &selection, Measured::Position, joints, observed, zero, Some(&noise))
-        .unwrap_err();
+    let err = PointProblem::new(
+        std::slice::from_ref(&chain),
+        &selection,
+        Measured::Position,
+        joints,
+        observed,
+        zero,
+        Some(&noise),
+    )
+    .unwrap_err();
     assert_eq!(err.to_string(), "noise model: Sigma_q is (5, 5), expected 6 x 6");
 }
 
@@ -382,9 +441,16 @@ fn puma560_diagnostics_name_the_non_identifiable_combinations() {
     let observed = vec![Isometry3::identity(); joints.len()];
     let zero = vec![0.0; chain.params().len()];
     let noise = puma_noise(0.01);
-    let problem =
-        PointProblem::new(&chain, &selection, Measured::Position, joints, observed, zero, Some(&noise))
-            .unwrap();
+    let problem = PointProblem::new(
+        std::slice::from_ref(&chain),
+        &selection,
+        Measured::Position,
+        joints,
+        observed,
+        zero,
+        Some(&noise),
+    )
+    .unwrap();
     let wls = estimate(&problem.system(&problem.start()), Estimator::Wls, RANK_TOLERANCE).unwrap();
     let names: Vec<&str> = selection.indices().iter().map(|&i| chain.params().get(i).name.as_str()).collect();
     let described: Vec<String> =

@@ -60,9 +60,10 @@ fn point(model: &RobotModel, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
     (q, x)
 }
 
-/// Largest difference relative to the largest entry (or to 1, for small matrices).
+/// Largest difference, each row relative to its own largest entry (or to 1 for small rows),
+/// so that the angular rows (entries up to 1) are held as tightly as the linear ones (mm).
 fn relative_error(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
-    (a - b).amax() / a.amax().max(1.0)
+    (0..a.nrows()).map(|r| (a.row(r) - b.row(r)).amax() / a.row(r).amax().max(1.0)).fold(0.0, f64::max)
 }
 
 /// Central difference of the pose along `direction` of `values`, as a 6-vector column.

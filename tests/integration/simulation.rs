@@ -2,7 +2,7 @@
 
 use robocal::io::load_model;
 use robocal::report;
-use robocal::simulation::{self, Study, StudyResults, Summary, t_quantile_975};
+use robocal::simulation::{self, Study, StudyResults, Summary};
 
 /// A study of the PUMA 560 like the paper's, with the cases, point sets and runs given and
 /// 300 test points.
@@ -83,7 +83,6 @@ fn the_papers_trends_hold_on_a_reduced_study() {
         (0.07..0.15).contains(&repeatability),
         "the paper's joint noise gives about 0.1 mm: {repeatability}"
     );
-    assert!(t_quantile_975(23) < MARGIN);
 }
 
 #[test]
@@ -100,9 +99,12 @@ fn the_same_seed_gives_the_same_csv_on_one_and_two_threads() {
 
 #[test]
 fn cases_differing_only_in_noise_share_their_random_numbers() {
-    let study = reduced_study("[24]", "[0.0, 0.0]", 2, 3);
+    // The draws must not depend on sigma_me: a vanishing noise changes dE by next to nothing.
+    let study = reduced_study("[24]", "[0.0, 1e-9]", 2, 3);
     let results = run(&study);
-    assert_eq!(results.improvements(0, 1), results.improvements(1, 1));
+    for (a, b) in results.improvements(0, 1).iter().zip(results.improvements(1, 1)) {
+        assert!((a - b).abs() < 1e-4, "dE {a} vs {b}");
+    }
 }
 
 #[test]
@@ -136,5 +138,9 @@ fn bad_study_files_say_what_is_wrong() {
             .starts_with("field `robot`: no model `puma600`")
     );
     assert_eq!(study_error("point_sets = 6", "point_sets = 0"), "field `point_sets`: at least 1");
+    assert_eq!(
+        study_error("parameters = \"joints\"", "parameters = []"),
+        "field `parameters`: at least one parameter"
+    );
     assert!(study_error("redraw = \"run\"", "redraw = \"always\"").contains("run"));
 }
