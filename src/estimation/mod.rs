@@ -178,7 +178,7 @@ impl LinearSystem {
             check("V", v)?;
             for k in 0..self.points() {
                 let block = v.rows(k * b, b);
-                if (&block - block.transpose()).amax() > 1e-9 * block.amax() {
+                if (block - block.transpose()).amax() > 1e-9 * block.amax() {
                     return Err(EstimationError::Dimensions(format!("V_k of point {k} is not symmetric")));
                 }
             }
