@@ -19,13 +19,16 @@
 //!   covariance, and Gauss-Newton refinement.
 //! - [`simulation`]: the Monte Carlo simulation of a calibration campaign (the paper's steps
 //!   1-8), studies as data, reproducible on any number of threads.
+//! - [`calibration`]: calibrating a real robot from measured marker positions: registration,
+//!   base and markers, identifiable joint parameters, validation.
 //! - [`io`]: reading files, with errors that name the file.
 //! - [`report`]: text reports at fixed precision.
 //!
 //! Units inside the library are millimetres and radians; degrees appear only at the edges.
-//! The core (model, kinematics, estimation, simulation) does no I/O: files
+//! The core (model, kinematics, estimation, simulation, calibration) does no I/O: files
 //! are read and written only in [`io`].
 
+pub mod calibration;
 pub mod estimation;
 pub mod io;
 pub mod kinematics;

@@ -21,9 +21,11 @@
 
 mod stats;
 mod study;
+mod synthetic;
 
 pub use stats::{Summary, t_quantile_975};
 pub use study::{Case, ErrorSizes, Redraw, Reference, STUDIES, Study, StudyError};
+pub use synthetic::measurement_csv;
 
 use crate::estimation::{
     EstimationError, MeasurementNoise, NoiseModel, PointProblem, Prepared, RANK_TOLERANCE, RefineOptions,

@@ -1,5 +1,6 @@
 //! robocal's integration tests, gathered in one test binary.
 
+mod calibration;
 mod cli;
 mod estimation;
 mod kinematics;

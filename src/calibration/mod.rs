@@ -1,0 +1,414 @@
+//! Calibrating a real robot from measured marker positions.
+//!
+//! 1. Registration: the measuring device never shares the robot's frame, so the base is first
+//!    placed by the best rigid fit (Kabsch 1976) of the nominal marker positions onto the
+//!    measured ones.
+//! 2. "Before": the base and the markers fitted, the joints nominal. This is the robot as it
+//!    is, seen from the device; its errors are what calibration has to beat.
+//! 3. "After": the joint parameters estimated with the base and markers, by Gauss-Newton on
+//!    the chosen estimator. Parameters that the poses cannot tell apart are found by the
+//!    rank-revealing solve and held at their values, deterministically (QR with column
+//!    pivoting, ties to the earlier parameter); their combinations are reported.
+//!
+//! Errors are in mm and rad inside, and are folded into a calibrated model at the end.
+
+mod data;
+
+pub use data::{DataError, Measurements, Units};
+
+use crate::estimation::{
+    EstimationError, Estimator, MeasurementNoise, NoiseModel, PointProblem, RANK_TOLERANCE, RefineOptions,
+    Refined, estimate, refine,
+};
+use crate::kinematics::{Chain, Measured};
+use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+
+/// Which joint parameters to identify.
+#[derive(Debug, Clone, PartialEq)]
+pub enum JointParams {
+    /// Every joint parameter (theta, d, a, alpha, beta of each joint).
+    All,
+    /// Only the joint offsets.
+    Offsets,
+    /// None: only the base and the markers.
+    None,
+    /// These names or patterns (`j*.theta`, `j2.a`).
+    Named(Vec<String>),
+}
+
+/// How to calibrate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    /// The estimator: OLS, or a weighted one with `noise`.
+    pub estimator: Estimator,
+    /// Joint and measurement noise; a `sigma` column of the data replaces the measurement part.
+    pub noise: Option<NoiseModel>,
+    /// The joint parameters to identify.
+    pub joints: JointParams,
+    /// Estimate the base (measuring frame to robot): true unless the frames are known to agree.
+    pub estimate_base: bool,
+    /// Estimate the marker positions on the last link.
+    pub estimate_markers: bool,
+    /// Nominal marker positions in the last joint frame (mm); missing ones start at zero.
+    pub markers: Vec<Vector3<f64>>,
+    /// Gauss-Newton settings; `max_iterations = 1` is the paper's one-step estimate.
+    pub refine: RefineOptions,
+}
+
+/// Why a calibration could not be done.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CalibrationError {
+    /// The estimation failed.
+    #[error(transparent)]
+    Estimation(#[from] EstimationError),
+    /// A named parameter does not exist.
+    #[error(transparent)]
+    Selection(#[from] SelectionError),
+    /// Too few poses for the parameters.
+    #[error(
+        "{poses} poses give {equations} equations for {parameters} parameters: measure more poses (at \
+         least {needed}) or identify fewer parameters"
+    )]
+    TooFewPoses {
+        /// Poses given.
+        poses: usize,
+        /// Equations they give.
+        equations: usize,
+        /// Parameters asked for.
+        parameters: usize,
+        /// Poses needed for one redundant equation.
+        needed: usize,
+    },
+}
+
+/// Position errors of measured markers against a model (mm).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ErrorStats {
+    /// Marker measurements compared.
+    pub count: usize,
+    /// Mean distance.
+    pub mean: f64,
+    /// Root mean square distance.
+    pub rms: f64,
+    /// Largest distance.
+    pub max: f64,
+    /// Root mean square error along x, y and z of the measuring frame.
+    pub rms_axis: [f64; 3],
+}
+
+impl ErrorStats {
+    /// Statistics of error vectors.
+    pub fn of(errors: &[Vector3<f64>]) -> Self {
+        let n = errors.len().max(1) as f64;
+        let norms: Vec<f64> = errors.iter().map(|e| e.norm()).collect();
+        let axis = |k: usize| (errors.iter().map(|e| e[k] * e[k]).sum::<f64>() / n).sqrt();
+        Self {
+            count: errors.len(),
+            mean: norms.iter().sum::<f64>() / n,
+            rms: (norms.iter().map(|d| d * d).sum::<f64>() / n).sqrt(),
+            max: norms.iter().copied().fold(0.0, f64::max),
+            rms_axis: [axis(0), axis(1), axis(2)],
+        }
+    }
+}
+
+/// A robot measured with markers: the model with its base placed, one chain per marker, and
+/// full parameter vectors for the stages of the calibration.
+#[derive(Debug, Clone)]
+pub struct Calibration {
+    /// The model with the registered base (the start of both stages).
+    pub registered: RobotModel,
+    /// The calibrated model: every estimate folded in; its tool is marker 1.
+    pub calibrated: RobotModel,
+    /// Nominal marker positions (mm, last joint frame).
+    pub markers: Vec<Vector3<f64>>,
+    /// Every parameter: base, joints, markers.
+    pub params: ParamSet,
+    /// Parameter errors after the base-and-markers fit ("before").
+    pub before: Vec<f64>,
+    /// Parameter errors after the full calibration ("after").
+    pub after: Vec<f64>,
+    /// The full estimate: values, covariance, diagnostics, iterations, by name.
+    pub estimate: Refined,
+    /// Parameters asked for that the poses cannot identify, held fixed: their combinations
+    /// with the identified ones, in words.
+    pub fixed: Vec<String>,
+    /// Errors on the poses used for fitting, before and after.
+    pub training: (ErrorStats, ErrorStats),
+    /// Things a careful engineer should look at.
+    pub warnings: Vec<String>,
+    chains: Vec<Chain>,
+}
+
+impl Calibration {
+    /// Marker position errors of `data` (mm) against the model before and after calibration.
+    pub fn validate(&self, data: &Measurements) -> (ErrorStats, ErrorStats) {
+        (
+            ErrorStats::of(&errors(&self.chains, &self.before, data)),
+            ErrorStats::of(&errors(&self.chains, &self.after, data)),
+        )
+    }
+}
+
+/// Measured minus predicted marker positions of every pose, pose by pose.
+fn errors(chains: &[Chain], x: &[f64], data: &Measurements) -> Vec<Vector3<f64>> {
+    let at: Vec<_> = chains.iter().map(|c| c.with_errors(x)).collect();
+    let mut out = Vec::with_capacity(data.len() * chains.len());
+    for (q, measured) in data.joints.iter().zip(&data.markers) {
+        for (at, m) in at.iter().zip(measured) {
+            out.push(m - at.position(q));
+        }
+    }
+    out
+}
+
+/// Calibrate `model` from `data` with `options`.
+pub fn calibrate(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+) -> Result<Calibration, CalibrationError> {
+    let marker_count = data.marker_count();
+    let markers: Vec<Vector3<f64>> =
+        (0..marker_count).map(|k| options.markers.get(k).copied().unwrap_or_else(Vector3::zeros)).collect();
+    let mut registered = model.clone();
+    if options.estimate_base {
+        let chains = Chain::markers(model, &markers);
+        let zero = vec![0.0; chains[0].params().len()];
+        let measured: Vec<Vector3<f64>> = data.markers.iter().flatten().copied().collect();
+        let predicted: Vec<Vector3<f64>> =
+            errors(&chains, &zero, data).iter().zip(&measured).map(|(e, m)| m - e).collect();
+        registered.base = placement_of(&(register(&predicted, &measured) * model.base.isometry()));
+    }
+    let chains = Chain::markers(&registered, &markers);
+    let params = chains[0].params().clone();
+    let noise = noise_for(options, data, marker_count);
+    let observed: Vec<Isometry3<f64>> = data
+        .markers
+        .iter()
+        .flatten()
+        .map(|p| Isometry3::from_parts(Translation3::from(*p), UnitQuaternion::identity()))
+        .collect();
+    let zero = vec![0.0; params.len()];
+
+    // "Before": base and markers only.
+    let frame = selection(&params, &JointParams::None, options)?;
+    let before = if frame.is_empty() {
+        zero.clone()
+    } else {
+        let problem = PointProblem::new(
+            &chains,
+            &frame,
+            Measured::Position,
+            data.joints.clone(),
+            observed.clone(),
+            zero,
+            noise.as_ref(),
+        )?;
+        let fitted = refine(&problem, options.estimator, problem.start(), &RefineOptions::default())?;
+        problem.full(&fitted.estimate.x)
+    };
+
+    // "After": everything asked for that the poses can identify.
+    let asked = selection(&params, &options.joints, options)?;
+    // With fewer equations than parameters the rank cannot tell structure from lack of data.
+    let equations = data.len() * 3 * marker_count;
+    if equations <= asked.len() {
+        let needed = asked.len() / (3 * marker_count) + 1;
+        return Err(CalibrationError::TooFewPoses {
+            poses: data.len(),
+            equations,
+            parameters: asked.len(),
+            needed,
+        });
+    }
+    let problem = PointProblem::new(
+        &chains,
+        &asked,
+        Measured::Position,
+        data.joints.clone(),
+        observed.clone(),
+        before.clone(),
+        noise.as_ref(),
+    )?;
+    let diagnostics =
+        estimate(&problem.system(&problem.start()), options.estimator, RANK_TOLERANCE)?.diagnostics;
+    let names: Vec<&str> = asked.indices().iter().map(|&i| params.get(i).name.as_str()).collect();
+    let fixed = diagnostics.not_identifiable.iter().map(|c| c.describe(&names)).collect();
+    let kept = Selection::from_indices(&params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
+    let problem = PointProblem::new(
+        &chains,
+        &kept,
+        Measured::Position,
+        data.joints.clone(),
+        observed,
+        before.clone(),
+        noise.as_ref(),
+    )?;
+    let estimate = refine(&problem, options.estimator, problem.start(), &options.refine)?;
+    let after = problem.full(&estimate.estimate.x);
+
+    let training =
+        (ErrorStats::of(&errors(&chains, &before, data)), ErrorStats::of(&errors(&chains, &after, data)));
+    let calibrated = fold(&registered, &params, &after, &markers);
+    let mut calibration = Calibration {
+        registered,
+        calibrated,
+        markers,
+        params,
+        before,
+        after,
+        estimate,
+        fixed,
+        training,
+        warnings: Vec::new(),
+        chains,
+    };
+    calibration.warnings = warnings(&calibration, data, noise.as_ref());
+    Ok(calibration)
+}
+
+/// The selection of base, markers and the chosen joint parameters.
+fn selection(
+    params: &ParamSet,
+    joints: &JointParams,
+    options: &Options,
+) -> Result<Selection, SelectionError> {
+    let joint = match joints {
+        JointParams::All => Selection::joints(params),
+        JointParams::Offsets => Selection::offsets(params),
+        JointParams::None => Selection::from_indices(params, []),
+        JointParams::Named(names) => Selection::by_names(params, names)?,
+    };
+    let extra = (0..params.len()).filter(|&i| match params.get(i).owner {
+        ParamOwner::Base => options.estimate_base,
+        ParamOwner::Marker(_) => options.estimate_markers,
+        _ => false,
+    });
+    Ok(Selection::from_indices(params, joint.indices().iter().copied().chain(extra)))
+}
+
+/// The noise model, with the data's `sigma` column as the measurement noise when present.
+fn noise_for(options: &Options, data: &Measurements, markers: usize) -> Option<NoiseModel> {
+    let mut noise = options.noise.clone()?;
+    if let Some(sigmas) = &data.sigma {
+        let rows = 3 * markers;
+        noise.measurement = MeasurementNoise::PerPoint(
+            sigmas.iter().map(|&s| DMatrix::<f64>::identity(rows, rows) * (s * s)).collect(),
+        );
+    }
+    Some(noise)
+}
+
+/// The rigid transform `T` minimising `sum |measured - T predicted|^2` (Kabsch 1976).
+fn register(predicted: &[Vector3<f64>], measured: &[Vector3<f64>]) -> Isometry3<f64> {
+    let n = predicted.len() as f64;
+    let (cp, cm) = (predicted.iter().sum::<Vector3<f64>>() / n, measured.iter().sum::<Vector3<f64>>() / n);
+    let mut cross = Matrix3::zeros();
+    for (p, m) in predicted.iter().zip(measured) {
+        cross += (m - cm) * (p - cp).transpose();
+    }
+    let svd = cross.svd(true, true);
+    let (u, v_t) = (svd.u.expect("asked for U"), svd.v_t.expect("asked for V"));
+    let mut d = Matrix3::identity();
+    d[(2, 2)] = (u * v_t).determinant().signum();
+    let rotation = Rotation3::from_matrix_unchecked(u * d * v_t);
+    let translation = cm - rotation * cp;
+    Isometry3::from_parts(Translation3::from(translation), UnitQuaternion::from_rotation_matrix(&rotation))
+}
+
+/// The placement (xyz, roll-pitch-yaw) of an isometry.
+fn placement_of(iso: &Isometry3<f64>) -> Placement {
+    let (roll, pitch, yaw) = iso.rotation.euler_angles();
+    Placement { xyz: iso.translation.vector, rpy: Vector3::new(roll, pitch, yaw) }
+}
+
+/// `model` with the parameter errors `x` folded into its numbers; the tool becomes marker 1.
+fn fold(model: &RobotModel, params: &ParamSet, x: &[f64], markers: &[Vector3<f64>]) -> RobotModel {
+    let mut out = model.clone();
+    let value = |owner, kind| params.index_of(owner, kind).map_or(0.0, |i| x[i]);
+    for (i, joint) in out.joints.iter_mut().enumerate() {
+        let owner = ParamOwner::Joint(i);
+        joint.theta += value(owner, ParamKind::Theta);
+        joint.d += value(owner, ParamKind::D);
+        joint.a += value(owner, ParamKind::A);
+        joint.alpha += value(owner, ParamKind::Alpha);
+        joint.beta += value(owner, ParamKind::Beta);
+    }
+    let b = |kind| value(ParamOwner::Base, kind);
+    let displacement = Isometry3::translation(b(ParamKind::X), b(ParamKind::Y), b(ParamKind::Z))
+        * UnitQuaternion::from_euler_angles(b(ParamKind::Rx), 0.0, 0.0)
+        * UnitQuaternion::from_euler_angles(0.0, b(ParamKind::Ry), 0.0)
+        * UnitQuaternion::from_euler_angles(0.0, 0.0, b(ParamKind::Rz));
+    out.base = placement_of(&(model.base.isometry() * displacement));
+    let marker = |kind| value(ParamOwner::Marker(0), kind);
+    let first = markers.first().copied().unwrap_or_else(Vector3::zeros);
+    out.tool =
+        Tool::Point(first + Vector3::new(marker(ParamKind::X), marker(ParamKind::Y), marker(ParamKind::Z)));
+    out
+}
+
+/// Implausible results: large length corrections, residual outliers.
+fn warnings(c: &Calibration, data: &Measurements, noise: Option<&NoiseModel>) -> Vec<String> {
+    let mut out = Vec::new();
+    for (i, p) in c.params.iter().enumerate() {
+        let correction = c.after[i] - c.before[i];
+        let is_joint = matches!(p.owner, ParamOwner::Joint(_));
+        if is_joint && !p.kind.is_angle() && correction.abs() > 10.0 {
+            out.push(format!(
+                "{} is corrected by {correction:.2} mm: more than 10 mm, check the model",
+                p.name
+            ));
+        }
+    }
+    let sigma = match noise.map(|n| &n.measurement) {
+        Some(MeasurementNoise::PerAxis(s)) if s[0] > 0.0 => s[0],
+        _ => c.training.1.rms / 3f64.sqrt(),
+    };
+    let markers = c.markers.len();
+    for (k, e) in errors(&c.chains, &c.after, data).iter().enumerate() {
+        let (pose, marker) = (k / markers, k % markers);
+        let s = data.sigma.as_ref().map_or(sigma, |s| s[pose]);
+        if e.norm() > 5.0 * s * 3f64.sqrt() && s > 0.0 {
+            let line = data.lines[pose];
+            out.push(format!(
+                "line {line}: marker {} is {:.3} mm off after calibration, over 5 sigma",
+                marker + 1,
+                e.norm()
+            ));
+        }
+    }
+    out
+}
+
+/// k-fold cross-validation: pose `i` is held out in fold `i mod k`; the errors of every
+/// held-out pose, before and after a calibration on the other folds.
+pub fn cross_validate(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    folds: usize,
+) -> Result<(ErrorStats, ErrorStats), CalibrationError> {
+    let (mut before, mut after) = (Vec::new(), Vec::new());
+    for fold in 0..folds {
+        let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
+        let calibration = calibrate(model, &data.subset(&train), options)?;
+        let held_out = data.subset(&test);
+        before.extend(errors(&calibration.chains, &calibration.before, &held_out));
+        after.extend(errors(&calibration.chains, &calibration.after, &held_out));
+    }
+    Ok((ErrorStats::of(&before), ErrorStats::of(&after)))
+}
+
+/// The standard error of every parameter (NaN for those not estimated), full-vector order.
+pub fn standard_errors(c: &Calibration) -> Vec<f64> {
+    let se: DVector<f64> = c.estimate.estimate.standard_errors();
+    let mut out = vec![f64::NAN; c.params.len()];
+    for (name, s) in c.estimate.estimate.names.iter().zip(se.iter()) {
+        if let Some(i) = c.params.index_by_name(name) {
+            out[i] = *s;
+        }
+    }
+    out
+}
