@@ -18,7 +18,7 @@ pub use data::{DataError, Measurements, Units};
 
 use crate::estimation::{
     EstimationError, Estimator, MeasurementNoise, NoiseModel, PointProblem, RANK_TOLERANCE, RefineOptions,
-    Refined, estimate, refine,
+    Refined, Residuals, Weights, estimate, refine,
 };
 use crate::kinematics::{Chain, Measured};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
@@ -242,17 +242,28 @@ pub fn calibrate(
         &kept,
         Measured::Position,
         data.joints.clone(),
-        observed,
+        observed.clone(),
         before.clone(),
         noise.as_ref(),
     )?;
     let estimate = refine(&problem, options.estimator, problem.start(), &options.refine)?;
     let after = problem.full(&estimate.estimate.x);
+    let final_problem = PointProblem::new(
+        &chains,
+        &kept,
+        Measured::Position,
+        data.joints.clone(),
+        observed,
+        after.clone(),
+        noise.as_ref(),
+    )?;
 
     let training =
         (ErrorStats::of(&errors(&chains, &before, data)), ErrorStats::of(&errors(&chains, &after, data)));
     let calibrated = fold(&registered, &params, &after, &markers);
-    let mut calibration = Calibration {
+    let rank = estimate.estimate.diagnostics.rank;
+    let warnings = warnings(&params, (&before, &after), rank, data, &final_problem);
+    Ok(Calibration {
         registered,
         calibrated,
         markers,
@@ -262,11 +273,9 @@ pub fn calibrate(
         estimate,
         fixed,
         training,
-        warnings: Vec::new(),
+        warnings,
         chains,
-    };
-    calibration.warnings = warnings(&calibration, data, noise.as_ref());
-    Ok(calibration)
+    })
 }
 
 /// The selection of base, markers and the chosen joint parameters.
@@ -349,33 +358,47 @@ fn fold(model: &RobotModel, params: &ParamSet, x: &[f64], markers: &[Vector3<f64
     out
 }
 
-/// Implausible results: large length corrections, residual outliers.
-fn warnings(c: &Calibration, data: &Measurements, noise: Option<&NoiseModel>) -> Vec<String> {
+/// Implausible results: large length corrections, and residuals more than 5 standard
+/// deviations out once whitened by the full `V_k` of their pose (joint and measurement noise),
+/// or, without a noise model, by the residuals' own spread.
+fn warnings(
+    params: &ParamSet,
+    (before, after): (&[f64], &[f64]),
+    rank: usize,
+    data: &Measurements,
+    final_problem: &PointProblem<'_>,
+) -> Vec<String> {
     let mut out = Vec::new();
-    for (i, p) in c.params.iter().enumerate() {
-        let correction = c.after[i] - c.before[i];
-        let is_joint = matches!(p.owner, ParamOwner::Joint(_));
-        if is_joint && !p.kind.is_angle() && correction.abs() > 10.0 {
+    for (i, p) in params.iter().enumerate() {
+        let correction = after[i] - before[i];
+        if matches!(p.owner, ParamOwner::Joint(_)) && !p.kind.is_angle() && correction.abs() > 10.0 {
             out.push(format!(
                 "{} is corrected by {correction:.2} mm: more than 10 mm, check the model",
                 p.name
             ));
         }
     }
-    let sigma = match noise.map(|n| &n.measurement) {
-        Some(MeasurementNoise::PerAxis(s)) if s[0] > 0.0 => s[0],
-        _ => c.training.1.rms / 3f64.sqrt(),
-    };
-    let markers = c.markers.len();
-    for (k, e) in errors(&c.chains, &c.after, data).iter().enumerate() {
-        let (pose, marker) = (k / markers, k % markers);
-        let s = data.sigma.as_ref().map_or(sigma, |s| s[pose]);
-        if e.norm() > 5.0 * s * 3f64.sqrt() && s > 0.0 {
-            let line = data.lines[pose];
+    let mut z = final_problem.evaluate(&final_problem.start(), None);
+    let rows = final_problem.rows_per_point();
+    match final_problem.covariance() {
+        Some(v) => match Weights::new(Some(v), rows, Estimator::Wls, false) {
+            Ok(weights) => weights.apply(&mut z),
+            Err(_) => return out,
+        },
+        None => {
+            let dof = z.len().saturating_sub(rank).max(1);
+            let sigma = (z.norm_squared() / dof as f64).sqrt();
+            if sigma > 0.0 {
+                z /= sigma;
+            }
+        }
+    }
+    for (pose, block) in z.as_slice().chunks(rows).enumerate() {
+        let worst = block.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if worst > 5.0 {
             out.push(format!(
-                "line {line}: marker {} is {:.3} mm off after calibration, over 5 sigma",
-                marker + 1,
-                e.norm()
+                "line {}: a residual {worst:.1} standard deviations out after calibration",
+                data.lines[pose]
             ));
         }
     }

@@ -3,8 +3,11 @@
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
+use robocal::calibration::{self, JointParams, Options, Units};
+use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
 use robocal::kinematics::Chain;
 use robocal::model::{JointKind, PRESETS, RobotModel};
+use robocal::report::calibration::CalibrationReport;
 use robocal::simulation::{self, Study};
 use robocal::{io, report};
 use std::path::{Path, PathBuf};
@@ -52,6 +55,8 @@ enum Command {
         #[arg(long, allow_hyphen_values = true)]
         q: String,
     },
+    /// Calibrate a robot from measured marker positions.
+    Calibrate(Box<CalibrateArgs>),
     /// Inspect robot models.
     Model {
         #[command(subcommand)]
@@ -70,6 +75,61 @@ enum ModelCommand {
     List,
 }
 
+/// The flags of `robocal calibrate`.
+#[derive(clap::Args, Debug)]
+struct CalibrateArgs {
+    /// The nominal robot: a preset name or a model TOML file.
+    #[arg(long)]
+    model: String,
+    /// The measurement file (CSV; see docs/formats.md).
+    #[arg(long)]
+    data: PathBuf,
+    /// Unit of revolute joint values in the files, if they do not declare it.
+    #[arg(long, value_parser = ["deg", "rad"])]
+    joint_unit: Option<String>,
+    /// Unit of lengths in the files, if they do not declare it.
+    #[arg(long, value_parser = ["mm", "m"])]
+    length_unit: Option<String>,
+    /// Estimator: `ols`, or `wls` (Gauss-Markov, needs --joint-sigma-deg). Default: wls when
+    /// the noise is given, ols otherwise.
+    #[arg(long)]
+    estimator: Option<Estimator>,
+    /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    joint_sigma_deg: Option<Vec<f64>>,
+    /// Measurement noise standard deviation (mm), unless the data has a `sigma` column.
+    #[arg(long, default_value_t = 0.0)]
+    sigma_mm: f64,
+    /// Joint parameters to identify: `all`, `offsets`, `none`, or names and patterns
+    /// (`j*.theta,j2.a`).
+    #[arg(long, default_value = "all", value_delimiter = ',')]
+    params: Vec<String>,
+    /// Do not estimate the base: the measuring frame is the model's base frame.
+    #[arg(long)]
+    fixed_base: bool,
+    /// Do not estimate the marker positions.
+    #[arg(long)]
+    fixed_markers: bool,
+    /// Nominal position of a marker on the last link, "x,y,z" in mm; repeat per marker.
+    #[arg(long, allow_hyphen_values = true)]
+    marker: Vec<String>,
+    /// Gauss-Newton steps at most; 1 is the paper's one-step estimate.
+    #[arg(long, default_value_t = 50)]
+    iterations: usize,
+    /// A measurement file of held-out poses to validate on; repeatable.
+    #[arg(long)]
+    validate: Vec<PathBuf>,
+    /// k-fold cross-validation on the data (k >= 2).
+    #[arg(long)]
+    folds: Option<usize>,
+    /// Write the report as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Write the calibrated model (TOML) here.
+    #[arg(long)]
+    out_model: Option<PathBuf>,
+}
+
 /// Run the command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
@@ -84,6 +144,7 @@ pub fn run(cli: Cli) -> Result<()> {
             let pose = Chain::new(&model).with_errors(&vec![0.0; model.params().len()]).pose(&q);
             print!("{}", report::tool_pose(&model, &q, &pose));
         }
+        Command::Calibrate(args) => calibrate(&args)?,
         Command::Model { command: ModelCommand::Show { model } } => {
             print!("{}", io::load_model(&model)?.to_toml_string());
         }
@@ -114,6 +175,124 @@ pub fn run(cli: Cli) -> Result<()> {
             println!("Both studies in {:.2} s.", started.elapsed().as_secs_f64());
         }
         Command::Simulate { study, out, threads } => simulate(&io::load_study(&study)?, &out, threads)?,
+    }
+    Ok(())
+}
+
+/// `robocal calibrate`: everything is read and computed before anything is written.
+fn calibrate(args: &CalibrateArgs) -> Result<()> {
+    let model = io::load_model(&args.model)?;
+    let units = match (args.joint_unit.as_deref(), args.length_unit.as_deref()) {
+        (None, None) => None,
+        (Some(j), Some(l)) => Some(Units { joints_in_degrees: j == "deg", lengths_in_metres: l == "m" }),
+        _ => bail!("--joint-unit and --length-unit go together"),
+    };
+    let data = io::load_measurements(&args.data, &model, units)?;
+    if !data.ignored.is_empty() {
+        eprintln!("note: {}: ignoring columns {}", args.data.display(), data.ignored.join(", "));
+    }
+    let noise = match &args.joint_sigma_deg {
+        None => None,
+        Some(sigmas) => {
+            if sigmas.len() != model.dof() {
+                bail!(
+                    "--joint-sigma-deg: {} values for the {} joints of {}",
+                    sigmas.len(),
+                    model.dof(),
+                    model.name
+                );
+            }
+            if sigmas.iter().chain([&args.sigma_mm]).any(|s| !s.is_finite() || *s < 0.0) {
+                bail!("--joint-sigma-deg and --sigma-mm: expected finite values >= 0");
+            }
+            let joint: Vec<f64> = model
+                .joints
+                .iter()
+                .zip(sigmas)
+                .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
+                .collect();
+            Some(NoiseModel::diagonal(&joint, MeasurementNoise::isotropic(args.sigma_mm, 0.0)))
+        }
+    };
+    let estimator = args.estimator.unwrap_or(if noise.is_some() { Estimator::Wls } else { Estimator::Ols });
+    if estimator != Estimator::Ols && noise.is_none() {
+        bail!(
+            "--estimator {estimator} needs the noise: give --joint-sigma-deg (and --sigma-mm or a sigma column)"
+        );
+    }
+    let markers = args
+        .marker
+        .iter()
+        .map(|m| {
+            let v: Vec<f64> = m
+                .split(',')
+                .map(|s| s.trim().parse())
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("--marker `{m}`: expected x,y,z in mm"))?;
+            match v[..] {
+                [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(nalgebra::Vector3::new(x, y, z)),
+                _ => bail!("--marker `{m}`: expected three finite numbers x,y,z in mm"),
+            }
+        })
+        .collect::<Result<Vec<_>>>()?;
+    if markers.len() > data.marker_count() {
+        bail!(
+            "{} --marker given, {} has {} markers",
+            markers.len(),
+            args.data.display(),
+            data.marker_count()
+        );
+    }
+    if args.iterations == 0 {
+        bail!("--iterations: at least 1");
+    }
+    let joints = match args.params.iter().map(String::as_str).collect::<Vec<_>>()[..] {
+        ["all"] => JointParams::All,
+        ["offsets"] => JointParams::Offsets,
+        ["none"] => JointParams::None,
+        _ => JointParams::Named(args.params.clone()),
+    };
+    let options = Options {
+        estimator,
+        noise,
+        joints,
+        estimate_base: !args.fixed_base,
+        estimate_markers: !args.fixed_markers,
+        markers,
+        refine: RefineOptions { max_iterations: args.iterations, ..RefineOptions::default() },
+    };
+    let mut held_out = Vec::new();
+    for path in &args.validate {
+        held_out.push((path.display().to_string(), io::load_measurements(path, &model, units)?));
+    }
+    if held_out.iter().any(|(_, d)| d.marker_count() != data.marker_count()) {
+        bail!("the validation files must have the markers of {}", args.data.display());
+    }
+    let result = calibration::calibrate(&model, &data, &options)?;
+    let mut validation: Vec<_> = held_out
+        .iter()
+        .map(|(name, d)| {
+            let (before, after) = result.validate(d);
+            (name.clone(), before, after)
+        })
+        .collect();
+    if let Some(k) = args.folds {
+        if k < 2 || k > data.len() {
+            bail!("--folds {k}: expected 2 to {} (the number of poses)", data.len());
+        }
+        let (before, after) = calibration::cross_validate(&model, &data, &options, k)?;
+        validation.push((format!("{k}-fold cross-validation"), before, after));
+    }
+    let report =
+        CalibrationReport::new(&result, &args.data.display().to_string(), estimator.name(), validation);
+    print!("{}", report.text());
+    if let Some(path) = &args.json {
+        let json = serde_json::to_string_pretty(&report)?;
+        std::fs::write(path, json + "\n").with_context(|| format!("{}: cannot write", path.display()))?;
+    }
+    if let Some(path) = &args.out_model {
+        std::fs::write(path, result.calibrated.to_toml_string())
+            .with_context(|| format!("{}: cannot write", path.display()))?;
     }
     Ok(())
 }

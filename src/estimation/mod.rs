@@ -197,7 +197,7 @@ pub(crate) struct Whitened {
 
 /// The whitening operator `S = blockdiag(S_k)` of an estimator, with the paper's normalisation.
 #[derive(Debug, Clone)]
-pub(crate) struct Weights {
+pub struct Weights {
     /// `S_k` stacked (`N_m x rows`); `None` for OLS (the identity).
     s: Option<DMatrix<f64>>,
     /// `S_k V_k S_k^T` stacked, if `V` is known.
@@ -208,7 +208,7 @@ pub(crate) struct Weights {
 impl Weights {
     /// The weights of `estimator` for blocks `v` (`N_m x rows`, stacked `V_k`), normalised
     /// as the paper does (`W = sigma_max^2 V^-1`) if `normalise`.
-    pub(crate) fn new(
+    pub fn new(
         v: Option<&DMatrix<f64>>,
         rows: usize,
         estimator: Estimator,
@@ -246,7 +246,7 @@ impl Weights {
     }
 
     /// Multiply `m` (`N_m` rows) by `S` in place, block by block, without allocating.
-    pub(crate) fn apply<C: nalgebra::Dim, St: nalgebra::StorageMut<f64, nalgebra::Dyn, C>>(
+    pub fn apply<C: nalgebra::Dim, St: nalgebra::StorageMut<f64, nalgebra::Dyn, C>>(
         &self,
         m: &mut nalgebra::Matrix<f64, nalgebra::Dyn, C, St>,
     ) {

@@ -3,6 +3,7 @@
 //! This is the only library module that touches the file system; the core (model,
 //! kinematics, estimation, simulation) works on values.
 
+use crate::calibration::{DataError, Measurements, Units};
 use crate::model::{ModelError, PRESETS, RobotModel};
 use crate::simulation::{STUDIES, Study, StudyError};
 use std::path::{Path, PathBuf};
@@ -33,6 +34,14 @@ pub enum InputError {
         path: PathBuf,
         /// What is wrong, with line or field.
         source: StudyError,
+    },
+    /// The measurement file is not valid.
+    #[error("{path}: {source}")]
+    Data {
+        /// The file.
+        path: PathBuf,
+        /// The line, column and problem.
+        source: DataError,
     },
     /// Neither a preset nor an existing file.
     #[error("no model `{name}`: not a preset ({presets}) and no such file")]
@@ -75,6 +84,18 @@ pub fn load_study(name_or_path: &str) -> Result<Study, InputError> {
     let text =
         std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })?;
     Study::from_toml_str(&text, robot).map_err(|source| InputError::Study { path: path.into(), source })
+}
+
+/// A measurement file for `model`; `units` given by the caller replace the file's line.
+pub fn load_measurements(
+    path: &Path,
+    model: &RobotModel,
+    units: Option<Units>,
+) -> Result<Measurements, InputError> {
+    let text =
+        std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })?;
+    Measurements::from_csv_str(&text, model, units)
+        .map_err(|source| InputError::Data { path: path.into(), source })
 }
 
 /// A model by preset name (`puma560`) or from a TOML file.

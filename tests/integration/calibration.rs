@@ -210,6 +210,20 @@ fn bad_measurement_files_name_the_line_and_column() {
 }
 
 #[test]
+fn an_outlier_is_flagged_with_its_line_and_clean_data_is_not() {
+    let c = campaign(15);
+    let clean = calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap();
+    assert!(clean.warnings.is_empty(), "{:?}", clean.warnings);
+    let mut bumped = c.training.clone();
+    bumped.markers[40][1].z += 2.0;
+    let flagged = calibration::calibrate(&c.nominal, &bumped, &c.options).unwrap();
+    // The outlier pulls the fit, so a neighbour may come near the threshold; it stands out.
+    let line = bumped.lines[40];
+    assert!(flagged.warnings[0].starts_with(&format!("line {line}: a residual")), "{:?}", flagged.warnings);
+    assert!(flagged.warnings.len() <= 3, "{:?}", flagged.warnings);
+}
+
+#[test]
 fn fewer_poses_than_identifiable_parameters_is_an_error() {
     let c = campaign(14);
     let few = c.training.subset(&[0, 1, 2, 3, 4, 5]);

@@ -94,3 +94,87 @@ fn simulate_names_a_bad_study_file() {
     let message = stderr_of(&["simulate", path.to_str().unwrap()]);
     assert!(message.contains("study.toml") && message.contains("seed"), "{message}");
 }
+
+const CALIBRATE: [&str; 14] = [
+    "calibrate",
+    "--model",
+    "puma560",
+    "--data",
+    "examples/puma560-measurements.csv",
+    "--validate",
+    "examples/puma560-validation.csv",
+    "--joint-sigma-deg",
+    "0.007,0.007,0.007,0.002,0.002,0.002",
+    "--sigma-mm",
+    "0.01",
+    "--marker",
+    "50,0,150",
+    "--marker=-40,60,120",
+];
+
+#[test]
+fn calibrate_the_example_report_json_and_model() {
+    let dir = std::env::temp_dir().join(format!("robocal-calibrate-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (json, model) = (dir.join("report.json"), dir.join("calibrated.toml"));
+    let mut args = CALIBRATE.to_vec();
+    args.extend(["--json", json.to_str().unwrap(), "--out-model", model.to_str().unwrap()]);
+    let output = robocal().args(&args).output().unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report = String::from_utf8(output.stdout).unwrap();
+    insta::assert_snapshot!(report);
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(json["parameters"].as_array().unwrap().len(), 30);
+    assert_eq!(json["validation"][0][0], "examples/puma560-validation.csv");
+    let after = json["validation"][0][2]["rms"].as_f64().unwrap();
+    let before = json["validation"][0][1]["rms"].as_f64().unwrap();
+    assert!(before / after > 5.0, "held out: {before} mm before, {after} mm after");
+    // The calibrated model predicts the held-out marker 1 as well as the report says.
+    let calibrated =
+        robocal::model::RobotModel::from_toml_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let data = robocal::io::load_measurements(
+        std::path::Path::new("examples/puma560-validation.csv"),
+        &calibrated,
+        None,
+    )
+    .unwrap();
+    let chain =
+        robocal::kinematics::Chain::new(&calibrated).with_errors(&vec![0.0; calibrated.params().len()]);
+    let worst = data
+        .joints
+        .iter()
+        .zip(&data.markers)
+        .map(|(q, m)| (chain.position(q) - m[0]).norm())
+        .fold(0.0, f64::max);
+    assert!(worst < 0.5, "calibrated model misses marker 1 by {worst} mm");
+}
+
+#[test]
+fn calibrate_bad_input_is_named() {
+    let mut args = CALIBRATE.to_vec();
+    args[4] = "examples/no-such-file.csv";
+    assert!(stderr_of(&args).contains("examples/no-such-file.csv: cannot read"));
+    let mut wls_without_noise = CALIBRATE[..7].to_vec();
+    wls_without_noise.extend(["--estimator", "wls"]);
+    assert!(stderr_of(&wls_without_noise).contains("--estimator wls needs the noise"));
+    let mut short_sigma = CALIBRATE.to_vec();
+    short_sigma[8] = "0.007,0.007";
+    assert!(stderr_of(&short_sigma).contains("--joint-sigma-deg: 2 values for the 6 joints of puma560"));
+    let mut bad_marker = CALIBRATE.to_vec();
+    bad_marker[12] = "50,0";
+    assert!(stderr_of(&bad_marker).contains("--marker `50,0`: expected three finite numbers"));
+    let dir = std::env::temp_dir().join(format!("robocal-calibrate-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("short.csv");
+    let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    let lines: Vec<&str> = text.lines().take(8).collect();
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    let mut few = CALIBRATE[..7].to_vec();
+    few[4] = path.to_str().unwrap();
+    let message = stderr_of(&few);
+    assert!(message.contains("6 poses give 36 equations for 42 parameters"), "{message}");
+    let json = dir.join("never.json");
+    few.extend(["--json", json.to_str().unwrap()]);
+    stderr_of(&few);
+    assert!(!json.exists(), "nothing is written when the input is bad");
+}

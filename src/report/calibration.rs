@@ -1,0 +1,179 @@
+//! The report of a calibration: parameters with their uncertainty, identifiability, accuracy
+//! before and after on the training and the validation poses, warnings. Text and JSON carry
+//! the same content.
+
+use crate::calibration::{Calibration, ErrorStats, standard_errors};
+use serde::Serialize;
+use std::fmt::Write;
+
+/// Everything a calibration report says, ready for text or JSON. Angles in degrees, lengths
+/// in millimetres.
+#[derive(Debug, Clone, Serialize)]
+pub struct CalibrationReport {
+    /// The model's name.
+    pub model: String,
+    /// The measurement file.
+    pub data: String,
+    /// Poses used for fitting.
+    pub poses: usize,
+    /// Markers per pose.
+    pub markers: usize,
+    /// The estimator's name.
+    pub estimator: String,
+    /// Gauss-Newton steps taken.
+    pub iterations: usize,
+    /// Whether a stopping rule was met.
+    pub converged: bool,
+    /// The registered base: xyz (mm) and roll-pitch-yaw (deg).
+    pub registered_base: [f64; 6],
+    /// The identified parameters.
+    pub parameters: Vec<ParameterRow>,
+    /// Numerical rank and condition number of the weighted, column-scaled H.
+    pub rank: usize,
+    /// `s_1 / s_r`.
+    pub condition_number: f64,
+    /// Combinations held fixed because the poses cannot identify them.
+    pub fixed: Vec<String>,
+    /// Errors on the fitting poses: before (base and markers fitted), after.
+    pub training: [ErrorStats; 2],
+    /// Errors on held-out poses: `(source, before, after)`.
+    pub validation: Vec<(String, ErrorStats, ErrorStats)>,
+    /// Things to look at.
+    pub warnings: Vec<String>,
+}
+
+/// One identified parameter.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParameterRow {
+    /// `j3.beta`.
+    pub name: String,
+    /// The estimated error (for the base, the correction to the registered base).
+    pub value: f64,
+    /// Its standard error.
+    pub std_error: f64,
+    /// `deg` or `mm`.
+    pub unit: &'static str,
+}
+
+impl CalibrationReport {
+    /// Gather the report of `c`, fitted on `data` (a name) with `estimator`, and the
+    /// validation results already computed.
+    pub fn new(
+        c: &Calibration,
+        data: &str,
+        estimator: &str,
+        validation: Vec<(String, ErrorStats, ErrorStats)>,
+    ) -> Self {
+        let se = standard_errors(c);
+        let parameters = c
+            .estimate
+            .estimate
+            .names
+            .iter()
+            .filter_map(|name| c.params.index_by_name(name))
+            .map(|i| {
+                let p = c.params.get(i);
+                let scale = if p.kind.is_angle() { 180.0 / std::f64::consts::PI } else { 1.0 };
+                ParameterRow {
+                    name: p.name.clone(),
+                    value: c.after[i] * scale,
+                    std_error: se[i] * scale,
+                    unit: if p.kind.is_angle() { "deg" } else { "mm" },
+                }
+            })
+            .collect();
+        let base = &c.registered.base;
+        let d = &c.estimate.estimate.diagnostics;
+        Self {
+            model: c.registered.name.clone(),
+            data: data.to_string(),
+            poses: c.training.0.count / c.markers.len().max(1),
+            markers: c.markers.len(),
+            estimator: estimator.to_string(),
+            iterations: c.estimate.history.len(),
+            converged: c.estimate.converged,
+            registered_base: [
+                base.xyz.x,
+                base.xyz.y,
+                base.xyz.z,
+                base.rpy.x.to_degrees(),
+                base.rpy.y.to_degrees(),
+                base.rpy.z.to_degrees(),
+            ],
+            parameters,
+            rank: d.rank,
+            condition_number: d.condition_number,
+            fixed: c.fixed.clone(),
+            training: [c.training.0, c.training.1],
+            validation,
+            warnings: c.warnings.clone(),
+        }
+    }
+
+    /// The report as text, at fixed precision.
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "calibration of {} from {}: {} poses, {} marker{}, {} ({} step{}, {})",
+            self.model,
+            self.data,
+            self.poses,
+            self.markers,
+            if self.markers == 1 { "" } else { "s" },
+            self.estimator,
+            self.iterations,
+            if self.iterations == 1 { "" } else { "s" },
+            if self.converged { "converged" } else { "not converged" }
+        );
+        let b = &self.registered_base;
+        let _ = writeln!(
+            out,
+            "base registered at xyz ({:.3}, {:.3}, {:.3}) mm, rpy ({:.4}, {:.4}, {:.4}) deg\n",
+            b[0], b[1], b[2], b[3], b[4], b[5]
+        );
+        let _ = writeln!(out, "{:<14} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
+        for p in &self.parameters {
+            let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
+        }
+        let _ = writeln!(
+            out,
+            "\n{} parameters identified (rank {}), condition number {:.3e}",
+            self.parameters.len(),
+            self.rank,
+            self.condition_number
+        );
+        if !self.fixed.is_empty() {
+            let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");
+            for f in &self.fixed {
+                let _ = writeln!(out, "  {f}");
+            }
+        }
+        let width = self.validation.iter().map(|v| v.0.len() + 8).chain([27]).max().unwrap_or(27);
+        let _ = writeln!(
+            out,
+            "\n{:<width$} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
+            "marker position errors (mm)", "count", "mean", "rms", "max", "rms x", "rms y", "rms z"
+        );
+        let mut row = |label: String, s: &ErrorStats| {
+            let _ = writeln!(
+                out,
+                "{label:<width$} {:>6} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4}",
+                s.count, s.mean, s.rms, s.max, s.rms_axis[0], s.rms_axis[1], s.rms_axis[2]
+            );
+        };
+        row("training, before".into(), &self.training[0]);
+        row("training, after".into(), &self.training[1]);
+        for (source, before, after) in &self.validation {
+            row(format!("{source}, before"), before);
+            row(format!("{source}, after"), after);
+        }
+        if !self.warnings.is_empty() {
+            let _ = writeln!(out, "\nwarnings:");
+            for w in &self.warnings {
+                let _ = writeln!(out, "  {w}");
+            }
+        }
+        out
+    }
+}
