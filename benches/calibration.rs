@@ -21,9 +21,11 @@ fn calibration(c: &mut Criterion) {
     truth.base = Placement { xyz: Vector3::new(1500.0, -300.0, 200.0), rpy: Vector3::new(0.1, -0.05, 0.6) };
     let markers = [Vector3::new(52.0, 1.0, 148.0), Vector3::new(-38.0, 61.0, 121.0)];
     let mut rng = ChaCha8Rng::seed_from_u64(1);
-    let poses: Vec<Vec<f64>> =
-        (0..1000).map(|_| nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect()).collect();
-    let sigmas: Vec<f64> = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
+    let poses: Vec<Vec<f64>> = (0..1000)
+        .map(|_| nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())
+        .collect();
+    let sigmas: Vec<f64> =
+        [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
     let text = measurement_csv(&truth, &markers, &poses, &sigmas, 0.01, 2);
     let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
     let options = Options {

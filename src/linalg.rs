@@ -6,6 +6,14 @@
 
 use nalgebra::DMatrix;
 
+/// `a^T b` by faer's blocked product: nalgebra's takes 6.5 ms for a 6000 x 30 Gram matrix.
+pub(crate) fn tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
+    let a_ref = faer::MatRef::from_column_major_slice(a.as_slice(), a.nrows(), a.ncols());
+    let b_ref = faer::MatRef::from_column_major_slice(b.as_slice(), b.nrows(), b.ncols());
+    let product = a_ref.transpose() * b_ref;
+    DMatrix::from_fn(a.ncols(), b.ncols(), |i, j| product[(i, j)])
+}
+
 /// `A = U diag(s) V^T`, thin, singular values in descending order.
 #[derive(Debug, Clone)]
 pub(crate) struct Svd {
@@ -54,5 +62,12 @@ mod tests {
             assert!((back - &r).amax() < 1e-14, "seed {seed}");
             assert!(svd.s.windows(2).all(|w| w[0] >= w[1]) && svd.s[4] < 1e-15);
         }
+    }
+
+    #[test]
+    fn tr_mul_is_the_transposed_product() {
+        let a = DMatrix::from_fn(37, 5, |r, c| ((r * 5 + c) as f64).sin());
+        let b = DMatrix::from_fn(37, 3, |r, c| ((r * 3 + c) as f64).cos());
+        assert!((tr_mul(&a, &b) - a.transpose() * &b).amax() < 1e-12);
     }
 }

@@ -132,7 +132,9 @@ pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, 
     let d = DMatrix::from_diagonal(&scales);
     // Zero rows change no least-squares solution; they make the SVD complete when m < p.
     let mut scaled = DMatrix::zeros(m.max(p), p);
-    scaled.rows_mut(0, m).copy_from(&(a * &d));
+    for (j, column) in a.column_iter().enumerate() {
+        scaled.view_mut((0, j), (m, 1)).copy_from(&(column * scales[j]));
+    }
     let svd = crate::linalg::svd(&scaled).ok_or(EstimationError::NoConvergence)?;
     let largest = svd.s[0];
     let rank = svd.s.iter().take_while(|&&s| s > tolerance * largest && s > 0.0).count();
@@ -249,12 +251,12 @@ impl Factorised {
                 for k in 0..a.nrows() / b {
                     blocks.rows(k * b, b).mul_to(&a.rows(k * b, b), &mut na.rows_mut(k * b, b));
                 }
-                a.tr_mul(&na)
+                crate::linalg::tr_mul(a, &na)
             }
             None => {
                 let dof = a.nrows().saturating_sub(self.diagnostics.rank);
                 let sigma2 = if dof > 0 { cost / dof as f64 } else { f64::NAN };
-                a.tr_mul(a) * sigma2
+                crate::linalg::tr_mul(a, a) * sigma2
             }
         };
         &self.pg * c * self.pg.transpose()
