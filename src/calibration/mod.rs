@@ -337,20 +337,31 @@ fn placement_of(iso: &Isometry3<f64>) -> Placement {
 fn fold(model: &RobotModel, params: &ParamSet, x: &[f64], markers: &[Vector3<f64>]) -> RobotModel {
     let mut out = model.clone();
     let value = |owner, kind| params.index_of(owner, kind).map_or(0.0, |i| x[i]);
+    // A displacement Trans(x, y, z) Rx(rx) Ry(ry) Rz(rz), as the kinematics applies it.
+    let displacement = |owner| {
+        let v = |kind| value(owner, kind);
+        Isometry3::translation(v(ParamKind::X), v(ParamKind::Y), v(ParamKind::Z))
+            * UnitQuaternion::from_euler_angles(v(ParamKind::Rx), 0.0, 0.0)
+            * UnitQuaternion::from_euler_angles(0.0, v(ParamKind::Ry), 0.0)
+            * UnitQuaternion::from_euler_angles(0.0, 0.0, v(ParamKind::Rz))
+    };
     for (i, joint) in out.joints.iter_mut().enumerate() {
         let owner = ParamOwner::Joint(i);
-        joint.theta += value(owner, ParamKind::Theta);
-        joint.d += value(owner, ParamKind::D);
+        let (theta, d) = (value(owner, ParamKind::Theta), value(owner, ParamKind::D));
+        if model.convention == crate::model::Convention::Urdf {
+            // URDF has no offset: it turns (or shifts) the origin about (along) the axis.
+            let offset = Isometry3::rotation(joint.axis * theta)
+                * Isometry3::translation(joint.axis.x * d, joint.axis.y * d, joint.axis.z * d);
+            joint.origin = placement_of(&(joint.origin.isometry() * displacement(owner) * offset));
+            continue;
+        }
+        joint.theta += theta;
+        joint.d += d;
         joint.a += value(owner, ParamKind::A);
         joint.alpha += value(owner, ParamKind::Alpha);
         joint.beta += value(owner, ParamKind::Beta);
     }
-    let b = |kind| value(ParamOwner::Base, kind);
-    let displacement = Isometry3::translation(b(ParamKind::X), b(ParamKind::Y), b(ParamKind::Z))
-        * UnitQuaternion::from_euler_angles(b(ParamKind::Rx), 0.0, 0.0)
-        * UnitQuaternion::from_euler_angles(0.0, b(ParamKind::Ry), 0.0)
-        * UnitQuaternion::from_euler_angles(0.0, 0.0, b(ParamKind::Rz));
-    out.base = placement_of(&(model.base.isometry() * displacement));
+    out.base = placement_of(&(model.base.isometry() * displacement(ParamOwner::Base)));
     let marker = |kind| value(ParamOwner::Marker(0), kind);
     let first = markers.first().copied().unwrap_or_else(Vector3::zeros);
     out.tool =

@@ -78,9 +78,16 @@ enum ModelCommand {
 /// The flags of `robocal calibrate`.
 #[derive(clap::Args, Debug)]
 struct CalibrateArgs {
-    /// The nominal robot: a preset name or a model TOML file.
+    /// The nominal robot: a preset name, a model TOML file, or a URDF file (`.urdf`, with
+    /// --base-link and --tip-link).
     #[arg(long)]
     model: String,
+    /// URDF: the link the chain starts from.
+    #[arg(long)]
+    base_link: Option<String>,
+    /// URDF: the link the chain ends at.
+    #[arg(long)]
+    tip_link: Option<String>,
     /// The measurement file (CSV; see docs/formats.md).
     #[arg(long)]
     data: PathBuf,
@@ -128,6 +135,10 @@ struct CalibrateArgs {
     /// Write the calibrated model (TOML) here.
     #[arg(long)]
     out_model: Option<PathBuf>,
+    /// Write the calibrated model as URDF here (URDF input only): the original file with the
+    /// calibrated joint origins, a `measuring_frame` link and a `tool` link (marker 1).
+    #[arg(long)]
+    out_urdf: Option<PathBuf>,
 }
 
 /// Run the command line.
@@ -181,7 +192,18 @@ pub fn run(cli: Cli) -> Result<()> {
 
 /// `robocal calibrate`: everything is read and computed before anything is written.
 fn calibrate(args: &CalibrateArgs) -> Result<()> {
-    let model = io::load_model(&args.model)?;
+    let (model, urdf) = if args.model.ends_with(".urdf") {
+        let (Some(base), Some(tip)) = (&args.base_link, &args.tip_link) else {
+            bail!("{}: a URDF model needs --base-link and --tip-link", args.model);
+        };
+        let (model, text) = io::load_urdf(Path::new(&args.model), base, tip)?;
+        (model, Some((text, base.clone(), tip.clone())))
+    } else {
+        (io::load_model(&args.model)?, None)
+    };
+    if args.out_urdf.is_some() && urdf.is_none() {
+        bail!("--out-urdf needs a URDF model");
+    }
     let units = match (args.joint_unit.as_deref(), args.length_unit.as_deref()) {
         (None, None) => None,
         (Some(j), Some(l)) => Some(Units { joints_in_degrees: j == "deg", lengths_in_metres: l == "m" }),
@@ -293,6 +315,10 @@ fn calibrate(args: &CalibrateArgs) -> Result<()> {
     if let Some(path) = &args.out_model {
         std::fs::write(path, result.calibrated.to_toml_string())
             .with_context(|| format!("{}: cannot write", path.display()))?;
+    }
+    if let (Some(path), Some((text, base, tip))) = (&args.out_urdf, &urdf) {
+        let written = robocal::model::to_urdf_string(text, base, tip, &result.calibrated)?;
+        std::fs::write(path, written).with_context(|| format!("{}: cannot write", path.display()))?;
     }
     Ok(())
 }

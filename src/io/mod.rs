@@ -4,7 +4,7 @@
 //! kinematics, estimation, simulation) works on values.
 
 use crate::calibration::{DataError, Measurements, Units};
-use crate::model::{ModelError, PRESETS, RobotModel};
+use crate::model::{ModelError, PRESETS, RobotModel, from_urdf_str};
 use crate::simulation::{STUDIES, Study, StudyError};
 use std::path::{Path, PathBuf};
 
@@ -84,6 +84,16 @@ pub fn load_study(name_or_path: &str) -> Result<Study, InputError> {
     let text =
         std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })?;
     Study::from_toml_str(&text, robot).map_err(|source| InputError::Study { path: path.into(), source })
+}
+
+/// A model from a URDF file: the chain from `base_link` to `tip_link`, and the file's text
+/// (to write the calibrated URDF from).
+pub fn load_urdf(path: &Path, base_link: &str, tip_link: &str) -> Result<(RobotModel, String), InputError> {
+    let text =
+        std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })?;
+    let model = from_urdf_str(&text, base_link, tip_link)
+        .map_err(|source| InputError::Model { path: path.into(), source })?;
+    Ok((model, text))
 }
 
 /// A measurement file for `model`; `units` given by the caller replace the file's line.

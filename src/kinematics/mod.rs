@@ -17,7 +17,7 @@
 //! into views the caller owns.
 
 use crate::model::{
-    Convention, JointKind, ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, Tool,
+    Convention, Joint, JointKind, ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, Tool,
 };
 use nalgebra::{
     DMatrix, DMatrixViewMut, Isometry3, Matrix3, Matrix6xX, Rotation3, Translation3, UnitQuaternion, Vector3,
@@ -148,6 +148,47 @@ impl Builder {
         }
     }
 
+    /// A DH joint: five steps, each with its error, in the convention's order.
+    fn dh_joint(&mut self, i: usize, joint: &Joint, convention: Convention) {
+        let moves = |kind| Some(i).filter(|_| kind == joint.kind);
+        let theta = (ParamKind::Theta, joint.theta, moves(JointKind::Revolute));
+        let d = (ParamKind::D, joint.d, moves(JointKind::Prismatic));
+        let a = (ParamKind::A, joint.a, None);
+        let alpha = (ParamKind::Alpha, joint.alpha, None);
+        let beta = (ParamKind::Beta, joint.beta, None);
+        let order = match convention {
+            Convention::ModifiedDh => [alpha, a, beta, theta, d],
+            _ => [theta, d, a, alpha, beta],
+        };
+        for (kind, nominal, moved_by) in order {
+            self.step(nominal, moved_by, ParamOwner::Joint(i), kind);
+        }
+    }
+
+    /// A URDF joint: its origin with 6 errors, then the motion along or about its axis (with
+    /// the offset error), framed by the constant rotation `A = Rz(phi) Ry(theta)` that takes z
+    /// onto the axis and its inverse.
+    fn urdf_joint(&mut self, i: usize, joint: &Joint) {
+        let owner = ParamOwner::Joint(i);
+        self.placement(owner, &joint.origin, &ParamKind::PLACEMENT);
+        let (theta, phi) = (joint.axis.z.clamp(-1.0, 1.0).acos(), joint.axis.y.atan2(joint.axis.x));
+        self.rotation(2, phi);
+        self.rotation(1, theta);
+        match joint.kind {
+            JointKind::Revolute => self.step(0.0, Some(i), owner, ParamKind::Theta),
+            JointKind::Prismatic => self.step(0.0, Some(i), owner, ParamKind::D),
+        }
+        self.rotation(1, -theta);
+        self.rotation(2, -phi);
+    }
+
+    /// A constant rotation about axis `k`, if it is not zero.
+    fn rotation(&mut self, k: usize, angle: f64) {
+        if angle != 0.0 {
+            self.steps.push(Step { motion: Motion::Rotate(k), nominal: angle, joint: None, param: None });
+        }
+    }
+
     /// A point at `xyz` (mm) with its 3 translation errors.
     fn point(&mut self, owner: ParamOwner, xyz: &Vector3<f64>) {
         self.placement(owner, &Placement { xyz: *xyz, rpy: Vector3::zeros() }, &ParamKind::PLACEMENT[..3]);
@@ -193,18 +234,9 @@ impl Chain {
         let mut builder = Builder { params, steps: Vec::new() };
         builder.placement(ParamOwner::Base, &model.base, &ParamKind::PLACEMENT);
         for (i, joint) in model.joints.iter().enumerate() {
-            let moves = |kind| Some(i).filter(|_| kind == joint.kind);
-            let theta = (ParamKind::Theta, joint.theta, moves(JointKind::Revolute));
-            let d = (ParamKind::D, joint.d, moves(JointKind::Prismatic));
-            let a = (ParamKind::A, joint.a, None);
-            let alpha = (ParamKind::Alpha, joint.alpha, None);
-            let beta = (ParamKind::Beta, joint.beta, None);
-            let order = match model.convention {
-                Convention::StandardDh => [theta, d, a, alpha, beta],
-                Convention::ModifiedDh => [alpha, a, beta, theta, d],
-            };
-            for (kind, nominal, moved_by) in order {
-                builder.step(nominal, moved_by, ParamOwner::Joint(i), kind);
+            match model.convention {
+                Convention::Urdf => builder.urdf_joint(i, joint),
+                convention => builder.dh_joint(i, joint, convention),
             }
         }
         builder

@@ -39,6 +39,7 @@ struct ModelFile {
 enum ConventionName {
     StandardDh,
     ModifiedDh,
+    Urdf,
 }
 
 #[derive(Serialize, Deserialize, Default)]
@@ -64,12 +65,22 @@ struct JointFile {
     name: String,
     #[serde(rename = "type")]
     kind: KindName,
-    theta_deg: f64,
-    d_mm: f64,
-    a_mm: f64,
-    alpha_deg: f64,
-    #[serde(default)]
-    beta_deg: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    theta_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    d_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    a_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    alpha_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    beta_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    xyz_mm: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    rpy_deg: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    axis: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     limits_deg: Option<[f64; 2]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -85,19 +96,26 @@ enum KindName {
 
 pub(super) fn parse(text: &str) -> Result<RobotModel, ModelError> {
     let file: ModelFile = toml::from_str(text).map_err(|e| ModelError::Syntax(e.to_string()))?;
+    let convention = match file.convention {
+        ConventionName::StandardDh => Convention::StandardDh,
+        ConventionName::ModifiedDh => Convention::ModifiedDh,
+        ConventionName::Urdf => Convention::Urdf,
+    };
     let model = RobotModel {
         name: file.name,
         description: file.description,
-        convention: match file.convention {
-            ConventionName::StandardDh => Convention::StandardDh,
-            ConventionName::ModifiedDh => Convention::ModifiedDh,
-        },
+        convention,
         base: placement("base", &file.base.xyz_mm, &file.base.rpy_deg)?,
         tool: match file.tool.rpy_deg {
             None => Tool::Point(vector("tool.xyz_mm", &file.tool.xyz_mm)?),
             Some(rpy) => Tool::Frame(placement("tool", &file.tool.xyz_mm, &rpy)?),
         },
-        joints: file.joints.into_iter().enumerate().map(|(i, j)| joint(i, j)).collect::<Result<_, _>>()?,
+        joints: file
+            .joints
+            .into_iter()
+            .enumerate()
+            .map(|(i, j)| joint(i, j, convention))
+            .collect::<Result<_, _>>()?,
     };
     validate(&model)?;
     Ok(model)
@@ -125,7 +143,7 @@ fn placement(field: &str, xyz_mm: &[f64; 3], rpy_deg: &[f64; 3]) -> Result<Place
     })
 }
 
-fn joint(index: usize, j: JointFile) -> Result<Joint, ModelError> {
+fn joint(index: usize, j: JointFile, convention: Convention) -> Result<Joint, ModelError> {
     let at = |field: &str| format!("joints[{index}].{field}");
     let kind = match j.kind {
         KindName::Revolute => JointKind::Revolute,
@@ -153,16 +171,40 @@ fn joint(index: usize, j: JointFile) -> Result<Joint, ModelError> {
     if limits[0] >= limits[1] {
         return Err(invalid(limits_field, "[lower, upper] with lower < upper"));
     }
-    Ok(Joint {
-        name: j.name,
+    let dh = [("theta_deg", j.theta_deg), ("d_mm", j.d_mm), ("a_mm", j.a_mm), ("alpha_deg", j.alpha_deg)];
+    let urdf = [("xyz_mm", j.xyz_mm.is_some()), ("rpy_deg", j.rpy_deg.is_some()), ("axis", j.axis.is_some())];
+    if convention == Convention::Urdf {
+        if let Some((field, _)) = dh.iter().chain([&("beta_deg", j.beta_deg)]).find(|(_, v)| v.is_some()) {
+            return Err(invalid(at(field), "no DH field in a `urdf` model: give xyz_mm, rpy_deg and axis"));
+        }
+        let axis = vector(
+            &at("axis"),
+            &j.axis.ok_or_else(|| invalid(at("axis"), "the joint's axis, `axis = [x, y, z]`"))?,
+        )?;
+        if axis.norm() < 1e-9 {
+            return Err(invalid(at("axis"), "a non-zero axis"));
+        }
+        let origin = placement(&at("origin"), &j.xyz_mm.unwrap_or_default(), &j.rpy_deg.unwrap_or_default())?;
+        return Ok(Joint::urdf(&j.name, kind, origin, axis.normalize(), limits));
+    }
+    if let Some((field, _)) = urdf.iter().find(|(_, present)| *present) {
+        return Err(invalid(
+            at(field),
+            "DH fields only (theta_deg, d_mm, a_mm, alpha_deg, beta_deg) in a DH model",
+        ));
+    }
+    let required = |(field, v): (&str, Option<f64>)| {
+        v.ok_or_else(|| invalid(at(field), format!("`{field}`, required in a DH model")))
+            .and_then(|v| finite(&at(field), v))
+    };
+    let [theta, d, a, alpha] = dh.map(required);
+    let beta = finite(&at("beta_deg"), j.beta_deg.unwrap_or(0.0))?;
+    Ok(Joint::dh(
+        &j.name,
         kind,
-        theta: finite(&at("theta_deg"), j.theta_deg)?.to_radians(),
-        d: finite(&at("d_mm"), j.d_mm)?,
-        a: finite(&at("a_mm"), j.a_mm)?,
-        alpha: finite(&at("alpha_deg"), j.alpha_deg)?.to_radians(),
-        beta: finite(&at("beta_deg"), j.beta_deg)?.to_radians(),
+        [theta?.to_radians(), d?, a?, alpha?.to_radians(), beta.to_radians()],
         limits,
-    })
+    ))
 }
 
 fn validate(model: &RobotModel) -> Result<(), ModelError> {
@@ -199,6 +241,7 @@ pub(super) fn write(model: &RobotModel) -> String {
         convention: match model.convention {
             Convention::StandardDh => ConventionName::StandardDh,
             Convention::ModifiedDh => ConventionName::ModifiedDh,
+            Convention::Urdf => ConventionName::Urdf,
         },
         base: PlacementFile { xyz_mm: model.base.xyz.into(), rpy_deg: deg3(&model.base.rpy) },
         tool: match &model.tool {
@@ -210,14 +253,18 @@ pub(super) fn write(model: &RobotModel) -> String {
             .iter()
             .map(|j| {
                 let revolute = j.kind == JointKind::Revolute;
+                let (dh, urdf) = (model.convention != Convention::Urdf, model.convention == Convention::Urdf);
                 JointFile {
                     name: j.name.clone(),
                     kind: if revolute { KindName::Revolute } else { KindName::Prismatic },
-                    theta_deg: degrees(j.theta),
-                    d_mm: j.d,
-                    a_mm: j.a,
-                    alpha_deg: degrees(j.alpha),
-                    beta_deg: degrees(j.beta),
+                    theta_deg: dh.then(|| degrees(j.theta)),
+                    d_mm: dh.then_some(j.d),
+                    a_mm: dh.then_some(j.a),
+                    alpha_deg: dh.then(|| degrees(j.alpha)),
+                    beta_deg: dh.then(|| degrees(j.beta)),
+                    xyz_mm: urdf.then(|| j.origin.xyz.into()),
+                    rpy_deg: urdf.then(|| deg3(&j.origin.rpy)),
+                    axis: urdf.then(|| j.axis.into()),
                     limits_deg: revolute.then(|| j.limits.map(degrees)),
                     limits_mm: (!revolute).then_some(j.limits),
                 }

@@ -11,14 +11,20 @@
 //! - modified DH (Craig): `T_i = Rx(alpha_i) Tx(a_i) Ry(beta_i) Rz(theta_i) Tz(d_i)`, where
 //!   `alpha_i`, `a_i` are Craig's `alpha_{i-1}`, `a_{i-1}`: they lead to joint i's axis.
 //!
-//! A revolute joint's variable adds to `theta`, a prismatic joint's to `d`. The whole chain is
+//! - URDF: `T_i = origin_i A_i M(q_i) A_i^-1`, where `origin_i` is the joint's placement in its
+//!   parent link (xyz, roll-pitch-yaw), `A_i` the rotation taking z onto the joint's axis, and
+//!   `M` the rotation about (or translation along) z by the joint variable.
+//!
+//! A revolute DH joint's variable adds to `theta`, a prismatic one's to `d`. The whole chain is
 //! `base * T_1 * ... * T_n * tool`.
 
 mod file;
 mod params;
+mod urdf;
 
 pub use file::{ModelError, degrees};
 pub use params::{ParamInfo, ParamKind, ParamOwner, ParamSet, Selection, SelectionError};
+pub use urdf::{from_urdf_str, to_urdf_string};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
@@ -29,6 +35,8 @@ pub enum Convention {
     StandardDh,
     /// Modified Denavit-Hartenberg (Craig): `Rx(alpha) Tx(a) Ry(beta) Rz(theta) Tz(d)`.
     ModifiedDh,
+    /// URDF: an origin placement and a motion about or along an axis.
+    Urdf,
 }
 
 /// Whether a joint turns (its variable adds to `theta`) or slides (adds to `d`).
@@ -59,6 +67,40 @@ pub struct Joint {
     pub beta: f64,
     /// Lower and upper travel limit of the joint variable (rad, or mm if prismatic).
     pub limits: [f64; 2],
+    /// URDF only: the joint's placement in its parent link (identity for DH joints).
+    pub origin: Placement,
+    /// URDF only: the unit axis of the motion, in the joint frame (z for DH joints).
+    pub axis: Vector3<f64>,
+}
+
+impl Joint {
+    /// A Denavit-Hartenberg joint (mm, rad).
+    pub fn dh(name: &str, kind: JointKind, [theta, d, a, alpha, beta]: [f64; 5], limits: [f64; 2]) -> Self {
+        let (origin, axis) = (Placement::default(), Vector3::z());
+        Self { name: name.into(), kind, theta, d, a, alpha, beta, limits, origin, axis }
+    }
+
+    /// A URDF joint: placement in its parent link and unit axis (mm, rad).
+    pub fn urdf(
+        name: &str,
+        kind: JointKind,
+        origin: Placement,
+        axis: Vector3<f64>,
+        limits: [f64; 2],
+    ) -> Self {
+        Self {
+            name: name.into(),
+            kind,
+            theta: 0.0,
+            d: 0.0,
+            a: 0.0,
+            alpha: 0.0,
+            beta: 0.0,
+            limits,
+            origin,
+            axis,
+        }
+    }
 }
 
 /// A rigid placement: translation (mm) then roll-pitch-yaw rotation (rad),

@@ -5,13 +5,17 @@
 //! `alpha`, `beta`, named after the joint, e.g. `j3.beta`), and the tool (3 for a point:
 //! `tool.x`, `tool.y`, `tool.z`; 6 for a frame, adding `tool.rx`, `tool.ry`, `tool.rz`).
 //! A joint's offset is the error of the parameter its variable adds to: `theta` for a
-//! revolute joint, `d` for a prismatic one.
+//! revolute joint, `d` for a prismatic one. A URDF joint has 7: its origin's displacement
+//! (`x`, `y`, `z`, `rx`, `ry`, `rz`, like the base's) and its offset (`theta` or `d`). Some are
+//! redundant by construction (a rotation of the origin about the joint's own axis is its
+//! offset; a shift along a revolute axis moves nothing the next origin cannot): the
+//! rank-revealing solve finds them and holds them fixed.
 //!
 //! Base and tool errors are a small displacement applied after the nominal placement,
 //! `Trans(x, y, z) Rx(rx) Ry(ry) Rz(rz)`, so they are expressed in the robot's base frame and
 //! in the tool frame; being zero nominally, their axes never meet in gimbal lock.
 
-use super::{JointKind, RobotModel, Tool};
+use super::{Convention, JointKind, RobotModel, Tool};
 
 /// The kind of an error parameter: what it displaces, and so its unit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -134,7 +138,19 @@ impl ParamSet {
                 JointKind::Revolute => ParamKind::Theta,
                 JointKind::Prismatic => ParamKind::D,
             };
-            for kind in ParamKind::JOINT {
+            let kinds: &[ParamKind] = match model.convention {
+                Convention::Urdf => &[
+                    ParamKind::X,
+                    ParamKind::Y,
+                    ParamKind::Z,
+                    ParamKind::Rx,
+                    ParamKind::Ry,
+                    ParamKind::Rz,
+                    offset,
+                ],
+                _ => &ParamKind::JOINT,
+            };
+            for &kind in kinds {
                 push(ParamOwner::Joint(i), kind, &joint.name, kind == offset);
             }
         }

@@ -170,15 +170,8 @@ fn iterated_estimator_recovers_the_puma560_without_noise() {
 
 /// A 5-joint modified-DH robot with a prismatic third joint and a tool frame.
 fn prismatic_robot() -> RobotModel {
-    let joint = |name: &str, kind, theta: f64, d, a, alpha: f64, limits| Joint {
-        name: name.into(),
-        kind,
-        theta: theta.to_radians(),
-        d,
-        a,
-        alpha: alpha.to_radians(),
-        beta: 0.0,
-        limits,
+    let joint = |name: &str, kind, theta: f64, d, a, alpha: f64, limits| {
+        Joint::dh(name, kind, [theta.to_radians(), d, a, alpha.to_radians(), 0.0], limits)
     };
     let turn = [-2.5, 2.5];
     RobotModel {

@@ -10,17 +10,20 @@ fn puma() -> RobotModel {
 }
 
 /// A random serial robot of the given convention; `beta` decides whether the Hayati angles
-/// are used (non-zero) or left at zero.
+/// are used (non-zero) or left at zero. URDF joints get a random origin and axis.
 fn robot(convention: Convention, beta: bool) -> impl Strategy<Value = RobotModel> {
-    let joint = (any::<bool>(), prop::array::uniform5(-1.0..1.0f64)).prop_map(move |(prismatic, u)| Joint {
-        name: String::new(),
-        kind: if prismatic { JointKind::Prismatic } else { JointKind::Revolute },
-        theta: u[0] * 3.0,
-        d: u[1] * 400.0,
-        a: u[2] * 400.0,
-        alpha: u[3] * 3.0,
-        beta: if beta { u[4] * 0.5 } else { 0.0 },
-        limits: [-3.0, 3.0],
+    let joint = (any::<bool>(), prop::array::uniform9(-1.0..1.0f64)).prop_map(move |(prismatic, u)| {
+        let kind = if prismatic { JointKind::Prismatic } else { JointKind::Revolute };
+        if convention == Convention::Urdf {
+            let origin = Placement {
+                xyz: Vector3::new(u[0], u[1], u[2]) * 300.0,
+                rpy: Vector3::new(u[3], u[4], u[5]) * 3.0,
+            };
+            let axis = Vector3::new(u[6], u[7], u[8] + 0.01).normalize();
+            return Joint::urdf("", kind, origin, axis, [-3.0, 3.0]);
+        }
+        let beta = if beta { u[4] * 0.5 } else { 0.0 };
+        Joint::dh("", kind, [u[0] * 3.0, u[1] * 400.0, u[2] * 400.0, u[3] * 3.0, beta], [-3.0, 3.0])
     });
     let placement = prop::array::uniform6(-1.0..1.0f64).prop_map(|u| Placement {
         xyz: Vector3::new(u[0], u[1], u[2]) * 300.0,
@@ -135,6 +138,11 @@ proptest! {
 
     #[test]
     fn jacobians_match_finite_differences_modified_dh_with_beta(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 64)) {
+        check_jacobians(&model, &u)?;
+    }
+
+    #[test]
+    fn jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 64)) {
         check_jacobians(&model, &u)?;
     }
 

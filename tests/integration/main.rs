@@ -6,3 +6,4 @@ mod estimation;
 mod kinematics;
 mod model_files;
 mod simulation;
+mod urdf;

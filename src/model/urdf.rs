@@ -1,0 +1,246 @@
+//! Reading a serial chain from a URDF file (lengths in metres there, millimetres here).
+//!
+//! The chain runs from a named base link to a named tip link. Each revolute, continuous or
+//! prismatic joint on it becomes a [`Joint`] of the `urdf` convention: its origin (xyz, rpy)
+//! and axis. Fixed joints are folded into the origin of the next moving joint, or into the tool
+//! after the last one (the tool is then the tip link's frame). Continuous joints get limits of
+//! plus or minus one turn.
+
+use super::{Convention, Joint, JointKind, ModelError, Placement, RobotModel, Tool};
+use nalgebra::{Isometry3, Vector3};
+
+fn invalid(field: String, expected: impl Into<String>) -> ModelError {
+    ModelError::Invalid { field, expected: expected.into() }
+}
+
+/// The numbers of an attribute such as `xyz="0 0 0.1"`.
+fn numbers<const N: usize>(
+    node: roxmltree::Node<'_, '_>,
+    attribute: &str,
+    default: [f64; N],
+    field: &str,
+) -> Result<[f64; N], ModelError> {
+    let Some(text) = node.attribute(attribute) else { return Ok(default) };
+    let values: Vec<f64> = text
+        .split_whitespace()
+        .map(str::parse)
+        .collect::<Result<_, _>>()
+        .map_err(|_| invalid(format!("{field}.{attribute}"), format!("{N} numbers, found `{text}`")))?;
+    let values: [f64; N] = values
+        .try_into()
+        .map_err(|_| invalid(format!("{field}.{attribute}"), format!("{N} numbers, found `{text}`")))?;
+    if values.iter().any(|v| !v.is_finite()) {
+        return Err(invalid(format!("{field}.{attribute}"), "finite numbers"));
+    }
+    Ok(values)
+}
+
+/// The joint's `<origin>` as an isometry (mm).
+fn origin(joint: roxmltree::Node<'_, '_>, field: &str) -> Result<Isometry3<f64>, ModelError> {
+    let Some(node) = joint.children().find(|c| c.has_tag_name("origin")) else {
+        return Ok(Isometry3::identity());
+    };
+    let xyz = numbers(node, "xyz", [0.0; 3], &format!("{field}.origin"))?;
+    let rpy = numbers(node, "rpy", [0.0; 3], &format!("{field}.origin"))?;
+    Ok(Placement { xyz: Vector3::from(xyz) * 1000.0, rpy: Vector3::from(rpy) }.isometry())
+}
+
+fn placement_of(iso: &Isometry3<f64>) -> Placement {
+    let (roll, pitch, yaw) = iso.rotation.euler_angles();
+    Placement { xyz: iso.translation.vector, rpy: Vector3::new(roll, pitch, yaw) }
+}
+
+/// The chain of `text` from `base_link` to `tip_link`.
+pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<RobotModel, ModelError> {
+    let document =
+        roxmltree::Document::parse(text).map_err(|e| ModelError::Syntax(format!("not valid XML: {e}")))?;
+    let robot = document.root_element();
+    if !robot.has_tag_name("robot") {
+        return Err(ModelError::Syntax("not a URDF file: the root element is not <robot>".into()));
+    }
+    let joints: Vec<roxmltree::Node<'_, '_>> = robot.children().filter(|n| n.has_tag_name("joint")).collect();
+    let link_of = |joint: &roxmltree::Node<'_, '_>, tag: &str| {
+        joint
+            .children()
+            .find(|c| c.has_tag_name(tag))
+            .and_then(|c| c.attribute("link"))
+            .unwrap_or_default()
+            .to_string()
+    };
+    if !robot.children().any(|n| n.has_tag_name("link") && n.attribute("name") == Some(base_link)) {
+        return Err(invalid("base link".into(), format!("a link named `{base_link}` in the file")));
+    }
+    // Walk up from the tip to the base.
+    let mut chain = Vec::new();
+    let mut link = tip_link.to_string();
+    while link != base_link {
+        let Some(joint) = joints.iter().find(|j| link_of(j, "child") == link) else {
+            return Err(invalid(
+                "tip link".into(),
+                format!(
+                    "a chain of joints from `{base_link}` to `{tip_link}`, but link `{link}` has no parent joint"
+                ),
+            ));
+        };
+        if chain.len() > joints.len() {
+            return Err(invalid("joints".into(), "a tree: the parent links form a loop"));
+        }
+        chain.push(*joint);
+        link = link_of(joint, "parent");
+    }
+    chain.reverse();
+
+    let mut model_joints = Vec::new();
+    let mut pending = Isometry3::identity();
+    for joint in chain {
+        let name = joint.attribute("name").unwrap_or_default();
+        let field = format!("joint `{name}`");
+        let here = pending * origin(joint, &field)?;
+        let kind = match joint.attribute("type").unwrap_or_default() {
+            "fixed" => {
+                pending = here;
+                continue;
+            }
+            "revolute" | "continuous" => JointKind::Revolute,
+            "prismatic" => JointKind::Prismatic,
+            other => {
+                return Err(invalid(
+                    format!("{field}.type"),
+                    format!("revolute, continuous, prismatic or fixed, found `{other}`"),
+                ));
+            }
+        };
+        pending = Isometry3::identity();
+        let axis_node = joint.children().find(|c| c.has_tag_name("axis"));
+        let axis = Vector3::from(match axis_node {
+            Some(node) => numbers(node, "xyz", [1.0, 0.0, 0.0], &format!("{field}.axis"))?,
+            None => [1.0, 0.0, 0.0],
+        });
+        if axis.norm() < 1e-9 {
+            return Err(invalid(format!("{field}.axis"), "a non-zero axis"));
+        }
+        let continuous = joint.attribute("type") == Some("continuous");
+        let limit = joint.children().find(|c| c.has_tag_name("limit"));
+        let bound = |attribute: &str| -> Result<Option<f64>, ModelError> {
+            let Some(text) = limit.and_then(|l| l.attribute(attribute)) else { return Ok(None) };
+            let v: f64 = text.parse().map_err(|_| {
+                invalid(format!("{field}.limit.{attribute}"), format!("a number, found `{text}`"))
+            })?;
+            Ok(Some(if kind == JointKind::Prismatic { v * 1000.0 } else { v }))
+        };
+        let limits = match (continuous, bound("lower")?, bound("upper")?) {
+            (true, _, _) => [-std::f64::consts::TAU, std::f64::consts::TAU],
+            (false, Some(lower), Some(upper)) if lower < upper => [lower, upper],
+            _ => {
+                return Err(invalid(
+                    format!("{field}.limit"),
+                    "lower < upper limits for a revolute or prismatic joint",
+                ));
+            }
+        };
+        model_joints.push(Joint::urdf(name, kind, placement_of(&here), axis.normalize(), limits));
+    }
+    if model_joints.is_empty() {
+        return Err(invalid(
+            "joints".into(),
+            format!("at least one moving joint between `{base_link}` and `{tip_link}`"),
+        ));
+    }
+    let model = RobotModel {
+        name: robot.attribute("name").unwrap_or("urdf").to_string(),
+        description: format!("URDF chain from `{base_link}` to `{tip_link}`"),
+        convention: Convention::Urdf,
+        base: Placement::default(),
+        joints: model_joints,
+        tool: Tool::Frame(placement_of(&pending)),
+    };
+    // The names and limits pass the same checks as a TOML model's.
+    super::RobotModel::from_toml_str(&model.to_toml_string())
+}
+
+/// `original` (the URDF the model was read from, chain `base_link` to `tip_link`) with the
+/// origins of its moving joints replaced by `calibrated`'s (a URDF model carries its offsets
+/// in its origins, as URDF has no offset field). The calibrated base
+/// becomes a fixed joint from a new link `measuring_frame`, and the tool (in the last moving
+/// joint's frame, as markers are) a fixed joint to a new link `tool` on that joint's child
+/// link. Everything else is kept as written.
+pub fn to_urdf_string(
+    original: &str,
+    base_link: &str,
+    tip_link: &str,
+    calibrated: &RobotModel,
+) -> Result<String, ModelError> {
+    let document = roxmltree::Document::parse(original)
+        .map_err(|e| ModelError::Syntax(format!("not valid XML: {e}")))?;
+    let robot = document.root_element();
+    let joints: Vec<roxmltree::Node<'_, '_>> = robot.children().filter(|n| n.has_tag_name("joint")).collect();
+    let link_of = |joint: &roxmltree::Node<'_, '_>, tag: &str| {
+        joint
+            .children()
+            .find(|c| c.has_tag_name(tag))
+            .and_then(|c| c.attribute("link"))
+            .unwrap_or_default()
+            .to_string()
+    };
+    let mut chain = Vec::new();
+    let mut link = tip_link.to_string();
+    while link != base_link {
+        let joint = joints
+            .iter()
+            .find(|j| link_of(j, "child") == link)
+            .ok_or_else(|| invalid("tip link".into(), "the chain the model was read from"))?;
+        chain.push(*joint);
+        link = link_of(joint, "parent");
+    }
+    chain.reverse();
+    let mut edits: Vec<(std::ops::Range<usize>, String)> = Vec::new();
+    let mut fixed_before = Isometry3::identity();
+    let mut moving = calibrated.joints.iter();
+    let mut last_moving_link = base_link.to_string();
+    for joint in chain {
+        let here = origin(joint, "joint")?;
+        if joint.attribute("type") == Some("fixed") {
+            fixed_before *= here;
+            continue;
+        }
+        let j = moving.next().ok_or_else(|| invalid("joints".into(), "the model read from this URDF"))?;
+        let new_origin = fixed_before.inverse() * j.origin.isometry();
+        fixed_before = Isometry3::identity();
+        last_moving_link = link_of(&joint, "child");
+        let element = origin_element(&new_origin);
+        match joint.children().find(|c| c.has_tag_name("origin")) {
+            Some(node) => edits.push((node.range(), element)),
+            None => {
+                let at = joint.children().next().map_or(joint.range().end, |c| c.range().start);
+                edits.push((at..at, element));
+            }
+        }
+    }
+    let tool = match &calibrated.tool {
+        Tool::Point(p) => Isometry3::translation(p.x, p.y, p.z),
+        Tool::Frame(f) => f.isometry(),
+    };
+    let extra = format!(
+        "  <link name=\"measuring_frame\"/>\n  <joint name=\"measuring_frame_to_{base_link}\" type=\"fixed\">\n    <parent link=\"measuring_frame\"/>\n    <child link=\"{base_link}\"/>\n    {}\n  </joint>\n  <link name=\"tool\"/>\n  <joint name=\"{last_moving_link}_to_tool\" type=\"fixed\">\n    <parent link=\"{last_moving_link}\"/>\n    <child link=\"tool\"/>\n    {}\n  </joint>\n",
+        origin_element(&calibrated.base.isometry()),
+        origin_element(&tool)
+    );
+    let end = robot.range().end - "</robot>".len();
+    edits.push((end..end, extra));
+    edits.sort_by_key(|(range, _)| std::cmp::Reverse(range.start));
+    let mut out = original.to_string();
+    for (range, text) in edits {
+        out.replace_range(range, &text);
+    }
+    Ok(out)
+}
+
+/// `<origin xyz=".." rpy=".."/>` in metres and radians, at full precision.
+fn origin_element(iso: &Isometry3<f64>) -> String {
+    let p = placement_of(iso);
+    let t = p.xyz / 1000.0;
+    format!(
+        "<origin xyz=\"{:?} {:?} {:?}\" rpy=\"{:?} {:?} {:?}\"/>",
+        t.x, t.y, t.z, p.rpy.x, p.rpy.y, p.rpy.z
+    )
+}

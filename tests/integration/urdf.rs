@@ -1,0 +1,210 @@
+//! URDF: reading a chain, equivalence with DH, errors, and calibrating a 7-joint arm with a
+//! prismatic joint, an unknown base and two markers.
+
+use nalgebra::{Isometry3, Vector3};
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+use robocal::calibration::{self, JointParams, Measurements, Options};
+use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
+use robocal::kinematics::Chain;
+use robocal::model::{JointKind, Placement, RobotModel, from_urdf_str, to_urdf_string};
+use robocal::simulation::measurement_csv;
+
+/// One URDF `<joint>` element; its fields, in the order they appear in the file.
+#[allow(clippy::too_many_arguments)]
+fn joint(
+    name: &str,
+    kind: &str,
+    parent: &str,
+    child: &str,
+    xyz: &str,
+    rpy: &str,
+    axis: &str,
+    limits: &str,
+) -> String {
+    let limit = if limits.is_empty() {
+        String::new()
+    } else {
+        format!("<limit {limits} effort=\"1\" velocity=\"1\"/>")
+    };
+    format!(
+        "  <joint name=\"{name}\" type=\"{kind}\">\n    <parent link=\"{parent}\"/>\n    <child link=\"{child}\"/>\n    \
+         <origin xyz=\"{xyz}\" rpy=\"{rpy}\"/>\n    <axis xyz=\"{axis}\"/>\n    {limit}\n  </joint>\n"
+    )
+}
+
+fn links(names: &[&str]) -> String {
+    names.iter().map(|n| format!("  <link name=\"{n}\"/>\n")).collect()
+}
+
+/// The PUMA 560 preset written as URDF: joint i's origin is the previous joint's
+/// `Tx(a) Rx(alpha)` followed by its own `Tz(d)`; the tool point is a fixed joint.
+fn puma_urdf() -> String {
+    let h = std::f64::consts::FRAC_PI_2;
+    let lim = |l: f64, u: f64| format!("lower=\"{}\" upper=\"{}\"", l.to_radians(), u.to_radians());
+    let mut text = String::from("<?xml version=\"1.0\"?>\n<robot name=\"puma560-urdf\">\n");
+    text += &links(&["base_link", "l1", "l2", "l3", "l4", "l5", "l6", "flange"]);
+    text += &joint("j1", "revolute", "base_link", "l1", "0 0 0", "0 0 0", "0 0 1", &lim(-160.0, 160.0));
+    text += &joint("j2", "revolute", "l1", "l2", "0 0 0", &format!("{h} 0 0"), "0 0 1", &lim(-45.0, 225.0));
+    text += &joint("j3", "revolute", "l2", "l3", "0.4318 0 0.15005", "0 0 0", "0 0 1", &lim(-225.0, 45.0));
+    text += &joint(
+        "j4",
+        "revolute",
+        "l3",
+        "l4",
+        "0.0203 0.4318 0",
+        &format!("{} 0 0", -h),
+        "0 0 1",
+        &lim(-110.0, 170.0),
+    );
+    text += &joint("j5", "revolute", "l4", "l5", "0 0 0", &format!("{h} 0 0"), "0 0 1", &lim(-100.0, 100.0));
+    text +=
+        &joint("j6", "revolute", "l5", "l6", "0 0 0", &format!("{} 0 0", -h), "0 0 1", &lim(-266.0, 266.0));
+    text += &joint("tool", "fixed", "l6", "flange", "0.05 0 0.15", "0 0 0", "1 0 0", "");
+    text + "</robot>\n"
+}
+
+#[test]
+fn the_puma560_as_urdf_moves_as_the_dh_preset() {
+    let urdf = from_urdf_str(&puma_urdf(), "base_link", "flange").unwrap();
+    let preset = RobotModel::preset("puma560").unwrap();
+    assert_eq!(urdf.dof(), 6);
+    assert_eq!(urdf.joints[1].limits, preset.joints[1].limits);
+    let (a, b) = (Chain::new(&urdf), Chain::new(&preset));
+    let (a, b) = (a.with_errors(&vec![0.0; a.params().len()]), b.with_errors(&vec![0.0; b.params().len()]));
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    for _ in 0..200 {
+        let q: Vec<f64> = preset.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect();
+        let miss = (a.position(&q) - b.position(&q)).norm();
+        assert!(miss < 1e-9, "URDF and DH differ by {miss} mm at {q:?}");
+    }
+    assert_eq!(Chain::new(&urdf).params().get(6 + 6).name, "j1.theta", "6 origin errors, then the offset");
+}
+
+#[test]
+fn urdf_errors_say_what_is_wrong() {
+    let text = puma_urdf();
+    let error = |text: &str, tip: &str| from_urdf_str(text, "base_link", tip).unwrap_err().to_string();
+    assert_eq!(
+        error(&text, "nowhere"),
+        "field `tip link`: a chain of joints from `base_link` to `nowhere`, but link `nowhere` has no parent joint"
+    );
+    assert!(
+        error(&text.replacen("type=\"revolute\"", "type=\"floating\"", 1), "flange")
+            .contains("joint `j1`.type")
+    );
+    assert!(error(&text.replacen("lower=", "lowr=", 1), "flange").contains("joint `j1`.limit"));
+    assert!(
+        error(&text.replacen("0.4318 0 0.15005", "0.4318 0", 1), "flange").contains("joint `j3`.origin.xyz")
+    );
+    assert!(error("<robot><link", "flange").starts_with("not valid XML"));
+}
+
+/// A 7-joint arm with a prismatic third joint, lengths in metres.
+fn arm_urdf() -> String {
+    let turn = "lower=\"-2.8\" upper=\"2.8\"";
+    let mut text = String::from("<?xml version=\"1.0\"?>\n<robot name=\"arm7\">\n");
+    text += &links(&["base", "l1", "l2", "l3", "l4", "l5", "l6", "l7", "flange"]);
+    text += &joint("shoulder_pan", "revolute", "base", "l1", "0 0 0.3", "0 0 0", "0 0 1", turn);
+    text += &joint("shoulder_lift", "revolute", "l1", "l2", "0 0.05 0.1", "0 0 0", "0 1 0", turn);
+    text +=
+        &joint("slide", "prismatic", "l2", "l3", "0 0 0.35", "0 0 0", "0 0 1", "lower=\"0.0\" upper=\"0.3\"");
+    text += &joint("elbow", "revolute", "l3", "l4", "0 -0.05 0.2", "0 0 0", "0 1 0", turn);
+    text += &joint("wrist_roll", "continuous", "l4", "l5", "0 0 0.25", "0 0 0", "0 0 1", "");
+    text += &joint("wrist_pitch", "revolute", "l5", "l6", "0 0 0.1", "0.1 0 0", "0 1 0", turn);
+    text += &joint("wrist_yaw", "revolute", "l6", "l7", "0.02 0 0.08", "0 0 0", "0 0.6 0.8", turn);
+    text += &joint("flange_mount", "fixed", "l7", "flange", "0 0 0.05", "0 0 0", "1 0 0", "");
+    text + "</robot>\n"
+}
+
+#[test]
+fn a_seven_joint_urdf_arm_with_a_prismatic_joint_calibrates() {
+    let text = arm_urdf();
+    let nominal = from_urdf_str(&text, "base", "flange").unwrap();
+    assert_eq!(nominal.joints[2].kind, JointKind::Prismatic);
+    assert_eq!(nominal.joints[2].limits, [0.0, 300.0]);
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let mut n = || -> f64 { StandardNormal.sample(&mut rng) };
+    // The true arm: every origin displaced (0.5 mm, 0.05 deg) and turned about its axis.
+    let mut truth = nominal.clone();
+    let mut joint_truth = Vec::new();
+    for joint in &mut truth.joints {
+        let e = Isometry3::translation(0.5 * n(), 0.5 * n(), 0.5 * n())
+            * nalgebra::UnitQuaternion::from_scaled_axis(Vector3::new(n(), n(), n()) * 0.05f64.to_radians());
+        let size = match joint.kind {
+            JointKind::Revolute => 0.1f64.to_radians() * n(),
+            JointKind::Prismatic => 0.5 * n(),
+        };
+        let offset = match joint.kind {
+            JointKind::Revolute => Isometry3::rotation(joint.axis * size),
+            JointKind::Prismatic => {
+                let shift = joint.axis * size;
+                Isometry3::translation(shift.x, shift.y, shift.z)
+            }
+        };
+        let mut errors = super::calibration::displacement_parameters(&Isometry3::identity(), &e).to_vec();
+        errors.push(size);
+        joint_truth.push(errors);
+        let iso = joint.origin.isometry() * e * offset;
+        let (r, p, y) = iso.rotation.euler_angles();
+        joint.origin = Placement { xyz: iso.translation.vector, rpy: Vector3::new(r, p, y) };
+    }
+    truth.base = Placement { xyz: Vector3::new(-800.0, 1200.0, 150.0), rpy: Vector3::new(0.02, 0.03, -1.1) };
+    let markers = vec![Vector3::new(30.0, 0.0, 60.0), Vector3::new(-20.0, 40.0, 50.0)];
+    let sigmas = vec![2e-5; 7];
+    let mut poses = |count: usize| -> Vec<Vec<f64>> {
+        (0..count)
+            .map(|_| nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())
+            .collect()
+    };
+    let (train_q, test_q) = (poses(150), poses(60));
+    let read = |q: &[Vec<f64>], seed| {
+        Measurements::from_csv_str(&measurement_csv(&truth, &markers, q, &sigmas, 0.01, seed), &nominal, None)
+            .unwrap()
+    };
+    let (training, validation) = (read(&train_q, 1), read(&test_q, 2));
+    let options = Options {
+        estimator: Estimator::Wls,
+        noise: Some(NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0))),
+        joints: JointParams::All,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![Vector3::new(30.0, 1.0, 58.0), Vector3::new(-21.0, 40.0, 52.0)],
+        refine: RefineOptions::default(),
+    };
+    let result = calibration::calibrate(&nominal, &training, &options).unwrap();
+    let (before, after) = result.validate(&validation);
+    assert!(
+        before.rms / after.rms >= 5.0,
+        "held-out RMS {:.4} mm before, {:.4} mm after",
+        before.rms,
+        after.rms
+    );
+
+    // The true parameter vector: base displacement, each joint's 6 + offset, marker errors.
+    let mut x: Vec<f64> = super::calibration::displacement_parameters(
+        &result.registered.base.isometry(),
+        &truth.base.isometry(),
+    )
+    .to_vec();
+    x.extend(joint_truth.into_iter().flatten());
+    for (t, n) in markers.iter().zip(&options.markers) {
+        x.extend((t - n).iter());
+    }
+    assert_eq!(x.len(), result.params.len());
+    super::calibration::assert_within_three_standard_errors(&result, &x, &training);
+
+    // The calibrated model, written back as URDF, predicts marker 1 as the calibration does.
+    let written = to_urdf_string(&text, "base", "flange", &result.calibrated).unwrap();
+    let reread = from_urdf_str(&written, "measuring_frame", "tool").unwrap();
+    let chain = Chain::new(&reread);
+    let at = chain.with_errors(&vec![0.0; chain.params().len()]);
+    let worst = validation
+        .joints
+        .iter()
+        .zip(&validation.markers)
+        .map(|(q, m)| (at.position(q) - m[0]).norm())
+        .fold(0.0, f64::max);
+    assert!(worst < 5.0 * after.rms.max(0.05), "the written URDF misses marker 1 by {worst} mm");
+}
