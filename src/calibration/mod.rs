@@ -192,20 +192,24 @@ pub fn calibrate(
         .collect();
     let zero = vec![0.0; params.len()];
 
+    // One problem, and its covariance blocks V_k, for every stage.
+    let nothing = Selection::from_indices(&params, []);
+    let base_problem = PointProblem::new(
+        &chains,
+        &nothing,
+        Measured::Position,
+        data.joints.clone(),
+        observed,
+        zero.clone(),
+        noise.as_ref(),
+    )?;
+
     // "Before": base and markers only.
     let frame = selection(&params, &JointParams::None, options)?;
     let before = if frame.is_empty() {
-        zero.clone()
+        zero
     } else {
-        let problem = PointProblem::new(
-            &chains,
-            &frame,
-            Measured::Position,
-            data.joints.clone(),
-            observed.clone(),
-            zero,
-            noise.as_ref(),
-        )?;
+        let problem = base_problem.reselect(&frame, zero)?;
         let fitted = refine(&problem, options.estimator, problem.start(), &RefineOptions::default())?;
         problem.full(&fitted.estimate.x)
     };
@@ -223,40 +227,16 @@ pub fn calibrate(
             needed,
         });
     }
-    let problem = PointProblem::new(
-        &chains,
-        &asked,
-        Measured::Position,
-        data.joints.clone(),
-        observed.clone(),
-        before.clone(),
-        noise.as_ref(),
-    )?;
+    let problem = base_problem.reselect(&asked, before.clone())?;
     let diagnostics =
         estimate(&problem.system(&problem.start()), options.estimator, RANK_TOLERANCE)?.diagnostics;
     let names: Vec<&str> = asked.indices().iter().map(|&i| params.get(i).name.as_str()).collect();
     let fixed = diagnostics.not_identifiable.iter().map(|c| c.describe(&names)).collect();
     let kept = Selection::from_indices(&params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
-    let problem = PointProblem::new(
-        &chains,
-        &kept,
-        Measured::Position,
-        data.joints.clone(),
-        observed.clone(),
-        before.clone(),
-        noise.as_ref(),
-    )?;
+    let problem = base_problem.reselect(&kept, before.clone())?;
     let estimate = refine(&problem, options.estimator, problem.start(), &options.refine)?;
     let after = problem.full(&estimate.estimate.x);
-    let final_problem = PointProblem::new(
-        &chains,
-        &kept,
-        Measured::Position,
-        data.joints.clone(),
-        observed,
-        after.clone(),
-        noise.as_ref(),
-    )?;
+    let final_problem = base_problem.reselect(&kept, after.clone())?;
 
     let training =
         (ErrorStats::of(&errors(&chains, &before, data)), ErrorStats::of(&errors(&chains, &after, data)));

@@ -325,7 +325,8 @@ pub fn estimate(
 #[derive(Debug, Clone)]
 pub struct Prepared {
     weights: Weights,
-    factorised: solve::Factorised,
+    pinv: DMatrix<f64>,
+    diagnostics: Diagnostics,
 }
 
 impl Prepared {
@@ -342,19 +343,19 @@ impl Prepared {
         system.validate()?;
         let weights = Weights::new(v, rows_per_point, estimator, true)?;
         let factorised = solve::factorise(&weights.whiten(&system).a, rank_tolerance)?;
-        Ok(Self { weights, factorised })
+        Ok(Self { weights, pinv: factorised.pinv(), diagnostics: factorised.diagnostics })
     }
 
     /// The estimate for pose errors `y` (Eqs. 4-6).
     pub fn estimate(&self, y: &DVector<f64>) -> DVector<f64> {
         let mut b = y.clone();
         self.weights.apply(&mut b);
-        &self.factorised.pinv * b
+        &self.pinv * b
     }
 
     /// Rank, singular values and identifiability of the factored system.
     pub fn diagnostics(&self) -> &Diagnostics {
-        &self.factorised.diagnostics
+        &self.diagnostics
     }
 }
 

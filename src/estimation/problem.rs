@@ -62,6 +62,34 @@ impl<'a> PointProblem<'a> {
         Ok(problem)
     }
 
+    /// The same problem with other parameters identified and others fixed, sharing the
+    /// covariance blocks `V_k` (they are the noise's, not the parameters').
+    pub fn reselect<'b>(
+        &self,
+        selection: &'b Selection,
+        fixed: Vec<f64>,
+    ) -> Result<PointProblem<'b>, EstimationError>
+    where
+        'a: 'b,
+    {
+        if fixed.len() != self.fixed.len() {
+            return Err(EstimationError::Dimensions(format!(
+                "{} parameter values for {}",
+                fixed.len(),
+                self.fixed.len()
+            )));
+        }
+        Ok(PointProblem {
+            chains: self.chains,
+            selection,
+            measured: self.measured,
+            joints: self.joints.clone(),
+            observed: self.observed.clone(),
+            fixed,
+            v: self.v.clone(),
+        })
+    }
+
     /// `V_k` of every pose at the fixed parameters, stacked.
     fn covariance_blocks(&self, noise: &NoiseModel) -> Result<DMatrix<f64>, EstimationError> {
         let (per, rows) = (self.measured.rows(), self.rows_per_point());

@@ -112,7 +112,7 @@ pub fn refine(
         let whitened = weights.whiten(&system);
         let factorised = factorise(&whitened.a, options.rank_tolerance)?;
         let cost = whitened.b.norm_squared();
-        let gauss_newton = &factorised.pinv * &whitened.b;
+        let gauss_newton = factorised.solve(&whitened.b);
 
         let one_step = options.max_iterations == 1;
         let taken = if one_step {
@@ -121,14 +121,19 @@ pub fn refine(
             let linearised = (&whitened.b - &whitened.a * &gauss_newton).norm_squared();
             Some((gauss_newton, linearised, 0.0))
         } else {
-            // Gauss-Newton, damped more and more until the cost falls, as Levenberg-Marquardt.
+            // Gauss-Newton, damped more and more until the cost falls, as Levenberg-Marquardt;
+            // but where the linearised model itself promises no decrease worth the name, the
+            // minimum is reached and a failed step is rounding, not a reason to damp (a damped
+            // step promises less still).
+            let promised = cost - (&whitened.b - &whitened.a * &gauss_newton).norm_squared();
+            let at_minimum = promised <= options.cost_tolerance * cost;
             let mut trial = (gauss_newton, 0.0);
             loop {
                 let cost_after = cost_at(&(&x + &trial.0));
                 if cost_after <= cost {
                     break Some((trial.0, cost_after, trial.1));
                 }
-                if trial.1 >= 1e12 {
+                if at_minimum || trial.1 >= 1e12 {
                     break None;
                 }
                 let damping = if trial.1 == 0.0 { 1e-4 } else { trial.1 * 10.0 };
@@ -176,7 +181,7 @@ fn damped_step(
     }
     let mut rhs = DVector::zeros(m + p);
     rhs.rows_mut(0, m).copy_from(b);
-    Ok(factorise(&augmented, tolerance)?.pinv * rhs)
+    Ok(factorise(&augmented, tolerance)?.solve(&rhs))
 }
 
 #[cfg(test)]
@@ -218,7 +223,7 @@ mod tests {
         assert!(refined.history.windows(2).all(|w| w[1].cost <= w[0].cost), "the cost never rises");
 
         let one = RefineOptions { max_iterations: 1, ..RefineOptions::default() };
-        let paper = refine(&Arctangent, Estimator::Ols, start, &one).unwrap();
+        let paper = refine(&Arctangent, Estimator::Ols, start.clone(), &one).unwrap();
         assert!((paper.estimate.x[0] - (3.0 - 3f64.atan() * 10.0)).abs() < 1e-12, "one undamped step");
     }
 }

@@ -109,8 +109,10 @@ impl LinearEstimate {
 /// right-hand sides (Monte Carlo runs on one point set) cost one product each.
 #[derive(Debug, Clone)]
 pub(crate) struct Factorised {
-    /// `pinv(A)`, `p x N_m`.
-    pub pinv: DMatrix<f64>,
+    /// `P D V_r S_r^-1`, `p x r`: with `u_r` it is `pinv(A)`, never formed for one solve.
+    left: DMatrix<f64>,
+    /// `U_r`, `N_m x r`.
+    u_r: DMatrix<f64>,
     /// `P G`, `p x p`: the covariance is `(P G) C (P G)^T` for `C = A^T Cov(b) A`.
     pg: DMatrix<f64>,
     pub diagnostics: Diagnostics,
@@ -146,7 +148,8 @@ pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, 
     let pdv = &projector * &d * svd.v.columns(0, rank);
     let inverse_s =
         DMatrix::from_diagonal(&DVector::from_iterator(rank, svd.s[..rank].iter().map(|s| 1.0 / s)));
-    let pinv = (&pdv * &inverse_s * svd.u.columns(0, rank).transpose()).columns(0, m).into_owned();
+    let left = &pdv * &inverse_s;
+    let u_r = svd.u.view((0, 0), (m, rank)).into_owned();
     let pg = &pdv * &inverse_s * &inverse_s * svd.v.columns(0, rank).transpose() * &d;
     // A_s = U (S V^T) with U orthonormal: S V^T has the same column norms and inner products,
     // so pivoting on it picks the same columns at p x p cost.
@@ -156,7 +159,7 @@ pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, 
     let not_identifiable = combinations(&null_basis, &identifiable);
     let condition_number = if rank > 0 { largest / singular_values[rank - 1] } else { f64::INFINITY };
     let diagnostics = Diagnostics { rank, singular_values, condition_number, identifiable, not_identifiable };
-    Ok(Factorised { pinv, pg, diagnostics })
+    Ok(Factorised { left, u_r, pg, diagnostics })
 }
 
 /// `I - N (N^T N)^-1 N^T`: the orthogonal projector onto the complement of `N`'s columns.
@@ -228,13 +231,23 @@ pub(crate) fn solve(
     names: Vec<String>,
 ) -> Result<LinearEstimate, EstimationError> {
     let f = factorise(&w.a, tolerance)?;
-    let x = &f.pinv * &w.b;
+    let x = f.solve(&w.b);
     let cost = (&w.b - &w.a * &x).norm_squared();
     let covariance = f.covariance(&w.a, w.noise.as_ref(), cost);
     Ok(LinearEstimate { names, x, covariance, cost, diagnostics: f.diagnostics })
 }
 
 impl Factorised {
+    /// `pinv(A) b` (Eq. 6 on the whitened system): `P D V_r S_r^-1 (U_r^T b)`.
+    pub fn solve(&self, b: &DVector<f64>) -> DVector<f64> {
+        &self.left * self.u_r.tr_mul(b)
+    }
+
+    /// `pinv(A)` itself (`p x N_m`), for solving many right-hand sides.
+    pub fn pinv(&self) -> DMatrix<f64> {
+        &self.left * self.u_r.transpose()
+    }
+
     /// `(P G) C (P G)^T` with `C = sum_k A_k^T N_k A_k`, `N_k` the blocks of `Cov(b)`; without
     /// them, `Cov(b) = sigma^2 I` with `sigma^2 = cost / (N_m - rank)`.
     pub(crate) fn covariance(
