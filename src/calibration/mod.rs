@@ -179,7 +179,8 @@ pub fn calibrate(
         let measured: Vec<Vector3<f64>> = data.markers.iter().flatten().copied().collect();
         let predicted: Vec<Vector3<f64>> =
             errors(&chains, &zero, data).iter().zip(&measured).map(|(e, m)| m - e).collect();
-        registered.base = placement_of(&(register(&predicted, &measured) * model.base.isometry()));
+        registered.base =
+            Placement::from_isometry(&(register(&predicted, &measured) * model.base.isometry()));
     }
     let chains = Chain::markers(&registered, &markers);
     let params = chains[0].params().clone();
@@ -307,12 +308,6 @@ fn register(predicted: &[Vector3<f64>], measured: &[Vector3<f64>]) -> Isometry3<
     Isometry3::from_parts(Translation3::from(translation), UnitQuaternion::from_rotation_matrix(&rotation))
 }
 
-/// The placement (xyz, roll-pitch-yaw) of an isometry.
-fn placement_of(iso: &Isometry3<f64>) -> Placement {
-    let (roll, pitch, yaw) = iso.rotation.euler_angles();
-    Placement { xyz: iso.translation.vector, rpy: Vector3::new(roll, pitch, yaw) }
-}
-
 /// `model` with the parameter errors `x` folded into its numbers; the tool becomes marker 1.
 fn fold(model: &RobotModel, params: &ParamSet, x: &[f64], markers: &[Vector3<f64>]) -> RobotModel {
     let mut out = model.clone();
@@ -332,7 +327,8 @@ fn fold(model: &RobotModel, params: &ParamSet, x: &[f64], markers: &[Vector3<f64
             // URDF has no offset: it turns (or shifts) the origin about (along) the axis.
             let offset = Isometry3::rotation(joint.axis * theta)
                 * Isometry3::translation(joint.axis.x * d, joint.axis.y * d, joint.axis.z * d);
-            joint.origin = placement_of(&(joint.origin.isometry() * displacement(owner) * offset));
+            joint.origin =
+                Placement::from_isometry(&(joint.origin.isometry() * displacement(owner) * offset));
             continue;
         }
         joint.theta += theta;
@@ -341,7 +337,7 @@ fn fold(model: &RobotModel, params: &ParamSet, x: &[f64], markers: &[Vector3<f64
         joint.alpha += value(owner, ParamKind::Alpha);
         joint.beta += value(owner, ParamKind::Beta);
     }
-    out.base = placement_of(&(model.base.isometry() * displacement(ParamOwner::Base)));
+    out.base = Placement::from_isometry(&(model.base.isometry() * displacement(ParamOwner::Base)));
     let marker = |kind| value(ParamOwner::Marker(0), kind);
     let first = markers.first().copied().unwrap_or_else(Vector3::zeros);
     out.tool =

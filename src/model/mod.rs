@@ -114,6 +114,12 @@ pub struct Placement {
 }
 
 impl Placement {
+    /// The placement (xyz, roll-pitch-yaw) of an isometry.
+    pub fn from_isometry(iso: &Isometry3<f64>) -> Self {
+        let (roll, pitch, yaw) = iso.rotation.euler_angles();
+        Self { xyz: iso.translation.vector, rpy: Vector3::new(roll, pitch, yaw) }
+    }
+
     /// The placement as an isometry.
     pub fn isometry(&self) -> Isometry3<f64> {
         let rotation = UnitQuaternion::from_euler_angles(self.rpy.x, self.rpy.y, self.rpy.z);

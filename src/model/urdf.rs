@@ -45,32 +45,24 @@ fn origin(joint: roxmltree::Node<'_, '_>, field: &str) -> Result<Isometry3<f64>,
     Ok(Placement { xyz: Vector3::from(xyz) * 1000.0, rpy: Vector3::from(rpy) }.isometry())
 }
 
-fn placement_of(iso: &Isometry3<f64>) -> Placement {
-    let (roll, pitch, yaw) = iso.rotation.euler_angles();
-    Placement { xyz: iso.translation.vector, rpy: Vector3::new(roll, pitch, yaw) }
+/// The link a joint's `<parent>` or `<child>` names.
+fn link_of(joint: &roxmltree::Node<'_, '_>, tag: &str) -> String {
+    joint
+        .children()
+        .find(|c| c.has_tag_name(tag))
+        .and_then(|c| c.attribute("link"))
+        .unwrap_or_default()
+        .to_string()
 }
 
-/// The chain of `text` from `base_link` to `tip_link`.
-pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<RobotModel, ModelError> {
-    let document =
-        roxmltree::Document::parse(text).map_err(|e| ModelError::Syntax(format!("not valid XML: {e}")))?;
-    let robot = document.root_element();
-    if !robot.has_tag_name("robot") {
-        return Err(ModelError::Syntax("not a URDF file: the root element is not <robot>".into()));
-    }
-    let joints: Vec<roxmltree::Node<'_, '_>> = robot.children().filter(|n| n.has_tag_name("joint")).collect();
-    let link_of = |joint: &roxmltree::Node<'_, '_>, tag: &str| {
-        joint
-            .children()
-            .find(|c| c.has_tag_name(tag))
-            .and_then(|c| c.attribute("link"))
-            .unwrap_or_default()
-            .to_string()
-    };
-    if !robot.children().any(|n| n.has_tag_name("link") && n.attribute("name") == Some(base_link)) {
-        return Err(invalid("base link".into(), format!("a link named `{base_link}` in the file")));
-    }
-    // Walk up from the tip to the base.
+/// The joints from `base_link` to `tip_link`, base first, found by walking up from the tip.
+fn chain<'a, 'input>(
+    robot: roxmltree::Node<'a, 'input>,
+    base_link: &str,
+    tip_link: &str,
+) -> Result<Vec<roxmltree::Node<'a, 'input>>, ModelError> {
+    let joints: Vec<roxmltree::Node<'a, 'input>> =
+        robot.children().filter(|n| n.has_tag_name("joint")).collect();
     let mut chain = Vec::new();
     let mut link = tip_link.to_string();
     while link != base_link {
@@ -89,6 +81,21 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
         link = link_of(joint, "parent");
     }
     chain.reverse();
+    Ok(chain)
+}
+
+/// The chain of `text` from `base_link` to `tip_link`.
+pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<RobotModel, ModelError> {
+    let document =
+        roxmltree::Document::parse(text).map_err(|e| ModelError::Syntax(format!("not valid XML: {e}")))?;
+    let robot = document.root_element();
+    if !robot.has_tag_name("robot") {
+        return Err(ModelError::Syntax("not a URDF file: the root element is not <robot>".into()));
+    }
+    if !robot.children().any(|n| n.has_tag_name("link") && n.attribute("name") == Some(base_link)) {
+        return Err(invalid("base link".into(), format!("a link named `{base_link}` in the file")));
+    }
+    let chain = chain(robot, base_link, tip_link)?;
 
     let mut model_joints = Vec::new();
     let mut pending = Isometry3::identity();
@@ -138,7 +145,7 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
                 ));
             }
         };
-        model_joints.push(Joint::urdf(name, kind, placement_of(&here), axis.normalize(), limits));
+        model_joints.push(Joint::urdf(name, kind, Placement::from_isometry(&here), axis.normalize(), limits));
     }
     if model_joints.is_empty() {
         return Err(invalid(
@@ -152,7 +159,7 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
         convention: Convention::Urdf,
         base: Placement::default(),
         joints: model_joints,
-        tool: Tool::Frame(placement_of(&pending)),
+        tool: Tool::Frame(Placement::from_isometry(&pending)),
     };
     // The names and limits pass the same checks as a TOML model's.
     super::RobotModel::from_toml_str(&model.to_toml_string())
@@ -173,26 +180,7 @@ pub fn to_urdf_string(
     let document = roxmltree::Document::parse(original)
         .map_err(|e| ModelError::Syntax(format!("not valid XML: {e}")))?;
     let robot = document.root_element();
-    let joints: Vec<roxmltree::Node<'_, '_>> = robot.children().filter(|n| n.has_tag_name("joint")).collect();
-    let link_of = |joint: &roxmltree::Node<'_, '_>, tag: &str| {
-        joint
-            .children()
-            .find(|c| c.has_tag_name(tag))
-            .and_then(|c| c.attribute("link"))
-            .unwrap_or_default()
-            .to_string()
-    };
-    let mut chain = Vec::new();
-    let mut link = tip_link.to_string();
-    while link != base_link {
-        let joint = joints
-            .iter()
-            .find(|j| link_of(j, "child") == link)
-            .ok_or_else(|| invalid("tip link".into(), "the chain the model was read from"))?;
-        chain.push(*joint);
-        link = link_of(joint, "parent");
-    }
-    chain.reverse();
+    let chain = chain(robot, base_link, tip_link)?;
     let mut edits: Vec<(std::ops::Range<usize>, String)> = Vec::new();
     let mut fixed_before = Isometry3::identity();
     let mut moving = calibrated.joints.iter();
@@ -237,7 +225,7 @@ pub fn to_urdf_string(
 
 /// `<origin xyz=".." rpy=".."/>` in metres and radians, at full precision.
 fn origin_element(iso: &Isometry3<f64>) -> String {
-    let p = placement_of(iso);
+    let p = Placement::from_isometry(iso);
     let t = p.xyz / 1000.0;
     format!(
         "<origin xyz=\"{:?} {:?} {:?}\" rpy=\"{:?} {:?} {:?}\"/>",
