@@ -2,7 +2,7 @@
 //! (Gauss-Newton), with Levenberg-Marquardt damping when a step fails to lower the weighted
 //! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
 
-use super::solve::{LinearEstimate, RANK_TOLERANCE, factorise};
+use super::solve::{LinearEstimate, RANK_TOLERANCE, factorise, factorise_full_rank};
 use super::{EstimationError, Estimator, LinearSystem, Weights};
 use nalgebra::{DMatrix, DVector};
 
@@ -65,8 +65,9 @@ pub struct Iteration {
 /// The refined estimate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Refined {
-    /// The estimate at the last parameters, with the covariance and diagnostics of the last
-    /// linearisation; `estimate.x` holds the parameter values (not a step).
+    /// The estimate at the last parameters, with the covariance of the last linearisation and
+    /// the diagnostics (rank, singular values) of the first; `estimate.x` holds the parameter
+    /// values (not a step).
     pub estimate: LinearEstimate,
     /// Every step taken.
     pub history: Vec<Iteration>,
@@ -103,14 +104,28 @@ pub fn refine(
     };
     let mut x = x0;
     let mut history = Vec::new();
+    let mut known = None;
     loop {
         let mut h = DMatrix::zeros(problem.equations(), x.len());
         let y = problem.evaluate(&x, Some(&mut h));
         let v = problem.covariance().cloned();
         let system = LinearSystem { h, y, rows_per_point: rows, v, names: problem.names() };
-        system.validate()?;
+        // V does not change between steps: check it once.
+        if history.is_empty() {
+            system.validate()?
+        } else {
+            system.check_finite()?
+        }
         let whitened = weights.whiten(&system);
-        let factorised = factorise(&whitened.a, options.rank_tolerance)?;
+        // The first step decides the rank by SVD; a full-rank, well-conditioned problem then
+        // keeps it, and later steps use the normal equations (same estimate, far cheaper).
+        let factorised = match known.as_ref().and_then(|d| factorise_full_rank(&whitened.a, d)) {
+            Some(f) => f,
+            None => factorise(&whitened.a, options.rank_tolerance)?,
+        };
+        if known.is_none() {
+            known = Some(factorised.diagnostics.clone());
+        }
         let cost = whitened.b.norm_squared();
         let gauss_newton = factorised.solve(&whitened.b);
 
