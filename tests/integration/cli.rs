@@ -178,3 +178,46 @@ fn calibrate_bad_input_is_named() {
     stderr_of(&few);
     assert!(!json.exists(), "nothing is written when the input is bad");
 }
+
+#[test]
+fn calibrate_a_urdf_robot_and_write_it_back() {
+    let dir = std::env::temp_dir().join(format!("robocal-urdf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (urdf, data, out) = (dir.join("arm7.urdf"), dir.join("arm7.csv"), dir.join("calibrated.urdf"));
+    let text = super::urdf::arm_urdf();
+    std::fs::write(&urdf, &text).unwrap();
+    // The nominal arm placed 1 m from the device, measured without noise at 60 poses.
+    let mut truth = robocal::model::from_urdf_str(&text, "base", "flange").unwrap();
+    truth.base.xyz = nalgebra::Vector3::new(1000.0, 0.0, 0.0);
+    let poses: Vec<Vec<f64>> = (0..60)
+        .map(|k| {
+            truth
+                .joints
+                .iter()
+                .enumerate()
+                .map(|(j, joint)| {
+                    let u = (((k * 7 + j) as f64) * 12.9898).sin() * 0.5 + 0.5;
+                    joint.limits[0] + u * (joint.limits[1] - joint.limits[0])
+                })
+                .collect()
+        })
+        .collect();
+    let markers = [nalgebra::Vector3::new(30.0, 0.0, 60.0)];
+    std::fs::write(&data, robocal::simulation::measurement_csv(&truth, &markers, &poses, &[0.0; 7], 0.0, 1))
+        .unwrap();
+    let (urdf_s, data_s, out_s) = (urdf.to_str().unwrap(), data.to_str().unwrap(), out.to_str().unwrap());
+    let args =
+        ["calibrate", "--model", urdf_s, "--data", data_s, "--marker", "30,0,60", "--params", "offsets"];
+    let missing = stderr_of(&args);
+    assert!(missing.contains("a URDF model needs --base-link and --tip-link"), "{missing}");
+    let mut full = args.to_vec();
+    full.extend(["--base-link", "base", "--tip-link", "flange", "--out-urdf", out_s]);
+    let output = robocal().args(&full).output().unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report = String::from_utf8(output.stdout).unwrap();
+    assert!(report.contains("shoulder_pan.theta") && report.contains("slide.d"), "{report}");
+    let written = std::fs::read_to_string(&out).unwrap();
+    let calibrated = robocal::model::from_urdf_str(&written, "measuring_frame", "tool").unwrap();
+    assert_eq!(calibrated.dof(), 7);
+    assert!((calibrated.joints[0].origin.xyz.x - 1000.0).abs() < 1e-6, "the base is in the written URDF");
+}

@@ -102,7 +102,7 @@ fn urdf_errors_say_what_is_wrong() {
 }
 
 /// A 7-joint arm with a prismatic third joint, lengths in metres.
-fn arm_urdf() -> String {
+pub fn arm_urdf() -> String {
     let turn = "lower=\"-2.8\" upper=\"2.8\"";
     let mut text = String::from("<?xml version=\"1.0\"?>\n<robot name=\"arm7\">\n");
     text += &links(&["base", "l1", "l2", "l3", "l4", "l5", "l6", "l7", "flange"]);
