@@ -7,13 +7,16 @@
 //! ```
 //!
 //! Joint columns are named after the model's joints; markers are `x1,y1,z1`, `x2,y2,z2`, ...;
-//! `sigma` (optional) is the row's measurement standard deviation, in the length unit. Units
+//! `sigma` (optional) is the row's measurement standard deviation, in the length unit. With a
+//! single marker, the orientation of the measured frame (a 6-DOF probe whose origin is the
+//! marker) may follow as `qw,qx,qy,qz` or as `roll,pitch,yaw` (the joints' angle unit,
+//! `R = Rz(yaw) Ry(pitch) Rx(roll)`). Units
 //! are declared by the first line (`# units: joints=deg|rad, lengths=mm|m`) or by the caller;
 //! prismatic joints take the length unit. Other columns are ignored and listed. Lines starting
 //! with `#` are comments.
 
 use crate::model::{JointKind, RobotModel};
-use nalgebra::Vector3;
+use nalgebra::{UnitQuaternion, Vector3};
 
 /// Units of a measurement file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -45,6 +48,8 @@ pub struct Measurements {
     pub markers: Vec<Vec<Vector3<f64>>>,
     /// Measurement standard deviation of each pose (mm), if the file gives one.
     pub sigma: Option<Vec<f64>>,
+    /// Measured orientation of the frame at marker 1, if the file gives one.
+    pub orientations: Option<Vec<UnitQuaternion<f64>>>,
     /// The file line of each pose.
     pub lines: Vec<usize>,
     /// Columns that were not used.
@@ -73,6 +78,7 @@ impl Measurements {
             joints: indices.iter().map(|&i| self.joints[i].clone()).collect(),
             markers: indices.iter().map(|&i| self.markers[i].clone()).collect(),
             sigma: self.sigma.as_ref().map(|s| indices.iter().map(|&i| s[i]).collect()),
+            orientations: self.orientations.as_ref().map(|o| indices.iter().map(|&i| o[i]).collect()),
             lines: indices.iter().map(|&i| self.lines[i]).collect(),
             ignored: self.ignored.clone(),
         }
@@ -150,11 +156,29 @@ impl Measurements {
             ));
         }
         let sigma_column = find("sigma");
+        let quaternion = ["qw", "qx", "qy", "qz"].map(find);
+        let rpy = ["roll", "pitch", "yaw"].map(find);
+        let orientation_columns: Vec<usize> = match (quaternion, rpy) {
+            ([Some(w), Some(x), Some(y), Some(z)], [None, None, None]) => vec![w, x, y, z],
+            ([None, None, None, None], [Some(r), Some(p), Some(y)]) => vec![r, p, y],
+            ([None, None, None, None], [None, None, None]) => Vec::new(),
+            _ => {
+                let message =
+                    "orientation: give all of qw,qx,qy,qz or all of roll,pitch,yaw, not parts or both";
+                return Err(error(header_line, None, message.into()));
+            }
+        };
+        if !orientation_columns.is_empty() && marker_columns.len() != 1 {
+            let message =
+                "orientation columns need exactly one marker (x1,y1,z1): the measured frame's origin";
+            return Err(error(header_line, None, message.into()));
+        }
         let used: Vec<usize> = joint_columns
             .iter()
             .copied()
             .chain(marker_columns.iter().flatten().copied())
             .chain(sigma_column)
+            .chain(orientation_columns.iter().copied())
             .collect();
         let ignored = (0..header.len()).filter(|i| !used.contains(i)).map(|i| header[i].clone()).collect();
 
@@ -163,6 +187,7 @@ impl Measurements {
             joints: Vec::new(),
             markers: Vec::new(),
             sigma: sigma_column.map(|_| Vec::new()),
+            orientations: (!orientation_columns.is_empty()).then(Vec::new),
             lines: Vec::new(),
             ignored,
         };
@@ -215,6 +240,24 @@ impl Measurements {
                     ));
                 }
                 sigmas.push(s * length);
+            }
+            if let Some(orientations) = data.orientations.as_mut() {
+                let v = orientation_columns.iter().map(|&c| value(c)).collect::<Result<Vec<_>, _>>()?;
+                let rotation = if let [w, x, y, z] = v[..] {
+                    let q = nalgebra::Quaternion::new(w, x, y, z);
+                    if (q.norm() - 1.0).abs() > 1e-3 {
+                        return Err(error(
+                            line,
+                            Some("qw"),
+                            format!("a unit quaternion, its norm is {:.6}", q.norm()),
+                        ));
+                    }
+                    UnitQuaternion::from_quaternion(q)
+                } else {
+                    let angle = |a: f64| if units.joints_in_degrees { a.to_radians() } else { a };
+                    UnitQuaternion::from_euler_angles(angle(v[0]), angle(v[1]), angle(v[2]))
+                };
+                orientations.push(rotation);
             }
             data.joints.push(joints);
             data.markers.push(markers);

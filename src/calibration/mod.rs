@@ -182,14 +182,23 @@ pub fn calibrate(
         registered.base =
             Placement::from_isometry(&(register(&predicted, &measured) * model.base.isometry()));
     }
-    let chains = Chain::markers(&registered, &markers);
+    // With orientations, marker 1 is a probe frame: its mounting rotation starts from the data.
+    let probe =
+        data.orientations.as_ref().map(|measured| probe_mounting(&registered, markers[0], data, measured));
+    let chains = match &probe {
+        Some(probe) => vec![Chain::probe(&registered, probe)],
+        None => Chain::markers(&registered, &markers),
+    };
+    let kind = if probe.is_some() { Measured::Pose } else { Measured::Position };
+    let rows = kind.rows() * chains.len();
     let params = chains[0].params().clone();
-    let noise = noise_for(options, data, marker_count);
+    let noise = noise_for(options, data, rows);
+    let rotations = |k: usize| data.orientations.as_ref().map_or(UnitQuaternion::identity(), |o| o[k]);
     let observed: Vec<Isometry3<f64>> = data
         .markers
         .iter()
-        .flatten()
-        .map(|p| Isometry3::from_parts(Translation3::from(*p), UnitQuaternion::identity()))
+        .enumerate()
+        .flat_map(|(k, m)| m.iter().map(move |p| Isometry3::from_parts(Translation3::from(*p), rotations(k))))
         .collect();
     let zero = vec![0.0; params.len()];
 
@@ -198,7 +207,7 @@ pub fn calibrate(
     let base_problem = PointProblem::new(
         &chains,
         &nothing,
-        Measured::Position,
+        kind,
         data.joints.clone(),
         observed,
         zero.clone(),
@@ -218,9 +227,9 @@ pub fn calibrate(
     // "After": everything asked for that the poses can identify.
     let asked = selection(&params, &options.joints, options)?;
     // With fewer equations than parameters the rank cannot tell structure from lack of data.
-    let equations = data.len() * 3 * marker_count;
+    let equations = data.len() * rows;
     if equations <= asked.len() {
-        let needed = asked.len() / (3 * marker_count) + 1;
+        let needed = asked.len() / rows + 1;
         return Err(CalibrationError::TooFewPoses {
             poses: data.len(),
             equations,
@@ -241,7 +250,7 @@ pub fn calibrate(
 
     let training =
         (ErrorStats::of(&errors(&chains, &before, data)), ErrorStats::of(&errors(&chains, &after, data)));
-    let calibrated = fold(&registered, &params, &after, &markers);
+    let calibrated = fold(&registered, &params, &after, &markers, probe.as_ref());
     let rank = estimate.estimate.diagnostics.rank;
     let warnings = warnings(&params, (&before, &after), rank, data, &final_problem);
     Ok(Calibration {
@@ -280,15 +289,53 @@ fn selection(
 }
 
 /// The noise model, with the data's `sigma` column as the measurement noise when present.
-fn noise_for(options: &Options, data: &Measurements, markers: usize) -> Option<NoiseModel> {
+/// `rows` per pose: 3 per marker, or 6 for a probe, whose orientation rows keep the noise
+/// model's orientation sigma.
+fn noise_for(options: &Options, data: &Measurements, rows: usize) -> Option<NoiseModel> {
     let mut noise = options.noise.clone()?;
     if let Some(sigmas) = &data.sigma {
-        let rows = 3 * markers;
+        let orientation = match &noise.measurement {
+            MeasurementNoise::PerAxis(s) => s[3],
+            MeasurementNoise::PerPoint(_) => 0.0,
+        };
+        let probe = data.orientations.is_some();
+        let variance = |s: f64, r: usize| if probe && r >= 3 { orientation * orientation } else { s * s };
         noise.measurement = MeasurementNoise::PerPoint(
-            sigmas.iter().map(|&s| DMatrix::<f64>::identity(rows, rows) * (s * s)).collect(),
+            sigmas
+                .iter()
+                .map(|&s| DMatrix::from_fn(rows, rows, |i, j| if i == j { variance(s, i) } else { 0.0 }))
+                .collect(),
         );
     }
     Some(noise)
+}
+
+/// The probe's placement on the last link: at the nominal marker position, turned by the
+/// chordal mean of what each pose says the mounting rotation is, `R_arm(q)^-1 R_measured`.
+fn probe_mounting(
+    model: &RobotModel,
+    at: Vector3<f64>,
+    data: &Measurements,
+    measured: &[UnitQuaternion<f64>],
+) -> Placement {
+    let unturned = Placement { xyz: at, rpy: Vector3::zeros() };
+    let chain = Chain::probe(model, &unturned);
+    let arm = chain.with_errors(&vec![0.0; chain.params().len()]);
+    let mut sum = Matrix3::zeros();
+    for (q, r) in data.joints.iter().zip(measured) {
+        sum += (arm.pose(q).rotation.inverse() * r).to_rotation_matrix().into_inner();
+    }
+    let rotation = UnitQuaternion::from_rotation_matrix(&nearest_rotation(&sum));
+    Placement::from_isometry(&Isometry3::from_parts(Translation3::from(at), rotation))
+}
+
+/// The rotation nearest to `m` in the Frobenius norm: `U diag(1, 1, det) V^T` from its SVD.
+fn nearest_rotation(m: &Matrix3<f64>) -> Rotation3<f64> {
+    let svd = m.svd(true, true);
+    let (u, v_t) = (svd.u.expect("asked for U"), svd.v_t.expect("asked for V"));
+    let mut d = Matrix3::identity();
+    d[(2, 2)] = (u * v_t).determinant().signum();
+    Rotation3::from_matrix_unchecked(u * d * v_t)
 }
 
 /// The rigid transform `T` minimising `sum |measured - T predicted|^2` (Kabsch 1976).
@@ -299,17 +346,19 @@ fn register(predicted: &[Vector3<f64>], measured: &[Vector3<f64>]) -> Isometry3<
     for (p, m) in predicted.iter().zip(measured) {
         cross += (m - cm) * (p - cp).transpose();
     }
-    let svd = cross.svd(true, true);
-    let (u, v_t) = (svd.u.expect("asked for U"), svd.v_t.expect("asked for V"));
-    let mut d = Matrix3::identity();
-    d[(2, 2)] = (u * v_t).determinant().signum();
-    let rotation = Rotation3::from_matrix_unchecked(u * d * v_t);
+    let rotation = nearest_rotation(&cross);
     let translation = cm - rotation * cp;
     Isometry3::from_parts(Translation3::from(translation), UnitQuaternion::from_rotation_matrix(&rotation))
 }
 
 /// `model` with the parameter errors `x` folded into its numbers; the tool becomes marker 1.
-fn fold(model: &RobotModel, params: &ParamSet, x: &[f64], markers: &[Vector3<f64>]) -> RobotModel {
+fn fold(
+    model: &RobotModel,
+    params: &ParamSet,
+    x: &[f64],
+    markers: &[Vector3<f64>],
+    probe: Option<&Placement>,
+) -> RobotModel {
     let mut out = model.clone();
     let value = |owner, kind| params.index_of(owner, kind).map_or(0.0, |i| x[i]);
     // A displacement Trans(x, y, z) Rx(rx) Ry(ry) Rz(rz), as the kinematics applies it.
@@ -338,10 +387,10 @@ fn fold(model: &RobotModel, params: &ParamSet, x: &[f64], markers: &[Vector3<f64
         joint.beta += value(owner, ParamKind::Beta);
     }
     out.base = Placement::from_isometry(&(model.base.isometry() * displacement(ParamOwner::Base)));
-    let marker = |kind| value(ParamOwner::Marker(0), kind);
     let first = markers.first().copied().unwrap_or_else(Vector3::zeros);
-    out.tool =
-        Tool::Point(first + Vector3::new(marker(ParamKind::X), marker(ParamKind::Y), marker(ParamKind::Z)));
+    let mounting = probe.copied().unwrap_or(Placement { xyz: first, rpy: Vector3::zeros() });
+    let tool = Placement::from_isometry(&(mounting.isometry() * displacement(ParamOwner::Marker(0))));
+    out.tool = if probe.is_some() { Tool::Frame(tool) } else { Tool::Point(tool.xyz) };
     out
 }
 

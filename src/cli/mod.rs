@@ -107,6 +107,9 @@ struct CalibrateArgs {
     /// Measurement noise standard deviation (mm), unless the data has a `sigma` column.
     #[arg(long, default_value_t = 0.0)]
     sigma_mm: f64,
+    /// Orientation measurement noise (deg), when the data has orientation columns.
+    #[arg(long, default_value_t = 0.0)]
+    sigma_orientation_deg: f64,
     /// Joint parameters to identify: `all`, `offsets`, `none`, or names and patterns
     /// (`j*.theta,j2.a`).
     #[arg(long, default_value = "all", value_delimiter = ',')]
@@ -224,8 +227,14 @@ fn calibrate(args: &CalibrateArgs) -> Result<()> {
                     model.name
                 );
             }
-            if sigmas.iter().chain([&args.sigma_mm]).any(|s| !s.is_finite() || *s < 0.0) {
-                bail!("--joint-sigma-deg and --sigma-mm: expected finite values >= 0");
+            if sigmas
+                .iter()
+                .chain([&args.sigma_mm, &args.sigma_orientation_deg])
+                .any(|s| !s.is_finite() || *s < 0.0)
+            {
+                bail!(
+                    "--joint-sigma-deg, --sigma-mm and --sigma-orientation-deg: expected finite values >= 0"
+                );
             }
             let joint: Vec<f64> = model
                 .joints
@@ -233,7 +242,8 @@ fn calibrate(args: &CalibrateArgs) -> Result<()> {
                 .zip(sigmas)
                 .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
                 .collect();
-            Some(NoiseModel::diagonal(&joint, MeasurementNoise::isotropic(args.sigma_mm, 0.0)))
+            let orientation = args.sigma_orientation_deg.to_radians();
+            Some(NoiseModel::diagonal(&joint, MeasurementNoise::isotropic(args.sigma_mm, orientation)))
         }
     };
     let estimator = args.estimator.unwrap_or(if noise.is_some() { Estimator::Wls } else { Estimator::Ols });

@@ -229,6 +229,14 @@ impl Chain {
             .collect()
     }
 
+    /// The chain ending at a measured frame (a 6-DOF probe) placed at `probe` in the last joint
+    /// frame, indexed by [`ParamSet::with_probe`]: its 6 errors are `marker1.x` ... `marker1.rz`.
+    pub fn probe(model: &RobotModel, probe: &Placement) -> Self {
+        let mut builder = Self::arm(model, ParamSet::with_probe(model));
+        builder.placement(ParamOwner::Marker(0), probe, &ParamKind::PLACEMENT);
+        Self { steps: builder.steps, params: builder.params, dof: model.dof() }
+    }
+
     /// The steps of the base and the joints.
     fn arm(model: &RobotModel, params: ParamSet) -> Builder {
         let mut builder = Builder { params, steps: Vec::new() };

@@ -121,10 +121,17 @@ impl ParamSet {
     /// The parameters of `model` with `markers` measured points on its last link in place of
     /// its tool: `marker1.x`, `marker1.y`, `marker1.z`, `marker2.x`, ... (mm).
     pub fn with_markers(model: &RobotModel, markers: usize) -> Self {
-        Self::build(model, Some(markers))
+        Self::build(model, Some((markers, 3)))
     }
 
-    fn build(model: &RobotModel, markers: Option<usize>) -> Self {
+    /// The parameters of `model` with a measured frame (a 6-DOF probe) on its last link in
+    /// place of its tool: `marker1.x`, ..., `marker1.rz` (mm, rad).
+    pub fn with_probe(model: &RobotModel) -> Self {
+        Self::build(model, Some((1, 6)))
+    }
+
+    /// `markers`: how many, and how many parameters each (3 for a point, 6 for a frame).
+    fn build(model: &RobotModel, markers: Option<(usize, usize)>) -> Self {
         let mut params = Vec::new();
         let mut push = |owner, kind: ParamKind, prefix: &str, is_offset| {
             let name = format!("{prefix}.{}", kind.label());
@@ -155,9 +162,9 @@ impl ParamSet {
             }
         }
         match markers {
-            Some(n) => {
+            Some((n, per)) => {
                 for k in 0..n {
-                    for &kind in &ParamKind::PLACEMENT[..3] {
+                    for &kind in &ParamKind::PLACEMENT[..per] {
                         push(ParamOwner::Marker(k), kind, &format!("marker{}", k + 1), false);
                     }
                 }

@@ -240,3 +240,96 @@ fn fewer_poses_than_identifiable_parameters_is_an_error() {
         "6 poses give 36 equations for 42 parameters: measure more poses (at least 8) or identify fewer parameters"
     );
 }
+
+/// A 6-DOF probe: the file gives marker 1's position and the frame's orientation (quaternion);
+/// the probe is mounted turned by about 30 degrees, which the calibration must find.
+#[test]
+fn a_probe_with_orientation_calibrates_its_mounting_too() {
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let nominal = RobotModel::preset("puma560").unwrap();
+    let truth = true_robot(&nominal, &mut rng);
+    let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
+    let chain = Chain::probe(&truth, &mounting);
+    let real = chain.with_errors(&vec![0.0; chain.params().len()]);
+    let file = |count: usize, rng: &mut ChaCha8Rng| {
+        let mut text =
+            String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n");
+        for q in poses(&nominal, count, rng) {
+            let noisy: Vec<f64> = q
+                .iter()
+                .zip(joint_sigmas())
+                .map(|(q, s)| {
+                    let z: f64 = StandardNormal.sample(&mut *rng);
+                    q + s * z
+                })
+                .collect();
+            let pose = real.pose(&noisy);
+            let (p, r) = (pose.translation.vector, pose.rotation);
+            let degrees: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
+            text += &format!(
+                "{},{:.6},{:.6},{:.6},{:.12},{:.12},{:.12},{:.12}\n",
+                degrees.join(","),
+                p.x,
+                p.y,
+                p.z,
+                r.w,
+                r.i,
+                r.j,
+                r.k
+            );
+        }
+        Measurements::from_csv_str(&text, &nominal, None).unwrap()
+    };
+    let (training, validation) = (file(120, &mut rng), file(60, &mut rng));
+    assert!(training.orientations.is_some());
+    let options = Options {
+        estimator: Estimator::Wls,
+        noise: Some(NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(1e-3, 1e-6))),
+        joints: JointParams::All,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
+        refine: RefineOptions::default(),
+    };
+    let calibration = calibration::calibrate(&nominal, &training, &options).unwrap();
+    let (before, after) = calibration.validate(&validation);
+    assert!(
+        before.rms / after.rms >= 5.0,
+        "held-out RMS {:.4} mm before, {:.4} mm after",
+        before.rms,
+        after.rms
+    );
+    let robocal::model::Tool::Frame(found) = calibration.calibrated.tool else {
+        panic!("a probe gives a tool frame")
+    };
+    // The mounting is seen through the registered base: compare what the whole chain does.
+    let calibrated = Chain::new(&calibration.calibrated);
+    let fitted = calibrated.with_errors(&vec![0.0; calibrated.params().len()]);
+    let q = &validation.joints[0];
+    let angle = fitted.pose(q).rotation.angle_to(&real.pose(q).rotation).to_degrees();
+    assert!(angle < 0.01, "the calibrated frame is turned {angle} deg from the true one ({found:?})");
+}
+
+#[test]
+fn orientation_columns_read_and_their_errors() {
+    let model = RobotModel::preset("puma560").unwrap();
+    let text = "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,roll,pitch,yaw\n1,2,3,4,5,6,7,8,9,90,0,0\n";
+    let data = Measurements::from_csv_str(text, &model, None).unwrap();
+    let r = data.orientations.unwrap()[0];
+    assert!((r.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12 && r.axis().unwrap().x > 0.999);
+    let head = "# units: joints=deg, lengths=mm\n";
+    assert_eq!(
+        data_error(&format!("{head}j1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy\n1,2,3,4,5,6,7,8,9,1,0,0\n")),
+        "line 2: orientation: give all of qw,qx,qy,qz or all of roll,pitch,yaw, not parts or both"
+    );
+    assert_eq!(
+        data_error(&format!(
+            "{head}j1,j2,j3,j4,j5,j6,x1,y1,z1,x2,y2,z2,roll,pitch,yaw\n1,2,3,4,5,6,7,8,9,1,2,3,0,0,0\n"
+        )),
+        "line 2: orientation columns need exactly one marker (x1,y1,z1): the measured frame's origin"
+    );
+    assert_eq!(
+        data_error(&format!("{head}j1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n1,2,3,4,5,6,7,8,9,0.9,0,0,0\n")),
+        "line 3, column `qw`: a unit quaternion, its norm is 0.900000"
+    );
+}
