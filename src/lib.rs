@@ -28,6 +28,8 @@
 //! The core (model, kinematics, estimation, simulation, calibration) does no I/O: files
 //! are read and written only in [`io`].
 
+#![warn(missing_docs)]
+
 pub mod calibration;
 pub mod estimation;
 pub mod io;

@@ -106,7 +106,8 @@ impl ParamInfo {
     }
 }
 
-/// All error parameters of a model, in canonical order (see the [module docs](self)).
+/// All error parameters of a model, in canonical order: base (6), each joint (5 DH, or 7 for
+/// URDF: 6 origin errors and the offset), then the tool (3 or 6) or the markers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamSet {
     params: Vec<ParamInfo>,
