@@ -24,6 +24,20 @@
 //! - [`io`]: reading files, with errors that name the file.
 //! - [`report`]: text reports at fixed precision.
 //!
+//! The PUMA 560 of the paper at its "ready" pose:
+//!
+//! ```
+//! use robocal::kinematics::Chain;
+//! use robocal::model::RobotModel;
+//!
+//! let puma = RobotModel::preset("puma560").unwrap();
+//! let chain = Chain::new(&puma);
+//! let nominal = chain.with_errors(&vec![0.0; chain.params().len()]);
+//! let ready = [0.0, 90f64.to_radians(), -90f64.to_radians(), 0.0, 0.0, 0.0];
+//! let tool = nominal.position(&ready); // mm
+//! assert!((tool - nalgebra::Vector3::new(70.3, -150.05, 1013.6)).norm() < 1e-9);
+//! ```
+//!
 //! Units inside the library are millimetres and radians; degrees appear only at the edges.
 //! The core (model, kinematics, estimation, simulation, calibration) does no I/O: files
 //! are read and written only in [`io`].

@@ -320,6 +320,26 @@ fn apply_blocks<const B: usize, C: nalgebra::Dim, St: nalgebra::StorageMut<f64, 
 /// Estimate `x` from `system` with `estimator` in one linear step (Eqs. 4-6), with the
 /// diagnostics and covariance of [`LinearEstimate`]. `rank_tolerance` is relative to the
 /// largest singular value of the column-scaled whitened `H` ([`RANK_TOLERANCE`] by default).
+///
+/// Two points of 3 rows, one parameter seen by both, the second point four times as noisy:
+/// Gauss-Markov trusts the first point more, ordinary least squares does not.
+///
+/// ```
+/// use nalgebra::{DMatrix, DVector};
+/// use robocal::estimation::{Estimator, LinearSystem, RANK_TOLERANCE, estimate};
+///
+/// let h = DMatrix::from_column_slice(6, 1, &[1.0, 0.0, 0.0, 1.0, 0.0, 0.0]);
+/// let y = DVector::from_column_slice(&[1.0, 0.0, 0.0, 2.0, 0.0, 0.0]);
+/// let mut v = DMatrix::zeros(6, 3); // the blocks V_1, V_2 stacked
+/// v.view_mut((0, 0), (3, 3)).fill_with_identity();
+/// v.view_mut((3, 0), (3, 3)).copy_from(&(DMatrix::identity(3, 3) * 16.0));
+/// let system = LinearSystem { h, y, rows_per_point: 3, v: Some(v), names: vec!["d".into()] };
+/// let ols = estimate(&system, Estimator::Ols, RANK_TOLERANCE).unwrap();
+/// let wls = estimate(&system, Estimator::Wls, RANK_TOLERANCE).unwrap();
+/// assert!((ols.x[0] - 1.5).abs() < 1e-12);
+/// assert!((wls.x[0] - (1.0 * 1.0 + 2.0 / 16.0) / (1.0 + 1.0 / 16.0)).abs() < 1e-12);
+/// assert!(wls.covariance[(0, 0)] < ols.covariance[(0, 0)]);
+/// ```
 pub fn estimate(
     system: &LinearSystem,
     estimator: Estimator,
