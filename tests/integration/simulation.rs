@@ -144,3 +144,23 @@ fn bad_study_files_say_what_is_wrong() {
     );
     assert!(study_error("redraw = \"run\"", "redraw = \"always\"").contains("run"));
 }
+
+#[test]
+fn a_pose_study_measures_orientation_too() {
+    let text = include_str!("../../presets/paper-table1.toml")
+        .replace("measured = \"position\"", "measured = \"pose\"")
+        .replace("points = [12, 24, 48, 96, 192]", "points = [24]")
+        .replace("point_sets = 6", "point_sets = 2")
+        .replace("runs_per_set = 16", "runs_per_set = 4")
+        .replace("[noise]", "[noise]\nsigma_orientation_deg = 0.001");
+    let study = Study::from_toml_str(&text, |name| load_model(name).map_err(|e| e.to_string())).unwrap();
+    let results = run(&study);
+    // 6 rows a point: the orientation rows make two more combinations identifiable (23 -> 25).
+    assert!(results.ranks.iter().all(|&(_, _, rank)| rank == 25), "{:?}", results.ranks);
+    for r in &results.runs {
+        assert!(r.accuracy.iter().all(|a| a.orientation.is_finite() && a.orientation > 0.0));
+    }
+    let csv = report::study::samples_csv(&study, &results);
+    assert!(csv.lines().next().unwrap().contains("wls_e_r_mean_deg"));
+    assert!(!csv.lines().nth(1).unwrap().contains(",,"), "every orientation column is filled");
+}
