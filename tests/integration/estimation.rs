@@ -103,6 +103,27 @@ fn rank_deficient_solve_names_the_invisible_combination() {
     assert!(d.condition_number.is_finite() && d.singular_values[4] < 1e-12 * d.singular_values[0]);
 }
 
+/// The problem of one chain's tool positions, the usual set-up of these tests.
+fn position_problem<'a>(
+    chain: &'a Chain,
+    selection: &'a Selection,
+    joints: Vec<Vec<f64>>,
+    observed: Vec<Isometry3<f64>>,
+    fixed: Vec<f64>,
+    noise: Option<&NoiseModel>,
+) -> PointProblem<'a> {
+    PointProblem::new(
+        std::slice::from_ref(chain),
+        selection,
+        Measured::Position,
+        joints,
+        observed,
+        fixed,
+        noise,
+    )
+    .unwrap()
+}
+
 /// True parameter errors of the sizes the issue names: joint offsets about 0.1 deg, lengths
 /// about 0.5 mm, other angles about 0.05 deg.
 fn true_errors(chain: &Chain, selection: &Selection, rng: &mut ChaCha8Rng) -> Vec<f64> {
@@ -142,16 +163,7 @@ fn recovers_without_noise(
     let joints = random_joints(model, 60, &mut rng);
     let observed = joints.iter().map(|q| real.pose(q)).collect();
     let zero = vec![0.0; chain.params().len()];
-    let problem = PointProblem::new(
-        std::slice::from_ref(&chain),
-        &selection,
-        Measured::Position,
-        joints,
-        observed,
-        zero,
-        None,
-    )
-    .unwrap();
+    let problem = position_problem(&chain, &selection, joints, observed, zero, None);
     let refined = refine(&problem, Estimator::Ols, problem.start(), &RefineOptions::default()).unwrap();
     assert!(refined.converged, "history {:?}", refined.history);
     let estimated = chain.with_errors(&problem.full(&refined.estimate.x));
@@ -209,16 +221,8 @@ fn one_step_is_the_first_iterate_and_equals_the_linear_estimate() {
     let observed: Vec<Isometry3<f64>> = joints.iter().map(|q| real.pose(q)).collect();
     let (joints_again, observed_again) = (joints.clone(), observed.clone());
     let noise = puma_noise(0.01);
-    let problem = PointProblem::new(
-        std::slice::from_ref(&chain),
-        &selection,
-        Measured::Position,
-        joints,
-        observed,
-        vec![0.0; chain.params().len()],
-        Some(&noise),
-    )
-    .unwrap();
+    let problem =
+        position_problem(&chain, &selection, joints, observed, vec![0.0; chain.params().len()], Some(&noise));
     let one = RefineOptions { max_iterations: 1, ..RefineOptions::default() };
     let refined = refine(&problem, Estimator::Wls, problem.start(), &one).unwrap();
     let linear = estimate(&problem.system(&problem.start()), Estimator::Wls, RANK_TOLERANCE).unwrap();
@@ -232,16 +236,14 @@ fn one_step_is_the_first_iterate_and_equals_the_linear_estimate() {
     // Without a noise model the covariance comes from the residual: the same for both.
     let ols_system = LinearSystem { v: None, ..problem.system(&problem.start()) };
     let ols_linear = estimate(&ols_system, Estimator::Ols, RANK_TOLERANCE).unwrap();
-    let unweighted = PointProblem::new(
-        std::slice::from_ref(&chain),
+    let unweighted = position_problem(
+        &chain,
         &selection,
-        Measured::Position,
         joints_again,
         observed_again,
         vec![0.0; chain.params().len()],
         None,
-    )
-    .unwrap();
+    );
     let ols_one = refine(&unweighted, Estimator::Ols, unweighted.start(), &one).unwrap();
     assert!((&ols_one.estimate.x - &ols_linear.x).amax() < 1e-15);
     let spread =
@@ -280,16 +282,7 @@ fn predicted_covariance_matches_the_monte_carlo_spread() {
             .map(|q| DMatrix::identity(3, 3) * (0.02 * at.position(q).norm() / 1000.0).powi(2))
             .collect(),
     );
-    let problem = PointProblem::new(
-        std::slice::from_ref(&chain),
-        &selection,
-        Measured::Position,
-        joints,
-        observed,
-        zero,
-        Some(&noise),
-    )
-    .unwrap();
+    let problem = position_problem(&chain, &selection, joints, observed, zero, Some(&noise));
     let system = problem.system(&problem.start());
     let v = system.v.clone().unwrap();
     let factors: Vec<DMatrix<f64>> =
@@ -409,16 +402,9 @@ fn noise_model_must_fit_the_robot() {
     let observed = vec![Isometry3::identity(); 4];
     let noise = NoiseModel::diagonal(&[1e-4; 5], MeasurementNoise::isotropic(0.01, 0.0));
     let zero = vec![0.0; chain.params().len()];
-    let err = PointProblem::new(
-        std::slice::from_ref(&chain),
-        &selection,
-        Measured::Position,
-        joints,
-        observed,
-        zero,
-        Some(&noise),
-    )
-    .unwrap_err();
+    let chains = std::slice::from_ref(&chain);
+    let err = PointProblem::new(chains, &selection, Measured::Position, joints, observed, zero, Some(&noise))
+        .unwrap_err();
     assert_eq!(err.to_string(), "noise model: Sigma_q is (5, 5), expected 6 x 6");
 }
 
@@ -434,16 +420,7 @@ fn puma560_diagnostics_name_the_non_identifiable_combinations() {
     let observed = vec![Isometry3::identity(); joints.len()];
     let zero = vec![0.0; chain.params().len()];
     let noise = puma_noise(0.01);
-    let problem = PointProblem::new(
-        std::slice::from_ref(&chain),
-        &selection,
-        Measured::Position,
-        joints,
-        observed,
-        zero,
-        Some(&noise),
-    )
-    .unwrap();
+    let problem = position_problem(&chain, &selection, joints, observed, zero, Some(&noise));
     let wls = estimate(&problem.system(&problem.start()), Estimator::Wls, RANK_TOLERANCE).unwrap();
     let names: Vec<&str> = selection.indices().iter().map(|&i| chain.params().get(i).name.as_str()).collect();
     let described: Vec<String> =
