@@ -173,8 +173,8 @@ impl LinearSystem {
             finite("V", v.as_slice(), v.nrows())?;
             for k in 0..self.points() {
                 let block = v.rows(k * b, b);
-                if (0..b).any(|i| (0..i).any(|j| (block[(i, j)] - block[(j, i)]).abs() > 1e-9 * block.amax()))
-                {
+                let tolerance = 1e-9 * block.amax();
+                if (0..b).any(|i| (0..i).any(|j| (block[(i, j)] - block[(j, i)]).abs() > tolerance)) {
                     return Err(EstimationError::Dimensions(format!("V_k of point {k} is not symmetric")));
                 }
             }
@@ -373,7 +373,7 @@ impl Prepared {
         system.validate()?;
         let weights = Weights::new(v, rows_per_point, estimator, true)?;
         let factorised = solve::factorise(&weights.whiten(&system).a, rank_tolerance)?;
-        Ok(Self { weights, pinv: factorised.pinv(), diagnostics: factorised.diagnostics })
+        Ok(Self { weights, pinv: factorised.pinv(h.nrows()), diagnostics: factorised.diagnostics })
     }
 
     /// The estimate for pose errors `y` (Eqs. 4-6).

@@ -107,16 +107,23 @@ impl LinearEstimate {
 
 /// `A` factored once: the linear map `b -> x` and what is needed for the covariance, so many
 /// right-hand sides (Monte Carlo runs on one point set) cost one product each.
-#[derive(Debug, Clone)]
 pub(crate) struct Factorised {
-    /// `P D V_r S_r^-1`, `p x r`: with `u_r` it is `pinv(A)`, never formed for one solve.
-    /// (From the normal equations: `G`, with `A` in place of `U_r`.)
+    /// `P D V_r S_r^-1`, `p x r`: with `U_r^T` it is `pinv(A)`, never formed for one solve.
+    /// (From the normal equations: `G`, with `A^T` in place of `U_r^T`.)
     left: DMatrix<f64>,
-    /// `U_r`, `N_m x r` (or `A`).
-    u_r: DMatrix<f64>,
+    /// How `b` reaches `left`.
+    right: Right,
     /// `P G`, `p x p`: the covariance is `(P G) C (P G)^T` for `C = A^T Cov(b) A`.
     pg: DMatrix<f64>,
     pub diagnostics: Diagnostics,
+}
+
+/// The right factor of `pinv(A) = left * right`.
+enum Right {
+    /// `U_r^T = U_R,r^T Q^T` with `Q` kept as Householder reflectors (`u_r` is `U_R,r`, `p x r`).
+    Orthogonal { tall: Box<crate::linalg::TallSvd>, u_r: DMatrix<f64> },
+    /// `A^T`, for the normal equations.
+    Transpose(DMatrix<f64>),
 }
 
 /// Factor the whitened `a` as described in the [module documentation](self).
@@ -138,7 +145,8 @@ pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, 
     for (j, column) in a.column_iter().enumerate() {
         scaled.view_mut((0, j), (m, 1)).copy_from(&(column * scales[j]));
     }
-    let svd = crate::linalg::svd(&scaled).ok_or(EstimationError::NoConvergence)?;
+    let tall = crate::linalg::tall_svd(&scaled).ok_or(EstimationError::NoConvergence)?;
+    let svd = &tall.small;
     let largest = svd.s[0];
     let rank = svd.s.iter().take_while(|&&s| s > tolerance * largest && s > 0.0).count();
     if m < p && rank >= m {
@@ -150,17 +158,17 @@ pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, 
     let inverse_s =
         DMatrix::from_diagonal(&DVector::from_iterator(rank, svd.s[..rank].iter().map(|s| 1.0 / s)));
     let left = &pdv * &inverse_s;
-    let u_r = svd.u.view((0, 0), (m, rank)).into_owned();
+    let u_r = svd.u.columns(0, rank).into_owned();
     let pg = &pdv * &inverse_s * &inverse_s * svd.v.columns(0, rank).transpose() * &d;
     // A_s = U (S V^T) with U orthonormal: S V^T has the same column norms and inner products,
     // so pivoting on it picks the same columns at p x p cost.
     let sv_t = DMatrix::from_diagonal(&DVector::from_column_slice(&svd.s)) * svd.v.transpose();
     let identifiable = pivoted_columns(&sv_t, rank);
-    let singular_values = svd.s;
+    let singular_values = svd.s.clone();
     let not_identifiable = combinations(&null_basis, &identifiable);
     let condition_number = if rank > 0 { largest / singular_values[rank - 1] } else { f64::INFINITY };
     let diagnostics = Diagnostics { rank, singular_values, condition_number, identifiable, not_identifiable };
-    Ok(Factorised { left, u_r, pg, diagnostics })
+    Ok(Factorised { left, right: Right::Orthogonal { tall: Box::new(tall), u_r }, pg, diagnostics })
 }
 
 /// Largest condition number of the column-scaled matrix for which [`factorise_full_rank`] is
@@ -185,7 +193,12 @@ pub(crate) fn factorise_full_rank(a: &DMatrix<f64>, diagnostics: &Diagnostics) -
     let scaled = DMatrix::from_fn(p, p, |i, j| gram[(i, j)] * scales[i] * scales[j]);
     let inverse = scaled.cholesky()?.inverse();
     let g = DMatrix::from_fn(p, p, |i, j| inverse[(i, j)] * scales[i] * scales[j]);
-    Some(Factorised { left: g.clone(), u_r: a.clone(), pg: g, diagnostics: diagnostics.clone() })
+    Some(Factorised {
+        left: g.clone(),
+        right: Right::Transpose(a.clone()),
+        pg: g,
+        diagnostics: diagnostics.clone(),
+    })
 }
 
 /// `I - N (N^T N)^-1 N^T`: the orthogonal projector onto the complement of `N`'s columns.
@@ -266,12 +279,18 @@ pub(crate) fn solve(
 impl Factorised {
     /// `pinv(A) b` (Eq. 6 on the whitened system): `P D V_r S_r^-1 (U_r^T b)`.
     pub fn solve(&self, b: &DVector<f64>) -> DVector<f64> {
-        &self.left * self.u_r.tr_mul(b)
+        match &self.right {
+            Right::Orthogonal { tall, u_r } => &self.left * u_r.tr_mul(&tall.qt(b)),
+            Right::Transpose(a) => &self.left * a.tr_mul(b),
+        }
     }
 
-    /// `pinv(A)` itself (`p x N_m`), for solving many right-hand sides.
-    pub fn pinv(&self) -> DMatrix<f64> {
-        &self.left * self.u_r.transpose()
+    /// `pinv(A)` itself (`p x N_m` for `b` of `N_m` rows), for solving many right-hand sides.
+    pub fn pinv(&self, rows: usize) -> DMatrix<f64> {
+        match &self.right {
+            Right::Orthogonal { tall, u_r } => tall.q(&(u_r * self.left.transpose()), rows).transpose(),
+            Right::Transpose(a) => &self.left * a.transpose(),
+        }
     }
 
     /// `(P G) C (P G)^T` with `C = sum_k A_k^T N_k A_k`, `N_k` the blocks of `Cov(b)`; without
