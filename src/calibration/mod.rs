@@ -18,7 +18,7 @@ pub use data::{DataError, Measurements, Units};
 
 use crate::estimation::{
     EstimationError, Estimator, MeasurementNoise, NoiseModel, PointProblem, RANK_TOLERANCE, RefineOptions,
-    Refined, Residuals, Weights, estimate, refine,
+    Refined, Residuals, Weights, diagnose, refine,
 };
 use crate::kinematics::{Chain, Measured};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
@@ -238,8 +238,7 @@ pub fn calibrate(
         });
     }
     let problem = base_problem.reselect(&asked, before.clone())?;
-    let diagnostics =
-        estimate(&problem.system(&problem.start()), options.estimator, RANK_TOLERANCE)?.diagnostics;
+    let diagnostics = diagnose(&problem.system(&problem.start()), options.estimator, RANK_TOLERANCE)?;
     let names: Vec<&str> = asked.indices().iter().map(|&i| params.get(i).name.as_str()).collect();
     let fixed = diagnostics.not_identifiable.iter().map(|c| c.describe(&names)).collect();
     let kept = Selection::from_indices(&params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));

@@ -350,6 +350,21 @@ pub fn estimate(
     solve::solve(&weights.whiten(system), rank_tolerance, system.column_names())
 }
 
+/// What [`estimate`] reports on identifiability, without the estimate: rank, singular values,
+/// identifiable subset and non-identifiable combinations of the column-scaled whitened `H`.
+/// `system.y` is not used.
+pub fn diagnose(
+    system: &LinearSystem,
+    estimator: Estimator,
+    rank_tolerance: f64,
+) -> Result<Diagnostics, EstimationError> {
+    system.validate()?;
+    let weights = Weights::new(system.v.as_ref(), system.rows_per_point, estimator, true)?;
+    let mut a = system.h.clone();
+    weights.apply(&mut a);
+    Ok(solve::factorise(&a, rank_tolerance)?.diagnostics)
+}
+
 /// An estimator factored for one `H` and `V`: the estimate for any `y` is then one product,
 /// `x = pinv(S H) S y`. This is how a Monte Carlo study solves many runs on one point set.
 #[derive(Debug, Clone)]

@@ -57,3 +57,17 @@ fn prepared_estimator_equals_the_one_off_estimate() {
         assert_eq!(prepared.diagnostics(), &once.diagnostics);
     }
 }
+
+#[test]
+fn diagnose_reports_what_estimate_does() {
+    let mut system = small_system();
+    // A third column that the first two explain: rank 2, one combination.
+    let sum = system.h.column(0) + system.h.column(1) * 2.0;
+    system.h = system.h.insert_column(2, 0.0);
+    system.h.set_column(2, &sum);
+    for estimator in Estimator::ALL {
+        let diagnostics = diagnose(&system, estimator, RANK_TOLERANCE).unwrap();
+        assert_eq!(diagnostics, estimate(&system, estimator, RANK_TOLERANCE).unwrap().diagnostics);
+        assert_eq!((diagnostics.rank, diagnostics.not_identifiable.len()), (2, 1), "{estimator}");
+    }
+}

@@ -231,9 +231,7 @@ impl Bench<'_> {
         }
         let rank = match prepared.first() {
             Some(p) => p.diagnostics().rank,
-            None => {
-                crate::estimation::estimate(&system, study.estimators[0], RANK_TOLERANCE)?.diagnostics.rank
-            }
+            None => crate::estimation::diagnose(&system, study.estimators[0], RANK_TOLERANCE)?.rank,
         };
         Ok(PointSet { case, set, joints, nominal, noise, prepared, errors, rank })
     }
