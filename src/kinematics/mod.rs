@@ -312,6 +312,33 @@ impl ChainAt {
         frame
     }
 
+    /// Walk the chain backwards from its end at `q`, calling `visit` with each step and the
+    /// frame it acts in, expressed in the end frame's coordinates (where the end point is the
+    /// origin); returns the end frame in world coordinates. A step's axis and, for a rotation,
+    /// its origin are the same before and after it, so each frame is the one left by undoing
+    /// the later steps.
+    fn walk_back(&self, q: &[f64], mut visit: impl FnMut(&Step, &Frame)) -> Frame {
+        assert_eq!(q.len(), self.dof, "q has one value per joint");
+        let mut frame = Frame { r: Matrix3::identity(), p: Vector3::zeros() };
+        for resolved in self.steps.iter().rev() {
+            let step = &resolved.step;
+            visit(step, &frame);
+            match (step.motion, step.joint) {
+                (Motion::Translate(k), joint) => {
+                    frame.translate(k, -(resolved.value + joint.map_or(0.0, |j| q[j])))
+                }
+                (Motion::Rotate(k), None) => frame.rotate(k, -resolved.sin_cos.0, resolved.sin_cos.1),
+                (Motion::Rotate(k), Some(j)) => {
+                    let (s, c) = (resolved.value + q[j]).sin_cos();
+                    frame.rotate(k, -s, c);
+                }
+            }
+        }
+        // `frame` is now the world frame seen from the end: invert it.
+        let r = frame.r.transpose();
+        Frame { r, p: -(r * frame.p) }
+    }
+
     /// Position of the tool point (mm).
     pub fn position(&self, q: &[f64]) -> Vector3<f64> {
         self.walk(q, |_, _| {}).p
@@ -361,14 +388,16 @@ impl ChainAt {
         if let Some(j) = &j {
             assert_eq!(j.ncols(), self.dof, "J has one column per joint");
         }
-        let e = self.position(q);
-        self.walk(q, |step, frame| {
+        // One walk from the end: the screws come out in end-frame coordinates, with the end
+        // point at the origin, and are turned into the world frame at the end.
+        let origin = Vector3::zeros();
+        let end = self.walk_back(q, |step, frame| {
             let column = step.param.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
             let joint = step.joint.filter(|_| j.is_some());
             if column.is_none() && joint.is_none() {
                 return;
             }
-            let (linear, angular) = frame.screw(step.motion, &e);
+            let (linear, angular) = frame.screw(step.motion, &origin);
             if let Some(c) = column {
                 h.fixed_view_mut::<3, 1>(0, c).copy_from(&linear);
                 if measured == Measured::Pose {
@@ -380,7 +409,21 @@ impl ChainAt {
                 j.fixed_view_mut::<3, 1>(3, col).copy_from(&angular);
             }
         });
-        e
+        for c in 0..h.ncols() {
+            for row in (0..h.nrows()).step_by(3) {
+                let world = end.r * h.fixed_view::<3, 1>(row, c);
+                h.fixed_view_mut::<3, 1>(row, c).copy_from(&world);
+            }
+        }
+        if let Some(j) = j {
+            for c in 0..j.ncols() {
+                for row in [0, 3] {
+                    let world = end.r * j.fixed_view::<3, 1>(row, c);
+                    j.fixed_view_mut::<3, 1>(row, c).copy_from(&world);
+                }
+            }
+        }
+        end.p
     }
 }
 

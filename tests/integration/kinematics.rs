@@ -92,7 +92,9 @@ fn check_jacobians(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
     let mut h = DMatrix::zeros(6, all.len());
     let mut j = Matrix6xX::zeros(model.dof());
     let e = at.jacobians(&q, &all, Measured::Pose, h.view_mut((0, 0), (6, all.len())), Some(&mut j));
-    prop_assert!((e - at.position(&q)).amax() < 1e-12);
+    // The Jacobians walk the chain backwards: the same point, to rounding on arms of a metre.
+    let moved = (e - at.position(&q)).amax();
+    prop_assert!(moved < 1e-11, "position {moved:e}");
 
     let h_fd = DMatrix::from_fn(6, params.len(), |r, c| {
         central_difference(&x, c, |x| chain.with_errors(x).pose(&q))[r]
