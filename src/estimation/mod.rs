@@ -25,7 +25,8 @@ pub use problem::PointProblem;
 pub use refine::{Iteration, RefineOptions, Refined, Residuals, refine};
 pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE};
 
-use nalgebra::{DMatrix, DVector, SMatrix};
+use nalgebra::allocator::Allocator;
+use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, SMatrix};
 use std::fmt;
 use std::str::FromStr;
 
@@ -233,26 +234,21 @@ impl Weights {
         if estimator == Estimator::Ols {
             return Ok(Self { s: None, noise: Some(v.clone()), rows });
         }
-        let mut s = block_weights(v, rows, estimator)?;
+        let (mut s, mut noise) = match rows {
+            3 => block_weights(v, Const::<3>, estimator)?,
+            6 => block_weights(v, Const::<6>, estimator)?,
+            b => block_weights(v, Dyn(b), estimator)?,
+        };
         if normalise {
             // W = sigma_max^2 V^-1: S scaled by sigma_max (by its square root for 1/sigma weights).
             let sigma_max = (0..v.nrows()).map(|r| v[(r, r % rows)]).fold(0.0, f64::max).sqrt();
             let c = if estimator == Estimator::WlsSigma { sigma_max.sqrt() } else { sigma_max };
             if c > 0.0 {
                 s *= c;
+                noise *= c * c;
             }
         }
-        let mut weights = Self { s: Some(s), noise: None, rows };
-        let mut noise = v.clone();
-        weights.apply(&mut noise);
-        for k in 0..v.nrows() / rows {
-            // (S_k V_k) S_k^T: the rows are whitened, now the columns.
-            let s_k = weights.s.as_ref().expect("set above").rows(k * rows, rows).transpose();
-            let block = noise.rows(k * rows, rows) * s_k;
-            noise.rows_mut(k * rows, rows).copy_from(&block);
-        }
-        weights.noise = Some(noise);
-        Ok(weights)
+        Ok(Self { s: Some(s), noise: Some(noise), rows })
     }
 
     /// Multiply `m` (`N_m` rows) by `S` in place, block by block, without allocating.
@@ -282,26 +278,41 @@ impl Weights {
     }
 }
 
-/// `S_k` of every block: `L_k^-1` (Cholesky) for Gauss-Markov, a diagonal for the others.
-fn block_weights(v: &DMatrix<f64>, b: usize, estimator: Estimator) -> Result<DMatrix<f64>, EstimationError> {
-    let mut s = DMatrix::zeros(v.nrows(), b);
+/// `S_k` of every block (`L_k^-1` by Cholesky for Gauss-Markov, a diagonal for the others) and
+/// the covariance of the whitened errors, `S_k V_k S_k^T`, both stacked. Blocks of `d` rows:
+/// `Const` sizes keep the small matrices on the stack.
+fn block_weights<D: Dim>(
+    v: &DMatrix<f64>,
+    d: D,
+    estimator: Estimator,
+) -> Result<(DMatrix<f64>, DMatrix<f64>), EstimationError>
+where
+    DefaultAllocator: Allocator<D, D> + Allocator<D>,
+{
+    let b = d.value();
+    let (mut s, mut noise) = (DMatrix::zeros(v.nrows(), b), DMatrix::zeros(v.nrows(), b));
     for k in 0..v.nrows() / b {
-        let v_k = v.rows(k * b, b).into_owned();
-        let not_pd = EstimationError::NotPositiveDefinite { point: k };
+        let v_k = OMatrix::<f64, D, D>::from_fn_generic(d, d, |i, j| v[(k * b + i, j)]);
+        let not_pd = || EstimationError::NotPositiveDefinite { point: k };
         let s_k = match estimator {
-            Estimator::Ols => DMatrix::identity(b, b),
-            Estimator::Wls => v_k.cholesky().ok_or(not_pd.clone())?.l().try_inverse().ok_or(not_pd)?,
+            Estimator::Ols => OMatrix::identity_generic(d, d),
+            Estimator::Wls => {
+                let l = v_k.clone().cholesky().ok_or_else(not_pd)?.unpack();
+                let inverse = l.solve_lower_triangular(&OMatrix::identity_generic(d, d));
+                inverse.filter(|m| m.iter().all(|v| v.is_finite())).ok_or_else(not_pd)?
+            }
             Estimator::WlsDiag | Estimator::WlsSigma => {
                 if v_k.diagonal().iter().any(|&d| d <= 0.0) {
-                    return Err(not_pd);
+                    return Err(not_pd());
                 }
                 let power = if estimator == Estimator::WlsDiag { -0.5 } else { -0.25 };
-                DMatrix::from_diagonal(&v_k.diagonal().map(|d| d.powf(power)))
+                OMatrix::from_diagonal(&v_k.diagonal().map(|d| d.powf(power)))
             }
         };
-        s.rows_mut(k * b, b).copy_from(&s_k);
+        noise.generic_view_mut((k * b, 0), (d, d)).copy_from(&(&s_k * v_k * s_k.transpose()));
+        s.generic_view_mut((k * b, 0), (d, d)).copy_from(&s_k);
     }
-    Ok(s)
+    Ok((s, noise))
 }
 
 fn apply_blocks<const B: usize, C: nalgebra::Dim, St: nalgebra::StorageMut<f64, nalgebra::Dyn, C>>(
