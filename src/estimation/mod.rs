@@ -270,6 +270,12 @@ impl Weights {
     }
 
     /// `A = S H`, `b = S y` and the whitened noise blocks of `system`.
+    /// The covariance of the whitened errors, `S_k V_k S_k^T` stacked (`V` itself for OLS);
+    /// `None` without a noise model.
+    pub(crate) fn noise(&self) -> Option<&DMatrix<f64>> {
+        self.noise.as_ref()
+    }
+
     pub(crate) fn whiten(&self, system: &LinearSystem) -> Whitened {
         let (mut a, mut b) = (system.h.clone(), system.y.clone());
         self.apply(&mut a);

@@ -32,7 +32,9 @@ pub struct RefineOptions {
     pub max_iterations: usize,
     /// Stop when no whitened residual moves by more than this in a step.
     pub step_tolerance: f64,
-    /// Stop when a step lowers the weighted cost by less than this fraction.
+    /// Stop when a step lowers the weighted cost by less than this fraction. The default, 1e-10,
+    /// stays clear of the cost's rounding (near 1e-12 for a thousand poses), so the number of
+    /// steps does not depend on it.
     pub cost_tolerance: f64,
     /// Relative rank tolerance of each linear solve ([`RANK_TOLERANCE`]).
     pub rank_tolerance: f64,
@@ -43,7 +45,7 @@ impl Default for RefineOptions {
         Self {
             max_iterations: 50,
             step_tolerance: 1e-9,
-            cost_tolerance: 1e-12,
+            cost_tolerance: 1e-10,
             rank_tolerance: RANK_TOLERANCE,
         }
     }
@@ -97,87 +99,94 @@ pub fn refine(
         return dims(format!("V blocks are {:?}, expected {} x {rows}", v.shape(), problem.equations()));
     }
     let weights = Weights::new(problem.covariance(), rows, estimator, true)?;
-    let cost_at = |x: &DVector<f64>| {
-        let mut y = problem.evaluate(x, None);
-        weights.apply(&mut y);
-        y.norm_squared()
-    };
     let mut x = x0;
+    // Everything about the system is checked once; later linearisations only for finiteness.
+    let (h, y) = linearise(problem, &x);
+    let v = problem.covariance().cloned();
+    let system = LinearSystem { h, y, rows_per_point: rows, v, names: problem.names() };
+    system.validate()?;
+    let names = system.column_names();
+    let (mut a, mut b) = (system.h, system.y);
+    weights.apply(&mut a);
+    weights.apply(&mut b);
     let mut history = Vec::new();
     let mut known = None;
     loop {
-        let mut h = DMatrix::zeros(problem.equations(), x.len());
-        let y = problem.evaluate(&x, Some(&mut h));
-        let v = problem.covariance().cloned();
-        let system = LinearSystem { h, y, rows_per_point: rows, v, names: problem.names() };
-        // V does not change between steps: check it once.
-        if history.is_empty() {
-            system.validate()?
-        } else {
-            system.check_finite()?
-        }
-        let whitened = weights.whiten(&system);
         // The first step decides the rank by SVD; a full-rank, well-conditioned problem then
         // keeps it, and later steps use the normal equations (same estimate, far cheaper).
-        let factorised = match known.as_ref().and_then(|d| factorise_full_rank(&whitened.a, d)) {
+        let factorised = match known.as_ref().and_then(|d| factorise_full_rank(&a, d)) {
             Some(f) => f,
-            None => factorise(&whitened.a, options.rank_tolerance)?,
+            None => factorise(&a, options.rank_tolerance)?,
         };
         if known.is_none() {
             known = Some(factorised.diagnostics.clone());
         }
-        let cost = whitened.b.norm_squared();
-        let gauss_newton = factorised.solve(&whitened.b);
+        let cost = b.norm_squared();
+        let gauss_newton = factorised.solve(&b);
 
         let one_step = options.max_iterations == 1;
+        // The step taken, the cost after it, its damping, and the whitened system there.
         let taken = if one_step {
             // The paper's estimate: the linear solution, taken as it is; its cost is the
             // linearised residual's.
-            let linearised = (&whitened.b - &whitened.a * &gauss_newton).norm_squared();
-            Some((gauss_newton, linearised, 0.0))
+            let linearised = (&b - &a * &gauss_newton).norm_squared();
+            Some((gauss_newton, linearised, 0.0, None))
         } else {
             // Gauss-Newton, damped more and more until the cost falls, as Levenberg-Marquardt;
             // but where the linearised model itself promises no decrease worth the name, the
             // minimum is reached and a failed step is rounding, not a reason to damp (a damped
-            // step promises less still).
-            let promised = cost - (&whitened.b - &whitened.a * &gauss_newton).norm_squared();
+            // step promises less still). Each trial is linearised at once: an accepted one is
+            // the next step's system.
+            let promised = cost - (&b - &a * &gauss_newton).norm_squared();
             let at_minimum = promised <= options.cost_tolerance * cost;
             let mut trial = (gauss_newton, 0.0);
             loop {
-                let cost_after = cost_at(&(&x + &trial.0));
+                let (mut h, mut y) = linearise(problem, &(&x + &trial.0));
+                weights.apply(&mut y);
+                let cost_after = y.norm_squared();
                 if cost_after <= cost {
-                    break Some((trial.0, cost_after, trial.1));
+                    weights.apply(&mut h);
+                    break Some((trial.0, cost_after, trial.1, Some((h, y))));
                 }
                 if at_minimum || trial.1 >= 1e12 {
                     break None;
                 }
                 let damping = if trial.1 == 0.0 { 1e-4 } else { trial.1 * 10.0 };
-                trial = (damped_step(&whitened.a, &whitened.b, damping, options.rank_tolerance)?, damping);
+                trial = (damped_step(&a, &b, damping, options.rank_tolerance)?, damping);
             }
         };
-        let (converged, final_cost) = match taken {
-            Some((step, cost_after, damping)) => {
-                let moved = (&whitened.a * &step).amax();
+        let (converged, final_cost, next) = match taken {
+            Some((step, cost_after, damping, next)) => {
+                let moved = (&a * &step).amax();
                 x += &step;
                 history.push(Iteration { cost, cost_after, step: moved, damping });
                 let small =
                     moved <= options.step_tolerance || cost - cost_after <= options.cost_tolerance * cost;
-                (!one_step && small, cost_after)
+                (!one_step && small, cost_after, next)
             }
-            None => (true, cost),
+            None => (true, cost, None),
         };
-        if converged || history.len() >= options.max_iterations {
-            let covariance = factorised.covariance(&whitened.a, whitened.noise.as_ref(), final_cost);
-            let estimate = LinearEstimate {
-                names: system.column_names(),
-                x,
-                covariance,
-                cost: final_cost,
-                diagnostics: factorised.diagnostics,
-            };
-            return Ok(Refined { estimate, history, converged });
+        match next {
+            Some((h, y)) if !converged && history.len() < options.max_iterations => {
+                super::finite("y", y.as_slice(), y.len())?;
+                super::finite("H", h.as_slice(), h.nrows())?;
+                (a, b) = (h, y);
+            }
+            _ => {
+                let covariance = factorised.covariance(&a, weights.noise(), final_cost);
+                let diagnostics = factorised.diagnostics;
+                let estimate = LinearEstimate { names, x, covariance, cost: final_cost, diagnostics };
+                return Ok(Refined { estimate, history, converged });
+            }
         }
     }
+}
+
+/// The residual `y(x)` and the Jacobian `H(x)` of `problem`, unweighted.
+fn linearise(problem: &impl Residuals, x: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
+    let mut h = DMatrix::zeros(problem.equations(), x.len());
+    let y = problem.evaluate(x, Some(&mut h));
+    (h, y)
 }
 
 /// The Levenberg-Marquardt step: `min |b - A d|^2 + damping |diag(|A_j|) d|^2` (Marquardt's
