@@ -14,7 +14,8 @@
 //! where `ω` is the small rotation of the end frame in world coordinates (see [`pose_error`]).
 //! [`Chain::with_errors`] applies a parameter vector once (and with it the trigonometry of every
 //! step no joint moves); evaluating a point then allocates nothing: the Jacobians are written
-//! into views the caller owns.
+//! into views the caller owns. They come from one walk backwards from the end, in which the end
+//! point is the origin (`e - o = -o`), turned into the world frame by the end rotation once.
 
 use crate::model::{
     Convention, Joint, JointKind, ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, Tool,
