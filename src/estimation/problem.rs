@@ -3,9 +3,9 @@
 
 use super::refine::Residuals;
 use super::{EstimationError, LinearSystem, NoiseModel};
-use crate::kinematics::{Chain, Measured, pose_error};
+use crate::kinematics::{Chain, Measured, marker_jacobians, pose_error};
 use crate::model::Selection;
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX, Vector3};
 
 /// Poses measured on a robot: `y(x) = measured - f(q, x)` for the selected parameters `x`,
 /// the others held at fixed values. Each pose is one point of the estimators: the positions of
@@ -41,6 +41,9 @@ impl<'a> PointProblem<'a> {
         let Some(chain) = chains.first() else { return dims("no chain to measure".into()) };
         if measured == Measured::Pose && chains.len() > 1 {
             return dims("pose measurements take one tool frame, not several markers".into());
+        }
+        if chains.len() > 1 && !chains.iter().all(Chain::ends_at_a_point) {
+            return dims("several chains must be markers: points on the last link".into());
         }
         if observed.len() != joints.len() * chains.len() {
             let (o, j, m) = (observed.len(), joints.len(), chains.len());
@@ -157,7 +160,18 @@ impl Residuals for PointProblem<'_> {
         let full = self.full(x);
         let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
         let mut y = DVector::zeros(self.equations());
+        let mut positions = vec![Vector3::zeros(); at.len()];
         for (k, q) in self.joints.iter().enumerate() {
+            if let (Some(h), true) = (h.as_deref_mut(), at.len() > 1) {
+                // Markers: the arm walked once for all of them.
+                let block = h.view_mut((k * rows, 0), (rows, self.selection.len()));
+                marker_jacobians(&at, q, self.selection, block, &mut positions);
+                for (m, position) in positions.iter().enumerate() {
+                    let observed = &self.observed[k * at.len() + m].translation.vector;
+                    y.fixed_rows_mut::<3>(k * rows + 3 * m).copy_from(&(observed - position));
+                }
+                continue;
+            }
             for (m, at) in at.iter().enumerate() {
                 let row = k * rows + m * per;
                 let observed = &self.observed[k * self.chains.len() + m];

@@ -200,6 +200,8 @@ impl Builder {
 #[derive(Debug, Clone)]
 pub struct Chain {
     steps: Vec<Step>,
+    /// The steps of the base and joints; the rest place the tool, marker or probe.
+    arm: usize,
     params: ParamSet,
     dof: usize,
 }
@@ -208,11 +210,12 @@ impl Chain {
     /// Compile `model`, ending at its tool.
     pub fn new(model: &RobotModel) -> Self {
         let mut builder = Self::arm(model, model.params());
+        let arm = builder.steps.len();
         match &model.tool {
             Tool::Point(p) => builder.point(ParamOwner::Tool, p),
             Tool::Frame(f) => builder.placement(ParamOwner::Tool, f, &ParamKind::PLACEMENT),
         }
-        Self { steps: builder.steps, params: builder.params, dof: model.dof() }
+        Self { steps: builder.steps, arm, params: builder.params, dof: model.dof() }
     }
 
     /// One chain per marker, each ending at its marker (nominal position `markers[k]`, mm, in
@@ -224,8 +227,9 @@ impl Chain {
         (0..markers.len())
             .map(|k| {
                 let mut builder = Self::arm(model, params.clone());
+                let arm = builder.steps.len();
                 builder.point(ParamOwner::Marker(k), &markers[k]);
-                Self { steps: builder.steps, params: builder.params, dof: model.dof() }
+                Self { steps: builder.steps, arm, params: builder.params, dof: model.dof() }
             })
             .collect()
     }
@@ -234,8 +238,9 @@ impl Chain {
     /// frame, indexed by [`ParamSet::with_probe`]: its 6 errors are `marker1.x` ... `marker1.rz`.
     pub fn probe(model: &RobotModel, probe: &Placement) -> Self {
         let mut builder = Self::arm(model, ParamSet::with_probe(model));
+        let arm = builder.steps.len();
         builder.placement(ParamOwner::Marker(0), probe, &ParamKind::PLACEMENT);
-        Self { steps: builder.steps, params: builder.params, dof: model.dof() }
+        Self { steps: builder.steps, arm, params: builder.params, dof: model.dof() }
     }
 
     /// The steps of the base and the joints.
@@ -249,6 +254,12 @@ impl Chain {
             }
         }
         builder
+    }
+
+    /// Whether the chain ends at a point on the last link, as markers do: after the arm it
+    /// only translates ([`marker_jacobians`] needs this).
+    pub fn ends_at_a_point(&self) -> bool {
+        self.steps[self.arm..].iter().all(|s| matches!(s.motion, Motion::Translate(_)))
     }
 
     /// Number of joints.
@@ -276,7 +287,7 @@ impl Chain {
                 Resolved { step, value, sin_cos: value.sin_cos() }
             })
             .collect();
-        ChainAt { steps, dof: self.dof }
+        ChainAt { steps, arm: self.arm, dof: self.dof }
     }
 }
 
@@ -287,6 +298,7 @@ impl Chain {
 #[derive(Debug, Clone)]
 pub struct ChainAt {
     steps: Vec<Resolved>,
+    arm: usize,
     dof: usize,
 }
 
@@ -311,33 +323,6 @@ impl ChainAt {
             }
         }
         frame
-    }
-
-    /// Walk the chain backwards from its end at `q`, calling `visit` with each step and the
-    /// frame it acts in, expressed in the end frame's coordinates (where the end point is the
-    /// origin); returns the end frame in world coordinates. A step's axis and, for a rotation,
-    /// its origin are the same before and after it, so each frame is the one left by undoing
-    /// the later steps.
-    fn walk_back(&self, q: &[f64], mut visit: impl FnMut(&Step, &Frame)) -> Frame {
-        assert_eq!(q.len(), self.dof, "q has one value per joint");
-        let mut frame = Frame { r: Matrix3::identity(), p: Vector3::zeros() };
-        for resolved in self.steps.iter().rev() {
-            let step = &resolved.step;
-            visit(step, &frame);
-            match (step.motion, step.joint) {
-                (Motion::Translate(k), joint) => {
-                    frame.translate(k, -(resolved.value + joint.map_or(0.0, |j| q[j])))
-                }
-                (Motion::Rotate(k), None) => frame.rotate(k, -resolved.sin_cos.0, resolved.sin_cos.1),
-                (Motion::Rotate(k), Some(j)) => {
-                    let (s, c) = (resolved.value + q[j]).sin_cos();
-                    frame.rotate(k, -s, c);
-                }
-            }
-        }
-        // `frame` is now the world frame seen from the end: invert it.
-        let r = frame.r.transpose();
-        Frame { r, p: -(r * frame.p) }
     }
 
     /// Position of the tool point (mm).
@@ -392,7 +377,8 @@ impl ChainAt {
         // One walk from the end: the screws come out in end-frame coordinates, with the end
         // point at the origin, and are turned into the world frame at the end.
         let origin = Vector3::zeros();
-        let end = self.walk_back(q, |step, frame| {
+        assert_eq!(q.len(), self.dof, "q has one value per joint");
+        let end = walk_back(&self.steps, q, |step, frame| {
             let column = step.param.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
             let joint = step.joint.filter(|_| j.is_some());
             if column.is_none() && joint.is_none() {
@@ -410,21 +396,102 @@ impl ChainAt {
                 j.fixed_view_mut::<3, 1>(3, col).copy_from(&angular);
             }
         });
-        for c in 0..h.ncols() {
-            for row in (0..h.nrows()).step_by(3) {
-                let world = end.r * h.fixed_view::<3, 1>(row, c);
-                h.fixed_view_mut::<3, 1>(row, c).copy_from(&world);
-            }
-        }
+        to_world(&end.r, &mut h);
         if let Some(j) = j {
-            for c in 0..j.ncols() {
-                for row in [0, 3] {
-                    let world = end.r * j.fixed_view::<3, 1>(row, c);
-                    j.fixed_view_mut::<3, 1>(row, c).copy_from(&world);
-                }
-            }
+            to_world(&end.r, j);
         }
         end.p
+    }
+}
+
+/// The identification Jacobians of several markers on the last link (chains from
+/// [`Chain::markers`], with the same errors applied), stacked 3 rows per marker into `h`
+/// (`3 * markers x selection.len()`), with each marker's position written into `positions`.
+/// The arm, which all markers share, is walked once: a step's screw at marker `m` is its screw
+/// at the last joint frame's origin plus `omega x r_m`, with `r_m` the marker's offset there.
+/// Like [`ChainAt::identification_jacobian`], it writes only the columns of its parameters:
+/// `h` starts at zero.
+///
+/// # Panics
+/// If the chains are not markers of one arm, or a size does not match.
+pub fn marker_jacobians(
+    markers: &[ChainAt],
+    q: &[f64],
+    selection: &Selection,
+    mut h: DMatrixViewMut<'_, f64>,
+    positions: &mut [Vector3<f64>],
+) {
+    let first = &markers[0];
+    assert_eq!(q.len(), first.dof, "q has one value per joint");
+    assert_eq!(h.shape(), (3 * markers.len(), selection.len()), "H block is 3 per marker x selected");
+    assert_eq!(positions.len(), markers.len(), "one position per marker");
+    // Each marker's offset in the last joint frame: its tail is translations only.
+    let offset = |at: &ChainAt| {
+        at.steps[at.arm..].iter().fold(Vector3::zeros(), |r, s| match s.step.motion {
+            Motion::Translate(k) => r + Vector3::ith(k, s.value),
+            Motion::Rotate(_) => panic!("a marker is a point: its tail only translates"),
+        })
+    };
+    // `positions` holds the offsets until the end frame is known.
+    for (p, at) in positions.iter_mut().zip(markers) {
+        *p = offset(at);
+    }
+    let end = walk_back(&first.steps[..first.arm], q, |step, frame| {
+        let Some(c) = step.param.and_then(|i| selection.column(i)) else { return };
+        let (linear, angular) = frame.screw(step.motion, &Vector3::zeros());
+        for (m, r) in positions.iter().enumerate() {
+            h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&(linear + angular.cross(r)));
+        }
+    });
+    for (m, at) in markers.iter().enumerate() {
+        assert_eq!(at.arm, first.arm, "markers of one arm");
+        for s in &at.steps[at.arm..] {
+            if let (Motion::Translate(k), Some(c)) =
+                (s.step.motion, s.step.param.and_then(|i| selection.column(i)))
+            {
+                h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&Vector3::ith(k, 1.0));
+            }
+        }
+        positions[m] = end.p + end.r * positions[m];
+    }
+    to_world(&end.r, &mut h);
+}
+
+/// Walk `steps` backwards from their end at `q`, calling `visit` with each step and the frame it
+/// acts in, expressed in the end frame's coordinates (where the end point is the origin);
+/// returns the end frame in world coordinates. A step's axis and, for a rotation, its origin
+/// are the same before and after it, so each frame is the one left by undoing the later steps.
+fn walk_back(steps: &[Resolved], q: &[f64], mut visit: impl FnMut(&Step, &Frame)) -> Frame {
+    let mut frame = Frame { r: Matrix3::identity(), p: Vector3::zeros() };
+    for resolved in steps.iter().rev() {
+        let step = &resolved.step;
+        visit(step, &frame);
+        match (step.motion, step.joint) {
+            (Motion::Translate(k), joint) => {
+                frame.translate(k, -(resolved.value + joint.map_or(0.0, |j| q[j])))
+            }
+            (Motion::Rotate(k), None) => frame.rotate(k, -resolved.sin_cos.0, resolved.sin_cos.1),
+            (Motion::Rotate(k), Some(j)) => {
+                let (s, c) = (resolved.value + q[j]).sin_cos();
+                frame.rotate(k, -s, c);
+            }
+        }
+    }
+    // `frame` is now the world frame seen from the end: invert it.
+    let r = frame.r.transpose();
+    Frame { r, p: -(r * frame.p) }
+}
+
+/// The columns of `m`, in blocks of 3 rows, turned from end-frame into world coordinates.
+fn to_world<R: nalgebra::Dim, C: nalgebra::Dim, S: nalgebra::StorageMut<f64, R, C>>(
+    r: &Matrix3<f64>,
+    m: &mut nalgebra::Matrix<f64, R, C, S>,
+) {
+    for c in 0..m.ncols() {
+        for row in (0..m.nrows()).step_by(3) {
+            let world = r * m.fixed_view::<3, 1>(row, c);
+            m.fixed_view_mut::<3, 1>(row, c).copy_from(&world);
+        }
     }
 }
 

@@ -2,7 +2,7 @@
 
 use nalgebra::{DMatrix, Isometry3, Matrix6xX, Vector3};
 use proptest::prelude::*;
-use robocal::kinematics::{Chain, Measured, pose_error};
+use robocal::kinematics::{Chain, Measured, marker_jacobians, pose_error};
 use robocal::model::{Convention, Joint, JointKind, Placement, RobotModel, Selection, Tool};
 
 fn puma() -> RobotModel {
@@ -120,8 +120,43 @@ fn check_jacobians(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
     Ok(())
 }
 
+/// The markers' shared walk equals each marker's own chain: H block by block, and positions.
+fn check_marker_jacobians(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
+    let markers: Vec<Vector3<f64>> =
+        (0..3).map(|m| Vector3::new(u[3 * m], u[3 * m + 1], u[3 * m + 2]) * 200.0).collect();
+    let chains = Chain::markers(model, &markers);
+    prop_assert!(chains.iter().all(Chain::ends_at_a_point));
+    let params = chains[0].params();
+    let x: Vec<f64> = (0..params.len()).map(|i| u[(i + 9) % u.len()] * 0.5).collect();
+    let q: Vec<f64> = u.iter().skip(40).take(model.dof()).map(|v| v * 3.0).collect();
+    let at: Vec<_> = chains.iter().map(|c| c.with_errors(&x)).collect();
+    let all = Selection::all(params);
+    let mut shared = DMatrix::zeros(9, all.len());
+    let mut positions = vec![Vector3::zeros(); 3];
+    marker_jacobians(&at, &q, &all, shared.view_mut((0, 0), (9, all.len())), &mut positions);
+    for (m, at) in at.iter().enumerate() {
+        let mut own = DMatrix::zeros(3, all.len());
+        let e =
+            at.identification_jacobian(&q, &all, Measured::Position, own.view_mut((0, 0), (3, all.len())));
+        let err = relative_error(&own, &shared.rows(3 * m, 3).into_owned());
+        prop_assert!(err < 1e-12, "marker {m}: H differs by {err:e}");
+        prop_assert!((e - positions[m]).amax() < 1e-9, "marker {m}: position {e} against {}", positions[m]);
+    }
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    #[test]
+    fn markers_share_one_walk_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 48)) {
+        check_marker_jacobians(&model, &u)?;
+    }
+
+    #[test]
+    fn markers_share_one_walk_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 48)) {
+        check_marker_jacobians(&model, &u)?;
+    }
 
     #[test]
     fn jacobians_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, false), u in prop::collection::vec(-1.0..1.0f64, 64)) {
