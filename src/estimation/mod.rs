@@ -15,15 +15,25 @@
 //! is Eq. 6 itself. The paper's normalisation `W = sigma_max^2 V^-1` (before Eq. 18) is applied;
 //! it scales every weight by one constant and leaves `x` unchanged.
 
+mod device;
 mod noise;
+mod noise_file;
 mod problem;
 mod refine;
 mod solve;
+mod variance;
 
+pub use device::{Device, DeviceError};
 pub use noise::{MeasurementNoise, NoiseModel, point_covariance};
+pub(crate) use noise_file::DeviceTable;
+pub use noise_file::{NoiseFileError, NoiseSpec};
 pub use problem::PointProblem;
 pub use refine::{Iteration, RefineOptions, Refined, Residuals, refine};
 pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE};
+pub use variance::{
+    ComponentFit, CovarianceSample, JointComponents, NoiseEstimate, SigmaInterval, Z_95, fit_components,
+    nnls, noise_design, residual_design, sample_covariance,
+};
 
 use nalgebra::{DMatrix, DVector, SMatrix};
 use std::fmt;
