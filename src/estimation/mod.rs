@@ -360,6 +360,11 @@ pub fn estimate(
     solve::solve(&weights.whiten(system), rank_tolerance, system.column_names())
 }
 
+/// The pseudoinverse `pinv(A)` by the same rank-revealing factorisation as every estimate.
+pub fn pseudo_inverse(a: &DMatrix<f64>) -> Result<DMatrix<f64>, EstimationError> {
+    Ok(solve::factorise(a, RANK_TOLERANCE)?.pinv())
+}
+
 /// An estimator factored for one `H` and `V`: the estimate for any `y` is then one product,
 /// `x = pinv(S H) S y`. This is how a Monte Carlo study solves many runs on one point set.
 #[derive(Debug, Clone)]
