@@ -240,6 +240,7 @@ pub fn run(cli: Cli) -> Result<()> {
             if let Some(path) = noise {
                 let spec = io::load_noise(&path, &study.robot)?;
                 study.set_noise(&spec).with_context(|| format!("{}", path.display()))?;
+                study.description = format!("{} (noise from {})", study.description, path.display());
             }
             simulate(&study, &out, threads)?
         }
@@ -298,14 +299,29 @@ fn repeatability(args: &RepeatabilityArgs) -> Result<()> {
         result.rms_spread
     );
     print!("{}", report::calibration::noise_table(&rows));
+    let estimate = &result.estimate;
+    let bound = |s: f64, name: &str, unit: &str, used: f64| {
+        (s == 0.0).then(|| {
+            format!(
+                "{name} is at its bound 0: the noise file gives {used:.3e} {unit} (the square root of its \
+                 standard error), so that V_k stays positive definite"
+            )
+        })
+    };
+    let (me, _) = estimate.weighting_sigmas();
+    let notes: Vec<String> = bound(estimate.sigma_me().sigma, "sigma_me", "mm", me).into_iter().collect();
+    for note in &notes {
+        println!("note: {note}");
+    }
     if let Some(path) = &args.out {
         let header = format!(
             "robocal noise file, estimated by `robocal repeatability` from {} ({} poses, {} measurements).\n\
-             95% intervals:\n{}",
+             95% intervals:\n{}{}",
             args.data.display(),
             result.poses,
             result.measurements,
-            report::calibration::noise_table(&rows)
+            report::calibration::noise_table(&rows),
+            notes.iter().map(|n| format!("note: {n}\n")).collect::<String>()
         );
         let text = result.estimate.spec().to_toml_string(&model, &header);
         std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))?;

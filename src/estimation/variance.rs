@@ -74,9 +74,9 @@ impl ComponentFit {
     /// `nu = 2 theta_c^2 / se_c^2` effective degrees of freedom,
     /// `[nu theta_c / chi2_nu(1 - a/2), nu theta_c / chi2_nu(a/2)]` (Wilson-Hilferty's
     /// quantiles). The second is skewed as a variance's sampling distribution is, which the
-    /// normal interval misses for well-determined components; the first holds where the
-    /// component is barely determined (`nu` below 1, where the chi-square approximation
-    /// fails). At the bound 0: `[0, z se_c]`.
+    /// normal interval misses for well-determined components; the first alone where the
+    /// component is barely determined (`nu < 2`, where the chi-square approximation fails).
+    /// At the bound 0: `[0, z se_c]`.
     pub fn interval(&self, c: usize, z: f64) -> (f64, f64) {
         let (v, se) = (self.values[c], self.standard_error(c));
         if !self.constrained[c] {
@@ -86,6 +86,10 @@ impl ComponentFit {
             return (0.0, v.max(0.0) + z * se);
         }
         let nu = 2.0 * v * v / (se * se);
+        let normal = ((v - z * se).max(0.0), v + z * se);
+        if nu < 2.0 {
+            return normal;
+        }
         let quantile = |z: f64| {
             let a = 2.0 / (9.0 * nu);
             nu * (1.0 - a + z * a.sqrt()).max(0.0).powi(3)
@@ -93,7 +97,7 @@ impl ComponentFit {
         let (upper_q, lower_q) = (quantile(z), quantile(-z));
         let high = if lower_q > 0.0 { nu * v / lower_q } else { f64::INFINITY };
         let low = if upper_q > 0.0 { nu * v / upper_q } else { 0.0 };
-        (low.min(v - z * se).max(0.0), high.max(v + z * se))
+        (low.min(normal.0), high.max(normal.1))
     }
 }
 
@@ -215,7 +219,8 @@ pub fn fit_components(
                 "covariance {k}: the design does not match its {b} x {b} matrix and {m} components"
             ));
         }
-        if sample.dof.is_nan() || sample.dof <= 0.0
+        if sample.dof.is_nan()
+            || sample.dof <= 0.0
             || sample.s.iter().chain(sample.design.iter().flatten()).any(|v| !v.is_finite())
         {
             return bad(format!("covariance {k}: expected finite values and degrees of freedom > 0"));
@@ -373,24 +378,41 @@ impl NoiseEstimate {
         m
     }
 
-    /// The estimate as a noise file: `Sigma_q`, and `sigma_me` isotropic.
+    /// The measurement sigmas to weight with: `sigma_me` and `sigma_orientation`, each
+    /// replaced, where its variance ended at the bound 0, by the square root of the variance's
+    /// standard error. Zero measurement noise would claim that the markers are exact in every
+    /// direction the joint noise cannot move them (with two markers on the last link, the turn
+    /// about the line through them), and `V_k` would be singular; one standard error above
+    /// zero is what the data cannot rule out.
+    pub fn weighting_sigmas(&self) -> (f64, f64) {
+        let m = self.joints.entries(self.dof).len();
+        let usable = |c: usize| {
+            let v = self.fit.values[c];
+            if v > 0.0 { v.sqrt() } else { self.fit.standard_error(c).sqrt() }
+        };
+        (usable(m), if self.orientation { usable(m + 1) } else { 0.0 })
+    }
+
+    /// The estimate as a noise file: `Sigma_q`, and `sigma_me` isotropic (as
+    /// [`NoiseEstimate::weighting_sigmas`]).
     pub fn spec(&self) -> super::NoiseSpec {
+        let (me, orientation) = self.weighting_sigmas();
         super::NoiseSpec {
             joint: self.joint_covariance(),
             full: self.joints == JointComponents::Full,
-            sigma_me: Some(self.sigma_me().sigma),
-            sigma_orientation: self.sigma_orientation().map_or(0.0, |s| s.sigma),
+            sigma_me: Some(me),
+            sigma_orientation: orientation,
             device: None,
         }
     }
 
-    /// The estimate as a noise model: `Sigma_q`, and `sigma_me` (and `sigma_orientation`) on
-    /// every axis.
+    /// The estimate as a noise model for weighting: `Sigma_q`, and `sigma_me` (and
+    /// `sigma_orientation`) on every axis, as [`NoiseEstimate::weighting_sigmas`].
     pub fn noise_model(&self) -> super::NoiseModel {
-        let o = self.sigma_orientation().map_or(0.0, |s| s.sigma);
+        let (me, orientation) = self.weighting_sigmas();
         super::NoiseModel {
             joint: self.joint_covariance(),
-            measurement: super::MeasurementNoise::isotropic(self.sigma_me().sigma, o),
+            measurement: super::MeasurementNoise::isotropic(me, orientation),
         }
     }
 }

@@ -372,8 +372,13 @@ fn selection_error(e: SelectionError) -> StudyError {
 }
 
 /// The studies shipped with robocal: `(name, TOML text)`. `paper-table1` and `paper-table2`
-/// are the paper's two studies; `robocal reproduce` runs both.
+/// are the paper's two studies; `robocal reproduce` runs both. `device-cmm`,
+/// `device-laser-tracker` and `device-theodolites` test the paper's expectation that devices
+/// whose noise varies over the workspace profit more from weighting.
 pub const STUDIES: &[(&str, &str)] = &[
     ("paper-table1", include_str!("../../presets/paper-table1.toml")),
     ("paper-table2", include_str!("../../presets/paper-table2.toml")),
+    ("device-cmm", include_str!("../../presets/device-cmm.toml")),
+    ("device-laser-tracker", include_str!("../../presets/device-laser-tracker.toml")),
+    ("device-theodolites", include_str!("../../presets/device-theodolites.toml")),
 ];

@@ -108,7 +108,9 @@ fn feasible_gls_recovers_the_noise_and_the_accuracy_of_the_true_v() {
         );
         (e_wls, e_fgls, e_ols) = (e_wls + w, e_fgls + f, e_ols + o);
     }
-    eprintln!("covered {covered} of {checks}; mean E_p ols {e_ols:.5} wls {e_wls:.5} fgls {e_fgls:.5}");
+    eprintln!(
+        "covered {covered} of {checks}; E_p summed over the campaigns: ols {e_ols:.5} wls {e_wls:.5} fgls {e_fgls:.5}"
+    );
     assert!(covered >= 36, "{covered} of {checks} components in their intervals");
     assert!((e_fgls / e_wls - 1.0).abs() < 0.05, "E_p: fgls {e_fgls}, wls {e_wls}");
 }
@@ -124,4 +126,67 @@ fn feasible_gls_reports_its_estimate() {
     assert!(text.contains("sigma_me"), "{text}");
     let json = serde_json::to_value(&report).unwrap();
     assert_eq!(json["noise"].as_array().unwrap().len(), 7, "{json}");
+}
+
+fn robocal(args: &[&str]) -> std::process::Output {
+    assert_cmd::Command::cargo_bin("robocal").unwrap().args(args).output().unwrap()
+}
+
+const EXAMPLE: [&str; 10] = [
+    "calibrate",
+    "--model",
+    "puma560",
+    "--data",
+    "examples/puma560-measurements.csv",
+    "--marker",
+    "50,0,150",
+    "--marker=-40,60,120",
+    "--params",
+    "all",
+];
+
+#[test]
+fn calibrate_with_fgls_prints_the_estimated_noise() {
+    let output = robocal(&[&EXAMPLE[..], &["--estimator", "fgls"]].concat());
+    let stdout = String::from_utf8(output.stdout).unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(stdout.contains("100 poses, 2 markers, fgls ("), "{stdout}");
+    assert!(stdout.contains("noise estimated from the residuals (feasible GLS):"), "{stdout}");
+}
+
+#[test]
+fn calibrate_refuses_fgls_with_a_given_noise() {
+    let output =
+        robocal(&[&EXAMPLE[..], &["--estimator", "fgls", "--joint-sigma-deg", "1,1,1,1,1,1"]].concat());
+    assert_eq!(output.status.code(), Some(1));
+    let stderr = String::from_utf8(output.stderr).unwrap();
+    assert!(
+        stderr.contains("--estimator fgls estimates the noise: do not give --noise or --joint-sigma-deg"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn calibrate_reads_a_noise_file_with_a_device() {
+    let dir = std::env::temp_dir().join(format!("robocal-fgls-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let noise = dir.join("tracker.toml");
+    std::fs::write(
+        &noise,
+        "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\n[device]\nkind = \"laser-tracker\"\n\
+         position_mm = [0.0, 0.0, 0.0]\nsigma_r_mm = 0.005\nk_ppm = 2\nsigma_angle_arcsec = 1.5\n",
+    )
+    .unwrap();
+    let output = robocal(&[&EXAMPLE[..], &["--noise", noise.to_str().unwrap()]].concat());
+    let stdout = String::from_utf8(output.stdout).unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(stdout.contains("100 poses, 2 markers, wls ("), "{stdout}");
+    std::fs::write(&noise, "joint_sigma = [0.007]\n").unwrap();
+    let output = robocal(&[&EXAMPLE[..], &["--noise", noise.to_str().unwrap()]].concat());
+    let stderr = String::from_utf8(output.stderr).unwrap();
+    assert!(
+        stderr.contains("tracker.toml: field `joint_sigma`: 6 values, one per joint of puma560"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -6,7 +6,9 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use robocal::estimation::{Device, DeviceError, NoiseSpec};
+use robocal::io::load_model;
 use robocal::model::RobotModel;
+use robocal::simulation::{self, Study};
 
 const ARCSEC: f64 = std::f64::consts::PI / (180.0 * 3600.0);
 
@@ -212,4 +214,77 @@ fn a_noise_file_with_nan_or_a_wrong_count_is_refused() {
          sigma_horizontal_arcsec = 0.5\nsigma_vertical_arcsec = 0.5\n"
     ));
     assert_eq!(message, "field `device.stations_mm`: two distinct stations (a baseline)");
+}
+
+/// A reduced PUMA 560 study (2 sets x 3 runs at N_p = 24) with `noise` appended to its
+/// `[noise]` section and the cases' `sigma_me_mm`.
+fn study(device: &str, sigma_me: &str) -> Study {
+    let text = include_str!("../../presets/paper-table2.toml")
+        .replace("point_sets = 6", "point_sets = 2")
+        .replace("runs_per_set = 16", "runs_per_set = 3")
+        .replace("test_points = 1000", "test_points = 200")
+        .replace("points = [48]", "points = [24]")
+        .replace("sigma_me_mm = [0.0, 0.025, 0.05, 0.1]", &format!("sigma_me_mm = [{sigma_me}]"))
+        .replace("[errors]", &format!("{device}\n[errors]"));
+    Study::from_toml_str(&text, |name| load_model(name).map_err(|e| e.to_string()))
+        .map_err(|e| e.to_string())
+        .unwrap()
+}
+
+/// A CMM device is the paper's isotropic noise: the same random numbers (its Cholesky factor
+/// is `sigma I`) and the same `V_k`, so the same results.
+#[test]
+fn a_cmm_study_is_the_isotropic_study() {
+    let device =
+        simulation::run(&study("[noise.device]\nkind = \"cmm\"\nsigma_mm = 0.05", "0.0"), &|| {}).unwrap();
+    let isotropic = simulation::run(&study("", "0.05"), &|| {}).unwrap();
+    for (a, b) in device.runs.iter().zip(&isotropic.runs) {
+        for (a, b) in a.accuracy.iter().zip(&b.accuracy) {
+            assert!((a.mean - b.mean).abs() < 1e-9 * b.mean, "{a:?} vs {b:?}");
+        }
+    }
+}
+
+#[test]
+fn a_theodolite_study_runs_and_weighting_helps() {
+    let device = "[noise.device]\nkind = \"theodolites\"\nstations_mm = [[1500.0, -1000.0, 300.0], \
+                  [1500.0, 1000.0, 300.0]]\nsigma_horizontal_arcsec = 2.5\nsigma_vertical_arcsec = 2.5";
+    let s = study(device, "0.0");
+    assert_eq!(s.device.as_ref().unwrap().kind(), "theodolites");
+    let results = simulation::run(&s, &|| {}).unwrap();
+    assert!(results.mean_error(0, 1) < results.mean_error(0, 0), "WLS beats OLS on average");
+}
+
+#[test]
+fn a_study_with_a_bad_device_says_which_field() {
+    let text = include_str!("../../presets/device-laser-tracker.toml")
+        .replace("sigma_r_mm = 0.01", "sigma_r_mm = -1");
+    let message = Study::from_toml_str(&text, |n| load_model(n).map_err(|e| e.to_string())).unwrap_err();
+    assert_eq!(message.to_string(), "field `noise.device.sigma_r_mm`: a finite value >= 0, found -1");
+    let text = include_str!("../../presets/device-cmm.toml").replace("kind = \"cmm\"", "kind = \"camera\"");
+    let message = Study::from_toml_str(&text, |n| load_model(n).map_err(|e| e.to_string())).unwrap_err();
+    assert!(message.to_string().contains("unknown variant `camera`"), "{message}");
+}
+
+#[test]
+fn a_noise_file_replaces_a_studys_noise() {
+    let mut s = study("", "0.0, 0.1");
+    let spec = NoiseSpec::from_toml_str(
+        "joint_sigma = [0.01, 0.01, 0.01, 0.003, 0.003, 0.003]\nsigma_me_mm = 0.02\n\
+         [device]\nkind = \"cmm\"\nsigma_mm = 0.01\n",
+        &puma(),
+    )
+    .unwrap();
+    s.set_noise(&spec).unwrap();
+    assert_eq!(s.cases.len(), 1);
+    assert_eq!(s.cases[0].sigma_me, 0.02);
+    assert!((s.joint_sigmas[0] - 0.01f64.to_radians()).abs() < 1e-15);
+    assert!(s.device.is_some());
+    let correlated = "joint_covariance = [[1e-4, 1e-5, 0, 0, 0, 0], [1e-5, 1e-4, 0, 0, 0, 0], [0, 0, 1e-4, 0, 0, 0], \
+                      [0, 0, 0, 1e-5, 0, 0], [0, 0, 0, 0, 1e-5, 0], [0, 0, 0, 0, 0, 1e-5]]\n";
+    let message = s.set_noise(&NoiseSpec::from_toml_str(correlated, &puma()).unwrap()).unwrap_err();
+    assert_eq!(
+        message.to_string(),
+        "field `joint_covariance`: per-joint sigmas: a study simulates uncorrelated joint noise"
+    );
 }
