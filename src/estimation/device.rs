@@ -285,7 +285,7 @@ fn direction(az: f64, el: f64) -> Vector3<f64> {
     Vector3::new(el.cos() * az.cos(), el.cos() * az.sin(), el.sin())
 }
 
-/// An angle difference into (-pi, pi].
+/// An angle difference into [-pi, pi).
 fn wrap(a: f64) -> f64 {
     let t = std::f64::consts::TAU;
     a - t * ((a + std::f64::consts::PI) / t).floor()
@@ -310,7 +310,8 @@ mod tests {
 
     #[test]
     fn wrap_and_round_trip() {
-        assert!((wrap(3.0 * std::f64::consts::PI) - std::f64::consts::PI).abs() < 1e-12);
+        assert!((wrap(3.0 * std::f64::consts::PI) + std::f64::consts::PI).abs() < 1e-12);
+        assert!((wrap(0.5 - 4.0 * std::f64::consts::PI) - 0.5).abs() < 1e-12);
         let p = Vector3::new(800.0, -300.0, 400.0);
         let tracker = Device::LaserTracker {
             position: Vector3::new(-2000.0, 500.0, 0.0),

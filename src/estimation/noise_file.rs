@@ -247,7 +247,8 @@ impl NoiseSpec {
                 Device::LaserTracker { position, sigma_r, k, sigma_angle } => {
                     let _ = writeln!(
                         out,
-                        "position_mm = [{}, {}, {}]\nsigma_r_mm = {sigma_r}\nk_ppm = {}\nsigma_angle_arcsec = {}",
+                        "position_mm = [{}, {}, {}]\nsigma_r_mm = {sigma_r}\nk_ppm = {}\n\
+                         sigma_angle_arcsec = {}",
                         position.x,
                         position.y,
                         position.z,

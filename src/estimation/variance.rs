@@ -198,8 +198,17 @@ pub fn residual_design(
     out
 }
 
-/// Fit the components `theta` to `samples` ([module documentation](self)); `constrained[c]`
-/// says whether component `c` is a variance, kept `>= 0`.
+/// Fit the components `theta` to `samples`, `E[S_k] = sum_c theta_c D_c,k`; `constrained[c]`
+/// says whether component `c` is a variance, kept `>= 0`. Normal-theory generalised least
+/// squares of covariance structures (Browne 1974):
+///
+/// `min_theta sum_k nu_k / 2 |L_k^-1 (S_k - sum_c theta_c D_c,k) L_k^-T|_F^2`,
+///
+/// `L_k L_k^T = Sigma_k = sum_c theta_c D_c,k` at the previous estimate (the first pass
+/// unweighted, then iterated to convergence), each pass a non-negative least squares
+/// ([`nnls`]). For a Wishart `S_k`, `Cov(S_ij, S_kl) = (Sigma_ik Sigma_jl + Sigma_il Sigma_jk) / nu`,
+/// so these weights are the inverse covariance of the observations, and `Cov(theta) = F^-1`
+/// with `F = A^T A`, `A` the weighted design (the Fisher information).
 pub fn fit_components(
     samples: &[CovarianceSample],
     constrained: &[bool],
