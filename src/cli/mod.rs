@@ -309,7 +309,14 @@ fn repeatability(args: &RepeatabilityArgs) -> Result<()> {
         })
     };
     let (me, _) = estimate.weighting_sigmas();
-    let notes: Vec<String> = bound(estimate.sigma_me().sigma, "sigma_me", "mm", me).into_iter().collect();
+    let mut notes: Vec<String> = bound(estimate.sigma_me().sigma, "sigma_me", "mm", me).into_iter().collect();
+    if args.full_covariance {
+        notes.push(
+            "the noise file holds Sigma_q made positive semi-definite (negative eigenvalues set to 0): \
+             its diagonal can differ from the sigmas above"
+                .into(),
+        );
+    }
     for note in &notes {
         println!("note: {note}");
     }

@@ -168,7 +168,8 @@ impl NoiseSpec {
                 if (&m - m.transpose()).amax() > 1e-9 * m.amax() {
                     return Err(invalid("joint_covariance", "a symmetric matrix".into()));
                 }
-                if m.clone().symmetric_eigen().eigenvalues.min() < -1e-12 * m.amax() {
+                // Rounding a semi-definite matrix to the digits of a file leaves tiny negative eigenvalues.
+                if m.clone().symmetric_eigen().eigenvalues.min() < -1e-6 * m.amax() {
                     return Err(invalid("joint_covariance", "a positive semi-definite matrix".into()));
                 }
                 (m, true)
@@ -223,7 +224,7 @@ impl NoiseSpec {
             let _ = writeln!(out, "joint_covariance = [  # deg² (mm² for prismatic joints)");
             for i in 0..dof {
                 let row: Vec<String> =
-                    (0..dof).map(|j| format!("{:.6e}", self.joint[(i, j)] * unit(i) * unit(j))).collect();
+                    (0..dof).map(|j| format!("{:.9e}", self.joint[(i, j)] * unit(i) * unit(j))).collect();
                 let _ = writeln!(out, "    [{}],", row.join(", "));
             }
             let _ = writeln!(out, "]");

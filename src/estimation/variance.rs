@@ -260,14 +260,13 @@ pub fn fit_components(
         }
         (a, y)
     };
-    let (a, y) = system(None);
-    let mut theta = nnls(&a, &y, constrained);
+    let (a0, y0) = system(None);
+    let mut theta = nnls(&a0, &y0, constrained);
     let mut iterations = 0;
     for _ in 0..50 {
         iterations += 1;
         let (a, y) = system(Some(&theta));
         let next = nnls(&a, &y, constrained);
-        let (a0, _) = system(None);
         // Converged when the change no longer moves any fitted covariance noticeably.
         let moved = (&a0 * (&next - &theta)).amax();
         let size = (&a0 * &next).amax().max(f64::MIN_POSITIVE);

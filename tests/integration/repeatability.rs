@@ -102,6 +102,10 @@ fn a_long_study_pins_the_sigmas_down() {
     let c = full.joint_covariance();
     assert!((c[(0, 1)] / (c[(0, 0)] * c[(1, 1)]).sqrt()).abs() < 0.3, "{c}");
     assert!(full.sigma_me().contains(SIGMA_ME), "{:?}", full.sigma_me());
+    // Written and read back: positive semi-definite to the file's digits.
+    let text = full.spec().to_toml_string(&model, "a full Sigma_q");
+    let back = robocal::estimation::NoiseSpec::from_toml_str(&text, &model).unwrap();
+    assert!(back.full && (&back.joint - &c).amax() < 1e-6 * c.amax(), "{text}");
 }
 
 const HEADER: &str = "# units: joints=deg, lengths=mm\npose,j1,j2,j3,j4,j5,j6,x1,y1,z1\n";
