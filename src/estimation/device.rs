@@ -96,6 +96,29 @@ impl Device {
         }
     }
 
+    /// The device in words, in the units of files: `theodolites at (1500, -1000, 300) and
+    /// (1500, 1000, 300) mm, angles 2.5 / 2.5 arcsec`.
+    pub fn describe(&self) -> String {
+        let arcsec = |a: f64| a.to_degrees() * 3600.0;
+        let at = |p: &Vector3<f64>| format!("({}, {}, {})", p.x, p.y, p.z);
+        match self {
+            Self::Cmm { sigma } => format!("cmm, sigma {sigma} mm"),
+            Self::LaserTracker { position, sigma_r, k, sigma_angle } => format!(
+                "laser tracker at {} mm, range sigma {sigma_r} mm + {} ppm, angles {:.3} arcsec",
+                at(position),
+                k * 1e6,
+                arcsec(*sigma_angle)
+            ),
+            Self::Theodolites { stations, sigma_horizontal, sigma_vertical } => format!(
+                "theodolites at {} and {} mm, angles {:.3} / {:.3} arcsec (horizontal / vertical)",
+                at(&stations[0]),
+                at(&stations[1]),
+                arcsec(*sigma_horizontal),
+                arcsec(*sigma_vertical)
+            ),
+        }
+    }
+
     /// Check that every parameter is finite, sigmas `>= 0` (theodolites' `> 0`), the stations apart.
     pub fn validate(&self) -> Result<(), DeviceError> {
         let check = |field: &'static str, v: f64| {

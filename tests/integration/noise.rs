@@ -253,6 +253,8 @@ fn a_theodolite_study_runs_and_weighting_helps() {
     assert_eq!(s.device.as_ref().unwrap().kind(), "theodolites");
     let results = simulation::run(&s, &|| {}).unwrap();
     assert!(results.mean_error(0, 1) < results.mean_error(0, 0), "WLS beats OLS on average");
+    let tables = robocal::report::study::tables(&s, &results);
+    assert!(tables.contains("measurement device: theodolites at (1500, -1000, 300) and"), "{tables}");
 }
 
 #[test]
