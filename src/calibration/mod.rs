@@ -317,7 +317,8 @@ pub fn calibrate_feasible(
     let mut options = Options { estimator: Estimator::Ols, noise: None, ..options.clone() };
     let mut calibration = calibrate(model, &data, &options)?;
     let mut previous: Option<NoiseEstimate> = None;
-    for _ in 0..feasible.max_iterations.max(1) {
+    let mut settled_at = None;
+    for round in 0..feasible.max_iterations.max(1) {
         let estimate = residual_noise(&calibration, &data, options.noise.as_ref(), feasible.joints)?;
         let settled = previous.as_ref().is_some_and(|p| {
             (0..estimate.fit.values.len()).all(|c| {
@@ -329,9 +330,16 @@ pub fn calibrate_feasible(
         options.noise = Some(estimate.noise_model());
         previous = Some(estimate);
         if settled {
+            settled_at = Some(round);
             break;
         }
         calibration = calibrate(model, &data, &options)?;
+    }
+    if settled_at.is_none() {
+        calibration.warnings.push(format!(
+            "feasible GLS: the variance components did not settle in {} re-weightings",
+            feasible.max_iterations.max(1)
+        ));
     }
     if ignored_sigma {
         calibration
