@@ -13,12 +13,17 @@
 //! Errors are in mm and rad inside, and are folded into a calibrated model at the end.
 
 mod data;
+mod repeatability;
 
 pub use data::{DataError, Measurements, Units};
+pub use repeatability::{
+    Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
+};
 
 use crate::estimation::{
-    EstimationError, Estimator, MeasurementNoise, NoiseModel, PointProblem, RANK_TOLERANCE, RefineOptions,
-    Refined, Residuals, Weights, diagnose, refine,
+    CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementNoise,
+    NoiseEstimate, NoiseModel, NoiseSpec, PointProblem, RANK_TOLERANCE, RefineOptions, Refined, Residuals,
+    Weights, diagnose, noise_design, refine, residual_design,
 };
 use crate::kinematics::{Chain, Measured};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
@@ -138,6 +143,8 @@ pub struct Calibration {
     pub training: (ErrorStats, ErrorStats),
     /// Things a careful engineer should look at.
     pub warnings: Vec<String>,
+    /// The noise estimated from the residuals by feasible GLS ([`calibrate_feasible`]).
+    pub noise_estimate: Option<NoiseEstimate>,
     chains: Vec<Chain>,
 }
 
@@ -193,13 +200,7 @@ pub fn calibrate(
     let rows = kind.rows() * chains.len();
     let params = chains[0].params().clone();
     let noise = noise_for(options, data, rows);
-    let rotations = |k: usize| data.orientations.as_ref().map_or(UnitQuaternion::identity(), |o| o[k]);
-    let observed: Vec<Isometry3<f64>> = data
-        .markers
-        .iter()
-        .enumerate()
-        .flat_map(|(k, m)| m.iter().map(move |p| Isometry3::from_parts(Translation3::from(*p), rotations(k))))
-        .collect();
+    let observed = observed(data);
     let zero = vec![0.0; params.len()];
 
     // One problem, and its covariance blocks V_k, for every stage.
@@ -263,8 +264,170 @@ pub fn calibrate(
         fixed,
         training,
         warnings,
+        noise_estimate: None,
         chains,
     })
+}
+
+/// What was measured at every pose, marker by marker, as frames (the orientation of the probe
+/// where measured, the identity otherwise).
+fn observed(data: &Measurements) -> Vec<Isometry3<f64>> {
+    let rotations = |k: usize| data.orientations.as_ref().map_or(UnitQuaternion::identity(), |o| o[k]);
+    data.markers
+        .iter()
+        .enumerate()
+        .flat_map(|(k, m)| m.iter().map(move |p| Isometry3::from_parts(Translation3::from(*p), rotations(k))))
+        .collect()
+}
+
+/// Settings of feasible GLS.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FeasibleOptions {
+    /// Per-joint variances or the full `Sigma_q`.
+    pub joints: JointComponents,
+    /// Re-weightings at most.
+    pub max_iterations: usize,
+    /// Stop when no component changes by more than this fraction of its standard error.
+    pub tolerance: f64,
+}
+
+impl Default for FeasibleOptions {
+    fn default() -> Self {
+        Self { joints: JointComponents::Diagonal, max_iterations: 20, tolerance: 0.01 }
+    }
+}
+
+/// Feasible GLS: calibrate with the noise estimated from the data itself. Start with ordinary
+/// least squares; fit the variance components (the joint variances and `sigma_me^2`) to the
+/// residuals' outer products `r_k r_k^T`, whose expectation is `(M V M^T)_kk` with `M` the
+/// residual maker of the weighted fit (see [`residual_design`]); calibrate again by
+/// Gauss-Markov with `V_k = J_k Sigma_q J_k^T + sigma_me^2 I` from the estimate; repeat until
+/// the components settle. The result carries the last estimate in
+/// [`Calibration::noise_estimate`]. `options.estimator` and `options.noise` are not used; a
+/// `sigma` column of the data is ignored (its noise is what is estimated).
+pub fn calibrate_feasible(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    feasible: &FeasibleOptions,
+) -> Result<Calibration, CalibrationError> {
+    let mut data = data.clone();
+    let ignored_sigma = data.sigma.take().is_some();
+    let mut options = Options { estimator: Estimator::Ols, noise: None, ..options.clone() };
+    let mut calibration = calibrate(model, &data, &options)?;
+    let mut previous: Option<NoiseEstimate> = None;
+    let mut settled_at = None;
+    for round in 0..feasible.max_iterations.max(1) {
+        let estimate = residual_noise(&calibration, &data, options.noise.as_ref(), feasible.joints)?;
+        let settled = previous.as_ref().is_some_and(|p| {
+            (0..estimate.fit.values.len()).all(|c| {
+                let change = (p.fit.values[c] - estimate.fit.values[c]).abs();
+                change <= feasible.tolerance * estimate.fit.standard_error(c)
+            })
+        });
+        options.estimator = Estimator::Wls;
+        options.noise = Some(estimate.noise_model());
+        previous = Some(estimate);
+        if settled {
+            settled_at = Some(round);
+            break;
+        }
+        calibration = calibrate(model, &data, &options)?;
+    }
+    if settled_at.is_none() {
+        calibration.warnings.push(format!(
+            "feasible GLS: the variance components did not settle in {} re-weightings",
+            feasible.max_iterations.max(1)
+        ));
+    }
+    if ignored_sigma {
+        calibration
+            .warnings
+            .push("feasible GLS ignored the sigma column: it estimates sigma_me itself".into());
+    }
+    calibration.noise_estimate = previous;
+    Ok(calibration)
+}
+
+/// The variance components fitted to the residuals of `c` (calibrated with `noise`, or by
+/// ordinary least squares without).
+fn residual_noise(
+    c: &Calibration,
+    data: &Measurements,
+    noise: Option<&NoiseModel>,
+    joints: JointComponents,
+) -> Result<NoiseEstimate, CalibrationError> {
+    let kept = Selection::from_indices(
+        &c.params,
+        c.estimate.estimate.names.iter().filter_map(|n| c.params.index_by_name(n)),
+    );
+    let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
+    let problem = PointProblem::new(
+        &c.chains,
+        &kept,
+        kind,
+        data.joints.clone(),
+        observed(data),
+        c.after.clone(),
+        noise,
+    )?;
+    let system = problem.system(&problem.start());
+    let rows = system.rows_per_point;
+    let estimator = if noise.is_some() { Estimator::Wls } else { Estimator::Ols };
+    let weights = Weights::new(system.v.as_ref(), rows, estimator, false)?;
+    // A = pinv(S H) S: the map from y to the estimate.
+    let mut sh = system.h.clone();
+    weights.apply(&mut sh);
+    let g = crate::estimation::pseudo_inverse(&sh)?;
+    let points = system.points();
+    let mut s_blocks = DMatrix::zeros(rows * points, rows);
+    for k in 0..points {
+        s_blocks.view_mut((k * rows, 0), (rows, rows)).fill_with_identity();
+    }
+    weights.apply(&mut s_blocks);
+    let mut a = DMatrix::zeros(g.nrows(), g.ncols());
+    for k in 0..points {
+        let block = g.columns(k * rows, rows) * s_blocks.rows(k * rows, rows);
+        a.columns_mut(k * rows, rows).copy_from(&block);
+    }
+    let jacobians = problem.manipulator_jacobians(&c.after);
+    let per = kind.rows();
+    let designs: Vec<Vec<DMatrix<f64>>> = jacobians.iter().map(|j| noise_design(j, joints, per)).collect();
+    let components: Vec<Vec<DMatrix<f64>>> =
+        (0..designs[0].len()).map(|comp| designs.iter().map(|d| d[comp].clone()).collect()).collect();
+    let expected = residual_design(&system.h, &a, rows, &components);
+    let samples: Vec<CovarianceSample> = expected
+        .into_iter()
+        .enumerate()
+        .map(|(k, design)| {
+            let r = system.y.rows(k * rows, rows);
+            CovarianceSample { s: r * r.transpose(), dof: 1.0, design }
+        })
+        .collect();
+    Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), per)?)
+}
+
+/// The noise model of a noise file for `data`: its `Sigma_q`, and at every pose the measurement
+/// covariance of the device at each measured marker (`Sigma_device(p) + sigma_me^2 I`), with
+/// the orientation rows of a probe at `sigma_orientation^2`.
+pub fn noise_from_spec(spec: &NoiseSpec, data: &Measurements) -> Result<NoiseModel, DeviceError> {
+    let probe = data.orientations.is_some();
+    let per = if probe { 6 } else { 3 };
+    let rows = per * data.marker_count();
+    let mut blocks = Vec::with_capacity(data.len());
+    for markers in &data.markers {
+        let mut block = DMatrix::zeros(rows, rows);
+        for (m, p) in markers.iter().enumerate() {
+            block.view_mut((m * per, m * per), (3, 3)).copy_from(&spec.measurement_covariance(p)?);
+        }
+        if probe {
+            for r in 3..6 {
+                block[(r, r)] = spec.sigma_orientation.powi(2);
+            }
+        }
+        blocks.push(block);
+    }
+    Ok(NoiseModel { joint: spec.joint.clone(), measurement: MeasurementNoise::PerPoint(blocks) })
 }
 
 /// The selection of base, markers and the chosen joint parameters.
@@ -338,7 +501,7 @@ fn nearest_rotation(m: &Matrix3<f64>) -> Rotation3<f64> {
 }
 
 /// The rigid transform `T` minimising `sum |measured - T predicted|^2` (Kabsch 1976).
-fn register(predicted: &[Vector3<f64>], measured: &[Vector3<f64>]) -> Isometry3<f64> {
+pub(crate) fn register(predicted: &[Vector3<f64>], measured: &[Vector3<f64>]) -> Isometry3<f64> {
     let n = predicted.len() as f64;
     let (cp, cm) = (predicted.iter().sum::<Vector3<f64>>() / n, measured.iter().sum::<Vector3<f64>>() / n);
     let mut cross = Matrix3::zeros();

@@ -3,8 +3,8 @@
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use robocal::calibration::{self, JointParams, Options, Units};
-use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
+use robocal::calibration::{self, FeasibleOptions, JointParams, Options, RepeatabilityOptions, Units};
+use robocal::estimation::{Estimator, JointComponents, MeasurementNoise, NoiseModel, RefineOptions};
 use robocal::kinematics::Chain;
 use robocal::model::{JointKind, PRESETS, RobotModel};
 use robocal::report::calibration::CalibrationReport;
@@ -45,7 +45,14 @@ enum Command {
         /// Worker threads (default: all cores). The numbers do not depend on it.
         #[arg(long)]
         threads: Option<usize>,
+        /// A noise file (TOML, see docs/formats.md) replacing the study's noise: joint sigmas,
+        /// device, and sigma_me if it gives one.
+        #[arg(long)]
+        noise: Option<PathBuf>,
     },
+    /// Estimate the joint noise and sigma_me from repeated measurements at a set of poses,
+    /// and write them as a noise file.
+    Repeatability(Box<RepeatabilityArgs>),
     /// Forward kinematics: the tool pose of a model at given joint values.
     Fk {
         /// A preset name (see `robocal model list`) or a model TOML file.
@@ -75,6 +82,40 @@ enum ModelCommand {
     List,
 }
 
+/// The flags of `robocal repeatability`.
+#[derive(clap::Args, Debug)]
+struct RepeatabilityArgs {
+    /// The nominal robot: a preset name or a model TOML file.
+    #[arg(long)]
+    model: String,
+    /// The repeatability file (CSV: a measurement file with a `pose` column; docs/formats.md).
+    #[arg(long)]
+    data: PathBuf,
+    /// Unit of revolute joint values in the file, if it does not declare it.
+    #[arg(long, value_parser = ["deg", "rad"])]
+    joint_unit: Option<String>,
+    /// Unit of lengths in the file, if it does not declare it.
+    #[arg(long, value_parser = ["mm", "m"])]
+    length_unit: Option<String>,
+    /// Estimate the full joint covariance Sigma_q, not only one sigma per joint.
+    #[arg(long)]
+    full_covariance: bool,
+    /// Nominal position of a marker on the last link, "x,y,z" in mm; repeat per marker
+    /// (default: marker 1 at the model's tool point).
+    #[arg(long, allow_hyphen_values = true)]
+    marker: Vec<String>,
+    /// The device measures in the model's base frame: do not register the frames.
+    #[arg(long)]
+    fixed_base: bool,
+    /// Write the estimated noise here (a noise file for `calibrate --noise` and
+    /// `simulate --noise`).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Write the estimates with their intervals as JSON here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+}
+
 /// The flags of `robocal calibrate`.
 #[derive(clap::Args, Debug)]
 struct CalibrateArgs {
@@ -97,10 +138,16 @@ struct CalibrateArgs {
     /// Unit of lengths in the files, if they do not declare it.
     #[arg(long, value_parser = ["mm", "m"])]
     length_unit: Option<String>,
-    /// Estimator: `ols`, or `wls` (Gauss-Markov, needs --joint-sigma-deg). Default: wls when
-    /// the noise is given, ols otherwise.
+    /// Estimator: `ols`; `wls` (Gauss-Markov, needs the noise: --noise or --joint-sigma-deg);
+    /// `wls-diag`, `wls-sigma`; or `fgls` (feasible GLS: the joint sigmas and sigma_me
+    /// estimated from the residuals, iterated, and reported). Default: wls when the noise is
+    /// given, ols otherwise.
     #[arg(long)]
-    estimator: Option<Estimator>,
+    estimator: Option<String>,
+    /// A noise file (TOML, see docs/formats.md): joint noise, sigma_me and the measuring
+    /// device. Replaces --joint-sigma-deg, --sigma-mm and --sigma-orientation-deg.
+    #[arg(long)]
+    noise: Option<PathBuf>,
     /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints).
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     joint_sigma_deg: Option<Vec<f64>>,
@@ -188,7 +235,108 @@ pub fn run(cli: Cli) -> Result<()> {
             );
             println!("Both studies in {:.2} s.", started.elapsed().as_secs_f64());
         }
-        Command::Simulate { study, out, threads } => simulate(&io::load_study(&study)?, &out, threads)?,
+        Command::Simulate { study, out, threads, noise } => {
+            let mut study = io::load_study(&study)?;
+            if let Some(path) = noise {
+                let spec = io::load_noise(&path, &study.robot)?;
+                study.set_noise(&spec).with_context(|| format!("{}", path.display()))?;
+                study.description = format!("{} (noise from {})", study.description, path.display());
+            }
+            simulate(&study, &out, threads)?
+        }
+        Command::Repeatability(args) => repeatability(&args)?,
+    }
+    Ok(())
+}
+
+/// `--joint-unit` and `--length-unit`, which go together.
+fn units(joint: Option<&str>, length: Option<&str>) -> Result<Option<Units>> {
+    match (joint, length) {
+        (None, None) => Ok(None),
+        (Some(j), Some(l)) => Ok(Some(Units { joints_in_degrees: j == "deg", lengths_in_metres: l == "m" })),
+        _ => bail!("--joint-unit and --length-unit go together"),
+    }
+}
+
+/// `--marker x,y,z` values (mm).
+fn parse_markers(markers: &[String]) -> Result<Vec<nalgebra::Vector3<f64>>> {
+    markers
+        .iter()
+        .map(|m| {
+            let v: Vec<f64> = m
+                .split(',')
+                .map(|s| s.trim().parse())
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("--marker `{m}`: expected x,y,z in mm"))?;
+            match v[..] {
+                [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(nalgebra::Vector3::new(x, y, z)),
+                _ => bail!("--marker `{m}`: expected three finite numbers x,y,z in mm"),
+            }
+        })
+        .collect()
+}
+
+/// `robocal repeatability`: the noise from repeated measurements, printed and written.
+fn repeatability(args: &RepeatabilityArgs) -> Result<()> {
+    let model = io::load_model(&args.model)?;
+    let units = units(args.joint_unit.as_deref(), args.length_unit.as_deref())?;
+    let data = io::load_repeatability(&args.data, &model, units)?;
+    let markers = parse_markers(&args.marker)?;
+    if markers.len() > data.markers {
+        bail!("{} --marker given, {} has {} markers", markers.len(), args.data.display(), data.markers);
+    }
+    let joints = if args.full_covariance { JointComponents::Full } else { JointComponents::Diagonal };
+    let options = RepeatabilityOptions { joints, markers, register: !args.fixed_base };
+    let result = calibration::repeatability(&model, &data, &options)
+        .with_context(|| format!("{}: the variance components", args.data.display()))?;
+    let rows = report::calibration::noise_rows(&model.joints, &result.estimate);
+    println!(
+        "repeatability of {} from {}: {} poses, {} measurements, rms spread {:.4} mm\n",
+        model.name,
+        args.data.display(),
+        result.poses,
+        result.measurements,
+        result.rms_spread
+    );
+    print!("{}", report::calibration::noise_table(&rows));
+    let estimate = &result.estimate;
+    let bound = |s: f64, name: &str, unit: &str, used: f64| {
+        (s == 0.0).then(|| {
+            format!(
+                "{name} is at its bound 0: the noise file gives {used:.3e} {unit} (the square root of its \
+                 standard error), so that V_k stays positive definite"
+            )
+        })
+    };
+    let (me, _) = estimate.weighting_sigmas();
+    let mut notes: Vec<String> = bound(estimate.sigma_me().sigma, "sigma_me", "mm", me).into_iter().collect();
+    if args.full_covariance {
+        notes.push(
+            "the noise file holds Sigma_q made positive semi-definite (negative eigenvalues set to 0): \
+             its diagonal can differ from the sigmas above"
+                .into(),
+        );
+    }
+    for note in &notes {
+        println!("note: {note}");
+    }
+    if let Some(path) = &args.out {
+        let header = format!(
+            "robocal noise file, estimated by `robocal repeatability` from {} ({} poses, {} measurements).\n\
+             95% intervals:\n{}{}",
+            args.data.display(),
+            result.poses,
+            result.measurements,
+            report::calibration::noise_table(&rows),
+            notes.iter().map(|n| format!("note: {n}\n")).collect::<String>()
+        );
+        let text = result.estimate.spec().to_toml_string(&model, &header);
+        std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))?;
+        println!("\nwrote {}", path.display());
+    }
+    if let Some(path) = &args.json {
+        let json = serde_json::to_string_pretty(&rows)?;
+        std::fs::write(path, json + "\n").with_context(|| format!("{}: cannot write", path.display()))?;
     }
     Ok(())
 }
@@ -207,18 +355,27 @@ fn calibrate(args: &CalibrateArgs) -> Result<()> {
     if args.out_urdf.is_some() && urdf.is_none() {
         bail!("--out-urdf needs a URDF model");
     }
-    let units = match (args.joint_unit.as_deref(), args.length_unit.as_deref()) {
-        (None, None) => None,
-        (Some(j), Some(l)) => Some(Units { joints_in_degrees: j == "deg", lengths_in_metres: l == "m" }),
-        _ => bail!("--joint-unit and --length-unit go together"),
-    };
+    let units = units(args.joint_unit.as_deref(), args.length_unit.as_deref())?;
     let data = io::load_measurements(&args.data, &model, units)?;
     if !data.ignored.is_empty() {
         eprintln!("note: {}: ignoring columns {}", args.data.display(), data.ignored.join(", "));
     }
-    let noise = match &args.joint_sigma_deg {
-        None => None,
-        Some(sigmas) => {
+    let feasible = args.estimator.as_deref() == Some("fgls");
+    let chosen: Option<Estimator> = match args.estimator.as_deref() {
+        None | Some("fgls") => None,
+        Some(name) => Some(name.parse().map_err(|e: String| anyhow::anyhow!("--estimator: {e}, fgls"))?),
+    };
+    let noise = match (&args.noise, &args.joint_sigma_deg) {
+        (Some(_), Some(_)) => bail!("--noise and --joint-sigma-deg: give one of the two"),
+        (Some(path), None) => {
+            let spec = io::load_noise(path, &model)?;
+            Some(
+                calibration::noise_from_spec(&spec, &data)
+                    .with_context(|| format!("{}: the device's covariance", path.display()))?,
+            )
+        }
+        (None, None) => None,
+        (None, Some(sigmas)) => {
             if sigmas.len() != model.dof() {
                 bail!(
                     "--joint-sigma-deg: {} values for the {} joints of {}",
@@ -246,27 +403,17 @@ fn calibrate(args: &CalibrateArgs) -> Result<()> {
             Some(NoiseModel::diagonal(&joint, MeasurementNoise::isotropic(args.sigma_mm, orientation)))
         }
     };
-    let estimator = args.estimator.unwrap_or(if noise.is_some() { Estimator::Wls } else { Estimator::Ols });
+    if feasible && noise.is_some() {
+        bail!("--estimator fgls estimates the noise: do not give --noise or --joint-sigma-deg");
+    }
+    let estimator = chosen.unwrap_or(if noise.is_some() { Estimator::Wls } else { Estimator::Ols });
     if estimator != Estimator::Ols && noise.is_none() {
         bail!(
-            "--estimator {estimator} needs the noise: give --joint-sigma-deg (and --sigma-mm or a sigma column)"
+            "--estimator {estimator} needs the noise: give --noise or --joint-sigma-deg (and --sigma-mm or a \
+             sigma column), or use --estimator fgls"
         );
     }
-    let markers = args
-        .marker
-        .iter()
-        .map(|m| {
-            let v: Vec<f64> = m
-                .split(',')
-                .map(|s| s.trim().parse())
-                .collect::<Result<_, _>>()
-                .with_context(|| format!("--marker `{m}`: expected x,y,z in mm"))?;
-            match v[..] {
-                [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(nalgebra::Vector3::new(x, y, z)),
-                _ => bail!("--marker `{m}`: expected three finite numbers x,y,z in mm"),
-            }
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let markers = parse_markers(&args.marker)?;
     if markers.len() > data.marker_count() {
         bail!(
             "{} --marker given, {} has {} markers",
@@ -300,7 +447,11 @@ fn calibrate(args: &CalibrateArgs) -> Result<()> {
     if held_out.iter().any(|(_, d)| d.marker_count() != data.marker_count()) {
         bail!("the validation files must have the markers of {}", args.data.display());
     }
-    let result = calibration::calibrate(&model, &data, &options)?;
+    let result = if feasible {
+        calibration::calibrate_feasible(&model, &data, &options, &FeasibleOptions::default())?
+    } else {
+        calibration::calibrate(&model, &data, &options)?
+    };
     let mut validation: Vec<_> = held_out
         .iter()
         .map(|(name, d)| {
@@ -312,11 +463,14 @@ fn calibrate(args: &CalibrateArgs) -> Result<()> {
         if k < 2 || k > data.len() {
             bail!("--folds {k}: expected 2 to {} (the number of poses)", data.len());
         }
+        if feasible {
+            bail!("--folds with --estimator fgls: not supported; estimate the noise once and give --noise");
+        }
         let (before, after) = calibration::cross_validate(&model, &data, &options, k)?;
         validation.push((format!("{k}-fold cross-validation"), before, after));
     }
-    let report =
-        CalibrationReport::new(&result, &args.data.display().to_string(), estimator.name(), validation);
+    let name = if feasible { "fgls" } else { estimator.name() };
+    let report = CalibrationReport::new(&result, &args.data.display().to_string(), name, validation);
     print!("{}", report.text());
     if let Some(path) = &args.json {
         let json = serde_json::to_string_pretty(&report)?;

@@ -15,15 +15,25 @@
 //! is Eq. 6 itself. The paper's normalisation `W = sigma_max^2 V^-1` (before Eq. 18) is applied;
 //! it scales every weight by one constant and leaves `x` unchanged.
 
+mod device;
 mod noise;
+mod noise_file;
 mod problem;
 mod refine;
 mod solve;
+mod variance;
 
+pub use device::{Device, DeviceError};
 pub use noise::{MeasurementNoise, NoiseModel, point_covariance};
+pub(crate) use noise_file::DeviceTable;
+pub use noise_file::{NoiseFileError, NoiseSpec};
 pub use problem::PointProblem;
 pub use refine::{Iteration, RefineOptions, Refined, Residuals, refine};
 pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE};
+pub use variance::{
+    ComponentFit, CovarianceSample, JointComponents, NoiseEstimate, SigmaInterval, Z_95, fit_components,
+    nnls, noise_design, residual_design, sample_covariance,
+};
 
 use nalgebra::allocator::Allocator;
 use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix, SMatrix};
@@ -380,6 +390,11 @@ pub fn diagnose(
     let mut a = system.h.clone();
     weights.apply(&mut a);
     Ok(solve::factorise(&a, rank_tolerance)?.diagnostics)
+}
+
+/// The pseudoinverse `pinv(A)` by the same rank-revealing factorisation as every estimate.
+pub fn pseudo_inverse(a: &DMatrix<f64>) -> Result<DMatrix<f64>, EstimationError> {
+    Ok(solve::factorise(a, RANK_TOLERANCE)?.pinv(a.nrows()))
 }
 
 /// An estimator factored for one `H` and `V`: the estimate for any `y` is then one product,

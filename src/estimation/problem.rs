@@ -95,21 +95,38 @@ impl<'a> PointProblem<'a> {
 
     /// `V_k` of every pose at the fixed parameters, stacked.
     fn covariance_blocks(&self, noise: &NoiseModel) -> Result<DMatrix<f64>, EstimationError> {
-        let (per, rows) = (self.measured.rows(), self.rows_per_point());
-        let dof = self.chains[0].dof();
-        noise.validate(dof, self.joints.len(), rows)?;
-        let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(&self.fixed)).collect();
-        let mut jacobian = Matrix6xX::zeros(dof);
-        let mut stacked = DMatrix::zeros(rows, dof);
+        let rows = self.rows_per_point();
+        noise.validate(self.chains[0].dof(), self.joints.len(), rows)?;
         let mut v = DMatrix::zeros(rows * self.joints.len(), rows);
-        for (k, q) in self.joints.iter().enumerate() {
-            for (m, at) in at.iter().enumerate() {
-                at.manipulator_jacobian(q, &mut jacobian);
-                stacked.rows_mut(m * per, per).copy_from(&jacobian.rows(0, per));
-            }
-            v.rows_mut(k * rows, rows).copy_from(&noise.pose_covariance(k, &stacked, self.measured));
+        for (k, stacked) in self.manipulator_jacobians(&self.fixed).iter().enumerate() {
+            v.rows_mut(k * rows, rows).copy_from(&noise.pose_covariance(k, stacked, self.measured));
         }
         Ok(v)
+    }
+
+    /// The measured rows of the manipulator Jacobians `J_k` of every pose (`rows x dof`:
+    /// 3 per marker, or 6 for a tool pose), at the full parameter vector `at`.
+    pub fn manipulator_jacobians(&self, at: &[f64]) -> Vec<DMatrix<f64>> {
+        let (per, rows) = (self.measured.rows(), self.rows_per_point());
+        let dof = self.chains[0].dof();
+        let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(at)).collect();
+        let mut jacobian = Matrix6xX::zeros(dof);
+        self.joints
+            .iter()
+            .map(|q| {
+                let mut stacked = DMatrix::zeros(rows, dof);
+                for (m, at) in at.iter().enumerate() {
+                    at.manipulator_jacobian(q, &mut jacobian);
+                    stacked.rows_mut(m * per, per).copy_from(&jacobian.rows(0, per));
+                }
+                stacked
+            })
+            .collect()
+    }
+
+    /// The measurement kind (position or pose).
+    pub fn measured(&self) -> Measured {
+        self.measured
     }
 
     /// The selected parameters' values in `fixed`: where iterations start.

@@ -3,7 +3,8 @@
 //! This is the only library module that touches the file system; the core (model,
 //! kinematics, estimation, simulation) works on values.
 
-use crate::calibration::{DataError, Measurements, Units};
+use crate::calibration::{DataError, Measurements, RepeatabilityData, Units};
+use crate::estimation::{NoiseFileError, NoiseSpec};
 use crate::model::{ModelError, PRESETS, RobotModel, from_urdf_str};
 use crate::simulation::{STUDIES, Study, StudyError};
 use std::path::{Path, PathBuf};
@@ -42,6 +43,14 @@ pub enum InputError {
         path: PathBuf,
         /// The line, column and problem.
         source: DataError,
+    },
+    /// The noise file is not valid.
+    #[error("{path}: {source}")]
+    Noise {
+        /// The file.
+        path: PathBuf,
+        /// The field or line, and the problem.
+        source: NoiseFileError,
     },
     /// Neither a preset nor an existing file.
     #[error("no model `{name}`: not a preset ({presets}) and no such file")]
@@ -106,6 +115,25 @@ pub fn load_measurements(
         std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })?;
     Measurements::from_csv_str(&text, model, units)
         .map_err(|source| InputError::Data { path: path.into(), source })
+}
+
+/// A repeatability file (a measurement file with a `pose` column) for `model`.
+pub fn load_repeatability(
+    path: &Path,
+    model: &RobotModel,
+    units: Option<Units>,
+) -> Result<RepeatabilityData, InputError> {
+    let text =
+        std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })?;
+    RepeatabilityData::from_csv_str(&text, model, units)
+        .map_err(|source| InputError::Data { path: path.into(), source })
+}
+
+/// A noise file (TOML; see [`NoiseSpec`]) for `model`.
+pub fn load_noise(path: &Path, model: &RobotModel) -> Result<NoiseSpec, InputError> {
+    let text =
+        std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })?;
+    NoiseSpec::from_toml_str(&text, model).map_err(|source| InputError::Noise { path: path.into(), source })
 }
 
 /// A model by preset name (`puma560`) or from a TOML file.

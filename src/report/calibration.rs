@@ -3,6 +3,8 @@
 //! the same content.
 
 use crate::calibration::{Calibration, ErrorStats, standard_errors};
+use crate::estimation::{NoiseEstimate, SigmaInterval};
+use crate::model::{Joint, JointKind};
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -40,6 +42,60 @@ pub struct CalibrationReport {
     pub validation: Vec<(String, ErrorStats, ErrorStats)>,
     /// Things to look at.
     pub warnings: Vec<String>,
+    /// The noise estimated by feasible GLS, with 95% intervals.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise: Option<Vec<NoiseRow>>,
+}
+
+/// One estimated noise component: a standard deviation with its 95% interval.
+#[derive(Debug, Clone, Serialize)]
+pub struct NoiseRow {
+    /// `j1` (joint noise), `sigma_me` or `sigma_orientation`.
+    pub name: String,
+    /// The estimated standard deviation.
+    pub sigma: f64,
+    /// Lower end of the 95% interval.
+    pub low: f64,
+    /// Upper end of the 95% interval.
+    pub high: f64,
+    /// `deg` or `mm`.
+    pub unit: &'static str,
+}
+
+/// The rows of an estimated noise for the robot's `joints`: each joint's sigma (deg, mm), then
+/// `sigma_me` (mm) and `sigma_orientation` (deg).
+pub fn noise_rows(joints: &[Joint], estimate: &NoiseEstimate) -> Vec<NoiseRow> {
+    let row = |name: String, s: SigmaInterval, scale: f64, unit| NoiseRow {
+        name,
+        sigma: s.sigma * scale,
+        low: s.low * scale,
+        high: s.high * scale,
+        unit,
+    };
+    let mut rows: Vec<NoiseRow> = joints
+        .iter()
+        .enumerate()
+        .map(|(i, j)| match j.kind {
+            JointKind::Revolute => row(j.name.clone(), estimate.joint_sigma(i), 1f64.to_degrees(), "deg"),
+            JointKind::Prismatic => row(j.name.clone(), estimate.joint_sigma(i), 1.0, "mm"),
+        })
+        .collect();
+    rows.push(row("sigma_me".into(), estimate.sigma_me(), 1.0, "mm"));
+    if let Some(o) = estimate.sigma_orientation() {
+        rows.push(row("sigma_orientation".into(), o, 1f64.to_degrees(), "deg"));
+    }
+    rows
+}
+
+/// The rows as a table: name, sigma, 95% interval, unit.
+pub fn noise_table(rows: &[NoiseRow]) -> String {
+    let mut out = String::new();
+    let _ = writeln!(out, "{:<18} {:>12} {:>12} {:>12}  unit", "noise", "sigma", "95% low", "95% high");
+    for r in rows {
+        let _ =
+            writeln!(out, "{:<18} {:>12.3e} {:>12.3e} {:>12.3e}  {}", r.name, r.sigma, r.low, r.high, r.unit);
+    }
+    out
 }
 
 /// One identified parameter.
@@ -107,6 +163,7 @@ impl CalibrationReport {
             training: [c.training.0, c.training.1],
             validation,
             warnings: c.warnings.clone(),
+            noise: c.noise_estimate.as_ref().map(|e| noise_rows(&c.registered.joints, e)),
         }
     }
 
@@ -167,6 +224,10 @@ impl CalibrationReport {
         for (source, before, after) in &self.validation {
             row(format!("{source}, before"), before);
             row(format!("{source}, after"), after);
+        }
+        if let Some(noise) = &self.noise {
+            let _ = writeln!(out, "\nnoise estimated from the residuals (feasible GLS):");
+            out.push_str(&noise_table(noise));
         }
         if !self.warnings.is_empty() {
             let _ = writeln!(out, "\nwarnings:");

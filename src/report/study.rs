@@ -35,6 +35,9 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
         "joint noise alone: mean position error {:.4} mm over the test set",
         results.joint_noise_error
     );
+    if let Some(device) = &study.device {
+        let _ = writeln!(out, "measurement device: {}, plus each case's sigma_me", device.describe());
+    }
     for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
         let _ = writeln!(out, "\ndE (%) = 100 (E_p[{baseline}] - E_p[{estimator}]) / E_p[{baseline}]");
         let _ = writeln!(

@@ -33,7 +33,7 @@ use crate::estimation::{
 };
 use crate::kinematics::{Chain, ChainAt, Measured, pose_error};
 use crate::model::{ParamKind, RobotModel};
-use nalgebra::{DVector, Isometry3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
@@ -160,6 +160,8 @@ struct PointSet {
     /// The real robot's errors when drawn once per set.
     errors: Option<Vec<f64>>,
     rank: usize,
+    /// With a device: the Cholesky factor of each point's measurement covariance (position).
+    factors: Vec<Matrix3<f64>>,
 }
 
 /// The test set and the study's compiled robot.
@@ -207,10 +209,28 @@ impl Bench<'_> {
         let joints = uniform_configurations(&study.robot, points, &mut rng);
         let errors = (study.errors.redraw == Redraw::Set).then(|| self.draw_errors(&mut rng));
         let nominal: Vec<Isometry3<f64>> = joints.iter().map(|q| self.nominal.pose(q)).collect();
-        let noise = NoiseModel::diagonal(
+        let mut noise = NoiseModel::diagonal(
             &study.joint_sigmas,
             MeasurementNoise::isotropic(sigma_me, study.sigma_orientation),
         );
+        let mut factors = Vec::new();
+        if let Some(device) = &study.device {
+            // Sigma_m,k = Sigma_device(p_k) + sigma_me^2 I at the nominal point.
+            let rows = study.measured.rows();
+            let mut blocks = Vec::with_capacity(points);
+            for pose in &nominal {
+                let covariance = device
+                    .covariance(&pose.translation.vector)
+                    .map_err(|e| EstimationError::Noise(format!("device {}: {e}", device.kind())))?
+                    + Matrix3::identity() * sigma_me * sigma_me;
+                let factor = covariance.cholesky().map_or(Matrix3::zeros(), |c| c.l());
+                factors.push(factor);
+                let mut block = DMatrix::from_diagonal_element(rows, rows, study.sigma_orientation.powi(2));
+                block.view_mut((0, 0), (3, 3)).copy_from(&covariance);
+                blocks.push(block);
+            }
+            noise.measurement = MeasurementNoise::PerPoint(blocks);
+        }
         let zero = vec![0.0; self.chain.params().len()];
         let problem = PointProblem::new(
             std::slice::from_ref(&self.chain),
@@ -233,7 +253,7 @@ impl Bench<'_> {
             Some(p) => p.diagnostics().rank,
             None => crate::estimation::diagnose(&system, study.estimators[0], RANK_TOLERANCE)?.rank,
         };
-        Ok(PointSet { case, set, joints, nominal, noise, prepared, errors, rank })
+        Ok(PointSet { case, set, joints, nominal, noise, prepared, errors, rank, factors })
     }
 
     /// Step 2: the real robot's errors, for the identified parameters.
@@ -271,7 +291,7 @@ impl Bench<'_> {
             for ((noisy, &q), &sigma) in q_noisy.iter_mut().zip(q).zip(&study.joint_sigmas) {
                 *noisy = q + sigma * normal(&mut rng);
             }
-            let measured = self.measure(&real, &q_noisy, sigma_me, &mut rng);
+            let measured = self.measure(&real, &q_noisy, sigma_me, set.factors.get(k), &mut rng);
             match study.measured {
                 Measured::Position => y
                     .fixed_rows_mut::<3>(3 * k)
@@ -310,12 +330,24 @@ impl Bench<'_> {
         Ok(Run { case: set.case, set: set.set, run, accuracy })
     }
 
-    /// Steps 3-4 at one point: the real robot's pose at the noisy joints, measured with noise.
-    /// Always draws the same number of normals, whatever the sigmas, so that the streams of
-    /// cases differing only in noise stay aligned.
-    fn measure(&self, real: &ChainAt, q: &[f64], sigma_me: f64, rng: &mut ChaCha8Rng) -> Isometry3<f64> {
+    /// Steps 3-4 at one point: the real robot's pose at the noisy joints, measured with noise:
+    /// `sigma_me` on each axis, or with a device `L_k z` (`L_k L_k^T` the point's measurement
+    /// covariance). Always draws the same number of normals, whatever the sigmas, so that the
+    /// streams of cases differing only in noise stay aligned.
+    fn measure(
+        &self,
+        real: &ChainAt,
+        q: &[f64],
+        sigma_me: f64,
+        factor: Option<&Matrix3<f64>>,
+        rng: &mut ChaCha8Rng,
+    ) -> Isometry3<f64> {
         let pose = real.pose(q);
-        let dp = Vector3::new(normal(rng), normal(rng), normal(rng)) * sigma_me;
+        let z = Vector3::new(normal(rng), normal(rng), normal(rng));
+        let dp = match factor {
+            Some(l) => l * z,
+            None => z * sigma_me,
+        };
         let translation = Translation3::from(pose.translation.vector + dp);
         match self.study.measured {
             Measured::Position => Isometry3::from_parts(translation, pose.rotation),

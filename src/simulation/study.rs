@@ -1,6 +1,6 @@
 //! The study file (TOML): a calibration campaign to simulate, as data.
 
-use crate::estimation::Estimator;
+use crate::estimation::{Device, DeviceTable, Estimator};
 use crate::kinematics::Measured;
 use crate::model::{JointKind, RobotModel, Selection, SelectionError};
 use serde::Deserialize;
@@ -94,6 +94,9 @@ pub struct Study {
     pub joint_sigmas: Vec<f64>,
     /// Orientation measurement noise (rad), for pose measurements.
     pub sigma_orientation: f64,
+    /// The measuring device, if any: its covariance at each point, plus `sigma_me^2 I` of the
+    /// case, is the measurement noise (simulated and in `V_k`).
+    pub device: Option<Device>,
     /// The real robot's geometric errors.
     pub errors: ErrorSizes,
     /// The cases: every `N_p` with every `sigma_me`.
@@ -162,6 +165,8 @@ struct NoiseFile {
     joint_sigma: Vec<f64>,
     #[serde(default)]
     sigma_orientation_deg: f64,
+    /// The measuring device (`[noise.device]`, the table of a noise file).
+    device: Option<DeviceTable>,
 }
 
 #[derive(Deserialize)]
@@ -279,6 +284,15 @@ impl Study {
         if file.point_sets >= 1 << 20 || file.runs_per_set >= 1 << 20 {
             return invalid("point_sets / runs_per_set", "fewer than 1048576".into());
         }
+        let device = match &file.noise.device {
+            Some(table) => Some(table.device("noise.device.").map_err(|e| match e {
+                crate::estimation::NoiseFileError::Invalid { field, expected } => {
+                    StudyError::Invalid { field, expected }
+                }
+                other => StudyError::Syntax(other.to_string()),
+            })?),
+            None => None,
+        };
         let cases = file
             .cases
             .points
@@ -295,6 +309,7 @@ impl Study {
             selection,
             joint_sigmas,
             sigma_orientation: file.noise.sigma_orientation_deg.to_radians(),
+            device,
             errors: ErrorSizes {
                 offset: file.errors.offset_deg.to_radians(),
                 angle: file.errors.angle_deg.to_radians(),
@@ -313,6 +328,39 @@ impl Study {
         })
     }
 
+    /// Replace the study's noise by a noise file's: the joint sigmas, the device, the
+    /// orientation noise, and, if the file gives `sigma_me_mm`, every case's `sigma_me`
+    /// (the cases then are the study's `N_p` with that one value). A study simulates
+    /// uncorrelated joint noise, so a full `Sigma_q` with correlations is refused.
+    pub fn set_noise(&mut self, spec: &crate::estimation::NoiseSpec) -> Result<(), StudyError> {
+        let dof = self.robot.dof();
+        if spec.joint.shape() != (dof, dof) {
+            return Err(StudyError::Invalid {
+                field: "noise".into(),
+                expected: format!("a noise file for the {dof} joints of {}", self.robot.name),
+            });
+        }
+        if (0..dof).any(|i| (0..dof).any(|j| i != j && spec.joint[(i, j)] != 0.0)) {
+            return Err(StudyError::Invalid {
+                field: "joint_covariance".into(),
+                expected: "per-joint sigmas: a study simulates uncorrelated joint noise".into(),
+            });
+        }
+        self.joint_sigmas = spec.joint_sigmas();
+        self.device = spec.device.clone();
+        self.sigma_orientation = spec.sigma_orientation;
+        if let Some(sigma_me) = spec.sigma_me {
+            let mut points: Vec<usize> = Vec::new();
+            for case in &self.cases {
+                if !points.contains(&case.points) {
+                    points.push(case.points);
+                }
+            }
+            self.cases = points.into_iter().map(|points| Case { points, sigma_me }).collect();
+        }
+        Ok(())
+    }
+
     /// The published row for `case`, if the study has one.
     pub fn reference_for(&self, case: &Case) -> Option<&Reference> {
         self.reference.iter().find(|r| r.points == case.points && r.sigma_me_mm == case.sigma_me)
@@ -324,8 +372,13 @@ fn selection_error(e: SelectionError) -> StudyError {
 }
 
 /// The studies shipped with robocal: `(name, TOML text)`. `paper-table1` and `paper-table2`
-/// are the paper's two studies; `robocal reproduce` runs both.
+/// are the paper's two studies; `robocal reproduce` runs both. `device-cmm`,
+/// `device-laser-tracker` and `device-theodolites` test the paper's expectation that devices
+/// whose noise varies over the workspace profit more from weighting.
 pub const STUDIES: &[(&str, &str)] = &[
     ("paper-table1", include_str!("../../presets/paper-table1.toml")),
     ("paper-table2", include_str!("../../presets/paper-table2.toml")),
+    ("device-cmm", include_str!("../../presets/device-cmm.toml")),
+    ("device-laser-tracker", include_str!("../../presets/device-laser-tracker.toml")),
+    ("device-theodolites", include_str!("../../presets/device-theodolites.toml")),
 ];

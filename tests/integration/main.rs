@@ -3,7 +3,10 @@
 mod calibration;
 mod cli;
 mod estimation;
+mod fgls;
 mod kinematics;
 mod model_files;
+mod noise;
+mod repeatability;
 mod simulation;
 mod urdf;

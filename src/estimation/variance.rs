@@ -1,0 +1,545 @@
+//! Variance components from data: the noise `V_k = J_k Sigma_q J_k^T + Sigma_m` estimated
+//! instead of assumed.
+//!
+//! The paper's conclusion: the gain of weighted least squares depends on how well `V` is
+//! known, and for a fleet of similar robots it pays to measure their random error behaviour
+//! first. Both ways to do that come down to one fit. Observed covariance matrices `S_k`
+//! (`b x b`, from `nu_k` degrees of freedom) have the expectation
+//!
+//! `E[S_k] = sum_c theta_c D_c,k`,
+//!
+//! linear in the components `theta` (joint variances `sigma_j^2`, or every entry of
+//! `Sigma_q`, and `sigma_me^2`):
+//!
+//! - a repeatability study ([`sample_covariance`]): `S_k` the sample covariance of the
+//!   repeated measurements at pose `k`, `D_c,k = J_k E_c J_k^T` and `I` ([`noise_design`]);
+//! - feasible GLS: `S_k = r_k r_k^T` of a calibration's residuals, `nu_k = 1`, and
+//!   `D_c,k = (M V_c M^T)_kk` with `M = I - H (H^T W H)^+ H^T W` ([`residual_design`]), the
+//!   residuals being `r = M e`.
+//!
+//! [`fit_components`] solves it by the normal-theory generalised least squares of covariance
+//! structures (Browne 1974):
+//!
+//! `min_theta sum_k nu_k / 2 |L_k^-1 (S_k - sum_c theta_c D_c,k) L_k^-T|_F^2`, `Sigma_k = L_k L_k^T`,
+//!
+//! with `Sigma_k = sum_c theta_c D_c,k` at the previous estimate (iterated; the first pass
+//! unweighted), variances kept non-negative by an active-set non-negative least squares
+//! ([`nnls`]). Since `Cov(S_ij, S_kl) = (Sigma_ik Sigma_jl + Sigma_il Sigma_jk) / nu` for a
+//! Wishart `S`, these weights are the inverse covariance of the observations and the
+//! covariance of `theta` is the inverse Fisher information `F^-1`, `F = A^T A` with `A` the
+//! weighted design. Intervals are `theta +- z se`, clipped at zero for variances.
+
+use super::EstimationError;
+use nalgebra::{DMatrix, DVector};
+
+/// One observed covariance: `S_k`, its degrees of freedom and the design of its expectation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CovarianceSample {
+    /// The observed `S_k` (`b x b`, symmetric).
+    pub s: DMatrix<f64>,
+    /// Degrees of freedom `nu_k` (repeats minus one; 1 for one residual).
+    pub dof: f64,
+    /// `D_c,k` for each component `c` (`b x b`): `E[S_k] = sum_c theta_c D_c,k`.
+    pub design: Vec<DMatrix<f64>>,
+}
+
+/// The fitted components.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ComponentFit {
+    /// `theta`.
+    pub values: DVector<f64>,
+    /// `Cov(theta) = F^-1` at the estimate.
+    pub covariance: DMatrix<f64>,
+    /// Which components are variances (kept `>= 0`).
+    pub constrained: Vec<bool>,
+    /// Which constrained components ended at their bound, 0.
+    pub at_bound: Vec<bool>,
+    /// Reweighting passes made.
+    pub iterations: usize,
+}
+
+/// The two-sided 95% point of the standard normal.
+pub const Z_95: f64 = 1.959_963_984_540_054;
+
+impl ComponentFit {
+    /// Standard error of component `c`, `sqrt((F^-1)_cc)`.
+    pub fn standard_error(&self, c: usize) -> f64 {
+        self.covariance[(c, c)].max(0.0).sqrt()
+    }
+
+    /// The two-sided interval of component `c` at the normal quantile `z` ([`Z_95`] for
+    /// 95%). A free component (a covariance): `theta_c +- z se_c`. A variance: the union of
+    /// the normal interval clipped at zero, `[max(0, theta_c - z se_c), theta_c + z se_c]`,
+    /// and Satterthwaite's scaled chi-square, `theta_c` taken as `theta chi2_nu / nu` with
+    /// `nu = 2 theta_c^2 / se_c^2` effective degrees of freedom,
+    /// `[nu theta_c / chi2_nu(1 - a/2), nu theta_c / chi2_nu(a/2)]` (Wilson-Hilferty's
+    /// quantiles). The second is skewed as a variance's sampling distribution is, which the
+    /// normal interval misses for well-determined components; the first alone where the
+    /// component is barely determined (`nu < 2`, where the chi-square approximation fails).
+    /// At the bound 0: `[0, z se_c]`.
+    pub fn interval(&self, c: usize, z: f64) -> (f64, f64) {
+        let (v, se) = (self.values[c], self.standard_error(c));
+        if !self.constrained[c] {
+            return (v - z * se, v + z * se);
+        }
+        if v <= 0.0 || se <= 0.0 {
+            return (0.0, v.max(0.0) + z * se);
+        }
+        let nu = 2.0 * v * v / (se * se);
+        let normal = ((v - z * se).max(0.0), v + z * se);
+        if nu < 2.0 {
+            return normal;
+        }
+        let quantile = |z: f64| {
+            let a = 2.0 / (9.0 * nu);
+            nu * (1.0 - a + z * a.sqrt()).max(0.0).powi(3)
+        };
+        let (upper_q, lower_q) = (quantile(z), quantile(-z));
+        let high = if lower_q > 0.0 { nu * v / lower_q } else { f64::INFINITY };
+        let low = if upper_q > 0.0 { nu * v / upper_q } else { 0.0 };
+        (low.min(normal.0), high.max(normal.1))
+    }
+}
+
+/// The sample mean and covariance `S = sum (x_i - mean)(x_i - mean)^T / (n - 1)` of `n >= 2`
+/// vectors, with its degrees of freedom `n - 1`.
+pub fn sample_covariance(samples: &[DVector<f64>]) -> Option<(DVector<f64>, DMatrix<f64>, f64)> {
+    let n = samples.len();
+    if n < 2 {
+        return None;
+    }
+    let mean = samples.iter().fold(DVector::zeros(samples[0].len()), |a, x| a + x) / n as f64;
+    let mut s = DMatrix::zeros(mean.len(), mean.len());
+    for x in samples {
+        let d = x - &mean;
+        s += &d * d.transpose();
+    }
+    Some((mean, s / (n - 1) as f64, (n - 1) as f64))
+}
+
+/// Which components of `Sigma_q` to estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointComponents {
+    /// `sigma_j^2` of each joint: `Sigma_q = diag(sigma_1^2, ..., sigma_n^2)` (the paper's Eq. 14).
+    Diagonal,
+    /// Every entry of the upper triangle, row by row: a full `Sigma_q`.
+    Full,
+}
+
+impl JointComponents {
+    /// The `(i, j)` entry of `Sigma_q` of each joint component, in order.
+    pub fn entries(self, dof: usize) -> Vec<(usize, usize)> {
+        match self {
+            Self::Diagonal => (0..dof).map(|i| (i, i)).collect(),
+            Self::Full => (0..dof).flat_map(|i| (i..dof).map(move |j| (i, j))).collect(),
+        }
+    }
+}
+
+/// The design `D_c` of one point whose measured rows have manipulator Jacobian `jacobian`
+/// (`b x dof`, rows of each marker's position, or of a pose with `per = 6`): for joint
+/// component `(i, j)`, `J E_ij J^T` with `E_ij = e_i e_j^T + e_j e_i^T` (`e_i e_i^T` on the
+/// diagonal); then `sigma_me^2`: the identity on every position row; then, for poses
+/// (`per = 6`), `sigma_orientation^2`: the identity on the orientation rows.
+pub fn noise_design(jacobian: &DMatrix<f64>, joints: JointComponents, per: usize) -> Vec<DMatrix<f64>> {
+    let b = jacobian.nrows();
+    let mut design: Vec<DMatrix<f64>> = joints
+        .entries(jacobian.ncols())
+        .into_iter()
+        .map(|(i, j)| {
+            let (ci, cj) = (jacobian.column(i), jacobian.column(j));
+            if i == j { ci * ci.transpose() } else { ci * cj.transpose() + cj * ci.transpose() }
+        })
+        .collect();
+    let rows =
+        |orientation: bool| {
+            DMatrix::from_fn(b, b, |r, c| {
+                if r == c && ((per == 6 && r % 6 >= 3) == orientation) { 1.0 } else { 0.0 }
+            })
+        };
+    design.push(rows(false));
+    if per == 6 {
+        design.push(rows(true));
+    }
+    design
+}
+
+/// The design of feasible GLS: the expectation of each point's residual outer product
+/// `r_k r_k^T` per unit of each component, `D_c,k = (M V_c M^T)_kk`, for residuals `r = M e`
+/// of the weighted fit `x = (H^T W H)^+ H^T W y`, `M = I - H A`, `A = (H^T W H)^+ H^T W`.
+/// With `A_j` the columns of `A` of point `j` and `V_c` block diagonal,
+///
+/// `(M V_c M^T)_kk = V_c,k - H_k A_k V_c,k - V_c,k A_k^T H_k^T + H_k (sum_j A_j V_c,j A_j^T) H_k^T`,
+///
+/// never forming an `N_m x N_m` matrix. `a` is `A` (`p x N_m`); `components[c][k]` is
+/// `V_c,k`.
+pub fn residual_design(
+    h: &DMatrix<f64>,
+    a: &DMatrix<f64>,
+    rows: usize,
+    components: &[Vec<DMatrix<f64>>],
+) -> Vec<Vec<DMatrix<f64>>> {
+    let points = h.nrows() / rows;
+    let mut out = vec![Vec::with_capacity(components.len()); points];
+    for blocks in components {
+        let mut middle = DMatrix::zeros(a.nrows(), a.nrows());
+        for (j, v) in blocks.iter().enumerate() {
+            let a_j = a.columns(j * rows, rows);
+            middle += a_j * v * a_j.transpose();
+        }
+        for (k, v) in blocks.iter().enumerate() {
+            let h_k = h.rows(k * rows, rows);
+            let p_kk = h_k * a.columns(k * rows, rows);
+            let pv = &p_kk * v;
+            let d = v - &pv - pv.transpose() + h_k * &middle * h_k.transpose();
+            out[k].push((&d + d.transpose()) / 2.0);
+        }
+    }
+    out
+}
+
+/// Fit the components `theta` to `samples`, `E[S_k] = sum_c theta_c D_c,k`; `constrained[c]`
+/// says whether component `c` is a variance, kept `>= 0`. Normal-theory generalised least
+/// squares of covariance structures (Browne 1974):
+///
+/// `min_theta sum_k nu_k / 2 |L_k^-1 (S_k - sum_c theta_c D_c,k) L_k^-T|_F^2`,
+///
+/// `L_k L_k^T = Sigma_k = sum_c theta_c D_c,k` at the previous estimate (the first pass
+/// unweighted, then iterated to convergence), each pass a non-negative least squares
+/// ([`nnls`]). For a Wishart `S_k`, `Cov(S_ij, S_kl) = (Sigma_ik Sigma_jl + Sigma_il Sigma_jk) / nu`,
+/// so these weights are the inverse covariance of the observations, and `Cov(theta) = F^-1`
+/// with `F = A^T A`, `A` the weighted design (the Fisher information).
+pub fn fit_components(
+    samples: &[CovarianceSample],
+    constrained: &[bool],
+) -> Result<ComponentFit, EstimationError> {
+    let m = constrained.len();
+    let bad = |s: String| Err(EstimationError::Noise(s));
+    if samples.is_empty() {
+        return bad("no covariances to fit the variance components to".into());
+    }
+    for (k, sample) in samples.iter().enumerate() {
+        let b = sample.s.nrows();
+        if sample.design.len() != m
+            || sample.design.iter().any(|d| d.shape() != (b, b))
+            || sample.s.ncols() != b
+        {
+            return bad(format!(
+                "covariance {k}: the design does not match its {b} x {b} matrix and {m} components"
+            ));
+        }
+        if sample.dof.is_nan()
+            || sample.dof <= 0.0
+            || sample.s.iter().chain(sample.design.iter().flatten()).any(|v| !v.is_finite())
+        {
+            return bad(format!("covariance {k}: expected finite values and degrees of freedom > 0"));
+        }
+    }
+    let rows: usize = samples.iter().map(|s| s.s.len()).sum();
+    if rows < m {
+        return bad(format!("{rows} covariance entries cannot determine {m} components"));
+    }
+    let system = |theta: Option<&DVector<f64>>| -> (DMatrix<f64>, DVector<f64>) {
+        let mut a = DMatrix::zeros(rows, m);
+        let mut y = DVector::zeros(rows);
+        let mut row = 0;
+        for sample in samples {
+            let b = sample.s.nrows();
+            let w = theta.map(|t| whitener(sample, t));
+            let weigh = |x: &DMatrix<f64>| match &w {
+                Some(w) => w * x * w.transpose(),
+                None => x.clone(),
+            };
+            let f = (sample.dof / 2.0).sqrt();
+            let s = weigh(&sample.s);
+            y.rows_mut(row, b * b).copy_from_slice((s * f).as_slice());
+            for (c, d) in sample.design.iter().enumerate() {
+                a.view_mut((row, c), (b * b, 1)).copy_from_slice((weigh(d) * f).as_slice());
+            }
+            row += b * b;
+        }
+        (a, y)
+    };
+    let (a0, y0) = system(None);
+    let mut theta = nnls(&a0, &y0, constrained);
+    let mut iterations = 0;
+    for _ in 0..50 {
+        iterations += 1;
+        let (a, y) = system(Some(&theta));
+        let next = nnls(&a, &y, constrained);
+        // Converged when the change no longer moves any fitted covariance noticeably.
+        let moved = (&a0 * (&next - &theta)).amax();
+        let size = (&a0 * &next).amax().max(f64::MIN_POSITIVE);
+        theta = next;
+        if moved <= 1e-9 * size {
+            break;
+        }
+    }
+    let (a, _) = system(Some(&theta));
+    let information = a.transpose() * &a;
+    let scale = DVector::from_fn(m, |c, _| information[(c, c)].sqrt());
+    if scale.iter().any(|&s| s.is_nan() || s <= 0.0 || !s.is_finite()) {
+        return bad("a variance component has no influence on the data: it cannot be estimated".into());
+    }
+    let scaled = DMatrix::from_fn(m, m, |i, j| information[(i, j)] / (scale[i] * scale[j]));
+    let inverse = scaled
+        .cholesky()
+        .ok_or(EstimationError::Noise(
+            "the variance components cannot be told apart by these poses (singular information)".into(),
+        ))?
+        .inverse();
+    let covariance = DMatrix::from_fn(m, m, |i, j| inverse[(i, j)] / (scale[i] * scale[j]));
+    let at_bound = (0..m).map(|c| constrained[c] && theta[c] == 0.0).collect();
+    Ok(ComponentFit { values: theta, covariance, constrained: constrained.to_vec(), at_bound, iterations })
+}
+
+/// Estimated noise: `Sigma_q` (its diagonal, or every entry) and `sigma_me^2` (and
+/// `sigma_orientation^2` for poses), with their covariance; the components in the order of
+/// [`noise_design`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct NoiseEstimate {
+    /// The fitted components.
+    pub fit: ComponentFit,
+    /// Which entries of `Sigma_q` were estimated.
+    pub joints: JointComponents,
+    /// Number of joints.
+    pub dof: usize,
+    /// Whether orientations were measured (a `sigma_orientation^2` component follows `sigma_me^2`).
+    pub orientation: bool,
+}
+
+/// A standard deviation with its 95% interval (the square roots of the variance's).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct SigmaInterval {
+    /// The estimate.
+    pub sigma: f64,
+    /// Lower end of the 95% interval.
+    pub low: f64,
+    /// Upper end of the 95% interval.
+    pub high: f64,
+}
+
+impl SigmaInterval {
+    /// Whether `sigma` lies in the interval.
+    pub fn contains(&self, sigma: f64) -> bool {
+        self.low <= sigma && sigma <= self.high
+    }
+}
+
+impl NoiseEstimate {
+    /// Fit the components to `samples` whose designs come from [`noise_design`] (or
+    /// [`residual_design`] of it) with `joints`, `dof` joints and `per` rows per measured item.
+    pub fn fit(
+        samples: &[CovarianceSample],
+        joints: JointComponents,
+        dof: usize,
+        per: usize,
+    ) -> Result<Self, EstimationError> {
+        let mut constrained: Vec<bool> = joints.entries(dof).iter().map(|(i, j)| i == j).collect();
+        constrained.push(true);
+        if per == 6 {
+            constrained.push(true);
+        }
+        let fit = fit_components(samples, &constrained)?;
+        Ok(Self { fit, joints, dof, orientation: per == 6 })
+    }
+
+    /// Index of component `sigma_j^2` of joint `j`.
+    fn joint_index(&self, j: usize) -> usize {
+        self.joints.entries(self.dof).iter().position(|&(a, b)| a == j && b == j).expect("every joint")
+    }
+
+    fn sigma(&self, c: usize) -> SigmaInterval {
+        let (low, high) = self.fit.interval(c, Z_95);
+        SigmaInterval { sigma: self.fit.values[c].max(0.0).sqrt(), low: low.sqrt(), high: high.sqrt() }
+    }
+
+    /// `sigma_j` of joint `j` (rad, mm) with its 95% interval.
+    pub fn joint_sigma(&self, j: usize) -> SigmaInterval {
+        self.sigma(self.joint_index(j))
+    }
+
+    /// `sigma_me` (mm) with its 95% interval.
+    pub fn sigma_me(&self) -> SigmaInterval {
+        self.sigma(self.joints.entries(self.dof).len())
+    }
+
+    /// `sigma_orientation` (rad) with its 95% interval, when orientations were measured.
+    pub fn sigma_orientation(&self) -> Option<SigmaInterval> {
+        self.orientation.then(|| self.sigma(self.joints.entries(self.dof).len() + 1))
+    }
+
+    /// `Sigma_q` from the components, made positive semi-definite (negative eigenvalues of a
+    /// full estimate set to zero).
+    pub fn joint_covariance(&self) -> DMatrix<f64> {
+        let mut m = DMatrix::zeros(self.dof, self.dof);
+        for (c, (i, j)) in self.joints.entries(self.dof).into_iter().enumerate() {
+            m[(i, j)] = self.fit.values[c];
+            m[(j, i)] = self.fit.values[c];
+        }
+        if self.joints == JointComponents::Full {
+            let eigen = m.clone().symmetric_eigen();
+            let clipped = eigen.eigenvalues.map(|v| v.max(0.0));
+            m = &eigen.eigenvectors * DMatrix::from_diagonal(&clipped) * eigen.eigenvectors.transpose();
+            m = (&m + m.transpose()) / 2.0;
+        }
+        m
+    }
+
+    /// The measurement sigmas to weight with: `sigma_me` and `sigma_orientation`, each
+    /// replaced, where its variance ended at the bound 0, by the square root of the variance's
+    /// standard error. Zero measurement noise would claim that the markers are exact in every
+    /// direction the joint noise cannot move them (with two markers on the last link, the turn
+    /// about the line through them), and `V_k` would be singular; one standard error above
+    /// zero is what the data cannot rule out.
+    pub fn weighting_sigmas(&self) -> (f64, f64) {
+        let m = self.joints.entries(self.dof).len();
+        let usable = |c: usize| {
+            let v = self.fit.values[c];
+            if v > 0.0 { v.sqrt() } else { self.fit.standard_error(c).sqrt() }
+        };
+        (usable(m), if self.orientation { usable(m + 1) } else { 0.0 })
+    }
+
+    /// The estimate as a noise file: `Sigma_q`, and `sigma_me` isotropic (as
+    /// [`NoiseEstimate::weighting_sigmas`]).
+    pub fn spec(&self) -> super::NoiseSpec {
+        let (me, orientation) = self.weighting_sigmas();
+        super::NoiseSpec {
+            joint: self.joint_covariance(),
+            full: self.joints == JointComponents::Full,
+            sigma_me: Some(me),
+            sigma_orientation: orientation,
+            device: None,
+        }
+    }
+
+    /// The estimate as a noise model for weighting: `Sigma_q`, and `sigma_me` (and
+    /// `sigma_orientation`) on every axis, as [`NoiseEstimate::weighting_sigmas`].
+    pub fn noise_model(&self) -> super::NoiseModel {
+        let (me, orientation) = self.weighting_sigmas();
+        super::NoiseModel {
+            joint: self.joint_covariance(),
+            measurement: super::MeasurementNoise::isotropic(me, orientation),
+        }
+    }
+}
+
+/// `L^-1` of `Sigma = sum_c theta_c D_c` (with a small ridge, so that a component at zero
+/// cannot make it singular).
+fn whitener(sample: &CovarianceSample, theta: &DVector<f64>) -> DMatrix<f64> {
+    let b = sample.s.nrows();
+    let mut sigma = DMatrix::zeros(b, b);
+    for (d, t) in sample.design.iter().zip(theta.iter()) {
+        sigma += d * *t;
+    }
+    let trace = (sigma.trace() / b as f64).max(sample.s.trace() / b as f64).max(f64::MIN_POSITIVE);
+    for ridge in [1e-10, 1e-6, 1e-3, 1.0] {
+        let mut regular = sigma.clone();
+        for i in 0..b {
+            regular[(i, i)] += ridge * trace;
+        }
+        if let Some(l) = regular.cholesky().and_then(|c| c.l().try_inverse()) {
+            return l;
+        }
+    }
+    DMatrix::identity(b, b) / trace.sqrt()
+}
+
+/// Non-negative least squares with free variables: `min |b - A x|` subject to `x_c >= 0` where
+/// `constrained[c]`, by the active-set method of Lawson and Hanson (1974, ch. 23), the free
+/// variables always in the passive set. Columns are scaled to unit norm first, which leaves
+/// the constraints unchanged.
+pub fn nnls(a: &DMatrix<f64>, b: &DVector<f64>, constrained: &[bool]) -> DVector<f64> {
+    let n = a.ncols();
+    let norms: Vec<f64> = a.column_iter().map(|c| c.norm()).collect();
+    let scale: Vec<f64> = norms.iter().map(|&s| if s > 0.0 { 1.0 / s } else { 0.0 }).collect();
+    let a = DMatrix::from_fn(a.nrows(), n, |i, j| a[(i, j)] * scale[j]);
+    let tolerance = 1e-12 * (n as f64) * b.norm().max(f64::MIN_POSITIVE);
+    let solve_on = |passive: &[bool]| -> DVector<f64> {
+        let columns: Vec<usize> = (0..n).filter(|&j| passive[j]).collect();
+        let mut z = DVector::zeros(n);
+        if columns.is_empty() {
+            return z;
+        }
+        let sub = a.select_columns(&columns);
+        let svd = sub.svd(true, true);
+        let eps = 1e-12 * svd.singular_values.max();
+        if let Ok(solution) = svd.solve(b, eps) {
+            for (k, &j) in columns.iter().enumerate() {
+                z[j] = solution[k];
+            }
+        }
+        z
+    };
+    let mut passive: Vec<bool> = (0..n).map(|j| !constrained[j] && scale[j] > 0.0).collect();
+    let mut x = solve_on(&passive);
+    for _ in 0..3 * n + 3 {
+        let w = a.transpose() * (b - &a * &x);
+        let candidate = (0..n)
+            .filter(|&j| constrained[j] && !passive[j] && scale[j] > 0.0 && w[j] > tolerance)
+            .max_by(|&i, &j| w[i].total_cmp(&w[j]));
+        let Some(j) = candidate else { break };
+        passive[j] = true;
+        loop {
+            let z = solve_on(&passive);
+            let infeasible: Vec<usize> =
+                (0..n).filter(|&i| passive[i] && constrained[i] && z[i] <= 0.0).collect();
+            if infeasible.is_empty() {
+                x = z;
+                break;
+            }
+            let alpha = infeasible
+                .iter()
+                .map(|&i| x[i] / (x[i] - z[i]))
+                .filter(|a| a.is_finite())
+                .fold(1.0, f64::min)
+                .clamp(0.0, 1.0);
+            x += (z - &x) * alpha;
+            for i in 0..n {
+                if passive[i] && constrained[i] && x[i] <= 1e-15 {
+                    passive[i] = false;
+                    x[i] = 0.0;
+                }
+            }
+        }
+    }
+    DVector::from_fn(n, |j, _| if constrained[j] { x[j].max(0.0) * scale[j] } else { x[j] * scale[j] })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nnls_matches_the_bound_solution() {
+        // min |b - A x|, x >= 0: the unconstrained solution has x2 < 0, so x2 = 0 and x1 = its
+        // one-variable fit.
+        let a = DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 0.0, 1.0, 1.0, 1.0]);
+        let b = DVector::from_vec(vec![2.0, -1.0, 1.0]);
+        let x = nnls(&a, &b, &[true, true]);
+        assert!((x[0] - 1.5).abs() < 1e-12 && x[1] == 0.0, "{x}");
+        let free = nnls(&a, &b, &[true, false]);
+        let unconstrained = a.clone().svd(true, true).solve(&b, 1e-14).unwrap();
+        assert!((free - unconstrained).norm() < 1e-12);
+    }
+
+    #[test]
+    fn an_exact_covariance_gives_its_components() {
+        let j = DMatrix::from_row_slice(3, 2, &[1.0, 2.0, 0.5, -1.0, 0.0, 3.0]);
+        let j2 = DMatrix::from_row_slice(3, 2, &[0.0, 1.0, 2.0, 0.0, 1.0, 1.0]);
+        let theta = [0.3, 0.05, 0.01];
+        let samples: Vec<CovarianceSample> = [j, j2]
+            .iter()
+            .map(|j| {
+                let design = noise_design(j, JointComponents::Diagonal, 3);
+                let s = design.iter().zip(theta).fold(DMatrix::zeros(3, 3), |s, (d, t)| s + d * t);
+                CovarianceSample { s, dof: 10.0, design }
+            })
+            .collect();
+        let fit = fit_components(&samples, &[true; 3]).unwrap();
+        for (c, t) in theta.iter().enumerate() {
+            assert!((fit.values[c] - t).abs() < 1e-9, "{}", fit.values);
+        }
+    }
+}
