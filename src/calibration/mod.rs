@@ -14,6 +14,7 @@
 
 mod data;
 
+pub(crate) use data::declared_units;
 pub use data::{DataError, Measurements, Units};
 
 use crate::estimation::{

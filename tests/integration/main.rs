@@ -5,5 +5,6 @@ mod cli;
 mod estimation;
 mod kinematics;
 mod model_files;
+mod planning;
 mod simulation;
 mod urdf;
