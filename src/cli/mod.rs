@@ -546,7 +546,10 @@ fn simulate(study: &Study, out: &Path, threads: Option<usize>) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build()?;
     let results = pool.install(|| simulation::run(study, &|| bar.inc(1)))?;
     bar.finish_and_clear();
-    let tables = report::study::tables(study, &results);
+    let mut tables = report::study::tables(study, &results);
+    if let Some(comparison) = report::study::planned_against_random(study, &results) {
+        tables += &format!("\n{comparison}");
+    }
     println!("{tables}");
     let mut files = vec![
         ("tables.txt".to_string(), tables),
