@@ -5,6 +5,7 @@ mod cli;
 mod estimation;
 mod kinematics;
 mod model_files;
+mod observability;
 mod planning;
 mod simulation;
 mod urdf;
