@@ -31,8 +31,8 @@
 //! the covariance of the weighted estimate of the scaled parameters. Its singular values are
 //! per mm of noise: a set whose `V_k` are smaller scores higher.
 //!
-//! The indices are in [`observability`]; the planner, a Fedorov exchange over a pool of
-//! candidate poses, in [`Design::plan`].
+//! The indices are [`o1`] ... [`o5`], all of them at once [`Design::observability`]; the
+//! planner, a Fedorov exchange over a pool of candidate poses, is [`Design::plan`].
 
 mod observability;
 mod plan;
@@ -57,7 +57,7 @@ use std::str::FromStr;
 /// Configurations in the reference set that fixes the identifiable columns and their scaling.
 pub const REFERENCE_POSES: usize = 500;
 /// Seed of the reference set (ChaCha8, stream 0).
-pub const REFERENCE_SEED: u64 = 0x0b5e_57ab_1e;
+pub const REFERENCE_SEED: u64 = 0x000b_5e57_ab1e;
 
 /// What a planned pose set maximises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

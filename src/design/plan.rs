@@ -1,30 +1,5 @@
-//! The planner: `N` poses chosen from a pool of candidates, within the joint limits and the
-//! user's constraints, to maximise a [`Criterion`] of the whitened (or, without a noise
-//! model, the column-scaled) identification Jacobian.
-//!
-//! **D-optimality (and O1) by Fedorov's exchange**, in the modified form of Cook and
-//! Nachtsheim (1980): the information matrix of the set is `M = sum_k A_k^T A_k`, with `A_k`
-//! the whitened `b x r` rows of pose `k` (`b` = 3 or 6), precomputed once for every candidate.
-//! In turn, each pose `i` of the set is exchanged for the candidate `j` outside it that
-//! multiplies `det M` most, if any does; passes repeat until one changes nothing. The ratio
-//! comes from the matrix determinant lemma for the rank-`2b` update
-//! `M' = M + A_j^T A_j - A_i^T A_i`:
-//!
-//! `det M' / det M = det(I + G_jj) det(I - G_ii + G_ij (I + G_jj)^-1 G_ji)`,
-//! `G_uv = A_u M^-1 A_v^T` (`b x b`),
-//!
-//! so a trial costs a few `b x b` products: `A M^-1` (one product of the tall candidate matrix
-//! by `M^-1`) is recomputed after each exchange, `G_ji` for all `j` is one product per `i`.
-//! `M` gets a ridge of `1e-10 trace(M) / r` so that a singular starting set can be improved.
-//!
-//! **O2-O5** have no such update. After the D-optimal exchange, each pose of the set is tried
-//! against the [`SHORTLIST`] candidates with the largest D-ratio for it, the criterion of each
-//! trial set computed from the eigenvalues of its `M'` (`sigma_i = sqrt(lambda_i)`), and
-//! exchanged for the best if it improves the criterion; passes repeat as above.
-//!
-//! The starting set is the first `N` usable candidates of the pool (for a seeded pool, a
-//! uniform random set); ties go to the lowest candidate. Everything is sequential and
-//! deterministic: the same pool gives the same poses on any machine thread count.
+//! The planner: candidate pools within the joint limits and constraints, and the exchange
+//! algorithm of [`Design::plan`].
 
 use super::{Criterion, Design, DesignError, Indices};
 use crate::estimation::EstimationError;
@@ -203,8 +178,36 @@ impl Design {
         Ok(())
     }
 
-    /// Choose `points` poses from `pool` that maximise `criterion`; see the [module
-    /// documentation](self). Candidates whose `V_k` has no Cholesky factor are skipped.
+    /// Choose `points` poses from `pool` that maximise `criterion`. Candidates whose `V_k` has
+    /// no Cholesky factor are skipped.
+    ///
+    /// The planner: `N` poses chosen from a pool of candidates, within the joint limits and the
+    /// user's constraints, to maximise a [`Criterion`] of the whitened (or, without a noise
+    /// model, the column-scaled) identification Jacobian.
+    ///
+    /// **D-optimality (and O1) by Fedorov's exchange**, in the modified form of Cook and
+    /// Nachtsheim (1980): the information matrix of the set is `M = sum_k A_k^T A_k`, with `A_k`
+    /// the whitened `b x r` rows of pose `k` (`b` = 3 or 6), precomputed once for every candidate.
+    /// In turn, each pose `i` of the set is exchanged for the candidate `j` outside it that
+    /// multiplies `det M` most, if any does; passes repeat until one changes nothing. The ratio
+    /// comes from the matrix determinant lemma for the rank-`2b` update
+    /// `M' = M + A_j^T A_j - A_i^T A_i`:
+    ///
+    /// `det M' / det M = det(I + G_jj) det(I - G_ii + G_ij (I + G_jj)^-1 G_ji)`,
+    /// `G_uv = A_u M^-1 A_v^T` (`b x b`),
+    ///
+    /// so a trial costs a few `b x b` products: `A M^-1` (one product of the tall candidate matrix
+    /// by `M^-1`) is recomputed after each exchange, `G_ji` for all `j` is one product per `i`.
+    /// `M` gets a ridge of `1e-10 trace(M) / r` so that a singular starting set can be improved.
+    ///
+    /// **O2-O5** have no such update. After the D-optimal exchange, each pose of the set is tried
+    /// against the [`SHORTLIST`] candidates with the largest D-ratio for it, the criterion of each
+    /// trial set computed from the eigenvalues of its `M'` (`sigma_i = sqrt(lambda_i)`), and
+    /// exchanged for the best if it improves the criterion; passes repeat as above.
+    ///
+    /// The starting set is the first `N` usable candidates of the pool (for a seeded pool, a
+    /// uniform random set); ties go to the lowest candidate. Everything is sequential and
+    /// deterministic: the same pool gives the same poses on any number of threads.
     pub fn plan(&self, pool: &[Vec<f64>], points: usize, criterion: Criterion) -> Result<Plan, DesignError> {
         self.check_points(points)?;
         self.check(pool)?;

@@ -3,6 +3,9 @@
 use crate::design::{Design, Indices, Observability, Plan};
 use std::fmt::Write;
 
+/// A row of the indices table: its label and how to read it.
+type Row = (&'static str, fn(&Indices) -> f64);
+
 /// The indices of `observability` (of the poses in `source`), column-scaled and whitened side
 /// by side, each with its formula.
 pub fn observability(design: &Design, observability: &Observability, source: &str) -> String {
@@ -25,7 +28,7 @@ pub fn observability(design: &Design, observability: &Observability, source: &st
     );
     let whitened = observability.whitened.as_ref();
     let _ = writeln!(out, "{:<44} {:>14} {:>14}", "index", "column-scaled", "whitened");
-    let rows: [(&str, fn(&Indices) -> f64); 7] = [
+    let rows: [Row; 7] = [
         ("O1 (s_1 ... s_r)^(1/r) / sqrt(m)  Borm-Menq", |i| i.o1),
         ("O2 s_r / s_1          Driels-Pathre", |i| i.o2),
         ("O3 s_r                Nahvi et al.", |i| i.o3),

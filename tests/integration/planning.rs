@@ -129,10 +129,8 @@ fn plan_writes_poses_that_observability_reads() {
     assert_eq!(poses.len(), 12);
     assert!(poses.iter().all(|q| q[2].to_degrees().abs() > 20.0));
     // The D value in the summary is the whitened log det that `observability` prints.
-    let value = |text: &str, key: &str| -> String {
-        let line = text.lines().find(|l| l.contains(key)).unwrap().to_string();
-        line
-    };
+    let value =
+        |text: &str, key: &str| -> String { text.lines().find(|l| l.contains(key)).unwrap().to_string() };
     let planned = value(&summary, "criterion d on the whitened H");
     let planned: f64 = planned.split(": ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
     let output = robocal()
