@@ -6,11 +6,11 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use robocal::io::load_study;
 use robocal::report;
-use robocal::simulation::{self, Case};
+use robocal::simulation::{self, Case, PoseChoice};
 
 fn simulation(c: &mut Criterion) {
     let mut one_set = load_study("paper-table1").unwrap();
-    one_set.cases = vec![Case { points: 48, sigma_me: 0.0 }];
+    one_set.cases = vec![Case { points: 48, sigma_me: 0.0, poses: PoseChoice::Random }];
     one_set.point_sets = 1;
     let single = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     let mut group = c.benchmark_group("simulation");

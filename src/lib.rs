@@ -21,6 +21,8 @@
 //!   1-8), studies as data, reproducible on any number of threads.
 //! - [`calibration`]: calibrating a real robot from measured marker positions: registration,
 //!   base and markers, identifiable joint parameters, validation.
+//! - [`design`]: choosing the measurement poses (beyond the paper): observability indices
+//!   O1-O5 of a pose set, and poses planned by an exchange algorithm to maximise one of them.
 //! - [`io`]: reading files, with errors that name the file.
 //! - [`report`]: text reports at fixed precision.
 //!
@@ -45,6 +47,7 @@
 #![warn(missing_docs)]
 
 pub mod calibration;
+pub mod design;
 pub mod estimation;
 pub mod io;
 pub mod kinematics;

@@ -271,7 +271,7 @@ impl Measurements {
 }
 
 /// The units of a `# units: joints=deg, lengths=mm` line, if the file has one.
-fn declared_units(text: &str) -> Result<Option<Units>, DataError> {
+pub(crate) fn declared_units(text: &str) -> Result<Option<Units>, DataError> {
     for (i, line) in text.lines().enumerate() {
         let Some(rest) = line.trim().strip_prefix('#') else { break };
         let Some(spec) = rest.trim().strip_prefix("units:") else { continue };

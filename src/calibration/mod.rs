@@ -15,6 +15,7 @@
 mod data;
 mod repeatability;
 
+pub(crate) use data::declared_units;
 pub use data::{DataError, Measurements, Units};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,

@@ -4,9 +4,10 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use robocal::calibration::{self, FeasibleOptions, JointParams, Options, RepeatabilityOptions, Units};
+use robocal::design::{Constraints, Criterion, Design, ExcludedRange};
 use robocal::estimation::{Estimator, JointComponents, MeasurementNoise, NoiseModel, RefineOptions};
-use robocal::kinematics::Chain;
-use robocal::model::{JointKind, PRESETS, RobotModel};
+use robocal::kinematics::{Chain, Measured};
+use robocal::model::{JointKind, PRESETS, RobotModel, Selection};
 use robocal::report::calibration::CalibrationReport;
 use robocal::simulation::{self, Study};
 use robocal::{io, report};
@@ -64,6 +65,10 @@ enum Command {
     },
     /// Calibrate a robot from measured marker positions.
     Calibrate(Box<CalibrateArgs>),
+    /// Observability indices O1-O5 of a pose file (or a measurement file's joint columns).
+    Observability(Box<ObservabilityArgs>),
+    /// Plan measurement poses that maximise an observability criterion; writes a pose file.
+    Plan(Box<PlanArgs>),
     /// Inspect robot models.
     Model {
         #[command(subcommand)]
@@ -191,6 +196,74 @@ struct CalibrateArgs {
     out_urdf: Option<PathBuf>,
 }
 
+/// The robot, parameters, measurements and noise of `observability` and `plan`.
+#[derive(clap::Args, Debug)]
+struct DesignArgs {
+    /// The nominal robot: a preset name or a model TOML file.
+    #[arg(long)]
+    model: String,
+    /// Parameters to identify: `joints` (the paper's set), `all`, `offsets`, or names and
+    /// patterns (`j*.theta,j2.a`).
+    #[arg(long, default_value = "joints", value_delimiter = ',')]
+    params: Vec<String>,
+    /// What is measured at each pose.
+    #[arg(long, default_value = "position", value_parser = ["position", "pose"])]
+    measured: String,
+    /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints): gives
+    /// the whitened indices, which the planner then maximises.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    joint_sigma_deg: Option<Vec<f64>>,
+    /// Measurement noise standard deviation (mm).
+    #[arg(long, default_value_t = 0.0)]
+    sigma_mm: f64,
+    /// Orientation measurement noise (deg), for pose measurements.
+    #[arg(long, default_value_t = 0.0)]
+    sigma_orientation_deg: f64,
+}
+
+/// The flags of `robocal observability`.
+#[derive(clap::Args, Debug)]
+struct ObservabilityArgs {
+    /// The pose file (CSV with the model's joint columns and a `# units:` line).
+    poses: PathBuf,
+    #[command(flatten)]
+    design: DesignArgs,
+    /// Unit of revolute joint values in the file, if it does not declare it.
+    #[arg(long, value_parser = ["deg", "rad"])]
+    joint_unit: Option<String>,
+}
+
+/// The flags of `robocal plan`.
+#[derive(clap::Args, Debug)]
+struct PlanArgs {
+    #[command(flatten)]
+    design: DesignArgs,
+    /// Number of poses to plan.
+    #[arg(long)]
+    points: usize,
+    /// Candidate poses drawn uniformly within the joint limits (and the constraints).
+    #[arg(long, default_value_t = 5000)]
+    candidates: usize,
+    /// What to maximise: `d` (D-optimal), `o1` ... `o5`.
+    #[arg(long, default_value = "d")]
+    criterion: Criterion,
+    /// Seed of the candidate pool: the same seed gives the same poses.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// A box the tool point must stay in: "xmin,ymin,zmin,xmax,ymax,zmax" in mm, in the
+    /// robot's base (measuring) frame.
+    #[arg(long, allow_hyphen_values = true)]
+    tool_box: Option<String>,
+    /// A joint range to avoid, "JOINT:FROM:TO" in degrees (mm for a prismatic joint);
+    /// repeatable.
+    #[arg(long, allow_hyphen_values = true)]
+    exclude: Vec<String>,
+    /// Write the poses here (CSV) and the summary to standard output; without it the poses go
+    /// to standard output and the summary to standard error.
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
 /// Run the command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
@@ -206,6 +279,21 @@ pub fn run(cli: Cli) -> Result<()> {
             print!("{}", report::tool_pose(&model, &q, &pose));
         }
         Command::Calibrate(args) => calibrate(&args)?,
+        Command::Observability(args) => {
+            let design = design(&args.design)?;
+            let units = args
+                .joint_unit
+                .as_deref()
+                .map(|u| Units { joints_in_degrees: u == "deg", lengths_in_metres: false });
+            let poses = io::load_poses(&args.poses, design.model(), units)?;
+            let observability =
+                design.observability(&poses).with_context(|| format!("{}", args.poses.display()))?;
+            print!(
+                "{}",
+                report::design::observability(&design, &observability, &args.poses.display().to_string())
+            );
+        }
+        Command::Plan(args) => plan(&args)?,
         Command::Model { command: ModelCommand::Show { model } } => {
             print!("{}", io::load_model(&model)?.to_toml_string());
         }
@@ -487,6 +575,122 @@ fn calibrate(args: &CalibrateArgs) -> Result<()> {
     Ok(())
 }
 
+/// The design of `robocal observability` and `robocal plan` from their flags.
+fn design(args: &DesignArgs) -> Result<Design> {
+    let model = io::load_model(&args.model)?;
+    let params = model.params();
+    let selection = match args.params.iter().map(String::as_str).collect::<Vec<_>>()[..] {
+        ["joints"] => Selection::joints(&params),
+        ["all"] => Selection::all(&params),
+        ["offsets"] => Selection::offsets(&params),
+        _ => Selection::by_names(&params, &args.params).context("--params")?,
+    };
+    let measured = if args.measured == "pose" { Measured::Pose } else { Measured::Position };
+    let noise = match &args.joint_sigma_deg {
+        None if args.sigma_mm > 0.0 => {
+            bail!("--sigma-mm needs --joint-sigma-deg too (zeros if the joints are exact)")
+        }
+        None => None,
+        Some(sigmas) => {
+            if sigmas.len() != model.dof() {
+                bail!(
+                    "--joint-sigma-deg: {} values for the {} joints of {}",
+                    sigmas.len(),
+                    model.dof(),
+                    model.name
+                );
+            }
+            if sigmas
+                .iter()
+                .chain([&args.sigma_mm, &args.sigma_orientation_deg])
+                .any(|s| !s.is_finite() || *s < 0.0)
+            {
+                bail!(
+                    "--joint-sigma-deg, --sigma-mm and --sigma-orientation-deg: expected finite values >= 0"
+                );
+            }
+            let joint: Vec<f64> = model
+                .joints
+                .iter()
+                .zip(sigmas)
+                .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
+                .collect();
+            let orientation = args.sigma_orientation_deg.to_radians();
+            Some(NoiseModel::diagonal(&joint, MeasurementNoise::isotropic(args.sigma_mm, orientation)))
+        }
+    };
+    Ok(Design::new(&model, selection, measured, noise)?)
+}
+
+/// `robocal plan`: the constraints from the flags, the plan, the pose file.
+fn plan(args: &PlanArgs) -> Result<()> {
+    let design = design(&args.design)?;
+    let model = design.model();
+    let mut constraints = Constraints::default();
+    if let Some(text) = &args.tool_box {
+        let v: Vec<f64> =
+            text.split(',').map(|s| s.trim().parse()).collect::<Result<_, _>>().with_context(|| {
+                format!("--tool-box `{text}`: expected xmin,ymin,zmin,xmax,ymax,zmax in mm")
+            })?;
+        if v.len() != 6 || v.iter().any(|c| !c.is_finite()) {
+            bail!("--tool-box `{text}`: expected six finite numbers xmin,ymin,zmin,xmax,ymax,zmax in mm");
+        }
+        let (low, high) =
+            (nalgebra::Vector3::new(v[0], v[1], v[2]), nalgebra::Vector3::new(v[3], v[4], v[5]));
+        if (0..3).any(|i| low[i] > high[i]) {
+            bail!("--tool-box `{text}`: each minimum must not exceed its maximum");
+        }
+        constraints.tool_box = Some([low, high]);
+    }
+    for text in &args.exclude {
+        let parts: Vec<&str> = text.split(':').map(str::trim).collect();
+        let [name, from, to] = parts[..] else {
+            bail!("--exclude `{text}`: expected JOINT:FROM:TO, e.g. j2:-30:10 (degrees)");
+        };
+        let Some(joint) = model.joints.iter().position(|j| j.name == name) else {
+            let names: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
+            bail!("--exclude `{text}`: no joint `{name}`; the model's joints are {}", names.join(", "));
+        };
+        let value = |s: &str| -> Result<f64> {
+            let v: f64 = s.parse().with_context(|| format!("--exclude `{text}`: `{s}` is not a number"))?;
+            if !v.is_finite() {
+                bail!("--exclude `{text}`: `{s}` is not a finite number");
+            }
+            Ok(if model.joints[joint].kind == JointKind::Revolute { v.to_radians() } else { v })
+        };
+        let range = [value(from)?, value(to)?];
+        if range[0] > range[1] {
+            bail!("--exclude `{text}`: FROM must not exceed TO");
+        }
+        constraints.excluded.push(ExcludedRange { joint, range });
+    }
+    let (plan, pool) =
+        design.plan_seeded(args.points, args.candidates, &constraints, args.criterion, args.seed)?;
+    let summary = report::design::plan_summary(&design, &plan, pool.joints.len(), pool.draws);
+    let comment = format!(
+        "robocal plan --model {} --points {} --candidates {} --criterion {} --seed {}\n{}",
+        args.design.model,
+        args.points,
+        args.candidates,
+        args.criterion,
+        args.seed,
+        summary.trim_end()
+    );
+    let csv = robocal::design::poses_csv(model, &plan.joints, &comment);
+    match &args.out {
+        Some(path) => {
+            std::fs::write(path, csv).with_context(|| format!("{}: cannot write", path.display()))?;
+            print!("{summary}");
+            println!("wrote {} poses to {}", plan.joints.len(), path.display());
+        }
+        None => {
+            eprint!("{summary}");
+            print!("{csv}");
+        }
+    }
+    Ok(())
+}
+
 /// Run `study` with a progress bar, print its tables, and write them with the CSV samples and
 /// the figures into `out/<study name>/`.
 fn simulate(study: &Study, out: &Path, threads: Option<usize>) -> Result<()> {
@@ -496,7 +700,10 @@ fn simulate(study: &Study, out: &Path, threads: Option<usize>) -> Result<()> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build()?;
     let results = pool.install(|| simulation::run(study, &|| bar.inc(1)))?;
     bar.finish_and_clear();
-    let tables = report::study::tables(study, &results);
+    let mut tables = report::study::tables(study, &results);
+    if let Some(comparison) = report::study::planned_against_random(study, &results) {
+        tables += &format!("\n{comparison}");
+    }
     println!("{tables}");
     let mut files = vec![
         ("tables.txt".to_string(), tables),

@@ -150,3 +150,16 @@ pub fn load_model(name_or_path: &str) -> Result<RobotModel, InputError> {
         std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })?;
     RobotModel::from_toml_str(&text).map_err(|source| InputError::Model { path: path.into(), source })
 }
+
+/// The joint values of a pose file (or of a measurement file) for `model`; `units` given by
+/// the caller replace the file's line.
+pub fn load_poses(
+    path: &Path,
+    model: &RobotModel,
+    units: Option<Units>,
+) -> Result<Vec<Vec<f64>>, InputError> {
+    let text =
+        std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })?;
+    crate::design::poses_from_csv_str(&text, model, units)
+        .map_err(|source| InputError::Data { path: path.into(), source })
+}

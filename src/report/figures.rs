@@ -1,7 +1,7 @@
 //! Figures of a study as SVG text (plotters, without any font library: the SVG names the
 //! font and the viewer draws the text).
 
-use crate::simulation::{Study, StudyResults, Summary};
+use crate::simulation::{PoseChoice, Study, StudyResults, Summary};
 use plotters::prelude::*;
 
 /// A figure that could not be drawn.
@@ -25,8 +25,13 @@ pub fn study_figures(study: &Study, results: &StudyResults) -> Result<Vec<(Strin
     let mut figures = Vec::new();
     for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
         for (c, case) in study.cases.iter().enumerate() {
-            let name = format!("histogram-{estimator}-np{}-sigma{}.svg", case.points, case.sigma_me);
-            let title = format!("dE of {estimator}: N_p = {}, sigma_me = {} mm", case.points, case.sigma_me);
+            let (suffix, poses) = match case.poses {
+                PoseChoice::Random => (String::new(), String::new()),
+                other => (format!("-{}", other.name()), format!(", {} poses", other.name())),
+            };
+            let name = format!("histogram-{estimator}-np{}-sigma{}{suffix}.svg", case.points, case.sigma_me);
+            let title =
+                format!("dE of {estimator}: N_p = {}, sigma_me = {} mm{poses}", case.points, case.sigma_me);
             let svg = histogram(&title, &results.improvements(c, e)).map_err(|m| error(&name, m))?;
             figures.push((name, svg));
         }
@@ -38,7 +43,13 @@ pub fn study_figures(study: &Study, results: &StudyResults) -> Result<Vec<(Strin
             }
             let name = format!("improvement-vs-{axis}-{estimator}.svg");
             let mut series = Vec::new();
-            for &fixed in other.iter() {
+            let choices = study.cases.iter().fold(Vec::new(), |mut all, c| {
+                if !all.contains(&c.poses) {
+                    all.push(c.poses);
+                }
+                all
+            });
+            for (&fixed, &choice) in other.iter().flat_map(|f| choices.iter().map(move |c| (f, c))) {
                 let (mut means, mut sets) = (Vec::new(), Vec::new());
                 for (c, case) in study.cases.iter().enumerate() {
                     let (x, at) = if axis == "points" {
@@ -46,16 +57,19 @@ pub fn study_figures(study: &Study, results: &StudyResults) -> Result<Vec<(Strin
                     } else {
                         (case.sigma_me, case.points as f64)
                     };
-                    if at == fixed {
+                    if at == fixed && case.poses == choice {
                         means.push((x, Summary::of(&results.improvements(c, e)).mean));
                         sets.extend(results.set_means(c, e).into_iter().map(|m| (x, m)));
                     }
                 }
-                let label = if axis == "points" {
+                let mut label = if axis == "points" {
                     format!("sigma_me = {fixed} mm")
                 } else {
                     format!("N_p = {fixed}")
                 };
+                if choices.len() > 1 {
+                    label += &format!(", {} poses", choice.name());
+                }
                 series.push((label, means, sets));
             }
             let x_label = if axis == "points" {

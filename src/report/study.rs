@@ -1,7 +1,7 @@
 //! Reports of a simulated study: the paper's tables beside the paper's values, and every
 //! sample as CSV.
 
-use crate::simulation::{Study, StudyResults, Summary};
+use crate::simulation::{PoseChoice, Study, StudyResults, Summary};
 use std::fmt::Write;
 
 /// The study's tables in the paper's format (MEAN, SD, LOWEST, HIGHEST, % ABOVE ZERO of dE),
@@ -38,8 +38,11 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
     if let Some(device) = &study.device {
         let _ = writeln!(out, "measurement device: {}, plus each case's sigma_me", device.describe());
     }
+    let planned = study.cases.iter().any(|c| c.poses != PoseChoice::Random);
+    let poses = |text: &str| if planned { format!("{text:>8} ") } else { String::new() };
     for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
         let _ = writeln!(out, "\ndE (%) = 100 (E_p[{baseline}] - E_p[{estimator}]) / E_p[{baseline}]");
+        out += &poses("poses");
         let _ = writeln!(
             out,
             "{:>5} {:>9} {:>10} {:>10} | {:>6} {:>7} {:>6} {:>7} {:>7} {:>6} | {:>6} {:>6} {:>7} {:>7} {:>6}",
@@ -59,9 +62,11 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
             "HIGHEST",
             "% > 0"
         );
+        out += &poses("");
         let _ = writeln!(out, "{:>5} {:>9} {:>10} {:>10} |", "", "mm", "mm", "mm");
         for (c, case) in study.cases.iter().enumerate() {
             let s = Summary::of(&results.improvements(c, e));
+            out += &poses(case.poses.name());
             let _ = write!(
                 out,
                 "{:>5} {:>9.3} {:>10.5} {:>10.5} | {:>6.2} {:>7} {:>6.2} {:>7.1} {:>7.1} {:>6.1} |",
@@ -91,11 +96,80 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
     out
 }
 
+/// Planned against random poses, for every case with both: for each estimator the mean `E_p`
+/// of each and the reduction `100 (E_p[random] - E_p[planned]) / E_p[random]` run by run (the
+/// two cases share their real robots and noise draws), with its 95% confidence interval and
+/// the share of runs the planned poses won. `None` if the study has no such pair.
+pub fn planned_against_random(study: &Study, results: &StudyResults) -> Option<String> {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "Planned against random poses: E_p reduction (%) = 100 (E_p[random] - E_p[planned]) / E_p[random],\n\
+         run by run (same real robots and noise draws)"
+    );
+    let _ = writeln!(
+        out,
+        "{:>5} {:>9} {:>9} {:>10} {:>10} | {:>6} {:>7} {:>6} {:>7} {:>7} {:>6}",
+        "N_p",
+        "sigma_me",
+        "estimator",
+        "E_p random",
+        "planned",
+        "MEAN",
+        "95% CI",
+        "SD",
+        "LOWEST",
+        "HIGHEST",
+        "% > 0"
+    );
+    let _ = writeln!(out, "{:>5} {:>9} {:>9} {:>10} {:>10} |", "", "mm", "", "mm", "mm");
+    let mut pairs = 0;
+    for (p, case) in study.cases.iter().enumerate().filter(|(_, c)| c.poses != PoseChoice::Random) {
+        let Some(r) = study.cases.iter().position(|c| {
+            c.poses == PoseChoice::Random && c.points == case.points && c.sigma_me == case.sigma_me
+        }) else {
+            continue;
+        };
+        pairs += 1;
+        let runs = |c: usize| results.runs.iter().filter(move |run| run.case == c);
+        for (e, estimator) in study.estimators.iter().enumerate() {
+            let reductions: Vec<f64> = runs(r)
+                .zip(runs(p))
+                .map(|(random, planned)| {
+                    debug_assert_eq!((random.set, random.run), (planned.set, planned.run));
+                    crate::simulation::improvement(random.accuracy[e].mean, planned.accuracy[e].mean)
+                })
+                .collect();
+            let s = Summary::of(&reductions);
+            let _ = writeln!(
+                out,
+                "{:>5} {:>9.3} {:>9} {:>10.5} {:>10.5} | {:>6.2} {:>7} {:>6.2} {:>7.1} {:>7.1} {:>6.1}",
+                case.points,
+                case.sigma_me,
+                estimator.name(),
+                results.mean_error(r, e),
+                results.mean_error(p, e),
+                s.mean,
+                format!("±{:.2}", s.ci95),
+                s.sd,
+                s.lowest,
+                s.highest,
+                s.above_zero
+            );
+        }
+    }
+    (pairs > 0).then_some(out)
+}
+
 /// Every run as a CSV row: the case, set and run; `E_p` mean, RMS and max (mm) and `E_r`
 /// (deg, empty for position studies) of each estimator; and dE (%) of each compared one.
 pub fn samples_csv(study: &Study, results: &StudyResults) -> String {
+    let planned = study.cases.iter().any(|c| c.poses != PoseChoice::Random);
     let mut header =
         vec!["study".to_string(), "n_points".into(), "sigma_me_mm".into(), "set".into(), "run".into()];
+    if planned {
+        header.insert(3, "poses".into());
+    }
     for e in &study.estimators {
         for column in ["e_p_mean_mm", "e_p_rms_mm", "e_p_max_mm", "e_r_mean_deg"] {
             header.push(format!("{e}_{column}"));
@@ -114,6 +188,9 @@ pub fn samples_csv(study: &Study, results: &StudyResults) -> String {
             run.set.to_string(),
             run.run.to_string(),
         ];
+        if planned {
+            row.insert(3, case.poses.name().to_string());
+        }
         for a in &run.accuracy {
             let orientation =
                 if a.orientation.is_nan() { String::new() } else { a.orientation.to_degrees().to_string() };

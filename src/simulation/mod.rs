@@ -1,7 +1,8 @@
 //! Monte Carlo simulation of a calibration campaign: the paper's steps 1-8.
 //!
 //! For each case (`N_p`, `sigma_me`) and point set:
-//! 1. `N_p` joint configurations uniform within the joint limits;
+//! 1. `N_p` joint configurations uniform within the joint limits (or, beyond the paper,
+//!    planned from a pool that starts with them: [`PoseChoice`]);
 //!
 //! and for each run on that set:
 //! 2. a "real" robot: the nominal parameters plus geometric errors;
@@ -16,7 +17,8 @@
 //! Random numbers: every stream is ChaCha8 seeded with the study's master seed, on a stream
 //! number made of (`N_p`, set, run); see [`stream`]. Cases that differ only in `sigma_me` so
 //! share their point sets and standard normal draws, as the paper's tables share their
-//! `N_p = 48`, `sigma_me = 0` row. Runs are spread over threads with rayon, and the results
+//! `N_p = 48`, `sigma_me = 0` row; cases that differ only in how the poses are chosen share
+//! their real robots and noise draws, so that random and planned poses compare run by run. Runs are spread over threads with rayon, and the results
 //! are the same, bit for bit, for any number of threads.
 
 mod stats;
@@ -24,9 +26,10 @@ mod study;
 mod synthetic;
 
 pub use stats::{Summary, t_quantile_975};
-pub use study::{Case, ErrorSizes, Redraw, Reference, STUDIES, Study, StudyError};
+pub use study::{Case, ErrorSizes, PoseChoice, Redraw, Reference, STUDIES, Study, StudyError};
 pub use synthetic::measurement_csv;
 
+use crate::design::{Criterion, Design, DesignError};
 use crate::estimation::{
     EstimationError, MeasurementNoise, NoiseModel, PointProblem, Prepared, RANK_TOLERANCE, RefineOptions,
     refine,
@@ -204,10 +207,13 @@ impl Bench<'_> {
     /// Step 1, and what every run on the set shares: `H`, `V` and the factored estimators.
     fn point_set(&self, case: usize, set: usize) -> Result<PointSet, EstimationError> {
         let study = self.study;
-        let Case { points, sigma_me } = study.cases[case];
+        let Case { points, sigma_me, poses } = study.cases[case];
         let mut rng = rng(study.seed, stream(points, set, None));
-        let joints = uniform_configurations(&study.robot, points, &mut rng);
+        let mut joints = uniform_configurations(&study.robot, points, &mut rng);
         let errors = (study.errors.redraw == Redraw::Set).then(|| self.draw_errors(&mut rng));
+        if let PoseChoice::Planned { criterion, candidates } = poses {
+            joints = self.planned(joints, sigma_me, criterion, candidates, &mut rng)?;
+        }
         let nominal: Vec<Isometry3<f64>> = joints.iter().map(|q| self.nominal.pose(q)).collect();
         let mut noise = NoiseModel::diagonal(
             &study.joint_sigmas,
@@ -256,6 +262,34 @@ impl Bench<'_> {
         Ok(PointSet { case, set, joints, nominal, noise, prepared, errors, rank, factors })
     }
 
+    /// Planned poses instead of step 1: the random set `joints` and further uniform
+    /// configurations from the same stream make the pool, the random set is the starting set.
+    /// The plan sees the noise model the weighted estimator uses.
+    fn planned(
+        &self,
+        joints: Vec<Vec<f64>>,
+        sigma_me: f64,
+        criterion: Criterion,
+        candidates: usize,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<Vec<Vec<f64>>, EstimationError> {
+        let study = self.study;
+        let noise = NoiseModel::diagonal(
+            &study.joint_sigmas,
+            MeasurementNoise::isotropic(sigma_me, study.sigma_orientation),
+        );
+        let failed = |e: DesignError| match e {
+            DesignError::Estimation(e) => e,
+            e => EstimationError::Dimensions(format!("planning the poses: {e}")),
+        };
+        let design = Design::new(&study.robot, study.selection.clone(), study.measured, Some(noise))
+            .map_err(failed)?;
+        let points = joints.len();
+        let mut pool = joints;
+        pool.extend(uniform_configurations(&study.robot, candidates.saturating_sub(points), rng));
+        Ok(design.plan(&pool, points, criterion).map_err(failed)?.joints)
+    }
+
     /// Step 2: the real robot's errors, for the identified parameters.
     fn draw_errors(&self, rng: &mut ChaCha8Rng) -> Vec<f64> {
         let sizes = &self.study.errors;
@@ -276,7 +310,7 @@ impl Bench<'_> {
     /// Steps 2-8 of one run.
     fn run(&self, set: &PointSet, run: usize) -> Result<Run, EstimationError> {
         let study = self.study;
-        let Case { points, sigma_me } = study.cases[set.case];
+        let Case { points, sigma_me, .. } = study.cases[set.case];
         let mut rng = rng(study.seed, stream(points, set.set, Some(run)));
         let truth = match &set.errors {
             Some(errors) => errors.clone(),

@@ -1,5 +1,6 @@
 //! The study file (TOML): a calibration campaign to simulate, as data.
 
+use crate::design::Criterion;
 use crate::estimation::{Device, DeviceTable, Estimator};
 use crate::kinematics::Measured;
 use crate::model::{JointKind, RobotModel, Selection, SelectionError};
@@ -55,6 +56,34 @@ pub struct Case {
     pub points: usize,
     /// Measurement noise `sigma_me` (mm), isotropic.
     pub sigma_me: f64,
+    /// How the points are chosen.
+    pub poses: PoseChoice,
+}
+
+/// How the measurement points of a case are chosen.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PoseChoice {
+    /// Uniform within the joint limits: the paper's step 1.
+    Random,
+    /// Planned ([`crate::design::Design::plan`]) on the whitened `H` of the study's noise
+    /// model, from the random set of the same case and set plus further uniform candidates,
+    /// `candidates` in all.
+    Planned {
+        /// What the plan maximises.
+        criterion: Criterion,
+        /// Size of the candidate pool.
+        candidates: usize,
+    },
+}
+
+impl PoseChoice {
+    /// `random` or `planned`, as in the study file.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Random => "random",
+            Self::Planned { .. } => "planned",
+        }
+    }
 }
 
 /// A published result to print beside ours: one row of the paper's tables.
@@ -138,6 +167,27 @@ struct StudyFile {
     cases: CasesFile,
     #[serde(default)]
     reference: Vec<Reference>,
+    #[serde(default)]
+    design: Option<DesignFile>,
+}
+
+/// `[design]`: the pose choices every case is run with.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DesignFile {
+    poses: Vec<String>,
+    #[serde(default = "d_optimal")]
+    criterion: String,
+    #[serde(default = "default_candidates")]
+    candidates: usize,
+}
+
+fn d_optimal() -> String {
+    "d".into()
+}
+
+fn default_candidates() -> usize {
+    2000
 }
 
 fn one() -> usize {
@@ -293,11 +343,13 @@ impl Study {
             })?),
             None => None,
         };
+        let choices = pose_choices(file.design.as_ref(), &file.cases.points)?;
         let cases = file
             .cases
             .points
             .iter()
-            .flat_map(|&points| file.cases.sigma_me_mm.iter().map(move |&sigma_me| Case { points, sigma_me }))
+            .flat_map(|&points| file.cases.sigma_me_mm.iter().map(move |&sigma_me| (points, sigma_me)))
+            .flat_map(|(points, sigma_me)| choices.iter().map(move |&poses| Case { points, sigma_me, poses }))
             .collect();
         Ok(Self {
             name: file.name,
@@ -350,13 +402,14 @@ impl Study {
         self.device = spec.device.clone();
         self.sigma_orientation = spec.sigma_orientation;
         if let Some(sigma_me) = spec.sigma_me {
-            let mut points: Vec<usize> = Vec::new();
+            let mut cases: Vec<Case> = Vec::new();
             for case in &self.cases {
-                if !points.contains(&case.points) {
-                    points.push(case.points);
+                let case = Case { sigma_me, ..*case };
+                if !cases.contains(&case) {
+                    cases.push(case);
                 }
             }
-            self.cases = points.into_iter().map(|points| Case { points, sigma_me }).collect();
+            self.cases = cases;
         }
         Ok(())
     }
@@ -367,6 +420,38 @@ impl Study {
     }
 }
 
+/// The pose choices of `[design]` (random only without it), validated.
+fn pose_choices(design: Option<&DesignFile>, points: &[usize]) -> Result<Vec<PoseChoice>, StudyError> {
+    let Some(design) = design else { return Ok(vec![PoseChoice::Random]) };
+    let invalid = |field: &str, expected: String| StudyError::Invalid { field: field.into(), expected };
+    let criterion: Criterion = design.criterion.parse().map_err(|e| invalid("design.criterion", e))?;
+    let largest = points.iter().copied().max().unwrap_or(0);
+    if design.candidates < largest || design.candidates >= 1 << 20 {
+        return Err(invalid(
+            "design.candidates",
+            format!("from the largest N_p ({largest}) to 1048575, found {}", design.candidates),
+        ));
+    }
+    let mut choices = Vec::new();
+    for name in &design.poses {
+        let choice = match name.as_str() {
+            "random" => PoseChoice::Random,
+            "planned" => PoseChoice::Planned { criterion, candidates: design.candidates },
+            other => {
+                return Err(invalid("design.poses", format!("\"random\" or \"planned\", found {other:?}")));
+            }
+        };
+        if choices.contains(&choice) {
+            return Err(invalid("design.poses", format!("{name:?} given twice")));
+        }
+        choices.push(choice);
+    }
+    if choices.is_empty() {
+        return Err(invalid("design.poses", "at least one of \"random\", \"planned\"".into()));
+    }
+    Ok(choices)
+}
+
 fn selection_error(e: SelectionError) -> StudyError {
     StudyError::Invalid { field: "parameters".into(), expected: e.to_string() }
 }
@@ -374,11 +459,13 @@ fn selection_error(e: SelectionError) -> StudyError {
 /// The studies shipped with robocal: `(name, TOML text)`. `paper-table1` and `paper-table2`
 /// are the paper's two studies; `robocal reproduce` runs both. `device-cmm`,
 /// `device-laser-tracker` and `device-theodolites` test the paper's expectation that devices
-/// whose noise varies over the workspace profit more from weighting.
+/// whose noise varies over the workspace profit more from weighting; `planned-poses` compares
+/// planned with random poses (beyond the paper).
 pub const STUDIES: &[(&str, &str)] = &[
     ("paper-table1", include_str!("../../presets/paper-table1.toml")),
     ("paper-table2", include_str!("../../presets/paper-table2.toml")),
     ("device-cmm", include_str!("../../presets/device-cmm.toml")),
     ("device-laser-tracker", include_str!("../../presets/device-laser-tracker.toml")),
     ("device-theodolites", include_str!("../../presets/device-theodolites.toml")),
+    ("planned-poses", include_str!("../../presets/planned-poses.toml")),
 ];

@@ -7,6 +7,8 @@ mod fgls;
 mod kinematics;
 mod model_files;
 mod noise;
+mod observability;
+mod planning;
 mod repeatability;
 mod simulation;
 mod urdf;
