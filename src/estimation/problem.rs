@@ -178,11 +178,14 @@ impl Residuals for PointProblem<'_> {
         let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
         let mut y = DVector::zeros(self.equations());
         let mut positions = vec![Vector3::zeros(); at.len()];
+        // A pose's rows of H are built in a small contiguous block, then copied in once.
+        let mut block = DMatrix::zeros(rows, self.selection.len());
         for (k, q) in self.joints.iter().enumerate() {
             if let (Some(h), true) = (h.as_deref_mut(), at.len() > 1) {
                 // Markers: the arm walked once for all of them.
-                let block = h.view_mut((k * rows, 0), (rows, self.selection.len()));
-                marker_jacobians(&at, q, self.selection, block, &mut positions);
+                block.fill(0.0);
+                marker_jacobians(&at, q, self.selection, block.view_mut((0, 0), block.shape()), &mut positions);
+                h.view_mut((k * rows, 0), block.shape()).copy_from(&block);
                 for (m, position) in positions.iter().enumerate() {
                     let observed = &self.observed[k * at.len() + m].translation.vector;
                     y.fixed_rows_mut::<3>(k * rows + 3 * m).copy_from(&(observed - position));
