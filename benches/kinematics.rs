@@ -1,10 +1,10 @@
 //! Kinematics of one point on the PUMA 560: forward kinematics, the manipulator Jacobian J and
 //! the identification Jacobian H for the paper's 30 parameters (position rows) and for all
-//! 39 parameters (pose rows).
+//! 39 parameters (pose rows), and two markers' H in one walk (42 parameters).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{DMatrix, Matrix6xX};
-use robocal::kinematics::{Chain, Measured};
+use robocal::kinematics::{Chain, Measured, marker_jacobians};
 use robocal::model::{RobotModel, Selection};
 use std::hint::black_box;
 
@@ -52,6 +52,22 @@ fn kinematics(c: &mut Criterion) {
                 h3.view_mut((0, 0), (3, 30)),
                 Some(&mut j),
             )
+        })
+    });
+
+    // Two markers on the last link, every parameter (6 base, 30 joint, 6 marker): one pose of
+    // the calibration benchmark.
+    let markers = [nalgebra::Vector3::new(50.0, 0.0, 150.0), nalgebra::Vector3::new(-40.0, 60.0, 120.0)];
+    let chains = Chain::markers(&model, &markers);
+    let every = Selection::all(chains[0].params());
+    let x: Vec<f64> = (0..every.len()).map(|i| 1e-3 * (i as f64).sin()).collect();
+    let ats: Vec<_> = chains.iter().map(|c| c.with_errors(&x)).collect();
+    let mut h = DMatrix::zeros(6, every.len());
+    let mut positions = [nalgebra::Vector3::zeros(); 2];
+    c.bench_function("marker jacobians 2 x 3x42, one walk", |b| {
+        b.iter(|| {
+            let view = h.view_mut((0, 0), (6, every.len()));
+            marker_jacobians(&ats, black_box(&q), &every, view, &mut positions)
         })
     });
 }

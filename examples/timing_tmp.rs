@@ -1,0 +1,40 @@
+use nalgebra::Vector3;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use robocal::calibration::{self, JointParams, Measurements, Options};
+use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
+use robocal::model::{Placement, RobotModel};
+use robocal::simulation::measurement_csv;
+fn main() {
+    let nominal = RobotModel::preset("puma560").unwrap();
+    let mut truth = nominal.clone();
+    for (i, joint) in truth.joints.iter_mut().enumerate() {
+        joint.theta += 1e-3 * (i as f64).sin();
+        joint.a += 0.3 * (i as f64).cos();
+    }
+    truth.base = Placement { xyz: Vector3::new(1500.0, -300.0, 200.0), rpy: Vector3::new(0.1, -0.05, 0.6) };
+    let markers = [Vector3::new(52.0, 1.0, 148.0), Vector3::new(-38.0, 61.0, 121.0)];
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let poses: Vec<Vec<f64>> = (0..1000)
+        .map(|_| nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())
+        .collect();
+    let sigmas: Vec<f64> =
+        [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
+    let text = measurement_csv(&truth, &markers, &poses, &sigmas, 0.01, 2);
+    let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
+    let options = Options {
+        estimator: Estimator::Wls,
+        noise: Some(NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0))),
+        joints: JointParams::All,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
+        refine: RefineOptions::default(),
+    };
+    let n: usize = std::env::var("N").map(|v| v.parse().unwrap()).unwrap_or(5);
+    for _ in 0..n {
+        let t = std::time::Instant::now();
+        calibration::calibrate(&nominal, &data, &options).unwrap();
+        eprintln!("TOTAL {:.2} ms\n", t.elapsed().as_secs_f64() * 1e3);
+    }
+}
