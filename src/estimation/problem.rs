@@ -184,7 +184,13 @@ impl Residuals for PointProblem<'_> {
             if let (Some(h), true) = (h.as_deref_mut(), at.len() > 1) {
                 // Markers: the arm walked once for all of them.
                 block.fill(0.0);
-                marker_jacobians(&at, q, self.selection, block.view_mut((0, 0), block.shape()), &mut positions);
+                marker_jacobians(
+                    &at,
+                    q,
+                    self.selection,
+                    block.view_mut((0, 0), block.shape()),
+                    &mut positions,
+                );
                 h.view_mut((k * rows, 0), block.shape()).copy_from(&block);
                 for (m, position) in positions.iter().enumerate() {
                     let observed = &self.observed[k * at.len() + m].translation.vector;
