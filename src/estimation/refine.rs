@@ -2,7 +2,7 @@
 //! (Gauss-Newton), with Levenberg-Marquardt damping when a step fails to lower the weighted
 //! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
 
-use super::solve::{LinearEstimate, RANK_TOLERANCE, factorise, factorise_full_rank};
+use super::solve::{LinearEstimate, RANK_TOLERANCE, factorise};
 use super::{EstimationError, Estimator, LinearSystem, Weights};
 use nalgebra::{DMatrix, DVector};
 
@@ -67,9 +67,9 @@ pub struct Iteration {
 /// The refined estimate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Refined {
-    /// The estimate at the last parameters, with the covariance of the last linearisation and
-    /// the diagnostics (rank, singular values) of the first; `estimate.x` holds the parameter
-    /// values (not a step).
+    /// The estimate at the last parameters, with the covariance and the diagnostics (rank,
+    /// singular values) of the last linearisation; `estimate.x` holds the parameter values
+    /// (not a step).
     pub estimate: LinearEstimate,
     /// Every step taken.
     pub history: Vec<Iteration>,
@@ -110,17 +110,8 @@ pub fn refine(
     weights.apply(&mut a);
     weights.apply(&mut b);
     let mut history = Vec::new();
-    let mut known = None;
     loop {
-        // The first step decides the rank by SVD; a full-rank, well-conditioned problem then
-        // keeps it, and later steps use the normal equations (same estimate, far cheaper).
-        let factorised = match known.as_ref().and_then(|d| factorise_full_rank(&a, d)) {
-            Some(f) => f,
-            None => factorise(&a, options.rank_tolerance)?,
-        };
-        if known.is_none() {
-            known = Some(factorised.diagnostics.clone());
-        }
+        let factorised = factorise(&a, options.rank_tolerance)?;
         let cost = b.norm_squared();
         let gauss_newton = factorised.solve(&b);
 
