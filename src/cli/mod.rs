@@ -464,31 +464,7 @@ fn calibrate(args: &CalibrateArgs) -> Result<()> {
         }
         (None, None) => None,
         (None, Some(sigmas)) => {
-            if sigmas.len() != model.dof() {
-                bail!(
-                    "--joint-sigma-deg: {} values for the {} joints of {}",
-                    sigmas.len(),
-                    model.dof(),
-                    model.name
-                );
-            }
-            if sigmas
-                .iter()
-                .chain([&args.sigma_mm, &args.sigma_orientation_deg])
-                .any(|s| !s.is_finite() || *s < 0.0)
-            {
-                bail!(
-                    "--joint-sigma-deg, --sigma-mm and --sigma-orientation-deg: expected finite values >= 0"
-                );
-            }
-            let joint: Vec<f64> = model
-                .joints
-                .iter()
-                .zip(sigmas)
-                .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
-                .collect();
-            let orientation = args.sigma_orientation_deg.to_radians();
-            Some(NoiseModel::diagonal(&joint, MeasurementNoise::isotropic(args.sigma_mm, orientation)))
+            Some(noise_from_flags(&model, sigmas, args.sigma_mm, args.sigma_orientation_deg)?)
         }
     };
     if feasible && noise.is_some() {
@@ -591,33 +567,7 @@ fn design(args: &DesignArgs) -> Result<Design> {
             bail!("--sigma-mm needs --joint-sigma-deg too (zeros if the joints are exact)")
         }
         None => None,
-        Some(sigmas) => {
-            if sigmas.len() != model.dof() {
-                bail!(
-                    "--joint-sigma-deg: {} values for the {} joints of {}",
-                    sigmas.len(),
-                    model.dof(),
-                    model.name
-                );
-            }
-            if sigmas
-                .iter()
-                .chain([&args.sigma_mm, &args.sigma_orientation_deg])
-                .any(|s| !s.is_finite() || *s < 0.0)
-            {
-                bail!(
-                    "--joint-sigma-deg, --sigma-mm and --sigma-orientation-deg: expected finite values >= 0"
-                );
-            }
-            let joint: Vec<f64> = model
-                .joints
-                .iter()
-                .zip(sigmas)
-                .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
-                .collect();
-            let orientation = args.sigma_orientation_deg.to_radians();
-            Some(NoiseModel::diagonal(&joint, MeasurementNoise::isotropic(args.sigma_mm, orientation)))
-        }
+        Some(sigmas) => Some(noise_from_flags(&model, sigmas, args.sigma_mm, args.sigma_orientation_deg)?),
     };
     Ok(Design::new(&model, selection, measured, noise)?)
 }
@@ -744,4 +694,27 @@ fn parse_joint_values(model: &RobotModel, text: &str) -> Result<Vec<f64>> {
         .zip(values)
         .map(|(joint, v)| if joint.kind == JointKind::Revolute { v.to_radians() } else { v })
         .collect())
+}
+
+/// The noise model of `--joint-sigma-deg` (deg; mm for prismatic joints), `--sigma-mm` and
+/// `--sigma-orientation-deg`, checked against the robot.
+fn noise_from_flags(
+    model: &RobotModel,
+    sigmas: &[f64],
+    sigma_mm: f64,
+    orientation_deg: f64,
+) -> Result<NoiseModel> {
+    if sigmas.len() != model.dof() {
+        bail!("--joint-sigma-deg: {} values for the {} joints of {}", sigmas.len(), model.dof(), model.name);
+    }
+    if sigmas.iter().chain([&sigma_mm, &orientation_deg]).any(|s| !s.is_finite() || *s < 0.0) {
+        bail!("--joint-sigma-deg, --sigma-mm and --sigma-orientation-deg: expected finite values >= 0");
+    }
+    let joint: Vec<f64> = model
+        .joints
+        .iter()
+        .zip(sigmas)
+        .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
+        .collect();
+    Ok(NoiseModel::diagonal(&joint, MeasurementNoise::isotropic(sigma_mm, orientation_deg.to_radians())))
 }
