@@ -72,46 +72,53 @@ pub(crate) fn tall_svd(a: &DMatrix<f64>) -> Option<TallSvd> {
 }
 
 impl TallSvd {
-    fn stack(&self, columns: usize) -> faer::dyn_stack::MemBuffer {
-        let req = faer::linalg::householder::apply_block_householder_sequence_on_the_left_in_place_scratch::<
-            f64,
-        >(self.qr.Q_basis().nrows(), self.qr.Q_coeff().nrows(), columns);
-        faer::dyn_stack::MemBuffer::new(req)
+    /// `Q x` (or `Q^T x` if `transpose`) in place, for `x` with `m` rows, by the reflectors.
+    fn apply_q(&self, x: &mut faer::Mat<f64>, transpose: bool) {
+        use faer::linalg::householder as hh;
+        let (basis, coeff) = (self.qr.Q_basis(), self.qr.Q_coeff());
+        let req = hh::apply_block_householder_sequence_on_the_left_in_place_scratch::<f64>(
+            basis.nrows(),
+            coeff.nrows(),
+            x.ncols(),
+        );
+        let mut buffer = faer::dyn_stack::MemBuffer::new(req);
+        let stack = faer::dyn_stack::MemStack::new(&mut buffer);
+        let (no, seq) = (faer::Conj::No, faer::Par::Seq);
+        if transpose {
+            hh::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
+                basis,
+                coeff,
+                no,
+                x.as_mut(),
+                seq,
+                stack,
+            );
+        } else {
+            hh::apply_block_householder_sequence_on_the_left_in_place_with_conj(
+                basis,
+                coeff,
+                no,
+                x.as_mut(),
+                seq,
+                stack,
+            );
+        }
     }
 
     /// The first `n` entries of `Q^T b`; `b` may be shorter than `m` (zero rows follow).
     pub fn qt(&self, b: &DVector<f64>) -> DVector<f64> {
-        let mut work = faer::Mat::<f64>::zeros(self.qr.Q_basis().nrows(), 1);
-        for (i, v) in b.iter().enumerate() {
-            work[(i, 0)] = *v;
-        }
-        let mut buffer = self.stack(1);
-        faer::linalg::householder::apply_block_householder_sequence_transpose_on_the_left_in_place_with_conj(
-            self.qr.Q_basis(),
-            self.qr.Q_coeff(),
-            faer::Conj::No,
-            work.as_mut(),
-            faer::Par::Seq,
-            faer::dyn_stack::MemStack::new(&mut buffer),
-        );
+        let m = self.qr.Q_basis().nrows();
+        let mut work = faer::Mat::<f64>::from_fn(m, 1, |i, _| b.get(i).copied().unwrap_or(0.0));
+        self.apply_q(&mut work, true);
         DVector::from_fn(self.qr.Q_basis().ncols(), |i, _| work[(i, 0)])
     }
 
     /// The first `rows` rows of `Q [z; 0]` for `z` with `n` rows.
     pub fn q(&self, z: &DMatrix<f64>, rows: usize) -> DMatrix<f64> {
-        let mut work = faer::Mat::<f64>::zeros(self.qr.Q_basis().nrows(), z.ncols());
-        for ((i, j), v) in z.iter().enumerate().map(|(k, v)| ((k % z.nrows(), k / z.nrows()), v)) {
-            work[(i, j)] = *v;
-        }
-        let mut buffer = self.stack(z.ncols());
-        faer::linalg::householder::apply_block_householder_sequence_on_the_left_in_place_with_conj(
-            self.qr.Q_basis(),
-            self.qr.Q_coeff(),
-            faer::Conj::No,
-            work.as_mut(),
-            faer::Par::Seq,
-            faer::dyn_stack::MemStack::new(&mut buffer),
-        );
+        let m = self.qr.Q_basis().nrows();
+        let mut work =
+            faer::Mat::<f64>::from_fn(m, z.ncols(), |i, j| if i < z.nrows() { z[(i, j)] } else { 0.0 });
+        self.apply_q(&mut work, false);
         DMatrix::from_fn(rows, z.ncols(), |i, j| work[(i, j)])
     }
 }
