@@ -104,20 +104,7 @@ impl Measurements {
                 ));
             }
         };
-        let mut reader = csv::ReaderBuilder::new()
-            .comment(Some(b'#'))
-            .trim(csv::Trim::All)
-            .flexible(true)
-            .from_reader(text.as_bytes());
-        let header: Vec<String> = reader
-            .headers()
-            .map_err(|e| error(1, None, format!("no header row: {e}")))?
-            .iter()
-            .map(str::to_string)
-            .collect();
-        let header_line =
-            text.lines().position(|l| !l.trim_start().starts_with('#') && !l.trim().is_empty()).unwrap_or(0)
-                + 1;
+        let CsvTable { mut reader, header, header_line } = csv_table(text).map_err(|e| error(1, None, e))?;
         let find = |name: &str| header.iter().position(|h| h == name);
         let joint_columns = model
             .joints
@@ -268,6 +255,33 @@ impl Measurements {
         }
         Ok(data)
     }
+}
+
+/// A CSV file opened past its header.
+pub(crate) struct CsvTable<'a> {
+    /// The rows after the header.
+    pub reader: csv::Reader<&'a [u8]>,
+    /// The header's cells.
+    pub header: Vec<String>,
+    /// The header's line number (1-based).
+    pub header_line: usize,
+}
+
+/// A CSV file with `#` comments, trimmed cells and rows of any length, opened past its header;
+/// or why there is no header.
+pub(crate) fn csv_table(text: &str) -> Result<CsvTable<'_>, String> {
+    let mut reader = csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.as_bytes());
+    let header: Vec<String> = match reader.headers() {
+        Ok(cells) => cells.iter().map(str::to_string).collect(),
+        Err(e) => return Err(format!("no header row: {e}")),
+    };
+    let header_line =
+        text.lines().position(|l| !l.trim_start().starts_with('#') && !l.trim().is_empty()).unwrap_or(0) + 1;
+    Ok(CsvTable { reader, header, header_line })
 }
 
 /// The units of a `# units: joints=deg, lengths=mm` line, if the file has one.

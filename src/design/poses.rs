@@ -8,7 +8,7 @@
 //! 10.000000,45.000000,-30.000000,0.000000,20.000000,5.000000
 //! ```
 
-use crate::calibration::{DataError, Units};
+use crate::calibration::{CsvTable, DataError, Units, csv_table};
 use crate::model::{JointKind, RobotModel};
 
 /// The poses `joints` (rad, mm) as a pose file: the units line, `comment` lines (each
@@ -66,19 +66,7 @@ pub fn poses_from_csv_str(
             ));
         }
     };
-    let mut reader = csv::ReaderBuilder::new()
-        .comment(Some(b'#'))
-        .trim(csv::Trim::All)
-        .flexible(true)
-        .from_reader(text.as_bytes());
-    let header: Vec<String> = reader
-        .headers()
-        .map_err(|e| error(1, None, format!("no header row: {e}")))?
-        .iter()
-        .map(str::to_string)
-        .collect();
-    let header_line =
-        text.lines().position(|l| !l.trim_start().starts_with('#') && !l.trim().is_empty()).unwrap_or(0) + 1;
+    let CsvTable { mut reader, header, header_line } = csv_table(text).map_err(|e| error(1, None, e))?;
     let columns = model
         .joints
         .iter()
