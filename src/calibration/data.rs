@@ -106,20 +106,7 @@ impl Measurements {
         };
         let CsvTable { mut reader, header, header_line } = csv_table(text).map_err(|e| error(1, None, e))?;
         let find = |name: &str| header.iter().position(|h| h == name);
-        let joint_columns = model
-            .joints
-            .iter()
-            .map(|j| {
-                find(&j.name).ok_or_else(|| {
-                    let expected: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
-                    error(
-                        header_line,
-                        Some(&j.name),
-                        format!("missing joint column; the model's joints are {}", expected.join(", ")),
-                    )
-                })
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+        let joint_columns = table_joint_columns(&header, header_line, model)?;
         let mut marker_columns = Vec::new();
         while let Some(x) = find(&format!("x{}", marker_columns.len() + 1)) {
             let k = marker_columns.len() + 1;
@@ -265,6 +252,29 @@ pub(crate) struct CsvTable<'a> {
     pub header: Vec<String>,
     /// The header's line number (1-based).
     pub header_line: usize,
+}
+
+/// The column of each of `model`'s joints in `header` (read from line `header_line`), named
+/// after the joint; an error names the first joint missing and lists the model's joints.
+pub(crate) fn table_joint_columns(
+    header: &[String],
+    header_line: usize,
+    model: &RobotModel,
+) -> Result<Vec<usize>, DataError> {
+    model
+        .joints
+        .iter()
+        .map(|j| {
+            header.iter().position(|h| *h == j.name).ok_or_else(|| {
+                let expected: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
+                DataError {
+                    line: header_line,
+                    column: Some(j.name.clone()),
+                    message: format!("missing joint column; the model's joints are {}", expected.join(", ")),
+                }
+            })
+        })
+        .collect()
 }
 
 /// A CSV file with `#` comments, trimmed cells and rows of any length, opened past its header;

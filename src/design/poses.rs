@@ -8,7 +8,7 @@
 //! 10.000000,45.000000,-30.000000,0.000000,20.000000,5.000000
 //! ```
 
-use crate::calibration::{CsvTable, DataError, Units, csv_table};
+use crate::calibration::{CsvTable, DataError, Units, csv_table, table_joint_columns};
 use crate::model::{JointKind, RobotModel};
 
 /// The poses `joints` (rad, mm) as a pose file: the units line, `comment` lines (each
@@ -67,20 +67,7 @@ pub fn poses_from_csv_str(
         }
     };
     let CsvTable { mut reader, header, header_line } = csv_table(text).map_err(|e| error(1, None, e))?;
-    let columns = model
-        .joints
-        .iter()
-        .map(|j| {
-            header.iter().position(|h| *h == j.name).ok_or_else(|| {
-                let expected: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
-                error(
-                    header_line,
-                    Some(&j.name),
-                    format!("missing joint column; the model's joints are {}", expected.join(", ")),
-                )
-            })
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let columns = table_joint_columns(&header, header_line, model)?;
     let length = if units.lengths_in_metres { 1000.0 } else { 1.0 };
     let mut poses = Vec::new();
     for record in reader.records() {
