@@ -26,7 +26,7 @@ use crate::estimation::{
     NoiseEstimate, NoiseModel, NoiseSpec, PointProblem, RANK_TOLERANCE, RefineOptions, Refined, Residuals,
     Weights, diagnose, noise_design, refine, residual_design,
 };
-use crate::kinematics::{Chain, Measured};
+use crate::kinematics::{Chain, Measured, end_positions};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
@@ -163,10 +163,10 @@ impl Calibration {
 fn errors(chains: &[Chain], x: &[f64], data: &Measurements) -> Vec<Vector3<f64>> {
     let at: Vec<_> = chains.iter().map(|c| c.with_errors(x)).collect();
     let mut out = Vec::with_capacity(data.len() * chains.len());
+    let mut predicted = vec![Vector3::zeros(); chains.len()];
     for (q, measured) in data.joints.iter().zip(&data.markers) {
-        for (at, m) in at.iter().zip(measured) {
-            out.push(m - at.position(q));
-        }
+        end_positions(&at, q, &mut predicted);
+        out.extend(measured.iter().zip(&predicted).map(|(m, p)| m - p));
     }
     out
 }

@@ -2,8 +2,8 @@
 //! measured at each pose, linearised about any parameter values.
 
 use super::refine::Residuals;
-use super::{EstimationError, LinearSystem, NoiseModel};
-use crate::kinematics::{Chain, Measured, marker_jacobians, pose_error};
+use super::{EstimationError, LinearSystem, NoiseModel, Weights};
+use crate::kinematics::{Chain, Measured, end_positions, marker_jacobians, pose_error};
 use crate::model::Selection;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX, Vector3};
 
@@ -172,51 +172,69 @@ impl Residuals for PointProblem<'_> {
         self.v.as_ref()
     }
 
-    fn evaluate(&self, x: &DVector<f64>, mut h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
-        let (per, rows) = (self.measured.rows(), self.rows_per_point());
+    fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
+        self.residuals(x, None, h)
+    }
+
+    fn evaluate_whitened(
+        &self,
+        x: &DVector<f64>,
+        weights: &Weights,
+        h: Option<&mut DMatrix<f64>>,
+    ) -> DVector<f64> {
+        self.residuals(x, Some(weights), h)
+    }
+}
+
+impl PointProblem<'_> {
+    /// `y(x)` and `H(x)`, whitened by `weights` if given. A pose's rows of `H` are built, and
+    /// whitened, in a small contiguous block, then copied in once; every entry of `h` is written.
+    fn residuals(
+        &self,
+        x: &DVector<f64>,
+        weights: Option<&Weights>,
+        mut h: Option<&mut DMatrix<f64>>,
+    ) -> DVector<f64> {
+        let rows = self.rows_per_point();
         let full = self.full(x);
         let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
         let mut y = DVector::zeros(self.equations());
         let mut positions = vec![Vector3::zeros(); at.len()];
-        // A pose's rows of H are built in a small contiguous block, then copied in once.
         let mut block = DMatrix::zeros(rows, self.selection.len());
         for (k, q) in self.joints.iter().enumerate() {
-            if let (Some(h), true) = (h.as_deref_mut(), at.len() > 1) {
-                // Markers: the arm walked once for all of them.
-                block.fill(0.0);
-                marker_jacobians(
-                    &at,
-                    q,
-                    self.selection,
-                    block.view_mut((0, 0), block.shape()),
-                    &mut positions,
-                );
-                h.view_mut((k * rows, 0), block.shape()).copy_from(&block);
-                for (m, position) in positions.iter().enumerate() {
-                    let observed = &self.observed[k * at.len() + m].translation.vector;
-                    y.fixed_rows_mut::<3>(k * rows + 3 * m).copy_from(&(observed - position));
+            match h.as_deref_mut() {
+                Some(h) => {
+                    block.fill(0.0);
+                    let view = block.view_mut((0, 0), block.shape());
+                    if at.len() > 1 {
+                        // Markers: the arm walked once for all of them.
+                        marker_jacobians(&at, q, self.selection, view, &mut positions);
+                    } else {
+                        positions[0] = at[0].identification_jacobian(q, self.selection, self.measured, view);
+                    }
+                    if let Some(weights) = weights {
+                        weights.apply_point(k, block.as_mut_slice());
+                    }
+                    h.view_mut((k * rows, 0), block.shape()).copy_from(&block);
                 }
-                continue;
+                None if self.measured == Measured::Position => end_positions(&at, q, &mut positions),
+                None => {}
             }
-            for (m, at) in at.iter().enumerate() {
-                let row = k * rows + m * per;
-                let observed = &self.observed[k * self.chains.len() + m];
-                let position = match h.as_deref_mut() {
-                    Some(h) => {
-                        let block = h.view_mut((row, 0), (per, self.selection.len()));
-                        at.identification_jacobian(q, self.selection, self.measured, block)
-                    }
-                    None => at.position(q),
-                };
-                match self.measured {
-                    Measured::Position => {
-                        y.fixed_rows_mut::<3>(row).copy_from(&(observed.translation.vector - position))
-                    }
-                    Measured::Pose => {
-                        y.fixed_rows_mut::<6>(row).copy_from(&pose_error(observed, &at.pose(q)))
+            let observed = &self.observed[k * at.len()..(k + 1) * at.len()];
+            match self.measured {
+                Measured::Position => {
+                    for (m, (observed, position)) in observed.iter().zip(&positions).enumerate() {
+                        let error = observed.translation.vector - position;
+                        y.fixed_rows_mut::<3>(k * rows + 3 * m).copy_from(&error);
                     }
                 }
+                Measured::Pose => {
+                    y.fixed_rows_mut::<6>(k * rows).copy_from(&pose_error(&observed[0], &at[0].pose(q)))
+                }
             }
+        }
+        if let Some(weights) = weights {
+            weights.apply(&mut y);
         }
         y
     }

@@ -3,7 +3,7 @@
 //! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
 
 use super::solve::{LinearEstimate, RANK_TOLERANCE, factorise};
-use super::{EstimationError, Estimator, LinearSystem, Weights};
+use super::{EstimationError, Estimator, Weights};
 use nalgebra::{DMatrix, DVector};
 
 /// A least-squares problem that can be linearised about any parameter values.
@@ -23,6 +23,25 @@ pub trait Residuals {
     /// The residual `y(x)` (measured minus predicted) and, if `h` is given, the Jacobian
     /// `H(x) = d(prediction)/dx` written into it.
     fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64>;
+    /// The whitened residual `S y(x)` and, if `h` is given, `S H(x)` written over all of it.
+    /// By default [`Residuals::evaluate`] with the weights applied after; a problem that builds
+    /// `H` point by point can whiten each block while it is in cache.
+    fn evaluate_whitened(
+        &self,
+        x: &DVector<f64>,
+        weights: &Weights,
+        mut h: Option<&mut DMatrix<f64>>,
+    ) -> DVector<f64> {
+        if let Some(h) = h.as_deref_mut() {
+            h.fill(0.0);
+        }
+        let mut y = self.evaluate(x, h.as_deref_mut());
+        if let Some(h) = h {
+            weights.apply(h);
+        }
+        weights.apply(&mut y);
+        y
+    }
 }
 
 /// When to stop iterating.
@@ -98,17 +117,21 @@ pub fn refine(
     {
         return dims(format!("V blocks are {:?}, expected {} x {rows}", v.shape(), problem.equations()));
     }
+    if let Some(v) = problem.covariance() {
+        super::check_covariance(v, rows)?;
+    }
     let weights = Weights::new(problem.covariance(), rows, estimator, true)?;
+    let names = problem.names();
+    if !names.is_empty() && names.len() != problem.parameters() {
+        return dims(format!("{} names for {} parameters", names.len(), problem.parameters()));
+    }
+    let names = super::column_names(names, problem.parameters());
     let mut x = x0;
-    // Everything about the system is checked once; later linearisations only for finiteness.
-    let (h, y) = linearise(problem, &x);
-    let v = problem.covariance().cloned();
-    let system = LinearSystem { h, y, rows_per_point: rows, v, names: problem.names() };
-    system.validate()?;
-    let names = system.column_names();
-    let (mut a, mut b) = (system.h, system.y);
-    weights.apply(&mut a);
-    weights.apply(&mut b);
+    // Two buffers for the whitened H: the current system's, and the trial's.
+    let mut a = DMatrix::zeros(problem.equations(), problem.parameters());
+    let mut spare = a.clone();
+    let mut b = problem.evaluate_whitened(&x, &weights, Some(&mut a));
+    finite(&a, &b)?;
     let mut history = Vec::new();
     loop {
         let factorised = factorise(&a, options.rank_tolerance)?;
@@ -116,7 +139,8 @@ pub fn refine(
         let gauss_newton = factorised.solve(&b);
 
         let one_step = options.max_iterations == 1;
-        // The step taken, the cost after it, its damping, and the whitened system there.
+        // The step taken, the cost after it, its damping, and the whitened residual there,
+        // with whether the trial's H was computed (into `spare`).
         let taken = if one_step {
             // The paper's estimate: the linear solution, taken as it is; its cost is the
             // linearised residual's.
@@ -132,12 +156,12 @@ pub fn refine(
             let at_minimum = promised <= options.cost_tolerance * cost;
             let mut trial = (gauss_newton, 0.0);
             loop {
-                let (mut h, mut y) = linearise(problem, &(&x + &trial.0));
-                weights.apply(&mut y);
+                // At the minimum this trial is the last one: its H would never be used.
+                let h = if at_minimum { None } else { Some(&mut spare) };
+                let y = problem.evaluate_whitened(&(&x + &trial.0), &weights, h);
                 let cost_after = y.norm_squared();
                 if cost_after <= cost {
-                    weights.apply(&mut h);
-                    break Some((trial.0, cost_after, trial.1, Some((h, y))));
+                    break Some((trial.0, cost_after, trial.1, Some((y, !at_minimum))));
                 }
                 if at_minimum || trial.1 >= 1e12 {
                     break None;
@@ -158,10 +182,13 @@ pub fn refine(
             None => (true, cost, None),
         };
         match next {
-            Some((h, y)) if !converged && history.len() < options.max_iterations => {
-                super::finite("y", y.as_slice(), y.len())?;
-                super::finite("H", h.as_slice(), h.nrows())?;
-                (a, b) = (h, y);
+            Some((mut y, linearised)) if !converged && history.len() < options.max_iterations => {
+                if !linearised {
+                    y = problem.evaluate_whitened(&x, &weights, Some(&mut spare));
+                }
+                finite(&spare, &y)?;
+                std::mem::swap(&mut a, &mut spare);
+                b = y;
             }
             _ => {
                 let covariance = factorised.covariance(&a, weights.noise(), final_cost);
@@ -173,11 +200,10 @@ pub fn refine(
     }
 }
 
-/// The residual `y(x)` and the Jacobian `H(x)` of `problem`, unweighted.
-fn linearise(problem: &impl Residuals, x: &DVector<f64>) -> (DMatrix<f64>, DVector<f64>) {
-    let mut h = DMatrix::zeros(problem.equations(), x.len());
-    let y = problem.evaluate(x, Some(&mut h));
-    (h, y)
+/// Check that a linearisation holds finite numbers (rows as in the stacked system).
+fn finite(a: &DMatrix<f64>, b: &DVector<f64>) -> Result<(), EstimationError> {
+    super::finite("y", b.as_slice(), b.len())?;
+    super::finite("H", a.as_slice(), a.nrows())
 }
 
 /// The Levenberg-Marquardt step: `min |b - A d|^2 + damping |diag(|A_j|) d|^2` (Marquardt's

@@ -71,3 +71,35 @@ fn diagnose_reports_what_estimate_does() {
         assert_eq!((diagnostics.rank, diagnostics.not_identifiable.len()), (2, 1), "{estimator}");
     }
 }
+
+/// `S` whitens: `|S_k y_k|^2 = y_k^T V_k^-1 y_k` for every block size (3 and 6 have their own
+/// code), applied to a whole matrix or one point's block at a time.
+#[test]
+fn whitening_gives_the_mahalanobis_norm_for_any_block_size() {
+    for b in [3, 6, 9] {
+        let points = 5;
+        let v = DMatrix::from_fn(points * b, b, |r, c| {
+            let k = (r / b) as f64 + 1.0;
+            if r % b == c { k * k + c as f64 } else { 0.1 * k }
+        });
+        let weights = Weights::new(Some(&v), b, Estimator::Wls, false).unwrap();
+        let m = DMatrix::from_fn(points * b, 2, |r, c| ((r * 3 + c) as f64 * 0.37).sin());
+        let mut whole = m.clone();
+        weights.apply(&mut whole);
+        for k in 0..points {
+            let mut block = m.rows(k * b, b).into_owned();
+            weights.apply_point(k, block.as_mut_slice());
+            assert_eq!(block, whole.rows(k * b, b), "b = {b}, point {k}: one block as in the whole");
+            let v_k = v.rows(k * b, b).into_owned();
+            for c in 0..2 {
+                let y = m.view((k * b, c), (b, 1)).into_owned();
+                let mahalanobis = (y.transpose() * v_k.clone().try_inverse().unwrap() * &y)[(0, 0)];
+                let whitened = block.column(c).norm_squared();
+                assert!(
+                    (whitened - mahalanobis).abs() < 1e-12 * mahalanobis,
+                    "b = {b}: {whitened} vs {mahalanobis}"
+                );
+            }
+        }
+    }
+}

@@ -66,6 +66,11 @@ struct Frame {
 }
 
 impl Frame {
+    const IDENTITY: Frame = Frame {
+        r: Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+        p: Vector3::new(0.0, 0.0, 0.0),
+    };
+
     fn translate(&mut self, k: usize, v: f64) {
         self.p += self.r.column(k) * v;
     }
@@ -303,36 +308,16 @@ pub struct ChainAt {
 }
 
 impl ChainAt {
-    /// Walk the chain at `q`, calling `visit` with each step and the frame it acts in;
-    /// returns the end frame.
-    fn walk(&self, q: &[f64], mut visit: impl FnMut(&Step, &Frame)) -> Frame {
-        assert_eq!(q.len(), self.dof, "q has one value per joint");
-        let mut frame = Frame { r: Matrix3::identity(), p: Vector3::zeros() };
-        for resolved in &self.steps {
-            let step = &resolved.step;
-            visit(step, &frame);
-            match (step.motion, step.joint) {
-                (Motion::Translate(k), joint) => {
-                    frame.translate(k, resolved.value + joint.map_or(0.0, |j| q[j]))
-                }
-                (Motion::Rotate(k), None) => frame.rotate(k, resolved.sin_cos.0, resolved.sin_cos.1),
-                (Motion::Rotate(k), Some(j)) => {
-                    let (s, c) = (resolved.value + q[j]).sin_cos();
-                    frame.rotate(k, s, c);
-                }
-            }
-        }
-        frame
-    }
-
     /// Position of the tool point (mm).
     pub fn position(&self, q: &[f64]) -> Vector3<f64> {
-        self.walk(q, |_, _| {}).p
+        assert_eq!(q.len(), self.dof, "q has one value per joint");
+        walk(&self.steps, q, Frame::IDENTITY).p
     }
 
     /// Pose of the tool frame: `base * T_1(q_1) * ... * T_n(q_n) * tool`.
     pub fn pose(&self, q: &[f64]) -> Isometry3<f64> {
-        let end = self.walk(q, |_, _| {});
+        assert_eq!(q.len(), self.dof, "q has one value per joint");
+        let end = walk(&self.steps, q, Frame::IDENTITY);
         let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(end.r));
         Isometry3::from_parts(Translation3::from(end.p), rotation)
     }
@@ -457,12 +442,45 @@ pub fn marker_jacobians(
     to_world(&end.r, &mut h);
 }
 
+/// The end positions of chains that share their arm (one model's markers, or its probe, with
+/// the same errors applied), written into `positions`: the arm is walked once, then each
+/// chain's own end.
+///
+/// # Panics
+/// If the chains' arms differ in length, or a size does not match.
+pub fn end_positions(chains: &[ChainAt], q: &[f64], positions: &mut [Vector3<f64>]) {
+    let first = &chains[0];
+    assert_eq!(q.len(), first.dof, "q has one value per joint");
+    assert_eq!(positions.len(), chains.len(), "one position per chain");
+    let arm = walk(&first.steps[..first.arm], q, Frame::IDENTITY);
+    for (p, at) in positions.iter_mut().zip(chains) {
+        assert_eq!(at.arm, first.arm, "chains of one arm");
+        *p = walk(&at.steps[at.arm..], q, arm).p;
+    }
+}
+
+/// Walk `steps` forwards at `q` from `frame`: the frame at their end.
+fn walk(steps: &[Resolved], q: &[f64], mut frame: Frame) -> Frame {
+    for resolved in steps {
+        let step = &resolved.step;
+        match (step.motion, step.joint) {
+            (Motion::Translate(k), joint) => frame.translate(k, resolved.value + joint.map_or(0.0, |j| q[j])),
+            (Motion::Rotate(k), None) => frame.rotate(k, resolved.sin_cos.0, resolved.sin_cos.1),
+            (Motion::Rotate(k), Some(j)) => {
+                let (s, c) = (resolved.value + q[j]).sin_cos();
+                frame.rotate(k, s, c);
+            }
+        }
+    }
+    frame
+}
+
 /// Walk `steps` backwards from their end at `q`, calling `visit` with each step and the frame it
 /// acts in, expressed in the end frame's coordinates (where the end point is the origin);
 /// returns the end frame in world coordinates. A step's axis and, for a rotation, its origin
 /// are the same before and after it, so each frame is the one left by undoing the later steps.
 fn walk_back(steps: &[Resolved], q: &[f64], mut visit: impl FnMut(&Step, &Frame)) -> Frame {
-    let mut frame = Frame { r: Matrix3::identity(), p: Vector3::zeros() };
+    let mut frame = Frame::IDENTITY;
     for resolved in steps.iter().rev() {
         let step = &resolved.step;
         visit(step, &frame);

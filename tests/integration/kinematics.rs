@@ -2,7 +2,7 @@
 
 use nalgebra::{DMatrix, Isometry3, Matrix6xX, Vector3};
 use proptest::prelude::*;
-use robocal::kinematics::{Chain, Measured, marker_jacobians, pose_error};
+use robocal::kinematics::{Chain, Measured, end_positions, marker_jacobians, pose_error};
 use robocal::model::{Convention, Joint, JointKind, Placement, RobotModel, Selection, Tool};
 
 fn puma() -> RobotModel {
@@ -142,6 +142,23 @@ fn check_marker_jacobians(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseE
         prop_assert!(err < 1e-12, "marker {m}: H differs by {err:e}");
         prop_assert!((e - positions[m]).amax() < 1e-9, "marker {m}: position {e} against {}", positions[m]);
     }
+    // Positions alone, the arm walked once: the same as each chain's forward kinematics.
+    let mut ends = vec![Vector3::zeros(); 3];
+    end_positions(&at, &q, &mut ends);
+    for (m, at) in at.iter().enumerate() {
+        let own = at.position(&q);
+        prop_assert!(
+            (own - ends[m]).amax() < 1e-9 * (1.0 + own.amax()),
+            "marker {m}: {own} against {}",
+            ends[m]
+        );
+    }
+    // A probe's end rotates after the arm: its tail is walked as it is.
+    let probe = Chain::probe(model, &Placement { xyz: markers[0], rpy: Vector3::new(u[0], u[1], u[2]) });
+    let x: Vec<f64> = (0..probe.params().len()).map(|i| u[(i + 5) % u.len()] * 0.5).collect();
+    let at = probe.with_errors(&x);
+    end_positions(std::slice::from_ref(&at), &q, &mut ends[..1]);
+    prop_assert!((at.position(&q) - ends[0]).amax() < 1e-9 * (1.0 + ends[0].amax()));
     Ok(())
 }
 
