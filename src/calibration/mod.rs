@@ -24,7 +24,7 @@ pub use repeatability::{
 use crate::estimation::{
     CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementNoise,
     NoiseEstimate, NoiseModel, NoiseSpec, PointProblem, RANK_TOLERANCE, RefineOptions, Refined, Residuals,
-    Weights, diagnose, noise_design, refine, residual_design,
+    Weights, linearise, noise_design, refine_from, residual_design,
 };
 use crate::kinematics::{Chain, Measured, end_positions};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
@@ -216,13 +216,17 @@ pub fn calibrate(
         noise.as_ref(),
     )?;
 
+    // One set of weights for every stage.
+    let weights = Weights::for_problem(&base_problem, options.estimator)?;
+
     // "Before": base and markers only.
     let frame = selection(&params, &JointParams::None, options)?;
     let before = if frame.is_empty() {
         zero
     } else {
         let problem = base_problem.reselect(&frame, zero)?;
-        let fitted = refine(&problem, options.estimator, problem.start(), &RefineOptions::default())?;
+        let start = linearise(&problem, &weights, problem.start())?;
+        let fitted = refine_from(&problem, &weights, start, &RefineOptions::default())?;
         problem.full(&fitted.estimate.x)
     };
 
@@ -239,13 +243,16 @@ pub fn calibrate(
             needed,
         });
     }
+    // The identifiable subset starts from the system that found it.
     let problem = base_problem.reselect(&asked, before.clone())?;
-    let diagnostics = diagnose(&problem.system(&problem.start()), options.estimator, RANK_TOLERANCE)?;
+    let at_before = linearise(&problem, &weights, problem.start())?;
+    let diagnostics = at_before.diagnose(RANK_TOLERANCE)?;
     let names: Vec<&str> = asked.indices().iter().map(|&i| params.get(i).name.as_str()).collect();
     let fixed = diagnostics.not_identifiable.iter().map(|c| c.describe(&names)).collect();
     let kept = Selection::from_indices(&params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
     let problem = base_problem.reselect(&kept, before.clone())?;
-    let estimate = refine(&problem, options.estimator, problem.start(), &options.refine)?;
+    let start = at_before.select(&diagnostics.identifiable);
+    let estimate = refine_from(&problem, &weights, start, &options.refine)?;
     let after = problem.full(&estimate.estimate.x);
     let final_problem = base_problem.reselect(&kept, after.clone())?;
 

@@ -28,7 +28,9 @@ pub use noise::{MeasurementNoise, NoiseModel, point_covariance};
 pub(crate) use noise_file::DeviceTable;
 pub use noise_file::{NoiseFileError, NoiseSpec};
 pub use problem::PointProblem;
-pub use refine::{Iteration, RefineOptions, Refined, Residuals, refine};
+pub use refine::{
+    Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from,
+};
 pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE};
 pub use variance::{
     ComponentFit, CovarianceSample, JointComponents, NoiseEstimate, SigmaInterval, Z_95, fit_components,
@@ -267,6 +269,11 @@ impl Weights {
             }
         }
         Ok(Self { s: Some(s), noise: Some(noise), rows })
+    }
+
+    /// Whether these weights are for `equations` rows in points of `rows`.
+    pub(crate) fn fits(&self, equations: usize, rows: usize) -> bool {
+        self.rows == rows && self.s.as_ref().or(self.noise.as_ref()).is_none_or(|s| s.nrows() == equations)
     }
 
     /// Multiply `m` (`N_m` rows) by `S` in place, block by block, without allocating.

@@ -2,7 +2,7 @@
 //! (Gauss-Newton), with Levenberg-Marquardt damping when a step fails to lower the weighted
 //! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
 
-use super::solve::{LinearEstimate, RANK_TOLERANCE, factorise};
+use super::solve::{Diagnostics, LinearEstimate, RANK_TOLERANCE, factorise};
 use super::{EstimationError, Estimator, Weights};
 use nalgebra::{DMatrix, DVector};
 
@@ -96,6 +96,80 @@ pub struct Refined {
     pub converged: bool,
 }
 
+/// The whitened system of a problem about `x`: `A = S H(x)` and `b = S y(x)` (Eq. 1,
+/// weighted as in Eq. 4).
+#[derive(Debug, Clone)]
+pub struct Linearisation {
+    /// Where the problem was linearised.
+    pub x: DVector<f64>,
+    /// `S H(x)`, `N_m x p`.
+    pub a: DMatrix<f64>,
+    /// `S y(x)`, `N_m`.
+    pub b: DVector<f64>,
+}
+
+impl Linearisation {
+    /// The same system for a problem that keeps only `columns` (ascending) of the parameters:
+    /// what the identifiable subset starts from, without linearising again.
+    pub fn select(&self, columns: &[usize]) -> Self {
+        Self { x: self.x.select_rows(columns), a: self.a.select_columns(columns), b: self.b.clone() }
+    }
+
+    /// What the system can identify: rank, identifiable subset, non-identifiable combinations
+    /// (as [`super::diagnose`], which starts from an unweighted system).
+    pub fn diagnose(&self, rank_tolerance: f64) -> Result<Diagnostics, EstimationError> {
+        Ok(factorise(&self.a, rank_tolerance)?.diagnostics)
+    }
+}
+
+impl Weights {
+    /// The weights of `estimator` for the covariance blocks of `problem` (checked: sizes,
+    /// finite values, symmetric blocks), with the paper's normalisation.
+    pub fn for_problem(problem: &impl Residuals, estimator: Estimator) -> Result<Self, EstimationError> {
+        let rows = problem.rows_per_point();
+        if rows == 0 || problem.equations() % rows != 0 {
+            return Err(EstimationError::Dimensions(format!(
+                "{} equations in points of {rows} rows",
+                problem.equations()
+            )));
+        }
+        if let Some(v) = problem.covariance() {
+            if v.shape() != (problem.equations(), rows) {
+                return Err(EstimationError::Dimensions(format!(
+                    "V blocks are {:?}, expected {} x {rows}",
+                    v.shape(),
+                    problem.equations()
+                )));
+            }
+            super::check_covariance(v, rows)?;
+        }
+        Weights::new(problem.covariance(), rows, estimator, true)
+    }
+}
+
+/// `problem` linearised about `x` and whitened by `weights` (from [`Weights::for_problem`]),
+/// with every size and value checked.
+pub fn linearise(
+    problem: &impl Residuals,
+    weights: &Weights,
+    x: DVector<f64>,
+) -> Result<Linearisation, EstimationError> {
+    let dims = |s: String| Err(EstimationError::Dimensions(s));
+    if x.len() != problem.parameters() {
+        return dims(format!("{} start values for {} parameters", x.len(), problem.parameters()));
+    }
+    if !weights.fits(problem.equations(), problem.rows_per_point()) {
+        return dims(format!(
+            "weights for other points than the problem's {} equations",
+            problem.equations()
+        ));
+    }
+    let mut a = DMatrix::zeros(problem.equations(), problem.parameters());
+    let b = problem.evaluate_whitened(&x, weights, Some(&mut a));
+    finite(&a, &b)?;
+    Ok(Linearisation { x, a, b })
+}
+
 /// Refine `x0` by Gauss-Newton with Levenberg-Marquardt damping, each step the weighted
 /// (or ordinary) least-squares solution of the system linearised about the current `x`.
 pub fn refine(
@@ -104,34 +178,36 @@ pub fn refine(
     x0: DVector<f64>,
     options: &RefineOptions,
 ) -> Result<Refined, EstimationError> {
-    let rows = problem.rows_per_point();
+    let weights = Weights::for_problem(problem, estimator)?;
+    let start = linearise(problem, &weights, x0)?;
+    refine_from(problem, &weights, start, options)
+}
+
+/// [`refine`] from a linearisation already made with the same `weights`: stages of one
+/// calibration share their weights, and the identifiable subset starts from the system that
+/// found it ([`Linearisation::select`]).
+pub fn refine_from(
+    problem: &impl Residuals,
+    weights: &Weights,
+    start: Linearisation,
+    options: &RefineOptions,
+) -> Result<Refined, EstimationError> {
+    let (m, p) = (problem.equations(), problem.parameters());
     let dims = |s: String| Err(EstimationError::Dimensions(s));
-    if x0.len() != problem.parameters() {
-        return dims(format!("{} start values for {} parameters", x0.len(), problem.parameters()));
+    if start.a.shape() != (m, p) || start.b.len() != m || start.x.len() != p {
+        return dims(format!("a linearisation of {:?} for a problem of {m} x {p}", start.a.shape()));
     }
-    if rows == 0 || problem.equations() % rows != 0 {
-        return dims(format!("{} equations in points of {rows} rows", problem.equations()));
+    if !weights.fits(m, problem.rows_per_point()) {
+        return dims(format!("weights for other points than the problem's {m} equations"));
     }
-    if let Some(v) = problem.covariance()
-        && v.shape() != (problem.equations(), rows)
-    {
-        return dims(format!("V blocks are {:?}, expected {} x {rows}", v.shape(), problem.equations()));
-    }
-    if let Some(v) = problem.covariance() {
-        super::check_covariance(v, rows)?;
-    }
-    let weights = Weights::new(problem.covariance(), rows, estimator, true)?;
     let names = problem.names();
-    if !names.is_empty() && names.len() != problem.parameters() {
-        return dims(format!("{} names for {} parameters", names.len(), problem.parameters()));
+    if !names.is_empty() && names.len() != p {
+        return dims(format!("{} names for {p} parameters", names.len()));
     }
-    let names = super::column_names(names, problem.parameters());
-    let mut x = x0;
+    let names = super::column_names(names, p);
+    let Linearisation { mut x, mut a, mut b } = start;
     // Two buffers for the whitened H: the current system's, and the trial's.
-    let mut a = DMatrix::zeros(problem.equations(), problem.parameters());
-    let mut spare = a.clone();
-    let mut b = problem.evaluate_whitened(&x, &weights, Some(&mut a));
-    finite(&a, &b)?;
+    let mut spare = DMatrix::zeros(m, p);
     let mut history = Vec::new();
     loop {
         let factorised = factorise(&a, options.rank_tolerance)?;
@@ -158,7 +234,7 @@ pub fn refine(
             loop {
                 // At the minimum this trial is the last one: its H would never be used.
                 let h = if at_minimum { None } else { Some(&mut spare) };
-                let y = problem.evaluate_whitened(&(&x + &trial.0), &weights, h);
+                let y = problem.evaluate_whitened(&(&x + &trial.0), weights, h);
                 let cost_after = y.norm_squared();
                 if cost_after <= cost {
                     break Some((trial.0, cost_after, trial.1, Some((y, !at_minimum))));
@@ -184,7 +260,7 @@ pub fn refine(
         match next {
             Some((mut y, linearised)) if !converged && history.len() < options.max_iterations => {
                 if !linearised {
-                    y = problem.evaluate_whitened(&x, &weights, Some(&mut spare));
+                    y = problem.evaluate_whitened(&x, weights, Some(&mut spare));
                 }
                 finite(&spare, &y)?;
                 std::mem::swap(&mut a, &mut spare);

@@ -7,7 +7,7 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robocal::estimation::{
     EstimationError, Estimator, LinearSystem, MeasurementNoise, NoiseModel, PointProblem, RANK_TOLERANCE,
-    RefineOptions, estimate, refine,
+    RefineOptions, Weights, estimate, linearise, refine, refine_from,
 };
 use robocal::kinematics::{Chain, Measured};
 use robocal::model::{Convention, Joint, JointKind, Placement, RobotModel, Selection, Tool};
@@ -406,6 +406,61 @@ fn noise_model_must_fit_the_robot() {
     let err = PointProblem::new(chains, &selection, Measured::Position, joints, observed, zero, Some(&noise))
         .unwrap_err();
     assert_eq!(err.to_string(), "noise model: Sigma_q is (5, 5), expected 6 x 6");
+}
+
+/// The identifiable subset refined from the system that found it gives what a fresh refine
+/// gives, and a linearisation or weights that do not fit the problem are refused.
+#[test]
+fn refining_the_identifiable_subset_from_its_linearisation_is_refining_it_afresh() {
+    let mut rng = rng(12);
+    let model = RobotModel::preset("puma560").unwrap();
+    let chain = Chain::new(&model);
+    let selection = Selection::joints(chain.params());
+    let real = chain.with_errors(&true_errors(&chain, &selection, &mut rng));
+    let joints = random_joints(&model, 40, &mut rng);
+    let observed: Vec<_> = joints.iter().map(|q| real.pose(q)).collect();
+    let zero = vec![0.0; chain.params().len()];
+    let noise = puma_noise(0.01);
+    let problem =
+        position_problem(&chain, &selection, joints.clone(), observed.clone(), zero.clone(), Some(&noise));
+    let weights = Weights::for_problem(&problem, Estimator::Wls).unwrap();
+    let at_start = linearise(&problem, &weights, problem.start()).unwrap();
+    let diagnostics = at_start.diagnose(RANK_TOLERANCE).unwrap();
+    let from_system = estimate(&problem.system(&problem.start()), Estimator::Wls, RANK_TOLERANCE).unwrap();
+    assert_eq!(diagnostics.identifiable, from_system.diagnostics.identifiable);
+    assert_eq!(diagnostics.rank, 23);
+
+    let kept = Selection::from_indices(
+        chain.params(),
+        diagnostics.identifiable.iter().map(|&c| selection.indices()[c]),
+    );
+    let subset = problem.reselect(&kept, zero.clone()).unwrap();
+    let options = RefineOptions::default();
+    let reused =
+        refine_from(&subset, &weights, at_start.select(&diagnostics.identifiable), &options).unwrap();
+    let afresh = refine(&subset, Estimator::Wls, subset.start(), &options).unwrap();
+    assert_eq!(reused.estimate.x, afresh.estimate.x);
+    assert_eq!(reused.history, afresh.history);
+    assert!(
+        reused.converged && reused.estimate.cost < 1e-20,
+        "noise-free data are fitted: {:?}",
+        reused.history
+    );
+
+    let err = linearise(&subset, &weights, DVector::zeros(3)).unwrap_err();
+    assert!(err.to_string().contains("3 start values for 23 parameters"), "{err}");
+    let err = refine_from(&problem, &weights, at_start.select(&[0, 1]), &options).unwrap_err();
+    assert!(matches!(err, EstimationError::Dimensions(_)), "{err}");
+    let fewer = position_problem(
+        &chain,
+        &selection,
+        joints[..20].to_vec(),
+        observed[..20].to_vec(),
+        zero,
+        Some(&noise),
+    );
+    let err = linearise(&fewer, &weights, fewer.start()).unwrap_err();
+    assert!(err.to_string().contains("weights for other points"), "{err}");
 }
 
 /// The diagnostics name the seven combinations of the paper's 30 parameters that position
