@@ -59,15 +59,17 @@ pub(crate) struct TallSvd {
     pub small: Svd,
 }
 
-/// [`TallSvd`] of `a`, or `None` if `a` is wide or the iteration did not converge.
-pub(crate) fn tall_svd(a: &DMatrix<f64>) -> Option<TallSvd> {
+/// [`TallSvd`] of `a D`, `D = diag(column_scales)`, or `None` if `a` is wide or the iteration
+/// did not converge. `A D = Q (R D)`: the columns are scaled in the small `R`, not in a copy
+/// of `a`.
+pub(crate) fn tall_svd(a: &DMatrix<f64>, column_scales: &[f64]) -> Option<TallSvd> {
     let (m, n) = a.shape();
-    if m < n {
+    if m < n || column_scales.len() != n {
         return None;
     }
     let qr = faer::MatRef::from_column_major_slice(a.as_slice(), m, n).qr();
     let r = qr.thin_R();
-    let small = svd(&DMatrix::from_fn(n, n, |i, j| r[(i, j)]))?;
+    let small = svd(&DMatrix::from_fn(n, n, |i, j| r[(i, j)] * column_scales[j]))?;
     Some(TallSvd { qr, small })
 }
 
@@ -151,7 +153,7 @@ mod tests {
     #[test]
     fn tall_svd_is_the_thin_svd() {
         let a = DMatrix::from_fn(50, 4, |r, c| ((r * 4 + c) as f64 * 0.71).sin());
-        let tall = tall_svd(&a).unwrap();
+        let tall = tall_svd(&a, &[1.0; 4]).unwrap();
         let u = tall.q(&tall.small.u, 50);
         let back = &u * DMatrix::from_diagonal(&tall.small.s.clone().into()) * tall.small.v.transpose();
         assert!((back - &a).amax() < 1e-13);
@@ -159,7 +161,12 @@ mod tests {
         assert!((tall.small.u.tr_mul(&tall.qt(&b)) - u.tr_mul(&b)).amax() < 1e-13);
         let thin = svd(&a).unwrap();
         assert!(thin.s.iter().zip(&tall.small.s).all(|(x, y)| (x - y).abs() < 1e-13));
-        assert!(tall_svd(&a.transpose()).is_none(), "wide matrices are refused");
+        assert!(tall_svd(&a.transpose(), &[1.0; 50]).is_none(), "wide matrices are refused");
+        // Scaled columns: the SVD of A D.
+        let scales = [2.0, 0.5, 3.0, 1e-3];
+        let scaled = tall_svd(&a, &scales).unwrap();
+        let direct = svd(&(&a * DMatrix::from_diagonal(&DVector::from_column_slice(&scales)))).unwrap();
+        assert!(direct.s.iter().zip(&scaled.small.s).all(|(x, y)| (x - y).abs() < 1e-13 * direct.s[0]));
     }
 
     #[test]

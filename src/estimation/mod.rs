@@ -278,14 +278,8 @@ impl Weights {
 
     /// Multiply `m` (`N_m` rows) by `S` in place, block by block, without allocating.
     pub fn apply<C: Dim, St: StorageMut<f64, Dyn, C> + IsContiguous>(&self, m: &mut Matrix<f64, Dyn, C, St>) {
-        let rows = m.nrows();
-        let values = m.as_mut_slice();
-        for k in 0..rows / self.rows {
-            let range = k * self.rows..(k + 1) * self.rows;
-            self.apply_to_columns(
-                k,
-                values.chunks_exact_mut(rows.max(1)).map(|column| &mut column[range.clone()]),
-            );
+        if let Some(s) = &self.s {
+            block_diagonal_mul(s, m);
         }
     }
 
@@ -293,22 +287,8 @@ impl Weights {
     /// that point's rows, one after the other (a column-major `rows x n` block). Whitening a
     /// point's block while it is in cache costs a third of a pass over the whole of `H`.
     pub fn apply_point(&self, k: usize, block: &mut [f64]) {
-        self.apply_to_columns(k, block.chunks_exact_mut(self.rows));
-    }
-
-    /// `S_k` times each of `columns` (each `rows` long), with `S_k` loaded once.
-    fn apply_to_columns<'c>(&self, k: usize, columns: impl Iterator<Item = &'c mut [f64]>) {
-        let Some(s) = &self.s else { return };
-        match self.rows {
-            3 => apply_block::<3>(s, k, columns),
-            6 => apply_block::<6>(s, k, columns),
-            b => {
-                let s_k = s.rows(k * b, b);
-                for column in columns {
-                    let product = s_k * DVector::from_column_slice(column);
-                    column.copy_from_slice(product.as_slice());
-                }
-            }
+        if let Some(s) = &self.s {
+            block_mul(s, k, block.chunks_exact_mut(self.rows));
         }
     }
 
@@ -364,11 +344,44 @@ where
     Ok((s, noise))
 }
 
-/// `S_k` times each of `columns` (`B` values each).
-fn apply_block<'c, const B: usize>(s: &DMatrix<f64>, k: usize, columns: impl Iterator<Item = &'c mut [f64]>) {
-    let s_k: SMatrix<f64, B, B> = s.fixed_view::<B, B>(k * B, 0).into_owned();
+/// `m` (`N_m` rows) times the block-diagonal matrix whose `b x b` blocks are stacked in
+/// `blocks` (`N_m x b`), in place: each block loaded once, no allocation.
+pub(crate) fn block_diagonal_mul<C: Dim, St: StorageMut<f64, Dyn, C> + IsContiguous>(
+    blocks: &DMatrix<f64>,
+    m: &mut Matrix<f64, Dyn, C, St>,
+) {
+    let (b, rows) = (blocks.ncols(), m.nrows());
+    let values = m.as_mut_slice();
+    for k in 0..rows / b {
+        let range = k * b..(k + 1) * b;
+        block_mul(blocks, k, values.chunks_exact_mut(rows.max(1)).map(|column| &mut column[range.clone()]));
+    }
+}
+
+/// Block `k` of the stacked `blocks` times each of `columns` (one block's height each).
+fn block_mul<'c>(blocks: &DMatrix<f64>, k: usize, columns: impl Iterator<Item = &'c mut [f64]>) {
+    match blocks.ncols() {
+        3 => fixed_block_mul::<3>(blocks, k, columns),
+        6 => fixed_block_mul::<6>(blocks, k, columns),
+        b => {
+            let block = blocks.rows(k * b, b);
+            for column in columns {
+                let product = block * DVector::from_column_slice(column);
+                column.copy_from_slice(product.as_slice());
+            }
+        }
+    }
+}
+
+/// [`block_mul`] with the block on the stack.
+fn fixed_block_mul<'c, const B: usize>(
+    blocks: &DMatrix<f64>,
+    k: usize,
+    columns: impl Iterator<Item = &'c mut [f64]>,
+) {
+    let block: SMatrix<f64, B, B> = blocks.fixed_view::<B, B>(k * B, 0).into_owned();
     for column in columns {
-        let product = s_k * nalgebra::SVector::<f64, B>::from_column_slice(column);
+        let product = block * nalgebra::SVector::<f64, B>::from_column_slice(column);
         column.copy_from_slice(product.as_slice());
     }
 }
@@ -423,7 +436,7 @@ pub fn diagnose(
 
 /// The pseudoinverse `pinv(A)` by the same rank-revealing factorisation as every estimate.
 pub fn pseudo_inverse(a: &DMatrix<f64>) -> Result<DMatrix<f64>, EstimationError> {
-    Ok(solve::factorise(a, RANK_TOLERANCE)?.pinv(a.nrows()))
+    Ok(solve::factorise(a, RANK_TOLERANCE)?.pinv(a))
 }
 
 /// An estimator factored for one `H` and `V`: the estimate for any `y` is then one product,
@@ -448,8 +461,9 @@ impl Prepared {
         let system = LinearSystem { h: h.clone(), y, rows_per_point, v: v.cloned(), names };
         system.validate()?;
         let weights = Weights::new(v, rows_per_point, estimator, true)?;
-        let factorised = solve::factorise(&weights.whiten(&system).a, rank_tolerance)?;
-        Ok(Self { weights, pinv: factorised.pinv(h.nrows()), diagnostics: factorised.diagnostics })
+        let a = weights.whiten(&system).a;
+        let factorised = solve::factorise(&a, rank_tolerance)?;
+        Ok(Self { weights, pinv: factorised.pinv(&a), diagnostics: factorised.diagnostics })
     }
 
     /// The estimate for pose errors `y` (Eqs. 4-6).

@@ -2,7 +2,7 @@
 //! (Gauss-Newton), with Levenberg-Marquardt damping when a step fails to lower the weighted
 //! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
 
-use super::solve::{Diagnostics, LinearEstimate, RANK_TOLERANCE, factorise};
+use super::solve::{Diagnostics, LinearEstimate, RANK_TOLERANCE, factorise, factorise_rank_revealing};
 use super::{EstimationError, Estimator, Weights};
 use nalgebra::{DMatrix, DVector};
 
@@ -118,7 +118,7 @@ impl Linearisation {
     /// What the system can identify: rank, identifiable subset, non-identifiable combinations
     /// (as [`super::diagnose`], which starts from an unweighted system).
     pub fn diagnose(&self, rank_tolerance: f64) -> Result<Diagnostics, EstimationError> {
-        Ok(factorise(&self.a, rank_tolerance)?.diagnostics)
+        Ok(factorise_rank_revealing(&self.a, rank_tolerance)?.diagnostics)
     }
 }
 
@@ -212,7 +212,7 @@ pub fn refine_from(
     loop {
         let factorised = factorise(&a, options.rank_tolerance)?;
         let cost = b.norm_squared();
-        let gauss_newton = factorised.solve(&b);
+        let gauss_newton = factorised.solve(&a, &b);
 
         let one_step = options.max_iterations == 1;
         // The step taken, the cost after it, its damping, and the whitened residual there,
@@ -298,7 +298,7 @@ fn damped_step(
     }
     let mut rhs = DVector::zeros(m + p);
     rhs.rows_mut(0, m).copy_from(b);
-    Ok(factorise(&augmented, tolerance)?.solve(&rhs))
+    Ok(factorise(&augmented, tolerance)?.solve(&augmented, &rhs))
 }
 
 #[cfg(test)]

@@ -125,12 +125,21 @@ pub(crate) struct Factorised {
 enum Right {
     /// `U_r^T = U_R,r^T Q^T` with `Q` kept as Householder reflectors (`u_r` is `U_R,r`, `p x r`).
     Orthogonal { tall: Box<crate::linalg::TallSvd>, u_r: DMatrix<f64> },
-    /// `A^T`, for the normal equations.
-    Transpose(DMatrix<f64>),
+    /// `A^T` (the caller's `A`), for the normal equations; `gram` is `A^T A`.
+    Transpose { gram: DMatrix<f64> },
 }
 
 /// Factor the whitened `a` as described in the [module documentation](self).
 pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, EstimationError> {
+    check(a, tolerance)?;
+    match factorise_well_conditioned(a, tolerance) {
+        Some(factorised) => Ok(factorised),
+        None => factorise_rank_revealing(a, tolerance),
+    }
+}
+
+/// The sizes and the tolerance of a factorisation.
+fn check(a: &DMatrix<f64>, tolerance: f64) -> Result<(), EstimationError> {
     let (m, p) = a.shape();
     if m == 0 || p == 0 {
         return Err(EstimationError::Dimensions(format!("H is {m} x {p}: no equations or no parameters")));
@@ -138,20 +147,29 @@ pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, 
     if !(0.0..1.0).contains(&tolerance) {
         return Err(EstimationError::Dimensions(format!("rank tolerance {tolerance}: expected 0 <= t < 1")));
     }
-    if let Some(factorised) = factorise_well_conditioned(a, tolerance) {
-        return Ok(factorised);
-    }
-    let scales = DVector::from_iterator(
-        p,
-        a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }),
-    );
-    let d = DMatrix::from_diagonal(&scales);
-    // Zero rows change no least-squares solution; they make the SVD complete when m < p.
-    let mut scaled = DMatrix::zeros(m.max(p), p);
-    for (j, column) in a.column_iter().enumerate() {
-        scaled.view_mut((0, j), (m, 1)).copy_from(&(column * scales[j]));
-    }
-    let tall = crate::linalg::tall_svd(&scaled).ok_or(EstimationError::NoConvergence)?;
+    Ok(())
+}
+
+/// [`factorise`] by the SVD, without trying the normal equations first: for systems that are
+/// expected to be rank deficient, such as every parameter a calibration asks for.
+pub(crate) fn factorise_rank_revealing(
+    a: &DMatrix<f64>,
+    tolerance: f64,
+) -> Result<Factorised, EstimationError> {
+    check(a, tolerance)?;
+    let (m, p) = a.shape();
+    let scales: Vec<f64> =
+        a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
+    let d = DMatrix::from_diagonal(&DVector::from_column_slice(&scales));
+    let tall = if m >= p {
+        crate::linalg::tall_svd(a, &scales)
+    } else {
+        // Zero rows change no least-squares solution; they make the SVD complete.
+        let mut padded = DMatrix::zeros(p, p);
+        padded.rows_mut(0, m).copy_from(a);
+        crate::linalg::tall_svd(&padded, &scales)
+    };
+    let tall = tall.ok_or(EstimationError::NoConvergence)?;
     let svd = &tall.small;
     let largest = svd.s[0];
     let rank = svd.s.iter().take_while(|&&s| s > tolerance * largest && s > 0.0).count();
@@ -217,7 +235,7 @@ fn factorise_well_conditioned(a: &DMatrix<f64>, tolerance: f64) -> Option<Factor
         identifiable: (0..p).collect(),
         not_identifiable: Vec::new(),
     };
-    Some(Factorised { left: g.clone(), right: Right::Transpose(a.clone()), pg: g, diagnostics })
+    Some(Factorised { left: g.clone(), right: Right::Transpose { gram }, pg: g, diagnostics })
 }
 
 /// `I - N (N^T N)^-1 N^T`: the orthogonal projector onto the complement of `N`'s columns.
@@ -289,53 +307,69 @@ pub(crate) fn solve(
     names: Vec<String>,
 ) -> Result<LinearEstimate, EstimationError> {
     let f = factorise(&w.a, tolerance)?;
-    let x = f.solve(&w.b);
+    let x = f.solve(&w.a, &w.b);
     let cost = (&w.b - &w.a * &x).norm_squared();
     let covariance = f.covariance(&w.a, w.noise.as_ref(), cost);
     Ok(LinearEstimate { names, x, covariance, cost, diagnostics: f.diagnostics })
 }
 
 impl Factorised {
-    /// `pinv(A) b` (Eq. 6 on the whitened system): `P D V_r S_r^-1 (U_r^T b)`.
-    pub fn solve(&self, b: &DVector<f64>) -> DVector<f64> {
+    /// `pinv(A) b` (Eq. 6 on the whitened system): `P D V_r S_r^-1 (U_r^T b)`, for the `a`
+    /// that was factored.
+    pub fn solve(&self, a: &DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
         match &self.right {
             Right::Orthogonal { tall, u_r } => &self.left * u_r.tr_mul(&tall.qt(b)),
-            Right::Transpose(a) => &self.left * a.tr_mul(b),
+            Right::Transpose { .. } => &self.left * a.tr_mul(b),
         }
     }
 
-    /// `pinv(A)` itself (`p x N_m` for `b` of `N_m` rows), for solving many right-hand sides.
-    pub fn pinv(&self, rows: usize) -> DMatrix<f64> {
+    /// `pinv(A)` itself (`p x N_m`), for solving many right-hand sides.
+    pub fn pinv(&self, a: &DMatrix<f64>) -> DMatrix<f64> {
         match &self.right {
-            Right::Orthogonal { tall, u_r } => tall.q(&(u_r * self.left.transpose()), rows).transpose(),
-            Right::Transpose(a) => &self.left * a.transpose(),
+            Right::Orthogonal { tall, u_r } => tall.q(&(u_r * self.left.transpose()), a.nrows()).transpose(),
+            Right::Transpose { .. } => &self.left * a.transpose(),
         }
     }
 
     /// `(P G) C (P G)^T` with `C = sum_k A_k^T N_k A_k`, `N_k` the blocks of `Cov(b)`; without
-    /// them, `Cov(b) = sigma^2 I` with `sigma^2 = cost / (N_m - rank)`.
+    /// them, `Cov(b) = sigma^2 I` with `sigma^2 = cost / (N_m - rank)`. Gauss-Markov whitening
+    /// leaves `N_k = sigma_max^2 I`; blocks within 1e-9 of such a multiple of the identity are
+    /// taken as it, so that `C` is the Gram matrix the normal equations already hold.
     pub(crate) fn covariance(
         &self,
         a: &DMatrix<f64>,
         noise: Option<&DMatrix<f64>>,
         cost: f64,
     ) -> DMatrix<f64> {
+        let gram = || match &self.right {
+            Right::Transpose { gram } => gram.clone(),
+            Right::Orthogonal { .. } => crate::linalg::tr_mul(a, a),
+        };
         let c = match noise {
-            Some(blocks) => {
-                // C = A^T (N A), with N A formed block by block into one matrix.
-                let b = blocks.ncols();
-                let mut na = DMatrix::zeros(a.nrows(), a.ncols());
-                for k in 0..a.nrows() / b {
-                    blocks.rows(k * b, b).mul_to(&a.rows(k * b, b), &mut na.rows_mut(k * b, b));
+            Some(blocks) => match identity_multiple(blocks) {
+                Some(scale) => gram() * scale,
+                None => {
+                    let mut na = a.clone();
+                    super::block_diagonal_mul(blocks, &mut na);
+                    crate::linalg::tr_mul(a, &na)
                 }
-                crate::linalg::tr_mul(a, &na)
-            }
+            },
             None => {
                 let dof = a.nrows().saturating_sub(self.diagnostics.rank);
                 let sigma2 = if dof > 0 { cost / dof as f64 } else { f64::NAN };
-                crate::linalg::tr_mul(a, a) * sigma2
+                gram() * sigma2
             }
         };
         &self.pg * c * self.pg.transpose()
     }
+}
+
+/// `c` if every stacked block is `c I` to a relative 1e-9, `c > 0`.
+pub(crate) fn identity_multiple(blocks: &DMatrix<f64>) -> Option<f64> {
+    let b = blocks.ncols();
+    let c = *blocks.get((0, 0))?;
+    let close = |v: f64, target: f64| (v - target).abs() <= 1e-9 * c;
+    let identity =
+        (0..blocks.nrows()).all(|r| (0..b).all(|j| close(blocks[(r, j)], if r % b == j { c } else { 0.0 })));
+    (c > 0.0 && identity).then_some(c)
 }

@@ -103,3 +103,18 @@ fn whitening_gives_the_mahalanobis_norm_for_any_block_size() {
         }
     }
 }
+
+/// Gauss-Markov whitening leaves `sigma_max^2 I` to rounding, which the covariance takes as
+/// the Gram matrix; other noise blocks are not mistaken for it.
+#[test]
+fn whitened_gauss_markov_noise_is_a_multiple_of_the_identity() {
+    let system = small_system();
+    let weights = Weights::new(system.v.as_ref(), 3, Estimator::Wls, true).unwrap();
+    let scale = solve::identity_multiple(weights.noise().unwrap()).expect("sigma_max^2 I");
+    let sigma_max2 = (0..12).map(|r| system.v.as_ref().unwrap()[(r, r % 3)]).fold(0.0, f64::max);
+    assert!((scale - sigma_max2).abs() < 1e-12 * sigma_max2, "{scale} vs {sigma_max2}");
+    let diag = Weights::new(system.v.as_ref(), 3, Estimator::WlsDiag, true).unwrap();
+    assert_eq!(solve::identity_multiple(diag.noise().unwrap()), None, "correlated blocks");
+    assert_eq!(solve::identity_multiple(system.v.as_ref().unwrap()), None, "unequal variances");
+    assert_eq!(solve::identity_multiple(&DMatrix::zeros(6, 3)), None, "zero noise");
+}
