@@ -3,9 +3,10 @@
 
 use super::refine::Residuals;
 use super::{EstimationError, LinearSystem, NoiseModel, Weights};
-use crate::kinematics::{Chain, Measured, end_positions, marker_jacobians, pose_error};
+use crate::kinematics::{Chain, ChainAt, Measured, end_positions, marker_jacobians, pose_error};
 use crate::model::Selection;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX, Vector3};
+use rayon::prelude::*;
 
 /// Poses measured on a robot: `y(x) = measured - f(q, x)` for the selected parameters `x`,
 /// the others held at fixed values. Each pose is one point of the estimators: the positions of
@@ -187,55 +188,108 @@ impl Residuals for PointProblem<'_> {
 }
 
 impl PointProblem<'_> {
-    /// `y(x)` and `H(x)`, whitened by `weights` if given. A pose's rows of `H` are built, and
-    /// whitened, in a small contiguous block, then copied in once; every entry of `h` is written.
+    /// `y(x)` and `H(x)`, whitened by `weights` if given; every entry of `h` is written. The
+    /// poses are shared between threads in tasks of [`POSES_PER_TASK`], each writing its own
+    /// rows: every number is computed alike on any number of threads.
     fn residuals(
         &self,
         x: &DVector<f64>,
         weights: Option<&Weights>,
-        mut h: Option<&mut DMatrix<f64>>,
+        h: Option<&mut DMatrix<f64>>,
     ) -> DVector<f64> {
-        let rows = self.rows_per_point();
+        let task_rows = POSES_PER_TASK * self.rows_per_point();
         let full = self.full(x);
         let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
         let mut y = DVector::zeros(self.equations());
-        let mut positions = vec![Vector3::zeros(); at.len()];
+        if y.is_empty() {
+            return y;
+        }
+        let mut h_parts = match h {
+            Some(h) => {
+                assert_eq!(h.shape(), (y.len(), self.selection.len()), "H is equations x parameters");
+                row_parts(h, task_rows).into_iter().map(Some).collect()
+            }
+            None => Vec::new(),
+        };
+        h_parts.resize_with(y.len().div_ceil(task_rows), || None);
+        y.as_mut_slice().par_chunks_mut(task_rows).zip(h_parts).enumerate().for_each(|(task, (y, h))| {
+            self.fill_poses(task * POSES_PER_TASK, &at, weights, y, h);
+        });
+        y
+    }
+
+    /// The rows of the poses from `first` on: `y` holds theirs, and `h`, if given, one slice
+    /// of their rows per column of `H`. Each pose's rows of `H` are built, and whitened, in a
+    /// small contiguous block, then copied out once.
+    fn fill_poses(
+        &self,
+        first: usize,
+        at: &[ChainAt],
+        weights: Option<&Weights>,
+        y: &mut [f64],
+        mut h: Option<Vec<&mut [f64]>>,
+    ) {
+        let rows = self.rows_per_point();
         let mut block = DMatrix::zeros(rows, self.selection.len());
-        for (k, q) in self.joints.iter().enumerate() {
+        let mut positions = vec![Vector3::zeros(); at.len()];
+        for (i, y_k) in y.chunks_exact_mut(rows).enumerate() {
+            let k = first + i;
+            let q = &self.joints[k];
             match h.as_deref_mut() {
-                Some(h) => {
+                Some(columns) => {
                     block.fill(0.0);
                     let view = block.view_mut((0, 0), block.shape());
                     if at.len() > 1 {
                         // Markers: the arm walked once for all of them.
-                        marker_jacobians(&at, q, self.selection, view, &mut positions);
+                        marker_jacobians(at, q, self.selection, view, &mut positions);
                     } else {
                         positions[0] = at[0].identification_jacobian(q, self.selection, self.measured, view);
                     }
                     if let Some(weights) = weights {
                         weights.apply_point(k, block.as_mut_slice());
                     }
-                    h.view_mut((k * rows, 0), block.shape()).copy_from(&block);
+                    for (column, values) in columns.iter_mut().zip(block.as_slice().chunks_exact(rows)) {
+                        for (to, from) in column[i * rows..(i + 1) * rows].iter_mut().zip(values) {
+                            *to = *from;
+                        }
+                    }
                 }
-                None if self.measured == Measured::Position => end_positions(&at, q, &mut positions),
+                None if self.measured == Measured::Position => end_positions(at, q, &mut positions),
                 None => {}
             }
             let observed = &self.observed[k * at.len()..(k + 1) * at.len()];
             match self.measured {
                 Measured::Position => {
-                    for (m, (observed, position)) in observed.iter().zip(&positions).enumerate() {
-                        let error = observed.translation.vector - position;
-                        y.fixed_rows_mut::<3>(k * rows + 3 * m).copy_from(&error);
+                    for ((observed, position), y_m) in
+                        observed.iter().zip(&positions).zip(y_k.chunks_exact_mut(3))
+                    {
+                        y_m.copy_from_slice((observed.translation.vector - position).as_slice());
                     }
                 }
-                Measured::Pose => {
-                    y.fixed_rows_mut::<6>(k * rows).copy_from(&pose_error(&observed[0], &at[0].pose(q)))
-                }
+                Measured::Pose => y_k.copy_from_slice(pose_error(&observed[0], &at[0].pose(q)).as_slice()),
+            }
+            if let Some(weights) = weights {
+                weights.apply_point(k, y_k);
             }
         }
-        if let Some(weights) = weights {
-            weights.apply(&mut y);
-        }
-        y
     }
+}
+
+/// Poses per parallel task of [`PointProblem`]'s linearisation: enough to outweigh a task's
+/// overhead, few enough to share a thousand poses between cores.
+const POSES_PER_TASK: usize = 64;
+
+/// The rows of `h` cut into parts of `rows` (the last may be shorter), each part one slice per
+/// column: disjoint, so that parts can be written in parallel.
+fn row_parts(h: &mut DMatrix<f64>, rows: usize) -> Vec<Vec<&mut [f64]>> {
+    let (m, n) = h.shape();
+    let mut parts: Vec<Vec<&mut [f64]>> = (0..m.div_ceil(rows)).map(|_| Vec::with_capacity(n)).collect();
+    if m > 0 {
+        for column in h.as_mut_slice().chunks_exact_mut(m) {
+            for (part, rows) in parts.iter_mut().zip(column.chunks_mut(rows)) {
+                part.push(rows);
+            }
+        }
+    }
+    parts
 }

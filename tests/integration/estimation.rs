@@ -463,6 +463,44 @@ fn refining_the_identifiable_subset_from_its_linearisation_is_refining_it_afresh
     assert!(err.to_string().contains("weights for other points"), "{err}");
 }
 
+/// The linearisation shares its poses between threads: H and y are the same to the bit on
+/// any number of threads, for several markers and for one tool.
+#[test]
+fn linearisation_is_the_same_on_any_number_of_threads() {
+    let mut rng = rng(13);
+    let model = RobotModel::preset("puma560").unwrap();
+    let joints = random_joints(&model, 300, &mut rng);
+    let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
+    let noise = puma_noise(0.01);
+    for chains in [Chain::markers(&model, &markers), vec![Chain::new(&model)]] {
+        let selection = Selection::all(chains[0].params());
+        let observed = vec![Isometry3::translation(500.0, 100.0, 300.0); joints.len() * chains.len()];
+        let x = vec![1e-3; chains[0].params().len()];
+        let problem = PointProblem::new(
+            &chains,
+            &selection,
+            Measured::Position,
+            joints.clone(),
+            observed,
+            x,
+            Some(&noise),
+        )
+        .unwrap();
+        let weights = Weights::for_problem(&problem, Estimator::Wls).unwrap();
+        let on = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| linearise(&problem, &weights, problem.start()).unwrap())
+        };
+        let (one, four) = (on(1), on(4));
+        assert_eq!(one.a, four.a, "{} chains", chains.len());
+        assert_eq!(one.b, four.b, "{} chains", chains.len());
+        let unweighted = problem.system(&problem.start());
+        let mut whitened = unweighted.h.clone();
+        weights.apply(&mut whitened);
+        assert!((whitened - &one.a).amax() <= 1e-12 * one.a.amax(), "whitened in blocks as in one pass");
+    }
+}
+
 /// The diagnostics name the seven combinations of the paper's 30 parameters that position
 /// measurements cannot see (docs/identifiability.md), dropping the later parameter of each.
 #[test]
