@@ -29,6 +29,7 @@ use crate::estimation::{
 use crate::kinematics::{Chain, Measured, end_positions};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
 
 /// Which joint parameters to identify.
 #[derive(Debug, Clone, PartialEq)]
@@ -162,13 +163,16 @@ impl Calibration {
 /// Measured minus predicted marker positions of every pose, pose by pose.
 fn errors(chains: &[Chain], x: &[f64], data: &Measurements) -> Vec<Vector3<f64>> {
     let at: Vec<_> = chains.iter().map(|c| c.with_errors(x)).collect();
-    let mut out = Vec::with_capacity(data.len() * chains.len());
-    let mut predicted = vec![Vector3::zeros(); chains.len()];
-    for (q, measured) in data.joints.iter().zip(&data.markers) {
-        end_positions(&at, q, &mut predicted);
-        out.extend(measured.iter().zip(&predicted).map(|(m, p)| m - p));
-    }
-    out
+    (data.joints.par_iter().zip(&data.markers))
+        .map_init(
+            || vec![Vector3::zeros(); chains.len()],
+            |predicted, (q, measured)| {
+                end_positions(&at, q, predicted);
+                measured.iter().zip(predicted.iter()).map(|(m, p)| m - p).collect::<Vec<_>>()
+            },
+        )
+        .flatten_iter()
+        .collect()
 }
 
 /// Calibrate `model` from `data` with `options`.

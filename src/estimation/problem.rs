@@ -98,9 +98,12 @@ impl<'a> PointProblem<'a> {
     fn covariance_blocks(&self, noise: &NoiseModel) -> Result<DMatrix<f64>, EstimationError> {
         let rows = self.rows_per_point();
         noise.validate(self.chains[0].dof(), self.joints.len(), rows)?;
+        let blocks: Vec<DMatrix<f64>> = (self.manipulator_jacobians(&self.fixed).par_iter().enumerate())
+            .map(|(k, stacked)| noise.pose_covariance(k, stacked, self.measured))
+            .collect();
         let mut v = DMatrix::zeros(rows * self.joints.len(), rows);
-        for (k, stacked) in self.manipulator_jacobians(&self.fixed).iter().enumerate() {
-            v.rows_mut(k * rows, rows).copy_from(&noise.pose_covariance(k, stacked, self.measured));
+        for (k, block) in blocks.iter().enumerate() {
+            v.rows_mut(k * rows, rows).copy_from(block);
         }
         Ok(v)
     }
@@ -111,17 +114,19 @@ impl<'a> PointProblem<'a> {
         let (per, rows) = (self.measured.rows(), self.rows_per_point());
         let dof = self.chains[0].dof();
         let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(at)).collect();
-        let mut jacobian = Matrix6xX::zeros(dof);
         self.joints
-            .iter()
-            .map(|q| {
-                let mut stacked = DMatrix::zeros(rows, dof);
-                for (m, at) in at.iter().enumerate() {
-                    at.manipulator_jacobian(q, &mut jacobian);
-                    stacked.rows_mut(m * per, per).copy_from(&jacobian.rows(0, per));
-                }
-                stacked
-            })
+            .par_iter()
+            .map_init(
+                || Matrix6xX::zeros(dof),
+                |jacobian, q| {
+                    let mut stacked = DMatrix::zeros(rows, dof);
+                    for (m, at) in at.iter().enumerate() {
+                        at.manipulator_jacobian(q, jacobian);
+                        stacked.rows_mut(m * per, per).copy_from(&jacobian.rows(0, per));
+                    }
+                    stacked
+                },
+            )
             .collect()
     }
 

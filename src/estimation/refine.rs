@@ -2,7 +2,7 @@
 //! (Gauss-Newton), with Levenberg-Marquardt damping when a step fails to lower the weighted
 //! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
 
-use super::solve::{Diagnostics, LinearEstimate, RANK_TOLERANCE, factorise, factorise_rank_revealing};
+use super::solve::{Diagnostics, LinearEstimate, RANK_TOLERANCE, diagnose_rank, factorise};
 use super::{EstimationError, Estimator, Weights};
 use nalgebra::{DMatrix, DVector};
 
@@ -118,7 +118,7 @@ impl Linearisation {
     /// What the system can identify: rank, identifiable subset, non-identifiable combinations
     /// (as [`super::diagnose`], which starts from an unweighted system).
     pub fn diagnose(&self, rank_tolerance: f64) -> Result<Diagnostics, EstimationError> {
-        Ok(factorise_rank_revealing(&self.a, rank_tolerance)?.diagnostics)
+        diagnose_rank(&self.a, rank_tolerance)
     }
 }
 

@@ -158,9 +158,7 @@ pub(crate) fn factorise_rank_revealing(
 ) -> Result<Factorised, EstimationError> {
     check(a, tolerance)?;
     let (m, p) = a.shape();
-    let scales: Vec<f64> =
-        a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
-    let d = DMatrix::from_diagonal(&DVector::from_column_slice(&scales));
+    let (scales, d) = column_scales(a);
     let tall = if m >= p {
         crate::linalg::tall_svd(a, &scales)
     } else {
@@ -171,12 +169,8 @@ pub(crate) fn factorise_rank_revealing(
     };
     let tall = tall.ok_or(EstimationError::NoConvergence)?;
     let svd = &tall.small;
-    let largest = svd.s[0];
-    let rank = svd.s.iter().take_while(|&&s| s > tolerance * largest && s > 0.0).count();
-    if m < p && rank >= m {
-        return Err(EstimationError::TooFewEquations { equations: m, parameters: p, rank });
-    }
-    let null_basis = &d * svd.v.columns(rank, p - rank);
+    let (diagnostics, null_basis) = rank_revealed(svd, &d, m, tolerance)?;
+    let rank = diagnostics.rank;
     let projector = complement_projector(&null_basis);
     let pdv = &projector * &d * svd.v.columns(0, rank);
     let inverse_s =
@@ -184,6 +178,46 @@ pub(crate) fn factorise_rank_revealing(
     let left = &pdv * &inverse_s;
     let u_r = svd.u.columns(0, rank).into_owned();
     let pg = &pdv * &inverse_s * &inverse_s * svd.v.columns(0, rank).transpose() * &d;
+    Ok(Factorised { left, right: Right::Orthogonal { tall: Box::new(tall), u_r }, pg, diagnostics })
+}
+
+/// The diagnostics of [`factorise_rank_revealing`] alone, which need only the triangular
+/// factor `R` of `A = Q R`, not `Q`: `R` comes from a QR of row parts computed in parallel
+/// ([`crate::linalg::r_factor`]).
+pub(crate) fn diagnose_rank(a: &DMatrix<f64>, tolerance: f64) -> Result<Diagnostics, EstimationError> {
+    check(a, tolerance)?;
+    let (scales, d) = column_scales(a);
+    let mut r = crate::linalg::r_factor(a);
+    for (mut column, scale) in r.column_iter_mut().zip(&scales) {
+        column *= *scale;
+    }
+    let svd = crate::linalg::svd(&r).ok_or(EstimationError::NoConvergence)?;
+    Ok(rank_revealed(&svd, &d, a.nrows(), tolerance)?.0)
+}
+
+/// `1 / |a_j|` for each column (1 for a zero column), as a list and as the diagonal `D`.
+fn column_scales(a: &DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
+    let scales: Vec<f64> =
+        a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
+    let d = DMatrix::from_diagonal(&DVector::from_column_slice(&scales));
+    (scales, d)
+}
+
+/// Rank, identifiable subset and non-identifiable combinations from the SVD of the
+/// column-scaled `A D` (`m` rows, `D = d`), with a basis of the null space of `A`.
+fn rank_revealed(
+    svd: &crate::linalg::Svd,
+    d: &DMatrix<f64>,
+    m: usize,
+    tolerance: f64,
+) -> Result<(Diagnostics, DMatrix<f64>), EstimationError> {
+    let p = d.nrows();
+    let largest = svd.s[0];
+    let rank = svd.s.iter().take_while(|&&s| s > tolerance * largest && s > 0.0).count();
+    if m < p && rank >= m {
+        return Err(EstimationError::TooFewEquations { equations: m, parameters: p, rank });
+    }
+    let null_basis = d * svd.v.columns(rank, p - rank);
     // A_s = U (S V^T) with U orthonormal: S V^T has the same column norms and inner products,
     // so pivoting on it picks the same columns at p x p cost.
     let sv_t = DMatrix::from_diagonal(&DVector::from_column_slice(&svd.s)) * svd.v.transpose();
@@ -192,7 +226,7 @@ pub(crate) fn factorise_rank_revealing(
     let not_identifiable = combinations(&null_basis, &identifiable);
     let condition_number = if rank > 0 { largest / singular_values[rank - 1] } else { f64::INFINITY };
     let diagnostics = Diagnostics { rank, singular_values, condition_number, identifiable, not_identifiable };
-    Ok(Factorised { left, right: Right::Orthogonal { tall: Box::new(tall), u_r }, pg, diagnostics })
+    Ok((diagnostics, null_basis))
 }
 
 /// Largest condition number of the column-scaled matrix for which
@@ -212,7 +246,7 @@ fn factorise_well_conditioned(a: &DMatrix<f64>, tolerance: f64) -> Option<Factor
     if m < p {
         return None;
     }
-    let gram = crate::linalg::tr_mul(a, a);
+    let gram = crate::linalg::gram(a);
     let scales = DVector::from_iterator(p, (0..p).map(|j| 1.0 / gram[(j, j)].sqrt()));
     if scales.iter().any(|s| !s.is_finite()) {
         return None;
@@ -343,7 +377,7 @@ impl Factorised {
     ) -> DMatrix<f64> {
         let gram = || match &self.right {
             Right::Transpose { gram } => gram.clone(),
-            Right::Orthogonal { .. } => crate::linalg::tr_mul(a, a),
+            Right::Orthogonal { .. } => crate::linalg::gram(a),
         };
         let c = match noise {
             Some(blocks) => match identity_multiple(blocks) {
