@@ -7,7 +7,7 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robocal::estimation::{
     EstimationError, Estimator, LinearSystem, MeasurementNoise, NoiseModel, PointProblem, RANK_TOLERANCE,
-    RefineOptions, Weights, estimate, linearise, refine, refine_from,
+    RefineOptions, Residuals, Weights, estimate, linearise, refine, refine_from,
 };
 use robocal::kinematics::{Chain, Measured};
 use robocal::model::{Convention, Joint, JointKind, Placement, RobotModel, Selection, Tool};
@@ -499,6 +499,49 @@ fn linearisation_is_the_same_on_any_number_of_threads() {
         weights.apply(&mut whitened);
         assert!((whitened - &one.a).amax() <= 1e-12 * one.a.amax(), "whitened in blocks as in one pass");
     }
+}
+
+/// A problem that keeps the default `evaluate_whitened` (whitening after `evaluate`).
+struct Plain<'a>(PointProblem<'a>);
+
+impl Residuals for Plain<'_> {
+    fn rows_per_point(&self) -> usize {
+        self.0.rows_per_point()
+    }
+    fn equations(&self) -> usize {
+        self.0.equations()
+    }
+    fn parameters(&self) -> usize {
+        self.0.parameters()
+    }
+    fn covariance(&self) -> Option<&DMatrix<f64>> {
+        self.0.covariance()
+    }
+    fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
+        self.0.evaluate(x, h)
+    }
+}
+
+/// Whitening block by block while linearising is whitening afterwards.
+#[test]
+fn whitening_while_linearising_is_whitening_after() {
+    let mut rng = rng(14);
+    let model = RobotModel::preset("puma560").unwrap();
+    let chain = Chain::new(&model);
+    let selection = Selection::joints(chain.params());
+    let joints = random_joints(&model, 30, &mut rng);
+    let observed = vec![Isometry3::translation(500.0, 100.0, 300.0); joints.len()];
+    let x = vec![1e-3; chain.params().len()];
+    let problem = position_problem(&chain, &selection, joints, observed, x, Some(&puma_noise(0.01)));
+    let weights = Weights::for_problem(&problem, Estimator::Wls).unwrap();
+    let plain = Plain(problem.clone());
+    let (ours, after) = (
+        linearise(&problem, &weights, problem.start()).unwrap(),
+        linearise(&plain, &weights, problem.start()).unwrap(),
+    );
+    assert!((&ours.a - &after.a).amax() <= 1e-12 * ours.a.amax());
+    assert!((&ours.b - &after.b).amax() <= 1e-12 * ours.b.amax());
+    assert!(ours.b.amax() > 1.0, "the residuals are not trivial");
 }
 
 /// The diagnostics name the seven combinations of the paper's 30 parameters that position
