@@ -221,3 +221,37 @@ fn calibrate_a_urdf_robot_and_write_it_back() {
     assert_eq!(calibrated.dof(), 7);
     assert!((calibrated.joints[0].origin.xyz.x - 1000.0).abs() < 1e-6, "the base is in the written URDF");
 }
+
+/// The README's worked calibration is what this version prints, to the last digit: the
+/// command is read from the README and run (its output files go to a scratch directory).
+#[test]
+fn the_readme_calibration_example_is_the_real_output() {
+    let readme = std::fs::read_to_string("README.md").unwrap();
+    let start = readme.find("$ cargo run --release -- calibrate").expect("the README's calibration example");
+    let block = &readme[start..start + readme[start..].find("```").unwrap()];
+    let mut lines = block.lines();
+    let mut command = String::new();
+    for line in lines.by_ref() {
+        command.push_str(line.trim_end_matches('\\'));
+        if !line.ends_with('\\') {
+            break;
+        }
+    }
+    let expected: String = lines.map(|line| format!("{line}\n")).collect();
+    let dir = std::env::temp_dir().join(format!("robocal-readme-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let args: Vec<String> = command
+        .split_whitespace()
+        .skip_while(|word| *word != "--")
+        .skip(1)
+        .map(|word| match word {
+            "report.json" | "calibrated.toml" => dir.join(word).display().to_string(),
+            _ => word.to_string(),
+        })
+        .collect();
+    let output = robocal().args(&args).output().unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let printed = String::from_utf8(output.stdout).unwrap() + &String::from_utf8(output.stderr).unwrap();
+    assert_eq!(printed.trim_end(), expected.trim_end(), "regenerate the README example");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
