@@ -215,13 +215,11 @@ pub fn refine_from(
         let gauss_newton = factorised.solve(&a, &b);
 
         let one_step = options.max_iterations == 1;
-        // The step taken, the cost after it, its damping, and the whitened residual there,
-        // with whether the trial's H was computed (into `spare`).
         let taken = if one_step {
             // The paper's estimate: the linear solution, taken as it is; its cost is the
             // linearised residual's.
             let linearised = (&b - &a * &gauss_newton).norm_squared();
-            Some((gauss_newton, linearised, 0.0, None))
+            Some(Accepted { step: gauss_newton, cost_after: linearised, damping: 0.0, residual: None })
         } else {
             // Gauss-Newton, damped more and more until the cost falls, as Levenberg-Marquardt;
             // but where the linearised model itself promises no decrease worth the name, the
@@ -237,7 +235,8 @@ pub fn refine_from(
                 let y = problem.evaluate_whitened(&(&x + &trial.0), weights, h);
                 let cost_after = y.norm_squared();
                 if cost_after <= cost {
-                    break Some((trial.0, cost_after, trial.1, Some((y, !at_minimum))));
+                    let (step, damping, residual) = (trial.0, trial.1, Some((y, !at_minimum)));
+                    break Some(Accepted { step, cost_after, damping, residual });
                 }
                 if at_minimum || trial.1 >= 1e12 {
                     break None;
@@ -247,13 +246,13 @@ pub fn refine_from(
             }
         };
         let (converged, final_cost, next) = match taken {
-            Some((step, cost_after, damping, next)) => {
+            Some(Accepted { step, cost_after, damping, residual }) => {
                 let moved = (&a * &step).amax();
                 x += &step;
                 history.push(Iteration { cost, cost_after, step: moved, damping });
                 let small =
                     moved <= options.step_tolerance || cost - cost_after <= options.cost_tolerance * cost;
-                (!one_step && small, cost_after, next)
+                (!one_step && small, cost_after, residual)
             }
             None => (true, cost, None),
         };
@@ -274,6 +273,17 @@ pub fn refine_from(
             }
         }
     }
+}
+
+/// A step that did not raise the cost.
+struct Accepted {
+    step: DVector<f64>,
+    cost_after: f64,
+    /// Levenberg-Marquardt damping that was needed.
+    damping: f64,
+    /// `S y` after the step, and whether `S H` there was computed too (into the spare
+    /// buffer); `None` for the paper's one step.
+    residual: Option<(DVector<f64>, bool)>,
 }
 
 /// Check that a linearisation holds finite numbers (rows as in the stacked system).
