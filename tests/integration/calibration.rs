@@ -90,6 +90,32 @@ fn held_out_accuracy_improves_at_least_five_fold() {
     assert_eq!(calibration.estimate.estimate.names.len(), 42 - 12);
 }
 
+/// A calibration of 400 poses (2400 rows: several parallel tasks and row parts) gives the
+/// same numbers, to the bit, on 1 and 3 threads.
+#[test]
+fn calibration_is_the_same_on_any_number_of_threads() {
+    let mut c = campaign(12);
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    let text = measurement_csv(
+        &c.truth,
+        &c.true_markers,
+        &poses(&c.nominal, 400, &mut rng),
+        &joint_sigmas(),
+        0.01,
+        3,
+    );
+    c.training = Measurements::from_csv_str(&text, &c.nominal, None).unwrap();
+    let on = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap())
+    };
+    let (one, three) = (on(1), on(3));
+    assert_eq!(one.after, three.after);
+    assert_eq!(one.before, three.before);
+    assert_eq!(one.estimate, three.estimate, "estimate, covariance, diagnostics and history");
+    assert_eq!(one.fixed, three.fixed);
+}
+
 /// The true parameter errors, in the calibration's parameter vector: the base as the
 /// displacement from the registered base, the markers from their nominal positions.
 fn true_vector(c: &Campaign, calibration: &calibration::Calibration) -> Vec<f64> {
