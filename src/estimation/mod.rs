@@ -187,9 +187,15 @@ impl LinearSystem {
 
     /// Check that y and H hold finite numbers (what changes between Gauss-Newton steps).
     pub fn check_finite(&self) -> Result<(), EstimationError> {
-        finite("y", self.y.as_slice(), self.y.len())?;
-        finite("H", self.h.as_slice(), self.h.nrows())
+        finite_system(&self.h, &self.y)
     }
+}
+
+/// Check that `h` and `y` (or their whitened forms) hold finite numbers; rows as in the
+/// stacked system.
+pub(crate) fn finite_system(h: &DMatrix<f64>, y: &DVector<f64>) -> Result<(), EstimationError> {
+    finite("y", y.as_slice(), y.len())?;
+    finite("H", h.as_slice(), h.nrows())
 }
 
 /// `names`, or `x1`, `x2`, ... for `columns` columns where none are given.

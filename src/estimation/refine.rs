@@ -166,7 +166,7 @@ pub fn linearise(
     }
     let mut a = DMatrix::zeros(problem.equations(), problem.parameters());
     let b = problem.evaluate_whitened(&x, weights, Some(&mut a));
-    finite(&a, &b)?;
+    super::finite_system(&a, &b)?;
     Ok(Linearisation { x, a, b })
 }
 
@@ -261,7 +261,7 @@ pub fn refine_from(
                 if !linearised {
                     y = problem.evaluate_whitened(&x, weights, Some(&mut spare));
                 }
-                finite(&spare, &y)?;
+                super::finite_system(&spare, &y)?;
                 std::mem::swap(&mut a, &mut spare);
                 b = y;
             }
@@ -284,12 +284,6 @@ struct Accepted {
     /// `S y` after the step, and whether `S H` there was computed too (into the spare
     /// buffer); `None` for the paper's one step.
     residual: Option<(DVector<f64>, bool)>,
-}
-
-/// Check that a linearisation holds finite numbers (rows as in the stacked system).
-fn finite(a: &DMatrix<f64>, b: &DVector<f64>) -> Result<(), EstimationError> {
-    super::finite("y", b.as_slice(), b.len())?;
-    super::finite("H", a.as_slice(), a.nrows())
 }
 
 /// The Levenberg-Marquardt step: `min |b - A d|^2 + damping |diag(|A_j|) d|^2` (Marquardt's
