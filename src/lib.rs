@@ -48,6 +48,7 @@
 
 pub mod calibration;
 pub mod design;
+pub mod error;
 pub mod estimation;
 pub mod io;
 pub mod kinematics;
@@ -55,3 +56,4 @@ mod linalg;
 pub mod model;
 pub mod report;
 pub mod simulation;
+pub mod table;

@@ -15,8 +15,7 @@
 mod data;
 mod repeatability;
 
-pub(crate) use data::{CsvTable, csv_table, declared_units, table_joint_columns};
-pub use data::{DataError, Measurements, Units};
+pub use data::Measurements;
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
 };

@@ -17,12 +17,13 @@
 //! ([`NoiseEstimate`], with 95% intervals). The device's frame is first registered onto the
 //! robot's by the pose means (as a calibration does), so that `J_k` and `S_k` share a frame.
 
-use super::{DataError, Measurements, Units, register};
+use super::{Measurements, register};
 use crate::estimation::{
     CovarianceSample, EstimationError, JointComponents, NoiseEstimate, noise_design, sample_covariance,
 };
 use crate::kinematics::Chain;
 use crate::model::{RobotModel, Tool};
+use crate::table::{DataError, Table, Units};
 use nalgebra::{DMatrix, DVector, Matrix6xX, Vector3};
 
 /// The measurements of one commanded pose.
@@ -51,33 +52,18 @@ impl RepeatabilityData {
     /// Read a repeatability file's text for `model` (the measurement file's columns and units,
     /// plus `pose`). Every pose needs at least 2 measurements.
     pub fn from_csv_str(text: &str, model: &RobotModel, units: Option<Units>) -> Result<Self, DataError> {
-        let data = Measurements::from_csv_str(text, model, units)?;
-        let mut reader = csv::ReaderBuilder::new()
-            .comment(Some(b'#'))
-            .trim(csv::Trim::All)
-            .flexible(true)
-            .from_reader(text.as_bytes());
-        let header_line =
-            text.lines().position(|l| !l.trim_start().starts_with('#') && !l.trim().is_empty()).unwrap_or(0)
-                + 1;
-        let column = reader
-            .headers()
-            .map_err(|e| DataError { line: 1, column: None, message: format!("no header row: {e}") })?
-            .iter()
-            .position(|h| h == "pose")
-            .ok_or_else(|| DataError {
-                line: header_line,
-                column: Some("pose".into()),
-                message: "missing pose column: a repeatability file names the commanded pose of each row"
-                    .into(),
-            })?;
+        let table = Table::parse(text)?;
+        let data = Measurements::from_table(&table, model, units)?;
+        let column = table.column("pose").ok_or_else(|| {
+            let message = "missing pose column: a repeatability file names the commanded pose of each row";
+            DataError::new(table.header_line, Some("pose"), message)
+        })?;
         let mut poses: Vec<RepeatedPose> = Vec::new();
-        for (k, record) in reader.records().enumerate() {
-            let record = record.map_err(|e| DataError { line: 0, column: None, message: e.to_string() })?;
-            let line = data.lines[k];
-            let id = record.get(column).unwrap_or("").to_string();
+        for (k, row) in table.rows.iter().enumerate() {
+            let line = row.line;
+            let id = row.cells[column].clone();
             if id.is_empty() {
-                return Err(DataError { line, column: Some("pose".into()), message: "empty pose id".into() });
+                return Err(DataError::new(line, Some("pose"), "empty pose id"));
             }
             let markers = DVector::from_iterator(
                 3 * data.marker_count(),
@@ -99,15 +85,11 @@ impl RepeatabilityData {
         }
         for pose in &mut poses {
             if pose.measured.len() < 2 {
-                return Err(DataError {
-                    line: pose.lines[0],
-                    column: Some("pose".into()),
-                    message: format!(
-                        "pose `{}` is measured once: a repeatability study needs at least 2 \
-                         measurements a pose",
-                        pose.id
-                    ),
-                });
+                let message = format!(
+                    "pose `{}` is measured once: a repeatability study needs at least 2 measurements a pose",
+                    pose.id
+                );
+                return Err(DataError::new(pose.lines[0], Some("pose"), message));
             }
             let n = pose.measured.len() as f64;
             pose.joints.iter_mut().for_each(|q| *q /= n);

@@ -3,13 +3,14 @@
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use robocal::calibration::{self, FeasibleOptions, JointParams, Options, RepeatabilityOptions, Units};
+use robocal::calibration::{self, FeasibleOptions, JointParams, Options, RepeatabilityOptions};
 use robocal::design::{Constraints, Criterion, Design, ExcludedRange};
 use robocal::estimation::{Estimator, JointComponents, MeasurementNoise, NoiseModel, RefineOptions};
 use robocal::kinematics::{Chain, Measured};
 use robocal::model::{JointKind, PRESETS, RobotModel, Selection};
 use robocal::report::calibration::CalibrationReport;
 use robocal::simulation::{self, Study};
+use robocal::table::Units;
 use robocal::{io, report};
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -47,7 +47,6 @@ use crate::estimation::{
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{RobotModel, Selection};
-use crate::simulation::uniform_configurations;
 use nalgebra::{DMatrix, Matrix6xX};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
@@ -255,7 +254,7 @@ impl Design {
             names,
         };
         let mut rng = ChaCha8Rng::seed_from_u64(REFERENCE_SEED);
-        let reference = uniform_configurations(model, REFERENCE_POSES, &mut rng);
+        let reference = model.uniform_configurations(REFERENCE_POSES, &mut rng);
         let rows = measured.rows();
         let mut h = DMatrix::zeros(rows * REFERENCE_POSES, design.selection.len());
         for (k, q) in reference.iter().enumerate() {

@@ -3,7 +3,6 @@
 
 use super::{Criterion, Design, DesignError, Indices};
 use crate::estimation::EstimationError;
-use crate::simulation::uniform_configurations;
 use nalgebra::{DMatrix, SMatrix, SymmetricEigen, Vector3};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
@@ -121,7 +120,7 @@ pub struct Plan {
 impl Design {
     /// Up to `count` candidate poses uniform within the joint limits that satisfy
     /// `constraints`, drawing at most `count * DRAWS_PER_CANDIDATE` configurations. Without
-    /// constraints they are [`uniform_configurations`] from the same generator.
+    /// constraints they are [`crate::model::RobotModel::uniform_configurations`] from the same generator.
     pub fn candidates(
         &self,
         count: usize,
@@ -132,7 +131,7 @@ impl Design {
         let mut joints = Vec::with_capacity(count);
         let (mut draws, limit) = (0, count.saturating_mul(DRAWS_PER_CANDIDATE));
         while joints.len() < count && draws < limit {
-            let q = uniform_configurations(&self.model, 1, rng).pop().expect("one configuration");
+            let q = self.model.uniform_configurations(1, rng).pop().expect("one configuration");
             draws += 1;
             let tool = match constraints.tool_box {
                 Some(_) => self.nominal.position(&q),

@@ -13,19 +13,16 @@
 //! and by Monte Carlo. Positions are in the device frame (the robot's base frame in a study),
 //! mm; angles in rad; the z axis is vertical for the devices that measure angles.
 
+use crate::error::FieldError;
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 /// Why a device cannot give a covariance.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum DeviceError {
-    /// A device parameter out of range.
-    #[error("device field `{field}`: {expected}")]
-    Invalid {
-        /// The field, e.g. `sigma_r_mm`.
-        field: &'static str,
-        /// What was expected, and what was found.
-        expected: String,
-    },
+    /// A device parameter out of range (the field, e.g. `sigma_r_mm`, and what was expected).
+    #[error("device {0}")]
+    Invalid(FieldError),
     /// The point is where the device cannot locate it (at a station, on the theodolites'
     /// baseline): its covariance is infinite.
     #[error("the device cannot locate the point ({x:.1}, {y:.1}, {z:.1}) mm: {why}")]
@@ -125,14 +122,14 @@ impl Device {
             if v.is_finite() && v >= 0.0 {
                 Ok(())
             } else {
-                Err(DeviceError::Invalid { field, expected: format!("a finite value >= 0, found {v}") })
+                Err(DeviceError::Invalid(FieldError::new(field, format!("a finite value >= 0, found {v}"))))
             }
         };
         let finite = |field: &'static str, p: &Vector3<f64>| {
             if p.iter().all(|v| v.is_finite()) {
                 Ok(())
             } else {
-                Err(DeviceError::Invalid { field, expected: format!("finite coordinates, found {p:?}") })
+                Err(DeviceError::Invalid(FieldError::new(field, format!("finite coordinates, found {p:?}"))))
             }
         };
         match self {
@@ -147,20 +144,20 @@ impl Device {
                 finite("stations_mm", &stations[0])?;
                 finite("stations_mm", &stations[1])?;
                 if (stations[0] - stations[1]).norm() == 0.0 {
-                    return Err(DeviceError::Invalid {
-                        field: "stations_mm",
-                        expected: "two distinct stations (a baseline)".into(),
-                    });
+                    return Err(DeviceError::Invalid(FieldError::new(
+                        "stations_mm",
+                        "two distinct stations (a baseline)",
+                    )));
                 }
                 for (field, s) in [
                     ("sigma_horizontal_arcsec", *sigma_horizontal),
                     ("sigma_vertical_arcsec", *sigma_vertical),
                 ] {
                     if !(s.is_finite() && s > 0.0) {
-                        return Err(DeviceError::Invalid {
+                        return Err(DeviceError::Invalid(FieldError::new(
                             field,
-                            expected: format!("a finite value > 0, found {s}"),
-                        });
+                            format!("a finite value > 0, found {s}"),
+                        )));
                     }
                 }
                 Ok(())
@@ -272,7 +269,7 @@ impl Device {
     /// `G = d(angles)/d(point)` of the theodolites (4 x 3, rad/mm).
     fn angle_jacobian(&self, point: &Vector3<f64>) -> Result<DMatrix<f64>, DeviceError> {
         let Self::Theodolites { stations, .. } = self else {
-            return Err(DeviceError::Invalid { field: "kind", expected: "theodolites".into() });
+            return Err(DeviceError::Invalid(FieldError::new("kind", "theodolites")));
         };
         let mut g = DMatrix::zeros(4, 3);
         for (i, station) in stations.iter().enumerate() {

@@ -18,6 +18,7 @@
 //! `robocal calibrate --noise` and `robocal simulate --noise` read it.
 
 use super::device::Device;
+use crate::error::FieldError;
 use crate::model::{JointKind, RobotModel};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use serde::Deserialize;
@@ -28,18 +29,14 @@ const ARCSEC: f64 = std::f64::consts::PI / (180.0 * 3600.0);
 
 /// Why a noise file (or a study's noise section) could not be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum NoiseFileError {
-    /// Not valid TOML, or missing, misspelled or mistyped fields (the message names the line).
-    #[error("{0}")]
-    Syntax(String),
+    /// Not valid TOML, or missing, misspelled or mistyped fields (the source names the line).
+    #[error("not a noise file")]
+    Syntax(#[source] toml::de::Error),
     /// A field with a value that makes no noise model.
-    #[error("field `{field}`: {expected}")]
-    Invalid {
-        /// The field, e.g. `device.sigma_r_mm`.
-        field: String,
-        /// What was expected.
-        expected: String,
-    },
+    #[error(transparent)]
+    Invalid(#[from] FieldError),
 }
 
 /// The `[device]` table of a noise file or of a study's `[noise]` section.
@@ -65,7 +62,7 @@ pub(crate) enum DeviceTable {
 
 impl DeviceTable {
     /// The device in mm and rad, validated; errors name the field under `prefix`.
-    pub(crate) fn device(&self, prefix: &str) -> Result<Device, NoiseFileError> {
+    pub(crate) fn device(&self, prefix: &str) -> Result<Device, FieldError> {
         let device = match self {
             Self::Cmm { sigma_mm } => Device::Cmm { sigma: *sigma_mm },
             Self::LaserTracker { position_mm, sigma_r_mm, k_ppm, sigma_angle_arcsec } => {
@@ -85,13 +82,8 @@ impl DeviceTable {
             }
         };
         device.validate().map_err(|e| match e {
-            super::DeviceError::Invalid { field, expected } => {
-                NoiseFileError::Invalid { field: format!("{prefix}{field}"), expected }
-            }
-            other => NoiseFileError::Invalid {
-                field: prefix.trim_end_matches('.').into(),
-                expected: other.to_string(),
-            },
+            super::DeviceError::Invalid(field) => field.within(prefix),
+            other => FieldError::new(prefix.trim_end_matches('.'), other.to_string()),
         })?;
         Ok(device)
     }
@@ -127,9 +119,9 @@ pub struct NoiseSpec {
 impl NoiseSpec {
     /// Read a noise file's text for `model` (one joint sigma per joint).
     pub fn from_toml_str(text: &str, model: &RobotModel) -> Result<Self, NoiseFileError> {
-        let file: NoiseToml = toml::from_str(text).map_err(|e| NoiseFileError::Syntax(e.to_string()))?;
+        let file: NoiseToml = toml::from_str(text).map_err(NoiseFileError::Syntax)?;
         let invalid =
-            |field: &str, expected: String| NoiseFileError::Invalid { field: field.into(), expected };
+            |field: &str, expected: String| NoiseFileError::Invalid(FieldError::new(field, expected));
         let dof = model.dof();
         // deg -> rad for revolute joints.
         let unit: Vec<f64> = model

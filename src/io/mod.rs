@@ -1,19 +1,23 @@
-//! The edge where robocal meets files: every error names the file it came from.
+//! The edge where robocal meets files: every error names the file it came from, once, and
+//! keeps what is wrong inside it (line, column, field) as its source: print the chain
+//! (`{:#}` of anyhow, or [`std::error::Error::source`] in turn) to see both.
 //!
 //! This is the only library module that touches the file system; the core (model,
 //! kinematics, estimation, simulation) works on values.
 
-use crate::calibration::{DataError, Measurements, RepeatabilityData, Units};
+use crate::calibration::{Measurements, RepeatabilityData};
 use crate::estimation::{NoiseFileError, NoiseSpec};
 use crate::model::{ModelError, PRESETS, RobotModel, from_urdf_str};
 use crate::simulation::{STUDIES, Study, StudyError};
+use crate::table::{DataError, Units};
 use std::path::{Path, PathBuf};
 
 /// A file that could not be read or understood.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum InputError {
     /// The file could not be opened or read.
-    #[error("{path}: cannot read: {source}")]
+    #[error("{}: cannot read", path.display())]
     Read {
         /// The file.
         path: PathBuf,
@@ -21,7 +25,7 @@ pub enum InputError {
         source: std::io::Error,
     },
     /// The file is not a valid model.
-    #[error("{path}: {source}")]
+    #[error("{}", path.display())]
     Model {
         /// The file.
         path: PathBuf,
@@ -29,7 +33,7 @@ pub enum InputError {
         source: ModelError,
     },
     /// The file is not a valid study.
-    #[error("{path}: {source}")]
+    #[error("{}", path.display())]
     Study {
         /// The file.
         path: PathBuf,
@@ -37,7 +41,7 @@ pub enum InputError {
         source: StudyError,
     },
     /// The measurement file is not valid.
-    #[error("{path}: {source}")]
+    #[error("{}", path.display())]
     Data {
         /// The file.
         path: PathBuf,
@@ -45,7 +49,7 @@ pub enum InputError {
         source: DataError,
     },
     /// The noise file is not valid.
-    #[error("{path}: {source}")]
+    #[error("{}", path.display())]
     Noise {
         /// The file.
         path: PathBuf,
@@ -64,7 +68,7 @@ pub enum InputError {
 
 /// A file that could not be written.
 #[derive(Debug, thiserror::Error)]
-#[error("{path}: cannot write: {source}")]
+#[error("{}: cannot write", path.display())]
 pub struct OutputError {
     /// The file or folder.
     pub path: PathBuf,
@@ -85,7 +89,7 @@ pub fn write_files(folder: &Path, files: &[(String, String)]) -> Result<(), Outp
 /// A study by name (`paper-table1`, see [`STUDIES`]) or from a TOML file; its `robot` field
 /// is loaded by [`load_model`].
 pub fn load_study(name_or_path: &str) -> Result<Study, InputError> {
-    let robot = |name: &str| load_model(name).map_err(|e| e.to_string());
+    let robot = |name: &str| load_model(name);
     if let Some((_, text)) = STUDIES.iter().find(|(n, _)| *n == name_or_path) {
         return Ok(Study::from_toml_str(text, robot).expect("embedded studies are valid"));
     }

@@ -1,24 +1,24 @@
 //! The TOML model file: what people write, in mm and degrees, with named fields.
 
 use super::{Convention, Joint, JointKind, Placement, RobotModel, Tool};
+use crate::error::FieldError;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-/// Why a model file could not be read.
+/// Why a model file (TOML or URDF) could not be read.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum ModelError {
-    /// The text is not valid TOML or does not have the fields of a model file. The message
+    /// The text is not valid TOML or does not have the fields of a model file; the source
     /// names the line, the column and the field.
-    #[error("{0}")]
-    Syntax(String),
+    #[error("not a model file")]
+    Syntax(#[source] toml::de::Error),
+    /// The text is not valid XML; the source names the line and the column.
+    #[error("not valid XML")]
+    Xml(#[source] roxmltree::Error),
     /// A field has a value that makes no model.
-    #[error("field `{field}`: {expected}")]
-    Invalid {
-        /// Path of the field, e.g. `joints[2].limits_deg`.
-        field: String,
-        /// What was expected there.
-        expected: String,
-    },
+    #[error(transparent)]
+    Invalid(#[from] FieldError),
 }
 
 #[derive(Serialize, Deserialize)]
@@ -95,7 +95,7 @@ enum KindName {
 }
 
 pub(super) fn parse(text: &str) -> Result<RobotModel, ModelError> {
-    let file: ModelFile = toml::from_str(text).map_err(|e| ModelError::Syntax(e.to_string()))?;
+    let file: ModelFile = toml::from_str(text).map_err(ModelError::Syntax)?;
     let convention = match file.convention {
         ConventionName::StandardDh => Convention::StandardDh,
         ConventionName::ModifiedDh => Convention::ModifiedDh,
@@ -122,7 +122,7 @@ pub(super) fn parse(text: &str) -> Result<RobotModel, ModelError> {
 }
 
 fn invalid(field: impl Into<String>, expected: impl Into<String>) -> ModelError {
-    ModelError::Invalid { field: field.into(), expected: expected.into() }
+    FieldError::new(field, expected).into()
 }
 
 fn finite(field: &str, value: f64) -> Result<f64, ModelError> {

@@ -27,6 +27,8 @@ pub use params::{ParamInfo, ParamKind, ParamOwner, ParamSet, Selection, Selectio
 pub use urdf::{from_urdf_str, to_urdf_string};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rand::RngExt;
+use rand::rngs::ChaCha8Rng;
 
 /// How a joint's geometry is described; see the [module documentation](self).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -172,6 +174,14 @@ impl RobotModel {
     /// Write the model as TOML; [`RobotModel::from_toml_str`] reads it back exactly.
     pub fn to_toml_string(&self) -> String {
         file::write(self)
+    }
+
+    /// `n` configurations drawn uniformly within the joint limits, joint by joint, from `rng`
+    /// (the paper's step 1; the candidate pools of pose planning).
+    pub fn uniform_configurations(&self, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
+        (0..n)
+            .map(|_| self.joints.iter().map(|j| rng.random_range(j.limits[0]..=j.limits[1])).collect())
+            .collect()
     }
 
     /// A model shipped with robocal, by name; see [`PRESETS`].

@@ -7,10 +7,11 @@
 //! plus or minus one turn.
 
 use super::{Convention, Joint, JointKind, ModelError, Placement, RobotModel, Tool};
+use crate::error::FieldError;
 use nalgebra::{Isometry3, Vector3};
 
 fn invalid(field: String, expected: impl Into<String>) -> ModelError {
-    ModelError::Invalid { field, expected: expected.into() }
+    FieldError::new(field, expected).into()
 }
 
 /// The numbers of an attribute such as `xyz="0 0 0.1"`.
@@ -86,11 +87,11 @@ fn chain<'a, 'input>(
 
 /// The chain of `text` from `base_link` to `tip_link`.
 pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<RobotModel, ModelError> {
-    let document =
-        roxmltree::Document::parse(text).map_err(|e| ModelError::Syntax(format!("not valid XML: {e}")))?;
+    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
     let robot = document.root_element();
     if !robot.has_tag_name("robot") {
-        return Err(ModelError::Syntax("not a URDF file: the root element is not <robot>".into()));
+        let found = robot.tag_name().name();
+        return Err(invalid("root element".into(), format!("<robot> in a URDF file, found <{found}>")));
     }
     if !robot.children().any(|n| n.has_tag_name("link") && n.attribute("name") == Some(base_link)) {
         return Err(invalid("base link".into(), format!("a link named `{base_link}` in the file")));
@@ -177,8 +178,7 @@ pub fn to_urdf_string(
     tip_link: &str,
     calibrated: &RobotModel,
 ) -> Result<String, ModelError> {
-    let document = roxmltree::Document::parse(original)
-        .map_err(|e| ModelError::Syntax(format!("not valid XML: {e}")))?;
+    let document = roxmltree::Document::parse(original).map_err(ModelError::Xml)?;
     let robot = document.root_element();
     let chain = chain(robot, base_link, tip_link)?;
     let mut edits: Vec<(std::ops::Range<usize>, String)> = Vec::new();

@@ -31,14 +31,14 @@ pub use synthetic::measurement_csv;
 
 use crate::design::{Criterion, Design, DesignError};
 use crate::estimation::{
-    EstimationError, MeasurementNoise, NoiseModel, PointProblem, Prepared, RANK_TOLERANCE, RefineOptions,
-    refine,
+    DeviceError, EstimationError, MeasurementNoise, NoiseModel, PointProblem, Prepared, RANK_TOLERANCE,
+    RefineOptions, refine,
 };
 use crate::kinematics::{Chain, ChainAt, Measured, pose_error};
-use crate::model::{ParamKind, RobotModel};
+use crate::model::ParamKind;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
+use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
-use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 
@@ -61,13 +61,6 @@ fn rng(seed: u64, stream: u64) -> ChaCha8Rng {
 
 fn normal(rng: &mut ChaCha8Rng) -> f64 {
     StandardNormal.sample(rng)
-}
-
-/// `n` configurations uniform within the joint limits.
-pub fn uniform_configurations(model: &RobotModel, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
-    (0..n)
-        .map(|_| model.joints.iter().map(|j| rng.random_range(j.limits[0]..=j.limits[1])).collect())
-        .collect()
 }
 
 /// How accurate a calibrated model is over the test set.
@@ -175,11 +168,31 @@ struct Bench<'a> {
     test: Vec<Vec<f64>>,
 }
 
-/// Run `study`, calling `progress` once per finished run (from any thread).
-pub fn run(study: &Study, progress: &(dyn Fn() + Sync)) -> Result<StudyResults, EstimationError> {
+/// Why a study could not be run.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimulationError {
+    /// The study's values make no study (checked again here, since its fields are public).
+    #[error(transparent)]
+    Study(#[from] StudyError),
+    /// An estimate could not be computed.
+    #[error(transparent)]
+    Estimation(#[from] EstimationError),
+    /// The poses of a planned case could not be planned.
+    #[error("planning the poses")]
+    Design(#[from] DesignError),
+    /// The measuring device cannot give the covariance at a measurement point.
+    #[error("the study's measuring device")]
+    Device(#[from] DeviceError),
+}
+
+/// Run `study`, calling `progress` once per finished run (from any thread). The study is
+/// checked first ([`Study::check`]).
+pub fn run(study: &Study, progress: &(dyn Fn() + Sync)) -> Result<StudyResults, SimulationError> {
+    study.check()?;
     let chain = Chain::new(&study.robot);
     let nominal = chain.with_errors(&vec![0.0; chain.params().len()]);
-    let test = uniform_configurations(&study.robot, study.test_points, &mut rng(study.seed, TEST_STREAM));
+    let test = study.robot.uniform_configurations(study.test_points, &mut rng(study.seed, TEST_STREAM));
     let bench = Bench { study, chain, nominal, test };
 
     let sets: Vec<(usize, usize)> =
@@ -205,11 +218,11 @@ pub fn run(study: &Study, progress: &(dyn Fn() + Sync)) -> Result<StudyResults, 
 
 impl Bench<'_> {
     /// Step 1, and what every run on the set shares: `H`, `V` and the factored estimators.
-    fn point_set(&self, case: usize, set: usize) -> Result<PointSet, EstimationError> {
+    fn point_set(&self, case: usize, set: usize) -> Result<PointSet, SimulationError> {
         let study = self.study;
         let Case { points, sigma_me, poses } = study.cases[case];
         let mut rng = rng(study.seed, stream(points, set, None));
-        let mut joints = uniform_configurations(&study.robot, points, &mut rng);
+        let mut joints = study.robot.uniform_configurations(points, &mut rng);
         let errors = (study.errors.redraw == Redraw::Set).then(|| self.draw_errors(&mut rng));
         if let PoseChoice::Planned { criterion, candidates } = poses {
             joints = self.planned(joints, sigma_me, criterion, candidates, &mut rng)?;
@@ -225,10 +238,8 @@ impl Bench<'_> {
             let rows = study.measured.rows();
             let mut blocks = Vec::with_capacity(points);
             for pose in &nominal {
-                let covariance = device
-                    .covariance(&pose.translation.vector)
-                    .map_err(|e| EstimationError::Noise(format!("device {}: {e}", device.kind())))?
-                    + Matrix3::identity() * sigma_me * sigma_me;
+                let covariance =
+                    device.covariance(&pose.translation.vector)? + Matrix3::identity() * sigma_me * sigma_me;
                 let factor = covariance.cholesky().map_or(Matrix3::zeros(), |c| c.l());
                 factors.push(factor);
                 let mut block = DMatrix::from_diagonal_element(rows, rows, study.sigma_orientation.powi(2));
@@ -272,22 +283,17 @@ impl Bench<'_> {
         criterion: Criterion,
         candidates: usize,
         rng: &mut ChaCha8Rng,
-    ) -> Result<Vec<Vec<f64>>, EstimationError> {
+    ) -> Result<Vec<Vec<f64>>, DesignError> {
         let study = self.study;
         let noise = NoiseModel::diagonal(
             &study.joint_sigmas,
             MeasurementNoise::isotropic(sigma_me, study.sigma_orientation),
         );
-        let failed = |e: DesignError| match e {
-            DesignError::Estimation(e) => e,
-            e => EstimationError::Dimensions(format!("planning the poses: {e}")),
-        };
-        let design = Design::new(&study.robot, study.selection.clone(), study.measured, Some(noise))
-            .map_err(failed)?;
+        let design = Design::new(&study.robot, study.selection.clone(), study.measured, Some(noise))?;
         let points = joints.len();
         let mut pool = joints;
-        pool.extend(uniform_configurations(&study.robot, candidates.saturating_sub(points), rng));
-        Ok(design.plan(&pool, points, criterion).map_err(failed)?.joints)
+        pool.extend(study.robot.uniform_configurations(candidates.saturating_sub(points), rng));
+        Ok(design.plan(&pool, points, criterion)?.joints)
     }
 
     /// Step 2: the real robot's errors, for the identified parameters.

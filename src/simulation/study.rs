@@ -1,28 +1,25 @@
 //! The study file (TOML): a calibration campaign to simulate, as data.
 
 use crate::design::Criterion;
+use crate::error::FieldError;
 use crate::estimation::{Device, DeviceTable, Estimator};
 use crate::kinematics::Measured;
-use crate::model::{JointKind, RobotModel, Selection, SelectionError};
+use crate::model::{JointKind, RobotModel, Selection, SelectionError, degrees};
 use serde::Deserialize;
 
 /// Why a study file could not be used.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum StudyError {
-    /// Not valid TOML, or missing, misspelled or mistyped fields (the message names the line).
-    #[error("{0}")]
-    Syntax(String),
+    /// Not valid TOML, or missing, misspelled or mistyped fields (the source names the line).
+    #[error("not a study file")]
+    Syntax(#[source] toml::de::Error),
     /// A field with a value that makes no study.
-    #[error("field `{field}`: {expected}")]
-    Invalid {
-        /// The field, e.g. `cases.points`.
-        field: String,
-        /// What was expected.
-        expected: String,
-    },
-    /// The robot could not be loaded.
-    #[error("field `robot`: {0}")]
-    Robot(String),
+    #[error(transparent)]
+    Invalid(#[from] FieldError),
+    /// The robot could not be loaded (the source says why).
+    #[error("field `robot`")]
+    Robot(#[source] Box<dyn std::error::Error + Send + Sync>),
 }
 
 /// When the "real" robot's geometric errors are drawn.
@@ -238,22 +235,13 @@ struct CasesFile {
 impl Study {
     /// Read a study from TOML text; `load_robot` turns the `robot` field (a preset name or a
     /// file) into a model. See `docs/formats.md` for the fields.
-    pub fn from_toml_str(
+    pub fn from_toml_str<E: Into<Box<dyn std::error::Error + Send + Sync>>>(
         text: &str,
-        load_robot: impl FnOnce(&str) -> Result<RobotModel, String>,
+        load_robot: impl FnOnce(&str) -> Result<RobotModel, E>,
     ) -> Result<Self, StudyError> {
-        let file: StudyFile = toml::from_str(text).map_err(|e| StudyError::Syntax(e.to_string()))?;
-        let robot = load_robot(&file.robot).map_err(StudyError::Robot)?;
-        let invalid =
-            |field: &str, expected: String| Err(StudyError::Invalid { field: field.into(), expected });
-        if file.name.is_empty()
-            || !file.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
-        {
-            return invalid(
-                "name",
-                format!("letters, digits, `-` or `_` (it names files), found {:?}", file.name),
-            );
-        }
+        let file: StudyFile = toml::from_str(text).map_err(StudyError::Syntax)?;
+        let robot = load_robot(&file.robot).map_err(|e| StudyError::Robot(e.into()))?;
+        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         let params = robot.params();
         let selection = match &file.parameters {
             Parameters::Named(name) if name == "joints" => Selection::joints(&params),
@@ -262,24 +250,12 @@ impl Study {
             Parameters::Named(name) => Selection::by_names(&params, &[name]).map_err(selection_error)?,
             Parameters::List(names) => Selection::by_names(&params, names).map_err(selection_error)?,
         };
-        if selection.is_empty() {
-            return Err(StudyError::Invalid {
-                field: "parameters".into(),
-                expected: "at least one parameter".into(),
-            });
-        }
         let estimators: Vec<Estimator> = file
             .estimators
             .iter()
             .map(|e| e.parse())
             .collect::<Result<_, String>>()
-            .map_err(|e| StudyError::Invalid { field: "estimators".into(), expected: e })?;
-        if estimators.len() < 2 {
-            return invalid(
-                "estimators",
-                "at least two, the first the baseline of dE (e.g. [\"ols\", \"wls\"])".into(),
-            );
-        }
+            .map_err(|e| FieldError::new("estimators", e))?;
         if file.noise.joint_sigma.len() != robot.dof() {
             return invalid(
                 "noise.joint_sigma",
@@ -292,55 +268,11 @@ impl Study {
             .zip(&file.noise.joint_sigma)
             .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
             .collect::<Vec<_>>();
-        let non_negative = [
-            ("noise.joint_sigma", file.noise.joint_sigma.iter().copied().fold(0.0, f64::min)),
-            ("noise.sigma_orientation_deg", file.noise.sigma_orientation_deg),
-            ("errors.offset_deg", file.errors.offset_deg),
-            ("errors.angle_deg", file.errors.angle_deg),
-            ("errors.length_mm", file.errors.length_mm),
-            ("cases.sigma_me_mm", file.cases.sigma_me_mm.iter().copied().fold(0.0, f64::min)),
-        ];
-        for (field, value) in non_negative {
-            if !(value >= 0.0 && value.is_finite()) {
-                return invalid(field, format!("finite values >= 0, found {value}"));
-            }
-        }
-        let all_finite = file.noise.joint_sigma.iter().chain(&file.cases.sigma_me_mm).all(|v| v.is_finite());
-        if !all_finite {
-            return invalid("noise.joint_sigma / cases.sigma_me_mm", "finite values".into());
-        }
-        for (field, count) in [
-            ("point_sets", file.point_sets),
-            ("runs_per_set", file.runs_per_set),
-            ("test_points", file.test_points),
-            ("iterations", file.iterations),
-        ] {
-            if count == 0 {
-                return invalid(field, "at least 1".into());
-            }
-        }
-        if file.point_sets * file.runs_per_set < 2 {
-            return invalid(
-                "runs_per_set",
-                "at least 2 runs per case (point_sets x runs_per_set) for a spread".into(),
-            );
-        }
         if file.cases.points.is_empty() || file.cases.sigma_me_mm.is_empty() {
             return invalid("cases", "at least one value in `points` and in `sigma_me_mm`".into());
         }
-        if file.cases.points.iter().any(|&n| n == 0 || n >= 1 << 20) {
-            return invalid("cases.points", "point counts from 1 to 1048575".into());
-        }
-        if file.point_sets >= 1 << 20 || file.runs_per_set >= 1 << 20 {
-            return invalid("point_sets / runs_per_set", "fewer than 1048576".into());
-        }
         let device = match &file.noise.device {
-            Some(table) => Some(table.device("noise.device.").map_err(|e| match e {
-                crate::estimation::NoiseFileError::Invalid { field, expected } => {
-                    StudyError::Invalid { field, expected }
-                }
-                other => StudyError::Syntax(other.to_string()),
-            })?),
+            Some(table) => Some(table.device("noise.device.")?),
             None => None,
         };
         let choices = pose_choices(file.design.as_ref(), &file.cases.points)?;
@@ -351,7 +283,7 @@ impl Study {
             .flat_map(|&points| file.cases.sigma_me_mm.iter().map(move |&sigma_me| (points, sigma_me)))
             .flat_map(|(points, sigma_me)| choices.iter().map(move |&poses| Case { points, sigma_me, poses }))
             .collect();
-        Ok(Self {
+        let study = Self {
             name: file.name,
             description: file.description,
             measured: match file.measured {
@@ -377,7 +309,86 @@ impl Study {
             seed: file.seed,
             reference: file.reference,
             robot,
-        })
+        };
+        study.check()?;
+        Ok(study)
+    }
+
+    /// Check that the study's values make a study: a name fit for file names, at least one
+    /// parameter, two estimators, one finite joint sigma >= 0 per joint, finite error sizes
+    /// and noise >= 0, cases with 1 to 1048575 points, and counts of sets, runs, test points
+    /// and iterations from 1 (at least 2 runs per case). Errors name the study file's field.
+    pub fn check(&self) -> Result<(), StudyError> {
+        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
+        let name = &self.name;
+        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
+            return invalid("name", format!("letters, digits, `-` or `_` (it names files), found {name:?}"));
+        }
+        if self.selection.is_empty() {
+            return invalid("parameters", "at least one parameter".into());
+        }
+        if self.estimators.len() < 2 {
+            return invalid(
+                "estimators",
+                "at least two, the first the baseline of dE (e.g. [\"ols\", \"wls\"])".into(),
+            );
+        }
+        if self.joint_sigmas.len() != self.robot.dof() {
+            return invalid(
+                "noise.joint_sigma",
+                format!("{} values, one per joint of {}", self.robot.dof(), self.robot.name),
+            );
+        }
+        let sigma_me = self.cases.iter().map(|c| c.sigma_me);
+        // (field, smallest value, in the file's unit)
+        let joint_sigma = self.robot.joints.iter().zip(&self.joint_sigmas).map(|(j, &s)| match j.kind {
+            JointKind::Revolute => degrees(s),
+            JointKind::Prismatic => s,
+        });
+        let non_negative = [
+            ("noise.joint_sigma", joint_sigma.fold(0.0, min_or_nan)),
+            ("noise.sigma_orientation_deg", degrees(self.sigma_orientation)),
+            ("errors.offset_deg", degrees(self.errors.offset)),
+            ("errors.angle_deg", degrees(self.errors.angle)),
+            ("errors.length_mm", self.errors.length),
+            ("cases.sigma_me_mm", sigma_me.fold(0.0, min_or_nan)),
+        ];
+        for (field, value) in non_negative {
+            if !(value >= 0.0 && value.is_finite()) {
+                return invalid(field, format!("finite values >= 0, found {value}"));
+            }
+        }
+        let all_finite =
+            self.joint_sigmas.iter().chain(self.cases.iter().map(|c| &c.sigma_me)).all(|v| v.is_finite());
+        if !all_finite {
+            return invalid("noise.joint_sigma / cases.sigma_me_mm", "finite values".into());
+        }
+        for (field, count) in [
+            ("point_sets", self.point_sets),
+            ("runs_per_set", self.runs_per_set),
+            ("test_points", self.test_points),
+            ("iterations", self.iterations),
+        ] {
+            if count == 0 {
+                return invalid(field, "at least 1".into());
+            }
+        }
+        if self.point_sets.saturating_mul(self.runs_per_set) < 2 {
+            return invalid(
+                "runs_per_set",
+                "at least 2 runs per case (point_sets x runs_per_set) for a spread".into(),
+            );
+        }
+        if self.cases.is_empty() {
+            return invalid("cases", "at least one value in `points` and in `sigma_me_mm`".into());
+        }
+        if self.cases.iter().any(|c| c.points == 0 || c.points >= 1 << 20) {
+            return invalid("cases.points", "point counts from 1 to 1048575".into());
+        }
+        if self.point_sets >= 1 << 20 || self.runs_per_set >= 1 << 20 {
+            return invalid("point_sets / runs_per_set", "fewer than 1048576".into());
+        }
+        Ok(())
     }
 
     /// Replace the study's noise by a noise file's: the joint sigmas, the device, the
@@ -387,16 +398,12 @@ impl Study {
     pub fn set_noise(&mut self, spec: &crate::estimation::NoiseSpec) -> Result<(), StudyError> {
         let dof = self.robot.dof();
         if spec.joint.shape() != (dof, dof) {
-            return Err(StudyError::Invalid {
-                field: "noise".into(),
-                expected: format!("a noise file for the {dof} joints of {}", self.robot.name),
-            });
+            let expected = format!("a noise file for the {dof} joints of {}", self.robot.name);
+            return Err(FieldError::new("noise", expected).into());
         }
         if (0..dof).any(|i| (0..dof).any(|j| i != j && spec.joint[(i, j)] != 0.0)) {
-            return Err(StudyError::Invalid {
-                field: "joint_covariance".into(),
-                expected: "per-joint sigmas: a study simulates uncorrelated joint noise".into(),
-            });
+            let expected = "per-joint sigmas: a study simulates uncorrelated joint noise";
+            return Err(FieldError::new("joint_covariance", expected).into());
         }
         self.joint_sigmas = spec.joint_sigmas();
         self.device = spec.device.clone();
@@ -420,10 +427,15 @@ impl Study {
     }
 }
 
+/// The smaller of `a` and `b`, or NaN if either is NaN (so that a NaN is found and named).
+fn min_or_nan(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() { f64::NAN } else { a.min(b) }
+}
+
 /// The pose choices of `[design]` (random only without it), validated.
 fn pose_choices(design: Option<&DesignFile>, points: &[usize]) -> Result<Vec<PoseChoice>, StudyError> {
     let Some(design) = design else { return Ok(vec![PoseChoice::Random]) };
-    let invalid = |field: &str, expected: String| StudyError::Invalid { field: field.into(), expected };
+    let invalid = |field: &str, expected: String| StudyError::from(FieldError::new(field, expected));
     let criterion: Criterion = design.criterion.parse().map_err(|e| invalid("design.criterion", e))?;
     let largest = points.iter().copied().max().unwrap_or(0);
     if design.candidates < largest || design.candidates >= 1 << 20 {
@@ -453,7 +465,7 @@ fn pose_choices(design: Option<&DesignFile>, points: &[usize]) -> Result<Vec<Pos
 }
 
 fn selection_error(e: SelectionError) -> StudyError {
-    StudyError::Invalid { field: "parameters".into(), expected: e.to_string() }
+    FieldError::new("parameters", e.to_string()).into()
 }
 
 /// The studies shipped with robocal: `(name, TOML text)`. `paper-table1` and `paper-table2`

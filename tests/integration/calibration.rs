@@ -4,11 +4,12 @@ use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
-use robocal::calibration::{self, JointParams, Measurements, Options, Units};
+use robocal::calibration::{self, JointParams, Measurements, Options};
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PointProblem, RefineOptions, refine};
 use robocal::kinematics::{Chain, Measured};
 use robocal::model::{ParamKind, ParamOwner, Placement, RobotModel, Selection};
 use robocal::simulation::measurement_csv;
+use robocal::table::Units;
 
 const DEGREES: [f64; 6] = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002];
 

@@ -1,6 +1,7 @@
 //! Model files: exact round trip and clear errors.
 
 use proptest::prelude::*;
+use robocal::error::FieldError;
 use robocal::model::{ModelError, RobotModel};
 
 const PUMA: &str = include_str!("../../presets/puma560.toml");
@@ -37,7 +38,7 @@ proptest! {
 }
 
 fn error_of(text: &str) -> String {
-    RobotModel::from_toml_str(text).unwrap_err().to_string()
+    robocal::error::chain(&RobotModel::from_toml_str(text).unwrap_err())
 }
 
 #[test]
@@ -63,10 +64,7 @@ fn reversed_limits_are_rejected() {
     let err = RobotModel::from_toml_str(&PUMA.replace("[-160.0, 160.0]", "[160.0, -160.0]")).unwrap_err();
     assert_eq!(
         err,
-        ModelError::Invalid {
-            field: "joints[0].limits_deg".into(),
-            expected: "[lower, upper] with lower < upper".into()
-        }
+        ModelError::Invalid(FieldError::new("joints[0].limits_deg", "[lower, upper] with lower < upper"))
     );
 }
 

@@ -143,7 +143,7 @@ fn puma() -> RobotModel {
 }
 
 fn noise_error(text: &str) -> String {
-    NoiseSpec::from_toml_str(text, &puma()).unwrap_err().to_string()
+    robocal::error::chain(&NoiseSpec::from_toml_str(text, &puma()).unwrap_err())
 }
 
 const SIGMAS: &str = "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\n";
@@ -226,9 +226,7 @@ fn study(device: &str, sigma_me: &str) -> Study {
         .replace("points = [48]", "points = [24]")
         .replace("sigma_me_mm = [0.0, 0.025, 0.05, 0.1]", &format!("sigma_me_mm = [{sigma_me}]"))
         .replace("[errors]", &format!("{device}\n[errors]"));
-    Study::from_toml_str(&text, |name| load_model(name).map_err(|e| e.to_string()))
-        .map_err(|e| e.to_string())
-        .unwrap()
+    Study::from_toml_str(&text, load_model).unwrap()
 }
 
 /// A CMM device is the paper's isotropic noise: the same random numbers (its Cholesky factor
@@ -261,11 +259,12 @@ fn a_theodolite_study_runs_and_weighting_helps() {
 fn a_study_with_a_bad_device_says_which_field() {
     let text = include_str!("../../presets/device-laser-tracker.toml")
         .replace("sigma_r_mm = 0.01", "sigma_r_mm = -1");
-    let message = Study::from_toml_str(&text, |n| load_model(n).map_err(|e| e.to_string())).unwrap_err();
+    let message = Study::from_toml_str(&text, load_model).unwrap_err();
     assert_eq!(message.to_string(), "field `noise.device.sigma_r_mm`: a finite value >= 0, found -1");
     let text = include_str!("../../presets/device-cmm.toml").replace("kind = \"cmm\"", "kind = \"camera\"");
-    let message = Study::from_toml_str(&text, |n| load_model(n).map_err(|e| e.to_string())).unwrap_err();
-    assert!(message.to_string().contains("unknown variant `camera`"), "{message}");
+    let message = Study::from_toml_str(&text, load_model).unwrap_err();
+    let message = robocal::error::chain(&message);
+    assert!(message.contains("unknown variant `camera`"), "{message}");
 }
 
 #[test]

@@ -9,7 +9,6 @@ use robocal::design::{Design, Indices, o1, o2, o3, o4, o5, poses_csv, poses_from
 use robocal::estimation::{MeasurementNoise, NoiseModel};
 use robocal::kinematics::{Chain, Measured};
 use robocal::model::{RobotModel, Selection};
-use robocal::simulation::uniform_configurations;
 
 const JOINT_SIGMA_DEG: [f64; 6] = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002];
 
@@ -22,7 +21,7 @@ fn puma_design(sigma_scale: f64) -> Design {
 
 fn random_poses(n: usize, seed: u64) -> Vec<Vec<f64>> {
     let model = RobotModel::preset("puma560").unwrap();
-    uniform_configurations(&model, n, &mut ChaCha8Rng::seed_from_u64(seed))
+    model.uniform_configurations(n, &mut ChaCha8Rng::seed_from_u64(seed))
 }
 
 #[test]

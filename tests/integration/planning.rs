@@ -7,7 +7,6 @@ use robocal::design::{Constraints, Criterion, Design, DesignError, ExcludedRange
 use robocal::estimation::{MeasurementNoise, NoiseModel};
 use robocal::kinematics::{Chain, Measured};
 use robocal::model::{RobotModel, Selection};
-use robocal::simulation::uniform_configurations;
 
 /// The paper's setting: the PUMA 560's 30 joint parameters from positions, its joint noise,
 /// `sigma_me` = 0.01 mm.
@@ -30,9 +29,7 @@ fn planned_sets_beat_the_best_of_100_random_sets() {
         let mut rng = ChaCha8Rng::seed_from_u64(99);
         let best = (0..100)
             .map(|_| {
-                design
-                    .criterion(&uniform_configurations(design.model(), points, &mut rng), criterion)
-                    .unwrap()
+                design.criterion(&design.model().uniform_configurations(points, &mut rng), criterion).unwrap()
             })
             .fold(f64::NEG_INFINITY, f64::max);
         eprintln!("{criterion}: planned {} (from {}), best random {best}", plan.value, plan.initial);
@@ -215,10 +212,7 @@ poses = ["random", "planned"]
 candidates = 1000
 "#
     );
-    robocal::simulation::Study::from_toml_str(&text, |n| {
-        robocal::io::load_model(n).map_err(|e| e.to_string())
-    })
-    .unwrap()
+    robocal::simulation::Study::from_toml_str(&text, robocal::io::load_model).unwrap()
 }
 
 /// How many standard errors a mean reduction must clear: the two-sided 99.9% point of
@@ -280,11 +274,7 @@ fn planned_studies_do_not_depend_on_the_thread_count() {
 #[test]
 fn study_files_reject_a_bad_design_table() {
     let base = include_str!("../../presets/planned-poses.toml");
-    let load = |text: &str| {
-        robocal::simulation::Study::from_toml_str(text, |n| {
-            robocal::io::load_model(n).map_err(|e| e.to_string())
-        })
-    };
+    let load = |text: &str| robocal::simulation::Study::from_toml_str(text, robocal::io::load_model);
     assert_eq!(load(base).unwrap().cases.len(), 4 * 2 * 2);
     for (from, to, expected) in [
         ("candidates = 2000", "candidates = 50", "field `design.candidates`: from the largest N_p (96)"),

@@ -33,7 +33,7 @@ points = {points}
 sigma_me_mm = {sigmas}
 "#
     );
-    Study::from_toml_str(&text, |name| load_model(name).map_err(|e| e.to_string())).unwrap()
+    Study::from_toml_str(&text, load_model).unwrap()
 }
 
 fn run(study: &Study) -> StudyResults {
@@ -117,7 +117,7 @@ fn study_tables_snapshot() {
 fn study_error(replace: &str, with: &str) -> String {
     let text = include_str!("../../presets/paper-table1.toml").replacen(replace, with, 1);
     assert_ne!(text, include_str!("../../presets/paper-table1.toml"), "the test must change the file");
-    Study::from_toml_str(&text, |name| load_model(name).map_err(|e| e.to_string())).unwrap_err().to_string()
+    robocal::error::chain(&Study::from_toml_str(&text, load_model).unwrap_err())
 }
 
 #[test]
@@ -153,7 +153,7 @@ fn a_pose_study_measures_orientation_too() {
         .replace("point_sets = 6", "point_sets = 2")
         .replace("runs_per_set = 16", "runs_per_set = 4")
         .replace("[noise]", "[noise]\nsigma_orientation_deg = 0.001");
-    let study = Study::from_toml_str(&text, |name| load_model(name).map_err(|e| e.to_string())).unwrap();
+    let study = Study::from_toml_str(&text, load_model).unwrap();
     let results = run(&study);
     // 6 rows a point: the orientation rows make two more combinations identifiable (23 -> 25).
     assert!(results.ranks.iter().all(|&(_, _, rank)| rank == 25), "{:?}", results.ranks);

@@ -1,0 +1,325 @@
+//! The CSV tables robocal reads: measurement files, pose files and repeatability files.
+//!
+//! All three share one layout (see `docs/formats.md`):
+//!
+//! ```text
+//! # units: joints=deg, lengths=mm
+//! j1,j2,j3,j4,j5,j6,x1,y1,z1
+//! 10.0,45.0,-30.0,0.0,20.0,5.0,512.3,-140.2,601.7
+//! ```
+//!
+//! Lines starting with `#` are comments; the first of them may declare the units. The first
+//! other line is the header; cells are trimmed. Joint columns are named after the model's
+//! joints; revolute joint values are in the declared angle unit, prismatic ones in the length
+//! unit. A byte-order mark and CR or CRLF line endings are accepted. A header that names a
+//! column twice, and a row with more or fewer cells than the header, are refused.
+//!
+//! [`Table`] reads the text once; each file kind then picks its columns from it.
+
+use crate::model::{JointKind, RobotModel};
+use std::borrow::Cow;
+
+/// Units of a table file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Units {
+    /// Revolute joint values in degrees (true) or radians.
+    pub joints_in_degrees: bool,
+    /// Lengths in metres (true) or millimetres.
+    pub lengths_in_metres: bool,
+}
+
+impl Units {
+    /// The factor that turns the file's lengths into mm: 1000 for metres, 1 for mm.
+    pub fn length_scale(&self) -> f64 {
+        if self.lengths_in_metres { 1000.0 } else { 1.0 }
+    }
+
+    /// An angle in the file's unit, in radians.
+    pub fn angle(&self, value: f64) -> f64 {
+        if self.joints_in_degrees { value.to_radians() } else { value }
+    }
+}
+
+/// A table file that could not be read: where and why.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("line {line}{}: {message}", column.as_ref().map(|c| format!(", column `{c}`")).unwrap_or_default())]
+#[non_exhaustive]
+pub struct DataError {
+    /// Line in the file (1-based).
+    pub line: usize,
+    /// The column, where one is at fault.
+    pub column: Option<String>,
+    /// What is wrong and what was expected.
+    pub message: String,
+}
+
+impl DataError {
+    /// The error at `line` (and `column`, if one is at fault).
+    pub fn new(line: usize, column: Option<&str>, message: impl Into<String>) -> Self {
+        Self { line, column: column.map(str::to_string), message: message.into() }
+    }
+}
+
+/// One row of a table: its line in the file and its trimmed cells.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Row {
+    /// Line in the file (1-based).
+    pub line: usize,
+    /// The cells, as many as the header's or fewer.
+    pub cells: Vec<String>,
+}
+
+/// A table file read whole: the declared units, the header and the rows.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Table {
+    /// The units of the `# units:` line, if the file has one.
+    pub declared: Option<Units>,
+    /// The header's cells.
+    pub header: Vec<String>,
+    /// The header's line (1-based).
+    pub header_line: usize,
+    /// The rows after the header.
+    pub rows: Vec<Row>,
+}
+
+impl Table {
+    /// Read a table's text: the units line, the header and every row. Refuses a header that
+    /// names a column twice and a row with more or fewer cells than the header.
+    pub fn parse(text: &str) -> Result<Self, DataError> {
+        let text = normalised(text);
+        let declared = declared_units(&text)?;
+        let mut reader = csv::ReaderBuilder::new()
+            .comment(Some(b'#'))
+            .trim(csv::Trim::All)
+            .flexible(true)
+            .from_reader(text.as_bytes());
+        let header: Vec<String> = reader
+            .headers()
+            .map_err(|e| DataError::new(1, None, format!("no header row: {e}")))?
+            .iter()
+            .map(str::to_string)
+            .collect();
+        let header_line =
+            text.lines().position(|l| !l.trim_start().starts_with('#') && !l.trim().is_empty()).unwrap_or(0)
+                + 1;
+        if header.iter().all(String::is_empty) {
+            return Err(DataError::new(header_line, None, "no header row"));
+        }
+        if let Some((i, name)) = header.iter().enumerate().find(|(i, h)| header[..*i].contains(h)) {
+            let message =
+                format!("a column named once, `{name}` is column {} and {}", position(&header, name), i + 1);
+            return Err(DataError::new(header_line, Some(name), message));
+        }
+        // The csv reader counts neither blank lines nor comments, and a record's position can
+        // be that of the blank or comment lines before it: lines come from byte offsets.
+        let newlines: Vec<usize> = text.match_indices('\n').map(|(i, _)| i).collect();
+        let lines: Vec<&str> = text.split('\n').collect();
+        let line_of = |position: Option<&csv::Position>| {
+            let Some(p) = position else { return 0 };
+            let mut line = newlines.partition_point(|&n| n < p.byte() as usize);
+            while lines.get(line).is_some_and(|l| l.trim().is_empty() || l.trim_start().starts_with('#')) {
+                line += 1;
+            }
+            line + 1
+        };
+        let mut rows = Vec::new();
+        for record in reader.records() {
+            let record = record.map_err(|e| DataError::new(line_of(e.position()), None, e.to_string()))?;
+            let line = line_of(record.position());
+            if record.len() != header.len() {
+                let message = format!("{} values, the header has {}", record.len(), header.len());
+                return Err(DataError::new(line, None, message));
+            }
+            rows.push(Row { line, cells: record.iter().map(str::to_string).collect() });
+        }
+        Ok(Self { declared, header, header_line, rows })
+    }
+
+    /// The units: `given` by the caller, else the file's declared ones; `hint` says how else
+    /// the user can declare them.
+    pub fn units(&self, given: Option<Units>, hint: &str) -> Result<Units, DataError> {
+        given.or(self.declared).ok_or_else(|| {
+            DataError::new(
+                1,
+                None,
+                format!("units not declared: start the file with `# units: joints=deg, lengths=mm` (or rad, m){hint}"),
+            )
+        })
+    }
+
+    /// The column named `name`, if the header has one.
+    pub fn column(&self, name: &str) -> Option<usize> {
+        self.header.iter().position(|h| h == name)
+    }
+
+    /// The column of each of `model`'s joints, named after the joint; an error names the first
+    /// joint missing and lists the model's joints.
+    pub fn joint_columns(&self, model: &RobotModel) -> Result<Vec<usize>, DataError> {
+        model
+            .joints
+            .iter()
+            .map(|j| {
+                self.column(&j.name).ok_or_else(|| {
+                    let expected: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
+                    let message =
+                        format!("missing joint column; the model's joints are {}", expected.join(", "));
+                    DataError::new(self.header_line, Some(&j.name), message)
+                })
+            })
+            .collect()
+    }
+
+    /// The finite number in `column` of `row`.
+    pub fn number(&self, row: &Row, column: usize) -> Result<f64, DataError> {
+        let name = &self.header[column];
+        let Some(text) = row.cells.get(column) else {
+            let message = format!("{} values, the header has {}", row.cells.len(), self.header.len());
+            return Err(DataError::new(row.line, Some(name), message));
+        };
+        let v: f64 = text
+            .parse()
+            .map_err(|_| DataError::new(row.line, Some(name), format!("`{text}` is not a number")))?;
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(DataError::new(row.line, Some(name), format!("{v}: expected a finite number")))
+        }
+    }
+
+    /// The joint values of `row` in rad (revolute) and mm (prismatic), from the joint
+    /// `columns` of [`Table::joint_columns`].
+    pub fn joint_values(
+        &self,
+        row: &Row,
+        columns: &[usize],
+        model: &RobotModel,
+        units: Units,
+    ) -> Result<Vec<f64>, DataError> {
+        model
+            .joints
+            .iter()
+            .zip(columns)
+            .map(|(joint, &c)| {
+                let v = self.number(row, c)?;
+                Ok(match joint.kind {
+                    JointKind::Revolute => units.angle(v),
+                    JointKind::Prismatic => v * units.length_scale(),
+                })
+            })
+            .collect()
+    }
+
+    /// The rows, or an error naming the header's line when there are none.
+    pub fn nonempty_rows(&self) -> Result<&[Row], DataError> {
+        if self.rows.is_empty() {
+            return Err(DataError::new(self.header_line, None, "no poses after the header"));
+        }
+        Ok(&self.rows)
+    }
+}
+
+/// The 1-based position of the first column named `name`.
+fn position(header: &[String], name: &str) -> usize {
+    header.iter().position(|h| h == name).map_or(0, |i| i + 1)
+}
+
+/// `text` without a byte-order mark and with `\n` line endings (CR and CRLF files accepted).
+fn normalised(text: &str) -> Cow<'_, str> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    if text.contains('\r') {
+        Cow::Owned(text.replace("\r\n", "\n").replace('\r', "\n"))
+    } else {
+        Cow::Borrowed(text)
+    }
+}
+
+/// The units of a `# units: joints=deg, lengths=mm` line among the leading comments, if the
+/// file has one.
+fn declared_units(text: &str) -> Result<Option<Units>, DataError> {
+    for (i, line) in text.lines().enumerate() {
+        let Some(rest) = line.trim().strip_prefix('#') else { break };
+        let Some(spec) = rest.trim().strip_prefix("units:") else { continue };
+        let bad = |message: String| DataError::new(i + 1, None, message);
+        let (mut joints, mut lengths) = (None, None);
+        for part in spec.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+            match part.split_once('=').map(|(k, v)| (k.trim(), v.trim())) {
+                Some(("joints", "deg")) => joints = Some(true),
+                Some(("joints", "rad")) => joints = Some(false),
+                Some(("lengths", "mm")) => lengths = Some(false),
+                Some(("lengths", "m")) => lengths = Some(true),
+                _ => {
+                    return Err(bad(format!(
+                        "`{part}` in the units line: expected joints=deg|rad and lengths=mm|m"
+                    )));
+                }
+            }
+        }
+        return match (joints, lengths) {
+            (Some(j), Some(l)) => Ok(Some(Units { joints_in_degrees: j, lengths_in_metres: l })),
+            _ => Err(bad("the units line must give both joints=deg|rad and lengths=mm|m".into())),
+        };
+    }
+    Ok(None)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TEXT: &str = "# units: joints=deg, lengths=m\n# a comment\nj1, x1\n1.5,2\n\n# between\n3,4\n";
+
+    #[test]
+    fn a_table_is_read_once_with_its_units_and_lines() {
+        let table = Table::parse(TEXT).unwrap();
+        assert_eq!(table.declared, Some(Units { joints_in_degrees: true, lengths_in_metres: true }));
+        assert_eq!(table.header, ["j1", "x1"]);
+        assert_eq!(table.header_line, 3);
+        assert_eq!(table.rows.iter().map(|r| r.line).collect::<Vec<_>>(), [4, 7]);
+        assert_eq!(table.number(&table.rows[1], 1), Ok(4.0));
+    }
+
+    #[test]
+    fn a_byte_order_mark_and_cr_line_endings_read_as_the_plain_file() {
+        let plain = Table::parse(TEXT).unwrap();
+        assert_eq!(Table::parse(&format!("\u{feff}{TEXT}")).unwrap(), plain);
+        assert_eq!(Table::parse(&TEXT.replace('\n', "\r\n")).unwrap(), plain);
+        assert_eq!(Table::parse(&TEXT.replace('\n', "\r")).unwrap(), plain);
+    }
+
+    #[test]
+    fn a_column_named_twice_is_refused() {
+        let e = Table::parse("j1,x1,j1\n1,2,3\n").unwrap_err();
+        assert_eq!(e, DataError::new(1, Some("j1"), "a column named once, `j1` is column 1 and 3"));
+    }
+
+    #[test]
+    fn a_row_longer_or_shorter_than_the_header_is_refused() {
+        let e = Table::parse("j1,x1\n1,2\n1,2,3\n").unwrap_err();
+        assert_eq!(e, DataError::new(3, None, "3 values, the header has 2"));
+        let e = Table::parse("j1,x1\n1\n").unwrap_err();
+        assert_eq!(e, DataError::new(2, None, "1 values, the header has 2"));
+    }
+
+    #[test]
+    fn a_bad_cell_names_line_and_column() {
+        let table = Table::parse("j1,x1\nx,2\n").unwrap();
+        assert_eq!(
+            table.number(&table.rows[0], 0).unwrap_err().to_string(),
+            "line 2, column `j1`: `x` is not a number"
+        );
+        assert_eq!(
+            table.number(&Row { line: 9, cells: vec!["inf".into()] }, 0).unwrap_err().to_string(),
+            "line 9, column `j1`: inf: expected a finite number"
+        );
+    }
+
+    #[test]
+    fn units_given_by_the_caller_take_the_place_of_the_file_s() {
+        let table = Table::parse("j1\n1\n").unwrap();
+        let given = Units { joints_in_degrees: false, lengths_in_metres: false };
+        assert_eq!(table.units(Some(given), ""), Ok(given));
+        assert!(table.units(None, " or say so").unwrap_err().message.ends_with("(or rad, m) or say so"));
+        let bad = Table::parse("# units: joints=deg\nj1\n1\n").unwrap_err();
+        assert_eq!(bad.line, 1);
+    }
+}
