@@ -43,11 +43,14 @@ pub fn chain(error: &dyn std::error::Error) -> String {
 mod tests {
     use super::*;
 
+    #[derive(Debug, thiserror::Error)]
+    #[error("not a file")]
+    struct Syntax(#[source] toml::de::Error);
+
     #[test]
     fn a_chain_names_every_source_once() {
         let syntax = toml::from_str::<toml::Table>("a = ").unwrap_err();
-        let error = crate::model::ModelError::Syntax(syntax.clone());
-        assert_eq!(chain(&error), format!("not a model file: {syntax}"));
+        assert_eq!(chain(&Syntax(syntax.clone())), format!("not a file: {syntax}"));
         assert_eq!(chain(&FieldError::new("a", "b").within("x.")), "field `x.a`: b");
     }
 }

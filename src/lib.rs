@@ -8,23 +8,25 @@
 //! The errors of a robot's kinematic parameters `x` are found from measured end-effector
 //! positions or poses through the linearised model `y = H x + e` (the paper's Eq. 1).
 //!
-//! The modules, in the order the dependencies flow:
-//! - [`model`]: robot models (DH conventions with Hayati's beta, base, tool, limits), their
-//!   TOML format, and the named error parameters.
+//! The modules, from the bottom up; each uses only the modules above it in this list, never
+//! one below (a test in `tests/integration/layering.rs` keeps it so):
+//! - [`error`]: the error vocabulary the input formats share.
+//! - [`model`]: robot models (DH conventions with Hayati's beta, URDF, base, tool, limits),
+//!   their TOML format, and the named error parameters.
 //! - [`kinematics`]: forward kinematics, the manipulator Jacobian `J` and the identification
-//!   Jacobian `H`, analytic and allocation-free.
-//!
+//!   Jacobian `H`, analytic and allocation-free. [`table`]: the CSV tables of joint values
+//!   and measurements, beside it.
 //! - [`estimation`]: the noise model (`V_k = J_k Sigma_q J_k^T + Sigma_m,k`), OLS and weighted
 //!   (Gauss-Markov) least squares by whitening, rank-deficient solves, identifiability,
 //!   covariance, and Gauss-Newton refinement.
+//! - [`calibration`]: calibrating a real robot from measured marker positions: registration,
+//!   base and markers, identifiable joint parameters, validation. [`design`], beside it:
+//!   choosing the measurement poses (beyond the paper): observability indices O1-O5 of a pose
+//!   set, and poses planned by an exchange algorithm to maximise one of them.
 //! - [`simulation`]: the Monte Carlo simulation of a calibration campaign (the paper's steps
 //!   1-8), studies as data, reproducible on any number of threads.
-//! - [`calibration`]: calibrating a real robot from measured marker positions: registration,
-//!   base and markers, identifiable joint parameters, validation.
-//! - [`design`]: choosing the measurement poses (beyond the paper): observability indices
-//!   O1-O5 of a pose set, and poses planned by an exchange algorithm to maximise one of them.
-//! - [`io`]: reading files, with errors that name the file.
-//! - [`report`]: text reports at fixed precision.
+//! - [`io`]: reading files, with errors that name the file. [`report`], beside it: text
+//!   reports at fixed precision, CSV and SVG figures.
 //!
 //! The PUMA 560 of the paper at its "ready" pose:
 //!

@@ -5,6 +5,7 @@ mod cli;
 mod estimation;
 mod fgls;
 mod kinematics;
+mod layering;
 mod model_files;
 mod noise;
 mod observability;
