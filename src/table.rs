@@ -14,7 +14,7 @@
 //! unit. A byte-order mark and CR or CRLF line endings are accepted. A header that names a
 //! column twice, and a row with more or fewer cells than the header, are refused.
 //!
-//! [`Table`] reads the text once; each file kind then picks its columns from it.
+//! The reader reads the text once; each file kind then picks its columns from it.
 
 use crate::model::{JointKind, RobotModel};
 use std::borrow::Cow;

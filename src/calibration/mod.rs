@@ -64,6 +64,7 @@ pub struct Options {
 
 /// Why a calibration could not be done.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum CalibrationError {
     /// The estimation failed.
     #[error(transparent)]
@@ -135,8 +136,8 @@ pub struct Calibration {
     pub before: Vec<f64>,
     /// Parameter errors after the full calibration ("after").
     pub after: Vec<f64>,
-    /// The full estimate: values, covariance, diagnostics, iterations, by name.
-    pub estimate: Refined,
+    /// The refined estimate: values, covariance, diagnostics, iterations, by name.
+    pub refined: Refined,
     /// Parameters asked for that the poses cannot identify, held fixed: their combinations
     /// with the identified ones, in words.
     pub fixed: Vec<String>,
@@ -271,7 +272,7 @@ pub fn calibrate(
         params,
         before,
         after,
-        estimate,
+        refined: estimate,
         fixed,
         training,
         warnings,
@@ -311,7 +312,7 @@ impl Default for FeasibleOptions {
 /// Feasible GLS: calibrate with the noise estimated from the data itself. Start with ordinary
 /// least squares; fit the variance components (the joint variances and `sigma_me^2`) to the
 /// residuals' outer products `r_k r_k^T`, whose expectation is `(M V M^T)_kk` with `M` the
-/// residual maker of the weighted fit (see [`residual_design`]); calibrate again by
+/// residual maker of the weighted fit; calibrate again by
 /// Gauss-Markov with `V_k = J_k Sigma_q J_k^T + sigma_me^2 I` from the estimate; repeat until
 /// the components settle. The result carries the last estimate in
 /// [`Calibration::noise_estimate`]. `options.estimator` and `options.noise` are not used; a
@@ -370,7 +371,7 @@ fn residual_noise(
 ) -> Result<NoiseEstimate, CalibrationError> {
     let kept = Selection::from_indices(
         &c.params,
-        c.estimate.estimate.names.iter().filter_map(|n| c.params.index_by_name(n)),
+        c.refined.estimate.names.iter().filter_map(|n| c.params.index_by_name(n)),
     );
     let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
     let problem = PointProblem::new(
@@ -635,9 +636,9 @@ pub fn cross_validate(
 
 /// The standard error of every parameter (NaN for those not estimated), full-vector order.
 pub fn standard_errors(c: &Calibration) -> Vec<f64> {
-    let se: DVector<f64> = c.estimate.estimate.standard_errors();
+    let se: DVector<f64> = c.refined.estimate.standard_errors();
     let mut out = vec![f64::NAN; c.params.len()];
-    for (name, s) in c.estimate.estimate.names.iter().zip(se.iter()) {
+    for (name, s) in c.refined.estimate.names.iter().zip(se.iter()) {
         if let Some(i) = c.params.index_by_name(name) {
             out[i] = *s;
         }

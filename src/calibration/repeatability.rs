@@ -127,11 +127,11 @@ pub struct Repeatability {
 
 /// Estimate the joint noise and `sigma_me` from `data` on `model`: each pose's sample
 /// covariance `S_k` (`n_k - 1` degrees of freedom) has the expectation
-/// `J_k Sigma_q J_k^T + sigma_me^2 I` ([`noise_design`]), `J_k` the manipulator Jacobian of the
+/// `J_k Sigma_q J_k^T + sigma_me^2 I`, `J_k` the manipulator Jacobian of the
 /// measured markers at the pose's mean joint values, turned into the device's frame by the
 /// rigid registration of the pose means onto the nominal positions (with 3 poses or more,
-/// unless `options.register` is false); the components are fitted by
-/// [`crate::estimation::fit_components`] with 95% intervals.
+/// unless `options.register` is false); the components are fitted by normal-theory
+/// generalised least squares ([`NoiseEstimate`]) with 95% intervals.
 pub fn repeatability(
     model: &RobotModel,
     data: &RepeatabilityData,

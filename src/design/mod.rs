@@ -12,8 +12,7 @@
 //!   whatever the poses, and O1, O3, O4, O5 would be 0 for every set. So the indices are taken
 //!   on the identifiable subset of the columns, chosen once per robot by the estimator's own
 //!   rank-revealing solve ([`crate::estimation::Diagnostics::identifiable`]) on a reference set
-//!   of [`REFERENCE_POSES`] configurations uniform within the joint limits (seed
-//!   [`REFERENCE_SEED`]). Structurally redundant columns are fixed combinations of those, so
+//!   of 500 configurations uniform within the joint limits (from a fixed seed). Structurally redundant columns are fixed combinations of those, so
 //!   the determinant on the subset is the pseudo-determinant on all columns times a constant:
 //!   the D-optimal design is the same. A pose set that cannot identify what the robot could
 //!   (all poses at one joint-1 angle, say) keeps zero singular values, and its indices are 0.
@@ -39,7 +38,7 @@ mod plan;
 mod poses;
 
 pub use observability::{Indices, Observability, o1, o2, o3, o4, o5};
-pub use plan::{Candidates, Constraints, DRAWS_PER_CANDIDATE, ExcludedRange, MAX_PASSES, Plan, SHORTLIST};
+pub use plan::{Candidates, Constraints, ExcludedRange, Plan};
 pub use poses::{poses_csv, poses_from_csv_str};
 
 use crate::estimation::{
@@ -54,9 +53,9 @@ use std::fmt;
 use std::str::FromStr;
 
 /// Configurations in the reference set that fixes the identifiable columns and their scaling.
-pub const REFERENCE_POSES: usize = 500;
+pub(crate) const REFERENCE_POSES: usize = 500;
 /// Seed of the reference set (ChaCha8, stream 0).
-pub const REFERENCE_SEED: u64 = 0x000b_5e57_ab1e;
+pub(crate) const REFERENCE_SEED: u64 = 0x000b_5e57_ab1e;
 
 /// What a planned pose set maximises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -129,6 +128,7 @@ impl FromStr for Criterion {
 
 /// Why a pose set could not be assessed or planned.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum DesignError {
     /// The selection is empty.
     #[error("no parameters to identify")]

@@ -8,11 +8,11 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 
 /// Configurations drawn at most per candidate asked for, before constraints give up.
-pub const DRAWS_PER_CANDIDATE: usize = 100;
+pub(crate) const DRAWS_PER_CANDIDATE: usize = 100;
 /// Exchange passes at most.
-pub const MAX_PASSES: usize = 50;
+pub(crate) const MAX_PASSES: usize = 50;
 /// Candidates tried per pose for the criteria O2-O5.
-pub const SHORTLIST: usize = 32;
+pub(crate) const SHORTLIST: usize = 32;
 /// Relative improvement an exchange must bring.
 const IMPROVEMENT: f64 = 1e-9;
 
@@ -200,7 +200,7 @@ impl Design {
     /// `M` gets a ridge of `1e-10 trace(M) / r` so that a singular starting set can be improved.
     ///
     /// **O2-O5** have no such update. After the D-optimal exchange, each pose of the set is tried
-    /// against the [`SHORTLIST`] candidates with the largest D-ratio for it, the criterion of each
+    /// against the 32 candidates with the largest D-ratio for it, the criterion of each
     /// trial set computed from the eigenvalues of its `M'` (`sigma_i = sqrt(lambda_i)`), and
     /// exchanged for the best if it improves the criterion; passes repeat as above.
     ///

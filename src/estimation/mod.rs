@@ -24,7 +24,7 @@ mod solve;
 mod variance;
 
 pub use device::{Device, DeviceError};
-pub use noise::{MeasurementNoise, NoiseModel, point_covariance};
+pub use noise::{MeasurementNoise, NoiseModel};
 pub(crate) use noise_file::DeviceTable;
 pub use noise_file::{NoiseFileError, NoiseSpec};
 pub use problem::PointProblem;
@@ -32,10 +32,8 @@ pub use refine::{
     Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from,
 };
 pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE};
-pub use variance::{
-    ComponentFit, CovarianceSample, JointComponents, NoiseEstimate, SigmaInterval, Z_95, fit_components,
-    nnls, noise_design, residual_design, sample_covariance,
-};
+pub use variance::{ComponentFit, JointComponents, NoiseEstimate, SigmaInterval, sample_covariance};
+pub(crate) use variance::{CovarianceSample, noise_design, residual_design};
 
 use nalgebra::allocator::Allocator;
 use nalgebra::storage::{IsContiguous, StorageMut};
@@ -89,6 +87,7 @@ impl FromStr for Estimator {
 
 /// Why an estimate could not be computed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum EstimationError {
     /// A value in y, H or V is NaN or infinite.
     #[error("{what} row {row} holds {value}: expected finite numbers")]
@@ -186,7 +185,7 @@ impl LinearSystem {
     }
 
     /// Check that y and H hold finite numbers (what changes between Gauss-Newton steps).
-    pub fn check_finite(&self) -> Result<(), EstimationError> {
+    fn check_finite(&self) -> Result<(), EstimationError> {
         finite_system(&self.h, &self.y)
     }
 }

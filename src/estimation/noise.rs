@@ -77,7 +77,7 @@ impl NoiseModel {
     }
 
     /// `V_k` of point `k` from the measured rows of its manipulator Jacobians stacked (3 per
-    /// marker, or 6 for a tool pose), by [`point_covariance`]. Per-axis sigmas apply to every
+    /// marker, or 6 for a tool pose): `V_k = J_k Sigma_q J_k^T + Sigma_m,k`. Per-axis sigmas apply to every
     /// marker's x, y, z alike.
     pub fn pose_covariance(&self, k: usize, jacobian: &DMatrix<f64>, measured: Measured) -> DMatrix<f64> {
         let rows = jacobian.nrows();
@@ -95,6 +95,10 @@ impl NoiseModel {
 /// The covariance of one point's pose error, the paper's Eq. 10 read per point:
 /// `V_k = J_k Sigma_q J_k^T + Sigma_m,k`, with `J_k` the rows of the manipulator Jacobian that
 /// are measured (3 for position, 6 for pose).
-pub fn point_covariance(j_k: &DMatrix<f64>, sigma_q: &DMatrix<f64>, sigma_m: &DMatrix<f64>) -> DMatrix<f64> {
+pub(crate) fn point_covariance(
+    j_k: &DMatrix<f64>,
+    sigma_q: &DMatrix<f64>,
+    sigma_m: &DMatrix<f64>,
+) -> DMatrix<f64> {
     j_k * sigma_q * j_k.transpose() + sigma_m
 }

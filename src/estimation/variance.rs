@@ -59,7 +59,7 @@ pub struct ComponentFit {
 }
 
 /// The two-sided 95% point of the standard normal.
-pub const Z_95: f64 = 1.959_963_984_540_054;
+pub(crate) const Z_95: f64 = 1.959_963_984_540_054;
 
 impl ComponentFit {
     /// Standard error of component `c`, `sqrt((F^-1)_cc)`.
@@ -67,7 +67,7 @@ impl ComponentFit {
         self.covariance[(c, c)].max(0.0).sqrt()
     }
 
-    /// The two-sided interval of component `c` at the normal quantile `z` ([`Z_95`] for
+    /// The two-sided interval of component `c` at the normal quantile `z` (1.96 for
     /// 95%). A free component (a covariance): `theta_c +- z se_c`. A variance: the union of
     /// the normal interval clipped at zero, `[max(0, theta_c - z se_c), theta_c + z se_c]`,
     /// and Satterthwaite's scaled chi-square, `theta_c` taken as `theta chi2_nu / nu` with
@@ -141,7 +141,11 @@ impl JointComponents {
 /// component `(i, j)`, `J E_ij J^T` with `E_ij = e_i e_j^T + e_j e_i^T` (`e_i e_i^T` on the
 /// diagonal); then `sigma_me^2`: the identity on every position row; then, for poses
 /// (`per = 6`), `sigma_orientation^2`: the identity on the orientation rows.
-pub fn noise_design(jacobian: &DMatrix<f64>, joints: JointComponents, per: usize) -> Vec<DMatrix<f64>> {
+pub(crate) fn noise_design(
+    jacobian: &DMatrix<f64>,
+    joints: JointComponents,
+    per: usize,
+) -> Vec<DMatrix<f64>> {
     let b = jacobian.nrows();
     let mut design: Vec<DMatrix<f64>> = joints
         .entries(jacobian.ncols())
@@ -173,7 +177,7 @@ pub fn noise_design(jacobian: &DMatrix<f64>, joints: JointComponents, per: usize
 ///
 /// never forming an `N_m x N_m` matrix. `a` is `A` (`p x N_m`); `components[c][k]` is
 /// `V_c,k`.
-pub fn residual_design(
+pub(crate) fn residual_design(
     h: &DMatrix<f64>,
     a: &DMatrix<f64>,
     rows: usize,
@@ -209,7 +213,7 @@ pub fn residual_design(
 /// ([`nnls`]). For a Wishart `S_k`, `Cov(S_ij, S_kl) = (Sigma_ik Sigma_jl + Sigma_il Sigma_jk) / nu`,
 /// so these weights are the inverse covariance of the observations, and `Cov(theta) = F^-1`
 /// with `F = A^T A`, `A` the weighted design (the Fisher information).
-pub fn fit_components(
+pub(crate) fn fit_components(
     samples: &[CovarianceSample],
     constrained: &[bool],
 ) -> Result<ComponentFit, EstimationError> {
@@ -294,8 +298,9 @@ pub fn fit_components(
 }
 
 /// Estimated noise: `Sigma_q` (its diagonal, or every entry) and `sigma_me^2` (and
-/// `sigma_orientation^2` for poses), with their covariance; the components in the order of
-/// [`noise_design`].
+/// `sigma_orientation^2` for poses), with their covariance; the components in the order:
+/// the estimated entries of `Sigma_q` (its diagonal, or its upper triangle row by row), then
+/// `sigma_me^2`, then `sigma_orientation^2` if orientations were measured.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NoiseEstimate {
     /// The fitted components.
@@ -327,9 +332,9 @@ impl SigmaInterval {
 }
 
 impl NoiseEstimate {
-    /// Fit the components to `samples` whose designs come from [`noise_design`] (or
-    /// [`residual_design`] of it) with `joints`, `dof` joints and `per` rows per measured item.
-    pub fn fit(
+    /// Fit the components to `samples` whose designs come from `noise_design` (or
+    /// `residual_design` of it) with `joints`, `dof` joints and `per` rows per measured item.
+    pub(crate) fn fit(
         samples: &[CovarianceSample],
         joints: JointComponents,
         dof: usize,
@@ -450,7 +455,7 @@ fn whitener(sample: &CovarianceSample, theta: &DVector<f64>) -> DMatrix<f64> {
 /// `constrained[c]`, by the active-set method of Lawson and Hanson (1974, ch. 23), the free
 /// variables always in the passive set. Columns are scaled to unit norm first, which leaves
 /// the constraints unchanged.
-pub fn nnls(a: &DMatrix<f64>, b: &DVector<f64>, constrained: &[bool]) -> DVector<f64> {
+pub(crate) fn nnls(a: &DMatrix<f64>, b: &DVector<f64>, constrained: &[bool]) -> DVector<f64> {
     let n = a.ncols();
     let norms: Vec<f64> = a.column_iter().map(|c| c.norm()).collect();
     let scale: Vec<f64> = norms.iter().map(|&s| if s > 0.0 { 1.0 / s } else { 0.0 }).collect();

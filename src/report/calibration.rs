@@ -122,7 +122,7 @@ impl CalibrationReport {
     ) -> Self {
         let se = standard_errors(c);
         let parameters = c
-            .estimate
+            .refined
             .estimate
             .names
             .iter()
@@ -139,15 +139,15 @@ impl CalibrationReport {
             })
             .collect();
         let base = &c.registered.base;
-        let d = &c.estimate.estimate.diagnostics;
+        let d = &c.refined.estimate.diagnostics;
         Self {
             model: c.registered.name.clone(),
             data: data.to_string(),
             poses: c.training.0.count / c.markers.len().max(1),
             markers: c.markers.len(),
             estimator: estimator.to_string(),
-            iterations: c.estimate.history.len(),
-            converged: c.estimate.converged,
+            iterations: c.refined.history.len(),
+            converged: c.refined.converged,
             registered_base: [
                 base.xyz.x,
                 base.xyz.y,

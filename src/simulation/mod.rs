@@ -15,7 +15,8 @@
 //!    over a test set of configurations separate from the measurement points: `E_p`.
 //!
 //! Random numbers: every stream is ChaCha8 seeded with the study's master seed, on a stream
-//! number made of (`N_p`, set, run); see [`stream`]. Cases that differ only in `sigma_me` so
+//! number made of (`N_p`, set, run): `N_p` in bits 42 and up, the set in bits 21-41, the
+//! run plus one in bits 0-20. Cases that differ only in `sigma_me` so
 //! share their point sets and standard normal draws, as the paper's tables share their
 //! `N_p = 48`, `sigma_me = 0` row; cases that differ only in how the poses are chosen share
 //! their real robots and noise draws, so that random and planned poses compare run by run. Runs are spread over threads with rayon, and the results
@@ -44,14 +45,14 @@ use rayon::prelude::*;
 
 /// The stream of a point set (`run = None`) or of one run: `N_p` in bits 42 and up, the set in
 /// bits 21-41, the run plus one in bits 0-20.
-pub fn stream(points: usize, set: usize, run: Option<usize>) -> u64 {
+pub(crate) fn stream(points: usize, set: usize, run: Option<usize>) -> u64 {
     ((points as u64) << 42) | ((set as u64) << 21) | run.map_or(0, |r| r as u64 + 1)
 }
 
 /// The stream of the test set.
-pub const TEST_STREAM: u64 = u64::MAX;
+pub(crate) const TEST_STREAM: u64 = u64::MAX;
 /// The stream that measures the error caused by joint noise alone.
-pub const JOINT_NOISE_STREAM: u64 = u64::MAX - 1;
+pub(crate) const JOINT_NOISE_STREAM: u64 = u64::MAX - 1;
 
 fn rng(seed: u64, stream: u64) -> ChaCha8Rng {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);

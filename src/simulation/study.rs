@@ -103,7 +103,9 @@ pub struct Reference {
     pub above_zero: f64,
 }
 
-/// A validated study: everything a simulation needs, in mm and rad.
+/// A validated study: everything a simulation needs, in mm and rad. Its fields are public, to
+/// be read and adjusted ([`Study::set_noise`] and the like); [`crate::simulation::run`] checks
+/// them again ([`Study::check`]) before it runs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Study {
     /// Short name, used in file names.

@@ -83,12 +83,12 @@ fn held_out_accuracy_improves_at_least_five_fold() {
         before.rms,
         after.rms
     );
-    assert!(calibration.estimate.converged);
+    assert!(calibration.refined.converged);
     // 6 base + 30 joint + 6 marker parameters; the 12 that positions cannot separate (e.g.
     // `j1.theta - base.rz`: both turn the whole arm about joint 1's axis) are held fixed.
     assert_eq!(calibration.fixed.len(), 12, "{:?}", calibration.fixed);
     assert!(calibration.fixed.contains(&"j1.theta - base.rz".to_string()));
-    assert_eq!(calibration.estimate.estimate.names.len(), 42 - 12);
+    assert_eq!(calibration.refined.estimate.names.len(), 42 - 12);
 }
 
 /// A calibration of 400 poses (2400 rows: several parallel tasks and row parts) gives the
@@ -113,7 +113,7 @@ fn calibration_is_the_same_on_any_number_of_threads() {
     let (one, three) = (on(1), on(3));
     assert_eq!(one.after, three.after);
     assert_eq!(one.before, three.before);
-    assert_eq!(one.estimate, three.estimate, "estimate, covariance, diagnostics and history");
+    assert_eq!(one.refined, three.refined, "estimate, covariance, diagnostics and history");
     assert_eq!(one.fixed, three.fixed);
 }
 
@@ -155,7 +155,7 @@ pub fn assert_within_three_standard_errors(
 ) {
     let params = &calibration.params;
     let chains = Chain::markers(&calibration.registered, &calibration.markers);
-    let kept = Selection::by_names(params, &calibration.estimate.estimate.names).unwrap();
+    let kept = Selection::by_names(params, &calibration.refined.estimate.names).unwrap();
     let real: Vec<_> = chains.iter().map(|c| c.with_errors(truth)).collect();
     let observed: Vec<nalgebra::Isometry3<f64>> =
         data.joints.iter().flat_map(|q| real.iter().map(move |r| r.pose(q))).collect();
@@ -164,9 +164,9 @@ pub fn assert_within_three_standard_errors(
         PointProblem::new(&chains, &kept, Measured::Position, joints, observed, fixed, None).unwrap();
     let equivalent = refine(&problem, Estimator::Ols, problem.start(), &RefineOptions::default()).unwrap();
     assert!(equivalent.estimate.cost < 1e-12, "the truth is reproduced by the identified parameters");
-    let delta = &calibration.estimate.estimate.x - &equivalent.estimate.x;
-    let se = calibration.estimate.estimate.standard_errors();
-    let names = &calibration.estimate.estimate.names;
+    let delta = &calibration.refined.estimate.x - &equivalent.estimate.x;
+    let se = calibration.refined.estimate.standard_errors();
+    let names = &calibration.refined.estimate.names;
     let worst = (0..kept.len())
         .max_by(|&i, &j| (delta[i] / se[i]).abs().total_cmp(&(delta[j] / se[j]).abs()))
         .unwrap();

@@ -164,3 +164,24 @@ fn a_pose_study_measures_orientation_too() {
     assert!(csv.lines().next().unwrap().contains("wls_e_r_mean_deg"));
     assert!(!csv.lines().nth(1).unwrap().contains(",,"), "every orientation column is filled");
 }
+
+/// A study's fields are public: one changed after reading is checked again where it runs, and
+/// the error names the study file's field.
+#[test]
+fn a_study_changed_after_reading_is_checked_where_it_runs() {
+    let mut study = reduced_study("[12]", "[0.0]", 2, 2);
+    study.runs_per_set = 0;
+    let error = simulation::run(&study, &|| {}).unwrap_err();
+    assert_eq!(robocal::error::chain(&error), "field `runs_per_set`: at least 1");
+    let mut study = reduced_study("[12]", "[0.0]", 2, 2);
+    study.errors.offset = -1f64.to_radians();
+    let error = simulation::run(&study, &|| {}).unwrap_err();
+    assert_eq!(robocal::error::chain(&error), "field `errors.offset_deg`: finite values >= 0, found -1");
+    let mut study = reduced_study("[12]", "[0.0]", 2, 2);
+    study.joint_sigmas.pop();
+    let error = simulation::run(&study, &|| {}).unwrap_err();
+    assert_eq!(
+        robocal::error::chain(&error),
+        "field `noise.joint_sigma`: 6 values, one per joint of puma560"
+    );
+}
