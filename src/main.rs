@@ -12,7 +12,11 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
             eprintln!("error: {error:#}");
-            if error.is::<cli::UsageError>() { ExitCode::from(2) } else { ExitCode::FAILURE }
+            if error.is::<cli::UsageError>() {
+                eprintln!("\nFor more information, try '--help'.");
+                return ExitCode::from(2);
+            }
+            ExitCode::FAILURE
         }
     }
 }

@@ -167,7 +167,7 @@ pub struct RepeatabilityArgs {
     pub full_covariance: bool,
     /// Nominal position of a marker on the last link, "x,y,z" in mm; repeat per marker
     /// (default: marker 1 at the model's tool point).
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_marker)]
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub marker: Vec<Vector3<f64>>,
     /// The device measures in the model's base frame: do not register the frames.
     #[arg(long)]
@@ -223,7 +223,7 @@ pub struct CalibrateArgs {
     #[arg(long)]
     pub fixed_markers: bool,
     /// Nominal position of a marker on the last link, "x,y,z" in mm; repeat per marker.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_marker)]
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub marker: Vec<Vector3<f64>>,
     /// Gauss-Newton steps at most (at least 1); 1 is the paper's one-step estimate.
     #[arg(long, default_value_t = 50, value_parser = parse_count::<1>)]
@@ -295,11 +295,11 @@ pub struct PlanArgs {
     pub seed: u64,
     /// A box the tool point must stay in: "xmin,ymin,zmin,xmax,ymax,zmax" in mm, in the
     /// robot's base (measuring) frame.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_tool_box)]
+    #[arg(long, allow_hyphen_values = true, value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", value_parser = parse_tool_box)]
     pub tool_box: Option<ToolBox>,
     /// A joint range to avoid, "JOINT:FROM:TO" in degrees (mm for a prismatic joint);
     /// repeatable.
-    #[arg(long, allow_hyphen_values = true, value_parser = parse_exclude)]
+    #[arg(long, allow_hyphen_values = true, value_name = "JOINT:FROM:TO", value_parser = parse_exclude)]
     pub exclude: Vec<Excluded>,
     /// Write the poses here (CSV) and the summary to standard output; without it the poses go
     /// to standard output and the summary to standard error.
