@@ -11,37 +11,51 @@ fn parse(args: &[&str]) -> Result<Command, String> {
     Cli::try_parse_from(["robocal"].iter().chain(args)).map(|cli| cli.command).map_err(|e| e.to_string())
 }
 
-/// `robocal calibrate --model puma560 --data d.csv` with `args`: the request or the message.
+/// `base` and `args` parsed by clap, and the request `build` makes of the command: the
+/// request, or the message of clap or of the rule broken.
+fn request<R>(
+    base: &[&str],
+    args: &[&str],
+    build: impl FnOnce(Command) -> Result<R, UsageError>,
+) -> Result<R, String> {
+    build(parse(&[base, args].concat())?).map_err(|e| e.0)
+}
+
+/// `robocal calibrate --model puma560 --data d.csv` with `args`.
 fn calibrate(args: &[&str]) -> Result<CalibrateRequest, String> {
-    let base = ["calibrate", "--model", "puma560", "--data", "d.csv"];
-    match parse(&[&base[..], args].concat())? {
-        Command::Calibrate(args) => CalibrateRequest::from_args(*args).map_err(|e| e.0),
-        other => panic!("parsed as {other:?}"),
-    }
+    calibrate_model("puma560", args)
 }
 
-/// `robocal plan --model puma560 --points 12` with `args`: the request or the message.
+/// `robocal calibrate --model MODEL --data d.csv` with `args`.
+fn calibrate_model(model: &str, args: &[&str]) -> Result<CalibrateRequest, String> {
+    request(&["calibrate", "--model", model, "--data", "d.csv"], args, |command| match command {
+        Command::Calibrate(args) => CalibrateRequest::from_args(*args),
+        other => panic!("parsed as {other:?}"),
+    })
+}
+
+/// `robocal plan --model puma560 --points 12` with `args`.
 fn plan(args: &[&str]) -> Result<PlanRequest, String> {
-    match parse(&[&["plan", "--model", "puma560", "--points", "12"][..], args].concat())? {
-        Command::Plan(args) => PlanRequest::from_args(*args).map_err(|e| e.0),
+    request(&["plan", "--model", "puma560", "--points", "12"], args, |command| match command {
+        Command::Plan(args) => PlanRequest::from_args(*args),
         other => panic!("parsed as {other:?}"),
-    }
+    })
 }
 
-/// `robocal observability poses.csv --model puma560` with `args`: the request or the message.
+/// `robocal observability poses.csv --model puma560` with `args`.
 fn observability(args: &[&str]) -> Result<ObservabilityRequest, String> {
-    match parse(&[&["observability", "poses.csv", "--model", "puma560"][..], args].concat())? {
-        Command::Observability(args) => ObservabilityRequest::from_args(*args).map_err(|e| e.0),
+    request(&["observability", "poses.csv", "--model", "puma560"], args, |command| match command {
+        Command::Observability(args) => ObservabilityRequest::from_args(*args),
         other => panic!("parsed as {other:?}"),
-    }
+    })
 }
 
-/// `robocal repeatability --model puma560 --data r.csv` with `args`: the request or the message.
+/// `robocal repeatability --model puma560 --data r.csv` with `args`.
 fn repeatability(args: &[&str]) -> Result<RepeatabilityRequest, String> {
-    match parse(&[&["repeatability", "--model", "puma560", "--data", "r.csv"][..], args].concat())? {
-        Command::Repeatability(args) => RepeatabilityRequest::from_args(*args).map_err(|e| e.0),
+    request(&["repeatability", "--model", "puma560", "--data", "r.csv"], args, |command| match command {
+        Command::Repeatability(args) => RepeatabilityRequest::from_args(*args),
         other => panic!("parsed as {other:?}"),
-    }
+    })
 }
 
 /// The message of a refused command line.
@@ -142,16 +156,10 @@ fn out_urdf_needs_a_urdf_model() {
 
 #[test]
 fn a_urdf_model_needs_its_base_and_tip_links() {
-    let urdf = ["calibrate", "--model", "arm.urdf", "--data", "d.csv", "--base-link", "base"];
-    let Command::Calibrate(args) = parse(&urdf).unwrap() else { panic!("calibrate") };
-    let message = CalibrateRequest::from_args(*args).unwrap_err().0;
+    let message = refused(calibrate_model("arm.urdf", &["--base-link", "base"]));
     assert_eq!(message, "arm.urdf: a URDF model needs --base-link and --tip-link");
-    let Command::Calibrate(args) =
-        parse(&[&urdf[..], &["--tip-link", "flange", "--out-urdf", "c.urdf"]].concat()).unwrap()
-    else {
-        panic!("calibrate")
-    };
-    let request = CalibrateRequest::from_args(*args).unwrap();
+    let full = ["--base-link", "base", "--tip-link", "flange", "--out-urdf", "c.urdf"];
+    let request = calibrate_model("arm.urdf", &full).unwrap();
     let source =
         ModelSource::Urdf { path: "arm.urdf".into(), base_link: "base".into(), tip_link: "flange".into() };
     assert_eq!((request.model, request.out_urdf), (source, Some("c.urdf".into())));
