@@ -51,7 +51,7 @@ pub enum MeasuredName {
 
 /// A `--params` value: a named parameter set, or parameter names and patterns.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub enum ParamSet {
+pub enum ParamsArg {
     /// Every joint parameter.
     Joints,
     /// Every parameter: the joints, the base and the tool (the markers in `calibrate`).
@@ -215,7 +215,7 @@ pub struct CalibrateArgs {
     /// (`j*.theta,j2.a`). The base and the markers are estimated unless --fixed-base and
     /// --fixed-markers say otherwise.
     #[arg(long, default_value = "joints", value_parser = parse_params)]
-    pub params: ParamSet,
+    pub params: ParamsArg,
     /// Do not estimate the base: the measuring frame is the model's base frame.
     #[arg(long)]
     pub fixed_base: bool,
@@ -256,7 +256,7 @@ pub struct DesignArgs {
     /// parameter: the joints, the base and the tool), `offsets` (the joint offsets), or names
     /// and patterns (`j*.theta,j2.a`).
     #[arg(long, default_value = "joints", value_parser = parse_params)]
-    pub params: ParamSet,
+    pub params: ParamsArg,
     /// What is measured at each pose.
     #[arg(long, value_enum, default_value_t = MeasuredName::Position)]
     pub measured: MeasuredName,
@@ -376,12 +376,12 @@ fn parse_joint_values(text: &str) -> Result<JointValues, String> {
 }
 
 /// `joints`, `all`, `offsets`, `none`, or comma-separated names and patterns.
-fn parse_params(text: &str) -> Result<ParamSet, String> {
+fn parse_params(text: &str) -> Result<ParamsArg, String> {
     let set = match text.trim() {
-        "joints" => ParamSet::Joints,
-        "all" => ParamSet::All,
-        "offsets" => ParamSet::Offsets,
-        "none" => ParamSet::None,
+        "joints" => ParamsArg::Joints,
+        "all" => ParamsArg::All,
+        "offsets" => ParamsArg::Offsets,
+        "none" => ParamsArg::None,
         _ => {
             let names: Vec<String> =
                 text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(String::from).collect();
@@ -393,7 +393,7 @@ fn parse_params(text: &str) -> Result<ParamSet, String> {
             if names.is_empty() {
                 return Err("expected joints, all, offsets, none, or parameter names".into());
             }
-            ParamSet::Named(names)
+            ParamsArg::Named(names)
         }
     };
     Ok(set)

@@ -98,12 +98,8 @@ fn options(request: &CalibrateRequest, model: &RobotModel, data: &Measurements) 
             Some(noise)
         }
     };
-    let estimator = match request.method {
-        Method::Given(estimator) => estimator,
-        Method::Feasible => robocal::estimation::Estimator::Ols,
-    };
     Ok(Options {
-        estimator,
+        estimator: request.method.estimator(),
         noise,
         joints: request.joints.clone(),
         estimate_base: request.estimate_base,

@@ -13,7 +13,8 @@ mod simulate;
 
 use anyhow::{Context, Result, bail};
 use args::{
-    CalibrateArgs, FkArgs, ObservabilityArgs, PlanArgs, RepeatabilityArgs, SimulateArgs, StudyOutputArgs,
+    CalibrateArgs, FkArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, SimulateArgs,
+    StudyOutputArgs,
 };
 use clap::{Parser, Subcommand};
 use request::{
@@ -22,7 +23,7 @@ use request::{
 use robocal::design::Design;
 use robocal::estimation::{MeasurementNoise, NoiseModel};
 use robocal::io;
-use robocal::model::{JointKind, Selection};
+use robocal::model::{JointKind, RobotModel, Selection};
 use std::path::Path;
 
 pub use request::UsageError;
@@ -92,7 +93,7 @@ fn from_flag_unit(kind: JointKind, value: f64) -> f64 {
 
 /// The noise model of `--joint-sigma-deg`, `--sigma-mm` and `--sigma-orientation-deg`: one joint
 /// sigma per joint of `model`.
-fn noise_model(model: &robocal::model::RobotModel, flags: &NoiseFlags) -> Result<NoiseModel> {
+fn noise_model(model: &RobotModel, flags: &NoiseFlags) -> Result<NoiseModel> {
     let sigmas = &flags.joint_sigma_deg;
     if sigmas.len() != model.dof() {
         bail!("--joint-sigma-deg: {} values for the {} joints of {}", sigmas.len(), model.dof(), model.name);
@@ -107,11 +108,11 @@ fn design(request: &DesignRequest) -> Result<Design> {
     let model = io::load_model(&request.model)?;
     let params = model.params();
     let selection = match &request.params {
-        args::ParamSet::Joints => Selection::joints(&params),
-        args::ParamSet::All => Selection::all(&params),
-        args::ParamSet::Offsets => Selection::offsets(&params),
-        args::ParamSet::Named(names) => Selection::by_names(&params, names).context("--params")?,
-        args::ParamSet::None => Selection::from_indices(&params, []),
+        ParamsArg::Joints => Selection::joints(&params),
+        ParamsArg::All => Selection::all(&params),
+        ParamsArg::Offsets => Selection::offsets(&params),
+        ParamsArg::Named(names) => Selection::by_names(&params, names).context("--params")?,
+        ParamsArg::None => Selection::from_indices(&params, []),
     };
     let noise = request.noise.as_ref().map(|flags| noise_model(&model, flags)).transpose()?;
     Ok(Design::new(&model, selection, request.measured, noise)?)

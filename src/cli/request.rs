@@ -4,7 +4,7 @@
 
 use super::args::{
     CalibrateArgs, DesignArgs, EstimatorName, Excluded, JointUnit, LengthUnit, MeasuredName, NoiseArgs,
-    ObservabilityArgs, ParamSet, PlanArgs, RepeatabilityArgs, ToolBox, UnitArgs,
+    ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::{JointParams, Units};
@@ -17,16 +17,9 @@ use std::path::PathBuf;
 mod tests;
 
 /// Flags that clap accepted one by one but that do not fit together: exit code 2.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
 pub struct UsageError(pub String);
-
-impl std::fmt::Display for UsageError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for UsageError {}
 
 /// `Err(UsageError)` with this message unless `ok`.
 fn require(ok: bool, message: &str) -> Result<(), UsageError> {
@@ -112,6 +105,14 @@ impl Method {
             Self::Feasible => "fgls",
         }
     }
+
+    /// The library's estimator: feasible GLS starts from OLS (and sets its own).
+    pub fn estimator(self) -> Estimator {
+        match self {
+            Self::Given(estimator) => estimator,
+            Self::Feasible => Estimator::Ols,
+        }
+    }
 }
 
 /// A validated `robocal calibrate`.
@@ -152,67 +153,10 @@ pub struct CalibrateRequest {
 impl CalibrateRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: CalibrateArgs) -> Result<Self, UsageError> {
-        let model = if args.model.ends_with(".urdf") {
-            let (Some(base_link), Some(tip_link)) = (args.base_link, args.tip_link) else {
-                return Err(UsageError(format!(
-                    "{}: a URDF model needs --base-link and --tip-link",
-                    args.model
-                )));
-            };
-            ModelSource::Urdf { path: args.model.into(), base_link, tip_link }
-        } else {
-            require(args.out_urdf.is_none(), "--out-urdf needs a URDF model")?;
-            ModelSource::Named(args.model)
-        };
-        let noise = match (args.noise, args.noise_flags.flags()) {
-            (Some(_), Some(_)) => {
-                return Err(UsageError("--noise and --joint-sigma-deg: give one of the two".into()));
-            }
-            (Some(path), None) => Some(NoiseSource::File(path)),
-            (None, flags) => flags.map(NoiseSource::Flags),
-        };
-        let method = match args.estimator {
-            Some(EstimatorName::Fgls) => {
-                require(
-                    noise.is_none(),
-                    "--estimator fgls estimates the noise: do not give --noise or --joint-sigma-deg",
-                )?;
-                require(
-                    args.folds.is_none(),
-                    "--folds with --estimator fgls: not supported; estimate the noise once and give --noise",
-                )?;
-                Method::Feasible
-            }
-            Some(EstimatorName::Ols) => Method::Given(Estimator::Ols),
-            Some(EstimatorName::Wls) => Method::Given(Estimator::Wls),
-            Some(EstimatorName::WlsDiag) => Method::Given(Estimator::WlsDiag),
-            Some(EstimatorName::WlsSigma) => Method::Given(Estimator::WlsSigma),
-            None if noise.is_some() => Method::Given(Estimator::Wls),
-            None => Method::Given(Estimator::Ols),
-        };
-        if let Method::Given(estimator) = method {
-            require(
-                estimator == Estimator::Ols || noise.is_some(),
-                &format!(
-                    "--estimator {estimator} needs the noise: give --noise or --joint-sigma-deg (and --sigma-mm or \
-                     a sigma column), or use --estimator fgls"
-                ),
-            )?;
-        }
-        let joints = match args.params {
-            ParamSet::All => {
-                require(
-                    !args.fixed_base && !args.fixed_markers,
-                    "--params all frees the base and the markers: with --fixed-base or --fixed-markers, give \
-                     --params joints",
-                )?;
-                JointParams::All
-            }
-            ParamSet::Joints => JointParams::All,
-            ParamSet::Offsets => JointParams::Offsets,
-            ParamSet::None => JointParams::None,
-            ParamSet::Named(names) => JointParams::Named(names),
-        };
+        let model = model_source(args.model, args.base_link, args.tip_link, args.out_urdf.is_some())?;
+        let noise = noise_source(args.noise, args.noise_flags.flags())?;
+        let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
+        let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
         Ok(Self {
             model,
             data: args.data,
@@ -233,13 +177,91 @@ impl CalibrateRequest {
     }
 }
 
+/// `--model`: a URDF file needs `--base-link` and `--tip-link`; `--out-urdf` needs a URDF file.
+fn model_source(
+    model: String,
+    base_link: Option<String>,
+    tip_link: Option<String>,
+    out_urdf: bool,
+) -> Result<ModelSource, UsageError> {
+    if !model.ends_with(".urdf") {
+        require(!out_urdf, "--out-urdf needs a URDF model")?;
+        return Ok(ModelSource::Named(model));
+    }
+    match (base_link, tip_link) {
+        (Some(base_link), Some(tip_link)) => {
+            Ok(ModelSource::Urdf { path: model.into(), base_link, tip_link })
+        }
+        _ => Err(UsageError(format!("{model}: a URDF model needs --base-link and --tip-link"))),
+    }
+}
+
+/// `--noise` or `--joint-sigma-deg` (with `--sigma-mm`, `--sigma-orientation-deg`), not both.
+fn noise_source(file: Option<PathBuf>, flags: Option<NoiseFlags>) -> Result<Option<NoiseSource>, UsageError> {
+    match (file, flags) {
+        (Some(_), Some(_)) => Err(UsageError("--noise and --joint-sigma-deg: give one of the two".into())),
+        (Some(path), None) => Ok(Some(NoiseSource::File(path))),
+        (None, flags) => Ok(flags.map(NoiseSource::Flags)),
+    }
+}
+
+/// `--estimator` (default: wls with the noise, ols without): a weighted estimator needs the
+/// noise; fgls estimates it, so takes none, and does not cross-validate.
+fn method(name: Option<EstimatorName>, noise: bool, folds: bool) -> Result<Method, UsageError> {
+    let estimator = match name {
+        Some(EstimatorName::Fgls) => {
+            require(
+                !noise,
+                "--estimator fgls estimates the noise: do not give --noise or --joint-sigma-deg",
+            )?;
+            require(
+                !folds,
+                "--folds with --estimator fgls: not supported; estimate the noise once and give --noise",
+            )?;
+            return Ok(Method::Feasible);
+        }
+        Some(EstimatorName::Ols) => Estimator::Ols,
+        Some(EstimatorName::Wls) => Estimator::Wls,
+        Some(EstimatorName::WlsDiag) => Estimator::WlsDiag,
+        Some(EstimatorName::WlsSigma) => Estimator::WlsSigma,
+        None if noise => Estimator::Wls,
+        None => Estimator::Ols,
+    };
+    if estimator != Estimator::Ols && !noise {
+        return Err(UsageError(format!(
+            "--estimator {estimator} needs the noise: give --noise or --joint-sigma-deg (and --sigma-mm or a sigma \
+             column), or use --estimator fgls"
+        )));
+    }
+    Ok(Method::Given(estimator))
+}
+
+/// `--params` in calibrate: `joints` and `all` identify every joint parameter, and `all` frees
+/// the base and the markers too, so it refuses `--fixed-base` and `--fixed-markers`.
+fn joint_params(params: ParamsArg, fixed_base_or_markers: bool) -> Result<JointParams, UsageError> {
+    Ok(match params {
+        ParamsArg::All => {
+            require(
+                !fixed_base_or_markers,
+                "--params all frees the base and the markers: with --fixed-base or --fixed-markers, give \
+                 --params joints",
+            )?;
+            JointParams::All
+        }
+        ParamsArg::Joints => JointParams::All,
+        ParamsArg::Offsets => JointParams::Offsets,
+        ParamsArg::None => JointParams::None,
+        ParamsArg::Named(names) => JointParams::Named(names),
+    })
+}
+
 /// The parameters, measurements and noise of a validated `plan` or `observability`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DesignRequest {
     /// The nominal robot: a preset name or a model file.
     pub model: String,
-    /// The parameters to identify (not [`ParamSet::None`]).
-    pub params: ParamSet,
+    /// The parameters to identify (not [`ParamsArg::None`]).
+    pub params: ParamsArg,
     /// What is measured at each pose.
     pub measured: Measured,
     /// The noise, if given.
@@ -250,7 +272,7 @@ impl DesignRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     fn from_args(args: DesignArgs) -> Result<Self, UsageError> {
         require(
-            args.params != ParamSet::None,
+            args.params != ParamsArg::None,
             "--params none: nothing to assess; give joints, all, offsets, or parameter names",
         )?;
         let noise = args.noise.flags();
