@@ -6,15 +6,18 @@ fn robocal() -> Command {
     Command::cargo_bin("robocal").unwrap()
 }
 
+/// The message of an error in the input or the computation (exit code 1).
 fn stderr_of(args: &[&str]) -> String {
     stderr_with_code(args, 1)
 }
 
-/// The message of a usage error: flags that clap refuses or that do not fit together.
+/// The message of a usage error (exit code 2): flags that clap refuses or that do not fit
+/// together.
 fn usage_error_of(args: &[&str]) -> String {
     stderr_with_code(args, 2)
 }
 
+/// The standard error of `robocal args`, which must exit with `code`.
 fn stderr_with_code(args: &[&str], code: i32) -> String {
     let output = robocal().args(args).output().unwrap();
     assert_eq!(output.status.code(), Some(code), "exit code {code}");
