@@ -6,9 +6,21 @@ fn robocal() -> Command {
     Command::cargo_bin("robocal").unwrap()
 }
 
+/// The message of an error in the input or the computation (exit code 1).
 fn stderr_of(args: &[&str]) -> String {
+    stderr_with_code(args, 1)
+}
+
+/// The message of a usage error (exit code 2): flags that clap refuses or that do not fit
+/// together.
+fn usage_error_of(args: &[&str]) -> String {
+    stderr_with_code(args, 2)
+}
+
+/// The standard error of `robocal args`, which must exit with `code`.
+fn stderr_with_code(args: &[&str], code: i32) -> String {
     let output = robocal().args(args).output().unwrap();
-    assert_eq!(output.status.code(), Some(1), "exit code 1 for bad input");
+    assert_eq!(output.status.code(), Some(code), "exit code {code}");
     String::from_utf8(output.stderr).unwrap()
 }
 
@@ -34,8 +46,8 @@ fn fk_rejects_a_wrong_number_of_joint_values() {
 
 #[test]
 fn fk_rejects_a_non_number() {
-    let message = stderr_of(&["fk", "--model", "puma560", "--q", "0,4x5,0,0,0,0"]);
-    assert!(message.contains("--q: value 2 `4x5` is not a number"), "{message}");
+    let message = usage_error_of(&["fk", "--model", "puma560", "--q", "0,4x5,0,0,0,0"]);
+    assert!(message.contains("for '--q <Q>': value 2 `4x5` is not a number"), "{message}");
 }
 
 #[test]
@@ -156,13 +168,15 @@ fn calibrate_bad_input_is_named() {
     assert!(stderr_of(&args).contains("examples/no-such-file.csv: cannot read"));
     let mut wls_without_noise = CALIBRATE[..7].to_vec();
     wls_without_noise.extend(["--estimator", "wls"]);
-    assert!(stderr_of(&wls_without_noise).contains("--estimator wls needs the noise"));
+    assert!(usage_error_of(&wls_without_noise).contains("--estimator wls needs the noise"));
     let mut short_sigma = CALIBRATE.to_vec();
     short_sigma[8] = "0.007,0.007";
     assert!(stderr_of(&short_sigma).contains("--joint-sigma-deg: 2 values for the 6 joints of puma560"));
     let mut bad_marker = CALIBRATE.to_vec();
     bad_marker[12] = "50,0";
-    assert!(stderr_of(&bad_marker).contains("--marker `50,0`: expected three finite numbers"));
+    assert!(
+        usage_error_of(&bad_marker).contains("'50,0' for '--marker <X,Y,Z>': expected three finite numbers")
+    );
     let dir = std::env::temp_dir().join(format!("robocal-calibrate-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("short.csv");
@@ -208,7 +222,7 @@ fn calibrate_a_urdf_robot_and_write_it_back() {
     let (urdf_s, data_s, out_s) = (urdf.to_str().unwrap(), data.to_str().unwrap(), out.to_str().unwrap());
     let args =
         ["calibrate", "--model", urdf_s, "--data", data_s, "--marker", "30,0,60", "--params", "offsets"];
-    let missing = stderr_of(&args);
+    let missing = usage_error_of(&args);
     assert!(missing.contains("a URDF model needs --base-link and --tip-link"), "{missing}");
     let mut full = args.to_vec();
     full.extend(["--base-link", "base", "--tip-link", "flange", "--out-urdf", out_s]);

@@ -158,7 +158,7 @@ fn calibrate_with_fgls_prints_the_estimated_noise() {
 fn calibrate_refuses_fgls_with_a_given_noise() {
     let output =
         robocal(&[&EXAMPLE[..], &["--estimator", "fgls", "--joint-sigma-deg", "1,1,1,1,1,1"]].concat());
-    assert_eq!(output.status.code(), Some(1));
+    assert_eq!(output.status.code(), Some(2), "a usage error");
     let stderr = String::from_utf8(output.stderr).unwrap();
     assert!(
         stderr.contains("--estimator fgls estimates the noise: do not give --noise or --joint-sigma-deg"),

@@ -151,23 +151,33 @@ fn plan_writes_poses_that_observability_reads() {
 
 #[test]
 fn plan_rejects_bad_requests_with_a_message() {
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], i32, &str); 5] = [
         (
             &["--points", "4"],
+            1,
             "4 poses give 12 equations for 23 identifiable parameters: plan at least 8 poses",
         ),
         (
             &["--points", "12", "--tool-box", "3000,3000,3000,4000,4000,4000"],
+            1,
             "no candidate pose within the joint limits satisfies the constraints (joint limits, tool in the box",
         ),
-        (&["--points", "12", "--exclude", "j9:0:10"], "--exclude `j9:0:10`: no joint `j9`"),
-        (&["--points", "12", "--exclude", "j2:10"], "--exclude `j2:10`: expected JOINT:FROM:TO"),
-        (&["--points", "12", "--tool-box", "1,2,3"], "--tool-box `1,2,3`: expected six finite numbers"),
+        (&["--points", "12", "--exclude", "j9:0:10"], 1, "--exclude `j9:0:10`: no joint `j9`"),
+        (
+            &["--points", "12", "--exclude", "j2:10"],
+            2,
+            "'j2:10' for '--exclude <JOINT:FROM:TO>': expected JOINT:FROM:TO",
+        ),
+        (
+            &["--points", "12", "--tool-box", "1,2,3"],
+            2,
+            "'1,2,3' for '--tool-box <XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX>': expected six finite numbers",
+        ),
     ];
-    for (args, expected) in cases {
+    for (args, code, expected) in cases {
         let output =
             robocal().args(["plan", "--model", "puma560", "--candidates", "50"]).args(args).output().unwrap();
-        assert_eq!(output.status.code(), Some(1), "{args:?}");
+        assert_eq!(output.status.code(), Some(code), "{args:?}");
         let message = String::from_utf8(output.stderr).unwrap();
         assert!(message.contains(expected), "{args:?}: {message}");
     }

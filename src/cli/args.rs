@@ -1,0 +1,419 @@
+//! The flags of every command as clap parses them: units, estimators, markers, joint lists,
+//! the tool box and the excluded ranges arrive typed and checked one by one, so nothing is
+//! parsed by hand after clap. The rules between flags are in [`super::request`].
+
+use clap::{Args, ValueEnum};
+use nalgebra::Vector3;
+use robocal::design::Criterion;
+use std::path::PathBuf;
+
+/// The unit of revolute joint values in a file.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JointUnit {
+    /// Degrees.
+    Deg,
+    /// Radians.
+    Rad,
+}
+
+/// The unit of lengths in a file.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LengthUnit {
+    /// Millimetres.
+    Mm,
+    /// Metres.
+    M,
+}
+
+/// The estimator of `calibrate`: the library's four, or feasible GLS.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EstimatorName {
+    /// Ordinary least squares: every row weighted alike.
+    Ols,
+    /// Gauss-Markov: the inverse of each pose's full covariance (needs the noise).
+    Wls,
+    /// The inverse of the diagonal of each pose's covariance (needs the noise).
+    WlsDiag,
+    /// 1/sigma of each coordinate instead of 1/sigma^2 (needs the noise).
+    WlsSigma,
+    /// Feasible GLS: the joint sigmas and sigma_me estimated from the residuals, iterated.
+    Fgls,
+}
+
+/// What is measured at each pose.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MeasuredName {
+    /// The tool point's position.
+    Position,
+    /// The tool's position and orientation.
+    Pose,
+}
+
+/// A `--params` value: a named parameter set, or parameter names and patterns.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ParamsArg {
+    /// Every joint parameter.
+    Joints,
+    /// Every parameter: the joints, the base and the tool (the markers in `calibrate`).
+    All,
+    /// The joint offsets.
+    Offsets,
+    /// No joint parameter (`calibrate` only: the base and the markers).
+    None,
+    /// These names and patterns (`j*.theta`, `j2.a`).
+    Named(Vec<String>),
+}
+
+/// A box the tool point must stay in (mm, the robot's base frame).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToolBox {
+    /// The lowest corner.
+    pub low: Vector3<f64>,
+    /// The highest corner.
+    pub high: Vector3<f64>,
+}
+
+/// An `--exclude JOINT:FROM:TO` range, in degrees (mm for a prismatic joint); the joint name
+/// is checked against the model by the command.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Excluded {
+    /// The joint's name.
+    pub joint: String,
+    /// The range to avoid, lowest first.
+    pub range: [f64; 2],
+}
+
+/// Joint values of `fk --q`, one per joint: degrees (mm for prismatic joints).
+#[derive(Clone, Debug, PartialEq)]
+pub struct JointValues(pub Vec<f64>);
+
+/// `--joint-unit` and `--length-unit`, which go together.
+#[derive(Args, Debug)]
+pub struct UnitArgs {
+    /// Unit of revolute joint values in the files, if they do not declare it (with
+    /// --length-unit).
+    #[arg(long)]
+    pub joint_unit: Option<JointUnit>,
+    /// Unit of lengths in the files, if they do not declare it (with --joint-unit).
+    #[arg(long)]
+    pub length_unit: Option<LengthUnit>,
+}
+
+/// The noise given as numbers: joint sigmas, measurement sigma, orientation sigma.
+#[derive(Args, Debug)]
+pub struct NoiseArgs {
+    /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints). With it,
+    /// calibrate weights by the noise, and plan and observability use the whitened H.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma)]
+    pub joint_sigma_deg: Option<Vec<f64>>,
+    /// Measurement noise standard deviation (mm); calibrate takes a data file's `sigma` column
+    /// instead when it has one.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_sigma)]
+    pub sigma_mm: f64,
+    /// Orientation measurement noise (deg), for pose or orientation measurements.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_sigma)]
+    pub sigma_orientation_deg: f64,
+}
+
+/// Where a study's tables, samples and figures go, and the threads that compute them.
+#[derive(Args, Debug)]
+pub struct StudyOutputArgs {
+    /// Folder for the tables, the CSV samples and the SVG figures.
+    #[arg(long, default_value = "robocal-out")]
+    pub out: PathBuf,
+    /// Worker threads (default: all cores). The numbers do not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
+/// The flags of `robocal simulate`.
+#[derive(Args, Debug)]
+pub struct SimulateArgs {
+    /// The study file or name.
+    pub study: String,
+    #[command(flatten)]
+    pub output: StudyOutputArgs,
+    /// A noise file (TOML, see docs/formats.md) replacing the study's noise: joint sigmas,
+    /// device, and sigma_me if it gives one.
+    #[arg(long)]
+    pub noise: Option<PathBuf>,
+}
+
+/// The flags of `robocal fk`.
+#[derive(Args, Debug)]
+pub struct FkArgs {
+    /// A preset name (see `robocal model list`) or a model TOML file.
+    #[arg(long)]
+    pub model: String,
+    /// Joint values, separated by commas or spaces: degrees for revolute joints, mm for
+    /// prismatic ones.
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_joint_values)]
+    pub q: JointValues,
+}
+
+/// The flags of `robocal repeatability`.
+#[derive(Args, Debug)]
+pub struct RepeatabilityArgs {
+    /// The nominal robot: a preset name or a model TOML file.
+    #[arg(long)]
+    pub model: String,
+    /// The repeatability file (CSV: a measurement file with a `pose` column; docs/formats.md).
+    #[arg(long)]
+    pub data: PathBuf,
+    #[command(flatten)]
+    pub units: UnitArgs,
+    /// Estimate the full joint covariance Sigma_q, not only one sigma per joint.
+    #[arg(long)]
+    pub full_covariance: bool,
+    /// Nominal position of a marker on the last link, "x,y,z" in mm; repeat per marker
+    /// (default: marker 1 at the model's tool point).
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
+    pub marker: Vec<Vector3<f64>>,
+    /// The device measures in the model's base frame: do not register the frames.
+    #[arg(long)]
+    pub fixed_base: bool,
+    /// Write the estimated noise here (a noise file for `calibrate --noise` and
+    /// `simulate --noise`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Write the estimates with their intervals as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+/// The flags of `robocal calibrate`.
+#[derive(Args, Debug)]
+pub struct CalibrateArgs {
+    /// The nominal robot: a preset name, a model TOML file, or a URDF file (`.urdf`, with
+    /// --base-link and --tip-link).
+    #[arg(long)]
+    pub model: String,
+    /// URDF: the link the chain starts from.
+    #[arg(long)]
+    pub base_link: Option<String>,
+    /// URDF: the link the chain ends at.
+    #[arg(long)]
+    pub tip_link: Option<String>,
+    /// The measurement file (CSV; see docs/formats.md).
+    #[arg(long)]
+    pub data: PathBuf,
+    #[command(flatten)]
+    pub units: UnitArgs,
+    /// The estimator. Default: wls when the noise is given (--noise or --joint-sigma-deg), ols
+    /// otherwise.
+    #[arg(long)]
+    pub estimator: Option<EstimatorName>,
+    /// A noise file (TOML, see docs/formats.md): joint noise, sigma_me and the measuring
+    /// device. Replaces --joint-sigma-deg, --sigma-mm and --sigma-orientation-deg.
+    #[arg(long)]
+    pub noise: Option<PathBuf>,
+    #[command(flatten)]
+    pub noise_flags: NoiseArgs,
+    /// Parameters to identify: `joints` (every joint parameter), `all` (the joint parameters,
+    /// the base and the markers: not with --fixed-base or --fixed-markers), `offsets` (the
+    /// joint offsets), `none` (only the base and the markers), or names and patterns
+    /// (`j*.theta,j2.a`). The base and the markers are estimated unless --fixed-base and
+    /// --fixed-markers say otherwise.
+    #[arg(long, default_value = "joints", value_parser = parse_params)]
+    pub params: ParamsArg,
+    /// Do not estimate the base: the measuring frame is the model's base frame.
+    #[arg(long)]
+    pub fixed_base: bool,
+    /// Do not estimate the marker positions.
+    #[arg(long)]
+    pub fixed_markers: bool,
+    /// Nominal position of a marker on the last link, "x,y,z" in mm; repeat per marker.
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
+    pub marker: Vec<Vector3<f64>>,
+    /// Gauss-Newton steps at most (at least 1); 1 is the paper's one-step estimate.
+    #[arg(long, default_value_t = 50, value_parser = parse_count::<1>)]
+    pub iterations: usize,
+    /// A measurement file of held-out poses to validate on; repeatable.
+    #[arg(long)]
+    pub validate: Vec<PathBuf>,
+    /// k-fold cross-validation on the data (k >= 2, at most the number of poses).
+    #[arg(long, value_parser = parse_count::<2>)]
+    pub folds: Option<usize>,
+    /// Write the report as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the calibrated model (TOML) here.
+    #[arg(long)]
+    pub out_model: Option<PathBuf>,
+    /// Write the calibrated model as URDF here (URDF input only): the original file with the
+    /// calibrated joint origins, a `measuring_frame` link and a `tool` link (marker 1).
+    #[arg(long)]
+    pub out_urdf: Option<PathBuf>,
+}
+
+/// The robot, parameters, measurements and noise of `observability` and `plan`.
+#[derive(Args, Debug)]
+pub struct DesignArgs {
+    /// The nominal robot: a preset name or a model TOML file.
+    #[arg(long)]
+    pub model: String,
+    /// Parameters to identify: `joints` (every joint parameter: the paper's set), `all` (every
+    /// parameter: the joints, the base and the tool), `offsets` (the joint offsets), or names
+    /// and patterns (`j*.theta,j2.a`).
+    #[arg(long, default_value = "joints", value_parser = parse_params)]
+    pub params: ParamsArg,
+    /// What is measured at each pose.
+    #[arg(long, value_enum, default_value_t = MeasuredName::Position)]
+    pub measured: MeasuredName,
+    #[command(flatten)]
+    pub noise: NoiseArgs,
+}
+
+/// The flags of `robocal observability`.
+#[derive(Args, Debug)]
+pub struct ObservabilityArgs {
+    /// The pose file (CSV with the model's joint columns and a `# units:` line).
+    pub poses: PathBuf,
+    #[command(flatten)]
+    pub design: DesignArgs,
+    /// Unit of revolute joint values in the file, if it does not declare it.
+    #[arg(long)]
+    pub joint_unit: Option<JointUnit>,
+}
+
+/// The flags of `robocal plan`.
+#[derive(Args, Debug)]
+pub struct PlanArgs {
+    #[command(flatten)]
+    pub design: DesignArgs,
+    /// Number of poses to plan.
+    #[arg(long)]
+    pub points: usize,
+    /// Candidate poses drawn uniformly within the joint limits (and the constraints).
+    #[arg(long, default_value_t = 5000)]
+    pub candidates: usize,
+    /// What to maximise: `d` (D-optimal), `o1` ... `o5`.
+    #[arg(long, default_value = "d")]
+    pub criterion: Criterion,
+    /// Seed of the candidate pool: the same seed gives the same poses.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// A box the tool point must stay in: "xmin,ymin,zmin,xmax,ymax,zmax" in mm, in the
+    /// robot's base (measuring) frame.
+    #[arg(long, allow_hyphen_values = true, value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX", value_parser = parse_tool_box)]
+    pub tool_box: Option<ToolBox>,
+    /// A joint range to avoid, "JOINT:FROM:TO" in degrees (mm for a prismatic joint);
+    /// repeatable.
+    #[arg(long, allow_hyphen_values = true, value_name = "JOINT:FROM:TO", value_parser = parse_exclude)]
+    pub exclude: Vec<Excluded>,
+    /// Write the poses here (CSV) and the summary to standard output; without it the poses go
+    /// to standard output and the summary to standard error.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// `text` split at `separator` into finite numbers, or `None` if one is not.
+fn finite_numbers(text: &str, separator: char) -> Option<Vec<f64>> {
+    text.split(separator).map(|s| s.trim().parse().ok().filter(|v: &f64| v.is_finite())).collect()
+}
+
+/// A standard deviation: a finite number >= 0.
+fn parse_sigma(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err("expected a finite number >= 0".into()),
+    }
+}
+
+/// A count of at least `MIN`.
+fn parse_count<const MIN: usize>(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(n) if n >= MIN => Ok(n),
+        _ => Err(format!("expected a whole number >= {MIN}")),
+    }
+}
+
+/// A marker position "x,y,z" (mm).
+fn parse_marker(text: &str) -> Result<Vector3<f64>, String> {
+    match finite_numbers(text, ',').as_deref() {
+        Some(&[x, y, z]) => Ok(Vector3::new(x, y, z)),
+        _ => Err("expected three finite numbers x,y,z in mm".into()),
+    }
+}
+
+/// A tool box "xmin,ymin,zmin,xmax,ymax,zmax" (mm), each minimum at most its maximum.
+fn parse_tool_box(text: &str) -> Result<ToolBox, String> {
+    let Some(&[x0, y0, z0, x1, y1, z1]) = finite_numbers(text, ',').as_deref() else {
+        return Err("expected six finite numbers xmin,ymin,zmin,xmax,ymax,zmax in mm".into());
+    };
+    let (low, high) = (Vector3::new(x0, y0, z0), Vector3::new(x1, y1, z1));
+    if (0..3).any(|i| low[i] > high[i]) {
+        return Err("each minimum must not exceed its maximum".into());
+    }
+    Ok(ToolBox { low, high })
+}
+
+/// An excluded range "JOINT:FROM:TO" with FROM at most TO.
+fn parse_exclude(text: &str) -> Result<Excluded, String> {
+    let expected = "expected JOINT:FROM:TO with finite FROM and TO, e.g. j2:-30:10 (degrees)";
+    let (name, range) = text.split_once(':').ok_or(expected)?;
+    let Some(&[from, to]) = finite_numbers(range, ':').as_deref() else {
+        return Err(expected.into());
+    };
+    if from > to {
+        return Err("FROM must not exceed TO".into());
+    }
+    Ok(Excluded { joint: name.trim().to_string(), range: [from, to] })
+}
+
+/// `"0, 45,180"` or `"0 45 180"`: finite joint values.
+fn parse_joint_values(text: &str) -> Result<JointValues, String> {
+    text.split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|s| !s.is_empty())
+        .enumerate()
+        .map(|(i, s)| match s.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(v),
+            Ok(v) => Err(format!("value {} is {v}, expected a finite number", i + 1)),
+            Err(_) => Err(format!("value {} `{s}` is not a number", i + 1)),
+        })
+        .collect::<Result<_, _>>()
+        .map(JointValues)
+}
+
+/// `joints`, `all`, `offsets`, `none`, or comma-separated names and patterns.
+fn parse_params(text: &str) -> Result<ParamsArg, String> {
+    let set = match text.trim() {
+        "joints" => ParamsArg::Joints,
+        "all" => ParamsArg::All,
+        "offsets" => ParamsArg::Offsets,
+        "none" => ParamsArg::None,
+        _ => {
+            let names: Vec<String> =
+                text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(String::from).collect();
+            if let Some(word) =
+                names.iter().find(|n| ["joints", "all", "offsets", "none"].contains(&n.as_str()))
+            {
+                return Err(format!("`{word}` is a parameter set: give it alone, not with names"));
+            }
+            if names.is_empty() {
+                return Err("expected joints, all, offsets, none, or parameter names".into());
+            }
+            ParamsArg::Named(names)
+        }
+    };
+    Ok(set)
+}
+
+/// The subcommands of `robocal model`.
+#[derive(clap::Subcommand, Debug)]
+pub enum ModelCommand {
+    /// Print a model (preset name or file) as TOML, in mm and degrees.
+    Show {
+        /// A preset name or a model TOML file.
+        model: String,
+    },
+    /// List the embedded presets.
+    List,
+}
+
+impl std::fmt::Display for Excluded {
+    /// As given: `JOINT:FROM:TO`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}:{}:{}", self.joint, self.range[0], self.range[1])
+    }
+}

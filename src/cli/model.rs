@@ -1,0 +1,20 @@
+//! `robocal model`: list the presets, show a model.
+
+use super::args::ModelCommand;
+use anyhow::Result;
+use robocal::io;
+use robocal::model::{PRESETS, RobotModel};
+
+/// Print the presets, or a model as TOML.
+pub fn run(command: &ModelCommand) -> Result<()> {
+    match command {
+        ModelCommand::Show { model } => print!("{}", io::load_model(model)?.to_toml_string()),
+        ModelCommand::List => {
+            for (name, _) in PRESETS {
+                let model = RobotModel::preset(name).expect("presets are valid");
+                println!("{name:<12} {}", model.description);
+            }
+        }
+    }
+    Ok(())
+}

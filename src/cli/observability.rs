@@ -1,0 +1,16 @@
+//! `robocal observability`: the indices O1-O5 of a pose file.
+
+use super::design;
+use super::request::ObservabilityRequest;
+use anyhow::{Context, Result};
+use robocal::{io, report};
+
+/// Print the observability indices of the request's pose file.
+pub fn run(request: &ObservabilityRequest) -> Result<()> {
+    let design = design(&request.design)?;
+    let poses = io::load_poses(&request.poses, design.model(), request.units)?;
+    let name = request.poses.display().to_string();
+    let observability = design.observability(&poses).with_context(|| name.clone())?;
+    print!("{}", report::design::observability(&design, &observability, &name));
+    Ok(())
+}

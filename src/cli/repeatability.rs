@@ -1,0 +1,68 @@
+//! `robocal repeatability`: the noise from repeated measurements, printed and written.
+
+use super::request::RepeatabilityRequest;
+use super::{check_marker_count, write_file};
+use anyhow::{Context, Result};
+use robocal::calibration::{self, RepeatabilityOptions};
+use robocal::estimation::JointComponents;
+use robocal::{io, report};
+
+/// Estimate the noise; print it, and write the noise file and the JSON if asked.
+pub fn run(request: &RepeatabilityRequest) -> Result<()> {
+    let model = io::load_model(&request.model)?;
+    let data = io::load_repeatability(&request.data, &model, request.units)?;
+    check_marker_count(request.markers.len(), &request.data, data.markers)?;
+    let joints = if request.full_covariance { JointComponents::Full } else { JointComponents::Diagonal };
+    let options =
+        RepeatabilityOptions { joints, markers: request.markers.clone(), register: request.register };
+    let result = calibration::repeatability(&model, &data, &options)
+        .with_context(|| format!("{}: the variance components", request.data.display()))?;
+    let rows = report::calibration::noise_rows(&model.joints, &result.estimate);
+    println!(
+        "repeatability of {} from {}: {} poses, {} measurements, rms spread {:.4} mm\n",
+        model.name,
+        request.data.display(),
+        result.poses,
+        result.measurements,
+        result.rms_spread
+    );
+    print!("{}", report::calibration::noise_table(&rows));
+    let estimate = &result.estimate;
+    let bound = |s: f64, name: &str, unit: &str, used: f64| {
+        (s == 0.0).then(|| {
+            format!(
+                "{name} is at its bound 0: the noise file gives {used:.3e} {unit} (the square root of its \
+                 standard error), so that V_k stays positive definite"
+            )
+        })
+    };
+    let (me, _) = estimate.weighting_sigmas();
+    let mut notes: Vec<String> = bound(estimate.sigma_me().sigma, "sigma_me", "mm", me).into_iter().collect();
+    if request.full_covariance {
+        notes.push(
+            "the noise file holds Sigma_q made positive semi-definite (negative eigenvalues set to 0): \
+             its diagonal can differ from the sigmas above"
+                .into(),
+        );
+    }
+    for note in &notes {
+        println!("note: {note}");
+    }
+    if let Some(path) = &request.out {
+        let header = format!(
+            "robocal noise file, estimated by `robocal repeatability` from {} ({} poses, {} measurements).\n\
+             95% intervals:\n{}{}",
+            request.data.display(),
+            result.poses,
+            result.measurements,
+            report::calibration::noise_table(&rows),
+            notes.iter().map(|n| format!("note: {n}\n")).collect::<String>()
+        );
+        write_file(path, result.estimate.spec().to_toml_string(&model, &header))?;
+        println!("\nwrote {}", path.display());
+    }
+    if let Some(path) = &request.json {
+        write_file(path, serde_json::to_string_pretty(&rows)? + "\n")?;
+    }
+    Ok(())
+}

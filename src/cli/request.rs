@@ -1,0 +1,385 @@
+//! One validated request per command: every rule between flags is checked here, before a file
+//! is read, and a broken one is a [`UsageError`] (exit code 2). The rules that need a file's
+//! contents are the commands' own.
+
+use super::args::{
+    CalibrateArgs, DesignArgs, EstimatorName, Excluded, JointUnit, LengthUnit, MeasuredName, NoiseArgs,
+    ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ToolBox, UnitArgs,
+};
+use nalgebra::Vector3;
+use robocal::calibration::JointParams;
+use robocal::design::Criterion;
+use robocal::estimation::Estimator;
+use robocal::kinematics::Measured;
+use robocal::table::Units;
+use std::path::PathBuf;
+
+#[cfg(test)]
+mod tests;
+
+/// Flags that clap accepted one by one but that do not fit together: exit code 2.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct UsageError(pub String);
+
+/// `Err(UsageError)` with this message unless `ok`.
+fn require(ok: bool, message: &str) -> Result<(), UsageError> {
+    if ok { Ok(()) } else { Err(UsageError(message.to_string())) }
+}
+
+impl UnitArgs {
+    /// The units, if given: `--joint-unit` and `--length-unit` go together.
+    fn units(&self) -> Result<Option<Units>, UsageError> {
+        match (self.joint_unit, self.length_unit) {
+            (None, None) => Ok(None),
+            (Some(joint), Some(length)) => Ok(Some(Units {
+                joints_in_degrees: joint == JointUnit::Deg,
+                lengths_in_metres: length == LengthUnit::M,
+            })),
+            _ => Err(UsageError("--joint-unit and --length-unit go together".into())),
+        }
+    }
+}
+
+/// Noise given as numbers, in the flags' units (deg, mm); the joint count is checked against
+/// the model by [`super::noise_model`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct NoiseFlags {
+    /// One standard deviation per joint: deg (mm for prismatic joints).
+    pub joint_sigma_deg: Vec<f64>,
+    /// The measurement's (mm).
+    pub sigma_mm: f64,
+    /// The orientation measurement's (deg).
+    pub sigma_orientation_deg: f64,
+}
+
+impl NoiseArgs {
+    /// The noise, if `--joint-sigma-deg` gives it.
+    fn flags(&self) -> Option<NoiseFlags> {
+        self.joint_sigma_deg.clone().map(|joint_sigma_deg| NoiseFlags {
+            joint_sigma_deg,
+            sigma_mm: self.sigma_mm,
+            sigma_orientation_deg: self.sigma_orientation_deg,
+        })
+    }
+}
+
+/// Where `calibrate` takes the noise from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum NoiseSource {
+    /// A noise file (TOML).
+    File(PathBuf),
+    /// `--joint-sigma-deg`, `--sigma-mm`, `--sigma-orientation-deg`.
+    Flags(NoiseFlags),
+}
+
+/// The model of `calibrate`: a preset or model file, or a chain in a URDF file.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ModelSource {
+    /// A preset name or a model TOML file.
+    Named(String),
+    /// A URDF file and the links the chain runs between.
+    Urdf {
+        /// The URDF file.
+        path: PathBuf,
+        /// The link the chain starts from.
+        base_link: String,
+        /// The link the chain ends at.
+        tip_link: String,
+    },
+}
+
+/// How `calibrate` estimates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Method {
+    /// One estimator with the given noise (or none, for OLS).
+    Given(Estimator),
+    /// Feasible GLS: the noise estimated from the residuals.
+    Feasible,
+}
+
+impl Method {
+    /// The name in the report.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Given(estimator) => estimator.name(),
+            Self::Feasible => "fgls",
+        }
+    }
+
+    /// The library's estimator: feasible GLS starts from OLS (and sets its own).
+    pub fn estimator(self) -> Estimator {
+        match self {
+            Self::Given(estimator) => estimator,
+            Self::Feasible => Estimator::Ols,
+        }
+    }
+}
+
+/// A validated `robocal calibrate`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrateRequest {
+    /// The nominal robot.
+    pub model: ModelSource,
+    /// The measurement file.
+    pub data: PathBuf,
+    /// The files' units, if given.
+    pub units: Option<Units>,
+    /// The estimator.
+    pub method: Method,
+    /// The noise, if given.
+    pub noise: Option<NoiseSource>,
+    /// The joint parameters to identify.
+    pub joints: JointParams,
+    /// Estimate the base.
+    pub estimate_base: bool,
+    /// Estimate the markers.
+    pub estimate_markers: bool,
+    /// Nominal marker positions (mm).
+    pub markers: Vec<Vector3<f64>>,
+    /// Gauss-Newton steps at most (>= 1).
+    pub iterations: usize,
+    /// Held-out measurement files.
+    pub validate: Vec<PathBuf>,
+    /// k of the k-fold cross-validation (>= 2).
+    pub folds: Option<usize>,
+    /// Where the JSON report goes.
+    pub json: Option<PathBuf>,
+    /// Where the calibrated model TOML goes.
+    pub out_model: Option<PathBuf>,
+    /// Where the calibrated URDF goes (URDF models only).
+    pub out_urdf: Option<PathBuf>,
+}
+
+impl CalibrateRequest {
+    /// The request, or the first rule between `args`' flags that it breaks.
+    pub fn from_args(args: CalibrateArgs) -> Result<Self, UsageError> {
+        let model = model_source(args.model, args.base_link, args.tip_link, args.out_urdf.is_some())?;
+        let noise = noise_source(args.noise, args.noise_flags.flags())?;
+        let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
+        let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
+        Ok(Self {
+            model,
+            data: args.data,
+            units: args.units.units()?,
+            method,
+            noise,
+            joints,
+            estimate_base: !args.fixed_base,
+            estimate_markers: !args.fixed_markers,
+            markers: args.marker,
+            iterations: args.iterations,
+            validate: args.validate,
+            folds: args.folds,
+            json: args.json,
+            out_model: args.out_model,
+            out_urdf: args.out_urdf,
+        })
+    }
+}
+
+/// `--model`: a URDF file needs `--base-link` and `--tip-link`; `--out-urdf` needs a URDF file.
+fn model_source(
+    model: String,
+    base_link: Option<String>,
+    tip_link: Option<String>,
+    out_urdf: bool,
+) -> Result<ModelSource, UsageError> {
+    if !model.ends_with(".urdf") {
+        require(!out_urdf, "--out-urdf needs a URDF model")?;
+        return Ok(ModelSource::Named(model));
+    }
+    match (base_link, tip_link) {
+        (Some(base_link), Some(tip_link)) => {
+            Ok(ModelSource::Urdf { path: model.into(), base_link, tip_link })
+        }
+        _ => Err(UsageError(format!("{model}: a URDF model needs --base-link and --tip-link"))),
+    }
+}
+
+/// `--noise` or `--joint-sigma-deg` (with `--sigma-mm`, `--sigma-orientation-deg`), not both.
+fn noise_source(file: Option<PathBuf>, flags: Option<NoiseFlags>) -> Result<Option<NoiseSource>, UsageError> {
+    match (file, flags) {
+        (Some(_), Some(_)) => Err(UsageError("--noise and --joint-sigma-deg: give one of the two".into())),
+        (Some(path), None) => Ok(Some(NoiseSource::File(path))),
+        (None, flags) => Ok(flags.map(NoiseSource::Flags)),
+    }
+}
+
+/// `--estimator` (default: wls with the noise, ols without): a weighted estimator needs the
+/// noise; fgls estimates it, so takes none, and does not cross-validate.
+fn method(name: Option<EstimatorName>, noise: bool, folds: bool) -> Result<Method, UsageError> {
+    let estimator = match name {
+        Some(EstimatorName::Fgls) => {
+            require(
+                !noise,
+                "--estimator fgls estimates the noise: do not give --noise or --joint-sigma-deg",
+            )?;
+            require(
+                !folds,
+                "--folds with --estimator fgls: not supported; estimate the noise once and give --noise",
+            )?;
+            return Ok(Method::Feasible);
+        }
+        Some(EstimatorName::Ols) => Estimator::Ols,
+        Some(EstimatorName::Wls) => Estimator::Wls,
+        Some(EstimatorName::WlsDiag) => Estimator::WlsDiag,
+        Some(EstimatorName::WlsSigma) => Estimator::WlsSigma,
+        None if noise => Estimator::Wls,
+        None => Estimator::Ols,
+    };
+    if estimator != Estimator::Ols && !noise {
+        return Err(UsageError(format!(
+            "--estimator {estimator} needs the noise: give --noise or --joint-sigma-deg (and --sigma-mm or a sigma \
+             column), or use --estimator fgls"
+        )));
+    }
+    Ok(Method::Given(estimator))
+}
+
+/// `--params` in calibrate: `joints` and `all` identify every joint parameter, and `all` frees
+/// the base and the markers too, so it refuses `--fixed-base` and `--fixed-markers`.
+fn joint_params(params: ParamsArg, fixed_base_or_markers: bool) -> Result<JointParams, UsageError> {
+    Ok(match params {
+        ParamsArg::All => {
+            require(
+                !fixed_base_or_markers,
+                "--params all frees the base and the markers: with --fixed-base or --fixed-markers, give \
+                 --params joints",
+            )?;
+            JointParams::All
+        }
+        ParamsArg::Joints => JointParams::All,
+        ParamsArg::Offsets => JointParams::Offsets,
+        ParamsArg::None => JointParams::None,
+        ParamsArg::Named(names) => JointParams::Named(names),
+    })
+}
+
+/// The parameters, measurements and noise of a validated `plan` or `observability`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DesignRequest {
+    /// The nominal robot: a preset name or a model file.
+    pub model: String,
+    /// The parameters to identify (not [`ParamsArg::None`]).
+    pub params: ParamsArg,
+    /// What is measured at each pose.
+    pub measured: Measured,
+    /// The noise, if given.
+    pub noise: Option<NoiseFlags>,
+}
+
+impl DesignRequest {
+    /// The request, or the first rule between `args`' flags that it breaks.
+    fn from_args(args: DesignArgs) -> Result<Self, UsageError> {
+        require(
+            args.params != ParamsArg::None,
+            "--params none: nothing to assess; give joints, all, offsets, or parameter names",
+        )?;
+        let noise = args.noise.flags();
+        require(
+            noise.is_some() || args.noise.sigma_mm == 0.0,
+            "--sigma-mm needs --joint-sigma-deg too (zeros if the joints are exact)",
+        )?;
+        let measured = match args.measured {
+            MeasuredName::Position => Measured::Position,
+            MeasuredName::Pose => Measured::Pose,
+        };
+        Ok(Self { model: args.model, params: args.params, measured, noise })
+    }
+}
+
+/// A validated `robocal observability`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObservabilityRequest {
+    /// The pose file.
+    pub poses: PathBuf,
+    /// The robot, parameters, measurements and noise.
+    pub design: DesignRequest,
+    /// The pose file's units, if given (lengths are not read from it).
+    pub units: Option<Units>,
+}
+
+impl ObservabilityRequest {
+    /// The request, or the first rule between `args`' flags that it breaks.
+    pub fn from_args(args: ObservabilityArgs) -> Result<Self, UsageError> {
+        let units = args
+            .joint_unit
+            .map(|unit| Units { joints_in_degrees: unit == JointUnit::Deg, lengths_in_metres: false });
+        Ok(Self { poses: args.poses, design: DesignRequest::from_args(args.design)?, units })
+    }
+}
+
+/// A validated `robocal plan`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanRequest {
+    /// The robot, parameters, measurements and noise.
+    pub design: DesignRequest,
+    /// Number of poses.
+    pub points: usize,
+    /// Number of candidate poses.
+    pub candidates: usize,
+    /// What to maximise.
+    pub criterion: Criterion,
+    /// Seed of the candidate pool.
+    pub seed: u64,
+    /// A box the tool point must stay in.
+    pub tool_box: Option<ToolBox>,
+    /// Joint ranges to avoid (degrees; mm for prismatic joints).
+    pub exclude: Vec<Excluded>,
+    /// Where the poses go (standard output without it).
+    pub out: Option<PathBuf>,
+}
+
+impl PlanRequest {
+    /// The request, or the first rule between `args`' flags that it breaks.
+    pub fn from_args(args: PlanArgs) -> Result<Self, UsageError> {
+        Ok(Self {
+            design: DesignRequest::from_args(args.design)?,
+            points: args.points,
+            candidates: args.candidates,
+            criterion: args.criterion,
+            seed: args.seed,
+            tool_box: args.tool_box,
+            exclude: args.exclude,
+            out: args.out,
+        })
+    }
+}
+
+/// A validated `robocal repeatability`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RepeatabilityRequest {
+    /// The nominal robot: a preset name or a model file.
+    pub model: String,
+    /// The repeatability file.
+    pub data: PathBuf,
+    /// The file's units, if given.
+    pub units: Option<Units>,
+    /// Estimate the full joint covariance.
+    pub full_covariance: bool,
+    /// Nominal marker positions (mm).
+    pub markers: Vec<Vector3<f64>>,
+    /// Register the measuring frame to the robot's.
+    pub register: bool,
+    /// Where the noise file goes.
+    pub out: Option<PathBuf>,
+    /// Where the JSON estimates go.
+    pub json: Option<PathBuf>,
+}
+
+impl RepeatabilityRequest {
+    /// The request, or the first rule between `args`' flags that it breaks.
+    pub fn from_args(args: RepeatabilityArgs) -> Result<Self, UsageError> {
+        Ok(Self {
+            model: args.model,
+            data: args.data,
+            units: args.units.units()?,
+            full_covariance: args.full_covariance,
+            markers: args.marker,
+            register: !args.fixed_base,
+            out: args.out,
+            json: args.json,
+        })
+    }
+}

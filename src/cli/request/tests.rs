@@ -1,0 +1,284 @@
+//! One test per rule between flags (and per flag checked on its own): the command line parsed
+//! by clap as the binary parses it, the request built, the message or the request checked.
+
+use super::*;
+use crate::cli::args::JointValues;
+use crate::cli::{Cli, Command};
+use clap::Parser;
+
+/// The command after `robocal`, parsed by clap; its error as text.
+fn parse(args: &[&str]) -> Result<Command, String> {
+    Cli::try_parse_from(["robocal"].iter().chain(args)).map(|cli| cli.command).map_err(|e| e.to_string())
+}
+
+/// `base` and `args` parsed by clap, and the request `build` makes of the command: the
+/// request, or the message of clap or of the rule broken.
+fn request<R>(
+    base: &[&str],
+    args: &[&str],
+    build: impl FnOnce(Command) -> Result<R, UsageError>,
+) -> Result<R, String> {
+    build(parse(&[base, args].concat())?).map_err(|e| e.0)
+}
+
+/// `robocal calibrate --model puma560 --data d.csv` with `args`.
+fn calibrate(args: &[&str]) -> Result<CalibrateRequest, String> {
+    calibrate_model("puma560", args)
+}
+
+/// `robocal calibrate --model MODEL --data d.csv` with `args`.
+fn calibrate_model(model: &str, args: &[&str]) -> Result<CalibrateRequest, String> {
+    request(&["calibrate", "--model", model, "--data", "d.csv"], args, |command| match command {
+        Command::Calibrate(args) => CalibrateRequest::from_args(*args),
+        other => panic!("parsed as {other:?}"),
+    })
+}
+
+/// `robocal plan --model puma560 --points 12` with `args`.
+fn plan(args: &[&str]) -> Result<PlanRequest, String> {
+    request(&["plan", "--model", "puma560", "--points", "12"], args, |command| match command {
+        Command::Plan(args) => PlanRequest::from_args(*args),
+        other => panic!("parsed as {other:?}"),
+    })
+}
+
+/// `robocal observability poses.csv --model puma560` with `args`.
+fn observability(args: &[&str]) -> Result<ObservabilityRequest, String> {
+    request(&["observability", "poses.csv", "--model", "puma560"], args, |command| match command {
+        Command::Observability(args) => ObservabilityRequest::from_args(*args),
+        other => panic!("parsed as {other:?}"),
+    })
+}
+
+/// `robocal repeatability --model puma560 --data r.csv` with `args`.
+fn repeatability(args: &[&str]) -> Result<RepeatabilityRequest, String> {
+    request(&["repeatability", "--model", "puma560", "--data", "r.csv"], args, |command| match command {
+        Command::Repeatability(args) => RepeatabilityRequest::from_args(*args),
+        other => panic!("parsed as {other:?}"),
+    })
+}
+
+/// The message of a refused command line.
+fn refused<T: std::fmt::Debug>(result: Result<T, String>) -> String {
+    result.expect_err("refused")
+}
+
+const SIGMAS: &str = "0.007,0.007,0.007,0.002,0.002,0.002";
+
+#[test]
+fn the_default_calibration_is_ols_of_the_joints_base_and_markers() {
+    let request = calibrate(&[]).unwrap();
+    assert_eq!(request.model, ModelSource::Named("puma560".into()));
+    assert_eq!(request.method, Method::Given(Estimator::Ols));
+    assert_eq!(request.joints, JointParams::All);
+    assert!(request.estimate_base && request.estimate_markers);
+    assert_eq!((request.noise, request.units, request.iterations, request.folds), (None, None, 50, None));
+}
+
+#[test]
+fn joint_unit_and_length_unit_go_together() {
+    let message = refused(calibrate(&["--joint-unit", "deg"]));
+    assert_eq!(message, "--joint-unit and --length-unit go together");
+    assert_eq!(refused(repeatability(&["--length-unit", "m"])), message);
+    let units = Some(Units { joints_in_degrees: false, lengths_in_metres: true });
+    assert_eq!(calibrate(&["--joint-unit", "rad", "--length-unit", "m"]).unwrap().units, units);
+    assert_eq!(repeatability(&["--joint-unit", "rad", "--length-unit", "m"]).unwrap().units, units);
+    assert!(
+        refused(calibrate(&["--joint-unit", "grad", "--length-unit", "m"]))
+            .contains("[possible values: deg, rad]")
+    );
+}
+
+#[test]
+fn a_noise_file_or_joint_sigmas_not_both() {
+    let message = refused(calibrate(&["--noise", "n.toml", "--joint-sigma-deg", SIGMAS]));
+    assert_eq!(message, "--noise and --joint-sigma-deg: give one of the two");
+    let request = calibrate(&["--noise", "n.toml"]).unwrap();
+    assert_eq!(request.noise, Some(NoiseSource::File("n.toml".into())));
+    assert_eq!(request.method, Method::Given(Estimator::Wls), "wls when the noise is given");
+}
+
+#[test]
+fn fgls_estimates_the_noise_so_none_is_given() {
+    let message = refused(calibrate(&["--estimator", "fgls", "--joint-sigma-deg", SIGMAS]));
+    assert_eq!(message, "--estimator fgls estimates the noise: do not give --noise or --joint-sigma-deg");
+    assert!(
+        refused(calibrate(&["--estimator", "fgls", "--noise", "n.toml"])).starts_with("--estimator fgls")
+    );
+    assert_eq!(calibrate(&["--estimator", "fgls"]).unwrap().method, Method::Feasible);
+}
+
+#[test]
+fn a_weighted_estimator_needs_the_noise() {
+    for name in ["wls", "wls-diag", "wls-sigma"] {
+        let message = refused(calibrate(&["--estimator", name]));
+        assert!(
+            message.starts_with(&format!("--estimator {name} needs the noise: give --noise")),
+            "{message}"
+        );
+    }
+    let request =
+        calibrate(&["--estimator", "wls-diag", "--joint-sigma-deg", SIGMAS, "--sigma-mm", "0.01"]).unwrap();
+    assert_eq!(request.method, Method::Given(Estimator::WlsDiag));
+    let flags = NoiseFlags {
+        joint_sigma_deg: vec![0.007, 0.007, 0.007, 0.002, 0.002, 0.002],
+        sigma_mm: 0.01,
+        sigma_orientation_deg: 0.0,
+    };
+    assert_eq!(request.noise, Some(NoiseSource::Flags(flags)));
+    assert!(
+        refused(calibrate(&["--estimator", "gls"]))
+            .contains("[possible values: ols, wls, wls-diag, wls-sigma, fgls]")
+    );
+}
+
+#[test]
+fn folds_are_at_least_2() {
+    assert!(
+        refused(calibrate(&["--folds", "1"])).contains("for '--folds <FOLDS>': expected a whole number >= 2")
+    );
+    assert_eq!(calibrate(&["--folds", "2"]).unwrap().folds, Some(2));
+}
+
+#[test]
+fn folds_do_not_go_with_fgls() {
+    let message = refused(calibrate(&["--estimator", "fgls", "--folds", "5"]));
+    assert_eq!(
+        message,
+        "--folds with --estimator fgls: not supported; estimate the noise once and give --noise"
+    );
+}
+
+#[test]
+fn out_urdf_needs_a_urdf_model() {
+    assert_eq!(refused(calibrate(&["--out-urdf", "c.urdf"])), "--out-urdf needs a URDF model");
+}
+
+#[test]
+fn a_urdf_model_needs_its_base_and_tip_links() {
+    let message = refused(calibrate_model("arm.urdf", &["--base-link", "base"]));
+    assert_eq!(message, "arm.urdf: a URDF model needs --base-link and --tip-link");
+    let full = ["--base-link", "base", "--tip-link", "flange", "--out-urdf", "c.urdf"];
+    let request = calibrate_model("arm.urdf", &full).unwrap();
+    let source =
+        ModelSource::Urdf { path: "arm.urdf".into(), base_link: "base".into(), tip_link: "flange".into() };
+    assert_eq!((request.model, request.out_urdf), (source, Some("c.urdf".into())));
+}
+
+#[test]
+fn iterations_are_at_least_1() {
+    assert!(
+        refused(calibrate(&["--iterations", "0"]))
+            .contains("for '--iterations <ITERATIONS>': expected a whole number >= 1")
+    );
+    assert_eq!(calibrate(&["--iterations", "1"]).unwrap().iterations, 1);
+}
+
+#[test]
+fn sigmas_are_finite_and_not_negative() {
+    for flag in [
+        "--joint-sigma-deg=0.1,-0.1,0,0,0,0",
+        "--sigma-mm=-1",
+        "--sigma-orientation-deg=nan",
+        "--sigma-mm=inf",
+    ] {
+        assert!(refused(calibrate(&[flag])).contains("expected a finite number >= 0"), "{flag}");
+        assert!(refused(plan(&[flag])).contains("expected a finite number >= 0"), "{flag}");
+    }
+}
+
+#[test]
+fn params_all_frees_the_base_and_markers_so_refuses_fixing_them() {
+    for fixed in ["--fixed-base", "--fixed-markers"] {
+        let message = refused(calibrate(&["--params", "all", fixed]));
+        assert_eq!(
+            message,
+            "--params all frees the base and the markers: with --fixed-base or --fixed-markers, give --params joints"
+        );
+        let request = calibrate(&["--params", "joints", fixed]).unwrap();
+        assert_eq!(request.joints, JointParams::All);
+        assert!(!(request.estimate_base && request.estimate_markers));
+    }
+    let request = calibrate(&["--params", "all"]).unwrap();
+    assert_eq!(
+        (request.joints, request.estimate_base, request.estimate_markers),
+        (JointParams::All, true, true)
+    );
+}
+
+#[test]
+fn params_words_and_names() {
+    assert_eq!(calibrate(&["--params", "offsets"]).unwrap().joints, JointParams::Offsets);
+    assert_eq!(calibrate(&["--params", "none"]).unwrap().joints, JointParams::None);
+    let names = JointParams::Named(vec!["j*.theta".into(), "j2.a".into()]);
+    assert_eq!(calibrate(&["--params", "j*.theta, j2.a"]).unwrap().joints, names);
+    let message = refused(calibrate(&["--params", "all,j2.a"]));
+    assert!(message.contains("`all` is a parameter set: give it alone, not with names"), "{message}");
+    assert_eq!(plan(&[]).unwrap().design.params, ParamsArg::Joints);
+    assert_eq!(plan(&["--params", "all"]).unwrap().design.params, ParamsArg::All);
+}
+
+#[test]
+fn params_none_is_for_calibrate_only() {
+    let message = "--params none: nothing to assess; give joints, all, offsets, or parameter names";
+    assert_eq!(refused(plan(&["--params", "none"])), message);
+    assert_eq!(refused(observability(&["--params", "none"])), message);
+}
+
+#[test]
+fn markers_are_three_finite_numbers() {
+    let request = calibrate(&["--marker", "50,0,150", "--marker=-40,60,120"]).unwrap();
+    assert_eq!(request.markers, [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)]);
+    for bad in ["50,0", "50,0,1,2", "50,x,1", "50,0,inf"] {
+        let message = refused(calibrate(&["--marker", bad]));
+        assert!(message.contains("expected three finite numbers x,y,z in mm"), "{bad}: {message}");
+    }
+    assert_eq!(repeatability(&["--marker", "1,2,3"]).unwrap().markers, [Vector3::new(1.0, 2.0, 3.0)]);
+}
+
+#[test]
+fn sigma_mm_needs_the_joint_sigmas_in_plan_and_observability() {
+    let message = "--sigma-mm needs --joint-sigma-deg too (zeros if the joints are exact)";
+    assert_eq!(refused(plan(&["--sigma-mm", "0.01"])), message);
+    assert_eq!(refused(observability(&["--sigma-mm", "0.01"])), message);
+    let request =
+        observability(&["--sigma-mm", "0.01", "--joint-sigma-deg", SIGMAS, "--measured", "pose"]).unwrap();
+    assert_eq!(request.design.noise.map(|n| n.sigma_mm), Some(0.01));
+    assert_eq!(request.design.measured, Measured::Pose);
+}
+
+#[test]
+fn the_tool_box_is_six_numbers_each_minimum_at_most_its_maximum() {
+    let message = refused(plan(&["--tool-box=-800,-800,0,800,800,-1"]));
+    assert!(message.contains("each minimum must not exceed its maximum"), "{message}");
+    let message = refused(plan(&["--tool-box", "1,2,3"]));
+    assert!(message.contains("expected six finite numbers xmin,ymin,zmin,xmax,ymax,zmax in mm"), "{message}");
+    let tool_box = plan(&["--tool-box=-800,-800,0,800,800,1200"]).unwrap().tool_box.unwrap();
+    assert_eq!(
+        (tool_box.low, tool_box.high),
+        (Vector3::new(-800.0, -800.0, 0.0), Vector3::new(800.0, 800.0, 1200.0))
+    );
+}
+
+#[test]
+fn an_excluded_range_is_a_name_and_two_numbers_from_at_most_to() {
+    assert!(refused(plan(&["--exclude", "j2:10:-30"])).contains("FROM must not exceed TO"));
+    for bad in ["j2:10", "j2:a:10", "j2:0:nan", "j2:0:1:2"] {
+        assert!(refused(plan(&["--exclude", bad])).contains("expected JOINT:FROM:TO"), "{bad}");
+    }
+    let request = plan(&["--exclude", "j2:-30:10", "--exclude", "j3:0:5.5"]).unwrap();
+    assert_eq!(request.exclude[0], Excluded { joint: "j2".into(), range: [-30.0, 10.0] });
+    assert_eq!(request.exclude[1].to_string(), "j3:0:5.5");
+}
+
+#[test]
+fn fk_joint_values_are_finite_numbers_separated_by_commas_or_spaces() {
+    for text in ["0 45 180", "0, 45,180"] {
+        let Command::Fk(args) = parse(&["fk", "--model", "puma560", "--q", text]).unwrap() else {
+            panic!("fk")
+        };
+        assert_eq!(args.q, JointValues(vec![0.0, 45.0, 180.0]));
+    }
+    let message = parse(&["fk", "--model", "puma560", "--q", "0,inf"]).unwrap_err();
+    assert!(message.contains("value 2 is inf, expected a finite number"), "{message}");
+}
