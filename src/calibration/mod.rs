@@ -56,7 +56,8 @@ pub struct Options {
     pub estimate_base: bool,
     /// Estimate the marker positions on the last link.
     pub estimate_markers: bool,
-    /// Nominal marker positions in the last joint frame (mm); missing ones start at zero.
+    /// Nominal marker positions (mm) in the model's [marker frame](RobotModel::marker_frame)
+    /// (a URDF's tip link, else the last joint frame); missing ones start at its origin.
     pub markers: Vec<Vector3<f64>>,
     /// Gauss-Newton settings; `max_iterations = 1` is the paper's one-step estimate.
     pub refine: RefineOptions,
@@ -563,8 +564,13 @@ fn fold(
     out.base = Placement::from_isometry(&(model.base.isometry() * displacement(ParamOwner::Base)));
     let first = markers.first().copied().unwrap_or_else(Vector3::zeros);
     let mounting = probe.copied().unwrap_or(Placement { xyz: first, rpy: Vector3::zeros() });
-    let tool = Placement::from_isometry(&(mounting.isometry() * displacement(ParamOwner::Marker(0))));
-    out.tool = if probe.is_some() { Tool::Frame(tool) } else { Tool::Point(tool.xyz) };
+    let frame = model.marker_frame().isometry();
+    let tool = Placement::from_isometry(&(frame * mounting.isometry() * displacement(ParamOwner::Marker(0))));
+    out.tool = match (probe, model.tool) {
+        (None, Tool::Point(_)) => Tool::Point(tool.xyz),
+        // keeps the tool frame's orientation (or the probe's), so markers stay in its axes
+        _ => Tool::Frame(tool),
+    };
     out
 }
 

@@ -22,7 +22,7 @@ use crate::estimation::{
     CovarianceSample, EstimationError, JointComponents, NoiseEstimate, noise_design, sample_covariance,
 };
 use crate::kinematics::Chain;
-use crate::model::{RobotModel, Tool};
+use crate::model::RobotModel;
 use crate::table::{DataError, Table, Units};
 use nalgebra::{DMatrix, DVector, Matrix6xX, Vector3};
 
@@ -137,10 +137,7 @@ pub fn repeatability(
     data: &RepeatabilityData,
     options: &RepeatabilityOptions,
 ) -> Result<Repeatability, EstimationError> {
-    let tool = match &model.tool {
-        Tool::Point(p) => *p,
-        Tool::Frame(f) => f.xyz,
-    };
+    let tool = model.tool_point_in_marker_frame();
     let markers: Vec<Vector3<f64>> = (0..data.markers)
         .map(|k| options.markers.get(k).copied().unwrap_or(if k == 0 { tool } else { Vector3::zeros() }))
         .collect();

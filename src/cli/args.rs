@@ -165,8 +165,9 @@ pub struct RepeatabilityArgs {
     /// Estimate the full joint covariance Sigma_q, not only one sigma per joint.
     #[arg(long)]
     pub full_covariance: bool,
-    /// Nominal position of a marker on the last link, "x,y,z" in mm; repeat per marker
-    /// (default: marker 1 at the model's tool point).
+    /// Nominal position of a marker on the last link, "x,y,z" in mm, in the tool frame (a
+    /// URDF's tip link; the last joint's frame for a model whose tool is a point); repeat per
+    /// marker (default: marker 1 at the model's tool point).
     #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub marker: Vec<Vector3<f64>>,
     /// The device measures in the model's base frame: do not register the frames.
@@ -222,7 +223,9 @@ pub struct CalibrateArgs {
     /// Do not estimate the marker positions.
     #[arg(long)]
     pub fixed_markers: bool,
-    /// Nominal position of a marker on the last link, "x,y,z" in mm; repeat per marker.
+    /// Nominal position of a marker on the last link, "x,y,z" in mm, in the tool frame (a
+    /// URDF's tip link; the last joint's frame for a model whose tool is a point); repeat per
+    /// marker (missing ones start at that frame's origin).
     #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub marker: Vec<Vector3<f64>>,
     /// Gauss-Newton steps at most (at least 1); 1 is the paper's one-step estimate.

@@ -205,7 +205,8 @@ impl Builder {
 #[derive(Debug, Clone)]
 pub struct Chain {
     steps: Vec<Step>,
-    /// The steps of the base and joints; the rest place the tool, marker or probe.
+    /// The steps of the base and joints (and, for markers and probes, the fixed marker frame);
+    /// the rest place the tool, marker or probe.
     arm: usize,
     params: ParamSet,
     dof: usize,
@@ -224,14 +225,16 @@ impl Chain {
     }
 
     /// One chain per marker, each ending at its marker (nominal position `markers[k]`, mm, in
-    /// the last joint frame), all indexed by [`ParamSet::with_markers`]: they share the base
-    /// and joint parameters, and each has its own `marker<k>.x/y/z`. The model's tool is
-    /// not used.
+    /// the model's [marker frame](RobotModel::marker_frame): the tool frame of a URDF model's
+    /// tip link, else the last joint frame), all indexed by [`ParamSet::with_markers`]: they
+    /// share the base and joint parameters, and each has its own `marker<k>.x/y/z` (along the
+    /// marker frame's axes). The tool frame is fixed; its error parameters are not used.
     pub fn markers(model: &RobotModel, markers: &[Vector3<f64>]) -> Vec<Self> {
         let params = ParamSet::with_markers(model, markers.len());
         (0..markers.len())
             .map(|k| {
                 let mut builder = Self::arm(model, params.clone());
+                builder.placement(ParamOwner::Tool, &model.marker_frame(), &[]);
                 let arm = builder.steps.len();
                 builder.point(ParamOwner::Marker(k), &markers[k]);
                 Self { steps: builder.steps, arm, params: builder.params, dof: model.dof() }
@@ -239,10 +242,12 @@ impl Chain {
             .collect()
     }
 
-    /// The chain ending at a measured frame (a 6-DOF probe) placed at `probe` in the last joint
-    /// frame, indexed by [`ParamSet::with_probe`]: its 6 errors are `marker1.x` ... `marker1.rz`.
+    /// The chain ending at a measured frame (a 6-DOF probe) placed at `probe` in the model's
+    /// [marker frame](RobotModel::marker_frame), indexed by [`ParamSet::with_probe`]: its 6
+    /// errors are `marker1.x` ... `marker1.rz`.
     pub fn probe(model: &RobotModel, probe: &Placement) -> Self {
         let mut builder = Self::arm(model, ParamSet::with_probe(model));
+        builder.placement(ParamOwner::Tool, &model.marker_frame(), &[]);
         let arm = builder.steps.len();
         builder.placement(ParamOwner::Marker(0), probe, &ParamKind::PLACEMENT);
         Self { steps: builder.steps, arm, params: builder.params, dof: model.dof() }

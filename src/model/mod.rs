@@ -184,6 +184,25 @@ impl RobotModel {
             .collect()
     }
 
+    /// The frame marker and probe coordinates are given in, in the last joint's frame: the
+    /// tool frame when the tool is a frame (a URDF model's tip link), the last joint's frame
+    /// itself (the identity) when the tool is a point.
+    pub fn marker_frame(&self) -> Placement {
+        match self.tool {
+            Tool::Point(_) => Placement::default(),
+            Tool::Frame(frame) => frame,
+        }
+    }
+
+    /// The tool point in the [marker frame](RobotModel::marker_frame): the tool point of a
+    /// point tool, the origin of a tool frame.
+    pub fn tool_point_in_marker_frame(&self) -> Vector3<f64> {
+        match self.tool {
+            Tool::Point(p) => p,
+            Tool::Frame(_) => Vector3::zeros(),
+        }
+    }
+
     /// A model shipped with robocal, by name; see [`PRESETS`].
     pub fn preset(name: &str) -> Option<Self> {
         let text = PRESETS.iter().find(|(n, _)| *n == name)?.1;

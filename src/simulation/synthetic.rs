@@ -10,8 +10,8 @@ use rand::rngs::ChaCha8Rng;
 use std::fmt::Write;
 
 /// A measurement file (the format of [`crate::calibration::Measurements`], degrees and mm) of
-/// `truth` (its base is the measuring frame to the robot) carrying `markers` (mm, last joint
-/// frame) at the commanded joint values `joints` (rad, mm). The robot reaches `q + n_q` with
+/// `truth` (its base is the measuring frame to the robot) carrying `markers` (mm, in its
+/// [marker frame](crate::model::RobotModel::marker_frame)) at the commanded joint values `joints` (rad, mm). The robot reaches `q + n_q` with
 /// `n_q` normal with `joint_sigmas`; each marker is measured with isotropic normal noise
 /// `sigma_me` (mm). ChaCha8 with `seed`: the same file for the same arguments.
 pub fn measurement_csv(

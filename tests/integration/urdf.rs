@@ -208,3 +208,91 @@ fn a_seven_joint_urdf_arm_with_a_prismatic_joint_calibrates() {
         .fold(0.0, f64::max);
     assert!(worst < 5.0 * after.rms.max(0.05), "the written URDF misses marker 1 by {worst} mm");
 }
+
+/// The 7-joint arm with its tip link 66 mm past the last joint and turned: marker
+/// coordinates are read in the tip link's frame, as a user takes them from the CAD, not in the
+/// last joint's. The data come from the true model's tool pose times the marker, a path that
+/// does not go through the marker chains.
+#[test]
+fn markers_are_given_and_reported_in_the_tip_link_frame() {
+    let text = arm_urdf().replace(
+        "<origin xyz=\"0 0 0.05\" rpy=\"0 0 0\"/>",
+        "<origin xyz=\"0.01 0.02 0.0621\" rpy=\"0.3 -0.2 1.0\"/>",
+    );
+    let nominal = from_urdf_str(&text, "base", "flange").unwrap();
+    let tip = nominal.marker_frame();
+    assert!((tip.xyz.norm() - 66.0).abs() < 0.1, "the tip link is {} mm past the last joint", tip.xyz.norm());
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut n = || -> f64 { StandardNormal.sample(&mut rng) };
+    let mut truth = nominal.clone();
+    for joint in &mut truth.joints {
+        let offset = Isometry3::rotation(joint.axis * 0.1f64.to_radians() * n());
+        joint.origin = Placement::from_isometry(&(joint.origin.isometry() * offset));
+    }
+    // The prismatic joint as it is; the first and last offsets as they are too, since the
+    // base and the free markers absorb them (the calibration holds them: the gauge).
+    for j in [0, 2, 6] {
+        truth.joints[j] = nominal.joints[j].clone();
+    }
+    truth.base = Placement { xyz: Vector3::new(-800.0, 1200.0, 150.0), rpy: Vector3::new(0.02, 0.03, -1.1) };
+    let markers = [Vector3::new(30.0, 0.0, 60.0), Vector3::new(-20.0, 40.0, 50.0)];
+    let tool = Chain::new(&truth);
+    let tool = tool.with_errors(&vec![0.0; tool.params().len()]);
+    let sigma = 0.01;
+    let mut csv = String::from("# units: joints=rad, lengths=mm\n");
+    csv += &(nominal.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(",")
+        + ",x1,y1,z1,x2,y2,z2\n");
+    for _ in 0..120 {
+        let q: Vec<f64> = nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect();
+        let pose = tool.pose(&q);
+        let mut row: Vec<String> = q.iter().map(|v| format!("{v:.12}")).collect();
+        for m in &markers {
+            let p = pose * nalgebra::Point3::from(*m);
+            let mut noise = || -> f64 {
+                let z: f64 = StandardNormal.sample(&mut rng);
+                sigma * z
+            };
+            row.extend([p.x + noise(), p.y + noise(), p.z + noise()].map(|c| format!("{c:.9}")));
+        }
+        csv += &(row.join(",") + "\n");
+    }
+    let data = Measurements::from_csv_str(&csv, &nominal, None).unwrap();
+    let start = vec![Vector3::new(31.0, -1.0, 59.0), Vector3::new(-21.0, 41.0, 49.5)];
+    let options = Options {
+        estimator: Estimator::Ols,
+        noise: None,
+        joints: JointParams::Offsets,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: start.clone(),
+        refine: RefineOptions::default(),
+    };
+    let result = calibration::calibrate(&nominal, &data, &options).unwrap();
+    assert!(result.fixed.iter().any(|f| f.starts_with("wrist_yaw.theta")), "{:?}", result.fixed);
+    let se = calibration::standard_errors(&result);
+    for (k, (truth, start)) in markers.iter().zip(&start).enumerate() {
+        for (axis, name) in ["x", "y", "z"].iter().enumerate() {
+            let i = result.params.index_by_name(&format!("marker{}.{name}", k + 1)).unwrap();
+            let found = start[axis] + result.after[i];
+            let off = (found - truth[axis]) / se[i];
+            assert!(
+                off.abs() < 3.0,
+                "marker {} {name}: {found:.4} mm, truth {}, {off:.1} SE",
+                k + 1,
+                truth[axis]
+            );
+        }
+    }
+    // The calibrated model's tool is marker 1, placed through the tip link: it predicts
+    // marker 1 wherever the arm goes, and so does the URDF written from it.
+    let chain = Chain::new(&result.calibrated);
+    let at = chain.with_errors(&vec![0.0; chain.params().len()]);
+    let written = to_urdf_string(&text, "base", "flange", &result.calibrated).unwrap();
+    let reread = from_urdf_str(&written, "measuring_frame", "tool").unwrap();
+    let reread = Chain::new(&reread);
+    let reread = reread.with_errors(&vec![0.0; reread.params().len()]);
+    for (q, m) in data.joints.iter().zip(&data.markers) {
+        assert!((at.position(q) - m[0]).norm() < 10.0 * sigma, "the calibrated tool misses marker 1");
+        assert!((reread.position(q) - at.position(q)).norm() < 1e-6, "the written URDF moves otherwise");
+    }
+}
