@@ -99,6 +99,30 @@ pub struct UnitArgs {
     pub length_unit: Option<LengthUnit>,
 }
 
+/// The robot model: a preset, a model TOML file, or a URDF file and the chain in it.
+#[derive(Args, Debug)]
+pub struct ModelArgs {
+    /// The nominal robot: a preset name (see `robocal model list`), a model TOML file, or a
+    /// URDF file (`.urdf`: the chain from its root link to its only leaf, unless --base-link
+    /// or --tip-link say otherwise).
+    #[arg(long)]
+    pub model: String,
+    #[command(flatten)]
+    pub links: LinkArgs,
+}
+
+/// Which chain of a URDF file: its first and last link.
+#[derive(Args, Debug)]
+pub struct LinkArgs {
+    /// URDF: the link the chain starts from (default: the root link).
+    #[arg(long)]
+    pub base_link: Option<String>,
+    /// URDF: the link the chain ends at, whose frame is the tool frame that markers are given
+    /// in (default: the only leaf link).
+    #[arg(long)]
+    pub tip_link: Option<String>,
+}
+
 /// The noise given as numbers: joint sigmas, measurement sigma, orientation sigma.
 #[derive(Args, Debug)]
 pub struct NoiseArgs {
@@ -142,9 +166,8 @@ pub struct SimulateArgs {
 /// The flags of `robocal fk`.
 #[derive(Args, Debug)]
 pub struct FkArgs {
-    /// A preset name (see `robocal model list`) or a model TOML file.
-    #[arg(long)]
-    pub model: String,
+    #[command(flatten)]
+    pub model: ModelArgs,
     /// Joint values, separated by commas or spaces: degrees for revolute joints, mm for
     /// prismatic ones.
     #[arg(long, allow_hyphen_values = true, value_parser = parse_joint_values)]
@@ -154,9 +177,8 @@ pub struct FkArgs {
 /// The flags of `robocal repeatability`.
 #[derive(Args, Debug)]
 pub struct RepeatabilityArgs {
-    /// The nominal robot: a preset name or a model TOML file.
-    #[arg(long)]
-    pub model: String,
+    #[command(flatten)]
+    pub model: ModelArgs,
     /// The repeatability file (CSV: a measurement file with a `pose` column; docs/formats.md).
     #[arg(long)]
     pub data: PathBuf,
@@ -185,16 +207,8 @@ pub struct RepeatabilityArgs {
 /// The flags of `robocal calibrate`.
 #[derive(Args, Debug)]
 pub struct CalibrateArgs {
-    /// The nominal robot: a preset name, a model TOML file, or a URDF file (`.urdf`, with
-    /// --base-link and --tip-link).
-    #[arg(long)]
-    pub model: String,
-    /// URDF: the link the chain starts from.
-    #[arg(long)]
-    pub base_link: Option<String>,
-    /// URDF: the link the chain ends at.
-    #[arg(long)]
-    pub tip_link: Option<String>,
+    #[command(flatten)]
+    pub model: ModelArgs,
     /// The measurement file (CSV; see docs/formats.md).
     #[arg(long)]
     pub data: PathBuf,
@@ -252,9 +266,8 @@ pub struct CalibrateArgs {
 /// The robot, parameters, measurements and noise of `observability` and `plan`.
 #[derive(Args, Debug)]
 pub struct DesignArgs {
-    /// The nominal robot: a preset name or a model TOML file.
-    #[arg(long)]
-    pub model: String,
+    #[command(flatten)]
+    pub model: ModelArgs,
     /// Parameters to identify: `joints` (every joint parameter: the paper's set), `all` (every
     /// parameter: the joints, the base and the tool), `offsets` (the joint offsets), or names
     /// and patterns (`j*.theta,j2.a`).
@@ -407,8 +420,10 @@ fn parse_params(text: &str) -> Result<ParamsArg, String> {
 pub enum ModelCommand {
     /// Print a model (preset name or file) as TOML, in mm and degrees.
     Show {
-        /// A preset name or a model TOML file.
+        /// A preset name, a model TOML file, or a URDF file (the chain it reads is printed).
         model: String,
+        #[command(flatten)]
+        links: LinkArgs,
     },
     /// List the embedded presets.
     List,

@@ -2,21 +2,22 @@
 //! against the files, build the options, run, validate, write. Everything is read and
 //! computed before anything is written.
 
-use super::request::{CalibrateRequest, Method, ModelSource, NoiseSource};
+use super::request::{CalibrateRequest, Method, NoiseSource};
 use super::{check_marker_count, noise_model, write_file};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::{self, Calibration, ErrorStats, FeasibleOptions, Measurements, Options};
 use robocal::estimation::RefineOptions;
-use robocal::io;
-use robocal::model::RobotModel;
+use robocal::io::{self, UrdfChain};
+use robocal::model::{ModelRef, RobotModel};
 use robocal::report::calibration::CalibrationReport;
+use std::path::Path;
 
 /// The nominal robot, with the text and links of its URDF file to write it back.
 struct Robot {
     /// The model.
     model: RobotModel,
-    /// A URDF model's file text, base link and tip link.
-    urdf: Option<(String, String, String)>,
+    /// A URDF model's file, to write the calibrated URDF from.
+    urdf: Option<UrdfChain>,
 }
 
 /// The measurements to calibrate on and the held-out files, by name.
@@ -47,14 +48,13 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
 }
 
 /// Load the model: a preset, a model file, or a URDF chain.
-fn load_model(source: &ModelSource) -> Result<Robot> {
-    Ok(match source {
-        ModelSource::Named(name) => Robot { model: io::load_model(name)?, urdf: None },
-        ModelSource::Urdf { path, base_link, tip_link } => {
-            let (model, text) = io::load_urdf(path, base_link, tip_link)?;
-            Robot { model, urdf: Some((text, base_link.clone(), tip_link.clone())) }
-        }
-    })
+fn load_model(model: &ModelRef) -> Result<Robot> {
+    if model.is_urdf() {
+        let chain =
+            io::load_urdf(Path::new(&model.name), model.base_link.as_deref(), model.tip_link.as_deref())?;
+        return Ok(Robot { model: chain.model.clone(), urdf: Some(chain) });
+    }
+    Ok(Robot { model: io::load_model(model)?, urdf: None })
 }
 
 /// Load the measurements and the held-out files.
@@ -145,8 +145,10 @@ fn write(
     if let Some(path) = &request.out_model {
         write_file(path, result.calibrated.to_toml_string())?;
     }
-    if let (Some(path), Some((text, base, tip))) = (&request.out_urdf, &robot.urdf) {
-        write_file(path, robocal::model::to_urdf_string(text, base, tip, &result.calibrated)?)?;
+    if let (Some(path), Some(urdf)) = (&request.out_urdf, &robot.urdf) {
+        let text =
+            robocal::model::to_urdf_string(&urdf.text, &urdf.base_link, &urdf.tip_link, &result.calibrated)?;
+        write_file(path, text)?;
     }
     Ok(())
 }

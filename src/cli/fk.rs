@@ -9,7 +9,7 @@ use robocal::{io, report};
 
 /// Print the tool pose, warning about joints outside their limits.
 pub fn run(args: &FkArgs) -> Result<()> {
-    let model = io::load_model(&args.model)?;
+    let model = io::load_model(&args.model.model_ref()?)?;
     let q = joint_values(&model, &args.q.0)?;
     for (joint, &v) in model.joints.iter().zip(&q) {
         if v < joint.limits[0] || v > joint.limits[1] {

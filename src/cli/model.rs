@@ -8,7 +8,14 @@ use robocal::model::{PRESETS, RobotModel};
 /// Print the presets, or a model as TOML.
 pub fn run(command: &ModelCommand) -> Result<()> {
     match command {
-        ModelCommand::Show { model } => print!("{}", io::load_model(model)?.to_toml_string()),
+        ModelCommand::Show { model, links } => {
+            let model = links.model_ref(model)?;
+            let read = io::load_model(&model)?;
+            if model.is_urdf() {
+                println!("# the chain of {}: {}", model.name, read.description);
+            }
+            print!("{}", read.to_toml_string());
+        }
         ModelCommand::List => {
             for (name, _) in PRESETS {
                 let model = RobotModel::preset(name).expect("presets are valid");

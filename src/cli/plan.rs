@@ -4,7 +4,7 @@ use super::request::PlanRequest;
 use super::{design, from_flag_unit, write_file};
 use anyhow::{Result, bail};
 use robocal::design::{Constraints, ExcludedRange};
-use robocal::model::RobotModel;
+use robocal::model::{ModelRef, RobotModel};
 use robocal::report;
 
 /// Plan the poses; write them with the summary (or print them, the summary to standard error).
@@ -22,7 +22,7 @@ pub fn run(request: &PlanRequest) -> Result<()> {
     let summary = report::design::plan_summary(&design, &plan, pool.joints.len(), pool.draws);
     let comment = format!(
         "robocal plan --model {} --points {} --candidates {} --criterion {} --seed {}\n{}",
-        request.design.model,
+        model_flags(&request.design.model),
         request.points,
         request.candidates,
         request.criterion,
@@ -60,4 +60,15 @@ fn constraints(request: &PlanRequest, model: &RobotModel) -> Result<Constraints>
         excluded.push(ExcludedRange { joint, range });
     }
     Ok(Constraints { tool_box: request.tool_box.map(|b| [b.low, b.high]), excluded })
+}
+
+/// `--model` (with its URDF links) as the command line gives it.
+fn model_flags(model: &ModelRef) -> String {
+    let mut text = model.name.clone();
+    for (flag, link) in [("--base-link", &model.base_link), ("--tip-link", &model.tip_link)] {
+        if let Some(link) = link {
+            text += &format!(" {flag} {link}");
+        }
+    }
+    text
 }

@@ -3,14 +3,15 @@
 //! contents are the commands' own.
 
 use super::args::{
-    CalibrateArgs, DesignArgs, EstimatorName, Excluded, JointUnit, LengthUnit, MeasuredName, NoiseArgs,
-    ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ToolBox, UnitArgs,
+    CalibrateArgs, DesignArgs, EstimatorName, Excluded, JointUnit, LengthUnit, LinkArgs, MeasuredName,
+    ModelArgs, NoiseArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::JointParams;
 use robocal::design::Criterion;
 use robocal::estimation::Estimator;
 use robocal::kinematics::Measured;
+use robocal::model::ModelRef;
 use robocal::table::Units;
 use std::path::PathBuf;
 
@@ -73,20 +74,27 @@ pub enum NoiseSource {
     Flags(NoiseFlags),
 }
 
-/// The model of `calibrate`: a preset or model file, or a chain in a URDF file.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ModelSource {
-    /// A preset name or a model TOML file.
-    Named(String),
-    /// A URDF file and the links the chain runs between.
-    Urdf {
-        /// The URDF file.
-        path: PathBuf,
-        /// The link the chain starts from.
-        base_link: String,
-        /// The link the chain ends at.
-        tip_link: String,
-    },
+impl LinkArgs {
+    /// The model named `name` with these links, which only a URDF file takes.
+    pub fn model_ref(&self, name: &str) -> Result<ModelRef, UsageError> {
+        let model = ModelRef {
+            name: name.into(),
+            base_link: self.base_link.clone(),
+            tip_link: self.tip_link.clone(),
+        };
+        require(
+            model.is_urdf() || (model.base_link.is_none() && model.tip_link.is_none()),
+            "--base-link and --tip-link choose a chain of a URDF file (`.urdf`)",
+        )?;
+        Ok(model)
+    }
+}
+
+impl ModelArgs {
+    /// The model, with links only for a URDF file.
+    pub fn model_ref(&self) -> Result<ModelRef, UsageError> {
+        self.links.model_ref(&self.model)
+    }
 }
 
 /// How `calibrate` estimates.
@@ -120,7 +128,7 @@ impl Method {
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrateRequest {
     /// The nominal robot.
-    pub model: ModelSource,
+    pub model: ModelRef,
     /// The measurement file.
     pub data: PathBuf,
     /// The files' units, if given.
@@ -154,7 +162,8 @@ pub struct CalibrateRequest {
 impl CalibrateRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: CalibrateArgs) -> Result<Self, UsageError> {
-        let model = model_source(args.model, args.base_link, args.tip_link, args.out_urdf.is_some())?;
+        let model = args.model.model_ref()?;
+        require(args.out_urdf.is_none() || model.is_urdf(), "--out-urdf needs a URDF model")?;
         let noise = noise_source(args.noise, args.noise_flags.flags())?;
         let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
         let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
@@ -175,25 +184,6 @@ impl CalibrateRequest {
             out_model: args.out_model,
             out_urdf: args.out_urdf,
         })
-    }
-}
-
-/// `--model`: a URDF file needs `--base-link` and `--tip-link`; `--out-urdf` needs a URDF file.
-fn model_source(
-    model: String,
-    base_link: Option<String>,
-    tip_link: Option<String>,
-    out_urdf: bool,
-) -> Result<ModelSource, UsageError> {
-    if !model.ends_with(".urdf") {
-        require(!out_urdf, "--out-urdf needs a URDF model")?;
-        return Ok(ModelSource::Named(model));
-    }
-    match (base_link, tip_link) {
-        (Some(base_link), Some(tip_link)) => {
-            Ok(ModelSource::Urdf { path: model.into(), base_link, tip_link })
-        }
-        _ => Err(UsageError(format!("{model}: a URDF model needs --base-link and --tip-link"))),
     }
 }
 
@@ -259,8 +249,8 @@ fn joint_params(params: ParamsArg, fixed_base_or_markers: bool) -> Result<JointP
 /// The parameters, measurements and noise of a validated `plan` or `observability`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DesignRequest {
-    /// The nominal robot: a preset name or a model file.
-    pub model: String,
+    /// The nominal robot.
+    pub model: ModelRef,
     /// The parameters to identify (not [`ParamsArg::None`]).
     pub params: ParamsArg,
     /// What is measured at each pose.
@@ -285,7 +275,7 @@ impl DesignRequest {
             MeasuredName::Position => Measured::Position,
             MeasuredName::Pose => Measured::Pose,
         };
-        Ok(Self { model: args.model, params: args.params, measured, noise })
+        Ok(Self { model: args.model.model_ref()?, params: args.params, measured, noise })
     }
 }
 
@@ -350,8 +340,8 @@ impl PlanRequest {
 /// A validated `robocal repeatability`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RepeatabilityRequest {
-    /// The nominal robot: a preset name or a model file.
-    pub model: String,
+    /// The nominal robot.
+    pub model: ModelRef,
     /// The repeatability file.
     pub data: PathBuf,
     /// The file's units, if given.
@@ -372,7 +362,7 @@ impl RepeatabilityRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: RepeatabilityArgs) -> Result<Self, UsageError> {
         Ok(Self {
-            model: args.model,
+            model: args.model.model_ref()?,
             data: args.data,
             units: args.units.units()?,
             full_covariance: args.full_covariance,

@@ -24,7 +24,7 @@ mod urdf;
 
 pub use file::{ModelError, degrees};
 pub use params::{ParamInfo, ParamKind, ParamOwner, ParamSet, Selection, SelectionError};
-pub use urdf::{from_urdf_str, to_urdf_string};
+pub use urdf::{chain_links, from_urdf_str, to_urdf_string};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::RngExt;
@@ -207,6 +207,31 @@ impl RobotModel {
     pub fn preset(name: &str) -> Option<Self> {
         let text = PRESETS.iter().find(|(n, _)| *n == name)?.1;
         Some(Self::from_toml_str(text).expect("embedded presets are valid"))
+    }
+}
+
+/// A robot model as a user names it: a preset name, a model TOML file, or a URDF file (`.urdf`)
+/// with the links its chain runs between. The links default to the URDF's root link and its
+/// only leaf, so a serial arm needs neither; a tree (two arms, a head) needs the tip.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct ModelRef {
+    /// The preset name or the file.
+    pub name: String,
+    /// URDF: the link the chain starts from (default: the root link).
+    pub base_link: Option<String>,
+    /// URDF: the link the chain ends at (default: the only leaf link).
+    pub tip_link: Option<String>,
+}
+
+impl ModelRef {
+    /// A preset or a file, with a URDF's default links.
+    pub fn named(name: impl Into<String>) -> Self {
+        Self { name: name.into(), ..Self::default() }
+    }
+
+    /// Whether the name is a URDF file (ends with `.urdf`).
+    pub fn is_urdf(&self) -> bool {
+        self.name.ends_with(".urdf")
     }
 }
 

@@ -85,6 +85,48 @@ fn chain<'a, 'input>(
     Ok(chain)
 }
 
+/// The links a chain of `text` runs between: `base_link` and `tip_link` where given, else the
+/// root link (the one link that is no joint's child) and the only leaf (the one link that is no
+/// joint's parent); an error lists the candidates when there are several.
+pub fn chain_links(
+    text: &str,
+    base_link: Option<&str>,
+    tip_link: Option<&str>,
+) -> Result<(String, String), ModelError> {
+    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
+    let robot = document.root_element();
+    let joints: Vec<_> = robot.children().filter(|n| n.has_tag_name("joint")).collect();
+    let links: Vec<&str> =
+        robot.children().filter(|n| n.has_tag_name("link")).filter_map(|n| n.attribute("name")).collect();
+    // the links that are no joint's `tag` (child: roots; parent: leaves)
+    let pick = |given: Option<&str>, field: &str, role: &str, tag: &str, flag: &str| {
+        if let Some(given) = given {
+            return Ok(given.to_string());
+        }
+        let candidates: Vec<&str> =
+            links.iter().copied().filter(|l| !joints.iter().any(|j| link_of(j, tag) == *l)).collect();
+        match candidates[..] {
+            [one] => Ok(one.to_string()),
+            _ => Err(invalid(
+                field.into(),
+                format!("a single {role}, found {}: give {flag}", list(&candidates)),
+            )),
+        }
+    };
+    let base = pick(base_link, "base link", "root link to start the chain at", "child", "--base-link")?;
+    let tip = pick(tip_link, "tip link", "leaf link to end the chain at", "parent", "--tip-link")?;
+    Ok((base, tip))
+}
+
+/// `a, b, c` in backticks, or `none`.
+fn list(names: &[&str]) -> String {
+    if names.is_empty() {
+        "none".into()
+    } else {
+        names.iter().map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", ")
+    }
+}
+
 /// The chain of `text` from `base_link` to `tip_link`.
 pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<RobotModel, ModelError> {
     let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;

@@ -4,7 +4,7 @@ use crate::design::Criterion;
 use crate::error::FieldError;
 use crate::estimation::{Device, DeviceTable, Estimator};
 use crate::kinematics::Measured;
-use crate::model::{JointKind, RobotModel, Selection, SelectionError, degrees};
+use crate::model::{JointKind, ModelRef, RobotModel, Selection, SelectionError, degrees};
 use serde::Deserialize;
 
 /// Why a study file could not be used.
@@ -152,6 +152,10 @@ struct StudyFile {
     #[serde(default)]
     description: String,
     robot: String,
+    #[serde(default)]
+    base_link: Option<String>,
+    #[serde(default)]
+    tip_link: Option<String>,
     measured: MeasuredName,
     parameters: Parameters,
     estimators: Vec<String>,
@@ -235,14 +239,25 @@ struct CasesFile {
 }
 
 impl Study {
-    /// Read a study from TOML text; `load_robot` turns the `robot` field (a preset name or a
-    /// file) into a model. See `docs/formats.md` for the fields.
+    /// Read a study from TOML text; `load_robot` turns the `robot` field (a preset name, a
+    /// model file, or a URDF file with the optional `base_link` and `tip_link`) into a model.
+    /// See `docs/formats.md` for the fields.
     pub fn from_toml_str<E: Into<Box<dyn std::error::Error + Send + Sync>>>(
         text: &str,
-        load_robot: impl FnOnce(&str) -> Result<RobotModel, E>,
+        load_robot: impl FnOnce(&ModelRef) -> Result<RobotModel, E>,
     ) -> Result<Self, StudyError> {
         let file: StudyFile = toml::from_str(text).map_err(StudyError::Syntax)?;
-        let robot = load_robot(&file.robot).map_err(|e| StudyError::Robot(e.into()))?;
+        let reference =
+            ModelRef { name: file.robot.clone(), base_link: file.base_link, tip_link: file.tip_link };
+        if !reference.is_urdf() && (reference.base_link.is_some() || reference.tip_link.is_some()) {
+            let expected = "only with a URDF robot (a `.urdf` file)";
+            return Err(FieldError::new(
+                if reference.base_link.is_some() { "base_link" } else { "tip_link" },
+                expected,
+            )
+            .into());
+        }
+        let robot = load_robot(&reference).map_err(|e| StudyError::Robot(e.into()))?;
         let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         let params = robot.params();
         let selection = match &file.parameters {

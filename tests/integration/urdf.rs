@@ -296,3 +296,91 @@ fn markers_are_given_and_reported_in_the_tip_link_frame() {
         assert!((reread.position(q) - at.position(q)).norm() < 1e-6, "the written URDF moves otherwise");
     }
 }
+
+fn robocal() -> assert_cmd::Command {
+    assert_cmd::Command::cargo_bin("robocal").unwrap()
+}
+
+/// The standard output of a command that must succeed.
+fn stdout_of(args: &[&str]) -> String {
+    let output = robocal().args(args).output().unwrap();
+    assert!(output.status.success(), "{args:?}: {}", String::from_utf8_lossy(&output.stderr));
+    String::from_utf8(output.stdout).unwrap()
+}
+
+/// Every command that reads a model reads a URDF's chain, by default from its root link to its
+/// only leaf; a tree needs its tip named, and the error lists the leaves.
+#[test]
+fn every_command_that_reads_a_model_reads_a_urdf() {
+    let dir = std::env::temp_dir().join(format!("robocal-urdf-everywhere-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let urdf = dir.join("arm.urdf");
+    std::fs::write(&urdf, arm_urdf()).unwrap();
+    let urdf_s = urdf.to_str().unwrap();
+    let model = from_urdf_str(&arm_urdf(), "base", "flange").unwrap();
+
+    let shown = stdout_of(&["model", "show", urdf_s]);
+    assert!(
+        shown.starts_with("# the chain of") && shown.contains("URDF chain from `base` to `flange`"),
+        "{shown}"
+    );
+    assert_eq!(RobotModel::from_toml_str(&shown).unwrap(), model, "model show prints the chain it read");
+
+    let fk = stdout_of(&["fk", "--model", urdf_s, "--q", "10,20,100,-30,40,50,60"]);
+    let q = [
+        10f64.to_radians(),
+        20f64.to_radians(),
+        100.0,
+        -30f64.to_radians(),
+        40f64.to_radians(),
+        50f64.to_radians(),
+        60f64.to_radians(),
+    ];
+    let tool = Chain::new(&model);
+    let p = tool.with_errors(&vec![0.0; tool.params().len()]).position(&q);
+    assert!(fk.contains(&format!("{:.4}", p.x)) && fk.contains(&format!("{:.4}", p.z)), "{fk}\n{p}");
+
+    let poses = dir.join("poses.csv");
+    let poses_s = poses.to_str().unwrap();
+    let plan = ["plan", "--model", urdf_s, "--params", "offsets", "--points", "20", "--candidates", "300"];
+    stdout_of(&[&plan[..], &["--out", poses_s]].concat());
+    let observed = stdout_of(&["observability", poses_s, "--model", urdf_s, "--params", "offsets"]);
+    assert!(observed.contains("O1"), "{observed}");
+
+    let study = dir.join("study.toml");
+    let text = include_str!("../../presets/paper-table1.toml")
+        .replace("robot = \"puma560\"", &format!("robot = {urdf_s:?}\ntip_link = \"flange\""))
+        .replace(
+            "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]",
+            "joint_sigma = [0.007, 0.007, 0.01, 0.007, 0.002, 0.002, 0.002]",
+        )
+        .replace("point_sets = 6", "point_sets = 2")
+        .replace("runs_per_set = 16", "runs_per_set = 2")
+        .replace("test_points = 1000", "test_points = 50")
+        .replace("points = [12, 24, 48, 96, 192]", "points = [48]");
+    assert!(text.contains("tip_link") && text.contains("points = [48]"), "the study was adapted:\n{text}");
+    std::fs::write(&study, text).unwrap();
+    let out = dir.join("out");
+    let simulated = stdout_of(&["simulate", study.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert!(simulated.contains("49 of 61 parameters"), "the 7 joints of the URDF arm: {simulated}");
+
+    // A tree: a second leaf on the fourth link.
+    let tree = arm_urdf().replace(
+        "</robot>",
+        &format!(
+            "{}{}</robot>",
+            links(&["camera"]),
+            joint("camera_mount", "fixed", "l4", "camera", "0 0 0.1", "0 0 0", "1 0 0", "")
+        ),
+    );
+    let tree_path = dir.join("tree.urdf");
+    std::fs::write(&tree_path, tree).unwrap();
+    let tree_s = tree_path.to_str().unwrap();
+    let output = robocal().args(["model", "show", tree_s]).output().unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let message = String::from_utf8(output.stderr).unwrap();
+    assert!(message.contains("field `tip link`: a single leaf link to end the chain at, found `flange`, `camera`: give --tip-link"), "{message}");
+    let camera = stdout_of(&["model", "show", tree_s, "--tip-link", "camera"]);
+    assert_eq!(RobotModel::from_toml_str(&camera).unwrap().dof(), 4);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

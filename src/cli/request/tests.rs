@@ -68,7 +68,7 @@ const SIGMAS: &str = "0.007,0.007,0.007,0.002,0.002,0.002";
 #[test]
 fn the_default_calibration_is_ols_of_the_joints_base_and_markers() {
     let request = calibrate(&[]).unwrap();
-    assert_eq!(request.model, ModelSource::Named("puma560".into()));
+    assert_eq!(request.model, ModelRef::named("puma560"));
     assert_eq!(request.method, Method::Given(Estimator::Ols));
     assert_eq!(request.joints, JointParams::All);
     assert!(request.estimate_base && request.estimate_markers);
@@ -155,14 +155,16 @@ fn out_urdf_needs_a_urdf_model() {
 }
 
 #[test]
-fn a_urdf_model_needs_its_base_and_tip_links() {
-    let message = refused(calibrate_model("arm.urdf", &["--base-link", "base"]));
-    assert_eq!(message, "arm.urdf: a URDF model needs --base-link and --tip-link");
+fn links_choose_a_chain_of_a_urdf_model_only() {
+    let message = refused(calibrate_model("puma560", &["--base-link", "base"]));
+    assert_eq!(message, "--base-link and --tip-link choose a chain of a URDF file (`.urdf`)");
+    let request = calibrate_model("arm.urdf", &["--tip-link", "flange"]).unwrap();
+    let chain = ModelRef { name: "arm.urdf".into(), base_link: None, tip_link: Some("flange".into()) };
+    assert_eq!(request.model, chain, "the base link defaults to the root, found when the file is read");
     let full = ["--base-link", "base", "--tip-link", "flange", "--out-urdf", "c.urdf"];
     let request = calibrate_model("arm.urdf", &full).unwrap();
-    let source =
-        ModelSource::Urdf { path: "arm.urdf".into(), base_link: "base".into(), tip_link: "flange".into() };
-    assert_eq!((request.model, request.out_urdf), (source, Some("c.urdf".into())));
+    let chain = ModelRef { base_link: Some("base".into()), ..chain };
+    assert_eq!((request.model, request.out_urdf), (chain, Some("c.urdf".into())));
 }
 
 #[test]
