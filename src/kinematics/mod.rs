@@ -17,6 +17,8 @@
 //! into views the caller owns. They come from one walk backwards from the end, in which the end
 //! point is the origin (`e - o = -o`), turned into the world frame by the end rotation once.
 
+mod gravity;
+
 use crate::model::{
     Convention, Joint, JointKind, ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, Tool,
 };
@@ -122,6 +124,8 @@ fn motion_of(kind: ParamKind) -> Motion {
 struct Builder {
     params: ParamSet,
     steps: Vec<Step>,
+    /// Where the base ends and each joint's link frame is reached, as step counts.
+    ends: gravity::LinkEnds,
 }
 
 impl Builder {
@@ -195,6 +199,12 @@ impl Builder {
         }
     }
 
+    /// The chain of these steps, the first `arm` of them the arm's, for `model`.
+    fn finish(self, arm: usize, model: &RobotModel) -> Chain {
+        let load = gravity::Load::new(self.ends, model);
+        Chain { steps: self.steps, arm, params: self.params, dof: model.dof(), load }
+    }
+
     /// A point at `xyz` (mm) with its 3 translation errors.
     fn point(&mut self, owner: ParamOwner, xyz: &Vector3<f64>) {
         self.placement(owner, &Placement { xyz: *xyz, rpy: Vector3::zeros() }, &ParamKind::PLACEMENT[..3]);
@@ -210,6 +220,8 @@ pub struct Chain {
     arm: usize,
     params: ParamSet,
     dof: usize,
+    /// The masses the joints move and gravity, for the static joint loads.
+    load: gravity::Load,
 }
 
 impl Chain {
@@ -221,7 +233,7 @@ impl Chain {
             Tool::Point(p) => builder.point(ParamOwner::Tool, p),
             Tool::Frame(f) => builder.placement(ParamOwner::Tool, f, &ParamKind::PLACEMENT),
         }
-        Self { steps: builder.steps, arm, params: builder.params, dof: model.dof() }
+        builder.finish(arm, model)
     }
 
     /// One chain per marker, each ending at its marker (nominal position `markers[k]`, mm, in
@@ -237,7 +249,7 @@ impl Chain {
                 builder.placement(ParamOwner::Tool, &model.marker_frame(), &[]);
                 let arm = builder.steps.len();
                 builder.point(ParamOwner::Marker(k), &markers[k]);
-                Self { steps: builder.steps, arm, params: builder.params, dof: model.dof() }
+                builder.finish(arm, model)
             })
             .collect()
     }
@@ -250,18 +262,20 @@ impl Chain {
         builder.placement(ParamOwner::Tool, &model.marker_frame(), &[]);
         let arm = builder.steps.len();
         builder.placement(ParamOwner::Marker(0), probe, &ParamKind::PLACEMENT);
-        Self { steps: builder.steps, arm, params: builder.params, dof: model.dof() }
+        builder.finish(arm, model)
     }
 
     /// The steps of the base and the joints.
     fn arm(model: &RobotModel, params: ParamSet) -> Builder {
-        let mut builder = Builder { params, steps: Vec::new() };
+        let mut builder = Builder { params, steps: Vec::new(), ends: gravity::LinkEnds::default() };
         builder.placement(ParamOwner::Base, &model.base, &ParamKind::PLACEMENT);
+        builder.ends.base = builder.steps.len();
         for (i, joint) in model.joints.iter().enumerate() {
             match model.convention {
                 Convention::Urdf => builder.urdf_joint(i, joint),
                 convention => builder.dh_joint(i, joint, convention),
             }
+            builder.ends.links.push(builder.steps.len());
         }
         builder
     }
@@ -297,7 +311,7 @@ impl Chain {
                 Resolved { step, value, sin_cos: value.sin_cos() }
             })
             .collect();
-        ChainAt { steps, arm: self.arm, dof: self.dof }
+        ChainAt { steps, arm: self.arm, dof: self.dof, load: self.load.clone() }
     }
 }
 
@@ -310,6 +324,7 @@ pub struct ChainAt {
     steps: Vec<Resolved>,
     arm: usize,
     dof: usize,
+    load: gravity::Load,
 }
 
 impl ChainAt {
@@ -467,17 +482,22 @@ pub fn end_positions(chains: &[ChainAt], q: &[f64], positions: &mut [Vector3<f64
 /// Walk `steps` forwards at `q` from `frame`: the frame at their end.
 fn walk(steps: &[Resolved], q: &[f64], mut frame: Frame) -> Frame {
     for resolved in steps {
-        let step = &resolved.step;
-        match (step.motion, step.joint) {
-            (Motion::Translate(k), joint) => frame.translate(k, resolved.value + joint.map_or(0.0, |j| q[j])),
-            (Motion::Rotate(k), None) => frame.rotate(k, resolved.sin_cos.0, resolved.sin_cos.1),
-            (Motion::Rotate(k), Some(j)) => {
-                let (s, c) = (resolved.value + q[j]).sin_cos();
-                frame.rotate(k, s, c);
-            }
-        }
+        advance(&mut frame, resolved, q);
     }
     frame
+}
+
+/// Move `frame` by one step at `q`.
+fn advance(frame: &mut Frame, resolved: &Resolved, q: &[f64]) {
+    let step = &resolved.step;
+    match (step.motion, step.joint) {
+        (Motion::Translate(k), joint) => frame.translate(k, resolved.value + joint.map_or(0.0, |j| q[j])),
+        (Motion::Rotate(k), None) => frame.rotate(k, resolved.sin_cos.0, resolved.sin_cos.1),
+        (Motion::Rotate(k), Some(j)) => {
+            let (s, c) = (resolved.value + q[j]).sin_cos();
+            frame.rotate(k, s, c);
+        }
+    }
 }
 
 /// Walk `steps` backwards from their end at `q`, calling `visit` with each step and the frame it

@@ -1,6 +1,6 @@
 //! The TOML model file: what people write, in mm and degrees, with named fields.
 
-use super::{Convention, Joint, JointKind, Placement, RobotModel, Tool};
+use super::{Convention, Joint, JointKind, LinkMass, Placement, RobotModel, Tool};
 use crate::error::FieldError;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -28,10 +28,23 @@ struct ModelFile {
     #[serde(default, skip_serializing_if = "String::is_empty")]
     description: String,
     convention: ConventionName,
+    /// Gravity in the robot's base frame, m/s² (default: -9.80665 along z).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    gravity_m_s2: Option<[f64; 3]>,
     #[serde(default)]
     base: PlacementFile,
     tool: ToolFile,
     joints: Vec<JointFile>,
+    /// The mass each joint moves, one table per joint (optional).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    links: Vec<LinkFile>,
+}
+
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LinkFile {
+    mass_kg: f64,
+    com_mm: [f64; 3],
 }
 
 #[derive(Serialize, Deserialize)]
@@ -116,6 +129,11 @@ pub(super) fn parse(text: &str) -> Result<RobotModel, ModelError> {
             .enumerate()
             .map(|(i, j)| joint(i, j, convention))
             .collect::<Result<_, _>>()?,
+        masses: file.links.iter().enumerate().map(link_mass).collect::<Result<_, _>>()?,
+        gravity: match file.gravity_m_s2 {
+            Some(g) => vector("gravity_m_s2", &g)?,
+            None => RobotModel::floor_gravity(),
+        },
     };
     validate(&model)?;
     Ok(model)
@@ -207,9 +225,24 @@ fn joint(index: usize, j: JointFile, convention: Convention) -> Result<Joint, Mo
     ))
 }
 
+/// The mass of `[[links]]` table `i`: kg >= 0 and a finite centre of mass (mm).
+fn link_mass((i, link): (usize, &LinkFile)) -> Result<LinkMass, ModelError> {
+    let mass = finite(&format!("links[{i}].mass_kg"), link.mass_kg)?;
+    if mass < 0.0 {
+        return Err(invalid(format!("links[{i}].mass_kg"), format!("a mass >= 0 kg, found {mass}")));
+    }
+    Ok(LinkMass { mass, com: vector(&format!("links[{i}].com_mm"), &link.com_mm)? })
+}
+
 fn validate(model: &RobotModel) -> Result<(), ModelError> {
     if model.joints.is_empty() {
         return Err(invalid("joints", "at least one [[joints]] table"));
+    }
+    if !model.masses.is_empty() && model.masses.len() != model.joints.len() {
+        return Err(invalid(
+            "links",
+            format!("one [[links]] table per joint ({}), found {}", model.joints.len(), model.masses.len()),
+        ));
     }
     for (i, joint) in model.joints.iter().enumerate() {
         let ok_name = !joint.name.is_empty()
@@ -243,6 +276,8 @@ pub(super) fn write(model: &RobotModel) -> String {
             Convention::ModifiedDh => ConventionName::ModifiedDh,
             Convention::Urdf => ConventionName::Urdf,
         },
+        gravity_m_s2: (model.gravity != RobotModel::floor_gravity()).then(|| model.gravity.into()),
+        links: model.masses.iter().map(|m| LinkFile { mass_kg: m.mass, com_mm: m.com.into() }).collect(),
         base: PlacementFile { xyz_mm: model.base.xyz.into(), rpy_deg: deg3(&model.base.rpy) },
         tool: match &model.tool {
             Tool::Point(p) => ToolFile { xyz_mm: (*p).into(), rpy_deg: None },

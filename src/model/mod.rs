@@ -138,6 +138,20 @@ pub enum Tool {
     Frame(Placement),
 }
 
+/// Standard gravity (m/s²), pointing along -z of the robot's base frame by default.
+pub const STANDARD_GRAVITY: f64 = 9.80665;
+
+/// The mass a joint moves: the link after it (with everything fixed to that link) as one rigid
+/// body, for the static load on the joints (gravity torques, compliance).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinkMass {
+    /// Mass (kg).
+    pub mass: f64,
+    /// Centre of mass (mm) in the link's frame: the frame after its joint (DH: after the
+    /// joint's `T_i`; URDF: the joint's child link frame).
+    pub com: Vector3<f64>,
+}
+
 /// A serial robot: base placement, joints, tool.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RobotModel {
@@ -153,9 +167,20 @@ pub struct RobotModel {
     pub joints: Vec<Joint>,
     /// Last joint frame to the measured point or frame.
     pub tool: Tool,
+    /// The mass each joint moves, one per joint in order; empty when the masses are unknown.
+    pub masses: Vec<LinkMass>,
+    /// Gravity in the robot's base frame (the frame after [`RobotModel::base`]), m/s²:
+    /// `(0, 0, -STANDARD_GRAVITY)` for a robot on the floor; another direction for a wall or
+    /// ceiling mount.
+    pub gravity: Vector3<f64>,
 }
 
 impl RobotModel {
+    /// Gravity along -z of the robot's base frame (m/s²): a robot standing on the floor.
+    pub fn floor_gravity() -> Vector3<f64> {
+        Vector3::new(0.0, 0.0, -STANDARD_GRAVITY)
+    }
+
     /// Number of joints.
     pub fn dof(&self) -> usize {
         self.joints.len()

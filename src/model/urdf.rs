@@ -203,6 +203,8 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
         base: Placement::default(),
         joints: model_joints,
         tool: Tool::Frame(Placement::from_isometry(&pending)),
+        masses: Vec::new(),
+        gravity: RobotModel::floor_gravity(),
     };
     // The names and limits pass the same checks as a TOML model's.
     super::RobotModel::from_toml_str(&model.to_toml_string())

@@ -202,6 +202,8 @@ fn prismatic_robot() -> RobotModel {
             xyz: Vector3::new(40.0, 20.0, 120.0),
             rpy: Vector3::new(0.0, 0.3, 0.0),
         }),
+        masses: Vec::new(),
+        gravity: RobotModel::floor_gravity(),
     }
 }
 

@@ -41,6 +41,8 @@ fn robot(convention: Convention, beta: bool) -> impl Strategy<Value = RobotModel
                 base,
                 joints,
                 tool: if frame { Tool::Frame(tool) } else { Tool::Point(tool.xyz) },
+                masses: Vec::new(),
+                gravity: RobotModel::floor_gravity(),
             }
         },
     )
@@ -353,4 +355,108 @@ fn puma560_thirty_parameter_position_rank_is_23() {
         let moved = (&h * &v).amax();
         assert!(moved < 1e-9, "{combination:?} moves the tool by {moved:e} mm");
     }
+}
+
+/// The gravity loads against central differences of the potential energy
+/// `U(q) = -sum_j m_j g . c_j(q)`, each centre of mass `c_j` from a model cut after joint `j`
+/// with its tool at the centre of mass: a path through the forward kinematics alone.
+fn check_gravity_torques(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
+    let mut model = model.clone();
+    model.masses = (0..model.dof())
+        .map(|j| robocal::model::LinkMass {
+            mass: 10.0 * (u[3 * j] + 1.0),
+            com: Vector3::new(u[3 * j + 1], u[3 * j + 2], u[3 * j + 3]) * 200.0,
+        })
+        .collect();
+    model.gravity = Vector3::new(u[30], u[31], u[32] - 1.5).normalize() * robocal::model::STANDARD_GRAVITY;
+    let q: Vec<f64> = model
+        .joints
+        .iter()
+        .zip(&u[40..])
+        .map(|(j, u)| if j.kind == JointKind::Revolute { u * 3.0 } else { u * 200.0 })
+        .collect();
+    let chain = Chain::new(&model);
+    let mut tau = vec![0.0; model.dof()];
+    chain.with_errors(&vec![0.0; chain.params().len()]).gravity_torques(&q, &mut tau);
+
+    let gravity = model.base.isometry().rotation * model.gravity;
+    let potential = |q: &[f64]| -> f64 {
+        (0..model.dof())
+            .map(|j| {
+                let cut = RobotModel {
+                    joints: model.joints[..=j].to_vec(),
+                    tool: Tool::Point(model.masses[j].com),
+                    masses: Vec::new(),
+                    ..model.clone()
+                };
+                let c = Chain::new(&cut);
+                -model.masses[j].mass
+                    * gravity.dot(&c.with_errors(&vec![0.0; c.params().len()]).position(&q[..=j]))
+            })
+            .sum()
+    };
+    let scale = tau.iter().fold(1.0f64, |m, t| m.max(t.abs()));
+    for (i, joint) in model.joints.iter().enumerate() {
+        // A centre of mass is affine in a prismatic joint's value: a long step loses nothing,
+        // and keeps the rounding of U (N·mm, up to 1e5) small. N·mm per rad is N·m / 1000.
+        let (h, unit) = if joint.kind == JointKind::Revolute { (1e-5, 1000.0) } else { (1.0, 1.0) };
+        let (mut plus, mut minus) = (q.clone(), q.clone());
+        plus[i] += h;
+        minus[i] -= h;
+        let fd = -(potential(&plus) - potential(&minus)) / (2.0 * h) / unit;
+        prop_assert!(
+            (tau[i] - fd).abs() <= 1e-7 * scale,
+            "joint {i} ({:?}): {} against {fd}",
+            joint.kind,
+            tau[i]
+        );
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    #[test]
+    fn gravity_torques_match_the_potential_energy_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 48)) {
+        check_gravity_torques(&model, &u)?;
+    }
+
+    #[test]
+    fn gravity_torques_match_the_potential_energy_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 48)) {
+        check_gravity_torques(&model, &u)?;
+    }
+
+    #[test]
+    fn gravity_torques_match_the_potential_energy_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 48)) {
+        check_gravity_torques(&model, &u)?;
+    }
+}
+
+/// One horizontal link of 1 kg, its centre of mass 1 m out along x from a joint turning about
+/// y: gravity (-z) turns it about +y by 9.80665 N·m; vertical (q = -90 deg), by nothing; a
+/// model without masses has no load.
+#[test]
+fn a_horizontal_link_of_one_kilogram_at_one_metre_weighs_9_81_newton_metres() {
+    let joint = Joint::urdf("j1", JointKind::Revolute, Placement::default(), Vector3::y(), [-3.0, 3.0]);
+    let mut model = RobotModel {
+        name: "pendulum".into(),
+        description: String::new(),
+        convention: Convention::Urdf,
+        base: Placement::default(),
+        joints: vec![joint],
+        tool: Tool::Point(Vector3::zeros()),
+        masses: vec![robocal::model::LinkMass { mass: 1.0, com: Vector3::new(1000.0, 0.0, 0.0) }],
+        gravity: RobotModel::floor_gravity(),
+    };
+    let torque = |model: &RobotModel, q: f64| {
+        let chain = Chain::new(model);
+        let mut tau = [0.0];
+        chain.with_errors(&vec![0.0; chain.params().len()]).gravity_torques(&[q], &mut tau);
+        tau[0]
+    };
+    assert!((torque(&model, 0.0) - 9.80665).abs() < 1e-12);
+    assert!(torque(&model, -std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+    model.masses.clear();
+    assert_eq!(torque(&model, 0.0), 0.0);
 }

@@ -85,3 +85,33 @@ fn duplicate_joint_names_are_rejected() {
     let message = error_of(&PUMA.replace("name = \"j2\"", "name = \"j1\""));
     assert!(message.contains("joints[1].name") && message.contains("twice"), "{message}");
 }
+
+/// `[[links]]` (kg, mm) and `gravity_m_s2` read, write back exactly, and are checked: one
+/// table per joint, masses >= 0; a model without them has no masses and floor gravity.
+#[test]
+fn link_masses_and_gravity_read_and_write_back() {
+    let puma = RobotModel::preset("puma560").unwrap();
+    assert!(puma.masses.is_empty());
+    assert_eq!(puma.gravity, RobotModel::floor_gravity());
+    let links: String =
+        (1..=6).map(|i| format!("\n[[links]]\nmass_kg = {i}.5\ncom_mm = [0.0, {i}0.0, -5.0]\n")).collect();
+    let text = format!("gravity_m_s2 = [9.80665, 0.0, 0.0]\n{PUMA}{links}");
+    let model = RobotModel::from_toml_str(&text).unwrap();
+    assert_eq!(model.masses.len(), 6);
+    assert_eq!(model.masses[2].mass, 3.5);
+    assert_eq!(model.masses[2].com, nalgebra::Vector3::new(0.0, 30.0, -5.0));
+    assert_eq!(model.gravity, nalgebra::Vector3::new(9.80665, 0.0, 0.0));
+    assert_eq!(RobotModel::from_toml_str(&model.to_toml_string()).unwrap(), model);
+    assert!(!puma.to_toml_string().contains("links") && !puma.to_toml_string().contains("gravity"));
+
+    let five: String = links.splitn(7, "\n[[links]]").take(6).collect::<Vec<_>>().join("\n[[links]]");
+    assert_eq!(
+        error_of(&format!("{PUMA}{five}")),
+        "field `links`: one [[links]] table per joint (6), found 5"
+    );
+    let negative = links.replacen("mass_kg = 1.5", "mass_kg = -1.5", 1);
+    assert_eq!(
+        error_of(&format!("{PUMA}{negative}")),
+        "field `links[0].mass_kg`: a mass >= 0 kg, found -1.5"
+    );
+}

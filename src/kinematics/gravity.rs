@@ -1,0 +1,110 @@
+//! The static load gravity puts on each joint: the generalised gravity force.
+//!
+//! With `m_j` the mass joint `j` moves (its link and everything fixed to it), `c_j(q)` its
+//! centre of mass and `g` gravity, both in the walk's (measuring) frame, the potential energy is
+//! `U(q) = -sum_j m_j g . c_j(q)`, and the load on joint `i` is `tau_i = -dU/dq_i`:
+//!
+//! - revolute joint, axis `z_i` through `p_i`: `tau_i = z_i . sum_{j >= i} (c_j - p_i) x m_j g`
+//!   (N·m: the torque gravity exerts about the axis, positive in the joint's sense);
+//! - prismatic joint, direction `z_i`: `tau_i = z_i . sum_{j >= i} m_j g` (N).
+//!
+//! Only the links after joint `i` move with it, hence `j >= i`. Both sums come from two walks
+//! along the chain, with no allocation: the first adds up `M = sum_j m_j` and
+//! `S = sum_j m_j c_j` over all links, the second subtracts each link's share as it passes its
+//! end, so that at joint `i` the links after it hold `M_i` and `S_i`, and
+//! `(S_i - M_i p_i) x g` is the torque about `p_i`. Gravity is given in the robot's base frame
+//! ([`crate::model::RobotModel::gravity`]) and turned into the walk's frame by the base's
+//! rotation at the end of the base steps.
+
+use super::{ChainAt, Frame, Motion, advance};
+use crate::model::{LinkMass, RobotModel};
+use nalgebra::Vector3;
+
+/// Where the base's steps end and where each joint's link frame is reached, as step counts.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub(super) struct LinkEnds {
+    /// Steps of the base placement.
+    pub base: usize,
+    /// Steps up to and including each joint's own, in joint order.
+    pub links: Vec<usize>,
+}
+
+/// What gravity needs of a model: its link ends, masses and gravity.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct Load {
+    ends: LinkEnds,
+    masses: Vec<LinkMass>,
+    /// m/s², in the robot's base frame.
+    gravity: Vector3<f64>,
+}
+
+impl Load {
+    /// The load of `model`, whose steps end as `ends` says.
+    pub fn new(ends: LinkEnds, model: &RobotModel) -> Self {
+        Self { ends, masses: model.masses.clone(), gravity: model.gravity }
+    }
+}
+
+impl ChainAt {
+    /// Whether the model has masses: without them every gravity load is zero.
+    pub fn has_masses(&self) -> bool {
+        !self.load.masses.is_empty()
+    }
+
+    /// The load gravity puts on each joint at `q`, written into `tau`: N·m for a revolute
+    /// joint, N for a prismatic one (see the [module documentation](self)). Zero without
+    /// masses.
+    ///
+    /// # Panics
+    /// If `q` or `tau` has the wrong length.
+    pub fn gravity_torques(&self, q: &[f64], tau: &mut [f64]) {
+        assert_eq!(q.len(), self.dof, "q has one value per joint");
+        assert_eq!(tau.len(), self.dof, "tau has one value per joint");
+        tau.fill(0.0);
+        let load = &self.load;
+        if load.masses.is_empty() {
+            return;
+        }
+        // First walk: gravity in the walk's frame, and every link's mass and moment.
+        let arm = &self.steps[..*load.ends.links.last().expect("a chain has joints")];
+        let (mut gravity, mut total_mass, mut total_moment) = (Vector3::zeros(), 0.0, Vector3::zeros());
+        let mut frame = Frame::IDENTITY;
+        let mut link = 0;
+        for (s, resolved) in arm.iter().enumerate() {
+            advance(&mut frame, resolved, q);
+            if s + 1 == load.ends.base {
+                gravity = frame.r * load.gravity;
+            }
+            while link < load.masses.len() && s + 1 == load.ends.links[link] {
+                let m = &load.masses[link];
+                total_mass += m.mass;
+                total_moment += (frame.p + frame.r * m.com) * m.mass;
+                link += 1;
+            }
+        }
+        if load.ends.base == 0 {
+            gravity = load.gravity;
+        }
+        // Second walk: at each joint's step, the links after it are what remains.
+        let mut frame = Frame::IDENTITY;
+        let mut link = 0;
+        for (s, resolved) in arm.iter().enumerate() {
+            if let Some(j) = resolved.step.joint {
+                tau[j] = match resolved.step.motion {
+                    Motion::Rotate(k) => {
+                        let axis = frame.r.column(k);
+                        axis.dot(&(total_moment - frame.p * total_mass).cross(&gravity)) / 1000.0
+                    }
+                    Motion::Translate(k) => frame.r.column(k).dot(&gravity) * total_mass,
+                };
+            }
+            advance(&mut frame, resolved, q);
+            while link < load.masses.len() && s + 1 == load.ends.links[link] {
+                let m = &load.masses[link];
+                total_mass -= m.mass;
+                total_moment -= (frame.p + frame.r * m.com) * m.mass;
+                link += 1;
+            }
+        }
+    }
+}
