@@ -51,9 +51,11 @@ impl ChainAt {
         !self.load.masses.is_empty()
     }
 
-    /// The load gravity puts on each joint at `q`, written into `tau`: N·m for a revolute
-    /// joint, N for a prismatic one (see the [module documentation](self)). Zero without
-    /// masses.
+    /// The load gravity puts on each joint at `q`, written into `tau`: `tau_i = -dU/dq_i` for
+    /// the potential energy `U(q) = -sum_j m_j g . c_j(q)` of the masses the joints move
+    /// ([`crate::model::RobotModel::masses`]). A revolute joint with axis `z_i` through `p_i`
+    /// carries `z_i . sum_{j >= i} (c_j - p_i) x m_j g` (N·m), a prismatic one
+    /// `z_i . sum_{j >= i} m_j g` (N). Zero without masses. Allocates nothing.
     ///
     /// # Panics
     /// If `q` or `tau` has the wrong length.
