@@ -4,9 +4,10 @@
 //! prismatic joint on it becomes a [`Joint`] of the `urdf` convention: its origin (xyz, rpy)
 //! and axis. Fixed joints are folded into the origin of the next moving joint, or into the tool
 //! after the last one (the tool is then the tip link's frame). Continuous joints get limits of
-//! plus or minus one turn.
+//! plus or minus one turn. Each moving joint carries its child link's `<inertial>` mass and
+//! those of the links fixed to it (a flange, a tool, a gripper), as one body.
 
-use super::{Convention, Joint, JointKind, ModelError, Placement, RobotModel, Tool};
+use super::{Convention, Joint, JointKind, LinkMass, ModelError, Placement, RobotModel, Tool};
 use crate::error::FieldError;
 use nalgebra::{Isometry3, Vector3};
 
@@ -141,6 +142,7 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
     let chain = chain(robot, base_link, tip_link)?;
 
     let mut model_joints = Vec::new();
+    let mut masses = Vec::new();
     let mut pending = Isometry3::identity();
     for joint in chain {
         let name = joint.attribute("name").unwrap_or_default();
@@ -189,6 +191,7 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
             }
         };
         model_joints.push(Joint::urdf(name, kind, Placement::from_isometry(&here), axis.normalize(), limits));
+        masses.push(carried_mass(robot, &link_of(&joint, "child"))?);
     }
     if model_joints.is_empty() {
         return Err(invalid(
@@ -203,7 +206,8 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
         base: Placement::default(),
         joints: model_joints,
         tool: Tool::Frame(Placement::from_isometry(&pending)),
-        masses: Vec::new(),
+        // all masses, or none when no link on the chain declares one
+        masses: if masses.iter().any(|m: &LinkMass| m.mass > 0.0) { masses } else { Vec::new() },
         gravity: RobotModel::floor_gravity(),
     };
     // The names and limits pass the same checks as a TOML model's.
@@ -265,6 +269,44 @@ pub fn to_urdf_string(
         out.replace_range(range, &text);
     }
     Ok(out)
+}
+
+/// The mass a joint whose child is `link` moves: `link`'s `<inertial>` and those of every link
+/// fixed to it (through fixed joints, down the tree: a flange, a tool, a gripper), as one body
+/// with its centre of mass in `link`'s frame (mm). Links behind a moving joint are not carried.
+fn carried_mass(robot: roxmltree::Node<'_, '_>, link: &str) -> Result<LinkMass, ModelError> {
+    let (mut mass, mut moment) = (0.0, Vector3::zeros());
+    let mut stack = vec![(link.to_string(), Isometry3::identity())];
+    let links = robot.children().filter(|n| n.has_tag_name("link")).count();
+    let mut visited = 0;
+    while let Some((name, placed)) = stack.pop() {
+        visited += 1;
+        if visited > links + 1 {
+            return Err(invalid("joints".into(), "a tree: the fixed joints form a loop"));
+        }
+        let node = robot.children().find(|n| n.has_tag_name("link") && n.attribute("name") == Some(&name));
+        if let Some(inertial) = node.and_then(|n| n.children().find(|c| c.has_tag_name("inertial"))) {
+            let field = format!("link `{name}`.inertial");
+            let m = match inertial.children().find(|c| c.has_tag_name("mass")) {
+                Some(node) => numbers(node, "value", [0.0], &format!("{field}.mass"))?[0],
+                None => 0.0,
+            };
+            if m < 0.0 {
+                return Err(invalid(format!("{field}.mass.value"), format!("a mass >= 0 kg, found {m}")));
+            }
+            let com = origin(inertial, &field)?.translation.vector;
+            mass += m;
+            moment += (placed * nalgebra::Point3::from(com)).coords * m;
+        }
+        for joint in robot.children().filter(|n| n.has_tag_name("joint")) {
+            if joint.attribute("type") == Some("fixed") && link_of(&joint, "parent") == name {
+                let field = format!("joint `{}`", joint.attribute("name").unwrap_or_default());
+                stack.push((link_of(&joint, "child"), placed * origin(joint, &field)?));
+            }
+        }
+    }
+    let com = if mass > 0.0 { moment / mass } else { Vector3::zeros() };
+    Ok(LinkMass { mass, com })
 }
 
 /// `<origin xyz=".." rpy=".."/>` in metres and radians, at full precision.

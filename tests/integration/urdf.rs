@@ -384,3 +384,50 @@ fn every_command_that_reads_a_model_reads_a_urdf() {
     assert_eq!(RobotModel::from_toml_str(&camera).unwrap().dof(), 4);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Each moving joint carries its child link's `<inertial>` and those of the links fixed to it:
+/// the last joint carries its link, the flange and a gripper on the flange, as one body.
+#[test]
+fn urdf_inertials_are_folded_into_the_mass_each_joint_moves() {
+    let inertial = |link: &str, kg: f64, xyz: &str| {
+        format!(
+            "  <link name=\"{link}\"><inertial><origin xyz=\"{xyz}\"/><mass value=\"{kg}\"/></inertial></link>\n"
+        )
+    };
+    let mut text =
+        arm_urdf().replace("  <link name=\"l7\"/>\n", "").replace("  <link name=\"flange\"/>\n", "");
+    text = text.replace(
+        "</robot>",
+        &format!(
+            "{}{}{}{}</robot>",
+            inertial("l7", 2.0, "0 0 0.01"),
+            inertial("flange", 1.0, "0 0 0"),
+            inertial("gripper", 1.0, "0.1 0 0"),
+            joint(
+                "gripper_mount",
+                "fixed",
+                "flange",
+                "gripper",
+                "0 0 0.02",
+                "0 0 1.5707963267948966",
+                "1 0 0",
+                ""
+            )
+        ),
+    );
+    let model = from_urdf_str(&text, "base", "flange").unwrap();
+    assert_eq!(model.masses.len(), 7);
+    assert!(model.masses[..6].iter().all(|m| m.mass == 0.0), "links without <inertial> weigh nothing");
+    let last = model.masses[6];
+    assert_eq!(last.mass, 4.0);
+    // l7 at z 10 mm; the flange 50 mm up; the gripper 20 mm above the flange, its centre of
+    // mass 100 mm along its x, which the fixed joint turns onto y.
+    let expected =
+        (Vector3::new(0.0, 0.0, 10.0) * 2.0 + Vector3::new(0.0, 0.0, 50.0) + Vector3::new(0.0, 100.0, 70.0))
+            / 4.0;
+    assert!((last.com - expected).norm() < 1e-9, "{} against {expected}", last.com);
+    assert!(
+        from_urdf_str(&arm_urdf(), "base", "flange").unwrap().masses.is_empty(),
+        "no inertials: no masses"
+    );
+}
