@@ -19,6 +19,9 @@
 
 mod gravity;
 
+/// The most joints a compliant chain may have (the readers refuse more).
+pub const MAX_JOINTS: usize = 64;
+
 use crate::model::{
     Convention, Joint, JointKind, ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, Tool,
 };
@@ -58,6 +61,8 @@ struct Step {
     nominal: f64,
     joint: Option<usize>,
     param: Option<usize>,
+    /// A joint's step: the joint's compliance parameter, if the model has one.
+    compliance: Option<usize>,
 }
 
 /// A frame during the walk along the chain: rotation columns are the frame's axes.
@@ -117,6 +122,7 @@ fn motion_of(kind: ParamKind) -> Motion {
         Rx | Alpha => Motion::Rotate(0),
         Ry | Beta => Motion::Rotate(1),
         Rz | Theta => Motion::Rotate(2),
+        Compliance => unreachable!("a compliance rides on its joint's step"),
     }
 }
 
@@ -132,7 +138,9 @@ impl Builder {
     /// A step that carries error parameter `kind` of `owner` and may be moved by a joint.
     fn step(&mut self, nominal: f64, joint: Option<usize>, owner: ParamOwner, kind: ParamKind) {
         let param = Some(self.params.index_of(owner, kind).expect("the ParamSet names every step"));
-        self.steps.push(Step { motion: motion_of(kind), nominal, joint, param });
+        let compliance =
+            joint.and_then(|j| self.params.index_of(ParamOwner::Joint(j), ParamKind::Compliance));
+        self.steps.push(Step { motion: motion_of(kind), nominal, joint, param, compliance });
     }
 
     /// A nominal placement `Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll)`, then the error
@@ -150,7 +158,7 @@ impl Builder {
         for (k, value, rotation) in fixed {
             let motion = if rotation { Motion::Rotate(k) } else { Motion::Translate(k) };
             if value != 0.0 {
-                self.steps.push(Step { motion, nominal: value, joint: None, param: None });
+                self.steps.push(Step { motion, nominal: value, joint: None, param: None, compliance: None });
             }
         }
         for &kind in kinds {
@@ -195,7 +203,13 @@ impl Builder {
     /// A constant rotation about axis `k`, if it is not zero.
     fn rotation(&mut self, k: usize, angle: f64) {
         if angle != 0.0 {
-            self.steps.push(Step { motion: Motion::Rotate(k), nominal: angle, joint: None, param: None });
+            self.steps.push(Step {
+                motion: Motion::Rotate(k),
+                nominal: angle,
+                joint: None,
+                param: None,
+                compliance: None,
+            });
         }
     }
 
@@ -311,7 +325,14 @@ impl Chain {
                 Resolved { step, value, sin_cos: value.sin_cos() }
             })
             .collect();
-        ChainAt { steps, arm: self.arm, dof: self.dof, load: self.load.clone() }
+        let mut compliance = vec![0.0; self.dof];
+        for step in &self.steps {
+            if let (Some(j), Some(c)) = (step.joint, step.compliance) {
+                compliance[j] = x[c];
+            }
+        }
+        let compliance = compliance.iter().any(|&c| c != 0.0).then_some(compliance);
+        ChainAt { steps, arm: self.arm, dof: self.dof, load: self.load.clone(), compliance }
     }
 }
 
@@ -325,19 +346,53 @@ pub struct ChainAt {
     arm: usize,
     dof: usize,
     load: gravity::Load,
+    /// Each joint's compliance, when one is not zero: the joints then reach `q + c tau(q)`.
+    compliance: Option<Vec<f64>>,
 }
 
 impl ChainAt {
     /// Position of the tool point (mm).
     pub fn position(&self, q: &[f64]) -> Vector3<f64> {
         assert_eq!(q.len(), self.dof, "q has one value per joint");
-        walk(&self.steps, q, Frame::IDENTITY).p
+        let mut reached = [0.0; MAX_JOINTS];
+        walk(&self.steps, self.reached(q, &mut reached), Frame::IDENTITY).p
+    }
+
+    /// The gravity loads at `q` (in `buffer`) if `selection` holds a compliance: its column of
+    /// `H` is its joint's, scaled by the joint's load. Zeros otherwise (and unused).
+    fn loads_for<'a>(
+        &self,
+        selection: &Selection,
+        q: &[f64],
+        buffer: &'a mut [f64; MAX_JOINTS],
+    ) -> &'a [f64] {
+        let compliant =
+            self.steps.iter().any(|s| s.step.compliance.is_some_and(|i| selection.column(i).is_some()));
+        if compliant {
+            self.gravity_torques(q, &mut buffer[..self.dof]);
+        }
+        &buffer[..]
+    }
+
+    /// The joint values the arm reaches when commanded `q`: `q + c tau(q)` (in `buffer`), each
+    /// joint deflected by its compliance `c` under the gravity load `tau` at `q`
+    /// ([`ChainAt::gravity_torques`]); `q` itself when no joint is compliant. The load is taken
+    /// at the commanded values: the deflection's own effect on it is of second order.
+    fn reached<'a>(&self, q: &'a [f64], buffer: &'a mut [f64; MAX_JOINTS]) -> &'a [f64] {
+        let Some(compliance) = &self.compliance else { return q };
+        let reached = &mut buffer[..self.dof];
+        self.gravity_torques(q, reached);
+        for ((r, &q), &c) in reached.iter_mut().zip(q).zip(compliance) {
+            *r = q + c * *r;
+        }
+        reached
     }
 
     /// Pose of the tool frame: `base * T_1(q_1) * ... * T_n(q_n) * tool`.
     pub fn pose(&self, q: &[f64]) -> Isometry3<f64> {
         assert_eq!(q.len(), self.dof, "q has one value per joint");
-        let end = walk(&self.steps, q, Frame::IDENTITY);
+        let mut reached = [0.0; MAX_JOINTS];
+        let end = walk(&self.steps, self.reached(q, &mut reached), Frame::IDENTITY);
         let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(end.r));
         Isometry3::from_parts(Translation3::from(end.p), rotation)
     }
@@ -383,17 +438,22 @@ impl ChainAt {
         // point at the origin, and are turned into the world frame at the end.
         let origin = Vector3::zeros();
         assert_eq!(q.len(), self.dof, "q has one value per joint");
-        let end = walk_back(&self.steps, q, |step, frame| {
+        let (mut reached, mut loads) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+        let loads = self.loads_for(selection, q, &mut loads);
+        let end = walk_back(&self.steps, self.reached(q, &mut reached), |step, frame| {
             let column = step.param.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
+            let flex = step.compliance.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
             let joint = step.joint.filter(|_| j.is_some());
-            if column.is_none() && joint.is_none() {
+            if column.is_none() && flex.is_none() && joint.is_none() {
                 return;
             }
             let (linear, angular) = frame.screw(step.motion, &origin);
-            if let Some(c) = column {
-                h.fixed_view_mut::<3, 1>(0, c).copy_from(&linear);
+            // A compliance moves its joint by the joint's load: its column is the joint's, scaled.
+            let scaled = |c: usize| (c, step.joint.map_or(0.0, |j| loads[j]));
+            for (c, scale) in column.map(|c| (c, 1.0)).into_iter().chain(flex.map(scaled)) {
+                h.fixed_view_mut::<3, 1>(0, c).copy_from(&(linear * scale));
                 if measured == Measured::Pose {
-                    h.fixed_view_mut::<3, 1>(3, c).copy_from(&angular);
+                    h.fixed_view_mut::<3, 1>(3, c).copy_from(&(angular * scale));
                 }
             }
             if let (Some(col), Some(j)) = (joint, j.as_deref_mut()) {
@@ -441,11 +501,23 @@ pub fn marker_jacobians(
     for (p, at) in positions.iter_mut().zip(markers) {
         *p = offset(at);
     }
-    let end = walk_back(&first.steps[..first.arm], q, |step, frame| {
-        let Some(c) = step.param.and_then(|i| selection.column(i)) else { return };
+    let (mut reached, mut loads) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+    let loads = first.loads_for(selection, q, &mut loads);
+    let end = walk_back(&first.steps[..first.arm], first.reached(q, &mut reached), |step, frame| {
+        let column = step.param.and_then(|i| selection.column(i)).map(|c| (c, 1.0));
+        // A compliance moves its joint by the joint's load: its column is the joint's, scaled.
+        let flex = step
+            .compliance
+            .and_then(|i| selection.column(i))
+            .map(|c| (c, step.joint.map_or(0.0, |j| loads[j])));
+        if column.is_none() && flex.is_none() {
+            return;
+        }
         let (linear, angular) = frame.screw(step.motion, &Vector3::zeros());
-        for (m, r) in positions.iter().enumerate() {
-            h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&(linear + angular.cross(r)));
+        for (c, scale) in column.into_iter().chain(flex) {
+            for (m, r) in positions.iter().enumerate() {
+                h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&((linear + angular.cross(r)) * scale));
+            }
         }
     });
     for (m, at) in markers.iter().enumerate() {
@@ -472,6 +544,8 @@ pub fn end_positions(chains: &[ChainAt], q: &[f64], positions: &mut [Vector3<f64
     let first = &chains[0];
     assert_eq!(q.len(), first.dof, "q has one value per joint");
     assert_eq!(positions.len(), chains.len(), "one position per chain");
+    let mut reached = [0.0; MAX_JOINTS];
+    let q = first.reached(q, &mut reached);
     let arm = walk(&first.steps[..first.arm], q, Frame::IDENTITY);
     for (p, at) in positions.iter_mut().zip(chains) {
         assert_eq!(at.arm, first.arm, "chains of one arm");

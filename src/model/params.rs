@@ -42,6 +42,10 @@ pub enum ParamKind {
     Alpha,
     /// Hayati's rotation about y (rad).
     Beta,
+    /// A joint's compliance: its deflection per unit of the load gravity puts on it (rad per
+    /// N·m for a revolute joint, mm per N for a prismatic one); the joint reaches
+    /// `q + c tau(q)`. Only models with masses have it.
+    Compliance,
 }
 
 impl ParamKind {
@@ -64,6 +68,7 @@ impl ParamKind {
             Self::A => "a",
             Self::Alpha => "alpha",
             Self::Beta => "beta",
+            Self::Compliance => "compliance",
         }
     }
 
@@ -97,17 +102,20 @@ pub struct ParamInfo {
     pub name: String,
     /// Whether it is the joint's zero offset (`theta` of a revolute joint, `d` of a prismatic).
     pub is_offset: bool,
+    unit: &'static str,
 }
 
 impl ParamInfo {
-    /// The unit of the parameter inside robocal: `"rad"` or `"mm"`.
+    /// The unit of the parameter inside robocal: `"rad"`, `"mm"`, or for a compliance
+    /// `"rad/N·m"` (revolute joint) or `"mm/N"` (prismatic).
     pub fn unit(&self) -> &'static str {
-        if self.kind.is_angle() { "rad" } else { "mm" }
+        self.unit
     }
 }
 
 /// All error parameters of a model, in canonical order: base (6), each joint (5 DH, or 7 for
-/// URDF: 6 origin errors and the offset), then the tool (3 or 6) or the markers.
+/// URDF: 6 origin errors and the offset; then its compliance if the model has masses), then
+/// the tool (3 or 6) or the markers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamSet {
     params: Vec<ParamInfo>,
@@ -136,7 +144,17 @@ impl ParamSet {
         let mut params = Vec::new();
         let mut push = |owner, kind: ParamKind, prefix: &str, is_offset| {
             let name = format!("{prefix}.{}", kind.label());
-            params.push(ParamInfo { owner, kind, name, is_offset });
+            let unit = match (kind, owner) {
+                (ParamKind::Compliance, ParamOwner::Joint(i))
+                    if model.joints[i].kind == JointKind::Prismatic =>
+                {
+                    "mm/N"
+                }
+                (ParamKind::Compliance, _) => "rad/N·m",
+                (kind, _) if kind.is_angle() => "rad",
+                _ => "mm",
+            };
+            params.push(ParamInfo { owner, kind, name, is_offset, unit });
         };
         for kind in ParamKind::PLACEMENT {
             push(ParamOwner::Base, kind, "base", false);
@@ -160,6 +178,9 @@ impl ParamSet {
             };
             for &kind in kinds {
                 push(ParamOwner::Joint(i), kind, &joint.name, kind == offset);
+            }
+            if !model.masses.is_empty() {
+                push(ParamOwner::Joint(i), ParamKind::Compliance, &joint.name, false);
             }
         }
         match markers {
@@ -261,9 +282,10 @@ impl Selection {
         Self::from_indices(params, 0..params.len())
     }
 
-    /// Every joint parameter, base and tool fixed: the paper's set (30 for a 6-joint robot).
+    /// Every geometric joint parameter, base and tool fixed: the paper's set (30 for a 6-joint
+    /// robot); not the compliances (select them by name, `j*.compliance`).
     pub fn joints(params: &ParamSet) -> Self {
-        Self::matching(params, |p| matches!(p.owner, ParamOwner::Joint(_)))
+        Self::matching(params, |p| matches!(p.owner, ParamOwner::Joint(_)) && p.kind != ParamKind::Compliance)
     }
 
     /// Only the joint offsets.

@@ -460,3 +460,96 @@ fn a_horizontal_link_of_one_kilogram_at_one_metre_weighs_9_81_newton_metres() {
     model.masses.clear();
     assert_eq!(torque(&model, 0.0), 0.0);
 }
+
+/// With masses, each joint has a compliance: the joints reach `q + c tau(q)`. Its columns of
+/// `H` (pose and markers) against central differences of the full model, and the pose against
+/// the rigid model at the deflected joint values.
+fn check_compliance(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
+    let mut model = model.clone();
+    model.masses = (0..model.dof())
+        .map(|j| robocal::model::LinkMass {
+            mass: 10.0 * (u[3 * j] + 1.0),
+            com: Vector3::new(u[3 * j + 1], u[3 * j + 2], u[3 * j + 3]) * 200.0,
+        })
+        .collect();
+    let (q, mut x) = point(&model, u);
+    let chain = Chain::new(&model);
+    let params = chain.params();
+    let compliances: Vec<usize> =
+        (0..params.len()).filter(|&i| params.get(i).kind == robocal::model::ParamKind::Compliance).collect();
+    prop_assert_eq!(compliances.len(), model.dof());
+    for (k, &i) in compliances.iter().enumerate() {
+        // about 1e-4 rad per N·m (1e-3 mm per N): millimetres at a metre under 10 N·m
+        x[i] = u[(k + 7) % u.len()] * if params.get(i).unit() == "mm/N" { 1e-3 } else { 1e-4 };
+    }
+    let at = chain.with_errors(&x);
+
+    // The pose is the rigid model's at q + c tau(q).
+    let mut rigid_x = x.clone();
+    compliances.iter().for_each(|&i| rigid_x[i] = 0.0);
+    let rigid = chain.with_errors(&rigid_x);
+    let mut tau = vec![0.0; model.dof()];
+    rigid.gravity_torques(&q, &mut tau);
+    let reached: Vec<f64> = (0..model.dof()).map(|j| q[j] + x[compliances[j]] * tau[j]).collect();
+    let miss = (at.pose(&q).translation.vector - rigid.pose(&reached).translation.vector).amax();
+    prop_assert!(miss < 1e-9, "pose {miss:e}");
+
+    let all = Selection::all(params);
+    let mut h = DMatrix::zeros(6, all.len());
+    at.identification_jacobian(&q, &all, Measured::Pose, h.view_mut((0, 0), (6, all.len())));
+    for (j, &i) in compliances.iter().enumerate() {
+        // A step that moves the joint by 1e-6 (rad or mm) under its load: the pose is then
+        // all but linear over it.
+        let step = 1e-6 / (1.0 + tau[j].abs());
+        let (mut plus, mut minus) = (x.clone(), x.clone());
+        plus[i] += step;
+        minus[i] -= step;
+        let fd = pose_error(&chain.with_errors(&plus).pose(&q), &chain.with_errors(&minus).pose(&q)) / (2.0 * step);
+        // relative to the column, or absolute (mm or rad per unit of compliance) for a joint
+        // that gravity barely loads here
+        let scale = fd.amax().max(h.column(i).amax()).max(1.0);
+        let err = (h.column(i) - fd).amax() / scale;
+        prop_assert!(err < 1e-6, "{}: relative error {err:e}", params.get(i).name);
+    }
+
+    // The markers' shared walk gives the same compliance columns as each marker's chain.
+    let markers = [Vector3::new(u[40], u[41], u[42]) * 100.0, Vector3::new(u[43], u[44], u[45]) * 100.0];
+    let chains = Chain::markers(&model, &markers);
+    let mx: Vec<f64> = chains[0]
+        .params()
+        .iter()
+        .map(|p| x.get(params.index_by_name(&p.name).unwrap_or(usize::MAX)).copied().unwrap_or(0.0))
+        .collect();
+    let ats: Vec<_> = chains.iter().map(|c| c.with_errors(&mx)).collect();
+    let every = Selection::all(chains[0].params());
+    let mut shared = DMatrix::zeros(6, every.len());
+    let mut positions = [Vector3::zeros(); 2];
+    marker_jacobians(&ats, &q, &every, shared.view_mut((0, 0), (6, every.len())), &mut positions);
+    for (m, at) in ats.iter().enumerate() {
+        let mut own = DMatrix::zeros(3, every.len());
+        at.identification_jacobian(&q, &every, Measured::Position, own.view_mut((0, 0), (3, every.len())));
+        let err = relative_error(&shared.rows(3 * m, 3).into_owned(), &own);
+        prop_assert!(err < 1e-9, "marker {m}: {err:e}");
+        prop_assert!((positions[m] - at.position(&q)).amax() < 1e-9);
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(350))]
+
+    #[test]
+    fn compliance_columns_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 64)) {
+        check_compliance(&model, &u)?;
+    }
+
+    #[test]
+    fn compliance_columns_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 64)) {
+        check_compliance(&model, &u)?;
+    }
+
+    #[test]
+    fn compliance_columns_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 64)) {
+        check_compliance(&model, &u)?;
+    }
+}
