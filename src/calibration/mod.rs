@@ -204,6 +204,21 @@ impl Calibration {
         )
     }
 
+    /// The calibrated markers, numbered as in the data, positions in the last joint frame
+    /// (mm): the nominal ones with their estimates; empty for a probe (its frame is the
+    /// calibrated model's tool).
+    pub fn marker_positions(&self) -> Vec<(usize, Vector3<f64>)> {
+        if !self.chains.iter().all(Chain::ends_at_a_point) {
+            return Vec::new();
+        }
+        let value = |m, kind| self.params.index_of(ParamOwner::Marker(m), kind).map_or(0.0, |i| self.after[i]);
+        (self.marker_ids.iter().zip(&self.markers).enumerate())
+            .map(|(m, (id, p))| {
+                (*id, p + Vector3::new(value(m, ParamKind::X), value(m, ParamKind::Y), value(m, ParamKind::Z)))
+            })
+            .collect()
+    }
+
     /// The chains of `data`'s markers.
     fn chains_for(&self, data: &Measurements) -> Result<(Vec<Chain>, Measured), CalibrationError> {
         let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };

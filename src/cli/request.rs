@@ -3,7 +3,7 @@
 //! contents are the commands' own.
 
 use super::args::{
-    CalibrateArgs, DesignArgs, EstimatorName, Excluded, JointUnit, LengthUnit, MeasuredName, NoiseArgs,
+    CalibrateArgs, DesignArgs, EvaluateArgs, ReportArgs, EstimatorName, Excluded, JointUnit, LengthUnit, MeasuredName, NoiseArgs,
     ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
@@ -143,8 +143,10 @@ pub struct CalibrateRequest {
     pub validate: Vec<PathBuf>,
     /// k of the k-fold cross-validation (>= 2).
     pub folds: Option<usize>,
-    /// Where the JSON report goes.
-    pub json: Option<PathBuf>,
+    /// The markers to fit (numbers), or every marker of the data.
+    pub marker_ids: Option<Vec<usize>>,
+    /// Where the JSON, CSV, figures and HTML go.
+    pub report: ReportArgs,
     /// Where the calibrated model TOML goes.
     pub out_model: Option<PathBuf>,
     /// Where the calibrated URDF goes (URDF models only).
@@ -171,9 +173,51 @@ impl CalibrateRequest {
             iterations: args.iterations,
             validate: args.validate,
             folds: args.folds,
-            json: args.json,
+            marker_ids: args.markers,
+            report: args.report,
             out_model: args.out_model,
             out_urdf: args.out_urdf,
+        })
+    }
+}
+
+/// A validated `robocal evaluate`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvaluateRequest {
+    /// The model: a file or preset, or a URDF chain.
+    pub model: ModelSource,
+    /// The files to score.
+    pub data: Vec<PathBuf>,
+    /// The files' units, if given.
+    pub units: Option<Units>,
+    /// The noise for the whitened residuals, if given.
+    pub noise: Option<NoiseSource>,
+    /// The markers to score, or every marker of each file.
+    pub marker_ids: Option<Vec<usize>>,
+    /// Where the JSON, CSV, figures and HTML go.
+    pub report: ReportArgs,
+}
+
+impl EvaluateRequest {
+    /// The request, or the first rule between `args`' flags that it breaks.
+    pub fn from_args(args: EvaluateArgs) -> Result<Self, UsageError> {
+        let model = if args.model.ends_with(".urdf") {
+            ModelSource::Urdf { path: args.model.into(), base_link: args.base_link, tip_link: args.tip_link }
+        } else {
+            ModelSource::Named(args.model)
+        };
+        let noise = noise_source(args.noise, args.noise_flags.flags())?;
+        require(
+            noise.is_some() || args.noise_flags.sigma_mm == 0.0,
+            "--sigma-mm needs --joint-sigma-deg too (zeros if the joints are exact)",
+        )?;
+        Ok(Self {
+            model,
+            data: args.data,
+            units: args.units.units()?,
+            noise,
+            marker_ids: args.markers,
+            report: args.report,
         })
     }
 }
