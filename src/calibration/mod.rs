@@ -211,10 +211,14 @@ impl Calibration {
         if !self.chains.iter().all(Chain::ends_at_a_point) {
             return Vec::new();
         }
-        let value = |m, kind| self.params.index_of(ParamOwner::Marker(m), kind).map_or(0.0, |i| self.after[i]);
+        let value =
+            |m, kind| self.params.index_of(ParamOwner::Marker(m), kind).map_or(0.0, |i| self.after[i]);
         (self.marker_ids.iter().zip(&self.markers).enumerate())
             .map(|(m, (id, p))| {
-                (*id, p + Vector3::new(value(m, ParamKind::X), value(m, ParamKind::Y), value(m, ParamKind::Z)))
+                (
+                    *id,
+                    p + Vector3::new(value(m, ParamKind::X), value(m, ParamKind::Y), value(m, ParamKind::Z)),
+                )
             })
             .collect()
     }

@@ -5,7 +5,9 @@
 use super::request::{CalibrateRequest, Method, ModelSource, NoiseSource};
 use super::{check_marker_count, noise_model, write_file, write_report_files};
 use anyhow::{Context, Result, bail};
-use robocal::calibration::{self, Calibration, ErrorStats, FeasibleOptions, Measurements, Options, SetEvaluation};
+use robocal::calibration::{
+    self, Calibration, ErrorStats, FeasibleOptions, Measurements, Options, SetEvaluation,
+};
 use robocal::estimation::NoiseModel;
 use robocal::estimation::RefineOptions;
 use robocal::io;
@@ -76,7 +78,11 @@ fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
             format!("--markers {ids:?}: {} has markers {:?}", request.data.display(), fit.marker_ids)
         })?;
         if let Some(missing) = ids.iter().find(|id| !fit.marker_ids.contains(id)) {
-            bail!("--markers: {} has no marker {missing} (it has {:?})", request.data.display(), fit.marker_ids);
+            bail!(
+                "--markers: {} has no marker {missing} (it has {:?})",
+                request.data.display(),
+                fit.marker_ids
+            );
         }
     }
     let held_out = request
@@ -85,7 +91,12 @@ fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
         .map(|path| {
             let all = io::load_measurements(path, model, request.units)?;
             let scored = all.with_markers(&fit.marker_ids).with_context(|| {
-                format!("{}: none of the fitted markers {:?} (it has {:?})", path.display(), fit.marker_ids, all.marker_ids)
+                format!(
+                    "{}: none of the fitted markers {:?} (it has {:?})",
+                    path.display(),
+                    fit.marker_ids,
+                    all.marker_ids
+                )
             })?;
             Ok((path.display().to_string(), scored))
         })
@@ -98,7 +109,9 @@ fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
 fn check_against_the_files(request: &CalibrateRequest, data: &Data) -> Result<()> {
     let highest = data.fit.marker_ids.iter().copied().max().unwrap_or(0);
     check_marker_count(request.markers.len(), &request.data, highest)?;
-    if let Some((name, _)) = data.held_out.iter().find(|(_, d)| d.orientations.is_some() != data.fit.orientations.is_some()) {
+    if let Some((name, _)) =
+        data.held_out.iter().find(|(_, d)| d.orientations.is_some() != data.fit.orientations.is_some())
+    {
         bail!("{name}: orientation columns must be as in {}", request.data.display());
     }
     if let Some(k) = request.folds.filter(|&k| k > data.fit.len()) {
@@ -112,7 +125,8 @@ fn check_against_the_files(request: &CalibrateRequest, data: &Data) -> Result<()
 fn options(request: &CalibrateRequest, model: &RobotModel, data: &Measurements) -> Result<Options> {
     let noise = noise_for(request.noise.as_ref(), model, data)?;
     // The k-th --marker is marker k of the file; the fitted ones are picked by number.
-    let markers = data.marker_ids.iter().map(|&id| request.markers.get(id - 1).copied().unwrap_or_default()).collect();
+    let markers =
+        data.marker_ids.iter().map(|&id| request.markers.get(id - 1).copied().unwrap_or_default()).collect();
     Ok(Options {
         estimator: request.method.estimator(),
         noise,

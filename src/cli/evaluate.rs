@@ -60,7 +60,11 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
         sets.len(),
         if sets.len() == 1 { "" } else { "s" }
     );
-    let _ = writeln!(text, "errors: distances and their components, unweighted; whitened residuals: {}.\n", sets[0].whitening);
+    let _ = writeln!(
+        text,
+        "errors: distances and their components, unweighted; whitened residuals: {}.\n",
+        sets[0].whitening
+    );
     let mut tables: Vec<&SetEvaluation> = refs.clone();
     tables.extend(&pooled);
     text.push_str(&pooled_table(&tables, &[]));

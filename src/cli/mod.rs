@@ -14,12 +14,13 @@ mod simulate;
 
 use anyhow::{Context, Result, bail};
 use args::{
-    CalibrateArgs, EvaluateArgs, FkArgs, ReportArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, SimulateArgs,
-    StudyOutputArgs,
+    CalibrateArgs, EvaluateArgs, FkArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs,
+    ReportArgs, SimulateArgs, StudyOutputArgs,
 };
 use clap::{Parser, Subcommand};
 use request::{
-    CalibrateRequest, DesignRequest, EvaluateRequest, NoiseFlags, ObservabilityRequest, PlanRequest, RepeatabilityRequest,
+    CalibrateRequest, DesignRequest, EvaluateRequest, NoiseFlags, ObservabilityRequest, PlanRequest,
+    RepeatabilityRequest,
 };
 use robocal::design::Design;
 use robocal::estimation::{MeasurementNoise, NoiseModel};

@@ -3,8 +3,8 @@
 //! contents are the commands' own.
 
 use super::args::{
-    CalibrateArgs, DesignArgs, EvaluateArgs, ReportArgs, EstimatorName, Excluded, JointUnit, LengthUnit, MeasuredName, NoiseArgs,
-    ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ToolBox, UnitArgs,
+    CalibrateArgs, DesignArgs, EstimatorName, EvaluateArgs, Excluded, JointUnit, LengthUnit, MeasuredName,
+    NoiseArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ReportArgs, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::JointParams;

@@ -169,16 +169,23 @@ impl CalibrationReport {
         let base = &c.registered.base;
         let d = &c.refined.estimate.diagnostics;
         let joints = &c.registered.joints;
-        let pooled = (held_out.len() > 1).then(|| pool("held out, pooled", &held_out.iter().collect::<Vec<_>>())).flatten();
+        let pooled = (held_out.len() > 1)
+            .then(|| pool("held out, pooled", &held_out.iter().collect::<Vec<_>>()))
+            .flatten();
         let mut validation: Vec<(String, ErrorStats, ErrorStats)> =
             held_out.iter().map(|s| (s.name.clone(), s.pooled[0], s.pooled[1])).collect();
         validation.extend(folds);
-        let sets = std::iter::once(&c.training_poses).chain(&held_out).map(|s| in_degrees(s, joints)).collect();
+        let sets =
+            std::iter::once(&c.training_poses).chain(&held_out).map(|s| in_degrees(s, joints)).collect();
         let weighting = Weighting {
-            before: "base and markers fitted by ols (unweighted), joints nominal, whatever the estimator".into(),
+            before: "base and markers fitted by ols (unweighted), joints nominal, whatever the estimator"
+                .into(),
             after: format!("{estimator}: every parameter asked for that the poses identify"),
             errors: "distances and their components, unweighted".into(),
-            whitened: format!("{}; flagged when a component exceeds {FLAG_AT} standard deviations", c.whitening.describe()),
+            whitened: format!(
+                "{}; flagged when a component exceeds {FLAG_AT} standard deviations",
+                c.whitening.describe()
+            ),
         };
         Self {
             model: c.registered.name.clone(),
@@ -227,8 +234,12 @@ impl CalibrationReport {
             let _ = writeln!(out);
             out.push_str(&per_marker_table(&pooled));
         }
-        let _ = writeln!(out, "
-worst poses after calibration ({} per set; every pose in --poses-csv, --json, --html):", super::poses::WORST);
+        let _ = writeln!(
+            out,
+            "
+worst poses after calibration ({} per set; every pose in --poses-csv, --json, --html):",
+            super::poses::WORST
+        );
         let sets: Vec<&SetEvaluation> = self.sets.iter().collect();
         out.push_str(&worst_poses(&sets));
         out

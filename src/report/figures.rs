@@ -213,7 +213,8 @@ pub fn pose_figures(sets: &[&SetEvaluation], joints: &[Joint]) -> Result<Vec<(St
     for (j, joint) in joints.iter().enumerate() {
         let name = format!("error-vs-{}.svg", file_stem(&joint.name));
         let unit = if joint.kind == JointKind::Revolute { "deg" } else { "mm" };
-        let svg = against_joint(&sets, j, &format!("{} ({unit})", joint.name)).map_err(|m| error(&name, m))?;
+        let svg =
+            against_joint(&sets, j, &format!("{} ({unit})", joint.name)).map_err(|m| error(&name, m))?;
         figures.push((name, svg));
     }
     Ok(figures)
@@ -261,13 +262,16 @@ fn pose_bars(set: &SetEvaluation) -> Result<String, String> {
                 .draw()
                 .map_err(|e| e.to_string())?;
             let colour = Palette99::pick(s).to_rgba();
-            let bars = values.iter().enumerate().map(|(k, &v)| {
-                Rectangle::new([(k as f64 + 0.1, 0.0), (k as f64 + 0.9, v)], colour.filled())
-            });
+            let bars = values
+                .iter()
+                .enumerate()
+                .map(|(k, &v)| Rectangle::new([(k as f64 + 0.1, 0.0), (k as f64 + 0.9, v)], colour.filled()));
             chart.draw_series(bars).map_err(|e| e.to_string())?;
             let flagged = set.poses.iter().enumerate().filter(|(_, p)| p.flagged && s + 1 == stages);
             chart
-                .draw_series(flagged.map(|(k, _)| Cross::new((k as f64 + 0.5, values[k]), 5, RED.stroke_width(2))))
+                .draw_series(
+                    flagged.map(|(k, _)| Cross::new((k as f64 + 0.5, values[k]), 5, RED.stroke_width(2))),
+                )
                 .map_err(|e| e.to_string())?;
         }
         root.present().map_err(|e| e.to_string())?;
@@ -281,7 +285,10 @@ fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
         .iter()
         .map(|set| {
             let last = set.stages.len() - 1;
-            set.poses.iter().flat_map(|p| (0..p.errors[last].len()).map(move |m| p.distance(last, m))).collect()
+            set.poses
+                .iter()
+                .flat_map(|p| (0..p.errors[last].len()).map(move |m| p.distance(last, m)))
+                .collect()
         })
         .collect();
     let high = values.iter().flatten().copied().fold(0.0, f64::max).max(1e-9);

@@ -37,10 +37,16 @@ pub fn page(title: &str, text: &str, sets: &[&SetEvaluation], figures: &[(String
     let _ = writeln!(out, "<h2>Report</h2>\n<pre>{}</pre>", escape(text));
     let _ = writeln!(out, "<h2>Figures</h2>");
     for (name, svg) in figures {
-        let _ = writeln!(out, "<figure id=\"{0}\">\n{1}\n<figcaption>{0}</figcaption>\n</figure>", escape(name), inline_svg(svg));
+        let _ = writeln!(
+            out,
+            "<figure id=\"{0}\">\n{1}\n<figcaption>{0}</figcaption>\n</figure>",
+            escape(name),
+            inline_svg(svg)
+        );
     }
     for set in sets.iter().filter(|s| !s.poses.is_empty()) {
-        let _ = writeln!(out, "<h2>Poses: {}</h2>\n<table>\n<tr><th>line</th><th>marker</th>", escape(&set.name));
+        let _ =
+            writeln!(out, "<h2>Poses: {}</h2>\n<table>\n<tr><th>line</th><th>marker</th>", escape(&set.name));
         for stage in &set.stages {
             let _ = write!(out, "<th>{} (mm)</th><th>x</th><th>y</th><th>z</th>", escape(stage));
         }
@@ -61,7 +67,8 @@ pub fn page(title: &str, text: &str, sets: &[&SetEvaluation], figures: &[(String
                     );
                 }
                 let flag = if p.flagged { "yes" } else { "no" };
-                let _ = writeln!(out, "<td>{:.2}</td><td>{:.2}</td><td>{flag}</td></tr>", p.whitened, p.worst);
+                let _ =
+                    writeln!(out, "<td>{:.2}</td><td>{:.2}</td><td>{flag}</td></tr>", p.whitened, p.worst);
             }
         }
         let _ = writeln!(out, "</table>");

@@ -48,7 +48,9 @@ fn header(out: &mut String, width: usize, title: &str) {
 pub fn pooled_table(sets: &[&SetEvaluation], extra: &[(String, ErrorStats)]) -> String {
     let labels: Vec<(String, &ErrorStats)> = sets
         .iter()
-        .flat_map(|set| set.stages.iter().zip(&set.pooled).map(move |(stage, s)| (format!("{}, {stage}", set.name), s)))
+        .flat_map(|set| {
+            set.stages.iter().zip(&set.pooled).map(move |(stage, s)| (format!("{}, {stage}", set.name), s))
+        })
         .chain(extra.iter().map(|(l, s)| (l.clone(), s)))
         .collect();
     let title = "marker position errors (mm)";
@@ -78,7 +80,10 @@ pub fn per_marker_table(sets: &[&SetEvaluation]) -> String {
         .iter()
         .flat_map(|set| {
             set.marker_ids.iter().zip(&set.per_marker).flat_map(move |(id, stats)| {
-                set.stages.iter().zip(stats).map(move |(stage, s)| (format!("{}, marker {id}, {stage}", set.name), s))
+                set.stages
+                    .iter()
+                    .zip(stats)
+                    .map(move |(stage, s)| (format!("{}, marker {id}, {stage}", set.name), s))
             })
         })
         .collect();
@@ -123,7 +128,13 @@ pub fn worst_poses(sets: &[&SetEvaluation]) -> String {
             for s in 0..set.stages.len() {
                 let _ = write!(out, " {:>9.4}", p.distance(s, m));
             }
-            let _ = writeln!(out, " {:>9.2} {:>6.2}  {}", p.whitened, p.worst, if p.flagged { "yes" } else { "no" });
+            let _ = writeln!(
+                out,
+                " {:>9.2} {:>6.2}  {}",
+                p.whitened,
+                p.worst,
+                if p.flagged { "yes" } else { "no" }
+            );
         }
     }
     out
@@ -165,7 +176,8 @@ pub fn poses_csv(sets: &[&SetEvaluation], joints: &[Joint]) -> String {
                     cells.push(format!("{}", p.distance(s, m)));
                     cells.extend(e.iter().map(|v| format!("{v}")));
                     if probe {
-                        let angle = p.orientation.as_ref().map_or(0.0, |o| nalgebra::Vector3::from(o[s]).norm());
+                        let angle =
+                            p.orientation.as_ref().map_or(0.0, |o| nalgebra::Vector3::from(o[s]).norm());
                         cells.push(format!("{angle}"));
                     }
                 }
@@ -181,5 +193,9 @@ pub fn poses_csv(sets: &[&SetEvaluation], joints: &[Joint]) -> String {
 
 /// A CSV cell, quoted if it holds a comma or a quote.
 fn csv_cell(text: &str) -> String {
-    if text.contains([',', '"', '\n']) { format!("\"{}\"", text.replace('"', "\"\"")) } else { text.to_string() }
+    if text.contains([',', '"', '\n']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
 }
