@@ -49,7 +49,7 @@ impl Whitening {
                 "Mahalanobis norm under each pose's full V_k (joint and measurement noise)".into()
             }
             Self::Spread(s) => {
-                format!("norm divided by the training residuals' spread, sigma = {s:.4} (no noise model)")
+                format!("norm divided by the residuals' spread, sigma = {s:.4} mm (no noise model)")
             }
         }
     }

@@ -50,10 +50,9 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     write(request, &robot, &report, &result, &text)
 }
 
-/// Load the model: a preset, a model file, or a URDF chain (shared with `evaluate`).
-pub(super) fn load_robot(source: &ModelSource) -> Result<(RobotModel, Option<(String, String, String)>)> {
-    let robot = load_model(source)?;
-    Ok((robot.model, robot.urdf))
+/// The model of a preset, a model file, or a URDF chain (for `evaluate`).
+pub(super) fn load_robot(source: &ModelSource) -> Result<RobotModel> {
+    Ok(load_model(source)?.model)
 }
 
 /// Load the model: a preset, a model file, or a URDF chain.

@@ -26,7 +26,7 @@ struct EvaluationReport {
 
 /// Score the model on every file, print the tables, write the files asked for.
 pub fn run(request: &EvaluateRequest) -> Result<()> {
-    let (model, _) = load_robot(&request.model)?;
+    let model = load_robot(&request.model)?;
     let markers = match &request.model {
         ModelSource::Urdf { path, .. } => {
             robocal::model::markers_from_urdf_str(&read(path)?).with_context(|| path.display().to_string())?
@@ -62,7 +62,7 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     );
     let _ = writeln!(
         text,
-        "errors: distances and their components, unweighted; whitened residuals: {}.\n",
+        "errors:    distances and their x, y, z components, unweighted\nwhitened:  {}\n",
         sets[0].whitening
     );
     let mut tables: Vec<&SetEvaluation> = refs.clone();

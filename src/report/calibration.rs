@@ -290,7 +290,7 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         }
         let _ = writeln!(
             out,
-            "\nbefore: {}; after: {}.\nerrors: {}; whitened residuals: {}.\n",
+            "\nbefore:    {}\nafter:     {}\nerrors:    {}\nwhitened:  {}\n",
             self.weighting.before, self.weighting.after, self.weighting.errors, self.weighting.whitened
         );
         out.push_str(&self.error_tables());

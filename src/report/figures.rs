@@ -248,7 +248,7 @@ fn pose_bars(set: &SetEvaluation) -> Result<String, String> {
             let values: Vec<f64> = set.poses.iter().map(|p| pose_rms(p, s)).collect();
             let top = values.iter().copied().fold(0.0, f64::max).max(1e-9) * 1.1;
             let mut chart = ChartBuilder::on(panel)
-                .caption(format!("{}", set.stages[s]), ("sans-serif", 15))
+                .caption(set.stages[s].as_str(), ("sans-serif", 15))
                 .margin(10)
                 .x_label_area_size(36)
                 .y_label_area_size(56)
