@@ -78,13 +78,26 @@ fn pose_errors(report: &Value, s: usize, k: usize, stage: usize) -> Vec<Vector3<
         .collect()
 }
 
+/// `calibrate`'s own report is snapshot-tested in `cli.rs` (and is the README's example); this
+/// is `evaluate`'s on two sessions: pooled, per marker, all files pooled, the worst poses.
 #[test]
-fn the_text_report_has_per_marker_tables_and_the_worst_poses() {
-    let mut settings = insta::Settings::clone_current();
-    settings.set_snapshot_path("snapshots");
-    settings.bind(|| {
-        insta::assert_snapshot!(calibrate(&["--joint-sigma-deg", SIGMAS, "--sigma-mm", "0.01"]));
-    });
+fn the_evaluate_report_has_per_marker_tables_and_the_worst_poses() {
+    let dir = scratch("snapshot");
+    let model = dir.join("calibrated.toml");
+    calibrate(&["--joint-sigma-deg", SIGMAS, "--sigma-mm", "0.01", "--out-model", model.to_str().unwrap()]);
+    let text = run(&[
+        "evaluate",
+        "--model",
+        model.to_str().unwrap(),
+        "--data",
+        "examples/puma560-validation.csv",
+        "examples/puma560-measurements.csv",
+        "--joint-sigma-deg",
+        SIGMAS,
+        "--sigma-mm",
+        "0.01",
+    ]);
+    insta::assert_snapshot!(text);
 }
 
 #[test]
