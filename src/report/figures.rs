@@ -4,6 +4,7 @@
 use crate::calibration::{PoseErrors, SetEvaluation};
 use crate::model::{Joint, JointKind};
 use crate::simulation::{PoseChoice, Study, StudyResults, Summary};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 /// A figure that could not be drawn.
@@ -112,17 +113,7 @@ fn histogram(title: &str, values: &[f64]) -> Result<String, String> {
         counts[(((v - low) / width).floor() as usize).min(bins - 1)] += 1;
     }
     let top = f64::from(*counts.iter().max().unwrap_or(&1)) + 1.0;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(48)
-            .build_cartesian_2d(low..high, 0.0..top)
-            .map_err(|e| e.to_string())?;
+    single_chart(title, low..high, 0.0..top, false, |chart| {
         chart
             .configure_mesh()
             .x_desc("dE (%)")
@@ -135,6 +126,43 @@ fn histogram(title: &str, values: &[f64]) -> Result<String, String> {
             Rectangle::new([(x0, 0.0), (x0 + width, f64::from(n))], BLUE.mix(0.6).filled())
         });
         chart.draw_series(bars).map_err(|e| e.to_string())?;
+        Ok(())
+    })
+}
+
+/// A chart of `(x, y)` over two linear axes.
+type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// A 640 x 420 figure with one chart titled `caption` over `x` and `y`, drawn by `draw`, and
+/// the series' legend (top right) if `legend`.
+fn single_chart(
+    caption: &str,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+    legend: bool,
+    draw: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), String>,
+) -> Result<String, String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(caption, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(52)
+            .build_cartesian_2d(x, y)
+            .map_err(|e| e.to_string())?;
+        draw(&mut chart)?;
+        if legend {
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
@@ -153,17 +181,7 @@ fn trend(
         (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
     }
     let pad = 0.05 * (x1 - x0).max(1e-9);
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(48)
-            .build_cartesian_2d((x0 - pad)..(x1 + pad), (y0 - 5.0)..(y1 + 5.0))
-            .map_err(|e| e.to_string())?;
+    single_chart(title, (x0 - pad)..(x1 + pad), (y0 - 5.0)..(y1 + 5.0), true, |chart| {
         chart.configure_mesh().x_desc(x_label).y_desc("dE (%)").draw().map_err(|e| e.to_string())?;
         for (i, (label, means, sets)) in series.iter().enumerate() {
             let colour = Palette99::pick(i).to_rgba();
@@ -176,15 +194,8 @@ fn trend(
                 .draw_series(sets.iter().map(|&p| Circle::new(p, 3, colour.filled())))
                 .map_err(|e| e.to_string())?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    Ok(svg)
+        Ok(())
+    })
 }
 
 /// The figures of scored pose sets (joint values in degrees, mm for prismatic joints), as
@@ -279,7 +290,7 @@ fn pose_bars(set: &SetEvaluation) -> Result<String, String> {
     Ok(svg)
 }
 
-/// The markers' errors at the last stage, one outlined series of bins per set.
+/// The markers' errors at the last stage, one series of bins per set.
 fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
     let values: Vec<Vec<f64>> = sets
         .iter()
@@ -306,17 +317,7 @@ fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
         .collect();
     let top = f64::from(counts.iter().flatten().copied().max().unwrap_or(1)) * 1.1 + 1.0;
     let stage = &sets[0].stages[sets[0].stages.len() - 1];
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(format!("marker errors, {stage}"), ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(48)
-            .build_cartesian_2d(0.0..width * bins as f64, 0.0..top)
-            .map_err(|e| e.to_string())?;
+    single_chart(&format!("marker errors, {stage}"), 0.0..width * bins as f64, 0.0..top, true, |chart| {
         chart
             .configure_mesh()
             .x_desc("error (mm)")
@@ -324,9 +325,9 @@ fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
             .y_label_formatter(&|v| format!("{v:.0}"))
             .draw()
             .map_err(|e| e.to_string())?;
+        let share = 1.0 / sets.len() as f64;
         for (i, (set, c)) in sets.iter().zip(&counts).enumerate() {
             let colour = Palette99::pick(i).to_rgba();
-            let share = 1.0 / sets.len() as f64;
             let bars = c.iter().enumerate().map(move |(b, &n)| {
                 let x0 = (b as f64 + i as f64 * share) * width;
                 Rectangle::new([(x0, 0.0), (x0 + share * width, f64::from(n))], colour.mix(0.7).filled())
@@ -337,16 +338,8 @@ fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
                 .label(set.name.as_str())
                 .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], colour.filled()));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    Ok(svg)
+        Ok(())
+    })
 }
 
 /// Each marker's error at the last stage against joint `j`'s value, one colour per set.
@@ -361,24 +354,14 @@ fn against_joint(sets: &[&SetEvaluation], j: usize, x_label: &str) -> Result<Str
                 .collect()
         })
         .collect();
-    let all = points.iter().flatten();
     let (mut x0, mut x1, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-    for &(x, y) in all {
+    for &(x, y) in points.iter().flatten() {
         (x0, x1, y1) = (x0.min(x), x1.max(x), y1.max(y));
     }
     let pad = 0.03 * (x1 - x0).max(1e-6);
     let stage = &sets[0].stages[sets[0].stages.len() - 1];
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(format!("marker errors, {stage}, against {x_label}"), ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(56)
-            .build_cartesian_2d((x0 - pad)..(x1 + pad), 0.0..(y1 * 1.1).max(1e-9))
-            .map_err(|e| e.to_string())?;
+    let caption = format!("marker errors, {stage}, against {x_label}");
+    single_chart(&caption, (x0 - pad)..(x1 + pad), 0.0..(y1 * 1.1).max(1e-9), true, |chart| {
         chart.configure_mesh().x_desc(x_label).y_desc("error (mm)").draw().map_err(|e| e.to_string())?;
         for (i, (set, p)) in sets.iter().zip(&points).enumerate() {
             let colour = Palette99::pick(i).to_rgba();
@@ -388,14 +371,6 @@ fn against_joint(sets: &[&SetEvaluation], j: usize, x_label: &str) -> Result<Str
                 .label(set.name.as_str())
                 .legend(move |(x, y)| Circle::new((x + 6, y), 3, colour.filled()));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    Ok(svg)
+        Ok(())
+    })
 }

@@ -53,13 +53,7 @@ pub fn pooled_table(sets: &[&SetEvaluation], extra: &[(String, ErrorStats)]) -> 
         })
         .chain(extra.iter().map(|(l, s)| (l.clone(), s)))
         .collect();
-    let title = "marker position errors (mm)";
-    let width = labels.iter().map(|(l, _)| l.len()).chain([title.len()]).max().unwrap_or(0);
-    let mut out = String::new();
-    header(&mut out, width, title);
-    for (label, s) in &labels {
-        row(&mut out, width, label, s);
-    }
+    let (mut out, width) = table("marker position errors (mm)", &labels);
     let probes: Vec<&&SetEvaluation> = sets.iter().filter(|s| s.orientation.is_some()).collect();
     if !probes.is_empty() {
         let title = "orientation errors (deg)";
@@ -87,14 +81,18 @@ pub fn per_marker_table(sets: &[&SetEvaluation]) -> String {
             })
         })
         .collect();
-    let title = "per marker (mm)";
+    table("per marker (mm)", &labels).0
+}
+
+/// An error table titled `title` with a row per `(label, stats)`, and its label width.
+fn table(title: &str, labels: &[(String, &ErrorStats)]) -> (String, usize) {
     let width = labels.iter().map(|(l, _)| l.len()).chain([title.len()]).max().unwrap_or(0);
     let mut out = String::new();
     header(&mut out, width, title);
-    for (label, s) in &labels {
+    for (label, s) in labels {
         row(&mut out, width, label, s);
     }
-    out
+    (out, width)
 }
 
 /// The [`WORST`] poses of each set with the largest marker error at the last stage: line,

@@ -2,6 +2,7 @@
 //! scored anywhere (`evaluate`), honest baselines, figures and a self-contained page, and every
 //! error printed once.
 
+use super::cli::CALIBRATE;
 use assert_cmd::Command;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use robocal::model::{RobotModel, Tool};
@@ -30,22 +31,17 @@ fn json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-const SIGMAS: &str = "0.007,0.007,0.007,0.002,0.002,0.002";
-
-/// The README's calibration with `extra` flags.
+/// The README's calibration without the noise (so by OLS), with `extra` flags.
 fn calibrate(extra: &[&str]) -> String {
-    let mut args = vec![
-        "calibrate",
-        "--model",
-        "puma560",
-        "--data",
-        "examples/puma560-measurements.csv",
-        "--validate",
-        "examples/puma560-validation.csv",
-        "--marker",
-        "50,0,150",
-        "--marker=-40,60,120",
-    ];
+    let mut args = CALIBRATE[..7].to_vec();
+    args.extend(&CALIBRATE[11..]);
+    args.extend(extra);
+    run(&args)
+}
+
+/// The README's calibration (with the noise, by WLS unless `extra` says otherwise).
+fn calibrate_weighted(extra: &[&str]) -> String {
+    let mut args = CALIBRATE.to_vec();
     args.extend(extra);
     run(&args)
 }
@@ -84,19 +80,11 @@ fn pose_errors(report: &Value, s: usize, k: usize, stage: usize) -> Vec<Vector3<
 fn the_evaluate_report_has_per_marker_tables_and_the_worst_poses() {
     let dir = scratch("snapshot");
     let model = dir.join("calibrated.toml");
-    calibrate(&["--joint-sigma-deg", SIGMAS, "--sigma-mm", "0.01", "--out-model", model.to_str().unwrap()]);
-    let text = run(&[
-        "evaluate",
-        "--model",
-        model.to_str().unwrap(),
-        "--data",
-        "examples/puma560-validation.csv",
-        "examples/puma560-measurements.csv",
-        "--joint-sigma-deg",
-        SIGMAS,
-        "--sigma-mm",
-        "0.01",
-    ]);
+    calibrate_weighted(&["--out-model", model.to_str().unwrap()]);
+    let (validation, measurements) = (CALIBRATE[6], CALIBRATE[4]);
+    let mut args = vec!["evaluate", "--model", model.to_str().unwrap(), "--data", validation, measurements];
+    args.extend(&CALIBRATE[7..11]);
+    let text = run(&args);
     insta::assert_snapshot!(text);
 }
 
@@ -133,16 +121,7 @@ fn json_errors_per_pose_are_the_written_models_forward_kinematics() {
 fn evaluate_reproduces_calibrates_validation_from_the_written_toml_and_urdf() {
     let dir = scratch("evaluate");
     let (report, model) = (dir.join("report.json"), dir.join("calibrated.toml"));
-    calibrate(&[
-        "--joint-sigma-deg",
-        SIGMAS,
-        "--sigma-mm",
-        "0.01",
-        "--json",
-        report.to_str().unwrap(),
-        "--out-model",
-        model.to_str().unwrap(),
-    ]);
+    calibrate_weighted(&["--json", report.to_str().unwrap(), "--out-model", model.to_str().unwrap()]);
     let calibrated = json(&report);
     let scored = dir.join("scored.json");
     let text = run(&[
@@ -238,16 +217,7 @@ fn the_before_numbers_do_not_depend_on_the_estimator() {
     let mut reports = Vec::new();
     for estimator in ["ols", "wls", "wls-diag"] {
         let path = dir.join(format!("{estimator}.json"));
-        calibrate(&[
-            "--joint-sigma-deg",
-            SIGMAS,
-            "--sigma-mm",
-            "0.01",
-            "--estimator",
-            estimator,
-            "--json",
-            path.to_str().unwrap(),
-        ]);
+        calibrate_weighted(&["--estimator", estimator, "--json", path.to_str().unwrap()]);
         reports.push(json(&path));
     }
     for r in &reports[1..] {
