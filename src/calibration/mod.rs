@@ -15,7 +15,7 @@
 //! Errors are in mm and rad inside, and are folded into a calibrated model at the end.
 
 mod data;
-mod evaluation;
+pub mod evaluation;
 mod repeatability;
 
 pub use data::Measurements;

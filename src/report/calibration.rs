@@ -73,6 +73,22 @@ pub struct Weighting {
     pub whitened: String,
 }
 
+/// `text` with the markers' parameters named by the markers' numbers in the data
+/// (`marker1.x` of a fit with markers `[2, 3]` is `marker2.x`).
+fn by_number(text: &str, ids: &[usize]) -> String {
+    text.split(' ')
+        .map(|word| {
+            let renamed = word.strip_prefix("marker").and_then(|rest| {
+                let (k, kind) = rest.split_once('.')?;
+                let id = ids.get(k.parse::<usize>().ok()?.checked_sub(1)?)?;
+                Some(format!("marker{id}.{kind}"))
+            });
+            renamed.unwrap_or_else(|| word.to_string())
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 /// One estimated noise component: a standard deviation with its 95% interval.
 #[derive(Debug, Clone, Serialize)]
 pub struct NoiseRow {
@@ -159,7 +175,7 @@ impl CalibrationReport {
                 let p = c.params.get(i);
                 let scale = if p.kind.is_angle() { 180.0 / std::f64::consts::PI } else { 1.0 };
                 ParameterRow {
-                    name: p.name.clone(),
+                    name: by_number(&p.name, &c.marker_ids),
                     value: c.after[i] * scale,
                     std_error: se[i] * scale,
                     unit: if p.kind.is_angle() { "deg" } else { "mm" },
@@ -208,7 +224,7 @@ impl CalibrationReport {
             parameters,
             rank: d.rank,
             condition_number: d.condition_number,
-            fixed: c.fixed.clone(),
+            fixed: c.fixed.iter().map(|f| by_number(f, &c.marker_ids)).collect(),
             training: [c.training.0, c.training.1],
             validation,
             sets,
@@ -275,13 +291,17 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         for p in &self.parameters {
             let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
         }
-        let _ = writeln!(
-            out,
-            "\n{} parameters identified (rank {}), condition number {:.3e}",
-            self.parameters.len(),
-            self.rank,
-            self.condition_number
-        );
+        if self.parameters.is_empty() {
+            let _ = writeln!(out, "\nnothing estimated: the model is scored as it stands");
+        } else {
+            let _ = writeln!(
+                out,
+                "\n{} parameters identified (rank {}), condition number {:.3e}",
+                self.parameters.len(),
+                self.rank,
+                self.condition_number
+            );
+        }
         if !self.fixed.is_empty() {
             let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");
             for f in &self.fixed {

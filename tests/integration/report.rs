@@ -239,7 +239,7 @@ fn the_before_numbers_do_not_depend_on_the_estimator() {
 #[test]
 fn params_none_with_fixed_base_and_markers_scores_the_model() {
     let text = calibrate(&["--params", "none", "--fixed-base", "--fixed-markers"]);
-    assert!(text.contains("0 parameters identified"), "{text}");
+    assert!(text.contains("nothing estimated: the model is scored as it stands"), "{text}");
     assert!(text.contains("training, after"), "{text}");
 }
 
@@ -272,6 +272,10 @@ fn markers_chosen_by_the_user_fit_and_score_a_subset() {
         report.to_str().unwrap(),
     ]);
     assert!(out.contains("100 poses, 1 marker,"), "{out}");
+    assert!(
+        out.contains("marker2.y") && !out.contains("marker1."),
+        "parameters named by the file's numbers: {out}"
+    );
     let report = json(&report);
     for s in 0..3 {
         assert_eq!(report["sets"][s]["marker_ids"], serde_json::json!([2]), "set {s}");
@@ -335,6 +339,17 @@ fn the_page_is_one_well_formed_file_with_every_table_and_figure() {
     }
     let tables = document.descendants().filter(|n| n.has_tag_name("table")).count();
     assert_eq!(tables, 2, "one table of poses per set");
+    // A headless browser, where the machine has one, draws the same page offline.
+    let url = format!("file://{}", page.display());
+    let browser = ["chromium", "chromium-browser", "google-chrome"].into_iter().find_map(|name| {
+        let args = ["--headless", "--no-sandbox", "--disable-gpu", "--dump-dom", url.as_str()];
+        std::process::Command::new(name).args(args).output().ok().filter(|o| o.status.success())
+    });
+    if let Some(output) = browser {
+        let dom = String::from_utf8_lossy(&output.stdout);
+        assert_eq!(dom.matches("<svg").count(), names.len(), "the browser sees every figure");
+        assert!(dom.contains("worst poses"), "and the tables");
+    }
 }
 
 #[test]
