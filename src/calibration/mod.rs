@@ -179,7 +179,8 @@ impl Calibration {
     /// the fitted model as it stands (no registration). Its markers must be among the fitted
     /// ones ([`Measurements::with_markers`] picks them). `noise` is the noise model fitted to
     /// `data`'s poses (a device's blocks are per pose), for the whitened residuals; without
-    /// it, the calibration's own whitening is used if it does not depend on the poses.
+    /// it, the calibration's own whitening is used, which must then not be per pose (an
+    /// error otherwise).
     pub fn evaluate(
         &self,
         name: &str,
@@ -191,6 +192,11 @@ impl Calibration {
         let whitening = match (noise, &self.whitening) {
             (Some(noise), _) => {
                 Whitening::Covariance(noise_for(Some(noise.clone()), data, rows).expect("given"))
+            }
+            (None, Whitening::Covariance(NoiseModel { measurement: MeasurementNoise::PerPoint(_), .. })) => {
+                return Err(CalibrationError::Markers(
+                    "the noise has one block per training pose: give the noise at these poses".into(),
+                ));
             }
             (None, w) => w.clone(),
         };

@@ -210,8 +210,11 @@ fn trend(
 pub fn pose_figures(sets: &[&SetEvaluation], joints: &[Joint]) -> Result<Vec<(String, String)>, FigureError> {
     let sets: Vec<&SetEvaluation> = sets.iter().copied().filter(|s| !s.poses.is_empty()).collect();
     let mut figures = Vec::new();
-    for set in &sets {
-        let name = format!("errors-by-pose-{}.svg", file_stem(&set.name));
+    for (i, set) in sets.iter().enumerate() {
+        // Two sets of one name (a file given twice) get two figures.
+        let twice = sets[..i].iter().any(|s| file_stem(&s.name) == file_stem(&set.name));
+        let suffix = if twice { format!("-{}", i + 1) } else { String::new() };
+        let name = format!("errors-by-pose-{}{suffix}.svg", file_stem(&set.name));
         let svg = pose_bars(set).map_err(|m| error(&name, m))?;
         figures.push((name, svg));
     }
