@@ -91,9 +91,9 @@ pub enum CalibrationError {
         /// Poses needed for one redundant equation.
         needed: usize,
     },
-    /// The markers of a set do not fit the model's.
+    /// A set of poses cannot be scored: its markers, or its noise, do not fit the model's.
     #[error("{0}")]
-    Markers(String),
+    Scoring(String),
 }
 
 /// Position errors of measured markers against a model (mm).
@@ -194,7 +194,7 @@ impl Calibration {
                 Whitening::Covariance(noise_for(Some(noise.clone()), data, rows).expect("given"))
             }
             (None, Whitening::Covariance(NoiseModel { measurement: MeasurementNoise::PerPoint(_), .. })) => {
-                return Err(CalibrationError::Markers(
+                return Err(CalibrationError::Scoring(
                     "the noise has one block per training pose: give the noise at these poses".into(),
                 ));
             }
@@ -234,7 +234,7 @@ impl Calibration {
         let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
         let probe = self.chains.len() == 1 && !self.chains[0].ends_at_a_point();
         if probe != (kind == Measured::Pose) {
-            return Err(CalibrationError::Markers(
+            return Err(CalibrationError::Scoring(
                 "a probe's calibration is scored on orientations too, and markers' on positions only".into(),
             ));
         }
@@ -243,7 +243,7 @@ impl Calibration {
             .iter()
             .map(|id| {
                 let at = self.marker_ids.iter().position(|m| m == id).ok_or_else(|| {
-                    CalibrationError::Markers(format!(
+                    CalibrationError::Scoring(format!(
                         "marker {id} was not fitted (fitted: {:?})",
                         self.marker_ids
                     ))
@@ -288,7 +288,7 @@ pub fn evaluate_model(
         for id in &data.marker_ids {
             let position = given.iter().find(|(m, _)| m == id).map(|(_, p)| *p).ok_or_else(|| {
                 let known: Vec<usize> = given.iter().map(|(m, _)| *m).collect();
-                CalibrationError::Markers(format!("the model has no marker {id} (it has {known:?})"))
+                CalibrationError::Scoring(format!("the model has no marker {id} (it has {known:?})"))
             })?;
             chosen.push(position);
         }

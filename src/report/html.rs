@@ -19,7 +19,8 @@ fn inline_svg(svg: &str) -> String {
 }
 
 /// The page titled `title`: `text` (the report as printed) in a preformatted block, each
-/// set's poses as a table (line, marker, error at each stage, whitened residual, flag), and
+/// set's poses as a table (line, marker, error at each stage, and a probe's orientation
+/// error, whitened residual, flag), and
 /// `figures` (`(file name, SVG text)`) inline.
 pub fn page(title: &str, text: &str, sets: &[&SetEvaluation], figures: &[(String, String)]) -> String {
     let mut out = String::new();
@@ -47,8 +48,12 @@ pub fn page(title: &str, text: &str, sets: &[&SetEvaluation], figures: &[(String
     for set in sets.iter().filter(|s| !s.poses.is_empty()) {
         let _ =
             writeln!(out, "<h2>Poses: {}</h2>\n<table>\n<tr><th>line</th><th>marker</th>", escape(&set.name));
+        let probe = set.orientation.is_some();
         for stage in &set.stages {
             let _ = write!(out, "<th>{} (mm)</th><th>x</th><th>y</th><th>z</th>", escape(stage));
+            if probe {
+                let _ = write!(out, "<th>{} (deg)</th>", escape(stage));
+            }
         }
         let _ = writeln!(out, "<th>whitened</th><th>worst (sd)</th><th>flagged</th></tr>");
         for p in &set.poses {
@@ -65,6 +70,9 @@ pub fn page(title: &str, text: &str, sets: &[&SetEvaluation], figures: &[(String
                         e[1],
                         e[2]
                     );
+                    if let Some(o) = &p.orientation {
+                        let _ = write!(out, "<td>{:.4}</td>", nalgebra::Vector3::from(o[s]).norm());
+                    }
                 }
                 let flag = if p.flagged { "yes" } else { "no" };
                 let _ =
