@@ -26,6 +26,9 @@ pub struct Measurements {
     pub joints: Vec<Vec<f64>>,
     /// Measured marker positions of each pose (mm), marker by marker.
     pub markers: Vec<Vec<Vector3<f64>>>,
+    /// The number of each marker in the file (`x3,y3,z3` is marker 3), in the order of
+    /// [`Measurements::markers`]; ascending.
+    pub marker_ids: Vec<usize>,
     /// Measurement standard deviation of each pose (mm), if the file gives one.
     pub sigma: Option<Vec<f64>>,
     /// Measured orientation of the frame at marker 1, if the file gives one.
@@ -57,11 +60,27 @@ impl Measurements {
         Self {
             joints: indices.iter().map(|&i| self.joints[i].clone()).collect(),
             markers: indices.iter().map(|&i| self.markers[i].clone()).collect(),
+            marker_ids: self.marker_ids.clone(),
             sigma: self.sigma.as_ref().map(|s| indices.iter().map(|&i| s[i]).collect()),
             orientations: self.orientations.as_ref().map(|o| indices.iter().map(|&i| o[i]).collect()),
             lines: indices.iter().map(|&i| self.lines[i]).collect(),
             ignored: self.ignored.clone(),
         }
+    }
+
+    /// The same poses with only the markers numbered `ids` that the file has, in the file's
+    /// order; `None` if it has none of them.
+    pub fn with_markers(&self, ids: &[usize]) -> Option<Self> {
+        let keep: Vec<usize> =
+            (0..self.marker_ids.len()).filter(|&m| ids.contains(&self.marker_ids[m])).collect();
+        if keep.is_empty() {
+            return None;
+        }
+        Some(Self {
+            markers: self.markers.iter().map(|pose| keep.iter().map(|&m| pose[m]).collect()).collect(),
+            marker_ids: keep.iter().map(|&m| self.marker_ids[m]).collect(),
+            ..self.clone()
+        })
     }
 
     /// Read a measurement file's text for `model`. `units` declared by the caller take the
@@ -81,6 +100,7 @@ impl Measurements {
         let mut data = Self {
             joints: Vec::new(),
             markers: Vec::new(),
+            marker_ids: columns.markers.iter().map(|m| m.0).collect(),
             sigma: columns.sigma.map(|_| Vec::new()),
             orientations: (!columns.orientation.is_empty()).then(Vec::new),
             lines: Vec::new(),
@@ -105,8 +125,8 @@ impl Measurements {
 struct Columns {
     /// One per joint of the model.
     joints: Vec<usize>,
-    /// `x_k, y_k, z_k` of each marker.
-    markers: Vec<[usize; 3]>,
+    /// The number `k` and the columns `x_k, y_k, z_k` of each marker, by number.
+    markers: Vec<(usize, [usize; 3])>,
     /// The `sigma` column, if any.
     sigma: Option<usize>,
     /// `qw,qx,qy,qz` or `roll,pitch,yaw`, or none.
@@ -119,19 +139,22 @@ impl Columns {
         let at_header =
             |column: Option<&str>, message: String| DataError::new(table.header_line, column, message);
         let joints = table.joint_columns(model)?;
+        // Markers are numbered by their columns: `x1,y1,z1`, `x3,y3,z3`, ... (gaps allowed).
         let mut markers = Vec::new();
-        while let Some(x) = table.column(&format!("x{}", markers.len() + 1)) {
-            let k = markers.len() + 1;
+        for name in &table.header {
+            let Some(k) = name.strip_prefix('x').and_then(|n| n.parse::<usize>().ok()).filter(|&k| k > 0)
+            else {
+                continue;
+            };
+            let x = table.column(name).expect("a header cell");
             match (table.column(&format!("y{k}")), table.column(&format!("z{k}"))) {
-                (Some(y), Some(z)) => markers.push([x, y, z]),
+                (Some(y), Some(z)) => markers.push((k, [x, y, z])),
                 _ => {
-                    return Err(at_header(
-                        Some(&format!("x{k}")),
-                        format!("marker {k} needs y{k} and z{k} too"),
-                    ));
+                    return Err(at_header(Some(name), format!("marker {k} needs y{k} and z{k} too")));
                 }
             }
         }
+        markers.sort_by_key(|m| m.0);
         if markers.is_empty() {
             return Err(at_header(None, "no marker columns: expected x1,y1,z1 (and x2,y2,z2, ...)".into()));
         }
@@ -157,10 +180,11 @@ impl Columns {
 
     /// The header's columns that none of the quantities uses.
     fn ignored(&self, table: &Table) -> Vec<String> {
-        let used: Vec<usize> = (self.joints.iter().chain(self.markers.iter().flatten()).chain(&self.sigma))
-            .chain(&self.orientation)
-            .copied()
-            .collect();
+        let used: Vec<usize> =
+            (self.joints.iter().chain(self.markers.iter().flat_map(|m| &m.1)).chain(&self.sigma))
+                .chain(&self.orientation)
+                .copied()
+                .collect();
         (0..table.header.len()).filter(|i| !used.contains(i)).map(|i| table.header[i].clone()).collect()
     }
 
@@ -168,7 +192,7 @@ impl Columns {
     fn markers(&self, table: &Table, row: &Row, units: Units) -> Result<Vec<Vector3<f64>>, DataError> {
         self.markers
             .iter()
-            .map(|&[x, y, z]| {
+            .map(|&(_, [x, y, z])| {
                 Ok(Vector3::new(table.number(row, x)?, table.number(row, y)?, table.number(row, z)?)
                     * units.length_scale())
             })

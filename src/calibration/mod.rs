@@ -4,7 +4,9 @@
 //!    placed by the best rigid fit (Kabsch 1976) of the nominal marker positions onto the
 //!    measured ones.
 //! 2. "Before": the base and the markers fitted, the joints nominal. This is the robot as it
-//!    is, seen from the device; its errors are what calibration has to beat.
+//!    is, seen from the device; its errors are what calibration has to beat. It is fitted by
+//!    ordinary least squares whatever the estimator, so that it minimises the very distances
+//!    it reports and does not depend on the weighting chosen for step 3.
 //! 3. "After": the joint parameters estimated with the base and markers, by Gauss-Newton on
 //!    the chosen estimator. Parameters that the poses cannot tell apart are found by the
 //!    rank-revealing solve and held at their values, deterministically (QR with column
@@ -13,9 +15,11 @@
 //! Errors are in mm and rad inside, and are folded into a calibrated model at the end.
 
 mod data;
+pub mod evaluation;
 mod repeatability;
 
 pub use data::Measurements;
+pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
 };
@@ -88,6 +92,9 @@ pub enum CalibrationError {
         /// Poses needed for one redundant equation.
         needed: usize,
     },
+    /// A set of poses cannot be scored: its markers, or its noise, do not fit the model's.
+    #[error("{0}")]
+    Scoring(String),
 }
 
 /// Position errors of measured markers against a model (mm).
@@ -144,6 +151,15 @@ pub struct Calibration {
     pub fixed: Vec<String>,
     /// Errors on the poses used for fitting, before and after.
     pub training: (ErrorStats, ErrorStats),
+    /// The training poses scored pose by pose and marker by marker, before and after.
+    pub training_poses: SetEvaluation,
+    /// The numbers of the markers fitted (the data's `x<k>` columns), chain by chain.
+    pub marker_ids: Vec<usize>,
+    /// How residuals are whitened to flag poses: the noise model of the fit, or the spread
+    /// of the training residuals without one.
+    pub whitening: Whitening,
+    /// Feasible GLS only: whether its variance components settled.
+    pub noise_settled: Option<bool>,
     /// Things a careful engineer should look at.
     pub warnings: Vec<String>,
     /// The noise estimated from the residuals by feasible GLS ([`calibrate_feasible`]).
@@ -159,6 +175,136 @@ impl Calibration {
             ErrorStats::of(&errors(&self.chains, &self.after, data)),
         )
     }
+
+    /// `data` (named `name`) scored before and after, pose by pose and marker by marker, with
+    /// the fitted model as it stands (no registration). Its markers must be among the fitted
+    /// ones ([`Measurements::with_markers`] picks them). `noise` is the noise model fitted to
+    /// `data`'s poses (a device's blocks are per pose), for the whitened residuals; without
+    /// it, the calibration's own whitening is used, which must then not be per pose (an
+    /// error otherwise).
+    pub fn evaluate(
+        &self,
+        name: &str,
+        data: &Measurements,
+        noise: Option<&NoiseModel>,
+    ) -> Result<SetEvaluation, CalibrationError> {
+        let (chains, kind) = self.chains_for(data)?;
+        let rows = kind.rows() * chains.len();
+        let whitening = match (noise, &self.whitening) {
+            (Some(noise), _) => {
+                Whitening::Covariance(noise_for(Some(noise.clone()), data, rows).expect("given"))
+            }
+            (None, Whitening::Covariance(NoiseModel { measurement: MeasurementNoise::PerPoint(_), .. })) => {
+                return Err(CalibrationError::Scoring(
+                    "the noise has one block per training pose: give the noise at these poses".into(),
+                ));
+            }
+            (None, w) => w.clone(),
+        };
+        let scored = evaluation::Scored { chains: &chains, marker_ids: &data.marker_ids, kind };
+        evaluation::evaluate(
+            name,
+            &scored,
+            data,
+            &[("before", &self.before), ("after", &self.after)],
+            &whitening,
+        )
+    }
+
+    /// The calibrated markers, numbered as in the data, positions in the last joint frame
+    /// (mm), as the calibrated model's tool is: the nominal ones (in the model's
+    /// [marker frame](RobotModel::marker_frame)) with their estimates; empty for a probe (its
+    /// frame is the calibrated model's tool).
+    pub fn marker_positions(&self) -> Vec<(usize, Vector3<f64>)> {
+        let frame = self.registered.marker_frame().isometry();
+        if !self.chains.iter().all(Chain::ends_at_a_point) {
+            return Vec::new();
+        }
+        let value =
+            |m, kind| self.params.index_of(ParamOwner::Marker(m), kind).map_or(0.0, |i| self.after[i]);
+        (self.marker_ids.iter().zip(&self.markers).enumerate())
+            .map(|(m, (id, p))| {
+                let p =
+                    p + Vector3::new(value(m, ParamKind::X), value(m, ParamKind::Y), value(m, ParamKind::Z));
+                (*id, frame.transform_point(&p.into()).coords)
+            })
+            .collect()
+    }
+
+    /// The chains of `data`'s markers.
+    fn chains_for(&self, data: &Measurements) -> Result<(Vec<Chain>, Measured), CalibrationError> {
+        let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
+        let probe = self.chains.len() == 1 && !self.chains[0].ends_at_a_point();
+        if probe != (kind == Measured::Pose) {
+            return Err(CalibrationError::Scoring(
+                "a probe's calibration is scored on orientations too, and markers' on positions only".into(),
+            ));
+        }
+        let chains = data
+            .marker_ids
+            .iter()
+            .map(|id| {
+                let at = self.marker_ids.iter().position(|m| m == id).ok_or_else(|| {
+                    CalibrationError::Scoring(format!(
+                        "marker {id} was not fitted (fitted: {:?})",
+                        self.marker_ids
+                    ))
+                })?;
+                Ok(self.chains[at].clone())
+            })
+            .collect::<Result<_, CalibrationError>>()?;
+        Ok((chains, kind))
+    }
+}
+
+/// Score `data` with `model` as it stands: its base, its joints, and its markers (`markers`,
+/// numbered, mm in the last joint frame; empty: the tool is marker 1, a point or a probe
+/// frame). No registration, no fit: the single stage is named `model`. `noise`, fitted to
+/// `data`'s poses, whitens the residuals; without it they are divided by their own spread
+/// (`sqrt(|r|^2 / N_m)`, nothing being fitted).
+pub fn evaluate_model(
+    model: &RobotModel,
+    markers: &[(usize, Vector3<f64>)],
+    name: &str,
+    data: &Measurements,
+    noise: Option<&NoiseModel>,
+) -> Result<SetEvaluation, CalibrationError> {
+    let probe = data.orientations.is_some();
+    // The chains place markers and probes in the model's marker frame (its tool frame, when the
+    // tool is a frame); the markers given are in the last joint frame.
+    let frame = model.marker_frame().isometry();
+    let (chains, ids): (Vec<Chain>, Vec<usize>) = if probe {
+        let at_tool = Placement { xyz: model.tool_point_in_marker_frame(), rpy: Vector3::zeros() };
+        (vec![Chain::probe(model, &at_tool)], vec![1])
+    } else {
+        let given: Vec<(usize, Vector3<f64>)> = if markers.is_empty() {
+            vec![(1, model.tool_point_in_marker_frame())]
+        } else {
+            markers.iter().map(|(id, p)| (*id, frame.inverse_transform_point(&(*p).into()).coords)).collect()
+        };
+        let mut chosen = Vec::new();
+        for id in &data.marker_ids {
+            let position = given.iter().find(|(m, _)| m == id).map(|(_, p)| *p).ok_or_else(|| {
+                let known: Vec<usize> = given.iter().map(|(m, _)| *m).collect();
+                CalibrationError::Scoring(format!("the model has no marker {id} (it has {known:?})"))
+            })?;
+            chosen.push(position);
+        }
+        (Chain::markers(model, &chosen), data.marker_ids.clone())
+    };
+    let kind = if probe { Measured::Pose } else { Measured::Position };
+    let zero = vec![0.0; chains[0].params().len()];
+    let rows = kind.rows() * chains.len();
+    let whitening = match noise {
+        Some(noise) => Whitening::Covariance(noise_for(Some(noise.clone()), data, rows).expect("given")),
+        None => {
+            let r = errors(&chains, &zero, data);
+            let rows = r.len() * 3;
+            Whitening::Spread((r.iter().map(|e| e.norm_squared()).sum::<f64>() / rows.max(1) as f64).sqrt())
+        }
+    };
+    let scored = evaluation::Scored { chains: &chains, marker_ids: &ids, kind };
+    evaluation::evaluate(name, &scored, data, &[("model", &zero)], &whitening)
 }
 
 /// Measured minus predicted marker positions of every pose, pose by pose.
@@ -205,7 +351,7 @@ pub fn calibrate(
     let kind = if probe.is_some() { Measured::Pose } else { Measured::Position };
     let rows = kind.rows() * chains.len();
     let params = chains[0].params().clone();
-    let noise = noise_for(options, data, rows);
+    let noise = noise_for(options.noise.clone(), data, rows);
     let observed = observed(data);
     let zero = vec![0.0; params.len()];
 
@@ -221,17 +367,18 @@ pub fn calibrate(
         noise.as_ref(),
     )?;
 
-    // One set of weights for every stage.
+    // The estimator's weights for the calibration.
     let weights = Weights::for_problem(&base_problem, options.estimator)?;
 
-    // "Before": base and markers only.
+    // "Before": base and markers only, by ordinary least squares whatever the estimator.
     let frame = selection(&params, &JointParams::None, options)?;
     let before = if frame.is_empty() {
-        zero
+        zero.clone()
     } else {
-        let problem = base_problem.reselect(&frame, zero)?;
-        let start = linearise(&problem, &weights, problem.start())?;
-        let fitted = refine_from(&problem, &weights, start, &RefineOptions::default())?;
+        let unweighted = Weights::for_problem(&base_problem, Estimator::Ols)?;
+        let problem = base_problem.reselect(&frame, zero.clone())?;
+        let start = linearise(&problem, &unweighted, problem.start())?;
+        let fitted = refine_from(&problem, &unweighted, start, &RefineOptions::default())?;
         problem.full(&fitted.estimate.x)
     };
 
@@ -248,6 +395,23 @@ pub fn calibrate(
             needed,
         });
     }
+    if asked.is_empty() {
+        // Nothing to estimate: the model as it stands is scored.
+        return Ok(finish(Stages {
+            registered,
+            probe,
+            markers,
+            params,
+            before: before.clone(),
+            after: before,
+            refined: Refined { estimate: nothing_estimated(), history: Vec::new(), converged: true },
+            fixed: Vec::new(),
+            chains,
+            noise,
+            data,
+            marker_ids: data.marker_ids.clone(),
+        }));
+    }
     // The identifiable subset starts from the system that found it.
     let problem = base_problem.reselect(&asked, before.clone())?;
     let at_before = linearise(&problem, &weights, problem.start())?;
@@ -259,27 +423,103 @@ pub fn calibrate(
     let start = at_before.select(&diagnostics.identifiable);
     let estimate = refine_from(&problem, &weights, start, &options.refine)?;
     let after = problem.full(&estimate.estimate.x);
-    let final_problem = base_problem.reselect(&kept, after.clone())?;
-
-    let training =
-        (ErrorStats::of(&errors(&chains, &before, data)), ErrorStats::of(&errors(&chains, &after, data)));
-    let calibrated = fold(&registered, &params, &after, &markers, probe.as_ref());
-    let rank = estimate.estimate.diagnostics.rank;
-    let warnings = warnings(&params, (&before, &after), rank, data, &final_problem);
-    Ok(Calibration {
+    Ok(finish(Stages {
         registered,
-        calibrated,
+        probe,
         markers,
         params,
         before,
         after,
         refined: estimate,
         fixed,
+        chains,
+        noise,
+        data,
+        marker_ids: data.marker_ids.clone(),
+    }))
+}
+
+/// The results of the stages of [`calibrate`], to be scored and gathered.
+struct Stages<'a> {
+    registered: RobotModel,
+    probe: Option<Placement>,
+    markers: Vec<Vector3<f64>>,
+    params: ParamSet,
+    before: Vec<f64>,
+    after: Vec<f64>,
+    refined: Refined,
+    fixed: Vec<String>,
+    chains: Vec<Chain>,
+    noise: Option<NoiseModel>,
+    data: &'a Measurements,
+    marker_ids: Vec<usize>,
+}
+
+/// The calibration of `s`: the training poses scored, the model folded, the warnings.
+fn finish(s: Stages<'_>) -> Calibration {
+    let kind = if s.probe.is_some() { Measured::Pose } else { Measured::Position };
+    let rank = s.refined.estimate.diagnostics.rank;
+    let whitening = match &s.noise {
+        Some(noise) => Whitening::Covariance(noise.clone()),
+        None => {
+            let nothing = Selection::from_indices(&s.params, []);
+            let problem = PointProblem::new(
+                &s.chains,
+                &nothing,
+                kind,
+                s.data.joints.clone(),
+                observed(s.data),
+                s.after.clone(),
+                None,
+            )
+            .expect("the training problem was built by the fit");
+            let r = problem.evaluate(&DVector::zeros(0), None);
+            let dof = r.len().saturating_sub(rank).max(1);
+            Whitening::Spread((r.norm_squared() / dof as f64).sqrt())
+        }
+    };
+    let scored = evaluation::Scored { chains: &s.chains, marker_ids: &s.marker_ids, kind };
+    let stages: [(&str, &[f64]); 2] = [("before", &s.before), ("after", &s.after)];
+    let training_poses = evaluation::evaluate("training", &scored, s.data, &stages, &whitening)
+        .expect("the training poses were scored by the fit itself");
+    let training = (training_poses.pooled[0], training_poses.pooled[1]);
+    let calibrated = fold(&s.registered, &s.params, &s.after, &s.markers, s.probe.as_ref());
+    let warnings = warnings(&s.params, (&s.before, &s.after), &training_poses);
+    Calibration {
+        registered: s.registered,
+        calibrated,
+        markers: s.markers,
+        params: s.params,
+        before: s.before,
+        after: s.after,
+        refined: s.refined,
+        fixed: s.fixed,
         training,
+        training_poses,
+        marker_ids: s.marker_ids,
+        whitening,
+        noise_settled: None,
         warnings,
         noise_estimate: None,
-        chains,
-    })
+        chains: s.chains,
+    }
+}
+
+/// The estimate of no parameters: what [`calibrate`] reports when it only scores.
+fn nothing_estimated() -> crate::estimation::LinearEstimate {
+    crate::estimation::LinearEstimate {
+        names: Vec::new(),
+        x: DVector::zeros(0),
+        covariance: DMatrix::zeros(0, 0),
+        cost: 0.0,
+        diagnostics: crate::estimation::Diagnostics {
+            rank: 0,
+            singular_values: Vec::new(),
+            condition_number: f64::NAN,
+            identifiable: Vec::new(),
+            not_identifiable: Vec::new(),
+        },
+    }
 }
 
 /// What was measured at every pose, marker by marker, as frames (the orientation of the probe
@@ -347,6 +587,7 @@ pub fn calibrate_feasible(
         }
         calibration = calibrate(model, &data, &options)?;
     }
+    calibration.noise_settled = Some(settled_at.is_some());
     if settled_at.is_none() {
         calibration.warnings.push(format!(
             "feasible GLS: the variance components did not settle in {} re-weightings",
@@ -466,8 +707,8 @@ fn selection(
 /// The noise model, with the data's `sigma` column as the measurement noise when present.
 /// `rows` per pose: 3 per marker, or 6 for a probe, whose orientation rows keep the noise
 /// model's orientation sigma.
-fn noise_for(options: &Options, data: &Measurements, rows: usize) -> Option<NoiseModel> {
-    let mut noise = options.noise.clone()?;
+fn noise_for(noise: Option<NoiseModel>, data: &Measurements, rows: usize) -> Option<NoiseModel> {
+    let mut noise = noise?;
     if let Some(sigmas) = &data.sigma {
         let orientation = match &noise.measurement {
             MeasurementNoise::PerAxis(s) => s[3],
@@ -566,24 +807,16 @@ fn fold(
     let mounting = probe.copied().unwrap_or(Placement { xyz: first, rpy: Vector3::zeros() });
     let frame = model.marker_frame().isometry();
     let tool = Placement::from_isometry(&(frame * mounting.isometry() * displacement(ParamOwner::Marker(0))));
-    out.tool = match (probe, model.tool) {
-        (None, Tool::Point(_)) => Tool::Point(tool.xyz),
-        // keeps the tool frame's orientation (or the probe's), so markers stay in its axes
-        _ => Tool::Frame(tool),
-    };
+    // Markers end up in the last joint frame, as a point tool is; a probe is a frame.
+    out.tool = if probe.is_some() { Tool::Frame(tool) } else { Tool::Point(tool.xyz) };
     out
 }
 
-/// Implausible results: large length corrections, and residuals more than 5 standard
-/// deviations out once whitened by the full `V_k` of their pose (joint and measurement noise),
-/// or, without a noise model, by the residuals' own spread.
-fn warnings(
-    params: &ParamSet,
-    (before, after): (&[f64], &[f64]),
-    rank: usize,
-    data: &Measurements,
-    final_problem: &PointProblem<'_>,
-) -> Vec<String> {
+/// Implausible results: large length corrections, and the training poses flagged by
+/// [`evaluation`]: a residual more than [`FLAG_AT`] standard deviations out once whitened by
+/// the full `V_k` of their pose (joint and measurement noise), or, without a noise model, by
+/// the residuals' own spread.
+fn warnings(params: &ParamSet, (before, after): (&[f64], &[f64]), training: &SetEvaluation) -> Vec<String> {
     let mut out = Vec::new();
     for (i, p) in params.iter().enumerate() {
         let correction = after[i] - before[i];
@@ -594,29 +827,11 @@ fn warnings(
             ));
         }
     }
-    let mut z = final_problem.evaluate(&final_problem.start(), None);
-    let rows = final_problem.rows_per_point();
-    match final_problem.covariance() {
-        Some(v) => match Weights::new(Some(v), rows, Estimator::Wls, false) {
-            Ok(weights) => weights.apply(&mut z),
-            Err(_) => return out,
-        },
-        None => {
-            let dof = z.len().saturating_sub(rank).max(1);
-            let sigma = (z.norm_squared() / dof as f64).sqrt();
-            if sigma > 0.0 {
-                z /= sigma;
-            }
-        }
-    }
-    for (pose, block) in z.as_slice().chunks(rows).enumerate() {
-        let worst = block.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        if worst > 5.0 {
-            out.push(format!(
-                "line {}: a residual {worst:.1} standard deviations out after calibration",
-                data.lines[pose]
-            ));
-        }
+    for pose in training.flagged() {
+        out.push(format!(
+            "line {}: a residual {:.1} standard deviations out after calibration",
+            pose.line, pose.worst
+        ));
     }
     out
 }

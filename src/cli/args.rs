@@ -251,16 +251,68 @@ pub struct CalibrateArgs {
     /// k-fold cross-validation on the data (k >= 2, at most the number of poses).
     #[arg(long, value_parser = parse_count::<2>)]
     pub folds: Option<usize>,
-    /// Write the report as JSON here.
-    #[arg(long)]
-    pub json: Option<PathBuf>,
-    /// Write the calibrated model (TOML) here.
+    /// Fit with these markers of the data file only (their numbers, `x<k>` columns: `1,3`);
+    /// held-out files are scored on those of them they hold. Default: every marker.
+    #[arg(long, value_delimiter = ',', value_parser = parse_count::<1>)]
+    pub markers: Option<Vec<usize>>,
+    #[command(flatten)]
+    pub report: ReportArgs,
+    /// Write the calibrated model (TOML, with a [[markers]] list) here.
     #[arg(long)]
     pub out_model: Option<PathBuf>,
     /// Write the calibrated model as URDF here (URDF input only): the original file with the
     /// calibrated joint origins, a `measuring_frame` link and a `tool` link (marker 1).
     #[arg(long)]
     pub out_urdf: Option<PathBuf>,
+}
+
+/// Where the report of scored poses goes, besides standard output.
+#[derive(Args, Debug, Clone, Default, PartialEq)]
+pub struct ReportArgs {
+    /// Write the report as JSON here (every pose of every set included).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write every pose of every set here (CSV: one row per pose and marker; errors before and
+    /// after, whitened residual, flag).
+    #[arg(long, value_name = "FILE")]
+    pub poses_csv: Option<PathBuf>,
+    /// Write the figures here (SVG): per-pose errors, histogram, errors against each joint.
+    #[arg(long, value_name = "DIR")]
+    pub figures: Option<PathBuf>,
+    /// Write one self-contained HTML page here: the report's tables and figures inline.
+    #[arg(long, value_name = "FILE")]
+    pub html: Option<PathBuf>,
+}
+
+/// The flags of `robocal evaluate`.
+#[derive(Args, Debug)]
+pub struct EvaluateArgs {
+    /// The model to score as it stands: a model TOML file (as `calibrate --out-model` writes
+    /// it, with its [[markers]]), a preset, or a URDF file (as `calibrate --out-urdf` writes
+    /// it).
+    #[arg(long)]
+    pub model: String,
+    /// URDF: the link the chain starts from.
+    #[arg(long, default_value = "measuring_frame")]
+    pub base_link: String,
+    /// URDF: the link the chain ends at (its markers are the `marker_<k>` links beside it).
+    #[arg(long, default_value = "tool")]
+    pub tip_link: String,
+    /// Measurement files to score (CSV); repeatable, or several after one --data.
+    #[arg(long, required = true, num_args = 1..)]
+    pub data: Vec<PathBuf>,
+    #[command(flatten)]
+    pub units: UnitArgs,
+    /// A noise file (TOML) for the whitened residuals.
+    #[arg(long)]
+    pub noise: Option<PathBuf>,
+    #[command(flatten)]
+    pub noise_flags: NoiseArgs,
+    /// Score these markers only (their numbers: `1,3`). Default: every marker of each file.
+    #[arg(long, value_delimiter = ',', value_parser = parse_count::<1>)]
+    pub markers: Option<Vec<usize>>,
+    #[command(flatten)]
+    pub report: ReportArgs,
 }
 
 /// The robot, parameters, measurements and noise of `observability` and `plan`.

@@ -3,9 +3,12 @@
 //! computed before anything is written.
 
 use super::request::{CalibrateRequest, Method, NoiseSource};
-use super::{check_marker_count, noise_model, write_file};
+use super::{check_marker_count, noise_model, write_file, write_report_files};
 use anyhow::{Context, Result, bail};
-use robocal::calibration::{self, Calibration, ErrorStats, FeasibleOptions, Measurements, Options};
+use robocal::calibration::{
+    self, Calibration, ErrorStats, FeasibleOptions, Measurements, Options, SetEvaluation,
+};
+use robocal::estimation::NoiseModel;
 use robocal::estimation::RefineOptions;
 use robocal::io::{self, UrdfChain};
 use robocal::model::{ModelRef, RobotModel};
@@ -40,13 +43,15 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
             calibration::calibrate_feasible(&robot.model, &data.fit, &options, &FeasibleOptions::default())?
         }
     };
-    let validation = validate(request, &robot.model, &data, &options, &result)?;
+    let (held_out, folds) = validate(request, &robot.model, &data, &options, &result)?;
     let name = request.method.name();
-    let report = CalibrationReport::new(&result, &request.data.display().to_string(), name, validation);
-    print!("{}", report.text());
-    write(request, &robot, &report, &result)
+    let report = CalibrationReport::new(&result, &request.data.display().to_string(), name, held_out, folds);
+    let text = report.text();
+    print!("{text}");
+    write(request, &robot, &report, &result, &text)
 }
 
+/// The model of a preset, a model file, or a URDF chain (for `evaluate`).
 /// Load the model: a preset, a model file, or a URDF chain.
 fn load_model(model: &ModelRef) -> Result<Robot> {
     if model.is_urdf() {
@@ -59,14 +64,37 @@ fn load_model(model: &ModelRef) -> Result<Robot> {
 
 /// Load the measurements and the held-out files.
 fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
-    let fit = io::load_measurements(&request.data, model, request.units)?;
+    let mut fit = io::load_measurements(&request.data, model, request.units)?;
     if !fit.ignored.is_empty() {
         eprintln!("note: {}: ignoring columns {}", request.data.display(), fit.ignored.join(", "));
+    }
+    if let Some(ids) = &request.marker_ids {
+        fit = fit.with_markers(ids).with_context(|| {
+            format!("--markers {ids:?}: {} has markers {:?}", request.data.display(), fit.marker_ids)
+        })?;
+        if let Some(missing) = ids.iter().find(|id| !fit.marker_ids.contains(id)) {
+            bail!(
+                "--markers: {} has no marker {missing} (it has {:?})",
+                request.data.display(),
+                fit.marker_ids
+            );
+        }
     }
     let held_out = request
         .validate
         .iter()
-        .map(|path| Ok((path.display().to_string(), io::load_measurements(path, model, request.units)?)))
+        .map(|path| {
+            let all = io::load_measurements(path, model, request.units)?;
+            let scored = all.with_markers(&fit.marker_ids).with_context(|| {
+                format!(
+                    "{}: none of the fitted markers {:?} (it has {:?})",
+                    path.display(),
+                    fit.marker_ids,
+                    all.marker_ids
+                )
+            })?;
+            Ok((path.display().to_string(), scored))
+        })
         .collect::<Result<_>>()?;
     Ok(Data { fit, held_out })
 }
@@ -74,10 +102,12 @@ fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
 /// The rules that need the files' contents: the markers against the data, the held-out files'
 /// markers, the folds against the poses. (The joint sigmas are counted by [`noise_model`].)
 fn check_against_the_files(request: &CalibrateRequest, data: &Data) -> Result<()> {
-    let markers = data.fit.marker_count();
-    check_marker_count(request.markers.len(), &request.data, markers)?;
-    if data.held_out.iter().any(|(_, d)| d.marker_count() != markers) {
-        bail!("the validation files must have the markers of {}", request.data.display());
+    let highest = data.fit.marker_ids.iter().copied().max().unwrap_or(0);
+    check_marker_count(request.markers.len(), &request.data, highest)?;
+    if let Some((name, _)) =
+        data.held_out.iter().find(|(_, d)| d.orientations.is_some() != data.fit.orientations.is_some())
+    {
+        bail!("{name}: orientation columns must be as in {}", request.data.display());
     }
     if let Some(k) = request.folds.filter(|&k| k > data.fit.len()) {
         bail!("--folds {k}: expected 2 to {} (the number of poses)", data.fit.len());
@@ -88,7 +118,29 @@ fn check_against_the_files(request: &CalibrateRequest, data: &Data) -> Result<()
 /// The library's options: the noise (from its file or the flags), the estimator, the
 /// parameters, the markers and the iterations.
 fn options(request: &CalibrateRequest, model: &RobotModel, data: &Measurements) -> Result<Options> {
-    let noise = match &request.noise {
+    let noise = noise_for(request.noise.as_ref(), model, data)?;
+    // The k-th --marker is marker k of the file; the fitted ones are picked by number.
+    let markers =
+        data.marker_ids.iter().map(|&id| request.markers.get(id - 1).copied().unwrap_or_default()).collect();
+    Ok(Options {
+        estimator: request.method.estimator(),
+        noise,
+        joints: request.joints.clone(),
+        estimate_base: request.estimate_base,
+        estimate_markers: request.estimate_markers,
+        markers,
+        refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
+    })
+}
+
+/// The noise of `source` at the poses of `data`: the flags' everywhere, a noise file's device
+/// at each measured marker.
+pub(super) fn noise_for(
+    source: Option<&NoiseSource>,
+    model: &RobotModel,
+    data: &Measurements,
+) -> Result<Option<NoiseModel>> {
+    Ok(match source {
         None => None,
         Some(NoiseSource::Flags(flags)) => Some(noise_model(model, flags)?),
         Some(NoiseSource::File(path)) => {
@@ -97,58 +149,59 @@ fn options(request: &CalibrateRequest, model: &RobotModel, data: &Measurements) 
                 .with_context(|| format!("{}: the device's covariance", path.display()))?;
             Some(noise)
         }
-    };
-    Ok(Options {
-        estimator: request.method.estimator(),
-        noise,
-        joints: request.joints.clone(),
-        estimate_base: request.estimate_base,
-        estimate_markers: request.estimate_markers,
-        markers: request.markers.clone(),
-        refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
     })
 }
 
-/// Before and after on each held-out file, then the cross-validation if asked for.
+/// Each held-out file scored pose by pose, then the cross-validation if asked for.
+#[allow(clippy::type_complexity)]
 fn validate(
     request: &CalibrateRequest,
     model: &RobotModel,
     data: &Data,
     options: &Options,
     result: &Calibration,
-) -> Result<Vec<(String, ErrorStats, ErrorStats)>> {
-    let mut validation: Vec<_> = data
+) -> Result<(Vec<SetEvaluation>, Option<(String, ErrorStats, ErrorStats)>)> {
+    let held_out = data
         .held_out
         .iter()
         .map(|(name, d)| {
-            let (before, after) = result.validate(d);
-            (name.clone(), before, after)
+            let noise = match (&request.method, &result.noise_estimate) {
+                (Method::Feasible, Some(estimate)) => Some(estimate.noise_model()),
+                _ => noise_for(request.noise.as_ref(), model, d)?,
+            };
+            Ok(result.evaluate(name, d, noise.as_ref())?)
         })
-        .collect();
-    if let Some(k) = request.folds {
-        let (before, after) = calibration::cross_validate(model, &data.fit, options, k)?;
-        validation.push((format!("{k}-fold cross-validation"), before, after));
-    }
-    Ok(validation)
+        .collect::<Result<_>>()?;
+    let folds = match request.folds {
+        Some(k) => {
+            let (before, after) = calibration::cross_validate(model, &data.fit, options, k)?;
+            Some((format!("{k}-fold cross-validation"), before, after))
+        }
+        None => None,
+    };
+    Ok((held_out, folds))
 }
 
-/// Write the JSON report, the calibrated model and the calibrated URDF, as asked.
+/// Write the JSON report, the poses, the figures, the page, the calibrated model and the
+/// calibrated URDF, as asked.
 fn write(
     request: &CalibrateRequest,
     robot: &Robot,
     report: &CalibrationReport,
     result: &Calibration,
+    text: &str,
 ) -> Result<()> {
-    if let Some(path) = &request.json {
-        write_file(path, serde_json::to_string_pretty(report)? + "\n")?;
-    }
+    let title = format!("calibration of {} from {}", report.model, report.data);
+    let json = serde_json::to_string_pretty(report)? + "\n";
+    write_report_files(&request.report, &title, text, &json, &report.sets, &result.registered.joints)?;
+    let markers = result.marker_positions();
     if let Some(path) = &request.out_model {
-        write_file(path, result.calibrated.to_toml_string())?;
+        write_file(path, robocal::model::to_toml_with_markers(&result.calibrated, &markers))?;
     }
     if let (Some(path), Some(urdf)) = (&request.out_urdf, &robot.urdf) {
         let text =
             robocal::model::to_urdf_string(&urdf.text, &urdf.base_link, &urdf.tip_link, &result.calibrated)?;
-        write_file(path, text)?;
+        write_file(path, robocal::model::with_urdf_markers(&text, &markers)?)?;
     }
     Ok(())
 }

@@ -3,6 +3,7 @@
 
 mod args;
 mod calibrate;
+mod evaluate;
 mod fk;
 mod model;
 mod observability;
@@ -13,12 +14,13 @@ mod simulate;
 
 use anyhow::{Context, Result, bail};
 use args::{
-    CalibrateArgs, FkArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, SimulateArgs,
-    StudyOutputArgs,
+    CalibrateArgs, EvaluateArgs, FkArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs,
+    ReportArgs, SimulateArgs, StudyOutputArgs,
 };
 use clap::{Parser, Subcommand};
 use request::{
-    CalibrateRequest, DesignRequest, NoiseFlags, ObservabilityRequest, PlanRequest, RepeatabilityRequest,
+    CalibrateRequest, DesignRequest, EvaluateRequest, NoiseFlags, ObservabilityRequest, PlanRequest,
+    RepeatabilityRequest,
 };
 use robocal::design::Design;
 use robocal::estimation::{MeasurementNoise, NoiseModel};
@@ -54,6 +56,9 @@ enum Command {
     Fk(FkArgs),
     /// Calibrate a robot from measured marker positions.
     Calibrate(Box<CalibrateArgs>),
+    /// Score a model as it stands (a calibrated one, base and markers included) on
+    /// measurement files: no registration, no fit.
+    Evaluate(Box<EvaluateArgs>),
     /// Observability indices O1-O5 of a pose file (or a measurement file's joint columns).
     Observability(Box<ObservabilityArgs>),
     /// Plan measurement poses that maximise an observability criterion; writes a pose file.
@@ -74,6 +79,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Repeatability(args) => repeatability::run(&RepeatabilityRequest::from_args(*args)?),
         Command::Fk(args) => fk::run(&args),
         Command::Calibrate(args) => calibrate::run(&CalibrateRequest::from_args(*args)?),
+        Command::Evaluate(args) => evaluate::run(&EvaluateRequest::from_args(*args)?),
         Command::Observability(args) => observability::run(&ObservabilityRequest::from_args(*args)?),
         Command::Plan(args) => plan::run(&PlanRequest::from_args(*args)?),
         Command::Model { command } => model::run(&command),
@@ -83,6 +89,40 @@ pub fn run(cli: Cli) -> Result<()> {
 /// Write `text` to `path`, naming the file if that fails.
 fn write_file(path: &Path, text: impl AsRef<[u8]>) -> Result<()> {
     std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// The files of `report` that were asked for: the JSON, the poses (CSV), the figures (SVG)
+/// and the HTML page with `text`'s tables and the figures inline. `sets` have their joint
+/// values in degrees (mm for prismatic joints).
+fn write_report_files(
+    report: &ReportArgs,
+    title: &str,
+    text: &str,
+    json: &str,
+    sets: &[robocal::calibration::SetEvaluation],
+    joints: &[robocal::model::Joint],
+) -> Result<()> {
+    if let Some(path) = &report.json {
+        write_file(path, json)?;
+    }
+    let sets: Vec<&robocal::calibration::SetEvaluation> = sets.iter().collect();
+    if let Some(path) = &report.poses_csv {
+        write_file(path, robocal::report::poses::poses_csv(&sets, joints))?;
+    }
+    if report.figures.is_none() && report.html.is_none() {
+        return Ok(());
+    }
+    let figures = robocal::report::figures::pose_figures(&sets, joints)?;
+    if let Some(folder) = &report.figures {
+        std::fs::create_dir_all(folder).with_context(|| format!("{}: cannot create", folder.display()))?;
+        for (name, svg) in &figures {
+            write_file(&folder.join(name), svg)?;
+        }
+    }
+    if let Some(path) = &report.html {
+        write_file(path, robocal::report::html::page(title, text, &sets, &figures))?;
+    }
+    Ok(())
 }
 
 /// A joint value given on the command line (degrees; mm for a prismatic joint) in the model's

@@ -3,8 +3,9 @@
 //! contents are the commands' own.
 
 use super::args::{
-    CalibrateArgs, DesignArgs, EstimatorName, Excluded, JointUnit, LengthUnit, LinkArgs, MeasuredName,
-    ModelArgs, NoiseArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ToolBox, UnitArgs,
+    CalibrateArgs, DesignArgs, EstimatorName, EvaluateArgs, Excluded, JointUnit, LengthUnit, LinkArgs,
+    MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs,
+    ReportArgs, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::JointParams;
@@ -151,8 +152,10 @@ pub struct CalibrateRequest {
     pub validate: Vec<PathBuf>,
     /// k of the k-fold cross-validation (>= 2).
     pub folds: Option<usize>,
-    /// Where the JSON report goes.
-    pub json: Option<PathBuf>,
+    /// The markers to fit (numbers), or every marker of the data.
+    pub marker_ids: Option<Vec<usize>>,
+    /// Where the JSON, CSV, figures and HTML go.
+    pub report: ReportArgs,
     /// Where the calibrated model TOML goes.
     pub out_model: Option<PathBuf>,
     /// Where the calibrated URDF goes (URDF models only).
@@ -180,9 +183,50 @@ impl CalibrateRequest {
             iterations: args.iterations,
             validate: args.validate,
             folds: args.folds,
-            json: args.json,
+            marker_ids: args.markers,
+            report: args.report,
             out_model: args.out_model,
             out_urdf: args.out_urdf,
+        })
+    }
+}
+
+/// A validated `robocal evaluate`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvaluateRequest {
+    /// The model: a file or preset, or a URDF chain.
+    pub model: ModelRef,
+    /// The files to score.
+    pub data: Vec<PathBuf>,
+    /// The files' units, if given.
+    pub units: Option<Units>,
+    /// The noise for the whitened residuals, if given.
+    pub noise: Option<NoiseSource>,
+    /// The markers to score, or every marker of each file.
+    pub marker_ids: Option<Vec<usize>>,
+    /// Where the JSON, CSV, figures and HTML go.
+    pub report: ReportArgs,
+}
+
+impl EvaluateRequest {
+    /// The request, or the first rule between `args`' flags that it breaks.
+    pub fn from_args(args: EvaluateArgs) -> Result<Self, UsageError> {
+        // A calibrated URDF: the chain from its measuring frame to its tool, by default.
+        let links =
+            ModelRef { name: args.model, base_link: Some(args.base_link), tip_link: Some(args.tip_link) };
+        let model = if links.is_urdf() { links } else { ModelRef::named(links.name) };
+        let noise = noise_source(args.noise, args.noise_flags.flags())?;
+        require(
+            noise.is_some() || args.noise_flags.sigma_mm == 0.0,
+            "--sigma-mm needs --joint-sigma-deg too (zeros if the joints are exact)",
+        )?;
+        Ok(Self {
+            model,
+            data: args.data,
+            units: args.units.units()?,
+            noise,
+            marker_ids: args.markers,
+            report: args.report,
         })
     }
 }

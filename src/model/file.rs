@@ -38,6 +38,8 @@ struct ModelFile {
     /// The mass each joint moves, one table per joint (optional).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     links: Vec<LinkFile>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    markers: Vec<MarkerFile>,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -45,6 +47,15 @@ struct ModelFile {
 struct LinkFile {
     mass_kg: f64,
     com_mm: [f64; 3],
+}
+
+/// A marker of a calibrated model: its number (the measurement file's `x<id>` columns) and
+/// its position in the tool's frame, the last joint frame (mm).
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MarkerFile {
+    id: usize,
+    xyz_mm: [f64; 3],
 }
 
 #[derive(Serialize, Deserialize)]
@@ -305,8 +316,31 @@ pub(super) fn write(model: &RobotModel) -> String {
                 }
             })
             .collect(),
+        markers: Vec::new(),
     };
     toml::to_string(&file).expect("a model always serialises")
+}
+
+/// `model` as TOML with a `[[markers]]` list: the markers' numbers and positions (mm, the
+/// last joint frame, as the tool), which `calibrate --out-model` writes and `evaluate` reads.
+pub fn to_toml_with_markers(model: &RobotModel, markers: &[(usize, Vector3<f64>)]) -> String {
+    let mut file: ModelFile = toml::from_str(&write(model)).expect("a written model reads back");
+    file.markers = markers.iter().map(|(id, p)| MarkerFile { id: *id, xyz_mm: (*p).into() }).collect();
+    toml::to_string(&file).expect("a model always serialises")
+}
+
+/// The `[[markers]]` of a model file (empty without): number and position (mm, the last joint
+/// frame). Numbers are at least 1 and unique.
+pub fn markers_from_toml_str(text: &str) -> Result<Vec<(usize, Vector3<f64>)>, ModelError> {
+    let file: ModelFile = toml::from_str(text).map_err(ModelError::Syntax)?;
+    let mut out: Vec<(usize, Vector3<f64>)> = Vec::new();
+    for (i, m) in file.markers.iter().enumerate() {
+        if m.id == 0 || out.iter().any(|(id, _)| *id == m.id) {
+            return Err(invalid(format!("markers[{i}].id"), "a unique marker number >= 1"));
+        }
+        out.push((m.id, vector(&format!("markers[{i}].xyz_mm"), &m.xyz_mm)?));
+    }
+    Ok(out)
 }
 
 /// The shortest decimal number of degrees that reads back as exactly `radians`, so that a

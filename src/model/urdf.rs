@@ -318,3 +318,52 @@ fn origin_element(iso: &Isometry3<f64>) -> String {
         t.x, t.y, t.z, p.rpy.x, p.rpy.y, p.rpy.z
     )
 }
+
+/// A URDF written by [`to_urdf_string`] with a link `marker_<id>` for each of `markers`
+/// (numbers and positions, mm, in the last moving joint's frame), fixed to the link that
+/// carries `tool`.
+pub fn with_urdf_markers(urdf: &str, markers: &[(usize, Vector3<f64>)]) -> Result<String, ModelError> {
+    let document = roxmltree::Document::parse(urdf).map_err(ModelError::Xml)?;
+    let robot = document.root_element();
+    let parent = tool_parent(robot)?;
+    let mut extra = String::new();
+    for (id, p) in markers {
+        extra += &format!(
+            "  <link name=\"marker_{id}\"/>\n  <joint name=\"{parent}_to_marker_{id}\" type=\"fixed\">\n    <parent link=\"{parent}\"/>\n    <child link=\"marker_{id}\"/>\n    {}\n  </joint>\n",
+            origin_element(&Isometry3::translation(p.x, p.y, p.z))
+        );
+    }
+    let end = robot.range().end - "</robot>".len();
+    let mut out = urdf.to_string();
+    out.insert_str(end, &extra);
+    Ok(out)
+}
+
+/// The link that carries the `tool` link.
+fn tool_parent(robot: roxmltree::Node<'_, '_>) -> Result<String, ModelError> {
+    robot
+        .children()
+        .filter(|n| n.has_tag_name("joint"))
+        .find(|j| link_of(j, "child") == "tool")
+        .map(|j| link_of(&j, "parent"))
+        .ok_or_else(|| invalid("tool".into(), "a link `tool` fixed to the last link, as calibrate writes"))
+}
+
+/// The markers of a URDF written by `calibrate --out-urdf`: each link `marker_<id>` fixed to
+/// the link that carries `tool`, its position in mm (empty if there are none).
+pub fn markers_from_urdf_str(text: &str) -> Result<Vec<(usize, Vector3<f64>)>, ModelError> {
+    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
+    let robot = document.root_element();
+    let Ok(parent) = tool_parent(robot) else { return Ok(Vec::new()) };
+    let mut out = Vec::new();
+    for joint in robot.children().filter(|n| n.has_tag_name("joint")) {
+        let child = link_of(&joint, "child");
+        let Some(id) = child.strip_prefix("marker_").and_then(|n| n.parse::<usize>().ok()) else { continue };
+        if link_of(&joint, "parent") != parent {
+            continue;
+        }
+        out.push((id, origin(joint, &format!("joint to `{child}`"))?.translation.vector));
+    }
+    out.sort_by_key(|m| m.0);
+    Ok(out)
+}

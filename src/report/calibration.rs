@@ -2,7 +2,8 @@
 //! before and after on the training and the validation poses, warnings. Text and JSON carry
 //! the same content.
 
-use crate::calibration::{Calibration, ErrorStats, standard_errors};
+use super::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
+use crate::calibration::{Calibration, ErrorStats, FLAG_AT, SetEvaluation, pool, standard_errors};
 use crate::estimation::{NoiseEstimate, SigmaInterval};
 use crate::model::{Joint, JointKind};
 use serde::Serialize;
@@ -24,8 +25,14 @@ pub struct CalibrationReport {
     pub estimator: String,
     /// Gauss-Newton steps taken.
     pub iterations: usize,
-    /// Whether a stopping rule was met.
+    /// Whether a stopping rule was met (and, for feasible GLS, its variance components
+    /// settled).
     pub converged: bool,
+    /// Feasible GLS only: whether its variance components settled.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_settled: Option<bool>,
+    /// Which weighting each number uses.
+    pub weighting: Weighting,
     /// The registered base: xyz (mm) and roll-pitch-yaw (deg).
     pub registered_base: [f64; 6],
     /// The identified parameters.
@@ -40,11 +47,46 @@ pub struct CalibrationReport {
     pub training: [ErrorStats; 2],
     /// Errors on held-out poses: `(source, before, after)`.
     pub validation: Vec<(String, ErrorStats, ErrorStats)>,
+    /// The training poses and each held-out file, pose by pose and marker by marker (joint
+    /// values in degrees, mm for prismatic joints).
+    pub sets: Vec<SetEvaluation>,
+    /// With several held-out files, all their poses pooled (summaries only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<SetEvaluation>,
     /// Things to look at.
     pub warnings: Vec<String>,
     /// The noise estimated by feasible GLS, with 95% intervals.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<Vec<NoiseRow>>,
+}
+
+/// Which weighting each number of a report uses.
+#[derive(Debug, Clone, Serialize)]
+pub struct Weighting {
+    /// The "before" fit of the base and markers.
+    pub before: String,
+    /// The "after" fit.
+    pub after: String,
+    /// The error tables.
+    pub errors: String,
+    /// The whitened residuals and the flags.
+    pub whitened: String,
+}
+
+/// `text` with the markers' parameters named by the markers' numbers in the data
+/// (`marker1.x` of a fit with markers `[2, 3]` is `marker2.x`).
+fn by_number(text: &str, ids: &[usize]) -> String {
+    text.split(' ')
+        .map(|word| {
+            let renamed = word.strip_prefix("marker").and_then(|rest| {
+                let (k, kind) = rest.split_once('.')?;
+                let id = ids.get(k.parse::<usize>().ok()?.checked_sub(1)?)?;
+                Some(format!("marker{id}.{kind}"))
+            });
+            renamed.unwrap_or_else(|| word.to_string())
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// One estimated noise component: a standard deviation with its 95% interval.
@@ -112,13 +154,15 @@ pub struct ParameterRow {
 }
 
 impl CalibrationReport {
-    /// Gather the report of `c`, fitted on `data` (a name) with `estimator`, and the
-    /// validation results already computed.
+    /// Gather the report of `c`, fitted on `data` (a name) with `estimator`: `held_out` are
+    /// the held-out files scored by [`Calibration::evaluate`], `folds` the k-fold
+    /// cross-validation if it ran (`(label, before, after)`).
     pub fn new(
         c: &Calibration,
         data: &str,
         estimator: &str,
-        validation: Vec<(String, ErrorStats, ErrorStats)>,
+        held_out: Vec<SetEvaluation>,
+        folds: Option<(String, ErrorStats, ErrorStats)>,
     ) -> Self {
         let se = standard_errors(c);
         let parameters = c
@@ -131,7 +175,7 @@ impl CalibrationReport {
                 let p = c.params.get(i);
                 let scale = if p.kind.is_angle() { 180.0 / std::f64::consts::PI } else { 1.0 };
                 ParameterRow {
-                    name: p.name.clone(),
+                    name: by_number(&p.name, &c.marker_ids),
                     value: c.after[i] * scale,
                     std_error: se[i] * scale,
                     unit: if p.kind.is_angle() { "deg" } else { "mm" },
@@ -140,14 +184,35 @@ impl CalibrationReport {
             .collect();
         let base = &c.registered.base;
         let d = &c.refined.estimate.diagnostics;
+        let joints = &c.registered.joints;
+        let pooled = (held_out.len() > 1)
+            .then(|| pool("held out, pooled", &held_out.iter().collect::<Vec<_>>()))
+            .flatten();
+        let mut validation: Vec<(String, ErrorStats, ErrorStats)> =
+            held_out.iter().map(|s| (s.name.clone(), s.pooled[0], s.pooled[1])).collect();
+        validation.extend(folds);
+        let sets =
+            std::iter::once(&c.training_poses).chain(&held_out).map(|s| in_degrees(s, joints)).collect();
+        let weighting = Weighting {
+            before: "base and markers fitted by ols (unweighted), joints nominal, whatever the estimator"
+                .into(),
+            after: format!("{estimator}: every parameter asked for that the poses identify"),
+            errors: "distances and their components, unweighted".into(),
+            whitened: format!(
+                "{}; flagged when a component exceeds {FLAG_AT} standard deviations",
+                c.whitening.describe()
+            ),
+        };
         Self {
             model: c.registered.name.clone(),
             data: data.to_string(),
-            poses: c.training.0.count / c.markers.len().max(1),
+            poses: c.training_poses.poses.len(),
             markers: c.markers.len(),
             estimator: estimator.to_string(),
             iterations: c.refined.history.len(),
-            converged: c.refined.converged,
+            converged: c.refined.converged && c.noise_settled != Some(false),
+            noise_settled: c.noise_settled,
+            weighting,
             registered_base: [
                 base.xyz.x,
                 base.xyz.y,
@@ -159,12 +224,41 @@ impl CalibrationReport {
             parameters,
             rank: d.rank,
             condition_number: d.condition_number,
-            fixed: c.fixed.clone(),
+            fixed: c.fixed.iter().map(|f| by_number(f, &c.marker_ids)).collect(),
             training: [c.training.0, c.training.1],
             validation,
+            sets,
+            held_out: pooled,
             warnings: c.warnings.clone(),
             noise: c.noise_estimate.as_ref().map(|e| noise_rows(&c.registered.joints, e)),
         }
+    }
+
+    /// The error tables: pooled per set (and the held-out files pooled, and k-fold), per
+    /// marker, and the worst poses.
+    pub fn error_tables(&self) -> String {
+        let mut pooled: Vec<&SetEvaluation> = self.sets.iter().collect();
+        pooled.extend(&self.held_out);
+        let folds: Vec<(String, ErrorStats)> = self
+            .validation
+            .iter()
+            .filter(|(name, _, _)| !self.sets.iter().any(|s| &s.name == name))
+            .flat_map(|(name, b, a)| [(format!("{name}, before"), *b), (format!("{name}, after"), *a)])
+            .collect();
+        let mut out = pooled_table(&pooled, &folds);
+        if self.markers > 1 {
+            let _ = writeln!(out);
+            out.push_str(&per_marker_table(&pooled));
+        }
+        let _ = writeln!(
+            out,
+            "
+worst poses after calibration ({} per set; every pose in --poses-csv, --json, --html):",
+            super::poses::WORST
+        );
+        let sets: Vec<&SetEvaluation> = self.sets.iter().collect();
+        out.push_str(&worst_poses(&sets));
+        out
     }
 
     /// The report as text, at fixed precision.
@@ -181,7 +275,11 @@ impl CalibrationReport {
             self.estimator,
             self.iterations,
             if self.iterations == 1 { "" } else { "s" },
-            if self.converged { "converged" } else { "not converged" }
+            match (self.converged, self.noise_settled) {
+                (true, _) => "converged",
+                (false, Some(false)) => "not converged: the variance components did not settle",
+                (false, _) => "not converged",
+            }
         );
         let b = &self.registered_base;
         let _ = writeln!(
@@ -193,38 +291,29 @@ impl CalibrationReport {
         for p in &self.parameters {
             let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
         }
-        let _ = writeln!(
-            out,
-            "\n{} parameters identified (rank {}), condition number {:.3e}",
-            self.parameters.len(),
-            self.rank,
-            self.condition_number
-        );
+        if self.parameters.is_empty() {
+            let _ = writeln!(out, "\nnothing estimated: the model is scored as it stands");
+        } else {
+            let _ = writeln!(
+                out,
+                "\n{} parameters identified (rank {}), condition number {:.3e}",
+                self.parameters.len(),
+                self.rank,
+                self.condition_number
+            );
+        }
         if !self.fixed.is_empty() {
             let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");
             for f in &self.fixed {
                 let _ = writeln!(out, "  {f}");
             }
         }
-        let width = self.validation.iter().map(|v| v.0.len() + 8).chain([27]).max().unwrap_or(27);
         let _ = writeln!(
             out,
-            "\n{:<width$} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
-            "marker position errors (mm)", "count", "mean", "rms", "max", "rms x", "rms y", "rms z"
+            "\nbefore:    {}\nafter:     {}\nerrors:    {}\nwhitened:  {}\n",
+            self.weighting.before, self.weighting.after, self.weighting.errors, self.weighting.whitened
         );
-        let mut row = |label: String, s: &ErrorStats| {
-            let _ = writeln!(
-                out,
-                "{label:<width$} {:>6} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4}",
-                s.count, s.mean, s.rms, s.max, s.rms_axis[0], s.rms_axis[1], s.rms_axis[2]
-            );
-        };
-        row("training, before".into(), &self.training[0]);
-        row("training, after".into(), &self.training[1]);
-        for (source, before, after) in &self.validation {
-            row(format!("{source}, before"), before);
-            row(format!("{source}, after"), after);
-        }
+        out.push_str(&self.error_tables());
         if let Some(noise) = &self.noise {
             let _ = writeln!(out, "\nnoise estimated from the residuals (feasible GLS):");
             out.push_str(&noise_table(noise));

@@ -1,7 +1,10 @@
-//! Figures of a study as SVG text (plotters, without any font library: the SVG names the
+//! Figures of a study, and of scored pose sets, as SVG text (plotters, without any font library: the SVG names the
 //! font and the viewer draws the text).
 
+use crate::calibration::{PoseErrors, SetEvaluation};
+use crate::model::{Joint, JointKind};
 use crate::simulation::{PoseChoice, Study, StudyResults, Summary};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 /// A figure that could not be drawn.
@@ -110,17 +113,7 @@ fn histogram(title: &str, values: &[f64]) -> Result<String, String> {
         counts[(((v - low) / width).floor() as usize).min(bins - 1)] += 1;
     }
     let top = f64::from(*counts.iter().max().unwrap_or(&1)) + 1.0;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(48)
-            .build_cartesian_2d(low..high, 0.0..top)
-            .map_err(|e| e.to_string())?;
+    single_chart(title, low..high, 0.0..top, false, |chart| {
         chart
             .configure_mesh()
             .x_desc("dE (%)")
@@ -133,6 +126,43 @@ fn histogram(title: &str, values: &[f64]) -> Result<String, String> {
             Rectangle::new([(x0, 0.0), (x0 + width, f64::from(n))], BLUE.mix(0.6).filled())
         });
         chart.draw_series(bars).map_err(|e| e.to_string())?;
+        Ok(())
+    })
+}
+
+/// A chart of `(x, y)` over two linear axes.
+type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// A 640 x 420 figure with one chart titled `caption` over `x` and `y`, drawn by `draw`, and
+/// the series' legend (top right) if `legend`.
+fn single_chart(
+    caption: &str,
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+    legend: bool,
+    draw: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), String>,
+) -> Result<String, String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(caption, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(52)
+            .build_cartesian_2d(x, y)
+            .map_err(|e| e.to_string())?;
+        draw(&mut chart)?;
+        if legend {
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::UpperRight)
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
@@ -151,17 +181,7 @@ fn trend(
         (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
     }
     let pad = 0.05 * (x1 - x0).max(1e-9);
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(48)
-            .build_cartesian_2d((x0 - pad)..(x1 + pad), (y0 - 5.0)..(y1 + 5.0))
-            .map_err(|e| e.to_string())?;
+    single_chart(title, (x0 - pad)..(x1 + pad), (y0 - 5.0)..(y1 + 5.0), true, |chart| {
         chart.configure_mesh().x_desc(x_label).y_desc("dE (%)").draw().map_err(|e| e.to_string())?;
         for (i, (label, means, sets)) in series.iter().enumerate() {
             let colour = Palette99::pick(i).to_rgba();
@@ -174,13 +194,186 @@ fn trend(
                 .draw_series(sets.iter().map(|&p| Circle::new(p, 3, colour.filled())))
                 .map_err(|e| e.to_string())?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
+        Ok(())
+    })
+}
+
+/// The figures of scored pose sets (joint values in degrees, mm for prismatic joints), as
+/// `(file name, SVG text)`:
+/// - `errors-by-pose-<set>.svg`: each pose's error (RMS over its markers) at each stage, one
+///   panel per stage, bars in the file's order;
+/// - `histogram.svg`: the markers' errors at the last stage, one series per set;
+/// - `error-vs-<joint>.svg`: each marker's error at the last stage against the joint's value
+///   (compliance and backlash show as trends and steps), one colour per set.
+///
+/// Sets without poses (pooled summaries) are skipped.
+pub fn pose_figures(sets: &[&SetEvaluation], joints: &[Joint]) -> Result<Vec<(String, String)>, FigureError> {
+    let sets: Vec<&SetEvaluation> = sets.iter().copied().filter(|s| !s.poses.is_empty()).collect();
+    let mut figures = Vec::new();
+    for (i, set) in sets.iter().enumerate() {
+        // Two sets of one name (a file given twice) get two figures.
+        let twice = sets[..i].iter().any(|s| file_stem(&s.name) == file_stem(&set.name));
+        let suffix = if twice { format!("-{}", i + 1) } else { String::new() };
+        let name = format!("errors-by-pose-{}{suffix}.svg", file_stem(&set.name));
+        let svg = pose_bars(set).map_err(|m| error(&name, m))?;
+        figures.push((name, svg));
+    }
+    if sets.is_empty() {
+        return Ok(figures);
+    }
+    let name = "histogram.svg".to_string();
+    let svg = error_histogram(&sets).map_err(|m| error(&name, m))?;
+    figures.push((name, svg));
+    for (j, joint) in joints.iter().enumerate() {
+        let name = format!("error-vs-{}.svg", file_stem(&joint.name));
+        let unit = if joint.kind == JointKind::Revolute { "deg" } else { "mm" };
+        let svg =
+            against_joint(&sets, j, &format!("{} ({unit})", joint.name)).map_err(|m| error(&name, m))?;
+        figures.push((name, svg));
+    }
+    Ok(figures)
+}
+
+/// A name made of letters, digits and `-` only, for a file name.
+fn file_stem(name: &str) -> String {
+    let stem: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '-' }).collect();
+    stem.trim_matches('-').to_string()
+}
+
+/// The error of pose `p` at stage `s`: the RMS of its markers' distances (mm).
+fn pose_rms(p: &PoseErrors, s: usize) -> f64 {
+    let n = p.errors[s].len().max(1) as f64;
+    ((0..p.errors[s].len()).map(|m| p.distance(s, m).powi(2)).sum::<f64>() / n).sqrt()
+}
+
+/// One panel per stage: a bar per pose, in the file's order.
+fn pose_bars(set: &SetEvaluation) -> Result<String, String> {
+    let stages = set.stages.len();
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (900, 260 * stages as u32 + 40)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let root = root
+            .titled(&format!("error of each pose, {} (RMS over its markers)", set.name), ("sans-serif", 18))
             .map_err(|e| e.to_string())?;
+        let panels = root.split_evenly((stages, 1));
+        let n = set.poses.len();
+        for (s, panel) in panels.iter().enumerate() {
+            let values: Vec<f64> = set.poses.iter().map(|p| pose_rms(p, s)).collect();
+            let top = values.iter().copied().fold(0.0, f64::max).max(1e-9) * 1.1;
+            let mut chart = ChartBuilder::on(panel)
+                .caption(set.stages[s].as_str(), ("sans-serif", 15))
+                .margin(10)
+                .x_label_area_size(36)
+                .y_label_area_size(56)
+                .build_cartesian_2d(0.0..n as f64, 0.0..top)
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .x_desc("pose (file order)")
+                .y_desc("error (mm)")
+                .x_label_formatter(&|v| format!("{}", *v as usize + 1))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            let colour = Palette99::pick(s).to_rgba();
+            let bars = values
+                .iter()
+                .enumerate()
+                .map(|(k, &v)| Rectangle::new([(k as f64 + 0.1, 0.0), (k as f64 + 0.9, v)], colour.filled()));
+            chart.draw_series(bars).map_err(|e| e.to_string())?;
+            let flagged = set.poses.iter().enumerate().filter(|(_, p)| p.flagged && s + 1 == stages);
+            chart
+                .draw_series(
+                    flagged.map(|(k, _)| Cross::new((k as f64 + 0.5, values[k]), 5, RED.stroke_width(2))),
+                )
+                .map_err(|e| e.to_string())?;
+        }
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
+}
+
+/// The markers' errors at the last stage, one series of bins per set.
+fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
+    let values: Vec<Vec<f64>> = sets
+        .iter()
+        .map(|set| {
+            let last = set.stages.len() - 1;
+            set.poses
+                .iter()
+                .flat_map(|p| (0..p.errors[last].len()).map(move |m| p.distance(last, m)))
+                .collect()
+        })
+        .collect();
+    let high = values.iter().flatten().copied().fold(0.0, f64::max).max(1e-9);
+    let bins = 30;
+    let width = high / bins as f64 * 1.0001;
+    let counts: Vec<Vec<u32>> = values
+        .iter()
+        .map(|v| {
+            let mut c = vec![0u32; bins];
+            for x in v {
+                c[((x / width) as usize).min(bins - 1)] += 1;
+            }
+            c
+        })
+        .collect();
+    let top = f64::from(counts.iter().flatten().copied().max().unwrap_or(1)) * 1.1 + 1.0;
+    let stage = &sets[0].stages[sets[0].stages.len() - 1];
+    single_chart(&format!("marker errors, {stage}"), 0.0..width * bins as f64, 0.0..top, true, |chart| {
+        chart
+            .configure_mesh()
+            .x_desc("error (mm)")
+            .y_desc("number of marker measurements")
+            .y_label_formatter(&|v| format!("{v:.0}"))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let share = 1.0 / sets.len() as f64;
+        for (i, (set, c)) in sets.iter().zip(&counts).enumerate() {
+            let colour = Palette99::pick(i).to_rgba();
+            let bars = c.iter().enumerate().map(move |(b, &n)| {
+                let x0 = (b as f64 + i as f64 * share) * width;
+                Rectangle::new([(x0, 0.0), (x0 + share * width, f64::from(n))], colour.mix(0.7).filled())
+            });
+            chart
+                .draw_series(bars)
+                .map_err(|e| e.to_string())?
+                .label(set.name.as_str())
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], colour.filled()));
+        }
+        Ok(())
+    })
+}
+
+/// Each marker's error at the last stage against joint `j`'s value, one colour per set.
+fn against_joint(sets: &[&SetEvaluation], j: usize, x_label: &str) -> Result<String, String> {
+    let points: Vec<Vec<(f64, f64)>> = sets
+        .iter()
+        .map(|set| {
+            let last = set.stages.len() - 1;
+            set.poses
+                .iter()
+                .flat_map(|p| (0..p.errors[last].len()).map(move |m| (p.joints[j], p.distance(last, m))))
+                .collect()
+        })
+        .collect();
+    let (mut x0, mut x1, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    for &(x, y) in points.iter().flatten() {
+        (x0, x1, y1) = (x0.min(x), x1.max(x), y1.max(y));
+    }
+    let pad = 0.03 * (x1 - x0).max(1e-6);
+    let stage = &sets[0].stages[sets[0].stages.len() - 1];
+    let caption = format!("marker errors, {stage}, against {x_label}");
+    single_chart(&caption, (x0 - pad)..(x1 + pad), 0.0..(y1 * 1.1).max(1e-9), true, |chart| {
+        chart.configure_mesh().x_desc(x_label).y_desc("error (mm)").draw().map_err(|e| e.to_string())?;
+        for (i, (set, p)) in sets.iter().zip(&points).enumerate() {
+            let colour = Palette99::pick(i).to_rgba();
+            chart
+                .draw_series(p.iter().map(|&xy| Circle::new(xy, 2, colour.filled())))
+                .map_err(|e| e.to_string())?
+                .label(set.name.as_str())
+                .legend(move |(x, y)| Circle::new((x + 6, y), 3, colour.filled()));
+        }
+        Ok(())
+    })
 }

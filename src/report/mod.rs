@@ -4,6 +4,8 @@
 pub mod calibration;
 pub mod design;
 pub mod figures;
+pub mod html;
+pub mod poses;
 pub mod study;
 
 use crate::model::{JointKind, RobotModel, degrees};

@@ -107,7 +107,8 @@ fn simulate_names_a_bad_study_file() {
     assert!(message.contains("study.toml") && message.contains("seed"), "{message}");
 }
 
-const CALIBRATE: [&str; 14] = [
+/// The README's calibration (also used by `report.rs`).
+pub const CALIBRATE: [&str; 14] = [
     "calibrate",
     "--model",
     "puma560",

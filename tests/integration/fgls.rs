@@ -120,7 +120,8 @@ fn feasible_gls_reports_its_estimate() {
     let c = campaign(7, 60);
     let fgls = calibration::calibrate_feasible(&c.nominal, &c.data, &c.options, &FeasibleOptions::default())
         .unwrap();
-    let report = robocal::report::calibration::CalibrationReport::new(&fgls, "data.csv", "fgls", Vec::new());
+    let report =
+        robocal::report::calibration::CalibrationReport::new(&fgls, "data.csv", "fgls", Vec::new(), None);
     let text = report.text();
     assert!(text.contains("noise estimated from the residuals (feasible GLS):"), "{text}");
     assert!(text.contains("sigma_me"), "{text}");

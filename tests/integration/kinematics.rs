@@ -504,7 +504,8 @@ fn check_compliance(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> 
         let (mut plus, mut minus) = (x.clone(), x.clone());
         plus[i] += step;
         minus[i] -= step;
-        let fd = pose_error(&chain.with_errors(&plus).pose(&q), &chain.with_errors(&minus).pose(&q)) / (2.0 * step);
+        let fd = pose_error(&chain.with_errors(&plus).pose(&q), &chain.with_errors(&minus).pose(&q))
+            / (2.0 * step);
         // relative to the column, or absolute (mm or rad per unit of compliance) for a joint
         // that gravity barely loads here
         let scale = fd.amax().max(h.column(i).amax()).max(1.0);

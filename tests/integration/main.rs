@@ -11,5 +11,6 @@ mod noise;
 mod observability;
 mod planning;
 mod repeatability;
+mod report;
 mod simulation;
 mod urdf;

@@ -284,3 +284,45 @@ fn fk_joint_values_are_finite_numbers_separated_by_commas_or_spaces() {
     let message = parse(&["fk", "--model", "puma560", "--q", "0,inf"]).unwrap_err();
     assert!(message.contains("value 2 is inf, expected a finite number"), "{message}");
 }
+
+/// `robocal evaluate --model m.toml --data a.csv` with `args`.
+fn evaluate(args: &[&str]) -> Result<EvaluateRequest, String> {
+    request(&["evaluate", "--model", "m.toml", "--data", "a.csv"], args, |command| match command {
+        Command::Evaluate(args) => EvaluateRequest::from_args(*args),
+        other => panic!("parsed as {other:?}"),
+    })
+}
+
+#[test]
+fn evaluate_takes_several_files_and_a_urdf_with_the_written_links() {
+    let files = evaluate(&["b.csv", "--data", "c.csv", "--markers", "1,3"]).unwrap();
+    assert_eq!(files.data, ["a.csv", "b.csv", "c.csv"].map(PathBuf::from));
+    assert_eq!(files.marker_ids, Some(vec![1, 3]));
+    let urdf = request(&["evaluate", "--model", "c.urdf", "--data", "a.csv"], &[], |command| match command {
+        Command::Evaluate(args) => EvaluateRequest::from_args(*args),
+        other => panic!("parsed as {other:?}"),
+    })
+    .unwrap();
+    let (base_link, tip_link) = (urdf.model.base_link.unwrap(), urdf.model.tip_link.unwrap());
+    assert_eq!((base_link.as_str(), tip_link.as_str()), ("measuring_frame", "tool"));
+}
+
+#[test]
+fn evaluate_wants_the_joint_noise_with_sigma_mm_and_markers_from_1() {
+    let message = evaluate(&["--sigma-mm", "0.01"]).unwrap_err();
+    assert!(message.contains("--sigma-mm needs --joint-sigma-deg"), "{message}");
+    let message = evaluate(&["--markers", "0"]).unwrap_err();
+    assert!(message.contains("expected a whole number >= 1"), "{message}");
+    assert!(evaluate(&["--noise", "n.toml", "--joint-sigma-deg", "0,0,0,0,0,0"]).is_err());
+}
+
+#[test]
+fn calibrate_takes_the_markers_to_fit_and_the_report_files() {
+    let request =
+        calibrate(&["--markers", "2,3", "--poses-csv", "p.csv", "--figures", "f", "--html", "r.html"])
+            .unwrap();
+    assert_eq!(request.marker_ids, Some(vec![2, 3]));
+    assert_eq!(request.report.poses_csv, Some(PathBuf::from("p.csv")));
+    assert_eq!(request.report.figures, Some(PathBuf::from("f")));
+    assert_eq!(request.report.html, Some(PathBuf::from("r.html")));
+}

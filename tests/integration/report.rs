@@ -1,0 +1,441 @@
+//! The calibration report an engineer decides from (issue 12): per marker and per pose,
+//! scored anywhere (`evaluate`), honest baselines, figures and a self-contained page, and every
+//! error printed once.
+
+use super::cli::CALIBRATE;
+use assert_cmd::Command;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use robocal::model::{RobotModel, Tool};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+fn robocal() -> Command {
+    Command::cargo_bin("robocal").unwrap()
+}
+
+/// A scratch folder for one test.
+fn scratch(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("robocal-report-{test}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Run `args`, which must succeed; its standard output.
+fn run(args: &[&str]) -> String {
+    let output = robocal().args(args).output().unwrap();
+    assert!(output.status.success(), "{args:?}: {}", String::from_utf8_lossy(&output.stderr));
+    String::from_utf8(output.stdout).unwrap()
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// The README's calibration without the noise (so by OLS), with `extra` flags.
+fn calibrate(extra: &[&str]) -> String {
+    let mut args = CALIBRATE[..7].to_vec();
+    args.extend(&CALIBRATE[11..]);
+    args.extend(extra);
+    run(&args)
+}
+
+/// The README's calibration (with the noise, by WLS unless `extra` says otherwise).
+fn calibrate_weighted(extra: &[&str]) -> String {
+    let mut args = CALIBRATE.to_vec();
+    args.extend(extra);
+    run(&args)
+}
+
+/// Standard DH with Hayati's beta, written out: `Rz(theta + q) Tz(d) Tx(a) Rx(alpha)
+/// Ry(beta)` per joint after the base, then the marker point.
+fn literal_position(model: &RobotModel, q: &[f64], marker: &Vector3<f64>) -> Vector3<f64> {
+    let mut t = Isometry3::from_parts(
+        Translation3::from(model.base.xyz),
+        UnitQuaternion::from_euler_angles(model.base.rpy.x, model.base.rpy.y, model.base.rpy.z),
+    );
+    for (j, q) in model.joints.iter().zip(q) {
+        t = t
+            * Isometry3::rotation(Vector3::z() * (j.theta + q))
+            * Isometry3::translation(0.0, 0.0, j.d)
+            * Isometry3::translation(j.a, 0.0, 0.0)
+            * Isometry3::rotation(Vector3::x() * j.alpha)
+            * Isometry3::rotation(Vector3::y() * j.beta);
+    }
+    t.transform_point(&(*marker).into()).coords
+}
+
+/// The errors `[stage][marker]` of pose `k` of set `s` in a JSON report.
+fn pose_errors(report: &Value, s: usize, k: usize, stage: usize) -> Vec<Vector3<f64>> {
+    report["sets"][s]["poses"][k]["errors"][stage]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| Vector3::new(e[0].as_f64().unwrap(), e[1].as_f64().unwrap(), e[2].as_f64().unwrap()))
+        .collect()
+}
+
+/// `calibrate`'s own report is snapshot-tested in `cli.rs` (and is the README's example); this
+/// is `evaluate`'s on two sessions: pooled, per marker, all files pooled, the worst poses.
+#[test]
+fn the_evaluate_report_has_per_marker_tables_and_the_worst_poses() {
+    let dir = scratch("snapshot");
+    let model = dir.join("calibrated.toml");
+    calibrate_weighted(&["--out-model", model.to_str().unwrap()]);
+    let (validation, measurements) = (CALIBRATE[6], CALIBRATE[4]);
+    let mut args = vec!["evaluate", "--model", model.to_str().unwrap(), "--data", validation, measurements];
+    args.extend(&CALIBRATE[7..11]);
+    let text = run(&args);
+    insta::assert_snapshot!(text);
+}
+
+#[test]
+fn json_errors_per_pose_are_the_written_models_forward_kinematics() {
+    let dir = scratch("fk");
+    let (report, model) = (dir.join("report.json"), dir.join("calibrated.toml"));
+    calibrate(&["--json", report.to_str().unwrap(), "--out-model", model.to_str().unwrap()]);
+    let report = json(&report);
+    let text = std::fs::read_to_string(&model).unwrap();
+    let model = RobotModel::from_toml_str(&text).unwrap();
+    let markers = robocal::model::markers_from_toml_str(&text).unwrap();
+    assert_eq!(markers.iter().map(|m| m.0).collect::<Vec<_>>(), [1, 2]);
+    assert_eq!(Tool::Point(markers[0].1), model.tool, "the tool is marker 1");
+    for (s, file) in
+        ["examples/puma560-measurements.csv", "examples/puma560-validation.csv"].iter().enumerate()
+    {
+        let data = robocal::io::load_measurements(Path::new(file), &model, None).unwrap();
+        assert_eq!(report["sets"][s]["poses"].as_array().unwrap().len(), data.len());
+        let mut worst = 0.0f64;
+        for k in 0..data.len() {
+            assert_eq!(report["sets"][s]["poses"][k]["line"].as_u64().unwrap() as usize, data.lines[k]);
+            let after = pose_errors(&report, s, k, 1);
+            for (m, (_, marker)) in markers.iter().enumerate() {
+                let expected = data.markers[k][m] - literal_position(&model, &data.joints[k], marker);
+                worst = worst.max((after[m] - expected).norm());
+            }
+        }
+        assert!(worst < 1e-9, "{file}: the report and the written model differ by {worst} mm");
+    }
+}
+
+#[test]
+fn evaluate_reproduces_calibrates_validation_from_the_written_toml_and_urdf() {
+    let dir = scratch("evaluate");
+    let (report, model) = (dir.join("report.json"), dir.join("calibrated.toml"));
+    calibrate_weighted(&["--json", report.to_str().unwrap(), "--out-model", model.to_str().unwrap()]);
+    let calibrated = json(&report);
+    let scored = dir.join("scored.json");
+    let text = run(&[
+        "evaluate",
+        "--model",
+        model.to_str().unwrap(),
+        "--data",
+        "examples/puma560-validation.csv",
+        "--json",
+        scored.to_str().unwrap(),
+    ]);
+    assert!(text.contains("examples/puma560-validation.csv, model"), "{text}");
+    let scored = json(&scored);
+    assert_same_errors(&calibrated, 1, &scored, 0);
+    for key in ["mean", "rms", "max"] {
+        let (a, b) = (&calibrated["sets"][1]["pooled"][1][key], &scored["sets"][0]["pooled"][0][key]);
+        assert!((a.as_f64().unwrap() - b.as_f64().unwrap()).abs() < 1e-9, "{key}: {a} and {b}");
+    }
+
+    // The same from a URDF robot written back by --out-urdf, its markers as links.
+    let (urdf, data, out) = (dir.join("arm.urdf"), dir.join("arm.csv"), dir.join("calibrated.urdf"));
+    let arm = super::urdf::arm_urdf();
+    std::fs::write(&urdf, &arm).unwrap();
+    let mut truth = robocal::model::from_urdf_str(&arm, "base", "flange").unwrap();
+    truth.base.xyz = Vector3::new(1000.0, 0.0, 0.0);
+    truth.joints[1].origin.xyz.x += 0.3;
+    let poses: Vec<Vec<f64>> = (0..60)
+        .map(|k| {
+            (truth.joints.iter().enumerate())
+                .map(|(j, joint)| {
+                    let u = (((k * 7 + j) as f64) * 12.9898).sin() * 0.5 + 0.5;
+                    joint.limits[0] + u * (joint.limits[1] - joint.limits[0])
+                })
+                .collect()
+        })
+        .collect();
+    let markers = [Vector3::new(30.0, 0.0, 60.0), Vector3::new(-20.0, 40.0, 50.0)];
+    let sigmas = [0.0; 7];
+    std::fs::write(&data, robocal::simulation::measurement_csv(&truth, &markers, &poses, &sigmas, 0.01, 1))
+        .unwrap();
+    let report = dir.join("urdf.json");
+    run(&[
+        "calibrate",
+        "--model",
+        urdf.to_str().unwrap(),
+        "--base-link",
+        "base",
+        "--tip-link",
+        "flange",
+        "--data",
+        data.to_str().unwrap(),
+        "--validate",
+        data.to_str().unwrap(),
+        "--marker",
+        "30,0,60",
+        "--marker=-20,40,50",
+        "--params",
+        "offsets",
+        "--json",
+        report.to_str().unwrap(),
+        "--out-urdf",
+        out.to_str().unwrap(),
+    ]);
+    let scored = dir.join("urdf-scored.json");
+    run(&[
+        "evaluate",
+        "--model",
+        out.to_str().unwrap(),
+        "--data",
+        data.to_str().unwrap(),
+        "--json",
+        scored.to_str().unwrap(),
+    ]);
+    assert_same_errors(&json(&report), 1, &json(&scored), 0);
+}
+
+/// Every pose's errors "after" in set `a` of `calibrated` equal set `b` of `scored`, to 1e-9 mm.
+fn assert_same_errors(calibrated: &Value, a: usize, scored: &Value, b: usize) {
+    let poses = calibrated["sets"][a]["poses"].as_array().unwrap().len();
+    assert_eq!(poses, scored["sets"][b]["poses"].as_array().unwrap().len());
+    let mut worst = 0.0f64;
+    for k in 0..poses {
+        for (x, y) in pose_errors(calibrated, a, k, 1).iter().zip(pose_errors(scored, b, k, 0)) {
+            worst = worst.max((x - y).norm());
+        }
+    }
+    assert!(worst < 1e-9, "evaluate differs from calibrate by {worst} mm");
+}
+
+#[test]
+fn the_before_numbers_do_not_depend_on_the_estimator() {
+    let dir = scratch("before");
+    let mut reports = Vec::new();
+    for estimator in ["ols", "wls", "wls-diag"] {
+        let path = dir.join(format!("{estimator}.json"));
+        calibrate_weighted(&["--estimator", estimator, "--json", path.to_str().unwrap()]);
+        reports.push(json(&path));
+    }
+    for r in &reports[1..] {
+        assert_eq!(r["training"][0], reports[0]["training"][0], "training, before");
+        assert_eq!(r["validation"][0][1], reports[0]["validation"][0][1], "held out, before");
+        for s in 0..2 {
+            for k in 0..reports[0]["sets"][s]["poses"].as_array().unwrap().len() {
+                assert_eq!(
+                    r["sets"][s]["poses"][k]["errors"][0],
+                    reports[0]["sets"][s]["poses"][k]["errors"][0]
+                );
+            }
+        }
+    }
+    assert_ne!(reports[1]["training"][1], reports[0]["training"][1], "after does depend on it");
+    assert!(reports[1]["weighting"]["before"].as_str().unwrap().contains("ols"));
+}
+
+#[test]
+fn params_none_with_fixed_base_and_markers_scores_the_model() {
+    let text = calibrate(&["--params", "none", "--fixed-base", "--fixed-markers"]);
+    assert!(text.contains("nothing estimated: the model is scored as it stands"), "{text}");
+    assert!(text.contains("training, after"), "{text}");
+}
+
+#[test]
+fn markers_chosen_by_the_user_fit_and_score_a_subset() {
+    let dir = scratch("markers");
+    // A held-out file with marker 2 only.
+    let text = std::fs::read_to_string("examples/puma560-validation.csv").unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let keep: Vec<usize> = (0..header.len()).filter(|&i| !["x1", "y1", "z1"].contains(&header[i])).collect();
+    let pick = |line: &str| {
+        let cells: Vec<&str> = line.split(',').collect();
+        keep.iter().map(|&i| cells[i]).collect::<Vec<_>>().join(",")
+    };
+    let mut only2 = String::from("# units: joints=deg, lengths=mm\n");
+    only2 += &(pick(&header.join(",")) + "\n");
+    for line in lines {
+        only2 += &(pick(line) + "\n");
+    }
+    let held_out = dir.join("marker2.csv");
+    std::fs::write(&held_out, only2).unwrap();
+    let report = dir.join("report.json");
+    let out = calibrate(&[
+        "--markers",
+        "2",
+        "--validate",
+        held_out.to_str().unwrap(),
+        "--json",
+        report.to_str().unwrap(),
+    ]);
+    assert!(out.contains("100 poses, 1 marker,"), "{out}");
+    assert!(
+        out.contains("marker2.y") && !out.contains("marker1."),
+        "parameters named by the file's numbers: {out}"
+    );
+    let report = json(&report);
+    for s in 0..3 {
+        assert_eq!(report["sets"][s]["marker_ids"], serde_json::json!([2]), "set {s}");
+    }
+    // Marker 2 of the full held-out file and the file with marker 2 alone score the same.
+    assert_eq!(report["sets"][1]["pooled"], report["sets"][2]["pooled"]);
+    // Fitted on both markers, a file with marker 2 alone is scored on marker 2.
+    let both = dir.join("both.json");
+    calibrate(&["--validate", held_out.to_str().unwrap(), "--json", both.to_str().unwrap()]);
+    let both = json(&both);
+    assert_eq!(both["sets"][2]["marker_ids"], serde_json::json!([2]));
+    assert_eq!(both["sets"][2]["pooled"], both["sets"][1]["per_marker"][1]);
+}
+
+#[test]
+fn several_held_out_files_are_pooled_too() {
+    let text = calibrate(&["--validate", "examples/puma560-validation.csv"]);
+    assert!(text.contains("held out, pooled, after"), "{text}");
+}
+
+#[test]
+fn poses_csv_has_a_row_per_pose_and_marker() {
+    let dir = scratch("csv");
+    let csv = dir.join("poses.csv");
+    calibrate(&["--poses-csv", csv.to_str().unwrap()]);
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    assert!(
+        header.starts_with("set,line,j1_deg,") && header.contains("before_mm") && header.ends_with("flagged")
+    );
+    assert_eq!(lines.count(), 2 * 100 + 2 * 50);
+}
+
+#[test]
+fn the_page_is_one_well_formed_file_with_every_table_and_figure() {
+    let dir = scratch("html");
+    let (page, figures) = (dir.join("report.html"), dir.join("figures"));
+    calibrate(&["--html", page.to_str().unwrap(), "--figures", figures.to_str().unwrap()]);
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(!html.contains("http") && !html.contains("src="), "the page refers to nothing outside itself");
+    let document = roxmltree::Document::parse_with_options(
+        &html,
+        roxmltree::ParsingOptions { allow_dtd: true, ..Default::default() },
+    )
+    .expect("well-formed");
+    let mut names: Vec<String> = std::fs::read_dir(&figures)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 2 + 1 + 6, "{names:?}");
+    for name in &names {
+        let figure = document.descendants().find(|n| n.attribute("id") == Some(name.as_str()));
+        assert!(figure.is_some_and(|f| f.descendants().any(|n| n.has_tag_name("svg"))), "{name} inline");
+        let svg = std::fs::read_to_string(figures.join(name)).unwrap();
+        assert!(svg.contains("<svg"), "{name}");
+    }
+    for table in ["marker position errors (mm)", "per marker (mm)", "worst poses", "parameter"] {
+        assert!(html.contains(table), "{table}");
+    }
+    let tables = document.descendants().filter(|n| n.has_tag_name("table")).count();
+    assert_eq!(tables, 2, "one table of poses per set");
+    // A headless browser, where the machine has one, draws the same page offline.
+    let url = format!("file://{}", page.display());
+    let browser = ["chromium", "chromium-browser", "google-chrome"].into_iter().find_map(|name| {
+        let args = ["--headless", "--no-sandbox", "--disable-gpu", "--dump-dom", url.as_str()];
+        std::process::Command::new(name).args(args).output().ok().filter(|o| o.status.success())
+    });
+    if let Some(output) = browser {
+        let dom = String::from_utf8_lossy(&output.stdout);
+        assert_eq!(dom.matches("<svg").count(), names.len(), "the browser sees every figure");
+        assert!(dom.contains("worst poses"), "and the tables");
+    }
+}
+
+#[test]
+fn fgls_says_when_its_variance_components_did_not_settle() {
+    let model = RobotModel::preset("puma560").unwrap();
+    let data =
+        robocal::io::load_measurements(Path::new("examples/puma560-measurements.csv"), &model, None).unwrap();
+    let options = robocal::calibration::Options {
+        estimator: robocal::estimation::Estimator::Ols,
+        noise: None,
+        joints: robocal::calibration::JointParams::All,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
+        refine: Default::default(),
+    };
+    let feasible = robocal::calibration::FeasibleOptions { max_iterations: 1, ..Default::default() };
+    let c = robocal::calibration::calibrate_feasible(&model, &data, &options, &feasible).unwrap();
+    assert_eq!(c.noise_settled, Some(false));
+    let report = robocal::report::calibration::CalibrationReport::new(&c, "data", "fgls", Vec::new(), None);
+    assert!(!report.converged);
+    let text = report.text();
+    assert!(
+        text.lines().next().unwrap().contains("not converged: the variance components did not settle"),
+        "{text}"
+    );
+}
+
+/// Every failing command prints one message, once: no part of it (the file, the line and
+/// column, the cause) is printed twice.
+#[test]
+fn every_error_is_printed_once() {
+    let dir = scratch("once");
+    let write = |name: &str, text: &str| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path.display().to_string()
+    };
+    let bad_csv =
+        write("bad.csv", "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1\n1,2,3,4,5,6,a,2,3\n");
+    let bad_model = write("bad.toml", "name = \"x\"\n[[joints]]\nfoo = 1\n");
+    let bad_noise = write("noise.toml", "[joints]\nsigma = 1\n");
+    let bad_urdf = write("bad.urdf", "<robot name=\"r\"><link name=\"a\"/></robot");
+    let bad_study = write("study.toml", "seed = -1\n");
+    let bad_poses = write("poses.csv", "# units: joints=deg\nj1,j2,j3,j4,j5,j6\n1,2,x,4,5,6\n");
+    let measurements = "examples/puma560-measurements.csv";
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["calibrate", "--model", "puma560", "--data", &bad_csv],
+        vec!["calibrate", "--model", "puma560", "--data", "no-such.csv"],
+        vec!["calibrate", "--model", &bad_model, "--data", measurements],
+        vec!["calibrate", "--model", "puma561", "--data", measurements],
+        vec!["calibrate", "--model", "puma560", "--data", measurements, "--noise", &bad_noise],
+        vec![
+            "calibrate",
+            "--model",
+            &bad_urdf,
+            "--base-link",
+            "a",
+            "--tip-link",
+            "b",
+            "--data",
+            measurements,
+        ],
+        vec!["calibrate", "--model", "puma560", "--data", measurements, "--params", "j9.theta"],
+        vec!["calibrate", "--model", "puma560", "--data", measurements, "--markers", "3"],
+        vec!["calibrate", "--model", "puma560", "--data", measurements, "--estimator", "wls"],
+        vec!["evaluate", "--model", &bad_model, "--data", measurements],
+        vec!["evaluate", "--model", "puma560", "--data", &bad_csv],
+        vec!["evaluate", "--model", "puma560", "--data", measurements, "--markers", "5"],
+        vec!["fk", "--model", &bad_model, "--q", "0,0,0,0,0,0"],
+        vec!["model", "show", &bad_model],
+        vec!["simulate", &bad_study],
+        vec!["observability", &bad_poses, "--model", "puma560"],
+        vec!["repeatability", "--model", "puma560", "--data", measurements],
+    ];
+    for args in cases {
+        let output = robocal().args(&args).output().unwrap();
+        let code = output.status.code();
+        assert!(code == Some(1) || code == Some(2), "{args:?}: exit code {code:?}");
+        let stderr = String::from_utf8(output.stderr).unwrap();
+        assert_eq!(stderr.matches("error:").count(), 1, "{args:?}:\n{stderr}");
+        // No part of the message, cut at ": " and at line ends, appears twice.
+        let message = stderr.split("\n\nFor more information").next().unwrap();
+        let parts: Vec<&str> = message.split([':', '\n']).map(str::trim).filter(|p| p.len() > 12).collect();
+        for (i, part) in parts.iter().enumerate() {
+            assert!(!parts[..i].contains(part), "{args:?}: `{part}` printed twice:\n{stderr}");
+        }
+    }
+}
