@@ -95,6 +95,13 @@ pub enum CalibrationError {
     /// A set of poses cannot be scored: its markers, or its noise, do not fit the model's.
     #[error("{0}")]
     Scoring(String),
+    /// Joint compliances were asked for: the kinematics has them, but a calibrated model does
+    /// not carry them yet, so calibrate refuses rather than drop them from what it writes.
+    #[error(
+        "`{0}`: calibrate estimates the geometric parameters; compliances are not yet folded into a \
+         calibrated model, so they cannot be estimated here"
+    )]
+    Compliance(String),
 }
 
 /// Position errors of measured markers against a model (mm).
@@ -384,6 +391,9 @@ pub fn calibrate(
 
     // "After": everything asked for that the poses can identify.
     let asked = selection(&params, &options.joints, options)?;
+    if let Some(&i) = asked.indices().iter().find(|&&i| params.get(i).kind == ParamKind::Compliance) {
+        return Err(CalibrationError::Compliance(params.get(i).name.clone()));
+    }
     // With fewer equations than parameters the rank cannot tell structure from lack of data.
     let equations = data.len() * rows;
     if equations <= asked.len() {

@@ -469,3 +469,38 @@ fn the_arm7_benchmark_calibrates_as_its_readme_says() {
         assert!((found - readme).abs() < 5e-4, "held-out RMS {found:.4} mm, the README says {readme}");
     }
 }
+
+/// A model with masses has a compliance per joint, outside the geometric `joints` set;
+/// calibrate refuses to estimate one rather than leave it out of the model it writes.
+#[test]
+fn compliances_are_named_but_not_yet_calibrated() {
+    let model = robocal::io::load_model(&robocal::model::ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
+    let params = model.params();
+    assert_eq!(params.index_by_name("joint4.compliance").map(|i| params.get(i).unit()), Some("rad/N·m"));
+    assert!(
+        robocal::model::Selection::joints(&params)
+            .indices()
+            .iter()
+            .all(|&i| params.get(i).kind != robocal::model::ParamKind::Compliance)
+    );
+    let train = robocal::io::load_measurements(std::path::Path::new("examples/arm7/train.csv"), &model, None)
+        .unwrap();
+    let options = Options {
+        estimator: Estimator::Ols,
+        noise: None,
+        joints: JointParams::Named(vec!["joint*.compliance".into()]),
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![
+            Vector3::new(40.0, 0.0, 25.0),
+            Vector3::new(-20.0, 35.0, 25.0),
+            Vector3::new(-20.0, -35.0, 25.0),
+        ],
+        refine: RefineOptions::default(),
+    };
+    let error = calibration::calibrate(&model, &train, &options).unwrap_err();
+    assert!(
+        error.to_string().starts_with("`joint1.compliance`: calibrate estimates the geometric parameters"),
+        "{error}"
+    );
+}
