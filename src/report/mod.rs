@@ -4,6 +4,7 @@
 pub mod calibration;
 pub mod design;
 pub mod figures;
+pub mod replication;
 pub mod study;
 
 use crate::model::{JointKind, RobotModel, degrees};
