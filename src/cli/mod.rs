@@ -35,6 +35,11 @@ enum Command {
         /// Worker threads (default: all cores). The numbers do not depend on it.
         #[arg(long)]
         threads: Option<usize>,
+        /// Also repeat the whole study R times with master seeds derived from its seed (in
+        /// parallel), and report each statistic of its tables over the replications, with the
+        /// paper's value and its percentile (1 to 10000; 100 take about a minute).
+        #[arg(long, value_name = "R", value_parser = parse_replications)]
+        replications: Option<usize>,
     },
     /// Run a study: a TOML file, or an embedded one (paper-table1, paper-table2).
     Simulate {
@@ -50,6 +55,11 @@ enum Command {
         /// device, and sigma_me if it gives one.
         #[arg(long)]
         noise: Option<PathBuf>,
+        /// Also repeat the whole study R times with master seeds derived from its seed (in
+        /// parallel), and report each statistic of its tables over the replications, with the
+        /// paper's value and its percentile (1 to 10000; 100 take about a minute).
+        #[arg(long, value_name = "R", value_parser = parse_replications)]
+        replications: Option<usize>,
     },
     /// Estimate the joint noise and sigma_me from repeated measurements at a set of poses,
     /// and write them as a noise file.
@@ -303,14 +313,14 @@ pub fn run(cli: Cli) -> Result<()> {
                 println!("{name:<12} {}", model.description);
             }
         }
-        Command::Reproduce { out, threads } => {
+        Command::Reproduce { out, threads, replications } => {
             let started = Instant::now();
             let studies = ["paper-table1", "paper-table2"]
                 .map(io::load_study)
                 .into_iter()
                 .collect::<Result<Vec<_>, _>>()?;
             for study in &studies {
-                simulate(study, &out, threads)?;
+                simulate(study, &out, threads, replications)?;
             }
             println!(
                 "The paper's figures: Fig. 1a-e paper-table1/histogram-wls-np{{12,24,48,96,192}}-sigma0.svg,"
@@ -323,14 +333,14 @@ pub fn run(cli: Cli) -> Result<()> {
             );
             println!("Both studies in {:.2} s.", started.elapsed().as_secs_f64());
         }
-        Command::Simulate { study, out, threads, noise } => {
+        Command::Simulate { study, out, threads, noise, replications } => {
             let mut study = io::load_study(&study)?;
             if let Some(path) = noise {
                 let spec = io::load_noise(&path, &study.robot)?;
                 study.set_noise(&spec).with_context(|| format!("{}", path.display()))?;
                 study.description = format!("{} (noise from {})", study.description, path.display());
             }
-            simulate(&study, &out, threads)?
+            simulate(&study, &out, threads, replications)?
         }
         Command::Repeatability(args) => repeatability(&args)?,
     }
@@ -641,12 +651,25 @@ fn plan(args: &PlanArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--replications`: 1 to `MAX_REPLICATIONS`.
+fn parse_replications(text: &str) -> Result<usize, String> {
+    let count: usize = text.parse().map_err(|_| format!("expected a whole number, found `{text}`"))?;
+    simulation::check_replications(count).map_err(|e| e.to_string())
+}
+
 /// Run `study` with a progress bar, print its tables, and write them with the CSV samples and
-/// the figures into `out/<study name>/`.
-fn simulate(study: &Study, out: &Path, threads: Option<usize>) -> Result<()> {
+/// the figures into `out/<study name>/`; with `replications`, the same for the study
+/// replicated over that many derived seeds.
+fn simulate(study: &Study, out: &Path, threads: Option<usize>, replications: Option<usize>) -> Result<()> {
     let runs = study.cases.len() * study.point_sets * study.runs_per_set;
-    let bar = ProgressBar::new(runs as u64).with_message(study.name.clone());
-    bar.set_style(ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} runs").expect("a valid template"));
+    let progress = |runs: usize, message: String| {
+        let bar = ProgressBar::new(runs as u64).with_message(message);
+        bar.set_style(
+            ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} runs").expect("a valid template"),
+        );
+        bar
+    };
+    let bar = progress(runs, study.name.clone());
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads.unwrap_or(0)).build()?;
     let results = pool.install(|| simulation::run(study, &|| bar.inc(1)))?;
     bar.finish_and_clear();
@@ -663,6 +686,15 @@ fn simulate(study: &Study, out: &Path, threads: Option<usize>) -> Result<()> {
     let folder = out.join(&study.name);
     io::write_files(&folder, &files)?;
     println!("wrote {} files to {}\n", files.len(), folder.display());
+    if let Some(count) = replications {
+        let bar = progress(runs * count, format!("{} x {count} replications", study.name));
+        let replicated = pool.install(|| simulation::replicate(study, count, &|| bar.inc(1)))?;
+        bar.finish_and_clear();
+        let files = report::replication::files(study, &replicated)?;
+        println!("{}", files[0].1);
+        io::write_files(&folder, &files)?;
+        println!("wrote {} files to {}\n", files.len(), folder.display());
+    }
     Ok(())
 }
 
