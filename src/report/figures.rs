@@ -177,7 +177,8 @@ fn draw_histogram(
         .configure_mesh()
         .x_desc(x_desc)
         .y_desc(y_desc)
-        .y_label_formatter(&|v| format!("{v:.0}"))
+        .y_labels((top as usize + 1).min(10))
+        .y_label_formatter(&|v| if v.fract() == 0.0 { format!("{v:.0}") } else { String::new() })
         .draw()
         .map_err(|e| e.to_string())?;
     let bars = counts.iter().enumerate().map(|(i, &n)| {
