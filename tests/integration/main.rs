@@ -10,5 +10,6 @@ mod noise;
 mod observability;
 mod planning;
 mod repeatability;
+mod replication;
 mod simulation;
 mod urdf;
