@@ -164,7 +164,9 @@ fn draw_histogram(
     for v in values {
         counts[(((v - low) / width).floor().max(0.0) as usize).min(count - 1)] += 1;
     }
-    let top = f64::from(*counts.iter().max().unwrap_or(&1)) + 1.0;
+    // Room above the bars for the marker's legend.
+    let headroom = if marker.is_some() { 1.3 } else { 1.0 };
+    let top = (f64::from(*counts.iter().max().unwrap_or(&1)) * headroom).ceil() + 1.0;
     let high = low + count as f64 * width;
     let mut chart = ChartBuilder::on(area)
         .caption(title, ("sans-serif", 18))

@@ -61,3 +61,19 @@ fn the_clustered_interval_covers_the_mean_of_200_replications() {
     assert!(coverage.half_width_independent < coverage.half_width_needed, "{coverage:?}");
     assert!(coverage.mean_independent < coverage.mean_clustered, "{coverage:?}");
 }
+
+#[test]
+fn the_replication_count_is_checked_on_the_command_line() {
+    for (count, message) in
+        [("0", "from 1 to 10000, found 0"), ("10001", "found 10001"), ("many", "expected a whole number")]
+    {
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["simulate", "paper-table1", "--replications", count])
+            .output()
+            .unwrap();
+        assert_eq!(output.status.code(), Some(2));
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(stderr.contains("--replications") && stderr.contains(message), "{stderr}");
+    }
+}
