@@ -25,10 +25,7 @@ pub fn study_figures(study: &Study, results: &StudyResults) -> Result<Vec<(Strin
     let mut figures = Vec::new();
     for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
         for (c, case) in study.cases.iter().enumerate() {
-            let (suffix, poses) = match case.poses {
-                PoseChoice::Random => (String::new(), String::new()),
-                other => (format!("-{}", other.name()), format!(", {} poses", other.name())),
-            };
+            let (suffix, poses) = pose_labels(case.poses);
             let name = format!("histogram-{estimator}-np{}-sigma{}{suffix}.svg", case.points, case.sigma_me);
             let title =
                 format!("dE of {estimator}: N_p = {}, sigma_me = {} mm{poses}", case.points, case.sigma_me);
@@ -83,6 +80,15 @@ pub fn study_figures(study: &Study, results: &StudyResults) -> Result<Vec<(Strin
         }
     }
     Ok(figures)
+}
+
+/// How a case's poses are chosen, for file names (`-planned`) and titles (`, planned poses`);
+/// nothing for random poses, the paper's.
+fn pose_labels(poses: PoseChoice) -> (String, String) {
+    match poses {
+        PoseChoice::Random => (String::new(), String::new()),
+        other => (format!("-{}", other.name()), format!(", {} poses", other.name())),
+    }
 }
 
 fn error(name: &str, message: String) -> FigureError {
@@ -217,10 +223,7 @@ pub fn replication_figures(
     let count = replications.replications.len();
     for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
         for (c, case) in study.cases.iter().enumerate() {
-            let (suffix, poses) = match case.poses {
-                PoseChoice::Random => (String::new(), String::new()),
-                other => (format!("-{}", other.name()), format!(", {} poses", other.name())),
-            };
+            let (suffix, poses) = pose_labels(case.poses);
             let name =
                 format!("replications-{estimator}-np{}-sigma{}{suffix}.svg", case.points, case.sigma_me);
             let title = format!(
