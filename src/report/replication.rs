@@ -151,7 +151,7 @@ pub fn csv(study: &Study, replications: &Replications) -> String {
 }
 
 /// Everything a replicated study writes, as `(file name, text)`: `replications.txt` (the
-/// [`tables`]), `replications.csv` ([`csv`]) and the figures ([`replication_figures`]).
+/// [`tables`]), `replications.csv` ([`csv()`]) and the figures ([`replication_figures`]).
 pub fn files(study: &Study, replications: &Replications) -> Result<Vec<(String, String)>, FigureError> {
     let mut files = vec![
         ("replications.txt".to_string(), tables(study, replications)),

@@ -77,7 +77,7 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
                 results.mean_error(c, 0),
                 results.mean_error(c, e),
                 s.mean,
-                format!("±{:.2}", s.ci95),
+                mean_interval(&s),
                 s.sd,
                 s.lowest,
                 s.highest,
@@ -154,7 +154,7 @@ pub fn planned_against_random(study: &Study, results: &StudyResults) -> Option<S
                 results.mean_error(r, e),
                 results.mean_error(p, e),
                 s.mean,
-                format!("±{:.2}", s.ci95),
+                mean_interval(&s),
                 s.sd,
                 s.lowest,
                 s.highest,
@@ -168,7 +168,13 @@ pub fn planned_against_random(study: &Study, results: &StudyResults) -> Option<S
 
 /// The 95% interval of the share above zero, as `low-high` (%).
 fn share_interval(s: &Summary) -> String {
-    format!("{:.1}-{:.1}", s.above_zero_ci.0, s.above_zero_ci.1)
+    let (low, high) = s.above_zero_ci;
+    if low.is_nan() { "-".into() } else { format!("{low:.1}-{high:.1}") }
+}
+
+/// The half-width of the 95% interval of the mean, as `±h`; `-` without one (one point set).
+fn mean_interval(s: &Summary) -> String {
+    if s.ci95.is_nan() { "-".into() } else { format!("±{:.2}", s.ci95) }
 }
 
 /// Every run as a CSV row: the case, set and run; `E_p` mean, RMS and max (mm) and `E_r`

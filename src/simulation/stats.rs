@@ -54,8 +54,9 @@ impl Summary {
         Self::of_sets(&sets)
     }
 
-    /// Summarise values that come in point sets (at least two sets, none empty): the values of
-    /// a set are correlated, the sets independent.
+    /// Summarise values that come in point sets (none empty): the values of a set are
+    /// correlated, the sets independent. With one set the intervals are NaN: it says nothing
+    /// of how sets vary.
     pub fn of_sets(sets: &[Vec<f64>]) -> Self {
         let all: Vec<f64> = sets.iter().flatten().copied().collect();
         let n = all.len();
@@ -65,7 +66,9 @@ impl Summary {
             sets.iter().map(|s| s.iter().filter(|v| above(v)).count() as f64 / s.len() as f64).collect();
         let share = mean(&set_shares);
         let n_eff = effective_sample_size(share, variance(&set_shares) / sets.len() as f64, n);
-        let (low, high) = wilson_interval(share, n_eff, Z_975);
+        // One set says nothing of how sets vary: no interval.
+        let (low, high) =
+            if sets.len() < 2 { (f64::NAN, f64::NAN) } else { wilson_interval(share, n_eff, Z_975) };
         Self {
             n,
             sets: sets.len(),
@@ -214,6 +217,13 @@ mod tests {
         // (0.75 + 0.480182 ± 1.959964 sqrt(0.046875 + 0.060023)) / 1.960365 = (0.30064, 0.95441).
         let (low, high) = s.above_zero_ci;
         assert!(close(low, 30.064, 0.001) && close(high, 95.441, 0.001), "{low} {high}");
+    }
+
+    #[test]
+    fn one_set_has_no_interval() {
+        let s = Summary::of_sets(&[vec![1.0, 2.0, 3.0]]);
+        assert_eq!((s.n, s.sets, s.mean), (3, 1, 2.0));
+        assert!(s.ci95.is_nan() && s.above_zero_ci.0.is_nan() && s.above_zero_ci.1.is_nan());
     }
 
     #[test]
