@@ -148,6 +148,17 @@ pub struct StudyOutputArgs {
     /// Worker threads (default: all cores). The numbers do not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
+    /// Also repeat the whole study R times with master seeds derived from its seed (in
+    /// parallel), and report each statistic of its tables over the replications, with the
+    /// paper's value and its percentile (1 to 10000; 100 take about a minute).
+    #[arg(long, value_name = "R", value_parser = parse_replications)]
+    pub replications: Option<usize>,
+}
+
+/// `--replications`: 1 to [`robocal::simulation::MAX_REPLICATIONS`].
+fn parse_replications(text: &str) -> Result<usize, String> {
+    let count: usize = text.parse().map_err(|_| format!("expected a whole number, found `{text}`"))?;
+    robocal::simulation::check_replications(count).map_err(|e| e.to_string())
 }
 
 /// The flags of `robocal simulate`.

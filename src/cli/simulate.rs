@@ -37,12 +37,19 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
     run_study(&study, &args.output)
 }
 
+/// A progress bar of `runs` runs, labelled `message`.
+fn progress(runs: usize, message: String) -> ProgressBar {
+    let bar = ProgressBar::new(runs as u64).with_message(message);
+    bar.set_style(ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} runs").expect("a valid template"));
+    bar
+}
+
 /// Run `study` with a progress bar, print its tables, and write them with the CSV samples and
-/// the figures into `<out>/<study name>/`.
+/// the figures into `<out>/<study name>/`; with `--replications`, the same for the study
+/// replicated over that many derived seeds.
 fn run_study(study: &Study, output: &StudyOutputArgs) -> Result<()> {
     let runs = study.cases.len() * study.point_sets * study.runs_per_set;
-    let bar = ProgressBar::new(runs as u64).with_message(study.name.clone());
-    bar.set_style(ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} runs").expect("a valid template"));
+    let bar = progress(runs, study.name.clone());
     let pool = rayon::ThreadPoolBuilder::new().num_threads(output.threads.unwrap_or(0)).build()?;
     let results = pool.install(|| simulation::run(study, &|| bar.inc(1)))?;
     bar.finish_and_clear();
@@ -59,5 +66,14 @@ fn run_study(study: &Study, output: &StudyOutputArgs) -> Result<()> {
     let folder = output.out.join(&study.name);
     io::write_files(&folder, &files)?;
     println!("wrote {} files to {}\n", files.len(), folder.display());
+    if let Some(count) = output.replications {
+        let bar = progress(runs * count, format!("{} x {count} replications", study.name));
+        let replicated = pool.install(|| simulation::replicate(study, count, &|| bar.inc(1)))?;
+        bar.finish_and_clear();
+        let files = report::replication::files(study, &replicated)?;
+        println!("{}", files[0].1);
+        io::write_files(&folder, &files)?;
+        println!("wrote {} files to {}\n", files.len(), folder.display());
+    }
     Ok(())
 }

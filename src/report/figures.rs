@@ -3,7 +3,7 @@
 
 use crate::calibration::{PoseErrors, SetEvaluation};
 use crate::model::{Joint, JointKind};
-use crate::simulation::{PoseChoice, Study, StudyResults, Summary};
+use crate::simulation::{PoseChoice, Replications, Statistic, Study, StudyResults, Summary};
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
@@ -28,10 +28,7 @@ pub fn study_figures(study: &Study, results: &StudyResults) -> Result<Vec<(Strin
     let mut figures = Vec::new();
     for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
         for (c, case) in study.cases.iter().enumerate() {
-            let (suffix, poses) = match case.poses {
-                PoseChoice::Random => (String::new(), String::new()),
-                other => (format!("-{}", other.name()), format!(", {} poses", other.name())),
-            };
+            let (suffix, poses) = pose_labels(case.poses);
             let name = format!("histogram-{estimator}-np{}-sigma{}{suffix}.svg", case.points, case.sigma_me);
             let title =
                 format!("dE of {estimator}: N_p = {}, sigma_me = {} mm{poses}", case.points, case.sigma_me);
@@ -88,6 +85,15 @@ pub fn study_figures(study: &Study, results: &StudyResults) -> Result<Vec<(Strin
     Ok(figures)
 }
 
+/// How a case's poses are chosen, for file names (`-planned`) and titles (`, planned poses`);
+/// nothing for random poses, the paper's.
+fn pose_labels(poses: PoseChoice) -> (String, String) {
+    match poses {
+        PoseChoice::Random => (String::new(), String::new()),
+        other => (format!("-{}", other.name()), format!(", {} poses", other.name())),
+    }
+}
+
 fn error(name: &str, message: String) -> FigureError {
     FigureError { name: name.to_string(), message }
 }
@@ -106,28 +112,187 @@ fn distinct(values: impl Iterator<Item = f64>) -> Vec<f64> {
 fn histogram(title: &str, values: &[f64]) -> Result<String, String> {
     let width = 5.0;
     let low = (values.iter().copied().fold(f64::INFINITY, f64::min) / width).floor() * width;
-    let high = (values.iter().copied().fold(f64::NEG_INFINITY, f64::max) / width).floor() * width + width;
-    let bins = ((high - low) / width).round() as usize;
-    let mut counts = vec![0u32; bins];
-    for v in values {
-        counts[(((v - low) / width).floor() as usize).min(bins - 1)] += 1;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let bins = Bins::from(low, width, values);
+        draw_histogram(&root, title, values, bins, "dE (%)", "number of runs N_r", None)?;
+        root.present().map_err(|e| e.to_string())?;
     }
-    let top = f64::from(*counts.iter().max().unwrap_or(&1)) + 1.0;
-    single_chart(title, low..high, 0.0..top, false, |chart| {
+    Ok(svg)
+}
+
+/// Equal bins from `low`, `width` wide, enough of them for every value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Bins {
+    low: f64,
+    width: f64,
+    count: usize,
+}
+
+impl Bins {
+    fn from(low: f64, width: f64, values: &[f64]) -> Self {
+        let high = values.iter().copied().fold(low, f64::max);
+        Self { low, width, count: ((high - low) / width).floor() as usize + 1 }
+    }
+
+    /// About `target` bins of a round width (1, 2, 2.5 or 5 times a power of ten) over `values`
+    /// and `marker`; with a `grain` (values on a lattice of that step, like shares of a fixed
+    /// number of runs), a whole number of grains wide and edged half a grain off the lattice.
+    fn round(values: &[f64], marker: Option<f64>, target: usize, grain: Option<f64>) -> Self {
+        let all = || values.iter().copied().chain(marker);
+        let (lo, hi) = (all().fold(f64::INFINITY, f64::min), all().fold(f64::NEG_INFINITY, f64::max));
+        let raw = ((hi - lo) / target as f64).max(1e-9);
+        let power = 10f64.powf(raw.log10().floor());
+        let step = [1.0, 2.0, 2.5, 5.0, 10.0].into_iter().find(|&m| raw <= m * power * (1.0 + 1e-12));
+        let mut width = step.unwrap_or(10.0) * power;
+        let low = match grain {
+            Some(g) => {
+                width = (width / g).round().max(1.0) * g;
+                ((lo / g).round() - 0.5) * g
+            }
+            None => (lo / width).floor() * width,
+        };
+        Self::from(low, width, &[hi])
+    }
+}
+
+/// A histogram of `values` on `area`, with a red vertical line at `marker` (value, label).
+fn draw_histogram(
+    area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    title: &str,
+    values: &[f64],
+    bins: Bins,
+    x_desc: &str,
+    y_desc: &str,
+    marker: Option<(f64, String)>,
+) -> Result<(), String> {
+    let Bins { low, width, count } = bins;
+    let mut counts = vec![0u32; count];
+    for v in values {
+        counts[(((v - low) / width).floor().max(0.0) as usize).min(count - 1)] += 1;
+    }
+    // Room above the bars for the marker's legend.
+    let headroom = if marker.is_some() { 1.3 } else { 1.0 };
+    let top = (f64::from(*counts.iter().max().unwrap_or(&1)) * headroom).ceil() + 1.0;
+    let high = low + count as f64 * width;
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(48)
+        .build_cartesian_2d(low..high, 0.0..top)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .y_labels((top as usize + 1).min(10))
+        .y_label_formatter(&|v| if v.fract() == 0.0 { format!("{v:.0}") } else { String::new() })
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let bars = counts.iter().enumerate().map(|(i, &n)| {
+        let x0 = low + i as f64 * width;
+        Rectangle::new([(x0, 0.0), (x0 + width, f64::from(n))], BLUE.mix(0.6).filled())
+    });
+    chart.draw_series(bars).map_err(|e| e.to_string())?;
+    if let Some((x, label)) = marker {
         chart
-            .configure_mesh()
-            .x_desc("dE (%)")
-            .y_desc("number of runs N_r")
-            .y_label_formatter(&|v| format!("{v:.0}"))
+            .draw_series(LineSeries::new([(x, 0.0), (x, top)], RED.stroke_width(3)))
+            .map_err(|e| e.to_string())?
+            .label(label)
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
             .draw()
             .map_err(|e| e.to_string())?;
-        let bars = counts.iter().enumerate().map(|(i, &n)| {
-            let x0 = low + i as f64 * width;
-            Rectangle::new([(x0, 0.0), (x0 + width, f64::from(n))], BLUE.mix(0.6).filled())
-        });
-        chart.draw_series(bars).map_err(|e| e.to_string())?;
-        Ok(())
-    })
+    }
+    Ok(())
+}
+
+/// The replications of a study, one figure per case and compared estimator,
+/// `replications-<estimator>-np<N>-sigma<s>.svg`: a histogram over the replications of each
+/// statistic of the paper's table (MEAN, SD, LOWEST, HIGHEST, % > 0 of dE), with the paper's
+/// value drawn on it as a red line where the study has the paper's row.
+pub fn replication_figures(
+    study: &Study,
+    replications: &Replications,
+) -> Result<Vec<(String, String)>, FigureError> {
+    let mut figures = Vec::new();
+    let count = replications.replications.len();
+    for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
+        for (c, case) in study.cases.iter().enumerate() {
+            let (suffix, poses) = pose_labels(case.poses);
+            let name =
+                format!("replications-{estimator}-np{}-sigma{}{suffix}.svg", case.points, case.sigma_me);
+            let title = format!(
+                "dE of {estimator}, N_p = {}, sigma_me = {} mm{poses}: the table over {count} replications",
+                case.points, case.sigma_me
+            );
+            let runs = (study.point_sets * study.runs_per_set) as f64;
+            let panels: Vec<Panel> = Statistic::ALL
+                .iter()
+                .map(|&statistic| {
+                    let values = replications.values(c, e, statistic);
+                    let paper = study.reference_for(case).map(|r| statistic.of_reference(r));
+                    let marker = paper.map(|p| {
+                        let rank = replications.paper_percentile(c, e, statistic, p);
+                        (p, format!("paper {p}: percentile {rank:.1}"))
+                    });
+                    let grain = (statistic == Statistic::AboveZero).then_some(100.0 / runs);
+                    let bins = Bins::round(&values, marker.as_ref().map(|m| m.0), 16, grain);
+                    Panel { statistic, values, bins, marker }
+                })
+                .collect();
+            let notes = [
+                format!("{count} replications of {}", study.name),
+                format!("master seeds derived from {}", replications.seed),
+                format!("{} point sets x {} runs each", study.point_sets, study.runs_per_set),
+                "red line: the paper's value".to_string(),
+            ];
+            let svg = panel_figure(&title, &panels, &notes).map_err(|m| error(&name, m))?;
+            figures.push((name, svg));
+        }
+    }
+    Ok(figures)
+}
+
+/// One statistic's histogram in a replication figure.
+struct Panel {
+    statistic: Statistic,
+    values: Vec<f64>,
+    bins: Bins,
+    marker: Option<(f64, String)>,
+}
+
+/// Five histograms in a 2 x 3 grid, the sixth cell for `notes`.
+fn panel_figure(title: &str, panels: &[Panel], notes: &[String]) -> Result<String, String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1260, 760)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(|e| e.to_string())?;
+        let cells = root.split_evenly((2, 3));
+        for (cell, panel) in cells.iter().zip(panels) {
+            let name = panel.statistic.name();
+            let x_desc = format!("{name} of dE (%)");
+            let marker = panel.marker.clone();
+            draw_histogram(cell, name, &panel.values, panel.bins, &x_desc, "replications", marker)?;
+        }
+        if let Some(cell) = cells.get(panels.len()) {
+            for (i, line) in notes.iter().enumerate() {
+                let position = (30, 60 + 28 * i as i32);
+                cell.draw(&Text::new(line.as_str(), position, ("sans-serif", 18)))
+                    .map_err(|e| e.to_string())?;
+            }
+        }
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
 }
 
 /// A chart of `(x, y)` over two linear axes.
@@ -181,7 +346,17 @@ fn trend(
         (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
     }
     let pad = 0.05 * (x1 - x0).max(1e-9);
-    single_chart(title, (x0 - pad)..(x1 + pad), (y0 - 5.0)..(y1 + 5.0), true, |chart| {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(48)
+            .build_cartesian_2d((x0 - pad)..(x1 + pad), (y0 - 5.0)..(y1 + 5.0))
+            .map_err(|e| e.to_string())?;
         chart.configure_mesh().x_desc(x_label).y_desc("dE (%)").draw().map_err(|e| e.to_string())?;
         for (i, (label, means, sets)) in series.iter().enumerate() {
             let colour = Palette99::pick(i).to_rgba();
@@ -194,8 +369,15 @@ fn trend(
                 .draw_series(sets.iter().map(|&p| Circle::new(p, 3, colour.filled())))
                 .map_err(|e| e.to_string())?;
         }
-        Ok(())
-    })
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
 }
 
 /// The figures of scored pose sets (joint values in degrees, mm for prismatic joints), as

@@ -6,6 +6,7 @@ pub mod design;
 pub mod figures;
 pub mod html;
 pub mod poses;
+pub mod replication;
 pub mod study;
 
 use crate::model::{JointKind, RobotModel, degrees};

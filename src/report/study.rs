@@ -5,8 +5,9 @@ use crate::simulation::{PoseChoice, Study, StudyResults, Summary};
 use std::fmt::Write;
 
 /// The study's tables in the paper's format (MEAN, SD, LOWEST, HIGHEST, % ABOVE ZERO of dE),
-/// one table per compared estimator, with the 95% confidence interval of each mean, the mean
-/// `E_p` of both estimators, and the paper's row where the study has one.
+/// one table per compared estimator, with the 95% confidence intervals of each mean and share
+/// (clustered by point set: [`Summary::of_sets`]), the mean `E_p` of both estimators, and the
+/// paper's row where the study has one.
 pub fn tables(study: &Study, results: &StudyResults) -> String {
     let mut out = String::new();
     let baseline = study.estimators[0];
@@ -45,7 +46,7 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
         out += &poses("poses");
         let _ = writeln!(
             out,
-            "{:>5} {:>9} {:>10} {:>10} | {:>6} {:>7} {:>6} {:>7} {:>7} {:>6} | {:>6} {:>6} {:>7} {:>7} {:>6}",
+            "{:>5} {:>9} {:>10} {:>10} | {:>6} {:>7} {:>6} {:>7} {:>7} {:>6} {:>11} | {:>6} {:>6} {:>7} {:>7} {:>6}",
             "N_p",
             "sigma_me",
             format!("E_p {baseline}"),
@@ -56,6 +57,7 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
             "LOWEST",
             "HIGHEST",
             "% > 0",
+            "95% CI",
             "paper",
             "SD",
             "LOWEST",
@@ -65,21 +67,22 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
         out += &poses("");
         let _ = writeln!(out, "{:>5} {:>9} {:>10} {:>10} |", "", "mm", "mm", "mm");
         for (c, case) in study.cases.iter().enumerate() {
-            let s = Summary::of(&results.improvements(c, e));
+            let s = Summary::of_sets(&results.improvements_by_set(c, e));
             out += &poses(case.poses.name());
             let _ = write!(
                 out,
-                "{:>5} {:>9.3} {:>10.5} {:>10.5} | {:>6.2} {:>7} {:>6.2} {:>7.1} {:>7.1} {:>6.1} |",
+                "{:>5} {:>9.3} {:>10.5} {:>10.5} | {:>6.2} {:>7} {:>6.2} {:>7.1} {:>7.1} {:>6.1} {:>11} |",
                 case.points,
                 case.sigma_me,
                 results.mean_error(c, 0),
                 results.mean_error(c, e),
                 s.mean,
-                format!("±{:.2}", s.ci95),
+                mean_interval(&s),
                 s.sd,
                 s.lowest,
                 s.highest,
-                s.above_zero
+                s.above_zero,
+                share_interval(&s)
             );
             match study.reference_for(case) {
                 Some(r) => {
@@ -98,8 +101,9 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
 
 /// Planned against random poses, for every case with both: for each estimator the mean `E_p`
 /// of each and the reduction `100 (E_p[random] - E_p[planned]) / E_p[random]` run by run (the
-/// two cases share their real robots and noise draws), with its 95% confidence interval and
-/// the share of runs the planned poses won. `None` if the study has no such pair.
+/// two cases share their real robots and noise draws), with its 95% confidence interval
+/// (clustered by point set) and the share of runs the planned poses won, with its interval.
+/// `None` if the study has no such pair.
 pub fn planned_against_random(study: &Study, results: &StudyResults) -> Option<String> {
     let mut out = String::new();
     let _ = writeln!(
@@ -109,7 +113,7 @@ pub fn planned_against_random(study: &Study, results: &StudyResults) -> Option<S
     );
     let _ = writeln!(
         out,
-        "{:>5} {:>9} {:>9} {:>10} {:>10} | {:>6} {:>7} {:>6} {:>7} {:>7} {:>6}",
+        "{:>5} {:>9} {:>9} {:>10} {:>10} | {:>6} {:>7} {:>6} {:>7} {:>7} {:>6} {:>11}",
         "N_p",
         "sigma_me",
         "estimator",
@@ -120,7 +124,8 @@ pub fn planned_against_random(study: &Study, results: &StudyResults) -> Option<S
         "SD",
         "LOWEST",
         "HIGHEST",
-        "% > 0"
+        "% > 0",
+        "95% CI"
     );
     let _ = writeln!(out, "{:>5} {:>9} {:>9} {:>10} {:>10} |", "", "mm", "", "mm", "mm");
     let mut pairs = 0;
@@ -133,32 +138,43 @@ pub fn planned_against_random(study: &Study, results: &StudyResults) -> Option<S
         pairs += 1;
         let runs = |c: usize| results.runs.iter().filter(move |run| run.case == c);
         for (e, estimator) in study.estimators.iter().enumerate() {
-            let reductions: Vec<f64> = runs(r)
-                .zip(runs(p))
-                .map(|(random, planned)| {
-                    debug_assert_eq!((random.set, random.run), (planned.set, planned.run));
-                    crate::simulation::improvement(random.accuracy[e].mean, planned.accuracy[e].mean)
-                })
-                .collect();
-            let s = Summary::of(&reductions);
+            let mut reductions: Vec<Vec<f64>> = vec![Vec::new(); study.point_sets];
+            for (random, planned) in runs(r).zip(runs(p)) {
+                debug_assert_eq!((random.set, random.run), (planned.set, planned.run));
+                reductions[random.set]
+                    .push(crate::simulation::improvement(random.accuracy[e].mean, planned.accuracy[e].mean));
+            }
+            let s = Summary::of_sets(&reductions);
             let _ = writeln!(
                 out,
-                "{:>5} {:>9.3} {:>9} {:>10.5} {:>10.5} | {:>6.2} {:>7} {:>6.2} {:>7.1} {:>7.1} {:>6.1}",
+                "{:>5} {:>9.3} {:>9} {:>10.5} {:>10.5} | {:>6.2} {:>7} {:>6.2} {:>7.1} {:>7.1} {:>6.1} {:>11}",
                 case.points,
                 case.sigma_me,
                 estimator.name(),
                 results.mean_error(r, e),
                 results.mean_error(p, e),
                 s.mean,
-                format!("±{:.2}", s.ci95),
+                mean_interval(&s),
                 s.sd,
                 s.lowest,
                 s.highest,
-                s.above_zero
+                s.above_zero,
+                share_interval(&s)
             );
         }
     }
     (pairs > 0).then_some(out)
+}
+
+/// The 95% interval of the share above zero, as `low-high` (%).
+fn share_interval(s: &Summary) -> String {
+    let (low, high) = s.above_zero_ci;
+    if low.is_nan() { "-".into() } else { format!("{low:.1}-{high:.1}") }
+}
+
+/// The half-width of the 95% interval of the mean, as `±h`; `-` without one (one point set).
+fn mean_interval(s: &Summary) -> String {
+    if s.ci95.is_nan() { "-".into() } else { format!("±{:.2}", s.ci95) }
 }
 
 /// Every run as a CSV row: the case, set and run; `E_p` mean, RMS and max (mm) and `E_r`

@@ -22,11 +22,19 @@
 //! their real robots and noise draws, so that random and planned poses compare run by run. Runs are spread over threads with rayon, and the results
 //! are the same, bit for bit, for any number of threads.
 
+mod replication;
 mod stats;
 mod study;
 mod synthetic;
 
-pub use stats::{Summary, t_quantile_975};
+pub use replication::{
+    Coverage, MAX_REPLICATIONS, REPLICATION_STREAM, Replication, ReplicationError, Replications, Statistic,
+    check_replications, replicate, replication_seed, replication_study,
+};
+pub use stats::{
+    Spread, Summary, Z_975, clustered_half_width, effective_sample_size, mean, percentile, percentile_rank,
+    t_quantile_975, variance, wilson_interval,
+};
 pub use study::{Case, ErrorSizes, PoseChoice, Redraw, Reference, STUDIES, Study, StudyError};
 pub use synthetic::measurement_csv;
 
@@ -121,20 +129,21 @@ impl StudyResults {
         self.runs.iter().filter(|r| r.case == case).map(|r| r.improvement(e)).collect()
     }
 
+    /// The dE samples of estimator `e` in case `case`, point set by point set.
+    pub fn improvements_by_set(&self, case: usize, e: usize) -> Vec<Vec<f64>> {
+        let mut sets: Vec<Vec<f64>> = Vec::new();
+        for r in self.runs.iter().filter(|r| r.case == case) {
+            if sets.len() <= r.set {
+                sets.resize(r.set + 1, Vec::new());
+            }
+            sets[r.set].push(r.improvement(e));
+        }
+        sets
+    }
+
     /// Mean dE of estimator `e` on each point set of `case`.
     pub fn set_means(&self, case: usize, e: usize) -> Vec<f64> {
-        let sets = self.runs.iter().filter(|r| r.case == case).map(|r| r.set + 1).max().unwrap_or(0);
-        (0..sets)
-            .map(|s| {
-                let values: Vec<f64> = self
-                    .runs
-                    .iter()
-                    .filter(|r| r.case == case && r.set == s)
-                    .map(|r| r.improvement(e))
-                    .collect();
-                values.iter().sum::<f64>() / values.len() as f64
-            })
-            .collect()
+        self.improvements_by_set(case, e).iter().map(|s| stats::mean(s)).collect()
     }
 
     /// Mean `E_p` (mm) of estimator `e` in case `case`.

@@ -11,6 +11,7 @@ mod noise;
 mod observability;
 mod planning;
 mod repeatability;
+mod replication;
 mod report;
 mod simulation;
 mod urdf;
