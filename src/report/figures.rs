@@ -346,17 +346,7 @@ fn trend(
         (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
     }
     let pad = 0.05 * (x1 - x0).max(1e-9);
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(48)
-            .build_cartesian_2d((x0 - pad)..(x1 + pad), (y0 - 5.0)..(y1 + 5.0))
-            .map_err(|e| e.to_string())?;
+    single_chart(title, (x0 - pad)..(x1 + pad), (y0 - 5.0)..(y1 + 5.0), true, |chart| {
         chart.configure_mesh().x_desc(x_label).y_desc("dE (%)").draw().map_err(|e| e.to_string())?;
         for (i, (label, means, sets)) in series.iter().enumerate() {
             let colour = Palette99::pick(i).to_rgba();
@@ -369,15 +359,8 @@ fn trend(
                 .draw_series(sets.iter().map(|&p| Circle::new(p, 3, colour.filled())))
                 .map_err(|e| e.to_string())?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())?;
-        root.present().map_err(|e| e.to_string())?;
-    }
-    Ok(svg)
+        Ok(())
+    })
 }
 
 /// The figures of scored pose sets (joint values in degrees, mm for prismatic joints), as
