@@ -354,45 +354,41 @@ impl ChainAt {
     /// Position of the tool point (mm).
     pub fn position(&self, q: &[f64]) -> Vector3<f64> {
         assert_eq!(q.len(), self.dof, "q has one value per joint");
-        let mut reached = [0.0; MAX_JOINTS];
-        walk(&self.steps, self.reached(q, &mut reached), Frame::IDENTITY).p
+        self.at_reached(q, |q| walk(&self.steps, q, Frame::IDENTITY).p)
     }
 
-    /// The gravity loads at `q` (in `buffer`) if `selection` holds a compliance: its column of
-    /// `H` is its joint's, scaled by the joint's load. Zeros otherwise (and unused).
-    fn loads_for<'a>(
-        &self,
-        selection: &Selection,
-        q: &[f64],
-        buffer: &'a mut [f64; MAX_JOINTS],
-    ) -> &'a [f64] {
-        let compliant =
-            self.steps.iter().any(|s| s.step.compliance.is_some_and(|i| selection.column(i).is_some()));
-        if compliant {
-            self.gravity_torques(q, &mut buffer[..self.dof]);
+    /// `f` of the gravity loads at `q` if `selection` holds a compliance, whose column of `H` is
+    /// its joint's scaled by the joint's load; of nothing otherwise (then unused).
+    fn with_loads<R>(&self, selection: &Selection, q: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
+        let compliant = self.has_masses()
+            && self.steps.iter().any(|s| s.step.compliance.is_some_and(|i| selection.column(i).is_some()));
+        if !compliant {
+            return f(&[]);
         }
-        &buffer[..]
+        let mut loads = [0.0; MAX_JOINTS];
+        self.gravity_torques(q, &mut loads[..self.dof]);
+        f(&loads[..self.dof])
     }
 
-    /// The joint values the arm reaches when commanded `q`: `q + c tau(q)` (in `buffer`), each
-    /// joint deflected by its compliance `c` under the gravity load `tau` at `q`
-    /// ([`ChainAt::gravity_torques`]); `q` itself when no joint is compliant. The load is taken
-    /// at the commanded values: the deflection's own effect on it is of second order.
-    fn reached<'a>(&self, q: &'a [f64], buffer: &'a mut [f64; MAX_JOINTS]) -> &'a [f64] {
-        let Some(compliance) = &self.compliance else { return q };
+    /// `f` of the joint values the arm reaches when commanded `q`: `q + c tau(q)`, each joint
+    /// deflected by its compliance `c` under the gravity load `tau` at `q`
+    /// ([`ChainAt::gravity_torques`]); of `q` itself when no joint is compliant. The load is
+    /// taken at the commanded values: the deflection's own effect on it is of second order.
+    fn at_reached<R>(&self, q: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
+        let Some(compliance) = &self.compliance else { return f(q) };
+        let mut buffer = [0.0; MAX_JOINTS];
         let reached = &mut buffer[..self.dof];
         self.gravity_torques(q, reached);
         for ((r, &q), &c) in reached.iter_mut().zip(q).zip(compliance) {
             *r = q + c * *r;
         }
-        reached
+        f(reached)
     }
 
     /// Pose of the tool frame: `base * T_1(q_1) * ... * T_n(q_n) * tool`.
     pub fn pose(&self, q: &[f64]) -> Isometry3<f64> {
         assert_eq!(q.len(), self.dof, "q has one value per joint");
-        let mut reached = [0.0; MAX_JOINTS];
-        let end = walk(&self.steps, self.reached(q, &mut reached), Frame::IDENTITY);
+        let end = self.at_reached(q, |q| walk(&self.steps, q, Frame::IDENTITY));
         let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(end.r));
         Isometry3::from_parts(Translation3::from(end.p), rotation)
     }
@@ -438,29 +434,30 @@ impl ChainAt {
         // point at the origin, and are turned into the world frame at the end.
         let origin = Vector3::zeros();
         assert_eq!(q.len(), self.dof, "q has one value per joint");
-        let (mut reached, mut loads) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
-        let loads = self.loads_for(selection, q, &mut loads);
-        let end = walk_back(&self.steps, self.reached(q, &mut reached), |step, frame| {
-            let column = step.param.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
-            let flex = step.compliance.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
-            let joint = step.joint.filter(|_| j.is_some());
-            if column.is_none() && flex.is_none() && joint.is_none() {
-                return;
-            }
-            let (linear, angular) = frame.screw(step.motion, &origin);
-            // A compliance moves its joint by the joint's load: its column is the joint's, scaled.
-            let scaled = |c: usize| (c, step.joint.map_or(0.0, |j| loads[j]));
-            for (c, scale) in column.map(|c| (c, 1.0)).into_iter().chain(flex.map(scaled)) {
-                h.fixed_view_mut::<3, 1>(0, c).copy_from(&(linear * scale));
-                if measured == Measured::Pose {
-                    h.fixed_view_mut::<3, 1>(3, c).copy_from(&(angular * scale));
+        let mut visit = |loads: &[f64], q: &[f64]| {
+            walk_back(&self.steps, q, |step, frame| {
+                let column = step.param.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
+                let flex = step.compliance.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
+                let joint = step.joint.filter(|_| j.is_some());
+                if column.is_none() && flex.is_none() && joint.is_none() {
+                    return;
                 }
-            }
-            if let (Some(col), Some(j)) = (joint, j.as_deref_mut()) {
-                j.fixed_view_mut::<3, 1>(0, col).copy_from(&linear);
-                j.fixed_view_mut::<3, 1>(3, col).copy_from(&angular);
-            }
-        });
+                let (linear, angular) = frame.screw(step.motion, &origin);
+                // A compliance moves its joint by the joint's load: its column is the joint's, scaled.
+                let scaled = |c: usize| (c, step.joint.map_or(0.0, |j| loads[j]));
+                for (c, scale) in column.map(|c| (c, 1.0)).into_iter().chain(flex.map(scaled)) {
+                    h.fixed_view_mut::<3, 1>(0, c).copy_from(&(linear * scale));
+                    if measured == Measured::Pose {
+                        h.fixed_view_mut::<3, 1>(3, c).copy_from(&(angular * scale));
+                    }
+                }
+                if let (Some(col), Some(j)) = (joint, j.as_deref_mut()) {
+                    j.fixed_view_mut::<3, 1>(0, col).copy_from(&linear);
+                    j.fixed_view_mut::<3, 1>(3, col).copy_from(&angular);
+                }
+            })
+        };
+        let end = self.with_loads(selection, q, |loads| self.at_reached(q, |reached| visit(loads, reached)));
         to_world(&end.r, &mut h);
         if let Some(j) = j {
             to_world(&end.r, j);
@@ -501,25 +498,26 @@ pub fn marker_jacobians(
     for (p, at) in positions.iter_mut().zip(markers) {
         *p = offset(at);
     }
-    let (mut reached, mut loads) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
-    let loads = first.loads_for(selection, q, &mut loads);
-    let end = walk_back(&first.steps[..first.arm], first.reached(q, &mut reached), |step, frame| {
-        let column = step.param.and_then(|i| selection.column(i)).map(|c| (c, 1.0));
-        // A compliance moves its joint by the joint's load: its column is the joint's, scaled.
-        let flex = step
-            .compliance
-            .and_then(|i| selection.column(i))
-            .map(|c| (c, step.joint.map_or(0.0, |j| loads[j])));
-        if column.is_none() && flex.is_none() {
-            return;
-        }
-        let (linear, angular) = frame.screw(step.motion, &Vector3::zeros());
-        for (c, scale) in column.into_iter().chain(flex) {
-            for (m, r) in positions.iter().enumerate() {
-                h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&((linear + angular.cross(r)) * scale));
+    let mut visit = |loads: &[f64], q: &[f64]| {
+        walk_back(&first.steps[..first.arm], q, |step, frame| {
+            let column = step.param.and_then(|i| selection.column(i)).map(|c| (c, 1.0));
+            // A compliance moves its joint by the joint's load: its column is the joint's, scaled.
+            let flex = step
+                .compliance
+                .and_then(|i| selection.column(i))
+                .map(|c| (c, step.joint.map_or(0.0, |j| loads[j])));
+            if column.is_none() && flex.is_none() {
+                return;
             }
-        }
-    });
+            let (linear, angular) = frame.screw(step.motion, &Vector3::zeros());
+            for (c, scale) in column.into_iter().chain(flex) {
+                for (m, r) in positions.iter().enumerate() {
+                    h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&((linear + angular.cross(r)) * scale));
+                }
+            }
+        })
+    };
+    let end = first.with_loads(selection, q, |loads| first.at_reached(q, |reached| visit(loads, reached)));
     for (m, at) in markers.iter().enumerate() {
         assert_eq!(at.arm, first.arm, "markers of one arm");
         for s in &at.steps[at.arm..] {
@@ -544,13 +542,13 @@ pub fn end_positions(chains: &[ChainAt], q: &[f64], positions: &mut [Vector3<f64
     let first = &chains[0];
     assert_eq!(q.len(), first.dof, "q has one value per joint");
     assert_eq!(positions.len(), chains.len(), "one position per chain");
-    let mut reached = [0.0; MAX_JOINTS];
-    let q = first.reached(q, &mut reached);
-    let arm = walk(&first.steps[..first.arm], q, Frame::IDENTITY);
-    for (p, at) in positions.iter_mut().zip(chains) {
-        assert_eq!(at.arm, first.arm, "chains of one arm");
-        *p = walk(&at.steps[at.arm..], q, arm).p;
-    }
+    first.at_reached(q, |q| {
+        let arm = walk(&first.steps[..first.arm], q, Frame::IDENTITY);
+        for (p, at) in positions.iter_mut().zip(chains) {
+            assert_eq!(at.arm, first.arm, "chains of one arm");
+            *p = walk(&at.steps[at.arm..], q, arm).p;
+        }
+    });
 }
 
 /// Walk `steps` forwards at `q` from `frame`: the frame at their end.
