@@ -3,7 +3,7 @@
 //! computed before anything is written.
 
 use super::request::{CalibrateRequest, Method, ModelSource, NoiseSource};
-use super::{check_marker_count, noise_model, write_file};
+use super::{check_marker_count, noise_model};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::{self, Calibration, ErrorStats, FeasibleOptions, Measurements, Options};
 use robocal::estimation::RefineOptions;
@@ -132,21 +132,23 @@ fn validate(
     Ok(validation)
 }
 
-/// Write the JSON report, the calibrated model and the calibrated URDF, as asked.
+/// Write the JSON report, the calibrated model and the calibrated URDF, as asked: all of them
+/// or none.
 fn write(
     request: &CalibrateRequest,
     robot: &Robot,
     report: &CalibrationReport,
     result: &Calibration,
 ) -> Result<()> {
+    let mut outputs = io::Outputs::new();
     if let Some(path) = &request.json {
-        write_file(path, serde_json::to_string_pretty(report)? + "\n")?;
+        outputs.add(path, serde_json::to_string_pretty(report)? + "\n");
     }
     if let Some(path) = &request.out_model {
-        write_file(path, result.calibrated.to_toml_string())?;
+        outputs.add(path, result.calibrated.to_toml_string());
     }
     if let (Some(path), Some((text, base, tip))) = (&request.out_urdf, &robot.urdf) {
-        write_file(path, robocal::model::to_urdf_string(text, base, tip, &result.calibrated)?)?;
+        outputs.add(path, robocal::model::to_urdf_string(text, base, tip, &result.calibrated)?);
     }
-    Ok(())
+    Ok(outputs.commit()?)
 }

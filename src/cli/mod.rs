@@ -80,11 +80,6 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Write `text` to `path`, naming the file if that fails.
-fn write_file(path: &Path, text: impl AsRef<[u8]>) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))
-}
-
 /// A joint value given on the command line (degrees; mm for a prismatic joint) in the model's
 /// units (radians; mm).
 fn from_flag_unit(kind: JointKind, value: f64) -> f64 {

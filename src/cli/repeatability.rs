@@ -1,7 +1,7 @@
 //! `robocal repeatability`: the noise from repeated measurements, printed and written.
 
+use super::check_marker_count;
 use super::request::RepeatabilityRequest;
-use super::{check_marker_count, write_file};
 use anyhow::{Context, Result};
 use robocal::calibration::{self, RepeatabilityOptions};
 use robocal::estimation::JointComponents;
@@ -48,6 +48,7 @@ pub fn run(request: &RepeatabilityRequest) -> Result<()> {
     for note in &notes {
         println!("note: {note}");
     }
+    let mut outputs = io::Outputs::new();
     if let Some(path) = &request.out {
         let header = format!(
             "robocal noise file, estimated by `robocal repeatability` from {} ({} poses, {} measurements).\n\
@@ -58,11 +59,14 @@ pub fn run(request: &RepeatabilityRequest) -> Result<()> {
             report::calibration::noise_table(&rows),
             notes.iter().map(|n| format!("note: {n}\n")).collect::<String>()
         );
-        write_file(path, result.estimate.spec().to_toml_string(&model, &header))?;
-        println!("\nwrote {}", path.display());
+        outputs.add(path, result.estimate.spec().to_toml_string(&model, &header));
     }
     if let Some(path) = &request.json {
-        write_file(path, serde_json::to_string_pretty(&rows)? + "\n")?;
+        outputs.add(path, serde_json::to_string_pretty(&rows)? + "\n");
+    }
+    outputs.commit()?;
+    if let Some(path) = &request.out {
+        println!("\nwrote {}", path.display());
     }
     Ok(())
 }

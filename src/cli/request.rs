@@ -11,8 +11,9 @@ use robocal::calibration::JointParams;
 use robocal::design::Criterion;
 use robocal::estimation::Estimator;
 use robocal::kinematics::Measured;
+use robocal::limits::{MAX_CANDIDATES, MAX_POINTS};
 use robocal::table::Units;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[cfg(test)]
 mod tests;
@@ -25,6 +26,46 @@ pub struct UsageError(pub String);
 /// `Err(UsageError)` with this message unless `ok`.
 fn require(ok: bool, message: &str) -> Result<(), UsageError> {
     if ok { Ok(()) } else { Err(UsageError(message.to_string())) }
+}
+
+/// The file `path` names, to compare paths: canonical where it exists, else its folder's
+/// canonical path with its name (or `path` itself if the folder does not exist either).
+fn file_identity(path: &Path) -> PathBuf {
+    if let Ok(canonical) = path.canonicalize() {
+        return canonical;
+    }
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    match (folder.canonicalize(), path.file_name()) {
+        (Ok(folder), Some(name)) => folder.join(name),
+        _ => path.to_path_buf(),
+    }
+}
+
+/// Refuse an output path that is also an input's (writing it would lose the input) or
+/// another output's (one would overwrite the other): `(flag, path)` each.
+pub(super) fn distinct_outputs(
+    inputs: &[(&str, &Path)],
+    outputs: &[(&str, &Path)],
+) -> Result<(), UsageError> {
+    for (i, (flag, path)) in outputs.iter().enumerate() {
+        let file = file_identity(path);
+        if let Some((input, _)) = inputs.iter().find(|(_, p)| file_identity(p) == file) {
+            return Err(UsageError(format!(
+                "{flag} {}: that is the input file of {input}, which writing would overwrite; give another path",
+                path.display()
+            )));
+        }
+        if let Some((other, _)) = outputs[..i].iter().find(|(_, p)| file_identity(p) == file) {
+            return Err(UsageError(format!(
+                "{other} and {flag} both name {}: give each output its own path",
+                path.display()
+            )));
+        }
+    }
+    Ok(())
 }
 
 impl UnitArgs {
@@ -158,6 +199,20 @@ impl CalibrateRequest {
         let noise = noise_source(args.noise, args.noise_flags.flags())?;
         let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
         let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
+        let model_file = match &model {
+            ModelSource::Named(name) => Path::new(name),
+            ModelSource::Urdf { path, .. } => path.as_path(),
+        };
+        let mut inputs = vec![("--model", model_file), ("--data", args.data.as_path())];
+        if let Some(NoiseSource::File(path)) = &noise {
+            inputs.push(("--noise", path));
+        }
+        inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
+        let outputs =
+            [("--json", &args.json), ("--out-model", &args.out_model), ("--out-urdf", &args.out_urdf)];
+        let outputs: Vec<(&str, &Path)> =
+            outputs.iter().filter_map(|(flag, path)| Some((*flag, path.as_deref()?))).collect();
+        distinct_outputs(&inputs, &outputs)?;
         Ok(Self {
             model,
             data: args.data,
@@ -334,6 +389,14 @@ pub struct PlanRequest {
 impl PlanRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: PlanArgs) -> Result<Self, UsageError> {
+        for (flag, count, bound) in
+            [("--points", args.points, MAX_POINTS), ("--candidates", args.candidates, MAX_CANDIDATES)]
+        {
+            require(count <= bound, &format!("{flag} {count}: at most {bound}"))?;
+        }
+        if let Some(out) = &args.out {
+            distinct_outputs(&[("--model", Path::new(&args.design.model))], &[("--out", out)])?;
+        }
         Ok(Self {
             design: DesignRequest::from_args(args.design)?,
             points: args.points,
@@ -371,6 +434,12 @@ pub struct RepeatabilityRequest {
 impl RepeatabilityRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: RepeatabilityArgs) -> Result<Self, UsageError> {
+        let inputs = [("--model", Path::new(&args.model)), ("--data", args.data.as_path())];
+        let outputs: Vec<(&str, &Path)> = [("--out", &args.out), ("--json", &args.json)]
+            .iter()
+            .filter_map(|(flag, path)| Some((*flag, path.as_deref()?)))
+            .collect();
+        distinct_outputs(&inputs, &outputs)?;
         Ok(Self {
             model: args.model,
             data: args.data,
