@@ -15,6 +15,7 @@
 //! prismatic joints take the length unit. Other columns are ignored and listed. Lines starting
 //! with `#` are comments.
 
+use crate::limits::MAX_LENGTH_MM;
 use crate::model::RobotModel;
 use crate::table::{DataError, Row, Table, Units};
 use nalgebra::{UnitQuaternion, Vector3};
@@ -169,8 +170,11 @@ impl Columns {
         self.markers
             .iter()
             .map(|&[x, y, z]| {
-                Ok(Vector3::new(table.number(row, x)?, table.number(row, y)?, table.number(row, z)?)
-                    * units.length_scale())
+                let mm = |c: usize| {
+                    let v = table.number(row, c)? * units.length_scale();
+                    table.within(row, c, v, MAX_LENGTH_MM, "mm")
+                };
+                Ok(Vector3::new(mm(x)?, mm(y)?, mm(z)?))
             })
             .collect()
     }
@@ -186,7 +190,7 @@ impl Columns {
                 format!("{s}: expected a standard deviation > 0"),
             ));
         }
-        Ok(s * units.length_scale())
+        table.within(row, column, s * units.length_scale(), MAX_LENGTH_MM, "mm")
     }
 
     /// The row's measured orientation: a unit quaternion (norm within 1e-3 of 1) or

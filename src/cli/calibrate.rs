@@ -34,11 +34,12 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     check_against_the_files(request, &data)?;
     let options = options(request, &robot.model, &data.fit)?;
     let result = match request.method {
-        Method::Given(_) => calibration::calibrate(&robot.model, &data.fit, &options)?,
+        Method::Given(_) => calibration::calibrate(&robot.model, &data.fit, &options),
         Method::Feasible => {
-            calibration::calibrate_feasible(&robot.model, &data.fit, &options, &FeasibleOptions::default())?
+            calibration::calibrate_feasible(&robot.model, &data.fit, &options, &FeasibleOptions::default())
         }
-    };
+    }
+    .with_context(|| request.data.display().to_string())?;
     let validation = validate(request, &robot.model, &data, &options, &result)?;
     let name = request.method.name();
     let report = CalibrationReport::new(&result, &request.data.display().to_string(), name, validation);
@@ -60,6 +61,11 @@ fn load_model(source: &ModelSource) -> Result<Robot> {
 /// Load the measurements and the held-out files.
 fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
     let fit = io::load_measurements(&request.data, model, request.units)?;
+    super::warn_outside_limits(
+        &request.data,
+        model,
+        fit.lines.iter().copied().zip(fit.joints.iter().map(Vec::as_slice)),
+    );
     if !fit.ignored.is_empty() {
         eprintln!("note: {}: ignoring columns {}", request.data.display(), fit.ignored.join(", "));
     }

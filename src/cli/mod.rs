@@ -113,6 +113,27 @@ fn design(request: &DesignRequest) -> Result<Design> {
     Ok(Design::new(&model, selection, request.measured, noise)?)
 }
 
+/// Warn, naming the lines (the first ten), about the poses of `path` (`(line, joint values)`)
+/// with joint values outside `model`'s limits: a calibration there extrapolates the model.
+fn warn_outside_limits<'a>(path: &Path, model: &RobotModel, poses: impl Iterator<Item = (usize, &'a [f64])>) {
+    let outside: Vec<String> = poses
+        .filter_map(|(line, q)| {
+            let joints = model.joints_outside_limits(q);
+            (!joints.is_empty()).then(|| format!("{line} ({})", joints.join(", ")))
+        })
+        .collect();
+    if outside.is_empty() {
+        return;
+    }
+    let more = if outside.len() > 10 { format!(" and {} more", outside.len() - 10) } else { String::new() };
+    let lines = outside.iter().take(10).cloned().collect::<Vec<_>>().join(", ");
+    eprintln!(
+        "warning: {}: joint values outside the limits of {} at line {lines}{more}",
+        path.display(),
+        model.name
+    );
+}
+
 /// At most as many `--marker`s as the data file has markers.
 fn check_marker_count(given: usize, data: &Path, in_file: usize) -> Result<()> {
     if given > in_file {

@@ -12,6 +12,8 @@ pub fn run(request: &RepeatabilityRequest) -> Result<()> {
     let model = io::load_model(&request.model)?;
     let data = io::load_repeatability(&request.data, &model, request.units)?;
     check_marker_count(request.markers.len(), &request.data, data.markers)?;
+    let poses = data.poses.iter().map(|p| (p.lines.first().copied().unwrap_or(0), p.joints.as_slice()));
+    super::warn_outside_limits(&request.data, &model, poses);
     let joints = if request.full_covariance { JointComponents::Full } else { JointComponents::Diagonal };
     let options =
         RepeatabilityOptions { joints, markers: request.markers.clone(), register: request.register };
