@@ -31,6 +31,11 @@ pub const MAX_RUNS_PER_CASE: usize = 1_000_000;
 /// Runs of a whole study: cases x point sets x runs per set.
 pub const MAX_RUNS: usize = 10_000_000;
 
+/// The work of a whole study, in evaluations of the kinematics: the sum over its runs of the
+/// points and the test points (the paper's two studies: under 1e6). Beyond it a study would
+/// run for days: refused rather than left to look hung.
+pub const MAX_STUDY_WORK: u64 = 10_000_000_000;
+
 /// Gauss-Newton steps (`calibrate --iterations`, a study's `iterations`).
 pub const MAX_ITERATIONS: usize = 1_000;
 
@@ -58,7 +63,16 @@ pub fn check_magnitude(value: f64, bound: f64, unit: &str) -> Result<f64, String
     if value.is_finite() && value.abs() <= bound {
         Ok(value)
     } else {
-        Err(format!("a finite number of magnitude at most {bound:e} {unit}, found {value}"))
+        Err(format!("a finite number of magnitude at most {bound:e} {unit}, found {}", shown(value)))
+    }
+}
+
+/// `value` as a person reads it: `1e300` rather than its 301 digits.
+pub fn shown(value: f64) -> String {
+    if value != 0.0 && value.is_finite() && !(1e-4..1e7).contains(&value.abs()) {
+        format!("{value:e}")
+    } else {
+        format!("{value}")
     }
 }
 

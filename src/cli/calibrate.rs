@@ -32,6 +32,12 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     let robot = load_model(&request.model)?;
     let data = load_data(request, &robot.model)?;
     check_against_the_files(request, &data)?;
+    let what = format!("calibrating the {} poses of {}", data.fit.len(), request.data.display());
+    io::check_memory(
+        data.fit.memory_estimate(robot.model.params().len()),
+        &what,
+        "calibrate on fewer poses",
+    )?;
     let options = options(request, &robot.model, &data.fit)?;
     let result = match request.method {
         Method::Given(_) => calibration::calibrate(&robot.model, &data.fit, &options),

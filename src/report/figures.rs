@@ -1,8 +1,8 @@
 //! Figures of a study as SVG text (plotters, without any font library: the SVG names the
 //! font and the viewer draws the text).
 
-use crate::simulation::{PoseChoice, Study, StudyResults, Summary};
 use crate::limits::MAX_BINS;
+use crate::simulation::{PoseChoice, Study, StudyResults, Summary};
 use plotters::prelude::*;
 
 /// A figure that could not be drawn.

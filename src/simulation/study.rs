@@ -6,7 +6,7 @@ use crate::estimation::{Device, DeviceTable, Estimator};
 use crate::kinematics::Measured;
 use crate::limits::{
     MAX_ANGLE_DEG, MAX_CANDIDATES, MAX_CASES, MAX_ITERATIONS, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS,
-    MAX_RUNS_PER_CASE, MAX_TEST_POINTS, check_magnitude,
+    MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS, check_magnitude,
 };
 use crate::model::{JointKind, RobotModel, Selection, SelectionError, degrees};
 use serde::Deserialize;
@@ -419,6 +419,19 @@ impl Study {
             return invalid(
                 "cases.points",
                 format!("point counts from 1 to {MAX_POINTS}, found {}", case.points),
+            );
+        }
+        let runs_per_case = (self.point_sets as u64).saturating_mul(self.runs_per_set as u64);
+        let work = self.cases.iter().fold(0u64, |work, case| {
+            work.saturating_add(runs_per_case.saturating_mul((case.points + self.test_points) as u64))
+        });
+        if work > MAX_STUDY_WORK {
+            return invalid(
+                "runs_per_set",
+                format!(
+                    "a study of at most {MAX_STUDY_WORK:e} kinematic evaluations (runs x (points + test_points)), \
+                     found {work:e}: ask for fewer runs, points or test_points"
+                ),
             );
         }
         let runs = self.cases.len().saturating_mul(self.point_sets).saturating_mul(self.runs_per_set);
