@@ -483,3 +483,81 @@ fn urdf_mimic_joints_and_links_with_two_parents_are_refused() {
         "field `link `l4``: one parent joint (a URDF is a tree), found `elbow` and `extra`: not supported"
     );
 }
+
+// 5. Errors once.
+
+/// Over a table of bad inputs, each message names its file once and its line or field once,
+/// with the cause after it, and is printed once.
+#[test]
+fn each_error_is_printed_once_naming_file_and_line_once() {
+    let dir = scratch("once");
+    let mut bad_cell: Vec<String> = MEASUREMENTS.lines().map(String::from).collect();
+    let cells: Vec<&str> = bad_cell[4].split(',').collect();
+    bad_cell[4] = [&cells[..1], &["4x5"], &cells[2..]].concat().join(",");
+    file(&dir, "bad-cell.csv", &(bad_cell.join("\n") + "\n"));
+    file(&dir, "d.csv", MEASUREMENTS);
+    file(&dir, "bad-syntax.toml", &MODEL.replacen("a_mm = 431.8", "a_mm = [431.8", 1));
+    file(&dir, "bad-field.toml", &MODEL.replacen("a_mm = 431.8", "a_mm = inf", 1));
+    file(&dir, "bad-noise.toml", "joint_sigma = [0.1, 0.2]\n");
+    file(&dir, "bad-study.toml", &small_study(&[("test_points = 20", "test_points = 0")]));
+    file(&dir, "bad.urdf", &crate::urdf::arm_urdf().replacen("0 0 0.35", "0 0 zero", 1));
+    let repeatability = include_str!("../../examples/puma560-repeatability.csv");
+    let mut lines: Vec<&str> = repeatability.lines().collect();
+    lines.insert(6, "a,b");
+    file(&dir, "bad-rep.csv", &(lines.join("\n") + "\n"));
+    let cases: [(&[&str], &str, &str); 10] = [
+        (
+            &["calibrate", "--model", "puma560", "--data", "bad-cell.csv"],
+            "bad-cell.csv",
+            "line 5, column `j2`",
+        ),
+        (&["model", "show", "bad-syntax.toml"], "bad-syntax.toml", "line 48"),
+        (&["model", "show", "bad-field.toml"], "bad-field.toml", "`joints[1].a_mm`"),
+        (
+            &["calibrate", "--model", "bad-field.toml", "--data", "d.csv"],
+            "bad-field.toml",
+            "`joints[1].a_mm`",
+        ),
+        (
+            &["calibrate", "--model", "puma560", "--data", "d.csv", "--noise", "bad-noise.toml"],
+            "bad-noise.toml",
+            "`joint_sigma`",
+        ),
+        (
+            &["calibrate", "--model", "puma560", "--data", "d.csv", "--validate", "bad-cell.csv"],
+            "bad-cell.csv",
+            "line 5",
+        ),
+        (&["simulate", "bad-study.toml", "--out", "out"], "bad-study.toml", "`test_points`"),
+        (
+            &[
+                "calibrate",
+                "--model",
+                "bad.urdf",
+                "--base-link",
+                "base",
+                "--tip-link",
+                "flange",
+                "--data",
+                "d.csv",
+            ],
+            "bad.urdf",
+            "joint `slide`.origin.xyz",
+        ),
+        (&["repeatability", "--model", "puma560", "--data", "bad-rep.csv"], "bad-rep.csv", "line 7"),
+        (&["calibrate", "--model", "puma560", "--data", "missing.csv"], "missing.csv", "No such file"),
+    ];
+    for (args, name, place) in cases {
+        let (code, stdout, stderr) = run_in(&dir, args);
+        assert_eq!(code, 1, "{args:?}: {stderr}");
+        assert!(stdout.is_empty(), "{args:?}: {stdout}");
+        assert_eq!(stderr.matches("error:").count(), 1, "{args:?}: {stderr}");
+        assert_eq!(stderr.matches(name).count(), 1, "{args:?}: the file named once: {stderr}");
+        assert_eq!(stderr.matches(place).count(), 1, "{args:?}: the place named once: {stderr}");
+        assert!(
+            stderr.find(name) < stderr.find(place),
+            "{args:?}: the file, then what is wrong in it: {stderr}"
+        );
+    }
+    assert!(!dir.join("out").exists());
+}
