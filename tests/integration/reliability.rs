@@ -561,3 +561,52 @@ fn each_error_is_printed_once_naming_file_and_line_once() {
     }
     assert!(!dir.join("out").exists());
 }
+
+/// Poses within `spread` rad of one pose, measured without noise with two markers.
+fn clustered(spread: f64, poses: usize) -> (robocal::model::RobotModel, robocal::calibration::Measurements) {
+    use rand::{RngExt, SeedableRng};
+    let model = robocal::model::RobotModel::preset("puma560").unwrap();
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(5);
+    let centre = [0.3, 0.8, -0.6, 0.4, 0.9, 0.2];
+    let joints: Vec<Vec<f64>> = (0..poses)
+        .map(|_| centre.iter().map(|c| c + spread * rng.random_range(-1.0..1.0)).collect())
+        .collect();
+    let markers = [nalgebra::Vector3::new(50.0, 0.0, 150.0), nalgebra::Vector3::new(-40.0, 60.0, 120.0)];
+    let text = robocal::simulation::measurement_csv(&model, &markers, &joints, &[0.0; 6], 0.0, 1);
+    let data = robocal::calibration::Measurements::from_csv_str(&text, &model, None).unwrap();
+    (model, data)
+}
+
+/// A rank-full system with a scaled condition number above 1e6 calibrates, with a warning;
+/// one below it without.
+#[test]
+fn a_badly_conditioned_system_is_warned() {
+    use robocal::calibration::{JointParams, Options};
+    for (spread, warned) in [(1e-3, false), (1e-7, true)] {
+        let (model, data) = clustered(spread, 60);
+        let options = Options {
+            estimator: robocal::estimation::Estimator::Ols,
+            noise: None,
+            joints: JointParams::Offsets,
+            estimate_base: false,
+            estimate_markers: false,
+            markers: vec![
+                nalgebra::Vector3::new(50.0, 0.0, 150.0),
+                nalgebra::Vector3::new(-40.0, 60.0, 120.0),
+            ],
+            refine: robocal::estimation::RefineOptions::default(),
+        };
+        let result = robocal::calibration::calibrate(&model, &data, &options).unwrap();
+        let diagnostics = &result.refined.estimate.diagnostics;
+        assert_eq!(diagnostics.rank, 6, "rank-full");
+        let warning = result.warnings.iter().find(|w| w.contains("scaled condition number"));
+        assert_eq!(warning.is_some(), warned, "{spread}: {:?}", result.warnings);
+        if let Some(warning) = warning {
+            assert!(
+                warning.starts_with("the identified system's scaled condition number is 9.2"),
+                "{warning}"
+            );
+            assert!(warning.contains("above 1e6: the estimates are poorly determined"), "{warning}");
+        }
+    }
+}
