@@ -20,6 +20,7 @@ pub fn reproduce(output: &StudyOutputArgs) -> Result<()> {
     for line in written {
         println!("{line}");
     }
+    println!();
     println!("The paper's figures: Fig. 1a-e paper-table1/histogram-wls-np{{12,24,48,96,192}}-sigma0.svg,");
     println!(
         "Fig. 2 paper-table1/improvement-vs-points-wls.svg, Fig. 3 paper-table2/improvement-vs-sigma-wls.svg,"

@@ -334,8 +334,9 @@ impl Study {
 
     /// Check that the study's values make a study: a name fit for file names, at least one
     /// parameter, two estimators, one finite joint sigma >= 0 per joint, finite error sizes
-    /// and noise >= 0, cases with 1 to 1048575 points, and counts of sets, runs, test points
-    /// and iterations from 1 (at least 2 runs per case). Errors name the study file's field.
+    /// and noise >= 0, every magnitude and count within its bound in [`crate::limits`] (points,
+    /// sets, runs, test points, iterations, the runs and the work of the whole study), at
+    /// least 2 runs per case. Errors name the study file's field.
     pub fn check(&self) -> Result<(), StudyError> {
         let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         let name = &self.name;
