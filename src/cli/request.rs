@@ -45,11 +45,14 @@ fn file_identity(path: &Path) -> PathBuf {
 }
 
 /// Refuse an output path that is also an input's (writing it would lose the input) or
-/// another output's (one would overwrite the other): `(flag, path)` each.
+/// another output's (one would overwrite the other): `(flag, path)` each, outputs not asked
+/// for `None`.
 pub(super) fn distinct_outputs(
     inputs: &[(&str, &Path)],
-    outputs: &[(&str, &Path)],
+    outputs: &[(&str, Option<&Path>)],
 ) -> Result<(), UsageError> {
+    let outputs: Vec<(&str, &Path)> =
+        outputs.iter().filter_map(|&(flag, path)| Some((flag, path?))).collect();
     for (i, (flag, path)) in outputs.iter().enumerate() {
         let file = file_identity(path);
         if let Some((input, _)) = inputs.iter().find(|(_, p)| file_identity(p) == file) {
@@ -208,10 +211,11 @@ impl CalibrateRequest {
             inputs.push(("--noise", path));
         }
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
-        let outputs =
-            [("--json", &args.json), ("--out-model", &args.out_model), ("--out-urdf", &args.out_urdf)];
-        let outputs: Vec<(&str, &Path)> =
-            outputs.iter().filter_map(|(flag, path)| Some((*flag, path.as_deref()?))).collect();
+        let outputs = [
+            ("--json", args.json.as_deref()),
+            ("--out-model", args.out_model.as_deref()),
+            ("--out-urdf", args.out_urdf.as_deref()),
+        ];
         distinct_outputs(&inputs, &outputs)?;
         Ok(Self {
             model,
@@ -394,9 +398,7 @@ impl PlanRequest {
         {
             require(count <= bound, &format!("{flag} {count}: at most {bound}"))?;
         }
-        if let Some(out) = &args.out {
-            distinct_outputs(&[("--model", Path::new(&args.design.model))], &[("--out", out)])?;
-        }
+        distinct_outputs(&[("--model", Path::new(&args.design.model))], &[("--out", args.out.as_deref())])?;
         Ok(Self {
             design: DesignRequest::from_args(args.design)?,
             points: args.points,
@@ -435,11 +437,7 @@ impl RepeatabilityRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: RepeatabilityArgs) -> Result<Self, UsageError> {
         let inputs = [("--model", Path::new(&args.model)), ("--data", args.data.as_path())];
-        let outputs: Vec<(&str, &Path)> = [("--out", &args.out), ("--json", &args.json)]
-            .iter()
-            .filter_map(|(flag, path)| Some((*flag, path.as_deref()?)))
-            .collect();
-        distinct_outputs(&inputs, &outputs)?;
+        distinct_outputs(&inputs, &[("--out", args.out.as_deref()), ("--json", args.json.as_deref())])?;
         Ok(Self {
             model: args.model,
             data: args.data,

@@ -36,7 +36,7 @@ pub fn reproduce(output: &StudyOutputArgs) -> Result<()> {
 pub fn simulate(args: &SimulateArgs) -> Result<()> {
     let mut inputs = vec![("the study", Path::new(&args.study))];
     inputs.extend(args.noise.as_deref().map(|p| ("--noise", p)));
-    super::request::distinct_outputs(&inputs, &[("--out", &args.output.out)])?;
+    super::request::distinct_outputs(&inputs, &[("--out", Some(&args.output.out))])?;
     let mut study = io::load_study(&args.study)?;
     if let Some(path) = &args.noise {
         let spec = io::load_noise(path, &study.robot)?;
