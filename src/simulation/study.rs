@@ -403,8 +403,11 @@ impl Study {
             ("test_points", self.test_points, MAX_TEST_POINTS),
             ("iterations", self.iterations, MAX_ITERATIONS),
         ] {
-            if count == 0 || count > bound {
-                return invalid(field, format!("from 1 to {bound}, found {count}"));
+            if count == 0 {
+                return invalid(field, "at least 1".into());
+            }
+            if count > bound {
+                return invalid(field, format!("at most {bound}, found {count}"));
             }
         }
         if self.point_sets.saturating_mul(self.runs_per_set) < 2 {

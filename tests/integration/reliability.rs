@@ -182,7 +182,7 @@ fn study_sizes_are_bounded_and_named() {
         (
             "test_points = 20",
             "test_points = 1000000000000",
-            "field `test_points`: from 1 to 1000000, found 1000000000000",
+            "field `test_points`: at most 1000000, found 1000000000000",
         ),
         (
             "points = [12]",
@@ -192,7 +192,7 @@ fn study_sizes_are_bounded_and_named() {
         (
             "runs_per_set = 2",
             "runs_per_set = 5000000",
-            "field `runs_per_set`: from 1 to 1000000, found 5000000",
+            "field `runs_per_set`: at most 1000000, found 5000000",
         ),
         (
             "runs_per_set = 2\ntest_points = 20",
@@ -200,7 +200,7 @@ fn study_sizes_are_bounded_and_named() {
             "field `runs_per_set`: a study of at most 1e10 kinematic evaluations (runs x (points + test_points)), \
              found 2.000024e11",
         ),
-        ("iterations = 1", "iterations = 1000000", "field `iterations`: from 1 to 1000, found 1000000"),
+        ("iterations = 1", "iterations = 1000000", "field `iterations`: at most 1000, found 1000000"),
     ];
     for (from, to, message) in cases {
         let path = file(&dir, "s.toml", &small_study(&[(from, to)]));
