@@ -265,7 +265,8 @@ fn a_model_with_too_many_joints_is_refused() {
 }
 
 /// Each command under a 2 GiB address-space limit, on inputs that ask for far more: a clean
-/// error (exit 1 or 2 with a message), never an abort.
+/// error (exit 1 or 2 with a message), never an abort; observability of the same 120 000
+/// poses fits and runs.
 #[cfg(target_os = "linux")]
 #[test]
 fn commands_asking_for_far_more_memory_fail_cleanly_under_a_2_gib_limit() {
@@ -274,12 +275,21 @@ fn commands_asking_for_far_more_memory_fail_cleanly_under_a_2_gib_limit() {
     file(&dir, "big.toml", &small_study(&edits));
     let design = "\n[design]\nposes = [\"planned\"]\ncandidates = 1000000\n";
     file(&dir, "planned.toml", &(small_study(&[]) + design));
+    let lines: Vec<&str> = MEASUREMENTS.lines().collect();
+    let rows = lines[2..].join("\n") + "\n";
+    file(&dir, "huge.csv", &(lines[..2].join("\n") + "\n" + &rows.repeat(1200)));
     let binary = assert_cmd::cargo::cargo_bin("robocal");
     let cases = [
         ("simulate big.toml --out out", 1, "would need about"),
         ("simulate planned.toml --out out --threads 2", 1, "would need about"),
         ("plan --model puma560 --points 12 --candidates 1000000", 1, "would need about"),
         ("plan --model puma560 --points 99999999999", 2, "at most 1000000"),
+        (
+            "calibrate --model puma560 --data huge.csv",
+            1,
+            "calibrating the 120000 poses of huge.csv would need about",
+        ),
+        ("observability huge.csv --model puma560", 0, ""), // within the limit: it runs
     ];
     for (args, expected, message) in cases {
         let script = format!("ulimit -v 2097152; exec '{}' {args}", binary.display());
