@@ -386,14 +386,19 @@ fn parse_exclude(text: &str) -> Result<Excluded, String> {
     Ok(Excluded { joint: name.trim().to_string(), range: [from, to] })
 }
 
-/// `"0, 45,180"` or `"0 45 180"`: finite joint values.
+/// `"0, 45,180"` or `"0 45 180"`: finite joint values of magnitude at most [`MAX_LENGTH_MM`]
+/// (values outside a joint's limits are warned about by `fk`).
 fn parse_joint_values(text: &str) -> Result<JointValues, String> {
     text.split(|c: char| c == ',' || c.is_whitespace())
         .filter(|s| !s.is_empty())
         .enumerate()
         .map(|(i, s)| match s.parse::<f64>() {
-            Ok(v) if v.is_finite() => Ok(v),
-            Ok(v) => Err(format!("value {} is {v}, expected a finite number", i + 1)),
+            Ok(v) if v.is_finite() && v.abs() <= MAX_LENGTH_MM => Ok(v),
+            Ok(v) => Err(format!(
+                "value {} is {}, expected a finite number of magnitude at most {MAX_LENGTH_MM:e}",
+                i + 1,
+                robocal::limits::shown(v)
+            )),
             Err(_) => Err(format!("value {} `{s}` is not a number", i + 1)),
         })
         .collect::<Result<_, _>>()

@@ -285,6 +285,11 @@ fn fk_joint_values_are_finite_numbers_separated_by_commas_or_spaces() {
     }
     let message = parse(&["fk", "--model", "puma560", "--q", "0,inf"]).unwrap_err();
     assert!(message.contains("value 2 is inf, expected a finite number"), "{message}");
+    let message = parse(&["fk", "--model", "puma560", "--q", "0,1e308,0,0,0,0"]).unwrap_err();
+    assert!(
+        message.contains("value 2 is 1e308, expected a finite number of magnitude at most 1e6"),
+        "{message}"
+    );
 }
 
 #[test]
