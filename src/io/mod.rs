@@ -194,7 +194,7 @@ fn create_folders(folder: &Path, created: &mut Vec<PathBuf>) -> Result<(), Outpu
 /// A command that would need more memory than robocal allows itself (see [`check_memory`]).
 #[derive(Debug, thiserror::Error)]
 #[error(
-    "{what} would need about {:.1} GiB of memory, more than {:.1} GiB ({}% of this machine's {:.1} GiB): {advice}",
+    "{what} would need about {:.1} GiB of memory, more than {:.1} GiB ({}% of the {:.1} GiB this process may use): {advice}",
     gib(*needed), gib(*budget), (MEMORY_SHARE * 100.0).round(), gib(*machine)
 )]
 pub struct MemoryError {
