@@ -10,7 +10,8 @@
 //!
 //! The modules, from the bottom up; each uses only the modules above it in this list, never
 //! one below (a test in `tests/integration/layering.rs` keeps it so):
-//! - [`error`]: the error vocabulary the input formats share.
+//! - [`error`]: the error vocabulary the input formats share. [`limits`]: the bounds of every
+//!   size and magnitude an input controls.
 //! - [`model`]: robot models (DH conventions with Hayati's beta, URDF, base, tool, limits),
 //!   their TOML format, and the named error parameters.
 //! - [`kinematics`]: forward kinematics, the manipulator Jacobian `J` and the identification
@@ -54,6 +55,7 @@ pub mod error;
 pub mod estimation;
 pub mod io;
 pub mod kinematics;
+pub mod limits;
 mod linalg;
 pub mod model;
 pub mod report;

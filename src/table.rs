@@ -16,6 +16,7 @@
 //!
 //! The reader reads the text once; each file kind then picks its columns from it.
 
+use crate::limits::{MAX_ANGLE_DEG, MAX_LENGTH_MM, check_magnitude};
 use crate::model::{JointKind, RobotModel};
 use std::borrow::Cow;
 
@@ -186,6 +187,19 @@ impl Table {
         }
     }
 
+    /// `value` (of `column` in `row`, in `unit`) if its magnitude is at most `bound`.
+    pub fn within(
+        &self,
+        row: &Row,
+        column: usize,
+        value: f64,
+        bound: f64,
+        unit: &str,
+    ) -> Result<f64, DataError> {
+        check_magnitude(value, bound, unit)
+            .map_err(|e| DataError::new(row.line, Some(&self.header[column]), e))
+    }
+
     /// The joint values of `row` in rad (revolute) and mm (prismatic), from the joint
     /// `columns` of [`Table::joint_columns`].
     pub fn joint_values(
@@ -202,8 +216,14 @@ impl Table {
             .map(|(joint, &c)| {
                 let v = self.number(row, c)?;
                 Ok(match joint.kind {
-                    JointKind::Revolute => units.angle(v),
-                    JointKind::Prismatic => v * units.length_scale(),
+                    JointKind::Revolute => {
+                        let radians = units.angle(v);
+                        self.within(row, c, radians.to_degrees(), MAX_ANGLE_DEG, "deg")?;
+                        radians
+                    }
+                    JointKind::Prismatic => {
+                        self.within(row, c, v * units.length_scale(), MAX_LENGTH_MM, "mm")?
+                    }
                 })
             })
             .collect()

@@ -15,6 +15,7 @@
 //! prismatic joints take the length unit. Other columns are ignored and listed. Lines starting
 //! with `#` are comments.
 
+use crate::limits::MAX_LENGTH_MM;
 use crate::model::RobotModel;
 use crate::table::{DataError, Row, Table, Units};
 use nalgebra::{UnitQuaternion, Vector3};
@@ -48,6 +49,18 @@ impl Measurements {
     /// Whether there are no poses.
     pub fn is_empty(&self) -> bool {
         self.joints.is_empty()
+    }
+
+    /// The memory a calibration of these poses will need at most, in bytes, for a model with
+    /// `params` parameters: the stacked `H` of every marker (`3` rows a marker, `6` with
+    /// orientations) over the joint, base and marker parameters, held about six times (`H`,
+    /// its whitened and column-scaled copies, the QR's workspace and the covariance blocks):
+    /// `48 rows (params + 6 + 3 markers)`. A bound to refuse absurd files before allocating.
+    pub fn memory_estimate(&self, params: usize) -> u64 {
+        let per_marker = if self.orientations.is_some() { 6 } else { 3 };
+        let rows = (self.len() * self.marker_count() * per_marker) as u64;
+        let columns = (params + 6 + 3 * self.marker_count()) as u64;
+        rows.saturating_mul(columns).saturating_mul(48)
     }
 
     /// Number of markers per pose.
@@ -193,8 +206,11 @@ impl Columns {
         self.markers
             .iter()
             .map(|&(_, [x, y, z])| {
-                Ok(Vector3::new(table.number(row, x)?, table.number(row, y)?, table.number(row, z)?)
-                    * units.length_scale())
+                let mm = |c: usize| {
+                    let v = table.number(row, c)? * units.length_scale();
+                    table.within(row, c, v, MAX_LENGTH_MM, "mm")
+                };
+                Ok(Vector3::new(mm(x)?, mm(y)?, mm(z)?))
             })
             .collect()
     }
@@ -210,7 +226,7 @@ impl Columns {
                 format!("{s}: expected a standard deviation > 0"),
             ));
         }
-        Ok(s * units.length_scale())
+        table.within(row, column, s * units.length_scale(), MAX_LENGTH_MM, "mm")
     }
 
     /// The row's measured orientation: a unit quaternion (norm within 1e-3 of 1) or

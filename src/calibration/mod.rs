@@ -102,7 +102,14 @@ pub enum CalibrationError {
          calibrated model, so they cannot be estimated here"
     )]
     Compliance(String),
+    /// The poses cannot identify any parameter (all alike, or a system of rank 0).
+    #[error("nothing can be identified: {0}")]
+    NothingIdentified(String),
 }
+
+/// The column-scaled condition number of the identified system above which a calibration
+/// warns: its estimates lose more than 6 of 16 digits to the poses' geometry.
+pub const CONDITION_WARNING: f64 = 1e6;
 
 /// Position errors of measured markers against a model (mm).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -422,10 +429,23 @@ pub fn calibrate(
             marker_ids: data.marker_ids.clone(),
         }));
     }
+    if data.joints.first().is_some_and(|q| data.joints.iter().all(|other| other == q)) {
+        let line = data.lines.first().copied().unwrap_or(0);
+        return Err(CalibrationError::NothingIdentified(format!(
+            "all {} poses have the joint values of line {line}: measure the robot at different poses",
+            data.len()
+        )));
+    }
     // The identifiable subset starts from the system that found it.
     let problem = base_problem.reselect(&asked, before.clone())?;
     let at_before = linearise(&problem, &weights, problem.start())?;
     let diagnostics = at_before.diagnose(RANK_TOLERANCE)?;
+    if diagnostics.rank == 0 {
+        return Err(CalibrationError::NothingIdentified(format!(
+            "the identification Jacobian of the {} parameters asked for has rank 0 at these poses",
+            asked.len()
+        )));
+    }
     let names: Vec<&str> = asked.indices().iter().map(|&i| params.get(i).name.as_str()).collect();
     let fixed = diagnostics.not_identifiable.iter().map(|c| c.describe(&names)).collect();
     let kept = Selection::from_indices(&params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
@@ -494,7 +514,14 @@ fn finish(s: Stages<'_>) -> Calibration {
         .expect("the training poses were scored by the fit itself");
     let training = (training_poses.pooled[0], training_poses.pooled[1]);
     let calibrated = fold(&s.registered, &s.params, &s.after, &s.markers, s.probe.as_ref());
-    let warnings = warnings(&s.params, (&s.before, &s.after), &training_poses);
+    let mut warnings = warnings(&s.params, (&s.before, &s.after), &training_poses);
+    let condition = s.refined.estimate.diagnostics.condition_number;
+    if condition > CONDITION_WARNING {
+        warnings.push(format!(
+            "the identified system's scaled condition number is {condition:.3e}, above {CONDITION_WARNING:e}: the \
+             estimates are poorly determined; measure more varied poses or identify fewer parameters"
+        ));
+    }
     Calibration {
         registered: s.registered,
         calibrated,

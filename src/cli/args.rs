@@ -5,6 +5,7 @@
 use clap::{Args, ValueEnum};
 use nalgebra::Vector3;
 use robocal::design::Criterion;
+use robocal::limits::{MAX_ANGLE_DEG, MAX_ITERATIONS, MAX_LENGTH_MM};
 use std::path::PathBuf;
 
 /// The unit of revolute joint values in a file.
@@ -128,14 +129,14 @@ pub struct LinkArgs {
 pub struct NoiseArgs {
     /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints). With it,
     /// calibrate weights by the noise, and plan and observability use the whitened H.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma)]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma_deg)]
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// Measurement noise standard deviation (mm); calibrate takes a data file's `sigma` column
     /// instead when it has one.
-    #[arg(long, default_value_t = 0.0, value_parser = parse_sigma)]
+    #[arg(long, default_value_t = 0.0, value_parser = parse_sigma_mm)]
     pub sigma_mm: f64,
     /// Orientation measurement noise (deg), for pose or orientation measurements.
-    #[arg(long, default_value_t = 0.0, value_parser = parse_sigma)]
+    #[arg(long, default_value_t = 0.0, value_parser = parse_sigma_deg)]
     pub sigma_orientation_deg: f64,
 }
 
@@ -254,7 +255,7 @@ pub struct CalibrateArgs {
     #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub marker: Vec<Vector3<f64>>,
     /// Gauss-Newton steps at most (at least 1); 1 is the paper's one-step estimate.
-    #[arg(long, default_value_t = 50, value_parser = parse_count::<1>)]
+    #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
     pub iterations: usize,
     /// A measurement file of held-out poses to validate on; repeatable.
     #[arg(long)]
@@ -386,16 +387,29 @@ pub struct PlanArgs {
     pub out: Option<PathBuf>,
 }
 
-/// `text` split at `separator` into finite numbers, or `None` if one is not.
+/// `text` split at `separator` into finite numbers of magnitude at most [`MAX_LENGTH_MM`], or
+/// `None` if one is not.
 fn finite_numbers(text: &str, separator: char) -> Option<Vec<f64>> {
-    text.split(separator).map(|s| s.trim().parse().ok().filter(|v: &f64| v.is_finite())).collect()
+    let plausible = |v: &f64| v.is_finite() && v.abs() <= MAX_LENGTH_MM;
+    text.split(separator).map(|s| s.trim().parse().ok().filter(plausible)).collect()
 }
 
-/// A standard deviation: a finite number >= 0.
-fn parse_sigma(text: &str) -> Result<f64, String> {
+/// A standard deviation in degrees (mm for a prismatic joint's): a finite number from 0 to
+/// [`MAX_ANGLE_DEG`].
+fn parse_sigma_deg(text: &str) -> Result<f64, String> {
+    parse_sigma(text, MAX_ANGLE_DEG)
+}
+
+/// A standard deviation in mm: a finite number from 0 to [`MAX_LENGTH_MM`].
+fn parse_sigma_mm(text: &str) -> Result<f64, String> {
+    parse_sigma(text, MAX_LENGTH_MM)
+}
+
+/// A standard deviation: a finite number from 0 to `bound`.
+fn parse_sigma(text: &str, bound: f64) -> Result<f64, String> {
     match text.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
-        _ => Err("expected a finite number >= 0".into()),
+        Ok(v) if v.is_finite() && (0.0..=bound).contains(&v) => Ok(v),
+        _ => Err(format!("expected a finite number from 0 to {bound:e}")),
     }
 }
 
@@ -407,18 +421,29 @@ fn parse_count<const MIN: usize>(text: &str) -> Result<usize, String> {
     }
 }
 
+/// Gauss-Newton steps: 1 to [`MAX_ITERATIONS`].
+fn parse_iterations(text: &str) -> Result<usize, String> {
+    match parse_count::<1>(text)? {
+        n if n <= MAX_ITERATIONS => Ok(n),
+        _ => Err(format!("expected a whole number from 1 to {MAX_ITERATIONS}")),
+    }
+}
+
 /// A marker position "x,y,z" (mm).
 fn parse_marker(text: &str) -> Result<Vector3<f64>, String> {
     match finite_numbers(text, ',').as_deref() {
         Some(&[x, y, z]) => Ok(Vector3::new(x, y, z)),
-        _ => Err("expected three finite numbers x,y,z in mm".into()),
+        _ => Err("expected three finite numbers x,y,z in mm, each of magnitude at most 1e6".into()),
     }
 }
 
 /// A tool box "xmin,ymin,zmin,xmax,ymax,zmax" (mm), each minimum at most its maximum.
 fn parse_tool_box(text: &str) -> Result<ToolBox, String> {
     let Some(&[x0, y0, z0, x1, y1, z1]) = finite_numbers(text, ',').as_deref() else {
-        return Err("expected six finite numbers xmin,ymin,zmin,xmax,ymax,zmax in mm".into());
+        return Err(
+            "expected six finite numbers xmin,ymin,zmin,xmax,ymax,zmax in mm, each of magnitude at most 1e6"
+                .into(),
+        );
     };
     let (low, high) = (Vector3::new(x0, y0, z0), Vector3::new(x1, y1, z1));
     if (0..3).any(|i| low[i] > high[i]) {
@@ -440,14 +465,19 @@ fn parse_exclude(text: &str) -> Result<Excluded, String> {
     Ok(Excluded { joint: name.trim().to_string(), range: [from, to] })
 }
 
-/// `"0, 45,180"` or `"0 45 180"`: finite joint values.
+/// `"0, 45,180"` or `"0 45 180"`: finite joint values of magnitude at most [`MAX_LENGTH_MM`]
+/// (values outside a joint's limits are warned about by `fk`).
 fn parse_joint_values(text: &str) -> Result<JointValues, String> {
     text.split(|c: char| c == ',' || c.is_whitespace())
         .filter(|s| !s.is_empty())
         .enumerate()
         .map(|(i, s)| match s.parse::<f64>() {
-            Ok(v) if v.is_finite() => Ok(v),
-            Ok(v) => Err(format!("value {} is {v}, expected a finite number", i + 1)),
+            Ok(v) if v.is_finite() && v.abs() <= MAX_LENGTH_MM => Ok(v),
+            Ok(v) => Err(format!(
+                "value {} is {}, expected a finite number of magnitude at most {MAX_LENGTH_MM:e}",
+                i + 1,
+                robocal::limits::shown(v)
+            )),
             Err(_) => Err(format!("value {} `{s}` is not a number", i + 1)),
         })
         .collect::<Result<_, _>>()

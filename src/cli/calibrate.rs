@@ -3,7 +3,7 @@
 //! computed before anything is written.
 
 use super::request::{CalibrateRequest, Method, NoiseSource};
-use super::{check_marker_count, noise_model, write_file, write_report_files};
+use super::{check_marker_count, noise_model, write_report_files};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::{
     self, Calibration, ErrorStats, FeasibleOptions, Measurements, Options, SetEvaluation,
@@ -36,13 +36,20 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     let robot = load_model(&request.model)?;
     let data = load_data(request, &robot.model)?;
     check_against_the_files(request, &data)?;
+    let what = format!("calibrating the {} poses of {}", data.fit.len(), request.data.display());
+    io::check_memory(
+        data.fit.memory_estimate(robot.model.params().len()),
+        &what,
+        "calibrate on fewer poses",
+    )?;
     let options = options(request, &robot.model, &data.fit)?;
     let result = match request.method {
-        Method::Given(_) => calibration::calibrate(&robot.model, &data.fit, &options)?,
+        Method::Given(_) => calibration::calibrate(&robot.model, &data.fit, &options),
         Method::Feasible => {
-            calibration::calibrate_feasible(&robot.model, &data.fit, &options, &FeasibleOptions::default())?
+            calibration::calibrate_feasible(&robot.model, &data.fit, &options, &FeasibleOptions::default())
         }
-    };
+    }
+    .with_context(|| request.data.display().to_string())?;
     let (held_out, folds) = validate(request, &robot.model, &data, &options, &result)?;
     let name = request.method.name();
     let report = CalibrationReport::new(&result, &request.data.display().to_string(), name, held_out, folds);
@@ -65,6 +72,11 @@ fn load_model(model: &ModelRef) -> Result<Robot> {
 /// Load the measurements and the held-out files.
 fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
     let mut fit = io::load_measurements(&request.data, model, request.units)?;
+    super::warn_outside_limits(
+        &request.data,
+        model,
+        fit.lines.iter().copied().zip(fit.joints.iter().map(Vec::as_slice)),
+    );
     if !fit.ignored.is_empty() {
         eprintln!("note: {}: ignoring columns {}", request.data.display(), fit.ignored.join(", "));
     }
@@ -183,7 +195,7 @@ fn validate(
 }
 
 /// Write the JSON report, the poses, the figures, the page, the calibrated model and the
-/// calibrated URDF, as asked.
+/// calibrated URDF, as asked: all of them or none.
 fn write(
     request: &CalibrateRequest,
     robot: &Robot,
@@ -193,15 +205,24 @@ fn write(
 ) -> Result<()> {
     let title = format!("calibration of {} from {}", report.model, report.data);
     let json = serde_json::to_string_pretty(report)? + "\n";
-    write_report_files(&request.report, &title, text, &json, &report.sets, &result.registered.joints)?;
+    let mut outputs = io::Outputs::new();
+    write_report_files(
+        &request.report,
+        &title,
+        text,
+        &json,
+        &report.sets,
+        &result.registered.joints,
+        &mut outputs,
+    )?;
     let markers = result.marker_positions();
     if let Some(path) = &request.out_model {
-        write_file(path, robocal::model::to_toml_with_markers(&result.calibrated, &markers))?;
+        outputs.add(path, robocal::model::to_toml_with_markers(&result.calibrated, &markers));
     }
     if let (Some(path), Some(urdf)) = (&request.out_urdf, &robot.urdf) {
         let text =
             robocal::model::to_urdf_string(&urdf.text, &urdf.base_link, &urdf.tip_link, &result.calibrated)?;
-        write_file(path, robocal::model::with_urdf_markers(&text, &markers)?)?;
+        outputs.add(path, robocal::model::with_urdf_markers(&text, &markers)?);
     }
-    Ok(())
+    Ok(outputs.commit()?)
 }

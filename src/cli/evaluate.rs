@@ -81,7 +81,9 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     let report = EvaluationReport { model: model.name.clone(), sets, pooled };
     let json = serde_json::to_string_pretty(&report)? + "\n";
     let title = format!("{} scored as it stands", model.name);
-    write_report_files(&request.report, &title, &text, &json, &report.sets, &model.joints)
+    let mut outputs = io::Outputs::new();
+    write_report_files(&request.report, &title, &text, &json, &report.sets, &model.joints, &mut outputs)?;
+    Ok(outputs.commit()?)
 }
 
 /// A file's text.

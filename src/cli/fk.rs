@@ -11,10 +11,8 @@ use robocal::{io, report};
 pub fn run(args: &FkArgs) -> Result<()> {
     let model = io::load_model(&args.model.model_ref()?)?;
     let q = joint_values(&model, &args.q.0)?;
-    for (joint, &v) in model.joints.iter().zip(&q) {
-        if v < joint.limits[0] || v > joint.limits[1] {
-            eprintln!("warning: joint {} lies outside its limits", joint.name);
-        }
+    for joint in model.joints_outside_limits(&q) {
+        eprintln!("warning: joint {joint} lies outside its limits");
     }
     let pose = Chain::new(&model).with_errors(&vec![0.0; model.params().len()]).pose(&q);
     print!("{}", report::tool_pose(&model, &q, &pose));

@@ -86,14 +86,9 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// Write `text` to `path`, naming the file if that fails.
-fn write_file(path: &Path, text: impl AsRef<[u8]>) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("{}: cannot write", path.display()))
-}
-
-/// The files of `report` that were asked for: the JSON, the poses (CSV), the figures (SVG)
-/// and the HTML page with `text`'s tables and the figures inline. `sets` have their joint
-/// values in degrees (mm for prismatic joints).
+/// Stage in `outputs` the files of `report` that were asked for: the JSON, the poses (CSV),
+/// the figures (SVG) and the HTML page with `text`'s tables and the figures inline. `sets`
+/// have their joint values in degrees (mm for prismatic joints).
 fn write_report_files(
     report: &ReportArgs,
     title: &str,
@@ -101,26 +96,24 @@ fn write_report_files(
     json: &str,
     sets: &[robocal::calibration::SetEvaluation],
     joints: &[robocal::model::Joint],
+    outputs: &mut io::Outputs,
 ) -> Result<()> {
     if let Some(path) = &report.json {
-        write_file(path, json)?;
+        outputs.add(path, json);
     }
     let sets: Vec<&robocal::calibration::SetEvaluation> = sets.iter().collect();
     if let Some(path) = &report.poses_csv {
-        write_file(path, robocal::report::poses::poses_csv(&sets, joints))?;
+        outputs.add(path, robocal::report::poses::poses_csv(&sets, joints));
     }
     if report.figures.is_none() && report.html.is_none() {
         return Ok(());
     }
     let figures = robocal::report::figures::pose_figures(&sets, joints)?;
     if let Some(folder) = &report.figures {
-        std::fs::create_dir_all(folder).with_context(|| format!("{}: cannot create", folder.display()))?;
-        for (name, svg) in &figures {
-            write_file(&folder.join(name), svg)?;
-        }
+        outputs.add_folder(folder, &figures);
     }
     if let Some(path) = &report.html {
-        write_file(path, robocal::report::html::page(title, text, &sets, &figures))?;
+        outputs.add(path, robocal::report::html::page(title, text, &sets, &figures));
     }
     Ok(())
 }
@@ -156,6 +149,27 @@ fn design(request: &DesignRequest) -> Result<Design> {
     };
     let noise = request.noise.as_ref().map(|flags| noise_model(&model, flags)).transpose()?;
     Ok(Design::new(&model, selection, request.measured, noise)?)
+}
+
+/// Warn, naming the lines (the first ten), about the poses of `path` (`(line, joint values)`)
+/// with joint values outside `model`'s limits: a calibration there extrapolates the model.
+fn warn_outside_limits<'a>(path: &Path, model: &RobotModel, poses: impl Iterator<Item = (usize, &'a [f64])>) {
+    let outside: Vec<String> = poses
+        .filter_map(|(line, q)| {
+            let joints = model.joints_outside_limits(q);
+            (!joints.is_empty()).then(|| format!("{line} ({})", joints.join(", ")))
+        })
+        .collect();
+    if outside.is_empty() {
+        return;
+    }
+    let more = if outside.len() > 10 { format!(" and {} more", outside.len() - 10) } else { String::new() };
+    let lines = outside.iter().take(10).cloned().collect::<Vec<_>>().join(", ");
+    eprintln!(
+        "warning: {}: joint values outside the limits of {} at line {lines}{more}",
+        path.display(),
+        model.name
+    );
 }
 
 /// At most as many `--marker`s as the data file has markers.

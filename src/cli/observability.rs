@@ -10,6 +10,8 @@ pub fn run(request: &ObservabilityRequest) -> Result<()> {
     let design = design(&request.design)?;
     let poses = io::load_poses(&request.poses, design.model(), request.units)?;
     let name = request.poses.display().to_string();
+    let what = format!("the {} poses of {name}", poses.len());
+    io::check_memory(design.plan_memory_estimate(poses.len()), &what, "give fewer poses")?;
     let observability = design.observability(&poses).with_context(|| name.clone())?;
     print!("{}", report::design::observability(&design, &observability, &name));
     Ok(())

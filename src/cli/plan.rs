@@ -1,7 +1,7 @@
 //! `robocal plan`: measurement poses that maximise an observability criterion.
 
 use super::request::PlanRequest;
-use super::{design, from_flag_unit, write_file};
+use super::{design, from_flag_unit};
 use anyhow::{Result, bail};
 use robocal::design::{Constraints, ExcludedRange};
 use robocal::model::{ModelRef, RobotModel};
@@ -12,6 +12,12 @@ pub fn run(request: &PlanRequest) -> Result<()> {
     let design = design(&request.design)?;
     let model = design.model();
     let constraints = constraints(request, model)?;
+    let needed = design.plan_memory_estimate(request.candidates);
+    robocal::io::check_memory(
+        needed,
+        &format!("--candidates {}", request.candidates),
+        "ask for fewer candidates",
+    )?;
     let (plan, pool) = design.plan_seeded(
         request.points,
         request.candidates,
@@ -32,7 +38,9 @@ pub fn run(request: &PlanRequest) -> Result<()> {
     let csv = robocal::design::poses_csv(model, &plan.joints, &comment);
     match &request.out {
         Some(path) => {
-            write_file(path, csv)?;
+            let mut outputs = robocal::io::Outputs::new();
+            outputs.add(path, csv);
+            outputs.commit()?;
             print!("{summary}");
             println!("wrote {} poses to {}", plan.joints.len(), path.display());
         }

@@ -1,7 +1,7 @@
 //! `robocal repeatability`: the noise from repeated measurements, printed and written.
 
+use super::check_marker_count;
 use super::request::RepeatabilityRequest;
-use super::{check_marker_count, write_file};
 use anyhow::{Context, Result};
 use robocal::calibration::{self, RepeatabilityOptions};
 use robocal::estimation::JointComponents;
@@ -12,6 +12,8 @@ pub fn run(request: &RepeatabilityRequest) -> Result<()> {
     let model = io::load_model(&request.model)?;
     let data = io::load_repeatability(&request.data, &model, request.units)?;
     check_marker_count(request.markers.len(), &request.data, data.markers)?;
+    let poses = data.poses.iter().map(|p| (p.lines.first().copied().unwrap_or(0), p.joints.as_slice()));
+    super::warn_outside_limits(&request.data, &model, poses);
     let joints = if request.full_covariance { JointComponents::Full } else { JointComponents::Diagonal };
     let options =
         RepeatabilityOptions { joints, markers: request.markers.clone(), register: request.register };
@@ -48,6 +50,7 @@ pub fn run(request: &RepeatabilityRequest) -> Result<()> {
     for note in &notes {
         println!("note: {note}");
     }
+    let mut outputs = io::Outputs::new();
     if let Some(path) = &request.out {
         let header = format!(
             "robocal noise file, estimated by `robocal repeatability` from {} ({} poses, {} measurements).\n\
@@ -58,11 +61,14 @@ pub fn run(request: &RepeatabilityRequest) -> Result<()> {
             report::calibration::noise_table(&rows),
             notes.iter().map(|n| format!("note: {n}\n")).collect::<String>()
         );
-        write_file(path, result.estimate.spec().to_toml_string(&model, &header))?;
-        println!("\nwrote {}", path.display());
+        outputs.add(path, result.estimate.spec().to_toml_string(&model, &header));
     }
     if let Some(path) = &request.json {
-        write_file(path, serde_json::to_string_pretty(&rows)? + "\n")?;
+        outputs.add(path, serde_json::to_string_pretty(&rows)? + "\n");
+    }
+    outputs.commit()?;
+    if let Some(path) = &request.out {
+        println!("\nwrote {}", path.display());
     }
     Ok(())
 }

@@ -12,9 +12,10 @@ use robocal::calibration::JointParams;
 use robocal::design::Criterion;
 use robocal::estimation::Estimator;
 use robocal::kinematics::Measured;
+use robocal::limits::{MAX_CANDIDATES, MAX_POINTS};
 use robocal::model::ModelRef;
 use robocal::table::Units;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[cfg(test)]
 mod tests;
@@ -27,6 +28,49 @@ pub struct UsageError(pub String);
 /// `Err(UsageError)` with this message unless `ok`.
 fn require(ok: bool, message: &str) -> Result<(), UsageError> {
     if ok { Ok(()) } else { Err(UsageError(message.to_string())) }
+}
+
+/// The file `path` names, to compare paths: canonical where it exists, else its folder's
+/// canonical path with its name (or `path` itself if the folder does not exist either).
+fn file_identity(path: &Path) -> PathBuf {
+    if let Ok(canonical) = path.canonicalize() {
+        return canonical;
+    }
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    match (folder.canonicalize(), path.file_name()) {
+        (Ok(folder), Some(name)) => folder.join(name),
+        _ => path.to_path_buf(),
+    }
+}
+
+/// Refuse an output path that is also an input's (writing it would lose the input) or
+/// another output's (one would overwrite the other): `(flag, path)` each, outputs not asked
+/// for `None`.
+pub(super) fn distinct_outputs(
+    inputs: &[(&str, &Path)],
+    outputs: &[(&str, Option<&Path>)],
+) -> Result<(), UsageError> {
+    let outputs: Vec<(&str, &Path)> =
+        outputs.iter().filter_map(|&(flag, path)| Some((flag, path?))).collect();
+    for (i, (flag, path)) in outputs.iter().enumerate() {
+        let file = file_identity(path);
+        if let Some((input, _)) = inputs.iter().find(|(_, p)| file_identity(p) == file) {
+            return Err(UsageError(format!(
+                "{flag} {}: that is the input file of {input}, which writing would overwrite; give another path",
+                path.display()
+            )));
+        }
+        if let Some((other, _)) = outputs[..i].iter().find(|(_, p)| file_identity(p) == file) {
+            return Err(UsageError(format!(
+                "{other} and {flag} both name {}: give each output its own path",
+                path.display()
+            )));
+        }
+    }
+    Ok(())
 }
 
 impl UnitArgs {
@@ -73,6 +117,18 @@ pub enum NoiseSource {
     File(PathBuf),
     /// `--joint-sigma-deg`, `--sigma-mm`, `--sigma-orientation-deg`.
     Flags(NoiseFlags),
+}
+
+impl ReportArgs {
+    /// The report's outputs, by flag, for [`distinct_outputs`].
+    fn outputs(&self) -> Vec<(&'static str, Option<&Path>)> {
+        vec![
+            ("--json", self.json.as_deref()),
+            ("--poses-csv", self.poses_csv.as_deref()),
+            ("--figures", self.figures.as_deref()),
+            ("--html", self.html.as_deref()),
+        ]
+    }
 }
 
 impl LinkArgs {
@@ -170,6 +226,15 @@ impl CalibrateRequest {
         let noise = noise_source(args.noise, args.noise_flags.flags())?;
         let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
         let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
+        let mut inputs = vec![("--model", Path::new(&model.name)), ("--data", args.data.as_path())];
+        if let Some(NoiseSource::File(path)) = &noise {
+            inputs.push(("--noise", path));
+        }
+        inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
+        let mut outputs = args.report.outputs();
+        outputs
+            .extend([("--out-model", args.out_model.as_deref()), ("--out-urdf", args.out_urdf.as_deref())]);
+        distinct_outputs(&inputs, &outputs)?;
         Ok(Self {
             model,
             data: args.data,
@@ -220,6 +285,12 @@ impl EvaluateRequest {
             noise.is_some() || args.noise_flags.sigma_mm == 0.0,
             "--sigma-mm needs --joint-sigma-deg too (zeros if the joints are exact)",
         )?;
+        let mut inputs = vec![("--model", Path::new(&model.name))];
+        inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
+        if let Some(NoiseSource::File(path)) = &noise {
+            inputs.push(("--noise", path));
+        }
+        distinct_outputs(&inputs, &args.report.outputs())?;
         Ok(Self {
             model,
             data: args.data,
@@ -368,6 +439,15 @@ pub struct PlanRequest {
 impl PlanRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: PlanArgs) -> Result<Self, UsageError> {
+        for (flag, count, bound) in
+            [("--points", args.points, MAX_POINTS), ("--candidates", args.candidates, MAX_CANDIDATES)]
+        {
+            require(count <= bound, &format!("{flag} {count}: at most {bound}"))?;
+        }
+        distinct_outputs(
+            &[("--model", Path::new(&args.design.model.model))],
+            &[("--out", args.out.as_deref())],
+        )?;
         Ok(Self {
             design: DesignRequest::from_args(args.design)?,
             points: args.points,
@@ -405,6 +485,8 @@ pub struct RepeatabilityRequest {
 impl RepeatabilityRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: RepeatabilityArgs) -> Result<Self, UsageError> {
+        let inputs = [("--model", Path::new(&args.model.model)), ("--data", args.data.as_path())];
+        distinct_outputs(&inputs, &[("--out", args.out.as_deref()), ("--json", args.json.as_deref())])?;
         Ok(Self {
             model: args.model.model_ref()?,
             data: args.data,

@@ -5,6 +5,7 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use robocal::simulation::{self, Study};
 use robocal::{io, report};
+use std::path::Path;
 use std::time::Instant;
 
 /// `robocal reproduce`: the paper's two studies, and where their figures are.
@@ -12,9 +13,14 @@ pub fn reproduce(output: &StudyOutputArgs) -> Result<()> {
     let started = Instant::now();
     let studies =
         ["paper-table1", "paper-table2"].map(io::load_study).into_iter().collect::<Result<Vec<_>, _>>()?;
-    for study in &studies {
-        run_study(study, output)?;
+    let mut outputs = io::Outputs::new();
+    let written =
+        studies.iter().map(|study| run_study(study, output, &mut outputs)).collect::<Result<Vec<_>>>()?;
+    outputs.commit()?;
+    for line in written {
+        println!("{line}");
     }
+    println!();
     println!("The paper's figures: Fig. 1a-e paper-table1/histogram-wls-np{{12,24,48,96,192}}-sigma0.svg,");
     println!(
         "Fig. 2 paper-table1/improvement-vs-points-wls.svg, Fig. 3 paper-table2/improvement-vs-sigma-wls.svg,"
@@ -28,13 +34,20 @@ pub fn reproduce(output: &StudyOutputArgs) -> Result<()> {
 
 /// `robocal simulate`: one study, its noise replaced by a noise file if one is given.
 pub fn simulate(args: &SimulateArgs) -> Result<()> {
+    let mut inputs = vec![("the study", Path::new(&args.study))];
+    inputs.extend(args.noise.as_deref().map(|p| ("--noise", p)));
+    super::request::distinct_outputs(&inputs, &[("--out", Some(&args.output.out))])?;
     let mut study = io::load_study(&args.study)?;
     if let Some(path) = &args.noise {
         let spec = io::load_noise(path, &study.robot)?;
         study.set_noise(&spec).with_context(|| format!("{}", path.display()))?;
         study.description = format!("{} (noise from {})", study.description, path.display());
     }
-    run_study(&study, &args.output)
+    let mut outputs = io::Outputs::new();
+    let written = run_study(&study, &args.output, &mut outputs)?;
+    outputs.commit()?;
+    println!("{written}\n");
+    Ok(())
 }
 
 /// A progress bar of `runs` runs, labelled `message`.
@@ -44,13 +57,33 @@ fn progress(runs: usize, message: String) -> ProgressBar {
     bar
 }
 
-/// Run `study` with a progress bar, print its tables, and write them with the CSV samples and
-/// the figures into `<out>/<study name>/`; with `--replications`, the same for the study
-/// replicated over that many derived seeds.
-fn run_study(study: &Study, output: &StudyOutputArgs) -> Result<()> {
+/// The worker threads: `--threads`, at most the machine's cores (with a note), or all of them.
+fn threads(requested: Option<usize>) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    match requested {
+        Some(n) if n > cores => {
+            eprintln!("note: --threads {n}: this machine has {cores} cores, using {cores}");
+            cores
+        }
+        Some(n) if n > 0 => n,
+        _ => cores,
+    }
+}
+
+/// Run `study` with a progress bar, print its tables, and stage them with the CSV samples and
+/// the figures for `<out>/<study name>/` in `outputs` (with `--replications`, those of the
+/// study replicated over that many derived seeds too); what to say once they are written.
+fn run_study(study: &Study, output: &StudyOutputArgs, outputs: &mut io::Outputs) -> Result<String> {
     let runs = study.cases.len() * study.point_sets * study.runs_per_set;
     let bar = progress(runs, study.name.clone());
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(output.threads.unwrap_or(0)).build()?;
+    let threads = threads(output.threads);
+    let what = format!("study {}", study.name);
+    io::check_memory(
+        study.memory_estimate(threads),
+        &what,
+        "ask for fewer test_points, points, point sets or runs",
+    )?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
     let results = pool.install(|| simulation::run(study, &|| bar.inc(1)))?;
     bar.finish_and_clear();
     let mut tables = report::study::tables(study, &results);
@@ -64,16 +97,16 @@ fn run_study(study: &Study, output: &StudyOutputArgs) -> Result<()> {
     ];
     files.extend(report::figures::study_figures(study, &results)?);
     let folder = output.out.join(&study.name);
-    io::write_files(&folder, &files)?;
-    println!("wrote {} files to {}\n", files.len(), folder.display());
+    outputs.add_folder(&folder, &files);
+    let mut written = format!("wrote {} files to {}", files.len(), folder.display());
     if let Some(count) = output.replications {
         let bar = progress(runs * count, format!("{} x {count} replications", study.name));
         let replicated = pool.install(|| simulation::replicate(study, count, &|| bar.inc(1)))?;
         bar.finish_and_clear();
         let files = report::replication::files(study, &replicated)?;
         println!("{}", files[0].1);
-        io::write_files(&folder, &files)?;
-        println!("wrote {} files to {}\n", files.len(), folder.display());
+        outputs.add_folder(&folder, &files);
+        written += &format!("\nwrote {} replication files to {}", files.len(), folder.display());
     }
-    Ok(())
+    Ok(written)
 }

@@ -147,6 +147,15 @@ impl Design {
         Ok(Candidates { joints, draws })
     }
 
+    /// The memory [`Design::plan_seeded`] will need at most for a pool of `candidates`, in
+    /// bytes: per candidate its joint values and the whitened `b x r` rows, held twice, plus
+    /// the exchange's gradient rows (`8 dof + 32 + 3 x 8 b r`; `b` 3 or 6, `r` the identified
+    /// parameters). A bound to refuse absurd requests before allocating.
+    pub fn plan_memory_estimate(&self, candidates: usize) -> u64 {
+        let (b, r, dof) = (self.measured.rows() as u64, self.columns.len() as u64, self.model().dof() as u64);
+        (candidates as u64).saturating_mul(8 * dof + 32 + 24 * b * r)
+    }
+
     /// Plan `points` poses from a pool of `candidates` drawn with ChaCha8 seeded by `seed`
     /// (stream 0): the same arguments give the same poses.
     pub fn plan_seeded(

@@ -19,6 +19,7 @@
 
 use super::device::Device;
 use crate::error::FieldError;
+use crate::limits::{MAX_ANGLE_DEG, MAX_LENGTH_MM, check_magnitude};
 use crate::model::{JointKind, RobotModel};
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use serde::Deserialize;
@@ -47,6 +48,7 @@ pub(crate) enum DeviceTable {
         sigma_mm: f64,
     },
     LaserTracker {
+        #[serde(deserialize_with = "crate::limits::exactly")]
         position_mm: [f64; 3],
         sigma_r_mm: f64,
         #[serde(default)]
@@ -60,9 +62,44 @@ pub(crate) enum DeviceTable {
     },
 }
 
+/// `Ok` if a joint sigma (deg for a revolute joint, mm for a prismatic one) is within
+/// [`MAX_ANGLE_DEG`] or [`MAX_LENGTH_MM`].
+fn joint_sigma_bound(kind: JointKind, sigma: f64) -> Result<f64, String> {
+    match kind {
+        JointKind::Revolute => check_magnitude(sigma, MAX_ANGLE_DEG, "deg"),
+        JointKind::Prismatic => check_magnitude(sigma, MAX_LENGTH_MM, "mm"),
+    }
+}
+
 impl DeviceTable {
     /// The device in mm and rad, validated; errors name the field under `prefix`.
     pub(crate) fn device(&self, prefix: &str) -> Result<Device, FieldError> {
+        let arcsec = MAX_ANGLE_DEG * 3600.0;
+        let bounded: Vec<(&str, f64, f64, &str)> = match self {
+            Self::Cmm { sigma_mm } => vec![("sigma_mm", *sigma_mm, MAX_LENGTH_MM, "mm")],
+            Self::LaserTracker { position_mm, sigma_r_mm, k_ppm, sigma_angle_arcsec } => {
+                let position = position_mm.iter().map(|&v| ("position_mm", v, MAX_LENGTH_MM, "mm"));
+                position
+                    .chain([
+                        ("sigma_r_mm", *sigma_r_mm, MAX_LENGTH_MM, "mm"),
+                        ("k_ppm", *k_ppm, 1e6, "ppm"),
+                        ("sigma_angle_arcsec", *sigma_angle_arcsec, arcsec, "arcsec"),
+                    ])
+                    .collect()
+            }
+            Self::Theodolites { stations_mm, sigma_horizontal_arcsec, sigma_vertical_arcsec } => {
+                let stations = stations_mm.iter().flatten().map(|&v| ("stations_mm", v, MAX_LENGTH_MM, "mm"));
+                stations
+                    .chain([
+                        ("sigma_horizontal_arcsec", *sigma_horizontal_arcsec, arcsec, "arcsec"),
+                        ("sigma_vertical_arcsec", *sigma_vertical_arcsec, arcsec, "arcsec"),
+                    ])
+                    .collect()
+            }
+        };
+        for (field, value, bound, unit) in bounded {
+            check_magnitude(value, bound, unit).map_err(|e| FieldError::new(field, e).within(prefix))?;
+        }
         let device = match self {
             Self::Cmm { sigma_mm } => Device::Cmm { sigma: *sigma_mm },
             Self::LaserTracker { position_mm, sigma_r_mm, k_ppm, sigma_angle_arcsec } => {
@@ -140,6 +177,9 @@ impl NoiseSpec {
                 if let Some(s) = sigmas.iter().find(|s| !(s.is_finite() && **s >= 0.0)) {
                     return Err(invalid("joint_sigma", format!("finite values >= 0, found {s}")));
                 }
+                for (joint, &s) in model.joints.iter().zip(sigmas) {
+                    joint_sigma_bound(joint.kind, s).map_err(|e| invalid("joint_sigma", e))?;
+                }
                 (
                     DMatrix::from_fn(
                         dof,
@@ -156,6 +196,10 @@ impl NoiseSpec {
                 let m = DMatrix::from_fn(dof, dof, |i, j| rows[i][j] * unit[i] * unit[j]);
                 if m.iter().any(|v| !v.is_finite()) {
                     return Err(invalid("joint_covariance", "finite values".into()));
+                }
+                for (i, joint) in model.joints.iter().enumerate() {
+                    joint_sigma_bound(joint.kind, rows[i][i].abs().sqrt())
+                        .map_err(|e| invalid("joint_covariance", format!("diagonal: the square of {e}")))?;
                 }
                 if (&m - m.transpose()).amax() > 1e-9 * m.amax() {
                     return Err(invalid("joint_covariance", "a symmetric matrix".into()));
@@ -178,10 +222,14 @@ impl NoiseSpec {
         {
             return Err(invalid("sigma_me_mm", format!("a finite value >= 0, found {s}")));
         }
+        if let Some(s) = file.sigma_me_mm {
+            check_magnitude(s, MAX_LENGTH_MM, "mm").map_err(|e| invalid("sigma_me_mm", e))?;
+        }
         let o = file.sigma_orientation_deg;
         if !(o.is_finite() && o >= 0.0) {
             return Err(invalid("sigma_orientation_deg", format!("a finite value >= 0, found {o}")));
         }
+        check_magnitude(o, MAX_ANGLE_DEG, "deg").map_err(|e| invalid("sigma_orientation_deg", e))?;
         let device = file.device.as_ref().map(|d| d.device("device.")).transpose()?;
         Ok(Self { joint, full, sigma_me: file.sigma_me_mm, sigma_orientation: o.to_radians(), device })
     }

@@ -7,6 +7,7 @@
 
 use crate::calibration::{Measurements, RepeatabilityData};
 use crate::estimation::{NoiseFileError, NoiseSpec};
+use crate::limits::{FALLBACK_MEMORY, MEMORY_SHARE};
 use crate::model::{ModelError, ModelRef, PRESETS, RobotModel, chain_links, from_urdf_str};
 use crate::simulation::{STUDIES, Study, StudyError};
 use crate::table::{DataError, Units};
@@ -76,12 +77,116 @@ pub struct OutputError {
     pub source: std::io::Error,
 }
 
-/// Write `files` (name, contents) into `folder`, creating it if needed.
-pub fn write_files(folder: &Path, files: &[(String, String)]) -> Result<(), OutputError> {
-    std::fs::create_dir_all(folder).map_err(|source| OutputError { path: folder.into(), source })?;
-    for (name, contents) in files {
-        let path = folder.join(name);
-        std::fs::write(&path, contents).map_err(|source| OutputError { path, source })?;
+/// The outputs of a command, staged in memory and written together by [`Outputs::commit`]:
+/// all of them appear, or none does, and a file already on disk is replaced only when every
+/// output has been written.
+///
+/// Each file is first written in full to a temporary file beside its target (`.NAME.PID.tmp`
+/// in the same folder), then every temporary file is renamed into place. If writing any of
+/// them fails, the temporary files and the folders `commit` created are removed and the
+/// targets are left as they were. (A rename within a folder is atomic; only a file system
+/// that fails between two renames could leave some outputs new and the others old, never a
+/// file half-written.)
+#[derive(Debug, Default)]
+pub struct Outputs {
+    /// (target, contents, may create the target's folder)
+    files: Vec<(PathBuf, Vec<u8>, bool)>,
+}
+
+impl Outputs {
+    /// No outputs yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Stage `contents` for `path`, whose folder must exist when the outputs are committed.
+    pub fn add(&mut self, path: impl Into<PathBuf>, contents: impl Into<Vec<u8>>) {
+        self.files.push((path.into(), contents.into(), false));
+    }
+
+    /// Stage `files` (name, contents) in `folder`, which is created if needed.
+    pub fn add_folder(&mut self, folder: &Path, files: &[(String, String)]) {
+        for (name, contents) in files {
+            self.files.push((folder.join(name), contents.clone().into_bytes(), true));
+        }
+    }
+
+    /// The number of files staged.
+    pub fn len(&self) -> usize {
+        self.files.len()
+    }
+
+    /// Whether nothing is staged.
+    pub fn is_empty(&self) -> bool {
+        self.files.is_empty()
+    }
+
+    /// Write every staged file; on an error, nothing staged is left on disk and every target
+    /// keeps what it held.
+    pub fn commit(self) -> Result<(), OutputError> {
+        let mut created = Vec::new();
+        let mut temporaries = Vec::new();
+        let written = self.write_temporaries(&mut created, &mut temporaries);
+        let result = written.and_then(|()| {
+            for (temporary, target) in &temporaries {
+                std::fs::rename(temporary, target)
+                    .map_err(|source| OutputError { path: target.clone(), source })?;
+            }
+            Ok(())
+        });
+        if result.is_err() {
+            for (temporary, _) in &temporaries {
+                let _ = std::fs::remove_file(temporary);
+            }
+            for folder in created.iter().rev() {
+                let _ = std::fs::remove_dir(folder);
+            }
+        }
+        result
+    }
+
+    /// Create the folders asked for (recording those created) and write each file to its
+    /// temporary file (recording each `(temporary, target)`).
+    fn write_temporaries(
+        &self,
+        created: &mut Vec<PathBuf>,
+        temporaries: &mut Vec<(PathBuf, PathBuf)>,
+    ) -> Result<(), OutputError> {
+        for (i, (target, _, _)) in self.files.iter().enumerate() {
+            if self.files[..i].iter().any(|(other, _, _)| other == target) {
+                let source = std::io::Error::other("the same output is asked for twice");
+                return Err(OutputError { path: target.clone(), source });
+            }
+            if target.is_dir() {
+                let source = std::io::Error::other("a folder is there");
+                return Err(OutputError { path: target.clone(), source });
+            }
+        }
+        for (target, contents, create) in &self.files {
+            let folder = match target.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+                _ => PathBuf::from("."),
+            };
+            if *create {
+                create_folders(&folder, created)?;
+            }
+            let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+            let temporary = folder.join(format!(".{name}.{}.tmp", std::process::id()));
+            temporaries.push((temporary.clone(), target.clone()));
+            std::fs::write(&temporary, contents)
+                .map_err(|source| OutputError { path: target.clone(), source })?;
+        }
+        Ok(())
+    }
+}
+
+/// Create `folder` and the folders above it that are missing, recording each one created.
+fn create_folders(folder: &Path, created: &mut Vec<PathBuf>) -> Result<(), OutputError> {
+    let missing: Vec<&Path> =
+        folder.ancestors().take_while(|p| !p.as_os_str().is_empty() && !p.exists()).collect();
+    for path in missing.into_iter().rev() {
+        std::fs::create_dir(path).map_err(|source| OutputError { path: path.into(), source })?;
+        created.push(path.into());
     }
     Ok(())
 }
@@ -89,6 +194,60 @@ pub fn write_files(folder: &Path, files: &[(String, String)]) -> Result<(), Outp
 /// The text of the file at `path`.
 fn read(path: &Path) -> Result<String, InputError> {
     std::fs::read_to_string(path).map_err(|source| InputError::Read { path: path.into(), source })
+}
+
+/// A command that would need more memory than robocal allows itself (see [`check_memory`]).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{what} would need about {:.1} GiB of memory, more than {:.1} GiB ({}% of the {:.1} GiB this process may use): {advice}",
+    gib(*needed), gib(*budget), (MEMORY_SHARE * 100.0).round(), gib(*machine)
+)]
+pub struct MemoryError {
+    /// What would need it (`study paper-table1`, `plan`).
+    pub what: String,
+    /// The estimate (bytes).
+    pub needed: u64,
+    /// What may be used (bytes).
+    pub budget: u64,
+    /// The machine's memory, or the process's address-space limit if lower (bytes).
+    pub machine: u64,
+    /// What to ask for instead.
+    pub advice: String,
+}
+
+fn gib(bytes: u64) -> f64 {
+    bytes as f64 / f64::from(1u32 << 30)
+}
+
+/// The memory of this machine in bytes: the total memory (`MemTotal` of `/proc/meminfo`), or
+/// the process's address-space limit (`ulimit -v`, `/proc/self/limits`) if lower;
+/// [`FALLBACK_MEMORY`] where neither can be read.
+pub fn machine_memory() -> u64 {
+    let total = std::fs::read_to_string("/proc/meminfo").ok().and_then(|text| {
+        let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+        let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kib * 1024)
+    });
+    let limit = std::fs::read_to_string("/proc/self/limits").ok().and_then(|text| {
+        let line = text.lines().find(|l| l.starts_with("Max address space"))?;
+        line.split_whitespace().nth(3)?.parse::<u64>().ok()
+    });
+    match (total, limit) {
+        (Some(t), Some(l)) => t.min(l),
+        (Some(m), None) | (None, Some(m)) => m,
+        (None, None) => FALLBACK_MEMORY,
+    }
+}
+
+/// `Ok` if `needed` bytes are within [`MEMORY_SHARE`] of [`machine_memory`]; otherwise an error saying what would
+/// need it and what to ask for instead.
+pub fn check_memory(needed: u64, what: &str, advice: &str) -> Result<(), MemoryError> {
+    let machine = machine_memory();
+    let budget = (machine as f64 * MEMORY_SHARE) as u64;
+    if needed <= budget {
+        return Ok(());
+    }
+    Err(MemoryError { what: what.into(), needed, budget, machine, advice: advice.into() })
 }
 
 /// A study by name (`paper-table1`, see [`STUDIES`]) or from a TOML file; its `robot` field

@@ -2,6 +2,7 @@
 
 use super::{Convention, Joint, JointKind, LinkMass, Placement, RobotModel, Tool};
 use crate::error::FieldError;
+use crate::limits::{MAX_ANGLE_DEG, MAX_JOINTS, MAX_LENGTH_MM, check_magnitude, exactly, exactly_if_given};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -69,17 +70,19 @@ enum ConventionName {
 #[derive(Serialize, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct PlacementFile {
+    #[serde(deserialize_with = "exactly")]
     xyz_mm: [f64; 3],
-    #[serde(default)]
+    #[serde(default, deserialize_with = "exactly")]
     rpy_deg: [f64; 3],
 }
 
 #[derive(Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ToolFile {
+    #[serde(deserialize_with = "exactly")]
     xyz_mm: [f64; 3],
     /// Present: the tool is a frame (pose measurable). Absent: a point.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "exactly_if_given", skip_serializing_if = "Option::is_none")]
     rpy_deg: Option<[f64; 3]>,
 }
 
@@ -99,15 +102,15 @@ struct JointFile {
     alpha_deg: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     beta_deg: Option<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "exactly_if_given", skip_serializing_if = "Option::is_none")]
     xyz_mm: Option<[f64; 3]>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "exactly_if_given", skip_serializing_if = "Option::is_none")]
     rpy_deg: Option<[f64; 3]>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "exactly_if_given", skip_serializing_if = "Option::is_none")]
     axis: Option<[f64; 3]>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "exactly_if_given", skip_serializing_if = "Option::is_none")]
     limits_deg: Option<[f64; 2]>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(default, deserialize_with = "exactly_if_given", skip_serializing_if = "Option::is_none")]
     limits_mm: Option<[f64; 2]>,
 }
 
@@ -154,8 +157,23 @@ fn invalid(field: impl Into<String>, expected: impl Into<String>) -> ModelError 
     FieldError::new(field, expected).into()
 }
 
+/// `value`, finite and (for a field in mm or degrees) within [`MAX_LENGTH_MM`] or
+/// [`MAX_ANGLE_DEG`].
 fn finite(field: &str, value: f64) -> Result<f64, ModelError> {
-    if value.is_finite() { Ok(value) } else { Err(invalid(field, format!("a finite number, found {value}"))) }
+    if !value.is_finite() {
+        return Err(invalid(field, format!("a finite number, found {value}")));
+    }
+    let bound = if field.ends_with("_mm") {
+        Some((MAX_LENGTH_MM, "mm"))
+    } else if field.ends_with("_deg") {
+        Some((MAX_ANGLE_DEG, "deg"))
+    } else {
+        None
+    };
+    match bound {
+        Some((bound, unit)) => check_magnitude(value, bound, unit).map_err(|e| invalid(field, e)),
+        None => Ok(value),
+    }
 }
 
 fn vector(field: &str, v: &[f64; 3]) -> Result<Vector3<f64>, ModelError> {
@@ -179,7 +197,7 @@ fn joint(index: usize, j: JointFile, convention: Convention) -> Result<Joint, Mo
         KindName::Prismatic => JointKind::Prismatic,
     };
     let limits = match (kind, j.limits_deg, j.limits_mm) {
-        (JointKind::Revolute, Some(l), None) => l.map(f64::to_radians),
+        (JointKind::Revolute, Some(l), None) => l,
         (JointKind::Prismatic, None, Some(l)) => l,
         (JointKind::Revolute, _, _) => {
             return Err(invalid(
@@ -200,6 +218,7 @@ fn joint(index: usize, j: JointFile, convention: Convention) -> Result<Joint, Mo
     if limits[0] >= limits[1] {
         return Err(invalid(limits_field, "[lower, upper] with lower < upper"));
     }
+    let limits = if kind == JointKind::Revolute { limits.map(f64::to_radians) } else { limits };
     let dh = [("theta_deg", j.theta_deg), ("d_mm", j.d_mm), ("a_mm", j.a_mm), ("alpha_deg", j.alpha_deg)];
     let urdf = [("xyz_mm", j.xyz_mm.is_some()), ("rpy_deg", j.rpy_deg.is_some()), ("axis", j.axis.is_some())];
     if convention == Convention::Urdf {
@@ -254,6 +273,9 @@ fn validate(model: &RobotModel) -> Result<(), ModelError> {
             "links",
             format!("one [[links]] table per joint ({}), found {}", model.joints.len(), model.masses.len()),
         ));
+    }
+    if model.joints.len() > MAX_JOINTS {
+        return Err(invalid("joints", format!("at most {MAX_JOINTS} joints, found {}", model.joints.len())));
     }
     for (i, joint) in model.joints.iter().enumerate() {
         let ok_name = !joint.name.is_empty()

@@ -186,6 +186,16 @@ impl RobotModel {
         self.joints.len()
     }
 
+    /// The names of the joints whose value in `q` (rad, mm) lies outside their limits.
+    pub fn joints_outside_limits(&self, q: &[f64]) -> Vec<&str> {
+        self.joints
+            .iter()
+            .zip(q)
+            .filter(|(j, v)| **v < j.limits[0] || **v > j.limits[1])
+            .map(|(j, _)| j.name.as_str())
+            .collect()
+    }
+
     /// The named error parameters of this model, in their canonical order.
     pub fn params(&self) -> ParamSet {
         ParamSet::new(self)

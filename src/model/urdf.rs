@@ -4,11 +4,15 @@
 //! prismatic joint on it becomes a [`Joint`] of the `urdf` convention: its origin (xyz, rpy)
 //! and axis. Fixed joints are folded into the origin of the next moving joint, or into the tool
 //! after the last one (the tool is then the tip link's frame). Continuous joints get limits of
-//! plus or minus one turn. Each moving joint carries its child link's `<inertial>` mass and
-//! those of the links fixed to it (a flange, a tool, a gripper), as one body.
+//! plus or minus one turn. A joint on the chain that mimics another (`<mimic>`) and a link on
+//! it with two parent joints are refused: robocal calibrates serial chains of independent
+//! joints. Lengths are bounded by [`MAX_LENGTH_MM`], angles by [`MAX_ANGLE_DEG`].
+//! Each moving joint carries its child link's `<inertial>` mass and those of the links fixed
+//! to it (a flange, a tool, a gripper), as one body.
 
 use super::{Convention, Joint, JointKind, LinkMass, ModelError, Placement, RobotModel, Tool};
 use crate::error::FieldError;
+use crate::limits::{MAX_ANGLE_DEG, MAX_LENGTH_MM};
 use nalgebra::{Isometry3, Vector3};
 
 fn invalid(field: String, expected: impl Into<String>) -> ModelError {
@@ -33,6 +37,14 @@ fn numbers<const N: usize>(
         .map_err(|_| invalid(format!("{field}.{attribute}"), format!("{N} numbers, found `{text}`")))?;
     if values.iter().any(|v| !v.is_finite()) {
         return Err(invalid(format!("{field}.{attribute}"), "finite numbers"));
+    }
+    // Metres (xyz) or radians (rpy); an axis is normalised.
+    let bound = if attribute == "rpy" { MAX_ANGLE_DEG.to_radians() } else { MAX_LENGTH_MM / 1000.0 };
+    if let Some(v) = values.iter().find(|v| v.abs() > bound) {
+        return Err(invalid(
+            format!("{field}.{attribute}"),
+            format!("magnitudes at most {bound:e}, found {v}"),
+        ));
     }
     Ok(values)
 }
@@ -65,10 +77,15 @@ fn chain<'a, 'input>(
 ) -> Result<Vec<roxmltree::Node<'a, 'input>>, ModelError> {
     let joints: Vec<roxmltree::Node<'a, 'input>> =
         robot.children().filter(|n| n.has_tag_name("joint")).collect();
+    let mut parents: std::collections::HashMap<String, Vec<roxmltree::Node<'a, 'input>>> =
+        std::collections::HashMap::new();
+    for joint in &joints {
+        parents.entry(link_of(joint, "child")).or_default().push(*joint);
+    }
     let mut chain = Vec::new();
     let mut link = tip_link.to_string();
     while link != base_link {
-        let Some(joint) = joints.iter().find(|j| link_of(j, "child") == link) else {
+        let Some(joint) = parents.get(&link).and_then(|p| p.first()) else {
             return Err(invalid(
                 "tip link".into(),
                 format!(
@@ -76,6 +93,28 @@ fn chain<'a, 'input>(
                 ),
             ));
         };
+        if let [first, second, ..] = parents[&link][..] {
+            let name = |j: roxmltree::Node<'_, '_>| j.attribute("name").unwrap_or_default().to_string();
+            return Err(invalid(
+                format!("link `{link}`"),
+                format!(
+                    "one parent joint (a URDF is a tree), found `{}` and `{}`: not supported",
+                    name(first),
+                    name(second)
+                ),
+            ));
+        }
+        if let Some(mimic) = joint.children().find(|c| c.has_tag_name("mimic")) {
+            let name = joint.attribute("name").unwrap_or_default();
+            let leader = mimic.attribute("joint").unwrap_or_default();
+            return Err(invalid(
+                format!("joint `{name}`.mimic"),
+                format!(
+                    "a joint of its own: it mimics `{leader}`, and a chain with coupled joints is not supported; \
+                     give a chain without mimic joints"
+                ),
+            ));
+        }
         if chain.len() > joints.len() {
             return Err(invalid("joints".into(), "a tree: the parent links form a loop"));
         }

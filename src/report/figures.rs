@@ -2,6 +2,7 @@
 //! font and the viewer draws the text).
 
 use crate::calibration::{PoseErrors, SetEvaluation};
+use crate::limits::MAX_BINS;
 use crate::model::{Joint, JointKind};
 use crate::simulation::{PoseChoice, Replications, Statistic, Study, StudyResults, Summary};
 use plotters::coord::types::RangedCoordf64;
@@ -108,9 +109,30 @@ fn distinct(values: impl Iterator<Item = f64>) -> Vec<f64> {
     out
 }
 
-/// Histogram of dE (%) in bins 5 points wide.
+/// `Err` naming how many of `values` are NaN or infinite: such a figure would be nonsense.
+fn all_finite(values: impl IntoIterator<Item = f64>) -> Result<(), String> {
+    let (mut total, mut bad) = (0, 0);
+    for v in values {
+        total += 1;
+        bad += usize::from(!v.is_finite());
+    }
+    if bad > 0 {
+        return Err(format!("{bad} of its {total} values are not finite (NaN or infinite): not drawn"));
+    }
+    Ok(())
+}
+
+/// Histogram of dE (%) in bins 5 points wide, wider if it would have more than [`MAX_BINS`].
 fn histogram(title: &str, values: &[f64]) -> Result<String, String> {
-    let width = 5.0;
+    all_finite(values.iter().copied())?;
+    if values.is_empty() {
+        return Err("no values".into());
+    }
+    let range = values.iter().fold(0.0f64, |m, v| m.max(v.abs())) * 2.0;
+    if range > 1e300 {
+        return Err(format!("values up to {:e}: too large to draw", range / 2.0));
+    }
+    let width = 5.0 * (range / 5.0 / MAX_BINS as f64).ceil().max(1.0);
     let low = (values.iter().copied().fold(f64::INFINITY, f64::min) / width).floor() * width;
     let mut svg = String::new();
     {
@@ -340,6 +362,7 @@ fn trend(
     x_label: &str,
     series: &[(String, Vec<(f64, f64)>, Vec<(f64, f64)>)],
 ) -> Result<String, String> {
+    all_finite(series.iter().flat_map(|(_, m, s)| m.iter().chain(s)).flat_map(|&(x, y)| [x, y]))?;
     let all = series.iter().flat_map(|(_, m, s)| m.iter().chain(s));
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64, 0.0f64);
     for &(x, y) in all {

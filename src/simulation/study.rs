@@ -4,6 +4,10 @@ use crate::design::Criterion;
 use crate::error::FieldError;
 use crate::estimation::{Device, DeviceTable, Estimator};
 use crate::kinematics::Measured;
+use crate::limits::{
+    MAX_ANGLE_DEG, MAX_CANDIDATES, MAX_CASES, MAX_ITERATIONS, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS,
+    MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS, check_magnitude,
+};
 use crate::model::{JointKind, ModelRef, RobotModel, Selection, SelectionError, degrees};
 use serde::Deserialize;
 
@@ -293,6 +297,18 @@ impl Study {
             None => None,
         };
         let choices = pose_choices(file.design.as_ref(), &file.cases.points)?;
+        let count = file
+            .cases
+            .points
+            .len()
+            .saturating_mul(file.cases.sigma_me_mm.len())
+            .saturating_mul(choices.len());
+        if count > MAX_CASES {
+            return invalid(
+                "cases",
+                format!("at most {MAX_CASES} cases (points x sigma_me_mm x design.poses), found {count}"),
+            );
+        }
         let cases = file
             .cases
             .points
@@ -333,8 +349,9 @@ impl Study {
 
     /// Check that the study's values make a study: a name fit for file names, at least one
     /// parameter, two estimators, one finite joint sigma >= 0 per joint, finite error sizes
-    /// and noise >= 0, cases with 1 to 1048575 points, and counts of sets, runs, test points
-    /// and iterations from 1 (at least 2 runs per case). Errors name the study file's field.
+    /// and noise >= 0, every magnitude and count within its bound in [`crate::limits`] (points,
+    /// sets, runs, test points, iterations, the runs and the work of the whole study), at
+    /// least 2 runs per case. Errors name the study file's field.
     pub fn check(&self) -> Result<(), StudyError> {
         let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         let name = &self.name;
@@ -375,19 +392,37 @@ impl Study {
                 return invalid(field, format!("finite values >= 0, found {value}"));
             }
         }
+        let joint_sigma = self.robot.joints.iter().zip(&self.joint_sigmas).map(|(j, &s)| match j.kind {
+            JointKind::Revolute => ("noise.joint_sigma", degrees(s), MAX_ANGLE_DEG, "deg"),
+            JointKind::Prismatic => ("noise.joint_sigma", s, MAX_LENGTH_MM, "mm"),
+        });
+        let magnitudes = joint_sigma
+            .chain(self.cases.iter().map(|c| ("cases.sigma_me_mm", c.sigma_me, MAX_LENGTH_MM, "mm")))
+            .chain([
+                ("noise.sigma_orientation_deg", degrees(self.sigma_orientation), MAX_ANGLE_DEG, "deg"),
+                ("errors.offset_deg", degrees(self.errors.offset), MAX_ANGLE_DEG, "deg"),
+                ("errors.angle_deg", degrees(self.errors.angle), MAX_ANGLE_DEG, "deg"),
+                ("errors.length_mm", self.errors.length, MAX_LENGTH_MM, "mm"),
+            ]);
+        for (field, value, bound, unit) in magnitudes {
+            check_magnitude(value, bound, unit).map_err(|e| FieldError::new(field, e))?;
+        }
         let all_finite =
             self.joint_sigmas.iter().chain(self.cases.iter().map(|c| &c.sigma_me)).all(|v| v.is_finite());
         if !all_finite {
             return invalid("noise.joint_sigma / cases.sigma_me_mm", "finite values".into());
         }
-        for (field, count) in [
-            ("point_sets", self.point_sets),
-            ("runs_per_set", self.runs_per_set),
-            ("test_points", self.test_points),
-            ("iterations", self.iterations),
+        for (field, count, bound) in [
+            ("point_sets", self.point_sets, MAX_RUNS_PER_CASE),
+            ("runs_per_set", self.runs_per_set, MAX_RUNS_PER_CASE),
+            ("test_points", self.test_points, MAX_TEST_POINTS),
+            ("iterations", self.iterations, MAX_ITERATIONS),
         ] {
             if count == 0 {
                 return invalid(field, "at least 1".into());
+            }
+            if count > bound {
+                return invalid(field, format!("at most {bound}, found {count}"));
             }
         }
         if self.point_sets.saturating_mul(self.runs_per_set) < 2 {
@@ -399,13 +434,62 @@ impl Study {
         if self.cases.is_empty() {
             return invalid("cases", "at least one value in `points` and in `sigma_me_mm`".into());
         }
-        if self.cases.iter().any(|c| c.points == 0 || c.points >= 1 << 20) {
-            return invalid("cases.points", "point counts from 1 to 1048575".into());
+        if let Some(case) = self.cases.iter().find(|c| c.points == 0 || c.points > MAX_POINTS) {
+            return invalid(
+                "cases.points",
+                format!("point counts from 1 to {MAX_POINTS}, found {}", case.points),
+            );
         }
-        if self.point_sets >= 1 << 20 || self.runs_per_set >= 1 << 20 {
-            return invalid("point_sets / runs_per_set", "fewer than 1048576".into());
+        let runs_per_case = (self.point_sets as u64).saturating_mul(self.runs_per_set as u64);
+        let work = self.cases.iter().fold(0u64, |work, case| {
+            work.saturating_add(runs_per_case.saturating_mul((case.points + self.test_points) as u64))
+        });
+        if work > MAX_STUDY_WORK {
+            return invalid(
+                "runs_per_set",
+                format!(
+                    "a study of at most {MAX_STUDY_WORK:e} kinematic evaluations (runs x (points + test_points)), \
+                     found {work:e}: ask for fewer runs, points or test_points"
+                ),
+            );
+        }
+        let runs = self.cases.len().saturating_mul(self.point_sets).saturating_mul(self.runs_per_set);
+        if runs > MAX_RUNS {
+            return invalid(
+                "runs_per_set",
+                format!("at most {MAX_RUNS} runs in all (cases x point_sets x runs_per_set), found {runs}"),
+            );
         }
         Ok(())
+    }
+
+    /// The memory the study will need at most, in bytes, on `threads` threads: every point
+    /// set held at once (per point the joints, the nominal pose, and the `b x (p + dof)`
+    /// Jacobian rows: `8 (dof + b (p + dof) + 32)` bytes), plus per thread the stacked `H`, its
+    /// whitened copy, the solve's workspace and `y` (`4 x 8 N_p b p`), the planner's candidate
+    /// rows (`3 x 8 b p` per candidate) and the real robot at every test point (`128 x
+    /// test_points`), plus the test set (`8 dof + 152` a point) and the results (`64` bytes per
+    /// run and estimator). `b` is 3 (position) or 6 (pose), `p` the identified parameters. A
+    /// bound to refuse absurd studies before allocating, not an account.
+    pub fn memory_estimate(&self, threads: usize) -> u64 {
+        let (b, p, dof) = (self.measured.rows() as u64, self.selection.len() as u64, self.robot.dof() as u64);
+        let sets: u64 = self.cases.iter().map(|c| c.points as u64 * self.point_sets as u64).sum();
+        let largest = self.cases.iter().map(|c| c.points as u64).max().unwrap_or(0);
+        let candidates = self
+            .cases
+            .iter()
+            .map(|c| match c.poses {
+                PoseChoice::Planned { candidates, .. } => candidates as u64,
+                PoseChoice::Random => 0,
+            })
+            .max()
+            .unwrap_or(0);
+        let runs = self.cases.len() as u64 * self.point_sets as u64 * self.runs_per_set as u64;
+        let per_thread = 32 * largest * b * p + 24 * candidates * b * p + 128 * self.test_points as u64;
+        sets.saturating_mul(8 * (dof + b * (p + dof) + 32))
+            .saturating_add((threads.max(1) as u64).saturating_mul(per_thread))
+            .saturating_add(self.test_points as u64 * (8 * dof + 152))
+            .saturating_add(runs.saturating_mul(64 * self.estimators.len() as u64))
     }
 
     /// Replace the study's noise by a noise file's: the joint sigmas, the device, the
@@ -455,10 +539,10 @@ fn pose_choices(design: Option<&DesignFile>, points: &[usize]) -> Result<Vec<Pos
     let invalid = |field: &str, expected: String| StudyError::from(FieldError::new(field, expected));
     let criterion: Criterion = design.criterion.parse().map_err(|e| invalid("design.criterion", e))?;
     let largest = points.iter().copied().max().unwrap_or(0);
-    if design.candidates < largest || design.candidates >= 1 << 20 {
+    if design.candidates < largest || design.candidates > MAX_CANDIDATES {
         return Err(invalid(
             "design.candidates",
-            format!("from the largest N_p ({largest}) to 1048575, found {}", design.candidates),
+            format!("from the largest N_p ({largest}) to {MAX_CANDIDATES}, found {}", design.candidates),
         ));
     }
     let mut choices = Vec::new();

@@ -7,7 +7,7 @@ use std::path::Path;
 /// The modules from the bottom up; modules on one line are at the same level and do not use
 /// each other.
 const LEVELS: &[&[&str]] = &[
-    &["error", "linalg"],
+    &["error", "limits", "linalg"],
     &["model"],
     &["kinematics", "table"],
     &["estimation"],

@@ -177,15 +177,19 @@ fn iterations_are_at_least_1() {
 }
 
 #[test]
-fn sigmas_are_finite_and_not_negative() {
-    for flag in [
-        "--joint-sigma-deg=0.1,-0.1,0,0,0,0",
-        "--sigma-mm=-1",
-        "--sigma-orientation-deg=nan",
-        "--sigma-mm=inf",
+fn sigmas_are_finite_not_negative_and_plausible() {
+    for (flag, bound) in [
+        ("--joint-sigma-deg=0.1,-0.1,0,0,0,0", "1e3"),
+        ("--joint-sigma-deg=0.1,1e4,0,0,0,0", "1e3"),
+        ("--sigma-mm=-1", "1e6"),
+        ("--sigma-mm=NaN", "1e6"),
+        ("--sigma-mm=2e6", "1e6"),
+        ("--sigma-orientation-deg=nan", "1e3"),
+        ("--sigma-mm=inf", "1e6"),
     ] {
-        assert!(refused(calibrate(&[flag])).contains("expected a finite number >= 0"), "{flag}");
-        assert!(refused(plan(&[flag])).contains("expected a finite number >= 0"), "{flag}");
+        let expected = format!("expected a finite number from 0 to {bound}");
+        assert!(refused(calibrate(&[flag])).contains(&expected), "{flag}");
+        assert!(refused(plan(&[flag])).contains(&expected), "{flag}");
     }
 }
 
@@ -231,7 +235,7 @@ fn params_none_is_for_calibrate_only() {
 fn markers_are_three_finite_numbers() {
     let request = calibrate(&["--marker", "50,0,150", "--marker=-40,60,120"]).unwrap();
     assert_eq!(request.markers, [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)]);
-    for bad in ["50,0", "50,0,1,2", "50,x,1", "50,0,inf"] {
+    for bad in ["50,0", "50,0,1,2", "50,x,1", "50,0,inf", "50,0,1e300"] {
         let message = refused(calibrate(&["--marker", bad]));
         assert!(message.contains("expected three finite numbers x,y,z in mm"), "{bad}: {message}");
     }
@@ -283,6 +287,24 @@ fn fk_joint_values_are_finite_numbers_separated_by_commas_or_spaces() {
     }
     let message = parse(&["fk", "--model", "puma560", "--q", "0,inf"]).unwrap_err();
     assert!(message.contains("value 2 is inf, expected a finite number"), "{message}");
+    let message = parse(&["fk", "--model", "puma560", "--q", "0,1e308,0,0,0,0"]).unwrap_err();
+    assert!(
+        message.contains("value 2 is 1e308, expected a finite number of magnitude at most 1e6"),
+        "{message}"
+    );
+}
+
+#[test]
+fn plan_sizes_and_iterations_are_bounded() {
+    assert_eq!(refused(plan(&["--candidates", "1000001"])), "--candidates 1000001: at most 1000000");
+    let message =
+        refused(request(&["plan", "--model", "puma560", "--points", "99999999999"], &[], |c| match c {
+            Command::Plan(args) => PlanRequest::from_args(*args),
+            other => panic!("parsed as {other:?}"),
+        }));
+    assert_eq!(message, "--points 99999999999: at most 1000000");
+    let message = refused(calibrate(&["--iterations", "1001"]));
+    assert!(message.contains("expected a whole number from 1 to 1000"), "{message}");
 }
 
 /// `robocal evaluate --model m.toml --data a.csv` with `args`.

@@ -1,0 +1,113 @@
+//! The bounds of every size and magnitude an input controls, in one place, so that no file or
+//! flag can make robocal allocate without bound, loop for ever, or carry a number whose
+//! square overflows into a factorisation. The readers and the command line refuse a value
+//! beyond them with an error naming the field; `docs/formats.md` lists them.
+//!
+//! The sizes are far above any real calibration campaign or study (the paper's largest case
+//! has 192 points; a laser-tracker campaign a few thousand poses), and far below what would
+//! overflow a count or an allocation. The memory a command will need is estimated from them
+//! by formulas next to the code that allocates ([`crate::simulation::Study::memory_estimate`],
+//! [`crate::design::Design::plan_memory_estimate`]) and checked against the machine by
+//! `io::check_memory` before anything large is allocated.
+
+/// Joints of a model (model TOML, URDF chain).
+pub const MAX_JOINTS: usize = 64;
+
+/// Measurement points per case of a study, and poses of `plan --points`.
+pub const MAX_POINTS: usize = 1_000_000;
+
+/// Candidate poses of `plan --candidates` and of a study's `[design]`.
+pub const MAX_CANDIDATES: usize = 1_000_000;
+
+/// Test configurations of a study (`test_points`).
+pub const MAX_TEST_POINTS: usize = 1_000_000;
+
+/// Cases of a study: `points` x `sigma_me_mm` x `design.poses`.
+pub const MAX_CASES: usize = 10_000;
+
+/// Point sets per case, and runs per point set, of a study.
+pub const MAX_RUNS_PER_CASE: usize = 1_000_000;
+
+/// Runs of a whole study: cases x point sets x runs per set.
+pub const MAX_RUNS: usize = 10_000_000;
+
+/// The work of a whole study, in evaluations of the kinematics: the sum over its runs of the
+/// points and the test points (the paper's two studies: under 1e6). Beyond it a study would
+/// run for days: refused rather than left to look hung.
+pub const MAX_STUDY_WORK: u64 = 10_000_000_000;
+
+/// Gauss-Newton steps (`calibrate --iterations`, a study's `iterations`).
+pub const MAX_ITERATIONS: usize = 1_000;
+
+/// Bins of a histogram figure: wider bins beyond it.
+pub const MAX_BINS: usize = 200;
+
+/// The largest length, coordinate or length sigma, in mm (1 km): model lengths, tool and
+/// marker positions, measured coordinates, `sigma_mm` and the like. Its square (1e12) and the
+/// sums of squares of a large problem stay far from overflow.
+pub const MAX_LENGTH_MM: f64 = 1e6;
+
+/// The largest angle or angle sigma in degrees: model angles and joint limits, joint values,
+/// joint sigmas in degrees (almost three turns).
+pub const MAX_ANGLE_DEG: f64 = 1e3;
+
+/// The share of the machine's memory (its total memory, or the process's address-space limit
+/// if lower) that a command may plan to use.
+pub const MEMORY_SHARE: f64 = 0.5;
+
+/// The memory assumed when the machine's cannot be read (bytes, 4 GiB).
+pub const FALLBACK_MEMORY: u64 = 4 << 30;
+
+/// `Err(message)` unless `value` is finite and its magnitude at most `bound`.
+pub fn check_magnitude(value: f64, bound: f64, unit: &str) -> Result<f64, String> {
+    if value.is_finite() && value.abs() <= bound {
+        Ok(value)
+    } else {
+        Err(format!("a finite number of magnitude at most {bound:e} {unit}, found {}", shown(value)))
+    }
+}
+
+/// `value` as a person reads it: `1e300` rather than its 301 digits.
+pub fn shown(value: f64) -> String {
+    if value != 0.0 && value.is_finite() && !(1e-4..1e7).contains(&value.abs()) {
+        format!("{value:e}")
+    } else {
+        format!("{value}")
+    }
+}
+
+/// `Err(message)` unless `count` is at most `bound`.
+pub fn check_count(count: usize, bound: usize) -> Result<usize, String> {
+    if count <= bound { Ok(count) } else { Err(format!("at most {bound}, found {count}")) }
+}
+
+/// Serde's `[f64; N]` from exactly `N` numbers: serde's own array reads the first `N` and
+/// lets more pass unseen (`limits_deg = [-10, 10, 30]`). For `#[serde(deserialize_with)]`.
+pub(crate) fn exactly<'de, D: serde::Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
+    let values = <Vec<f64> as serde::Deserialize>::deserialize(d)?;
+    let found = values.len();
+    values.try_into().map_err(|_| serde::de::Error::invalid_length(found, &format!("{N} numbers").as_str()))
+}
+
+/// [`exactly`] for an optional field (with `#[serde(default)]`).
+pub(crate) fn exactly_if_given<'de, D: serde::Deserializer<'de>, const N: usize>(
+    d: D,
+) -> Result<Option<[f64; N]>, D::Error> {
+    exactly(d).map(Some)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn magnitudes_and_counts_are_bounded() {
+        assert_eq!(check_magnitude(-5.0, MAX_LENGTH_MM, "mm"), Ok(-5.0));
+        assert_eq!(
+            check_magnitude(2e6, MAX_LENGTH_MM, "mm").unwrap_err(),
+            "a finite number of magnitude at most 1e6 mm, found 2000000"
+        );
+        assert!(check_magnitude(f64::NAN, MAX_ANGLE_DEG, "deg").is_err());
+        assert_eq!(check_count(3, 2).unwrap_err(), "at most 2, found 3");
+    }
+}

@@ -1,0 +1,265 @@
+//! Mutation fuzzing of every input format, and `calibrate` on random small inputs: whatever
+//! the bytes, a reader returns a value or an error that says where (a line, a field, or the
+//! parser's own position), and nothing panics.
+//!
+//! Deterministic (a fixed seed) and short in `cargo test`; for a longer run, set the number
+//! of cases per property (README, "Fuzzing"):
+//!
+//! ```sh
+//! ROBOCAL_FUZZ_CASES=50000 cargo test --release --test integration fuzz::
+//! ```
+
+use nalgebra::Vector3;
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngSeed};
+use robocal::calibration::{self, JointParams, Measurements, Options, RepeatabilityData};
+use robocal::estimation::{Estimator, NoiseSpec, RefineOptions};
+use robocal::model::{ModelError, RobotModel, from_urdf_str};
+use robocal::simulation::{Study, StudyError};
+
+const MEASUREMENTS: &str = include_str!("../../examples/puma560-measurements.csv");
+const REPEATABILITY: &str = include_str!("../../examples/puma560-repeatability.csv");
+const MODEL: &str = include_str!("../../presets/puma560.toml");
+const NOISE: &str = include_str!("../../examples/puma560-noise.toml");
+const STUDY: &str = include_str!("../../presets/planned-poses.toml");
+const DEVICE_STUDY: &str = include_str!("../../presets/device-theodolites.toml");
+
+/// `cases` property cases (or `ROBOCAL_FUZZ_CASES`), from a fixed seed, without regression
+/// files.
+fn config(cases: u32) -> Config {
+    let cases = std::env::var("ROBOCAL_FUZZ_CASES").ok().and_then(|n| n.parse().ok()).unwrap_or(cases);
+    Config { cases, rng_seed: RngSeed::Fixed(13), failure_persistence: None, ..Config::default() }
+}
+
+/// What a mutation inserts: the numbers, separators and markup that broke readers before.
+const TOKENS: &[&str] = &[
+    "1e308",
+    "-1e308",
+    "1e300",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e-320",
+    "99999999999999999999",
+    "-0",
+    "0",
+    "",
+    ",",
+    ",,",
+    "\n",
+    "\r",
+    "\r\n",
+    "\u{feff}",
+    "#",
+    "# units: joints=rad, lengths=m\n",
+    "=",
+    "[",
+    "]",
+    "[]",
+    "\"",
+    "'",
+    "x1",
+    "j1",
+    "sigma",
+    "qw",
+    "pose",
+    "<",
+    ">",
+    "/>",
+    "<mimic joint=\"j1\"/>",
+    "<joint name=\"j1\">",
+    "[[joints]]",
+    "\u{0}",
+    "é",
+    "1000000000000",
+    "4294967296",
+    "-1",
+];
+
+/// One edit of a text: at a position (a fraction of its length), one of replace a span by a
+/// token, insert a token, delete a span, or duplicate a line.
+#[derive(Debug, Clone)]
+struct Mutation {
+    at: f64,
+    kind: u8,
+    token: usize,
+    span: usize,
+}
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    (0.0..1.0f64, 0u8..4, 0..TOKENS.len(), 0usize..12).prop_map(|(at, kind, token, span)| Mutation {
+        at,
+        kind,
+        token,
+        span,
+    })
+}
+
+/// `text` with `mutations` applied in turn.
+fn mutate(text: &str, mutations: &[Mutation]) -> String {
+    let mut text = text.to_string();
+    for m in mutations {
+        let boundary = |mut i: usize, text: &str| {
+            i = i.min(text.len());
+            while !text.is_char_boundary(i) {
+                i -= 1;
+            }
+            i
+        };
+        let start = boundary((m.at * text.len() as f64) as usize, &text);
+        let end = boundary(start + m.span, &text);
+        let token = TOKENS[m.token];
+        match m.kind {
+            0 => text.replace_range(start..end, token),
+            1 => text.insert_str(start, token),
+            2 => text.replace_range(start..end, ""),
+            _ => {
+                let line_start = text[..start].rfind('\n').map_or(0, |i| i + 1);
+                let line_end = text[start..].find('\n').map_or(text.len(), |i| start + i + 1);
+                let line = text[line_start..line_end].to_string();
+                text.insert_str(line_start, &line);
+            }
+        }
+    }
+    text
+}
+
+/// A valid text cut to its first `lines` lines, so that mutations hit its structure often.
+fn head(text: &str, lines: usize) -> String {
+    text.lines().take(lines).map(|l| format!("{l}\n")).collect()
+}
+
+fn puma() -> RobotModel {
+    RobotModel::preset("puma560").unwrap()
+}
+
+/// A model error says where: the parser's position, or a field.
+fn model_error_says_where(error: &ModelError) -> bool {
+    match error {
+        ModelError::Syntax(e) => e.span().is_some() || !e.message().is_empty(),
+        ModelError::Xml(_) => true,
+        ModelError::Invalid(field) => !field.field.is_empty() && !field.expected.is_empty(),
+        _ => !error.to_string().is_empty(),
+    }
+}
+
+proptest! {
+    #![proptest_config(config(1500))]
+
+    #[test]
+    fn measurement_files_read_or_name_the_line(mutations in prop::collection::vec(mutation(), 1..6)) {
+        let text = mutate(&head(MEASUREMENTS, 8), &mutations);
+        if let Err(e) = Measurements::from_csv_str(&text, &puma(), None) {
+            prop_assert!(e.line >= 1 && e.line <= text.lines().count().max(1) + 1, "{e} in {text:?}");
+            let prefix = format!("line {}", e.line);
+            prop_assert!(e.to_string().starts_with(&prefix), "{e}");
+        }
+    }
+
+    #[test]
+    fn repeatability_files_read_or_name_the_line(mutations in prop::collection::vec(mutation(), 1..6)) {
+        let text = mutate(&head(REPEATABILITY, 8), &mutations);
+        if let Err(e) = RepeatabilityData::from_csv_str(&text, &puma(), None) {
+            prop_assert!(e.line >= 1, "{e} in {text:?}");
+        }
+    }
+
+    #[test]
+    fn model_files_read_or_name_the_field(mutations in prop::collection::vec(mutation(), 1..6)) {
+        let text = mutate(MODEL, &mutations);
+        if let Err(e) = RobotModel::from_toml_str(&text) {
+            prop_assert!(model_error_says_where(&e), "{e}");
+        }
+    }
+
+    #[test]
+    fn urdf_files_read_or_name_the_field(mutations in prop::collection::vec(mutation(), 1..6)) {
+        let text = mutate(&crate::urdf::arm_urdf(), &mutations);
+        if let Err(e) = from_urdf_str(&text, "base", "flange") {
+            prop_assert!(model_error_says_where(&e), "{e}");
+        }
+    }
+
+    #[test]
+    fn noise_files_read_or_name_the_field(mutations in prop::collection::vec(mutation(), 1..6)) {
+        let text = mutate(NOISE, &mutations);
+        if let Err(e) = NoiseSpec::from_toml_str(&text, &puma()) {
+            prop_assert!(!robocal::error::chain(&e).is_empty());
+        }
+    }
+
+    #[test]
+    fn study_files_read_or_name_the_field(
+        mutations in prop::collection::vec(mutation(), 1..6),
+        device in any::<bool>(),
+    ) {
+        let text = mutate(if device { DEVICE_STUDY } else { STUDY }, &mutations);
+        match Study::from_toml_str(&text, |model: &robocal::model::ModelRef| RobotModel::preset(&model.name).ok_or("not a preset")) {
+            Ok(study) => {
+                // What reads is bounded: its memory is estimated, never overflows.
+                prop_assert!(study.memory_estimate(2) > 0);
+            }
+            Err(StudyError::Invalid(field)) => prop_assert!(!field.field.is_empty(), "{field}"),
+            Err(e) => prop_assert!(!robocal::error::chain(&e).is_empty()),
+        }
+    }
+}
+
+/// A joint value (deg): within the PUMA's limits or past them, now and then beyond the bound.
+fn joint_value() -> impl Strategy<Value = f64> {
+    prop_oneof![30 => -270.0..270.0f64, 1 => Just(0.0), 1 => prop::sample::select(vec![999.0, -1e4, 1e-300])]
+}
+
+/// A coordinate of a measurement file (mm): ordinary, large, tiny or extreme.
+fn value() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        6 => -2000.0..2000.0f64,
+        1 => Just(0.0),
+        1 => prop::sample::select(vec![1e-300, -1e-300, 9e5, -1e6, 1e5, 3.0e2]),
+    ]
+}
+
+proptest! {
+    #![proptest_config(config(200))]
+
+    /// `calibrate` on random small measurement files (1-39 poses, 1-2 markers, values anywhere
+    /// from the joint limits to the bounds): a calibration or an error, never a panic.
+    #[test]
+    fn calibrate_on_random_small_inputs_never_panics(
+        poses in prop::collection::vec((prop::collection::vec(joint_value(), 6), prop::collection::vec(value(), 6)), 1..40),
+        markers in 1usize..3,
+        repeat in prop::bool::weighted(0.1),
+    ) {
+        let mut text = String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6");
+        for k in 1..=markers {
+            text += &format!(",x{k},y{k},z{k}");
+        }
+        text += "\n";
+        for (i, row) in poses.iter().enumerate() {
+            let row = if repeat { &poses[0] } else { row };
+            let angles = row.0.iter().map(|v| format!("{v}"));
+            let coordinates = row.1[..3 * markers].iter().map(|v| format!("{}", v + i as f64));
+            text += &angles.chain(coordinates).collect::<Vec<_>>().join(",");
+            text += "\n";
+        }
+        let data = match Measurements::from_csv_str(&text, &puma(), None) {
+            Ok(data) => data,
+            Err(e) => {
+                prop_assert!(e.line >= 3 && e.column.is_some(), "{e}");
+                return Ok(());
+            }
+        };
+        let options = Options {
+            estimator: Estimator::Ols,
+            noise: None,
+            joints: JointParams::All,
+            estimate_base: true,
+            estimate_markers: true,
+            markers: vec![Vector3::new(50.0, 0.0, 150.0)],
+            refine: RefineOptions { max_iterations: 5, ..RefineOptions::default() },
+        };
+        if let Err(e) = calibration::calibrate(&puma(), &data, &options) {
+            prop_assert!(!e.to_string().is_empty());
+        }
+    }
+}
