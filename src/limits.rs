@@ -89,6 +89,24 @@ pub(crate) fn exactly<'de, D: serde::Deserializer<'de>, const N: usize>(d: D) ->
     values.try_into().map_err(|_| serde::de::Error::invalid_length(found, &format!("{N} numbers").as_str()))
 }
 
+/// [`exactly`] for `N` arrays of exactly `M` numbers each (`stations_mm = [[x, y, z], [x, y, z]]`).
+pub(crate) fn exactly_nested<'de, D: serde::Deserializer<'de>, const N: usize, const M: usize>(
+    d: D,
+) -> Result<[[f64; M]; N], D::Error> {
+    let rows = <Vec<Vec<f64>> as serde::Deserialize>::deserialize(d)?;
+    let found = rows.len();
+    let rows = rows
+        .into_iter()
+        .map(|row| {
+            let n = row.len();
+            <[f64; M]>::try_from(row).map_err(|_| {
+                serde::de::Error::invalid_length(n, &format!("{M} numbers in each array").as_str())
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    rows.try_into().map_err(|_| serde::de::Error::invalid_length(found, &format!("{N} arrays").as_str()))
+}
+
 /// [`exactly`] for an optional field (with `#[serde(default)]`).
 pub(crate) fn exactly_if_given<'de, D: serde::Deserializer<'de>, const N: usize>(
     d: D,

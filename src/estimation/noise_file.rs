@@ -56,6 +56,7 @@ pub(crate) enum DeviceTable {
         sigma_angle_arcsec: f64,
     },
     Theodolites {
+        #[serde(deserialize_with = "crate::limits::exactly_nested")]
         stations_mm: [[f64; 3]; 2],
         sigma_horizontal_arcsec: f64,
         sigma_vertical_arcsec: f64,

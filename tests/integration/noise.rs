@@ -289,3 +289,19 @@ fn a_noise_file_replaces_a_studys_noise() {
         "field `joint_covariance`: per-joint sigmas: a study simulates uncorrelated joint noise"
     );
 }
+
+/// The theodolites' stations are two points of three coordinates: a third station, or a fourth
+/// coordinate, is refused rather than left unread.
+#[test]
+fn theodolite_stations_are_exactly_two_points_of_three_coordinates() {
+    let device = |stations: &str| {
+        format!(
+            "{SIGMAS}[device]\nkind = \"theodolites\"\nstations_mm = {stations}\nsigma_horizontal_arcsec = 1.0\nsigma_vertical_arcsec = 1.0\n"
+        )
+    };
+    assert!(NoiseSpec::from_toml_str(&device("[[0, 0, 0], [2000, 0, 0]]"), &puma()).is_ok());
+    let message = noise_error(&device("[[0, 0, 0], [2000, 0, 0], [0, 2000, 0]]"));
+    assert!(message.contains("invalid length 3, expected 2 arrays"), "{message}");
+    let message = noise_error(&device("[[0, 0, 0, 5], [2000, 0, 0]]"));
+    assert!(message.contains("invalid length 4, expected 3 numbers in each array"), "{message}");
+}
