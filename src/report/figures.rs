@@ -225,13 +225,7 @@ fn draw_histogram(
             .map_err(|e| e.to_string())?
             .label(label)
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())?;
+        legend(&mut chart)?;
     }
     Ok(())
 }
@@ -321,12 +315,12 @@ fn panel_figure(title: &str, panels: &[Panel], notes: &[String]) -> Result<Strin
 type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// A 640 x 420 figure with one chart titled `caption` over `x` and `y`, drawn by `draw`, and
-/// the series' legend (top right) if `legend`.
+/// the series' legend (top right) if `with_legend`.
 fn single_chart(
     caption: &str,
     x: std::ops::Range<f64>,
     y: std::ops::Range<f64>,
-    legend: bool,
+    with_legend: bool,
     draw: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), String>,
 ) -> Result<String, String> {
     let mut svg = String::new();
@@ -341,18 +335,23 @@ fn single_chart(
             .build_cartesian_2d(x, y)
             .map_err(|e| e.to_string())?;
         draw(&mut chart)?;
-        if legend {
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::UpperRight)
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()
-                .map_err(|e| e.to_string())?;
+        if with_legend {
+            legend(&mut chart)?;
         }
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
+}
+
+/// The chart's series labels in a box at its top right.
+fn legend<'b>(chart: &mut Chart<'b, 'b>) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| e.to_string())
 }
 
 /// Lines of mean dE through `(x, mean)` points, with the per-set means as dots.

@@ -432,6 +432,23 @@ fn urdf_inertials_are_folded_into_the_mass_each_joint_moves() {
     );
 }
 
+/// OLS calibration options of the arm7 benchmark: its README's markers, base and markers free.
+fn arm7_options(joints: JointParams) -> Options {
+    Options {
+        estimator: Estimator::Ols,
+        noise: None,
+        joints,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![
+            Vector3::new(40.0, 0.0, 25.0),
+            Vector3::new(-20.0, 35.0, 25.0),
+            Vector3::new(-20.0, -35.0, 25.0),
+        ],
+        refine: RefineOptions::default(),
+    }
+}
+
 /// The real-accuracy benchmark's files read and calibrate, and its README's held-out figures
 /// at seed 7 are what they are: every joint parameter beats the offsets, which beat the
 /// registration alone.
@@ -446,20 +463,7 @@ fn the_arm7_benchmark_calibrates_as_its_readme_says() {
     let train = read("train.csv");
     let sessions: Vec<Measurements> = (1..=3).map(|k| read(&format!("session{k}.csv"))).collect();
     let held_out = |joints: JointParams| {
-        let options = Options {
-            estimator: Estimator::Ols,
-            noise: None,
-            joints,
-            estimate_base: true,
-            estimate_markers: true,
-            markers: vec![
-                Vector3::new(40.0, 0.0, 25.0),
-                Vector3::new(-20.0, 35.0, 25.0),
-                Vector3::new(-20.0, -35.0, 25.0),
-            ],
-            refine: RefineOptions::default(),
-        };
-        let result = calibration::calibrate(&model, &train, &options).unwrap();
+        let result = calibration::calibrate(&model, &train, &arm7_options(joints)).unwrap();
         let squares: f64 = sessions.iter().map(|s| result.validate(s).1.rms.powi(2)).sum();
         (squares / 3.0).sqrt()
     };
@@ -485,19 +489,7 @@ fn compliances_are_named_but_not_yet_calibrated() {
     );
     let train = robocal::io::load_measurements(std::path::Path::new("examples/arm7/train.csv"), &model, None)
         .unwrap();
-    let options = Options {
-        estimator: Estimator::Ols,
-        noise: None,
-        joints: JointParams::Named(vec!["joint*.compliance".into()]),
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![
-            Vector3::new(40.0, 0.0, 25.0),
-            Vector3::new(-20.0, 35.0, 25.0),
-            Vector3::new(-20.0, -35.0, 25.0),
-        ],
-        refine: RefineOptions::default(),
-    };
+    let options = arm7_options(JointParams::Named(vec!["joint*.compliance".into()]));
     let error = calibration::calibrate(&model, &train, &options).unwrap_err();
     assert!(
         error.to_string().starts_with("`joint1.compliance`: calibrate estimates the geometric parameters"),
