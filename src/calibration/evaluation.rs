@@ -146,6 +146,21 @@ pub(crate) fn evaluate(
         zero,
         noise,
     )?;
+    evaluate_on(name, scored, data, stages, whitening, &problem)
+}
+
+/// [`evaluate`] on `problem`, the problem of `data` measured by `scored.chains` whose
+/// covariance blocks `V_k` are those of `whitening` (a calibration's own, reused rather than
+/// computed again).
+pub(crate) fn evaluate_on(
+    name: &str,
+    scored: &Scored<'_>,
+    data: &super::Measurements,
+    stages: &[(&str, &[f64])],
+    whitening: &Whitening,
+    problem: &PointProblem<'_>,
+) -> Result<SetEvaluation, CalibrationError> {
+    let nothing = Selection::from_indices(scored.chains[0].params(), []);
     let rows = problem.rows_per_point();
     let residuals: Vec<DVector<f64>> = stages
         .iter()

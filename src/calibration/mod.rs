@@ -414,20 +414,23 @@ pub fn calibrate(
     }
     if asked.is_empty() {
         // Nothing to estimate: the model as it stands is scored.
-        return Ok(finish(Stages {
-            registered,
-            probe,
-            markers,
-            params,
-            before: before.clone(),
-            after: before,
-            refined: Refined { estimate: nothing_estimated(), history: Vec::new(), converged: true },
-            fixed: Vec::new(),
-            chains,
-            noise,
-            data,
-            marker_ids: data.marker_ids.clone(),
-        }));
+        return Ok(finish(
+            Stages {
+                registered,
+                probe,
+                markers,
+                params,
+                before: before.clone(),
+                after: before,
+                refined: Refined { estimate: nothing_estimated(), history: Vec::new(), converged: true },
+                fixed: Vec::new(),
+                chains: chains.clone(),
+                noise,
+                data,
+                marker_ids: data.marker_ids.clone(),
+            },
+            &base_problem,
+        ));
     }
     if data.joints.first().is_some_and(|q| data.joints.iter().all(|other| other == q)) {
         let line = data.lines.first().copied().unwrap_or(0);
@@ -453,20 +456,23 @@ pub fn calibrate(
     let start = at_before.select(&diagnostics.identifiable);
     let estimate = refine_from(&problem, &weights, start, &options.refine)?;
     let after = problem.full(&estimate.estimate.x);
-    Ok(finish(Stages {
-        registered,
-        probe,
-        markers,
-        params,
-        before,
-        after,
-        refined: estimate,
-        fixed,
-        chains,
-        noise,
-        data,
-        marker_ids: data.marker_ids.clone(),
-    }))
+    Ok(finish(
+        Stages {
+            registered,
+            probe,
+            markers,
+            params,
+            before,
+            after,
+            refined: estimate,
+            fixed,
+            chains: chains.clone(),
+            noise,
+            data,
+            marker_ids: data.marker_ids.clone(),
+        },
+        &base_problem,
+    ))
 }
 
 /// The results of the stages of [`calibrate`], to be scored and gathered.
@@ -485,32 +491,25 @@ struct Stages<'a> {
     marker_ids: Vec<usize>,
 }
 
-/// The calibration of `s`: the training poses scored, the model folded, the warnings.
-fn finish(s: Stages<'_>) -> Calibration {
+/// The calibration of `s`: the training poses scored on `problem` (the fit's own, with its
+/// covariance blocks), the model folded, the warnings.
+fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Calibration {
     let kind = if s.probe.is_some() { Measured::Pose } else { Measured::Position };
     let rank = s.refined.estimate.diagnostics.rank;
     let whitening = match &s.noise {
         Some(noise) => Whitening::Covariance(noise.clone()),
         None => {
             let nothing = Selection::from_indices(&s.params, []);
-            let problem = PointProblem::new(
-                &s.chains,
-                &nothing,
-                kind,
-                s.data.joints.clone(),
-                observed(s.data),
-                s.after.clone(),
-                None,
-            )
-            .expect("the training problem was built by the fit");
-            let r = problem.evaluate(&DVector::zeros(0), None);
+            let at_after =
+                problem.reselect(&nothing, s.after.clone()).expect("the fit's problem has its parameters");
+            let r = at_after.evaluate(&DVector::zeros(0), None);
             let dof = r.len().saturating_sub(rank).max(1);
             Whitening::Spread((r.norm_squared() / dof as f64).sqrt())
         }
     };
     let scored = evaluation::Scored { chains: &s.chains, marker_ids: &s.marker_ids, kind };
     let stages: [(&str, &[f64]); 2] = [("before", &s.before), ("after", &s.after)];
-    let training_poses = evaluation::evaluate("training", &scored, s.data, &stages, &whitening)
+    let training_poses = evaluation::evaluate_on("training", &scored, s.data, &stages, &whitening, problem)
         .expect("the training poses were scored by the fit itself");
     let training = (training_poses.pooled[0], training_poses.pooled[1]);
     let calibrated = fold(&s.registered, &s.params, &s.after, &s.markers, s.probe.as_ref());
