@@ -102,6 +102,17 @@ pub enum CalibrationError {
          calibrated model, so they cannot be estimated here"
     )]
     Compliance(String),
+    /// The noise makes a pose's covariance `V_k` singular: joint noise alone spans at most as
+    /// many directions as there are joints.
+    #[error(
+        "the covariance V_k of the pose at line {line} is not positive definite: joint noise alone can leave \
+         it singular; give the measurement noise too (--sigma-mm above 0, a sigma column, or a noise file's \
+         sigma_me_mm)"
+    )]
+    SingularCovariance {
+        /// The pose's line in the measurement file.
+        line: usize,
+    },
     /// The poses cannot identify any parameter (all alike, or a system of rank 0).
     #[error("nothing can be identified: {0}")]
     NothingIdentified(String),
@@ -382,7 +393,8 @@ pub fn calibrate(
     )?;
 
     // The estimator's weights for the calibration.
-    let weights = Weights::for_problem(&base_problem, options.estimator)?;
+    let weights =
+        Weights::for_problem(&base_problem, options.estimator).map_err(|e| at_line(e.into(), data))?;
 
     // "Before": base and markers only, by ordinary least squares whatever the estimator.
     let frame = selection(&params, &JointParams::None, options)?;
@@ -414,7 +426,7 @@ pub fn calibrate(
     }
     if asked.is_empty() {
         // Nothing to estimate: the model as it stands is scored.
-        return Ok(finish(
+        return finish(
             Stages {
                 registered,
                 probe,
@@ -430,7 +442,7 @@ pub fn calibrate(
                 marker_ids: data.marker_ids.clone(),
             },
             &base_problem,
-        ));
+        );
     }
     if data.joints.first().is_some_and(|q| data.joints.iter().all(|other| other == q)) {
         let line = data.lines.first().copied().unwrap_or(0);
@@ -442,7 +454,8 @@ pub fn calibrate(
     // The identifiable subset starts from the system that found it.
     let problem = base_problem.reselect(&asked, before.clone())?;
     let at_before = linearise(&problem, &weights, problem.start())?;
-    let diagnostics = at_before.diagnose(RANK_TOLERANCE)?;
+    let priority: Vec<u32> = asked.indices().iter().map(|&i| gauge_class(params.get(i))).collect();
+    let diagnostics = at_before.diagnose_by_priority(RANK_TOLERANCE, &priority)?;
     if diagnostics.rank == 0 {
         return Err(CalibrationError::NothingIdentified(format!(
             "the identification Jacobian of the {} parameters asked for has rank 0 at these poses",
@@ -456,7 +469,7 @@ pub fn calibrate(
     let start = at_before.select(&diagnostics.identifiable);
     let estimate = refine_from(&problem, &weights, start, &options.refine)?;
     let after = problem.full(&estimate.estimate.x);
-    Ok(finish(
+    finish(
         Stages {
             registered,
             probe,
@@ -472,7 +485,7 @@ pub fn calibrate(
             marker_ids: data.marker_ids.clone(),
         },
         &base_problem,
-    ))
+    )
 }
 
 /// The results of the stages of [`calibrate`], to be scored and gathered.
@@ -493,7 +506,7 @@ struct Stages<'a> {
 
 /// The calibration of `s`: the training poses scored on `problem` (the fit's own, with its
 /// covariance blocks), the model folded, the warnings.
-fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Calibration {
+fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, CalibrationError> {
     let kind = if s.probe.is_some() { Measured::Pose } else { Measured::Position };
     let rank = s.refined.estimate.diagnostics.rank;
     let whitening = match &s.noise {
@@ -510,7 +523,7 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Calibration {
     let scored = evaluation::Scored { chains: &s.chains, marker_ids: &s.marker_ids, kind };
     let stages: [(&str, &[f64]); 2] = [("before", &s.before), ("after", &s.after)];
     let training_poses = evaluation::evaluate_on("training", &scored, s.data, &stages, &whitening, problem)
-        .expect("the training poses were scored by the fit itself");
+        .map_err(|e| at_line(e, s.data))?;
     let training = (training_poses.pooled[0], training_poses.pooled[1]);
     let calibrated = fold(&s.registered, &s.params, &s.after, &s.markers, s.probe.as_ref());
     let mut warnings = warnings(&s.params, (&s.before, &s.after), &training_poses);
@@ -521,7 +534,7 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Calibration {
              estimates are poorly determined; measure more varied poses or identify fewer parameters"
         ));
     }
-    Calibration {
+    Ok(Calibration {
         registered: s.registered,
         calibrated,
         markers: s.markers,
@@ -538,6 +551,32 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Calibration {
         warnings,
         noise_estimate: None,
         chains: s.chains,
+    })
+}
+
+/// The gauge: which of a combination the poses cannot tell apart is held. Class 0 stays free
+/// first: the measuring frame (base) and the markers, since no external device shares the
+/// robot's frame; the joint parameters they absorb are held (the first joint's about and along
+/// its axis, the last joint's with the markers). Then class 1: the joint offsets, `a`, `alpha`
+/// and a URDF joint's origin; then class 2: Hayati's `beta` and the `d` of a revolute joint,
+/// which nearly parallel axes make redundant. Within a class the rank-revealing pivoting
+/// decides (the best conditioned choice), the same on every machine.
+fn gauge_class(p: &crate::model::ParamInfo) -> u32 {
+    match (p.owner, p.kind) {
+        (ParamOwner::Joint(_), ParamKind::Beta) => 2,
+        (ParamOwner::Joint(_), ParamKind::D) if !p.is_offset => 2,
+        (ParamOwner::Joint(_), _) => 1,
+        _ => 0,
+    }
+}
+
+/// `e`, a covariance block that is not positive definite named by its pose's line in `data`.
+fn at_line(e: CalibrationError, data: &Measurements) -> CalibrationError {
+    match e {
+        CalibrationError::Estimation(EstimationError::NotPositiveDefinite { point }) => {
+            CalibrationError::SingularCovariance { line: data.lines.get(point).copied().unwrap_or(0) }
+        }
+        other => other,
     }
 }
 

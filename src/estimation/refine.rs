@@ -2,7 +2,9 @@
 //! (Gauss-Newton), with Levenberg-Marquardt damping when a step fails to lower the weighted
 //! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
 
-use super::solve::{Diagnostics, LinearEstimate, RANK_TOLERANCE, diagnose_rank, factorise};
+use super::solve::{
+    Diagnostics, LinearEstimate, RANK_TOLERANCE, diagnose_rank, diagnose_rank_by_priority, factorise,
+};
 use super::{EstimationError, Estimator, Weights};
 use nalgebra::{DMatrix, DVector};
 
@@ -119,6 +121,17 @@ impl Linearisation {
     /// (as [`super::diagnose`], which starts from an unweighted system).
     pub fn diagnose(&self, rank_tolerance: f64) -> Result<Diagnostics, EstimationError> {
         diagnose_rank(&self.a, rank_tolerance)
+    }
+
+    /// [`Linearisation::diagnose`], with the identifiable columns chosen class by class of
+    /// `priority` (one class per column, 0 first): of a combination the columns cannot tell
+    /// apart, the one of the latest class is held.
+    pub fn diagnose_by_priority(
+        &self,
+        rank_tolerance: f64,
+        priority: &[u32],
+    ) -> Result<Diagnostics, EstimationError> {
+        diagnose_rank_by_priority(&self.a, rank_tolerance, priority)
     }
 }
 

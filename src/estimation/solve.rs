@@ -169,7 +169,7 @@ pub(crate) fn factorise_rank_revealing(
     };
     let tall = tall.ok_or(EstimationError::NoConvergence)?;
     let svd = &tall.small;
-    let (diagnostics, null_basis) = rank_revealed(svd, &d, m, tolerance)?;
+    let (diagnostics, null_basis) = rank_revealed(svd, &d, m, tolerance, &[])?;
     let rank = diagnostics.rank;
     let projector = complement_projector(&null_basis);
     let pdv = &projector * &d * svd.v.columns(0, rank);
@@ -185,6 +185,19 @@ pub(crate) fn factorise_rank_revealing(
 /// factor `R` of `A = Q R`, not `Q`: `R` comes from a QR of row parts computed in parallel
 /// ([`crate::linalg::r_factor`]).
 pub(crate) fn diagnose_rank(a: &DMatrix<f64>, tolerance: f64) -> Result<Diagnostics, EstimationError> {
+    diagnose_rank_by_priority(a, tolerance, &[])
+}
+
+/// [`diagnose_rank`], the identifiable columns chosen class by class: every column of
+/// `priority` class 0 that the earlier choices leave independent, then class 1, and so on
+/// (an empty `priority` puts every column in class 0). Which member of a non-identifiable
+/// combination is held then follows the classes: a calibration keeps the measuring frame and
+/// the markers free and holds the joint parameters they absorb.
+pub(crate) fn diagnose_rank_by_priority(
+    a: &DMatrix<f64>,
+    tolerance: f64,
+    priority: &[u32],
+) -> Result<Diagnostics, EstimationError> {
     check(a, tolerance)?;
     let (scales, d) = column_scales(a);
     let mut r = crate::linalg::r_factor(a);
@@ -192,7 +205,7 @@ pub(crate) fn diagnose_rank(a: &DMatrix<f64>, tolerance: f64) -> Result<Diagnost
         column *= *scale;
     }
     let svd = crate::linalg::svd(&r).ok_or(EstimationError::NoConvergence)?;
-    Ok(rank_revealed(&svd, &d, a.nrows(), tolerance)?.0)
+    Ok(rank_revealed(&svd, &d, a.nrows(), tolerance, priority)?.0)
 }
 
 /// `1 / |a_j|` for each column (1 for a zero column), as a list and as the diagonal `D`.
@@ -210,6 +223,7 @@ fn rank_revealed(
     d: &DMatrix<f64>,
     m: usize,
     tolerance: f64,
+    priority: &[u32],
 ) -> Result<(Diagnostics, DMatrix<f64>), EstimationError> {
     let p = d.nrows();
     let largest = svd.s[0];
@@ -221,7 +235,7 @@ fn rank_revealed(
     // A_s = U (S V^T) with U orthonormal: S V^T has the same column norms and inner products,
     // so pivoting on it picks the same columns at p x p cost.
     let sv_t = DMatrix::from_diagonal(&DVector::from_column_slice(&svd.s)) * svd.v.transpose();
-    let identifiable = pivoted_columns(&sv_t, rank);
+    let identifiable = pivoted_columns(&sv_t, rank, priority);
     let singular_values = svd.s.clone();
     let not_identifiable = combinations(&null_basis, &identifiable);
     let condition_number = if rank > 0 { largest / singular_values[rank - 1] } else { f64::INFINITY };
@@ -283,15 +297,29 @@ fn complement_projector(null_basis: &DMatrix<f64>) -> DMatrix<f64> {
     DMatrix::identity(p, p) - null_basis * inverse * null_basis.transpose()
 }
 
-/// The first `rank` columns of QR with column pivoting (greedy Gram-Schmidt on the residual
-/// norms), where norms within 1e-9 of the largest count as ties and go to the lowest column,
-/// so that every platform picks the same subset. Returned ascending.
-fn pivoted_columns(a: &DMatrix<f64>, rank: usize) -> Vec<usize> {
+/// `rank` columns of `a` chosen by QR with column pivoting (greedy Gram-Schmidt on the
+/// residual norms): at each step the column with the largest norm once the chosen ones are
+/// projected out, norms within 1e-9 of the largest counting as ties that go to the lowest
+/// column, so that every platform picks the same subset; returned ascending. With a
+/// `priority` class per column, the classes are taken in turn: a column of a later class is
+/// chosen only when no column of an earlier one is left independent of the chosen ones (its
+/// remaining norm above `sqrt(RANK_TOLERANCE)` of its own, the columns being scaled to one).
+fn pivoted_columns(a: &DMatrix<f64>, rank: usize, priority: &[u32]) -> Vec<usize> {
+    let class = |j: usize| priority.get(j).copied().unwrap_or(0);
+    let independent = RANK_TOLERANCE.sqrt();
     let mut work = a.clone();
-    let mut norms: Vec<f64> = work.column_iter().map(|c| c.norm_squared()).collect();
+    let original: Vec<f64> = work.column_iter().map(|c| c.norm_squared()).collect();
+    let mut norms = original.clone();
     let mut chosen: Vec<usize> = Vec::with_capacity(rank);
     for _ in 0..rank {
-        let candidates = || (0..norms.len()).filter(|j| !chosen.contains(j));
+        let open = |j: &usize| !chosen.contains(j);
+        // the earliest class with a column still independent, else every column
+        let first = (0..norms.len())
+            .filter(open)
+            .filter(|&j| norms[j] > independent * independent * original[j])
+            .map(class)
+            .min();
+        let candidates = || (0..norms.len()).filter(open).filter(|&j| first.is_none_or(|c| class(j) == c));
         let best = candidates().map(|j| norms[j]).fold(0.0, f64::max);
         let pick = candidates().find(|&j| norms[j] >= best * (1.0 - 1e-9)).expect("rank <= columns");
         chosen.push(pick);

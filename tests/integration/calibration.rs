@@ -375,3 +375,28 @@ fn orientation_columns_read_and_their_errors() {
         "line 3, column `qw`: a unit quaternion, its norm is 0.900000"
     );
 }
+
+/// The gauge is physical: of every combination the poses cannot tell apart, the joint
+/// parameter is held, never the measuring frame (base) or a marker, which no external device
+/// shares with the robot. On the PUMA 560 with an unknown base and two markers, the held set is
+/// exactly: what the base absorbs (joint 1's offset, its `d` and `beta`), what the markers
+/// absorb (joint 6's offset, `d`, `a`, `alpha`, `beta`), and the joint-joint redundancies of
+/// the DH parameterisation, where Hayati's `beta` and a revolute joint's `d` are held before
+/// the offsets (`j3.d` with `j2.d`; `beta` with `theta` on joints 3 to 5).
+#[test]
+fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
+    for seed in [11, 12, 13] {
+        let c = campaign(seed);
+        let calibration = calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap();
+        let held: Vec<&str> = calibration.fixed.iter().map(|f| f.split(' ').next().unwrap()).collect();
+        let expected = [
+            "j1.theta", "j1.d", "j1.beta", "j3.d", "j3.beta", "j4.beta", "j5.beta", "j6.theta", "j6.d", "j6.a",
+            "j6.alpha", "j6.beta",
+        ];
+        assert_eq!(held, expected, "seed {seed}: {:?}", calibration.fixed);
+        let names = &calibration.refined.estimate.names;
+        for p in calibration.params.iter().filter(|p| !matches!(p.owner, ParamOwner::Joint(_))) {
+            assert!(names.contains(&p.name), "seed {seed}: {} is estimated", p.name);
+        }
+    }
+}

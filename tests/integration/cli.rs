@@ -268,3 +268,27 @@ fn the_readme_calibration_example_is_the_real_output() {
     assert_eq!(printed.trim_end(), expected.trim_end(), "regenerate the README example");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Joint noise alone can leave a pose's covariance singular: an error naming the pose's line
+/// and the remedy, whatever the estimator (OLS scores its poses whitened too), never a panic.
+#[test]
+fn joint_noise_alone_is_an_error_naming_the_line_not_a_panic() {
+    for estimator in ["ols", "wls"] {
+        let message = stderr_of(&[
+            "calibrate",
+            "--model",
+            "puma560",
+            "--data",
+            "examples/puma560-measurements.csv",
+            "--estimator",
+            estimator,
+            "--joint-sigma-deg",
+            "0.007,0.007,0.007,0.002,0.002,0.002",
+        ]);
+        assert!(
+            message.contains("the covariance V_k of the pose at line 3 is not positive definite"),
+            "{message}"
+        );
+        assert!(message.contains("--sigma-mm above 0"), "{message}");
+    }
+}
