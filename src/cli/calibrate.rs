@@ -25,8 +25,10 @@ struct Robot {
 
 /// The measurements to calibrate on and the held-out files, by name.
 struct Data {
-    /// The calibration data.
+    /// The calibration data (its markers chosen by `--markers`).
     fit: Measurements,
+    /// The highest marker number of the file, whether fitted or not.
+    highest_marker: usize,
     /// The held-out files to validate on.
     held_out: Vec<(String, Measurements)>,
 }
@@ -80,6 +82,7 @@ fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
     if !fit.ignored.is_empty() {
         eprintln!("note: {}: ignoring columns {}", request.data.display(), fit.ignored.join(", "));
     }
+    let highest_marker = fit.marker_ids.iter().copied().max().unwrap_or(0);
     if let Some(ids) = &request.marker_ids {
         fit = fit.with_markers(ids).with_context(|| {
             format!("--markers {ids:?}: {} has markers {:?}", request.data.display(), fit.marker_ids)
@@ -108,14 +111,13 @@ fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
             Ok((path.display().to_string(), scored))
         })
         .collect::<Result<_>>()?;
-    Ok(Data { fit, held_out })
+    Ok(Data { fit, highest_marker, held_out })
 }
 
 /// The rules that need the files' contents: the markers against the data, the held-out files'
 /// markers, the folds against the poses. (The joint sigmas are counted by [`noise_model`].)
 fn check_against_the_files(request: &CalibrateRequest, data: &Data) -> Result<()> {
-    let highest = data.fit.marker_ids.iter().copied().max().unwrap_or(0);
-    check_marker_count(request.markers.len(), &request.data, highest)?;
+    check_marker_count(request.markers.len(), &request.data, data.highest_marker)?;
     if let Some((name, _)) =
         data.held_out.iter().find(|(_, d)| d.orientations.is_some() != data.fit.orientations.is_some())
     {

@@ -175,7 +175,8 @@ fn warn_outside_limits<'a>(path: &Path, model: &RobotModel, poses: impl Iterator
 /// At most as many `--marker`s as the data file has markers.
 fn check_marker_count(given: usize, data: &Path, in_file: usize) -> Result<()> {
     if given > in_file {
-        bail!("{given} --marker given, {} has {in_file} markers", data.display());
+        let markers = if in_file == 1 { "marker" } else { "markers" };
+        bail!("{given} --marker given, {} has {in_file} {markers}", data.display());
     }
     Ok(())
 }

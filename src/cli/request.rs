@@ -223,7 +223,7 @@ impl CalibrateRequest {
     pub fn from_args(args: CalibrateArgs) -> Result<Self, UsageError> {
         let model = args.model.model_ref()?;
         require(args.out_urdf.is_none() || model.is_urdf(), "--out-urdf needs a URDF model")?;
-        let noise = noise_source(args.noise, args.noise_flags.flags())?;
+        let noise = noise_source(args.noise, &args.noise_flags)?;
         let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
         let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
         let mut inputs = vec![("--model", Path::new(&model.name)), ("--data", args.data.as_path())];
@@ -280,11 +280,7 @@ impl EvaluateRequest {
         let links =
             ModelRef { name: args.model, base_link: Some(args.base_link), tip_link: Some(args.tip_link) };
         let model = if links.is_urdf() { links } else { ModelRef::named(links.name) };
-        let noise = noise_source(args.noise, args.noise_flags.flags())?;
-        require(
-            noise.is_some() || args.noise_flags.sigma_mm == 0.0,
-            "--sigma-mm needs --joint-sigma-deg too (zeros if the joints are exact)",
-        )?;
+        let noise = noise_source(args.noise, &args.noise_flags)?;
         let mut inputs = vec![("--model", Path::new(&model.name))];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         if let Some(NoiseSource::File(path)) = &noise {
@@ -303,10 +299,18 @@ impl EvaluateRequest {
 }
 
 /// `--noise` or `--joint-sigma-deg` (with `--sigma-mm`, `--sigma-orientation-deg`), not both.
-fn noise_source(file: Option<PathBuf>, flags: Option<NoiseFlags>) -> Result<Option<NoiseSource>, UsageError> {
-    match (file, flags) {
+fn noise_source(file: Option<PathBuf>, args: &NoiseArgs) -> Result<Option<NoiseSource>, UsageError> {
+    let measurement = args.sigma_mm != 0.0 || args.sigma_orientation_deg != 0.0;
+    match (file, args.flags()) {
         (Some(_), Some(_)) => Err(UsageError("--noise and --joint-sigma-deg: give one of the two".into())),
+        (Some(_), None) if measurement => Err(UsageError(
+            "--noise gives the measurement noise too: do not give --sigma-mm or --sigma-orientation-deg with it".into(),
+        )),
         (Some(path), None) => Ok(Some(NoiseSource::File(path))),
+        (None, None) if measurement => Err(UsageError(
+            "--sigma-mm needs --joint-sigma-deg too (zeros if the joints are exact); so does --sigma-orientation-deg"
+                .into(),
+        )),
         (None, flags) => Ok(flags.map(NoiseSource::Flags)),
     }
 }

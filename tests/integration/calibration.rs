@@ -390,8 +390,8 @@ fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
         let calibration = calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap();
         let held: Vec<&str> = calibration.fixed.iter().map(|f| f.split(' ').next().unwrap()).collect();
         let expected = [
-            "j1.theta", "j1.d", "j1.beta", "j3.d", "j3.beta", "j4.beta", "j5.beta", "j6.theta", "j6.d", "j6.a",
-            "j6.alpha", "j6.beta",
+            "j1.theta", "j1.d", "j1.beta", "j3.d", "j3.beta", "j4.beta", "j5.beta", "j6.theta", "j6.d",
+            "j6.a", "j6.alpha", "j6.beta",
         ];
         assert_eq!(held, expected, "seed {seed}: {:?}", calibration.fixed);
         let names = &calibration.refined.estimate.names;

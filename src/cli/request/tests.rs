@@ -99,6 +99,18 @@ fn a_noise_file_or_joint_sigmas_not_both() {
 }
 
 #[test]
+fn measurement_sigmas_go_with_the_joint_sigmas_not_with_a_noise_file() {
+    let message = refused(calibrate(&["--noise", "n.toml", "--sigma-mm", "0.5"]));
+    assert!(message.starts_with("--noise gives the measurement noise too"), "{message}");
+    let message = refused(calibrate(&["--noise", "n.toml", "--sigma-orientation-deg", "0.1"]));
+    assert!(message.starts_with("--noise gives the measurement noise too"), "{message}");
+    let message = refused(calibrate(&["--sigma-mm", "0.5"]));
+    assert!(message.starts_with("--sigma-mm needs --joint-sigma-deg too"), "{message}");
+    let request = calibrate(&["--joint-sigma-deg", SIGMAS, "--sigma-mm", "0.5"]).unwrap();
+    assert!(matches!(request.noise, Some(NoiseSource::Flags(f)) if f.sigma_mm == 0.5));
+}
+
+#[test]
 fn fgls_estimates_the_noise_so_none_is_given() {
     let message = refused(calibrate(&["--estimator", "fgls", "--joint-sigma-deg", SIGMAS]));
     assert_eq!(message, "--estimator fgls estimates the noise: do not give --noise or --joint-sigma-deg");
