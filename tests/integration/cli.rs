@@ -330,3 +330,29 @@ fn markers_chosen_with_positions_for_every_marker_of_the_file() {
         "{message}"
     );
 }
+
+/// Output piped into a reader that stops early ends the command quietly (SIGPIPE, as for other
+/// Unix tools), never with a panic.
+#[cfg(unix)]
+#[test]
+fn a_closed_pipe_ends_the_command_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_robocal"))
+        // about 100 kB of poses on standard output, more than a pipe holds
+        .args(["plan", "--model", "puma560", "--points", "1500", "--candidates", "1500"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader goes away before anything is read
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8(output.stderr).unwrap();
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(output.status.success() || output.status.signal() == Some(libc_sigpipe()), "{:?}", output.status);
+}
+
+/// SIGPIPE's number on Linux and the BSDs.
+#[cfg(unix)]
+fn libc_sigpipe() -> i32 {
+    13
+}
