@@ -297,34 +297,12 @@ fn joint_noise_alone_is_an_error_naming_the_line_not_a_panic() {
 /// file's markers, the k-th for marker k, fitted or not.
 #[test]
 fn markers_chosen_with_positions_for_every_marker_of_the_file() {
-    let output = robocal()
-        .args([
-            "calibrate",
-            "--model",
-            "puma560",
-            "--data",
-            "examples/puma560-measurements.csv",
-            "--marker",
-            "50,0,150",
-            "--marker=-40,60,120",
-            "--markers",
-            "1",
-        ])
-        .output()
-        .unwrap();
+    // the example's model, data and two markers, without its validation file and noise
+    let example = [&CALIBRATE[..5], &CALIBRATE[11..]].concat();
+    let output = robocal().args([&example[..], &["--markers", "1"]].concat()).output().unwrap();
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     assert!(String::from_utf8(output.stdout).unwrap().contains("100 poses, 1 marker,"));
-    let message = stderr_of(&[
-        "calibrate",
-        "--model",
-        "puma560",
-        "--data",
-        "examples/puma560-measurements.csv",
-        "--marker",
-        "50,0,150",
-        "--marker=-40,60,120",
-        "--marker=1,2,3",
-    ]);
+    let message = stderr_of(&[&example[..], &["--marker=1,2,3"]].concat());
     assert!(
         message.contains("3 --marker given, examples/puma560-measurements.csv has 2 markers"),
         "{message}"
