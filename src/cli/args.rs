@@ -127,12 +127,14 @@ pub struct LinkArgs {
 /// The noise given as numbers: joint sigmas, measurement sigma, orientation sigma.
 #[derive(Args, Debug)]
 pub struct NoiseArgs {
-    /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints). With it,
-    /// calibrate weights by the noise, and plan and observability use the whitened H.
+    /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints): the
+    /// weights of calibrate, the whitened H of plan and observability, the whitened residuals
+    /// of evaluate. Give --sigma-mm too: joint noise alone can leave a pose's covariance
+    /// singular.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma_deg)]
     pub joint_sigma_deg: Option<Vec<f64>>,
-    /// Measurement noise standard deviation (mm); calibrate takes a data file's `sigma` column
-    /// instead when it has one.
+    /// Measurement noise standard deviation (mm), with --joint-sigma-deg; a data file's `sigma`
+    /// column takes its place when it has one.
     #[arg(long, default_value_t = 0.0, value_parser = parse_sigma_mm)]
     pub sigma_mm: f64,
     /// Orientation measurement noise (deg), for pose or orientation measurements.
