@@ -95,13 +95,6 @@ pub enum CalibrationError {
     /// A set of poses cannot be scored: its markers, or its noise, do not fit the model's.
     #[error("{0}")]
     Scoring(String),
-    /// Joint compliances were asked for: the kinematics has them, but a calibrated model does
-    /// not carry them yet, so calibrate refuses rather than drop them from what it writes.
-    #[error(
-        "`{0}`: calibrate estimates the geometric parameters; compliances are not yet folded into a \
-         calibrated model, so they cannot be estimated here"
-    )]
-    Compliance(String),
     /// The noise makes a pose's covariance `V_k` singular: joint noise alone spans at most as
     /// many directions as there are joints.
     #[error(
@@ -410,9 +403,6 @@ pub fn calibrate(
 
     // "After": everything asked for that the poses can identify.
     let asked = selection(&params, &options.joints, options)?;
-    if let Some(&i) = asked.indices().iter().find(|&&i| params.get(i).kind == ParamKind::Compliance) {
-        return Err(CalibrationError::Compliance(params.get(i).name.clone()));
-    }
     // With fewer equations than parameters the rank cannot tell structure from lack of data.
     let equations = data.len() * rows;
     if equations <= asked.len() {
@@ -451,6 +441,9 @@ pub fn calibrate(
             data.len()
         )));
     }
+    // A compliance whose joint gravity does not load at these poses (a vertical axis) has no
+    // column: it is held, and said so.
+    let (asked, unloaded) = without_unloaded_compliances(&asked, &params, &chains, &before, data);
     // The identifiable subset starts from the system that found it.
     let problem = base_problem.reselect(&asked, before.clone())?;
     let at_before = linearise(&problem, &weights, problem.start())?;
@@ -463,7 +456,7 @@ pub fn calibrate(
         )));
     }
     let names: Vec<&str> = asked.indices().iter().map(|&i| params.get(i).name.as_str()).collect();
-    let fixed = diagnostics.not_identifiable.iter().map(|c| c.describe(&names)).collect();
+    let fixed = (diagnostics.not_identifiable.iter().map(|c| c.describe(&names))).chain(unloaded).collect();
     let kept = Selection::from_indices(&params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
     let problem = base_problem.reselect(&kept, before.clone())?;
     let start = at_before.select(&diagnostics.identifiable);
@@ -552,6 +545,49 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
         noise_estimate: None,
         chains: s.chains,
     })
+}
+
+/// `asked` without the compliances of joints that gravity does not load at `data`'s poses
+/// (every load below 1e-9 of the largest: a vertical axis, a joint carrying no mass), and why
+/// each of those is held.
+fn without_unloaded_compliances(
+    asked: &Selection,
+    params: &ParamSet,
+    chains: &[Chain],
+    x: &[f64],
+    data: &Measurements,
+) -> (Selection, Vec<String>) {
+    let compliances: Vec<(usize, usize)> = (asked.indices().iter())
+        .filter_map(|&i| match (params.get(i).owner, params.get(i).kind) {
+            (ParamOwner::Joint(j), ParamKind::Compliance) => Some((i, j)),
+            _ => None,
+        })
+        .collect();
+    if compliances.is_empty() {
+        return (asked.clone(), Vec::new());
+    }
+    let at = chains[0].with_errors(x);
+    let dof = chains[0].dof();
+    let mut largest = vec![0.0f64; dof];
+    let mut tau = vec![0.0; dof];
+    for q in &data.joints {
+        at.gravity_torques(q, &mut tau);
+        largest.iter_mut().zip(&tau).for_each(|(m, t)| *m = m.max(t.abs()));
+    }
+    let heaviest = largest.iter().copied().fold(0.0, f64::max);
+    let unloaded: Vec<usize> =
+        compliances.iter().filter(|&&(_, j)| largest[j] <= 1e-9 * heaviest).map(|&(i, _)| i).collect();
+    let kept = asked.indices().iter().copied().filter(|i| !unloaded.contains(i));
+    let why = unloaded
+        .iter()
+        .map(|&i| {
+            format!(
+                "{}: gravity does not load its joint at these poses (a vertical axis?)",
+                params.get(i).name
+            )
+        })
+        .collect();
+    (Selection::from_indices(params, kept), why)
 }
 
 /// The gauge: which of a combination the poses cannot tell apart is held. Class 0 stays free
@@ -862,6 +898,7 @@ fn fold(
     };
     for (i, joint) in out.joints.iter_mut().enumerate() {
         let owner = ParamOwner::Joint(i);
+        joint.compliance += value(owner, ParamKind::Compliance);
         let (theta, d) = (value(owner, ParamKind::Theta), value(owner, ParamKind::D));
         if model.convention == crate::model::Convention::Urdf {
             // URDF has no offset: it turns (or shifts) the origin about (along) the axis.

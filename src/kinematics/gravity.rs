@@ -43,12 +43,17 @@ impl Load {
     pub fn new(ends: LinkEnds, model: &RobotModel) -> Self {
         Self { ends, masses: model.masses.clone(), gravity: model.gravity }
     }
+
+    /// Whether there are masses: without them every load is zero.
+    pub fn has_masses(&self) -> bool {
+        !self.masses.is_empty()
+    }
 }
 
 impl ChainAt {
     /// Whether the model has masses: without them every gravity load is zero.
     pub fn has_masses(&self) -> bool {
-        !self.load.masses.is_empty()
+        self.load.has_masses()
     }
 
     /// The load gravity puts on each joint at `q`, written into `tau`: `tau_i = -dU/dq_i` for

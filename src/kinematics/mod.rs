@@ -216,7 +216,8 @@ impl Builder {
     /// The chain of these steps, the first `arm` of them the arm's, for `model`.
     fn finish(self, arm: usize, model: &RobotModel) -> Chain {
         let load = gravity::Load::new(self.ends, model);
-        Chain { steps: self.steps, arm, params: self.params, dof: model.dof(), load }
+        let compliance = model.joints.iter().map(|j| j.compliance).collect();
+        Chain { steps: self.steps, arm, params: self.params, dof: model.dof(), load, compliance }
     }
 
     /// A point at `xyz` (mm) with its 3 translation errors.
@@ -236,6 +237,8 @@ pub struct Chain {
     dof: usize,
     /// The masses the joints move and gravity, for the static joint loads.
     load: gravity::Load,
+    /// Each joint's nominal compliance (the model's).
+    compliance: Vec<f64>,
 }
 
 impl Chain {
@@ -325,13 +328,14 @@ impl Chain {
                 Resolved { step, value, sin_cos: value.sin_cos() }
             })
             .collect();
-        let mut compliance = vec![0.0; self.dof];
+        let mut compliance = self.compliance.clone();
         for step in &self.steps {
             if let (Some(j), Some(c)) = (step.joint, step.compliance) {
-                compliance[j] = x[c];
+                compliance[j] += x[c];
             }
         }
-        let compliance = compliance.iter().any(|&c| c != 0.0).then_some(compliance);
+        let flexible = self.load.has_masses() && compliance.iter().any(|&c| c != 0.0);
+        let compliance = flexible.then_some(compliance);
         ChainAt { steps, arm: self.arm, dof: self.dof, load: self.load.clone(), compliance }
     }
 }

@@ -112,6 +112,12 @@ struct JointFile {
     limits_deg: Option<[f64; 2]>,
     #[serde(default, deserialize_with = "exactly_if_given", skip_serializing_if = "Option::is_none")]
     limits_mm: Option<[f64; 2]>,
+    /// Deflection per unit of gravity load, revolute joints (rad per N·m).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    compliance_rad_per_nm: Option<f64>,
+    /// Deflection per unit of gravity load, prismatic joints (mm per N).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    compliance_mm_per_n: Option<f64>,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -190,7 +196,31 @@ fn placement(field: &str, xyz_mm: &[f64; 3], rpy_deg: &[f64; 3]) -> Result<Place
     })
 }
 
+/// Joint `index` of the file, with its compliance.
 fn joint(index: usize, j: JointFile, convention: Convention) -> Result<Joint, ModelError> {
+    let at = |field: &str| format!("joints[{index}].{field}");
+    let compliance = match (&j.kind, j.compliance_rad_per_nm, j.compliance_mm_per_n) {
+        (_, None, None) => 0.0,
+        (KindName::Revolute, Some(c), None) => finite(&at("compliance_rad_per_nm"), c)?,
+        (KindName::Prismatic, None, Some(c)) => finite(&at("compliance_mm_per_n"), c)?,
+        (KindName::Revolute, _, _) => {
+            return Err(invalid(
+                at("compliance_mm_per_n"),
+                "a revolute joint's compliance as compliance_rad_per_nm",
+            ));
+        }
+        (KindName::Prismatic, _, _) => {
+            return Err(invalid(
+                at("compliance_rad_per_nm"),
+                "a prismatic joint's compliance as compliance_mm_per_n",
+            ));
+        }
+    };
+    Ok(Joint { compliance, ..geometry(index, j, convention)? })
+}
+
+/// Joint `index`'s geometry and limits.
+fn geometry(index: usize, j: JointFile, convention: Convention) -> Result<Joint, ModelError> {
     let at = |field: &str| format!("joints[{index}].{field}");
     let kind = match j.kind {
         KindName::Revolute => JointKind::Revolute,
@@ -335,6 +365,8 @@ pub(super) fn write(model: &RobotModel) -> String {
                     axis: urdf.then(|| j.axis.into()),
                     limits_deg: revolute.then(|| j.limits.map(degrees)),
                     limits_mm: (!revolute).then_some(j.limits),
+                    compliance_rad_per_nm: (revolute && j.compliance != 0.0).then_some(j.compliance),
+                    compliance_mm_per_n: (!revolute && j.compliance != 0.0).then_some(j.compliance),
                 }
             })
             .collect(),

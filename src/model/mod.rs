@@ -73,13 +73,16 @@ pub struct Joint {
     pub origin: Placement,
     /// URDF only: the unit axis of the motion, in the joint frame (z for DH joints).
     pub axis: Vector3<f64>,
+    /// The joint's deflection per unit of the load gravity puts on it (rad per N·m; mm per N
+    /// for a prismatic joint): it reaches `q + compliance tau(q)` in a model with masses.
+    pub compliance: f64,
 }
 
 impl Joint {
     /// A Denavit-Hartenberg joint (mm, rad).
     pub fn dh(name: &str, kind: JointKind, [theta, d, a, alpha, beta]: [f64; 5], limits: [f64; 2]) -> Self {
         let (origin, axis) = (Placement::default(), Vector3::z());
-        Self { name: name.into(), kind, theta, d, a, alpha, beta, limits, origin, axis }
+        Self { name: name.into(), kind, theta, d, a, alpha, beta, limits, origin, axis, compliance: 0.0 }
     }
 
     /// A URDF joint: placement in its parent link and unit axis (mm, rad).
@@ -101,6 +104,7 @@ impl Joint {
             limits,
             origin,
             axis,
+            compliance: 0.0,
         }
     }
 }

@@ -178,7 +178,7 @@ impl CalibrationReport {
                     name: by_number(&p.name, &c.marker_ids),
                     value: c.after[i] * scale,
                     std_error: se[i] * scale,
-                    unit: if p.kind.is_angle() { "deg" } else { "mm" },
+                    unit: if p.kind.is_angle() { "deg" } else { p.unit() },
                 }
             })
             .collect();
@@ -289,7 +289,12 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         );
         let _ = writeln!(out, "{:<14} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
         for p in &self.parameters {
-            let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
+            if p.unit.contains('N') {
+                // compliances: small numbers, in scientific notation
+                let _ = writeln!(out, "{:<14} {:>12.4e} {:>12.4e}  {}", p.name, p.value, p.std_error, p.unit);
+            } else {
+                let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
+            }
         }
         if self.parameters.is_empty() {
             let _ = writeln!(out, "\nnothing estimated: the model is scored as it stands");

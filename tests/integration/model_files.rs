@@ -115,3 +115,23 @@ fn link_masses_and_gravity_read_and_write_back() {
         "field `links[0].mass_kg`: a mass >= 0 kg, found -1.5"
     );
 }
+
+/// A joint's compliance reads in its kind's unit and writes back exactly; the other kind's
+/// field is refused, naming the joint.
+#[test]
+fn joint_compliances_read_in_their_unit() {
+    let text = PUMA.replacen(
+        "limits_deg = [-45.0, 225.0]",
+        "limits_deg = [-45.0, 225.0]\ncompliance_rad_per_nm = 4e-5",
+        1,
+    );
+    assert_ne!(text, PUMA, "the test must change the file");
+    let model = RobotModel::from_toml_str(&text).unwrap();
+    assert_eq!(model.joints[1].compliance, 4e-5);
+    assert_eq!(RobotModel::from_toml_str(&model.to_toml_string()).unwrap(), model);
+    let wrong = text.replace("compliance_rad_per_nm", "compliance_mm_per_n");
+    assert_eq!(
+        error_of(&wrong),
+        "field `joints[1].compliance_mm_per_n`: a revolute joint's compliance as compliance_rad_per_nm"
+    );
+}
