@@ -520,6 +520,7 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
     let training = (training_poses.pooled[0], training_poses.pooled[1]);
     let calibrated = fold(&s.registered, &s.params, &s.after, &s.markers, s.probe.as_ref());
     let mut warnings = warnings(&s.params, (&s.before, &s.after), &training_poses);
+    warnings.extend(implausible_compliances(&calibrated, &s.params, &s.refined));
     let condition = s.refined.estimate.diagnostics.condition_number;
     if condition > CONDITION_WARNING {
         warnings.push(format!(
@@ -932,7 +933,8 @@ fn warnings(params: &ParamSet, (before, after): (&[f64], &[f64]), training: &Set
     let mut out = Vec::new();
     for (i, p) in params.iter().enumerate() {
         let correction = after[i] - before[i];
-        if matches!(p.owner, ParamOwner::Joint(_)) && !p.kind.is_angle() && correction.abs() > 10.0 {
+        let length = !p.kind.is_angle() && p.kind != ParamKind::Compliance;
+        if matches!(p.owner, ParamOwner::Joint(_)) && length && correction.abs() > 10.0 {
             out.push(format!(
                 "{} is corrected by {correction:.2} mm: more than 10 mm, check the model",
                 p.name
@@ -944,6 +946,37 @@ fn warnings(params: &ParamSet, (before, after): (&[f64], &[f64]), training: &Set
             "line {}: a residual {:.1} standard deviations out after calibration",
             pose.line, pose.worst
         ));
+    }
+    out
+}
+
+/// The stiffest a joint's compliance may claim to be before it is suspect: a revolute joint
+/// softer than 100 N·m/rad (a compliance above 1e-2 rad/N·m), or any negative compliance,
+/// is absorbing something else (an error of the geometry, play, a wrong mass).
+pub const SOFTEST_COMPLIANCE: f64 = 1e-2;
+
+/// Warnings for the estimated compliances of `calibrated` (`refined` says which were estimated)
+/// that no joint has: negative, or softer than [`SOFTEST_COMPLIANCE`], by more than two standard
+/// errors; each with its stiffness.
+fn implausible_compliances(calibrated: &RobotModel, params: &ParamSet, refined: &Refined) -> Vec<String> {
+    let mut out = Vec::new();
+    let se = refined.estimate.standard_errors();
+    for (k, name) in refined.estimate.names.iter().enumerate() {
+        let Some(i) = params.index_by_name(name) else { continue };
+        let (ParamOwner::Joint(j), ParamKind::Compliance) = (params.get(i).owner, params.get(i).kind) else {
+            continue;
+        };
+        let c = calibrated.joints[j].compliance;
+        let unit = params.get(i).unit();
+        let margin = 2.0 * se[k];
+        if c + margin < 0.0 {
+            out.push(format!("{name} is {c:.3e} {unit}: a negative compliance absorbs something else (geometry, play, masses)"));
+        } else if c - margin > SOFTEST_COMPLIANCE && unit == "rad/N·m" {
+            out.push(format!(
+                "{name} is {c:.3e} {unit}, a stiffness of {:.0} N·m/rad: softer than any real joint, it absorbs something else",
+                1.0 / c
+            ));
+        }
     }
     out
 }
@@ -977,4 +1010,41 @@ pub fn standard_errors(c: &Calibration) -> Vec<f64> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod compliance_tests {
+    use super::*;
+    use crate::model::LinkMass;
+
+    /// A compliance estimated negative, or softer than any joint, by more than two standard
+    /// errors is warned about with its stiffness; a plausible or uncertain one is not.
+    #[test]
+    fn implausible_compliances_are_warned() {
+        let mut model = RobotModel::preset("puma560").unwrap();
+        model.masses = vec![LinkMass { mass: 1.0, com: Vector3::zeros() }; 6];
+        let params = model.params();
+        let i = params.index_by_name("j2.compliance").unwrap();
+        let mut refined = Refined { estimate: nothing_estimated(), history: Vec::new(), converged: true };
+        refined.estimate.names = vec![params.get(i).name.clone()];
+        refined.estimate.covariance = DMatrix::from_element(1, 1, 1e-10); // SE 1e-5
+        let mut warned = |c: f64| {
+            model.joints[1].compliance = c;
+            implausible_compliances(&model, &params, &refined)
+        };
+        assert!(warned(4e-5).is_empty());
+        assert!(warned(-1e-5).is_empty(), "within two standard errors of zero");
+        assert_eq!(
+            warned(-1e-3),
+            [
+                "j2.compliance is -1.000e-3 rad/N·m: a negative compliance absorbs something else (geometry, play, masses)"
+            ]
+        );
+        assert_eq!(
+            warned(2e-2),
+            [
+                "j2.compliance is 2.000e-2 rad/N·m, a stiffness of 50 N·m/rad: softer than any real joint, it absorbs something else"
+            ]
+        );
+    }
 }
