@@ -15,8 +15,9 @@
 //! - [`model`]: robot models (DH conventions with Hayati's beta, URDF, base, tool, limits),
 //!   their TOML format, and the named error parameters.
 //! - [`kinematics`]: forward kinematics, the manipulator Jacobian `J` and the identification
-//!   Jacobian `H`, analytic and allocation-free. [`table`]: the CSV tables of joint values
-//!   and measurements, beside it.
+//!   Jacobian `H`, analytic and allocation-free; the gravity load on each joint, and joints
+//!   that deflect under it (compliance). [`table`]: the CSV tables of joint values and
+//!   measurements, beside it.
 //! - [`estimation`]: the noise model (`V_k = J_k Sigma_q J_k^T + Sigma_m,k`), OLS and weighted
 //!   (Gauss-Markov) least squares by whitening, rank-deficient solves, identifiability,
 //!   covariance, and Gauss-Newton refinement.

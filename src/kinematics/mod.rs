@@ -12,6 +12,12 @@
 //! - translation: `de/dv = u`,           `dω/dv = 0`
 //!
 //! where `ω` is the small rotation of the end frame in world coordinates (see [`pose_error`]).
+//!
+//! A model with masses also gives the static load gravity puts on each joint
+//! ([`ChainAt::gravity_torques`]), and its joints may deflect under it: a joint with
+//! compliance `c` reaches `q + c tau(q)`, and the column of `H` of its compliance is its joint's
+//! column scaled by `tau_j(q)` (the load at the commanded `q`; its dependence on the geometry
+//! is not linearised, a term of the order of `c`).
 //! [`Chain::with_errors`] applies a parameter vector once (and with it the trigonometry of every
 //! step no joint moves); evaluating a point then allocates nothing: the Jacobians are written
 //! into views the caller owns. They come from one walk backwards from the end, in which the end
