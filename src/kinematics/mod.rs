@@ -25,8 +25,7 @@
 
 mod gravity;
 
-/// The most joints a compliant chain may have (the readers refuse more).
-pub const MAX_JOINTS: usize = 64;
+use crate::limits::MAX_JOINTS;
 
 use crate::model::{
     Convention, Joint, JointKind, ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, Tool,
