@@ -441,9 +441,9 @@ pub fn calibrate(
             data.len()
         )));
     }
-    // A compliance whose joint gravity does not load at these poses (a vertical axis) has no
-    // column: it is held, and said so.
-    let (asked, unloaded) = without_unloaded_compliances(&asked, &params, &chains, &before, data);
+    // A compliance or play whose joint gravity does not load at these poses (a vertical axis)
+    // has no column: it is held, and said so.
+    let (asked, unloaded) = without_unloaded_responses(&asked, &params, &chains, &before, data);
     // The identifiable subset starts from the system that found it.
     let problem = base_problem.reselect(&asked, before.clone())?;
     let at_before = linearise(&problem, &weights, problem.start())?;
@@ -548,23 +548,23 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
     })
 }
 
-/// `asked` without the compliances of joints that gravity does not load at `data`'s poses
-/// (every load below 1e-9 of the largest: a vertical axis, a joint carrying no mass), and why
-/// each of those is held.
-fn without_unloaded_compliances(
+/// `asked` without the compliances and plays of joints that gravity does not load at `data`'s
+/// poses (every load below 1e-9 of the largest: a vertical axis, a joint carrying no mass), and
+/// why each of those is held.
+fn without_unloaded_responses(
     asked: &Selection,
     params: &ParamSet,
     chains: &[Chain],
     x: &[f64],
     data: &Measurements,
 ) -> (Selection, Vec<String>) {
-    let compliances: Vec<(usize, usize)> = (asked.indices().iter())
-        .filter_map(|&i| match (params.get(i).owner, params.get(i).kind) {
-            (ParamOwner::Joint(j), ParamKind::Compliance) => Some((i, j)),
+    let responses: Vec<(usize, usize)> = (asked.indices().iter())
+        .filter_map(|&i| match params.get(i).owner {
+            ParamOwner::Joint(j) if params.get(i).is_load_response() => Some((i, j)),
             _ => None,
         })
         .collect();
-    if compliances.is_empty() {
+    if responses.is_empty() {
         return (asked.clone(), Vec::new());
     }
     let at = chains[0].with_errors(x);
@@ -577,7 +577,7 @@ fn without_unloaded_compliances(
     }
     let heaviest = largest.iter().copied().fold(0.0, f64::max);
     let unloaded: Vec<usize> =
-        compliances.iter().filter(|&&(_, j)| largest[j] <= 1e-9 * heaviest).map(|&(i, _)| i).collect();
+        responses.iter().filter(|&&(_, j)| largest[j] <= 1e-9 * heaviest).map(|&(i, _)| i).collect();
     let kept = asked.indices().iter().copied().filter(|i| !unloaded.contains(i));
     let why = unloaded
         .iter()
@@ -595,11 +595,13 @@ fn without_unloaded_compliances(
 /// first: the measuring frame (base) and the markers, since no external device shares the
 /// robot's frame; the joint parameters they absorb are held (the first joint's about and along
 /// its axis, the last joint's with the markers). Then class 1: the joint offsets, `a`, `alpha`
-/// and a URDF joint's origin; then class 2: Hayati's `beta` and the `d` of a revolute joint,
-/// which nearly parallel axes make redundant. Within a class the rank-revealing pivoting
+/// and a URDF joint's origin, and the compliances; then class 2: Hayati's `beta` and the `d` of
+/// a revolute joint, which nearly parallel axes make redundant; last a joint's play, which is
+/// its offset wherever the load keeps one sign. Within a class the rank-revealing pivoting
 /// decides (the best conditioned choice), the same on every machine.
 fn gauge_class(p: &crate::model::ParamInfo) -> u32 {
     match (p.owner, p.kind) {
+        (ParamOwner::Joint(_), ParamKind::Play) => 3,
         (ParamOwner::Joint(_), ParamKind::Beta) => 2,
         (ParamOwner::Joint(_), ParamKind::D) if !p.is_offset => 2,
         (ParamOwner::Joint(_), _) => 1,
@@ -900,6 +902,7 @@ fn fold(
     for (i, joint) in out.joints.iter_mut().enumerate() {
         let owner = ParamOwner::Joint(i);
         joint.compliance += value(owner, ParamKind::Compliance);
+        joint.play += value(owner, ParamKind::Play);
         let (theta, d) = (value(owner, ParamKind::Theta), value(owner, ParamKind::D));
         if model.convention == crate::model::Convention::Urdf {
             // URDF has no offset: it turns (or shifts) the origin about (along) the axis.
@@ -933,7 +936,7 @@ fn warnings(params: &ParamSet, (before, after): (&[f64], &[f64]), training: &Set
     let mut out = Vec::new();
     for (i, p) in params.iter().enumerate() {
         let correction = after[i] - before[i];
-        let length = !p.kind.is_angle() && p.kind != ParamKind::Compliance;
+        let length = p.unit() == "mm";
         if matches!(p.owner, ParamOwner::Joint(_)) && length && correction.abs() > 10.0 {
             out.push(format!(
                 "{} is corrected by {correction:.2} mm: more than 10 mm, check the model",

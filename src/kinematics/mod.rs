@@ -15,9 +15,11 @@
 //!
 //! A model with masses also gives the static load gravity puts on each joint
 //! ([`ChainAt::gravity_torques`]), and its joints may deflect under it: a joint with
-//! compliance `c` reaches `q + c tau(q)`, and the column of `H` of its compliance is its joint's
-//! column scaled by `tau_j(q)` (the load at the commanded `q`; its dependence on the geometry
-//! is not linearised, a term of the order of `c`).
+//! compliance `c` and play `p` reaches `q + c tau(q) + p sgn(tau(q))`, and the column of `H` of
+//! its compliance is its joint's column scaled by `tau_j(q)`, that of its play by
+//! `sgn(tau_j(q))` (the load at the commanded `q`; its dependence on the geometry is not
+//! linearised, a term of the order of `c`; the play's column is exact wherever the load is not
+//! zero).
 //! [`Chain::with_errors`] applies a parameter vector once (and with it the trigonometry of every
 //! step no joint moves); evaluating a point then allocates nothing: the Jacobians are written
 //! into views the caller owns. They come from one walk backwards from the end, in which the end
@@ -68,6 +70,60 @@ struct Step {
     param: Option<usize>,
     /// A joint's step: the joint's compliance parameter, if the model has one.
     compliance: Option<usize>,
+    /// A joint's step: the joint's play parameter, if the model has one.
+    play: Option<usize>,
+}
+
+impl Step {
+    /// The columns of the joint's load responses among `selection`'s, each with the factor that
+    /// scales the joint's own column into it: `tau_j` for the compliance, `sgn(tau_j)` for the
+    /// play (`loads` holds the joints' gravity loads `tau`).
+    fn load_columns<'s>(
+        &self,
+        selection: &'s Selection,
+        loads: &'s [f64],
+    ) -> impl Iterator<Item = (usize, f64)> + 's {
+        // `loads` is empty when no response is selected.
+        let tau = move || self.joint.map_or(0.0, |j| loads[j]);
+        let compliance = self.compliance.and_then(|i| selection.column(i)).map(move |c| (c, tau()));
+        let play = self.play.and_then(|i| selection.column(i)).map(move |c| (c, sign(tau())));
+        compliance.into_iter().chain(play)
+    }
+
+    /// A step that no joint moves and no parameter displaces.
+    fn fixed(motion: Motion, nominal: f64) -> Self {
+        Self { motion, nominal, joint: None, param: None, compliance: None, play: None }
+    }
+}
+
+/// The sign of a load, 0 for none: the side gravity pushes a joint's play to.
+fn sign(tau: f64) -> f64 {
+    if tau > 0.0 {
+        1.0
+    } else if tau < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// A joint's response to the load gravity puts on it: it reaches
+/// `q + compliance tau + play sgn(tau)`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct Deflection {
+    compliance: f64,
+    play: f64,
+}
+
+impl Deflection {
+    /// The deflection under the load `tau`: `c tau + p sgn(tau)`.
+    fn under(&self, tau: f64) -> f64 {
+        self.compliance * tau + self.play * sign(tau)
+    }
+
+    fn is_zero(&self) -> bool {
+        self.compliance == 0.0 && self.play == 0.0
+    }
 }
 
 /// A frame during the walk along the chain: rotation columns are the frame's axes.
@@ -127,7 +183,7 @@ fn motion_of(kind: ParamKind) -> Motion {
         Rx | Alpha => Motion::Rotate(0),
         Ry | Beta => Motion::Rotate(1),
         Rz | Theta => Motion::Rotate(2),
-        Compliance => unreachable!("a compliance rides on its joint's step"),
+        Compliance | Play => unreachable!("a load response rides on its joint's step"),
     }
 }
 
@@ -143,9 +199,9 @@ impl Builder {
     /// A step that carries error parameter `kind` of `owner` and may be moved by a joint.
     fn step(&mut self, nominal: f64, joint: Option<usize>, owner: ParamOwner, kind: ParamKind) {
         let param = Some(self.params.index_of(owner, kind).expect("the ParamSet names every step"));
-        let compliance =
-            joint.and_then(|j| self.params.index_of(ParamOwner::Joint(j), ParamKind::Compliance));
-        self.steps.push(Step { motion: motion_of(kind), nominal, joint, param, compliance });
+        let response = |kind| joint.and_then(|j| self.params.index_of(ParamOwner::Joint(j), kind));
+        let (compliance, play) = (response(ParamKind::Compliance), response(ParamKind::Play));
+        self.steps.push(Step { motion: motion_of(kind), nominal, joint, param, compliance, play });
     }
 
     /// A nominal placement `Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll)`, then the error
@@ -163,7 +219,7 @@ impl Builder {
         for (k, value, rotation) in fixed {
             let motion = if rotation { Motion::Rotate(k) } else { Motion::Translate(k) };
             if value != 0.0 {
-                self.steps.push(Step { motion, nominal: value, joint: None, param: None, compliance: None });
+                self.steps.push(Step::fixed(motion, value));
             }
         }
         for &kind in kinds {
@@ -208,21 +264,16 @@ impl Builder {
     /// A constant rotation about axis `k`, if it is not zero.
     fn rotation(&mut self, k: usize, angle: f64) {
         if angle != 0.0 {
-            self.steps.push(Step {
-                motion: Motion::Rotate(k),
-                nominal: angle,
-                joint: None,
-                param: None,
-                compliance: None,
-            });
+            self.steps.push(Step::fixed(Motion::Rotate(k), angle));
         }
     }
 
     /// The chain of these steps, the first `arm` of them the arm's, for `model`.
     fn finish(self, arm: usize, model: &RobotModel) -> Chain {
         let load = gravity::Load::new(self.ends, model);
-        let compliance = model.joints.iter().map(|j| j.compliance).collect();
-        Chain { steps: self.steps, arm, params: self.params, dof: model.dof(), load, compliance }
+        let deflection =
+            model.joints.iter().map(|j| Deflection { compliance: j.compliance, play: j.play }).collect();
+        Chain { steps: self.steps, arm, params: self.params, dof: model.dof(), load, deflection }
     }
 
     /// A point at `xyz` (mm) with its 3 translation errors.
@@ -242,8 +293,8 @@ pub struct Chain {
     dof: usize,
     /// The masses the joints move and gravity, for the static joint loads.
     load: gravity::Load,
-    /// Each joint's nominal compliance (the model's).
-    compliance: Vec<f64>,
+    /// Each joint's nominal compliance and play (the model's).
+    deflection: Vec<Deflection>,
 }
 
 impl Chain {
@@ -333,15 +384,16 @@ impl Chain {
                 Resolved { step, value, sin_cos: value.sin_cos() }
             })
             .collect();
-        let mut compliance = self.compliance.clone();
+        let mut deflection = self.deflection.clone();
         for step in &self.steps {
-            if let (Some(j), Some(c)) = (step.joint, step.compliance) {
-                compliance[j] += x[c];
+            if let Some(j) = step.joint {
+                deflection[j].compliance += step.compliance.map_or(0.0, |i| x[i]);
+                deflection[j].play += step.play.map_or(0.0, |i| x[i]);
             }
         }
-        let flexible = self.load.has_masses() && compliance.iter().any(|&c| c != 0.0);
-        let compliance = flexible.then_some(compliance);
-        ChainAt { steps, arm: self.arm, dof: self.dof, load: self.load.clone(), compliance }
+        let flexible = self.load.has_masses() && deflection.iter().any(|d| !d.is_zero());
+        let deflection = flexible.then_some(deflection);
+        ChainAt { steps, arm: self.arm, dof: self.dof, load: self.load.clone(), deflection }
     }
 }
 
@@ -355,8 +407,9 @@ pub struct ChainAt {
     arm: usize,
     dof: usize,
     load: gravity::Load,
-    /// Each joint's compliance, when one is not zero: the joints then reach `q + c tau(q)`.
-    compliance: Option<Vec<f64>>,
+    /// Each joint's compliance and play, when one is not zero: the joints then reach
+    /// `q + c tau(q) + p sgn(tau(q))`.
+    deflection: Option<Vec<Deflection>>,
 }
 
 impl ChainAt {
@@ -366,11 +419,13 @@ impl ChainAt {
         self.at_reached(q, |q| walk(&self.steps, q, Frame::IDENTITY).p)
     }
 
-    /// `f` of the gravity loads at `q` if `selection` holds a compliance, whose column of `H` is
-    /// its joint's scaled by the joint's load; of nothing otherwise (then unused).
+    /// `f` of the gravity loads at `q` if `selection` holds a compliance or a play, whose
+    /// columns of `H` are their joint's scaled by the joint's load or its sign; of nothing
+    /// otherwise (then unused).
     fn with_loads<R>(&self, selection: &Selection, q: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
+        let selected = |i: Option<usize>| i.is_some_and(|i| selection.column(i).is_some());
         let compliant = self.has_masses()
-            && self.steps.iter().any(|s| s.step.compliance.is_some_and(|i| selection.column(i).is_some()));
+            && self.steps.iter().any(|s| selected(s.step.compliance) || selected(s.step.play));
         if !compliant {
             return f(&[]);
         }
@@ -379,17 +434,18 @@ impl ChainAt {
         f(&loads[..self.dof])
     }
 
-    /// `f` of the joint values the arm reaches when commanded `q`: `q + c tau(q)`, each joint
-    /// deflected by its compliance `c` under the gravity load `tau` at `q`
-    /// ([`ChainAt::gravity_torques`]); of `q` itself when no joint is compliant. The load is
-    /// taken at the commanded values: the deflection's own effect on it is of second order.
+    /// `f` of the joint values the arm reaches when commanded `q`: `q + c tau(q) + p sgn(tau(q))`,
+    /// each joint deflected by its compliance `c` and pushed to one side of its play `p` by the
+    /// gravity load `tau` at `q` ([`ChainAt::gravity_torques`]); of `q` itself when no joint
+    /// deflects. The load is taken at the commanded values: the deflection's own effect on it
+    /// is of second order.
     fn at_reached<R>(&self, q: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
-        let Some(compliance) = &self.compliance else { return f(q) };
+        let Some(deflection) = &self.deflection else { return f(q) };
         let mut buffer = [0.0; MAX_JOINTS];
         let reached = &mut buffer[..self.dof];
         self.gravity_torques(q, reached);
-        for ((r, &q), &c) in reached.iter_mut().zip(q).zip(compliance) {
-            *r = q + c * *r;
+        for ((r, &q), d) in reached.iter_mut().zip(q).zip(deflection) {
+            *r = q + d.under(*r);
         }
         f(reached)
     }
@@ -445,16 +501,16 @@ impl ChainAt {
         assert_eq!(q.len(), self.dof, "q has one value per joint");
         let mut visit = |loads: &[f64], q: &[f64]| {
             walk_back(&self.steps, q, |step, frame| {
-                let column = step.param.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
-                let flex = step.compliance.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0);
+                let with_h = h.ncols() > 0;
+                let column = step.param.and_then(|i| selection.column(i)).filter(|_| with_h);
+                let mut responses = step.load_columns(selection, loads).filter(|_| with_h).peekable();
                 let joint = step.joint.filter(|_| j.is_some());
-                if column.is_none() && flex.is_none() && joint.is_none() {
+                if column.is_none() && responses.peek().is_none() && joint.is_none() {
                     return;
                 }
                 let (linear, angular) = frame.screw(step.motion, &origin);
-                // A compliance moves its joint by the joint's load: its column is the joint's, scaled.
-                let scaled = |c: usize| (c, step.joint.map_or(0.0, |j| loads[j]));
-                for (c, scale) in column.map(|c| (c, 1.0)).into_iter().chain(flex.map(scaled)) {
+                // A load response moves its joint: its column is the joint's, scaled.
+                for (c, scale) in column.map(|c| (c, 1.0)).into_iter().chain(responses) {
                     h.fixed_view_mut::<3, 1>(0, c).copy_from(&(linear * scale));
                     if measured == Measured::Pose {
                         h.fixed_view_mut::<3, 1>(3, c).copy_from(&(angular * scale));
@@ -510,16 +566,13 @@ pub fn marker_jacobians(
     let mut visit = |loads: &[f64], q: &[f64]| {
         walk_back(&first.steps[..first.arm], q, |step, frame| {
             let column = step.param.and_then(|i| selection.column(i)).map(|c| (c, 1.0));
-            // A compliance moves its joint by the joint's load: its column is the joint's, scaled.
-            let flex = step
-                .compliance
-                .and_then(|i| selection.column(i))
-                .map(|c| (c, step.joint.map_or(0.0, |j| loads[j])));
-            if column.is_none() && flex.is_none() {
+            // A load response moves its joint: its column is the joint's, scaled.
+            let mut responses = step.load_columns(selection, loads).peekable();
+            if column.is_none() && responses.peek().is_none() {
                 return;
             }
             let (linear, angular) = frame.screw(step.motion, &Vector3::zeros());
-            for (c, scale) in column.into_iter().chain(flex) {
+            for (c, scale) in column.into_iter().chain(responses) {
                 for (m, r) in positions.iter().enumerate() {
                     h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&((linear + angular.cross(r)) * scale));
                 }

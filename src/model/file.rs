@@ -118,6 +118,12 @@ struct JointFile {
     /// Deflection per unit of gravity load, prismatic joints (mm per N).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     compliance_mm_per_n: Option<f64>,
+    /// Play that gravity pushes to one side, revolute joints (degrees).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    play_deg: Option<f64>,
+    /// Play that gravity pushes to one side, prismatic joints (mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    play_mm: Option<f64>,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -196,27 +202,36 @@ fn placement(field: &str, xyz_mm: &[f64; 3], rpy_deg: &[f64; 3]) -> Result<Place
     })
 }
 
-/// Joint `index` of the file, with its compliance.
+/// Joint `index` of the file, with its compliance and play.
 fn joint(index: usize, j: JointFile, convention: Convention) -> Result<Joint, ModelError> {
+    let revolute = matches!(j.kind, KindName::Revolute);
+    let compliance = per_kind(
+        (index, "compliance"),
+        revolute,
+        ("compliance_rad_per_nm", j.compliance_rad_per_nm),
+        ("compliance_mm_per_n", j.compliance_mm_per_n),
+    )?;
+    let play = per_kind((index, "play"), revolute, ("play_deg", j.play_deg), ("play_mm", j.play_mm))?;
+    let play = if revolute { play.to_radians() } else { play };
+    Ok(Joint { compliance, play, ..geometry(index, j, convention)? })
+}
+
+/// The value of joint `index`'s field `what`, with a revolute and a prismatic spelling (unit),
+/// 0 when absent; the other joint kind's spelling is an error.
+fn per_kind(
+    (index, what): (usize, &str),
+    revolute: bool,
+    (rotary, rotary_value): (&str, Option<f64>),
+    (linear, linear_value): (&str, Option<f64>),
+) -> Result<f64, ModelError> {
     let at = |field: &str| format!("joints[{index}].{field}");
-    let compliance = match (&j.kind, j.compliance_rad_per_nm, j.compliance_mm_per_n) {
-        (_, None, None) => 0.0,
-        (KindName::Revolute, Some(c), None) => finite(&at("compliance_rad_per_nm"), c)?,
-        (KindName::Prismatic, None, Some(c)) => finite(&at("compliance_mm_per_n"), c)?,
-        (KindName::Revolute, _, _) => {
-            return Err(invalid(
-                at("compliance_mm_per_n"),
-                "a revolute joint's compliance as compliance_rad_per_nm",
-            ));
-        }
-        (KindName::Prismatic, _, _) => {
-            return Err(invalid(
-                at("compliance_rad_per_nm"),
-                "a prismatic joint's compliance as compliance_mm_per_n",
-            ));
-        }
-    };
-    Ok(Joint { compliance, ..geometry(index, j, convention)? })
+    match (revolute, rotary_value, linear_value) {
+        (_, None, None) => Ok(0.0),
+        (true, Some(v), None) => Ok(finite(&at(rotary), v)?),
+        (false, None, Some(v)) => Ok(finite(&at(linear), v)?),
+        (true, _, _) => Err(invalid(at(linear), format!("a revolute joint's {what} as {rotary}"))),
+        (false, _, _) => Err(invalid(at(rotary), format!("a prismatic joint's {what} as {linear}"))),
+    }
 }
 
 /// Joint `index`'s geometry and limits.
@@ -367,6 +382,8 @@ pub(super) fn write(model: &RobotModel) -> String {
                     limits_mm: (!revolute).then_some(j.limits),
                     compliance_rad_per_nm: (revolute && j.compliance != 0.0).then_some(j.compliance),
                     compliance_mm_per_n: (!revolute && j.compliance != 0.0).then_some(j.compliance),
+                    play_deg: (revolute && j.play != 0.0).then(|| degrees(j.play)),
+                    play_mm: (!revolute && j.play != 0.0).then_some(j.play),
                 }
             })
             .collect(),

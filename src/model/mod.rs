@@ -76,13 +76,29 @@ pub struct Joint {
     /// The joint's deflection per unit of the load gravity puts on it (rad per N·m; mm per N
     /// for a prismatic joint): it reaches `q + compliance tau(q)` in a model with masses.
     pub compliance: f64,
+    /// The joint's play (rad; mm for a prismatic joint): gravity pushes it to one side, so it
+    /// reaches `q + play sgn(tau(q))` besides its compliance's deflection, in a model with masses.
+    pub play: f64,
 }
 
 impl Joint {
     /// A Denavit-Hartenberg joint (mm, rad).
     pub fn dh(name: &str, kind: JointKind, [theta, d, a, alpha, beta]: [f64; 5], limits: [f64; 2]) -> Self {
         let (origin, axis) = (Placement::default(), Vector3::z());
-        Self { name: name.into(), kind, theta, d, a, alpha, beta, limits, origin, axis, compliance: 0.0 }
+        Self {
+            name: name.into(),
+            kind,
+            theta,
+            d,
+            a,
+            alpha,
+            beta,
+            limits,
+            origin,
+            axis,
+            compliance: 0.0,
+            play: 0.0,
+        }
     }
 
     /// A URDF joint: placement in its parent link and unit axis (mm, rad).
@@ -105,6 +121,7 @@ impl Joint {
             origin,
             axis,
             compliance: 0.0,
+            play: 0.0,
         }
     }
 }

@@ -46,6 +46,10 @@ pub enum ParamKind {
     /// N·m for a revolute joint, mm per N for a prismatic one); the joint reaches
     /// `q + c tau(q)`. Only models with masses have it.
     Compliance,
+    /// A joint's play: the constant error gravity pushes it to, with the sign of the load on it
+    /// (rad for a revolute joint, mm for a prismatic one); the joint reaches `q + p sgn(tau(q))`.
+    /// Only models with masses have it.
+    Play,
 }
 
 impl ParamKind {
@@ -69,10 +73,12 @@ impl ParamKind {
             Self::Alpha => "alpha",
             Self::Beta => "beta",
             Self::Compliance => "compliance",
+            Self::Play => "play",
         }
     }
 
-    /// Whether the parameter is an angle (rad); otherwise a length (mm).
+    /// Whether the parameter is an angle (rad) whatever it belongs to; a joint's play is an
+    /// angle or a length with its joint ([`ParamInfo::unit`]).
     pub fn is_angle(self) -> bool {
         matches!(self, Self::Rx | Self::Ry | Self::Rz | Self::Theta | Self::Alpha | Self::Beta)
     }
@@ -107,14 +113,26 @@ pub struct ParamInfo {
 
 impl ParamInfo {
     /// The unit of the parameter inside robocal: `"rad"`, `"mm"`, or for a compliance
-    /// `"rad/N·m"` (revolute joint) or `"mm/N"` (prismatic).
+    /// `"rad/N·m"` (revolute joint) or `"mm/N"` (prismatic); a play is in its joint's unit.
     pub fn unit(&self) -> &'static str {
         self.unit
+    }
+
+    /// Whether the parameter is an angle (rad).
+    pub fn is_angle(&self) -> bool {
+        self.unit == "rad"
+    }
+
+    /// Whether the parameter is a joint's response to its gravity load (a compliance or a
+    /// play), rather than geometry.
+    pub fn is_load_response(&self) -> bool {
+        matches!(self.kind, ParamKind::Compliance | ParamKind::Play)
     }
 }
 
 /// All error parameters of a model, in canonical order: base (6), each joint (5 DH, or 7 for
-/// URDF: 6 origin errors and the offset; then its compliance if the model has masses), then
+/// URDF: 6 origin errors and the offset; then its compliance and play if the model has
+/// masses), then
 /// the tool (3 or 6) or the markers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamSet {
@@ -151,6 +169,10 @@ impl ParamSet {
                     "mm/N"
                 }
                 (ParamKind::Compliance, _) => "rad/N·m",
+                (ParamKind::Play, ParamOwner::Joint(i)) if model.joints[i].kind == JointKind::Prismatic => {
+                    "mm"
+                }
+                (ParamKind::Play, _) => "rad",
                 (kind, _) if kind.is_angle() => "rad",
                 _ => "mm",
             };
@@ -181,6 +203,7 @@ impl ParamSet {
             }
             if !model.masses.is_empty() {
                 push(ParamOwner::Joint(i), ParamKind::Compliance, &joint.name, false);
+                push(ParamOwner::Joint(i), ParamKind::Play, &joint.name, false);
             }
         }
         match markers {
@@ -283,9 +306,9 @@ impl Selection {
     }
 
     /// Every geometric joint parameter, base and tool fixed: the paper's set (30 for a 6-joint
-    /// robot); not the compliances (select them by name, `j*.compliance`).
+    /// robot); not the compliances and plays (select them by name, `j*.compliance`, `j*.play`).
     pub fn joints(params: &ParamSet) -> Self {
-        Self::matching(params, |p| matches!(p.owner, ParamOwner::Joint(_)) && p.kind != ParamKind::Compliance)
+        Self::matching(params, |p| matches!(p.owner, ParamOwner::Joint(_)) && !p.is_load_response())
     }
 
     /// Only the joint offsets.

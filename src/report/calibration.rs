@@ -173,12 +173,12 @@ impl CalibrationReport {
             .filter_map(|name| c.params.index_by_name(name))
             .map(|i| {
                 let p = c.params.get(i);
-                let scale = if p.kind.is_angle() { 180.0 / std::f64::consts::PI } else { 1.0 };
+                let scale = if p.is_angle() { 180.0 / std::f64::consts::PI } else { 1.0 };
                 ParameterRow {
                     name: by_number(&p.name, &c.marker_ids),
                     value: c.after[i] * scale,
                     std_error: se[i] * scale,
-                    unit: if p.kind.is_angle() { "deg" } else { p.unit() },
+                    unit: if p.is_angle() { "deg" } else { p.unit() },
                 }
             })
             .collect();

@@ -461,10 +461,12 @@ fn a_horizontal_link_of_one_kilogram_at_one_metre_weighs_9_81_newton_metres() {
     assert_eq!(torque(&model, 0.0), 0.0);
 }
 
-/// With masses, each joint has a compliance: the joints reach `q + c tau(q)`. Its columns of
-/// `H` (pose and markers) against central differences of the full model, and the pose against
-/// the rigid model at the deflected joint values.
-fn check_compliance(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
+/// With masses, each joint has a compliance and a play: the joints reach
+/// `q + c tau(q) + p sgn(tau(q))`. Their columns of `H` (pose and markers) against central
+/// differences of the full model, and the pose against the rigid model at the deflected joint
+/// values.
+fn check_load_responses(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
+    use robocal::model::ParamKind;
     let mut model = model.clone();
     model.masses = (0..model.dof())
         .map(|j| robocal::model::LinkMass {
@@ -475,32 +477,42 @@ fn check_compliance(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> 
     let (q, mut x) = point(&model, u);
     let chain = Chain::new(&model);
     let params = chain.params();
-    let compliances: Vec<usize> =
-        (0..params.len()).filter(|&i| params.get(i).kind == robocal::model::ParamKind::Compliance).collect();
+    let of_kind = |kind| (0..params.len()).filter(|&i| params.get(i).kind == kind).collect::<Vec<usize>>();
+    let (compliances, plays) = (of_kind(ParamKind::Compliance), of_kind(ParamKind::Play));
     prop_assert_eq!(compliances.len(), model.dof());
-    for (k, &i) in compliances.iter().enumerate() {
-        // about 1e-4 rad per N·m (1e-3 mm per N): millimetres at a metre under 10 N·m
-        x[i] = u[(k + 7) % u.len()] * if params.get(i).unit() == "mm/N" { 1e-3 } else { 1e-4 };
+    prop_assert_eq!(plays.len(), model.dof());
+    for (k, (&c, &p)) in compliances.iter().zip(&plays).enumerate() {
+        // about 1e-4 rad per N·m (1e-3 mm per N): millimetres at a metre under 10 N·m; a play
+        // of up to 1e-3 rad (0.1 mm)
+        let prismatic = params.get(c).unit() == "mm/N";
+        x[c] = u[(k + 7) % u.len()] * if prismatic { 1e-3 } else { 1e-4 };
+        x[p] = u[(k + 13) % u.len()] * if prismatic { 0.1 } else { 1e-3 };
     }
     let at = chain.with_errors(&x);
 
-    // The pose is the rigid model's at q + c tau(q).
+    // The pose is the rigid model's at q + c tau(q) + p sgn(tau(q)).
     let mut rigid_x = x.clone();
-    compliances.iter().for_each(|&i| rigid_x[i] = 0.0);
+    compliances.iter().chain(&plays).for_each(|&i| rigid_x[i] = 0.0);
     let rigid = chain.with_errors(&rigid_x);
     let mut tau = vec![0.0; model.dof()];
     rigid.gravity_torques(&q, &mut tau);
-    let reached: Vec<f64> = (0..model.dof()).map(|j| q[j] + x[compliances[j]] * tau[j]).collect();
+    let reached: Vec<f64> = (0..model.dof())
+        .map(|j| {
+            q[j] + x[compliances[j]] * tau[j]
+                + x[plays[j]] * if tau[j] == 0.0 { 0.0 } else { tau[j].signum() }
+        })
+        .collect();
     let miss = (at.pose(&q).translation.vector - rigid.pose(&reached).translation.vector).amax();
     prop_assert!(miss < 1e-9, "pose {miss:e}");
 
     let all = Selection::all(params);
     let mut h = DMatrix::zeros(6, all.len());
     at.identification_jacobian(&q, &all, Measured::Pose, h.view_mut((0, 0), (6, all.len())));
-    for (j, &i) in compliances.iter().enumerate() {
+    let responses = compliances.iter().enumerate().chain(plays.iter().enumerate());
+    for (j, &i) in responses {
         // A step that moves the joint by 1e-6 (rad or mm) under its load: the pose is then
         // all but linear over it.
-        let step = 1e-6 / (1.0 + tau[j].abs());
+        let step = if params.get(i).kind == ParamKind::Play { 1e-6 } else { 1e-6 / (1.0 + tau[j].abs()) };
         let (mut plus, mut minus) = (x.clone(), x.clone());
         plus[i] += step;
         minus[i] -= step;
@@ -513,7 +525,7 @@ fn check_compliance(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> 
         prop_assert!(err < 1e-6, "{}: relative error {err:e}", params.get(i).name);
     }
 
-    // The markers' shared walk gives the same compliance columns as each marker's chain.
+    // The markers' shared walk gives the same load-response columns as each marker's chain.
     let markers = [Vector3::new(u[40], u[41], u[42]) * 100.0, Vector3::new(u[43], u[44], u[45]) * 100.0];
     let chains = Chain::markers(&model, &markers);
     let mx: Vec<f64> = chains[0]
@@ -540,17 +552,17 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(350))]
 
     #[test]
-    fn compliance_columns_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 64)) {
-        check_compliance(&model, &u)?;
+    fn compliance_and_play_columns_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 64)) {
+        check_load_responses(&model, &u)?;
     }
 
     #[test]
-    fn compliance_columns_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 64)) {
-        check_compliance(&model, &u)?;
+    fn compliance_and_play_columns_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 64)) {
+        check_load_responses(&model, &u)?;
     }
 
     #[test]
-    fn compliance_columns_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 64)) {
-        check_compliance(&model, &u)?;
+    fn compliance_and_play_columns_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 64)) {
+        check_load_responses(&model, &u)?;
     }
 }

@@ -2,6 +2,7 @@
 
 mod calibration;
 mod cli;
+mod compliance;
 mod estimation;
 mod fgls;
 mod fuzz;

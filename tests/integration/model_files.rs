@@ -116,22 +116,29 @@ fn link_masses_and_gravity_read_and_write_back() {
     );
 }
 
-/// A joint's compliance reads in its kind's unit and writes back exactly; the other kind's
-/// field is refused, naming the joint.
+/// A joint's compliance and play read in its kind's unit and write back exactly; the other
+/// kind's field is refused, naming the joint.
 #[test]
-fn joint_compliances_read_in_their_unit() {
+fn joint_compliances_and_plays_read_in_their_unit() {
     let text = PUMA.replacen(
         "limits_deg = [-45.0, 225.0]",
-        "limits_deg = [-45.0, 225.0]\ncompliance_rad_per_nm = 4e-5",
+        "limits_deg = [-45.0, 225.0]\ncompliance_rad_per_nm = 4e-5\nplay_deg = 0.02",
         1,
     );
     assert_ne!(text, PUMA, "the test must change the file");
     let model = RobotModel::from_toml_str(&text).unwrap();
     assert_eq!(model.joints[1].compliance, 4e-5);
-    assert_eq!(RobotModel::from_toml_str(&model.to_toml_string()).unwrap(), model);
+    assert!((model.joints[1].play - 0.02f64.to_radians()).abs() < 1e-15);
+    let again = RobotModel::from_toml_str(&model.to_toml_string()).unwrap();
+    assert_eq!(again.joints[1].compliance, model.joints[1].compliance);
+    assert!((again.joints[1].play - model.joints[1].play).abs() < 1e-15);
     let wrong = text.replace("compliance_rad_per_nm", "compliance_mm_per_n");
     assert_eq!(
         error_of(&wrong),
         "field `joints[1].compliance_mm_per_n`: a revolute joint's compliance as compliance_rad_per_nm"
+    );
+    assert_eq!(
+        error_of(&text.replace("play_deg", "play_mm")),
+        "field `joints[1].play_mm`: a revolute joint's play as play_deg"
     );
 }

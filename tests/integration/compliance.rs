@@ -1,0 +1,117 @@
+//! Joints that follow their gravity load: compliance and play recovered exactly from
+//! noise-free data, on a 6-joint DH arm and a 7-joint URDF arm.
+
+use nalgebra::Vector3;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use robocal::calibration::{self, JointParams, Measurements, Options};
+use robocal::estimation::{Estimator, RefineOptions};
+use robocal::kinematics::Chain;
+use robocal::model::{LinkMass, ParamOwner, RobotModel};
+
+/// Noise-free marker positions of `truth` at `n` poses drawn within its limits.
+fn measured(truth: &RobotModel, markers: &[Vector3<f64>], n: usize, seed: u64) -> Measurements {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let joints: Vec<Vec<f64>> = (0..n)
+        .map(|_| truth.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())
+        .collect();
+    let chains = Chain::markers(truth, markers);
+    let at: Vec<_> = chains.iter().map(|c| c.with_errors(&vec![0.0; c.params().len()])).collect();
+    Measurements {
+        markers: joints.iter().map(|q| at.iter().map(|a| a.position(q)).collect()).collect(),
+        marker_ids: (1..=markers.len()).collect(),
+        sigma: None,
+        orientations: None,
+        lines: (0..n).map(|k| k + 3).collect(),
+        ignored: Vec::new(),
+        joints,
+    }
+}
+
+/// Calibrates `nominal` on noise-free data of `truth` (which differs from it in its compliances,
+/// plays and `geometry`), every joint parameter with the compliances and plays, and checks
+/// that each load response estimated is the truth's, and that those of `expected` are.
+fn recovers(nominal: &RobotModel, truth: &RobotModel, expected: &[&str]) {
+    let true_markers =
+        [Vector3::new(40.0, 0.0, 25.0), Vector3::new(-20.0, 35.0, 25.0), Vector3::new(0.0, -30.0, 60.0)];
+    let data = measured(truth, &true_markers, 80, 7);
+    let options = Options {
+        estimator: Estimator::Ols,
+        noise: None,
+        joints: JointParams::Named(vec!["*.*".into()]),
+        estimate_base: true,
+        estimate_markers: true,
+        markers: true_markers.iter().map(|m| m + Vector3::new(0.3, -0.2, 0.1)).collect(),
+        refine: RefineOptions::default(),
+    };
+    let result = calibration::calibrate(nominal, &data, &options).unwrap();
+    assert!(result.refined.converged);
+    assert!(result.training.1.max < 1e-7, "training error {:e} mm", result.training.1.max);
+    let mut checked = Vec::new();
+    for name in &result.refined.estimate.names {
+        let i = result.params.index_by_name(name).unwrap();
+        let p = result.params.get(i);
+        let ParamOwner::Joint(j) = p.owner else { continue };
+        if !p.is_load_response() {
+            continue;
+        }
+        let (found, truth) = match p.kind {
+            robocal::model::ParamKind::Compliance => {
+                (result.calibrated.joints[j].compliance, truth.joints[j].compliance)
+            }
+            _ => (result.calibrated.joints[j].play, truth.joints[j].play),
+        };
+        let scale =
+            truth.abs().max(if p.kind == robocal::model::ParamKind::Compliance { 1e-6 } else { 1e-4 });
+        assert!((found - truth).abs() < 1e-5 * scale, "{name}: {found:e}, truth {truth:e}");
+        checked.push(name.clone());
+    }
+    for name in expected {
+        assert!(checked.iter().any(|c| c == name), "{name} not estimated: {checked:?}");
+    }
+}
+
+/// The PUMA 560 with link masses; its first axis is vertical: gravity never loads it.
+fn puma_with_masses() -> RobotModel {
+    let mut model = RobotModel::preset("puma560").unwrap();
+    let masses = [
+        (0.0, [0.0, 0.0, 0.0]),
+        (17.4, [68.0, 6.0, -16.0]),
+        (4.8, [0.0, -70.0, 14.0]),
+        (0.82, [0.0, 0.0, -19.0]),
+        (0.34, [0.0, 0.0, 0.0]),
+        (0.09, [0.0, 0.0, 32.0]),
+    ];
+    model.masses = masses.iter().map(|&(mass, c)| LinkMass { mass, com: Vector3::from(c) }).collect();
+    model
+}
+
+#[test]
+fn compliance_and_play_are_recovered_exactly_on_a_six_joint_arm() {
+    let nominal = puma_with_masses();
+    let mut truth = nominal.clone();
+    truth.joints[1].compliance = 5e-5;
+    truth.joints[2].compliance = 8e-5;
+    truth.joints[2].play = 0.02f64.to_radians();
+    truth.joints[4].compliance = 3e-4;
+    truth.joints[1].a += 0.4;
+    truth.joints[3].alpha += 0.03f64.to_radians();
+    recovers(&nominal, &truth, &["j2.compliance", "j3.compliance", "j3.play", "j5.compliance"]);
+}
+
+#[test]
+fn compliance_and_play_are_recovered_exactly_on_a_seven_joint_arm() {
+    let nominal =
+        robocal::io::load_model(&robocal::model::ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
+    let mut truth = nominal.clone();
+    truth.joints[1].compliance = 4e-5;
+    truth.joints[3].compliance = 6e-5;
+    truth.joints[5].compliance = 1.5e-4;
+    truth.joints[5].play = 0.03f64.to_radians();
+    truth.joints[2].origin.xyz.x += 0.3;
+    recovers(
+        &nominal,
+        &truth,
+        &["joint2.compliance", "joint4.compliance", "joint6.compliance", "joint6.play"],
+    );
+}
