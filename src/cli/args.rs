@@ -110,6 +110,14 @@ pub struct ModelArgs {
     pub model: String,
     #[command(flatten)]
     pub links: LinkArgs,
+    /// A payload the arm carries (kg), added to the last link's mass for the gravity loads on
+    /// the joints: the model's compliances and plays deflect under it too.
+    #[arg(long)]
+    pub payload_kg: Option<f64>,
+    /// The payload's centre of mass (mm) in the tip link's frame (the frame markers are given
+    /// in; default its origin).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, requires = "payload_kg")]
+    pub payload_com_mm: Option<Vec<f64>>,
 }
 
 /// Which chain of a URDF file: its first and last link.

@@ -13,7 +13,7 @@ use robocal::design::Criterion;
 use robocal::estimation::Estimator;
 use robocal::kinematics::Measured;
 use robocal::limits::{MAX_CANDIDATES, MAX_POINTS};
-use robocal::model::ModelRef;
+use robocal::model::{ModelRef, Payload};
 use robocal::table::Units;
 use std::path::{Path, PathBuf};
 
@@ -138,6 +138,7 @@ impl LinkArgs {
             name: name.into(),
             base_link: self.base_link.clone(),
             tip_link: self.tip_link.clone(),
+            payload: None,
         };
         require(
             model.is_urdf() || (model.base_link.is_none() && model.tip_link.is_none()),
@@ -148,9 +149,25 @@ impl LinkArgs {
 }
 
 impl ModelArgs {
-    /// The model, with links only for a URDF file.
+    /// The model, with links only for a URDF file, and the payload.
     pub fn model_ref(&self) -> Result<ModelRef, UsageError> {
-        self.links.model_ref(&self.model)
+        let payload = match (self.payload_kg, &self.payload_com_mm) {
+            (None, _) => None,
+            (Some(mass), com) => {
+                require(mass.is_finite() && mass >= 0.0, "--payload-kg is a mass in kg, at least 0")?;
+                let com = match com.as_deref() {
+                    None => [0.0; 3],
+                    Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => [x, y, z],
+                    Some(_) => {
+                        return Err(UsageError(
+                            "--payload-com-mm takes three finite numbers: X,Y,Z in mm".into(),
+                        ));
+                    }
+                };
+                Some(Payload { mass, com: com.into() })
+            }
+        };
+        Ok(ModelRef { payload, ..self.links.model_ref(&self.model)? })
     }
 }
 
@@ -277,8 +294,12 @@ impl EvaluateRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: EvaluateArgs) -> Result<Self, UsageError> {
         // A calibrated URDF: the chain from its measuring frame to its tool, by default.
-        let links =
-            ModelRef { name: args.model, base_link: Some(args.base_link), tip_link: Some(args.tip_link) };
+        let links = ModelRef {
+            name: args.model,
+            base_link: Some(args.base_link),
+            tip_link: Some(args.tip_link),
+            payload: None,
+        };
         let model = if links.is_urdf() { links } else { ModelRef::named(links.name) };
         let noise = noise_source(args.noise, &args.noise_flags)?;
         let mut inputs = vec![("--model", Path::new(&model.name))];

@@ -318,8 +318,17 @@ pub fn load_noise(path: &Path, model: &RobotModel) -> Result<NoiseSpec, InputErr
 }
 
 /// A model by preset name (`puma560`), from a TOML file, or the chain of a URDF file
-/// ([`load_urdf`]).
+/// ([`load_urdf`]), carrying the reference's payload if it names one.
 pub fn load_model(model: &ModelRef) -> Result<RobotModel, InputError> {
+    let loaded = load_chain(model)?;
+    Ok(match &model.payload {
+        Some(payload) => loaded.with_payload(payload),
+        None => loaded,
+    })
+}
+
+/// The model `model` names, without its payload.
+fn load_chain(model: &ModelRef) -> Result<RobotModel, InputError> {
     let name_or_path = model.name.as_str();
     if let Some(model) = RobotModel::preset(name_or_path) {
         return Ok(model);

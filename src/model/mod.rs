@@ -173,6 +173,16 @@ pub struct LinkMass {
     pub com: Vector3<f64>,
 }
 
+/// A payload the arm carries (a workpiece, a tool not in the model): a mass at a point of the
+/// [marker frame](RobotModel::marker_frame), the tip link's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Payload {
+    /// Mass (kg).
+    pub mass: f64,
+    /// Centre of mass (mm) in the marker frame.
+    pub com: Vector3<f64>,
+}
+
 /// A serial robot: base placement, joints, tool.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RobotModel {
@@ -250,6 +260,26 @@ impl RobotModel {
         }
     }
 
+    /// The model carrying `payload`: the last link's mass `m` at `c` becomes `m + m_p` at
+    /// `(m c + m_p T c_p) / (m + m_p)`, with `T` the [marker frame](RobotModel::marker_frame) in
+    /// the last joint's frame. A model without masses gets massless links and the payload, so
+    /// that its joints carry the payload's load alone.
+    pub fn with_payload(&self, payload: &Payload) -> RobotModel {
+        let mut out = self.clone();
+        if out.masses.is_empty() {
+            out.masses = vec![LinkMass { mass: 0.0, com: Vector3::zeros() }; out.joints.len()];
+        }
+        let com = self.marker_frame().isometry() * nalgebra::Point3::from(payload.com);
+        if let Some(last) = out.masses.last_mut() {
+            let total = last.mass + payload.mass;
+            if total > 0.0 {
+                last.com = (last.com * last.mass + com.coords * payload.mass) / total;
+            }
+            last.mass = total;
+        }
+        out
+    }
+
     /// The tool point in the [marker frame](RobotModel::marker_frame): the tool point of a
     /// point tool, the origin of a tool frame.
     pub fn tool_point_in_marker_frame(&self) -> Vector3<f64> {
@@ -269,7 +299,7 @@ impl RobotModel {
 /// A robot model as a user names it: a preset name, a model TOML file, or a URDF file (`.urdf`)
 /// with the links its chain runs between. The links default to the URDF's root link and its
 /// only leaf, so a serial arm needs neither; a tree (two arms, a head) needs the tip.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct ModelRef {
     /// The preset name or the file.
     pub name: String,
@@ -277,6 +307,8 @@ pub struct ModelRef {
     pub base_link: Option<String>,
     /// URDF: the link the chain ends at (default: the only leaf link).
     pub tip_link: Option<String>,
+    /// A payload the arm carries, added to the model's masses ([`RobotModel::with_payload`]).
+    pub payload: Option<Payload>,
 }
 
 impl ModelRef {

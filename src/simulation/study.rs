@@ -251,8 +251,12 @@ impl Study {
         load_robot: impl FnOnce(&ModelRef) -> Result<RobotModel, E>,
     ) -> Result<Self, StudyError> {
         let file: StudyFile = toml::from_str(text).map_err(StudyError::Syntax)?;
-        let reference =
-            ModelRef { name: file.robot.clone(), base_link: file.base_link, tip_link: file.tip_link };
+        let reference = ModelRef {
+            name: file.robot.clone(),
+            base_link: file.base_link,
+            tip_link: file.tip_link,
+            payload: None,
+        };
         if !reference.is_urdf() && (reference.base_link.is_some() || reference.tip_link.is_some()) {
             let expected = "only with a URDF robot (a `.urdf` file)";
             return Err(FieldError::new(

@@ -115,3 +115,68 @@ fn compliance_and_play_are_recovered_exactly_on_a_seven_joint_arm() {
         &["joint2.compliance", "joint4.compliance", "joint6.compliance", "joint6.play"],
     );
 }
+
+/// A payload joins the last link's mass: on a pendulum (a revolute joint about y carrying 1 kg
+/// at 1 m), 2 kg at 0.5 m in the tip frame adds 2 x 0.5 x g N·m; a model without masses
+/// carries the payload alone, and then has compliances.
+#[test]
+fn a_payload_adds_its_weight_to_the_joint_loads() {
+    use robocal::model::{Convention, Joint, JointKind, Payload, Placement, Tool};
+    let joint = Joint::urdf("j1", JointKind::Revolute, Placement::default(), Vector3::y(), [-3.0, 3.0]);
+    let tip = Placement { xyz: Vector3::new(200.0, 0.0, 0.0), rpy: Vector3::zeros() };
+    let pendulum = RobotModel {
+        name: "pendulum".into(),
+        description: String::new(),
+        convention: Convention::Urdf,
+        base: Placement::default(),
+        joints: vec![joint],
+        tool: Tool::Frame(tip),
+        masses: vec![LinkMass { mass: 1.0, com: Vector3::new(1000.0, 0.0, 0.0) }],
+        gravity: RobotModel::floor_gravity(),
+    };
+    let torque = |model: &RobotModel| {
+        let chain = Chain::new(model);
+        let mut tau = [0.0];
+        chain.with_errors(&vec![0.0; chain.params().len()]).gravity_torques(&[0.0], &mut tau);
+        tau[0]
+    };
+    // 300 mm past the tip frame, which is 200 mm past the joint: 0.5 m.
+    let payload = Payload { mass: 2.0, com: Vector3::new(300.0, 0.0, 0.0) };
+    let loaded = pendulum.with_payload(&payload);
+    assert!((torque(&loaded) - 9.80665 * (1.0 + 2.0 * 0.5)).abs() < 1e-12, "{}", torque(&loaded));
+    let massless = RobotModel { masses: Vec::new(), ..pendulum.clone() };
+    assert!(massless.params().index_by_name("j1.compliance").is_none());
+    let carried = massless.with_payload(&payload);
+    assert!((torque(&carried) - 9.80665).abs() < 1e-12);
+    assert!(carried.params().index_by_name("j1.compliance").is_some());
+}
+
+/// `fk --payload-kg` deflects a compliant model's joints under the payload; a rigid model does
+/// not move, and a centre of mass without a mass is a usage error.
+#[test]
+fn fk_applies_a_payload_to_a_compliant_model() {
+    let mut model = puma_with_masses();
+    model.joints[1].compliance = 1e-4;
+    let dir = std::env::temp_dir().join(format!("robocal-payload-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("compliant.toml");
+    std::fs::write(&path, model.to_toml_string()).unwrap();
+    let fk = |model: &str, payload: &[&str]| {
+        let mut args = vec!["fk", "--model", model, "--q", "0,10,-90,0,0,0"];
+        args.extend(payload);
+        let output = assert_cmd::Command::cargo_bin("robocal").unwrap().args(&args).output().unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        String::from_utf8(output.stdout).unwrap()
+    };
+    let path = path.to_str().unwrap();
+    let payload = ["--payload-kg", "5", "--payload-com-mm", "0,0,50"];
+    assert_ne!(fk(path, &[]), fk(path, &payload));
+    assert_eq!(fk("puma560", &[]), fk("puma560", &payload));
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["fk", "--model", "puma560", "--q", "0,0,0,0,0,0", "--payload-com-mm", "0,0,50"])
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(2));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

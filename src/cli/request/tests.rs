@@ -171,7 +171,8 @@ fn links_choose_a_chain_of_a_urdf_model_only() {
     let message = refused(calibrate_model("puma560", &["--base-link", "base"]));
     assert_eq!(message, "--base-link and --tip-link choose a chain of a URDF file (`.urdf`)");
     let request = calibrate_model("arm.urdf", &["--tip-link", "flange"]).unwrap();
-    let chain = ModelRef { name: "arm.urdf".into(), base_link: None, tip_link: Some("flange".into()) };
+    let chain =
+        ModelRef { name: "arm.urdf".into(), base_link: None, tip_link: Some("flange".into()), payload: None };
     assert_eq!(request.model, chain, "the base link defaults to the root, found when the file is read");
     let full = ["--base-link", "base", "--tip-link", "flange", "--out-urdf", "c.urdf"];
     let request = calibrate_model("arm.urdf", &full).unwrap();
