@@ -221,11 +221,6 @@ fn write(
     if let Some(path) = &request.out_model {
         outputs.add(path, robocal::model::to_toml_with_markers(&result.calibrated, &markers));
     }
-    if request.out_urdf.is_some() && result.calibrated.joints.iter().any(|j| j.compliance != 0.0) {
-        eprintln!(
-            "note: URDF has no field for a joint's compliance: --out-urdf leaves them out (--out-model keeps them)"
-        );
-    }
     if let (Some(path), Some(urdf)) = (&request.out_urdf, &robot.urdf) {
         let text =
             robocal::model::to_urdf_string(&urdf.text, &urdf.base_link, &urdf.tip_link, &result.calibrated)?;

@@ -22,6 +22,7 @@ mod problem;
 mod refine;
 mod solve;
 mod variance;
+pub(crate) use variance::Z_95;
 
 pub use device::{Device, DeviceError};
 pub use noise::{MeasurementNoise, NoiseModel};

@@ -229,7 +229,16 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
                 ));
             }
         };
-        model_joints.push(Joint::urdf(name, kind, Placement::from_isometry(&here), axis.normalize(), limits));
+        let mut model_joint =
+            Joint::urdf(name, kind, Placement::from_isometry(&here), axis.normalize(), limits);
+        if let Some(node) = joint.children().find(|c| c.has_tag_name(DEFLECTION)) {
+            // SI as URDF: rad/(N·m) or m/N, rad or m.
+            let per_mm = if kind == JointKind::Prismatic { 1000.0 } else { 1.0 };
+            let at = format!("{field}.{DEFLECTION}");
+            model_joint.compliance = numbers(node, "compliance", [0.0], &at)?[0] * per_mm;
+            model_joint.play = numbers(node, "play", [0.0], &at)?[0] * per_mm;
+        }
+        model_joints.push(model_joint);
         masses.push(carried_mass(robot, &link_of(&joint, "child"))?);
     }
     if model_joints.is_empty() {
@@ -253,9 +262,16 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
     super::RobotModel::from_toml_str(&model.to_toml_string())
 }
 
+/// robocal's extension element of a URDF joint, which URDF has no field for: the joint's
+/// compliance and play (see [`crate::model::Joint`]) in SI units as the rest of the file,
+/// `<robocal_deflection compliance="4e-05" play="0.0005"/>` (rad/(N·m) and rad for a revolute
+/// joint, m/N and m for a prismatic one). URDF readers ignore elements they do not know.
+pub const DEFLECTION: &str = "robocal_deflection";
+
 /// `original` (the URDF the model was read from, chain `base_link` to `tip_link`) with the
 /// origins of its moving joints replaced by `calibrated`'s (a URDF model carries its offsets
-/// in its origins, as URDF has no offset field). The calibrated base
+/// in its origins, as URDF has no offset field), and their compliance and play in a
+/// [`DEFLECTION`] element where either is not zero. The calibrated base
 /// becomes a fixed joint from a new link `measuring_frame`, and the tool (in the last moving
 /// joint's frame, as markers are) a fixed joint to a new link `tool` on that joint's child
 /// link. Everything else is kept as written.
@@ -282,7 +298,18 @@ pub fn to_urdf_string(
         let new_origin = fixed_before.inverse() * j.origin.isometry();
         fixed_before = Isometry3::identity();
         last_moving_link = link_of(&joint, "child");
-        let element = origin_element(&new_origin);
+        let mut element = origin_element(&new_origin);
+        if let Some(old) = joint.children().find(|c| c.has_tag_name(DEFLECTION)) {
+            edits.push((old.range(), String::new()));
+        }
+        if j.compliance != 0.0 || j.play != 0.0 {
+            let per_m = if j.kind == JointKind::Prismatic { 1e-3 } else { 1.0 };
+            element += &format!(
+                "\n    <{DEFLECTION} compliance=\"{:?}\" play=\"{:?}\"/>",
+                j.compliance * per_m,
+                j.play * per_m
+            );
+        }
         match joint.children().find(|c| c.has_tag_name("origin")) {
             Some(node) => edits.push((node.range(), element)),
             None => {

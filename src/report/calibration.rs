@@ -58,6 +58,43 @@ pub struct CalibrationReport {
     /// The noise estimated by feasible GLS, with 95% intervals.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<Vec<NoiseRow>>,
+    /// Each estimated compliance as a stiffness.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub stiffness: Vec<StiffnessRow>,
+}
+
+/// A joint's estimated compliance `c` as a stiffness `k = 1 / c`, with the 95% interval
+/// `1 / (c ± 1.96 SE)` (open above when `c - 1.96 SE <= 0`: the data do not bound the stiffness).
+#[derive(Debug, Clone, Serialize)]
+pub struct StiffnessRow {
+    /// The compliance parameter (`joint2.compliance`).
+    pub name: String,
+    /// `1 / c`: N·m/rad for a revolute joint, N/mm for a prismatic one.
+    pub stiffness: f64,
+    /// Lower end of the 95% interval: `1 / (c + 1.96 SE)`.
+    pub low: f64,
+    /// Upper end of the 95% interval, `1 / (c - 1.96 SE)`; `None` when unbounded.
+    pub high: Option<f64>,
+    /// `N·m/rad` or `N/mm`.
+    pub unit: &'static str,
+}
+
+/// The stiffness rows of the estimated compliances among `rows` (their values and standard
+/// errors, in rad/N·m or mm/N).
+fn stiffness_rows(rows: &[ParameterRow]) -> Vec<StiffnessRow> {
+    rows.iter()
+        .filter(|p| p.name.ends_with(".compliance"))
+        .map(|p| {
+            let (c, margin) = (p.value, crate::estimation::Z_95 * p.std_error);
+            StiffnessRow {
+                name: p.name.clone(),
+                stiffness: 1.0 / c,
+                low: 1.0 / (c + margin),
+                high: (c - margin > 0.0).then(|| 1.0 / (c - margin)),
+                unit: if p.unit == "mm/N" { "N/mm" } else { "N·m/rad" },
+            }
+        })
+        .collect()
 }
 
 /// Which weighting each number of a report uses.
@@ -165,7 +202,7 @@ impl CalibrationReport {
         folds: Option<(String, ErrorStats, ErrorStats)>,
     ) -> Self {
         let se = standard_errors(c);
-        let parameters = c
+        let parameters: Vec<ParameterRow> = c
             .refined
             .estimate
             .names
@@ -221,7 +258,7 @@ impl CalibrationReport {
                 base.rpy.y.to_degrees(),
                 base.rpy.z.to_degrees(),
             ],
-            parameters,
+            parameters: parameters.clone(),
             rank: d.rank,
             condition_number: d.condition_number,
             fixed: c.fixed.iter().map(|f| by_number(f, &c.marker_ids)).collect(),
@@ -231,6 +268,7 @@ impl CalibrationReport {
             held_out: pooled,
             warnings: c.warnings.clone(),
             noise: c.noise_estimate.as_ref().map(|e| noise_rows(&c.registered.joints, e)),
+            stiffness: stiffness_rows(&parameters),
         }
     }
 
@@ -294,6 +332,21 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
                 let _ = writeln!(out, "{:<14} {:>12.4e} {:>12.4e}  {}", p.name, p.value, p.std_error, p.unit);
             } else {
                 let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
+            }
+        }
+        if !self.stiffness.is_empty() {
+            let _ = writeln!(
+                out,
+                "\n{:<18} {:>12} {:>12} {:>12}  unit (1 / compliance; 95% interval)",
+                "stiffness", "estimate", "low", "high"
+            );
+            for r in &self.stiffness {
+                let high = r.high.map_or("unbounded".to_string(), |h| format!("{h:.4e}"));
+                let _ = writeln!(
+                    out,
+                    "{:<18} {:>12.4e} {:>12.4e} {:>12}  {}",
+                    r.name, r.stiffness, r.low, high, r.unit
+                );
             }
         }
         if self.parameters.is_empty() {

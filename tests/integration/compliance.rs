@@ -180,3 +180,29 @@ fn fk_applies_a_payload_to_a_compliant_model() {
     assert_eq!(output.status.code(), Some(2));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// URDF has no field for a joint's compliance or play: `to_urdf_string` writes them in
+/// robocal's extension element, which the reader takes back (and a second write replaces).
+#[test]
+fn compliance_and_play_survive_a_urdf_round_trip() {
+    use robocal::model::{DEFLECTION, JointKind, from_urdf_str, to_urdf_string};
+    let text = std::fs::read_to_string("examples/arm7/arm7.urdf").unwrap();
+    let (base, tip) = robocal::model::chain_links(&text, None, None).unwrap();
+    let nominal = from_urdf_str(&text, &base, &tip).unwrap();
+    let mut calibrated = nominal.clone();
+    calibrated.joints[1].compliance = 4.25e-5;
+    calibrated.joints[5].play = 0.03f64.to_radians();
+    let prismatic = calibrated.joints.iter().position(|j| j.kind == JointKind::Prismatic);
+    if let Some(k) = prismatic {
+        calibrated.joints[k].compliance = 2e-3;
+    }
+    let written = to_urdf_string(&text, &base, &tip, &calibrated).unwrap();
+    assert_eq!(written.matches(DEFLECTION).count(), 2 + usize::from(prismatic.is_some()));
+    let again = to_urdf_string(&written, &base, &tip, &calibrated).unwrap();
+    assert_eq!(again.matches(DEFLECTION).count(), written.matches(DEFLECTION).count());
+    let read = from_urdf_str(&again, &base, &tip).unwrap();
+    for (r, c) in read.joints.iter().zip(&calibrated.joints) {
+        assert!((r.compliance - c.compliance).abs() <= 1e-15 * c.compliance.abs(), "{}", r.name);
+        assert!((r.play - c.play).abs() <= 1e-12 * c.play.abs().max(1e-12), "{}", r.name);
+    }
+}
