@@ -443,7 +443,7 @@ pub fn calibrate(
     }
     // A compliance or play whose joint gravity does not load at these poses (a vertical axis)
     // has no column: it is held, and said so.
-    let (asked, unloaded) = without_unloaded_responses(&asked, &params, &chains, &before, data);
+    let (asked, unloaded) = without_unloaded_responses(&asked, &chains[0], &before, &data.joints);
     // The identifiable subset starts from the system that found it.
     let problem = base_problem.reselect(&asked, before.clone())?;
     let at_before = linearise(&problem, &weights, problem.start())?;
@@ -548,16 +548,16 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
     })
 }
 
-/// `asked` without the compliances and plays of joints that gravity does not load at `data`'s
-/// poses (every load below 1e-9 of the largest: a vertical axis, a joint carrying no mass), and
-/// why each of those is held.
-fn without_unloaded_responses(
+/// `asked` without the compliances and plays of joints that gravity does not load at the poses
+/// `joints` (every load below 1e-9 of the largest: a vertical axis, a joint carrying no mass)
+/// on `chain` with errors `x`, and why each of those is held.
+pub(crate) fn without_unloaded_responses(
     asked: &Selection,
-    params: &ParamSet,
-    chains: &[Chain],
+    chain: &Chain,
     x: &[f64],
-    data: &Measurements,
+    joints: &[Vec<f64>],
 ) -> (Selection, Vec<String>) {
+    let params = chain.params();
     let responses: Vec<(usize, usize)> = (asked.indices().iter())
         .filter_map(|&i| match params.get(i).owner {
             ParamOwner::Joint(j) if params.get(i).is_load_response() => Some((i, j)),
@@ -567,11 +567,11 @@ fn without_unloaded_responses(
     if responses.is_empty() {
         return (asked.clone(), Vec::new());
     }
-    let at = chains[0].with_errors(x);
-    let dof = chains[0].dof();
+    let at = chain.with_errors(x);
+    let dof = chain.dof();
     let mut largest = vec![0.0f64; dof];
     let mut tau = vec![0.0; dof];
-    for q in &data.joints {
+    for q in joints {
         at.gravity_torques(q, &mut tau);
         largest.iter_mut().zip(&tau).for_each(|(m, t)| *m = m.max(t.abs()));
     }

@@ -326,4 +326,7 @@ impl ModelRef {
 }
 
 /// The models embedded in robocal: `(name, TOML text)`.
-pub const PRESETS: &[(&str, &str)] = &[("puma560", include_str!("../../presets/puma560.toml"))];
+pub const PRESETS: &[(&str, &str)] = &[
+    ("puma560", include_str!("../../presets/puma560.toml")),
+    ("puma560-masses", include_str!("../../presets/puma560-masses.toml")),
+];

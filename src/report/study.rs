@@ -150,7 +150,7 @@ pub fn planned_against_random(study: &Study, results: &StudyResults) -> Option<S
                 "{:>5} {:>9.3} {:>9} {:>10.5} {:>10.5} | {:>6.2} {:>7} {:>6.2} {:>7.1} {:>7.1} {:>6.1} {:>11}",
                 case.points,
                 case.sigma_me,
-                estimator.name(),
+                estimator.to_string(),
                 results.mean_error(r, e),
                 results.mean_error(p, e),
                 s.mean,

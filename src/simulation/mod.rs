@@ -5,12 +5,16 @@
 //!    planned from a pool that starts with them: [`PoseChoice`]);
 //!
 //! and for each run on that set:
-//! 2. a "real" robot: the nominal parameters plus geometric errors;
+//! 2. a "real" robot: the nominal parameters plus geometric errors (and, beyond the paper,
+//!    the joints' compliances and plays of the study's `[truth]`, which no geometric
+//!    parameter expresses);
 //! 3. its forward kinematics at `q + n_q`, the joint noise drawn anew at every point;
 //! 4. plus measurement noise `n_m`: the measured positions (or poses);
 //! 5. pose errors: measured minus the nominal forward kinematics at the commanded `q`;
 //! 6. `y` and `H` (at the nominal parameters; `H` and `V` are the set's, factored once);
-//! 7. the estimate of every compared estimator from the same `y` (common random numbers);
+//! 7. the estimate of every compared calibration from the same `y` (common random numbers):
+//!    each an estimator, identifying the study's parameters and, as asked
+//!    (`wls+compliance`), the joints' compliances and plays;
 //! 8. each estimated model's position error against the real robot's noise-free kinematics
 //!    over a test set of configurations separate from the measurement points: `E_p`.
 //!
@@ -35,7 +39,9 @@ pub use stats::{
     Spread, Summary, Z_975, clustered_half_width, effective_sample_size, mean, percentile, percentile_rank,
     t_quantile_975, variance, wilson_interval,
 };
-pub use study::{Case, ErrorSizes, PoseChoice, Redraw, Reference, STUDIES, Study, StudyError};
+pub use study::{
+    Case, Compared, ErrorSizes, PoseChoice, Redraw, Reference, STUDIES, Study, StudyError, TrueLoads,
+};
 pub use synthetic::measurement_csv;
 
 use crate::design::{Criterion, Design, DesignError};
@@ -175,6 +181,11 @@ struct Bench<'a> {
     study: &'a Study,
     chain: Chain,
     nominal: ChainAt,
+    /// The real robot before its geometric errors (with the true compliances and plays),
+    /// indexed as `chain`.
+    real: Chain,
+    /// The parameters each compared calibration identifies.
+    selections: Vec<crate::model::Selection>,
     test: Vec<Vec<f64>>,
 }
 
@@ -203,7 +214,16 @@ pub fn run(study: &Study, progress: &(dyn Fn() + Sync)) -> Result<StudyResults, 
     let chain = Chain::new(&study.robot);
     let nominal = chain.with_errors(&vec![0.0; chain.params().len()]);
     let test = study.robot.uniform_configurations(study.test_points, &mut rng(study.seed, TEST_STREAM));
-    let bench = Bench { study, chain, nominal, test };
+    let real = Chain::new(&study.real_robot());
+    // A compliance or play of a joint gravity does not load (a vertical axis) has no column.
+    let zero = vec![0.0; chain.params().len()];
+    let selections = (study.estimators.iter())
+        .map(|c| {
+            let asked = c.selection(&study.robot, &study.selection);
+            crate::calibration::without_unloaded_responses(&asked, &chain, &zero, &test).0
+        })
+        .collect();
+    let bench = Bench { study, chain, nominal, real, selections, test };
 
     let sets: Vec<(usize, usize)> =
         (0..study.cases.len()).flat_map(|c| (0..study.point_sets).map(move |s| (c, s))).collect();
@@ -259,27 +279,30 @@ impl Bench<'_> {
             noise.measurement = MeasurementNoise::PerPoint(blocks);
         }
         let zero = vec![0.0; self.chain.params().len()];
-        let problem = PointProblem::new(
-            std::slice::from_ref(&self.chain),
-            &study.selection,
-            study.measured,
-            joints.clone(),
-            nominal.clone(),
-            zero,
-            Some(&noise),
-        )?;
-        let system = problem.system(&problem.start());
         let mut prepared = Vec::new();
-        if study.iterations == 1 {
-            for &estimator in &study.estimators {
+        let mut rank = None;
+        for (compared, selection) in study.estimators.iter().zip(&self.selections) {
+            let problem = PointProblem::new(
+                std::slice::from_ref(&self.chain),
+                selection,
+                study.measured,
+                joints.clone(),
+                nominal.clone(),
+                zero.clone(),
+                Some(&noise),
+            )?;
+            let system = problem.system(&problem.start());
+            if study.iterations == 1 {
                 let rows = system.rows_per_point;
-                prepared.push(Prepared::new(&system.h, system.v.as_ref(), rows, estimator, RANK_TOLERANCE)?);
+                let one =
+                    Prepared::new(&system.h, system.v.as_ref(), rows, compared.estimator, RANK_TOLERANCE)?;
+                rank = rank.or(Some(one.diagnostics().rank));
+                prepared.push(one);
+            } else if rank.is_none() {
+                rank = Some(crate::estimation::diagnose(&system, compared.estimator, RANK_TOLERANCE)?.rank);
             }
         }
-        let rank = match prepared.first() {
-            Some(p) => p.diagnostics().rank,
-            None => crate::estimation::diagnose(&system, study.estimators[0], RANK_TOLERANCE)?.rank,
-        };
+        let rank = rank.unwrap_or(0);
         Ok(PointSet { case, set, joints, nominal, noise, prepared, errors, rank, factors })
     }
 
@@ -311,7 +334,8 @@ impl Bench<'_> {
         let sizes = &self.study.errors;
         let params = self.chain.params();
         let mut x = vec![0.0; params.len()];
-        for &i in self.study.selection.indices() {
+        // The load responses of the real robot are the study's `truth`, not drawn.
+        for &i in self.study.selection.indices().iter().filter(|&&i| !params.get(i).is_load_response()) {
             let p = params.get(i);
             let size = match p.kind {
                 ParamKind::Theta if p.is_offset => sizes.offset,
@@ -332,7 +356,7 @@ impl Bench<'_> {
             Some(errors) => errors.clone(),
             None => self.draw_errors(&mut rng),
         };
-        let real = self.chain.with_errors(&truth);
+        let real = self.real.with_errors(&truth);
         let rows = study.measured.rows();
         let mut y = DVector::zeros(points * rows);
         let mut observed = Vec::with_capacity(points);
@@ -352,14 +376,14 @@ impl Bench<'_> {
         }
         let truth_at_test: Vec<Isometry3<f64>> = self.test.iter().map(|q| real.pose(q)).collect();
         let mut accuracy = Vec::with_capacity(study.estimators.len());
-        for (e, &estimator) in study.estimators.iter().enumerate() {
+        for (e, (compared, selection)) in study.estimators.iter().zip(&self.selections).enumerate() {
             let estimate = match set.prepared.get(e) {
                 Some(prepared) => prepared.estimate(&y),
                 None => {
                     let zero = vec![0.0; self.chain.params().len()];
                     let problem = PointProblem::new(
                         std::slice::from_ref(&self.chain),
-                        &study.selection,
+                        selection,
                         study.measured,
                         set.joints.clone(),
                         observed.clone(),
@@ -368,11 +392,11 @@ impl Bench<'_> {
                     )?;
                     let options =
                         RefineOptions { max_iterations: study.iterations, ..RefineOptions::default() };
-                    refine(&problem, estimator, problem.start(), &options)?.estimate.x
+                    refine(&problem, compared.estimator, problem.start(), &options)?.estimate.x
                 }
             };
             let mut full = vec![0.0; self.chain.params().len()];
-            for (&i, &v) in study.selection.indices().iter().zip(estimate.iter()) {
+            for (&i, &v) in selection.indices().iter().zip(estimate.iter()) {
                 full[i] = v;
             }
             accuracy.push(self.accuracy(&self.chain.with_errors(&full), &truth_at_test));

@@ -8,7 +8,7 @@ use crate::limits::{
     MAX_ANGLE_DEG, MAX_CANDIDATES, MAX_CASES, MAX_ITERATIONS, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS,
     MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS, check_magnitude,
 };
-use crate::model::{JointKind, ModelRef, RobotModel, Selection, SelectionError, degrees};
+use crate::model::{JointKind, ModelRef, ParamKind, Payload, RobotModel, Selection, SelectionError, degrees};
 use serde::Deserialize;
 
 /// Why a study file could not be used.
@@ -87,6 +87,83 @@ impl PoseChoice {
     }
 }
 
+/// One calibration a study compares: an estimator identifying the study's parameters and,
+/// beyond the paper, the joints' responses to their gravity load: `wls+compliance` adds every
+/// joint's compliance (`<joint>.compliance`), `+play` every joint's play, so that a study can
+/// show what modelling them gains over the geometric model on the same runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Compared {
+    /// The estimator.
+    pub estimator: Estimator,
+    /// Whether the compliances are identified too.
+    pub compliance: bool,
+    /// Whether the plays are identified too.
+    pub play: bool,
+}
+
+impl From<Estimator> for Compared {
+    fn from(estimator: Estimator) -> Self {
+        Self { estimator, compliance: false, play: false }
+    }
+}
+
+impl std::fmt::Display for Compared {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.estimator.name())?;
+        if self.compliance {
+            f.write_str("+compliance")?;
+        }
+        if self.play {
+            f.write_str("+play")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::str::FromStr for Compared {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let mut parts = s.split('+');
+        let mut compared = Compared::from(parts.next().unwrap_or_default().parse::<Estimator>()?);
+        for part in parts {
+            match part {
+                "compliance" if !compared.compliance => compared.compliance = true,
+                "play" if !compared.play => compared.play = true,
+                other => {
+                    return Err(format!(
+                        "`{s}`: after the estimator, `+compliance` and `+play` (each once), found `+{other}`"
+                    ));
+                }
+            }
+        }
+        Ok(compared)
+    }
+}
+
+impl Compared {
+    /// The parameters this calibration identifies: the study's `selection` and, as asked, the
+    /// compliances and plays of `robot` (a model with masses has them).
+    pub fn selection(&self, robot: &RobotModel, selection: &Selection) -> Selection {
+        let params = robot.params();
+        let extra = (0..params.len()).filter(|&i| match params.get(i).kind {
+            ParamKind::Compliance => self.compliance,
+            ParamKind::Play => self.play,
+            _ => false,
+        });
+        Selection::from_indices(&params, selection.indices().iter().copied().chain(extra))
+    }
+}
+
+/// The real robot's responses to its gravity load, beyond its geometric errors: what a
+/// geometric calibration cannot express.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TrueLoads {
+    /// Each joint's compliance (rad/N·m; mm/N for a prismatic joint).
+    pub compliance: Vec<f64>,
+    /// Each joint's play (rad; mm for a prismatic joint).
+    pub play: Vec<f64>,
+}
+
 /// A published result to print beside ours: one row of the paper's tables.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -139,8 +216,11 @@ pub struct Study {
     pub runs_per_set: usize,
     /// Configurations in the test set that measures the calibrated accuracy.
     pub test_points: usize,
-    /// The estimators compared; the first is the baseline of dE.
-    pub estimators: Vec<Estimator>,
+    /// The calibrations compared; the first is the baseline of dE.
+    pub estimators: Vec<Compared>,
+    /// The real robot's compliances and plays (zero: a rigid robot, the paper's). A payload
+    /// (`[truth] payload_kg`) is part of [`Study::robot`]'s masses: known to the calibration.
+    pub truth: TrueLoads,
     /// Linear steps per estimate: 1 is the paper's one-step estimate.
     pub iterations: usize,
     /// Master seed of every random stream.
@@ -176,6 +256,26 @@ struct StudyFile {
     reference: Vec<Reference>,
     #[serde(default)]
     design: Option<DesignFile>,
+    #[serde(default)]
+    truth: Option<TruthFile>,
+}
+
+/// `[truth]`: the real robot's responses to gravity, and the payload it carries.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TruthFile {
+    /// Compliance by joint name: rad/N·m (mm/N for a prismatic joint).
+    #[serde(default)]
+    compliance: std::collections::BTreeMap<String, f64>,
+    /// Play by joint name: degrees (mm for a prismatic joint).
+    #[serde(default)]
+    play: std::collections::BTreeMap<String, f64>,
+    /// The payload's mass (kg), known to the calibration.
+    #[serde(default)]
+    payload_kg: f64,
+    /// Its centre of mass in the tip frame (mm).
+    #[serde(default)]
+    payload_com_mm: [f64; 3],
 }
 
 /// `[design]`: the pose choices every case is run with.
@@ -266,6 +366,7 @@ impl Study {
             .into());
         }
         let robot = load_robot(&reference).map_err(|e| StudyError::Robot(e.into()))?;
+        let (robot, truth) = truth(robot, file.truth.as_ref())?;
         let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         let params = robot.params();
         let selection = match &file.parameters {
@@ -275,7 +376,7 @@ impl Study {
             Parameters::Named(name) => Selection::by_names(&params, &[name]).map_err(selection_error)?,
             Parameters::List(names) => Selection::by_names(&params, names).map_err(selection_error)?,
         };
-        let estimators: Vec<Estimator> = file
+        let estimators: Vec<Compared> = file
             .estimators
             .iter()
             .map(|e| e.parse())
@@ -342,6 +443,7 @@ impl Study {
             runs_per_set: file.runs_per_set,
             test_points: file.test_points,
             estimators,
+            truth,
             iterations: file.iterations,
             seed: file.seed,
             reference: file.reference,
@@ -370,6 +472,26 @@ impl Study {
                 "estimators",
                 "at least two, the first the baseline of dE (e.g. [\"ols\", \"wls\"])".into(),
             );
+        }
+        let masses = !self.robot.masses.is_empty();
+        if let Some(c) = self.estimators.iter().find(|c| (c.compliance || c.play) && !masses) {
+            return invalid(
+                "estimators",
+                format!(
+                    "a robot with masses for `{c}` (a model's [[links]], a URDF's <inertial>, or a payload)"
+                ),
+            );
+        }
+        let dof = self.robot.dof();
+        for (field, values) in
+            [("truth.compliance", &self.truth.compliance), ("truth.play", &self.truth.play)]
+        {
+            if !(values.is_empty() || values.len() == dof && values.iter().all(|v| v.is_finite())) {
+                return invalid(field, format!("a finite value per joint of {}", self.robot.name));
+            }
+            if values.iter().any(|&v| v != 0.0) && !masses {
+                return invalid(field, "a robot with masses, for gravity to load its joints".into());
+            }
         }
         if self.joint_sigmas.len() != self.robot.dof() {
             return invalid(
@@ -526,6 +648,17 @@ impl Study {
         Ok(())
     }
 
+    /// The real robot before its geometric errors: [`Study::robot`] with the true compliances
+    /// and plays.
+    pub fn real_robot(&self) -> RobotModel {
+        let mut real = self.robot.clone();
+        for (j, joint) in real.joints.iter_mut().enumerate() {
+            joint.compliance += self.truth.compliance.get(j).copied().unwrap_or(0.0);
+            joint.play += self.truth.play.get(j).copied().unwrap_or(0.0);
+        }
+        real
+    }
+
     /// The published row for `case`, if the study has one.
     pub fn reference_for(&self, case: &Case) -> Option<&Reference> {
         self.reference.iter().find(|r| r.points == case.points && r.sigma_me_mm == case.sigma_me)
@@ -569,6 +702,48 @@ fn pose_choices(design: Option<&DesignFile>, points: &[usize]) -> Result<Vec<Pos
     Ok(choices)
 }
 
+/// The robot carrying `[truth]`'s payload, and the true compliances and plays by joint.
+fn truth(robot: RobotModel, file: Option<&TruthFile>) -> Result<(RobotModel, TrueLoads), StudyError> {
+    let Some(file) = file else { return Ok((robot, TrueLoads::default())) };
+    let invalid = |field: String, expected: String| StudyError::from(FieldError::new(field, expected));
+    let by_joint = |field: &str, table: &std::collections::BTreeMap<String, f64>| {
+        let mut values = vec![0.0; robot.dof()];
+        for (name, &value) in table {
+            let Some(j) = robot.joints.iter().position(|j| &j.name == name) else {
+                let names: Vec<&str> = robot.joints.iter().map(|j| j.name.as_str()).collect();
+                return Err(invalid(
+                    format!("{field}.{name}"),
+                    format!("a joint of the robot: {}", names.join(", ")),
+                ));
+            };
+            if !value.is_finite() {
+                return Err(invalid(format!("{field}.{name}"), format!("a finite number, found {value}")));
+            }
+            values[j] = value;
+        }
+        Ok(values)
+    };
+    let compliance = by_joint("truth.compliance", &file.compliance)?;
+    let mut play = by_joint("truth.play", &file.play)?;
+    for (p, joint) in play.iter_mut().zip(&robot.joints) {
+        if joint.kind == JointKind::Revolute {
+            *p = p.to_radians();
+        }
+    }
+    if !(file.payload_kg.is_finite() && file.payload_kg >= 0.0) {
+        return Err(invalid("truth.payload_kg".into(), format!("a mass >= 0 kg, found {}", file.payload_kg)));
+    }
+    if file.payload_com_mm.iter().any(|v| !v.is_finite()) {
+        return Err(invalid("truth.payload_com_mm".into(), "finite numbers".into()));
+    }
+    let robot = if file.payload_kg > 0.0 {
+        robot.with_payload(&Payload { mass: file.payload_kg, com: file.payload_com_mm.into() })
+    } else {
+        robot
+    };
+    Ok((robot, TrueLoads { compliance, play }))
+}
+
 fn selection_error(e: SelectionError) -> StudyError {
     FieldError::new("parameters", e.to_string()).into()
 }
@@ -577,7 +752,9 @@ fn selection_error(e: SelectionError) -> StudyError {
 /// are the paper's two studies; `robocal reproduce` runs both. `device-cmm`,
 /// `device-laser-tracker` and `device-theodolites` test the paper's expectation that devices
 /// whose noise varies over the workspace profit more from weighting; `planned-poses` compares
-/// planned with random poses (beyond the paper).
+/// planned with random poses (beyond the paper); `compliance` shows what a geometric
+/// calibration misses on joints that deflect under gravity, and what identifying the
+/// compliances gains.
 pub const STUDIES: &[(&str, &str)] = &[
     ("paper-table1", include_str!("../../presets/paper-table1.toml")),
     ("paper-table2", include_str!("../../presets/paper-table2.toml")),
@@ -585,4 +762,5 @@ pub const STUDIES: &[(&str, &str)] = &[
     ("device-laser-tracker", include_str!("../../presets/device-laser-tracker.toml")),
     ("device-theodolites", include_str!("../../presets/device-theodolites.toml")),
     ("planned-poses", include_str!("../../presets/planned-poses.toml")),
+    ("compliance", include_str!("../../presets/compliance.toml")),
 ];

@@ -53,7 +53,7 @@ fn fk_rejects_a_non_number() {
 #[test]
 fn unknown_model_lists_the_presets() {
     let message = stderr_of(&["model", "show", "puma561"]);
-    assert!(message.contains("no model `puma561`: not a preset (puma560)"), "{message}");
+    assert!(message.contains("no model `puma561`: not a preset (puma560, puma560-masses)"), "{message}");
 }
 
 #[test]
