@@ -110,9 +110,16 @@ pub struct ModelArgs {
     pub model: String,
     #[command(flatten)]
     pub links: LinkArgs,
+    #[command(flatten)]
+    pub payload: PayloadArgs,
+}
+
+/// A payload the arm carries.
+#[derive(Args, Debug)]
+pub struct PayloadArgs {
     /// A payload the arm carries (kg), added to the last link's mass for the gravity loads on
     /// the joints: the model's compliances and plays deflect under it too.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub payload_kg: Option<f64>,
     /// The payload's centre of mass (mm) in the tip link's frame (the frame markers are given
     /// in; default its origin).
@@ -320,6 +327,8 @@ pub struct EvaluateArgs {
     /// URDF: the link the chain ends at (its markers are the `marker_<k>` links beside it).
     #[arg(long, default_value = "tool")]
     pub tip_link: String,
+    #[command(flatten)]
+    pub payload: PayloadArgs,
     /// Measurement files to score (CSV); repeatable, or several after one --data.
     #[arg(long, required = true, num_args = 1..)]
     pub data: Vec<PathBuf>,

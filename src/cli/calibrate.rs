@@ -17,8 +17,10 @@ use std::path::Path;
 
 /// The nominal robot, with the text and links of its URDF file to write it back.
 struct Robot {
-    /// The model.
+    /// The model, carrying the payload if one is given.
     model: RobotModel,
+    /// The model's own masses, without the payload: the calibrated model is written with them.
+    masses: Vec<robocal::model::LinkMass>,
     /// A URDF model's file, to write the calibrated URDF from.
     urdf: Option<UrdfChain>,
 }
@@ -60,15 +62,20 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     write(request, &robot, &report, &result, &text)
 }
 
-/// The model of a preset, a model file, or a URDF chain (for `evaluate`).
-/// Load the model: a preset, a model file, or a URDF chain.
+/// Load the model: a preset, a model file, or a URDF chain, with the payload if one is given.
 fn load_model(model: &ModelRef) -> Result<Robot> {
-    if model.is_urdf() {
+    let (own, urdf) = if model.is_urdf() {
         let chain =
             io::load_urdf(Path::new(&model.name), model.base_link.as_deref(), model.tip_link.as_deref())?;
-        return Ok(Robot { model: chain.model.clone(), urdf: Some(chain) });
-    }
-    Ok(Robot { model: io::load_model(model)?, urdf: None })
+        (chain.model.clone(), Some(chain))
+    } else {
+        (io::load_model(&ModelRef { payload: None, ..model.clone() })?, None)
+    };
+    let carrying = match &model.payload {
+        Some(payload) => own.with_payload(payload),
+        None => own.clone(),
+    };
+    Ok(Robot { model: carrying, masses: own.masses, urdf })
 }
 
 /// Load the measurements and the held-out files.
@@ -219,7 +226,9 @@ fn write(
     )?;
     let markers = result.marker_positions();
     if let Some(path) = &request.out_model {
-        outputs.add(path, robocal::model::to_toml_with_markers(&result.calibrated, &markers));
+        // The robot as it is, without the payload of this session.
+        let calibrated = RobotModel { masses: robot.masses.clone(), ..result.calibrated.clone() };
+        outputs.add(path, robocal::model::to_toml_with_markers(&calibrated, &markers));
     }
     if let (Some(path), Some(urdf)) = (&request.out_urdf, &robot.urdf) {
         let text =

@@ -4,8 +4,8 @@
 
 use super::args::{
     CalibrateArgs, DesignArgs, EstimatorName, EvaluateArgs, Excluded, JointUnit, LengthUnit, LinkArgs,
-    MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs,
-    ReportArgs, ToolBox, UnitArgs,
+    MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs, ParamsArg, PayloadArgs, PlanArgs,
+    RepeatabilityArgs, ReportArgs, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::JointParams;
@@ -151,23 +151,24 @@ impl LinkArgs {
 impl ModelArgs {
     /// The model, with links only for a URDF file, and the payload.
     pub fn model_ref(&self) -> Result<ModelRef, UsageError> {
-        let payload = match (self.payload_kg, &self.payload_com_mm) {
-            (None, _) => None,
-            (Some(mass), com) => {
-                require(mass.is_finite() && mass >= 0.0, "--payload-kg is a mass in kg, at least 0")?;
-                let com = match com.as_deref() {
-                    None => [0.0; 3],
-                    Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => [x, y, z],
-                    Some(_) => {
-                        return Err(UsageError(
-                            "--payload-com-mm takes three finite numbers: X,Y,Z in mm".into(),
-                        ));
-                    }
-                };
-                Some(Payload { mass, com: com.into() })
+        Ok(ModelRef { payload: self.payload.payload()?, ..self.links.model_ref(&self.model)? })
+    }
+}
+
+impl PayloadArgs {
+    /// The payload, if a mass is given: at least 0 kg, its centre of mass three finite numbers
+    /// (mm), the tip frame's origin by default.
+    pub fn payload(&self) -> Result<Option<Payload>, UsageError> {
+        let Some(mass) = self.payload_kg else { return Ok(None) };
+        require(mass.is_finite() && mass >= 0.0, "--payload-kg is a mass in kg, at least 0")?;
+        let com = match self.payload_com_mm.as_deref() {
+            None => [0.0; 3],
+            Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => [x, y, z],
+            Some(_) => {
+                return Err(UsageError("--payload-com-mm takes three finite numbers: X,Y,Z in mm".into()));
             }
         };
-        Ok(ModelRef { payload, ..self.links.model_ref(&self.model)? })
+        Ok(Some(Payload { mass, com: com.into() }))
     }
 }
 
@@ -298,9 +299,10 @@ impl EvaluateRequest {
             name: args.model,
             base_link: Some(args.base_link),
             tip_link: Some(args.tip_link),
-            payload: None,
+            payload: args.payload.payload()?,
         };
-        let model = if links.is_urdf() { links } else { ModelRef::named(links.name) };
+        let model =
+            if links.is_urdf() { links } else { ModelRef { base_link: None, tip_link: None, ..links } };
         let noise = noise_source(args.noise, &args.noise_flags)?;
         let mut inputs = vec![("--model", Path::new(&model.name))];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));

@@ -361,3 +361,20 @@ fn calibrate_takes_the_markers_to_fit_and_the_report_files() {
     assert_eq!(request.report.figures, Some(PathBuf::from("f")));
     assert_eq!(request.report.html, Some(PathBuf::from("r.html")));
 }
+
+#[test]
+fn a_payload_is_a_mass_at_a_point_of_the_tip_frame() {
+    let loaded = evaluate(&["--payload-kg", "2", "--payload-com-mm", "0,-10,50"]).unwrap();
+    let payload = loaded.model.payload.unwrap();
+    assert_eq!((payload.mass, payload.com), (2.0, nalgebra::Vector3::new(0.0, -10.0, 50.0)));
+    assert_eq!(
+        evaluate(&["--payload-kg", "1.5"]).unwrap().model.payload.unwrap().com,
+        nalgebra::Vector3::zeros()
+    );
+    assert!(evaluate(&["--payload-kg", "-1"]).unwrap_err().contains("--payload-kg is a mass in kg"));
+    assert!(
+        evaluate(&["--payload-kg", "1", "--payload-com-mm", "1,2"]).unwrap_err().contains("three finite")
+    );
+    assert!(evaluate(&["--payload-com-mm", "1,2,3"]).is_err());
+    assert_eq!(calibrate(&["--payload-kg", "3"]).unwrap().model.payload.map(|p| p.mass), Some(3.0));
+}
