@@ -564,7 +564,8 @@ pub(crate) fn without_unloaded_responses(
             _ => None,
         })
         .collect();
-    if responses.is_empty() {
+    let weighs = |i: usize| params.get(i).owner == ParamOwner::Payload;
+    if responses.is_empty() && !asked.indices().iter().any(|&i| weighs(i)) {
         return (asked.clone(), Vec::new());
     }
     let at = chain.with_errors(x);
@@ -578,8 +579,7 @@ pub(crate) fn without_unloaded_responses(
     let heaviest = largest.iter().copied().fold(0.0, f64::max);
     let unloaded: Vec<usize> =
         responses.iter().filter(|&&(_, j)| largest[j] <= 1e-9 * heaviest).map(|&(i, _)| i).collect();
-    let kept = asked.indices().iter().copied().filter(|i| !unloaded.contains(i));
-    let why = unloaded
+    let mut why: Vec<String> = unloaded
         .iter()
         .map(|&i| {
             format!(
@@ -588,6 +588,20 @@ pub(crate) fn without_unloaded_responses(
             )
         })
         .collect();
+    // The payload's mass moves the arm only through the compliances: with every one zero at
+    // `x`, its column vanishes.
+    let payload =
+        params.index_of(ParamOwner::Payload, ParamKind::Mass).filter(|&i| asked.column(i).is_some());
+    let mut held = unloaded;
+    if let Some(i) = payload.filter(|_| !at.deflects()) {
+        held.push(i);
+        why.push(format!(
+            "{}: the payload is seen only through the joints' compliances, all zero here: calibrate the \
+             compliances first (with a known payload or none), then its mass with the calibrated model",
+            params.get(i).name
+        ));
+    }
+    let kept = asked.indices().iter().copied().filter(|i| !held.contains(i));
     (Selection::from_indices(params, kept), why)
 }
 
@@ -597,11 +611,11 @@ pub(crate) fn without_unloaded_responses(
 /// its axis, the last joint's with the markers). Then class 1: the joint offsets, `a`, `alpha`
 /// and a URDF joint's origin, and the compliances; then class 2: Hayati's `beta` and the `d` of
 /// a revolute joint, which nearly parallel axes make redundant; last a joint's play, which is
-/// its offset wherever the load keeps one sign. Within a class the rank-revealing pivoting
+/// its offset wherever the load keeps one sign, and the payload's mass. Within a class the rank-revealing pivoting
 /// decides (the best conditioned choice), the same on every machine.
 fn gauge_class(p: &crate::model::ParamInfo) -> u32 {
     match (p.owner, p.kind) {
-        (ParamOwner::Joint(_), ParamKind::Play) => 3,
+        (ParamOwner::Joint(_), ParamKind::Play) | (ParamOwner::Payload, _) => 3,
         (ParamOwner::Joint(_), ParamKind::Beta) => 2,
         (ParamOwner::Joint(_), ParamKind::D) if !p.is_offset => 2,
         (ParamOwner::Joint(_), _) => 1,
@@ -917,6 +931,9 @@ fn fold(
         joint.a += value(owner, ParamKind::A);
         joint.alpha += value(owner, ParamKind::Alpha);
         joint.beta += value(owner, ParamKind::Beta);
+    }
+    if let Some(payload) = &mut out.payload {
+        payload.mass += value(ParamOwner::Payload, ParamKind::Mass);
     }
     out.base = Placement::from_isometry(&(model.base.isometry() * displacement(ParamOwner::Base)));
     let first = markers.first().copied().unwrap_or_else(Vector3::zeros);

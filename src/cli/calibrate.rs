@@ -19,8 +19,9 @@ use std::path::Path;
 struct Robot {
     /// The model, carrying the payload if one is given.
     model: RobotModel,
-    /// The model's own masses, without the payload: the calibrated model is written with them.
-    masses: Vec<robocal::model::LinkMass>,
+    /// The model's own payload (its file's), not this session's `--payload-kg`: the
+    /// calibrated model is written with it.
+    own_payload: Option<robocal::model::Payload>,
     /// A URDF model's file, to write the calibrated URDF from.
     urdf: Option<UrdfChain>,
 }
@@ -75,7 +76,7 @@ fn load_model(model: &ModelRef) -> Result<Robot> {
         Some(payload) => own.with_payload(payload),
         None => own.clone(),
     };
-    Ok(Robot { model: carrying, masses: own.masses, urdf })
+    Ok(Robot { model: carrying, own_payload: own.payload, urdf })
 }
 
 /// Load the measurements and the held-out files.
@@ -226,8 +227,10 @@ fn write(
     )?;
     let markers = result.marker_positions();
     if let Some(path) = &request.out_model {
-        // The robot as it is, without the payload of this session.
-        let calibrated = RobotModel { masses: robot.masses.clone(), ..result.calibrated.clone() };
+        // The robot as it is, without the payload of this session (with its estimated mass if
+        // the model file carries it).
+        let payload = if request.model.payload.is_some() { robot.own_payload } else { result.calibrated.payload };
+        let calibrated = RobotModel { payload, ..result.calibrated.clone() };
         outputs.add(path, robocal::model::to_toml_with_markers(&calibrated, &markers));
     }
     if let (Some(path), Some(urdf)) = (&request.out_urdf, &robot.urdf) {

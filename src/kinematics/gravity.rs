@@ -33,7 +33,11 @@ pub(super) struct LinkEnds {
 #[derive(Debug, Clone, PartialEq)]
 pub(super) struct Load {
     ends: LinkEnds,
+    /// One per joint (massless links when the model has only a payload); empty without masses.
     masses: Vec<LinkMass>,
+    /// The payload's mass (kg) and centre of mass in the last joint's frame (mm): carried by
+    /// the last link.
+    pub payload: Option<LinkMass>,
     /// m/s², in the robot's base frame.
     gravity: Vector3<f64>,
 }
@@ -41,12 +45,38 @@ pub(super) struct Load {
 impl Load {
     /// The load of `model`, whose steps end as `ends` says.
     pub fn new(ends: LinkEnds, model: &RobotModel) -> Self {
-        Self { ends, masses: model.masses.clone(), gravity: model.gravity }
+        let payload =
+            model.payload.map(|p| LinkMass { mass: p.mass, com: model.payload_com().unwrap_or_default() });
+        let masses = match (model.masses.is_empty(), payload) {
+            (true, Some(_)) => vec![LinkMass { mass: 0.0, com: Vector3::zeros() }; model.dof()],
+            _ => model.masses.clone(),
+        };
+        Self { ends, masses, payload, gravity: model.gravity }
     }
 
     /// Whether there are masses: without them every load is zero.
     pub fn has_masses(&self) -> bool {
         !self.masses.is_empty()
+    }
+
+    /// The load of one kilogram at the payload's centre of mass alone (the links massless):
+    /// the derivative of every joint's load with respect to the payload's mass.
+    pub fn unit_payload(&self) -> Option<Load> {
+        let payload = self.payload?;
+        let masses = vec![LinkMass { mass: 0.0, com: Vector3::zeros() }; self.masses.len()];
+        let unit = LinkMass { mass: 1.0, com: payload.com };
+        Some(Load { ends: self.ends.clone(), masses, payload: Some(unit), gravity: self.gravity })
+    }
+
+    /// Link `j`'s mass, with the payload on the last link.
+    fn mass_of(&self, j: usize) -> (f64, Vector3<f64>) {
+        let m = &self.masses[j];
+        let (mut mass, mut moment) = (m.mass, m.com * m.mass);
+        if let Some(p) = self.payload.filter(|_| j + 1 == self.masses.len()) {
+            mass += p.mass;
+            moment += p.com * p.mass;
+        }
+        (mass, moment)
     }
 }
 
@@ -65,10 +95,14 @@ impl ChainAt {
     /// # Panics
     /// If `q` or `tau` has the wrong length.
     pub fn gravity_torques(&self, q: &[f64], tau: &mut [f64]) {
+        self.torques_of(&self.load, q, tau);
+    }
+
+    /// The loads at `q` of `load`'s masses (this chain's or another's, such as a unit payload).
+    pub(super) fn torques_of(&self, load: &Load, q: &[f64], tau: &mut [f64]) {
         assert_eq!(q.len(), self.dof, "q has one value per joint");
         assert_eq!(tau.len(), self.dof, "tau has one value per joint");
         tau.fill(0.0);
-        let load = &self.load;
         if load.masses.is_empty() {
             return;
         }
@@ -83,9 +117,9 @@ impl ChainAt {
                 gravity = frame.r * load.gravity;
             }
             while link < load.masses.len() && s + 1 == load.ends.links[link] {
-                let m = &load.masses[link];
-                total_mass += m.mass;
-                total_moment += (frame.p + frame.r * m.com) * m.mass;
+                let (mass, moment) = load.mass_of(link);
+                total_mass += mass;
+                total_moment += frame.p * mass + frame.r * moment;
                 link += 1;
             }
         }
@@ -107,9 +141,9 @@ impl ChainAt {
             }
             advance(&mut frame, resolved, q);
             while link < load.masses.len() && s + 1 == load.ends.links[link] {
-                let m = &load.masses[link];
-                total_mass -= m.mass;
-                total_moment -= (frame.p + frame.r * m.com) * m.mass;
+                let (mass, moment) = load.mass_of(link);
+                total_mass -= mass;
+                total_moment -= frame.p * mass + frame.r * moment;
                 link += 1;
             }
         }

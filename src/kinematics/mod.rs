@@ -77,23 +77,34 @@ struct Step {
 impl Step {
     /// The columns of the joint's load responses among `selection`'s, each with the factor that
     /// scales the joint's own column into it: `tau_j` for the compliance, `sgn(tau_j)` for the
-    /// play (`loads` holds the joints' gravity loads `tau`).
+    /// play, `c_j dtau_j/dm` for the payload's mass (`loads` holds them).
     fn load_columns<'s>(
         &self,
         selection: &'s Selection,
-        loads: &'s [f64],
+        loads: &'s Loads<'s>,
     ) -> impl Iterator<Item = (usize, f64)> + 's {
-        // `loads` is empty when no response is selected.
-        let tau = move || self.joint.map_or(0.0, |j| loads[j]);
+        // The loads are empty when no response is selected.
+        let tau = move || self.joint.map_or(0.0, |j| loads.tau[j]);
         let compliance = self.compliance.and_then(|i| selection.column(i)).map(move |c| (c, tau()));
         let play = self.play.and_then(|i| selection.column(i)).map(move |c| (c, sign(tau())));
-        compliance.into_iter().chain(play)
+        let payload = (loads.payload.zip(self.joint)).map(|(c, j)| (c, loads.per_payload_kg[j]));
+        compliance.into_iter().chain(play).chain(payload)
     }
 
     /// A step that no joint moves and no parameter displaces.
     fn fixed(motion: Motion, nominal: f64) -> Self {
         Self { motion, nominal, joint: None, param: None, compliance: None, play: None }
     }
+}
+
+/// What the load-response columns of `H` scale the joints' columns by, at one pose.
+struct Loads<'a> {
+    /// Each joint's gravity load `tau_j`.
+    tau: &'a [f64],
+    /// The payload mass's column, if selected.
+    payload: Option<usize>,
+    /// Each joint's deflection per kilogram of payload: `c_j dtau_j/dm`.
+    per_payload_kg: &'a [f64],
 }
 
 /// The sign of a load, 0 for none: the side gravity pushes a joint's play to.
@@ -183,7 +194,7 @@ fn motion_of(kind: ParamKind) -> Motion {
         Rx | Alpha => Motion::Rotate(0),
         Ry | Beta => Motion::Rotate(1),
         Rz | Theta => Motion::Rotate(2),
-        Compliance | Play => unreachable!("a load response rides on its joint's step"),
+        Compliance | Play | Mass => unreachable!("a load response rides on its joint's step"),
     }
 }
 
@@ -273,7 +284,8 @@ impl Builder {
         let load = gravity::Load::new(self.ends, model);
         let deflection =
             model.joints.iter().map(|j| Deflection { compliance: j.compliance, play: j.play }).collect();
-        Chain { steps: self.steps, arm, params: self.params, dof: model.dof(), load, deflection }
+        let payload = self.params.index_of(ParamOwner::Payload, ParamKind::Mass);
+        Chain { steps: self.steps, arm, params: self.params, dof: model.dof(), load, deflection, payload }
     }
 
     /// A point at `xyz` (mm) with its 3 translation errors.
@@ -295,6 +307,8 @@ pub struct Chain {
     load: gravity::Load,
     /// Each joint's nominal compliance and play (the model's).
     deflection: Vec<Deflection>,
+    /// The payload mass's parameter, if the model carries a payload.
+    payload: Option<usize>,
 }
 
 impl Chain {
@@ -393,7 +407,11 @@ impl Chain {
         }
         let flexible = self.load.has_masses() && deflection.iter().any(|d| !d.is_zero());
         let deflection = flexible.then_some(deflection);
-        ChainAt { steps, arm: self.arm, dof: self.dof, load: self.load.clone(), deflection }
+        let mut load = self.load.clone();
+        if let (Some(payload), Some(i)) = (&mut load.payload, self.payload) {
+            payload.mass += x[i];
+        }
+        ChainAt { steps, arm: self.arm, dof: self.dof, load, deflection, payload: self.payload }
     }
 }
 
@@ -410,28 +428,49 @@ pub struct ChainAt {
     /// Each joint's compliance and play, when one is not zero: the joints then reach
     /// `q + c tau(q) + p sgn(tau(q))`.
     deflection: Option<Vec<Deflection>>,
+    /// The payload mass's parameter, if the model carries a payload.
+    payload: Option<usize>,
 }
 
 impl ChainAt {
+    /// Whether any joint deflects under its load (a compliance or a play not zero, with masses).
+    pub fn deflects(&self) -> bool {
+        self.deflection.is_some()
+    }
+
     /// Position of the tool point (mm).
     pub fn position(&self, q: &[f64]) -> Vector3<f64> {
         assert_eq!(q.len(), self.dof, "q has one value per joint");
         self.at_reached(q, |q| walk(&self.steps, q, Frame::IDENTITY).p)
     }
 
-    /// `f` of the gravity loads at `q` if `selection` holds a compliance or a play, whose
-    /// columns of `H` are their joint's scaled by the joint's load or its sign; of nothing
-    /// otherwise (then unused).
-    fn with_loads<R>(&self, selection: &Selection, q: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
+    /// `f` of the gravity loads at `q` if `selection` holds a compliance, a play or the
+    /// payload's mass, whose columns of `H` are their joints' scaled by the joint's load, its
+    /// sign, or its deflection per kilogram of payload `c_j dtau_j/dm` (the load of one
+    /// kilogram at the payload's centre of mass, times the compliance); of nothing otherwise
+    /// (then unused).
+    fn with_loads<R>(&self, selection: &Selection, q: &[f64], f: impl FnOnce(&Loads<'_>) -> R) -> R {
         let selected = |i: Option<usize>| i.is_some_and(|i| selection.column(i).is_some());
+        let payload = self.payload.and_then(|i| selection.column(i));
         let compliant = self.has_masses()
-            && self.steps.iter().any(|s| selected(s.step.compliance) || selected(s.step.play));
+            && (payload.is_some()
+                || self.steps.iter().any(|s| selected(s.step.compliance) || selected(s.step.play)));
         if !compliant {
-            return f(&[]);
+            return f(&Loads { tau: &[], payload: None, per_payload_kg: &[] });
         }
-        let mut loads = [0.0; MAX_JOINTS];
-        self.gravity_torques(q, &mut loads[..self.dof]);
-        f(&loads[..self.dof])
+        let (mut tau, mut per_kg) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+        self.gravity_torques(q, &mut tau[..self.dof]);
+        if let (Some(_), Some(unit)) = (payload, self.load.unit_payload()) {
+            self.torques_of(&unit, q, &mut per_kg[..self.dof]);
+            let compliance = self.deflection.as_ref().map(|d| d.iter().map(|d| d.compliance));
+            for (u, c) in per_kg[..self.dof].iter_mut().zip(compliance.into_iter().flatten()) {
+                *u *= c;
+            }
+            if self.deflection.is_none() {
+                per_kg.fill(0.0);
+            }
+        }
+        f(&Loads { tau: &tau[..self.dof], payload, per_payload_kg: &per_kg[..self.dof] })
     }
 
     /// `f` of the joint values the arm reaches when commanded `q`: `q + c tau(q) + p sgn(tau(q))`,
@@ -499,7 +538,10 @@ impl ChainAt {
         // point at the origin, and are turned into the world frame at the end.
         let origin = Vector3::zeros();
         assert_eq!(q.len(), self.dof, "q has one value per joint");
-        let mut visit = |loads: &[f64], q: &[f64]| {
+        if let Some(c) = self.payload.and_then(|i| selection.column(i)).filter(|_| h.ncols() > 0) {
+            h.column_mut(c).fill(0.0);
+        }
+        let mut visit = |loads: &Loads<'_>, q: &[f64]| {
             walk_back(&self.steps, q, |step, frame| {
                 let with_h = h.ncols() > 0;
                 let column = step.param.and_then(|i| selection.column(i)).filter(|_| with_h);
@@ -511,9 +553,13 @@ impl ChainAt {
                 let (linear, angular) = frame.screw(step.motion, &origin);
                 // A load response moves its joint: its column is the joint's, scaled.
                 for (c, scale) in column.map(|c| (c, 1.0)).into_iter().chain(responses) {
-                    h.fixed_view_mut::<3, 1>(0, c).copy_from(&(linear * scale));
+                    // The payload's mass moves every joint: its column sums over them.
+                    let keep = if Some(c) == loads.payload { 1.0 } else { 0.0 };
+                    let linear = h.fixed_view::<3, 1>(0, c) * keep + linear * scale;
+                    h.fixed_view_mut::<3, 1>(0, c).copy_from(&linear);
                     if measured == Measured::Pose {
-                        h.fixed_view_mut::<3, 1>(3, c).copy_from(&(angular * scale));
+                        let angular = h.fixed_view::<3, 1>(3, c) * keep + angular * scale;
+                        h.fixed_view_mut::<3, 1>(3, c).copy_from(&angular);
                     }
                 }
                 if let (Some(col), Some(j)) = (joint, j.as_deref_mut()) {
@@ -563,7 +609,10 @@ pub fn marker_jacobians(
     for (p, at) in positions.iter_mut().zip(markers) {
         *p = offset(at);
     }
-    let mut visit = |loads: &[f64], q: &[f64]| {
+    if let Some(c) = first.payload.and_then(|i| selection.column(i)) {
+        h.column_mut(c).fill(0.0);
+    }
+    let mut visit = |loads: &Loads<'_>, q: &[f64]| {
         walk_back(&first.steps[..first.arm], q, |step, frame| {
             let column = step.param.and_then(|i| selection.column(i)).map(|c| (c, 1.0));
             // A load response moves its joint: its column is the joint's, scaled.
@@ -573,8 +622,11 @@ pub fn marker_jacobians(
             }
             let (linear, angular) = frame.screw(step.motion, &Vector3::zeros());
             for (c, scale) in column.into_iter().chain(responses) {
+                // The payload's mass moves every joint: its column sums over them.
+                let keep = if Some(c) == loads.payload { 1.0 } else { 0.0 };
                 for (m, r) in positions.iter().enumerate() {
-                    h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&((linear + angular.cross(r)) * scale));
+                    let moved = h.fixed_view::<3, 1>(3 * m, c) * keep + (linear + angular.cross(r)) * scale;
+                    h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&moved);
                 }
             }
         })

@@ -39,6 +39,9 @@ struct ModelFile {
     /// The mass each joint moves, one table per joint (optional).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     links: Vec<LinkFile>,
+    /// A payload the arm carries: its mass (kg) and centre of mass in the tip frame (mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    payload: Option<LinkFile>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     markers: Vec<MarkerFile>,
 }
@@ -156,6 +159,13 @@ pub(super) fn parse(text: &str) -> Result<RobotModel, ModelError> {
             .map(|(i, j)| joint(i, j, convention))
             .collect::<Result<_, _>>()?,
         masses: file.links.iter().enumerate().map(link_mass).collect::<Result<_, _>>()?,
+        payload: match &file.payload {
+            Some(p) => {
+                let LinkMass { mass, com } = mass_at("payload", p)?;
+                Some(super::Payload { mass, com })
+            }
+            None => None,
+        },
         gravity: match file.gravity_m_s2 {
             Some(g) => vector("gravity_m_s2", &g)?,
             None => RobotModel::floor_gravity(),
@@ -300,13 +310,18 @@ fn geometry(index: usize, j: JointFile, convention: Convention) -> Result<Joint,
     ))
 }
 
-/// The mass of `[[links]]` table `i`: kg >= 0 and a finite centre of mass (mm).
+/// The mass of `[[links]]` table `i`.
 fn link_mass((i, link): (usize, &LinkFile)) -> Result<LinkMass, ModelError> {
-    let mass = finite(&format!("links[{i}].mass_kg"), link.mass_kg)?;
+    mass_at(&format!("links[{i}]"), link)
+}
+
+/// The mass of table `field`: kg >= 0 and a finite centre of mass (mm).
+fn mass_at(field: &str, link: &LinkFile) -> Result<LinkMass, ModelError> {
+    let mass = finite(&format!("{field}.mass_kg"), link.mass_kg)?;
     if mass < 0.0 {
-        return Err(invalid(format!("links[{i}].mass_kg"), format!("a mass >= 0 kg, found {mass}")));
+        return Err(invalid(format!("{field}.mass_kg"), format!("a mass >= 0 kg, found {mass}")));
     }
-    Ok(LinkMass { mass, com: vector(&format!("links[{i}].com_mm"), &link.com_mm)? })
+    Ok(LinkMass { mass, com: vector(&format!("{field}.com_mm"), &link.com_mm)? })
 }
 
 fn validate(model: &RobotModel) -> Result<(), ModelError> {
@@ -356,6 +371,7 @@ pub(super) fn write(model: &RobotModel) -> String {
         },
         gravity_m_s2: (model.gravity != RobotModel::floor_gravity()).then(|| model.gravity.into()),
         links: model.masses.iter().map(|m| LinkFile { mass_kg: m.mass, com_mm: m.com.into() }).collect(),
+        payload: model.payload.map(|p| LinkFile { mass_kg: p.mass, com_mm: p.com.into() }),
         base: PlacementFile { xyz_mm: model.base.xyz.into(), rpy_deg: deg3(&model.base.rpy) },
         tool: match &model.tool {
             Tool::Point(p) => ToolFile { xyz_mm: (*p).into(), rpy_deg: None },

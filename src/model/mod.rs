@@ -206,6 +206,10 @@ pub struct RobotModel {
     /// `(0, 0, -STANDARD_GRAVITY)` for a robot on the floor; another direction for a wall or
     /// ceiling mount.
     pub gravity: Vector3<f64>,
+    /// A payload the arm carries beyond its links (a workpiece, a tool not in the model), in
+    /// the tip frame: its mass loads the joints with the links', and may be estimated
+    /// (`payload.mass`).
+    pub payload: Option<Payload>,
 }
 
 impl RobotModel {
@@ -262,24 +266,22 @@ impl RobotModel {
         }
     }
 
-    /// The model carrying `payload`: the last link's mass `m` at `c` becomes `m + m_p` at
-    /// `(m c + m_p T c_p) / (m + m_p)`, with `T` the [marker frame](RobotModel::marker_frame) in
-    /// the last joint's frame. A model without masses gets massless links and the payload, so
-    /// that its joints carry the payload's load alone.
+    /// The model carrying `payload` (in place of any payload it had). A model without masses
+    /// then carries the payload alone: its links count as massless.
     pub fn with_payload(&self, payload: &Payload) -> RobotModel {
-        let mut out = self.clone();
-        if out.masses.is_empty() {
-            out.masses = vec![LinkMass { mass: 0.0, com: Vector3::zeros() }; out.joints.len()];
-        }
-        let com = self.marker_frame().isometry() * nalgebra::Point3::from(payload.com);
-        if let Some(last) = out.masses.last_mut() {
-            let total = last.mass + payload.mass;
-            if total > 0.0 {
-                last.com = (last.com * last.mass + com.coords * payload.mass) / total;
-            }
-            last.mass = total;
-        }
-        out
+        RobotModel { payload: Some(*payload), ..self.clone() }
+    }
+
+    /// Whether gravity loads the joints: the model has link masses or a payload.
+    pub fn has_masses(&self) -> bool {
+        !self.masses.is_empty() || self.payload.is_some()
+    }
+
+    /// The payload's centre of mass (mm) in the last joint's frame: its position in the
+    /// [marker frame](RobotModel::marker_frame), placed by that frame.
+    pub fn payload_com(&self) -> Option<Vector3<f64>> {
+        let payload = self.payload?;
+        Some((self.marker_frame().isometry() * nalgebra::Point3::from(payload.com)).coords)
     }
 
     /// The tool point in the [marker frame](RobotModel::marker_frame): the tool point of a

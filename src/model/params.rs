@@ -50,6 +50,8 @@ pub enum ParamKind {
     /// (rad for a revolute joint, mm for a prismatic one); the joint reaches `q + p sgn(tau(q))`.
     /// Only models with masses have it.
     Play,
+    /// A payload's mass (kg).
+    Mass,
 }
 
 impl ParamKind {
@@ -74,6 +76,7 @@ impl ParamKind {
             Self::Beta => "beta",
             Self::Compliance => "compliance",
             Self::Play => "play",
+            Self::Mass => "mass",
         }
     }
 
@@ -95,6 +98,8 @@ pub enum ParamOwner {
     Tool,
     /// Marker `k` (0-based) on the last link, when several points are measured (`marker1.x`).
     Marker(usize),
+    /// The payload the arm carries (`payload.mass`).
+    Payload,
 }
 
 /// One named error parameter.
@@ -132,8 +137,7 @@ impl ParamInfo {
 
 /// All error parameters of a model, in canonical order: base (6), each joint (5 DH, or 7 for
 /// URDF: 6 origin errors and the offset; then its compliance and play if the model has
-/// masses), then
-/// the tool (3 or 6) or the markers.
+/// masses), the payload's mass if it carries one, then the tool (3 or 6) or the markers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamSet {
     params: Vec<ParamInfo>,
@@ -173,6 +177,7 @@ impl ParamSet {
                     "mm"
                 }
                 (ParamKind::Play, _) => "rad",
+                (ParamKind::Mass, _) => "kg",
                 (kind, _) if kind.is_angle() => "rad",
                 _ => "mm",
             };
@@ -201,10 +206,13 @@ impl ParamSet {
             for &kind in kinds {
                 push(ParamOwner::Joint(i), kind, &joint.name, kind == offset);
             }
-            if !model.masses.is_empty() {
+            if model.has_masses() {
                 push(ParamOwner::Joint(i), ParamKind::Compliance, &joint.name, false);
                 push(ParamOwner::Joint(i), ParamKind::Play, &joint.name, false);
             }
+        }
+        if model.payload.is_some() {
+            push(ParamOwner::Payload, ParamKind::Mass, "payload", false);
         }
         match markers {
             Some((n, per)) => {

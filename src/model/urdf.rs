@@ -257,6 +257,7 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
         // all masses, or none when no link on the chain declares one
         masses: if masses.iter().any(|m: &LinkMass| m.mass > 0.0) { masses } else { Vec::new() },
         gravity: RobotModel::floor_gravity(),
+        payload: None,
     };
     // The names and limits pass the same checks as a TOML model's.
     super::RobotModel::from_toml_str(&model.to_toml_string())

@@ -473,7 +473,7 @@ impl Study {
                 "at least two, the first the baseline of dE (e.g. [\"ols\", \"wls\"])".into(),
             );
         }
-        let masses = !self.robot.masses.is_empty();
+        let masses = self.robot.has_masses();
         if let Some(c) = self.estimators.iter().find(|c| (c.compliance || c.play) && !masses) {
             return invalid(
                 "estimators",

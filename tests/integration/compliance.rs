@@ -133,6 +133,7 @@ fn a_payload_adds_its_weight_to_the_joint_loads() {
         tool: Tool::Frame(tip),
         masses: vec![LinkMass { mass: 1.0, com: Vector3::new(1000.0, 0.0, 0.0) }],
         gravity: RobotModel::floor_gravity(),
+        payload: None,
     };
     let torque = |model: &RobotModel| {
         let chain = Chain::new(model);
@@ -221,7 +222,7 @@ fn a_study_shows_what_modelling_compliance_gains() {
     let study = robocal::simulation::Study::from_toml_str(&text, robocal::io::load_model).unwrap();
     assert_eq!(study.estimators[1].to_string(), "wls+compliance");
     assert_eq!(study.truth.compliance, vec![0.0, 5e-5, 5e-5, 0.0, 0.0, 0.0]);
-    assert_eq!(study.robot.masses.last().unwrap().mass, 0.09 + 2.0);
+    assert_eq!(study.robot.payload.map(|p| p.mass), Some(2.0));
     let results = robocal::simulation::run(&study, &|| {}).unwrap();
     let differences: Vec<f64> =
         results.runs.iter().map(|r| r.accuracy[0].mean - r.accuracy[1].mean).collect();
@@ -277,7 +278,49 @@ fn calibrate_with_a_payload_writes_the_robot_without_it() {
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let written = RobotModel::from_toml_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     let own = robocal::io::load_model(&robocal::model::ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
-    assert_eq!(written.masses, own.masses);
+    assert_eq!((&written.masses, written.payload), (&own.masses, None));
     assert!(written.joints[1].compliance != 0.0);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A payload's mass is seen through the joints' compliances: with a model whose compliances
+/// are known (calibrated), `payload.mass` is recovered exactly from noise-free data; with every
+/// compliance zero it is held, and said why.
+#[test]
+fn a_payload_mass_is_estimated_where_the_compliances_show_it() {
+    use robocal::model::Payload;
+    let mut nominal = puma_with_masses();
+    nominal.joints[1].compliance = 5e-5;
+    nominal.joints[2].compliance = 8e-5;
+    nominal.payload = Some(Payload { mass: 2.0, com: Vector3::new(0.0, 20.0, 80.0) });
+    let truth = RobotModel {
+        payload: Some(Payload { mass: 3.5, com: Vector3::new(0.0, 20.0, 80.0) }),
+        ..nominal.clone()
+    };
+    let markers = [Vector3::new(40.0, 0.0, 25.0), Vector3::new(-20.0, 35.0, 25.0)];
+    let data = measured(&truth, &markers, 60, 11);
+    let options = Options {
+        estimator: Estimator::Ols,
+        noise: None,
+        joints: JointParams::Named(vec!["payload.mass".into(), "j*.theta".into()]),
+        estimate_base: false,
+        estimate_markers: false,
+        markers: markers.to_vec(),
+        refine: RefineOptions::default(),
+    };
+    let result = calibration::calibrate(&nominal, &data, &options).unwrap();
+    let mass = result.calibrated.payload.unwrap().mass;
+    assert!((mass - 3.5).abs() < 1e-6, "payload {mass} kg, truth 3.5");
+
+    let rigid = RobotModel { joints: RobotModel::preset("puma560").unwrap().joints, ..nominal.clone() };
+    let result = calibration::calibrate(&rigid, &data, &options).unwrap();
+    assert!(
+        result
+            .fixed
+            .iter()
+            .any(|f| f.starts_with("payload.mass: the payload is seen only through the joints' compliances")),
+        "{:?}",
+        result.fixed
+    );
+    assert_eq!(result.calibrated.payload.unwrap().mass, 2.0);
 }

@@ -204,6 +204,7 @@ fn prismatic_robot() -> RobotModel {
         }),
         masses: Vec::new(),
         gravity: RobotModel::floor_gravity(),
+        payload: None,
     }
 }
 

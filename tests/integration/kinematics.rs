@@ -43,6 +43,7 @@ fn robot(convention: Convention, beta: bool) -> impl Strategy<Value = RobotModel
                 tool: if frame { Tool::Frame(tool) } else { Tool::Point(tool.xyz) },
                 masses: Vec::new(),
                 gravity: RobotModel::floor_gravity(),
+                payload: None,
             }
         },
     )
@@ -448,6 +449,7 @@ fn a_horizontal_link_of_one_kilogram_at_one_metre_weighs_9_81_newton_metres() {
         tool: Tool::Point(Vector3::zeros()),
         masses: vec![robocal::model::LinkMass { mass: 1.0, com: Vector3::new(1000.0, 0.0, 0.0) }],
         gravity: RobotModel::floor_gravity(),
+        payload: None,
     };
     let torque = |model: &RobotModel, q: f64| {
         let chain = Chain::new(model);
@@ -461,10 +463,10 @@ fn a_horizontal_link_of_one_kilogram_at_one_metre_weighs_9_81_newton_metres() {
     assert_eq!(torque(&model, 0.0), 0.0);
 }
 
-/// With masses, each joint has a compliance and a play: the joints reach
-/// `q + c tau(q) + p sgn(tau(q))`. Their columns of `H` (pose and markers) against central
-/// differences of the full model, and the pose against the rigid model at the deflected joint
-/// values.
+/// With masses and a payload, each joint has a compliance and a play, and the payload a mass:
+/// the joints reach `q + c tau(q) + p sgn(tau(q))`, `tau` including the payload's weight. Their
+/// columns of `H` (pose and markers) against central differences of the full model, and the
+/// pose against the rigid model at the deflected joint values.
 fn check_load_responses(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
     use robocal::model::ParamKind;
     let mut model = model.clone();
@@ -474,10 +476,16 @@ fn check_load_responses(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseErr
             com: Vector3::new(u[3 * j + 1], u[3 * j + 2], u[3 * j + 3]) * 200.0,
         })
         .collect();
+    model.payload = Some(robocal::model::Payload {
+        mass: 5.0 * (u[50] + 1.0),
+        com: Vector3::new(u[51], u[52], u[53]) * 100.0,
+    });
     let (q, mut x) = point(&model, u);
     let chain = Chain::new(&model);
     let params = chain.params();
     let of_kind = |kind| (0..params.len()).filter(|&i| params.get(i).kind == kind).collect::<Vec<usize>>();
+    let payload = of_kind(ParamKind::Mass);
+    prop_assert_eq!(payload.len(), 1);
     let (compliances, plays) = (of_kind(ParamKind::Compliance), of_kind(ParamKind::Play));
     prop_assert_eq!(compliances.len(), model.dof());
     prop_assert_eq!(plays.len(), model.dof());
@@ -508,14 +516,30 @@ fn check_load_responses(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseErr
     let all = Selection::all(params);
     let mut h = DMatrix::zeros(6, all.len());
     at.identification_jacobian(&q, &all, Measured::Pose, h.view_mut((0, 0), (6, all.len())));
-    let responses = compliances.iter().enumerate().chain(plays.iter().enumerate());
+    let responses = compliances.iter().enumerate().chain(plays.iter().enumerate()).chain([(0, &payload[0])]);
     for (j, &i) in responses {
         // A step that moves the joint by 1e-6 (rad or mm) under its load: the pose is then
         // all but linear over it.
-        let step = if params.get(i).kind == ParamKind::Play { 1e-6 } else { 1e-6 / (1.0 + tau[j].abs()) };
+        let step = match params.get(i).kind {
+            ParamKind::Play => 1e-6,
+            // a kilogram moves a joint by c dtau/dm: about 1e-3 rad at most
+            ParamKind::Mass => 1e-4,
+            _ => 1e-6 / (1.0 + tau[j].abs()),
+        };
         let (mut plus, mut minus) = (x.clone(), x.clone());
         plus[i] += step;
         minus[i] -= step;
+        // The play's sign is a step where a load is zero: no derivative there.
+        let signs = |x: &[f64]| {
+            let mut tau = vec![0.0; model.dof()];
+            chain.with_errors(x).gravity_torques(&q, &mut tau);
+            tau.iter().map(|&t| if t == 0.0 { 0.0 } else { t.signum() }).collect::<Vec<f64>>()
+        };
+        if params.get(i).kind == ParamKind::Mass
+            && (signs(&plus) != signs(&minus) || signs(&plus) != signs(&x))
+        {
+            continue;
+        }
         let fd = pose_error(&chain.with_errors(&plus).pose(&q), &chain.with_errors(&minus).pose(&q))
             / (2.0 * step);
         // relative to the column, or absolute (mm or rad per unit of compliance) for a joint
