@@ -229,7 +229,8 @@ fn write(
     if let Some(path) = &request.out_model {
         // The robot as it is, without the payload of this session (with its estimated mass if
         // the model file carries it).
-        let payload = if request.model.payload.is_some() { robot.own_payload } else { result.calibrated.payload };
+        let payload =
+            if request.model.payload.is_some() { robot.own_payload } else { result.calibrated.payload };
         let calibrated = RobotModel { payload, ..result.calibrated.clone() };
         outputs.add(path, robocal::model::to_toml_with_markers(&calibrated, &markers));
     }
