@@ -35,6 +35,8 @@ fn calibration(c: &mut Criterion) {
         estimate_base: true,
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
     };
     let mut group = c.benchmark_group("calibrate");

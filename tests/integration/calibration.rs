@@ -67,6 +67,8 @@ fn campaign(seed: u64) -> Campaign {
         estimate_base: true,
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
     };
     Campaign { nominal, truth, true_markers, training, validation, options }
@@ -316,6 +318,8 @@ fn a_probe_with_orientation_calibrates_its_mounting_too() {
         estimate_base: true,
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0)],
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
     };
     let calibration = calibration::calibrate(&nominal, &training, &options).unwrap();
