@@ -35,9 +35,11 @@ use std::str::FromStr;
 /// At most this many reweighted fits after the first.
 pub const MAX_REWEIGHTINGS: usize = 50;
 
-/// Poses whose final weight is below this are listed as down-weighted: further out than twice
-/// the loss's threshold (Huber), or than the threshold itself (Cauchy).
-pub const LISTED_BELOW: f64 = 0.5;
+/// Poses whose final weight is below this are listed as down-weighted: a tenth of a
+/// least-squares pose, further out than 10 times the loss's threshold (Huber) or 3 times
+/// (Cauchy). Milder weights are common on clean data (OLS's rows are not alike when the joint
+/// noise varies from pose to pose); every weight is in [`RobustFit::weights`].
+pub const LISTED_BELOW: f64 = 0.1;
 
 /// The loss of each pose's standardised residual `u`.
 #[derive(Debug, Clone, Copy, PartialEq)]

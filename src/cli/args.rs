@@ -271,7 +271,7 @@ pub struct CalibrateArgs {
     pub prior: Vec<Vec<PriorEntry>>,
     /// The loss of each pose's whitened residual: `squared` (least squares), `huber[:K]`
     /// (K = 1.345 by default) or `cauchy[:K]` (K = 2.385), by iteratively reweighted least
-    /// squares; a pose is down-weighted as a whole, and those weighted below 0.5 are listed.
+    /// squares; a pose is down-weighted as a whole, and those weighted below 0.1 are listed.
     #[arg(long, default_value = "squared", value_name = "LOSS", value_parser = parse_loss)]
     pub loss: Loss,
     /// Gauss-Newton steps at most (at least 1); 1 is the paper's one-step estimate.

@@ -361,7 +361,7 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         if let Some(loss) = &self.loss {
             let _ = writeln!(
                 out,
-                "robust loss {loss}: {} pose{} weighted below 0.5{}",
+                "robust loss {loss}: {} pose{} weighted below 0.1{}",
                 self.down_weighted.len(),
                 if self.down_weighted.len() == 1 { "" } else { "s" },
                 if self.down_weighted.is_empty() { "" } else { ":" }

@@ -437,7 +437,7 @@ fn urdf_inertials_are_folded_into_the_mass_each_joint_moves() {
 }
 
 /// OLS calibration options of the arm7 benchmark: its README's markers, base and markers free.
-fn arm7_options(joints: JointParams) -> Options {
+pub(crate) fn arm7_options(joints: JointParams) -> Options {
     Options {
         estimator: Estimator::Ols,
         noise: None,
