@@ -360,3 +360,19 @@ fn calibrate_takes_the_markers_to_fit_and_the_report_files() {
     assert_eq!(request.report.figures, Some(PathBuf::from("f")));
     assert_eq!(request.report.html, Some(PathBuf::from("r.html")));
 }
+
+/// `--prior` takes entries and presets, repeated, in order; a bad entry names itself and what
+/// was expected. `--loss` takes squared, huber[:K], cauchy[:K].
+#[test]
+fn priors_and_losses_are_read_in_order() {
+    let r = calibrate(&["--prior", "machined,j2.a=1mm", "--prior", "j3.alpha=0.1deg", "--loss", "huber:2"])
+        .unwrap();
+    let targets: Vec<&str> = r.prior.iter().map(|e| e.target.as_str()).collect();
+    assert_eq!(targets, ["lengths", "angles", "offsets", "offsets", "j2.a", "j3.alpha"]);
+    assert_eq!(r.loss, robocal::calibration::Loss::Huber(2.0));
+    assert_eq!(calibrate(&[]).unwrap().loss, robocal::calibration::Loss::Squared);
+    let bad = calibrate(&["--prior", "j2.a=1inch"]).unwrap_err();
+    assert!(bad.contains("prior `j2.a=1inch`: unknown unit `inch`"), "{bad}");
+    let bad = calibrate(&["--loss", "l1"]).unwrap_err();
+    assert!(bad.contains("unknown loss `l1`"), "{bad}");
+}
