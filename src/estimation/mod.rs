@@ -18,7 +18,7 @@
 mod device;
 mod noise;
 mod noise_file;
-mod prior;
+pub mod prior;
 mod problem;
 mod refine;
 mod solve;

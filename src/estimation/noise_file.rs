@@ -154,11 +154,11 @@ fn prior_table(
             toml::Value::Integer(v) => v.to_string(),
             other => {
                 let expected = format!("a standard deviation with its unit (\"0.5mm\"), found {other}");
-                return Err(NoiseFileError::Invalid(FieldError::new(&format!("prior.{key}"), expected)));
+                return Err(NoiseFileError::Invalid(FieldError::new(format!("prior.{key}"), expected)));
             }
         };
         let entry = PriorEntry::parse(&format!("{key}={value}"))
-            .map_err(|e| NoiseFileError::Invalid(FieldError::new(&format!("prior.{key}"), e.to_string())))?;
+            .map_err(|e| NoiseFileError::Invalid(FieldError::new(format!("prior.{key}"), e.to_string())))?;
         entries.push(entry);
     }
     let rank = |e: &PriorEntry| match e.target.as_str() {
@@ -184,7 +184,7 @@ pub struct NoiseSpec {
     pub sigma_orientation: f64,
     /// The measuring device, if given.
     pub device: Option<Device>,
-    /// The `[prior]` table's entries, the more specific last ([`prior_table`]).
+    /// The `[prior]` table's entries, the more specific last (classes, then patterns, then names).
     pub prior: Vec<PriorEntry>,
 }
 

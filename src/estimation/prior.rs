@@ -310,6 +310,27 @@ mod tests {
         );
     }
 
+    /// A noise file's `[prior]` table: the more specific entry last, read back as written; a
+    /// bad value names its field.
+    #[test]
+    fn a_noise_files_prior_table_reads_and_writes() {
+        let model = RobotModel::preset("puma560").unwrap();
+        let text = "joint_sigma = [0.01, 0.01, 0.01, 0.01, 0.01, 0.01]\n[prior]\n\"j2.a\" = \"1mm\"\n\
+                    \"j*.a\" = \"0.2mm\"\nlengths = \"0.1mm\"\n";
+        let spec = crate::estimation::NoiseSpec::from_toml_str(text, &model).unwrap();
+        let targets: Vec<&str> = spec.prior.iter().map(|e| e.target.as_str()).collect();
+        assert_eq!(targets, ["lengths", "j*.a", "j2.a"]);
+        let sd = prior_sds(&spec.prior, &model.params()).unwrap();
+        assert_eq!(sd[model.params().index_by_name("j2.a").unwrap()], 1.0);
+        let again =
+            crate::estimation::NoiseSpec::from_toml_str(&spec.to_toml_string(&model, ""), &model).unwrap();
+        assert_eq!(again.prior, spec.prior);
+        let bad = "joint_sigma = [0.01, 0.01, 0.01, 0.01, 0.01, 0.01]\n[prior]\nlengths = \"1 inch\"\n";
+        let err = crate::estimation::NoiseSpec::from_toml_str(bad, &model).unwrap_err();
+        let crate::estimation::NoiseFileError::Invalid(field) = err else { panic!("{err:?}") };
+        assert!(field.to_string().contains("prior.lengths"), "{field}");
+    }
+
     #[test]
     fn augmented_rows_hold_the_prior() {
         let rows = PriorRows::new(&[2.0, f64::INFINITY], 0.5);
