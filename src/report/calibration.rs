@@ -37,7 +37,8 @@ pub struct CalibrationReport {
     pub registered_base: [f64; 6],
     /// The identified parameters.
     pub parameters: Vec<ParameterRow>,
-    /// Numerical rank and condition number of the weighted, column-scaled H.
+    /// Numerical rank and condition number of the weighted, column-scaled H (of the data alone,
+    /// with priors).
     pub rank: usize,
     /// `s_1 / s_r`.
     pub condition_number: f64,
@@ -221,7 +222,19 @@ impl CalibrationReport {
         let weighting = Weighting {
             before: "base and markers fitted by ols (unweighted), joints nominal, whatever the estimator"
                 .into(),
-            after: format!("{estimator}: every parameter asked for that the poses identify"),
+            after: match (c.prior_sd.iter().any(|s| s.is_finite()), &c.robust) {
+                (false, None) => format!("{estimator}: every parameter asked for that the poses identify"),
+                (priors, robust) => format!(
+                    "{estimator}{}{}: every parameter asked for {}",
+                    if priors { " with priors (maximum a posteriori)" } else { "" },
+                    robust.as_ref().map_or(String::new(), |r| format!(", robust loss {}", r.loss)),
+                    if priors {
+                        "with a prior, and those without one that the poses identify"
+                    } else {
+                        "that the poses identify"
+                    }
+                ),
+            },
             errors: "distances and their components, unweighted".into(),
             whitened: format!(
                 "{}; flagged when a component exceeds {FLAG_AT} standard deviations",
@@ -349,6 +362,14 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         }
         if self.parameters.is_empty() {
             let _ = writeln!(out, "\nnothing estimated: the model is scored as it stands");
+        } else if priors {
+            let _ = writeln!(
+                out,
+                "\n{} parameters estimated with their priors; the data alone: rank {}, condition number {:.3e}",
+                self.parameters.len(),
+                self.rank,
+                self.condition_number
+            );
         } else {
             let _ = writeln!(
                 out,
