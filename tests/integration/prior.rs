@@ -50,7 +50,7 @@ fn a_prior_sd_near_zero_keeps_the_parameter_nominal() {
     assert!(se[map.params.index_by_name("j2.a").unwrap()] < 1e-11);
 }
 
-/// A linear problem `y = H x + e`, three rows per point with correlated noise `V_k`.
+/// A linear problem `y = H x + e`, with correlated noise `V_k` in blocks of `v.ncols()` rows.
 struct Linear {
     h: DMatrix<f64>,
     y: DVector<f64>,
@@ -59,7 +59,7 @@ struct Linear {
 
 impl Residuals for Linear {
     fn rows_per_point(&self) -> usize {
-        3
+        self.v.ncols()
     }
     fn equations(&self) -> usize {
         self.h.nrows()
@@ -78,67 +78,52 @@ impl Residuals for Linear {
     }
 }
 
-/// The posterior covariance `(H^T V^-1 H + P^2)^-1` that `refine_map` reports is the spread of
-/// the MAP's error when the truth is drawn from the prior (the Bayesian reading, exact for a
-/// linear problem with Gaussian noise): 2000 seeded replications, each variance within 4
-/// standard errors of a sample variance (`sqrt(2 / n)` relative), and the mean error near 0.
-/// Three of the four parameters have priors, one weakly seen by the data; Gauss-Markov weights.
-#[test]
-fn the_posterior_covariance_is_the_spread_of_the_map_estimate() {
-    let mut rng = ChaCha8Rng::seed_from_u64(5);
+/// The MAP estimates of `runs` replications of `y = H x + e` with the truth drawn from the
+/// prior (`sd`, infinite: no prior, that component fixed at 1), `e` from the blocks `V_k`
+/// (Gauss-Markov weights): the posterior covariance `refine_map` reports is the closed form
+/// `(H^T V^-1 H + P^2)^-1`, and each variance of the MAP's error lies within 4 standard errors
+/// of a sample variance (`sqrt(2 / n)` relative) of it, its mean within 4 standard errors of 0.
+/// This is the Bayesian reading, exact for a linear problem with Gaussian noise.
+fn check_posterior_by_monte_carlo(h: &DMatrix<f64>, v: &DMatrix<f64>, sd: &[f64], runs: usize, seed: u64) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut n = || -> f64 { StandardNormal.sample(&mut rng) };
-    let (points, p) = (12, 4);
-    let mut h = DMatrix::from_fn(3 * points, p, |_, _| n());
-    h.column_mut(3).scale_mut(0.05); // weakly identified
-    let mut v = DMatrix::zeros(3 * points, 3);
-    let mut factors = Vec::new();
-    for k in 0..points {
-        let l = DMatrix::from_fn(3, 3, |i, j| {
-            if i > j {
-                0.3 * n()
-            } else if i == j {
-                0.5 + 0.2 * n().abs()
-            } else {
-                0.0
-            }
-        });
-        v.rows_mut(3 * k, 3).copy_from(&(&l * l.transpose()));
-        factors.push(l);
-    }
-    let sd = [0.5, f64::INFINITY, 2.0, 0.3];
-    let runs = 2000;
+    let b = v.ncols();
+    let (points, p) = (h.nrows() / b, h.ncols());
+    let factors: Vec<DMatrix<f64>> =
+        (0..points).map(|k| v.rows(b * k, b).into_owned().cholesky().unwrap().unpack()).collect();
     let mut errors = Vec::with_capacity(runs);
     let mut reported = None;
     for _ in 0..runs {
-        let truth = DVector::from_iterator(p, sd.iter().map(|s| if s.is_finite() { s * n() } else { 3.0 }));
-        let mut y = &h * &truth;
+        let truth = DVector::from_iterator(p, sd.iter().map(|s| if s.is_finite() { s * n() } else { 1.0 }));
+        let mut y = h * &truth;
         for (k, l) in factors.iter().enumerate() {
-            let e = l * DVector::from_fn(3, |_, _| n());
-            let mut rows = y.rows_mut(3 * k, 3);
-            rows += e;
+            let mut rows = y.rows_mut(b * k, b);
+            rows += l * DVector::from_fn(b, |_, _| n());
         }
         let problem = Linear { h: h.clone(), y, v: v.clone() };
         let weights = Weights::for_problem(&problem, Estimator::Wls).unwrap();
-        let prior = PriorRows::new(&sd, weights.scale().unwrap());
+        let prior = PriorRows::new(sd, weights.scale().unwrap());
         let start = linearise(&problem, &weights, DVector::zeros(p)).unwrap();
-        let options = RefineOptions::default();
-        let map = refine_map(&problem, &weights, start, &options, &prior).unwrap();
+        let map = refine_map(&problem, &weights, start, &RefineOptions::default(), &prior).unwrap();
         errors.push(&map.estimate.x - truth);
         reported.get_or_insert(map.estimate.covariance);
     }
     let reported = reported.unwrap();
-    // The posterior covariance in closed form.
     let mut information = DMatrix::from_diagonal(&DVector::from_iterator(
         p,
         sd.iter().map(|s| if s.is_finite() { 1.0 / (s * s) } else { 0.0 }),
     ));
     for k in 0..points {
-        let hk = h.rows(3 * k, 3);
-        let vk = v.rows(3 * k, 3).into_owned();
-        information += hk.transpose() * vk.try_inverse().unwrap() * hk;
+        let hk = h.rows(b * k, b);
+        information += hk.transpose() * v.rows(b * k, b).into_owned().try_inverse().unwrap() * hk;
     }
     let posterior = information.try_inverse().unwrap();
-    assert!((&reported - &posterior).amax() < 1e-9 * posterior.amax(), "{reported} {posterior}");
+    for i in 0..p {
+        for j in 0..p {
+            let scale = (posterior[(i, i)] * posterior[(j, j)]).sqrt();
+            assert!((reported[(i, j)] - posterior[(i, j)]).abs() < 1e-8 * scale, "({i}, {j})");
+        }
+    }
     let mean = errors.iter().fold(DVector::zeros(p), |m, e| m + e) / runs as f64;
     let tolerance = 4.0 * (2.0 / runs as f64).sqrt();
     for j in 0..p {
@@ -149,18 +134,63 @@ fn the_posterior_covariance_is_the_spread_of_the_map_estimate() {
             "parameter {j}: sample {variance:.4e}, posterior {:.4e}",
             posterior[(j, j)]
         );
-        assert!(
-            mean[j].abs() < 4.0 * (posterior[(j, j)] / runs as f64).sqrt(),
-            "parameter {j}: mean error {}",
-            mean[j]
-        );
+        let se = (posterior[(j, j)] / runs as f64).sqrt();
+        assert!(mean[j].abs() < 4.0 * se, "parameter {j}: mean error {:.3e}, SE {se:.3e}", mean[j]);
     }
-    // Without priors the same data give the Gauss-Markov estimate.
-    let problem = Linear { h: h.clone(), y: &h * DVector::from_element(p, 1.0), v };
-    let weights = Weights::for_problem(&problem, Estimator::Wls).unwrap();
-    let start = linearise(&problem, &weights, DVector::zeros(p)).unwrap();
-    let plain = refine_from(&problem, &weights, start, &RefineOptions::default()).unwrap();
-    assert!((plain.estimate.x.add_scalar(-1.0)).amax() < 1e-9);
+}
+
+/// A small problem: four parameters, three with priors, one weakly seen by the data, and
+/// correlated noise blocks.
+#[test]
+fn the_posterior_covariance_is_the_spread_of_the_map_estimate() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut n = || -> f64 { StandardNormal.sample(&mut rng) };
+    let (points, p) = (12, 4);
+    let mut h = DMatrix::from_fn(3 * points, p, |_, _| n());
+    h.column_mut(3).scale_mut(0.05); // weakly identified
+    let mut v = DMatrix::zeros(3 * points, 3);
+    for k in 0..points {
+        let l = DMatrix::from_fn(3, 3, |i, j| match i.cmp(&j) {
+            std::cmp::Ordering::Greater => 0.3 * n(),
+            std::cmp::Ordering::Equal => 0.5 + 0.2 * n().abs(),
+            std::cmp::Ordering::Less => 0.0,
+        });
+        v.rows_mut(3 * k, 3).copy_from(&(&l * l.transpose()));
+    }
+    check_posterior_by_monte_carlo(&h, &v, &[0.5, f64::INFINITY, 2.0, 0.3], 2000, 6);
+}
+
+/// The PUMA 560 at 12 poses with two markers: every joint parameter, the base and the markers
+/// (rank-deficient by 12 without priors), the machining priors on the joints, the full `V_k`
+/// of the joint and measurement noise (one 6 x 6 block per pose, its two markers correlated
+/// through the joints). The priors make every parameter estimable, and the
+/// posterior covariance is the MAP's spread.
+#[test]
+fn the_posterior_covariance_is_the_spread_of_the_map_estimate_on_the_puma() {
+    use robocal::estimation::{MeasurementNoise, NoiseModel, PointProblem, prior_sds};
+    use robocal::kinematics::{Chain, Measured};
+    use robocal::model::{RobotModel, Selection};
+    let model = RobotModel::preset("puma560").unwrap();
+    let markers = [nalgebra::Vector3::new(50.0, 0.0, 150.0), nalgebra::Vector3::new(-40.0, 60.0, 120.0)];
+    let chains = Chain::markers(&model, &markers);
+    let params = chains[0].params().clone();
+    let all = Selection::from_indices(&params, 0..params.len());
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let joints = model.uniform_configurations(12, &mut rng);
+    let observed: Vec<nalgebra::Isometry3<f64>> = joints
+        .iter()
+        .flat_map(|q| chains.iter().map(move |c| c.with_errors(&vec![0.0; c.params().len()]).pose(q)))
+        .collect();
+    let sigmas: Vec<f64> =
+        [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
+    let noise = NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0));
+    let zero = vec![0.0; params.len()];
+    let problem =
+        PointProblem::new(&chains, &all, Measured::Position, joints, observed, zero, Some(&noise)).unwrap();
+    let system = problem.system(&problem.start());
+    let v = system.v.unwrap();
+    let sd = prior_sds(&PriorEntry::parse_list("machined").unwrap(), &params).unwrap();
+    check_posterior_by_monte_carlo(&system.h, &v, &sd, 2000, 9);
 }
 
 /// The arm7 benchmark's files (seed 7), calibrated by OLS with `joints` and priors `prior`.
