@@ -43,3 +43,25 @@ fn one_gross_outlier_among_100_poses_is_down_weighted_and_flagged_alone() {
         }
     }
 }
+
+/// A robust fit with priors gives the same numbers, to the bit, on 1 and 3 threads.
+#[test]
+fn a_robust_fit_with_priors_is_the_same_on_any_number_of_threads() {
+    let mut c = campaign_of(33, 100);
+    c.training.markers[7][1].y -= 50.0;
+    let options = calibration::Options {
+        loss: Loss::Cauchy(Loss::CAUCHY_K),
+        prior: robocal::estimation::PriorEntry::parse_list("machined").unwrap(),
+        ..c.options.clone()
+    };
+    let on = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| calibration::calibrate(&c.nominal, &c.training, &options).unwrap())
+    };
+    let (one, three) = (on(1), on(3));
+    assert_eq!(one.after, three.after);
+    assert_eq!(one.refined, three.refined);
+    assert_eq!(one.robust, three.robust);
+    let listed: Vec<usize> = one.robust.as_ref().unwrap().down_weighted().map(|(k, _)| k).collect();
+    assert_eq!(listed, [7]);
+}
