@@ -7,7 +7,7 @@ use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::{self, JointParams, Measurements, Options};
 use robocal::estimation::{
-    Estimator, PriorEntry, PriorRows, RefineOptions, Residuals, Weights, linearise, refine_from, refine_map,
+    Estimator, PriorEntry, PriorRows, RefineOptions, Residuals, Weights, linearise, refine_map,
 };
 
 fn with_prior(options: &Options, entries: &str) -> Options {
