@@ -262,8 +262,9 @@ pub struct CalibrateArgs {
     /// `PATTERN=SD` entries, repeatable, later ones overriding earlier ones. PATTERN is a name or
     /// pattern as --params takes it (`j*.alpha`), or `lengths`, `angles`, `offsets`,
     /// `compliances` (those of every joint); SD has a unit, which also picks the parameters: mm,
-    /// um, m, deg, rad, mrad, or a plain number for a compliance (rad/N·m, mm/N). `machined`
-    /// names typical tolerances: lengths 0.1 mm, angles 0.05 deg, offsets 0.5 deg (0.5 mm).
+    /// um, m, deg, rad, mrad, or a plain number for a compliance (rad/N·m, mm/N). Presets of
+    /// typical tolerances (lengths, angles, joint zeros): `machined` (0.1 mm, 0.05 deg,
+    /// 0.5 deg), `precision` (0.02 mm, 0.01 deg, 0.1 deg), `fabricated` (0.5 mm, 0.2 deg, 2 deg).
     /// A prior applies to the parameters --params asks for; with one, a parameter the poses
     /// cannot identify is not held, and the standard errors are the posterior ones. A noise
     /// file's [prior] table comes first. Example: `--prior 'machined,j6.theta=0.1deg'`.

@@ -89,12 +89,17 @@ pub enum PriorError {
     },
 }
 
-/// Named sets of priors, `--prior NAME`: `machined`, the tolerances of a machined and assembled
-/// arm (0.1 mm on lengths, 0.05 deg on the angles between axes, 0.5 deg (0.5 mm for a
-/// prismatic joint) on the joint zeros, which encoders are mounted with); no prior on the
-/// compliances (they have no nominal value to be near).
-pub const PRESETS: [(&str, &str); 1] =
-    [("machined", "lengths=0.1mm,angles=0.05deg,offsets=0.5deg,offsets=0.5mm")];
+/// Named sets of priors, `--prior NAME`, typical tolerances of an arm's geometry: on lengths,
+/// on the angles between axes, and on the joint zeros (deg for a revolute joint, mm for a
+/// prismatic one), which encoders are mounted with. `machined`: a machined, assembled arm
+/// (0.1 mm, 0.05 deg, 0.5 deg); `precision`: ground and fitted parts, zeros set by a fixture
+/// (0.02 mm, 0.01 deg, 0.1 deg); `fabricated`: welded or cast and lightly machined (0.5 mm,
+/// 0.2 deg, 2 deg). None puts a prior on the compliances (they have no nominal value to be near).
+pub const PRESETS: [(&str, &str); 3] = [
+    ("machined", "lengths=0.1mm,angles=0.05deg,offsets=0.5deg,offsets=0.5mm"),
+    ("precision", "lengths=0.02mm,angles=0.01deg,offsets=0.1deg,offsets=0.1mm"),
+    ("fabricated", "lengths=0.5mm,angles=0.2deg,offsets=2deg,offsets=2mm"),
+];
 
 impl PriorEntry {
     /// Parse `TARGET=VALUE[UNIT]`.
@@ -102,7 +107,10 @@ impl PriorEntry {
         let syntax =
             |expected: &str| PriorError::Syntax { entry: text.to_string(), expected: expected.to_string() };
         let (target, value) = text.split_once('=').ok_or_else(|| {
-            syntax("expected PATTERN=VALUE with a unit, e.g. `j*.alpha=0.05deg`, or a preset (`machined`)")
+            syntax(
+                "expected PATTERN=VALUE with a unit, e.g. `j*.alpha=0.05deg`, or a preset (`machined`, \
+                 `precision`, `fabricated`)",
+            )
         })?;
         let (target, value) = (target.trim(), value.trim());
         if target.is_empty() {
@@ -290,6 +298,9 @@ mod tests {
         assert!(err("j*.a=-1mm").contains("above 0"));
         assert!(err("j*.a=mm").contains("expected a number"));
         assert_eq!(PriorEntry::parse_list("machined, j1.theta=1deg").unwrap().len(), 5);
+        let precision = PriorEntry::parse_list("precision").unwrap();
+        assert_eq!((precision[0].target.as_str(), precision[0].sd), ("lengths", 0.02));
+        assert!(err("machind").contains("or a preset (`machined`"), "{}", err("machind"));
     }
 
     #[test]
