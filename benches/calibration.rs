@@ -40,6 +40,8 @@ fn campaign(preset: &str, compliance: f64, params: JointParams) -> (RobotModel, 
         estimate_base: true,
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
     };
     (nominal, data, options)

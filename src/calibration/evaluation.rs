@@ -18,7 +18,11 @@
 //! measurement noise, Eq. 10, at the registered nominal model), whatever estimator fitted the
 //! model. Without a noise model it is `|r_k| / sigma` with `sigma` the residuals' own spread
 //! (see [`Whitening`]). A pose is *flagged* when one whitened component lies more than
-//! [`FLAG_AT`] standard deviations out: the rule of the calibration's outlier warning.
+//! [`FLAG_AT`] standard deviations out: the rule of the calibration's outlier warning. Under a
+//! noise model the threshold is `FLAG_AT max(1, s)`, `s` the robust scale of the poses'
+//! whitened norms (`median(|z_k|) / sqrt(median chi^2(n))`, [`super::robust`]): when every pose
+//! lies further out than `V_k` says, as when a gross error pulls the fit, a pose is flagged
+//! only if it stands out from the others.
 
 use super::{CalibrationError, ErrorStats};
 use crate::estimation::{Estimator, NoiseModel, PointProblem, Residuals, Weights};
@@ -71,7 +75,8 @@ pub struct PoseErrors {
     pub whitened: f64,
     /// Its largest component, in standard deviations.
     pub worst: f64,
-    /// Whether `worst` exceeds [`FLAG_AT`].
+    /// Whether `worst` exceeds [`FLAG_AT`] (times the set's robust scale, if above 1, under a
+    /// noise model; see the [module documentation](self)).
     pub flagged: bool,
 }
 
@@ -175,6 +180,20 @@ pub(crate) fn evaluate_on(
         Whitening::Spread(sigma) if *sigma > 0.0 => z /= *sigma,
         Whitening::Spread(_) => {}
     }
+    // Under a noise model, a pose stands out against the bulk of the poses: when they all lie
+    // further out than V_k says (a fit pulled by a gross error, effects the model lacks), the
+    // flag's threshold grows with their robust scale.
+    let bulk = match whitening {
+        Whitening::Covariance(_) => {
+            let norms: Vec<f64> = z
+                .as_slice()
+                .chunks_exact(rows)
+                .map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt())
+                .collect();
+            super::robust::robust_scale(&norms, rows).max(1.0)
+        }
+        Whitening::Spread(_) => 1.0,
+    };
     let probe = scored.kind == Measured::Pose;
     let per = scored.kind.rows();
     let markers = scored.chains.len();
@@ -199,7 +218,7 @@ pub(crate) fn evaluate_on(
                 orientation,
                 whitened: zk.norm(),
                 worst,
-                flagged: worst > FLAG_AT,
+                flagged: worst > FLAG_AT * bulk,
             }
         })
         .collect();

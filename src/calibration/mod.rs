@@ -17,17 +17,20 @@
 mod data;
 pub mod evaluation;
 mod repeatability;
+pub mod robust;
 
 pub use data::Measurements;
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
 };
+pub use robust::{Loss, RobustFit};
 
 use crate::estimation::{
     CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementNoise,
-    NoiseEstimate, NoiseModel, NoiseSpec, PointProblem, RANK_TOLERANCE, RefineOptions, Refined, Residuals,
-    Weights, linearise, noise_design, refine_from, residual_design,
+    NoiseEstimate, NoiseModel, NoiseSpec, PointProblem, PriorEntry, PriorError, PriorRows, RANK_TOLERANCE,
+    RefineOptions, Refined, Residuals, Weights, linearise, noise_design, prior_sds, refine_from,
+    residual_design,
 };
 use crate::kinematics::{Chain, Measured, end_positions};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
@@ -65,6 +68,12 @@ pub struct Options {
     pub markers: Vec<Vector3<f64>>,
     /// Gauss-Newton settings; `max_iterations = 1` is the paper's one-step estimate.
     pub refine: RefineOptions,
+    /// Prior standard deviations about the nominal model (maximum a posteriori, see
+    /// [`crate::estimation::PriorRows`]): they apply to the parameters `joints` asks for (and
+    /// the base and markers, if named); empty: none.
+    pub prior: Vec<PriorEntry>,
+    /// The loss of each pose's whitened residual ([`robust`]): squared, or a robust one.
+    pub loss: Loss,
 }
 
 /// Why a calibration could not be done.
@@ -77,6 +86,9 @@ pub enum CalibrationError {
     /// A named parameter does not exist.
     #[error(transparent)]
     Selection(#[from] SelectionError),
+    /// A prior names no parameter of its unit.
+    #[error(transparent)]
+    Prior(#[from] PriorError),
     /// Too few poses for the parameters.
     #[error(
         "{poses} poses give {equations} equations for {parameters} parameters: measure more poses (at \
@@ -182,6 +194,11 @@ pub struct Calibration {
     pub warnings: Vec<String>,
     /// The noise estimated from the residuals by feasible GLS ([`calibrate_feasible`]).
     pub noise_estimate: Option<NoiseEstimate>,
+    /// The prior standard deviation of every parameter (full vector, mm, rad or the
+    /// compliance's unit; infinite: no prior).
+    pub prior_sd: Vec<f64>,
+    /// The robust fit's weights, for a robust loss.
+    pub robust: Option<RobustFit>,
     chains: Vec<Chain>,
 }
 
@@ -403,6 +420,7 @@ pub fn calibrate(
 
     // "After": everything asked for that the poses can identify.
     let asked = selection(&params, &options.joints, options)?;
+    let prior_sd = prior_sds(&options.prior, &params)?;
     // With fewer equations than parameters the rank cannot tell structure from lack of data.
     let equations = data.len() * rows;
     if equations <= asked.len() {
@@ -430,6 +448,8 @@ pub fn calibrate(
                 noise,
                 data,
                 marker_ids: data.marker_ids.clone(),
+                prior_sd,
+                robust: None,
             },
             &base_problem,
         );
@@ -448,7 +468,30 @@ pub fn calibrate(
     let problem = base_problem.reselect(&asked, before.clone())?;
     let at_before = linearise(&problem, &weights, problem.start())?;
     let priority: Vec<u32> = asked.indices().iter().map(|&i| gauge_class(params.get(i))).collect();
-    let diagnostics = at_before.diagnose_by_priority(RANK_TOLERANCE, &priority)?;
+    // With priors, what the data and the priors together cannot identify is held: a parameter
+    // with a prior never is.
+    let asked_sd: Vec<f64> = asked.indices().iter().map(|&i| prior_sd[i]).collect();
+    let prior = if asked_sd.iter().any(|s| s.is_finite()) {
+        let scale = match weights.scale() {
+            Some(c) => c,
+            None => unregularised_spread(
+                &base_problem,
+                &params,
+                &asked,
+                &before,
+                &weights,
+                &at_before,
+                &priority,
+            )?,
+        };
+        Some(PriorRows::new(&asked_sd, scale))
+    } else {
+        None
+    };
+    let diagnostics = match &prior {
+        Some(prior) => at_before.with_prior(prior).diagnose_by_priority(RANK_TOLERANCE, &priority)?,
+        None => at_before.diagnose_by_priority(RANK_TOLERANCE, &priority)?,
+    };
     if diagnostics.rank == 0 {
         return Err(CalibrationError::NothingIdentified(format!(
             "the identification Jacobian of the {} parameters asked for has rank 0 at these poses",
@@ -460,7 +503,14 @@ pub fn calibrate(
     let kept = Selection::from_indices(&params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
     let problem = base_problem.reselect(&kept, before.clone())?;
     let start = at_before.select(&diagnostics.identifiable);
-    let estimate = refine_from(&problem, &weights, start, &options.refine)?;
+    // The identifiability the report gives is the data's alone.
+    let data_alone = prior.as_ref().map(|_| start.diagnose(RANK_TOLERANCE)).transpose()?;
+    let prior = prior.map(|p| p.select(&diagnostics.identifiable));
+    let (mut estimate, robust) =
+        robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
+    if let Some(data_alone) = data_alone {
+        estimate.estimate.diagnostics = data_alone;
+    }
     let after = problem.full(&estimate.estimate.x);
     finish(
         Stages {
@@ -476,6 +526,8 @@ pub fn calibrate(
             noise,
             data,
             marker_ids: data.marker_ids.clone(),
+            prior_sd,
+            robust,
         },
         &base_problem,
     )
@@ -495,6 +547,8 @@ struct Stages<'a> {
     noise: Option<NoiseModel>,
     data: &'a Measurements,
     marker_ids: Vec<usize>,
+    prior_sd: Vec<f64>,
+    robust: Option<RobustFit>,
 }
 
 /// The calibration of `s`: the training poses scored on `problem` (the fit's own, with its
@@ -544,8 +598,35 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
         noise_settled: None,
         warnings,
         noise_estimate: None,
+        prior_sd: s.prior_sd,
+        robust: s.robust,
         chains: s.chains,
     })
+}
+
+/// The scale of the rows of an OLS fit without a noise model, for its priors: the residuals'
+/// spread `sqrt(|r|^2 / (N_m - rank))` of the fit of `asked` without priors (linearised in
+/// `at_before`, held by `priority`), as OLS's own covariance takes it.
+fn unregularised_spread(
+    base_problem: &PointProblem<'_>,
+    params: &ParamSet,
+    asked: &Selection,
+    before: &[f64],
+    weights: &Weights,
+    at_before: &crate::estimation::Linearisation,
+    priority: &[u32],
+) -> Result<f64, CalibrationError> {
+    let diagnostics = at_before.diagnose_by_priority(RANK_TOLERANCE, priority)?;
+    let kept = Selection::from_indices(params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
+    let problem = base_problem.reselect(&kept, before.to_vec())?;
+    let fitted = refine_from(
+        &problem,
+        weights,
+        at_before.select(&diagnostics.identifiable),
+        &RefineOptions::default(),
+    )?;
+    let dof = problem.equations().saturating_sub(fitted.estimate.diagnostics.rank).max(1);
+    Ok((fitted.estimate.cost / dof as f64).sqrt())
 }
 
 /// `asked` without the compliances and plays of joints that gravity does not load at the poses

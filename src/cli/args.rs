@@ -4,7 +4,9 @@
 
 use clap::{Args, ValueEnum};
 use nalgebra::Vector3;
+use robocal::calibration::Loss;
 use robocal::design::Criterion;
+use robocal::estimation::PriorEntry;
 use robocal::limits::{MAX_ANGLE_DEG, MAX_ITERATIONS, MAX_LENGTH_MM};
 use std::path::PathBuf;
 
@@ -271,6 +273,23 @@ pub struct CalibrateArgs {
     /// marker (missing ones start at that frame's origin).
     #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub marker: Vec<Vector3<f64>>,
+    /// Prior standard deviations about the nominal model (maximum a posteriori): comma-separated
+    /// `PATTERN=SD` entries, repeatable, later ones overriding earlier ones. PATTERN is a name or
+    /// pattern as --params takes it (`j*.alpha`), or `lengths`, `angles`, `offsets`,
+    /// `compliances` (those of every joint); SD has a unit, which also picks the parameters: mm,
+    /// um, m, deg, rad, mrad, or a plain number for a compliance (rad/N·m, mm/N). Presets of
+    /// typical tolerances (lengths, angles, joint zeros): `machined` (0.1 mm, 0.05 deg,
+    /// 0.5 deg), `precision` (0.02 mm, 0.01 deg, 0.1 deg), `fabricated` (0.5 mm, 0.2 deg, 2 deg).
+    /// A prior applies to the parameters --params asks for; with one, a parameter the poses
+    /// cannot identify is not held, and the standard errors are the posterior ones. A noise
+    /// file's [prior] table comes first. Example: `--prior 'machined,j6.theta=0.1deg'`.
+    #[arg(long, value_name = "PATTERN=SD,...", value_parser = parse_prior)]
+    pub prior: Vec<Vec<PriorEntry>>,
+    /// The loss of each pose's whitened residual: `squared` (least squares), `huber[:K]`
+    /// (K = 1.345 by default) or `cauchy[:K]` (K = 2.385), by iteratively reweighted least
+    /// squares; a pose is down-weighted as a whole, and those weighted below 0.1 are listed.
+    #[arg(long, default_value = "squared", value_name = "LOSS", value_parser = parse_loss)]
+    pub loss: Loss,
     /// Gauss-Newton steps at most (at least 1); 1 is the paper's one-step estimate.
     #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
     pub iterations: usize,
@@ -449,6 +468,16 @@ fn parse_iterations(text: &str) -> Result<usize, String> {
 }
 
 /// A marker position "x,y,z" (mm).
+/// Prior entries, `PATTERN=SD` separated by commas, or presets.
+fn parse_prior(text: &str) -> Result<Vec<PriorEntry>, String> {
+    PriorEntry::parse_list(text).map_err(|e| e.to_string())
+}
+
+/// A loss: `squared`, `huber[:K]`, `cauchy[:K]`.
+fn parse_loss(text: &str) -> Result<Loss, String> {
+    text.parse()
+}
+
 fn parse_marker(text: &str) -> Result<Vector3<f64>, String> {
     match finite_numbers(text, ',').as_deref() {
         Some(&[x, y, z]) => Ok(Vector3::new(x, y, z)),

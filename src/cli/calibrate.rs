@@ -141,6 +141,12 @@ fn check_against_the_files(request: &CalibrateRequest, data: &Data) -> Result<()
 /// parameters, the markers and the iterations.
 fn options(request: &CalibrateRequest, model: &RobotModel, data: &Measurements) -> Result<Options> {
     let noise = noise_for(request.noise.as_ref(), model, data)?;
+    // A noise file's [prior] table, then the flags'.
+    let mut prior = match &request.noise {
+        Some(NoiseSource::File(path)) => io::load_noise(path, model)?.prior,
+        _ => Vec::new(),
+    };
+    prior.extend(request.prior.iter().cloned());
     // The k-th --marker is marker k of the file; the fitted ones are picked by number.
     let markers =
         data.marker_ids.iter().map(|&id| request.markers.get(id - 1).copied().unwrap_or_default()).collect();
@@ -151,6 +157,8 @@ fn options(request: &CalibrateRequest, model: &RobotModel, data: &Measurements) 
         estimate_base: request.estimate_base,
         estimate_markers: request.estimate_markers,
         markers,
+        prior,
+        loss: request.loss,
         refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
     })
 }

@@ -220,6 +220,10 @@ pub struct CalibrateRequest {
     pub estimate_markers: bool,
     /// Nominal marker positions (mm).
     pub markers: Vec<Vector3<f64>>,
+    /// Prior entries from the flags, in order (a noise file's come first).
+    pub prior: Vec<robocal::estimation::PriorEntry>,
+    /// The loss of each pose.
+    pub loss: robocal::calibration::Loss,
     /// Gauss-Newton steps at most (>= 1).
     pub iterations: usize,
     /// Held-out measurement files.
@@ -263,6 +267,8 @@ impl CalibrateRequest {
             estimate_base: !args.fixed_base,
             estimate_markers: !args.fixed_markers,
             markers: args.marker,
+            prior: args.prior.into_iter().flatten().collect(),
+            loss: args.loss,
             iterations: args.iterations,
             validate: args.validate,
             folds: args.folds,

@@ -18,6 +18,7 @@
 mod device;
 mod noise;
 mod noise_file;
+pub mod prior;
 mod problem;
 mod refine;
 mod solve;
@@ -28,9 +29,10 @@ pub use device::{Device, DeviceError};
 pub use noise::{MeasurementNoise, NoiseModel};
 pub(crate) use noise_file::DeviceTable;
 pub use noise_file::{NoiseFileError, NoiseSpec};
+pub use prior::{PRESETS as PRIOR_PRESETS, PriorEntry, PriorError, PriorRows, PriorUnit, prior_sds};
 pub use problem::PointProblem;
 pub use refine::{
-    Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from,
+    Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from, refine_map,
 };
 pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE};
 pub use variance::{ComponentFit, JointComponents, NoiseEstimate, SigmaInterval, sample_covariance};
@@ -240,6 +242,9 @@ pub struct Weights {
     /// `S_k V_k S_k^T` stacked, if `V` is known.
     noise: Option<DMatrix<f64>>,
     rows: usize,
+    /// The standard deviation of a whitened row, `sigma_max` of the normalisation (1 without
+    /// it), if `V` is known.
+    scale: Option<f64>,
 }
 
 impl Weights {
@@ -253,28 +258,67 @@ impl Weights {
     ) -> Result<Self, EstimationError> {
         let Some(v) = v else {
             return match estimator {
-                Estimator::Ols => Ok(Self { s: None, noise: None, rows }),
+                Estimator::Ols => Ok(Self { s: None, noise: None, rows, scale: None }),
                 _ => Err(EstimationError::NoiseRequired(estimator)),
             };
         };
+        let sigma_max = (0..v.nrows()).map(|r| v[(r, r % rows)]).fold(0.0, f64::max).sqrt();
         if estimator == Estimator::Ols {
-            return Ok(Self { s: None, noise: Some(v.clone()), rows });
+            return Ok(Self { s: None, noise: Some(v.clone()), rows, scale: Some(sigma_max) });
         }
         let (mut s, mut noise) = match rows {
             3 => block_weights(v, Const::<3>, estimator)?,
             6 => block_weights(v, Const::<6>, estimator)?,
             b => block_weights(v, Dyn(b), estimator)?,
         };
+        let mut scale = 1.0;
         if normalise {
             // W = sigma_max^2 V^-1: S scaled by sigma_max (by its square root for 1/sigma weights).
-            let sigma_max = (0..v.nrows()).map(|r| v[(r, r % rows)]).fold(0.0, f64::max).sqrt();
             let c = if estimator == Estimator::WlsSigma { sigma_max.sqrt() } else { sigma_max };
             if c > 0.0 {
                 s *= c;
                 noise *= c * c;
+                scale = sigma_max;
             }
         }
-        Ok(Self { s: Some(s), noise: Some(noise), rows })
+        Ok(Self { s: Some(s), noise: Some(noise), rows, scale: Some(scale) })
+    }
+
+    /// The standard deviation `c` of a whitened row: `sigma_max` under the paper's
+    /// normalisation, for every estimator (OLS leaves rows in mm and takes the largest noise
+    /// for them); `None` without a noise model. Priors scale their rows by it ([`PriorRows`]).
+    pub fn scale(&self) -> Option<f64> {
+        self.scale
+    }
+
+    /// Whether the rows are whitened (a weighted estimator, or reweighted), not taken as they are.
+    pub fn whitens(&self) -> bool {
+        self.s.is_some()
+    }
+
+    /// These weights with point `k`'s whitening multiplied by `sqrt(w_k)`, as if its covariance
+    /// were `V_k / w_k` (iteratively reweighted least squares): the whitened noise blocks are
+    /// multiplied by `w_k`. `w` has one weight per point.
+    pub fn reweighted(&self, w: &[f64]) -> Self {
+        let b = self.rows;
+        let mut s = match &self.s {
+            Some(s) => s.clone(),
+            None => {
+                let mut identity = DMatrix::zeros(w.len() * b, b);
+                for k in 0..w.len() {
+                    identity.view_mut((k * b, 0), (b, b)).fill_with_identity();
+                }
+                identity
+            }
+        };
+        let mut noise = self.noise.clone();
+        for (k, &w_k) in w.iter().enumerate() {
+            s.rows_mut(k * b, b).scale_mut(w_k.sqrt());
+            if let Some(noise) = &mut noise {
+                noise.rows_mut(k * b, b).scale_mut(w_k);
+            }
+        }
+        Self { s: Some(s), noise, rows: b, scale: self.scale }
     }
 
     /// Whether these weights are for `equations` rows in points of `rows`.

@@ -18,6 +18,7 @@
 //! `robocal calibrate --noise` and `robocal simulate --noise` read it.
 
 use super::device::Device;
+use super::prior::PriorEntry;
 use crate::error::FieldError;
 use crate::limits::{MAX_ANGLE_DEG, MAX_LENGTH_MM, check_magnitude};
 use crate::model::{JointKind, RobotModel};
@@ -136,6 +137,37 @@ struct NoiseToml {
     #[serde(default)]
     sigma_orientation_deg: f64,
     device: Option<DeviceTable>,
+    prior: Option<std::collections::BTreeMap<String, toml::Value>>,
+}
+
+/// The entries of a `[prior]` table, `PATTERN = "SD UNIT"` (a plain number for a compliance),
+/// ordered so that the more specific wins: the classes (`lengths`, ...), then the patterns with
+/// `*`, then the names; alphabetically within each.
+fn prior_table(
+    table: std::collections::BTreeMap<String, toml::Value>,
+) -> Result<Vec<PriorEntry>, NoiseFileError> {
+    let mut entries = Vec::new();
+    for (key, value) in table {
+        let value = match value {
+            toml::Value::String(s) => s,
+            toml::Value::Float(v) => v.to_string(),
+            toml::Value::Integer(v) => v.to_string(),
+            other => {
+                let expected = format!("a standard deviation with its unit (\"0.5mm\"), found {other}");
+                return Err(NoiseFileError::Invalid(FieldError::new(format!("prior.{key}"), expected)));
+            }
+        };
+        let entry = PriorEntry::parse(&format!("{key}={value}"))
+            .map_err(|e| NoiseFileError::Invalid(FieldError::new(format!("prior.{key}"), e.to_string())))?;
+        entries.push(entry);
+    }
+    let rank = |e: &PriorEntry| match e.target.as_str() {
+        "lengths" | "angles" | "offsets" | "compliances" => 0,
+        t if t.contains('*') => 1,
+        _ => 2,
+    };
+    entries.sort_by_key(rank);
+    Ok(entries)
 }
 
 /// A noise model as a file gives it, in mm and rad: `Sigma_q`, and the measurement noise
@@ -152,6 +184,8 @@ pub struct NoiseSpec {
     pub sigma_orientation: f64,
     /// The measuring device, if given.
     pub device: Option<Device>,
+    /// The `[prior]` table's entries, the more specific last (classes, then patterns, then names).
+    pub prior: Vec<PriorEntry>,
 }
 
 impl NoiseSpec {
@@ -232,7 +266,8 @@ impl NoiseSpec {
         }
         check_magnitude(o, MAX_ANGLE_DEG, "deg").map_err(|e| invalid("sigma_orientation_deg", e))?;
         let device = file.device.as_ref().map(|d| d.device("device.")).transpose()?;
-        Ok(Self { joint, full, sigma_me: file.sigma_me_mm, sigma_orientation: o.to_radians(), device })
+        let prior = prior_table(file.prior.unwrap_or_default())?;
+        Ok(Self { joint, full, sigma_me: file.sigma_me_mm, sigma_orientation: o.to_radians(), device, prior })
     }
 
     /// The joint standard deviations (rad, mm): the square roots of the diagonal of `Sigma_q`.
@@ -279,6 +314,13 @@ impl NoiseSpec {
         }
         if self.sigma_orientation > 0.0 {
             let _ = writeln!(out, "sigma_orientation_deg = {:.6e}", self.sigma_orientation.to_degrees());
+        }
+        if !self.prior.is_empty() {
+            let _ = writeln!(out, "\n[prior]");
+            for entry in &self.prior {
+                let value = entry.text.split_once('=').map_or("", |(_, v)| v.trim());
+                let _ = writeln!(out, "\"{}\" = \"{value}\"", entry.target);
+            }
         }
         if let Some(device) = &self.device {
             let _ = writeln!(out, "\n[device]\nkind = \"{}\"", device.kind());

@@ -2,6 +2,7 @@
 //! (Gauss-Newton), with Levenberg-Marquardt damping when a step fails to lower the weighted
 //! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
 
+use super::prior::PriorRows;
 use super::solve::{
     Diagnostics, LinearEstimate, RANK_TOLERANCE, diagnose_rank, diagnose_rank_by_priority, factorise,
 };
@@ -117,6 +118,13 @@ impl Linearisation {
         Self { x: self.x.select_rows(columns), a: self.a.select_columns(columns), b: self.b.clone() }
     }
 
+    /// The system with the prior rows `c P` below it ([`PriorRows::augment`]): what can be
+    /// identified once the priors are counted.
+    pub fn with_prior(&self, prior: &PriorRows) -> Self {
+        let (a, b) = prior.augment(&self.a, &self.b, &self.x);
+        Self { x: self.x.clone(), a, b }
+    }
+
     /// What the system can identify: rank, identifiable subset, non-identifiable combinations
     /// (as [`super::diagnose`], which starts from an unweighted system).
     pub fn diagnose(&self, rank_tolerance: f64) -> Result<Diagnostics, EstimationError> {
@@ -205,6 +213,40 @@ pub fn refine_from(
     start: Linearisation,
     options: &RefineOptions,
 ) -> Result<Refined, EstimationError> {
+    iterate(problem, weights, start, options, None)
+}
+
+/// [`refine_from`] with priors: the maximum a posteriori estimate, each step the least-squares
+/// solution of the whitened system with the prior rows `c P` below it ([`PriorRows`], one per
+/// column of `problem`; see [`super::prior`]). The covariance is the posterior one,
+/// `(H^T V^-1 H + P^2)^-1` for Gauss-Markov (a sandwich for the others); the cost includes the
+/// prior's part `|c P x|^2`; the diagnostics are those of the stacked system.
+pub fn refine_map(
+    problem: &impl Residuals,
+    weights: &Weights,
+    start: Linearisation,
+    options: &RefineOptions,
+    prior: &PriorRows,
+) -> Result<Refined, EstimationError> {
+    if prior.columns() != problem.parameters() {
+        return Err(EstimationError::Dimensions(format!(
+            "priors for {} columns of a problem of {}",
+            prior.columns(),
+            problem.parameters()
+        )));
+    }
+    iterate(problem, weights, start, options, Some(prior))
+}
+
+/// Gauss-Newton with Levenberg-Marquardt damping on the whitened system, with the prior rows
+/// below it if given.
+fn iterate(
+    problem: &impl Residuals,
+    weights: &Weights,
+    start: Linearisation,
+    options: &RefineOptions,
+    prior: Option<&PriorRows>,
+) -> Result<Refined, EstimationError> {
     let (m, p) = (problem.equations(), problem.parameters());
     let dims = |s: String| Err(EstimationError::Dimensions(s));
     if start.a.shape() != (m, p) || start.b.len() != m || start.x.len() != p {
@@ -222,16 +264,20 @@ pub fn refine_from(
     // Two buffers for the whitened H: the current system's, and the trial's.
     let mut spare = DMatrix::zeros(m, p);
     let mut history = Vec::new();
+    // The prior's part of the cost at `x`, and the stacked system (the data's alone without one).
+    let prior_cost = |x: &DVector<f64>| prior.map_or(0.0, |p| p.cost(x));
     loop {
-        let factorised = factorise(&a, options.rank_tolerance)?;
-        let cost = b.norm_squared();
-        let gauss_newton = factorised.solve(&a, &b);
+        let stacked = prior.map(|p| p.augment(&a, &b, &x));
+        let (sa, sb) = stacked.as_ref().map_or((&a, &b), |(a, b)| (a, b));
+        let factorised = factorise(sa, options.rank_tolerance)?;
+        let cost = sb.norm_squared();
+        let gauss_newton = factorised.solve(sa, sb);
 
         let one_step = options.max_iterations == 1;
         let taken = if one_step {
             // The paper's estimate: the linear solution, taken as it is; its cost is the
             // linearised residual's.
-            let linearised = (&b - &a * &gauss_newton).norm_squared();
+            let linearised = (sb - sa * &gauss_newton).norm_squared();
             Some(Accepted { step: gauss_newton, cost_after: linearised, damping: 0.0, residual: None })
         } else {
             // Gauss-Newton, damped more and more until the cost falls, as Levenberg-Marquardt;
@@ -239,14 +285,15 @@ pub fn refine_from(
             // minimum is reached and a failed step is rounding, not a reason to damp (a damped
             // step promises less still). Each trial is linearised at once: an accepted one is
             // the next step's system.
-            let promised = cost - (&b - &a * &gauss_newton).norm_squared();
+            let promised = cost - (sb - sa * &gauss_newton).norm_squared();
             let at_minimum = promised <= options.cost_tolerance * cost;
             let mut trial = (gauss_newton, 0.0);
             loop {
                 // At the minimum this trial is the last one: its H would never be used.
                 let h = if at_minimum { None } else { Some(&mut spare) };
-                let y = problem.evaluate_whitened(&(&x + &trial.0), weights, h);
-                let cost_after = y.norm_squared();
+                let moved_to = &x + &trial.0;
+                let y = problem.evaluate_whitened(&moved_to, weights, h);
+                let cost_after = y.norm_squared() + prior_cost(&moved_to);
                 if cost_after <= cost {
                     let (step, damping, residual) = (trial.0, trial.1, Some((y, !at_minimum)));
                     break Some(Accepted { step, cost_after, damping, residual });
@@ -255,7 +302,7 @@ pub fn refine_from(
                     break None;
                 }
                 let damping = if trial.1 == 0.0 { 1e-4 } else { trial.1 * 10.0 };
-                trial = (damped_step(&a, &b, damping, options.rank_tolerance)?, damping);
+                trial = (damped_step(sa, sb, damping, options.rank_tolerance)?, damping);
             }
         };
         let (converged, final_cost, next) = match taken {
@@ -279,7 +326,10 @@ pub fn refine_from(
                 b = y;
             }
             _ => {
-                let covariance = factorised.covariance(&a, weights.noise(), final_cost);
+                let covariance = match prior {
+                    None => factorised.covariance(&a, weights.noise(), final_cost),
+                    Some(prior) => factorised.posterior_covariance(&a, weights.noise(), prior),
+                };
                 let diagnostics = factorised.diagnostics;
                 let estimate = LinearEstimate { names, x, covariance, cost: final_cost, diagnostics };
                 return Ok(Refined { estimate, history, converged });

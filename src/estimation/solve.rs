@@ -16,6 +16,7 @@
 //! For any weighting the covariance is the sandwich `(P G) A^T (S V S^T) A (P G)^T`, which is
 //! `M^+` for Gauss-Markov and `(H^T H)^+ H^T V H (H^T H)^+` for OLS.
 
+use super::prior::PriorRows;
 use super::{EstimationError, Whitened};
 use nalgebra::{DMatrix, DVector};
 
@@ -408,14 +409,7 @@ impl Factorised {
             Right::Orthogonal { .. } => crate::linalg::gram(a),
         };
         let c = match noise {
-            Some(blocks) => match identity_multiple(blocks) {
-                Some(scale) => gram() * scale,
-                None => {
-                    let mut na = a.clone();
-                    super::block_diagonal_mul(blocks, &mut na);
-                    crate::linalg::tr_mul(a, &na)
-                }
-            },
+            Some(blocks) => information(a, blocks, gram),
             None => {
                 let dof = a.nrows().saturating_sub(self.diagnostics.rank);
                 let sigma2 = if dof > 0 { cost / dof as f64 } else { f64::NAN };
@@ -423,6 +417,37 @@ impl Factorised {
             }
         };
         &self.pg * c * self.pg.transpose()
+    }
+
+    /// The covariance of a solve of the data rows `a` with the prior rows below them (this
+    /// factorisation's system, [`super::prior`]): `(P G) (C_data + C_prior) (P G)^T`, the data
+    /// rows' covariance the noise blocks (or `c^2 I` without them), the prior's
+    /// [`PriorRows::information`]. For Gauss-Markov, `(H^T V^-1 H + P^2)^-1`: the posterior.
+    pub(crate) fn posterior_covariance(
+        &self,
+        a: &DMatrix<f64>,
+        noise: Option<&DMatrix<f64>>,
+        prior: &PriorRows,
+    ) -> DMatrix<f64> {
+        let gram = || crate::linalg::gram(a);
+        let data = match noise {
+            Some(blocks) => information(a, blocks, gram),
+            None => gram() * prior.scale().powi(2),
+        };
+        &self.pg * (data + prior.information()) * self.pg.transpose()
+    }
+}
+
+/// `A^T N A` for the stacked blocks `N` of the covariance of the whitened data rows `a`; `gram`
+/// gives `A^T A`, used when every block is a multiple of the identity.
+fn information(a: &DMatrix<f64>, blocks: &DMatrix<f64>, gram: impl Fn() -> DMatrix<f64>) -> DMatrix<f64> {
+    match identity_multiple(blocks) {
+        Some(scale) => gram() * scale,
+        None => {
+            let mut na = a.clone();
+            super::block_diagonal_mul(blocks, &mut na);
+            crate::linalg::tr_mul(a, &na)
+        }
     }
 }
 

@@ -416,6 +416,7 @@ impl NoiseEstimate {
             sigma_me: Some(me),
             sigma_orientation: orientation,
             device: None,
+            prior: Vec::new(),
         }
     }
 

@@ -365,7 +365,7 @@ impl Selection {
 
 /// Whether `name` matches `pattern`, where one `*` in either part of the pattern stands for any
 /// run of characters within that part (`j*.theta`, `base.*`).
-fn name_matches(pattern: &str, name: &str) -> bool {
+pub(crate) fn name_matches(pattern: &str, name: &str) -> bool {
     let part = |p: &str, n: &str| match p.split_once('*') {
         Some((pre, post)) => n.len() >= pre.len() + post.len() && n.starts_with(pre) && n.ends_with(post),
         None => p == n,

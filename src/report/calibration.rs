@@ -37,7 +37,8 @@ pub struct CalibrationReport {
     pub registered_base: [f64; 6],
     /// The identified parameters.
     pub parameters: Vec<ParameterRow>,
-    /// Numerical rank and condition number of the weighted, column-scaled H.
+    /// Numerical rank and condition number of the weighted, column-scaled H (of the data alone,
+    /// with priors).
     pub rank: usize,
     /// `s_1 / s_r`.
     pub condition_number: f64,
@@ -58,6 +59,12 @@ pub struct CalibrationReport {
     /// The noise estimated by feasible GLS, with 95% intervals.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<Vec<NoiseRow>>,
+    /// A robust loss (`huber:1.345`), if one was used.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loss: Option<String>,
+    /// The poses it down-weighted.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub down_weighted: Vec<DownWeighted>,
     /// Each estimated compliance as a stiffness.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub stiffness: Vec<StiffnessRow>,
@@ -184,10 +191,26 @@ pub struct ParameterRow {
     pub name: String,
     /// The estimated error (for the base, the correction to the registered base).
     pub value: f64,
-    /// Its standard error.
+    /// Its standard error (the posterior one, with a prior).
     pub std_error: f64,
     /// `deg` or `mm`.
     pub unit: &'static str,
+    /// Its prior standard deviation, if it has one (same unit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior_sd: Option<f64>,
+    /// Posterior over prior standard deviation: near 1, the data barely moved it from the
+    /// prior; near 0, the data determined it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sd_ratio: Option<f64>,
+}
+
+/// A training pose that a robust loss weighted below [`crate::calibration::robust::LISTED_BELOW`].
+#[derive(Debug, Clone, Serialize)]
+pub struct DownWeighted {
+    /// Its line in the measurement file.
+    pub line: usize,
+    /// Its final weight (1: a least-squares pose).
+    pub weight: f64,
 }
 
 impl CalibrationReport {
@@ -211,11 +234,14 @@ impl CalibrationReport {
             .map(|i| {
                 let p = c.params.get(i);
                 let scale = if p.is_angle() { 180.0 / std::f64::consts::PI } else { 1.0 };
+                let prior = c.prior_sd.get(i).copied().filter(|s| s.is_finite());
                 ParameterRow {
                     name: by_number(&p.name, &c.marker_ids),
                     value: c.after[i] * scale,
                     std_error: se[i] * scale,
                     unit: if p.is_angle() { "deg" } else { p.unit() },
+                    prior_sd: prior.map(|s| s * scale),
+                    sd_ratio: prior.map(|s| se[i] / s),
                 }
             })
             .collect();
@@ -233,7 +259,19 @@ impl CalibrationReport {
         let weighting = Weighting {
             before: "base and markers fitted by ols (unweighted), joints nominal, whatever the estimator"
                 .into(),
-            after: format!("{estimator}: every parameter asked for that the poses identify"),
+            after: match (c.prior_sd.iter().any(|s| s.is_finite()), &c.robust) {
+                (false, None) => format!("{estimator}: every parameter asked for that the poses identify"),
+                (priors, robust) => format!(
+                    "{estimator}{}{}: every parameter asked for {}",
+                    if priors { " with priors (maximum a posteriori)" } else { "" },
+                    robust.as_ref().map_or(String::new(), |r| format!(", robust loss {}", r.loss)),
+                    if priors {
+                        "with a prior, and those without one that the poses identify"
+                    } else {
+                        "that the poses identify"
+                    }
+                ),
+            },
             errors: "distances and their components, unweighted".into(),
             whitened: format!(
                 "{}; flagged when a component exceeds {FLAG_AT} standard deviations",
@@ -269,6 +307,12 @@ impl CalibrationReport {
             warnings: c.warnings.clone(),
             noise: c.noise_estimate.as_ref().map(|e| noise_rows(&c.registered.joints, e)),
             stiffness: stiffness_rows(&parameters),
+            loss: c.robust.as_ref().map(|r| r.loss.to_string()),
+            down_weighted: c.robust.as_ref().map_or_else(Vec::new, |r| {
+                r.down_weighted()
+                    .map(|(k, weight)| DownWeighted { line: c.training_poses.poses[k].line, weight })
+                    .collect()
+            }),
         }
     }
 
@@ -325,14 +369,34 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             "base registered at xyz ({:.3}, {:.3}, {:.3}) mm, rpy ({:.4}, {:.4}, {:.4}) deg\n",
             b[0], b[1], b[2], b[3], b[4], b[5]
         );
-        let _ = writeln!(out, "{:<14} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
+        let priors = self.parameters.iter().any(|p| p.prior_sd.is_some());
+        if priors {
+            let _ = writeln!(
+                out,
+                "{:<14} {:>12} {:>12} {:>12} {:>9}  unit",
+                "parameter", "estimate", "std. error", "prior SD", "SD ratio"
+            );
+        } else {
+            let _ = writeln!(out, "{:<14} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
+        }
         for p in &self.parameters {
-            if p.unit.contains('N') {
-                // compliances: small numbers, in scientific notation
-                let _ = writeln!(out, "{:<14} {:>12.4e} {:>12.4e}  {}", p.name, p.value, p.std_error, p.unit);
-            } else {
-                let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
+            // compliances: small numbers, in scientific notation
+            let number =
+                |v: f64| if p.unit.contains('N') { format!("{v:>12.4e}") } else { format!("{v:>12.5}") };
+            let mut line = format!("{:<14} {} {}", p.name, number(p.value), number(p.std_error));
+            match (p.prior_sd, p.sd_ratio) {
+                (Some(prior), Some(ratio)) => line += &format!(" {} {ratio:>9.3}", number(prior)),
+                _ if priors => line += &format!(" {:>12} {:>9}", "-", "-"),
+                _ => {}
             }
+            let _ = writeln!(out, "{line}  {}", p.unit);
+        }
+        if priors {
+            let _ = writeln!(
+                out,
+                "(with priors: posterior standard errors; SD ratio = posterior / prior SD, near 1 where the \
+                 data barely moved a parameter from its prior)"
+            );
         }
         if !self.stiffness.is_empty() {
             let _ = writeln!(
@@ -351,6 +415,14 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         }
         if self.parameters.is_empty() {
             let _ = writeln!(out, "\nnothing estimated: the model is scored as it stands");
+        } else if priors {
+            let _ = writeln!(
+                out,
+                "\n{} parameters estimated with their priors; the data alone: rank {}, condition number {:.3e}",
+                self.parameters.len(),
+                self.rank,
+                self.condition_number
+            );
         } else {
             let _ = writeln!(
                 out,
@@ -359,6 +431,18 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
                 self.rank,
                 self.condition_number
             );
+        }
+        if let Some(loss) = &self.loss {
+            let _ = writeln!(
+                out,
+                "robust loss {loss}: {} pose{} weighted below 0.1{}",
+                self.down_weighted.len(),
+                if self.down_weighted.len() == 1 { "" } else { "s" },
+                if self.down_weighted.is_empty() { "" } else { ":" }
+            );
+            for d in &self.down_weighted {
+                let _ = writeln!(out, "  line {}: weight {:.4}", d.line, d.weight);
+            }
         }
         if !self.fixed.is_empty() {
             let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");

@@ -39,16 +39,22 @@ fn poses(model: &RobotModel, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
         .collect()
 }
 
-struct Campaign {
-    nominal: RobotModel,
-    truth: RobotModel,
-    true_markers: Vec<Vector3<f64>>,
-    training: Measurements,
-    validation: Measurements,
-    options: Options,
+pub(crate) struct Campaign {
+    pub nominal: RobotModel,
+    pub truth: RobotModel,
+    pub true_markers: Vec<Vector3<f64>>,
+    pub training: Measurements,
+    pub validation: Measurements,
+    pub options: Options,
 }
 
 fn campaign(seed: u64) -> Campaign {
+    campaign_of(seed, 120)
+}
+
+/// A PUMA 560 with errors, an unknown base and two markers, measured at `poses` training poses
+/// and 60 held-out ones, calibrated by Gauss-Markov with its true noise.
+pub(crate) fn campaign_of(seed: u64, poses_: usize) -> Campaign {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let nominal = RobotModel::preset("puma560").unwrap();
     let truth = true_robot(&nominal, &mut rng);
@@ -58,7 +64,7 @@ fn campaign(seed: u64) -> Campaign {
         let text = measurement_csv(&truth, &true_markers, joints, &joint_sigmas(), sigma_me, seed);
         Measurements::from_csv_str(&text, &nominal, None).unwrap()
     };
-    let training = read(&poses(&nominal, 120, &mut rng), 1);
+    let training = read(&poses(&nominal, poses_, &mut rng), 1);
     let validation = read(&poses(&nominal, 60, &mut rng), 2);
     let options = Options {
         estimator: Estimator::Wls,
@@ -67,6 +73,8 @@ fn campaign(seed: u64) -> Campaign {
         estimate_base: true,
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
     };
     Campaign { nominal, truth, true_markers, training, validation, options }
@@ -316,6 +324,8 @@ fn a_probe_with_orientation_calibrates_its_mounting_too() {
         estimate_base: true,
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0)],
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
     };
     let calibration = calibration::calibrate(&nominal, &training, &options).unwrap();

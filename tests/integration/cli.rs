@@ -334,3 +334,41 @@ fn a_closed_pipe_ends_the_command_quietly() {
 fn libc_sigpipe() -> i32 {
     13
 }
+
+/// `--prior` and `--loss` on the example: the report gives the prior SDs and their ratios and
+/// the robust fit's verdict; a bad entry is a usage error naming it.
+#[test]
+fn calibrate_with_priors_and_a_robust_loss() {
+    let output = robocal()
+        .args([
+            "calibrate",
+            "--model",
+            "puma560",
+            "--data",
+            "examples/puma560-measurements.csv",
+            "--marker",
+            "50,0,150",
+            "--marker=-40,60,120",
+            "--prior",
+            "machined",
+            "--loss",
+            "huber",
+        ])
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let text = String::from_utf8(output.stdout).unwrap();
+    assert!(text.contains("prior SD  SD ratio"), "{text}");
+    assert!(text.contains("parameters estimated with their priors; the data alone: rank"), "{text}");
+    assert!(text.contains("robust loss huber:1.345: 0 poses weighted below 0.1"), "{text}");
+    assert!(!text.contains("held fixed"), "every joint parameter has a prior: {text}");
+    let bad =
+        usage_error_of(&["calibrate", "--model", "puma560", "--data", "d.csv", "--prior", "j*.a=5inch"]);
+    assert!(bad.contains("prior `j*.a=5inch`: unknown unit `inch`"), "{bad}");
+    // A plain number is a compliance's: the PUMA has none named so.
+    let data = ["calibrate", "--model", "puma560", "--data", "examples/puma560-measurements.csv"];
+    let wrong = stderr_of(
+        &[&data[..], &["--marker", "50,0,150", "--marker=-40,60,120", "--prior", "j*.a=0.5"]].concat(),
+    );
+    assert!(wrong.contains("prior `j*.a=0.5`: no compliance parameter matches `j*.a`"), "{wrong}");
+}

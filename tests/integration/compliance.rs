@@ -43,6 +43,8 @@ fn recovers(nominal: &RobotModel, truth: &RobotModel, expected: &[&str]) {
         estimate_markers: true,
         markers: true_markers.iter().map(|m| m + Vector3::new(0.3, -0.2, 0.1)).collect(),
         refine: RefineOptions::default(),
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
     };
     let result = calibration::calibrate(nominal, &data, &options).unwrap();
     assert!(result.refined.converged);
@@ -307,6 +309,8 @@ fn a_payload_mass_is_estimated_where_the_compliances_show_it() {
         estimate_markers: false,
         markers: markers.to_vec(),
         refine: RefineOptions::default(),
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
     };
     let result = calibration::calibrate(&nominal, &data, &options).unwrap();
     let mass = result.calibrated.payload.unwrap().mass;

@@ -54,6 +54,8 @@ fn campaign(seed: u64, poses: usize) -> Campaign {
         estimate_base: true,
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0)],
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
     };
     Campaign { nominal, truth, data, options }

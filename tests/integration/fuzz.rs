@@ -256,6 +256,8 @@ proptest! {
             estimate_base: true,
             estimate_markers: true,
             markers: vec![Vector3::new(50.0, 0.0, 150.0)],
+            prior: Vec::new(),
+            loss: robocal::calibration::Loss::Squared,
             refine: RefineOptions { max_iterations: 5, ..RefineOptions::default() },
         };
         if let Err(e) = calibration::calibrate(&puma(), &data, &options) {

@@ -605,6 +605,8 @@ fn a_badly_conditioned_system_is_warned() {
                 nalgebra::Vector3::new(50.0, 0.0, 150.0),
                 nalgebra::Vector3::new(-40.0, 60.0, 120.0),
             ],
+            prior: Vec::new(),
+            loss: robocal::calibration::Loss::Squared,
             refine: robocal::estimation::RefineOptions::default(),
         };
         let result = robocal::calibration::calibrate(&model, &data, &options).unwrap();

@@ -171,6 +171,8 @@ fn a_seven_joint_urdf_arm_with_a_prismatic_joint_calibrates() {
         estimate_base: true,
         estimate_markers: true,
         markers: vec![Vector3::new(30.0, 1.0, 58.0), Vector3::new(-21.0, 40.0, 52.0)],
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
     };
     let result = calibration::calibrate(&nominal, &training, &options).unwrap();
@@ -265,6 +267,8 @@ fn markers_are_given_and_reported_in_the_tip_link_frame() {
         estimate_base: true,
         estimate_markers: true,
         markers: start.clone(),
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
     };
     let result = calibration::calibrate(&nominal, &data, &options).unwrap();
@@ -433,7 +437,7 @@ fn urdf_inertials_are_folded_into_the_mass_each_joint_moves() {
 }
 
 /// OLS calibration options of the arm7 benchmark: its README's markers, base and markers free.
-fn arm7_options(joints: JointParams) -> Options {
+pub(crate) fn arm7_options(joints: JointParams) -> Options {
     Options {
         estimator: Estimator::Ols,
         noise: None,
@@ -445,6 +449,8 @@ fn arm7_options(joints: JointParams) -> Options {
             Vector3::new(-20.0, 35.0, 25.0),
             Vector3::new(-20.0, -35.0, 25.0),
         ],
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
     }
 }

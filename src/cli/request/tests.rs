@@ -378,3 +378,19 @@ fn a_payload_is_a_mass_at_a_point_of_the_tip_frame() {
     assert!(evaluate(&["--payload-com-mm", "1,2,3"]).is_err());
     assert_eq!(calibrate(&["--payload-kg", "3"]).unwrap().model.payload.map(|p| p.mass), Some(3.0));
 }
+
+/// `--prior` takes entries and presets, repeated, in order; a bad entry names itself and what
+/// was expected. `--loss` takes squared, huber[:K], cauchy[:K].
+#[test]
+fn priors_and_losses_are_read_in_order() {
+    let r = calibrate(&["--prior", "machined,j2.a=1mm", "--prior", "j3.alpha=0.1deg", "--loss", "huber:2"])
+        .unwrap();
+    let targets: Vec<&str> = r.prior.iter().map(|e| e.target.as_str()).collect();
+    assert_eq!(targets, ["lengths", "angles", "offsets", "offsets", "j2.a", "j3.alpha"]);
+    assert_eq!(r.loss, robocal::calibration::Loss::Huber(2.0));
+    assert_eq!(calibrate(&[]).unwrap().loss, robocal::calibration::Loss::Squared);
+    let bad = calibrate(&["--prior", "j2.a=1inch"]).unwrap_err();
+    assert!(bad.contains("prior `j2.a=1inch`: unknown unit `inch`"), "{bad}");
+    let bad = calibrate(&["--loss", "l1"]).unwrap_err();
+    assert!(bad.contains("unknown loss `l1`"), "{bad}");
+}
