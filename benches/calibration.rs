@@ -36,6 +36,7 @@ fn calibration(c: &mut Criterion) {
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     };
     let mut group = c.benchmark_group("calibrate");
     group.sample_size(10);

@@ -44,7 +44,16 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
         &what,
         "calibrate on fewer poses",
     )?;
-    let options = options(request, &robot.model, &data.fit)?;
+    let mut options = options(request, &robot.model, &data.fit)?;
+    let path = match request.select {
+        Some(criterion) => {
+            let path = calibration::select(&robot.model, &data.fit, &options, criterion)
+                .with_context(|| format!("--select {}: {}", criterion.name(), request.data.display()))?;
+            options = path.options(&options);
+            Some(path)
+        }
+        None => None,
+    };
     let result = match request.method {
         Method::Given(_) => calibration::calibrate(&robot.model, &data.fit, &options),
         Method::Feasible => {
@@ -54,7 +63,11 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     .with_context(|| request.data.display().to_string())?;
     let (held_out, folds) = validate(request, &robot.model, &data, &options, &result)?;
     let name = request.method.name();
-    let report = CalibrationReport::new(&result, &request.data.display().to_string(), name, held_out, folds);
+    let mut report =
+        CalibrationReport::new(&result, &request.data.display().to_string(), name, held_out, folds);
+    if let Some(path) = &path {
+        report = report.with_selection(path);
+    }
     let text = report.text();
     print!("{text}");
     write(request, &robot, &report, &result, &text)
@@ -144,6 +157,7 @@ fn options(request: &CalibrateRequest, model: &RobotModel, data: &Measurements) 
         estimate_markers: request.estimate_markers,
         markers,
         refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
+        gauge: robocal::calibration::Gauge { hold: request.hold.clone(), keep: request.keep.clone() },
     })
 }
 

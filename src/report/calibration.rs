@@ -3,6 +3,7 @@
 //! the same content.
 
 use super::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
+use crate::calibration::selection::{Criterion, SelectionPath, Step};
 use crate::calibration::{Calibration, ErrorStats, FLAG_AT, SetEvaluation, pool, standard_errors};
 use crate::estimation::{NoiseEstimate, SigmaInterval};
 use crate::model::{Joint, JointKind};
@@ -58,6 +59,61 @@ pub struct CalibrationReport {
     /// The noise estimated by feasible GLS, with 95% intervals.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<Vec<NoiseRow>>,
+    /// `--select`: how the joint parameters were chosen ([`CalibrationReport::with_selection`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub selection: Option<SelectionReport>,
+}
+
+/// The path of a parameter selection, as reported.
+#[derive(Debug, Clone, Serialize)]
+pub struct SelectionReport {
+    /// `cv`, `bic` or `t`.
+    pub criterion: String,
+    /// The folds of `cv`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub folds: Option<usize>,
+    /// Every step, the start first: the parameter added (dropped for `t`), the score after it
+    /// (CV RMS in mm, BIC, or the dropped parameter's |t|), the CV RMS's standard error.
+    pub steps: Vec<Step>,
+    /// The step chosen.
+    pub chosen: usize,
+    /// The joint parameters chosen.
+    pub selected: Vec<String>,
+}
+
+impl SelectionReport {
+    /// The path as a text table.
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        let (what, start, score) = match self.criterion.as_str() {
+            "cv" => (
+                format!(
+                    "forward selection by {}-fold cross-validation, one-standard-error rule",
+                    self.folds.unwrap_or(0)
+                ),
+                "base and markers",
+                "CV RMS mm ± SE",
+            ),
+            "bic" => ("forward selection by BIC".to_string(), "base and markers", "BIC"),
+            _ => ("backward elimination while |t| < 2".to_string(), "every candidate", "|t| dropped"),
+        };
+        let _ = writeln!(out, "parameter selection: {what}");
+        let _ = writeln!(out, "{:>5}  {:<22} {:>22}", "step", "parameter", score);
+        for (k, step) in self.steps.iter().enumerate() {
+            let name = step.parameter.as_deref().unwrap_or(start);
+            let value = if step.score.is_nan() {
+                String::new()
+            } else if step.se.is_nan() {
+                format!("{:.4}", step.score)
+            } else {
+                format!("{:.4} ± {:.4}", step.score, step.se)
+            };
+            let mark = if k == self.chosen { "  <- chosen" } else { "" };
+            let _ = writeln!(out, "{k:>5}  {name:<22} {value:>22}{mark}");
+        }
+        let _ = writeln!(out, "selected ({}): {}", self.selected.len(), self.selected.join(", "));
+        out
+    }
 }
 
 /// Which weighting each number of a report uses.
@@ -231,7 +287,23 @@ impl CalibrationReport {
             held_out: pooled,
             warnings: c.warnings.clone(),
             noise: c.noise_estimate.as_ref().map(|e| noise_rows(&c.registered.joints, e)),
+            selection: None,
         }
+    }
+
+    /// The report with the path of the selection that chose its parameters.
+    pub fn with_selection(mut self, path: &SelectionPath) -> Self {
+        self.selection = Some(SelectionReport {
+            criterion: path.criterion.name().to_string(),
+            folds: match path.criterion {
+                Criterion::Cv { folds } => Some(folds),
+                _ => None,
+            },
+            steps: path.steps.clone(),
+            chosen: path.chosen,
+            selected: path.selected.clone(),
+        });
+        self
     }
 
     /// The error tables: pooled per set (and the held-out files pooled, and k-fold), per
@@ -306,6 +378,10 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
                 self.rank,
                 self.condition_number
             );
+        }
+        if let Some(selection) = &self.selection {
+            let _ = writeln!(out);
+            out.push_str(&selection.text());
         }
         if !self.fixed.is_empty() {
             let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");

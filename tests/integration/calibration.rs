@@ -68,6 +68,7 @@ fn campaign(seed: u64) -> Campaign {
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     };
     Campaign { nominal, truth, true_markers, training, validation, options }
 }
@@ -317,6 +318,7 @@ fn a_probe_with_orientation_calibrates_its_mounting_too() {
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0)],
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     };
     let calibration = calibration::calibrate(&nominal, &training, &options).unwrap();
     let (before, after) = calibration.validate(&validation);

@@ -55,6 +55,7 @@ fn campaign(seed: u64, poses: usize) -> Campaign {
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0)],
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     };
     Campaign { nominal, truth, data, options }
 }

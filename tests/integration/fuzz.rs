@@ -257,6 +257,7 @@ proptest! {
             estimate_markers: true,
             markers: vec![Vector3::new(50.0, 0.0, 150.0)],
             refine: RefineOptions { max_iterations: 5, ..RefineOptions::default() },
+            gauge: Default::default(),
         };
         if let Err(e) = calibration::calibrate(&puma(), &data, &options) {
             prop_assert!(!e.to_string().is_empty());

@@ -15,5 +15,6 @@ mod reliability;
 mod repeatability;
 mod replication;
 mod report;
+mod selection;
 mod simulation;
 mod urdf;

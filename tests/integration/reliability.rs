@@ -606,6 +606,7 @@ fn a_badly_conditioned_system_is_warned() {
                 nalgebra::Vector3::new(-40.0, 60.0, 120.0),
             ],
             refine: robocal::estimation::RefineOptions::default(),
+            gauge: Default::default(),
         };
         let result = robocal::calibration::calibrate(&model, &data, &options).unwrap();
         let diagnostics = &result.refined.estimate.diagnostics;

@@ -365,6 +365,7 @@ fn fgls_says_when_its_variance_components_did_not_settle() {
         estimate_markers: true,
         markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
         refine: Default::default(),
+        gauge: Default::default(),
     };
     let feasible = robocal::calibration::FeasibleOptions { max_iterations: 1, ..Default::default() };
     let c = robocal::calibration::calibrate_feasible(&model, &data, &options, &feasible).unwrap();

@@ -172,6 +172,7 @@ fn a_seven_joint_urdf_arm_with_a_prismatic_joint_calibrates() {
         estimate_markers: true,
         markers: vec![Vector3::new(30.0, 1.0, 58.0), Vector3::new(-21.0, 40.0, 52.0)],
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     };
     let result = calibration::calibrate(&nominal, &training, &options).unwrap();
     let (before, after) = result.validate(&validation);
@@ -266,6 +267,7 @@ fn markers_are_given_and_reported_in_the_tip_link_frame() {
         estimate_markers: true,
         markers: start.clone(),
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     };
     let result = calibration::calibrate(&nominal, &data, &options).unwrap();
     assert!(result.fixed.iter().any(|f| f.starts_with("wrist_yaw.theta")), "{:?}", result.fixed);
@@ -446,6 +448,7 @@ fn arm7_options(joints: JointParams) -> Options {
             Vector3::new(-20.0, -35.0, 25.0),
         ],
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     }
 }
 
