@@ -541,18 +541,16 @@ fn why_held(c: &crate::estimation::Combination, infos: &[&crate::model::ParamInf
         "held so that the parameters of --keep stay free".to_string()
     } else if only(|o| *o == ParamOwner::Base) {
         format!(
-            "it only moves the whole robot as the base does; free it with --fixed-base (if the measuring \
-             frame is the robot's) or --keep {held}"
+            "with the base estimated it only moves the whole robot: --fixed-base (if the measuring frame is \
+             the robot's) or --keep {held} frees it"
         )
     } else if only(|o| matches!(o, ParamOwner::Marker(_) | ParamOwner::Tool)) {
         format!(
-            "it only moves the markers as their positions do; free it with --fixed-markers (if the markers' \
-             positions are known) or --keep {held}"
+            "with the markers estimated it only moves the markers: --fixed-markers (if their positions are \
+             known) or --keep {held} frees it"
         )
     } else {
-        format!(
-            "these poses cannot tell it from the others: vary the poses more, or --keep {held} to hold another"
-        )
+        format!("these poses cannot tell it from the others: vary them, or --keep {held} to hold another")
     };
     format!("{}: {reason}", c.describe(&names))
 }

@@ -231,6 +231,9 @@ fn write(
         &result.registered.joints,
         &mut outputs,
     )?;
+    if let (Some(folder), Some(selection)) = (&request.report.figures, &report.selection) {
+        outputs.add_folder(folder, &[robocal::report::figures::selection_figure(selection)?]);
+    }
     let markers = result.marker_positions();
     if let Some(path) = &request.out_model {
         outputs.add(path, robocal::model::to_toml_with_markers(&result.calibrated, &markers));

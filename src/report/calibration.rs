@@ -293,6 +293,11 @@ impl CalibrationReport {
 
     /// The report with the path of the selection that chose its parameters.
     pub fn with_selection(mut self, path: &SelectionPath) -> Self {
+        self.weighting.after = format!(
+            "{}: the joint parameters --select {} chose, with the base and the markers",
+            self.estimator,
+            path.criterion.name()
+        );
         self.selection = Some(SelectionReport {
             criterion: path.criterion.name().to_string(),
             folds: match path.criterion {

@@ -115,10 +115,10 @@ fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
     );
     assert_eq!(
         c.fixed[0],
-        "j1.theta - base.rz: it only moves the whole robot as the base does; free it with --fixed-base (if the \
-         measuring frame is the robot's) or --keep j1.theta"
+        "j1.theta - base.rz: with the base estimated it only moves the whole robot: --fixed-base (if the measuring \
+         frame is the robot's) or --keep j1.theta frees it"
     );
-    assert!(c.fixed[8].starts_with("j6.d - marker1.z - marker2.z: it only moves the markers as their positions do; free it with --fixed-markers"), "{}", c.fixed[8]);
+    assert!(c.fixed[8].starts_with("j6.d - marker1.z - marker2.z: with the markers estimated it only moves the markers: --fixed-markers"), "{}", c.fixed[8]);
     assert!(
         c.fixed[3].starts_with("j3.d - j2.d: these poses cannot tell it from the others"),
         "{}",
