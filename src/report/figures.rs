@@ -611,7 +611,9 @@ pub fn selection_figure(
         {
             // The one-standard-error rule: the first step under this line is chosen.
             let line = [(-0.5, best.1 + best.2), (steps - 0.5, best.1 + best.2)];
-            chart.draw_series(LineSeries::new(line, RED.mix(0.5).stroke_width(1))).map_err(|e| e.to_string())?;
+            chart
+                .draw_series(LineSeries::new(line, RED.mix(0.5).stroke_width(1)))
+                .map_err(|e| e.to_string())?;
         }
         let circled = points.iter().filter(|p| p.0 as usize == chosen);
         chart

@@ -88,7 +88,10 @@ fn held_out_accuracy_improves_at_least_five_fold() {
     // 6 base + 30 joint + 6 marker parameters; the 12 that positions cannot separate (e.g.
     // `j1.theta - base.rz`: both turn the whole arm about joint 1's axis) are held fixed.
     assert_eq!(calibration.fixed.len(), 12, "{:?}", calibration.fixed);
-    assert!(calibration.fixed[0].starts_with("j1.theta - base.rz: with the base estimated it only moves the whole robot"));
+    assert!(
+        calibration.fixed[0]
+            .starts_with("j1.theta - base.rz: with the base estimated it only moves the whole robot")
+    );
     assert_eq!(calibration.refined.estimate.names.len(), 42 - 12);
 }
 
