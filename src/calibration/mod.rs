@@ -71,8 +71,12 @@ pub struct Options {
     pub gauge: Gauge,
 }
 
-/// The user's override of the gauge ([`gauge_class`] gives the default): names or patterns as
-/// [`JointParams::Named`] takes them (`j*.beta`, `j2.d`).
+/// The user's override of the gauge: names or patterns as [`JointParams::Named`] takes them
+/// (`j*.beta`, `j2.d`). By default, of a combination the poses cannot tell apart, the base and
+/// the markers stay free (what they absorb, the first joint's parameters along and about its
+/// axis and the last joint's with the markers, is held); then the offsets, `a`, `alpha` and a
+/// URDF origin's six stay free before Hayati's `beta` and a revolute joint's `d`; within those
+/// the rank-revealing pivoting decides, the same on every machine.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Gauge {
     /// Held at their nominal values (base and markers: at the registration), never estimated.
@@ -440,7 +444,7 @@ pub fn calibrate(
                 before: before.clone(),
                 after: before,
                 refined: Refined { estimate: nothing_estimated(), history: Vec::new(), converged: true },
-                fixed: Vec::new(),
+                fixed: held_in_words(chains[0].params(), &options.joints, options)?,
                 chains: chains.clone(),
                 noise,
                 data,

@@ -160,7 +160,7 @@ fn backward(
             .copied()
             .min_by(|&i, &j| t(i).partial_cmp(&t(j)).unwrap_or(std::cmp::Ordering::Less));
         match weakest {
-            Some(i) if !(t(i) >= 2.0) => {
+            Some(i) if t(i) < 2.0 || t(i).is_nan() => {
                 steps.push(Step { parameter: Some(c.params.get(i).name.clone()), score: t(i), se: f64::NAN });
                 let names: Vec<String> =
                     joints.iter().filter(|&&j| j != i).map(|&j| c.params.get(j).name.clone()).collect();
@@ -400,7 +400,7 @@ impl Fit {
             l[r] = (self.gram[(self.members[r], j)] - dot) / self.l[(r, r)];
         }
         let d2 = self.gram[(j, j)] - l.iter().map(|v| v * v).sum::<f64>();
-        if !(d2 > COLLINEAR * self.gram[(j, j)]) {
+        if d2.is_nan() || d2 <= COLLINEAR * self.gram[(j, j)] {
             return None;
         }
         let d = d2.sqrt();
