@@ -24,6 +24,12 @@
 //!   [`calibrate`]), drop the candidate of the smallest `|t| = |estimate| / SE` while it is
 //!   below 2, and calibrate again.
 //!
+//! Each candidate is one parameter, for a URDF joint too: its origin's six numbers are not one
+//! physical quantity, and the gauge holds some of them on their own (the turn about the joint's
+//! axis, a shift the next origin absorbs), so a group would carry held parameters and force in
+//! weak ones with a strong one; one at a time, the path takes an origin's shift and leaves its
+//! turn.
+//!
 //! Every forward fit reuses one linearisation, `y = H x` about the registration ("before"),
 //! whitened once, `A = S H`, `b = S y`: a candidate's fit on a fold is the least-squares
 //! solution of the column-scaled normal equations `G_f x = g_f`, `G_f = A_tr^T A_tr`, updated

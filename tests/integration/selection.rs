@@ -251,3 +251,78 @@ fn select_bic_and_t_choose_what_they_say() {
         path.selected.len()
     );
 }
+
+/// A gantry: a prismatic first joint (a lift along z), then four revolute joints.
+fn gantry_urdf() -> String {
+    let joint = |name: &str, kind: &str, parent: &str, child: &str, xyz: &str, axis: &str, limits: &str| {
+        format!(
+            "<joint name=\"{name}\" type=\"{kind}\"><parent link=\"{parent}\"/><child link=\"{child}\"/>\
+             <origin xyz=\"{xyz}\" rpy=\"0 0 0\"/><axis xyz=\"{axis}\"/>\
+             <limit {limits} effort=\"1\" velocity=\"1\"/></joint>\n"
+        )
+    };
+    let turn = "lower=\"-2.5\" upper=\"2.5\"";
+    let mut text = String::from("<robot name=\"gantry\">\n");
+    for link in ["base", "l1", "l2", "l3", "l4", "l5"] {
+        text += &format!("<link name=\"{link}\"/>\n");
+    }
+    text += &joint("lift", "prismatic", "base", "l1", "0 0 0.2", "0 0 1", "lower=\"0\" upper=\"0.5\"");
+    text += &joint("pan", "revolute", "l1", "l2", "0.1 0 0.1", "0 0 1", turn);
+    text += &joint("shoulder", "revolute", "l2", "l3", "0 0.05 0.1", "0 1 0", turn);
+    text += &joint("elbow", "revolute", "l3", "l4", "0.3 0 0", "0 1 0", turn);
+    text += &joint("wrist", "revolute", "l4", "l5", "0.25 0 0", "1 0 0", turn);
+    text + "</robot>\n"
+}
+
+/// With a prismatic first joint, its zero is what the base absorbs along the first axis: it
+/// is held, with the first origin and the rotation about the vertical, never the base or the
+/// markers.
+#[test]
+fn the_gauge_holds_a_prismatic_first_joints_zero() {
+    let model = robocal::model::from_urdf_str(&gantry_urdf(), "base", "l5").unwrap();
+    let markers =
+        [Vector3::new(60.0, 10.0, 0.0), Vector3::new(40.0, -30.0, 40.0), Vector3::new(50.0, 30.0, -30.0)];
+    let mut state = 7u64;
+    let mut uniform = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let poses: Vec<Vec<f64>> = (0..60)
+        .map(|_| model.joints.iter().map(|j| j.limits[0] + (j.limits[1] - j.limits[0]) * uniform()).collect())
+        .collect();
+    let text = robocal::simulation::measurement_csv(&model, &markers, &poses, &[1e-5; 5], 0.01, 3);
+    let data = Measurements::from_csv_str(&text, &model, None).unwrap();
+    let options = Options { markers: markers.to_vec(), ..arm7_options(JointParams::All) };
+    let c = calibration::calibrate(&model, &data, &options).unwrap();
+    assert_eq!(
+        held(&c),
+        [
+            "lift.x",
+            "lift.y",
+            "lift.z",
+            "lift.rx",
+            "lift.ry",
+            "lift.rz",
+            "lift.d",
+            "pan.x",
+            "pan.y",
+            "pan.z",
+            "pan.rz",
+            "pan.theta",
+            "shoulder.z",
+            "shoulder.ry",
+            "shoulder.rz",
+            "shoulder.theta",
+            "elbow.y",
+            "elbow.ry",
+            "elbow.theta",
+            "wrist.x",
+            "wrist.y",
+            "wrist.rx",
+            "wrist.theta"
+        ]
+    );
+    assert!(c.fixed[6].starts_with("lift.d - "), "{}", c.fixed[6]);
+    assert!(c.fixed[6].ends_with("with the base estimated it only moves the whole robot: --fixed-base (if the measuring frame is the robot's) or --keep lift.d frees it"));
+    assert!(held(&c).iter().all(|n| !n.starts_with("base.") && !n.starts_with("marker")), "{:?}", held(&c));
+}
