@@ -108,18 +108,23 @@ pub struct SelectionPath {
     pub chosen: usize,
     /// The joint parameters of the chosen model, in canonical order.
     pub selected: Vec<String>,
+    /// The parameters asked for that are held, not candidates, each with why in words: the
+    /// gauge's (the poses cannot tell them apart from the others, with the combination), an
+    /// unloaded compliance's, and for `t` those of `--hold`.
+    pub held: Vec<String>,
 }
 
 impl SelectionPath {
     /// `options` asking for the selected parameters only.
     pub fn options(&self, options: &Options) -> Options {
-        let joints = if self.selected.is_empty() {
-            JointParams::None
-        } else {
-            JointParams::Named(self.selected.clone())
-        };
-        Options { joints, ..options.clone() }
+        asking(options, &self.selected)
     }
+}
+
+/// `options` asking for the joint parameters `names` only.
+fn asking(options: &Options, names: &[String]) -> Options {
+    let joints = if names.is_empty() { JointParams::None } else { JointParams::Named(names.to_vec()) };
+    Options { joints, ..options.clone() }
 }
 
 /// Choose among the joint parameters `options.joints` names by `criterion` (see the
@@ -152,8 +157,10 @@ fn backward(
 ) -> Result<SelectionPath, CalibrationError> {
     let mut steps = vec![Step { parameter: None, score: f64::NAN, se: f64::NAN }];
     let mut current = options.clone();
+    let mut held = None;
     loop {
         let c = calibrate(model, data, &current)?;
+        let held = held.get_or_insert_with(|| c.fixed.clone());
         let se = standard_errors(&c);
         let joints: Vec<usize> = (c.refined.estimate.names.iter())
             .filter_map(|n| c.params.index_by_name(n))
@@ -170,14 +177,13 @@ fn backward(
                 steps.push(Step { parameter: Some(c.params.get(i).name.clone()), score: t(i), se: f64::NAN });
                 let names: Vec<String> =
                     joints.iter().filter(|&&j| j != i).map(|&j| c.params.get(j).name.clone()).collect();
-                current =
-                    SelectionPath { criterion: Criterion::T, steps: Vec::new(), chosen: 0, selected: names }
-                        .options(options);
+                current = asking(options, &names);
             }
             _ => {
                 let selected = joints.iter().map(|&j| c.params.get(j).name.clone()).collect();
                 let chosen = steps.len() - 1;
-                return Ok(SelectionPath { criterion: Criterion::T, steps, chosen, selected });
+                let held = std::mem::take(held);
+                return Ok(SelectionPath { criterion: Criterion::T, steps, chosen, selected, held });
             }
         }
     }
@@ -210,7 +216,7 @@ fn forward(
     )?;
     let weights = Weights::for_problem(&base_problem, options.estimator)?;
     let asked = selection(params, &options.joints, options)?;
-    let Identified { kept, start, .. } =
+    let Identified { kept, start, fixed: held } =
         identifiable(&base_problem, &weights, &asked, &frame.before, data, &options.gauge)?;
     let system = base_problem.reselect(&kept, frame.before.clone())?.system(&start.x);
     let rows = base_problem.rows_per_point();
@@ -301,7 +307,7 @@ fn forward(
     let mut columns: Vec<usize> = order[..chosen].iter().map(|&j| kept.indices()[j]).collect();
     columns.sort_unstable();
     let selected = columns.iter().map(|&i| params.get(i).name.clone()).collect();
-    Ok(SelectionPath { criterion, steps, chosen, selected })
+    Ok(SelectionPath { criterion, steps, chosen, selected, held })
 }
 
 /// The CV RMS and its standard error from each fold's held-out `(SSE, markers)`.

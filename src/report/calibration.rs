@@ -79,6 +79,9 @@ pub struct SelectionReport {
     pub chosen: usize,
     /// The joint parameters chosen.
     pub selected: Vec<String>,
+    /// The parameters asked for that the gauge holds, not candidates: each with its
+    /// combination in words.
+    pub held: Vec<String>,
 }
 
 impl SelectionReport {
@@ -112,6 +115,17 @@ impl SelectionReport {
             let _ = writeln!(out, "{k:>5}  {name:<22} {value:>22}{mark}");
         }
         let _ = writeln!(out, "selected ({}): {}", self.selected.len(), self.selected.join(", "));
+        if !self.held.is_empty() {
+            // Only the names: the combinations are in the JSON.
+            let names: Vec<&str> =
+                self.held.iter().map(|h| h.split([' ', ':']).next().unwrap_or(h)).collect();
+            let _ = writeln!(
+                out,
+                "not candidates, held ({}; why in the JSON): {}",
+                names.len(),
+                names.join(", ")
+            );
+        }
         out
     }
 }
@@ -307,6 +321,7 @@ impl CalibrationReport {
             steps: path.steps.clone(),
             chosen: path.chosen,
             selected: path.selected.clone(),
+            held: path.held.clone(),
         });
         self
     }

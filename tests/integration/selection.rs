@@ -213,6 +213,9 @@ fn select_cv_beats_every_parameter_and_the_offsets_on_held_out_poses() {
     assert_eq!(path.steps[0].parameter, None);
     assert!(path.selected.iter().any(|n| n.ends_with(".compliance")), "{:?}", path.selected);
     assert_eq!(path.selected.len(), path.chosen);
+    let held: Vec<&str> = path.held.iter().map(|h| h.split([' ', ':']).next().unwrap()).collect();
+    assert_eq!(held[..27], ARM7_HELD, "the gauge's, not candidates");
+    assert_eq!(held[27], "joint1.compliance");
     let best = path.steps.iter().map(|s| s.score).fold(f64::INFINITY, f64::min);
     let best_se = path.steps.iter().find(|s| s.score == best).unwrap().se;
     assert!(path.steps[path.chosen].score <= best + best_se);
