@@ -196,118 +196,159 @@ fn forward(
     options: &Options,
     criterion: Criterion,
 ) -> Result<SelectionPath, CalibrationError> {
-    // The registration: the base and the markers fitted, the chains and their noise.
-    let frame = calibrate(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
-    let noise = match &frame.whitening {
-        Whitening::Covariance(noise) => Some(noise),
-        Whitening::Spread(_) => None,
-    };
-    let params = &frame.params;
-    let nothing = Selection::from_indices(params, []);
-    let zero = vec![0.0; params.len()];
-    let base_problem = PointProblem::new(
-        &frame.chains,
-        &nothing,
-        Measured::Position,
-        data.joints.clone(),
-        observed(data),
-        zero,
-        noise,
-    )?;
-    let weights = Weights::for_problem(&base_problem, options.estimator)?;
-    let asked = selection(params, &options.joints, options)?;
-    let Identified { kept, start, fixed: held } =
-        identifiable(&base_problem, &weights, &asked, &frame.before, data, &options.gauge)?;
-    let system = base_problem.reselect(&kept, frame.before.clone())?.system(&start.x);
-    let rows = base_problem.rows_per_point();
-    let markers = rows / 3;
-    let registration: Vec<usize> = (0..kept.len())
-        .filter(|&c| !matches!(params.get(kept.indices()[c]).owner, ParamOwner::Joint(_)))
-        .collect();
-    let candidates: Vec<usize> = (0..kept.len()).filter(|c| !registration.contains(c)).collect();
-    let scale: Vec<f64> =
-        start.a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
-    let whitened = Scaled::new(&start.a, &start.b, &scale);
-    let unweighted = Scaled::new(&system.h, &system.y, &scale);
-    let poses = data.len();
-    let mut fits: Vec<Fit> = match criterion {
-        Criterion::Cv { folds } => (0..folds)
-            .map(|f| {
-                let test: Vec<usize> = (0..poses).filter(|k| k % folds == f).collect();
-                let rows_of = |k: &usize| (k * rows..(k + 1) * rows).collect::<Vec<_>>();
-                let test_rows: Vec<usize> = test.iter().flat_map(rows_of).collect();
-                Fit::new(&whitened, Some((&unweighted, &test_rows, test.len() * markers)))
-            })
-            .collect(),
-        _ => vec![Fit::new(&whitened, None)],
-    };
-    for &c in &registration {
-        for fit in &mut fits {
-            if let Some(trial) = fit.trial(c) {
-                fit.accept(c, trial);
-            }
-        }
+    let linear = LinearModel::new(model, data, options)?;
+    let mut fits = linear.fits(criterion);
+    let (steps, order) = walk(&mut fits, &linear, criterion);
+    let chosen = choose(&steps, criterion);
+    let mut columns: Vec<usize> = order[..chosen].iter().map(|&j| linear.kept.indices()[j]).collect();
+    columns.sort_unstable();
+    let selected = columns.iter().map(|&i| linear.params.get(i).name.clone()).collect();
+    Ok(SelectionPath { criterion, steps, chosen, selected, held: linear.held })
+}
+
+/// The calibration linearised once about the registration ("before"), for the parameters
+/// asked for that the poses identify: whitened by the estimator (`A = S H`, `b = S y`) to fit,
+/// unweighted (`H`, `y`) to score, both column-scaled alike.
+struct LinearModel {
+    params: crate::model::ParamSet,
+    /// The identified parameters: the columns.
+    kept: Selection,
+    /// The held ones, in words.
+    held: Vec<String>,
+    whitened: Scaled,
+    unweighted: Scaled,
+    /// Rows per pose, and markers per pose.
+    rows: usize,
+    markers: usize,
+    poses: usize,
+}
+
+impl LinearModel {
+    /// The registration of `data` (base and markers fitted by [`calibrate`]), then the gauge
+    /// of `options`' parameters and the system about it.
+    fn new(model: &RobotModel, data: &Measurements, options: &Options) -> Result<Self, CalibrationError> {
+        let frame = calibrate(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
+        let noise = match &frame.whitening {
+            Whitening::Covariance(noise) => Some(noise),
+            Whitening::Spread(_) => None,
+        };
+        let params = &frame.params;
+        let nothing = Selection::from_indices(params, []);
+        let zero = vec![0.0; params.len()];
+        let (joints, observed) = (data.joints.clone(), observed(data));
+        let base_problem =
+            PointProblem::new(&frame.chains, &nothing, Measured::Position, joints, observed, zero, noise)?;
+        let weights = Weights::for_problem(&base_problem, options.estimator)?;
+        let asked = selection(params, &options.joints, options)?;
+        let Identified { kept, start, fixed: held } =
+            identifiable(&base_problem, &weights, &asked, &frame.before, data, &options.gauge)?;
+        let system = base_problem.reselect(&kept, frame.before.clone())?.system(&start.x);
+        let scale: Vec<f64> =
+            start.a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
+        let rows = base_problem.rows_per_point();
+        Ok(Self {
+            params: params.clone(),
+            kept,
+            held,
+            whitened: Scaled::new(&start.a, &start.b, &scale),
+            unweighted: Scaled::new(&system.h, &system.y, &scale),
+            rows,
+            markers: rows / 3,
+            poses: data.len(),
+        })
     }
-    let equations = start.b.len() as f64;
-    let score = |fits: &[Fit], trials: &[Trial]| -> (f64, f64) {
-        match criterion {
-            Criterion::Cv { .. } => cv_rms(fits.iter().zip(trials).map(|(f, t)| (t.sse_test, f.count()))),
-            _ => {
-                let p = (fits[0].members.len() + trials.len().min(1)) as f64;
-                let rss = trials.first().map_or(fits[0].rss(), |t| t.rss).max(f64::MIN_POSITIVE);
-                (equations * (rss / equations).ln() + p * equations.ln(), f64::NAN)
+
+    /// Whether column `c` is the base's or a marker's: always in the model.
+    fn is_registration(&self, c: usize) -> bool {
+        !matches!(self.params.get(self.kept.indices()[c]).owner, ParamOwner::Joint(_))
+    }
+
+    /// The fits a criterion compares, the registration's columns in: one per fold for CV (pose
+    /// `k` held out in fold `k mod F`), one on every pose for BIC.
+    fn fits(&self, criterion: Criterion) -> Vec<Fit> {
+        let mut fits: Vec<Fit> = match criterion {
+            Criterion::Cv { folds } => (0..folds)
+                .map(|f| {
+                    let test: Vec<usize> = (0..self.poses).filter(|k| k % folds == f).collect();
+                    let rows: Vec<usize> =
+                        test.iter().flat_map(|k| k * self.rows..(k + 1) * self.rows).collect();
+                    Fit::new(&self.whitened, Some((&self.unweighted, &rows, test.len() * self.markers)))
+                })
+                .collect(),
+            _ => vec![Fit::new(&self.whitened, None)],
+        };
+        for c in (0..self.kept.len()).filter(|&c| self.is_registration(c)) {
+            for fit in &mut fits {
+                if let Some(trial) = fit.trial(c) {
+                    fit.accept(c, trial);
+                }
             }
         }
-    };
-    let empty: Vec<Trial> = fits.iter().map(Fit::current).collect();
-    let (first, first_se) = match criterion {
-        Criterion::Cv { .. } => score(&fits, &empty),
-        _ => score(&fits, &[]),
-    };
+        fits
+    }
+}
+
+/// The forward path from `fits`: at each step the candidate of `linear` whose trial scores
+/// lowest (scored in parallel, ties to the earlier column), until none is left that every fit
+/// can take. The steps, and the columns in the order added.
+fn walk(fits: &mut [Fit], linear: &LinearModel, criterion: Criterion) -> (Vec<Step>, Vec<usize>) {
+    let equations = linear.whitened.b.len();
+    let now: Vec<Trial> = fits.iter().map(Fit::current).collect();
+    let (first, first_se) = score(fits, &now, criterion, equations);
     let mut steps = vec![Step { parameter: None, score: first, se: first_se }];
     let mut order = Vec::new();
-    let mut left = candidates;
+    let mut left: Vec<usize> = (0..linear.kept.len()).filter(|&c| !linear.is_registration(c)).collect();
     while !left.is_empty() {
-        let scored: Vec<Option<(f64, f64, Vec<Trial>)>> = left
+        let scored: Vec<Option<((f64, f64), Vec<Trial>)>> = left
             .par_iter()
             .map(|&j| {
-                let trials: Option<Vec<Trial>> = fits.iter().map(|f| f.trial(j)).collect();
-                let trials = trials?;
-                let (s, se) = match criterion {
-                    Criterion::Cv { .. } => score(&fits, &trials),
-                    // The candidate that lowers the training cost most lowers the BIC most.
-                    _ => (trials[0].rss, f64::NAN),
-                };
-                Some((s, se, trials))
+                let trials = fits.iter().map(|f| f.trial(j)).collect::<Option<Vec<Trial>>>()?;
+                Some((score(fits, &trials, criterion, equations), trials))
             })
             .collect();
         let best = (0..left.len())
-            .filter_map(|i| scored[i].as_ref().map(|s| (i, s.0)))
+            .filter_map(|i| scored[i].as_ref().map(|s| (i, s.0.0)))
             .min_by(|a, b| a.1.total_cmp(&b.1));
         let Some((i, _)) = best else { break };
         let j = left.remove(i);
-        let (mut s, mut se, trials) = scored.into_iter().nth(i).flatten().expect("scored");
-        if criterion == Criterion::Bic {
-            (s, se) = score(&fits, &trials);
-        }
+        let ((value, se), trials) = scored.into_iter().nth(i).flatten().expect("scored");
         for (fit, trial) in fits.iter_mut().zip(trials) {
             fit.accept(j, trial);
         }
         order.push(j);
-        steps.push(Step { parameter: Some(params.get(kept.indices()[j]).name.clone()), score: s, se });
+        let name = linear.params.get(linear.kept.indices()[j]).name.clone();
+        steps.push(Step { parameter: Some(name), score: value, se });
     }
+    (steps, order)
+}
+
+/// The score of `fits` each with its `trials` (a column added, or [`Fit::current`]): the CV
+/// RMS and its SE, or the BIC (and NaN) of the fit on every pose.
+fn score(fits: &[Fit], trials: &[Trial], criterion: Criterion, equations: usize) -> (f64, f64) {
+    match criterion {
+        Criterion::Cv { .. } => cv_rms(fits.iter().zip(trials).map(|(f, t)| (t.sse_test, f.count()))),
+        _ => (bic(trials[0].rss, trials[0].parameters, equations), f64::NAN),
+    }
+}
+
+/// `BIC = N ln(RSS / N) + p ln N` of a least-squares fit of `p` parameters to `N` equations
+/// whose noise scale is estimated with them (Schwarz 1978).
+fn bic(rss: f64, parameters: usize, equations: usize) -> f64 {
+    let n = equations as f64;
+    n * (rss.max(f64::MIN_POSITIVE) / n).ln() + parameters as f64 * n.ln()
+}
+
+/// The step a criterion chooses: for CV the first whose score is within one standard error of
+/// the lowest score's (the one-standard-error rule), otherwise the lowest.
+fn choose(steps: &[Step], criterion: Criterion) -> usize {
     let best = (0..steps.len()).min_by(|&a, &b| steps[a].score.total_cmp(&steps[b].score)).unwrap_or(0);
-    let chosen = match criterion {
+    match criterion {
         Criterion::Cv { .. } => {
             let within = steps[best].score + steps[best].se;
             (0..=best).find(|&k| steps[k].score <= within).unwrap_or(best)
         }
         _ => best,
-    };
-    let mut columns: Vec<usize> = order[..chosen].iter().map(|&j| kept.indices()[j]).collect();
-    columns.sort_unstable();
-    let selected = columns.iter().map(|&i| params.get(i).name.clone()).collect();
-    Ok(SelectionPath { criterion, steps, chosen, selected, held })
+    }
 }
 
 /// The CV RMS and its standard error from each fold's held-out `(SSE, markers)`.
@@ -366,7 +407,11 @@ struct Trial {
     l: Vec<f64>,
     d: f64,
     z: f64,
+    /// The columns of the fit with it.
+    parameters: usize,
+    /// The whitened training cost.
     rss: f64,
+    /// The unweighted held-out `|y_t - H_t x|^2` (0 without a held-out fold).
     sse_test: f64,
 }
 
@@ -400,7 +445,8 @@ impl Fit {
     /// The current fit as a trial of no column (its held-out error).
     fn current(&self) -> Trial {
         let x = self.solve(None);
-        Trial { l: Vec::new(), d: 0.0, z: 0.0, rss: self.rss(), sse_test: self.sse_test(&self.members, &x) }
+        let (parameters, rss) = (self.members.len(), self.rss());
+        Trial { l: Vec::new(), d: 0.0, z: 0.0, parameters, rss, sse_test: self.sse_test(&self.members, &x) }
     }
 
     /// Column `j` added: `None` if it lies in the span of the current columns on this fold.
@@ -418,7 +464,7 @@ impl Fit {
         let d = d2.sqrt();
         let z = (self.rhs[j] - l.iter().zip(&self.z).map(|(a, b)| a * b).sum::<f64>()) / d;
         let rss = self.rss() - z * z;
-        let mut trial = Trial { l, d, z, rss, sse_test: 0.0 };
+        let mut trial = Trial { l, d, z, parameters: s + 1, rss, sse_test: 0.0 };
         if self.test.is_some() {
             let x = self.solve(Some(&trial));
             let mut members = self.members.clone();
