@@ -446,7 +446,7 @@ impl Fit {
     fn current(&self) -> Trial {
         let x = self.solve(None);
         let (parameters, rss) = (self.members.len(), self.rss());
-        Trial { l: Vec::new(), d: 0.0, z: 0.0, parameters, rss, sse_test: self.sse_test(&self.members, &x) }
+        Trial { l: Vec::new(), d: 0.0, z: 0.0, parameters, rss, sse_test: self.sse_test(None, &x) }
     }
 
     /// Column `j` added: `None` if it lies in the span of the current columns on this fold.
@@ -467,9 +467,7 @@ impl Fit {
         let mut trial = Trial { l, d, z, parameters: s + 1, rss, sse_test: 0.0 };
         if self.test.is_some() {
             let x = self.solve(Some(&trial));
-            let mut members = self.members.clone();
-            members.push(j);
-            trial.sse_test = self.sse_test(&members, &x);
+            trial.sse_test = self.sse_test(Some(j), &x);
         }
         Some(trial)
     }
@@ -509,14 +507,18 @@ impl Fit {
         x
     }
 
-    /// The held-out fold's unweighted `|y_t - H_t x|^2` for `x` on `members`.
-    fn sse_test(&self, members: &[usize], x: &[f64]) -> f64 {
+    /// The held-out fold's unweighted `|y_t - H_t x|^2 = y_t^T y_t - 2 x^T H_t^T y_t +
+    /// x^T H_t^T H_t x` for `x` on the current columns, and column `extra` last if given.
+    fn sse_test(&self, extra: Option<usize>, x: &[f64]) -> f64 {
         let Some((q, c, s, _)) = &self.test else { return 0.0 };
+        let column =
+            |a: usize| if a < self.members.len() { self.members[a] } else { extra.expect("one more") };
         let mut quadratic = 0.0;
         let mut linear = 0.0;
-        for (a, &i) in members.iter().enumerate() {
-            linear += x[a] * c[i];
-            quadratic += x[a] * members.iter().zip(x).map(|(&k, xk)| q[(i, k)] * xk).sum::<f64>();
+        for (a, xa) in x.iter().enumerate() {
+            let i = column(a);
+            linear += xa * c[i];
+            quadratic += xa * x.iter().enumerate().map(|(b, xb)| q[(i, column(b))] * xb).sum::<f64>();
         }
         s - 2.0 * linear + quadratic
     }
