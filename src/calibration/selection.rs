@@ -299,7 +299,7 @@ fn walk(fits: &mut [Fit], linear: &LinearModel, criterion: Criterion) -> (Vec<St
     let mut order = Vec::new();
     let mut left: Vec<usize> = (0..linear.kept.len()).filter(|&c| !linear.is_registration(c)).collect();
     while !left.is_empty() {
-        let scored: Vec<Option<((f64, f64), Vec<Trial>)>> = left
+        let scored: Vec<Option<Scored>> = left
             .par_iter()
             .map(|&j| {
                 let trials = fits.iter().map(|f| f.trial(j)).collect::<Option<Vec<Trial>>>()?;
@@ -321,6 +321,9 @@ fn walk(fits: &mut [Fit], linear: &LinearModel, criterion: Criterion) -> (Vec<St
     }
     (steps, order)
 }
+
+/// A candidate scored: its (score, SE), and its trial on every fit.
+type Scored = ((f64, f64), Vec<Trial>);
 
 /// The score of `fits` each with its `trials` (a column added, or [`Fit::current`]): the CV
 /// RMS and its SE, or the BIC (and NaN) of the fit on every pose.
