@@ -1,12 +1,15 @@
 //! `calibrate` end to end on 1000 poses of the PUMA 560 with two markers: 42 parameters
 //! (6 base, 30 joint, 6 marker; 30 identifiable), WLS iterated to convergence, including the
 //! registration, the base-and-markers fit and the identifiability analysis; and the same with
-//! link masses, joints 2 and 3 compliant, and the 6 compliances asked for too (5 loaded).
+//! link masses, joints 2 and 3 compliant, and the 6 compliances asked for too (5 loaded); and
+//! `select` by 5-fold cross-validation on 100 poses of a 12-joint arm (two PUMA 560 arms end
+//! to end) with three markers: 60 candidate joint parameters.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
+use robocal::calibration::selection::{self, Criterion as Select};
 use robocal::calibration::{self, JointParams, Measurements, Options};
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
 use robocal::model::{Placement, RobotModel};
@@ -43,6 +46,7 @@ fn campaign(preset: &str, compliance: f64, params: JointParams) -> (RobotModel, 
         prior: Vec::new(),
         loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     };
     (nominal, data, options)
 }
@@ -62,5 +66,61 @@ fn calibration(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, calibration);
+/// `select` by 5-fold cross-validation: 100 poses, 3 markers, 60 candidate joint parameters
+/// (12 DH joints), by OLS; the registration, the linearisation, the gauge and the whole path.
+fn selection(c: &mut Criterion) {
+    let puma = RobotModel::preset("puma560").unwrap();
+    let mut nominal = puma.clone();
+    nominal.joints.extend(puma.joints.iter().cloned().map(|mut j| {
+        j.name = format!("k{}", &j.name[1..]);
+        j
+    }));
+    nominal.name = "two PUMA 560 end to end".into();
+    let mut truth = nominal.clone();
+    for (i, joint) in truth.joints.iter_mut().enumerate() {
+        joint.theta += 1e-3 * (i as f64).sin();
+        joint.a += 0.3 * (i as f64).cos();
+        joint.d += 0.2 * (i as f64 * 0.7).sin();
+    }
+    truth.base = Placement { xyz: Vector3::new(1500.0, -300.0, 200.0), rpy: Vector3::new(0.1, -0.05, 0.6) };
+    let markers =
+        [Vector3::new(52.0, 1.0, 148.0), Vector3::new(-38.0, 61.0, 121.0), Vector3::new(0.0, -60.0, 90.0)];
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let poses: Vec<Vec<f64>> = (0..100)
+        .map(|_| nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())
+        .collect();
+    let text = measurement_csv(&truth, &markers, &poses, &[1e-5; 12], 0.05, 4);
+    let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
+    let options = Options {
+        estimator: Estimator::Ols,
+        noise: None,
+        joints: JointParams::All,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![
+            Vector3::new(50.0, 0.0, 150.0),
+            Vector3::new(-40.0, 60.0, 120.0),
+            Vector3::new(0.0, -60.0, 90.0),
+        ],
+        refine: RefineOptions::default(),
+        gauge: Default::default(),
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
+    };
+    assert_eq!(robocal::model::Selection::joints(&nominal.params()).len(), 60);
+    let path = selection::select(&nominal, &data, &options, Select::Cv { folds: 5 }).unwrap();
+    eprintln!(
+        "the path: {} steps (the candidates the poses identify), {} chosen",
+        path.steps.len() - 1,
+        path.chosen
+    );
+    let mut group = c.benchmark_group("select");
+    group.sample_size(10);
+    group.bench_function("cv, 5 folds, 100 poses, 3 markers, 60 candidates", |b| {
+        b.iter(|| selection::select(&nominal, &data, &options, Select::Cv { folds: 5 }).unwrap())
+    });
+    group.finish();
+}
+
+criterion_group!(benches, calibration, selection);
 criterion_main!(benches);

@@ -18,6 +18,7 @@ mod data;
 pub mod evaluation;
 mod repeatability;
 pub mod robust;
+pub mod selection;
 
 pub use data::Measurements;
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
@@ -25,6 +26,7 @@ pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
 };
 pub use robust::{Loss, RobustFit};
+pub use selection::{Criterion, SelectionPath, select};
 
 use crate::estimation::{
     CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementNoise,
@@ -74,6 +76,23 @@ pub struct Options {
     pub prior: Vec<PriorEntry>,
     /// The loss of each pose's whitened residual ([`robust`]): squared, or a robust one.
     pub loss: Loss,
+    /// The user's say in the gauge: parameters held at nominal, parameters kept free first.
+    pub gauge: Gauge,
+}
+
+/// The user's override of the gauge: names or patterns as [`JointParams::Named`] takes them
+/// (`j*.beta`, `j2.d`). By default, of a combination the poses cannot tell apart, the base and
+/// the markers stay free (what they absorb, the first joint's parameters along and about its
+/// axis and the last joint's with the markers, is held); then the offsets, `a`, `alpha` and a
+/// URDF origin's six stay free before Hayati's `beta` and a revolute joint's `d`; within those
+/// the rank-revealing pivoting decides, the same on every machine.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Gauge {
+    /// Held at their nominal values (base and markers: at the registration), never estimated.
+    pub hold: Vec<String>,
+    /// Kept free before every other parameter, the base and the markers included, when the
+    /// poses cannot tell a combination apart and one of it must be held.
+    pub keep: Vec<String>,
 }
 
 /// Why a calibration could not be done.
@@ -443,7 +462,7 @@ pub fn calibrate(
                 before: before.clone(),
                 after: before,
                 refined: Refined { estimate: nothing_estimated(), history: Vec::new(), converged: true },
-                fixed: Vec::new(),
+                fixed: held_in_words(chains[0].params(), &options.joints, options)?,
                 chains: chains.clone(),
                 noise,
                 data,
@@ -461,51 +480,10 @@ pub fn calibrate(
             data.len()
         )));
     }
-    // A compliance or play whose joint gravity does not load at these poses (a vertical axis)
-    // has no column: it is held, and said so.
-    let (asked, unloaded) = without_unloaded_responses(&asked, &chains[0], &before, &data.joints);
-    // The identifiable subset starts from the system that found it.
-    let problem = base_problem.reselect(&asked, before.clone())?;
-    let at_before = linearise(&problem, &weights, problem.start())?;
-    let priority: Vec<u32> = asked.indices().iter().map(|&i| gauge_class(params.get(i))).collect();
-    // With priors, what the data and the priors together cannot identify is held: a parameter
-    // with a prior never is.
-    let asked_sd: Vec<f64> = asked.indices().iter().map(|&i| prior_sd[i]).collect();
-    let prior = if asked_sd.iter().any(|s| s.is_finite()) {
-        let scale = match weights.scale() {
-            Some(c) => c,
-            None => unregularised_spread(
-                &base_problem,
-                &params,
-                &asked,
-                &before,
-                &weights,
-                &at_before,
-                &priority,
-            )?,
-        };
-        Some(PriorRows::new(&asked_sd, scale))
-    } else {
-        None
-    };
-    let diagnostics = match &prior {
-        Some(prior) => at_before.with_prior(prior).diagnose_by_priority(RANK_TOLERANCE, &priority)?,
-        None => at_before.diagnose_by_priority(RANK_TOLERANCE, &priority)?,
-    };
-    if diagnostics.rank == 0 {
-        return Err(CalibrationError::NothingIdentified(format!(
-            "the identification Jacobian of the {} parameters asked for has rank 0 at these poses",
-            asked.len()
-        )));
-    }
-    let names: Vec<&str> = asked.indices().iter().map(|&i| params.get(i).name.as_str()).collect();
-    let fixed = (diagnostics.not_identifiable.iter().map(|c| c.describe(&names))).chain(unloaded).collect();
-    let kept = Selection::from_indices(&params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
+    let Identified { kept, mut fixed, start, prior, data_alone } =
+        identifiable(&base_problem, &weights, &asked, &before, data, &options.gauge, Some(&prior_sd))?;
+    fixed.extend(held_in_words(&params, &options.joints, options)?);
     let problem = base_problem.reselect(&kept, before.clone())?;
-    let start = at_before.select(&diagnostics.identifiable);
-    // The identifiability the report gives is the data's alone.
-    let data_alone = prior.as_ref().map(|_| start.diagnose(RANK_TOLERANCE)).transpose()?;
-    let prior = prior.map(|p| p.select(&diagnostics.identifiable));
     let (mut estimate, robust) =
         robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
     if let Some(data_alone) = data_alone {
@@ -531,6 +509,108 @@ pub fn calibrate(
         },
         &base_problem,
     )
+}
+
+/// What [`identifiable`] finds: the parameters the poses identify, why the others are held,
+/// and the system linearised about the "before" values, for the identified columns.
+struct Identified {
+    kept: Selection,
+    fixed: Vec<String>,
+    start: crate::estimation::Linearisation,
+    /// The priors' rows for the identified columns, if any parameter has a prior.
+    prior: Option<PriorRows>,
+    /// With priors, the identifiability of the data alone, to report.
+    data_alone: Option<crate::estimation::Diagnostics>,
+}
+
+/// The gauge of `asked` at the "before" values `before`: the unloaded compliances held, the
+/// system linearised once about `before` and weighted by `weights`, its rank revealed with the
+/// identifiable columns chosen by [`gauge_class`] (the user's `gauge.keep` first); every held
+/// parameter described with the combination that holds it ([`why_held`]).
+fn identifiable(
+    base_problem: &PointProblem<'_>,
+    weights: &Weights,
+    asked: &Selection,
+    before: &[f64],
+    data: &Measurements,
+    gauge: &Gauge,
+    prior_sd: Option<&[f64]>,
+) -> Result<Identified, CalibrationError> {
+    let params = base_problem.params();
+    // A compliance or play whose joint gravity does not load at these poses (a vertical axis)
+    // has no column: it is held, and said so.
+    let (asked, unloaded) =
+        without_unloaded_responses(asked, &base_problem.chains()[0], before, &data.joints);
+    let problem = base_problem.reselect(&asked, before.to_vec())?;
+    let at_before = linearise(&problem, weights, problem.start())?;
+    let keep = if gauge.keep.is_empty() {
+        Selection::from_indices(params, [])
+    } else {
+        Selection::by_names(params, &gauge.keep)?
+    };
+    let priority: Vec<u32> = (asked.indices().iter())
+        .map(|&i| if keep.column(i).is_some() { 0 } else { 1 + gauge_class(params.get(i)) })
+        .collect();
+    // With priors, what the data and the priors together cannot identify is held: a parameter
+    // with a prior never is.
+    let asked_sd: Vec<f64> =
+        asked.indices().iter().map(|&i| prior_sd.map_or(f64::INFINITY, |s| s[i])).collect();
+    let prior = if asked_sd.iter().any(|s| s.is_finite()) {
+        let scale = match weights.scale() {
+            Some(c) => c,
+            None => {
+                unregularised_spread(base_problem, params, &asked, before, weights, &at_before, &priority)?
+            }
+        };
+        Some(PriorRows::new(&asked_sd, scale))
+    } else {
+        None
+    };
+    let diagnostics = match &prior {
+        Some(prior) => at_before.with_prior(prior).diagnose_by_priority(RANK_TOLERANCE, &priority)?,
+        None => at_before.diagnose_by_priority(RANK_TOLERANCE, &priority)?,
+    };
+    if diagnostics.rank == 0 {
+        return Err(CalibrationError::NothingIdentified(format!(
+            "the identification Jacobian of the {} parameters asked for has rank 0 at these poses",
+            asked.len()
+        )));
+    }
+    let infos: Vec<&crate::model::ParamInfo> = asked.indices().iter().map(|&i| params.get(i)).collect();
+    let fixed = (diagnostics.not_identifiable.iter().map(|c| why_held(c, &infos))).chain(unloaded).collect();
+    let kept = Selection::from_indices(params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
+    let start = at_before.select(&diagnostics.identifiable);
+    // The identifiability the report gives is the data's alone.
+    let data_alone = prior.as_ref().map(|_| start.diagnose(RANK_TOLERANCE)).transpose()?;
+    let prior = prior.map(|p| p.select(&diagnostics.identifiable));
+    Ok(Identified { kept, fixed, start, prior, data_alone })
+}
+
+/// A held parameter in words a user can act on: the combination `c` of the parameters
+/// `infos` (by column) that the poses cannot tell apart, what it means, and the flag that
+/// frees it. A parameter confounded with the base alone only moves the whole robot as the
+/// base does; with the markers alone, the markers as their positions do.
+fn why_held(c: &crate::estimation::Combination, infos: &[&crate::model::ParamInfo]) -> String {
+    let names: Vec<&str> = infos.iter().map(|p| p.name.as_str()).collect();
+    let held = names[c.column];
+    let owners: Vec<ParamOwner> = c.terms.iter().map(|&(t, _)| infos[t].owner).collect();
+    let only = |f: fn(&ParamOwner) -> bool| !owners.is_empty() && owners.iter().all(f);
+    let reason = if !matches!(infos[c.column].owner, ParamOwner::Joint(_)) {
+        "held so that the parameters of --keep stay free".to_string()
+    } else if only(|o| *o == ParamOwner::Base) {
+        format!(
+            "with the base estimated it only moves the whole robot: --fixed-base (if the measuring frame is \
+             the robot's) or --keep {held} frees it"
+        )
+    } else if only(|o| matches!(o, ParamOwner::Marker(_) | ParamOwner::Tool)) {
+        format!(
+            "with the markers estimated it only moves the markers: --fixed-markers (if their positions are \
+             known) or --keep {held} frees it"
+        )
+    } else {
+        format!("these poses cannot tell it from the others: vary them, or --keep {held} to hold another")
+    };
+    format!("{}: {reason}", c.describe(&names))
 }
 
 /// The results of the stages of [`calibrate`], to be scored and gathered.
@@ -686,14 +766,17 @@ pub(crate) fn without_unloaded_responses(
     (Selection::from_indices(params, kept), why)
 }
 
-/// The gauge: which of a combination the poses cannot tell apart is held. Class 0 stays free
-/// first: the measuring frame (base) and the markers, since no external device shares the
-/// robot's frame; the joint parameters they absorb are held (the first joint's about and along
-/// its axis, the last joint's with the markers). Then class 1: the joint offsets, `a`, `alpha`
-/// and a URDF joint's origin, and the compliances; then class 2: Hayati's `beta` and the `d` of
-/// a revolute joint, which nearly parallel axes make redundant; last a joint's play, which is
-/// its offset wherever the load keeps one sign, and the payload's mass. Within a class the rank-revealing pivoting
-/// decides (the best conditioned choice), the same on every machine.
+/// The gauge: which of a combination the poses cannot tell apart is held, by class (the lower
+/// stays free first). The parameters of [`Gauge::keep`] come before all others. Then class 0:
+/// the measuring frame (base) and the markers, since no external device shares the robot's
+/// frame; so what the base absorbs is held (the first joint's offset and its parameters along
+/// and about the first axis; a prismatic first joint's zero), and what free markers absorb
+/// (the last joint's offset and the parameters of its axis). Between joint parameters, class 1:
+/// the joint offsets, `a`, `alpha` and a URDF joint's origin; then class 2: Hayati's `beta`
+/// and the `d` of a revolute joint, which nearly parallel axes make redundant, so they are held
+/// first; last (class 3) a joint's play, which is its offset wherever the load keeps one sign,
+/// and the payload's mass. The compliances are in class 1. Within a class the rank-revealing pivoting decides (the best conditioned choice,
+/// ties to the earlier parameter), the same on every machine.
 fn gauge_class(p: &crate::model::ParamInfo) -> u32 {
     match (p.owner, p.kind) {
         (ParamOwner::Joint(_), ParamKind::Play) | (ParamOwner::Payload, _) => 3,
@@ -893,7 +976,8 @@ pub fn noise_from_spec(spec: &NoiseSpec, data: &Measurements) -> Result<NoiseMod
     Ok(NoiseModel { joint: spec.joint.clone(), measurement: MeasurementNoise::PerPoint(blocks) })
 }
 
-/// The selection of base, markers and the chosen joint parameters.
+/// The selection of base, markers and the chosen joint parameters, without those the user
+/// holds ([`Gauge::hold`]).
 fn selection(
     params: &ParamSet,
     joints: &JointParams,
@@ -910,7 +994,32 @@ fn selection(
         ParamOwner::Marker(_) => options.estimate_markers,
         _ => false,
     });
-    Ok(Selection::from_indices(params, joint.indices().iter().copied().chain(extra)))
+    let held = held_by_user(params, &options.gauge)?;
+    let chosen = joint.indices().iter().copied().chain(extra).filter(|&i| held.column(i).is_none());
+    Ok(Selection::from_indices(params, chosen))
+}
+
+/// The parameters `gauge` holds at nominal (an error for a name that matches none).
+fn held_by_user(params: &ParamSet, gauge: &Gauge) -> Result<Selection, SelectionError> {
+    if gauge.hold.is_empty() {
+        return Ok(Selection::from_indices(params, []));
+    }
+    Selection::by_names(params, &gauge.hold)
+}
+
+/// Why each parameter `joints` asks for and `gauge` holds is not estimated.
+fn held_in_words(
+    params: &ParamSet,
+    joints: &JointParams,
+    options: &Options,
+) -> Result<Vec<String>, SelectionError> {
+    let without = Options { gauge: Gauge { hold: Vec::new(), ..options.gauge.clone() }, ..options.clone() };
+    let asked = selection(params, joints, &without)?;
+    let held = held_by_user(params, &options.gauge)?;
+    Ok((asked.indices().iter())
+        .filter(|&&i| held.column(i).is_some())
+        .map(|&i| format!("{}: held at its nominal value by --hold", params.get(i).name))
+        .collect())
 }
 
 /// The noise model, with the data's `sigma` column as the measurement noise when present.

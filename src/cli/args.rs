@@ -43,6 +43,17 @@ pub enum EstimatorName {
     Fgls,
 }
 
+/// How `calibrate --select` chooses the parameters.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SelectName {
+    /// Forward selection by k-fold cross-validated RMS, one-standard-error rule.
+    Cv,
+    /// Forward selection by the Bayesian information criterion.
+    Bic,
+    /// Backward elimination of the estimates below 2 standard errors.
+    T,
+}
+
 /// What is measured at each pose.
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MeasuredName {
@@ -268,6 +279,20 @@ pub struct CalibrateArgs {
     /// Do not estimate the marker positions.
     #[arg(long)]
     pub fixed_markers: bool,
+    /// Hold these parameters at their nominal values (names and patterns, as --params takes
+    /// them: `j*.beta,j2.d`): they are not estimated.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub hold: Vec<String>,
+    /// Keep these parameters free first (names and patterns): when the poses cannot tell a
+    /// combination apart, another of it is held, the base's and the markers' included.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub keep: Vec<String>,
+    /// Choose the joint parameters by held-out error among those --params names: `cv`
+    /// (forward selection by k-fold cross-validated RMS, --folds K, default 5, one-standard-
+    /// error rule), `bic` (forward selection by the Bayesian information criterion), `t`
+    /// (backward elimination of the estimates below 2 standard errors).
+    #[arg(long, value_enum)]
+    pub select: Option<SelectName>,
     /// Nominal position of a marker on the last link, "x,y,z" in mm, in the tool frame (a
     /// URDF's tip link; the last joint's frame for a model whose tool is a point); repeat per
     /// marker (missing ones start at that frame's origin).
@@ -296,7 +321,8 @@ pub struct CalibrateArgs {
     /// A measurement file of held-out poses to validate on; repeatable.
     #[arg(long)]
     pub validate: Vec<PathBuf>,
-    /// k-fold cross-validation on the data (k >= 2, at most the number of poses).
+    /// k-fold cross-validation on the data (k >= 2, at most the number of poses); with
+    /// --select cv, the selection's folds instead.
     #[arg(long, value_parser = parse_count::<2>)]
     pub folds: Option<usize>,
     /// Fit with these markers of the data file only (their numbers, `x<k>` columns: `1,3`);

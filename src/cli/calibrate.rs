@@ -47,7 +47,16 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
         &what,
         "calibrate on fewer poses",
     )?;
-    let options = options(request, &robot.model, &data.fit)?;
+    let mut options = options(request, &robot.model, &data.fit)?;
+    let path = match request.select {
+        Some(criterion) => {
+            let path = calibration::select(&robot.model, &data.fit, &options, criterion)
+                .with_context(|| format!("--select {}: {}", criterion.name(), request.data.display()))?;
+            options = path.options(&options);
+            Some(path)
+        }
+        None => None,
+    };
     let result = match request.method {
         Method::Given(_) => calibration::calibrate(&robot.model, &data.fit, &options),
         Method::Feasible => {
@@ -57,7 +66,11 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     .with_context(|| request.data.display().to_string())?;
     let (held_out, folds) = validate(request, &robot.model, &data, &options, &result)?;
     let name = request.method.name();
-    let report = CalibrationReport::new(&result, &request.data.display().to_string(), name, held_out, folds);
+    let mut report =
+        CalibrationReport::new(&result, &request.data.display().to_string(), name, held_out, folds);
+    if let Some(path) = &path {
+        report = report.with_selection(path);
+    }
     let text = report.text();
     print!("{text}");
     write(request, &robot, &report, &result, &text)
@@ -160,6 +173,7 @@ fn options(request: &CalibrateRequest, model: &RobotModel, data: &Measurements) 
         prior,
         loss: request.loss,
         refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
+        gauge: robocal::calibration::Gauge { hold: request.hold.clone(), keep: request.keep.clone() },
     })
 }
 
@@ -233,6 +247,9 @@ fn write(
         &result.registered.joints,
         &mut outputs,
     )?;
+    if let (Some(folder), Some(selection)) = (&request.report.figures, &report.selection) {
+        outputs.add_folder(folder, &[robocal::report::figures::selection_figure(selection)?]);
+    }
     let markers = result.marker_positions();
     if let Some(path) = &request.out_model {
         // The robot as it is, without the payload of this session (with its estimated mass if

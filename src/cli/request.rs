@@ -5,11 +5,12 @@
 use super::args::{
     CalibrateArgs, DesignArgs, EstimatorName, EvaluateArgs, Excluded, JointUnit, LengthUnit, LinkArgs,
     MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs, ParamsArg, PayloadArgs, PlanArgs,
-    RepeatabilityArgs, ReportArgs, ToolBox, UnitArgs,
+    RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::JointParams;
-use robocal::design::Criterion;
+use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
+use robocal::design::Criterion as DesignCriterion;
 use robocal::estimation::Estimator;
 use robocal::kinematics::Measured;
 use robocal::limits::{MAX_CANDIDATES, MAX_POINTS};
@@ -218,6 +219,12 @@ pub struct CalibrateRequest {
     pub estimate_base: bool,
     /// Estimate the markers.
     pub estimate_markers: bool,
+    /// Parameters held at nominal (names and patterns).
+    pub hold: Vec<String>,
+    /// Parameters kept free first by the gauge (names and patterns).
+    pub keep: Vec<String>,
+    /// How to choose the joint parameters, if asked.
+    pub select: Option<Criterion>,
     /// Nominal marker positions (mm).
     pub markers: Vec<Vector3<f64>>,
     /// Prior entries from the flags, in order (a noise file's come first).
@@ -248,6 +255,16 @@ impl CalibrateRequest {
         let noise = noise_source(args.noise, &args.noise_flags)?;
         let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
         let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
+        let select = args.select.map(|name| match name {
+            SelectName::Cv => Criterion::Cv { folds: args.folds.unwrap_or(DEFAULT_FOLDS) },
+            SelectName::Bic => Criterion::Bic,
+            SelectName::T => Criterion::T,
+        });
+        require(
+            select.is_none() || method != Method::Feasible,
+            "--select with --estimator fgls: not supported; estimate the noise once and give --noise",
+        )?;
+        let folds = if matches!(select, Some(Criterion::Cv { .. })) { None } else { args.folds };
         let mut inputs = vec![("--model", Path::new(&model.name)), ("--data", args.data.as_path())];
         if let Some(NoiseSource::File(path)) = &noise {
             inputs.push(("--noise", path));
@@ -266,12 +283,15 @@ impl CalibrateRequest {
             joints,
             estimate_base: !args.fixed_base,
             estimate_markers: !args.fixed_markers,
+            hold: args.hold,
+            keep: args.keep,
+            select,
             markers: args.marker,
             prior: args.prior.into_iter().flatten().collect(),
             loss: args.loss,
             iterations: args.iterations,
             validate: args.validate,
-            folds: args.folds,
+            folds,
             marker_ids: args.markers,
             report: args.report,
             out_model: args.out_model,
@@ -458,7 +478,7 @@ pub struct PlanRequest {
     /// Number of candidate poses.
     pub candidates: usize,
     /// What to maximise.
-    pub criterion: Criterion,
+    pub criterion: DesignCriterion,
     /// Seed of the candidate pool.
     pub seed: u64,
     /// A box the tool point must stay in.

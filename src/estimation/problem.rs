@@ -130,6 +130,16 @@ impl<'a> PointProblem<'a> {
             .collect()
     }
 
+    /// The chains measured: one per marker, or the tool's.
+    pub fn chains(&self) -> &'a [Chain] {
+        self.chains
+    }
+
+    /// Every parameter of the chains (the full vector's, not only the selected ones).
+    pub fn params(&self) -> &'a crate::model::ParamSet {
+        self.chains[0].params()
+    }
+
     /// The measurement kind (position or pose).
     pub fn measured(&self) -> Measured {
         self.measured

@@ -3,6 +3,7 @@
 //! the same content.
 
 use super::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
+use crate::calibration::selection::{Criterion, SelectionPath, Step};
 use crate::calibration::{Calibration, ErrorStats, FLAG_AT, SetEvaluation, pool, standard_errors};
 use crate::estimation::{NoiseEstimate, SigmaInterval};
 use crate::model::{Joint, JointKind};
@@ -68,6 +69,9 @@ pub struct CalibrationReport {
     /// Each estimated compliance as a stiffness.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub stiffness: Vec<StiffnessRow>,
+    /// `--select`: how the joint parameters were chosen ([`CalibrationReport::with_selection`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub selection: Option<SelectionReport>,
 }
 
 /// A joint's estimated compliance `c` as a stiffness `k = 1 / c`, with the 95% interval
@@ -102,6 +106,72 @@ fn stiffness_rows(rows: &[ParameterRow]) -> Vec<StiffnessRow> {
             }
         })
         .collect()
+}
+
+/// The path of a parameter selection, as reported.
+#[derive(Debug, Clone, Serialize)]
+pub struct SelectionReport {
+    /// `cv`, `bic` or `t`.
+    pub criterion: String,
+    /// The folds of `cv`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub folds: Option<usize>,
+    /// Every step, the start first: the parameter added (dropped for `t`), the score after it
+    /// (CV RMS in mm, BIC, or the dropped parameter's |t|), the CV RMS's standard error.
+    pub steps: Vec<Step>,
+    /// The step chosen.
+    pub chosen: usize,
+    /// The joint parameters chosen.
+    pub selected: Vec<String>,
+    /// The parameters asked for that the gauge holds, not candidates: each with its
+    /// combination in words.
+    pub held: Vec<String>,
+}
+
+impl SelectionReport {
+    /// The path as a text table.
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        let (what, start, score) = match self.criterion.as_str() {
+            "cv" => (
+                format!(
+                    "forward selection by {}-fold cross-validation, one-standard-error rule",
+                    self.folds.unwrap_or(0)
+                ),
+                "base and markers",
+                "CV RMS mm ± SE",
+            ),
+            "bic" => ("forward selection by BIC".to_string(), "base and markers", "BIC"),
+            _ => ("backward elimination while |t| < 2".to_string(), "every candidate", "|t| dropped"),
+        };
+        let _ = writeln!(out, "parameter selection: {what}");
+        let _ = writeln!(out, "{:>5}  {:<22} {:>22}", "step", "parameter", score);
+        for (k, step) in self.steps.iter().enumerate() {
+            let name = step.parameter.as_deref().unwrap_or(start);
+            let value = if step.score.is_nan() {
+                String::new()
+            } else if step.se.is_nan() {
+                format!("{:.4}", step.score)
+            } else {
+                format!("{:.4} ± {:.4}", step.score, step.se)
+            };
+            let mark = if k == self.chosen { "  <- chosen" } else { "" };
+            let _ = writeln!(out, "{k:>5}  {name:<22} {value:>22}{mark}");
+        }
+        let _ = writeln!(out, "selected ({}): {}", self.selected.len(), self.selected.join(", "));
+        if !self.held.is_empty() {
+            // Only the names: the combinations are in the JSON.
+            let names: Vec<&str> =
+                self.held.iter().map(|h| h.split([' ', ':']).next().unwrap_or(h)).collect();
+            let _ = writeln!(
+                out,
+                "not candidates, held ({}; why in the JSON): {}",
+                names.len(),
+                names.join(", ")
+            );
+        }
+        out
+    }
 }
 
 /// Which weighting each number of a report uses.
@@ -313,7 +383,29 @@ impl CalibrationReport {
                     .map(|(k, weight)| DownWeighted { line: c.training_poses.poses[k].line, weight })
                     .collect()
             }),
+            selection: None,
         }
+    }
+
+    /// The report with the path of the selection that chose its parameters.
+    pub fn with_selection(mut self, path: &SelectionPath) -> Self {
+        self.weighting.after = format!(
+            "{}: the joint parameters --select {} chose, with the base and the markers",
+            self.estimator,
+            path.criterion.name()
+        );
+        self.selection = Some(SelectionReport {
+            criterion: path.criterion.name().to_string(),
+            folds: match path.criterion {
+                Criterion::Cv { folds } => Some(folds),
+                _ => None,
+            },
+            steps: path.steps.clone(),
+            chosen: path.chosen,
+            selected: path.selected.clone(),
+            held: path.held.clone(),
+        });
+        self
     }
 
     /// The error tables: pooled per set (and the held-out files pooled, and k-fold), per
@@ -443,6 +535,10 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             for d in &self.down_weighted {
                 let _ = writeln!(out, "  line {}: weight {:.4}", d.line, d.weight);
             }
+        }
+        if let Some(selection) = &self.selection {
+            let _ = writeln!(out);
+            out.push_str(&selection.text());
         }
         if !self.fixed.is_empty() {
             let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");

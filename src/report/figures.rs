@@ -564,3 +564,63 @@ fn against_joint(sets: &[&SetEvaluation], j: usize, x_label: &str) -> Result<Str
         Ok(())
     })
 }
+
+/// The path of a parameter selection (`selection-path.svg`): the score after each step (CV RMS
+/// with its standard error as a bar, BIC, or the |t| of each dropped parameter) against the
+/// step, the chosen step circled, and for CV the best step's RMS plus its standard error as a
+/// line (the one-standard-error rule takes the first step under it); the report's table names
+/// each step's parameter.
+pub fn selection_figure(
+    selection: &crate::report::calibration::SelectionReport,
+) -> Result<(String, String), FigureError> {
+    let name = "selection-path.svg".to_string();
+    let points: Vec<(f64, f64, f64)> = (selection.steps.iter().enumerate())
+        .filter(|(_, s)| s.score.is_finite())
+        .map(|(k, s)| (k as f64, s.score, if s.se.is_finite() { s.se } else { 0.0 }))
+        .collect();
+    all_finite(points.iter().flat_map(|p| [p.1, p.2])).map_err(|m| error(&name, m))?;
+    let low = points.iter().map(|p| p.1 - p.2).fold(f64::INFINITY, f64::min);
+    let high = points.iter().map(|p| p.1 + p.2).fold(f64::NEG_INFINITY, f64::max);
+    let (low, high) = if points.is_empty() { (0.0, 1.0) } else { (low, high) };
+    let pad = ((high - low) * 0.08).max(1e-9);
+    let (what, y_label) = match selection.criterion.as_str() {
+        "cv" => ("forward selection, cross-validated RMS ± SE", "CV RMS (mm)"),
+        "bic" => ("forward selection, BIC", "BIC"),
+        _ => ("backward elimination, |t| of the parameter dropped", "|t|"),
+    };
+    let steps = selection.steps.len().max(2) as f64;
+    let chosen = selection.chosen;
+    let svg = single_chart(what, -0.5..steps - 0.5, low - pad..high + pad, false, |chart| {
+        chart
+            .configure_mesh()
+            .x_desc("step (the report names each step's parameter)")
+            .y_desc(y_label)
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        let line = points.iter().map(|p| (p.0, p.1));
+        chart.draw_series(LineSeries::new(line, BLUE.stroke_width(2))).map_err(|e| e.to_string())?;
+        let bars = points.iter().filter(|p| p.2 > 0.0).map(|p| {
+            PathElement::new(vec![(p.0, p.1 - p.2), (p.0, p.1 + p.2)], BLUE.mix(0.6).stroke_width(1))
+        });
+        chart.draw_series(bars).map_err(|e| e.to_string())?;
+        let dots = points.iter().map(|p| Circle::new((p.0, p.1), 3, BLUE.filled()));
+        chart.draw_series(dots).map_err(|e| e.to_string())?;
+        if selection.criterion == "cv"
+            && let Some(best) = points.iter().min_by(|a, b| a.1.total_cmp(&b.1))
+        {
+            // The one-standard-error rule: the first step under this line is chosen.
+            let line = [(-0.5, best.1 + best.2), (steps - 0.5, best.1 + best.2)];
+            chart
+                .draw_series(LineSeries::new(line, RED.mix(0.5).stroke_width(1)))
+                .map_err(|e| e.to_string())?;
+        }
+        let circled = points.iter().filter(|p| p.0 as usize == chosen);
+        chart
+            .draw_series(circled.map(|p| Circle::new((p.0, p.1), 8, RED.stroke_width(2))))
+            .map_err(|e| e.to_string())?;
+        Ok(())
+    })
+    .map_err(|m| error(&name, m))?;
+    Ok((name, svg))
+}

@@ -372,3 +372,54 @@ fn calibrate_with_priors_and_a_robust_loss() {
     );
     assert!(wrong.contains("prior `j*.a=0.5`: no compliance parameter matches `j*.a`"), "{wrong}");
 }
+
+/// `calibrate --select cv` prints the path and the selected set, writes them in the JSON and
+/// adds the path's figure; a `--hold` or `--keep` name that matches no parameter is an error.
+#[test]
+fn calibrate_select_prints_and_writes_its_path() {
+    let dir = std::env::temp_dir().join(format!("robocal-select-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (json, figures) = (dir.join("report.json"), dir.join("figures"));
+    let arm7 = [
+        "calibrate",
+        "--model",
+        "examples/arm7/arm7.urdf",
+        "--data",
+        "examples/arm7/train.csv",
+        "--marker",
+        "40,0,25",
+        "--marker=-20,35,25",
+        "--marker=-20,-35,25",
+        "--params",
+        "joint*.*",
+    ];
+    let mut args: Vec<&str> = arm7.to_vec();
+    args.extend(["--select", "cv", "--json", json.to_str().unwrap(), "--figures", figures.to_str().unwrap()]);
+    let output = robocal().args(&args).output().unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let text = String::from_utf8(output.stdout).unwrap();
+    assert!(text.contains(
+        "parameter selection: forward selection by 5-fold cross-validation, one-standard-error rule"
+    ));
+    assert!(text.contains("    0  base and markers              1.0599 ± 0.1193\n"), "{text}");
+    assert!(text.contains("   13  joint3.x                      0.3867 ± 0.0179  <- chosen\n"), "{text}");
+    assert!(
+        text.contains(
+            "after:     ols: the joint parameters --select cv chose, with the base and the markers"
+        )
+    );
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let selection = &report["selection"];
+    assert_eq!((selection["criterion"].as_str(), selection["folds"].as_u64()), (Some("cv"), Some(5)));
+    assert_eq!(selection["chosen"], 13);
+    assert_eq!(selection["selected"].as_array().unwrap().len(), 13);
+    assert_eq!(selection["steps"][1]["parameter"], "joint2.rx");
+    assert!(std::fs::read_to_string(figures.join("selection-path.svg")).unwrap().contains("<svg"));
+    std::fs::remove_dir_all(&dir).unwrap();
+
+    for flag in ["--hold", "--keep"] {
+        let mut args: Vec<&str> = arm7.to_vec();
+        args.extend([flag, "joint9.x"]);
+        assert!(stderr_of(&args).contains("no parameter matches `joint9.x`"), "{flag}");
+    }
+}

@@ -45,6 +45,7 @@ fn recovers(nominal: &RobotModel, truth: &RobotModel, expected: &[&str]) {
         refine: RefineOptions::default(),
         prior: Vec::new(),
         loss: robocal::calibration::Loss::Squared,
+        gauge: Default::default(),
     };
     let result = calibration::calibrate(nominal, &data, &options).unwrap();
     assert!(result.refined.converged);
@@ -311,6 +312,7 @@ fn a_payload_mass_is_estimated_where_the_compliances_show_it() {
         refine: RefineOptions::default(),
         prior: Vec::new(),
         loss: robocal::calibration::Loss::Squared,
+        gauge: Default::default(),
     };
     let result = calibration::calibrate(&nominal, &data, &options).unwrap();
     let mass = result.calibrated.payload.unwrap().mass;

@@ -57,6 +57,7 @@ fn campaign(seed: u64, poses: usize) -> Campaign {
         prior: Vec::new(),
         loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     };
     Campaign { nominal, truth, data, options }
 }

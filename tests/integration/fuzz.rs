@@ -259,6 +259,7 @@ proptest! {
             prior: Vec::new(),
             loss: robocal::calibration::Loss::Squared,
             refine: RefineOptions { max_iterations: 5, ..RefineOptions::default() },
+            gauge: Default::default(),
         };
         if let Err(e) = calibration::calibrate(&puma(), &data, &options) {
             prop_assert!(!e.to_string().is_empty());

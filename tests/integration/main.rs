@@ -18,5 +18,6 @@ mod repeatability;
 mod replication;
 mod report;
 mod robust;
+mod selection;
 mod simulation;
 mod urdf;

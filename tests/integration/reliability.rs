@@ -608,6 +608,7 @@ fn a_badly_conditioned_system_is_warned() {
             prior: Vec::new(),
             loss: robocal::calibration::Loss::Squared,
             refine: robocal::estimation::RefineOptions::default(),
+            gauge: Default::default(),
         };
         let result = robocal::calibration::calibrate(&model, &data, &options).unwrap();
         let diagnostics = &result.refined.estimate.diagnostics;

@@ -367,6 +367,7 @@ fn fgls_says_when_its_variance_components_did_not_settle() {
         prior: Vec::new(),
         loss: robocal::calibration::Loss::Squared,
         refine: Default::default(),
+        gauge: Default::default(),
     };
     let feasible = robocal::calibration::FeasibleOptions { max_iterations: 1, ..Default::default() };
     let c = robocal::calibration::calibrate_feasible(&model, &data, &options, &feasible).unwrap();

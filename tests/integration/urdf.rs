@@ -174,6 +174,7 @@ fn a_seven_joint_urdf_arm_with_a_prismatic_joint_calibrates() {
         prior: Vec::new(),
         loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     };
     let result = calibration::calibrate(&nominal, &training, &options).unwrap();
     let (before, after) = result.validate(&validation);
@@ -270,6 +271,7 @@ fn markers_are_given_and_reported_in_the_tip_link_frame() {
         prior: Vec::new(),
         loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     };
     let result = calibration::calibrate(&nominal, &data, &options).unwrap();
     assert!(result.fixed.iter().any(|f| f.starts_with("wrist_yaw.theta")), "{:?}", result.fixed);
@@ -452,6 +454,7 @@ pub(crate) fn arm7_options(joints: JointParams) -> Options {
         prior: Vec::new(),
         loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
+        gauge: Default::default(),
     }
 }
 

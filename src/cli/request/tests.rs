@@ -394,3 +394,35 @@ fn priors_and_losses_are_read_in_order() {
     let bad = calibrate(&["--loss", "l1"]).unwrap_err();
     assert!(bad.contains("unknown loss `l1`"), "{bad}");
 }
+
+#[test]
+fn select_takes_its_criterion_and_cv_the_folds() {
+    let request = calibrate(&["--select", "cv"]).unwrap();
+    assert_eq!((request.select, request.folds), (Some(Criterion::Cv { folds: DEFAULT_FOLDS }), None));
+    let request = calibrate(&["--select", "cv", "--folds", "3"]).unwrap();
+    assert_eq!(
+        (request.select, request.folds),
+        (Some(Criterion::Cv { folds: 3 }), None),
+        "the selection's folds"
+    );
+    let request = calibrate(&["--select", "bic", "--folds", "3"]).unwrap();
+    assert_eq!((request.select, request.folds), (Some(Criterion::Bic), Some(3)), "the cross-validation's");
+    assert_eq!(calibrate(&["--select", "t"]).unwrap().select, Some(Criterion::T));
+    assert_eq!(calibrate(&[]).unwrap().select, None);
+    assert!(refused(calibrate(&["--select", "aic"])).contains("[possible values: cv, bic, t]"));
+    assert_eq!(
+        refused(calibrate(&["--select", "t", "--estimator", "fgls"])),
+        "--select with --estimator fgls: not supported; estimate the noise once and give --noise"
+    );
+}
+
+#[test]
+fn hold_and_keep_take_names_and_patterns() {
+    let request = calibrate(&["--hold", "j*.beta,j2.d", "--keep", "j1.theta"]).unwrap();
+    assert_eq!(
+        (request.hold, request.keep),
+        (vec!["j*.beta".to_string(), "j2.d".into()], vec!["j1.theta".to_string()])
+    );
+    let request = calibrate(&[]).unwrap();
+    assert!(request.hold.is_empty() && request.keep.is_empty());
+}

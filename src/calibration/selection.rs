@@ -1,0 +1,580 @@
+//! Choosing the joint parameters by held-out error (`calibrate --select`).
+//!
+//! A real robot has errors no geometric model holds (deflection, backlash, a device's own
+//! error); a fit that drives every weakly identified parameter absorbs them into terms the
+//! training poses barely see, and loses on the poses it did not see. The candidates are the
+//! joint parameters [`Options::joints`] names that the poses identify (the gauge of
+//! [`calibrate`] holds the others); the base and the markers (the registration) are always
+//! estimated. Three criteria:
+//!
+//! - [`Criterion::Cv`]: forward stepwise selection by `F`-fold cross-validation. Pose `k` is
+//!   held out in fold `k mod F`. From the registration, each step adds the candidate whose
+//!   model has the lowest cross-validated RMS
+//!   `CV = sqrt(sum_f SSE_f / sum_f n_f)`, `SSE_f = sum |y_t - H_t x_f|^2` over the markers of
+//!   fold `f`'s held-out poses (unweighted distances, mm; `n_f` markers), `x_f` the estimate
+//!   from the other folds by the calibration's estimator. Its standard error is
+//!   `SE = sd_f(RMS_f) / sqrt(F)` (`RMS_f = sqrt(SSE_f / n_f)`). The path runs until every
+//!   candidate is in; the model chosen is the smallest whose CV is within one SE of the best
+//!   step's (the one-standard-error rule, Hastie, Tibshirani and Friedman 2009, 7.10).
+//! - [`Criterion::Bic`]: the same forward path, each step adding the candidate that lowers
+//!   the whitened training cost `RSS = |S (y - H x)|^2` most, scored by
+//!   `BIC = N ln(RSS / N) + p ln N` (`N` equations, `p` parameters with the registration's);
+//!   the step of the lowest BIC is chosen.
+//! - [`Criterion::T`]: backward elimination from every candidate: calibrate (Gauss-Newton, as
+//!   [`calibrate`]), drop the candidate of the smallest `|t| = |estimate| / SE` while it is
+//!   below 2, and calibrate again.
+//!
+//! Each candidate is one parameter, for a URDF joint too: its origin's six numbers are not one
+//! physical quantity, and the gauge holds some of them on their own (the turn about the joint's
+//! axis, a shift the next origin absorbs), so a group would carry held parameters and force in
+//! weak ones with a strong one; one at a time, the path takes an origin's shift and leaves its
+//! turn.
+//!
+//! Every forward fit reuses one linearisation, `y = H x` about the registration ("before"),
+//! whitened once, `A = S H`, `b = S y`: a candidate's fit on a fold is the least-squares
+//! solution of the column-scaled normal equations `G_f x = g_f`, `G_f = A_tr^T A_tr`, updated
+//! by one row of the Cholesky factor per added column (`L l = G_f[S, j]`,
+//! `d^2 = G_f[j, j] - |l|^2`), and its held-out error the quadratic form
+//! `SSE_f = y_t^T y_t - 2 x^T H_t^T y_t + x^T H_t^T H_t x`: `O(p^2)` per candidate and fold. A
+//! candidate whose column lies in the span of the others on some fold (`d^2` below
+//! [`COLLINEAR`] of `G_f[j, j]`) is not taken at that step. Candidates are scored in parallel,
+//! each on its own; the best is the lowest score, ties to the earlier parameter, so the path
+//! is the same on any number of threads. The selected model is then calibrated by
+//! Gauss-Newton as any other.
+
+use super::{
+    CalibrationError, Identified, JointParams, Measurements, Options, RobotModel, Whitening, calibrate,
+    identifiable, observed, selection, standard_errors,
+};
+use crate::estimation::{PointProblem, Residuals, Weights};
+use crate::kinematics::Measured;
+use crate::model::{ParamOwner, Selection};
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+
+/// Folds of `--select cv` unless told.
+pub const DEFAULT_FOLDS: usize = 5;
+
+/// A candidate's squared distance to the span of the others, relative to its squared norm,
+/// below which it is not added (a sine of 1e-6: the normal equations would lose every digit).
+pub const COLLINEAR: f64 = 1e-12;
+
+/// How the joint parameters are chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Criterion {
+    /// Forward selection by `folds`-fold cross-validated RMS, one-standard-error rule.
+    Cv {
+        /// Number of folds (at least 2, at most the number of poses).
+        folds: usize,
+    },
+    /// Forward selection by the Bayesian information criterion.
+    Bic,
+    /// Backward elimination of the estimates within 2 standard errors of zero.
+    T,
+}
+
+impl Criterion {
+    /// The name on the command line: `cv`, `bic`, `t`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Cv { .. } => "cv",
+            Self::Bic => "bic",
+            Self::T => "t",
+        }
+    }
+}
+
+/// One step of a selection path.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Step {
+    /// The parameter added (forward) or dropped (`t`); `None` for the start: the registration
+    /// alone (forward), every candidate (`t`).
+    pub parameter: Option<String>,
+    /// The model's score after the step: its CV RMS (mm), its BIC, or for `t` the dropped
+    /// parameter's `|t|` (NaN at the start).
+    pub score: f64,
+    /// The CV RMS's standard error (mm); NaN for the other criteria.
+    pub se: f64,
+}
+
+/// The path of a selection and the parameters it chose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SelectionPath {
+    /// How they were chosen.
+    pub criterion: Criterion,
+    /// Every step, the start first.
+    pub steps: Vec<Step>,
+    /// The step chosen: the model is the start and the steps up to it.
+    pub chosen: usize,
+    /// The joint parameters of the chosen model, in canonical order.
+    pub selected: Vec<String>,
+    /// The parameters asked for that are held, not candidates, each with why in words: the
+    /// gauge's (the poses cannot tell them apart from the others, with the combination), an
+    /// unloaded compliance's, and for `t` those of `--hold`.
+    pub held: Vec<String>,
+}
+
+impl SelectionPath {
+    /// `options` asking for the selected parameters only.
+    pub fn options(&self, options: &Options) -> Options {
+        asking(options, &self.selected)
+    }
+}
+
+/// `options` asking for the joint parameters `names` only.
+fn asking(options: &Options, names: &[String]) -> Options {
+    let joints = if names.is_empty() { JointParams::None } else { JointParams::Named(names.to_vec()) };
+    Options { joints, ..options.clone() }
+}
+
+/// Choose among the joint parameters `options.joints` names by `criterion` (see the
+/// [module documentation](self)), then [`calibrate`] with [`SelectionPath::options`].
+pub fn select(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    criterion: Criterion,
+) -> Result<SelectionPath, CalibrationError> {
+    if data.orientations.is_some() {
+        return Err(CalibrationError::Scoring(
+            "--select scores marker positions: a probe's orientations are not supported".into(),
+        ));
+    }
+    match criterion {
+        Criterion::T => backward(model, data, options),
+        Criterion::Cv { folds } if folds < 2 || folds > data.len() => Err(CalibrationError::Scoring(
+            format!("{folds} folds for {} poses: expected 2 to the number of poses", data.len()),
+        )),
+        _ => forward(model, data, options, criterion),
+    }
+}
+
+/// Backward elimination by `|t|` ([`Criterion::T`]).
+fn backward(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+) -> Result<SelectionPath, CalibrationError> {
+    let mut steps = vec![Step { parameter: None, score: f64::NAN, se: f64::NAN }];
+    let mut current = options.clone();
+    let mut held = None;
+    loop {
+        let c = calibrate(model, data, &current)?;
+        let held = held.get_or_insert_with(|| c.fixed.clone());
+        let se = standard_errors(&c);
+        let joints: Vec<usize> = (c.refined.estimate.names.iter())
+            .filter_map(|n| c.params.index_by_name(n))
+            .filter(|&i| matches!(c.params.get(i).owner, ParamOwner::Joint(_)))
+            .collect();
+        let t = |i: usize| (c.after[i] - c.before[i]).abs() / se[i];
+        // The smallest |t|, ties to the earlier parameter; a NaN (no standard error) is dropped.
+        let weakest = joints
+            .iter()
+            .copied()
+            .min_by(|&i, &j| t(i).partial_cmp(&t(j)).unwrap_or(std::cmp::Ordering::Less));
+        match weakest {
+            Some(i) if t(i) < 2.0 || t(i).is_nan() => {
+                steps.push(Step { parameter: Some(c.params.get(i).name.clone()), score: t(i), se: f64::NAN });
+                let names: Vec<String> =
+                    joints.iter().filter(|&&j| j != i).map(|&j| c.params.get(j).name.clone()).collect();
+                current = asking(options, &names);
+            }
+            _ => {
+                let selected = joints.iter().map(|&j| c.params.get(j).name.clone()).collect();
+                let chosen = steps.len() - 1;
+                let held = std::mem::take(held);
+                return Ok(SelectionPath { criterion: Criterion::T, steps, chosen, selected, held });
+            }
+        }
+    }
+}
+
+/// Forward stepwise selection ([`Criterion::Cv`], [`Criterion::Bic`]) on one linearisation.
+fn forward(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    criterion: Criterion,
+) -> Result<SelectionPath, CalibrationError> {
+    let linear = LinearModel::new(model, data, options)?;
+    let mut fits = linear.fits(criterion);
+    let (steps, order) = walk(&mut fits, &linear, criterion);
+    let chosen = choose(&steps, criterion);
+    let mut columns: Vec<usize> = order[..chosen].iter().map(|&j| linear.kept.indices()[j]).collect();
+    columns.sort_unstable();
+    let selected = columns.iter().map(|&i| linear.params.get(i).name.clone()).collect();
+    Ok(SelectionPath { criterion, steps, chosen, selected, held: linear.held })
+}
+
+/// The calibration linearised once about the registration ("before"), for the parameters
+/// asked for that the poses identify: whitened by the estimator (`A = S H`, `b = S y`) to fit,
+/// unweighted (`H`, `y`) to score, both column-scaled alike.
+struct LinearModel {
+    params: crate::model::ParamSet,
+    /// The identified parameters: the columns.
+    kept: Selection,
+    /// The held ones, in words.
+    held: Vec<String>,
+    whitened: Scaled,
+    unweighted: Scaled,
+    /// Rows per pose, and markers per pose.
+    rows: usize,
+    markers: usize,
+    poses: usize,
+}
+
+impl LinearModel {
+    /// The registration of `data` (base and markers fitted by [`calibrate`]), then the gauge
+    /// of `options`' parameters and the system about it.
+    fn new(model: &RobotModel, data: &Measurements, options: &Options) -> Result<Self, CalibrationError> {
+        let frame = calibrate(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
+        let noise = match &frame.whitening {
+            Whitening::Covariance(noise) => Some(noise),
+            Whitening::Spread(_) => None,
+        };
+        let params = &frame.params;
+        let nothing = Selection::from_indices(params, []);
+        let zero = vec![0.0; params.len()];
+        let (joints, observed) = (data.joints.clone(), observed(data));
+        let base_problem =
+            PointProblem::new(&frame.chains, &nothing, Measured::Position, joints, observed, zero, noise)?;
+        let weights = Weights::for_problem(&base_problem, options.estimator)?;
+        let asked = selection(params, &options.joints, options)?;
+        let Identified { kept, start, fixed: held, .. } =
+            identifiable(&base_problem, &weights, &asked, &frame.before, data, &options.gauge, None)?;
+        let system = base_problem.reselect(&kept, frame.before.clone())?.system(&start.x);
+        let scale: Vec<f64> =
+            start.a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
+        let rows = base_problem.rows_per_point();
+        Ok(Self {
+            params: params.clone(),
+            kept,
+            held,
+            whitened: Scaled::new(&start.a, &start.b, &scale),
+            unweighted: Scaled::new(&system.h, &system.y, &scale),
+            rows,
+            markers: rows / 3,
+            poses: data.len(),
+        })
+    }
+
+    /// Whether column `c` is the base's or a marker's: always in the model.
+    fn is_registration(&self, c: usize) -> bool {
+        !matches!(self.params.get(self.kept.indices()[c]).owner, ParamOwner::Joint(_))
+    }
+
+    /// The fits a criterion compares, the registration's columns in: one per fold for CV (pose
+    /// `k` held out in fold `k mod F`), one on every pose for BIC.
+    fn fits(&self, criterion: Criterion) -> Vec<Fit> {
+        let mut fits: Vec<Fit> = match criterion {
+            Criterion::Cv { folds } => (0..folds)
+                .map(|f| {
+                    let test: Vec<usize> = (0..self.poses).filter(|k| k % folds == f).collect();
+                    let rows: Vec<usize> =
+                        test.iter().flat_map(|k| k * self.rows..(k + 1) * self.rows).collect();
+                    Fit::new(&self.whitened, Some((&self.unweighted, &rows, test.len() * self.markers)))
+                })
+                .collect(),
+            _ => vec![Fit::new(&self.whitened, None)],
+        };
+        for c in (0..self.kept.len()).filter(|&c| self.is_registration(c)) {
+            for fit in &mut fits {
+                if let Some(trial) = fit.trial(c) {
+                    fit.accept(c, trial);
+                }
+            }
+        }
+        fits
+    }
+}
+
+/// The forward path from `fits`: at each step the candidate of `linear` whose trial scores
+/// lowest (scored in parallel, ties to the earlier column), until none is left that every fit
+/// can take. The steps, and the columns in the order added.
+fn walk(fits: &mut [Fit], linear: &LinearModel, criterion: Criterion) -> (Vec<Step>, Vec<usize>) {
+    let equations = linear.whitened.b.len();
+    let now: Vec<Trial> = fits.iter().map(Fit::current).collect();
+    let (first, first_se) = score(fits, &now, criterion, equations);
+    let mut steps = vec![Step { parameter: None, score: first, se: first_se }];
+    let mut order = Vec::new();
+    let mut left: Vec<usize> = (0..linear.kept.len()).filter(|&c| !linear.is_registration(c)).collect();
+    while !left.is_empty() {
+        let scored: Vec<Option<Scored>> = left
+            .par_iter()
+            .map(|&j| {
+                let trials = fits.iter().map(|f| f.trial(j)).collect::<Option<Vec<Trial>>>()?;
+                Some((score(fits, &trials, criterion, equations), trials))
+            })
+            .collect();
+        let best = (0..left.len())
+            .filter_map(|i| scored[i].as_ref().map(|s| (i, s.0.0)))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((i, _)) = best else { break };
+        let j = left.remove(i);
+        let ((value, se), trials) = scored.into_iter().nth(i).flatten().expect("scored");
+        for (fit, trial) in fits.iter_mut().zip(trials) {
+            fit.accept(j, trial);
+        }
+        order.push(j);
+        let name = linear.params.get(linear.kept.indices()[j]).name.clone();
+        steps.push(Step { parameter: Some(name), score: value, se });
+    }
+    (steps, order)
+}
+
+/// A candidate scored: its (score, SE), and its trial on every fit.
+type Scored = ((f64, f64), Vec<Trial>);
+
+/// The score of `fits` each with its `trials` (a column added, or [`Fit::current`]): the CV
+/// RMS and its SE, or the BIC (and NaN) of the fit on every pose.
+fn score(fits: &[Fit], trials: &[Trial], criterion: Criterion, equations: usize) -> (f64, f64) {
+    match criterion {
+        Criterion::Cv { .. } => cv_rms(fits.iter().zip(trials).map(|(f, t)| (t.sse_test, f.count()))),
+        _ => (bic(trials[0].rss, trials[0].parameters, equations), f64::NAN),
+    }
+}
+
+/// `BIC = N ln(RSS / N) + p ln N` of a least-squares fit of `p` parameters to `N` equations
+/// whose noise scale is estimated with them (Schwarz 1978).
+fn bic(rss: f64, parameters: usize, equations: usize) -> f64 {
+    let n = equations as f64;
+    n * (rss.max(f64::MIN_POSITIVE) / n).ln() + parameters as f64 * n.ln()
+}
+
+/// The step a criterion chooses: for CV the first whose score is within one standard error of
+/// the lowest score's (the one-standard-error rule), otherwise the lowest.
+fn choose(steps: &[Step], criterion: Criterion) -> usize {
+    let best = (0..steps.len()).min_by(|&a, &b| steps[a].score.total_cmp(&steps[b].score)).unwrap_or(0);
+    match criterion {
+        Criterion::Cv { .. } => {
+            let within = steps[best].score + steps[best].se;
+            (0..=best).find(|&k| steps[k].score <= within).unwrap_or(best)
+        }
+        _ => best,
+    }
+}
+
+/// The CV RMS and its standard error from each fold's held-out `(SSE, markers)`.
+fn cv_rms(folds: impl Iterator<Item = (f64, usize)>) -> (f64, f64) {
+    let folds: Vec<(f64, usize)> = folds.collect();
+    let (sse, n): (f64, usize) = folds.iter().fold((0.0, 0), |(s, n), &(f, c)| (s + f, n + c));
+    let rms: Vec<f64> = folds.iter().map(|&(s, c)| (s.max(0.0) / c.max(1) as f64).sqrt()).collect();
+    let k = rms.len() as f64;
+    let mean = rms.iter().sum::<f64>() / k;
+    let sd = (rms.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (k - 1.0).max(1.0)).sqrt();
+    ((sse.max(0.0) / n.max(1) as f64).sqrt(), sd / k.sqrt())
+}
+
+/// A linear system with its columns scaled (`A D`, `b`), rows as the stacked system's.
+struct Scaled {
+    a: DMatrix<f64>,
+    b: DVector<f64>,
+}
+
+impl Scaled {
+    /// `a D`, `b`, with `D = diag(scale)`.
+    fn new(a: &DMatrix<f64>, b: &DVector<f64>, scale: &[f64]) -> Self {
+        let mut a = a.clone();
+        for (mut column, s) in a.column_iter_mut().zip(scale) {
+            column *= *s;
+        }
+        Self { a, b: b.clone() }
+    }
+
+    /// `A_R^T A_R`, `A_R^T b_R` and `b_R^T b_R` of the rows `R`.
+    fn normal(&self, rows: &[usize]) -> (DMatrix<f64>, DVector<f64>, f64) {
+        let a = self.a.select_rows(rows);
+        let b = self.b.select_rows(rows);
+        (a.tr_mul(&a), a.tr_mul(&b), b.norm_squared())
+    }
+}
+
+/// One fold's fit of a growing set of columns: the training normal equations `G x = g`
+/// factored by Cholesky one column at a time, and the held-out fold's quadratic form.
+struct Fit {
+    gram: DMatrix<f64>,
+    rhs: DVector<f64>,
+    bb: f64,
+    test: Option<(DMatrix<f64>, DVector<f64>, f64, usize)>,
+    /// The columns in, in the order added.
+    members: Vec<usize>,
+    /// The Cholesky factor of `gram[members, members]` (rows and columns in `members` order).
+    l: DMatrix<f64>,
+    /// `L^-1 g[members]`.
+    z: Vec<f64>,
+}
+
+/// A candidate column tried on one fit: its row of the Cholesky factor, and the fit's errors
+/// with it.
+struct Trial {
+    l: Vec<f64>,
+    d: f64,
+    z: f64,
+    /// The columns of the fit with it.
+    parameters: usize,
+    /// The whitened training cost.
+    rss: f64,
+    /// The unweighted held-out `|y_t - H_t x|^2` (0 without a held-out fold).
+    sse_test: f64,
+}
+
+impl Fit {
+    /// The fit of no columns on every row of `whitened` but the held-out `test` ones
+    /// (`(unweighted system, its rows, markers)`), or on every row without a test.
+    fn new(whitened: &Scaled, test: Option<(&Scaled, &[usize], usize)>) -> Self {
+        let p = whitened.a.ncols();
+        let (mut gram, mut rhs, mut bb) = whitened.normal(&(0..whitened.b.len()).collect::<Vec<_>>());
+        let test = test.map(|(unweighted, rows, count)| {
+            let (g_t, r_t, b_t) = whitened.normal(rows);
+            gram -= g_t;
+            rhs -= r_t;
+            bb -= b_t;
+            let (q, c, s) = unweighted.normal(rows);
+            (q, c, s, count)
+        });
+        Self { gram, rhs, bb, test, members: Vec::new(), l: DMatrix::zeros(p, p), z: Vec::new() }
+    }
+
+    /// Markers held out.
+    fn count(&self) -> usize {
+        self.test.as_ref().map_or(0, |t| t.3)
+    }
+
+    /// The whitened training cost of the current columns, `b^T b - |z|^2`.
+    fn rss(&self) -> f64 {
+        self.bb - self.z.iter().map(|z| z * z).sum::<f64>()
+    }
+
+    /// The current fit as a trial of no column (its held-out error).
+    fn current(&self) -> Trial {
+        let x = self.solve(None);
+        let (parameters, rss) = (self.members.len(), self.rss());
+        Trial { l: Vec::new(), d: 0.0, z: 0.0, parameters, rss, sse_test: self.sse_test(None, &x) }
+    }
+
+    /// Column `j` added: `None` if it lies in the span of the current columns on this fold.
+    fn trial(&self, j: usize) -> Option<Trial> {
+        let s = self.members.len();
+        let mut l = vec![0.0; s];
+        for r in 0..s {
+            let dot: f64 = (0..r).map(|c| self.l[(r, c)] * l[c]).sum();
+            l[r] = (self.gram[(self.members[r], j)] - dot) / self.l[(r, r)];
+        }
+        let d2 = self.gram[(j, j)] - l.iter().map(|v| v * v).sum::<f64>();
+        if d2.is_nan() || d2 <= COLLINEAR * self.gram[(j, j)] {
+            return None;
+        }
+        let d = d2.sqrt();
+        let z = (self.rhs[j] - l.iter().zip(&self.z).map(|(a, b)| a * b).sum::<f64>()) / d;
+        let rss = self.rss() - z * z;
+        let mut trial = Trial { l, d, z, parameters: s + 1, rss, sse_test: 0.0 };
+        if self.test.is_some() {
+            let x = self.solve(Some(&trial));
+            trial.sse_test = self.sse_test(Some(j), &x);
+        }
+        Some(trial)
+    }
+
+    /// Add column `j` as `trial` found it.
+    fn accept(&mut self, j: usize, trial: Trial) {
+        let s = self.members.len();
+        for (c, v) in trial.l.iter().enumerate() {
+            self.l[(s, c)] = *v;
+        }
+        self.l[(s, s)] = trial.d;
+        self.z.push(trial.z);
+        self.members.push(j);
+    }
+
+    /// The (scaled) estimate of the current columns, with `trial`'s last if given:
+    /// `L^T x = z` by back substitution.
+    fn solve(&self, trial: Option<&Trial>) -> Vec<f64> {
+        let s = self.members.len();
+        let n = s + usize::from(trial.is_some());
+        let entry = |r: usize, c: usize| match trial {
+            Some(t) if r == s => {
+                if c == s {
+                    t.d
+                } else {
+                    t.l[c]
+                }
+            }
+            _ => self.l[(r, c)],
+        };
+        let z = |r: usize| if r == s { trial.map_or(0.0, |t| t.z) } else { self.z[r] };
+        let mut x = vec![0.0; n];
+        for r in (0..n).rev() {
+            let dot: f64 = (r + 1..n).map(|c| entry(c, r) * x[c]).sum();
+            x[r] = (z(r) - dot) / entry(r, r);
+        }
+        x
+    }
+
+    /// The held-out fold's unweighted `|y_t - H_t x|^2 = y_t^T y_t - 2 x^T H_t^T y_t +
+    /// x^T H_t^T H_t x` for `x` on the current columns, and column `extra` last if given.
+    fn sse_test(&self, extra: Option<usize>, x: &[f64]) -> f64 {
+        let Some((q, c, s, _)) = &self.test else { return 0.0 };
+        let column =
+            |a: usize| if a < self.members.len() { self.members[a] } else { extra.expect("one more") };
+        let mut quadratic = 0.0;
+        let mut linear = 0.0;
+        for (a, xa) in x.iter().enumerate() {
+            let i = column(a);
+            linear += xa * c[i];
+            quadratic += xa * x.iter().enumerate().map(|(b, xb)| q[(i, column(b))] * xb).sum::<f64>();
+        }
+        s - 2.0 * linear + quadratic
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The incremental fit (Cholesky row by row, the held-out error as a quadratic form) gives
+    /// the direct least-squares answer of every growing subset: training cost, held-out error,
+    /// and a collinear column refused.
+    #[test]
+    fn incremental_fits_are_the_direct_least_squares_ones() {
+        let (m, p) = (60, 6);
+        let value =
+            |i: usize, j: usize| ((i as f64 * 12.9898 + j as f64 * 78.233).sin() * 43758.5453).fract();
+        let mut a = DMatrix::from_fn(m, p, value);
+        // Column 5 is a combination of columns 0 and 1.
+        let dependent = a.column(0) * 2.0 - a.column(1);
+        a.set_column(5, &dependent);
+        let b = DVector::from_fn(m, |i, _| value(i, 9));
+        let h = DMatrix::from_fn(m, p, |i, j| 2.0 * value(i, j) + 0.01 * (i + j) as f64);
+        let y = DVector::from_fn(m, |i, _| value(i, 11));
+        let scale = vec![1.0; p];
+        let (whitened, unweighted) = (Scaled::new(&a, &b, &scale), Scaled::new(&h, &y, &scale));
+        let test: Vec<usize> = (0..m).filter(|i| i % 4 == 1).collect();
+        let train: Vec<usize> = (0..m).filter(|i| i % 4 != 1).collect();
+        let mut fit = Fit::new(&whitened, Some((&unweighted, &test, test.len())));
+        let mut members = Vec::new();
+        for j in [3, 0, 1, 4] {
+            let trial = fit.trial(j).expect("independent");
+            members.push(j);
+            let a_tr = a.select_rows(&train).select_columns(&members);
+            let x = a_tr.clone().svd(true, true).solve(&b.select_rows(&train), 1e-14).unwrap();
+            let rss = (b.select_rows(&train) - &a_tr * &x).norm_squared();
+            let sse =
+                (y.select_rows(&test) - h.select_rows(&test).select_columns(&members) * &x).norm_squared();
+            assert!((trial.rss - rss).abs() < 1e-10 * rss, "{} {rss}", trial.rss);
+            assert!((trial.sse_test - sse).abs() < 1e-10 * sse, "{} {sse}", trial.sse_test);
+            fit.accept(j, trial);
+        }
+        assert!(fit.trial(5).is_none(), "column 5 lies in the span of 0 and 1");
+        assert!(fit.trial(2).is_some());
+    }
+
+    /// The CV RMS pools the folds' squared errors; its standard error is the spread of the
+    /// folds' RMS over the square root of their number.
+    #[test]
+    fn cv_rms_pools_the_folds() {
+        let (rms, se) = cv_rms([(4.0, 1), (16.0, 1)].into_iter());
+        assert!((rms - 10f64.sqrt()).abs() < 1e-15);
+        // Fold RMS 2 and 4: sd sqrt(2), over sqrt(2).
+        assert!((se - 1.0).abs() < 1e-15);
+    }
+}
