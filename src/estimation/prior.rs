@@ -28,7 +28,7 @@
 //!
 //! The priors are given as entries `PATTERN=VALUE[UNIT]` ([`PriorEntry`], see
 //! `docs/formats.md`): a parameter name or pattern (`j*.alpha`, as `--params` takes them) or a
-//! class of joint parameters (`lengths`, `angles`, `offsets`, `compliances`), and a standard
+//! class of joint parameters (`lengths`, `angles`, `offsets`, `compliances`, `plays`), and a standard
 //! deviation in `mm`, `um`, `deg`, `rad`, `mrad`, or for a compliance as a plain number in its
 //! own unit (rad/N·m, mm/N). The unit also picks the parameters: `j*.*=0.1mm` puts a prior on
 //! every length of the joints, `j*.*=0.05deg` on every angle (a play is an angle or a length
@@ -54,7 +54,7 @@ pub enum PriorUnit {
 #[derive(Debug, Clone, PartialEq)]
 pub struct PriorEntry {
     /// A parameter name or pattern (`j*.alpha`), or `lengths`, `angles`, `offsets`,
-    /// `compliances`: those of every joint.
+    /// `compliances`, `plays`: those of every joint.
     pub target: String,
     /// The standard deviation, in mm, rad, or the compliance's unit.
     pub sd: f64,
@@ -79,7 +79,7 @@ pub enum PriorError {
     /// An entry's target matches no parameter of its unit.
     #[error(
         "prior `{entry}`: no {what} parameter matches `{target}`; parameters are named like `j2.alpha`, \
-         `shoulder.x` (patterns with `*`), or use `lengths`, `angles`, `offsets`, `compliances`"
+         `shoulder.x` (patterns with `*`), or use `lengths`, `angles`, `offsets`, `compliances`, `plays`"
     )]
     NoMatch {
         /// The entry as written.
@@ -96,11 +96,15 @@ pub enum PriorError {
 /// prismatic one), which encoders are mounted with. `machined`: a machined, assembled arm
 /// (0.1 mm, 0.05 deg, 0.5 deg); `precision`: ground and fitted parts, zeros set by a fixture
 /// (0.02 mm, 0.01 deg, 0.1 deg); `fabricated`: welded or cast and lightly machined (0.5 mm,
-/// 0.2 deg, 2 deg). None puts a prior on the compliances (they have no nominal value to be near).
+/// 0.2 deg, 2 deg). Each also bounds a joint's play, the backlash of its gears (0.02 deg,
+/// 0.005 deg, 0.1 deg; the same number in mm for a prismatic joint): without it, a play and its
+/// joint's zero, which its prior holds near nominal, trade places wherever the load keeps one
+/// sign, and poses where it turns over pay for it. None puts a prior on the compliances (they
+/// have no nominal value to be near).
 pub const PRESETS: [(&str, &str); 3] = [
-    ("machined", "lengths=0.1mm,angles=0.05deg,offsets=0.5deg,offsets=0.5mm"),
-    ("precision", "lengths=0.02mm,angles=0.01deg,offsets=0.1deg,offsets=0.1mm"),
-    ("fabricated", "lengths=0.5mm,angles=0.2deg,offsets=2deg,offsets=2mm"),
+    ("machined", "lengths=0.1mm,angles=0.05deg,offsets=0.5deg,offsets=0.5mm,plays=0.02deg,plays=0.02mm"),
+    ("precision", "lengths=0.02mm,angles=0.01deg,offsets=0.1deg,offsets=0.1mm,plays=0.005deg,plays=0.005mm"),
+    ("fabricated", "lengths=0.5mm,angles=0.2deg,offsets=2deg,offsets=2mm,plays=0.1deg,plays=0.1mm"),
 ];
 
 impl PriorEntry {
@@ -176,6 +180,7 @@ impl PriorEntry {
             "lengths" | "angles" => joint && !p.is_offset && !p.is_load_response(),
             "offsets" => joint && p.is_offset,
             "compliances" => joint && p.kind == ParamKind::Compliance,
+            "plays" => joint && p.kind == ParamKind::Play,
             pattern => crate::model::name_matches(pattern, &p.name),
         }
     }
@@ -195,7 +200,7 @@ pub fn prior_sds(entries: &[PriorEntry], params: &ParamSet) -> Result<Vec<f64>, 
                 matched = true;
             }
         }
-        let class = ["lengths", "angles", "offsets", "compliances"].contains(&entry.target.as_str());
+        let class = ["lengths", "angles", "offsets", "compliances", "plays"].contains(&entry.target.as_str());
         if !matched && !class {
             let what = match entry.unit {
                 PriorUnit::Length => "length",
@@ -301,7 +306,7 @@ mod tests {
         assert!(err("j*.a=0.5inch").contains("unknown unit `inch`"), "{}", err("j*.a=0.5inch"));
         assert!(err("j*.a=-1mm").contains("above 0"));
         assert!(err("j*.a=mm").contains("expected a number"));
-        assert_eq!(PriorEntry::parse_list("machined, j1.theta=1deg").unwrap().len(), 5);
+        assert_eq!(PriorEntry::parse_list("machined, j1.theta=1deg").unwrap().len(), 7);
         let precision = PriorEntry::parse_list("precision").unwrap();
         assert_eq!((precision[0].target.as_str(), precision[0].sd), ("lengths", 0.02));
         assert!(err("machind").contains("or a preset (`machined`"), "{}", err("machind"));

@@ -386,7 +386,7 @@ fn priors_and_losses_are_read_in_order() {
     let r = calibrate(&["--prior", "machined,j2.a=1mm", "--prior", "j3.alpha=0.1deg", "--loss", "huber:2"])
         .unwrap();
     let targets: Vec<&str> = r.prior.iter().map(|e| e.target.as_str()).collect();
-    assert_eq!(targets, ["lengths", "angles", "offsets", "offsets", "j2.a", "j3.alpha"]);
+    assert_eq!(targets, ["lengths", "angles", "offsets", "offsets", "plays", "plays", "j2.a", "j3.alpha"]);
     assert_eq!(r.loss, robocal::calibration::Loss::Huber(2.0));
     assert_eq!(calibrate(&[]).unwrap().loss, robocal::calibration::Loss::Squared);
     let bad = calibrate(&["--prior", "j2.a=1inch"]).unwrap_err();
