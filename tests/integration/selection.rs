@@ -194,7 +194,7 @@ fn selected(
 /// parameter and the compliances gives a held-out RMS below both every geometric joint
 /// parameter's (0.710 mm) and the offsets' (1.071 mm). The margin, 0.1 mm, is under half the
 /// smallest gap over the robots of seeds 1 to 10 (0.22 mm between cv's 0.447 and all
-/// parameters' 0.671 at seed 3; cv's mean 0.429, 0.388 to 0.496). The path starts at the
+/// parameters' 0.671 at seed 3; cv's mean 0.421, 0.381 to 0.459, the plays among the candidates). The path starts at the
 /// registration, its model is the smallest within one standard error of the best, and it is
 /// the same on one thread and on two.
 #[test]
