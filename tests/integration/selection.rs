@@ -194,9 +194,9 @@ fn selected(
 /// parameter and the compliances gives a held-out RMS below both every geometric joint
 /// parameter's (0.710 mm) and the offsets' (1.071 mm). The margin, 0.1 mm, is under half the
 /// smallest gap over the robots of seeds 1 to 10 (0.22 mm between cv's 0.447 and all
-/// parameters' 0.671 at seed 3; cv's mean 0.421, 0.381 to 0.459, the plays among the candidates). The path starts at the
-/// registration, its model is the smallest within one standard error of the best, and it is
-/// the same on one thread and on two.
+/// parameters' 0.671 at seed 3; cv's mean 0.421, 0.381 to 0.459, the plays among the
+/// candidates). The path starts at the registration, its model is the smallest within one
+/// standard error of the best, and it is the same on one thread and on two.
 #[test]
 fn select_cv_beats_every_parameter_and_the_offsets_on_held_out_poses() {
     let (model, train, sessions) = arm7("examples/arm7");
