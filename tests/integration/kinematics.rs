@@ -359,8 +359,9 @@ fn puma560_thirty_parameter_position_rank_is_23() {
 }
 
 /// The gravity loads against central differences of the potential energy
-/// `U(q) = -sum_j m_j g . c_j(q)`, each centre of mass `c_j` from a model cut after joint `j`
-/// with its tool at the centre of mass: a path through the forward kinematics alone.
+/// `U(q) = -sum_j m_j g . c_j(q)` of the links and a payload, each centre of mass `c_j` from a
+/// model cut after joint `j` with its tool at the centre of mass: a path through the forward
+/// kinematics alone.
 fn check_gravity_torques(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
     let mut model = model.clone();
     model.masses = (0..model.dof())
@@ -370,6 +371,9 @@ fn check_gravity_torques(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseEr
         })
         .collect();
     model.gravity = Vector3::new(u[30], u[31], u[32] - 1.5).normalize() * robocal::model::STANDARD_GRAVITY;
+    let payload =
+        robocal::model::Payload { mass: 3.0 * (u[33] + 1.0), com: Vector3::new(u[34], u[35], u[36]) * 100.0 };
+    model.payload = Some(payload);
     let q: Vec<f64> = model
         .joints
         .iter()
@@ -381,20 +385,22 @@ fn check_gravity_torques(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseEr
     chain.with_errors(&vec![0.0; chain.params().len()]).gravity_torques(&q, &mut tau);
 
     let gravity = model.base.isometry().rotation * model.gravity;
+    // The height of a point `com` (mm) in joint `j`'s frame, by a model cut after that joint.
+    let weight = |j: usize, com: Vector3<f64>, mass: f64, q: &[f64]| {
+        let cut = RobotModel {
+            joints: model.joints[..=j].to_vec(),
+            tool: Tool::Point(com),
+            masses: Vec::new(),
+            payload: None,
+            ..model.clone()
+        };
+        let c = Chain::new(&cut);
+        -mass * gravity.dot(&c.with_errors(&vec![0.0; c.params().len()]).position(&q[..=j]))
+    };
+    let last = model.dof() - 1;
     let potential = |q: &[f64]| -> f64 {
-        (0..model.dof())
-            .map(|j| {
-                let cut = RobotModel {
-                    joints: model.joints[..=j].to_vec(),
-                    tool: Tool::Point(model.masses[j].com),
-                    masses: Vec::new(),
-                    ..model.clone()
-                };
-                let c = Chain::new(&cut);
-                -model.masses[j].mass
-                    * gravity.dot(&c.with_errors(&vec![0.0; c.params().len()]).position(&q[..=j]))
-            })
-            .sum()
+        (0..model.dof()).map(|j| weight(j, model.masses[j].com, model.masses[j].mass, q)).sum::<f64>()
+            + weight(last, model.payload_com().unwrap(), payload.mass, q)
     };
     let scale = tau.iter().fold(1.0f64, |m, t| m.max(t.abs()));
     for (i, joint) in model.joints.iter().enumerate() {
