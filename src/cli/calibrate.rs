@@ -3,7 +3,7 @@
 //! computed before anything is written.
 
 use super::request::{CalibrateRequest, Method, NoiseSource};
-use super::{check_marker_count, noise_model, write_report_files};
+use super::{ReportContent, check_marker_count, noise_model, write_report_files};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::{
     self, Calibration, ErrorStats, FeasibleOptions, Measurements, Options, SetEvaluation,
@@ -238,18 +238,19 @@ fn write(
     let title = format!("calibration of {} from {}", report.model, report.data);
     let json = serde_json::to_string_pretty(report)? + "\n";
     let mut outputs = io::Outputs::new();
-    write_report_files(
-        &request.report,
-        &title,
+    let extra_figures = match &report.selection {
+        Some(selection) => vec![robocal::report::figures::selection_figure(selection)?],
+        None => Vec::new(),
+    };
+    let content = ReportContent {
+        title: &title,
         text,
-        &json,
-        &report.sets,
-        &result.registered.joints,
-        &mut outputs,
-    )?;
-    if let (Some(folder), Some(selection)) = (&request.report.figures, &report.selection) {
-        outputs.add_folder(folder, &[robocal::report::figures::selection_figure(selection)?]);
-    }
+        json: &json,
+        sets: &report.sets,
+        joints: &result.registered.joints,
+        extra_figures,
+    };
+    write_report_files(&request.report, content, &mut outputs)?;
     let markers = result.marker_positions();
     if let Some(path) = &request.out_model {
         // The robot as it is, without the payload of this session (with its estimated mass if

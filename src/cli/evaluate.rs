@@ -3,7 +3,7 @@
 
 use super::calibrate::noise_for;
 use super::request::EvaluateRequest;
-use super::write_report_files;
+use super::{ReportContent, write_report_files};
 use anyhow::{Context, Result};
 use robocal::calibration::{SetEvaluation, evaluate_model, pool};
 use robocal::io;
@@ -82,7 +82,15 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     let json = serde_json::to_string_pretty(&report)? + "\n";
     let title = format!("{} scored as it stands", model.name);
     let mut outputs = io::Outputs::new();
-    write_report_files(&request.report, &title, &text, &json, &report.sets, &model.joints, &mut outputs)?;
+    let content = ReportContent {
+        title: &title,
+        text: &text,
+        json: &json,
+        sets: &report.sets,
+        joints: &model.joints,
+        extra_figures: Vec::new(),
+    };
+    write_report_files(&request.report, content, &mut outputs)?;
     Ok(outputs.commit()?)
 }
 

@@ -88,34 +88,43 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
+/// What a command reports: the text and JSON, the poses scored, and figures beyond the
+/// per-pose ones (the selection path of `calibrate --select`).
+struct ReportContent<'a> {
+    title: &'a str,
+    text: &'a str,
+    json: &'a str,
+    /// With their joint values in degrees (mm for prismatic joints).
+    sets: &'a [robocal::calibration::SetEvaluation],
+    joints: &'a [robocal::model::Joint],
+    /// `(file name, SVG)`.
+    extra_figures: Vec<(String, String)>,
+}
+
 /// Stage in `outputs` the files of `report` that were asked for: the JSON, the poses (CSV),
-/// the figures (SVG) and the HTML page with `text`'s tables and the figures inline. `sets`
-/// have their joint values in degrees (mm for prismatic joints).
+/// the figures (SVG) and the HTML page with the text's tables and the figures inline.
 fn write_report_files(
     report: &ReportArgs,
-    title: &str,
-    text: &str,
-    json: &str,
-    sets: &[robocal::calibration::SetEvaluation],
-    joints: &[robocal::model::Joint],
+    content: ReportContent<'_>,
     outputs: &mut io::Outputs,
 ) -> Result<()> {
     if let Some(path) = &report.json {
-        outputs.add(path, json);
+        outputs.add(path, content.json);
     }
-    let sets: Vec<&robocal::calibration::SetEvaluation> = sets.iter().collect();
+    let sets: Vec<&robocal::calibration::SetEvaluation> = content.sets.iter().collect();
     if let Some(path) = &report.poses_csv {
-        outputs.add(path, robocal::report::poses::poses_csv(&sets, joints));
+        outputs.add(path, robocal::report::poses::poses_csv(&sets, content.joints));
     }
     if report.figures.is_none() && report.html.is_none() {
         return Ok(());
     }
-    let figures = robocal::report::figures::pose_figures(&sets, joints)?;
+    let mut figures = robocal::report::figures::pose_figures(&sets, content.joints)?;
+    figures.extend(content.extra_figures);
     if let Some(folder) = &report.figures {
         outputs.add_folder(folder, &figures);
     }
     if let Some(path) = &report.html {
-        outputs.add(path, robocal::report::html::page(title, text, &sets, &figures));
+        outputs.add(path, robocal::report::html::page(content.title, content.text, &sets, &figures));
     }
     Ok(())
 }

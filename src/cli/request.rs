@@ -264,6 +264,17 @@ impl CalibrateRequest {
             select.is_none() || method != Method::Feasible,
             "--select with --estimator fgls: not supported; estimate the noise once and give --noise",
         )?;
+        // Feasible GLS estimates the noise from the residuals of plain least squares: a prior
+        // shrinks them, a robust loss sets poses aside, and the variance components would be
+        // those of another fit.
+        require(
+            args.prior.is_empty() || method != Method::Feasible,
+            "--prior with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
+        )?;
+        require(
+            args.loss == robocal::calibration::Loss::Squared || method != Method::Feasible,
+            "--loss with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
+        )?;
         let folds = if matches!(select, Some(Criterion::Cv { .. })) { None } else { args.folds };
         let mut inputs = vec![("--model", Path::new(&model.name)), ("--data", args.data.as_path())];
         if let Some(NoiseSource::File(path)) = &noise {

@@ -394,7 +394,9 @@ fn calibrate_select_prints_and_writes_its_path() {
         "joint*.*",
     ];
     let mut args: Vec<&str> = arm7.to_vec();
+    let page = dir.join("report.html");
     args.extend(["--select", "cv", "--json", json.to_str().unwrap(), "--figures", figures.to_str().unwrap()]);
+    args.extend(["--html", page.to_str().unwrap()]);
     let output = robocal().args(&args).output().unwrap();
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let text = String::from_utf8(output.stdout).unwrap();
@@ -415,6 +417,7 @@ fn calibrate_select_prints_and_writes_its_path() {
     assert_eq!(selection["selected"].as_array().unwrap().len(), 13);
     assert_eq!(selection["steps"][1]["parameter"], "joint2.rx");
     assert!(std::fs::read_to_string(figures.join("selection-path.svg")).unwrap().contains("<svg"));
+    assert!(std::fs::read_to_string(&page).unwrap().contains("<figure id=\"selection-path.svg\">"));
     std::fs::remove_dir_all(&dir).unwrap();
 
     for flag in ["--hold", "--keep"] {

@@ -426,3 +426,13 @@ fn hold_and_keep_take_names_and_patterns() {
     let request = calibrate(&[]).unwrap();
     assert!(request.hold.is_empty() && request.keep.is_empty());
 }
+
+#[test]
+fn fgls_takes_no_priors_and_no_robust_loss() {
+    let fgls = ["--estimator", "fgls"];
+    let message = refused(calibrate(&[&fgls[..], &["--prior", "machined"]].concat()));
+    assert!(message.starts_with("--prior with --estimator fgls: not supported"), "{message}");
+    let message = refused(calibrate(&[&fgls[..], &["--loss", "huber"]].concat()));
+    assert!(message.starts_with("--loss with --estimator fgls: not supported"), "{message}");
+    assert!(calibrate(&fgls).is_ok());
+}
