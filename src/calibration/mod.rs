@@ -249,6 +249,18 @@ impl Calibration {
             .collect()
     }
 
+    /// A probe's calibrated frame, absolute, in the model's [marker frame](RobotModel::marker_frame)
+    /// (a URDF's tip link, else the last joint frame): `T = F^-1 T_tool` with `F` that frame
+    /// and `T_tool` the calibrated model's tool frame; `None` for markers.
+    pub fn tip_frame(&self) -> Option<Placement> {
+        let Tool::Frame(tool) = self.calibrated.tool else { return None };
+        if self.chains.iter().all(Chain::ends_at_a_point) {
+            return None;
+        }
+        let frame = self.registered.marker_frame().isometry();
+        Some(Placement::from_isometry(&(frame.inverse() * tool.isometry())))
+    }
+
     /// The chains of `data`'s markers.
     fn chains_for(&self, data: &Measurements) -> Result<(Vec<Chain>, Measured), CalibrationError> {
         let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
@@ -740,7 +752,7 @@ fn residual_noise(
     let system = problem.system(&problem.start());
     let rows = system.rows_per_point;
     let estimator = if noise.is_some() { Estimator::Wls } else { Estimator::Ols };
-    let weights = Weights::new(system.v.as_ref(), rows, estimator, false)?;
+    let weights = Weights::for_problem(&problem, estimator)?;
     // A = pinv(S H) S: the map from y to the estimate.
     let mut sh = system.h.clone();
     weights.apply(&mut sh);
@@ -775,9 +787,15 @@ fn residual_noise(
 
 /// The noise model of a noise file for `data`: its `Sigma_q`, and at every pose the measurement
 /// covariance of the device at each measured marker (`Sigma_device(p) + sigma_me^2 I`), with
-/// the orientation rows of a probe at `sigma_orientation^2`.
+/// the orientation rows of a probe at `sigma_orientation^2` (the file's, else its device's
+/// [default](crate::estimation::Device::sigma_orientation); neither: zero, which a calibration
+/// refuses, naming the field).
 pub fn noise_from_spec(spec: &NoiseSpec, data: &Measurements) -> Result<NoiseModel, DeviceError> {
     let probe = data.orientations.is_some();
+    let sigma_orientation = match (&spec.device, spec.sigma_orientation) {
+        (Some(device), 0.0) => device.sigma_orientation(),
+        (_, s) => s,
+    };
     let per = if probe { 6 } else { 3 };
     let rows = per * data.marker_count();
     let mut blocks = Vec::with_capacity(data.len());
@@ -788,7 +806,7 @@ pub fn noise_from_spec(spec: &NoiseSpec, data: &Measurements) -> Result<NoiseMod
         }
         if probe {
             for r in 3..6 {
-                block[(r, r)] = spec.sigma_orientation.powi(2);
+                block[(r, r)] = sigma_orientation.powi(2);
             }
         }
         blocks.push(block);
@@ -824,7 +842,9 @@ fn noise_for(noise: Option<NoiseModel>, data: &Measurements, rows: usize) -> Opt
     if let Some(sigmas) = &data.sigma {
         let orientation = match &noise.measurement {
             MeasurementNoise::PerAxis(s) => s[3],
-            MeasurementNoise::PerPoint(_) => 0.0,
+            MeasurementNoise::PerPoint(blocks) => {
+                blocks.first().filter(|b| b.nrows() > 3).map_or(0.0, |b| b[(3, 3)].sqrt())
+            }
         };
         let probe = data.orientations.is_some();
         let variance = |s: f64, r: usize| if probe && r >= 3 { orientation * orientation } else { s * s };
