@@ -16,6 +16,7 @@
 
 mod data;
 pub mod evaluation;
+pub mod kinds;
 mod repeatability;
 
 pub use data::Measurements;
@@ -109,6 +110,10 @@ pub enum CalibrationError {
     /// The poses cannot identify any parameter (all alike, or a system of rank 0).
     #[error("nothing can be identified: {0}")]
     NothingIdentified(String),
+    /// Distances, contacts or coordinates that cannot place their set-up (too few to fit a
+    /// fixed point or a plane, a number the calibration has not).
+    #[error("{0}")]
+    Observations(String),
 }
 
 /// The column-scaled condition number of the identified system above which a calibration
@@ -610,7 +615,7 @@ fn without_unloaded_compliances(
 /// and a URDF joint's origin; then class 2: Hayati's `beta` and the `d` of a revolute joint,
 /// which nearly parallel axes make redundant. Within a class the rank-revealing pivoting
 /// decides (the best conditioned choice), the same on every machine.
-fn gauge_class(p: &crate::model::ParamInfo) -> u32 {
+pub(crate) fn gauge_class(p: &crate::model::ParamInfo) -> u32 {
     match (p.owner, p.kind) {
         (ParamOwner::Joint(_), ParamKind::Beta) => 2,
         (ParamOwner::Joint(_), ParamKind::D) if !p.is_offset => 2,
@@ -900,7 +905,7 @@ pub(crate) fn register(predicted: &[Vector3<f64>], measured: &[Vector3<f64>]) ->
 }
 
 /// `model` with the parameter errors `x` folded into its numbers; the tool becomes marker 1.
-fn fold(
+pub(crate) fn fold(
     model: &RobotModel,
     params: &ParamSet,
     x: &[f64],

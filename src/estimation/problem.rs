@@ -130,7 +130,8 @@ impl<'a> PointProblem<'a> {
     }
 
     /// The weight `w = sigma_position / sigma_orientation` (mm/rad) of a pose's orientation
-    /// rows under ordinary least squares (see the [module](self)); unused for positions.
+    /// rows under ordinary least squares (see [`POSE_SIGMAS`] for the default); unused for
+    /// positions.
     pub fn orientation_weight(&self) -> f64 {
         self.orientation_weight
     }

@@ -5,6 +5,7 @@ mod cli;
 mod estimation;
 mod fgls;
 mod fuzz;
+mod kinds;
 mod kinematics;
 mod layering;
 mod model_files;

@@ -1,0 +1,378 @@
+//! The files of distances, contacts and partial coordinates (see `docs/formats.md`).
+//!
+//! ```text
+//! # units: joints=deg, lengths=mm
+//! j1,j2,j3,j4,j5,j6,j1_b,j2_b,j3_b,j4_b,j5_b,j6_b,distance     pairs of poses
+//! j1,j2,j3,j4,j5,j6,point,distance                             to fixed point `point` (1, 2, ...)
+//! j1,j2,j3,j4,j5,j6,plane                                      contacts with plane `plane`
+//! j1,j2,j3,j4,j5,j6,x,y,z                                      coordinates, any empty
+//! ```
+//!
+//! Each may add `sigma`, the row's measurement standard deviation (length unit; every measured
+//! coordinate of the row). Without it, [`DEFAULT_SIGMA_MM`].
+
+use super::SetUp;
+use crate::calibration::CalibrationError;
+use crate::limits::MAX_LENGTH_MM;
+use crate::model::RobotModel;
+use crate::table::{DataError, Row, Table, Units};
+use nalgebra::{DMatrix, DVector, Vector3};
+
+/// The measurement standard deviation of a row without a `sigma` column (mm).
+pub const DEFAULT_SIGMA_MM: f64 = 0.01;
+
+/// One measured number. Poses are indices into [`KindData::joints`]; points and planes count
+/// from 0 (`point = 1` in a file is 0 here).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum Observation {
+    /// The distance (mm) between the tool point at poses `a` and `b`.
+    Distance {
+        /// The first pose.
+        a: usize,
+        /// The second pose.
+        b: usize,
+        /// The distance (mm).
+        measured: f64,
+        /// Its standard deviation (mm).
+        sigma: f64,
+    },
+    /// The distance (mm) from the tool point at `pose` to fixed point `point`.
+    ToPoint {
+        /// The pose.
+        pose: usize,
+        /// The fixed point.
+        point: usize,
+        /// The distance (mm).
+        measured: f64,
+        /// Its standard deviation (mm).
+        sigma: f64,
+    },
+    /// The tool point at `pose` touches plane `plane`: signed distance 0.
+    Contact {
+        /// The pose.
+        pose: usize,
+        /// The plane.
+        plane: usize,
+        /// The standard deviation of the contact (mm).
+        sigma: f64,
+    },
+    /// One coordinate (`axis` 0, 1, 2: x, y, z) of the tool point at `pose`, in the measuring
+    /// frame.
+    Coordinate {
+        /// The pose.
+        pose: usize,
+        /// 0, 1 or 2.
+        axis: usize,
+        /// The coordinate (mm).
+        measured: f64,
+        /// Its standard deviation (mm).
+        sigma: f64,
+    },
+}
+
+impl Observation {
+    /// The measured value `m_k` (mm; 0 for a contact).
+    pub fn measured(&self) -> f64 {
+        match *self {
+            Self::Distance { measured, .. }
+            | Self::ToPoint { measured, .. }
+            | Self::Coordinate { measured, .. } => measured,
+            Self::Contact { .. } => 0.0,
+        }
+    }
+
+    /// Its standard deviation `sigma_k` (mm).
+    pub fn sigma(&self) -> f64 {
+        match *self {
+            Self::Distance { sigma, .. }
+            | Self::ToPoint { sigma, .. }
+            | Self::Contact { sigma, .. }
+            | Self::Coordinate { sigma, .. } => sigma,
+        }
+    }
+}
+
+/// Observations of distances, contacts and coordinates, with the poses they were made at.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct KindData {
+    /// Joint values of each pose (rad, mm for prismatic joints).
+    pub joints: Vec<Vec<f64>>,
+    /// The observations.
+    pub observations: Vec<Observation>,
+    /// The file line of each observation.
+    pub lines: Vec<usize>,
+}
+
+impl KindData {
+    /// Read a file of distances (pairs `<joint>,<joint>_b,distance`, or to fixed points
+    /// `<joint>,point,distance`), contacts (`<joint>,plane`) or coordinates (`<joint>,x,y,z`,
+    /// empty cells for coordinates not measured) for `model`. `units` from the caller take the
+    /// place of the file's `# units:` line.
+    pub fn from_csv_str(text: &str, model: &RobotModel, units: Option<Units>) -> Result<Self, DataError> {
+        let table = Table::parse(text)?;
+        let units = table.units(units, " or give --joint-unit and --length-unit")?;
+        let joints = table.joint_columns(model)?;
+        let header = |column: Option<&str>, m: &str| DataError::new(table.header_line, column, m);
+        let second: Vec<Option<usize>> =
+            model.joints.iter().map(|j| table.column(&format!("{}_b", j.name))).collect();
+        let pairs = second.iter().any(Option::is_some);
+        if pairs && second.iter().any(Option::is_none) {
+            return Err(header(None, "pairs of poses need every joint of the second pose: <joint>_b"));
+        }
+        let second: Vec<usize> = second.into_iter().flatten().collect();
+        let (distance, point, plane) =
+            (table.column("distance"), table.column("point"), table.column("plane"));
+        let axes = ["x", "y", "z"].map(|c| table.column(c));
+        let coordinates = axes.iter().any(Option::is_some);
+        let kinds = [distance.is_some(), plane.is_some(), coordinates].iter().filter(|&&k| k).count();
+        if kinds != 1 {
+            return Err(header(
+                None,
+                "expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or x,y,z coordinates",
+            ));
+        }
+        if pairs && point.is_some() {
+            return Err(header(
+                Some("point"),
+                "a distance is between two poses or to a fixed point, not both",
+            ));
+        }
+        let sigma = table.column("sigma");
+        let mut data = Self::default();
+        for row in table.nonempty_rows()? {
+            let s = match sigma {
+                Some(c) => positive(&table, row, c, units.length_scale())?,
+                None => DEFAULT_SIGMA_MM,
+            };
+            let pose = data.joints.len();
+            data.joints.push(table.joint_values(row, &joints, model, units)?);
+            let mut push = |o: Observation| {
+                data.observations.push(o);
+                data.lines.push(row.line);
+            };
+            if let Some(c) = distance {
+                let measured = positive(&table, row, c, units.length_scale())?;
+                if pairs {
+                    push(Observation::Distance { a: pose, b: pose + 1, measured, sigma: s });
+                    data.joints.push(table.joint_values(row, &second, model, units)?);
+                } else {
+                    let point = point.map_or(Ok(0), |c| id(&table, row, c))?;
+                    push(Observation::ToPoint { pose, point, measured, sigma: s });
+                }
+            } else if let Some(c) = plane {
+                push(Observation::Contact { pose, plane: id(&table, row, c)?, sigma: s });
+            } else {
+                let mut any = false;
+                for (axis, c) in axes.iter().enumerate() {
+                    let Some(c) = *c else { continue };
+                    if row.cells[c].is_empty() {
+                        continue;
+                    }
+                    let v = table.number(row, c)? * units.length_scale();
+                    let measured = table.within(row, c, v, MAX_LENGTH_MM, "mm")?;
+                    push(Observation::Coordinate { pose, axis, measured, sigma: s });
+                    any = true;
+                }
+                if !any {
+                    return Err(DataError::new(
+                        row.line,
+                        None,
+                        "no coordinate: give at least one of x, y, z",
+                    ));
+                }
+            }
+        }
+        Ok(data)
+    }
+
+    /// These observations and `other`'s in one set (the same point or plane numbers are the
+    /// same point or plane).
+    pub fn join(mut self, other: &Self) -> Self {
+        let offset = self.joints.len();
+        self.joints.extend(other.joints.iter().cloned());
+        self.lines.extend(&other.lines);
+        self.observations.extend(other.observations.iter().map(|o| match *o {
+            Observation::Distance { a, b, measured, sigma } => {
+                Observation::Distance { a: a + offset, b: b + offset, measured, sigma }
+            }
+            Observation::ToPoint { pose, point, measured, sigma } => {
+                Observation::ToPoint { pose: pose + offset, point, measured, sigma }
+            }
+            Observation::Contact { pose, plane, sigma } => {
+                Observation::Contact { pose: pose + offset, plane, sigma }
+            }
+            Observation::Coordinate { pose, axis, measured, sigma } => {
+                Observation::Coordinate { pose: pose + offset, axis, measured, sigma }
+            }
+        }));
+        self
+    }
+
+    /// The number of fixed points and of planes (the highest number of each).
+    pub fn setup_counts(&self) -> (usize, usize) {
+        let mut counts = (0, 0);
+        for o in &self.observations {
+            match *o {
+                Observation::ToPoint { point, .. } => counts.0 = counts.0.max(point + 1),
+                Observation::Contact { plane, .. } => counts.1 = counts.1.max(plane + 1),
+                _ => {}
+            }
+        }
+        counts
+    }
+
+    /// Whether any observation sees the measuring frame's coordinates (then the base is
+    /// estimated; distances and contacts alone cannot see it).
+    pub fn sees_the_base(&self) -> bool {
+        self.observations.iter().any(|o| matches!(o, Observation::Coordinate { .. }))
+    }
+
+    /// Whether any observation is a length (a distance, a coordinate): contacts alone cannot
+    /// see the robot's scale.
+    pub fn sees_the_scale(&self) -> bool {
+        self.observations.iter().any(|o| !matches!(o, Observation::Contact { .. }))
+    }
+
+    /// The set-up and its start values, from the tool point at every pose on the nominal robot
+    /// (`nominal`): each fixed point by the linear sphere fit `2 p_k . c - t = |p_k|^2 - m_k^2`
+    /// (`t = |c|^2`; at least 4 distances), each plane by the total least-squares plane of its
+    /// contacts (at least 3, not on a line; the normal towards the robot's side, the base
+    /// frame's origin, so that a contact's signed distance is positive on the robot's side).
+    pub fn initial_setup(&self, nominal: &[Vector3<f64>]) -> Result<(SetUp, Vec<f64>), CalibrationError> {
+        let (points, planes) = self.setup_counts();
+        let mut values = Vec::with_capacity(3 * (points + planes));
+        let few = |what: String| CalibrationError::Observations(what);
+        for i in 0..points {
+            let rows: Vec<(Vector3<f64>, f64)> = (self.observations.iter())
+                .filter_map(|o| match *o {
+                    Observation::ToPoint { pose, point, measured, .. } if point == i => {
+                        Some((nominal[pose], measured))
+                    }
+                    _ => None,
+                })
+                .collect();
+            let a = DMatrix::from_fn(rows.len(), 4, |r, c| if c < 3 { 2.0 * rows[r].0[c] } else { -1.0 });
+            let b = DVector::from_fn(rows.len(), |r, _| rows[r].0.norm_squared() - rows[r].1 * rows[r].1);
+            let svd = a.svd(true, true);
+            let largest = svd.singular_values.max();
+            if rows.len() < 4 || svd.singular_values.min() <= 1e-9 * largest {
+                return Err(few(format!(
+                    "fixed point {}: {} distances, expected at least 4 from poses not on one plane",
+                    i + 1,
+                    rows.len()
+                )));
+            }
+            let c = svd.solve(&b, 1e-12 * largest).map_err(|e| few(e.to_string()))?;
+            values.extend([c[0], c[1], c[2]]);
+        }
+        let mut normals = Vec::with_capacity(planes);
+        for i in 0..planes {
+            let contacts: Vec<Vector3<f64>> = (self.observations.iter())
+                .filter_map(|o| match *o {
+                    Observation::Contact { pose, plane, .. } if plane == i => Some(nominal[pose]),
+                    _ => None,
+                })
+                .collect();
+            let centroid = contacts.iter().sum::<Vector3<f64>>() / contacts.len().max(1) as f64;
+            let m = DMatrix::from_fn(contacts.len(), 3, |r, c| contacts[r][c] - centroid[c]);
+            let svd = m.svd(false, true);
+            let s = &svd.singular_values;
+            if contacts.len() < 3 || s.len() < 3 || s[1] <= 1e-9 * s[0] {
+                return Err(few(format!(
+                    "plane {}: {} contacts, expected at least 3 not on one line",
+                    i + 1,
+                    contacts.len()
+                )));
+            }
+            let v_t = svd.v_t.expect("asked for V");
+            let smallest = (0..3).min_by(|&a, &b| s[a].total_cmp(&s[b])).expect("3 values");
+            let mut n = Vector3::new(v_t[(smallest, 0)], v_t[(smallest, 1)], v_t[(smallest, 2)]).normalize();
+            // Towards the robot's side: the base frame's origin, else the largest component up.
+            let towards = -n.dot(&centroid);
+            let sign = if towards.abs() > 1e-9 * centroid.norm() { towards } else { n[n.iamax()] };
+            n *= sign.signum();
+            normals.push(n);
+            values.extend([0.0, 0.0, n.dot(&centroid)]);
+        }
+        Ok((SetUp::new(points, &normals), values))
+    }
+
+    /// Refuse points and planes that `setup` does not have.
+    pub(super) fn check_against(&self, setup: &SetUp) -> Result<(), CalibrationError> {
+        let (points, planes) = self.setup_counts();
+        if points > setup.points || planes > setup.planes() {
+            return Err(CalibrationError::Observations(format!(
+                "{points} fixed points and {planes} planes, the calibration has {} and {}",
+                setup.points,
+                setup.planes()
+            )));
+        }
+        Ok(())
+    }
+
+    /// What these observations cannot see, in words: the base for distances and contacts, the
+    /// in-plane motions of every plane (its normal at the set-up values `s`).
+    pub(super) fn unseen(&self, setup: &SetUp, s: &[f64]) -> Vec<String> {
+        let mut out = Vec::new();
+        let distances = self
+            .observations
+            .iter()
+            .any(|o| matches!(o, Observation::Distance { .. } | Observation::ToPoint { .. }));
+        if !self.sees_the_base() {
+            let why = if distances {
+                "distances cannot see the base placement (a rigid motion of the whole set-up changes no distance)"
+            } else {
+                "the planes absorb the base placement"
+            };
+            out.push(format!("base (6 parameters): {why}; held at its nominal value"));
+        }
+        if !self.sees_the_scale() && setup.planes() > 0 {
+            out.push(
+                "scale: contacts alone cannot see it (every length and plane offset times one factor leaves every \
+                 contact); plane1.d is held at its fit with the nominal robot: add a distance to see it"
+                    .into(),
+            );
+        }
+        for i in 0..setup.planes() {
+            let (n, d) = setup.plane(s, i);
+            // Rounded first, so that a tiny negative prints as 0.0000, not -0.0000.
+            let n = n.map(|v| (v * 1e4).round() / 1e4 + 0.0);
+            out.push(format!(
+                "plane {}: normal ({:.4}, {:.4}, {:.4}), offset {d:.3} mm; contacts cannot see motions within it \
+                 (translations along it, rotation about its normal)",
+                i + 1,
+                n.x,
+                n.y,
+                n.z
+            ));
+        }
+        out
+    }
+}
+
+/// A value `> 0` of `column` (in the length unit, scaled to mm by `scale`).
+fn positive(table: &Table, row: &Row, column: usize, scale: f64) -> Result<f64, DataError> {
+    let v = table.number(row, column)? * scale;
+    if v <= 0.0 {
+        return Err(DataError::new(
+            row.line,
+            Some(&table.header[column]),
+            format!("{v}: expected a value > 0"),
+        ));
+    }
+    table.within(row, column, v, MAX_LENGTH_MM, "mm")
+}
+
+/// A point or plane number (1, 2, ...) of `column`, 0-based.
+fn id(table: &Table, row: &Row, column: usize) -> Result<usize, DataError> {
+    let v = table.number(row, column)?;
+    if v < 1.0 || v.fract() != 0.0 || v > 1000.0 {
+        return Err(DataError::new(
+            row.line,
+            Some(&table.header[column]),
+            format!("{v}: expected a number 1, 2, ... (at most 1000)"),
+        ));
+    }
+    Ok(v as usize - 1)
+}

@@ -1,0 +1,567 @@
+//! Measurement kinds beyond marker positions: distances (a ball bar, a length artefact, a laser
+//! interferometer) and plane contacts (a touch probe on a table), calibrated with the same
+//! Gauss-Markov machinery as marker positions.
+//!
+//! # The observation model
+//!
+//! The robot carries one point `p(q, x)` on its last link (the tool point, a ball, a stylus
+//! tip), in the robot's base frame. Every observation `k` is one number, a function of that
+//! point at one or two poses and of parameters of the set-up `s` (fixed points, planes):
+//!
+//! - a distance between two poses `a`, `b`: `f_k = |p_a - p_b|`, with `p_a = p(q_a, x)`;
+//! - a distance to fixed point `i` (a ball bar's pivot `c_i`, 3 parameters):
+//!   `f_k = |p(q_k, x) - c_i|`;
+//! - a contact with plane `i` (unit normal `n_i`, offset `d_i`): the signed distance
+//!   `f_k = n_i . p(q_k, x) - d_i`, measured as 0;
+//! - a partial measurement, one coordinate `e_c . p(q_k, x)` (`c` of x, y, z) in the measuring
+//!   frame: any subset of x, y, z of a pose (a height gauge: z only), each its own observation.
+//!   Their correlation through the joint noise of their common pose is left out of `V`
+//!   (exact when the joints are exact).
+//!
+//! The residual is `y_k = m_k - f_k` (measured minus predicted). With `g_kj = df_k/dp_j` the
+//! derivative of the prediction with respect to the point at pose `j` (`u = (p_a - p_b) /
+//! |p_a - p_b|` and `-u` for a pair, `u = (p - c) / |p - c|` for a fixed point, `n_i` for a
+//! contact, `e_c` for a coordinate),
+//! the identification Jacobian is `H_k = sum_j g_kj^T H_j + df_k/ds`, `H_j = dp/dx` at pose
+//! `j` ([`ChainAt::identification_jacobian`]), and the derivative with respect to each pose's
+//! joint values is `G_kj = g_kj^T J_j`, `J_j` the position rows of the manipulator Jacobian.
+//! The joint noise of different poses is independent (each pose is read separately), so
+//!
+//! `V_k = sum_j G_kj Sigma_q G_kj^T + sigma_k^2`:
+//!
+//! a pair's variance has the joint noise of both its poses.
+//!
+//! A plane `i` has 3 parameters, minimal: two tilts `(alpha, beta)` of its normal about the
+//! nominal one `n0`, `n = (n0 + alpha t1 + beta t2) / |n0 + alpha t1 + beta t2|` with
+//! `(t1, t2, n0)` orthonormal, and its offset `d` (mm). A fixed point has its 3 coordinates.
+//!
+//! # What each kind cannot see
+//!
+//! Distances are unchanged when everything moves rigidly: they cannot see the base placement
+//! (all 6 parameters), which is held at its nominal value and reported as such. Plane contacts
+//! place the robot relative to the planes, which absorb the base: it is held too; and a plane
+//! cannot see motions within it (translations along it, rotation about its normal), which the
+//! rank-revealing solve then finds among the robot's parameters (the first joint's offset for a
+//! horizontal table): each plane is reported with what it cannot see. Contacts alone cannot see
+//! the scale either: every length of the robot and every plane offset multiplied by one factor
+//! leaves every contact; the first plane's offset is then held at its fit with the nominal
+//! robot (the robot's scale is its nominal one), and said so. A distance fixes the scale. Coordinates see the
+//! measuring frame: with them the base is estimated, as far as they see it (a height alone
+//! sees its z, roll and pitch; the rank-revealing solve holds the rest and says so).
+
+mod data;
+
+pub use data::{KindData, Observation};
+
+use super::{CalibrationError, JointParams, fold, gauge_class};
+use crate::estimation::{
+    Estimator, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, refine_from,
+};
+use crate::kinematics::{Chain, ChainAt, Measured};
+use crate::model::{ParamOwner, ParamSet, RobotModel, Selection};
+use nalgebra::{DMatrix, DVector, Matrix3xX, Matrix6xX, Vector3};
+use rayon::prelude::*;
+
+/// How to calibrate from distances and contacts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KindOptions {
+    /// The estimator; the weighted ones use `V_k` of the [module](self).
+    pub estimator: Estimator,
+    /// `Sigma_q` (dof x dof; rad², mm²), if the joint noise is known; the measurement noise
+    /// is each observation's own sigma.
+    pub joint_noise: Option<DMatrix<f64>>,
+    /// The joint parameters to identify.
+    pub joints: JointParams,
+    /// Estimate the tool point on the last link.
+    pub estimate_tool: bool,
+    /// The tool point's nominal position (mm) in the model's marker frame.
+    pub tool: Vector3<f64>,
+    /// Gauss-Newton settings.
+    pub refine: RefineOptions,
+}
+
+/// The set-up's parameters: fixed points and planes, each 3 numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SetUp {
+    /// The number of fixed points (their coordinates are values, mm, base frame).
+    pub points: usize,
+    /// The planes: the nominal normal `n0` and two tangents `t1, t2` of each.
+    bases: Vec<[Vector3<f64>; 3]>,
+}
+
+impl SetUp {
+    /// `points` fixed points and a plane of each nominal unit normal `n0` of `normals`, its
+    /// tangents `t1 = n0 x e / |n0 x e|` (`e` the x axis, the y axis if `n0` is near x) and
+    /// `t2 = n0 x t1`.
+    pub fn new(points: usize, normals: &[Vector3<f64>]) -> Self {
+        let bases = normals
+            .iter()
+            .map(|n| {
+                let n = n.normalize();
+                let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+                let t1 = n.cross(&helper).normalize();
+                [n, t1, n.cross(&t1)]
+            })
+            .collect();
+        Self { points, bases }
+    }
+
+    /// Parameters: 3 per point, then 3 per plane (`alpha, beta, d`).
+    pub fn len(&self) -> usize {
+        3 * (self.points + self.bases.len())
+    }
+
+    /// The number of planes.
+    pub fn planes(&self) -> usize {
+        self.bases.len()
+    }
+
+    /// Whether the set-up has no parameters.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Names of the parameters: `point1.x`, ..., `plane1.alpha`, `plane1.beta`, `plane1.d`.
+    pub fn names(&self) -> Vec<String> {
+        let points = (1..=self.points).flat_map(|i| ["x", "y", "z"].map(|c| format!("point{i}.{c}")));
+        let planes =
+            (1..=self.bases.len()).flat_map(|i| ["alpha", "beta", "d"].map(|c| format!("plane{i}.{c}")));
+        points.chain(planes).collect()
+    }
+
+    /// Plane `i`'s unit normal and offset at the set-up values `s`:
+    /// `n = (n0 + alpha t1 + beta t2) / |n0 + alpha t1 + beta t2|`.
+    pub fn plane(&self, s: &[f64], i: usize) -> (Vector3<f64>, f64) {
+        let at = 3 * (self.points + i);
+        let [n0, t1, t2] = self.bases[i];
+        ((n0 + t1 * s[at] + t2 * s[at + 1]).normalize(), s[at + 2])
+    }
+
+    /// `dn/dalpha` and `dn/dbeta` of plane `i`: `(I - n n^T) t / |v|`.
+    fn normal_derivatives(&self, s: &[f64], i: usize) -> [Vector3<f64>; 2] {
+        let at = 3 * (self.points + i);
+        let [n0, t1, t2] = self.bases[i];
+        let v = n0 + t1 * s[at] + t2 * s[at + 1];
+        let n = v.normalize();
+        [t1, t2].map(|t| (t - n * n.dot(&t)) / v.norm())
+    }
+
+    /// Fixed point `i` at the set-up values `s`.
+    fn point(&self, s: &[f64], i: usize) -> Vector3<f64> {
+        Vector3::new(s[3 * i], s[3 * i + 1], s[3 * i + 2])
+    }
+}
+
+/// One observation's prediction `f_k`, its derivatives `g_kj` with respect to the point at
+/// each of its poses (`(pose, g)`, one or two) and with respect to the set-up (`(index, value)`).
+struct Prediction {
+    value: f64,
+    by_point: [(usize, Vector3<f64>); 2],
+    poses: usize,
+    by_setup: [(usize, f64); 3],
+    setups: usize,
+}
+
+/// `f_k` of the [module](self) and its derivatives, at the points `p` of every pose.
+fn predict(o: &Observation, p: &[Vector3<f64>], setup: &SetUp, s: &[f64]) -> Prediction {
+    let none = (0, Vector3::zeros());
+    match *o {
+        Observation::Distance { a, b, .. } => {
+            let d = p[a] - p[b];
+            let u = d / d.norm().max(f64::MIN_POSITIVE);
+            Prediction {
+                value: d.norm(),
+                by_point: [(a, u), (b, -u)],
+                poses: 2,
+                by_setup: [(0, 0.0); 3],
+                setups: 0,
+            }
+        }
+        Observation::ToPoint { pose, point, .. } => {
+            let d = p[pose] - setup.point(s, point);
+            let u = d / d.norm().max(f64::MIN_POSITIVE);
+            let at = 3 * point;
+            Prediction {
+                value: d.norm(),
+                by_point: [(pose, u), none],
+                poses: 1,
+                by_setup: [(at, -u.x), (at + 1, -u.y), (at + 2, -u.z)],
+                setups: 3,
+            }
+        }
+        Observation::Coordinate { pose, axis, .. } => Prediction {
+            value: p[pose][axis],
+            by_point: [(pose, Vector3::ith(axis, 1.0)), none],
+            poses: 1,
+            by_setup: [(0, 0.0); 3],
+            setups: 0,
+        },
+        Observation::Contact { pose, plane, .. } => {
+            let (n, d) = setup.plane(s, plane);
+            let [dn_a, dn_b] = setup.normal_derivatives(s, plane);
+            let at = 3 * (setup.points + plane);
+            Prediction {
+                value: n.dot(&p[pose]) - d,
+                by_point: [(pose, n), none],
+                poses: 1,
+                by_setup: [(at, dn_a.dot(&p[pose])), (at + 1, dn_b.dot(&p[pose])), (at + 2, -1.0)],
+                setups: 3,
+            }
+        }
+    }
+}
+
+/// The calibration problem of distances and contacts: `y_k(x, s) = m_k - f_k(x, s)` for the
+/// selected robot parameters `x` and set-up parameters `s` (others held), one row per
+/// observation, `V_k` of the [module](self) computed once at the start.
+#[derive(Debug, Clone)]
+pub struct KindProblem<'a> {
+    chain: &'a Chain,
+    selection: &'a Selection,
+    data: &'a KindData,
+    setup: &'a SetUp,
+    fixed: Vec<f64>,
+    setup_values: Vec<f64>,
+    setup_selection: Vec<usize>,
+    v: Option<DMatrix<f64>>,
+}
+
+impl<'a> KindProblem<'a> {
+    /// The problem of `data` on `chain` (a point chain), the robot parameters at `fixed` (full
+    /// vector) and the set-up at `setup_values`, estimating `selection` and the set-up
+    /// parameters `setup_selection`. With `joint_noise`, `V_k` includes the joint noise of
+    /// each of the observation's poses; the measurement sigmas always.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        chain: &'a Chain,
+        selection: &'a Selection,
+        data: &'a KindData,
+        setup: &'a SetUp,
+        fixed: Vec<f64>,
+        setup_values: Vec<f64>,
+        setup_selection: Vec<usize>,
+        joint_noise: Option<&DMatrix<f64>>,
+    ) -> Self {
+        let mut problem =
+            Self { chain, selection, data, setup, fixed, setup_values, setup_selection, v: None };
+        problem.v = Some(problem.covariance_blocks(joint_noise));
+        problem
+    }
+
+    /// The same problem estimating other parameters from other values, sharing `V_k`.
+    pub fn reselect<'b>(
+        &self,
+        selection: &'b Selection,
+        fixed: Vec<f64>,
+        setup_values: Vec<f64>,
+        setup_selection: Vec<usize>,
+    ) -> KindProblem<'b>
+    where
+        'a: 'b,
+    {
+        KindProblem { selection, fixed, setup_values, setup_selection, v: self.v.clone(), ..self.clone() }
+    }
+
+    /// `V_k = sum_j G_kj Sigma_q G_kj^T + sigma_k^2` at the start values.
+    fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
+        let at = self.chain.with_errors(&self.fixed);
+        let dof = self.chain.dof();
+        let jacobians: Vec<(Vector3<f64>, Matrix3xX<f64>)> = (self.data.joints.par_iter())
+            .map_init(
+                || Matrix6xX::zeros(dof),
+                |j, q| {
+                    let p = at.manipulator_jacobian(q, j);
+                    (p, j.fixed_rows::<3>(0).into_owned())
+                },
+            )
+            .collect();
+        let points: Vec<Vector3<f64>> = jacobians.iter().map(|(p, _)| *p).collect();
+        let v = self.data.observations.iter().map(|o| {
+            let f = predict(o, &points, self.setup, &self.setup_values);
+            let joint = joint_noise.map_or(0.0, |sigma_q| {
+                (f.by_point[..f.poses].iter())
+                    .map(|(j, g)| {
+                        let g_kj = g.transpose() * &jacobians[*j].1;
+                        (&g_kj * sigma_q * g_kj.transpose())[(0, 0)]
+                    })
+                    .sum()
+            });
+            joint + o.sigma().powi(2)
+        });
+        DMatrix::from_iterator(self.data.observations.len(), 1, v)
+    }
+
+    /// The full robot parameter vector and the set-up values at `x`.
+    pub fn full(&self, x: &DVector<f64>) -> (Vec<f64>, Vec<f64>) {
+        let mut full = self.fixed.clone();
+        for (&i, &v) in self.selection.indices().iter().zip(x.iter()) {
+            full[i] = v;
+        }
+        let mut s = self.setup_values.clone();
+        for (&i, &v) in self.setup_selection.iter().zip(x.iter().skip(self.selection.len())) {
+            s[i] = v;
+        }
+        (full, s)
+    }
+
+    /// The estimated parameters' values: where iterations start.
+    pub fn start(&self) -> DVector<f64> {
+        let robot = self.selection.indices().iter().map(|&i| self.fixed[i]);
+        DVector::from_iterator(
+            self.parameters(),
+            robot.chain(self.setup_selection.iter().map(|&i| self.setup_values[i])),
+        )
+    }
+
+    /// The residuals `y_k` at `x` (mm).
+    pub fn residuals(&self, x: &DVector<f64>) -> DVector<f64> {
+        self.evaluate(x, None)
+    }
+}
+
+impl Residuals for KindProblem<'_> {
+    fn rows_per_point(&self) -> usize {
+        1
+    }
+
+    fn equations(&self) -> usize {
+        self.data.observations.len()
+    }
+
+    fn parameters(&self) -> usize {
+        self.selection.len() + self.setup_selection.len()
+    }
+
+    fn covariance(&self) -> Option<&DMatrix<f64>> {
+        self.v.as_ref()
+    }
+
+    fn names(&self) -> Vec<String> {
+        let setup = self.setup.names();
+        let robot = self.selection.indices().iter().map(|&i| self.chain.params().get(i).name.clone());
+        robot.chain(self.setup_selection.iter().map(|&i| setup[i].clone())).collect()
+    }
+
+    fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
+        let (full, s) = self.full(x);
+        let at: ChainAt = self.chain.with_errors(&full);
+        let columns = self.selection.len();
+        let want_h = h.is_some();
+        let poses: Vec<(Vector3<f64>, DMatrix<f64>)> = (self.data.joints.par_iter())
+            .map(|q| {
+                let mut h_j = DMatrix::zeros(3, if want_h { columns } else { 0 });
+                let p = if want_h {
+                    at.identification_jacobian(
+                        q,
+                        self.selection,
+                        Measured::Position,
+                        h_j.view_mut((0, 0), (3, columns)),
+                    )
+                } else {
+                    at.position(q)
+                };
+                (p, h_j)
+            })
+            .collect();
+        let points: Vec<Vector3<f64>> = poses.iter().map(|(p, _)| *p).collect();
+        let mut y = DVector::zeros(self.equations());
+        let mut h = h;
+        for (k, o) in self.data.observations.iter().enumerate() {
+            let f = predict(o, &points, self.setup, &s);
+            y[k] = o.measured() - f.value;
+            if let Some(h) = h.as_deref_mut() {
+                h.row_mut(k).fill(0.0);
+                for (j, g) in &f.by_point[..f.poses] {
+                    let row = g.transpose() * &poses[*j].1;
+                    for c in 0..columns {
+                        h[(k, c)] += row[c];
+                    }
+                }
+                for &(i, d) in &f.by_setup[..f.setups] {
+                    if let Some(c) = self.setup_selection.iter().position(|&e| e == i) {
+                        h[(k, columns + c)] += d;
+                    }
+                }
+            }
+        }
+        y
+    }
+}
+
+/// A calibration from distances and contacts.
+#[derive(Debug, Clone)]
+pub struct KindCalibration {
+    /// The calibrated model: the estimates folded in, the tool point calibrated.
+    pub calibrated: RobotModel,
+    /// The robot's parameters.
+    pub params: ParamSet,
+    /// Robot parameter errors after the set-up fit with the robot nominal ("before").
+    pub before: Vec<f64>,
+    /// Robot parameter errors after the full calibration ("after").
+    pub after: Vec<f64>,
+    /// The set-up ([`SetUp::names`]): its definition, and its values before and after.
+    pub setup: SetUp,
+    /// The set-up values, before and after.
+    pub setup_values: (Vec<f64>, Vec<f64>),
+    /// The refined estimate (names, values, covariance, diagnostics).
+    pub refined: Refined,
+    /// What the measurements cannot see, by kind, in words: held and reported.
+    pub unseen: Vec<String>,
+    /// Combinations the poses cannot tell apart, held fixed, in words.
+    pub fixed: Vec<String>,
+    /// RMS of the training residuals (mm), before and after.
+    pub training: (f64, f64),
+    chain: Chain,
+}
+
+impl KindCalibration {
+    /// RMS of the residuals of `data` (mm) before and after, the set-up as calibrated.
+    pub fn validate(&self, data: &KindData) -> Result<(f64, f64), CalibrationError> {
+        data.check_against(&self.setup)?;
+        let rms = |x: &[f64], s: &[f64]| {
+            let nothing = Selection::from_indices(&self.params, []);
+            let problem = KindProblem::new(
+                &self.chain,
+                &nothing,
+                data,
+                &self.setup,
+                x.to_vec(),
+                s.to_vec(),
+                Vec::new(),
+                None,
+            );
+            rms(&problem.residuals(&DVector::zeros(0)))
+        };
+        Ok((rms(&self.before, &self.setup_values.0), rms(&self.after, &self.setup_values.1)))
+    }
+
+    /// Plane `i`'s calibrated unit normal and offset (mm).
+    pub fn plane(&self, i: usize) -> (Vector3<f64>, f64) {
+        self.setup.plane(&self.setup_values.1, i)
+    }
+}
+
+fn rms(r: &DVector<f64>) -> f64 {
+    (r.norm_squared() / r.len().max(1) as f64).sqrt()
+}
+
+/// Calibrate `model` from distances and contacts: the set-up fitted with the robot nominal
+/// ("before"), then the robot's parameters asked for and the set-up together ("after"), the
+/// base held (distances and planes cannot see it), what the poses cannot tell apart held by the
+/// rank-revealing solve.
+pub fn calibrate_kinds(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+) -> Result<KindCalibration, CalibrationError> {
+    let chain = Chain::markers(model, &[options.tool]).remove(0);
+    let params = chain.params().clone();
+    let zero = vec![0.0; params.len()];
+    let nominal: Vec<Vector3<f64>> = {
+        let at = chain.with_errors(&zero);
+        data.joints.iter().map(|q| at.position(q)).collect()
+    };
+    let (setup, start) = data.initial_setup(&nominal)?;
+    let all_setup: Vec<usize> = (0..setup.len()).collect();
+    let nothing = Selection::from_indices(&params, []);
+    let noise = options.joint_noise.as_ref();
+    let base_problem = KindProblem::new(
+        &chain,
+        &nothing,
+        data,
+        &setup,
+        zero.clone(),
+        start.clone(),
+        all_setup.clone(),
+        noise,
+    );
+    let weights = Weights::for_problem(&base_problem, options.estimator)?;
+    // "Before": the set-up alone, the robot nominal.
+    let before_setup = if setup.is_empty() {
+        start
+    } else {
+        let fit = linearise(&base_problem, &weights, base_problem.start())?;
+        let refined = refine_from(&base_problem, &weights, fit, &RefineOptions::default())?;
+        base_problem.full(&refined.estimate.x).1
+    };
+    // "After": the joints asked for, the tool point, the set-up; never the base.
+    let joints = match &options.joints {
+        JointParams::All => Selection::joints(&params),
+        JointParams::Offsets => Selection::offsets(&params),
+        JointParams::None => Selection::from_indices(&params, []),
+        JointParams::Named(names) => Selection::by_names(&params, names)?,
+    };
+    let tool = (0..params.len())
+        .filter(|&i| options.estimate_tool && matches!(params.get(i).owner, ParamOwner::Marker(_)));
+    let base = (0..params.len()).filter(|&i| data.sees_the_base() && params.get(i).owner == ParamOwner::Base);
+    let asked = Selection::from_indices(&params, joints.indices().iter().copied().chain(tool).chain(base));
+    // Contacts alone cannot see the scale (every length and plane offset times one factor
+    // leaves every contact): the first plane's offset is held at its fit with the nominal
+    // robot.
+    let estimated_setup: Vec<usize> = match data.sees_the_scale() {
+        true => all_setup.clone(),
+        false => all_setup.iter().copied().filter(|&i| i != 3 * setup.points + 2).collect(),
+    };
+    let all_setup = estimated_setup;
+    let problem = base_problem.reselect(&asked, zero.clone(), before_setup.clone(), all_setup.clone());
+    if problem.equations() <= problem.parameters() {
+        return Err(CalibrationError::TooFewPoses {
+            poses: data.joints.len(),
+            equations: problem.equations(),
+            parameters: problem.parameters(),
+            needed: problem.parameters() + 1,
+        });
+    }
+    // Columns the observations do not move at all (to rounding: below 1e-10 of the largest)
+    // are held first; the column scaling of the rank-revealing solve would blow their
+    // rounding up into directions of their own.
+    let linearised = linearise(&problem, &weights, problem.start())?;
+    let norms: Vec<f64> = linearised.a.column_iter().map(|c| c.norm()).collect();
+    let largest = norms.iter().copied().fold(0.0, f64::max);
+    let names = problem.names();
+    let seen: Vec<usize> = (0..norms.len()).filter(|&c| norms[c] > 1e-10 * largest).collect();
+    let mut fixed: Vec<String> = (0..norms.len())
+        .filter(|c| !seen.contains(c))
+        .map(|c| format!("{}: the observations do not move it", names[c]))
+        .collect();
+    let robot_columns = asked.len();
+    let class = |c: usize| if c < robot_columns { gauge_class(params.get(asked.indices()[c])) } else { 0 };
+    let at_before = linearised.select(&seen);
+    let priority: Vec<u32> = seen.iter().map(|&c| class(c)).collect();
+    let diagnostics = at_before.diagnose_by_priority(RANK_TOLERANCE, &priority)?;
+    let seen_names: Vec<&str> = seen.iter().map(|&c| names[c].as_str()).collect();
+    fixed.extend(diagnostics.not_identifiable.iter().map(|c| c.describe(&seen_names)));
+    let identifiable: Vec<usize> = diagnostics.identifiable.iter().map(|&c| seen[c]).collect();
+    let kept = Selection::from_indices(
+        &params,
+        identifiable.iter().filter(|&&c| c < robot_columns).map(|&c| asked.indices()[c]),
+    );
+    let kept_setup: Vec<usize> =
+        identifiable.iter().filter(|&&c| c >= robot_columns).map(|&c| all_setup[c - robot_columns]).collect();
+    let problem = base_problem.reselect(&kept, zero.clone(), before_setup.clone(), kept_setup);
+    let estimate =
+        refine_from(&problem, &weights, at_before.select(&diagnostics.identifiable), &options.refine)?;
+    let (after, after_setup) = problem.full(&estimate.estimate.x);
+    let training = (
+        rms(&problem
+            .reselect(&nothing, zero.clone(), before_setup.clone(), Vec::new())
+            .residuals(&DVector::zeros(0))),
+        rms(&problem
+            .reselect(&nothing, after.clone(), after_setup.clone(), Vec::new())
+            .residuals(&DVector::zeros(0))),
+    );
+    let calibrated = fold(model, &params, &after, &[options.tool], None);
+    Ok(KindCalibration {
+        calibrated,
+        params,
+        before: zero,
+        after,
+        unseen: data.unseen(&setup, &after_setup),
+        setup,
+        setup_values: (before_setup, after_setup),
+        refined: estimate,
+        fixed,
+        training,
+        chain,
+    })
+}
