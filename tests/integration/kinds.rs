@@ -479,3 +479,61 @@ fn the_command_calibrates_from_a_ball_bar_and_validates() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `V_k` against Monte Carlo: the joints of each pose read with noise `Sigma_q`, independently
+/// at the two poses of a pair; the sample variance of each observation's prediction over 4000
+/// draws within 5 standard errors of the variance (`sqrt(2 / (n - 1))` relative) of `V_k`.
+#[test]
+fn the_covariance_of_each_kind_is_the_joint_noise_of_its_poses() {
+    let model = puma();
+    let chain = Chain::markers(&model, &[TOOL]).remove(0);
+    let zero = vec![0.0; chain.params().len()];
+    let at = chain.with_errors(&zero);
+    let mut rng = ChaCha8Rng::seed_from_u64(67);
+    let sigmas = [0.05f64, 0.05, 0.05, 0.02, 0.02, 0.02].map(f64::to_radians);
+    let sigma_q = DMatrix::from_diagonal(&DVector::from_iterator(6, sigmas.iter().map(|s| s * s)));
+    let joints: Vec<Vec<f64>> = (0..5).map(|_| random_pose(&model, &mut rng)).collect();
+    let data = KindData {
+        observations: vec![
+            Observation::Distance { a: 0, b: 1, measured: 0.0, sigma: 1e-9 },
+            Observation::ToPoint { pose: 2, point: 0, measured: 0.0, sigma: 1e-9 },
+            Observation::Contact { pose: 3, plane: 0, sigma: 1e-9 },
+            Observation::Coordinate { pose: 4, axis: 1, measured: 0.0, sigma: 1e-9 },
+        ],
+        lines: vec![2, 3, 4, 5],
+        joints,
+    };
+    let setup = SetUp::new(1, &[Vector3::new(0.3, -0.2, 1.0)]);
+    let s = vec![400.0, 200.0, 300.0, 0.0, 0.0, -350.0];
+    let nothing = Selection::from_indices(chain.params(), []);
+    let problem = KindProblem::new(&chain, &nothing, &data, &setup, zero, s.clone(), Vec::new(), Some(&sigma_q));
+    let v = problem.covariance().unwrap().clone();
+    let draws = 4000;
+    let mut samples = vec![Vec::with_capacity(draws); 4];
+    for _ in 0..draws {
+        let noisy: Vec<Vec<f64>> = (data.joints.iter())
+            .map(|q| {
+                q.iter()
+                    .zip(&sigmas)
+                    .map(|(q, s)| {
+                        let z: f64 = StandardNormal.sample(&mut rng);
+                        q + s * z
+                    })
+                    .collect()
+            })
+            .collect();
+        let p: Vec<Vector3<f64>> = noisy.iter().map(|q| at.position(q)).collect();
+        let (n, d) = setup.plane(&s, 0);
+        samples[0].push((p[0] - p[1]).norm());
+        samples[1].push((p[2] - Vector3::new(400.0, 200.0, 300.0)).norm());
+        samples[2].push(n.dot(&p[3]) - d);
+        samples[3].push(p[4].y);
+    }
+    for (k, values) in samples.iter().enumerate() {
+        let mean = values.iter().sum::<f64>() / draws as f64;
+        let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (draws - 1) as f64;
+        let relative = (variance / v[(k, 0)] - 1.0).abs();
+        let tolerance = 5.0 * (2.0 / (draws - 1) as f64).sqrt();
+        assert!(relative < tolerance, "{:?}: {variance} mm² sampled, V_k {} mm²", data.observations[k], v[(k, 0)]);
+    }
+}
