@@ -506,7 +506,8 @@ fn the_covariance_of_each_kind_is_the_joint_noise_of_its_poses() {
     let setup = SetUp::new(1, &[Vector3::new(0.3, -0.2, 1.0)]);
     let s = vec![400.0, 200.0, 300.0, 0.0, 0.0, -350.0];
     let nothing = Selection::from_indices(chain.params(), []);
-    let problem = KindProblem::new(&chain, &nothing, &data, &setup, zero, s.clone(), Vec::new(), Some(&sigma_q));
+    let problem =
+        KindProblem::new(&chain, &nothing, &data, &setup, zero, s.clone(), Vec::new(), Some(&sigma_q));
     let v = problem.covariance().unwrap().clone();
     let draws = 4000;
     let mut samples = vec![Vec::with_capacity(draws); 4];
@@ -534,6 +535,11 @@ fn the_covariance_of_each_kind_is_the_joint_noise_of_its_poses() {
         let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (draws - 1) as f64;
         let relative = (variance / v[(k, 0)] - 1.0).abs();
         let tolerance = 5.0 * (2.0 / (draws - 1) as f64).sqrt();
-        assert!(relative < tolerance, "{:?}: {variance} mm² sampled, V_k {} mm²", data.observations[k], v[(k, 0)]);
+        assert!(
+            relative < tolerance,
+            "{:?}: {variance} mm² sampled, V_k {} mm²",
+            data.observations[k],
+            v[(k, 0)]
+        );
     }
 }
