@@ -510,7 +510,7 @@ fn the_covariance_of_each_kind_is_the_joint_noise_of_its_poses() {
         KindProblem::new(&chain, &nothing, &data, &setup, zero, s.clone(), Vec::new(), Some(&sigma_q));
     let v = problem.covariance().unwrap().clone();
     let draws = 4000;
-    let mut samples = vec![Vec::with_capacity(draws); 4];
+    let mut samples: Vec<Vec<f64>> = (0..4).map(|_| Vec::with_capacity(draws)).collect();
     for _ in 0..draws {
         let noisy: Vec<Vec<f64>> = (data.joints.iter())
             .map(|q| {
