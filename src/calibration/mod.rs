@@ -525,7 +525,8 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
             let nothing = Selection::from_indices(&s.params, []);
             let at_after =
                 problem.reselect(&nothing, s.after.clone()).expect("the fit's problem has its parameters");
-            let r = at_after.evaluate(&DVector::zeros(0), None);
+            let mut r = at_after.evaluate(&DVector::zeros(0), None);
+            evaluation::in_lengths(&at_after, &mut r);
             let dof = r.len().saturating_sub(rank).max(1);
             Whitening::Spread((r.norm_squared() / dof as f64).sqrt())
         }

@@ -559,3 +559,21 @@ fn the_probe_frame_is_reported_absolutely_in_the_tip_link_frame() {
     assert!((t[0] - 52.0).abs() < 1e-4 && (t[5] - 0.5f64.to_degrees()).abs() < 1e-6, "{t:?}");
     assert!(report.text().contains("probe frame in the tip link's frame: xyz (52.000, 1.000, 148.000) mm"));
 }
+
+/// Without a noise model the training residuals are whitened by their spread, a pose's
+/// orientation rows counted as lengths by the OLS weight: a pose whose orientation is 1 degree
+/// off (its position right) is flagged.
+#[test]
+fn a_probe_pose_turned_off_is_flagged_without_a_noise_model() {
+    let (nominal, _, mut training, _) = probe_campaign(49);
+    let turned = nalgebra::UnitQuaternion::from_euler_angles(0.0, 1f64.to_radians(), 0.0);
+    let orientations = training.orientations.as_mut().unwrap();
+    orientations[7] = turned * orientations[7];
+    let calibration =
+        calibration::calibrate(&nominal, &training, &probe_options(Estimator::Ols, None)).unwrap();
+    let line = training.lines[7];
+    let flagged: Vec<&String> =
+        calibration.warnings.iter().filter(|w| w.contains("standard deviations out")).collect();
+    assert_eq!(flagged.len(), 1, "{:?}", calibration.warnings);
+    assert!(flagged[0].starts_with(&format!("line {line}:")), "{flagged:?}");
+}
