@@ -14,11 +14,11 @@ use robocal::calibration::kinds::{
 };
 use robocal::estimation::{Estimator, RefineOptions, Residuals};
 use robocal::kinematics::{Chain, ChainAt};
-use robocal::model::{Convention, RobotModel, Selection};
+use robocal::model::{Convention, Placement, RobotModel, Selection};
 
 /// Six poses of `model` from unit draws, and one observation of every kind on them: a pair,
-/// a fixed point, two planes, the three coordinates.
-fn every_kind(model: &RobotModel, u: &[f64]) -> KindData {
+/// a fixed point, two planes, the three coordinates, and with `angles` roll, pitch and yaw.
+fn every_kind(model: &RobotModel, u: &[f64], angles: bool) -> KindData {
     let joints: Vec<Vec<f64>> = (0..6).map(|k| point(model, &u[k * 7..]).0).collect();
     let observations = vec![
         Observation::Distance { a: 0, b: 1, measured: 500.0, sigma: 0.01 },
@@ -29,18 +29,29 @@ fn every_kind(model: &RobotModel, u: &[f64]) -> KindData {
         Observation::Coordinate { pose: 5, axis: 1, measured: 2.0, sigma: 0.01 },
         Observation::Coordinate { pose: 5, axis: 2, measured: 3.0, sigma: 0.01 },
     ];
-    let lines = (2..9).collect();
+    let angles = (3..6).filter(|_| angles).map(|axis| Observation::Coordinate {
+        pose: 4,
+        axis,
+        measured: 0.3,
+        sigma: 1e-4,
+    });
+    let observations: Vec<Observation> = observations.into_iter().chain(angles).collect();
+    let lines = (0..observations.len()).map(|i| i + 2).collect();
     KindData { joints, observations, lines }
 }
 
 /// Every column of `H` (robot parameters and set-up) against central differences of the
 /// residuals: `H = -dy/dx`.
-fn check_kind_jacobians(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
-    let chain = Chain::markers(model, &[Vector3::new(u[0], u[1], u[2]) * 200.0]).remove(0);
+fn check_kind_jacobians(model: &RobotModel, u: &[f64], angles: bool) -> Result<(), TestCaseError> {
+    let tool = Vector3::new(u[0], u[1], u[2]) * 200.0;
+    let chain = match angles {
+        true => Chain::probe(model, &Placement { xyz: tool, rpy: Vector3::new(u[7], u[8], u[9]) }),
+        false => Chain::markers(model, &[tool]).remove(0),
+    };
     let params = chain.params();
     let (_, x) = point(model, &u[20..]);
     let x: Vec<f64> = (0..params.len()).map(|i| x[i % x.len()]).collect();
-    let data = every_kind(model, u);
+    let data = every_kind(model, u, angles);
     let setup = SetUp::new(1, &[Vector3::new(u[3], u[4], 1.0), Vector3::new(1.0, u[5], u[6])]);
     let s: Vec<f64> =
         (0..setup.len()).map(|i| u[(i + 11) % u.len()] * if i % 3 == 2 { 300.0 } else { 0.3 }).collect();
@@ -77,12 +88,17 @@ proptest! {
 
     #[test]
     fn kind_jacobians_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_kind_jacobians(&model, &u)?;
+        check_kind_jacobians(&model, &u, false)?;
     }
 
     #[test]
     fn kind_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_kind_jacobians(&model, &u)?;
+        check_kind_jacobians(&model, &u, false)?;
+    }
+
+    #[test]
+    fn angle_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_kind_jacobians(&model, &u, true)?;
     }
 }
 
@@ -130,7 +146,7 @@ type Measure = dyn Fn(&ChainAt, &mut ChaCha8Rng, f64) -> KindData;
 /// within 3 predicted standard errors of the truth (the set-up's too, when `setup_truth` is
 /// given). Returns the noisy calibration.
 fn recovers(measure: &Measure, setup_truth: Option<&[f64]>, base_errors: bool, seed: u64) -> KindCalibration {
-    recovers_with(measure, setup_truth, base_errors, None, seed)
+    recovers_with(measure, setup_truth, base_errors, None, false, seed)
 }
 
 /// [`recovers`], the noisy data weighted with the joint noise `sigma_q` too when given.
@@ -139,11 +155,16 @@ fn recovers_with(
     setup_truth: Option<&[f64]>,
     base_errors: bool,
     sigma_q: Option<DMatrix<f64>>,
+    frame: bool,
     seed: u64,
 ) -> KindCalibration {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let model = puma();
-    let chain = Chain::markers(&model, &[TOOL]).remove(0);
+    // Angles make the tool a frame, as the calibration does.
+    let chain = match frame {
+        true => Chain::probe(&model, &Placement { xyz: TOOL, rpy: Vector3::zeros() }),
+        false => Chain::markers(&model, &[TOOL]).remove(0),
+    };
     let all: Vec<String> = chain
         .params()
         .iter()
@@ -271,7 +292,7 @@ fn distances_with_joint_noise_are_weighted_by_both_poses() {
         data
     };
     let sigma_q = DMatrix::from_diagonal_element(6, 6, sigma_joint * sigma_joint);
-    let c = recovers_with(&noisy_pairs, None, true, Some(sigma_q), 68);
+    let c = recovers_with(&noisy_pairs, None, true, Some(sigma_q), false, 68);
     assert!(c.training.1 > 0.005, "the joint noise shows in the residuals: {:?}", c.training);
 }
 
@@ -404,6 +425,46 @@ fn heights_alone_calibrate_what_they_see() {
     assert!(!names.iter().any(|n| n == "base.x" || n == "base.y" || n == "base.rz"), "{names:?}");
 }
 
+/// A height gauge and an inclinometer: z, roll and pitch of the tool. The base's z, roll and
+/// pitch are seen, its x, y and yaw are not; the robot and the tool frame's turn are recovered.
+#[test]
+fn heights_and_tilts_calibrate_what_they_see() {
+    let tilts = |real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64| {
+        let mut data = KindData::default();
+        for k in 0..150 {
+            let q = random_pose(&puma(), rng);
+            let pose = real.pose(&q);
+            let (roll, pitch, _) = pose.rotation.euler_angles();
+            let mut z = || -> f64 { StandardNormal.sample(&mut *rng) };
+            let (zn, rn, pn) = (z(), z(), z());
+            let observations = [
+                Observation::Coordinate {
+                    pose: k,
+                    axis: 2,
+                    measured: pose.translation.z + sigma * zn,
+                    sigma: 0.01,
+                },
+                Observation::Coordinate { pose: k, axis: 3, measured: roll + sigma * 1e-3 * rn, sigma: 1e-5 },
+                Observation::Coordinate {
+                    pose: k,
+                    axis: 4,
+                    measured: pitch + sigma * 1e-3 * pn,
+                    sigma: 1e-5,
+                },
+            ];
+            data.joints.push(q);
+            data.observations.extend(observations);
+            data.lines.extend([k + 3; 3]);
+        }
+        data
+    };
+    let c = recovers_with(&tilts, None, false, None, true, 69);
+    let names = &c.refined.estimate.names;
+    assert!(names.iter().any(|n| n == "base.rx") && names.iter().any(|n| n == "marker1.rx"), "{names:?}");
+    assert!(!names.iter().any(|n| n == "base.x" || n == "base.y" || n == "base.rz"), "{names:?}");
+    assert!(matches!(c.calibrated.tool, robocal::model::Tool::Frame(_)));
+}
+
 #[test]
 fn kind_files_read_and_their_errors() {
     let model = puma();
@@ -428,6 +489,14 @@ fn kind_files_read_and_their_errors() {
         Observation::Coordinate { pose: 0, axis: 2, measured: 812.5, sigma: 0.01 }
     );
     assert_eq!(partial.lines, [3, 4, 4]);
+    let tilts =
+        read(&format!("{head}j1,j2,j3,j4,j5,j6,roll,pitch,sigma_angle\n0,10,20,0,0,0,,2.5,0.001\n")).unwrap();
+    let sigma = 0.001f64.to_radians();
+    assert_eq!(
+        tilts.observations,
+        [Observation::Coordinate { pose: 0, axis: 4, measured: 2.5f64.to_radians(), sigma }]
+    );
+    assert!(tilts.has_angles() && tilts.sees_the_base());
     let error = |text: &str| read(&format!("{head}{text}")).unwrap_err().to_string();
     assert_eq!(
         error("j1,j2,j3,j4,j5,j6,plane\n0,10,20,0,0,0,0\n"),
@@ -439,7 +508,7 @@ fn kind_files_read_and_their_errors() {
     );
     assert_eq!(
         error("j1,j2,j3,j4,j5,j6,x,y,z\n0,10,20,0,0,0,,,\n"),
-        "line 3: no coordinate: give at least one of x, y, z"
+        "line 3: no coordinate: give at least one of x, y, z, roll, pitch, yaw"
     );
     assert_eq!(
         error("j1,j2,j3,j4,j5,j6,j1_b,distance\n0,10,20,0,0,0,1,2\n"),
@@ -447,7 +516,7 @@ fn kind_files_read_and_their_errors() {
     );
     assert_eq!(
         error("j1,j2,j3,j4,j5,j6,distance,plane\n0,10,20,0,0,0,1,2\n"),
-        "line 2: expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or x,y,z coordinates"
+        "line 2: expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or coordinates (x, y, z, roll, pitch, yaw)"
     );
 }
 

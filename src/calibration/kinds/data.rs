@@ -5,11 +5,12 @@
 //! j1,j2,j3,j4,j5,j6,j1_b,j2_b,j3_b,j4_b,j5_b,j6_b,distance     pairs of poses
 //! j1,j2,j3,j4,j5,j6,point,distance                             to fixed point `point` (1, 2, ...)
 //! j1,j2,j3,j4,j5,j6,plane                                      contacts with plane `plane`
-//! j1,j2,j3,j4,j5,j6,x,y,z                                      coordinates, any empty
+//! j1,j2,j3,j4,j5,j6,x,y,z,roll,pitch,yaw                       coordinates, any empty or absent
 //! ```
 //!
 //! Each may add `sigma`, the row's measurement standard deviation (length unit; every measured
-//! coordinate of the row). Without it, [`DEFAULT_SIGMA_MM`].
+//! length of the row), without it [`DEFAULT_SIGMA_MM`]; and `sigma_angle` for angles (the
+//! joints' angle unit), without it [`DEFAULT_SIGMA_ANGLE_DEG`].
 
 use super::SetUp;
 use crate::calibration::CalibrationError;
@@ -20,6 +21,9 @@ use nalgebra::{DMatrix, DVector, Vector3};
 
 /// The measurement standard deviation of a row without a `sigma` column (mm).
 pub const DEFAULT_SIGMA_MM: f64 = 0.01;
+
+/// The standard deviation of an angle (roll, pitch, yaw) without a `sigma_angle` column (deg).
+pub const DEFAULT_SIGMA_ANGLE_DEG: f64 = 0.01;
 
 /// One measured number. Poses are indices into [`KindData::joints`]; points and planes count
 /// from 0 (`point = 1` in a file is 0 here).
@@ -57,16 +61,17 @@ pub enum Observation {
         /// The standard deviation of the contact (mm).
         sigma: f64,
     },
-    /// One coordinate (`axis` 0, 1, 2: x, y, z) of the tool point at `pose`, in the measuring
-    /// frame.
+    /// One coordinate of the tool at `pose`, in the measuring frame: `axis` 0, 1, 2 the
+    /// point's x, y, z (mm); 3, 4, 5 the tool frame's roll, pitch, yaw (rad,
+    /// `R = Rz(yaw) Ry(pitch) Rx(roll)`).
     Coordinate {
+        /// 0 to 5: x, y, z, roll, pitch, yaw.
+        axis: usize,
         /// The pose.
         pose: usize,
-        /// 0, 1 or 2.
-        axis: usize,
-        /// The coordinate (mm).
+        /// The coordinate (mm or rad).
         measured: f64,
-        /// Its standard deviation (mm).
+        /// Its standard deviation (mm or rad).
         sigma: f64,
     },
 }
@@ -79,6 +84,18 @@ impl Observation {
             | Self::ToPoint { measured, .. }
             | Self::Coordinate { measured, .. } => measured,
             Self::Contact { .. } => 0.0,
+        }
+    }
+
+    /// The residual `m_k - f` of a prediction `f`; an angle's wrapped into `(-pi, pi]`.
+    pub fn residual(&self, f: f64) -> f64 {
+        let r = self.measured() - f;
+        match self {
+            Self::Coordinate { axis, .. } if *axis >= 3 => {
+                let t = std::f64::consts::TAU;
+                r - t * ((r + std::f64::consts::PI) / t).ceil() + t
+            }
+            _ => r,
         }
     }
 
@@ -106,8 +123,8 @@ pub struct KindData {
 
 impl KindData {
     /// Read a file of distances (pairs `<joint>,<joint>_b,distance`, or to fixed points
-    /// `<joint>,point,distance`), contacts (`<joint>,plane`) or coordinates (`<joint>,x,y,z`,
-    /// empty cells for coordinates not measured) for `model`. `units` from the caller take the
+    /// `<joint>,point,distance`), contacts (`<joint>,plane`) or coordinates (any of
+    /// `x,y,z,roll,pitch,yaw`, empty cells for coordinates not measured) for `model`. `units` from the caller take the
     /// place of the file's `# units:` line.
     pub fn from_csv_str(text: &str, model: &RobotModel, units: Option<Units>) -> Result<Self, DataError> {
         let table = Table::parse(text)?;
@@ -123,13 +140,13 @@ impl KindData {
         let second: Vec<usize> = second.into_iter().flatten().collect();
         let (distance, point, plane) =
             (table.column("distance"), table.column("point"), table.column("plane"));
-        let axes = ["x", "y", "z"].map(|c| table.column(c));
+        let axes = ["x", "y", "z", "roll", "pitch", "yaw"].map(|c| table.column(c));
         let coordinates = axes.iter().any(Option::is_some);
         let kinds = [distance.is_some(), plane.is_some(), coordinates].iter().filter(|&&k| k).count();
         if kinds != 1 {
             return Err(header(
                 None,
-                "expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or x,y,z coordinates",
+                "expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or coordinates (x, y, z, roll, pitch, yaw)",
             ));
         }
         if pairs && point.is_some() {
@@ -139,11 +156,16 @@ impl KindData {
             ));
         }
         let sigma = table.column("sigma");
+        let sigma_angle = table.column("sigma_angle");
         let mut data = Self::default();
         for row in table.nonempty_rows()? {
             let s = match sigma {
                 Some(c) => positive(&table, row, c, units.length_scale())?,
                 None => DEFAULT_SIGMA_MM,
+            };
+            let s_angle = match sigma_angle {
+                Some(c) => units.angle(positive(&table, row, c, 1.0)?),
+                None => DEFAULT_SIGMA_ANGLE_DEG.to_radians(),
             };
             let pose = data.joints.len();
             data.joints.push(table.joint_values(row, &joints, model, units)?);
@@ -169,16 +191,20 @@ impl KindData {
                     if row.cells[c].is_empty() {
                         continue;
                     }
-                    let v = table.number(row, c)? * units.length_scale();
-                    let measured = table.within(row, c, v, MAX_LENGTH_MM, "mm")?;
-                    push(Observation::Coordinate { pose, axis, measured, sigma: s });
+                    let v = table.number(row, c)?;
+                    let (measured, sigma) = if axis < 3 {
+                        (table.within(row, c, v * units.length_scale(), MAX_LENGTH_MM, "mm")?, s)
+                    } else {
+                        (units.angle(v), s_angle)
+                    };
+                    push(Observation::Coordinate { pose, axis, measured, sigma });
                     any = true;
                 }
                 if !any {
                     return Err(DataError::new(
                         row.line,
                         None,
-                        "no coordinate: give at least one of x, y, z",
+                        "no coordinate: give at least one of x, y, z, roll, pitch, yaw",
                     ));
                 }
             }
@@ -220,6 +246,11 @@ impl KindData {
             }
         }
         counts
+    }
+
+    /// Whether any observation is an angle of the tool frame (then the tool is a frame).
+    pub fn has_angles(&self) -> bool {
+        self.observations.iter().any(|o| matches!(o, Observation::Coordinate { axis: 3.., .. }))
     }
 
     /// Whether any observation sees the measuring frame's coordinates (then the base is

@@ -16,7 +16,11 @@
 //! - a partial measurement, one coordinate `e_c . p(q_k, x)` (`c` of x, y, z) in the measuring
 //!   frame: any subset of x, y, z of a pose (a height gauge: z only), each its own observation.
 //!   Their correlation through the joint noise of their common pose is left out of `V`
-//!   (exact when the joints are exact).
+//!   (exact when the joints are exact). Roll, pitch and yaw of the tool frame
+//!   (`R = Rz(yaw) Ry(pitch) Rx(roll)`, an inclinometer's tilts) likewise: the tool is then a
+//!   frame whose rotation is estimated too, and `g_kj` is `E^-1` on the rotation rows, with
+//!   `omega = E (roll', pitch', yaw')` the rotation vector's rate (the residual wrapped into
+//!   `(-pi, pi]`).
 //!
 //! The residual is `y_k = m_k - f_k` (measured minus predicted). With `g_kj = df_k/dp_j` the
 //! derivative of the prediction with respect to the point at pose `j` (`u = (p_a - p_b) /
@@ -58,8 +62,8 @@ use crate::estimation::{
     Estimator, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
-use crate::model::{ParamOwner, ParamSet, RobotModel, Selection};
-use nalgebra::{DMatrix, DVector, Matrix3xX, Matrix6xX, Vector3};
+use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Matrix6xX, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 
 /// How to calibrate from distances and contacts.
@@ -156,59 +160,87 @@ impl SetUp {
 /// each of its poses (`(pose, g)`, one or two) and with respect to the set-up (`(index, value)`).
 struct Prediction {
     value: f64,
-    by_point: [(usize, Vector3<f64>); 2],
+    by_point: [(usize, Vector6<f64>); 2],
     poses: usize,
     by_setup: [(usize, f64); 3],
     setups: usize,
 }
 
-/// `f_k` of the [module](self) and its derivatives, at the points `p` of every pose.
-fn predict(o: &Observation, p: &[Vector3<f64>], setup: &SetUp, s: &[f64]) -> Prediction {
-    let none = (0, Vector3::zeros());
+/// `f_k` of the [module](self) and its derivatives, at the tool frames `frames` of every pose
+/// (their rotations used by angles only). The derivatives `g_kj` are with respect to the pose
+/// error of the tool at pose `j`: its position (mm), then its rotation vector (rad, measuring
+/// frame), as [`ChainAt::identification_jacobian`] gives them.
+fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64]) -> Prediction {
+    let none = (0, Vector6::zeros());
+    let point = |g: Vector3<f64>| Vector6::new(g.x, g.y, g.z, 0.0, 0.0, 0.0);
+    let p = |j: usize| frames[j].translation.vector;
     match *o {
         Observation::Distance { a, b, .. } => {
-            let d = p[a] - p[b];
+            let d = p(a) - p(b);
             let u = d / d.norm().max(f64::MIN_POSITIVE);
             Prediction {
                 value: d.norm(),
-                by_point: [(a, u), (b, -u)],
+                by_point: [(a, point(u)), (b, point(-u))],
                 poses: 2,
                 by_setup: [(0, 0.0); 3],
                 setups: 0,
             }
         }
-        Observation::ToPoint { pose, point, .. } => {
-            let d = p[pose] - setup.point(s, point);
+        Observation::ToPoint { pose, point: fixed, .. } => {
+            let d = p(pose) - setup.point(s, fixed);
             let u = d / d.norm().max(f64::MIN_POSITIVE);
-            let at = 3 * point;
+            let at = 3 * fixed;
             Prediction {
                 value: d.norm(),
-                by_point: [(pose, u), none],
+                by_point: [(pose, point(u)), none],
                 poses: 1,
                 by_setup: [(at, -u.x), (at + 1, -u.y), (at + 2, -u.z)],
                 setups: 3,
             }
         }
-        Observation::Coordinate { pose, axis, .. } => Prediction {
-            value: p[pose][axis],
-            by_point: [(pose, Vector3::ith(axis, 1.0)), none],
+        Observation::Coordinate { pose, axis, .. } if axis < 3 => Prediction {
+            value: p(pose)[axis],
+            by_point: [(pose, Vector6::ith(axis, 1.0)), none],
             poses: 1,
             by_setup: [(0, 0.0); 3],
             setups: 0,
         },
+        Observation::Coordinate { pose, axis, .. } => {
+            let (rpy, rates) = angles(&frames[pose].rotation);
+            let g = rates.row(axis - 3);
+            Prediction {
+                value: rpy[axis - 3],
+                by_point: [(pose, Vector6::new(0.0, 0.0, 0.0, g[0], g[1], g[2])), none],
+                poses: 1,
+                by_setup: [(0, 0.0); 3],
+                setups: 0,
+            }
+        }
         Observation::Contact { pose, plane, .. } => {
             let (n, d) = setup.plane(s, plane);
             let [dn_a, dn_b] = setup.normal_derivatives(s, plane);
             let at = 3 * (setup.points + plane);
             Prediction {
-                value: n.dot(&p[pose]) - d,
-                by_point: [(pose, n), none],
+                value: n.dot(&p(pose)) - d,
+                by_point: [(pose, point(n)), none],
                 poses: 1,
-                by_setup: [(at, dn_a.dot(&p[pose])), (at + 1, dn_b.dot(&p[pose])), (at + 2, -1.0)],
+                by_setup: [(at, dn_a.dot(&p(pose))), (at + 1, dn_b.dot(&p(pose))), (at + 2, -1.0)],
                 setups: 3,
             }
         }
     }
+}
+
+/// Roll, pitch and yaw of `r` (`R = Rz(yaw) Ry(pitch) Rx(roll)`) and their derivatives with
+/// respect to its rotation vector in the measuring frame (`dR = [omega]x R`): `E^-1`, with
+/// `omega = E (roll', pitch', yaw')` and
+/// `E = [cos(yaw) cos(pitch), -sin(yaw), 0; sin(yaw) cos(pitch), cos(yaw), 0; -sin(pitch), 0, 1]`;
+/// zero at pitch +-90 deg, where roll and yaw are one angle.
+fn angles(r: &UnitQuaternion<f64>) -> (Vector3<f64>, Matrix3<f64>) {
+    let (roll, pitch, yaw) = r.euler_angles();
+    let (sy, cy, sp, cp) = (yaw.sin(), yaw.cos(), pitch.sin(), pitch.cos());
+    let e = Matrix3::new(cy * cp, -sy, 0.0, sy * cp, cy, 0.0, -sp, 0.0, 1.0);
+    (Vector3::new(roll, pitch, yaw), e.try_inverse().unwrap_or_else(Matrix3::zeros))
 }
 
 /// The calibration problem of distances and contacts: `y_k(x, s) = m_k - f_k(x, s)` for the
@@ -266,22 +298,23 @@ impl<'a> KindProblem<'a> {
     fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
         let at = self.chain.with_errors(&self.fixed);
         let dof = self.chain.dof();
-        let jacobians: Vec<(Vector3<f64>, Matrix3xX<f64>)> = (self.data.joints.par_iter())
+        let rows = self.measured().rows();
+        let jacobians: Vec<(Isometry3<f64>, DMatrix<f64>)> = (self.data.joints.par_iter())
             .map_init(
                 || Matrix6xX::zeros(dof),
                 |j, q| {
-                    let p = at.manipulator_jacobian(q, j);
-                    (p, j.fixed_rows::<3>(0).into_owned())
+                    at.manipulator_jacobian(q, j);
+                    (at.pose(q), DMatrix::from_fn(rows, dof, |r, c| j[(r, c)]))
                 },
             )
             .collect();
-        let points: Vec<Vector3<f64>> = jacobians.iter().map(|(p, _)| *p).collect();
+        let frames: Vec<Isometry3<f64>> = jacobians.iter().map(|(f, _)| *f).collect();
         let v = self.data.observations.iter().map(|o| {
-            let f = predict(o, &points, self.setup, &self.setup_values);
+            let f = predict(o, &frames, self.setup, &self.setup_values);
             let joint = joint_noise.map_or(0.0, |sigma_q| {
                 (f.by_point[..f.poses].iter())
                     .map(|(j, g)| {
-                        let g_kj = g.transpose() * &jacobians[*j].1;
+                        let g_kj = g.rows(0, rows).transpose() * &jacobians[*j].1;
                         (&g_kj * sigma_q * g_kj.transpose())[(0, 0)]
                     })
                     .sum()
@@ -289,6 +322,12 @@ impl<'a> KindProblem<'a> {
             joint + o.sigma().powi(2)
         });
         DMatrix::from_iterator(self.data.observations.len(), 1, v)
+    }
+
+    /// What the chain's end is: a point ([`Measured::Position`]) or, for angles, a tool frame
+    /// ([`Measured::Pose`]).
+    pub fn measured(&self) -> Measured {
+        if self.chain.ends_at_a_point() { Measured::Position } else { Measured::Pose }
     }
 
     /// The full robot parameter vector and the set-up values at `x`.
@@ -347,32 +386,32 @@ impl Residuals for KindProblem<'_> {
         let at: ChainAt = self.chain.with_errors(&full);
         let columns = self.selection.len();
         let want_h = h.is_some();
-        let poses: Vec<(Vector3<f64>, DMatrix<f64>)> = (self.data.joints.par_iter())
+        let measured = self.measured();
+        let rows = measured.rows();
+        let poses: Vec<(Isometry3<f64>, DMatrix<f64>)> = (self.data.joints.par_iter())
             .map(|q| {
-                let mut h_j = DMatrix::zeros(3, if want_h { columns } else { 0 });
-                let p = if want_h {
+                let mut h_j = DMatrix::zeros(rows, if want_h { columns } else { 0 });
+                if want_h {
                     at.identification_jacobian(
                         q,
                         self.selection,
-                        Measured::Position,
-                        h_j.view_mut((0, 0), (3, columns)),
-                    )
-                } else {
-                    at.position(q)
-                };
-                (p, h_j)
+                        measured,
+                        h_j.view_mut((0, 0), (rows, columns)),
+                    );
+                }
+                (at.pose(q), h_j)
             })
             .collect();
-        let points: Vec<Vector3<f64>> = poses.iter().map(|(p, _)| *p).collect();
+        let frames: Vec<Isometry3<f64>> = poses.iter().map(|(f, _)| *f).collect();
         let mut y = DVector::zeros(self.equations());
         let mut h = h;
         for (k, o) in self.data.observations.iter().enumerate() {
-            let f = predict(o, &points, self.setup, &s);
-            y[k] = o.measured() - f.value;
+            let f = predict(o, &frames, self.setup, &s);
+            y[k] = o.residual(f.value);
             if let Some(h) = h.as_deref_mut() {
                 h.row_mut(k).fill(0.0);
                 for (j, g) in &f.by_point[..f.poses] {
-                    let row = g.transpose() * &poses[*j].1;
+                    let row = g.rows(0, rows).transpose() * &poses[*j].1;
                     for c in 0..columns {
                         h[(k, c)] += row[c];
                     }
@@ -454,7 +493,12 @@ pub fn calibrate_kinds(
     data: &KindData,
     options: &KindOptions,
 ) -> Result<KindCalibration, CalibrationError> {
-    let chain = Chain::markers(model, &[options.tool]).remove(0);
+    // Angles need a tool frame: the tool point, turned as the marker frame to start with.
+    let probe = data.has_angles().then_some(Placement { xyz: options.tool, rpy: Vector3::zeros() });
+    let chain = match &probe {
+        Some(probe) => Chain::probe(model, probe),
+        None => Chain::markers(model, &[options.tool]).remove(0),
+    };
     let params = chain.params().clone();
     let zero = vec![0.0; params.len()];
     let nominal: Vec<Vector3<f64>> = {
@@ -550,7 +594,7 @@ pub fn calibrate_kinds(
             .reselect(&nothing, after.clone(), after_setup.clone(), Vec::new())
             .residuals(&DVector::zeros(0))),
     );
-    let calibrated = fold(model, &params, &after, &[options.tool], None);
+    let calibrated = fold(model, &params, &after, &[options.tool], probe.as_ref());
     Ok(KindCalibration {
         calibrated,
         params,
