@@ -497,6 +497,40 @@ fn kind_files_read_and_their_errors() {
         [Observation::Coordinate { pose: 0, axis: 4, measured: 2.5f64.to_radians(), sigma }]
     );
     assert!(tilts.has_angles() && tilts.sees_the_base());
+    // A `kind` column mixes them in one file, each row using its own columns.
+    let mixed = read(&format!(
+        "{head}kind,j1,j2,j3,j4,j5,j6,j1_b,j2_b,j3_b,j4_b,j5_b,j6_b,distance,point,plane,z,sigma\n\
+         pair,0,10,20,0,0,0,5,15,25,0,0,0,123.4,,,,0.02\n\
+         point,0,10,20,0,0,0,,,,,,,300,2,,,\n\
+         contact,0,10,20,0,0,0,,,,,,,,,3,,\n\
+         coordinates,0,10,20,0,0,0,,,,,,,,,,812.5,\n"
+    ))
+    .unwrap();
+    assert_eq!(
+        mixed.observations,
+        [
+            Observation::Distance { a: 0, b: 1, measured: 123.4, sigma: 0.02 },
+            Observation::ToPoint { pose: 2, point: 1, measured: 300.0, sigma: 0.01 },
+            Observation::Contact { pose: 3, plane: 2, sigma: 0.01 },
+            Observation::Coordinate { pose: 4, axis: 2, measured: 812.5, sigma: 0.01 },
+        ]
+    );
+    assert_eq!(mixed.lines, [3, 4, 5, 6]);
+    let mixed_error = |rows: &str| {
+        read(&format!("{head}kind,j1,j2,j3,j4,j5,j6,distance,plane\n{rows}")).unwrap_err().to_string()
+    };
+    assert_eq!(
+        mixed_error("ball,0,10,20,0,0,0,1,\n"),
+        "line 3, column `kind`: `ball`: expected pair, point, contact or coordinates"
+    );
+    assert_eq!(
+        mixed_error("contact,0,10,20,0,0,0,1,\n"),
+        "line 3, column `plane`: this kind of row needs a `plane` value"
+    );
+    assert_eq!(
+        mixed_error("pair,0,10,20,0,0,0,1,\n"),
+        "line 3, column `kind`: a pair needs the second pose's columns, <joint>_b"
+    );
     let error = |text: &str| read(&format!("{head}{text}")).unwrap_err().to_string();
     assert_eq!(
         error("j1,j2,j3,j4,j5,j6,plane\n0,10,20,0,0,0,0\n"),
@@ -516,7 +550,7 @@ fn kind_files_read_and_their_errors() {
     );
     assert_eq!(
         error("j1,j2,j3,j4,j5,j6,distance,plane\n0,10,20,0,0,0,1,2\n"),
-        "line 2: expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or coordinates (x, y, z, roll, pitch, yaw)"
+        "line 2: expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or coordinates (x, y, z, roll, pitch, yaw); or a `kind` column naming each row's"
     );
 }
 

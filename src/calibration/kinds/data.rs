@@ -124,90 +124,23 @@ pub struct KindData {
 impl KindData {
     /// Read a file of distances (pairs `<joint>,<joint>_b,distance`, or to fixed points
     /// `<joint>,point,distance`), contacts (`<joint>,plane`) or coordinates (any of
-    /// `x,y,z,roll,pitch,yaw`, empty cells for coordinates not measured) for `model`. `units` from the caller take the
-    /// place of the file's `# units:` line.
+    /// `x,y,z,roll,pitch,yaw`, empty cells for coordinates not measured) for `model`; or of
+    /// them all, a `kind` column naming each row's (`pair`, `point`, `contact`, `coordinates`).
+    /// `units` from the caller take the place of the file's `# units:` line.
     pub fn from_csv_str(text: &str, model: &RobotModel, units: Option<Units>) -> Result<Self, DataError> {
         let table = Table::parse(text)?;
         let units = table.units(units, " or give --joint-unit and --length-unit")?;
-        let joints = table.joint_columns(model)?;
-        let header = |column: Option<&str>, m: &str| DataError::new(table.header_line, column, m);
-        let second: Vec<Option<usize>> =
-            model.joints.iter().map(|j| table.column(&format!("{}_b", j.name))).collect();
-        let pairs = second.iter().any(Option::is_some);
-        if pairs && second.iter().any(Option::is_none) {
-            return Err(header(None, "pairs of poses need every joint of the second pose: <joint>_b"));
-        }
-        let second: Vec<usize> = second.into_iter().flatten().collect();
-        let (distance, point, plane) =
-            (table.column("distance"), table.column("point"), table.column("plane"));
-        let axes = ["x", "y", "z", "roll", "pitch", "yaw"].map(|c| table.column(c));
-        let coordinates = axes.iter().any(Option::is_some);
-        let kinds = [distance.is_some(), plane.is_some(), coordinates].iter().filter(|&&k| k).count();
-        if kinds != 1 {
-            return Err(header(
-                None,
-                "expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or coordinates (x, y, z, roll, pitch, yaw)",
-            ));
-        }
-        if pairs && point.is_some() {
-            return Err(header(
-                Some("point"),
-                "a distance is between two poses or to a fixed point, not both",
-            ));
-        }
-        let sigma = table.column("sigma");
-        let sigma_angle = table.column("sigma_angle");
+        let columns = KindColumns::resolve(&table, model)?;
         let mut data = Self::default();
         for row in table.nonempty_rows()? {
-            let s = match sigma {
-                Some(c) => positive(&table, row, c, units.length_scale())?,
-                None => DEFAULT_SIGMA_MM,
+            let kind = match columns.kind {
+                Some(c) => RowKind::named(&row.cells[c]).ok_or_else(|| {
+                    let message = format!("`{}`: expected pair, point, contact or coordinates", row.cells[c]);
+                    DataError::new(row.line, Some("kind"), message)
+                })?,
+                None => columns.file_kind.expect("a file without a kind column has one kind"),
             };
-            let s_angle = match sigma_angle {
-                Some(c) => units.angle(positive(&table, row, c, 1.0)?),
-                None => DEFAULT_SIGMA_ANGLE_DEG.to_radians(),
-            };
-            let pose = data.joints.len();
-            data.joints.push(table.joint_values(row, &joints, model, units)?);
-            let mut push = |o: Observation| {
-                data.observations.push(o);
-                data.lines.push(row.line);
-            };
-            if let Some(c) = distance {
-                let measured = positive(&table, row, c, units.length_scale())?;
-                if pairs {
-                    push(Observation::Distance { a: pose, b: pose + 1, measured, sigma: s });
-                    data.joints.push(table.joint_values(row, &second, model, units)?);
-                } else {
-                    let point = point.map_or(Ok(0), |c| id(&table, row, c))?;
-                    push(Observation::ToPoint { pose, point, measured, sigma: s });
-                }
-            } else if let Some(c) = plane {
-                push(Observation::Contact { pose, plane: id(&table, row, c)?, sigma: s });
-            } else {
-                let mut any = false;
-                for (axis, c) in axes.iter().enumerate() {
-                    let Some(c) = *c else { continue };
-                    if row.cells[c].is_empty() {
-                        continue;
-                    }
-                    let v = table.number(row, c)?;
-                    let (measured, sigma) = if axis < 3 {
-                        (table.within(row, c, v * units.length_scale(), MAX_LENGTH_MM, "mm")?, s)
-                    } else {
-                        (units.angle(v), s_angle)
-                    };
-                    push(Observation::Coordinate { pose, axis, measured, sigma });
-                    any = true;
-                }
-                if !any {
-                    return Err(DataError::new(
-                        row.line,
-                        None,
-                        "no coordinate: give at least one of x, y, z, roll, pitch, yaw",
-                    ));
-                }
-            }
+            columns.read_row(&table, row, kind, model, units, &mut data)?;
         }
         Ok(data)
     }
@@ -379,6 +312,177 @@ impl KindData {
             ));
         }
         out
+    }
+}
+
+/// The kind of a row's observation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RowKind {
+    /// A distance between two poses.
+    Pair,
+    /// A distance to a fixed point.
+    ToPoint,
+    /// A contact with a plane.
+    Contact,
+    /// Coordinates.
+    Coordinates,
+}
+
+impl RowKind {
+    /// The kind of a `kind` cell.
+    fn named(cell: &str) -> Option<Self> {
+        Some(match cell {
+            "pair" => Self::Pair,
+            "point" => Self::ToPoint,
+            "contact" => Self::Contact,
+            "coordinates" => Self::Coordinates,
+            _ => return None,
+        })
+    }
+}
+
+/// Where the quantities of an observation file stand in its header.
+struct KindColumns {
+    joints: Vec<usize>,
+    /// Every `<joint>_b`, if the file has them all.
+    second: Option<Vec<usize>>,
+    distance: Option<usize>,
+    point: Option<usize>,
+    plane: Option<usize>,
+    /// x, y, z, roll, pitch, yaw.
+    axes: [Option<usize>; 6],
+    sigma: Option<usize>,
+    sigma_angle: Option<usize>,
+    /// The `kind` column, or the one kind of a file without it.
+    kind: Option<usize>,
+    file_kind: Option<RowKind>,
+}
+
+impl KindColumns {
+    /// Find the columns of `table`'s header; without a `kind` column, the file's one kind.
+    fn resolve(table: &Table, model: &RobotModel) -> Result<Self, DataError> {
+        let header = |column: Option<&str>, m: &str| DataError::new(table.header_line, column, m);
+        let second: Vec<Option<usize>> =
+            model.joints.iter().map(|j| table.column(&format!("{}_b", j.name))).collect();
+        let pairs = second.iter().any(Option::is_some);
+        if pairs && second.iter().any(Option::is_none) {
+            return Err(header(None, "pairs of poses need every joint of the second pose: <joint>_b"));
+        }
+        let columns = Self {
+            joints: table.joint_columns(model)?,
+            second: pairs.then(|| second.into_iter().flatten().collect()),
+            distance: table.column("distance"),
+            point: table.column("point"),
+            plane: table.column("plane"),
+            axes: ["x", "y", "z", "roll", "pitch", "yaw"].map(|c| table.column(c)),
+            sigma: table.column("sigma"),
+            sigma_angle: table.column("sigma_angle"),
+            kind: table.column("kind"),
+            file_kind: None,
+        };
+        if columns.kind.is_some() {
+            return Ok(columns);
+        }
+        let coordinates = columns.axes.iter().any(Option::is_some);
+        let kinds = [columns.distance.is_some(), columns.plane.is_some(), coordinates];
+        if kinds.iter().filter(|&&k| k).count() != 1 {
+            return Err(header(
+                None,
+                "expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or coordinates \
+                 (x, y, z, roll, pitch, yaw); or a `kind` column naming each row's",
+            ));
+        }
+        if pairs && columns.point.is_some() {
+            return Err(header(
+                Some("point"),
+                "a distance is between two poses or to a fixed point, not both",
+            ));
+        }
+        let file_kind = match kinds {
+            [true, _, _] if pairs => RowKind::Pair,
+            [true, _, _] => RowKind::ToPoint,
+            [_, true, _] => RowKind::Contact,
+            _ => RowKind::Coordinates,
+        };
+        Ok(Self { file_kind: Some(file_kind), ..columns })
+    }
+
+    /// `column` of `row`, which its kind needs: an error naming it if absent or empty.
+    fn needed(&self, row: &Row, column: Option<usize>, name: &str) -> Result<usize, DataError> {
+        column.filter(|&c| !row.cells[c].is_empty()).ok_or_else(|| {
+            DataError::new(row.line, Some(name), format!("this kind of row needs a `{name}` value"))
+        })
+    }
+
+    /// The observation of `row`, a `kind` row, with its pose (two for a pair), into `data`.
+    fn read_row(
+        &self,
+        table: &Table,
+        row: &Row,
+        kind: RowKind,
+        model: &RobotModel,
+        units: Units,
+        data: &mut KindData,
+    ) -> Result<(), DataError> {
+        let optional = |c: Option<usize>| c.filter(|&c| !row.cells[c].is_empty());
+        let s = match optional(self.sigma) {
+            Some(c) => positive(table, row, c, units.length_scale())?,
+            None => DEFAULT_SIGMA_MM,
+        };
+        let pose = data.joints.len();
+        data.joints.push(table.joint_values(row, &self.joints, model, units)?);
+        let push = |data: &mut KindData, o: Observation| {
+            data.observations.push(o);
+            data.lines.push(row.line);
+        };
+        match kind {
+            RowKind::Pair => {
+                let second = self.second.as_ref().ok_or_else(|| {
+                    DataError::new(
+                        row.line,
+                        Some("kind"),
+                        "a pair needs the second pose's columns, <joint>_b",
+                    )
+                })?;
+                let c = self.needed(row, self.distance, "distance")?;
+                let measured = positive(table, row, c, units.length_scale())?;
+                push(data, Observation::Distance { a: pose, b: pose + 1, measured, sigma: s });
+                data.joints.push(table.joint_values(row, second, model, units)?);
+            }
+            RowKind::ToPoint => {
+                let c = self.needed(row, self.distance, "distance")?;
+                let measured = positive(table, row, c, units.length_scale())?;
+                let point = optional(self.point).map_or(Ok(0), |c| id(table, row, c))?;
+                push(data, Observation::ToPoint { pose, point, measured, sigma: s });
+            }
+            RowKind::Contact => {
+                let c = self.needed(row, self.plane, "plane")?;
+                push(data, Observation::Contact { pose, plane: id(table, row, c)?, sigma: s });
+            }
+            RowKind::Coordinates => {
+                let s_angle = match optional(self.sigma_angle) {
+                    Some(c) => units.angle(positive(table, row, c, 1.0)?),
+                    None => DEFAULT_SIGMA_ANGLE_DEG.to_radians(),
+                };
+                let mut any = false;
+                for (axis, c) in self.axes.iter().enumerate() {
+                    let Some(c) = optional(*c) else { continue };
+                    let v = table.number(row, c)?;
+                    let (measured, sigma) = if axis < 3 {
+                        (table.within(row, c, v * units.length_scale(), MAX_LENGTH_MM, "mm")?, s)
+                    } else {
+                        (units.angle(v), s_angle)
+                    };
+                    push(data, Observation::Coordinate { pose, axis, measured, sigma });
+                    any = true;
+                }
+                if !any {
+                    let message = "no coordinate: give at least one of x, y, z, roll, pitch, yaw";
+                    return Err(DataError::new(row.line, None, message));
+                }
+            }
+        }
+        Ok(())
     }
 }
 
