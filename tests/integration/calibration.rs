@@ -577,3 +577,22 @@ fn a_probe_pose_turned_off_is_flagged_without_a_noise_model() {
     assert_eq!(flagged.len(), 1, "{:?}", calibration.warnings);
     assert!(flagged[0].starts_with(&format!("line {line}:")), "{flagged:?}");
 }
+
+/// Feasible GLS on 6-DOF data: it starts from OLS (orientation rows weighted by the default
+/// sigmas), estimates an orientation sigma with the others, weights with one above 0, and
+/// lowers the held-out errors.
+#[test]
+fn feasible_gls_on_probe_data_estimates_the_orientation_sigma() {
+    let (nominal, _, training, validation) = probe_campaign(51);
+    let options = probe_options(Estimator::Ols, None);
+    let c = calibration::calibrate_feasible(&nominal, &training, &options, &Default::default()).unwrap();
+    let estimate = c.noise_estimate.as_ref().expect("the estimated noise");
+    // The probe's readings are exact here (only the joints are noisy): the estimate is at
+    // the bound 0, and the weights use what the data cannot rule out, above 0.
+    let orientation = estimate.sigma_orientation().expect("an orientation sigma");
+    assert!(orientation.high < 1e-4, "{orientation:?}");
+    assert!(estimate.weighting_sigmas().1 > 0.0);
+    let held_out = c.evaluate("validation", &validation, Some(&estimate.noise_model())).unwrap();
+    let o = held_out.orientation.as_ref().unwrap();
+    assert!(o[1].rms * 5.0 < o[0].rms, "orientation RMS {} -> {} deg", o[0].rms, o[1].rms);
+}

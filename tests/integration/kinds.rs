@@ -690,3 +690,25 @@ fn the_covariance_of_each_kind_is_the_joint_noise_of_its_poses() {
         );
     }
 }
+
+/// The calibrated model (as `--out-model` writes it) is the fitted one: its tool point, at any
+/// pose, is where the calibration's parameters put it.
+#[test]
+fn the_calibrated_model_is_the_fitted_one() {
+    let mut rng = ChaCha8Rng::seed_from_u64(70);
+    let model = puma();
+    let chain = Chain::markers(&model, &[TOOL]).remove(0);
+    let all: Vec<String> = chain.params().iter().map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let c = calibrate_kinds(&model, &ball_bar(&real, &mut rng, 0.01), &options(Estimator::Wls)).unwrap();
+    let written = robocal::model::to_toml_with_markers(&c.calibrated, &[]);
+    let read = RobotModel::from_toml_str(&written).unwrap();
+    let calibrated = Chain::new(&read);
+    let as_written = calibrated.with_errors(&vec![0.0; calibrated.params().len()]);
+    let fitted = chain.with_errors(&c.after);
+    for _ in 0..20 {
+        let q = random_pose(&model, &mut rng);
+        let gap = (as_written.position(&q) - fitted.position(&q)).norm();
+        assert!(gap < 1e-6, "{gap} mm");
+    }
+}
