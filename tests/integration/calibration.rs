@@ -466,6 +466,21 @@ fn ols_and_wls_on_probe_data_lower_the_held_out_orientation_error() {
     assert!(rms[0] < 2.0 * rms[2] && rms[1] < 2.0 * rms[2], "OLS against WLS (deg): {rms:?}");
 }
 
+/// `model` with its lengths in metres (a DH model without prismatic joints).
+pub(crate) fn in_metres(model: &RobotModel) -> RobotModel {
+    let mut m = model.clone();
+    for joint in &mut m.joints {
+        joint.d /= 1000.0;
+        joint.a /= 1000.0;
+    }
+    m.base.xyz /= 1000.0;
+    m.tool = match m.tool {
+        Tool::Point(p) => Tool::Point(p / 1000.0),
+        Tool::Frame(f) => Tool::Frame(Placement { xyz: f.xyz / 1000.0, rpy: f.rpy }),
+    };
+    m
+}
+
 /// The robot, the data and the noise in metres instead of millimetres give the same ordinary
 /// least-squares estimate (lengths a thousand times smaller, angles equal): OLS on poses
 /// weights its orientation rows by `sigma_position / sigma_orientation`, which has the unit of
@@ -473,19 +488,6 @@ fn ols_and_wls_on_probe_data_lower_the_held_out_orientation_error() {
 #[test]
 fn rescaling_the_length_unit_does_not_change_the_ols_estimate() {
     let (nominal, _, training, _) = probe_campaign(43);
-    let metres = |model: &RobotModel| {
-        let mut m = model.clone();
-        for joint in &mut m.joints {
-            joint.d /= 1000.0;
-            joint.a /= 1000.0;
-        }
-        m.base.xyz /= 1000.0;
-        m.tool = match m.tool {
-            Tool::Point(p) => Tool::Point(p / 1000.0),
-            Tool::Frame(f) => Tool::Frame(Placement { xyz: f.xyz / 1000.0, rpy: f.rpy }),
-        };
-        m
-    };
     let mut data_m = training.clone();
     data_m.markers.iter_mut().flatten().for_each(|p| *p /= 1000.0);
     let in_mm = probe_options(Estimator::Ols, Some(probe_noise()));
@@ -495,7 +497,7 @@ fn rescaling_the_length_unit_does_not_change_the_ols_estimate() {
     );
     let in_m = Options { noise: Some(noise_m), markers: vec![in_mm.markers[0] / 1000.0], ..in_mm.clone() };
     let mm = calibration::calibrate(&nominal, &training, &in_mm).unwrap();
-    let m = calibration::calibrate(&metres(&nominal), &data_m, &in_m).unwrap();
+    let m = calibration::calibrate(&in_metres(&nominal), &data_m, &in_m).unwrap();
     let se = calibration::standard_errors(&mm);
     assert_eq!(mm.refined.estimate.names, m.refined.estimate.names);
     let mut checked = 0;
