@@ -489,6 +489,19 @@ impl Prepared {
         Ok(Self { weights, pinv: factorised.pinv(&a), diagnostics: factorised.diagnostics })
     }
 
+    /// Factor `h` for the weights `weights` (as [`Weights::for_problem`] gives them: an
+    /// ordinary least squares of pose rows scales their orientation rows).
+    pub fn with_weights(
+        h: &DMatrix<f64>,
+        weights: Weights,
+        rank_tolerance: f64,
+    ) -> Result<Self, EstimationError> {
+        let mut a = h.clone();
+        weights.apply(&mut a);
+        let factorised = solve::factorise(&a, rank_tolerance)?;
+        Ok(Self { weights, pinv: factorised.pinv(&a), diagnostics: factorised.diagnostics })
+    }
+
     /// The estimate for pose errors `y` (Eqs. 4-6).
     pub fn estimate(&self, y: &DVector<f64>) -> DVector<f64> {
         let mut b = y.clone();

@@ -41,7 +41,7 @@ pub use synthetic::measurement_csv;
 use crate::design::{Criterion, Design, DesignError};
 use crate::estimation::{
     DeviceError, EstimationError, MeasurementNoise, NoiseModel, PointProblem, Prepared, RANK_TOLERANCE,
-    RefineOptions, refine,
+    RefineOptions, Weights, refine,
 };
 use crate::kinematics::{Chain, ChainAt, Measured, pose_error};
 use crate::model::ParamKind;
@@ -272,8 +272,9 @@ impl Bench<'_> {
         let mut prepared = Vec::new();
         if study.iterations == 1 {
             for &estimator in &study.estimators {
-                let rows = system.rows_per_point;
-                prepared.push(Prepared::new(&system.h, system.v.as_ref(), rows, estimator, RANK_TOLERANCE)?);
+                // The problem's weights: an ols of poses weights their orientation rows.
+                let weights = Weights::for_problem(&problem, estimator)?;
+                prepared.push(Prepared::with_weights(&system.h, weights, RANK_TOLERANCE)?);
             }
         }
         let rank = match prepared.first() {
