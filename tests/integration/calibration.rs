@@ -351,6 +351,15 @@ fn a_probe_with_orientation_calibrates_its_mounting_too() {
     assert_eq!(held_out.pooled[1], after);
     let orientation = held_out.orientation.as_ref().expect("a probe's orientation errors");
     assert!(orientation[1].rms < orientation[0].rms, "orientation error falls: {orientation:?}");
+    // The per-pose table: the angle and the rotation vector of each stage, in degrees.
+    let csv = robocal::report::poses::poses_csv(&[&held_out], &nominal.joints);
+    let (head, row) = (csv.lines().next().unwrap(), csv.lines().nth(1).unwrap());
+    assert!(head.contains("after_orientation_deg,after_rx_deg,after_ry_deg,after_rz_deg"), "{head}");
+    let cells: Vec<f64> = row.split(',').skip(2).filter_map(|c| c.parse().ok()).collect();
+    let at = head.split(',').position(|h| h == "after_rx_deg").unwrap() - 2;
+    let turn = Vector3::from(held_out.poses[0].orientation.as_ref().unwrap()[1]);
+    assert_eq!(cells[at], turn.x);
+    assert!((cells[at - 1] - turn.norm()).abs() < 1e-12);
     let scored =
         calibration::evaluate_model(&calibration.calibrated, &[], "validation", &validation, None).unwrap();
     for (a, b) in held_out.poses.iter().zip(&scored.poses) {
