@@ -48,6 +48,18 @@ pub enum JointParams {
     Named(Vec<String>),
 }
 
+impl JointParams {
+    /// These parameters among `params`.
+    pub fn select(&self, params: &ParamSet) -> Result<Selection, SelectionError> {
+        Ok(match self {
+            Self::All => Selection::joints(params),
+            Self::Offsets => Selection::offsets(params),
+            Self::None => Selection::from_indices(params, []),
+            Self::Named(names) => Selection::by_names(params, names)?,
+        })
+    }
+}
+
 /// How to calibrate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Options {
@@ -826,12 +838,7 @@ fn selection(
     joints: &JointParams,
     options: &Options,
 ) -> Result<Selection, SelectionError> {
-    let joint = match joints {
-        JointParams::All => Selection::joints(params),
-        JointParams::Offsets => Selection::offsets(params),
-        JointParams::None => Selection::from_indices(params, []),
-        JointParams::Named(names) => Selection::by_names(params, names)?,
-    };
+    let joint = joints.select(params)?;
     let extra = (0..params.len()).filter(|&i| match params.get(i).owner {
         ParamOwner::Base => options.estimate_base,
         ParamOwner::Marker(_) => options.estimate_markers,

@@ -59,7 +59,8 @@ pub use data::{KindData, Observation};
 
 use super::{CalibrationError, JointParams, fold, gauge_class};
 use crate::estimation::{
-    Estimator, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, refine_from,
+    Estimator, Linearisation, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise,
+    refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection};
@@ -484,10 +485,10 @@ fn rms(r: &DVector<f64>) -> f64 {
     (r.norm_squared() / r.len().max(1) as f64).sqrt()
 }
 
-/// Calibrate `model` from distances and contacts: the set-up fitted with the robot nominal
-/// ("before"), then the robot's parameters asked for and the set-up together ("after"), the
-/// base held (distances and planes cannot see it), what the poses cannot tell apart held by the
-/// rank-revealing solve.
+/// Calibrate `model` from distances, contacts and coordinates: the set-up fitted with the
+/// robot nominal ("before"), then the robot's parameters asked for and the set-up together
+/// ("after"); what the observations cannot see held and said ([`KindCalibration::unseen`]), what the
+/// poses cannot tell apart held by the rank-revealing solve.
 pub fn calibrate_kinds(
     model: &RobotModel,
     data: &KindData,
@@ -506,48 +507,31 @@ pub fn calibrate_kinds(
         data.joints.iter().map(|q| at.position(q)).collect()
     };
     let (setup, start) = data.initial_setup(&nominal)?;
-    let all_setup: Vec<usize> = (0..setup.len()).collect();
     let nothing = Selection::from_indices(&params, []);
-    let noise = options.joint_noise.as_ref();
+    let every: Vec<usize> = (0..setup.len()).collect();
     let base_problem = KindProblem::new(
         &chain,
         &nothing,
         data,
         &setup,
         zero.clone(),
-        start.clone(),
-        all_setup.clone(),
-        noise,
+        start,
+        every,
+        options.joint_noise.as_ref(),
     );
     let weights = Weights::for_problem(&base_problem, options.estimator)?;
     // "Before": the set-up alone, the robot nominal.
-    let before_setup = if setup.is_empty() {
-        start
-    } else {
-        let fit = linearise(&base_problem, &weights, base_problem.start())?;
-        let refined = refine_from(&base_problem, &weights, fit, &RefineOptions::default())?;
-        base_problem.full(&refined.estimate.x).1
+    let before_setup = match setup.is_empty() {
+        true => base_problem.full(&base_problem.start()).1,
+        false => {
+            let fit = linearise(&base_problem, &weights, base_problem.start())?;
+            let refined = refine_from(&base_problem, &weights, fit, &RefineOptions::default())?;
+            base_problem.full(&refined.estimate.x).1
+        }
     };
-    // "After": the joints asked for, the tool point, the set-up; never the base.
-    let joints = match &options.joints {
-        JointParams::All => Selection::joints(&params),
-        JointParams::Offsets => Selection::offsets(&params),
-        JointParams::None => Selection::from_indices(&params, []),
-        JointParams::Named(names) => Selection::by_names(&params, names)?,
-    };
-    let tool = (0..params.len())
-        .filter(|&i| options.estimate_tool && matches!(params.get(i).owner, ParamOwner::Marker(_)));
-    let base = (0..params.len()).filter(|&i| data.sees_the_base() && params.get(i).owner == ParamOwner::Base);
-    let asked = Selection::from_indices(&params, joints.indices().iter().copied().chain(tool).chain(base));
-    // Contacts alone cannot see the scale (every length and plane offset times one factor
-    // leaves every contact): the first plane's offset is held at its fit with the nominal
-    // robot.
-    let estimated_setup: Vec<usize> = match data.sees_the_scale() {
-        true => all_setup.clone(),
-        false => all_setup.iter().copied().filter(|&i| i != 3 * setup.points + 2).collect(),
-    };
-    let all_setup = estimated_setup;
-    let problem = base_problem.reselect(&asked, zero.clone(), before_setup.clone(), all_setup.clone());
+    // "After": what was asked for that the observations identify.
+    let (asked, asked_setup) = asked(&params, &setup, data, options)?;
+    let problem = base_problem.reselect(&asked, zero.clone(), before_setup.clone(), asked_setup.clone());
     if problem.equations() <= problem.parameters() {
         return Err(CalibrationError::TooFewPoses {
             poses: data.joints.len(),
@@ -556,44 +540,24 @@ pub fn calibrate_kinds(
             needed: problem.parameters() + 1,
         });
     }
-    // Columns the observations do not move at all (to rounding: below 1e-10 of the largest)
-    // are held first; the column scaling of the rank-revealing solve would blow their
-    // rounding up into directions of their own.
     let linearised = linearise(&problem, &weights, problem.start())?;
-    let norms: Vec<f64> = linearised.a.column_iter().map(|c| c.norm()).collect();
-    let largest = norms.iter().copied().fold(0.0, f64::max);
-    let names = problem.names();
-    let seen: Vec<usize> = (0..norms.len()).filter(|&c| norms[c] > 1e-10 * largest).collect();
-    let mut fixed: Vec<String> = (0..norms.len())
-        .filter(|c| !seen.contains(c))
-        .map(|c| format!("{}: the observations do not move it", names[c]))
+    let priority: Vec<u32> = (0..problem.parameters())
+        .map(|c| asked.indices().get(c).map_or(0, |&i| gauge_class(params.get(i))))
         .collect();
-    let robot_columns = asked.len();
-    let class = |c: usize| if c < robot_columns { gauge_class(params.get(asked.indices()[c])) } else { 0 };
-    let at_before = linearised.select(&seen);
-    let priority: Vec<u32> = seen.iter().map(|&c| class(c)).collect();
-    let diagnostics = at_before.diagnose_by_priority(RANK_TOLERANCE, &priority)?;
-    let seen_names: Vec<&str> = seen.iter().map(|&c| names[c].as_str()).collect();
-    fixed.extend(diagnostics.not_identifiable.iter().map(|c| c.describe(&seen_names)));
-    let identifiable: Vec<usize> = diagnostics.identifiable.iter().map(|&c| seen[c]).collect();
+    let (identifiable, fixed) = identifiable(&linearised, &problem.names(), &priority)?;
+    let robot = asked.len();
     let kept = Selection::from_indices(
         &params,
-        identifiable.iter().filter(|&&c| c < robot_columns).map(|&c| asked.indices()[c]),
+        identifiable.iter().filter(|&&c| c < robot).map(|&c| asked.indices()[c]),
     );
-    let kept_setup: Vec<usize> =
-        identifiable.iter().filter(|&&c| c >= robot_columns).map(|&c| all_setup[c - robot_columns]).collect();
+    let kept_setup = identifiable.iter().filter(|&&c| c >= robot).map(|&c| asked_setup[c - robot]).collect();
     let problem = base_problem.reselect(&kept, zero.clone(), before_setup.clone(), kept_setup);
-    let estimate =
-        refine_from(&problem, &weights, at_before.select(&diagnostics.identifiable), &options.refine)?;
+    let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);
-    let training = (
-        rms(&problem
-            .reselect(&nothing, zero.clone(), before_setup.clone(), Vec::new())
-            .residuals(&DVector::zeros(0))),
-        rms(&problem
-            .reselect(&nothing, after.clone(), after_setup.clone(), Vec::new())
-            .residuals(&DVector::zeros(0))),
-    );
+    let rms_at = |x: &[f64], s: &[f64]| {
+        rms(&problem.reselect(&nothing, x.to_vec(), s.to_vec(), Vec::new()).residuals(&DVector::zeros(0)))
+    };
+    let training = (rms_at(&zero, &before_setup), rms_at(&after, &after_setup));
     let calibrated = fold(model, &params, &after, &[options.tool], probe.as_ref());
     Ok(KindCalibration {
         calibrated,
@@ -608,4 +572,48 @@ pub fn calibrate_kinds(
         training,
         chain,
     })
+}
+
+/// The robot parameters and the set-up parameters asked for: the joints of `options`, the tool
+/// point unless held, the base only if coordinates see it; every set-up parameter but, when
+/// contacts alone cannot see the scale (every length and plane offset times one factor leaves
+/// every contact), the first plane's offset, held at its fit with the nominal robot.
+fn asked(
+    params: &ParamSet,
+    setup: &SetUp,
+    data: &KindData,
+    options: &KindOptions,
+) -> Result<(Selection, Vec<usize>), CalibrationError> {
+    let joints = options.joints.select(params)?;
+    let extra = (0..params.len()).filter(|&i| match params.get(i).owner {
+        ParamOwner::Marker(_) => options.estimate_tool,
+        ParamOwner::Base => data.sees_the_base(),
+        _ => false,
+    });
+    let robot = Selection::from_indices(params, joints.indices().iter().copied().chain(extra));
+    let scale = 3 * setup.points + 2;
+    let setup = (0..setup.len()).filter(|&i| data.sees_the_scale() || setup.planes() == 0 || i != scale);
+    Ok((robot, setup.collect()))
+}
+
+/// The columns of `linearised` to estimate, and the others in words: first those it does not
+/// move at all (a column norm below 1e-10 of the largest: the column scaling of the
+/// rank-revealing solve would blow their rounding up into directions of their own), then the
+/// combinations the rank-revealing solve holds, by `priority` ([`gauge_class`]).
+fn identifiable(
+    linearised: &Linearisation,
+    names: &[String],
+    priority: &[u32],
+) -> Result<(Vec<usize>, Vec<String>), CalibrationError> {
+    let norms: Vec<f64> = linearised.a.column_iter().map(|c| c.norm()).collect();
+    let largest = norms.iter().copied().fold(0.0, f64::max);
+    let (seen, unseen): (Vec<usize>, Vec<usize>) =
+        (0..norms.len()).partition(|&c| norms[c] > 1e-10 * largest);
+    let mut fixed: Vec<String> =
+        unseen.iter().map(|&c| format!("{}: the observations do not move it", names[c])).collect();
+    let seen_priority: Vec<u32> = seen.iter().map(|&c| priority[c]).collect();
+    let diagnostics = linearised.select(&seen).diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?;
+    let seen_names: Vec<&str> = seen.iter().map(|&c| names[c].as_str()).collect();
+    fixed.extend(diagnostics.not_identifiable.iter().map(|c| c.describe(&seen_names)));
+    Ok((diagnostics.identifiable.iter().map(|&c| seen[c]).collect(), fixed))
 }
