@@ -347,6 +347,7 @@ fn plane_contacts_calibrate_the_robot_and_the_planes() {
     let with_a_length = |real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64| {
         let mut lengths = pairs(real, rng, sigma);
         lengths.observations.truncate(30);
+        lengths.lines.truncate(30);
         contacts(3)(real, rng, sigma).join(&lengths)
     };
     let c = recovers(&with_a_length, None, true, 63);
@@ -711,4 +712,35 @@ fn the_calibrated_model_is_the_fitted_one() {
         let gap = (as_written.position(&q) - fitted.position(&q)).norm();
         assert!(gap < 1e-6, "{gap} mm");
     }
+}
+
+/// Observations that cannot be fitted are refused with what is wrong, never a panic: too few
+/// distances for a fixed point (a point number with a gap before it), too few contacts for a
+/// plane, data built by hand with a pose that does not exist or a sigma of 0.
+#[test]
+fn observations_that_cannot_be_fitted_are_refused() {
+    let model = puma();
+    let mut rng = ChaCha8Rng::seed_from_u64(71);
+    let joints: Vec<Vec<f64>> = (0..8).map(|_| random_pose(&model, &mut rng)).collect();
+    let error = |observations: Vec<Observation>| {
+        let lines = (0..observations.len()).map(|i| i + 3).collect();
+        let data = KindData { joints: joints.clone(), observations, lines };
+        calibrate_kinds(&model, &data, &options(Estimator::Ols)).unwrap_err().to_string()
+    };
+    let to_point_2 =
+        (0..8).map(|pose| Observation::ToPoint { pose, point: 1, measured: 500.0, sigma: 0.01 }).collect();
+    assert_eq!(
+        error(to_point_2),
+        "fixed point 1: 0 distances, expected at least 4 from poses not on one plane"
+    );
+    let contacts = (0..2).map(|pose| Observation::Contact { pose, plane: 0, sigma: 0.01 }).collect();
+    assert_eq!(error(contacts), "plane 1: 2 contacts, expected at least 3 not on one line");
+    assert_eq!(
+        error(vec![Observation::Distance { a: 0, b: 9, measured: 1.0, sigma: 0.01 }]),
+        "line 3: a pose beyond the 8 given"
+    );
+    assert_eq!(
+        error(vec![Observation::Contact { pose: 0, plane: 0, sigma: 0.0 }]),
+        "line 3: a finite value and a sigma above 0 expected"
+    );
 }

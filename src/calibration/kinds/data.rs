@@ -216,16 +216,23 @@ impl KindData {
                     _ => None,
                 })
                 .collect();
+            let too_few = || {
+                few(format!(
+                    "fixed point {}: {} distances, expected at least 4 from poses not on one plane",
+                    i + 1,
+                    rows.len()
+                ))
+            };
+            if rows.len() < 4 {
+                return Err(too_few());
+            }
             let a = DMatrix::from_fn(rows.len(), 4, |r, c| if c < 3 { 2.0 * rows[r].0[c] } else { -1.0 });
             let b = DVector::from_fn(rows.len(), |r, _| rows[r].0.norm_squared() - rows[r].1 * rows[r].1);
             let svd = a.svd(true, true);
             let largest = svd.singular_values.max();
-            if rows.len() < 4 || svd.singular_values.min() <= 1e-9 * largest {
-                return Err(few(format!(
-                    "fixed point {}: {} distances, expected at least 4 from poses not on one plane",
-                    i + 1,
-                    rows.len()
-                )));
+            let smallest = svd.singular_values.min();
+            if smallest.is_nan() || smallest <= 1e-9 * largest {
+                return Err(too_few());
             }
             let c = svd.solve(&b, 1e-12 * largest).map_err(|e| few(e.to_string()))?;
             values.extend([c[0], c[1], c[2]]);
@@ -238,16 +245,24 @@ impl KindData {
                     _ => None,
                 })
                 .collect();
-            let centroid = contacts.iter().sum::<Vector3<f64>>() / contacts.len().max(1) as f64;
-            let m = DMatrix::from_fn(contacts.len(), 3, |r, c| contacts[r][c] - centroid[c]);
-            let svd = m.svd(false, true);
-            let s = &svd.singular_values;
-            if contacts.len() < 3 || s.len() < 3 || s[1] <= 1e-9 * s[0] {
-                return Err(few(format!(
+            let too_few = || {
+                few(format!(
                     "plane {}: {} contacts, expected at least 3 not on one line",
                     i + 1,
                     contacts.len()
-                )));
+                ))
+            };
+            if contacts.len() < 3 {
+                return Err(too_few());
+            }
+            let centroid = contacts.iter().sum::<Vector3<f64>>() / contacts.len() as f64;
+            let m = DMatrix::from_fn(contacts.len(), 3, |r, c| contacts[r][c] - centroid[c]);
+            let svd = m.svd(false, true);
+            let s = &svd.singular_values;
+            let mut sorted: Vec<f64> = s.iter().copied().collect();
+            sorted.sort_by(|a, b| b.total_cmp(a));
+            if sorted[1].is_nan() || sorted[1] <= 1e-9 * sorted[0] {
+                return Err(too_few());
             }
             let v_t = svd.v_t.expect("asked for V");
             let smallest = (0..3).min_by(|&a, &b| s[a].total_cmp(&s[b])).expect("3 values");
@@ -260,6 +275,36 @@ impl KindData {
             values.extend([0.0, 0.0, n.dot(&centroid)]);
         }
         Ok((SetUp::new(points, &normals), values))
+    }
+
+    /// Refuse observations that do not fit (for data built by hand rather than read): a pose
+    /// that does not exist, joint values not one finite value per joint of a robot with
+    /// `dof` joints, a sigma not finite and above 0, an axis beyond 5, a line missing.
+    pub fn check(&self, dof: usize) -> Result<(), CalibrationError> {
+        let bad = |what: String| Err(CalibrationError::Observations(what));
+        if self.lines.len() != self.observations.len() {
+            return bad(format!("{} lines for {} observations", self.lines.len(), self.observations.len()));
+        }
+        if let Some(k) = self.joints.iter().position(|q| q.len() != dof || q.iter().any(|v| !v.is_finite())) {
+            return bad(format!("pose {k}: expected {dof} finite joint values"));
+        }
+        for (o, line) in self.observations.iter().zip(&self.lines) {
+            let poses = match *o {
+                Observation::Distance { a, b, .. } => [a, b],
+                Observation::ToPoint { pose, .. } | Observation::Contact { pose, .. } => [pose, pose],
+                Observation::Coordinate { pose, axis, .. } if axis < 6 => [pose, pose],
+                Observation::Coordinate { axis, .. } => {
+                    return bad(format!("line {line}: axis {axis}, expected 0 to 5"));
+                }
+            };
+            if poses.iter().any(|&p| p >= self.joints.len()) {
+                return bad(format!("line {line}: a pose beyond the {} given", self.joints.len()));
+            }
+            if !(o.sigma().is_finite() && o.sigma() > 0.0 && o.measured().is_finite()) {
+                return bad(format!("line {line}: a finite value and a sigma above 0 expected"));
+            }
+        }
+        Ok(())
     }
 
     /// Refuse points and planes that `setup` does not have.

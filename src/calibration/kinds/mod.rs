@@ -457,6 +457,7 @@ pub struct KindCalibration {
 impl KindCalibration {
     /// RMS of the residuals of `data` (mm) before and after, the set-up as calibrated.
     pub fn validate(&self, data: &KindData) -> Result<(f64, f64), CalibrationError> {
+        data.check(self.chain.dof())?;
         data.check_against(&self.setup)?;
         let rms = |x: &[f64], s: &[f64]| {
             let nothing = Selection::from_indices(&self.params, []);
@@ -494,6 +495,7 @@ pub fn calibrate_kinds(
     data: &KindData,
     options: &KindOptions,
 ) -> Result<KindCalibration, CalibrationError> {
+    data.check(model.dof())?;
     // Angles need a tool frame: the tool point, turned as the marker frame to start with.
     let probe = data.has_angles().then_some(Placement { xyz: options.tool, rpy: Vector3::zeros() });
     let chain = match &probe {
