@@ -34,9 +34,8 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         .validate
         .iter()
         .map(|path| {
-            let (before, after) =
-                c.validate(&read(path, &model, request)?).with_context(|| path.display().to_string())?;
-            Ok((path.display().to_string(), before, after))
+            let score = c.score(&read(path, &model, request)?).with_context(|| path.display().to_string())?;
+            Ok((path.display().to_string(), score))
         })
         .collect::<Result<Vec<_>>>()?;
     let fitted = (data.observations.len(), data.joints.len());

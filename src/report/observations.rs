@@ -1,10 +1,12 @@
 //! The report of a calibration from distances, contacts and coordinates
 //! ([`crate::calibration::kinds`]): parameters with their standard errors (the set-up's too),
-//! what the observations cannot see, and the RMS residuals before and after on the training
-//! and the held-out files. Text and JSON carry the same content.
+//! what the observations cannot see, the RMS residuals before and after on the training and
+//! the held-out files, the worst observations and those flagged. Text and JSON carry the same
+//! content.
 
 use super::calibration::ParameterRow;
-use crate::calibration::kinds::KindCalibration;
+use crate::calibration::FLAG_AT;
+use crate::calibration::kinds::{KindCalibration, ObservationResidual, Score};
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -31,9 +33,16 @@ pub struct ObservationsReport {
     pub unseen: Vec<String>,
     /// Combinations the poses cannot tell apart, held, in words.
     pub fixed: Vec<String>,
-    /// RMS residuals (mm) before and after: the training observations, then each held-out file.
-    pub residuals: Vec<(String, f64, f64)>,
+    /// The training observations scored, then each held-out file: every observation's
+    /// residual, and the RMS of the lengths (mm) and of the angles (deg).
+    pub sets: Vec<(String, Score)>,
+    /// Observations whose residual after calibration is more than [`FLAG_AT`] standard
+    /// deviations out, in words.
+    pub warnings: Vec<String>,
 }
+
+/// Observations listed per set in the text, the worst first.
+pub const WORST: usize = 5;
 
 impl ObservationsReport {
     /// The report of `c`, fitted on `data` (names) with `estimator`; `held_out` are the held-out
@@ -43,7 +52,7 @@ impl ObservationsReport {
         data: &str,
         fitted: (usize, usize),
         estimator: &str,
-        held_out: Vec<(String, f64, f64)>,
+        held_out: Vec<(String, Score)>,
     ) -> Self {
         let se = c.refined.estimate.standard_errors();
         let setup = c.setup.names();
@@ -64,8 +73,19 @@ impl ObservationsReport {
                 ParameterRow { name: name.clone(), value: value * scale, std_error: se[k] * scale, unit }
             })
             .collect();
-        let mut residuals = vec![("training".to_string(), c.training.0, c.training.1)];
-        residuals.extend(held_out);
+        let mut sets = vec![("training".to_string(), c.training.clone())];
+        sets.extend(held_out);
+        let warnings = (c.training.observations.iter())
+            .filter(|r| r.whitened.abs() > FLAG_AT)
+            .map(|r| {
+                format!(
+                    "line {} ({}): a residual {:.1} standard deviations out after calibration",
+                    r.line,
+                    r.kind,
+                    r.whitened.abs()
+                )
+            })
+            .collect();
         Self {
             model: c.calibrated.name.clone(),
             data: data.to_string(),
@@ -77,7 +97,8 @@ impl ObservationsReport {
             parameters,
             unseen: c.unseen.clone(),
             fixed: c.fixed.clone(),
-            residuals,
+            sets,
+            warnings,
         }
     }
 
@@ -109,15 +130,38 @@ impl ObservationsReport {
                 let _ = writeln!(out, "  {f}");
             }
         }
-        let width = self.residuals.iter().map(|r| r.0.len()).max().unwrap_or(0).max(24);
-        let _ = writeln!(out, "\n{:<width$} {:>10} {:>10}", "residuals, RMS (mm)", "before", "after");
-        for (name, before, after) in &self.residuals {
-            let _ = writeln!(out, "{name:<width$} {before:>10.4} {after:>10.4}");
+        let width = self.sets.iter().map(|r| r.0.len() + 9).max().unwrap_or(0).max(24);
+        let _ = writeln!(out, "\n{:<width$} {:>10} {:>10}", "residuals, RMS", "before", "after");
+        for (name, score) in &self.sets {
+            let (before, after) = score.lengths;
+            let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
+            if let Some((before, after)) = score.angles {
+                let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
+            }
+        }
+        let _ =
+            writeln!(out, "\nworst observations after calibration ({WORST} per set; every one in --json):");
+        for (name, score) in &self.sets {
+            let mut worst: Vec<&ObservationResidual> = score.observations.iter().collect();
+            worst.sort_by(|a, b| b.whitened.abs().total_cmp(&a.whitened.abs()));
+            for r in worst.iter().take(WORST) {
+                let _ = writeln!(
+                    out,
+                    "  {name}, line {} ({}): {:.4} before, {:.4} after, {:.1} sd",
+                    r.line, r.kind, r.before, r.after, r.whitened
+                );
+            }
         }
         let _ = writeln!(
             out,
             "\nbefore: the set-up (points, planes) fitted with the robot nominal; after: the robot and the set-up"
         );
+        if !self.warnings.is_empty() {
+            let _ = writeln!(out, "\nwarnings:");
+            for w in &self.warnings {
+                let _ = writeln!(out, "  {w}");
+            }
+        }
         out
     }
 }

@@ -174,8 +174,13 @@ fn recovers_with(
     let everything = errors_on(&chain, &all, &mut rng);
     let exact = measure(&chain.with_errors(&everything), &mut rng, 0.0);
     let c = calibrate_kinds(&model, &exact, &options(Estimator::Ols)).unwrap();
-    assert!(c.training.1 < 1e-7, "exact data: training RMS {} mm after", c.training.1);
-    assert!(c.training.0 > 1e3 * c.training.1, "before {} mm, after {} mm", c.training.0, c.training.1);
+    assert!(c.training.lengths.1 < 1e-7, "exact data: training RMS {} mm after", c.training.lengths.1);
+    assert!(
+        c.training.lengths.0 > 1e3 * c.training.lengths.1,
+        "before {} mm, after {} mm",
+        c.training.lengths.0,
+        c.training.lengths.1
+    );
     let held_out = measure(&chain.with_errors(&everything), &mut rng, 0.0);
     let (before, after) = c.validate(&held_out).unwrap();
     assert!(after < 1e-6 && before > 0.1, "exact held-out RMS {before} mm before, {after} mm after");
@@ -293,7 +298,7 @@ fn distances_with_joint_noise_are_weighted_by_both_poses() {
     };
     let sigma_q = DMatrix::from_diagonal_element(6, 6, sigma_joint * sigma_joint);
     let c = recovers_with(&noisy_pairs, None, true, Some(sigma_q), false, 68);
-    assert!(c.training.1 > 0.005, "the joint noise shows in the residuals: {:?}", c.training);
+    assert!(c.training.lengths.1 > 0.005, "the joint noise shows in the residuals: {:?}", c.training.lengths);
 }
 
 /// The planes of a cell in the robot's base frame: a table below, two walls.
@@ -391,7 +396,7 @@ fn a_table_alone_cannot_see_turns_about_its_normal() {
         c.unseen
     );
     // Not collapsed: exact contacts are fitted by a robot of the nominal scale.
-    assert!(c.training.1 < 1e-7, "{:?}", c.training);
+    assert!(c.training.lengths.1 < 1e-7, "{:?}", c.training.lengths);
     let fitted = chain.with_errors(&c.after);
     let q = &data.joints[0];
     assert!(
@@ -596,8 +601,9 @@ fn the_command_calibrates_from_a_ball_bar_and_validates() {
     assert!(text.contains("base (6 parameters): distances cannot see the base placement"), "{text}");
     assert!(text.contains("point1.x"), "{text}");
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let held_out = &report["residuals"][1];
-    let (before, after) = (held_out[1].as_f64().unwrap(), held_out[2].as_f64().unwrap());
+    let held_out = &report["sets"][1][1]["lengths"];
+    let (before, after) = (held_out[0].as_f64().unwrap(), held_out[1].as_f64().unwrap());
+    assert_eq!(report["sets"][1][1]["observations"].as_array().unwrap().len(), 60);
     assert!(
         after * 20.0 < before && after < 0.02,
         "held-out RMS {before} mm before, {after} mm after\n{text}"
@@ -743,4 +749,32 @@ fn observations_that_cannot_be_fitted_are_refused() {
         error(vec![Observation::Contact { pose: 0, plane: 0, sigma: 0.0 }]),
         "line 3: a finite value and a sigma above 0 expected"
     );
+}
+
+/// A length 0.1 mm (10 standard deviations) off among 150 is flagged by its whitened residual,
+/// and only it; every
+/// observation is scored in the report.
+#[test]
+fn an_observation_far_out_is_flagged() {
+    let mut rng = ChaCha8Rng::seed_from_u64(72);
+    let model = puma();
+    let chain = Chain::markers(&model, &[TOOL]).remove(0);
+    let all: Vec<String> = chain.params().iter().map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let mut data = ball_bar(&real, &mut rng, 0.01);
+    if let Observation::ToPoint { measured, .. } = &mut data.observations[40] {
+        *measured += 0.1;
+    }
+    let c = calibrate_kinds(&model, &data, &options(Estimator::Wls)).unwrap();
+    let report =
+        robocal::report::observations::ObservationsReport::new(&c, "bar.csv", (150, 150), "wls", vec![]);
+    assert_eq!(report.sets[0].1.observations.len(), 150);
+    assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
+    let line = data.lines[40];
+    assert!(
+        report.warnings[0].starts_with(&format!("line {line} (point): a residual")),
+        "{:?}",
+        report.warnings
+    );
+    assert!(report.text().contains(&format!("training, line {line} (point)")));
 }

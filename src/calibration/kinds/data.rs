@@ -87,6 +87,24 @@ impl Observation {
         }
     }
 
+    /// Its kind in words: `distance` (a pair), `point`, `contact`, or the coordinate `x` ...
+    /// `yaw`.
+    pub fn kind(&self) -> &'static str {
+        match *self {
+            Self::Distance { .. } => "distance",
+            Self::ToPoint { .. } => "point",
+            Self::Contact { .. } => "contact",
+            Self::Coordinate { axis, .. } => {
+                ["x", "y", "z", "roll", "pitch", "yaw"].get(axis).copied().unwrap_or("?")
+            }
+        }
+    }
+
+    /// Whether it is an angle (rad).
+    pub fn is_angle(&self) -> bool {
+        matches!(self, Self::Coordinate { axis: 3.., .. })
+    }
+
     /// The residual `m_k - f` of a prediction `f`; an angle's wrapped into `(-pi, pi]`.
     pub fn residual(&self, f: f64) -> f64 {
         let r = self.measured() - f;

@@ -449,19 +449,79 @@ pub struct KindCalibration {
     pub unseen: Vec<String>,
     /// Combinations the poses cannot tell apart, held fixed, in words.
     pub fixed: Vec<String>,
-    /// RMS of the training residuals (mm), before and after.
-    pub training: (f64, f64),
+    /// The training observations scored, before and after.
+    pub training: Score,
+    joint_noise: Option<DMatrix<f64>>,
     chain: Chain,
 }
 
+/// One observation scored: its residual `m_k - f_k` before and after (mm; rad for an angle),
+/// and after whitened by `sqrt(V_k)`.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ObservationResidual {
+    /// Its line in the file.
+    pub line: usize,
+    /// `distance`, `point`, `contact`, `x` ... `yaw`.
+    pub kind: &'static str,
+    /// The residual before calibration.
+    pub before: f64,
+    /// After.
+    pub after: f64,
+    /// After, divided by its standard deviation `sqrt(V_k)`.
+    pub whitened: f64,
+}
+
+/// A set of observations scored: each one, and the RMS residuals before and after of the
+/// lengths (mm) and of the angles (deg, if any).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Score {
+    /// Every observation, in order.
+    pub observations: Vec<ObservationResidual>,
+    /// RMS of the length residuals (mm), before and after.
+    pub lengths: (f64, f64),
+    /// RMS of the angle residuals (deg), before and after, if angles were measured.
+    pub angles: Option<(f64, f64)>,
+}
+
+impl Score {
+    /// `data`'s residuals before and after (`y`), and after whitened (`z`).
+    fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), v: &DMatrix<f64>) -> Self {
+        let observations: Vec<ObservationResidual> = (data.observations.iter().enumerate())
+            .map(|(k, o)| ObservationResidual {
+                line: data.lines[k],
+                kind: o.kind(),
+                before: before[k],
+                after: after[k],
+                whitened: after[k] / v[(k, 0)].sqrt(),
+            })
+            .collect();
+        let rms = |angle: bool, scale: f64| {
+            let chosen: Vec<&ObservationResidual> = (observations.iter().zip(&data.observations))
+                .filter(|(_, o)| o.is_angle() == angle)
+                .map(|(r, _)| r)
+                .collect();
+            let n = chosen.len().max(1) as f64;
+            let of = |f: fn(&ObservationResidual) -> f64| {
+                (chosen.iter().map(|r| (f(r) * scale).powi(2)).sum::<f64>() / n).sqrt()
+            };
+            (!chosen.is_empty()).then(|| (of(|r| r.before), of(|r| r.after)))
+        };
+        let lengths = rms(false, 1.0).unwrap_or((0.0, 0.0));
+        let angles = rms(true, 1f64.to_degrees());
+        Self { observations, lengths, angles }
+    }
+}
+
 impl KindCalibration {
-    /// RMS of the residuals of `data` (mm) before and after, the set-up as calibrated.
-    pub fn validate(&self, data: &KindData) -> Result<(f64, f64), CalibrationError> {
+    /// `data` scored before and after, the set-up as calibrated, whitened by `V_k` with the
+    /// calibration's joint noise.
+    pub fn score(&self, data: &KindData) -> Result<Score, CalibrationError> {
         data.check(self.chain.dof())?;
         data.check_against(&self.setup)?;
-        let rms = |x: &[f64], s: &[f64]| {
-            let nothing = Selection::from_indices(&self.params, []);
-            let problem = KindProblem::new(
+        let nothing = Selection::from_indices(&self.params, []);
+        let noise = self.joint_noise.as_ref();
+        let at = |x: &[f64], s: &[f64]| {
+            KindProblem::new(
                 &self.chain,
                 &nothing,
                 data,
@@ -469,21 +529,24 @@ impl KindCalibration {
                 x.to_vec(),
                 s.to_vec(),
                 Vec::new(),
-                None,
-            );
-            rms(&problem.residuals(&DVector::zeros(0)))
+                noise,
+            )
         };
-        Ok((rms(&self.before, &self.setup_values.0), rms(&self.after, &self.setup_values.1)))
+        let (before, after) = (at(&self.before, &self.setup_values.0), at(&self.after, &self.setup_values.1));
+        let zero = DVector::zeros(0);
+        let v = after.covariance().expect("always built");
+        Ok(Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), v))
+    }
+
+    /// RMS of the length residuals of `data` (mm) before and after ([`KindCalibration::score`]).
+    pub fn validate(&self, data: &KindData) -> Result<(f64, f64), CalibrationError> {
+        Ok(self.score(data)?.lengths)
     }
 
     /// Plane `i`'s calibrated unit normal and offset (mm).
     pub fn plane(&self, i: usize) -> (Vector3<f64>, f64) {
         self.setup.plane(&self.setup_values.1, i)
     }
-}
-
-fn rms(r: &DVector<f64>) -> f64 {
-    (r.norm_squared() / r.len().max(1) as f64).sqrt()
 }
 
 /// Calibrate `model` from distances, contacts and coordinates: the set-up fitted with the
@@ -556,12 +619,8 @@ pub fn calibrate_kinds(
     let problem = base_problem.reselect(&kept, zero.clone(), before_setup.clone(), kept_setup);
     let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);
-    let rms_at = |x: &[f64], s: &[f64]| {
-        rms(&problem.reselect(&nothing, x.to_vec(), s.to_vec(), Vec::new()).residuals(&DVector::zeros(0)))
-    };
-    let training = (rms_at(&zero, &before_setup), rms_at(&after, &after_setup));
     let calibrated = fold(model, &params, &after, &[options.tool], probe.as_ref());
-    Ok(KindCalibration {
+    let mut calibration = KindCalibration {
         calibrated,
         params,
         before: zero,
@@ -571,9 +630,12 @@ pub fn calibrate_kinds(
         setup_values: (before_setup, after_setup),
         refined: estimate,
         fixed,
-        training,
+        training: Score { observations: Vec::new(), lengths: (0.0, 0.0), angles: None },
+        joint_noise: options.joint_noise.clone(),
         chain,
-    })
+    };
+    calibration.training = calibration.score(data)?;
+    Ok(calibration)
 }
 
 /// The robot parameters and the set-up parameters asked for: the joints of `options`, the tool
