@@ -752,8 +752,7 @@ fn observations_that_cannot_be_fitted_are_refused() {
 }
 
 /// A length 0.1 mm (10 standard deviations) off among 150 is flagged by its whitened residual,
-/// and only it; every
-/// observation is scored in the report.
+/// and only it; every observation is scored in the report.
 #[test]
 fn an_observation_far_out_is_flagged() {
     let mut rng = ChaCha8Rng::seed_from_u64(72);
