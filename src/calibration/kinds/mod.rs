@@ -52,6 +52,18 @@
 //! robot (the robot's scale is its nominal one), and said so. A distance fixes the scale. Coordinates see the
 //! measuring frame: with them the base is estimated, as far as they see it (a height alone
 //! sees its z, roll and pitch; the rank-revealing solve holds the rest and says so).
+//!
+//! # Extending
+//!
+//! A new kind is a prediction `f_k` of the tool's frames at its poses and of set-up parameters,
+//! with its derivatives `g_kj` (6-vectors: position, rotation vector) and `df_k/ds`: one arm of
+//! `predict`. Observations are one row each, so that `V` is a column of variances and every
+//! estimator applies unchanged. A kind with several correlated rows (a camera's target pose,
+//! 6 rows; a target point's pixel, 2 rows) needs `m_k`-row blocks: the estimators take blocks
+//! of one size per problem, so such kinds would pad every observation to the largest `m_k`
+//! (zero residual and `H` rows, unit variance: the fit and its covariance do not change), or
+//! be fitted as their own problem; several chains (a torso and two arms) are one chain per
+//! observation sharing the joint parameters of their common links.
 
 mod data;
 
