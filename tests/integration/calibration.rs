@@ -607,3 +607,34 @@ fn feasible_gls_on_probe_data_estimates_the_orientation_sigma() {
     let o = held_out.orientation.as_ref().unwrap();
     assert!(o[1].rms * 5.0 < o[0].rms, "orientation RMS {} -> {} deg", o[0].rms, o[1].rms);
 }
+
+/// A noise file with a device and no `sigma_orientation_deg` gives a probe's orientation rows
+/// the device's typical figure (a laser tracker's 6-DOF probe: 0.01 deg); its own value wins
+/// when given; without a device nothing is made up, and the calibration says what is missing.
+#[test]
+fn a_devices_orientation_sigma_is_the_default_for_a_probe() {
+    let (nominal, _, training, _) = probe_campaign(53);
+    let file = |extra: &str| {
+        let text = format!(
+            "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\n{extra}\n[device]\nkind = \"laser-tracker\"\n\
+             position_mm = [2500.0, 0.0, 300.0]\nsigma_r_mm = 0.01\nk_ppm = 5.0\nsigma_angle_arcsec = 2.0\n"
+        );
+        robocal::estimation::NoiseSpec::from_toml_str(&text, &nominal).unwrap()
+    };
+    let orientation = |spec: &robocal::estimation::NoiseSpec| {
+        let noise = calibration::noise_from_spec(spec, &training).unwrap();
+        let MeasurementNoise::PerPoint(blocks) = &noise.measurement else { panic!("per pose") };
+        blocks[0][(4, 4)].sqrt().to_degrees()
+    };
+    assert!((orientation(&file("")) - 0.01).abs() < 1e-12);
+    assert!((orientation(&file("sigma_orientation_deg = 0.003")) - 0.003).abs() < 1e-12);
+    let spec = robocal::estimation::NoiseSpec::from_toml_str(
+        "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\nsigma_me_mm = 0.01\n",
+        &nominal,
+    )
+    .unwrap();
+    let noise = calibration::noise_from_spec(&spec, &training).unwrap();
+    let err =
+        calibration::calibrate(&nominal, &training, &probe_options(Estimator::Wls, Some(noise))).unwrap_err();
+    assert!(err.to_string().contains("sigma_orientation_deg in the noise file"), "{err}");
+}
