@@ -122,8 +122,9 @@ pub enum CalibrationError {
     /// The poses cannot identify any parameter (all alike, or a system of rank 0).
     #[error("nothing can be identified: {0}")]
     NothingIdentified(String),
-    /// Distances, contacts or coordinates that cannot place their set-up (too few to fit a
-    /// fixed point or a plane, a number the calibration has not).
+    /// Distances, contacts or coordinates that cannot be fitted: too few to place a fixed point
+    /// or a plane, a point or plane the calibration has not, data built by hand that does not
+    /// hold together (a pose missing, a sigma not above 0).
     #[error("{0}")]
     Observations(String),
 }

@@ -76,7 +76,9 @@ use crate::estimation::{
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection};
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Matrix6xX, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{
+    DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, UnitQuaternion, Vector3, Vector6,
+};
 use rayon::prelude::*;
 
 /// How to calibrate from distances and contacts.
@@ -398,35 +400,36 @@ impl Residuals for KindProblem<'_> {
         let (full, s) = self.full(x);
         let at: ChainAt = self.chain.with_errors(&full);
         let columns = self.selection.len();
-        let want_h = h.is_some();
         let measured = self.measured();
         let rows = measured.rows();
-        let poses: Vec<(Isometry3<f64>, DMatrix<f64>)> = (self.data.joints.par_iter())
-            .map(|q| {
-                let mut h_j = DMatrix::zeros(rows, if want_h { columns } else { 0 });
-                if want_h {
-                    at.identification_jacobian(
-                        q,
-                        self.selection,
-                        measured,
-                        h_j.view_mut((0, 0), (rows, columns)),
-                    );
-                }
-                (at.pose(q), h_j)
-            })
-            .collect();
-        let frames: Vec<Isometry3<f64>> = poses.iter().map(|(f, _)| *f).collect();
+        // Each pose's H_j (rows x columns, column-major) in one buffer, filled in parallel.
+        let block = if h.is_some() { rows * columns } else { 0 };
+        let mut blocks = vec![0.0; block * self.data.joints.len()];
+        let frames: Vec<Isometry3<f64>> = if block > 0 {
+            (blocks.par_chunks_mut(block).zip(&self.data.joints))
+                .map(|(h_j, q)| {
+                    let view = DMatrixViewMut::from_slice(h_j, rows, columns);
+                    at.identification_jacobian(q, self.selection, measured, view);
+                    at.pose(q)
+                })
+                .collect()
+        } else {
+            self.data.joints.par_iter().map(|q| at.pose(q)).collect()
+        };
         let mut y = DVector::zeros(self.equations());
         let mut h = h;
         for (k, o) in self.data.observations.iter().enumerate() {
             let f = predict(o, &frames, self.setup, &s);
             y[k] = o.residual(f.value);
             if let Some(h) = h.as_deref_mut() {
-                h.row_mut(k).fill(0.0);
+                // H_k = sum_j g_kj^T H_j + df_k/ds.
+                for c in 0..h.ncols() {
+                    h[(k, c)] = 0.0;
+                }
                 for (j, g) in &f.by_point[..f.poses] {
-                    let row = g.rows(0, rows).transpose() * &poses[*j].1;
-                    for c in 0..columns {
-                        h[(k, c)] += row[c];
+                    let h_j = &blocks[j * block..(j + 1) * block];
+                    for (c, column) in h_j.chunks_exact(rows).enumerate() {
+                        h[(k, c)] += (0..rows).map(|r| g[r] * column[r]).sum::<f64>();
                     }
                 }
                 for &(i, d) in &f.by_setup[..f.setups] {
