@@ -276,21 +276,17 @@ impl Weights {
         Ok(Self { s: Some(s), noise: Some(noise), rows })
     }
 
-    /// Ordinary least squares on rows of different units: each point's rows multiplied by
-    /// `scale` (one factor per row of a point), `S_k = diag(scale)`, so that the unweighted fit
-    /// minimises `sum_k |diag(scale) y_k|^2`. A pose's orientation rows (rad) are scaled by
-    /// `sigma_position / sigma_orientation` (mm/rad): one radian then counts as the length
-    /// whose error is as likely, never as one millimetre. `v` (the blocks `V_k`, if known)
-    /// gives the covariance of the scaled errors, `S_k V_k S_k`.
-    pub fn scaled_rows(v: Option<&DMatrix<f64>>, points: usize, scale: &[f64]) -> Self {
-        let rows = scale.len();
-        let s_k = DMatrix::from_diagonal(&DVector::from_column_slice(scale));
-        let mut s = DMatrix::zeros(points * rows, rows);
-        for k in 0..points {
-            s.rows_mut(k * rows, rows).copy_from(&s_k);
-        }
+    /// Ordinary least squares on rows of different units: every row of `y` multiplied by its
+    /// factor in `scale` (`N_m` factors; `S_k` the diagonal of point `k`'s, points of `rows`),
+    /// so that the unweighted fit minimises `|S y|^2`. A pose's orientation rows (rad) are
+    /// scaled by `sigma_position / sigma_orientation` (mm/rad): one radian then counts as the
+    /// length whose error is as likely, never as one millimetre. `v` (the blocks `V_k`, if
+    /// known) gives the covariance of the scaled errors, `S_k V_k S_k`.
+    pub fn scaled_rows(v: Option<&DMatrix<f64>>, rows: usize, scale: &[f64]) -> Self {
+        let block = |i: usize| i - i % rows;
+        let s = DMatrix::from_fn(scale.len(), rows, |i, j| if i % rows == j { scale[i] } else { 0.0 });
         let noise =
-            v.map(|v| DMatrix::from_fn(v.nrows(), rows, |i, j| scale[i % rows] * v[(i, j)] * scale[j]));
+            v.map(|v| DMatrix::from_fn(v.nrows(), rows, |i, j| scale[i] * v[(i, j)] * scale[block(i) + j]));
         Self { s: Some(s), noise, rows }
     }
 

@@ -222,7 +222,8 @@ impl Residuals for PointProblem<'_> {
 
     fn ols_row_scale(&self) -> Option<Vec<f64>> {
         let w = self.orientation_weight;
-        (self.measured == Measured::Pose).then(|| vec![1.0, 1.0, 1.0, w, w, w])
+        (self.measured == Measured::Pose)
+            .then(|| (0..self.equations()).map(|i| if i % 6 < 3 { 1.0 } else { w }).collect())
     }
 
     fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {

@@ -22,9 +22,9 @@ pub trait Residuals {
     fn names(&self) -> Vec<String> {
         Vec::new()
     }
-    /// The factor of each row of a point for ordinary least squares, when a point's rows are
-    /// in different units (a pose: mm, then rad); `None` (the default): every row counts
-    /// alike. See [`Weights::scaled_rows`].
+    /// The factor of each row of `y` (`N_m`) for ordinary least squares, when rows come in
+    /// different units (a pose: mm, then rad); `None` (the default): every row counts alike.
+    /// See [`Weights::scaled_rows`].
     fn ols_row_scale(&self) -> Option<Vec<f64>> {
         None
     }
@@ -165,8 +165,8 @@ impl Weights {
             super::check_covariance(v, rows)?;
         }
         match (estimator, problem.ols_row_scale()) {
-            (Estimator::Ols, Some(scale)) if scale.len() == rows => {
-                Ok(Weights::scaled_rows(problem.covariance(), problem.equations() / rows, &scale))
+            (Estimator::Ols, Some(scale)) if scale.len() == problem.equations() => {
+                Ok(Weights::scaled_rows(problem.covariance(), rows, &scale))
             }
             _ => Weights::new(problem.covariance(), rows, estimator, true),
         }

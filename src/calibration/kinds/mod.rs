@@ -71,8 +71,8 @@ pub use data::{KindData, Observation};
 
 use super::{CalibrationError, JointParams, fold, gauge_class};
 use crate::estimation::{
-    Estimator, Linearisation, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise,
-    refine_from,
+    Estimator, Linearisation, POSE_SIGMAS, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights,
+    linearise, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection};
@@ -388,6 +388,15 @@ impl Residuals for KindProblem<'_> {
 
     fn covariance(&self) -> Option<&DMatrix<f64>> {
         self.v.as_ref()
+    }
+
+    /// Angles (rad) count as lengths for ordinary least squares: times
+    /// `sigma_position / sigma_orientation` of [`POSE_SIGMAS`] (mm/rad), as a pose's
+    /// orientation rows do.
+    fn ols_row_scale(&self) -> Option<Vec<f64>> {
+        let w = POSE_SIGMAS.0 / POSE_SIGMAS.1;
+        let angles = self.data.observations.iter().any(Observation::is_angle);
+        angles.then(|| self.data.observations.iter().map(|o| if o.is_angle() { w } else { 1.0 }).collect())
     }
 
     fn names(&self) -> Vec<String> {
