@@ -40,8 +40,9 @@ pub enum Whitening {
     /// By the full covariance `V_k` of each pose under this noise model (already fitted to
     /// the set's poses: per-pose blocks, or a `sigma` column, must be the set's own).
     Covariance(NoiseModel),
-    /// No noise model: divided by this standard deviation (mm; rad for orientation rows), the
-    /// spread of the training residuals `sqrt(|r|^2 / (N_m - rank))`.
+    /// No noise model: divided by this standard deviation (mm), the spread of the training
+    /// residuals `sqrt(|r|^2 / (N_m - rank))`, a pose's orientation rows (rad) counted as
+    /// lengths by the weight of ordinary least squares ([`PointProblem::orientation_weight`]).
     Spread(f64),
 }
 
@@ -154,6 +155,15 @@ pub(crate) fn evaluate(
     evaluate_on(name, scored, data, stages, whitening, &problem)
 }
 
+/// `r` (residuals of `problem`, pose by pose) in lengths: a pose's orientation rows (rad)
+/// times the weight `w = sigma_position / sigma_orientation` (mm/rad) of ordinary least squares.
+pub(crate) fn in_lengths(problem: &PointProblem<'_>, r: &mut DVector<f64>) {
+    if problem.measured() == Measured::Pose {
+        let w = problem.orientation_weight();
+        r.iter_mut().enumerate().filter(|(i, _)| i % 6 >= 3).for_each(|(_, v)| *v *= w);
+    }
+}
+
 /// [`evaluate`] on `problem`, the problem of `data` measured by `scored.chains` whose
 /// covariance blocks `V_k` are those of `whitening` (a calibration's own, reused rather than
 /// computed again).
@@ -177,7 +187,10 @@ pub(crate) fn evaluate_on(
         Whitening::Covariance(_) => {
             Weights::new(problem.covariance(), rows, Estimator::Wls, false)?.apply(&mut z)
         }
-        Whitening::Spread(sigma) if *sigma > 0.0 => z /= *sigma,
+        Whitening::Spread(sigma) if *sigma > 0.0 => {
+            in_lengths(problem, &mut z);
+            z /= *sigma
+        }
         Whitening::Spread(_) => {}
     }
     // Under a noise model, a pose stands out against the bulk of the poses: when they all lie

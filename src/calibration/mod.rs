@@ -16,6 +16,7 @@
 
 mod data;
 pub mod evaluation;
+pub mod kinds;
 mod repeatability;
 pub mod robust;
 pub mod selection;
@@ -50,6 +51,18 @@ pub enum JointParams {
     None,
     /// These names or patterns (`j*.theta`, `j2.a`).
     Named(Vec<String>),
+}
+
+impl JointParams {
+    /// These parameters among `params`.
+    pub fn select(&self, params: &ParamSet) -> Result<Selection, SelectionError> {
+        Ok(match self {
+            Self::All => Selection::joints(params),
+            Self::Offsets => Selection::offsets(params),
+            Self::None => Selection::from_indices(params, []),
+            Self::Named(names) => Selection::by_names(params, names)?,
+        })
+    }
 }
 
 /// How to calibrate.
@@ -140,6 +153,11 @@ pub enum CalibrationError {
     /// The poses cannot identify any parameter (all alike, or a system of rank 0).
     #[error("nothing can be identified: {0}")]
     NothingIdentified(String),
+    /// Distances, contacts or coordinates that cannot be fitted: too few to place a fixed point
+    /// or a plane, a point or plane the calibration has not, data built by hand that does not
+    /// hold together (a pose missing, a sigma not above 0).
+    #[error("{0}")]
+    Observations(String),
 }
 
 /// The column-scaled condition number of the identified system above which a calibration
@@ -283,6 +301,18 @@ impl Calibration {
                 (*id, frame.transform_point(&p.into()).coords)
             })
             .collect()
+    }
+
+    /// A probe's calibrated frame, absolute, in the model's [marker frame](RobotModel::marker_frame)
+    /// (a URDF's tip link, else the last joint frame): `T = F^-1 T_tool` with `F` that frame
+    /// and `T_tool` the calibrated model's tool frame; `None` for markers.
+    pub fn tip_frame(&self) -> Option<Placement> {
+        let Tool::Frame(tool) = self.calibrated.tool else { return None };
+        if self.chains.iter().all(Chain::ends_at_a_point) {
+            return None;
+        }
+        let frame = self.registered.marker_frame().isometry();
+        Some(Placement::from_isometry(&(frame.inverse() * tool.isometry())))
     }
 
     /// The chains of `data`'s markers.
@@ -642,7 +672,8 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
             let nothing = Selection::from_indices(&s.params, []);
             let at_after =
                 problem.reselect(&nothing, s.after.clone()).expect("the fit's problem has its parameters");
-            let r = at_after.evaluate(&DVector::zeros(0), None);
+            let mut r = at_after.evaluate(&DVector::zeros(0), None);
+            evaluation::in_lengths(&at_after, &mut r);
             let dof = r.len().saturating_sub(rank).max(1);
             Whitening::Spread((r.norm_squared() / dof as f64).sqrt())
         }
@@ -775,9 +806,10 @@ pub(crate) fn without_unloaded_responses(
 /// the joint offsets, `a`, `alpha` and a URDF joint's origin; then class 2: Hayati's `beta`
 /// and the `d` of a revolute joint, which nearly parallel axes make redundant, so they are held
 /// first; last (class 3) a joint's play, which is its offset wherever the load keeps one sign,
-/// and the payload's mass. The compliances are in class 1. Within a class the rank-revealing pivoting decides (the best conditioned choice,
-/// ties to the earlier parameter), the same on every machine.
-fn gauge_class(p: &crate::model::ParamInfo) -> u32 {
+/// and the payload's mass. The compliances are in class 1. Within a class the rank-revealing
+/// pivoting decides (the best conditioned choice, ties to the earlier parameter), the same on
+/// every machine.
+pub(crate) fn gauge_class(p: &crate::model::ParamInfo) -> u32 {
     match (p.owner, p.kind) {
         (ParamOwner::Joint(_), ParamKind::Play) | (ParamOwner::Payload, _) => 3,
         (ParamOwner::Joint(_), ParamKind::Beta) => 2,
@@ -920,7 +952,7 @@ fn residual_noise(
     let system = problem.system(&problem.start());
     let rows = system.rows_per_point;
     let estimator = if noise.is_some() { Estimator::Wls } else { Estimator::Ols };
-    let weights = Weights::new(system.v.as_ref(), rows, estimator, false)?;
+    let weights = Weights::for_problem(&problem, estimator)?;
     // A = pinv(S H) S: the map from y to the estimate.
     let mut sh = system.h.clone();
     weights.apply(&mut sh);
@@ -955,9 +987,15 @@ fn residual_noise(
 
 /// The noise model of a noise file for `data`: its `Sigma_q`, and at every pose the measurement
 /// covariance of the device at each measured marker (`Sigma_device(p) + sigma_me^2 I`), with
-/// the orientation rows of a probe at `sigma_orientation^2`.
+/// the orientation rows of a probe at `sigma_orientation^2` (the file's, else its device's
+/// [default](crate::estimation::Device::sigma_orientation); neither: zero, which a calibration
+/// refuses, naming the field).
 pub fn noise_from_spec(spec: &NoiseSpec, data: &Measurements) -> Result<NoiseModel, DeviceError> {
     let probe = data.orientations.is_some();
+    let sigma_orientation = match (&spec.device, spec.sigma_orientation) {
+        (Some(device), 0.0) => device.sigma_orientation(),
+        (_, s) => s,
+    };
     let per = if probe { 6 } else { 3 };
     let rows = per * data.marker_count();
     let mut blocks = Vec::with_capacity(data.len());
@@ -968,7 +1006,7 @@ pub fn noise_from_spec(spec: &NoiseSpec, data: &Measurements) -> Result<NoiseMod
         }
         if probe {
             for r in 3..6 {
-                block[(r, r)] = spec.sigma_orientation.powi(2);
+                block[(r, r)] = sigma_orientation.powi(2);
             }
         }
         blocks.push(block);
@@ -983,12 +1021,7 @@ fn selection(
     joints: &JointParams,
     options: &Options,
 ) -> Result<Selection, SelectionError> {
-    let joint = match joints {
-        JointParams::All => Selection::joints(params),
-        JointParams::Offsets => Selection::offsets(params),
-        JointParams::None => Selection::from_indices(params, []),
-        JointParams::Named(names) => Selection::by_names(params, names)?,
-    };
+    let joint = joints.select(params)?;
     let extra = (0..params.len()).filter(|&i| match params.get(i).owner {
         ParamOwner::Base => options.estimate_base,
         ParamOwner::Marker(_) => options.estimate_markers,
@@ -1030,7 +1063,9 @@ fn noise_for(noise: Option<NoiseModel>, data: &Measurements, rows: usize) -> Opt
     if let Some(sigmas) = &data.sigma {
         let orientation = match &noise.measurement {
             MeasurementNoise::PerAxis(s) => s[3],
-            MeasurementNoise::PerPoint(_) => 0.0,
+            MeasurementNoise::PerPoint(blocks) => {
+                blocks.first().filter(|b| b.nrows() > 3).map_or(0.0, |b| b[(3, 3)].sqrt())
+            }
         };
         let probe = data.orientations.is_some();
         let variance = |s: f64, r: usize| if probe && r >= 3 { orientation * orientation } else { s * s };
@@ -1086,7 +1121,7 @@ pub(crate) fn register(predicted: &[Vector3<f64>], measured: &[Vector3<f64>]) ->
 }
 
 /// `model` with the parameter errors `x` folded into its numbers; the tool becomes marker 1.
-fn fold(
+pub(crate) fn fold(
     model: &RobotModel,
     params: &ParamSet,
     x: &[f64],

@@ -340,6 +340,51 @@ pub struct CalibrateArgs {
     pub out_urdf: Option<PathBuf>,
 }
 
+/// The flags of `robocal calibrate-observations`.
+#[derive(Args, Debug)]
+pub struct CalibrateObservationsArgs {
+    #[command(flatten)]
+    pub model: ModelArgs,
+    /// A file of distances (pairs of poses, or to a fixed point), plane contacts or
+    /// coordinates (CSV; see docs/formats.md); repeatable: the files are fitted together.
+    #[arg(long, required = true)]
+    pub data: Vec<PathBuf>,
+    #[command(flatten)]
+    pub units: UnitArgs,
+    /// The estimator: wls (default; each row weighted by its sigma and, with
+    /// --joint-sigma-deg, the joint noise of its poses) or ols.
+    #[arg(long)]
+    pub estimator: Option<EstimatorName>,
+    /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints): a
+    /// distance between two poses carries the joint noise of both.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma_deg)]
+    pub joint_sigma_deg: Option<Vec<f64>>,
+    /// Parameters to identify: `joints` (every joint parameter), `offsets`, `none` (the tool
+    /// and the set-up only), or names and patterns (`j*.theta,j2.a`). The base is estimated
+    /// only from coordinates: distances and contacts cannot see it.
+    #[arg(long, default_value = "joints", value_parser = parse_params)]
+    pub params: ParamsArg,
+    /// The tool point on the last link, "x,y,z" in mm, in the tool frame (default: the model's
+    /// tool point).
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
+    pub tool: Option<Vector3<f64>>,
+    /// Do not estimate the tool point.
+    #[arg(long)]
+    pub fixed_tool: bool,
+    /// Gauss-Newton steps at most (at least 1).
+    #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
+    pub iterations: usize,
+    /// A held-out file of the same kinds to validate on (the set-up as calibrated); repeatable.
+    #[arg(long)]
+    pub validate: Vec<PathBuf>,
+    /// Write the report as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the calibrated model (TOML; its tool the calibrated tool point) here.
+    #[arg(long)]
+    pub out_model: Option<PathBuf>,
+}
+
 /// Where the report of scored poses goes, besides standard output.
 #[derive(Args, Debug, Clone, Default, PartialEq)]
 pub struct ReportArgs {

@@ -7,6 +7,7 @@ mod evaluate;
 mod fk;
 mod model;
 mod observability;
+mod observations;
 mod plan;
 mod repeatability;
 mod request;
@@ -14,13 +15,13 @@ mod simulate;
 
 use anyhow::{Context, Result, bail};
 use args::{
-    CalibrateArgs, EvaluateArgs, FkArgs, ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs,
-    ReportArgs, SimulateArgs, StudyOutputArgs,
+    CalibrateArgs, CalibrateObservationsArgs, EvaluateArgs, FkArgs, ObservabilityArgs, ParamsArg, PlanArgs,
+    RepeatabilityArgs, ReportArgs, SimulateArgs, StudyOutputArgs,
 };
 use clap::{Parser, Subcommand};
 use request::{
-    CalibrateRequest, DesignRequest, EvaluateRequest, NoiseFlags, ObservabilityRequest, PlanRequest,
-    RepeatabilityRequest,
+    CalibrateObservationsRequest, CalibrateRequest, DesignRequest, EvaluateRequest, NoiseFlags,
+    ObservabilityRequest, PlanRequest, RepeatabilityRequest,
 };
 use robocal::design::Design;
 use robocal::estimation::{MeasurementNoise, NoiseModel};
@@ -58,6 +59,9 @@ enum Command {
     Fk(FkArgs),
     /// Calibrate a robot from measured marker positions.
     Calibrate(Box<CalibrateArgs>),
+    /// Calibrate a robot from distances (a ball bar, a length artefact), plane contacts or
+    /// partial coordinates (a height gauge): docs/formats.md.
+    CalibrateObservations(Box<CalibrateObservationsArgs>),
     /// Score a model as it stands (a calibrated one, base and markers included) on
     /// measurement files: no registration, no fit.
     Evaluate(Box<EvaluateArgs>),
@@ -81,6 +85,9 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Repeatability(args) => repeatability::run(&RepeatabilityRequest::from_args(*args)?),
         Command::Fk(args) => fk::run(&args),
         Command::Calibrate(args) => calibrate::run(&CalibrateRequest::from_args(*args)?),
+        Command::CalibrateObservations(args) => {
+            observations::run(&CalibrateObservationsRequest::from_args(*args)?)
+        }
         Command::Evaluate(args) => evaluate::run(&EvaluateRequest::from_args(*args)?),
         Command::Observability(args) => observability::run(&ObservabilityRequest::from_args(*args)?),
         Command::Plan(args) => plan::run(&PlanRequest::from_args(*args)?),

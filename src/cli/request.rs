@@ -3,9 +3,9 @@
 //! contents are the commands' own.
 
 use super::args::{
-    CalibrateArgs, DesignArgs, EstimatorName, EvaluateArgs, Excluded, JointUnit, LengthUnit, LinkArgs,
-    MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs, ParamsArg, PayloadArgs, PlanArgs,
-    RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
+    CalibrateArgs, CalibrateObservationsArgs, DesignArgs, EstimatorName, EvaluateArgs, Excluded, JointUnit,
+    LengthUnit, LinkArgs, MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs, ParamsArg, PayloadArgs,
+    PlanArgs, RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::JointParams;
@@ -307,6 +307,79 @@ impl CalibrateRequest {
             report: args.report,
             out_model: args.out_model,
             out_urdf: args.out_urdf,
+        })
+    }
+}
+
+/// A validated `robocal calibrate-observations`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrateObservationsRequest {
+    /// The nominal robot.
+    pub model: ModelRef,
+    /// The observation files, fitted together.
+    pub data: Vec<PathBuf>,
+    /// The files' units, if given.
+    pub units: Option<Units>,
+    /// The estimator: ols or wls.
+    pub estimator: Estimator,
+    /// Joint sigmas (deg; mm for prismatic joints), if given.
+    pub joint_sigma_deg: Option<Vec<f64>>,
+    /// The joint parameters to identify.
+    pub joints: JointParams,
+    /// The tool point (mm, tool frame), or the model's.
+    pub tool: Option<Vector3<f64>>,
+    /// Estimate the tool point.
+    pub estimate_tool: bool,
+    /// Gauss-Newton steps at most (>= 1).
+    pub iterations: usize,
+    /// Held-out files.
+    pub validate: Vec<PathBuf>,
+    /// Where the JSON report goes.
+    pub json: Option<PathBuf>,
+    /// Where the calibrated model TOML goes.
+    pub out_model: Option<PathBuf>,
+}
+
+impl CalibrateObservationsRequest {
+    /// The request, or the first rule between `args`' flags that it breaks.
+    pub fn from_args(args: CalibrateObservationsArgs) -> Result<Self, UsageError> {
+        let model = args.model.model_ref()?;
+        let estimator = match args.estimator {
+            None | Some(EstimatorName::Wls) => Estimator::Wls,
+            Some(EstimatorName::Ols) => Estimator::Ols,
+            Some(other) => {
+                let name = clap::ValueEnum::to_possible_value(&other).map(|v| v.get_name().to_string());
+                return Err(UsageError(format!(
+                    "--estimator {}: calibrate-observations takes ols or wls (one row per observation)",
+                    name.unwrap_or_default()
+                )));
+            }
+        };
+        require(
+            args.params != ParamsArg::All,
+            "--params all: the base and the set-up are chosen by the observations; give --params joints",
+        )?;
+        let joints = joint_params(args.params, false)?;
+        let mut inputs = vec![("--model", Path::new(&model.name))];
+        inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
+        inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
+        distinct_outputs(
+            &inputs,
+            &[("--json", args.json.as_deref()), ("--out-model", args.out_model.as_deref())],
+        )?;
+        Ok(Self {
+            model,
+            data: args.data,
+            units: args.units.units()?,
+            estimator,
+            joint_sigma_deg: args.joint_sigma_deg,
+            joints,
+            tool: args.tool,
+            estimate_tool: !args.fixed_tool,
+            iterations: args.iterations,
+            validate: args.validate,
+            json: args.json,
+            out_model: args.out_model,
         })
     }
 }

@@ -30,6 +30,12 @@
 //! the covariance of the weighted estimate of the scaled parameters. Its singular values are
 //! per mm of noise: a set whose `V_k` are smaller scores higher.
 //!
+//! - **Pose rows in lengths.** When poses are measured, each pose's orientation rows (rad) are
+//!   multiplied by `w = sigma_position / sigma_orientation` (mm/rad): the noise model's
+//!   measurement sigmas, else [`crate::estimation::POSE_SIGMAS`], as ordinary least squares
+//!   weights them; one radian never counts as one millimetre. `V_k` is scaled alike
+//!   (`S V_k S`), so the whitened matrix does not change.
+//!
 //! The indices are [`o1`] ... [`o5`], all of them at once [`Design::observability`]; the
 //! planner, a Fedorov exchange over a pool of candidate poses, is [`Design::plan`].
 
@@ -216,6 +222,8 @@ pub struct Design {
     columns: Vec<usize>,
     scales: Vec<f64>,
     names: Vec<String>,
+    /// `w` of a pose's orientation rows (1 for positions).
+    orientation_weight: f64,
 }
 
 impl Design {
@@ -252,7 +260,19 @@ impl Design {
             columns: Vec::new(),
             scales: Vec::new(),
             names,
+            orientation_weight: 1.0,
         };
+        if measured == Measured::Pose {
+            let (p, o) = match &design.noise {
+                Some(NoiseModel { measurement: MeasurementNoise::PerAxis(s), .. })
+                    if s[3] > 0.0 && s[0] > 0.0 =>
+                {
+                    (s[0], s[3])
+                }
+                _ => crate::estimation::POSE_SIGMAS,
+            };
+            design.orientation_weight = p / o;
+        }
         let mut rng = ChaCha8Rng::seed_from_u64(REFERENCE_SEED);
         let reference = model.uniform_configurations(REFERENCE_POSES, &mut rng);
         let rows = measured.rows();
@@ -302,10 +322,14 @@ impl Design {
         self.columns.len().div_ceil(self.measured.rows())
     }
 
-    /// `H_k` of all selected parameters into rows `row..` of `h` and, if asked, `J_k`.
+    /// `H_k` of all selected parameters into rows `row..` of `h`, a pose's orientation rows
+    /// times `w`, and, if asked, `J_k` (unscaled).
     fn jacobians(&self, q: &[f64], h: &mut DMatrix<f64>, row: usize, j: Option<&mut Matrix6xX<f64>>) {
         let (rows, p) = (self.measured.rows(), self.selection.len());
         self.nominal.jacobians(q, &self.selection, self.measured, h.view_mut((row, 0), (rows, p)), j);
+        if self.measured == Measured::Pose {
+            h.view_mut((row + 3, 0), (3, p)).scale_mut(self.orientation_weight);
+        }
     }
 
     /// The rows of one pose: `H_k D` on the identifiable columns, whitened by `L_k^-1` if
@@ -319,7 +343,14 @@ impl Design {
             DMatrix::from_fn(rows, self.columns.len(), |r, c| h[(r, self.columns[c])] * self.scales[c]);
         if let (true, Some(noise)) = (whitened, &self.noise) {
             let j_k = DMatrix::from_fn(rows, dof, |r, c| jacobian[(r, c)]);
-            let v_k = noise.pose_covariance(0, &j_k, self.measured);
+            let mut v_k = noise.pose_covariance(0, &j_k, self.measured);
+            // S V_k S, as the rows of H: whitening is then unchanged.
+            let w = self.orientation_weight;
+            for r in 0..rows {
+                for c in 0..rows {
+                    v_k[(r, c)] *= if r >= 3 { w } else { 1.0 } * if c >= 3 { w } else { 1.0 };
+                }
+            }
             Weights::new(Some(&v_k), rows, Estimator::Wls, false)?.apply(&mut a);
         }
         Ok(a)

@@ -93,6 +93,19 @@ impl Device {
         }
     }
 
+    /// The orientation standard deviation (rad) of a frame this device measures (a 6-DOF
+    /// probe), when a noise file does not give `sigma_orientation_deg`: typical figures, a
+    /// laser tracker's 6-DOF probe 0.01 deg, a CMM (a frame from three spheres) 0.001 deg,
+    /// theodolites (from three targets) 0.002 deg.
+    pub fn sigma_orientation(&self) -> f64 {
+        let degrees = match self {
+            Self::Cmm { .. } => 0.001,
+            Self::LaserTracker { .. } => 0.01,
+            Self::Theodolites { .. } => 0.002,
+        };
+        f64::to_radians(degrees)
+    }
+
     /// The device in words, in the units of files: `theodolites at (1500, -1000, 300) and
     /// (1500, 1000, 300) mm, angles 2.5 / 2.5 arcsec`.
     pub fn describe(&self) -> String {

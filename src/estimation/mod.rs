@@ -30,7 +30,7 @@ pub use noise::{MeasurementNoise, NoiseModel};
 pub(crate) use noise_file::DeviceTable;
 pub use noise_file::{NoiseFileError, NoiseSpec};
 pub use prior::{PRESETS as PRIOR_PRESETS, PriorEntry, PriorError, PriorRows, PriorUnit, prior_sds};
-pub use problem::PointProblem;
+pub use problem::{POSE_SIGMAS, PointProblem};
 pub use refine::{
     Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from, refine_map,
 };
@@ -245,6 +245,9 @@ pub struct Weights {
     /// The standard deviation of a whitened row, `sigma_max` of the normalisation (1 without
     /// it), if `V` is known.
     scale: Option<f64>,
+    /// Whether `s` whitens (a weighted estimator), rather than only scaling rows of different
+    /// units to one (OLS of poses).
+    whitened: bool,
 }
 
 impl Weights {
@@ -258,13 +261,19 @@ impl Weights {
     ) -> Result<Self, EstimationError> {
         let Some(v) = v else {
             return match estimator {
-                Estimator::Ols => Ok(Self { s: None, noise: None, rows, scale: None }),
+                Estimator::Ols => Ok(Self { s: None, noise: None, rows, scale: None, whitened: false }),
                 _ => Err(EstimationError::NoiseRequired(estimator)),
             };
         };
         let sigma_max = (0..v.nrows()).map(|r| v[(r, r % rows)]).fold(0.0, f64::max).sqrt();
         if estimator == Estimator::Ols {
-            return Ok(Self { s: None, noise: Some(v.clone()), rows, scale: Some(sigma_max) });
+            return Ok(Self {
+                s: None,
+                noise: Some(v.clone()),
+                rows,
+                scale: Some(sigma_max),
+                whitened: false,
+            });
         }
         let (mut s, mut noise) = match rows {
             3 => block_weights(v, Const::<3>, estimator)?,
@@ -281,7 +290,7 @@ impl Weights {
                 scale = sigma_max;
             }
         }
-        Ok(Self { s: Some(s), noise: Some(noise), rows, scale: Some(scale) })
+        Ok(Self { s: Some(s), noise: Some(noise), rows, scale: Some(scale), whitened: true })
     }
 
     /// The standard deviation `c` of a whitened row: `sigma_max` under the paper's
@@ -291,9 +300,10 @@ impl Weights {
         self.scale
     }
 
-    /// Whether the rows are whitened (a weighted estimator, or reweighted), not taken as they are.
+    /// Whether the rows are whitened (a weighted estimator), not taken as they are or only
+    /// scaled to one unit.
     pub fn whitens(&self) -> bool {
-        self.s.is_some()
+        self.whitened
     }
 
     /// These weights with point `k`'s whitening multiplied by `sqrt(w_k)`, as if its covariance
@@ -318,7 +328,24 @@ impl Weights {
                 noise.rows_mut(k * b, b).scale_mut(w_k);
             }
         }
-        Self { s: Some(s), noise, rows: b, scale: self.scale }
+        Self { s: Some(s), noise, rows: b, scale: self.scale, whitened: self.whitened }
+    }
+
+    /// Ordinary least squares on rows of different units: every row of `y` multiplied by its
+    /// factor in `scale` (`N_m` factors; `S_k` the diagonal of point `k`'s, points of `rows`),
+    /// so that the unweighted fit minimises `|S y|^2`. A pose's orientation rows (rad) are
+    /// scaled by `sigma_position / sigma_orientation` (mm/rad): one radian then counts as the
+    /// length whose error is as likely, never as one millimetre. `v` (the blocks `V_k`, if
+    /// known) gives the covariance of the scaled errors, `S_k V_k S_k`.
+    pub fn scaled_rows(v: Option<&DMatrix<f64>>, rows: usize, scale: &[f64]) -> Self {
+        let block = |i: usize| i - i % rows;
+        let s = DMatrix::from_fn(scale.len(), rows, |i, j| if i % rows == j { scale[i] } else { 0.0 });
+        let noise =
+            v.map(|v| DMatrix::from_fn(v.nrows(), rows, |i, j| scale[i] * v[(i, j)] * scale[block(i) + j]));
+        // The rows' largest standard deviation, as OLS with a noise model takes it.
+        let sigma_max =
+            noise.as_ref().map(|n| (0..n.nrows()).map(|r| n[(r, r % rows)]).fold(0.0, f64::max).sqrt());
+        Self { s: Some(s), noise, rows, scale: sigma_max, whitened: false }
     }
 
     /// Whether these weights are for `equations` rows in points of `rows`.
@@ -512,6 +539,19 @@ impl Prepared {
         system.validate()?;
         let weights = Weights::new(v, rows_per_point, estimator, true)?;
         let a = weights.whiten(&system).a;
+        let factorised = solve::factorise(&a, rank_tolerance)?;
+        Ok(Self { weights, pinv: factorised.pinv(&a), diagnostics: factorised.diagnostics })
+    }
+
+    /// Factor `h` for the weights `weights` (as [`Weights::for_problem`] gives them: an
+    /// ordinary least squares of pose rows scales their orientation rows).
+    pub fn with_weights(
+        h: &DMatrix<f64>,
+        weights: Weights,
+        rank_tolerance: f64,
+    ) -> Result<Self, EstimationError> {
+        let mut a = h.clone();
+        weights.apply(&mut a);
         let factorised = solve::factorise(&a, rank_tolerance)?;
         Ok(Self { weights, pinv: factorised.pinv(&a), diagnostics: factorised.diagnostics })
     }

@@ -43,6 +43,17 @@ impl NoiseModel {
         Self { joint: DMatrix::from_diagonal(&variances.into()), measurement }
     }
 
+    /// Whether the measurement noise has an orientation part: a pose's orientation rows
+    /// (3 to 5 of each block of 6) with a variance above zero.
+    pub fn measures_orientation(&self) -> bool {
+        match &self.measurement {
+            MeasurementNoise::PerAxis(sigmas) => sigmas[3..].iter().any(|&s| s > 0.0),
+            MeasurementNoise::PerPoint(blocks) => {
+                blocks.iter().all(|b| b.nrows() == 6 && (3..6).any(|r| b[(r, r)] > 0.0))
+            }
+        }
+    }
+
     /// Check the model against the robot's `dof`, the number of points and the rows per point.
     pub fn validate(&self, dof: usize, points: usize, rows: usize) -> Result<(), EstimationError> {
         let bad = |what: String| Err(EstimationError::Noise(what));

@@ -1,5 +1,12 @@
 //! The calibration problem of measured poses: the robot, its joint values and what was
 //! measured at each pose, linearised about any parameter values.
+//!
+//! A pose measurement has 3 position rows (mm) and 3 orientation rows (rad). Ordinary least
+//! squares weights its orientation rows by `w = sigma_position / sigma_orientation` (mm/rad,
+//! [`PointProblem::orientation_weight`]): the root mean variances of the position and of the
+//! orientation rows of the blocks `V_k` when a noise model is given (its measurement sigmas
+//! when the joints are exact), [`POSE_SIGMAS`] without one. The estimate then does not depend
+//! on the unit of length, and one radian never counts as one millimetre.
 
 use super::refine::Residuals;
 use super::{EstimationError, LinearSystem, NoiseModel, Weights};
@@ -20,7 +27,13 @@ pub struct PointProblem<'a> {
     observed: Vec<Isometry3<f64>>,
     fixed: Vec<f64>,
     v: Option<DMatrix<f64>>,
+    orientation_weight: f64,
 }
+
+/// The position and orientation standard deviations (mm, rad) that weight a pose's rows for
+/// ordinary least squares when no noise model is given: those of a 6-DOF probe on a laser
+/// tracker (0.05 mm, 0.01 deg), a weight of about 286 mm/rad.
+pub const POSE_SIGMAS: (f64, f64) = (0.05, 0.01 * std::f64::consts::PI / 180.0);
 
 impl<'a> PointProblem<'a> {
     /// The problem of `observed` poses at joint values `joints`, with every parameter error at
@@ -59,9 +72,30 @@ impl<'a> PointProblem<'a> {
         if let Some((k, _)) = joints.iter().enumerate().find(|(_, q)| q.iter().any(|v| !v.is_finite())) {
             return Err(EstimationError::NonFinite { what: "joint values", row: k, value: f64::NAN });
         }
-        let mut problem = Self { chains, selection, measured, joints, observed, fixed, v: None };
+        let weight = POSE_SIGMAS.0 / POSE_SIGMAS.1;
+        let mut problem = Self {
+            chains,
+            selection,
+            measured,
+            joints,
+            observed,
+            fixed,
+            v: None,
+            orientation_weight: weight,
+        };
         if let Some(noise) = noise {
-            problem.v = Some(problem.covariance_blocks(noise)?);
+            if measured == Measured::Pose && !noise.measures_orientation() {
+                return Err(EstimationError::Noise(
+                    "pose measurements need the orientation's standard deviation, and the noise gives none: \
+                     give --sigma-orientation-deg, or sigma_orientation_deg in the noise file"
+                        .into(),
+                ));
+            }
+            let v = problem.covariance_blocks(noise)?;
+            if measured == Measured::Pose {
+                problem.orientation_weight = orientation_weight(&v);
+            }
+            problem.v = Some(v);
         }
         Ok(problem)
     }
@@ -91,7 +125,15 @@ impl<'a> PointProblem<'a> {
             observed: self.observed.clone(),
             fixed,
             v: self.v.clone(),
+            orientation_weight: self.orientation_weight,
         })
+    }
+
+    /// The weight `w = sigma_position / sigma_orientation` (mm/rad) of a pose's orientation
+    /// rows under ordinary least squares (see [`POSE_SIGMAS`] for the default); unused for
+    /// positions.
+    pub fn orientation_weight(&self) -> f64 {
+        self.orientation_weight
     }
 
     /// `V_k` of every pose at the fixed parameters, stacked.
@@ -186,6 +228,12 @@ impl Residuals for PointProblem<'_> {
 
     fn covariance(&self) -> Option<&DMatrix<f64>> {
         self.v.as_ref()
+    }
+
+    fn ols_row_scale(&self) -> Option<Vec<f64>> {
+        let w = self.orientation_weight;
+        (self.measured == Measured::Pose)
+            .then(|| (0..self.equations()).map(|i| if i % 6 < 3 { 1.0 } else { w }).collect())
     }
 
     fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
@@ -288,6 +336,18 @@ impl PointProblem<'_> {
             }
         }
     }
+}
+
+/// `sigma_position / sigma_orientation` of pose blocks `V_k` stacked (`6N x 6`): the square
+/// root of the ratio of the mean variances of the position rows and of the orientation rows,
+/// `w = sqrt(sum_k tr V_k,pp / sum_k tr V_k,oo)`.
+fn orientation_weight(v: &DMatrix<f64>) -> f64 {
+    let (mut position, mut orientation) = (0.0, 0.0);
+    for r in 0..v.nrows() {
+        let variance = v[(r, r % 6)];
+        if r % 6 < 3 { position += variance } else { orientation += variance }
+    }
+    (position / orientation).sqrt()
 }
 
 /// Poses per parallel task of [`PointProblem`]'s linearisation: enough to outweigh a task's

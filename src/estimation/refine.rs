@@ -23,6 +23,12 @@ pub trait Residuals {
     fn names(&self) -> Vec<String> {
         Vec::new()
     }
+    /// The factor of each row of `y` (`N_m`) for ordinary least squares, when rows come in
+    /// different units (a pose: mm, then rad); `None` (the default): every row counts alike.
+    /// See [`Weights::scaled_rows`].
+    fn ols_row_scale(&self) -> Option<Vec<f64>> {
+        None
+    }
     /// The residual `y(x)` (measured minus predicted) and, if `h` is given, the Jacobian
     /// `H(x) = d(prediction)/dx` written into it.
     fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64>;
@@ -145,7 +151,9 @@ impl Linearisation {
 
 impl Weights {
     /// The weights of `estimator` for the covariance blocks of `problem` (checked: sizes,
-    /// finite values, symmetric blocks), with the paper's normalisation.
+    /// finite values, symmetric blocks), with the paper's normalisation; ordinary least
+    /// squares scales the rows of a problem whose points mix units
+    /// ([`Residuals::ols_row_scale`], [`Weights::scaled_rows`]).
     pub fn for_problem(problem: &impl Residuals, estimator: Estimator) -> Result<Self, EstimationError> {
         let rows = problem.rows_per_point();
         if rows == 0 || problem.equations() % rows != 0 {
@@ -164,7 +172,12 @@ impl Weights {
             }
             super::check_covariance(v, rows)?;
         }
-        Weights::new(problem.covariance(), rows, estimator, true)
+        match (estimator, problem.ols_row_scale()) {
+            (Estimator::Ols, Some(scale)) if scale.len() == problem.equations() => {
+                Ok(Weights::scaled_rows(problem.covariance(), rows, &scale))
+            }
+            _ => Weights::new(problem.covariance(), rows, estimator, true),
+        }
     }
 }
 

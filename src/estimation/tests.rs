@@ -118,3 +118,26 @@ fn whitened_gauss_markov_noise_is_a_multiple_of_the_identity() {
     assert_eq!(solve::identity_multiple(system.v.as_ref().unwrap()), None, "unequal variances");
     assert_eq!(solve::identity_multiple(&DMatrix::zeros(6, 3)), None, "zero noise");
 }
+
+/// Ordinary least squares with rows scaled by `S = diag(scale)` is the OLS of `S H`, `S y`,
+/// prepared or not, and the covariance of its whitened errors is `S_k V_k S_k`.
+#[test]
+fn scaled_rows_are_the_ols_of_the_scaled_system() {
+    let system = small_system();
+    let scale: Vec<f64> = (0..12).map(|r| if r % 3 == 2 { 250.0 } else { 1.0 }).collect();
+    let weights = Weights::scaled_rows(system.v.as_ref(), 3, &scale);
+    let by_hand = {
+        let s = |m: &DMatrix<f64>| DMatrix::from_fn(m.nrows(), m.ncols(), |r, c| m[(r, c)] * scale[r]);
+        let y = DMatrix::from_column_slice(12, 1, system.y.as_slice());
+        let scaled =
+            LinearSystem { h: s(&system.h), y: s(&y).column(0).into_owned(), v: None, ..system.clone() };
+        estimate(&scaled, Estimator::Ols, RANK_TOLERANCE).unwrap().x
+    };
+    let prepared = Prepared::with_weights(&system.h, weights.clone(), RANK_TOLERANCE).unwrap();
+    assert!((prepared.estimate(&system.y) - &by_hand).amax() < 1e-12);
+    let noise = weights.noise().unwrap();
+    let v = system.v.as_ref().unwrap();
+    assert!(
+        (noise[(5, 2)] - 250.0 * v[(5, 2)] * 250.0).abs() < 1e-9 && (noise[(3, 1)] - v[(3, 1)]).abs() < 1e-12
+    );
+}

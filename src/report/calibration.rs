@@ -36,6 +36,10 @@ pub struct CalibrationReport {
     pub weighting: Weighting,
     /// The registered base: xyz (mm) and roll-pitch-yaw (deg).
     pub registered_base: [f64; 6],
+    /// A probe's calibrated frame, absolute, in the tip link's frame (the model's marker
+    /// frame; the last joint frame of a DH model): xyz (mm) and roll-pitch-yaw (deg).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tip_frame: Option<[f64; 6]>,
     /// The identified parameters.
     pub parameters: Vec<ParameterRow>,
     /// Numerical rank and condition number of the weighted, column-scaled H (of the data alone,
@@ -366,6 +370,9 @@ impl CalibrationReport {
                 base.rpy.y.to_degrees(),
                 base.rpy.z.to_degrees(),
             ],
+            tip_frame: c.tip_frame().map(|t| {
+                [t.xyz.x, t.xyz.y, t.xyz.z, t.rpy.x.to_degrees(), t.rpy.y.to_degrees(), t.rpy.z.to_degrees()]
+            }),
             parameters: parameters.clone(),
             rank: d.rank,
             condition_number: d.condition_number,
@@ -461,6 +468,14 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             "base registered at xyz ({:.3}, {:.3}, {:.3}) mm, rpy ({:.4}, {:.4}, {:.4}) deg\n",
             b[0], b[1], b[2], b[3], b[4], b[5]
         );
+        if let Some(t) = &self.tip_frame {
+            let _ = writeln!(
+                out,
+                "probe frame in the tip link's frame: xyz ({:.3}, {:.3}, {:.3}) mm, rpy ({:.4}, {:.4}, {:.4}) deg \
+                 (the marker parameters below are its corrections)\n",
+                t[0], t[1], t[2], t[3], t[4], t[5]
+            );
+        }
         let priors = self.parameters.iter().any(|p| p.prior_sd.is_some());
         if priors {
             let _ = writeln!(

@@ -141,7 +141,8 @@ pub fn worst_poses(sets: &[&SetEvaluation]) -> String {
 /// Every pose of every set (joint values already in degrees, [`in_degrees`]) as CSV, one row
 /// per pose and marker: the set, the file line, the
 /// joint values (`<joint>_deg`, `<joint>_mm` for prismatic joints), the marker, its error at
-/// each stage (norm and x, y, z, mm; and for a probe the orientation error, deg), the pose's
+/// each stage (norm and x, y, z, mm; and for a probe the orientation error, deg: the angle and
+/// the rotation vector's x, y, z), the pose's
 /// whitened residual, its largest whitened component and whether it is flagged.
 pub fn poses_csv(sets: &[&SetEvaluation], joints: &[Joint]) -> String {
     let mut out = String::new();
@@ -158,7 +159,9 @@ pub fn poses_csv(sets: &[&SetEvaluation], joints: &[Joint]) -> String {
             head.push(format!("{stage}_{part}"));
         }
         if probe {
-            head.push(format!("{stage}_orientation_deg"));
+            for part in ["orientation_deg", "rx_deg", "ry_deg", "rz_deg"] {
+                head.push(format!("{stage}_{part}"));
+            }
         }
     }
     head.extend(["whitened", "worst_sd", "flagged"].map(String::from));
@@ -174,9 +177,9 @@ pub fn poses_csv(sets: &[&SetEvaluation], joints: &[Joint]) -> String {
                     cells.push(format!("{}", p.distance(s, m)));
                     cells.extend(e.iter().map(|v| format!("{v}")));
                     if probe {
-                        let angle =
-                            p.orientation.as_ref().map_or(0.0, |o| nalgebra::Vector3::from(o[s]).norm());
-                        cells.push(format!("{angle}"));
+                        let turn = p.orientation.as_ref().map_or([0.0; 3], |o| o[s]);
+                        cells.push(format!("{}", nalgebra::Vector3::from(turn).norm()));
+                        cells.extend(turn.iter().map(|v| format!("{v}")));
                     }
                 }
                 cells.push(format!("{}", p.whitened));

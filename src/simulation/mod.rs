@@ -47,7 +47,7 @@ pub use synthetic::measurement_csv;
 use crate::design::{Criterion, Design, DesignError};
 use crate::estimation::{
     DeviceError, EstimationError, MeasurementNoise, NoiseModel, PointProblem, Prepared, RANK_TOLERANCE,
-    RefineOptions, refine,
+    RefineOptions, Weights, refine,
 };
 use crate::kinematics::{Chain, ChainAt, Measured, pose_error};
 use crate::model::ParamKind;
@@ -293,9 +293,9 @@ impl Bench<'_> {
             )?;
             let system = problem.system(&problem.start());
             if study.iterations == 1 {
-                let rows = system.rows_per_point;
-                let one =
-                    Prepared::new(&system.h, system.v.as_ref(), rows, compared.estimator, RANK_TOLERANCE)?;
+                // The problem's weights: an ols of poses weights their orientation rows.
+                let weights = Weights::for_problem(&problem, compared.estimator)?;
+                let one = Prepared::with_weights(&system.h, weights, RANK_TOLERANCE)?;
                 rank = rank.or(Some(one.diagnostics().rank));
                 prepared.push(one);
             } else if rank.is_none() {

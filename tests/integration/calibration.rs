@@ -6,8 +6,8 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::{self, JointParams, Measurements, Options};
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PointProblem, RefineOptions, refine};
-use robocal::kinematics::{Chain, Measured};
-use robocal::model::{ParamKind, ParamOwner, Placement, RobotModel, Selection};
+use robocal::kinematics::{Chain, ChainAt, Measured};
+use robocal::model::{ParamKind, ParamOwner, Placement, RobotModel, Selection, Tool};
 use robocal::simulation::measurement_csv;
 use robocal::table::Units;
 
@@ -280,6 +280,44 @@ fn fewer_poses_than_identifiable_parameters_is_an_error() {
     );
 }
 
+/// A measurement file of a 6-DOF probe on `real` (position of marker 1 and the frame's
+/// orientation, quaternion) at `count` random poses of `nominal`, the joints read with
+/// standard deviations `sigmas` (rad).
+fn probe_file(
+    nominal: &RobotModel,
+    real: &ChainAt,
+    count: usize,
+    sigmas: &[f64],
+    rng: &mut ChaCha8Rng,
+) -> Measurements {
+    let mut text = String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n");
+    for q in poses(nominal, count, rng) {
+        let noisy: Vec<f64> = q
+            .iter()
+            .zip(sigmas)
+            .map(|(q, s)| {
+                let z: f64 = StandardNormal.sample(&mut *rng);
+                q + s * z
+            })
+            .collect();
+        let pose = real.pose(&noisy);
+        let (p, r) = (pose.translation.vector, pose.rotation);
+        let degrees: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
+        text += &format!(
+            "{},{:.6},{:.6},{:.6},{:.12},{:.12},{:.12},{:.12}\n",
+            degrees.join(","),
+            p.x,
+            p.y,
+            p.z,
+            r.w,
+            r.i,
+            r.j,
+            r.k
+        );
+    }
+    Measurements::from_csv_str(&text, nominal, None).unwrap()
+}
+
 /// A 6-DOF probe: the file gives marker 1's position and the frame's orientation (quaternion);
 /// the probe is mounted turned by about 30 degrees, which the calibration must find.
 #[test]
@@ -290,35 +328,7 @@ fn a_probe_with_orientation_calibrates_its_mounting_too() {
     let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
     let chain = Chain::probe(&truth, &mounting);
     let real = chain.with_errors(&vec![0.0; chain.params().len()]);
-    let file = |count: usize, rng: &mut ChaCha8Rng| {
-        let mut text =
-            String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n");
-        for q in poses(&nominal, count, rng) {
-            let noisy: Vec<f64> = q
-                .iter()
-                .zip(joint_sigmas())
-                .map(|(q, s)| {
-                    let z: f64 = StandardNormal.sample(&mut *rng);
-                    q + s * z
-                })
-                .collect();
-            let pose = real.pose(&noisy);
-            let (p, r) = (pose.translation.vector, pose.rotation);
-            let degrees: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
-            text += &format!(
-                "{},{:.6},{:.6},{:.6},{:.12},{:.12},{:.12},{:.12}\n",
-                degrees.join(","),
-                p.x,
-                p.y,
-                p.z,
-                r.w,
-                r.i,
-                r.j,
-                r.k
-            );
-        }
-        Measurements::from_csv_str(&text, &nominal, None).unwrap()
-    };
+    let file = |count: usize, rng: &mut ChaCha8Rng| probe_file(&nominal, &real, count, &joint_sigmas(), rng);
     let (training, validation) = (file(120, &mut rng), file(60, &mut rng));
     assert!(training.orientations.is_some());
     let options = Options {
@@ -356,6 +366,15 @@ fn a_probe_with_orientation_calibrates_its_mounting_too() {
     assert_eq!(held_out.pooled[1], after);
     let orientation = held_out.orientation.as_ref().expect("a probe's orientation errors");
     assert!(orientation[1].rms < orientation[0].rms, "orientation error falls: {orientation:?}");
+    // The per-pose table: the angle and the rotation vector of each stage, in degrees.
+    let csv = robocal::report::poses::poses_csv(&[&held_out], &nominal.joints);
+    let (head, row) = (csv.lines().next().unwrap(), csv.lines().nth(1).unwrap());
+    assert!(head.contains("after_orientation_deg,after_rx_deg,after_ry_deg,after_rz_deg"), "{head}");
+    let cells: Vec<f64> = row.split(',').skip(2).filter_map(|c| c.parse().ok()).collect();
+    let at = head.split(',').position(|h| h == "after_rx_deg").unwrap() - 2;
+    let turn = Vector3::from(held_out.poses[0].orientation.as_ref().unwrap()[1]);
+    assert_eq!(cells[at], turn.x);
+    assert!((cells[at - 1] - turn.norm()).abs() < 1e-12);
     let scored =
         calibration::evaluate_model(&calibration.calibrated, &[], "validation", &validation, None).unwrap();
     for (a, b) in held_out.poses.iter().zip(&scored.poses) {
@@ -414,4 +433,226 @@ fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
             assert!(names.contains(&p.name), "seed {seed}: {} is estimated", p.name);
         }
     }
+}
+
+/// A probe's campaign: the true robot's probe chain, a training and a validation file.
+fn probe_campaign(seed: u64) -> (RobotModel, ChainAt, Measurements, Measurements) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let nominal = RobotModel::preset("puma560").unwrap();
+    let truth = true_robot(&nominal, &mut rng);
+    let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
+    let chain = Chain::probe(&truth, &mounting);
+    let real = chain.with_errors(&vec![0.0; chain.params().len()]);
+    let training = probe_file(&nominal, &real, 80, &joint_sigmas(), &mut rng);
+    let validation = probe_file(&nominal, &real, 60, &joint_sigmas(), &mut rng);
+    (nominal, real, training, validation)
+}
+
+fn probe_options(estimator: Estimator, noise: Option<NoiseModel>) -> Options {
+    Options {
+        estimator,
+        noise,
+        joints: JointParams::All,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
+        refine: RefineOptions::default(),
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
+        gauge: Default::default(),
+    }
+}
+
+/// The probe's noise: the joints', 0.01 mm and 0.002 deg.
+fn probe_noise() -> NoiseModel {
+    NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(0.01, 0.002f64.to_radians()))
+}
+
+/// On 6-DOF data, ordinary least squares (with and without a noise model) and Gauss-Markov
+/// both lower the orientation error of held-out poses, and OLS, its orientation rows weighted
+/// by `sigma_position / sigma_orientation`, comes within a factor of 2 of WLS.
+#[test]
+fn ols_and_wls_on_probe_data_lower_the_held_out_orientation_error() {
+    let (nominal, _, training, validation) = probe_campaign(41);
+    let mut rms = Vec::new();
+    for (estimator, noise) in
+        [(Estimator::Ols, None), (Estimator::Ols, Some(probe_noise())), (Estimator::Wls, Some(probe_noise()))]
+    {
+        let options = probe_options(estimator, noise.clone());
+        let calibration = calibration::calibrate(&nominal, &training, &options).unwrap();
+        let held_out = calibration.evaluate("validation", &validation, noise.as_ref()).unwrap();
+        let orientation = held_out.orientation.as_ref().expect("a probe's orientation errors");
+        let (before, after) = (orientation[0].rms, orientation[1].rms);
+        assert!(
+            after * 5.0 < before,
+            "{estimator:?}: held-out orientation RMS {before:.5} deg before, {after:.5} deg after"
+        );
+        assert!(held_out.pooled[1].rms * 5.0 < held_out.pooled[0].rms, "{estimator:?}: positions");
+        rms.push(after);
+    }
+    assert!(rms[0] < 2.0 * rms[2] && rms[1] < 2.0 * rms[2], "OLS against WLS (deg): {rms:?}");
+}
+
+/// `model` with its lengths in metres (a DH model without prismatic joints).
+pub(crate) fn in_metres(model: &RobotModel) -> RobotModel {
+    let mut m = model.clone();
+    for joint in &mut m.joints {
+        joint.d /= 1000.0;
+        joint.a /= 1000.0;
+    }
+    m.base.xyz /= 1000.0;
+    m.tool = match m.tool {
+        Tool::Point(p) => Tool::Point(p / 1000.0),
+        Tool::Frame(f) => Tool::Frame(Placement { xyz: f.xyz / 1000.0, rpy: f.rpy }),
+    };
+    m
+}
+
+/// The robot, the data and the noise in metres instead of millimetres give the same ordinary
+/// least-squares estimate (lengths a thousand times smaller, angles equal): OLS on poses
+/// weights its orientation rows by `sigma_position / sigma_orientation`, which has the unit of
+/// length; with one radian counted as one length unit it would not.
+#[test]
+fn rescaling_the_length_unit_does_not_change_the_ols_estimate() {
+    let (nominal, _, training, _) = probe_campaign(43);
+    let mut data_m = training.clone();
+    data_m.markers.iter_mut().flatten().for_each(|p| *p /= 1000.0);
+    let in_mm = probe_options(Estimator::Ols, Some(probe_noise()));
+    let noise_m = NoiseModel::diagonal(
+        &joint_sigmas(),
+        MeasurementNoise::isotropic(0.01 / 1000.0, 0.002f64.to_radians()),
+    );
+    let in_m = Options { noise: Some(noise_m), markers: vec![in_mm.markers[0] / 1000.0], ..in_mm.clone() };
+    let mm = calibration::calibrate(&nominal, &training, &in_mm).unwrap();
+    let m = calibration::calibrate(&in_metres(&nominal), &data_m, &in_m).unwrap();
+    let se = calibration::standard_errors(&mm);
+    assert_eq!(mm.refined.estimate.names, m.refined.estimate.names);
+    let mut checked = 0;
+    for (i, p) in mm.params.iter().enumerate() {
+        if se[i].is_nan() {
+            continue;
+        }
+        let scale = if p.kind.is_angle() { 1.0 } else { 1000.0 };
+        let gap = (m.after[i] * scale - mm.after[i]).abs();
+        assert!(
+            gap < 1e-3 * se[i],
+            "{}: {} (m) against {} (mm), SE {}",
+            p.name,
+            m.after[i],
+            mm.after[i],
+            se[i]
+        );
+        checked += 1;
+    }
+    assert!(checked >= 25, "{checked} parameters compared");
+}
+
+/// A noise model without an orientation sigma cannot weight pose data: the error names the
+/// flag and the field to give.
+#[test]
+fn pose_data_without_an_orientation_sigma_is_refused_naming_it() {
+    let (nominal, _, training, _) = probe_campaign(45);
+    let noise = NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(0.01, 0.0));
+    for estimator in [Estimator::Ols, Estimator::Wls] {
+        let err = calibration::calibrate(&nominal, &training, &probe_options(estimator, Some(noise.clone())))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("--sigma-orientation-deg") && err.contains("sigma_orientation_deg"),
+            "{estimator:?}: {err}"
+        );
+    }
+}
+
+/// The probe's frame is reported absolutely, in the tip link's frame: with only the base and
+/// the probe estimated on exact data, it is the true mounting, whatever the data-derived start.
+#[test]
+fn the_probe_frame_is_reported_absolutely_in_the_tip_link_frame() {
+    let mut rng = ChaCha8Rng::seed_from_u64(47);
+    let nominal = RobotModel::preset("puma560").unwrap();
+    let mut truth = nominal.clone();
+    truth.base = Placement { xyz: Vector3::new(1500.0, -300.0, 200.0), rpy: Vector3::new(0.1, -0.05, 0.6) };
+    let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
+    let chain = Chain::probe(&truth, &mounting);
+    let real = chain.with_errors(&vec![0.0; chain.params().len()]);
+    let training = probe_file(&nominal, &real, 30, &[0.0; 6], &mut rng);
+    let options = Options { joints: JointParams::None, ..probe_options(Estimator::Ols, None) };
+    let calibration = calibration::calibrate(&nominal, &training, &options).unwrap();
+    let found = calibration.tip_frame().expect("a probe's frame");
+    assert!((found.xyz - mounting.xyz).norm() < 1e-4, "{:?} against {:?}", found.xyz, mounting.xyz);
+    let angle = found.isometry().rotation.angle_to(&mounting.isometry().rotation);
+    assert!(angle < 1e-8, "turned {angle} rad from the true mounting");
+    let report =
+        robocal::report::calibration::CalibrationReport::new(&calibration, "probe.csv", "ols", vec![], None);
+    let t = report.tip_frame.expect("in the report");
+    assert!((t[0] - 52.0).abs() < 1e-4 && (t[5] - 0.5f64.to_degrees()).abs() < 1e-6, "{t:?}");
+    assert!(report.text().contains("probe frame in the tip link's frame: xyz (52.000, 1.000, 148.000) mm"));
+}
+
+/// Without a noise model the training residuals are whitened by their spread, a pose's
+/// orientation rows counted as lengths by the OLS weight: a pose whose orientation is 1 degree
+/// off (its position right) is flagged.
+#[test]
+fn a_probe_pose_turned_off_is_flagged_without_a_noise_model() {
+    let (nominal, _, mut training, _) = probe_campaign(49);
+    let turned = nalgebra::UnitQuaternion::from_euler_angles(0.0, 1f64.to_radians(), 0.0);
+    let orientations = training.orientations.as_mut().unwrap();
+    orientations[7] = turned * orientations[7];
+    let calibration =
+        calibration::calibrate(&nominal, &training, &probe_options(Estimator::Ols, None)).unwrap();
+    let line = training.lines[7];
+    let flagged: Vec<&String> =
+        calibration.warnings.iter().filter(|w| w.contains("standard deviations out")).collect();
+    assert_eq!(flagged.len(), 1, "{:?}", calibration.warnings);
+    assert!(flagged[0].starts_with(&format!("line {line}:")), "{flagged:?}");
+}
+
+/// Feasible GLS on 6-DOF data: it starts from OLS (orientation rows weighted by the default
+/// sigmas), estimates an orientation sigma with the others, weights with one above 0, and
+/// lowers the held-out errors.
+#[test]
+fn feasible_gls_on_probe_data_estimates_the_orientation_sigma() {
+    let (nominal, _, training, validation) = probe_campaign(51);
+    let options = probe_options(Estimator::Ols, None);
+    let c = calibration::calibrate_feasible(&nominal, &training, &options, &Default::default()).unwrap();
+    let estimate = c.noise_estimate.as_ref().expect("the estimated noise");
+    // The probe's readings are exact here (only the joints are noisy): the estimate is at
+    // the bound 0, and the weights use what the data cannot rule out, above 0.
+    let orientation = estimate.sigma_orientation().expect("an orientation sigma");
+    assert!(orientation.high < 1e-4, "{orientation:?}");
+    assert!(estimate.weighting_sigmas().1 > 0.0);
+    let held_out = c.evaluate("validation", &validation, Some(&estimate.noise_model())).unwrap();
+    let o = held_out.orientation.as_ref().unwrap();
+    assert!(o[1].rms * 5.0 < o[0].rms, "orientation RMS {} -> {} deg", o[0].rms, o[1].rms);
+}
+
+/// A noise file with a device and no `sigma_orientation_deg` gives a probe's orientation rows
+/// the device's typical figure (a laser tracker's 6-DOF probe: 0.01 deg); its own value wins
+/// when given; without a device nothing is made up, and the calibration says what is missing.
+#[test]
+fn a_devices_orientation_sigma_is_the_default_for_a_probe() {
+    let (nominal, _, training, _) = probe_campaign(53);
+    let file = |extra: &str| {
+        let text = format!(
+            "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\n{extra}\n[device]\nkind = \"laser-tracker\"\n\
+             position_mm = [2500.0, 0.0, 300.0]\nsigma_r_mm = 0.01\nk_ppm = 5.0\nsigma_angle_arcsec = 2.0\n"
+        );
+        robocal::estimation::NoiseSpec::from_toml_str(&text, &nominal).unwrap()
+    };
+    let orientation = |spec: &robocal::estimation::NoiseSpec| {
+        let noise = calibration::noise_from_spec(spec, &training).unwrap();
+        let MeasurementNoise::PerPoint(blocks) = &noise.measurement else { panic!("per pose") };
+        blocks[0][(4, 4)].sqrt().to_degrees()
+    };
+    assert!((orientation(&file("")) - 0.01).abs() < 1e-12);
+    assert!((orientation(&file("sigma_orientation_deg = 0.003")) - 0.003).abs() < 1e-12);
+    let spec = robocal::estimation::NoiseSpec::from_toml_str(
+        "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\nsigma_me_mm = 0.01\n",
+        &nominal,
+    )
+    .unwrap();
+    let noise = calibration::noise_from_spec(&spec, &training).unwrap();
+    let err =
+        calibration::calibrate(&nominal, &training, &probe_options(Estimator::Wls, Some(noise))).unwrap_err();
+    assert!(err.to_string().contains("sigma_orientation_deg in the noise file"), "{err}");
 }

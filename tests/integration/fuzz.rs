@@ -23,6 +23,15 @@ const MODEL: &str = include_str!("../../presets/puma560.toml");
 const NOISE: &str = include_str!("../../examples/puma560-noise.toml");
 const STUDY: &str = include_str!("../../presets/planned-poses.toml");
 const DEVICE_STUDY: &str = include_str!("../../presets/device-theodolites.toml");
+const BALL_BAR: &str = include_str!("../../examples/puma560-ballbar.csv");
+/// Every kind of observation in one file, by a `kind` column.
+const OBSERVATIONS: &str = "# units: joints=deg, lengths=mm
+kind,j1,j2,j3,j4,j5,j6,j1_b,j2_b,j3_b,j4_b,j5_b,j6_b,distance,point,plane,x,y,z,roll,pitch,yaw,sigma,sigma_angle
+pair,0,10,20,0,0,0,5,15,25,0,0,0,123.4,,,,,,,,,0.02,
+point,0,10,20,0,0,0,,,,,,,300,2,,,,,,,,,
+contact,0,10,20,0,0,0,,,,,,,,,3,,,,,,,,
+coordinates,0,10,20,0,0,0,,,,,,,,,,,,812.5,1.5,,,,0.01
+";
 
 /// `cases` property cases (or `ROBOCAL_FUZZ_CASES`), from a fixed seed, without regression
 /// files.
@@ -153,6 +162,33 @@ proptest! {
             prop_assert!(e.line >= 1 && e.line <= text.lines().count().max(1) + 1, "{e} in {text:?}");
             let prefix = format!("line {}", e.line);
             prop_assert!(e.to_string().starts_with(&prefix), "{e}");
+        }
+    }
+
+    #[test]
+    fn observation_files_read_or_name_the_line(
+        mutations in prop::collection::vec(mutation(), 1..6),
+        mixed in any::<bool>(),
+    ) {
+        let text = mutate(&head(if mixed { OBSERVATIONS } else { BALL_BAR }, 30), &mutations);
+        match robocal::calibration::kinds::KindData::from_csv_str(&text, &puma(), None) {
+            Ok(data) => {
+                prop_assert!(data.check(6).is_ok(), "{text:?}");
+                // A fit of what reads: a calibration or an error, never a panic.
+                let options = robocal::calibration::kinds::KindOptions {
+                    estimator: Estimator::Wls,
+                    joint_noise: None,
+                    joints: JointParams::Offsets,
+                    estimate_tool: true,
+                    tool: Vector3::new(50.0, 0.0, 150.0),
+                    refine: RefineOptions { max_iterations: 3, ..RefineOptions::default() },
+                };
+                let _ = robocal::calibration::kinds::calibrate_kinds(&puma(), &data, &options);
+            }
+            Err(e) => {
+                let prefix = format!("line {}", e.line);
+                prop_assert!(e.line >= 1 && e.to_string().starts_with(&prefix), "{e} in {text:?}");
+            }
         }
     }
 

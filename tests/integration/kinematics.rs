@@ -11,7 +11,7 @@ fn puma() -> RobotModel {
 
 /// A random serial robot of the given convention; `beta` decides whether the Hayati angles
 /// are used (non-zero) or left at zero. URDF joints get a random origin and axis.
-fn robot(convention: Convention, beta: bool) -> impl Strategy<Value = RobotModel> {
+pub(crate) fn robot(convention: Convention, beta: bool) -> impl Strategy<Value = RobotModel> {
     let joint = (any::<bool>(), prop::array::uniform9(-1.0..1.0f64)).prop_map(move |(prismatic, u)| {
         let kind = if prismatic { JointKind::Prismatic } else { JointKind::Revolute };
         if convention == Convention::Urdf {
@@ -50,7 +50,7 @@ fn robot(convention: Convention, beta: bool) -> impl Strategy<Value = RobotModel
 }
 
 /// Joint values (rad or mm) and small parameter errors for `model`, from unit draws.
-fn point(model: &RobotModel, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn point(model: &RobotModel, u: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let q = model
         .joints
         .iter()

@@ -6,6 +6,7 @@ mod compliance;
 mod estimation;
 mod fgls;
 mod fuzz;
+mod kinds;
 mod kinematics;
 mod layering;
 mod model_files;

@@ -207,3 +207,31 @@ fn observability_errors_name_the_file_line_and_column() {
     let message = String::from_utf8(output.stderr).unwrap();
     assert!(message.contains("--joint-sigma-deg: 2 values for the 6 joints of puma560"), "{message}");
 }
+
+/// Pose rows in lengths: the indices of a pose design do not depend on the length unit (the
+/// robot and the noise in metres give the same column-scaled indices, and whitened ones per
+/// metre of noise instead of per mm), since the
+/// orientation rows are weighted by `sigma_position / sigma_orientation`.
+#[test]
+fn pose_indices_do_not_depend_on_the_length_unit() {
+    let model = RobotModel::preset("puma560").unwrap();
+    let sigmas: Vec<f64> =
+        [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
+    let design = |model: &RobotModel, sigma_mm: f64| {
+        let noise =
+            NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(sigma_mm, 0.002f64.to_radians()));
+        Design::new(model, Selection::joints(&model.params()), Measured::Pose, Some(noise)).unwrap()
+    };
+    let poses = random_poses(15, 7);
+    let mm = design(&model, 0.01).observability(&poses).unwrap();
+    let m = design(&crate::calibration::in_metres(&model), 1e-5).observability(&poses).unwrap();
+    let (a, b) = (&mm.scaled, &m.scaled);
+    for (x, y) in [(a.o1, b.o1), (a.o2, b.o2), (a.o3, b.o3), (a.o4, b.o4), (a.o5, b.o5)] {
+        assert!((x - y).abs() <= 1e-6 * x.abs().max(y.abs()), "{a:?} against {b:?}");
+    }
+    // The whitened singular values are per unit of noise: a thousand per metre for one per mm.
+    let (a, b) = (mm.whitened.as_ref().unwrap(), m.whitened.as_ref().unwrap());
+    for (x, y) in a.singular_values.iter().zip(&b.singular_values) {
+        assert!((1000.0 * x - y).abs() <= 1e-6 * y, "{a:?} against {b:?}");
+    }
+}

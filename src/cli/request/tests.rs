@@ -436,3 +436,33 @@ fn fgls_takes_no_priors_and_no_robust_loss() {
     assert!(message.starts_with("--loss with --estimator fgls: not supported"), "{message}");
     assert!(calibrate(&fgls).is_ok());
 }
+
+/// `robocal calibrate-observations --model puma560 --data d.csv` with `args`.
+fn observations(args: &[&str]) -> Result<CalibrateObservationsRequest, String> {
+    request(&["calibrate-observations", "--model", "puma560", "--data", "d.csv"], args, |command| {
+        match command {
+            Command::CalibrateObservations(args) => CalibrateObservationsRequest::from_args(*args),
+            other => panic!("parsed as {other:?}"),
+        }
+    })
+}
+
+#[test]
+fn calibrate_observations_weights_by_default_and_takes_ols_or_wls_only() {
+    let request = observations(&["--data", "e.csv", "--tool", "1,2,3", "--fixed-tool"]).unwrap();
+    assert_eq!(request.estimator, Estimator::Wls);
+    assert_eq!(request.data, [PathBuf::from("d.csv"), PathBuf::from("e.csv")]);
+    assert_eq!(request.tool, Some(Vector3::new(1.0, 2.0, 3.0)));
+    assert!(!request.estimate_tool);
+    assert_eq!(observations(&["--estimator", "ols"]).unwrap().estimator, Estimator::Ols);
+    assert_eq!(
+        observations(&["--estimator", "fgls"]).unwrap_err(),
+        "--estimator fgls: calibrate-observations takes ols or wls (one row per observation)"
+    );
+    assert_eq!(
+        observations(&["--params", "all"]).unwrap_err(),
+        "--params all: the base and the set-up are chosen by the observations; give --params joints"
+    );
+    assert!(observations(&["--estimator", "wls-diag"]).unwrap_err().starts_with("--estimator wls-diag:"));
+    assert!(observations(&["--json", "d.csv"]).unwrap_err().contains("d.csv"));
+}

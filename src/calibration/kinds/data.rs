@@ -1,0 +1,576 @@
+//! The files of distances, contacts and partial coordinates (see `docs/formats.md`).
+//!
+//! ```text
+//! # units: joints=deg, lengths=mm
+//! j1,j2,j3,j4,j5,j6,j1_b,j2_b,j3_b,j4_b,j5_b,j6_b,distance     pairs of poses
+//! j1,j2,j3,j4,j5,j6,point,distance                             to fixed point `point` (1, 2, ...)
+//! j1,j2,j3,j4,j5,j6,plane                                      contacts with plane `plane`
+//! j1,j2,j3,j4,j5,j6,x,y,z,roll,pitch,yaw                       coordinates, any empty or absent
+//! ```
+//!
+//! Each may add `sigma`, the row's measurement standard deviation (length unit; every measured
+//! length of the row), without it [`DEFAULT_SIGMA_MM`]; and `sigma_angle` for angles (the
+//! joints' angle unit), without it [`DEFAULT_SIGMA_ANGLE_DEG`].
+
+use super::SetUp;
+use crate::calibration::CalibrationError;
+use crate::limits::MAX_LENGTH_MM;
+use crate::model::RobotModel;
+use crate::table::{DataError, Row, Table, Units};
+use nalgebra::{DMatrix, DVector, Vector3};
+
+/// The measurement standard deviation of a row without a `sigma` column (mm).
+pub const DEFAULT_SIGMA_MM: f64 = 0.01;
+
+/// The standard deviation of an angle (roll, pitch, yaw) without a `sigma_angle` column (deg).
+pub const DEFAULT_SIGMA_ANGLE_DEG: f64 = 0.01;
+
+/// One measured number. Poses are indices into [`KindData::joints`]; points and planes count
+/// from 0 (`point = 1` in a file is 0 here).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum Observation {
+    /// The distance (mm) between the tool point at poses `a` and `b`.
+    Distance {
+        /// The first pose.
+        a: usize,
+        /// The second pose.
+        b: usize,
+        /// The distance (mm).
+        measured: f64,
+        /// Its standard deviation (mm).
+        sigma: f64,
+    },
+    /// The distance (mm) from the tool point at `pose` to fixed point `point`.
+    ToPoint {
+        /// The pose.
+        pose: usize,
+        /// The fixed point.
+        point: usize,
+        /// The distance (mm).
+        measured: f64,
+        /// Its standard deviation (mm).
+        sigma: f64,
+    },
+    /// The tool point at `pose` touches plane `plane`: signed distance 0.
+    Contact {
+        /// The pose.
+        pose: usize,
+        /// The plane.
+        plane: usize,
+        /// The standard deviation of the contact (mm).
+        sigma: f64,
+    },
+    /// One coordinate of the tool at `pose`, in the measuring frame: `axis` 0, 1, 2 the
+    /// point's x, y, z (mm); 3, 4, 5 the tool frame's roll, pitch, yaw (rad,
+    /// `R = Rz(yaw) Ry(pitch) Rx(roll)`).
+    Coordinate {
+        /// 0 to 5: x, y, z, roll, pitch, yaw.
+        axis: usize,
+        /// The pose.
+        pose: usize,
+        /// The coordinate (mm or rad).
+        measured: f64,
+        /// Its standard deviation (mm or rad).
+        sigma: f64,
+    },
+}
+
+impl Observation {
+    /// The measured value `m_k` (mm; 0 for a contact).
+    pub fn measured(&self) -> f64 {
+        match *self {
+            Self::Distance { measured, .. }
+            | Self::ToPoint { measured, .. }
+            | Self::Coordinate { measured, .. } => measured,
+            Self::Contact { .. } => 0.0,
+        }
+    }
+
+    /// Its kind in words: `distance` (a pair), `point`, `contact`, or the coordinate `x` ...
+    /// `yaw`.
+    pub fn kind(&self) -> &'static str {
+        match *self {
+            Self::Distance { .. } => "distance",
+            Self::ToPoint { .. } => "point",
+            Self::Contact { .. } => "contact",
+            Self::Coordinate { axis, .. } => {
+                ["x", "y", "z", "roll", "pitch", "yaw"].get(axis).copied().unwrap_or("?")
+            }
+        }
+    }
+
+    /// Whether it is an angle (rad).
+    pub fn is_angle(&self) -> bool {
+        matches!(self, Self::Coordinate { axis: 3.., .. })
+    }
+
+    /// The residual `m_k - f` of a prediction `f`; an angle's wrapped into `(-pi, pi]`.
+    pub fn residual(&self, f: f64) -> f64 {
+        let r = self.measured() - f;
+        match self {
+            Self::Coordinate { axis, .. } if *axis >= 3 => {
+                let t = std::f64::consts::TAU;
+                r - t * ((r + std::f64::consts::PI) / t).ceil() + t
+            }
+            _ => r,
+        }
+    }
+
+    /// Its standard deviation `sigma_k` (mm).
+    pub fn sigma(&self) -> f64 {
+        match *self {
+            Self::Distance { sigma, .. }
+            | Self::ToPoint { sigma, .. }
+            | Self::Contact { sigma, .. }
+            | Self::Coordinate { sigma, .. } => sigma,
+        }
+    }
+}
+
+/// Observations of distances, contacts and coordinates, with the poses they were made at.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct KindData {
+    /// Joint values of each pose (rad, mm for prismatic joints).
+    pub joints: Vec<Vec<f64>>,
+    /// The observations.
+    pub observations: Vec<Observation>,
+    /// The file line of each observation.
+    pub lines: Vec<usize>,
+}
+
+impl KindData {
+    /// Read a file of distances (pairs `<joint>,<joint>_b,distance`, or to fixed points
+    /// `<joint>,point,distance`), contacts (`<joint>,plane`) or coordinates (any of
+    /// `x,y,z,roll,pitch,yaw`, empty cells for coordinates not measured) for `model`; or of
+    /// them all, a `kind` column naming each row's (`pair`, `point`, `contact`, `coordinates`).
+    /// `units` from the caller take the place of the file's `# units:` line.
+    pub fn from_csv_str(text: &str, model: &RobotModel, units: Option<Units>) -> Result<Self, DataError> {
+        let table = Table::parse(text)?;
+        let units = table.units(units, " or give --joint-unit and --length-unit")?;
+        let columns = KindColumns::resolve(&table, model)?;
+        let mut data = Self::default();
+        for row in table.nonempty_rows()? {
+            let kind = match columns.kind {
+                Some(c) => RowKind::named(&row.cells[c]).ok_or_else(|| {
+                    let message = format!("`{}`: expected pair, point, contact or coordinates", row.cells[c]);
+                    DataError::new(row.line, Some("kind"), message)
+                })?,
+                None => columns.file_kind.expect("a file without a kind column has one kind"),
+            };
+            columns.read_row(&table, row, kind, model, units, &mut data)?;
+        }
+        Ok(data)
+    }
+
+    /// These observations and `other`'s in one set (the same point or plane numbers are the
+    /// same point or plane).
+    pub fn join(mut self, other: &Self) -> Self {
+        let offset = self.joints.len();
+        self.joints.extend(other.joints.iter().cloned());
+        self.lines.extend(&other.lines);
+        self.observations.extend(other.observations.iter().map(|o| match *o {
+            Observation::Distance { a, b, measured, sigma } => {
+                Observation::Distance { a: a + offset, b: b + offset, measured, sigma }
+            }
+            Observation::ToPoint { pose, point, measured, sigma } => {
+                Observation::ToPoint { pose: pose + offset, point, measured, sigma }
+            }
+            Observation::Contact { pose, plane, sigma } => {
+                Observation::Contact { pose: pose + offset, plane, sigma }
+            }
+            Observation::Coordinate { pose, axis, measured, sigma } => {
+                Observation::Coordinate { pose: pose + offset, axis, measured, sigma }
+            }
+        }));
+        self
+    }
+
+    /// The number of fixed points and of planes (the highest number of each).
+    pub fn setup_counts(&self) -> (usize, usize) {
+        let mut counts = (0, 0);
+        for o in &self.observations {
+            match *o {
+                Observation::ToPoint { point, .. } => counts.0 = counts.0.max(point + 1),
+                Observation::Contact { plane, .. } => counts.1 = counts.1.max(plane + 1),
+                _ => {}
+            }
+        }
+        counts
+    }
+
+    /// Whether any observation is an angle of the tool frame (then the tool is a frame).
+    pub fn has_angles(&self) -> bool {
+        self.observations.iter().any(|o| matches!(o, Observation::Coordinate { axis: 3.., .. }))
+    }
+
+    /// Whether any observation sees the measuring frame's coordinates (then the base is
+    /// estimated; distances and contacts alone cannot see it).
+    pub fn sees_the_base(&self) -> bool {
+        self.observations.iter().any(|o| matches!(o, Observation::Coordinate { .. }))
+    }
+
+    /// Whether any observation is a length (a distance, a coordinate): contacts alone cannot
+    /// see the robot's scale.
+    pub fn sees_the_scale(&self) -> bool {
+        self.observations.iter().any(|o| !matches!(o, Observation::Contact { .. }))
+    }
+
+    /// The set-up and its start values, from the tool point at every pose on the nominal robot
+    /// (`nominal`): each fixed point by the linear sphere fit `2 p_k . c - t = |p_k|^2 - m_k^2`
+    /// (`t = |c|^2`; at least 4 distances), each plane by the total least-squares plane of its
+    /// contacts (at least 3, not on a line; the normal towards the robot's side, the base
+    /// frame's origin, so that a contact's signed distance is positive on the robot's side).
+    pub fn initial_setup(&self, nominal: &[Vector3<f64>]) -> Result<(SetUp, Vec<f64>), CalibrationError> {
+        let (points, planes) = self.setup_counts();
+        let mut values = Vec::with_capacity(3 * (points + planes));
+        let few = |what: String| CalibrationError::Observations(what);
+        for i in 0..points {
+            let rows: Vec<(Vector3<f64>, f64)> = (self.observations.iter())
+                .filter_map(|o| match *o {
+                    Observation::ToPoint { pose, point, measured, .. } if point == i => {
+                        Some((nominal[pose], measured))
+                    }
+                    _ => None,
+                })
+                .collect();
+            let too_few = || {
+                few(format!(
+                    "fixed point {}: {} distances, expected at least 4 from poses not on one plane",
+                    i + 1,
+                    rows.len()
+                ))
+            };
+            if rows.len() < 4 {
+                return Err(too_few());
+            }
+            let a = DMatrix::from_fn(rows.len(), 4, |r, c| if c < 3 { 2.0 * rows[r].0[c] } else { -1.0 });
+            let b = DVector::from_fn(rows.len(), |r, _| rows[r].0.norm_squared() - rows[r].1 * rows[r].1);
+            let svd = a.svd(true, true);
+            let largest = svd.singular_values.max();
+            let smallest = svd.singular_values.min();
+            if smallest.is_nan() || smallest <= 1e-9 * largest {
+                return Err(too_few());
+            }
+            let c = svd.solve(&b, 1e-12 * largest).map_err(|e| few(e.to_string()))?;
+            values.extend([c[0], c[1], c[2]]);
+        }
+        let mut normals = Vec::with_capacity(planes);
+        for i in 0..planes {
+            let contacts: Vec<Vector3<f64>> = (self.observations.iter())
+                .filter_map(|o| match *o {
+                    Observation::Contact { pose, plane, .. } if plane == i => Some(nominal[pose]),
+                    _ => None,
+                })
+                .collect();
+            let too_few = || {
+                few(format!(
+                    "plane {}: {} contacts, expected at least 3 not on one line",
+                    i + 1,
+                    contacts.len()
+                ))
+            };
+            if contacts.len() < 3 {
+                return Err(too_few());
+            }
+            let centroid = contacts.iter().sum::<Vector3<f64>>() / contacts.len() as f64;
+            let m = DMatrix::from_fn(contacts.len(), 3, |r, c| contacts[r][c] - centroid[c]);
+            let svd = m.svd(false, true);
+            let s = &svd.singular_values;
+            let mut sorted: Vec<f64> = s.iter().copied().collect();
+            sorted.sort_by(|a, b| b.total_cmp(a));
+            if sorted[1].is_nan() || sorted[1] <= 1e-9 * sorted[0] {
+                return Err(too_few());
+            }
+            let v_t = svd.v_t.expect("asked for V");
+            let smallest = (0..3).min_by(|&a, &b| s[a].total_cmp(&s[b])).expect("3 values");
+            let mut n = Vector3::new(v_t[(smallest, 0)], v_t[(smallest, 1)], v_t[(smallest, 2)]).normalize();
+            // Towards the robot's side: the base frame's origin, else the largest component up.
+            let towards = -n.dot(&centroid);
+            let sign = if towards.abs() > 1e-9 * centroid.norm() { towards } else { n[n.iamax()] };
+            n *= sign.signum();
+            normals.push(n);
+            values.extend([0.0, 0.0, n.dot(&centroid)]);
+        }
+        Ok((SetUp::new(points, &normals), values))
+    }
+
+    /// Refuse observations that do not fit (for data built by hand rather than read): a pose
+    /// that does not exist, joint values not one finite value per joint of a robot with
+    /// `dof` joints, a sigma not finite and above 0, an axis beyond 5, a line missing.
+    pub fn check(&self, dof: usize) -> Result<(), CalibrationError> {
+        let bad = |what: String| Err(CalibrationError::Observations(what));
+        if self.lines.len() != self.observations.len() {
+            return bad(format!("{} lines for {} observations", self.lines.len(), self.observations.len()));
+        }
+        if let Some(k) = self.joints.iter().position(|q| q.len() != dof || q.iter().any(|v| !v.is_finite())) {
+            return bad(format!("pose {k}: expected {dof} finite joint values"));
+        }
+        for (o, line) in self.observations.iter().zip(&self.lines) {
+            let poses = match *o {
+                Observation::Distance { a, b, .. } => [a, b],
+                Observation::ToPoint { pose, .. } | Observation::Contact { pose, .. } => [pose, pose],
+                Observation::Coordinate { pose, axis, .. } if axis < 6 => [pose, pose],
+                Observation::Coordinate { axis, .. } => {
+                    return bad(format!("line {line}: axis {axis}, expected 0 to 5"));
+                }
+            };
+            if poses.iter().any(|&p| p >= self.joints.len()) {
+                return bad(format!("line {line}: a pose beyond the {} given", self.joints.len()));
+            }
+            if !(o.sigma().is_finite() && o.sigma() > 0.0 && o.measured().is_finite()) {
+                return bad(format!("line {line}: a finite value and a sigma above 0 expected"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuse points and planes that `setup` does not have.
+    pub(super) fn check_against(&self, setup: &SetUp) -> Result<(), CalibrationError> {
+        let (points, planes) = self.setup_counts();
+        if points > setup.points || planes > setup.planes() {
+            return Err(CalibrationError::Observations(format!(
+                "{points} fixed points and {planes} planes, the calibration has {} and {}",
+                setup.points,
+                setup.planes()
+            )));
+        }
+        Ok(())
+    }
+
+    /// What these observations cannot see, in words: the base for distances and contacts, the
+    /// in-plane motions of every plane (its normal at the set-up values `s`).
+    pub(super) fn unseen(&self, setup: &SetUp, s: &[f64]) -> Vec<String> {
+        let mut out = Vec::new();
+        let distances = self
+            .observations
+            .iter()
+            .any(|o| matches!(o, Observation::Distance { .. } | Observation::ToPoint { .. }));
+        if !self.sees_the_base() {
+            let why = if distances {
+                "distances cannot see the base placement (a rigid motion of the whole set-up changes no distance)"
+            } else {
+                "the planes absorb the base placement"
+            };
+            out.push(format!("base (6 parameters): {why}; held at its nominal value"));
+        }
+        if !self.sees_the_scale() && setup.planes() > 0 {
+            out.push(
+                "scale: contacts alone cannot see it (every length and plane offset times one factor leaves every \
+                 contact); plane1.d is held at its fit with the nominal robot: add a distance to see it"
+                    .into(),
+            );
+        }
+        for i in 0..setup.planes() {
+            let (n, d) = setup.plane(s, i);
+            // Rounded first, so that a tiny negative prints as 0.0000, not -0.0000.
+            let n = n.map(|v| (v * 1e4).round() / 1e4 + 0.0);
+            out.push(format!(
+                "plane {}: normal ({:.4}, {:.4}, {:.4}), offset {d:.3} mm; contacts cannot see motions within it \
+                 (translations along it, rotation about its normal)",
+                i + 1,
+                n.x,
+                n.y,
+                n.z
+            ));
+        }
+        out
+    }
+}
+
+/// The kind of a row's observation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum RowKind {
+    /// A distance between two poses.
+    Pair,
+    /// A distance to a fixed point.
+    ToPoint,
+    /// A contact with a plane.
+    Contact,
+    /// Coordinates.
+    Coordinates,
+}
+
+impl RowKind {
+    /// The kind of a `kind` cell.
+    fn named(cell: &str) -> Option<Self> {
+        Some(match cell {
+            "pair" => Self::Pair,
+            "point" => Self::ToPoint,
+            "contact" => Self::Contact,
+            "coordinates" => Self::Coordinates,
+            _ => return None,
+        })
+    }
+}
+
+/// Where the quantities of an observation file stand in its header.
+struct KindColumns {
+    joints: Vec<usize>,
+    /// Every `<joint>_b`, if the file has them all.
+    second: Option<Vec<usize>>,
+    distance: Option<usize>,
+    point: Option<usize>,
+    plane: Option<usize>,
+    /// x, y, z, roll, pitch, yaw.
+    axes: [Option<usize>; 6],
+    sigma: Option<usize>,
+    sigma_angle: Option<usize>,
+    /// The `kind` column, or the one kind of a file without it.
+    kind: Option<usize>,
+    file_kind: Option<RowKind>,
+}
+
+impl KindColumns {
+    /// Find the columns of `table`'s header; without a `kind` column, the file's one kind.
+    fn resolve(table: &Table, model: &RobotModel) -> Result<Self, DataError> {
+        let header = |column: Option<&str>, m: &str| DataError::new(table.header_line, column, m);
+        let second: Vec<Option<usize>> =
+            model.joints.iter().map(|j| table.column(&format!("{}_b", j.name))).collect();
+        let pairs = second.iter().any(Option::is_some);
+        if pairs && second.iter().any(Option::is_none) {
+            return Err(header(None, "pairs of poses need every joint of the second pose: <joint>_b"));
+        }
+        let columns = Self {
+            joints: table.joint_columns(model)?,
+            second: pairs.then(|| second.into_iter().flatten().collect()),
+            distance: table.column("distance"),
+            point: table.column("point"),
+            plane: table.column("plane"),
+            axes: ["x", "y", "z", "roll", "pitch", "yaw"].map(|c| table.column(c)),
+            sigma: table.column("sigma"),
+            sigma_angle: table.column("sigma_angle"),
+            kind: table.column("kind"),
+            file_kind: None,
+        };
+        if columns.kind.is_some() {
+            return Ok(columns);
+        }
+        let coordinates = columns.axes.iter().any(Option::is_some);
+        let kinds = [columns.distance.is_some(), columns.plane.is_some(), coordinates];
+        if kinds.iter().filter(|&&k| k).count() != 1 {
+            return Err(header(
+                None,
+                "expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or coordinates \
+                 (x, y, z, roll, pitch, yaw); or a `kind` column naming each row's",
+            ));
+        }
+        if pairs && columns.point.is_some() {
+            return Err(header(
+                Some("point"),
+                "a distance is between two poses or to a fixed point, not both",
+            ));
+        }
+        let file_kind = match kinds {
+            [true, _, _] if pairs => RowKind::Pair,
+            [true, _, _] => RowKind::ToPoint,
+            [_, true, _] => RowKind::Contact,
+            _ => RowKind::Coordinates,
+        };
+        Ok(Self { file_kind: Some(file_kind), ..columns })
+    }
+
+    /// `column` of `row`, which its kind needs: an error naming it if absent or empty.
+    fn needed(&self, row: &Row, column: Option<usize>, name: &str) -> Result<usize, DataError> {
+        column.filter(|&c| !row.cells[c].is_empty()).ok_or_else(|| {
+            DataError::new(row.line, Some(name), format!("this kind of row needs a `{name}` value"))
+        })
+    }
+
+    /// The observation of `row`, a `kind` row, with its pose (two for a pair), into `data`.
+    fn read_row(
+        &self,
+        table: &Table,
+        row: &Row,
+        kind: RowKind,
+        model: &RobotModel,
+        units: Units,
+        data: &mut KindData,
+    ) -> Result<(), DataError> {
+        let optional = |c: Option<usize>| c.filter(|&c| !row.cells[c].is_empty());
+        let s = match optional(self.sigma) {
+            Some(c) => positive(table, row, c, units.length_scale())?,
+            None => DEFAULT_SIGMA_MM,
+        };
+        let pose = data.joints.len();
+        data.joints.push(table.joint_values(row, &self.joints, model, units)?);
+        let push = |data: &mut KindData, o: Observation| {
+            data.observations.push(o);
+            data.lines.push(row.line);
+        };
+        match kind {
+            RowKind::Pair => {
+                let second = self.second.as_ref().ok_or_else(|| {
+                    DataError::new(
+                        row.line,
+                        Some("kind"),
+                        "a pair needs the second pose's columns, <joint>_b",
+                    )
+                })?;
+                let c = self.needed(row, self.distance, "distance")?;
+                let measured = positive(table, row, c, units.length_scale())?;
+                push(data, Observation::Distance { a: pose, b: pose + 1, measured, sigma: s });
+                data.joints.push(table.joint_values(row, second, model, units)?);
+            }
+            RowKind::ToPoint => {
+                let c = self.needed(row, self.distance, "distance")?;
+                let measured = positive(table, row, c, units.length_scale())?;
+                let point = optional(self.point).map_or(Ok(0), |c| id(table, row, c))?;
+                push(data, Observation::ToPoint { pose, point, measured, sigma: s });
+            }
+            RowKind::Contact => {
+                let c = self.needed(row, self.plane, "plane")?;
+                push(data, Observation::Contact { pose, plane: id(table, row, c)?, sigma: s });
+            }
+            RowKind::Coordinates => {
+                let s_angle = match optional(self.sigma_angle) {
+                    Some(c) => units.angle(positive(table, row, c, 1.0)?),
+                    None => DEFAULT_SIGMA_ANGLE_DEG.to_radians(),
+                };
+                let mut any = false;
+                for (axis, c) in self.axes.iter().enumerate() {
+                    let Some(c) = optional(*c) else { continue };
+                    let v = table.number(row, c)?;
+                    let (measured, sigma) = if axis < 3 {
+                        (table.within(row, c, v * units.length_scale(), MAX_LENGTH_MM, "mm")?, s)
+                    } else {
+                        (units.angle(v), s_angle)
+                    };
+                    push(data, Observation::Coordinate { pose, axis, measured, sigma });
+                    any = true;
+                }
+                if !any {
+                    let message = "no coordinate: give at least one of x, y, z, roll, pitch, yaw";
+                    return Err(DataError::new(row.line, None, message));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A value `> 0` of `column` (in the length unit, scaled to mm by `scale`).
+fn positive(table: &Table, row: &Row, column: usize, scale: f64) -> Result<f64, DataError> {
+    let v = table.number(row, column)? * scale;
+    if v <= 0.0 {
+        return Err(DataError::new(
+            row.line,
+            Some(&table.header[column]),
+            format!("{v}: expected a value > 0"),
+        ));
+    }
+    table.within(row, column, v, MAX_LENGTH_MM, "mm")
+}
+
+/// A point or plane number (1, 2, ...) of `column`, 0-based.
+fn id(table: &Table, row: &Row, column: usize) -> Result<usize, DataError> {
+    let v = table.number(row, column)?;
+    if v < 1.0 || v.fract() != 0.0 || v > 1000.0 {
+        return Err(DataError::new(
+            row.line,
+            Some(&table.header[column]),
+            format!("{v}: expected a number 1, 2, ... (at most 1000)"),
+        ));
+    }
+    Ok(v as usize - 1)
+}

@@ -1,0 +1,707 @@
+//! Measurement kinds beyond marker positions: distances (a ball bar, a length artefact, a laser
+//! interferometer) and plane contacts (a touch probe on a table), calibrated with the same
+//! Gauss-Markov machinery as marker positions.
+//!
+//! # The observation model
+//!
+//! The robot carries one point `p(q, x)` on its last link (the tool point, a ball, a stylus
+//! tip), in the robot's base frame. Every observation `k` is one number, a function of that
+//! point at one or two poses and of parameters of the set-up `s` (fixed points, planes):
+//!
+//! - a distance between two poses `a`, `b`: `f_k = |p_a - p_b|`, with `p_a = p(q_a, x)`;
+//! - a distance to fixed point `i` (a ball bar's pivot `c_i`, 3 parameters):
+//!   `f_k = |p(q_k, x) - c_i|`;
+//! - a contact with plane `i` (unit normal `n_i`, offset `d_i`): the signed distance
+//!   `f_k = n_i . p(q_k, x) - d_i`, measured as 0;
+//! - a partial measurement, one coordinate `e_c . p(q_k, x)` (`c` of x, y, z) in the measuring
+//!   frame: any subset of x, y, z of a pose (a height gauge: z only), each its own observation.
+//!   Their correlation through the joint noise of their common pose is left out of `V`
+//!   (exact when the joints are exact). Roll, pitch and yaw of the tool frame
+//!   (`R = Rz(yaw) Ry(pitch) Rx(roll)`, an inclinometer's tilts) likewise: the tool is then a
+//!   frame whose rotation is estimated too, and `g_kj` is `E^-1` on the rotation rows, with
+//!   `omega = E (roll', pitch', yaw')` the rotation vector's rate (the residual wrapped into
+//!   `(-pi, pi]`).
+//!
+//! The residual is `y_k = m_k - f_k` (measured minus predicted). With `g_kj = df_k/dp_j` the
+//! derivative of the prediction with respect to the point at pose `j` (`u = (p_a - p_b) /
+//! |p_a - p_b|` and `-u` for a pair, `u = (p - c) / |p - c|` for a fixed point, `n_i` for a
+//! contact, `e_c` for a coordinate),
+//! the identification Jacobian is `H_k = sum_j g_kj^T H_j + df_k/ds`, `H_j = dp/dx` at pose
+//! `j` ([`ChainAt::identification_jacobian`]), and the derivative with respect to each pose's
+//! joint values is `G_kj = g_kj^T J_j`, `J_j` the position rows of the manipulator Jacobian.
+//! The joint noise of different poses is independent (each pose is read separately), so
+//!
+//! `V_k = sum_j G_kj Sigma_q G_kj^T + sigma_k^2`:
+//!
+//! a pair's variance has the joint noise of both its poses.
+//!
+//! A plane `i` has 3 parameters, minimal: two tilts `(alpha, beta)` of its normal about the
+//! nominal one `n0`, `n = (n0 + alpha t1 + beta t2) / |n0 + alpha t1 + beta t2|` with
+//! `(t1, t2, n0)` orthonormal, and its offset `d` (mm). A fixed point has its 3 coordinates.
+//!
+//! # What each kind cannot see
+//!
+//! Distances are unchanged when everything moves rigidly: they cannot see the base placement
+//! (all 6 parameters), which is held at its nominal value and reported as such. Plane contacts
+//! place the robot relative to the planes, which absorb the base: it is held too; and a plane
+//! cannot see motions within it (translations along it, rotation about its normal), which the
+//! rank-revealing solve then finds among the robot's parameters (the first joint's offset for a
+//! horizontal table): each plane is reported with what it cannot see. Contacts alone cannot see
+//! the scale either: every length of the robot and every plane offset multiplied by one factor
+//! leaves every contact; the first plane's offset is then held at its fit with the nominal
+//! robot (the robot's scale is its nominal one), and said so. A distance fixes the scale. Coordinates see the
+//! measuring frame: with them the base is estimated, as far as they see it (a height alone
+//! sees its z, roll and pitch; the rank-revealing solve holds the rest and says so).
+//!
+//! # Extending
+//!
+//! A new kind is a prediction `f_k` of the tool's frames at its poses and of set-up parameters,
+//! with its derivatives `g_kj` (6-vectors: position, rotation vector) and `df_k/ds`: one arm of
+//! `predict`. Observations are one row each, so that `V` is a column of variances and every
+//! estimator applies unchanged. A kind with several correlated rows (a camera's target pose,
+//! 6 rows; a target point's pixel, 2 rows) needs `m_k`-row blocks: the estimators take blocks
+//! of one size per problem, so such kinds would pad every observation to the largest `m_k`
+//! (zero residual and `H` rows, unit variance: the fit and its covariance do not change), or
+//! be fitted as their own problem; several chains (a torso and two arms) are one chain per
+//! observation sharing the joint parameters of their common links.
+
+mod data;
+
+pub use data::{KindData, Observation};
+
+use super::{CalibrationError, JointParams, fold, gauge_class};
+use crate::estimation::{
+    Estimator, Linearisation, POSE_SIGMAS, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights,
+    linearise, refine_from,
+};
+use crate::kinematics::{Chain, ChainAt, Measured};
+use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection};
+use nalgebra::{
+    DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, UnitQuaternion, Vector3, Vector6,
+};
+use rayon::prelude::*;
+
+/// How to calibrate from distances and contacts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KindOptions {
+    /// The estimator; the weighted ones use `V_k` of the [module](self).
+    pub estimator: Estimator,
+    /// `Sigma_q` (dof x dof; rad², mm²), if the joint noise is known; the measurement noise
+    /// is each observation's own sigma.
+    pub joint_noise: Option<DMatrix<f64>>,
+    /// The joint parameters to identify.
+    pub joints: JointParams,
+    /// Estimate the tool point on the last link.
+    pub estimate_tool: bool,
+    /// The tool point's nominal position (mm) in the model's marker frame.
+    pub tool: Vector3<f64>,
+    /// Gauss-Newton settings.
+    pub refine: RefineOptions,
+}
+
+/// The set-up's parameters: fixed points and planes, each 3 numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SetUp {
+    /// The number of fixed points (their coordinates are values, mm, base frame).
+    pub points: usize,
+    /// The planes: the nominal normal `n0` and two tangents `t1, t2` of each.
+    bases: Vec<[Vector3<f64>; 3]>,
+}
+
+impl SetUp {
+    /// `points` fixed points and a plane of each nominal unit normal `n0` of `normals`, its
+    /// tangents `t1 = n0 x e / |n0 x e|` (`e` the x axis, the y axis if `n0` is near x) and
+    /// `t2 = n0 x t1`.
+    pub fn new(points: usize, normals: &[Vector3<f64>]) -> Self {
+        let bases = normals
+            .iter()
+            .map(|n| {
+                let n = n.normalize();
+                let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+                let t1 = n.cross(&helper).normalize();
+                [n, t1, n.cross(&t1)]
+            })
+            .collect();
+        Self { points, bases }
+    }
+
+    /// Parameters: 3 per point, then 3 per plane (`alpha, beta, d`).
+    pub fn len(&self) -> usize {
+        3 * (self.points + self.bases.len())
+    }
+
+    /// The number of planes.
+    pub fn planes(&self) -> usize {
+        self.bases.len()
+    }
+
+    /// Whether the set-up has no parameters.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Names of the parameters: `point1.x`, ..., `plane1.alpha`, `plane1.beta`, `plane1.d`.
+    pub fn names(&self) -> Vec<String> {
+        let points = (1..=self.points).flat_map(|i| ["x", "y", "z"].map(|c| format!("point{i}.{c}")));
+        let planes =
+            (1..=self.bases.len()).flat_map(|i| ["alpha", "beta", "d"].map(|c| format!("plane{i}.{c}")));
+        points.chain(planes).collect()
+    }
+
+    /// Plane `i`'s unit normal and offset at the set-up values `s`:
+    /// `n = (n0 + alpha t1 + beta t2) / |n0 + alpha t1 + beta t2|`.
+    pub fn plane(&self, s: &[f64], i: usize) -> (Vector3<f64>, f64) {
+        let at = 3 * (self.points + i);
+        let [n0, t1, t2] = self.bases[i];
+        ((n0 + t1 * s[at] + t2 * s[at + 1]).normalize(), s[at + 2])
+    }
+
+    /// `dn/dalpha` and `dn/dbeta` of plane `i`: `(I - n n^T) t / |v|`.
+    fn normal_derivatives(&self, s: &[f64], i: usize) -> [Vector3<f64>; 2] {
+        let at = 3 * (self.points + i);
+        let [n0, t1, t2] = self.bases[i];
+        let v = n0 + t1 * s[at] + t2 * s[at + 1];
+        let n = v.normalize();
+        [t1, t2].map(|t| (t - n * n.dot(&t)) / v.norm())
+    }
+
+    /// Fixed point `i` at the set-up values `s`.
+    fn point(&self, s: &[f64], i: usize) -> Vector3<f64> {
+        Vector3::new(s[3 * i], s[3 * i + 1], s[3 * i + 2])
+    }
+}
+
+/// One observation's prediction `f_k`, its derivatives `g_kj` with respect to the point at
+/// each of its poses (`(pose, g)`, one or two) and with respect to the set-up (`(index, value)`).
+struct Prediction {
+    value: f64,
+    by_point: [(usize, Vector6<f64>); 2],
+    poses: usize,
+    by_setup: [(usize, f64); 3],
+    setups: usize,
+}
+
+/// `f_k` of the [module](self) and its derivatives, at the tool frames `frames` of every pose
+/// (their rotations used by angles only). The derivatives `g_kj` are with respect to the pose
+/// error of the tool at pose `j`: its position (mm), then its rotation vector (rad, measuring
+/// frame), as [`ChainAt::identification_jacobian`] gives them.
+fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64]) -> Prediction {
+    let none = (0, Vector6::zeros());
+    let point = |g: Vector3<f64>| Vector6::new(g.x, g.y, g.z, 0.0, 0.0, 0.0);
+    let p = |j: usize| frames[j].translation.vector;
+    match *o {
+        Observation::Distance { a, b, .. } => {
+            let d = p(a) - p(b);
+            let u = d / d.norm().max(f64::MIN_POSITIVE);
+            Prediction {
+                value: d.norm(),
+                by_point: [(a, point(u)), (b, point(-u))],
+                poses: 2,
+                by_setup: [(0, 0.0); 3],
+                setups: 0,
+            }
+        }
+        Observation::ToPoint { pose, point: fixed, .. } => {
+            let d = p(pose) - setup.point(s, fixed);
+            let u = d / d.norm().max(f64::MIN_POSITIVE);
+            let at = 3 * fixed;
+            Prediction {
+                value: d.norm(),
+                by_point: [(pose, point(u)), none],
+                poses: 1,
+                by_setup: [(at, -u.x), (at + 1, -u.y), (at + 2, -u.z)],
+                setups: 3,
+            }
+        }
+        Observation::Coordinate { pose, axis, .. } if axis < 3 => Prediction {
+            value: p(pose)[axis],
+            by_point: [(pose, Vector6::ith(axis, 1.0)), none],
+            poses: 1,
+            by_setup: [(0, 0.0); 3],
+            setups: 0,
+        },
+        Observation::Coordinate { pose, axis, .. } => {
+            let (rpy, rates) = angles(&frames[pose].rotation);
+            let g = rates.row(axis - 3);
+            Prediction {
+                value: rpy[axis - 3],
+                by_point: [(pose, Vector6::new(0.0, 0.0, 0.0, g[0], g[1], g[2])), none],
+                poses: 1,
+                by_setup: [(0, 0.0); 3],
+                setups: 0,
+            }
+        }
+        Observation::Contact { pose, plane, .. } => {
+            let (n, d) = setup.plane(s, plane);
+            let [dn_a, dn_b] = setup.normal_derivatives(s, plane);
+            let at = 3 * (setup.points + plane);
+            Prediction {
+                value: n.dot(&p(pose)) - d,
+                by_point: [(pose, point(n)), none],
+                poses: 1,
+                by_setup: [(at, dn_a.dot(&p(pose))), (at + 1, dn_b.dot(&p(pose))), (at + 2, -1.0)],
+                setups: 3,
+            }
+        }
+    }
+}
+
+/// Roll, pitch and yaw of `r` (`R = Rz(yaw) Ry(pitch) Rx(roll)`) and their derivatives with
+/// respect to its rotation vector in the measuring frame (`dR = [omega]x R`): `E^-1`, with
+/// `omega = E (roll', pitch', yaw')` and
+/// `E = [cos(yaw) cos(pitch), -sin(yaw), 0; sin(yaw) cos(pitch), cos(yaw), 0; -sin(pitch), 0, 1]`;
+/// zero at pitch +-90 deg, where roll and yaw are one angle.
+fn angles(r: &UnitQuaternion<f64>) -> (Vector3<f64>, Matrix3<f64>) {
+    let (roll, pitch, yaw) = r.euler_angles();
+    let (sy, cy, sp, cp) = (yaw.sin(), yaw.cos(), pitch.sin(), pitch.cos());
+    let e = Matrix3::new(cy * cp, -sy, 0.0, sy * cp, cy, 0.0, -sp, 0.0, 1.0);
+    (Vector3::new(roll, pitch, yaw), e.try_inverse().unwrap_or_else(Matrix3::zeros))
+}
+
+/// The calibration problem of distances and contacts: `y_k(x, s) = m_k - f_k(x, s)` for the
+/// selected robot parameters `x` and set-up parameters `s` (others held), one row per
+/// observation, `V_k` of the [module](self) computed once at the start.
+#[derive(Debug, Clone)]
+pub struct KindProblem<'a> {
+    chain: &'a Chain,
+    selection: &'a Selection,
+    data: &'a KindData,
+    setup: &'a SetUp,
+    fixed: Vec<f64>,
+    setup_values: Vec<f64>,
+    setup_selection: Vec<usize>,
+    v: Option<DMatrix<f64>>,
+}
+
+impl<'a> KindProblem<'a> {
+    /// The problem of `data` on `chain` (a point chain), the robot parameters at `fixed` (full
+    /// vector) and the set-up at `setup_values`, estimating `selection` and the set-up
+    /// parameters `setup_selection`. With `joint_noise`, `V_k` includes the joint noise of
+    /// each of the observation's poses; the measurement sigmas always.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        chain: &'a Chain,
+        selection: &'a Selection,
+        data: &'a KindData,
+        setup: &'a SetUp,
+        fixed: Vec<f64>,
+        setup_values: Vec<f64>,
+        setup_selection: Vec<usize>,
+        joint_noise: Option<&DMatrix<f64>>,
+    ) -> Self {
+        let mut problem =
+            Self { chain, selection, data, setup, fixed, setup_values, setup_selection, v: None };
+        problem.v = Some(problem.covariance_blocks(joint_noise));
+        problem
+    }
+
+    /// The same problem estimating other parameters from other values, sharing `V_k`.
+    pub fn reselect<'b>(
+        &self,
+        selection: &'b Selection,
+        fixed: Vec<f64>,
+        setup_values: Vec<f64>,
+        setup_selection: Vec<usize>,
+    ) -> KindProblem<'b>
+    where
+        'a: 'b,
+    {
+        KindProblem { selection, fixed, setup_values, setup_selection, v: self.v.clone(), ..self.clone() }
+    }
+
+    /// `V_k = sum_j G_kj Sigma_q G_kj^T + sigma_k^2` at the start values.
+    fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
+        let at = self.chain.with_errors(&self.fixed);
+        let dof = self.chain.dof();
+        let rows = self.measured().rows();
+        let jacobians: Vec<(Isometry3<f64>, DMatrix<f64>)> = (self.data.joints.par_iter())
+            .map_init(
+                || Matrix6xX::zeros(dof),
+                |j, q| {
+                    at.manipulator_jacobian(q, j);
+                    (at.pose(q), DMatrix::from_fn(rows, dof, |r, c| j[(r, c)]))
+                },
+            )
+            .collect();
+        let frames: Vec<Isometry3<f64>> = jacobians.iter().map(|(f, _)| *f).collect();
+        let v = self.data.observations.iter().map(|o| {
+            let f = predict(o, &frames, self.setup, &self.setup_values);
+            let joint = joint_noise.map_or(0.0, |sigma_q| {
+                (f.by_point[..f.poses].iter())
+                    .map(|(j, g)| {
+                        let g_kj = g.rows(0, rows).transpose() * &jacobians[*j].1;
+                        (&g_kj * sigma_q * g_kj.transpose())[(0, 0)]
+                    })
+                    .sum()
+            });
+            joint + o.sigma().powi(2)
+        });
+        DMatrix::from_iterator(self.data.observations.len(), 1, v)
+    }
+
+    /// What the chain's end is: a point ([`Measured::Position`]) or, for angles, a tool frame
+    /// ([`Measured::Pose`]).
+    pub fn measured(&self) -> Measured {
+        if self.chain.ends_at_a_point() { Measured::Position } else { Measured::Pose }
+    }
+
+    /// The full robot parameter vector and the set-up values at `x`.
+    pub fn full(&self, x: &DVector<f64>) -> (Vec<f64>, Vec<f64>) {
+        let mut full = self.fixed.clone();
+        for (&i, &v) in self.selection.indices().iter().zip(x.iter()) {
+            full[i] = v;
+        }
+        let mut s = self.setup_values.clone();
+        for (&i, &v) in self.setup_selection.iter().zip(x.iter().skip(self.selection.len())) {
+            s[i] = v;
+        }
+        (full, s)
+    }
+
+    /// The estimated parameters' values: where iterations start.
+    pub fn start(&self) -> DVector<f64> {
+        let robot = self.selection.indices().iter().map(|&i| self.fixed[i]);
+        DVector::from_iterator(
+            self.parameters(),
+            robot.chain(self.setup_selection.iter().map(|&i| self.setup_values[i])),
+        )
+    }
+
+    /// The residuals `y_k` at `x` (mm).
+    pub fn residuals(&self, x: &DVector<f64>) -> DVector<f64> {
+        self.evaluate(x, None)
+    }
+}
+
+impl Residuals for KindProblem<'_> {
+    fn rows_per_point(&self) -> usize {
+        1
+    }
+
+    fn equations(&self) -> usize {
+        self.data.observations.len()
+    }
+
+    fn parameters(&self) -> usize {
+        self.selection.len() + self.setup_selection.len()
+    }
+
+    fn covariance(&self) -> Option<&DMatrix<f64>> {
+        self.v.as_ref()
+    }
+
+    /// Angles (rad) count as lengths for ordinary least squares: times
+    /// `sigma_position / sigma_orientation` of [`POSE_SIGMAS`] (mm/rad), as a pose's
+    /// orientation rows do.
+    fn ols_row_scale(&self) -> Option<Vec<f64>> {
+        let w = POSE_SIGMAS.0 / POSE_SIGMAS.1;
+        let angles = self.data.observations.iter().any(Observation::is_angle);
+        angles.then(|| self.data.observations.iter().map(|o| if o.is_angle() { w } else { 1.0 }).collect())
+    }
+
+    fn names(&self) -> Vec<String> {
+        let setup = self.setup.names();
+        let robot = self.selection.indices().iter().map(|&i| self.chain.params().get(i).name.clone());
+        robot.chain(self.setup_selection.iter().map(|&i| setup[i].clone())).collect()
+    }
+
+    fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
+        let (full, s) = self.full(x);
+        let at: ChainAt = self.chain.with_errors(&full);
+        let columns = self.selection.len();
+        let measured = self.measured();
+        let rows = measured.rows();
+        // Each pose's H_j (rows x columns, column-major) in one buffer, filled in parallel.
+        let block = if h.is_some() { rows * columns } else { 0 };
+        let mut blocks = vec![0.0; block * self.data.joints.len()];
+        let frames: Vec<Isometry3<f64>> = if block > 0 {
+            (blocks.par_chunks_mut(block).zip(&self.data.joints))
+                .map(|(h_j, q)| {
+                    let view = DMatrixViewMut::from_slice(h_j, rows, columns);
+                    at.identification_jacobian(q, self.selection, measured, view);
+                    at.pose(q)
+                })
+                .collect()
+        } else {
+            self.data.joints.par_iter().map(|q| at.pose(q)).collect()
+        };
+        let mut y = DVector::zeros(self.equations());
+        let mut h = h;
+        for (k, o) in self.data.observations.iter().enumerate() {
+            let f = predict(o, &frames, self.setup, &s);
+            y[k] = o.residual(f.value);
+            if let Some(h) = h.as_deref_mut() {
+                // H_k = sum_j g_kj^T H_j + df_k/ds.
+                for c in 0..h.ncols() {
+                    h[(k, c)] = 0.0;
+                }
+                for (j, g) in &f.by_point[..f.poses] {
+                    let h_j = &blocks[j * block..(j + 1) * block];
+                    for (c, column) in h_j.chunks_exact(rows).enumerate() {
+                        h[(k, c)] += (0..rows).map(|r| g[r] * column[r]).sum::<f64>();
+                    }
+                }
+                for &(i, d) in &f.by_setup[..f.setups] {
+                    if let Some(c) = self.setup_selection.iter().position(|&e| e == i) {
+                        h[(k, columns + c)] += d;
+                    }
+                }
+            }
+        }
+        y
+    }
+}
+
+/// A calibration from distances and contacts.
+#[derive(Debug, Clone)]
+pub struct KindCalibration {
+    /// The calibrated model: the estimates folded in, the tool point calibrated.
+    pub calibrated: RobotModel,
+    /// The robot's parameters.
+    pub params: ParamSet,
+    /// Robot parameter errors after the set-up fit with the robot nominal ("before").
+    pub before: Vec<f64>,
+    /// Robot parameter errors after the full calibration ("after").
+    pub after: Vec<f64>,
+    /// The set-up ([`SetUp::names`]): its definition, and its values before and after.
+    pub setup: SetUp,
+    /// The set-up values, before and after.
+    pub setup_values: (Vec<f64>, Vec<f64>),
+    /// The refined estimate (names, values, covariance, diagnostics).
+    pub refined: Refined,
+    /// What the measurements cannot see, by kind, in words: held and reported.
+    pub unseen: Vec<String>,
+    /// Combinations the poses cannot tell apart, held fixed, in words.
+    pub fixed: Vec<String>,
+    /// The training observations scored, before and after.
+    pub training: Score,
+    joint_noise: Option<DMatrix<f64>>,
+    chain: Chain,
+}
+
+/// One observation scored: its residual `m_k - f_k` before and after (mm; rad for an angle),
+/// and after whitened by `sqrt(V_k)`.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ObservationResidual {
+    /// Its line in the file.
+    pub line: usize,
+    /// `distance`, `point`, `contact`, `x` ... `yaw`.
+    pub kind: &'static str,
+    /// The residual before calibration.
+    pub before: f64,
+    /// After.
+    pub after: f64,
+    /// After, divided by its standard deviation `sqrt(V_k)`.
+    pub whitened: f64,
+}
+
+/// A set of observations scored: each one, and the RMS residuals before and after of the
+/// lengths (mm) and of the angles (deg, if any).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Score {
+    /// Every observation, in order.
+    pub observations: Vec<ObservationResidual>,
+    /// RMS of the length residuals (mm), before and after.
+    pub lengths: (f64, f64),
+    /// RMS of the angle residuals (deg), before and after, if angles were measured.
+    pub angles: Option<(f64, f64)>,
+}
+
+impl Score {
+    /// `data`'s residuals before and after (`y`), and after whitened (`z`).
+    fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), v: &DMatrix<f64>) -> Self {
+        let observations: Vec<ObservationResidual> = (data.observations.iter().enumerate())
+            .map(|(k, o)| ObservationResidual {
+                line: data.lines[k],
+                kind: o.kind(),
+                before: before[k],
+                after: after[k],
+                whitened: after[k] / v[(k, 0)].sqrt(),
+            })
+            .collect();
+        let rms = |angle: bool, scale: f64| {
+            let chosen: Vec<&ObservationResidual> = (observations.iter().zip(&data.observations))
+                .filter(|(_, o)| o.is_angle() == angle)
+                .map(|(r, _)| r)
+                .collect();
+            let n = chosen.len().max(1) as f64;
+            let of = |f: fn(&ObservationResidual) -> f64| {
+                (chosen.iter().map(|r| (f(r) * scale).powi(2)).sum::<f64>() / n).sqrt()
+            };
+            (!chosen.is_empty()).then(|| (of(|r| r.before), of(|r| r.after)))
+        };
+        let lengths = rms(false, 1.0).unwrap_or((0.0, 0.0));
+        let angles = rms(true, 1f64.to_degrees());
+        Self { observations, lengths, angles }
+    }
+}
+
+impl KindCalibration {
+    /// `data` scored before and after, the set-up as calibrated, whitened by `V_k` with the
+    /// calibration's joint noise.
+    pub fn score(&self, data: &KindData) -> Result<Score, CalibrationError> {
+        data.check(self.chain.dof())?;
+        data.check_against(&self.setup)?;
+        let nothing = Selection::from_indices(&self.params, []);
+        let noise = self.joint_noise.as_ref();
+        let at = |x: &[f64], s: &[f64]| {
+            KindProblem::new(
+                &self.chain,
+                &nothing,
+                data,
+                &self.setup,
+                x.to_vec(),
+                s.to_vec(),
+                Vec::new(),
+                noise,
+            )
+        };
+        let (before, after) = (at(&self.before, &self.setup_values.0), at(&self.after, &self.setup_values.1));
+        let zero = DVector::zeros(0);
+        let v = after.covariance().expect("always built");
+        Ok(Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), v))
+    }
+
+    /// RMS of the length residuals of `data` (mm) before and after ([`KindCalibration::score`]).
+    pub fn validate(&self, data: &KindData) -> Result<(f64, f64), CalibrationError> {
+        Ok(self.score(data)?.lengths)
+    }
+
+    /// Plane `i`'s calibrated unit normal and offset (mm).
+    pub fn plane(&self, i: usize) -> (Vector3<f64>, f64) {
+        self.setup.plane(&self.setup_values.1, i)
+    }
+}
+
+/// Calibrate `model` from distances, contacts and coordinates: the set-up fitted with the
+/// robot nominal ("before"), then the robot's parameters asked for and the set-up together
+/// ("after"); what the observations cannot see held and said ([`KindCalibration::unseen`]), what the
+/// poses cannot tell apart held by the rank-revealing solve.
+pub fn calibrate_kinds(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+) -> Result<KindCalibration, CalibrationError> {
+    data.check(model.dof())?;
+    // Angles need a tool frame: the tool point, turned as the marker frame to start with.
+    let probe = data.has_angles().then_some(Placement { xyz: options.tool, rpy: Vector3::zeros() });
+    let chain = match &probe {
+        Some(probe) => Chain::probe(model, probe),
+        None => Chain::markers(model, &[options.tool]).remove(0),
+    };
+    let params = chain.params().clone();
+    let zero = vec![0.0; params.len()];
+    let nominal: Vec<Vector3<f64>> = {
+        let at = chain.with_errors(&zero);
+        data.joints.iter().map(|q| at.position(q)).collect()
+    };
+    let (setup, start) = data.initial_setup(&nominal)?;
+    let nothing = Selection::from_indices(&params, []);
+    let every: Vec<usize> = (0..setup.len()).collect();
+    let base_problem = KindProblem::new(
+        &chain,
+        &nothing,
+        data,
+        &setup,
+        zero.clone(),
+        start,
+        every,
+        options.joint_noise.as_ref(),
+    );
+    let weights = Weights::for_problem(&base_problem, options.estimator)?;
+    // "Before": the set-up alone, the robot nominal.
+    let before_setup = match setup.is_empty() {
+        true => base_problem.full(&base_problem.start()).1,
+        false => {
+            let fit = linearise(&base_problem, &weights, base_problem.start())?;
+            let refined = refine_from(&base_problem, &weights, fit, &RefineOptions::default())?;
+            base_problem.full(&refined.estimate.x).1
+        }
+    };
+    // "After": what was asked for that the observations identify.
+    let (asked, asked_setup) = asked(&params, &setup, data, options)?;
+    let problem = base_problem.reselect(&asked, zero.clone(), before_setup.clone(), asked_setup.clone());
+    if problem.equations() <= problem.parameters() {
+        return Err(CalibrationError::TooFewPoses {
+            poses: data.joints.len(),
+            equations: problem.equations(),
+            parameters: problem.parameters(),
+            needed: problem.parameters() + 1,
+        });
+    }
+    let linearised = linearise(&problem, &weights, problem.start())?;
+    let priority: Vec<u32> = (0..problem.parameters())
+        .map(|c| asked.indices().get(c).map_or(0, |&i| gauge_class(params.get(i))))
+        .collect();
+    let (identifiable, fixed) = identifiable(&linearised, &problem.names(), &priority)?;
+    let robot = asked.len();
+    let kept = Selection::from_indices(
+        &params,
+        identifiable.iter().filter(|&&c| c < robot).map(|&c| asked.indices()[c]),
+    );
+    let kept_setup = identifiable.iter().filter(|&&c| c >= robot).map(|&c| asked_setup[c - robot]).collect();
+    let problem = base_problem.reselect(&kept, zero.clone(), before_setup.clone(), kept_setup);
+    let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
+    let (after, after_setup) = problem.full(&estimate.estimate.x);
+    let calibrated = fold(model, &params, &after, &[options.tool], probe.as_ref());
+    let mut calibration = KindCalibration {
+        calibrated,
+        params,
+        before: zero,
+        after,
+        unseen: data.unseen(&setup, &after_setup),
+        setup,
+        setup_values: (before_setup, after_setup),
+        refined: estimate,
+        fixed,
+        training: Score { observations: Vec::new(), lengths: (0.0, 0.0), angles: None },
+        joint_noise: options.joint_noise.clone(),
+        chain,
+    };
+    calibration.training = calibration.score(data)?;
+    Ok(calibration)
+}
+
+/// The robot parameters and the set-up parameters asked for: the joints of `options`, the tool
+/// point unless held, the base only if coordinates see it; every set-up parameter but, when
+/// contacts alone cannot see the scale (every length and plane offset times one factor leaves
+/// every contact), the first plane's offset, held at its fit with the nominal robot.
+fn asked(
+    params: &ParamSet,
+    setup: &SetUp,
+    data: &KindData,
+    options: &KindOptions,
+) -> Result<(Selection, Vec<usize>), CalibrationError> {
+    let joints = options.joints.select(params)?;
+    let extra = (0..params.len()).filter(|&i| match params.get(i).owner {
+        ParamOwner::Marker(_) => options.estimate_tool,
+        ParamOwner::Base => data.sees_the_base(),
+        _ => false,
+    });
+    let robot = Selection::from_indices(params, joints.indices().iter().copied().chain(extra));
+    let scale = 3 * setup.points + 2;
+    let setup = (0..setup.len()).filter(|&i| data.sees_the_scale() || setup.planes() == 0 || i != scale);
+    Ok((robot, setup.collect()))
+}
+
+/// The columns of `linearised` to estimate, and the others in words: first those it does not
+/// move at all (a column norm below 1e-10 of the largest: the column scaling of the
+/// rank-revealing solve would blow their rounding up into directions of their own), then the
+/// combinations the rank-revealing solve holds, by `priority` ([`gauge_class`]).
+fn identifiable(
+    linearised: &Linearisation,
+    names: &[String],
+    priority: &[u32],
+) -> Result<(Vec<usize>, Vec<String>), CalibrationError> {
+    let norms: Vec<f64> = linearised.a.column_iter().map(|c| c.norm()).collect();
+    let largest = norms.iter().copied().fold(0.0, f64::max);
+    let (seen, unseen): (Vec<usize>, Vec<usize>) =
+        (0..norms.len()).partition(|&c| norms[c] > 1e-10 * largest);
+    let mut fixed: Vec<String> =
+        unseen.iter().map(|&c| format!("{}: the observations do not move it", names[c])).collect();
+    let seen_priority: Vec<u32> = seen.iter().map(|&c| priority[c]).collect();
+    let diagnostics = linearised.select(&seen).diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?;
+    let seen_names: Vec<&str> = seen.iter().map(|&c| names[c].as_str()).collect();
+    fixed.extend(diagnostics.not_identifiable.iter().map(|c| c.describe(&seen_names)));
+    Ok((diagnostics.identifiable.iter().map(|&c| seen[c]).collect(), fixed))
+}

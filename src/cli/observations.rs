@@ -1,0 +1,68 @@
+//! `robocal calibrate-observations`: a robot calibrated from distances, plane contacts and
+//! partial coordinates ([`robocal::calibration::kinds`]); every file read and the fit made
+//! before anything is written.
+
+use super::from_flag_unit;
+use super::request::CalibrateObservationsRequest;
+use anyhow::{Context, Result, bail};
+use nalgebra::DMatrix;
+use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds};
+use robocal::estimation::RefineOptions;
+use robocal::io;
+use robocal::model::RobotModel;
+use robocal::report::observations::ObservationsReport;
+use std::path::Path;
+
+/// Calibrate, print the report, write the files asked for.
+pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
+    let model = io::load_model(&request.model)?;
+    let mut data = KindData::default();
+    for path in &request.data {
+        data = data.join(&read(path, &model, request)?);
+    }
+    let options = KindOptions {
+        estimator: request.estimator,
+        joint_noise: joint_noise(&model, request.joint_sigma_deg.as_deref())?,
+        joints: request.joints.clone(),
+        estimate_tool: request.estimate_tool,
+        tool: request.tool.unwrap_or_else(|| model.tool_point_in_marker_frame()),
+        refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
+    };
+    let names: Vec<String> = request.data.iter().map(|p| p.display().to_string()).collect();
+    let c = calibrate_kinds(&model, &data, &options).with_context(|| names.join(", "))?;
+    let held_out = request
+        .validate
+        .iter()
+        .map(|path| {
+            let score = c.score(&read(path, &model, request)?).with_context(|| path.display().to_string())?;
+            Ok((path.display().to_string(), score))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let fitted = (data.observations.len(), data.joints.len());
+    let report = ObservationsReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out);
+    print!("{}", report.text());
+    let mut outputs = io::Outputs::new();
+    if let Some(path) = &request.json {
+        outputs.add(path, serde_json::to_string_pretty(&report)? + "\n");
+    }
+    if let Some(path) = &request.out_model {
+        outputs.add(path, robocal::model::to_toml_with_markers(&c.calibrated, &[]));
+    }
+    Ok(outputs.commit()?)
+}
+
+/// One observation file.
+fn read(path: &Path, model: &RobotModel, request: &CalibrateObservationsRequest) -> Result<KindData> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    KindData::from_csv_str(&text, model, request.units).with_context(|| path.display().to_string())
+}
+
+/// `Sigma_q` of `--joint-sigma-deg` (rad², mm²), one sigma per joint of `model`.
+fn joint_noise(model: &RobotModel, sigmas: Option<&[f64]>) -> Result<Option<DMatrix<f64>>> {
+    let Some(sigmas) = sigmas else { return Ok(None) };
+    if sigmas.len() != model.dof() {
+        bail!("--joint-sigma-deg: {} values for the {} joints of {}", sigmas.len(), model.dof(), model.name);
+    }
+    let variances = model.joints.iter().zip(sigmas).map(|(j, &s)| from_flag_unit(j.kind, s).powi(2));
+    Ok(Some(DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(sigmas.len(), variances))))
+}

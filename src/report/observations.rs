@@ -1,0 +1,174 @@
+//! The report of a calibration from distances, contacts and coordinates
+//! ([`crate::calibration::kinds`]): parameters with their standard errors (the set-up's too),
+//! what the observations cannot see, the RMS residuals before and after on the training and
+//! the held-out files, the worst observations and those flagged. Text and JSON carry the same
+//! content.
+
+use super::calibration::ParameterRow;
+use crate::calibration::FLAG_AT;
+use crate::calibration::kinds::{KindCalibration, ObservationResidual, Score};
+use serde::Serialize;
+use std::fmt::Write;
+
+/// Everything the report says. Angles in degrees, lengths in millimetres.
+#[derive(Debug, Clone, Serialize)]
+pub struct ObservationsReport {
+    /// The model's name.
+    pub model: String,
+    /// The observation files.
+    pub data: String,
+    /// Observations fitted.
+    pub observations: usize,
+    /// Poses they were made at.
+    pub poses: usize,
+    /// The estimator's name.
+    pub estimator: String,
+    /// Gauss-Newton steps taken.
+    pub iterations: usize,
+    /// Whether a stopping rule was met.
+    pub converged: bool,
+    /// The estimated parameters, the robot's then the set-up's (`point1.x`, `plane1.d`, ...).
+    pub parameters: Vec<ParameterRow>,
+    /// What the observations cannot see, held, in words.
+    pub unseen: Vec<String>,
+    /// Combinations the poses cannot tell apart, held, in words.
+    pub fixed: Vec<String>,
+    /// The training observations scored, then each held-out file: every observation's
+    /// residual, and the RMS of the lengths (mm) and of the angles (deg).
+    pub sets: Vec<(String, Score)>,
+    /// Observations whose residual after calibration is more than [`FLAG_AT`] standard
+    /// deviations out, in words.
+    pub warnings: Vec<String>,
+}
+
+/// Observations listed per set in the text, the worst first.
+pub const WORST: usize = 5;
+
+impl ObservationsReport {
+    /// The report of `c`, fitted on `data` (names) with `estimator`; `held_out` are the held-out
+    /// files' RMS residuals, before and after.
+    pub fn new(
+        c: &KindCalibration,
+        data: &str,
+        fitted: (usize, usize),
+        estimator: &str,
+        held_out: Vec<(String, Score)>,
+    ) -> Self {
+        let se = c.refined.estimate.standard_errors();
+        let setup = c.setup.names();
+        let parameters = (c.refined.estimate.names.iter().enumerate())
+            .map(|(k, name)| {
+                let (value, angle, unit) = match c.params.index_by_name(name) {
+                    Some(i) => {
+                        let p = c.params.get(i);
+                        (c.after[i], p.kind.is_angle(), if p.kind.is_angle() { "deg" } else { p.unit() })
+                    }
+                    None => {
+                        let i = setup.iter().position(|n| n == name).expect("a robot or set-up parameter");
+                        let angle = name.ends_with(".alpha") || name.ends_with(".beta");
+                        (c.setup_values.1[i], angle, if angle { "deg" } else { "mm" })
+                    }
+                };
+                let scale = if angle { 180.0 / std::f64::consts::PI } else { 1.0 };
+                ParameterRow {
+                    name: name.clone(),
+                    value: value * scale,
+                    std_error: se[k] * scale,
+                    unit,
+                    prior_sd: None,
+                    sd_ratio: None,
+                }
+            })
+            .collect();
+        let mut sets = vec![("training".to_string(), c.training.clone())];
+        sets.extend(held_out);
+        let warnings = (c.training.observations.iter())
+            .filter(|r| r.whitened.abs() > FLAG_AT)
+            .map(|r| {
+                format!(
+                    "line {} ({}): a residual {:.1} standard deviations out after calibration",
+                    r.line,
+                    r.kind,
+                    r.whitened.abs()
+                )
+            })
+            .collect();
+        Self {
+            model: c.calibrated.name.clone(),
+            data: data.to_string(),
+            observations: fitted.0,
+            poses: fitted.1,
+            estimator: estimator.to_string(),
+            iterations: c.refined.history.len(),
+            converged: c.refined.converged,
+            parameters,
+            unseen: c.unseen.clone(),
+            fixed: c.fixed.clone(),
+            sets,
+            warnings,
+        }
+    }
+
+    /// The report as text, at fixed precision.
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "calibration of {} from {}: {} observations at {} poses, {} ({} steps, {})\n",
+            self.model,
+            self.data,
+            self.observations,
+            self.poses,
+            self.estimator,
+            self.iterations,
+            if self.converged { "converged" } else { "not converged" }
+        );
+        let _ = writeln!(out, "{:<14} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
+        for p in &self.parameters {
+            let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
+        }
+        let _ = writeln!(out, "\nnot seen by these observations, held:");
+        for u in &self.unseen {
+            let _ = writeln!(out, "  {u}");
+        }
+        if !self.fixed.is_empty() {
+            let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");
+            for f in &self.fixed {
+                let _ = writeln!(out, "  {f}");
+            }
+        }
+        let width = self.sets.iter().map(|r| r.0.len() + 9).max().unwrap_or(0).max(24);
+        let _ = writeln!(out, "\n{:<width$} {:>10} {:>10}", "residuals, RMS", "before", "after");
+        for (name, score) in &self.sets {
+            let (before, after) = score.lengths;
+            let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
+            if let Some((before, after)) = score.angles {
+                let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
+            }
+        }
+        let _ =
+            writeln!(out, "\nworst observations after calibration ({WORST} per set; every one in --json):");
+        for (name, score) in &self.sets {
+            let mut worst: Vec<&ObservationResidual> = score.observations.iter().collect();
+            worst.sort_by(|a, b| b.whitened.abs().total_cmp(&a.whitened.abs()));
+            for r in worst.iter().take(WORST) {
+                let _ = writeln!(
+                    out,
+                    "  {name}, line {} ({}): {:.4} before, {:.4} after, {:.1} sd",
+                    r.line, r.kind, r.before, r.after, r.whitened
+                );
+            }
+        }
+        let _ = writeln!(
+            out,
+            "\nbefore: the set-up (points, planes) fitted with the robot nominal; after: the robot and the set-up"
+        );
+        if !self.warnings.is_empty() {
+            let _ = writeln!(out, "\nwarnings:");
+            for w in &self.warnings {
+                let _ = writeln!(out, "  {w}");
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,794 @@
+//! Distances, plane contacts and partial coordinates: H against finite differences, exact
+//! recovery without noise, estimates within 3 predicted standard errors with noise, and what
+//! each kind cannot see.
+
+use crate::kinematics::{point, robot};
+use nalgebra::{DMatrix, DVector, Vector3};
+use proptest::prelude::*;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+use robocal::calibration::JointParams;
+use robocal::calibration::kinds::{
+    KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
+};
+use robocal::estimation::{Estimator, RefineOptions, Residuals};
+use robocal::kinematics::{Chain, ChainAt};
+use robocal::model::{Convention, Placement, RobotModel, Selection};
+
+/// Six poses of `model` from unit draws, and one observation of every kind on them: a pair,
+/// a fixed point, two planes, the three coordinates, and with `angles` roll, pitch and yaw.
+fn every_kind(model: &RobotModel, u: &[f64], angles: bool) -> KindData {
+    let joints: Vec<Vec<f64>> = (0..6).map(|k| point(model, &u[k * 7..]).0).collect();
+    let observations = vec![
+        Observation::Distance { a: 0, b: 1, measured: 500.0, sigma: 0.01 },
+        Observation::ToPoint { pose: 2, point: 0, measured: 300.0, sigma: 0.01 },
+        Observation::Contact { pose: 3, plane: 0, sigma: 0.01 },
+        Observation::Contact { pose: 4, plane: 1, sigma: 0.01 },
+        Observation::Coordinate { pose: 5, axis: 0, measured: 1.0, sigma: 0.01 },
+        Observation::Coordinate { pose: 5, axis: 1, measured: 2.0, sigma: 0.01 },
+        Observation::Coordinate { pose: 5, axis: 2, measured: 3.0, sigma: 0.01 },
+    ];
+    let angles = (3..6).filter(|_| angles).map(|axis| Observation::Coordinate {
+        pose: 4,
+        axis,
+        measured: 0.3,
+        sigma: 1e-4,
+    });
+    let observations: Vec<Observation> = observations.into_iter().chain(angles).collect();
+    let lines = (0..observations.len()).map(|i| i + 2).collect();
+    KindData { joints, observations, lines }
+}
+
+/// Every column of `H` (robot parameters and set-up) against central differences of the
+/// residuals: `H = -dy/dx`.
+fn check_kind_jacobians(model: &RobotModel, u: &[f64], angles: bool) -> Result<(), TestCaseError> {
+    let tool = Vector3::new(u[0], u[1], u[2]) * 200.0;
+    let chain = match angles {
+        true => Chain::probe(model, &Placement { xyz: tool, rpy: Vector3::new(u[7], u[8], u[9]) }),
+        false => Chain::markers(model, &[tool]).remove(0),
+    };
+    let params = chain.params();
+    let (_, x) = point(model, &u[20..]);
+    let x: Vec<f64> = (0..params.len()).map(|i| x[i % x.len()]).collect();
+    let data = every_kind(model, u, angles);
+    let setup = SetUp::new(1, &[Vector3::new(u[3], u[4], 1.0), Vector3::new(1.0, u[5], u[6])]);
+    let s: Vec<f64> =
+        (0..setup.len()).map(|i| u[(i + 11) % u.len()] * if i % 3 == 2 { 300.0 } else { 0.3 }).collect();
+    let all = Selection::all(params);
+    let every: Vec<usize> = (0..setup.len()).collect();
+    let problem = KindProblem::new(&chain, &all, &data, &setup, x.clone(), s.clone(), every, None);
+    let x0 = problem.start();
+    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+    problem.evaluate(&x0, Some(&mut h));
+    for c in 0..problem.parameters() {
+        let step = 1e-6 * x0[c].abs().max(1.0);
+        let (mut plus, mut minus) = (x0.clone(), x0.clone());
+        plus[c] += step;
+        minus[c] -= step;
+        let fd: DVector<f64> =
+            -(problem.evaluate(&plus, None) - problem.evaluate(&minus, None)) / (2.0 * step);
+        for r in 0..problem.equations() {
+            let gap = (h[(r, c)] - fd[r]).abs();
+            prop_assert!(
+                gap < 1e-5 * h.row(r).amax().max(1.0),
+                "row {r} ({:?}), column {c} ({}): H {} against {}",
+                data.observations[r],
+                problem.names()[c],
+                h[(r, c)],
+                fd[r]
+            );
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    #[test]
+    fn kind_jacobians_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_kind_jacobians(&model, &u, false)?;
+    }
+
+    #[test]
+    fn kind_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_kind_jacobians(&model, &u, false)?;
+    }
+
+    #[test]
+    fn angle_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_kind_jacobians(&model, &u, true)?;
+    }
+}
+
+fn puma() -> RobotModel {
+    RobotModel::preset("puma560").unwrap()
+}
+
+/// Random joint values within `model`'s limits.
+fn random_pose(model: &RobotModel, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    model.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect()
+}
+
+/// Small parameter errors on the `kept` parameters of `chain` (the others zero).
+fn errors_on(chain: &Chain, kept: &[String], rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let params = chain.params();
+    let mut x = vec![0.0; params.len()];
+    for name in kept {
+        if let Some(i) = params.index_by_name(name) {
+            let z: f64 = StandardNormal.sample(&mut *rng);
+            x[i] = z * if params.get(i).kind.is_angle() { 0.1f64.to_radians() } else { 0.5 };
+        }
+    }
+    x
+}
+
+const TOOL: Vector3<f64> = Vector3::new(20.0, -10.0, 120.0);
+
+fn options(estimator: Estimator) -> KindOptions {
+    KindOptions {
+        estimator,
+        joint_noise: None,
+        joints: JointParams::All,
+        estimate_tool: true,
+        tool: TOOL,
+        refine: RefineOptions::default(),
+    }
+}
+
+/// What a set-up measures of the robot `real`: a function from the data's poses to the
+/// observations, noise of `sigma` (mm) added.
+type Measure = dyn Fn(&ChainAt, &mut ChaCha8Rng, f64) -> KindData;
+
+/// Calibrate on exact data from errors on every parameter (the base's if `base_errors`): the training and held-out residuals
+/// vanish. Then errors on the identifiable parameters only, measured with noise: every estimate
+/// within 3 predicted standard errors of the truth (the set-up's too, when `setup_truth` is
+/// given). Returns the noisy calibration.
+fn recovers(measure: &Measure, setup_truth: Option<&[f64]>, base_errors: bool, seed: u64) -> KindCalibration {
+    recovers_with(measure, setup_truth, base_errors, None, false, seed)
+}
+
+/// [`recovers`], the noisy data weighted with the joint noise `sigma_q` too when given.
+fn recovers_with(
+    measure: &Measure,
+    setup_truth: Option<&[f64]>,
+    base_errors: bool,
+    sigma_q: Option<DMatrix<f64>>,
+    frame: bool,
+    seed: u64,
+) -> KindCalibration {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let model = puma();
+    // Angles make the tool a frame, as the calibration does.
+    let chain = match frame {
+        true => Chain::probe(&model, &Placement { xyz: TOOL, rpy: Vector3::zeros() }),
+        false => Chain::markers(&model, &[TOOL]).remove(0),
+    };
+    let all: Vec<String> = chain
+        .params()
+        .iter()
+        .filter(|p| base_errors || !p.name.starts_with("base."))
+        .map(|p| p.name.clone())
+        .collect();
+    let everything = errors_on(&chain, &all, &mut rng);
+    let exact = measure(&chain.with_errors(&everything), &mut rng, 0.0);
+    let c = calibrate_kinds(&model, &exact, &options(Estimator::Ols)).unwrap();
+    assert!(c.training.lengths.1 < 1e-7, "exact data: training RMS {} mm after", c.training.lengths.1);
+    assert!(
+        c.training.lengths.0 > 1e3 * c.training.lengths.1,
+        "before {} mm, after {} mm",
+        c.training.lengths.0,
+        c.training.lengths.1
+    );
+    let held_out = measure(&chain.with_errors(&everything), &mut rng, 0.0);
+    let (before, after) = c.validate(&held_out).unwrap();
+    assert!(after < 1e-6 && before > 0.1, "exact held-out RMS {before} mm before, {after} mm after");
+
+    let robot: Vec<String> = c
+        .refined
+        .estimate
+        .names
+        .iter()
+        .filter(|n| chain.params().index_by_name(n).is_some())
+        .cloned()
+        .collect();
+    let truth = errors_on(&chain, &robot, &mut rng);
+    let noisy = measure(&chain.with_errors(&truth), &mut rng, 0.01);
+    let weighted = KindOptions { joint_noise: sigma_q, ..options(Estimator::Wls) };
+    let c = calibrate_kinds(&model, &noisy, &weighted).unwrap();
+    let se = c.refined.estimate.standard_errors();
+    let setup_names = c.setup.names();
+    let mut checked = 0;
+    for (k, name) in c.refined.estimate.names.iter().enumerate() {
+        let (found, real) = match chain.params().index_by_name(name) {
+            Some(i) => (c.after[i], truth[i]),
+            None => match (setup_truth, setup_names.iter().position(|n| n == name)) {
+                (Some(s), Some(i)) => (c.setup_values.1[i], s[i]),
+                _ => continue,
+            },
+        };
+        assert!((found - real).abs() < 3.0 * se[k], "{name}: {found} against {real}, SE {}", se[k]);
+        checked += 1;
+    }
+    assert!(checked >= 20, "{checked} estimates checked");
+    c
+}
+
+/// A ball bar from fixed point (400, 200, 300) mm: the distances of random poses.
+fn ball_bar(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+    let pivot = Vector3::new(400.0, 200.0, 300.0);
+    let mut data = KindData::default();
+    for k in 0..150 {
+        let q = random_pose(&puma(), rng);
+        let z: f64 = StandardNormal.sample(&mut *rng);
+        let measured = (real.position(&q) - pivot).norm() + sigma * z;
+        data.joints.push(q);
+        data.observations.push(Observation::ToPoint { pose: k, point: 0, measured, sigma: sigma.max(0.01) });
+        data.lines.push(k + 3);
+    }
+    data
+}
+
+/// A length artefact: the distances between pairs of random poses.
+fn pairs(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+    let mut data = KindData::default();
+    for k in 0..150 {
+        let (a, b) = (random_pose(&puma(), rng), random_pose(&puma(), rng));
+        let z: f64 = StandardNormal.sample(&mut *rng);
+        let measured = (real.position(&a) - real.position(&b)).norm() + sigma * z;
+        data.joints.extend([a, b]);
+        data.observations.push(Observation::Distance {
+            a: 2 * k,
+            b: 2 * k + 1,
+            measured,
+            sigma: sigma.max(0.01),
+        });
+        data.lines.push(k + 3);
+    }
+    data
+}
+
+#[test]
+fn a_ball_bar_calibrates_the_robot_and_its_pivot_without_the_base() {
+    let pivot = [400.0, 200.0, 300.0];
+    let c = recovers(&ball_bar, Some(&pivot), true, 61);
+    assert!(
+        c.unseen[0].starts_with("base (6 parameters): distances cannot see the base placement"),
+        "{:?}",
+        c.unseen
+    );
+    assert!(c.refined.estimate.names.iter().all(|n| !n.starts_with("base.")));
+    assert!(c.refined.estimate.names.iter().any(|n| n == "point1.x"));
+}
+
+#[test]
+fn distances_between_poses_calibrate_the_robot_without_the_base() {
+    let c = recovers(&pairs, None, true, 62);
+    assert!(c.unseen[0].contains("distances cannot see the base placement"), "{:?}", c.unseen);
+    assert!(c.refined.estimate.names.iter().all(|n| !n.starts_with("base.")));
+}
+
+/// Pairs measured with joint noise (0.01 deg on every joint, independent at the two poses of a
+/// pair) and 0.005 mm on the distance: weighted by `V_k` with the joint noise of both poses,
+/// the estimates lie within 3 standard errors.
+#[test]
+fn distances_with_joint_noise_are_weighted_by_both_poses() {
+    let sigma_joint = 0.01f64.to_radians();
+    let noisy_pairs = move |real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64| {
+        let mut data = KindData::default();
+        let read = |q: &[f64], rng: &mut ChaCha8Rng| -> Vec<f64> {
+            q.iter()
+                .map(|q| {
+                    let z: f64 = StandardNormal.sample(&mut *rng);
+                    q + if sigma > 0.0 { sigma_joint * z } else { 0.0 }
+                })
+                .collect()
+        };
+        for k in 0..200 {
+            let (a, b) = (random_pose(&puma(), rng), random_pose(&puma(), rng));
+            let z: f64 = StandardNormal.sample(&mut *rng);
+            let measured =
+                (real.position(&read(&a, rng)) - real.position(&read(&b, rng))).norm() + sigma * 0.5 * z;
+            data.joints.extend([a, b]);
+            data.observations.push(Observation::Distance { a: 2 * k, b: 2 * k + 1, measured, sigma: 0.005 });
+            data.lines.push(k + 3);
+        }
+        data
+    };
+    let sigma_q = DMatrix::from_diagonal_element(6, 6, sigma_joint * sigma_joint);
+    let c = recovers_with(&noisy_pairs, None, true, Some(sigma_q), false, 68);
+    assert!(c.training.lengths.1 > 0.005, "the joint noise shows in the residuals: {:?}", c.training.lengths);
+}
+
+/// The planes of a cell in the robot's base frame: a table below, two walls.
+const PLANES: [([f64; 3], f64); 3] =
+    [([0.0, 0.0, 1.0], -350.0), ([1.0, 0.0, 0.0], 500.0), ([0.0, 1.0, 0.0], -450.0)];
+
+/// Contacts with the first `count` planes of [`PLANES`]: random poses moved onto a plane by
+/// turning joint 2 or 3 (Newton on the signed distance), those that reach it within the limits.
+fn contacts(count: usize) -> impl Fn(&ChainAt, &mut ChaCha8Rng, f64) -> KindData {
+    move |real, rng, sigma| {
+        let model = puma();
+        let mut data = KindData::default();
+        let mut plane = 0;
+        while data.observations.len() < 150 {
+            let (n, d) = (Vector3::from(PLANES[plane].0), PLANES[plane].1);
+            let z: f64 = StandardNormal.sample(&mut *rng);
+            let target = d + sigma * z;
+            let mut q = random_pose(&model, rng);
+            let joint = if rng.random_bool(0.5) { 1 } else { 2 };
+            for _ in 0..30 {
+                let f = n.dot(&real.position(&q)) - target;
+                let mut moved = q.clone();
+                moved[joint] += 1e-6;
+                let slope = (n.dot(&real.position(&moved)) - target - f) / 1e-6;
+                if slope.abs() < 1e-3 {
+                    break;
+                }
+                q[joint] -= (f / slope).clamp(-0.3, 0.3);
+            }
+            let limits = model.joints[joint].limits;
+            if (n.dot(&real.position(&q)) - target).abs() > 1e-9
+                || q[joint] < limits[0]
+                || q[joint] > limits[1]
+            {
+                continue;
+            }
+            let pose = data.joints.len();
+            data.joints.push(q);
+            data.observations.push(Observation::Contact { pose, plane, sigma: sigma.max(0.01) });
+            data.lines.push(pose + 3);
+            plane = (plane + 1) % count;
+        }
+        data
+    }
+}
+
+/// Contacts with three planes and a few distances between poses (a gauge length: contacts
+/// alone cannot see the scale) recover the robot and the planes.
+#[test]
+fn plane_contacts_calibrate_the_robot_and_the_planes() {
+    let with_a_length = |real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64| {
+        let mut lengths = pairs(real, rng, sigma);
+        lengths.observations.truncate(30);
+        lengths.lines.truncate(30);
+        contacts(3)(real, rng, sigma).join(&lengths)
+    };
+    let c = recovers(&with_a_length, None, true, 63);
+    for (i, (normal, d)) in PLANES.iter().enumerate() {
+        let (n, offset) = c.plane(i);
+        // The normal towards the robot's side (the base frame's origin).
+        let side = -d.signum();
+        assert!((n - Vector3::from(*normal) * side).norm() < 1e-3, "plane {}: normal {n:?}", i + 1);
+        assert!((offset - d * side).abs() < 0.5, "plane {}: offset {offset}", i + 1);
+    }
+    assert!(c.unseen.iter().any(|u| u.starts_with("base (6 parameters)")));
+    assert!(!c.unseen.iter().any(|u| u.starts_with("scale")), "{:?}", c.unseen);
+    assert!(
+        c.unseen.iter().any(|u| u.starts_with("plane 1: normal (0.0000, 0.0000, 1.0000)")
+            && u.contains("contacts cannot see motions within it")),
+        "{:?}",
+        c.unseen
+    );
+}
+
+/// One horizontal plane cannot see turns about the vertical: the first joint's offset is held,
+/// and said so.
+#[test]
+fn a_table_alone_cannot_see_turns_about_its_normal() {
+    let model = puma();
+    let chain = Chain::markers(&model, &[TOOL]).remove(0);
+    let mut rng = ChaCha8Rng::seed_from_u64(64);
+    let data = contacts(1)(&chain.with_errors(&vec![0.0; chain.params().len()]), &mut rng, 0.0);
+    let c = calibrate_kinds(&model, &data, &options(Estimator::Ols)).unwrap();
+    assert!(c.fixed.iter().any(|f| f.starts_with("j1.theta")), "{:?}", c.fixed);
+    assert!(c.refined.estimate.names.iter().all(|n| n != "j1.theta" && n != "plane1.d"));
+    assert!(
+        c.unseen[0].starts_with("base (6 parameters): the planes absorb the base placement"),
+        "{:?}",
+        c.unseen
+    );
+    assert!(c.unseen[1].starts_with("scale: contacts alone cannot see it"), "{:?}", c.unseen);
+    assert!(
+        c.unseen[2].starts_with("plane 1: normal (0.0000, 0.0000, 1.0000), offset -350.000 mm"),
+        "{:?}",
+        c.unseen
+    );
+    // Not collapsed: exact contacts are fitted by a robot of the nominal scale.
+    assert!(c.training.lengths.1 < 1e-7, "{:?}", c.training.lengths);
+    let fitted = chain.with_errors(&c.after);
+    let q = &data.joints[0];
+    assert!(
+        (fitted.position(q) - chain.with_errors(&vec![0.0; chain.params().len()]).position(q)).norm() < 1e-6
+    );
+}
+
+/// Heights only (a height gauge): z of the tool point in the measuring frame. The base's z,
+/// roll and pitch are seen, its x, y and yaw are not; the robot's parameters are recovered.
+#[test]
+fn heights_alone_calibrate_what_they_see() {
+    let heights = |real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64| {
+        let mut data = KindData::default();
+        for k in 0..200 {
+            let q = random_pose(&puma(), rng);
+            let z: f64 = StandardNormal.sample(&mut *rng);
+            let measured = real.position(&q).z + sigma * z;
+            data.joints.push(q);
+            data.observations.push(Observation::Coordinate {
+                pose: k,
+                axis: 2,
+                measured,
+                sigma: sigma.max(0.01),
+            });
+            data.lines.push(k + 3);
+        }
+        data
+    };
+    let c = recovers(&heights, None, false, 65);
+    let names = &c.refined.estimate.names;
+    assert!(names.iter().any(|n| n == "base.z"), "{names:?}");
+    assert!(!names.iter().any(|n| n == "base.x" || n == "base.y" || n == "base.rz"), "{names:?}");
+}
+
+/// A height gauge and an inclinometer: z, roll and pitch of the tool. The base's z, roll and
+/// pitch are seen, its x, y and yaw are not; the robot and the tool frame's turn are recovered.
+#[test]
+fn heights_and_tilts_calibrate_what_they_see() {
+    let tilts = |real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64| {
+        let mut data = KindData::default();
+        for k in 0..150 {
+            let q = random_pose(&puma(), rng);
+            let pose = real.pose(&q);
+            let (roll, pitch, _) = pose.rotation.euler_angles();
+            let mut z = || -> f64 { StandardNormal.sample(&mut *rng) };
+            let (zn, rn, pn) = (z(), z(), z());
+            let observations = [
+                Observation::Coordinate {
+                    pose: k,
+                    axis: 2,
+                    measured: pose.translation.z + sigma * zn,
+                    sigma: 0.01,
+                },
+                Observation::Coordinate { pose: k, axis: 3, measured: roll + sigma * 1e-3 * rn, sigma: 1e-5 },
+                Observation::Coordinate {
+                    pose: k,
+                    axis: 4,
+                    measured: pitch + sigma * 1e-3 * pn,
+                    sigma: 1e-5,
+                },
+            ];
+            data.joints.push(q);
+            data.observations.extend(observations);
+            data.lines.extend([k + 3; 3]);
+        }
+        data
+    };
+    let c = recovers_with(&tilts, None, false, None, true, 69);
+    // Ordinary least squares counts the angles as lengths (286 mm/rad): on the same data its
+    // standard errors stay within a factor of 3 of Gauss-Markov's; one radian counted as one
+    // millimetre would all but drop the tilts.
+    let mut rng = ChaCha8Rng::seed_from_u64(73);
+    let chain = Chain::probe(&puma(), &Placement { xyz: TOOL, rpy: Vector3::zeros() });
+    let data = tilts(&chain.with_errors(&vec![0.0; chain.params().len()]), &mut rng, 0.01);
+    let se = |estimator| {
+        let c = calibrate_kinds(&puma(), &data, &options(estimator)).unwrap();
+        let se = c.refined.estimate.standard_errors();
+        c.refined.estimate.names.iter().cloned().zip(se.iter().copied()).collect::<Vec<(String, f64)>>()
+    };
+    let (ols, wls) = (se(Estimator::Ols), se(Estimator::Wls));
+    for ((name, o), (_, w)) in ols.iter().zip(&wls) {
+        assert!(o / w < 3.0, "{name}: SE {o} by ols, {w} by wls");
+    }
+    let names = &c.refined.estimate.names;
+    assert!(names.iter().any(|n| n == "base.rx") && names.iter().any(|n| n == "marker1.rx"), "{names:?}");
+    assert!(!names.iter().any(|n| n == "base.x" || n == "base.y" || n == "base.rz"), "{names:?}");
+    assert!(matches!(c.calibrated.tool, robocal::model::Tool::Frame(_)));
+}
+
+#[test]
+fn kind_files_read_and_their_errors() {
+    let model = puma();
+    let read = |text: &str| KindData::from_csv_str(text, &model, None);
+    let head = "# units: joints=deg, lengths=mm\n";
+    let pairs = read(&format!(
+        "{head}j1,j2,j3,j4,j5,j6,j1_b,j2_b,j3_b,j4_b,j5_b,j6_b,distance,sigma\n0,10,20,0,0,0,5,15,25,0,0,0,123.4,0.02\n"
+    ))
+    .unwrap();
+    assert_eq!(pairs.joints.len(), 2);
+    assert_eq!(pairs.observations, [Observation::Distance { a: 0, b: 1, measured: 123.4, sigma: 0.02 }]);
+    let bar = read("# units: joints=deg, lengths=m\nj1,j2,j3,j4,j5,j6,point,distance\n0,10,20,0,0,0,2,0.5\n")
+        .unwrap();
+    assert_eq!(bar.observations, [Observation::ToPoint { pose: 0, point: 1, measured: 500.0, sigma: 0.01 }]);
+    let planes = read(&format!("{head}j1,j2,j3,j4,j5,j6,plane\n0,10,20,0,0,0,1\n")).unwrap();
+    assert_eq!(planes.observations, [Observation::Contact { pose: 0, plane: 0, sigma: 0.01 }]);
+    let partial =
+        read(&format!("{head}j1,j2,j3,j4,j5,j6,x,y,z\n0,10,20,0,0,0,,,812.5\n0,10,20,0,0,0,1,,2\n")).unwrap();
+    assert_eq!(partial.observations.len(), 3);
+    assert_eq!(
+        partial.observations[0],
+        Observation::Coordinate { pose: 0, axis: 2, measured: 812.5, sigma: 0.01 }
+    );
+    assert_eq!(partial.lines, [3, 4, 4]);
+    let tilts =
+        read(&format!("{head}j1,j2,j3,j4,j5,j6,roll,pitch,sigma_angle\n0,10,20,0,0,0,,2.5,0.001\n")).unwrap();
+    let sigma = 0.001f64.to_radians();
+    assert_eq!(
+        tilts.observations,
+        [Observation::Coordinate { pose: 0, axis: 4, measured: 2.5f64.to_radians(), sigma }]
+    );
+    assert!(tilts.has_angles() && tilts.sees_the_base());
+    // A `kind` column mixes them in one file, each row using its own columns.
+    let mixed = read(&format!(
+        "{head}kind,j1,j2,j3,j4,j5,j6,j1_b,j2_b,j3_b,j4_b,j5_b,j6_b,distance,point,plane,z,sigma\n\
+         pair,0,10,20,0,0,0,5,15,25,0,0,0,123.4,,,,0.02\n\
+         point,0,10,20,0,0,0,,,,,,,300,2,,,\n\
+         contact,0,10,20,0,0,0,,,,,,,,,3,,\n\
+         coordinates,0,10,20,0,0,0,,,,,,,,,,812.5,\n"
+    ))
+    .unwrap();
+    assert_eq!(
+        mixed.observations,
+        [
+            Observation::Distance { a: 0, b: 1, measured: 123.4, sigma: 0.02 },
+            Observation::ToPoint { pose: 2, point: 1, measured: 300.0, sigma: 0.01 },
+            Observation::Contact { pose: 3, plane: 2, sigma: 0.01 },
+            Observation::Coordinate { pose: 4, axis: 2, measured: 812.5, sigma: 0.01 },
+        ]
+    );
+    assert_eq!(mixed.lines, [3, 4, 5, 6]);
+    let mixed_error = |rows: &str| {
+        read(&format!("{head}kind,j1,j2,j3,j4,j5,j6,distance,plane\n{rows}")).unwrap_err().to_string()
+    };
+    assert_eq!(
+        mixed_error("ball,0,10,20,0,0,0,1,\n"),
+        "line 3, column `kind`: `ball`: expected pair, point, contact or coordinates"
+    );
+    assert_eq!(
+        mixed_error("contact,0,10,20,0,0,0,1,\n"),
+        "line 3, column `plane`: this kind of row needs a `plane` value"
+    );
+    assert_eq!(
+        mixed_error("pair,0,10,20,0,0,0,1,\n"),
+        "line 3, column `kind`: a pair needs the second pose's columns, <joint>_b"
+    );
+    let error = |text: &str| read(&format!("{head}{text}")).unwrap_err().to_string();
+    assert_eq!(
+        error("j1,j2,j3,j4,j5,j6,plane\n0,10,20,0,0,0,0\n"),
+        "line 3, column `plane`: 0: expected a number 1, 2, ... (at most 1000)"
+    );
+    assert_eq!(
+        error("j1,j2,j3,j4,j5,j6,distance\n0,10,20,0,0,0,-3\n"),
+        "line 3, column `distance`: -3: expected a value > 0"
+    );
+    assert_eq!(
+        error("j1,j2,j3,j4,j5,j6,x,y,z\n0,10,20,0,0,0,,,\n"),
+        "line 3: no coordinate: give at least one of x, y, z, roll, pitch, yaw"
+    );
+    assert_eq!(
+        error("j1,j2,j3,j4,j5,j6,j1_b,distance\n0,10,20,0,0,0,1,2\n"),
+        "line 2: pairs of poses need every joint of the second pose: <joint>_b"
+    );
+    assert_eq!(
+        error("j1,j2,j3,j4,j5,j6,distance,plane\n0,10,20,0,0,0,1,2\n"),
+        "line 2: expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or coordinates (x, y, z, roll, pitch, yaw); or a `kind` column naming each row's"
+    );
+}
+
+/// A ball bar's file: `count` random poses of the true robot `real`, distances to the pivot
+/// (400, 200, 300) mm with noise 0.005 mm, in the file format.
+fn ball_bar_csv(real: &ChainAt, count: usize, rng: &mut ChaCha8Rng) -> String {
+    let pivot = Vector3::new(400.0, 200.0, 300.0);
+    let mut text = String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,distance,sigma\n");
+    for _ in 0..count {
+        let q = random_pose(&puma(), rng);
+        let z: f64 = StandardNormal.sample(&mut *rng);
+        let d = (real.position(&q) - pivot).norm() + 0.005 * z;
+        let degrees: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
+        text += &format!("{},{d:.6},0.005\n", degrees.join(","));
+    }
+    text
+}
+
+/// `robocal calibrate-observations` on a ball bar's files: the report names what distances
+/// cannot see, and the held-out RMS falls; a bad file is named with its line and column.
+#[test]
+fn the_command_calibrates_from_a_ball_bar_and_validates() {
+    let dir = std::env::temp_dir().join(format!("robocal-kinds-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(66);
+    let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
+    let all: Vec<String> = chain.params().iter().map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let (train, test) = (dir.join("train.csv"), dir.join("test.csv"));
+    std::fs::write(&train, ball_bar_csv(&real, 120, &mut rng)).unwrap();
+    std::fs::write(&test, ball_bar_csv(&real, 60, &mut rng)).unwrap();
+    let json = dir.join("report.json");
+    let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", "puma560", "--tool", "20,-10,120"])
+        .args(["--data", &path(&train), "--validate", &path(&test), "--json", &path(&json)])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(output.stdout).unwrap();
+    assert!(output.status.success(), "{text}{}", String::from_utf8_lossy(&output.stderr));
+    assert!(text.contains("base (6 parameters): distances cannot see the base placement"), "{text}");
+    assert!(text.contains("point1.x"), "{text}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let held_out = &report["sets"][1][1]["lengths"];
+    let (before, after) = (held_out[0].as_f64().unwrap(), held_out[1].as_f64().unwrap());
+    assert_eq!(report["sets"][1][1]["observations"].as_array().unwrap().len(), 60);
+    assert!(
+        after * 20.0 < before && after < 0.02,
+        "held-out RMS {before} mm before, {after} mm after\n{text}"
+    );
+
+    std::fs::write(&test, "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,distance\n0,1,2,3,4,5,-1\n")
+        .unwrap();
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args([
+            "calibrate-observations",
+            "--model",
+            "puma560",
+            "--data",
+            &path(&train),
+            "--validate",
+            &path(&test),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let message = String::from_utf8(output.stderr).unwrap();
+    assert!(
+        message.contains("test.csv")
+            && message.contains("line 3, column `distance`: -1: expected a value > 0"),
+        "{message}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `V_k` against Monte Carlo: the joints of each pose read with noise `Sigma_q`, independently
+/// at the two poses of a pair; the sample variance of each observation's prediction over 4000
+/// draws within 5 standard errors of the variance (`sqrt(2 / (n - 1))` relative) of `V_k`.
+#[test]
+fn the_covariance_of_each_kind_is_the_joint_noise_of_its_poses() {
+    let model = puma();
+    let chain = Chain::markers(&model, &[TOOL]).remove(0);
+    let zero = vec![0.0; chain.params().len()];
+    let at = chain.with_errors(&zero);
+    let mut rng = ChaCha8Rng::seed_from_u64(67);
+    let sigmas = [0.05f64, 0.05, 0.05, 0.02, 0.02, 0.02].map(f64::to_radians);
+    let sigma_q = DMatrix::from_diagonal(&DVector::from_iterator(6, sigmas.iter().map(|s| s * s)));
+    let joints: Vec<Vec<f64>> = (0..5).map(|_| random_pose(&model, &mut rng)).collect();
+    let data = KindData {
+        observations: vec![
+            Observation::Distance { a: 0, b: 1, measured: 0.0, sigma: 1e-9 },
+            Observation::ToPoint { pose: 2, point: 0, measured: 0.0, sigma: 1e-9 },
+            Observation::Contact { pose: 3, plane: 0, sigma: 1e-9 },
+            Observation::Coordinate { pose: 4, axis: 1, measured: 0.0, sigma: 1e-9 },
+        ],
+        lines: vec![2, 3, 4, 5],
+        joints,
+    };
+    let setup = SetUp::new(1, &[Vector3::new(0.3, -0.2, 1.0)]);
+    let s = vec![400.0, 200.0, 300.0, 0.0, 0.0, -350.0];
+    let nothing = Selection::from_indices(chain.params(), []);
+    let problem =
+        KindProblem::new(&chain, &nothing, &data, &setup, zero, s.clone(), Vec::new(), Some(&sigma_q));
+    let v = problem.covariance().unwrap().clone();
+    let draws = 4000;
+    let mut samples: Vec<Vec<f64>> = (0..4).map(|_| Vec::with_capacity(draws)).collect();
+    for _ in 0..draws {
+        let noisy: Vec<Vec<f64>> = (data.joints.iter())
+            .map(|q| {
+                q.iter()
+                    .zip(&sigmas)
+                    .map(|(q, s)| {
+                        let z: f64 = StandardNormal.sample(&mut rng);
+                        q + s * z
+                    })
+                    .collect()
+            })
+            .collect();
+        let p: Vec<Vector3<f64>> = noisy.iter().map(|q| at.position(q)).collect();
+        let (n, d) = setup.plane(&s, 0);
+        samples[0].push((p[0] - p[1]).norm());
+        samples[1].push((p[2] - Vector3::new(400.0, 200.0, 300.0)).norm());
+        samples[2].push(n.dot(&p[3]) - d);
+        samples[3].push(p[4].y);
+    }
+    for (k, values) in samples.iter().enumerate() {
+        let mean = values.iter().sum::<f64>() / draws as f64;
+        let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (draws - 1) as f64;
+        let relative = (variance / v[(k, 0)] - 1.0).abs();
+        let tolerance = 5.0 * (2.0 / (draws - 1) as f64).sqrt();
+        assert!(
+            relative < tolerance,
+            "{:?}: {variance} mm² sampled, V_k {} mm²",
+            data.observations[k],
+            v[(k, 0)]
+        );
+    }
+}
+
+/// The calibrated model (as `--out-model` writes it) is the fitted one: its tool point, at any
+/// pose, is where the calibration's parameters put it.
+#[test]
+fn the_calibrated_model_is_the_fitted_one() {
+    let mut rng = ChaCha8Rng::seed_from_u64(70);
+    let model = puma();
+    let chain = Chain::markers(&model, &[TOOL]).remove(0);
+    let all: Vec<String> = chain.params().iter().map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let c = calibrate_kinds(&model, &ball_bar(&real, &mut rng, 0.01), &options(Estimator::Wls)).unwrap();
+    let written = robocal::model::to_toml_with_markers(&c.calibrated, &[]);
+    let read = RobotModel::from_toml_str(&written).unwrap();
+    let calibrated = Chain::new(&read);
+    let as_written = calibrated.with_errors(&vec![0.0; calibrated.params().len()]);
+    let fitted = chain.with_errors(&c.after);
+    for _ in 0..20 {
+        let q = random_pose(&model, &mut rng);
+        let gap = (as_written.position(&q) - fitted.position(&q)).norm();
+        assert!(gap < 1e-6, "{gap} mm");
+    }
+}
+
+/// Observations that cannot be fitted are refused with what is wrong, never a panic: too few
+/// distances for a fixed point (a point number with a gap before it), too few contacts for a
+/// plane, data built by hand with a pose that does not exist or a sigma of 0.
+#[test]
+fn observations_that_cannot_be_fitted_are_refused() {
+    let model = puma();
+    let mut rng = ChaCha8Rng::seed_from_u64(71);
+    let joints: Vec<Vec<f64>> = (0..8).map(|_| random_pose(&model, &mut rng)).collect();
+    let error = |observations: Vec<Observation>| {
+        let lines = (0..observations.len()).map(|i| i + 3).collect();
+        let data = KindData { joints: joints.clone(), observations, lines };
+        calibrate_kinds(&model, &data, &options(Estimator::Ols)).unwrap_err().to_string()
+    };
+    let to_point_2 =
+        (0..8).map(|pose| Observation::ToPoint { pose, point: 1, measured: 500.0, sigma: 0.01 }).collect();
+    assert_eq!(
+        error(to_point_2),
+        "fixed point 1: 0 distances, expected at least 4 from poses not on one plane"
+    );
+    let contacts = (0..2).map(|pose| Observation::Contact { pose, plane: 0, sigma: 0.01 }).collect();
+    assert_eq!(error(contacts), "plane 1: 2 contacts, expected at least 3 not on one line");
+    assert_eq!(
+        error(vec![Observation::Distance { a: 0, b: 9, measured: 1.0, sigma: 0.01 }]),
+        "line 3: a pose beyond the 8 given"
+    );
+    assert_eq!(
+        error(vec![Observation::Contact { pose: 0, plane: 0, sigma: 0.0 }]),
+        "line 3: a finite value and a sigma above 0 expected"
+    );
+}
+
+/// A length 0.1 mm (10 standard deviations) off among 150 is flagged by its whitened residual,
+/// and only it; every observation is scored in the report.
+#[test]
+fn an_observation_far_out_is_flagged() {
+    let mut rng = ChaCha8Rng::seed_from_u64(72);
+    let model = puma();
+    let chain = Chain::markers(&model, &[TOOL]).remove(0);
+    let all: Vec<String> = chain.params().iter().map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let mut data = ball_bar(&real, &mut rng, 0.01);
+    if let Observation::ToPoint { measured, .. } = &mut data.observations[40] {
+        *measured += 0.1;
+    }
+    let c = calibrate_kinds(&model, &data, &options(Estimator::Wls)).unwrap();
+    let report =
+        robocal::report::observations::ObservationsReport::new(&c, "bar.csv", (150, 150), "wls", vec![]);
+    assert_eq!(report.sets[0].1.observations.len(), 150);
+    assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
+    let line = data.lines[40];
+    assert!(
+        report.warnings[0].starts_with(&format!("line {line} (point): a residual")),
+        "{:?}",
+        report.warnings
+    );
+    assert!(report.text().contains(&format!("training, line {line} (point)")));
+}
