@@ -288,8 +288,8 @@ pub struct CalibrateArgs {
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     pub keep: Vec<String>,
     /// Choose the joint parameters by held-out error among those --params names: `cv`
-    /// (forward selection by k-fold cross-validated RMS, --folds K, default 5, one-standard-
-    /// error rule), `bic` (forward selection by the Bayesian information criterion), `t`
+    /// (forward selection by k-fold cross-validated RMS, --folds K, default 5,
+    /// one-standard-error rule), `bic` (forward selection by the Bayesian information criterion), `t`
     /// (backward elimination of the estimates below 2 standard errors).
     #[arg(long, value_enum)]
     pub select: Option<SelectName>,
@@ -301,10 +301,12 @@ pub struct CalibrateArgs {
     /// Prior standard deviations about the nominal model (maximum a posteriori): comma-separated
     /// `PATTERN=SD` entries, repeatable, later ones overriding earlier ones. PATTERN is a name or
     /// pattern as --params takes it (`j*.alpha`), or `lengths`, `angles`, `offsets`,
-    /// `compliances` (those of every joint); SD has a unit, which also picks the parameters: mm,
-    /// um, m, deg, rad, mrad, or a plain number for a compliance (rad/N·m, mm/N). Presets of
-    /// typical tolerances (lengths, angles, joint zeros): `machined` (0.1 mm, 0.05 deg,
-    /// 0.5 deg), `precision` (0.02 mm, 0.01 deg, 0.1 deg), `fabricated` (0.5 mm, 0.2 deg, 2 deg).
+    /// `compliances`, `plays` (those of every joint); SD has a unit, which also picks the
+    /// parameters: mm, um, m, deg, rad, mrad, or a plain number for a compliance (rad/N·m,
+    /// mm/N). Presets of typical tolerances (lengths, angles, joint zeros, plays): `machined`
+    /// (0.1 mm, 0.05 deg, 0.5 deg, 0.02 deg), `precision` (0.02 mm, 0.01 deg, 0.1 deg,
+    /// 0.005 deg), `fabricated` (0.5 mm, 0.2 deg, 2 deg, 0.1 deg); none puts a prior on the
+    /// compliances.
     /// A prior applies to the parameters --params asks for; with one, a parameter the poses
     /// cannot identify is not held, and the standard errors are the posterior ones. A noise
     /// file's [prior] table comes first. Example: `--prior 'machined,j6.theta=0.1deg'`.
@@ -335,7 +337,8 @@ pub struct CalibrateArgs {
     #[arg(long)]
     pub out_model: Option<PathBuf>,
     /// Write the calibrated model as URDF here (URDF input only): the original file with the
-    /// calibrated joint origins, a `measuring_frame` link and a `tool` link (marker 1).
+    /// calibrated joint origins, a `measuring_frame` link, a `tool` link (marker 1) and a
+    /// `marker_<k>` link per fitted marker (what `evaluate` reads).
     #[arg(long)]
     pub out_urdf: Option<PathBuf>,
 }

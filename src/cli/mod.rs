@@ -49,8 +49,8 @@ enum Command {
     /// Run the paper's two studies on the embedded PUMA 560: Tables 1-2, Figures 1-4.
     Reproduce(StudyOutputArgs),
     /// Run a study: a TOML file, or an embedded one (paper-table1, paper-table2,
-    /// planned-poses, device-cmm, device-laser-tracker, device-theodolites: the files in
-    /// presets/).
+    /// planned-poses, device-cmm, device-laser-tracker, device-theodolites, compliance: the
+    /// files in presets/).
     Simulate(SimulateArgs),
     /// Estimate the joint noise and sigma_me from repeated measurements at a set of poses,
     /// and write them as a noise file.
