@@ -63,7 +63,7 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
             calibration::calibrate_feasible(&robot.model, &data.fit, &options, &FeasibleOptions::default())
         }
     }
-    .with_context(|| request.data.display().to_string())?;
+    .map_err(|e| in_context(e, request))?;
     let (held_out, folds) = validate(request, &robot.model, &data, &options, &result)?;
     let name = request.method.name();
     let mut report =
@@ -74,6 +74,22 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     let text = report.text();
     print!("{text}");
     write(request, &robot, &report, &result, &text)
+}
+
+/// A calibration's error with what it concerns: a name that matches no parameter, or a bad
+/// prior, is the flags' (`--params`, `--hold`, `--keep`, `--prior`, or the noise file's
+/// `[prior]`); anything else the data's.
+fn in_context(e: calibration::CalibrationError, request: &CalibrateRequest) -> anyhow::Error {
+    use calibration::CalibrationError::{Prior, Selection};
+    let context = match (&e, &request.noise) {
+        (Selection(_), _) => "--params, --hold or --keep".to_string(),
+        (Prior(_), Some(NoiseSource::File(path))) => {
+            format!("--prior or the [prior] table of {}", path.display())
+        }
+        (Prior(_), _) => "--prior".to_string(),
+        _ => request.data.display().to_string(),
+    };
+    anyhow::Error::new(e).context(context)
 }
 
 /// Load the model: a preset, a model file, or a URDF chain, with the payload if one is given.

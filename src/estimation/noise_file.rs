@@ -162,7 +162,7 @@ fn prior_table(
         entries.push(entry);
     }
     let rank = |e: &PriorEntry| match e.target.as_str() {
-        "lengths" | "angles" | "offsets" | "compliances" => 0,
+        "lengths" | "angles" | "offsets" | "compliances" | "plays" => 0,
         t if t.contains('*') => 1,
         _ => 2,
     };

@@ -79,7 +79,8 @@ pub enum PriorError {
     /// An entry's target matches no parameter of its unit.
     #[error(
         "prior `{entry}`: no {what} parameter matches `{target}`; parameters are named like `j2.alpha`, \
-         `shoulder.x` (patterns with `*`), or use `lengths`, `angles`, `offsets`, `compliances`, `plays`"
+         `shoulder.x` (patterns with `*`), or use `lengths`, `angles`, `offsets`, `compliances`, `plays`{}",
+        if *what == "compliance" { " (a plain number is a compliance's: give a length or an angle its unit, `0.5mm`, `0.05deg`)" } else { "" }
     )]
     NoMatch {
         /// The entry as written.
@@ -146,6 +147,16 @@ impl PriorEntry {
         let sd = number * scale;
         if !(sd.is_finite() && sd > 0.0) {
             return Err(syntax("expected a standard deviation above 0"));
+        }
+        // A class names its unit: `lengths` in a length unit, `angles` in an angle unit.
+        let class_unit = match target {
+            "lengths" => Some((PriorUnit::Length, "a length unit (mm, um, m)")),
+            "angles" => Some((PriorUnit::Angle, "an angle unit (deg, rad, mrad)")),
+            "compliances" => Some((PriorUnit::Compliance, "a plain number (rad/N·m, mm/N)")),
+            _ => None,
+        };
+        if let Some((_, expected)) = class_unit.filter(|(u, _)| *u != unit) {
+            return Err(syntax(&format!("`{target}` takes {expected}")));
         }
         Ok(Self { target: target.to_string(), sd, unit, text: text.to_string() })
     }
@@ -310,6 +321,10 @@ mod tests {
         let precision = PriorEntry::parse_list("precision").unwrap();
         assert_eq!((precision[0].target.as_str(), precision[0].sd), ("lengths", 0.02));
         assert!(err("machind").contains("or a preset (`machined`"), "{}", err("machind"));
+        // A class names its unit.
+        assert!(err("lengths=0.1deg").contains("`lengths` takes a length unit"), "{}", err("lengths=0.1deg"));
+        assert!(err("angles=0.1mm").contains("`angles` takes an angle unit"), "{}", err("angles=0.1mm"));
+        assert!(err("compliances=1mm").contains("`compliances` takes a plain number"));
     }
 
     #[test]
@@ -334,14 +349,16 @@ mod tests {
     /// bad value names its field.
     #[test]
     fn a_noise_files_prior_table_reads_and_writes() {
-        let model = RobotModel::preset("puma560").unwrap();
+        let model = RobotModel::preset("puma560-masses").unwrap();
         let text = "joint_sigma = [0.01, 0.01, 0.01, 0.01, 0.01, 0.01]\n[prior]\n\"j2.a\" = \"1mm\"\n\
-                    \"j*.a\" = \"0.2mm\"\nlengths = \"0.1mm\"\n";
+                    \"j*.a\" = \"0.2mm\"\n\"j6.play\" = \"0.1deg\"\nlengths = \"0.1mm\"\nplays = \"0.005deg\"\n";
         let spec = crate::estimation::NoiseSpec::from_toml_str(text, &model).unwrap();
         let targets: Vec<&str> = spec.prior.iter().map(|e| e.target.as_str()).collect();
-        assert_eq!(targets, ["lengths", "j*.a", "j2.a"]);
+        assert_eq!(targets, ["lengths", "plays", "j*.a", "j2.a", "j6.play"]);
         let sd = prior_sds(&spec.prior, &model.params()).unwrap();
         assert_eq!(sd[model.params().index_by_name("j2.a").unwrap()], 1.0);
+        let play = sd[model.params().index_by_name("j6.play").unwrap()];
+        assert!((play - 0.1f64.to_radians()).abs() < 1e-15, "the name wins over the class");
         let again =
             crate::estimation::NoiseSpec::from_toml_str(&spec.to_toml_string(&model, ""), &model).unwrap();
         assert_eq!(again.prior, spec.prior);

@@ -26,7 +26,7 @@ pub use file::{ModelError, degrees, markers_from_toml_str, to_toml_with_markers}
 pub(crate) use params::name_matches;
 pub use params::{ParamInfo, ParamKind, ParamOwner, ParamSet, Selection, SelectionError};
 pub use urdf::{
-    DEFLECTION, chain_links, from_urdf_str, markers_from_urdf_str, to_urdf_string, with_urdf_markers,
+    DEFLECTION, GRAVITY, chain_links, from_urdf_str, markers_from_urdf_str, to_urdf_string, with_urdf_markers,
 };
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};

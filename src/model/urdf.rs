@@ -247,6 +247,17 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
             format!("at least one moving joint between `{base_link}` and `{tip_link}`"),
         ));
     }
+    let base_node =
+        robot.children().find(|n| n.has_tag_name("link") && n.attribute("name") == Some(base_link));
+    let gravity = match base_node.and_then(|n| n.children().find(|c| c.has_tag_name(GRAVITY))) {
+        Some(node) => Vector3::from(numbers(
+            node,
+            "xyz",
+            [0.0, 0.0, -super::STANDARD_GRAVITY],
+            &format!("link `{base_link}`.{GRAVITY}"),
+        )?),
+        None => RobotModel::floor_gravity(),
+    };
     let model = RobotModel {
         name: robot.attribute("name").unwrap_or("urdf").to_string(),
         description: format!("URDF chain from `{base_link}` to `{tip_link}`"),
@@ -256,12 +267,18 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
         tool: Tool::Frame(Placement::from_isometry(&pending)),
         // all masses, or none when no link on the chain declares one
         masses: if masses.iter().any(|m: &LinkMass| m.mass > 0.0) { masses } else { Vec::new() },
-        gravity: RobotModel::floor_gravity(),
+        gravity,
         payload: None,
     };
     // The names and limits pass the same checks as a TOML model's.
     super::RobotModel::from_toml_str(&model.to_toml_string())
 }
+
+/// robocal's extension element of a URDF link: gravity (m/s²) in the link's frame,
+/// `<robocal_gravity xyz="0 0 -9.80665"/>`. A chain read from that link takes it as the model's
+/// gravity (default: -z of the chain's first link, as ROS has it). `to_urdf_string` writes it in
+/// the `measuring_frame` link, whose frame is not the robot's.
+pub const GRAVITY: &str = "robocal_gravity";
 
 /// robocal's extension element of a URDF joint, which URDF has no field for: the joint's
 /// compliance and play (see [`crate::model::Joint`]) in SI units as the rest of the file,
@@ -323,8 +340,14 @@ pub fn to_urdf_string(
         Tool::Point(p) => Isometry3::translation(p.x, p.y, p.z),
         Tool::Frame(f) => f.isometry(),
     };
+    // Gravity in the measuring frame, which the chain read back starts from: the robot's
+    // gravity turned by the calibrated base.
+    let g = calibrated.base.isometry().rotation * calibrated.gravity;
     let extra = format!(
-        "  <link name=\"measuring_frame\"/>\n  <joint name=\"measuring_frame_to_{base_link}\" type=\"fixed\">\n    <parent link=\"measuring_frame\"/>\n    <child link=\"{base_link}\"/>\n    {}\n  </joint>\n  <link name=\"tool\"/>\n  <joint name=\"{last_moving_link}_to_tool\" type=\"fixed\">\n    <parent link=\"{last_moving_link}\"/>\n    <child link=\"tool\"/>\n    {}\n  </joint>\n",
+        "  <link name=\"measuring_frame\">\n    <{GRAVITY} xyz=\"{:?} {:?} {:?}\"/>\n  </link>\n  <joint name=\"measuring_frame_to_{base_link}\" type=\"fixed\">\n    <parent link=\"measuring_frame\"/>\n    <child link=\"{base_link}\"/>\n    {}\n  </joint>\n  <link name=\"tool\"/>\n  <joint name=\"{last_moving_link}_to_tool\" type=\"fixed\">\n    <parent link=\"{last_moving_link}\"/>\n    <child link=\"tool\"/>\n    {}\n  </joint>\n",
+        g.x,
+        g.y,
+        g.z,
         origin_element(&calibrated.base.isometry()),
         origin_element(&tool)
     );

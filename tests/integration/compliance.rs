@@ -330,3 +330,42 @@ fn a_payload_mass_is_estimated_where_the_compliances_show_it() {
     );
     assert_eq!(result.calibrated.payload.unwrap().mass, 2.0);
 }
+
+/// A URDF written by `to_urdf_string` from a fit with compliances and plays scores as the fit
+/// itself: the compliances in their element, and gravity in the measuring frame (which is not
+/// the robot's) in the `measuring_frame` link's.
+#[test]
+fn a_written_urdf_with_compliances_scores_as_the_fit() {
+    use robocal::model::{
+        GRAVITY, chain_links, from_urdf_str, markers_from_urdf_str, to_urdf_string, with_urdf_markers,
+    };
+    let text = std::fs::read_to_string("examples/arm7/arm7.urdf").unwrap();
+    let (base, tip) = chain_links(&text, None, None).unwrap();
+    let model = from_urdf_str(&text, &base, &tip).unwrap();
+    let read = |name: &str| {
+        robocal::io::load_measurements(std::path::Path::new(&format!("examples/arm7/{name}")), &model, None)
+            .unwrap()
+    };
+    let (train, session) = (read("train.csv"), read("session1.csv"));
+    let options = super::urdf::arm7_options(JointParams::Named(vec!["joint*.*".into()]));
+    let result = calibration::calibrate(&model, &train, &options).unwrap();
+    let written = to_urdf_string(&text, &base, &tip, &result.calibrated).unwrap();
+    let written = with_urdf_markers(&written, &result.marker_positions()).unwrap();
+    assert_eq!(written.matches(GRAVITY).count(), 1);
+    let reread = from_urdf_str(&written, "measuring_frame", "tool").unwrap();
+    let markers = markers_from_urdf_str(&written).unwrap();
+    let scored = calibration::evaluate_model(&reread, &markers, "session1", &session, None).unwrap();
+    let fitted = result.validate(&session).1;
+    assert!(
+        (scored.pooled[0].rms - fitted.rms).abs() < 1e-9,
+        "{} against {}",
+        scored.pooled[0].rms,
+        fitted.rms
+    );
+    assert!(
+        (scored.pooled[0].max - fitted.max).abs() < 1e-9,
+        "{} against {}",
+        scored.pooled[0].max,
+        fitted.max
+    );
+}
