@@ -172,6 +172,8 @@ pub(crate) fn fit(
     let points = problem.equations() / rows;
     let mut w = vec![1.0; points];
     let (mut reweightings, mut settled) = (0, false);
+    // Every Gauss-Newton step of every reweighting, for the report's count.
+    let mut history = std::mem::take(&mut refined.history);
     loop {
         let next = pose_weights(problem, weights, &refined.estimate.x, loss);
         let change = next.iter().zip(&w).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
@@ -187,7 +189,9 @@ pub(crate) fn fit(
         let reweighted = weights.reweighted(&w);
         let start = linearise(problem, &reweighted, refined.estimate.x.clone())?;
         refined = once(&reweighted, start)?;
+        history.append(&mut refined.history);
     }
+    refined.history = history;
     Ok((refined, Some(RobustFit { loss, weights: w, reweightings, settled })))
 }
 
