@@ -27,6 +27,13 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
             format!("up to {} steps", study.iterations)
         },
     );
+    if study.estimators.iter().any(|c| c.compliance || c.play) {
+        let _ = writeln!(
+            out,
+            "a +compliance (+play) calibration identifies the joints' compliances (plays) too, those of the joints \
+             gravity loads"
+        );
+    }
     let ranks: Vec<usize> = results.ranks.iter().map(|r| r.2).collect();
     let (low, high) = (ranks.iter().min().unwrap_or(&0), ranks.iter().max().unwrap_or(&0));
     let rank = if low == high { format!("{low}") } else { format!("{low} to {high}") };
