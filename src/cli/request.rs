@@ -264,6 +264,13 @@ impl CalibrateRequest {
             select.is_none() || method != Method::Feasible,
             "--select with --estimator fgls: not supported; estimate the noise once and give --noise",
         )?;
+        require(
+            select.is_none() || joints != JointParams::None,
+            "--select chooses among the joint parameters --params names: not with --params none",
+        )?;
+        if let Some(name) = args.hold.iter().find(|h| args.keep.contains(h)) {
+            return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
+        }
         // Feasible GLS estimates the noise from the residuals of plain least squares: a prior
         // shrinks them, a robust loss sets poses aside, and the variance components would be
         // those of another fit.

@@ -425,6 +425,11 @@ fn hold_and_keep_take_names_and_patterns() {
     );
     let request = calibrate(&[]).unwrap();
     assert!(request.hold.is_empty() && request.keep.is_empty());
+    assert_eq!(
+        refused(calibrate(&["--hold", "j1.theta", "--keep", "j1.theta"])),
+        "`j1.theta` is given to both --hold and --keep: choose one"
+    );
+    assert!(refused(calibrate(&["--select", "cv", "--params", "none"])).contains("not with --params none"));
 }
 
 #[test]
