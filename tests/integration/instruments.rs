@@ -105,7 +105,7 @@ fn errors_in_the_study_file_name_the_field() {
             "instruments[0].seconds_per_observation",
         ),
         ("time_budget_s = 600", "time_budget_s = -1", "time_budget_s"),
-        ("runs = 40", "runs = 1", "runs"),
+        ("runs = 200", "runs = 1", "runs"),
         (
             "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]",
             "joint_sigma = [0.007]",
