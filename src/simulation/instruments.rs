@@ -19,9 +19,9 @@
 //!      robot's base frame, which the calibration does not know);
 //!    - a ball bar (or any distance to a fixed pivot `c`): `|p - c| + n_m`;
 //!    - a length artefact: `|p_a - p_b| + n_m` between two configurations;
-//!    - a plane probe: configurations where the tool point touches the plane `n . p = d +
-//!      n_m` (joint `j` of the largest `|d(n . p)/dq_j|` moved from a uniform configuration by
-//!      Newton's method until it touches);
+//!    - a plane probe: configurations where the tool point touches a plane `n_i . p = d_i +
+//!      n_m`, the planes in turn (joint `j` of the largest `|d(n_i . p)/dq_j|` moved from a
+//!      uniform configuration by Newton's method until it touches);
 //!    - a height gauge: the tool point's height `e_z . p + n_m`;
 //!
 //!    each of the last four calibrated by [`calibrate_kinds`], every joint parameter and the
@@ -84,7 +84,7 @@ use rayon::prelude::*;
 use serde::Deserialize;
 
 /// What an instrument measures, with the set-up it needs.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum InstrumentKind {
     /// A laser tracker: the tool point's position (3 numbers per observation).
@@ -96,12 +96,10 @@ pub enum InstrumentKind {
     },
     /// A length artefact: the distance between the tool point at two configurations.
     Artefact,
-    /// A touch probe on a plane `n . p = d`.
+    /// A touch probe on planes `n_i . p = d_i`, touched in turn.
     Plane {
-        /// The plane's unit normal (base frame).
-        normal: Vector3<f64>,
-        /// Its offset `d` (mm).
-        offset: f64,
+        /// Each plane's unit normal (base frame) and offset `d_i` (mm).
+        planes: Vec<(Vector3<f64>, f64)>,
     },
     /// A height gauge: the tool point's z (mm).
     HeightGauge,
@@ -199,9 +197,14 @@ struct InstrumentFile {
     #[serde(default)]
     pivot_mm: Option<[f64; 3]>,
     #[serde(default)]
-    plane_normal: Option<[f64; 3]>,
-    #[serde(default)]
-    plane_offset_mm: Option<f64>,
+    planes: Option<Vec<PlaneFile>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlaneFile {
+    normal: [f64; 3],
+    offset_mm: f64,
 }
 
 /// The instrument studies shipped with robocal: `(name, TOML text)`.
@@ -347,11 +350,8 @@ impl InstrumentStudy {
 impl InstrumentFile {
     /// The instrument this entry describes; errors name the field within the entry.
     fn instrument(&self) -> Result<Instrument, FieldError> {
-        let unused = |field: &str, present: bool| match present {
-            true => Err(FieldError::new(
-                field,
-                format!("only for kind = \"ball-bar\" or \"plane\", not {:?}", self.kind),
-            )),
+        let unused = |field: &str, present: bool, kind: &str| match present {
+            true => Err(FieldError::new(field, format!("only for kind = \"{kind}\", not {:?}", self.kind))),
             false => Ok(()),
         };
         let kind = match self.kind.as_str() {
@@ -367,22 +367,29 @@ impl InstrumentFile {
             }
             "artefact" => InstrumentKind::Artefact,
             "plane" => {
-                let normal: Vector3<f64> = self
-                    .plane_normal
-                    .ok_or_else(|| {
-                        FieldError::new("plane_normal", "the plane's normal [x, y, z] (base frame)")
-                    })?
-                    .into();
-                if !(normal.iter().all(|v| v.is_finite()) && normal.norm() > 1e-9) {
-                    return Err(FieldError::new("plane_normal", "a finite non-zero vector"));
+                let files = self.planes.as_deref().unwrap_or_default();
+                if files.is_empty() {
+                    let expected = "the planes touched: [{ normal = [x, y, z], offset_mm = d }, ...]";
+                    return Err(FieldError::new("planes", expected));
                 }
-                let offset = self.plane_offset_mm.ok_or_else(|| {
-                    FieldError::new("plane_offset_mm", "the plane's offset d of n . p = d (mm)")
-                })?;
-                if !offset.is_finite() {
-                    return Err(FieldError::new("plane_offset_mm", "a finite number"));
+                let mut planes = Vec::with_capacity(files.len());
+                for (k, plane) in files.iter().enumerate() {
+                    let normal = Vector3::from(plane.normal);
+                    if !(normal.iter().all(|v| v.is_finite()) && normal.norm() > 1e-9) {
+                        return Err(FieldError::new(
+                            format!("planes[{k}].normal"),
+                            "a finite non-zero vector",
+                        ));
+                    }
+                    if !plane.offset_mm.is_finite() {
+                        return Err(FieldError::new(
+                            format!("planes[{k}].offset_mm"),
+                            "a finite number (mm)",
+                        ));
+                    }
+                    planes.push((normal.normalize(), plane.offset_mm));
                 }
-                InstrumentKind::Plane { normal: normal.normalize(), offset }
+                InstrumentKind::Plane { planes }
             }
             "height" => InstrumentKind::HeightGauge,
             other => {
@@ -390,10 +397,12 @@ impl InstrumentFile {
                 return Err(FieldError::new("kind", expected));
             }
         };
-        unused("pivot_mm", self.pivot_mm.is_some() && !matches!(kind, InstrumentKind::BallBar { .. }))?;
-        let plane = !matches!(kind, InstrumentKind::Plane { .. });
-        unused("plane_normal", self.plane_normal.is_some() && plane)?;
-        unused("plane_offset_mm", self.plane_offset_mm.is_some() && plane)?;
+        unused(
+            "pivot_mm",
+            self.pivot_mm.is_some() && !matches!(kind, InstrumentKind::BallBar { .. }),
+            "ball-bar",
+        )?;
+        unused("planes", self.planes.is_some() && !matches!(kind, InstrumentKind::Plane { .. }), "plane")?;
         Ok(Instrument {
             name: self.name.clone(),
             kind,
@@ -505,7 +514,7 @@ impl Campaign<'_> {
             study.joint_sigmas.len(),
             study.joint_sigmas.iter().map(|s| s * s),
         ));
-        let calibrated = match instrument.kind {
+        let calibrated = match &instrument.kind {
             InstrumentKind::Tracker => {
                 let data = self.tracker(&real, count, instrument.sigma, declared, &mut rng);
                 let options = Options {
@@ -588,12 +597,12 @@ impl Campaign<'_> {
         rng: &mut ChaCha8Rng,
     ) -> Result<KindData, SimulationError> {
         let robot = &self.study.robot;
-        let (kind, sigma) = (self.study.instruments[i].kind, self.study.instruments[i].sigma);
+        let (kind, sigma) = (&self.study.instruments[i].kind, self.study.instruments[i].sigma);
         let mut data = KindData::default();
         for k in 0..count {
             let pose = data.joints.len();
             let observation = match kind {
-                InstrumentKind::BallBar { pivot } => {
+                &InstrumentKind::BallBar { pivot } => {
                     let q = robot.uniform_configurations(1, rng).remove(0);
                     let measured = (self.at_noisy(real, &q, rng) - pivot).norm() + sigma * normal(rng);
                     data.joints.push(q);
@@ -612,10 +621,12 @@ impl Campaign<'_> {
                     data.joints.push(q);
                     Observation::Coordinate { pose, axis: 2, measured, sigma: declared }
                 }
-                InstrumentKind::Plane { normal: n, offset } => {
+                InstrumentKind::Plane { planes } => {
+                    let plane = k % planes.len();
+                    let (n, offset) = planes[plane];
                     let target = offset + sigma * normal(rng);
                     let touching = self.touch(real, n, target, rng).ok_or_else(|| {
-                        let field = format!("instruments[{i}].plane_offset_mm");
+                        let field = format!("instruments[{i}].planes[{plane}]");
                         StudyError::from(FieldError::new(field, "a plane the robot's tool point reaches"))
                     })?;
                     // The joints read with their noise at the touching configuration.
@@ -625,7 +636,7 @@ impl Campaign<'_> {
                         .map(|(q, s)| q + s * normal(rng))
                         .collect();
                     data.joints.push(read);
-                    Observation::Contact { pose, plane: 0, sigma: declared }
+                    Observation::Contact { pose, plane, sigma: declared }
                 }
                 InstrumentKind::Tracker => unreachable!("a tracker is calibrated from marker positions"),
             };

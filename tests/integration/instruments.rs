@@ -113,15 +113,44 @@ fn errors_in_the_study_file_name_the_field() {
         ),
         ("name = \"height gauge\"", "name = \"ball bar\"", "instruments[3].name"),
         ("kind = \"artefact\"", "kind = \"artefact\"\npivot_mm = [1.0, 2.0, 3.0]", "instruments[2].pivot_mm"),
+        ("kind = \"artefact\"", "kind = \"plane\"", "instruments[2].planes"),
         (
             "kind = \"artefact\"",
-            "kind = \"plane\"\nplane_normal = [0.0, 0.0, 1.0]",
-            "instruments[2].plane_offset_mm",
+            "kind = \"plane\"\nplanes = [{ normal = [0.0, 0.0, 0.0], offset_mm = 1.0 }]",
+            "instruments[2].planes[0].normal",
         ),
+        ("kind = \"height\"", "kind = \"height\"\nplanes = []", "instruments[3].planes"),
     ] {
         let message = error_of(from, to);
         assert!(message.contains(&format!("`{field}`")), "{from} -> {to}: {message}");
     }
     let message = error_of("time_budget_s = 600", "time_budget = 600");
     assert!(message.contains("time_budget"), "{message}");
+}
+
+/// Contacts alone (three planes, exact) let `calibrate_kinds` reach a collapsed robot (every
+/// length zero, the tool point where the planes meet) that fits every contact: why the
+/// embedded study leaves the plane probe out. When this fails, the plane probe recovers the
+/// robot: add it to `presets/instruments.toml` and the README's table.
+#[test]
+fn plane_contacts_alone_collapse_the_robot() {
+    let text = embedded().to_string()
+        + r#"
+[[instruments]]
+name = "plane probe"
+kind = "plane"
+sigma_mm = 0.0
+seconds_per_observation = 4
+planes = [
+    { normal = [0.0, 0.0, 1.0], offset_mm = -300.0 },
+    { normal = [1.0, 0.0, 0.0], offset_mm = 500.0 },
+    { normal = [0.0, 1.0, 0.0], offset_mm = 400.0 },
+]
+"#;
+    let mut study = InstrumentStudy::from_toml_str(&text, load).unwrap();
+    (study.runs, study.test_points) = (2, 100);
+    study.instruments.drain(..4);
+    study.joint_sigmas.iter_mut().for_each(|s| *s = 0.0);
+    let results = run_instruments(&study, &|| {}).unwrap();
+    assert!(results.scores.iter().all(|r| r[0].aligned > 100.0), "{:?}", results.scores);
 }
