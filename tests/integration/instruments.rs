@@ -154,3 +154,44 @@ planes = [
     let results = run_instruments(&study, &|| {}).unwrap();
     assert!(results.scores.iter().all(|r| r[0].aligned > 100.0), "{:?}", results.scores);
 }
+
+/// `robocal simulate FILE` with `args`: its exit code, standard output and error.
+fn simulate(file_text: &str, tag: &str, args: &[&str]) -> (Option<i32>, String, String, std::path::PathBuf) {
+    let dir = std::env::temp_dir().join(format!("robocal-instruments-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("study.toml");
+    std::fs::write(&path, file_text).unwrap();
+    let out = dir.join("out");
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_robocal"))
+        .args(["simulate", path.to_str().unwrap(), "--out", out.to_str().unwrap()])
+        .args(args)
+        .output()
+        .unwrap();
+    let text = |b: Vec<u8>| String::from_utf8(b).unwrap();
+    (output.status.code(), text(output.stdout), text(output.stderr), dir)
+}
+
+#[test]
+fn simulate_runs_an_instrument_study_file_and_writes_its_table_and_samples() {
+    let text = embedded().replace("runs = 200", "runs = 2").replace("test_points = 1000", "test_points = 50");
+    let (code, stdout, stderr, dir) = simulate(&text, "run", &["--threads", "1"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let tables = std::fs::read_to_string(dir.join("out/instruments/tables.txt")).unwrap();
+    assert!(stdout.contains(&tables) && tables.contains("laser tracker"), "{stdout}");
+    let csv = std::fs::read_to_string(dir.join("out/instruments/samples.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 2 * 4, "{csv}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn simulate_names_the_file_and_field_of_a_bad_instrument_study_and_refuses_estimator_flags() {
+    let text = embedded().replace("sigma_mm = 0.02", "sigma_mm = -0.02");
+    let (code, _, stderr, dir) = simulate(&text, "bad", &[]);
+    assert_eq!(code, Some(1));
+    assert!(stderr.contains("study.toml") && stderr.contains("instruments[0].sigma_mm"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+    let (code, _, stderr, dir) = simulate(embedded(), "flags", &["--replications", "2"]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("--replications"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
