@@ -258,8 +258,8 @@ impl InstrumentStudy {
         Ok(study)
     }
 
-    /// Check that the values make a study: a name fit for file names, one finite joint sigma
-    /// >= 0 per joint, error sizes finite >= 0 within [`crate::limits`], 2 or more runs, 1 or
+    /// Check that the values make a study: a name fit for file names, one finite
+    /// non-negative joint sigma per joint, error sizes finite >= 0 within [`crate::limits`], 2 or more runs, 1 or
     /// more test points, a finite positive time budget, and at least one instrument, each
     /// named (names distinct), with a noise finite >= 0, a time per observation > 0 and
     /// from 2 to [`MAX_POINTS`] observations in the budget. Errors name the study file's

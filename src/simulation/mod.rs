@@ -26,7 +26,7 @@
 //! their real robots and noise draws, so that random and planned poses compare run by run. Runs are spread over threads with rayon, and the results
 //! are the same, bit for bit, for any number of threads.
 
-mod instruments;
+pub mod instruments;
 mod replication;
 mod stats;
 mod study;
