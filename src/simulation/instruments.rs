@@ -75,7 +75,8 @@ use crate::error::FieldError;
 use crate::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
 use crate::kinematics::{Chain, ChainAt};
 use crate::limits::{
-    MAX_ANGLE_DEG, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS_PER_CASE, MAX_TEST_POINTS, check_magnitude,
+    MAX_ANGLE_DEG, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS,
+    check_magnitude,
 };
 use crate::model::{JointKind, ModelRef, RobotModel, Selection, Tool};
 use nalgebra::{DMatrix, Vector3};
@@ -262,7 +263,8 @@ impl InstrumentStudy {
     /// non-negative joint sigma per joint, error sizes finite >= 0 within [`crate::limits`], 2 or more runs, 1 or
     /// more test points, a finite positive time budget, and at least one instrument, each
     /// named (names distinct), with a noise finite >= 0, a time per observation > 0 and
-    /// from 2 to [`MAX_POINTS`] observations in the budget. Errors name the study file's
+    /// from 2 to [`MAX_POINTS`] observations in the budget, and at most [`MAX_STUDY_WORK`]
+    /// kinematic evaluations in all. Errors name the study file's
     /// field (`instruments[1].sigma_mm`).
     pub fn check(&self) -> Result<(), StudyError> {
         let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
@@ -328,6 +330,17 @@ impl InstrumentStudy {
                 );
                 return Err(FieldError::new(field("seconds_per_observation"), expected).into());
             }
+        }
+        let per_run = (0..self.instruments.len()).map(|i| (self.observations(i) + self.test_points) as u64);
+        let work = per_run.sum::<u64>().saturating_mul(self.runs as u64);
+        if work > MAX_STUDY_WORK {
+            return invalid(
+                "runs",
+                format!(
+                    "a study of at most {MAX_STUDY_WORK:e} kinematic evaluations (runs x instruments x \
+                     (observations + test_points)), found {work:e}"
+                ),
+            );
         }
         Ok(())
     }

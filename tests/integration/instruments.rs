@@ -106,6 +106,7 @@ fn errors_in_the_study_file_name_the_field() {
         ),
         ("time_budget_s = 600", "time_budget_s = -1", "time_budget_s"),
         ("runs = 200", "runs = 1", "runs"),
+        ("runs = 200\ntest_points = 1000", "runs = 100000\ntest_points = 100000", "runs"),
         (
             "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]",
             "joint_sigma = [0.007]",
