@@ -196,3 +196,17 @@ fn simulate_names_the_file_and_field_of_a_bad_instrument_study_and_refuses_estim
     assert!(stderr.contains("--replications"), "{stderr}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The README's table is what `robocal simulate instruments` prints.
+#[test]
+fn the_readme_instrument_table_is_the_real_output() {
+    let readme = std::fs::read_to_string("README.md").unwrap();
+    let start = readme.find("$ cargo run --release -- simulate instruments\n").expect("the README's study");
+    let block = &readme[start..start + readme[start..].find("```").unwrap()];
+    let expected: String = block.lines().skip(1).map(|line| format!("{line}\n")).collect();
+    let (code, stdout, stderr, dir) = simulate(embedded(), "readme", &["--threads", "2"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let table = stdout.split("\n\nwrote").next().unwrap();
+    assert_eq!(table.trim_end(), expected.trim_end(), "regenerate the README's instrument table");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
