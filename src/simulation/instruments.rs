@@ -718,3 +718,32 @@ fn calibration_error(e: CalibrationError) -> SimulationError {
         other => SimulationError::Calibration(other),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A plane probe's configurations touch their plane on the real robot, within the limits,
+    /// and an unreachable plane is none.
+    #[test]
+    fn touching_configurations_lie_on_the_plane() {
+        let robot = RobotModel::preset("puma560").unwrap();
+        let study_text = INSTRUMENT_STUDIES[0].1;
+        let mut study =
+            InstrumentStudy::from_toml_str(study_text, |_| Ok::<_, String>(robot.clone())).unwrap();
+        study.test_points = 1;
+        let chain = Chain::markers(&robot, &[study.tool()]).remove(0);
+        let joints = Selection::joints(chain.params());
+        let campaign = Campaign { study: &study, chain, joints, test: Vec::new() };
+        let mut rng = rng(7, 1);
+        let truth = draw_errors(campaign.chain.params(), campaign.joints.indices(), &study.errors, &mut rng);
+        let real = campaign.chain.with_errors(&truth);
+        let n = Vector3::new(1.0, 1.0, 0.0).normalize();
+        for _ in 0..20 {
+            let q = campaign.touch(&real, n, 300.0, &mut rng).expect("a reachable plane");
+            assert!((n.dot(&real.position(&q)) - 300.0).abs() < 1e-9);
+            assert!(q.iter().zip(&robot.joints).all(|(q, j)| *q >= j.limits[0] && *q <= j.limits[1]));
+        }
+        assert!(campaign.touch(&real, n, 5000.0, &mut rng).is_none(), "5 m away");
+    }
+}
