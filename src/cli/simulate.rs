@@ -3,7 +3,7 @@
 use super::args::{SimulateArgs, StudyOutputArgs};
 use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use robocal::simulation::{self, Study};
+use robocal::simulation::{self, InstrumentStudy, Study};
 use robocal::{io, report};
 use std::path::Path;
 use std::time::Instant;
@@ -32,11 +32,15 @@ pub fn reproduce(output: &StudyOutputArgs) -> Result<()> {
     Ok(())
 }
 
-/// `robocal simulate`: one study, its noise replaced by a noise file if one is given.
+/// `robocal simulate`: one study, its noise replaced by a noise file if one is given; or an
+/// instrument study (`instruments`, a file with `[[instruments]]`).
 pub fn simulate(args: &SimulateArgs) -> Result<()> {
     let mut inputs = vec![("the study", Path::new(&args.study))];
     inputs.extend(args.noise.as_deref().map(|p| ("--noise", p)));
     super::request::distinct_outputs(&inputs, &[("--out", Some(&args.output.out))])?;
+    if let Some(study) = io::load_instrument_study(&args.study)? {
+        return instruments(&study, args);
+    }
     let mut study = io::load_study(&args.study)?;
     if let Some(path) = &args.noise {
         let spec = io::load_noise(path, &study.robot)?;
@@ -47,6 +51,37 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
     let written = run_study(&study, &args.output, &mut outputs)?;
     outputs.commit()?;
     println!("{written}\n");
+    Ok(())
+}
+
+/// `robocal simulate` of an instrument study: its table printed, and with the samples staged
+/// for `<out>/<study name>/`. `--noise` and `--replications` are for the other studies.
+fn instruments(study: &InstrumentStudy, args: &SimulateArgs) -> Result<()> {
+    for (flag, given) in
+        [("--noise", args.noise.is_some()), ("--replications", args.output.replications.is_some())]
+    {
+        if given {
+            let message =
+                format!("{flag} is for estimator studies; study {} compares instruments", study.name);
+            return Err(super::request::UsageError(message).into());
+        }
+    }
+    let calibrations = study.runs * study.instruments.len();
+    let bar = progress(calibrations, study.name.clone());
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads(args.output.threads)).build()?;
+    let results = pool.install(|| simulation::run_instruments(study, &|| bar.inc(1)))?;
+    bar.finish_and_clear();
+    let table = report::instruments::table(study, &results);
+    println!("{table}");
+    let files = vec![
+        ("tables.txt".to_string(), table),
+        ("samples.csv".to_string(), report::instruments::samples_csv(study, &results)),
+    ];
+    let folder = args.output.out.join(&study.name);
+    let mut outputs = io::Outputs::new();
+    outputs.add_folder(&folder, &files);
+    outputs.commit()?;
+    println!("wrote {} files to {}\n", files.len(), folder.display());
     Ok(())
 }
 

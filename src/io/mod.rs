@@ -9,7 +9,9 @@ use crate::calibration::{Measurements, RepeatabilityData};
 use crate::estimation::{NoiseFileError, NoiseSpec};
 use crate::limits::{FALLBACK_MEMORY, MEMORY_SHARE};
 use crate::model::{ModelError, ModelRef, PRESETS, RobotModel, chain_links, from_urdf_str};
-use crate::simulation::{STUDIES, Study, StudyError};
+use crate::simulation::{
+    INSTRUMENT_STUDIES, InstrumentStudy, STUDIES, Study, StudyError, is_instrument_study,
+};
 use crate::table::{DataError, Units};
 use std::path::{Path, PathBuf};
 
@@ -260,6 +262,26 @@ pub fn load_study(name_or_path: &str) -> Result<Study, InputError> {
     let path = Path::new(name_or_path);
     let text = read(path)?;
     Study::from_toml_str(&text, robot).map_err(|source| InputError::Study { path: path.into(), source })
+}
+
+/// The instrument study named (an embedded one: [`INSTRUMENT_STUDIES`]) or in the file
+/// `name_or_path`, if it is one (a file with `[[instruments]]`); `None` for any other study
+/// name or file, which [`load_study`] reads.
+pub fn load_instrument_study(name_or_path: &str) -> Result<Option<InstrumentStudy>, InputError> {
+    let robot = load_model;
+    if let Some((_, text)) = INSTRUMENT_STUDIES.iter().find(|(n, _)| *n == name_or_path) {
+        return Ok(Some(InstrumentStudy::from_toml_str(text, robot).expect("embedded studies are valid")));
+    }
+    if STUDIES.iter().any(|(n, _)| *n == name_or_path) {
+        return Ok(None);
+    }
+    let path = Path::new(name_or_path);
+    let text = read(path)?;
+    if !is_instrument_study(&text) {
+        return Ok(None);
+    }
+    let study = InstrumentStudy::from_toml_str(&text, robot);
+    study.map(Some).map_err(|source| InputError::Study { path: path.into(), source })
 }
 
 /// A chain read from a URDF file, with what it takes to write the calibrated URDF.

@@ -5,6 +5,7 @@ pub mod calibration;
 pub mod design;
 pub mod figures;
 pub mod html;
+pub mod instruments;
 pub mod observations;
 pub mod poses;
 pub mod replication;

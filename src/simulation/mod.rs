@@ -26,11 +26,16 @@
 //! their real robots and noise draws, so that random and planned poses compare run by run. Runs are spread over threads with rayon, and the results
 //! are the same, bit for bit, for any number of threads.
 
+pub mod instruments;
 mod replication;
 mod stats;
 mod study;
 mod synthetic;
 
+pub use instruments::{
+    EXACT_SIGMA_MM, INSTRUMENT_STUDIES, Instrument, InstrumentKind, InstrumentResults, InstrumentStudy,
+    Scores, interval as stats_interval, is_instrument_study, run_instruments,
+};
 pub use replication::{
     Coverage, MAX_REPLICATIONS, REPLICATION_STREAM, Replication, ReplicationError, Replications, Statistic,
     check_replications, replicate, replication_seed, replication_study,
@@ -50,7 +55,7 @@ use crate::estimation::{
     RefineOptions, Weights, refine,
 };
 use crate::kinematics::{Chain, ChainAt, Measured, pose_error};
-use crate::model::ParamKind;
+use crate::model::{ParamKind, ParamSet};
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
@@ -76,6 +81,29 @@ fn rng(seed: u64, stream: u64) -> ChaCha8Rng {
 
 fn normal(rng: &mut ChaCha8Rng) -> f64 {
     StandardNormal.sample(rng)
+}
+
+/// A real robot's geometric errors on the parameters `indices` of `params`: normal, zero mean,
+/// standard deviation `sizes.offset` for a revolute joint's offset, `sizes.angle` for every
+/// other angle, `sizes.length` for every length; the others (load responses included, which
+/// a study's `[truth]` sets) zero.
+pub(crate) fn draw_errors(
+    params: &ParamSet,
+    indices: &[usize],
+    sizes: &ErrorSizes,
+    rng: &mut ChaCha8Rng,
+) -> Vec<f64> {
+    let mut x = vec![0.0; params.len()];
+    for &i in indices.iter().filter(|&&i| !params.get(i).is_load_response()) {
+        let p = params.get(i);
+        let size = match p.kind {
+            ParamKind::Theta if p.is_offset => sizes.offset,
+            kind if kind.is_angle() => sizes.angle,
+            _ => sizes.length,
+        };
+        x[i] = size * normal(rng);
+    }
+    x
 }
 
 /// How accurate a calibrated model is over the test set.
@@ -202,6 +230,9 @@ pub enum SimulationError {
     /// The poses of a planned case could not be planned.
     #[error("planning the poses")]
     Design(#[from] DesignError),
+    /// A calibration of an instrument study failed.
+    #[error("calibrating")]
+    Calibration(#[from] crate::calibration::CalibrationError),
     /// The measuring device cannot give the covariance at a measurement point.
     #[error("the study's measuring device")]
     Device(#[from] DeviceError),
@@ -331,20 +362,7 @@ impl Bench<'_> {
 
     /// Step 2: the real robot's errors, for the identified parameters.
     fn draw_errors(&self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        let sizes = &self.study.errors;
-        let params = self.chain.params();
-        let mut x = vec![0.0; params.len()];
-        // The load responses of the real robot are the study's `truth`, not drawn.
-        for &i in self.study.selection.indices().iter().filter(|&&i| !params.get(i).is_load_response()) {
-            let p = params.get(i);
-            let size = match p.kind {
-                ParamKind::Theta if p.is_offset => sizes.offset,
-                kind if kind.is_angle() => sizes.angle,
-                _ => sizes.length,
-            };
-            x[i] = size * normal(rng);
-        }
-        x
+        draw_errors(self.chain.params(), self.study.selection.indices(), &self.study.errors, rng)
     }
 
     /// Steps 2-8 of one run.

@@ -6,6 +6,7 @@ mod compliance;
 mod estimation;
 mod fgls;
 mod fuzz;
+mod instruments;
 mod kinds;
 mod kinematics;
 mod layering;

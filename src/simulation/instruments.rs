@@ -1,0 +1,749 @@
+//! Instruments compared: a Monte Carlo campaign that calibrates the same robots with different
+//! measuring instruments at equal measurement time (issue #16's question, asked of
+//! instruments rather than of estimators).
+//!
+//! # Procedure
+//!
+//! For each run `r = 1 .. R`:
+//! 1. a "real" robot: the nominal parameters plus geometric errors on every joint parameter,
+//!    normal with the study's sizes ([`ErrorSizes`], as [`Study`](super::Study) draws them);
+//!    the base and the tool point exact. Every instrument measures the same real robot of run
+//!    `r` (common random numbers), so that instruments compare run by run;
+//! 2. for each instrument `i`, `N_i = floor(T / t_i)` observations (`T` the time budget, `t_i`
+//!    the instrument's time per observation): at configurations uniform within the joint
+//!    limits, the real robot at the read joint values plus the joint noise `n_q ~ N(0,
+//!    Sigma_q)` (drawn anew at every pose), and the instrument's own noise `n_m ~ N(0,
+//!    sigma_i^2)` on each measured number:
+//!    - a laser tracker: the tool point's position `p + n_m` (3 numbers), calibrated by
+//!      [`calibrate`] (registration, base, marker and joints; the tracker's frame is the
+//!      robot's base frame, which the calibration does not know);
+//!    - a ball bar (or any distance to a fixed pivot `c`): `|p - c| + n_m`;
+//!    - a length artefact: `|p_a - p_b| + n_m` between two configurations;
+//!    - a plane probe: configurations where the tool point touches a plane `n_i . p = d_i +
+//!      n_m`, the planes in turn (joint `j` of the largest `|d(n_i . p)/dq_j|` moved from a
+//!      uniform configuration by Newton's method until it touches);
+//!    - a height gauge: the tool point's height `e_z . p + n_m`;
+//!
+//!    each of the last four calibrated by [`calibrate_kinds`], every joint parameter and the
+//!    tool point asked for, weighted by `V_k` with the study's `Sigma_q` and `sigma_i`
+//!    (WLS);
+//! 3. each calibrated model scored over a common test set of configurations (uniform within
+//!    the joint limits, drawn once per study): the position error after the best rigid
+//!    alignment,
+//!
+//!    `E_p = (1/N_t) sum_t |T* p_hat(q_t) - p(q_t)|`, `T* = argmin_T sum_t |T p_hat(q_t) -
+//!    p(q_t)|^2`
+//!
+//!    (Kabsch 1976), `p_hat` the calibrated model's tool point and `p` the real robot's,
+//!    noise-free. Distances and contacts cannot see where the robot stands (the base
+//!    placement is held at its nominal value), and a user of such an instrument registers the
+//!    robot to its work by other means; the alignment removes exactly what no instrument of
+//!    the study is asked to deliver, and is applied to every instrument alike, the tracker
+//!    too. Shape errors (joint geometry, scale) stay in `E_p`. [`Scores::unaligned`] keeps
+//!    the error without alignment.
+//!
+//! The table gives, per instrument, the mean of `E_p` over the runs with its 95 % confidence
+//! interval `mean +- t_{0.975, R-1} s / sqrt(R)`, and the paired difference against the first
+//! instrument, `d_r = E_p,i(r) - E_p,1(r)`, with the same interval over the `d_r` (the common
+//! real robots make it much narrower than the difference of two unpaired means).
+//!
+//! # Times per observation (the embedded `instruments` study)
+//!
+//! - laser tracker, 5 s per pose: the robot moves and settles (2-3 s), the tracker averages
+//!   its reading (about 1 s) with one reflector, a little more with 2-3 markers;
+//! - ball bar, 3 s per length: move, settle, read a digital probe;
+//! - height gauge or plane touch, 4 s per contact: a slow approach to the surface and a
+//!   retract;
+//! - length artefact, 6 s per length: two poses, one per end of the artefact.
+//!
+//! These are assumptions of a careful cell, not measured figures; a study file sets its own.
+//!
+//! # Random numbers
+//!
+//! Every stream is ChaCha8 seeded with the study's seed: the test set on
+//! [`TEST_STREAM`](super), run `r`'s real robot on stream `r + 1`, instrument `i`'s
+//! observations in run `r` on stream `((i + 1) << 32) | (r + 1)`. Runs and instruments are
+//! spread over threads with rayon; the results are the same, bit for bit, on any number of
+//! threads.
+
+use super::{ErrorSizes, Redraw, SimulationError, StudyError, TEST_STREAM, draw_errors, normal, rng, stats};
+use crate::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
+use crate::calibration::{
+    CalibrationError, Gauge, JointParams, Loss, Measurements, Options, calibrate, register,
+};
+use crate::error::FieldError;
+use crate::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
+use crate::kinematics::{Chain, ChainAt};
+use crate::limits::{
+    MAX_ANGLE_DEG, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS,
+    check_magnitude,
+};
+use crate::model::{JointKind, ModelRef, RobotModel, Selection, Tool};
+use nalgebra::{DMatrix, Vector3};
+use rand::rngs::ChaCha8Rng;
+use rayon::prelude::*;
+use serde::Deserialize;
+
+/// What an instrument measures, with the set-up it needs.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum InstrumentKind {
+    /// A laser tracker: the tool point's position (3 numbers per observation).
+    Tracker,
+    /// A ball bar: the distance (mm) from the tool point to a fixed pivot (mm, base frame).
+    BallBar {
+        /// The pivot (mm, in the robot's base frame).
+        pivot: Vector3<f64>,
+    },
+    /// A length artefact: the distance between the tool point at two configurations.
+    Artefact,
+    /// A touch probe on planes `n_i . p = d_i`, touched in turn.
+    Plane {
+        /// Each plane's unit normal (base frame) and offset `d_i` (mm).
+        planes: Vec<(Vector3<f64>, f64)>,
+    },
+    /// A height gauge: the tool point's z (mm).
+    HeightGauge,
+}
+
+impl InstrumentKind {
+    /// The kind's name in a study file: `tracker`, `ball-bar`, `artefact`, `plane`, `height`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Tracker => "tracker",
+            Self::BallBar { .. } => "ball-bar",
+            Self::Artefact => "artefact",
+            Self::Plane { .. } => "plane",
+            Self::HeightGauge => "height",
+        }
+    }
+}
+
+/// One instrument of a campaign.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Instrument {
+    /// Its name in the table.
+    pub name: String,
+    /// What it measures.
+    pub kind: InstrumentKind,
+    /// Its measurement noise `sigma_i` (mm) on each measured number.
+    pub sigma: f64,
+    /// The time one observation takes `t_i` (s).
+    pub seconds: f64,
+}
+
+/// A validated instrument study: the robot, its errors and noise, the instruments and the
+/// time budget, in mm and rad.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InstrumentStudy {
+    /// Short name, used in file names.
+    pub name: String,
+    /// What the study shows.
+    pub description: String,
+    /// The nominal robot; its tool point is the measured point.
+    pub robot: RobotModel,
+    /// Joint noise standard deviations (rad, mm for prismatic joints).
+    pub joint_sigmas: Vec<f64>,
+    /// The real robot's geometric errors (on every joint parameter; drawn every run).
+    pub errors: ErrorSizes,
+    /// The measurement time `T` every instrument gets (s).
+    pub time_budget: f64,
+    /// The instruments; the first is the reference of the paired differences.
+    pub instruments: Vec<Instrument>,
+    /// Runs (real robots).
+    pub runs: usize,
+    /// Configurations of the test set.
+    pub test_points: usize,
+    /// Master seed of every random stream.
+    pub seed: u64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    name: String,
+    #[serde(default)]
+    description: String,
+    robot: String,
+    seed: u64,
+    runs: usize,
+    test_points: usize,
+    time_budget_s: f64,
+    noise: NoiseFile,
+    errors: ErrorsFile,
+    instruments: Vec<InstrumentFile>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoiseFile {
+    joint_sigma: Vec<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ErrorsFile {
+    offset_deg: f64,
+    angle_deg: f64,
+    length_mm: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InstrumentFile {
+    name: String,
+    kind: String,
+    sigma_mm: f64,
+    seconds_per_observation: f64,
+    #[serde(default)]
+    pivot_mm: Option<[f64; 3]>,
+    #[serde(default)]
+    planes: Option<Vec<PlaneFile>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlaneFile {
+    normal: [f64; 3],
+    offset_mm: f64,
+}
+
+/// The instrument studies shipped with robocal: `(name, TOML text)`.
+pub const INSTRUMENT_STUDIES: &[(&str, &str)] =
+    &[("instruments", include_str!("../../presets/instruments.toml"))];
+
+/// Whether `text` is an instrument study (it has `[[instruments]]`) rather than a
+/// [`Study`](super::Study).
+pub fn is_instrument_study(text: &str) -> bool {
+    text.parse::<toml::Table>().is_ok_and(|t| t.contains_key("instruments"))
+}
+
+impl InstrumentStudy {
+    /// Read a study from TOML text; `load_robot` turns the `robot` field (a preset name or a
+    /// model file) into a model. See `docs/formats.md` for the fields.
+    pub fn from_toml_str<E: Into<Box<dyn std::error::Error + Send + Sync>>>(
+        text: &str,
+        load_robot: impl FnOnce(&ModelRef) -> Result<RobotModel, E>,
+    ) -> Result<Self, StudyError> {
+        let file: File = toml::from_str(text).map_err(StudyError::Syntax)?;
+        let reference = ModelRef { name: file.robot.clone(), base_link: None, tip_link: None, payload: None };
+        let robot = load_robot(&reference).map_err(|e| StudyError::Robot(e.into()))?;
+        if file.noise.joint_sigma.len() != robot.dof() {
+            let expected = format!("{} values, one per joint of {}", robot.dof(), robot.name);
+            return Err(FieldError::new("noise.joint_sigma", expected).into());
+        }
+        let joint_sigmas = (robot.joints.iter().zip(&file.noise.joint_sigma))
+            .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
+            .collect();
+        let instruments = (file.instruments.iter().enumerate())
+            .map(|(i, f)| f.instrument().map_err(|e| e.within(&format!("instruments[{i}]."))))
+            .collect::<Result<_, _>>()?;
+        let study = Self {
+            name: file.name,
+            description: file.description,
+            robot,
+            joint_sigmas,
+            errors: ErrorSizes {
+                offset: file.errors.offset_deg.to_radians(),
+                angle: file.errors.angle_deg.to_radians(),
+                length: file.errors.length_mm,
+                redraw: Redraw::Run,
+            },
+            time_budget: file.time_budget_s,
+            instruments,
+            runs: file.runs,
+            test_points: file.test_points,
+            seed: file.seed,
+        };
+        study.check()?;
+        Ok(study)
+    }
+
+    /// Check that the values make a study: a name fit for file names, one finite
+    /// non-negative joint sigma per joint, error sizes finite >= 0 within [`crate::limits`], 2 or more runs, 1 or
+    /// more test points, a finite positive time budget, and at least one instrument, each
+    /// named (names distinct), with a noise finite >= 0, a time per observation > 0 and
+    /// from 2 to [`MAX_POINTS`] observations in the budget, and at most [`MAX_STUDY_WORK`]
+    /// kinematic evaluations in all. Errors name the study file's
+    /// field (`instruments[1].sigma_mm`).
+    pub fn check(&self) -> Result<(), StudyError> {
+        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
+        let name = &self.name;
+        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
+            return invalid("name", format!("letters, digits, `-` or `_` (it names files), found {name:?}"));
+        }
+        if self.joint_sigmas.len() != self.robot.dof() {
+            let expected = format!("{} values, one per joint of {}", self.robot.dof(), self.robot.name);
+            return invalid("noise.joint_sigma", expected);
+        }
+        let joint = self.robot.joints.iter().zip(&self.joint_sigmas).map(|(j, &s)| match j.kind {
+            JointKind::Revolute => ("noise.joint_sigma", s.to_degrees(), MAX_ANGLE_DEG, "deg"),
+            JointKind::Prismatic => ("noise.joint_sigma", s, MAX_LENGTH_MM, "mm"),
+        });
+        let magnitudes = joint.chain([
+            ("errors.offset_deg", self.errors.offset.to_degrees(), MAX_ANGLE_DEG, "deg"),
+            ("errors.angle_deg", self.errors.angle.to_degrees(), MAX_ANGLE_DEG, "deg"),
+            ("errors.length_mm", self.errors.length, MAX_LENGTH_MM, "mm"),
+        ]);
+        for (field, value, bound, unit) in magnitudes {
+            if !(value >= 0.0 && value.is_finite()) {
+                return invalid(field, format!("finite values >= 0, found {value}"));
+            }
+            check_magnitude(value, bound, unit).map_err(|e| FieldError::new(field, e))?;
+        }
+        for (field, count, low, high) in
+            [("runs", self.runs, 2, MAX_RUNS_PER_CASE), ("test_points", self.test_points, 1, MAX_TEST_POINTS)]
+        {
+            if count < low || count > high {
+                return invalid(field, format!("from {low} to {high}, found {count}"));
+            }
+        }
+        if !(self.time_budget > 0.0 && self.time_budget.is_finite()) {
+            return invalid("time_budget_s", format!("a time > 0 s, found {}", self.time_budget));
+        }
+        if self.instruments.is_empty() {
+            return invalid("instruments", "at least one `[[instruments]]`".into());
+        }
+        for (i, instrument) in self.instruments.iter().enumerate() {
+            let field = |name: &str| format!("instruments[{i}].{name}");
+            if instrument.name.is_empty() || self.instruments[..i].iter().any(|o| o.name == instrument.name) {
+                let expected = format!("a name of its own, found {:?}", instrument.name);
+                return Err(FieldError::new(field("name"), expected).into());
+            }
+            let sigma = instrument.sigma;
+            if !(sigma >= 0.0 && sigma.is_finite()) {
+                return Err(
+                    FieldError::new(field("sigma_mm"), format!("a noise >= 0 mm, found {sigma}")).into()
+                );
+            }
+            check_magnitude(sigma, MAX_LENGTH_MM, "mm").map_err(|e| FieldError::new(field("sigma_mm"), e))?;
+            let seconds = instrument.seconds;
+            if !(seconds > 0.0 && seconds.is_finite()) {
+                let expected = format!("a time > 0 s, found {seconds}");
+                return Err(FieldError::new(field("seconds_per_observation"), expected).into());
+            }
+            let count = self.observations(i);
+            if !(2..=MAX_POINTS).contains(&count) {
+                let expected = format!(
+                    "from 2 to {MAX_POINTS} observations in time_budget_s ({} s), found {count}",
+                    self.time_budget
+                );
+                return Err(FieldError::new(field("seconds_per_observation"), expected).into());
+            }
+        }
+        let per_run = (0..self.instruments.len()).map(|i| (self.observations(i) + self.test_points) as u64);
+        let work = per_run.sum::<u64>().saturating_mul(self.runs as u64);
+        if work > MAX_STUDY_WORK {
+            return invalid(
+                "runs",
+                format!(
+                    "a study of at most {MAX_STUDY_WORK:e} kinematic evaluations (runs x instruments x \
+                     (observations + test_points)), found {work:e}"
+                ),
+            );
+        }
+        Ok(())
+    }
+
+    /// `N_i = floor(T / t_i)`: instrument `i`'s observations in the time budget.
+    pub fn observations(&self, i: usize) -> usize {
+        let n = (self.time_budget / self.instruments[i].seconds).floor();
+        if n >= MAX_POINTS as f64 { MAX_POINTS + 1 } else { n as usize }
+    }
+
+    /// The measured point: the robot's tool point in its marker frame (mm).
+    fn tool(&self) -> Vector3<f64> {
+        match self.robot.tool {
+            Tool::Point(p) => p,
+            Tool::Frame(_) => Vector3::zeros(),
+        }
+    }
+}
+
+impl InstrumentFile {
+    /// The instrument this entry describes; errors name the field within the entry.
+    fn instrument(&self) -> Result<Instrument, FieldError> {
+        let unused = |field: &str, present: bool, kind: &str| match present {
+            true => Err(FieldError::new(field, format!("only for kind = \"{kind}\", not {:?}", self.kind))),
+            false => Ok(()),
+        };
+        let kind = match self.kind.as_str() {
+            "tracker" => InstrumentKind::Tracker,
+            "ball-bar" => {
+                let pivot = self
+                    .pivot_mm
+                    .ok_or_else(|| FieldError::new("pivot_mm", "the pivot [x, y, z] (mm, base frame)"))?;
+                if pivot.iter().any(|v| !v.is_finite()) {
+                    return Err(FieldError::new("pivot_mm", "finite numbers"));
+                }
+                InstrumentKind::BallBar { pivot: pivot.into() }
+            }
+            "artefact" => InstrumentKind::Artefact,
+            "plane" => {
+                let files = self.planes.as_deref().unwrap_or_default();
+                if files.is_empty() {
+                    let expected = "the planes touched: [{ normal = [x, y, z], offset_mm = d }, ...]";
+                    return Err(FieldError::new("planes", expected));
+                }
+                let mut planes = Vec::with_capacity(files.len());
+                for (k, plane) in files.iter().enumerate() {
+                    let normal = Vector3::from(plane.normal);
+                    if !(normal.iter().all(|v| v.is_finite()) && normal.norm() > 1e-9) {
+                        return Err(FieldError::new(
+                            format!("planes[{k}].normal"),
+                            "a finite non-zero vector",
+                        ));
+                    }
+                    if !plane.offset_mm.is_finite() {
+                        return Err(FieldError::new(
+                            format!("planes[{k}].offset_mm"),
+                            "a finite number (mm)",
+                        ));
+                    }
+                    planes.push((normal.normalize(), plane.offset_mm));
+                }
+                InstrumentKind::Plane { planes }
+            }
+            "height" => InstrumentKind::HeightGauge,
+            other => {
+                let expected = format!("tracker, ball-bar, artefact, plane or height, found {other:?}");
+                return Err(FieldError::new("kind", expected));
+            }
+        };
+        unused(
+            "pivot_mm",
+            self.pivot_mm.is_some() && !matches!(kind, InstrumentKind::BallBar { .. }),
+            "ball-bar",
+        )?;
+        unused("planes", self.planes.is_some() && !matches!(kind, InstrumentKind::Plane { .. }), "plane")?;
+        Ok(Instrument {
+            name: self.name.clone(),
+            kind,
+            sigma: self.sigma_mm,
+            seconds: self.seconds_per_observation,
+        })
+    }
+}
+
+/// The errors of one calibrated model over the test set (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scores {
+    /// Mean position error after the best rigid alignment, `E_p` of the [module](self).
+    pub aligned: f64,
+    /// Mean position error without alignment.
+    pub unaligned: f64,
+}
+
+/// Everything an instrument study produced.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InstrumentResults {
+    /// `scores[r][i]`: run `r`, instrument `i`.
+    pub scores: Vec<Vec<Scores>>,
+    /// The nominal (uncalibrated) model's scores, run by run.
+    pub nominal: Vec<Scores>,
+}
+
+impl InstrumentResults {
+    /// Instrument `i`'s `E_p` (aligned), run by run.
+    pub fn errors(&self, i: usize) -> Vec<f64> {
+        self.scores.iter().map(|r| r[i].aligned).collect()
+    }
+
+    /// Mean and 95 % half width `t_{0.975, R-1} s / sqrt(R)` of instrument `i`'s `E_p`.
+    pub fn mean_error(&self, i: usize) -> (f64, f64) {
+        interval(&self.errors(i))
+    }
+
+    /// Mean and 95 % half width of the paired differences `E_p,i(r) - E_p,1(r)`.
+    pub fn paired_difference(&self, i: usize) -> (f64, f64) {
+        let d: Vec<f64> = self.scores.iter().map(|r| r[i].aligned - r[0].aligned).collect();
+        interval(&d)
+    }
+}
+
+/// The mean of `values` and its 95 % half width `t_{0.975, n-1} s / sqrt(n)`.
+pub fn interval(values: &[f64]) -> (f64, f64) {
+    let n = values.len();
+    let half = stats::t_quantile_975(n.saturating_sub(1)) * (stats::variance(values) / n as f64).sqrt();
+    (stats::mean(values), half)
+}
+
+/// The standard deviation an exact instrument (`sigma_mm = 0`) declares (mm): weights need
+/// one, and exact data fit exactly whatever it is.
+pub const EXACT_SIGMA_MM: f64 = 0.001;
+
+/// What every run shares: the chain of the measured point, the test set.
+struct Campaign<'a> {
+    study: &'a InstrumentStudy,
+    chain: Chain,
+    joints: Selection,
+    test: Vec<Vec<f64>>,
+}
+
+/// Run `study` ([module](self)), calling `progress` once per calibration (from any thread).
+/// The study is checked first ([`InstrumentStudy::check`]).
+pub fn run_instruments(
+    study: &InstrumentStudy,
+    progress: &(dyn Fn() + Sync),
+) -> Result<InstrumentResults, SimulationError> {
+    study.check()?;
+    let chain = Chain::markers(&study.robot, &[study.tool()]).remove(0);
+    let joints = Selection::joints(chain.params());
+    let test = study.robot.uniform_configurations(study.test_points, &mut rng(study.seed, TEST_STREAM));
+    let campaign = Campaign { study, chain, joints, test };
+    let truths: Vec<Vec<f64>> = (0..study.runs)
+        .map(|r| {
+            let mut rng = rng(study.seed, r as u64 + 1);
+            draw_errors(campaign.chain.params(), campaign.joints.indices(), &study.errors, &mut rng)
+        })
+        .collect();
+    let pairs: Vec<(usize, usize)> =
+        (0..study.runs).flat_map(|r| (0..study.instruments.len()).map(move |i| (r, i))).collect();
+    let scores: Vec<Scores> = pairs
+        .par_iter()
+        .map(|&(r, i)| {
+            let score = campaign.calibrate(&truths[r], r, i);
+            progress();
+            score
+        })
+        .collect::<Result<_, _>>()?;
+    let nominal = campaign.chain.with_errors(&vec![0.0; campaign.chain.params().len()]);
+    let nominal = truths.iter().map(|t| campaign.score(&nominal, &campaign.chain.with_errors(t))).collect();
+    let instruments = study.instruments.len();
+    Ok(InstrumentResults { scores: scores.chunks(instruments).map(<[Scores]>::to_vec).collect(), nominal })
+}
+
+impl Campaign<'_> {
+    /// Steps 2 and 3 of the [module](self) for run `run` (real robot errors `truth`) and
+    /// instrument `i`.
+    fn calibrate(&self, truth: &[f64], run: usize, i: usize) -> Result<Scores, SimulationError> {
+        let study = self.study;
+        let instrument = &study.instruments[i];
+        let real = self.chain.with_errors(truth);
+        let mut rng = rng(study.seed, ((i as u64 + 1) << 32) | (run as u64 + 1));
+        let count = study.observations(i);
+        let declared = if instrument.sigma > 0.0 { instrument.sigma } else { EXACT_SIGMA_MM };
+        let noise_q = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
+            study.joint_sigmas.len(),
+            study.joint_sigmas.iter().map(|s| s * s),
+        ));
+        let calibrated = match &instrument.kind {
+            InstrumentKind::Tracker => {
+                let data = self.tracker(&real, count, instrument.sigma, declared, &mut rng);
+                let options = Options {
+                    estimator: Estimator::Wls,
+                    noise: Some(NoiseModel::diagonal(
+                        &study.joint_sigmas,
+                        MeasurementNoise::isotropic(declared, 0.0),
+                    )),
+                    joints: JointParams::All,
+                    estimate_base: true,
+                    estimate_markers: true,
+                    markers: vec![study.tool()],
+                    refine: RefineOptions::default(),
+                    prior: Vec::new(),
+                    loss: Loss::Squared,
+                    gauge: Gauge::default(),
+                };
+                calibrate(&study.robot, &data, &options).map_err(calibration_error)?.calibrated
+            }
+            _ => {
+                let data = self.kinds(&real, i, count, declared, &mut rng)?;
+                let options = KindOptions {
+                    estimator: Estimator::Wls,
+                    joint_noise: Some(noise_q),
+                    joints: JointParams::All,
+                    estimate_tool: true,
+                    tool: study.tool(),
+                    refine: RefineOptions::default(),
+                };
+                calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?.calibrated
+            }
+        };
+        let model = Chain::new(&calibrated);
+        Ok(self.score(&model.with_errors(&vec![0.0; model.params().len()]), &real))
+    }
+
+    /// The real robot's tool point at `q` read with the joint noise: at `q + n_q`.
+    fn at_noisy(&self, real: &ChainAt, q: &[f64], rng: &mut ChaCha8Rng) -> Vector3<f64> {
+        let noisy: Vec<f64> =
+            q.iter().zip(&self.study.joint_sigmas).map(|(q, s)| q + s * normal(rng)).collect();
+        real.position(&noisy)
+    }
+
+    /// A tracker's `count` positions, noise `sigma` on each axis, declared `declared`.
+    fn tracker(
+        &self,
+        real: &ChainAt,
+        count: usize,
+        sigma: f64,
+        declared: f64,
+        rng: &mut ChaCha8Rng,
+    ) -> Measurements {
+        let joints = self.study.robot.uniform_configurations(count, rng);
+        let markers = joints
+            .iter()
+            .map(|q| {
+                let p = self.at_noisy(real, q, rng);
+                vec![p + Vector3::new(normal(rng), normal(rng), normal(rng)) * sigma]
+            })
+            .collect();
+        Measurements {
+            joints,
+            markers,
+            marker_ids: vec![1],
+            sigma: Some(vec![declared; count]),
+            orientations: None,
+            lines: (1..=count).collect(),
+            ignored: Vec::new(),
+        }
+    }
+
+    /// `count` observations of instrument `i` (not a tracker) with its noise, declared
+    /// `declared`.
+    fn kinds(
+        &self,
+        real: &ChainAt,
+        i: usize,
+        count: usize,
+        declared: f64,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<KindData, SimulationError> {
+        let robot = &self.study.robot;
+        let (kind, sigma) = (&self.study.instruments[i].kind, self.study.instruments[i].sigma);
+        let mut data = KindData::default();
+        for k in 0..count {
+            let pose = data.joints.len();
+            let observation = match kind {
+                &InstrumentKind::BallBar { pivot } => {
+                    let q = robot.uniform_configurations(1, rng).remove(0);
+                    let measured = (self.at_noisy(real, &q, rng) - pivot).norm() + sigma * normal(rng);
+                    data.joints.push(q);
+                    Observation::ToPoint { pose, point: 0, measured, sigma: declared }
+                }
+                InstrumentKind::Artefact => {
+                    let ends = robot.uniform_configurations(2, rng);
+                    let (a, b) = (self.at_noisy(real, &ends[0], rng), self.at_noisy(real, &ends[1], rng));
+                    data.joints.extend(ends);
+                    let measured = (a - b).norm() + sigma * normal(rng);
+                    Observation::Distance { a: pose, b: pose + 1, measured, sigma: declared }
+                }
+                InstrumentKind::HeightGauge => {
+                    let q = robot.uniform_configurations(1, rng).remove(0);
+                    let measured = self.at_noisy(real, &q, rng).z + sigma * normal(rng);
+                    data.joints.push(q);
+                    Observation::Coordinate { pose, axis: 2, measured, sigma: declared }
+                }
+                InstrumentKind::Plane { planes } => {
+                    let plane = k % planes.len();
+                    let (n, offset) = planes[plane];
+                    let target = offset + sigma * normal(rng);
+                    let touching = self.touch(real, n, target, rng).ok_or_else(|| {
+                        let field = format!("instruments[{i}].planes[{plane}]");
+                        StudyError::from(FieldError::new(field, "a plane the robot's tool point reaches"))
+                    })?;
+                    // The joints read with their noise at the touching configuration.
+                    let read = touching
+                        .iter()
+                        .zip(&self.study.joint_sigmas)
+                        .map(|(q, s)| q + s * normal(rng))
+                        .collect();
+                    data.joints.push(read);
+                    Observation::Contact { pose, plane, sigma: declared }
+                }
+                InstrumentKind::Tracker => unreachable!("a tracker is calibrated from marker positions"),
+            };
+            data.observations.push(observation);
+            data.lines.push(k + 1);
+        }
+        Ok(data)
+    }
+
+    /// A configuration where the real robot's tool point lies on `n . p = d`: from uniform
+    /// configurations, Newton's method on the joint of the largest `|d(n . p)/dq_j|` (central
+    /// differences); at most 1000 tries.
+    fn touch(&self, real: &ChainAt, n: Vector3<f64>, d: f64, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
+        let robot = &self.study.robot;
+        let f = |q: &[f64]| n.dot(&real.position(q)) - d;
+        let slope = |q: &mut Vec<f64>, j: usize| {
+            let h = 1e-6;
+            q[j] += h;
+            let plus = f(q);
+            q[j] -= 2.0 * h;
+            let minus = f(q);
+            q[j] += h;
+            (plus - minus) / (2.0 * h)
+        };
+        for _ in 0..1000 {
+            let mut q = robot.uniform_configurations(1, rng).remove(0);
+            let j = (0..q.len())
+                .map(|j| (j, slope(&mut q, j).abs()))
+                .fold((0, 0.0), |best, (j, s)| if s > best.1 { (j, s) } else { best })
+                .0;
+            for _ in 0..30 {
+                let value = f(&q);
+                if value.abs() < 1e-10 {
+                    break;
+                }
+                let s = slope(&mut q, j);
+                if s.abs() < 1e-9 {
+                    break;
+                }
+                q[j] -= (value / s).clamp(-0.5, 0.5);
+            }
+            let limits = robot.joints[j].limits;
+            if f(&q).abs() < 1e-9 && q[j] >= limits[0] && q[j] <= limits[1] {
+                return Some(q);
+            }
+        }
+        None
+    }
+
+    /// `model` against the real robot over the test set: [`Scores`].
+    fn score(&self, model: &ChainAt, real: &ChainAt) -> Scores {
+        let predicted: Vec<Vector3<f64>> = self.test.iter().map(|q| model.position(q)).collect();
+        let truth: Vec<Vector3<f64>> = self.test.iter().map(|q| real.position(q)).collect();
+        let t = register(&predicted, &truth);
+        let n = self.test.len() as f64;
+        let mean = |f: &dyn Fn(&Vector3<f64>) -> Vector3<f64>| {
+            predicted.iter().zip(&truth).map(|(p, r)| (f(p) - r).norm()).sum::<f64>() / n
+        };
+        Scores { aligned: mean(&|p| t.transform_point(&(*p).into()).coords), unaligned: mean(&|p| *p) }
+    }
+}
+
+fn calibration_error(e: CalibrationError) -> SimulationError {
+    match e {
+        CalibrationError::Estimation(e) => SimulationError::Estimation(e),
+        other => SimulationError::Calibration(other),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A plane probe's configurations touch their plane on the real robot, within the limits,
+    /// and an unreachable plane is none.
+    #[test]
+    fn touching_configurations_lie_on_the_plane() {
+        let robot = RobotModel::preset("puma560").unwrap();
+        let study_text = INSTRUMENT_STUDIES[0].1;
+        let mut study =
+            InstrumentStudy::from_toml_str(study_text, |_| Ok::<_, String>(robot.clone())).unwrap();
+        study.test_points = 1;
+        let chain = Chain::markers(&robot, &[study.tool()]).remove(0);
+        let joints = Selection::joints(chain.params());
+        let campaign = Campaign { study: &study, chain, joints, test: Vec::new() };
+        let mut rng = rng(7, 1);
+        let truth = draw_errors(campaign.chain.params(), campaign.joints.indices(), &study.errors, &mut rng);
+        let real = campaign.chain.with_errors(&truth);
+        let n = Vector3::new(1.0, 1.0, 0.0).normalize();
+        for _ in 0..20 {
+            let q = campaign.touch(&real, n, 300.0, &mut rng).expect("a reachable plane");
+            assert!((n.dot(&real.position(&q)) - 300.0).abs() < 1e-9);
+            assert!(q.iter().zip(&robot.joints).all(|(q, j)| *q >= j.limits[0] && *q <= j.limits[1]));
+        }
+        assert!(campaign.touch(&real, n, 5000.0, &mut rng).is_none(), "5 m away");
+    }
+}
