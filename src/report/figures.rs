@@ -433,7 +433,7 @@ fn pose_rms(p: &PoseErrors, s: usize) -> f64 {
     ((0..p.errors[s].len()).map(|m| p.distance(s, m).powi(2)).sum::<f64>() / n).sqrt()
 }
 
-/// One panel per stage: a bar per pose, in the file's order.
+/// One panel per stage: a bar per pose, in the file's order, labelled by its line in the file.
 fn pose_bars(set: &SetEvaluation) -> Result<String, String> {
     let stages = set.stages.len();
     let mut svg = String::new();
@@ -457,9 +457,11 @@ fn pose_bars(set: &SetEvaluation) -> Result<String, String> {
                 .map_err(|e| e.to_string())?;
             chart
                 .configure_mesh()
-                .x_desc("pose (file order)")
+                .x_desc("pose, by its line in the file (as the tables name it)")
                 .y_desc("error (mm)")
-                .x_label_formatter(&|v| format!("{}", *v as usize + 1))
+                .x_label_formatter(&|v| {
+                    set.poses.get(*v as usize).map_or(String::new(), |p| p.line.to_string())
+                })
                 .draw()
                 .map_err(|e| e.to_string())?;
             let colour = Palette99::pick(s).to_rgba();
