@@ -268,10 +268,7 @@ impl InstrumentStudy {
     /// field (`instruments[1].sigma_mm`).
     pub fn check(&self) -> Result<(), StudyError> {
         let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
-        let name = &self.name;
-        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
-            return invalid("name", format!("letters, digits, `-` or `_` (it names files), found {name:?}"));
-        }
+        super::study::check_name(&self.name)?;
         if self.joint_sigmas.len() != self.robot.dof() {
             let expected = format!("{} values, one per joint of {}", self.robot.dof(), self.robot.name);
             return invalid("noise.joint_sigma", expected);

@@ -460,10 +460,7 @@ impl Study {
     /// least 2 runs per case. Errors name the study file's field.
     pub fn check(&self) -> Result<(), StudyError> {
         let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
-        let name = &self.name;
-        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
-            return invalid("name", format!("letters, digits, `-` or `_` (it names files), found {name:?}"));
-        }
+        check_name(&self.name)?;
         if self.selection.is_empty() {
             return invalid("parameters", "at least one parameter".into());
         }
@@ -663,6 +660,15 @@ impl Study {
     pub fn reference_for(&self, case: &Case) -> Option<&Reference> {
         self.reference.iter().find(|r| r.points == case.points && r.sigma_me_mm == case.sigma_me)
     }
+}
+
+/// A study's name, which names its output folder: letters, digits, `-` or `_`.
+pub(crate) fn check_name(name: &str) -> Result<(), StudyError> {
+    if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_') {
+        let expected = format!("letters, digits, `-` or `_` (it names files), found {name:?}");
+        return Err(FieldError::new("name", expected).into());
+    }
+    Ok(())
 }
 
 /// The smaller of `a` and `b`, or NaN if either is NaN (so that a NaN is found and named).

@@ -8,6 +8,8 @@ use robocal::estimation::{Estimator, RefineOptions};
 use robocal::model::{ModelRef, RobotModel};
 use std::path::Path;
 
+use super::urdf::arm7_options;
+
 /// The example PUMA 560 (unknown base, two unknown markers), by OLS.
 fn puma(joints: JointParams, gauge: Gauge) -> (RobotModel, Measurements, Options) {
     let model = RobotModel::preset("puma560").unwrap();
@@ -41,26 +43,6 @@ fn arm7(dir: &str) -> (RobotModel, Measurements, Vec<Measurements>) {
     };
     let sessions = (1..=3).map(|k| read(&format!("session{k}.csv"))).collect();
     (model.clone(), read("train.csv"), sessions)
-}
-
-/// The arm7 benchmark's options: its README's markers, base and markers free, OLS.
-fn arm7_options(joints: JointParams) -> Options {
-    Options {
-        estimator: Estimator::Ols,
-        noise: None,
-        joints,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![
-            Vector3::new(40.0, 0.0, 25.0),
-            Vector3::new(-20.0, 35.0, 25.0),
-            Vector3::new(-20.0, -35.0, 25.0),
-        ],
-        refine: RefineOptions::default(),
-        gauge: Gauge::default(),
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-    }
 }
 
 /// Every parameter of the arm7 URDF that its poses, base and markers leave unidentified: the
