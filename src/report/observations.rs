@@ -65,7 +65,7 @@ impl ObservationsReport {
                     }
                     None => {
                         let i = setup.iter().position(|n| n == name).expect("a robot or set-up parameter");
-                        let angle = name.ends_with(".alpha") || name.ends_with(".beta");
+                        let angle = c.setup.is_angle(i);
                         (c.setup_values.1[i], angle, if angle { "deg" } else { "mm" })
                     }
                 };

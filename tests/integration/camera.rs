@@ -1,0 +1,278 @@
+//! Camera targets, hand-eye and eye-to-hand: H against finite differences, the closed-form
+//! start, exact recovery without noise, estimates within 3 predicted standard errors with
+//! noise, what a camera cannot see, and the command end to end.
+
+use crate::kinematics::{point, robot};
+use nalgebra::{DMatrix, DVector, Isometry3, UnitQuaternion, Vector3, Vector6};
+use proptest::prelude::*;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+use robocal::calibration::JointParams;
+use robocal::calibration::kinds::camera::{camera_start, isometry, placement};
+use robocal::calibration::kinds::{
+    CameraSite, KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
+};
+use robocal::estimation::{Estimator, RefineOptions, Residuals};
+use robocal::kinematics::{Chain, ChainAt};
+use robocal::model::{Convention, ParamOwner, Placement, RobotModel, Selection};
+
+/// Every column of `H` (robot parameters, camera and target) against central differences of
+/// the residuals (`H = -dy/dx`), for a camera at `site` seeing its target at three poses, the
+/// views and the set-up drawn from `u` (rotations up to 2 rad: residuals far from 0).
+fn check_camera_jacobians(model: &RobotModel, u: &[f64], site: CameraSite) -> Result<(), TestCaseError> {
+    let tool = Vector3::new(u[0], u[1], u[2]) * 200.0;
+    let chain = Chain::probe(model, &Placement { xyz: tool, rpy: Vector3::new(u[7], u[8], u[9]) });
+    let params = chain.params();
+    let (_, x) = point(model, &u[20..]);
+    let x: Vec<f64> = (0..params.len()).map(|i| x[i % x.len()]).collect();
+    let joints: Vec<Vec<f64>> = (0..3).map(|k| point(model, &u[k * 7..]).0).collect();
+    let mut data = KindData { joints, ..KindData::default() };
+    for pose in 0..3 {
+        let view = Vector6::from_fn(|i, _| u[40 + 6 * pose + i] * if i < 3 { 500.0 } else { 2.0 });
+        for axis in 0..6 {
+            data.observations.push(Observation::Camera { axis, pose, view, site, sigma: 0.1 });
+            data.lines.push(data.lines.len() + 2);
+        }
+    }
+    let setup = SetUp::new(0, &[]).with_camera(site);
+    let s: Vec<f64> = (0..12).map(|i| u[60 + i] * if i % 6 < 3 { 300.0 } else { 2.0 }).collect();
+    let all = Selection::all(params);
+    let problem = KindProblem::new(&chain, &all, &data, &setup, x, s, (0..12).collect(), None);
+    let x0 = problem.start();
+    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+    problem.evaluate(&x0, Some(&mut h));
+    for c in 0..problem.parameters() {
+        let step = 1e-6 * x0[c].abs().max(1.0);
+        let (mut plus, mut minus) = (x0.clone(), x0.clone());
+        plus[c] += step;
+        minus[c] -= step;
+        let fd: DVector<f64> =
+            -(problem.evaluate(&plus, None) - problem.evaluate(&minus, None)) / (2.0 * step);
+        for r in 0..problem.equations() {
+            let gap = (h[(r, c)] - fd[r]).abs();
+            prop_assert!(
+                gap < 1e-5 * h.row(r).amax().max(1.0),
+                "row {r} ({:?}), column {c} ({}): H {} against {}",
+                data.observations[r],
+                problem.names()[c],
+                h[(r, c)],
+                fd[r]
+            );
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    #[test]
+    fn hand_eye_jacobians_match_finite_differences(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 72)) {
+        check_camera_jacobians(&model, &u, CameraSite::Hand)?;
+    }
+
+    #[test]
+    fn eye_to_hand_jacobians_match_finite_differences(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 72)) {
+        check_camera_jacobians(&model, &u, CameraSite::World)?;
+    }
+}
+
+fn puma() -> RobotModel {
+    RobotModel::preset("puma560").unwrap()
+}
+
+/// Random joint values within `model`'s limits.
+fn random_pose(model: &RobotModel, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    model.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect()
+}
+
+/// Small parameter errors on the `kept` parameters of `chain` (the others zero).
+fn errors_on(chain: &Chain, kept: &[String], rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let params = chain.params();
+    let mut x = vec![0.0; params.len()];
+    for name in kept {
+        if let Some(i) = params.index_by_name(name) {
+            let z: f64 = StandardNormal.sample(&mut *rng);
+            x[i] = z * if params.get(i).kind.is_angle() { 0.1f64.to_radians() } else { 0.5 };
+        }
+    }
+    x
+}
+
+/// The camera's and the target's placements (`x, y, z, rx, ry, rz`) of a set-up at `site`:
+/// hand-eye, a camera 60 mm out of the flange looking at a board 700 mm in front of the robot;
+/// eye-to-hand, a camera 1.5 m away looking at a board on the flange.
+fn truth(site: CameraSite) -> Vec<f64> {
+    match site {
+        CameraSite::Hand => vec![30.0, -20.0, 60.0, 0.1, -0.2, 0.3, 700.0, 100.0, -300.0, 0.2, 1.4, -0.1],
+        CameraSite::World => vec![1200.0, -600.0, 500.0, 1.2, -0.8, 0.4, 10.0, 15.0, 40.0, -0.3, 0.1, 0.2],
+    }
+}
+
+/// Views of the target by the camera at `site` from `count` random poses of the robot `real`
+/// (the tool frame the flange's), the set-up `s`, noise of `sigma` (mm, and deg on the rotation)
+/// on each view.
+fn views(
+    real: &ChainAt,
+    site: CameraSite,
+    s: &[f64],
+    count: usize,
+    sigma: (f64, f64),
+    rng: &mut ChaCha8Rng,
+) -> KindData {
+    let mut data = KindData::default();
+    let (camera, target) = (isometry(&s[..6]), isometry(&s[6..]));
+    for pose in 0..count {
+        let q = random_pose(&puma(), rng);
+        let tool = real.pose(&q);
+        let m = match site {
+            CameraSite::Hand => (tool * camera).inverse() * target,
+            CameraSite::World => camera.inverse() * tool * target,
+        };
+        let z = |rng: &mut ChaCha8Rng| Vector3::from_fn(|_, _| StandardNormal.sample(&mut *rng));
+        let turn = UnitQuaternion::from_scaled_axis(z(rng) * sigma.1.to_radians());
+        let m = Isometry3::from_parts((m.translation.vector + z(rng) * sigma.0).into(), turn * m.rotation);
+        let view = placement(&m);
+        data.joints.push(q);
+        for axis in 0..6 {
+            let sigma = if axis < 3 { sigma.0.max(1e-3) } else { sigma.1.max(1e-3).to_radians() };
+            data.observations.push(Observation::Camera { axis, pose, view, site, sigma });
+            data.lines.push(pose + 3);
+        }
+    }
+    data
+}
+
+fn options(estimator: Estimator) -> KindOptions {
+    KindOptions {
+        estimator,
+        joint_noise: None,
+        joints: JointParams::All,
+        estimate_tool: true,
+        tool: Vector3::zeros(),
+        refine: RefineOptions::default(),
+    }
+}
+
+/// The flange's frame as the calibration's tool frame.
+fn flange(model: &RobotModel) -> Chain {
+    Chain::probe(model, &Placement { xyz: Vector3::zeros(), rpy: Vector3::zeros() })
+}
+
+/// The closed-form start on exact views of the nominal robot is the set-up itself.
+#[test]
+fn the_start_solves_the_hand_eye_equation() {
+    let model = puma();
+    let at = flange(&model).with_errors(&vec![0.0; flange(&model).params().len()]);
+    let mut rng = ChaCha8Rng::seed_from_u64(80);
+    for site in [CameraSite::Hand, CameraSite::World] {
+        let data = views(&at, site, &truth(site), 10, (0.0, 0.0), &mut rng);
+        let pairs: Vec<_> = (0..10)
+            .map(|k| match data.observations[6 * k] {
+                Observation::Camera { pose, view, .. } => {
+                    (at.pose(&data.joints[pose]), isometry(view.as_slice()))
+                }
+                _ => unreachable!(),
+            })
+            .collect();
+        let (camera, target) = camera_start(&pairs, site).unwrap();
+        let found: Vec<f64> = placement(&camera).iter().chain(placement(&target).iter()).copied().collect();
+        for (f, t) in found.iter().zip(truth(site)) {
+            assert!((f - t).abs() < 1e-8 * t.abs().max(1.0), "{site:?}: {found:?} against {:?}", truth(site));
+        }
+        assert!(camera_start(&pairs[..2], site).is_err());
+    }
+}
+
+/// Exact views from errors on every parameter but the base's: the training and held-out
+/// residuals vanish. Then errors on the parameters the views identify, noiseless: the robot, the
+/// camera and the target recovered exactly; with noise, each within 3 predicted standard errors.
+fn camera_recovers(site: CameraSite, seed: u64) -> KindCalibration {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let model = puma();
+    let chain = flange(&model);
+    let s = truth(site);
+    let all: Vec<String> =
+        chain.params().iter().filter(|p| !p.name.starts_with("base.")).map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let exact = views(&real, site, &s, 40, (0.0, 0.0), &mut rng);
+    let c = calibrate_kinds(&model, &exact, &options(Estimator::Ols)).unwrap();
+    let (train, angles) = (c.training.lengths, c.training.angles.unwrap());
+    assert!(train.1 < 1e-7 && angles.1 < 1e-8, "exact data: training RMS {train:?} mm, {angles:?} deg");
+    assert!(train.0 > 1e3 * train.1, "before {} mm, after {} mm", train.0, train.1);
+    let held_out = c.score(&views(&real, site, &s, 20, (0.0, 0.0), &mut rng)).unwrap();
+    assert!(
+        held_out.lengths.1 < 1e-6 && held_out.lengths.0 > 0.1,
+        "exact held-out RMS {:?} mm",
+        held_out.lengths
+    );
+
+    let robot: Vec<String> = c
+        .refined
+        .estimate
+        .names
+        .iter()
+        .filter(|n| chain.params().index_by_name(n).is_some())
+        .cloned()
+        .collect();
+    let truth_x = errors_on(&chain, &robot, &mut rng);
+    let real = chain.with_errors(&truth_x);
+    let c =
+        calibrate_kinds(&model, &views(&real, site, &s, 40, (0.0, 0.0), &mut rng), &options(Estimator::Ols))
+            .unwrap();
+    let names = c.setup.names();
+    for name in &c.refined.estimate.names {
+        let (found, real) = match chain.params().index_by_name(name) {
+            Some(i) => (c.after[i], truth_x[i]),
+            None => {
+                let i = names.iter().position(|n| n == name).unwrap();
+                (c.setup_values.1[i], s[i])
+            }
+        };
+        assert!((found - real).abs() < 1e-7 * real.abs().max(1.0), "{name}: {found} against {real}");
+    }
+
+    let noisy = views(&real, site, &s, 80, (0.05, 0.01), &mut rng);
+    let c = calibrate_kinds(&model, &noisy, &options(Estimator::Wls)).unwrap();
+    let se = c.refined.estimate.standard_errors();
+    let mut checked = 0;
+    for (k, name) in c.refined.estimate.names.iter().enumerate() {
+        let (found, real) = match chain.params().index_by_name(name) {
+            Some(i) => (c.after[i], truth_x[i]),
+            None => {
+                let i = names.iter().position(|n| n == name).unwrap();
+                (c.setup_values.1[i], s[i])
+            }
+        };
+        assert!((found - real).abs() < 3.0 * se[k], "{name}: {found} against {real}, SE {}", se[k]);
+        checked += 1;
+    }
+    assert!(checked >= 30, "{checked} estimates checked");
+    c
+}
+
+#[test]
+fn a_camera_on_the_arm_calibrates_the_robot_its_mounting_and_the_target() {
+    let c = camera_recovers(CameraSite::Hand, 81);
+    assert!(
+        c.unseen.iter().any(|u| u.contains("the target placement absorbs the base placement")),
+        "{:?}",
+        c.unseen
+    );
+    assert!(c.refined.estimate.names.iter().any(|n| n == "camera.rz"));
+    assert!(c.refined.estimate.names.iter().any(|n| n == "target.x"));
+    let robot = c.refined.estimate.names.iter().filter_map(|n| c.params.index_by_name(n));
+    let owners: Vec<ParamOwner> = robot.map(|i| c.params.get(i).owner).collect();
+    assert!(owners.iter().all(|o| matches!(o, ParamOwner::Joint(_))), "{owners:?}");
+}
+
+#[test]
+fn a_fixed_camera_calibrates_the_robot_its_placement_and_the_target_on_the_arm() {
+    let c = camera_recovers(CameraSite::World, 82);
+    assert!(
+        c.unseen.iter().any(|u| u.contains("the camera placement absorbs the base placement")),
+        "{:?}",
+        c.unseen
+    );
+}
