@@ -276,3 +276,106 @@ fn a_fixed_camera_calibrates_the_robot_its_placement_and_the_target_on_the_arm()
         c.unseen
     );
 }
+
+/// A camera's file: the views of `data` as rows `j1..j6,camera,x,y,z,roll,pitch,yaw` (deg, mm).
+fn views_csv(data: &KindData, site: &str) -> String {
+    let mut text =
+        String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,camera,x,y,z,roll,pitch,yaw\n");
+    for (q, k) in data.joints.iter().zip((0..data.observations.len()).step_by(6)) {
+        let Observation::Camera { view, .. } = data.observations[k] else { unreachable!() };
+        let (roll, pitch, yaw) = isometry(view.as_slice()).rotation.euler_angles();
+        let joints: Vec<String> = q.iter().map(|v| format!("{:.10}", v.to_degrees())).collect();
+        let angles = [roll, pitch, yaw].map(|a| format!("{:.10}", a.to_degrees()));
+        text += &format!(
+            "{},{site},{:.8},{:.8},{:.8},{}\n",
+            joints.join(","),
+            view[0],
+            view[1],
+            view[2],
+            angles.join(",")
+        );
+    }
+    text
+}
+
+/// A camera file reads back into the views written; bad rows are named by line and column.
+#[test]
+fn camera_files_read_and_their_errors() {
+    let model = puma();
+    let mut rng = ChaCha8Rng::seed_from_u64(83);
+    let at = flange(&model).with_errors(&vec![0.0; flange(&model).params().len()]);
+    let data = views(&at, CameraSite::Hand, &truth(CameraSite::Hand), 4, (0.0, 0.0), &mut rng);
+    let read = KindData::from_csv_str(&views_csv(&data, "hand"), &model, None).unwrap();
+    assert_eq!(read.observations.len(), 24);
+    for (a, b) in read.observations.iter().zip(&data.observations) {
+        assert!((a.measured() - b.measured()).abs() < 1e-7, "{a:?} against {b:?}");
+        assert_eq!(a.kind(), b.kind());
+        assert!(matches!(a, Observation::Camera { site: CameraSite::Hand, .. }));
+    }
+    let Observation::Camera { sigma, .. } = read.observations[0] else { unreachable!() };
+    assert_eq!(sigma, robocal::calibration::kinds::DEFAULT_CAMERA_SIGMA_MM);
+    // Through a `kind` column, with sigmas.
+    let mixed = "# units: joints=deg, lengths=mm\nkind,j1,j2,j3,j4,j5,j6,camera,x,y,z,roll,pitch,yaw,sigma,sigma_angle\n\
+                 camera,0,10,20,0,30,0,world,1,2,300,10,20,30,0.2,0.05\n";
+    let read = KindData::from_csv_str(mixed, &model, None).unwrap();
+    assert_eq!(read.camera(), Some(CameraSite::World));
+    assert_eq!(read.observations[2].sigma(), 0.2);
+    assert!((read.observations[5].sigma() - 0.05f64.to_radians()).abs() < 1e-15);
+    let header = "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,camera,x,y,z,roll,pitch,yaw\n";
+    for (row, expected) in [
+        (
+            "0,0,0,0,0,0,head,1,2,3,0,0,0",
+            "line 3, column `camera`: `head`: expected hand (on the arm) or world",
+        ),
+        ("0,0,0,0,0,0,hand,1,2,3,0,,0", "line 3, column `pitch`: this kind of row needs a `pitch` value"),
+        ("0,0,0,0,0,0,hand,1,x,3,0,0,0", "line 3, column `y`"),
+        (
+            "0,0,0,0,0,0,hand,1,2,3,0,0,0\n0,0,0,0,0,0,world,1,2,3,0,0,0",
+            "line 4, column `camera`: a camera on the world",
+        ),
+    ] {
+        let message =
+            KindData::from_csv_str(&format!("{header}{row}\n"), &model, None).unwrap_err().to_string();
+        assert!(message.contains(expected), "{message}");
+    }
+}
+
+/// `robocal calibrate-observations` on a hand-eye camera's files: the report names the
+/// camera's and the target's parameters and what a camera cannot see, and the held-out RMS of
+/// the views falls to their noise.
+#[test]
+fn the_command_calibrates_from_a_camera_and_validates() {
+    let dir = std::env::temp_dir().join(format!("robocal-camera-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(84);
+    let chain = flange(&puma());
+    let all: Vec<String> =
+        chain.params().iter().filter(|p| !p.name.starts_with("base.")).map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let s = truth(CameraSite::Hand);
+    let (train, test) = (dir.join("train.csv"), dir.join("test.csv"));
+    let noise = (0.05, 0.01);
+    std::fs::write(&train, views_csv(&views(&real, CameraSite::Hand, &s, 60, noise, &mut rng), "hand"))
+        .unwrap();
+    std::fs::write(&test, views_csv(&views(&real, CameraSite::Hand, &s, 30, noise, &mut rng), "hand"))
+        .unwrap();
+    let json = dir.join("report.json");
+    let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", "puma560"])
+        .args(["--data", &path(&train), "--validate", &path(&test), "--json", &path(&json)])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(output.stdout).unwrap();
+    assert!(output.status.success(), "{text}{}", String::from_utf8_lossy(&output.stderr));
+    assert!(text.contains("the target placement absorbs the base placement"), "{text}");
+    assert!(text.contains("camera.rx") && text.contains("target.z"), "{text}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let held_out = &report["sets"][1][1];
+    assert_eq!(held_out["observations"].as_array().unwrap().len(), 180);
+    let (before, after) =
+        (held_out["lengths"][0].as_f64().unwrap(), held_out["lengths"][1].as_f64().unwrap());
+    assert!(after * 5.0 < before && after < 0.2, "held-out RMS {before} mm before, {after} mm after\n{text}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -21,6 +21,11 @@
 //!   frame whose rotation is estimated too, and `g_kj` is `E^-1` on the rotation rows, with
 //!   `omega = E (roll', pitch', yaw')` the rotation vector's rate (the residual wrapped into
 //!   `(-pi, pi]`).
+//! - a camera's view of its target (hand-eye: the camera on the tool; eye-to-hand: fixed), the
+//!   target's pose in the camera's frame `T_camera^-1 T_target`, 6 observations (position mm,
+//!   rotation vector rad) of the tool frame and of the camera's and the target's placements
+//!   (6 + 6 set-up parameters): see [`camera`], whose residual of the rotation is `log(R_m R^T)`
+//!   rather than `m_k - f_k`.
 //!
 //! The residual is `y_k = m_k - f_k` (measured minus predicted). With `g_kj = df_k/dp_j` the
 //! derivative of the prediction with respect to the point at pose `j` (`u = (p_a - p_b) /
@@ -41,6 +46,12 @@
 //!
 //! # What each kind cannot see
 //!
+//! A camera sees the target relative to itself only: with the camera on the arm, the target's
+//! placement absorbs the base's; with a fixed camera, the camera's placement does. The base is
+//! held and reported; a camera's mounting is the tool frame's (the tool point is not estimated
+//! when cameras are the only observations), and what of the last link it cannot tell from the
+//! mounting the rank-revealing solve holds and reports.
+//!
 //! Distances are unchanged when everything moves rigidly: they cannot see the base placement
 //! (all 6 parameters), which is held at its nominal value and reported as such. Plane contacts
 //! place the robot relative to the planes, which absorb the base: it is held too; and a plane
@@ -58,11 +69,10 @@
 //! A new kind is a prediction `f_k` of the tool's frames at its poses and of set-up parameters,
 //! with its derivatives `g_kj` (6-vectors: position, rotation vector) and `df_k/ds`: one arm of
 //! `predict`. Observations are one row each, so that `V` is a column of variances and every
-//! estimator applies unchanged. A kind with several correlated rows (a camera's target pose,
-//! 6 rows; a target point's pixel, 2 rows) needs `m_k`-row blocks: the estimators take blocks
-//! of one size per problem, so such kinds would pad every observation to the largest `m_k`
-//! (zero residual and `H` rows, unit variance: the fit and its covariance do not change), or
-//! be fitted as their own problem; several chains (a torso and two arms) are one chain per
+//! estimator applies unchanged. A camera's view ([`camera`]) is six rows, one observation each
+//! sharing the view: like a pose's coordinates, their correlation through the joint noise of
+//! their common pose is left out of `V` (exact when the joints are exact). A target point's
+//! pixel (2 rows) would be the same; several chains (a torso and two arms) are one chain per
 //! observation sharing the joint parameters of their common links.
 
 pub mod camera;
@@ -97,7 +107,9 @@ pub struct KindOptions {
     pub joints: JointParams,
     /// Estimate the tool point on the last link.
     pub estimate_tool: bool,
-    /// The tool point's nominal position (mm) in the model's marker frame.
+    /// The tool point's nominal position (mm) in the model's marker frame; unused when a
+    /// camera's views are the only observations (the camera's or target's mounting is then in
+    /// the marker frame itself).
     pub tool: Vector3<f64>,
     /// Gauss-Newton settings.
     pub refine: RefineOptions,
@@ -659,10 +671,12 @@ pub fn calibrate_kinds(
 ) -> Result<KindCalibration, CalibrationError> {
     data.check(model.dof())?;
     // Angles need a tool frame: the tool point, turned as the marker frame to start with.
-    let probe = data.has_angles().then_some(Placement { xyz: options.tool, rpy: Vector3::zeros() });
+    // Cameras alone: their mounting is in the tool (tip link's) frame itself, no tool point.
+    let tool = if data.beyond_the_camera() { options.tool } else { Vector3::zeros() };
+    let probe = data.has_angles().then_some(Placement { xyz: tool, rpy: Vector3::zeros() });
     let chain = match &probe {
         Some(probe) => Chain::probe(model, probe),
-        None => Chain::markers(model, &[options.tool]).remove(0),
+        None => Chain::markers(model, &[tool]).remove(0),
     };
     let params = chain.params().clone();
     let zero = vec![0.0; params.len()];
@@ -718,7 +732,7 @@ pub fn calibrate_kinds(
     let problem = base_problem.reselect(&kept, zero.clone(), before_setup.clone(), kept_setup);
     let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);
-    let calibrated = fold(model, &params, &after, &[options.tool], probe.as_ref());
+    let calibrated = fold(model, &params, &after, &[tool], probe.as_ref());
     let mut calibration = KindCalibration {
         calibrated,
         params,
