@@ -161,7 +161,7 @@ impl ObservationsReport {
         }
         let _ = writeln!(
             out,
-            "\nbefore: the set-up (points, planes) fitted with the robot nominal; after: the robot and the set-up"
+            "\nbefore: the set-up (points, planes, camera and target) fitted with the robot nominal; after: the robot and the set-up"
         );
         if !self.warnings.is_empty() {
             let _ = writeln!(out, "\nwarnings:");
