@@ -184,7 +184,7 @@ pub fn camera_start(
     let s = svd.singular_values;
     let mut sorted = [s[0], s[1], s[2]];
     sorted.sort_by(|a, b| b.total_cmp(a));
-    if !(sorted[1] > 1e-6 * sorted[0]) {
+    if sorted[1].is_nan() || sorted[1] <= 1e-6 * sorted[0] {
         return Err(too_few("the tool turns about one axis only"));
     }
     let rotation = nearest_rotation(&m);
