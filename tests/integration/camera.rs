@@ -404,3 +404,37 @@ fn the_readme_camera_example_is_the_real_output() {
         assert!(text.lines().any(|l| l == line), "README line not in the output:\n{line}\n\n{text}");
     }
 }
+
+/// A camera and a ball bar in one fit: the camera's mounting in the tool frame at the tool
+/// point, the ball's position on the same frame; exact data fitted exactly, training and held out.
+#[test]
+fn a_camera_and_a_ball_bar_fit_together() {
+    let mut rng = ChaCha8Rng::seed_from_u64(85);
+    let model = puma();
+    let tool = Vector3::new(20.0, -10.0, 120.0);
+    let chain = Chain::probe(&model, &Placement { xyz: tool, rpy: Vector3::zeros() });
+    let all: Vec<String> =
+        chain.params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let pivot = Vector3::new(400.0, 200.0, 300.0);
+    let measure = |rng: &mut ChaCha8Rng| {
+        let mut bar = KindData::default();
+        for pose in 0..60 {
+            let q = random_pose(&model, rng);
+            let measured = (real.position(&q) - pivot).norm();
+            bar.joints.push(q);
+            bar.observations.push(Observation::ToPoint { pose, point: 0, measured, sigma: 0.01 });
+            bar.lines.push(pose + 3);
+        }
+        views(&real, CameraSite::Hand, &truth(CameraSite::Hand), 30, (0.0, 0.0), rng).join(&bar)
+    };
+    let options = KindOptions { tool, ..options(Estimator::Ols) };
+    let c = calibrate_kinds(&model, &measure(&mut rng), &options).unwrap();
+    let (lengths, angles) = (c.training.lengths, c.training.angles.unwrap());
+    assert!(lengths.1 < 1e-7 && angles.1 < 1e-8, "training RMS {lengths:?} mm, {angles:?} deg");
+    assert!(lengths.0 > 0.1, "before {lengths:?}");
+    let held_out = c.score(&measure(&mut rng)).unwrap();
+    assert!(held_out.lengths.1 < 1e-6 && held_out.lengths.0 > 0.1, "held-out RMS {:?} mm", held_out.lengths);
+    let names = &c.refined.estimate.names;
+    assert!(names.iter().any(|n| n == "point1.x") && names.iter().any(|n| n == "camera.rz"), "{names:?}");
+}
