@@ -438,3 +438,63 @@ fn a_camera_and_a_ball_bar_fit_together() {
     let names = &c.refined.estimate.names;
     assert!(names.iter().any(|n| n == "point1.x") && names.iter().any(|n| n == "camera.rz"), "{names:?}");
 }
+
+/// `V_k` of a camera's rows against Monte Carlo: the joints read with noise `Sigma_q`, the
+/// sample variance of each row's residual over 3000 draws within 5 standard errors
+/// (`sqrt(2 / (n - 1))` relative) of `V_k`.
+#[test]
+fn the_covariance_of_a_view_is_the_joint_noise_of_its_pose() {
+    let model = puma();
+    let chain = flange(&model);
+    let zero = vec![0.0; chain.params().len()];
+    let mut rng = ChaCha8Rng::seed_from_u64(86);
+    let sigmas = [0.05f64, 0.05, 0.05, 0.02, 0.02, 0.02].map(f64::to_radians);
+    let sigma_q = DMatrix::from_diagonal(&DVector::from_iterator(6, sigmas.iter().map(|s| s * s)));
+    let nothing = Selection::from_indices(chain.params(), []);
+    for site in [CameraSite::Hand, CameraSite::World] {
+        let s = truth(site);
+        let mut data = views(&chain.with_errors(&zero), site, &s, 1, (0.0, 0.0), &mut rng);
+        for o in &mut data.observations {
+            if let Observation::Camera { sigma, .. } = o {
+                *sigma = 1e-9;
+            }
+        }
+        let setup = SetUp::new(0, &[]).with_camera(site);
+        let problem = KindProblem::new(
+            &chain,
+            &nothing,
+            &data,
+            &setup,
+            zero.clone(),
+            s.clone(),
+            vec![],
+            Some(&sigma_q),
+        );
+        let v = problem.covariance().unwrap().clone();
+        let draws = 3000;
+        let mut samples: Vec<Vec<f64>> = vec![Vec::with_capacity(draws); 6];
+        let q = data.joints[0].clone();
+        for _ in 0..draws {
+            data.joints[0] = q
+                .iter()
+                .zip(&sigmas)
+                .map(|(q, s)| q + s * Distribution::<f64>::sample(&StandardNormal, &mut rng))
+                .collect::<Vec<f64>>();
+            let noisy =
+                KindProblem::new(&chain, &nothing, &data, &setup, zero.clone(), s.clone(), vec![], None);
+            for (k, y) in noisy.residuals(&DVector::zeros(0)).iter().enumerate() {
+                samples[k].push(*y);
+            }
+        }
+        for (k, values) in samples.iter().enumerate() {
+            let mean = values.iter().sum::<f64>() / draws as f64;
+            let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (draws - 1) as f64;
+            let relative = (variance / v[(k, 0)] - 1.0).abs();
+            assert!(
+                relative < 5.0 * (2.0 / (draws - 1) as f64).sqrt(),
+                "{site:?} row {k}: {variance} sampled, V_k {}",
+                v[(k, 0)]
+            );
+        }
+    }
+}
