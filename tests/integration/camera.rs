@@ -472,7 +472,7 @@ fn the_covariance_of_a_view_is_the_joint_noise_of_its_pose() {
         );
         let v = problem.covariance().unwrap().clone();
         let draws = 3000;
-        let mut samples: Vec<Vec<f64>> = vec![Vec::with_capacity(draws); 6];
+        let mut samples: Vec<Vec<f64>> = (0..6).map(|_| Vec::with_capacity(draws)).collect();
         let q = data.joints[0].clone();
         for _ in 0..draws {
             data.joints[0] = q
