@@ -348,8 +348,9 @@ pub struct CalibrateArgs {
 pub struct CalibrateObservationsArgs {
     #[command(flatten)]
     pub model: ModelArgs,
-    /// A file of distances (pairs of poses, or to a fixed point), plane contacts or
-    /// coordinates (CSV; see docs/formats.md); repeatable: the files are fitted together.
+    /// A file of distances (pairs of poses, or to a fixed point), plane contacts,
+    /// coordinates or a camera's views of its target (CSV; see docs/formats.md); repeatable:
+    /// the files are fitted together.
     #[arg(long, required = true)]
     pub data: Vec<PathBuf>,
     #[command(flatten)]
@@ -364,11 +365,11 @@ pub struct CalibrateObservationsArgs {
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// Parameters to identify: `joints` (every joint parameter), `offsets`, `none` (the tool
     /// and the set-up only), or names and patterns (`j*.theta,j2.a`). The base is estimated
-    /// only from coordinates: distances and contacts cannot see it.
+    /// only from coordinates: distances, contacts and cameras cannot see it.
     #[arg(long, default_value = "joints", value_parser = parse_params)]
     pub params: ParamsArg,
     /// The tool point on the last link, "x,y,z" in mm, in the tool frame (default: the model's
-    /// tool point).
+    /// tool point); unused with a camera's views alone (its mounting is in the tool frame).
     #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub tool: Option<Vector3<f64>>,
     /// Do not estimate the tool point.

@@ -65,7 +65,7 @@ impl ObservationsReport {
                     }
                     None => {
                         let i = setup.iter().position(|n| n == name).expect("a robot or set-up parameter");
-                        let angle = name.ends_with(".alpha") || name.ends_with(".beta");
+                        let angle = c.setup.is_angle(i);
                         (c.setup_values.1[i], angle, if angle { "deg" } else { "mm" })
                     }
                 };
@@ -161,7 +161,7 @@ impl ObservationsReport {
         }
         let _ = writeln!(
             out,
-            "\nbefore: the set-up (points, planes) fitted with the robot nominal; after: the robot and the set-up"
+            "\nbefore: the set-up (points, planes, camera and target) fitted with the robot nominal; after: the robot and the set-up"
         );
         if !self.warnings.is_empty() {
             let _ = writeln!(out, "\nwarnings:");

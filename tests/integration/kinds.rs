@@ -542,7 +542,7 @@ fn kind_files_read_and_their_errors() {
     };
     assert_eq!(
         mixed_error("ball,0,10,20,0,0,0,1,\n"),
-        "line 3, column `kind`: `ball`: expected pair, point, contact or coordinates"
+        "line 3, column `kind`: `ball`: expected pair, point, contact, coordinates or camera"
     );
     assert_eq!(
         mixed_error("contact,0,10,20,0,0,0,1,\n"),
@@ -571,7 +571,7 @@ fn kind_files_read_and_their_errors() {
     );
     assert_eq!(
         error("j1,j2,j3,j4,j5,j6,distance,plane\n0,10,20,0,0,0,1,2\n"),
-        "line 2: expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or coordinates (x, y, z, roll, pitch, yaw); or a `kind` column naming each row's"
+        "line 2: expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, coordinates (x, y, z, roll, pitch, yaw), or a `camera` column (hand or world) with a camera's view of its target (x, y, z, roll, pitch, yaw); or a `kind` column naming each row's"
     );
 }
 

@@ -1,6 +1,7 @@
 //! robocal's integration tests, gathered in one test binary.
 
 mod calibration;
+mod camera;
 mod cli;
 mod compliance;
 mod estimation;

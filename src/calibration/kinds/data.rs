@@ -6,24 +6,55 @@
 //! j1,j2,j3,j4,j5,j6,point,distance                             to fixed point `point` (1, 2, ...)
 //! j1,j2,j3,j4,j5,j6,plane                                      contacts with plane `plane`
 //! j1,j2,j3,j4,j5,j6,x,y,z,roll,pitch,yaw                       coordinates, any empty or absent
+//! j1,j2,j3,j4,j5,j6,camera,x,y,z,roll,pitch,yaw                the target's pose seen by a camera
 //! ```
 //!
 //! Each may add `sigma`, the row's measurement standard deviation (length unit; every measured
 //! length of the row), without it [`DEFAULT_SIGMA_MM`]; and `sigma_angle` for angles (the
-//! joints' angle unit), without it [`DEFAULT_SIGMA_ANGLE_DEG`].
+//! joints' angle unit), without it [`DEFAULT_SIGMA_ANGLE_DEG`]. A camera row (`camera` is
+//! `hand` or `world`, [`CameraSite`]) gives all six, the target's pose in the camera's frame;
+//! its defaults are [`DEFAULT_CAMERA_SIGMA_MM`] and [`DEFAULT_CAMERA_SIGMA_DEG`].
 
 use super::SetUp;
+use super::camera::{camera_start, isometry};
 use crate::calibration::CalibrationError;
 use crate::limits::MAX_LENGTH_MM;
 use crate::model::RobotModel;
 use crate::table::{DataError, Row, Table, Units};
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Isometry3, UnitQuaternion, Vector3, Vector6};
 
 /// The measurement standard deviation of a row without a `sigma` column (mm).
 pub const DEFAULT_SIGMA_MM: f64 = 0.01;
 
 /// The standard deviation of an angle (roll, pitch, yaw) without a `sigma_angle` column (deg).
 pub const DEFAULT_SIGMA_ANGLE_DEG: f64 = 0.01;
+
+/// A camera row's position standard deviation without a `sigma` column (mm): a checkerboard's
+/// pose from a calibrated camera at about half a metre.
+pub const DEFAULT_CAMERA_SIGMA_MM: f64 = 0.5;
+
+/// A camera row's orientation standard deviation without a `sigma_angle` column (deg).
+pub const DEFAULT_CAMERA_SIGMA_DEG: f64 = 0.1;
+
+/// Where the camera is: on the arm looking at a target fixed in the world (hand-eye), or fixed
+/// in the world looking at a target on the arm (eye-to-hand).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CameraSite {
+    /// On the tool (`camera` mounted in the tool frame, `target` placed in the base frame).
+    Hand,
+    /// Fixed (`camera` placed in the base frame, `target` mounted in the tool frame).
+    World,
+}
+
+impl CameraSite {
+    /// `hand` or `world`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Hand => "hand",
+            Self::World => "world",
+        }
+    }
+}
 
 /// One measured number. Poses are indices into [`KindData::joints`]; points and planes count
 /// from 0 (`point = 1` in a file is 0 here).
@@ -74,6 +105,21 @@ pub enum Observation {
         /// Its standard deviation (mm or rad).
         sigma: f64,
     },
+    /// One of the six numbers of a camera's view of the target at `pose`: the target's pose
+    /// in the camera's frame, `T_camera^-1 T_target`, its position (`axis` 0, 1, 2; mm) and
+    /// its rotation vector (3, 4, 5; rad). Each of the six rows carries the whole view.
+    Camera {
+        /// 0 to 5: x, y, z (mm), then the rotation vector's x, y, z (rad).
+        axis: usize,
+        /// The pose.
+        pose: usize,
+        /// The target's pose in the camera frame: position (mm), rotation vector (rad).
+        view: Vector6<f64>,
+        /// Where the camera is.
+        site: CameraSite,
+        /// The standard deviation of this row (mm or rad).
+        sigma: f64,
+    },
 }
 
 impl Observation {
@@ -84,6 +130,7 @@ impl Observation {
             | Self::ToPoint { measured, .. }
             | Self::Coordinate { measured, .. } => measured,
             Self::Contact { .. } => 0.0,
+            Self::Camera { view, axis, .. } => view.get(axis).copied().unwrap_or(f64::NAN),
         }
     }
 
@@ -97,12 +144,29 @@ impl Observation {
             Self::Coordinate { axis, .. } => {
                 ["x", "y", "z", "roll", "pitch", "yaw"].get(axis).copied().unwrap_or("?")
             }
+            Self::Camera { axis, .. } => {
+                ["camera x", "camera y", "camera z", "camera rx", "camera ry", "camera rz"]
+                    .get(axis)
+                    .copied()
+                    .unwrap_or("?")
+            }
         }
     }
 
     /// Whether it is an angle (rad).
     pub fn is_angle(&self) -> bool {
-        matches!(self, Self::Coordinate { axis: 3.., .. })
+        matches!(self, Self::Coordinate { axis: 3.., .. } | Self::Camera { axis: 3.., .. })
+    }
+
+    /// The pose it was made at (the first of a pair).
+    pub fn pose(&self) -> usize {
+        match *self {
+            Self::Distance { a: pose, .. }
+            | Self::ToPoint { pose, .. }
+            | Self::Contact { pose, .. }
+            | Self::Coordinate { pose, .. }
+            | Self::Camera { pose, .. } => pose,
+        }
     }
 
     /// The residual `m_k - f` of a prediction `f`; an angle's wrapped into `(-pi, pi]`.
@@ -123,7 +187,8 @@ impl Observation {
             Self::Distance { sigma, .. }
             | Self::ToPoint { sigma, .. }
             | Self::Contact { sigma, .. }
-            | Self::Coordinate { sigma, .. } => sigma,
+            | Self::Coordinate { sigma, .. }
+            | Self::Camera { sigma, .. } => sigma,
         }
     }
 }
@@ -153,7 +218,8 @@ impl KindData {
         for row in table.nonempty_rows()? {
             let kind = match columns.kind {
                 Some(c) => RowKind::named(&row.cells[c]).ok_or_else(|| {
-                    let message = format!("`{}`: expected pair, point, contact or coordinates", row.cells[c]);
+                    let message =
+                        format!("`{}`: expected pair, point, contact, coordinates or camera", row.cells[c]);
                     DataError::new(row.line, Some("kind"), message)
                 })?,
                 None => columns.file_kind.expect("a file without a kind column has one kind"),
@@ -182,6 +248,9 @@ impl KindData {
             Observation::Coordinate { pose, axis, measured, sigma } => {
                 Observation::Coordinate { pose: pose + offset, axis, measured, sigma }
             }
+            Observation::Camera { pose, axis, view, site, sigma } => {
+                Observation::Camera { pose: pose + offset, axis, view, site, sigma }
+            }
         }));
         self
     }
@@ -199,9 +268,25 @@ impl KindData {
         counts
     }
 
-    /// Whether any observation is an angle of the tool frame (then the tool is a frame).
+    /// Whether any observation sees the tool frame's orientation, an angle or a camera (then
+    /// the tool is a frame).
     pub fn has_angles(&self) -> bool {
-        self.observations.iter().any(|o| matches!(o, Observation::Coordinate { axis: 3.., .. }))
+        self.observations
+            .iter()
+            .any(|o| matches!(o, Observation::Coordinate { axis: 3.., .. } | Observation::Camera { .. }))
+    }
+
+    /// Where the camera is, if any observation is a camera's.
+    pub fn camera(&self) -> Option<CameraSite> {
+        self.observations.iter().find_map(|o| match *o {
+            Observation::Camera { site, .. } => Some(site),
+            _ => None,
+        })
+    }
+
+    /// Whether any observation is not a camera's (then the tool point is seen on its own).
+    pub fn beyond_the_camera(&self) -> bool {
+        self.observations.iter().any(|o| !matches!(o, Observation::Camera { .. }))
     }
 
     /// Whether any observation sees the measuring frame's coordinates (then the base is
@@ -216,12 +301,14 @@ impl KindData {
         self.observations.iter().any(|o| !matches!(o, Observation::Contact { .. }))
     }
 
-    /// The set-up and its start values, from the tool point at every pose on the nominal robot
+    /// The set-up and its start values, from the tool frame at every pose on the nominal robot
     /// (`nominal`): each fixed point by the linear sphere fit `2 p_k . c - t = |p_k|^2 - m_k^2`
     /// (`t = |c|^2`; at least 4 distances), each plane by the total least-squares plane of its
     /// contacts (at least 3, not on a line; the normal towards the robot's side, the base
-    /// frame's origin, so that a contact's signed distance is positive on the robot's side).
-    pub fn initial_setup(&self, nominal: &[Vector3<f64>]) -> Result<(SetUp, Vec<f64>), CalibrationError> {
+    /// frame's origin, so that a contact's signed distance is positive on the robot's side);
+    /// the camera and the target by [`camera_start`].
+    pub fn initial_setup(&self, frames: &[Isometry3<f64>]) -> Result<(SetUp, Vec<f64>), CalibrationError> {
+        let nominal: Vec<Vector3<f64>> = frames.iter().map(|f| f.translation.vector).collect();
         let (points, planes) = self.setup_counts();
         let mut values = Vec::with_capacity(3 * (points + planes));
         let few = |what: String| CalibrationError::Observations(what);
@@ -292,7 +379,33 @@ impl KindData {
             normals.push(n);
             values.extend([0.0, 0.0, n.dot(&centroid)]);
         }
-        Ok((SetUp::new(points, &normals), values))
+        let mut setup = SetUp::new(points, &normals);
+        if let Some(site) = self.camera() {
+            let views = self.views();
+            let pairs: Vec<(Isometry3<f64>, Isometry3<f64>)> =
+                views.iter().map(|&(pose, view)| (frames[pose], isometry(view.as_slice()))).collect();
+            let (camera, target) = camera_start(&pairs, site)?;
+            for placement in [camera, target] {
+                values.extend(
+                    placement.translation.vector.iter().chain(placement.rotation.scaled_axis().iter()),
+                );
+            }
+            setup = setup.with_camera(site);
+        }
+        Ok((setup, values))
+    }
+
+    /// Every pose a camera saw, once, with its view (the target's pose in the camera frame).
+    fn views(&self) -> Vec<(usize, Vector6<f64>)> {
+        let mut views: Vec<(usize, Vector6<f64>)> = Vec::new();
+        for o in &self.observations {
+            if let Observation::Camera { pose, view, .. } = *o
+                && views.last().is_none_or(|&(last, _)| last != pose)
+            {
+                views.push((pose, view));
+            }
+        }
+        views
     }
 
     /// Refuse observations that do not fit (for data built by hand rather than read): a pose
@@ -311,10 +424,25 @@ impl KindData {
                 Observation::Distance { a, b, .. } => [a, b],
                 Observation::ToPoint { pose, .. } | Observation::Contact { pose, .. } => [pose, pose],
                 Observation::Coordinate { pose, axis, .. } if axis < 6 => [pose, pose],
-                Observation::Coordinate { axis, .. } => {
+                Observation::Camera { pose, axis, view, .. } if axis < 6 => {
+                    if view.iter().any(|v| !v.is_finite()) {
+                        return bad(format!("line {line}: a camera's view of finite values expected"));
+                    }
+                    [pose, pose]
+                }
+                Observation::Coordinate { axis, .. } | Observation::Camera { axis, .. } => {
                     return bad(format!("line {line}: axis {axis}, expected 0 to 5"));
                 }
             };
+            if let Observation::Camera { site, .. } = *o
+                && Some(site) != self.camera()
+            {
+                return bad(format!(
+                    "line {line}: a camera on the {}, the first camera row's is on the {}: one camera per set",
+                    site.name(),
+                    self.camera().map_or("?", CameraSite::name)
+                ));
+            }
             if poses.iter().any(|&p| p >= self.joints.len()) {
                 return bad(format!("line {line}: a pose beyond the {} given", self.joints.len()));
             }
@@ -328,6 +456,13 @@ impl KindData {
     /// Refuse points and planes that `setup` does not have.
     pub(super) fn check_against(&self, setup: &SetUp) -> Result<(), CalibrationError> {
         let (points, planes) = self.setup_counts();
+        if self.camera().is_some() && self.camera() != setup.camera() {
+            return Err(CalibrationError::Observations(format!(
+                "a camera on the {}, the calibration's is {}",
+                self.camera().map_or("?", CameraSite::name),
+                setup.camera().map_or("absent", CameraSite::name)
+            )));
+        }
         if points > setup.points || planes > setup.planes() {
             return Err(CalibrationError::Observations(format!(
                 "{points} fixed points and {planes} planes, the calibration has {} and {}",
@@ -347,7 +482,13 @@ impl KindData {
             .iter()
             .any(|o| matches!(o, Observation::Distance { .. } | Observation::ToPoint { .. }));
         if !self.sees_the_base() {
-            let why = if distances {
+            let why = if self.camera() == Some(CameraSite::Hand) {
+                "a camera on the arm sees the target relative to the robot only (base^-1 target): the target \
+                 placement absorbs the base placement"
+            } else if self.camera() == Some(CameraSite::World) {
+                "a fixed camera sees the robot relative to itself only (camera^-1 base): the camera placement \
+                 absorbs the base placement"
+            } else if distances {
                 "distances cannot see the base placement (a rigid motion of the whole set-up changes no distance)"
             } else {
                 "the planes absorb the base placement"
@@ -389,6 +530,8 @@ enum RowKind {
     Contact,
     /// Coordinates.
     Coordinates,
+    /// A camera's view of its target.
+    Camera,
 }
 
 impl RowKind {
@@ -399,6 +542,7 @@ impl RowKind {
             "point" => Self::ToPoint,
             "contact" => Self::Contact,
             "coordinates" => Self::Coordinates,
+            "camera" => Self::Camera,
             _ => return None,
         })
     }
@@ -416,6 +560,8 @@ struct KindColumns {
     axes: [Option<usize>; 6],
     sigma: Option<usize>,
     sigma_angle: Option<usize>,
+    /// `camera`: `hand` or `world`.
+    camera: Option<usize>,
     /// The `kind` column, or the one kind of a file without it.
     kind: Option<usize>,
     file_kind: Option<RowKind>,
@@ -440,19 +586,22 @@ impl KindColumns {
             axes: ["x", "y", "z", "roll", "pitch", "yaw"].map(|c| table.column(c)),
             sigma: table.column("sigma"),
             sigma_angle: table.column("sigma_angle"),
+            camera: table.column("camera"),
             kind: table.column("kind"),
             file_kind: None,
         };
         if columns.kind.is_some() {
             return Ok(columns);
         }
-        let coordinates = columns.axes.iter().any(Option::is_some);
-        let kinds = [columns.distance.is_some(), columns.plane.is_some(), coordinates];
+        let camera = columns.camera.is_some();
+        let coordinates = columns.axes.iter().any(Option::is_some) && !camera;
+        let kinds = [columns.distance.is_some(), columns.plane.is_some(), coordinates, camera];
         if kinds.iter().filter(|&&k| k).count() != 1 {
             return Err(header(
                 None,
-                "expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, or coordinates \
-                 (x, y, z, roll, pitch, yaw); or a `kind` column naming each row's",
+                "expected one kind: a `distance` column (pairs or to a `point`), a `plane` column, coordinates \
+                 (x, y, z, roll, pitch, yaw), or a `camera` column (hand or world) with a camera's view of its \
+                 target (x, y, z, roll, pitch, yaw); or a `kind` column naming each row's",
             ));
         }
         if pairs && columns.point.is_some() {
@@ -462,10 +611,11 @@ impl KindColumns {
             ));
         }
         let file_kind = match kinds {
-            [true, _, _] if pairs => RowKind::Pair,
-            [true, _, _] => RowKind::ToPoint,
-            [_, true, _] => RowKind::Contact,
-            _ => RowKind::Coordinates,
+            [true, ..] if pairs => RowKind::Pair,
+            [true, ..] => RowKind::ToPoint,
+            [_, true, ..] => RowKind::Contact,
+            [_, _, true, _] => RowKind::Coordinates,
+            _ => RowKind::Camera,
         };
         Ok(Self { file_kind: Some(file_kind), ..columns })
     }
@@ -488,9 +638,17 @@ impl KindColumns {
         data: &mut KindData,
     ) -> Result<(), DataError> {
         let optional = |c: Option<usize>| c.filter(|&c| !row.cells[c].is_empty());
+        let (default_mm, default_deg) = match kind {
+            RowKind::Camera => (DEFAULT_CAMERA_SIGMA_MM, DEFAULT_CAMERA_SIGMA_DEG),
+            _ => (DEFAULT_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG),
+        };
         let s = match optional(self.sigma) {
             Some(c) => positive(table, row, c, units.length_scale())?,
-            None => DEFAULT_SIGMA_MM,
+            None => default_mm,
+        };
+        let s_angle = match optional(self.sigma_angle) {
+            Some(c) => units.angle(positive(table, row, c, 1.0)?),
+            None => default_deg.to_radians(),
         };
         let pose = data.joints.len();
         data.joints.push(table.joint_values(row, &self.joints, model, units)?);
@@ -522,11 +680,43 @@ impl KindColumns {
                 let c = self.needed(row, self.plane, "plane")?;
                 push(data, Observation::Contact { pose, plane: id(table, row, c)?, sigma: s });
             }
-            RowKind::Coordinates => {
-                let s_angle = match optional(self.sigma_angle) {
-                    Some(c) => units.angle(positive(table, row, c, 1.0)?),
-                    None => DEFAULT_SIGMA_ANGLE_DEG.to_radians(),
+            RowKind::Camera => {
+                let c = self.needed(row, self.camera, "camera")?;
+                let site = match row.cells[c].as_str() {
+                    "hand" => CameraSite::Hand,
+                    "world" => CameraSite::World,
+                    other => {
+                        let message = format!("`{other}`: expected hand (on the arm) or world (fixed)");
+                        return Err(DataError::new(row.line, Some("camera"), message));
+                    }
                 };
+                if let Some(first) = data.camera()
+                    && first != site
+                {
+                    let message = format!(
+                        "a camera on the {}, the earlier rows' is on the {}: one camera per file",
+                        site.name(),
+                        first.name()
+                    );
+                    return Err(DataError::new(row.line, Some("camera"), message));
+                }
+                let mut v = [0.0; 6];
+                for (axis, name) in ["x", "y", "z", "roll", "pitch", "yaw"].into_iter().enumerate() {
+                    let c = self.needed(row, self.axes[axis], name)?;
+                    let value = table.number(row, c)?;
+                    v[axis] = match axis < 3 {
+                        true => table.within(row, c, value * units.length_scale(), MAX_LENGTH_MM, "mm")?,
+                        false => units.angle(value),
+                    };
+                }
+                let rotation = UnitQuaternion::from_euler_angles(v[3], v[4], v[5]).scaled_axis();
+                let view = Vector6::new(v[0], v[1], v[2], rotation.x, rotation.y, rotation.z);
+                for axis in 0..6 {
+                    let sigma = if axis < 3 { s } else { s_angle };
+                    push(data, Observation::Camera { axis, pose, view, site, sigma });
+                }
+            }
+            RowKind::Coordinates => {
                 let mut any = false;
                 for (axis, c) in self.axes.iter().enumerate() {
                     let Some(c) = optional(*c) else { continue };

@@ -21,6 +21,11 @@
 //!   frame whose rotation is estimated too, and `g_kj` is `E^-1` on the rotation rows, with
 //!   `omega = E (roll', pitch', yaw')` the rotation vector's rate (the residual wrapped into
 //!   `(-pi, pi]`).
+//! - a camera's view of its target (hand-eye: the camera on the tool; eye-to-hand: fixed), the
+//!   target's pose in the camera's frame `T_camera^-1 T_target`, 6 observations (position mm,
+//!   rotation vector rad) of the tool frame and of the camera's and the target's placements
+//!   (6 + 6 set-up parameters): see [`camera`], whose residual of the rotation is `log(R_m R^T)`
+//!   rather than `m_k - f_k`.
 //!
 //! The residual is `y_k = m_k - f_k` (measured minus predicted). With `g_kj = df_k/dp_j` the
 //! derivative of the prediction with respect to the point at pose `j` (`u = (p_a - p_b) /
@@ -41,6 +46,12 @@
 //!
 //! # What each kind cannot see
 //!
+//! A camera sees the target relative to itself only: with the camera on the arm, the target's
+//! placement absorbs the base's; with a fixed camera, the camera's placement does. The base is
+//! held and reported; a camera's mounting is the tool frame's (the tool point is not estimated
+//! when cameras are the only observations), and what of the last link it cannot tell from the
+//! mounting the rank-revealing solve holds and reports.
+//!
 //! Distances are unchanged when everything moves rigidly: they cannot see the base placement
 //! (all 6 parameters), which is held at its nominal value and reported as such. Plane contacts
 //! place the robot relative to the planes, which absorb the base: it is held too; and a plane
@@ -58,16 +69,19 @@
 //! A new kind is a prediction `f_k` of the tool's frames at its poses and of set-up parameters,
 //! with its derivatives `g_kj` (6-vectors: position, rotation vector) and `df_k/ds`: one arm of
 //! `predict`. Observations are one row each, so that `V` is a column of variances and every
-//! estimator applies unchanged. A kind with several correlated rows (a camera's target pose,
-//! 6 rows; a target point's pixel, 2 rows) needs `m_k`-row blocks: the estimators take blocks
-//! of one size per problem, so such kinds would pad every observation to the largest `m_k`
-//! (zero residual and `H` rows, unit variance: the fit and its covariance do not change), or
-//! be fitted as their own problem; several chains (a torso and two arms) are one chain per
+//! estimator applies unchanged. A camera's view ([`camera`]) is six rows, one observation each
+//! sharing the view: like a pose's coordinates, their correlation through the joint noise of
+//! their common pose is left out of `V` (exact when the joints are exact). A target point's
+//! pixel (2 rows) would be the same; several chains (a torso and two arms) are one chain per
 //! observation sharing the joint parameters of their common links.
 
+pub mod camera;
 mod data;
 
-pub use data::{KindData, Observation};
+pub use data::{
+    CameraSite, DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM,
+    KindData, Observation,
+};
 
 use super::{CalibrationError, JointParams, fold, gauge_class};
 use crate::estimation::{
@@ -93,19 +107,24 @@ pub struct KindOptions {
     pub joints: JointParams,
     /// Estimate the tool point on the last link.
     pub estimate_tool: bool,
-    /// The tool point's nominal position (mm) in the model's marker frame.
+    /// The tool point's nominal position (mm) in the model's marker frame; unused when a
+    /// camera's views are the only observations (the camera's or target's mounting is then in
+    /// the marker frame itself).
     pub tool: Vector3<f64>,
     /// Gauss-Newton settings.
     pub refine: RefineOptions,
 }
 
-/// The set-up's parameters: fixed points and planes, each 3 numbers.
+/// The set-up's parameters: fixed points and planes, each 3 numbers; a camera and its target,
+/// each 6 ([`camera`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SetUp {
     /// The number of fixed points (their coordinates are values, mm, base frame).
     pub points: usize,
     /// The planes: the nominal normal `n0` and two tangents `t1, t2` of each.
     bases: Vec<[Vector3<f64>; 3]>,
+    /// Where the camera is, if there is one.
+    camera: Option<CameraSite>,
 }
 
 impl SetUp {
@@ -122,12 +141,37 @@ impl SetUp {
                 [n, t1, n.cross(&t1)]
             })
             .collect();
-        Self { points, bases }
+        Self { points, bases, camera: None }
     }
 
-    /// Parameters: 3 per point, then 3 per plane (`alpha, beta, d`).
+    /// The same set-up with a camera at `site` and its target: 12 parameters more,
+    /// `camera.x, y, z, rx, ry, rz` then `target.*` ([`camera`]).
+    pub fn with_camera(self, site: CameraSite) -> Self {
+        Self { camera: Some(site), ..self }
+    }
+
+    /// Where the camera is, if there is one.
+    pub fn camera(&self) -> Option<CameraSite> {
+        self.camera
+    }
+
+    /// Parameters: 3 per point, then 3 per plane (`alpha, beta, d`), then 6 for the camera
+    /// and 6 for its target.
     pub fn len(&self) -> usize {
+        self.camera_at() + if self.camera.is_some() { 12 } else { 0 }
+    }
+
+    /// Where the camera's parameters start (the target's 6 later).
+    fn camera_at(&self) -> usize {
         3 * (self.points + self.bases.len())
+    }
+
+    /// Whether parameter `i` is an angle (rad): a plane's tilts, a placement's rotation vector.
+    pub fn is_angle(&self, i: usize) -> bool {
+        match i.checked_sub(self.camera_at()) {
+            Some(c) => c % 6 >= 3,
+            None => i >= 3 * self.points && (i - 3 * self.points) % 3 < 2,
+        }
     }
 
     /// The number of planes.
@@ -145,7 +189,11 @@ impl SetUp {
         let points = (1..=self.points).flat_map(|i| ["x", "y", "z"].map(|c| format!("point{i}.{c}")));
         let planes =
             (1..=self.bases.len()).flat_map(|i| ["alpha", "beta", "d"].map(|c| format!("plane{i}.{c}")));
-        points.chain(planes).collect()
+        let placements = ["camera", "target"]
+            .into_iter()
+            .filter(|_| self.camera.is_some())
+            .flat_map(|f| ["x", "y", "z", "rx", "ry", "rz"].map(|c| format!("{f}.{c}")));
+        points.chain(planes).chain(placements).collect()
     }
 
     /// Plane `i`'s unit normal and offset at the set-up values `s`:
@@ -171,14 +219,22 @@ impl SetUp {
     }
 }
 
-/// One observation's prediction `f_k`, its derivatives `g_kj` with respect to the point at
-/// each of its poses (`(pose, g)`, one or two) and with respect to the set-up (`(index, value)`).
+/// One observation's residual `y_k` (of its prediction `f_k`), the derivatives `g_kj` of `f_k`
+/// with respect to the point at each of its poses (`(pose, g)`, one or two) and with respect to
+/// the set-up (`(index, value)`).
 struct Prediction {
-    value: f64,
+    residual: f64,
     by_point: [(usize, Vector6<f64>); 2],
     poses: usize,
-    by_setup: [(usize, f64); 3],
+    by_setup: [(usize, f64); 12],
     setups: usize,
+}
+
+/// `by_setup` of a [`Prediction`] of `n` derivatives.
+fn by_setup<const N: usize>(derivatives: [(usize, f64); N]) -> ([(usize, f64); 12], usize) {
+    let mut out = [(0, 0.0); 12];
+    out[..N].copy_from_slice(&derivatives);
+    (out, N)
 }
 
 /// `f_k` of the [module](self) and its derivatives, at the tool frames `frames` of every pose
@@ -189,15 +245,16 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
     let none = (0, Vector6::zeros());
     let point = |g: Vector3<f64>| Vector6::new(g.x, g.y, g.z, 0.0, 0.0, 0.0);
     let p = |j: usize| frames[j].translation.vector;
+    let none_s = by_setup([]);
     match *o {
         Observation::Distance { a, b, .. } => {
             let d = p(a) - p(b);
             let u = d / d.norm().max(f64::MIN_POSITIVE);
             Prediction {
-                value: d.norm(),
+                residual: o.residual(d.norm()),
                 by_point: [(a, point(u)), (b, point(-u))],
                 poses: 2,
-                by_setup: [(0, 0.0); 3],
+                by_setup: none_s.0,
                 setups: 0,
             }
         }
@@ -205,29 +262,30 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
             let d = p(pose) - setup.point(s, fixed);
             let u = d / d.norm().max(f64::MIN_POSITIVE);
             let at = 3 * fixed;
+            let (by_setup, setups) = by_setup([(at, -u.x), (at + 1, -u.y), (at + 2, -u.z)]);
             Prediction {
-                value: d.norm(),
+                residual: o.residual(d.norm()),
                 by_point: [(pose, point(u)), none],
                 poses: 1,
-                by_setup: [(at, -u.x), (at + 1, -u.y), (at + 2, -u.z)],
-                setups: 3,
+                by_setup,
+                setups,
             }
         }
         Observation::Coordinate { pose, axis, .. } if axis < 3 => Prediction {
-            value: p(pose)[axis],
+            residual: o.residual(p(pose)[axis]),
             by_point: [(pose, Vector6::ith(axis, 1.0)), none],
             poses: 1,
-            by_setup: [(0, 0.0); 3],
+            by_setup: none_s.0,
             setups: 0,
         },
         Observation::Coordinate { pose, axis, .. } => {
             let (rpy, rates) = angles(&frames[pose].rotation);
             let g = rates.row(axis - 3);
             Prediction {
-                value: rpy[axis - 3],
+                residual: o.residual(rpy[axis - 3]),
                 by_point: [(pose, Vector6::new(0.0, 0.0, 0.0, g[0], g[1], g[2])), none],
                 poses: 1,
-                by_setup: [(0, 0.0); 3],
+                by_setup: none_s.0,
                 setups: 0,
             }
         }
@@ -235,12 +293,41 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
             let (n, d) = setup.plane(s, plane);
             let [dn_a, dn_b] = setup.normal_derivatives(s, plane);
             let at = 3 * (setup.points + plane);
+            let (by_setup, setups) =
+                by_setup([(at, dn_a.dot(&p(pose))), (at + 1, dn_b.dot(&p(pose))), (at + 2, -1.0)]);
             Prediction {
-                value: n.dot(&p(pose)) - d,
+                residual: o.residual(n.dot(&p(pose)) - d),
                 by_point: [(pose, point(n)), none],
                 poses: 1,
-                by_setup: [(at, dn_a.dot(&p(pose))), (at + 1, dn_b.dot(&p(pose))), (at + 2, -1.0)],
-                setups: 3,
+                by_setup,
+                setups,
+            }
+        }
+        Observation::Camera { pose, axis, view, site, .. } => {
+            let c = setup.camera_at();
+            let (mounted, placed) = match site {
+                CameraSite::Hand => (c, c + 6),
+                CameraSite::World => (c + 6, c),
+            };
+            let row = camera::view_row(
+                &view,
+                axis,
+                &frames[pose],
+                site,
+                &s[mounted..mounted + 6],
+                &s[placed..placed + 6],
+            );
+            let mut out = [(0, 0.0); 12];
+            for i in 0..6 {
+                out[i] = (mounted + i, row.by_mounting[i]);
+                out[6 + i] = (placed + i, row.by_world[i]);
+            }
+            Prediction {
+                residual: row.residual,
+                by_point: [(pose, row.by_tool), none],
+                poses: 1,
+                by_setup: out,
+                setups: 12,
             }
         }
     }
@@ -429,7 +516,7 @@ impl Residuals for KindProblem<'_> {
         let mut h = h;
         for (k, o) in self.data.observations.iter().enumerate() {
             let f = predict(o, &frames, self.setup, &s);
-            y[k] = o.residual(f.value);
+            y[k] = f.residual;
             if let Some(h) = h.as_deref_mut() {
                 // H_k = sum_j g_kj^T H_j + df_k/ds.
                 for c in 0..h.ncols() {
@@ -584,16 +671,18 @@ pub fn calibrate_kinds(
 ) -> Result<KindCalibration, CalibrationError> {
     data.check(model.dof())?;
     // Angles need a tool frame: the tool point, turned as the marker frame to start with.
-    let probe = data.has_angles().then_some(Placement { xyz: options.tool, rpy: Vector3::zeros() });
+    // Cameras alone: their mounting is in the tool (tip link's) frame itself, no tool point.
+    let tool = if data.beyond_the_camera() { options.tool } else { Vector3::zeros() };
+    let probe = data.has_angles().then_some(Placement { xyz: tool, rpy: Vector3::zeros() });
     let chain = match &probe {
         Some(probe) => Chain::probe(model, probe),
-        None => Chain::markers(model, &[options.tool]).remove(0),
+        None => Chain::markers(model, &[tool]).remove(0),
     };
     let params = chain.params().clone();
     let zero = vec![0.0; params.len()];
-    let nominal: Vec<Vector3<f64>> = {
+    let nominal: Vec<Isometry3<f64>> = {
         let at = chain.with_errors(&zero);
-        data.joints.iter().map(|q| at.position(q)).collect()
+        data.joints.iter().map(|q| at.pose(q)).collect()
     };
     let (setup, start) = data.initial_setup(&nominal)?;
     let nothing = Selection::from_indices(&params, []);
@@ -643,7 +732,7 @@ pub fn calibrate_kinds(
     let problem = base_problem.reselect(&kept, zero.clone(), before_setup.clone(), kept_setup);
     let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);
-    let calibrated = fold(model, &params, &after, &[options.tool], probe.as_ref());
+    let calibrated = fold(model, &params, &after, &[tool], probe.as_ref());
     let mut calibration = KindCalibration {
         calibrated,
         params,
@@ -663,7 +752,7 @@ pub fn calibrate_kinds(
 }
 
 /// The robot parameters and the set-up parameters asked for: the joints of `options`, the tool
-/// point unless held, the base only if coordinates see it; every set-up parameter but, when
+/// point unless held or only cameras see it (their mountings are the tool), the base only if coordinates see it; every set-up parameter but, when
 /// contacts alone cannot see the scale (every length and plane offset times one factor leaves
 /// every contact), the first plane's offset, held at its fit with the nominal robot.
 fn asked(
@@ -674,7 +763,8 @@ fn asked(
 ) -> Result<(Selection, Vec<usize>), CalibrationError> {
     let joints = options.joints.select(params)?;
     let extra = (0..params.len()).filter(|&i| match params.get(i).owner {
-        ParamOwner::Marker(_) => options.estimate_tool,
+        // A camera's mounting is the tool frame's, estimated as the set-up's.
+        ParamOwner::Marker(_) => options.estimate_tool && data.beyond_the_camera(),
         ParamOwner::Base => data.sees_the_base(),
         _ => false,
     });

@@ -1,0 +1,225 @@
+//! Camera targets: a camera's view of a calibration target, on the arm (hand-eye) or fixed in
+//! the world (eye-to-hand).
+//!
+//! # The observation model
+//!
+//! The camera's frame `A` and the target's frame `B`, both in the base (measuring) frame, are
+//! one of them mounted on the tool and the other placed in the world:
+//!
+//! - hand-eye ([`CameraSite::Hand`]): `A = T(q) C`, `B = W`, the camera mounting `C` in the tool
+//!   frame `T(q)` ([`ChainAt::pose`](crate::kinematics::ChainAt::pose)) and the target's
+//!   placement `W` in the base frame;
+//! - eye-to-hand ([`CameraSite::World`]): `A = W`, `B = T(q) C`, the camera's placement `W` and
+//!   the target mounting `C`.
+//!
+//! The camera measures the view `M = A^-1 B`: its position `t_M = R_A^T (p_B - p_A)` (mm) and
+//! rotation `R_M = R_A^T R_B`, given as a rotation vector `m_r` (`R_m = exp([m_r]x)`). Its six
+//! residuals are `y_t = m_t - t_M` and `y_r = log(R_m R_M^T)`, the rotation that takes the
+//! predicted view to the measured one.
+//!
+//! Each placement is 6 set-up parameters `(x, y, z, rx, ry, rz)`: its position (mm) and the
+//! rotation vector `r` of its rotation `exp([r]x)` (rad); the camera's are `camera.*`, the
+//! target's `target.*` (the mounting is the camera's in hand-eye, the target's in eye-to-hand).
+//!
+//! # Derivatives
+//!
+//! A frame's error is its twist in the base frame, `(dp, omega)`: `p -> p + dp`,
+//! `R -> exp([omega]x) R`. The view's error `(dt_M, delta)` (`R_M -> exp([delta]x) R_M`) is
+//!
+//! `dt_M = R_A^T (dp_B - dp_A + [p_B - p_A]x omega_A)`, `delta = R_A^T (omega_B - omega_A)`,
+//!
+//! and `y_r` moves by `-J_r^-1(y_r) delta`, `J_r^-1(y) = J_l(-y)^-1` with the left Jacobian of
+//! SO(3) `J_l(v) = I + (1 - cos t)/t^2 [v]x + (t - sin t)/t^3 [v]x^2`, `t = |v|`. The twist of a
+//! mounted frame `X = T C` is `(dp - [p_X - p_T]x omega, omega)` for the tool's error
+//! `(dp, omega)`, and `(R_T dt, R_T J_l(r) dr)` for its mounting's `(dt, dr)`; a placed frame's
+//! is `(dt, J_l(r) dr)`. So the camera's rows of `H` are exact derivatives at any residual.
+//!
+//! # The start
+//!
+//! With the nominal robot, every view gives `T_k C N_k^-1 = W`, `N_k = M_k^-1` (hand-eye) or
+//! `M_k` (eye-to-hand). Two views `i, j` give `A_ij C = C B_ij`, `A_ij = T_j^-1 T_i`,
+//! `B_ij = N_j^-1 N_i` (the hand-eye equation `AX = XB`). Its rotation part says
+//! `log(R_A) = R_C log(R_B)`: `R_C` is the rotation that best turns every `log(R_B)` into its
+//! `log(R_A)` (Kabsch, by SVD); then `(R_A - I) t_C = R_C t_B - t_A`, stacked, in least squares
+//! (Park and Martin, 1994). `W` is then the chordal mean of every `T_k C N_k^-1` (the mean
+//! rotation matrix projected on SO(3) by SVD, the mean position). Pairs are every view with the
+//! next 30. The robot's motions must turn about two axes at least, else `C` is not determined.
+//!
+//! # What it cannot see
+//!
+//! Only `A^-1 B` is seen: a rigid motion of the base with the world's placement leaves every
+//! view, so the base is held and the world placement absorbs it.
+
+use super::data::CameraSite;
+use crate::calibration::CalibrationError;
+use nalgebra::{Isometry3, Matrix3, Matrix6, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+
+/// The frame of a placement `(x, y, z, rx, ry, rz)`: position (mm), rotation vector (rad).
+pub fn isometry(v: &[f64]) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::new(v[0], v[1], v[2]),
+        UnitQuaternion::from_scaled_axis(Vector3::new(v[3], v[4], v[5])),
+    )
+}
+
+/// The placement `(x, y, z, rx, ry, rz)` of a frame, the inverse of [`isometry`].
+pub fn placement(f: &Isometry3<f64>) -> Vector6<f64> {
+    let (t, r) = (f.translation.vector, f.rotation.scaled_axis());
+    Vector6::new(t.x, t.y, t.z, r.x, r.y, r.z)
+}
+
+/// The left Jacobian of SO(3): `J_l(v) = I + (1 - cos t)/t^2 [v]x + (t - sin t)/t^3 [v]x^2`,
+/// `t = |v|`, with `exp([v + dv]x) = exp([J_l(v) dv]x) exp([v]x)` to first order.
+pub fn left_jacobian(v: &Vector3<f64>) -> Matrix3<f64> {
+    let t = v.norm();
+    let k = v.cross_matrix();
+    let (a, b) = if t < 1e-6 {
+        (0.5 - t * t / 24.0, 1.0 / 6.0 - t * t / 120.0)
+    } else {
+        ((1.0 - t.cos()) / (t * t), (t - t.sin()) / (t * t * t))
+    };
+    Matrix3::identity() + k * a + k * k * b
+}
+
+/// A camera row's residual and derivatives, before they are attached to parameters.
+pub(super) struct ViewRow {
+    /// `y` of the [module](self) for this row.
+    pub residual: f64,
+    /// Its derivative (`-dy`) with respect to the tool frame's error `(dp, omega)`.
+    pub by_tool: Vector6<f64>,
+    /// With respect to the mounting's `(x, y, z, rx, ry, rz)`.
+    pub by_mounting: Vector6<f64>,
+    /// With respect to the world placement's `(x, y, z, rx, ry, rz)`.
+    pub by_world: Vector6<f64>,
+}
+
+/// Row `axis` of the view `view` (position mm, rotation vector rad) predicted at the tool frame
+/// `tool` with the camera at `site`, the mounting `mounting` and the world placement `world`
+/// (each `x, y, z, rx, ry, rz`): its residual and its `H` row by the [module](self)'s equations.
+pub(super) fn view_row(
+    view: &Vector6<f64>,
+    axis: usize,
+    tool: &Isometry3<f64>,
+    site: CameraSite,
+    mounting: &[f64],
+    world: &[f64],
+) -> ViewRow {
+    let mounted = tool * isometry(mounting);
+    let placed = isometry(world);
+    let (a, b) = match site {
+        CameraSite::Hand => (mounted, placed),
+        CameraSite::World => (placed, mounted),
+    };
+    let m = a.inverse() * b;
+    let measured = isometry(view.as_slice());
+    let y_t = measured.translation.vector - m.translation.vector;
+    let y_r = (measured.rotation * m.rotation.inverse()).scaled_axis();
+    let residual = if axis < 3 { y_t[axis] } else { y_r[axis - 3] };
+    // The row of S = diag(I, J_r^-1(y_r)) times d(view)/d(twist of A) and of B.
+    let r_a_t = a.rotation.to_rotation_matrix().into_inner().transpose();
+    let jr_inv = left_jacobian(&-y_r).try_inverse().unwrap_or_else(Matrix3::zeros);
+    let d = b.translation.vector - a.translation.vector;
+    let mut by_a = Matrix6::zeros();
+    by_a.fixed_view_mut::<3, 3>(0, 0).copy_from(&-r_a_t);
+    by_a.fixed_view_mut::<3, 3>(0, 3).copy_from(&(r_a_t * d.cross_matrix()));
+    by_a.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-jr_inv * r_a_t));
+    let mut by_b = Matrix6::zeros();
+    by_b.fixed_view_mut::<3, 3>(0, 0).copy_from(&r_a_t);
+    by_b.fixed_view_mut::<3, 3>(3, 3).copy_from(&(jr_inv * r_a_t));
+    let (row_mounted, row_placed) = match site {
+        CameraSite::Hand => (by_a.row(axis).transpose(), by_b.row(axis).transpose()),
+        CameraSite::World => (by_b.row(axis).transpose(), by_a.row(axis).transpose()),
+    };
+    // Twists: of the mounted frame by the tool's error and by the mounting, of the placed one.
+    let r_t = tool.rotation.to_rotation_matrix().into_inner();
+    let arm = mounted.translation.vector - tool.translation.vector;
+    let mut from_tool = Matrix6::identity();
+    from_tool.fixed_view_mut::<3, 3>(0, 3).copy_from(&-arm.cross_matrix());
+    let mut from_mounting = Matrix6::zeros();
+    from_mounting.fixed_view_mut::<3, 3>(0, 0).copy_from(&r_t);
+    let j_mounting = left_jacobian(&Vector3::new(mounting[3], mounting[4], mounting[5]));
+    from_mounting.fixed_view_mut::<3, 3>(3, 3).copy_from(&(r_t * j_mounting));
+    let mut from_world = Matrix6::identity();
+    let j_world = left_jacobian(&Vector3::new(world[3], world[4], world[5]));
+    from_world.fixed_view_mut::<3, 3>(3, 3).copy_from(&j_world);
+    ViewRow {
+        residual,
+        by_tool: from_tool.tr_mul(&row_mounted),
+        by_mounting: from_mounting.tr_mul(&row_mounted),
+        by_world: from_world.tr_mul(&row_placed),
+    }
+}
+
+/// The camera's and the target's placements `(camera, target)` that best explain the views
+/// `(T_k, M_k)` (the tool frame on the nominal robot, the view), by the [module](self)'s
+/// closed form.
+pub fn camera_start(
+    views: &[(Isometry3<f64>, Isometry3<f64>)],
+    site: CameraSite,
+) -> Result<(Isometry3<f64>, Isometry3<f64>), CalibrationError> {
+    let too_few = |why: &str| {
+        CalibrationError::Observations(format!(
+            "camera: {} views, {why}: expected at least 3 poses turning the tool about two axes or more",
+            views.len()
+        ))
+    };
+    if views.len() < 3 {
+        return Err(too_few("too few"));
+    }
+    let n: Vec<Isometry3<f64>> = views
+        .iter()
+        .map(|(_, m)| match site {
+            CameraSite::Hand => m.inverse(),
+            CameraSite::World => *m,
+        })
+        .collect();
+    let pairs: Vec<(Isometry3<f64>, Isometry3<f64>)> = (0..views.len())
+        .flat_map(|i| ((i + 1)..views.len().min(i + 31)).map(move |j| (i, j)))
+        .map(|(i, j)| (views[j].0.inverse() * views[i].0, n[j].inverse() * n[i]))
+        .collect();
+    // Rotation: argmax sum alpha^T R beta, alpha = log(R_A), beta = log(R_B).
+    let m: Matrix3<f64> =
+        pairs.iter().map(|(a, b)| a.rotation.scaled_axis() * b.rotation.scaled_axis().transpose()).sum();
+    let svd = m.svd(true, true);
+    let s = svd.singular_values;
+    let mut sorted = [s[0], s[1], s[2]];
+    sorted.sort_by(|a, b| b.total_cmp(a));
+    if sorted[1].is_nan() || sorted[1] <= 1e-6 * sorted[0] {
+        return Err(too_few("the tool turns about one axis only"));
+    }
+    let rotation = nearest_rotation(&m);
+    // Translation: (R_A - I) t = R t_B - t_A, in least squares by its normal equations.
+    let (mut normal, mut right) = (Matrix3::zeros(), Vector3::zeros());
+    for (a, b) in &pairs {
+        let k = a.rotation.to_rotation_matrix().into_inner() - Matrix3::identity();
+        normal += k.transpose() * k;
+        right += k.transpose() * (rotation * b.translation.vector - a.translation.vector);
+    }
+    let t = normal.try_inverse().ok_or_else(|| too_few("the tool turns about one axis only"))? * right;
+    let mounting = Isometry3::from_parts(
+        Translation3::from(t),
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(rotation)),
+    );
+    // The world placement: the chordal mean of T_k C N_k^-1.
+    let worlds: Vec<Isometry3<f64>> =
+        views.iter().zip(&n).map(|((tk, _), nk)| tk * mounting * nk.inverse()).collect();
+    let count = worlds.len() as f64;
+    let position = worlds.iter().map(|w| w.translation.vector).sum::<Vector3<f64>>() / count;
+    let mean: Matrix3<f64> = worlds.iter().map(|w| w.rotation.to_rotation_matrix().into_inner()).sum();
+    let world = Isometry3::from_parts(
+        Translation3::from(position),
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(nearest_rotation(&mean))),
+    );
+    Ok(match site {
+        CameraSite::Hand => (mounting, world),
+        CameraSite::World => (world, mounting),
+    })
+}
+
+/// The rotation `R` maximising `trace(R^T m)`: `U diag(1, 1, det(U V^T)) V^T`, `m = U S V^T`.
+fn nearest_rotation(m: &Matrix3<f64>) -> Matrix3<f64> {
+    let svd = m.svd(true, true);
+    let (u, v_t) = (svd.u.expect("asked for U"), svd.v_t.expect("asked for V"));
+    let d = (u * v_t).determinant().signum();
+    u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * v_t
+}
