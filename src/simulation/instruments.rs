@@ -23,10 +23,16 @@
 //!      n_m`, the planes in turn (joint `j` of the largest `|d(n_i . p)/dq_j|` moved from a
 //!      uniform configuration by Newton's method until it touches);
 //!    - a height gauge: the tool point's height `e_z . p + n_m`;
+//!    - a hand-eye camera (a wrist camera): the view `M = A^-1 W` of a target placed at `W` in
+//!      the base frame by a camera mounted at `C` in the tip frame `T(q)`, `A = T(q) C`
+//!      ([`camera`](crate::calibration::kinds::camera)), 6 numbers per view: its position
+//!      plus `n_m` on each axis (mm) and its rotation turned by `exp([n_r]x)`, `n_r ~ N(0,
+//!      sigma_r^2 I)` (the instrument's angle noise);
 //!
-//!    each of the last four calibrated by [`calibrate_kinds`], every joint parameter and the
-//!    tool point asked for, weighted by `V_k` with the study's `Sigma_q` and `sigma_i`
-//!    (WLS);
+//!    each of the last five calibrated by [`calibrate_kinds`], every joint parameter and the
+//!    tool point asked for (the camera: the camera's mounting and the target's placement
+//!    instead of the tool point, which it cannot see), weighted by `V_k` with the study's
+//!    `Sigma_q` and `sigma_i` (WLS);
 //! 3. each calibrated model scored over a common test set of configurations (uniform within
 //!    the joint limits, drawn once per study): the position error after the best rigid
 //!    alignment,
@@ -35,7 +41,11 @@
 //!    p(q_t)|^2`
 //!
 //!    (Kabsch 1976), `p_hat` the calibrated model's tool point and `p` the real robot's,
-//!    noise-free. Distances and contacts cannot see where the robot stands (the base
+//!    noise-free. A camera calibrates the tip frame and the camera's mounting together (what
+//!    of the last link it cannot tell from the mounting, the mounting absorbs): its tool point
+//!    rides with the calibrated camera, `p_hat(q) = T_hat(q) C_hat C^-1 t`, `t` the tool point
+//!    in the tip frame and `C` the nominal mounting (the tool's offset from the camera taken as
+//!    known, as it is in the simulation, where the real mounting is the nominal one). Distances and contacts cannot see where the robot stands (the base
 //!    placement is held at its nominal value), and a user of such an instrument registers the
 //!    robot to its work by other means; the alignment removes exactly what no instrument of
 //!    the study is asked to deliver, and is applied to every instrument alike, the tracker
@@ -54,9 +64,16 @@
 //! - ball bar, 3 s per length: move, settle, read a digital probe;
 //! - height gauge or plane touch, 4 s per contact: a slow approach to the surface and a
 //!   retract;
-//! - length artefact, 6 s per length: two poses, one per end of the artefact.
+//! - length artefact, 6 s per length: two poses, one per end of the artefact;
+//! - wrist camera, 2 s per view: move, settle, one short exposure of the target (the board's
+//!   pose computed from the image while the robot moves on).
 //!
 //! These are assumptions of a careful cell, not measured figures; a study file sets its own.
+//!
+//! The camera's views are drawn at configurations uniform within the joint limits, as every
+//! other instrument's, without asking whether the target is in the camera's field of view: a
+//! real wrist camera sees its target from a narrower set of poses, so the study's camera is an
+//! optimistic one.
 //!
 //! # Random numbers
 //!
@@ -67,7 +84,8 @@
 //! threads.
 
 use super::{ErrorSizes, Redraw, SimulationError, StudyError, TEST_STREAM, draw_errors, normal, rng, stats};
-use crate::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
+use crate::calibration::kinds::camera::{isometry, placement};
+use crate::calibration::kinds::{CameraSite, KindData, KindOptions, Observation, calibrate_kinds};
 use crate::calibration::{
     CalibrationError, Gauge, JointParams, Loss, Measurements, Options, calibrate, register,
 };
@@ -79,7 +97,7 @@ use crate::limits::{
     check_magnitude,
 };
 use crate::model::{JointKind, ModelRef, RobotModel, Selection, Tool};
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::{DMatrix, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Deserialize;
@@ -104,10 +122,24 @@ pub enum InstrumentKind {
     },
     /// A height gauge: the tool point's z (mm).
     HeightGauge,
+    /// A hand-eye (wrist) camera: the pose of a target fixed in the base frame in the frame of
+    /// a camera on the tool, 6 numbers per view (position mm, rotation); the instrument's
+    /// `sigma` is the noise on each position number.
+    Camera {
+        /// The camera's mounting `C` in the tip frame (the frame the tool point is given in;
+        /// position mm, rotation).
+        mounting: Isometry3<f64>,
+        /// The target's placement `W` in the robot's base frame (position mm, rotation).
+        target: Isometry3<f64>,
+        /// The noise on the view's rotation: the standard deviation of each component of the
+        /// rotation vector of the error (rad).
+        sigma_angle: f64,
+    },
 }
 
 impl InstrumentKind {
-    /// The kind's name in a study file: `tracker`, `ball-bar`, `artefact`, `plane`, `height`.
+    /// The kind's name in a study file: `tracker`, `ball-bar`, `artefact`, `plane`, `height`,
+    /// `camera`.
     pub fn name(&self) -> &'static str {
         match self {
             Self::Tracker => "tracker",
@@ -115,6 +147,7 @@ impl InstrumentKind {
             Self::Artefact => "artefact",
             Self::Plane { .. } => "plane",
             Self::HeightGauge => "height",
+            Self::Camera { .. } => "camera",
         }
     }
 }
@@ -126,7 +159,8 @@ pub struct Instrument {
     pub name: String,
     /// What it measures.
     pub kind: InstrumentKind,
-    /// Its measurement noise `sigma_i` (mm) on each measured number.
+    /// Its measurement noise `sigma_i` (mm) on each measured number (a camera: on each
+    /// position number of a view; its angle noise is in [`InstrumentKind::Camera`]).
     pub sigma: f64,
     /// The time one observation takes `t_i` (s).
     pub seconds: f64,
@@ -199,6 +233,16 @@ struct InstrumentFile {
     pivot_mm: Option<[f64; 3]>,
     #[serde(default)]
     planes: Option<Vec<PlaneFile>>,
+    #[serde(default)]
+    sigma_deg: Option<f64>,
+    #[serde(default)]
+    camera_xyz_mm: Option<[f64; 3]>,
+    #[serde(default)]
+    camera_rpy_deg: Option<[f64; 3]>,
+    #[serde(default)]
+    target_xyz_mm: Option<[f64; 3]>,
+    #[serde(default)]
+    target_rpy_deg: Option<[f64; 3]>,
 }
 
 #[derive(Deserialize)]
@@ -263,7 +307,8 @@ impl InstrumentStudy {
     /// non-negative joint sigma per joint, error sizes finite >= 0 within [`crate::limits`], 2 or more runs, 1 or
     /// more test points, a finite positive time budget, and at least one instrument, each
     /// named (names distinct), with a noise finite >= 0, a time per observation > 0 and
-    /// from 2 to [`MAX_POINTS`] observations in the budget, and at most [`MAX_STUDY_WORK`]
+    /// from 2 to [`MAX_POINTS`] observations in the budget (a camera: an angle noise finite >= 0,
+    /// its mounting and target finite), and at most [`MAX_STUDY_WORK`]
     /// kinematic evaluations in all. Errors name the study file's
     /// field (`instruments[1].sigma_mm`).
     pub fn check(&self) -> Result<(), StudyError> {
@@ -314,6 +359,25 @@ impl InstrumentStudy {
                 );
             }
             check_magnitude(sigma, MAX_LENGTH_MM, "mm").map_err(|e| FieldError::new(field("sigma_mm"), e))?;
+            if let InstrumentKind::Camera { mounting, target, sigma_angle } = &instrument.kind {
+                let degrees = sigma_angle.to_degrees();
+                if !(degrees >= 0.0 && degrees.is_finite()) {
+                    let expected = format!("a noise >= 0 deg, found {degrees}");
+                    return Err(FieldError::new(field("sigma_deg"), expected).into());
+                }
+                check_magnitude(degrees, MAX_ANGLE_DEG, "deg")
+                    .map_err(|e| FieldError::new(field("sigma_deg"), e))?;
+                for (name, frame) in [("camera_xyz_mm", mounting), ("target_xyz_mm", target)] {
+                    for &v in frame.translation.vector.iter() {
+                        check_magnitude(v, MAX_LENGTH_MM, "mm")
+                            .map_err(|e| FieldError::new(field(name), e))?;
+                    }
+                    if !frame.rotation.coords.iter().all(|v| v.is_finite()) {
+                        let name = name.replace("xyz_mm", "rpy_deg");
+                        return Err(FieldError::new(field(&name), "finite angles (deg)").into());
+                    }
+                }
+            }
             let seconds = instrument.seconds;
             if !(seconds > 0.0 && seconds.is_finite()) {
                 let expected = format!("a time > 0 s, found {seconds}");
@@ -402,8 +466,47 @@ impl InstrumentFile {
                 InstrumentKind::Plane { planes }
             }
             "height" => InstrumentKind::HeightGauge,
+            "camera" => {
+                let frame = |(xyz_field, xyz): (&str, Option<[f64; 3]>),
+                             (rpy_field, rpy): (&str, Option<[f64; 3]>),
+                             what: &str| {
+                    let xyz =
+                        xyz.ok_or_else(|| FieldError::new(xyz_field, format!("{what}: [x, y, z] (mm)")))?;
+                    let rpy = rpy.ok_or_else(|| {
+                        let expected =
+                            format!("{what}: [roll, pitch, yaw] (deg, R = Rz(yaw) Ry(pitch) Rx(roll))");
+                        FieldError::new(rpy_field, expected)
+                    })?;
+                    if xyz.iter().any(|v| !v.is_finite()) {
+                        return Err(FieldError::new(xyz_field, "finite numbers (mm)"));
+                    }
+                    if rpy.iter().any(|v| !v.is_finite()) {
+                        return Err(FieldError::new(rpy_field, "finite angles (deg)"));
+                    }
+                    let [roll, pitch, yaw] = rpy.map(f64::to_radians);
+                    Ok(Isometry3::from_parts(
+                        Translation3::new(xyz[0], xyz[1], xyz[2]),
+                        UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+                    ))
+                };
+                let mounting = frame(
+                    ("camera_xyz_mm", self.camera_xyz_mm),
+                    ("camera_rpy_deg", self.camera_rpy_deg),
+                    "the camera's mounting in the tip frame",
+                )?;
+                let target = frame(
+                    ("target_xyz_mm", self.target_xyz_mm),
+                    ("target_rpy_deg", self.target_rpy_deg),
+                    "the target's placement in the base frame",
+                )?;
+                let sigma_deg = self
+                    .sigma_deg
+                    .ok_or_else(|| FieldError::new("sigma_deg", "the noise on each angle of a view (deg)"))?;
+                InstrumentKind::Camera { mounting, target, sigma_angle: sigma_deg.to_radians() }
+            }
             other => {
-                let expected = format!("tracker, ball-bar, artefact, plane or height, found {other:?}");
+                let expected =
+                    format!("tracker, ball-bar, artefact, plane, height or camera, found {other:?}");
                 return Err(FieldError::new("kind", expected));
             }
         };
@@ -413,6 +516,16 @@ impl InstrumentFile {
             "ball-bar",
         )?;
         unused("planes", self.planes.is_some() && !matches!(kind, InstrumentKind::Plane { .. }), "plane")?;
+        let camera = matches!(kind, InstrumentKind::Camera { .. });
+        for (field, present) in [
+            ("sigma_deg", self.sigma_deg.is_some()),
+            ("camera_xyz_mm", self.camera_xyz_mm.is_some()),
+            ("camera_rpy_deg", self.camera_rpy_deg.is_some()),
+            ("target_xyz_mm", self.target_xyz_mm.is_some()),
+            ("target_rpy_deg", self.target_rpy_deg.is_some()),
+        ] {
+            unused(field, present && !camera, "camera")?;
+        }
         Ok(Instrument {
             name: self.name.clone(),
             kind,
@@ -469,6 +582,9 @@ pub fn interval(values: &[f64]) -> (f64, f64) {
 /// one, and exact data fit exactly whatever it is.
 pub const EXACT_SIGMA_MM: f64 = 0.001;
 
+/// The angle standard deviation an exact camera (`sigma_deg = 0`) declares (deg).
+pub const EXACT_SIGMA_DEG: f64 = 0.0001;
+
 /// What every run shares: the chain of the measured point, the test set.
 struct Campaign<'a> {
     study: &'a InstrumentStudy,
@@ -505,6 +621,7 @@ pub fn run_instruments(
         })
         .collect::<Result<_, _>>()?;
     let nominal = campaign.chain.with_errors(&vec![0.0; campaign.chain.params().len()]);
+    let nominal: Vec<Vector3<f64>> = campaign.test.iter().map(|q| nominal.position(q)).collect();
     let nominal = truths.iter().map(|t| campaign.score(&nominal, &campaign.chain.with_errors(t))).collect();
     let instruments = study.instruments.len();
     Ok(InstrumentResults { scores: scores.chunks(instruments).map(<[Scores]>::to_vec).collect(), nominal })
@@ -524,7 +641,7 @@ impl Campaign<'_> {
             study.joint_sigmas.len(),
             study.joint_sigmas.iter().map(|s| s * s),
         ));
-        let calibrated = match &instrument.kind {
+        let predicted: Vec<Vector3<f64>> = match &instrument.kind {
             InstrumentKind::Tracker => {
                 let data = self.tracker(&real, count, instrument.sigma, declared, &mut rng);
                 let options = Options {
@@ -542,7 +659,26 @@ impl Campaign<'_> {
                     loss: Loss::Squared,
                     gauge: Gauge::default(),
                 };
-                calibrate(&study.robot, &data, &options).map_err(calibration_error)?.calibrated
+                let calibrated =
+                    calibrate(&study.robot, &data, &options).map_err(calibration_error)?.calibrated;
+                self.tool_points(&calibrated, &Isometry3::identity())
+            }
+            InstrumentKind::Camera { mounting, .. } => {
+                let data = self.kinds(&real, i, count, declared, &mut rng)?;
+                let options = KindOptions {
+                    estimator: Estimator::Wls,
+                    joint_noise: Some(noise_q),
+                    joints: JointParams::All,
+                    estimate_tool: true,
+                    tool: study.tool(),
+                    refine: RefineOptions::default(),
+                };
+                let c = calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?;
+                // The calibrated camera's mounting in the calibrated tip frame; the tool point
+                // at its nominal offset from the camera.
+                let at = c.setup.names().iter().position(|n| n == "camera.x").expect("a camera's set-up");
+                let camera = isometry(&c.setup_values.1[at..at + 6]);
+                self.tool_points(&c.calibrated, &(camera * mounting.inverse()))
             }
             _ => {
                 let data = self.kinds(&real, i, count, declared, &mut rng)?;
@@ -554,18 +690,41 @@ impl Campaign<'_> {
                     tool: study.tool(),
                     refine: RefineOptions::default(),
                 };
-                calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?.calibrated
+                let calibrated =
+                    calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?.calibrated;
+                self.tool_points(&calibrated, &Isometry3::identity())
             }
         };
-        let model = Chain::new(&calibrated);
-        Ok(self.score(&model.with_errors(&vec![0.0; model.params().len()]), &real))
+        Ok(self.score(&predicted, &real))
+    }
+
+    /// The tool points of the calibrated model `calibrated` over the test set, its tool frame
+    /// moved by `correction` (a camera's: its tool point rides with the calibrated camera).
+    fn tool_points(&self, calibrated: &RobotModel, correction: &Isometry3<f64>) -> Vec<Vector3<f64>> {
+        let model = Chain::new(calibrated);
+        let at = model.with_errors(&vec![0.0; model.params().len()]);
+        let tool = match calibrated.tool {
+            Tool::Point(p) => p,
+            Tool::Frame(_) => self.study.tool(),
+        };
+        let tool = Point3::from(tool);
+        self.test
+            .iter()
+            .map(|q| match calibrated.tool {
+                Tool::Point(_) => at.position(q),
+                Tool::Frame(_) => (at.pose(q) * correction * tool).coords,
+            })
+            .collect()
+    }
+
+    /// The joint values `q` read with the joint noise: `q + n_q`.
+    fn noisy(&self, q: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
+        q.iter().zip(&self.study.joint_sigmas).map(|(q, s)| q + s * normal(rng)).collect()
     }
 
     /// The real robot's tool point at `q` read with the joint noise: at `q + n_q`.
     fn at_noisy(&self, real: &ChainAt, q: &[f64], rng: &mut ChaCha8Rng) -> Vector3<f64> {
-        let noisy: Vec<f64> =
-            q.iter().zip(&self.study.joint_sigmas).map(|(q, s)| q + s * normal(rng)).collect();
-        real.position(&noisy)
+        real.position(&self.noisy(q, rng))
     }
 
     /// A tracker's `count` positions, noise `sigma` on each axis, declared `declared`.
@@ -612,6 +771,32 @@ impl Campaign<'_> {
         for k in 0..count {
             let pose = data.joints.len();
             let observation = match kind {
+                InstrumentKind::Camera { mounting, target, sigma_angle } => {
+                    // The view from the real tip frame, the tool point's frame moved back to it.
+                    let q = robot.uniform_configurations(1, rng).remove(0);
+                    let read = self.noisy(&q, rng);
+                    let tip = real.pose(&read) * Translation3::from(-self.study.tool());
+                    let view = (tip * mounting).inverse() * target;
+                    let mut z = || Vector3::new(normal(rng), normal(rng), normal(rng));
+                    let position = view.translation.vector + z() * sigma;
+                    let rotation = UnitQuaternion::from_scaled_axis(z() * *sigma_angle) * view.rotation;
+                    let view = placement(&Isometry3::from_parts(position.into(), rotation));
+                    let declared_angle =
+                        if *sigma_angle > 0.0 { *sigma_angle } else { EXACT_SIGMA_DEG.to_radians() };
+                    data.joints.push(q);
+                    for axis in 0..6 {
+                        let sigma = if axis < 3 { declared } else { declared_angle };
+                        data.observations.push(Observation::Camera {
+                            axis,
+                            pose,
+                            view,
+                            site: CameraSite::Hand,
+                            sigma,
+                        });
+                        data.lines.push(k + 1);
+                    }
+                    continue;
+                }
                 &InstrumentKind::BallBar { pivot } => {
                     let q = robot.uniform_configurations(1, rng).remove(0);
                     let measured = (self.at_noisy(real, &q, rng) - pivot).norm() + sigma * normal(rng);
@@ -640,12 +825,7 @@ impl Campaign<'_> {
                         StudyError::from(FieldError::new(field, "a plane the robot's tool point reaches"))
                     })?;
                     // The joints read with their noise at the touching configuration.
-                    let read = touching
-                        .iter()
-                        .zip(&self.study.joint_sigmas)
-                        .map(|(q, s)| q + s * normal(rng))
-                        .collect();
-                    data.joints.push(read);
+                    data.joints.push(self.noisy(&touching, rng));
                     Observation::Contact { pose, plane, sigma: declared }
                 }
                 InstrumentKind::Tracker => unreachable!("a tracker is calibrated from marker positions"),
@@ -696,11 +876,11 @@ impl Campaign<'_> {
         None
     }
 
-    /// `model` against the real robot over the test set: [`Scores`].
-    fn score(&self, model: &ChainAt, real: &ChainAt) -> Scores {
-        let predicted: Vec<Vector3<f64>> = self.test.iter().map(|q| model.position(q)).collect();
+    /// The tool points `predicted` of a model over the test set against the real robot's:
+    /// [`Scores`].
+    fn score(&self, predicted: &[Vector3<f64>], real: &ChainAt) -> Scores {
         let truth: Vec<Vector3<f64>> = self.test.iter().map(|q| real.position(q)).collect();
-        let t = register(&predicted, &truth);
+        let t = register(predicted, &truth);
         let n = self.test.len() as f64;
         let mean = |f: &dyn Fn(&Vector3<f64>) -> Vector3<f64>| {
             predicted.iter().zip(&truth).map(|(p, r)| (f(p) - r).norm()).sum::<f64>() / n

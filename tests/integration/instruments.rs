@@ -3,7 +3,7 @@
 
 use robocal::model::{ModelRef, RobotModel};
 use robocal::report;
-use robocal::simulation::{INSTRUMENT_STUDIES, InstrumentStudy, StudyError, run_instruments};
+use robocal::simulation::{INSTRUMENT_STUDIES, InstrumentKind, InstrumentStudy, StudyError, run_instruments};
 
 fn load(reference: &ModelRef) -> Result<RobotModel, String> {
     RobotModel::preset(&reference.name).ok_or_else(|| format!("no preset {}", reference.name))
@@ -54,15 +54,25 @@ fn the_same_seed_gives_the_same_table_on_one_and_two_threads() {
     assert_eq!(on_threads(1, &study), on_threads(2, &study));
 }
 
-/// Without noise the tracker, the ball bar and the artefact recover the real robot up to a
+/// Without noise on the joints and the instrument (a camera: position and angle).
+fn exact(study: &mut InstrumentStudy) {
+    study.joint_sigmas.iter_mut().for_each(|s| *s = 0.0);
+    for instrument in &mut study.instruments {
+        instrument.sigma = 0.0;
+        if let InstrumentKind::Camera { sigma_angle, .. } = &mut instrument.kind {
+            *sigma_angle = 0.0;
+        }
+    }
+}
+
+/// Without noise the tracker, the ball bar, the artefact and the camera recover the real robot up to a
 /// rigid motion. A height gauge cannot: heights do not depend on joint 1 and do not see the
 /// geometry the first joint turns about its vertical axis, which is held at nominal (its
 /// error stays well above zero, and says so).
 #[test]
 fn exact_instruments_recover_the_robot() {
     let mut study = reduced(2, 100, 600.0);
-    study.joint_sigmas.iter_mut().for_each(|s| *s = 0.0);
-    study.instruments.iter_mut().for_each(|i| i.sigma = 0.0);
+    exact(&mut study);
     let results = run_instruments(&study, &|| {}).unwrap();
     for (i, instrument) in study.instruments.iter().enumerate() {
         for run in &results.scores {
@@ -72,6 +82,26 @@ fn exact_instruments_recover_the_robot() {
             }
         }
     }
+}
+
+/// A wrist camera alone, exact, mounted turned about every axis and looking at a tilted
+/// board: its calibrated camera frame carries the tool point onto the real robot's (the last
+/// link's errors the camera cannot tell from its mounting are absorbed by the mounting).
+#[test]
+fn an_exact_wrist_camera_recovers_the_robot() {
+    let text = embedded()
+        .replace("camera_rpy_deg = [0.0, 0.0, 0.0]", "camera_rpy_deg = [10.0, -20.0, 30.0]")
+        .replace("target_rpy_deg = [0.0, 0.0, 0.0]", "target_rpy_deg = [170.0, 15.0, -40.0]");
+    let mut study = InstrumentStudy::from_toml_str(&text, load).unwrap();
+    (study.runs, study.test_points, study.time_budget) = (2, 100, 200.0);
+    study.instruments.retain(|i| i.kind.name() == "camera");
+    assert_eq!(study.observations(0), 100, "200 s at 2 s per view");
+    exact(&mut study);
+    let results = run_instruments(&study, &|| {}).unwrap();
+    for run in &results.scores {
+        assert!(run[0].aligned < 1e-6, "a wrist camera: E_p {} mm without noise", run[0].aligned);
+    }
+    assert!(results.nominal.iter().all(|s| s.aligned > 0.5), "{:?}", results.nominal);
 }
 
 /// The error of the embedded study with `from` replaced by `to`, as one line.
@@ -121,6 +151,28 @@ fn errors_in_the_study_file_name_the_field() {
             "instruments[2].planes[0].normal",
         ),
         ("kind = \"height\"", "kind = \"height\"\nplanes = []", "instruments[3].planes"),
+        ("sigma_deg = 0.05", "", "instruments[4].sigma_deg"),
+        ("sigma_deg = 0.05", "sigma_deg = -0.05", "instruments[4].sigma_deg"),
+        ("sigma_deg = 0.05", "sigma_deg = nan", "instruments[4].sigma_deg"),
+        ("camera_xyz_mm = [0.0, -60.0, 100.0]", "", "instruments[4].camera_xyz_mm"),
+        ("camera_rpy_deg = [0.0, 0.0, 0.0]", "", "instruments[4].camera_rpy_deg"),
+        ("target_xyz_mm = [600.0, 0.0, -400.0]", "", "instruments[4].target_xyz_mm"),
+        (
+            "target_xyz_mm = [600.0, 0.0, -400.0]",
+            "target_xyz_mm = [1e12, 0.0, 0.0]",
+            "instruments[4].target_xyz_mm",
+        ),
+        (
+            "target_rpy_deg = [0.0, 0.0, 0.0]",
+            "target_rpy_deg = [inf, 0.0, 0.0]",
+            "instruments[4].target_rpy_deg",
+        ),
+        ("kind = \"artefact\"", "kind = \"artefact\"\nsigma_deg = 0.1", "instruments[2].sigma_deg"),
+        (
+            "kind = \"height\"",
+            "kind = \"height\"\ntarget_rpy_deg = [0.0, 0.0, 0.0]",
+            "instruments[3].target_rpy_deg",
+        ),
     ] {
         let message = error_of(from, to);
         assert!(message.contains(&format!("`{field}`")), "{from} -> {to}: {message}");
@@ -150,7 +202,7 @@ planes = [
 "#;
     let mut study = InstrumentStudy::from_toml_str(&text, load).unwrap();
     (study.runs, study.test_points) = (2, 100);
-    study.instruments.drain(..4);
+    study.instruments.drain(..5);
     study.joint_sigmas.iter_mut().for_each(|s| *s = 0.0);
     let results = run_instruments(&study, &|| {}).unwrap();
     assert!(results.scores.iter().all(|r| r[0].aligned > 100.0), "{:?}", results.scores);
@@ -180,7 +232,7 @@ fn simulate_runs_an_instrument_study_file_and_writes_its_table_and_samples() {
     let tables = std::fs::read_to_string(dir.join("out/instruments/tables.txt")).unwrap();
     assert!(stdout.contains(&tables) && tables.contains("laser tracker"), "{stdout}");
     let csv = std::fs::read_to_string(dir.join("out/instruments/samples.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 1 + 2 * 4, "{csv}");
+    assert_eq!(csv.lines().count(), 1 + 2 * 5, "{csv}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
