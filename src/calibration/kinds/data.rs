@@ -498,7 +498,7 @@ impl KindData {
         if !self.sees_the_scale() && setup.planes() > 0 {
             out.push(
                 "scale: contacts alone cannot see it (every length and plane offset times one factor leaves every \
-                 contact); plane1.d is held at its fit with the nominal robot: add a distance to see it"
+                 contact); the robot's longest length is held at its nominal value: add a distance to see it"
                     .into(),
             );
         }

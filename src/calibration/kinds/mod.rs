@@ -59,10 +59,12 @@
 //! rank-revealing solve then finds among the robot's parameters (the first joint's offset for a
 //! horizontal table): each plane is reported with what it cannot see. Contacts alone cannot see
 //! the scale either: every length of the robot and every plane offset multiplied by one factor
-//! leaves every contact; the first plane's offset is then held at its fit with the nominal
-//! robot (the robot's scale is its nominal one), and said so. A distance fixes the scale. Coordinates see the
-//! measuring frame: with them the base is estimated, as far as they see it (a height alone
-//! sees its z, roll and pitch; the rank-revealing solve holds the rest and says so).
+//! leaves every contact; the robot's longest nominal length is then held (the robot's scale is
+//! its nominal one), and said so. (Holding a plane's offset instead is not enough: the robot
+//! can shrink onto the planes, its first joint's `d` carrying it there, and fit every contact.)
+//! A distance fixes the scale. Coordinates see the measuring frame: with them the base is
+//! estimated, as far as they see it (a height alone sees its z, roll and pitch; the
+//! rank-revealing solve holds the rest and says so).
 //!
 //! # Extending
 //!
@@ -708,7 +710,7 @@ pub fn calibrate_kinds(
         }
     };
     // "After": what was asked for that the observations identify.
-    let (asked, asked_setup) = asked(&params, &setup, data, options)?;
+    let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
     let problem = base_problem.reselect(&asked, zero.clone(), before_setup.clone(), asked_setup.clone());
     if problem.equations() <= problem.parameters() {
         return Err(CalibrationError::TooFewPoses {
@@ -722,7 +724,16 @@ pub fn calibrate_kinds(
     let priority: Vec<u32> = (0..problem.parameters())
         .map(|c| asked.indices().get(c).map_or(0, |&i| gauge_class(params.get(i))))
         .collect();
-    let (identifiable, fixed) = identifiable(&linearised, &problem.names(), &priority)?;
+    let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority)?;
+    if let Some(i) =
+        (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, &params)).flatten()
+    {
+        fixed.push(format!(
+            "{}: held at its nominal value: contacts alone cannot see the robot's scale, which this longest \
+             length sets",
+            params.get(i).name
+        ));
+    }
     let robot = asked.len();
     let kept = Selection::from_indices(
         &params,
@@ -752,10 +763,14 @@ pub fn calibrate_kinds(
 }
 
 /// The robot parameters and the set-up parameters asked for: the joints of `options`, the tool
-/// point unless held or only cameras see it (their mountings are the tool), the base only if coordinates see it; every set-up parameter but, when
+/// point unless held or only cameras see it (their mountings are the tool), the base only if
+/// coordinates see it; every set-up parameter. When
 /// contacts alone cannot see the scale (every length and plane offset times one factor leaves
-/// every contact), the first plane's offset, held at its fit with the nominal robot.
+/// every contact), the robot's longest nominal length is held at its nominal value: it sets the
+/// scale. (Holding a plane's offset instead leaves a robot shrunk onto the planes, its first
+/// joint's `d` carrying it there, as free as the true one: it fits every contact.)
 fn asked(
+    model: &RobotModel,
     params: &ParamSet,
     setup: &SetUp,
     data: &KindData,
@@ -768,10 +783,35 @@ fn asked(
         ParamOwner::Base => data.sees_the_base(),
         _ => false,
     });
-    let robot = Selection::from_indices(params, joints.indices().iter().copied().chain(extra));
-    let scale = 3 * setup.points + 2;
-    let setup = (0..setup.len()).filter(|&i| data.sees_the_scale() || setup.planes() == 0 || i != scale);
-    Ok((robot, setup.collect()))
+    let scale =
+        (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, params)).flatten();
+    let robot = joints.indices().iter().copied().chain(extra).filter(|&i| Some(i) != scale);
+    let robot = Selection::from_indices(params, robot);
+    Ok((robot, (0..setup.len()).collect()))
+}
+
+/// The joint length parameter (`a`, `d`, a URDF origin's `x`, `y`, `z`) of the longest nominal
+/// value: the robot's scale.
+pub(super) fn longest_length(model: &RobotModel, params: &ParamSet) -> Option<usize> {
+    use crate::model::ParamKind;
+    let value = |i: usize| -> f64 {
+        let p = params.get(i);
+        let ParamOwner::Joint(j) = p.owner else { return 0.0 };
+        let joint = &model.joints[j];
+        match p.kind {
+            ParamKind::A => joint.a,
+            ParamKind::D => joint.d,
+            ParamKind::X => joint.origin.xyz.x,
+            ParamKind::Y => joint.origin.xyz.y,
+            ParamKind::Z => joint.origin.xyz.z,
+            _ => 0.0,
+        }
+        .abs()
+    };
+    // The first of equal lengths.
+    (0..params.len())
+        .filter(|&i| value(i) > 0.0)
+        .max_by(|&a, &b| value(a).total_cmp(&value(b)).then(b.cmp(&a)))
 }
 
 /// The columns of `linearised` to estimate, and the others in words: first those it does not
