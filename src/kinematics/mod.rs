@@ -411,7 +411,10 @@ impl Chain {
         if let (Some(payload), Some(i)) = (&mut load.payload, self.payload) {
             payload.mass += x[i];
         }
-        ChainAt { steps, arm: self.arm, dof: self.dof, load, deflection, payload: self.payload }
+        // The load of one kilogram of payload, for the payload mass's column: built once here,
+        // not at every pose.
+        let unit_payload = self.payload.and_then(|_| load.unit_payload());
+        ChainAt { steps, arm: self.arm, dof: self.dof, load, deflection, payload: self.payload, unit_payload }
     }
 }
 
@@ -430,6 +433,9 @@ pub struct ChainAt {
     deflection: Option<Vec<Deflection>>,
     /// The payload mass's parameter, if the model carries a payload.
     payload: Option<usize>,
+    /// One kilogram at the payload's centre of mass, the links massless, if the model carries
+    /// a payload.
+    unit_payload: Option<gravity::Load>,
 }
 
 impl ChainAt {
@@ -460,8 +466,8 @@ impl ChainAt {
         }
         let (mut tau, mut per_kg) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
         self.gravity_torques(q, &mut tau[..self.dof]);
-        if let (Some(_), Some(unit)) = (payload, self.load.unit_payload()) {
-            self.torques_of(&unit, q, &mut per_kg[..self.dof]);
+        if let (Some(_), Some(unit)) = (payload, &self.unit_payload) {
+            self.torques_of(unit, q, &mut per_kg[..self.dof]);
             let compliance = self.deflection.as_ref().map(|d| d.iter().map(|d| d.compliance));
             for (u, c) in per_kg[..self.dof].iter_mut().zip(compliance.into_iter().flatten()) {
                 *u *= c;

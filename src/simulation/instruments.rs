@@ -272,13 +272,7 @@ impl InstrumentStudy {
         let file: File = toml::from_str(text).map_err(StudyError::Syntax)?;
         let reference = ModelRef { name: file.robot.clone(), base_link: None, tip_link: None, payload: None };
         let robot = load_robot(&reference).map_err(|e| StudyError::Robot(e.into()))?;
-        if file.noise.joint_sigma.len() != robot.dof() {
-            let expected = format!("{} values, one per joint of {}", robot.dof(), robot.name);
-            return Err(FieldError::new("noise.joint_sigma", expected).into());
-        }
-        let joint_sigmas = (robot.joints.iter().zip(&file.noise.joint_sigma))
-            .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
-            .collect();
+        let joint_sigmas = super::study::joint_sigmas(&robot, &file.noise.joint_sigma)?;
         let instruments = (file.instruments.iter().enumerate())
             .map(|(i, f)| f.instrument().map_err(|e| e.within(&format!("instruments[{i}]."))))
             .collect::<Result<_, _>>()?;
@@ -663,7 +657,7 @@ impl Campaign<'_> {
                     calibrate(&study.robot, &data, &options).map_err(calibration_error)?.calibrated;
                 self.tool_points(&calibrated, &Isometry3::identity())
             }
-            InstrumentKind::Camera { mounting, .. } => {
+            kind => {
                 let data = self.kinds(&real, i, count, declared, &mut rng)?;
                 let options = KindOptions {
                     estimator: Estimator::Wls,
@@ -674,25 +668,17 @@ impl Campaign<'_> {
                     refine: RefineOptions::default(),
                 };
                 let c = calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?;
-                // The calibrated camera's mounting in the calibrated tip frame; the tool point
-                // at its nominal offset from the camera.
-                let at = c.setup.names().iter().position(|n| n == "camera.x").expect("a camera's set-up");
-                let camera = isometry(&c.setup_values.1[at..at + 6]);
-                self.tool_points(&c.calibrated, &(camera * mounting.inverse()))
-            }
-            _ => {
-                let data = self.kinds(&real, i, count, declared, &mut rng)?;
-                let options = KindOptions {
-                    estimator: Estimator::Wls,
-                    joint_noise: Some(noise_q),
-                    joints: JointParams::All,
-                    estimate_tool: true,
-                    tool: study.tool(),
-                    refine: RefineOptions::default(),
+                let tool = match kind {
+                    // The calibrated camera's mounting in the calibrated tip frame; the tool
+                    // point at its nominal offset from the camera.
+                    InstrumentKind::Camera { mounting, .. } => {
+                        let at =
+                            c.setup.names().iter().position(|n| n == "camera.x").expect("a camera's set-up");
+                        isometry(&c.setup_values.1[at..at + 6]) * mounting.inverse()
+                    }
+                    _ => Isometry3::identity(),
                 };
-                let calibrated =
-                    calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?.calibrated;
-                self.tool_points(&calibrated, &Isometry3::identity())
+                self.tool_points(&c.calibrated, &tool)
             }
         };
         Ok(self.score(&predicted, &real))

@@ -382,18 +382,7 @@ impl Study {
             .map(|e| e.parse())
             .collect::<Result<_, String>>()
             .map_err(|e| FieldError::new("estimators", e))?;
-        if file.noise.joint_sigma.len() != robot.dof() {
-            return invalid(
-                "noise.joint_sigma",
-                format!("{} values, one per joint of {}", robot.dof(), robot.name),
-            );
-        }
-        let joint_sigmas = robot
-            .joints
-            .iter()
-            .zip(&file.noise.joint_sigma)
-            .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
-            .collect::<Vec<_>>();
+        let joint_sigmas = joint_sigmas(&robot, &file.noise.joint_sigma)?;
         if file.cases.points.is_empty() || file.cases.sigma_me_mm.is_empty() {
             return invalid("cases", "at least one value in `points` and in `sigma_me_mm`".into());
         }
@@ -660,6 +649,18 @@ impl Study {
     pub fn reference_for(&self, case: &Case) -> Option<&Reference> {
         self.reference.iter().find(|r| r.points == case.points && r.sigma_me_mm == case.sigma_me)
     }
+}
+
+/// The `noise.joint_sigma` of a study file (deg; mm for a prismatic joint), one per joint of
+/// `robot`, in rad and mm.
+pub(crate) fn joint_sigmas(robot: &RobotModel, sigmas: &[f64]) -> Result<Vec<f64>, StudyError> {
+    if sigmas.len() != robot.dof() {
+        let expected = format!("{} values, one per joint of {}", robot.dof(), robot.name);
+        return Err(FieldError::new("noise.joint_sigma", expected).into());
+    }
+    Ok((robot.joints.iter().zip(sigmas))
+        .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
+        .collect())
 }
 
 /// A study's name, which names its output folder: letters, digits, `-` or `_`.

@@ -2,6 +2,7 @@
 //! start, exact recovery without noise, estimates within 3 predicted standard errors with
 //! noise, what a camera cannot see, and the command end to end.
 
+use crate::kinds::h_matches_finite_differences;
 use crate::kinematics::{point, robot};
 use nalgebra::{DMatrix, DVector, Isometry3, UnitQuaternion, Vector3, Vector6};
 use proptest::prelude::*;
@@ -39,29 +40,7 @@ fn check_camera_jacobians(model: &RobotModel, u: &[f64], site: CameraSite) -> Re
     let s: Vec<f64> = (0..12).map(|i| u[60 + i] * if i % 6 < 3 { 300.0 } else { 2.0 }).collect();
     let all = Selection::all(params);
     let problem = KindProblem::new(&chain, &all, &data, &setup, x, s, (0..12).collect(), None);
-    let x0 = problem.start();
-    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
-    problem.evaluate(&x0, Some(&mut h));
-    for c in 0..problem.parameters() {
-        let step = 1e-6 * x0[c].abs().max(1.0);
-        let (mut plus, mut minus) = (x0.clone(), x0.clone());
-        plus[c] += step;
-        minus[c] -= step;
-        let fd: DVector<f64> =
-            -(problem.evaluate(&plus, None) - problem.evaluate(&minus, None)) / (2.0 * step);
-        for r in 0..problem.equations() {
-            let gap = (h[(r, c)] - fd[r]).abs();
-            prop_assert!(
-                gap < 1e-5 * h.row(r).amax().max(1.0),
-                "row {r} ({:?}), column {c} ({}): H {} against {}",
-                data.observations[r],
-                problem.names()[c],
-                h[(r, c)],
-                fd[r]
-            );
-        }
-    }
-    Ok(())
+    h_matches_finite_differences(&problem, &data)
 }
 
 proptest! {

@@ -58,6 +58,15 @@ fn check_kind_jacobians(model: &RobotModel, u: &[f64], angles: bool) -> Result<(
     let all = Selection::all(params);
     let every: Vec<usize> = (0..setup.len()).collect();
     let problem = KindProblem::new(&chain, &all, &data, &setup, x.clone(), s.clone(), every, None);
+    h_matches_finite_differences(&problem, &data)
+}
+
+/// Every column of `problem`'s `H` at its start against central differences of its residuals
+/// (`y = m - f`), relative to the row's largest entry (or absolute below 1).
+pub(crate) fn h_matches_finite_differences(
+    problem: &KindProblem<'_>,
+    data: &KindData,
+) -> Result<(), TestCaseError> {
     let x0 = problem.start();
     let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
     problem.evaluate(&x0, Some(&mut h));
