@@ -17,7 +17,7 @@
 //! The reader reads the text once; each file kind then picks its columns from it.
 
 use crate::limits::{MAX_ANGLE_DEG, MAX_LENGTH_MM, check_magnitude};
-use crate::model::{JointKind, RobotModel};
+use crate::model::{Joint, JointKind, RobotModel};
 use std::borrow::Cow;
 
 /// Units of a table file.
@@ -156,12 +156,16 @@ impl Table {
     /// The column of each of `model`'s joints, named after the joint; an error names the first
     /// joint missing and lists the model's joints.
     pub fn joint_columns(&self, model: &RobotModel) -> Result<Vec<usize>, DataError> {
-        model
-            .joints
+        self.columns_of(&model.joints)
+    }
+
+    /// The column of each of `joints`, named after the joint, as [`Table::joint_columns`].
+    pub fn columns_of(&self, joints: &[Joint]) -> Result<Vec<usize>, DataError> {
+        joints
             .iter()
             .map(|j| {
                 self.column(&j.name).ok_or_else(|| {
-                    let expected: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
+                    let expected: Vec<&str> = joints.iter().map(|j| j.name.as_str()).collect();
                     let message =
                         format!("missing joint column; the model's joints are {}", expected.join(", "));
                     DataError::new(self.header_line, Some(&j.name), message)
@@ -209,8 +213,19 @@ impl Table {
         model: &RobotModel,
         units: Units,
     ) -> Result<Vec<f64>, DataError> {
-        model
-            .joints
+        self.values_of(row, columns, &model.joints, units)
+    }
+
+    /// The values of `joints` in `row`, from their `columns` ([`Table::columns_of`]), as
+    /// [`Table::joint_values`].
+    pub fn values_of(
+        &self,
+        row: &Row,
+        columns: &[usize],
+        joints: &[Joint],
+        units: Units,
+    ) -> Result<Vec<f64>, DataError> {
+        joints
             .iter()
             .zip(columns)
             .map(|(joint, &c)| {

@@ -20,6 +20,7 @@ pub mod kinds;
 mod repeatability;
 pub mod robust;
 pub mod selection;
+pub mod tree;
 
 pub use data::Measurements;
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};

@@ -133,29 +133,47 @@ pub fn chain_links(
     base_link: Option<&str>,
     tip_link: Option<&str>,
 ) -> Result<(String, String), ModelError> {
+    let (roots, leaves) = ends(text)?;
+    let pick = |given: Option<&str>, candidates: &[String], field: &str, role: &str, flag: &str| {
+        if let Some(given) = given {
+            return Ok(given.to_string());
+        }
+        match candidates {
+            [one] => Ok(one.clone()),
+            _ => {
+                let names: Vec<&str> = candidates.iter().map(String::as_str).collect();
+                Err(invalid(field.into(), format!("a single {role}, found {}: give {flag}", list(&names))))
+            }
+        }
+    };
+    let base = pick(base_link, &roots, "base link", "root link to start the chain at", "--base-link")?;
+    let tip = pick(tip_link, &leaves, "tip link", "leaf link to end the chain at", "--tip-link")?;
+    Ok((base, tip))
+}
+
+/// The root links of `text` (no joint's child) and its leaf links (no joint's parent), in the
+/// file's order.
+pub(super) fn ends(text: &str) -> Result<(Vec<String>, Vec<String>), ModelError> {
     let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
     let robot = document.root_element();
     let joints: Vec<_> = robot.children().filter(|n| n.has_tag_name("joint")).collect();
     let links: Vec<&str> =
         robot.children().filter(|n| n.has_tag_name("link")).filter_map(|n| n.attribute("name")).collect();
     // the links that are no joint's `tag` (child: roots; parent: leaves)
-    let pick = |given: Option<&str>, field: &str, role: &str, tag: &str, flag: &str| {
-        if let Some(given) = given {
-            return Ok(given.to_string());
-        }
-        let candidates: Vec<&str> =
-            links.iter().copied().filter(|l| !joints.iter().any(|j| link_of(j, tag) == *l)).collect();
-        match candidates[..] {
-            [one] => Ok(one.to_string()),
-            _ => Err(invalid(
-                field.into(),
-                format!("a single {role}, found {}: give {flag}", list(&candidates)),
-            )),
-        }
+    let no = |tag: &str| -> Vec<String> {
+        (links.iter())
+            .filter(|l| !joints.iter().any(|j| link_of(j, tag) == **l))
+            .map(|l| l.to_string())
+            .collect()
     };
-    let base = pick(base_link, "base link", "root link to start the chain at", "child", "--base-link")?;
-    let tip = pick(tip_link, "tip link", "leaf link to end the chain at", "parent", "--tip-link")?;
-    Ok((base, tip))
+    Ok((no("child"), no("parent")))
+}
+
+/// Whether a joint on the chain of `text` from `base_link` to `tip_link` moves (is not fixed).
+pub(super) fn chain_moves(text: &str, base_link: &str, tip_link: &str) -> Result<bool, ModelError> {
+    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
+    let chain = chain(document.root_element(), base_link, tip_link)?;
+    Ok(chain.iter().any(|j| j.attribute("type") != Some("fixed")))
 }
 
 /// `a, b, c` in backticks, or `none`.

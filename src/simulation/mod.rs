@@ -31,6 +31,7 @@ mod replication;
 mod stats;
 mod study;
 mod synthetic;
+pub mod tree;
 
 pub use instruments::{
     EXACT_SIGMA_MM, INSTRUMENT_STUDIES, Instrument, InstrumentKind, InstrumentResults, InstrumentStudy,

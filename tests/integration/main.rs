@@ -23,4 +23,5 @@ mod report;
 mod robust;
 mod selection;
 mod simulation;
+mod tree;
 mod urdf;

@@ -93,6 +93,67 @@ pub(super) struct ViewRow {
     pub by_world: Vector6<f64>,
 }
 
+/// The view `M = A^-1 B` of the target's frame `B` from the camera's frame `A` against the
+/// measured one: its six residuals `y = (m_t - t_M, log(R_m R_M^T))` and `S_A`, `S_B`, the
+/// derivatives `-dy` with respect to the twists `(dp, omega)` of `A` and of `B` (base frame):
+///
+/// `S_A = [-R_A^T, R_A^T [p_B - p_A]x; 0, -J_r^-1(y_r) R_A^T]`,
+/// `S_B = [R_A^T, 0; 0, J_r^-1(y_r) R_A^T]`.
+#[derive(Debug, Clone, Copy)]
+pub struct RelativeView {
+    /// The residuals: position (mm), rotation vector (rad).
+    pub residual: Vector6<f64>,
+    /// `-dy / d(twist of A)`.
+    pub by_a: Matrix6<f64>,
+    /// `-dy / d(twist of B)`.
+    pub by_b: Matrix6<f64>,
+}
+
+/// The [`RelativeView`] of the measured view `view` (position mm, rotation vector rad) between
+/// the frames `a` (the camera's) and `b` (the target's).
+pub fn relative_view(view: &Vector6<f64>, a: &Isometry3<f64>, b: &Isometry3<f64>) -> RelativeView {
+    let m = a.inverse() * b;
+    let measured = isometry(view.as_slice());
+    let y_t = measured.translation.vector - m.translation.vector;
+    let y_r = (measured.rotation * m.rotation.inverse()).scaled_axis();
+    let r_a_t = a.rotation.to_rotation_matrix().into_inner().transpose();
+    let jr_inv = left_jacobian(&-y_r).try_inverse().unwrap_or_else(Matrix3::zeros);
+    let d = b.translation.vector - a.translation.vector;
+    let mut by_a = Matrix6::zeros();
+    by_a.fixed_view_mut::<3, 3>(0, 0).copy_from(&-r_a_t);
+    by_a.fixed_view_mut::<3, 3>(0, 3).copy_from(&(r_a_t * d.cross_matrix()));
+    by_a.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-jr_inv * r_a_t));
+    let mut by_b = Matrix6::zeros();
+    by_b.fixed_view_mut::<3, 3>(0, 0).copy_from(&r_a_t);
+    by_b.fixed_view_mut::<3, 3>(3, 3).copy_from(&(jr_inv * r_a_t));
+    RelativeView { residual: Vector6::new(y_t.x, y_t.y, y_t.z, y_r.x, y_r.y, y_r.z), by_a, by_b }
+}
+
+/// A frame mounted on a tool, `X = T C` (`C` the mounting `(x, y, z, rx, ry, rz)`), and the
+/// derivatives of its twist: `E_T = [I, -[p_X - p_T]x; 0, I]` by the tool's error `(dp, omega)`
+/// and `E_C = [R_T, 0; 0, R_T J_l(r)]` by the mounting's `(dt, dr)`.
+pub fn mounted(tool: &Isometry3<f64>, mounting: &[f64]) -> (Isometry3<f64>, Matrix6<f64>, Matrix6<f64>) {
+    let frame = tool * isometry(mounting);
+    let r_t = tool.rotation.to_rotation_matrix().into_inner();
+    let arm = frame.translation.vector - tool.translation.vector;
+    let mut by_tool = Matrix6::identity();
+    by_tool.fixed_view_mut::<3, 3>(0, 3).copy_from(&-arm.cross_matrix());
+    let mut by_mounting = Matrix6::zeros();
+    by_mounting.fixed_view_mut::<3, 3>(0, 0).copy_from(&r_t);
+    let j_mounting = left_jacobian(&Vector3::new(mounting[3], mounting[4], mounting[5]));
+    by_mounting.fixed_view_mut::<3, 3>(3, 3).copy_from(&(r_t * j_mounting));
+    (frame, by_tool, by_mounting)
+}
+
+/// A frame placed in the base frame, `W` of `(x, y, z, rx, ry, rz)`, and the derivative of
+/// its twist by its placement: `E_W = [I, 0; 0, J_l(r)]`.
+pub fn placed(world: &[f64]) -> (Isometry3<f64>, Matrix6<f64>) {
+    let mut by_world = Matrix6::identity();
+    let j_world = left_jacobian(&Vector3::new(world[3], world[4], world[5]));
+    by_world.fixed_view_mut::<3, 3>(3, 3).copy_from(&j_world);
+    (isometry(world), by_world)
+}
+
 /// Row `axis` of the view `view` (position mm, rotation vector rad) predicted at the tool frame
 /// `tool` with the camera at `site`, the mounting `mounting` and the world placement `world`
 /// (each `x, y, z, rx, ry, rz`): its residual and its `H` row by the [module](self)'s equations.
@@ -104,44 +165,15 @@ pub(super) fn view_row(
     mounting: &[f64],
     world: &[f64],
 ) -> ViewRow {
-    let mounted = tool * isometry(mounting);
-    let placed = isometry(world);
-    let (a, b) = match site {
-        CameraSite::Hand => (mounted, placed),
-        CameraSite::World => (placed, mounted),
+    let (mounted, from_tool, from_mounting) = mounted(tool, mounting);
+    let (placed, from_world) = placed(world);
+    let (v, mounted_is_a) = match site {
+        CameraSite::Hand => (relative_view(view, &mounted, &placed), true),
+        CameraSite::World => (relative_view(view, &placed, &mounted), false),
     };
-    let m = a.inverse() * b;
-    let measured = isometry(view.as_slice());
-    let y_t = measured.translation.vector - m.translation.vector;
-    let y_r = (measured.rotation * m.rotation.inverse()).scaled_axis();
-    let residual = if axis < 3 { y_t[axis] } else { y_r[axis - 3] };
-    // The row of S = diag(I, J_r^-1(y_r)) times d(view)/d(twist of A) and of B.
-    let r_a_t = a.rotation.to_rotation_matrix().into_inner().transpose();
-    let jr_inv = left_jacobian(&-y_r).try_inverse().unwrap_or_else(Matrix3::zeros);
-    let d = b.translation.vector - a.translation.vector;
-    let mut by_a = Matrix6::zeros();
-    by_a.fixed_view_mut::<3, 3>(0, 0).copy_from(&-r_a_t);
-    by_a.fixed_view_mut::<3, 3>(0, 3).copy_from(&(r_a_t * d.cross_matrix()));
-    by_a.fixed_view_mut::<3, 3>(3, 3).copy_from(&(-jr_inv * r_a_t));
-    let mut by_b = Matrix6::zeros();
-    by_b.fixed_view_mut::<3, 3>(0, 0).copy_from(&r_a_t);
-    by_b.fixed_view_mut::<3, 3>(3, 3).copy_from(&(jr_inv * r_a_t));
-    let (row_mounted, row_placed) = match site {
-        CameraSite::Hand => (by_a.row(axis).transpose(), by_b.row(axis).transpose()),
-        CameraSite::World => (by_b.row(axis).transpose(), by_a.row(axis).transpose()),
-    };
-    // Twists: of the mounted frame by the tool's error and by the mounting, of the placed one.
-    let r_t = tool.rotation.to_rotation_matrix().into_inner();
-    let arm = mounted.translation.vector - tool.translation.vector;
-    let mut from_tool = Matrix6::identity();
-    from_tool.fixed_view_mut::<3, 3>(0, 3).copy_from(&-arm.cross_matrix());
-    let mut from_mounting = Matrix6::zeros();
-    from_mounting.fixed_view_mut::<3, 3>(0, 0).copy_from(&r_t);
-    let j_mounting = left_jacobian(&Vector3::new(mounting[3], mounting[4], mounting[5]));
-    from_mounting.fixed_view_mut::<3, 3>(3, 3).copy_from(&(r_t * j_mounting));
-    let mut from_world = Matrix6::identity();
-    let j_world = left_jacobian(&Vector3::new(world[3], world[4], world[5]));
-    from_world.fixed_view_mut::<3, 3>(3, 3).copy_from(&j_world);
+    let (row_a, row_b) = (v.by_a.row(axis).transpose(), v.by_b.row(axis).transpose());
+    let (row_mounted, row_placed) = if mounted_is_a { (row_a, row_b) } else { (row_b, row_a) };
+    let residual = v.residual[axis];
     ViewRow {
         residual,
         by_tool: from_tool.tr_mul(&row_mounted),

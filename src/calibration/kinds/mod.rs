@@ -818,7 +818,7 @@ pub(super) fn longest_length(model: &RobotModel, params: &ParamSet) -> Option<us
 /// move at all (a column norm below 1e-10 of the largest: the column scaling of the
 /// rank-revealing solve would blow their rounding up into directions of their own), then the
 /// combinations the rank-revealing solve holds, by `priority` ([`gauge_class`]).
-fn identifiable(
+pub(super) fn identifiable(
     linearised: &Linearisation,
     names: &[String],
     priority: &[u32],

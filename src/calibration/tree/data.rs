@@ -1,0 +1,213 @@
+//! The file of a tree's camera views (see `docs/formats.md`):
+//!
+//! ```text
+//! # units: joints=deg, lengths=mm
+//! camera,target,torso,head_pan,head_tilt,l1,...,r6,x,y,z,roll,pitch,yaw
+//! head_camera,l_target,10,-5,20,...,12.5,-40.2,480.1,3.2,-1.5,88.0
+//! ```
+//!
+//! `camera` and `target` name the branch (its tip link) each is fixed to, or `world` for one
+//! fixed in the root link's frame; the joint columns are the tree's joints (every one, each
+//! once); `x, y, z` (length unit) and `roll, pitch, yaw` (the joints' angle unit,
+//! `R = Rz(yaw) Ry(pitch) Rx(roll)`) the target's pose in the camera's frame. Optional `sigma`
+//! (length unit) and `sigma_angle` (angle unit) per row, by default
+//! [`DEFAULT_CAMERA_SIGMA_MM`](crate::calibration::kinds::DEFAULT_CAMERA_SIGMA_MM) and
+//! [`DEFAULT_CAMERA_SIGMA_DEG`](crate::calibration::kinds::DEFAULT_CAMERA_SIGMA_DEG).
+
+use crate::calibration::CalibrationError;
+use crate::calibration::kinds::{DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM};
+use crate::limits::MAX_LENGTH_MM;
+use crate::model::RobotTree;
+use crate::table::{DataError, Row, Table, Units};
+use nalgebra::{UnitQuaternion, Vector6};
+
+/// What a [`Frame`] is: a camera or a target.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// A camera.
+    Camera,
+    /// A target it sees.
+    Target,
+}
+
+/// A camera or a target, fixed to a branch's tip link or placed in the root link's frame:
+/// 6 set-up parameters, its placement `(x, y, z, rx, ry, rz)` (mm, rotation vector rad) in
+/// that frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Frame {
+    /// A camera or a target.
+    pub role: Role,
+    /// The branch whose tip it is fixed to; `None`: fixed in the root link's frame.
+    pub on: Option<usize>,
+}
+
+impl Frame {
+    /// `camera.<tip>` or `target.<tip>` (`world` for the root link's frame), `tips` the
+    /// branches' tip links.
+    pub fn name(&self, tips: &[String]) -> String {
+        let role = match self.role {
+            Role::Camera => "camera",
+            Role::Target => "target",
+        };
+        let on = self.on.map_or("world", |b| tips[b].as_str());
+        format!("{role}.{on}")
+    }
+}
+
+/// One camera view: the target's pose in the camera's frame at one pose of the tree.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct View {
+    /// The pose (an index into [`TreeData::joints`]).
+    pub pose: usize,
+    /// The camera's frame (an index into [`TreeData::frames`]).
+    pub camera: usize,
+    /// The target's frame.
+    pub target: usize,
+    /// The target's pose in the camera frame: position (mm), rotation vector (rad).
+    pub view: Vector6<f64>,
+    /// Standard deviations of the position (mm) and of each rotation component (rad).
+    pub sigma: [f64; 2],
+}
+
+/// A set of camera views of a tree, with the file line of each.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TreeData {
+    /// The joint values of each pose (rad, mm), one per tree joint.
+    pub joints: Vec<Vec<f64>>,
+    /// The cameras and targets the views name, each once.
+    pub frames: Vec<Frame>,
+    /// The views.
+    pub views: Vec<View>,
+    /// The file line of each view.
+    pub lines: Vec<usize>,
+}
+
+impl TreeData {
+    /// Read a file of views of `tree` (see the [module](self)); `units` from the caller take the
+    /// place of the file's `# units:` line.
+    pub fn from_csv_str(text: &str, tree: &RobotTree, units: Option<Units>) -> Result<Self, DataError> {
+        let table = Table::parse(text)?;
+        let units = table.units(units, " or give --joint-unit and --length-unit")?;
+        let joints = table.columns_of(&tree.joints)?;
+        let needed = |name: &str| {
+            table.column(name).ok_or_else(|| {
+                DataError::new(
+                    table.header_line,
+                    Some(name),
+                    "missing column; a view has camera, target, the tree's joints, x, y, z, roll, pitch, yaw",
+                )
+            })
+        };
+        let (camera, target) = (needed("camera")?, needed("target")?);
+        let axes = ["x", "y", "z", "roll", "pitch", "yaw"].map(needed);
+        let axes: Vec<usize> = axes.into_iter().collect::<Result<_, _>>()?;
+        let (sigma, sigma_angle) = (table.column("sigma"), table.column("sigma_angle"));
+        let mut data = Self::default();
+        for row in table.nonempty_rows()? {
+            let camera = data.frame(tree, &table, row, camera, Role::Camera)?;
+            let target = data.frame(tree, &table, row, target, Role::Target)?;
+            let (a, b) = (data.frames[camera].on, data.frames[target].on);
+            if a == b {
+                let on = a.map_or("world", |b| tree.branches[b].tip.as_str());
+                let message = format!("camera and target both on `{on}`: the view sees no joint");
+                return Err(DataError::new(row.line, Some("target"), message));
+            }
+            let mut v = [0.0; 6];
+            for (axis, &c) in axes.iter().enumerate() {
+                let value = table.number(row, c)?;
+                v[axis] = match axis < 3 {
+                    true => table.within(row, c, value * units.length_scale(), MAX_LENGTH_MM, "mm")?,
+                    false => units.angle(value),
+                };
+            }
+            let rotation = UnitQuaternion::from_euler_angles(v[3], v[4], v[5]).scaled_axis();
+            let positive = |c: Option<usize>, scale: f64| -> Result<Option<f64>, DataError> {
+                let Some(c) = c.filter(|&c| !row.cells[c].is_empty()) else { return Ok(None) };
+                let value = table.number(row, c)? * scale;
+                if value <= 0.0 {
+                    let message = format!("{value}: expected a value > 0");
+                    return Err(DataError::new(row.line, Some(&table.header[c]), message));
+                }
+                Ok(Some(value))
+            };
+            let sigma = [
+                positive(sigma, units.length_scale())?.unwrap_or(DEFAULT_CAMERA_SIGMA_MM),
+                positive(sigma_angle, 1.0)?.map_or(DEFAULT_CAMERA_SIGMA_DEG.to_radians(), |v| units.angle(v)),
+            ];
+            data.views.push(View {
+                pose: data.joints.len(),
+                camera,
+                target,
+                view: Vector6::new(v[0], v[1], v[2], rotation.x, rotation.y, rotation.z),
+                sigma,
+            });
+            data.joints.push(table.values_of(row, &joints, &tree.joints, units)?);
+            data.lines.push(row.line);
+        }
+        Ok(data)
+    }
+
+    /// The frame of `role` that `column` of `row` names (a branch's tip or `world`), added if new.
+    fn frame(
+        &mut self,
+        tree: &RobotTree,
+        table: &Table,
+        row: &Row,
+        column: usize,
+        role: Role,
+    ) -> Result<usize, DataError> {
+        let name = row.cells[column].as_str();
+        let on = match name {
+            "world" => None,
+            tip => Some(tree.branch(tip).ok_or_else(|| {
+                let tips: Vec<&str> = tree.branches.iter().map(|b| b.tip.as_str()).collect();
+                let message = format!("`{tip}`: expected world or a tip link: {}", tips.join(", "));
+                DataError::new(row.line, Some(&table.header[column]), message)
+            })?),
+        };
+        let frame = Frame { role, on };
+        Ok(match self.frames.iter().position(|f| *f == frame) {
+            Some(i) => i,
+            None => {
+                self.frames.push(frame);
+                self.frames.len() - 1
+            }
+        })
+    }
+}
+
+impl TreeData {
+    /// Refuse views that do not fit (for data built by hand rather than read): a pose or a
+    /// frame that does not exist, joint values not one finite value per tree joint, a view not
+    /// finite, a sigma not finite and above 0, a view whose camera and target are on one
+    /// branch, a line missing.
+    pub fn check(&self, params: &super::TreeParams) -> Result<(), CalibrationError> {
+        let bad = |what: String| Err(CalibrationError::Observations(what));
+        let dof = params.dof();
+        if self.lines.len() != self.views.len() {
+            return bad(format!("{} lines for {} views", self.lines.len(), self.views.len()));
+        }
+        if let Some(k) = self.joints.iter().position(|q| q.len() != dof || q.iter().any(|v| !v.is_finite())) {
+            return bad(format!("pose {k}: expected {dof} finite joint values"));
+        }
+        if let Some(f) = self.frames.iter().position(|f| f.on.is_some_and(|b| b >= params.branches())) {
+            return bad(format!("frame {f}: on a branch the tree does not have"));
+        }
+        for (view, line) in self.views.iter().zip(&self.lines) {
+            let frames = self.frames.len();
+            if view.pose >= self.joints.len() || view.camera >= frames || view.target >= frames {
+                return bad(format!("line {line}: a pose or frame that does not exist"));
+            }
+            if self.frames[view.camera].on == self.frames[view.target].on {
+                return bad(format!("line {line}: camera and target on one branch: the view sees no joint"));
+            }
+            if view.view.iter().any(|v| !v.is_finite()) {
+                return bad(format!("line {line}: a view of finite values expected"));
+            }
+            if view.sigma.iter().any(|s| !s.is_finite() || *s <= 0.0) {
+                return bad(format!("line {line}: sigmas finite and above 0 expected"));
+            }
+        }
+        Ok(())
+    }
+}

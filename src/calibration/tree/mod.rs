@@ -1,0 +1,696 @@
+//! Several chains: a tree (a torso carrying two arms and a head camera, [`RobotTree`])
+//! calibrated in one fit from camera views between its branches.
+//!
+//! # The observation model
+//!
+//! A view is the camera of [`camera`](super::kinds::camera)'s model, with either frame on any
+//! branch: the camera's frame `A` and the target's frame `B` are each fixed to a branch's tip,
+//! `X = T_b(q) C` (`T_b` the tip link's frame of branch `b` at the tree's joint values `q`,
+//! `C` the mounting, 6 set-up parameters), or placed in the root link's frame, `X = W`. The
+//! camera measures `M = A^-1 B`, six residuals `y = (m_t - t_M, log(R_m R_M^T))`, and
+//!
+//! `H_k = S_A dA/dx + S_B dB/dx`,
+//!
+//! `S_A`, `S_B` the derivatives of the view by the frames' twists
+//! ([`relative_view`](super::kinds::camera::relative_view)), `dX/dx = E_T H_b` by the robot's
+//! parameters (`H_b` the identification Jacobian of branch `b`'s tip,
+//! [`ChainAt::identification_jacobian`], its columns those of the tree's parameters: a shared
+//! joint's parameter has one column, to which both frames add) and `E_C`, `E_W` by the
+//! mounting's or placement's 6 ([`mounted`](super::kinds::camera::mounted),
+//! [`placed`](super::kinds::camera::placed)). With the joint noise `Sigma_q` (tree joints)
+//! the view's 6 x 6 covariance block is
+//!
+//! `V_k = G_k Sigma_q G_k^T + diag(sigma_t^2 I_3, sigma_r^2 I_3)`,
+//! `G_k = S_A E_T J_a(q) P_a + S_B E_T J_b(q) P_b`,
+//!
+//! `J_b` the manipulator Jacobian of branch `b` and `P_b` the 0/1 matrix taking its joints to
+//! the tree's: the joints two branches share move both frames, so their noise partly cancels.
+//!
+//! # What the views cannot see
+//!
+//! A view sees one frame relative to the other: the base placement and every joint on the way
+//! to both frames (the torso's, for a head camera looking at a hand) move both alike and cancel;
+//! they are held and reported (the base as such, the shared joints as "the observations do not
+//! move it"). Between the branches, whatever moves one frame rigidly the other's mounting can
+//! absorb: the rank-revealing solve holds the joint parameters it cannot tell from a mounting
+//! (the set-up is held last, [`gauge_class`]). What is recovered is every branch's motion
+//! relative to the others: on held-out poses, every view and every relative pose of two tips.
+//!
+//! # The start
+//!
+//! With the nominal tree, a camera `A = T_a C_A` seeing a target `B = T_b C_B` gives
+//! `C_A M_k C_B^-1 = D_k`, `D_k = T_a^-1 T_b` (`T = I` for a frame in the world): the
+//! eye-to-hand problem of [`camera_start`] with `D_k` as the robot, the camera's mounting as
+//! its world placement and the target's as its mounting. Each frame starts from the first
+//! camera-target pair that has it.
+
+mod data;
+
+pub use data::{Frame, Role, TreeData, View};
+
+use super::kinds::camera::{camera_start, isometry, mounted, placed, placement, relative_view};
+use super::kinds::identifiable;
+use super::{CalibrationError, JointParams, fold, gauge_class};
+use crate::estimation::{
+    Estimator, POSE_SIGMAS, RefineOptions, Refined, Residuals, Weights, linearise, refine_from,
+};
+use crate::kinematics::{Chain, ChainAt, Measured};
+use crate::model::{ParamInfo, ParamOwner, Placement, RobotTree, Selection, SelectionError};
+use nalgebra::{DMatrix, DMatrixView, DMatrixViewMut, DVector, Isometry3, Matrix6, Matrix6xX, Vector6};
+use rayon::prelude::*;
+
+/// How to calibrate a tree.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TreeOptions {
+    /// The estimator: ols, or wls with the `V_k` of the [module](self).
+    pub estimator: Estimator,
+    /// `Sigma_q` over the tree's joints (rad², mm²), if the joint noise is known.
+    pub joint_noise: Option<DMatrix<f64>>,
+    /// The joint parameters to identify (names and patterns over the tree's).
+    pub joints: JointParams,
+    /// Gauss-Newton settings.
+    pub refine: RefineOptions,
+}
+
+/// The tree's error parameters: the base's, then each joint's once (named after it), and how
+/// each branch's parameters map onto them.
+#[derive(Debug, Clone)]
+pub struct TreeParams {
+    /// The parameters (a joint's `owner` is its index on the first branch that has it).
+    pub params: Vec<ParamInfo>,
+    /// Each branch's chain to its tip link's frame.
+    chains: Vec<Chain>,
+    /// Each branch's parameters' tree parameter (`None`: the chain's own end frame's, unused).
+    maps: Vec<Vec<Option<usize>>>,
+    /// Each branch's joints' tree joints ([`Branch::joints`](crate::model::Branch::joints)).
+    joints: Vec<Vec<usize>>,
+    /// Each branch's tip link.
+    tips: Vec<String>,
+}
+
+impl TreeParams {
+    /// The parameters of `tree`.
+    pub fn new(tree: &RobotTree) -> Self {
+        let mut params: Vec<ParamInfo> = Vec::new();
+        let mut chains = Vec::with_capacity(tree.branches.len());
+        let mut maps = Vec::with_capacity(tree.branches.len());
+        for branch in &tree.branches {
+            let chain = Chain::probe(&branch.model, &Placement::default());
+            let map = (chain.params().iter())
+                .map(|p| match p.owner {
+                    ParamOwner::Base | ParamOwner::Joint(_) => {
+                        Some(params.iter().position(|t| t.name == p.name).unwrap_or_else(|| {
+                            params.push(p.clone());
+                            params.len() - 1
+                        }))
+                    }
+                    _ => None,
+                })
+                .collect();
+            chains.push(chain);
+            maps.push(map);
+        }
+        let joints = tree.branches.iter().map(|b| b.joints.clone()).collect();
+        let tips = tree.branches.iter().map(|b| b.tip.clone()).collect();
+        Self { params, chains, maps, joints, tips }
+    }
+
+    /// The number of parameters.
+    pub fn len(&self) -> usize {
+        self.params.len()
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.params.is_empty()
+    }
+
+    /// The number of the tree's joints.
+    pub fn dof(&self) -> usize {
+        self.joints.iter().flatten().max().map_or(0, |j| j + 1)
+    }
+
+    /// The number of branches.
+    pub fn branches(&self) -> usize {
+        self.chains.len()
+    }
+
+    /// Their names.
+    pub fn names(&self) -> Vec<String> {
+        self.params.iter().map(|p| p.name.clone()).collect()
+    }
+
+    /// `tree` with the errors `x` (one per parameter) folded into its joints: the tree whose
+    /// nominal kinematics is `tree`'s with errors `x` (the base's are not folded: a view never
+    /// sees it).
+    pub fn fold(&self, tree: &RobotTree, x: &[f64]) -> RobotTree {
+        let mut joints = tree.joints.clone();
+        for (b, branch) in tree.branches.iter().enumerate() {
+            let identity = Placement::default();
+            let x_b = self.branch_values(b, x);
+            let folded = fold(&branch.model, self.chains[b].params(), &x_b, &[], Some(&identity));
+            for (joint, &j) in folded.joints.into_iter().zip(&branch.joints) {
+                joints[j] = joint;
+            }
+        }
+        tree.with_joints(joints)
+    }
+
+    /// Branch `b`'s parameter values out of the tree's `x`.
+    fn branch_values(&self, b: usize, x: &[f64]) -> Vec<f64> {
+        self.maps[b].iter().map(|m| m.map_or(0.0, |i| x[i])).collect()
+    }
+
+    /// The tree parameters `joints` selects, in order: on each branch as for a serial arm
+    /// (every geometric joint parameter, the offsets, none) or, by name, every parameter a
+    /// name or pattern matches (each must match one). Never the base.
+    pub fn select(&self, joints: &JointParams) -> Result<Vec<usize>, SelectionError> {
+        let mut chosen = vec![false; self.len()];
+        match joints {
+            JointParams::Named(names) => {
+                for pattern in names {
+                    let matched: Vec<usize> = (0..self.len())
+                        .filter(|&i| crate::model::name_matches(pattern, &self.params[i].name))
+                        .collect();
+                    if matched.is_empty() {
+                        return Err(SelectionError { pattern: pattern.clone() });
+                    }
+                    matched.into_iter().for_each(|i| chosen[i] = true);
+                }
+            }
+            other => {
+                for (chain, map) in self.chains.iter().zip(&self.maps) {
+                    for &i in other.select(chain.params())?.indices() {
+                        if let Some(t) = map[i] {
+                            chosen[t] = true;
+                        }
+                    }
+                }
+            }
+        }
+        let base = |i: usize| self.params[i].owner == ParamOwner::Base;
+        Ok((0..self.len()).filter(|&i| chosen[i] && !base(i)).collect())
+    }
+}
+
+/// The calibration problem of a tree's views: `y_k(x, s)` of the [module](self) for the
+/// selected tree parameters `x` and set-up parameters `s` (6 per frame), 6 rows per view,
+/// `V_k` computed once at the start.
+#[derive(Debug, Clone)]
+pub struct TreeProblem<'a> {
+    params: &'a TreeParams,
+    data: &'a TreeData,
+    selection: Vec<usize>,
+    fixed: Vec<f64>,
+    setup_values: Vec<f64>,
+    setup_selection: Vec<usize>,
+    /// Each branch's selected parameters and the column of `x` of each.
+    branch_columns: Vec<(Selection, Vec<usize>)>,
+    /// The column of `x` of each set-up parameter, if estimated.
+    setup_columns: Vec<Option<usize>>,
+    /// Each branch's joint values at each pose.
+    values: Vec<Vec<Vec<f64>>>,
+    v: Option<DMatrix<f64>>,
+}
+
+/// A frame of a view at one pose: where it is, the derivative of its twist by its branch's tip
+/// error (`E_T`, if on a branch) and by its own 6 parameters (`E_C` or `E_W`).
+struct FrameAt {
+    frame: Isometry3<f64>,
+    on: Option<(usize, Matrix6<f64>)>,
+    by_own: Matrix6<f64>,
+}
+
+impl<'a> TreeProblem<'a> {
+    /// The problem of `data` on `tree`, the tree parameters at `fixed` (full vector) and the
+    /// frames at `setup_values`, estimating `selection` (tree parameters, in order) and the
+    /// set-up parameters `setup_selection`; with `joint_noise`, `V_k` has the joint noise.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        params: &'a TreeParams,
+        data: &'a TreeData,
+        selection: Vec<usize>,
+        fixed: Vec<f64>,
+        setup_values: Vec<f64>,
+        setup_selection: Vec<usize>,
+        joint_noise: Option<&DMatrix<f64>>,
+    ) -> Self {
+        let values = (params.joints.iter())
+            .map(|joints| data.joints.iter().map(|q| joints.iter().map(|&j| q[j]).collect()).collect())
+            .collect();
+        let mut problem = Self {
+            params,
+            data,
+            selection: Vec::new(),
+            fixed,
+            setup_values,
+            setup_selection: Vec::new(),
+            branch_columns: Vec::new(),
+            setup_columns: Vec::new(),
+            values,
+            v: None,
+        };
+        problem.select(selection, setup_selection);
+        problem.v = Some(problem.covariance_blocks(joint_noise));
+        problem
+    }
+
+    /// The same problem estimating other parameters from other values, sharing `V_k`.
+    pub fn reselect(
+        &self,
+        selection: Vec<usize>,
+        fixed: Vec<f64>,
+        setup_values: Vec<f64>,
+        setup_selection: Vec<usize>,
+    ) -> Self {
+        let mut problem = Self { fixed, setup_values, ..self.clone() };
+        problem.select(selection, setup_selection);
+        problem
+    }
+
+    /// Estimate `selection` and `setup_selection`.
+    fn select(&mut self, selection: Vec<usize>, setup_selection: Vec<usize>) {
+        self.branch_columns = (self.params.chains.iter().zip(&self.params.maps))
+            .map(|(chain, map)| {
+                let mine: Vec<usize> = (0..map.len())
+                    .filter(|&i| map[i].is_some_and(|t| selection.contains(&t)))
+                    .collect();
+                let columns = mine
+                    .iter()
+                    .map(|&i| selection.iter().position(|&t| Some(t) == map[i]).expect("selected"))
+                    .collect();
+                (Selection::from_indices(chain.params(), mine), columns)
+            })
+            .collect();
+        self.setup_columns = vec![None; self.setup_values.len()];
+        for (c, &i) in setup_selection.iter().enumerate() {
+            self.setup_columns[i] = Some(selection.len() + c);
+        }
+        self.selection = selection;
+        self.setup_selection = setup_selection;
+    }
+
+    /// The full tree parameter vector and the set-up values at `x`.
+    pub fn full(&self, x: &DVector<f64>) -> (Vec<f64>, Vec<f64>) {
+        let mut full = self.fixed.clone();
+        for (&i, &v) in self.selection.iter().zip(x.iter()) {
+            full[i] = v;
+        }
+        let mut s = self.setup_values.clone();
+        for (&i, &v) in self.setup_selection.iter().zip(x.iter().skip(self.selection.len())) {
+            s[i] = v;
+        }
+        (full, s)
+    }
+
+    /// The estimated parameters' values: where iterations start.
+    pub fn start(&self) -> DVector<f64> {
+        let robot = self.selection.iter().map(|&i| self.fixed[i]);
+        let setup = self.setup_selection.iter().map(|&i| self.setup_values[i]);
+        DVector::from_iterator(self.parameters(), robot.chain(setup))
+    }
+
+    /// Each branch's chain at the tree's parameter values `full`.
+    fn chains_at(&self, full: &[f64]) -> Vec<ChainAt> {
+        (0..self.params.chains.len())
+            .map(|b| self.params.chains[b].with_errors(&self.params.branch_values(b, full)))
+            .collect()
+    }
+
+    /// Frame `f` of the data at `pose`.
+    fn frame_at(&self, chains: &[ChainAt], s: &[f64], f: usize, pose: usize) -> FrameAt {
+        let own = &s[6 * f..6 * f + 6];
+        match self.data.frames[f].on {
+            Some(b) => {
+                let (frame, by_tip, by_own) = mounted(&chains[b].pose(&self.values[b][pose]), own);
+                FrameAt { frame, on: Some((b, by_tip)), by_own }
+            }
+            None => {
+                let (frame, by_own) = placed(own);
+                FrameAt { frame, on: None, by_own }
+            }
+        }
+    }
+
+    /// `V_k` of the [module](self) at the start values, 6 x 6 per view, stacked.
+    fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
+        let (full, s) = self.full(&self.start());
+        let chains = self.chains_at(&full);
+        let dof = joint_noise.map_or(0, |n| n.nrows());
+        let mut v = DMatrix::zeros(6 * self.data.views.len(), 6);
+        for (k, view) in self.data.views.iter().enumerate() {
+            let mut block = Matrix6::from_diagonal(&Vector6::new(
+                view.sigma[0].powi(2),
+                view.sigma[0].powi(2),
+                view.sigma[0].powi(2),
+                view.sigma[1].powi(2),
+                view.sigma[1].powi(2),
+                view.sigma[1].powi(2),
+            ));
+            if let Some(sigma_q) = joint_noise {
+                let (a, b) = (
+                    self.frame_at(&chains, &s, view.camera, view.pose),
+                    self.frame_at(&chains, &s, view.target, view.pose),
+                );
+                let relative = relative_view(&view.view, &a.frame, &b.frame);
+                let mut g = DMatrix::zeros(6, dof);
+                for (at, by) in [(&a, relative.by_a), (&b, relative.by_b)] {
+                    let Some((branch, by_tip)) = at.on else { continue };
+                    let q = &self.values[branch][view.pose];
+                    let mut j = Matrix6xX::zeros(q.len());
+                    chains[branch].manipulator_jacobian(q, &mut j);
+                    let gj = by * by_tip * j;
+                    for (c, &t) in self.params.joints[branch].iter().enumerate() {
+                        let mut column = g.column_mut(t);
+                        column += gj.column(c);
+                    }
+                }
+                block += Matrix6::from_iterator((&g * sigma_q * g.transpose()).iter().copied());
+            }
+            v.view_mut((6 * k, 0), (6, 6)).copy_from(&block);
+        }
+        v
+    }
+}
+
+impl Residuals for TreeProblem<'_> {
+    fn rows_per_point(&self) -> usize {
+        6
+    }
+
+    fn equations(&self) -> usize {
+        6 * self.data.views.len()
+    }
+
+    fn parameters(&self) -> usize {
+        self.selection.len() + self.setup_selection.len()
+    }
+
+    fn covariance(&self) -> Option<&DMatrix<f64>> {
+        self.v.as_ref()
+    }
+
+    /// A view's rotation rows (rad) count as lengths for ordinary least squares: times
+    /// `sigma_position / sigma_orientation` of [`POSE_SIGMAS`] (mm/rad), as a pose's do.
+    fn ols_row_scale(&self) -> Option<Vec<f64>> {
+        let w = POSE_SIGMAS.0 / POSE_SIGMAS.1;
+        Some((0..self.equations()).map(|r| if r % 6 < 3 { 1.0 } else { w }).collect())
+    }
+
+    fn names(&self) -> Vec<String> {
+        let robot = self.selection.iter().map(|&i| self.params.params[i].name.clone());
+        let frames: Vec<String> = (self.data.frames.iter())
+            .flat_map(|f| {
+                let name = f.name(&self.params.tips);
+                ["x", "y", "z", "rx", "ry", "rz"].map(move |c| format!("{name}.{c}"))
+            })
+            .collect();
+        robot.chain(self.setup_selection.iter().map(|&i| frames[i].clone())).collect()
+    }
+
+    fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
+        let (full, s) = self.full(x);
+        let chains = self.chains_at(&full);
+        let columns = self.parameters();
+        let views = self.data.views.len();
+        // Each view's 6 residuals and its 6 rows of H (column-major) in one buffer each.
+        let block = if h.is_some() { 6 * columns } else { 0 };
+        let mut y = vec![0.0; 6 * views];
+        let mut blocks = vec![0.0; block.max(1) * views];
+        let widest = self.branch_columns.iter().map(|(sel, _)| sel.len()).max().unwrap_or(0);
+        (y.par_chunks_mut(6).zip(blocks.par_chunks_mut(block.max(1))).zip(&self.data.views)).for_each_init(
+            || (DMatrix::zeros(6, widest), DMatrix::zeros(6, widest)),
+            |(h_b, by_robot), ((y, rows), view)| {
+                let a = self.frame_at(&chains, &s, view.camera, view.pose);
+                let b = self.frame_at(&chains, &s, view.target, view.pose);
+                let relative = relative_view(&view.view, &a.frame, &b.frame);
+                y.copy_from_slice(relative.residual.as_slice());
+                if block == 0 {
+                    return;
+                }
+                let mut rows = DMatrixViewMut::from_slice(rows, 6, columns);
+                rows.fill(0.0);
+                for (at, frame, by) in [(&a, view.camera, relative.by_a), (&b, view.target, relative.by_b)] {
+                    if let Some((branch, by_tip)) = at.on {
+                        let (selection, cols) = &self.branch_columns[branch];
+                        chains[branch].identification_jacobian(
+                            &self.values[branch][view.pose],
+                            selection,
+                            Measured::Pose,
+                            h_b.view_mut((0, 0), (6, selection.len())),
+                        );
+                        let out = h_b.view((0, 0), (6, selection.len()));
+                        let mut by_robot = by_robot.view_mut((0, 0), (6, selection.len()));
+                        by_robot.gemm(1.0, &(by * by_tip), &out, 0.0);
+                        for (c, &col) in cols.iter().enumerate() {
+                            let mut column = rows.column_mut(col);
+                            column += by_robot.column(c);
+                        }
+                    }
+                    let by_own = by * at.by_own;
+                    for i in 0..6 {
+                        if let Some(col) = self.setup_columns[6 * frame + i] {
+                            let mut column = rows.column_mut(col);
+                            column += by_own.column(i);
+                        }
+                    }
+                }
+            },
+        );
+        if let Some(h) = h {
+            for (k, rows) in blocks.chunks_exact(block).enumerate() {
+                h.view_mut((6 * k, 0), (6, columns)).copy_from(&DMatrixView::from_slice(rows, 6, columns));
+            }
+        }
+        DVector::from_vec(y)
+    }
+}
+
+/// A view's residual norms: position (mm) and rotation (deg), before and after calibration.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ViewResidual {
+    /// Its line in the file.
+    pub line: usize,
+    /// `|y_t|` before (mm).
+    pub before_mm: f64,
+    /// `|y_t|` after (mm).
+    pub after_mm: f64,
+    /// `|y_r|` before (deg).
+    pub before_deg: f64,
+    /// `|y_r|` after (deg).
+    pub after_deg: f64,
+}
+
+/// A set of views scored: each one, and the RMS of their position (mm) and rotation (deg)
+/// residual norms, before and after.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TreeScore {
+    /// Every view, in order.
+    pub views: Vec<ViewResidual>,
+    /// RMS of `|y_t|` (mm), before and after.
+    pub position: (f64, f64),
+    /// RMS of `|y_r|` (deg), before and after.
+    pub rotation: (f64, f64),
+}
+
+/// A tree calibrated from camera views.
+#[derive(Debug, Clone)]
+pub struct TreeCalibration {
+    /// The tree as calibrated: the estimates folded into its joints ([`TreeParams::fold`]).
+    pub calibrated: RobotTree,
+    /// The tree's parameters.
+    pub params: TreeParams,
+    /// The tree's parameter errors after the calibration (before: all zero).
+    pub after: Vec<f64>,
+    /// The cameras and targets ([`Frame::name`]).
+    pub frames: Vec<Frame>,
+    /// Their placements `(x, y, z, rx, ry, rz)` (mm, rad), 6 per frame, fitted with the tree
+    /// nominal ("before") and with the tree calibrated ("after").
+    pub setup_values: (Vec<f64>, Vec<f64>),
+    /// The refined estimate (names, values, covariance, diagnostics).
+    pub refined: Refined,
+    /// What the views cannot see, in words: held and reported.
+    pub unseen: Vec<String>,
+    /// Combinations the poses cannot tell apart, held fixed, in words.
+    pub fixed: Vec<String>,
+    /// The training views scored, before and after.
+    pub training: TreeScore,
+    joint_noise: Option<DMatrix<f64>>,
+}
+
+impl TreeCalibration {
+    /// The placement of frame `f` as calibrated.
+    pub fn frame(&self, f: usize) -> Isometry3<f64> {
+        isometry(&self.setup_values.1[6 * f..6 * f + 6])
+    }
+
+    /// `data` scored before and after: its views' residuals with the frames as calibrated
+    /// (every camera and target of `data` must be one of the calibration's).
+    pub fn score(&self, data: &TreeData) -> Result<TreeScore, CalibrationError> {
+        data.check(&self.params)?;
+        // Every view's frames as the calibration's.
+        let mut index = Vec::with_capacity(data.frames.len());
+        for frame in &data.frames {
+            index.push(self.frames.iter().position(|g| g == frame).ok_or_else(|| {
+                CalibrationError::Scoring(format!(
+                    "{}: not a camera or target of the calibration ({})",
+                    frame.name(&self.params.tips),
+                    self.frame_names().join(", ")
+                ))
+            })?);
+        }
+        let mut remapped = data.clone();
+        remapped.frames = self.frames.clone();
+        for view in remapped.views.iter_mut() {
+            view.camera = index[view.camera];
+            view.target = index[view.target];
+        }
+        let residual = |x: &[f64], s: &[f64]| {
+            let problem =
+                TreeProblem::new(&self.params, &remapped, Vec::new(), x.to_vec(), s.to_vec(), Vec::new(), None);
+            problem.evaluate(&DVector::zeros(0), None)
+        };
+        let before = residual(&vec![0.0; self.params.len()], &self.setup_values.0);
+        let after = residual(&self.after, &self.setup_values.1);
+        let norms = |y: &DVector<f64>, k: usize| {
+            (y.rows(6 * k, 3).norm(), y.rows(6 * k + 3, 3).norm().to_degrees())
+        };
+        let views: Vec<ViewResidual> = (0..data.views.len())
+            .map(|k| {
+                let (before_mm, before_deg) = norms(&before, k);
+                let (after_mm, after_deg) = norms(&after, k);
+                ViewResidual { line: data.lines[k], before_mm, after_mm, before_deg, after_deg }
+            })
+            .collect();
+        let rms = |f: fn(&ViewResidual) -> f64| {
+            (views.iter().map(|v| f(v).powi(2)).sum::<f64>() / views.len().max(1) as f64).sqrt()
+        };
+        Ok(TreeScore {
+            position: (rms(|v| v.before_mm), rms(|v| v.after_mm)),
+            rotation: (rms(|v| v.before_deg), rms(|v| v.after_deg)),
+            views,
+        })
+    }
+
+    /// The frames' names.
+    pub fn frame_names(&self) -> Vec<String> {
+        self.frames.iter().map(|f| f.name(&self.params.tips)).collect()
+    }
+
+    /// The joint noise the calibration weighted by, if any.
+    pub fn joint_noise(&self) -> Option<&DMatrix<f64>> {
+        self.joint_noise.as_ref()
+    }
+}
+
+/// The frames' start values (6 per frame) on the nominal tree, by the [module](self)'s closed
+/// form.
+fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, CalibrationError> {
+    let zero = vec![0.0; params.len()];
+    let problem = TreeProblem::new(params, data, Vec::new(), zero, vec![0.0; 6 * data.frames.len()], Vec::new(), None);
+    let chains = problem.chains_at(&problem.fixed);
+    let tip = |f: usize, pose: usize| -> Isometry3<f64> {
+        data.frames[f].on.map_or(Isometry3::identity(), |b| chains[b].pose(&problem.values[b][pose]))
+    };
+    let mut values = vec![0.0; 6 * data.frames.len()];
+    let mut placed = vec![false; data.frames.len()];
+    let mut pairs: Vec<(usize, usize)> = data.views.iter().map(|v| (v.camera, v.target)).collect();
+    pairs.dedup();
+    pairs.sort_unstable();
+    pairs.dedup();
+    for (camera, target) in pairs {
+        if placed[camera] && placed[target] {
+            continue;
+        }
+        let views: Vec<(Isometry3<f64>, Isometry3<f64>)> = (data.views.iter())
+            .filter(|v| v.camera == camera && v.target == target)
+            .map(|v| (tip(camera, v.pose).inverse() * tip(target, v.pose), isometry(v.view.as_slice())))
+            .collect();
+        let names = [camera, target].map(|f| data.frames[f].name(&params.tips));
+        let (c, t) = camera_start(&views, super::kinds::CameraSite::World).map_err(|e| {
+            CalibrationError::Observations(format!("{} seeing {}: {e}", names[0], names[1]))
+        })?;
+        for (f, start) in [(camera, c), (target, t)] {
+            if !placed[f] {
+                values[6 * f..6 * f + 6].copy_from_slice(placement(&start).as_slice());
+                placed[f] = true;
+            }
+        }
+    }
+    Ok(values)
+}
+
+/// Calibrate `tree` from camera views between its branches: the cameras and targets fitted
+/// with the tree nominal ("before"), then the joint parameters asked for with them ("after");
+/// the base and what the views cannot see held and said ([`TreeCalibration::unseen`]), what
+/// the poses cannot tell apart held by the rank-revealing solve ([`TreeCalibration::fixed`]).
+pub fn calibrate_tree(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+) -> Result<TreeCalibration, CalibrationError> {
+    let params = TreeParams::new(tree);
+    data.check(&params)?;
+    if let Some(noise) = &options.joint_noise
+        && noise.shape() != (tree.dof(), tree.dof())
+    {
+        return Err(CalibrationError::Observations(format!(
+            "joint noise of {} x {}, expected {} x {} (one row per tree joint)",
+            noise.nrows(),
+            noise.ncols(),
+            tree.dof(),
+            tree.dof()
+        )));
+    }
+    let start = initial_setup(&params, data)?;
+    let zero = vec![0.0; params.len()];
+    let every: Vec<usize> = (0..start.len()).collect();
+    let noise = options.joint_noise.as_ref();
+    let base_problem = TreeProblem::new(&params, data, Vec::new(), zero.clone(), start, every.clone(), noise);
+    let weights = Weights::for_problem(&base_problem, options.estimator)?;
+    // "Before": the cameras and targets alone, the tree nominal.
+    let fit = linearise(&base_problem, &weights, base_problem.start())?;
+    let refined = refine_from(&base_problem, &weights, fit, &RefineOptions::default())?;
+    let before_setup = base_problem.full(&refined.estimate.x).1;
+    // "After": the joint parameters asked for, with the cameras and targets.
+    let asked = params.select(&options.joints)?;
+    let problem = base_problem.reselect(asked.clone(), zero.clone(), before_setup.clone(), every.clone());
+    if problem.equations() <= problem.parameters() {
+        return Err(CalibrationError::TooFewPoses {
+            poses: data.joints.len(),
+            equations: problem.equations(),
+            parameters: problem.parameters(),
+            needed: problem.parameters().div_ceil(6) + 1,
+        });
+    }
+    let linearised = linearise(&problem, &weights, problem.start())?;
+    let priority: Vec<u32> = (0..problem.parameters())
+        .map(|c| asked.get(c).map_or(0, |&i| gauge_class(&params.params[i])))
+        .collect();
+    let (identifiable, fixed) = identifiable(&linearised, &problem.names(), &priority)?;
+    let robot = asked.len();
+    let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
+    let kept_setup: Vec<usize> = identifiable.iter().filter(|&&c| c >= robot).map(|&c| every[c - robot]).collect();
+    let problem = base_problem.reselect(kept, zero, before_setup.clone(), kept_setup);
+    let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
+    let (after, after_setup) = problem.full(&estimate.estimate.x);
+    let calibrated = params.fold(tree, &after);
+    let unseen = vec![
+        "base.*: a view sees one frame relative to another, never the tree's placement: the base is held"
+            .to_string(),
+    ];
+    let mut calibration = TreeCalibration {
+        calibrated,
+        params: params.clone(),
+        after,
+        frames: data.frames.clone(),
+        setup_values: (before_setup, after_setup),
+        refined: estimate,
+        unseen,
+        fixed,
+        training: TreeScore { views: Vec::new(), position: (0.0, 0.0), rotation: (0.0, 0.0) },
+        joint_noise: options.joint_noise.clone(),
+    };
+    calibration.training = calibration.score(data)?;
+    Ok(calibration)
+}

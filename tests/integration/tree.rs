@@ -1,0 +1,235 @@
+//! Several chains: a torso with two arms and a head camera, calibrated in one fit from the head
+//! camera's views of both hands (issue #16, point 5).
+
+use nalgebra::{DMatrix, DVector, Isometry3};
+use proptest::prelude::*;
+use rand::SeedableRng;
+use rand::rngs::ChaCha8Rng;
+use robocal::calibration::JointParams;
+use robocal::calibration::tree::{
+    Frame, Role, TreeCalibration, TreeData, TreeOptions, TreeParams, TreeProblem, calibrate_tree,
+};
+use robocal::estimation::{Estimator, RefineOptions, Residuals};
+use robocal::model::RobotTree;
+use robocal::simulation::tree::{frame_at, perturbed_tree, simulate_views};
+
+const TORSO: &str = include_str!("../../presets/torso.urdf");
+
+fn torso() -> RobotTree {
+    RobotTree::from_urdf_str(TORSO, None, &[]).unwrap()
+}
+
+/// The head camera and a target on each hand, and their true placements (mm, rad).
+fn frames(tree: &RobotTree) -> (Vec<Frame>, Vec<f64>) {
+    let on = |tip: &str| Some(tree.branch(tip).unwrap());
+    let frames = vec![
+        Frame { role: Role::Camera, on: on("head_camera") },
+        Frame { role: Role::Target, on: on("l_hand") },
+        Frame { role: Role::Target, on: on("r_hand") },
+    ];
+    let placements = vec![
+        12.0, -4.0, 8.0, 0.05, -0.03, 0.02, //
+        3.0, 5.0, -40.0, 0.2, -0.1, 0.3, //
+        -2.0, 4.0, -35.0, -0.15, 0.1, -0.2,
+    ];
+    (frames, placements)
+}
+
+/// The head camera sees each hand's target.
+const PAIRS: [(usize, usize); 2] = [(0, 1), (0, 2)];
+
+fn options(estimator: Estimator) -> TreeOptions {
+    TreeOptions { estimator, joint_noise: None, joints: JointParams::All, refine: RefineOptions::default() }
+}
+
+#[test]
+fn a_urdf_tree_reads_as_its_branches_sharing_their_joints() {
+    let tree = torso();
+    let tips: Vec<&str> = tree.branches.iter().map(|b| b.tip.as_str()).collect();
+    assert_eq!(tips, ["head_camera", "l_hand", "r_hand"]);
+    assert_eq!(tree.dof(), 15, "torso, 2 head joints, 6 per arm");
+    for branch in &tree.branches {
+        assert_eq!(branch.joints[0], 0, "every branch starts at the shared torso joint");
+        assert_eq!(branch.model.joints[0].name, "torso");
+    }
+    assert_eq!(tree.branches[1].joints, [0, 3, 4, 5, 6, 7, 8]);
+    // One parameter per name: the torso's 7 once, the base's 6 once.
+    let params = TreeParams::new(&tree);
+    assert_eq!(params.len(), 6 + 7 * 15);
+    // A tip that is no link, and a serial arm, are refused by name.
+    let error = RobotTree::from_urdf_str(TORSO, None, &["l_hand".into(), "nose".into()]).unwrap_err();
+    assert!(format!("{error:#}").contains("nose"), "{error:#}");
+    let error = RobotTree::from_urdf_str(TORSO, None, &["l_hand".into()]).unwrap_err();
+    assert!(error.to_string().contains("two tips or more"), "{error}");
+}
+
+/// A random tree near the torso, its frames and one pose of views; `H` of the problem over
+/// every tree parameter and every frame parameter.
+fn check_tree_jacobian(seed: u64) -> Result<(), TestCaseError> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let nominal = torso();
+    let tree = perturbed_tree(&nominal, 20.0, 0.2, &mut rng);
+    let (frames, placements) = frames(&tree);
+    let q = tree.uniform_configurations(1, &mut rng);
+    // Views of another tree, so that the residuals (and J_r^-1) are not zero.
+    let other = perturbed_tree(&nominal, 20.0, 0.3, &mut rng);
+    let data = simulate_views(&other, &frames, &placements, &[(0, 1), (0, 2), (1, 2)], &q, [0.0; 2], &mut rng);
+    let params = TreeParams::new(&tree);
+    let x: Vec<f64> = (0..params.len()).map(|i| 0.01 * ((i * 7919 + seed as usize) % 13) as f64 - 0.06).collect();
+    let all: Vec<usize> = (0..params.len()).collect();
+    let every: Vec<usize> = (0..placements.len()).collect();
+    let problem = TreeProblem::new(&params, &data, all, x, placements, every, None);
+    let x0 = problem.start();
+    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+    problem.evaluate(&x0, Some(&mut h));
+    let names = problem.names();
+    for c in 0..problem.parameters() {
+        let step = 1e-6 * x0[c].abs().max(1.0);
+        let (mut plus, mut minus) = (x0.clone(), x0.clone());
+        plus[c] += step;
+        minus[c] -= step;
+        let fd: DVector<f64> = -(problem.evaluate(&plus, None) - problem.evaluate(&minus, None)) / (2.0 * step);
+        for r in 0..problem.equations() {
+            let gap = (h[(r, c)] - fd[r]).abs();
+            prop_assert!(
+                gap < 1e-5 * h.row(r).amax().max(1.0),
+                "row {r}, column {c} ({}): H {} against {}",
+                names[c],
+                h[(r, c)],
+                fd[r]
+            );
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+
+    #[test]
+    fn tree_view_jacobians_match_finite_differences(seed in any::<u64>()) {
+        check_tree_jacobian(seed)?;
+    }
+}
+
+/// The frames' placements composed at `q` on `tree`: each target seen from the camera, and the
+/// right hand's target seen from the left's (never measured).
+fn relative_frames(tree: &RobotTree, frames: &[Frame], placements: &[f64], q: &[f64]) -> [Isometry3<f64>; 3] {
+    let at = |f: usize| frame_at(tree, &frames[f], &placements[6 * f..6 * f + 6], q);
+    [at(0).inverse() * at(1), at(0).inverse() * at(2), at(1).inverse() * at(2)]
+}
+
+/// The largest position (mm) and rotation (rad) gap between the calibrated and the true
+/// relative frames over `configurations`.
+fn largest_gap(c: &TreeCalibration, truth: &RobotTree, placements: &[f64], configurations: &[Vec<f64>]) -> (f64, f64) {
+    let (mut mm, mut rad) = (0.0f64, 0.0f64);
+    for q in configurations {
+        let real = relative_frames(truth, &c.frames, placements, q);
+        let found = relative_frames(&c.calibrated, &c.frames, &c.setup_values.1, q);
+        for (r, f) in real.iter().zip(&found) {
+            let gap = r.inverse() * f;
+            mm = mm.max(gap.translation.vector.norm());
+            rad = rad.max(gap.rotation.angle());
+        }
+    }
+    (mm, rad)
+}
+
+#[test]
+fn one_fit_of_a_head_camera_seeing_both_hands_recovers_every_chain() {
+    let mut rng = ChaCha8Rng::seed_from_u64(16);
+    let nominal = torso();
+    let truth = perturbed_tree(&nominal, 1.0, 0.005, &mut rng);
+    let (frames, placements) = frames(&nominal);
+    let training = nominal.uniform_configurations(60, &mut rng);
+    let data = simulate_views(&truth, &frames, &placements, &PAIRS, &training, [0.0; 2], &mut rng);
+    let c = calibrate_tree(&nominal, &data, &options(Estimator::Ols)).unwrap();
+    assert!(c.training.position.1 < 1e-7, "training {:?} mm", c.training.position);
+    assert!(c.training.position.0 > 1.0, "the nominal tree is off: {:?} mm", c.training.position);
+    // Held out: every view, and the two hands relative to each other, which no view measures.
+    let held_out = nominal.uniform_configurations(40, &mut rng);
+    let (mm, rad) = largest_gap(&c, &truth, &placements, &held_out);
+    assert!(mm < 1e-6 && rad < 1e-9, "held-out gap {mm} mm, {rad} rad");
+    let before = {
+        let nothing = calibrate_tree(&nominal, &data, &TreeOptions { joints: JointParams::None, ..options(Estimator::Ols) })
+            .unwrap();
+        largest_gap(&nothing, &truth, &placements, &held_out)
+    };
+    assert!(before.0 > 1.0, "the frames alone leave {} mm", before.0);
+    // What the views cannot see: the base, and the torso, which moves the camera and the hands
+    // alike.
+    assert!(c.unseen.iter().any(|u| u.starts_with("base.*")), "{:?}", c.unseen);
+    for name in ["torso.x", "torso.rz", "torso.theta"] {
+        assert!(c.fixed.iter().any(|f| f.starts_with(&format!("{name}: the observations do not move it"))), "{name}: {:?}", c.fixed);
+    }
+    assert!(c.refined.estimate.names.iter().all(|n| !n.starts_with("torso.") && !n.starts_with("base.")));
+    // Each arm and the head are estimated.
+    for joint in ["head_tilt", "l_elbow", "r_wrist_pitch"] {
+        assert!(c.refined.estimate.names.iter().any(|n| n.starts_with(&format!("{joint}."))), "{joint}");
+    }
+}
+
+#[test]
+fn tree_estimates_with_noise_fall_within_three_standard_errors() {
+    let mut rng = ChaCha8Rng::seed_from_u64(61);
+    let nominal = torso();
+    let params = TreeParams::new(&nominal);
+    let (frames, placements) = frames(&nominal);
+    let training = nominal.uniform_configurations(80, &mut rng);
+    // What the views identify: the estimate of exact views of any tree.
+    let exact = simulate_views(&nominal, &frames, &placements, &PAIRS, &training, [0.0; 2], &mut rng);
+    let kept = calibrate_tree(&nominal, &exact, &options(Estimator::Ols)).unwrap().refined.estimate.names;
+    // A true tree with errors on those, views with noise of 0.05 mm and 0.01 deg.
+    let mut truth_x = vec![0.0; params.len()];
+    for (i, p) in params.params.iter().enumerate() {
+        if kept.contains(&p.name) {
+            truth_x[i] = if p.is_angle() { 0.003 } else { 0.8 } * (((i * 37) % 11) as f64 / 5.0 - 1.0);
+        }
+    }
+    let truth = params.fold(&nominal, &truth_x);
+    let sigma = [0.05, 0.01f64.to_radians()];
+    let noisy = simulate_views(&truth, &frames, &placements, &PAIRS, &training, sigma, &mut rng);
+    let c = calibrate_tree(&nominal, &noisy, &options(Estimator::Wls)).unwrap();
+    let se = c.refined.estimate.standard_errors();
+    let frame_names: Vec<String> = c
+        .frame_names()
+        .iter()
+        .flat_map(|f| ["x", "y", "z", "rx", "ry", "rz"].map(|a| format!("{f}.{a}")))
+        .collect();
+    let mut checked = 0;
+    for (k, name) in c.refined.estimate.names.iter().enumerate() {
+        let (found, real) = match params.params.iter().position(|p| p.name == *name) {
+            Some(i) => (c.after[i], truth_x[i]),
+            None => {
+                let i = frame_names.iter().position(|n| n == name).unwrap();
+                (c.setup_values.1[i], placements[i])
+            }
+        };
+        assert!((found - real).abs() < 3.0 * se[k], "{name}: {found} against {real}, SE {}", se[k]);
+        checked += 1;
+    }
+    assert!(checked >= 60, "{checked} estimates checked");
+}
+
+#[test]
+fn tree_view_files_read_and_their_errors() {
+    let tree = torso();
+    let joints: Vec<&str> = tree.joints.iter().map(|j| j.name.as_str()).collect();
+    let header = format!("camera,target,{},x,y,z,roll,pitch,yaw", joints.join(","));
+    let zeros = vec!["0"; joints.len()].join(",");
+    let file = |rows: &[&str]| format!("# units: joints=deg, lengths=mm\n{header}\n{}\n", rows.join("\n"));
+    let good = format!("head_camera,l_hand,{zeros},10,20,500,1,2,3");
+    let data = TreeData::from_csv_str(&file(&[&good, &good.replace("l_hand", "r_hand")]), &tree, None).unwrap();
+    assert_eq!(data.views.len(), 2);
+    assert_eq!(data.frames.len(), 3);
+    assert_eq!(data.lines, [3, 4]);
+    let error = |rows: &[&str]| TreeData::from_csv_str(&file(rows), &tree, None).unwrap_err().to_string();
+    let e = error(&[&good.replace("l_hand", "l_foot")]);
+    assert!(e.contains("line 3") && e.contains("target") && e.contains("l_foot"), "{e}");
+    let e = error(&[&good.replace("l_hand", "head_camera")]);
+    assert!(e.contains("line 3") && e.contains("sees no joint"), "{e}");
+    let e = error(&[&good.replace(",500,", ",x,")]);
+    assert!(e.contains("line 3") && e.contains('z'), "{e}");
+    let missing = TreeData::from_csv_str(&file(&[&good]).replace("r_elbow", "r_knee"), &tree, None).unwrap_err();
+    assert!(missing.to_string().contains("r_elbow"), "{missing}");
+}
