@@ -233,3 +233,49 @@ fn tree_view_files_read_and_their_errors() {
     let missing = TreeData::from_csv_str(&file(&[&good]).replace("r_elbow", "r_knee"), &tree, None).unwrap_err();
     assert!(missing.to_string().contains("r_elbow"), "{missing}");
 }
+
+#[test]
+fn tree_view_covariance_matches_a_monte_carlo_of_joint_noise() {
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let tree = torso();
+    let params = TreeParams::new(&tree);
+    let (frames, placements) = frames(&tree);
+    let q = tree.uniform_configurations(1, &mut rng).remove(0);
+    let sigma_q: Vec<f64> = (0..tree.dof()).map(|j| (0.01 + 0.002 * j as f64).to_radians()).collect();
+    let noise = DMatrix::from_diagonal(&DVector::from_iterator(sigma_q.len(), sigma_q.iter().map(|s| s * s)));
+    let sigma = [0.02, 0.005f64.to_radians()];
+    let commanded = simulate_views(&tree, &frames, &placements, &PAIRS, &[q.clone()], sigma, &mut rng);
+    let zero = vec![0.0; params.len()];
+    let problem = TreeProblem::new(&params, &commanded, Vec::new(), zero.clone(), placements.clone(), Vec::new(), Some(&noise));
+    let v = problem.covariance().unwrap().clone();
+    // Views at q + n_q with measurement noise, predicted at q.
+    let draws = 4000;
+    let mut samples = Vec::with_capacity(draws);
+    for _ in 0..draws {
+        let moved: Vec<f64> =
+            q.iter().zip(&sigma_q).map(|(v, s)| v + s * rand_distr::Distribution::<f64>::sample(&rand_distr::StandardNormal, &mut rng)).collect();
+        let mut data = simulate_views(&tree, &frames, &placements, &PAIRS, &[moved], sigma, &mut rng);
+        data.joints[0] = q.clone();
+        let p = TreeProblem::new(&params, &data, Vec::new(), zero.clone(), placements.clone(), Vec::new(), None);
+        samples.push(p.evaluate(&DVector::zeros(0), None));
+    }
+    let n = draws as f64;
+    let mean = samples.iter().fold(DVector::zeros(12), |a, y| a + y) / n;
+    let mut checked = 0;
+    for k in 0..2 {
+        for r in 0..6 {
+            for c in 0..6 {
+                let (i, j) = (6 * k + r, 6 * k + c);
+                let cov: f64 = samples.iter().map(|y| (y[i] - mean[i]) * (y[j] - mean[j])).sum::<f64>() / (n - 1.0);
+                let predicted = v[(i, c)];
+                // The sample covariance's standard error: sqrt((V_ii V_jj + V_ij^2) / n).
+                let se = ((v[(i, r)] * v[(j, c)] + predicted * predicted) / n).sqrt();
+                assert!((cov - predicted).abs() < 5.0 * se, "view {k} ({r}, {c}): {cov} against {predicted}, SE {se}");
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 72);
+    // The joint noise is most of it: the blocks are not the measurement noise alone.
+    assert!(v[(0, 0)] > 4.0 * sigma[0] * sigma[0], "{}", v[(0, 0)]);
+}
