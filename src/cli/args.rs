@@ -651,3 +651,52 @@ impl std::fmt::Display for Excluded {
         write!(f, "{}:{}:{}", self.joint, self.range[0], self.range[1])
     }
 }
+
+/// The flags of `robocal calibrate-tree`.
+#[derive(Args, Debug)]
+pub struct CalibrateTreeArgs {
+    /// The robot: a URDF file whose links form a tree (a torso with arms and a head); each
+    /// branch is the chain from the root link to a tip link.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// The link every branch starts from (default: the root link).
+    #[arg(long)]
+    pub base_link: Option<String>,
+    /// The branches' tip links, comma-separated (default: every leaf link with a moving joint
+    /// on its way).
+    #[arg(long, value_delimiter = ',')]
+    pub tips: Vec<String>,
+    /// A file of camera views between the branches (CSV; see docs/formats.md); repeatable:
+    /// the files are fitted together.
+    #[arg(long, required = true)]
+    pub data: Vec<PathBuf>,
+    #[command(flatten)]
+    pub units: UnitArgs,
+    /// The estimator: wls (default; each view weighted by its sigmas and, with
+    /// --joint-sigma-deg, the joint noise of both its frames' branches) or ols.
+    #[arg(long)]
+    pub estimator: Option<EstimatorName>,
+    /// Joint noise standard deviations, one per joint of the tree in its order (see the
+    /// report's joints; deg, mm for prismatic joints), or one for every joint.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma_deg)]
+    pub joint_sigma_deg: Option<Vec<f64>>,
+    /// Parameters to identify: `joints` (every joint parameter), `offsets`, `none` (the
+    /// cameras and targets only), or names and patterns (`l_*.x,head_tilt.*`). The base is
+    /// never estimated: views cannot see it.
+    #[arg(long, default_value = "joints", value_parser = parse_params)]
+    pub params: ParamsArg,
+    /// Gauss-Newton steps at most (at least 1).
+    #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
+    pub iterations: usize,
+    /// A held-out file of views to validate on (the cameras and targets as calibrated);
+    /// repeatable.
+    #[arg(long)]
+    pub validate: Vec<PathBuf>,
+    /// Write the report as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write each branch's calibrated model here, as `<tip>.toml` (a serial model TOML that
+    /// every other command reads).
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
+}

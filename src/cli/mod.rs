@@ -12,16 +12,17 @@ mod plan;
 mod repeatability;
 mod request;
 mod simulate;
+mod tree;
 
 use anyhow::{Context, Result, bail};
 use args::{
-    CalibrateArgs, CalibrateObservationsArgs, EvaluateArgs, FkArgs, ObservabilityArgs, ParamsArg, PlanArgs,
-    RepeatabilityArgs, ReportArgs, SimulateArgs, StudyOutputArgs,
+    CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, EvaluateArgs, FkArgs, ObservabilityArgs,
+    ParamsArg, PlanArgs, RepeatabilityArgs, ReportArgs, SimulateArgs, StudyOutputArgs,
 };
 use clap::{Parser, Subcommand};
 use request::{
-    CalibrateObservationsRequest, CalibrateRequest, DesignRequest, EvaluateRequest, NoiseFlags,
-    ObservabilityRequest, PlanRequest, RepeatabilityRequest,
+    CalibrateObservationsRequest, CalibrateRequest, CalibrateTreeRequest, DesignRequest, EvaluateRequest,
+    NoiseFlags, ObservabilityRequest, PlanRequest, RepeatabilityRequest,
 };
 use robocal::design::Design;
 use robocal::estimation::{MeasurementNoise, NoiseModel};
@@ -62,6 +63,9 @@ enum Command {
     /// Calibrate a robot from distances (a ball bar, a length artefact), plane contacts or
     /// partial coordinates (a height gauge): docs/formats.md.
     CalibrateObservations(Box<CalibrateObservationsArgs>),
+    /// Calibrate a robot of several chains (a URDF tree: a torso with arms and a head camera)
+    /// from camera views between its branches: docs/formats.md.
+    CalibrateTree(Box<CalibrateTreeArgs>),
     /// Score a model as it stands (a calibrated one, base and markers included) on
     /// measurement files: no registration, no fit.
     Evaluate(Box<EvaluateArgs>),
@@ -88,6 +92,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::CalibrateObservations(args) => {
             observations::run(&CalibrateObservationsRequest::from_args(*args)?)
         }
+        Command::CalibrateTree(args) => tree::run(&CalibrateTreeRequest::from_args(*args)?),
         Command::Evaluate(args) => evaluate::run(&EvaluateRequest::from_args(*args)?),
         Command::Observability(args) => observability::run(&ObservabilityRequest::from_args(*args)?),
         Command::Plan(args) => plan::run(&PlanRequest::from_args(*args)?),

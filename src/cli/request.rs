@@ -3,9 +3,9 @@
 //! contents are the commands' own.
 
 use super::args::{
-    CalibrateArgs, CalibrateObservationsArgs, DesignArgs, EstimatorName, EvaluateArgs, Excluded, JointUnit,
-    LengthUnit, LinkArgs, MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs, ParamsArg, PayloadArgs,
-    PlanArgs, RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
+    CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, DesignArgs, EstimatorName, EvaluateArgs,
+    Excluded, JointUnit, LengthUnit, LinkArgs, MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs,
+    ParamsArg, PayloadArgs, PlanArgs, RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::JointParams;
@@ -351,17 +351,8 @@ impl CalibrateObservationsRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: CalibrateObservationsArgs) -> Result<Self, UsageError> {
         let model = args.model.model_ref()?;
-        let estimator = match args.estimator {
-            None | Some(EstimatorName::Wls) => Estimator::Wls,
-            Some(EstimatorName::Ols) => Estimator::Ols,
-            Some(other) => {
-                let name = clap::ValueEnum::to_possible_value(&other).map(|v| v.get_name().to_string());
-                return Err(UsageError(format!(
-                    "--estimator {}: calibrate-observations takes ols or wls (one row per observation)",
-                    name.unwrap_or_default()
-                )));
-            }
-        };
+        let estimator =
+            ols_or_wls(args.estimator, "calibrate-observations takes ols or wls (one row per observation)")?;
         require(
             args.params != ParamsArg::All,
             "--params all: the base and the set-up are chosen by the observations; give --params joints",
@@ -640,6 +631,84 @@ impl RepeatabilityRequest {
             register: !args.fixed_base,
             out: args.out,
             json: args.json,
+        })
+    }
+}
+
+/// `--estimator` of a command that takes ols or wls (the default); `why` says so.
+fn ols_or_wls(estimator: Option<EstimatorName>, why: &str) -> Result<Estimator, UsageError> {
+    match estimator {
+        None | Some(EstimatorName::Wls) => Ok(Estimator::Wls),
+        Some(EstimatorName::Ols) => Ok(Estimator::Ols),
+        Some(other) => {
+            let name = clap::ValueEnum::to_possible_value(&other).map(|v| v.get_name().to_string());
+            Err(UsageError(format!("--estimator {}: {why}", name.unwrap_or_default())))
+        }
+    }
+}
+
+/// A validated `robocal calibrate-tree`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrateTreeRequest {
+    /// The URDF file.
+    pub model: PathBuf,
+    /// The root link, if given.
+    pub base_link: Option<String>,
+    /// The tip links, if given.
+    pub tips: Vec<String>,
+    /// The view files, fitted together.
+    pub data: Vec<PathBuf>,
+    /// The files' units, if given.
+    pub units: Option<Units>,
+    /// The estimator: ols or wls.
+    pub estimator: Estimator,
+    /// Joint sigmas (deg; mm for prismatic joints), one per tree joint or one for all.
+    pub joint_sigma_deg: Option<Vec<f64>>,
+    /// The joint parameters to identify.
+    pub joints: JointParams,
+    /// Gauss-Newton steps at most (>= 1).
+    pub iterations: usize,
+    /// Held-out files.
+    pub validate: Vec<PathBuf>,
+    /// Where the JSON report goes.
+    pub json: Option<PathBuf>,
+    /// Where the calibrated branches go.
+    pub out_dir: Option<PathBuf>,
+}
+
+impl CalibrateTreeRequest {
+    /// The request, or the first rule between `args`' flags that it breaks.
+    pub fn from_args(args: CalibrateTreeArgs) -> Result<Self, UsageError> {
+        let estimator = ols_or_wls(args.estimator, "calibrate-tree takes ols or wls")?;
+        require(
+            args.params != ParamsArg::All,
+            "--params all: the base is never estimated from views; give --params joints",
+        )?;
+        require(
+            args.model.extension().is_some_and(|e| e == "urdf"),
+            "--model: a URDF file (.urdf) whose links form a tree",
+        )?;
+        let joints = joint_params(args.params, false)?;
+        let mut inputs = vec![("--model", args.model.as_path())];
+        inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
+        inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
+        distinct_outputs(
+            &inputs,
+            &[("--json", args.json.as_deref()), ("--out-dir", args.out_dir.as_deref())],
+        )?;
+        Ok(Self {
+            model: args.model,
+            base_link: args.base_link,
+            tips: args.tips,
+            data: args.data,
+            units: args.units.units()?,
+            estimator,
+            joint_sigma_deg: args.joint_sigma_deg,
+            joints,
+            iterations: args.iterations,
+            validate: args.validate,
+            json: args.json,
+            out_dir: args.out_dir,
         })
     }
 }

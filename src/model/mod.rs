@@ -25,8 +25,8 @@ mod urdf;
 
 pub use file::{ModelError, degrees, markers_from_toml_str, to_toml_with_markers};
 pub(crate) use params::name_matches;
-pub use tree::{Branch, RobotTree};
 pub use params::{ParamInfo, ParamKind, ParamOwner, ParamSet, Selection, SelectionError};
+pub use tree::{Branch, RobotTree};
 pub use urdf::{
     DEFLECTION, GRAVITY, chain_links, from_urdf_str, markers_from_urdf_str, to_urdf_string, with_urdf_markers,
 };

@@ -1,18 +1,4 @@
-//! Robots of several chains: a tree of links (a torso carrying two arms and a head) read from a
-//! URDF file as one serial chain from the root link to each tip link, a *branch*, with the
-//! joints they share named once.
-//!
-//! Each branch is a [`RobotModel`], the chain [`from_urdf_str`](super::from_urdf_str) reads
-//! from the root to its tip. A joint on several branches (the torso's) is one joint: the
-//! tree's joints are the branches' moving joints by name, in the order they are met (branch by
-//! branch, base to tip), and a pose gives one value per tree joint, each branch taking its own
-//! ([`Branch::joints`]). The error parameters of a joint are named after it (`torso.x`), so the
-//! branches' parameters of one name are the tree's one parameter.
-//!
-//! The tips are every leaf link (a link that is no joint's parent) with a moving joint between
-//! it and the root, in the file's order, unless named. The tree's geometry is what is
-//! calibrated: the branches are read without their masses (a shared joint carries every
-//! branch's links, which no one branch's model holds).
+//! Robots of several chains: [`RobotTree`].
 
 use super::urdf::{chain_moves, ends};
 use super::{Joint, ModelError, RobotModel, from_urdf_str};
@@ -38,7 +24,21 @@ impl Branch {
     }
 }
 
-/// A robot of several chains sharing joints; see the [module](self).
+/// Robots of several chains: a tree of links (a torso carrying two arms and a head) read from a
+/// URDF file as one serial chain from the root link to each tip link, a *branch*, with the
+/// joints they share named once.
+///
+/// Each branch is a [`RobotModel`], the chain [`from_urdf_str`](super::from_urdf_str) reads
+/// from the root to its tip. A joint on several branches (the torso's) is one joint: the
+/// tree's joints are the branches' moving joints by name, in the order they are met (branch by
+/// branch, base to tip), and a pose gives one value per tree joint, each branch taking its own
+/// ([`Branch::joints`]). The error parameters of a joint are named after it (`torso.x`), so the
+/// branches' parameters of one name are the tree's one parameter.
+///
+/// The tips are every leaf link (a link that is no joint's parent) with a moving joint between
+/// it and the root, in the file's order, unless named. The tree's geometry is what is
+/// calibrated: the branches are read without their masses (a shared joint carries every
+/// branch's links, which no one branch's model holds).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RobotTree {
     /// The robot's name (the URDF's).
@@ -81,7 +81,10 @@ impl RobotTree {
         if tips.len() < 2 {
             return Err(FieldError::new(
                 "tip links",
-                format!("two tips or more for a tree, found {}: a serial arm is calibrated by `calibrate`", tips.len()),
+                format!(
+                    "two tips or more for a tree, found {}: a serial arm is calibrated by `calibrate`",
+                    tips.len()
+                ),
             )
             .into());
         }

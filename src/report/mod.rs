@@ -10,6 +10,7 @@ pub mod observations;
 pub mod poses;
 pub mod replication;
 pub mod study;
+pub mod tree;
 
 use crate::model::{JointKind, RobotModel, degrees};
 use nalgebra::Isometry3;

@@ -20,7 +20,10 @@ use rand_distr::{Distribution, StandardNormal};
 
 /// `tree` with every joint's origin displaced by normal errors (mm, rad): a "real" tree.
 pub fn perturbed_tree(tree: &RobotTree, sigma_mm: f64, sigma_rad: f64, rng: &mut ChaCha8Rng) -> RobotTree {
-    let mut normal = |sigma: f64| -> f64 { let z: f64 = StandardNormal.sample(rng); sigma * z };
+    let mut normal = |sigma: f64| -> f64 {
+        let z: f64 = StandardNormal.sample(rng);
+        sigma * z
+    };
     let joints: Vec<Joint> = (tree.joints.iter())
         .map(|j| {
             let mut j = j.clone();
@@ -70,7 +73,10 @@ pub fn simulate_views(
             let a = frame_at(truth, &frames[camera], &placements[6 * camera..6 * camera + 6], q);
             let b = frame_at(truth, &frames[target], &placements[6 * target..6 * target + 6], q);
             let m = a.inverse() * b;
-            let mut normal = |s: f64| -> f64 { let z: f64 = StandardNormal.sample(rng); s * z };
+            let mut normal = |s: f64| -> f64 {
+                let z: f64 = StandardNormal.sample(rng);
+                s * z
+            };
             let t = m.translation.vector + Vector3::new(normal(sigma[0]), normal(sigma[0]), normal(sigma[0]));
             let n_r = Vector3::new(normal(sigma[1]), normal(sigma[1]), normal(sigma[1]));
             let r = (UnitQuaternion::from_scaled_axis(n_r) * m.rotation).scaled_axis();
@@ -85,4 +91,44 @@ pub fn simulate_views(
         }
     }
     data
+}
+
+/// `data` as a view file of `tree` (see `docs/formats.md`): joints in degrees (mm for
+/// prismatic ones), lengths in mm, each view's sigmas in `sigma` and `sigma_angle` columns.
+pub fn views_csv(tree: &RobotTree, data: &TreeData) -> String {
+    use std::fmt::Write;
+    let tips: Vec<String> = tree.branches.iter().map(|b| b.tip.clone()).collect();
+    let names: Vec<&str> = tree.joints.iter().map(|j| j.name.as_str()).collect();
+    let mut out = format!(
+        "# units: joints=deg, lengths=mm\ncamera,target,{},x,y,z,roll,pitch,yaw,sigma,sigma_angle\n",
+        names.join(",")
+    );
+    let on = |f: usize| data.frames[f].on.map_or("world", |b| tips[b].as_str());
+    for view in &data.views {
+        let q: Vec<String> = (tree.joints.iter().zip(&data.joints[view.pose]))
+            .map(|(j, v)| match j.kind {
+                crate::model::JointKind::Revolute => format!("{:.6}", v.to_degrees()),
+                crate::model::JointKind::Prismatic => format!("{v:.6}"),
+            })
+            .collect();
+        let v = view.view;
+        let (roll, pitch, yaw) =
+            UnitQuaternion::from_scaled_axis(Vector3::new(v[3], v[4], v[5])).euler_angles();
+        let _ = writeln!(
+            out,
+            "{},{},{},{:.6},{:.6},{:.6},{:.8},{:.8},{:.8},{},{}",
+            on(view.camera),
+            on(view.target),
+            q.join(","),
+            v[0],
+            v[1],
+            v[2],
+            roll.to_degrees(),
+            pitch.to_degrees(),
+            yaw.to_degrees(),
+            view.sigma[0],
+            view.sigma[1].to_degrees()
+        );
+    }
+    out
 }

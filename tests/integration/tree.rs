@@ -73,9 +73,11 @@ fn check_tree_jacobian(seed: u64) -> Result<(), TestCaseError> {
     let q = tree.uniform_configurations(1, &mut rng);
     // Views of another tree, so that the residuals (and J_r^-1) are not zero.
     let other = perturbed_tree(&nominal, 20.0, 0.3, &mut rng);
-    let data = simulate_views(&other, &frames, &placements, &[(0, 1), (0, 2), (1, 2)], &q, [0.0; 2], &mut rng);
+    let data =
+        simulate_views(&other, &frames, &placements, &[(0, 1), (0, 2), (1, 2)], &q, [0.0; 2], &mut rng);
     let params = TreeParams::new(&tree);
-    let x: Vec<f64> = (0..params.len()).map(|i| 0.01 * ((i * 7919 + seed as usize) % 13) as f64 - 0.06).collect();
+    let x: Vec<f64> =
+        (0..params.len()).map(|i| 0.01 * ((i * 7919 + seed as usize) % 13) as f64 - 0.06).collect();
     let all: Vec<usize> = (0..params.len()).collect();
     let every: Vec<usize> = (0..placements.len()).collect();
     let problem = TreeProblem::new(&params, &data, all, x, placements, every, None);
@@ -88,7 +90,8 @@ fn check_tree_jacobian(seed: u64) -> Result<(), TestCaseError> {
         let (mut plus, mut minus) = (x0.clone(), x0.clone());
         plus[c] += step;
         minus[c] -= step;
-        let fd: DVector<f64> = -(problem.evaluate(&plus, None) - problem.evaluate(&minus, None)) / (2.0 * step);
+        let fd: DVector<f64> =
+            -(problem.evaluate(&plus, None) - problem.evaluate(&minus, None)) / (2.0 * step);
         for r in 0..problem.equations() {
             let gap = (h[(r, c)] - fd[r]).abs();
             prop_assert!(
@@ -121,7 +124,12 @@ fn relative_frames(tree: &RobotTree, frames: &[Frame], placements: &[f64], q: &[
 
 /// The largest position (mm) and rotation (rad) gap between the calibrated and the true
 /// relative frames over `configurations`.
-fn largest_gap(c: &TreeCalibration, truth: &RobotTree, placements: &[f64], configurations: &[Vec<f64>]) -> (f64, f64) {
+fn largest_gap(
+    c: &TreeCalibration,
+    truth: &RobotTree,
+    placements: &[f64],
+    configurations: &[Vec<f64>],
+) -> (f64, f64) {
     let (mut mm, mut rad) = (0.0f64, 0.0f64);
     for q in configurations {
         let real = relative_frames(truth, &c.frames, placements, q);
@@ -151,8 +159,12 @@ fn one_fit_of_a_head_camera_seeing_both_hands_recovers_every_chain() {
     let (mm, rad) = largest_gap(&c, &truth, &placements, &held_out);
     assert!(mm < 1e-6 && rad < 1e-9, "held-out gap {mm} mm, {rad} rad");
     let before = {
-        let nothing = calibrate_tree(&nominal, &data, &TreeOptions { joints: JointParams::None, ..options(Estimator::Ols) })
-            .unwrap();
+        let nothing = calibrate_tree(
+            &nominal,
+            &data,
+            &TreeOptions { joints: JointParams::None, ..options(Estimator::Ols) },
+        )
+        .unwrap();
         largest_gap(&nothing, &truth, &placements, &held_out)
     };
     assert!(before.0 > 1.0, "the frames alone leave {} mm", before.0);
@@ -160,7 +172,11 @@ fn one_fit_of_a_head_camera_seeing_both_hands_recovers_every_chain() {
     // alike.
     assert!(c.unseen.iter().any(|u| u.starts_with("base.*")), "{:?}", c.unseen);
     for name in ["torso.x", "torso.rz", "torso.theta"] {
-        assert!(c.fixed.iter().any(|f| f.starts_with(&format!("{name}: the observations do not move it"))), "{name}: {:?}", c.fixed);
+        assert!(
+            c.fixed.iter().any(|f| f.starts_with(&format!("{name}: the observations do not move it"))),
+            "{name}: {:?}",
+            c.fixed
+        );
     }
     assert!(c.refined.estimate.names.iter().all(|n| !n.starts_with("torso.") && !n.starts_with("base.")));
     // Each arm and the head are estimated.
@@ -219,9 +235,11 @@ fn tree_view_files_read_and_their_errors() {
     let zeros = vec!["0"; joints.len()].join(",");
     let file = |rows: &[&str]| format!("# units: joints=deg, lengths=mm\n{header}\n{}\n", rows.join("\n"));
     let good = format!("head_camera,l_hand,{zeros},10,20,500,1,2,3");
-    let data = TreeData::from_csv_str(&file(&[&good, &good.replace("l_hand", "r_hand")]), &tree, None).unwrap();
+    let data =
+        TreeData::from_csv_str(&file(&[&good, &good.replace("l_hand", "r_hand")]), &tree, None).unwrap();
     assert_eq!(data.views.len(), 2);
     assert_eq!(data.frames.len(), 3);
+    assert_eq!(data.joints.len(), 1, "two views of one pose");
     assert_eq!(data.lines, [3, 4]);
     let error = |rows: &[&str]| TreeData::from_csv_str(&file(rows), &tree, None).unwrap_err().to_string();
     let e = error(&[&good.replace("l_hand", "l_foot")]);
@@ -230,7 +248,8 @@ fn tree_view_files_read_and_their_errors() {
     assert!(e.contains("line 3") && e.contains("sees no joint"), "{e}");
     let e = error(&[&good.replace(",500,", ",x,")]);
     assert!(e.contains("line 3") && e.contains('z'), "{e}");
-    let missing = TreeData::from_csv_str(&file(&[&good]).replace("r_elbow", "r_knee"), &tree, None).unwrap_err();
+    let missing =
+        TreeData::from_csv_str(&file(&[&good]).replace("r_elbow", "r_knee"), &tree, None).unwrap_err();
     assert!(missing.to_string().contains("r_elbow"), "{missing}");
 }
 
@@ -244,19 +263,34 @@ fn tree_view_covariance_matches_a_monte_carlo_of_joint_noise() {
     let sigma_q: Vec<f64> = (0..tree.dof()).map(|j| (0.01 + 0.002 * j as f64).to_radians()).collect();
     let noise = DMatrix::from_diagonal(&DVector::from_iterator(sigma_q.len(), sigma_q.iter().map(|s| s * s)));
     let sigma = [0.02, 0.005f64.to_radians()];
-    let commanded = simulate_views(&tree, &frames, &placements, &PAIRS, &[q.clone()], sigma, &mut rng);
+    let commanded =
+        simulate_views(&tree, &frames, &placements, &PAIRS, std::slice::from_ref(&q), sigma, &mut rng);
     let zero = vec![0.0; params.len()];
-    let problem = TreeProblem::new(&params, &commanded, Vec::new(), zero.clone(), placements.clone(), Vec::new(), Some(&noise));
+    let problem = TreeProblem::new(
+        &params,
+        &commanded,
+        Vec::new(),
+        zero.clone(),
+        placements.clone(),
+        Vec::new(),
+        Some(&noise),
+    );
     let v = problem.covariance().unwrap().clone();
     // Views at q + n_q with measurement noise, predicted at q.
     let draws = 4000;
     let mut samples = Vec::with_capacity(draws);
     for _ in 0..draws {
-        let moved: Vec<f64> =
-            q.iter().zip(&sigma_q).map(|(v, s)| v + s * rand_distr::Distribution::<f64>::sample(&rand_distr::StandardNormal, &mut rng)).collect();
+        let moved: Vec<f64> = q
+            .iter()
+            .zip(&sigma_q)
+            .map(|(v, s)| {
+                v + s * rand_distr::Distribution::<f64>::sample(&rand_distr::StandardNormal, &mut rng)
+            })
+            .collect();
         let mut data = simulate_views(&tree, &frames, &placements, &PAIRS, &[moved], sigma, &mut rng);
         data.joints[0] = q.clone();
-        let p = TreeProblem::new(&params, &data, Vec::new(), zero.clone(), placements.clone(), Vec::new(), None);
+        let p =
+            TreeProblem::new(&params, &data, Vec::new(), zero.clone(), placements.clone(), Vec::new(), None);
         samples.push(p.evaluate(&DVector::zeros(0), None));
     }
     let n = draws as f64;
@@ -266,11 +300,15 @@ fn tree_view_covariance_matches_a_monte_carlo_of_joint_noise() {
         for r in 0..6 {
             for c in 0..6 {
                 let (i, j) = (6 * k + r, 6 * k + c);
-                let cov: f64 = samples.iter().map(|y| (y[i] - mean[i]) * (y[j] - mean[j])).sum::<f64>() / (n - 1.0);
+                let cov: f64 =
+                    samples.iter().map(|y| (y[i] - mean[i]) * (y[j] - mean[j])).sum::<f64>() / (n - 1.0);
                 let predicted = v[(i, c)];
                 // The sample covariance's standard error: sqrt((V_ii V_jj + V_ij^2) / n).
                 let se = ((v[(i, r)] * v[(j, c)] + predicted * predicted) / n).sqrt();
-                assert!((cov - predicted).abs() < 5.0 * se, "view {k} ({r}, {c}): {cov} against {predicted}, SE {se}");
+                assert!(
+                    (cov - predicted).abs() < 5.0 * se,
+                    "view {k} ({r}, {c}): {cov} against {predicted}, SE {se}"
+                );
                 checked += 1;
             }
         }
@@ -278,4 +316,88 @@ fn tree_view_covariance_matches_a_monte_carlo_of_joint_noise() {
     assert_eq!(checked, 72);
     // The joint noise is most of it: the blocks are not the measurement noise alone.
     assert!(v[(0, 0)] > 4.0 * sigma[0] * sigma[0], "{}", v[(0, 0)]);
+}
+
+fn robocal(args: &[&str]) -> std::process::Output {
+    assert_cmd::Command::cargo_bin("robocal").unwrap().args(args).output().unwrap()
+}
+
+const TREE_EXAMPLE: [&str; 7] = [
+    "calibrate-tree",
+    "--model",
+    "presets/torso.urdf",
+    "--data",
+    "examples/torso/views.csv",
+    "--validate",
+    "examples/torso/views-2.csv",
+];
+
+/// The held-out line's RMS (mm or deg) before and after, from the report's text.
+fn held_out(text: &str, unit: &str) -> (f64, f64) {
+    let line = text.lines().find(|l| l.starts_with(&format!("examples/torso/views-2.csv ({unit})"))).unwrap();
+    let v: Vec<f64> = line.split_whitespace().rev().take(2).map(|v| v.parse().unwrap()).collect();
+    (v[1], v[0])
+}
+
+#[test]
+fn calibrate_tree_fits_the_example_and_writes_each_branch() {
+    let out_dir = std::env::temp_dir().join(format!("robocal-tree-{}", std::process::id()));
+    let json = out_dir.with_extension("json");
+    let mut args = TREE_EXAMPLE.to_vec();
+    let (dir, report) = (out_dir.to_str().unwrap(), json.to_str().unwrap());
+    args.extend(["--out-dir", dir, "--json", report]);
+    let out = robocal(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.starts_with("calibration of torso (branches head_camera, l_hand, r_hand; 15 joints)"),
+        "{text}"
+    );
+    // The README's figures: held out, 7.13 -> 0.37 mm and 0.774 -> 0.091 deg, the views' own
+    // noise (0.2 mm and 0.05 deg per axis: 0.35 mm and 0.087 deg).
+    let (before, after) = held_out(&text, "mm");
+    assert!((before - 7.127).abs() < 1e-3 && (after - 0.368).abs() < 1e-3, "{before} -> {after} mm");
+    let (before, after) = held_out(&text, "deg");
+    assert!((before - 0.7738).abs() < 1e-4 && (after - 0.0909).abs() < 1e-4, "{before} -> {after} deg");
+    assert!(text.contains("base.*: a view sees one frame relative to another"), "{text}");
+    for tip in ["head_camera", "l_hand", "r_hand"] {
+        let model = std::fs::read_to_string(out_dir.join(format!("{tip}.toml"))).unwrap();
+        let model = robocal::model::RobotModel::from_toml_str(&model).unwrap();
+        assert_eq!(model.joints[0].name, "torso");
+    }
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["frames"].as_array().unwrap().len(), 3);
+    assert_eq!(report["sets"][1][1]["views"].as_array().unwrap().len(), 80);
+    std::fs::remove_dir_all(&out_dir).unwrap();
+    std::fs::remove_file(&json).unwrap();
+}
+
+#[test]
+fn calibrate_tree_refuses_what_it_cannot_fit_by_name() {
+    let stderr = |args: &[&str], code: i32| {
+        let out = robocal(args);
+        assert_eq!(out.status.code(), Some(code), "{args:?}");
+        String::from_utf8(out.stderr).unwrap()
+    };
+    let mut args = TREE_EXAMPLE.to_vec();
+    args[2] = "puma560";
+    assert!(stderr(&args, 2).contains("--model: a URDF file"));
+    let mut args = TREE_EXAMPLE.to_vec();
+    args.extend(["--joint-sigma-deg", "0.01,0.02"]);
+    let e = stderr(&args, 1);
+    assert!(e.contains("--joint-sigma-deg: 2 values for the 15 joints") && e.contains("head_tilt"), "{e}");
+    let mut args = TREE_EXAMPLE.to_vec();
+    args.extend(["--params", "l_knee.x"]);
+    assert!(stderr(&args, 1).contains("l_knee.x"));
+    let e = stderr(
+        &["calibrate-tree", "--model", "presets/torso.urdf", "--data", "examples/puma560-camera.csv"],
+        1,
+    );
+    assert!(e.contains("examples/puma560-camera.csv") && e.contains("torso"), "{e}");
+    // A serial arm is calibrate's.
+    let e = stderr(
+        &["calibrate-tree", "--model", "examples/arm7/arm7.urdf", "--data", "examples/torso/views.csv"],
+        1,
+    );
+    assert!(e.contains("two tips or more"), "{e}");
 }

@@ -8,7 +8,7 @@
 //!
 //! `camera` and `target` name the branch (its tip link) each is fixed to, or `world` for one
 //! fixed in the root link's frame; the joint columns are the tree's joints (every one, each
-//! once); `x, y, z` (length unit) and `roll, pitch, yaw` (the joints' angle unit,
+//! once; consecutive rows of the same joint values are one pose); `x, y, z` (length unit) and `roll, pitch, yaw` (the joints' angle unit,
 //! `R = Rz(yaw) Ry(pitch) Rx(roll)`) the target's pose in the camera's frame. Optional `sigma`
 //! (length unit) and `sigma_angle` (angle unit) per row, by default
 //! [`DEFAULT_CAMERA_SIGMA_MM`](crate::calibration::kinds::DEFAULT_CAMERA_SIGMA_MM) and
@@ -83,7 +83,7 @@ pub struct TreeData {
 }
 
 impl TreeData {
-    /// Read a file of views of `tree` (see the [module](self)); `units` from the caller take the
+    /// Read a file of views of `tree` (see `docs/formats.md`); `units` from the caller take the
     /// place of the file's `# units:` line.
     pub fn from_csv_str(text: &str, tree: &RobotTree, units: Option<Units>) -> Result<Self, DataError> {
         let table = Table::parse(text)?;
@@ -134,14 +134,18 @@ impl TreeData {
                 positive(sigma, units.length_scale())?.unwrap_or(DEFAULT_CAMERA_SIGMA_MM),
                 positive(sigma_angle, 1.0)?.map_or(DEFAULT_CAMERA_SIGMA_DEG.to_radians(), |v| units.angle(v)),
             ];
+            // Rows of one pose in a row (a camera seeing two targets) are one pose.
+            let q = table.values_of(row, &joints, &tree.joints, units)?;
+            if data.joints.last() != Some(&q) {
+                data.joints.push(q);
+            }
             data.views.push(View {
-                pose: data.joints.len(),
+                pose: data.joints.len() - 1,
                 camera,
                 target,
                 view: Vector6::new(v[0], v[1], v[2], rotation.x, rotation.y, rotation.z),
                 sigma,
             });
-            data.joints.push(table.values_of(row, &joints, &tree.joints, units)?);
             data.lines.push(row.line);
         }
         Ok(data)
@@ -174,9 +178,7 @@ impl TreeData {
             }
         })
     }
-}
 
-impl TreeData {
     /// Refuse views that do not fit (for data built by hand rather than read): a pose or a
     /// frame that does not exist, joint values not one finite value per tree joint, a view not
     /// finite, a sigma not finite and above 0, a view whose camera and target are on one
@@ -209,5 +211,29 @@ impl TreeData {
             }
         }
         Ok(())
+    }
+
+    /// These views and `other`'s in one set (the same camera or target is the same frame).
+    pub fn join(mut self, other: &Self) -> Self {
+        let offset = self.joints.len();
+        self.joints.extend(other.joints.iter().cloned());
+        self.lines.extend(&other.lines);
+        let mut index = Vec::with_capacity(other.frames.len());
+        for frame in &other.frames {
+            index.push(match self.frames.iter().position(|f| f == frame) {
+                Some(i) => i,
+                None => {
+                    self.frames.push(*frame);
+                    self.frames.len() - 1
+                }
+            });
+        }
+        self.views.extend(other.views.iter().map(|v| View {
+            pose: v.pose + offset,
+            camera: index[v.camera],
+            target: index[v.target],
+            ..*v
+        }));
+        self
     }
 }

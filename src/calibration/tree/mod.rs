@@ -12,12 +12,11 @@
 //! `H_k = S_A dA/dx + S_B dB/dx`,
 //!
 //! `S_A`, `S_B` the derivatives of the view by the frames' twists
-//! ([`relative_view`](super::kinds::camera::relative_view)), `dX/dx = E_T H_b` by the robot's
+//! ([`relative_view`]), `dX/dx = E_T H_b` by the robot's
 //! parameters (`H_b` the identification Jacobian of branch `b`'s tip,
 //! [`ChainAt::identification_jacobian`], its columns those of the tree's parameters: a shared
 //! joint's parameter has one column, to which both frames add) and `E_C`, `E_W` by the
-//! mounting's or placement's 6 ([`mounted`](super::kinds::camera::mounted),
-//! [`placed`](super::kinds::camera::placed)). With the joint noise `Sigma_q` (tree joints)
+//! mounting's or placement's 6 ([`mounted`], [`placed`]). With the joint noise `Sigma_q` (tree joints)
 //! the view's 6 x 6 covariance block is
 //!
 //! `V_k = G_k Sigma_q G_k^T + diag(sigma_t^2 I_3, sigma_r^2 I_3)`,
@@ -33,7 +32,7 @@
 //! they are held and reported (the base as such, the shared joints as "the observations do not
 //! move it"). Between the branches, whatever moves one frame rigidly the other's mounting can
 //! absorb: the rank-revealing solve holds the joint parameters it cannot tell from a mounting
-//! (the set-up is held last, [`gauge_class`]). What is recovered is every branch's motion
+//! (the set-up is held last, as the gauge of [`calibrate`](super::calibrate) orders it). What is recovered is every branch's motion
 //! relative to the others: on held-out poses, every view and every relative pose of two tips.
 //!
 //! # The start
@@ -272,9 +271,8 @@ impl<'a> TreeProblem<'a> {
     fn select(&mut self, selection: Vec<usize>, setup_selection: Vec<usize>) {
         self.branch_columns = (self.params.chains.iter().zip(&self.params.maps))
             .map(|(chain, map)| {
-                let mine: Vec<usize> = (0..map.len())
-                    .filter(|&i| map[i].is_some_and(|t| selection.contains(&t)))
-                    .collect();
+                let mine: Vec<usize> =
+                    (0..map.len()).filter(|&i| map[i].is_some_and(|t| selection.contains(&t))).collect();
                 let columns = mine
                     .iter()
                     .map(|&i| selection.iter().position(|&t| Some(t) == map[i]).expect("selected"))
@@ -546,15 +544,21 @@ impl TreeCalibration {
             view.target = index[view.target];
         }
         let residual = |x: &[f64], s: &[f64]| {
-            let problem =
-                TreeProblem::new(&self.params, &remapped, Vec::new(), x.to_vec(), s.to_vec(), Vec::new(), None);
+            let problem = TreeProblem::new(
+                &self.params,
+                &remapped,
+                Vec::new(),
+                x.to_vec(),
+                s.to_vec(),
+                Vec::new(),
+                None,
+            );
             problem.evaluate(&DVector::zeros(0), None)
         };
         let before = residual(&vec![0.0; self.params.len()], &self.setup_values.0);
         let after = residual(&self.after, &self.setup_values.1);
-        let norms = |y: &DVector<f64>, k: usize| {
-            (y.rows(6 * k, 3).norm(), y.rows(6 * k + 3, 3).norm().to_degrees())
-        };
+        let norms =
+            |y: &DVector<f64>, k: usize| (y.rows(6 * k, 3).norm(), y.rows(6 * k + 3, 3).norm().to_degrees());
         let views: Vec<ViewResidual> = (0..data.views.len())
             .map(|k| {
                 let (before_mm, before_deg) = norms(&before, k);
@@ -587,7 +591,8 @@ impl TreeCalibration {
 /// form.
 fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, CalibrationError> {
     let zero = vec![0.0; params.len()];
-    let problem = TreeProblem::new(params, data, Vec::new(), zero, vec![0.0; 6 * data.frames.len()], Vec::new(), None);
+    let problem =
+        TreeProblem::new(params, data, Vec::new(), zero, vec![0.0; 6 * data.frames.len()], Vec::new(), None);
     let chains = problem.chains_at(&problem.fixed);
     let tip = |f: usize, pose: usize| -> Isometry3<f64> {
         data.frames[f].on.map_or(Isometry3::identity(), |b| chains[b].pose(&problem.values[b][pose]))
@@ -607,9 +612,8 @@ fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, Calib
             .map(|v| (tip(camera, v.pose).inverse() * tip(target, v.pose), isometry(v.view.as_slice())))
             .collect();
         let names = [camera, target].map(|f| data.frames[f].name(&params.tips));
-        let (c, t) = camera_start(&views, super::kinds::CameraSite::World).map_err(|e| {
-            CalibrationError::Observations(format!("{} seeing {}: {e}", names[0], names[1]))
-        })?;
+        let (c, t) = camera_start(&views, super::kinds::CameraSite::World)
+            .map_err(|e| CalibrationError::Observations(format!("{} seeing {}: {e}", names[0], names[1])))?;
         for (f, start) in [(camera, c), (target, t)] {
             if !placed[f] {
                 values[6 * f..6 * f + 6].copy_from_slice(placement(&start).as_slice());
@@ -670,7 +674,8 @@ pub fn calibrate_tree(
     let (identifiable, fixed) = identifiable(&linearised, &problem.names(), &priority)?;
     let robot = asked.len();
     let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
-    let kept_setup: Vec<usize> = identifiable.iter().filter(|&&c| c >= robot).map(|&c| every[c - robot]).collect();
+    let kept_setup: Vec<usize> =
+        identifiable.iter().filter(|&&c| c >= robot).map(|&c| every[c - robot]).collect();
     let problem = base_problem.reselect(kept, zero, before_setup.clone(), kept_setup);
     let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);

@@ -471,3 +471,23 @@ fn calibrate_observations_weights_by_default_and_takes_ols_or_wls_only() {
     assert!(observations(&["--estimator", "wls-diag"]).unwrap_err().starts_with("--estimator wls-diag:"));
     assert!(observations(&["--json", "d.csv"]).unwrap_err().contains("d.csv"));
 }
+
+/// `robocal calibrate-tree --model MODEL --data v.csv` with `args`.
+fn calibrate_tree(model: &str, args: &[&str]) -> Result<CalibrateTreeRequest, String> {
+    request(&["calibrate-tree", "--model", model, "--data", "v.csv"], args, |command| match command {
+        Command::CalibrateTree(args) => CalibrateTreeRequest::from_args(*args),
+        other => panic!("parsed as {other:?}"),
+    })
+}
+
+#[test]
+fn a_tree_is_a_urdf_calibrated_by_ols_or_wls_of_its_joints() {
+    let r = calibrate_tree("torso.urdf", &["--tips", "head_camera,l_hand"]).unwrap();
+    assert_eq!(r.estimator, Estimator::Wls);
+    assert_eq!(r.joints, JointParams::All);
+    assert_eq!(r.tips, ["head_camera", "l_hand"]);
+    assert!(refused(calibrate_tree("puma560", &[])).contains("--model: a URDF file"));
+    assert!(refused(calibrate_tree("torso.urdf", &["--estimator", "fgls"])).contains("ols or wls"));
+    assert!(refused(calibrate_tree("torso.urdf", &["--params", "all"])).contains("never estimated"));
+    assert!(refused(calibrate_tree("torso.urdf", &["--json", "v.csv"])).contains("--json"));
+}

@@ -1,0 +1,84 @@
+//! `robocal calibrate-tree`: a robot of several chains (a torso with arms and a head camera)
+//! calibrated in one fit from camera views between its branches
+//! ([`robocal::calibration::tree`]); every file read and the fit made before anything is
+//! written.
+
+use super::from_flag_unit;
+use super::request::CalibrateTreeRequest;
+use anyhow::{Context, Result, bail};
+use nalgebra::{DMatrix, DVector};
+use robocal::calibration::tree::{TreeData, TreeOptions, calibrate_tree};
+use robocal::estimation::RefineOptions;
+use robocal::io;
+use robocal::model::RobotTree;
+use robocal::report::tree::TreeReport;
+use std::path::Path;
+
+/// Calibrate, print the report, write the files asked for.
+pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
+    let name = request.model.display().to_string();
+    let text = std::fs::read_to_string(&request.model).with_context(|| format!("{name}: cannot read"))?;
+    let tree =
+        RobotTree::from_urdf_str(&text, request.base_link.as_deref(), &request.tips).with_context(|| name)?;
+    let mut data = TreeData::default();
+    for path in &request.data {
+        data = data.join(&read(path, &tree, request)?);
+    }
+    let options = TreeOptions {
+        estimator: request.estimator,
+        joint_noise: joint_noise(&tree, request.joint_sigma_deg.as_deref())?,
+        joints: request.joints.clone(),
+        refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
+    };
+    let names: Vec<String> = request.data.iter().map(|p| p.display().to_string()).collect();
+    let c = calibrate_tree(&tree, &data, &options).with_context(|| names.join(", "))?;
+    let held_out = request
+        .validate
+        .iter()
+        .map(|path| {
+            let score = c.score(&read(path, &tree, request)?).with_context(|| path.display().to_string())?;
+            Ok((path.display().to_string(), score))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let fitted = (data.views.len(), data.joints.len());
+    let report = TreeReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out);
+    print!("{}", report.text());
+    let mut outputs = io::Outputs::new();
+    if let Some(path) = &request.json {
+        outputs.add(path, serde_json::to_string_pretty(&report)? + "\n");
+    }
+    if let Some(folder) = &request.out_dir {
+        let files: Vec<(String, String)> = (c.calibrated.branches.iter())
+            .map(|b| (format!("{}.toml", b.tip), robocal::model::to_toml_with_markers(&b.model, &[])))
+            .collect();
+        outputs.add_folder(folder, &files);
+    }
+    Ok(outputs.commit()?)
+}
+
+/// One view file.
+fn read(path: &Path, tree: &RobotTree, request: &CalibrateTreeRequest) -> Result<TreeData> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    TreeData::from_csv_str(&text, tree, request.units).with_context(|| path.display().to_string())
+}
+
+/// `Sigma_q` of `--joint-sigma-deg` (rad², mm²): one sigma per tree joint, or one for all.
+fn joint_noise(tree: &RobotTree, sigmas: Option<&[f64]>) -> Result<Option<DMatrix<f64>>> {
+    let Some(sigmas) = sigmas else { return Ok(None) };
+    let sigma = |j: usize| match sigmas {
+        [one] => *one,
+        many => many[j],
+    };
+    if sigmas.len() != 1 && sigmas.len() != tree.dof() {
+        let joints: Vec<&str> = tree.joints.iter().map(|j| j.name.as_str()).collect();
+        bail!(
+            "--joint-sigma-deg: {} values for the {} joints of {} ({}): give one per joint or one for all",
+            sigmas.len(),
+            tree.dof(),
+            tree.name,
+            joints.join(", ")
+        );
+    }
+    let variances = (0..tree.dof()).map(|j| from_flag_unit(tree.joints[j].kind, sigma(j)).powi(2));
+    Ok(Some(DMatrix::from_diagonal(&DVector::from_iterator(tree.dof(), variances))))
+}

@@ -1,0 +1,195 @@
+//! The report of a tree calibrated from camera views ([`crate::calibration::tree`]): the joint
+//! parameters with their standard errors, the cameras and targets as calibrated, what the views
+//! cannot see, and the RMS view errors before and after on the training and the held-out
+//! files, with the worst views. Text and JSON carry the same content.
+
+use super::calibration::ParameterRow;
+use crate::calibration::tree::{TreeCalibration, TreeScore, ViewResidual};
+use serde::Serialize;
+use std::fmt::Write;
+
+/// A camera or target as calibrated: its placement in its tip link's frame (or the root
+/// link's, for `world`).
+#[derive(Debug, Clone, Serialize)]
+pub struct FrameRow {
+    /// `camera.head_camera`, `target.l_hand`.
+    pub name: String,
+    /// Position (mm).
+    pub xyz_mm: [f64; 3],
+    /// Roll, pitch, yaw (deg; `R = Rz(yaw) Ry(pitch) Rx(roll)`).
+    pub rpy_deg: [f64; 3],
+}
+
+/// Everything the report says. Angles in degrees, lengths in millimetres.
+#[derive(Debug, Clone, Serialize)]
+pub struct TreeReport {
+    /// The robot's name.
+    pub model: String,
+    /// Its branches' tip links.
+    pub branches: Vec<String>,
+    /// Its joints.
+    pub joints: usize,
+    /// The view files.
+    pub data: String,
+    /// Views fitted.
+    pub views: usize,
+    /// Poses they were taken at.
+    pub poses: usize,
+    /// The estimator's name.
+    pub estimator: String,
+    /// Gauss-Newton steps taken.
+    pub iterations: usize,
+    /// Whether a stopping rule was met.
+    pub converged: bool,
+    /// The estimated parameters, the tree's then the cameras' and targets'.
+    pub parameters: Vec<ParameterRow>,
+    /// The cameras and targets as calibrated.
+    pub frames: Vec<FrameRow>,
+    /// What the views cannot see, held, in words.
+    pub unseen: Vec<String>,
+    /// Combinations the poses cannot tell apart, held, in words.
+    pub fixed: Vec<String>,
+    /// The training views scored, then each held-out file's.
+    pub sets: Vec<(String, TreeScore)>,
+}
+
+/// Views listed per set in the text, the worst first.
+pub const WORST: usize = 3;
+
+impl TreeReport {
+    /// The report of `c`, fitted on `data` (names; `fitted` its views and poses) with
+    /// `estimator`; `held_out` the held-out files scored.
+    pub fn new(
+        c: &TreeCalibration,
+        data: &str,
+        fitted: (usize, usize),
+        estimator: &str,
+        held_out: Vec<(String, TreeScore)>,
+    ) -> Self {
+        let se = c.refined.estimate.standard_errors();
+        let frame_names = c.frame_names();
+        let parameters = (c.refined.estimate.names.iter().enumerate())
+            .map(|(k, name)| {
+                let (value, angle) = match c.params.params.iter().position(|p| p.name == *name) {
+                    Some(i) => (c.after[i], c.params.params[i].is_angle()),
+                    None => {
+                        let (frame, axis) = name.rsplit_once('.').expect("a frame's parameter");
+                        let f = frame_names.iter().position(|n| n == frame).expect("a frame");
+                        let a = ["x", "y", "z", "rx", "ry", "rz"]
+                            .iter()
+                            .position(|n| *n == axis)
+                            .expect("an axis");
+                        (c.setup_values.1[6 * f + a], a >= 3)
+                    }
+                };
+                let scale = if angle { 180.0 / std::f64::consts::PI } else { 1.0 };
+                ParameterRow {
+                    name: name.clone(),
+                    value: value * scale,
+                    std_error: se[k] * scale,
+                    unit: if angle { "deg" } else { "mm" },
+                    prior_sd: None,
+                    sd_ratio: None,
+                }
+            })
+            .collect();
+        let frames = (frame_names.iter().enumerate())
+            .map(|(f, name)| {
+                let placement = c.frame(f);
+                let (roll, pitch, yaw) = placement.rotation.euler_angles();
+                let t = placement.translation.vector;
+                FrameRow {
+                    name: name.clone(),
+                    xyz_mm: [t.x, t.y, t.z],
+                    rpy_deg: [roll, pitch, yaw].map(f64::to_degrees),
+                }
+            })
+            .collect();
+        let mut sets = vec![("training".to_string(), c.training.clone())];
+        sets.extend(held_out);
+        Self {
+            model: c.calibrated.name.clone(),
+            branches: c.calibrated.branches.iter().map(|b| b.tip.clone()).collect(),
+            joints: c.calibrated.dof(),
+            data: data.to_string(),
+            views: fitted.0,
+            poses: fitted.1,
+            estimator: estimator.to_string(),
+            iterations: c.refined.history.len(),
+            converged: c.refined.converged,
+            parameters,
+            frames,
+            unseen: c.unseen.clone(),
+            fixed: c.fixed.clone(),
+            sets,
+        }
+    }
+
+    /// The report as text, at fixed precision.
+    pub fn text(&self) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "calibration of {} (branches {}; {} joints) from {}: {} views at {} poses, {} ({} steps, {})\n",
+            self.model,
+            self.branches.join(", "),
+            self.joints,
+            self.data,
+            self.views,
+            self.poses,
+            self.estimator,
+            self.iterations,
+            if self.converged { "converged" } else { "not converged" }
+        );
+        let width = self.parameters.iter().map(|p| p.name.len()).max().unwrap_or(0).max(9);
+        let _ = writeln!(out, "{:<width$} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
+        for p in &self.parameters {
+            let _ = writeln!(out, "{:<width$} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
+        }
+        let _ = writeln!(out, "\ncameras and targets as calibrated (x, y, z mm; roll, pitch, yaw deg):");
+        let width = self.frames.iter().map(|f| f.name.len()).max().unwrap_or(0);
+        for f in &self.frames {
+            let [x, y, z] = f.xyz_mm;
+            let [roll, pitch, yaw] = f.rpy_deg;
+            let _ = writeln!(
+                out,
+                "  {:<width$} {x:>10.3} {y:>10.3} {z:>10.3}   {roll:>9.4} {pitch:>9.4} {yaw:>9.4}",
+                f.name
+            );
+        }
+        let _ = writeln!(out, "\nnot seen by these views, held:");
+        for u in &self.unseen {
+            let _ = writeln!(out, "  {u}");
+        }
+        if !self.fixed.is_empty() {
+            let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");
+            for f in &self.fixed {
+                let _ = writeln!(out, "  {f}");
+            }
+        }
+        let width = self.sets.iter().map(|r| r.0.len() + 9).max().unwrap_or(0).max(24);
+        let _ = writeln!(out, "\n{:<width$} {:>10} {:>10}", "view errors, RMS", "before", "after");
+        for (name, score) in &self.sets {
+            let ((before, after), (before_deg, after_deg)) = (score.position, score.rotation);
+            let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
+            let _ = writeln!(out, "{:<width$} {before_deg:>10.5} {after_deg:>10.5}", format!("{name} (deg)"));
+        }
+        let _ = writeln!(out, "\nworst views after calibration ({WORST} per set; every one in --json):");
+        for (name, score) in &self.sets {
+            let mut worst: Vec<&ViewResidual> = score.views.iter().collect();
+            worst.sort_by(|a, b| b.after_mm.total_cmp(&a.after_mm));
+            for v in worst.iter().take(WORST) {
+                let _ = writeln!(
+                    out,
+                    "  {name}, line {}: {:.4} mm / {:.5} deg before, {:.4} mm / {:.5} deg after",
+                    v.line, v.before_mm, v.before_deg, v.after_mm, v.after_deg
+                );
+            }
+        }
+        let _ = writeln!(
+            out,
+            "\nbefore: the cameras and targets fitted with the tree nominal; after: the tree's joints with them"
+        );
+        out
+    }
+}
