@@ -173,7 +173,7 @@ fn one_fit_of_a_head_camera_seeing_both_hands_recovers_every_chain() {
     assert!(c.unseen.iter().any(|u| u.starts_with("base.*")), "{:?}", c.unseen);
     for name in ["torso.x", "torso.rz", "torso.theta"] {
         assert!(
-            c.fixed.iter().any(|f| f.starts_with(&format!("{name}: the observations do not move it"))),
+            c.fixed.iter().any(|f| f.starts_with(&format!("{name}: it moves every camera and target alike"))),
             "{name}: {:?}",
             c.fixed
         );
@@ -400,4 +400,18 @@ fn calibrate_tree_refuses_what_it_cannot_fit_by_name() {
         1,
     );
     assert!(e.contains("two tips or more"), "{e}");
+}
+
+#[test]
+fn the_readme_tree_example_is_the_real_output() {
+    let readme = include_str!("../../README.md");
+    let start = readme.find("$ robocal calibrate-tree").expect("the README shows calibrate-tree");
+    let block = &readme[start..start + readme[start..].find("```").unwrap()];
+    let out = robocal(&TREE_EXAMPLE);
+    let text = String::from_utf8(out.stdout).unwrap();
+    let shown: Vec<&str> = block.lines().skip(2).filter(|l| *l != "..." && !l.trim().is_empty()).collect();
+    assert!(shown.len() >= 10, "{shown:?}");
+    for line in shown {
+        assert!(text.lines().any(|l| l == line), "the README shows `{line}`, not in the output:\n{text}");
+    }
 }

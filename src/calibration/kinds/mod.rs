@@ -74,8 +74,8 @@
 //! estimator applies unchanged. A camera's view ([`camera`]) is six rows, one observation each
 //! sharing the view: like a pose's coordinates, their correlation through the joint noise of
 //! their common pose is left out of `V` (exact when the joints are exact). A target point's
-//! pixel (2 rows) would be the same; several chains (a torso and two arms) are one chain per
-//! observation sharing the joint parameters of their common links.
+//! pixel (2 rows) would be the same. Several chains (a torso, two arms and a head camera) are
+//! [`tree`](super::tree)'s: a camera's view with both its frames on branches.
 
 pub mod camera;
 mod data;

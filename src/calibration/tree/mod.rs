@@ -28,12 +28,14 @@
 //! # What the views cannot see
 //!
 //! A view sees one frame relative to the other: the base placement and every joint on the way
-//! to both frames (the torso's, for a head camera looking at a hand) move both alike and cancel;
-//! they are held and reported (the base as such, the shared joints as "the observations do not
-//! move it"). Between the branches, whatever moves one frame rigidly the other's mounting can
-//! absorb: the rank-revealing solve holds the joint parameters it cannot tell from a mounting
-//! (the set-up is held last, as the gauge of [`calibrate`](super::calibrate) orders it). What is recovered is every branch's motion
-//! relative to the others: on held-out poses, every view and every relative pose of two tips.
+//! to both frames (the torso's, for a head camera looking at a hand) move both alike and
+//! cancel; they are held and reported. After the joints they share, one rigid motion `G` of
+//! every branch's next joint origin (`O -> G O` for the head's first joint and each arm's)
+//! leaves every view too: 6 combinations of those origins, which the rank-revealing solve
+//! holds, with what each mounting cannot be told from (the set-up is held last, as the gauge of
+//! [`calibrate`](super::calibrate) orders it). What is recovered is every branch's motion
+//! relative to the others: on held-out poses, every view, and the pose of any camera or target
+//! relative to any other (one hand's target from the other's, never measured).
 //!
 //! # The start
 //!
@@ -671,7 +673,13 @@ pub fn calibrate_tree(
     let priority: Vec<u32> = (0..problem.parameters())
         .map(|c| asked.get(c).map_or(0, |&i| gauge_class(&params.params[i])))
         .collect();
-    let (identifiable, fixed) = identifiable(&linearised, &problem.names(), &priority)?;
+    let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority)?;
+    for f in &mut fixed {
+        *f = f.replace(
+            "the observations do not move it",
+            "it moves every camera and target alike (a joint on the way to all of them): no view sees it",
+        );
+    }
     let robot = asked.len();
     let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
     let kept_setup: Vec<usize> =
