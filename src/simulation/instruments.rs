@@ -71,9 +71,10 @@
 //! These are assumptions of a careful cell, not measured figures; a study file sets its own.
 //!
 //! The camera's views are drawn at configurations uniform within the joint limits, as every
-//! other instrument's, without asking whether the target is in the camera's field of view: a
-//! real wrist camera sees its target from a narrower set of poses, so the study's camera is an
-//! optimistic one.
+//! other instrument's; with a [`Sight`] (the study file's `field_of_view_deg`, `range_mm`,
+//! `max_incidence_deg`) only those where the real camera sees the target are kept (drawn again
+//! until one is, at most [`MOST_DRAWS_PER_VIEW`] times), as a real wrist camera sees its board
+//! from a narrower set of poses.
 //!
 //! # Random numbers
 //!
@@ -134,7 +135,40 @@ pub enum InstrumentKind {
         /// The noise on the view's rotation: the standard deviation of each component of the
         /// rotation vector of the error (rad).
         sigma_angle: f64,
+        /// Where the camera sees the target from, if asked: views are drawn only there.
+        sight: Option<Sight>,
     },
+}
+
+/// Where a camera sees its target from: the target's origin within `half_angle` of the
+/// camera's optical axis (its z axis) and at a distance within `range`, and the camera within
+/// `incidence` of the target's normal (its z axis), on its side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sight {
+    /// Half the field of view's cone angle (rad).
+    pub half_angle: f64,
+    /// The nearest and farthest distance in focus (mm).
+    pub range: [f64; 2],
+    /// The largest angle between the target's normal and the line to the camera (rad).
+    pub incidence: f64,
+}
+
+/// The most configurations drawn for one camera view before the target is taken to be out of
+/// sight from every pose.
+pub const MOST_DRAWS_PER_VIEW: usize = 100_000;
+
+impl Sight {
+    /// Whether the camera sees the target in the view `view` (the target's frame in the
+    /// camera's): `angle(p, z) <= half_angle`, `range[0] <= |p| <= range[1]`, and
+    /// `angle(c, z) <= incidence` for the camera's position `c` in the target's frame.
+    pub fn sees(&self, view: &Isometry3<f64>) -> bool {
+        let p = view.translation.vector;
+        let c = view.inverse().translation.vector;
+        let within = |v: &Vector3<f64>, limit: f64| v.z > 0.0 && v.z >= v.norm() * limit.cos();
+        within(&p, self.half_angle)
+            && (self.range[0]..=self.range[1]).contains(&p.norm())
+            && within(&c, self.incidence)
+    }
 }
 
 impl InstrumentKind {
@@ -243,6 +277,12 @@ struct InstrumentFile {
     target_xyz_mm: Option<[f64; 3]>,
     #[serde(default)]
     target_rpy_deg: Option<[f64; 3]>,
+    #[serde(default)]
+    field_of_view_deg: Option<f64>,
+    #[serde(default)]
+    range_mm: Option<[f64; 2]>,
+    #[serde(default)]
+    max_incidence_deg: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -353,7 +393,7 @@ impl InstrumentStudy {
                 );
             }
             check_magnitude(sigma, MAX_LENGTH_MM, "mm").map_err(|e| FieldError::new(field("sigma_mm"), e))?;
-            if let InstrumentKind::Camera { mounting, target, sigma_angle } = &instrument.kind {
+            if let InstrumentKind::Camera { mounting, target, sigma_angle, .. } = &instrument.kind {
                 let degrees = sigma_angle.to_degrees();
                 if !(degrees >= 0.0 && degrees.is_finite()) {
                     let expected = format!("a noise >= 0 deg, found {degrees}");
@@ -496,7 +536,35 @@ impl InstrumentFile {
                 let sigma_deg = self
                     .sigma_deg
                     .ok_or_else(|| FieldError::new("sigma_deg", "the noise on each angle of a view (deg)"))?;
-                InstrumentKind::Camera { mounting, target, sigma_angle: sigma_deg.to_radians() }
+                let sight = match (self.field_of_view_deg, self.range_mm, self.max_incidence_deg) {
+                    (None, None, None) => None,
+                    (Some(fov), Some(range), Some(incidence)) => {
+                        if !(fov > 0.0 && fov < 180.0) {
+                            let expected =
+                                format!("a full cone angle above 0 and below 180 deg, found {fov}");
+                            return Err(FieldError::new("field_of_view_deg", expected));
+                        }
+                        if !(range[0] >= 0.0 && range[0] < range[1] && range[1].is_finite()) {
+                            return Err(FieldError::new("range_mm", "[near, far] with 0 <= near < far (mm)"));
+                        }
+                        if !(incidence > 0.0 && incidence <= 90.0) {
+                            let expected = format!("an angle above 0 and at most 90 deg, found {incidence}");
+                            return Err(FieldError::new("max_incidence_deg", expected));
+                        }
+                        Some(Sight {
+                            half_angle: (fov / 2.0).to_radians(),
+                            range,
+                            incidence: incidence.to_radians(),
+                        })
+                    }
+                    _ => {
+                        return Err(FieldError::new(
+                            "field_of_view_deg",
+                            "field_of_view_deg, range_mm and max_incidence_deg together, or none of them",
+                        ));
+                    }
+                };
+                InstrumentKind::Camera { mounting, target, sigma_angle: sigma_deg.to_radians(), sight }
             }
             other => {
                 let expected =
@@ -517,6 +585,9 @@ impl InstrumentFile {
             ("camera_rpy_deg", self.camera_rpy_deg.is_some()),
             ("target_xyz_mm", self.target_xyz_mm.is_some()),
             ("target_rpy_deg", self.target_rpy_deg.is_some()),
+            ("field_of_view_deg", self.field_of_view_deg.is_some()),
+            ("range_mm", self.range_mm.is_some()),
+            ("max_incidence_deg", self.max_incidence_deg.is_some()),
         ] {
             unused(field, present && !camera, "camera")?;
         }
@@ -757,12 +828,30 @@ impl Campaign<'_> {
         for k in 0..count {
             let pose = data.joints.len();
             let observation = match kind {
-                InstrumentKind::Camera { mounting, target, sigma_angle } => {
-                    // The view from the real tip frame, the tool point's frame moved back to it.
-                    let q = robot.uniform_configurations(1, rng).remove(0);
+                InstrumentKind::Camera { mounting, target, sigma_angle, sight } => {
+                    // The view from the real tip frame, the tool point's frame moved back to it;
+                    // a configuration the camera sees the target from, if that is asked.
+                    let seen = |q: &[f64]| -> Isometry3<f64> {
+                        let tip = real.pose(q) * Translation3::from(-self.study.tool());
+                        (tip * mounting).inverse() * target
+                    };
+                    let mut q = robot.uniform_configurations(1, rng).remove(0);
+                    if let Some(sight) = sight {
+                        let mut draws = 1;
+                        while !sight.sees(&seen(&q)) {
+                            if draws == MOST_DRAWS_PER_VIEW {
+                                let field = format!("instruments[{i}].field_of_view_deg");
+                                let expected = format!(
+                                    "a target the camera sees from some poses: none of {MOST_DRAWS_PER_VIEW} drawn did"
+                                );
+                                return Err(StudyError::from(FieldError::new(field, expected)).into());
+                            }
+                            q = robot.uniform_configurations(1, rng).remove(0);
+                            draws += 1;
+                        }
+                    }
                     let read = self.noisy(&q, rng);
-                    let tip = real.pose(&read) * Translation3::from(-self.study.tool());
-                    let view = (tip * mounting).inverse() * target;
+                    let view = seen(&read);
                     let mut z = || Vector3::new(normal(rng), normal(rng), normal(rng));
                     let position = view.translation.vector + z() * sigma;
                     let rotation = UnitQuaternion::from_scaled_axis(z() * *sigma_angle) * view.rotation;

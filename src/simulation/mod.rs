@@ -35,7 +35,7 @@ pub mod tree;
 
 pub use instruments::{
     EXACT_SIGMA_MM, INSTRUMENT_STUDIES, Instrument, InstrumentKind, InstrumentResults, InstrumentStudy,
-    Scores, interval as stats_interval, is_instrument_study, run_instruments,
+    MOST_DRAWS_PER_VIEW, Scores, Sight, interval as stats_interval, is_instrument_study, run_instruments,
 };
 pub use replication::{
     Coverage, MAX_REPLICATIONS, REPLICATION_STREAM, Replication, ReplicationError, Replications, Statistic,

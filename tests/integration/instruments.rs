@@ -91,7 +91,11 @@ fn exact_instruments_recover_the_robot() {
 fn an_exact_wrist_camera_recovers_the_robot() {
     let text = embedded()
         .replace("camera_rpy_deg = [0.0, 0.0, 0.0]", "camera_rpy_deg = [10.0, -20.0, 30.0]")
-        .replace("target_rpy_deg = [0.0, 0.0, 0.0]", "target_rpy_deg = [170.0, 15.0, -40.0]");
+        .replace("target_rpy_deg = [0.0, 0.0, 0.0]", "target_rpy_deg = [170.0, 15.0, -40.0]")
+        .lines()
+        .filter(|l| !["field_of_view_deg", "range_mm", "max_incidence_deg"].iter().any(|f| l.starts_with(f)))
+        .map(|l| format!("{l}\n"))
+        .collect::<String>();
     let mut study = InstrumentStudy::from_toml_str(&text, load).unwrap();
     (study.runs, study.test_points, study.time_budget) = (2, 100, 200.0);
     study.instruments.retain(|i| i.kind.name() == "camera");
@@ -168,6 +172,11 @@ fn errors_in_the_study_file_name_the_field() {
             "instruments[4].target_rpy_deg",
         ),
         ("kind = \"artefact\"", "kind = \"artefact\"\nsigma_deg = 0.1", "instruments[2].sigma_deg"),
+        ("range_mm = [300.0, 1200.0]", "", "instruments[4].field_of_view_deg"),
+        ("field_of_view_deg = 40.0", "field_of_view_deg = 180.0", "instruments[4].field_of_view_deg"),
+        ("range_mm = [300.0, 1200.0]", "range_mm = [1200.0, 300.0]", "instruments[4].range_mm"),
+        ("max_incidence_deg = 45.0", "max_incidence_deg = 0.0", "instruments[4].max_incidence_deg"),
+        ("kind = \"height\"", "kind = \"height\"\nrange_mm = [1.0, 2.0]", "instruments[3].range_mm"),
         (
             "kind = \"height\"",
             "kind = \"height\"\ntarget_rpy_deg = [0.0, 0.0, 0.0]",
@@ -263,4 +272,56 @@ fn the_readme_instrument_table_is_the_real_output() {
     let table = stdout.split("\n\nwrote").next().unwrap();
     assert_eq!(table.trim_end(), expected.trim_end(), "regenerate the README's instrument table");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A camera sees a target in front of it, within its cone and range, facing it.
+#[test]
+fn a_camera_sees_only_a_target_in_its_cone_range_and_facing_it() {
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+    use robocal::simulation::Sight;
+    let sight =
+        Sight { half_angle: 20f64.to_radians(), range: [300.0, 1200.0], incidence: 45f64.to_radians() };
+    // The board 800 mm along the optical axis, facing the camera (its normal back at it).
+    let facing = UnitQuaternion::from_euler_angles(std::f64::consts::PI, 0.0, 0.0);
+    let at = |p: Vector3<f64>, r: UnitQuaternion<f64>| Isometry3::from_parts(Translation3::from(p), r);
+    assert!(sight.sees(&at(Vector3::new(0.0, 0.0, 800.0), facing)));
+    // 15 deg off the axis: seen; 25 deg: not.
+    let off = |deg: f64| Vector3::new(800.0 * deg.to_radians().tan(), 0.0, 800.0);
+    assert!(sight.sees(&at(off(15.0), facing)));
+    assert!(!sight.sees(&at(off(25.0), facing)));
+    // Too near, too far, behind the camera.
+    for z in [200.0, 1500.0, -800.0] {
+        assert!(!sight.sees(&at(Vector3::new(0.0, 0.0, z), facing)), "{z}");
+    }
+    // The board turned 40 deg off facing the camera: seen; 50 deg or its back: not.
+    for (deg, seen) in [(40.0f64, true), (50.0, false), (180.0, false)] {
+        let turned = facing * UnitQuaternion::from_euler_angles(deg.to_radians(), 0.0, 0.0);
+        assert_eq!(sight.sees(&at(Vector3::new(0.0, 0.0, 800.0), turned)), seen, "{deg} deg");
+    }
+}
+
+/// The preset's camera sees the board from some poses only, and is worse for it than the same
+/// camera drawn over every pose; a board it never sees is refused by name.
+#[test]
+fn a_camera_that_must_see_its_board_calibrates_worse() {
+    let camera_only = |text: &str| {
+        let mut study = InstrumentStudy::from_toml_str(text, load).unwrap();
+        (study.runs, study.test_points) = (8, 200);
+        study.instruments.retain(|i| i.kind.name() == "camera");
+        study
+    };
+    let blind: String = embedded()
+        .lines()
+        .filter(|l| !["field_of_view_deg", "range_mm", "max_incidence_deg"].iter().any(|f| l.starts_with(f)))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let mean = |study: &InstrumentStudy| {
+        let results = run_instruments(study, &|| {}).unwrap();
+        results.scores.iter().map(|r| r[0].aligned).sum::<f64>() / results.scores.len() as f64
+    };
+    let (seeing, everywhere) = (mean(&camera_only(embedded())), mean(&camera_only(&blind)));
+    assert!(seeing > 1.3 * everywhere, "in sight only: {seeing} mm; everywhere: {everywhere} mm");
+    let unseen = embedded().replace("range_mm = [300.0, 1200.0]", "range_mm = [5000.0, 6000.0]");
+    let error = run_instruments(&camera_only(&unseen), &|| {}).unwrap_err().to_string();
+    assert!(error.contains("field_of_view_deg") && error.contains("none of"), "{error}");
 }
