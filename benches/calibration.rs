@@ -3,7 +3,9 @@
 //! registration, the base-and-markers fit and the identifiability analysis; and the same with
 //! link masses, joints 2 and 3 compliant, and the 6 compliances asked for too (5 loaded); and
 //! `select` by 5-fold cross-validation on 100 poses of a 12-joint arm (two PUMA 560 arms end
-//! to end) with three markers: 60 candidate joint parameters.
+//! to end) with three markers: 60 candidate joint parameters; and `calibrate_tree` on the
+//! torso preset (15 joints, 3 branches) from 500 poses of its head camera seeing both hands
+//! (1000 views, 6000 rows, 123 parameters asked for), WLS with joint noise, to convergence.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;
@@ -122,5 +124,42 @@ fn selection(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, calibration, selection);
+/// `calibrate_tree`: the torso of `presets/torso.urdf`, every joint origin off by about 1 mm
+/// and 0.3 deg, its head camera's views of both hands at 500 poses (0.2 mm, 0.05 deg).
+fn tree(c: &mut Criterion) {
+    use robocal::calibration::tree::{Frame, Role, TreeOptions, calibrate_tree};
+    use robocal::model::RobotTree;
+    use robocal::simulation::tree::{perturbed_tree, simulate_views};
+    let nominal = RobotTree::from_urdf_str(include_str!("../presets/torso.urdf"), None, &[]).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(15);
+    let truth = perturbed_tree(&nominal, 1.0, 0.3f64.to_radians(), &mut rng);
+    let on = |tip: &str| nominal.branch(tip);
+    let frames = [
+        Frame { role: Role::Camera, on: on("head_camera") },
+        Frame { role: Role::Target, on: on("l_hand") },
+        Frame { role: Role::Target, on: on("r_hand") },
+    ];
+    let placements = [
+        10.0, -5.0, 8.0, 0.05, -0.03, 0.02, 3.0, 5.0, -40.0, 0.2, -0.1, 0.3, -2.0, 4.0, -35.0, -0.15, 0.1,
+        -0.2,
+    ];
+    let q = nominal.uniform_configurations(500, &mut rng);
+    let sigma = [0.2, 0.05f64.to_radians()];
+    let data = simulate_views(&truth, &frames, &placements, &[(0, 1), (0, 2)], &q, sigma, &mut rng);
+    let sigma_q = 0.01f64.to_radians().powi(2);
+    let options = TreeOptions {
+        estimator: Estimator::Wls,
+        joint_noise: Some(nalgebra::DMatrix::from_diagonal_element(nominal.dof(), nominal.dof(), sigma_q)),
+        joints: JointParams::All,
+        refine: RefineOptions::default(),
+    };
+    let mut group = c.benchmark_group("calibrate-tree");
+    group.sample_size(10);
+    group.bench_function("torso, 500 poses, 1000 views, wls iterated", |b| {
+        b.iter(|| calibrate_tree(&nominal, &data, &options).unwrap())
+    });
+    group.finish();
+}
+
+criterion_group!(benches, calibration, selection, tree);
 criterion_main!(benches);

@@ -223,10 +223,9 @@ struct FrameAt {
 }
 
 impl<'a> TreeProblem<'a> {
-    /// The problem of `data` on `tree`, the tree parameters at `fixed` (full vector) and the
-    /// frames at `setup_values`, estimating `selection` (tree parameters, in order) and the
-    /// set-up parameters `setup_selection`; with `joint_noise`, `V_k` has the joint noise.
-    #[allow(clippy::too_many_arguments)]
+    /// The problem of `data` on the tree of `params`, its parameters at `fixed` (full vector)
+    /// and the frames at `setup_values`, estimating `selection` (tree parameters, in order) and
+    /// the set-up parameters `setup_selection`; with `joint_noise`, `V_k` has the joint noise.
     pub fn new(
         params: &'a TreeParams,
         data: &'a TreeData,
