@@ -1,7 +1,9 @@
 //! Camera views of a simulated torso (`presets/torso.urdf`): its head camera sees a target on
-//! each hand. Writes `examples/torso/views.csv` (60 poses) and `views-2.csv` (40 held-out poses)
-//! of a "real" torso whose every joint origin is off by about 1 mm and 0.3 deg, the views with
-//! noise of 0.2 mm and 0.05 deg:
+//! each hand. Writes `examples/torso/views.csv` (60 views of each hand) and `views-2.csv` (40
+//! held-out views of each) of a "real" torso whose every joint origin is off by about 1 mm and
+//! 0.3 deg, the views with noise of 0.2 mm and 0.05 deg. The camera looks forward and 20 deg
+//! down; a view is taken only where it sees the hand's target: within its 70 deg field of
+//! view, 200 to 1200 mm away, the target at most 60 deg off facing it.
 //!
 //! ```text
 //! cargo run --release --example make_torso_data
@@ -11,9 +13,10 @@
 
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
-use robocal::calibration::tree::{Frame, Role};
+use robocal::calibration::tree::{Frame, Role, TreeData};
 use robocal::model::RobotTree;
-use robocal::simulation::tree::{perturbed_tree, simulate_views, views_csv};
+use robocal::simulation::Sight;
+use robocal::simulation::tree::{perturbed_tree, seen_configurations, simulate_views, views_csv};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let nominal = RobotTree::from_urdf_str(include_str!("../presets/torso.urdf"), None, &[])?;
@@ -25,20 +28,42 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Frame { role: Role::Target, on: on("l_hand") },
         Frame { role: Role::Target, on: on("r_hand") },
     ];
-    // The camera 10 mm off its link and tilted; the targets 40 mm past the hands, turned.
+    // The camera 10 mm off its link, looking along its x (forward) and 20 deg down; the targets
+    // 40 mm past the hands, turned.
     let placements = [
-        10.0, -5.0, 8.0, 0.05, -0.03, 0.02, //
-        3.0, 5.0, -40.0, 0.2, -0.1, 0.3, //
-        -2.0, 4.0, -35.0, -0.15, 0.1, -0.2,
+        10.0,
+        -5.0,
+        8.0,
+        0.05,
+        110f64.to_radians(),
+        0.02, //
+        3.0,
+        5.0,
+        -40.0,
+        0.2,
+        -0.1,
+        0.3, //
+        -2.0,
+        4.0,
+        -35.0,
+        -0.15,
+        0.1,
+        -0.2,
     ];
     let sigma = [0.2, 0.05f64.to_radians()];
     std::fs::create_dir_all("examples/torso")?;
+    let sight =
+        Sight { half_angle: 35f64.to_radians(), range: [200.0, 1200.0], incidence: 60f64.to_radians() };
     for (file, poses) in [("views.csv", 60), ("views-2.csv", 40)] {
-        let q = nominal.uniform_configurations(poses, &mut rng);
-        let data = simulate_views(&truth, &frames, &placements, &[(0, 1), (0, 2)], &q, sigma, &mut rng);
+        let mut data = TreeData::default();
+        for pair in [(0, 1), (0, 2)] {
+            let q = seen_configurations(&truth, &frames, &placements, pair, &sight, poses, &mut rng)
+                .ok_or("the head camera never sees a hand")?;
+            data = data.join(&simulate_views(&truth, &frames, &placements, &[pair], &q, sigma, &mut rng));
+        }
         let path = format!("examples/torso/{file}");
         std::fs::write(&path, views_csv(&nominal, &data))?;
-        println!("{path}: {} views at {poses} poses", data.views.len());
+        println!("{path}: {} views at {} poses", data.views.len(), data.joints.len());
     }
     Ok(())
 }

@@ -10,6 +10,7 @@
 //! Views are drawn over the joints' whole ranges: whether the camera would see the target
 //! (its field of view, occlusion) is not checked.
 
+use super::Sight;
 use crate::calibration::kinds::camera::isometry;
 use crate::calibration::tree::{Frame, TreeData, View};
 use crate::kinematics::Chain;
@@ -131,4 +132,27 @@ pub fn views_csv(tree: &RobotTree, data: &TreeData) -> String {
         );
     }
     out
+}
+
+/// `n` configurations of `truth` drawn uniformly within its joint limits at which the camera
+/// `frames[camera]` sees the target `frames[target]` (`frames[f]` at `placements[6f..6f + 6]`)
+/// by `sight`: each drawn again until it does, at most
+/// [`MOST_DRAWS_PER_VIEW`](super::MOST_DRAWS_PER_VIEW) times; `None` if one never does.
+pub fn seen_configurations(
+    truth: &RobotTree,
+    frames: &[Frame],
+    placements: &[f64],
+    (camera, target): (usize, usize),
+    sight: &Sight,
+    n: usize,
+    rng: &mut ChaCha8Rng,
+) -> Option<Vec<Vec<f64>>> {
+    let at = |f: usize, q: &[f64]| frame_at(truth, &frames[f], &placements[6 * f..6 * f + 6], q);
+    (0..n)
+        .map(|_| {
+            (0..super::MOST_DRAWS_PER_VIEW)
+                .map(|_| truth.uniform_configurations(1, rng).remove(0))
+                .find(|q| sight.sees(&(at(camera, q).inverse() * at(target, q))))
+        })
+        .collect()
 }
