@@ -676,7 +676,7 @@ pub fn calibrate_tree(
     for f in &mut fixed {
         *f = f.replace(
             "the observations do not move it",
-            "it moves every camera and target alike (a joint on the way to all of them): no view sees it",
+            "no view sees it: it moves both frames of every view alike (a joint on the way to both), or neither",
         );
     }
     let robot = asked.len();
