@@ -375,6 +375,12 @@ pub struct CalibrateObservationsArgs {
     /// Do not estimate the tool point.
     #[arg(long)]
     pub fixed_tool: bool,
+    /// Nominal position of a marker of a marker file (x1,y1,z1, ...) on the last link, "x,y,z"
+    /// in mm, in the tool frame, as `calibrate --marker` takes it: the k-th is marker k; repeat
+    /// per marker (missing ones start at that frame's origin). The markers are always
+    /// estimated.
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
+    pub marker: Vec<Vector3<f64>>,
     /// Gauss-Newton steps at most (at least 1).
     #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
     pub iterations: usize,

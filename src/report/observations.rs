@@ -34,7 +34,8 @@ pub struct ObservationsReport {
     /// Combinations the poses cannot tell apart, held, in words.
     pub fixed: Vec<String>,
     /// The training observations scored, then each held-out file: every observation's
-    /// residual, and the RMS of the lengths (mm) and of the angles (deg).
+    /// residual, and the RMS of the lengths (mm), of the angles (deg) and of the marker
+    /// positions (mm).
     pub sets: Vec<(String, Score)>,
     /// Observations whose residual after calibration is more than [`FLAG_AT`] standard
     /// deviations out, in words.
@@ -142,6 +143,10 @@ impl ObservationsReport {
         for (name, score) in &self.sets {
             let (before, after) = score.lengths;
             let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
+            if let Some((before, after)) = score.markers {
+                let _ =
+                    writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} markers (mm)"));
+            }
             if let Some((before, after)) = score.angles {
                 let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
             }
@@ -163,6 +168,12 @@ impl ObservationsReport {
             out,
             "\nbefore: the set-up (points, planes, camera and target) fitted with the robot nominal; after: the robot and the set-up"
         );
+        if self.sets.iter().any(|(_, score)| score.markers.is_some()) {
+            let _ = writeln!(
+                out,
+                "with markers: before, the base and the points on the last link fitted too; markers (mm): the RMS of the marker positions' errors"
+            );
+        }
         if !self.warnings.is_empty() {
             let _ = writeln!(out, "\nwarnings:");
             for w in &self.warnings {

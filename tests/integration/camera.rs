@@ -130,6 +130,7 @@ fn options(estimator: Estimator) -> KindOptions {
         joints: JointParams::All,
         estimate_tool: true,
         tool: Vector3::zeros(),
+        markers: Vec::new(),
         refine: RefineOptions::default(),
     }
 }

@@ -1,0 +1,272 @@
+//! Marker positions as a kind of observation, fitted with the others in one calibration
+//! (`calibrate-observations`): exact recovery from markers and a ball bar together, estimates
+//! within 3 predicted standard errors with noise, the same estimate as `calibrate` on a marker
+//! file alone, and the command on a marker file and a ball bar's file. (H against finite
+//! differences: `kinds::marker_jacobians_match_finite_differences_*`.)
+
+use crate::kinds::{TOOL, errors_on, options, puma, random_pose};
+use nalgebra::{Isometry3, Vector3};
+use rand::SeedableRng;
+use rand::rngs::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
+use robocal::calibration::{self, Gauge, JointParams, Loss, Measurements, Options};
+use robocal::estimation::{Estimator, RefineOptions};
+use robocal::kinematics::{Chain, ChainAt};
+use robocal::model::Placement;
+use robocal::table::Units;
+
+/// Three markers on the last link (mm, its frame), as `--marker` gives them.
+const MARKERS: [Vector3<f64>; 3] =
+    [Vector3::new(60.0, 0.0, 90.0), Vector3::new(-30.0, 50.0, 90.0), Vector3::new(-30.0, -50.0, 90.0)];
+
+/// The measuring device's frame: far from the robot's and turned (its base in the device's
+/// frame), so that the registration has work to do.
+fn device() -> Placement {
+    Placement { xyz: Vector3::new(1500.0, -800.0, 300.0), rpy: Vector3::new(0.05, -0.03, 2.0) }
+}
+
+/// The ball bar's pivot, in the robot's base frame (mm).
+const PIVOT: Vector3<f64> = Vector3::new(400.0, 200.0, 300.0);
+
+/// The true robot: puma560 seen from [`device`], the three markers then the tool point, one
+/// chain each, with errors `x`.
+fn true_chains(x: &[f64]) -> Vec<ChainAt> {
+    let mut model = puma();
+    model.base = device();
+    let points: Vec<Vector3<f64>> = MARKERS.iter().copied().chain([TOOL]).collect();
+    Chain::markers(&model, &points).iter().map(|c| c.with_errors(x)).collect()
+}
+
+/// The parameters of the markers and the tool (the chains' shared set).
+fn chains() -> Vec<Chain> {
+    let points: Vec<Vector3<f64>> = MARKERS.iter().copied().chain([TOOL]).collect();
+    Chain::markers(&puma(), &points)
+}
+
+/// A marker file's observations: `poses` random poses, each marker's x, y, z measured with
+/// noise `sigma` (mm); marker 2's z not measured at every third pose (an empty cell).
+fn markers(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+    let mut data = KindData::default();
+    for pose in 0..poses {
+        let q = random_pose(&puma(), rng);
+        for (marker, at) in real[..3].iter().enumerate() {
+            let p = at.position(&q);
+            for axis in (0..3).filter(|&a| !(marker == 1 && a == 2 && pose % 3 == 0)) {
+                let z: f64 = StandardNormal.sample(&mut *rng);
+                let measured = p[axis] + sigma * z;
+                data.observations.push(Observation::Marker {
+                    marker,
+                    axis,
+                    pose,
+                    measured,
+                    sigma: sigma.max(0.01),
+                });
+                data.lines.push(pose + 3);
+            }
+        }
+        data.joints.push(q);
+    }
+    data
+}
+
+/// A ball bar from [`PIVOT`] (in the device's frame): the tool's distances at `poses` random
+/// poses.
+fn ball_bar(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+    let pivot = device().isometry() * nalgebra::Point3::from(PIVOT);
+    let mut data = KindData::default();
+    for pose in 0..poses {
+        let q = random_pose(&puma(), rng);
+        let z: f64 = StandardNormal.sample(&mut *rng);
+        let measured = (real[3].position(&q) - pivot.coords).norm() + sigma * z;
+        data.joints.push(q);
+        data.observations.push(Observation::ToPoint { pose, point: 0, measured, sigma: sigma.max(0.01) });
+        data.lines.push(pose + 3);
+    }
+    data
+}
+
+fn marker_options(estimator: Estimator) -> KindOptions {
+    KindOptions { markers: MARKERS.to_vec(), ..options(estimator) }
+}
+
+/// Markers and a ball bar in one fit. Exact, from errors on every parameter: the training and
+/// held-out residuals of both vanish, the pivot is found in the device's frame. With noise,
+/// from errors on what the first fit identified: every joint and marker estimate, the pivot
+/// and the base (its placement, the device's) within 3 predicted standard errors.
+#[test]
+fn markers_and_a_ball_bar_calibrate_the_robot_the_markers_the_base_and_the_pivot() {
+    let mut rng = ChaCha8Rng::seed_from_u64(81);
+    let chains = chains();
+    let params = chains[0].params();
+    let all: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
+    let everything = errors_on(&chains[0], &all, &mut rng);
+    let real = true_chains(&everything);
+    let exact = markers(&real, 40, &mut rng, 0.0).join(&ball_bar(&real, 100, &mut rng, 0.0));
+    let c = calibrate_kinds(&puma(), &exact, &marker_options(Estimator::Ols)).unwrap();
+    let (before, after) = c.training.markers.unwrap();
+    assert!(after < 1e-7 && c.training.lengths.1 < 1e-7, "exact: {:?}", c.training);
+    assert!(before > 1e3 * after, "markers before {before} mm, after {after} mm");
+    let pivot = device().isometry() * nalgebra::Point3::from(PIVOT);
+    let found = Vector3::from_column_slice(&c.setup_values.1[..3]);
+    assert!((found - pivot.coords).norm() < 1e-6, "pivot {found:?} against {pivot:?}");
+    let held_out = markers(&real, 20, &mut rng, 0.0).join(&ball_bar(&real, 30, &mut rng, 0.0));
+    let score = c.score(&held_out).unwrap();
+    assert!(score.markers.unwrap().1 < 1e-6 && score.lengths.1 < 1e-6, "held out: {score:?}");
+    assert!(score.markers.unwrap().0 > 0.1, "held out before: {score:?}");
+    assert!(c.unseen.is_empty(), "markers see the base: {:?}", c.unseen);
+
+    // With noise: errors on what the exact fit identified, the base the device's.
+    let identified: Vec<String> = c
+        .refined
+        .estimate
+        .names
+        .iter()
+        .filter(|n| !n.starts_with("base.") && !n.starts_with("point"))
+        .cloned()
+        .collect();
+    let truth = errors_on(&chains[0], &identified, &mut rng);
+    let real = true_chains(&truth);
+    let noisy = markers(&real, 60, &mut rng, 0.01).join(&ball_bar(&real, 150, &mut rng, 0.01));
+    let c = calibrate_kinds(&puma(), &noisy, &marker_options(Estimator::Wls)).unwrap();
+    let se = c.refined.estimate.standard_errors();
+    let mut checked = 0;
+    for (k, name) in c.refined.estimate.names.iter().enumerate() {
+        let (found, real) = match (params.index_by_name(name), name.as_str()) {
+            (_, n) if n.starts_with("base.") => continue,
+            (Some(i), _) => (c.after[i], truth[i]),
+            (None, n) => {
+                let axis = ["point1.x", "point1.y", "point1.z"].iter().position(|p| *p == n).unwrap();
+                (c.setup_values.1[axis], pivot[axis])
+            }
+        };
+        assert!((found - real).abs() < 3.0 * se[k], "{name}: {found} against {real}, SE {}", se[k]);
+        checked += 1;
+    }
+    assert!(checked >= 30, "{checked} estimates checked");
+    // The base: the calibrated placement against the device's, position within 3 SE of the
+    // base's x, y, z, orientation within 3 SE of its rx, ry, rz (small angles).
+    let base_se = |axis: &str| {
+        let k = c.refined.estimate.names.iter().position(|n| n == &format!("base.{axis}")).unwrap();
+        se[k]
+    };
+    let gap: Isometry3<f64> = device().isometry().inverse() * c.calibrated.base.isometry();
+    for (axis, v) in ["x", "y", "z"].iter().zip(gap.translation.vector.iter()) {
+        assert!(v.abs() < 3.0 * base_se(axis), "base {axis}: {v} mm off, SE {}", base_se(axis));
+    }
+    for (axis, v) in ["rx", "ry", "rz"].iter().zip(gap.rotation.scaled_axis().iter()) {
+        assert!(v.abs() < 3.0 * base_se(axis), "base {axis}: {v} rad off, SE {}", base_se(axis));
+    }
+}
+
+/// A marker file in `calibrate`'s format: `poses` random poses of `real`, the three markers'
+/// x, y, z with noise 0.01 mm, every cell measured.
+fn marker_csv(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng) -> String {
+    let mut text =
+        String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,x2,y2,z2,x3,y3,z3\n");
+    for _ in 0..poses {
+        let q = random_pose(&puma(), rng);
+        let mut cells: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
+        for at in &real[..3] {
+            let p = at.position(&q);
+            cells.extend(p.iter().map(|v| {
+                let z: f64 = StandardNormal.sample(&mut *rng);
+                format!("{:.6}", v + 0.01 * z)
+            }));
+        }
+        text += &(cells.join(",") + "\n");
+    }
+    text
+}
+
+/// The same marker file calibrated by `calibrate` and by `calibrate-observations`: the same
+/// registration, the same "before" fit of the base and markers (by ordinary least squares), the
+/// same gauge, the same least-squares problem (one row per coordinate, in the same order), so
+/// the same estimates, to 1e-6 relative. With `calibrate`'s `wls` and a
+/// measurement sigma alone (`V_k = sigma^2 I`) the weights are those of ols: the same again.
+#[test]
+fn a_marker_file_alone_calibrates_as_calibrate_does() {
+    let mut rng = ChaCha8Rng::seed_from_u64(82);
+    let chains = chains();
+    let all: Vec<String> = chains[0].params().iter().map(|p| p.name.clone()).collect();
+    let real = true_chains(&errors_on(&chains[0], &all, &mut rng));
+    let text = marker_csv(&real, 50, &mut rng);
+    let model = puma();
+    let measurements = Measurements::from_csv_str(&text, &model, None).unwrap();
+    let observations = KindData::from_csv_str(&text, &model, None).unwrap();
+    assert_eq!(observations.observations.len(), 50 * 9);
+    // Gauss-Newton to the minimum in both: steps until they move no residual by 1e-12 mm.
+    let refine = RefineOptions { step_tolerance: 1e-12, cost_tolerance: 0.0, ..RefineOptions::default() };
+    let options = Options {
+        estimator: Estimator::Ols,
+        noise: None,
+        joints: JointParams::All,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: MARKERS.to_vec(),
+        refine,
+        prior: Vec::new(),
+        loss: Loss::Squared,
+        gauge: Gauge::default(),
+    };
+    let expected = calibration::calibrate(&model, &measurements, &options).unwrap();
+    for estimator in [Estimator::Ols, Estimator::Wls] {
+        let c = calibrate_kinds(&model, &observations, &KindOptions { refine, ..marker_options(estimator) })
+            .unwrap();
+        assert_eq!(c.refined.estimate.names, expected.refined.estimate.names);
+        let se = expected.refined.estimate.standard_errors();
+        for (k, name) in expected.refined.estimate.names.iter().enumerate() {
+            let i = expected.params.index_by_name(name).unwrap();
+            let (a, b) = (c.after[i], expected.after[i]);
+            // Relative to the value, or to its standard error for a value near 0.
+            let scale = b.abs().max(se[k]);
+            assert!(
+                (a - b).abs() <= 1e-6 * scale,
+                "{estimator:?} {name}: {a} against calibrate's {b}, SE {}",
+                se[k]
+            );
+        }
+        let (rms, expected_rms) = (c.training.markers.unwrap(), expected.training);
+        assert!((rms.1 - expected_rms.1.rms).abs() < 1e-9, "{rms:?} against {expected_rms:?}");
+        assert!((rms.0 - expected_rms.0.rms).abs() < 1e-9, "{rms:?} against {expected_rms:?}");
+    }
+}
+
+/// A marker file read as observations: one per cell, an empty cell not measured; the file's
+/// units; its errors name the line and the column.
+#[test]
+fn marker_files_read_cell_by_cell() {
+    let model = puma();
+    let text = "# units: joints=deg, lengths=m\nj1,j2,j3,j4,j5,j6,x1,y1,z1,x3,y3,z3,sigma\n\
+                0,10,20,30,40,50,1.0,2.0,3.0,,,0.5,0.00002\n";
+    let data = KindData::from_csv_str(text, &model, None).unwrap();
+    let expected = [(0, 0, 1000.0), (0, 1, 2000.0), (0, 2, 3000.0), (2, 2, 500.0)];
+    assert_eq!(data.observations.len(), expected.len());
+    for (o, (marker, axis, mm)) in data.observations.iter().zip(expected) {
+        let Observation::Marker { marker: m, axis: a, pose: 0, measured, sigma } = *o else {
+            panic!("{o:?}")
+        };
+        assert_eq!((m, a), (marker, axis));
+        assert!((measured - mm).abs() < 1e-9 && (sigma - 0.02).abs() < 1e-12, "{o:?}");
+    }
+    assert_eq!(data.markers(), vec![0, 2]);
+    let error = |text: &str| {
+        KindData::from_csv_str(
+            text,
+            &model,
+            Some(Units { joints_in_degrees: true, lengths_in_metres: false }),
+        )
+        .unwrap_err()
+        .to_string()
+    };
+    let header = "j1,j2,j3,j4,j5,j6,x1,y1,z1\n";
+    assert!(
+        error(&format!("{header}0,0,0,0,0,0,1,x,3\n")).contains("line 2, column `y1`"),
+        "{}",
+        error(&format!("{header}0,0,0,0,0,0,1,x,3\n"))
+    );
+    assert!(error(&format!("{header}0,0,0,0,0,0,,,\n")).contains("line 2: no marker coordinate"));
+    let probe = "j1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n0,0,0,0,0,0,1,2,3,1,0,0,0\n";
+    assert!(error(probe).contains("column `qw`: a marker file"), "{}", error(probe));
+    assert!(error("j1,j2,j3,j4,j5,j6,x1,y1\n").contains("marker 1 needs y1 and z1 too"));
+}
