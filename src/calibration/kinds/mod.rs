@@ -801,7 +801,8 @@ pub fn calibrate_kinds(
     let weights = Weights::for_problem(&base_problem, options.estimator)?;
     let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
     // "Before": the set-up alone, the robot nominal; with markers, the base and the points on
-    // the last link too, as `calibrate` fits its base and markers.
+    // the last link too, by ordinary least squares whatever the estimator, as `calibrate` fits
+    // its base and markers (it minimises the very errors it reports).
     let frame = Selection::from_indices(
         &params,
         (asked.indices().iter().copied())
@@ -812,8 +813,12 @@ pub fn calibrate_kinds(
         false => {
             let problem =
                 base_problem.reselect(&frame, zero.clone(), base_problem.setup_values.clone(), every);
-            let fit = linearise(&problem, &weights, problem.start())?;
-            let refined = refine_from(&problem, &weights, fit, &RefineOptions::default())?;
+            let ols = match markers.is_empty() {
+                true => weights.clone(),
+                false => Weights::for_problem(&base_problem, Estimator::Ols)?,
+            };
+            let fit = linearise(&problem, &ols, problem.start())?;
+            let refined = refine_from(&problem, &ols, fit, &RefineOptions::default())?;
             problem.full(&refined.estimate.x)
         }
     };
