@@ -334,3 +334,49 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
     assert!(message.contains("bad.csv") && message.contains("line 4, column `z1`"), "{message}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Marker observations that cannot be fitted are refused, each with one clear error: too few
+/// complete positions to place the measuring frame, markers with a camera's views, a held-out
+/// marker the calibration does not have, the tool point's observations scored by a calibration
+/// of markers alone.
+#[test]
+fn marker_observations_that_cannot_be_fitted_are_refused() {
+    let mut rng = ChaCha8Rng::seed_from_u64(83);
+    let real = true_chains(&vec![0.0; chains()[0].params().len()]);
+    let model = puma();
+    let message = |data: &KindData| {
+        calibrate_kinds(&model, data, &marker_options(Estimator::Ols)).unwrap_err().to_string()
+    };
+
+    let mut two = markers(&real, 2, &mut rng, 0.0);
+    two.observations.retain(|o| matches!(o, Observation::Marker { marker: 0, .. }));
+    two.lines.truncate(two.observations.len());
+    assert!(
+        message(&two).contains("marker positions: 2 with x, y and z all measured, expected at least 3"),
+        "{}",
+        message(&two)
+    );
+
+    let mut with_a_camera = markers(&real, 20, &mut rng, 0.0);
+    let view = nalgebra::Vector6::new(0.0, 0.0, 500.0, 0.0, 0.0, 0.0);
+    let site = robocal::calibration::kinds::CameraSite::Hand;
+    with_a_camera.observations.push(Observation::Camera { axis: 0, pose: 0, view, site, sigma: 0.5 });
+    with_a_camera.lines.push(99);
+    assert!(message(&with_a_camera).contains("marker positions with roll, pitch, yaw or a camera's views"));
+
+    let c =
+        calibrate_kinds(&model, &markers(&real, 20, &mut rng, 0.0), &marker_options(Estimator::Ols)).unwrap();
+    let mut other = markers(&real, 5, &mut rng, 0.0);
+    for o in &mut other.observations {
+        if let Observation::Marker { marker, .. } = o {
+            *marker = 6;
+        }
+    }
+    let error = c.score(&other).unwrap_err().to_string();
+    assert!(error.contains("marker 7: not among the calibration's markers (1, 2, 3)"), "{error}");
+    let mut height = markers(&real, 5, &mut rng, 0.0);
+    height.observations.push(Observation::Coordinate { axis: 2, pose: 0, measured: 500.0, sigma: 0.01 });
+    height.lines.push(99);
+    let error = c.score(&height).unwrap_err().to_string();
+    assert!(error.contains("its tool point was not calibrated"), "{error}");
+}

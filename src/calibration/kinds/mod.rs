@@ -712,6 +712,7 @@ impl KindCalibration {
     /// calibration's joint noise.
     pub fn score(&self, data: &KindData) -> Result<Score, CalibrationError> {
         data.check(self.chains[0].dof())?;
+        data.check_markers()?;
         data.check_against(&self.setup)?;
         let markers: Vec<usize> = self.markers.iter().map(|m| m.0).collect();
         data.check_points(&markers, self.chains.len() > markers.len())?;
@@ -755,7 +756,7 @@ impl KindCalibration {
 
 /// Calibrate `model` from distances, contacts, coordinates, cameras' views and marker
 /// positions: with markers, the base first placed by the rigid registration of the nominal
-/// markers onto the measured ones ([`register`](super::register), as `calibrate` does); the
+/// markers onto the measured ones (Kabsch, as [`calibrate`](super::calibrate) does); the
 /// set-up fitted with the robot nominal, with markers the base and the points on the last link
 /// too ("before"), then the robot's parameters asked for and the set-up together ("after");
 /// what the observations cannot see held and said ([`KindCalibration::unseen`]), what the
@@ -910,21 +911,23 @@ fn registered(
             _ => None,
         })
         .unzip();
-    let spread = |v: &[Vector3<f64>]| {
-        let centre = v.iter().sum::<Vector3<f64>>() / v.len().max(1) as f64;
-        let m = DMatrix::from_fn(v.len(), 3, |r, c| v[r][c] - centre[c]);
-        let s = m.singular_values();
-        let mut s: Vec<f64> = s.iter().copied().collect();
-        s.sort_by(|a, b| b.total_cmp(a));
-        s
-    };
-    let s = spread(&predicted);
-    if predicted.len() < 3 || !(s[1] > 1e-9 * s[0]) {
-        return Err(CalibrationError::Observations(format!(
+    let too_few = || {
+        CalibrationError::Observations(format!(
             "marker positions: {} with x, y and z all measured, expected at least 3 not on one line to place the \
              measuring frame",
             predicted.len()
-        )));
+        ))
+    };
+    if predicted.len() < 3 {
+        return Err(too_few());
+    }
+    // The spread of the predicted positions about their centre: two directions at least.
+    let centre = predicted.iter().sum::<Vector3<f64>>() / predicted.len() as f64;
+    let spread = DMatrix::from_fn(predicted.len(), 3, |r, c| predicted[r][c] - centre[c]).singular_values();
+    let mut s: Vec<f64> = spread.iter().copied().collect();
+    s.sort_by(|a, b| b.total_cmp(a));
+    if s[1].is_nan() || s[1] <= 1e-9 * s[0] {
+        return Err(too_few());
     }
     let mut out = model.clone();
     out.base = Placement::from_isometry(&(super::register(&predicted, &measured) * model.base.isometry()));
