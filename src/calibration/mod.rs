@@ -422,8 +422,7 @@ pub fn calibrate(
         let measured: Vec<Vector3<f64>> = data.markers.iter().flatten().copied().collect();
         let predicted: Vec<Vector3<f64>> =
             errors(&chains, &zero, data).iter().zip(&measured).map(|(e, m)| m - e).collect();
-        registered.base =
-            Placement::from_isometry(&(register(&predicted, &measured) * model.base.isometry()));
+        registered = with_registered_base(model, &predicted, &measured);
     }
     // With orientations, marker 1 is a probe frame: its mounting rotation starts from the data.
     let probe =
@@ -1118,6 +1117,18 @@ pub(crate) fn register(predicted: &[Vector3<f64>], measured: &[Vector3<f64>]) ->
     let rotation = nearest_rotation(&cross);
     let translation = cm - rotation * cp;
     Isometry3::from_parts(Translation3::from(translation), UnitQuaternion::from_rotation_matrix(&rotation))
+}
+
+/// `model` with its base placed by the registration `T` ([`register`]) of the nominal marker
+/// positions `predicted` (with its base `base_0`) onto the `measured` ones: `base = T base_0`.
+pub(crate) fn with_registered_base(
+    model: &RobotModel,
+    predicted: &[Vector3<f64>],
+    measured: &[Vector3<f64>],
+) -> RobotModel {
+    let mut out = model.clone();
+    out.base = Placement::from_isometry(&(register(predicted, measured) * model.base.isometry()));
+    out
 }
 
 /// `model` with the parameter errors `x` folded into its numbers; the tool becomes marker 1.

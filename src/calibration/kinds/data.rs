@@ -521,11 +521,14 @@ impl KindData {
     /// have, and observations of the tool point if it has none (`tool`).
     pub(super) fn check_points(&self, markers: &[usize], tool: bool) -> Result<(), CalibrationError> {
         if let Some(m) = self.markers().into_iter().find(|m| !markers.contains(m)) {
-            return Err(CalibrationError::Observations(format!(
-                "marker {}: not among the calibration's markers ({})",
-                m + 1,
-                markers.iter().map(|m| (m + 1).to_string()).collect::<Vec<_>>().join(", ")
-            )));
+            let theirs = match markers.is_empty() {
+                true => "the calibration has no markers".to_string(),
+                false => {
+                    let numbers: Vec<String> = markers.iter().map(|m| (m + 1).to_string()).collect();
+                    format!("not among the calibration's markers ({})", numbers.join(", "))
+                }
+            };
+            return Err(CalibrationError::Observations(format!("marker {}: {theirs}", m + 1)));
         }
         if self.sees_the_tool() && !tool {
             return Err(CalibrationError::Observations(

@@ -373,6 +373,9 @@ pub struct KindProblem<'a> {
     chains: &'a [Chain],
     /// The markers' numbers less one, of the chains in order; the tool point's chain follows.
     markers: Vec<usize>,
+    /// Whether an observation sees point `i` at pose `j` (`used[i * poses + j]`): the others
+    /// are not computed.
+    used: Vec<bool>,
     selection: &'a Selection,
     data: &'a KindData,
     setup: &'a SetUp,
@@ -421,7 +424,35 @@ impl<'a> KindProblem<'a> {
         setup_selection: Vec<usize>,
     ) -> Self {
         let markers = markers.to_vec();
-        Self { chains, markers, selection, data, setup, fixed, setup_values, setup_selection, v: None }
+        let used = Vec::new();
+        let mut problem = Self {
+            chains,
+            markers,
+            used,
+            selection,
+            data,
+            setup,
+            fixed,
+            setup_values,
+            setup_selection,
+            v: None,
+        };
+        let poses = data.joints.len();
+        let mut used = vec![false; chains.len() * poses];
+        for o in &data.observations {
+            let first = problem.point_of(o) * poses;
+            let pair = match *o {
+                Observation::Distance { a, b, .. } => [a, b],
+                _ => [o.pose(), o.pose()],
+            };
+            for j in pair {
+                if let Some(u) = used.get_mut(first + j) {
+                    *u = true;
+                }
+            }
+        }
+        problem.used = used;
+        problem
     }
 
     /// The same problem with `V_k` computed at its values, with `joint_noise` if given.
@@ -441,7 +472,8 @@ impl<'a> KindProblem<'a> {
     }
 
     /// The frame of every point at every pose, point by point (`frames[i * poses + j]`), at the
-    /// parameters `at`; with `blocks`, each one's `H_j` too (`rows x columns`, column-major).
+    /// parameters `at`; with `blocks`, each one's `H_j` too (`rows x columns`, column-major);
+    /// those no observation sees left at the identity and 0.
     fn frames(&self, at: &[ChainAt], blocks: Option<(&mut [f64], usize)>) -> Vec<Isometry3<f64>> {
         let poses = self.data.joints.len();
         let (measured, rows) = (self.measured(), self.measured().rows());
@@ -450,13 +482,22 @@ impl<'a> KindProblem<'a> {
         match blocks {
             Some((blocks, block)) if block > 0 => (blocks.par_chunks_mut(block).enumerate())
                 .map(|(n, h_j)| {
+                    if !self.used[n] {
+                        return Isometry3::identity();
+                    }
                     let (at, q) = frame(n);
                     let view = DMatrixViewMut::from_slice(h_j, rows, columns);
                     at.identification_jacobian(q, self.selection, measured, view);
                     at.pose(q)
                 })
                 .collect(),
-            _ => (0..at.len() * poses).into_par_iter().map(|n| frame(n).0.pose(frame(n).1)).collect(),
+            _ => (0..at.len() * poses)
+                .into_par_iter()
+                .map(|n| match self.used[n] {
+                    true => frame(n).0.pose(frame(n).1),
+                    false => Isometry3::identity(),
+                })
+                .collect(),
         }
     }
 
@@ -485,6 +526,9 @@ impl<'a> KindProblem<'a> {
             .map_init(
                 || Matrix6xX::zeros(dof),
                 |j, n| {
+                    if !self.used[n] {
+                        return (Isometry3::identity(), DMatrix::zeros(0, 0));
+                    }
                     let (at, q) = (&at[n / poses], &self.data.joints[n % poses]);
                     at.manipulator_jacobian(q, j);
                     (at.pose(q), DMatrix::from_fn(rows, dof, |r, c| j[(r, c)]))
@@ -882,10 +926,10 @@ pub fn calibrate_kinds(
     Ok(calibration)
 }
 
-/// `model` with its base placed by the rigid registration `T` of the nominal markers (the
-/// positions `nominal`, numbered `markers`, at every pose) onto the measured ones
-/// ([`register`](super::register)): `base = T base_0`, from every pose and marker whose x, y and
-/// z were all measured (at least 3, not on one line).
+/// `model` with its base placed by the rigid registration of the nominal markers (the
+/// positions `nominal`, numbered `markers`, at every pose) onto the measured ones, as
+/// `calibrate` places it (`with_registered_base`), from every pose and marker whose x, y and z
+/// were all measured (at least 3, not on one line).
 fn registered(
     model: &RobotModel,
     data: &KindData,
@@ -929,9 +973,7 @@ fn registered(
     if s[1].is_nan() || s[1] <= 1e-9 * s[0] {
         return Err(too_few());
     }
-    let mut out = model.clone();
-    out.base = Placement::from_isometry(&(super::register(&predicted, &measured) * model.base.isometry()));
-    Ok(out)
+    Ok(super::with_registered_base(model, &predicted, &measured))
 }
 
 /// Each point's calibrated position (mm) in the model's marker frame: its nominal position
