@@ -3,14 +3,14 @@
 //! each kind cannot see.
 
 use crate::kinematics::{point, robot};
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Vector3, Vector6};
 use proptest::prelude::*;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::JointParams;
 use robocal::calibration::kinds::{
-    KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
+    CameraSite, KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
 };
 use robocal::estimation::{Estimator, RefineOptions, Residuals};
 use robocal::kinematics::{Chain, ChainAt};
@@ -63,8 +63,13 @@ fn check_kind_jacobians(model: &RobotModel, u: &[f64], angles: bool) -> Result<(
 
 /// [`check_kind_jacobians`] with marker positions: markers 1 and 3 and the tool point, one
 /// chain each sharing the parameters ([`Chain::markers`]), each marker's x, y, z at three
-/// poses (two markers at one) with every kind of the tool point's.
-fn check_marker_jacobians(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
+/// poses (two markers at one) with every kind of the tool point's; with `camera`, a camera's
+/// views at two poses too (the tool's frame, the rotation rows of every point's `H_j`).
+fn check_marker_jacobians(
+    model: &RobotModel,
+    u: &[f64],
+    camera: Option<CameraSite>,
+) -> Result<(), TestCaseError> {
     let points = [0, 7, 3].map(|i| Vector3::new(u[i], u[i + 1], u[i + 2]) * 200.0);
     let chains = Chain::markers(model, &points);
     let params = chains[0].params();
@@ -78,9 +83,20 @@ fn check_marker_jacobians(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseE
             data.lines.push(data.lines.len() + 2);
         }
     }
-    let setup = SetUp::new(1, &[Vector3::new(u[3], u[4], 1.0), Vector3::new(1.0, u[5], u[6])]);
-    let s: Vec<f64> =
+    let mut setup = SetUp::new(1, &[Vector3::new(u[3], u[4], 1.0), Vector3::new(1.0, u[5], u[6])]);
+    let mut s: Vec<f64> =
         (0..setup.len()).map(|i| u[(i + 11) % u.len()] * if i % 3 == 2 { 300.0 } else { 0.3 }).collect();
+    if let Some(site) = camera {
+        for pose in [1, 4] {
+            let view = Vector6::from_fn(|i, _| u[40 + 6 * pose + i] * if i < 3 { 500.0 } else { 2.0 });
+            for axis in 0..6 {
+                data.observations.push(Observation::Camera { axis, pose, view, site, sigma: 0.1 });
+                data.lines.push(data.lines.len() + 2);
+            }
+        }
+        setup = setup.with_camera(site);
+        s.extend((0..12).map(|i| u[70 + i] * if i % 6 < 3 { 300.0 } else { 2.0 }));
+    }
     let all = Selection::all(params);
     let every: Vec<usize> = (0..setup.len()).collect();
     let problem = KindProblem::of_points(&chains, &[0, 2], &all, &data, &setup, x, s, every).with_noise(None);
@@ -133,12 +149,22 @@ proptest! {
 
     #[test]
     fn marker_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u)?;
+        check_marker_jacobians(&model, &u, None)?;
     }
 
     #[test]
     fn marker_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u)?;
+        check_marker_jacobians(&model, &u, None)?;
+    }
+
+    #[test]
+    fn marker_and_camera_jacobians_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, Some(CameraSite::Hand))?;
+    }
+
+    #[test]
+    fn marker_and_camera_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, Some(CameraSite::World))?;
     }
 
     #[test]

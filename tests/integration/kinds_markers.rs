@@ -32,9 +32,14 @@ const PIVOT: Vector3<f64> = Vector3::new(400.0, 200.0, 300.0);
 /// The true robot: puma560 seen from [`device`], the three markers then the tool point, one
 /// chain each, with errors `x`.
 fn true_chains(x: &[f64]) -> Vec<ChainAt> {
+    true_chains_with(x, TOOL)
+}
+
+/// [`true_chains`] with the tool point at `tool`.
+fn true_chains_with(x: &[f64], tool: Vector3<f64>) -> Vec<ChainAt> {
     let mut model = puma();
     model.base = device();
-    let points: Vec<Vector3<f64>> = MARKERS.iter().copied().chain([TOOL]).collect();
+    let points: Vec<Vector3<f64>> = MARKERS.iter().copied().chain([tool]).collect();
     Chain::markers(&model, &points).iter().map(|c| c.with_errors(x)).collect()
 }
 
@@ -336,7 +341,7 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
 }
 
 /// Marker observations that cannot be fitted are refused, each with one clear error: too few
-/// complete positions to place the measuring frame, markers with a camera's views, a held-out
+/// complete positions to place the measuring frame, markers with a tilt (roll), a held-out
 /// marker the calibration does not have, the tool point's observations scored by a calibration
 /// of markers alone.
 #[test]
@@ -357,12 +362,12 @@ fn marker_observations_that_cannot_be_fitted_are_refused() {
         message(&two)
     );
 
-    let mut with_a_camera = markers(&real, 20, &mut rng, 0.0);
-    let view = nalgebra::Vector6::new(0.0, 0.0, 500.0, 0.0, 0.0, 0.0);
-    let site = robocal::calibration::kinds::CameraSite::Hand;
-    with_a_camera.observations.push(Observation::Camera { axis: 0, pose: 0, view, site, sigma: 0.5 });
-    with_a_camera.lines.push(99);
-    assert!(message(&with_a_camera).contains("marker positions with roll, pitch, yaw or a camera's views"));
+    let mut with_a_tilt = markers(&real, 20, &mut rng, 0.0);
+    with_a_tilt.observations.push(Observation::Coordinate { axis: 3, pose: 0, measured: 0.1, sigma: 1e-4 });
+    with_a_tilt.lines.push(99);
+    assert!(
+        message(&with_a_tilt).contains("marker positions with roll, pitch or yaw in one fit: not supported")
+    );
 
     let c =
         calibrate_kinds(&model, &markers(&real, 20, &mut rng, 0.0), &marker_options(Estimator::Ols)).unwrap();
@@ -379,4 +384,69 @@ fn marker_observations_that_cannot_be_fitted_are_refused() {
     height.lines.push(99);
     let error = c.score(&height).unwrap_err().to_string();
     assert!(error.contains("its tool point was not calibrated"), "{error}");
+}
+
+/// Markers and a wrist camera's views of a board in one fit: the camera's mounting in the last
+/// link's frame (the tool point at its origin, held), the board placed in the device's frame,
+/// the base estimated (the markers see it). Exact, from errors on every parameter but the held
+/// tool point: the markers' and the views' residuals vanish, on held-out poses too. With noise
+/// (0.01 mm on the markers, 0.5 mm and 0.1 deg on the views), from errors on what the exact fit
+/// identified: the robot's, the markers', the camera's and the board's estimates within 3
+/// predicted standard errors.
+#[test]
+fn markers_and_a_wrist_camera_calibrate_together() {
+    use crate::camera::{truth, views};
+    use robocal::calibration::kinds::CameraSite;
+    use robocal::calibration::kinds::camera::{isometry, placement};
+    let site = CameraSite::Hand;
+    let mut setup = truth(site);
+    let board = device().isometry() * isometry(&setup[6..]);
+    setup.splice(6.., placement(&board).iter().copied());
+    let mut rng = ChaCha8Rng::seed_from_u64(84);
+    let chains = chains();
+    let params = chains[0].params();
+    let all: Vec<String> =
+        params.iter().filter(|p| !p.name.starts_with("marker4.")).map(|p| p.name.clone()).collect();
+    let everything = errors_on(&chains[0], &all, &mut rng);
+    let real = true_chains_with(&everything, Vector3::zeros());
+    let measure = |real: &[ChainAt], n: usize, sigma: (f64, f64), rng: &mut ChaCha8Rng| {
+        markers(real, n, rng, sigma.0.min(0.01)).join(&views(&real[3], site, &setup, n, sigma, rng))
+    };
+    let exact = measure(&real, 40, (0.0, 0.0), &mut rng);
+    let c = calibrate_kinds(&puma(), &exact, &marker_options(Estimator::Ols)).unwrap();
+    assert!(c.training.markers.unwrap().1 < 1e-7 && c.training.lengths.1 < 1e-7, "{:?}", c.training);
+    assert!(c.training.angles.unwrap().1 < 1e-7, "{:?}", c.training.angles);
+    assert!(c.unseen.is_empty(), "{:?}", c.unseen);
+    assert!(c.refined.estimate.names.iter().all(|n| !n.starts_with("marker4.")));
+    let score = c.score(&measure(&real, 20, (0.0, 0.0), &mut rng)).unwrap();
+    assert!(score.markers.unwrap().1 < 1e-6 && score.lengths.1 < 1e-6, "held out: {score:?}");
+
+    let identified: Vec<String> = c
+        .refined
+        .estimate
+        .names
+        .iter()
+        .filter(|n| params.index_by_name(n).is_some() && !n.starts_with("base."))
+        .cloned()
+        .collect();
+    let truth_x = errors_on(&chains[0], &identified, &mut rng);
+    let real = true_chains_with(&truth_x, Vector3::zeros());
+    let noisy = measure(&real, 80, (0.5, 0.1), &mut rng);
+    let c = calibrate_kinds(&puma(), &noisy, &marker_options(Estimator::Wls)).unwrap();
+    let se = c.refined.estimate.standard_errors();
+    let names = c.setup.names();
+    let mut checked = 0;
+    for (k, name) in c.refined.estimate.names.iter().enumerate() {
+        let (found, real) = match params.index_by_name(name) {
+            _ if name.starts_with("base.") => continue,
+            Some(i) => (c.after[i], truth_x[i]),
+            None => {
+                let i = names.iter().position(|n| n == name).unwrap();
+                (c.setup_values.1[i], setup[i])
+            }
+        };
+        assert!((found - real).abs() < 3.0 * se[k], "{name}: {found} against {real}, SE {}", se[k]);
+        checked += 1;
+    }
+    assert!(checked >= 35, "{checked} estimates checked");
 }

@@ -342,6 +342,14 @@ impl KindData {
         self.observations.iter().any(|o| !matches!(o, Observation::Marker { .. }))
     }
 
+    /// Whether any observation sees the tool point on its own: any but a marker's or a
+    /// camera's (a camera's mounting is the tool frame's, its placement the set-up's).
+    pub fn measures_the_tool_point(&self) -> bool {
+        self.observations
+            .iter()
+            .any(|o| !matches!(o, Observation::Marker { .. } | Observation::Camera { .. }))
+    }
+
     /// Whether any observation is a length (a distance, a coordinate): contacts alone cannot
     /// see the robot's scale.
     pub fn sees_the_scale(&self) -> bool {
@@ -504,13 +512,14 @@ impl KindData {
         Ok(())
     }
 
-    /// Refuse marker positions together with angles or a camera's views: the tool is then one
-    /// frame, not several points (fit them in separate calibrations).
+    /// Refuse marker positions together with roll, pitch or yaw: the tool is then a frame
+    /// whose rotation is estimated, not one of several points (fit them separately).
     pub(super) fn check_markers(&self) -> Result<(), CalibrationError> {
-        if !self.markers().is_empty() && self.has_angles() {
+        let angles = self.observations.iter().any(|o| matches!(o, Observation::Coordinate { axis: 3.., .. }));
+        if !self.markers().is_empty() && angles {
             return Err(CalibrationError::Observations(
-                "marker positions with roll, pitch, yaw or a camera's views in one fit: not supported (the tool \
-                 is then one frame, not several points); calibrate them separately"
+                "marker positions with roll, pitch or yaw in one fit: not supported (the tool is then a frame \
+                 whose rotation is estimated, not one of several points); calibrate them separately"
                     .into(),
             ));
         }

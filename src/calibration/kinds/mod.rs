@@ -16,8 +16,10 @@
 //!   is estimated, and starts where the rigid registration (Kabsch) of the nominal markers onto
 //!   the measured ones puts it, as in [`calibrate`](super::calibrate); the "before" fit then
 //!   fits the base and the points on the last link with the set-up, the robot's joints nominal.
-//!   Markers together with angles or a camera's views (which make the tool a frame) are
-//!   refused.
+//!   With a camera's views, the camera's (or target's) mounting is in the last link's frame
+//!   itself, as without markers: the tool point is at its origin, held, and every point's `H_j`
+//!   has its rotation rows (the last link's). Markers with roll, pitch or yaw are refused: the
+//!   tool is then a frame whose rotation is estimated, not one of several points.
 //! - a distance between two poses `a`, `b`: `f_k = |p_a - p_b|`, with `p_a = p(q_a, x)`;
 //! - a distance to fixed point `i` (a ball bar's pivot `c_i`, 3 parameters):
 //!   `f_k = |p(q_k, x) - c_i|`;
@@ -552,10 +554,14 @@ impl<'a> KindProblem<'a> {
         DMatrix::from_iterator(self.data.observations.len(), 1, v)
     }
 
-    /// What the chain's end is: a point ([`Measured::Position`]) or, for angles, a tool frame
-    /// ([`Measured::Pose`]).
+    /// What the chains' ends are: points ([`Measured::Position`]) or, for angles and cameras,
+    /// frames ([`Measured::Pose`]; with markers, the points' frames, their rotation the last
+    /// link's).
     pub fn measured(&self) -> Measured {
-        if self.chains[0].ends_at_a_point() { Measured::Position } else { Measured::Pose }
+        match self.chains[0].ends_at_a_point() && !self.data.has_angles() {
+            true => Measured::Position,
+            false => Measured::Pose,
+        }
     }
 
     /// The full robot parameter vector and the set-up values at `x`.
@@ -821,8 +827,11 @@ pub fn calibrate_kinds(
     };
     // Angles need a tool frame: the tool point, turned as the marker frame to start with.
     // Cameras alone: their mounting is in the tool (tip link's) frame itself, no tool point.
-    let tool = if data.beyond_the_camera() { options.tool } else { Vector3::zeros() };
-    let probe = data.has_angles().then_some(Placement { xyz: tool, rpy: Vector3::zeros() });
+    // With markers, a camera's mounting is in the tool frame as well: the last point at its
+    // origin, held.
+    let tool = if data.measures_the_tool_point() { options.tool } else { Vector3::zeros() };
+    let probe =
+        (data.has_angles() && markers.is_empty()).then_some(Placement { xyz: tool, rpy: Vector3::zeros() });
     // The markers' points, then the tool's if observed.
     let points: Vec<Vector3<f64>> =
         nominal_markers.iter().copied().chain(data.sees_the_tool().then_some(tool)).collect();
@@ -1008,7 +1017,7 @@ fn asked(
         // The markers' points, always; the tool point's (after them) unless held. A camera's
         // mounting is the tool frame's, estimated as the set-up's.
         ParamOwner::Marker(k) if k < markers => true,
-        ParamOwner::Marker(_) => options.estimate_tool && data.beyond_the_camera(),
+        ParamOwner::Marker(_) => options.estimate_tool && data.measures_the_tool_point(),
         ParamOwner::Base => data.sees_the_base(),
         _ => false,
     });
