@@ -20,6 +20,14 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     for path in &request.data {
         data = data.join(&read(path, &model, request)?);
     }
+    let highest = data.markers().last().map_or(0, |m| m + 1);
+    if request.markers.len() > highest {
+        bail!(
+            "{} --marker given, the files ({}) have {highest} markers: the k-th --marker is marker k of a marker file",
+            request.markers.len(),
+            request.data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+        );
+    }
     let options = KindOptions {
         estimator: request.estimator,
         joint_noise: joint_noise(&model, request.joint_sigma_deg.as_deref())?,

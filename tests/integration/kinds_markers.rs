@@ -325,6 +325,19 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
     let calibrated = std::fs::read_to_string(&model).unwrap();
     assert_eq!(calibrated.matches("[[markers]]").count(), 2, "{calibrated}");
 
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", "puma560", "--data", "examples/puma560-ballbar.csv"])
+        .args(["--marker", "50,0,150"])
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let message = String::from_utf8(output.stderr).unwrap();
+    assert!(
+        message.contains("1 --marker given, the files (examples/puma560-ballbar.csv) have 0 markers"),
+        "{message}"
+    );
+
     let bad = dir.join("bad.csv");
     std::fs::write(&bad, "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1\n0,1,2,3,4,5,1,2,3\n0,1,2,3,4,5,1,2,mm\n")
         .unwrap();
