@@ -63,19 +63,27 @@ fn check_kind_jacobians(model: &RobotModel, u: &[f64], angles: bool) -> Result<(
 
 /// [`check_kind_jacobians`] with marker positions: markers 1 and 3 and the tool point, one
 /// chain each sharing the parameters ([`Chain::markers`]), each marker's x, y, z at three
-/// poses (two markers at one) with every kind of the tool point's; with `camera`, a camera's
+/// poses (two markers at one) with every kind of the tool point's; with `angles`, roll, pitch
+/// and yaw too, the tool a frame ([`Chain::markers_and_probe`]); with `camera`, a camera's
 /// views at two poses too (the tool's frame, the rotation rows of every point's `H_j`).
 fn check_marker_jacobians(
     model: &RobotModel,
     u: &[f64],
+    angles: bool,
     camera: Option<CameraSite>,
 ) -> Result<(), TestCaseError> {
     let points = [0, 7, 3].map(|i| Vector3::new(u[i], u[i + 1], u[i + 2]) * 200.0);
-    let chains = Chain::markers(model, &points);
+    let chains = match angles || camera.is_some() {
+        true => {
+            let probe = Placement { xyz: points[2], rpy: Vector3::new(u[10], u[11], u[12]) };
+            Chain::markers_and_probe(model, &points[..2], &probe)
+        }
+        false => Chain::markers(model, &points),
+    };
     let params = chains[0].params();
     let (_, x) = point(model, &u[20..]);
     let x: Vec<f64> = (0..params.len()).map(|i| x[i % x.len()]).collect();
-    let mut data = every_kind(model, u, false);
+    let mut data = every_kind(model, u, angles);
     for (pose, marker) in [(0, 0), (3, 2), (5, 0), (5, 2)] {
         for axis in 0..3 {
             let measured = 100.0 * u[axis + 30];
@@ -149,22 +157,27 @@ proptest! {
 
     #[test]
     fn marker_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, None)?;
+        check_marker_jacobians(&model, &u, false, None)?;
     }
 
     #[test]
     fn marker_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, None)?;
+        check_marker_jacobians(&model, &u, false, None)?;
+    }
+
+    #[test]
+    fn marker_and_angle_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, true, None)?;
     }
 
     #[test]
     fn marker_and_camera_jacobians_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, Some(CameraSite::Hand))?;
+        check_marker_jacobians(&model, &u, false, Some(CameraSite::Hand))?;
     }
 
     #[test]
     fn marker_and_camera_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, Some(CameraSite::World))?;
+        check_marker_jacobians(&model, &u, true, Some(CameraSite::World))?;
     }
 
     #[test]

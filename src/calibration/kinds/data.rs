@@ -512,20 +512,6 @@ impl KindData {
         Ok(())
     }
 
-    /// Refuse marker positions together with roll, pitch or yaw: the tool is then a frame
-    /// whose rotation is estimated, not one of several points (fit them separately).
-    pub(super) fn check_markers(&self) -> Result<(), CalibrationError> {
-        let angles = self.observations.iter().any(|o| matches!(o, Observation::Coordinate { axis: 3.., .. }));
-        if !self.markers().is_empty() && angles {
-            return Err(CalibrationError::Observations(
-                "marker positions with roll, pitch or yaw in one fit: not supported (the tool is then a frame \
-                 whose rotation is estimated, not one of several points); calibrate them separately"
-                    .into(),
-            ));
-        }
-        Ok(())
-    }
-
     /// Refuse markers that a calibration of the markers `markers` (numbers less one) does not
     /// have, and observations of the tool point if it has none (`tool`).
     pub(super) fn check_points(&self, markers: &[usize], tool: bool) -> Result<(), CalibrationError> {

@@ -16,10 +16,10 @@
 //!   is estimated, and starts where the rigid registration (Kabsch) of the nominal markers onto
 //!   the measured ones puts it, as in [`calibrate`](super::calibrate); the "before" fit then
 //!   fits the base and the points on the last link with the set-up, the robot's joints nominal.
-//!   With a camera's views, the camera's (or target's) mounting is in the last link's frame
-//!   itself, as without markers: the tool point is at its origin, held, and every point's `H_j`
-//!   has its rotation rows (the last link's). Markers with roll, pitch or yaw are refused: the
-//!   tool is then a frame whose rotation is estimated, not one of several points.
+//!   With angles (roll, pitch, yaw) the tool after the markers is a frame, its rotation
+//!   estimated too ([`Chain::markers_and_probe`]); with a camera's views, the camera's (or
+//!   target's) mounting is in the last link's frame itself, as without markers (that frame
+//!   held). Every point's `H_j` then has its rotation rows.
 //! - a distance between two poses `a`, `b`: `f_k = |p_a - p_b|`, with `p_a = p(q_a, x)`;
 //! - a distance to fixed point `i` (a ball bar's pivot `c_i`, 3 parameters):
 //!   `f_k = |p(q_k, x) - c_i|`;
@@ -558,7 +558,7 @@ impl<'a> KindProblem<'a> {
     /// frames ([`Measured::Pose`]; with markers, the points' frames, their rotation the last
     /// link's).
     pub fn measured(&self) -> Measured {
-        match self.chains[0].ends_at_a_point() && !self.data.has_angles() {
+        match self.chains.iter().all(Chain::ends_at_a_point) && !self.data.has_angles() {
             true => Measured::Position,
             false => Measured::Pose,
         }
@@ -762,7 +762,6 @@ impl KindCalibration {
     /// calibration's joint noise.
     pub fn score(&self, data: &KindData) -> Result<Score, CalibrationError> {
         data.check(self.chains[0].dof())?;
-        data.check_markers()?;
         data.check_against(&self.setup)?;
         let markers: Vec<usize> = self.markers.iter().map(|m| m.0).collect();
         data.check_points(&markers, self.chains.len() > markers.len())?;
@@ -817,7 +816,6 @@ pub fn calibrate_kinds(
     options: &KindOptions,
 ) -> Result<KindCalibration, CalibrationError> {
     data.check(model.dof())?;
-    data.check_markers()?;
     let markers = data.markers();
     let nominal_markers: Vec<Vector3<f64>> =
         markers.iter().map(|&m| options.markers.get(m).copied().unwrap_or_else(Vector3::zeros)).collect();
@@ -830,13 +828,12 @@ pub fn calibrate_kinds(
     // With markers, a camera's mounting is in the tool frame as well: the last point at its
     // origin, held.
     let tool = if data.measures_the_tool_point() { options.tool } else { Vector3::zeros() };
-    let probe =
-        (data.has_angles() && markers.is_empty()).then_some(Placement { xyz: tool, rpy: Vector3::zeros() });
-    // The markers' points, then the tool's if observed.
+    let probe = data.has_angles().then_some(Placement { xyz: tool, rpy: Vector3::zeros() });
+    // The markers' points, then the tool's (a point, or a frame for angles) if observed.
     let points: Vec<Vector3<f64>> =
         nominal_markers.iter().copied().chain(data.sees_the_tool().then_some(tool)).collect();
     let chains = match &probe {
-        Some(probe) => vec![Chain::probe(&registered, probe)],
+        Some(probe) => Chain::markers_and_probe(&registered, &nominal_markers, probe),
         None => Chain::markers(&registered, &points),
     };
     let params = chains[0].params().clone();
@@ -910,12 +907,11 @@ pub fn calibrate_kinds(
     let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);
     let calibrated_points = calibrated_points(&params, &after, &points);
-    let mut calibrated = fold(&registered, &params, &after, &points, probe.as_ref());
+    // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
+    // 1, as `calibrate` makes it.
+    let tool_point = if data.sees_the_tool() { markers.len() } else { 0 };
+    let calibrated = fold(&registered, &params, &after, (&points, tool_point), probe.as_ref());
     let frame = registered.marker_frame().isometry();
-    if let Some(&tool) = calibrated_points.get(markers.len()).filter(|_| !markers.is_empty()) {
-        // The tool point follows the markers: the model's tool is it, not marker 1.
-        calibrated.tool = crate::model::Tool::Point((frame * tool).coords);
-    }
     let mut calibration = KindCalibration {
         calibrated,
         params,
