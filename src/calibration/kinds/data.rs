@@ -310,11 +310,6 @@ impl KindData {
         })
     }
 
-    /// Whether any observation is not a camera's (then the tool point is seen on its own).
-    pub fn beyond_the_camera(&self) -> bool {
-        self.observations.iter().any(|o| !matches!(o, Observation::Camera { .. }))
-    }
-
     /// Whether any observation sees the measuring frame's coordinates, a coordinate or a
     /// marker's (then the base is estimated; distances and contacts alone cannot see it).
     pub fn sees_the_base(&self) -> bool {

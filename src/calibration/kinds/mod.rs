@@ -74,8 +74,8 @@
 //! leaves every contact; the robot's longest nominal length is then held (the robot's scale is
 //! its nominal one), and said so. (Holding a plane's offset instead is not enough: the robot
 //! can shrink onto the planes, its first joint's `d` carrying it there, and fit every contact.)
-//! A distance fixes the scale. Coordinates see the measuring frame: with them the base is
-//! estimated, as far as they see it (a height alone sees its z, roll and pitch; the
+//! A distance fixes the scale. Coordinates and markers see the measuring frame: with them the
+//! base is estimated, as far as they see it (a height alone sees its z, roll and pitch; the
 //! rank-revealing solve holds the rest and says so).
 //!
 //! # Extending
