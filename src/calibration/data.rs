@@ -134,6 +134,28 @@ impl Measurements {
     }
 }
 
+/// The number `k` and the columns `x_k, y_k, z_k` of each marker of `table`'s header, by
+/// number: markers are numbered by their columns, `x1,y1,z1`, `x3,y3,z3`, ... (gaps allowed);
+/// an `x_k` without its `y_k` or `z_k` is an error.
+pub(crate) fn marker_columns(table: &Table) -> Result<Vec<(usize, [usize; 3])>, DataError> {
+    let mut markers = Vec::new();
+    for name in &table.header {
+        let Some(k) = name.strip_prefix('x').and_then(|n| n.parse::<usize>().ok()).filter(|&k| k > 0) else {
+            continue;
+        };
+        let x = table.column(name).expect("a header cell");
+        match (table.column(&format!("y{k}")), table.column(&format!("z{k}"))) {
+            (Some(y), Some(z)) => markers.push((k, [x, y, z])),
+            _ => {
+                let message = format!("marker {k} needs y{k} and z{k} too");
+                return Err(DataError::new(table.header_line, Some(name), message));
+            }
+        }
+    }
+    markers.sort_by_key(|m| m.0);
+    Ok(markers)
+}
+
 /// Where the quantities of a measurement file stand in its header.
 struct Columns {
     /// One per joint of the model.
@@ -152,22 +174,7 @@ impl Columns {
         let at_header =
             |column: Option<&str>, message: String| DataError::new(table.header_line, column, message);
         let joints = table.joint_columns(model)?;
-        // Markers are numbered by their columns: `x1,y1,z1`, `x3,y3,z3`, ... (gaps allowed).
-        let mut markers = Vec::new();
-        for name in &table.header {
-            let Some(k) = name.strip_prefix('x').and_then(|n| n.parse::<usize>().ok()).filter(|&k| k > 0)
-            else {
-                continue;
-            };
-            let x = table.column(name).expect("a header cell");
-            match (table.column(&format!("y{k}")), table.column(&format!("z{k}"))) {
-                (Some(y), Some(z)) => markers.push((k, [x, y, z])),
-                _ => {
-                    return Err(at_header(Some(name), format!("marker {k} needs y{k} and z{k} too")));
-                }
-            }
-        }
-        markers.sort_by_key(|m| m.0);
+        let markers = marker_columns(table)?;
         if markers.is_empty() {
             return Err(at_header(None, "no marker columns: expected x1,y1,z1 (and x2,y2,z2, ...)".into()));
         }

@@ -423,8 +423,7 @@ pub fn calibrate(
         let measured: Vec<Vector3<f64>> = data.markers.iter().flatten().copied().collect();
         let predicted: Vec<Vector3<f64>> =
             errors(&chains, &zero, data).iter().zip(&measured).map(|(e, m)| m - e).collect();
-        registered.base =
-            Placement::from_isometry(&(register(&predicted, &measured) * model.base.isometry()));
+        registered = with_registered_base(model, &predicted, &measured);
     }
     // With orientations, marker 1 is a probe frame: its mounting rotation starts from the data.
     let probe =
@@ -684,7 +683,7 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
     let training_poses = evaluation::evaluate_on("training", &scored, s.data, &stages, &whitening, problem)
         .map_err(|e| at_line(e, s.data))?;
     let training = (training_poses.pooled[0], training_poses.pooled[1]);
-    let calibrated = fold(&s.registered, &s.params, &s.after, &s.markers, s.probe.as_ref());
+    let calibrated = fold(&s.registered, &s.params, &s.after, (&s.markers, 0), s.probe.as_ref());
     let mut warnings = warnings(&s.params, (&s.before, &s.after), &training_poses);
     warnings.extend(implausible_compliances(&calibrated, &s.params, &s.refined));
     let condition = s.refined.estimate.diagnostics.condition_number;
@@ -1121,12 +1120,25 @@ pub(crate) fn register(predicted: &[Vector3<f64>], measured: &[Vector3<f64>]) ->
     Isometry3::from_parts(Translation3::from(translation), UnitQuaternion::from_rotation_matrix(&rotation))
 }
 
-/// `model` with the parameter errors `x` folded into its numbers; the tool becomes marker 1.
+/// `model` with its base placed by the registration `T` ([`register`]) of the nominal marker
+/// positions `predicted` (with its base `base_0`) onto the `measured` ones: `base = T base_0`.
+pub(crate) fn with_registered_base(
+    model: &RobotModel,
+    predicted: &[Vector3<f64>],
+    measured: &[Vector3<f64>],
+) -> RobotModel {
+    let mut out = model.clone();
+    out.base = Placement::from_isometry(&(register(predicted, measured) * model.base.isometry()));
+    out
+}
+
+/// `model` with the parameter errors `x` folded into its numbers; the tool becomes the point
+/// `tool` of `markers` (marker 1 for `calibrate`), or the probe at it.
 pub(crate) fn fold(
     model: &RobotModel,
     params: &ParamSet,
     x: &[f64],
-    markers: &[Vector3<f64>],
+    (markers, tool): (&[Vector3<f64>], usize),
     probe: Option<&Placement>,
 ) -> RobotModel {
     let mut out = model.clone();
@@ -1162,10 +1174,11 @@ pub(crate) fn fold(
         payload.mass += value(ParamOwner::Payload, ParamKind::Mass);
     }
     out.base = Placement::from_isometry(&(model.base.isometry() * displacement(ParamOwner::Base)));
-    let first = markers.first().copied().unwrap_or_else(Vector3::zeros);
-    let mounting = probe.copied().unwrap_or(Placement { xyz: first, rpy: Vector3::zeros() });
+    let point = markers.get(tool).copied().unwrap_or_else(Vector3::zeros);
+    let mounting = probe.copied().unwrap_or(Placement { xyz: point, rpy: Vector3::zeros() });
     let frame = model.marker_frame().isometry();
-    let tool = Placement::from_isometry(&(frame * mounting.isometry() * displacement(ParamOwner::Marker(0))));
+    let tool =
+        Placement::from_isometry(&(frame * mounting.isometry() * displacement(ParamOwner::Marker(tool))));
     // Markers end up in the last joint frame, as a point tool is; a probe is a frame.
     out.tool = if probe.is_some() { Tool::Frame(tool) } else { Tool::Point(tool.xyz) };
     out

@@ -349,8 +349,9 @@ pub struct CalibrateObservationsArgs {
     #[command(flatten)]
     pub model: ModelArgs,
     /// A file of distances (pairs of poses, or to a fixed point), plane contacts,
-    /// coordinates or a camera's views of its target (CSV; see docs/formats.md); repeatable:
-    /// the files are fitted together.
+    /// coordinates, a camera's views of its target, or marker positions (calibrate's
+    /// measurement file, x1,y1,z1, ...) (CSV; see docs/formats.md); repeatable: the files are
+    /// fitted together.
     #[arg(long, required = true)]
     pub data: Vec<PathBuf>,
     #[command(flatten)]
@@ -365,7 +366,7 @@ pub struct CalibrateObservationsArgs {
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// Parameters to identify: `joints` (every joint parameter), `offsets`, `none` (the tool
     /// and the set-up only), or names and patterns (`j*.theta,j2.a`). The base is estimated
-    /// only from coordinates: distances, contacts and cameras cannot see it.
+    /// only from coordinates and markers: distances, contacts and cameras cannot see it.
     #[arg(long, default_value = "joints", value_parser = parse_params)]
     pub params: ParamsArg,
     /// The tool point on the last link, "x,y,z" in mm, in the tool frame (default: the model's
@@ -375,6 +376,12 @@ pub struct CalibrateObservationsArgs {
     /// Do not estimate the tool point.
     #[arg(long)]
     pub fixed_tool: bool,
+    /// Nominal position of a marker of a marker file (x1,y1,z1, ...) on the last link, "x,y,z"
+    /// in mm, in the tool frame, as `calibrate --marker` takes it: the k-th is marker k; repeat
+    /// per marker (missing ones start at that frame's origin). The markers are always
+    /// estimated.
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
+    pub marker: Vec<Vector3<f64>>,
     /// Gauss-Newton steps at most (at least 1).
     #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
     pub iterations: usize,

@@ -1,5 +1,5 @@
-//! `robocal calibrate-observations`: a robot calibrated from distances, plane contacts and
-//! partial coordinates ([`robocal::calibration::kinds`]); every file read and the fit made
+//! `robocal calibrate-observations`: a robot calibrated from distances, plane contacts,
+//! partial coordinates, cameras' views and marker positions ([`robocal::calibration::kinds`]); every file read and the fit made
 //! before anything is written.
 
 use super::from_flag_unit;
@@ -20,12 +20,21 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     for path in &request.data {
         data = data.join(&read(path, &model, request)?);
     }
+    let highest = data.markers().last().map_or(0, |m| m + 1);
+    if request.markers.len() > highest {
+        bail!(
+            "{} --marker given, the files ({}) have {highest} markers: the k-th --marker is marker k of a marker file",
+            request.markers.len(),
+            request.data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+        );
+    }
     let options = KindOptions {
         estimator: request.estimator,
         joint_noise: joint_noise(&model, request.joint_sigma_deg.as_deref())?,
         joints: request.joints.clone(),
         estimate_tool: request.estimate_tool,
         tool: request.tool.unwrap_or_else(|| model.tool_point_in_marker_frame()),
+        markers: request.markers.clone(),
         refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
     };
     let names: Vec<String> = request.data.iter().map(|p| p.display().to_string()).collect();
@@ -46,7 +55,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         outputs.add(path, serde_json::to_string_pretty(&report)? + "\n");
     }
     if let Some(path) = &request.out_model {
-        outputs.add(path, robocal::model::to_toml_with_markers(&c.calibrated, &[]));
+        outputs.add(path, robocal::model::to_toml_with_markers(&c.calibrated, &c.marker_positions()));
     }
     Ok(outputs.commit()?)
 }

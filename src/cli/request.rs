@@ -337,6 +337,8 @@ pub struct CalibrateObservationsRequest {
     pub tool: Option<Vector3<f64>>,
     /// Estimate the tool point.
     pub estimate_tool: bool,
+    /// Nominal marker positions (mm, tool frame): the k-th is marker k.
+    pub markers: Vec<Vector3<f64>>,
     /// Gauss-Newton steps at most (>= 1).
     pub iterations: usize,
     /// Held-out files.
@@ -374,6 +376,7 @@ impl CalibrateObservationsRequest {
             joints,
             tool: args.tool,
             estimate_tool: !args.fixed_tool,
+            markers: args.marker,
             iterations: args.iterations,
             validate: args.validate,
             json: args.json,

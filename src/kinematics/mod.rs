@@ -329,7 +329,26 @@ impl Chain {
     /// share the base and joint parameters, and each has its own `marker<k>.x/y/z` (along the
     /// marker frame's axes). The tool frame is fixed; its error parameters are not used.
     pub fn markers(model: &RobotModel, markers: &[Vector3<f64>]) -> Vec<Self> {
-        let params = ParamSet::with_markers(model, markers.len());
+        Self::points(model, ParamSet::with_markers(model, markers.len()), markers)
+    }
+
+    /// [`Chain::markers`] and, after them, the chain of a measured frame (a 6-DOF probe) at
+    /// `probe` in the marker frame, as [`Chain::probe`] is, all indexed by
+    /// [`ParamSet::with_markers_and_probe`]: the probe's errors are `marker<n + 1>.x` ...
+    /// `.rz` of `n` markers.
+    pub fn markers_and_probe(model: &RobotModel, markers: &[Vector3<f64>], probe: &Placement) -> Vec<Self> {
+        let params = ParamSet::with_markers_and_probe(model, markers.len());
+        let mut chains = Self::points(model, params.clone(), markers);
+        let mut builder = Self::arm(model, params);
+        builder.placement(ParamOwner::Tool, &model.marker_frame(), &[]);
+        let arm = builder.steps.len();
+        builder.placement(ParamOwner::Marker(markers.len()), probe, &ParamKind::PLACEMENT);
+        chains.push(builder.finish(arm, model));
+        chains
+    }
+
+    /// One chain per point of `markers`, indexed by `params` (their errors `Marker(k)`).
+    fn points(model: &RobotModel, params: ParamSet, markers: &[Vector3<f64>]) -> Vec<Self> {
         (0..markers.len())
             .map(|k| {
                 let mut builder = Self::arm(model, params.clone());

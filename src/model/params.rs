@@ -152,17 +152,26 @@ impl ParamSet {
     /// The parameters of `model` with `markers` measured points on its last link in place of
     /// its tool: `marker1.x`, `marker1.y`, `marker1.z`, `marker2.x`, ... (mm).
     pub fn with_markers(model: &RobotModel, markers: usize) -> Self {
-        Self::build(model, Some((markers, 3)))
+        Self::build(model, Some(&vec![3; markers]))
     }
 
     /// The parameters of `model` with a measured frame (a 6-DOF probe) on its last link in
     /// place of its tool: `marker1.x`, ..., `marker1.rz` (mm, rad).
     pub fn with_probe(model: &RobotModel) -> Self {
-        Self::build(model, Some((1, 6)))
+        Self::build(model, Some(&[6]))
     }
 
-    /// `markers`: how many, and how many parameters each (3 for a point, 6 for a frame).
-    fn build(model: &RobotModel, markers: Option<(usize, usize)>) -> Self {
+    /// The parameters of `model` with `markers` measured points on its last link and a
+    /// measured frame after them: `marker1.x`, ..., `marker<markers>.z` (mm), then
+    /// `marker<markers + 1>.x`, ..., `.rz` (mm, rad).
+    pub fn with_markers_and_probe(model: &RobotModel, markers: usize) -> Self {
+        let mut each = vec![3; markers];
+        each.push(6);
+        Self::build(model, Some(&each))
+    }
+
+    /// `markers`: how many parameters each has (3 for a point, 6 for a frame).
+    fn build(model: &RobotModel, markers: Option<&[usize]>) -> Self {
         let mut params = Vec::new();
         let mut push = |owner, kind: ParamKind, prefix: &str, is_offset| {
             let name = format!("{prefix}.{}", kind.label());
@@ -215,8 +224,8 @@ impl ParamSet {
             push(ParamOwner::Payload, ParamKind::Mass, "payload", false);
         }
         match markers {
-            Some((n, per)) => {
-                for k in 0..n {
+            Some(each) => {
+                for (k, &per) in each.iter().enumerate() {
                     for &kind in &ParamKind::PLACEMENT[..per] {
                         push(ParamOwner::Marker(k), kind, &format!("marker{}", k + 1), false);
                     }

@@ -196,7 +196,7 @@ pub struct Weighting {
 
 /// `text` with the markers' parameters named by the markers' numbers in the data
 /// (`marker1.x` of a fit with markers `[2, 3]` is `marker2.x`).
-fn by_number(text: &str, ids: &[usize]) -> String {
+pub(super) fn by_number(text: &str, ids: &[usize]) -> String {
     text.split(' ')
         .map(|word| {
             let renamed = word.strip_prefix("marker").and_then(|rest| {

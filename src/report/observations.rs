@@ -4,7 +4,7 @@
 //! the held-out files, the worst observations and those flagged. Text and JSON carry the same
 //! content.
 
-use super::calibration::ParameterRow;
+use super::calibration::{ParameterRow, by_number};
 use crate::calibration::FLAG_AT;
 use crate::calibration::kinds::{KindCalibration, ObservationResidual, Score};
 use serde::Serialize;
@@ -34,11 +34,28 @@ pub struct ObservationsReport {
     /// Combinations the poses cannot tell apart, held, in words.
     pub fixed: Vec<String>,
     /// The training observations scored, then each held-out file: every observation's
-    /// residual, and the RMS of the lengths (mm) and of the angles (deg).
+    /// residual, and the RMS of the lengths (mm), of the angles (deg) and of the marker
+    /// positions (mm).
     pub sets: Vec<(String, Score)>,
     /// Observations whose residual after calibration is more than [`FLAG_AT`] standard
     /// deviations out, in words.
     pub warnings: Vec<String>,
+}
+
+/// `text` with the points on the last link named as the files name them: with markers, each
+/// marker by its number (`marker1.x` of markers 2 and 3 is `marker2.x`) and the tool point,
+/// the point after them, `tool.x`; without, the tool point is `marker1`, as the model's tool.
+fn point_names(text: &str, c: &KindCalibration) -> String {
+    if c.markers.is_empty() {
+        return text.to_string();
+    }
+    let tool = format!("marker{}.", c.markers.len() + 1);
+    let text: Vec<String> = text
+        .split(' ')
+        .map(|w| w.strip_prefix(&tool).map_or(w.to_string(), |c| format!("tool.{c}")))
+        .collect();
+    let ids: Vec<usize> = c.markers.iter().map(|m| m.0 + 1).collect();
+    by_number(&text.join(" "), &ids)
 }
 
 /// Observations listed per set in the text, the worst first.
@@ -71,7 +88,7 @@ impl ObservationsReport {
                 };
                 let scale = if angle { 180.0 / std::f64::consts::PI } else { 1.0 };
                 ParameterRow {
-                    name: name.clone(),
+                    name: point_names(name, c),
                     value: value * scale,
                     std_error: se[k] * scale,
                     unit,
@@ -103,7 +120,7 @@ impl ObservationsReport {
             converged: c.refined.converged,
             parameters,
             unseen: c.unseen.clone(),
-            fixed: c.fixed.clone(),
+            fixed: c.fixed.iter().map(|f| point_names(f, c)).collect(),
             sets,
             warnings,
         }
@@ -127,21 +144,29 @@ impl ObservationsReport {
         for p in &self.parameters {
             let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
         }
-        let _ = writeln!(out, "\nnot seen by these observations, held:");
+        if !self.unseen.is_empty() {
+            let _ = writeln!(out, "\nnot seen by these observations, held:");
+        }
         for u in &self.unseen {
             let _ = writeln!(out, "  {u}");
         }
         if !self.fixed.is_empty() {
-            let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");
+            let gap = if self.unseen.is_empty() { "\n" } else { "" };
+            let _ = writeln!(out, "{gap}held fixed, as these poses cannot tell them apart from the others:");
             for f in &self.fixed {
                 let _ = writeln!(out, "  {f}");
             }
         }
-        let width = self.sets.iter().map(|r| r.0.len() + 9).max().unwrap_or(0).max(24);
+        let label = |score: &Score| if score.markers.is_some() { 17 } else { 9 };
+        let width = self.sets.iter().map(|r| r.0.len() + label(&r.1)).max().unwrap_or(0).max(24);
         let _ = writeln!(out, "\n{:<width$} {:>10} {:>10}", "residuals, RMS", "before", "after");
         for (name, score) in &self.sets {
             let (before, after) = score.lengths;
             let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
+            if let Some((before, after)) = score.markers {
+                let _ =
+                    writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} markers (mm)"));
+            }
             if let Some((before, after)) = score.angles {
                 let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
             }
@@ -163,6 +188,12 @@ impl ObservationsReport {
             out,
             "\nbefore: the set-up (points, planes, camera and target) fitted with the robot nominal; after: the robot and the set-up"
         );
+        if self.sets.iter().any(|(_, score)| score.markers.is_some()) {
+            let _ = writeln!(
+                out,
+                "with markers: before, the base and the points on the last link fitted too; markers (mm): the RMS of the marker positions' errors"
+            );
+        }
         if !self.warnings.is_empty() {
             let _ = writeln!(out, "\nwarnings:");
             for w in &self.warnings {

@@ -736,6 +736,7 @@ impl Campaign<'_> {
                     joints: JointParams::All,
                     estimate_tool: true,
                     tool: study.tool(),
+                    markers: Vec::new(),
                     refine: RefineOptions::default(),
                 };
                 let c = calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?;

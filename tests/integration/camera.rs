@@ -82,7 +82,7 @@ fn errors_on(chain: &Chain, kept: &[String], rng: &mut ChaCha8Rng) -> Vec<f64> {
 /// The camera's and the target's placements (`x, y, z, rx, ry, rz`) of a set-up at `site`:
 /// hand-eye, a camera 60 mm out of the flange looking at a board 700 mm in front of the robot;
 /// eye-to-hand, a camera 1.5 m away looking at a board on the flange.
-fn truth(site: CameraSite) -> Vec<f64> {
+pub(crate) fn truth(site: CameraSite) -> Vec<f64> {
     match site {
         CameraSite::Hand => vec![30.0, -20.0, 60.0, 0.1, -0.2, 0.3, 700.0, 100.0, -300.0, 0.2, 1.4, -0.1],
         CameraSite::World => vec![1200.0, -600.0, 500.0, 1.2, -0.8, 0.4, 10.0, 15.0, 40.0, -0.3, 0.1, 0.2],
@@ -92,7 +92,7 @@ fn truth(site: CameraSite) -> Vec<f64> {
 /// Views of the target by the camera at `site` from `count` random poses of the robot `real`
 /// (the tool frame the flange's), the set-up `s`, noise of `sigma` (mm, and deg on the rotation)
 /// on each view.
-fn views(
+pub(crate) fn views(
     real: &ChainAt,
     site: CameraSite,
     s: &[f64],
@@ -130,6 +130,7 @@ fn options(estimator: Estimator) -> KindOptions {
         joints: JointParams::All,
         estimate_tool: true,
         tool: Vector3::zeros(),
+        markers: Vec::new(),
         refine: RefineOptions::default(),
     }
 }

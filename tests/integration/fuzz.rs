@@ -181,6 +181,7 @@ proptest! {
                     joints: JointParams::Offsets,
                     estimate_tool: true,
                     tool: Vector3::new(50.0, 0.0, 150.0),
+                    markers: Vec::new(),
                     refine: RefineOptions { max_iterations: 3, ..RefineOptions::default() },
                 };
                 let _ = robocal::calibration::kinds::calibrate_kinds(&puma(), &data, &options);

@@ -3,14 +3,14 @@
 //! each kind cannot see.
 
 use crate::kinematics::{point, robot};
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Vector3, Vector6};
 use proptest::prelude::*;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::JointParams;
 use robocal::calibration::kinds::{
-    KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
+    CameraSite, KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
 };
 use robocal::estimation::{Estimator, RefineOptions, Residuals};
 use robocal::kinematics::{Chain, ChainAt};
@@ -61,6 +61,56 @@ fn check_kind_jacobians(model: &RobotModel, u: &[f64], angles: bool) -> Result<(
     h_matches_finite_differences(&problem, &data)
 }
 
+/// [`check_kind_jacobians`] with marker positions: markers 1 and 3 and the tool point, one
+/// chain each sharing the parameters ([`Chain::markers`]), each marker's x, y, z at three
+/// poses (two markers at one) with every kind of the tool point's; with `angles`, roll, pitch
+/// and yaw too, the tool a frame ([`Chain::markers_and_probe`]); with `camera`, a camera's
+/// views at two poses too (the tool's frame, the rotation rows of every point's `H_j`).
+fn check_marker_jacobians(
+    model: &RobotModel,
+    u: &[f64],
+    angles: bool,
+    camera: Option<CameraSite>,
+) -> Result<(), TestCaseError> {
+    let points = [0, 7, 3].map(|i| Vector3::new(u[i], u[i + 1], u[i + 2]) * 200.0);
+    let chains = match angles || camera.is_some() {
+        true => {
+            let probe = Placement { xyz: points[2], rpy: Vector3::new(u[10], u[11], u[12]) };
+            Chain::markers_and_probe(model, &points[..2], &probe)
+        }
+        false => Chain::markers(model, &points),
+    };
+    let params = chains[0].params();
+    let (_, x) = point(model, &u[20..]);
+    let x: Vec<f64> = (0..params.len()).map(|i| x[i % x.len()]).collect();
+    let mut data = every_kind(model, u, angles);
+    for (pose, marker) in [(0, 0), (3, 2), (5, 0), (5, 2)] {
+        for axis in 0..3 {
+            let measured = 100.0 * u[axis + 30];
+            data.observations.push(Observation::Marker { marker, axis, pose, measured, sigma: 0.01 });
+            data.lines.push(data.lines.len() + 2);
+        }
+    }
+    let mut setup = SetUp::new(1, &[Vector3::new(u[3], u[4], 1.0), Vector3::new(1.0, u[5], u[6])]);
+    let mut s: Vec<f64> =
+        (0..setup.len()).map(|i| u[(i + 11) % u.len()] * if i % 3 == 2 { 300.0 } else { 0.3 }).collect();
+    if let Some(site) = camera {
+        for pose in [1, 4] {
+            let view = Vector6::from_fn(|i, _| u[40 + 6 * pose + i] * if i < 3 { 500.0 } else { 2.0 });
+            for axis in 0..6 {
+                data.observations.push(Observation::Camera { axis, pose, view, site, sigma: 0.1 });
+                data.lines.push(data.lines.len() + 2);
+            }
+        }
+        setup = setup.with_camera(site);
+        s.extend((0..12).map(|i| u[70 + i] * if i % 6 < 3 { 300.0 } else { 2.0 }));
+    }
+    let all = Selection::all(params);
+    let every: Vec<usize> = (0..setup.len()).collect();
+    let problem = KindProblem::of_points(&chains, &[0, 2], &all, &data, &setup, x, s, every).with_noise(None);
+    h_matches_finite_differences(&problem, &data)
+}
+
 /// Every column of `problem`'s `H` at its start against central differences of its residuals
 /// (`y = m - f`), relative to the row's largest entry (or absolute below 1).
 pub(crate) fn h_matches_finite_differences(
@@ -106,22 +156,47 @@ proptest! {
     }
 
     #[test]
+    fn marker_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, false, None)?;
+    }
+
+    #[test]
+    fn marker_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, false, None)?;
+    }
+
+    #[test]
+    fn marker_and_angle_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, true, None)?;
+    }
+
+    #[test]
+    fn marker_and_camera_jacobians_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, false, Some(CameraSite::Hand))?;
+    }
+
+    #[test]
+    fn marker_and_camera_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, true, Some(CameraSite::World))?;
+    }
+
+    #[test]
     fn angle_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
         check_kind_jacobians(&model, &u, true)?;
     }
 }
 
-fn puma() -> RobotModel {
+pub(crate) fn puma() -> RobotModel {
     RobotModel::preset("puma560").unwrap()
 }
 
 /// Random joint values within `model`'s limits.
-fn random_pose(model: &RobotModel, rng: &mut ChaCha8Rng) -> Vec<f64> {
+pub(crate) fn random_pose(model: &RobotModel, rng: &mut ChaCha8Rng) -> Vec<f64> {
     model.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect()
 }
 
 /// Small parameter errors on the `kept` parameters of `chain` (the others zero).
-fn errors_on(chain: &Chain, kept: &[String], rng: &mut ChaCha8Rng) -> Vec<f64> {
+pub(crate) fn errors_on(chain: &Chain, kept: &[String], rng: &mut ChaCha8Rng) -> Vec<f64> {
     let params = chain.params();
     let mut x = vec![0.0; params.len()];
     for name in kept {
@@ -133,15 +208,16 @@ fn errors_on(chain: &Chain, kept: &[String], rng: &mut ChaCha8Rng) -> Vec<f64> {
     x
 }
 
-const TOOL: Vector3<f64> = Vector3::new(20.0, -10.0, 120.0);
+pub(crate) const TOOL: Vector3<f64> = Vector3::new(20.0, -10.0, 120.0);
 
-fn options(estimator: Estimator) -> KindOptions {
+pub(crate) fn options(estimator: Estimator) -> KindOptions {
     KindOptions {
         estimator,
         joint_noise: None,
         joints: JointParams::All,
         estimate_tool: true,
         tool: TOOL,
+        markers: Vec::new(),
         refine: RefineOptions::default(),
     }
 }
@@ -225,7 +301,7 @@ fn recovers_with(
 }
 
 /// A ball bar from fixed point (400, 200, 300) mm: the distances of random poses.
-fn ball_bar(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+pub(crate) fn ball_bar(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
     let pivot = Vector3::new(400.0, 200.0, 300.0);
     let mut data = KindData::default();
     for k in 0..150 {
@@ -591,7 +667,7 @@ fn kind_files_read_and_their_errors() {
 
 /// A ball bar's file: `count` random poses of the true robot `real`, distances to the pivot
 /// (400, 200, 300) mm with noise 0.005 mm, in the file format.
-fn ball_bar_csv(real: &ChainAt, count: usize, rng: &mut ChaCha8Rng) -> String {
+pub(crate) fn ball_bar_csv(real: &ChainAt, count: usize, rng: &mut ChaCha8Rng) -> String {
     let pivot = Vector3::new(400.0, 200.0, 300.0);
     let mut text = String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,distance,sigma\n");
     for _ in 0..count {

@@ -9,6 +9,7 @@ mod fgls;
 mod fuzz;
 mod instruments;
 mod kinds;
+mod kinds_markers;
 mod kinematics;
 mod layering;
 mod model_files;

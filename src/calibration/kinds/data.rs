@@ -7,7 +7,12 @@
 //! j1,j2,j3,j4,j5,j6,plane                                      contacts with plane `plane`
 //! j1,j2,j3,j4,j5,j6,x,y,z,roll,pitch,yaw                       coordinates, any empty or absent
 //! j1,j2,j3,j4,j5,j6,camera,x,y,z,roll,pitch,yaw                the target's pose seen by a camera
+//! j1,j2,j3,j4,j5,j6,x1,y1,z1,x2,y2,z2                          marker positions (`calibrate --data`)
 //! ```
+//!
+//! A marker file is the measurement file of `robocal calibrate` (its marker columns `x<k>,
+//! y<k>, z<k>`, the number naming the marker), read cell by cell: each of a marker's x, y, z is
+//! one [`Observation::Marker`], an empty cell one not measured.
 //!
 //! Each may add `sigma`, the row's measurement standard deviation (length unit; every measured
 //! length of the row), without it [`DEFAULT_SIGMA_MM`]; and `sigma_angle` for angles (the
@@ -105,6 +110,20 @@ pub enum Observation {
         /// Its standard deviation (mm or rad).
         sigma: f64,
     },
+    /// One coordinate of marker `marker`'s point on the last link at `pose`, in the measuring
+    /// frame: `axis` 0, 1, 2 its x, y, z (mm). A marker file's cell.
+    Marker {
+        /// The marker's number less one (`x3` is marker 2 here).
+        marker: usize,
+        /// 0 to 2: x, y, z.
+        axis: usize,
+        /// The pose.
+        pose: usize,
+        /// The coordinate (mm).
+        measured: f64,
+        /// Its standard deviation (mm).
+        sigma: f64,
+    },
     /// One of the six numbers of a camera's view of the target at `pose`: the target's pose
     /// in the camera's frame, `T_camera^-1 T_target`, its position (`axis` 0, 1, 2; mm) and
     /// its rotation vector (3, 4, 5; rad). Each of the six rows carries the whole view.
@@ -128,19 +147,21 @@ impl Observation {
         match *self {
             Self::Distance { measured, .. }
             | Self::ToPoint { measured, .. }
-            | Self::Coordinate { measured, .. } => measured,
+            | Self::Coordinate { measured, .. }
+            | Self::Marker { measured, .. } => measured,
             Self::Contact { .. } => 0.0,
             Self::Camera { view, axis, .. } => view.get(axis).copied().unwrap_or(f64::NAN),
         }
     }
 
-    /// Its kind in words: `distance` (a pair), `point`, `contact`, or the coordinate `x` ...
-    /// `yaw`.
+    /// Its kind in words: `distance` (a pair), `point`, `contact`, `marker`, or the coordinate
+    /// `x` ... `yaw`.
     pub fn kind(&self) -> &'static str {
         match *self {
             Self::Distance { .. } => "distance",
             Self::ToPoint { .. } => "point",
             Self::Contact { .. } => "contact",
+            Self::Marker { .. } => "marker",
             Self::Coordinate { axis, .. } => {
                 ["x", "y", "z", "roll", "pitch", "yaw"].get(axis).copied().unwrap_or("?")
             }
@@ -165,6 +186,7 @@ impl Observation {
             | Self::ToPoint { pose, .. }
             | Self::Contact { pose, .. }
             | Self::Coordinate { pose, .. }
+            | Self::Marker { pose, .. }
             | Self::Camera { pose, .. } => pose,
         }
     }
@@ -188,6 +210,7 @@ impl Observation {
             | Self::ToPoint { sigma, .. }
             | Self::Contact { sigma, .. }
             | Self::Coordinate { sigma, .. }
+            | Self::Marker { sigma, .. }
             | Self::Camera { sigma, .. } => sigma,
         }
     }
@@ -248,6 +271,9 @@ impl KindData {
             Observation::Coordinate { pose, axis, measured, sigma } => {
                 Observation::Coordinate { pose: pose + offset, axis, measured, sigma }
             }
+            Observation::Marker { marker, axis, pose, measured, sigma } => {
+                Observation::Marker { marker, axis, pose: pose + offset, measured, sigma }
+            }
             Observation::Camera { pose, axis, view, site, sigma } => {
                 Observation::Camera { pose: pose + offset, axis, view, site, sigma }
             }
@@ -284,15 +310,39 @@ impl KindData {
         })
     }
 
-    /// Whether any observation is not a camera's (then the tool point is seen on its own).
-    pub fn beyond_the_camera(&self) -> bool {
-        self.observations.iter().any(|o| !matches!(o, Observation::Camera { .. }))
+    /// Whether any observation sees the measuring frame's coordinates, a coordinate or a
+    /// marker's (then the base is estimated; distances and contacts alone cannot see it).
+    pub fn sees_the_base(&self) -> bool {
+        self.observations
+            .iter()
+            .any(|o| matches!(o, Observation::Coordinate { .. } | Observation::Marker { .. }))
     }
 
-    /// Whether any observation sees the measuring frame's coordinates (then the base is
-    /// estimated; distances and contacts alone cannot see it).
-    pub fn sees_the_base(&self) -> bool {
-        self.observations.iter().any(|o| matches!(o, Observation::Coordinate { .. }))
+    /// The markers observed (their numbers less one), ascending: one point each on the last
+    /// link.
+    pub fn markers(&self) -> Vec<usize> {
+        let mut markers: Vec<usize> = (self.observations.iter())
+            .filter_map(|o| match *o {
+                Observation::Marker { marker, .. } => Some(marker),
+                _ => None,
+            })
+            .collect();
+        markers.sort_unstable();
+        markers.dedup();
+        markers
+    }
+
+    /// Whether any observation is of the tool point (or frame): any but a marker's.
+    pub fn sees_the_tool(&self) -> bool {
+        self.observations.iter().any(|o| !matches!(o, Observation::Marker { .. }))
+    }
+
+    /// Whether any observation sees the tool point on its own: any but a marker's or a
+    /// camera's (a camera's mounting is the tool frame's, its placement the set-up's).
+    pub fn measures_the_tool_point(&self) -> bool {
+        self.observations
+            .iter()
+            .any(|o| !matches!(o, Observation::Marker { .. } | Observation::Camera { .. }))
     }
 
     /// Whether any observation is a length (a distance, a coordinate): contacts alone cannot
@@ -424,6 +474,10 @@ impl KindData {
                 Observation::Distance { a, b, .. } => [a, b],
                 Observation::ToPoint { pose, .. } | Observation::Contact { pose, .. } => [pose, pose],
                 Observation::Coordinate { pose, axis, .. } if axis < 6 => [pose, pose],
+                Observation::Marker { pose, axis, .. } if axis < 3 => [pose, pose],
+                Observation::Marker { axis, .. } => {
+                    return bad(format!("line {line}: a marker's axis {axis}, expected 0 to 2"));
+                }
                 Observation::Camera { pose, axis, view, .. } if axis < 6 => {
                     if view.iter().any(|v| !v.is_finite()) {
                         return bad(format!("line {line}: a camera's view of finite values expected"));
@@ -449,6 +503,29 @@ impl KindData {
             if !(o.sigma().is_finite() && o.sigma() > 0.0 && o.measured().is_finite()) {
                 return bad(format!("line {line}: a finite value and a sigma above 0 expected"));
             }
+        }
+        Ok(())
+    }
+
+    /// Refuse markers that a calibration of the markers `markers` (numbers less one) does not
+    /// have, and observations of the tool point if it has none (`tool`).
+    pub(super) fn check_points(&self, markers: &[usize], tool: bool) -> Result<(), CalibrationError> {
+        if let Some(m) = self.markers().into_iter().find(|m| !markers.contains(m)) {
+            let theirs = match markers.is_empty() {
+                true => "the calibration has no markers".to_string(),
+                false => {
+                    let numbers: Vec<String> = markers.iter().map(|m| (m + 1).to_string()).collect();
+                    format!("not among the calibration's markers ({})", numbers.join(", "))
+                }
+            };
+            return Err(CalibrationError::Observations(format!("marker {}: {theirs}", m + 1)));
+        }
+        if self.sees_the_tool() && !tool {
+            return Err(CalibrationError::Observations(
+                "observations of the tool point (distances, contacts, coordinates), the calibration has markers \
+                 only: its tool point was not calibrated"
+                    .into(),
+            ));
         }
         Ok(())
     }
@@ -532,6 +609,8 @@ enum RowKind {
     Coordinates,
     /// A camera's view of its target.
     Camera,
+    /// Marker positions (a `calibrate --data` file): no `kind` cell names it.
+    Markers,
 }
 
 impl RowKind {
@@ -562,6 +641,8 @@ struct KindColumns {
     sigma_angle: Option<usize>,
     /// `camera`: `hand` or `world`.
     camera: Option<usize>,
+    /// Each marker's number and its `x<k>, y<k>, z<k>` columns.
+    markers: Vec<(usize, [usize; 3])>,
     /// The `kind` column, or the one kind of a file without it.
     kind: Option<usize>,
     file_kind: Option<RowKind>,
@@ -587,9 +668,23 @@ impl KindColumns {
             sigma: table.column("sigma"),
             sigma_angle: table.column("sigma_angle"),
             camera: table.column("camera"),
+            markers: crate::calibration::data::marker_columns(table)?,
             kind: table.column("kind"),
             file_kind: None,
         };
+        if !columns.markers.is_empty() {
+            let others =
+                ["kind", "distance", "point", "plane", "camera", "x", "y", "z", "roll", "pitch", "yaw"];
+            let others = ["qw", "qx", "qy", "qz"].iter().chain(&others);
+            if let Some(name) = others.into_iter().find(|c| table.column(c).is_some()) {
+                return Err(header(
+                    Some(name),
+                    "a marker file (x1,y1,z1, ...) has marker positions only: give the other kinds, and a \
+                     probe's orientation, in files of their own",
+                ));
+            }
+            return Ok(Self { file_kind: Some(RowKind::Markers), ..columns });
+        }
         if columns.kind.is_some() {
             return Ok(columns);
         }
@@ -714,6 +809,21 @@ impl KindColumns {
                 for axis in 0..6 {
                     let sigma = if axis < 3 { s } else { s_angle };
                     push(data, Observation::Camera { axis, pose, view, site, sigma });
+                }
+            }
+            RowKind::Markers => {
+                let mut any = false;
+                for &(k, cells) in &self.markers {
+                    for (axis, c) in cells.into_iter().enumerate() {
+                        let Some(c) = optional(Some(c)) else { continue };
+                        let v = table.number(row, c)? * units.length_scale();
+                        let measured = table.within(row, c, v, MAX_LENGTH_MM, "mm")?;
+                        push(data, Observation::Marker { marker: k - 1, axis, pose, measured, sigma: s });
+                        any = true;
+                    }
+                }
+                if !any {
+                    return Err(DataError::new(row.line, None, "no marker coordinate: every cell is empty"));
                 }
             }
             RowKind::Coordinates => {

@@ -1,6 +1,6 @@
 //! Measurement kinds beyond marker positions: distances (a ball bar, a length artefact, a laser
 //! interferometer) and plane contacts (a touch probe on a table), calibrated with the same
-//! Gauss-Markov machinery as marker positions.
+//! Gauss-Markov machinery as marker positions, and with marker positions themselves in one fit.
 //!
 //! # The observation model
 //!
@@ -8,6 +8,18 @@
 //! tip), in the robot's base frame. Every observation `k` is one number, a function of that
 //! point at one or two poses and of parameters of the set-up `s` (fixed points, planes):
 //!
+//! - a marker's coordinate: markers are points of their own on the last link, `p_m(q, x)` of
+//!   marker `m` (its position `x_m` among the parameters, `marker<m>.x, y, z`, one chain each
+//!   sharing the robot's parameters, [`Chain::markers`]), seen in the measuring frame as a
+//!   coordinate is: `f_k = e_c . p_m(q_k, x)`, `g_k = e_c`. The tool point (of every other
+//!   kind) is then one more point after the markers. Markers see the measuring frame: the base
+//!   is estimated, and starts where the rigid registration (Kabsch) of the nominal markers onto
+//!   the measured ones puts it, as in [`calibrate`](super::calibrate); the "before" fit then
+//!   fits the base and the points on the last link with the set-up, the robot's joints nominal.
+//!   With angles (roll, pitch, yaw) the tool after the markers is a frame, its rotation
+//!   estimated too ([`Chain::markers_and_probe`]); with a camera's views, the camera's (or
+//!   target's) mounting is in the last link's frame itself, as without markers (that frame
+//!   held). Every point's `H_j` then has its rotation rows.
 //! - a distance between two poses `a`, `b`: `f_k = |p_a - p_b|`, with `p_a = p(q_a, x)`;
 //! - a distance to fixed point `i` (a ball bar's pivot `c_i`, 3 parameters):
 //!   `f_k = |p(q_k, x) - c_i|`;
@@ -62,8 +74,8 @@
 //! leaves every contact; the robot's longest nominal length is then held (the robot's scale is
 //! its nominal one), and said so. (Holding a plane's offset instead is not enough: the robot
 //! can shrink onto the planes, its first joint's `d` carrying it there, and fit every contact.)
-//! A distance fixes the scale. Coordinates see the measuring frame: with them the base is
-//! estimated, as far as they see it (a height alone sees its z, roll and pitch; the
+//! A distance fixes the scale. Coordinates and markers see the measuring frame: with them the
+//! base is estimated, as far as they see it (a height alone sees its z, roll and pitch; the
 //! rank-revealing solve holds the rest and says so).
 //!
 //! # Extending
@@ -97,7 +109,7 @@ use nalgebra::{
 };
 use rayon::prelude::*;
 
-/// How to calibrate from distances and contacts.
+/// How to calibrate from distances, contacts, coordinates, cameras and markers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KindOptions {
     /// The estimator; the weighted ones use `V_k` of the [module](self).
@@ -113,6 +125,10 @@ pub struct KindOptions {
     /// camera's views are the only observations (the camera's or target's mounting is then in
     /// the marker frame itself).
     pub tool: Vector3<f64>,
+    /// The markers' nominal positions (mm) in the model's marker frame, the `k`-th marker
+    /// number `k + 1` (as `calibrate`'s [`Options::markers`](super::Options::markers));
+    /// missing ones start at its origin. Used only with marker observations.
+    pub markers: Vec<Vector3<f64>>,
     /// Gauss-Newton settings.
     pub refine: RefineOptions,
 }
@@ -273,14 +289,17 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
                 setups,
             }
         }
-        Observation::Coordinate { pose, axis, .. } if axis < 3 => Prediction {
-            residual: o.residual(p(pose)[axis]),
-            by_point: [(pose, Vector6::ith(axis, 1.0)), none],
-            poses: 1,
-            by_setup: none_s.0,
-            setups: 0,
-        },
-        Observation::Coordinate { pose, axis, .. } => {
+        Observation::Coordinate { pose, axis, .. } | Observation::Marker { pose, axis, .. } if axis < 3 => {
+            Prediction {
+                residual: o.residual(p(pose)[axis]),
+                by_point: [(pose, Vector6::ith(axis, 1.0)), none],
+                poses: 1,
+                by_setup: none_s.0,
+                setups: 0,
+            }
+        }
+        Observation::Coordinate { pose, axis, .. } | Observation::Marker { pose, axis, .. } => {
+            // A marker's axis is below 3 ([`KindData::check`]).
             let (rpy, rates) = angles(&frames[pose].rotation);
             let g = rates.row(axis - 3);
             Prediction {
@@ -349,10 +368,16 @@ fn angles(r: &UnitQuaternion<f64>) -> (Vector3<f64>, Matrix3<f64>) {
 
 /// The calibration problem of distances and contacts: `y_k(x, s) = m_k - f_k(x, s)` for the
 /// selected robot parameters `x` and set-up parameters `s` (others held), one row per
-/// observation, `V_k` of the [module](self) computed once at the start.
+/// observation, `V_k` of the [module](self) computed once at the start. Its points on the last
+/// link are one chain each: the markers' (in the order of their numbers), then the tool's.
 #[derive(Debug, Clone)]
 pub struct KindProblem<'a> {
-    chain: &'a Chain,
+    chains: &'a [Chain],
+    /// The markers' numbers less one, of the chains in order; the tool point's chain follows.
+    markers: Vec<usize>,
+    /// Whether an observation sees point `i` at pose `j` (`used[i * poses + j]`): the others
+    /// are not computed.
+    used: Vec<bool>,
     selection: &'a Selection,
     data: &'a KindData,
     setup: &'a SetUp,
@@ -363,10 +388,11 @@ pub struct KindProblem<'a> {
 }
 
 impl<'a> KindProblem<'a> {
-    /// The problem of `data` on `chain` (a point chain), the robot parameters at `fixed` (full
-    /// vector) and the set-up at `setup_values`, estimating `selection` and the set-up
-    /// parameters `setup_selection`. With `joint_noise`, `V_k` includes the joint noise of
-    /// each of the observation's poses; the measurement sigmas always.
+    /// The problem of `data` on `chain` (a point chain, or a frame for angles and cameras),
+    /// the robot parameters at `fixed` (full vector) and the set-up at `setup_values`,
+    /// estimating `selection` and the set-up parameters `setup_selection`. With
+    /// `joint_noise`, `V_k` includes the joint noise of each of the observation's poses; the
+    /// measurement sigmas always.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         chain: &'a Chain,
@@ -378,10 +404,103 @@ impl<'a> KindProblem<'a> {
         setup_selection: Vec<usize>,
         joint_noise: Option<&DMatrix<f64>>,
     ) -> Self {
-        let mut problem =
-            Self { chain, selection, data, setup, fixed, setup_values, setup_selection, v: None };
-        problem.v = Some(problem.covariance_blocks(joint_noise));
+        let chains = std::slice::from_ref(chain);
+        let problem =
+            Self::of_points(chains, &[], selection, data, setup, fixed, setup_values, setup_selection);
+        problem.with_noise(joint_noise)
+    }
+
+    /// The problem of [`KindProblem::new`] with several points on the last link: `chains`,
+    /// one per point sharing their parameters ([`Chain::markers`]), the markers numbered
+    /// `markers` (less one, ascending; [`KindData::markers`]) first, then the tool point if
+    /// any observation is of it.
+    #[allow(clippy::too_many_arguments)]
+    pub fn of_points(
+        chains: &'a [Chain],
+        markers: &[usize],
+        selection: &'a Selection,
+        data: &'a KindData,
+        setup: &'a SetUp,
+        fixed: Vec<f64>,
+        setup_values: Vec<f64>,
+        setup_selection: Vec<usize>,
+    ) -> Self {
+        let markers = markers.to_vec();
+        let used = Vec::new();
+        let mut problem = Self {
+            chains,
+            markers,
+            used,
+            selection,
+            data,
+            setup,
+            fixed,
+            setup_values,
+            setup_selection,
+            v: None,
+        };
+        let poses = data.joints.len();
+        let mut used = vec![false; chains.len() * poses];
+        for o in &data.observations {
+            let first = problem.point_of(o) * poses;
+            let pair = match *o {
+                Observation::Distance { a, b, .. } => [a, b],
+                _ => [o.pose(), o.pose()],
+            };
+            for j in pair {
+                if let Some(u) = used.get_mut(first + j) {
+                    *u = true;
+                }
+            }
+        }
+        problem.used = used;
         problem
+    }
+
+    /// The same problem with `V_k` computed at its values, with `joint_noise` if given.
+    pub fn with_noise(mut self, joint_noise: Option<&DMatrix<f64>>) -> Self {
+        self.v = Some(self.covariance_blocks(joint_noise));
+        self
+    }
+
+    /// The chain (point) of observation `o`: its marker's, else the tool's, after the markers.
+    fn point_of(&self, o: &Observation) -> usize {
+        match *o {
+            Observation::Marker { marker, .. } => {
+                self.markers.iter().position(|&m| m == marker).expect("a marker of the problem")
+            }
+            _ => self.markers.len(),
+        }
+    }
+
+    /// The frame of every point at every pose, point by point (`frames[i * poses + j]`), at the
+    /// parameters `at`; with `blocks`, each one's `H_j` too (`rows x columns`, column-major);
+    /// those no observation sees left at the identity and 0.
+    fn frames(&self, at: &[ChainAt], blocks: Option<(&mut [f64], usize)>) -> Vec<Isometry3<f64>> {
+        let poses = self.data.joints.len();
+        let (measured, rows) = (self.measured(), self.measured().rows());
+        let columns = self.selection.len();
+        let frame = |n: usize| (&at[n / poses], &self.data.joints[n % poses]);
+        match blocks {
+            Some((blocks, block)) if block > 0 => (blocks.par_chunks_mut(block).enumerate())
+                .map(|(n, h_j)| {
+                    if !self.used[n] {
+                        return Isometry3::identity();
+                    }
+                    let (at, q) = frame(n);
+                    let view = DMatrixViewMut::from_slice(h_j, rows, columns);
+                    at.identification_jacobian(q, self.selection, measured, view);
+                    at.pose(q)
+                })
+                .collect(),
+            _ => (0..at.len() * poses)
+                .into_par_iter()
+                .map(|n| match self.used[n] {
+                    true => frame(n).0.pose(frame(n).1),
+                    false => Isometry3::identity(),
+                })
+                .collect(),
+        }
     }
 
     /// The same problem estimating other parameters from other values, sharing `V_k`.
@@ -400,13 +519,19 @@ impl<'a> KindProblem<'a> {
 
     /// `V_k = sum_j G_kj Sigma_q G_kj^T + sigma_k^2` at the start values.
     fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
-        let at = self.chain.with_errors(&self.fixed);
-        let dof = self.chain.dof();
+        let at: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&self.fixed)).collect();
+        let dof = self.chains[0].dof();
         let rows = self.measured().rows();
-        let jacobians: Vec<(Isometry3<f64>, DMatrix<f64>)> = (self.data.joints.par_iter())
+        let poses = self.data.joints.len();
+        let jacobians: Vec<(Isometry3<f64>, DMatrix<f64>)> = (0..at.len() * poses)
+            .into_par_iter()
             .map_init(
                 || Matrix6xX::zeros(dof),
-                |j, q| {
+                |j, n| {
+                    if !self.used[n] {
+                        return (Isometry3::identity(), DMatrix::zeros(0, 0));
+                    }
+                    let (at, q) = (&at[n / poses], &self.data.joints[n % poses]);
                     at.manipulator_jacobian(q, j);
                     (at.pose(q), DMatrix::from_fn(rows, dof, |r, c| j[(r, c)]))
                 },
@@ -414,11 +539,12 @@ impl<'a> KindProblem<'a> {
             .collect();
         let frames: Vec<Isometry3<f64>> = jacobians.iter().map(|(f, _)| *f).collect();
         let v = self.data.observations.iter().map(|o| {
-            let f = predict(o, &frames, self.setup, &self.setup_values);
+            let first = self.point_of(o) * poses;
+            let f = predict(o, &frames[first..first + poses], self.setup, &self.setup_values);
             let joint = joint_noise.map_or(0.0, |sigma_q| {
                 (f.by_point[..f.poses].iter())
                     .map(|(j, g)| {
-                        let g_kj = g.rows(0, rows).transpose() * &jacobians[*j].1;
+                        let g_kj = g.rows(0, rows).transpose() * &jacobians[first + *j].1;
                         (&g_kj * sigma_q * g_kj.transpose())[(0, 0)]
                     })
                     .sum()
@@ -428,10 +554,14 @@ impl<'a> KindProblem<'a> {
         DMatrix::from_iterator(self.data.observations.len(), 1, v)
     }
 
-    /// What the chain's end is: a point ([`Measured::Position`]) or, for angles, a tool frame
-    /// ([`Measured::Pose`]).
+    /// What the chains' ends are: points ([`Measured::Position`]) or, for angles and cameras,
+    /// frames ([`Measured::Pose`]; with markers, the points' frames, their rotation the last
+    /// link's).
     pub fn measured(&self) -> Measured {
-        if self.chain.ends_at_a_point() { Measured::Position } else { Measured::Pose }
+        match self.chains.iter().all(Chain::ends_at_a_point) && !self.data.has_angles() {
+            true => Measured::Position,
+            false => Measured::Pose,
+        }
     }
 
     /// The full robot parameter vector and the set-up values at `x`.
@@ -490,34 +620,26 @@ impl Residuals for KindProblem<'_> {
 
     fn names(&self) -> Vec<String> {
         let setup = self.setup.names();
-        let robot = self.selection.indices().iter().map(|&i| self.chain.params().get(i).name.clone());
+        let robot = self.selection.indices().iter().map(|&i| self.chains[0].params().get(i).name.clone());
         robot.chain(self.setup_selection.iter().map(|&i| setup[i].clone())).collect()
     }
 
     fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
         let (full, s) = self.full(x);
-        let at: ChainAt = self.chain.with_errors(&full);
+        let at: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
         let columns = self.selection.len();
-        let measured = self.measured();
-        let rows = measured.rows();
-        // Each pose's H_j (rows x columns, column-major) in one buffer, filled in parallel.
+        let rows = self.measured().rows();
+        let poses = self.data.joints.len();
+        // Each point's H_j at each pose (rows x columns, column-major) in one buffer, filled in
+        // parallel.
         let block = if h.is_some() { rows * columns } else { 0 };
-        let mut blocks = vec![0.0; block * self.data.joints.len()];
-        let frames: Vec<Isometry3<f64>> = if block > 0 {
-            (blocks.par_chunks_mut(block).zip(&self.data.joints))
-                .map(|(h_j, q)| {
-                    let view = DMatrixViewMut::from_slice(h_j, rows, columns);
-                    at.identification_jacobian(q, self.selection, measured, view);
-                    at.pose(q)
-                })
-                .collect()
-        } else {
-            self.data.joints.par_iter().map(|q| at.pose(q)).collect()
-        };
+        let mut blocks = vec![0.0; block * poses * at.len()];
+        let frames = self.frames(&at, Some((&mut blocks, block)));
         let mut y = DVector::zeros(self.equations());
         let mut h = h;
         for (k, o) in self.data.observations.iter().enumerate() {
-            let f = predict(o, &frames, self.setup, &s);
+            let first = self.point_of(o) * poses;
+            let f = predict(o, &frames[first..first + poses], self.setup, &s);
             y[k] = f.residual;
             if let Some(h) = h.as_deref_mut() {
                 // H_k = sum_j g_kj^T H_j + df_k/ds.
@@ -525,7 +647,7 @@ impl Residuals for KindProblem<'_> {
                     h[(k, c)] = 0.0;
                 }
                 for (j, g) in &f.by_point[..f.poses] {
-                    let h_j = &blocks[j * block..(j + 1) * block];
+                    let h_j = &blocks[(first + j) * block..(first + j + 1) * block];
                     for (c, column) in h_j.chunks_exact(rows).enumerate() {
                         h[(k, c)] += (0..rows).map(|r| g[r] * column[r]).sum::<f64>();
                     }
@@ -564,8 +686,12 @@ pub struct KindCalibration {
     pub fixed: Vec<String>,
     /// The training observations scored, before and after.
     pub training: Score,
+    /// The markers' numbers less one ([`KindData::markers`]), and each one's calibrated
+    /// position (mm) as the calibrated model's tool point is given (the last joint's frame).
+    pub markers: Vec<(usize, Vector3<f64>)>,
     joint_noise: Option<DMatrix<f64>>,
-    chain: Chain,
+    /// One chain per point: the markers', then the tool's if observed.
+    chains: Vec<Chain>,
 }
 
 /// One observation scored: its residual `m_k - f_k` before and after (mm; rad for an angle),
@@ -594,6 +720,11 @@ pub struct Score {
     pub lengths: (f64, f64),
     /// RMS of the angle residuals (deg), before and after, if angles were measured.
     pub angles: Option<(f64, f64)>,
+    /// RMS of the marker positions' errors (mm), before and after, if markers were measured:
+    /// `sqrt(3 sum e_c^2 / n)` over the `n` measured coordinates `e_c`, the RMS of the
+    /// position errors `|e|` when every coordinate is measured (as `calibrate` reports it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub markers: Option<(f64, f64)>,
 }
 
 impl Score {
@@ -608,9 +739,9 @@ impl Score {
                 whitened: after[k] / v[(k, 0)].sqrt(),
             })
             .collect();
-        let rms = |angle: bool, scale: f64| {
+        let rms = |chosen: &dyn Fn(&Observation) -> bool, scale: f64| {
             let chosen: Vec<&ObservationResidual> = (observations.iter().zip(&data.observations))
-                .filter(|(_, o)| o.is_angle() == angle)
+                .filter(|(_, o)| chosen(o))
                 .map(|(r, _)| r)
                 .collect();
             let n = chosen.len().max(1) as f64;
@@ -619,9 +750,10 @@ impl Score {
             };
             (!chosen.is_empty()).then(|| (of(|r| r.before), of(|r| r.after)))
         };
-        let lengths = rms(false, 1.0).unwrap_or((0.0, 0.0));
-        let angles = rms(true, 1f64.to_degrees());
-        Self { observations, lengths, angles }
+        let lengths = rms(&|o| !o.is_angle(), 1.0).unwrap_or((0.0, 0.0));
+        let angles = rms(&Observation::is_angle, 1f64.to_degrees());
+        let markers = rms(&|o| matches!(o, Observation::Marker { .. }), 3f64.sqrt());
+        Self { observations, lengths, angles, markers }
     }
 }
 
@@ -629,21 +761,24 @@ impl KindCalibration {
     /// `data` scored before and after, the set-up as calibrated, whitened by `V_k` with the
     /// calibration's joint noise.
     pub fn score(&self, data: &KindData) -> Result<Score, CalibrationError> {
-        data.check(self.chain.dof())?;
+        data.check(self.chains[0].dof())?;
         data.check_against(&self.setup)?;
+        let markers: Vec<usize> = self.markers.iter().map(|m| m.0).collect();
+        data.check_points(&markers, self.chains.len() > markers.len())?;
         let nothing = Selection::from_indices(&self.params, []);
         let noise = self.joint_noise.as_ref();
         let at = |x: &[f64], s: &[f64]| {
-            KindProblem::new(
-                &self.chain,
+            KindProblem::of_points(
+                &self.chains,
+                &markers,
                 &nothing,
                 data,
                 &self.setup,
                 x.to_vec(),
                 s.to_vec(),
                 Vec::new(),
-                noise,
             )
+            .with_noise(noise)
         };
         let (before, after) = (at(&self.before, &self.setup_values.0), at(&self.after, &self.setup_values.1));
         let zero = DVector::zeros(0);
@@ -656,15 +791,24 @@ impl KindCalibration {
         Ok(self.score(data)?.lengths)
     }
 
+    /// The calibrated markers as a model file writes them: each one's number and position (mm)
+    /// as the calibrated model's tool point is given (the last joint's frame).
+    pub fn marker_positions(&self) -> Vec<(usize, Vector3<f64>)> {
+        self.markers.iter().map(|&(m, p)| (m + 1, p)).collect()
+    }
+
     /// Plane `i`'s calibrated unit normal and offset (mm).
     pub fn plane(&self, i: usize) -> (Vector3<f64>, f64) {
         self.setup.plane(&self.setup_values.1, i)
     }
 }
 
-/// Calibrate `model` from distances, contacts and coordinates: the set-up fitted with the
-/// robot nominal ("before"), then the robot's parameters asked for and the set-up together
-/// ("after"); what the observations cannot see held and said ([`KindCalibration::unseen`]), what the
+/// Calibrate `model` from distances, contacts, coordinates, cameras' views and marker
+/// positions: with markers, the base first placed by the rigid registration of the nominal
+/// markers onto the measured ones (Kabsch, as [`calibrate`](super::calibrate) does); the
+/// set-up fitted with the robot nominal, with markers the base and the points on the last link
+/// too ("before"), then the robot's parameters asked for and the set-up together ("after");
+/// what the observations cannot see held and said ([`KindCalibration::unseen`]), what the
 /// poses cannot tell apart held by the rank-revealing solve.
 pub fn calibrate_kinds(
     model: &RobotModel,
@@ -672,46 +816,65 @@ pub fn calibrate_kinds(
     options: &KindOptions,
 ) -> Result<KindCalibration, CalibrationError> {
     data.check(model.dof())?;
+    let markers = data.markers();
+    let nominal_markers: Vec<Vector3<f64>> =
+        markers.iter().map(|&m| options.markers.get(m).copied().unwrap_or_else(Vector3::zeros)).collect();
+    let registered = match markers.is_empty() {
+        true => model.clone(),
+        false => registered(model, data, &markers, &nominal_markers)?,
+    };
     // Angles need a tool frame: the tool point, turned as the marker frame to start with.
     // Cameras alone: their mounting is in the tool (tip link's) frame itself, no tool point.
-    let tool = if data.beyond_the_camera() { options.tool } else { Vector3::zeros() };
+    // With markers, a camera's mounting is in the tool frame as well: the last point at its
+    // origin, held.
+    let tool = if data.measures_the_tool_point() { options.tool } else { Vector3::zeros() };
     let probe = data.has_angles().then_some(Placement { xyz: tool, rpy: Vector3::zeros() });
-    let chain = match &probe {
-        Some(probe) => Chain::probe(model, probe),
-        None => Chain::markers(model, &[tool]).remove(0),
+    // The markers' points, then the tool's (a point, or a frame for angles) if observed.
+    let points: Vec<Vector3<f64>> =
+        nominal_markers.iter().copied().chain(data.sees_the_tool().then_some(tool)).collect();
+    let chains = match &probe {
+        Some(probe) => Chain::markers_and_probe(&registered, &nominal_markers, probe),
+        None => Chain::markers(&registered, &points),
     };
-    let params = chain.params().clone();
+    let params = chains[0].params().clone();
     let zero = vec![0.0; params.len()];
     let nominal: Vec<Isometry3<f64>> = {
-        let at = chain.with_errors(&zero);
+        // The tool's chain, the last (any chain when only markers are observed: no set-up).
+        let at = chains[chains.len() - 1].with_errors(&zero);
         data.joints.iter().map(|q| at.pose(q)).collect()
     };
     let (setup, start) = data.initial_setup(&nominal)?;
     let nothing = Selection::from_indices(&params, []);
     let every: Vec<usize> = (0..setup.len()).collect();
-    let base_problem = KindProblem::new(
-        &chain,
-        &nothing,
-        data,
-        &setup,
-        zero.clone(),
-        start,
-        every,
-        options.joint_noise.as_ref(),
-    );
+    let base_problem =
+        KindProblem::of_points(&chains, &markers, &nothing, data, &setup, zero.clone(), start, every.clone())
+            .with_noise(options.joint_noise.as_ref());
     let weights = Weights::for_problem(&base_problem, options.estimator)?;
-    // "Before": the set-up alone, the robot nominal.
-    let before_setup = match setup.is_empty() {
-        true => base_problem.full(&base_problem.start()).1,
+    let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
+    // "Before": the set-up alone, the robot nominal; with markers, the base and the points on
+    // the last link too, by ordinary least squares whatever the estimator, as `calibrate` fits
+    // its base and markers (it minimises the very errors it reports).
+    let frame = Selection::from_indices(
+        &params,
+        (asked.indices().iter().copied())
+            .filter(|&i| !markers.is_empty() && !matches!(params.get(i).owner, ParamOwner::Joint(_))),
+    );
+    let (before, before_setup) = match setup.is_empty() && frame.is_empty() {
+        true => base_problem.full(&base_problem.start()),
         false => {
-            let fit = linearise(&base_problem, &weights, base_problem.start())?;
-            let refined = refine_from(&base_problem, &weights, fit, &RefineOptions::default())?;
-            base_problem.full(&refined.estimate.x).1
+            let problem =
+                base_problem.reselect(&frame, zero.clone(), base_problem.setup_values.clone(), every);
+            let ols = match markers.is_empty() {
+                true => weights.clone(),
+                false => Weights::for_problem(&base_problem, Estimator::Ols)?,
+            };
+            let fit = linearise(&problem, &ols, problem.start())?;
+            let refined = refine_from(&problem, &ols, fit, &RefineOptions::default())?;
+            problem.full(&refined.estimate.x)
         }
     };
     // "After": what was asked for that the observations identify.
-    let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
-    let problem = base_problem.reselect(&asked, zero.clone(), before_setup.clone(), asked_setup.clone());
+    let problem = base_problem.reselect(&asked, before.clone(), before_setup.clone(), asked_setup.clone());
     if problem.equations() <= problem.parameters() {
         return Err(CalibrationError::TooFewPoses {
             poses: data.joints.len(),
@@ -740,26 +903,94 @@ pub fn calibrate_kinds(
         identifiable.iter().filter(|&&c| c < robot).map(|&c| asked.indices()[c]),
     );
     let kept_setup = identifiable.iter().filter(|&&c| c >= robot).map(|&c| asked_setup[c - robot]).collect();
-    let problem = base_problem.reselect(&kept, zero.clone(), before_setup.clone(), kept_setup);
+    let problem = base_problem.reselect(&kept, before.clone(), before_setup.clone(), kept_setup);
     let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);
-    let calibrated = fold(model, &params, &after, &[tool], probe.as_ref());
+    let calibrated_points = calibrated_points(&params, &after, &points);
+    // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
+    // 1, as `calibrate` makes it.
+    let tool_point = if data.sees_the_tool() { markers.len() } else { 0 };
+    let calibrated = fold(&registered, &params, &after, (&points, tool_point), probe.as_ref());
+    let frame = registered.marker_frame().isometry();
     let mut calibration = KindCalibration {
         calibrated,
         params,
-        before: zero,
+        before,
         after,
         unseen: data.unseen(&setup, &after_setup),
         setup,
         setup_values: (before_setup, after_setup),
         refined: estimate,
         fixed,
-        training: Score { observations: Vec::new(), lengths: (0.0, 0.0), angles: None },
+        training: Score { observations: Vec::new(), lengths: (0.0, 0.0), angles: None, markers: None },
+        markers: markers.iter().zip(&calibrated_points).map(|(&m, p)| (m, (frame * p).coords)).collect(),
         joint_noise: options.joint_noise.clone(),
-        chain,
+        chains,
     };
     calibration.training = calibration.score(data)?;
     Ok(calibration)
+}
+
+/// `model` with its base placed by the rigid registration of the nominal markers (the
+/// positions `nominal`, numbered `markers`, at every pose) onto the measured ones, as
+/// `calibrate` places it (`with_registered_base`), from every pose and marker whose x, y and z
+/// were all measured (at least 3, not on one line).
+fn registered(
+    model: &RobotModel,
+    data: &KindData,
+    markers: &[usize],
+    nominal: &[Vector3<f64>],
+) -> Result<RobotModel, CalibrationError> {
+    let mut measured = vec![[None; 3]; data.joints.len() * markers.len()];
+    for o in &data.observations {
+        if let Observation::Marker { marker, axis, pose, measured: m, .. } = *o {
+            let k = markers.iter().position(|&id| id == marker).expect("one of the data's markers");
+            measured[pose * markers.len() + k][axis] = Some(m);
+        }
+    }
+    let chains = Chain::markers(model, nominal);
+    let zero = vec![0.0; chains[0].params().len()];
+    let at: Vec<ChainAt> = chains.iter().map(|c| c.with_errors(&zero)).collect();
+    let (predicted, measured): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = (measured.iter().enumerate())
+        .filter_map(|(n, m)| match *m {
+            [Some(x), Some(y), Some(z)] => {
+                let (pose, k) = (n / markers.len(), n % markers.len());
+                Some((at[k].pose(&data.joints[pose]).translation.vector, Vector3::new(x, y, z)))
+            }
+            _ => None,
+        })
+        .unzip();
+    let too_few = || {
+        CalibrationError::Observations(format!(
+            "marker positions: {} with x, y and z all measured, expected at least 3 not on one line to place the \
+             measuring frame",
+            predicted.len()
+        ))
+    };
+    if predicted.len() < 3 {
+        return Err(too_few());
+    }
+    // The spread of the predicted positions about their centre: two directions at least.
+    let centre = predicted.iter().sum::<Vector3<f64>>() / predicted.len() as f64;
+    let spread = DMatrix::from_fn(predicted.len(), 3, |r, c| predicted[r][c] - centre[c]).singular_values();
+    let mut s: Vec<f64> = spread.iter().copied().collect();
+    s.sort_by(|a, b| b.total_cmp(a));
+    if s[1].is_nan() || s[1] <= 1e-9 * s[0] {
+        return Err(too_few());
+    }
+    Ok(super::with_registered_base(model, &predicted, &measured))
+}
+
+/// Each point's calibrated position (mm) in the model's marker frame: its nominal position
+/// `p0` of `points` plus its estimate, `p0 + (x, y, z)`.
+fn calibrated_points(params: &ParamSet, x: &[f64], points: &[Vector3<f64>]) -> Vec<nalgebra::Point3<f64>> {
+    use crate::model::ParamKind;
+    (points.iter().enumerate())
+        .map(|(k, p)| {
+            let value = |kind| params.index_of(ParamOwner::Marker(k), kind).map_or(0.0, |i| x[i]);
+            (p + Vector3::new(value(ParamKind::X), value(ParamKind::Y), value(ParamKind::Z))).into()
+        })
+        .collect()
 }
 
 /// The robot parameters and the set-up parameters asked for: the joints of `options`, the tool
@@ -777,9 +1008,12 @@ fn asked(
     options: &KindOptions,
 ) -> Result<(Selection, Vec<usize>), CalibrationError> {
     let joints = options.joints.select(params)?;
+    let markers = data.markers().len();
     let extra = (0..params.len()).filter(|&i| match params.get(i).owner {
-        // A camera's mounting is the tool frame's, estimated as the set-up's.
-        ParamOwner::Marker(_) => options.estimate_tool && data.beyond_the_camera(),
+        // The markers' points, always; the tool point's (after them) unless held. A camera's
+        // mounting is the tool frame's, estimated as the set-up's.
+        ParamOwner::Marker(k) if k < markers => true,
+        ParamOwner::Marker(_) => options.estimate_tool && data.measures_the_tool_point(),
         ParamOwner::Base => data.sees_the_base(),
         _ => false,
     });

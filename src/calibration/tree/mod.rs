@@ -149,7 +149,7 @@ impl TreeParams {
         for (b, branch) in tree.branches.iter().enumerate() {
             let identity = Placement::default();
             let x_b = self.branch_values(b, x);
-            let folded = fold(&branch.model, self.chains[b].params(), &x_b, &[], Some(&identity));
+            let folded = fold(&branch.model, self.chains[b].params(), &x_b, (&[], 0), Some(&identity));
             for (joint, &j) in folded.joints.into_iter().zip(&branch.joints) {
                 joints[j] = joint;
             }

@@ -472,6 +472,14 @@ fn calibrate_observations_weights_by_default_and_takes_ols_or_wls_only() {
     assert!(observations(&["--json", "d.csv"]).unwrap_err().contains("d.csv"));
 }
 
+#[test]
+fn calibrate_observations_takes_the_markers_in_order() {
+    let request = observations(&["--marker", "50,0,150", "--marker=-40,60,120"]).unwrap();
+    assert_eq!(request.markers, [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)]);
+    assert!(observations(&[]).unwrap().markers.is_empty());
+    assert!(observations(&["--marker", "1,2"]).is_err());
+}
+
 /// `robocal calibrate-tree --model MODEL --data v.csv` with `args`.
 fn calibrate_tree(model: &str, args: &[&str]) -> Result<CalibrateTreeRequest, String> {
     request(&["calibrate-tree", "--model", model, "--data", "v.csv"], args, |command| match command {

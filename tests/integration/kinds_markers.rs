@@ -1,0 +1,526 @@
+//! Marker positions as a kind of observation, fitted with the others in one calibration
+//! (`calibrate-observations`): exact recovery from markers and a ball bar together, estimates
+//! within 3 predicted standard errors with noise, the same estimate as `calibrate` on a marker
+//! file alone, and the command on a marker file and a ball bar's file. (H against finite
+//! differences: `kinds::marker_jacobians_match_finite_differences_*`.)
+
+use crate::kinds::{TOOL, errors_on, options, puma, random_pose};
+use nalgebra::{Isometry3, Vector3};
+use rand::SeedableRng;
+use rand::rngs::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
+use robocal::calibration::{self, Gauge, JointParams, Loss, Measurements, Options};
+use robocal::estimation::{Estimator, RefineOptions};
+use robocal::kinematics::{Chain, ChainAt};
+use robocal::model::Placement;
+use robocal::table::Units;
+
+/// Three markers on the last link (mm, its frame), as `--marker` gives them.
+const MARKERS: [Vector3<f64>; 3] =
+    [Vector3::new(60.0, 0.0, 90.0), Vector3::new(-30.0, 50.0, 90.0), Vector3::new(-30.0, -50.0, 90.0)];
+
+/// The measuring device's frame: far from the robot's and turned (its base in the device's
+/// frame), so that the registration has work to do.
+fn device() -> Placement {
+    Placement { xyz: Vector3::new(1500.0, -800.0, 300.0), rpy: Vector3::new(0.05, -0.03, 2.0) }
+}
+
+/// The ball bar's pivot, in the robot's base frame (mm).
+const PIVOT: Vector3<f64> = Vector3::new(400.0, 200.0, 300.0);
+
+/// The true robot: puma560 seen from [`device`], the three markers then the tool point, one
+/// chain each, with errors `x`.
+fn true_chains(x: &[f64]) -> Vec<ChainAt> {
+    true_chains_with(x, TOOL)
+}
+
+/// [`true_chains`] with the tool point at `tool`.
+fn true_chains_with(x: &[f64], tool: Vector3<f64>) -> Vec<ChainAt> {
+    let mut model = puma();
+    model.base = device();
+    let points: Vec<Vector3<f64>> = MARKERS.iter().copied().chain([tool]).collect();
+    Chain::markers(&model, &points).iter().map(|c| c.with_errors(x)).collect()
+}
+
+/// The parameters of the markers and the tool (the chains' shared set).
+fn chains() -> Vec<Chain> {
+    let points: Vec<Vector3<f64>> = MARKERS.iter().copied().chain([TOOL]).collect();
+    Chain::markers(&puma(), &points)
+}
+
+/// A marker file's observations: `poses` random poses, each marker's x, y, z measured with
+/// noise `sigma` (mm); marker 2's z not measured at every third pose (an empty cell).
+fn markers(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+    let mut data = KindData::default();
+    for pose in 0..poses {
+        let q = random_pose(&puma(), rng);
+        for (marker, at) in real[..3].iter().enumerate() {
+            let p = at.position(&q);
+            for axis in (0..3).filter(|&a| !(marker == 1 && a == 2 && pose % 3 == 0)) {
+                let z: f64 = StandardNormal.sample(&mut *rng);
+                let measured = p[axis] + sigma * z;
+                data.observations.push(Observation::Marker {
+                    marker,
+                    axis,
+                    pose,
+                    measured,
+                    sigma: sigma.max(0.01),
+                });
+                data.lines.push(pose + 3);
+            }
+        }
+        data.joints.push(q);
+    }
+    data
+}
+
+/// A ball bar from [`PIVOT`] (in the device's frame): the tool's distances at `poses` random
+/// poses.
+fn ball_bar(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+    let pivot = device().isometry() * nalgebra::Point3::from(PIVOT);
+    let mut data = KindData::default();
+    for pose in 0..poses {
+        let q = random_pose(&puma(), rng);
+        let z: f64 = StandardNormal.sample(&mut *rng);
+        let measured = (real[3].position(&q) - pivot.coords).norm() + sigma * z;
+        data.joints.push(q);
+        data.observations.push(Observation::ToPoint { pose, point: 0, measured, sigma: sigma.max(0.01) });
+        data.lines.push(pose + 3);
+    }
+    data
+}
+
+fn marker_options(estimator: Estimator) -> KindOptions {
+    KindOptions { markers: MARKERS.to_vec(), ..options(estimator) }
+}
+
+/// Markers and a ball bar in one fit. Exact, from errors on every parameter: the training and
+/// held-out residuals of both vanish, the pivot is found in the device's frame. With noise,
+/// from errors on what the first fit identified: every joint and marker estimate, the pivot
+/// and the base (its placement, the device's) within 3 predicted standard errors.
+#[test]
+fn markers_and_a_ball_bar_calibrate_the_robot_the_markers_the_base_and_the_pivot() {
+    let mut rng = ChaCha8Rng::seed_from_u64(81);
+    let chains = chains();
+    let params = chains[0].params();
+    let all: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
+    let everything = errors_on(&chains[0], &all, &mut rng);
+    let real = true_chains(&everything);
+    let exact = markers(&real, 40, &mut rng, 0.0).join(&ball_bar(&real, 100, &mut rng, 0.0));
+    let c = calibrate_kinds(&puma(), &exact, &marker_options(Estimator::Ols)).unwrap();
+    let (before, after) = c.training.markers.unwrap();
+    assert!(after < 1e-7 && c.training.lengths.1 < 1e-7, "exact: {:?}", c.training);
+    assert!(before > 1e3 * after, "markers before {before} mm, after {after} mm");
+    let pivot = device().isometry() * nalgebra::Point3::from(PIVOT);
+    let found = Vector3::from_column_slice(&c.setup_values.1[..3]);
+    assert!((found - pivot.coords).norm() < 1e-6, "pivot {found:?} against {pivot:?}");
+    let held_out = markers(&real, 20, &mut rng, 0.0).join(&ball_bar(&real, 30, &mut rng, 0.0));
+    let score = c.score(&held_out).unwrap();
+    assert!(score.markers.unwrap().1 < 1e-6 && score.lengths.1 < 1e-6, "held out: {score:?}");
+    assert!(score.markers.unwrap().0 > 0.1, "held out before: {score:?}");
+    assert!(c.unseen.is_empty(), "markers see the base: {:?}", c.unseen);
+
+    // With noise: errors on what the exact fit identified, the base the device's.
+    let identified: Vec<String> = c
+        .refined
+        .estimate
+        .names
+        .iter()
+        .filter(|n| !n.starts_with("base.") && !n.starts_with("point"))
+        .cloned()
+        .collect();
+    let truth = errors_on(&chains[0], &identified, &mut rng);
+    let real = true_chains(&truth);
+    let noisy = markers(&real, 60, &mut rng, 0.01).join(&ball_bar(&real, 150, &mut rng, 0.01));
+    let c = calibrate_kinds(&puma(), &noisy, &marker_options(Estimator::Wls)).unwrap();
+    let se = c.refined.estimate.standard_errors();
+    let mut checked = 0;
+    for (k, name) in c.refined.estimate.names.iter().enumerate() {
+        let (found, real) = match (params.index_by_name(name), name.as_str()) {
+            (_, n) if n.starts_with("base.") => continue,
+            (Some(i), _) => (c.after[i], truth[i]),
+            (None, n) => {
+                let axis = ["point1.x", "point1.y", "point1.z"].iter().position(|p| *p == n).unwrap();
+                (c.setup_values.1[axis], pivot[axis])
+            }
+        };
+        assert!((found - real).abs() < 3.0 * se[k], "{name}: {found} against {real}, SE {}", se[k]);
+        checked += 1;
+    }
+    assert!(checked >= 30, "{checked} estimates checked");
+    // The base: the calibrated placement against the device's, position within 3 SE of the
+    // base's x, y, z, orientation within 3 SE of its rx, ry, rz (small angles).
+    let base_se = |axis: &str| {
+        let k = c.refined.estimate.names.iter().position(|n| n == &format!("base.{axis}")).unwrap();
+        se[k]
+    };
+    let gap: Isometry3<f64> = device().isometry().inverse() * c.calibrated.base.isometry();
+    for (axis, v) in ["x", "y", "z"].iter().zip(gap.translation.vector.iter()) {
+        assert!(v.abs() < 3.0 * base_se(axis), "base {axis}: {v} mm off, SE {}", base_se(axis));
+    }
+    for (axis, v) in ["rx", "ry", "rz"].iter().zip(gap.rotation.scaled_axis().iter()) {
+        assert!(v.abs() < 3.0 * base_se(axis), "base {axis}: {v} rad off, SE {}", base_se(axis));
+    }
+}
+
+/// A marker file in `calibrate`'s format: `poses` random poses of `real`, the three markers'
+/// x, y, z with noise 0.01 mm, every cell measured.
+fn marker_csv(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng) -> String {
+    let mut text =
+        String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,x2,y2,z2,x3,y3,z3\n");
+    for _ in 0..poses {
+        let q = random_pose(&puma(), rng);
+        let mut cells: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
+        for at in &real[..3] {
+            let p = at.position(&q);
+            cells.extend(p.iter().map(|v| {
+                let z: f64 = StandardNormal.sample(&mut *rng);
+                format!("{:.6}", v + 0.01 * z)
+            }));
+        }
+        text += &(cells.join(",") + "\n");
+    }
+    text
+}
+
+/// The same marker file calibrated by `calibrate` and by `calibrate-observations`: the same
+/// registration, the same "before" fit of the base and markers (by ordinary least squares), the
+/// same gauge, the same least-squares problem (one row per coordinate, in the same order), so
+/// the same estimates, to 1e-6 relative. With `calibrate`'s `wls` and a
+/// measurement sigma alone (`V_k = sigma^2 I`) the weights are those of ols: the same again.
+#[test]
+fn a_marker_file_alone_calibrates_as_calibrate_does() {
+    let mut rng = ChaCha8Rng::seed_from_u64(82);
+    let chains = chains();
+    let all: Vec<String> = chains[0].params().iter().map(|p| p.name.clone()).collect();
+    let real = true_chains(&errors_on(&chains[0], &all, &mut rng));
+    let text = marker_csv(&real, 50, &mut rng);
+    let model = puma();
+    let measurements = Measurements::from_csv_str(&text, &model, None).unwrap();
+    let observations = KindData::from_csv_str(&text, &model, None).unwrap();
+    assert_eq!(observations.observations.len(), 50 * 9);
+    // Gauss-Newton to the minimum in both: steps until they move no residual by 1e-12 mm.
+    let refine = RefineOptions { step_tolerance: 1e-12, cost_tolerance: 0.0, ..RefineOptions::default() };
+    let options = Options {
+        estimator: Estimator::Ols,
+        noise: None,
+        joints: JointParams::All,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: MARKERS.to_vec(),
+        refine,
+        prior: Vec::new(),
+        loss: Loss::Squared,
+        gauge: Gauge::default(),
+    };
+    let expected = calibration::calibrate(&model, &measurements, &options).unwrap();
+    for estimator in [Estimator::Ols, Estimator::Wls] {
+        let c = calibrate_kinds(&model, &observations, &KindOptions { refine, ..marker_options(estimator) })
+            .unwrap();
+        assert_eq!(c.refined.estimate.names, expected.refined.estimate.names);
+        let se = expected.refined.estimate.standard_errors();
+        for (k, name) in expected.refined.estimate.names.iter().enumerate() {
+            let i = expected.params.index_by_name(name).unwrap();
+            let (a, b) = (c.after[i], expected.after[i]);
+            // Relative to the value, or to its standard error for a value near 0.
+            let scale = b.abs().max(se[k]);
+            assert!(
+                (a - b).abs() <= 1e-6 * scale,
+                "{estimator:?} {name}: {a} against calibrate's {b}, SE {}",
+                se[k]
+            );
+        }
+        let (rms, expected_rms) = (c.training.markers.unwrap(), expected.training);
+        assert!((rms.1 - expected_rms.1.rms).abs() < 1e-9, "{rms:?} against {expected_rms:?}");
+        assert!((rms.0 - expected_rms.0.rms).abs() < 1e-9, "{rms:?} against {expected_rms:?}");
+    }
+}
+
+/// A marker file read as observations: one per cell, an empty cell not measured; the file's
+/// units; its errors name the line and the column.
+#[test]
+fn marker_files_read_cell_by_cell() {
+    let model = puma();
+    let text = "# units: joints=deg, lengths=m\nj1,j2,j3,j4,j5,j6,x1,y1,z1,x3,y3,z3,sigma\n\
+                0,10,20,30,40,50,1.0,2.0,3.0,,,0.5,0.00002\n";
+    let data = KindData::from_csv_str(text, &model, None).unwrap();
+    let expected = [(0, 0, 1000.0), (0, 1, 2000.0), (0, 2, 3000.0), (2, 2, 500.0)];
+    assert_eq!(data.observations.len(), expected.len());
+    for (o, (marker, axis, mm)) in data.observations.iter().zip(expected) {
+        let Observation::Marker { marker: m, axis: a, pose: 0, measured, sigma } = *o else {
+            panic!("{o:?}")
+        };
+        assert_eq!((m, a), (marker, axis));
+        assert!((measured - mm).abs() < 1e-9 && (sigma - 0.02).abs() < 1e-12, "{o:?}");
+    }
+    assert_eq!(data.markers(), vec![0, 2]);
+    let error = |text: &str| {
+        KindData::from_csv_str(
+            text,
+            &model,
+            Some(Units { joints_in_degrees: true, lengths_in_metres: false }),
+        )
+        .unwrap_err()
+        .to_string()
+    };
+    let header = "j1,j2,j3,j4,j5,j6,x1,y1,z1\n";
+    assert!(
+        error(&format!("{header}0,0,0,0,0,0,1,x,3\n")).contains("line 2, column `y1`"),
+        "{}",
+        error(&format!("{header}0,0,0,0,0,0,1,x,3\n"))
+    );
+    assert!(error(&format!("{header}0,0,0,0,0,0,,,\n")).contains("line 2: no marker coordinate"));
+    let probe = "j1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n0,0,0,0,0,0,1,2,3,1,0,0,0\n";
+    assert!(error(probe).contains("column `qw`: a marker file"), "{}", error(probe));
+    assert!(error("j1,j2,j3,j4,j5,j6,x1,y1\n").contains("marker 1 needs y1 and z1 too"));
+}
+
+/// `robocal calibrate-observations` on the example's marker file and ball bar file together
+/// (the same true PUMA 560, `examples/make_puma560_data.rs` and `make_ballbar_data.rs`), each
+/// validated on its held-out file: the markers' held-out RMS falls from 2.2 to 0.12 mm and the
+/// ball bar's to 0.05 mm; the report names the tool point `tool.*` and the markers by number;
+/// the calibrated model carries the markers. A bad cell of a marker file is named with its
+/// file, line and column.
+#[test]
+fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
+    let dir = std::env::temp_dir().join(format!("robocal-markers-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (json, model) = (dir.join("report.json"), dir.join("calibrated.toml"));
+    let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", "puma560", "--tool", "50,0,150"])
+        .args(["--marker", "50,0,150", "--marker=-40,60,120"])
+        .args(["--data", "examples/puma560-measurements.csv", "--data", "examples/puma560-ballbar.csv"])
+        .args([
+            "--validate",
+            "examples/puma560-validation.csv",
+            "--validate",
+            "examples/puma560-ballbar-2.csv",
+        ])
+        .args(["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002"])
+        .args(["--json", &path(&json), "--out-model", &path(&model)])
+        .output()
+        .unwrap();
+    let text = String::from_utf8(output.stdout).unwrap();
+    assert!(output.status.success(), "{text}{}", String::from_utf8_lossy(&output.stderr));
+    for expected in
+        ["marker2.z", "tool.x", "point1.x", "base.rz", "examples/puma560-validation.csv markers (mm)"]
+    {
+        assert!(text.contains(expected), "{expected}: {text}");
+    }
+    assert!(!text.contains("marker3"), "{text}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rms = |set: usize, what: &str| {
+        let v = &report["sets"][set][1][what];
+        (v[0].as_f64().unwrap(), v[1].as_f64().unwrap())
+    };
+    let (before, after) = rms(1, "markers");
+    assert!(before > 2.0 && after < 0.15, "held-out markers: {before} mm before, {after} mm after\n{text}");
+    assert!(report["sets"][2][1].get("markers").is_none(), "a ball bar has no markers");
+    let (before, after) = rms(2, "lengths");
+    assert!(before > 0.5 && after < 0.08, "held-out ball bar: {before} mm before, {after} mm after\n{text}");
+    assert_eq!(report["sets"][1][1]["observations"][0]["kind"], "marker");
+    let calibrated = std::fs::read_to_string(&model).unwrap();
+    assert_eq!(calibrated.matches("[[markers]]").count(), 2, "{calibrated}");
+
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", "puma560", "--data", "examples/puma560-ballbar.csv"])
+        .args(["--marker", "50,0,150"])
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let message = String::from_utf8(output.stderr).unwrap();
+    assert!(
+        message.contains("1 --marker given, the files (examples/puma560-ballbar.csv) have 0 markers"),
+        "{message}"
+    );
+
+    let bad = dir.join("bad.csv");
+    std::fs::write(&bad, "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1\n0,1,2,3,4,5,1,2,3\n0,1,2,3,4,5,1,2,mm\n")
+        .unwrap();
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", "puma560", "--data", "examples/puma560-ballbar.csv"])
+        .args(["--data", &path(&bad)])
+        .output()
+        .unwrap();
+    assert_eq!(output.status.code(), Some(1));
+    let message = String::from_utf8(output.stderr).unwrap();
+    assert!(message.contains("bad.csv") && message.contains("line 4, column `z1`"), "{message}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Marker observations that cannot be fitted are refused, each with one clear error: too few
+/// complete positions to place the measuring frame, a held-out
+/// marker the calibration does not have, the tool point's observations scored by a calibration
+/// of markers alone.
+#[test]
+fn marker_observations_that_cannot_be_fitted_are_refused() {
+    let mut rng = ChaCha8Rng::seed_from_u64(83);
+    let real = true_chains(&vec![0.0; chains()[0].params().len()]);
+    let model = puma();
+    let message = |data: &KindData| {
+        calibrate_kinds(&model, data, &marker_options(Estimator::Ols)).unwrap_err().to_string()
+    };
+
+    let mut two = markers(&real, 2, &mut rng, 0.0);
+    two.observations.retain(|o| matches!(o, Observation::Marker { marker: 0, .. }));
+    two.lines.truncate(two.observations.len());
+    assert!(
+        message(&two).contains("marker positions: 2 with x, y and z all measured, expected at least 3"),
+        "{}",
+        message(&two)
+    );
+
+    let c =
+        calibrate_kinds(&model, &markers(&real, 20, &mut rng, 0.0), &marker_options(Estimator::Ols)).unwrap();
+    let mut other = markers(&real, 5, &mut rng, 0.0);
+    for o in &mut other.observations {
+        if let Observation::Marker { marker, .. } = o {
+            *marker = 6;
+        }
+    }
+    let error = c.score(&other).unwrap_err().to_string();
+    assert!(error.contains("marker 7: not among the calibration's markers (1, 2, 3)"), "{error}");
+    let mut height = markers(&real, 5, &mut rng, 0.0);
+    height.observations.push(Observation::Coordinate { axis: 2, pose: 0, measured: 500.0, sigma: 0.01 });
+    height.lines.push(99);
+    let error = c.score(&height).unwrap_err().to_string();
+    assert!(error.contains("its tool point was not calibrated"), "{error}");
+}
+
+/// Markers and a wrist camera's views of a board in one fit: the camera's mounting in the last
+/// link's frame (the tool point at its origin, held), the board placed in the device's frame,
+/// the base estimated (the markers see it). Exact, from errors on every parameter but the held
+/// tool point: the markers' and the views' residuals vanish, on held-out poses too. With noise
+/// (0.01 mm on the markers, 0.5 mm and 0.1 deg on the views), from errors on what the exact fit
+/// identified: the robot's, the markers', the camera's and the board's estimates within 3
+/// predicted standard errors.
+#[test]
+fn markers_and_a_wrist_camera_calibrate_together() {
+    use crate::camera::{truth, views};
+    use robocal::calibration::kinds::CameraSite;
+    use robocal::calibration::kinds::camera::{isometry, placement};
+    let site = CameraSite::Hand;
+    let mut setup = truth(site);
+    let board = device().isometry() * isometry(&setup[6..]);
+    setup.splice(6.., placement(&board).iter().copied());
+    let mut rng = ChaCha8Rng::seed_from_u64(84);
+    let chains = chains();
+    let params = chains[0].params();
+    let all: Vec<String> =
+        params.iter().filter(|p| !p.name.starts_with("marker4.")).map(|p| p.name.clone()).collect();
+    let everything = errors_on(&chains[0], &all, &mut rng);
+    let real = true_chains_with(&everything, Vector3::zeros());
+    let measure = |real: &[ChainAt], n: usize, sigma: (f64, f64), rng: &mut ChaCha8Rng| {
+        markers(real, n, rng, sigma.0.min(0.01)).join(&views(&real[3], site, &setup, n, sigma, rng))
+    };
+    let exact = measure(&real, 40, (0.0, 0.0), &mut rng);
+    let c = calibrate_kinds(&puma(), &exact, &marker_options(Estimator::Ols)).unwrap();
+    assert!(c.training.markers.unwrap().1 < 1e-7 && c.training.lengths.1 < 1e-7, "{:?}", c.training);
+    assert!(c.training.angles.unwrap().1 < 1e-7, "{:?}", c.training.angles);
+    assert!(c.unseen.is_empty(), "{:?}", c.unseen);
+    assert!(c.refined.estimate.names.iter().all(|n| !n.starts_with("marker4.")));
+    let score = c.score(&measure(&real, 20, (0.0, 0.0), &mut rng)).unwrap();
+    assert!(score.markers.unwrap().1 < 1e-6 && score.lengths.1 < 1e-6, "held out: {score:?}");
+
+    let identified: Vec<String> = c
+        .refined
+        .estimate
+        .names
+        .iter()
+        .filter(|n| params.index_by_name(n).is_some() && !n.starts_with("base."))
+        .cloned()
+        .collect();
+    let truth_x = errors_on(&chains[0], &identified, &mut rng);
+    let real = true_chains_with(&truth_x, Vector3::zeros());
+    let noisy = measure(&real, 80, (0.5, 0.1), &mut rng);
+    let c = calibrate_kinds(&puma(), &noisy, &marker_options(Estimator::Wls)).unwrap();
+    let se = c.refined.estimate.standard_errors();
+    let names = c.setup.names();
+    let mut checked = 0;
+    for (k, name) in c.refined.estimate.names.iter().enumerate() {
+        let (found, real) = match params.index_by_name(name) {
+            _ if name.starts_with("base.") => continue,
+            Some(i) => (c.after[i], truth_x[i]),
+            None => {
+                let i = names.iter().position(|n| n == name).unwrap();
+                (c.setup_values.1[i], setup[i])
+            }
+        };
+        assert!((found - real).abs() < 3.0 * se[k], "{name}: {found} against {real}, SE {}", se[k]);
+        checked += 1;
+    }
+    assert!(checked >= 35, "{checked} estimates checked");
+}
+
+/// Markers and an inclinometer's tilts (roll and pitch of the tool frame, in the measuring
+/// frame) in one fit: the tool a frame after the markers, its rotation estimated
+/// ([`Chain::markers_and_probe`]). Exact, from errors on every parameter: the markers' and the
+/// tilts' residuals vanish, on held-out poses too. With noise (0.01 mm, 0.001 deg), from errors
+/// on what the exact fit identified: every estimate but the base's within 3 predicted standard
+/// errors.
+#[test]
+fn markers_and_tilts_calibrate_together() {
+    let mut model = puma();
+    model.base = device();
+    let probe = Placement { xyz: TOOL, rpy: Vector3::zeros() };
+    let truth_chains = Chain::markers_and_probe(&model, &MARKERS, &probe);
+    let fitted = Chain::markers_and_probe(&puma(), &MARKERS, &probe);
+    let params = fitted[0].params();
+    let real = |x: &[f64]| -> Vec<ChainAt> { truth_chains.iter().map(|c| c.with_errors(x)).collect() };
+    let measure = |real: &[ChainAt], n: usize, sigma: (f64, f64), rng: &mut ChaCha8Rng| {
+        let mut tilts = KindData::default();
+        for pose in 0..n {
+            let q = random_pose(&puma(), rng);
+            let (roll, pitch, _) = real[3].pose(&q).rotation.euler_angles();
+            for (axis, angle) in [(3, roll), (4, pitch)] {
+                let z: f64 = StandardNormal.sample(&mut *rng);
+                let sigma = sigma.1.to_radians();
+                let measured = angle + sigma * z;
+                tilts.observations.push(Observation::Coordinate {
+                    axis,
+                    pose,
+                    measured,
+                    sigma: sigma.max(1e-5),
+                });
+                tilts.lines.push(pose + 3);
+            }
+            tilts.joints.push(q);
+        }
+        markers(real, n, rng, sigma.0).join(&tilts)
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(85);
+    let all: Vec<String> = params.iter().map(|p| p.name.clone()).collect();
+    let everything = errors_on(&fitted[0], &all, &mut rng);
+    let exact = measure(&real(&everything), 40, (0.0, 0.0), &mut rng);
+    let c = calibrate_kinds(&puma(), &exact, &marker_options(Estimator::Ols)).unwrap();
+    assert!(c.training.markers.unwrap().1 < 1e-7, "{:?}", c.training);
+    assert!(c.training.angles.unwrap().1 < 1e-7, "{:?}", c.training.angles);
+    assert!(c.refined.estimate.names.iter().any(|n| n == "marker4.rx"), "{:?}", c.refined.estimate.names);
+    let score = c.score(&measure(&real(&everything), 20, (0.0, 0.0), &mut rng)).unwrap();
+    assert!(score.markers.unwrap().1 < 1e-6 && score.angles.unwrap().1 < 1e-6, "held out: {score:?}");
+
+    let identified: Vec<String> =
+        c.refined.estimate.names.iter().filter(|n| !n.starts_with("base.")).cloned().collect();
+    let truth = errors_on(&fitted[0], &identified, &mut rng);
+    let noisy = measure(&real(&truth), 80, (0.01, 0.001), &mut rng);
+    let c = calibrate_kinds(&puma(), &noisy, &marker_options(Estimator::Wls)).unwrap();
+    let se = c.refined.estimate.standard_errors();
+    let mut checked = 0;
+    for (k, name) in c.refined.estimate.names.iter().enumerate().filter(|(_, n)| !n.starts_with("base.")) {
+        let i = params.index_by_name(name).unwrap();
+        assert!(
+            (c.after[i] - truth[i]).abs() < 3.0 * se[k],
+            "{name}: {} against {}, SE {}",
+            c.after[i],
+            truth[i],
+            se[k]
+        );
+        checked += 1;
+    }
+    assert!(checked >= 30, "{checked} estimates checked");
+}
