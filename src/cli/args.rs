@@ -683,8 +683,8 @@ pub struct CalibrateTreeArgs {
     /// --joint-sigma-deg, the joint noise of both its frames' branches) or ols.
     #[arg(long)]
     pub estimator: Option<EstimatorName>,
-    /// Joint noise standard deviations, one per joint of the tree in its order (see the
-    /// report's joints; deg, mm for prismatic joints), or one for every joint.
+    /// Joint noise standard deviations, one per joint of the tree in the order the report's
+    /// `joints:` line lists them (deg, mm for prismatic joints), or one for every joint.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma_deg)]
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// Parameters to identify: `joints` (every joint parameter), `offsets`, `none` (the
@@ -703,7 +703,9 @@ pub struct CalibrateTreeArgs {
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write each branch's calibrated model here, as `<tip>.toml` (a serial model TOML that
-    /// every other command reads).
+    /// every other command reads), and the cameras and targets as `frames.json`. The branches
+    /// are right relative to each other; their placement in the root link's frame is what the
+    /// views cannot see, held.
     #[arg(long, value_name = "DIR")]
     pub out_dir: Option<PathBuf>,
 }

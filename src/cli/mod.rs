@@ -177,9 +177,19 @@ fn design(request: &DesignRequest) -> Result<Design> {
 /// Warn, naming the lines (the first ten), about the poses of `path` (`(line, joint values)`)
 /// with joint values outside `model`'s limits: a calibration there extrapolates the model.
 fn warn_outside_limits<'a>(path: &Path, model: &RobotModel, poses: impl Iterator<Item = (usize, &'a [f64])>) {
+    warn_joints_outside_limits(path, &model.name, &model.joints, poses);
+}
+
+/// [`warn_outside_limits`] of the robot `name` of `joints` (a tree's).
+fn warn_joints_outside_limits<'a>(
+    path: &Path,
+    name: &str,
+    joints: &[robocal::model::Joint],
+    poses: impl Iterator<Item = (usize, &'a [f64])>,
+) {
     let outside: Vec<String> = poses
         .filter_map(|(line, q)| {
-            let joints = model.joints_outside_limits(q);
+            let joints = robocal::model::outside_limits(joints, q);
             (!joints.is_empty()).then(|| format!("{line} ({})", joints.join(", ")))
         })
         .collect();
@@ -188,11 +198,7 @@ fn warn_outside_limits<'a>(path: &Path, model: &RobotModel, poses: impl Iterator
     }
     let more = if outside.len() > 10 { format!(" and {} more", outside.len() - 10) } else { String::new() };
     let lines = outside.iter().take(10).cloned().collect::<Vec<_>>().join(", ");
-    eprintln!(
-        "warning: {}: joint values outside the limits of {} at line {lines}{more}",
-        path.display(),
-        model.name
-    );
+    eprintln!("warning: {}: joint values outside the limits of {name} at line {lines}{more}", path.display(),);
 }
 
 /// At most as many `--marker`s as the data file has markers.

@@ -688,7 +688,7 @@ impl CalibrateTreeRequest {
             "--params all: the base is never estimated from views; give --params joints",
         )?;
         require(
-            args.model.extension().is_some_and(|e| e == "urdf"),
+            args.model.extension().is_some_and(|e| e.eq_ignore_ascii_case("urdf")),
             "--model: a URDF file (.urdf) whose links form a tree",
         )?;
         let joints = joint_params(args.params, false)?;

@@ -10,7 +10,7 @@ use nalgebra::{DMatrix, DVector};
 use robocal::calibration::tree::{TreeData, TreeOptions, calibrate_tree};
 use robocal::estimation::RefineOptions;
 use robocal::io;
-use robocal::model::RobotTree;
+use robocal::model::{RobotModel, RobotTree};
 use robocal::report::tree::TreeReport;
 use std::path::Path;
 
@@ -22,7 +22,14 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         RobotTree::from_urdf_str(&text, request.base_link.as_deref(), &request.tips).with_context(|| name)?;
     let mut data = TreeData::default();
     for path in &request.data {
-        data = data.join(&read(path, &tree, request)?);
+        let file = read(path, &tree, request)?;
+        super::warn_joints_outside_limits(
+            path,
+            &tree.name,
+            &tree.joints,
+            file.views.iter().zip(&file.lines).map(|(v, &line)| (line, file.joints[v.pose].as_slice())),
+        );
+        data = data.join(&file);
     }
     let options = TreeOptions {
         estimator: request.estimator,
@@ -48,9 +55,15 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         outputs.add(path, serde_json::to_string_pretty(&report)? + "\n");
     }
     if let Some(folder) = &request.out_dir {
-        let files: Vec<(String, String)> = (c.calibrated.branches.iter())
-            .map(|b| (format!("{}.toml", b.tip), robocal::model::to_toml_with_markers(&b.model, &[])))
+        let note = "calibrated by robocal calibrate-tree from camera views between branches: right relative to the \
+                    other branches; its placement in the root link's frame the views cannot see (held)";
+        let mut files: Vec<(String, String)> = (c.calibrated.branches.iter())
+            .map(|b| {
+                let model = RobotModel { description: note.to_string(), ..b.model.clone() };
+                (format!("{}.toml", b.tip), robocal::model::to_toml_with_markers(&model, &[]))
+            })
             .collect();
+        files.push(("frames.json".to_string(), serde_json::to_string_pretty(&report.frames)? + "\n"));
         outputs.add_folder(folder, &files);
     }
     Ok(outputs.commit()?)

@@ -131,6 +131,16 @@ impl Joint {
     }
 }
 
+/// The names of the `joints` whose value in `q` (rad, mm) lies outside their limits.
+pub fn outside_limits<'a>(joints: &'a [Joint], q: &[f64]) -> Vec<&'a str> {
+    joints
+        .iter()
+        .zip(q)
+        .filter(|(j, v)| **v < j.limits[0] || **v > j.limits[1])
+        .map(|(j, _)| j.name.as_str())
+        .collect()
+}
+
 /// A rigid placement: translation (mm) then roll-pitch-yaw rotation (rad),
 /// `T = Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll)` (the URDF convention).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -228,12 +238,7 @@ impl RobotModel {
 
     /// The names of the joints whose value in `q` (rad, mm) lies outside their limits.
     pub fn joints_outside_limits(&self, q: &[f64]) -> Vec<&str> {
-        self.joints
-            .iter()
-            .zip(q)
-            .filter(|(j, v)| **v < j.limits[0] || **v > j.limits[1])
-            .map(|(j, _)| j.name.as_str())
-            .collect()
+        outside_limits(&self.joints, q)
     }
 
     /// The named error parameters of this model, in their canonical order.

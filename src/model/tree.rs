@@ -1,6 +1,6 @@
 //! Robots of several chains: [`RobotTree`].
 
-use super::urdf::{chain_moves, ends};
+use super::urdf::{chain_moves, ends, link_names};
 use super::{Joint, ModelError, RobotModel, from_urdf_str};
 use crate::error::FieldError;
 use rand::RngExt;
@@ -67,6 +67,9 @@ impl RobotTree {
                 .into());
             }
         };
+        if !link_names(text)?.contains(&root) {
+            return Err(FieldError::new("base link", format!("a link named `{root}` in the file")).into());
+        }
         let tips: Vec<String> = if tips.is_empty() {
             let mut moving = Vec::new();
             for leaf in leaves {
@@ -112,6 +115,16 @@ impl RobotTree {
                         joints.push(joint.clone());
                     }
                 }
+            }
+            if let Some(other) = branches.iter().find(|b: &&Branch| b.joints == indices) {
+                return Err(FieldError::new(
+                    "tip links",
+                    format!(
+                        "branches that move: `{tip}` and `{}` have the same moving joints (one rigid body): give one of them",
+                        other.tip
+                    ),
+                )
+                .into());
             }
             branches.push(Branch { tip, model, joints: indices });
         }

@@ -169,6 +169,14 @@ pub(super) fn ends(text: &str) -> Result<(Vec<String>, Vec<String>), ModelError>
     Ok((no("child"), no("parent")))
 }
 
+/// The names of the links of `text`, in the file's order.
+pub(super) fn link_names(text: &str) -> Result<Vec<String>, ModelError> {
+    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
+    let robot = document.root_element();
+    let links = robot.children().filter(|n| n.has_tag_name("link")).filter_map(|n| n.attribute("name"));
+    Ok(links.map(str::to_string).collect())
+}
+
 /// Whether a joint on the chain of `text` from `base_link` to `tip_link` moves (is not fixed).
 pub(super) fn chain_moves(text: &str, base_link: &str, tip_link: &str) -> Result<bool, ModelError> {
     let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;

@@ -27,8 +27,8 @@ pub struct TreeReport {
     pub model: String,
     /// Its branches' tip links.
     pub branches: Vec<String>,
-    /// Its joints.
-    pub joints: usize,
+    /// Its joints, in the order of the view files' columns and of `--joint-sigma-deg`.
+    pub joints: Vec<String>,
     /// The view files.
     pub data: String,
     /// Views fitted.
@@ -51,6 +51,8 @@ pub struct TreeReport {
     pub fixed: Vec<String>,
     /// The training views scored, then each held-out file's.
     pub sets: Vec<(String, TreeScore)>,
+    /// Implausible results, in words.
+    pub warnings: Vec<String>,
 }
 
 /// Views listed per set in the text, the worst first.
@@ -110,7 +112,7 @@ impl TreeReport {
         Self {
             model: c.calibrated.name.clone(),
             branches: c.calibrated.branches.iter().map(|b| b.tip.clone()).collect(),
-            joints: c.calibrated.dof(),
+            joints: c.calibrated.joints.iter().map(|j| j.name.clone()).collect(),
             data: data.to_string(),
             views: fitted.0,
             poses: fitted.1,
@@ -122,6 +124,7 @@ impl TreeReport {
             unseen: c.unseen.clone(),
             fixed: c.fixed.clone(),
             sets,
+            warnings: c.warnings.clone(),
         }
     }
 
@@ -130,10 +133,10 @@ impl TreeReport {
         let mut out = String::new();
         let _ = writeln!(
             out,
-            "calibration of {} (branches {}; {} joints) from {}: {} views at {} poses, {} ({} steps, {})\n",
+            "calibration of {} (branches {}; {} joints) from {}: {} views at {} poses, {} ({} steps, {})",
             self.model,
             self.branches.join(", "),
-            self.joints,
+            self.joints.len(),
             self.data,
             self.views,
             self.poses,
@@ -141,6 +144,7 @@ impl TreeReport {
             self.iterations,
             if self.converged { "converged" } else { "not converged" }
         );
+        let _ = writeln!(out, "joints: {}\n", self.joints.join(", "));
         let width = self.parameters.iter().map(|p| p.name.len()).max().unwrap_or(0).max(9);
         let _ = writeln!(out, "{:<width$} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
         for p in &self.parameters {
@@ -190,6 +194,12 @@ impl TreeReport {
             out,
             "\nbefore: the cameras and targets fitted with the tree nominal; after: the tree's joints with them"
         );
+        if !self.warnings.is_empty() {
+            let _ = writeln!(out, "\nwarnings:");
+            for w in &self.warnings {
+                let _ = writeln!(out, "  {w}");
+            }
+        }
         out
     }
 }

@@ -69,12 +69,15 @@ fn check_tree_jacobian(seed: u64) -> Result<(), TestCaseError> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let nominal = torso();
     let tree = perturbed_tree(&nominal, 20.0, 0.2, &mut rng);
-    let (frames, placements) = frames(&tree);
+    let (mut frames, mut placements) = frames(&tree);
+    // A camera and a target fixed in the world too.
+    frames.extend([Frame { role: Role::Camera, on: None }, Frame { role: Role::Target, on: None }]);
+    placements.extend([1500.0, 100.0, 1200.0, 0.1, -1.4, 0.2, 600.0, -300.0, 200.0, 0.3, 0.2, -0.1]);
     let q = tree.uniform_configurations(1, &mut rng);
     // Views of another tree, so that the residuals (and J_r^-1) are not zero.
     let other = perturbed_tree(&nominal, 20.0, 0.3, &mut rng);
-    let data =
-        simulate_views(&other, &frames, &placements, &[(0, 1), (0, 2), (1, 2)], &q, [0.0; 2], &mut rng);
+    let pairs = [(0, 1), (0, 2), (1, 2), (3, 1), (0, 4), (3, 2)];
+    let data = simulate_views(&other, &frames, &placements, &pairs, &q, [0.0; 2], &mut rng);
     let params = TreeParams::new(&tree);
     let x: Vec<f64> =
         (0..params.len()).map(|i| 0.01 * ((i * 7919 + seed as usize) % 13) as f64 - 0.06).collect();
@@ -173,8 +176,9 @@ fn one_fit_of_a_head_camera_seeing_both_hands_recovers_every_chain() {
     assert!(c.unseen.iter().any(|u| u.starts_with("base.*")), "{:?}", c.unseen);
     for name in ["torso.x", "torso.rz", "torso.theta"] {
         assert!(
-            c.fixed.iter().any(|f| f
-                .starts_with(&format!("{name}: no view sees it: it moves both frames of every view alike"))),
+            c.fixed.iter().any(|f| f.starts_with(&format!(
+                "{name}: its joint is on the way to both frames of every view past it"
+            ))),
             "{name}: {:?}",
             c.fixed
         );
@@ -248,7 +252,7 @@ fn tree_view_files_read_and_their_errors() {
     let e = error(&[&good.replace("l_hand", "head_camera")]);
     assert!(e.contains("line 3") && e.contains("sees no joint"), "{e}");
     let e = error(&[&good.replace(",500,", ",x,")]);
-    assert!(e.contains("line 3") && e.contains('z'), "{e}");
+    assert!(e.contains("line 3") && e.contains("column `z`") && e.contains("`x` is not a number"), "{e}");
     let missing =
         TreeData::from_csv_str(&file(&[&good]).replace("r_elbow", "r_knee"), &tree, None).unwrap_err();
     assert!(missing.to_string().contains("r_elbow"), "{missing}");
@@ -476,5 +480,93 @@ fn a_fixed_camera_seeing_both_hands_sees_the_torso_too() {
         c.fixed
     );
     // No view has a frame on the head: its joints are not seen.
-    assert!(c.fixed.iter().any(|f| f.starts_with("head_tilt.x: no view sees it")), "{:?}", c.fixed);
+    assert!(
+        c.fixed.iter().any(|f| f.starts_with("head_tilt.x: no view has a camera or target past its joint")),
+        "{:?}",
+        c.fixed
+    );
+}
+
+#[test]
+fn tips_that_are_one_rigid_body_and_a_root_that_is_no_link_are_refused() {
+    let tips = ["l_palm", "l_hand", "head_camera"].map(String::from);
+    let e = RobotTree::from_urdf_str(TORSO, None, &tips).unwrap_err().to_string();
+    assert!(e.contains("`l_hand` and `l_palm` have the same moving joints"), "{e}");
+    let e = RobotTree::from_urdf_str(TORSO, Some("nope"), &[]).unwrap_err().to_string();
+    assert!(e.contains("base link") && e.contains("`nope`"), "{e}");
+}
+
+/// Views of the left hand only: the right arm's joints are said to be seen by no view, the
+/// torso's to move both frames alike.
+#[test]
+fn what_no_view_sees_is_said_for_what_it_is() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let nominal = torso();
+    let (frames, placements) = frames(&nominal);
+    let q = nominal.uniform_configurations(40, &mut rng);
+    let data = simulate_views(&nominal, &frames, &placements, &[(0, 1)], &q, [0.0; 2], &mut rng);
+    let c = calibrate_tree(&nominal, &data, &options(Estimator::Ols)).unwrap();
+    let said = |name: &str| {
+        c.fixed.iter().find(|f| f.starts_with(&format!("{name}: "))).cloned().unwrap_or_default()
+    };
+    assert!(said("r_elbow.x").contains("no view has a camera or target past its joint"), "{:?}", c.fixed);
+    assert!(said("torso.z").contains("on the way to both frames of every view past it"), "{:?}", c.fixed);
+    assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+}
+
+#[test]
+fn calibrate_tree_warns_of_implausible_corrections_and_joints_beyond_their_limits() {
+    // The example's millimetres read as metres: the fit is nonsense, and says so.
+    let mut args = TREE_EXAMPLE.to_vec();
+    args.extend(["--joint-unit", "deg", "--length-unit", "m"]);
+    let out = robocal(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let warnings = &text[text.find("\nwarnings:\n").expect("warnings")..];
+    assert!(warnings.contains("more than 10 mm, check the model and the units"), "{warnings}");
+    // A joint beyond its limits, named with its line.
+    let dir = std::env::temp_dir().join(format!("robocal-tree-limits-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let views = std::fs::read_to_string("examples/torso/views.csv").unwrap();
+    let mut lines: Vec<String> = views.lines().map(String::from).collect();
+    let mut cells: Vec<String> = lines[2].split(',').map(String::from).collect();
+    cells[4] = "170".into(); // head_tilt, limits +-34 deg
+    lines[2] = cells.join(",");
+    let file = dir.join("views.csv");
+    std::fs::write(&file, lines.join("\n") + "\n").unwrap();
+    let out = robocal(&["calibrate-tree", "--model", "presets/torso.urdf", "--data", file.to_str().unwrap()]);
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(stderr.contains("joint values outside the limits of torso at line 3 (head_tilt)"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn calibrate_tree_fits_several_files_of_chosen_tips_and_writes_the_frames() {
+    let out_dir = std::env::temp_dir().join(format!("robocal-tree-files-{}", std::process::id()));
+    let out = robocal(&[
+        "calibrate-tree",
+        "--model",
+        "presets/torso.urdf",
+        "--tips",
+        "head_camera,l_hand,r_hand",
+        "--data",
+        "examples/torso/views.csv",
+        "--data",
+        "examples/torso/views-2.csv",
+        "--joint-sigma-deg",
+        "0.01",
+        "--out-dir",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("200 views at 200 poses, wls"), "{text}");
+    assert!(text.contains("joints: torso, head_pan, head_tilt, l_shoulder_pitch"), "{text}");
+    let frames: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("frames.json")).unwrap()).unwrap();
+    let names: Vec<&str> = frames.as_array().unwrap().iter().map(|f| f["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["camera.head_camera", "target.l_hand", "target.r_hand"]);
+    let model = std::fs::read_to_string(out_dir.join("l_hand.toml")).unwrap();
+    assert!(model.contains("right relative to the other branches"), "{model}");
+    std::fs::remove_dir_all(&out_dir).unwrap();
 }

@@ -51,7 +51,7 @@ pub use data::{Frame, Role, TreeData, View};
 
 use super::kinds::camera::{camera_start, isometry, mounted, placed, placement, relative_view};
 use super::kinds::identifiable;
-use super::{CalibrationError, JointParams, fold, gauge_class};
+use super::{CalibrationError, FLAG_AT, JointParams, fold, gauge_class};
 use crate::estimation::{
     Estimator, POSE_SIGMAS, RefineOptions, Refined, Residuals, Weights, linearise, refine_from,
 };
@@ -87,6 +87,8 @@ pub struct TreeParams {
     joints: Vec<Vec<usize>>,
     /// Each branch's tip link.
     tips: Vec<String>,
+    /// Each parameter's tree joint, if it is a joint's.
+    joint_of: Vec<Option<usize>>,
 }
 
 impl TreeParams {
@@ -95,6 +97,7 @@ impl TreeParams {
         let mut params: Vec<ParamInfo> = Vec::new();
         let mut chains = Vec::with_capacity(tree.branches.len());
         let mut maps = Vec::with_capacity(tree.branches.len());
+        let mut joint_of = Vec::new();
         for branch in &tree.branches {
             let chain = Chain::probe(&branch.model, &Placement::default());
             let map = (chain.params().iter())
@@ -102,6 +105,10 @@ impl TreeParams {
                     ParamOwner::Base | ParamOwner::Joint(_) => {
                         Some(params.iter().position(|t| t.name == p.name).unwrap_or_else(|| {
                             params.push(p.clone());
+                            joint_of.push(match p.owner {
+                                ParamOwner::Joint(j) => Some(branch.joints[j]),
+                                _ => None,
+                            });
                             params.len() - 1
                         }))
                     }
@@ -113,7 +120,7 @@ impl TreeParams {
         }
         let joints = tree.branches.iter().map(|b| b.joints.clone()).collect();
         let tips = tree.branches.iter().map(|b| b.tip.clone()).collect();
-        Self { params, chains, maps, joints, tips }
+        Self { params, chains, maps, joints, tips, joint_of }
     }
 
     /// The number of parameters.
@@ -155,6 +162,24 @@ impl TreeParams {
             }
         }
         tree.with_joints(joints)
+    }
+
+    /// Why no view sees parameter `name` (a joint's): no view has a frame past its joint, or
+    /// every view that has one has both (the joint moves them alike); `None` for another.
+    fn unseen(&self, name: &str, data: &TreeData) -> Option<String> {
+        let i = self.params.iter().position(|p| p.name == name)?;
+        let j = self.joint_of[i]?;
+        let past = |f: usize| data.frames[f].on.is_some_and(|b| self.joints[b].contains(&j));
+        let seen: Vec<&View> = data.views.iter().filter(|v| past(v.camera) || past(v.target)).collect();
+        if seen.is_empty() {
+            Some(format!("{name}: no view has a camera or target past its joint: not seen"))
+        } else if seen.iter().all(|v| past(v.camera) && past(v.target)) {
+            Some(format!(
+                "{name}: its joint is on the way to both frames of every view past it: it moves them alike, no view sees it"
+            ))
+        } else {
+            None
+        }
     }
 
     /// Branch `b`'s parameter values out of the tree's `x`.
@@ -478,6 +503,9 @@ pub struct ViewResidual {
     pub before_deg: f64,
     /// `|y_r|` after (deg).
     pub after_deg: f64,
+    /// After, the largest of its six residuals divided by its standard deviation
+    /// (`sqrt` of `V_k`'s diagonal: the view's sigmas and, if given, the joint noise).
+    pub whitened: f64,
 }
 
 /// A set of views scored: each one, and the RMS of their position (mm) and rotation (deg)
@@ -514,6 +542,9 @@ pub struct TreeCalibration {
     pub fixed: Vec<String>,
     /// The training views scored, before and after.
     pub training: TreeScore,
+    /// Implausible results, in words: joint lengths corrected by more than 10 mm, training
+    /// views more than [`FLAG_AT`] standard deviations out after calibration.
+    pub warnings: Vec<String>,
     joint_noise: Option<DMatrix<f64>>,
 }
 
@@ -544,27 +575,24 @@ impl TreeCalibration {
             view.camera = index[view.camera];
             view.target = index[view.target];
         }
-        let residual = |x: &[f64], s: &[f64]| {
-            let problem = TreeProblem::new(
-                &self.params,
-                &remapped,
-                Vec::new(),
-                x.to_vec(),
-                s.to_vec(),
-                Vec::new(),
-                None,
-            );
-            problem.evaluate(&DVector::zeros(0), None)
+        let problem = |x: &[f64], s: &[f64]| {
+            let noise = self.joint_noise.as_ref();
+            TreeProblem::new(&self.params, &remapped, Vec::new(), x.to_vec(), s.to_vec(), Vec::new(), noise)
         };
-        let before = residual(&vec![0.0; self.params.len()], &self.setup_values.0);
-        let after = residual(&self.after, &self.setup_values.1);
+        let nothing = DVector::zeros(0);
+        let before = problem(&vec![0.0; self.params.len()], &self.setup_values.0).evaluate(&nothing, None);
+        let after_problem = problem(&self.after, &self.setup_values.1);
+        let after = after_problem.evaluate(&nothing, None);
+        let v = after_problem.covariance().expect("always built");
         let norms =
             |y: &DVector<f64>, k: usize| (y.rows(6 * k, 3).norm(), y.rows(6 * k + 3, 3).norm().to_degrees());
         let views: Vec<ViewResidual> = (0..data.views.len())
             .map(|k| {
                 let (before_mm, before_deg) = norms(&before, k);
                 let (after_mm, after_deg) = norms(&after, k);
-                ViewResidual { line: data.lines[k], before_mm, after_mm, before_deg, after_deg }
+                let whitened =
+                    (0..6).map(|r| (after[6 * k + r] / v[(6 * k + r, r)].sqrt()).abs()).fold(0.0, f64::max);
+                ViewResidual { line: data.lines[k], before_mm, after_mm, before_deg, after_deg, whitened }
             })
             .collect();
         let rms = |f: fn(&ViewResidual) -> f64| {
@@ -575,6 +603,23 @@ impl TreeCalibration {
             rotation: (rms(|v| v.before_deg), rms(|v| v.after_deg)),
             views,
         })
+    }
+
+    /// Joint lengths corrected by more than 10 mm (a wrong model or wrong units), and training
+    /// views whose residual is more than [`FLAG_AT`] standard deviations out.
+    fn warnings(&self) -> Vec<String> {
+        let lengths = (self.params.params.iter().zip(&self.after))
+            .filter(|(p, x)| matches!(p.owner, ParamOwner::Joint(_)) && p.unit() == "mm" && x.abs() > 10.0)
+            .map(|(p, x)| {
+                format!(
+                    "{} is corrected by {x:.2} mm: more than 10 mm, check the model and the units",
+                    p.name
+                )
+            });
+        let flagged = (self.training.views.iter()).filter(|v| v.whitened > FLAG_AT).map(|v| {
+            format!("line {}: a residual {:.1} standard deviations out after calibration", v.line, v.whitened)
+        });
+        lengths.chain(flagged).collect()
     }
 
     /// The frames' names.
@@ -601,9 +646,10 @@ fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, Calib
     let mut values = vec![0.0; 6 * data.frames.len()];
     let mut placed = vec![false; data.frames.len()];
     let mut pairs: Vec<(usize, usize)> = data.views.iter().map(|v| (v.camera, v.target)).collect();
-    pairs.dedup();
     pairs.sort_unstable();
     pairs.dedup();
+    // A pair that cannot start its frames leaves them to the others; its error, if none can.
+    let mut failed: Vec<((usize, usize), CalibrationError)> = Vec::new();
     for (camera, target) in pairs {
         if placed[camera] && placed[target] {
             continue;
@@ -612,15 +658,33 @@ fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, Calib
             .filter(|v| v.camera == camera && v.target == target)
             .map(|v| (tip(camera, v.pose).inverse() * tip(target, v.pose), isometry(v.view.as_slice())))
             .collect();
-        let names = [camera, target].map(|f| data.frames[f].name(&params.tips));
-        let (c, t) = camera_start(&views, super::kinds::CameraSite::World)
-            .map_err(|e| CalibrationError::Observations(format!("{} seeing {}: {e}", names[0], names[1])))?;
-        for (f, start) in [(camera, c), (target, t)] {
-            if !placed[f] {
-                values[6 * f..6 * f + 6].copy_from_slice(placement(&start).as_slice());
-                placed[f] = true;
+        match camera_start(&views, super::kinds::CameraSite::World) {
+            Ok((c, t)) => {
+                for (f, start) in [(camera, c), (target, t)] {
+                    if !placed[f] {
+                        values[6 * f..6 * f + 6].copy_from_slice(placement(&start).as_slice());
+                        placed[f] = true;
+                    }
+                }
+            }
+            Err(_) => {
+                let [a, b] = [camera, target].map(|f| data.frames[f].name(&params.tips));
+                let why = match views.len() {
+                    n if n < 3 => format!("{n} views, expected at least 3"),
+                    n => format!(
+                        "in its {n} views the target turns relative to the camera about one axis only"
+                    ),
+                };
+                let message = format!(
+                    "{a} seeing {b}: {why}: the closed-form start of their placements needs 3 views or more, \
+                     turning about two axes or more"
+                );
+                failed.push(((camera, target), CalibrationError::Observations(message)));
             }
         }
+    }
+    if let Some((_, e)) = failed.into_iter().find(|((a, b), _)| !placed[*a] || !placed[*b]) {
+        return Err(e);
     }
     Ok(values)
 }
@@ -674,10 +738,11 @@ pub fn calibrate_tree(
         .collect();
     let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority)?;
     for f in &mut fixed {
-        *f = f.replace(
-            "the observations do not move it",
-            "no view sees it: it moves both frames of every view alike (a joint on the way to both), or neither",
-        );
+        if let Some(reason) =
+            f.strip_suffix(": the observations do not move it").and_then(|n| params.unseen(n, data))
+        {
+            *f = reason;
+        }
     }
     let robot = asked.len();
     let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
@@ -687,10 +752,16 @@ pub fn calibrate_tree(
     let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);
     let calibrated = params.fold(tree, &after);
-    let unseen = vec![
-        "base.*: a view sees one frame relative to another, never the tree's placement: the base is held"
-            .to_string(),
-    ];
+    let unseen = vec![match data.frames.iter().find(|f| f.on.is_none()) {
+        Some(world) => format!(
+            "base.*: {} is placed in the root link's frame, which absorbs the tree's placement: the base is held",
+            world.name(&params.tips)
+        ),
+        None => {
+            "base.*: a view sees one frame relative to another, never the tree's placement: the base is held"
+                .to_string()
+        }
+    }];
     let mut calibration = TreeCalibration {
         calibrated,
         params: params.clone(),
@@ -701,8 +772,10 @@ pub fn calibrate_tree(
         unseen,
         fixed,
         training: TreeScore { views: Vec::new(), position: (0.0, 0.0), rotation: (0.0, 0.0) },
+        warnings: Vec::new(),
         joint_noise: options.joint_noise.clone(),
     };
     calibration.training = calibration.score(data)?;
+    calibration.warnings = calibration.warnings();
     Ok(calibration)
 }
