@@ -117,9 +117,20 @@ pub(crate) fn h_matches_finite_differences(
     problem: &KindProblem<'_>,
     data: &KindData,
 ) -> Result<(), TestCaseError> {
-    let x0 = problem.start();
+    h_matches_central_differences(problem, &problem.start(), |r| format!("{:?}", data.observations[r]))
+}
+
+/// Every column of `problem`'s `H` at `x0` against central differences of its residuals
+/// (`y = m - f`), relative to the row's largest entry (or absolute below 1); `row` describes
+/// a row in the message.
+pub(crate) fn h_matches_central_differences(
+    problem: &impl Residuals,
+    x0: &DVector<f64>,
+    row: impl Fn(usize) -> String,
+) -> Result<(), TestCaseError> {
     let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
-    problem.evaluate(&x0, Some(&mut h));
+    problem.evaluate(x0, Some(&mut h));
+    let names = problem.names();
     for c in 0..problem.parameters() {
         let step = 1e-6 * x0[c].abs().max(1.0);
         let (mut plus, mut minus) = (x0.clone(), x0.clone());
@@ -131,9 +142,9 @@ pub(crate) fn h_matches_finite_differences(
             let gap = (h[(r, c)] - fd[r]).abs();
             prop_assert!(
                 gap < 1e-5 * h.row(r).amax().max(1.0),
-                "row {r} ({:?}), column {c} ({}): H {} against {}",
-                data.observations[r],
-                problem.names()[c],
+                "row {r} ({}), column {c} ({}): H {} against {}",
+                row(r),
+                names[c],
                 h[(r, c)],
                 fd[r]
             );
