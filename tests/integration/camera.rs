@@ -363,26 +363,20 @@ fn the_command_calibrates_from_a_camera_and_validates() {
 /// The README's camera example is the real output of its command on the example's files.
 #[test]
 fn the_readme_camera_example_is_the_real_output() {
-    let readme = include_str!("../../README.md");
-    let start = readme
-        .find("$ robocal calibrate-observations --model puma560 --data examples/puma560-camera.csv")
-        .unwrap();
-    let block = &readme[start..start + readme[start..].find("```").unwrap()];
-    let output = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(["calibrate-observations", "--model", "puma560", "--data", "examples/puma560-camera.csv"])
-        .args(["--validate", "examples/puma560-camera-2.csv"])
-        .args(["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002"])
-        .output()
-        .unwrap();
-    let text = String::from_utf8(output.stdout).unwrap();
-    assert!(output.status.success(), "{text}");
-    let shown: Vec<&str> = block.lines().skip(2).filter(|l| *l != "...").collect();
-    assert!(shown.len() >= 6, "{block}");
-    for line in shown {
-        assert!(text.lines().any(|l| l == line), "README line not in the output:\n{line}\n\n{text}");
-    }
+    crate::cli::the_readme_block_is_printed(
+        "$ robocal calibrate-observations --model puma560 --data examples/puma560-camera.csv",
+        &[
+            "calibrate-observations",
+            "--model",
+            "puma560",
+            "--data",
+            "examples/puma560-camera.csv",
+            "--validate",
+            "examples/puma560-camera-2.csv",
+            "--joint-sigma-deg",
+            "0.007,0.007,0.007,0.002,0.002,0.002",
+        ],
+    );
 }
 
 /// A camera and a ball bar in one fit: the camera's mounting in the tool frame at the tool

@@ -6,6 +6,75 @@ fn robocal() -> Command {
     Command::cargo_bin("robocal").unwrap()
 }
 
+/// The README's console block that starts with `start` (`$ robocal ...`, its command over one
+/// or more lines ending in `\`): every line it shows but `...` is a line of what `args` print.
+pub(crate) fn the_readme_block_is_printed(start: &str, args: &[&str]) {
+    let readme = std::fs::read_to_string("README.md").unwrap();
+    let at = readme.find(start).unwrap_or_else(|| panic!("the README shows `{start}`"));
+    let block = &readme[at..at + readme[at..].find("```").unwrap()];
+    let command = block.lines().take_while(|l| l.ends_with('\\')).count() + 1;
+    let out = robocal().args(args).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let shown: Vec<&str> =
+        block.lines().skip(command).filter(|l| *l != "..." && !l.trim().is_empty()).collect();
+    assert!(shown.len() >= 5, "{shown:?}");
+    for line in shown {
+        assert!(text.lines().any(|l| l == line), "the README shows `{line}`, not in the output:\n{text}");
+    }
+}
+
+#[test]
+fn the_readme_ball_bar_and_forward_kinematics_examples_are_the_real_output() {
+    the_readme_block_is_printed(
+        "$ robocal calibrate-observations --model puma560 --tool 50,0,150 --data examples/puma560-ballbar.csv",
+        &[
+            "calibrate-observations",
+            "--model",
+            "puma560",
+            "--tool",
+            "50,0,150",
+            "--data",
+            "examples/puma560-ballbar.csv",
+            "--validate",
+            "examples/puma560-ballbar-2.csv",
+            "--joint-sigma-deg",
+            "0.007,0.007,0.007,0.002,0.002,0.002",
+        ],
+    );
+    the_readme_block_is_printed(
+        "$ cargo run --release -- fk --model puma560",
+        &["fk", "--model", "puma560", "--q", "0,90,-90,0,0,0"],
+    );
+}
+
+#[test]
+fn the_readme_markers_with_a_ball_bar_example_is_the_real_output() {
+    the_readme_block_is_printed(
+        "$ robocal calibrate-observations --model puma560 --tool 50,0,150 \\\n    --marker",
+        &[
+            "calibrate-observations",
+            "--model",
+            "puma560",
+            "--tool",
+            "50,0,150",
+            "--marker",
+            "50,0,150",
+            "--marker=-40,60,120",
+            "--data",
+            "examples/puma560-measurements.csv",
+            "--data",
+            "examples/puma560-ballbar.csv",
+            "--validate",
+            "examples/puma560-validation.csv",
+            "--validate",
+            "examples/puma560-ballbar-2.csv",
+            "--joint-sigma-deg",
+            "0.007,0.007,0.007,0.002,0.002,0.002",
+        ],
+    );
+}
+
 /// The message of an error in the input or the computation (exit code 1).
 fn stderr_of(args: &[&str]) -> String {
     stderr_with_code(args, 1)

@@ -390,16 +390,7 @@ fn calibrate_tree_refuses_what_it_cannot_fit_by_name() {
 
 #[test]
 fn the_readme_tree_example_is_the_real_output() {
-    let readme = include_str!("../../README.md");
-    let start = readme.find("$ robocal calibrate-tree").expect("the README shows calibrate-tree");
-    let block = &readme[start..start + readme[start..].find("```").unwrap()];
-    let out = robocal(&TREE_EXAMPLE);
-    let text = String::from_utf8(out.stdout).unwrap();
-    let shown: Vec<&str> = block.lines().skip(2).filter(|l| *l != "..." && !l.trim().is_empty()).collect();
-    assert!(shown.len() >= 10, "{shown:?}");
-    for line in shown {
-        assert!(text.lines().any(|l| l == line), "the README shows `{line}`, not in the output:\n{text}");
-    }
+    crate::cli::the_readme_block_is_printed("$ robocal calibrate-tree", &TREE_EXAMPLE);
 }
 
 /// The same with a camera that sees a hand only where it is in view (70 deg, 200 to 1200 mm,
