@@ -145,10 +145,10 @@ impl SelectionReport {
                     "forward selection by {}-fold cross-validation, one-standard-error rule",
                     self.folds.unwrap_or(0)
                 ),
-                "base and markers",
+                "no joint parameter",
                 "CV RMS mm ± SE",
             ),
-            "bic" => ("forward selection by BIC".to_string(), "base and markers", "BIC"),
+            "bic" => ("forward selection by BIC".to_string(), "no joint parameter", "BIC"),
             _ => ("backward elimination while |t| < 2".to_string(), "every candidate", "|t| dropped"),
         };
         let _ = writeln!(out, "parameter selection: {what}");

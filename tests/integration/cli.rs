@@ -472,7 +472,7 @@ fn calibrate_select_prints_and_writes_its_path() {
     assert!(text.contains(
         "parameter selection: forward selection by 5-fold cross-validation, one-standard-error rule"
     ));
-    assert!(text.contains("    0  base and markers              1.0599 ± 0.1193\n"), "{text}");
+    assert!(text.contains("    0  no joint parameter            1.0599 ± 0.1193\n"), "{text}");
     assert!(text.contains("   13  joint3.x                      0.3867 ± 0.0179  <- chosen\n"), "{text}");
     assert!(
         text.contains(
