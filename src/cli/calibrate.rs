@@ -281,5 +281,5 @@ fn write(
             robocal::model::to_urdf_string(&urdf.text, &urdf.base_link, &urdf.tip_link, &result.calibrated)?;
         outputs.add(path, robocal::model::with_urdf_markers(&text, &markers)?);
     }
-    Ok(outputs.commit()?)
+    super::commit(outputs)
 }

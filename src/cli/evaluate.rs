@@ -91,7 +91,7 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
         extra_figures: Vec::new(),
     };
     write_report_files(&request.report, content, &mut outputs)?;
-    Ok(outputs.commit()?)
+    super::commit(outputs)
 }
 
 /// A file's text.

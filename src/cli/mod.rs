@@ -201,6 +201,17 @@ fn warn_joints_outside_limits<'a>(
     eprintln!("warning: {}: joint values outside the limits of {name} at line {lines}{more}", path.display(),);
 }
 
+/// Write the files of `outputs` (all or none) and say on standard error which were written, so
+/// that standard output stays the report.
+fn commit(outputs: io::Outputs) -> Result<()> {
+    let written: Vec<String> = outputs.paths().map(|p| p.display().to_string()).collect();
+    outputs.commit()?;
+    if !written.is_empty() {
+        eprintln!("wrote {}", written.join(", "));
+    }
+    Ok(())
+}
+
 /// At most as many `--marker`s as the data file has markers.
 fn check_marker_count(given: usize, data: &Path, in_file: usize) -> Result<()> {
     if given > in_file {

@@ -57,7 +57,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     if let Some(path) = &request.out_model {
         outputs.add(path, robocal::model::to_toml_with_markers(&c.calibrated, &c.marker_positions()));
     }
-    Ok(outputs.commit()?)
+    super::commit(outputs)
 }
 
 /// One observation file.

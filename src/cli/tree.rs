@@ -66,7 +66,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         files.push(("frames.json".to_string(), serde_json::to_string_pretty(&report.frames)? + "\n"));
         outputs.add_folder(folder, &files);
     }
-    Ok(outputs.commit()?)
+    super::commit(outputs)
 }
 
 /// One view file.

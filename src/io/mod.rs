@@ -123,6 +123,11 @@ impl Outputs {
         self.files.is_empty()
     }
 
+    /// The files staged, in order.
+    pub fn paths(&self) -> impl Iterator<Item = &Path> {
+        self.files.iter().map(|(path, _, _)| path.as_path())
+    }
+
     /// Write every staged file; on an error, nothing staged is left on disk and every target
     /// keeps what it held.
     pub fn commit(self) -> Result<(), OutputError> {

@@ -533,6 +533,11 @@ fn calibrate_tree_fits_several_files_of_chosen_tips_and_writes_the_frames() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("200 views at 200 poses, wls"), "{text}");
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(
+        stderr.starts_with("wrote ") && stderr.contains("l_hand.toml") && stderr.contains("frames.json"),
+        "{stderr}"
+    );
     assert!(text.contains("joints: torso, head_pan, head_tilt, l_shoulder_pitch"), "{text}");
     let frames: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("frames.json")).unwrap()).unwrap();
