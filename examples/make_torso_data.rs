@@ -59,7 +59,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for pair in [(0, 1), (0, 2)] {
             let q = seen_configurations(&truth, &frames, &placements, pair, &sight, poses, &mut rng)
                 .ok_or("the head camera never sees a hand")?;
-            data = data.join(&simulate_views(&truth, &frames, &placements, &[pair], &q, sigma, &mut rng));
+            data = data.join(&simulate_views(&truth, &frames, &placements, &[pair], &q, sigma, &mut rng))?;
         }
         let path = format!("examples/torso/{file}");
         std::fs::write(&path, views_csv(&nominal, &data))?;

@@ -29,7 +29,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
             &tree.joints,
             file.views.iter().zip(&file.lines).map(|(v, &line)| (line, file.joints[v.pose].as_slice())),
         );
-        data = data.join(&file);
+        data = data.join(&file).with_context(|| path.display().to_string())?;
     }
     let options = TreeOptions {
         estimator: request.estimator,

@@ -174,20 +174,25 @@ impl TreeReport {
         let width = self.sets.iter().map(|r| r.0.len() + 9).max().unwrap_or(0).max(24);
         let _ = writeln!(out, "\n{:<width$} {:>10} {:>10}", "view errors, RMS", "before", "after");
         for (name, score) in &self.sets {
-            let ((before, after), (before_deg, after_deg)) = (score.position, score.rotation);
+            let (before, after) = score.position;
             let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
-            let _ = writeln!(out, "{:<width$} {before_deg:>10.5} {after_deg:>10.5}", format!("{name} (deg)"));
+            if let Some((before, after)) = score.rotation {
+                let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
+            }
         }
         let _ = writeln!(out, "\nworst views after calibration ({WORST} per set; every one in --json):");
         for (name, score) in &self.sets {
             let mut worst: Vec<&ViewResidual> = score.views.iter().collect();
             worst.sort_by(|a, b| b.after_mm.total_cmp(&a.after_mm));
             for v in worst.iter().take(WORST) {
-                let _ = writeln!(
-                    out,
-                    "  {name}, line {}: {:.4} mm / {:.5} deg before, {:.4} mm / {:.5} deg after",
-                    v.line, v.before_mm, v.before_deg, v.after_mm, v.after_deg
-                );
+                let (before, after) = match (v.before_deg, v.after_deg) {
+                    (Some(b), Some(a)) => (
+                        format!("{:.4} mm / {b:.5} deg", v.before_mm),
+                        format!("{:.4} mm / {a:.5} deg", v.after_mm),
+                    ),
+                    _ => (format!("{:.4} mm", v.before_mm), format!("{:.4} mm", v.after_mm)),
+                };
+                let _ = writeln!(out, "  {name}, line {}: {before} before, {after} after", v.line);
             }
         }
         let _ = writeln!(

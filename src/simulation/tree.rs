@@ -100,8 +100,10 @@ pub fn views_csv(tree: &RobotTree, data: &TreeData) -> String {
     use std::fmt::Write;
     let tips: Vec<String> = tree.branches.iter().map(|b| b.tip.clone()).collect();
     let names: Vec<&str> = tree.joints.iter().map(|j| j.name.as_str()).collect();
+    let angles = if data.position_only { "" } else { ",roll,pitch,yaw" };
+    let sigma_angle = if data.position_only { "" } else { ",sigma_angle" };
     let mut out = format!(
-        "# units: joints=deg, lengths=mm\ncamera,target,{},x,y,z,roll,pitch,yaw,sigma,sigma_angle\n",
+        "# units: joints=deg, lengths=mm\ncamera,target,{},x,y,z{angles},sigma{sigma_angle}\n",
         names.join(",")
     );
     let on = |f: usize| data.frames[f].on.map_or("world", |b| tips[b].as_str());
@@ -113,23 +115,31 @@ pub fn views_csv(tree: &RobotTree, data: &TreeData) -> String {
             })
             .collect();
         let v = view.view;
-        let (roll, pitch, yaw) =
-            UnitQuaternion::from_scaled_axis(Vector3::new(v[3], v[4], v[5])).euler_angles();
-        let _ = writeln!(
+        let _ = write!(
             out,
-            "{},{},{},{:.6},{:.6},{:.6},{:.8},{:.8},{:.8},{},{}",
+            "{},{},{},{:.6},{:.6},{:.6}",
             on(view.camera),
             on(view.target),
             q.join(","),
             v[0],
             v[1],
-            v[2],
-            roll.to_degrees(),
-            pitch.to_degrees(),
-            yaw.to_degrees(),
-            view.sigma[0],
-            view.sigma[1].to_degrees()
+            v[2]
         );
+        if data.position_only {
+            let _ = writeln!(out, ",{}", view.sigma[0]);
+        } else {
+            let (roll, pitch, yaw) =
+                UnitQuaternion::from_scaled_axis(Vector3::new(v[3], v[4], v[5])).euler_angles();
+            let _ = writeln!(
+                out,
+                ",{:.8},{:.8},{:.8},{},{}",
+                roll.to_degrees(),
+                pitch.to_degrees(),
+                yaw.to_degrees(),
+                view.sigma[0],
+                view.sigma[1].to_degrees()
+            );
+        }
     }
     out
 }

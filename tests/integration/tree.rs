@@ -85,9 +85,15 @@ fn check_tree_jacobian(seed: u64) -> Result<(), TestCaseError> {
         (0..params.len()).map(|i| 0.01 * ((i * 7919 + seed as usize) % 13) as f64 - 0.06).collect();
     let all: Vec<usize> = (0..params.len()).collect();
     let every: Vec<usize> = (0..placements.len()).collect();
-    let problem = TreeProblem::new(&params, &data, all, x, placements, every, None);
+    let problem =
+        TreeProblem::new(&params, &data, all.clone(), x.clone(), placements.clone(), every.clone(), None);
     let views = &data.views;
-    h_matches_central_differences(&problem, &problem.start(), |r| format!("{:?}", views[r / 6]))
+    h_matches_central_differences(&problem, &problem.start(), |r| format!("{:?}", views[r / 6]))?;
+    // A tracker's positions of points on the hands.
+    let tracked = simulate_views(&other, &frames, &placements, &[(3, 1), (3, 2)], &q, [0.0; 2], &mut rng);
+    let tracked = tracked.positions_only();
+    let problem = TreeProblem::new(&params, &tracked, all, x, placements, every, None);
+    h_matches_central_differences(&problem, &problem.start(), |r| format!("{:?}", tracked.views[r / 3]))
 }
 
 proptest! {
@@ -234,6 +240,16 @@ fn tree_view_files_read_and_their_errors() {
     assert!(e.contains("line 3") && e.contains("sees no joint"), "{e}");
     let e = error(&[&good.replace(",500,", ",x,")]);
     assert!(e.contains("line 3") && e.contains("column `z`") && e.contains("`x` is not a number"), "{e}");
+    // Positions only (no roll, pitch, yaw): a device fixed in the world, not a camera on a branch.
+    let positions = |rows: &[&str]| file(rows).replace(",roll,pitch,yaw", "").replace(",1,2,3\n", "\n");
+    let tracked =
+        TreeData::from_csv_str(&positions(&[&good.replace("head_camera", "world")]), &tree, None).unwrap();
+    assert!(tracked.position_only && tracked.rows() == 3);
+    let e = TreeData::from_csv_str(&positions(&[&good]), &tree, None).unwrap_err().to_string();
+    assert!(e.contains("line 3") && e.contains("camera") && e.contains("expected world"), "{e}");
+    let e = TreeData::from_csv_str(&file(&[&good]).replace(",yaw", ",yow"), &tree, None);
+    assert!(e.unwrap_err().to_string().contains("yaw"));
+    assert!(tracked.clone().join(&data).unwrap_err().to_string().contains("cannot be fitted together"));
     let missing =
         TreeData::from_csv_str(&file(&[&good]).replace("r_elbow", "r_knee"), &tree, None).unwrap_err();
     assert!(missing.to_string().contains("r_elbow"), "{missing}");
@@ -413,7 +429,8 @@ fn a_head_camera_seeing_each_hand_only_in_view_recovers_every_chain() {
     let (held_left, held_right) = (seen(20, (0, 1)), seen(20, (0, 2)));
     let mut rng = ChaCha8Rng::seed_from_u64(71);
     let data = simulate_views(&truth, &frames, &placements, &[(0, 1)], &left, [0.0; 2], &mut rng)
-        .join(&simulate_views(&truth, &frames, &placements, &[(0, 2)], &right, [0.0; 2], &mut rng));
+        .join(&simulate_views(&truth, &frames, &placements, &[(0, 2)], &right, [0.0; 2], &mut rng))
+        .unwrap();
     let c = calibrate_tree(&nominal, &data, &options(Estimator::Ols)).unwrap();
     assert!(c.training.position.1 < 1e-7, "training {:?} mm", c.training.position);
     let held_out: Vec<Vec<f64>> = held_left.into_iter().chain(held_right).collect();
@@ -546,4 +563,67 @@ fn calibrate_tree_fits_several_files_of_chosen_tips_and_writes_the_frames() {
     let model = std::fs::read_to_string(out_dir.join("l_hand.toml")).unwrap();
     assert!(model.contains("right relative to the other branches"), "{model}");
     std::fs::remove_dir_all(&out_dir).unwrap();
+}
+
+/// A laser tracker fixed in the world measuring a reflector on each hand and on the head:
+/// positions only, one fit recovers every chain (where each point is, seen from the tracker).
+#[test]
+fn a_tracker_measuring_points_on_every_branch_recovers_every_chain() {
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let nominal = torso();
+    let truth = perturbed_tree(&nominal, 1.0, 0.005, &mut rng);
+    let on = |tip: &str| Some(nominal.branch(tip).unwrap());
+    let frames = [
+        Frame { role: Role::Camera, on: None },
+        Frame { role: Role::Target, on: on("head_camera") },
+        Frame { role: Role::Target, on: on("l_hand") },
+        Frame { role: Role::Target, on: on("r_hand") },
+    ];
+    let placements = [
+        2500.0, 300.0, 900.0, 0.2, -0.1, 2.5, // the tracker, 2.5 m away and turned
+        40.0, 0.0, 60.0, 0.0, 0.0, 0.0, // reflectors: their positions on each tip
+        0.0, 25.0, -30.0, 0.0, 0.0, 0.0, //
+        0.0, -25.0, -30.0, 0.0, 0.0, 0.0,
+    ];
+    let pairs = [(0, 1), (0, 2), (0, 3)];
+    let training = nominal.uniform_configurations(60, &mut rng);
+    let data =
+        simulate_views(&truth, &frames, &placements, &pairs, &training, [0.0; 2], &mut rng).positions_only();
+    let c = calibrate_tree(&nominal, &data, &options(Estimator::Ols)).unwrap();
+    assert!(c.training.position.1 < 1e-7, "training {:?} mm", c.training.position);
+    assert!(c.training.rotation.is_none());
+    // Held out: each point seen from the tracker.
+    let mut largest = 0.0f64;
+    for q in nominal.uniform_configurations(30, &mut rng) {
+        for &(a, b) in &pairs {
+            let at =
+                |tree: &RobotTree, p: &[f64], f: usize| frame_at(tree, &frames[f], &p[6 * f..6 * f + 6], &q);
+            let real = (at(&truth, &placements, a).inverse() * at(&truth, &placements, b)).translation.vector;
+            let found = (at(&c.calibrated, &c.setup_values.1, a).inverse()
+                * at(&c.calibrated, &c.setup_values.1, b))
+            .translation
+            .vector;
+            largest = largest.max((real - found).norm());
+        }
+    }
+    assert!(largest < 1e-6, "held-out gap {largest} mm");
+    // A point has no orientation; the tracker absorbs the tree's placement.
+    assert!(
+        c.fixed
+            .iter()
+            .any(|f| f.starts_with("target.l_hand.rx: a point measured by its position has no orientation"))
+    );
+    assert!(c.unseen[0].contains("camera.world is placed in the root link's frame"), "{:?}", c.unseen);
+    // As a file, through the command: positions only, no angle columns.
+    let dir = std::env::temp_dir().join(format!("robocal-tree-tracker-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("tracker.csv");
+    std::fs::write(&file, robocal::simulation::tree::views_csv(&nominal, &data)).unwrap();
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(text.lines().nth(1).unwrap().ends_with(",x,y,z,sigma"), "{text}");
+    let out = robocal(&["calibrate-tree", "--model", "presets/torso.urdf", "--data", file.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report = String::from_utf8(out.stdout).unwrap();
+    assert!(report.contains("180 views at 60 poses") && !report.contains("(deg)"), "{report}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }

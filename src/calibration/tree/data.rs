@@ -13,6 +13,10 @@
 //! (length unit) and `sigma_angle` (angle unit) per row, by default
 //! [`DEFAULT_CAMERA_SIGMA_MM`](crate::calibration::kinds::DEFAULT_CAMERA_SIGMA_MM) and
 //! [`DEFAULT_CAMERA_SIGMA_DEG`](crate::calibration::kinds::DEFAULT_CAMERA_SIGMA_DEG).
+//!
+//! A file without `roll`, `pitch` and `yaw` measures positions only: a laser tracker's (or
+//! any device fixed in the world, `camera = world`) of a point (a reflector) on each target
+//! branch, its `x, y, z` in the device's frame; the targets' placements are then points.
 
 use crate::calibration::CalibrationError;
 use crate::calibration::kinds::{DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM};
@@ -80,6 +84,9 @@ pub struct TreeData {
     pub views: Vec<View>,
     /// The file line of each view.
     pub lines: Vec<usize>,
+    /// Whether the views are positions only (the target's `x, y, z` in the camera's frame, a
+    /// tracker's), their rotations unmeasured.
+    pub position_only: bool,
 }
 
 impl TreeData {
@@ -94,15 +101,19 @@ impl TreeData {
                 DataError::new(
                     table.header_line,
                     Some(name),
-                    "missing column; a view has camera, target, the tree's joints, x, y, z, roll, pitch, yaw",
+                    "missing column; a view has camera, target, the tree's joints, x, y, z and, unless it \
+                     is a position only, roll, pitch, yaw",
                 )
             })
         };
         let (camera, target) = (needed("camera")?, needed("target")?);
-        let axes = ["x", "y", "z", "roll", "pitch", "yaw"].map(needed);
-        let axes: Vec<usize> = axes.into_iter().collect::<Result<_, _>>()?;
+        let angles = ["roll", "pitch", "yaw"];
+        let position_only = angles.iter().all(|a| table.column(a).is_none());
+        let measured =
+            if position_only { &["x", "y", "z"][..] } else { &["x", "y", "z", "roll", "pitch", "yaw"][..] };
+        let axes: Vec<usize> = measured.iter().map(|a| needed(a)).collect::<Result<_, _>>()?;
         let (sigma, sigma_angle) = (table.column("sigma"), table.column("sigma_angle"));
-        let mut data = Self::default();
+        let mut data = Self { position_only, ..Self::default() };
         for row in table.nonempty_rows()? {
             let camera = data.frame(tree, &table, row, camera, Role::Camera)?;
             let target = data.frame(tree, &table, row, target, Role::Target)?;
@@ -111,6 +122,11 @@ impl TreeData {
                 let on = a.map_or("world", |b| tree.branches[b].tip.as_str());
                 let message = format!("camera and target both on `{on}`: the view sees no joint");
                 return Err(DataError::new(row.line, Some("target"), message));
+            }
+            if position_only && a.is_some() {
+                let message = "positions only (no roll, pitch, yaw columns) are a device's fixed in the world: \
+                               expected world, or give the views' roll, pitch, yaw";
+                return Err(DataError::new(row.line, Some("camera"), message));
             }
             let mut v = [0.0; 6];
             for (axis, &c) in axes.iter().enumerate() {
@@ -203,6 +219,9 @@ impl TreeData {
             if self.frames[view.camera].on == self.frames[view.target].on {
                 return bad(format!("line {line}: camera and target on one branch: the view sees no joint"));
             }
+            if self.position_only && self.frames[view.camera].on.is_some() {
+                return bad(format!("line {line}: positions only are a device's fixed in the world"));
+            }
             if view.view.iter().any(|v| !v.is_finite()) {
                 return bad(format!("line {line}: a view of finite values expected"));
             }
@@ -213,8 +232,30 @@ impl TreeData {
         Ok(())
     }
 
-    /// These views and `other`'s in one set (the same camera or target is the same frame).
-    pub fn join(mut self, other: &Self) -> Self {
+    /// The rows of a view: 6 (position, rotation), or 3 for positions only.
+    pub fn rows(&self) -> usize {
+        if self.position_only { 3 } else { 6 }
+    }
+
+    /// The same views, positions only: their rotations dropped (a tracker's).
+    pub fn positions_only(mut self) -> Self {
+        for view in &mut self.views {
+            view.view.fixed_rows_mut::<3>(3).fill(0.0);
+        }
+        Self { position_only: true, ..self }
+    }
+
+    /// These views and `other`'s in one set (the same camera or target is the same frame); an
+    /// error if one set has rotations and the other positions only.
+    pub fn join(mut self, other: &Self) -> Result<Self, CalibrationError> {
+        if !self.views.is_empty() && !other.views.is_empty() && self.position_only != other.position_only {
+            return Err(CalibrationError::Observations(
+                "views with rotations and positions only cannot be fitted together".into(),
+            ));
+        }
+        if self.views.is_empty() {
+            self.position_only = other.position_only;
+        }
         let offset = self.joints.len();
         self.joints.extend(other.joints.iter().cloned());
         self.lines.extend(&other.lines);
@@ -234,6 +275,6 @@ impl TreeData {
             target: index[v.target],
             ..*v
         }));
-        self
+        Ok(self)
     }
 }

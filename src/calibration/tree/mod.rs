@@ -57,7 +57,9 @@ use crate::estimation::{
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamInfo, ParamOwner, Placement, RobotTree, Selection, SelectionError};
-use nalgebra::{DMatrix, DMatrixView, DMatrixViewMut, DVector, Isometry3, Matrix6, Matrix6xX, Vector6};
+use nalgebra::{
+    DMatrix, DMatrixView, DMatrixViewMut, DVector, Isometry3, Matrix6, Matrix6xX, Vector3, Vector6,
+};
 use rayon::prelude::*;
 
 /// How to calibrate a tree.
@@ -356,12 +358,14 @@ impl<'a> TreeProblem<'a> {
         }
     }
 
-    /// `V_k` of the [module](self) at the start values, 6 x 6 per view, stacked.
+    /// `V_k` of the [module](self) at the start values, 6 x 6 per view (3 x 3, its position
+    /// rows, for positions only), stacked.
     fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
         let (full, s) = self.full(&self.start());
         let chains = self.chains_at(&full);
         let dof = joint_noise.map_or(0, |n| n.nrows());
-        let mut v = DMatrix::zeros(6 * self.data.views.len(), 6);
+        let rows = self.data.rows();
+        let mut v = DMatrix::zeros(rows * self.data.views.len(), rows);
         for (k, view) in self.data.views.iter().enumerate() {
             let mut block = Matrix6::from_diagonal(&Vector6::new(
                 view.sigma[0].powi(2),
@@ -391,7 +395,7 @@ impl<'a> TreeProblem<'a> {
                 }
                 block += Matrix6::from_iterator((&g * sigma_q * g.transpose()).iter().copied());
             }
-            v.view_mut((6 * k, 0), (6, 6)).copy_from(&block);
+            v.view_mut((rows * k, 0), (rows, rows)).copy_from(&block.view((0, 0), (rows, rows)));
         }
         v
     }
@@ -399,11 +403,11 @@ impl<'a> TreeProblem<'a> {
 
 impl Residuals for TreeProblem<'_> {
     fn rows_per_point(&self) -> usize {
-        6
+        self.data.rows()
     }
 
     fn equations(&self) -> usize {
-        6 * self.data.views.len()
+        self.data.rows() * self.data.views.len()
     }
 
     fn parameters(&self) -> usize {
@@ -418,7 +422,8 @@ impl Residuals for TreeProblem<'_> {
     /// `sigma_position / sigma_orientation` of [`POSE_SIGMAS`] (mm/rad), as a pose's do.
     fn ols_row_scale(&self) -> Option<Vec<f64>> {
         let w = POSE_SIGMAS.0 / POSE_SIGMAS.1;
-        Some((0..self.equations()).map(|r| if r % 6 < 3 { 1.0 } else { w }).collect())
+        (!self.data.position_only)
+            .then(|| (0..self.equations()).map(|r| if r % 6 < 3 { 1.0 } else { w }).collect())
     }
 
     fn names(&self) -> Vec<String> {
@@ -437,22 +442,24 @@ impl Residuals for TreeProblem<'_> {
         let chains = self.chains_at(&full);
         let columns = self.parameters();
         let views = self.data.views.len();
-        // Each view's 6 residuals and its 6 rows of H (column-major) in one buffer each.
-        let block = if h.is_some() { 6 * columns } else { 0 };
-        let mut y = vec![0.0; 6 * views];
+        // Each view's residuals (6, or 3 for positions only) and its rows of H (column-major)
+        // in one buffer each.
+        let n = self.data.rows();
+        let block = if h.is_some() { n * columns } else { 0 };
+        let mut y = vec![0.0; n * views];
         let mut blocks = vec![0.0; block.max(1) * views];
         let widest = self.branch_columns.iter().map(|(sel, _)| sel.len()).max().unwrap_or(0);
-        (y.par_chunks_mut(6).zip(blocks.par_chunks_mut(block.max(1))).zip(&self.data.views)).for_each_init(
+        (y.par_chunks_mut(n).zip(blocks.par_chunks_mut(block.max(1))).zip(&self.data.views)).for_each_init(
             || (DMatrix::zeros(6, widest), DMatrix::zeros(6, widest)),
             |(h_b, by_robot), ((y, rows), view)| {
                 let a = self.frame_at(&chains, &s, view.camera, view.pose);
                 let b = self.frame_at(&chains, &s, view.target, view.pose);
                 let relative = relative_view(&view.view, &a.frame, &b.frame);
-                y.copy_from_slice(relative.residual.as_slice());
+                y.copy_from_slice(&relative.residual.as_slice()[..n]);
                 if block == 0 {
                     return;
                 }
-                let mut rows = DMatrixViewMut::from_slice(rows, 6, columns);
+                let mut rows = DMatrixViewMut::from_slice(rows, n, columns);
                 rows.fill(0.0);
                 for (at, frame, by) in [(&a, view.camera, relative.by_a), (&b, view.target, relative.by_b)] {
                     if let Some((branch, by_tip)) = at.on {
@@ -464,8 +471,8 @@ impl Residuals for TreeProblem<'_> {
                             h_b.view_mut((0, 0), (6, selection.len())),
                         );
                         let out = h_b.view((0, 0), (6, selection.len()));
-                        let mut by_robot = by_robot.view_mut((0, 0), (6, selection.len()));
-                        by_robot.gemm(1.0, &(by * by_tip), &out, 0.0);
+                        let mut by_robot = by_robot.view_mut((0, 0), (n, selection.len()));
+                        by_robot.gemm(1.0, &(by * by_tip).rows(0, n), &out, 0.0);
                         for (c, &col) in cols.iter().enumerate() {
                             let mut column = rows.column_mut(col);
                             column += by_robot.column(c);
@@ -475,7 +482,7 @@ impl Residuals for TreeProblem<'_> {
                     for i in 0..6 {
                         if let Some(col) = self.setup_columns[6 * frame + i] {
                             let mut column = rows.column_mut(col);
-                            column += by_own.column(i);
+                            column += by_own.view((0, i), (n, 1));
                         }
                     }
                 }
@@ -483,7 +490,7 @@ impl Residuals for TreeProblem<'_> {
         );
         if let Some(h) = h {
             for (k, rows) in blocks.chunks_exact(block).enumerate() {
-                h.view_mut((6 * k, 0), (6, columns)).copy_from(&DMatrixView::from_slice(rows, 6, columns));
+                h.view_mut((n * k, 0), (n, columns)).copy_from(&DMatrixView::from_slice(rows, n, columns));
             }
         }
         DVector::from_vec(y)
@@ -499,10 +506,10 @@ pub struct ViewResidual {
     pub before_mm: f64,
     /// `|y_t|` after (mm).
     pub after_mm: f64,
-    /// `|y_r|` before (deg).
-    pub before_deg: f64,
-    /// `|y_r|` after (deg).
-    pub after_deg: f64,
+    /// `|y_r|` before (deg), if rotations were measured.
+    pub before_deg: Option<f64>,
+    /// `|y_r|` after (deg), if rotations were measured.
+    pub after_deg: Option<f64>,
     /// After, the largest of its six residuals divided by its standard deviation
     /// (`sqrt` of `V_k`'s diagonal: the view's sigmas and, if given, the joint noise).
     pub whitened: f64,
@@ -516,8 +523,8 @@ pub struct TreeScore {
     pub views: Vec<ViewResidual>,
     /// RMS of `|y_t|` (mm), before and after.
     pub position: (f64, f64),
-    /// RMS of `|y_r|` (deg), before and after.
-    pub rotation: (f64, f64),
+    /// RMS of `|y_r|` (deg), before and after, if rotations were measured.
+    pub rotation: Option<(f64, f64)>,
 }
 
 /// A tree calibrated from camera views.
@@ -584,25 +591,25 @@ impl TreeCalibration {
         let after_problem = problem(&self.after, &self.setup_values.1);
         let after = after_problem.evaluate(&nothing, None);
         let v = after_problem.covariance().expect("always built");
-        let norms =
-            |y: &DVector<f64>, k: usize| (y.rows(6 * k, 3).norm(), y.rows(6 * k + 3, 3).norm().to_degrees());
+        let n = data.rows();
+        let norms = |y: &DVector<f64>, k: usize| {
+            (y.rows(n * k, 3).norm(), (n == 6).then(|| y.rows(n * k + 3, 3).norm().to_degrees()))
+        };
         let views: Vec<ViewResidual> = (0..data.views.len())
             .map(|k| {
                 let (before_mm, before_deg) = norms(&before, k);
                 let (after_mm, after_deg) = norms(&after, k);
                 let whitened =
-                    (0..6).map(|r| (after[6 * k + r] / v[(6 * k + r, r)].sqrt()).abs()).fold(0.0, f64::max);
+                    (0..n).map(|r| (after[n * k + r] / v[(n * k + r, r)].sqrt()).abs()).fold(0.0, f64::max);
                 ViewResidual { line: data.lines[k], before_mm, after_mm, before_deg, after_deg, whitened }
             })
             .collect();
         let rms = |f: fn(&ViewResidual) -> f64| {
             (views.iter().map(|v| f(v).powi(2)).sum::<f64>() / views.len().max(1) as f64).sqrt()
         };
-        Ok(TreeScore {
-            position: (rms(|v| v.before_mm), rms(|v| v.after_mm)),
-            rotation: (rms(|v| v.before_deg), rms(|v| v.after_deg)),
-            views,
-        })
+        let rotation = (!data.position_only)
+            .then(|| (rms(|v| v.before_deg.unwrap_or(0.0)), rms(|v| v.after_deg.unwrap_or(0.0))));
+        Ok(TreeScore { position: (rms(|v| v.before_mm), rms(|v| v.after_mm)), rotation, views })
     }
 
     /// Joint lengths corrected by more than 10 mm (a wrong model or wrong units), and training
@@ -645,6 +652,27 @@ fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, Calib
     };
     let mut values = vec![0.0; 6 * data.frames.len()];
     let mut placed = vec![false; data.frames.len()];
+    if data.position_only {
+        // Each device by the rigid registration of its measured points onto the targets' tip
+        // origins on the nominal tree; each target's point at its tip's origin.
+        for (f, frame) in data.frames.iter().enumerate().filter(|(_, f)| f.role == Role::Camera) {
+            let seen: Vec<&View> = data.views.iter().filter(|v| v.camera == f).collect();
+            if seen.len() < 3 {
+                return Err(CalibrationError::Observations(format!(
+                    "{}: {} positions, expected at least 3 not on one line to place it",
+                    frame.name(&params.tips),
+                    seen.len()
+                )));
+            }
+            let predicted: Vec<Vector3<f64>> =
+                seen.iter().map(|v| tip(v.target, v.pose).translation.vector).collect();
+            let measured: Vec<Vector3<f64>> =
+                seen.iter().map(|v| v.view.fixed_rows::<3>(0).into_owned()).collect();
+            let device = super::register(&predicted, &measured).inverse();
+            values[6 * f..6 * f + 6].copy_from_slice(placement(&device).as_slice());
+        }
+        return Ok(values);
+    }
     let mut pairs: Vec<(usize, usize)> = data.views.iter().map(|v| (v.camera, v.target)).collect();
     pairs.sort_unstable();
     pairs.dedup();
@@ -738,9 +766,11 @@ pub fn calibrate_tree(
         .collect();
     let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority)?;
     for f in &mut fixed {
-        if let Some(reason) =
-            f.strip_suffix(": the observations do not move it").and_then(|n| params.unseen(n, data))
-        {
+        let Some(name) = f.strip_suffix(": the observations do not move it") else { continue };
+        let turn = ["rx", "ry", "rz"].iter().any(|r| name.ends_with(&format!(".{r}")));
+        if data.position_only && name.starts_with("target.") && turn {
+            *f = format!("{name}: a point measured by its position has no orientation: not seen");
+        } else if let Some(reason) = params.unseen(name, data) {
             *f = reason;
         }
     }
@@ -771,7 +801,7 @@ pub fn calibrate_tree(
         refined: estimate,
         unseen,
         fixed,
-        training: TreeScore { views: Vec::new(), position: (0.0, 0.0), rotation: (0.0, 0.0) },
+        training: TreeScore { views: Vec::new(), position: (0.0, 0.0), rotation: None },
         warnings: Vec::new(),
         joint_noise: options.joint_noise.clone(),
     };
