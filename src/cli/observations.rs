@@ -6,7 +6,7 @@ use super::from_flag_unit;
 use super::request::CalibrateObservationsRequest;
 use anyhow::{Context, Result, bail};
 use nalgebra::DMatrix;
-use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds};
+use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
 use robocal::estimation::RefineOptions;
 use robocal::io;
 use robocal::model::RobotModel;
@@ -26,6 +26,13 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
             "{} --marker given, the files ({}) have {highest} markers: the k-th --marker is marker k of a marker file",
             request.markers.len(),
             request.data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+        );
+    }
+    let coordinates = data.observations.iter().any(|o| matches!(o, Observation::Coordinate { .. }));
+    if highest > 0 && coordinates {
+        eprintln!(
+            "warning: coordinates fitted with markers are read in the markers' (the tracker's) frame: a height gauge \
+             with its own zero or an inclinometer reading against gravity is not; fit it in a run of its own"
         );
     }
     let options = KindOptions {

@@ -40,6 +40,14 @@ pub struct ObservationsReport {
     /// Observations whose residual after calibration is more than [`FLAG_AT`] standard
     /// deviations out, in words.
     pub warnings: Vec<String>,
+    /// When no sigma was given and the joints are exact: the residuals' variance of unit
+    /// weight, by which the standard errors and the whitening are scaled.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub variance_factor: Option<f64>,
+    /// With markers: the base their registration placed, `[x, y, z]` mm then roll, pitch, yaw
+    /// deg, which the `base.*` estimates correct.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub registered_base: Option<[f64; 6]>,
 }
 
 /// `text` with the points on the last link named as the files name them: with markers, each
@@ -105,7 +113,7 @@ impl ObservationsReport {
                 format!(
                     "line {} ({}): a residual {:.1} standard deviations out after calibration",
                     r.line,
-                    r.kind,
+                    r.label(),
                     r.whitened.abs()
                 )
             })
@@ -123,6 +131,10 @@ impl ObservationsReport {
             fixed: c.fixed.iter().map(|f| point_names(f, c)).collect(),
             sets,
             warnings,
+            variance_factor: c.variance_factor,
+            registered_base: c.registered_base.map(|b| {
+                [b.xyz.x, b.xyz.y, b.xyz.z, b.rpy.x.to_degrees(), b.rpy.y.to_degrees(), b.rpy.z.to_degrees()]
+            }),
         }
     }
 
@@ -131,7 +143,7 @@ impl ObservationsReport {
         let mut out = String::new();
         let _ = writeln!(
             out,
-            "calibration of {} from {}: {} observations at {} poses, {} ({} steps, {})\n",
+            "calibration of {} from {}: {} observations at {} poses, {} ({} steps, {})",
             self.model,
             self.data,
             self.observations,
@@ -140,6 +152,14 @@ impl ObservationsReport {
             self.iterations,
             if self.converged { "converged" } else { "not converged" }
         );
+        if let Some(b) = &self.registered_base {
+            let _ = writeln!(
+                out,
+                "base registered at xyz ({:.3}, {:.3}, {:.3}) mm, rpy ({:.4}, {:.4}, {:.4}) deg (the markers' registration; base.* corrects it)",
+                b[0], b[1], b[2], b[3], b[4], b[5]
+            );
+        }
+        let _ = writeln!(out);
         let _ = writeln!(out, "{:<14} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
         for p in &self.parameters {
             let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
@@ -180,7 +200,11 @@ impl ObservationsReport {
                 let _ = writeln!(
                     out,
                     "  {name}, line {} ({}): {:.4} before, {:.4} after, {:.1} sd",
-                    r.line, r.kind, r.before, r.after, r.whitened
+                    r.line,
+                    r.label(),
+                    r.before,
+                    r.after,
+                    r.whitened
                 );
             }
         }
@@ -188,6 +212,13 @@ impl ObservationsReport {
             out,
             "\nbefore: the set-up (points, planes, camera and target) fitted with the robot nominal; after: the robot and the set-up"
         );
+        if let Some(f) = self.variance_factor {
+            let _ = writeln!(
+                out,
+                "no sigma given and the joints exact: standard errors and flags from the residuals' spread (the default sigmas times {:.4})",
+                f.sqrt()
+            );
+        }
         if self.sets.iter().any(|(_, score)| score.markers.is_some()) {
             let _ = writeln!(
                 out,

@@ -37,7 +37,7 @@ fn every_kind(model: &RobotModel, u: &[f64], angles: bool) -> KindData {
     });
     let observations: Vec<Observation> = observations.into_iter().chain(angles).collect();
     let lines = (0..observations.len()).map(|i| i + 2).collect();
-    KindData { joints, observations, lines }
+    KindData { joints, observations, lines, assumed_sigmas: 0 }
 }
 
 /// Every column of `H` (robot parameters and set-up) against central differences of the
@@ -772,6 +772,7 @@ fn the_covariance_of_each_kind_is_the_joint_noise_of_its_poses() {
         ],
         lines: vec![2, 3, 4, 5],
         joints,
+        assumed_sigmas: 0,
     };
     let setup = SetUp::new(1, &[Vector3::new(0.3, -0.2, 1.0)]);
     let s = vec![400.0, 200.0, 300.0, 0.0, 0.0, -350.0];
@@ -846,7 +847,7 @@ fn observations_that_cannot_be_fitted_are_refused() {
     let joints: Vec<Vec<f64>> = (0..8).map(|_| random_pose(&model, &mut rng)).collect();
     let error = |observations: Vec<Observation>| {
         let lines = (0..observations.len()).map(|i| i + 3).collect();
-        let data = KindData { joints: joints.clone(), observations, lines };
+        let data = KindData { joints: joints.clone(), observations, lines, assumed_sigmas: 0 };
         calibrate_kinds(&model, &data, &options(Estimator::Ols)).unwrap_err().to_string()
     };
     let to_point_2 =

@@ -231,6 +231,14 @@ fn a_marker_file_alone_calibrates_as_calibrate_does() {
                 se[k]
             );
         }
+        // No sigma in the file, the joints exact: the standard errors are the residuals' spread's,
+        // as calibrate's ordinary least squares without a noise model.
+        let found_se = c.refined.estimate.standard_errors();
+        for (k, name) in expected.refined.estimate.names.iter().enumerate() {
+            let (a, b) = (found_se[k], se[k]);
+            assert!((a - b).abs() <= 1e-5 * b, "{estimator:?} {name}: SE {a} against calibrate's {b}");
+        }
+        assert!(c.variance_factor.is_some());
         let (rms, expected_rms) = (c.training.markers.unwrap(), expected.training);
         assert!((rms.1 - expected_rms.1.rms).abs() < 1e-9, "{rms:?} against {expected_rms:?}");
         assert!((rms.0 - expected_rms.0.rms).abs() < 1e-9, "{rms:?} against {expected_rms:?}");
@@ -311,7 +319,10 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
         assert!(text.contains(expected), "{expected}: {text}");
     }
     assert!(!text.contains("marker3"), "{text}");
+    // The base the markers' registration placed, as calibrate reports it.
+    assert!(text.contains("base registered at xyz (1499.880, -299.565, 200.231) mm"), "{text}");
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!((report["registered_base"][0].as_f64().unwrap() - 1499.88).abs() < 1e-2, "{report}");
     let rms = |set: usize, what: &str| {
         let v = &report["sets"][set][1][what];
         (v[0].as_f64().unwrap(), v[1].as_f64().unwrap())
@@ -321,7 +332,8 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
     assert!(report["sets"][2][1].get("markers").is_none(), "a ball bar has no markers");
     let (before, after) = rms(2, "lengths");
     assert!(before > 0.5 && after < 0.08, "held-out ball bar: {before} mm before, {after} mm after\n{text}");
-    assert_eq!(report["sets"][1][1]["observations"][0]["kind"], "marker");
+    assert_eq!(report["sets"][1][1]["observations"][0]["kind"], "marker x");
+    assert_eq!(report["sets"][1][1]["observations"][0]["marker"], 1);
     let calibrated = std::fs::read_to_string(&model).unwrap();
     assert_eq!(calibrated.matches("[[markers]]").count(), 2, "{calibrated}");
 
@@ -523,4 +535,34 @@ fn markers_and_tilts_calibrate_together() {
         checked += 1;
     }
     assert!(checked >= 30, "{checked} estimates checked");
+}
+
+/// Heights given with a marker file are read in the tracker's frame, and the command says so.
+#[test]
+fn coordinates_with_markers_are_said_to_be_in_the_trackers_frame() {
+    let dir = std::env::temp_dir().join(format!("robocal-heights-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // Marker 1's z (the tool point) of the first 30 poses, as heights in the tracker's frame.
+    let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    let mut heights = String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,z\n");
+    for line in text.lines().skip(2).take(30) {
+        let cells: Vec<&str> = line.split(',').collect();
+        heights += &format!("{},{}\n", cells[..6].join(","), cells[8]);
+    }
+    let file = dir.join("heights.csv");
+    std::fs::write(&file, heights).unwrap();
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", "puma560", "--tool", "50,0,150"])
+        .args(["--marker", "50,0,150", "--marker=-40,60,120"])
+        .args(["--data", "examples/puma560-measurements.csv", "--data", file.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8(output.stderr).unwrap();
+    assert!(output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("coordinates fitted with markers are read in the markers' (the tracker's) frame"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -161,7 +161,9 @@ impl Observation {
             Self::Distance { .. } => "distance",
             Self::ToPoint { .. } => "point",
             Self::Contact { .. } => "contact",
-            Self::Marker { .. } => "marker",
+            Self::Marker { axis, .. } => {
+                ["marker x", "marker y", "marker z"].get(axis).copied().unwrap_or("?")
+            }
             Self::Coordinate { axis, .. } => {
                 ["x", "y", "z", "roll", "pitch", "yaw"].get(axis).copied().unwrap_or("?")
             }
@@ -225,6 +227,9 @@ pub struct KindData {
     pub observations: Vec<Observation>,
     /// The file line of each observation.
     pub lines: Vec<usize>,
+    /// How many observations carry a default sigma (their row gave none): when all do and the
+    /// joints are exact, the calibration takes its standard errors from the residuals' spread.
+    pub assumed_sigmas: usize,
 }
 
 impl KindData {
@@ -258,6 +263,7 @@ impl KindData {
         let offset = self.joints.len();
         self.joints.extend(other.joints.iter().cloned());
         self.lines.extend(&other.lines);
+        self.assumed_sigmas += other.assumed_sigmas;
         self.observations.extend(other.observations.iter().map(|o| match *o {
             Observation::Distance { a, b, measured, sigma } => {
                 Observation::Distance { a: a + offset, b: b + offset, measured, sigma }
@@ -745,9 +751,11 @@ impl KindColumns {
             Some(c) => units.angle(positive(table, row, c, 1.0)?),
             None => default_deg.to_radians(),
         };
+        let assumed = (optional(self.sigma).is_none(), optional(self.sigma_angle).is_none());
         let pose = data.joints.len();
         data.joints.push(table.joint_values(row, &self.joints, model, units)?);
         let push = |data: &mut KindData, o: Observation| {
+            data.assumed_sigmas += usize::from(if o.is_angle() { assumed.1 } else { assumed.0 });
             data.observations.push(o);
             data.lines.push(row.line);
         };

@@ -689,6 +689,13 @@ pub struct KindCalibration {
     /// The markers' numbers less one ([`KindData::markers`]), and each one's calibrated
     /// position (mm) as the calibrated model's tool point is given (the last joint's frame).
     pub markers: Vec<(usize, Vector3<f64>)>,
+    /// When no observation gave its sigma and the joints are exact: the variance of unit
+    /// weight `f` of the residuals, by which the covariance and the whitening are scaled
+    /// (standard errors from the residuals' spread); `None` when the sigmas were given.
+    pub variance_factor: Option<f64>,
+    /// With markers: where their rigid registration placed the base (the measuring frame to
+    /// the robot's), which the `base.*` estimates correct.
+    pub registered_base: Option<Placement>,
     joint_noise: Option<DMatrix<f64>>,
     /// One chain per point: the markers', then the tool's if observed.
     chains: Vec<Chain>,
@@ -700,8 +707,12 @@ pub struct KindCalibration {
 pub struct ObservationResidual {
     /// Its line in the file.
     pub line: usize,
-    /// `distance`, `point`, `contact`, `x` ... `yaw`.
+    /// `distance`, `point`, `contact`, `x` ... `yaw`, `marker x` ... `marker z`, `camera x` ...
+    /// `camera rz`.
     pub kind: &'static str,
+    /// The marker's number (1, 2, ...), for a marker's coordinate.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub marker: Option<usize>,
     /// The residual before calibration.
     pub before: f64,
     /// After.
@@ -727,6 +738,16 @@ pub struct Score {
     pub markers: Option<(f64, f64)>,
 }
 
+impl ObservationResidual {
+    /// What it is, for a person: its kind, a marker's with its number (`marker 2 z`).
+    pub fn label(&self) -> String {
+        match self.marker {
+            Some(m) => self.kind.replacen("marker", &format!("marker {m}"), 1),
+            None => self.kind.to_string(),
+        }
+    }
+}
+
 impl Score {
     /// `data`'s residuals before and after (`y`), and after whitened (`z`).
     fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), v: &DMatrix<f64>) -> Self {
@@ -734,6 +755,10 @@ impl Score {
             .map(|(k, o)| ObservationResidual {
                 line: data.lines[k],
                 kind: o.kind(),
+                marker: match *o {
+                    Observation::Marker { marker, .. } => Some(marker + 1),
+                    _ => None,
+                },
                 before: before[k],
                 after: after[k],
                 whitened: after[k] / v[(k, 0)].sqrt(),
@@ -782,8 +807,9 @@ impl KindCalibration {
         };
         let (before, after) = (at(&self.before, &self.setup_values.0), at(&self.after, &self.setup_values.1));
         let zero = DVector::zeros(0);
-        let v = after.covariance().expect("always built");
-        Ok(Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), v))
+        // The assumed sigmas scaled by the residuals' spread, when they were.
+        let v = after.covariance().expect("always built") * self.variance_factor.unwrap_or(1.0);
+        Ok(Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), &v))
     }
 
     /// RMS of the length residuals of `data` (mm) before and after ([`KindCalibration::score`]).
@@ -924,10 +950,23 @@ pub fn calibrate_kinds(
         fixed,
         training: Score { observations: Vec::new(), lengths: (0.0, 0.0), angles: None, markers: None },
         markers: markers.iter().zip(&calibrated_points).map(|(&m, p)| (m, (frame * p).coords)).collect(),
+        variance_factor: None,
+        registered_base: (!markers.is_empty()).then_some(registered.base),
         joint_noise: options.joint_noise.clone(),
         chains,
     };
     calibration.training = calibration.score(data)?;
+    // No sigma given and the joints exact: the sigmas are assumed, and their scale is the
+    // residuals' (the variance of unit weight `f = sum z_k^2 / (N - rank)`, `z_k` whitened by the
+    // assumed sigmas), as ordinary least squares without a noise model takes it.
+    let (n, rank) = (data.observations.len(), calibration.refined.estimate.diagnostics.rank);
+    if options.joint_noise.is_none() && data.assumed_sigmas == n && n > rank {
+        let sum: f64 = calibration.training.observations.iter().map(|r| r.whitened * r.whitened).sum();
+        let f = sum / (n - rank) as f64;
+        calibration.refined.estimate.covariance *= f;
+        calibration.variance_factor = Some(f);
+        calibration.training = calibration.score(data)?;
+    }
     Ok(calibration)
 }
 
