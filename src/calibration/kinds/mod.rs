@@ -4,9 +4,10 @@
 //!
 //! # The observation model
 //!
-//! The robot carries one point `p(q, x)` on its last link (the tool point, a ball, a stylus
-//! tip), in the robot's base frame. Every observation `k` is one number, a function of that
-//! point at one or two poses and of parameters of the set-up `s` (fixed points, planes):
+//! The robot carries a point `p(q, x)` on its last link (the tool point, a ball, a stylus
+//! tip), in the robot's base frame, and each marker one of its own. Every observation `k` is one
+//! number, a function of such a point at one or two poses and of parameters of the set-up `s`
+//! (fixed points, planes, a camera and its target):
 //!
 //! - a marker's coordinate: markers are points of their own on the last link, `p_m(q, x)` of
 //!   marker `m` (its position `x_m` among the parameters, `marker<m>.x, y, z`, one chain each
@@ -906,7 +907,8 @@ pub fn calibrate_kinds(
             poses: data.joints.len(),
             equations: problem.equations(),
             parameters: problem.parameters(),
-            needed: problem.parameters() + 1,
+            // Poses at the data's equations per pose for one redundant equation.
+            needed: ((problem.parameters() + 1) * data.joints.len()).div_ceil(problem.equations().max(1)),
         });
     }
     let linearised = linearise(&problem, &weights, problem.start())?;
