@@ -28,11 +28,11 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
             request.data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
         );
     }
-    let coordinates = data.observations.iter().any(|o| matches!(o, Observation::Coordinate { .. }));
-    if highest > 0 && coordinates {
+    let angles = data.observations.iter().any(|o| matches!(o, Observation::Coordinate { axis: 3.., .. }));
+    if highest > 0 && angles {
         eprintln!(
-            "warning: coordinates fitted with markers are read in the markers' (the tracker's) frame: a height gauge \
-             with its own zero or an inclinometer reading against gravity is not; fit it in a run of its own"
+            "warning: roll, pitch and yaw fitted with markers are read in the markers' (the tracker's) frame: an \
+             inclinometer reading against gravity is not; fit it in a run of its own"
         );
     }
     let options = KindOptions {

@@ -105,6 +105,9 @@ fn check_marker_jacobians(
         setup = setup.with_camera(site);
         s.extend((0..12).map(|i| u[70 + i] * if i % 6 < 3 { 300.0 } else { 2.0 }));
     }
+    // With markers, the coordinates x, y, z are read in a device frame of their own.
+    setup = setup.with_device();
+    s.extend((0..6).map(|i| u[82 + i] * if i < 3 { 300.0 } else { 0.5 }));
     let all = Selection::all(params);
     let every: Vec<usize> = (0..setup.len()).collect();
     let problem = KindProblem::of_points(&chains, &[0, 2], &all, &data, &setup, x, s, every).with_noise(None);

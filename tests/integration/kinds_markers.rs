@@ -537,32 +537,51 @@ fn markers_and_tilts_calibrate_together() {
     assert!(checked >= 30, "{checked} estimates checked");
 }
 
-/// Heights given with a marker file are read in the tracker's frame, and the command says so.
+/// Heights given with a marker file are read in a device frame of their own (a height gauge
+/// zeroed 150 mm below the tracker's z = 0): the device is estimated with the robot, and the
+/// markers are fitted as well as without the heights.
 #[test]
-fn coordinates_with_markers_are_said_to_be_in_the_trackers_frame() {
+fn heights_with_markers_are_read_in_their_own_device_frame() {
     let dir = std::env::temp_dir().join(format!("robocal-heights-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    // Marker 1's z (the tool point) of the first 30 poses, as heights in the tracker's frame.
+    // Marker 1's z (the tool point) of the first 40 poses, 150 mm up: heights above the
+    // gauge's zero.
     let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
     let mut heights = String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,z\n");
-    for line in text.lines().skip(2).take(30) {
+    for line in text.lines().skip(2).take(40) {
         let cells: Vec<&str> = line.split(',').collect();
-        heights += &format!("{},{}\n", cells[..6].join(","), cells[8]);
+        let z: f64 = cells[8].parse().unwrap();
+        heights += &format!("{},{}\n", cells[..6].join(","), z + 150.0);
     }
     let file = dir.join("heights.csv");
     std::fs::write(&file, heights).unwrap();
-    let output = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--tool", "50,0,150"])
-        .args(["--marker", "50,0,150", "--marker=-40,60,120"])
-        .args(["--data", "examples/puma560-measurements.csv", "--data", file.to_str().unwrap()])
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8(output.stderr).unwrap();
-    assert!(output.status.success(), "{stderr}");
-    assert!(
-        stderr.contains("coordinates fitted with markers are read in the markers' (the tracker's) frame"),
-        "{stderr}"
-    );
+    let run = |data: &[&str]| {
+        let mut command = assert_cmd::Command::cargo_bin("robocal").unwrap();
+        command.args(["calibrate-observations", "--model", "puma560", "--tool", "50,0,150"]);
+        command.args([
+            "--marker",
+            "50,0,150",
+            "--marker=-40,60,120",
+            "--validate",
+            "examples/puma560-validation.csv",
+        ]);
+        for d in data {
+            command.args(["--data", d]);
+        }
+        let output = command.output().unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        String::from_utf8(output.stdout).unwrap()
+    };
+    let held_out = |text: &str| -> f64 {
+        let line =
+            text.lines().find(|l| l.starts_with("examples/puma560-validation.csv markers (mm)")).unwrap();
+        line.split_whitespace().last().unwrap().parse().unwrap()
+    };
+    let alone = run(&["examples/puma560-measurements.csv"]);
+    let with_heights = run(&["examples/puma560-measurements.csv", file.to_str().unwrap()]);
+    assert!(held_out(&with_heights) < 1.05 * held_out(&alone), "{with_heights}");
+    let device_z = with_heights.lines().find(|l| l.starts_with("device.z ")).expect("device.z estimated");
+    let z: f64 = device_z.split_whitespace().nth(1).unwrap().parse().unwrap();
+    assert!((z + 150.0).abs() < 0.5, "{device_z}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -448,7 +448,19 @@ impl KindData {
             }
             setup = setup.with_camera(site);
         }
+        if self.coordinates_in_their_own_frame() {
+            // The device starts in the measuring frame.
+            values.extend([0.0; 6]);
+            setup = setup.with_device();
+        }
         Ok((setup, values))
+    }
+
+    /// Whether coordinates x, y, z are read in a device frame of their own: with markers, whose
+    /// measuring frame (a tracker's) is another device's.
+    pub fn coordinates_in_their_own_frame(&self) -> bool {
+        let xyz = self.observations.iter().any(|o| matches!(o, Observation::Coordinate { axis: ..3, .. }));
+        xyz && !self.markers().is_empty()
     }
 
     /// Every pose a camera saw, once, with its view (the target's pose in the camera frame).
@@ -598,9 +610,37 @@ impl KindData {
                 n.z
             ));
         }
+        if setup.device() {
+            let held = self.device_unseen();
+            if !held.is_empty() {
+                let names: Vec<String> = held.iter().map(|&i| format!("device.{}", DEVICE_AXES[i])).collect();
+                out.push(format!(
+                    "{}: the coordinates' device (its placement in the markers' frame) is seen only along the \
+                     axes it measures; held at the markers' frame",
+                    names.join(", ")
+                ));
+            }
+        }
         out
     }
+
+    /// The device parameters (0-5: x, y, z, rx, ry, rz of [`SetUp::with_device`]) the measured
+    /// coordinates cannot see: the translations along the axes not measured and, with one axis
+    /// measured, the rotation about it.
+    pub fn device_unseen(&self) -> Vec<usize> {
+        let mut measured = [false; 3];
+        for o in &self.observations {
+            if let Observation::Coordinate { axis: axis @ ..3, .. } = *o {
+                measured[axis] = true;
+            }
+        }
+        let one = measured.iter().filter(|&&m| m).count() == 1;
+        (0..6).filter(|&i| if i < 3 { !measured[i] } else { one && measured[i - 3] }).collect()
+    }
 }
+
+/// The names of a device's placement parameters.
+const DEVICE_AXES: [&str; 6] = ["x", "y", "z", "rx", "ry", "rz"];
 
 /// The kind of a row's observation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

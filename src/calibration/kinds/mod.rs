@@ -27,7 +27,9 @@
 //! - a contact with plane `i` (unit normal `n_i`, offset `d_i`): the signed distance
 //!   `f_k = n_i . p(q_k, x) - d_i`, measured as 0;
 //! - a partial measurement, one coordinate `e_c . p(q_k, x)` (`c` of x, y, z) in the measuring
-//!   frame: any subset of x, y, z of a pose (a height gauge: z only), each its own observation.
+//!   frame (with markers, whose measuring frame is a tracker's, in a device frame `D` of its
+//!   own: `e_c . D^-1 p`, the position rows of the view of [`camera::relative_view`], `D` 6
+//!   set-up parameters `device.*` seen along the measured axes only): any subset of x, y, z of a pose (a height gauge: z only), each its own observation.
 //!   Their correlation through the joint noise of their common pose is left out of `V`
 //!   (exact when the joints are exact). Roll, pitch and yaw of the tool frame
 //!   (`R = Rz(yaw) Ry(pitch) Rx(roll)`, an inclinometer's tilts) likewise: the tool is then a
@@ -93,6 +95,8 @@
 pub mod camera;
 mod data;
 
+use camera::relative_view;
+
 pub use data::{
     CameraSite, DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM,
     KindData, Observation,
@@ -144,6 +148,9 @@ pub struct SetUp {
     bases: Vec<[Vector3<f64>; 3]>,
     /// Where the camera is, if there is one.
     camera: Option<CameraSite>,
+    /// Whether the coordinates (x, y, z) are read in a device frame of their own (with
+    /// markers: a height gauge's, placed in the markers' measuring frame).
+    device: bool,
 }
 
 impl SetUp {
@@ -160,7 +167,7 @@ impl SetUp {
                 [n, t1, n.cross(&t1)]
             })
             .collect();
-        Self { points, bases, camera: None }
+        Self { points, bases, camera: None, device: false }
     }
 
     /// The same set-up with a camera at `site` and its target: 12 parameters more,
@@ -174,9 +181,25 @@ impl SetUp {
         self.camera
     }
 
+    /// The same set-up with the coordinates' device frame: 6 parameters more, `device.x, y, z,
+    /// rx, ry, rz`, its placement in the measuring frame (a coordinate `c` is `e_c . D^-1 p`).
+    pub fn with_device(self) -> Self {
+        Self { device: true, ..self }
+    }
+
+    /// Whether the coordinates are read in a device frame of their own.
+    pub fn device(&self) -> bool {
+        self.device
+    }
+
     /// Parameters: 3 per point, then 3 per plane (`alpha, beta, d`), then 6 for the camera
-    /// and 6 for its target.
+    /// and 6 for its target, then 6 for the coordinates' device.
     pub fn len(&self) -> usize {
+        self.device_at() + if self.device { 6 } else { 0 }
+    }
+
+    /// Where the device's parameters start.
+    fn device_at(&self) -> usize {
         self.camera_at() + if self.camera.is_some() { 12 } else { 0 }
     }
 
@@ -208,9 +231,9 @@ impl SetUp {
         let points = (1..=self.points).flat_map(|i| ["x", "y", "z"].map(|c| format!("point{i}.{c}")));
         let planes =
             (1..=self.bases.len()).flat_map(|i| ["alpha", "beta", "d"].map(|c| format!("plane{i}.{c}")));
-        let placements = ["camera", "target"]
+        let placements = ["camera", "target", "device"]
             .into_iter()
-            .filter(|_| self.camera.is_some())
+            .filter(|f| if *f == "device" { self.device } else { self.camera.is_some() })
             .flat_map(|f| ["x", "y", "z", "rx", "ry", "rz"].map(|c| format!("{f}.{c}")));
         points.chain(planes).chain(placements).collect()
     }
@@ -285,6 +308,22 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
             Prediction {
                 residual: o.residual(d.norm()),
                 by_point: [(pose, point(u)), none],
+                poses: 1,
+                by_setup,
+                setups,
+            }
+        }
+        Observation::Coordinate { pose, axis, measured, .. } if axis < 3 && setup.device => {
+            // In the device's frame D: the row of the view D^-1 T of the point's frame T.
+            let at = setup.device_at();
+            let (device, by_placement) = camera::placed(&s[at..at + 6]);
+            let view = relative_view(&Vector6::ith(axis, measured), &device, &frames[pose]);
+            let by_device = view.by_a * by_placement;
+            let (by_setup, setups) =
+                by_setup(std::array::from_fn::<_, 6, _>(|i| (at + i, by_device[(axis, i)])));
+            Prediction {
+                residual: view.residual[axis],
+                by_point: [(pose, view.by_b.row(axis).transpose()), none],
                 poses: 1,
                 by_setup,
                 setups,
@@ -1062,7 +1101,12 @@ fn asked(
         (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, params)).flatten();
     let robot = joints.indices().iter().copied().chain(extra).filter(|&i| Some(i) != scale);
     let robot = Selection::from_indices(params, robot);
-    Ok((robot, (0..setup.len()).collect()))
+    // A device frame is seen only along the axes its coordinates measure.
+    let unseen: Vec<usize> = match setup.device() {
+        true => data.device_unseen().iter().map(|i| setup.device_at() + i).collect(),
+        false => Vec::new(),
+    };
+    Ok((robot, (0..setup.len()).filter(|i| !unseen.contains(i)).collect()))
 }
 
 /// The joint length parameter (`a`, `d`, a URDF origin's `x`, `y`, `z`) of the longest nominal
