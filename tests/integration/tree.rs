@@ -69,7 +69,20 @@ fn a_urdf_tree_reads_as_its_branches_sharing_their_joints() {
 /// every tree parameter and every frame parameter.
 fn check_tree_jacobian(seed: u64) -> Result<(), TestCaseError> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let nominal = torso();
+    // Every other tree lifts its torso: a prismatic joint shared by every branch.
+    let nominal = match seed % 2 {
+        0 => torso(),
+        _ => {
+            let lifting = TORSO.replace(
+                r#"<joint name="torso" type="revolute">"#,
+                r#"<joint name="torso" type="prismatic">"#,
+            );
+            assert_ne!(lifting, TORSO);
+            let tree = RobotTree::from_urdf_str(&lifting, None, &[]).unwrap();
+            assert_eq!(tree.joints[0].kind, robocal::model::JointKind::Prismatic);
+            tree
+        }
+    };
     let tree = perturbed_tree(&nominal, 20.0, 0.2, &mut rng);
     let (mut frames, mut placements) = frames(&tree);
     // A camera and a target fixed in the world too.
