@@ -35,6 +35,12 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
              inclinometer reading against gravity is not; fit it in a run of its own"
         );
     }
+    if !request.estimate_tool && !data.measures_the_tool_point() {
+        eprintln!(
+            "warning: --fixed-tool holds the tool point, which no observation here measures (markers are points of \
+             their own, always estimated; a camera's mounting is the set-up's): it changes nothing"
+        );
+    }
     let options = KindOptions {
         estimator: request.estimator,
         joint_noise: joint_noise(&model, request.joint_sigma_deg.as_deref())?,

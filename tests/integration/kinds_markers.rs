@@ -585,3 +585,20 @@ fn heights_with_markers_are_read_in_their_own_device_frame() {
     assert!((z + 150.0).abs() < 0.5, "{device_z}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// --fixed-tool with markers alone changes nothing, and the command says so.
+#[test]
+fn a_fixed_tool_with_markers_alone_is_said_to_change_nothing() {
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", "puma560", "--fixed-tool"])
+        .args(["--marker", "50,0,150", "--marker=-40,60,120", "--data", "examples/puma560-measurements.csv"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8(output.stderr).unwrap();
+    assert!(output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("--fixed-tool holds the tool point, which no observation here measures"),
+        "{stderr}"
+    );
+}
