@@ -673,8 +673,9 @@ pub struct CalibrateTreeArgs {
     /// on its way).
     #[arg(long, value_delimiter = ',')]
     pub tips: Vec<String>,
-    /// A file of camera views between the branches (CSV; see docs/formats.md); repeatable:
-    /// the files are fitted together.
+    /// A file of camera views between the branches, or of a tracker's positions of points on
+    /// them (no roll, pitch, yaw columns) (CSV; see docs/formats.md); repeatable: the files are
+    /// fitted together.
     #[arg(long, required = true)]
     pub data: Vec<PathBuf>,
     #[command(flatten)]

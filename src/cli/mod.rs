@@ -60,11 +60,13 @@ enum Command {
     Fk(FkArgs),
     /// Calibrate a robot from measured marker positions.
     Calibrate(Box<CalibrateArgs>),
-    /// Calibrate a robot from distances (a ball bar, a length artefact), plane contacts or
-    /// partial coordinates (a height gauge): docs/formats.md.
+    /// Calibrate a robot from distances (a ball bar, a length artefact), plane contacts, partial
+    /// coordinates (a height gauge), a camera's views of a target and marker positions, in one
+    /// fit: docs/formats.md.
     CalibrateObservations(Box<CalibrateObservationsArgs>),
     /// Calibrate a robot of several chains (a URDF tree: a torso with arms and a head camera)
-    /// from camera views between its branches: docs/formats.md.
+    /// from camera views between its branches, or a tracker's positions of points on them:
+    /// docs/formats.md.
     CalibrateTree(Box<CalibrateTreeArgs>),
     /// Score a model as it stands (a calibrated one, base and markers included) on
     /// measurement files: no registration, no fit.
