@@ -17,8 +17,11 @@ use std::path::Path;
 pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     let model = io::load_model(&request.model)?;
     let mut data = KindData::default();
+    let mut files = Vec::with_capacity(request.data.len());
     for path in &request.data {
-        data = data.join(&read(path, &model, request)?);
+        let file = read(path, &model, request)?;
+        files.push((path.display().to_string(), file.observations.len()));
+        data = data.join(&file);
     }
     let highest = data.markers().last().map_or(0, |m| m + 1);
     if request.markers.len() > highest {
@@ -61,7 +64,8 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
     let fitted = (data.observations.len(), data.joints.len());
-    let report = ObservationsReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out);
+    let report = ObservationsReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out)
+        .with_training_files(files);
     print!("{}", report.text());
     let mut outputs = io::Outputs::new();
     if let Some(path) = &request.json {

@@ -21,8 +21,10 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     let tree =
         RobotTree::from_urdf_str(&text, request.base_link.as_deref(), &request.tips).with_context(|| name)?;
     let mut data = TreeData::default();
+    let mut files = Vec::with_capacity(request.data.len());
     for path in &request.data {
         let file = read(path, &tree, request)?;
+        files.push((path.display().to_string(), file.views.len()));
         super::warn_joints_outside_limits(
             path,
             &tree.name,
@@ -48,7 +50,8 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
     let fitted = (data.views.len(), data.joints.len());
-    let report = TreeReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out);
+    let report = TreeReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out)
+        .with_training_files(files);
     print!("{}", report.text());
     let mut outputs = io::Outputs::new();
     if let Some(path) = &request.json {

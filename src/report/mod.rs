@@ -16,6 +16,19 @@ use crate::model::{JointKind, RobotModel, degrees};
 use nalgebra::Isometry3;
 use std::fmt::Write;
 
+/// Where training row `k` is, when several files were fitted together (`files`: each one's
+/// name and number of rows, in order): `FILE line N`; with one file, `line N`.
+pub(crate) fn line_in(files: &[(String, usize)], k: usize, line: usize) -> String {
+    let mut first = 0;
+    for (name, rows) in files.iter().filter(|_| files.len() > 1) {
+        if k < first + rows {
+            return format!("{name} line {line}");
+        }
+        first += rows;
+    }
+    format!("line {line}")
+}
+
 /// The tool pose at joint values `q` (rad or mm) as a person checks it against a controller:
 /// position (mm), roll-pitch-yaw (deg, `R = Rz(yaw) Ry(pitch) Rx(roll)`), quaternion and the
 /// homogeneous transform.

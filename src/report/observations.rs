@@ -48,6 +48,9 @@ pub struct ObservationsReport {
     /// deg, which the `base.*` estimates correct.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub registered_base: Option<[f64; 6]>,
+    /// With several training files: each one's name and number of observations, in order.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub training_files: Vec<(String, usize)>,
 }
 
 /// `text` with the points on the last link named as the files name them: with markers, each
@@ -107,18 +110,7 @@ impl ObservationsReport {
             .collect();
         let mut sets = vec![("training".to_string(), c.training.clone())];
         sets.extend(held_out);
-        let warnings = (c.training.observations.iter())
-            .filter(|r| r.whitened.abs() > FLAG_AT)
-            .map(|r| {
-                format!(
-                    "line {} ({}): a residual {:.1} standard deviations out after calibration",
-                    r.line,
-                    r.label(),
-                    r.whitened.abs()
-                )
-            })
-            .collect();
-        Self {
+        let mut report = Self {
             model: c.calibrated.name.clone(),
             data: data.to_string(),
             observations: fitted.0,
@@ -130,12 +122,38 @@ impl ObservationsReport {
             unseen: c.unseen.clone(),
             fixed: c.fixed.iter().map(|f| point_names(f, c)).collect(),
             sets,
-            warnings,
+            warnings: Vec::new(),
             variance_factor: c.variance_factor,
             registered_base: c.registered_base.map(|b| {
                 [b.xyz.x, b.xyz.y, b.xyz.z, b.rpy.x.to_degrees(), b.rpy.y.to_degrees(), b.rpy.z.to_degrees()]
             }),
-        }
+            training_files: Vec::new(),
+        };
+        report.warnings = report.flagged();
+        report
+    }
+
+    /// The same report with the training files named (each one's name and number of
+    /// observations, in the order fitted): its training rows say which file they are in.
+    pub fn with_training_files(mut self, files: Vec<(String, usize)>) -> Self {
+        self.training_files = files;
+        self.warnings = self.flagged();
+        self
+    }
+
+    /// The training observations more than [`FLAG_AT`] standard deviations out, in words.
+    fn flagged(&self) -> Vec<String> {
+        (self.sets[0].1.observations.iter().enumerate())
+            .filter(|(_, r)| r.whitened.abs() > FLAG_AT)
+            .map(|(k, r)| {
+                format!(
+                    "{} ({}): a residual {:.1} standard deviations out after calibration",
+                    super::line_in(&self.training_files, k, r.line),
+                    r.label(),
+                    r.whitened.abs()
+                )
+            })
+            .collect()
     }
 
     /// The report as text, at fixed precision.
@@ -193,14 +211,16 @@ impl ObservationsReport {
         }
         let _ =
             writeln!(out, "\nworst observations after calibration ({WORST} per set; every one in --json):");
-        for (name, score) in &self.sets {
-            let mut worst: Vec<&ObservationResidual> = score.observations.iter().collect();
-            worst.sort_by(|a, b| b.whitened.abs().total_cmp(&a.whitened.abs()));
-            for r in worst.iter().take(WORST) {
+        for (set, (name, score)) in self.sets.iter().enumerate() {
+            let mut worst: Vec<(usize, &ObservationResidual)> =
+                score.observations.iter().enumerate().collect();
+            worst.sort_by(|a, b| b.1.whitened.abs().total_cmp(&a.1.whitened.abs()));
+            let files: &[(String, usize)] = if set == 0 { &self.training_files } else { &[] };
+            for (k, r) in worst.iter().take(WORST) {
                 let _ = writeln!(
                     out,
-                    "  {name}, line {} ({}): {:.4} before, {:.4} after, {:.1} sd",
-                    r.line,
+                    "  {name}, {} ({}): {:.4} before, {:.4} after, {:.1} sd",
+                    super::line_in(files, *k, r.line),
                     r.label(),
                     r.before,
                     r.after,

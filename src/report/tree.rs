@@ -53,6 +53,9 @@ pub struct TreeReport {
     pub sets: Vec<(String, TreeScore)>,
     /// Implausible results, in words.
     pub warnings: Vec<String>,
+    /// With several training files: each one's name and number of views, in order.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub training_files: Vec<(String, usize)>,
 }
 
 /// Views listed per set in the text, the worst first.
@@ -125,7 +128,14 @@ impl TreeReport {
             fixed: c.fixed.clone(),
             sets,
             warnings: c.warnings.clone(),
+            training_files: Vec::new(),
         }
+    }
+
+    /// The same report with the training files named (each one's name and number of views, in
+    /// the order fitted): its worst training views say which file they are in.
+    pub fn with_training_files(self, files: Vec<(String, usize)>) -> Self {
+        Self { training_files: files, ..self }
     }
 
     /// The report as text, at fixed precision.
@@ -181,10 +191,11 @@ impl TreeReport {
             }
         }
         let _ = writeln!(out, "\nworst views after calibration ({WORST} per set; every one in --json):");
-        for (name, score) in &self.sets {
-            let mut worst: Vec<&ViewResidual> = score.views.iter().collect();
-            worst.sort_by(|a, b| b.after_mm.total_cmp(&a.after_mm));
-            for v in worst.iter().take(WORST) {
+        for (set, (name, score)) in self.sets.iter().enumerate() {
+            let mut worst: Vec<(usize, &ViewResidual)> = score.views.iter().enumerate().collect();
+            worst.sort_by(|a, b| b.1.after_mm.total_cmp(&a.1.after_mm));
+            let files: &[(String, usize)] = if set == 0 { &self.training_files } else { &[] };
+            for &(k, v) in worst.iter().take(WORST) {
                 let (before, after) = match (v.before_deg, v.after_deg) {
                     (Some(b), Some(a)) => (
                         format!("{:.4} mm / {b:.5} deg", v.before_mm),
@@ -192,7 +203,8 @@ impl TreeReport {
                     ),
                     _ => (format!("{:.4} mm", v.before_mm), format!("{:.4} mm", v.after_mm)),
                 };
-                let _ = writeln!(out, "  {name}, line {}: {before} before, {after} after", v.line);
+                let at = super::line_in(files, k, v.line);
+                let _ = writeln!(out, "  {name}, {at}: {before} before, {after} after");
             }
         }
         let _ = writeln!(

@@ -319,6 +319,8 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
         assert!(text.contains(expected), "{expected}: {text}");
     }
     assert!(!text.contains("marker3"), "{text}");
+    // Two training files: each worst observation says which file it is in.
+    assert!(text.contains("  training, examples/puma560-"), "{text}");
     // The base the markers' registration placed, as calibrate reports it.
     assert!(text.contains("base registered at xyz (1499.880, -299.565, 200.231) mm"), "{text}");
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();

@@ -563,6 +563,8 @@ fn calibrate_tree_fits_several_files_of_chosen_tips_and_writes_the_frames() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("200 views at 200 poses, wls"), "{text}");
+    // Several training files: each worst view says which file it is in.
+    assert!(text.contains("  training, examples/torso/views"), "{text}");
     let stderr = String::from_utf8(out.stderr).unwrap();
     assert!(
         stderr.starts_with("wrote ") && stderr.contains("l_hand.toml") && stderr.contains("frames.json"),
