@@ -127,22 +127,13 @@ fn selection(c: &mut Criterion) {
 /// `calibrate_tree`: the torso of `presets/torso.urdf`, every joint origin off by about 1 mm
 /// and 0.3 deg, its head camera's views of both hands at 500 poses (0.2 mm, 0.05 deg).
 fn tree(c: &mut Criterion) {
-    use robocal::calibration::tree::{Frame, Role, TreeOptions, calibrate_tree};
+    use robocal::calibration::tree::{TreeOptions, calibrate_tree};
     use robocal::model::RobotTree;
-    use robocal::simulation::tree::{perturbed_tree, simulate_views};
+    use robocal::simulation::tree::{head_camera_and_hands, perturbed_tree, simulate_views};
     let nominal = RobotTree::from_urdf_str(include_str!("../presets/torso.urdf"), None, &[]).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(15);
     let truth = perturbed_tree(&nominal, 1.0, 0.3f64.to_radians(), &mut rng);
-    let on = |tip: &str| nominal.branch(tip);
-    let frames = [
-        Frame { role: Role::Camera, on: on("head_camera") },
-        Frame { role: Role::Target, on: on("l_hand") },
-        Frame { role: Role::Target, on: on("r_hand") },
-    ];
-    let placements = [
-        10.0, -5.0, 8.0, 0.05, -0.03, 0.02, 3.0, 5.0, -40.0, 0.2, -0.1, 0.3, -2.0, 4.0, -35.0, -0.15, 0.1,
-        -0.2,
-    ];
+    let (frames, placements) = head_camera_and_hands(&nominal);
     let q = nominal.uniform_configurations(500, &mut rng);
     let sigma = [0.2, 0.05f64.to_radians()];
     let data = simulate_views(&truth, &frames, &placements, &[(0, 1), (0, 2)], &q, sigma, &mut rng);

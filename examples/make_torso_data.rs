@@ -13,43 +13,18 @@
 
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
-use robocal::calibration::tree::{Frame, Role, TreeData};
+use robocal::calibration::tree::TreeData;
 use robocal::model::RobotTree;
 use robocal::simulation::Sight;
-use robocal::simulation::tree::{perturbed_tree, seen_configurations, simulate_views, views_csv};
+use robocal::simulation::tree::{
+    head_camera_and_hands, perturbed_tree, seen_configurations, simulate_views, views_csv,
+};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let nominal = RobotTree::from_urdf_str(include_str!("../presets/torso.urdf"), None, &[])?;
     let mut rng = ChaCha8Rng::seed_from_u64(2026);
     let truth = perturbed_tree(&nominal, 1.0, 0.3f64.to_radians(), &mut rng);
-    let on = |tip: &str| nominal.branch(tip);
-    let frames = [
-        Frame { role: Role::Camera, on: on("head_camera") },
-        Frame { role: Role::Target, on: on("l_hand") },
-        Frame { role: Role::Target, on: on("r_hand") },
-    ];
-    // The camera 10 mm off its link, looking along its x (forward) and 20 deg down; the targets
-    // 40 mm past the hands, turned.
-    let placements = [
-        10.0,
-        -5.0,
-        8.0,
-        0.05,
-        110f64.to_radians(),
-        0.02, //
-        3.0,
-        5.0,
-        -40.0,
-        0.2,
-        -0.1,
-        0.3, //
-        -2.0,
-        4.0,
-        -35.0,
-        -0.15,
-        0.1,
-        -0.2,
-    ];
+    let (frames, placements) = head_camera_and_hands(&nominal);
     let sigma = [0.2, 0.05f64.to_radians()];
     std::fs::create_dir_all("examples/torso")?;
     let sight =

@@ -166,3 +166,24 @@ pub fn seen_configurations(
         })
         .collect()
 }
+
+/// The torso's camera set-up (`presets/torso.urdf`): the camera fixed 10 mm off the
+/// `head_camera` link, looking along the link's x (forward) and 20 deg down, and a target
+/// 40 mm past each hand (`l_hand`, `r_hand`), turned; their placements `(x, y, z, rx, ry,
+/// rz)` (mm, rotation vector rad), 6 per frame. The pairs it views are `(0, 1)` and `(0, 2)`.
+pub fn head_camera_and_hands(tree: &RobotTree) -> ([Frame; 3], [f64; 18]) {
+    use crate::calibration::tree::Role;
+    let on = |tip: &str| tree.branch(tip);
+    let frames = [
+        Frame { role: Role::Camera, on: on("head_camera") },
+        Frame { role: Role::Target, on: on("l_hand") },
+        Frame { role: Role::Target, on: on("r_hand") },
+    ];
+    #[rustfmt::skip]
+    let placements = [
+        10.0, -5.0, 8.0, 0.05, 110f64.to_radians(), 0.02,
+        3.0, 5.0, -40.0, 0.2, -0.1, 0.3,
+        -2.0, 4.0, -35.0, -0.15, 0.1, -0.2,
+    ];
+    (frames, placements)
+}

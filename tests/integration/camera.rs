@@ -2,7 +2,7 @@
 //! start, exact recovery without noise, estimates within 3 predicted standard errors with
 //! noise, what a camera cannot see, and the command end to end.
 
-use crate::kinds::h_matches_finite_differences;
+use crate::kinds::{h_matches_finite_differences, robot_estimates};
 use crate::kinematics::{point, robot};
 use nalgebra::{DMatrix, DVector, Isometry3, UnitQuaternion, Vector3, Vector6};
 use proptest::prelude::*;
@@ -188,14 +188,7 @@ fn camera_recovers(site: CameraSite, seed: u64) -> KindCalibration {
         held_out.lengths
     );
 
-    let robot: Vec<String> = c
-        .refined
-        .estimate
-        .names
-        .iter()
-        .filter(|n| chain.params().index_by_name(n).is_some())
-        .cloned()
-        .collect();
+    let robot = robot_estimates(&c.refined.estimate.names, &chain);
     let truth_x = errors_on(&chain, &robot, &mut rng);
     let real = chain.with_errors(&truth_x);
     let c =

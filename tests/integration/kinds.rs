@@ -244,6 +244,11 @@ type Measure = dyn Fn(&ChainAt, &mut ChaCha8Rng, f64) -> KindData;
 /// vanish. Then errors on the identifiable parameters only, measured with noise: every estimate
 /// within 3 predicted standard errors of the truth (the set-up's too, when `setup_truth` is
 /// given). Returns the noisy calibration.
+/// The robot's parameters among the estimated `names` (not the set-up's).
+pub(crate) fn robot_estimates(names: &[String], chain: &Chain) -> Vec<String> {
+    names.iter().filter(|n| chain.params().index_by_name(n).is_some()).cloned().collect()
+}
+
 fn recovers(measure: &Measure, setup_truth: Option<&[f64]>, base_errors: bool, seed: u64) -> KindCalibration {
     recovers_with(measure, setup_truth, base_errors, None, false, seed)
 }
@@ -284,14 +289,7 @@ fn recovers_with(
     let (before, after) = c.validate(&held_out).unwrap();
     assert!(after < 1e-6 && before > 0.1, "exact held-out RMS {before} mm before, {after} mm after");
 
-    let robot: Vec<String> = c
-        .refined
-        .estimate
-        .names
-        .iter()
-        .filter(|n| chain.params().index_by_name(n).is_some())
-        .cloned()
-        .collect();
+    let robot = robot_estimates(&c.refined.estimate.names, &chain);
     let truth = errors_on(&chain, &robot, &mut rng);
     let noisy = measure(&chain.with_errors(&truth), &mut rng, 0.01);
     let weighted = KindOptions { joint_noise: sigma_q, ..options(Estimator::Wls) };

@@ -832,7 +832,8 @@ impl KindCalibration {
         data.check_points(&markers, self.chains.len() > markers.len())?;
         let nothing = Selection::from_indices(&self.params, []);
         let noise = self.joint_noise.as_ref();
-        let at = |x: &[f64], s: &[f64]| {
+        // The weights only whiten the residuals after: the joint noise is for those alone.
+        let at = |x: &[f64], s: &[f64], noise: Option<&DMatrix<f64>>| {
             KindProblem::of_points(
                 &self.chains,
                 &markers,
@@ -845,7 +846,8 @@ impl KindCalibration {
             )
             .with_noise(noise)
         };
-        let (before, after) = (at(&self.before, &self.setup_values.0), at(&self.after, &self.setup_values.1));
+        let before = at(&self.before, &self.setup_values.0, None);
+        let after = at(&self.after, &self.setup_values.1, noise);
         let zero = DVector::zeros(0);
         // The assumed sigmas scaled by the residuals' spread, when they were.
         let v = after.covariance().expect("always built") * self.variance_factor.unwrap_or(1.0);

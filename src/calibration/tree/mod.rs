@@ -582,13 +582,14 @@ impl TreeCalibration {
             view.camera = index[view.camera];
             view.target = index[view.target];
         }
-        let problem = |x: &[f64], s: &[f64]| {
-            let noise = self.joint_noise.as_ref();
+        // The weights only whiten the residuals after: the joint noise is for those alone.
+        let problem = |x: &[f64], s: &[f64], noise: Option<&DMatrix<f64>>| {
             TreeProblem::new(&self.params, &remapped, Vec::new(), x.to_vec(), s.to_vec(), Vec::new(), noise)
         };
         let nothing = DVector::zeros(0);
-        let before = problem(&vec![0.0; self.params.len()], &self.setup_values.0).evaluate(&nothing, None);
-        let after_problem = problem(&self.after, &self.setup_values.1);
+        let before =
+            problem(&vec![0.0; self.params.len()], &self.setup_values.0, None).evaluate(&nothing, None);
+        let after_problem = problem(&self.after, &self.setup_values.1, self.joint_noise.as_ref());
         let after = after_problem.evaluate(&nothing, None);
         let v = after_problem.covariance().expect("always built");
         let n = data.rows();
