@@ -386,8 +386,16 @@ pub struct CalibrateObservationsArgs {
     #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
     pub iterations: usize,
     /// A held-out file of the same kinds to validate on (the set-up as calibrated); repeatable.
+    /// With --per-session, a file of a training file's stem takes that session's set-up; any
+    /// other has its per-session parameters fitted on it alone, the robot held.
     #[arg(long)]
     pub validate: Vec<PathBuf>,
+    /// Set-up parameters with one value per --data file (each file a session, named by its
+    /// stem), estimated: names or patterns (`point1.zero`, `pair.zero`, `target.*`), for an
+    /// instrument re-zeroed or moved between sessions. A length zero (`point<i>.zero`,
+    /// `pair.zero`, mm: distance = |p - c| + zero) is held unless named here or in --params.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub per_session: Vec<String>,
     /// Write the report as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,

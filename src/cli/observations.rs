@@ -45,6 +45,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         );
     }
     let options = KindOptions {
+        per_session: request.per_session.clone(),
         estimator: request.estimator,
         joint_noise: joint_noise(&model, request.joint_sigma_deg.as_deref())?,
         joints: request.joints.clone(),
@@ -80,7 +81,9 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
 /// One observation file.
 fn read(path: &Path, model: &RobotModel, request: &CalibrateObservationsRequest) -> Result<KindData> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    KindData::from_csv_str(&text, model, request.units).with_context(|| path.display().to_string())
+    let data =
+        KindData::from_csv_str(&text, model, request.units).with_context(|| path.display().to_string())?;
+    Ok(data.named(&super::request::session_name(path)))
 }
 
 /// `Sigma_q` of `--joint-sigma-deg` (rad², mm²), one sigma per joint of `model`.

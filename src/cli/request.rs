@@ -343,10 +343,17 @@ pub struct CalibrateObservationsRequest {
     pub iterations: usize,
     /// Held-out files.
     pub validate: Vec<PathBuf>,
+    /// Set-up parameters with one value per data file (names or patterns).
+    pub per_session: Vec<String>,
     /// Where the JSON report goes.
     pub json: Option<PathBuf>,
     /// Where the calibrated model TOML goes.
     pub out_model: Option<PathBuf>,
+}
+
+/// The session name of a data file: its stem.
+pub fn session_name(path: &Path) -> String {
+    path.file_stem().map_or_else(|| path.display().to_string(), |s| s.to_string_lossy().into_owned())
 }
 
 impl CalibrateObservationsRequest {
@@ -367,8 +374,25 @@ impl CalibrateObservationsRequest {
             &inputs,
             &[("--json", args.json.as_deref()), ("--out-model", args.out_model.as_deref())],
         )?;
+        if !args.per_session.is_empty() {
+            require(
+                args.data.len() >= 2,
+                "--per-session: one value per --data file (each file a session): give two --data files or more",
+            )?;
+            for (k, a) in args.data.iter().enumerate() {
+                if let Some(b) = args.data[..k].iter().find(|b| session_name(b) == session_name(a)) {
+                    return Err(UsageError(format!(
+                        "--per-session: --data {} and {} have one stem, `{}`: each file's stem names its session",
+                        b.display(),
+                        a.display(),
+                        session_name(a)
+                    )));
+                }
+            }
+        }
         Ok(Self {
             model,
+            per_session: args.per_session,
             data: args.data,
             units: args.units.units()?,
             estimator,

@@ -6,7 +6,7 @@
 
 use super::calibration::{ParameterRow, by_number};
 use crate::calibration::FLAG_AT;
-use crate::calibration::kinds::{KindCalibration, ObservationResidual, Score};
+use crate::calibration::kinds::{KindCalibration, ObservationResidual, Score, SessionSetUp};
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -178,9 +178,10 @@ impl ObservationsReport {
             );
         }
         let _ = writeln!(out);
-        let _ = writeln!(out, "{:<14} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
+        let w = self.parameters.iter().map(|p| p.name.len()).max().unwrap_or(0).max(14);
+        let _ = writeln!(out, "{:<w$} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
         for p in &self.parameters {
-            let _ = writeln!(out, "{:<14} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
+            let _ = writeln!(out, "{:<w$} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
         }
         if !self.unseen.is_empty() {
             let _ = writeln!(out, "\nnot seen by these observations, held:");
@@ -208,6 +209,16 @@ impl ObservationsReport {
             if let Some((before, after)) = score.angles {
                 let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
             }
+        }
+        let sessions: Vec<String> = (self.sets.iter().skip(1))
+            .flat_map(|(name, score)| score.sessions.iter().map(move |s| (name, s)))
+            .map(|(name, (session, source))| match source {
+                SessionSetUp::Training(t) => format!("  {name}: the per-session set-up of training session `{t}`"),
+                _ => format!("  {name}: session `{session}` is no training file's: its per-session set-up fitted on it, the robot held"),
+            })
+            .collect();
+        if !sessions.is_empty() {
+            let _ = writeln!(out, "\nheld-out sessions:\n{}", sessions.join("\n"));
         }
         let _ =
             writeln!(out, "\nworst observations after calibration ({WORST} per set; every one in --json):");

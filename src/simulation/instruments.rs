@@ -731,6 +731,7 @@ impl Campaign<'_> {
             kind => {
                 let data = self.kinds(&real, i, count, declared, &mut rng)?;
                 let options = KindOptions {
+                    per_session: Vec::new(),
                     estimator: Estimator::Wls,
                     joint_noise: Some(noise_q),
                     joints: JointParams::All,

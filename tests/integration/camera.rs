@@ -125,6 +125,7 @@ pub(crate) fn views(
 
 fn options(estimator: Estimator) -> KindOptions {
     KindOptions {
+        per_session: Vec::new(),
         estimator,
         joint_noise: None,
         joints: JointParams::All,

@@ -176,6 +176,7 @@ proptest! {
                 prop_assert!(data.check(6).is_ok(), "{text:?}");
                 // A fit of what reads: a calibration or an error, never a panic.
                 let options = robocal::calibration::kinds::KindOptions {
+                    per_session: Vec::new(),
                     estimator: Estimator::Wls,
                     joint_noise: None,
                     joints: JointParams::Offsets,

@@ -37,7 +37,7 @@ fn every_kind(model: &RobotModel, u: &[f64], angles: bool) -> KindData {
     });
     let observations: Vec<Observation> = observations.into_iter().chain(angles).collect();
     let lines = (0..observations.len()).map(|i| i + 2).collect();
-    KindData { joints, observations, lines, assumed_sigmas: 0 }
+    KindData { joints, observations, lines, ..KindData::default() }
 }
 
 /// Every column of `H` (robot parameters and set-up) against central differences of the
@@ -52,7 +52,8 @@ fn check_kind_jacobians(model: &RobotModel, u: &[f64], angles: bool) -> Result<(
     let (_, x) = point(model, &u[20..]);
     let x: Vec<f64> = (0..params.len()).map(|i| x[i % x.len()]).collect();
     let data = every_kind(model, u, angles);
-    let setup = SetUp::new(1, &[Vector3::new(u[3], u[4], 1.0), Vector3::new(1.0, u[5], u[6])]);
+    let setup =
+        SetUp::new(1, &[Vector3::new(u[3], u[4], 1.0), Vector3::new(1.0, u[5], u[6])]).with_pair_zero();
     let s: Vec<f64> =
         (0..setup.len()).map(|i| u[(i + 11) % u.len()] * if i % 3 == 2 { 300.0 } else { 0.3 }).collect();
     let all = Selection::all(params);
@@ -92,8 +93,9 @@ fn check_marker_jacobians(
         }
     }
     let mut setup = SetUp::new(1, &[Vector3::new(u[3], u[4], 1.0), Vector3::new(1.0, u[5], u[6])]);
+    // The points' and planes' values here; the point's length zero last, after the placements.
     let mut s: Vec<f64> =
-        (0..setup.len()).map(|i| u[(i + 11) % u.len()] * if i % 3 == 2 { 300.0 } else { 0.3 }).collect();
+        (0..setup.len() - 1).map(|i| u[(i + 11) % u.len()] * if i % 3 == 2 { 300.0 } else { 0.3 }).collect();
     if let Some(site) = camera {
         for pose in [1, 4] {
             let view = Vector6::from_fn(|i, _| u[40 + 6 * pose + i] * if i < 3 { 500.0 } else { 2.0 });
@@ -108,6 +110,7 @@ fn check_marker_jacobians(
     // With markers, the coordinates x, y, z are read in a device frame of their own.
     setup = setup.with_device();
     s.extend((0..6).map(|i| u[82 + i] * if i < 3 { 300.0 } else { 0.5 }));
+    s.push(u[88] * 3.0);
     let all = Selection::all(params);
     let every: Vec<usize> = (0..setup.len()).collect();
     let problem = KindProblem::of_points(&chains, &[0, 2], &all, &data, &setup, x, s, every).with_noise(None);
@@ -226,6 +229,7 @@ pub(crate) const TOOL: Vector3<f64> = Vector3::new(20.0, -10.0, 120.0);
 
 pub(crate) fn options(estimator: Estimator) -> KindOptions {
     KindOptions {
+        per_session: Vec::new(),
         estimator,
         joint_noise: None,
         joints: JointParams::All,
@@ -773,10 +777,11 @@ fn the_covariance_of_each_kind_is_the_joint_noise_of_its_poses() {
         ],
         lines: vec![2, 3, 4, 5],
         joints,
-        assumed_sigmas: 0,
+        ..KindData::default()
     };
     let setup = SetUp::new(1, &[Vector3::new(0.3, -0.2, 1.0)]);
-    let s = vec![400.0, 200.0, 300.0, 0.0, 0.0, -350.0];
+    // The point, the plane, the point's length zero.
+    let s = vec![400.0, 200.0, 300.0, 0.0, 0.0, -350.0, 0.0];
     let nothing = Selection::from_indices(chain.params(), []);
     let problem =
         KindProblem::new(&chain, &nothing, &data, &setup, zero, s.clone(), Vec::new(), Some(&sigma_q));
@@ -848,7 +853,7 @@ fn observations_that_cannot_be_fitted_are_refused() {
     let joints: Vec<Vec<f64>> = (0..8).map(|_| random_pose(&model, &mut rng)).collect();
     let error = |observations: Vec<Observation>| {
         let lines = (0..observations.len()).map(|i| i + 3).collect();
-        let data = KindData { joints: joints.clone(), observations, lines, assumed_sigmas: 0 };
+        let data = KindData { joints: joints.clone(), observations, lines, ..KindData::default() };
         calibrate_kinds(&model, &data, &options(Estimator::Ols)).unwrap_err().to_string()
     };
     let to_point_2 =

@@ -23,6 +23,7 @@ mod replication;
 mod report;
 mod robust;
 mod selection;
+mod sessions;
 mod simulation;
 mod tree;
 mod urdf;

@@ -230,6 +230,10 @@ pub struct KindData {
     /// How many observations carry a default sigma (their row gave none): when all do and the
     /// joints are exact, the calibration takes its standard errors from the residuals' spread.
     pub assumed_sigmas: usize,
+    /// The measuring sessions (one per data file), each its name and its first pose: the poses
+    /// from one to the next are its. Empty: one session, `1`. Set-up parameters made per session
+    /// ([`KindOptions::per_session`](super::KindOptions::per_session)) take one value per session.
+    pub sessions: Vec<(String, usize)>,
 }
 
 impl KindData {
@@ -257,10 +261,43 @@ impl KindData {
         Ok(data)
     }
 
+    /// The same data as one session named `name` (a file's stem).
+    pub fn named(mut self, name: &str) -> Self {
+        self.sessions = vec![(name.to_string(), 0)];
+        self
+    }
+
+    /// The number of sessions (at least 1).
+    pub fn session_count(&self) -> usize {
+        self.sessions.len().max(1)
+    }
+
+    /// The name of session `i`: its file's stem, or its number from 1.
+    pub fn session_name(&self, i: usize) -> String {
+        self.sessions.get(i).map_or_else(|| (i + 1).to_string(), |s| s.0.clone())
+    }
+
+    /// The session of pose `pose`: the last whose first pose is at or before it.
+    pub fn session_of(&self, pose: usize) -> usize {
+        self.sessions.iter().rposition(|s| s.1 <= pose).unwrap_or(0)
+    }
+
     /// These observations and `other`'s in one set (the same point or plane numbers are the
-    /// same point or plane).
+    /// same point or plane); `other`'s sessions follow these.
     pub fn join(mut self, other: &Self) -> Self {
         let offset = self.joints.len();
+        if offset > 0 && self.sessions.is_empty() {
+            self.sessions.push(("1".to_string(), 0));
+        }
+        if !other.joints.is_empty() {
+            let count = self.sessions.len();
+            match other.sessions.is_empty() {
+                true => self.sessions.push(((count + 1).to_string(), offset)),
+                false => {
+                    self.sessions.extend(other.sessions.iter().map(|(n, first)| (n.clone(), first + offset)))
+                }
+            }
+        }
         self.joints.extend(other.joints.iter().cloned());
         self.lines.extend(&other.lines);
         self.assumed_sigmas += other.assumed_sigmas;
@@ -453,6 +490,12 @@ impl KindData {
             values.extend([0.0; 6]);
             setup = setup.with_device();
         }
+        // The length zeros start at 0: each fixed point's, then the pairs'.
+        values.extend(std::iter::repeat_n(0.0, points));
+        if self.observations.iter().any(|o| matches!(o, Observation::Distance { .. })) {
+            values.push(0.0);
+            setup = setup.with_pair_zero();
+        }
         Ok((setup, values))
     }
 
@@ -486,6 +529,18 @@ impl KindData {
         }
         if let Some(k) = self.joints.iter().position(|q| q.len() != dof || q.iter().any(|v| !v.is_finite())) {
             return bad(format!("pose {k}: expected {dof} finite joint values"));
+        }
+        let firsts: Vec<usize> = self.sessions.iter().map(|s| s.1).collect();
+        if firsts.first().is_some_and(|&f| f != 0) || firsts.windows(2).any(|w| w[1] <= w[0]) {
+            return bad(format!("sessions starting at poses {firsts:?}: expected 0 first, then ascending"));
+        }
+        if let Some(k) =
+            (1..self.sessions.len()).find(|&k| self.sessions[..k].iter().any(|s| s.0 == self.sessions[k].0))
+        {
+            return bad(format!(
+                "session `{}` named twice: each data file's stem names its session",
+                self.sessions[k].0
+            ));
         }
         for (o, line) in self.observations.iter().zip(&self.lines) {
             let poses = match *o {
@@ -548,9 +603,17 @@ impl KindData {
         Ok(())
     }
 
-    /// Refuse points and planes that `setup` does not have.
+    /// Refuse points and planes that `setup` does not have, and sessions other than its.
     pub(super) fn check_against(&self, setup: &SetUp) -> Result<(), CalibrationError> {
         let (points, planes) = self.setup_counts();
+        if !setup.per_session().is_empty() && self.session_count() != setup.session_count() {
+            return Err(CalibrationError::Observations(format!(
+                "{} sessions, the set-up has {}",
+                self.session_count(),
+                setup.session_count()
+            )));
+        }
+
         if self.camera().is_some() && self.camera() != setup.camera() {
             return Err(CalibrationError::Observations(format!(
                 "a camera on the {}, the calibration's is {}",

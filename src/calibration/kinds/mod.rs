@@ -108,7 +108,7 @@ use crate::estimation::{
     linearise, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
-use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection};
+use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
 use nalgebra::{
     DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, UnitQuaternion, Vector3, Vector6,
 };
@@ -136,6 +136,27 @@ pub struct KindOptions {
     pub markers: Vec<Vector3<f64>>,
     /// Gauss-Newton settings.
     pub refine: RefineOptions,
+    /// Set-up parameters (names or patterns of [`SetUp::base_names`]: `point1.zero`,
+    /// `target.*`) with one value per session ([`KindData::sessions`]), estimated: an
+    /// instrument re-zeroed or moved between sessions.
+    pub per_session: Vec<String>,
+}
+
+impl Default for KindOptions {
+    /// Weighted least squares without joint noise, every joint parameter, the tool point
+    /// estimated at the origin of the marker frame, no markers, no per-session parameter.
+    fn default() -> Self {
+        Self {
+            estimator: Estimator::Wls,
+            joint_noise: None,
+            joints: JointParams::All,
+            estimate_tool: true,
+            tool: Vector3::zeros(),
+            markers: Vec::new(),
+            refine: RefineOptions::default(),
+            per_session: Vec::new(),
+        }
+    }
 }
 
 /// The set-up's parameters: fixed points and planes, each 3 numbers; a camera and its target,
@@ -151,6 +172,12 @@ pub struct SetUp {
     /// Whether the coordinates (x, y, z) are read in a device frame of their own (with
     /// markers: a height gauge's, placed in the markers' measuring frame).
     device: bool,
+    /// Whether distances between poses have a length zero (`pair.zero`).
+    pair_zero: bool,
+    /// The sessions' names (one per data file; empty: one session).
+    sessions: Vec<String>,
+    /// The parameters (of the one-session layout) with one value per session.
+    per_session: Vec<usize>,
 }
 
 impl SetUp {
@@ -167,7 +194,101 @@ impl SetUp {
                 [n, t1, n.cross(&t1)]
             })
             .collect();
-        Self { points, bases, camera: None, device: false }
+        Self {
+            points,
+            bases,
+            camera: None,
+            device: false,
+            pair_zero: false,
+            sessions: Vec::new(),
+            per_session: Vec::new(),
+        }
+    }
+
+    /// The same set-up with a length zero for distances between poses: 1 parameter more,
+    /// `pair.zero` (mm), `f_k = |p_a - p_b| + zero`.
+    pub fn with_pair_zero(self) -> Self {
+        Self { pair_zero: true, ..self }
+    }
+
+    /// The same set-up over the sessions `names`, the parameters `per_session` (indices of the
+    /// one-session layout, [`SetUp::names`] of a set-up without sessions) one per session: each
+    /// after the first adds one value of each, after the one-session parameters
+    /// ([`SetUp::slot`]).
+    pub fn with_sessions(self, names: Vec<String>, per_session: Vec<usize>) -> Self {
+        let per_session = if names.len() > 1 { per_session } else { Vec::new() };
+        Self { sessions: names, per_session, ..self }
+    }
+
+    /// The parameters with one value per session (indices of the one-session layout).
+    pub fn per_session(&self) -> &[usize] {
+        &self.per_session
+    }
+
+    /// The number of sessions (at least 1).
+    pub fn session_count(&self) -> usize {
+        self.sessions.len().max(1)
+    }
+
+    /// The sessions' names.
+    pub fn session_names(&self) -> &[String] {
+        &self.sessions
+    }
+
+    /// Where parameter `i` (of the one-session layout) of session `session` is in the values:
+    /// `i` itself for the first session and for parameters shared by every session; else after
+    /// the one-session parameters, session by session.
+    pub fn slot(&self, i: usize, session: usize) -> usize {
+        match (session, self.per_session.iter().position(|&p| p == i)) {
+            (1.., Some(k)) => self.base_len() + (session - 1) * self.per_session.len() + k,
+            _ => i,
+        }
+    }
+
+    /// The values of session `session` in the one-session layout, from the values `s` of every
+    /// session.
+    pub fn session_values(&self, s: &[f64], session: usize) -> Vec<f64> {
+        (0..self.base_len()).map(|i| s[self.slot(i, session)]).collect()
+    }
+
+    /// The values of every session from the one-session values `s`: each session starts where
+    /// `s` is.
+    pub fn expand(&self, s: &[f64]) -> Vec<f64> {
+        let extra = (1..self.session_count()).flat_map(|_| self.per_session.iter().map(|&i| s[i]));
+        s.iter().copied().chain(extra).collect()
+    }
+
+    /// Fixed point `i`'s length zero (mm), `point<i>.zero`: `f_k = |p - c_i| + zero`.
+    pub fn point_zero(&self, i: usize) -> usize {
+        self.zeros_at() + i
+    }
+
+    /// The pairs' length zero (mm), `pair.zero`, if the set-up has one.
+    pub fn pair_zero(&self) -> Option<usize> {
+        self.pair_zero.then(|| self.zeros_at() + self.points)
+    }
+
+    /// The parameter of the one-session layout that value `i` is one session's value of.
+    pub fn base_of(&self, i: usize) -> usize {
+        match i.checked_sub(self.base_len()) {
+            Some(k) => self.per_session[k % self.per_session.len().max(1)],
+            None => i,
+        }
+    }
+
+    /// Whether parameter `i` (of the one-session layout) is a length zero, held unless named.
+    pub fn is_zero(&self, i: usize) -> bool {
+        (self.zeros_at()..self.base_len()).contains(&i)
+    }
+
+    /// Where the length zeros start.
+    fn zeros_at(&self) -> usize {
+        self.device_at() + if self.device { 6 } else { 0 }
+    }
+
+    /// The parameters of one session.
+    fn base_len(&self) -> usize {
+        self.zeros_at() + self.points + usize::from(self.pair_zero)
     }
 
     /// The same set-up with a camera at `site` and its target: 12 parameters more,
@@ -193,9 +314,11 @@ impl SetUp {
     }
 
     /// Parameters: 3 per point, then 3 per plane (`alpha, beta, d`), then 6 for the camera
-    /// and 6 for its target, then 6 for the coordinates' device.
+    /// and 6 for its target, then 6 for the coordinates' device, then each point's length
+    /// zero and the pairs'; then, with sessions, the per-session ones of every session after
+    /// the first ([`SetUp::slot`]).
     pub fn len(&self) -> usize {
-        self.device_at() + if self.device { 6 } else { 0 }
+        self.base_len() + (self.session_count() - 1) * self.per_session.len()
     }
 
     /// Where the device's parameters start.
@@ -210,6 +333,13 @@ impl SetUp {
 
     /// Whether parameter `i` is an angle (rad): a plane's tilts, a placement's rotation vector.
     pub fn is_angle(&self, i: usize) -> bool {
+        if i >= self.base_len() {
+            let k = self.per_session.len().max(1);
+            return self.per_session.get((i - self.base_len()) % k).is_some_and(|&b| self.is_angle(b));
+        }
+        if i >= self.zeros_at() {
+            return false;
+        }
         match i.checked_sub(self.camera_at()) {
             Some(c) => c % 6 >= 3,
             None => i >= 3 * self.points && (i - 3 * self.points) % 3 < 2,
@@ -235,7 +365,23 @@ impl SetUp {
             .into_iter()
             .filter(|f| if *f == "device" { self.device } else { self.camera.is_some() })
             .flat_map(|f| ["x", "y", "z", "rx", "ry", "rz"].map(|c| format!("{f}.{c}")));
-        points.chain(planes).chain(placements).collect()
+        let zeros = (1..=self.points).map(|i| format!("point{i}.zero"));
+        let pair = self.pair_zero.then(|| "pair.zero".to_string());
+        let base: Vec<String> = points.chain(planes).chain(placements).chain(zeros).chain(pair).collect();
+        if self.per_session.is_empty() {
+            return base;
+        }
+        let name = |i: usize, k: usize| format!("{}@{}", base[i], self.sessions[k]);
+        let first =
+            (0..base.len()).map(|i| if self.per_session.contains(&i) { name(i, 0) } else { base[i].clone() });
+        let later = (1..self.sessions.len()).flat_map(|k| self.per_session.iter().map(move |&i| name(i, k)));
+        first.chain(later).collect()
+    }
+
+    /// The names of the one-session layout (no session suffix): what `--per-session` and
+    /// `--params` patterns match.
+    pub fn base_names(&self) -> Vec<String> {
+        Self { per_session: Vec::new(), ..self.clone() }.names()
     }
 
     /// Plane `i`'s unit normal and offset at the set-up values `s`:
@@ -290,23 +436,29 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
     let none_s = by_setup([]);
     match *o {
         Observation::Distance { a, b, .. } => {
+            // f = |p_a - p_b| + zero: df/dzero = 1.
             let d = p(a) - p(b);
             let u = d / d.norm().max(f64::MIN_POSITIVE);
+            let (zero, (by_setup, setups)) = match setup.pair_zero() {
+                Some(z) => (s[z], by_setup([(z, 1.0)])),
+                None => (0.0, none_s),
+            };
             Prediction {
-                residual: o.residual(d.norm()),
+                residual: o.residual(d.norm() + zero),
                 by_point: [(a, point(u)), (b, point(-u))],
                 poses: 2,
-                by_setup: none_s.0,
-                setups: 0,
+                by_setup,
+                setups,
             }
         }
         Observation::ToPoint { pose, point: fixed, .. } => {
+            // f = |p - c| + zero: df/dc = -u, df/dzero = 1.
             let d = p(pose) - setup.point(s, fixed);
             let u = d / d.norm().max(f64::MIN_POSITIVE);
-            let at = 3 * fixed;
-            let (by_setup, setups) = by_setup([(at, -u.x), (at + 1, -u.y), (at + 2, -u.z)]);
+            let (at, z) = (3 * fixed, setup.point_zero(fixed));
+            let (by_setup, setups) = by_setup([(at, -u.x), (at + 1, -u.y), (at + 2, -u.z), (z, 1.0)]);
             Prediction {
-                residual: o.residual(d.norm()),
+                residual: o.residual(d.norm() + s[z]),
                 by_point: [(pose, point(u)), none],
                 poses: 1,
                 by_setup,
@@ -543,6 +695,22 @@ impl<'a> KindProblem<'a> {
         }
     }
 
+    /// The set-up values `s` of every session, each in the one-session layout.
+    fn session_views(&self, s: &[f64]) -> Vec<Vec<f64>> {
+        (0..self.setup.session_count()).map(|k| self.setup.session_values(s, k)).collect()
+    }
+
+    /// [`predict`] of `o` in its pose's session, from that session's values of `views`
+    /// ([`KindProblem::session_views`]); its set-up derivatives by slot of every session's values.
+    fn predict(&self, o: &Observation, frames: &[Isometry3<f64>], views: &[Vec<f64>]) -> Prediction {
+        let k = self.data.session_of(o.pose()).min(views.len() - 1);
+        let mut f = predict(o, frames, self.setup, &views[k]);
+        for (i, _) in &mut f.by_setup[..f.setups] {
+            *i = self.setup.slot(*i, k);
+        }
+        f
+    }
+
     /// The same problem estimating other parameters from other values, sharing `V_k`.
     pub fn reselect<'b>(
         &self,
@@ -578,9 +746,10 @@ impl<'a> KindProblem<'a> {
             )
             .collect();
         let frames: Vec<Isometry3<f64>> = jacobians.iter().map(|(f, _)| *f).collect();
+        let views = self.session_views(&self.setup_values);
         let v = self.data.observations.iter().map(|o| {
             let first = self.point_of(o) * poses;
-            let f = predict(o, &frames[first..first + poses], self.setup, &self.setup_values);
+            let f = self.predict(o, &frames[first..first + poses], &views);
             let joint = joint_noise.map_or(0.0, |sigma_q| {
                 (f.by_point[..f.poses].iter())
                     .map(|(j, g)| {
@@ -675,11 +844,12 @@ impl Residuals for KindProblem<'_> {
         let block = if h.is_some() { rows * columns } else { 0 };
         let mut blocks = vec![0.0; block * poses * at.len()];
         let frames = self.frames(&at, Some((&mut blocks, block)));
+        let views = self.session_views(&s);
         let mut y = DVector::zeros(self.equations());
         let mut h = h;
         for (k, o) in self.data.observations.iter().enumerate() {
             let first = self.point_of(o) * poses;
-            let f = predict(o, &frames[first..first + poses], self.setup, &s);
+            let f = self.predict(o, &frames[first..first + poses], &views);
             y[k] = f.residual;
             if let Some(h) = h.as_deref_mut() {
                 // H_k = sum_j g_kj^T H_j + df_k/ds.
@@ -739,6 +909,8 @@ pub struct KindCalibration {
     joint_noise: Option<DMatrix<f64>>,
     /// One chain per point: the markers', then the tool's if observed.
     chains: Vec<Chain>,
+    /// No robot parameter: the selection of a problem that scores.
+    nothing: Selection,
 }
 
 /// One observation scored: its residual `m_k - f_k` before and after (mm; rad for an angle),
@@ -776,6 +948,21 @@ pub struct Score {
     /// position errors `|e|` when every coordinate is measured (as `calibrate` reports it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub markers: Option<(f64, f64)>,
+    /// With per-session set-up parameters: each session of the set and where its set-up came
+    /// from.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sessions: Vec<(String, SessionSetUp)>,
+}
+
+/// Where a scored session's per-session set-up parameters come from.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum SessionSetUp {
+    /// The training session of this name (a training file of the same stem).
+    Training(String),
+    /// Fitted on the scored set alone, the robot held at its calibration.
+    Fitted,
 }
 
 impl ObservationResidual {
@@ -818,7 +1005,7 @@ impl Score {
         let lengths = rms(&|o| !o.is_angle(), 1.0).unwrap_or((0.0, 0.0));
         let angles = rms(&Observation::is_angle, 1f64.to_degrees());
         let markers = rms(&|o| matches!(o, Observation::Marker { .. }), 3f64.sqrt());
-        Self { observations, lengths, angles, markers }
+        Self { observations, lengths, angles, markers, sessions: Vec::new() }
     }
 }
 
@@ -827,31 +1014,95 @@ impl KindCalibration {
     /// calibration's joint noise.
     pub fn score(&self, data: &KindData) -> Result<Score, CalibrationError> {
         data.check(self.chains[0].dof())?;
-        data.check_against(&self.setup)?;
+        let (setup, values, sessions) = self.setup_for(data)?;
+        data.check_against(&setup)?;
         let markers: Vec<usize> = self.markers.iter().map(|m| m.0).collect();
         data.check_points(&markers, self.chains.len() > markers.len())?;
-        let nothing = Selection::from_indices(&self.params, []);
         let noise = self.joint_noise.as_ref();
         // The weights only whiten the residuals after: the joint noise is for those alone.
-        let at = |x: &[f64], s: &[f64], noise: Option<&DMatrix<f64>>| {
-            KindProblem::of_points(
-                &self.chains,
-                &markers,
-                &nothing,
-                data,
-                &self.setup,
-                x.to_vec(),
-                s.to_vec(),
-                Vec::new(),
-            )
-            .with_noise(noise)
-        };
-        let before = at(&self.before, &self.setup_values.0, None);
-        let after = at(&self.after, &self.setup_values.1, noise);
+        let before = self.problem_on(data, &setup, (&self.before, &values.0), &[]).with_noise(None);
+        let after = self.problem_on(data, &setup, (&self.after, &values.1), &[]).with_noise(noise);
         let zero = DVector::zeros(0);
         // The assumed sigmas scaled by the residuals' spread, when they were.
         let v = after.covariance().expect("always built") * self.variance_factor.unwrap_or(1.0);
-        Ok(Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), &v))
+        let mut score = Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), &v);
+        score.sessions = sessions;
+        Ok(score)
+    }
+
+    /// The problem of `data` on this calibration's points, the robot at `x` and the set-up
+    /// `setup` at `s`, estimating the set-up values `free` only.
+    fn problem_on<'b>(
+        &'b self,
+        data: &'b KindData,
+        setup: &'b SetUp,
+        (x, s): (&[f64], &[f64]),
+        free: &[usize],
+    ) -> KindProblem<'b> {
+        let markers: Vec<usize> = self.markers.iter().map(|m| m.0).collect();
+        KindProblem::of_points(
+            &self.chains,
+            &markers,
+            &self.nothing,
+            data,
+            setup,
+            x.to_vec(),
+            s.to_vec(),
+            free.to_vec(),
+        )
+    }
+
+    /// The set-up to score `data` with, and its values before and after: this calibration's,
+    /// or with per-session parameters, over `data`'s sessions, each one the training session's
+    /// of its name where there is one ([`SessionSetUp::Training`]), else fitted on `data` with
+    /// the robot held ([`SessionSetUp::Fitted`]).
+    #[allow(clippy::type_complexity)]
+    fn setup_for(
+        &self,
+        data: &KindData,
+    ) -> Result<(SetUp, (Vec<f64>, Vec<f64>), Vec<(String, SessionSetUp)>), CalibrationError> {
+        let per_session = self.setup.per_session().to_vec();
+        if per_session.is_empty() {
+            return Ok((self.setup.clone(), self.setup_values.clone(), Vec::new()));
+        }
+        let names: Vec<String> = (0..data.session_count()).map(|k| data.session_name(k)).collect();
+        let trained = |name: &String| self.setup.session_names().iter().position(|n| n == name);
+        let setup = self.setup.clone().with_sessions(names.clone(), per_session.clone());
+        // Each session's values: the training session's of its name, else the first's to start.
+        let values = |s: &[f64]| -> Vec<f64> {
+            let view = |k: usize| self.setup.session_values(s, trained(&names[k]).unwrap_or(0));
+            let first = view(0);
+            let later = (1..setup.session_count()).flat_map(|k| {
+                let v = view(k);
+                per_session.iter().map(move |&i| v[i]).collect::<Vec<_>>()
+            });
+            first.iter().copied().chain(later).collect()
+        };
+        let free: Vec<usize> = (0..names.len())
+            .filter(|k| trained(&names[*k]).is_none())
+            .flat_map(|k| per_session.iter().map(move |&i| (i, k)))
+            .map(|(i, k)| setup.slot(i, k))
+            .collect();
+        let mut fitted = (values(&self.setup_values.0), values(&self.setup_values.1));
+        if !free.is_empty() {
+            for (x, s) in [(&self.before, &mut fitted.0), (&self.after, &mut fitted.1)] {
+                let problem = self.problem_on(data, &setup, (x, s), &free).with_noise(None);
+                let weights = Weights::for_problem(&problem, Estimator::Ols)?;
+                let start = linearise(&problem, &weights, problem.start())?;
+                let refined = refine_from(&problem, &weights, start, &RefineOptions::default())?;
+                *s = problem.full(&refined.estimate.x).1;
+            }
+        }
+        let sessions = names
+            .iter()
+            .map(|n| {
+                let source = trained(n).map_or(SessionSetUp::Fitted, |t| {
+                    SessionSetUp::Training(self.setup.session_names()[t].clone())
+                });
+                (n.clone(), source)
+            })
+            .collect();
+        Ok((setup, fitted, sessions))
     }
 
     /// RMS of the length residuals of `data` (mm) before and after ([`KindCalibration::score`]).
@@ -867,7 +1118,7 @@ impl KindCalibration {
 
     /// Plane `i`'s calibrated unit normal and offset (mm).
     pub fn plane(&self, i: usize) -> (Vector3<f64>, f64) {
-        self.setup.plane(&self.setup_values.1, i)
+        self.setup.plane(&self.setup.session_values(&self.setup_values.1, 0), i)
     }
 }
 
@@ -912,13 +1163,19 @@ pub fn calibrate_kinds(
         data.joints.iter().map(|q| at.pose(q)).collect()
     };
     let (setup, start) = data.initial_setup(&nominal)?;
+    let sessions = (0..data.session_count()).map(|k| data.session_name(k)).collect();
+    let per_session = matching(&setup.base_names(), &options.per_session)?;
+    let setup = setup.with_sessions(sessions, per_session);
+    let start = setup.expand(&start);
     let nothing = Selection::from_indices(&params, []);
-    let every: Vec<usize> = (0..setup.len()).collect();
+    let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
+    // The before fit's set-up: all but the length zeros not asked for.
+    let every: Vec<usize> =
+        (0..setup.len()).filter(|&i| !setup.is_zero(setup.base_of(i)) || asked_setup.contains(&i)).collect();
     let base_problem =
         KindProblem::of_points(&chains, &markers, &nothing, data, &setup, zero.clone(), start, every.clone())
             .with_noise(options.joint_noise.as_ref());
     let weights = Weights::for_problem(&base_problem, options.estimator)?;
-    let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
     // "Before": the set-up alone, the robot nominal; with markers, the base and the points on
     // the last link too, by ordinary least squares whatever the estimator, as `calibrate` fits
     // its base and markers (it minimises the very errors it reports).
@@ -927,7 +1184,7 @@ pub fn calibrate_kinds(
         (asked.indices().iter().copied())
             .filter(|&i| !markers.is_empty() && !matches!(params.get(i).owner, ParamOwner::Joint(_))),
     );
-    let (before, before_setup) = match setup.is_empty() && frame.is_empty() {
+    let (before, before_setup) = match every.is_empty() && frame.is_empty() {
         true => base_problem.full(&base_problem.start()),
         false => {
             let problem =
@@ -986,12 +1243,19 @@ pub fn calibrate_kinds(
         params,
         before,
         after,
-        unseen: data.unseen(&setup, &after_setup),
+        unseen: data.unseen(&setup, &setup.session_values(&after_setup, 0)),
         setup,
         setup_values: (before_setup, after_setup),
         refined: estimate,
         fixed,
-        training: Score { observations: Vec::new(), lengths: (0.0, 0.0), angles: None, markers: None },
+        training: Score {
+            observations: Vec::new(),
+            lengths: (0.0, 0.0),
+            angles: None,
+            markers: None,
+            sessions: Vec::new(),
+        },
+        nothing: nothing.clone(),
         markers: markers.iter().zip(&calibrated_points).map(|(&m, p)| (m, (frame * p).coords)).collect(),
         variance_factor: None,
         registered_base: (!markers.is_empty()).then_some(registered.base),
@@ -1089,7 +1353,22 @@ fn asked(
     data: &KindData,
     options: &KindOptions,
 ) -> Result<(Selection, Vec<usize>), CalibrationError> {
-    let joints = options.joints.select(params)?;
+    let names = setup.base_names();
+    // Patterns of --params that name set-up parameters only (a length zero) free those.
+    let (setup_named, joints) = match &options.joints {
+        JointParams::Named(patterns) => {
+            let (of_setup, of_robot): (Vec<String>, Vec<String>) = patterns.iter().cloned().partition(|p| {
+                names.iter().any(|n| name_matches(p, n)) && !params.iter().any(|q| name_matches(p, &q.name))
+            });
+            let robot = match of_robot.is_empty() {
+                true => JointParams::None,
+                false => JointParams::Named(of_robot),
+            };
+            (matching(&names, &of_setup)?, robot)
+        }
+        other => (Vec::new(), other.clone()),
+    };
+    let joints = joints.select(params)?;
     let markers = data.markers().len();
     let extra = (0..params.len()).filter(|&i| match params.get(i).owner {
         // The markers' points, always; the tool point's (after them) unless held. A camera's
@@ -1108,7 +1387,27 @@ fn asked(
         true => data.device_unseen().iter().map(|i| setup.device_at() + i).collect(),
         false => Vec::new(),
     };
-    Ok((robot, (0..setup.len()).filter(|i| !unseen.contains(i)).collect()))
+    // A length zero is held unless named (by --params or as per session).
+    let held = |b: usize| {
+        unseen.contains(&b)
+            || (setup.is_zero(b) && !setup_named.contains(&b) && !setup.per_session().contains(&b))
+    };
+    Ok((robot, (0..setup.len()).filter(|&i| !held(setup.base_of(i))).collect()))
+}
+
+/// The indices of `names` that the `patterns` match (`*` as in [`Selection::by_names`]); a
+/// pattern that matches none is refused.
+fn matching(names: &[String], patterns: &[String]) -> Result<Vec<usize>, SelectionError> {
+    let mut out = Vec::new();
+    for pattern in patterns {
+        let found: Vec<usize> = (0..names.len()).filter(|&i| name_matches(pattern, &names[i])).collect();
+        if found.is_empty() {
+            return Err(SelectionError { pattern: pattern.clone() });
+        }
+        out.extend(found.into_iter().filter(|i| !out.contains(i)).collect::<Vec<_>>());
+    }
+    out.sort_unstable();
+    Ok(out)
 }
 
 /// The joint length parameter (`a`, `d`, a URDF origin's `x`, `y`, `z`) of the longest nominal

@@ -1,0 +1,208 @@
+//! Measuring sessions: an instrument re-zeroed between data files, its length zero one set-up
+//! parameter per session (`--per-session point1.zero`).
+
+use crate::kinds::{TOOL, errors_on, options, puma, random_pose};
+use nalgebra::Vector3;
+use rand::SeedableRng;
+use rand::rngs::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use robocal::calibration::kinds::{
+    KindCalibration, KindData, KindOptions, Observation, SessionSetUp, calibrate_kinds,
+};
+use robocal::estimation::Estimator;
+use robocal::kinematics::{Chain, ChainAt};
+
+/// The draw-wire's fixed point (mm, base frame).
+const PIVOT: Vector3<f64> = Vector3::new(600.0, -250.0, -300.0);
+
+/// The zero of the three sessions (mm): it jumps by +3.9 mm, then by -0.9 mm.
+const ZEROS: [f64; 3] = [1.2, 5.1, 4.2];
+
+/// Noise of a draw-wire reading (mm).
+const SIGMA: f64 = 0.01;
+
+/// `count` draw-wire readings of the robot `real` from [`PIVOT`], the instrument's zero `zero`,
+/// as one session named `name`.
+fn draw_wire(real: &ChainAt, zero: f64, count: usize, name: &str, rng: &mut ChaCha8Rng) -> KindData {
+    let mut data = KindData::default();
+    for k in 0..count {
+        let q = random_pose(&puma(), rng);
+        let z: f64 = StandardNormal.sample(&mut *rng);
+        let measured = (real.position(&q) - PIVOT).norm() + zero + SIGMA * z;
+        data.joints.push(q);
+        data.observations.push(Observation::ToPoint { pose: k, point: 0, measured, sigma: SIGMA });
+        data.lines.push(k + 3);
+    }
+    data.named(name)
+}
+
+/// Three training sessions and three held-out files of the same names, from a robot with
+/// errors on its joints.
+fn three_sessions(seed: u64) -> (KindData, Vec<KindData>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
+    let joints: Vec<String> =
+        chain.params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &joints, &mut rng));
+    let names = ["monday", "tuesday", "wednesday"];
+    let training = (0..3)
+        .map(|s| draw_wire(&real, ZEROS[s], 120, names[s], &mut rng))
+        .fold(KindData::default(), |all, session| all.join(&session));
+    let held_out = (0..3).map(|s| draw_wire(&real, ZEROS[s], 60, names[s], &mut rng)).collect();
+    (training, held_out)
+}
+
+/// The estimate and standard error of `b - a`, two estimated parameters of `c`.
+fn difference(c: &KindCalibration, a: &str, b: &str) -> (f64, f64) {
+    let est = &c.refined.estimate;
+    let at =
+        |n: &str| est.names.iter().position(|m| m == n).unwrap_or_else(|| panic!("{n} in {:?}", est.names));
+    let (i, j) = (at(a), at(b));
+    let cov = &est.covariance;
+    (est.x[j] - est.x[i], (cov[(i, i)] + cov[(j, j)] - 2.0 * cov[(i, j)]).sqrt())
+}
+
+/// The held-out RMS after calibration of each file, and where each one's set-up came from.
+fn held_out(c: &KindCalibration, files: &[KindData]) -> Vec<(f64, Vec<(String, SessionSetUp)>)> {
+    files.iter().map(|f| c.score(f).unwrap()).map(|s| (s.lengths.1, s.sessions)).collect()
+}
+
+#[test]
+fn a_draw_wire_re_zeroed_between_sessions_is_modelled_by_per_session_zeros() {
+    let (training, validation) = three_sessions(7);
+    let per_session = KindOptions { per_session: vec!["point1.zero".into()], ..options(Estimator::Wls) };
+    let c = calibrate_kinds(&puma(), &training, &per_session).unwrap();
+    // The jumps, recovered within 3 standard errors.
+    for (a, b, jump) in [("monday", "tuesday", 3.9), ("tuesday", "wednesday", -0.9)] {
+        let (found, se) = difference(&c, &format!("point1.zero@{a}"), &format!("point1.zero@{b}"));
+        assert!((found - jump).abs() < 3.0 * se, "{a} to {b}: {found} mm against {jump}, SE {se}");
+        assert!(se < 0.05, "{a} to {b}: SE {se} mm");
+    }
+    // Held out, each file scored with the set-up of the training session of its name: the
+    // noise level.
+    let scored = held_out(&c, &validation);
+    for (rms, sessions) in &scored {
+        assert!(*rms < 2.0 * SIGMA, "held-out RMS {rms} mm after, noise {SIGMA} mm");
+        assert!(
+            matches!(sessions[0].1, SessionSetUp::Training(ref n) if *n == sessions[0].0),
+            "{sessions:?}"
+        );
+    }
+    // Without per-session zeros the jumps are errors of the robot: several times larger.
+    let one_zero = KindOptions {
+        joints: robocal::calibration::JointParams::Named(vec!["j*.*".into(), "point1.zero".into()]),
+        ..options(Estimator::Wls)
+    };
+    let shared = calibrate_kinds(&puma(), &training, &one_zero).unwrap();
+    assert!(shared.refined.estimate.names.iter().any(|n| n == "point1.zero"));
+    for ((with, _), (without, _)) in scored.iter().zip(held_out(&shared, &validation)) {
+        assert!(without > 5.0 * with, "held out: {without} mm with one zero, {with} mm per session");
+    }
+}
+
+#[test]
+fn a_held_out_session_of_another_name_has_its_zero_fitted_with_the_robot_held() {
+    let (training, validation) = three_sessions(11);
+    let per_session = KindOptions { per_session: vec!["point1.zero".into()], ..options(Estimator::Wls) };
+    let c = calibrate_kinds(&puma(), &training, &per_session).unwrap();
+    // Tuesday's held-out readings under another name: its zero is fitted on the file alone.
+    let renamed = validation[1].clone().named("thursday");
+    let score = c.score(&renamed).unwrap();
+    assert_eq!(score.sessions, vec![("thursday".to_string(), SessionSetUp::Fitted)]);
+    assert!(score.lengths.1 < 2.0 * SIGMA, "fitted zero: held-out RMS {} mm", score.lengths.1);
+    // Scored with Monday's set-up instead, its jump of 3.9 mm remains.
+    let as_monday = c.score(&validation[1].clone().named("monday")).unwrap();
+    assert!((as_monday.lengths.1 - 3.9).abs() < 0.1, "{} mm", as_monday.lengths.1);
+}
+
+#[test]
+fn per_session_names_must_name_set_up_parameters() {
+    let (training, _) = three_sessions(3);
+    let wrong = KindOptions { per_session: vec!["point7.zero".into()], ..options(Estimator::Wls) };
+    let e = calibrate_kinds(&puma(), &training, &wrong).unwrap_err().to_string();
+    assert!(e.contains("point7.zero"), "{e}");
+}
+
+/// `data` as a draw-wire file (`j1..j6,point,distance,sigma`, degrees and mm).
+fn csv(data: &KindData) -> String {
+    let mut text = String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,point,distance,sigma\n");
+    for (q, o) in data.joints.iter().zip(&data.observations) {
+        let degrees: Vec<String> = q.iter().map(|v| format!("{:.12}", v.to_degrees())).collect();
+        text += &format!("{},1,{:.9},{SIGMA}\n", degrees.join(","), o.measured());
+    }
+    text
+}
+
+/// `robocal calibrate-observations --per-session point1.zero` on three session files: each
+/// session's zero reported with its standard error, the held-out files of the same stems
+/// scored with their sessions' set-up (said), at the noise level; a file of another stem has
+/// its zero fitted (said); one --data file, or two of one stem, refused.
+#[test]
+fn the_command_models_sessions_from_the_files() {
+    let dir = std::env::temp_dir().join(format!("robocal-sessions-{}", std::process::id()));
+    let (train_dir, test_dir) = (dir.join("train"), dir.join("test"));
+    std::fs::create_dir_all(&train_dir).unwrap();
+    std::fs::create_dir_all(&test_dir).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
+    let joints: Vec<String> =
+        chain.params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &joints, &mut rng));
+    let names = ["monday", "tuesday", "wednesday"];
+    let path = |p: std::path::PathBuf| p.to_str().unwrap().to_string();
+    let mut args: Vec<String> =
+        ["calibrate-observations", "--model", "puma560", "--tool", "20,-10,120"].map(String::from).to_vec();
+    for (s, name) in names.iter().enumerate() {
+        let file = train_dir.join(format!("{name}.csv"));
+        std::fs::write(&file, csv(&draw_wire(&real, ZEROS[s], 120, name, &mut rng))).unwrap();
+        args.extend(["--data".into(), path(file)]);
+        let held_out = test_dir.join(format!("{name}.csv"));
+        std::fs::write(&held_out, csv(&draw_wire(&real, ZEROS[s], 60, name, &mut rng))).unwrap();
+        args.extend(["--validate".into(), path(held_out)]);
+    }
+    let other = test_dir.join("thursday.csv");
+    std::fs::write(&other, csv(&draw_wire(&real, 2.0, 60, "thursday", &mut rng))).unwrap();
+    args.extend(["--validate".into(), path(other), "--per-session".into(), "point1.zero".into()]);
+    let output = assert_cmd::Command::cargo_bin("robocal").unwrap().args(&args).output().unwrap();
+    let text = String::from_utf8(output.stdout).unwrap();
+    assert!(output.status.success(), "{text}{}", String::from_utf8_lossy(&output.stderr));
+    for name in names {
+        assert!(text.contains(&format!("point1.zero@{name} ")), "{text}");
+        assert!(
+            text.contains(&format!("{name}.csv: the per-session set-up of training session `{name}`")),
+            "{text}"
+        );
+    }
+    assert!(text.contains("session `thursday` is no training file's"), "{text}");
+    let rms = |line: &str| -> f64 {
+        let row =
+            text.lines().find(|l| l.contains(line) && l.contains("(mm)")).unwrap_or_else(|| panic!("{text}"));
+        row.split_whitespace().last().unwrap().parse().unwrap()
+    };
+    for name in ["monday", "tuesday", "wednesday", "thursday"] {
+        assert!(rms(&format!("{name}.csv")) < 2.0 * SIGMA, "{name}\n{text}");
+    }
+
+    let one = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(&args[..7])
+        .args(["--per-session", "point1.zero"])
+        .output()
+        .unwrap();
+    assert_eq!(one.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&one.stderr).contains("give two --data files or more"));
+    let same_stem = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(&args[..7])
+        .args(["--data", &args[8].replace("monday", "tuesday").replace("train", "test")])
+        .args(["--data", &args[10], "--per-session", "point1.zero"])
+        .output()
+        .unwrap();
+    assert_eq!(same_stem.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&same_stem.stderr).contains("have one stem, `tuesday`"),
+        "{}",
+        String::from_utf8_lossy(&same_stem.stderr)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
