@@ -15,6 +15,7 @@
 //! Errors are in mm and rad inside, and are folded into a calibrated model at the end.
 
 mod data;
+pub mod diagnostics;
 pub mod evaluation;
 pub mod kinds;
 mod repeatability;
@@ -23,6 +24,7 @@ pub mod selection;
 pub mod tree;
 
 pub use data::Measurements;
+pub use diagnostics::{FarOut, Scored, Warning};
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
@@ -229,7 +231,7 @@ pub struct Calibration {
     /// Feasible GLS only: whether its variance components settled.
     pub noise_settled: Option<bool>,
     /// Things a careful engineer should look at.
-    pub warnings: Vec<String>,
+    pub warnings: Vec<Warning>,
     /// The noise estimated from the residuals by feasible GLS ([`calibrate_feasible`]).
     pub noise_estimate: Option<NoiseEstimate>,
     /// The prior standard deviation of every parameter (full vector, mm, rad or the
@@ -686,12 +688,9 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
     let calibrated = fold(&s.registered, &s.params, &s.after, (&s.markers, 0), s.probe.as_ref());
     let mut warnings = warnings(&s.params, (&s.before, &s.after), &training_poses);
     warnings.extend(implausible_compliances(&calibrated, &s.params, &s.refined));
-    let condition = s.refined.estimate.diagnostics.condition_number;
-    if condition > CONDITION_WARNING {
-        warnings.push(format!(
-            "the identified system's scaled condition number is {condition:.3e}, above {CONDITION_WARNING:e}: the \
-             estimates are poorly determined; measure more varied poses or identify fewer parameters"
-        ));
+    let condition_number = s.refined.estimate.diagnostics.condition_number;
+    if condition_number > CONDITION_WARNING {
+        warnings.push(Warning::IllConditioned { condition_number });
     }
     Ok(Calibration {
         registered: s.registered,
@@ -913,15 +912,10 @@ pub fn calibrate_feasible(
     }
     calibration.noise_settled = Some(settled_at.is_some());
     if settled_at.is_none() {
-        calibration.warnings.push(format!(
-            "feasible GLS: the variance components did not settle in {} re-weightings",
-            feasible.max_iterations.max(1)
-        ));
+        calibration.warnings.push(Warning::NoiseUnsettled { reweightings: feasible.max_iterations.max(1) });
     }
     if ignored_sigma {
-        calibration
-            .warnings
-            .push("feasible GLS ignored the sigma column: it estimates sigma_me itself".into());
+        calibration.warnings.push(Warning::SigmaIgnored);
     }
     calibration.noise_estimate = previous;
     Ok(calibration)
@@ -1188,25 +1182,32 @@ pub(crate) fn fold(
 /// [`evaluation`]: a residual more than [`FLAG_AT`] standard deviations out once whitened by
 /// the full `V_k` of their pose (joint and measurement noise), or, without a noise model, by
 /// the residuals' own spread.
-fn warnings(params: &ParamSet, (before, after): (&[f64], &[f64]), training: &SetEvaluation) -> Vec<String> {
-    let mut out = Vec::new();
-    for (i, p) in params.iter().enumerate() {
-        let correction = after[i] - before[i];
-        let length = p.unit() == "mm";
-        if matches!(p.owner, ParamOwner::Joint(_)) && length && correction.abs() > 10.0 {
-            out.push(format!(
-                "{} is corrected by {correction:.2} mm: more than 10 mm, check the model",
-                p.name
-            ));
-        }
-    }
-    for pose in training.flagged() {
-        out.push(format!(
-            "line {}: a residual {:.1} standard deviations out after calibration",
-            pose.line, pose.worst
-        ));
-    }
+fn warnings(params: &ParamSet, (before, after): (&[f64], &[f64]), training: &SetEvaluation) -> Vec<Warning> {
+    let mut out = large_corrections(params.iter(), before, after);
+    let flagged = (training.poses.iter().enumerate()).filter(|(_, p)| p.flagged).map(|(index, p)| FarOut {
+        index,
+        line: p.line,
+        label: None,
+        sd: p.worst,
+    });
+    out.extend(Warning::far_out(Scored::Pose, flagged));
     out
+}
+
+/// A [`Warning::LargeCorrection`] for each joint length of `params` corrected from `before` to
+/// `after` by more than [`LARGE_CORRECTION_MM`](diagnostics::LARGE_CORRECTION_MM).
+pub(crate) fn large_corrections<'a>(
+    params: impl Iterator<Item = &'a crate::model::ParamInfo>,
+    before: &[f64],
+    after: &[f64],
+) -> Vec<Warning> {
+    params
+        .enumerate()
+        .filter(|(_, p)| matches!(p.owner, ParamOwner::Joint(_)) && p.unit() == "mm")
+        .map(|(i, p)| (p, after[i] - before[i]))
+        .filter(|(_, c)| c.abs() > diagnostics::LARGE_CORRECTION_MM)
+        .map(|(p, correction_mm)| Warning::LargeCorrection { parameter: p.name.clone(), correction_mm })
+        .collect()
 }
 
 /// The stiffest a joint's compliance may claim to be before it is suspect: a revolute joint
@@ -1217,7 +1218,7 @@ pub const SOFTEST_COMPLIANCE: f64 = 1e-2;
 /// Warnings for the estimated compliances of `calibrated` (`refined` says which were estimated)
 /// that no joint has: negative, or softer than [`SOFTEST_COMPLIANCE`], by more than two standard
 /// errors; each with its stiffness.
-fn implausible_compliances(calibrated: &RobotModel, params: &ParamSet, refined: &Refined) -> Vec<String> {
+fn implausible_compliances(calibrated: &RobotModel, params: &ParamSet, refined: &Refined) -> Vec<Warning> {
     let mut out = Vec::new();
     let se = refined.estimate.standard_errors();
     for (k, name) in refined.estimate.names.iter().enumerate() {
@@ -1225,16 +1226,12 @@ fn implausible_compliances(calibrated: &RobotModel, params: &ParamSet, refined: 
         let (ParamOwner::Joint(j), ParamKind::Compliance) = (params.get(i).owner, params.get(i).kind) else {
             continue;
         };
-        let c = calibrated.joints[j].compliance;
-        let unit = params.get(i).unit();
-        let margin = 2.0 * se[k];
-        if c + margin < 0.0 {
-            out.push(format!("{name} is {c:.3e} {unit}: a negative compliance absorbs something else (geometry, play, masses)"));
-        } else if c - margin > SOFTEST_COMPLIANCE && unit == "rad/N·m" {
-            out.push(format!(
-                "{name} is {c:.3e} {unit}, a stiffness of {:.0} N·m/rad: softer than any real joint, it absorbs something else",
-                1.0 / c
-            ));
+        let (value, unit, margin) = (calibrated.joints[j].compliance, params.get(i).unit(), 2.0 * se[k]);
+        let parameter = name.clone();
+        if value + margin < 0.0 {
+            out.push(Warning::NegativeCompliance { parameter, value, unit });
+        } else if value - margin > SOFTEST_COMPLIANCE && unit == "rad/N·m" {
+            out.push(Warning::SoftCompliance { parameter, value });
         }
     }
     out
@@ -1293,14 +1290,18 @@ mod compliance_tests {
         };
         assert!(warned(4e-5).is_empty());
         assert!(warned(-1e-5).is_empty(), "within two standard errors of zero");
-        assert_eq!(
-            warned(-1e-3),
-            [
-                "j2.compliance is -1.000e-3 rad/N·m: a negative compliance absorbs something else (geometry, play, masses)"
-            ]
+        let negative = warned(-1e-3);
+        assert!(
+            matches!(negative.as_slice(), [Warning::NegativeCompliance { value, .. }] if *value == -1e-3)
         );
         assert_eq!(
-            warned(2e-2),
+            negative[0].to_string(),
+            "j2.compliance is -1.000e-3 rad/N·m: a negative compliance absorbs something else (geometry, play, masses)"
+        );
+        let soft = warned(2e-2);
+        assert!(matches!(soft.as_slice(), [Warning::SoftCompliance { value, .. }] if *value == 2e-2));
+        assert_eq!(
+            soft.iter().map(ToString::to_string).collect::<Vec<_>>(),
             [
                 "j2.compliance is 2.000e-2 rad/N·m, a stiffness of 50 N·m/rad: softer than any real joint, it absorbs something else"
             ]

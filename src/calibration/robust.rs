@@ -26,8 +26,8 @@
 //! (the weights taken as fixed).
 
 use crate::estimation::{
-    EstimationError, Linearisation, PointProblem, PriorRows, RefineOptions, Refined, Residuals, Weights,
-    linearise, refine_from, refine_map,
+    EstimationError, Linearisation, PriorRows, RefineOptions, Refined, Residuals, Weights, linearise,
+    refine_from, refine_map,
 };
 use std::fmt;
 use std::str::FromStr;
@@ -42,9 +42,10 @@ pub const MAX_REWEIGHTINGS: usize = 50;
 pub const LISTED_BELOW: f64 = 0.1;
 
 /// The loss of each pose's standardised residual `u`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum Loss {
     /// Least squares: every pose weighs alike.
+    #[default]
     Squared,
     /// Huber's: quadratic up to `k`, linear beyond.
     Huber(f64),
@@ -153,7 +154,7 @@ pub(crate) fn robust_scale(norms: &[f64], n: usize) -> f64 {
 /// made robust by `loss` as the [module documentation](self) says; the robust fit's record,
 /// unless the loss is squared.
 pub(crate) fn fit(
-    problem: &PointProblem<'_>,
+    problem: &impl Residuals,
     weights: &Weights,
     start: Linearisation,
     options: &RefineOptions,
@@ -198,7 +199,7 @@ pub(crate) fn fit(
 /// The weight of every pose of `problem` at `x` under `loss`, its residual whitened by
 /// `weights` (the estimator's, not reweighted).
 fn pose_weights(
-    problem: &PointProblem<'_>,
+    problem: &impl Residuals,
     weights: &Weights,
     x: &nalgebra::DVector<f64>,
     loss: Loss,

@@ -246,6 +246,39 @@ pub struct RepeatabilityArgs {
     pub json: Option<PathBuf>,
 }
 
+/// The flags that choose the model beyond `--params`: what is held, kept, given a prior, and
+/// the loss (shared by `calibrate` and `calibrate-observations`).
+#[derive(Args, Debug, Clone, Default, PartialEq)]
+pub struct ModelChoiceArgs {
+    /// Hold these parameters at their nominal values (names and patterns, as --params takes
+    /// them: `j*.beta,j2.d`): they are not estimated.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub hold: Vec<String>,
+    /// Keep these parameters free first (names and patterns): when the poses cannot tell a
+    /// combination apart, another of it is held, the base's and the markers' included.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub keep: Vec<String>,
+    /// Prior standard deviations about the nominal model (maximum a posteriori): comma-separated
+    /// `PATTERN=SD` entries, repeatable, later ones overriding earlier ones. PATTERN is a name or
+    /// pattern as --params takes it (`j*.alpha`), or `lengths`, `angles`, `offsets`,
+    /// `compliances`, `plays` (those of every joint); SD has a unit, which also picks the
+    /// parameters: mm, um, m, deg, rad, mrad, or a plain number for a compliance (rad/N·m,
+    /// mm/N). Presets of typical tolerances (lengths, angles, joint zeros, plays): `machined`
+    /// (0.1 mm, 0.05 deg, 0.5 deg, 0.02 deg), `precision` (0.02 mm, 0.01 deg, 0.1 deg,
+    /// 0.005 deg), `fabricated` (0.5 mm, 0.2 deg, 2 deg, 0.1 deg); none puts a prior on the
+    /// compliances.
+    /// A prior applies to the parameters --params asks for; with one, a parameter the poses
+    /// cannot identify is not held, and the standard errors are the posterior ones. A noise
+    /// file's [prior] table comes first. Example: `--prior 'machined,j6.theta=0.1deg'`.
+    #[arg(long, value_name = "PATTERN=SD,...", value_parser = parse_prior)]
+    pub prior: Vec<Vec<PriorEntry>>,
+    /// The loss of each pose's whitened residual: `squared` (least squares), `huber[:K]`
+    /// (K = 1.345 by default) or `cauchy[:K]` (K = 2.385), by iteratively reweighted least
+    /// squares; a pose is down-weighted as a whole, and those weighted below 0.1 are listed.
+    #[arg(long, default_value = "squared", value_name = "LOSS", value_parser = parse_loss)]
+    pub loss: Loss,
+}
+
 /// The flags of `robocal calibrate`.
 #[derive(Args, Debug)]
 pub struct CalibrateArgs {
@@ -279,14 +312,8 @@ pub struct CalibrateArgs {
     /// Do not estimate the marker positions.
     #[arg(long)]
     pub fixed_markers: bool,
-    /// Hold these parameters at their nominal values (names and patterns, as --params takes
-    /// them: `j*.beta,j2.d`): they are not estimated.
-    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
-    pub hold: Vec<String>,
-    /// Keep these parameters free first (names and patterns): when the poses cannot tell a
-    /// combination apart, another of it is held, the base's and the markers' included.
-    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
-    pub keep: Vec<String>,
+    #[command(flatten)]
+    pub choice: ModelChoiceArgs,
     /// Choose the joint parameters by held-out error among those --params names: `cv`
     /// (forward selection by k-fold cross-validated RMS, --folds K, default 5,
     /// one-standard-error rule), `bic` (forward selection by the Bayesian information criterion), `t`
@@ -298,25 +325,6 @@ pub struct CalibrateArgs {
     /// marker (missing ones start at that frame's origin).
     #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub marker: Vec<Vector3<f64>>,
-    /// Prior standard deviations about the nominal model (maximum a posteriori): comma-separated
-    /// `PATTERN=SD` entries, repeatable, later ones overriding earlier ones. PATTERN is a name or
-    /// pattern as --params takes it (`j*.alpha`), or `lengths`, `angles`, `offsets`,
-    /// `compliances`, `plays` (those of every joint); SD has a unit, which also picks the
-    /// parameters: mm, um, m, deg, rad, mrad, or a plain number for a compliance (rad/N·m,
-    /// mm/N). Presets of typical tolerances (lengths, angles, joint zeros, plays): `machined`
-    /// (0.1 mm, 0.05 deg, 0.5 deg, 0.02 deg), `precision` (0.02 mm, 0.01 deg, 0.1 deg,
-    /// 0.005 deg), `fabricated` (0.5 mm, 0.2 deg, 2 deg, 0.1 deg); none puts a prior on the
-    /// compliances.
-    /// A prior applies to the parameters --params asks for; with one, a parameter the poses
-    /// cannot identify is not held, and the standard errors are the posterior ones. A noise
-    /// file's [prior] table comes first. Example: `--prior 'machined,j6.theta=0.1deg'`.
-    #[arg(long, value_name = "PATTERN=SD,...", value_parser = parse_prior)]
-    pub prior: Vec<Vec<PriorEntry>>,
-    /// The loss of each pose's whitened residual: `squared` (least squares), `huber[:K]`
-    /// (K = 1.345 by default) or `cauchy[:K]` (K = 2.385), by iteratively reweighted least
-    /// squares; a pose is down-weighted as a whole, and those weighted below 0.1 are listed.
-    #[arg(long, default_value = "squared", value_name = "LOSS", value_parser = parse_loss)]
-    pub loss: Loss,
     /// Gauss-Newton steps at most (at least 1); 1 is the paper's one-step estimate.
     #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
     pub iterations: usize,
@@ -382,6 +390,8 @@ pub struct CalibrateObservationsArgs {
     /// estimated.
     #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub marker: Vec<Vector3<f64>>,
+    #[command(flatten)]
+    pub choice: ModelChoiceArgs,
     /// Gauss-Newton steps at most (at least 1).
     #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
     pub iterations: usize,

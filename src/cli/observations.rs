@@ -46,6 +46,9 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     }
     let options = KindOptions {
         per_session: request.per_session.clone(),
+        prior: request.prior.clone(),
+        loss: request.loss,
+        gauge: request.gauge.clone(),
         estimator: request.estimator,
         joint_noise: joint_noise(&model, request.joint_sigma_deg.as_deref())?,
         joints: request.joints.clone(),

@@ -268,18 +268,18 @@ impl CalibrateRequest {
             select.is_none() || joints != JointParams::None,
             "--select chooses among the joint parameters --params names: not with --params none",
         )?;
-        if let Some(name) = args.hold.iter().find(|h| args.keep.contains(h)) {
+        if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
             return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
         }
         // Feasible GLS estimates the noise from the residuals of plain least squares: a prior
         // shrinks them, a robust loss sets poses aside, and the variance components would be
         // those of another fit.
         require(
-            args.prior.is_empty() || method != Method::Feasible,
+            args.choice.prior.is_empty() || method != Method::Feasible,
             "--prior with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
         )?;
         require(
-            args.loss == robocal::calibration::Loss::Squared || method != Method::Feasible,
+            args.choice.loss == robocal::calibration::Loss::Squared || method != Method::Feasible,
             "--loss with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
         )?;
         let folds = if matches!(select, Some(Criterion::Cv { .. })) { None } else { args.folds };
@@ -301,12 +301,12 @@ impl CalibrateRequest {
             joints,
             estimate_base: !args.fixed_base,
             estimate_markers: !args.fixed_markers,
-            hold: args.hold,
-            keep: args.keep,
+            hold: args.choice.hold,
+            keep: args.choice.keep,
             select,
             markers: args.marker,
-            prior: args.prior.into_iter().flatten().collect(),
-            loss: args.loss,
+            prior: args.choice.prior.into_iter().flatten().collect(),
+            loss: args.choice.loss,
             iterations: args.iterations,
             validate: args.validate,
             folds,
@@ -345,6 +345,12 @@ pub struct CalibrateObservationsRequest {
     pub validate: Vec<PathBuf>,
     /// Set-up parameters with one value per data file (names or patterns).
     pub per_session: Vec<String>,
+    /// Held and kept parameters.
+    pub gauge: robocal::calibration::Gauge,
+    /// Prior standard deviations.
+    pub prior: Vec<robocal::estimation::PriorEntry>,
+    /// The loss of each observation.
+    pub loss: robocal::calibration::Loss,
     /// Where the JSON report goes.
     pub json: Option<PathBuf>,
     /// Where the calibrated model TOML goes.
@@ -390,9 +396,15 @@ impl CalibrateObservationsRequest {
                 }
             }
         }
+        if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
+            return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
+        }
         Ok(Self {
             model,
             per_session: args.per_session,
+            gauge: robocal::calibration::Gauge { hold: args.choice.hold, keep: args.choice.keep },
+            prior: args.choice.prior.into_iter().flatten().collect(),
+            loss: args.choice.loss,
             data: args.data,
             units: args.units.units()?,
             estimator,

@@ -4,7 +4,7 @@
 
 use super::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
 use crate::calibration::selection::{Criterion, SelectionPath, Step};
-use crate::calibration::{Calibration, ErrorStats, FLAG_AT, SetEvaluation, pool, standard_errors};
+use crate::calibration::{Calibration, ErrorStats, FLAG_AT, SetEvaluation, Warning, pool, standard_errors};
 use crate::estimation::{NoiseEstimate, SigmaInterval};
 use crate::model::{Joint, JointKind};
 use serde::Serialize;
@@ -59,8 +59,8 @@ pub struct CalibrationReport {
     /// With several held-out files, all their poses pooled (summaries only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub held_out: Option<SetEvaluation>,
-    /// Things to look at.
-    pub warnings: Vec<String>,
+    /// Things to look at, one per cause.
+    pub warnings: Vec<Warning>,
     /// The noise estimated by feasible GLS, with 95% intervals.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise: Option<Vec<NoiseRow>>,
@@ -479,35 +479,7 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
                 t[0], t[1], t[2], t[3], t[4], t[5]
             );
         }
-        let priors = self.parameters.iter().any(|p| p.prior_sd.is_some());
-        if priors {
-            let _ = writeln!(
-                out,
-                "{:<14} {:>12} {:>12} {:>12} {:>9}  unit",
-                "parameter", "estimate", "std. error", "prior SD", "SD ratio"
-            );
-        } else {
-            let _ = writeln!(out, "{:<14} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
-        }
-        for p in &self.parameters {
-            // compliances: small numbers, in scientific notation
-            let number =
-                |v: f64| if p.unit.contains('N') { format!("{v:>12.4e}") } else { format!("{v:>12.5}") };
-            let mut line = format!("{:<14} {} {}", p.name, number(p.value), number(p.std_error));
-            match (p.prior_sd, p.sd_ratio) {
-                (Some(prior), Some(ratio)) => line += &format!(" {} {ratio:>9.3}", number(prior)),
-                _ if priors => line += &format!(" {:>12} {:>9}", "-", "-"),
-                _ => {}
-            }
-            let _ = writeln!(out, "{line}  {}", p.unit);
-        }
-        if priors {
-            let _ = writeln!(
-                out,
-                "(with priors: posterior standard errors; SD ratio = posterior / prior SD, near 1 where the \
-                 data barely moved a parameter from its prior)"
-            );
-        }
+        write_parameters(&mut out, &self.parameters);
         if !self.stiffness.is_empty() {
             let _ = writeln!(
                 out,
@@ -535,7 +507,7 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         }
         if self.parameters.is_empty() {
             let _ = writeln!(out, "\nnothing estimated: the model is scored as it stands");
-        } else if priors {
+        } else if self.parameters.iter().any(|p| p.prior_sd.is_some()) {
             let _ = writeln!(
                 out,
                 "\n{} parameters estimated with their priors; the data alone: rank {}, condition number {:.3e}",
@@ -552,18 +524,7 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
                 self.condition_number
             );
         }
-        if let Some(loss) = &self.loss {
-            let _ = writeln!(
-                out,
-                "robust loss {loss}: {} pose{} weighted below 0.1{}",
-                self.down_weighted.len(),
-                if self.down_weighted.len() == 1 { "" } else { "s" },
-                if self.down_weighted.is_empty() { "" } else { ":" }
-            );
-            for d in &self.down_weighted {
-                let _ = writeln!(out, "  line {}: weight {:.4}", d.line, d.weight);
-            }
-        }
+        write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "pose");
         if let Some(selection) = &self.selection {
             let _ = writeln!(out);
             out.push_str(&selection.text());
@@ -591,6 +552,59 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             }
         }
         out
+    }
+}
+
+/// The parameter table: name, estimate, standard error, with priors the prior SD and the SD
+/// ratio, and the unit; compliances in scientific notation.
+pub(super) fn write_parameters(out: &mut String, parameters: &[ParameterRow]) {
+    let w = parameters.iter().map(|p| p.name.len()).max().unwrap_or(0).max(14);
+    let priors = parameters.iter().any(|p| p.prior_sd.is_some());
+    match priors {
+        true => {
+            let _ = writeln!(
+                out,
+                "{:<w$} {:>12} {:>12} {:>12} {:>9}  unit",
+                "parameter", "estimate", "std. error", "prior SD", "SD ratio"
+            );
+        }
+        false => {
+            let _ = writeln!(out, "{:<w$} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
+        }
+    }
+    for p in parameters {
+        // compliances: small numbers, in scientific notation
+        let number = |v: f64| if p.unit.contains('N') { format!("{v:>12.4e}") } else { format!("{v:>12.5}") };
+        let mut line = format!("{:<w$} {} {}", p.name, number(p.value), number(p.std_error));
+        match (p.prior_sd, p.sd_ratio) {
+            (Some(prior), Some(ratio)) => line += &format!(" {} {ratio:>9.3}", number(prior)),
+            _ if priors => line += &format!(" {:>12} {:>9}", "-", "-"),
+            _ => {}
+        }
+        let _ = writeln!(out, "{line}  {}", p.unit);
+    }
+    if priors {
+        let _ = writeln!(
+            out,
+            "(with priors: posterior standard errors; SD ratio = posterior / prior SD, near 1 where the \
+             data barely moved a parameter from its prior)"
+        );
+    }
+}
+
+/// The robust loss's line, if one was used, and what it weighted below 0.1 (`what`: a pose,
+/// an observation), each by its line.
+pub(super) fn write_down_weighted(out: &mut String, loss: Option<&str>, down: &[DownWeighted], what: &str) {
+    let Some(loss) = loss else { return };
+    let _ = writeln!(
+        out,
+        "robust loss {loss}: {} {what}{} weighted below 0.1{}",
+        down.len(),
+        if down.len() == 1 { "" } else { "s" },
+        if down.is_empty() { "" } else { ":" }
+    );
+    for d in down {
+        let _ = writeln!(out, "  line {}: weight {:.4}", d.line, d.weight);
     }
 }
 

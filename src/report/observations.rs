@@ -4,8 +4,8 @@
 //! the held-out files, the worst observations and those flagged. Text and JSON carry the same
 //! content.
 
-use super::calibration::{ParameterRow, by_number};
-use crate::calibration::FLAG_AT;
+use super::calibration::{DownWeighted, ParameterRow, by_number};
+use crate::calibration::Warning;
 use crate::calibration::kinds::{KindCalibration, ObservationResidual, Score, SessionSetUp};
 use serde::Serialize;
 use std::fmt::Write;
@@ -37,9 +37,10 @@ pub struct ObservationsReport {
     /// residual, and the RMS of the lengths (mm), of the angles (deg) and of the marker
     /// positions (mm).
     pub sets: Vec<(String, Score)>,
-    /// Observations whose residual after calibration is more than [`FLAG_AT`] standard
-    /// deviations out, in words.
-    pub warnings: Vec<String>,
+    /// What to look at, one per cause: joint lengths corrected by more than 10 mm, the
+    /// training observations more than [`FLAG_AT`](crate::calibration::FLAG_AT) standard deviations out after
+    /// calibration.
+    pub warnings: Vec<Warning>,
     /// When no sigma was given and the joints are exact: the residuals' variance of unit
     /// weight, by which the standard errors and the whitening are scaled.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -51,6 +52,12 @@ pub struct ObservationsReport {
     /// With several training files: each one's name and number of observations, in order.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub training_files: Vec<(String, usize)>,
+    /// A robust loss (`huber:1.345`), if one was used.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loss: Option<String>,
+    /// The training observations it weighted below 0.1, by line.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub down_weighted: Vec<DownWeighted>,
 }
 
 /// `text` with the points on the last link named as the files name them: with markers, each
@@ -98,19 +105,20 @@ impl ObservationsReport {
                     }
                 };
                 let scale = if angle { 180.0 / std::f64::consts::PI } else { 1.0 };
+                let prior = c.params.index_by_name(name).map(|i| c.prior_sd[i]).filter(|s| s.is_finite());
                 ParameterRow {
                     name: point_names(name, c),
                     value: value * scale,
                     std_error: se[k] * scale,
                     unit,
-                    prior_sd: None,
-                    sd_ratio: None,
+                    prior_sd: prior.map(|s| s * scale),
+                    sd_ratio: prior.map(|s| se[k] / s),
                 }
             })
             .collect();
         let mut sets = vec![("training".to_string(), c.training.clone())];
         sets.extend(held_out);
-        let mut report = Self {
+        Self {
             model: c.calibrated.name.clone(),
             data: data.to_string(),
             observations: fitted.0,
@@ -122,38 +130,26 @@ impl ObservationsReport {
             unseen: c.unseen.clone(),
             fixed: c.fixed.iter().map(|f| point_names(f, c)).collect(),
             sets,
-            warnings: Vec::new(),
+            warnings: c.warnings.clone(),
             variance_factor: c.variance_factor,
             registered_base: c.registered_base.map(|b| {
                 [b.xyz.x, b.xyz.y, b.xyz.z, b.rpy.x.to_degrees(), b.rpy.y.to_degrees(), b.rpy.z.to_degrees()]
             }),
             training_files: Vec::new(),
-        };
-        report.warnings = report.flagged();
-        report
+            loss: c.robust.as_ref().map(|r| r.loss.to_string()),
+            down_weighted: c.robust.as_ref().map_or_else(Vec::new, |r| {
+                r.down_weighted()
+                    .map(|(k, weight)| DownWeighted { line: c.training.observations[k].line, weight })
+                    .collect()
+            }),
+        }
     }
 
     /// The same report with the training files named (each one's name and number of
     /// observations, in the order fitted): its training rows say which file they are in.
     pub fn with_training_files(mut self, files: Vec<(String, usize)>) -> Self {
         self.training_files = files;
-        self.warnings = self.flagged();
         self
-    }
-
-    /// The training observations more than [`FLAG_AT`] standard deviations out, in words.
-    fn flagged(&self) -> Vec<String> {
-        (self.sets[0].1.observations.iter().enumerate())
-            .filter(|(_, r)| r.whitened.abs() > FLAG_AT)
-            .map(|(k, r)| {
-                format!(
-                    "{} ({}): a residual {:.1} standard deviations out after calibration",
-                    super::line_in(&self.training_files, k, r.line),
-                    r.label(),
-                    r.whitened.abs()
-                )
-            })
-            .collect()
     }
 
     /// The report as text, at fixed precision.
@@ -178,11 +174,13 @@ impl ObservationsReport {
             );
         }
         let _ = writeln!(out);
-        let w = self.parameters.iter().map(|p| p.name.len()).max().unwrap_or(0).max(14);
-        let _ = writeln!(out, "{:<w$} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
-        for p in &self.parameters {
-            let _ = writeln!(out, "{:<w$} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
-        }
+        super::calibration::write_parameters(&mut out, &self.parameters);
+        super::calibration::write_down_weighted(
+            &mut out,
+            self.loss.as_deref(),
+            &self.down_weighted,
+            "observation",
+        );
         if !self.unseen.is_empty() {
             let _ = writeln!(out, "\nnot seen by these observations, held:");
         }
@@ -259,7 +257,8 @@ impl ObservationsReport {
         if !self.warnings.is_empty() {
             let _ = writeln!(out, "\nwarnings:");
             for w in &self.warnings {
-                let _ = writeln!(out, "  {w}");
+                let _ =
+                    writeln!(out, "  {}", w.render(&|k, line| super::line_in(&self.training_files, k, line)));
             }
         }
         out

@@ -4,6 +4,7 @@
 //! files, with the worst views. Text and JSON carry the same content.
 
 use super::calibration::ParameterRow;
+use crate::calibration::Warning;
 use crate::calibration::tree::{TreeCalibration, TreeScore, ViewResidual};
 use serde::Serialize;
 use std::fmt::Write;
@@ -51,8 +52,8 @@ pub struct TreeReport {
     pub fixed: Vec<String>,
     /// The training views scored, then each held-out file's.
     pub sets: Vec<(String, TreeScore)>,
-    /// Implausible results, in words.
-    pub warnings: Vec<String>,
+    /// Implausible results, one per cause.
+    pub warnings: Vec<Warning>,
     /// With several training files: each one's name and number of views, in order.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub training_files: Vec<(String, usize)>,
@@ -214,7 +215,8 @@ impl TreeReport {
         if !self.warnings.is_empty() {
             let _ = writeln!(out, "\nwarnings:");
             for w in &self.warnings {
-                let _ = writeln!(out, "  {w}");
+                let _ =
+                    writeln!(out, "  {}", w.render(&|k, line| super::line_in(&self.training_files, k, line)));
             }
         }
         out

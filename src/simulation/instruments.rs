@@ -732,6 +732,9 @@ impl Campaign<'_> {
                 let data = self.kinds(&real, i, count, declared, &mut rng)?;
                 let options = KindOptions {
                     per_session: Vec::new(),
+                    prior: Vec::new(),
+                    loss: Default::default(),
+                    gauge: Default::default(),
                     estimator: Estimator::Wls,
                     joint_noise: Some(noise_q),
                     joints: JointParams::All,

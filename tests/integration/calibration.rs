@@ -4,7 +4,7 @@ use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
-use robocal::calibration::{self, JointParams, Measurements, Options};
+use robocal::calibration::{self, JointParams, Measurements, Options, Scored, Warning};
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PointProblem, RefineOptions, refine};
 use robocal::kinematics::{Chain, ChainAt, Measured};
 use robocal::model::{ParamKind, ParamOwner, Placement, RobotModel, Selection, Tool};
@@ -265,8 +265,11 @@ fn an_outlier_is_flagged_with_its_line_and_clean_data_is_not() {
     let flagged = calibration::calibrate(&c.nominal, &bumped, &c.options).unwrap();
     // The outlier pulls the fit, so a neighbour may come near the threshold; it stands out.
     let line = bumped.lines[40];
-    assert!(flagged.warnings[0].starts_with(&format!("line {line}: a residual")), "{:?}", flagged.warnings);
-    assert!(flagged.warnings.len() <= 3, "{:?}", flagged.warnings);
+    let [Warning::FarOut { scored: Scored::Pose, observations }] = flagged.warnings.as_slice() else {
+        panic!("one warning of far-out poses: {:?}", flagged.warnings)
+    };
+    assert_eq!(observations[0].line, line, "the worst first: {observations:?}");
+    assert!(observations.len() <= 3, "{observations:?}");
 }
 
 #[test]
@@ -601,10 +604,17 @@ fn a_probe_pose_turned_off_is_flagged_without_a_noise_model() {
     let calibration =
         calibration::calibrate(&nominal, &training, &probe_options(Estimator::Ols, None)).unwrap();
     let line = training.lines[7];
-    let flagged: Vec<&String> =
-        calibration.warnings.iter().filter(|w| w.contains("standard deviations out")).collect();
-    assert_eq!(flagged.len(), 1, "{:?}", calibration.warnings);
-    assert!(flagged[0].starts_with(&format!("line {line}:")), "{flagged:?}");
+    let flagged: Vec<&Vec<robocal::calibration::FarOut>> = (calibration.warnings.iter())
+        .filter_map(|w| match w {
+            Warning::FarOut { observations, .. } => Some(observations),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        matches!(flagged.as_slice(), [o] if o.len() == 1 && o[0].line == line),
+        "{:?}",
+        calibration.warnings
+    );
 }
 
 /// Feasible GLS on 6-DOF data: it starts from OLS (orientation rows weighted by the default

@@ -126,6 +126,9 @@ pub(crate) fn views(
 fn options(estimator: Estimator) -> KindOptions {
     KindOptions {
         per_session: Vec::new(),
+        prior: Vec::new(),
+        loss: Default::default(),
+        gauge: Default::default(),
         estimator,
         joint_noise: None,
         joints: JointParams::All,

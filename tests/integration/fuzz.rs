@@ -177,6 +177,9 @@ proptest! {
                 // A fit of what reads: a calibration or an error, never a panic.
                 let options = robocal::calibration::kinds::KindOptions {
                     per_session: Vec::new(),
+                    prior: Vec::new(),
+                    loss: Default::default(),
+                    gauge: Default::default(),
                     estimator: Estimator::Wls,
                     joint_noise: None,
                     joints: JointParams::Offsets,

@@ -230,6 +230,9 @@ pub(crate) const TOOL: Vector3<f64> = Vector3::new(20.0, -10.0, 120.0);
 pub(crate) fn options(estimator: Estimator) -> KindOptions {
     KindOptions {
         per_session: Vec::new(),
+        prior: Vec::new(),
+        loss: Default::default(),
+        gauge: Default::default(),
         estimator,
         joint_noise: None,
         joints: JointParams::All,
@@ -891,12 +894,11 @@ fn an_observation_far_out_is_flagged() {
     let report =
         robocal::report::observations::ObservationsReport::new(&c, "bar.csv", (150, 150), "wls", vec![]);
     assert_eq!(report.sets[0].1.observations.len(), 150);
-    assert_eq!(report.warnings.len(), 1, "{:?}", report.warnings);
     let line = data.lines[40];
-    assert!(
-        report.warnings[0].starts_with(&format!("line {line} (point): a residual")),
-        "{:?}",
-        report.warnings
-    );
+    let [robocal::calibration::Warning::FarOut { observations, .. }] = report.warnings.as_slice() else {
+        panic!("one warning of far-out observations: {:?}", report.warnings)
+    };
+    assert!(matches!(observations.as_slice(), [o] if o.line == line && o.label.as_deref() == Some("point")));
+    assert!(report.text().contains(&format!("line {line} (point): a residual")), "{}", report.text());
     assert!(report.text().contains(&format!("training, line {line} (point)")));
 }

@@ -2,6 +2,7 @@
 
 mod calibration;
 mod camera;
+mod choice;
 mod cli;
 mod compliance;
 mod estimation;

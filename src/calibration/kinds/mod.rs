@@ -102,10 +102,13 @@ pub use data::{
     KindData, Observation,
 };
 
-use super::{CalibrationError, JointParams, fold, gauge_class};
+use super::{
+    CalibrationError, FLAG_AT, FarOut, Gauge, JointParams, Loss, RobustFit, Scored, Warning, fold,
+    gauge_class,
+};
 use crate::estimation::{
-    Estimator, Linearisation, POSE_SIGMAS, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights,
-    linearise, refine_from,
+    Estimator, Linearisation, POSE_SIGMAS, PriorEntry, PriorRows, RANK_TOLERANCE, RefineOptions, Refined,
+    Residuals, Weights, linearise, prior_sds, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
@@ -140,6 +143,14 @@ pub struct KindOptions {
     /// `target.*`) with one value per session ([`KindData::sessions`]), estimated: an
     /// instrument re-zeroed or moved between sessions.
     pub per_session: Vec<String>,
+    /// Prior standard deviations of the robot's parameters about the nominal model (maximum a
+    /// posteriori, [`PriorRows`]): they apply to those `joints` asks for; empty: none.
+    pub prior: Vec<PriorEntry>,
+    /// The loss of each observation's whitened residual ([`robust`](super::robust)).
+    pub loss: Loss,
+    /// The user's say in the gauge: parameters held (the robot's or the set-up's), parameters
+    /// kept free first.
+    pub gauge: Gauge,
 }
 
 impl Default for KindOptions {
@@ -155,6 +166,9 @@ impl Default for KindOptions {
             markers: Vec::new(),
             refine: RefineOptions::default(),
             per_session: Vec::new(),
+            prior: Vec::new(),
+            loss: Loss::Squared,
+            gauge: Gauge::default(),
         }
     }
 }
@@ -911,6 +925,13 @@ pub struct KindCalibration {
     chains: Vec<Chain>,
     /// No robot parameter: the selection of a problem that scores.
     nothing: Selection,
+    /// With a robust loss: each observation's final weight and how the reweighting went.
+    pub robust: Option<RobustFit>,
+    /// The prior standard deviation of each robot parameter (infinite: none).
+    pub prior_sd: Vec<f64>,
+    /// What to look at, one per cause: joint lengths corrected by more than 10 mm, training
+    /// observations far out.
+    pub warnings: Vec<Warning>,
 }
 
 /// One observation scored: its residual `m_k - f_k` before and after (mm; rad for an angle),
@@ -1169,6 +1190,8 @@ pub fn calibrate_kinds(
     let start = setup.expand(&start);
     let nothing = Selection::from_indices(&params, []);
     let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
+    let (asked, asked_setup, held_words) =
+        without_held(&params, asked, asked_setup, &setup, &options.gauge.hold)?;
     // The before fit's set-up: all but the length zeros not asked for.
     let every: Vec<usize> =
         (0..setup.len()).filter(|&i| !setup.is_zero(setup.base_of(i)) || asked_setup.contains(&i)).collect();
@@ -1210,10 +1233,17 @@ pub fn calibrate_kinds(
         });
     }
     let linearised = linearise(&problem, &weights, problem.start())?;
+    let keep = problem_columns(&problem, &options.gauge.keep)?;
+    // The user's --keep first, then the set-up, then the robot's by gauge class.
     let priority: Vec<u32> = (0..problem.parameters())
-        .map(|c| asked.indices().get(c).map_or(0, |&i| gauge_class(params.get(i))))
+        .map(|c| match keep.contains(&c) {
+            true => 0,
+            false => 1 + asked.indices().get(c).map_or(0, |&i| gauge_class(params.get(i))),
+        })
         .collect();
-    let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority)?;
+    let prior = prior_rows(&problem, &asked, &params, &options.prior, &weights)?;
+    let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority, prior.as_ref())?;
+    fixed.extend(held_words);
     if let Some(i) =
         (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, &params)).flatten()
     {
@@ -1230,7 +1260,10 @@ pub fn calibrate_kinds(
     );
     let kept_setup = identifiable.iter().filter(|&&c| c >= robot).map(|&c| asked_setup[c - robot]).collect();
     let problem = base_problem.reselect(&kept, before.clone(), before_setup.clone(), kept_setup);
-    let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
+    let prior = prior.map(|p| p.select(&identifiable));
+    let start = linearised.select(&identifiable);
+    let (estimate, robust) =
+        super::robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);
     let calibrated_points = calibrated_points(&params, &after, &points);
     // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
@@ -1238,6 +1271,7 @@ pub fn calibrate_kinds(
     let tool_point = if data.sees_the_tool() { markers.len() } else { 0 };
     let calibrated = fold(&registered, &params, &after, (&points, tool_point), probe.as_ref());
     let frame = registered.marker_frame().isometry();
+    let prior_sd = prior_sds(&options.prior, &params)?;
     let mut calibration = KindCalibration {
         calibrated,
         params,
@@ -1256,6 +1290,9 @@ pub fn calibrate_kinds(
             sessions: Vec::new(),
         },
         nothing: nothing.clone(),
+        robust,
+        prior_sd,
+        warnings: Vec::new(),
         markers: markers.iter().zip(&calibrated_points).map(|(&m, p)| (m, (frame * p).coords)).collect(),
         variance_factor: None,
         registered_base: (!markers.is_empty()).then_some(registered.base),
@@ -1274,6 +1311,12 @@ pub fn calibrate_kinds(
         calibration.variance_factor = Some(f);
         calibration.training = calibration.score(data)?;
     }
+    calibration.warnings =
+        super::large_corrections(calibration.params.iter(), &calibration.before, &calibration.after);
+    let far_out = (calibration.training.observations.iter().enumerate())
+        .filter(|(_, r)| r.whitened.abs() > FLAG_AT)
+        .map(|(index, r)| FarOut { index, line: r.line, label: Some(r.label()), sd: r.whitened });
+    calibration.warnings.extend(Warning::far_out(Scored::Observation, far_out));
     Ok(calibration)
 }
 
@@ -1395,6 +1438,85 @@ fn asked(
     Ok((robot, (0..setup.len()).filter(|&i| !held(setup.base_of(i))).collect()))
 }
 
+/// The columns of `problem` (robot then set-up, by [`Residuals::names`], a per-session
+/// value by its parameter's name too) that `patterns` name; a pattern naming none is refused.
+fn problem_columns(problem: &KindProblem<'_>, patterns: &[String]) -> Result<Vec<usize>, SelectionError> {
+    let names: Vec<String> =
+        problem.names().iter().map(|n| n.split('@').next().unwrap_or(n).to_string()).collect();
+    let mut columns = Vec::new();
+    for pattern in patterns {
+        let found = (0..names.len())
+            .filter(|&c| name_matches(pattern, &names[c]) || name_matches(pattern, &problem.names()[c]));
+        let before = columns.len();
+        columns.extend(found);
+        if columns.len() == before {
+            return Err(SelectionError { pattern: pattern.clone() });
+        }
+    }
+    Ok(columns)
+}
+
+/// `asked` (robot) and `asked_setup` without the parameters `hold` names (robot or set-up,
+/// names or patterns), and each held one in words; a pattern naming none is refused.
+fn without_held(
+    params: &ParamSet,
+    asked: Selection,
+    asked_setup: Vec<usize>,
+    setup: &SetUp,
+    hold: &[String],
+) -> Result<(Selection, Vec<usize>, Vec<String>), SelectionError> {
+    if hold.is_empty() {
+        return Ok((asked, asked_setup, Vec::new()));
+    }
+    let (names, base) = (setup.names(), setup.base_names());
+    let setup_held = |i: usize| {
+        hold.iter().any(|p| name_matches(p, &names[i]) || name_matches(p, &base[setup.base_of(i)]))
+    };
+    let robot_held = |i: usize| hold.iter().any(|p| name_matches(p, &params.get(i).name));
+    if let Some(p) = hold.iter().find(|p| {
+        !params.iter().any(|q| name_matches(p, &q.name))
+            && !(0..names.len())
+                .any(|i| name_matches(p, &names[i]) || name_matches(p, &base[setup.base_of(i)]))
+    }) {
+        return Err(SelectionError { pattern: p.clone() });
+    }
+    let mut words: Vec<String> = (asked.indices().iter().filter(|&&i| robot_held(i)))
+        .map(|&i| format!("{}: held at its nominal value by --hold", params.get(i).name))
+        .collect();
+    words.extend(
+        asked_setup
+            .iter()
+            .filter(|&&i| setup_held(i))
+            .map(|&i| format!("{}: held at its start by --hold", names[i])),
+    );
+    let robot = Selection::from_indices(params, asked.indices().iter().copied().filter(|&i| !robot_held(i)));
+    let setup_kept = asked_setup.into_iter().filter(|&i| !setup_held(i)).collect();
+    Ok((robot, setup_kept, words))
+}
+
+/// The prior rows of `problem`'s columns: the robot's asked parameters' standard deviations
+/// of `entries`, none for the set-up; scaled by the weights' row scale `c`; `None` when no
+/// column has a prior.
+fn prior_rows(
+    problem: &KindProblem<'_>,
+    asked: &Selection,
+    params: &ParamSet,
+    entries: &[PriorEntry],
+    weights: &Weights,
+) -> Result<Option<PriorRows>, CalibrationError> {
+    if entries.is_empty() {
+        return Ok(None);
+    }
+    let sd = prior_sds(entries, params)?;
+    let columns: Vec<f64> =
+        (0..problem.parameters()).map(|c| asked.indices().get(c).map_or(f64::INFINITY, |&i| sd[i])).collect();
+    if columns.iter().all(|s| !s.is_finite()) {
+        return Ok(None);
+    }
+    let scale = weights.scale().unwrap_or(1.0);
+    Ok(Some(PriorRows::new(&columns, scale)))
+}
+
 /// The indices of `names` that the `patterns` match (`*` as in [`Selection::by_names`]); a
 /// pattern that matches none is refused.
 fn matching(names: &[String], patterns: &[String]) -> Result<Vec<usize>, SelectionError> {
@@ -1442,6 +1564,7 @@ pub(super) fn identifiable(
     linearised: &Linearisation,
     names: &[String],
     priority: &[u32],
+    prior: Option<&PriorRows>,
 ) -> Result<(Vec<usize>, Vec<String>), CalibrationError> {
     let norms: Vec<f64> = linearised.a.column_iter().map(|c| c.norm()).collect();
     let largest = norms.iter().copied().fold(0.0, f64::max);
@@ -1450,7 +1573,14 @@ pub(super) fn identifiable(
     let mut fixed: Vec<String> =
         unseen.iter().map(|&c| format!("{}: the observations do not move it", names[c])).collect();
     let seen_priority: Vec<u32> = seen.iter().map(|&c| priority[c]).collect();
-    let diagnostics = linearised.select(&seen).diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?;
+    let seen_system = linearised.select(&seen);
+    let diagnostics = match prior {
+        // With priors, what the data and the priors together cannot identify is held.
+        Some(prior) => seen_system
+            .with_prior(&prior.select(&seen))
+            .diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?,
+        None => seen_system.diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?,
+    };
     let seen_names: Vec<&str> = seen.iter().map(|&c| names[c].as_str()).collect();
     fixed.extend(diagnostics.not_identifiable.iter().map(|c| c.describe(&seen_names)));
     Ok((diagnostics.identifiable.iter().map(|&c| seen[c]).collect(), fixed))

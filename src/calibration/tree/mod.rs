@@ -51,7 +51,7 @@ pub use data::{Frame, Role, TreeData, View};
 
 use super::kinds::camera::{camera_start, isometry, mounted, placed, placement, relative_view};
 use super::kinds::identifiable;
-use super::{CalibrationError, FLAG_AT, JointParams, fold, gauge_class};
+use super::{CalibrationError, FLAG_AT, FarOut, JointParams, Scored, Warning, fold, gauge_class};
 use crate::estimation::{
     Estimator, POSE_SIGMAS, RefineOptions, Refined, Residuals, Weights, linearise, refine_from,
 };
@@ -549,9 +549,9 @@ pub struct TreeCalibration {
     pub fixed: Vec<String>,
     /// The training views scored, before and after.
     pub training: TreeScore,
-    /// Implausible results, in words: joint lengths corrected by more than 10 mm, training
+    /// Implausible results, one per cause: joint lengths corrected by more than 10 mm, training
     /// views more than [`FLAG_AT`] standard deviations out after calibration.
-    pub warnings: Vec<String>,
+    pub warnings: Vec<Warning>,
     joint_noise: Option<DMatrix<f64>>,
 }
 
@@ -615,19 +615,14 @@ impl TreeCalibration {
 
     /// Joint lengths corrected by more than 10 mm (a wrong model or wrong units), and training
     /// views whose residual is more than [`FLAG_AT`] standard deviations out.
-    fn warnings(&self) -> Vec<String> {
-        let lengths = (self.params.params.iter().zip(&self.after))
-            .filter(|(p, x)| matches!(p.owner, ParamOwner::Joint(_)) && p.unit() == "mm" && x.abs() > 10.0)
-            .map(|(p, x)| {
-                format!(
-                    "{} is corrected by {x:.2} mm: more than 10 mm, check the model and the units",
-                    p.name
-                )
-            });
-        let flagged = (self.training.views.iter()).filter(|v| v.whitened > FLAG_AT).map(|v| {
-            format!("line {}: a residual {:.1} standard deviations out after calibration", v.line, v.whitened)
-        });
-        lengths.chain(flagged).collect()
+    fn warnings(&self) -> Vec<Warning> {
+        let before = vec![0.0; self.after.len()];
+        let mut out = super::large_corrections(self.params.params.iter(), &before, &self.after);
+        let far_out = (self.training.views.iter().enumerate())
+            .filter(|(_, v)| v.whitened > FLAG_AT)
+            .map(|(index, v)| FarOut { index, line: v.line, label: None, sd: v.whitened });
+        out.extend(Warning::far_out(Scored::View, far_out));
+        out
     }
 
     /// The frames' names.
@@ -765,7 +760,7 @@ pub fn calibrate_tree(
     let priority: Vec<u32> = (0..problem.parameters())
         .map(|c| asked.get(c).map_or(0, |&i| gauge_class(&params.params[i])))
         .collect();
-    let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority)?;
+    let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority, None)?;
     for f in &mut fixed {
         let Some(name) = f.strip_suffix(": the observations do not move it") else { continue };
         let turn = ["rx", "ry", "rz"].iter().any(|r| name.ends_with(&format!(".{r}")));

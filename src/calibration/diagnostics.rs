@@ -1,0 +1,201 @@
+//! What a calibration warns of, as typed values: one per cause, with what it concerns (the
+//! parameter, the observations and their lines), which the reports render as text and write
+//! as JSON. Nothing downstream matches the text.
+
+use serde::Serialize;
+use std::fmt;
+
+/// A joint length corrected by more than this (mm) is suspect: check the model and the units.
+pub const LARGE_CORRECTION_MM: f64 = 10.0;
+
+/// Far-out observations listed in the text (the worst first; every one in the JSON).
+pub const LISTED: usize = 5;
+
+/// One training observation (a pose, an observation row or a view) far out after calibration.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FarOut {
+    /// Its index in the training set (to find its file among several).
+    pub index: usize,
+    /// Its line in its file.
+    pub line: usize,
+    /// What it is, when a set mixes kinds (`point`, `marker 2 z`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub label: Option<String>,
+    /// Its whitened residual, in standard deviations (its largest component for a pose).
+    pub sd: f64,
+}
+
+/// What is far out: the unit a set is scored by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scored {
+    /// A pose of markers or a probe.
+    Pose,
+    /// One observation (a distance, a contact, a coordinate, a camera's row).
+    Observation,
+    /// A camera's view of a tree.
+    View,
+}
+
+impl Scored {
+    /// Its name, singular or plural.
+    fn name(self, count: usize) -> &'static str {
+        match (self, count) {
+            (Self::Pose, 1) => "pose",
+            (Self::Pose, _) => "poses",
+            (Self::Observation, 1) => "observation",
+            (Self::Observation, _) => "observations",
+            (Self::View, 1) => "view",
+            (Self::View, _) => "views",
+        }
+    }
+}
+
+/// A warning about a calibration: one per cause.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "cause", rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum Warning {
+    /// A joint length corrected by more than [`LARGE_CORRECTION_MM`].
+    LargeCorrection {
+        /// Its name (`j2.a`).
+        parameter: String,
+        /// The correction (mm).
+        correction_mm: f64,
+    },
+    /// Training observations more than [`FLAG_AT`](super::FLAG_AT) standard deviations out after
+    /// calibration, the worst first.
+    FarOut {
+        /// What they are.
+        scored: Scored,
+        /// Every one of them.
+        observations: Vec<FarOut>,
+    },
+    /// A compliance below 0 by more than two standard errors: it absorbs something else.
+    NegativeCompliance {
+        /// Its name (`j2.compliance`).
+        parameter: String,
+        /// Its value.
+        value: f64,
+        /// Its unit.
+        unit: &'static str,
+    },
+    /// A compliance softer than any real joint (above
+    /// [`SOFTEST_COMPLIANCE`](super::SOFTEST_COMPLIANCE)) by more than two standard errors.
+    SoftCompliance {
+        /// Its name.
+        parameter: String,
+        /// Its value (rad/N·m).
+        value: f64,
+    },
+    /// The identified system's scaled condition number above
+    /// [`CONDITION_WARNING`](super::CONDITION_WARNING).
+    IllConditioned {
+        /// The condition number.
+        condition_number: f64,
+    },
+    /// Feasible GLS: the variance components did not settle.
+    NoiseUnsettled {
+        /// The re-weightings made.
+        reweightings: usize,
+    },
+    /// Feasible GLS ignored the data's sigma column.
+    SigmaIgnored,
+}
+
+impl Warning {
+    /// The far-out ones of `scored` (`(index, line, label, sd)`), worst first; `None` if none.
+    pub fn far_out(scored: Scored, found: impl IntoIterator<Item = FarOut>) -> Option<Self> {
+        let mut observations: Vec<FarOut> = found.into_iter().collect();
+        observations.sort_by(|a, b| b.sd.abs().total_cmp(&a.sd.abs()).then(a.index.cmp(&b.index)));
+        (!observations.is_empty()).then_some(Self::FarOut { scored, observations })
+    }
+
+    /// The text, each far-out observation's line by `line` (its index, its line: the file's
+    /// name where several were fitted).
+    pub fn render(&self, line: &dyn Fn(usize, usize) -> String) -> String {
+        let Self::FarOut { scored, observations } = self else { return self.to_string() };
+        let one = |o: &FarOut| {
+            let label = o.label.as_ref().map_or(String::new(), |l| format!(" ({l})"));
+            format!("{}{label}", line(o.index, o.line))
+        };
+        if let [o] = observations.as_slice() {
+            return format!(
+                "{}: a residual {:.1} standard deviations out after calibration",
+                one(o),
+                o.sd.abs()
+            );
+        }
+        let listed: Vec<String> =
+            observations.iter().take(LISTED).map(|o| format!("{} ({:.1})", one(o), o.sd.abs())).collect();
+        let more = if observations.len() > LISTED { ", ..." } else { "" };
+        format!(
+            "{} training {} more than {} standard deviations out after calibration, the worst: {}{more} (every one in --json)",
+            observations.len(),
+            scored.name(observations.len()),
+            super::FLAG_AT,
+            listed.join(", ")
+        )
+    }
+}
+
+impl fmt::Display for Warning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::LargeCorrection { parameter, correction_mm } => write!(
+                f,
+                "{parameter} is corrected by {correction_mm:.2} mm: more than {LARGE_CORRECTION_MM} mm, check the model and the units"
+            ),
+            Self::FarOut { .. } => f.write_str(&self.render(&|_, line| format!("line {line}"))),
+            Self::NegativeCompliance { parameter, value, unit } => write!(
+                f,
+                "{parameter} is {value:.3e} {unit}: a negative compliance absorbs something else (geometry, play, masses)"
+            ),
+            Self::SoftCompliance { parameter, value } => write!(
+                f,
+                "{parameter} is {value:.3e} rad/N·m, a stiffness of {:.0} N·m/rad: softer than any real joint, it absorbs something else",
+                1.0 / value
+            ),
+            Self::IllConditioned { condition_number } => write!(
+                f,
+                "the identified system's scaled condition number is {condition_number:.3e}, above {:e}: the estimates are poorly determined; measure more varied poses or identify fewer parameters",
+                super::CONDITION_WARNING
+            ),
+            Self::NoiseUnsettled { reweightings } => {
+                write!(
+                    f,
+                    "feasible GLS: the variance components did not settle in {reweightings} re-weightings"
+                )
+            }
+            Self::SigmaIgnored => {
+                f.write_str("feasible GLS ignored the sigma column: it estimates sigma_me itself")
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn far(index: usize, sd: f64) -> FarOut {
+        FarOut { index, line: index + 3, label: None, sd }
+    }
+
+    /// One far-out observation reads as one; many, as one warning with their count and the
+    /// worst few.
+    #[test]
+    fn far_out_observations_are_one_warning_with_a_count() {
+        assert_eq!(Warning::far_out(Scored::Pose, []), None);
+        let one = Warning::far_out(Scored::Pose, [far(4, -6.04)]).unwrap();
+        assert_eq!(one.to_string(), "line 7: a residual 6.0 standard deviations out after calibration");
+        let many =
+            Warning::far_out(Scored::Observation, (0..360).map(|k| far(k, 5.5 + k as f64 / 100.0))).unwrap();
+        let text = many.to_string();
+        assert!(text.starts_with("360 training observations more than 5 standard deviations out"), "{text}");
+        assert!(text.contains("the worst: line 362 (9.1), line 361 (9.1), line 360 (9.1)"), "{text}");
+        assert!(text.ends_with(", ... (every one in --json)"), "{text}");
+        let Warning::FarOut { observations, .. } = many else { panic!() };
+        assert_eq!(observations.len(), 360);
+    }
+}
