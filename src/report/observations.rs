@@ -60,13 +60,10 @@ pub struct ObservationsReport {
     pub down_weighted: Vec<DownWeighted>,
 }
 
-/// `text` with the points on the last link named as the files name them: with markers, each
-/// marker by its number (`marker1.x` of markers 2 and 3 is `marker2.x`) and the tool point,
-/// the point after them, `tool.x`; without, the tool point is `marker1`, as the model's tool.
+/// `text` with the points on the last link named as the files name them: each marker by its
+/// number (`marker1.x` of markers 2 and 3 is `marker2.x`) and the tool point, the point after
+/// them (the first without markers), `tool.x`, in every fit.
 fn point_names(text: &str, c: &KindCalibration) -> String {
-    if c.markers.is_empty() {
-        return text.to_string();
-    }
     let tool = format!("marker{}.", c.markers.len() + 1);
     let text: Vec<String> = text
         .split(' ')
@@ -239,7 +236,7 @@ impl ObservationsReport {
         }
         let _ = writeln!(
             out,
-            "\nbefore: the set-up (points, planes, camera and target) fitted with the robot nominal; after: the robot and the set-up"
+            "\nbefore: the set-up (points, planes, camera and target) and the tool point fitted with the robot nominal; after: the robot and the set-up"
         );
         if let Some(f) = self.variance_factor {
             let _ = writeln!(

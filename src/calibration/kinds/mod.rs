@@ -894,7 +894,8 @@ pub struct KindCalibration {
     pub calibrated: RobotModel,
     /// The robot's parameters.
     pub params: ParamSet,
-    /// Robot parameter errors after the set-up fit with the robot nominal ("before").
+    /// Robot parameter errors after the set-up and the tool point (with markers, the base and
+    /// the markers too) fitted with the robot's joints nominal ("before").
     pub before: Vec<f64>,
     /// Robot parameter errors after the full calibration ("after").
     pub after: Vec<f64>,
@@ -1199,13 +1200,16 @@ pub fn calibrate_kinds(
         KindProblem::of_points(&chains, &markers, &nothing, data, &setup, zero.clone(), start, every.clone())
             .with_noise(options.joint_noise.as_ref());
     let weights = Weights::for_problem(&base_problem, options.estimator)?;
-    // "Before": the set-up alone, the robot nominal; with markers, the base and the points on
-    // the last link too, by ordinary least squares whatever the estimator, as `calibrate` fits
-    // its base and markers (it minimises the very errors it reports).
+    // "Before": the set-up and the tool point, the robot's joints nominal; with markers, the
+    // base and the markers too, by ordinary least squares whatever the estimator, as
+    // `calibrate` fits its base and markers (it minimises the very errors it reports).
     let frame = Selection::from_indices(
         &params,
-        (asked.indices().iter().copied())
-            .filter(|&i| !markers.is_empty() && !matches!(params.get(i).owner, ParamOwner::Joint(_))),
+        (asked.indices().iter().copied()).filter(|&i| match params.get(i).owner {
+            ParamOwner::Marker(_) => true,
+            ParamOwner::Joint(_) => false,
+            _ => !markers.is_empty(),
+        }),
     );
     let (before, before_setup) = match every.is_empty() && frame.is_empty() {
         true => base_problem.full(&base_problem.start()),
