@@ -406,6 +406,11 @@ pub struct CalibrateObservationsArgs {
     /// `pair.zero`, mm: distance = |p - c| + zero) is held unless named here or in --params.
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     pub per_session: Vec<String>,
+    /// k-fold cross-validation on the data (k >= 2, at most the number of poses): the
+    /// observations of pose p held out in fold p mod k, each fold calibrated with every flag
+    /// (priors, loss, sessions) on the others; their held-out residuals pooled as a set.
+    #[arg(long, value_parser = parse_count::<2>)]
+    pub folds: Option<usize>,
     /// Write the report as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,

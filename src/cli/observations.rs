@@ -6,7 +6,9 @@ use super::from_flag_unit;
 use super::request::CalibrateObservationsRequest;
 use anyhow::{Context, Result, bail};
 use nalgebra::DMatrix;
-use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
+use robocal::calibration::kinds::{
+    KindData, KindOptions, Observation, calibrate_kinds, cross_validate_kinds,
+};
 use robocal::estimation::RefineOptions;
 use robocal::io;
 use robocal::model::RobotModel;
@@ -67,6 +69,12 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
             Ok((path.display().to_string(), score))
         })
         .collect::<Result<Vec<_>>>()?;
+    let mut held_out = held_out;
+    if let Some(k) = request.folds {
+        let score = cross_validate_kinds(&model, &data, &options, k)
+            .with_context(|| format!("--folds {k}: {}", names.join(", ")))?;
+        held_out.push((format!("{k}-fold cross-validation"), score));
+    }
     let fitted = (data.observations.len(), data.joints.len());
     let report = ObservationsReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out)
         .with_training_files(files);

@@ -345,6 +345,8 @@ pub struct CalibrateObservationsRequest {
     pub validate: Vec<PathBuf>,
     /// Set-up parameters with one value per data file (names or patterns).
     pub per_session: Vec<String>,
+    /// k-fold cross-validation, if asked for.
+    pub folds: Option<usize>,
     /// Held and kept parameters.
     pub gauge: robocal::calibration::Gauge,
     /// Prior standard deviations.
@@ -402,6 +404,7 @@ impl CalibrateObservationsRequest {
         Ok(Self {
             model,
             per_session: args.per_session,
+            folds: args.folds,
             gauge: robocal::calibration::Gauge { hold: args.choice.hold, keep: args.choice.keep },
             prior: args.choice.prior.into_iter().flatten().collect(),
             loss: args.choice.loss,

@@ -163,6 +163,7 @@ fn the_command_models_sessions_from_the_files() {
     let other = test_dir.join("thursday.csv");
     std::fs::write(&other, csv(&draw_wire(&real, 2.0, 60, "thursday", &mut rng))).unwrap();
     args.extend(["--validate".into(), path(other), "--per-session".into(), "point1.zero".into()]);
+    args.extend(["--folds".into(), "4".into()]);
     let output = assert_cmd::Command::cargo_bin("robocal").unwrap().args(&args).output().unwrap();
     let text = String::from_utf8(output.stdout).unwrap();
     assert!(output.status.success(), "{text}{}", String::from_utf8_lossy(&output.stderr));
@@ -179,8 +180,8 @@ fn the_command_models_sessions_from_the_files() {
             text.lines().find(|l| l.contains(line) && l.contains("(mm)")).unwrap_or_else(|| panic!("{text}"));
         row.split_whitespace().last().unwrap().parse().unwrap()
     };
-    for name in ["monday", "tuesday", "wednesday", "thursday"] {
-        assert!(rms(&format!("{name}.csv")) < 2.0 * SIGMA, "{name}\n{text}");
+    for name in ["monday.csv", "tuesday.csv", "wednesday.csv", "thursday.csv", "4-fold cross-validation"] {
+        assert!(rms(name) < 2.0 * SIGMA, "{name}\n{text}");
     }
 
     let one = assert_cmd::Command::cargo_bin("robocal")
@@ -205,4 +206,21 @@ fn the_command_models_sessions_from_the_files() {
         String::from_utf8_lossy(&same_stem.stderr)
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// k-fold cross-validation keeps each session's zero in every fold: with per-session zeros the
+/// pooled held-out folds are at the noise level, as the held-out files are; with one zero they
+/// are not.
+#[test]
+fn cross_validation_keeps_the_sessions_in_every_fold() {
+    use robocal::calibration::kinds::cross_validate_kinds;
+    let (training, _) = three_sessions(17);
+    let per_session = KindOptions { per_session: vec!["point1.zero".into()], ..options(Estimator::Wls) };
+    let folds = cross_validate_kinds(&puma(), &training, &per_session, 5).unwrap();
+    assert_eq!(folds.observations.len(), training.observations.len());
+    assert!(folds.lengths.1 < 2.0 * SIGMA, "5-fold RMS {} mm", folds.lengths.1);
+    let shared = cross_validate_kinds(&puma(), &training, &options(Estimator::Wls), 5).unwrap();
+    assert!(shared.lengths.1 > 5.0 * folds.lengths.1, "{} mm against {}", shared.lengths.1, folds.lengths.1);
+    let e = cross_validate_kinds(&puma(), &training, &per_session, 1).unwrap_err().to_string();
+    assert!(e.contains("1 folds for 360 poses: expected 2 to the number of poses"), "{e}");
 }

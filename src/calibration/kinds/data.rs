@@ -267,6 +267,21 @@ impl KindData {
         self
     }
 
+    /// The observations that `keep` keeps, at the same poses and sessions. Their sigmas count
+    /// as assumed if every observation's here did.
+    pub fn keeping(&self, keep: impl Fn(&Observation) -> bool) -> Self {
+        let kept: Vec<usize> =
+            (0..self.observations.len()).filter(|&k| keep(&self.observations[k])).collect();
+        let all_assumed = self.assumed_sigmas == self.observations.len();
+        Self {
+            joints: self.joints.clone(),
+            observations: kept.iter().map(|&k| self.observations[k]).collect(),
+            lines: kept.iter().map(|&k| self.lines[k]).collect(),
+            assumed_sigmas: if all_assumed { kept.len() } else { 0 },
+            sessions: self.sessions.clone(),
+        }
+    }
+
     /// The number of sessions (at least 1).
     pub fn session_count(&self) -> usize {
         self.sessions.len().max(1)

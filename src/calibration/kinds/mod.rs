@@ -998,6 +998,15 @@ impl ObservationResidual {
 }
 
 impl Score {
+    /// The observations of several scores in one (k-fold cross-validation's held-out folds),
+    /// `kinds` the observations of each, in order.
+    fn pooled(scores: &[(Score, Vec<Observation>)]) -> Self {
+        let observations: Vec<ObservationResidual> =
+            scores.iter().flat_map(|(s, _)| s.observations.iter().copied()).collect();
+        let kinds: Vec<Observation> = scores.iter().flat_map(|(_, k)| k.iter().copied()).collect();
+        Self::of(observations, &kinds)
+    }
+
     /// `data`'s residuals before and after (`y`), and after whitened (`z`).
     fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), v: &DMatrix<f64>) -> Self {
         let observations: Vec<ObservationResidual> = (data.observations.iter().enumerate())
@@ -1013,11 +1022,14 @@ impl Score {
                 whitened: after[k] / v[(k, 0)].sqrt(),
             })
             .collect();
+        Self::of(observations, &data.observations)
+    }
+
+    /// The RMS residuals of `observations`, of the observations `kinds`.
+    fn of(observations: Vec<ObservationResidual>, kinds: &[Observation]) -> Self {
         let rms = |chosen: &dyn Fn(&Observation) -> bool, scale: f64| {
-            let chosen: Vec<&ObservationResidual> = (observations.iter().zip(&data.observations))
-                .filter(|(_, o)| chosen(o))
-                .map(|(r, _)| r)
-                .collect();
+            let chosen: Vec<&ObservationResidual> =
+                (observations.iter().zip(kinds)).filter(|(_, o)| chosen(o)).map(|(r, _)| r).collect();
             let n = chosen.len().max(1) as f64;
             let of = |f: fn(&ObservationResidual) -> f64| {
                 (chosen.iter().map(|r| (f(r) * scale).powi(2)).sum::<f64>() / n).sqrt()
@@ -1322,6 +1334,35 @@ pub fn calibrate_kinds(
         .map(|(index, r)| FarOut { index, line: r.line, label: Some(r.label()), sd: r.whitened });
     calibration.warnings.extend(Warning::far_out(Scored::Observation, far_out));
     Ok(calibration)
+}
+
+/// k-fold cross-validation of [`calibrate_kinds`]: the observations of pose `p` (every row of
+/// a view, every marker of a pose; a pair by its first pose) are held out in fold `p mod
+/// folds`, the others calibrated with `options` (every choice, the prior's and the loss's,
+/// made again inside each fold) and the held-out ones scored; the folds' held-out residuals
+/// pooled, in fold order. The sessions are kept in every fold: each fold's held-out
+/// observations are scored with the set-up of their own session.
+pub fn cross_validate_kinds(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    folds: usize,
+) -> Result<Score, CalibrationError> {
+    let poses = data.joints.len();
+    if folds < 2 || folds > poses {
+        return Err(CalibrationError::Observations(format!(
+            "{folds} folds for {poses} poses: expected 2 to the number of poses"
+        )));
+    }
+    let scores = (0..folds)
+        .map(|fold| {
+            let (test, train) =
+                (data.keeping(|o| o.pose() % folds == fold), data.keeping(|o| o.pose() % folds != fold));
+            let c = calibrate_kinds(model, &train, options)?;
+            Ok((c.score(&test)?, test.observations))
+        })
+        .collect::<Result<Vec<_>, CalibrationError>>()?;
+    Ok(Score::pooled(&scores))
 }
 
 /// `model` with its base placed by the rigid registration of the nominal markers (the
