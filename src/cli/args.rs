@@ -453,7 +453,10 @@ pub struct EvaluateArgs {
     pub tip_link: String,
     #[command(flatten)]
     pub payload: PayloadArgs,
-    /// Measurement files to score (CSV); repeatable, or several after one --data.
+    /// Files to score (CSV); repeatable, or several after one --data. A marker file is scored
+    /// as it stands (no registration); a file of any other kind (distances, contacts,
+    /// coordinates, camera views) with its set-up (pivots, planes, camera and target) fitted
+    /// to it, the model and its tool point held.
     #[arg(long, required = true, num_args = 1..)]
     pub data: Vec<PathBuf>,
     #[command(flatten)]

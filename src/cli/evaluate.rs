@@ -5,6 +5,7 @@ use super::calibrate::noise_for;
 use super::request::EvaluateRequest;
 use super::{ReportContent, write_report_files};
 use anyhow::{Context, Result};
+use robocal::calibration::kinds::{KindData, KindOptions, Score, evaluate_kinds};
 use robocal::calibration::{SetEvaluation, evaluate_model, pool};
 use robocal::io;
 use robocal::report::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
@@ -22,6 +23,9 @@ struct EvaluationReport {
     /// With several files, all their poses pooled (summaries only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pooled: Option<SetEvaluation>,
+    /// The files of other kinds, each scored with its set-up fitted, the robot held.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    observations: Vec<(String, Score)>,
 }
 
 /// Score the model on every file, print the tables, write the files asked for.
@@ -35,8 +39,22 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     } else {
         Vec::new()
     };
+    // Marker files are scored as they are; any other kind with its set-up fitted.
+    let (marker_files, others): (Vec<&std::path::PathBuf>, Vec<&std::path::PathBuf>) =
+        request.data.iter().partition(|p| read(p).is_ok_and(|t| is_marker_file(&t)));
+    let observations = others
+        .iter()
+        .map(|path| {
+            let data = KindData::from_csv_str(&read(path)?, &model, request.units)
+                .with_context(|| path.display().to_string())?;
+            let options = KindOptions { tool: model.tool_point_in_marker_frame(), ..KindOptions::default() };
+            let score =
+                evaluate_kinds(&model, &data, &options).with_context(|| path.display().to_string())?;
+            Ok((path.display().to_string(), score))
+        })
+        .collect::<Result<Vec<_>>>()?;
     let mut sets = Vec::new();
-    for path in &request.data {
+    for path in marker_files {
         let mut data = io::load_measurements(path, &model, request.units)?;
         if let Some(ids) = &request.marker_ids {
             data = data.with_markers(ids).with_context(|| {
@@ -52,33 +70,14 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     let refs: Vec<&SetEvaluation> = sets.iter().collect();
     let pooled = if sets.len() > 1 { pool("all files, pooled", &refs) } else { None };
     let mut text = String::new();
-    let _ = writeln!(
-        text,
-        "{} scored as it stands on {} file{}: no registration, no fit",
-        model.name,
-        sets.len(),
-        if sets.len() == 1 { "" } else { "s" }
-    );
-    let _ = writeln!(
-        text,
-        "errors:    distances and their x, y, z components, unweighted\nwhitened:  {}\n",
-        sets[0].whitening
-    );
-    let mut tables: Vec<&SetEvaluation> = refs.clone();
-    tables.extend(&pooled);
-    text.push_str(&pooled_table(&tables, &[]));
-    if sets.iter().any(|s| s.marker_ids.len() > 1) {
-        let _ = writeln!(text);
-        text.push_str(&per_marker_table(&tables));
+    if !observations.is_empty() {
+        text.push_str(&observations_text(&model.name, &observations));
     }
-    let _ = writeln!(
-        text,
-        "\nworst poses ({} per file; every pose in --poses-csv, --json, --html):",
-        robocal::report::poses::WORST
-    );
-    text.push_str(&worst_poses(&refs));
+    if !sets.is_empty() {
+        text.push_str(&markers_text(&model.name, &sets, pooled.as_ref()));
+    }
     print!("{text}");
-    let report = EvaluationReport { model: model.name.clone(), sets, pooled };
+    let report = EvaluationReport { model: model.name.clone(), sets, pooled, observations };
     let json = serde_json::to_string_pretty(&report)? + "\n";
     let title = format!("{} scored as it stands", model.name);
     let mut outputs = io::Outputs::new();
@@ -92,6 +91,73 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     };
     write_report_files(&request.report, content, &mut outputs)?;
     super::commit(outputs)
+}
+
+/// Whether `text` is a marker file: a header with marker columns (`x1`, `y2`, ...).
+fn is_marker_file(text: &str) -> bool {
+    let header = text.lines().map(str::trim).find(|l| !l.is_empty() && !l.starts_with('#')).unwrap_or("");
+    header.split(',').map(str::trim).any(|c| {
+        let mut chars = c.chars();
+        matches!(chars.next(), Some('x' | 'y' | 'z'))
+            && !chars.as_str().is_empty()
+            && chars.all(|d| d.is_ascii_digit())
+    })
+}
+
+/// The residual table of the observation files, each scored with its set-up fitted and the
+/// model held.
+fn observations_text(model: &str, scores: &[(String, Score)]) -> String {
+    let mut text = String::new();
+    let width = scores.iter().map(|(n, _)| n.len() + 6).max().unwrap_or(0).max(24);
+    let _ = writeln!(
+        text,
+        "{model} scored as it stands on {} observation file{}: each file's set-up (fixed points, planes, camera and target; with markers the base and the markers) fitted, the robot and its tool point held\n",
+        scores.len(),
+        if scores.len() == 1 { "" } else { "s" }
+    );
+    let _ = writeln!(text, "{:<width$} {:>10}", "residuals, RMS", "as it stands");
+    for (name, score) in scores {
+        let _ = writeln!(text, "{:<width$} {:>10.4}", format!("{name} (mm)"), score.lengths.1);
+        if let Some((_, after)) = score.markers {
+            let _ = writeln!(text, "{:<width$} {after:>10.4}", format!("{name} markers (mm)"));
+        }
+        if let Some((_, after)) = score.angles {
+            let _ = writeln!(text, "{:<width$} {after:>10.5}", format!("{name} (deg)"));
+        }
+    }
+    text
+}
+
+/// The tables of the marker files, scored as they stand.
+fn markers_text(model: &str, sets: &[SetEvaluation], pooled: Option<&SetEvaluation>) -> String {
+    let refs: Vec<&SetEvaluation> = sets.iter().collect();
+    let mut text = String::new();
+    let _ = writeln!(
+        text,
+        "{} scored as it stands on {} file{}: no registration, no fit",
+        model,
+        sets.len(),
+        if sets.len() == 1 { "" } else { "s" }
+    );
+    let _ = writeln!(
+        text,
+        "errors:    distances and their x, y, z components, unweighted\nwhitened:  {}\n",
+        sets[0].whitening
+    );
+    let mut tables: Vec<&SetEvaluation> = refs.clone();
+    tables.extend(pooled);
+    text.push_str(&pooled_table(&tables, &[]));
+    if sets.iter().any(|s| s.marker_ids.len() > 1) {
+        let _ = writeln!(text);
+        text.push_str(&per_marker_table(&tables));
+    }
+    let _ = writeln!(
+        text,
+        "\nworst poses ({} per file; every pose in --poses-csv, --json, --html):",
+        robocal::report::poses::WORST
+    );
+    text.push_str(&worst_poses(&refs));
+    text
 }
 
 /// A file's text.

@@ -133,3 +133,54 @@ fn the_command_takes_priors_losses_and_the_gauge() {
     assert!(String::from_utf8_lossy(&both.stderr).contains("both --hold and --keep"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `evaluate` scores a model on any kind of file: a ball bar's, its pivot fitted with the
+/// model held. The model written by `calibrate-observations` re-scores its own training file as
+/// the calibration scored it, and a held-out file near the calibration's held-out figure.
+#[test]
+fn evaluate_scores_a_written_model_on_a_ball_bar() {
+    let dir = std::env::temp_dir().join(format!("robocal-evaluate-kinds-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
+    let all: Vec<String> = chain.params().iter().map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let (train, test, model, json) =
+        (dir.join("train.csv"), dir.join("test.csv"), dir.join("model.toml"), dir.join("report.json"));
+    std::fs::write(&train, crate::kinds::ball_bar_csv(&real, 120, &mut rng)).unwrap();
+    std::fs::write(&test, crate::kinds::ball_bar_csv(&real, 60, &mut rng)).unwrap();
+    let calibrated = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", "puma560", "--tool", "20,-10,120", "--data"])
+        .arg(&train)
+        .arg("--out-model")
+        .arg(&model)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(calibrated.status.success(), "{}", String::from_utf8_lossy(&calibrated.stderr));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let training = report["sets"][0][1]["lengths"][1].as_f64().unwrap();
+    let evaluated = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["evaluate", "--model"])
+        .arg(&model)
+        .arg("--data")
+        .arg(&train)
+        .arg("--data")
+        .arg(&test)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let text = String::from_utf8(evaluated.stdout).unwrap();
+    assert!(evaluated.status.success(), "{text}{}", String::from_utf8_lossy(&evaluated.stderr));
+    assert!(text.contains("2 observation files: each file's set-up"), "{text}");
+    let scored: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let again = scored["observations"][0][1]["lengths"][1].as_f64().unwrap();
+    assert!((again - training).abs() < 1e-6 * training, "re-scored {again} mm, calibrated {training} mm");
+    let held_out = scored["observations"][1][1]["lengths"][1].as_f64().unwrap();
+    assert!(held_out < 0.02, "held out {held_out} mm\n{text}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -1336,6 +1336,19 @@ pub fn calibrate_kinds(
     Ok(calibration)
 }
 
+/// `model` scored as it stands on `data`: the set-up (fixed points, planes, a camera and its
+/// target, a device; with markers the base and the markers) fitted to it with the robot's
+/// parameters and its tool point held at the model's (`options.tool`); the residuals after
+/// that fit. What `robocal evaluate` reports of a file that is not a marker file.
+pub fn evaluate_kinds(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+) -> Result<Score, CalibrationError> {
+    let held = KindOptions { joints: JointParams::None, estimate_tool: false, ..options.clone() };
+    Ok(calibrate_kinds(model, data, &held)?.training)
+}
+
 /// k-fold cross-validation of [`calibrate_kinds`]: the observations of pose `p` (every row of
 /// a view, every marker of a pose; a pair by its first pose) are held out in fold `p mod
 /// folds`, the others calibrated with `options` (every choice, the prior's and the loss's,
