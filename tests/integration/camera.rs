@@ -140,7 +140,7 @@ fn options(estimator: Estimator) -> KindOptions {
 }
 
 /// The flange's frame as the calibration's tool frame.
-fn flange(model: &RobotModel) -> Chain {
+pub(crate) fn flange(model: &RobotModel) -> Chain {
     Chain::probe(model, &Placement { xyz: Vector3::zeros(), rpy: Vector3::zeros() })
 }
 

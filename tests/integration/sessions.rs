@@ -224,3 +224,45 @@ fn cross_validation_keeps_the_sessions_in_every_fold() {
     let e = cross_validate_kinds(&puma(), &training, &per_session, 1).unwrap_err().to_string();
     assert!(e.contains("1 folds for 360 poses: expected 2 to the number of poses"), "{e}");
 }
+
+/// Any set-up parameter may be per session: a hand-eye camera's board moved between two
+/// sessions (by 20 mm and 3 deg). With `target.*` per session, exact views are fitted exactly,
+/// each session's board found, and the held-out views of each session vanish; with one board
+/// they do not.
+#[test]
+fn a_camera_target_moved_between_sessions_is_one_placement_per_session() {
+    use crate::camera::{flange, truth, views};
+    use robocal::calibration::kinds::CameraSite;
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let model = puma();
+    let chain = flange(&model);
+    let joints: Vec<String> =
+        chain.params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
+    let real = chain.with_errors(&errors_on(&chain, &joints, &mut rng));
+    let first = truth(CameraSite::Hand);
+    let mut moved = first.clone();
+    moved[6] += 20.0;
+    moved[11] += 3f64.to_radians();
+    let session = |s: &[f64], n: usize, name: &str, rng: &mut ChaCha8Rng| {
+        views(&real, CameraSite::Hand, s, n, (0.0, 0.0), rng).named(name)
+    };
+    let training = session(&first, 40, "before", &mut rng).join(&session(&moved, 40, "after", &mut rng));
+    let camera = KindOptions { tool: Vector3::zeros(), ..options(Estimator::Ols) };
+    let per_session = KindOptions { per_session: vec!["target.*".into()], ..camera.clone() };
+    let c = calibrate_kinds(&model, &training, &per_session).unwrap();
+    assert!(c.training.lengths.1 < 1e-6, "training RMS {} mm", c.training.lengths.1);
+    let names = c.setup.names();
+    let at = |n: &str| c.setup_values.1[names.iter().position(|m| m == n).unwrap()];
+    let shift = at("target.x@after") - at("target.x@before");
+    assert!((shift - 20.0).abs() < 1e-4, "the board moved by {shift} mm in x");
+    for (s, name) in [(&first, "before"), (&moved, "after")] {
+        let held_out = c.score(&session(s, 20, name, &mut rng)).unwrap();
+        assert!(held_out.lengths.1 < 1e-5, "{name}: held out {} mm", held_out.lengths.1);
+    }
+    let one_board = calibrate_kinds(&model, &training, &camera).unwrap();
+    assert!(
+        one_board.training.lengths.1 > 1.0,
+        "one board: training RMS {} mm",
+        one_board.training.lengths.1
+    );
+}
