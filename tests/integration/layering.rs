@@ -20,31 +20,70 @@ fn level(module: &str) -> Option<usize> {
     LEVELS.iter().position(|level| level.contains(&module))
 }
 
-/// Every `crate::name` a line uses, including those inside `crate::{a, b::c}`.
-fn used_modules(line: &str) -> Vec<String> {
+/// Every top-level module a text uses by `crate::name`, including those inside
+/// `crate::{a, b::c}` over several lines.
+fn used_modules(text: &str) -> Vec<String> {
+    text.match_indices("crate::").flat_map(|(i, _)| names_after(&text[i + "crate::".len()..])).collect()
+}
+
+/// The top-level modules that `super::` chains reach from the module at `path` (its names from
+/// the crate root: `["calibration", "kinds", "data"]`): a chain of `k` supers climbs `k`
+/// levels; one that reaches the crate root names a top-level module, any other stays in the
+/// file's own. Chains that climb above the root (an inline `mod tests`) are left out.
+fn super_modules(text: &str, path: &[String]) -> Vec<(usize, String)> {
     let mut used = Vec::new();
-    for (i, _) in line.match_indices("crate::") {
-        let rest = &line[i + "crate::".len()..];
-        if let Some(group) = rest.strip_prefix('{') {
-            // the first name of each item at the group's own depth
-            let (mut depth, mut item) = (0, String::new());
-            for c in group.chars() {
-                match c {
-                    '{' => depth += 1,
-                    '}' if depth == 0 => break,
-                    '}' => depth -= 1,
-                    ',' if depth == 0 => used.push(first_name(&std::mem::take(&mut item))),
-                    c if depth == 0 => item.push(c),
-                    _ => {}
-                }
-            }
-            used.push(first_name(&item));
-        } else {
-            used.push(first_name(rest));
+    let mut at = 0;
+    while let Some(i) = text[at..].find("super::") {
+        let start = at + i;
+        let mut rest = &text[start..];
+        let mut climbs = 0;
+        while let Some(r) = rest.strip_prefix("super::") {
+            climbs += 1;
+            rest = r;
         }
+        at = text.len() - rest.len();
+        let names = match path.len().checked_sub(climbs) {
+            Some(0) => names_after(rest),
+            Some(_) => vec![path[0].clone()],
+            None => Vec::new(),
+        };
+        used.extend(names.into_iter().map(|m| (start, m)));
     }
-    used.retain(|m| !m.is_empty());
     used
+}
+
+/// The first name of the path after `crate::` or a chain of supers: of each item of a group
+/// `{a, b::{c}}`, at the group's own depth.
+fn names_after(rest: &str) -> Vec<String> {
+    let mut used = Vec::new();
+    if let Some(group) = rest.strip_prefix('{') {
+        let (mut depth, mut item) = (0, String::new());
+        for c in group.chars() {
+            match c {
+                '{' => depth += 1,
+                '}' if depth == 0 => break,
+                '}' => depth -= 1,
+                ',' if depth == 0 => used.push(first_name(&std::mem::take(&mut item))),
+                c if depth == 0 => item.push(c),
+                _ => {}
+            }
+        }
+        used.push(first_name(&item));
+    } else {
+        used.push(first_name(rest));
+    }
+    used.retain(|m| !m.is_empty() && m != "self");
+    used
+}
+
+/// `text` without its `//` comments (doc comments too), lines kept.
+fn without_comments(text: &str) -> String {
+    text.lines().map(|l| l.find("//").map_or(l, |i| &l[..i])).collect::<Vec<_>>().join("\n")
+}
+
+/// The line (from 1) of byte `at` of `text`.
+fn line_of(text: &str, at: usize) -> usize {
+    text[..at].matches('\n').count() + 1
 }
 
 /// The leading identifier of a path (`table` of `table::Units`).
@@ -75,18 +114,25 @@ fn modules_use_only_the_modules_below_them() {
         let module =
             relative.components().next().unwrap().as_os_str().to_str().unwrap().trim_end_matches(".rs");
         let Some(own) = level(module) else { continue };
-        let text = std::fs::read_to_string(file).unwrap();
-        for (n, line) in text.lines().enumerate().filter(|(_, l)| !l.trim_start().starts_with("//")) {
-            for used in used_modules(line) {
-                checked += 1;
-                let allowed = used == module || level(&used).is_some_and(|l| l < own);
-                if !allowed && level(&used).is_some() {
-                    violations.push(format!(
-                        "src/{}:{}: `{module}` uses `{used}`",
-                        relative.display(),
-                        n + 1
-                    ));
-                }
+        let text = without_comments(&std::fs::read_to_string(file).unwrap());
+        let mut path: Vec<String> =
+            relative.iter().map(|c| c.to_str().unwrap().trim_end_matches(".rs").to_string()).collect();
+        if path.last().is_some_and(|l| l == "mod") {
+            path.pop();
+        }
+        let mut found: Vec<(usize, String)> = (text.match_indices("crate::"))
+            .flat_map(|(i, _)| names_after(&text[i + "crate::".len()..]).into_iter().map(move |m| (i, m)))
+            .collect();
+        found.extend(super_modules(&text, &path));
+        for (at, used) in found {
+            checked += 1;
+            let allowed = used == module || level(&used).is_some_and(|l| l < own);
+            if !allowed && level(&used).is_some() {
+                violations.push(format!(
+                    "src/{}:{}: `{module}` uses `{used}`",
+                    relative.display(),
+                    line_of(&text, at)
+                ));
             }
         }
     }
@@ -111,4 +157,15 @@ fn every_library_module_has_a_level() {
 fn the_check_sees_grouped_and_inline_paths() {
     assert_eq!(used_modules("use crate::{model::A, table::{B, C}};"), ["model", "table"]);
     assert_eq!(used_modules("let x = crate::simulation::run(s);"), ["simulation"]);
+    // A group over several lines.
+    assert_eq!(used_modules("use crate::{\n    model::A,\n    report::{B, C},\n};"), ["model", "report"]);
+    // Supers: from calibration::kinds::data, two climb to calibration's own, three to the root.
+    let path: Vec<String> = ["calibration", "kinds", "data"].map(String::from).to_vec();
+    let first =
+        |text: &str| -> Vec<String> { super_modules(text, &path).into_iter().map(|(_, m)| m).collect() };
+    assert_eq!(first("use super::super::selection::X;"), ["calibration"]);
+    assert_eq!(first("use super::super::super::report::Y;"), ["report"]);
+    assert_eq!(first("use super::super::super::{io::A,\n simulation::B};"), ["io", "simulation"]);
+    assert!(first("use super::super::super::super::x;").is_empty());
+    assert_eq!(without_comments("a // crate::report\n/// crate::io\nb"), "a \n\nb");
 }
