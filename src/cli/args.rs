@@ -417,6 +417,11 @@ pub struct CalibrateObservationsArgs {
     /// Write the calibrated model (TOML; its tool the calibrated tool point) here.
     #[arg(long)]
     pub out_model: Option<PathBuf>,
+    /// Write the calibrated model as URDF here (URDF input only): the original file with the
+    /// calibrated joint origins, its tool the calibrated tool point, a `marker_<k>` link per
+    /// fitted marker.
+    #[arg(long)]
+    pub out_urdf: Option<PathBuf>,
 }
 
 /// Where the report of scored poses goes, besides standard output.

@@ -16,14 +16,14 @@ use robocal::report::calibration::CalibrationReport;
 use std::path::Path;
 
 /// The nominal robot, with the text and links of its URDF file to write it back.
-struct Robot {
+pub(super) struct Robot {
     /// The model, carrying the payload if one is given.
-    model: RobotModel,
+    pub(super) model: RobotModel,
     /// The model's own payload (its file's), not this session's `--payload-kg`: the
     /// calibrated model is written with it.
     own_payload: Option<robocal::model::Payload>,
     /// A URDF model's file, to write the calibrated URDF from.
-    urdf: Option<UrdfChain>,
+    pub(super) urdf: Option<UrdfChain>,
 }
 
 /// The measurements to calibrate on and the held-out files, by name.
@@ -93,7 +93,7 @@ fn in_context(e: calibration::CalibrationError, request: &CalibrateRequest) -> a
 }
 
 /// Load the model: a preset, a model file, or a URDF chain, with the payload if one is given.
-fn load_model(model: &ModelRef) -> Result<Robot> {
+pub(super) fn load_model(model: &ModelRef) -> Result<Robot> {
     let (own, urdf) = if model.is_urdf() {
         let chain =
             io::load_urdf(Path::new(&model.name), model.base_link.as_deref(), model.tip_link.as_deref())?;

@@ -17,7 +17,8 @@ use std::path::Path;
 
 /// Calibrate, print the report, write the files asked for.
 pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
-    let model = io::load_model(&request.model)?;
+    let robot = super::calibrate::load_model(&request.model)?;
+    let model = robot.model.clone();
     let mut data = KindData::default();
     let mut files = Vec::with_capacity(request.data.len());
     for path in &request.data {
@@ -85,6 +86,11 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     }
     if let Some(path) = &request.out_model {
         outputs.add(path, robocal::model::to_toml_with_markers(&c.calibrated, &c.marker_positions()));
+    }
+    if let (Some(path), Some(urdf)) = (&request.out_urdf, &robot.urdf) {
+        let text =
+            robocal::model::to_urdf_string(&urdf.text, &urdf.base_link, &urdf.tip_link, &c.calibrated)?;
+        outputs.add(path, robocal::model::with_urdf_markers(&text, &c.marker_positions())?);
     }
     super::commit(outputs)
 }

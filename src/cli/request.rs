@@ -357,6 +357,8 @@ pub struct CalibrateObservationsRequest {
     pub json: Option<PathBuf>,
     /// Where the calibrated model TOML goes.
     pub out_model: Option<PathBuf>,
+    /// Where the calibrated URDF goes (URDF input only).
+    pub out_urdf: Option<PathBuf>,
 }
 
 /// The session name of a data file: its stem.
@@ -378,9 +380,14 @@ impl CalibrateObservationsRequest {
         let mut inputs = vec![("--model", Path::new(&model.name))];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
+        require(args.out_urdf.is_none() || model.is_urdf(), "--out-urdf needs a URDF model")?;
         distinct_outputs(
             &inputs,
-            &[("--json", args.json.as_deref()), ("--out-model", args.out_model.as_deref())],
+            &[
+                ("--json", args.json.as_deref()),
+                ("--out-model", args.out_model.as_deref()),
+                ("--out-urdf", args.out_urdf.as_deref()),
+            ],
         )?;
         if !args.per_session.is_empty() {
             require(
@@ -420,6 +427,7 @@ impl CalibrateObservationsRequest {
             validate: args.validate,
             json: args.json,
             out_model: args.out_model,
+            out_urdf: args.out_urdf,
         })
     }
 }

@@ -184,3 +184,72 @@ fn evaluate_scores_a_written_model_on_a_ball_bar() {
     assert!(held_out < 0.02, "held out {held_out} mm\n{text}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A URDF arm calibrated from a ball bar writes its calibrated URDF (`--out-urdf`), which
+/// `evaluate` re-scores on the training file as the calibration scored it.
+#[test]
+fn a_urdf_arm_calibrated_from_a_ball_bar_writes_its_urdf() {
+    use rand::RngExt;
+    use rand_distr::{Distribution, StandardNormal};
+    let dir = std::env::temp_dir().join(format!("robocal-kinds-urdf-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let urdf = "examples/arm7/arm7.urdf";
+    let model = robocal::io::load_model(&robocal::model::ModelRef::named(urdf)).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(40);
+    let chain = Chain::markers(&model, &[TOOL]).remove(0);
+    let joints: Vec<String> = (chain.params().iter())
+        .filter(|p| p.name.starts_with('j') && !p.is_load_response())
+        .map(|p| p.name.clone())
+        .collect();
+    let real = chain.with_errors(&errors_on(&chain, &joints, &mut rng));
+    let names: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
+    let mut text = format!("# units: joints=deg, lengths=mm\n{},distance,sigma\n", names.join(","));
+    for _ in 0..200 {
+        let q: Vec<f64> = model.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect();
+        let z: f64 = StandardNormal.sample(&mut rng);
+        let d = (real.position(&q) - nalgebra::Vector3::new(500.0, 100.0, 200.0)).norm() + 0.005 * z;
+        let degrees: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
+        text += &format!("{},{d:.6},0.005\n", degrees.join(","));
+    }
+    let (train, out, json) = (dir.join("bar.csv"), dir.join("calibrated.urdf"), dir.join("report.json"));
+    std::fs::write(&train, text).unwrap();
+    let tool = format!("{},{},{}", TOOL.x, TOOL.y, TOOL.z);
+    let calibrated = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", urdf, "--tool", &tool, "--data"])
+        .arg(&train)
+        .arg("--out-urdf")
+        .arg(&out)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(calibrated.status.success(), "{}", String::from_utf8_lossy(&calibrated.stderr));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let training = report["sets"][0][1]["lengths"][1].as_f64().unwrap();
+    assert!(training < 0.01, "training RMS {training} mm");
+    let evaluated = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["evaluate", "--model"])
+        .arg(&out)
+        .arg("--data")
+        .arg(&train)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(evaluated.status.success(), "{}", String::from_utf8_lossy(&evaluated.stderr));
+    let scored: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let again = scored["observations"][0][1]["lengths"][1].as_f64().unwrap();
+    assert!((again - training).abs() < 1e-6 * training, "re-scored {again} mm, calibrated {training} mm");
+    let refused = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate-observations", "--model", "puma560", "--data"])
+        .arg(&train)
+        .arg("--out-urdf")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(refused.status.code(), Some(2));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
