@@ -55,7 +55,7 @@ use crate::estimation::{
     DeviceError, EstimationError, MeasurementNoise, NoiseModel, PointProblem, Prepared, RANK_TOLERANCE,
     RefineOptions, Weights, refine,
 };
-use crate::kinematics::{Chain, ChainAt, Measured, pose_error};
+use crate::kinematics::{BATCH, Chain, ChainAt, Configurations, Frames, Measured, pose_error};
 use crate::model::{ParamKind, ParamSet};
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 use rand::SeedableRng;
@@ -216,6 +216,8 @@ struct Bench<'a> {
     /// The parameters each compared calibration identifies.
     selections: Vec<crate::model::Selection>,
     test: Vec<Vec<f64>>,
+    /// The test set, its joints' sines and cosines computed once.
+    test_trig: Configurations,
 }
 
 /// Why a study could not be run.
@@ -255,7 +257,8 @@ pub fn run(study: &Study, progress: &(dyn Fn() + Sync)) -> Result<StudyResults, 
             crate::calibration::without_unloaded_responses(&asked, &chain, &zero, &test).0
         })
         .collect();
-    let bench = Bench { study, chain, nominal, real, selections, test };
+    let test_trig = Configurations::new(&test, study.robot.dof());
+    let bench = Bench { study, chain, nominal, real, selections, test, test_trig };
 
     let sets: Vec<(usize, usize)> =
         (0..study.cases.len()).flat_map(|c| (0..study.point_sets).map(move |s| (c, s))).collect();
@@ -393,8 +396,7 @@ impl Bench<'_> {
             }
             observed.push(measured);
         }
-        let truth_at_test: Vec<Isometry3<f64>> = self.test.iter().map(|q| real.pose(q)).collect();
-        let mut accuracy = Vec::with_capacity(study.estimators.len());
+        let mut models = Vec::with_capacity(study.estimators.len());
         for (e, (compared, selection)) in study.estimators.iter().zip(&self.selections).enumerate() {
             let estimate = match set.prepared.get(e) {
                 Some(prepared) => prepared.estimate(&y),
@@ -418,9 +420,9 @@ impl Bench<'_> {
             for (&i, &v) in selection.indices().iter().zip(estimate.iter()) {
                 full[i] = v;
             }
-            accuracy.push(self.accuracy(&self.chain.with_errors(&full), &truth_at_test));
+            models.push(self.chain.with_errors(&full));
         }
-        Ok(Run { case: set.case, set: set.set, run, accuracy })
+        Ok(Run { case: set.case, set: set.set, run, accuracy: self.accuracy(&real, &models) })
     }
 
     /// Steps 3-4 at one point: the real robot's pose at the noisy joints, measured with noise:
@@ -452,25 +454,41 @@ impl Bench<'_> {
         }
     }
 
-    /// Step 8: the calibrated model against the real robot over the test set.
-    fn accuracy(&self, model: &ChainAt, truth: &[Isometry3<f64>]) -> Accuracy {
-        let (mut sum, mut sum_sq, mut max, mut angle) = (0.0, 0.0, 0.0f64, 0.0);
-        for (q, real) in self.test.iter().zip(truth) {
-            let error = match self.study.measured {
-                Measured::Position => (model.position(q) - real.translation.vector).norm(),
-                Measured::Pose => {
-                    let pose = model.pose(q);
-                    angle += pose.rotation.angle_to(&real.rotation);
-                    (pose.translation.vector - real.translation.vector).norm()
+    /// Step 8: each calibrated model against the real robot over the test set, in one pass
+    /// over its blocks: the real robot's frames once per block, every model's beside them.
+    fn accuracy(&self, real: &ChainAt, models: &[ChainAt]) -> Vec<Accuracy> {
+        let pose = self.study.measured == Measured::Pose;
+        // Per model: sum, sum of squares, largest, sum of angles.
+        let mut sums = vec![(0.0, 0.0, 0.0f64, 0.0); models.len()];
+        let (mut truth, mut frames) = (Frames::default(), Frames::default());
+        let mut errors = [0.0; BATCH];
+        for b in 0..self.test_trig.blocks() {
+            real.frames(&self.test_trig, b, &mut truth);
+            let n = self.test_trig.block_len(b);
+            for (model, (sum, sum_sq, max, angle)) in models.iter().zip(&mut sums) {
+                model.frames(&self.test_trig, b, &mut frames);
+                frames.distances(&truth, &mut errors);
+                for &error in &errors[..n] {
+                    *sum += error;
+                    *sum_sq += error * error;
+                    *max = max.max(error);
                 }
-            };
-            sum += error;
-            sum_sq += error * error;
-            max = max.max(error);
+                if pose {
+                    for i in 0..n {
+                        *angle += frames.rotation(i).angle_to(&truth.rotation(i));
+                    }
+                }
+            }
         }
         let n = self.test.len() as f64;
-        let orientation = if self.study.measured == Measured::Pose { angle / n } else { f64::NAN };
-        Accuracy { mean: sum / n, rms: (sum_sq / n).sqrt(), max, orientation }
+        (sums.into_iter())
+            .map(|(sum, sum_sq, max, angle)| Accuracy {
+                mean: sum / n,
+                rms: (sum_sq / n).sqrt(),
+                max,
+                orientation: if pose { angle / n } else { f64::NAN },
+            })
+            .collect()
     }
 
     /// Mean position error caused by the joint noise alone, over the test set.
