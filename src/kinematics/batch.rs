@@ -187,7 +187,11 @@ impl ChainAt {
         let at = |lanes: &[Lane], j: usize| lanes[block * self.dof + j];
         // The steps before the first joint are the same everywhere.
         let first = self.steps.iter().position(|s| s.step.joint.is_some()).unwrap_or(self.steps.len());
-        frames.fill(&super::walk(&self.steps[..first], &[0.0; super::MAX_JOINTS][..self.dof], Frame::IDENTITY));
+        frames.fill(&super::walk(
+            &self.steps[..first],
+            &[0.0; super::MAX_JOINTS][..self.dof],
+            Frame::IDENTITY,
+        ));
         for resolved in &self.steps[first..] {
             let Resolved { step, value, sin_cos: (sv, cv) } = *resolved;
             match (step.motion, step.joint) {

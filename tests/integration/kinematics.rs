@@ -613,8 +613,7 @@ fn check_batched_frames(model: &RobotModel, u: &[f64], deflecting: bool) -> Resu
     let (_, x) = point(&model, u);
     let at = Chain::new(&model).with_errors(&x);
     prop_assert_eq!(at.deflects(), deflecting);
-    let configurations: Vec<Vec<f64>> =
-        (0..BATCH + 7).map(|i| point(&model, &u[i % 17..]).0).collect();
+    let configurations: Vec<Vec<f64>> = (0..BATCH + 7).map(|i| point(&model, &u[i % 17..]).0).collect();
     let prepared = Configurations::new(&configurations, model.dof());
     prop_assert_eq!(prepared.blocks(), 2);
     prop_assert_eq!(prepared.block_len(1), 7);

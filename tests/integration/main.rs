@@ -23,6 +23,7 @@ mod replication;
 mod report;
 mod robust;
 mod selection;
+mod shards;
 mod simulation;
 mod tree;
 mod urdf;
