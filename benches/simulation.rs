@@ -1,6 +1,6 @@
 //! The simulated study: calibration runs per second at N_p = 48 (real robot, noisy
 //! measurements, OLS, WLS and WLS-diag estimates, each evaluated on 1000 test points), on one
-//! thread; one point set of 48 points with 1 run and with 65 runs, whose difference over 64 is
+//! thread; one point set of 48 points with 2 runs and with 66 runs, whose difference over 64 is
 //! the cost of one run (the point set's `H`, `V` and factorisations excluded); and the wall
 //! time of the whole default `reproduce` (both of the paper's studies, tables, CSV and
 //! figures, without writing files) on all cores.
@@ -20,17 +20,12 @@ fn simulation(c: &mut Criterion) {
     group.bench_function("one point set of 48 points and its 16 runs, 1 thread", |b| {
         b.iter(|| single.install(|| simulation::run(&one_set, &|| {}).unwrap()))
     });
-    // One run's cost: (65 runs - 1 run) / 64.
-    for runs in [1, 65] {
+    // One run's cost: (66 runs - 2 runs) / 64.
+    for runs in [2, 66] {
         let mut study = one_set.clone();
         study.runs_per_set = runs;
-        // A study asks for 2 runs at least (for a spread): 1 run is one shard of 2.
-        let shard = simulation::Shard { index: 0, count: if runs == 1 { 2 } else { 1 } };
-        if runs == 1 {
-            study.runs_per_set = 2;
-        }
-        group.bench_function(format!("one point set of 48 points and {runs} run(s), 1 thread"), |b| {
-            b.iter(|| single.install(|| simulation::run_shard(&study, shard, &|| {}).unwrap()))
+        group.bench_function(format!("one point set of 48 points and {runs} runs, 1 thread"), |b| {
+            b.iter(|| single.install(|| simulation::run(&study, &|| {}).unwrap()))
         });
     }
     let studies = [load_study("paper-table1").unwrap(), load_study("paper-table2").unwrap()];

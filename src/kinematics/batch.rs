@@ -137,8 +137,7 @@ impl Frames {
 
     /// `p += r[:, k] * (value + q)`, per lane (`q` zero for a step no joint moves).
     fn translate(&mut self, k: usize, value: f64, q: Option<&Lane>) {
-        let column = [self.r[3 * k], self.r[3 * k + 1], self.r[3 * k + 2]];
-        for (p, r) in self.p.iter_mut().zip(&column) {
+        for (p, r) in self.p.iter_mut().zip(&self.r[3 * k..3 * k + 3]) {
             match q {
                 Some(q) => (0..BATCH).for_each(|i| p[i] += r[i] * (value + q[i])),
                 None => (0..BATCH).for_each(|i| p[i] += r[i] * value),
@@ -146,14 +145,27 @@ impl Frames {
         }
     }
 
+    /// The lanes of row `row` of columns `i` and `j` (`i != j`) of the rotation.
+    fn columns(&mut self, i: usize, j: usize, row: usize) -> (&mut Lane, &mut Lane) {
+        let (a, b) = (3 * i + row, 3 * j + row);
+        if a < b {
+            let (low, high) = self.r.split_at_mut(b);
+            (&mut low[a], &mut high[0])
+        } else {
+            let (low, high) = self.r.split_at_mut(a);
+            (&mut high[0], &mut low[b])
+        }
+    }
+
     /// Post-multiply by the rotation about axis `k` of sine `s` and cosine `c` per lane.
     fn rotate(&mut self, k: usize, s: &Lane, c: &Lane) {
         let (i, j) = ((k + 1) % 3, (k + 2) % 3);
         for row in 0..3 {
-            let (ci, cj) = (self.r[3 * i + row], self.r[3 * j + row]);
+            let (ci, cj) = self.columns(i, j, row);
             for l in 0..BATCH {
-                self.r[3 * i + row][l] = ci[l] * c[l] + cj[l] * s[l];
-                self.r[3 * j + row][l] = cj[l] * c[l] - ci[l] * s[l];
+                let (x, y) = (ci[l], cj[l]);
+                ci[l] = x * c[l] + y * s[l];
+                cj[l] = y * c[l] - x * s[l];
             }
         }
     }
@@ -162,10 +174,11 @@ impl Frames {
     fn rotate_by(&mut self, k: usize, s: f64, c: f64) {
         let (i, j) = ((k + 1) % 3, (k + 2) % 3);
         for row in 0..3 {
-            let (ci, cj) = (self.r[3 * i + row], self.r[3 * j + row]);
+            let (ci, cj) = self.columns(i, j, row);
             for l in 0..BATCH {
-                self.r[3 * i + row][l] = ci[l] * c + cj[l] * s;
-                self.r[3 * j + row][l] = cj[l] * c - ci[l] * s;
+                let (x, y) = (ci[l], cj[l]);
+                ci[l] = x * c + y * s;
+                cj[l] = y * c - x * s;
             }
         }
     }
@@ -194,6 +207,10 @@ impl ChainAt {
         ));
         for resolved in &self.steps[first..] {
             let Resolved { step, value, sin_cos: (sv, cv) } = *resolved;
+            if step.joint.is_none() && value == 0.0 {
+                // No motion: adding zeros changes no value (but a zero's sign).
+                continue;
+            }
             match (step.motion, step.joint) {
                 (Motion::Translate(k), joint) => {
                     frames.translate(k, value, joint.map(|j| &configurations.q[block * self.dof + j]))
