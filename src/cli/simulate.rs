@@ -56,7 +56,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
 /// A study as `simulate` reads it.
 pub(super) enum Loaded {
     /// An instrument study.
-    Instruments(InstrumentStudy),
+    Instruments(Box<InstrumentStudy>),
     /// An estimator study, its noise replaced by the noise file's if one is given.
     Study(Box<Study>),
 }
@@ -64,7 +64,7 @@ pub(super) enum Loaded {
 /// The study named or in the file `study`, its noise replaced by the file `noise` if given.
 pub(super) fn load(study: &str, noise: Option<&Path>) -> Result<Loaded> {
     if let Some(study) = io::load_instrument_study(study)? {
-        return Ok(Loaded::Instruments(study));
+        return Ok(Loaded::Instruments(Box::new(study)));
     }
     let mut study = io::load_study(study)?;
     if let Some(path) = noise {
