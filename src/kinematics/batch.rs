@@ -25,7 +25,10 @@ type Lane = [f64; BATCH];
 
 /// Joint configurations prepared for the forward kinematics of many models: their joint
 /// values, and each joint's sine and cosine, block by block ([`BATCH`] configurations a
-/// block, the last one padded with zeros).
+/// block, the last one padded with zeros). A model's revolute joint of value `v` then turns
+/// by `sin(v + q) = sin v cos q + cos v sin q`, `cos(v + q) = cos v cos q - sin v sin q`: no
+/// trigonometry per configuration, and the same as [`ChainAt::pose`]'s `sin_cos(v + q)` to a
+/// few units in the last place.
 #[derive(Debug, Clone)]
 pub struct Configurations {
     len: usize,
@@ -186,8 +189,8 @@ impl Frames {
 
 impl ChainAt {
     /// The end frames at the configurations of block `block` of `configurations`, into
-    /// `frames`: [`ChainAt::pose`] at each, up to the last digits (see the
-    /// [module documentation](self)). A chain whose joints deflect under gravity takes its
+    /// `frames`: [`ChainAt::pose`] at each, up to the last digits (a revolute joint turns by
+    /// the angle-sum identity: see [`Configurations`]). A chain whose joints deflect under gravity takes its
     /// configurations one by one through [`ChainAt::pose`]'s own walk.
     ///
     /// # Panics
