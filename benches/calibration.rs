@@ -20,6 +20,17 @@ use robocal::simulation::measurement_csv;
 /// The data of 1000 poses of a PUMA 560 (`preset`) whose joints 2 and 3 have `compliance`,
 /// and the options of a WLS calibration of `params`.
 fn campaign(preset: &str, compliance: f64, params: JointParams) -> (RobotModel, Measurements, Options) {
+    campaign_of(preset, compliance, params, 1000, 2)
+}
+
+/// [`campaign`] of `poses` poses seen by `markers` markers (1 to 4).
+fn campaign_of(
+    preset: &str,
+    compliance: f64,
+    params: JointParams,
+    poses: usize,
+    markers: usize,
+) -> (RobotModel, Measurements, Options) {
     let nominal = RobotModel::preset(preset).unwrap();
     let mut truth = nominal.clone();
     for (i, joint) in truth.joints.iter_mut().enumerate() {
@@ -29,9 +40,12 @@ fn campaign(preset: &str, compliance: f64, params: JointParams) -> (RobotModel, 
     truth.joints[1].compliance = compliance;
     truth.joints[2].compliance = compliance;
     truth.base = Placement { xyz: Vector3::new(1500.0, -300.0, 200.0), rpy: Vector3::new(0.1, -0.05, 0.6) };
-    let markers = [Vector3::new(52.0, 1.0, 148.0), Vector3::new(-38.0, 61.0, 121.0)];
+    let truths = [[52.0, 1.0, 148.0], [-38.0, 61.0, 121.0], [1.0, -59.0, 91.0], [41.0, 42.0, 60.0]];
+    let designs = [[50.0, 0.0, 150.0], [-40.0, 60.0, 120.0], [0.0, -60.0, 90.0], [40.0, 40.0, 60.0]];
+    let markers: Vec<Vector3<f64>> = truths[..markers].iter().map(|m| Vector3::from(*m)).collect();
+    let designs: Vec<Vector3<f64>> = designs[..markers.len()].iter().map(|m| Vector3::from(*m)).collect();
     let mut rng = ChaCha8Rng::seed_from_u64(1);
-    let poses: Vec<Vec<f64>> = (0..1000)
+    let poses: Vec<Vec<f64>> = (0..poses)
         .map(|_| nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())
         .collect();
     let sigmas: Vec<f64> =
@@ -44,7 +58,7 @@ fn campaign(preset: &str, compliance: f64, params: JointParams) -> (RobotModel, 
         joints: params,
         estimate_base: true,
         estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
+        markers: designs,
         prior: Vec::new(),
         loss: robocal::calibration::Loss::Squared,
         refine: RefineOptions::default(),
@@ -63,6 +77,18 @@ fn calibration(c: &mut Criterion) {
     let names = ["theta", "d", "a", "alpha", "beta", "compliance"].map(|k| format!("j*.{k}"));
     let (nominal, data, options) = campaign("puma560-masses", 5e-5, JointParams::Named(names.to_vec()));
     group.bench_function("1000 poses, 2 markers, 48 parameters with compliances, wls iterated", |b| {
+        b.iter(|| calibration::calibrate(&nominal, &data, &options).unwrap())
+    });
+    let (nominal, data, options) = campaign_of("puma560", 0.0, JointParams::All, 1000, 4);
+    group.bench_function("1000 poses, 4 markers, fgls (the noise from the residuals)", |b| {
+        b.iter(|| {
+            let feasible = calibration::FeasibleOptions::default();
+            calibration::calibrate_feasible(&nominal, &data, &options, &feasible).unwrap()
+        })
+    });
+    // Peak memory: benches/calibrate-memory.sh (the whole command under /usr/bin/time -v).
+    let (nominal, data, options) = campaign_of("puma560", 0.0, JointParams::All, 100_000, 2);
+    group.bench_function("100,000 poses, 2 markers, 42 parameters, wls iterated", |b| {
         b.iter(|| calibration::calibrate(&nominal, &data, &options).unwrap())
     });
     group.finish();

@@ -1,7 +1,9 @@
 //! The simulated study: calibration runs per second at N_p = 48 (real robot, noisy
 //! measurements, OLS, WLS and WLS-diag estimates, each evaluated on 1000 test points), on one
-//! thread; and the wall time of the whole default `reproduce` (both of the paper's studies,
-//! tables, CSV and figures, without writing files) on all cores.
+//! thread; one point set of 48 points with 2 runs and with 66 runs, whose difference over 64 is
+//! the cost of one run (the point set's `H`, `V` and factorisations excluded); and the wall
+//! time of the whole default `reproduce` (both of the paper's studies, tables, CSV and
+//! figures, without writing files) on all cores.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use robocal::io::load_study;
@@ -18,6 +20,14 @@ fn simulation(c: &mut Criterion) {
     group.bench_function("one point set of 48 points and its 16 runs, 1 thread", |b| {
         b.iter(|| single.install(|| simulation::run(&one_set, &|| {}).unwrap()))
     });
+    // One run's cost: (66 runs - 2 runs) / 64.
+    for runs in [2, 66] {
+        let mut study = one_set.clone();
+        study.runs_per_set = runs;
+        group.bench_function(format!("one point set of 48 points and {runs} runs, 1 thread"), |b| {
+            b.iter(|| single.install(|| simulation::run(&study, &|| {}).unwrap()))
+        });
+    }
     let studies = [load_study("paper-table1").unwrap(), load_study("paper-table2").unwrap()];
     group.sample_size(10);
     group.bench_function("reproduce: both paper studies with tables, CSV and figures", |b| {

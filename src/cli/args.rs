@@ -203,6 +203,28 @@ pub struct SimulateArgs {
     /// device, and sigma_me if it gives one.
     #[arg(long)]
     pub noise: Option<PathBuf>,
+    /// Compute only shard I of N (0 <= I < N) of the study's runs (with --replications, of
+    /// each replication's; of an instrument study, its calibrations) and write its samples to
+    /// `<out>/<study name>/shard-I-of-N.json`, for `robocal merge`.
+    #[arg(long, value_name = "I/N", value_parser = parse_shard)]
+    pub shard: Option<robocal::simulation::Shard>,
+}
+
+/// `--shard I/N`.
+fn parse_shard(text: &str) -> Result<robocal::simulation::Shard, String> {
+    text.parse()
+}
+
+/// The flags of `robocal merge`.
+#[derive(Args, Debug)]
+pub struct MergeArgs {
+    /// Folders holding the shards (`shard-I-of-N.json`, in the folder or one level below) or
+    /// shard files: every shard of one `simulate --shard` study, each once.
+    #[arg(required = true)]
+    pub shards: Vec<PathBuf>,
+    /// Folder for the tables, the CSV samples and the SVG figures, as `simulate` writes them.
+    #[arg(long, default_value = "robocal-out")]
+    pub out: PathBuf,
 }
 
 /// The flags of `robocal fk`.

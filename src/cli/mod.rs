@@ -11,13 +11,14 @@ mod observations;
 mod plan;
 mod repeatability;
 mod request;
+mod shard;
 mod simulate;
 mod tree;
 
 use anyhow::{Context, Result, bail};
 use args::{
-    CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, EvaluateArgs, FkArgs, ObservabilityArgs,
-    ParamsArg, PlanArgs, RepeatabilityArgs, ReportArgs, SimulateArgs, StudyOutputArgs,
+    CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, EvaluateArgs, FkArgs, MergeArgs,
+    ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ReportArgs, SimulateArgs, StudyOutputArgs,
 };
 use clap::{Parser, Subcommand};
 use request::{
@@ -53,6 +54,9 @@ enum Command {
     /// planned-poses, device-cmm, device-laser-tracker, device-theodolites, compliance: the
     /// files in presets/).
     Simulate(SimulateArgs),
+    /// Combine the shards of a study run with `simulate --shard I/N` (on a cluster: one
+    /// process per shard) into exactly the tables, samples and figures one `simulate` writes.
+    Merge(MergeArgs),
     /// Estimate the joint noise and sigma_me from repeated measurements at a set of poses,
     /// and write them as a noise file.
     Repeatability(Box<RepeatabilityArgs>),
@@ -88,6 +92,7 @@ pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Reproduce(output) => simulate::reproduce(&output),
         Command::Simulate(args) => simulate::simulate(&args),
+        Command::Merge(args) => shard::merge(&args),
         Command::Repeatability(args) => repeatability::run(&RepeatabilityRequest::from_args(*args)?),
         Command::Fk(args) => fk::run(&args),
         Command::Calibrate(args) => calibrate::run(&CalibrateRequest::from_args(*args)?),

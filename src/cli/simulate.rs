@@ -38,25 +38,57 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
     let mut inputs = vec![("the study", Path::new(&args.study))];
     inputs.extend(args.noise.as_deref().map(|p| ("--noise", p)));
     super::request::distinct_outputs(&inputs, &[("--out", Some(&args.output.out))])?;
-    if let Some(study) = io::load_instrument_study(&args.study)? {
-        return instruments(&study, args);
+    if let Some(shard) = args.shard {
+        return super::shard::simulate(args, shard);
     }
-    let mut study = io::load_study(&args.study)?;
-    if let Some(path) = &args.noise {
+    match load(&args.study, args.noise.as_deref())? {
+        Loaded::Instruments(study) => instruments(&study, args),
+        Loaded::Study(study) => {
+            let mut outputs = io::Outputs::new();
+            let written = run_study(&study, &args.output, &mut outputs)?;
+            outputs.commit()?;
+            println!("{written}\n");
+            Ok(())
+        }
+    }
+}
+
+/// A study as `simulate` reads it.
+pub(super) enum Loaded {
+    /// An instrument study.
+    Instruments(Box<InstrumentStudy>),
+    /// An estimator study, its noise replaced by the noise file's if one is given.
+    Study(Box<Study>),
+}
+
+/// The study named or in the file `study`, its noise replaced by the file `noise` if given.
+pub(super) fn load(study: &str, noise: Option<&Path>) -> Result<Loaded> {
+    if let Some(study) = io::load_instrument_study(study)? {
+        return Ok(Loaded::Instruments(Box::new(study)));
+    }
+    let mut study = io::load_study(study)?;
+    if let Some(path) = noise {
         let spec = io::load_noise(path, &study.robot)?;
         study.set_noise(&spec).with_context(|| format!("{}", path.display()))?;
         study.description = format!("{} (noise from {})", study.description, path.display());
     }
-    let mut outputs = io::Outputs::new();
-    let written = run_study(&study, &args.output, &mut outputs)?;
-    outputs.commit()?;
-    println!("{written}\n");
-    Ok(())
+    Ok(Loaded::Study(Box::new(study)))
 }
 
 /// `robocal simulate` of an instrument study: its table printed, and with the samples staged
 /// for `<out>/<study name>/`. `--noise` and `--replications` are for the other studies.
 fn instruments(study: &InstrumentStudy, args: &SimulateArgs) -> Result<()> {
+    check_instrument_flags(study, args)?;
+    let calibrations = study.runs * study.instruments.len();
+    let bar = progress(calibrations, study.name.clone());
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads(args.output.threads)).build()?;
+    let results = pool.install(|| simulation::run_instruments(study, &|| bar.inc(1)))?;
+    bar.finish_and_clear();
+    write_instruments(study, &results, &args.output.out)
+}
+
+/// `--noise` and `--replications` are for the other studies.
+pub(super) fn check_instrument_flags(study: &InstrumentStudy, args: &SimulateArgs) -> Result<()> {
     for (flag, given) in
         [("--noise", args.noise.is_some()), ("--replications", args.output.replications.is_some())]
     {
@@ -66,18 +98,22 @@ fn instruments(study: &InstrumentStudy, args: &SimulateArgs) -> Result<()> {
             return Err(super::request::UsageError(message).into());
         }
     }
-    let calibrations = study.runs * study.instruments.len();
-    let bar = progress(calibrations, study.name.clone());
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads(args.output.threads)).build()?;
-    let results = pool.install(|| simulation::run_instruments(study, &|| bar.inc(1)))?;
-    bar.finish_and_clear();
-    let table = report::instruments::table(study, &results);
+    Ok(())
+}
+
+/// Print an instrument study's table and write it with the samples to `<out>/<study name>/`.
+pub(super) fn write_instruments(
+    study: &InstrumentStudy,
+    results: &simulation::InstrumentResults,
+    out: &Path,
+) -> Result<()> {
+    let table = report::instruments::table(study, results);
     println!("{table}");
     let files = vec![
         ("tables.txt".to_string(), table),
-        ("samples.csv".to_string(), report::instruments::samples_csv(study, &results)),
+        ("samples.csv".to_string(), report::instruments::samples_csv(study, results)),
     ];
-    let folder = args.output.out.join(&study.name);
+    let folder = out.join(&study.name);
     let mut outputs = io::Outputs::new();
     outputs.add_folder(&folder, &files);
     outputs.commit()?;
@@ -86,14 +122,14 @@ fn instruments(study: &InstrumentStudy, args: &SimulateArgs) -> Result<()> {
 }
 
 /// A progress bar of `runs` runs, labelled `message`.
-fn progress(runs: usize, message: String) -> ProgressBar {
+pub(super) fn progress(runs: usize, message: String) -> ProgressBar {
     let bar = ProgressBar::new(runs as u64).with_message(message);
     bar.set_style(ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} runs").expect("a valid template"));
     bar
 }
 
 /// The worker threads: `--threads`, at most the machine's cores (with a note), or all of them.
-fn threads(requested: Option<usize>) -> usize {
+pub(super) fn threads(requested: Option<usize>) -> usize {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     match requested {
         Some(n) if n > cores => {
@@ -111,34 +147,59 @@ fn threads(requested: Option<usize>) -> usize {
 fn run_study(study: &Study, output: &StudyOutputArgs, outputs: &mut io::Outputs) -> Result<String> {
     let runs = study.cases.len() * study.point_sets * study.runs_per_set;
     let bar = progress(runs, study.name.clone());
-    let threads = threads(output.threads);
+    let pool = study_pool(study, output.threads)?;
+    let results = pool.install(|| simulation::run(study, &|| bar.inc(1)))?;
+    bar.finish_and_clear();
+    let replicated = match output.replications {
+        Some(count) => {
+            let bar = progress(runs * count, format!("{} x {count} replications", study.name));
+            let replicated = pool.install(|| simulation::replicate(study, count, &|| bar.inc(1)))?;
+            bar.finish_and_clear();
+            Some(replicated)
+        }
+        None => None,
+    };
+    stage_study(study, &results, replicated.as_ref(), &output.out, outputs)
+}
+
+/// The thread pool for `study` on `threads` threads (default: all cores), once its memory is
+/// known to fit.
+pub(super) fn study_pool(study: &Study, threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let threads = self::threads(threads);
     let what = format!("study {}", study.name);
     io::check_memory(
         study.memory_estimate(threads),
         &what,
         "ask for fewer test_points, points, point sets or runs",
     )?;
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
-    let results = pool.install(|| simulation::run(study, &|| bar.inc(1)))?;
-    bar.finish_and_clear();
-    let mut tables = report::study::tables(study, &results);
-    if let Some(comparison) = report::study::planned_against_random(study, &results) {
+    Ok(rayon::ThreadPoolBuilder::new().num_threads(threads).build()?)
+}
+
+/// Print `study`'s tables and stage them with the CSV samples and the figures for
+/// `<out>/<study name>/` in `outputs`, with the replications' files if any; what to say once
+/// they are written.
+pub(super) fn stage_study(
+    study: &Study,
+    results: &simulation::StudyResults,
+    replicated: Option<&simulation::Replications>,
+    out: &Path,
+    outputs: &mut io::Outputs,
+) -> Result<String> {
+    let mut tables = report::study::tables(study, results);
+    if let Some(comparison) = report::study::planned_against_random(study, results) {
         tables += &format!("\n{comparison}");
     }
     println!("{tables}");
     let mut files = vec![
         ("tables.txt".to_string(), tables),
-        ("samples.csv".to_string(), report::study::samples_csv(study, &results)),
+        ("samples.csv".to_string(), report::study::samples_csv(study, results)),
     ];
-    files.extend(report::figures::study_figures(study, &results)?);
-    let folder = output.out.join(&study.name);
+    files.extend(report::figures::study_figures(study, results)?);
+    let folder = out.join(&study.name);
     outputs.add_folder(&folder, &files);
     let mut written = format!("wrote {} files to {}", files.len(), folder.display());
-    if let Some(count) = output.replications {
-        let bar = progress(runs * count, format!("{} x {count} replications", study.name));
-        let replicated = pool.install(|| simulation::replicate(study, count, &|| bar.inc(1)))?;
-        bar.finish_and_clear();
-        let files = report::replication::files(study, &replicated)?;
+    if let Some(replicated) = replicated {
+        let files = report::replication::files(study, replicated)?;
         println!("{}", files[0].1);
         outputs.add_folder(&folder, &files);
         written += &format!("\nwrote {} replication files to {}", files.len(), folder.display());

@@ -455,13 +455,25 @@ fn whitener(sample: &CovarianceSample, theta: &DVector<f64>) -> DMatrix<f64> {
 /// Non-negative least squares with free variables: `min |b - A x|` subject to `x_c >= 0` where
 /// `constrained[c]`, by the active-set method of Lawson and Hanson (1974, ch. 23), the free
 /// variables always in the passive set. Columns are scaled to unit norm first, which leaves
-/// the constraints unchanged.
+/// the constraints unchanged. A tall `A` (more rows than columns) is reduced first to the
+/// small system `R x = Q^T b` of its QR factorisation (`|b - A x|^2 = |Q^T b - R x|^2` plus a
+/// constant; `R` has `A`'s singular values), so that the active set's solves and gradients
+/// cost nothing per row.
 pub(crate) fn nnls(a: &DMatrix<f64>, b: &DVector<f64>, constrained: &[bool]) -> DVector<f64> {
     let n = a.ncols();
     let norms: Vec<f64> = a.column_iter().map(|c| c.norm()).collect();
     let scale: Vec<f64> = norms.iter().map(|&s| if s > 0.0 { 1.0 / s } else { 0.0 }).collect();
     let a = DMatrix::from_fn(a.nrows(), n, |i, j| a[(i, j)] * scale[j]);
     let tolerance = 1e-12 * (n as f64) * b.norm().max(f64::MIN_POSITIVE);
+    let (a, b) = if a.nrows() > n {
+        let qr = a.qr();
+        let mut qtb = b.clone();
+        qr.q_tr_mul(&mut qtb);
+        (qr.r(), qtb.rows(0, n).into_owned())
+    } else {
+        (a, b.clone())
+    };
+    let b = &b;
     let solve_on = |passive: &[bool]| -> DVector<f64> {
         let columns: Vec<usize> = (0..n).filter(|&j| passive[j]).collect();
         let mut z = DVector::zeros(n);

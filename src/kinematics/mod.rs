@@ -25,7 +25,10 @@
 //! into views the caller owns. They come from one walk backwards from the end, in which the end
 //! point is the origin (`e - o = -o`), turned into the world frame by the end rotation once.
 
+mod batch;
 mod gravity;
+
+pub use batch::{BATCH, Configurations, Frames};
 
 use crate::limits::MAX_JOINTS;
 

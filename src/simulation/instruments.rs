@@ -664,6 +664,52 @@ pub fn run_instruments(
     study: &InstrumentStudy,
     progress: &(dyn Fn() + Sync),
 ) -> Result<InstrumentResults, SimulationError> {
+    let whole = run_instruments_shard(study, super::Shard::WHOLE, progress)?;
+    Ok(InstrumentResults::merge(study, [whole]).expect("one shard is the whole study"))
+}
+
+/// A shard's part of an instrument study: the scores of its calibrations, which are the
+/// (run, instrument) pairs `first`, `first + 1`, ... in their order (run by run, instrument by
+/// instrument), and the nominal model's scores (every shard computes them).
+#[derive(Debug, Clone, PartialEq)]
+pub struct InstrumentPart {
+    /// The first calibration's place among all of them.
+    pub first: usize,
+    /// The scores of the shard's calibrations.
+    pub scores: Vec<Scores>,
+    /// The nominal model's scores, run by run.
+    pub nominal: Vec<Scores>,
+}
+
+impl InstrumentResults {
+    /// The results of a study's shards together, exactly as the study run whole gives them;
+    /// `None` unless the parts hold each calibration of `study` once.
+    pub fn merge(study: &InstrumentStudy, parts: impl IntoIterator<Item = InstrumentPart>) -> Option<Self> {
+        let mut parts: Vec<InstrumentPart> = parts.into_iter().collect();
+        parts.sort_by_key(|p| p.first);
+        let mut scores = Vec::new();
+        for part in &parts {
+            if part.first != scores.len() || part.nominal.len() != study.runs {
+                return None;
+            }
+            scores.extend_from_slice(&part.scores);
+        }
+        let instruments = study.instruments.len();
+        if scores.len() != study.runs * instruments {
+            return None;
+        }
+        let nominal = parts.first()?.nominal.clone();
+        Some(Self { scores: scores.chunks(instruments).map(<[Scores]>::to_vec).collect(), nominal })
+    }
+}
+
+/// Shard `shard` ([`super::Shard`]) of `study`: its share of the (run, instrument)
+/// calibrations in their order, calling `progress` once per calibration.
+pub fn run_instruments_shard(
+    study: &InstrumentStudy,
+    shard: super::Shard,
+    progress: &(dyn Fn() + Sync),
+) -> Result<InstrumentPart, SimulationError> {
     study.check()?;
     let chain = Chain::markers(&study.robot, &[study.tool()]).remove(0);
     let joints = Selection::joints(chain.params());
@@ -675,8 +721,10 @@ pub fn run_instruments(
             draw_errors(campaign.chain.params(), campaign.joints.indices(), &study.errors, &mut rng)
         })
         .collect();
-    let pairs: Vec<(usize, usize)> =
-        (0..study.runs).flat_map(|r| (0..study.instruments.len()).map(move |i| (r, i))).collect();
+    let instruments = study.instruments.len();
+    let range = shard.range(study.runs * instruments);
+    let first = range.start;
+    let pairs: Vec<(usize, usize)> = range.map(|g| (g / instruments, g % instruments)).collect();
     let scores: Vec<Scores> = pairs
         .par_iter()
         .map(|&(r, i)| {
@@ -688,8 +736,7 @@ pub fn run_instruments(
     let nominal = campaign.chain.with_errors(&vec![0.0; campaign.chain.params().len()]);
     let nominal: Vec<Vector3<f64>> = campaign.test.iter().map(|q| nominal.position(q)).collect();
     let nominal = truths.iter().map(|t| campaign.score(&nominal, &campaign.chain.with_errors(t))).collect();
-    let instruments = study.instruments.len();
-    Ok(InstrumentResults { scores: scores.chunks(instruments).map(<[Scores]>::to_vec).collect(), nominal })
+    Ok(InstrumentPart { first, scores, nominal })
 }
 
 impl Campaign<'_> {

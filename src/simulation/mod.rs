@@ -34,12 +34,13 @@ mod synthetic;
 pub mod tree;
 
 pub use instruments::{
-    EXACT_SIGMA_MM, INSTRUMENT_STUDIES, Instrument, InstrumentKind, InstrumentResults, InstrumentStudy,
-    MOST_DRAWS_PER_VIEW, Scores, Sight, interval as stats_interval, is_instrument_study, run_instruments,
+    EXACT_SIGMA_MM, INSTRUMENT_STUDIES, Instrument, InstrumentKind, InstrumentPart, InstrumentResults,
+    InstrumentStudy, MOST_DRAWS_PER_VIEW, Scores, Sight, interval as stats_interval, is_instrument_study,
+    run_instruments, run_instruments_shard,
 };
 pub use replication::{
     Coverage, MAX_REPLICATIONS, REPLICATION_STREAM, Replication, ReplicationError, Replications, Statistic,
-    check_replications, replicate, replication_seed, replication_study,
+    check_replications, replicate, replicate_shard, replication_seed, replication_study,
 };
 pub use stats::{
     Spread, Summary, Z_975, clustered_half_width, effective_sample_size, mean, percentile, percentile_rank,
@@ -55,7 +56,7 @@ use crate::estimation::{
     DeviceError, EstimationError, MeasurementNoise, NoiseModel, PointProblem, Prepared, RANK_TOLERANCE,
     RefineOptions, Weights, refine,
 };
-use crate::kinematics::{Chain, ChainAt, Measured, pose_error};
+use crate::kinematics::{BATCH, Chain, ChainAt, Configurations, Frames, Measured, pose_error};
 use crate::model::{ParamKind, ParamSet};
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 use rand::SeedableRng;
@@ -159,6 +160,23 @@ pub struct StudyResults {
 }
 
 impl StudyResults {
+    /// The results of a study's shards ([`run_shard`]), together: as the study run whole
+    /// gives them when the parts are its shards. The joint noise's error is the first part's.
+    pub fn merge(parts: impl IntoIterator<Item = StudyResults>) -> Self {
+        let mut merged = StudyResults { runs: Vec::new(), ranks: Vec::new(), joint_noise_error: f64::NAN };
+        for (i, part) in parts.into_iter().enumerate() {
+            merged.runs.extend(part.runs);
+            merged.ranks.extend(part.ranks);
+            if i == 0 {
+                merged.joint_noise_error = part.joint_noise_error;
+            }
+        }
+        merged.runs.sort_by_key(|r| (r.case, r.set, r.run));
+        merged.ranks.sort_unstable();
+        merged.ranks.dedup();
+        merged
+    }
+
     /// The dE samples of estimator `e` in case `case`.
     pub fn improvements(&self, case: usize, e: usize) -> Vec<f64> {
         self.runs.iter().filter(|r| r.case == case).map(|r| r.improvement(e)).collect()
@@ -216,6 +234,8 @@ struct Bench<'a> {
     /// The parameters each compared calibration identifies.
     selections: Vec<crate::model::Selection>,
     test: Vec<Vec<f64>>,
+    /// The test set, its joints' sines and cosines computed once.
+    test_trig: Configurations,
 }
 
 /// Why a study could not be run.
@@ -239,9 +259,73 @@ pub enum SimulationError {
     Device(#[from] DeviceError),
 }
 
+/// One part of a study's work, for spreading it over processes or machines: shard `index` of
+/// `count` (from 0) computes the runs `index * R / count` to `(index + 1) * R / count - 1` of
+/// the `R` runs in their order (case by case, point set by point set, run by run), and the
+/// point sets they need. Every run's random numbers depend only on (`N_p`, set, run), so the
+/// shards' results together are the whole study's, bit for bit ([`StudyResults::merge`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    /// This shard, from 0.
+    pub index: usize,
+    /// How many shards share the work.
+    pub count: usize,
+}
+
+/// The most shards a study can be split into.
+pub const MAX_SHARDS: usize = 1_000_000;
+
+impl Default for Shard {
+    fn default() -> Self {
+        Self::WHOLE
+    }
+}
+
+impl Shard {
+    /// All the work in one shard.
+    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
+
+    /// This shard's part of `total` units of work, in order.
+    pub fn range(&self, total: usize) -> std::ops::Range<usize> {
+        let at = |i: usize| (i as u128 * total as u128 / self.count.max(1) as u128) as usize;
+        at(self.index)..at(self.index + 1)
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+    /// `I/N`: shard `I` (0 to `N - 1`) of `N` (1 to [`MAX_SHARDS`]).
+    fn from_str(text: &str) -> Result<Self, String> {
+        let expected = || format!("I/N with 0 <= I < N <= {MAX_SHARDS} (as 0/4 ... 3/4), found `{text}`");
+        let (index, count) = text.split_once('/').ok_or_else(expected)?;
+        let (index, count) =
+            (index.trim().parse().map_err(|_| expected())?, count.trim().parse().map_err(|_| expected())?);
+        if index >= count || count > MAX_SHARDS {
+            return Err(expected());
+        }
+        Ok(Self { index, count })
+    }
+}
+
 /// Run `study`, calling `progress` once per finished run (from any thread). The study is
 /// checked first ([`Study::check`]).
 pub fn run(study: &Study, progress: &(dyn Fn() + Sync)) -> Result<StudyResults, SimulationError> {
+    run_shard(study, Shard::WHOLE, progress)
+}
+
+/// Run shard `shard` of `study` ([`Shard`]): its runs, the ranks of the point sets they use,
+/// and the joint noise's error (which every shard computes).
+pub fn run_shard(
+    study: &Study,
+    shard: Shard,
+    progress: &(dyn Fn() + Sync),
+) -> Result<StudyResults, SimulationError> {
     study.check()?;
     let chain = Chain::new(&study.robot);
     let nominal = chain.with_errors(&vec![0.0; chain.params().len()]);
@@ -255,14 +339,18 @@ pub fn run(study: &Study, progress: &(dyn Fn() + Sync)) -> Result<StudyResults, 
             crate::calibration::without_unloaded_responses(&asked, &chain, &zero, &test).0
         })
         .collect();
-    let bench = Bench { study, chain, nominal, real, selections, test };
+    let test_trig = Configurations::new(&test, study.robot.dof());
+    let bench = Bench { study, chain, nominal, real, selections, test, test_trig };
 
+    let per_set = study.runs_per_set;
+    let runs = shard.range(study.cases.len() * study.point_sets * per_set);
+    // The point sets, numbered case by case, that the shard's runs use.
+    let (first, end) = (runs.start / per_set, runs.end.div_ceil(per_set).max(runs.start / per_set));
     let sets: Vec<(usize, usize)> =
-        (0..study.cases.len()).flat_map(|c| (0..study.point_sets).map(move |s| (c, s))).collect();
+        (first..end).map(|i| (i / study.point_sets, i % study.point_sets)).collect();
     let sets: Vec<PointSet> =
         sets.par_iter().map(|&(c, s)| bench.point_set(c, s)).collect::<Result<_, _>>()?;
-    let runs: Vec<(usize, usize)> =
-        (0..sets.len()).flat_map(|i| (0..study.runs_per_set).map(move |r| (i, r))).collect();
+    let runs: Vec<(usize, usize)> = runs.map(|g| (g / per_set - first, g % per_set)).collect();
     let runs: Vec<Run> = runs
         .par_iter()
         .map(|&(i, r)| {
@@ -393,8 +481,7 @@ impl Bench<'_> {
             }
             observed.push(measured);
         }
-        let truth_at_test: Vec<Isometry3<f64>> = self.test.iter().map(|q| real.pose(q)).collect();
-        let mut accuracy = Vec::with_capacity(study.estimators.len());
+        let mut models = Vec::with_capacity(study.estimators.len());
         for (e, (compared, selection)) in study.estimators.iter().zip(&self.selections).enumerate() {
             let estimate = match set.prepared.get(e) {
                 Some(prepared) => prepared.estimate(&y),
@@ -418,9 +505,9 @@ impl Bench<'_> {
             for (&i, &v) in selection.indices().iter().zip(estimate.iter()) {
                 full[i] = v;
             }
-            accuracy.push(self.accuracy(&self.chain.with_errors(&full), &truth_at_test));
+            models.push(self.chain.with_errors(&full));
         }
-        Ok(Run { case: set.case, set: set.set, run, accuracy })
+        Ok(Run { case: set.case, set: set.set, run, accuracy: self.accuracy(&real, &models) })
     }
 
     /// Steps 3-4 at one point: the real robot's pose at the noisy joints, measured with noise:
@@ -452,25 +539,41 @@ impl Bench<'_> {
         }
     }
 
-    /// Step 8: the calibrated model against the real robot over the test set.
-    fn accuracy(&self, model: &ChainAt, truth: &[Isometry3<f64>]) -> Accuracy {
-        let (mut sum, mut sum_sq, mut max, mut angle) = (0.0, 0.0, 0.0f64, 0.0);
-        for (q, real) in self.test.iter().zip(truth) {
-            let error = match self.study.measured {
-                Measured::Position => (model.position(q) - real.translation.vector).norm(),
-                Measured::Pose => {
-                    let pose = model.pose(q);
-                    angle += pose.rotation.angle_to(&real.rotation);
-                    (pose.translation.vector - real.translation.vector).norm()
+    /// Step 8: each calibrated model against the real robot over the test set, in one pass
+    /// over its blocks: the real robot's frames once per block, every model's beside them.
+    fn accuracy(&self, real: &ChainAt, models: &[ChainAt]) -> Vec<Accuracy> {
+        let pose = self.study.measured == Measured::Pose;
+        // Per model: sum, sum of squares, largest, sum of angles.
+        let mut sums = vec![(0.0, 0.0, 0.0f64, 0.0); models.len()];
+        let (mut truth, mut frames) = (Frames::default(), Frames::default());
+        let mut errors = [0.0; BATCH];
+        for b in 0..self.test_trig.blocks() {
+            real.frames(&self.test_trig, b, &mut truth);
+            let n = self.test_trig.block_len(b);
+            for (model, (sum, sum_sq, max, angle)) in models.iter().zip(&mut sums) {
+                model.frames(&self.test_trig, b, &mut frames);
+                frames.distances(&truth, &mut errors);
+                for &error in &errors[..n] {
+                    *sum += error;
+                    *sum_sq += error * error;
+                    *max = max.max(error);
                 }
-            };
-            sum += error;
-            sum_sq += error * error;
-            max = max.max(error);
+                if pose {
+                    for i in 0..n {
+                        *angle += frames.rotation(i).angle_to(&truth.rotation(i));
+                    }
+                }
+            }
         }
         let n = self.test.len() as f64;
-        let orientation = if self.study.measured == Measured::Pose { angle / n } else { f64::NAN };
-        Accuracy { mean: sum / n, rms: (sum_sq / n).sqrt(), max, orientation }
+        (sums.into_iter())
+            .map(|(sum, sum_sq, max, angle)| Accuracy {
+                mean: sum / n,
+                rms: (sum_sq / n).sqrt(),
+                max,
+                orientation: if pose { angle / n } else { f64::NAN },
+            })
+            .collect()
     }
 
     /// Mean position error caused by the joint noise alone, over the test set.

@@ -192,7 +192,34 @@ pub fn replicate(
     Ok(Replications { seed: study.seed, replications })
 }
 
+/// Shard `shard` ([`super::Shard`]) of each of `count` replications of `study`: the partial
+/// results of replication `r` at index `r`, for [`StudyResults::merge`] and
+/// [`Replications::of_results`].
+pub fn replicate_shard(
+    study: &Study,
+    count: usize,
+    shard: super::Shard,
+    progress: &(dyn Fn() + Sync),
+) -> Result<Vec<StudyResults>, ReplicationError> {
+    check_replications(count)?;
+    let results = (0..count)
+        .into_par_iter()
+        .map(|r| super::run_shard(&replication_study(study, r), shard, progress))
+        .collect::<Result<_, SimulationError>>()?;
+    Ok(results)
+}
+
 impl Replications {
+    /// The replications of `study` from each one's whole results, in order.
+    pub fn of_results(study: &Study, results: &[StudyResults]) -> Self {
+        let replications = results
+            .iter()
+            .enumerate()
+            .map(|(r, res)| Replication::of(&replication_study(study, r), res))
+            .collect();
+        Self { seed: study.seed, replications }
+    }
+
     /// Statistic `statistic` of dE of compared estimator `e` in `case`, one per replication.
     pub fn values(&self, case: usize, e: usize, statistic: Statistic) -> Vec<f64> {
         self.replications.iter().map(|r| statistic.of(&r.clustered[case][e - 1])).collect()

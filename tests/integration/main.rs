@@ -25,6 +25,7 @@ mod report;
 mod robust;
 mod selection;
 mod sessions;
+mod shards;
 mod simulation;
 mod tree;
 mod urdf;
