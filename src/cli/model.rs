@@ -19,7 +19,7 @@ pub fn run(command: &ModelCommand) -> Result<()> {
         ModelCommand::List => {
             for (name, _) in PRESETS {
                 let model = RobotModel::preset(name).expect("presets are valid");
-                println!("{name:<12} {}", model.description);
+                println!("{name:<15} {} joints  {}", model.dof(), model.description);
             }
         }
     }

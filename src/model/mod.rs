@@ -339,4 +339,11 @@ impl ModelRef {
 pub const PRESETS: &[(&str, &str)] = &[
     ("puma560", include_str!("../../presets/puma560.toml")),
     ("puma560-masses", include_str!("../../presets/puma560-masses.toml")),
+    ("ur3e", include_str!("../../presets/ur3e.toml")),
+    ("ur5e", include_str!("../../presets/ur5e.toml")),
+    ("ur10e", include_str!("../../presets/ur10e.toml")),
+    ("ur16e", include_str!("../../presets/ur16e.toml")),
+    ("panda", include_str!("../../presets/panda.toml")),
+    ("iiwa14", include_str!("../../presets/iiwa14.toml")),
+    ("irb120", include_str!("../../presets/irb120.toml")),
 ];

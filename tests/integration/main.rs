@@ -16,6 +16,7 @@ mod model_files;
 mod noise;
 mod observability;
 mod planning;
+mod presets;
 mod prior;
 mod reliability;
 mod repeatability;
