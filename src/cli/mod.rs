@@ -3,6 +3,7 @@
 
 mod args;
 mod calibrate;
+mod compensate;
 mod evaluate;
 mod fk;
 mod model;
@@ -75,6 +76,9 @@ enum Command {
     Observability(Box<ObservabilityArgs>),
     /// Plan measurement poses that maximise an observability criterion; writes a pose file.
     Plan(Box<PlanArgs>),
+    /// Compensate a robot program: the joint values to send a controller that computes with
+    /// the nominal model so that the calibrated (real) robot reaches each target.
+    Compensate(Box<compensate::CompensateArgs>),
     /// Inspect robot models.
     Model {
         /// What to do with the models.
@@ -98,6 +102,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Evaluate(args) => evaluate::run(&EvaluateRequest::from_args(*args)?),
         Command::Observability(args) => observability::run(&ObservabilityRequest::from_args(*args)?),
         Command::Plan(args) => plan::run(&PlanRequest::from_args(*args)?),
+        Command::Compensate(args) => compensate::run(&args),
         Command::Model { command } => model::run(&command),
     }
 }

@@ -2,6 +2,7 @@
 //! here touches a file: [`crate::io`] writes what these functions return.
 
 pub mod calibration;
+pub mod compensation;
 pub mod design;
 pub mod figures;
 pub mod html;

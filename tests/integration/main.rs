@@ -3,6 +3,7 @@
 mod calibration;
 mod camera;
 mod cli;
+mod compensate;
 mod compliance;
 mod estimation;
 mod fgls;

@@ -41,7 +41,10 @@ fn assert_same_pose(name: &str, q: &[f64], reference: &Isometry3<f64>) {
     let pose = preset_pose(name, q);
     let dp = (pose.translation.vector - reference.translation.vector).norm();
     let dr = pose.rotation.angle_to(&reference.rotation);
-    assert!(dp < 1e-9 && dr < 1e-12, "{name} at {q:?}: {dp} mm, {dr} rad from the maker's chain\n{pose}\n{reference}");
+    assert!(
+        dp < 1e-9 && dr < 1e-12,
+        "{name} at {q:?}: {dp} mm, {dr} rad from the maker's chain\n{pose}\n{reference}"
+    );
 }
 
 const Z: [f64; 3] = [0.0, 0.0, 1.0];
