@@ -21,15 +21,19 @@
 mod file;
 mod params;
 mod tree;
+mod ur_kinematics;
 mod urdf;
+mod urdf_export;
 
 pub use file::{ModelError, degrees, markers_from_toml_str, to_toml_with_markers};
 pub(crate) use params::name_matches;
 pub use params::{ParamInfo, ParamKind, ParamOwner, ParamSet, Selection, SelectionError};
 pub use tree::{Branch, RobotTree};
+pub use ur_kinematics::{UR_JOINTS, UR_SEGMENTS, from_ur_kinematics, to_ur_kinematics};
 pub use urdf::{
     DEFLECTION, GRAVITY, chain_links, from_urdf_str, markers_from_urdf_str, to_urdf_string, with_urdf_markers,
 };
+pub use urdf_export::{UrdfExport, UrdfOptions, to_urdf};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::RngExt;

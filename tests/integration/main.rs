@@ -6,6 +6,7 @@ mod cli;
 mod compensate;
 mod compliance;
 mod estimation;
+mod export;
 mod fgls;
 mod fuzz;
 mod instruments;
