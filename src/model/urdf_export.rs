@@ -42,9 +42,12 @@ pub(crate) fn factors(
     }
 }
 
+/// A joint's origin in its parent link (mm) and its axis there.
+pub(crate) type JointOrigin = (Isometry3<f64>, Vector3<f64>);
+
 /// Each joint's origin in its parent link (`S_{i-1} P_i`), its axis, and the tool's placement
 /// in the last link (`S_n tool`), as [`factors`] gives them.
-pub(crate) fn joint_origins(model: &RobotModel) -> (Vec<(Isometry3<f64>, Vector3<f64>)>, Isometry3<f64>) {
+pub(crate) fn joint_origins(model: &RobotModel) -> (Vec<JointOrigin>, Isometry3<f64>) {
     let mut before = model.base.isometry();
     let mut origins = Vec::new();
     for joint in &model.joints {

@@ -60,7 +60,8 @@ pub fn text(source: &str, model: &RobotModel, outcomes: &[Outcome<'_>]) -> Strin
     let _ = writeln!(out, "compensated {} of {} targets of {source}", reached.len(), outcomes.len());
     if !reached.is_empty() {
         let _ = writeln!(out, "\nerror of the calibrated model      max mm    rms mm   max deg   rms deg");
-        let rows: [(&str, fn(&&Compensated) -> (f64, f64)); 2] = [
+        type Errors = fn(&&Compensated) -> (f64, f64);
+        let rows: [(&str, Errors); 2] = [
             ("uncompensated (at the seeds)", |c| (c.before_mm, c.before_rad)),
             ("compensated", |c| (c.error_mm, c.error_rad)),
         ];

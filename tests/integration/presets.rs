@@ -11,6 +11,8 @@ use std::f64::consts::{FRAC_PI_2, PI};
 
 /// A URDF joint: origin xyz (m), rpy (rad), axis.
 type UrdfJoint = ([f64; 3], [f64; 3], [f64; 3]);
+/// A fixed URDF joint: origin xyz (m), rpy (rad).
+type Fixed = ([f64; 3], [f64; 3]);
 
 fn origin(xyz: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
     Isometry3::from_parts(
@@ -20,7 +22,7 @@ fn origin(xyz: [f64; 3], rpy: [f64; 3]) -> Isometry3<f64> {
 }
 
 /// The pose (mm) of the URDF chain `joints` at `q`, then the fixed joints `tool`.
-fn urdf_pose(joints: &[UrdfJoint], tool: &[([f64; 3], [f64; 3])], q: &[f64]) -> Isometry3<f64> {
+fn urdf_pose(joints: &[UrdfJoint], tool: &[Fixed], q: &[f64]) -> Isometry3<f64> {
     let mut pose = Isometry3::identity();
     for ((xyz, rpy, axis), &q) in joints.iter().zip(q) {
         let turn = UnitQuaternion::from_axis_angle(&Unit::new_normalize(Vector3::from(*axis)), q);
@@ -55,7 +57,7 @@ const Z: [f64; 3] = [0.0, 0.0, 1.0];
 /// pi/2, wrist_3 y 0.0996 roll pi/2 pitch pi yaw pi; `urdf/ur_macro.xacro`: the flange at rpy
 /// (0, -pi/2, -pi/2) of wrist_3_link and tool0 at (pi/2, 0, pi/2) of the flange), in the
 /// controller's `base` frame (base_link_inertia: base_link turned by pi, as `base` is).
-fn ur_chain([d1, a2, a3, d4, d5, d6]: [f64; 6]) -> (Vec<UrdfJoint>, Vec<([f64; 3], [f64; 3])>) {
+fn ur_chain([d1, a2, a3, d4, d5, d6]: [f64; 6]) -> (Vec<UrdfJoint>, Vec<Fixed>) {
     let joints = vec![
         ([0.0, 0.0, d1], [0.0, 0.0, 0.0], Z),
         ([0.0, 0.0, 0.0], [FRAC_PI_2, 0.0, 0.0], Z),
