@@ -81,8 +81,11 @@ pub struct UrdfExport {
     pub sidecar: Option<String>,
 }
 
-/// `model` as a URDF of its own; see the [module documentation](self). Reading it back from its
-/// root link `base_link` to `tool0` gives the same forward kinematics.
+/// `model` as a URDF of its own: each joint's transform factored as `T_i(q) = P_i M_i(q) S_i`
+/// (`M_i` the motion; standard DH `P = Rz(theta) Tz(d)`, `S = Tx(a) Rx(alpha) Ry(beta)`;
+/// modified DH `P` the whole transform; URDF `P` the origin), joint `i` placed at
+/// `S_{i-1} P_i` (`S_0` the base), the tool a fixed joint at `S_n tool` to link `tool0`.
+/// Reading it back from its root link `base_link` to `tool0` gives the same forward kinematics.
 pub fn to_urdf(model: &RobotModel, options: UrdfOptions) -> UrdfExport {
     let (origins, tool) = joint_origins(model);
     let mut out = format!("<?xml version=\"1.0\"?>\n<robot name=\"{}\">\n", xml_escape(&model.name));
