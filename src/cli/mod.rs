@@ -1,6 +1,7 @@
 //! The command line: clap parses the flags ([`args`]), each command's flags become one
 //! validated request ([`request`]), and the command's file calls the library and prints.
 
+mod accuracy;
 mod args;
 mod calibrate;
 mod compensate;
@@ -79,6 +80,10 @@ enum Command {
     /// Compensate a robot program: the joint values to send a controller that computes with
     /// the nominal model so that the calibrated (real) robot reaches each target.
     Compensate(Box<compensate::CompensateArgs>),
+    /// The calibrated robot's predicted accuracy (the calibration's covariance carried to the
+    /// tool, plus the held-out floor) over a pose file or a grid of the joint ranges: CSV and
+    /// figures.
+    Accuracy(Box<accuracy::AccuracyArgs>),
     /// Inspect robot models.
     Model {
         /// What to do with the models.
@@ -103,6 +108,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Observability(args) => observability::run(&ObservabilityRequest::from_args(*args)?),
         Command::Plan(args) => plan::run(&PlanRequest::from_args(*args)?),
         Command::Compensate(args) => compensate::run(&args),
+        Command::Accuracy(args) => accuracy::run(&args),
         Command::Model { command } => model::run(&command),
     }
 }

@@ -1,5 +1,6 @@
 //! robocal's integration tests, gathered in one test binary.
 
+mod accuracy;
 mod calibration;
 mod camera;
 mod cli;
