@@ -115,9 +115,9 @@ fn range(values: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
     lo - pad..hi + pad
 }
 
-/// Blue (low) to red (high) for `v` in `0..=top`.
-fn colour(v: f64, top: f64) -> RGBColor {
-    let t = if top > 0.0 { (v / top).clamp(0.0, 1.0) } else { 0.0 };
+/// Blue (low) to red (high) for `v` in `low..=high`.
+fn colour(v: f64, (low, high): (f64, f64)) -> RGBColor {
+    let t = if high > low { ((v - low) / (high - low)).clamp(0.0, 1.0) } else { 0.0 };
     RGBColor((255.0 * t) as u8, (80.0 * (1.0 - (2.0 * t - 1.0).abs())) as u8, (255.0 * (1.0 - t)) as u8)
 }
 
@@ -128,9 +128,12 @@ fn map(points: &[Point<'_>], calibration: &[(Vec<f64>, Vector3<f64>)]) -> Result
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let all = points.iter().map(|p| p.1).chain(calibration.iter().map(|c| c.1));
         let (xs, ys) = (range(all.clone().map(|p| p.x)), range(all.map(|p| p.y)));
-        let top = points.iter().map(|p| p.2.position_mm).fold(0.0, f64::max);
-        let caption =
-            format!("predicted SD of the tool position (mm): blue 0, red {top:.4}; x = calibration poses");
+        let sd = points.iter().map(|p| p.2.position_mm);
+        let scale = (sd.clone().fold(f64::INFINITY, f64::min), sd.fold(0.0, f64::max));
+        let caption = format!(
+            "predicted SD of the tool position (mm): blue {:.4}, red {:.4}; x = calibration poses",
+            scale.0, scale.1
+        );
         let mut chart = ChartBuilder::on(&root)
             .caption(caption, ("sans-serif", 16))
             .margin(12)
@@ -141,7 +144,9 @@ fn map(points: &[Point<'_>], calibration: &[(Vec<f64>, Vector3<f64>)]) -> Result
         chart.configure_mesh().x_desc("x (mm)").y_desc("y (mm)").draw().map_err(|e| e.to_string())?;
         chart
             .draw_series(
-                points.iter().map(|p| Circle::new((p.1.x, p.1.y), 3, colour(p.2.position_mm, top).filled())),
+                points
+                    .iter()
+                    .map(|p| Circle::new((p.1.x, p.1.y), 3, colour(p.2.position_mm, scale).filled())),
             )
             .map_err(|e| e.to_string())?;
         chart
@@ -169,7 +174,8 @@ fn joints(
                 ("sans-serif", 16),
             )
             .map_err(|e| e.to_string())?;
-        let top = points.iter().map(|p| p.2.position_mm).fold(0.0, f64::max).max(1e-9) * 1.1;
+        let ys = range(points.iter().map(|p| p.2.position_mm));
+        let tick = ys.start + (ys.end - ys.start) * 0.06;
         for (j, panel) in root.split_evenly((rows, 3)).iter().enumerate().take(n) {
             let joint = &model.joints[j];
             let xs = joint.limits.map(|l| in_file_unit(joint.kind, l));
@@ -178,7 +184,7 @@ fn joints(
                 .margin(8)
                 .x_label_area_size(34)
                 .y_label_area_size(52)
-                .build_cartesian_2d(xs[0]..xs[1], 0.0..top)
+                .build_cartesian_2d(xs[0]..xs[1], ys.clone())
                 .map_err(|e| e.to_string())?;
             chart
                 .configure_mesh()
@@ -198,7 +204,7 @@ fn joints(
             chart
                 .draw_series(calibration.iter().map(|c| {
                     let x = in_file_unit(joint.kind, c.0[j]);
-                    PathElement::new(vec![(x, 0.0), (x, top * 0.06)], BLACK.stroke_width(2))
+                    PathElement::new(vec![(x, ys.start), (x, tick)], BLACK.stroke_width(2))
                 }))
                 .map_err(|e| e.to_string())?;
         }
