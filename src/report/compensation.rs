@@ -75,13 +75,11 @@ pub fn text(source: &str, model: &RobotModel, outcomes: &[Outcome<'_>]) -> Strin
                 rms_rad.to_degrees()
             );
         }
+        let iterations = reached.iter().map(|c| c.iterations).max().unwrap_or(0);
+        let _ = writeln!(out, "at most {iterations} iterations per target");
         let _ = writeln!(out, "\nlargest change per joint (deg; mm for prismatic joints)");
         for (k, joint) in model.joints.iter().enumerate() {
             let most = reached.iter().map(|c| c.change[k].abs()).fold(0.0, f64::max);
-            let iterations = reached.iter().map(|c| c.iterations).max().unwrap_or(0);
-            if k == 0 {
-                let _ = writeln!(out, "  (at most {iterations} iterations per target)");
-            }
             let _ = writeln!(out, "  {:<10} {:>10.6}", joint.name, in_file_unit(joint.kind, most));
         }
     }

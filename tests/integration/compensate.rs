@@ -269,3 +269,23 @@ fn a_calibrated_model_compensates_the_true_robot_to_its_accuracy() {
     let unreachable = report.lines().filter(|l| l.starts_with("  line ")).count();
     assert_eq!(sent.len() + unreachable, 50, "every target written or named\n{report}");
 }
+
+#[test]
+fn the_readme_compensation_example_is_the_real_output() {
+    let out = temp("readme-program.csv");
+    crate::cli::the_readme_block_is_printed(
+        "$ robocal compensate examples/puma560-validation.csv",
+        &[
+            "compensate",
+            "examples/puma560-validation.csv",
+            "--model",
+            "examples/puma560-true.toml",
+            "--nominal",
+            "puma560",
+            "--frame",
+            "base",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+}
