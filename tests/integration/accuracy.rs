@@ -14,6 +14,9 @@ use robocal::kinematics::Chain;
 use robocal::model::{Placement, RobotModel};
 use robocal::simulation::measurement_csv;
 
+/// One calibration's position errors at the test poses, and (the first's) predictions there.
+type Run = (Vec<Vector3<f64>>, Option<Vec<f64>>);
+
 fn positions(model: &RobotModel, poses: &[Vec<f64>]) -> Vec<Vector3<f64>> {
     let chain = Chain::new(model);
     let at = chain.with_errors(&vec![0.0; chain.params().len()]);
@@ -58,7 +61,7 @@ fn predicted_accuracy_matches_the_spread_of_200_calibrations() {
         gauge: Default::default(),
     };
     let truth_at_test = positions(&truth, &test);
-    let runs: Vec<(Vec<Vector3<f64>>, Option<Vec<f64>>)> = (0..200u64)
+    let runs: Vec<Run> = (0..200u64)
         .into_par_iter()
         .map(|run| {
             let text = measurement_csv(&truth, &[marker], &training, &sigmas, 0.01, 100 + run);
