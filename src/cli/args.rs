@@ -703,6 +703,34 @@ pub enum ModelCommand {
     },
     /// List the embedded presets.
     List,
+    /// Write a model (any convention) as a URDF of its own, for MoveIt and ROS: each joint's
+    /// origin as xyz/rpy, the tool as a fixed joint to `tool0`.
+    Urdf {
+        /// A preset name, a model TOML file, or a URDF file.
+        model: String,
+        #[command(flatten)]
+        links: LinkArgs,
+        /// Standard URDF elements only; the compliances, plays and gravity go into a TOML
+        /// sidecar beside --out (`<out>.extras.toml`).
+        #[arg(long)]
+        urdf_standard: bool,
+        /// The URDF file to write (default: standard output).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Write a UR model (six revolute joints) as the Universal Robots ROS driver's kinematics
+    /// file (per joint x, y, z, roll, pitch, yaw); a tool offset, which the file cannot hold,
+    /// is printed as the TCP to set on the controller.
+    UrKinematics {
+        /// A preset name (ur3e, ur5e, ur10e, ur16e), a model TOML file (a calibrated UR), or a
+        /// URDF file.
+        model: String,
+        #[command(flatten)]
+        links: LinkArgs,
+        /// The YAML file to write (default: standard output).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
 }
 
 impl std::fmt::Display for Excluded {

@@ -275,6 +275,10 @@ fn write(
             if request.model.payload.is_some() { robot.own_payload } else { result.calibrated.payload };
         let calibrated = RobotModel { payload, ..result.calibrated.clone() };
         outputs.add(path, robocal::model::to_toml_with_markers(&calibrated, &markers));
+        if super::accuracy::has_a_sidecar(path) {
+            let sidecar = super::accuracy::covariance_sidecar(&report.sets, result);
+            outputs.add(super::accuracy::covariance_path(path), sidecar);
+        }
     }
     if let (Some(path), Some(urdf)) = (&request.out_urdf, &robot.urdf) {
         let text =

@@ -1,8 +1,10 @@
 //! The command line: clap parses the flags ([`args`]), each command's flags become one
 //! validated request ([`request`]), and the command's file calls the library and prints.
 
+mod accuracy;
 mod args;
 mod calibrate;
+mod compensate;
 mod evaluate;
 mod fk;
 mod model;
@@ -79,6 +81,13 @@ enum Command {
     Observability(Box<ObservabilityArgs>),
     /// Plan measurement poses that maximise an observability criterion; writes a pose file.
     Plan(Box<PlanArgs>),
+    /// Compensate a robot program: the joint values to send a controller that computes with
+    /// the nominal model so that the calibrated (real) robot reaches each target.
+    Compensate(Box<compensate::CompensateArgs>),
+    /// The calibrated robot's predicted accuracy (the calibration's covariance carried to the
+    /// tool, plus the held-out floor) over a pose file or a grid of the joint ranges: CSV and
+    /// figures.
+    Accuracy(Box<accuracy::AccuracyArgs>),
     /// Inspect robot models.
     Model {
         /// What to do with the models.
@@ -103,6 +112,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Evaluate(args) => evaluate::run(&EvaluateRequest::from_args(*args)?),
         Command::Observability(args) => observability::run(&ObservabilityRequest::from_args(*args)?),
         Command::Plan(args) => plan::run(&PlanRequest::from_args(*args)?),
+        Command::Compensate(args) => compensate::run(&args),
+        Command::Accuracy(args) => accuracy::run(&args),
         Command::Model { command } => model::run(&command),
     }
 }

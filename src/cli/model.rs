@@ -1,9 +1,10 @@
-//! `robocal model`: list the presets, show a model.
+//! `robocal model`: list the presets, show a model, write it as URDF or as the UR driver's
+//! kinematics file.
 
 use super::args::ModelCommand;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use robocal::io;
-use robocal::model::{PRESETS, RobotModel};
+use robocal::model::{PRESETS, Placement, RobotModel, UrdfOptions, to_ur_kinematics, to_urdf};
 
 /// Print the presets, or a model as TOML.
 pub fn run(command: &ModelCommand) -> Result<()> {
@@ -16,10 +17,54 @@ pub fn run(command: &ModelCommand) -> Result<()> {
             }
             print!("{}", read.to_toml_string());
         }
+        ModelCommand::Urdf { model, links, urdf_standard, out } => {
+            let read = io::load_model(&links.model_ref(model)?)?;
+            let exported = to_urdf(&read, UrdfOptions { standard: *urdf_standard });
+            let mut outputs = io::Outputs::new();
+            match out {
+                Some(path) => {
+                    outputs.add(path, exported.urdf);
+                    if let Some(sidecar) = exported.sidecar {
+                        outputs.add(path.with_extension("extras.toml"), sidecar);
+                    }
+                    super::commit(outputs)?;
+                }
+                None => {
+                    print!("{}", exported.urdf);
+                    if let Some(sidecar) = exported.sidecar {
+                        eprint!("{sidecar}");
+                    }
+                }
+            }
+        }
+        ModelCommand::UrKinematics { model, links, out } => {
+            let read = io::load_model(&links.model_ref(model)?)?;
+            let (yaml, tcp) = to_ur_kinematics(&read).with_context(|| model.clone())?;
+            match out {
+                Some(path) => {
+                    let mut outputs = io::Outputs::new();
+                    outputs.add(path, yaml);
+                    super::commit(outputs)?;
+                }
+                None => print!("{yaml}"),
+            }
+            if tcp.translation.vector.norm() > 1e-9 || tcp.rotation.angle() > 1e-12 {
+                let p = Placement::from_isometry(&tcp);
+                eprintln!(
+                    "the tool is not in the file: set the TCP to xyz ({:.4}, {:.4}, {:.4}) mm, rpy ({:.6}, {:.6}, {:.6}) deg",
+                    p.xyz.x,
+                    p.xyz.y,
+                    p.xyz.z,
+                    p.rpy.x.to_degrees(),
+                    p.rpy.y.to_degrees(),
+                    p.rpy.z.to_degrees()
+                );
+            }
+        }
         ModelCommand::List => {
             for (name, _) in PRESETS {
                 let model = RobotModel::preset(name).expect("presets are valid");
-                println!("{name:<12} {}", model.description);
+                println!("{name:<15} {} joints  {}", model.dof(), model.description);
             }
         }
     }

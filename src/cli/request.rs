@@ -76,7 +76,7 @@ pub(super) fn distinct_outputs(
 
 impl UnitArgs {
     /// The units, if given: `--joint-unit` and `--length-unit` go together.
-    fn units(&self) -> Result<Option<Units>, UsageError> {
+    pub(super) fn units(&self) -> Result<Option<Units>, UsageError> {
         match (self.joint_unit, self.length_unit) {
             (None, None) => Ok(None),
             (Some(joint), Some(length)) => Ok(Some(Units {

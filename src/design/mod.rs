@@ -39,6 +39,8 @@
 //! The indices are [`o1`] ... [`o5`], all of them at once [`Design::observability`]; the
 //! planner, a Fedorov exchange over a pool of candidate poses, is [`Design::plan`].
 
+pub mod accuracy;
+pub mod compensate;
 mod observability;
 mod plan;
 mod poses;

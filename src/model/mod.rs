@@ -21,15 +21,19 @@
 mod file;
 mod params;
 mod tree;
+mod ur_kinematics;
 mod urdf;
+mod urdf_export;
 
 pub use file::{ModelError, degrees, markers_from_toml_str, to_toml_with_markers};
 pub(crate) use params::name_matches;
 pub use params::{ParamInfo, ParamKind, ParamOwner, ParamSet, Selection, SelectionError};
 pub use tree::{Branch, RobotTree};
+pub use ur_kinematics::{UR_JOINTS, UR_SEGMENTS, from_ur_kinematics, to_ur_kinematics};
 pub use urdf::{
     DEFLECTION, GRAVITY, chain_links, from_urdf_str, markers_from_urdf_str, to_urdf_string, with_urdf_markers,
 };
+pub use urdf_export::{UrdfExport, UrdfOptions, to_urdf};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::RngExt;
@@ -339,4 +343,11 @@ impl ModelRef {
 pub const PRESETS: &[(&str, &str)] = &[
     ("puma560", include_str!("../../presets/puma560.toml")),
     ("puma560-masses", include_str!("../../presets/puma560-masses.toml")),
+    ("ur3e", include_str!("../../presets/ur3e.toml")),
+    ("ur5e", include_str!("../../presets/ur5e.toml")),
+    ("ur10e", include_str!("../../presets/ur10e.toml")),
+    ("ur16e", include_str!("../../presets/ur16e.toml")),
+    ("panda", include_str!("../../presets/panda.toml")),
+    ("iiwa14", include_str!("../../presets/iiwa14.toml")),
+    ("irb120", include_str!("../../presets/irb120.toml")),
 ];

@@ -426,7 +426,7 @@ fn carried_mass(robot: roxmltree::Node<'_, '_>, link: &str) -> Result<LinkMass, 
 }
 
 /// `<origin xyz=".." rpy=".."/>` in metres and radians, at full precision.
-fn origin_element(iso: &Isometry3<f64>) -> String {
+pub(super) fn origin_element(iso: &Isometry3<f64>) -> String {
     let p = Placement::from_isometry(iso);
     let t = p.xyz / 1000.0;
     format!(

@@ -1,7 +1,9 @@
 //! Reports: text at fixed precision (so that it can be snapshot-tested), CSV and SVG. Nothing
 //! here touches a file: [`crate::io`] writes what these functions return.
 
+pub mod accuracy;
 pub mod calibration;
+pub mod compensation;
 pub mod design;
 pub mod figures;
 pub mod html;

@@ -122,7 +122,7 @@ fn fk_rejects_a_non_number() {
 #[test]
 fn unknown_model_lists_the_presets() {
     let message = stderr_of(&["model", "show", "puma561"]);
-    assert!(message.contains("no model `puma561`: not a preset (puma560, puma560-masses)"), "{message}");
+    assert!(message.contains("no model `puma561`: not a preset (puma560, puma560-masses, ur3e, ur5e, ur10e, ur16e, panda, iiwa14, irb120)"), "{message}");
 }
 
 #[test]

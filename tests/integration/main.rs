@@ -1,11 +1,14 @@
 //! robocal's integration tests, gathered in one test binary.
 
+mod accuracy;
 mod calibration;
 mod camera;
 mod choice;
 mod cli;
+mod compensate;
 mod compliance;
 mod estimation;
+mod export;
 mod fgls;
 mod fuzz;
 mod instruments;
@@ -17,6 +20,7 @@ mod model_files;
 mod noise;
 mod observability;
 mod planning;
+mod presets;
 mod prior;
 mod reliability;
 mod repeatability;

@@ -1,0 +1,172 @@
+//! Accuracy prediction against a Monte Carlo: the spread of many calibrations' errors at test
+//! poses is what the covariance of one of them predicts there.
+
+use assert_cmd::Command;
+use nalgebra::Vector3;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
+use robocal::calibration::{self, JointParams, Measurements, Options};
+use robocal::design::accuracy::{AccuracyModel, ParameterCovariance};
+use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
+use robocal::kinematics::Chain;
+use robocal::model::{Placement, RobotModel};
+use robocal::simulation::measurement_csv;
+
+/// One calibration's position errors at the test poses, and (the first's) predictions there.
+type Run = (Vec<Vector3<f64>>, Option<Vec<f64>>);
+
+fn positions(model: &RobotModel, poses: &[Vec<f64>]) -> Vec<Vector3<f64>> {
+    let chain = Chain::new(model);
+    let at = chain.with_errors(&vec![0.0; chain.params().len()]);
+    poses.iter().map(|q| at.position(q)).collect()
+}
+
+/// 200 calibrations of one true PUMA from one set of 40 poses, each with its own noise: at each
+/// of 50 test poses, the standard deviation of the calibrated models' position errors (the
+/// RMS distance from their mean) against `sqrt(trace(J_x Sigma_x J_x^T))` of one calibration.
+#[test]
+fn predicted_accuracy_matches_the_spread_of_200_calibrations() {
+    let mut rng = ChaCha8Rng::seed_from_u64(2028);
+    let nominal = RobotModel::preset("puma560").unwrap();
+    let mut truth = nominal.clone();
+    for joint in &mut truth.joints {
+        let mut n = || -> f64 { StandardNormal.sample(&mut rng) };
+        (joint.theta, joint.d, joint.a) =
+            (joint.theta + 0.1f64.to_radians() * n(), joint.d + 0.5 * n(), joint.a + 0.5 * n());
+        joint.alpha += 0.05f64.to_radians() * n();
+    }
+    truth.base = Placement { xyz: Vector3::new(1500.0, -300.0, 200.0), rpy: Vector3::new(0.1, -0.05, 0.6) };
+    let marker = Vector3::new(52.0, 1.0, 148.0);
+    truth.tool = robocal::model::Tool::Point(marker);
+    let draw = |n: usize, rng: &mut ChaCha8Rng| -> Vec<Vec<f64>> {
+        (0..n)
+            .map(|_| nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())
+            .collect()
+    };
+    let (training, test) = (draw(40, &mut rng), draw(50, &mut rng));
+    let sigmas: Vec<f64> =
+        [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
+    let options = Options {
+        estimator: Estimator::Wls,
+        noise: Some(NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0))),
+        joints: JointParams::All,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
+        prior: Vec::new(),
+        loss: calibration::Loss::Squared,
+        refine: RefineOptions::default(),
+        gauge: Default::default(),
+    };
+    let truth_at_test = positions(&truth, &test);
+    let runs: Vec<Run> = (0..200u64)
+        .into_par_iter()
+        .map(|run| {
+            let text = measurement_csv(&truth, &[marker], &training, &sigmas, 0.01, 100 + run);
+            let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
+            let c = calibration::calibrate(&nominal, &data, &options).unwrap();
+            let errors =
+                positions(&c.calibrated, &test).iter().zip(&truth_at_test).map(|(a, b)| a - b).collect();
+            let predicted = (run == 0).then(|| {
+                let e = &c.refined.estimate;
+                let covariance = ParameterCovariance::new(e.names.clone(), &e.covariance, 0.0);
+                let model = AccuracyModel::new(&c.calibrated, &covariance).unwrap();
+                test.iter().map(|q| model.predict(q).position_mm).collect()
+            });
+            (errors, predicted)
+        })
+        .collect();
+    let predicted = runs[0].1.clone().unwrap();
+    let mut ratios = Vec::new();
+    for (k, predicted) in predicted.iter().enumerate() {
+        let errors: Vec<Vector3<f64>> = runs.iter().map(|r| r.0[k]).collect();
+        let mean = errors.iter().sum::<Vector3<f64>>() / errors.len() as f64;
+        let spread = (errors.iter().map(|e| (e - mean).norm_squared()).sum::<f64>()
+            / (errors.len() - 1) as f64)
+            .sqrt();
+        ratios.push(predicted / spread);
+    }
+    let (lo, hi) = ratios.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), r| (lo.min(*r), hi.max(*r)));
+    eprintln!("predicted / Monte Carlo SD at 50 test poses: {lo:.3} .. {hi:.3}");
+    assert!(lo > 0.85 && hi < 1.15, "{ratios:?}");
+}
+
+fn temp(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("robocal-accuracy-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+#[test]
+fn calibrate_writes_the_covariance_and_accuracy_maps_it() {
+    let model = temp("calibrated.toml");
+    let output = Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
+        .args([
+            "--validate",
+            "examples/puma560-validation.csv",
+            "--marker",
+            "50,0,150",
+            "--marker=-40,60,120",
+        ])
+        .args([
+            "--joint-sigma-deg",
+            "0.007,0.007,0.007,0.002,0.002,0.002",
+            "--sigma-mm",
+            "0.01",
+            "--out-model",
+        ])
+        .arg(&model)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let sidecar = std::fs::read_to_string(temp("calibrated.toml.covariance.json")).unwrap();
+    let covariance = ParameterCovariance::from_json(&sidecar).unwrap();
+    assert_eq!(covariance.names.len(), 30, "the README's 30 parameters");
+    assert!((covariance.floor_mm - 0.1162).abs() < 1e-4, "the held-out rms after: {}", covariance.floor_mm);
+    let (csv, figures) = (temp("accuracy.csv"), temp("figures"));
+    let output = Command::cargo_bin("robocal")
+        .unwrap()
+        .args([
+            "accuracy",
+            "--poses",
+            "examples/puma560-validation.csv",
+            "--calibration-poses",
+            "examples/puma560-measurements.csv",
+            "--model",
+        ])
+        .arg(&model)
+        .arg("--out")
+        .arg(&csv)
+        .arg("--figures")
+        .arg(&figures)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report = String::from_utf8(output.stdout).unwrap();
+    assert!(
+        report.contains("predicted accuracy at 50 poses") && report.contains("27 parameters"),
+        "{report}"
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let rows: Vec<&str> = text.lines().skip(2).collect();
+    assert_eq!(rows.len(), 50);
+    for row in rows {
+        let sd: f64 = row.split(',').nth(12).unwrap().parse().unwrap();
+        assert!(sd > covariance.floor_mm && sd < 2.0 * covariance.floor_mm, "{row}");
+    }
+    for name in ["accuracy-map.svg", "accuracy-vs-joints.svg"] {
+        assert!(std::fs::read_to_string(figures.join(name)).unwrap().starts_with("<svg"), "{name}");
+    }
+    // without the sidecar: one clear error naming it
+    let output = Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["accuracy", "--model", "puma560", "--grid", "3"])
+        .output()
+        .unwrap();
+    let message = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success() && message.contains("puma560.covariance.json"), "{message}");
+}
