@@ -71,6 +71,8 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     if let Some(path) = &path {
         report = report.with_selection(path);
     }
+    let predicted = predicted_accuracy(&report.sets, &result, &data)?;
+    report = report.with_predicted(predicted);
     let text = report.text();
     print!("{text}");
     write(request, &robot, &report, &result, &text)
@@ -286,4 +288,32 @@ fn write(
         outputs.add(path, robocal::model::with_urdf_markers(&text, &markers)?);
     }
     super::commit(outputs)
+}
+
+/// The position error predicted at each held-out file's poses from the calibration's
+/// parameter covariance, as `robocal accuracy` predicts it from the written sidecar.
+fn predicted_accuracy(
+    sets: &[SetEvaluation],
+    result: &Calibration,
+    data: &Data,
+) -> Result<Vec<robocal::report::calibration::PredictedAccuracy>> {
+    use robocal::design::accuracy::{AccuracyModel, ParameterCovariance};
+    let sidecar = super::accuracy::covariance_sidecar(sets, result);
+    let covariance = ParameterCovariance::from_json(&sidecar)?;
+    let floor_mm = covariance.floor_mm;
+    let with_floor = AccuracyModel::new(&result.calibrated, &covariance)?;
+    let alone = AccuracyModel::new(&result.calibrated, &ParameterCovariance { floor_mm: 0.0, ..covariance })?;
+    Ok((data.held_out.iter())
+        .map(|(name, d)| {
+            let (all, params) = (with_floor.map(&d.joints), alone.map(&d.joints));
+            let n = all.len().max(1) as f64;
+            robocal::report::calibration::PredictedAccuracy {
+                set: name.clone(),
+                mean_mm: all.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
+                max_mm: all.iter().map(|p| p.1.position_mm).fold(0.0, f64::max),
+                parameters_mm: params.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
+                floor_mm,
+            }
+        })
+        .collect())
 }

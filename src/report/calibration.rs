@@ -76,6 +76,27 @@ pub struct CalibrationReport {
     /// `--select`: how the joint parameters were chosen ([`CalibrationReport::with_selection`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub selection: Option<SelectionReport>,
+    /// The accuracy predicted at each held-out set's poses from the parameter covariance
+    /// ([`crate::design::accuracy`]), beside the error measured there.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub predicted: Vec<PredictedAccuracy>,
+}
+
+/// The tool's position error predicted at a set's poses: `sqrt(trace(J_x Sigma_x J_x^T))` of
+/// the calibration's parameter covariance, with and without the floor (the first held-out
+/// set's RMS after calibration) added in quadrature.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PredictedAccuracy {
+    /// The set.
+    pub set: String,
+    /// The mean over its poses of the predicted position SD, floor included (mm).
+    pub mean_mm: f64,
+    /// Its largest (mm).
+    pub max_mm: f64,
+    /// The mean from the parameters' uncertainty alone, without the floor (mm).
+    pub parameters_mm: f64,
+    /// The floor (mm).
+    pub floor_mm: f64,
 }
 
 /// A joint's estimated compliance `c` as a stiffness `k = 1 / c`, with the 95% interval
@@ -394,7 +415,14 @@ impl CalibrationReport {
                     .collect()
             }),
             selection: None,
+            predicted: Vec::new(),
         }
+    }
+
+    /// The report with the accuracy predicted at the held-out sets' poses.
+    pub fn with_predicted(mut self, predicted: Vec<PredictedAccuracy>) -> Self {
+        self.predicted = predicted;
+        self
     }
 
     /// The report with the path of the selection that chose its parameters.
@@ -541,6 +569,20 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             self.weighting.before, self.weighting.after, self.weighting.errors, self.weighting.whitened
         );
         out.push_str(&self.error_tables());
+        if !self.predicted.is_empty() {
+            let _ = writeln!(
+                out,
+                "\npredicted position error SD at the held-out poses (parameter covariance, floor {:.4} mm in quadrature):",
+                self.predicted.first().map_or(0.0, |p| p.floor_mm)
+            );
+            for p in &self.predicted {
+                let _ = writeln!(
+                    out,
+                    "  {}: mean {:.4} mm, max {:.4} mm; from the parameters alone {:.4} mm",
+                    p.set, p.mean_mm, p.max_mm, p.parameters_mm
+                );
+            }
+        }
         if let Some(noise) = &self.noise {
             let _ = writeln!(out, "\nnoise estimated from the residuals (feasible GLS):");
             out.push_str(&noise_table(noise));

@@ -170,3 +170,39 @@ fn calibrate_writes_the_covariance_and_accuracy_maps_it() {
     let message = String::from_utf8_lossy(&output.stderr);
     assert!(!output.status.success() && message.contains("puma560.covariance.json"), "{message}");
 }
+
+/// `calibrate --validate` reports the accuracy predicted at the held-out poses from its own
+/// covariance, as `robocal accuracy` predicts it: with the floor (the held-out RMS) in
+/// quadrature, and from the parameters alone below it.
+#[test]
+fn calibrate_reports_the_accuracy_predicted_at_its_held_out_poses() {
+    let dir = std::env::temp_dir().join(format!("robocal-predicted-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("report.json");
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
+        .args([
+            "--marker",
+            "50,0,150",
+            "--marker=-40,60,120",
+            "--validate",
+            "examples/puma560-validation.csv",
+        ])
+        .args(["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002", "--sigma-mm", "0.05", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let predicted = &report["predicted"][0];
+    let (mean, alone, floor) = (
+        predicted["mean_mm"].as_f64().unwrap(),
+        predicted["parameters_mm"].as_f64().unwrap(),
+        predicted["floor_mm"].as_f64().unwrap(),
+    );
+    assert_eq!(predicted["set"], "examples/puma560-validation.csv");
+    assert!(alone > 0.0 && alone < floor && floor < mean, "{predicted}");
+    assert!(mean <= (alone * alone * 4.0 + floor * floor).sqrt(), "{predicted}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
