@@ -1223,20 +1223,7 @@ pub fn calibrate_kinds(
             _ => !markers.is_empty(),
         }),
     );
-    let (before, before_setup) = match every.is_empty() && frame.is_empty() {
-        true => base_problem.full(&base_problem.start()),
-        false => {
-            let problem =
-                base_problem.reselect(&frame, zero.clone(), base_problem.setup_values.clone(), every);
-            let ols = match markers.is_empty() {
-                true => weights.clone(),
-                false => Weights::for_problem(&base_problem, Estimator::Ols)?,
-            };
-            let fit = linearise(&problem, &ols, problem.start())?;
-            let refined = refine_from(&problem, &ols, fit, &RefineOptions::default())?;
-            problem.full(&refined.estimate.x)
-        }
-    };
+    let (before, before_setup) = before_fit(&base_problem, &frame, every, &weights, markers.is_empty())?;
     // "After": what was asked for that the observations identify.
     let problem = base_problem.reselect(&asked, before.clone(), before_setup.clone(), asked_setup.clone());
     if problem.equations() <= problem.parameters() {
@@ -1249,16 +1236,8 @@ pub fn calibrate_kinds(
         });
     }
     let linearised = linearise(&problem, &weights, problem.start())?;
-    let keep = problem_columns(&problem, &options.gauge.keep)?;
-    // The user's --keep first, then the set-up, then the robot's by gauge class.
-    let priority: Vec<u32> = (0..problem.parameters())
-        .map(|c| match keep.contains(&c) {
-            true => 0,
-            false => 1 + asked.indices().get(c).map_or(0, |&i| gauge_class(params.get(i))),
-        })
-        .collect();
-    let prior = prior_rows(&problem, &asked, &params, &options.prior, &weights)?;
-    let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority, prior.as_ref())?;
+    let (identifiable, mut fixed, prior) =
+        gauge(&problem, &linearised, (&params, &asked), options, &weights)?;
     fixed.extend(held_words);
     if let Some(i) =
         (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, &params)).flatten()
@@ -1315,12 +1294,66 @@ pub fn calibrate_kinds(
         joint_noise: options.joint_noise.clone(),
         chains,
     };
+    scored(&mut calibration, data)?;
+    Ok(calibration)
+}
+
+/// The "before" fit of `base_problem`: the robot parameters `frame` (the tool point, with
+/// markers the base and the markers) and the set-up values `every` from the robot nominal, by
+/// the estimator's `weights`, or with markers by ordinary least squares; nothing to fit, the
+/// start.
+fn before_fit(
+    base_problem: &KindProblem<'_>,
+    frame: &Selection,
+    every: Vec<usize>,
+    weights: &Weights,
+    no_markers: bool,
+) -> Result<(Vec<f64>, Vec<f64>), CalibrationError> {
+    if every.is_empty() && frame.is_empty() {
+        return Ok(base_problem.full(&base_problem.start()));
+    }
+    let zero = vec![0.0; base_problem.fixed.len()];
+    let problem = base_problem.reselect(frame, zero, base_problem.setup_values.clone(), every);
+    let ols = match no_markers {
+        true => weights.clone(),
+        false => Weights::for_problem(base_problem, Estimator::Ols)?,
+    };
+    let fit = linearise(&problem, &ols, problem.start())?;
+    let refined = refine_from(&problem, &ols, fit, &RefineOptions::default())?;
+    Ok(problem.full(&refined.estimate.x))
+}
+
+/// The gauge of `problem` linearised in `linearised`: the user's `--keep` free first, then the
+/// set-up, then the robot's parameters (`asked` of `params`) by gauge class; with priors, what
+/// the data and the priors together cannot identify is held. The identifiable columns, the
+/// held ones in words, and the prior rows of every column.
+fn gauge(
+    problem: &KindProblem<'_>,
+    linearised: &Linearisation,
+    (params, asked): (&ParamSet, &Selection),
+    options: &KindOptions,
+    weights: &Weights,
+) -> Result<(Vec<usize>, Vec<String>, Option<PriorRows>), CalibrationError> {
+    let keep = problem_columns(problem, &options.gauge.keep)?;
+    let priority: Vec<u32> = (0..problem.parameters())
+        .map(|c| match keep.contains(&c) {
+            true => 0,
+            false => 1 + asked.indices().get(c).map_or(0, |&i| gauge_class(params.get(i))),
+        })
+        .collect();
+    let prior = prior_rows(problem, asked, params, &options.prior, weights)?;
+    let (identifiable, fixed) = identifiable(linearised, &problem.names(), &priority, prior.as_ref())?;
+    Ok((identifiable, fixed, prior))
+}
+
+/// `calibration` scored on its training `data`; with every sigma assumed and the joints exact,
+/// the covariance and the whitening scaled by the residuals' variance of unit weight
+/// `f = sum z_k^2 / (N - rank)` (`z_k` whitened by the assumed sigmas), as ordinary least
+/// squares without a noise model takes it; then its warnings.
+fn scored(calibration: &mut KindCalibration, data: &KindData) -> Result<(), CalibrationError> {
     calibration.training = calibration.score(data)?;
-    // No sigma given and the joints exact: the sigmas are assumed, and their scale is the
-    // residuals' (the variance of unit weight `f = sum z_k^2 / (N - rank)`, `z_k` whitened by the
-    // assumed sigmas), as ordinary least squares without a noise model takes it.
     let (n, rank) = (data.observations.len(), calibration.refined.estimate.diagnostics.rank);
-    if options.joint_noise.is_none() && data.assumed_sigmas == n && n > rank {
+    if calibration.joint_noise.is_none() && data.assumed_sigmas == n && n > rank {
         let sum: f64 = calibration.training.observations.iter().map(|r| r.whitened * r.whitened).sum();
         let f = sum / (n - rank) as f64;
         calibration.refined.estimate.covariance *= f;
@@ -1333,7 +1366,7 @@ pub fn calibrate_kinds(
         .filter(|(_, r)| r.whitened.abs() > FLAG_AT)
         .map(|(index, r)| FarOut { index, line: r.line, label: Some(r.label()), sd: r.whitened });
     calibration.warnings.extend(Warning::far_out(Scored::Observation, far_out));
-    Ok(calibration)
+    Ok(())
 }
 
 /// `model` scored as it stands on `data`: the set-up (fixed points, planes, a camera and its
