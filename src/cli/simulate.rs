@@ -37,7 +37,9 @@ pub fn reproduce(output: &StudyOutputArgs) -> Result<()> {
 pub fn simulate(args: &SimulateArgs) -> Result<()> {
     let mut inputs = vec![("the study", Path::new(&args.study))];
     inputs.extend(args.noise.as_deref().map(|p| ("--noise", p)));
-    super::request::distinct_outputs(&inputs, &[("--out", Some(&args.output.out))])?;
+    // `<out>/<study name>/`: tables and replications (.txt), samples (.csv), figures (.svg).
+    let writes: fn(&str) -> bool = |name| [".txt", ".csv", ".svg"].iter().any(|e| name.ends_with(e));
+    super::request::distinct_outputs_and_folders(&inputs, &[], &[("--out", Some(&args.output.out), writes)])?;
     if let Some(study) = io::load_instrument_study(&args.study)? {
         return instruments(&study, args);
     }

@@ -624,3 +624,314 @@ fn a_badly_conditioned_system_is_warned() {
         }
     }
 }
+
+// Issue 25. 1. Special files are written in place; a symbolic link is followed.
+
+/// Whether the system command `program args` succeeded (a reason printed if not).
+fn system(program: &str, args: &[&str]) -> bool {
+    match std::process::Command::new(program).args(args).output() {
+        Ok(out) if out.status.success() => true,
+        Ok(out) => {
+            eprintln!("{program} {args:?}: {}", String::from_utf8_lossy(&out.stderr).trim());
+            false
+        }
+        Err(e) => {
+            eprintln!("{program}: {e}");
+            false
+        }
+    }
+}
+
+#[test]
+fn a_device_node_given_as_an_output_is_written_in_place_and_stays_a_device() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = scratch("device");
+    file(&dir, "d.csv", MEASUREMENTS);
+    let node = dir.join("null");
+    // The null device (1, 3), made here: never the system's /dev/null.
+    if !system("mknod", &[node.to_str().unwrap(), "c", "1", "3"]) {
+        eprintln!("skipped: mknod is not permitted here (the test needs root or CAP_MKNOD)");
+        return;
+    }
+    let (code, _, stderr) =
+        run_in(&dir, &[&CALIBRATE[..], &["--json", "null", "--out-model", "m.toml"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    assert!(std::fs::symlink_metadata(&node).unwrap().file_type().is_char_device(), "still a device");
+    assert_eq!(listing(&dir), ["d.csv", "m.toml", "null"], "no temporary file");
+    // Read back: the null device reads empty.
+    assert_eq!(std::fs::read(&node).unwrap(), b"");
+}
+
+#[test]
+fn a_fifo_given_as_an_output_is_written_in_place_and_stays_a_fifo() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = scratch("fifo");
+    file(&dir, "d.csv", MEASUREMENTS);
+    let fifo = dir.join("pipe");
+    if !system("mkfifo", &[fifo.to_str().unwrap()]) {
+        eprintln!("skipped: mkfifo failed");
+        return;
+    }
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+    };
+    let (code, _, stderr) = run_in(&dir, &[&CALIBRATE[..], &["--json", "pipe"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    let json: serde_json::Value = serde_json::from_str(&reader.join().unwrap()).unwrap();
+    assert!(json.get("parameters").is_some(), "the report came through the FIFO: {json}");
+    assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo(), "still a FIFO");
+    assert_eq!(listing(&dir), ["d.csv", "pipe"]);
+}
+
+#[test]
+fn a_dash_is_standard_output_and_no_file_named_dash_is_made() {
+    let dir = scratch("dash");
+    file(&dir, "d.csv", MEASUREMENTS);
+    let (code, stdout, stderr) = run_in(&dir, &[&CALIBRATE[..], &["--out-model", "-"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("[[joints]]"), "the model on standard output: {stdout}");
+    assert_eq!(listing(&dir), ["d.csv"], "no file named -");
+}
+
+#[test]
+fn a_symbolic_link_is_followed_and_its_target_replaced() {
+    let dir = scratch("symlink");
+    file(&dir, "d.csv", MEASUREMENTS);
+    file(&dir, "old.json", "old\n");
+    std::os::unix::fs::symlink("old.json", dir.join("link.json")).unwrap();
+    std::os::unix::fs::symlink("new.toml", dir.join("dangling.toml")).unwrap();
+    let args = ["--json", "link.json", "--out-model", "dangling.toml"];
+    let (code, _, stderr) = run_in(&dir, &[&CALIBRATE[..], &args].concat());
+    assert_eq!(code, 0, "{stderr}");
+    for (link, target) in [("link.json", "old.json"), ("dangling.toml", "new.toml")] {
+        let meta = std::fs::symlink_metadata(dir.join(link)).unwrap();
+        assert!(meta.file_type().is_symlink(), "{link} stays a link");
+        assert_eq!(std::fs::read_link(dir.join(link)).unwrap(), Path::new(target));
+    }
+    assert!(std::fs::read_to_string(dir.join("old.json")).unwrap().contains("\"parameters\""));
+    assert!(std::fs::read_to_string(dir.join("new.toml")).unwrap().contains("[[joints]]"));
+    assert_eq!(listing(&dir), ["d.csv", "dangling.toml", "link.json", "new.toml", "old.json"]);
+}
+
+#[test]
+fn outputs_written_in_place_may_be_named_twice() {
+    let dir = scratch("dash-twice");
+    file(&dir, "d.csv", MEASUREMENTS);
+    let (code, stdout, stderr) =
+        run_in(&dir, &[&CALIBRATE[..], &["--json", "-", "--out-model", "-"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("\"parameters\"") && stdout.contains("[[joints]]"), "{stdout}");
+    assert_eq!(listing(&dir), ["d.csv"]);
+}
+
+// 2. Signals: the temporary files and the folders a run created are removed.
+
+/// `robocal args` started in `dir`, its output discarded.
+fn spawn_in(dir: &Path, args: &[&str]) -> std::process::Child {
+    std::process::Command::new(assert_cmd::cargo::cargo_bin("robocal"))
+        .current_dir(dir)
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+/// `signal` (`TERM`, `INT`) sent to `child`; its exit code.
+fn signal_and_wait(child: &mut std::process::Child, signal: &str) -> Option<i32> {
+    assert!(
+        system("kill", &[&format!("-{signal}"), &child.id().to_string()])
+            || child.try_wait().unwrap().is_some()
+    );
+    child.wait().unwrap().code()
+}
+
+/// The names below `dir` (relative, sorted), folders included.
+fn tree_listing(dir: &Path) -> Vec<String> {
+    let mut names = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(folder) = stack.pop() {
+        for entry in std::fs::read_dir(&folder).unwrap() {
+            let path = entry.unwrap().path();
+            names.push(path.strip_prefix(dir).unwrap().to_string_lossy().into_owned());
+            if path.is_dir() {
+                stack.push(path);
+            }
+        }
+    }
+    names.sort();
+    names
+}
+
+#[test]
+fn sigterm_at_random_points_of_a_simulation_leaves_no_temporary_and_no_folder_it_made() {
+    let dir = scratch("sigterm");
+    file(
+        &dir,
+        "s.toml",
+        &small_study(&[
+            ("runs_per_set = 2", "runs_per_set = 300"),
+            ("test_points = 20", "test_points = 400"),
+        ]),
+    );
+    // How long a whole run takes here, to spread the signals over it.
+    let started = std::time::Instant::now();
+    let (code, _, stderr) = run_in(&dir, &["simulate", "s.toml", "--out", "whole"]);
+    assert_eq!(code, 0, "{stderr}");
+    let whole = started.elapsed();
+    let complete = tree_listing(&dir.join("whole"));
+    let (mut stopped, mut finished) = (0, 0);
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    for i in 0..20 {
+        // A deterministic spread of points from the start to a little past the end.
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        let delay = whole.mul_f64((state % 1000) as f64 / 900.0);
+        let out = format!("out{i}");
+        let mut child = spawn_in(&dir, &["simulate", "s.toml", "--out", &out]);
+        std::thread::sleep(delay);
+        match signal_and_wait(&mut child, "TERM") {
+            Some(143) => {
+                stopped += 1;
+                assert!(
+                    !dir.join(&out).exists(),
+                    "run {i} (after {delay:?}): {:?}",
+                    tree_listing(&dir.join(&out))
+                );
+            }
+            Some(0) => {
+                finished += 1;
+                assert_eq!(tree_listing(&dir.join(&out)), complete, "run {i}: finished whole");
+            }
+            code => panic!("run {i} (after {delay:?}): exit {code:?}"),
+        }
+    }
+    eprintln!(
+        "20 signals: {stopped} stopped the run, {finished} came after it ended (a run takes {whole:?})"
+    );
+    assert!(stopped >= 10, "{stopped} of 20 stopped");
+    let left: Vec<String> = tree_listing(&dir).into_iter().filter(|n| n.ends_with(".tmp")).collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
+fn a_signal_while_outputs_are_written_removes_their_temporaries_and_folders() {
+    let dir = scratch("signal-commit");
+    file(&dir, "d.csv", MEASUREMENTS);
+    if !system("mkfifo", &[dir.join("pipe").to_str().unwrap()]) {
+        eprintln!("skipped: mkfifo failed");
+        return;
+    }
+    // The figures' temporaries are written to a new folder, then the FIFO, which nobody
+    // reads, blocks the commit: a signal then finds them all on disk.
+    for (signal, code) in [("TERM", 143), ("INT", 130)] {
+        let args =
+            [&CALIBRATE[..], &["--figures", "new/figs", "--out-model", "m.toml", "--json", "pipe"]].concat();
+        let mut child = spawn_in(&dir, &args);
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+        while !dir.join("new/figs").exists() && std::time::Instant::now() < deadline {
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        assert!(!tree_listing(&dir.join("new")).is_empty(), "the commit had begun");
+        assert_eq!(signal_and_wait(&mut child, signal), Some(code));
+        assert_eq!(listing(&dir), ["d.csv", "pipe"], "SIG{signal}");
+    }
+}
+
+// 5. Paths: an input or an output inside an output folder, under a name written there.
+
+#[test]
+fn an_input_inside_an_output_folder_under_a_name_written_there_is_refused_before_any_work() {
+    let dir = scratch("input-in-folder");
+    std::fs::create_dir_all(dir.join("o/small")).unwrap();
+    file(&dir, "o/small/tables.txt", &small_study(&[]));
+    std::fs::create_dir(dir.join("d")).unwrap();
+    file(&dir, "d/frames.json", "{}\n");
+    std::fs::create_dir(dir.join("figs")).unwrap();
+    file(&dir, "figs/keep.csv", MEASUREMENTS);
+    let torso = Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/torso.urdf");
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["simulate", "o/small/tables.txt", "--out", "o"],
+            "the study o/small/tables.txt: inside the folder of --out o",
+        ),
+        (
+            &[
+                "calibrate-tree",
+                "--model",
+                torso.to_str().unwrap(),
+                "--data",
+                "d/frames.json",
+                "--out-dir",
+                "d",
+            ],
+            "--data d/frames.json: inside the folder of --out-dir d",
+        ),
+        (&[&CALIBRATE[..], &["--figures", "."]].concat(), ""),
+        (
+            &["simulate", "o/small/tables.txt", "--out", "."],
+            "the study o/small/tables.txt: inside the folder of --out .",
+        ),
+    ];
+    for (args, message) in cases {
+        let (code, stdout, stderr) = run_in(&dir, args);
+        if message.is_empty() {
+            continue;
+        }
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+        assert!(stdout.is_empty(), "no work done: {stdout}");
+        assert!(
+            stderr.contains(message) && stderr.contains("under a name this command writes there"),
+            "{stderr}"
+        );
+    }
+    assert_eq!(std::fs::read_to_string(dir.join("o/small/tables.txt")).unwrap(), small_study(&[]));
+    assert_eq!(std::fs::read_to_string(dir.join("d/frames.json")).unwrap(), "{}\n");
+    // Under a name the command does not write there, an input may stay in the folder.
+    let (code, _, stderr) = run_in(
+        &dir,
+        &[
+            "calibrate",
+            "--model",
+            "puma560",
+            "--data",
+            "figs/keep.csv",
+            "--marker=50,0,150",
+            "--figures",
+            "figs",
+        ],
+    );
+    assert_eq!(code, 0, "{stderr}");
+    assert_eq!(std::fs::read_to_string(dir.join("figs/keep.csv")).unwrap(), MEASUREMENTS);
+}
+
+#[test]
+fn an_output_inside_another_outputs_folder_is_a_usage_error_before_any_work() {
+    let dir = scratch("output-in-folder");
+    file(&dir, "d.csv", MEASUREMENTS);
+    for (args, message) in [
+        (
+            ["--figures", "figs", "--json", "figs/histogram.svg"],
+            "--json figs/histogram.svg: inside the folder of --figures figs",
+        ),
+        (["--figures", "figs", "--html", "figs"], "--html figs: inside the folder of --figures figs"),
+        (
+            ["--json", "./figs/sub/a.svg", "--figures", "figs"],
+            "--json ./figs/sub/a.svg: inside the folder of --figures figs",
+        ),
+    ] {
+        let (code, stdout, stderr) = run_in(&dir, &[&CALIBRATE[..], &args].concat());
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+        assert!(stdout.is_empty(), "no work done: {stdout}");
+        assert!(stderr.contains(message), "{stderr}");
+        assert_eq!(listing(&dir), ["d.csv"]);
+    }
+    // Beside the figures, under another name: written.
+    let (code, _, stderr) =
+        run_in(&dir, &[&CALIBRATE[..], &["--figures", "figs", "--json", "figs/report.json"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    assert!(dir.join("figs/report.json").is_file());
+}
