@@ -51,6 +51,36 @@ pub const MAX_LENGTH_MM: f64 = 1e6;
 /// joint sigmas in degrees (almost three turns).
 pub const MAX_ANGLE_DEG: f64 = 1e3;
 
+/// The largest mass, in kg (100 t): a link's (`[[links]] mass_kg`, a URDF `<inertial>`), a
+/// payload's (`[payload]`, `--payload-kg`, `[truth] payload_kg`). Centres of mass are lengths
+/// ([`MAX_LENGTH_MM`]).
+pub const MAX_MASS_KG: f64 = 1e5;
+
+/// The largest joint compliance: rad/(N·m) for a revolute joint, mm/N for a prismatic one (a
+/// joint turning a radian under one N·m is no joint). A study's true compliances are at least
+/// 0; a model's are bounded in magnitude, as a calibrated model may carry a negative estimate.
+pub const MAX_COMPLIANCE: f64 = 1.0;
+
+/// The largest magnitude of a joint's play: deg for a revolute joint, mm for a prismatic one.
+pub const MAX_PLAY: f64 = 10.0;
+
+/// The smallest prior standard deviation, in the parameter's unit (mm, rad, rad/(N·m) or
+/// mm/N): a parameter held at its nominal value to 1e-15 (its prior row's weight, about
+/// `sigma / sd`, stays far from overflow).
+pub const MIN_PRIOR_SD: f64 = 1e-15;
+
+/// The largest prior standard deviation, in the parameter's unit: no prior at all, to rounding.
+pub const MAX_PRIOR_SD: f64 = 1e12;
+
+/// `Err(message)` unless `value` is finite and within `[low, high]`.
+pub fn check_range(value: f64, low: f64, high: f64, unit: &str) -> Result<f64, String> {
+    if value.is_finite() && (low..=high).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("a number from {} to {} {unit}, found {}", shown(low), shown(high), shown(value)))
+    }
+}
+
 /// The share of the machine's memory (its total memory, or the process's address-space limit
 /// if lower) that a command may plan to use.
 pub const MEMORY_SHARE: f64 = 0.5;

@@ -13,7 +13,7 @@ use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::design::Criterion as DesignCriterion;
 use robocal::estimation::Estimator;
 use robocal::kinematics::Measured;
-use robocal::limits::{MAX_CANDIDATES, MAX_POINTS};
+use robocal::limits::{MAX_CANDIDATES, MAX_LENGTH_MM, MAX_MASS_KG, MAX_POINTS, check_magnitude, check_range};
 use robocal::model::{ModelRef, Payload};
 use robocal::table::Units;
 use std::path::{Path, PathBuf};
@@ -238,14 +238,18 @@ impl PayloadArgs {
     /// (mm), the tip frame's origin by default.
     pub fn payload(&self) -> Result<Option<Payload>, UsageError> {
         let Some(mass) = self.payload_kg else { return Ok(None) };
-        require(mass.is_finite() && mass >= 0.0, "--payload-kg is a mass in kg, at least 0")?;
+        check_range(mass, 0.0, MAX_MASS_KG, "kg").map_err(|e| UsageError(format!("--payload-kg: {e}")))?;
         let com = match self.payload_com_mm.as_deref() {
             None => [0.0; 3],
-            Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => [x, y, z],
+            Some(&[x, y, z]) => [x, y, z],
             Some(_) => {
                 return Err(UsageError("--payload-com-mm takes three finite numbers: X,Y,Z in mm".into()));
             }
         };
+        for v in com {
+            check_magnitude(v, MAX_LENGTH_MM, "mm")
+                .map_err(|e| UsageError(format!("--payload-com-mm: {e}")))?;
+        }
         Ok(Some(Payload { mass, com: com.into() }))
     }
 }

@@ -5,8 +5,9 @@ use crate::error::FieldError;
 use crate::estimation::{Device, DeviceTable, Estimator};
 use crate::kinematics::Measured;
 use crate::limits::{
-    MAX_ANGLE_DEG, MAX_CANDIDATES, MAX_CASES, MAX_ITERATIONS, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS,
-    MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS, check_magnitude,
+    MAX_ANGLE_DEG, MAX_CANDIDATES, MAX_CASES, MAX_COMPLIANCE, MAX_ITERATIONS, MAX_LENGTH_MM, MAX_MASS_KG,
+    MAX_PLAY, MAX_POINTS, MAX_RUNS, MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS, check_magnitude,
+    check_range,
 };
 use crate::model::{JointKind, ModelRef, ParamKind, Payload, RobotModel, Selection, SelectionError, degrees};
 use serde::Deserialize;
@@ -723,10 +724,15 @@ fn truth(robot: RobotModel, file: Option<&TruthFile>) -> Result<(RobotModel, Tru
                     format!("a joint of the robot: {}", names.join(", ")),
                 ));
             };
-            if !value.is_finite() {
-                return Err(invalid(format!("{field}.{name}"), format!("a finite number, found {value}")));
-            }
-            values[j] = value;
+            let revolute = robot.joints[j].kind == JointKind::Revolute;
+            let (low, high, unit) = match (field, revolute) {
+                ("truth.compliance", true) => (0.0, MAX_COMPLIANCE, "rad/(N·m)"),
+                ("truth.compliance", false) => (0.0, MAX_COMPLIANCE, "mm/N"),
+                (_, true) => (-MAX_PLAY, MAX_PLAY, "deg"),
+                (_, false) => (-MAX_PLAY, MAX_PLAY, "mm"),
+            };
+            values[j] =
+                check_range(value, low, high, unit).map_err(|e| invalid(format!("{field}.{name}"), e))?;
         }
         Ok(values)
     };
@@ -737,11 +743,10 @@ fn truth(robot: RobotModel, file: Option<&TruthFile>) -> Result<(RobotModel, Tru
             *p = p.to_radians();
         }
     }
-    if !(file.payload_kg.is_finite() && file.payload_kg >= 0.0) {
-        return Err(invalid("truth.payload_kg".into(), format!("a mass >= 0 kg, found {}", file.payload_kg)));
-    }
-    if file.payload_com_mm.iter().any(|v| !v.is_finite()) {
-        return Err(invalid("truth.payload_com_mm".into(), "finite numbers".into()));
+    check_range(file.payload_kg, 0.0, MAX_MASS_KG, "kg")
+        .map_err(|e| invalid("truth.payload_kg".into(), e))?;
+    for &v in &file.payload_com_mm {
+        check_magnitude(v, MAX_LENGTH_MM, "mm").map_err(|e| invalid("truth.payload_com_mm".into(), e))?;
     }
     let robot = if file.payload_kg > 0.0 {
         robot.with_payload(&Payload { mass: file.payload_kg, com: file.payload_com_mm.into() })
