@@ -36,6 +36,17 @@ pub const MAX_RUNS: usize = 10_000_000;
 /// run for days: refused rather than left to look hung.
 pub const MAX_STUDY_WORK: u64 = 10_000_000_000;
 
+/// The work of `plan`, in products of Jacobian rows and parameters in one pass of its
+/// exchange (candidates x points x rows a pose x parameters): beyond it, hours of work,
+/// refused with the estimate.
+pub const MAX_WORK: u64 = 10_000_000_000;
+
+/// The work of an instrument study, in products of Jacobian rows and parameters fitted (runs x
+/// observations x 3 rows x parameters, summed over the instruments; each is refitted several
+/// times): the `instruments` study is about 2e7 and takes minutes; beyond 1e9, hours,
+/// refused with the estimate.
+pub const MAX_INSTRUMENT_WORK: u64 = 1_000_000_000;
+
 /// Gauss-Newton steps (`calibrate --iterations`, a study's `iterations`).
 pub const MAX_ITERATIONS: usize = 1_000;
 

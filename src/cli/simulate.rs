@@ -90,7 +90,8 @@ fn instruments(study: &InstrumentStudy, args: &SimulateArgs) -> Result<()> {
 /// A progress bar of `runs` runs, labelled `message`.
 fn progress(runs: usize, message: String) -> ProgressBar {
     let bar = ProgressBar::new(runs as u64).with_message(message);
-    bar.set_style(ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} runs").expect("a valid template"));
+    let template = "{msg} {bar:40} {pos}/{len} runs, {elapsed} so far, about {eta} left";
+    bar.set_style(ProgressStyle::with_template(template).expect("a valid template"));
     bar
 }
 
@@ -114,6 +115,18 @@ fn run_study(study: &Study, output: &StudyOutputArgs, outputs: &mut io::Outputs)
     let runs = study.cases.len() * study.point_sets * study.runs_per_set;
     let bar = progress(runs, study.name.clone());
     let threads = threads(output.threads);
+    if let Some(count) = output.replications {
+        let work = study.work().saturating_mul(count as u64);
+        if work > robocal::limits::MAX_STUDY_WORK {
+            anyhow::bail!(
+                "--replications {count}: study {} replicated would take about {work:.1e} kinematic evaluations \
+             (replications x runs x (points + test_points)), more than {:.0e}: ask for fewer replications or a \
+             smaller study",
+                study.name,
+                robocal::limits::MAX_STUDY_WORK as f64
+            );
+        }
+    }
     let what = format!("study {}", study.name);
     io::check_memory(
         study.memory_estimate(threads),

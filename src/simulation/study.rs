@@ -553,10 +553,7 @@ impl Study {
                 format!("point counts from 1 to {MAX_POINTS}, found {}", case.points),
             );
         }
-        let runs_per_case = (self.point_sets as u64).saturating_mul(self.runs_per_set as u64);
-        let work = self.cases.iter().fold(0u64, |work, case| {
-            work.saturating_add(runs_per_case.saturating_mul((case.points + self.test_points) as u64))
-        });
+        let work = self.work();
         if work > MAX_STUDY_WORK {
             return invalid(
                 "runs_per_set",
@@ -574,6 +571,15 @@ impl Study {
             );
         }
         Ok(())
+    }
+
+    /// The work of the study in kinematic evaluations: the sum over its runs of the points
+    /// and the test points, bounded by [`MAX_STUDY_WORK`].
+    pub fn work(&self) -> u64 {
+        let runs_per_case = (self.point_sets as u64).saturating_mul(self.runs_per_set as u64);
+        self.cases.iter().fold(0u64, |work, case| {
+            work.saturating_add(runs_per_case.saturating_mul((case.points + self.test_points) as u64))
+        })
     }
 
     /// The memory the study will need at most, in bytes, on `threads` threads: every point

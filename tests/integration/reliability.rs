@@ -1110,3 +1110,40 @@ fn masses_compliances_plays_priors_and_truths_beyond_their_bounds_are_refused_na
     }
     assert_eq!(listing(&dir), ["d.csv", "m.toml", "s.toml"], "nothing written");
 }
+
+// 8. Work bounded by its estimate, refused beyond it with the estimate, before any work.
+
+#[test]
+fn work_beyond_its_bound_is_refused_with_the_estimate_before_any_work() {
+    let dir = scratch("work-bounds");
+    let instruments = include_str!("../../presets/instruments.toml");
+    assert!(instruments.contains("time_budget_s = 600"));
+    file(&dir, "i.toml", &instruments.replacen("time_budget_s = 600", "time_budget_s = 1048576", 1));
+    file(
+        &dir,
+        "s.toml",
+        &small_study(&[("runs_per_set = 2", "runs_per_set = 100000"), ("point_sets = 2", "point_sets = 4")]),
+    );
+    let cases: [(&[&str], &str); 3] = [
+        (
+            &["simulate", "i.toml", "--out", "o"],
+            "time_budget_s`: a study of at most 1e9 row-parameter products",
+        ),
+        (
+            &["plan", "--model", "puma560", "--points", "100000", "--candidates", "1000000"],
+            "more than 1e10 (hours of work): ask for fewer candidates or points",
+        ),
+        (
+            &["simulate", "s.toml", "--out", "o", "--replications", "10000"],
+            "--replications 10000: study small replicated would take about 1.3e11 kinematic evaluations",
+        ),
+    ];
+    for (args, message) in cases {
+        let started = std::time::Instant::now();
+        let (code, _, stderr) = run_in(&dir, args);
+        assert_eq!(code, 1, "{args:?}: {stderr}");
+        assert!(stderr.contains(message), "{args:?}: {stderr}");
+        assert!(started.elapsed().as_secs() < 30, "{args:?}: refused before the work");
+    }
+    assert_eq!(listing(&dir), ["i.toml", "s.toml"]);
+}
