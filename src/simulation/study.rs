@@ -383,6 +383,10 @@ impl Study {
             .map(|e| e.parse())
             .collect::<Result<_, String>>()
             .map_err(|e| FieldError::new("estimators", e))?;
+        if let Some(i) = (1..estimators.len()).find(|&i| estimators[..i].contains(&estimators[i])) {
+            let expected = format!("each estimator once, found {:?} twice", file.estimators[i]);
+            return invalid("estimators", expected);
+        }
         let joint_sigmas = joint_sigmas(&robot, &file.noise.joint_sigma)?;
         if file.cases.points.is_empty() || file.cases.sigma_me_mm.is_empty() {
             return invalid("cases", "at least one value in `points` and in `sigma_me_mm`".into());

@@ -1147,3 +1147,48 @@ fn work_beyond_its_bound_is_refused_with_the_estimate_before_any_work() {
     }
     assert_eq!(listing(&dir), ["i.toml", "s.toml"]);
 }
+
+// 6. Silent accepts, now errors naming the field. 7. Help that says what a command takes.
+
+#[test]
+fn one_pose_or_identical_poses_and_an_estimator_named_twice_are_refused_naming_the_field() {
+    let dir = scratch("silent-accepts");
+    let repeatability = include_str!("../../examples/puma560-repeatability.csv");
+    let first = repeatability.lines().nth(2).unwrap().split(',').next().unwrap().to_string();
+    let one_pose: String = repeatability
+        .lines()
+        .filter(|l| l.starts_with('#') || l.starts_with("pose") || l.starts_with(&format!("{first},")))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    file(&dir, "r.csv", &one_pose);
+    let (code, _, stderr) = run_in(&dir, &["repeatability", "--model", "puma560", "--data", "r.csv"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("r.csv, column `pose`: 1 pose: the spread at one pose cannot tell"), "{stderr}");
+
+    let pose = "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6\n10,20,30,40,50,60\n";
+    file(&dir, "one.csv", pose);
+    file(&dir, "same.csv", &format!("{pose}10,20,30,40,50,60\n10,20,30,40,50,60\n"));
+    for (name, what) in [("one.csv", "one.csv: one pose"), ("same.csv", "same.csv: 3 poses, all alike")] {
+        let (code, stdout, stderr) = run_in(&dir, &["observability", "--model", "puma560", name]);
+        assert_eq!(code, 1, "{stderr}");
+        assert!(stdout.is_empty() && !stdout.contains("inf"), "{stdout}");
+        assert!(stderr.contains(what) && stderr.contains("need poses that differ"), "{stderr}");
+    }
+
+    file(&dir, "s.toml", &small_study(&[("estimators = [", "estimators = [\"ols\", ")]));
+    let (code, _, stderr) = run_in(&dir, &["simulate", "s.toml", "--out", "o"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("field `estimators`: each estimator once, found \"ols\" twice"), "{stderr}");
+    assert!(!dir.join("o").exists());
+}
+
+#[test]
+fn help_lists_only_the_estimators_a_command_takes() {
+    for command in ["calibrate-observations", "calibrate-tree"] {
+        let (code, stdout, _) = run_in(Path::new("."), &[command, "--help"]);
+        assert_eq!(code, 0);
+        let estimator = &stdout[stdout.find("--estimator").unwrap()..];
+        let estimator = &estimator[..estimator[2..].find("\n      --").map_or(estimator.len(), |i| i + 2)];
+        assert!(!estimator.contains("fgls") && estimator.contains("or ols"), "{command}: {estimator}");
+    }
+}
