@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 pub enum ModelError {
     /// The text is not valid TOML or does not have the fields of a model file; the source
     /// names the line, the column and the field.
-    #[error("the model file has an error")]
+    #[error("the model file has a mistake")]
     Syntax(#[source] toml::de::Error),
     /// The text is not valid XML; the source names the line and the column.
     #[error("not valid XML")]

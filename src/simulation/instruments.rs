@@ -426,6 +426,17 @@ impl InstrumentStudy {
                 return Err(FieldError::new(field("seconds_per_observation"), expected).into());
             }
         }
+        let per_run = (0..self.instruments.len()).map(|i| (self.observations(i) + self.test_points) as u64);
+        let work = per_run.sum::<u64>().saturating_mul(self.runs as u64);
+        if work > MAX_STUDY_WORK {
+            return invalid(
+                "runs",
+                format!(
+                    "a study of at most {MAX_STUDY_WORK:e} kinematic evaluations (runs x instruments x \
+                     (observations + test_points)), found {work:e}"
+                ),
+            );
+        }
         // Each run fits every instrument's observations: Jacobians of about 3 rows a
         // observation by the robot's parameters, factorised.
         let rows_by_params = 3 * self.robot.params().len() as u64;
@@ -440,17 +451,6 @@ impl InstrumentStudy {
                      fewer runs",
                     MAX_INSTRUMENT_WORK as f64,
                     self.robot.params().len()
-                ),
-            );
-        }
-        let per_run = (0..self.instruments.len()).map(|i| (self.observations(i) + self.test_points) as u64);
-        let work = per_run.sum::<u64>().saturating_mul(self.runs as u64);
-        if work > MAX_STUDY_WORK {
-            return invalid(
-                "runs",
-                format!(
-                    "a study of at most {MAX_STUDY_WORK:e} kinematic evaluations (runs x instruments x \
-                     (observations + test_points)), found {work:e}"
                 ),
             );
         }

@@ -17,7 +17,7 @@ use serde::Deserialize;
 #[non_exhaustive]
 pub enum StudyError {
     /// Not valid TOML, or missing, misspelled or mistyped fields (the source names the line).
-    #[error("the study file has an error")]
+    #[error("the study file has a mistake")]
     Syntax(#[source] toml::de::Error),
     /// A field with a value that makes no study.
     #[error(transparent)]

@@ -411,7 +411,10 @@ fn limits_deg_with_other_than_two_values_is_refused() {
         );
         let (code, _, stderr) = run_in(&dir, &["model", "show", model.to_str().unwrap()]);
         assert_eq!(code, 1, "{limits}");
-        assert!(stderr.contains("m.toml: the model file has an error: TOML parse error at line"), "{stderr}");
+        assert!(
+            stderr.contains("m.toml: the model file has a mistake: TOML parse error at line"),
+            "{stderr}"
+        );
         assert!(stderr.contains("expected 2 numbers"), "{stderr}");
     }
 }
