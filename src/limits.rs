@@ -36,6 +36,17 @@ pub const MAX_RUNS: usize = 10_000_000;
 /// run for days: refused rather than left to look hung.
 pub const MAX_STUDY_WORK: u64 = 10_000_000_000;
 
+/// The work of `plan`, in products of Jacobian rows and parameters in one pass of its
+/// exchange (candidates x points x rows a pose x parameters): beyond it, hours of work,
+/// refused with the estimate.
+pub const MAX_WORK: u64 = 10_000_000_000;
+
+/// The work of an instrument study, in products of Jacobian rows and parameters fitted (runs x
+/// observations x 3 rows x parameters, summed over the instruments; each is refitted several
+/// times): the `instruments` study is about 2e7 and takes minutes; beyond 1e9, hours,
+/// refused with the estimate.
+pub const MAX_INSTRUMENT_WORK: u64 = 1_000_000_000;
+
 /// Gauss-Newton steps (`calibrate --iterations`, a study's `iterations`).
 pub const MAX_ITERATIONS: usize = 1_000;
 
@@ -50,6 +61,36 @@ pub const MAX_LENGTH_MM: f64 = 1e6;
 /// The largest angle or angle sigma in degrees: model angles and joint limits, joint values,
 /// joint sigmas in degrees (almost three turns).
 pub const MAX_ANGLE_DEG: f64 = 1e3;
+
+/// The largest mass, in kg (100 t): a link's (`[[links]] mass_kg`, a URDF `<inertial>`), a
+/// payload's (`[payload]`, `--payload-kg`, `[truth] payload_kg`). Centres of mass are lengths
+/// ([`MAX_LENGTH_MM`]).
+pub const MAX_MASS_KG: f64 = 1e5;
+
+/// The largest joint compliance: rad/(N·m) for a revolute joint, mm/N for a prismatic one (a
+/// joint turning a radian under one N·m is no joint). A study's true compliances are at least
+/// 0; a model's are bounded in magnitude, as a calibrated model may carry a negative estimate.
+pub const MAX_COMPLIANCE: f64 = 1.0;
+
+/// The largest magnitude of a joint's play: deg for a revolute joint, mm for a prismatic one.
+pub const MAX_PLAY: f64 = 10.0;
+
+/// The smallest prior standard deviation, in the parameter's unit (mm, rad, rad/(N·m) or
+/// mm/N): a parameter held at its nominal value to 1e-15 (its prior row's weight, about
+/// `sigma / sd`, stays far from overflow).
+pub const MIN_PRIOR_SD: f64 = 1e-15;
+
+/// The largest prior standard deviation, in the parameter's unit: no prior at all, to rounding.
+pub const MAX_PRIOR_SD: f64 = 1e12;
+
+/// `Err(message)` unless `value` is finite and within `[low, high]`.
+pub fn check_range(value: f64, low: f64, high: f64, unit: &str) -> Result<f64, String> {
+    if value.is_finite() && (low..=high).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("a number from {} to {} {unit}, found {}", shown(low), shown(high), shown(value)))
+    }
+}
 
 /// The share of the machine's memory (its total memory, or the process's address-space limit
 /// if lower) that a command may plan to use.

@@ -388,7 +388,7 @@ pub struct CalibrateObservationsArgs {
     pub units: UnitArgs,
     /// The estimator: wls (default; each row weighted by its sigma and, with
     /// --joint-sigma-deg, the joint noise of its poses) or ols.
-    #[arg(long)]
+    #[arg(long, hide_possible_values = true)]
     pub estimator: Option<EstimatorName>,
     /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints): a
     /// distance between two poses carries the joint noise of both.
@@ -763,7 +763,7 @@ pub struct CalibrateTreeArgs {
     pub units: UnitArgs,
     /// The estimator: wls (default; each view weighted by its sigmas and, with
     /// --joint-sigma-deg, the joint noise of both its frames' branches) or ols.
-    #[arg(long)]
+    #[arg(long, hide_possible_values = true)]
     pub estimator: Option<EstimatorName>,
     /// Joint noise standard deviations, one per joint of the tree in the order the report's
     /// `joints:` line lists them (deg, mm for prismatic joints), or one for every joint.

@@ -18,6 +18,28 @@ pub fn run(request: &PlanRequest) -> Result<()> {
         &format!("--candidates {}", request.candidates),
         "ask for fewer candidates",
     )?;
+    let work = design.plan_work(request.candidates, request.points);
+    if work > robocal::limits::MAX_WORK {
+        bail!(
+            "--candidates {} for --points {}: about {work:.1e} row-parameter products a pass of the exchange, more \
+             than {:.0e} (hours of work): ask for fewer candidates or points",
+            request.candidates,
+            request.points,
+            robocal::limits::MAX_WORK as f64
+        );
+    }
+    // Over about a second of work: say it is working, and for how long.
+    let spinner = (work > 1_000_000_000).then(|| {
+        let bar = indicatif::ProgressBar::new_spinner().with_message(format!(
+            "planning {} poses from {} candidates ({work:.1e} row-parameter products a pass)",
+            request.points, request.candidates
+        ));
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} {msg}, {elapsed}").expect("a valid template"),
+        );
+        bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        bar
+    });
     let (plan, pool) = design.plan_seeded(
         request.points,
         request.candidates,
@@ -25,6 +47,9 @@ pub fn run(request: &PlanRequest) -> Result<()> {
         request.criterion,
         request.seed,
     )?;
+    if let Some(bar) = spinner {
+        bar.finish_and_clear();
+    }
     let summary = report::design::plan_summary(&design, &plan, pool.joints.len(), pool.draws);
     let comment = format!(
         "robocal plan --model {} --points {} --candidates {} --criterion {} --seed {}\n{}",

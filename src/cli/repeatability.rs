@@ -12,6 +12,14 @@ pub fn run(request: &RepeatabilityRequest) -> Result<()> {
     let model = io::load_model(&request.model)?;
     let data = io::load_repeatability(&request.data, &model, request.units)?;
     check_marker_count(request.markers.len(), &request.data, data.markers)?;
+    if data.poses.len() < 2 {
+        anyhow::bail!(
+            "{}, column `pose`: {} pose: the spread at one pose cannot tell the joint noise from sigma_me; \
+             measure at least 2 poses (several, far apart, are better)",
+            request.data.display(),
+            data.poses.len()
+        );
+    }
     let poses = data.poses.iter().map(|p| (p.lines.first().copied().unwrap_or(0), p.joints.as_slice()));
     super::warn_outside_limits(&request.data, &model, poses);
     let joints = if request.full_covariance { JointComponents::Full } else { JointComponents::Diagonal };

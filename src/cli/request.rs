@@ -13,7 +13,7 @@ use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::design::Criterion as DesignCriterion;
 use robocal::estimation::Estimator;
 use robocal::kinematics::Measured;
-use robocal::limits::{MAX_CANDIDATES, MAX_POINTS};
+use robocal::limits::{MAX_CANDIDATES, MAX_LENGTH_MM, MAX_MASS_KG, MAX_POINTS, check_magnitude, check_range};
 use robocal::model::{ModelRef, Payload};
 use robocal::table::Units;
 use std::path::{Path, PathBuf};
@@ -31,32 +31,105 @@ fn require(ok: bool, message: &str) -> Result<(), UsageError> {
     if ok { Ok(()) } else { Err(UsageError(message.to_string())) }
 }
 
-/// The file `path` names, to compare paths: canonical where it exists, else its folder's
-/// canonical path with its name (or `path` itself if the folder does not exist either).
+/// The file `path` names, to compare paths: the canonical path of its longest existing
+/// ancestor (`.` for a relative path none of whose folders exists) followed by the rest.
 fn file_identity(path: &Path) -> PathBuf {
-    if let Ok(canonical) = path.canonicalize() {
-        return canonical;
+    let mut rest = Vec::new();
+    let mut base = path;
+    loop {
+        if let Ok(canonical) = base.canonicalize() {
+            return rest.iter().rev().fold(canonical, |p, name| p.join(name));
+        }
+        match (base.parent(), base.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name);
+                base = if parent.as_os_str().is_empty() { Path::new(".") } else { parent };
+            }
+            _ => return path.to_path_buf(),
+        }
     }
-    let folder = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    match (folder.canonicalize(), path.file_name()) {
-        (Ok(folder), Some(name)) => folder.join(name),
-        _ => path.to_path_buf(),
+}
+
+/// Whether an output `path` may be named twice: standard output (`-`) or a file other than a
+/// regular file or a folder (`/dev/null`, a FIFO), which are written in place, not replaced.
+fn written_in_place(path: &Path) -> bool {
+    path.as_os_str() == "-" || std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// An output folder: its flag, its path if given, and whether the command may write a file of
+/// this name in it (at any depth).
+pub(super) type OutputFolder<'a> = (&'a str, Option<&'a Path>, fn(&str) -> bool);
+
+/// The report flags' folders: `--figures` (SVG figures) and `calibrate-tree`'s `--out-dir`
+/// (one model a branch, `frames.json`).
+fn known_folder(flag: &str) -> Option<fn(&str) -> bool> {
+    match flag {
+        "--figures" => Some(|name| name.ends_with(".svg")),
+        "--out-dir" => Some(|name| name.ends_with(".toml") || name == "frames.json"),
+        _ => None,
     }
 }
 
 /// Refuse an output path that is also an input's (writing it would lose the input) or
-/// another output's (one would overwrite the other): `(flag, path)` each, outputs not asked
-/// for `None`.
+/// another output's (one would overwrite the other), and an input or another output inside an
+/// output folder under a name the command writes there: `(flag, path)` each,
+/// outputs not asked for `None`; `--figures` and `--out-dir` are folders.
 pub(super) fn distinct_outputs(
     inputs: &[(&str, &Path)],
     outputs: &[(&str, Option<&Path>)],
 ) -> Result<(), UsageError> {
-    let outputs: Vec<(&str, &Path)> =
+    let (folders, files): (Vec<_>, Vec<_>) =
+        outputs.iter().partition(|(flag, path)| path.is_some() && known_folder(flag).is_some());
+    let folders: Vec<OutputFolder<'_>> = folders
+        .iter()
+        .map(|&&(flag, path)| (flag, path, known_folder(flag).expect("a folder flag")))
+        .collect();
+    distinct_outputs_and_folders(inputs, &files.into_iter().copied().collect::<Vec<_>>(), &folders)
+}
+
+/// Whether the file `file` (a [`file_identity`]) is in `folder` or below, under a name that
+/// `writes`: the command may write it there.
+fn inside(file: &Path, folder: &Path, writes: fn(&str) -> bool) -> bool {
+    let folder = file_identity(folder);
+    *file == folder
+        || file.starts_with(&folder) && file.file_name().is_some_and(|name| writes(&name.to_string_lossy()))
+}
+
+/// [`distinct_outputs`] with the output folders given apart.
+pub(super) fn distinct_outputs_and_folders(
+    inputs: &[(&str, &Path)],
+    outputs: &[(&str, Option<&Path>)],
+    folders: &[OutputFolder<'_>],
+) -> Result<(), UsageError> {
+    type Given<'a> = (&'a str, &'a Path, fn(&str) -> bool);
+    let folders: Vec<Given<'_>> =
+        folders.iter().filter_map(|&(flag, path, writes)| Some((flag, path?, writes))).collect();
+    let mut outputs: Vec<(&str, &Path)> =
         outputs.iter().filter_map(|&(flag, path)| Some((flag, path?))).collect();
     for (i, (flag, path)) in outputs.iter().enumerate() {
+        let file = file_identity(path);
+        if let Some((folder_flag, folder, _)) =
+            folders.iter().find(|(_, f, writes)| inside(&file, f, *writes))
+        {
+            return Err(UsageError(format!(
+                "{flag} {}: inside the folder of {folder_flag} {}, under a name this command writes there; give \
+                 a path outside it",
+                path.display(),
+                folder.display()
+            )));
+        }
+        if written_in_place(path) {
+            continue;
+        }
+        if let Some((other, _)) = outputs[..i].iter().find(|(_, p)| file_identity(p) == file) {
+            return Err(UsageError(format!(
+                "{other} and {flag} both name {}: give each output its own path",
+                path.display()
+            )));
+        }
+    }
+    outputs.extend(folders.iter().map(|&(flag, path, _)| (flag, path)));
+    for (flag, path) in &outputs {
         let file = file_identity(path);
         if let Some((input, _)) = inputs.iter().find(|(_, p)| file_identity(p) == file) {
             return Err(UsageError(format!(
@@ -64,10 +137,14 @@ pub(super) fn distinct_outputs(
                 path.display()
             )));
         }
-        if let Some((other, _)) = outputs[..i].iter().find(|(_, p)| file_identity(p) == file) {
+    }
+    for &(flag, folder, writes) in &folders {
+        if let Some((input, path)) = inputs.iter().find(|(_, p)| inside(&file_identity(p), folder, writes)) {
             return Err(UsageError(format!(
-                "{other} and {flag} both name {}: give each output its own path",
-                path.display()
+                "{input} {}: inside the folder of {flag} {}, under a name this command writes there, which \
+                 writing would overwrite; move it or give another folder",
+                path.display(),
+                folder.display()
             )));
         }
     }
@@ -161,14 +238,18 @@ impl PayloadArgs {
     /// (mm), the tip frame's origin by default.
     pub fn payload(&self) -> Result<Option<Payload>, UsageError> {
         let Some(mass) = self.payload_kg else { return Ok(None) };
-        require(mass.is_finite() && mass >= 0.0, "--payload-kg is a mass in kg, at least 0")?;
+        check_range(mass, 0.0, MAX_MASS_KG, "kg").map_err(|e| UsageError(format!("--payload-kg: {e}")))?;
         let com = match self.payload_com_mm.as_deref() {
             None => [0.0; 3],
-            Some(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => [x, y, z],
+            Some(&[x, y, z]) => [x, y, z],
             Some(_) => {
                 return Err(UsageError("--payload-com-mm takes three finite numbers: X,Y,Z in mm".into()));
             }
         };
+        for v in com {
+            check_magnitude(v, MAX_LENGTH_MM, "mm")
+                .map_err(|e| UsageError(format!("--payload-com-mm: {e}")))?;
+        }
         Ok(Some(Payload { mass, com: com.into() }))
     }
 }

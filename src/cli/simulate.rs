@@ -37,7 +37,9 @@ pub fn reproduce(output: &StudyOutputArgs) -> Result<()> {
 pub fn simulate(args: &SimulateArgs) -> Result<()> {
     let mut inputs = vec![("the study", Path::new(&args.study))];
     inputs.extend(args.noise.as_deref().map(|p| ("--noise", p)));
-    super::request::distinct_outputs(&inputs, &[("--out", Some(&args.output.out))])?;
+    // `<out>/<study name>/`: tables and replications (.txt), samples (.csv), figures (.svg).
+    let writes: fn(&str) -> bool = |name| [".txt", ".csv", ".svg"].iter().any(|e| name.ends_with(e));
+    super::request::distinct_outputs_and_folders(&inputs, &[], &[("--out", Some(&args.output.out), writes)])?;
     if let Some(shard) = args.shard {
         return super::shard::simulate(args, shard);
     }
@@ -124,7 +126,8 @@ pub(super) fn write_instruments(
 /// A progress bar of `runs` runs, labelled `message`.
 pub(super) fn progress(runs: usize, message: String) -> ProgressBar {
     let bar = ProgressBar::new(runs as u64).with_message(message);
-    bar.set_style(ProgressStyle::with_template("{msg} {bar:40} {pos}/{len} runs").expect("a valid template"));
+    let template = "{msg} {bar:40} {pos}/{len} runs, {elapsed} so far, about {eta} left";
+    bar.set_style(ProgressStyle::with_template(template).expect("a valid template"));
     bar
 }
 
@@ -146,6 +149,9 @@ pub(super) fn threads(requested: Option<usize>) -> usize {
 /// study replicated over that many derived seeds too); what to say once they are written.
 fn run_study(study: &Study, output: &StudyOutputArgs, outputs: &mut io::Outputs) -> Result<String> {
     let runs = study.cases.len() * study.point_sets * study.runs_per_set;
+    if let Some(count) = output.replications {
+        check_replications(study, count)?;
+    }
     let bar = progress(runs, study.name.clone());
     let pool = study_pool(study, output.threads)?;
     let results = pool.install(|| simulation::run(study, &|| bar.inc(1)))?;
@@ -205,4 +211,20 @@ pub(super) fn stage_study(
         written += &format!("\nwrote {} replication files to {}", files.len(), folder.display());
     }
     Ok(written)
+}
+
+/// Refuse `count` replications of `study` beyond [`robocal::limits::MAX_STUDY_WORK`]
+/// kinematic evaluations, with the estimate.
+fn check_replications(study: &Study, count: usize) -> Result<()> {
+    let work = study.work().saturating_mul(count as u64);
+    if work > robocal::limits::MAX_STUDY_WORK {
+        anyhow::bail!(
+            "--replications {count}: study {} replicated would take about {work:.1e} kinematic evaluations \
+             (replications x runs x (points + test_points)), more than {:.0e}: ask for fewer replications or a \
+             smaller study",
+            study.name,
+            robocal::limits::MAX_STUDY_WORK as f64
+        );
+    }
+    Ok(())
 }

@@ -156,6 +156,14 @@ impl Design {
         (candidates as u64).saturating_mul(8 * dof + 32 + 24 * b * r)
     }
 
+    /// The work of one pass of [`Design::plan_seeded`]'s exchange over `candidates` for
+    /// `points` poses, in products of rows and parameters (`candidates x points x b x r`),
+    /// bounded by [`crate::limits::MAX_WORK`].
+    pub fn plan_work(&self, candidates: usize, points: usize) -> u64 {
+        let (b, r) = (self.measured.rows() as u64, self.columns.len() as u64);
+        (candidates as u64).saturating_mul(points as u64).saturating_mul(b * r)
+    }
+
     /// Plan `points` poses from a pool of `candidates` drawn with ChaCha8 seeded by `seed`
     /// (stream 0): the same arguments give the same poses.
     pub fn plan_seeded(

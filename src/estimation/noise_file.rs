@@ -34,7 +34,7 @@ const ARCSEC: f64 = std::f64::consts::PI / (180.0 * 3600.0);
 #[non_exhaustive]
 pub enum NoiseFileError {
     /// Not valid TOML, or missing, misspelled or mistyped fields (the source names the line).
-    #[error("not a noise file")]
+    #[error("the noise file has a mistake")]
     Syntax(#[source] toml::de::Error),
     /// A field with a value that makes no noise model.
     #[error(transparent)]

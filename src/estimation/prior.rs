@@ -36,6 +36,7 @@
 //! payload's mass takes no prior). Later entries override earlier
 //! ones for the same parameter. [`PRESETS`] name typical tolerances.
 
+use crate::limits::{MAX_PRIOR_SD, MIN_PRIOR_SD};
 use crate::model::{ParamInfo, ParamKind, ParamOwner, ParamSet};
 use nalgebra::{DMatrix, DVector};
 
@@ -147,6 +148,19 @@ impl PriorEntry {
         let sd = number * scale;
         if !(sd.is_finite() && sd > 0.0) {
             return Err(syntax("expected a standard deviation above 0"));
+        }
+        if !(MIN_PRIOR_SD..=MAX_PRIOR_SD).contains(&sd) {
+            let unit_name = match unit {
+                PriorUnit::Length => "mm",
+                PriorUnit::Angle => "rad",
+                PriorUnit::Compliance => "rad/N·m or mm/N",
+            };
+            return Err(syntax(&format!(
+                "a standard deviation from {} to {} {unit_name}, found {} {unit_name} (docs/formats.md#limits)",
+                crate::limits::shown(MIN_PRIOR_SD),
+                crate::limits::shown(MAX_PRIOR_SD),
+                crate::limits::shown(sd)
+            )));
         }
         // A class names its unit: `lengths` in a length unit, `angles` in an angle unit.
         let class_unit = match target {

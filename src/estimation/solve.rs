@@ -172,7 +172,7 @@ pub(crate) fn factorise_rank_revealing(
     let svd = &tall.small;
     let (diagnostics, null_basis) = rank_revealed(svd, &d, m, tolerance, &[])?;
     let rank = diagnostics.rank;
-    let projector = complement_projector(&null_basis);
+    let projector = complement_projector(&null_basis)?;
     let pdv = &projector * &d * svd.v.columns(0, rank);
     let inverse_s =
         DMatrix::from_diagonal(&DVector::from_iterator(rank, svd.s[..rank].iter().map(|s| 1.0 / s)));
@@ -287,15 +287,43 @@ fn factorise_well_conditioned(a: &DMatrix<f64>, tolerance: f64) -> Option<Factor
     Some(Factorised { left: g.clone(), right: Right::Transpose { gram }, pg: g, diagnostics })
 }
 
-/// `I - N (N^T N)^-1 N^T`: the orthogonal projector onto the complement of `N`'s columns.
-fn complement_projector(null_basis: &DMatrix<f64>) -> DMatrix<f64> {
+/// `I - Q Q^T`, `Q` an orthonormal basis of the span of `N`'s columns: the orthogonal projector
+/// onto their complement (`I - N (N^T N)^-1 N^T`, without forming `N^T N`). `N = D V_null` mixes
+/// the column scales of `A`, which may differ by many orders (a parameter the poses barely
+/// move, a mass of 1e300 kg): its columns can then be far from orthogonal, `N^T N` singular to
+/// rounding or overflowing. So each column is scaled to unit norm (the span is the same) and `Q`
+/// is taken from its SVD, keeping the directions of singular value above `p` rounding errors of
+/// the largest (a direction below is already spanned by the others, to rounding).
+fn complement_projector(null_basis: &DMatrix<f64>) -> Result<DMatrix<f64>, EstimationError> {
     let p = null_basis.nrows();
-    if null_basis.ncols() == 0 {
-        return DMatrix::identity(p, p);
+    let mut projector = DMatrix::identity(p, p);
+    let mut n = null_basis.clone();
+    for mut column in n.column_iter_mut() {
+        // By the largest entry first, so that the norm cannot overflow.
+        let largest = column.amax();
+        if largest > 0.0 && largest.is_finite() {
+            column /= largest;
+            let norm = column.norm();
+            column /= norm;
+        }
     }
-    let gram = null_basis.transpose() * null_basis;
-    let inverse = gram.cholesky().expect("a basis has a positive definite Gram matrix").inverse();
-    DMatrix::identity(p, p) - null_basis * inverse * null_basis.transpose()
+    if n.ncols() == 0 {
+        return Ok(projector);
+    }
+    if n.iter().any(|x| !x.is_finite()) {
+        return Err(EstimationError::NoConvergence);
+    }
+    let svd =
+        nalgebra::SVD::try_new(n, true, false, f64::EPSILON, 10_000).ok_or(EstimationError::NoConvergence)?;
+    let u = svd.u.as_ref().expect("the SVD was asked for U");
+    let largest = svd.singular_values.max();
+    for (i, &s) in svd.singular_values.iter().enumerate() {
+        if s > largest * p as f64 * f64::EPSILON {
+            let q = u.column(i);
+            projector.ger(-1.0, &q, &q, 1.0);
+        }
+    }
+    Ok(projector)
 }
 
 /// `rank` columns of `a` chosen by QR with column pivoting (greedy Gram-Schmidt on the
@@ -459,4 +487,38 @@ pub(crate) fn identity_multiple(blocks: &DMatrix<f64>) -> Option<f64> {
     let identity =
         (0..blocks.nrows()).all(|r| (0..b).all(|j| close(blocks[(r, j)], if r % b == j { c } else { 0.0 })));
     (c > 0.0 && identity).then_some(c)
+}
+
+#[cfg(test)]
+mod projector_tests {
+    use super::*;
+
+    /// `P` is an orthogonal projector that removes every column of `n` (relative to its norm).
+    fn assert_projects_out(projector: &DMatrix<f64>, n: &DMatrix<f64>) {
+        assert!((projector - projector.transpose()).amax() < 1e-12, "symmetric");
+        assert!((projector * projector - projector).amax() < 1e-12, "idempotent");
+        for column in n.column_iter() {
+            let left = projector * column;
+            assert!(left.norm() <= 1e-9 * column.norm(), "{column} is left as {left}");
+        }
+    }
+
+    #[test]
+    fn the_complement_projector_survives_columns_parallel_to_rounding_and_overflowing_grams() {
+        // Parallel once the scales are applied: N^T N is singular to rounding.
+        let parallel = DMatrix::from_row_slice(3, 2, &[1e11, 1e11, 1e-5, 0.0, 0.0, 1e-3]);
+        assert!((parallel.transpose() * &parallel).cholesky().is_none(), "the old way fails here");
+        let projector = complement_projector(&parallel).unwrap();
+        assert_projects_out(&projector, &parallel);
+        // N^T N overflows.
+        let huge = DMatrix::from_row_slice(3, 2, &[1e200, 0.0, 1.0, 1e180, 0.0, 1.0]);
+        let projector = complement_projector(&huge).unwrap();
+        assert_projects_out(&projector, &huge);
+        assert!((projector[(2, 2)] - 1.0).abs() < 1e-12, "the third axis is kept: {projector}");
+        // An ordinary basis: the textbook projector.
+        let ordinary = DMatrix::from_row_slice(3, 1, &[1.0, 2.0, 2.0]);
+        let expected = DMatrix::identity(3, 3) - &ordinary * ordinary.transpose() / 9.0;
+        assert!((complement_projector(&ordinary).unwrap() - expected).amax() < 1e-15);
+        assert_eq!(complement_projector(&DMatrix::zeros(3, 0)).unwrap(), DMatrix::identity(3, 3));
+    }
 }

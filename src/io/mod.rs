@@ -83,16 +83,107 @@ pub struct OutputError {
 /// all of them appear, or none does, and a file already on disk is replaced only when every
 /// output has been written.
 ///
-/// Each file is first written in full to a temporary file beside its target (`.NAME.PID.tmp`
-/// in the same folder), then every temporary file is renamed into place. If writing any of
-/// them fails, the temporary files and the folders `commit` created are removed and the
-/// targets are left as they were. (A rename within a folder is atomic; only a file system
-/// that fails between two renames could leave some outputs new and the others old, never a
-/// file half-written.)
+/// Each regular file is first written in full to a temporary file beside its target
+/// (`.NAME.PID.tmp` in the same folder), then every temporary file is renamed into place. If
+/// writing any of them fails, the temporary files and the folders `commit` created are removed
+/// and the targets are left as they were. (A rename within a folder is atomic; only a file
+/// system that fails between two renames could leave some outputs new and the others old,
+/// never a file half-written.)
+///
+/// A target that is not a regular file (a character device such as `/dev/null`, a FIFO, a
+/// socket) is written in place, streaming, once every temporary file is written; `-` is
+/// standard output. A symbolic link is followed: its target gets the temporary and the
+/// rename, and the link stays a link.
+///
+/// While a commit runs, its temporary files and the folders it created are listed for
+/// [`abandon_pending_outputs`], which a process stopped by a signal calls to remove them.
 #[derive(Debug, Default)]
 pub struct Outputs {
     /// (target, contents, may create the target's folder)
     files: Vec<(PathBuf, Vec<u8>, bool)>,
+}
+
+/// Where an output goes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Destination {
+    /// A regular file (new or to replace) at this path, symbolic links resolved: a temporary
+    /// file beside it, renamed over it.
+    Replace(PathBuf),
+    /// Not a regular file (a device, a FIFO): opened and written in place.
+    InPlace(PathBuf),
+    /// `-`: standard output.
+    Stdout,
+}
+
+/// Where the output `path` goes: `-` is standard output, an existing file other than a regular
+/// file or a folder is written in place, and a symbolic link is followed to what it names
+/// (which need not exist yet).
+fn destination(path: &Path) -> Destination {
+    if path.as_os_str() == "-" {
+        return Destination::Stdout;
+    }
+    if let Ok(meta) = std::fs::metadata(path) {
+        if !meta.is_file() && !meta.is_dir() {
+            return Destination::InPlace(path.to_path_buf());
+        }
+    }
+    Destination::Replace(follow_links(path))
+}
+
+/// `path` with its last component's symbolic links followed (at most 40, as the system does),
+/// to a path that is not a link, whether or not it exists.
+fn follow_links(path: &Path) -> PathBuf {
+    let mut path = path.to_path_buf();
+    for _ in 0..40 {
+        let is_link = std::fs::symlink_metadata(&path).is_ok_and(|m| m.file_type().is_symlink());
+        let Some(target) = is_link.then(|| std::fs::read_link(&path).ok()).flatten() else {
+            return path;
+        };
+        path = match path.parent() {
+            Some(folder) if target.is_relative() => folder.join(target),
+            _ => target,
+        };
+    }
+    path
+}
+
+/// The temporary files and folders of unfinished commits, for [`abandon_pending_outputs`].
+#[derive(Debug, Default)]
+struct Pending {
+    temporaries: Vec<PathBuf>,
+    folders: Vec<PathBuf>,
+}
+
+/// What every commit in progress has on disk that is not an output yet. A commit holds the
+/// lock while it creates folders and temporary files and while it renames them into place,
+/// so that [`abandon_pending_outputs`] sees either none of its outputs or all of them.
+static PENDING: std::sync::Mutex<Pending> =
+    std::sync::Mutex::new(Pending { temporaries: Vec::new(), folders: Vec::new() });
+
+fn pending() -> std::sync::MutexGuard<'static, Pending> {
+    PENDING.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Remove the temporary files and the folders (empty but for them) of every commit in progress,
+/// and keep any commit from going on: for a process about to exit on a signal (SIGINT,
+/// SIGTERM). Outputs already renamed into place by a finished commit stay.
+pub fn abandon_pending_outputs() {
+    let pending = pending();
+    for temporary in &pending.temporaries {
+        let _ = std::fs::remove_file(temporary);
+    }
+    for folder in pending.folders.iter().rev() {
+        let _ = std::fs::remove_dir(folder);
+    }
+    // Held until the process exits: no commit renames anything after this.
+    std::mem::forget(pending);
+}
+
+/// `path` removed from `list` (once).
+fn unlist(list: &mut Vec<PathBuf>, path: &Path) {
+    if let Some(i) = list.iter().position(|p| p == path) {
+        list.swap_remove(i);
+    }
 }
 
 impl Outputs {
@@ -129,18 +220,25 @@ impl Outputs {
     }
 
     /// Write every staged file; on an error, nothing staged is left on disk and every target
-    /// keeps what it held.
+    /// keeps what it held. (A device, FIFO or standard output already written to cannot be
+    /// taken back: they are written after every temporary file, just before the renames.)
     pub fn commit(self) -> Result<(), OutputError> {
+        let destinations = self.destinations()?;
         let mut created = Vec::new();
         let mut temporaries = Vec::new();
-        let written = self.write_temporaries(&mut created, &mut temporaries);
-        let result = written.and_then(|()| {
+        let written = {
+            let mut pending = pending();
+            self.write_temporaries(&destinations, &mut created, &mut temporaries, &mut pending)
+        };
+        let result = written.and_then(|()| self.write_in_place(&destinations)).and_then(|()| {
+            let _pending = pending();
             for (temporary, target) in &temporaries {
                 std::fs::rename(temporary, target)
                     .map_err(|source| OutputError { path: target.clone(), source })?;
             }
             Ok(())
         });
+        let mut pending = pending();
         if result.is_err() {
             for (temporary, _) in &temporaries {
                 let _ = std::fs::remove_file(temporary);
@@ -149,39 +247,84 @@ impl Outputs {
                 let _ = std::fs::remove_dir(folder);
             }
         }
+        for (temporary, _) in &temporaries {
+            unlist(&mut pending.temporaries, temporary);
+        }
+        for folder in &created {
+            unlist(&mut pending.folders, folder);
+        }
         result
     }
 
-    /// Create the folders asked for (recording those created) and write each file to its
-    /// temporary file (recording each `(temporary, target)`).
-    fn write_temporaries(
-        &self,
-        created: &mut Vec<PathBuf>,
-        temporaries: &mut Vec<(PathBuf, PathBuf)>,
-    ) -> Result<(), OutputError> {
+    /// Where each staged file goes; an error for a target asked for twice or that is a folder.
+    fn destinations(&self) -> Result<Vec<Destination>, OutputError> {
+        let destinations: Vec<Destination> =
+            self.files.iter().map(|(path, _, _)| destination(path)).collect();
         for (i, (target, _, _)) in self.files.iter().enumerate() {
-            if self.files[..i].iter().any(|(other, _, _)| other == target) {
+            let Destination::Replace(resolved) = &destinations[i] else { continue };
+            if destinations[..i].contains(&destinations[i]) {
                 let source = std::io::Error::other("the same output is asked for twice");
                 return Err(OutputError { path: target.clone(), source });
             }
-            if target.is_dir() {
+            if resolved.is_dir() {
                 let source = std::io::Error::other("a folder is there");
                 return Err(OutputError { path: target.clone(), source });
             }
         }
-        for (target, contents, create) in &self.files {
-            let folder = match target.parent() {
-                Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-                _ => PathBuf::from("."),
-            };
-            if *create {
-                create_folders(&folder, created)?;
+        Ok(destinations)
+    }
+
+    /// Create the folders asked for (recording those created) and write each regular file to
+    /// its temporary file (recording each `(temporary, target)`), listing both in `pending`.
+    fn write_temporaries(
+        &self,
+        destinations: &[Destination],
+        created: &mut Vec<PathBuf>,
+        temporaries: &mut Vec<(PathBuf, PathBuf)>,
+        pending: &mut Pending,
+    ) -> Result<(), OutputError> {
+        let folder_of = |target: &Path| match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        // The folders first, so that a file may go into a folder another output makes.
+        for ((_, _, create), destination) in self.files.iter().zip(destinations) {
+            if let (true, Destination::Replace(target)) = (create, destination) {
+                let before = created.len();
+                let made = create_folders(&folder_of(target), created);
+                pending.folders.extend(created[before..].iter().cloned());
+                made?;
             }
+        }
+        for ((path, contents, _), destination) in self.files.iter().zip(destinations) {
+            let Destination::Replace(target) = destination else { continue };
+            let folder = folder_of(target);
             let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
             let temporary = folder.join(format!(".{name}.{}.tmp", std::process::id()));
+            pending.temporaries.push(temporary.clone());
             temporaries.push((temporary.clone(), target.clone()));
             std::fs::write(&temporary, contents)
-                .map_err(|source| OutputError { path: target.clone(), source })?;
+                .map_err(|source| OutputError { path: path.clone(), source })?;
+        }
+        Ok(())
+    }
+
+    /// Write the files that are not regular files (devices, FIFOs, standard output) in place.
+    fn write_in_place(&self, destinations: &[Destination]) -> Result<(), OutputError> {
+        use std::io::Write;
+        for ((path, contents, _), destination) in self.files.iter().zip(destinations) {
+            let error = |source| OutputError { path: path.clone(), source };
+            match destination {
+                Destination::Replace(_) => {}
+                Destination::InPlace(target) => {
+                    let mut file = std::fs::OpenOptions::new().write(true).open(target).map_err(error)?;
+                    file.write_all(contents).and_then(|()| file.flush()).map_err(error)?;
+                }
+                Destination::Stdout => {
+                    let mut stdout = std::io::stdout().lock();
+                    stdout.write_all(contents).and_then(|()| stdout.flush()).map_err(error)?;
+                }
+            }
         }
         Ok(())
     }

@@ -2,7 +2,10 @@
 
 use super::{Convention, Joint, JointKind, LinkMass, Placement, RobotModel, Tool};
 use crate::error::FieldError;
-use crate::limits::{MAX_ANGLE_DEG, MAX_JOINTS, MAX_LENGTH_MM, check_magnitude, exactly, exactly_if_given};
+use crate::limits::{
+    MAX_ANGLE_DEG, MAX_COMPLIANCE, MAX_JOINTS, MAX_LENGTH_MM, MAX_MASS_KG, MAX_PLAY, check_magnitude,
+    check_range, exactly, exactly_if_given,
+};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -12,7 +15,7 @@ use serde::{Deserialize, Serialize};
 pub enum ModelError {
     /// The text is not valid TOML or does not have the fields of a model file; the source
     /// names the line, the column and the field.
-    #[error("not a model file")]
+    #[error("the model file has a mistake")]
     Syntax(#[source] toml::de::Error),
     /// The text is not valid XML; the source names the line and the column.
     #[error("not valid XML")]
@@ -221,7 +224,17 @@ fn joint(index: usize, j: JointFile, convention: Convention) -> Result<Joint, Mo
         ("compliance_rad_per_nm", j.compliance_rad_per_nm),
         ("compliance_mm_per_n", j.compliance_mm_per_n),
     )?;
+    let at = |field: &str| format!("joints[{index}].{field}");
+    // A calibrated model may carry a negative estimate (which `calibrate` warns of): bounded in
+    // magnitude only.
+    let compliance =
+        check_range(compliance, -MAX_COMPLIANCE, MAX_COMPLIANCE, if revolute { "rad/(N·m)" } else { "mm/N" })
+            .map_err(|e| {
+                invalid(at(if revolute { "compliance_rad_per_nm" } else { "compliance_mm_per_n" }), e)
+            })?;
     let play = per_kind((index, "play"), revolute, ("play_deg", j.play_deg), ("play_mm", j.play_mm))?;
+    let play = check_range(play, -MAX_PLAY, MAX_PLAY, if revolute { "deg" } else { "mm" })
+        .map_err(|e| invalid(at(if revolute { "play_deg" } else { "play_mm" }), e))?;
     let play = if revolute { play.to_radians() } else { play };
     Ok(Joint { compliance, play, ..geometry(index, j, convention)? })
 }
@@ -317,10 +330,8 @@ fn link_mass((i, link): (usize, &LinkFile)) -> Result<LinkMass, ModelError> {
 
 /// The mass of table `field`: kg >= 0 and a finite centre of mass (mm).
 fn mass_at(field: &str, link: &LinkFile) -> Result<LinkMass, ModelError> {
-    let mass = finite(&format!("{field}.mass_kg"), link.mass_kg)?;
-    if mass < 0.0 {
-        return Err(invalid(format!("{field}.mass_kg"), format!("a mass >= 0 kg, found {mass}")));
-    }
+    let at = format!("{field}.mass_kg");
+    let mass = check_range(link.mass_kg, 0.0, MAX_MASS_KG, "kg").map_err(|e| invalid(&at, e))?;
     Ok(LinkMass { mass, com: vector(&format!("{field}.com_mm"), &link.com_mm)? })
 }
 

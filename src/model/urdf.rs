@@ -12,7 +12,7 @@
 
 use super::{Convention, Joint, JointKind, LinkMass, ModelError, Placement, RobotModel, Tool};
 use crate::error::FieldError;
-use crate::limits::{MAX_ANGLE_DEG, MAX_LENGTH_MM};
+use crate::limits::{MAX_ANGLE_DEG, MAX_COMPLIANCE, MAX_LENGTH_MM, MAX_MASS_KG, MAX_PLAY, check_range};
 use nalgebra::{Isometry3, Vector3};
 
 fn invalid(field: String, expected: impl Into<String>) -> ModelError {
@@ -261,8 +261,18 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
             // SI as URDF: rad/(N·m) or m/N, rad or m.
             let per_mm = if kind == JointKind::Prismatic { 1000.0 } else { 1.0 };
             let at = format!("{field}.{DEFLECTION}");
-            model_joint.compliance = numbers(node, "compliance", [0.0], &at)?[0] * per_mm;
-            model_joint.play = numbers(node, "play", [0.0], &at)?[0] * per_mm;
+            let revolute = kind == JointKind::Revolute;
+            let (compliance_unit, play_unit) = if revolute { ("rad/(N·m)", "rad") } else { ("m/N", "m") };
+            let compliance = numbers(node, "compliance", [0.0], &at)?[0];
+            let max_compliance = if revolute { MAX_COMPLIANCE } else { MAX_COMPLIANCE / 1000.0 };
+            check_range(compliance, -max_compliance, max_compliance, compliance_unit)
+                .map_err(|e| invalid(format!("{at}.compliance"), e))?;
+            let play = numbers(node, "play", [0.0], &at)?[0];
+            let max_play = if revolute { MAX_PLAY.to_radians() } else { MAX_PLAY / 1000.0 };
+            check_range(play, -max_play, max_play, play_unit)
+                .map_err(|e| invalid(format!("{at}.play"), e))?;
+            model_joint.compliance = compliance * per_mm;
+            model_joint.play = play * per_mm;
         }
         model_joints.push(model_joint);
         masses.push(carried_mass(robot, &link_of(&joint, "child"))?);
@@ -407,9 +417,7 @@ fn carried_mass(robot: roxmltree::Node<'_, '_>, link: &str) -> Result<LinkMass, 
                 Some(node) => numbers(node, "value", [0.0], &format!("{field}.mass"))?[0],
                 None => 0.0,
             };
-            if m < 0.0 {
-                return Err(invalid(format!("{field}.mass.value"), format!("a mass >= 0 kg, found {m}")));
-            }
+            check_range(m, 0.0, MAX_MASS_KG, "kg").map_err(|e| invalid(format!("{field}.mass.value"), e))?;
             let com = origin(inertial, &field)?.translation.vector;
             mass += m;
             moment += (placed * nalgebra::Point3::from(com)).coords * m;

@@ -94,8 +94,8 @@ use crate::error::FieldError;
 use crate::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
 use crate::kinematics::{Chain, ChainAt};
 use crate::limits::{
-    MAX_ANGLE_DEG, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS,
-    check_magnitude,
+    MAX_ANGLE_DEG, MAX_INSTRUMENT_WORK, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS_PER_CASE, MAX_STUDY_WORK,
+    MAX_TEST_POINTS, check_magnitude,
 };
 use crate::model::{JointKind, ModelRef, RobotModel, Selection, Tool};
 use nalgebra::{DMatrix, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -434,6 +434,23 @@ impl InstrumentStudy {
                 format!(
                     "a study of at most {MAX_STUDY_WORK:e} kinematic evaluations (runs x instruments x \
                      (observations + test_points)), found {work:e}"
+                ),
+            );
+        }
+        // Each run fits every instrument's observations: Jacobians of about 3 rows a
+        // observation by the robot's parameters, factorised.
+        let rows_by_params = 3 * self.robot.params().len() as u64;
+        let observations: u64 = (0..self.instruments.len()).map(|i| self.observations(i) as u64).sum();
+        let solve_work = observations.saturating_mul(rows_by_params).saturating_mul(self.runs as u64);
+        if solve_work > MAX_INSTRUMENT_WORK {
+            return invalid(
+                "time_budget_s",
+                format!(
+                    "a study of at most {:.0e} row-parameter products (runs x observations x 3 rows x {} \
+                     parameters), found about {solve_work:.1e}: hours of work; ask for a shorter time budget or \
+                     fewer runs",
+                    MAX_INSTRUMENT_WORK as f64,
+                    self.robot.params().len()
                 ),
             );
         }

@@ -5,8 +5,9 @@ use crate::error::FieldError;
 use crate::estimation::{Device, DeviceTable, Estimator};
 use crate::kinematics::Measured;
 use crate::limits::{
-    MAX_ANGLE_DEG, MAX_CANDIDATES, MAX_CASES, MAX_ITERATIONS, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS,
-    MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS, check_magnitude,
+    MAX_ANGLE_DEG, MAX_CANDIDATES, MAX_CASES, MAX_COMPLIANCE, MAX_ITERATIONS, MAX_LENGTH_MM, MAX_MASS_KG,
+    MAX_PLAY, MAX_POINTS, MAX_RUNS, MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS, check_magnitude,
+    check_range,
 };
 use crate::model::{JointKind, ModelRef, ParamKind, Payload, RobotModel, Selection, SelectionError, degrees};
 use serde::Deserialize;
@@ -16,7 +17,7 @@ use serde::Deserialize;
 #[non_exhaustive]
 pub enum StudyError {
     /// Not valid TOML, or missing, misspelled or mistyped fields (the source names the line).
-    #[error("not a study file")]
+    #[error("the study file has a mistake")]
     Syntax(#[source] toml::de::Error),
     /// A field with a value that makes no study.
     #[error(transparent)]
@@ -382,6 +383,10 @@ impl Study {
             .map(|e| e.parse())
             .collect::<Result<_, String>>()
             .map_err(|e| FieldError::new("estimators", e))?;
+        if let Some(i) = (1..estimators.len()).find(|&i| estimators[..i].contains(&estimators[i])) {
+            let expected = format!("each estimator once, found {:?} twice", file.estimators[i]);
+            return invalid("estimators", expected);
+        }
         let joint_sigmas = joint_sigmas(&robot, &file.noise.joint_sigma)?;
         if file.cases.points.is_empty() || file.cases.sigma_me_mm.is_empty() {
             return invalid("cases", "at least one value in `points` and in `sigma_me_mm`".into());
@@ -552,10 +557,7 @@ impl Study {
                 format!("point counts from 1 to {MAX_POINTS}, found {}", case.points),
             );
         }
-        let runs_per_case = (self.point_sets as u64).saturating_mul(self.runs_per_set as u64);
-        let work = self.cases.iter().fold(0u64, |work, case| {
-            work.saturating_add(runs_per_case.saturating_mul((case.points + self.test_points) as u64))
-        });
+        let work = self.work();
         if work > MAX_STUDY_WORK {
             return invalid(
                 "runs_per_set",
@@ -573,6 +575,15 @@ impl Study {
             );
         }
         Ok(())
+    }
+
+    /// The work of the study in kinematic evaluations: the sum over its runs of the points
+    /// and the test points, bounded by [`MAX_STUDY_WORK`].
+    pub fn work(&self) -> u64 {
+        let runs_per_case = (self.point_sets as u64).saturating_mul(self.runs_per_set as u64);
+        self.cases.iter().fold(0u64, |work, case| {
+            work.saturating_add(runs_per_case.saturating_mul((case.points + self.test_points) as u64))
+        })
     }
 
     /// The memory the study will need at most, in bytes, on `threads` threads: every point
@@ -723,10 +734,15 @@ fn truth(robot: RobotModel, file: Option<&TruthFile>) -> Result<(RobotModel, Tru
                     format!("a joint of the robot: {}", names.join(", ")),
                 ));
             };
-            if !value.is_finite() {
-                return Err(invalid(format!("{field}.{name}"), format!("a finite number, found {value}")));
-            }
-            values[j] = value;
+            let revolute = robot.joints[j].kind == JointKind::Revolute;
+            let (low, high, unit) = match (field, revolute) {
+                ("truth.compliance", true) => (0.0, MAX_COMPLIANCE, "rad/(N·m)"),
+                ("truth.compliance", false) => (0.0, MAX_COMPLIANCE, "mm/N"),
+                (_, true) => (-MAX_PLAY, MAX_PLAY, "deg"),
+                (_, false) => (-MAX_PLAY, MAX_PLAY, "mm"),
+            };
+            values[j] =
+                check_range(value, low, high, unit).map_err(|e| invalid(format!("{field}.{name}"), e))?;
         }
         Ok(values)
     };
@@ -737,11 +753,10 @@ fn truth(robot: RobotModel, file: Option<&TruthFile>) -> Result<(RobotModel, Tru
             *p = p.to_radians();
         }
     }
-    if !(file.payload_kg.is_finite() && file.payload_kg >= 0.0) {
-        return Err(invalid("truth.payload_kg".into(), format!("a mass >= 0 kg, found {}", file.payload_kg)));
-    }
-    if file.payload_com_mm.iter().any(|v| !v.is_finite()) {
-        return Err(invalid("truth.payload_com_mm".into(), "finite numbers".into()));
+    check_range(file.payload_kg, 0.0, MAX_MASS_KG, "kg")
+        .map_err(|e| invalid("truth.payload_kg".into(), e))?;
+    for &v in &file.payload_com_mm {
+        check_magnitude(v, MAX_LENGTH_MM, "mm").map_err(|e| invalid("truth.payload_com_mm".into(), e))?;
     }
     let robot = if file.payload_kg > 0.0 {
         robot.with_payload(&Payload { mass: file.payload_kg, com: file.payload_com_mm.into() })

@@ -307,3 +307,150 @@ proptest! {
         }
     }
 }
+
+// Issue 25: the commands added since (calibrate-observations above; calibrate-tree, evaluate,
+// priors, selection, robust losses, compliance models, study `[truth]` below).
+
+const TORSO_URDF: &str = include_str!("../../presets/torso.urdf");
+const TORSO_VIEWS: &str = include_str!("../../examples/torso/views.csv");
+const MASSES_MODEL: &str = include_str!("../../presets/puma560-masses.toml");
+const COMPLIANCE_STUDY: &str = include_str!("../../presets/compliance.toml");
+const PRIORS: &str = "j*.a=0.5mm,j*.alpha=0.05deg,lengths=0.1mm,j2.compliance=1e-4,machined,plays=0.02deg";
+
+fn torso() -> robocal::model::RobotTree {
+    let tips = ["head_camera", "l_hand", "r_hand"].map(String::from);
+    robocal::model::RobotTree::from_urdf_str(TORSO_URDF, None, &tips).unwrap()
+}
+
+/// Calibration options for the fuzzed fits: few steps, the loss and priors given.
+fn quick_options(loss: robocal::calibration::Loss, prior: Vec<robocal::estimation::PriorEntry>) -> Options {
+    Options {
+        estimator: Estimator::Ols,
+        noise: None,
+        joints: JointParams::Named(vec!["j*.*".into()]),
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
+        prior,
+        loss,
+        refine: RefineOptions { max_iterations: 3, ..RefineOptions::default() },
+        gauge: Default::default(),
+    }
+}
+
+/// A loss of the three, with thresholds ordinary or extreme.
+fn loss() -> impl Strategy<Value = robocal::calibration::Loss> {
+    use robocal::calibration::Loss;
+    let k = prop::sample::select(vec![1.345, 2.385, 1e-300, 1e300, 0.0, -1.0, f64::NAN]);
+    prop_oneof![Just(Loss::Squared), k.clone().prop_map(Loss::Huber), k.prop_map(Loss::Cauchy)]
+}
+
+proptest! {
+    #![proptest_config(config(300))]
+
+    /// `calibrate-tree`: the view file mutated; what reads is fitted (a calibration or an
+    /// error) and scored.
+    #[test]
+    fn tree_view_files_read_or_name_the_line_and_fit_without_a_panic(mutations in prop::collection::vec(mutation(), 1..6)) {
+        let tree = torso();
+        let text = mutate(&head(TORSO_VIEWS, 14), &mutations);
+        match robocal::calibration::tree::TreeData::from_csv_str(&text, &tree, None) {
+            Ok(data) => {
+                let options = robocal::calibration::tree::TreeOptions {
+                    estimator: Estimator::Ols,
+                    joint_noise: None,
+                    joints: JointParams::Offsets,
+                    refine: RefineOptions { max_iterations: 2, ..RefineOptions::default() },
+                };
+                if let Ok(c) = robocal::calibration::tree::calibrate_tree(&tree, &data, &options) {
+                    let _ = c.score(&data);
+                }
+            }
+            Err(e) => prop_assert!(e.line >= 1 && e.to_string().starts_with(&format!("line {}", e.line)), "{e}"),
+        }
+    }
+
+    /// `evaluate`: a mutated model with masses scored on a mutated measurement file.
+    #[test]
+    fn evaluate_scores_what_reads_without_a_panic(
+        model_mutations in prop::collection::vec(mutation(), 0..4),
+        data_mutations in prop::collection::vec(mutation(), 0..4),
+    ) {
+        let Ok(model) = RobotModel::from_toml_str(&mutate(MASSES_MODEL, &model_mutations)) else { return Ok(()) };
+        let Ok(data) = Measurements::from_csv_str(&mutate(&head(MEASUREMENTS, 10), &data_mutations), &model, None) else {
+            return Ok(());
+        };
+        let markers = [(1, Vector3::new(50.0, 0.0, 150.0))];
+        let _ = calibration::evaluate_model(&model, &markers, "fuzz", &data, None);
+    }
+
+    /// `--prior` and a `[prior]` entry list: parsed or refused naming the entry; what parses
+    /// is applied in a fit of the compliant robot with a robust loss.
+    #[test]
+    fn priors_parse_or_name_the_entry_and_fit_without_a_panic(
+        mutations in prop::collection::vec(mutation(), 1..4),
+        loss in loss(),
+    ) {
+        let text = mutate(PRIORS, &mutations);
+        match robocal::estimation::PriorEntry::parse_list(&text) {
+            Ok(prior) => {
+                let model = RobotModel::from_toml_str(MASSES_MODEL).unwrap();
+                let data = Measurements::from_csv_str(&head(MEASUREMENTS, 14), &model, None).unwrap();
+                let _ = calibration::calibrate(&model, &data, &quick_options(loss, prior));
+            }
+            Err(e) => prop_assert!(e.to_string().starts_with("prior `"), "{e}"),
+        }
+    }
+
+    /// A compliance model (masses, compliances, plays, a payload) mutated: read or named, and
+    /// what reads calibrates its compliances (or says why not) on the example's poses.
+    #[test]
+    fn compliance_models_read_or_name_the_field_and_calibrate_without_a_panic(
+        mutations in prop::collection::vec(mutation(), 1..6),
+        loss in loss(),
+    ) {
+        let text = mutate(MASSES_MODEL, &mutations);
+        match RobotModel::from_toml_str(&text) {
+            Ok(model) => {
+                let Ok(data) = Measurements::from_csv_str(&head(MEASUREMENTS, 14), &model, None) else { return Ok(()) };
+                let _ = calibration::calibrate(&model, &data, &quick_options(loss, Vec::new()));
+            }
+            Err(e) => prop_assert!(model_error_says_where(&e), "{e}"),
+        }
+    }
+
+    /// A study with `[truth]` (compliances, plays, a payload) mutated: read or named.
+    #[test]
+    fn truth_studies_read_or_name_the_field(mutations in prop::collection::vec(mutation(), 1..6)) {
+        let text = mutate(COMPLIANCE_STUDY, &mutations);
+        let robot = |model: &robocal::model::ModelRef| robocal::io::load_model(model).map_err(|e| e.to_string());
+        match Study::from_toml_str(&text, robot) {
+            Ok(study) => prop_assert!(study.memory_estimate(2) > 0),
+            Err(StudyError::Invalid(field)) => prop_assert!(!field.field.is_empty(), "{field}"),
+            Err(e) => prop_assert!(!robocal::error::chain(&e).is_empty()),
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(config(40))]
+
+    /// `calibrate --select` (t, bic, cv) with a robust loss on a few poses of the example,
+    /// their values mutated: a selection or an error, never a panic.
+    #[test]
+    fn selection_with_any_loss_never_panics(
+        mutations in prop::collection::vec(mutation(), 0..3),
+        criterion in 0usize..3,
+        folds in 0usize..5,
+        loss in loss(),
+    ) {
+        use robocal::calibration::selection::{Criterion, select};
+        let Ok(data) = Measurements::from_csv_str(&mutate(&head(MEASUREMENTS, 12), &mutations), &puma(), None) else {
+            return Ok(());
+        };
+        let criterion = [Criterion::T, Criterion::Bic, Criterion::Cv { folds }][criterion];
+        let mut options = quick_options(loss, Vec::new());
+        options.joints = JointParams::Named(vec!["j2.*".into(), "j3.a".into()]);
+        let _ = select(&puma(), &data, &options, criterion);
+    }
+}

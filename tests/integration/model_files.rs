@@ -112,7 +112,7 @@ fn link_masses_and_gravity_read_and_write_back() {
     let negative = links.replacen("mass_kg = 1.5", "mass_kg = -1.5", 1);
     assert_eq!(
         error_of(&format!("{PUMA}{negative}")),
-        "field `links[0].mass_kg`: a mass >= 0 kg, found -1.5"
+        "field `links[0].mass_kg`: a number from 0 to 100000 kg, found -1.5"
     );
 }
 

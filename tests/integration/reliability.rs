@@ -411,7 +411,10 @@ fn limits_deg_with_other_than_two_values_is_refused() {
         );
         let (code, _, stderr) = run_in(&dir, &["model", "show", model.to_str().unwrap()]);
         assert_eq!(code, 1, "{limits}");
-        assert!(stderr.contains("m.toml: not a model file: TOML parse error at line"), "{stderr}");
+        assert!(
+            stderr.contains("m.toml: the model file has a mistake: TOML parse error at line"),
+            "{stderr}"
+        );
         assert!(stderr.contains("expected 2 numbers"), "{stderr}");
     }
 }
@@ -624,5 +627,573 @@ fn a_badly_conditioned_system_is_warned() {
             );
             assert!(warning.contains("above 1e6: the estimates are poorly determined"), "{warning}");
         }
+    }
+}
+
+// Issue 25. 1. Special files are written in place; a symbolic link is followed.
+
+/// Whether the system command `program args` succeeded (a reason printed if not).
+fn system(program: &str, args: &[&str]) -> bool {
+    match std::process::Command::new(program).args(args).output() {
+        Ok(out) if out.status.success() => true,
+        Ok(out) => {
+            eprintln!("{program} {args:?}: {}", String::from_utf8_lossy(&out.stderr).trim());
+            false
+        }
+        Err(e) => {
+            eprintln!("{program}: {e}");
+            false
+        }
+    }
+}
+
+#[test]
+fn a_device_node_given_as_an_output_is_written_in_place_and_stays_a_device() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = scratch("device");
+    file(&dir, "d.csv", MEASUREMENTS);
+    let node = dir.join("null");
+    // The null device (1, 3), made here: never the system's /dev/null.
+    if !system("mknod", &[node.to_str().unwrap(), "c", "1", "3"]) {
+        eprintln!("skipped: mknod is not permitted here (the test needs root or CAP_MKNOD)");
+        return;
+    }
+    let (code, _, stderr) =
+        run_in(&dir, &[&CALIBRATE[..], &["--json", "null", "--out-model", "m.toml"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    assert!(std::fs::symlink_metadata(&node).unwrap().file_type().is_char_device(), "still a device");
+    assert_eq!(listing(&dir), ["d.csv", "m.toml", "null"], "no temporary file");
+    // Read back: the null device reads empty.
+    assert_eq!(std::fs::read(&node).unwrap(), b"");
+}
+
+#[test]
+fn a_fifo_given_as_an_output_is_written_in_place_and_stays_a_fifo() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = scratch("fifo");
+    file(&dir, "d.csv", MEASUREMENTS);
+    let fifo = dir.join("pipe");
+    if !system("mkfifo", &[fifo.to_str().unwrap()]) {
+        eprintln!("skipped: mkfifo failed");
+        return;
+    }
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read_to_string(fifo).unwrap())
+    };
+    let (code, _, stderr) = run_in(&dir, &[&CALIBRATE[..], &["--json", "pipe"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    let json: serde_json::Value = serde_json::from_str(&reader.join().unwrap()).unwrap();
+    assert!(json.get("parameters").is_some(), "the report came through the FIFO: {json}");
+    assert!(std::fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo(), "still a FIFO");
+    assert_eq!(listing(&dir), ["d.csv", "pipe"]);
+}
+
+#[test]
+fn a_dash_is_standard_output_and_no_file_named_dash_is_made() {
+    let dir = scratch("dash");
+    file(&dir, "d.csv", MEASUREMENTS);
+    let (code, stdout, stderr) = run_in(&dir, &[&CALIBRATE[..], &["--out-model", "-"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("[[joints]]"), "the model on standard output: {stdout}");
+    assert_eq!(listing(&dir), ["d.csv"], "no file named -");
+}
+
+#[test]
+fn a_symbolic_link_is_followed_and_its_target_replaced() {
+    let dir = scratch("symlink");
+    file(&dir, "d.csv", MEASUREMENTS);
+    file(&dir, "old.json", "old\n");
+    std::os::unix::fs::symlink("old.json", dir.join("link.json")).unwrap();
+    std::os::unix::fs::symlink("new.toml", dir.join("dangling.toml")).unwrap();
+    let args = ["--json", "link.json", "--out-model", "dangling.toml"];
+    let (code, _, stderr) = run_in(&dir, &[&CALIBRATE[..], &args].concat());
+    assert_eq!(code, 0, "{stderr}");
+    for (link, target) in [("link.json", "old.json"), ("dangling.toml", "new.toml")] {
+        let meta = std::fs::symlink_metadata(dir.join(link)).unwrap();
+        assert!(meta.file_type().is_symlink(), "{link} stays a link");
+        assert_eq!(std::fs::read_link(dir.join(link)).unwrap(), Path::new(target));
+    }
+    assert!(std::fs::read_to_string(dir.join("old.json")).unwrap().contains("\"parameters\""));
+    assert!(std::fs::read_to_string(dir.join("new.toml")).unwrap().contains("[[joints]]"));
+    assert_eq!(listing(&dir), ["d.csv", "dangling.toml", "link.json", "new.toml", "old.json"]);
+}
+
+#[test]
+fn outputs_written_in_place_may_be_named_twice() {
+    let dir = scratch("dash-twice");
+    file(&dir, "d.csv", MEASUREMENTS);
+    let (code, stdout, stderr) =
+        run_in(&dir, &[&CALIBRATE[..], &["--json", "-", "--out-model", "-"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("\"parameters\"") && stdout.contains("[[joints]]"), "{stdout}");
+    assert_eq!(listing(&dir), ["d.csv"]);
+}
+
+// 2. Signals: the temporary files and the folders a run created are removed.
+
+/// `robocal args` started in `dir`, its output discarded.
+fn spawn_in(dir: &Path, args: &[&str]) -> std::process::Child {
+    std::process::Command::new(assert_cmd::cargo::cargo_bin("robocal"))
+        .current_dir(dir)
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap()
+}
+
+/// `signal` (`TERM`, `INT`) sent to `child`; its exit code.
+fn signal_and_wait(child: &mut std::process::Child, signal: &str) -> Option<i32> {
+    assert!(
+        system("kill", &[&format!("-{signal}"), &child.id().to_string()])
+            || child.try_wait().unwrap().is_some()
+    );
+    child.wait().unwrap().code()
+}
+
+/// The names below `dir` (relative, sorted), folders included.
+fn tree_listing(dir: &Path) -> Vec<String> {
+    let mut names = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(folder) = stack.pop() {
+        for entry in std::fs::read_dir(&folder).unwrap() {
+            let path = entry.unwrap().path();
+            names.push(path.strip_prefix(dir).unwrap().to_string_lossy().into_owned());
+            if path.is_dir() {
+                stack.push(path);
+            }
+        }
+    }
+    names.sort();
+    names
+}
+
+#[test]
+fn sigterm_at_random_points_of_a_simulation_leaves_no_temporary_and_no_folder_it_made() {
+    let dir = scratch("sigterm");
+    file(
+        &dir,
+        "s.toml",
+        &small_study(&[
+            ("runs_per_set = 2", "runs_per_set = 300"),
+            ("test_points = 20", "test_points = 400"),
+        ]),
+    );
+    // How long a whole run takes here, to spread the signals over it.
+    let started = std::time::Instant::now();
+    let (code, _, stderr) = run_in(&dir, &["simulate", "s.toml", "--out", "whole"]);
+    assert_eq!(code, 0, "{stderr}");
+    let whole = started.elapsed();
+    let complete = tree_listing(&dir.join("whole"));
+    let (mut stopped, mut finished) = (0, 0);
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    for i in 0..20 {
+        // A deterministic spread of points from the start to a little past the end.
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        let delay = whole.mul_f64((state % 1000) as f64 / 900.0);
+        let out = format!("out{i}");
+        let mut child = spawn_in(&dir, &["simulate", "s.toml", "--out", &out]);
+        std::thread::sleep(delay);
+        match signal_and_wait(&mut child, "TERM") {
+            Some(143) => {
+                stopped += 1;
+                assert!(
+                    !dir.join(&out).exists(),
+                    "run {i} (after {delay:?}): {:?}",
+                    tree_listing(&dir.join(&out))
+                );
+            }
+            Some(0) => {
+                finished += 1;
+                assert_eq!(tree_listing(&dir.join(&out)), complete, "run {i}: finished whole");
+            }
+            code => panic!("run {i} (after {delay:?}): exit {code:?}"),
+        }
+    }
+    eprintln!(
+        "20 signals: {stopped} stopped the run, {finished} came after it ended (a run takes {whole:?})"
+    );
+    assert!(stopped >= 10, "{stopped} of 20 stopped");
+    let left: Vec<String> = tree_listing(&dir).into_iter().filter(|n| n.ends_with(".tmp")).collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
+fn a_signal_while_outputs_are_written_removes_their_temporaries_and_folders() {
+    let dir = scratch("signal-commit");
+    file(&dir, "d.csv", MEASUREMENTS);
+    if !system("mkfifo", &[dir.join("pipe").to_str().unwrap()]) {
+        eprintln!("skipped: mkfifo failed");
+        return;
+    }
+    // The figures' temporaries are written to a new folder, then the FIFO, which nobody
+    // reads, blocks the commit: a signal then finds them all on disk.
+    for (signal, code) in [("TERM", 143), ("INT", 130)] {
+        let args =
+            [&CALIBRATE[..], &["--figures", "new/figs", "--out-model", "m.toml", "--json", "pipe"]].concat();
+        let mut child = spawn_in(&dir, &args);
+        let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+        while !dir.join("new/figs").exists() && std::time::Instant::now() < deadline {
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        assert!(!tree_listing(&dir.join("new")).is_empty(), "the commit had begun");
+        assert_eq!(signal_and_wait(&mut child, signal), Some(code));
+        assert_eq!(listing(&dir), ["d.csv", "pipe"], "SIG{signal}");
+    }
+}
+
+// 5. Paths: an input or an output inside an output folder, under a name written there.
+
+#[test]
+fn an_input_inside_an_output_folder_under_a_name_written_there_is_refused_before_any_work() {
+    let dir = scratch("input-in-folder");
+    std::fs::create_dir_all(dir.join("o/small")).unwrap();
+    file(&dir, "o/small/tables.txt", &small_study(&[]));
+    std::fs::create_dir(dir.join("d")).unwrap();
+    file(&dir, "d/frames.json", "{}\n");
+    std::fs::create_dir(dir.join("figs")).unwrap();
+    file(&dir, "figs/keep.csv", MEASUREMENTS);
+    let torso = Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/torso.urdf");
+    let cases: [(&[&str], &str); 4] = [
+        (
+            &["simulate", "o/small/tables.txt", "--out", "o"],
+            "the study o/small/tables.txt: inside the folder of --out o",
+        ),
+        (
+            &[
+                "calibrate-tree",
+                "--model",
+                torso.to_str().unwrap(),
+                "--data",
+                "d/frames.json",
+                "--out-dir",
+                "d",
+            ],
+            "--data d/frames.json: inside the folder of --out-dir d",
+        ),
+        (&[&CALIBRATE[..], &["--figures", "."]].concat(), ""),
+        (
+            &["simulate", "o/small/tables.txt", "--out", "."],
+            "the study o/small/tables.txt: inside the folder of --out .",
+        ),
+    ];
+    for (args, message) in cases {
+        let (code, stdout, stderr) = run_in(&dir, args);
+        if message.is_empty() {
+            continue;
+        }
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+        assert!(stdout.is_empty(), "no work done: {stdout}");
+        assert!(
+            stderr.contains(message) && stderr.contains("under a name this command writes there"),
+            "{stderr}"
+        );
+    }
+    assert_eq!(std::fs::read_to_string(dir.join("o/small/tables.txt")).unwrap(), small_study(&[]));
+    assert_eq!(std::fs::read_to_string(dir.join("d/frames.json")).unwrap(), "{}\n");
+    // Under a name the command does not write there, an input may stay in the folder.
+    let (code, _, stderr) = run_in(
+        &dir,
+        &[
+            "calibrate",
+            "--model",
+            "puma560",
+            "--data",
+            "figs/keep.csv",
+            "--marker=50,0,150",
+            "--figures",
+            "figs",
+        ],
+    );
+    assert_eq!(code, 0, "{stderr}");
+    assert_eq!(std::fs::read_to_string(dir.join("figs/keep.csv")).unwrap(), MEASUREMENTS);
+}
+
+#[test]
+fn an_output_inside_another_outputs_folder_is_a_usage_error_before_any_work() {
+    let dir = scratch("output-in-folder");
+    file(&dir, "d.csv", MEASUREMENTS);
+    for (args, message) in [
+        (
+            ["--figures", "figs", "--json", "figs/histogram.svg"],
+            "--json figs/histogram.svg: inside the folder of --figures figs",
+        ),
+        (["--figures", "figs", "--html", "figs"], "--html figs: inside the folder of --figures figs"),
+        (
+            ["--json", "./figs/sub/a.svg", "--figures", "figs"],
+            "--json ./figs/sub/a.svg: inside the folder of --figures figs",
+        ),
+    ] {
+        let (code, stdout, stderr) = run_in(&dir, &[&CALIBRATE[..], &args].concat());
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+        assert!(stdout.is_empty(), "no work done: {stdout}");
+        assert!(stderr.contains(message), "{stderr}");
+        assert_eq!(listing(&dir), ["d.csv"]);
+    }
+    // Beside the figures, under another name: written.
+    let (code, _, stderr) =
+        run_in(&dir, &[&CALIBRATE[..], &["--figures", "figs", "--json", "figs/report.json"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    assert!(dir.join("figs/report.json").is_file());
+}
+
+// 3. The last panic (`complement_projector`), three causes: a null space whose columns are
+// almost parallel once scaled back, or whose Gram matrix overflows.
+
+/// Plane contacts at 40 poses (joints in whole degrees from an LCG of `seed`), three planes in
+/// turn, the fourth pose's j2 = 0 if `j2_zero`.
+fn contacts_file(seed: u64, j2_zero: bool) -> String {
+    let mut state = seed;
+    let mut next = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((state >> 33) % 121) as i64 - 60
+    };
+    let mut text = String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,plane\n");
+    for i in 0..40 {
+        let mut q: Vec<i64> = (0..6).map(|_| next()).collect();
+        if i == 3 && j2_zero {
+            q[1] = 0;
+        }
+        let q: Vec<String> = q.iter().map(|v| v.to_string()).collect();
+        text += &format!("{},{}\n", q.join(","), 1 + i % 3);
+    }
+    text
+}
+
+#[test]
+fn plane_contacts_alone_with_one_at_j2_zero_calibrate_without_a_panic() {
+    let dir = scratch("contacts-j2-zero");
+    for seed in [1, 2] {
+        file(&dir, "c.csv", &contacts_file(seed, true));
+        let args = [
+            "calibrate-observations",
+            "--model",
+            "puma560",
+            "--tool",
+            "50,0,150",
+            "--fixed-tool",
+            "--data",
+            "c.csv",
+        ];
+        let (code, stdout, stderr) = run_in(&dir, &args);
+        assert!(!stderr.contains("panicked"), "seed {seed}: {stderr}");
+        assert_eq!(code, 0, "seed {seed}: {stderr}");
+        assert!(stdout.contains("40 observations at 40 poses"), "{stdout}");
+    }
+}
+
+/// A calibration of the compliances (and the payload's mass) of the PUMA with link masses and
+/// a payload, as `edit` changes them, on the example's poses: whatever it returns, no panic.
+fn calibrate_loaded(edit: impl Fn(&mut robocal::model::RobotModel)) -> Result<(), String> {
+    use nalgebra::Vector3;
+    use robocal::model::{LinkMass, Payload};
+    let mut model = robocal::model::RobotModel::preset("puma560").unwrap();
+    let masses = [0.0, 17.4, 4.8, 0.82, 0.34, 0.09];
+    model.masses = masses.iter().map(|&mass| LinkMass { mass, com: Vector3::new(0.0, 10.0, 20.0) }).collect();
+    model.joints[1].compliance = 5e-5;
+    model.joints[2].compliance = 8e-5;
+    model.payload = Some(Payload { mass: 2.0, com: Vector3::new(0.0, 20.0, 80.0) });
+    edit(&mut model);
+    let data = robocal::calibration::Measurements::from_csv_str(MEASUREMENTS, &model, None).unwrap();
+    let options = robocal::calibration::Options {
+        estimator: robocal::estimation::Estimator::Ols,
+        noise: None,
+        joints: robocal::calibration::JointParams::Named(vec!["j*.*".into(), "payload.mass".into()]),
+        estimate_base: true,
+        estimate_markers: true,
+        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
+        prior: Vec::new(),
+        loss: robocal::calibration::Loss::Squared,
+        refine: robocal::estimation::RefineOptions { max_iterations: 5, ..Default::default() },
+        gauge: Default::default(),
+    };
+    robocal::calibration::calibrate(&model, &data, &options).map(|_| ()).map_err(|e| e.to_string())
+}
+
+#[test]
+fn masses_or_a_payload_of_1e300_and_a_centre_of_mass_of_minus_1e300_do_not_panic_the_solve() {
+    // The readers refuse these now (see the bounds below); the solve must not panic on them.
+    type Edit = fn(&mut robocal::model::RobotModel);
+    let cases: [(&str, Edit); 3] = [
+        ("link masses of 1e300 kg", |m| m.masses.iter_mut().for_each(|l| l.mass = 1e300)),
+        ("a payload of 1e300 kg", |m| m.payload.as_mut().unwrap().mass = 1e300),
+        ("a payload's centre of mass at -1e300 mm", |m| m.payload.as_mut().unwrap().com.z = -1e300),
+    ];
+    let mut panicked = Vec::new();
+    for (what, edit) in cases {
+        match std::panic::catch_unwind(|| calibrate_loaded(edit)) {
+            Ok(outcome) => eprintln!("{what}: {outcome:?}"),
+            Err(_) => panicked.push(what),
+        }
+    }
+    assert!(panicked.is_empty(), "panicked: {panicked:?}");
+    assert!(calibrate_loaded(|_| ()).is_ok(), "the ordinary loaded robot calibrates");
+}
+
+// 4. Bounds on the new physics, each naming its field.
+
+#[test]
+fn masses_compliances_plays_priors_and_truths_beyond_their_bounds_are_refused_naming_the_field() {
+    let dir = scratch("physics-bounds");
+    file(&dir, "d.csv", MEASUREMENTS);
+    let masses = include_str!("../../presets/puma560-masses.toml");
+    let study = include_str!("../../presets/compliance.toml");
+    let model_cases = [
+        ("mass_kg = 17.4", "mass_kg = 1e300", "links[1].mass_kg`: a number from 0 to 100000 kg, found 1e300"),
+        ("mass_kg = 17.4", "mass_kg = -1", "links[1].mass_kg`: a number from 0 to 100000 kg, found -1"),
+        (
+            "[[joints]]\nname = \"j2\"",
+            "[[joints]]\nname = \"j2\"\ncompliance_rad_per_nm = -2",
+            "joints[1].compliance_rad_per_nm`: a number from -1 to 1 rad/(N·m), found -2",
+        ),
+        (
+            "[[joints]]\nname = \"j2\"",
+            "[[joints]]\nname = \"j2\"\ncompliance_rad_per_nm = 1e300",
+            "found 1e300",
+        ),
+        (
+            "[[joints]]\nname = \"j2\"",
+            "[[joints]]\nname = \"j2\"\nplay_deg = 100",
+            "joints[1].play_deg`: a number from -10 to 10 deg, found 100",
+        ),
+    ];
+    for (from, to, message) in model_cases {
+        assert!(masses.contains(from), "{from}");
+        file(&dir, "m.toml", &masses.replacen(from, to, 1));
+        let (code, _, stderr) =
+            run_in(&dir, &[&["calibrate", "--model", "m.toml"], &CALIBRATE[3..]].concat());
+        assert_eq!(code, 1, "{to}: {stderr}");
+        assert!(stderr.contains(message), "{to}: {stderr}");
+    }
+    let flag_cases: [(&[&str], &str); 4] = [
+        (&["--payload-kg", "1e300"], "--payload-kg: a number from 0 to 100000 kg, found 1e300"),
+        (
+            &["--payload-kg", "2", "--payload-com-mm=0,0,-1e300"],
+            "--payload-com-mm: a finite number of magnitude at most 1e6 mm, found -1e300",
+        ),
+        (&["--prior", "j*.a=1e300mm"], "a standard deviation from 1e-15 to 1e12 mm, found 1e300 mm"),
+        (&["--prior", "j*.alpha=1e-20deg"], "a standard deviation from 1e-15 to 1e12 rad, found 1.745"),
+    ];
+    for (args, message) in flag_cases {
+        let (code, stdout, stderr) = run_in(&dir, &[&CALIBRATE[..], args].concat());
+        assert!(code == 2 || code == 1, "{args:?}: {stderr}");
+        assert!(stdout.is_empty(), "no work done: {stdout}");
+        assert!(stderr.contains(message), "{args:?}: {stderr}");
+    }
+    let study_cases = [
+        (
+            "payload_kg = 2.0",
+            "payload_kg = 1e300",
+            "truth.payload_kg`: a number from 0 to 100000 kg, found 1e300",
+        ),
+        (
+            "payload_com_mm = [0.0, 0.0, 100.0]",
+            "payload_com_mm = [0.0, 0.0, -1e300]",
+            "truth.payload_com_mm`: a finite number of magnitude at most 1e6 mm, found -1e300",
+        ),
+        (
+            "compliance = { j2 = 5e-5",
+            "compliance = { j2 = -5e-5",
+            "truth.compliance.j2`: a number from 0 to 1 rad/(N·m), found -5e-5",
+        ),
+        (
+            "compliance = { j2 = 5e-5",
+            "play = { j6 = 1e300 }\ncompliance = { j2 = 5e-5",
+            "truth.play.j6`: a number from -10 to 10 deg, found 1e300",
+        ),
+    ];
+    for (from, to, message) in study_cases {
+        assert!(study.contains(from), "{from}");
+        file(&dir, "s.toml", &study.replacen(from, to, 1));
+        let (code, _, stderr) = run_in(&dir, &["simulate", "s.toml", "--out", "o"]);
+        assert_eq!(code, 1, "{to}: {stderr}");
+        assert!(stderr.contains(message), "{to}: {stderr}");
+    }
+    assert_eq!(listing(&dir), ["d.csv", "m.toml", "s.toml"], "nothing written");
+}
+
+// 8. Work bounded by its estimate, refused beyond it with the estimate, before any work.
+
+#[test]
+fn work_beyond_its_bound_is_refused_with_the_estimate_before_any_work() {
+    let dir = scratch("work-bounds");
+    let instruments = include_str!("../../presets/instruments.toml");
+    assert!(instruments.contains("time_budget_s = 600"));
+    file(&dir, "i.toml", &instruments.replacen("time_budget_s = 600", "time_budget_s = 1048576", 1));
+    file(
+        &dir,
+        "s.toml",
+        &small_study(&[("runs_per_set = 2", "runs_per_set = 100000"), ("point_sets = 2", "point_sets = 4")]),
+    );
+    let cases: [(&[&str], &str); 3] = [
+        (
+            &["simulate", "i.toml", "--out", "o"],
+            "time_budget_s`: a study of at most 1e9 row-parameter products",
+        ),
+        (
+            &["plan", "--model", "puma560", "--points", "100000", "--candidates", "1000000"],
+            "more than 1e10 (hours of work): ask for fewer candidates or points",
+        ),
+        (
+            &["simulate", "s.toml", "--out", "o", "--replications", "10000"],
+            "--replications 10000: study small replicated would take about 1.3e11 kinematic evaluations",
+        ),
+    ];
+    for (args, message) in cases {
+        let started = std::time::Instant::now();
+        let (code, _, stderr) = run_in(&dir, args);
+        assert_eq!(code, 1, "{args:?}: {stderr}");
+        assert!(stderr.contains(message), "{args:?}: {stderr}");
+        assert!(started.elapsed().as_secs() < 30, "{args:?}: refused before the work");
+    }
+    assert_eq!(listing(&dir), ["i.toml", "s.toml"]);
+}
+
+// 6. Silent accepts, now errors naming the field. 7. Help that says what a command takes.
+
+#[test]
+fn one_pose_or_identical_poses_and_an_estimator_named_twice_are_refused_naming_the_field() {
+    let dir = scratch("silent-accepts");
+    let repeatability = include_str!("../../examples/puma560-repeatability.csv");
+    let first = repeatability.lines().nth(2).unwrap().split(',').next().unwrap().to_string();
+    let one_pose: String = repeatability
+        .lines()
+        .filter(|l| l.starts_with('#') || l.starts_with("pose") || l.starts_with(&format!("{first},")))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    file(&dir, "r.csv", &one_pose);
+    let (code, _, stderr) = run_in(&dir, &["repeatability", "--model", "puma560", "--data", "r.csv"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("r.csv, column `pose`: 1 pose: the spread at one pose cannot tell"), "{stderr}");
+
+    let pose = "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6\n10,20,30,40,50,60\n";
+    file(&dir, "one.csv", pose);
+    file(&dir, "same.csv", &format!("{pose}10,20,30,40,50,60\n10,20,30,40,50,60\n"));
+    for (name, what) in [("one.csv", "one.csv: one pose"), ("same.csv", "same.csv: 3 poses, all alike")] {
+        let (code, stdout, stderr) = run_in(&dir, &["observability", "--model", "puma560", name]);
+        assert_eq!(code, 1, "{stderr}");
+        assert!(stdout.is_empty() && !stdout.contains("inf"), "{stdout}");
+        assert!(stderr.contains(what) && stderr.contains("need poses that differ"), "{stderr}");
+    }
+
+    file(&dir, "s.toml", &small_study(&[("estimators = [", "estimators = [\"ols\", ")]));
+    let (code, _, stderr) = run_in(&dir, &["simulate", "s.toml", "--out", "o"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("field `estimators`: each estimator once, found \"ols\" twice"), "{stderr}");
+    assert!(!dir.join("o").exists());
+}
+
+#[test]
+fn help_lists_only_the_estimators_a_command_takes() {
+    for command in ["calibrate-observations", "calibrate-tree"] {
+        let (code, stdout, _) = run_in(Path::new("."), &[command, "--help"]);
+        assert_eq!(code, 0);
+        let estimator = &stdout[stdout.find("--estimator").unwrap()..];
+        let estimator = &estimator[..estimator[2..].find("\n      --").map_or(estimator.len(), |i| i + 2)];
+        assert!(!estimator.contains("fgls") && estimator.contains("or ols"), "{command}: {estimator}");
     }
 }

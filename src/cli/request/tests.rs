@@ -371,7 +371,11 @@ fn a_payload_is_a_mass_at_a_point_of_the_tip_frame() {
         evaluate(&["--payload-kg", "1.5"]).unwrap().model.payload.unwrap().com,
         nalgebra::Vector3::zeros()
     );
-    assert!(evaluate(&["--payload-kg", "-1"]).unwrap_err().contains("--payload-kg is a mass in kg"));
+    assert!(
+        evaluate(&["--payload-kg", "-1"])
+            .unwrap_err()
+            .contains("--payload-kg: a number from 0 to 100000 kg, found -1")
+    );
     assert!(
         evaluate(&["--payload-kg", "1", "--payload-com-mm", "1,2"]).unwrap_err().contains("three finite")
     );
