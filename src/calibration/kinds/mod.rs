@@ -1254,7 +1254,7 @@ pub fn calibrate_kinds(
         });
     }
     let linearised = linearise(&problem, &weights, problem.start())?;
-    let (identifiable, mut fixed, prior) =
+    let Gauged { identifiable, mut fixed, prior } =
         gauge(&problem, &linearised, (&params, &asked), options, &weights)?;
     fixed.extend(held_words);
     if let Some(i) =
@@ -1351,7 +1351,7 @@ fn gauge(
     (params, asked): (&ParamSet, &Selection),
     options: &KindOptions,
     weights: &Weights,
-) -> Result<(Vec<usize>, Vec<String>, Option<PriorRows>), CalibrationError> {
+) -> Result<Gauged, CalibrationError> {
     let keep = problem_columns(problem, &options.gauge.keep)?;
     let priority: Vec<u32> = (0..problem.parameters())
         .map(|c| match keep.contains(&c) {
@@ -1361,7 +1361,14 @@ fn gauge(
         .collect();
     let prior = prior_rows(problem, asked, params, &options.prior, weights)?;
     let (identifiable, fixed) = identifiable(linearised, &problem.names(), &priority, prior.as_ref())?;
-    Ok((identifiable, fixed, prior))
+    Ok(Gauged { identifiable, fixed, prior })
+}
+
+/// What [`gauge`] finds: the identifiable columns, the held ones in words, the prior rows.
+struct Gauged {
+    identifiable: Vec<usize>,
+    fixed: Vec<String>,
+    prior: Option<PriorRows>,
 }
 
 /// `calibration` scored on its training `data`; with every sigma assumed and the joints exact,
