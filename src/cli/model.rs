@@ -19,7 +19,16 @@ pub fn run(command: &ModelCommand) -> Result<()> {
         }
         ModelCommand::Urdf { model, links, urdf_standard, out } => {
             let read = io::load_model(&links.model_ref(model)?)?;
-            let exported = to_urdf(&read, UrdfOptions { standard: *urdf_standard });
+            for joint in read.joints.iter().filter(|j| j.compliance < 0.0) {
+                eprintln!(
+                    "warning: {}: a negative compliance ({:.3e}), which no real joint has: it absorbs something else (geometry, play, masses); written as estimated",
+                    joint.name, joint.compliance
+                );
+            }
+            let mut exported = to_urdf(&read, UrdfOptions { standard: *urdf_standard });
+            if let Some(sidecar) = exported.sidecar.as_mut() {
+                sidecar.push_str(&covariance_table(std::path::Path::new(model))?);
+            }
             let mut outputs = io::Outputs::new();
             match out {
                 Some(path) => {
@@ -69,4 +78,28 @@ pub fn run(command: &ModelCommand) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The calibration's parameter covariance beside the model file `model`
+/// (`<model>.covariance.json`, as `calibrate --out-model` writes it), as a TOML table for the
+/// URDF's sidecar; empty when there is none.
+fn covariance_table(model: &std::path::Path) -> Result<String> {
+    let path = super::accuracy::covariance_path(model);
+    if !path.is_file() {
+        return Ok(String::new());
+    }
+    let text = std::fs::read_to_string(&path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let c = robocal::design::accuracy::ParameterCovariance::from_json(&text)
+        .with_context(|| path.display().to_string())?;
+    let names: Vec<String> = c.names.iter().map(|n| format!("{n:?}")).collect();
+    let rows: Vec<String> = (c.covariance.iter())
+        .map(|r| format!("  [{}]", r.iter().map(|v| format!("{v:?}")).collect::<Vec<_>>().join(", ")))
+        .collect();
+    Ok(format!(
+        "\n# the calibration's parameter covariance (mm, rad; the names' order), from {}\n[covariance]\nnames = [{}]\nfloor_mm = {:?}\nmatrix = [\n{}\n]\n",
+        path.display(),
+        names.join(", "),
+        c.floor_mm,
+        rows.join(",\n")
+    ))
 }

@@ -125,3 +125,54 @@ fn the_ur_driver_kinematics_file_round_trips() {
         from_ur_kinematics(&shipped.replace("    yaw: 0\n  upper_arm", "  upper_arm"), "x").unwrap_err();
     assert!(format!("{missing}").contains("shoulder.yaw"), "{missing}");
 }
+
+/// `model urdf --urdf-standard` of a calibrated model carries the calibration's covariance
+/// (`<model>.covariance.json`) into its sidecar, and warns of a negative compliance.
+#[test]
+fn the_standard_urdf_sidecar_carries_the_covariance_and_a_negative_compliance_is_warned() {
+    let dir = std::env::temp_dir().join(format!("robocal-urdf-sidecar-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let calibrated = dir.join("calibrated.toml");
+    let run = |args: &[&str]| assert_cmd::Command::cargo_bin("robocal").unwrap().args(args).output().unwrap();
+    let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let out = run(&[
+        "calibrate",
+        "--model",
+        "puma560",
+        "--data",
+        "examples/puma560-measurements.csv",
+        "--marker",
+        "50,0,150",
+        "--marker=-40,60,120",
+        "--validate",
+        "examples/puma560-validation.csv",
+        "--out-model",
+        &path(&calibrated),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let urdf = dir.join("calibrated.urdf");
+    let out = run(&["model", "urdf", &path(&calibrated), "--urdf-standard", "--out", &path(&urdf)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let sidecar: toml::Table =
+        toml::from_str(&std::fs::read_to_string(dir.join("calibrated.extras.toml")).unwrap()).unwrap();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("calibrated.toml.covariance.json")).unwrap())
+            .unwrap();
+    let covariance = &sidecar["covariance"];
+    let names = covariance["names"].as_array().unwrap();
+    assert_eq!(names.len(), json["names"].as_array().unwrap().len());
+    let matrix = covariance["matrix"].as_array().unwrap();
+    assert_eq!(matrix.len(), names.len());
+    assert_eq!(matrix[3].as_array().unwrap()[3].as_float(), json["covariance"][3][3].as_f64());
+
+    let mut soft = RobotModel::preset("puma560-masses").unwrap();
+    soft.joints[1].compliance = -1e-4;
+    let negative = dir.join("negative.toml");
+    std::fs::write(&negative, soft.to_toml_string()).unwrap();
+    let out =
+        run(&["model", "urdf", &path(&negative), "--urdf-standard", "--out", &path(&dir.join("n.urdf"))]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let warning = String::from_utf8_lossy(&out.stderr);
+    assert!(warning.contains("j2: a negative compliance (-1.000e-4)"), "{warning}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

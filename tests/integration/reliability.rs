@@ -662,7 +662,8 @@ fn a_device_node_given_as_an_output_is_written_in_place_and_stays_a_device() {
         run_in(&dir, &[&CALIBRATE[..], &["--json", "null", "--out-model", "m.toml"]].concat());
     assert_eq!(code, 0, "{stderr}");
     assert!(std::fs::symlink_metadata(&node).unwrap().file_type().is_char_device(), "still a device");
-    assert_eq!(listing(&dir), ["d.csv", "m.toml", "null"], "no temporary file");
+    // The model's covariance beside it (`calibrate --out-model` writes both).
+    assert_eq!(listing(&dir), ["d.csv", "m.toml", "m.toml.covariance.json", "null"], "no temporary file");
     // Read back: the null device reads empty.
     assert_eq!(std::fs::read(&node).unwrap(), b"");
 }
@@ -716,7 +717,11 @@ fn a_symbolic_link_is_followed_and_its_target_replaced() {
     }
     assert!(std::fs::read_to_string(dir.join("old.json")).unwrap().contains("\"parameters\""));
     assert!(std::fs::read_to_string(dir.join("new.toml")).unwrap().contains("[[joints]]"));
-    assert_eq!(listing(&dir), ["d.csv", "dangling.toml", "link.json", "new.toml", "old.json"]);
+    // The model's covariance beside the name given (a file of its own, not through the link).
+    assert_eq!(
+        listing(&dir),
+        ["d.csv", "dangling.toml", "dangling.toml.covariance.json", "link.json", "new.toml", "old.json"]
+    );
 }
 
 #[test]
