@@ -128,7 +128,10 @@ pub(crate) fn h_matches_finite_differences(
 
 /// Every column of `problem`'s `H` at `x0` against central differences of its residuals
 /// (`y = m - f`), relative to the row's largest entry (or absolute below 1); `row` describes
-/// a row in the message.
+/// a row in the message. A rotation residual `log(R_m R^T)` whose angle is at pi jumps by
+/// about 2 pi across the step (the log's branch cut, where it has no derivative): such a row
+/// and column (a change above 0.1 across a step of 2e-6 relative) is left out, and at most 2%
+/// of the entries may be.
 pub(crate) fn h_matches_central_differences(
     problem: &impl Residuals,
     x0: &DVector<f64>,
@@ -137,14 +140,19 @@ pub(crate) fn h_matches_central_differences(
     let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
     problem.evaluate(x0, Some(&mut h));
     let names = problem.names();
+    let mut wrapped = 0;
     for c in 0..problem.parameters() {
         let step = 1e-6 * x0[c].abs().max(1.0);
         let (mut plus, mut minus) = (x0.clone(), x0.clone());
         plus[c] += step;
         minus[c] -= step;
-        let fd: DVector<f64> =
-            -(problem.evaluate(&plus, None) - problem.evaluate(&minus, None)) / (2.0 * step);
+        let change = problem.evaluate(&plus, None) - problem.evaluate(&minus, None);
+        let fd: DVector<f64> = -&change / (2.0 * step);
         for r in 0..problem.equations() {
+            if change[r].abs() > 0.1 {
+                wrapped += 1;
+                continue;
+            }
             let gap = (h[(r, c)] - fd[r]).abs();
             prop_assert!(
                 gap < 1e-5 * h.row(r).amax().max(1.0),
@@ -156,6 +164,8 @@ pub(crate) fn h_matches_central_differences(
             );
         }
     }
+    let entries = problem.equations() * problem.parameters();
+    prop_assert!(wrapped * 50 <= entries, "{wrapped} of {entries} entries across the log's branch cut");
     Ok(())
 }
 
