@@ -9,12 +9,11 @@ use proptest::prelude::*;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
-use robocal::calibration::JointParams;
 use robocal::calibration::kinds::camera::{camera_start, isometry, placement};
 use robocal::calibration::kinds::{
     CameraSite, KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
 };
-use robocal::estimation::{Estimator, RefineOptions, Residuals};
+use robocal::estimation::{Estimator, Residuals};
 use robocal::kinematics::{Chain, ChainAt};
 use robocal::model::{Convention, ParamOwner, Placement, RobotModel, Selection};
 
@@ -124,19 +123,7 @@ pub(crate) fn views(
 }
 
 fn options(estimator: Estimator) -> KindOptions {
-    KindOptions {
-        per_session: Vec::new(),
-        prior: Vec::new(),
-        loss: Default::default(),
-        gauge: Default::default(),
-        estimator,
-        joint_noise: None,
-        joints: JointParams::All,
-        estimate_tool: true,
-        tool: Vector3::zeros(),
-        markers: Vec::new(),
-        refine: RefineOptions::default(),
-    }
+    KindOptions { estimator, ..KindOptions::default() }
 }
 
 /// The flange's frame as the calibration's tool frame.

@@ -8,11 +8,10 @@ use proptest::prelude::*;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
-use robocal::calibration::JointParams;
 use robocal::calibration::kinds::{
     CameraSite, KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
 };
-use robocal::estimation::{Estimator, RefineOptions, Residuals};
+use robocal::estimation::{Estimator, Residuals};
 use robocal::kinematics::{Chain, ChainAt};
 use robocal::model::{Convention, Placement, RobotModel, Selection};
 
@@ -238,19 +237,7 @@ pub(crate) fn errors_on(chain: &Chain, kept: &[String], rng: &mut ChaCha8Rng) ->
 pub(crate) const TOOL: Vector3<f64> = Vector3::new(20.0, -10.0, 120.0);
 
 pub(crate) fn options(estimator: Estimator) -> KindOptions {
-    KindOptions {
-        per_session: Vec::new(),
-        prior: Vec::new(),
-        loss: Default::default(),
-        gauge: Default::default(),
-        estimator,
-        joint_noise: None,
-        joints: JointParams::All,
-        estimate_tool: true,
-        tool: TOOL,
-        markers: Vec::new(),
-        refine: RefineOptions::default(),
-    }
+    KindOptions { estimator, tool: TOOL, ..KindOptions::default() }
 }
 
 /// What a set-up measures of the robot `real`: a function from the data's poses to the
