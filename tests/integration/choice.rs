@@ -101,16 +101,22 @@ fn a_robust_loss_sets_a_gross_reading_aside() {
     assert_eq!(down, vec![17]);
 }
 
+/// The PUMA 560 with errors on every parameter, from seed `seed`, and the stream that drew them
+/// (to draw its measurements from).
+fn real_puma(seed: u64) -> (robocal::kinematics::ChainAt, ChaCha8Rng) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
+    let all: Vec<String> = chain.params().iter().map(|p| p.name.clone()).collect();
+    (chain.with_errors(&errors_on(&chain, &all, &mut rng)), rng)
+}
+
 /// `calibrate-observations --prior --loss --hold --keep` end to end: the report shows the prior
 /// SD column, the loss's line, what --hold held; --hold and --keep of one name refused.
 #[test]
 fn the_command_takes_priors_losses_and_the_gauge() {
     let dir = std::env::temp_dir().join(format!("robocal-choice-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let mut rng = ChaCha8Rng::seed_from_u64(12);
-    let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
-    let all: Vec<String> = chain.params().iter().map(|p| p.name.clone()).collect();
-    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let (real, mut rng) = real_puma(12);
     let train = dir.join("train.csv");
     std::fs::write(&train, crate::kinds::ball_bar_csv(&real, 120, &mut rng)).unwrap();
     let run = |extra: &[&str]| {
@@ -141,10 +147,7 @@ fn the_command_takes_priors_losses_and_the_gauge() {
 fn evaluate_scores_a_written_model_on_a_ball_bar() {
     let dir = std::env::temp_dir().join(format!("robocal-evaluate-kinds-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let mut rng = ChaCha8Rng::seed_from_u64(31);
-    let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
-    let all: Vec<String> = chain.params().iter().map(|p| p.name.clone()).collect();
-    let real = chain.with_errors(&errors_on(&chain, &all, &mut rng));
+    let (real, mut rng) = real_puma(31);
     let (train, test, model, json) =
         (dir.join("train.csv"), dir.join("test.csv"), dir.join("model.toml"), dir.join("report.json"));
     std::fs::write(&train, crate::kinds::ball_bar_csv(&real, 120, &mut rng)).unwrap();
