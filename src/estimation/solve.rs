@@ -400,7 +400,7 @@ pub(crate) fn solve(
     let f = factorise(&w.a, tolerance)?;
     let x = f.solve(&w.a, &w.b);
     let cost = (&w.b - &w.a * &x).norm_squared();
-    let covariance = f.covariance(&w.a, w.noise.as_ref(), cost);
+    let covariance = f.covariance(&w.a, w.noise.as_ref().map(|n| (n, &w.blocks)), cost);
     Ok(LinearEstimate { names, x, covariance, cost, diagnostics: f.diagnostics })
 }
 
@@ -429,7 +429,7 @@ impl Factorised {
     pub(crate) fn covariance(
         &self,
         a: &DMatrix<f64>,
-        noise: Option<&DMatrix<f64>>,
+        noise: Option<(&DMatrix<f64>, &super::Blocks)>,
         cost: f64,
     ) -> DMatrix<f64> {
         let gram = || match &self.right {
@@ -454,7 +454,7 @@ impl Factorised {
     pub(crate) fn posterior_covariance(
         &self,
         a: &DMatrix<f64>,
-        noise: Option<&DMatrix<f64>>,
+        noise: Option<(&DMatrix<f64>, &super::Blocks)>,
         prior: &PriorRows,
     ) -> DMatrix<f64> {
         let gram = || crate::linalg::gram(a);
@@ -468,25 +468,19 @@ impl Factorised {
 
 /// `A^T N A` for the stacked blocks `N` of the covariance of the whitened data rows `a`; `gram`
 /// gives `A^T A`, used when every block is a multiple of the identity.
-fn information(a: &DMatrix<f64>, blocks: &DMatrix<f64>, gram: impl Fn() -> DMatrix<f64>) -> DMatrix<f64> {
-    match identity_multiple(blocks) {
+fn information(
+    a: &DMatrix<f64>,
+    (stacked, blocks): (&DMatrix<f64>, &super::Blocks),
+    gram: impl Fn() -> DMatrix<f64>,
+) -> DMatrix<f64> {
+    match super::blocks::identity_multiple(stacked, blocks) {
         Some(scale) => gram() * scale,
         None => {
             let mut na = a.clone();
-            super::block_diagonal_mul(blocks, &mut na);
+            super::block_diagonal_mul(stacked, blocks, &mut na);
             crate::linalg::tr_mul(a, &na)
         }
     }
-}
-
-/// `c` if every stacked block is `c I` to a relative 1e-9, `c > 0`.
-pub(crate) fn identity_multiple(blocks: &DMatrix<f64>) -> Option<f64> {
-    let b = blocks.ncols();
-    let c = *blocks.get((0, 0))?;
-    let close = |v: f64, target: f64| (v - target).abs() <= 1e-9 * c;
-    let identity =
-        (0..blocks.nrows()).all(|r| (0..b).all(|j| close(blocks[(r, j)], if r % b == j { c } else { 0.0 })));
-    (c > 0.0 && identity).then_some(c)
 }
 
 #[cfg(test)]

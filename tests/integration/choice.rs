@@ -122,7 +122,7 @@ fn the_command_takes_priors_losses_and_the_gauge() {
     let run = |extra: &[&str]| {
         assert_cmd::Command::cargo_bin("robocal")
             .unwrap()
-            .args(["calibrate-observations", "--model", "puma560", "--tool", "20,-10,120", "--data"])
+            .args(["calibrate", "--model", "puma560", "--tool", "20,-10,120", "--data"])
             .arg(&train)
             .args(extra)
             .output()
@@ -154,7 +154,7 @@ fn evaluate_scores_a_written_model_on_a_ball_bar() {
     std::fs::write(&test, crate::kinds::ball_bar_csv(&real, 60, &mut rng)).unwrap();
     let calibrated = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--tool", "20,-10,120", "--data"])
+        .args(["calibrate", "--model", "puma560", "--tool", "20,-10,120", "--data"])
         .arg(&train)
         .arg("--out-model")
         .arg(&model)
@@ -219,7 +219,7 @@ fn a_urdf_arm_calibrated_from_a_ball_bar_writes_its_urdf() {
     let tool = format!("{},{},{}", TOOL.x, TOOL.y, TOOL.z);
     let calibrated = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", urdf, "--tool", &tool, "--data"])
+        .args(["calibrate", "--model", urdf, "--tool", &tool, "--data"])
         .arg(&train)
         .arg("--out-urdf")
         .arg(&out)
@@ -247,7 +247,7 @@ fn a_urdf_arm_calibrated_from_a_ball_bar_writes_its_urdf() {
     assert!((again - training).abs() < 1e-6 * training, "re-scored {again} mm, calibrated {training} mm");
     let refused = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--data"])
+        .args(["calibrate", "--model", "puma560", "--data"])
         .arg(&train)
         .arg("--out-urdf")
         .arg(&out)

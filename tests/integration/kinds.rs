@@ -332,7 +332,7 @@ pub(crate) fn ball_bar(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> Kind
 }
 
 /// A length artefact: the distances between pairs of random poses.
-fn pairs(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+pub(crate) fn pairs(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
     let mut data = KindData::default();
     for k in 0..150 {
         let (a, b) = (random_pose(&puma(), rng), random_pose(&puma(), rng));
@@ -408,7 +408,7 @@ const PLANES: [([f64; 3], f64); 3] =
 
 /// Contacts with the first `count` planes of [`PLANES`]: random poses moved onto a plane by
 /// turning joint 2 or 3 (Newton on the signed distance), those that reach it within the limits.
-fn contacts(count: usize) -> impl Fn(&ChainAt, &mut ChaCha8Rng, f64) -> KindData {
+pub(crate) fn contacts(count: usize) -> impl Fn(&ChainAt, &mut ChaCha8Rng, f64) -> KindData {
     move |real, rng, sigma| {
         let model = puma();
         let mut data = KindData::default();
@@ -713,7 +713,7 @@ fn the_command_calibrates_from_a_ball_bar_and_validates() {
     let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
     let output = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--tool", "20,-10,120"])
+        .args(["calibrate", "--model", "puma560", "--tool", "20,-10,120"])
         .args(["--data", &path(&train), "--validate", &path(&test), "--json", &path(&json)])
         .output()
         .unwrap();
@@ -734,15 +734,7 @@ fn the_command_calibrates_from_a_ball_bar_and_validates() {
         .unwrap();
     let output = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args([
-            "calibrate-observations",
-            "--model",
-            "puma560",
-            "--data",
-            &path(&train),
-            "--validate",
-            &path(&test),
-        ])
+        .args(["calibrate", "--model", "puma560", "--data", &path(&train), "--validate", &path(&test)])
         .output()
         .unwrap();
     assert_eq!(output.status.code(), Some(1));

@@ -107,13 +107,14 @@ use super::{
     gauge_class,
 };
 use crate::estimation::{
-    Estimator, Linearisation, POSE_SIGMAS, PriorEntry, PriorRows, RANK_TOLERANCE, RefineOptions, Refined,
-    Residuals, Weights, linearise, prior_sds, refine_from,
+    Blocks, Estimator, Linearisation, POSE_SIGMAS, PriorEntry, PriorRows, RANK_TOLERANCE, RefineOptions,
+    Refined, Residuals, Weights, linearise, prior_sds, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
 use nalgebra::{
-    DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, UnitQuaternion, Vector3, Vector6,
+    DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, RowDVector, UnitQuaternion, Vector3,
+    Vector6,
 };
 use rayon::prelude::*;
 
@@ -146,7 +147,8 @@ pub struct KindOptions {
     /// Prior standard deviations of the robot's parameters about the nominal model (maximum a
     /// posteriori, [`PriorRows`]): they apply to those `joints` asks for; empty: none.
     pub prior: Vec<PriorEntry>,
-    /// The loss of each observation's whitened residual ([`robust`](super::robust)).
+    /// The loss of each pose's whitened residuals, all observations made at it together
+    /// ([`robust`](super::robust)).
     pub loss: Loss,
     /// The user's say in the gauge: parameters held (the robot's or the set-up's), parameters
     /// kept free first.
@@ -572,6 +574,22 @@ fn angles(r: &UnitQuaternion<f64>) -> (Vector3<f64>, Matrix3<f64>) {
     (Vector3::new(roll, pitch, yaw), e.try_inverse().unwrap_or_else(Matrix3::zeros))
 }
 
+/// The points of a problem's rows: each run of consecutive observations made at one pose (the
+/// first pose of a pair) is one block `V_k`, so that the joint noise they share is kept; a
+/// pose's observations are consecutive in every file robocal reads.
+pub fn pose_blocks(observations: &[Observation]) -> Blocks {
+    let mut sizes: Vec<usize> = Vec::new();
+    let mut last = None;
+    for o in observations {
+        match (last == Some(o.pose()), sizes.last_mut()) {
+            (true, Some(n)) => *n += 1,
+            _ => sizes.push(1),
+        }
+        last = Some(o.pose());
+    }
+    Blocks::from_sizes(sizes)
+}
+
 /// The calibration problem of distances and contacts: `y_k(x, s) = m_k - f_k(x, s)` for the
 /// selected robot parameters `x` and set-up parameters `s` (others held), one row per
 /// observation, `V_k` of the [module](self) computed once at the start. Its points on the last
@@ -590,6 +608,8 @@ pub struct KindProblem<'a> {
     fixed: Vec<f64>,
     setup_values: Vec<f64>,
     setup_selection: Vec<usize>,
+    /// The observations of each pose, one block `V_k` each ([`pose_blocks`]).
+    blocks: Blocks,
     v: Option<DMatrix<f64>>,
 }
 
@@ -643,6 +663,7 @@ impl<'a> KindProblem<'a> {
             fixed,
             setup_values,
             setup_selection,
+            blocks: pose_blocks(&data.observations),
             v: None,
         };
         let poses = data.joints.len();
@@ -739,8 +760,41 @@ impl<'a> KindProblem<'a> {
         KindProblem { selection, fixed, setup_values, setup_selection, v: self.v.clone(), ..self.clone() }
     }
 
-    /// `V_k = sum_j G_kj Sigma_q G_kj^T + sigma_k^2` at the start values.
+    /// The blocks `V_k` of every pose's observations (consecutive observations made at one
+    /// pose, [`pose_blocks`]), stacked: entry `(i, i')` of a block is
+    /// `sum_j (g_ij^T J_ij) Sigma_q (g_i'j^T J_i'j)^T + delta_ii' sigma_i^2`, `j` over the poses
+    /// both observations see, `J_ij` the manipulator Jacobian of observation `i`'s point at
+    /// pose `j`: the joint noise of a pose moves every point seen there at once. At the start
+    /// values; without `joint_noise`, the measurement variances alone.
     fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
+        let blocks = &self.blocks;
+        let observations = &self.data.observations;
+        let mut v = DMatrix::zeros(observations.len(), blocks.width());
+        let rows = self.joint_rows(joint_noise.is_some());
+        for r in blocks.ranges(observations.len()) {
+            for (a, i) in r.clone().enumerate() {
+                for (b, i2) in r.clone().enumerate().take(a + 1) {
+                    let joint = joint_noise.map_or(0.0, |sigma_q| {
+                        let common = rows[i].iter().flat_map(|(j, g)| {
+                            rows[i2].iter().filter(move |(j2, _)| j2 == j).map(move |(_, g2)| (g, g2))
+                        });
+                        common.map(|(g, g2)| (g * sigma_q * g2.transpose())[(0, 0)]).sum()
+                    });
+                    v[(i, b)] = joint;
+                    v[(i2, a)] = joint;
+                }
+                v[(i, a)] += observations[i].sigma().powi(2);
+            }
+        }
+        v
+    }
+
+    /// Every observation's joint-noise rows `g_kj^T J_kj` (`1 x dof`), one per pose `j` it
+    /// sees, at the start values; none unless `wanted`.
+    fn joint_rows(&self, wanted: bool) -> Vec<Vec<(usize, RowDVector<f64>)>> {
+        if !wanted {
+            return vec![Vec::new(); self.data.observations.len()];
+        }
         let at: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&self.fixed)).collect();
         let dof = self.chains[0].dof();
         let rows = self.measured().rows();
@@ -761,20 +815,14 @@ impl<'a> KindProblem<'a> {
             .collect();
         let frames: Vec<Isometry3<f64>> = jacobians.iter().map(|(f, _)| *f).collect();
         let views = self.session_views(&self.setup_values);
-        let v = self.data.observations.iter().map(|o| {
+        let row = |o: &Observation| {
             let first = self.point_of(o) * poses;
             let f = self.predict(o, &frames[first..first + poses], &views);
-            let joint = joint_noise.map_or(0.0, |sigma_q| {
-                (f.by_point[..f.poses].iter())
-                    .map(|(j, g)| {
-                        let g_kj = g.rows(0, rows).transpose() * &jacobians[first + *j].1;
-                        (&g_kj * sigma_q * g_kj.transpose())[(0, 0)]
-                    })
-                    .sum()
-            });
-            joint + o.sigma().powi(2)
-        });
-        DMatrix::from_iterator(self.data.observations.len(), 1, v)
+            (f.by_point[..f.poses].iter())
+                .map(|(j, g)| (*j, g.rows(0, rows).transpose() * &jacobians[first + *j].1))
+                .collect()
+        };
+        self.data.observations.iter().map(row).collect()
     }
 
     /// What the chains' ends are: points ([`Measured::Position`]) or, for angles and cameras,
@@ -826,6 +874,10 @@ impl Residuals for KindProblem<'_> {
 
     fn parameters(&self) -> usize {
         self.selection.len() + self.setup_selection.len()
+    }
+
+    fn blocks(&self) -> Blocks {
+        self.blocks.clone()
     }
 
     fn covariance(&self) -> Option<&DMatrix<f64>> {
@@ -1008,7 +1060,8 @@ impl Score {
     }
 
     /// `data`'s residuals before and after (`y`), and after whitened (`z`).
-    fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), v: &DMatrix<f64>) -> Self {
+    /// `variances`: each observation's (the diagonal of its `V_k`).
+    fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), variances: &[f64]) -> Self {
         let observations: Vec<ObservationResidual> = (data.observations.iter().enumerate())
             .map(|(k, o)| ObservationResidual {
                 line: data.lines[k],
@@ -1019,7 +1072,7 @@ impl Score {
                 },
                 before: before[k],
                 after: after[k],
-                whitened: after[k] / v[(k, 0)].sqrt(),
+                whitened: after[k] / variances[k].sqrt(),
             })
             .collect();
         Self::of(observations, &data.observations)
@@ -1058,8 +1111,10 @@ impl KindCalibration {
         let after = self.problem_on(data, &setup, (&self.after, &values.1), &[]).with_noise(noise);
         let zero = DVector::zeros(0);
         // The assumed sigmas scaled by the residuals' spread, when they were.
-        let v = after.covariance().expect("always built") * self.variance_factor.unwrap_or(1.0);
-        let mut score = Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), &v);
+        let v = after.covariance().expect("always built");
+        let factor = self.variance_factor.unwrap_or(1.0);
+        let variances: Vec<f64> = after.blocks.diagonal(v).into_iter().map(|d| d * factor).collect();
+        let mut score = Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), &variances);
         score.sessions = sessions;
         Ok(score)
     }
@@ -1277,6 +1332,12 @@ pub fn calibrate_kinds(
     let start = linearised.select(&identifiable);
     let (estimate, robust) =
         super::robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
+    // A pose's weight is every one of its observations'.
+    let robust = robust.map(|mut r| {
+        let blocks = problem.blocks();
+        r.weights = (0..r.weights.len()).flat_map(|k| vec![r.weights[k]; blocks.range(k).len()]).collect();
+        r
+    });
     let (after, after_setup) = problem.full(&estimate.estimate.x);
     let calibrated_points = calibrated_points(&params, &after, &points);
     // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
