@@ -24,7 +24,7 @@ pub mod selection;
 pub mod tree;
 
 pub use data::{DataKind, Measurements};
-pub use diagnostics::{FarOut, Scored, Warning};
+pub use diagnostics::{FarOut, Held, Scored, Warning};
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,

@@ -38,7 +38,7 @@ pub use problem::{POSE_SIGMAS, PointProblem};
 pub use refine::{
     Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from, refine_map,
 };
-pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE};
+pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE, combination_text};
 pub use variance::{ComponentFit, JointComponents, NoiseEstimate, SigmaInterval, sample_covariance};
 pub(crate) use variance::{CovarianceSample, noise_design, residual_design};
 

@@ -38,18 +38,23 @@ pub struct Combination {
 impl Combination {
     /// The direction in words, e.g. `j1.beta - j1.theta`, given the name of each column.
     pub fn describe<S: AsRef<str>>(&self, names: &[S]) -> String {
-        let mut text = names[self.column].as_ref().to_string();
-        for &(column, c) in &self.terms {
-            let sign = if c < 0.0 { '-' } else { '+' };
-            let name = names[column].as_ref();
-            if (c.abs() - 1.0).abs() < 1e-9 {
-                text += &format!(" {sign} {name}");
-            } else {
-                text += &format!(" {sign} {} {name}", format_coefficient(c.abs()));
-            }
-        }
-        text
+        combination_text(names[self.column].as_ref(), self.terms.iter().map(|&(j, c)| (names[j].as_ref(), c)))
     }
+}
+
+/// A combination in words: `head` then each term `+ c name` (`- name` for a coefficient of -1),
+/// coefficients to 4 significant digits.
+pub fn combination_text<'n>(head: &str, terms: impl Iterator<Item = (&'n str, f64)>) -> String {
+    let mut text = head.to_string();
+    for (name, c) in terms {
+        let sign = if c < 0.0 { '-' } else { '+' };
+        if (c.abs() - 1.0).abs() < 1e-9 {
+            text += &format!(" {sign} {name}");
+        } else {
+            text += &format!(" {sign} {} {name}", format_coefficient(c.abs()));
+        }
+    }
+    text
 }
 
 /// `c > 0` to 4 significant digits, without trailing zeros: `20.3`, `0.006667`, `3`.

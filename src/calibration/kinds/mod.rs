@@ -103,7 +103,7 @@ pub use data::{
 };
 
 use super::{
-    CalibrationError, FLAG_AT, FarOut, Gauge, JointParams, Loss, RobustFit, Scored, Warning, fold,
+    CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
     gauge_class,
 };
 use crate::estimation::{
@@ -959,8 +959,8 @@ pub struct KindCalibration {
     pub refined: Refined,
     /// What the measurements cannot see, by kind, in words: held and reported.
     pub unseen: Vec<String>,
-    /// Combinations the poses cannot tell apart, held fixed, in words.
-    pub fixed: Vec<String>,
+    /// What was held and why: by `--hold`, unmoved, combinations the poses cannot tell apart.
+    pub fixed: Vec<Held>,
     /// The training observations scored, before and after.
     pub training: Score,
     /// The markers' numbers less one ([`KindData::markers`]), and each one's calibrated
@@ -1315,11 +1315,7 @@ pub fn calibrate_kinds(
     if let Some(i) =
         (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, &params)).flatten()
     {
-        fixed.push(format!(
-            "{}: held at its nominal value: contacts alone cannot see the robot's scale, which this longest \
-             length sets",
-            params.get(i).name
-        ));
+        fixed.push(Held::Scale { parameter: params.get(i).name.clone() });
     }
     let robot = asked.len();
     let kept = Selection::from_indices(
@@ -1428,7 +1424,7 @@ fn gauge(
 /// What [`gauge`] finds: the identifiable columns, the held ones in words, the prior rows.
 struct Gauged {
     identifiable: Vec<usize>,
-    fixed: Vec<String>,
+    fixed: Vec<Held>,
     prior: Option<PriorRows>,
 }
 
@@ -1641,7 +1637,7 @@ fn without_held(
     asked_setup: Vec<usize>,
     setup: &SetUp,
     hold: &[String],
-) -> Result<(Selection, Vec<usize>, Vec<String>), SelectionError> {
+) -> Result<(Selection, Vec<usize>, Vec<Held>), SelectionError> {
     if hold.is_empty() {
         return Ok((asked, asked_setup, Vec::new()));
     }
@@ -1657,14 +1653,12 @@ fn without_held(
     }) {
         return Err(SelectionError { pattern: p.clone() });
     }
-    let mut words: Vec<String> = (asked.indices().iter().filter(|&&i| robot_held(i)))
-        .map(|&i| format!("{}: held at its nominal value by --hold", params.get(i).name))
+    let mut words: Vec<Held> = (asked.indices().iter().filter(|&&i| robot_held(i)))
+        .map(|&i| Held::ByUser { parameter: params.get(i).name.clone(), setup: false })
         .collect();
     words.extend(
-        asked_setup
-            .iter()
-            .filter(|&&i| setup_held(i))
-            .map(|&i| format!("{}: held at its start by --hold", names[i])),
+        (asked_setup.iter().filter(|&&i| setup_held(i)))
+            .map(|&i| Held::ByUser { parameter: names[i].clone(), setup: true }),
     );
     let robot = Selection::from_indices(params, asked.indices().iter().copied().filter(|&i| !robot_held(i)));
     let setup_kept = asked_setup.into_iter().filter(|&i| !setup_held(i)).collect();
@@ -1742,13 +1736,13 @@ pub(super) fn identifiable(
     names: &[String],
     priority: &[u32],
     prior: Option<&PriorRows>,
-) -> Result<(Vec<usize>, Vec<String>), CalibrationError> {
+) -> Result<(Vec<usize>, Vec<Held>), CalibrationError> {
     let norms: Vec<f64> = linearised.a.column_iter().map(|c| c.norm()).collect();
     let largest = norms.iter().copied().fold(0.0, f64::max);
     let (seen, unseen): (Vec<usize>, Vec<usize>) =
         (0..norms.len()).partition(|&c| norms[c] > 1e-10 * largest);
-    let mut fixed: Vec<String> =
-        unseen.iter().map(|&c| format!("{}: the observations do not move it", names[c])).collect();
+    let mut fixed: Vec<Held> =
+        unseen.iter().map(|&c| Held::Unmoved { parameter: names[c].clone() }).collect();
     let seen_priority: Vec<u32> = seen.iter().map(|&c| priority[c]).collect();
     let seen_system = linearised.select(&seen);
     let diagnostics = match prior {
@@ -1758,7 +1752,9 @@ pub(super) fn identifiable(
             .diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?,
         None => seen_system.diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?,
     };
-    let seen_names: Vec<&str> = seen.iter().map(|&c| names[c].as_str()).collect();
-    fixed.extend(diagnostics.not_identifiable.iter().map(|c| c.describe(&seen_names)));
+    fixed.extend(diagnostics.not_identifiable.iter().map(|c| Held::Combination {
+        parameter: names[seen[c.column]].clone(),
+        terms: c.terms.iter().map(|&(j, v)| (names[seen[j]].clone(), v)).collect(),
+    }));
     Ok((diagnostics.identifiable.iter().map(|&c| seen[c]).collect(), fixed))
 }
