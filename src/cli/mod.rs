@@ -64,15 +64,16 @@ enum Command {
     Repeatability(Box<RepeatabilityArgs>),
     /// Forward kinematics: the tool pose of a model at given joint values.
     Fk(FkArgs),
-    /// Calibrate a robot from measured marker positions.
+    /// Calibrate a robot from measured data of any kind, each file's kind read from its header:
+    /// marker positions or a probe's poses, distances (a ball bar, a length artefact), plane
+    /// contacts, coordinates (a height gauge), a camera's views of a target, or views between
+    /// the branches of a URDF tree; several files fitted together: docs/formats.md.
     Calibrate(Box<CalibrateArgs>),
-    /// Calibrate a robot from distances (a ball bar, a length artefact), plane contacts, partial
-    /// coordinates (a height gauge), a camera's views of a target and marker positions, in one
-    /// fit: docs/formats.md.
+    /// The old name of `calibrate` for observation files, an alias for one release.
+    #[command(hide = true)]
     CalibrateObservations(Box<CalibrateObservationsArgs>),
-    /// Calibrate a robot of several chains (a URDF tree: a torso with arms and a head camera)
-    /// from camera views between its branches, or a tracker's positions of points on them:
-    /// docs/formats.md.
+    /// The old name of `calibrate` for a tree's views, an alias for one release.
+    #[command(hide = true)]
     CalibrateTree(Box<CalibrateTreeArgs>),
     /// Score a model as it stands (a calibrated one, base and markers included) on
     /// measurement files: no registration, no fit.
