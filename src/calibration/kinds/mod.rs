@@ -574,15 +574,21 @@ fn angles(r: &UnitQuaternion<f64>) -> (Vector3<f64>, Matrix3<f64>) {
     (Vector3::new(roll, pitch, yaw), e.try_inverse().unwrap_or_else(Matrix3::zeros))
 }
 
+/// The most observations one block `V_k` holds: a pose's rows beyond it start another block
+/// (their correlation with the first ones left out), so that the stacked blocks stay
+/// `N_m x 64` at most whatever a file holds. Every kind robocal reads has at most 6 rows per
+/// pose, or 3 per marker.
+pub const MAX_BLOCK: usize = 64;
+
 /// The points of a problem's rows: each run of consecutive observations made at one pose (the
-/// first pose of a pair) is one block `V_k`, so that the joint noise they share is kept; a
-/// pose's observations are consecutive in every file robocal reads.
+/// first pose of a pair) is one block `V_k` of at most [`MAX_BLOCK`] rows, so that the joint
+/// noise they share is kept; a pose's observations are consecutive in every file robocal reads.
 pub fn pose_blocks(observations: &[Observation]) -> Blocks {
     let mut sizes: Vec<usize> = Vec::new();
     let mut last = None;
     for o in observations {
         match (last == Some(o.pose()), sizes.last_mut()) {
-            (true, Some(n)) => *n += 1,
+            (true, Some(n)) if *n < MAX_BLOCK => *n += 1,
             _ => sizes.push(1),
         }
         last = Some(o.pose());
@@ -1757,4 +1763,21 @@ pub(super) fn identifiable(
         terms: c.terms.iter().map(|&(j, v)| (names[seen[j]].clone(), v)).collect(),
     }));
     Ok((diagnostics.identifiable.iter().map(|&c| seen[c]).collect(), fixed))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A block per run of one pose's observations, at most [`MAX_BLOCK`] rows each.
+    #[test]
+    fn each_poses_observations_are_one_block_of_at_most_max_block() {
+        let at = |pose: usize| Observation::Coordinate { axis: 2, pose, measured: 0.0, sigma: 0.01 };
+        let poses = [0, 0, 0, 1, 2, 2].into_iter().chain([3; MAX_BLOCK + 6]).chain([0]);
+        let observations: Vec<Observation> = poses.map(at).collect();
+        let blocks = pose_blocks(&observations);
+        let sizes: Vec<usize> = blocks.ranges(observations.len()).map(|r| r.len()).collect();
+        assert_eq!(sizes, [3, 1, 2, MAX_BLOCK, 6, 1]);
+        assert_eq!(blocks.width(), MAX_BLOCK);
+    }
 }
