@@ -119,7 +119,11 @@ fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
         fit.lines.iter().copied().zip(fit.joints.iter().map(Vec::as_slice)),
     );
     if !fit.ignored.is_empty() {
-        eprintln!("note: {}: ignoring columns {}", request.data.display(), fit.ignored.join(", "));
+        super::status(format_args!(
+            "note: {}: ignoring columns {}",
+            request.data.display(),
+            fit.ignored.join(", ")
+        ));
     }
     let highest_marker = fit.marker_ids.iter().copied().max().unwrap_or(0);
     if let Some(ids) = &request.marker_ids {

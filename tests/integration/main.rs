@@ -7,6 +7,7 @@ mod choice;
 mod cli;
 mod compensate;
 mod compliance;
+mod conventions;
 mod estimation;
 mod export;
 mod fgls;
