@@ -588,8 +588,10 @@ pub fn pose_figures(sets: &[&SetEvaluation], joints: &[Joint]) -> Result<Vec<(St
     for (j, joint) in joints.iter().enumerate() {
         let name = format!("error-vs-{}.svg", file_stem(&joint.name));
         let unit = if joint.kind == JointKind::Revolute { "deg" } else { "mm" };
+        let values: Vec<Vec<f64>> =
+            sets.iter().map(|s| s.poses.iter().map(|p| p.joints[j]).collect()).collect();
         let svg =
-            against_joint(&sets, j, &format!("{} ({unit})", joint.name)).map_err(|m| error(&name, m))?;
+            against(&sets, &values, &format!("{} ({unit})", joint.name)).map_err(|m| error(&name, m))?;
         figures.push((name, svg));
     }
     Ok(figures)
@@ -770,11 +772,56 @@ fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
     })
 }
 
+/// For a model with masses, `error-vs-torque-<joint>.svg` per joint: each marker's signed
+/// error at the last stage (as in `error-vs-<joint>.svg`) against the load gravity puts on the
+/// joint at the pose (N·m; N for a prismatic joint), computed with `model` (the calibrated
+/// one): a compliance left out of the model shows as a slope. Nothing without masses, nor for
+/// a joint that carries no load at any pose (a vertical first axis). The
+/// sets' joint values are in degrees (mm for prismatic joints), as [`pose_figures`] takes them.
+pub fn torque_figures(
+    sets: &[&SetEvaluation],
+    model: &crate::model::RobotModel,
+) -> Result<Vec<(String, String)>, FigureError> {
+    let sets: Vec<&SetEvaluation> = sets.iter().copied().filter(|s| !s.poses.is_empty()).collect();
+    let chain = crate::kinematics::Chain::new(model).with_errors(&vec![0.0; model.params().len()]);
+    if sets.is_empty() || !chain.has_masses() {
+        return Ok(Vec::new());
+    }
+    let (mut q, mut tau) = (vec![0.0; model.dof()], vec![0.0; model.dof()]);
+    // loads[set][pose][joint]
+    let loads: Vec<Vec<Vec<f64>>> = (sets.iter())
+        .map(|s| {
+            (s.poses.iter())
+                .map(|p| {
+                    for ((q, joint), &v) in q.iter_mut().zip(&model.joints).zip(&p.joints) {
+                        *q = if joint.kind == JointKind::Revolute { v.to_radians() } else { v };
+                    }
+                    chain.gravity_torques(&q, &mut tau);
+                    tau.clone()
+                })
+                .collect()
+        })
+        .collect();
+    let mut figures = Vec::new();
+    for (j, joint) in model.joints.iter().enumerate() {
+        let name = format!("error-vs-torque-{}.svg", file_stem(&joint.name));
+        let unit = if joint.kind == JointKind::Revolute { "N·m" } else { "N" };
+        let x_label = format!("gravity load on {} ({unit})", joint.name);
+        let values: Vec<Vec<f64>> = loads.iter().map(|s| s.iter().map(|tau| tau[j]).collect()).collect();
+        if values.iter().flatten().all(|t| t.abs() < 1e-6) {
+            continue; // no load at any pose (a vertical first axis): nothing to plot against
+        }
+        figures.push((name.clone(), against(&sets, &values, &x_label).map_err(|m| error(&name, m))?));
+    }
+    Ok(figures)
+}
+
 /// Each marker's signed error at the last stage (measured minus predicted, x, y, z in mm; with
-/// a probe its orientation error's rx, ry, rz in deg) against joint `j`'s value: one panel per
-/// component, one scale for the components of a unit, a line at zero, one colour per set.
-/// A sign that changes with the joint (backlash, gravity) shows here, and not in the norm.
-fn against_joint(sets: &[&SetEvaluation], j: usize, x_label: &str) -> Result<String, String> {
+/// a probe its orientation error's rx, ry, rz in deg) against a value of each pose (`xs[set][pose]`:
+/// a joint's value, its gravity load): one panel per component, one scale for the components
+/// of a unit, a line at zero, one colour per set. A sign that changes with the joint
+/// (backlash, gravity) shows here, and not in the norm.
+fn against(sets: &[&SetEvaluation], xs: &[Vec<f64>], x_label: &str) -> Result<String, String> {
     let probe = sets.iter().any(|s| s.poses.iter().any(|p| p.orientation.is_some()));
     let components: &[(&str, &str)] = if probe {
         &[("x", "mm"), ("y", "mm"), ("z", "mm"), ("rx", "deg"), ("ry", "deg"), ("rz", "deg")]
@@ -782,8 +829,9 @@ fn against_joint(sets: &[&SetEvaluation], j: usize, x_label: &str) -> Result<Str
         &[("x", "mm"), ("y", "mm"), ("z", "mm")]
     };
     // points[component][set]: (joint value, error).
-    let points: Vec<Vec<Vec<(f64, f64)>>> =
-        (0..components.len()).map(|c| sets.iter().map(|set| component_points(set, j, c)).collect()).collect();
+    let points: Vec<Vec<Vec<(f64, f64)>>> = (0..components.len())
+        .map(|c| sets.iter().enumerate().map(|(s, set)| component_points(set, &xs[s], c)).collect())
+        .collect();
     all_finite(points.iter().flatten().flatten().flat_map(|&(x, y)| [x, y]))?;
     let all = || points.iter().flatten().flatten();
     let (x0, x1) = all().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
@@ -841,19 +889,20 @@ fn against_joint(sets: &[&SetEvaluation], j: usize, x_label: &str) -> Result<Str
     Ok(svg)
 }
 
-/// `(joint j's value, component c of the error)` of every marker (c < 3: x, y, z, mm) or of the
+/// `(xs[pose], component c of the error)` of every marker (c < 3: x, y, z, mm) or of the
 /// orientation (c >= 3: rx, ry, rz, deg) of `set`'s poses at the last stage.
-fn component_points(set: &SetEvaluation, j: usize, c: usize) -> Vec<(f64, f64)> {
+fn component_points(set: &SetEvaluation, xs: &[f64], c: usize) -> Vec<(f64, f64)> {
     let last = set.stages.len() - 1;
     set.poses
         .iter()
-        .flat_map(|p| {
+        .zip(xs)
+        .flat_map(|(p, &x)| {
             let errors: Vec<f64> = match (c, &p.orientation) {
                 (0..3, _) => p.errors[last].iter().map(|e| e[c]).collect(),
                 (_, Some(o)) => vec![o[last][c - 3]],
                 (_, None) => Vec::new(),
             };
-            errors.into_iter().map(move |e| (p.joints[j], e))
+            errors.into_iter().map(move |e| (x, e))
         })
         .collect()
 }
@@ -1007,23 +1056,24 @@ mod tests {
     fn errors_against_a_joint_keep_their_sign_per_component() {
         // A backlash-like step in x with the sign of q, a constant offset in -y.
         let s = set(|_, q| [0.1 * q.signum(), -0.2, 0.0], false);
-        let x = component_points(&s, 0, 0);
+        let q: Vec<f64> = s.poses.iter().map(|p| p.joints[0]).collect();
+        let x = component_points(&s, &q, 0);
         assert!(x.iter().all(|&(q, e)| e == 0.1 * q.signum()), "{x:?}");
-        assert!(component_points(&s, 0, 1).iter().all(|&(_, e)| e == -0.2));
-        let svg = against_joint(&[&s], 0, "j1 (deg)").unwrap();
+        assert!(component_points(&s, &q, 1).iter().all(|&(_, e)| e == -0.2));
+        let svg = against(&[&s], std::slice::from_ref(&q), "j1 (deg)").unwrap();
         for label in ["x (mm)", "y (mm)", "z (mm)", "j1 (deg)", "\n-0.2\n"] {
             assert!(svg.contains(label), "`{label}` in the figure");
         }
         assert!(!svg.contains("rx (deg)"), "no orientation panels without a probe");
         let probe = set(|_, _| [0.0, 0.0, 0.0], true);
         assert_eq!(
-            component_points(&probe, 0, 4),
+            component_points(&probe, &q, 4),
             vec![(-90.0 + 15.0 * 0.0, -0.02)]
                 .into_iter()
                 .chain((1..12).map(|k| (-90.0 + 15.0 * k as f64, -0.02)))
                 .collect::<Vec<_>>()
         );
-        let svg = against_joint(&[&probe], 0, "j1 (deg)").unwrap();
+        let svg = against(&[&probe], &[q], "j1 (deg)").unwrap();
         assert!(svg.contains("rx (deg)") && svg.contains("rz (deg)"), "a probe's rotation panels");
     }
 

@@ -11,6 +11,7 @@ mod conventions;
 mod estimation;
 mod export;
 mod fgls;
+mod figures;
 mod fuzz;
 mod instruments;
 mod kinds;
