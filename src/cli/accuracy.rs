@@ -114,7 +114,7 @@ pub fn run(args: &AccuracyArgs) -> Result<()> {
         }
         None => {
             super::commit(outputs)?;
-            eprint!("{summary}");
+            super::status_text(&summary);
             print!("{csv}");
         }
     }

@@ -495,7 +495,8 @@ pub struct ReportArgs {
     /// after, whitened residual, flag).
     #[arg(long, value_name = "FILE")]
     pub poses_csv: Option<PathBuf>,
-    /// Write the figures here (SVG): per-pose errors, histogram, errors against each joint.
+    /// Write the figures here (SVG): per-pose errors, the errors' densities, the signed errors
+    /// against each joint (and its gravity load, for a model with masses).
     #[arg(long, value_name = "DIR")]
     pub figures: Option<PathBuf>,
     /// Write one self-contained HTML page here: the report's tables and figures inline.

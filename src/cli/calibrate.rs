@@ -119,7 +119,11 @@ fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
         fit.lines.iter().copied().zip(fit.joints.iter().map(Vec::as_slice)),
     );
     if !fit.ignored.is_empty() {
-        eprintln!("note: {}: ignoring columns {}", request.data.display(), fit.ignored.join(", "));
+        super::status(format_args!(
+            "note: {}: ignoring columns {}",
+            request.data.display(),
+            fit.ignored.join(", ")
+        ));
     }
     let highest_marker = fit.marker_ids.iter().copied().max().unwrap_or(0);
     if let Some(ids) = &request.marker_ids {
@@ -256,10 +260,14 @@ fn write(
     let title = format!("calibration of {} from {}", report.model, report.data);
     let json = serde_json::to_string_pretty(report)? + "\n";
     let mut outputs = io::Outputs::new();
-    let extra_figures = match &report.selection {
+    let mut extra_figures = match &report.selection {
         Some(selection) => vec![robocal::report::figures::selection_figure(selection)?],
         None => Vec::new(),
     };
+    if request.report.figures.is_some() || request.report.html.is_some() {
+        let sets: Vec<_> = report.sets.iter().collect();
+        extra_figures.extend(robocal::report::figures::torque_figures(&sets, &result.calibrated)?);
+    }
     let content = ReportContent {
         title: &title,
         text,

@@ -141,7 +141,7 @@ fn write(args: &CompensateArgs, csv: &str, report: &str, json: String) -> Result
         }
         None => {
             outputs.commit()?;
-            eprint!("{report}");
+            super::status_text(report);
             print!("{csv}");
         }
     }
@@ -150,6 +150,6 @@ fn write(args: &CompensateArgs, csv: &str, report: &str, json: String) -> Result
 
 fn commit(outputs: robocal::io::Outputs, path: &Path) -> Result<()> {
     outputs.commit()?;
-    eprintln!("wrote {}", path.display());
+    super::status(format_args!("wrote {}", path.display()));
     Ok(())
 }

@@ -81,13 +81,18 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     let json = serde_json::to_string_pretty(&report)? + "\n";
     let title = format!("{} scored as it stands", model.name);
     let mut outputs = io::Outputs::new();
+    let extra_figures = if request.report.figures.is_some() || request.report.html.is_some() {
+        robocal::report::figures::torque_figures(&report.sets.iter().collect::<Vec<_>>(), &model)?
+    } else {
+        Vec::new()
+    };
     let content = ReportContent {
         title: &title,
         text: &text,
         json: &json,
         sets: &report.sets,
         joints: &model.joints,
-        extra_figures: Vec::new(),
+        extra_figures,
     };
     write_report_files(&request.report, content, &mut outputs)?;
     super::commit(outputs)

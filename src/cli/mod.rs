@@ -7,6 +7,7 @@ mod calibrate;
 mod compensate;
 mod evaluate;
 mod fk;
+mod manual;
 mod model;
 mod observability;
 mod observations;
@@ -22,7 +23,7 @@ use args::{
     CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, EvaluateArgs, FkArgs, MergeArgs,
     ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ReportArgs, SimulateArgs, StudyOutputArgs,
 };
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, Parser, Subcommand};
 use request::{
     CalibrateObservationsRequest, CalibrateTreeRequest, CalibrationRequest, DesignRequest, EvaluateRequest,
     NoiseFlags, ObservabilityRequest, PlanRequest, RepeatabilityRequest,
@@ -32,6 +33,7 @@ use robocal::estimation::{MeasurementNoise, NoiseModel};
 use robocal::io;
 use robocal::model::{JointKind, RobotModel, Selection};
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 pub use request::UsageError;
 
@@ -45,6 +47,10 @@ pub struct Cli {
     /// The command to run.
     #[command(subcommand)]
     command: Command,
+    /// Print only the results (standard output), warnings and errors: no progress bars, no
+    /// "wrote ..." lines, notes or summaries on standard error.
+    #[arg(long, short = 'q', global = true)]
+    quiet: bool,
 }
 
 /// The commands.
@@ -53,8 +59,11 @@ enum Command {
     /// Run the paper's two studies on the embedded PUMA 560: Tables 1-2, Figures 1-4.
     Reproduce(StudyOutputArgs),
     /// Run a study: a TOML file, or an embedded one (paper-table1, paper-table2,
-    /// planned-poses, device-cmm, device-laser-tracker, device-theodolites, compliance: the
-    /// files in presets/).
+    /// planned-poses, device-cmm, device-laser-tracker, device-theodolites, compliance, and the
+    /// instrument study instruments: the files in presets/).
+    ///
+    /// --noise and --replications are for the estimator studies, not for an instrument study
+    /// (a file with [[instruments]]).
     Simulate(SimulateArgs),
     /// Combine the shards of a study run with `simulate --shard I/N` (on a cluster: one
     /// process per shard) into exactly the tables, samples and figures one `simulate` writes.
@@ -95,10 +104,24 @@ enum Command {
         #[command(subcommand)]
         command: args::ModelCommand,
     },
+    /// Print a shell's completion script for robocal to standard output (bash: `robocal
+    /// completions bash > ~/.local/share/bash-completion/completions/robocal`).
+    Completions {
+        /// The shell.
+        shell: clap_complete::Shell,
+    },
+    /// Print robocal's manual page (roff) to standard output (`robocal man | man -l -`), or write
+    /// one page per command into a folder (`robocal.1`, `robocal-calibrate.1`, ...).
+    Man {
+        /// Write the pages into this folder instead (created if missing).
+        #[arg(long, value_name = "DIR")]
+        out: Option<std::path::PathBuf>,
+    },
 }
 
 /// Run the command line. A broken rule between flags is a [`UsageError`].
 pub fn run(cli: Cli) -> Result<()> {
+    QUIET.store(cli.quiet, Ordering::Relaxed);
     match cli.command {
         Command::Reproduce(output) => simulate::reproduce(&output),
         Command::Simulate(args) => simulate::simulate(&args),
@@ -124,6 +147,36 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Compensate(args) => compensate::run(&args),
         Command::Accuracy(args) => accuracy::run(&args),
         Command::Model { command } => model::run(&command),
+        Command::Completions { shell } => {
+            clap_complete::generate(shell, &mut Cli::command(), "robocal", &mut std::io::stdout());
+            Ok(())
+        }
+        Command::Man { out } => manual::run(out.as_deref()),
+    }
+}
+
+/// Whether `--quiet` was given.
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// Whether `--quiet` was given: no progress bars, no "wrote ..." lines, notes or summaries on
+/// standard error.
+fn quiet() -> bool {
+    QUIET.load(Ordering::Relaxed)
+}
+
+/// Say `line` on standard error (progress, what was written, a note), unless `--quiet`:
+/// standard output holds the results only.
+fn status(line: impl std::fmt::Display) {
+    if !quiet() {
+        eprintln!("{line}");
+    }
+}
+
+/// A summary (lines ending in a newline) on standard error, when standard output holds the
+/// results (a CSV); unless `--quiet`.
+fn status_text(text: &str) {
+    if !quiet() {
+        eprint!("{text}");
     }
 }
 
@@ -245,7 +298,7 @@ fn commit(outputs: io::Outputs) -> Result<()> {
     let written: Vec<String> = outputs.paths().map(|p| p.display().to_string()).collect();
     outputs.commit()?;
     if !written.is_empty() {
-        eprintln!("wrote {}", written.join(", "));
+        status(format_args!("wrote {}", written.join(", ")));
     }
     Ok(())
 }

@@ -29,7 +29,7 @@ pub fn run(request: &PlanRequest) -> Result<()> {
         );
     }
     // Over about a second of work: say it is working, and for how long.
-    let spinner = (work > 1_000_000_000).then(|| {
+    let spinner = (work > 1_000_000_000 && !super::quiet()).then(|| {
         let bar = indicatif::ProgressBar::new_spinner().with_message(format!(
             "planning {} poses from {} candidates ({work:.1e} row-parameter products a pass)",
             request.points, request.candidates
@@ -67,10 +67,10 @@ pub fn run(request: &PlanRequest) -> Result<()> {
             outputs.add(path, csv);
             outputs.commit()?;
             print!("{summary}");
-            println!("wrote {} poses to {}", plan.joints.len(), path.display());
+            super::status(format_args!("wrote {} poses to {}", plan.joints.len(), path.display()));
         }
         None => {
-            eprint!("{summary}");
+            super::status_text(&summary);
             print!("{csv}");
         }
     }

@@ -76,7 +76,7 @@ pub fn run(request: &RepeatabilityRequest) -> Result<()> {
     }
     outputs.commit()?;
     if let Some(path) = &request.out {
-        println!("\nwrote {}", path.display());
+        super::status(format_args!("\nwrote {}", path.display()));
     }
     Ok(())
 }

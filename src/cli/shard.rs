@@ -161,7 +161,7 @@ pub fn simulate(args: &SimulateArgs, shard: Shard) -> Result<()> {
     let mut outputs = io::Outputs::new();
     outputs.add_folder(&folder, &[(file_name.clone(), serde_json::to_string(&file)? + "\n")]);
     outputs.commit()?;
-    println!("wrote shard {shard} to {}", folder.join(file_name).display());
+    super::status(format_args!("wrote shard {shard} to {}", folder.join(file_name).display()));
     Ok(())
 }
 
@@ -320,7 +320,7 @@ pub fn merge(args: &MergeArgs) -> Result<()> {
             let written =
                 simulate::stage_study(&study, &results, replicated.as_ref(), &args.out, &mut outputs)?;
             outputs.commit()?;
-            println!("{written}\n");
+            super::status(written);
             Ok(())
         }
     }

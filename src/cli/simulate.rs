@@ -18,17 +18,19 @@ pub fn reproduce(output: &StudyOutputArgs) -> Result<()> {
         studies.iter().map(|study| run_study(study, output, &mut outputs)).collect::<Result<Vec<_>>>()?;
     outputs.commit()?;
     for line in written {
-        println!("{line}");
+        super::status(line);
     }
-    println!();
-    println!("The paper's figures: Fig. 1a-e paper-table1/histogram-wls-np{{12,24,48,96,192}}-sigma0.svg,");
-    println!(
-        "Fig. 2 paper-table1/improvement-vs-points-wls.svg, Fig. 3 paper-table2/improvement-vs-sigma-wls.svg,"
+    super::status("");
+    super::status(
+        "The paper's figures: Fig. 1a-e paper-table1/histogram-wls-np{12,24,48,96,192}-sigma0.svg,",
     );
-    println!(
-        "Fig. 4a-c paper-table2/histogram-wls-np48-sigma{{0.025,0.05,0.1}}.svg (and the same for wls-diag)."
+    super::status(
+        "Fig. 2 paper-table1/improvement-vs-points-wls.svg, Fig. 3 paper-table2/improvement-vs-sigma-wls.svg,",
     );
-    println!("Both studies in {:.2} s.", started.elapsed().as_secs_f64());
+    super::status(
+        "Fig. 4a-c paper-table2/histogram-wls-np48-sigma{0.025,0.05,0.1}.svg (and the same for wls-diag).",
+    );
+    super::status(format_args!("Both studies in {:.2} s.", started.elapsed().as_secs_f64()));
     Ok(())
 }
 
@@ -49,7 +51,7 @@ pub fn simulate(args: &SimulateArgs) -> Result<()> {
             let mut outputs = io::Outputs::new();
             let written = run_study(&study, &args.output, &mut outputs)?;
             outputs.commit()?;
-            println!("{written}\n");
+            super::status(written);
             Ok(())
         }
     }
@@ -119,12 +121,15 @@ pub(super) fn write_instruments(
     let mut outputs = io::Outputs::new();
     outputs.add_folder(&folder, &files);
     outputs.commit()?;
-    println!("wrote {} files to {}\n", files.len(), folder.display());
+    super::status(format_args!("wrote {} files to {}", files.len(), folder.display()));
     Ok(())
 }
 
 /// A progress bar of `runs` runs, labelled `message`.
 pub(super) fn progress(runs: usize, message: String) -> ProgressBar {
+    if super::quiet() {
+        return ProgressBar::hidden();
+    }
     let bar = ProgressBar::new(runs as u64).with_message(message);
     let template = "{msg} {bar:40} {pos}/{len} runs, {elapsed} so far, about {eta} left";
     bar.set_style(ProgressStyle::with_template(template).expect("a valid template"));
@@ -136,7 +141,7 @@ pub(super) fn threads(requested: Option<usize>) -> usize {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     match requested {
         Some(n) if n > cores => {
-            eprintln!("note: --threads {n}: this machine has {cores} cores, using {cores}");
+            super::status(format_args!("note: --threads {n}: this machine has {cores} cores, using {cores}"));
             cores
         }
         Some(n) if n > 0 => n,

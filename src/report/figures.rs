@@ -8,6 +8,22 @@ use crate::simulation::{PoseChoice, Replications, Statistic, Study, StudyResults
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
+/// The series colours: Okabe and Ito's blue, vermillion and bluish green, Tol's purple, and
+/// black: told apart under the common colour-vision deficiencies, and each at least 3:1
+/// against the white ground (no yellow).
+pub const PALETTE: [RGBColor; 5] = [
+    RGBColor(0, 114, 178),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 158, 115),
+    RGBColor(170, 51, 119),
+    RGBColor(0, 0, 0),
+];
+
+/// The `i`-th series colour of [`PALETTE`], cycling.
+fn colour(i: usize) -> RGBColor {
+    PALETTE[i % PALETTE.len()]
+}
+
 /// A figure that could not be drawn.
 #[derive(Debug, thiserror::Error)]
 #[error("cannot draw figure `{name}`: {message}")]
@@ -20,70 +36,117 @@ pub struct FigureError {
 
 /// Every figure of a study, as `(file name, SVG text)`:
 /// - `histogram-<estimator>-np<N>-sigma<s>.svg`: the distribution of dE in each case (the
-///   paper's Figs. 1 and 4);
-/// - `improvement-vs-points-<estimator>.svg`: mean dE against `N_p`, with the mean of each
-///   point set (Fig. 2), when the study has several `N_p`;
+///   paper's Figs. 1 and 4), every one on the same bins and height, the paper's mean drawn
+///   where the study has the paper's row;
+/// - `improvement-vs-points-<estimator>.svg`: mean dE against `N_p` on a log axis, with the
+///   mean of each point set (Fig. 2), when the study has several `N_p`;
 /// - `improvement-vs-sigma-<estimator>.svg`: mean dE against `sigma_me` (Fig. 3), when it has
-///   several `sigma_me`.
+///   several `sigma_me`; the paper's means on both as black squares.
 pub fn study_figures(study: &Study, results: &StudyResults) -> Result<Vec<(String, String)>, FigureError> {
     let mut figures = Vec::new();
+    let compared = || (1..study.estimators.len()).flat_map(|e| (0..study.cases.len()).map(move |c| (c, e)));
+    // Every histogram on the same bins and the same height, so that the panels compare.
+    let groups: Vec<Vec<f64>> = compared().map(|(c, e)| results.improvements(c, e)).collect();
+    let scale = HistogramScale::shared(&groups);
+    for ((c, e), values) in compared().zip(&groups) {
+        let (case, estimator) = (&study.cases[c], &study.estimators[e]);
+        let (suffix, poses) = pose_labels(case.poses);
+        let name = format!("histogram-{estimator}-np{}-sigma{}{suffix}.svg", case.points, case.sigma_me);
+        let title =
+            format!("dE of {estimator}: N_p = {}, sigma_me = {} mm{poses}", case.points, case.sigma_me);
+        let paper = paper_mean(study, case).map(|m| (m, format!("the paper's mean {m}")));
+        let svg = histogram(&title, values, scale, paper).map_err(|m| error(&name, m))?;
+        figures.push((name, svg));
+    }
     for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
-        for (c, case) in study.cases.iter().enumerate() {
-            let (suffix, poses) = pose_labels(case.poses);
-            let name = format!("histogram-{estimator}-np{}-sigma{}{suffix}.svg", case.points, case.sigma_me);
-            let title =
-                format!("dE of {estimator}: N_p = {}, sigma_me = {} mm{poses}", case.points, case.sigma_me);
-            let svg = histogram(&title, &results.improvements(c, e)).map_err(|m| error(&name, m))?;
-            figures.push((name, svg));
-        }
-        let points = distinct(study.cases.iter().map(|c| c.points as f64));
-        let sigmas = distinct(study.cases.iter().map(|c| c.sigma_me));
-        for (axis, values, other) in [("points", &points, &sigmas), ("sigma", &sigmas, &points)] {
-            if values.len() < 2 {
-                continue;
+        for axis in [Axis::Points, Axis::Sigma] {
+            if let Some(svg) = trend_figure(study, results, e, axis) {
+                let name = format!("improvement-vs-{}-{estimator}.svg", axis.name());
+                figures.push((name.clone(), svg.map_err(|m| error(&name, m))?));
             }
-            let name = format!("improvement-vs-{axis}-{estimator}.svg");
-            let mut series = Vec::new();
-            let choices = study.cases.iter().fold(Vec::new(), |mut all, c| {
-                if !all.contains(&c.poses) {
-                    all.push(c.poses);
-                }
-                all
-            });
-            for (&fixed, &choice) in other.iter().flat_map(|f| choices.iter().map(move |c| (f, c))) {
-                let (mut means, mut sets) = (Vec::new(), Vec::new());
-                for (c, case) in study.cases.iter().enumerate() {
-                    let (x, at) = if axis == "points" {
-                        (case.points as f64, case.sigma_me)
-                    } else {
-                        (case.sigma_me, case.points as f64)
-                    };
-                    if at == fixed && case.poses == choice {
-                        means.push((x, Summary::of(&results.improvements(c, e)).mean));
-                        sets.extend(results.set_means(c, e).into_iter().map(|m| (x, m)));
-                    }
-                }
-                let mut label = if axis == "points" {
-                    format!("sigma_me = {fixed} mm")
-                } else {
-                    format!("N_p = {fixed}")
-                };
-                if choices.len() > 1 {
-                    label += &format!(", {} poses", choice.name());
-                }
-                series.push((label, means, sets));
-            }
-            let x_label = if axis == "points" {
-                "number of measurement points N_p"
-            } else {
-                "measurement noise sigma_me (mm)"
-            };
-            let title = format!("mean dE of {estimator} (line) and of each point set (dots)");
-            let svg = trend(&title, x_label, &series).map_err(|m| error(&name, m))?;
-            figures.push((name, svg));
         }
     }
     Ok(figures)
+}
+
+/// The paper's mean dE for `case`, when the study has the paper's row and draws its poses
+/// at random, as the paper does.
+fn paper_mean(study: &Study, case: &crate::simulation::Case) -> Option<f64> {
+    (case.poses == PoseChoice::Random).then(|| study.reference_for(case)).flatten().map(|r| r.mean)
+}
+
+/// The x axis of a trend figure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Axis {
+    /// `N_p`, on a log axis.
+    Points,
+    /// `sigma_me` (mm).
+    Sigma,
+}
+
+impl Axis {
+    fn name(self) -> &'static str {
+        if self == Axis::Points { "points" } else { "sigma" }
+    }
+
+    /// `(x, the other parameter)` of `case`.
+    fn of(self, case: &crate::simulation::Case) -> (f64, f64) {
+        match self {
+            Axis::Points => (case.points as f64, case.sigma_me),
+            Axis::Sigma => (case.sigma_me, case.points as f64),
+        }
+    }
+}
+
+/// Mean dE of estimator `e` against `axis` (one line per value of the other parameter and pose
+/// choice, the point sets' means as dots, the paper's means as black squares), when the study
+/// has several values on `axis`.
+fn trend_figure(
+    study: &Study,
+    results: &StudyResults,
+    e: usize,
+    axis: Axis,
+) -> Option<Result<String, String>> {
+    let estimator = &study.estimators[e];
+    let xs = distinct(study.cases.iter().map(|c| axis.of(c).0));
+    if xs.len() < 2 {
+        return None;
+    }
+    let others = distinct(study.cases.iter().map(|c| axis.of(c).1));
+    let choices = study.cases.iter().fold(Vec::new(), |mut all, c| {
+        if !all.contains(&c.poses) {
+            all.push(c.poses);
+        }
+        all
+    });
+    let (mut series, mut paper) = (Vec::new(), Vec::new());
+    for (&fixed, &choice) in others.iter().flat_map(|f| choices.iter().map(move |c| (f, c))) {
+        let (mut means, mut sets, mut theirs) = (Vec::new(), Vec::new(), Vec::new());
+        for (c, case) in study.cases.iter().enumerate() {
+            let (x, at) = axis.of(case);
+            if at == fixed && case.poses == choice {
+                means.push((x, Summary::of(&results.improvements(c, e)).mean));
+                sets.extend(results.set_means(c, e).into_iter().map(|m| (x, m)));
+                theirs.extend(paper_mean(study, case).map(|m| (x, m)));
+            }
+        }
+        let mut label =
+            if axis == Axis::Points { format!("sigma_me = {fixed} mm") } else { format!("N_p = {fixed}") };
+        if choices.len() > 1 {
+            label += &format!(", {} poses", choice.name());
+        }
+        if !theirs.is_empty() {
+            paper.push((format!("the paper's mean, {label}"), theirs));
+        }
+        series.push((label, means, sets));
+    }
+    let x_label = match axis {
+        Axis::Points => "number of measurement points N_p (log scale)",
+        Axis::Sigma => "measurement noise sigma_me (mm)",
+    };
+    let title = format!("mean dE of {estimator} (line) and of each point set (dots)");
+    let log = (axis == Axis::Points).then_some(xs.as_slice());
+    Some(trend(&title, x_label, &series, &paper, log))
 }
 
 /// How a case's poses are chosen, for file names (`-planned`) and titles (`, planned poses`);
@@ -122,27 +185,60 @@ fn all_finite(values: impl IntoIterator<Item = f64>) -> Result<(), String> {
     Ok(())
 }
 
-/// Histogram of dE (%) in bins 5 points wide, wider if it would have more than [`MAX_BINS`].
-fn histogram(title: &str, values: &[f64]) -> Result<String, String> {
+/// The bins and the height shared by the histograms of a study: bins 5 points of dE wide (wider
+/// if they would be more than [`MAX_BINS`]) over every finite value of every histogram, and
+/// the highest count of any.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct HistogramScale {
+    bins: Bins,
+    top: f64,
+}
+
+impl HistogramScale {
+    /// The scale of the histograms of `groups`.
+    fn shared(groups: &[Vec<f64>]) -> Self {
+        let all: Vec<f64> =
+            groups.iter().flatten().copied().filter(|v| v.is_finite() && v.abs() < 1e300).collect();
+        let range = all.iter().fold(0.0f64, |m, v| m.max(v.abs())) * 2.0;
+        let width = 5.0 * (range / 5.0 / MAX_BINS as f64).ceil().max(1.0);
+        let low = (all.iter().copied().fold(0.0, f64::min) / width).floor() * width;
+        let bins = Bins::from(low, width, &all);
+        let top = groups.iter().map(|g| bins.counts(g).into_iter().max().unwrap_or(0)).max().unwrap_or(1);
+        Self { bins, top: top as f64 }
+    }
+}
+
+/// Histogram of dE (%) on the shared `scale`, the paper's value (if any) a vermillion line.
+fn histogram(
+    title: &str,
+    values: &[f64],
+    scale: HistogramScale,
+    paper: Option<(f64, String)>,
+) -> Result<String, String> {
     all_finite(values.iter().copied())?;
     if values.is_empty() {
         return Err("no values".into());
     }
-    let range = values.iter().fold(0.0f64, |m, v| m.max(v.abs())) * 2.0;
-    if range > 1e300 {
-        return Err(format!("values up to {:e}: too large to draw", range / 2.0));
+    if let Some(v) = values.iter().find(|v| v.abs() > 5e299) {
+        return Err(format!("values up to {v:e}: too large to draw"));
     }
-    let width = 5.0 * (range / 5.0 / MAX_BINS as f64).ceil().max(1.0);
-    let low = (values.iter().copied().fold(f64::INFINITY, f64::min) / width).floor() * width;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let bins = Bins::from(low, width, values);
-        draw_histogram(&root, title, values, bins, "dE (%)", "number of runs N_r", None)?;
+        let y = "number of runs N_r (one scale for every histogram of the study)";
+        draw_histogram(&root, title, values, scale.bins, "dE (%)", y, paper, Some(scale.top))?;
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
+}
+
+/// The round width (1, 2, 2.5 or 5 times a power of ten) at or above `raw`.
+fn round_width(raw: f64) -> f64 {
+    let raw = raw.max(1e-9);
+    let power = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 2.5, 5.0, 10.0].into_iter().find(|&m| raw <= m * power * (1.0 + 1e-12));
+    step.unwrap_or(10.0) * power
 }
 
 /// Equal bins from `low`, `width` wide, enough of them for every value.
@@ -159,16 +255,22 @@ impl Bins {
         Self { low, width, count: ((high - low) / width).floor() as usize + 1 }
     }
 
+    /// How many of `values` fall in each bin (those beyond an end in the bin at that end).
+    fn counts(&self, values: &[f64]) -> Vec<u32> {
+        let mut counts = vec![0u32; self.count];
+        for v in values {
+            counts[(((v - self.low) / self.width).floor().max(0.0) as usize).min(self.count - 1)] += 1;
+        }
+        counts
+    }
+
     /// About `target` bins of a round width (1, 2, 2.5 or 5 times a power of ten) over `values`
     /// and `marker`; with a `grain` (values on a lattice of that step, like shares of a fixed
     /// number of runs), a whole number of grains wide and edged half a grain off the lattice.
     fn round(values: &[f64], marker: Option<f64>, target: usize, grain: Option<f64>) -> Self {
         let all = || values.iter().copied().chain(marker);
         let (lo, hi) = (all().fold(f64::INFINITY, f64::min), all().fold(f64::NEG_INFINITY, f64::max));
-        let raw = ((hi - lo) / target as f64).max(1e-9);
-        let power = 10f64.powf(raw.log10().floor());
-        let step = [1.0, 2.0, 2.5, 5.0, 10.0].into_iter().find(|&m| raw <= m * power * (1.0 + 1e-12));
-        let mut width = step.unwrap_or(10.0) * power;
+        let mut width = round_width((hi - lo) / target as f64);
         let low = match grain {
             Some(g) => {
                 width = (width / g).round().max(1.0) * g;
@@ -180,7 +282,9 @@ impl Bins {
     }
 }
 
-/// A histogram of `values` on `area`, with a red vertical line at `marker` (value, label).
+/// A histogram of `values` on `area`, with a vermillion vertical line at `marker` (value,
+/// label), up to `highest` counts (default: its own highest).
+#[allow(clippy::too_many_arguments)]
 fn draw_histogram(
     area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
     title: &str,
@@ -189,22 +293,24 @@ fn draw_histogram(
     x_desc: &str,
     y_desc: &str,
     marker: Option<(f64, String)>,
+    highest: Option<f64>,
 ) -> Result<(), String> {
     let Bins { low, width, count } = bins;
-    let mut counts = vec![0u32; count];
-    for v in values {
-        counts[(((v - low) / width).floor().max(0.0) as usize).min(count - 1)] += 1;
-    }
+    let counts = bins.counts(values);
     // Room above the bars for the marker's legend.
     let headroom = if marker.is_some() { 1.3 } else { 1.0 };
-    let top = (f64::from(*counts.iter().max().unwrap_or(&1)) * headroom).ceil() + 1.0;
+    let highest = highest.unwrap_or_else(|| f64::from(*counts.iter().max().unwrap_or(&1)));
+    let top = (highest * headroom).ceil() + 1.0;
     let high = low + count as f64 * width;
+    // Half a bin of room at each end and a wider right margin: no edge bar or end tick label
+    // is cut off.
     let mut chart = ChartBuilder::on(area)
         .caption(title, ("sans-serif", 18))
         .margin(12)
+        .margin_right(28)
         .x_label_area_size(40)
         .y_label_area_size(48)
-        .build_cartesian_2d(low..high, 0.0..top)
+        .build_cartesian_2d((low - width / 2.0)..(high + width / 2.0), 0.0..top)
         .map_err(|e| e.to_string())?;
     chart
         .configure_mesh()
@@ -212,19 +318,20 @@ fn draw_histogram(
         .y_desc(y_desc)
         .y_labels((top as usize + 1).min(10))
         .y_label_formatter(&|v| if v.fract() == 0.0 { format!("{v:.0}") } else { String::new() })
+        .x_label_formatter(&|v| shown_tick(*v))
         .draw()
         .map_err(|e| e.to_string())?;
     let bars = counts.iter().enumerate().map(|(i, &n)| {
         let x0 = low + i as f64 * width;
-        Rectangle::new([(x0, 0.0), (x0 + width, f64::from(n))], BLUE.mix(0.6).filled())
+        Rectangle::new([(x0, 0.0), (x0 + width, f64::from(n))], colour(0).mix(0.6).filled())
     });
     chart.draw_series(bars).map_err(|e| e.to_string())?;
     if let Some((x, label)) = marker {
         chart
-            .draw_series(LineSeries::new([(x, 0.0), (x, top)], RED.stroke_width(3)))
+            .draw_series(LineSeries::new([(x, 0.0), (x, top)], colour(1).stroke_width(3)))
             .map_err(|e| e.to_string())?
             .label(label)
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(3)));
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour(1).stroke_width(3)));
         legend(&mut chart)?;
     }
     Ok(())
@@ -233,7 +340,7 @@ fn draw_histogram(
 /// The replications of a study, one figure per case and compared estimator,
 /// `replications-<estimator>-np<N>-sigma<s>.svg`: a histogram over the replications of each
 /// statistic of the paper's table (MEAN, SD, LOWEST, HIGHEST, % > 0 of dE), with the paper's
-/// value drawn on it as a red line where the study has the paper's row.
+/// value drawn on it as a vermillion line where the study has the paper's row.
 pub fn replication_figures(
     study: &Study,
     replications: &Replications,
@@ -268,7 +375,7 @@ pub fn replication_figures(
                 format!("{count} replications of {}", study.name),
                 format!("master seeds derived from {}", replications.seed),
                 format!("{} point sets x {} runs each", study.point_sets, study.runs_per_set),
-                "red line: the paper's value".to_string(),
+                "vermillion line: the paper's value".to_string(),
             ];
             let svg = panel_figure(&title, &panels, &notes).map_err(|m| error(&name, m))?;
             figures.push((name, svg));
@@ -297,7 +404,7 @@ fn panel_figure(title: &str, panels: &[Panel], notes: &[String]) -> Result<Strin
             let name = panel.statistic.name();
             let x_desc = format!("{name} of dE (%)");
             let marker = panel.marker.clone();
-            draw_histogram(cell, name, &panel.values, panel.bins, &x_desc, "replications", marker)?;
+            draw_histogram(cell, name, &panel.values, panel.bins, &x_desc, "replications", marker, None)?;
         }
         if let Some(cell) = cells.get(panels.len()) {
             for (i, line) in notes.iter().enumerate() {
@@ -311,8 +418,8 @@ fn panel_figure(title: &str, panels: &[Panel], notes: &[String]) -> Result<Strin
     Ok(svg)
 }
 
-/// A chart of `(x, y)` over two linear axes.
-type Chart<'a, 'b> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+/// A chart of `(x, y)` over a linear y axis and an x axis `X` (linear by default).
+type Chart<'a, 'b, X = RangedCoordf64> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<X, RangedCoordf64>>;
 
 /// A 640 x 420 figure with one chart titled `caption` over `x` and `y`, drawn by `draw`, and
 /// the series' legend (top right) if `with_legend`.
@@ -344,7 +451,7 @@ fn single_chart(
 }
 
 /// The chart's series labels in a box at its top right.
-fn legend<'b>(chart: &mut Chart<'b, 'b>) -> Result<(), String> {
+fn legend<'b, X: Ranged<ValueType = f64>>(chart: &mut Chart<'b, 'b, X>) -> Result<(), String> {
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperRight)
@@ -354,44 +461,111 @@ fn legend<'b>(chart: &mut Chart<'b, 'b>) -> Result<(), String> {
         .map_err(|e| e.to_string())
 }
 
-/// Lines of mean dE through `(x, mean)` points, with the per-set means as dots.
-#[allow(clippy::type_complexity)]
+/// A trend: `(label, means, per-set means)` of each series.
+type Series = (String, Vec<(f64, f64)>, Vec<(f64, f64)>);
+
+/// Lines of mean dE through `(x, mean)` points, with the per-set means as dots and the paper's
+/// means (`(label, points)`) as black squares; on a log x axis ticked at `log_ticks` if given.
 fn trend(
     title: &str,
     x_label: &str,
-    series: &[(String, Vec<(f64, f64)>, Vec<(f64, f64)>)],
+    series: &[Series],
+    paper: &[(String, Vec<(f64, f64)>)],
+    log_ticks: Option<&[f64]>,
 ) -> Result<String, String> {
-    all_finite(series.iter().flat_map(|(_, m, s)| m.iter().chain(s)).flat_map(|&(x, y)| [x, y]))?;
-    let all = series.iter().flat_map(|(_, m, s)| m.iter().chain(s));
+    let theirs = paper.iter().flat_map(|(_, p)| p);
+    let all = || series.iter().flat_map(|(_, m, s)| m.iter().chain(s)).chain(theirs.clone());
+    all_finite(all().flat_map(|&(x, y)| [x, y]))?;
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64, 0.0f64);
-    for &(x, y) in all {
+    for &(x, y) in all() {
         (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
     }
-    let pad = 0.05 * (x1 - x0).max(1e-9);
-    single_chart(title, (x0 - pad)..(x1 + pad), (y0 - 5.0)..(y1 + 5.0), true, |chart| {
-        chart.configure_mesh().x_desc(x_label).y_desc("dE (%)").draw().map_err(|e| e.to_string())?;
-        for (i, (label, means, sets)) in series.iter().enumerate() {
-            let colour = Palette99::pick(i).to_rgba();
-            chart
-                .draw_series(LineSeries::new(means.clone(), colour.stroke_width(2)))
-                .map_err(|e| e.to_string())?
-                .label(label.as_str())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
-            chart
-                .draw_series(sets.iter().map(|&p| Circle::new(p, 3, colour.filled())))
-                .map_err(|e| e.to_string())?;
+    let y = (y0 - 5.0)..(y1 + 5.0);
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let mut builder = ChartBuilder::on(&root);
+        builder.caption(title, ("sans-serif", 18)).margin(12).x_label_area_size(40).y_label_area_size(52);
+        match log_ticks {
+            Some(ticks) if x0 > 0.0 => {
+                let x = ((x0 / 1.15)..(x1 * 1.15)).log_scale().with_key_points(ticks.to_vec());
+                let mut chart = builder.build_cartesian_2d(x, y).map_err(|e| e.to_string())?;
+                draw_trend(&mut chart, x_label, series, paper)?;
+            }
+            _ => {
+                let pad = 0.05 * (x1 - x0).max(1e-9);
+                let mut chart =
+                    builder.build_cartesian_2d((x0 - pad)..(x1 + pad), y).map_err(|e| e.to_string())?;
+                draw_trend(&mut chart, x_label, series, paper)?;
+            }
         }
-        Ok(())
-    })
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}
+
+/// The series of [`trend`] on `chart`, with the legend.
+fn draw_trend<'b, X>(
+    chart: &mut Chart<'b, 'b, X>,
+    x_label: &str,
+    series: &[Series],
+    paper: &[(String, Vec<(f64, f64)>)],
+) -> Result<(), String>
+where
+    X: Ranged<ValueType = f64> + plotters::coord::ranged1d::ValueFormatter<f64>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc("dE (%)")
+        .x_label_formatter(&|v| shown_tick(*v))
+        .y_label_formatter(&|v| shown_tick(*v))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    for (i, (label, means, sets)) in series.iter().enumerate() {
+        let colour = colour(i);
+        chart
+            .draw_series(LineSeries::new(means.clone(), colour.stroke_width(2)))
+            .map_err(|e| e.to_string())?
+            .label(label.as_str())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
+        chart
+            .draw_series(sets.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+            .map_err(|e| e.to_string())?;
+    }
+    for (label, points) in paper {
+        chart
+            .draw_series(
+                points
+                    .iter()
+                    .map(|&p| EmptyElement::at(p) + Rectangle::new([(-5, -5), (5, 5)], BLACK.filled())),
+            )
+            .map_err(|e| e.to_string())?
+            .label(label.as_str())
+            .legend(|(x, y)| Rectangle::new([(x + 5, y - 5), (x + 15, y + 5)], BLACK.filled()));
+    }
+    legend(chart)
+}
+
+/// A tick's value as a person writes it: `12`, `0.025`, `-5` (no `-0`, no trailing zeros).
+fn shown_tick(v: f64) -> String {
+    let v = if v.abs() < 1e-12 { 0.0 } else { v };
+    let text = format!("{v:.6}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    text.to_string()
 }
 
 /// The figures of scored pose sets (joint values in degrees, mm for prismatic joints), as
 /// `(file name, SVG text)`:
-/// - `errors-by-pose-<set>.svg`: each pose's error (RMS over its markers) at each stage, one
-///   panel per stage, bars in the file's order;
-/// - `histogram.svg`: the markers' errors at the last stage, one series per set;
-/// - `error-vs-<joint>.svg`: each marker's error at the last stage against the joint's value
-///   (compliance and backlash show as trends and steps), one colour per set.
+/// - `errors-by-pose-<set>.svg`: each pose's error (RMS over its markers) at every stage on
+///   one scale, bars in the file's order, and the last stage on its own scale (the ratio
+///   written) when it is under a third of the first;
+/// - `histogram.svg`: the density of the markers' errors at the last stage, each set on the
+///   same bins;
+/// - `error-vs-<joint>.svg`: each marker's signed error (x, y, z; a probe's rotation too) at the
+///   last stage against the joint's value (compliance, backlash and sign flips show as trends
+///   and steps), one colour per set.
 ///
 /// Sets without poses (pooled summaries) are skipped.
 pub fn pose_figures(sets: &[&SetEvaluation], joints: &[Joint]) -> Result<Vec<(String, String)>, FigureError> {
@@ -414,8 +588,10 @@ pub fn pose_figures(sets: &[&SetEvaluation], joints: &[Joint]) -> Result<Vec<(St
     for (j, joint) in joints.iter().enumerate() {
         let name = format!("error-vs-{}.svg", file_stem(&joint.name));
         let unit = if joint.kind == JointKind::Revolute { "deg" } else { "mm" };
+        let values: Vec<Vec<f64>> =
+            sets.iter().map(|s| s.poses.iter().map(|p| p.joints[j]).collect()).collect();
         let svg =
-            against_joint(&sets, j, &format!("{} ({unit})", joint.name)).map_err(|m| error(&name, m))?;
+            against(&sets, &values, &format!("{} ({unit})", joint.name)).map_err(|m| error(&name, m))?;
         figures.push((name, svg));
     }
     Ok(figures)
@@ -433,56 +609,122 @@ fn pose_rms(p: &PoseErrors, s: usize) -> f64 {
     ((0..p.errors[s].len()).map(|m| p.distance(s, m).powi(2)).sum::<f64>() / n).sqrt()
 }
 
-/// One panel per stage: a bar per pose, in the file's order, labelled by its line in the file.
+/// One panel with every stage's bar per pose on one scale, in the file's order, labelled by
+/// its line in the file; when the last stage's errors are under a third of that scale, a
+/// second panel with the last stage on its own scale, the ratio of the scales written.
 fn pose_bars(set: &SetEvaluation) -> Result<String, String> {
     let stages = set.stages.len();
+    let values: Vec<Vec<f64>> =
+        (0..stages).map(|s| set.poses.iter().map(|p| pose_rms(p, s)).collect()).collect();
+    let top = |v: &[f64]| v.iter().copied().fold(0.0, f64::max).max(1e-9) * 1.1;
+    let common = values.iter().map(|v| top(v)).fold(1e-9, f64::max);
+    let own = top(&values[stages - 1]);
+    let zoom = stages > 1 && own < common / 3.0;
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (900, 260 * stages as u32 + 40)).into_drawing_area();
+        let height = 300 * (1 + u32::from(zoom)) + 40;
+        let root = SVGBackend::with_string(&mut svg, (900, height)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let root = root
             .titled(&format!("error of each pose, {} (RMS over its markers)", set.name), ("sans-serif", 18))
             .map_err(|e| e.to_string())?;
-        let panels = root.split_evenly((stages, 1));
-        let n = set.poses.len();
-        for (s, panel) in panels.iter().enumerate() {
-            let values: Vec<f64> = set.poses.iter().map(|p| pose_rms(p, s)).collect();
-            let top = values.iter().copied().fold(0.0, f64::max).max(1e-9) * 1.1;
-            let mut chart = ChartBuilder::on(panel)
-                .caption(set.stages[s].as_str(), ("sans-serif", 15))
-                .margin(10)
-                .x_label_area_size(36)
-                .y_label_area_size(56)
-                .build_cartesian_2d(0.0..n as f64, 0.0..top)
-                .map_err(|e| e.to_string())?;
-            chart
-                .configure_mesh()
-                .x_desc("pose, by its line in the file (as the tables name it)")
-                .y_desc("error (mm)")
-                .x_label_formatter(&|v| {
-                    set.poses.get(*v as usize).map_or(String::new(), |p| p.line.to_string())
-                })
-                .draw()
-                .map_err(|e| e.to_string())?;
-            let colour = Palette99::pick(s).to_rgba();
-            let bars = values
-                .iter()
-                .enumerate()
-                .map(|(k, &v)| Rectangle::new([(k as f64 + 0.1, 0.0), (k as f64 + 0.9, v)], colour.filled()));
-            chart.draw_series(bars).map_err(|e| e.to_string())?;
-            let flagged = set.poses.iter().enumerate().filter(|(_, p)| p.flagged && s + 1 == stages);
-            chart
-                .draw_series(
-                    flagged.map(|(k, _)| Cross::new((k as f64 + 0.5, values[k]), 5, RED.stroke_width(2))),
-                )
-                .map_err(|e| e.to_string())?;
+        let panels = root.split_evenly((1 + usize::from(zoom), 1));
+        let names: Vec<&str> = set.stages.iter().map(String::as_str).collect();
+        let caption = if stages > 1 {
+            format!("{}: one scale, 0 to {} mm", names.join(" and "), shown(common))
+        } else {
+            format!("{}: 0 to {} mm", names[0], shown(common))
+        };
+        let all: Vec<usize> = (0..stages).collect();
+        pose_panel(&panels[0], set, &values, &all, &caption, common)?;
+        if zoom {
+            let last = &set.stages[stages - 1];
+            let caption = format!(
+                "{last} alone: 0 to {} mm, a scale {:.0} times finer than above",
+                shown(own),
+                common / own
+            );
+            pose_panel(&panels[1], set, &values, &[stages - 1], &caption, own)?;
         }
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
 }
 
-/// The markers' errors at the last stage, one series of bins per set.
+/// `value` to 3 significant digits, for a scale written in a caption.
+fn shown(value: f64) -> String {
+    let digits = (2 - value.abs().max(1e-12).log10().floor() as i32).max(0) as usize;
+    format!("{value:.digits$}")
+}
+
+/// A panel of `set`'s poses: the bars of the stages `shown_stages` side by side per pose
+/// (`values[stage][pose]`) from 0 to `top` mm, the flagged poses of the last stage crossed.
+fn pose_panel(
+    panel: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    set: &SetEvaluation,
+    values: &[Vec<f64>],
+    shown_stages: &[usize],
+    caption: &str,
+    top: f64,
+) -> Result<(), String> {
+    let n = set.poses.len();
+    let mut chart = ChartBuilder::on(panel)
+        .caption(caption, ("sans-serif", 15))
+        .margin(10)
+        .x_label_area_size(36)
+        .y_label_area_size(56)
+        .build_cartesian_2d(0.0..n as f64, 0.0..top)
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc("pose, by its line in the file (as the tables name it)")
+        .y_desc("error (mm)")
+        .x_label_formatter(&|v| set.poses.get(*v as usize).map_or(String::new(), |p| p.line.to_string()))
+        .y_label_formatter(&|v| shown_tick(*v))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let share = 0.8 / shown_stages.len() as f64;
+    let last = set.stages.len() - 1;
+    for (slot, &s) in shown_stages.iter().enumerate() {
+        let colour = colour(s);
+        let bars = values[s].iter().enumerate().map(|(k, &v)| {
+            let x0 = k as f64 + 0.1 + slot as f64 * share;
+            Rectangle::new([(x0, 0.0), (x0 + share, v)], colour.filled())
+        });
+        let series = chart.draw_series(bars).map_err(|e| e.to_string())?;
+        if shown_stages.len() > 1 {
+            series
+                .label(set.stages[s].as_str())
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], colour.filled()));
+        }
+        if s == last {
+            let x = |k: usize| k as f64 + 0.1 + (slot as f64 + 0.5) * share;
+            let flagged = set.poses.iter().enumerate().filter(|(_, p)| p.flagged);
+            chart
+                .draw_series(flagged.map(|(k, _)| Cross::new((x(k), values[s][k]), 5, BLACK.stroke_width(2))))
+                .map_err(|e| e.to_string())?;
+        }
+    }
+    if shown_stages.len() > 1 {
+        legend(&mut chart)?;
+    }
+    Ok(())
+}
+
+/// The density (per mm) of `values` over `bins` bins `width` wide from 0 (the last bin takes
+/// what lies beyond): each bin's share of the values over its width, so that each set's bars
+/// have area 1 whatever its number of values.
+fn densities(values: &[f64], width: f64, bins: usize) -> Vec<f64> {
+    let mut counts = vec![0usize; bins];
+    for x in values {
+        counts[((x / width).max(0.0) as usize).min(bins - 1)] += 1;
+    }
+    let total = values.len().max(1) as f64 * width;
+    counts.into_iter().map(|c| c as f64 / total).collect()
+}
+
+/// The markers' errors at the last stage: each set's density on the same bins, as an outline
+/// (the sets overlaid, not interleaved).
 fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
     let values: Vec<Vec<f64>> = sets
         .iter()
@@ -495,76 +737,174 @@ fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
         })
         .collect();
     let high = values.iter().flatten().copied().fold(0.0, f64::max).max(1e-9);
-    let bins = 30;
-    let width = high / bins as f64 * 1.0001;
-    let counts: Vec<Vec<u32>> = values
-        .iter()
-        .map(|v| {
-            let mut c = vec![0u32; bins];
-            for x in v {
-                c[((x / width) as usize).min(bins - 1)] += 1;
-            }
-            c
-        })
-        .collect();
-    let top = f64::from(counts.iter().flatten().copied().max().unwrap_or(1)) * 1.1 + 1.0;
+    let width = round_width(high / 20.0);
+    let bins = (high / width).floor() as usize + 1;
+    let density: Vec<Vec<f64>> = values.iter().map(|v| densities(v, width, bins)).collect();
+    let top = density.iter().flatten().copied().fold(0.0, f64::max).max(1e-9) * 1.15;
     let stage = &sets[0].stages[sets[0].stages.len() - 1];
-    single_chart(&format!("marker errors, {stage}"), 0.0..width * bins as f64, 0.0..top, true, |chart| {
+    let caption = format!("marker errors, {stage}: each set's density, bins {} mm", shown_tick(width));
+    single_chart(&caption, 0.0..width * bins as f64, 0.0..top, true, |chart| {
         chart
             .configure_mesh()
             .x_desc("error (mm)")
-            .y_desc("number of marker measurements")
-            .y_label_formatter(&|v| format!("{v:.0}"))
+            .y_desc("density (1/mm): share of the set's errors per mm")
+            .x_label_formatter(&|v| shown_tick(*v))
+            .y_label_formatter(&|v| shown_tick(*v))
             .draw()
             .map_err(|e| e.to_string())?;
-        let share = 1.0 / sets.len() as f64;
-        for (i, (set, c)) in sets.iter().zip(&counts).enumerate() {
-            let colour = Palette99::pick(i).to_rgba();
-            let bars = c.iter().enumerate().map(move |(b, &n)| {
-                let x0 = (b as f64 + i as f64 * share) * width;
-                Rectangle::new([(x0, 0.0), (x0 + share * width, f64::from(n))], colour.mix(0.7).filled())
-            });
+        for (i, ((set, d), v)) in sets.iter().zip(&density).zip(&values).enumerate() {
+            let colour = colour(i);
+            let mut outline = vec![(0.0, 0.0)];
+            for (b, &h) in d.iter().enumerate() {
+                outline.extend([(b as f64 * width, h), ((b + 1) as f64 * width, h)]);
+            }
+            outline.push((bins as f64 * width, 0.0));
             chart
-                .draw_series(bars)
+                .draw_series([Polygon::new(outline.clone(), colour.mix(0.12).filled())])
+                .map_err(|e| e.to_string())?;
+            chart
+                .draw_series(LineSeries::new(outline, colour.stroke_width(2)))
                 .map_err(|e| e.to_string())?
-                .label(set.name.as_str())
-                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], colour.filled()));
+                .label(format!("{} ({} errors)", set.name, v.len()))
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
         }
         Ok(())
     })
 }
 
-/// Each marker's error at the last stage against joint `j`'s value, one colour per set.
-fn against_joint(sets: &[&SetEvaluation], j: usize, x_label: &str) -> Result<String, String> {
-    let points: Vec<Vec<(f64, f64)>> = sets
-        .iter()
-        .map(|set| {
-            let last = set.stages.len() - 1;
-            set.poses
-                .iter()
-                .flat_map(|p| (0..p.errors[last].len()).map(move |m| (p.joints[j], p.distance(last, m))))
+/// For a model with masses, `error-vs-torque-<joint>.svg` per joint: each marker's signed
+/// error at the last stage (as in `error-vs-<joint>.svg`) against the load gravity puts on the
+/// joint at the pose (N·m; N for a prismatic joint), computed with `model` (the calibrated
+/// one): a compliance left out of the model shows as a slope. Nothing without masses, nor for
+/// a joint that carries no load at any pose (a vertical first axis). The
+/// sets' joint values are in degrees (mm for prismatic joints), as [`pose_figures`] takes them.
+pub fn torque_figures(
+    sets: &[&SetEvaluation],
+    model: &crate::model::RobotModel,
+) -> Result<Vec<(String, String)>, FigureError> {
+    let sets: Vec<&SetEvaluation> = sets.iter().copied().filter(|s| !s.poses.is_empty()).collect();
+    let chain = crate::kinematics::Chain::new(model).with_errors(&vec![0.0; model.params().len()]);
+    if sets.is_empty() || !chain.has_masses() {
+        return Ok(Vec::new());
+    }
+    let (mut q, mut tau) = (vec![0.0; model.dof()], vec![0.0; model.dof()]);
+    // loads[set][pose][joint]
+    let loads: Vec<Vec<Vec<f64>>> = (sets.iter())
+        .map(|s| {
+            (s.poses.iter())
+                .map(|p| {
+                    for ((q, joint), &v) in q.iter_mut().zip(&model.joints).zip(&p.joints) {
+                        *q = if joint.kind == JointKind::Revolute { v.to_radians() } else { v };
+                    }
+                    chain.gravity_torques(&q, &mut tau);
+                    tau.clone()
+                })
                 .collect()
         })
         .collect();
-    let (mut x0, mut x1, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-    for &(x, y) in points.iter().flatten() {
-        (x0, x1, y1) = (x0.min(x), x1.max(x), y1.max(y));
-    }
-    let pad = 0.03 * (x1 - x0).max(1e-6);
-    let stage = &sets[0].stages[sets[0].stages.len() - 1];
-    let caption = format!("marker errors, {stage}, against {x_label}");
-    single_chart(&caption, (x0 - pad)..(x1 + pad), 0.0..(y1 * 1.1).max(1e-9), true, |chart| {
-        chart.configure_mesh().x_desc(x_label).y_desc("error (mm)").draw().map_err(|e| e.to_string())?;
-        for (i, (set, p)) in sets.iter().zip(&points).enumerate() {
-            let colour = Palette99::pick(i).to_rgba();
-            chart
-                .draw_series(p.iter().map(|&xy| Circle::new(xy, 2, colour.filled())))
-                .map_err(|e| e.to_string())?
-                .label(set.name.as_str())
-                .legend(move |(x, y)| Circle::new((x + 6, y), 3, colour.filled()));
+    let mut figures = Vec::new();
+    for (j, joint) in model.joints.iter().enumerate() {
+        let name = format!("error-vs-torque-{}.svg", file_stem(&joint.name));
+        let unit = if joint.kind == JointKind::Revolute { "N·m" } else { "N" };
+        let x_label = format!("gravity load on {} ({unit})", joint.name);
+        let values: Vec<Vec<f64>> = loads.iter().map(|s| s.iter().map(|tau| tau[j]).collect()).collect();
+        if values.iter().flatten().all(|t| t.abs() < 1e-6) {
+            continue; // no load at any pose (a vertical first axis): nothing to plot against
         }
-        Ok(())
-    })
+        figures.push((name.clone(), against(&sets, &values, &x_label).map_err(|m| error(&name, m))?));
+    }
+    Ok(figures)
+}
+
+/// Each marker's signed error at the last stage (measured minus predicted, x, y, z in mm; with
+/// a probe its orientation error's rx, ry, rz in deg) against a value of each pose (`xs[set][pose]`:
+/// a joint's value, its gravity load): one panel per component, one scale for the components
+/// of a unit, a line at zero, one colour per set. A sign that changes with the joint
+/// (backlash, gravity) shows here, and not in the norm.
+fn against(sets: &[&SetEvaluation], xs: &[Vec<f64>], x_label: &str) -> Result<String, String> {
+    let probe = sets.iter().any(|s| s.poses.iter().any(|p| p.orientation.is_some()));
+    let components: &[(&str, &str)] = if probe {
+        &[("x", "mm"), ("y", "mm"), ("z", "mm"), ("rx", "deg"), ("ry", "deg"), ("rz", "deg")]
+    } else {
+        &[("x", "mm"), ("y", "mm"), ("z", "mm")]
+    };
+    // points[component][set]: (joint value, error).
+    let points: Vec<Vec<Vec<(f64, f64)>>> = (0..components.len())
+        .map(|c| sets.iter().enumerate().map(|(s, set)| component_points(set, &xs[s], c)).collect())
+        .collect();
+    all_finite(points.iter().flatten().flatten().flat_map(|&(x, y)| [x, y]))?;
+    let all = || points.iter().flatten().flatten();
+    let (x0, x1) = all().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
+    let (x0, x1) = if x0 <= x1 { (x0, x1) } else { (0.0, 1.0) };
+    let pad = 0.03 * (x1 - x0).max(1e-6);
+    let reach = |unit: &str| {
+        let of = components.iter().zip(&points).filter(|((_, u), _)| *u == unit);
+        of.flat_map(|(_, p)| p.iter().flatten()).fold(1e-9, |m: f64, p| m.max(p.1.abs())) * 1.1
+    };
+    let stage = &sets[0].stages[sets[0].stages.len() - 1];
+    let mut svg = String::new();
+    {
+        let height = 170 * components.len() as u32 + 90;
+        let root = SVGBackend::with_string(&mut svg, (760, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let title = format!("marker errors (measured - predicted), {stage}, against {x_label}");
+        let root = root.titled(&title, ("sans-serif", 18)).map_err(|e| e.to_string())?;
+        let panels = root.split_evenly((components.len(), 1));
+        for (c, (panel, &(name, unit))) in panels.iter().zip(components).enumerate() {
+            let last = c + 1 == components.len();
+            let y = reach(unit);
+            let mut chart = ChartBuilder::on(panel)
+                .margin(8)
+                .x_label_area_size(if last { 40 } else { 20 })
+                .y_label_area_size(60)
+                .build_cartesian_2d((x0 - pad)..(x1 + pad), -y..y)
+                .map_err(|e| e.to_string())?;
+            let y_desc = format!("{name} ({unit})");
+            let mut mesh = chart.configure_mesh();
+            mesh.y_desc(y_desc.as_str()).y_labels(5).y_label_formatter(&|v| shown_tick(*v));
+            mesh.x_label_formatter(&|v| shown_tick(*v));
+            if last {
+                mesh.x_desc(x_label);
+            }
+            mesh.draw().map_err(|e| e.to_string())?;
+            let zero = [(x0 - pad, 0.0), (x1 + pad, 0.0)];
+            chart.draw_series(LineSeries::new(zero, BLACK.stroke_width(1))).map_err(|e| e.to_string())?;
+            for (i, (set, p)) in sets.iter().zip(&points[c]).enumerate() {
+                let colour = colour(i);
+                let series = chart
+                    .draw_series(p.iter().map(|&xy| Circle::new(xy, 2, colour.filled())))
+                    .map_err(|e| e.to_string())?;
+                if c == 0 {
+                    series
+                        .label(set.name.as_str())
+                        .legend(move |(x, y)| Circle::new((x + 6, y), 3, colour.filled()));
+                }
+            }
+            if c == 0 {
+                legend(&mut chart)?;
+            }
+        }
+        root.present().map_err(|e| e.to_string())?;
+    }
+    Ok(svg)
+}
+
+/// `(xs[pose], component c of the error)` of every marker (c < 3: x, y, z, mm) or of the
+/// orientation (c >= 3: rx, ry, rz, deg) of `set`'s poses at the last stage.
+fn component_points(set: &SetEvaluation, xs: &[f64], c: usize) -> Vec<(f64, f64)> {
+    let last = set.stages.len() - 1;
+    set.poses
+        .iter()
+        .zip(xs)
+        .flat_map(|(p, &x)| {
+            let errors: Vec<f64> = match (c, &p.orientation) {
+                (0..3, _) => p.errors[last].iter().map(|e| e[c]).collect(),
+                (_, Some(o)) => vec![o[last][c - 3]],
+                (_, None) => Vec::new(),
+            };
+            errors.into_iter().map(move |e| (x, e))
+        })
+        .collect()
 }
 
 /// The path of a parameter selection (`selection-path.svg`): the score after each step (CV RMS
@@ -601,12 +941,12 @@ pub fn selection_figure(
             .draw()
             .map_err(|e| e.to_string())?;
         let line = points.iter().map(|p| (p.0, p.1));
-        chart.draw_series(LineSeries::new(line, BLUE.stroke_width(2))).map_err(|e| e.to_string())?;
+        chart.draw_series(LineSeries::new(line, colour(0).stroke_width(2))).map_err(|e| e.to_string())?;
         let bars = points.iter().filter(|p| p.2 > 0.0).map(|p| {
-            PathElement::new(vec![(p.0, p.1 - p.2), (p.0, p.1 + p.2)], BLUE.mix(0.6).stroke_width(1))
+            PathElement::new(vec![(p.0, p.1 - p.2), (p.0, p.1 + p.2)], colour(0).mix(0.6).stroke_width(1))
         });
         chart.draw_series(bars).map_err(|e| e.to_string())?;
-        let dots = points.iter().map(|p| Circle::new((p.0, p.1), 3, BLUE.filled()));
+        let dots = points.iter().map(|p| Circle::new((p.0, p.1), 3, colour(0).filled()));
         chart.draw_series(dots).map_err(|e| e.to_string())?;
         if selection.criterion == "cv"
             && let Some(best) = points.iter().min_by(|a, b| a.1.total_cmp(&b.1))
@@ -614,15 +954,151 @@ pub fn selection_figure(
             // The one-standard-error rule: the first step under this line is chosen.
             let line = [(-0.5, best.1 + best.2), (steps - 0.5, best.1 + best.2)];
             chart
-                .draw_series(LineSeries::new(line, RED.mix(0.5).stroke_width(1)))
+                .draw_series(LineSeries::new(line, colour(1).mix(0.5).stroke_width(1)))
                 .map_err(|e| e.to_string())?;
         }
         let circled = points.iter().filter(|p| p.0 as usize == chosen);
         chart
-            .draw_series(circled.map(|p| Circle::new((p.0, p.1), 8, RED.stroke_width(2))))
+            .draw_series(circled.map(|p| Circle::new((p.0, p.1), 8, colour(1).stroke_width(2))))
             .map_err(|e| e.to_string())?;
         Ok(())
     })
     .map_err(|m| error(&name, m))?;
     Ok((name, svg))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// WCAG's relative luminance of `c`.
+    fn luminance(c: RGBColor) -> f64 {
+        let linear = |v: u8| {
+            let v = f64::from(v) / 255.0;
+            if v <= 0.04045 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }
+        };
+        0.2126 * linear(c.0) + 0.7152 * linear(c.1) + 0.0722 * linear(c.2)
+    }
+
+    #[test]
+    fn the_palette_stands_out_on_white_and_its_colours_differ() {
+        for (i, &c) in PALETTE.iter().enumerate() {
+            let contrast = 1.05 / (luminance(c) + 0.05);
+            assert!(contrast >= 3.0, "colour {i} {c:?}: contrast {contrast:.2} against white, under 3:1");
+            assert!(PALETTE[..i].iter().all(|&d| d != c), "colour {i} twice");
+        }
+        // Yellow (and every light colour) is out: plotters' own YELLOW fails the rule.
+        assert!(1.05 / (luminance(YELLOW) + 0.05) < 3.0);
+    }
+
+    #[test]
+    fn densities_have_area_one_whatever_the_number_of_values() {
+        for n in [7, 200] {
+            let values: Vec<f64> = (0..n).map(|k| (k as f64 * 0.013) % 0.3).collect();
+            let high = values.iter().copied().fold(0.0, f64::max);
+            let width = round_width(high / 20.0);
+            let bins = (high / width).floor() as usize + 1;
+            let d = densities(&values, width, bins);
+            let area: f64 = d.iter().sum::<f64>() * width;
+            assert!((area - 1.0).abs() < 1e-12, "{n} values: area {area}");
+            assert!(bins as f64 * width > high, "the highest value has a bin");
+        }
+    }
+
+    #[test]
+    fn the_study_histograms_share_their_bins_and_height() {
+        let scale = HistogramScale::shared(&[vec![1.0, 2.0, 3.0], vec![-22.0, 61.0]]);
+        let Bins { low, width, count } = scale.bins;
+        assert_eq!((low, width), (-25.0, 5.0));
+        assert!(low + count as f64 * width > 61.0);
+        assert_eq!(scale.top, 3.0, "the highest count of any histogram");
+    }
+
+    #[test]
+    fn ticks_are_written_as_a_person_writes_them() {
+        assert_eq!(shown_tick(-0.0), "0");
+        assert_eq!(shown_tick(-1e-17), "0");
+        assert_eq!(shown_tick(0.1 + 0.2), "0.3");
+        assert_eq!(shown_tick(192.0), "192");
+        assert_eq!(shown_tick(-0.025), "-0.025");
+    }
+
+    /// A set of 12 poses: before, errors of about 3 mm; after, `after(k, q)` at joint 1's
+    /// value `q` (deg); with `probe`, orientation errors too.
+    fn set(after: fn(usize, f64) -> [f64; 3], probe: bool) -> SetEvaluation {
+        let poses = (0..12)
+            .map(|k| {
+                let q = -90.0 + 15.0 * k as f64;
+                PoseErrors {
+                    line: k + 3,
+                    joints: vec![q, 0.0],
+                    errors: vec![vec![[3.0, -1.0, 0.5 * k as f64 / 12.0]], vec![after(k, q)]],
+                    orientation: probe.then(|| vec![[0.1, 0.0, 0.0], [0.01, -0.02, 0.0]]),
+                    whitened: 1.0,
+                    worst: 1.0,
+                    flagged: k == 4,
+                }
+            })
+            .collect();
+        SetEvaluation {
+            name: "training".into(),
+            stages: vec!["before".into(), "after".into()],
+            marker_ids: vec![1],
+            poses,
+            pooled: Vec::new(),
+            per_marker: Vec::new(),
+            orientation: None,
+            whitening: String::new(),
+        }
+    }
+
+    #[test]
+    fn errors_against_a_joint_keep_their_sign_per_component() {
+        // A backlash-like step in x with the sign of q, a constant offset in -y.
+        let s = set(|_, q| [0.1 * q.signum(), -0.2, 0.0], false);
+        let q: Vec<f64> = s.poses.iter().map(|p| p.joints[0]).collect();
+        let x = component_points(&s, &q, 0);
+        assert!(x.iter().all(|&(q, e)| e == 0.1 * q.signum()), "{x:?}");
+        assert!(component_points(&s, &q, 1).iter().all(|&(_, e)| e == -0.2));
+        let svg = against(&[&s], std::slice::from_ref(&q), "j1 (deg)").unwrap();
+        for label in ["x (mm)", "y (mm)", "z (mm)", "j1 (deg)", "\n-0.2\n"] {
+            assert!(svg.contains(label), "`{label}` in the figure");
+        }
+        assert!(!svg.contains("rx (deg)"), "no orientation panels without a probe");
+        let probe = set(|_, _| [0.0, 0.0, 0.0], true);
+        assert_eq!(
+            component_points(&probe, &q, 4),
+            vec![(-90.0 + 15.0 * 0.0, -0.02)]
+                .into_iter()
+                .chain((1..12).map(|k| (-90.0 + 15.0 * k as f64, -0.02)))
+                .collect::<Vec<_>>()
+        );
+        let svg = against(&[&probe], &[q], "j1 (deg)").unwrap();
+        assert!(svg.contains("rx (deg)") && svg.contains("rz (deg)"), "a probe's rotation panels");
+    }
+
+    #[test]
+    fn before_and_after_share_one_scale_and_a_finer_one_says_how_much_finer() {
+        let s = set(|k, _| [0.05 + 0.01 * k as f64, 0.0, 0.0], false);
+        let svg = pose_bars(&s).unwrap();
+        assert!(svg.contains("before and after: one scale, 0 to 3.51 mm"), "{svg}");
+        assert!(svg.contains("after alone: 0 to 0.176 mm, a scale 20 times finer than above"), "{svg}");
+        // After close to before: one panel, one scale, no zoom.
+        let close = set(|_, _| [2.0, -1.0, 0.0], false);
+        let svg = pose_bars(&close).unwrap();
+        assert!(svg.contains("one scale") && !svg.contains("alone"), "{svg}");
+    }
+
+    #[test]
+    fn n_p_is_on_a_log_axis_ticked_at_the_study_values_with_the_papers_means() {
+        let means: Vec<(f64, f64)> = [12.0, 24.0, 48.0, 96.0, 192.0].iter().map(|&n| (n, 30.0)).collect();
+        let series = vec![("sigma_me = 0 mm".to_string(), means.clone(), means.clone())];
+        let paper = vec![("the paper's mean".to_string(), vec![(12.0, 3.97), (192.0, 21.71)])];
+        let ticks = [12.0, 24.0, 48.0, 96.0, 192.0];
+        let svg = trend("t", "N_p (log scale)", &series, &paper, Some(&ticks)).unwrap();
+        for tick in ["\n12\n", "\n24\n", "\n192\n", "s mean"] {
+            assert!(svg.contains(tick), "`{tick}` in the figure");
+        }
+        assert!(!svg.contains("\n100\n"), "only the study's values are ticked");
+    }
 }

@@ -230,12 +230,13 @@ impl ObservationsReport {
             for (k, r) in worst.iter().take(WORST) {
                 let _ = writeln!(
                     out,
-                    "  {name}, {} ({}): {:.4} before, {:.4} after, {:.1} sd",
+                    "  {name}, {} ({}): {:.4} {unit} before, {:.4} {unit} after, {:.1} sd",
                     super::line_in(files, *k, r.line),
                     r.label(),
                     r.before,
                     r.after,
-                    r.whitened
+                    r.whitened,
+                    unit = r.unit
                 );
             }
         }

@@ -43,7 +43,7 @@ fn the_readme_ball_bar_and_forward_kinematics_examples_are_the_real_output() {
         ],
     );
     the_readme_block_is_printed(
-        "$ cargo run --release -- fk --model puma560",
+        "$ robocal fk --model puma560",
         &["fk", "--model", "puma560", "--q", "0,90,-90,0,0,0"],
     );
 }
@@ -309,7 +309,7 @@ fn calibrate_a_urdf_robot_and_write_it_back() {
 #[test]
 fn the_readme_calibration_example_is_the_real_output() {
     let readme = std::fs::read_to_string("README.md").unwrap();
-    let start = readme.find("$ cargo run --release -- calibrate").expect("the README's calibration example");
+    let start = readme.find("$ robocal calibrate --model").expect("the README's calibration example");
     let block = &readme[start..start + readme[start..].find("```").unwrap()];
     let mut lines = block.lines();
     let mut command = String::new();
@@ -324,8 +324,7 @@ fn the_readme_calibration_example_is_the_real_output() {
     std::fs::create_dir_all(&dir).unwrap();
     let args: Vec<String> = command
         .split_whitespace()
-        .skip_while(|word| *word != "--")
-        .skip(1)
+        .skip(2) // `$ robocal`
         .map(|word| match word {
             "report.json" | "calibrated.toml" => dir.join(word).display().to_string(),
             _ => word.to_string(),

@@ -264,7 +264,7 @@ fn simulate_names_the_file_and_field_of_a_bad_instrument_study_and_refuses_estim
 #[test]
 fn the_readme_instrument_table_is_the_real_output() {
     let readme = std::fs::read_to_string("README.md").unwrap();
-    let start = readme.find("$ cargo run --release -- simulate instruments\n").expect("the README's study");
+    let start = readme.find("$ robocal simulate instruments\n").expect("the README's study");
     let block = &readme[start..start + readme[start..].find("```").unwrap()];
     let expected: String = block.lines().skip(1).map(|line| format!("{line}\n")).collect();
     let (code, stdout, stderr, dir) = simulate(embedded(), "readme", &["--threads", "2"]);

@@ -1005,10 +1005,13 @@ pub struct ObservationResidual {
     /// The marker's number (1, 2, ...), for a marker's coordinate.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub marker: Option<usize>,
-    /// The residual before calibration.
+    /// The residual before calibration, in [`unit`](Self::unit).
     pub before: f64,
-    /// After.
+    /// After, in [`unit`](Self::unit).
     pub after: f64,
+    /// The unit of `before` and `after`: `mm`, or `deg` for an angle (a camera's `rx`, a
+    /// `roll`).
+    pub unit: &'static str,
     /// After, divided by its standard deviation `sqrt(V_k)`.
     pub whitened: f64,
 }
@@ -1069,16 +1072,21 @@ impl Score {
     /// `variances`: each observation's (the diagonal of its `V_k`).
     fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), variances: &[f64]) -> Self {
         let observations: Vec<ObservationResidual> = (data.observations.iter().enumerate())
-            .map(|(k, o)| ObservationResidual {
-                line: data.lines[k],
-                kind: o.kind(),
-                marker: match *o {
-                    Observation::Marker { marker, .. } => Some(marker + 1),
-                    _ => None,
-                },
-                before: before[k],
-                after: after[k],
-                whitened: after[k] / variances[k].sqrt(),
+            .map(|(k, o)| {
+                // The residuals of angles are in radians: reported in degrees, as every angle.
+                let (scale, unit) = if o.is_angle() { (1f64.to_degrees(), "deg") } else { (1.0, "mm") };
+                ObservationResidual {
+                    line: data.lines[k],
+                    kind: o.kind(),
+                    marker: match *o {
+                        Observation::Marker { marker, .. } => Some(marker + 1),
+                        _ => None,
+                    },
+                    before: before[k] * scale,
+                    after: after[k] * scale,
+                    unit,
+                    whitened: after[k] / variances[k].sqrt(),
+                }
             })
             .collect();
         Self::of(observations, &data.observations)
@@ -1096,7 +1104,7 @@ impl Score {
             (!chosen.is_empty()).then(|| (of(|r| r.before), of(|r| r.after)))
         };
         let lengths = rms(&|o| !o.is_angle(), 1.0).unwrap_or((0.0, 0.0));
-        let angles = rms(&Observation::is_angle, 1f64.to_degrees());
+        let angles = rms(&Observation::is_angle, 1.0);
         let markers = rms(&|o| matches!(o, Observation::Marker { .. }), 3f64.sqrt());
         Self { observations, lengths, angles, markers, sessions: Vec::new() }
     }
