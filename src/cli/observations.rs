@@ -100,6 +100,7 @@ fn read(path: &Path, model: &RobotModel, request: &CalibrateObservationsRequest)
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
     let data =
         KindData::from_csv_str(&text, model, request.units).with_context(|| path.display().to_string())?;
+    super::status(format!("{}: read {}", path.display(), data.summary()));
     Ok(data.named(&super::request::session_name(path)))
 }
 

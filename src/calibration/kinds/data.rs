@@ -176,6 +176,18 @@ impl Observation {
         }
     }
 
+    /// The kind in words, plural, as a file's summary counts it (`distances to a fixed point`).
+    pub fn kind_words(&self) -> &'static str {
+        match self {
+            Self::Distance { .. } => "distances between two poses",
+            Self::ToPoint { .. } => "distances to a fixed point",
+            Self::Contact { .. } => "plane contacts",
+            Self::Coordinate { .. } => "coordinates",
+            Self::Marker { .. } => "marker coordinates",
+            Self::Camera { .. } => "camera view rows",
+        }
+    }
+
     /// Whether it is an angle (rad).
     pub fn is_angle(&self) -> bool {
         matches!(self, Self::Coordinate { axis: 3.., .. } | Self::Camera { axis: 3.., .. })
@@ -353,6 +365,20 @@ impl KindData {
     }
 
     /// Whether any observation sees the tool frame's orientation, an angle or a camera (then
+    /// What the data hold, in words: each kind's count, in the order first seen
+    /// (`150 distances to a fixed point`), so that a file read by its header says what was found.
+    pub fn summary(&self) -> String {
+        let mut counts: Vec<(&str, usize)> = Vec::new();
+        for o in &self.observations {
+            match counts.iter_mut().find(|(k, _)| *k == o.kind_words()) {
+                Some((_, n)) => *n += 1,
+                None => counts.push((o.kind_words(), 1)),
+            }
+        }
+        let kinds: Vec<String> = counts.iter().map(|(k, n)| format!("{n} {k}")).collect();
+        format!("{} at {} poses", kinds.join(", "), self.joints.len())
+    }
+
     /// the tool is a frame).
     pub fn has_angles(&self) -> bool {
         self.observations
