@@ -3,7 +3,7 @@
 use super::request::PlanRequest;
 use super::{design, from_flag_unit};
 use anyhow::{Result, bail};
-use robocal::design::{Constraints, ExcludedRange, Plan, PlanProgress};
+use robocal::design::{Constraints, ExcludedRange, PlanProgress};
 use robocal::model::{ModelRef, RobotModel};
 use robocal::report;
 
@@ -30,14 +30,12 @@ pub fn run(request: &PlanRequest) -> Result<()> {
     }
     // Over a few seconds of work (about 1e8 row-parameter products a pass, measured): a bar for
     // the candidates' rows, then for each pass of the exchange, with the time left in it.
-    let bar = (work > PROGRESS_FROM).then(|| plan_bar(request, work));
+    let bar = (work > PROGRESS_FROM).then(|| plan_bar(request.candidates));
     let progress = |p: PlanProgress| {
         let Some(bar) = &bar else { return };
         let (message, done, of) = match p {
-            PlanProgress::Rows { done, of } => ("the candidates' rows".to_string(), done, of),
-            PlanProgress::Pass { pass, done, of } => {
-                (format!("exchange pass {pass} (of at most {} a criterion)", Plan::MAX_PASSES), done, of)
-            }
+            PlanProgress::Rows { done, of } => (ROWS.to_string(), done, of),
+            PlanProgress::Pass { pass, done, of } => (format!("exchange pass {pass}"), done, of),
         };
         if bar.message() != message {
             bar.set_message(message);
@@ -91,18 +89,18 @@ pub fn run(request: &PlanRequest) -> Result<()> {
 /// pass on a loaded two-core machine, 13 passes).
 const PROGRESS_FROM: u64 = 100_000_000;
 
-/// The progress bar of a plan of `work` row-parameter products a pass.
-fn plan_bar(request: &PlanRequest, work: u64) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new(0);
-    let template = format!(
-        "planning {} poses from {} candidates ({work:.1e} row-parameter products a pass): {{msg}} {{bar:30}} \
-         {{pos}}/{{len}}, {{elapsed}} so far, about {{eta}} left in it",
-        request.points, request.candidates
-    );
-    bar.set_style(indicatif::ProgressStyle::with_template(&template).expect("a valid template"));
+/// The progress bar of a plan: the candidates' rows, then each pass of the exchange, each with
+/// the time left in it (how many passes there will be is not known in advance).
+fn plan_bar(candidates: usize) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(candidates as u64).with_message(ROWS);
+    let template = "plan: {msg} {bar:20} {pos}/{len}, {elapsed} in all, ~{eta} left of it";
+    bar.set_style(indicatif::ProgressStyle::with_template(template).expect("a valid template"));
     bar.enable_steady_tick(std::time::Duration::from_millis(500));
     bar
 }
+
+/// The bar's message while the candidates' rows are computed.
+const ROWS: &str = "the candidates' rows";
 
 /// The tool box and the excluded ranges, each range's joint found in `model`.
 fn constraints(request: &PlanRequest, model: &RobotModel) -> Result<Constraints> {
