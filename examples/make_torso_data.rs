@@ -7,7 +7,7 @@
 //!
 //! ```text
 //! cargo run --release --example make_torso_data
-//! cargo run --release -- calibrate-tree --model presets/torso.urdf \
+//! cargo run --release -- calibrate --model presets/torso.urdf \
 //!     --data examples/torso/views.csv --validate examples/torso/views-2.csv
 //! ```
 

@@ -21,8 +21,9 @@
 //! - [`estimation`]: the noise model (`V_k = J_k Sigma_q J_k^T + Sigma_m,k`), OLS and weighted
 //!   (Gauss-Markov) least squares by whitening, rank-deficient solves, identifiability,
 //!   covariance, and Gauss-Newton refinement.
-//! - [`calibration`]: calibrating a real robot from measured marker positions: registration,
-//!   base and markers, identifiable joint parameters, validation. [`design`], beside it:
+//! - [`calibration`]: calibrating a real robot from measured data of every kind (marker
+//!   positions, a probe's poses, distances, plane contacts, coordinates, camera views, views
+//!   on a tree): registration, the set-up, identifiable joint parameters, validation. [`design`], beside it:
 //!   choosing the measurement poses (beyond the paper): observability indices O1-O5 of a pose
 //!   set, and poses planned by an exchange algorithm to maximise one of them.
 //! - [`simulation`]: the Monte Carlo simulation of a calibration campaign (the paper's steps
@@ -62,3 +63,9 @@ pub mod model;
 pub mod report;
 pub mod simulation;
 pub mod table;
+
+// The types a calibration starts from, at the crate root.
+pub use calibration::kinds::{KindCalibration, KindData, KindOptions, calibrate_kinds};
+pub use calibration::{Calibration, DataKind, Measurements, Options, calibrate};
+pub use estimation::Estimator;
+pub use model::RobotModel;

@@ -20,6 +20,42 @@ use crate::model::RobotModel;
 use crate::table::{DataError, Row, Table, Units};
 use nalgebra::{UnitQuaternion, Vector3};
 
+/// What a data file holds, read from its header: which calibration reads it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum DataKind {
+    /// Marker positions, or a probe's poses: `x1,y1,z1`, ... ([`Measurements`]).
+    Markers,
+    /// Distances, plane contacts, coordinates or a camera's views of its target
+    /// ([`kinds`](super::kinds)).
+    Observations,
+    /// Views between the branches of a tree: `camera` and `target` links
+    /// ([`tree`](super::tree)).
+    TreeViews,
+}
+
+impl DataKind {
+    /// The kind of the CSV `text`: a `target` column makes tree views, marker columns
+    /// (`x<k>`) a marker file, anything else observations (whose reader checks the rest).
+    pub fn of_csv_str(text: &str) -> Result<Self, DataError> {
+        let table = Table::parse(text)?;
+        Ok(match (table.column("target"), marker_columns(&table)?.is_empty()) {
+            (Some(_), _) => Self::TreeViews,
+            (None, false) => Self::Markers,
+            (None, true) => Self::Observations,
+        })
+    }
+
+    /// What the kind is, in words.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::Markers => "marker positions (x1,y1,z1, ...)",
+            Self::Observations => "observations (distances, contacts, coordinates, camera views)",
+            Self::TreeViews => "views between a tree's branches (camera, target)",
+        }
+    }
+}
+
 /// Measured poses, in mm and rad.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Measurements {

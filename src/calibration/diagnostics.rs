@@ -199,3 +199,96 @@ mod tests {
         assert_eq!(observations.len(), 360);
     }
 }
+
+/// A parameter a calibration held (did not estimate), and why: typed, so that a report renames
+/// its parameters (`marker3.x` to `tool.x`) without touching its words, and the JSON carries
+/// the kind, the parameter and a combination's coefficients. [`Held::text`] renders it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum Held {
+    /// Held by `--hold`: a robot parameter at its nominal value, a set-up one at its start.
+    ByUser {
+        /// The parameter.
+        parameter: String,
+        /// Whether a set-up parameter (held at its start) rather than the robot's.
+        setup: bool,
+    },
+    /// No observation moves it: its column of `H` is zero.
+    Unmoved {
+        /// The parameter.
+        parameter: String,
+    },
+    /// No observation can see it, for a reason the data give (a tree's joint on the way to both
+    /// frames of every view; a point's orientation).
+    Unseen {
+        /// The parameter.
+        parameter: String,
+        /// Why, in words (after the parameter's name and a colon).
+        why: String,
+    },
+    /// Of a combination the poses cannot tell apart, `parameter + sum c_i name_i`: this
+    /// parameter is held, the others estimated.
+    Combination {
+        /// The parameter held.
+        parameter: String,
+        /// The combination's other terms: (parameter, coefficient).
+        terms: Vec<(String, f64)>,
+    },
+    /// Contacts alone cannot see the robot's scale, which this longest length sets.
+    Scale {
+        /// The length held.
+        parameter: String,
+    },
+}
+
+impl Held {
+    /// The parameter held.
+    pub fn parameter(&self) -> &str {
+        match self {
+            Self::ByUser { parameter, .. }
+            | Self::Unmoved { parameter }
+            | Self::Unseen { parameter, .. }
+            | Self::Combination { parameter, .. }
+            | Self::Scale { parameter } => parameter,
+        }
+    }
+
+    /// The same, every parameter named by `rename` (the held one and a combination's terms).
+    pub fn renamed(mut self, rename: impl Fn(&str) -> String) -> Self {
+        match &mut self {
+            Self::ByUser { parameter, .. }
+            | Self::Unmoved { parameter }
+            | Self::Unseen { parameter, .. }
+            | Self::Scale { parameter } => *parameter = rename(parameter),
+            Self::Combination { parameter, terms } => {
+                *parameter = rename(parameter);
+                for (name, _) in terms {
+                    *name = rename(name);
+                }
+            }
+        }
+        self
+    }
+
+    /// In words, one line: `j6.d: held at its nominal value by --hold`, or a combination as
+    /// `j1.d - 0.5 point1.z`.
+    pub fn text(&self) -> String {
+        match self {
+            Self::ByUser { parameter, setup: false } => {
+                format!("{parameter}: held at its nominal value by --hold")
+            }
+            Self::ByUser { parameter, setup: true } => format!("{parameter}: held at its start by --hold"),
+            Self::Unmoved { parameter } => format!("{parameter}: the observations do not move it"),
+            Self::Unseen { parameter, why } => format!("{parameter}: {why}"),
+            Self::Combination { parameter, terms } => crate::estimation::combination_text(
+                parameter,
+                terms.iter().map(|(name, c)| (name.as_str(), *c)),
+            ),
+            Self::Scale { parameter } => format!(
+                "{parameter}: held at its nominal value: contacts alone cannot see the robot's scale, which this \
+                 longest length sets"
+            ),
+        }
+    }
+}

@@ -23,8 +23,8 @@ pub mod robust;
 pub mod selection;
 pub mod tree;
 
-pub use data::Measurements;
-pub use diagnostics::{FarOut, Scored, Warning};
+pub use data::{DataKind, Measurements};
+pub use diagnostics::{FarOut, Held, Scored, Warning};
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
@@ -94,6 +94,26 @@ pub struct Options {
     pub loss: Loss,
     /// The user's say in the gauge: parameters held at nominal, parameters kept free first.
     pub gauge: Gauge,
+}
+
+impl Default for Options {
+    /// `robocal calibrate`'s defaults without a noise model: ordinary least squares of every
+    /// joint parameter with the base and the markers, Gauss-Newton to convergence, no prior,
+    /// squared loss, the default gauge.
+    fn default() -> Self {
+        Self {
+            estimator: Estimator::Ols,
+            noise: None,
+            joints: JointParams::All,
+            estimate_base: true,
+            estimate_markers: true,
+            markers: Vec::new(),
+            refine: RefineOptions::default(),
+            prior: Vec::new(),
+            loss: Loss::Squared,
+            gauge: Gauge::default(),
+        }
+    }
 }
 
 /// The user's override of the gauge: names or patterns as [`JointParams::Named`] takes them

@@ -140,14 +140,21 @@ fn chi_squared_median(n: usize) -> f64 {
 /// gross errors: if every row had standard deviation `sigma`, `(d_k / sigma)^2` would be
 /// chi-squared with `n` degrees of freedom, so `sigma = median(d_k) / sqrt(median chi^2(n))`.
 pub(crate) fn robust_scale(norms: &[f64], n: usize) -> f64 {
-    if norms.is_empty() || n == 0 {
+    if n == 0 {
         return f64::NAN;
     }
-    let mut sorted = norms.to_vec();
+    median(norms) / chi_squared_median(n).sqrt()
+}
+
+/// The median of `values` (NaN if there are none).
+fn median(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return f64::NAN;
+    }
+    let mut sorted = values.to_vec();
     sorted.sort_by(f64::total_cmp);
     let mid = sorted.len() / 2;
-    let median = if sorted.len() % 2 == 1 { sorted[mid] } else { 0.5 * (sorted[mid - 1] + sorted[mid]) };
-    median / chi_squared_median(n).sqrt()
+    if sorted.len() % 2 == 1 { sorted[mid] } else { 0.5 * (sorted[mid - 1] + sorted[mid]) }
 }
 
 /// The fit of `problem` from `start` (linearised with `weights`), with the prior rows if any,
@@ -169,8 +176,7 @@ pub(crate) fn fit(
     if loss == Loss::Squared {
         return Ok((refined, None));
     }
-    let rows = problem.rows_per_point();
-    let points = problem.equations() / rows;
+    let points = problem.blocks().points(problem.equations());
     let mut w = vec![1.0; points];
     let (mut reweightings, mut settled) = (0, false);
     // Every Gauss-Newton step of every reweighting, for the report's count.
@@ -204,15 +210,20 @@ fn pose_weights(
     x: &nalgebra::DVector<f64>,
     loss: Loss,
 ) -> Vec<f64> {
-    let rows = problem.rows_per_point();
+    let blocks = problem.blocks();
     let r = problem.evaluate_whitened(x, weights, None);
     let c = if weights.whitens() { weights.scale().unwrap_or(1.0) } else { 1.0 };
-    let norms: Vec<f64> =
-        r.as_slice().chunks_exact(rows).map(|z| z.iter().map(|v| v * v).sum::<f64>().sqrt() / c).collect();
-    let bulk = robust_scale(&norms, rows);
+    let norms: Vec<(f64, usize)> =
+        (blocks.ranges(r.len())).map(|k| (r.rows_range(k.clone()).norm() / c, k.len())).collect();
+    // Each norm over its chi-squared median: the scale of the bulk whatever the points' sizes
+    // (of one size, `robust_scale` itself).
+    let scaled: Vec<f64> = norms.iter().map(|&(d, n)| d / chi_squared_median(n).sqrt()).collect();
+    let bulk = median(&scaled);
     let sigma = if weights.whitens() { bulk.max(1.0) } else { bulk };
-    let n = (rows as f64).sqrt();
-    norms.iter().map(|d| if sigma > 0.0 { loss.weight(d / (sigma * n)) } else { 1.0 }).collect()
+    norms
+        .iter()
+        .map(|&(d, n)| if sigma > 0.0 { loss.weight(d / (sigma * (n as f64).sqrt())) } else { 1.0 })
+        .collect()
 }
 
 #[cfg(test)]

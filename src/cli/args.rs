@@ -269,7 +269,7 @@ pub struct RepeatabilityArgs {
 }
 
 /// The flags that choose the model beyond `--params`: what is held, kept, given a prior, and
-/// the loss (shared by `calibrate` and `calibrate-observations`).
+/// the loss (`calibrate` of markers and of observations).
 #[derive(Args, Debug, Clone, Default, PartialEq)]
 pub struct ModelChoiceArgs {
     /// Hold these parameters at their nominal values (names and patterns, as --params takes
@@ -306,13 +306,16 @@ pub struct ModelChoiceArgs {
 pub struct CalibrateArgs {
     #[command(flatten)]
     pub model: ModelArgs,
-    /// The measurement file (CSV; see docs/formats.md).
-    #[arg(long)]
-    pub data: PathBuf,
+    /// A data file (CSV; see docs/formats.md), its kind read from its header: marker positions
+    /// or a probe's poses (x1,y1,z1, ...), distances, plane contacts, coordinates, a camera's
+    /// views, or views between the branches of a URDF tree (camera, target); repeatable: the
+    /// files are fitted together, each a session (--per-session).
+    #[arg(long, required = true)]
+    pub data: Vec<PathBuf>,
     #[command(flatten)]
     pub units: UnitArgs,
     /// The estimator. Default: wls when the noise is given (--noise or --joint-sigma-deg), ols
-    /// otherwise.
+    /// otherwise (observation files: wls, each row weighted by its sigma).
     #[arg(long)]
     pub estimator: Option<EstimatorName>,
     /// A noise file (TOML, see docs/formats.md): joint noise, sigma_me and the measuring
@@ -371,9 +374,45 @@ pub struct CalibrateArgs {
     /// `marker_<k>` link per fitted marker (what `evaluate` reads).
     #[arg(long)]
     pub out_urdf: Option<PathBuf>,
+    #[command(flatten)]
+    pub observations: ObservationArgs,
+    #[command(flatten)]
+    pub tree: TreeArgs,
 }
 
-/// The flags of `robocal calibrate-observations`.
+/// The flags of `robocal calibrate` for observation files (distances, contacts, coordinates,
+/// camera views, several files).
+#[derive(Args, Debug, Default)]
+pub struct ObservationArgs {
+    /// Observation files: the tool point on the last link, "x,y,z" in mm, in the tool frame
+    /// (default: the model's tool point); unused with a camera's views alone.
+    #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
+    pub tool: Option<Vector3<f64>>,
+    /// Observation files: do not estimate the tool point.
+    #[arg(long)]
+    pub fixed_tool: bool,
+    /// Set-up parameters with one value per --data file (each file a session, named by its
+    /// stem), estimated: names or patterns (`point1.zero`, `pair.zero`, `target.*`), for an
+    /// instrument re-zeroed or moved between sessions. A length zero (`point<i>.zero`,
+    /// `pair.zero`, mm: distance = |p - c| + zero) is held unless named here or in --params.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub per_session: Vec<String>,
+}
+
+/// The flags of `robocal calibrate` for a robot of several branches (a URDF tree).
+#[derive(Args, Debug, Default)]
+pub struct TreeArgs {
+    /// A URDF tree's branches: their tip links, comma-separated (with views between branches,
+    /// default: every leaf link with a moving joint on its way).
+    #[arg(long, value_delimiter = ',')]
+    pub tips: Vec<String>,
+    /// A URDF tree: write each branch's calibrated model here, as `<tip>.toml`, and the
+    /// cameras and targets as `frames.json`.
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
+}
+
+/// The flags of `robocal calibrate-observations` (an alias of `calibrate` for one release).
 #[derive(Args, Debug)]
 pub struct CalibrateObservationsArgs {
     #[command(flatten)]
@@ -386,8 +425,8 @@ pub struct CalibrateObservationsArgs {
     pub data: Vec<PathBuf>,
     #[command(flatten)]
     pub units: UnitArgs,
-    /// The estimator: wls (default; each row weighted by its sigma and, with
-    /// --joint-sigma-deg, the joint noise of its poses) or ols.
+    /// The estimator: wls (default; each pose's observations weighted by their sigmas and,
+    /// with --joint-sigma-deg, the joint noise they share), wls-diag, wls-sigma or ols.
     #[arg(long, hide_possible_values = true)]
     pub estimator: Option<EstimatorName>,
     /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints): a
@@ -740,7 +779,7 @@ impl std::fmt::Display for Excluded {
     }
 }
 
-/// The flags of `robocal calibrate-tree`.
+/// The flags of `robocal calibrate-tree` (an alias of `calibrate` for one release).
 #[derive(Args, Debug)]
 pub struct CalibrateTreeArgs {
     /// The robot: a URDF file whose links form a tree (a torso with arms and a head); each

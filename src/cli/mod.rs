@@ -24,7 +24,7 @@ use args::{
 };
 use clap::{Parser, Subcommand};
 use request::{
-    CalibrateObservationsRequest, CalibrateRequest, CalibrateTreeRequest, DesignRequest, EvaluateRequest,
+    CalibrateObservationsRequest, CalibrateTreeRequest, CalibrationRequest, DesignRequest, EvaluateRequest,
     NoiseFlags, ObservabilityRequest, PlanRequest, RepeatabilityRequest,
 };
 use robocal::design::Design;
@@ -64,15 +64,16 @@ enum Command {
     Repeatability(Box<RepeatabilityArgs>),
     /// Forward kinematics: the tool pose of a model at given joint values.
     Fk(FkArgs),
-    /// Calibrate a robot from measured marker positions.
+    /// Calibrate a robot from measured data of any kind, each file's kind read from its header:
+    /// marker positions or a probe's poses, distances (a ball bar, a length artefact), plane
+    /// contacts, coordinates (a height gauge), a camera's views of a target, or views between
+    /// the branches of a URDF tree; several files fitted together: docs/formats.md.
     Calibrate(Box<CalibrateArgs>),
-    /// Calibrate a robot from distances (a ball bar, a length artefact), plane contacts, partial
-    /// coordinates (a height gauge), a camera's views of a target and marker positions, in one
-    /// fit: docs/formats.md.
+    /// The old name of `calibrate` for observation files, an alias for one release.
+    #[command(hide = true)]
     CalibrateObservations(Box<CalibrateObservationsArgs>),
-    /// Calibrate a robot of several chains (a URDF tree: a torso with arms and a head camera)
-    /// from camera views between its branches, or a tracker's positions of points on them:
-    /// docs/formats.md.
+    /// The old name of `calibrate` for a tree's views, an alias for one release.
+    #[command(hide = true)]
     CalibrateTree(Box<CalibrateTreeArgs>),
     /// Score a model as it stands (a calibrated one, base and markers included) on
     /// measurement files: no registration, no fit.
@@ -104,17 +105,36 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Merge(args) => shard::merge(&args),
         Command::Repeatability(args) => repeatability::run(&RepeatabilityRequest::from_args(*args)?),
         Command::Fk(args) => fk::run(&args),
-        Command::Calibrate(args) => calibrate::run(&CalibrateRequest::from_args(*args)?),
+        Command::Calibrate(args) => calibrate_any(*args),
         Command::CalibrateObservations(args) => {
+            eprintln!(
+                "note: `robocal calibrate-observations` is now `robocal calibrate`, with the same flags; this name goes in the next release"
+            );
             observations::run(&CalibrateObservationsRequest::from_args(*args)?)
         }
-        Command::CalibrateTree(args) => tree::run(&CalibrateTreeRequest::from_args(*args)?),
+        Command::CalibrateTree(args) => {
+            eprintln!(
+                "note: `robocal calibrate-tree` is now `robocal calibrate --tips ...`, with the same flags (--out-dir for the branches); this name goes in the next release"
+            );
+            tree::run(&CalibrateTreeRequest::from_args(*args)?)
+        }
         Command::Evaluate(args) => evaluate::run(&EvaluateRequest::from_args(*args)?),
         Command::Observability(args) => observability::run(&ObservabilityRequest::from_args(*args)?),
         Command::Plan(args) => plan::run(&PlanRequest::from_args(*args)?),
         Command::Compensate(args) => compensate::run(&args),
         Command::Accuracy(args) => accuracy::run(&args),
         Command::Model { command } => model::run(&command),
+    }
+}
+
+/// `robocal calibrate`: each data file's kind read from its header, then the calibration its
+/// data and flags call for ([`CalibrationRequest`]).
+fn calibrate_any(args: args::CalibrateArgs) -> Result<()> {
+    let kinds = (args.data.iter()).map(|path| robocal::io::data_kind(path)).collect::<Result<Vec<_>, _>>()?;
+    match CalibrationRequest::from_args(args, &kinds)? {
+        CalibrationRequest::Markers(request) => calibrate::run(&request),
+        CalibrationRequest::Observations(request) => observations::run(&request),
+        CalibrationRequest::Tree(request) => tree::run(&request),
     }
 }
 

@@ -18,8 +18,10 @@ use robocal::model::{ModelRef, Payload};
 use robocal::table::Units;
 use std::path::{Path, PathBuf};
 
+mod route;
 #[cfg(test)]
 mod tests;
+pub use route::CalibrationRequest;
 
 /// Flags that clap accepted one by one but that do not fit together: exit code 2.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -332,6 +334,8 @@ impl CalibrateRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: CalibrateArgs) -> Result<Self, UsageError> {
         let model = args.model.model_ref()?;
+        let [data] = <[PathBuf; 1]>::try_from(args.data)
+            .map_err(|_| UsageError("--data: one file of marker positions here".into()))?;
         require(args.out_urdf.is_none() || model.is_urdf(), "--out-urdf needs a URDF model")?;
         let noise = noise_source(args.noise, &args.noise_flags)?;
         let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
@@ -364,7 +368,7 @@ impl CalibrateRequest {
             "--loss with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
         )?;
         let folds = if matches!(select, Some(Criterion::Cv { .. })) { None } else { args.folds };
-        let mut inputs = vec![("--model", Path::new(&model.name)), ("--data", args.data.as_path())];
+        let mut inputs = vec![("--model", Path::new(&model.name)), ("--data", data.as_path())];
         if let Some(NoiseSource::File(path)) = &noise {
             inputs.push(("--noise", path));
         }
@@ -375,7 +379,7 @@ impl CalibrateRequest {
         distinct_outputs(&inputs, &outputs)?;
         Ok(Self {
             model,
-            data: args.data,
+            data,
             units: args.units.units()?,
             method,
             noise,
@@ -399,7 +403,7 @@ impl CalibrateRequest {
     }
 }
 
-/// A validated `robocal calibrate-observations`.
+/// A validated `robocal calibrate` of observation files (or the `calibrate-observations` alias).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrateObservationsRequest {
     /// The nominal robot.
@@ -451,8 +455,19 @@ impl CalibrateObservationsRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: CalibrateObservationsArgs) -> Result<Self, UsageError> {
         let model = args.model.model_ref()?;
-        let estimator =
-            ols_or_wls(args.estimator, "calibrate-observations takes ols or wls (one row per observation)")?;
+        let estimator = match args.estimator {
+            None | Some(EstimatorName::Wls) => Estimator::Wls,
+            Some(EstimatorName::Ols) => Estimator::Ols,
+            Some(EstimatorName::WlsDiag) => Estimator::WlsDiag,
+            Some(EstimatorName::WlsSigma) => Estimator::WlsSigma,
+            Some(EstimatorName::Fgls) => {
+                return Err(UsageError(
+                    "--estimator fgls: not available for observation files yet; give the joint noise \
+                     (--joint-sigma-deg) and each file's sigma columns, and use wls"
+                        .into(),
+                ));
+            }
+        };
         require(
             args.params != ParamsArg::All,
             "--params all: the base and the set-up are chosen by the observations; give --params joints",
@@ -778,7 +793,7 @@ fn ols_or_wls(estimator: Option<EstimatorName>, why: &str) -> Result<Estimator, 
     }
 }
 
-/// A validated `robocal calibrate-tree`.
+/// A validated `robocal calibrate` of a tree's views (or the `calibrate-tree` alias).
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibrateTreeRequest {
     /// The URDF file.
@@ -810,7 +825,7 @@ pub struct CalibrateTreeRequest {
 impl CalibrateTreeRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: CalibrateTreeArgs) -> Result<Self, UsageError> {
-        let estimator = ols_or_wls(args.estimator, "calibrate-tree takes ols or wls")?;
+        let estimator = ols_or_wls(args.estimator, "a tree takes ols or wls")?;
         require(
             args.params != ParamsArg::All,
             "--params all: the base is never estimated from views; give --params joints",

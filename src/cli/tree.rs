@@ -58,7 +58,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         outputs.add(path, serde_json::to_string_pretty(&report)? + "\n");
     }
     if let Some(folder) = &request.out_dir {
-        let note = "calibrated by robocal calibrate-tree from camera views between branches: right relative to the \
+        let note = "calibrated by robocal calibrate from camera views between branches: right relative to the \
                     other branches; its placement in the root link's frame the views cannot see (held)";
         let mut files: Vec<(String, String)> = (c.calibrated.branches.iter())
             .map(|b| {

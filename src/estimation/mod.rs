@@ -15,6 +15,7 @@
 //! is Eq. 6 itself. The paper's normalisation `W = sigma_max^2 V^-1` (before Eq. 18) is applied;
 //! it scales every weight by one constant and leaves `x` unchanged.
 
+mod blocks;
 mod device;
 mod noise;
 mod noise_file;
@@ -25,6 +26,9 @@ mod solve;
 mod variance;
 pub(crate) use variance::Z_95;
 
+pub use blocks::Blocks;
+use blocks::block_weights;
+pub(crate) use blocks::{block_diagonal_mul, check_covariance};
 pub use device::{Device, DeviceError};
 pub use noise::{MeasurementNoise, NoiseModel};
 pub(crate) use noise_file::DeviceTable;
@@ -34,13 +38,12 @@ pub use problem::{POSE_SIGMAS, PointProblem};
 pub use refine::{
     Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from, refine_map,
 };
-pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE};
+pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE, combination_text};
 pub use variance::{ComponentFit, JointComponents, NoiseEstimate, SigmaInterval, sample_covariance};
 pub(crate) use variance::{CovarianceSample, noise_design, residual_design};
 
-use nalgebra::allocator::Allocator;
 use nalgebra::storage::{IsContiguous, StorageMut};
-use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, Dyn, Matrix, OMatrix, SMatrix};
+use nalgebra::{DMatrix, DVector, Dim, Dyn, Matrix};
 use std::fmt;
 use std::str::FromStr;
 
@@ -185,7 +188,7 @@ impl LinearSystem {
         }
         self.check_finite()?;
         match &self.v {
-            Some(v) => check_covariance(v, b),
+            Some(v) => check_covariance(v, &Blocks::Uniform(b)),
             None => Ok(()),
         }
     }
@@ -208,21 +211,8 @@ fn column_names(names: Vec<String>, columns: usize) -> Vec<String> {
     if names.is_empty() { (1..=columns).map(|i| format!("x{i}")).collect() } else { names }
 }
 
-/// Check that the stacked blocks `v` (`b` columns) are finite and each block symmetric.
-pub(crate) fn check_covariance(v: &DMatrix<f64>, b: usize) -> Result<(), EstimationError> {
-    finite("V", v.as_slice(), v.nrows())?;
-    for k in 0..v.nrows() / b {
-        let block = v.rows(k * b, b);
-        let tolerance = 1e-9 * block.amax();
-        if (0..b).any(|i| (0..i).any(|j| (block[(i, j)] - block[(j, i)]).abs() > tolerance)) {
-            return Err(EstimationError::Dimensions(format!("V_k of point {k} is not symmetric")));
-        }
-    }
-    Ok(())
-}
-
 /// The first non-finite value of a column-major matrix with `rows` rows, as an error.
-fn finite(what: &'static str, values: &[f64], rows: usize) -> Result<(), EstimationError> {
+pub(crate) fn finite(what: &'static str, values: &[f64], rows: usize) -> Result<(), EstimationError> {
     match values.iter().position(|v| !v.is_finite()) {
         Some(i) => Err(EstimationError::NonFinite { what, row: i % rows.max(1), value: values[i] }),
         None => Ok(()),
@@ -235,16 +225,17 @@ pub(crate) struct Whitened {
     pub a: DMatrix<f64>,
     pub b: DVector<f64>,
     pub noise: Option<DMatrix<f64>>,
+    pub blocks: Blocks,
 }
 
 /// The whitening operator `S = blockdiag(S_k)` of an estimator, with the paper's normalisation.
 #[derive(Debug, Clone)]
 pub struct Weights {
-    /// `S_k` stacked (`N_m x rows`); `None` for OLS (the identity).
+    /// `S_k` stacked (`N_m x width`, laid out by `blocks`); `None` for OLS (the identity).
     s: Option<DMatrix<f64>>,
     /// `S_k V_k S_k^T` stacked, if `V` is known.
     noise: Option<DMatrix<f64>>,
-    rows: usize,
+    blocks: Blocks,
     /// The standard deviation of a whitened row, `sigma_max` of the normalisation (1 without
     /// it), if `V` is known.
     scale: Option<f64>,
@@ -262,27 +253,28 @@ impl Weights {
         estimator: Estimator,
         normalise: bool,
     ) -> Result<Self, EstimationError> {
+        Self::of_blocks(v, Blocks::Uniform(rows), estimator, normalise)
+    }
+
+    /// [`Weights::new`] for points laid out by `blocks` (`v` stacked `N_m x blocks.width()`).
+    pub fn of_blocks(
+        v: Option<&DMatrix<f64>>,
+        blocks: Blocks,
+        estimator: Estimator,
+        normalise: bool,
+    ) -> Result<Self, EstimationError> {
         let Some(v) = v else {
             return match estimator {
-                Estimator::Ols => Ok(Self { s: None, noise: None, rows, scale: None, whitened: false }),
+                Estimator::Ols => Ok(Self { s: None, noise: None, blocks, scale: None, whitened: false }),
                 _ => Err(EstimationError::NoiseRequired(estimator)),
             };
         };
-        let sigma_max = (0..v.nrows()).map(|r| v[(r, r % rows)]).fold(0.0, f64::max).sqrt();
+        let sigma_max = blocks.diagonal(v).into_iter().fold(0.0, f64::max).sqrt();
         if estimator == Estimator::Ols {
-            return Ok(Self {
-                s: None,
-                noise: Some(v.clone()),
-                rows,
-                scale: Some(sigma_max),
-                whitened: false,
-            });
+            let noise = Some(v.clone());
+            return Ok(Self { s: None, noise, blocks, scale: Some(sigma_max), whitened: false });
         }
-        let (mut s, mut noise) = match rows {
-            3 => block_weights(v, Const::<3>, estimator)?,
-            6 => block_weights(v, Const::<6>, estimator)?,
-            b => block_weights(v, Dyn(b), estimator)?,
-        };
+        let (mut s, mut noise) = block_weights(v, &blocks, estimator)?;
         let mut scale = 1.0;
         if normalise {
             // W = sigma_max^2 V^-1: S scaled by sigma_max (by its square root for 1/sigma weights).
@@ -293,7 +285,7 @@ impl Weights {
                 scale = sigma_max;
             }
         }
-        Ok(Self { s: Some(s), noise: Some(noise), rows, scale: Some(scale), whitened: true })
+        Ok(Self { s: Some(s), noise: Some(noise), blocks, scale: Some(scale), whitened: true })
     }
 
     /// The standard deviation `c` of a whitened row: `sigma_max` under the paper's
@@ -309,160 +301,98 @@ impl Weights {
         self.whitened
     }
 
+    /// How the rows fall into points.
+    pub fn blocks(&self) -> &Blocks {
+        &self.blocks
+    }
+
     /// These weights with point `k`'s whitening multiplied by `sqrt(w_k)`, as if its covariance
     /// were `V_k / w_k` (iteratively reweighted least squares): the whitened noise blocks are
     /// multiplied by `w_k`. `w` has one weight per point.
     pub fn reweighted(&self, w: &[f64]) -> Self {
-        let b = self.rows;
+        let b = &self.blocks;
+        let rows = if w.is_empty() { 0 } else { b.range(w.len() - 1).end };
         let mut s = match &self.s {
             Some(s) => s.clone(),
             None => {
-                let mut identity = DMatrix::zeros(w.len() * b, b);
-                for k in 0..w.len() {
-                    identity.view_mut((k * b, 0), (b, b)).fill_with_identity();
+                let mut identity = DMatrix::zeros(rows, b.width());
+                for r in b.ranges(rows) {
+                    identity.view_mut((r.start, 0), (r.len(), r.len())).fill_with_identity();
                 }
                 identity
             }
         };
         let mut noise = self.noise.clone();
         for (k, &w_k) in w.iter().enumerate() {
-            s.rows_mut(k * b, b).scale_mut(w_k.sqrt());
+            let r = b.range(k);
+            s.rows_mut(r.start, r.len()).scale_mut(w_k.sqrt());
             if let Some(noise) = &mut noise {
-                noise.rows_mut(k * b, b).scale_mut(w_k);
+                noise.rows_mut(r.start, r.len()).scale_mut(w_k);
             }
         }
-        Self { s: Some(s), noise, rows: b, scale: self.scale, whitened: self.whitened }
+        Self { s: Some(s), noise, blocks: b.clone(), scale: self.scale, whitened: self.whitened }
     }
 
     /// Ordinary least squares on rows of different units: every row of `y` multiplied by its
-    /// factor in `scale` (`N_m` factors; `S_k` the diagonal of point `k`'s, points of `rows`),
-    /// so that the unweighted fit minimises `|S y|^2`. A pose's orientation rows (rad) are
-    /// scaled by `sigma_position / sigma_orientation` (mm/rad): one radian then counts as the
-    /// length whose error is as likely, never as one millimetre. `v` (the blocks `V_k`, if
-    /// known) gives the covariance of the scaled errors, `S_k V_k S_k`.
-    pub fn scaled_rows(v: Option<&DMatrix<f64>>, rows: usize, scale: &[f64]) -> Self {
-        let block = |i: usize| i - i % rows;
-        let s = DMatrix::from_fn(scale.len(), rows, |i, j| if i % rows == j { scale[i] } else { 0.0 });
-        let noise =
-            v.map(|v| DMatrix::from_fn(v.nrows(), rows, |i, j| scale[i] * v[(i, j)] * scale[block(i) + j]));
+    /// factor in `scale` (`N_m` factors; `S_k` the diagonal of point `k`'s, points laid out by
+    /// `blocks`), so that the unweighted fit minimises `|S y|^2`. A pose's orientation rows
+    /// (rad) are scaled by `sigma_position / sigma_orientation` (mm/rad): one radian then
+    /// counts as the length whose error is as likely, never as one millimetre. `v` (the blocks
+    /// `V_k`, if known) gives the covariance of the scaled errors, `S_k V_k S_k`.
+    pub fn scaled_rows(v: Option<&DMatrix<f64>>, blocks: Blocks, scale: &[f64]) -> Self {
+        let (rows, width) = (scale.len(), blocks.width());
+        let mut s = DMatrix::zeros(rows, width);
+        let mut noise = v.map(|v| DMatrix::zeros(v.nrows(), width));
+        for r in blocks.ranges(rows) {
+            for i in r.clone() {
+                s[(i, i - r.start)] = scale[i];
+                if let (Some(noise), Some(v)) = (&mut noise, v) {
+                    for j in 0..r.len() {
+                        noise[(i, j)] = scale[i] * v[(i, j)] * scale[r.start + j];
+                    }
+                }
+            }
+        }
         // The rows' largest standard deviation, as OLS with a noise model takes it.
-        let sigma_max =
-            noise.as_ref().map(|n| (0..n.nrows()).map(|r| n[(r, r % rows)]).fold(0.0, f64::max).sqrt());
-        Self { s: Some(s), noise, rows, scale: sigma_max, whitened: false }
+        let sigma_max = noise.as_ref().map(|n| blocks.diagonal(n).into_iter().fold(0.0, f64::max).sqrt());
+        Self { s: Some(s), noise, blocks, scale: sigma_max, whitened: false }
     }
 
-    /// Whether these weights are for `equations` rows in points of `rows`.
-    pub(crate) fn fits(&self, equations: usize, rows: usize) -> bool {
-        self.rows == rows && self.s.as_ref().or(self.noise.as_ref()).is_none_or(|s| s.nrows() == equations)
+    /// Whether these weights are for `equations` rows in points laid out by `blocks`.
+    pub(crate) fn fits(&self, equations: usize, blocks: &Blocks) -> bool {
+        self.blocks == *blocks
+            && self.s.as_ref().or(self.noise.as_ref()).is_none_or(|s| s.nrows() == equations)
     }
 
     /// Multiply `m` (`N_m` rows) by `S` in place, block by block, without allocating.
     pub fn apply<C: Dim, St: StorageMut<f64, Dyn, C> + IsContiguous>(&self, m: &mut Matrix<f64, Dyn, C, St>) {
         if let Some(s) = &self.s {
-            block_diagonal_mul(s, m);
+            block_diagonal_mul(s, &self.blocks, m);
         }
     }
 
     /// Multiply the rows of point `k` by `S_k` in place: `block` holds one or more columns of
-    /// that point's rows, one after the other (a column-major `rows x n` block). Whitening a
+    /// that point's rows, one after the other (a column-major `size_k x n` block). Whitening a
     /// point's block while it is in cache costs a third of a pass over the whole of `H`.
     pub fn apply_point(&self, k: usize, block: &mut [f64]) {
         if let Some(s) = &self.s {
-            block_mul(s, k, block.chunks_exact_mut(self.rows));
+            let r = self.blocks.range(k);
+            blocks::block_mul(s, r.start, r.len(), block.chunks_exact_mut(r.len()));
         }
     }
 
-    /// `A = S H`, `b = S y` and the whitened noise blocks of `system`.
-    /// The covariance of the whitened errors, `S_k V_k S_k^T` stacked (`V` itself for OLS);
-    /// `None` without a noise model.
-    pub(crate) fn noise(&self) -> Option<&DMatrix<f64>> {
-        self.noise.as_ref()
+    /// The covariance of the whitened errors, `S_k V_k S_k^T` stacked (`V` itself for OLS),
+    /// with its layout; `None` without a noise model.
+    pub(crate) fn noise(&self) -> Option<(&DMatrix<f64>, &Blocks)> {
+        self.noise.as_ref().map(|n| (n, &self.blocks))
     }
 
+    /// `A = S H`, `b = S y` and the whitened noise blocks of `system`.
     pub(crate) fn whiten(&self, system: &LinearSystem) -> Whitened {
         let (mut a, mut b) = (system.h.clone(), system.y.clone());
         self.apply(&mut a);
         self.apply(&mut b);
-        Whitened { a, b, noise: self.noise.clone() }
-    }
-}
-
-/// `S_k` of every block (`L_k^-1` by Cholesky for Gauss-Markov, a diagonal for the others) and
-/// the covariance of the whitened errors, `S_k V_k S_k^T`, both stacked. Blocks of `d` rows:
-/// `Const` sizes keep the small matrices on the stack.
-fn block_weights<D: Dim>(
-    v: &DMatrix<f64>,
-    d: D,
-    estimator: Estimator,
-) -> Result<(DMatrix<f64>, DMatrix<f64>), EstimationError>
-where
-    DefaultAllocator: Allocator<D, D> + Allocator<D>,
-{
-    let b = d.value();
-    let (mut s, mut noise) = (DMatrix::zeros(v.nrows(), b), DMatrix::zeros(v.nrows(), b));
-    for k in 0..v.nrows() / b {
-        let v_k = OMatrix::<f64, D, D>::from_fn_generic(d, d, |i, j| v[(k * b + i, j)]);
-        let not_pd = || EstimationError::NotPositiveDefinite { point: k };
-        let s_k = match estimator {
-            Estimator::Ols => OMatrix::identity_generic(d, d),
-            Estimator::Wls => {
-                let l = v_k.clone().cholesky().ok_or_else(not_pd)?.unpack();
-                let inverse = l.solve_lower_triangular(&OMatrix::identity_generic(d, d));
-                inverse.filter(|m| m.iter().all(|v| v.is_finite())).ok_or_else(not_pd)?
-            }
-            Estimator::WlsDiag | Estimator::WlsSigma => {
-                if v_k.diagonal().iter().any(|&d| d <= 0.0) {
-                    return Err(not_pd());
-                }
-                let power = if estimator == Estimator::WlsDiag { -0.5 } else { -0.25 };
-                OMatrix::from_diagonal(&v_k.diagonal().map(|d| d.powf(power)))
-            }
-        };
-        noise.generic_view_mut((k * b, 0), (d, d)).copy_from(&(&s_k * v_k * s_k.transpose()));
-        s.generic_view_mut((k * b, 0), (d, d)).copy_from(&s_k);
-    }
-    Ok((s, noise))
-}
-
-/// `m` (`N_m` rows) times the block-diagonal matrix whose `b x b` blocks are stacked in
-/// `blocks` (`N_m x b`), in place: each block loaded once, no allocation.
-pub(crate) fn block_diagonal_mul<C: Dim, St: StorageMut<f64, Dyn, C> + IsContiguous>(
-    blocks: &DMatrix<f64>,
-    m: &mut Matrix<f64, Dyn, C, St>,
-) {
-    let (b, rows) = (blocks.ncols(), m.nrows());
-    let values = m.as_mut_slice();
-    for k in 0..rows / b {
-        let range = k * b..(k + 1) * b;
-        block_mul(blocks, k, values.chunks_exact_mut(rows.max(1)).map(|column| &mut column[range.clone()]));
-    }
-}
-
-/// Block `k` of the stacked `blocks` times each of `columns` (one block's height each).
-fn block_mul<'c>(blocks: &DMatrix<f64>, k: usize, columns: impl Iterator<Item = &'c mut [f64]>) {
-    match blocks.ncols() {
-        3 => fixed_block_mul::<3>(blocks, k, columns),
-        6 => fixed_block_mul::<6>(blocks, k, columns),
-        b => {
-            let block = blocks.rows(k * b, b);
-            for column in columns {
-                let product = block * DVector::from_column_slice(column);
-                column.copy_from_slice(product.as_slice());
-            }
-        }
-    }
-}
-
-/// [`block_mul`] with the block on the stack.
-fn fixed_block_mul<'c, const B: usize>(
-    blocks: &DMatrix<f64>,
-    k: usize,
-    columns: impl Iterator<Item = &'c mut [f64]>,
-) {
-    let block: SMatrix<f64, B, B> = blocks.fixed_view::<B, B>(k * B, 0).into_owned();
-    for column in columns {
-        let product = block * nalgebra::SVector::<f64, B>::from_column_slice(column);
-        column.copy_from_slice(product.as_slice());
+        Whitened { a, b, noise: self.noise.clone(), blocks: self.blocks.clone() }
     }
 }
 

@@ -6,13 +6,18 @@ use super::prior::PriorRows;
 use super::solve::{
     Diagnostics, LinearEstimate, RANK_TOLERANCE, diagnose_rank, diagnose_rank_by_priority, factorise,
 };
-use super::{EstimationError, Estimator, Weights};
+use super::{Blocks, EstimationError, Estimator, Weights};
 use nalgebra::{DMatrix, DVector};
 
 /// A least-squares problem that can be linearised about any parameter values.
 pub trait Residuals {
     /// Rows per point: 3 (position) or 6 (pose).
     fn rows_per_point(&self) -> usize;
+    /// How the rows fall into points, one block `V_k` each: by default
+    /// [`Residuals::rows_per_point`] rows every point.
+    fn blocks(&self) -> Blocks {
+        Blocks::Uniform(self.rows_per_point())
+    }
     /// Rows of `y`: `N_m`.
     fn equations(&self) -> usize;
     /// Number of parameters: the length of `x`.
@@ -155,28 +160,28 @@ impl Weights {
     /// squares scales the rows of a problem whose points mix units
     /// ([`Residuals::ols_row_scale`], [`Weights::scaled_rows`]).
     pub fn for_problem(problem: &impl Residuals, estimator: Estimator) -> Result<Self, EstimationError> {
-        let rows = problem.rows_per_point();
-        if rows == 0 || problem.equations() % rows != 0 {
+        let blocks = problem.blocks();
+        let equations = problem.equations();
+        if !blocks.covers(equations) {
             return Err(EstimationError::Dimensions(format!(
-                "{} equations in points of {rows} rows",
-                problem.equations()
+                "{equations} equations in points of {blocks:?}"
             )));
         }
         if let Some(v) = problem.covariance() {
-            if v.shape() != (problem.equations(), rows) {
+            if v.shape() != (equations, blocks.width()) {
                 return Err(EstimationError::Dimensions(format!(
-                    "V blocks are {:?}, expected {} x {rows}",
+                    "V blocks are {:?}, expected {equations} x {}",
                     v.shape(),
-                    problem.equations()
+                    blocks.width()
                 )));
             }
-            super::check_covariance(v, rows)?;
+            super::check_covariance(v, &blocks)?;
         }
         match (estimator, problem.ols_row_scale()) {
-            (Estimator::Ols, Some(scale)) if scale.len() == problem.equations() => {
-                Ok(Weights::scaled_rows(problem.covariance(), rows, &scale))
+            (Estimator::Ols, Some(scale)) if scale.len() == equations => {
+                Ok(Weights::scaled_rows(problem.covariance(), blocks, &scale))
             }
-            _ => Weights::new(problem.covariance(), rows, estimator, true),
+            _ => Weights::of_blocks(problem.covariance(), blocks, estimator, true),
         }
     }
 }
@@ -192,7 +197,7 @@ pub fn linearise(
     if x.len() != problem.parameters() {
         return dims(format!("{} start values for {} parameters", x.len(), problem.parameters()));
     }
-    if !weights.fits(problem.equations(), problem.rows_per_point()) {
+    if !weights.fits(problem.equations(), &problem.blocks()) {
         return dims(format!(
             "weights for other points than the problem's {} equations",
             problem.equations()
@@ -265,7 +270,7 @@ fn iterate(
     if start.a.shape() != (m, p) || start.b.len() != m || start.x.len() != p {
         return dims(format!("a linearisation of {:?} for a problem of {m} x {p}", start.a.shape()));
     }
-    if !weights.fits(m, problem.rows_per_point()) {
+    if !weights.fits(m, &problem.blocks()) {
         return dims(format!("weights for other points than the problem's {m} equations"));
     }
     let names = problem.names();

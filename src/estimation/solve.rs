@@ -38,18 +38,23 @@ pub struct Combination {
 impl Combination {
     /// The direction in words, e.g. `j1.beta - j1.theta`, given the name of each column.
     pub fn describe<S: AsRef<str>>(&self, names: &[S]) -> String {
-        let mut text = names[self.column].as_ref().to_string();
-        for &(column, c) in &self.terms {
-            let sign = if c < 0.0 { '-' } else { '+' };
-            let name = names[column].as_ref();
-            if (c.abs() - 1.0).abs() < 1e-9 {
-                text += &format!(" {sign} {name}");
-            } else {
-                text += &format!(" {sign} {} {name}", format_coefficient(c.abs()));
-            }
-        }
-        text
+        combination_text(names[self.column].as_ref(), self.terms.iter().map(|&(j, c)| (names[j].as_ref(), c)))
     }
+}
+
+/// A combination in words: `head` then each term `+ c name` (`- name` for a coefficient of -1),
+/// coefficients to 4 significant digits.
+pub fn combination_text<'n>(head: &str, terms: impl Iterator<Item = (&'n str, f64)>) -> String {
+    let mut text = head.to_string();
+    for (name, c) in terms {
+        let sign = if c < 0.0 { '-' } else { '+' };
+        if (c.abs() - 1.0).abs() < 1e-9 {
+            text += &format!(" {sign} {name}");
+        } else {
+            text += &format!(" {sign} {} {name}", format_coefficient(c.abs()));
+        }
+    }
+    text
 }
 
 /// `c > 0` to 4 significant digits, without trailing zeros: `20.3`, `0.006667`, `3`.
@@ -403,7 +408,7 @@ pub(crate) fn solve(
     let f = factorise(&w.a, tolerance)?;
     let x = f.solve(&w.a, &w.b);
     let cost = (&w.b - &w.a * &x).norm_squared();
-    let covariance = f.covariance(&w.a, w.noise.as_ref(), cost);
+    let covariance = f.covariance(&w.a, w.noise.as_ref().map(|n| (n, &w.blocks)), cost);
     Ok(LinearEstimate { names, x, covariance, cost, diagnostics: f.diagnostics })
 }
 
@@ -432,7 +437,7 @@ impl Factorised {
     pub(crate) fn covariance(
         &self,
         a: &DMatrix<f64>,
-        noise: Option<&DMatrix<f64>>,
+        noise: Option<(&DMatrix<f64>, &super::Blocks)>,
         cost: f64,
     ) -> DMatrix<f64> {
         let gram = || match &self.right {
@@ -457,7 +462,7 @@ impl Factorised {
     pub(crate) fn posterior_covariance(
         &self,
         a: &DMatrix<f64>,
-        noise: Option<&DMatrix<f64>>,
+        noise: Option<(&DMatrix<f64>, &super::Blocks)>,
         prior: &PriorRows,
     ) -> DMatrix<f64> {
         let gram = || crate::linalg::gram(a);
@@ -471,25 +476,19 @@ impl Factorised {
 
 /// `A^T N A` for the stacked blocks `N` of the covariance of the whitened data rows `a`; `gram`
 /// gives `A^T A`, used when every block is a multiple of the identity.
-fn information(a: &DMatrix<f64>, blocks: &DMatrix<f64>, gram: impl Fn() -> DMatrix<f64>) -> DMatrix<f64> {
-    match identity_multiple(blocks) {
+fn information(
+    a: &DMatrix<f64>,
+    (stacked, blocks): (&DMatrix<f64>, &super::Blocks),
+    gram: impl Fn() -> DMatrix<f64>,
+) -> DMatrix<f64> {
+    match super::blocks::identity_multiple(stacked, blocks) {
         Some(scale) => gram() * scale,
         None => {
             let mut na = a.clone();
-            super::block_diagonal_mul(blocks, &mut na);
+            super::block_diagonal_mul(stacked, blocks, &mut na);
             crate::linalg::tr_mul(a, &na)
         }
     }
-}
-
-/// `c` if every stacked block is `c I` to a relative 1e-9, `c > 0`.
-pub(crate) fn identity_multiple(blocks: &DMatrix<f64>) -> Option<f64> {
-    let b = blocks.ncols();
-    let c = *blocks.get((0, 0))?;
-    let close = |v: f64, target: f64| (v - target).abs() <= 1e-9 * c;
-    let identity =
-        (0..blocks.nrows()).all(|r| (0..b).all(|j| close(blocks[(r, j)], if r % b == j { c } else { 0.0 })));
-    (c > 0.0 && identity).then_some(c)
 }
 
 #[cfg(test)]

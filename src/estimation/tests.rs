@@ -1,5 +1,10 @@
 use super::*;
 
+/// [`blocks::identity_multiple`] of a stacked matrix and its layout.
+fn identity_multiple((stacked, blocks): (&DMatrix<f64>, &Blocks)) -> Option<f64> {
+    blocks::identity_multiple(stacked, blocks)
+}
+
 /// A small system with a known answer: 4 points of 3 rows, 2 parameters.
 fn small_system() -> LinearSystem {
     let h = DMatrix::from_fn(12, 2, |r, c| ((r * 7 + c * 3) as f64 * 0.91).sin() + c as f64);
@@ -110,13 +115,17 @@ fn whitening_gives_the_mahalanobis_norm_for_any_block_size() {
 fn whitened_gauss_markov_noise_is_a_multiple_of_the_identity() {
     let system = small_system();
     let weights = Weights::new(system.v.as_ref(), 3, Estimator::Wls, true).unwrap();
-    let scale = solve::identity_multiple(weights.noise().unwrap()).expect("sigma_max^2 I");
+    let scale = identity_multiple(weights.noise().unwrap()).expect("sigma_max^2 I");
     let sigma_max2 = (0..12).map(|r| system.v.as_ref().unwrap()[(r, r % 3)]).fold(0.0, f64::max);
     assert!((scale - sigma_max2).abs() < 1e-12 * sigma_max2, "{scale} vs {sigma_max2}");
     let diag = Weights::new(system.v.as_ref(), 3, Estimator::WlsDiag, true).unwrap();
-    assert_eq!(solve::identity_multiple(diag.noise().unwrap()), None, "correlated blocks");
-    assert_eq!(solve::identity_multiple(system.v.as_ref().unwrap()), None, "unequal variances");
-    assert_eq!(solve::identity_multiple(&DMatrix::zeros(6, 3)), None, "zero noise");
+    assert_eq!(identity_multiple(diag.noise().unwrap()), None, "correlated blocks");
+    assert_eq!(
+        identity_multiple((system.v.as_ref().unwrap(), &Blocks::Uniform(3))),
+        None,
+        "unequal variances"
+    );
+    assert_eq!(identity_multiple((&DMatrix::zeros(6, 3), &Blocks::Uniform(3))), None, "zero noise");
 }
 
 /// Ordinary least squares with rows scaled by `S = diag(scale)` is the OLS of `S H`, `S y`,
@@ -125,7 +134,7 @@ fn whitened_gauss_markov_noise_is_a_multiple_of_the_identity() {
 fn scaled_rows_are_the_ols_of_the_scaled_system() {
     let system = small_system();
     let scale: Vec<f64> = (0..12).map(|r| if r % 3 == 2 { 250.0 } else { 1.0 }).collect();
-    let weights = Weights::scaled_rows(system.v.as_ref(), 3, &scale);
+    let weights = Weights::scaled_rows(system.v.as_ref(), Blocks::Uniform(3), &scale);
     let by_hand = {
         let s = |m: &DMatrix<f64>| DMatrix::from_fn(m.nrows(), m.ncols(), |r, c| m[(r, c)] * scale[r]);
         let y = DMatrix::from_column_slice(12, 1, system.y.as_slice());
@@ -135,9 +144,64 @@ fn scaled_rows_are_the_ols_of_the_scaled_system() {
     };
     let prepared = Prepared::with_weights(&system.h, weights.clone(), RANK_TOLERANCE).unwrap();
     assert!((prepared.estimate(&system.y) - &by_hand).amax() < 1e-12);
-    let noise = weights.noise().unwrap();
+    let noise = weights.noise().unwrap().0;
     let v = system.v.as_ref().unwrap();
     assert!(
         (noise[(5, 2)] - 250.0 * v[(5, 2)] * 250.0).abs() < 1e-9 && (noise[(3, 1)] - v[(3, 1)]).abs() < 1e-12
     );
+}
+
+/// Points of different sizes (a pose with three markers, one with a single distance, ...):
+/// whitening gives each block's Mahalanobis norm, point by point as in the whole, and Gauss-Markov
+/// on the ragged blocks is the dense `(H^T V^-1 H)^-1 H^T V^-1 y` with `V` assembled in full.
+#[test]
+fn ragged_blocks_whiten_and_estimate_as_the_dense_gauss_markov() {
+    let sizes = [3, 1, 6, 2, 4];
+    let blocks = Blocks::from_sizes(sizes);
+    let (rows, width) = (sizes.iter().sum::<usize>(), blocks.width());
+    assert_eq!(
+        (blocks.points(rows), width, blocks.covers(rows), blocks.covers(rows + 1)),
+        (5, 6, true, false)
+    );
+    let mut v = DMatrix::zeros(rows, width);
+    let mut dense = DMatrix::zeros(rows, rows);
+    for r in blocks.ranges(rows) {
+        let n = r.len();
+        let a = DMatrix::from_fn(n, n, |i, j| ((i * 5 + j * 3 + r.start) as f64 * 0.71).sin());
+        let v_k = &a * a.transpose() + DMatrix::identity(n, n) * 0.5;
+        v.view_mut((r.start, 0), (n, n)).copy_from(&v_k);
+        dense.view_mut((r.start, r.start), (n, n)).copy_from(&v_k);
+    }
+    assert_eq!(blocks.diagonal(&v), dense.diagonal().as_slice());
+    let weights = Weights::of_blocks(Some(&v), blocks.clone(), Estimator::Wls, false).unwrap();
+    let mut rng = <rand::rngs::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(7);
+    let h = DMatrix::from_fn(rows, 3, |_, _| {
+        rand_distr::Distribution::<f64>::sample(&rand_distr::StandardNormal, &mut rng)
+    });
+    assert_eq!(h.rank(1e-9), 3, "a full-rank H");
+    let y = DVector::from_fn(rows, |r, _| ((r * 11) as f64 * 0.13).sin());
+    let mut whole = h.clone();
+    weights.apply(&mut whole);
+    for (k, r) in blocks.ranges(rows).enumerate() {
+        let mut block = h.rows(r.start, r.len()).into_owned();
+        weights.apply_point(k, block.as_mut_slice());
+        assert_eq!(block, whole.rows(r.start, r.len()), "point {k}: one block as in the whole");
+    }
+    let mut b = y.clone();
+    weights.apply(&mut b);
+    let v_inv = dense.clone().try_inverse().unwrap();
+    let mahalanobis = (y.transpose() * &v_inv * &y)[(0, 0)];
+    assert!((b.norm_squared() - mahalanobis).abs() < 1e-10 * mahalanobis);
+    let x = solve::factorise(&whole, RANK_TOLERANCE).unwrap().solve(&whole, &b);
+    let gls = (h.transpose() * &v_inv * &h).try_inverse().unwrap() * h.transpose() * &v_inv * &y;
+    assert!((&x - &gls).amax() < 1e-10 * gls.amax(), "{x} vs {gls}");
+    let (noise, layout) = weights.noise().unwrap();
+    let c = identity_multiple((noise, layout)).expect("S_k V_k S_k^T = I in every block");
+    assert!((c - 1.0).abs() < 1e-12, "{c}");
+    // A point's weight scales its rows only.
+    let reweighted = weights.reweighted(&[1.0, 4.0, 1.0, 1.0, 1.0]);
+    let mut twice = h.clone();
+    reweighted.apply(&mut twice);
+    assert!((twice.rows(3, 1) - whole.rows(3, 1) * 2.0).amax() < 1e-12);
+    assert!((twice.rows(4, 6) - whole.rows(4, 6)).amax() < 1e-12);
 }

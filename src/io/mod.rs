@@ -5,7 +5,7 @@
 //! This is the only library module that touches the file system; the core (model,
 //! kinematics, estimation, simulation) works on values.
 
-use crate::calibration::{Measurements, RepeatabilityData};
+use crate::calibration::{DataKind, Measurements, RepeatabilityData};
 use crate::estimation::{NoiseFileError, NoiseSpec};
 use crate::limits::{FALLBACK_MEMORY, MEMORY_SHARE};
 use crate::model::{ModelError, ModelRef, PRESETS, RobotModel, chain_links, from_urdf_str};
@@ -484,6 +484,12 @@ pub fn load_measurements(
     let text = read(path)?;
     Measurements::from_csv_str(&text, model, units)
         .map_err(|source| InputError::Data { path: path.into(), source })
+}
+
+/// What the data file at `path` holds, from its header ([`DataKind::of_csv_str`]).
+pub fn data_kind(path: &Path) -> Result<DataKind, InputError> {
+    let text = read(path)?;
+    DataKind::of_csv_str(&text).map_err(|source| InputError::Data { path: path.into(), source })
 }
 
 /// A repeatability file (a measurement file with a `pose` column) for `model`.

@@ -85,7 +85,7 @@ impl RobotTree {
             return Err(FieldError::new(
                 "tip links",
                 format!(
-                    "two tips or more for a tree, found {}: a serial arm is calibrated by `calibrate`",
+                    "two tips or more for a tree, found {}: a serial arm is calibrated from its markers or tool point, not from views between branches",
                     tips.len()
                 ),
             )

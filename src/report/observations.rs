@@ -31,8 +31,10 @@ pub struct ObservationsReport {
     pub parameters: Vec<ParameterRow>,
     /// What the observations cannot see, held, in words.
     pub unseen: Vec<String>,
-    /// Combinations the poses cannot tell apart, held, in words.
+    /// What was held and why, in words (a line each).
     pub fixed: Vec<String>,
+    /// The same, typed: the kind, the parameter, a combination's terms.
+    pub held: Vec<crate::calibration::Held>,
     /// The training observations scored, then each held-out file: every observation's
     /// residual, and the RMS of the lengths (mm), of the angles (deg) and of the marker
     /// positions (mm).
@@ -115,6 +117,8 @@ impl ObservationsReport {
             .collect();
         let mut sets = vec![("training".to_string(), c.training.clone())];
         sets.extend(held_out);
+        let held: Vec<crate::calibration::Held> =
+            c.fixed.iter().map(|f| f.clone().renamed(|n| point_names(n, c))).collect();
         Self {
             model: c.calibrated.name.clone(),
             data: data.to_string(),
@@ -125,7 +129,8 @@ impl ObservationsReport {
             converged: c.refined.converged,
             parameters,
             unseen: c.unseen.clone(),
-            fixed: c.fixed.iter().map(|f| point_names(f, c)).collect(),
+            fixed: held.iter().map(crate::calibration::Held::text).collect(),
+            held,
             sets,
             warnings: c.warnings.clone(),
             variance_factor: c.variance_factor,

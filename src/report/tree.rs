@@ -48,8 +48,10 @@ pub struct TreeReport {
     pub frames: Vec<FrameRow>,
     /// What the views cannot see, held, in words.
     pub unseen: Vec<String>,
-    /// Combinations the poses cannot tell apart, held, in words.
+    /// What was held and why, in words (a line each).
     pub fixed: Vec<String>,
+    /// The same, typed: the kind, the parameter, a combination's terms.
+    pub held: Vec<crate::calibration::Held>,
     /// The training views scored, then each held-out file's.
     pub sets: Vec<(String, TreeScore)>,
     /// Implausible results, one per cause.
@@ -113,6 +115,7 @@ impl TreeReport {
             .collect();
         let mut sets = vec![("training".to_string(), c.training.clone())];
         sets.extend(held_out);
+        let held: Vec<crate::calibration::Held> = c.fixed.clone();
         Self {
             model: c.calibrated.name.clone(),
             branches: c.calibrated.branches.iter().map(|b| b.tip.clone()).collect(),
@@ -126,7 +129,8 @@ impl TreeReport {
             parameters,
             frames,
             unseen: c.unseen.clone(),
-            fixed: c.fixed.clone(),
+            fixed: held.iter().map(crate::calibration::Held::text).collect(),
+            held,
             sets,
             warnings: c.warnings.clone(),
             training_files: Vec::new(),

@@ -327,7 +327,7 @@ fn the_command_calibrates_from_a_camera_and_validates() {
     let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
     let output = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560"])
+        .args(["calibrate", "--model", "puma560"])
         .args(["--data", &path(&train), "--validate", &path(&test), "--json", &path(&json)])
         .output()
         .unwrap();
@@ -348,9 +348,9 @@ fn the_command_calibrates_from_a_camera_and_validates() {
 #[test]
 fn the_readme_camera_example_is_the_real_output() {
     crate::cli::the_readme_block_is_printed(
-        "$ robocal calibrate-observations --model puma560 --data examples/puma560-camera.csv",
+        "$ robocal calibrate --model puma560 --data examples/puma560-camera.csv",
         &[
-            "calibrate-observations",
+            "calibrate",
             "--model",
             "puma560",
             "--data",
@@ -398,8 +398,8 @@ fn a_camera_and_a_ball_bar_fit_together() {
 }
 
 /// `V_k` of a camera's rows against Monte Carlo: the joints read with noise `Sigma_q`, the
-/// sample variance of each row's residual over 3000 draws within 5 standard errors
-/// (`sqrt(2 / (n - 1))` relative) of `V_k`.
+/// sample covariance of the view's six residuals over 3000 draws within 5 standard errors of
+/// `V_k`, entry by entry: one block per pose, its rows correlated through the joint noise.
 #[test]
 fn the_covariance_of_a_view_is_the_joint_noise_of_its_pose() {
     let model = puma();
@@ -444,15 +444,26 @@ fn the_covariance_of_a_view_is_the_joint_noise_of_its_pose() {
                 samples[k].push(*y);
             }
         }
-        for (k, values) in samples.iter().enumerate() {
-            let mean = values.iter().sum::<f64>() / draws as f64;
-            let variance = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (draws - 1) as f64;
-            let relative = (variance / v[(k, 0)] - 1.0).abs();
-            assert!(
-                relative < 5.0 * (2.0 / (draws - 1) as f64).sqrt(),
-                "{site:?} row {k}: {variance} sampled, V_k {}",
-                v[(k, 0)]
-            );
+        // Every entry of the pose's block, the correlation between its rows included: the
+        // sample covariance within 5 of its standard errors, sqrt((V_ii V_jj + V_ij^2) / (n - 1)).
+        let mean: Vec<f64> = samples.iter().map(|v| v.iter().sum::<f64>() / draws as f64).collect();
+        for i in 0..6 {
+            for j in 0..6 {
+                let sampled = (samples[i].iter().zip(&samples[j]))
+                    .map(|(a, b)| (a - mean[i]) * (b - mean[j]))
+                    .sum::<f64>()
+                    / (draws - 1) as f64;
+                let se = ((v[(i, i)] * v[(j, j)] + v[(i, j)].powi(2)) / (draws - 1) as f64).sqrt();
+                assert!(
+                    (sampled - v[(i, j)]).abs() < 5.0 * se,
+                    "{site:?} ({i}, {j}): {sampled} sampled, V_k {}",
+                    v[(i, j)]
+                );
+            }
         }
+        let correlation = |i: usize, j: usize| v[(i, j)] / (v[(i, i)] * v[(j, j)]).sqrt();
+        let strongest =
+            (0..6).flat_map(|i| (0..i).map(move |j| (i, j))).map(|(i, j)| correlation(i, j).abs());
+        assert!(strongest.fold(0.0, f64::max) > 0.5, "{site:?}: the view's rows are correlated: {v}");
     }
 }

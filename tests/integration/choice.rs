@@ -6,6 +6,7 @@ use crate::kinds::{TOOL, ball_bar, errors_on, options, puma};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use robocal::calibration::Gauge;
+use robocal::calibration::Held;
 use robocal::calibration::Loss;
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
 use robocal::estimation::{Estimator, PriorEntry};
@@ -50,7 +51,7 @@ fn priors_losses_and_held_parameters_fit_a_ball_bar_as_well_as_plain_wls() {
     // --hold: the held parameter is not estimated, and said so.
     let c = calibrate_kinds(&puma(), &training, &hold).unwrap();
     assert!(!c.refined.estimate.names.iter().any(|n| n == "j6.d"));
-    assert!(c.fixed.iter().any(|f| f == "j6.d: held at its nominal value by --hold"), "{:?}", c.fixed);
+    assert!(c.fixed.contains(&Held::ByUser { parameter: "j6.d".into(), setup: false }), "{:?}", c.fixed);
     let e = calibrate_kinds(
         &puma(),
         &training,
@@ -122,7 +123,7 @@ fn the_command_takes_priors_losses_and_the_gauge() {
     let run = |extra: &[&str]| {
         assert_cmd::Command::cargo_bin("robocal")
             .unwrap()
-            .args(["calibrate-observations", "--model", "puma560", "--tool", "20,-10,120", "--data"])
+            .args(["calibrate", "--model", "puma560", "--tool", "20,-10,120", "--data"])
             .arg(&train)
             .args(extra)
             .output()
@@ -154,7 +155,7 @@ fn evaluate_scores_a_written_model_on_a_ball_bar() {
     std::fs::write(&test, crate::kinds::ball_bar_csv(&real, 60, &mut rng)).unwrap();
     let calibrated = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--tool", "20,-10,120", "--data"])
+        .args(["calibrate", "--model", "puma560", "--tool", "20,-10,120", "--data"])
         .arg(&train)
         .arg("--out-model")
         .arg(&model)
@@ -219,7 +220,7 @@ fn a_urdf_arm_calibrated_from_a_ball_bar_writes_its_urdf() {
     let tool = format!("{},{},{}", TOOL.x, TOOL.y, TOOL.z);
     let calibrated = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", urdf, "--tool", &tool, "--data"])
+        .args(["calibrate", "--model", urdf, "--tool", &tool, "--data"])
         .arg(&train)
         .arg("--out-urdf")
         .arg(&out)
@@ -247,7 +248,7 @@ fn a_urdf_arm_calibrated_from_a_ball_bar_writes_its_urdf() {
     assert!((again - training).abs() < 1e-6 * training, "re-scored {again} mm, calibrated {training} mm");
     let refused = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--data"])
+        .args(["calibrate", "--model", "puma560", "--data"])
         .arg(&train)
         .arg("--out-urdf")
         .arg(&out)

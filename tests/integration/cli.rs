@@ -27,9 +27,9 @@ pub(crate) fn the_readme_block_is_printed(start: &str, args: &[&str]) {
 #[test]
 fn the_readme_ball_bar_and_forward_kinematics_examples_are_the_real_output() {
     the_readme_block_is_printed(
-        "$ robocal calibrate-observations --model puma560 --tool 50,0,150 --data examples/puma560-ballbar.csv",
+        "$ robocal calibrate --model puma560 --tool 50,0,150 --data examples/puma560-ballbar.csv",
         &[
-            "calibrate-observations",
+            "calibrate",
             "--model",
             "puma560",
             "--tool",
@@ -51,9 +51,9 @@ fn the_readme_ball_bar_and_forward_kinematics_examples_are_the_real_output() {
 #[test]
 fn the_readme_markers_with_a_ball_bar_example_is_the_real_output() {
     the_readme_block_is_printed(
-        "$ robocal calibrate-observations --model puma560 --tool 50,0,150 \\\n    --marker",
+        "$ robocal calibrate --model puma560 --tool 50,0,150 \\\n    --marker",
         &[
-            "calibrate-observations",
+            "calibrate",
             "--model",
             "puma560",
             "--tool",
@@ -496,4 +496,61 @@ fn calibrate_select_prints_and_writes_its_path() {
         args.extend([flag, "joint9.x"]);
         assert!(stderr_of(&args).contains("no parameter matches `joint9.x`"), "{flag}");
     }
+}
+
+/// One command: `calibrate` of a ball bar's file is what `calibrate-observations` printed, and
+/// the old names remain for one release as aliases that say what to use instead (on standard
+/// error, the report unchanged on standard output).
+#[test]
+fn the_old_calibration_commands_are_aliases_of_calibrate() {
+    let args = ["--model", "puma560", "--tool", "50,0,150", "--data", "examples/puma560-ballbar.csv"];
+    let run = |command: &str| robocal().arg(command).args(args).output().unwrap();
+    let (new, old) = (run("calibrate"), run("calibrate-observations"));
+    assert!(new.status.success() && old.status.success(), "{}", String::from_utf8_lossy(&old.stderr));
+    assert_eq!(new.stdout, old.stdout);
+    let stdout = String::from_utf8(new.stdout).unwrap();
+    assert!(
+        stdout.starts_with("calibration of puma560 from examples/puma560-ballbar.csv: 150 observations"),
+        "{stdout}"
+    );
+    let note = String::from_utf8(old.stderr).unwrap();
+    assert!(note.contains("`robocal calibrate-observations` is now `robocal calibrate`"), "{note}");
+    assert!(!String::from_utf8(new.stderr).unwrap().contains("is now"));
+    let tree = robocal()
+        .args(["calibrate-tree", "--model", "presets/torso.urdf", "--data", "examples/torso/views.csv"])
+        .output()
+        .unwrap();
+    assert!(tree.status.success());
+    assert!(
+        String::from_utf8(tree.stderr)
+            .unwrap()
+            .contains("`robocal calibrate-tree` is now `robocal calibrate --tips ...`")
+    );
+}
+
+/// `calibrate` refuses, before any work, a flag the data's pipeline has no meaning for, naming
+/// the flag and saying what holds instead (exit code 2, nothing written).
+#[test]
+fn calibrate_refuses_marker_only_flags_on_observation_files() {
+    let out = robocal()
+        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-ballbar.csv", "--select", "cv"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8(out.stderr).unwrap();
+    assert!(stderr.contains("--select is for a single file of marker positions"), "{stderr}");
+    let out = robocal()
+        .args([
+            "calibrate",
+            "--model",
+            "puma560",
+            "--data",
+            "examples/puma560-ballbar.csv",
+            "--data",
+            "no-such.csv",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8(out.stderr).unwrap().contains("no-such.csv"));
 }

@@ -8,6 +8,7 @@ use proptest::prelude::*;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
+use robocal::calibration::Held;
 use robocal::calibration::kinds::{
     CameraSite, KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
 };
@@ -332,7 +333,7 @@ pub(crate) fn ball_bar(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> Kind
 }
 
 /// A length artefact: the distances between pairs of random poses.
-fn pairs(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+pub(crate) fn pairs(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
     let mut data = KindData::default();
     for k in 0..150 {
         let (a, b) = (random_pose(&puma(), rng), random_pose(&puma(), rng));
@@ -408,7 +409,7 @@ const PLANES: [([f64; 3], f64); 3] =
 
 /// Contacts with the first `count` planes of [`PLANES`]: random poses moved onto a plane by
 /// turning joint 2 or 3 (Newton on the signed distance), those that reach it within the limits.
-fn contacts(count: usize) -> impl Fn(&ChainAt, &mut ChaCha8Rng, f64) -> KindData {
+pub(crate) fn contacts(count: usize) -> impl Fn(&ChainAt, &mut ChaCha8Rng, f64) -> KindData {
     move |real, rng, sigma| {
         let model = puma();
         let mut data = KindData::default();
@@ -483,10 +484,10 @@ fn a_table_alone_cannot_see_turns_about_its_normal() {
     let mut rng = ChaCha8Rng::seed_from_u64(64);
     let data = contacts(1)(&chain.with_errors(&vec![0.0; chain.params().len()]), &mut rng, 0.0);
     let c = calibrate_kinds(&model, &data, &options(Estimator::Ols)).unwrap();
-    assert!(c.fixed.iter().any(|f| f.starts_with("j1.theta")), "{:?}", c.fixed);
+    assert!(c.fixed.iter().map(Held::text).any(|f| f.starts_with("j1.theta")), "{:?}", c.fixed);
     assert!(c.refined.estimate.names.iter().all(|n| n != "j1.theta" && n != "j2.a"));
     assert!(
-        c.fixed.iter().any(|f| f.starts_with("j2.a: held at its nominal value: contacts alone cannot see")),
+        c.fixed.iter().any(|f| matches!(f, Held::Scale { parameter } if parameter == "j2.a")),
         "{:?}",
         c.fixed
     );
@@ -713,7 +714,7 @@ fn the_command_calibrates_from_a_ball_bar_and_validates() {
     let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
     let output = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--tool", "20,-10,120"])
+        .args(["calibrate", "--model", "puma560", "--tool", "20,-10,120"])
         .args(["--data", &path(&train), "--validate", &path(&test), "--json", &path(&json)])
         .output()
         .unwrap();
@@ -725,6 +726,17 @@ fn the_command_calibrates_from_a_ball_bar_and_validates() {
     let held_out = &report["sets"][1][1]["lengths"];
     let (before, after) = (held_out[0].as_f64().unwrap(), held_out[1].as_f64().unwrap());
     assert_eq!(report["sets"][1][1]["observations"].as_array().unwrap().len(), 60);
+    // What was held, typed in the JSON and the same in words: a combination with the pivot.
+    let (held, fixed) = (report["held"].as_array().unwrap(), report["fixed"].as_array().unwrap());
+    assert_eq!(held.len(), fixed.len());
+    let combination = held.iter().position(|h| h["kind"] == "combination").expect("a combination held");
+    let terms = held[combination]["terms"].as_array().unwrap();
+    assert!(terms.iter().any(|t| t[0].as_str().unwrap().starts_with("point1.")), "{terms:?}");
+    let words = fixed[combination].as_str().unwrap();
+    assert!(
+        words.starts_with(held[combination]["parameter"].as_str().unwrap()) && words.contains("point1."),
+        "{words}"
+    );
     assert!(
         after * 20.0 < before && after < 0.02,
         "held-out RMS {before} mm before, {after} mm after\n{text}"
@@ -734,15 +746,7 @@ fn the_command_calibrates_from_a_ball_bar_and_validates() {
         .unwrap();
     let output = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args([
-            "calibrate-observations",
-            "--model",
-            "puma560",
-            "--data",
-            &path(&train),
-            "--validate",
-            &path(&test),
-        ])
+        .args(["calibrate", "--model", "puma560", "--data", &path(&train), "--validate", &path(&test)])
         .output()
         .unwrap();
     assert_eq!(output.status.code(), Some(1));

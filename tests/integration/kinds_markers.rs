@@ -11,7 +11,7 @@ use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
 use robocal::calibration::{self, Gauge, JointParams, Loss, Measurements, Options};
-use robocal::estimation::{Estimator, RefineOptions};
+use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
 use robocal::kinematics::{Chain, ChainAt};
 use robocal::model::Placement;
 use robocal::table::Units;
@@ -31,7 +31,7 @@ const PIVOT: Vector3<f64> = Vector3::new(400.0, 200.0, 300.0);
 
 /// The true robot: puma560 seen from [`device`], the three markers then the tool point, one
 /// chain each, with errors `x`.
-fn true_chains(x: &[f64]) -> Vec<ChainAt> {
+pub(crate) fn true_chains(x: &[f64]) -> Vec<ChainAt> {
     true_chains_with(x, TOOL)
 }
 
@@ -44,14 +44,14 @@ fn true_chains_with(x: &[f64], tool: Vector3<f64>) -> Vec<ChainAt> {
 }
 
 /// The parameters of the markers and the tool (the chains' shared set).
-fn chains() -> Vec<Chain> {
+pub(crate) fn chains() -> Vec<Chain> {
     let points: Vec<Vector3<f64>> = MARKERS.iter().copied().chain([TOOL]).collect();
     Chain::markers(&puma(), &points)
 }
 
 /// A marker file's observations: `poses` random poses, each marker's x, y, z measured with
 /// noise `sigma` (mm); marker 2's z not measured at every third pose (an empty cell).
-fn markers(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+pub(crate) fn markers(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
     let mut data = KindData::default();
     for pose in 0..poses {
         let q = random_pose(&puma(), rng);
@@ -91,7 +91,7 @@ fn ball_bar(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng, sigma: f64) ->
     data
 }
 
-fn marker_options(estimator: Estimator) -> KindOptions {
+pub(crate) fn marker_options(estimator: Estimator) -> KindOptions {
     KindOptions { markers: MARKERS.to_vec(), ..options(estimator) }
 }
 
@@ -245,6 +245,61 @@ fn a_marker_file_alone_calibrates_as_calibrate_does() {
     }
 }
 
+/// With joint noise, `calibrate`'s Gauss-Markov weighs each pose by its full `V_k` (its three
+/// markers correlated through the pose's joint noise): `calibrate-observations` makes one block
+/// of a pose's observations, so that the two give the same estimates (1e-6 relative), standard
+/// errors (1e-5) and residuals. Fitted one observation at a time, as before the blocks, the
+/// estimate differs by more than that (the test would fail on the diagonal weights).
+#[test]
+fn with_joint_noise_a_marker_file_weighs_each_pose_as_calibrate_does() {
+    let mut rng = ChaCha8Rng::seed_from_u64(83);
+    let chains = chains();
+    let all: Vec<String> = chains[0].params().iter().map(|p| p.name.clone()).collect();
+    let real = true_chains(&errors_on(&chains[0], &all, &mut rng));
+    let text = marker_csv(&real, 40, &mut rng);
+    let model = puma();
+    let measurements = Measurements::from_csv_str(&text, &model, None).unwrap();
+    let observations = KindData::from_csv_str(&text, &model, None).unwrap();
+    let sigmas: Vec<f64> =
+        [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|s: &f64| s.to_radians()).collect();
+    let sigma = observations.observations[0].sigma();
+    let refine = RefineOptions { step_tolerance: 1e-12, cost_tolerance: 0.0, ..RefineOptions::default() };
+    let options = Options {
+        estimator: Estimator::Wls,
+        noise: Some(NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(sigma, 0.0))),
+        joints: JointParams::All,
+        estimate_base: true,
+        estimate_markers: true,
+        markers: MARKERS.to_vec(),
+        refine,
+        prior: Vec::new(),
+        loss: Loss::Squared,
+        gauge: Gauge::default(),
+    };
+    let expected = calibration::calibrate(&model, &measurements, &options).unwrap();
+    let joint_noise = options.noise.as_ref().map(|n| n.joint.clone());
+    let c = calibrate_kinds(
+        &model,
+        &observations,
+        &KindOptions { refine, joint_noise, ..marker_options(Estimator::Wls) },
+    )
+    .unwrap();
+    assert_eq!(c.refined.estimate.names, expected.refined.estimate.names);
+    let (se, found_se) = (expected.refined.estimate.standard_errors(), c.refined.estimate.standard_errors());
+    for (k, name) in expected.refined.estimate.names.iter().enumerate() {
+        let i = expected.params.index_by_name(name).unwrap();
+        let (a, b) = (c.after[i], expected.after[i]);
+        assert!(
+            (a - b).abs() <= 1e-6 * b.abs().max(se[k]),
+            "{name}: {a} against calibrate's {b}, SE {}",
+            se[k]
+        );
+        assert!((found_se[k] - se[k]).abs() <= 1e-5 * se[k], "{name}: SE {} against {}", found_se[k], se[k]);
+    }
+    let (rms, expected_rms) = (c.training.markers.unwrap(), expected.training);
+    assert!((rms.1 - expected_rms.1.rms).abs() < 1e-9, "{rms:?} against {expected_rms:?}");
+}
+
 /// A marker file read as observations: one per cell, an empty cell not measured; the file's
 /// units; its errors name the line and the column.
 #[test]
@@ -298,7 +353,7 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
     let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
     let output = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--tool", "50,0,150"])
+        .args(["calibrate", "--model", "puma560", "--tool", "50,0,150"])
         .args(["--marker", "50,0,150", "--marker=-40,60,120"])
         .args(["--data", "examples/puma560-measurements.csv", "--data", "examples/puma560-ballbar.csv"])
         .args([
@@ -341,7 +396,7 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
 
     let output = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--data", "examples/puma560-ballbar.csv"])
+        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-ballbar.csv"])
         .args(["--marker", "50,0,150"])
         .output()
         .unwrap();
@@ -357,7 +412,7 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
         .unwrap();
     let output = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--data", "examples/puma560-ballbar.csv"])
+        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-ballbar.csv"])
         .args(["--data", &path(&bad)])
         .output()
         .unwrap();
@@ -559,7 +614,7 @@ fn heights_with_markers_are_read_in_their_own_device_frame() {
     std::fs::write(&file, heights).unwrap();
     let run = |data: &[&str]| {
         let mut command = assert_cmd::Command::cargo_bin("robocal").unwrap();
-        command.args(["calibrate-observations", "--model", "puma560", "--tool", "50,0,150"]);
+        command.args(["calibrate", "--model", "puma560", "--tool", "50,0,150"]);
         command.args([
             "--marker",
             "50,0,150",
@@ -593,7 +648,7 @@ fn heights_with_markers_are_read_in_their_own_device_frame() {
 fn a_fixed_tool_with_markers_alone_is_said_to_change_nothing() {
     let output = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
-        .args(["calibrate-observations", "--model", "puma560", "--fixed-tool"])
+        .args(["calibrate", "--model", "puma560", "--fixed-tool"])
         .args(["--marker", "50,0,150", "--marker=-40,60,120", "--data", "examples/puma560-measurements.csv"])
         .output()
         .unwrap();

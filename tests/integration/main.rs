@@ -9,6 +9,7 @@ mod compensate;
 mod compliance;
 mod estimation;
 mod export;
+mod features;
 mod fgls;
 mod fuzz;
 mod instruments;

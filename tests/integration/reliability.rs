@@ -869,15 +869,7 @@ fn an_input_inside_an_output_folder_under_a_name_written_there_is_refused_before
             "the study o/small/tables.txt: inside the folder of --out o",
         ),
         (
-            &[
-                "calibrate-tree",
-                "--model",
-                torso.to_str().unwrap(),
-                "--data",
-                "d/frames.json",
-                "--out-dir",
-                "d",
-            ],
+            &["calibrate", "--model", torso.to_str().unwrap(), "--data", "d/frames.json", "--out-dir", "d"],
             "--data d/frames.json: inside the folder of --out-dir d",
         ),
         (&[&CALIBRATE[..], &["--figures", "."]].concat(), ""),
@@ -974,16 +966,8 @@ fn plane_contacts_alone_with_one_at_j2_zero_calibrate_without_a_panic() {
     let dir = scratch("contacts-j2-zero");
     for seed in [1, 2] {
         file(&dir, "c.csv", &contacts_file(seed, true));
-        let args = [
-            "calibrate-observations",
-            "--model",
-            "puma560",
-            "--tool",
-            "50,0,150",
-            "--fixed-tool",
-            "--data",
-            "c.csv",
-        ];
+        let args =
+            ["calibrate", "--model", "puma560", "--tool", "50,0,150", "--fixed-tool", "--data", "c.csv"];
         let (code, stdout, stderr) = run_in(&dir, &args);
         assert!(!stderr.contains("panicked"), "seed {seed}: {stderr}");
         assert_eq!(code, 0, "seed {seed}: {stderr}");

@@ -151,7 +151,7 @@ fn the_command_models_sessions_from_the_files() {
     let names = ["monday", "tuesday", "wednesday"];
     let path = |p: std::path::PathBuf| p.to_str().unwrap().to_string();
     let mut args: Vec<String> =
-        ["calibrate-observations", "--model", "puma560", "--tool", "20,-10,120"].map(String::from).to_vec();
+        ["calibrate", "--model", "puma560", "--tool", "20,-10,120"].map(String::from).to_vec();
     for (s, name) in names.iter().enumerate() {
         let file = train_dir.join(format!("{name}.csv"));
         std::fs::write(&file, csv(&draw_wire(&real, ZEROS[s], 120, name, &mut rng))).unwrap();

@@ -103,17 +103,18 @@ pub use data::{
 };
 
 use super::{
-    CalibrationError, FLAG_AT, FarOut, Gauge, JointParams, Loss, RobustFit, Scored, Warning, fold,
+    CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
     gauge_class,
 };
 use crate::estimation::{
-    Estimator, Linearisation, POSE_SIGMAS, PriorEntry, PriorRows, RANK_TOLERANCE, RefineOptions, Refined,
-    Residuals, Weights, linearise, prior_sds, refine_from,
+    Blocks, Estimator, Linearisation, POSE_SIGMAS, PriorEntry, PriorRows, RANK_TOLERANCE, RefineOptions,
+    Refined, Residuals, Weights, linearise, prior_sds, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
 use nalgebra::{
-    DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, UnitQuaternion, Vector3, Vector6,
+    DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, RowDVector, UnitQuaternion, Vector3,
+    Vector6,
 };
 use rayon::prelude::*;
 
@@ -146,7 +147,8 @@ pub struct KindOptions {
     /// Prior standard deviations of the robot's parameters about the nominal model (maximum a
     /// posteriori, [`PriorRows`]): they apply to those `joints` asks for; empty: none.
     pub prior: Vec<PriorEntry>,
-    /// The loss of each observation's whitened residual ([`robust`](super::robust)).
+    /// The loss of each pose's whitened residuals, all observations made at it together
+    /// ([`robust`](super::robust)).
     pub loss: Loss,
     /// The user's say in the gauge: parameters held (the robot's or the set-up's), parameters
     /// kept free first.
@@ -572,6 +574,28 @@ fn angles(r: &UnitQuaternion<f64>) -> (Vector3<f64>, Matrix3<f64>) {
     (Vector3::new(roll, pitch, yaw), e.try_inverse().unwrap_or_else(Matrix3::zeros))
 }
 
+/// The most observations one block `V_k` holds: a pose's rows beyond it start another block
+/// (their correlation with the first ones left out), so that the stacked blocks stay
+/// `N_m x 64` at most whatever a file holds. Every kind robocal reads has at most 6 rows per
+/// pose, or 3 per marker.
+pub const MAX_BLOCK: usize = 64;
+
+/// The points of a problem's rows: each run of consecutive observations made at one pose (the
+/// first pose of a pair) is one block `V_k` of at most [`MAX_BLOCK`] rows, so that the joint
+/// noise they share is kept; a pose's observations are consecutive in every file robocal reads.
+pub fn pose_blocks(observations: &[Observation]) -> Blocks {
+    let mut sizes: Vec<usize> = Vec::new();
+    let mut last = None;
+    for o in observations {
+        match (last == Some(o.pose()), sizes.last_mut()) {
+            (true, Some(n)) if *n < MAX_BLOCK => *n += 1,
+            _ => sizes.push(1),
+        }
+        last = Some(o.pose());
+    }
+    Blocks::from_sizes(sizes)
+}
+
 /// The calibration problem of distances and contacts: `y_k(x, s) = m_k - f_k(x, s)` for the
 /// selected robot parameters `x` and set-up parameters `s` (others held), one row per
 /// observation, `V_k` of the [module](self) computed once at the start. Its points on the last
@@ -590,6 +614,8 @@ pub struct KindProblem<'a> {
     fixed: Vec<f64>,
     setup_values: Vec<f64>,
     setup_selection: Vec<usize>,
+    /// The observations of each pose, one block `V_k` each ([`pose_blocks`]).
+    blocks: Blocks,
     v: Option<DMatrix<f64>>,
 }
 
@@ -643,6 +669,7 @@ impl<'a> KindProblem<'a> {
             fixed,
             setup_values,
             setup_selection,
+            blocks: pose_blocks(&data.observations),
             v: None,
         };
         let poses = data.joints.len();
@@ -739,8 +766,41 @@ impl<'a> KindProblem<'a> {
         KindProblem { selection, fixed, setup_values, setup_selection, v: self.v.clone(), ..self.clone() }
     }
 
-    /// `V_k = sum_j G_kj Sigma_q G_kj^T + sigma_k^2` at the start values.
+    /// The blocks `V_k` of every pose's observations (consecutive observations made at one
+    /// pose, [`pose_blocks`]), stacked: entry `(i, i')` of a block is
+    /// `sum_j (g_ij^T J_ij) Sigma_q (g_i'j^T J_i'j)^T + delta_ii' sigma_i^2`, `j` over the poses
+    /// both observations see, `J_ij` the manipulator Jacobian of observation `i`'s point at
+    /// pose `j`: the joint noise of a pose moves every point seen there at once. At the start
+    /// values; without `joint_noise`, the measurement variances alone.
     fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
+        let blocks = &self.blocks;
+        let observations = &self.data.observations;
+        let mut v = DMatrix::zeros(observations.len(), blocks.width());
+        let rows = self.joint_rows(joint_noise.is_some());
+        for r in blocks.ranges(observations.len()) {
+            for (a, i) in r.clone().enumerate() {
+                for (b, i2) in r.clone().enumerate().take(a + 1) {
+                    let joint = joint_noise.map_or(0.0, |sigma_q| {
+                        let common = rows[i].iter().flat_map(|(j, g)| {
+                            rows[i2].iter().filter(move |(j2, _)| j2 == j).map(move |(_, g2)| (g, g2))
+                        });
+                        common.map(|(g, g2)| (g * sigma_q * g2.transpose())[(0, 0)]).sum()
+                    });
+                    v[(i, b)] = joint;
+                    v[(i2, a)] = joint;
+                }
+                v[(i, a)] += observations[i].sigma().powi(2);
+            }
+        }
+        v
+    }
+
+    /// Every observation's joint-noise rows `g_kj^T J_kj` (`1 x dof`), one per pose `j` it
+    /// sees, at the start values; none unless `wanted`.
+    fn joint_rows(&self, wanted: bool) -> Vec<Vec<(usize, RowDVector<f64>)>> {
+        if !wanted {
+            return vec![Vec::new(); self.data.observations.len()];
+        }
         let at: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&self.fixed)).collect();
         let dof = self.chains[0].dof();
         let rows = self.measured().rows();
@@ -761,20 +821,14 @@ impl<'a> KindProblem<'a> {
             .collect();
         let frames: Vec<Isometry3<f64>> = jacobians.iter().map(|(f, _)| *f).collect();
         let views = self.session_views(&self.setup_values);
-        let v = self.data.observations.iter().map(|o| {
+        let row = |o: &Observation| {
             let first = self.point_of(o) * poses;
             let f = self.predict(o, &frames[first..first + poses], &views);
-            let joint = joint_noise.map_or(0.0, |sigma_q| {
-                (f.by_point[..f.poses].iter())
-                    .map(|(j, g)| {
-                        let g_kj = g.rows(0, rows).transpose() * &jacobians[first + *j].1;
-                        (&g_kj * sigma_q * g_kj.transpose())[(0, 0)]
-                    })
-                    .sum()
-            });
-            joint + o.sigma().powi(2)
-        });
-        DMatrix::from_iterator(self.data.observations.len(), 1, v)
+            (f.by_point[..f.poses].iter())
+                .map(|(j, g)| (*j, g.rows(0, rows).transpose() * &jacobians[first + *j].1))
+                .collect()
+        };
+        self.data.observations.iter().map(row).collect()
     }
 
     /// What the chains' ends are: points ([`Measured::Position`]) or, for angles and cameras,
@@ -826,6 +880,10 @@ impl Residuals for KindProblem<'_> {
 
     fn parameters(&self) -> usize {
         self.selection.len() + self.setup_selection.len()
+    }
+
+    fn blocks(&self) -> Blocks {
+        self.blocks.clone()
     }
 
     fn covariance(&self) -> Option<&DMatrix<f64>> {
@@ -907,8 +965,8 @@ pub struct KindCalibration {
     pub refined: Refined,
     /// What the measurements cannot see, by kind, in words: held and reported.
     pub unseen: Vec<String>,
-    /// Combinations the poses cannot tell apart, held fixed, in words.
-    pub fixed: Vec<String>,
+    /// What was held and why: by `--hold`, unmoved, combinations the poses cannot tell apart.
+    pub fixed: Vec<Held>,
     /// The training observations scored, before and after.
     pub training: Score,
     /// The markers' numbers less one ([`KindData::markers`]), and each one's calibrated
@@ -1008,7 +1066,8 @@ impl Score {
     }
 
     /// `data`'s residuals before and after (`y`), and after whitened (`z`).
-    fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), v: &DMatrix<f64>) -> Self {
+    /// `variances`: each observation's (the diagonal of its `V_k`).
+    fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), variances: &[f64]) -> Self {
         let observations: Vec<ObservationResidual> = (data.observations.iter().enumerate())
             .map(|(k, o)| ObservationResidual {
                 line: data.lines[k],
@@ -1019,7 +1078,7 @@ impl Score {
                 },
                 before: before[k],
                 after: after[k],
-                whitened: after[k] / v[(k, 0)].sqrt(),
+                whitened: after[k] / variances[k].sqrt(),
             })
             .collect();
         Self::of(observations, &data.observations)
@@ -1058,8 +1117,10 @@ impl KindCalibration {
         let after = self.problem_on(data, &setup, (&self.after, &values.1), &[]).with_noise(noise);
         let zero = DVector::zeros(0);
         // The assumed sigmas scaled by the residuals' spread, when they were.
-        let v = after.covariance().expect("always built") * self.variance_factor.unwrap_or(1.0);
-        let mut score = Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), &v);
+        let v = after.covariance().expect("always built");
+        let factor = self.variance_factor.unwrap_or(1.0);
+        let variances: Vec<f64> = after.blocks.diagonal(v).into_iter().map(|d| d * factor).collect();
+        let mut score = Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), &variances);
         score.sessions = sessions;
         Ok(score)
     }
@@ -1260,11 +1321,7 @@ pub fn calibrate_kinds(
     if let Some(i) =
         (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, &params)).flatten()
     {
-        fixed.push(format!(
-            "{}: held at its nominal value: contacts alone cannot see the robot's scale, which this longest \
-             length sets",
-            params.get(i).name
-        ));
+        fixed.push(Held::Scale { parameter: params.get(i).name.clone() });
     }
     let robot = asked.len();
     let kept = Selection::from_indices(
@@ -1277,6 +1334,12 @@ pub fn calibrate_kinds(
     let start = linearised.select(&identifiable);
     let (estimate, robust) =
         super::robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
+    // A pose's weight is every one of its observations'.
+    let robust = robust.map(|mut r| {
+        let blocks = problem.blocks();
+        r.weights = (0..r.weights.len()).flat_map(|k| vec![r.weights[k]; blocks.range(k).len()]).collect();
+        r
+    });
     let (after, after_setup) = problem.full(&estimate.estimate.x);
     let calibrated_points = calibrated_points(&params, &after, &points);
     // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
@@ -1367,7 +1430,7 @@ fn gauge(
 /// What [`gauge`] finds: the identifiable columns, the held ones in words, the prior rows.
 struct Gauged {
     identifiable: Vec<usize>,
-    fixed: Vec<String>,
+    fixed: Vec<Held>,
     prior: Option<PriorRows>,
 }
 
@@ -1580,7 +1643,7 @@ fn without_held(
     asked_setup: Vec<usize>,
     setup: &SetUp,
     hold: &[String],
-) -> Result<(Selection, Vec<usize>, Vec<String>), SelectionError> {
+) -> Result<(Selection, Vec<usize>, Vec<Held>), SelectionError> {
     if hold.is_empty() {
         return Ok((asked, asked_setup, Vec::new()));
     }
@@ -1596,14 +1659,12 @@ fn without_held(
     }) {
         return Err(SelectionError { pattern: p.clone() });
     }
-    let mut words: Vec<String> = (asked.indices().iter().filter(|&&i| robot_held(i)))
-        .map(|&i| format!("{}: held at its nominal value by --hold", params.get(i).name))
+    let mut words: Vec<Held> = (asked.indices().iter().filter(|&&i| robot_held(i)))
+        .map(|&i| Held::ByUser { parameter: params.get(i).name.clone(), setup: false })
         .collect();
     words.extend(
-        asked_setup
-            .iter()
-            .filter(|&&i| setup_held(i))
-            .map(|&i| format!("{}: held at its start by --hold", names[i])),
+        (asked_setup.iter().filter(|&&i| setup_held(i)))
+            .map(|&i| Held::ByUser { parameter: names[i].clone(), setup: true }),
     );
     let robot = Selection::from_indices(params, asked.indices().iter().copied().filter(|&i| !robot_held(i)));
     let setup_kept = asked_setup.into_iter().filter(|&i| !setup_held(i)).collect();
@@ -1681,7 +1742,7 @@ pub(super) fn identifiable(
     names: &[String],
     priority: &[u32],
     prior: Option<&PriorRows>,
-) -> Result<(Vec<usize>, Vec<String>), CalibrationError> {
+) -> Result<(Vec<usize>, Vec<Held>), CalibrationError> {
     let norms: Vec<f64> = linearised.a.column_iter().map(|c| c.norm()).collect();
     let largest = norms.iter().copied().fold(0.0, f64::max);
     let (seen, unseen): (Vec<usize>, Vec<usize>) =
@@ -1693,8 +1754,8 @@ pub(super) fn identifiable(
             names.len()
         )));
     }
-    let mut fixed: Vec<String> =
-        unseen.iter().map(|&c| format!("{}: the observations do not move it", names[c])).collect();
+    let mut fixed: Vec<Held> =
+        unseen.iter().map(|&c| Held::Unmoved { parameter: names[c].clone() }).collect();
     let seen_priority: Vec<u32> = seen.iter().map(|&c| priority[c]).collect();
     let seen_system = linearised.select(&seen);
     let diagnostics = match prior {
@@ -1704,7 +1765,26 @@ pub(super) fn identifiable(
             .diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?,
         None => seen_system.diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?,
     };
-    let seen_names: Vec<&str> = seen.iter().map(|&c| names[c].as_str()).collect();
-    fixed.extend(diagnostics.not_identifiable.iter().map(|c| c.describe(&seen_names)));
+    fixed.extend(diagnostics.not_identifiable.iter().map(|c| Held::Combination {
+        parameter: names[seen[c.column]].clone(),
+        terms: c.terms.iter().map(|&(j, v)| (names[seen[j]].clone(), v)).collect(),
+    }));
     Ok((diagnostics.identifiable.iter().map(|&c| seen[c]).collect(), fixed))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A block per run of one pose's observations, at most [`MAX_BLOCK`] rows each.
+    #[test]
+    fn each_poses_observations_are_one_block_of_at_most_max_block() {
+        let at = |pose: usize| Observation::Coordinate { axis: 2, pose, measured: 0.0, sigma: 0.01 };
+        let poses = [0, 0, 0, 1, 2, 2].into_iter().chain([3; MAX_BLOCK + 6]).chain([0]);
+        let observations: Vec<Observation> = poses.map(at).collect();
+        let blocks = pose_blocks(&observations);
+        let sizes: Vec<usize> = blocks.ranges(observations.len()).map(|r| r.len()).collect();
+        assert_eq!(sizes, [3, 1, 2, MAX_BLOCK, 6, 1]);
+        assert_eq!(blocks.width(), MAX_BLOCK);
+    }
 }

@@ -51,7 +51,7 @@ pub use data::{Frame, Role, TreeData, View};
 
 use super::kinds::camera::{camera_start, isometry, mounted, placed, placement, relative_view};
 use super::kinds::identifiable;
-use super::{CalibrationError, FLAG_AT, FarOut, JointParams, Scored, Warning, fold, gauge_class};
+use super::{CalibrationError, FLAG_AT, FarOut, Held, JointParams, Scored, Warning, fold, gauge_class};
 use crate::estimation::{
     Estimator, POSE_SIGMAS, RefineOptions, Refined, Residuals, Weights, linearise, refine_from,
 };
@@ -166,19 +166,18 @@ impl TreeParams {
         tree.with_joints(joints)
     }
 
-    /// Why no view sees parameter `name` (a joint's): no view has a frame past its joint, or
-    /// every view that has one has both (the joint moves them alike); `None` for another.
+    /// Why no view sees parameter `name` (a joint's), in words: no view has a frame past its
+    /// joint, or every view that has one has both (the joint moves them alike); `None` for
+    /// another.
     fn unseen(&self, name: &str, data: &TreeData) -> Option<String> {
         let i = self.params.iter().position(|p| p.name == name)?;
         let j = self.joint_of[i]?;
         let past = |f: usize| data.frames[f].on.is_some_and(|b| self.joints[b].contains(&j));
         let seen: Vec<&View> = data.views.iter().filter(|v| past(v.camera) || past(v.target)).collect();
         if seen.is_empty() {
-            Some(format!("{name}: no view has a camera or target past its joint: not seen"))
+            Some("no view has a camera or target past its joint: not seen".into())
         } else if seen.iter().all(|v| past(v.camera) && past(v.target)) {
-            Some(format!(
-                "{name}: its joint is on the way to both frames of every view past it: it moves them alike, no view sees it"
-            ))
+            Some("its joint is on the way to both frames of every view past it: it moves them alike, no view sees it".into())
         } else {
             None
         }
@@ -545,8 +544,8 @@ pub struct TreeCalibration {
     pub refined: Refined,
     /// What the views cannot see, in words: held and reported.
     pub unseen: Vec<String>,
-    /// Combinations the poses cannot tell apart, held fixed, in words.
-    pub fixed: Vec<String>,
+    /// What was held and why: unseen, combinations the poses cannot tell apart.
+    pub fixed: Vec<Held>,
     /// The training views scored, before and after.
     pub training: TreeScore,
     /// Implausible results, one per cause: joint lengths corrected by more than 10 mm, training
@@ -762,12 +761,14 @@ pub fn calibrate_tree(
         .collect();
     let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority, None)?;
     for f in &mut fixed {
-        let Some(name) = f.strip_suffix(": the observations do not move it") else { continue };
-        let turn = ["rx", "ry", "rz"].iter().any(|r| name.ends_with(&format!(".{r}")));
-        if data.position_only && name.starts_with("target.") && turn {
-            *f = format!("{name}: a point measured by its position has no orientation: not seen");
-        } else if let Some(reason) = params.unseen(name, data) {
-            *f = reason;
+        let Held::Unmoved { parameter } = f else { continue };
+        let turn = ["rx", "ry", "rz"].iter().any(|r| parameter.ends_with(&format!(".{r}")));
+        let why = match data.position_only && parameter.starts_with("target.") && turn {
+            true => Some("a point measured by its position has no orientation: not seen".to_string()),
+            false => params.unseen(parameter, data),
+        };
+        if let Some(why) = why {
+            *f = Held::Unseen { parameter: std::mem::take(parameter), why };
         }
     }
     let robot = asked.len();

@@ -5,6 +5,7 @@ use super::*;
 use crate::cli::args::JointValues;
 use crate::cli::{Cli, Command};
 use clap::Parser;
+use robocal::calibration::DataKind;
 
 /// The command after `robocal`, parsed by clap; its error as text.
 fn parse(args: &[&str]) -> Result<Command, String> {
@@ -457,22 +458,22 @@ fn observations(args: &[&str]) -> Result<CalibrateObservationsRequest, String> {
 }
 
 #[test]
-fn calibrate_observations_weights_by_default_and_takes_ols_or_wls_only() {
+fn calibrate_observations_weights_by_default_and_takes_every_estimator_but_fgls() {
     let request = observations(&["--data", "e.csv", "--tool", "1,2,3", "--fixed-tool"]).unwrap();
     assert_eq!(request.estimator, Estimator::Wls);
     assert_eq!(request.data, [PathBuf::from("d.csv"), PathBuf::from("e.csv")]);
     assert_eq!(request.tool, Some(Vector3::new(1.0, 2.0, 3.0)));
     assert!(!request.estimate_tool);
     assert_eq!(observations(&["--estimator", "ols"]).unwrap().estimator, Estimator::Ols);
-    assert_eq!(
-        observations(&["--estimator", "fgls"]).unwrap_err(),
-        "--estimator fgls: calibrate-observations takes ols or wls (one row per observation)"
+    assert!(
+        observations(&["--estimator", "fgls"]).unwrap_err().starts_with("--estimator fgls: not available")
     );
     assert_eq!(
         observations(&["--params", "all"]).unwrap_err(),
         "--params all: the base and the set-up are chosen by the observations; give --params joints"
     );
-    assert!(observations(&["--estimator", "wls-diag"]).unwrap_err().starts_with("--estimator wls-diag:"));
+    assert_eq!(observations(&["--estimator", "wls-diag"]).unwrap().estimator, Estimator::WlsDiag);
+    assert_eq!(observations(&["--estimator", "wls-sigma"]).unwrap().estimator, Estimator::WlsSigma);
     assert!(observations(&["--json", "d.csv"]).unwrap_err().contains("d.csv"));
 }
 
@@ -482,6 +483,53 @@ fn calibrate_observations_takes_the_markers_in_order() {
     assert_eq!(request.markers, [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)]);
     assert!(observations(&[]).unwrap().markers.is_empty());
     assert!(observations(&["--marker", "1,2"]).is_err());
+}
+
+/// `robocal calibrate --model M --data F0.csv ...` with `args`, the files holding `kinds` (M a
+/// URDF file with tree views, else puma560).
+fn route(kinds: &[DataKind], args: &[&str]) -> Result<CalibrationRequest, String> {
+    let data: Vec<String> = (0..kinds.len()).map(|k| format!("f{k}.csv")).collect();
+    let model = if kinds.contains(&DataKind::TreeViews) { "torso.urdf" } else { "puma560" };
+    let mut head = vec!["calibrate", "--model", model];
+    for d in &data {
+        head.extend(["--data", d.as_str()]);
+    }
+    request(&head, args, |command| match command {
+        Command::Calibrate(args) => CalibrationRequest::from_args(*args, kinds),
+        other => panic!("parsed as {other:?}"),
+    })
+}
+
+/// One command: one marker file takes the marker calibration, observation files or several
+/// files the observations', tree views the tree's; a flag the chosen one cannot honour is
+/// refused, naming it.
+#[test]
+fn calibrate_routes_by_the_files_kinds_and_the_flags() {
+    use DataKind::{Markers, Observations, TreeViews};
+    let is = |r: Result<CalibrationRequest, String>| match r.unwrap() {
+        CalibrationRequest::Markers(_) => "markers",
+        CalibrationRequest::Observations(_) => "observations",
+        CalibrationRequest::Tree(_) => "tree",
+    };
+    assert_eq!(is(route(&[Markers], &["--select", "cv"])), "markers");
+    assert_eq!(is(route(&[Observations], &[])), "observations");
+    assert_eq!(is(route(&[Markers, Markers], &[])), "observations");
+    assert_eq!(is(route(&[Markers, Observations], &["--prior", "machined"])), "observations");
+    assert_eq!(is(route(&[Markers], &["--tool", "1,2,3"])), "observations");
+    assert_eq!(is(route(&[TreeViews], &["--tips", "a,b"])), "tree");
+    let refused = |kinds: &[DataKind], args: &[&str]| route(kinds, args).unwrap_err();
+    assert!(
+        refused(&[Observations], &["--select", "bic"]).starts_with("--select is for a single file of marker")
+    );
+    assert!(refused(&[Observations], &["--html", "r.html"]).starts_with("--poses-csv, --figures and --html"));
+    assert!(refused(&[Markers, Markers], &["--fixed-base"]).starts_with("--fixed-base"));
+    assert!(refused(&[Observations], &["--noise", "n.toml"]).contains("sigma columns"));
+    assert!(refused(&[TreeViews, Observations], &[]).contains("fitted on their own"));
+    assert!(refused(&[Observations], &["--tips", "a"]).starts_with("--model: a URDF file"), "--tips: a tree");
+    assert!(
+        refused(&[TreeViews], &["--prior", "machined"]).starts_with("--hold, --keep, --prior and --loss")
+    );
+    assert!(refused(&[TreeViews], &["--out-model", "m.toml"]).contains("--out-dir"));
 }
 
 /// `robocal calibrate-tree --model MODEL --data v.csv` with `args`.

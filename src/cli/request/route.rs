@@ -1,0 +1,151 @@
+//! `robocal calibrate`'s one command over three pipelines: the data files' kinds (read from
+//! their headers) and the flags choose marker calibration, observation calibration or a
+//! tree's; a flag the chosen one cannot honour is refused, saying why, before any work.
+
+use super::{CalibrateObservationsRequest, CalibrateRequest, CalibrateTreeRequest, UsageError, require};
+use crate::cli::args::{CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, ModelChoiceArgs};
+use robocal::calibration::{DataKind, Loss};
+use std::path::PathBuf;
+
+/// A validated `robocal calibrate`: the calibration its data and flags call for.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CalibrationRequest {
+    /// One file of marker positions or a probe's poses, no observation flag: every tool of
+    /// the marker calibration (selection, fgls, figures, HTML).
+    Markers(Box<CalibrateRequest>),
+    /// Observation files, or several files of markers and observations fitted together.
+    Observations(Box<CalibrateObservationsRequest>),
+    /// Views between the branches of a URDF tree.
+    Tree(Box<CalibrateTreeRequest>),
+}
+
+impl CalibrationRequest {
+    /// The request for `args`, whose `--data` files hold `kinds` (one each, in order).
+    pub fn from_args(args: CalibrateArgs, kinds: &[DataKind]) -> Result<Self, UsageError> {
+        let trees = kinds.iter().filter(|&&k| k == DataKind::TreeViews).count();
+        if trees > 0 || !args.tree.tips.is_empty() || args.tree.out_dir.is_some() {
+            // Tree flags with files of no tree views: the tree's reader says what it expected.
+            require(
+                trees == 0 || trees == kinds.len(),
+                "--data: views between a tree's branches (camera, target columns) are fitted on their own; \
+                 give the other files to another calibration (--tips and --out-dir are for tree views)",
+            )?;
+            return Ok(Self::Tree(Box::new(CalibrateTreeRequest::from_args(tree_args(args)?)?)));
+        }
+        let observation_flags = args.observations.tool.is_some()
+            || args.observations.fixed_tool
+            || !args.observations.per_session.is_empty();
+        if kinds == [DataKind::Markers] && !observation_flags {
+            return Ok(Self::Markers(Box::new(CalibrateRequest::from_args(args)?)));
+        }
+        Ok(Self::Observations(Box::new(CalibrateObservationsRequest::from_args(observation_args(args)?)?)))
+    }
+}
+
+/// A usage error if `flag` is `given`: it is for one marker file (`instead`: what holds here).
+fn only_for_markers(given: bool, flag: &str, instead: &str) -> Result<(), UsageError> {
+    let message = format!(
+        "{flag} is for a single file of marker positions; with observation files or several files, {instead}"
+    );
+    require(!given, &message)
+}
+
+/// The flags of the observation calibration, or the first marker-only flag given.
+fn observation_args(args: CalibrateArgs) -> Result<CalibrateObservationsArgs, UsageError> {
+    let not_yet = "not available yet (use --prior, --hold or --params to choose the model)";
+    only_for_markers(args.select.is_some(), "--select", not_yet)?;
+    only_for_markers(
+        args.noise.is_some(),
+        "--noise",
+        "each file's sigma columns give the measurement noise, --joint-sigma-deg the joints'",
+    )?;
+    let sigmas = args.noise_flags.sigma_mm > 0.0 || args.noise_flags.sigma_orientation_deg > 0.0;
+    only_for_markers(
+        sigmas,
+        "--sigma-mm and --sigma-orientation-deg",
+        "each file's sigma and sigma_angle columns give them",
+    )?;
+    only_for_markers(
+        args.fixed_base,
+        "--fixed-base",
+        "the base is estimated where the data see it (markers, coordinates) and held otherwise",
+    )?;
+    only_for_markers(args.fixed_markers, "--fixed-markers", "the markers are always estimated")?;
+    only_for_markers(args.markers.is_some(), "--markers", "every marker of the files is fitted")?;
+    let figures =
+        args.report.poses_csv.is_some() || args.report.figures.is_some() || args.report.html.is_some();
+    only_for_markers(
+        figures,
+        "--poses-csv, --figures and --html",
+        "--json holds every observation's residual",
+    )?;
+    Ok(CalibrateObservationsArgs {
+        model: args.model,
+        data: args.data,
+        units: args.units,
+        estimator: args.estimator,
+        joint_sigma_deg: args.noise_flags.joint_sigma_deg,
+        params: args.params,
+        tool: args.observations.tool,
+        fixed_tool: args.observations.fixed_tool,
+        marker: args.marker,
+        choice: args.choice,
+        iterations: args.iterations,
+        validate: args.validate,
+        per_session: args.observations.per_session,
+        folds: args.folds,
+        json: args.report.json,
+        out_model: args.out_model,
+        out_urdf: args.out_urdf,
+    })
+}
+
+/// The flags of the tree calibration, or the first flag it does not take.
+fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
+    let refused = [
+        (args.model.links.tip_link.is_some(), "--tip-link (a tree's branches are --tips)"),
+        (args.model.payload.payload_kg.is_some(), "--payload-kg"),
+        (args.noise.is_some(), "--noise (the views' sigma columns and --joint-sigma-deg give the noise)"),
+        (args.noise_flags.sigma_mm > 0.0 || args.noise_flags.sigma_orientation_deg > 0.0, "--sigma-mm"),
+        (
+            args.fixed_base || args.fixed_markers,
+            "--fixed-base and --fixed-markers (a tree's base is never estimated)",
+        ),
+        (
+            args.choice != ModelChoiceArgs { loss: Loss::Squared, ..Default::default() },
+            "--hold, --keep, --prior and --loss",
+        ),
+        (args.select.is_some(), "--select"),
+        (!args.marker.is_empty() || args.markers.is_some(), "--marker and --markers"),
+        (args.folds.is_some(), "--folds"),
+        (
+            args.report.poses_csv.is_some() || args.report.figures.is_some() || args.report.html.is_some(),
+            "--poses-csv, --figures and --html",
+        ),
+        (
+            args.out_model.is_some() || args.out_urdf.is_some(),
+            "--out-model and --out-urdf (a tree's branches go to --out-dir)",
+        ),
+        (args.observations.tool.is_some() || args.observations.fixed_tool, "--tool and --fixed-tool"),
+        (!args.observations.per_session.is_empty(), "--per-session"),
+    ];
+    if let Some((_, flag)) = refused.iter().find(|(given, _)| *given) {
+        return Err(UsageError(format!(
+            "{flag}: not for views between a tree's branches (not available yet for trees)"
+        )));
+    }
+    Ok(CalibrateTreeArgs {
+        model: PathBuf::from(args.model.model),
+        base_link: args.model.links.base_link,
+        tips: args.tree.tips,
+        data: args.data,
+        units: args.units,
+        estimator: args.estimator,
+        joint_sigma_deg: args.noise_flags.joint_sigma_deg,
+        params: args.params,
+        iterations: args.iterations,
+        validate: args.validate,
+        json: args.report.json,
+        out_dir: args.tree.out_dir,
+    })
+}

@@ -1,0 +1,212 @@
+//! The block structure of `V = blockdiag(V_k)`: which rows of `y = H x + e` belong to point
+//! `k`, and the operations on stacked blocks that never form an `N_m x N_m` matrix.
+//!
+//! A point is what shares one block: a pose's three coordinates, a pose's six, all markers
+//! seen at one pose (`3 x markers` rows), or every observation taken at one pose of a mixed
+//! data set (a ball bar's length and a camera's view of the same pose are correlated through
+//! its joint noise, `V_k = G_k Sigma_q G_k^T + Sigma_m,k`). Blocks are stacked `N_m x w`, `w`
+//! the largest block: point `k`'s block is its rows' first `size_k` columns.
+
+use super::{EstimationError, Estimator};
+use nalgebra::allocator::Allocator;
+use nalgebra::storage::{IsContiguous, StorageMut};
+use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, Dyn, Matrix, OMatrix, SMatrix};
+use std::ops::Range;
+
+/// Where each point's rows lie in the stacked system.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Blocks {
+    /// Every point has this many rows: 3 (position), 6 (pose) or 3 per marker.
+    Uniform(usize),
+    /// Point `k` has rows `starts[k]..starts[k + 1]`; the last entry is `N_m`.
+    Ragged(Vec<usize>),
+}
+
+impl Blocks {
+    /// Consecutive points of these sizes (rows each).
+    pub fn from_sizes(sizes: impl IntoIterator<Item = usize>) -> Self {
+        let mut starts = vec![0];
+        for size in sizes {
+            starts.push(starts.last().copied().unwrap_or(0) + size);
+        }
+        Self::Ragged(starts)
+    }
+
+    /// The widest block: the columns of the stacked blocks.
+    pub fn width(&self) -> usize {
+        match self {
+            Self::Uniform(b) => *b,
+            Self::Ragged(starts) => starts.windows(2).map(|w| w[1] - w[0]).max().unwrap_or(0),
+        }
+    }
+
+    /// The number of points in `rows` rows.
+    pub fn points(&self, rows: usize) -> usize {
+        match self {
+            Self::Uniform(b) => rows.checked_div(*b).unwrap_or(0),
+            Self::Ragged(starts) => starts.len().saturating_sub(1),
+        }
+    }
+
+    /// The rows of point `k`.
+    pub fn range(&self, k: usize) -> Range<usize> {
+        match self {
+            Self::Uniform(b) => k * b..(k + 1) * b,
+            Self::Ragged(starts) => starts[k]..starts[k + 1],
+        }
+    }
+
+    /// The rows of every point of a system of `rows` rows, in order.
+    pub fn ranges(&self, rows: usize) -> impl Iterator<Item = Range<usize>> + '_ {
+        (0..self.points(rows)).map(|k| self.range(k))
+    }
+
+    /// Whether these blocks cover exactly `rows` rows, every block at least one.
+    pub fn covers(&self, rows: usize) -> bool {
+        match self {
+            Self::Uniform(b) => *b > 0 && rows % b == 0,
+            Self::Ragged(starts) => starts.last() == Some(&rows) && starts.windows(2).all(|w| w[0] < w[1]),
+        }
+    }
+
+    /// Block `k` of the stacked `v` (its rows, its first `size_k` columns).
+    pub fn block<'v>(&self, v: &'v DMatrix<f64>, k: usize) -> nalgebra::DMatrixView<'v, f64> {
+        let r = self.range(k);
+        v.view((r.start, 0), (r.len(), r.len()))
+    }
+
+    /// The diagonal of the stacked blocks `v`: each row's variance.
+    pub fn diagonal(&self, v: &DMatrix<f64>) -> Vec<f64> {
+        self.ranges(v.nrows()).flat_map(|r| r.clone().map(move |i| v[(i, i - r.start)])).collect()
+    }
+}
+
+/// Check that the stacked blocks `v` are finite and each block symmetric.
+pub(crate) fn check_covariance(v: &DMatrix<f64>, blocks: &Blocks) -> Result<(), EstimationError> {
+    super::finite("V", v.as_slice(), v.nrows())?;
+    for k in 0..blocks.points(v.nrows()) {
+        let block = blocks.block(v, k);
+        let (b, tolerance) = (block.nrows(), 1e-9 * block.amax());
+        if (0..b).any(|i| (0..i).any(|j| (block[(i, j)] - block[(j, i)]).abs() > tolerance)) {
+            return Err(EstimationError::Dimensions(format!("V_k of point {k} is not symmetric")));
+        }
+    }
+    Ok(())
+}
+
+/// `S_k` of every block (`L_k^-1` by Cholesky for Gauss-Markov, a diagonal for the others) and
+/// the covariance of the whitened errors, `S_k V_k S_k^T`, both stacked like `v`. Blocks of 3
+/// and 6 rows are kept on the stack.
+pub(crate) fn block_weights(
+    v: &DMatrix<f64>,
+    blocks: &Blocks,
+    estimator: Estimator,
+) -> Result<(DMatrix<f64>, DMatrix<f64>), EstimationError> {
+    let (mut s, mut noise) = (DMatrix::zeros(v.nrows(), v.ncols()), DMatrix::zeros(v.nrows(), v.ncols()));
+    for k in 0..blocks.points(v.nrows()) {
+        let r = blocks.range(k);
+        match r.len() {
+            3 => weigh_block(v, r.start, Const::<3>, estimator, k, (&mut s, &mut noise))?,
+            6 => weigh_block(v, r.start, Const::<6>, estimator, k, (&mut s, &mut noise))?,
+            n => weigh_block(v, r.start, Dyn(n), estimator, k, (&mut s, &mut noise))?,
+        }
+    }
+    Ok((s, noise))
+}
+
+/// `S_k` and `S_k V_k S_k^T` of the block of `d` rows at row `start` of `v` (point `k`),
+/// written into the stacked `s` and `noise`.
+fn weigh_block<D: Dim>(
+    v: &DMatrix<f64>,
+    start: usize,
+    d: D,
+    estimator: Estimator,
+    k: usize,
+    (s, noise): (&mut DMatrix<f64>, &mut DMatrix<f64>),
+) -> Result<(), EstimationError>
+where
+    DefaultAllocator: Allocator<D, D> + Allocator<D>,
+{
+    let v_k = OMatrix::<f64, D, D>::from_fn_generic(d, d, |i, j| v[(start + i, j)]);
+    let not_pd = || EstimationError::NotPositiveDefinite { point: k };
+    let s_k = match estimator {
+        Estimator::Ols => OMatrix::identity_generic(d, d),
+        Estimator::Wls => {
+            let l = v_k.clone().cholesky().ok_or_else(not_pd)?.unpack();
+            let inverse = l.solve_lower_triangular(&OMatrix::identity_generic(d, d));
+            inverse.filter(|m| m.iter().all(|v| v.is_finite())).ok_or_else(not_pd)?
+        }
+        Estimator::WlsDiag | Estimator::WlsSigma => {
+            if v_k.diagonal().iter().any(|&d| d <= 0.0) {
+                return Err(not_pd());
+            }
+            let power = if estimator == Estimator::WlsDiag { -0.5 } else { -0.25 };
+            OMatrix::from_diagonal(&v_k.diagonal().map(|d| d.powf(power)))
+        }
+    };
+    noise.generic_view_mut((start, 0), (d, d)).copy_from(&(&s_k * v_k * s_k.transpose()));
+    s.generic_view_mut((start, 0), (d, d)).copy_from(&s_k);
+    Ok(())
+}
+
+/// `m` (`N_m` rows) times the block-diagonal matrix whose blocks are stacked in `stacked`
+/// (laid out by `blocks`), in place: each block loaded once, no allocation for blocks of 3
+/// and 6 rows.
+pub(crate) fn block_diagonal_mul<C: Dim, St: StorageMut<f64, Dyn, C> + IsContiguous>(
+    stacked: &DMatrix<f64>,
+    blocks: &Blocks,
+    m: &mut Matrix<f64, Dyn, C, St>,
+) {
+    let rows = m.nrows();
+    let values = m.as_mut_slice();
+    for k in 0..blocks.points(rows) {
+        let range = blocks.range(k);
+        let columns = values.chunks_exact_mut(rows.max(1)).map(|column| &mut column[range.clone()]);
+        block_mul(stacked, range.start, range.len(), columns);
+    }
+}
+
+/// The block of `size` rows at row `start` of the stacked `blocks` times each of `columns`
+/// (one block's height each).
+pub(crate) fn block_mul<'c>(
+    blocks: &DMatrix<f64>,
+    start: usize,
+    size: usize,
+    columns: impl Iterator<Item = &'c mut [f64]>,
+) {
+    match size {
+        3 => fixed_block_mul::<3>(blocks, start, columns),
+        6 => fixed_block_mul::<6>(blocks, start, columns),
+        b => {
+            let block = blocks.view((start, 0), (b, b));
+            for column in columns {
+                let product = block * DVector::from_column_slice(column);
+                column.copy_from_slice(product.as_slice());
+            }
+        }
+    }
+}
+
+/// [`block_mul`] with the block on the stack.
+fn fixed_block_mul<'c, const B: usize>(
+    blocks: &DMatrix<f64>,
+    start: usize,
+    columns: impl Iterator<Item = &'c mut [f64]>,
+) {
+    let block: SMatrix<f64, B, B> = blocks.fixed_view::<B, B>(start, 0).into_owned();
+    for column in columns {
+        let product = block * nalgebra::SVector::<f64, B>::from_column_slice(column);
+        column.copy_from_slice(product.as_slice());
+    }
+}
+
+/// `c` if every stacked block is `c I` to a relative 1e-9, `c > 0`.
+pub(crate) fn identity_multiple(stacked: &DMatrix<f64>, blocks: &Blocks) -> Option<f64> {
+    let c = *stacked.get((0, 0))?;
+    let close = |v: f64, target: f64| (v - target).abs() <= 1e-9 * c;
+    let identity = blocks.ranges(stacked.nrows()).all(|r| {
+        r.clone()
+            .all(|i| (0..r.len()).all(|j| close(stacked[(i, j)], if i - r.start == j { c } else { 0.0 })))
+    });
+    (c > 0.0 && identity).then_some(c)
+}

@@ -1,0 +1,123 @@
+//! Every tool of the one calibration pipeline on every kind of observation: a simulated PUMA
+//! 560 with known joint errors measured by markers, a ball bar, a length artefact, plane
+//! contacts, a wrist camera and a fixed camera; each calibrated plainly (wls), with a prior,
+//! a robust loss, a held parameter and the diagonal weights, and cross-validated. Each tool's
+//! held-out error is within 1.2 times the plain fit's or better (the tools must not cost
+//! accuracy on data that need none of them), and the k-fold figure is within a factor 1.5 of
+//! the held-out one (both estimate the same error).
+
+use crate::camera::{flange, truth, views};
+use crate::kinds::{TOOL, ball_bar, contacts, errors_on, options, pairs, puma};
+use crate::kinds_markers::{chains, marker_options, markers, true_chains};
+use rand::SeedableRng;
+use rand::rngs::ChaCha8Rng;
+use robocal::calibration::kinds::{CameraSite, KindData, KindOptions, calibrate_kinds, cross_validate_kinds};
+use robocal::calibration::{Gauge, Loss};
+use robocal::estimation::{Estimator, PriorEntry};
+use robocal::kinematics::{Chain, ChainAt};
+
+/// A kind's training and held-out data of one true robot, and its plain options.
+struct Case {
+    name: &'static str,
+    training: KindData,
+    validation: KindData,
+    plain: KindOptions,
+}
+
+/// Joint errors only (what every kind sees), on `chain`.
+fn joint_errors(chain: &Chain, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let joints: Vec<String> =
+        chain.params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
+    errors_on(chain, &joints, rng)
+}
+
+/// A kind measured by the tool point (`measure`), twice: training and held out.
+fn tool_point_case(
+    name: &'static str,
+    seed: u64,
+    measure: &dyn Fn(&ChainAt, &mut ChaCha8Rng) -> KindData,
+) -> Case {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
+    let real = chain.with_errors(&joint_errors(&chain, &mut rng));
+    let (training, validation) = (measure(&real, &mut rng), measure(&real, &mut rng));
+    Case { name, training, validation, plain: options(Estimator::Wls) }
+}
+
+/// A camera at `site`: 60 views to train, 60 held out (0.05 mm, 0.01 deg).
+fn camera_case(name: &'static str, site: CameraSite, seed: u64) -> Case {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let chain = flange(&puma());
+    let real = chain.with_errors(&joint_errors(&chain, &mut rng));
+    let view = |rng: &mut ChaCha8Rng| views(&real, site, &truth(site), 60, (0.05, 0.01), rng);
+    let (training, validation) = (view(&mut rng), view(&mut rng));
+    Case {
+        name,
+        training,
+        validation,
+        plain: KindOptions { estimator: Estimator::Wls, ..KindOptions::default() },
+    }
+}
+
+/// Three markers seen by a tracker: 40 poses to train, 40 held out.
+fn marker_case(seed: u64) -> Case {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let real = true_chains(&joint_errors(&chains()[0], &mut rng));
+    let (training, validation) = (markers(&real, 40, &mut rng, 0.01), markers(&real, 40, &mut rng, 0.01));
+    Case { name: "markers", training, validation, plain: marker_options(Estimator::Wls) }
+}
+
+fn cases() -> Vec<Case> {
+    vec![
+        marker_case(61),
+        tool_point_case("ball bar", 62, &|real, rng| ball_bar(real, rng, 0.01)),
+        tool_point_case("length artefact", 63, &|real, rng| pairs(real, rng, 0.01)),
+        tool_point_case("plane contacts", 64, &|real, rng| contacts(3)(real, rng, 0.01)),
+        camera_case("wrist camera", CameraSite::Hand, 65),
+        camera_case("fixed camera", CameraSite::World, 66),
+    ]
+}
+
+/// The held-out RMS (mm) of `case` calibrated with `options`.
+fn held_out(case: &Case, options: &KindOptions) -> f64 {
+    let c =
+        calibrate_kinds(&puma(), &case.training, options).unwrap_or_else(|e| panic!("{}: {e}", case.name));
+    c.score(&case.validation).unwrap().lengths.1
+}
+
+#[test]
+fn every_tool_works_on_every_kind_as_well_as_the_plain_fit() {
+    for case in cases() {
+        let plain = held_out(&case, &case.plain);
+        assert!(plain < 0.1, "{}: plain wls held out {plain} mm", case.name);
+        let features = [
+            (
+                "--prior machined",
+                KindOptions { prior: PriorEntry::parse_list("machined").unwrap(), ..case.plain.clone() },
+            ),
+            ("--loss huber", KindOptions { loss: Loss::Huber(1.345), ..case.plain.clone() }),
+            (
+                "--hold j6.d",
+                KindOptions {
+                    gauge: Gauge { hold: vec!["j6.d".into()], keep: Vec::new() },
+                    ..case.plain.clone()
+                },
+            ),
+            ("--estimator wls-diag", KindOptions { estimator: Estimator::WlsDiag, ..case.plain.clone() }),
+        ];
+        for (feature, options) in &features {
+            let found = held_out(&case, options);
+            assert!(
+                found < 1.2 * plain,
+                "{} {feature}: held out {found} mm, plain wls {plain} mm",
+                case.name
+            );
+        }
+        let folds = cross_validate_kinds(&puma(), &case.training, &case.plain, 5).unwrap().lengths.1;
+        assert!(
+            folds < 1.5 * plain && plain < 1.5 * folds,
+            "{}: 5-fold {folds} mm against held out {plain} mm",
+            case.name
+        );
+    }
+}
