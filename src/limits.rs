@@ -83,6 +83,12 @@ pub const MIN_PRIOR_SD: f64 = 1e-15;
 /// The largest prior standard deviation, in the parameter's unit: no prior at all, to rounding.
 pub const MAX_PRIOR_SD: f64 = 1e12;
 
+/// The smallest standard deviation above zero a study takes, in its field's unit (mm for
+/// `sigma_me_mm`, deg for `joint_sigma` and `sigma_orientation_deg`): 0 is an exact quantity,
+/// and a picometre or a nano-degree is far below any instrument; a subnormal one such as
+/// `4e-320` would make its weights overflow and its figures' names 300 digits long.
+pub const MIN_SIGMA: f64 = 1e-9;
+
 /// `Err(message)` unless `value` is finite and within `[low, high]`.
 pub fn check_range(value: f64, low: f64, high: f64, unit: &str) -> Result<f64, String> {
     if value.is_finite() && (low..=high).contains(&value) {

@@ -146,6 +146,7 @@ impl Measurements {
     ) -> Result<Self, DataError> {
         let units = table.units(units, " or give --joint-unit and --length-unit")?;
         let columns = Columns::resolve(table, model)?;
+        check_markers_measured(table, &columns.markers)?;
         let mut data = Self {
             joints: Vec::new(),
             markers: Vec::new(),
@@ -172,10 +173,26 @@ impl Measurements {
 
 /// The number `k` and the columns `x_k, y_k, z_k` of each marker of `table`'s header, by
 /// number: markers are numbered by their columns, `x1,y1,z1`, `x3,y3,z3`, ... (gaps allowed);
-/// an `x_k` without its `y_k` or `z_k` is an error.
+/// an `x_k` without its `y_k` or `z_k` is an error, and so are a `y_k` or `z_k` without its
+/// `x_k` and a marker column spelled other than in lower case (`X1`), which would otherwise
+/// drop the marker.
 pub(crate) fn marker_columns(table: &Table) -> Result<Vec<(usize, [usize; 3])>, DataError> {
     let mut markers = Vec::new();
     for name in &table.header {
+        let lower = name.to_ascii_lowercase();
+        let number = lower.get(1..).and_then(|n| n.parse::<usize>().ok()).filter(|&k| k > 0);
+        if let (Some(k), Some(axis @ ('x' | 'y' | 'z'))) = (number, lower.chars().next()) {
+            let expected = format!("{axis}{k}");
+            if *name != expected {
+                let message =
+                    format!("expected `{expected}`: marker columns are x{k},y{k},z{k}, in lower case");
+                return Err(DataError::new(table.header_line, Some(name), message));
+            }
+            if axis != 'x' && table.column(&format!("x{k}")).is_none() {
+                let message = format!("marker {k} needs x{k} too: its columns are x{k},y{k},z{k}");
+                return Err(DataError::new(table.header_line, Some(name), message));
+            }
+        }
         let Some(k) = name.strip_prefix('x').and_then(|n| n.parse::<usize>().ok()).filter(|&k| k > 0) else {
             continue;
         };
@@ -190,6 +207,27 @@ pub(crate) fn marker_columns(table: &Table) -> Result<Vec<(usize, [usize; 3])>, 
     }
     markers.sort_by_key(|m| m.0);
     Ok(markers)
+}
+
+/// Refuse a marker of `markers` (from [`marker_columns`]) whose coordinates are 0 in every row
+/// of `table` (empty cells aside): an export's placeholder for a marker never measured, which
+/// would calibrate nonsense. The error names the header's line and the marker's `x` column.
+pub(crate) fn check_markers_measured(
+    table: &Table,
+    markers: &[(usize, [usize; 3])],
+) -> Result<(), DataError> {
+    for &(k, columns) in markers {
+        let cells = || table.rows.iter().flat_map(|row| columns.iter().filter_map(|&c| row.cells.get(c)));
+        let zero = |text: &String| text.parse::<f64>().is_ok_and(|v| v == 0.0);
+        if cells().any(zero) && cells().all(|text| text.is_empty() || zero(text)) {
+            let message = format!(
+                "marker {k} is at 0, 0, 0 in every row: a placeholder, not a measurement; measure it, or \
+                 leave out its columns x{k},y{k},z{k}"
+            );
+            return Err(DataError::new(table.header_line, Some(&format!("x{k}")), message));
+        }
+    }
+    Ok(())
 }
 
 /// Where the quantities of a measurement file stand in its header.

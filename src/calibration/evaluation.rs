@@ -31,7 +31,8 @@ use crate::model::Selection;
 use nalgebra::{DVector, Vector3};
 use serde::Serialize;
 
-/// A pose is flagged when a component of its whitened residual exceeds this.
+/// A pose is flagged when a component of its whitened residual exceeds this (under a noise
+/// model, times the set's robust scale when above 1: see the [module documentation](self)).
 pub const FLAG_AT: f64 = 5.0;
 
 /// How residuals are whitened.
@@ -56,6 +57,18 @@ impl Whitening {
             Self::Spread(s) => {
                 format!("norm divided by the residuals' spread, sigma = {s:.4} mm (no noise model)")
             }
+        }
+    }
+
+    /// When a pose is flagged, in words: a whitened component beyond [`FLAG_AT`] standard
+    /// deviations, under a noise model times the poses' robust spread when it is above 1.
+    pub fn flag_rule(&self) -> String {
+        match self {
+            Self::Covariance(_) => format!(
+                "flagged when a component exceeds {FLAG_AT} standard deviations times the poses' robust spread, \
+                 if above 1"
+            ),
+            Self::Spread(_) => format!("flagged when a component exceeds {FLAG_AT} standard deviations"),
         }
     }
 }

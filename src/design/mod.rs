@@ -46,7 +46,7 @@ mod plan;
 mod poses;
 
 pub use observability::{Indices, Observability, o1, o2, o3, o4, o5};
-pub use plan::{Candidates, Constraints, ExcludedRange, Plan};
+pub use plan::{Candidates, Constraints, ExcludedRange, Plan, PlanProgress};
 pub use poses::{poses_csv, poses_from_csv_str};
 
 use crate::estimation::{

@@ -16,6 +16,29 @@ pub(crate) const SHORTLIST: usize = 32;
 /// Relative improvement an exchange must bring.
 const IMPROVEMENT: f64 = 1e-9;
 
+/// How far a plan has got, for a progress bar: the candidates' rows, then the exchange's
+/// passes (their number is not known in advance: passes repeat until one changes nothing, at
+/// most [`Plan::MAX_PASSES`] per criterion).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlanProgress {
+    /// The whitened rows of `done` candidates computed, of `of`.
+    Rows {
+        /// Candidates done.
+        done: usize,
+        /// Candidates in all.
+        of: usize,
+    },
+    /// Pass `pass` (from 1) of the exchange: `done` of the set's `of` poses tried.
+    Pass {
+        /// The pass, from 1.
+        pass: usize,
+        /// Poses of the set tried in this pass.
+        done: usize,
+        /// Poses in the set.
+        of: usize,
+    },
+}
+
 /// A joint range the poses must avoid: `range` in rad (mm for a prismatic joint), inclusive.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ExcludedRange {
@@ -117,6 +140,11 @@ pub struct Plan {
     pub usable: usize,
 }
 
+impl Plan {
+    /// Exchange passes at most, per criterion (D first; then O2-O5 by their own value).
+    pub const MAX_PASSES: usize = MAX_PASSES;
+}
+
 impl Design {
     /// Up to `count` candidate poses uniform within the joint limits that satisfy
     /// `constraints`, drawing at most `count * DRAWS_PER_CANDIDATE` configurations. Without
@@ -174,10 +202,24 @@ impl Design {
         criterion: Criterion,
         seed: u64,
     ) -> Result<(Plan, Candidates), DesignError> {
+        self.plan_seeded_reporting(points, candidates, constraints, criterion, seed, &|_| {})
+    }
+
+    /// [`Design::plan_seeded`], telling `progress` how far it has got (after every 1024
+    /// candidates' rows and every pose of each exchange pass).
+    pub fn plan_seeded_reporting(
+        &self,
+        points: usize,
+        candidates: usize,
+        constraints: &Constraints,
+        criterion: Criterion,
+        seed: u64,
+        progress: &dyn Fn(PlanProgress),
+    ) -> Result<(Plan, Candidates), DesignError> {
         self.check_points(points)?;
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let pool = self.candidates(candidates, constraints, &mut rng)?;
-        let plan = self.plan(&pool.joints, points, criterion)?;
+        let plan = self.plan_reporting(&pool.joints, points, criterion, progress)?;
         Ok((plan, pool))
     }
 
@@ -225,6 +267,18 @@ impl Design {
     /// uniform random set); ties go to the lowest candidate. Everything is sequential and
     /// deterministic: the same pool gives the same poses on any number of threads.
     pub fn plan(&self, pool: &[Vec<f64>], points: usize, criterion: Criterion) -> Result<Plan, DesignError> {
+        self.plan_reporting(pool, points, criterion, &|_| {})
+    }
+
+    /// [`Design::plan`], telling `progress` how far it has got (after every 1024 candidates'
+    /// rows and every pose of each exchange pass).
+    pub fn plan_reporting(
+        &self,
+        pool: &[Vec<f64>],
+        points: usize,
+        criterion: Criterion,
+        progress: &dyn Fn(PlanProgress),
+    ) -> Result<Plan, DesignError> {
         self.check_points(points)?;
         self.check(pool)?;
         let (rows, r) = (self.measured.rows(), self.columns.len());
@@ -232,6 +286,9 @@ impl Design {
         let mut usable = Vec::with_capacity(pool.len());
         let mut a = DMatrix::zeros(rows * pool.len(), r);
         for (k, q) in pool.iter().enumerate() {
+            if k % 1024 == 0 {
+                progress(PlanProgress::Rows { done: k, of: pool.len() });
+            }
             match self.pose_rows(q, whitened) {
                 Ok(block) => {
                     a.rows_mut(rows * usable.len(), rows).copy_from(&block);
@@ -250,8 +307,8 @@ impl Design {
         let initial = self.criterion(&pick(&(0..points).collect::<Vec<_>>()), criterion)?;
         let mut exchange = Exchange::new(a, rows, points);
         match rows {
-            3 => exchange.run::<3>(criterion),
-            6 => exchange.run::<6>(criterion),
+            3 => exchange.run::<3>(criterion, progress),
+            6 => exchange.run::<6>(criterion, progress),
             b => unreachable!("{b} rows per pose: position (3) or pose (6)"),
         }
         let mut set = exchange.set.clone();
@@ -382,13 +439,15 @@ impl Exchange {
         self.refresh();
     }
 
-    fn run<const B: usize>(&mut self, criterion: Criterion) {
+    fn run<const B: usize>(&mut self, criterion: Criterion, progress: &dyn Fn(PlanProgress)) {
+        let of = self.set.len();
         let mut ratios = Vec::new();
         // D-optimal exchange.
         for _ in 0..MAX_PASSES {
             self.passes += 1;
             let mut changed = false;
             for position in 0..self.set.len() {
+                progress(PlanProgress::Pass { pass: self.passes, done: position, of });
                 self.ratios::<B>(self.set[position], &mut ratios);
                 let mut best = (1.0 + IMPROVEMENT, None);
                 for (j, &ratio) in ratios.iter().enumerate() {
@@ -415,6 +474,7 @@ impl Exchange {
             self.passes += 1;
             let mut changed = false;
             for position in 0..self.set.len() {
+                progress(PlanProgress::Pass { pass: self.passes, done: position, of });
                 let i = self.set[position];
                 self.ratios::<B>(i, &mut ratios);
                 let mut order: Vec<usize> = (0..ratios.len()).filter(|&j| !self.in_set[j]).collect();

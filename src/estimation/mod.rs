@@ -114,6 +114,9 @@ pub enum EstimationError {
     /// The parts of the system do not fit together.
     #[error("mismatched dimensions: {0}")]
     Dimensions(String),
+    /// No parameter to estimate, or no equation.
+    #[error("nothing to estimate: {0}")]
+    NothingToEstimate(String),
     /// Fewer equations than the rank the parameters need.
     #[error(
         "{equations} equations cannot identify {parameters} parameters: the rank ({rank}) is limited by the \

@@ -148,7 +148,10 @@ pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, 
 fn check(a: &DMatrix<f64>, tolerance: f64) -> Result<(), EstimationError> {
     let (m, p) = a.shape();
     if m == 0 || p == 0 {
-        return Err(EstimationError::Dimensions(format!("H is {m} x {p}: no equations or no parameters")));
+        return Err(EstimationError::NothingToEstimate(match p {
+            0 => "no parameter is selected, or none is left once those the data cannot see are held".into(),
+            _ => format!("no equations for the {p} parameters"),
+        }));
     }
     if !(0.0..1.0).contains(&tolerance) {
         return Err(EstimationError::Dimensions(format!("rank tolerance {tolerance}: expected 0 <= t < 1")));

@@ -303,8 +303,10 @@ impl Outputs {
             let temporary = folder.join(format!(".{name}.{}.tmp", std::process::id()));
             pending.temporaries.push(temporary.clone());
             temporaries.push((temporary.clone(), target.clone()));
-            std::fs::write(&temporary, contents)
-                .map_err(|source| OutputError { path: path.clone(), source })?;
+            std::fs::write(&temporary, contents).map_err(|source| OutputError {
+                path: path.clone(),
+                source: beside(&folder, &temporary, source),
+            })?;
         }
         Ok(())
     }
@@ -328,6 +330,20 @@ impl Outputs {
         }
         Ok(())
     }
+}
+
+/// Why the `temporary` file in `folder` could not be written, in words: the system's own
+/// error names neither (`/proc/version: No such file or directory` of a file that exists).
+fn beside(folder: &Path, temporary: &Path, source: std::io::Error) -> std::io::Error {
+    let why = match folder.is_dir() {
+        true => format!(
+            "the temporary file {} could not be written beside it (an output is written there, then renamed \
+             over its target): {source}",
+            temporary.display()
+        ),
+        false => format!("no folder {}", folder.display()),
+    };
+    std::io::Error::new(source.kind(), why)
 }
 
 /// Create `folder` and the folders above it that are missing, recording each one created.

@@ -19,6 +19,25 @@ fn invalid(field: String, expected: impl Into<String>) -> ModelError {
     FieldError::new(field, expected).into()
 }
 
+/// The XML of a URDF file, refused if two links or two joints share a name (the error names
+/// it and its lines): which one a chain would take is anybody's guess.
+fn document(text: &str) -> Result<roxmltree::Document<'_>, ModelError> {
+    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
+    for tag in ["link", "joint"] {
+        let mut seen = std::collections::HashMap::new();
+        let named = document.root_element().children().filter(|n| n.has_tag_name(tag));
+        for node in named {
+            let Some(name) = node.attribute("name") else { continue };
+            let line = document.text_pos_at(node.range().start).row;
+            if let Some(first) = seen.insert(name, line) {
+                let expected = format!("one {tag} of each name, found this one on lines {first} and {line}");
+                return Err(invalid(format!("<{tag} name=\"{name}\">"), expected));
+            }
+        }
+    }
+    Ok(document)
+}
+
 /// The numbers of an attribute such as `xyz="0 0 0.1"`.
 fn numbers<const N: usize>(
     node: roxmltree::Node<'_, '_>,
@@ -154,7 +173,7 @@ pub fn chain_links(
 /// The root links of `text` (no joint's child) and its leaf links (no joint's parent), in the
 /// file's order.
 pub(super) fn ends(text: &str) -> Result<(Vec<String>, Vec<String>), ModelError> {
-    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
+    let document = document(text)?;
     let robot = document.root_element();
     let joints: Vec<_> = robot.children().filter(|n| n.has_tag_name("joint")).collect();
     let links: Vec<&str> =
@@ -171,7 +190,7 @@ pub(super) fn ends(text: &str) -> Result<(Vec<String>, Vec<String>), ModelError>
 
 /// The names of the links of `text`, in the file's order.
 pub(super) fn link_names(text: &str) -> Result<Vec<String>, ModelError> {
-    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
+    let document = document(text)?;
     let robot = document.root_element();
     let links = robot.children().filter(|n| n.has_tag_name("link")).filter_map(|n| n.attribute("name"));
     Ok(links.map(str::to_string).collect())
@@ -179,7 +198,7 @@ pub(super) fn link_names(text: &str) -> Result<Vec<String>, ModelError> {
 
 /// Whether a joint on the chain of `text` from `base_link` to `tip_link` moves (is not fixed).
 pub(super) fn chain_moves(text: &str, base_link: &str, tip_link: &str) -> Result<bool, ModelError> {
-    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
+    let document = document(text)?;
     let chain = chain(document.root_element(), base_link, tip_link)?;
     Ok(chain.iter().any(|j| j.attribute("type") != Some("fixed")))
 }
@@ -195,7 +214,7 @@ fn list(names: &[&str]) -> String {
 
 /// The chain of `text` from `base_link` to `tip_link`.
 pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<RobotModel, ModelError> {
-    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
+    let document = document(text)?;
     let robot = document.root_element();
     if !robot.has_tag_name("robot") {
         let found = robot.tag_name().name();
@@ -335,10 +354,14 @@ pub fn to_urdf_string(
     tip_link: &str,
     calibrated: &RobotModel,
 ) -> Result<String, ModelError> {
-    let document = roxmltree::Document::parse(original).map_err(ModelError::Xml)?;
+    let document = document(original)?;
     let robot = document.root_element();
     let chain = chain(robot, base_link, tip_link)?;
-    let mut edits: Vec<(std::ops::Range<usize>, String)> = Vec::new();
+    let mut edits: Vec<(std::ops::Range<usize>, String)> =
+        earlier_export(robot, &chain, [base_link, tip_link])?
+            .into_iter()
+            .map(|r| (r, String::new()))
+            .collect();
     let mut fixed_before = Isometry3::identity();
     let mut moving = calibrated.joints.iter();
     let mut last_moving_link = base_link.to_string();
@@ -397,6 +420,37 @@ pub fn to_urdf_string(
     Ok(out)
 }
 
+/// The elements of an earlier export in `robot` (a URDF that [`to_urdf_string`] and
+/// [`with_urdf_markers`] wrote): the links `measuring_frame`, `tool` and `marker_<k>` and the
+/// fixed joints that hang them on, which this export writes anew (twice, they would be two
+/// links of one name). A `chain` from `ends[0]` to `ends[1]` through one of them is refused:
+/// its placement would be written on top of itself.
+fn earlier_export(
+    robot: roxmltree::Node<'_, '_>,
+    chain: &[roxmltree::Node<'_, '_>],
+    ends: [&str; 2],
+) -> Result<Vec<std::ops::Range<usize>>, ModelError> {
+    let ours = |name: &str| {
+        name == "measuring_frame"
+            || name == "tool"
+            || name.strip_prefix("marker_").is_some_and(|k| k.parse::<usize>().is_ok())
+    };
+    let links = chain.iter().flat_map(|j| [link_of(j, "parent"), link_of(j, "child")]);
+    if let Some(link) = links.chain(ends.map(str::to_string)).find(|l| ours(l)) {
+        let expected = format!(
+            "links of the robot itself, not `{link}`, which every calibrated URDF gets anew: the original \
+             robot's (--base-link, --tip-link)"
+        );
+        return Err(invalid("chain".into(), expected));
+    }
+    let earlier = robot.children().filter(|n| match n.tag_name().name() {
+        "link" => n.attribute("name").is_some_and(ours),
+        "joint" => ours(&link_of(n, "parent")) || ours(&link_of(n, "child")),
+        _ => false,
+    });
+    Ok(earlier.map(|n| n.range()).collect())
+}
+
 /// The mass a joint whose child is `link` moves: `link`'s `<inertial>` and those of every link
 /// fixed to it (through fixed joints, down the tree: a flange, a tool, a gripper), as one body
 /// with its centre of mass in `link`'s frame (mm). Links behind a moving joint are not carried.
@@ -447,7 +501,7 @@ pub(super) fn origin_element(iso: &Isometry3<f64>) -> String {
 /// (numbers and positions, mm, in the last moving joint's frame), fixed to the link that
 /// carries `tool`.
 pub fn with_urdf_markers(urdf: &str, markers: &[(usize, Vector3<f64>)]) -> Result<String, ModelError> {
-    let document = roxmltree::Document::parse(urdf).map_err(ModelError::Xml)?;
+    let document = document(urdf)?;
     let robot = document.root_element();
     let parent = tool_parent(robot)?;
     let mut extra = String::new();
@@ -476,7 +530,7 @@ fn tool_parent(robot: roxmltree::Node<'_, '_>) -> Result<String, ModelError> {
 /// The markers of a URDF written by `calibrate --out-urdf`: each link `marker_<id>` fixed to
 /// the link that carries `tool`, its position in mm (empty if there are none).
 pub fn markers_from_urdf_str(text: &str) -> Result<Vec<(usize, Vector3<f64>)>, ModelError> {
-    let document = roxmltree::Document::parse(text).map_err(ModelError::Xml)?;
+    let document = document(text)?;
     let robot = document.root_element();
     let Ok(parent) = tool_parent(robot) else { return Ok(Vec::new()) };
     let mut out = Vec::new();

@@ -4,7 +4,7 @@
 
 use super::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
 use crate::calibration::selection::{Criterion, SelectionPath, Step};
-use crate::calibration::{Calibration, ErrorStats, FLAG_AT, SetEvaluation, Warning, pool, standard_errors};
+use crate::calibration::{Calibration, ErrorStats, SetEvaluation, Warning, pool, standard_errors};
 use crate::estimation::{NoiseEstimate, SigmaInterval};
 use crate::model::{Joint, JointKind};
 use serde::Serialize;
@@ -371,10 +371,7 @@ impl CalibrationReport {
                 ),
             },
             errors: "distances and their components, unweighted".into(),
-            whitened: format!(
-                "{}; flagged when a component exceeds {FLAG_AT} standard deviations",
-                c.whitening.describe()
-            ),
+            whitened: format!("{}; {}", c.whitening.describe(), c.whitening.flag_rule()),
         };
         Self {
             model: c.registered.name.clone(),

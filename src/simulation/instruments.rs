@@ -412,6 +412,17 @@ impl InstrumentStudy {
                     }
                 }
             }
+            // The set-up's lengths: a pivot or plane a kilometre out is no ball bar or table.
+            let lengths: Vec<(String, f64)> = match &instrument.kind {
+                InstrumentKind::BallBar { pivot } => pivot.iter().map(|&v| (field("pivot_mm"), v)).collect(),
+                InstrumentKind::Plane { planes } => (planes.iter().enumerate())
+                    .map(|(k, plane)| (field(&format!("planes[{k}].offset_mm")), plane.1))
+                    .collect(),
+                _ => Vec::new(),
+            };
+            for (name, v) in lengths {
+                check_magnitude(v, MAX_LENGTH_MM, "mm").map_err(|e| FieldError::new(name, e))?;
+            }
             let seconds = instrument.seconds;
             if !(seconds > 0.0 && seconds.is_finite()) {
                 let expected = format!("a time > 0 s, found {seconds}");

@@ -252,7 +252,7 @@ pub enum SimulationError {
     #[error("planning the poses")]
     Design(#[from] DesignError),
     /// A calibration of an instrument study failed.
-    #[error("calibrating")]
+    #[error("calibrating a simulated run")]
     Calibration(#[from] crate::calibration::CalibrationError),
     /// The measuring device cannot give the covariance at a measurement point.
     #[error("the study's measuring device")]

@@ -6,8 +6,8 @@ use crate::estimation::{Device, DeviceTable, Estimator};
 use crate::kinematics::Measured;
 use crate::limits::{
     MAX_ANGLE_DEG, MAX_CANDIDATES, MAX_CASES, MAX_COMPLIANCE, MAX_ITERATIONS, MAX_LENGTH_MM, MAX_MASS_KG,
-    MAX_PLAY, MAX_POINTS, MAX_RUNS, MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS, check_magnitude,
-    check_range,
+    MAX_PLAY, MAX_POINTS, MAX_RUNS, MAX_RUNS_PER_CASE, MAX_STUDY_WORK, MAX_TEST_POINTS, MIN_SIGMA,
+    check_magnitude, check_range, shown,
 };
 use crate::model::{JointKind, ModelRef, ParamKind, Payload, RobotModel, Selection, SelectionError, degrees};
 use serde::Deserialize;
@@ -529,6 +529,7 @@ impl Study {
         if !all_finite {
             return invalid("noise.joint_sigma / cases.sigma_me_mm", "finite values".into());
         }
+        self.check_sigmas()?;
         for (field, count, bound) in [
             ("point_sets", self.point_sets, MAX_RUNS_PER_CASE),
             ("runs_per_set", self.runs_per_set, MAX_RUNS_PER_CASE),
@@ -573,6 +574,33 @@ impl Study {
                 "runs_per_set",
                 format!("at most {MAX_RUNS} runs in all (cases x point_sets x runs_per_set), found {runs}"),
             );
+        }
+        Ok(())
+    }
+
+    /// Every standard deviation 0 (exact) or at least [`MIN_SIGMA`] in its field's unit, and a
+    /// pose study's orientation noise above 0: every estimate weighs the orientation rows by it.
+    fn check_sigmas(&self) -> Result<(), StudyError> {
+        let joint_sigma = self.robot.joints.iter().zip(&self.joint_sigmas).map(|(j, &s)| match j.kind {
+            JointKind::Revolute => ("noise.joint_sigma", degrees(s), "deg"),
+            JointKind::Prismatic => ("noise.joint_sigma", s, "mm"),
+        });
+        let sigmas = joint_sigma
+            .chain([("noise.sigma_orientation_deg", degrees(self.sigma_orientation), "deg")])
+            .chain(self.cases.iter().map(|c| ("cases.sigma_me_mm", c.sigma_me, "mm")));
+        for (field, value, unit) in sigmas {
+            if value > 0.0 && value < MIN_SIGMA {
+                let expected = format!(
+                    "0 (exact) or a standard deviation of at least {MIN_SIGMA:e} {unit}, found {}",
+                    shown(value)
+                );
+                return Err(FieldError::new(field, expected).into());
+            }
+        }
+        if self.measured == Measured::Pose && self.sigma_orientation == 0.0 {
+            let expected = "a standard deviation above 0 deg in a pose study (measured = \"pose\"), which weighs \
+                            the orientation rows by it (with --noise, the noise file's sigma_orientation_deg)";
+            return Err(FieldError::new("noise.sigma_orientation_deg", expected).into());
         }
         Ok(())
     }

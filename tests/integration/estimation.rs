@@ -378,7 +378,7 @@ fn bad_input_gives_typed_errors() {
     let nothing = LinearSystem { h: DMatrix::zeros(18, 0), names: Vec::new(), ..system.clone() };
     assert!(matches!(
         estimate(&nothing, Estimator::Ols, RANK_TOLERANCE),
-        Err(EstimationError::Dimensions(_))
+        Err(EstimationError::NothingToEstimate(_))
     ));
     assert!(matches!(estimate(&system, Estimator::Ols, f64::NAN), Err(EstimationError::Dimensions(_))));
     let mut asymmetric = system.clone();

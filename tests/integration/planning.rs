@@ -3,7 +3,7 @@
 
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
-use robocal::design::{Constraints, Criterion, Design, DesignError, ExcludedRange};
+use robocal::design::{Constraints, Criterion, Design, DesignError, ExcludedRange, Plan, PlanProgress};
 use robocal::estimation::{MeasurementNoise, NoiseModel};
 use robocal::kinematics::{Chain, Measured};
 use robocal::model::{RobotModel, Selection};
@@ -34,6 +34,33 @@ fn planned_sets_beat_the_best_of_100_random_sets() {
             .fold(f64::NEG_INFINITY, f64::max);
         eprintln!("{criterion}: planned {} (from {}), best random {best}", plan.value, plan.initial);
         assert!(plan.value > best, "{criterion}: planned {} <= best of 100 random {best}", plan.value);
+    }
+}
+
+/// The progress a plan reports, for a bar with the time left: the candidates' rows in steps of
+/// 1024 from 0, then every pose of every pass in order, pass after pass, as many passes as the
+/// plan made; the plan itself is the one planned without a listener.
+#[test]
+fn planning_reports_its_progress_pass_by_pass() {
+    let design = puma_design();
+    for criterion in [Criterion::D, Criterion::O3] {
+        let seen = std::cell::RefCell::new(Vec::new());
+        let (plan, pool) = design
+            .plan_seeded_reporting(16, 3000, &Constraints::default(), criterion, 5, &|p| {
+                seen.borrow_mut().push(p)
+            })
+            .unwrap();
+        assert_eq!(plan, design.plan_seeded(16, 3000, &Constraints::default(), criterion, 5).unwrap().0);
+        let seen = seen.into_inner();
+        let rows: Vec<PlanProgress> =
+            (0..3000).step_by(1024).map(|done| PlanProgress::Rows { done, of: 3000 }).collect();
+        assert_eq!(seen[..rows.len()], rows[..], "{criterion}");
+        assert_eq!(pool.joints.len(), 3000);
+        let passes: Vec<PlanProgress> = (1..=plan.passes)
+            .flat_map(|pass| (0..16).map(move |done| PlanProgress::Pass { pass, done, of: 16 }))
+            .collect();
+        assert_eq!(seen[rows.len()..], passes[..], "{criterion}: {} passes", plan.passes);
+        assert!(plan.passes >= 2 && plan.passes <= 2 * Plan::MAX_PASSES, "{criterion}: {}", plan.passes);
     }
 }
 

@@ -1186,3 +1186,170 @@ fn help_lists_only_the_estimators_a_command_takes() {
         assert!(!estimator.contains("fgls") && estimator.contains("or ols"), "{command}: {estimator}");
     }
 }
+
+/// `MEASUREMENTS` with `edit` applied to the cells of every pose row (`cells[6..]` are the
+/// markers' x1, y1, z1, x2, y2, z2).
+fn edited_rows(edit: impl Fn(&mut Vec<String>)) -> String {
+    let mut lines = MEASUREMENTS.lines();
+    let mut text = format!("{}\n{}\n", lines.next().unwrap(), lines.next().unwrap());
+    for line in lines {
+        let mut cells: Vec<String> = line.split(',').map(str::to_string).collect();
+        edit(&mut cells);
+        text += &format!("{}\n", cells.join(","));
+    }
+    text
+}
+
+#[test]
+fn a_marker_header_typo_a_marker_never_measured_and_a_urdf_name_twice_are_refused_naming_them() {
+    let dir = scratch("silent-accepts-2");
+    assert!(MEASUREMENTS.lines().nth(1).unwrap().starts_with("j1,j2,j3,j4,j5,j6,x1,y1,z1,x2,y2,z2"));
+    // Before: `X1` dropped marker 1 with a note, and the calibration went on with marker 2.
+    let cases = [
+        (
+            MEASUREMENTS.replacen(",x1,", ",X1,", 1),
+            "line 2, column `X1`: expected `x1`: marker columns are x1,y1,z1",
+        ),
+        (MEASUREMENTS.replacen(",x2,", ",q2,", 1), "line 2, column `y2`: marker 2 needs x2 too"),
+        (
+            edited_rows(|cells| cells[6..].iter_mut().for_each(|c| *c = "0".into())),
+            "line 2, column `x1`: marker 1 is at 0, 0, 0 in every row: a placeholder, not a measurement",
+        ),
+        (
+            edited_rows(|cells| cells[9..].iter_mut().for_each(|c| *c = "0.0".into())),
+            "line 2, column `x2`: marker 2 is at 0, 0, 0 in every row",
+        ),
+    ];
+    for (text, message) in &cases {
+        file(&dir, "d.csv", text);
+        for command in ["calibrate", "calibrate-observations", "evaluate"] {
+            let (code, stdout, stderr) = run_in(&dir, &[command, "--model", "puma560", "--data", "d.csv"]);
+            assert_eq!(code, 1, "{command}: {stderr}");
+            assert!(stdout.is_empty(), "{command}: {stdout}");
+            assert!(stderr.contains(&format!("d.csv: {message}")), "{command}: {stderr}");
+        }
+    }
+    // A marker measured at 0, 0, 0 in some rows only is a measurement.
+    file(
+        &dir,
+        "d.csv",
+        &edited_rows(|cells| {
+            if cells[0].starts_with('4') {
+                cells[9..].iter_mut().for_each(|c| *c = "0".into())
+            }
+        }),
+    );
+    let (code, _, stderr) = run_in(&dir, &CALIBRATE);
+    assert_eq!(code, 0, "{stderr}");
+
+    let torso = include_str!("../../presets/torso.urdf");
+    let link = "  <link name=\"neck\"/>\n";
+    assert!(torso.contains(link) && torso.contains("<joint name=\"head_pan\""));
+    let line = torso[..torso.find(link).unwrap()].lines().count() + 1;
+    let cases = [
+        (
+            torso.replacen(link, &format!("{link}{link}"), 1),
+            format!(
+                "field `<link name=\"neck\">`: one link of each name, found this one on lines {line} and {}",
+                line + 1
+            ),
+        ),
+        (
+            torso.replacen("<joint name=\"head_pan\"", "<joint name=\"torso\"", 1),
+            "field `<joint name=\"torso\">`: one joint of each name".to_string(),
+        ),
+    ];
+    for (text, message) in cases {
+        file(&dir, "t.urdf", &text);
+        for args in [
+            &["model", "show", "t.urdf", "--tip-link", "head"][..],
+            &["observability", "--model", "t.urdf", "--tip-link", "head", "d.csv"],
+        ] {
+            let (code, stdout, stderr) = run_in(&dir, args);
+            assert_eq!(code, 1, "{args:?}: {stderr}");
+            assert!(stdout.is_empty(), "{stdout}");
+            assert!(stderr.contains(&format!("t.urdf: {message}")), "{args:?}: {stderr}");
+        }
+    }
+    assert_eq!(listing(&dir), ["d.csv", "t.urdf"], "nothing written");
+}
+
+// 7. Messages that say what is wrong, before the work.
+
+#[test]
+fn messages_name_what_is_wrong_and_come_before_the_work() {
+    let dir = scratch("messages");
+    file(&dir, "d.csv", MEASUREMENTS);
+    // A file that exists, whose folder takes no temporary: the message says what failed.
+    if Path::new("/proc/version").is_file() {
+        let (code, _, stderr) = run_in(&dir, &[&CALIBRATE[..], &["--json", "/proc/version"]].concat());
+        assert_eq!(code, 1, "{stderr}");
+        assert!(
+            stderr.contains("/proc/version: cannot write: the temporary file /proc/.version.")
+                && stderr.contains(".tmp could not be written beside it"),
+            "{stderr}"
+        );
+    }
+    let (code, _, stderr) = run_in(&dir, &[&CALIBRATE[..], &["--json", "no-such-folder/r.json"]].concat());
+    assert_eq!(code, 1, "{stderr}");
+    assert!(stderr.contains("no-such-folder/r.json: cannot write: no folder no-such-folder"), "{stderr}");
+
+    // A pose study without orientation noise: refused naming the field, not the flag of
+    // another command (`--sigma-orientation-deg`), before any run.
+    let pose = small_study(&[("measured = \"position\"", "measured = \"pose\"")]);
+    let tiny = small_study(&[("sigma_me_mm = [0.0]", "sigma_me_mm = [4e-320]")]);
+    let instruments = include_str!("../../presets/instruments.toml");
+    assert!(instruments.contains("pivot_mm = [400.0, 200.0, 300.0]"));
+    let pivot = instruments.replacen("pivot_mm = [400.0, 200.0, 300.0]", "pivot_mm = [1e300, 0.0, 0.0]", 1);
+    let cases = [
+        (pose, "field `noise.sigma_orientation_deg`: a standard deviation above 0 deg in a pose study"),
+        (
+            tiny,
+            "field `cases.sigma_me_mm`: 0 (exact) or a standard deviation of at least 1e-9 mm, found 4e-320",
+        ),
+        (pivot, "field `instruments[1].pivot_mm`: a finite number of magnitude at most 1e6 mm, found 1e300"),
+    ];
+    for (text, message) in cases {
+        file(&dir, "s.toml", &text);
+        let (code, stdout, stderr) = run_in(&dir, &["simulate", "s.toml", "--out", "o"]);
+        assert_eq!(code, 1, "{stderr}");
+        assert!(stdout.is_empty(), "no work done: {stdout}");
+        assert!(stderr.contains(&format!("s.toml: {message}")), "{stderr}");
+        assert!(!stderr.contains("--sigma-orientation-deg") && !stderr.contains("calibrating"), "{stderr}");
+    }
+
+    // Pairs of identical poses see nothing: said in words, not as the shape of H.
+    let mut pairs = String::from(
+        "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,j1_b,j2_b,j3_b,j4_b,j5_b,j6_b,distance\n",
+    );
+    for k in 0..60 {
+        let q: Vec<String> = (0..6).map(|j| format!("{}", (k * 7 + j * 13) % 90 - 45)).collect();
+        pairs += &format!("{},{},100\n", q.join(","), q.join(","));
+    }
+    file(&dir, "pairs.csv", &pairs);
+    let (code, _, stderr) =
+        run_in(&dir, &["calibrate-observations", "--model", "puma560", "--data", "pairs.csv"]);
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("pairs.csv: nothing can be identified: the observations move none of the")
+            && stderr.contains("pairs of identical poses"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("H is") && !stderr.contains(" x 0"), "{stderr}");
+
+    // The outlier flag's rule as it is: adaptive under a noise model, plain without one.
+    let noise = Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/puma560-noise.toml");
+    let with_noise = [&CALIBRATE[..], &["--estimator", "wls", "--noise", noise.to_str().unwrap()]].concat();
+    for (args, rule) in [
+        (&CALIBRATE[..], "(no noise model); flagged when a component exceeds 5 standard deviations\n"),
+        (
+            &with_noise[..],
+            "flagged when a component exceeds 5 standard deviations times the poses' robust spread, if above 1\n",
+        ),
+    ] {
+        let (code, stdout, stderr) = run_in(&dir, args);
+        assert_eq!(code, 0, "{stderr}");
+        assert!(stdout.contains(rule), "{args:?}: {stdout}");
+    }
+    assert_eq!(listing(&dir), ["d.csv", "pairs.csv", "s.toml"], "nothing written");
+}

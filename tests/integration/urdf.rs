@@ -210,6 +210,18 @@ fn a_seven_joint_urdf_arm_with_a_prismatic_joint_calibrates() {
         .map(|(q, m)| (at.position(q) - m[0]).norm())
         .fold(0.0, f64::max);
     assert!(worst < 5.0 * after.rms.max(0.05), "the written URDF misses marker 1 by {worst} mm");
+
+    // Written again from its own output with the robot's links, it replaces its measuring frame
+    // and tool (a link twice is refused on reading): the same file. A chain through them is refused.
+    let again = to_urdf_string(&written, "base", "flange", &result.calibrated).unwrap();
+    let count = |t: &str| t.matches("<link ").count();
+    assert_eq!(count(&again), count(&written), "{again}");
+    assert_eq!(from_urdf_str(&again, "measuring_frame", "tool").unwrap(), reread);
+    let error = to_urdf_string(&written, "measuring_frame", "tool", &result.calibrated).unwrap_err();
+    assert!(
+        error.to_string().contains("`measuring_frame`, which every calibrated URDF gets anew"),
+        "{error}"
+    );
 }
 
 /// The 7-joint arm with its tip link 66 mm past the last joint and turned: marker

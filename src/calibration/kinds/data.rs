@@ -258,6 +258,7 @@ impl KindData {
         let table = Table::parse(text)?;
         let units = table.units(units, " or give --joint-unit and --length-unit")?;
         let columns = KindColumns::resolve(&table, model)?;
+        crate::calibration::data::check_markers_measured(&table, &columns.markers)?;
         let mut data = Self::default();
         for row in table.nonempty_rows()? {
             let kind = match columns.kind {

@@ -1755,6 +1755,13 @@ pub(super) fn identifiable(
     let largest = norms.iter().copied().fold(0.0, f64::max);
     let (seen, unseen): (Vec<usize>, Vec<usize>) =
         (0..norms.len()).partition(|&c| norms[c] > 1e-10 * largest);
+    if seen.is_empty() {
+        return Err(CalibrationError::NothingIdentified(format!(
+            "the observations move none of the {} parameters asked for (pairs of identical poses, for one, \
+             measure no change): measure at poses that differ",
+            names.len()
+        )));
+    }
     let mut fixed: Vec<Held> =
         unseen.iter().map(|&c| Held::Unmoved { parameter: names[c].clone() }).collect();
     let seen_priority: Vec<u32> = seen.iter().map(|&c| priority[c]).collect();
