@@ -30,7 +30,7 @@ pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
 };
 pub use robust::{Loss, RobustFit};
-pub use selection::{Criterion, SelectionPath, select};
+pub use selection::{Criterion, NestedCv, SelectionPath, cross_validate_selection, select};
 
 use crate::estimation::{
     CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementNoise,

@@ -43,8 +43,8 @@
 //! Gauss-Newton as any other.
 
 use super::{
-    CalibrationError, Identified, JointParams, Measurements, Options, RobotModel, Whitening, calibrate,
-    identifiable, observed, selection, standard_errors,
+    CalibrationError, ErrorStats, Identified, JointParams, Measurements, Options, RobotModel, Whitening,
+    calibrate, errors, identifiable, observed, selection, standard_errors,
 };
 use crate::estimation::{PointProblem, Residuals, Weights};
 use crate::kinematics::Measured;
@@ -147,6 +147,54 @@ pub fn select(
         )),
         _ => forward(model, data, options, criterion),
     }
+}
+
+/// k-fold cross-validation of a selection made from the data, nested: pose `i` is held out in
+/// fold `i mod folds`, and on the other folds the whole choice is made again ([`select`] by
+/// `criterion`, `cv` with `folds` folds of its own on them) and the set it chose calibrated;
+/// the held-out poses are scored before and after. The selection made on every pose has seen
+/// the held-out ones, so cross-validating its set alone ([`cross_validate`](super::cross_validate)
+/// with [`SelectionPath::options`]) is optimistic; this is the figure to expect on new poses.
+pub fn cross_validate_selection(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    criterion: Criterion,
+    folds: usize,
+) -> Result<NestedCv, CalibrationError> {
+    if folds < 2 || folds > data.len() {
+        return Err(CalibrationError::Scoring(format!(
+            "{folds} folds for {} poses: expected 2 to the number of poses",
+            data.len()
+        )));
+    }
+    let (mut before, mut after, mut selected) = (Vec::new(), Vec::new(), Vec::new());
+    for fold in 0..folds {
+        let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
+        let train = data.subset(&train);
+        let inner = match criterion {
+            Criterion::Cv { folds: k } => Criterion::Cv { folds: k.min(train.len()) },
+            other => other,
+        };
+        let path = select(model, &train, options, inner)?;
+        let calibration = calibrate(model, &train, &path.options(options))?;
+        let held_out = data.subset(&test);
+        before.extend(errors(&calibration.chains, &calibration.before, &held_out));
+        after.extend(errors(&calibration.chains, &calibration.after, &held_out));
+        selected.push(path.selected);
+    }
+    Ok(NestedCv { before: ErrorStats::of(&before), after: ErrorStats::of(&after), selected })
+}
+
+/// A nested k-fold cross-validation ([`cross_validate_selection`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NestedCv {
+    /// The held-out poses' errors before calibration (the registration on the other folds).
+    pub before: ErrorStats,
+    /// Their errors after the selection and calibration on the other folds.
+    pub after: ErrorStats,
+    /// The joint parameters each fold's selection chose, fold by fold.
+    pub selected: Vec<Vec<String>>,
 }
 
 /// Backward elimination by `|t|` ([`Criterion::T`]).

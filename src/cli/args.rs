@@ -353,8 +353,9 @@ pub struct CalibrateArgs {
     /// A measurement file of held-out poses to validate on; repeatable.
     #[arg(long)]
     pub validate: Vec<PathBuf>,
-    /// k-fold cross-validation on the data (k >= 2, at most the number of poses); with
-    /// --select cv, the selection's folds instead.
+    /// k-fold cross-validation on the data (k >= 2, at most the number of poses), nested with
+    /// --select (the selection made again inside each fold); with --select cv, the selection's
+    /// folds too.
     #[arg(long, value_parser = parse_count::<2>)]
     pub folds: Option<usize>,
     /// Fit with these markers of the data file only (their numbers, `x<k>` columns: `1,3`);

@@ -12,7 +12,7 @@ use robocal::estimation::NoiseModel;
 use robocal::estimation::RefineOptions;
 use robocal::io::{self, UrdfChain};
 use robocal::model::{ModelRef, RobotModel};
-use robocal::report::calibration::CalibrationReport;
+use robocal::report::calibration::{CalibrationReport, CrossValidationReport};
 use std::path::Path;
 
 /// The nominal robot, with the text and links of its URDF file to write it back.
@@ -47,7 +47,8 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
         &what,
         "calibrate on fewer poses",
     )?;
-    let mut options = options(request, &robot.model, &data.fit)?;
+    let asked = options(request, &robot.model, &data.fit)?;
+    let mut options = asked.clone();
     let path = match request.select {
         Some(criterion) => {
             let path = calibration::select(&robot.model, &data.fit, &options, criterion)
@@ -64,10 +65,15 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
         }
     }
     .map_err(|e| in_context(e, request))?;
-    let (held_out, folds) = validate(request, &robot.model, &data, &options, &result)?;
+    let held_out = validate(request, &robot.model, &data, &result)?;
+    let cv = cross_validate(request, &robot.model, &data.fit, &asked)?;
+    let folds = cv.as_ref().map(|(label, before, after, _)| (label.clone(), *before, *after));
     let name = request.method.name();
     let mut report =
         CalibrationReport::new(&result, &request.data.display().to_string(), name, held_out, folds);
+    if let Some((_, _, _, how)) = cv {
+        report = report.with_cross_validation(how);
+    }
     if let Some(path) = &path {
         report = report.with_selection(path);
     }
@@ -214,17 +220,14 @@ pub(super) fn noise_for(
     })
 }
 
-/// Each held-out file scored pose by pose, then the cross-validation if asked for.
-#[allow(clippy::type_complexity)]
+/// Each held-out file scored pose by pose. They are scored only: no choice is made on them.
 fn validate(
     request: &CalibrateRequest,
     model: &RobotModel,
     data: &Data,
-    options: &Options,
     result: &Calibration,
-) -> Result<(Vec<SetEvaluation>, Option<(String, ErrorStats, ErrorStats)>)> {
-    let held_out = data
-        .held_out
+) -> Result<Vec<SetEvaluation>> {
+    data.held_out
         .iter()
         .map(|(name, d)| {
             let noise = match (&request.method, &result.noise_estimate) {
@@ -233,15 +236,39 @@ fn validate(
             };
             Ok(result.evaluate(name, d, noise.as_ref())?)
         })
-        .collect::<Result<_>>()?;
-    let folds = match request.folds {
-        Some(k) => {
-            let (before, after) = calibration::cross_validate(model, &data.fit, options, k)?;
-            Some((format!("{k}-fold cross-validation"), before, after))
+        .collect()
+}
+
+/// `--folds K`: the k-fold cross-validation of the training poses with the options `asked`
+/// (before any selection), nested when the model is chosen from the data: with `--select`
+/// the selection is made again on each fold's training poses (a robust loss's weights always
+/// are). Its label, before and after, and how it was made.
+fn cross_validate(
+    request: &CalibrateRequest,
+    model: &RobotModel,
+    fit: &Measurements,
+    asked: &Options,
+) -> Result<Option<(String, ErrorStats, ErrorStats, CrossValidationReport)>> {
+    let Some(k) = request.folds else { return Ok(None) };
+    let mut redone = Vec::new();
+    if let Some(criterion) = request.select {
+        redone.push(format!("--select {}", criterion.name()));
+    }
+    if asked.loss != calibration::Loss::Squared {
+        redone.push(format!("--loss {}'s weights", asked.loss));
+    }
+    let (before, after, selected) = match request.select {
+        Some(criterion) => {
+            let nested = calibration::cross_validate_selection(model, fit, asked, criterion, k)?;
+            (nested.before, nested.after, nested.selected)
         }
-        None => None,
+        None => {
+            let (before, after) = calibration::cross_validate(model, fit, asked, k)?;
+            (before, after, Vec::new())
+        }
     };
-    Ok((held_out, folds))
+    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected };
+    Ok(Some((how.label(), before, after, how)))
 }
 
 /// Write the JSON report, the poses, the figures, the page, the calibrated model and the

@@ -363,7 +363,9 @@ impl CalibrateRequest {
             args.choice.loss == robocal::calibration::Loss::Squared || method != Method::Feasible,
             "--loss with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
         )?;
-        let folds = if matches!(select, Some(Criterion::Cv { .. })) { None } else { args.folds };
+        // With --select cv, --folds is both the selection's folds and the nested
+        // cross-validation's.
+        let folds = args.folds;
         let mut inputs = vec![("--model", Path::new(&model.name)), ("--data", args.data.as_path())];
         if let Some(NoiseSource::File(path)) = &noise {
             inputs.push(("--noise", path));

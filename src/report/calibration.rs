@@ -80,6 +80,58 @@ pub struct CalibrationReport {
     /// ([`crate::design::accuracy`]), beside the error measured there.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub predicted: Vec<PredictedAccuracy>,
+    /// `--folds K`: what the k-fold cross-validation redid inside each fold
+    /// ([`CalibrationReport::with_cross_validation`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cross_validation: Option<CrossValidationReport>,
+}
+
+/// How a k-fold cross-validation was made: nested when the model is chosen from the data
+/// (`--select`, a robust loss), every choice made again on each fold's training poses, so that
+/// its figure is one of poses no choice has seen.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CrossValidationReport {
+    /// The folds.
+    pub folds: usize,
+    /// Whether a choice made from the data was made again inside each fold.
+    pub nested: bool,
+    /// The choices made again inside each fold (`--select bic`, `--loss huber:1.345`).
+    pub redone: Vec<String>,
+    /// With `--select`: the joint parameters each fold's selection chose, fold by fold.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub selected: Vec<Vec<String>>,
+}
+
+impl CrossValidationReport {
+    /// The label of its row in the error table: `5-fold cross-validation`, `, nested` when it is.
+    pub fn label(&self) -> String {
+        format!("{}-fold cross-validation{}", self.folds, if self.nested { ", nested" } else { "" })
+    }
+
+    /// What it redid, in words.
+    pub fn text(&self) -> String {
+        if !self.nested {
+            return format!(
+                "{}: nothing is chosen from the data, each fold is calibrated as the whole is\n",
+                self.label()
+            );
+        }
+        let mut out = format!("{}: {} made again inside each fold", self.label(), self.redone.join(" and "));
+        if !self.selected.is_empty() {
+            let mut distinct = self.selected.clone();
+            distinct.sort();
+            distinct.dedup();
+            let sizes: Vec<String> = self.selected.iter().map(|s| s.len().to_string()).collect();
+            let _ = write!(
+                out,
+                " (the folds chose {} parameters; {} distinct set{}, each in --json)",
+                sizes.join(", "),
+                distinct.len(),
+                if distinct.len() == 1 { "" } else { "s" }
+            );
+        }
+        out + "\n"
+    }
 }
 
 /// The tool's position error predicted at a set's poses: `sqrt(trace(J_x Sigma_x J_x^T))` of
@@ -136,6 +188,19 @@ fn stiffness_rows(rows: &[ParameterRow]) -> Vec<StiffnessRow> {
         .collect()
 }
 
+/// What the scores of a selection path by `criterion` are, in words.
+fn path_scores(criterion: Criterion) -> String {
+    let nested = "--folds K gives the nested cross-validation";
+    match criterion {
+        Criterion::Cv { .. } => format!(
+            "in-sample: the folds that score the steps also chose the path and the model, so the chosen \
+             step's CV RMS is not a held-out figure ({nested})"
+        ),
+        Criterion::Bic => format!("in-sample: BIC of the fit on every training pose ({nested})"),
+        Criterion::T => format!("in-sample: |t| of each dropped estimate on every training pose ({nested})"),
+    }
+}
+
 /// The path of a parameter selection, as reported.
 #[derive(Debug, Clone, Serialize)]
 pub struct SelectionReport {
@@ -147,6 +212,9 @@ pub struct SelectionReport {
     /// Every step, the start first: the parameter added (dropped for `t`), the score after it
     /// (CV RMS in mm, BIC, or the dropped parameter's |t|), the CV RMS's standard error.
     pub steps: Vec<Step>,
+    /// What the steps' scores are: figures of the training poses the path was chosen on, not
+    /// held-out ones.
+    pub scores: String,
     /// The step chosen.
     pub chosen: usize,
     /// The joint parameters chosen.
@@ -187,6 +255,7 @@ impl SelectionReport {
             let _ = writeln!(out, "{k:>5}  {name:<22} {value:>22}{mark}");
         }
         let _ = writeln!(out, "selected ({}): {}", self.selected.len(), self.selected.join(", "));
+        let _ = writeln!(out, "path scores: {}", self.scores);
         if !self.held.is_empty() {
             // Only the names: the combinations are in the JSON.
             let names: Vec<&str> =
@@ -416,12 +485,19 @@ impl CalibrationReport {
             }),
             selection: None,
             predicted: Vec::new(),
+            cross_validation: None,
         }
     }
 
     /// The report with the accuracy predicted at the held-out sets' poses.
     pub fn with_predicted(mut self, predicted: Vec<PredictedAccuracy>) -> Self {
         self.predicted = predicted;
+        self
+    }
+
+    /// The report with how its k-fold cross-validation was made.
+    pub fn with_cross_validation(mut self, cv: CrossValidationReport) -> Self {
+        self.cross_validation = Some(cv);
         self
     }
 
@@ -439,6 +515,7 @@ impl CalibrationReport {
                 _ => None,
             },
             steps: path.steps.clone(),
+            scores: path_scores(path.criterion),
             chosen: path.chosen,
             selected: path.selected.clone(),
             held: path.held.clone(),
@@ -569,6 +646,10 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             self.weighting.before, self.weighting.after, self.weighting.errors, self.weighting.whitened
         );
         out.push_str(&self.error_tables());
+        if let Some(cv) = &self.cross_validation {
+            let _ = writeln!(out);
+            out.push_str(&cv.text());
+        }
         if !self.predicted.is_empty() {
             let _ = writeln!(
                 out,

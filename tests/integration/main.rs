@@ -17,6 +17,7 @@ mod kinds_markers;
 mod kinematics;
 mod layering;
 mod model_files;
+mod nested;
 mod noise;
 mod observability;
 mod planning;

@@ -406,8 +406,8 @@ fn select_takes_its_criterion_and_cv_the_folds() {
     let request = calibrate(&["--select", "cv", "--folds", "3"]).unwrap();
     assert_eq!(
         (request.select, request.folds),
-        (Some(Criterion::Cv { folds: 3 }), None),
-        "the selection's folds"
+        (Some(Criterion::Cv { folds: 3 }), Some(3)),
+        "the selection's folds and the nested cross-validation's"
     );
     let request = calibrate(&["--select", "bic", "--folds", "3"]).unwrap();
     assert_eq!((request.select, request.folds), (Some(Criterion::Bic), Some(3)), "the cross-validation's");
