@@ -222,6 +222,10 @@ pub struct SelectionReport {
     /// The parameters asked for that the gauge holds, not candidates: each with its
     /// combination in words.
     pub held: Vec<String>,
+    /// A joint's zero or play left out while a chosen parameter that stands in for it is in,
+    /// in words.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub trades: Vec<String>,
 }
 
 impl SelectionReport {
@@ -256,6 +260,14 @@ impl SelectionReport {
         }
         let _ = writeln!(out, "selected ({}): {}", self.selected.len(), self.selected.join(", "));
         let _ = writeln!(out, "path scores: {}", self.scores);
+        for (k, step) in self.steps.iter().enumerate() {
+            if let Some(note) = &step.note {
+                let _ = writeln!(out, "step {k}: {note}");
+            }
+        }
+        for trade in &self.trades {
+            let _ = writeln!(out, "trade: {trade}");
+        }
         if !self.held.is_empty() {
             // Only the names: the combinations are in the JSON.
             let names: Vec<&str> =
@@ -519,6 +531,7 @@ impl CalibrationReport {
             chosen: path.chosen,
             selected: path.selected.clone(),
             held: path.held.clone(),
+            trades: path.trades.clone(),
         });
         self
     }
@@ -616,6 +629,15 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             let _ = writeln!(
                 out,
                 "\n{} parameters estimated with their priors; the data alone: rank {}, condition number {:.3e}",
+                self.parameters.len(),
+                self.rank,
+                self.condition_number
+            );
+        } else if !self.converged {
+            let _ = writeln!(
+                out,
+                "\n{} parameters estimated, not converged (rank {}, condition number {:.3e}): not identified \
+                 estimates; their standard errors are those of where the fit stopped",
                 self.parameters.len(),
                 self.rank,
                 self.condition_number

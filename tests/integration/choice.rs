@@ -137,7 +137,10 @@ fn the_command_takes_priors_losses_and_the_gauge() {
     assert!(text.contains("prior SD") && text.contains("SD ratio"), "{text}");
     assert!(text.contains("robust loss huber:1.345: "), "{text}");
     assert!(text.contains("j6.d: held at its nominal value by --hold"), "{text}");
-    assert!(text.contains("3-fold cross-validation, nested"), "the loss's weights redone in each fold: {text}");
+    assert!(
+        text.contains("3-fold cross-validation, nested"),
+        "the loss's weights redone in each fold: {text}"
+    );
     let squared = String::from_utf8(run(&["--folds", "3"]).stdout).unwrap();
     assert!(squared.contains("3-fold cross-validation") && !squared.contains("nested"), "{squared}");
     let both = run(&["--hold", "j6.d", "--keep", "j6.d"]);

@@ -32,7 +32,12 @@ fn measured(x: &[f64], n: usize, band: f64, sigma: f64, rng: &mut ChaCha8Rng) ->
                 .collect()
         })
         .collect();
-    let mut noise = || Vector3::from_fn(|_, _| { let z: f64 = StandardNormal.sample(&mut *rng); sigma * z });
+    let mut noise = || {
+        Vector3::from_fn(|_, _| {
+            let z: f64 = StandardNormal.sample(&mut *rng);
+            sigma * z
+        })
+    };
     Measurements {
         markers: joints.iter().map(|q| vec![at.position(q) + noise()]).collect(),
         marker_ids: vec![1],
@@ -148,7 +153,9 @@ fn the_report_says_nested_and_a_validation_file_chooses_nothing() {
     let select = ["--params", "joints", "--select", "bic", "--folds", "5"];
     let (text, report) = calibrate_arm7(&select, &json);
     assert!(text.contains("\n5-fold cross-validation, nested, after "), "{text}");
-    assert!(text.contains("5-fold cross-validation, nested: --select bic made again inside each fold (the folds chose"));
+    assert!(text.contains(
+        "5-fold cross-validation, nested: --select bic made again inside each fold (the folds chose"
+    ));
     assert!(text.contains("path scores: in-sample: BIC of the fit on every training pose"), "{text}");
     let cv = &report["cross_validation"];
     assert_eq!((cv["folds"].as_u64(), cv["nested"].as_bool()), (Some(5), Some(true)));
@@ -168,7 +175,10 @@ fn the_report_says_nested_and_a_validation_file_chooses_nothing() {
     assert!(text.contains("5-fold cross-validation: nothing is chosen from the data"), "{text}");
     assert_eq!(report["cross_validation"]["nested"], false);
     let (text, report) = calibrate_arm7(&["--params", "offsets", "--folds", "5", "--loss", "huber"], &json);
-    assert!(text.contains("5-fold cross-validation, nested: --loss huber:1.345's weights made again"), "{text}");
+    assert!(
+        text.contains("5-fold cross-validation, nested: --loss huber:1.345's weights made again"),
+        "{text}"
+    );
     assert_eq!(report["cross_validation"]["nested"], true);
     std::fs::remove_dir_all(&dir).unwrap();
 }
