@@ -21,6 +21,7 @@ mod nested;
 mod noise;
 mod observability;
 mod planning;
+mod plausibility;
 mod presets;
 mod prior;
 mod reliability;
