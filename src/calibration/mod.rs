@@ -1195,9 +1195,11 @@ fn warnings(s: &Stages<'_>, calibrated: &RobotModel, training: &SetEvaluation) -
     out
 }
 
-/// A [`Warning::NotConverged`] for a fit that stopped at its step limit, with its last step.
+/// A [`Warning::NotConverged`] for a fit that stopped at its step limit, with its last step;
+/// not for the paper's one-step estimate (`--iterations 1`, a single step is all it takes: a
+/// limit above 1 stops at 2 steps at least).
 pub(crate) fn not_converged(refined: &Refined) -> Option<Warning> {
-    let last = refined.history.last().filter(|_| !refined.converged)?;
+    let last = refined.history.last().filter(|_| !refined.converged && refined.history.len() > 1)?;
     let last_fall = (last.cost - last.cost_after) / last.cost.max(f64::MIN_POSITIVE);
     Some(Warning::NotConverged { steps: refined.history.len(), last_step: last.step, last_fall })
 }
@@ -1421,7 +1423,7 @@ mod plausibility_tests {
     }
 
     /// A fit stopped at its step limit is a warning with its last step's size and the cost's
-    /// fall; a converged one is not.
+    /// fall; a converged one is not, nor the one-step estimate.
     #[test]
     fn an_unconverged_fit_is_a_warning_with_its_last_step() {
         let step = |cost: f64, cost_after: f64, step: f64| crate::estimation::Iteration {
@@ -1442,6 +1444,10 @@ mod plausibility_tests {
              by 2.500e-1 of itself; the estimates and their standard errors are where the fit stopped"
         ));
         refined.converged = true;
+        assert_eq!(not_converged(&refined), None);
+        // The one-step estimate stops after its step by design.
+        refined.converged = false;
+        refined.history.pop();
         assert_eq!(not_converged(&refined), None);
     }
 }

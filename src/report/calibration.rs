@@ -633,7 +633,7 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
                 self.rank,
                 self.condition_number
             );
-        } else if !self.converged {
+        } else if !self.converged && self.iterations > 1 {
             let _ = writeln!(
                 out,
                 "\n{} parameters estimated, not converged (rank {}, condition number {:.3e}): not identified \
