@@ -18,6 +18,7 @@ mod data;
 pub mod diagnostics;
 pub mod evaluation;
 pub mod kinds;
+pub mod prior_scale;
 mod repeatability;
 pub mod robust;
 pub mod selection;
@@ -30,7 +31,10 @@ pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
 };
 pub use robust::{Loss, RobustFit};
-pub use selection::{Criterion, NestedCv, SelectionPath, cross_validate_selection, select};
+pub use selection::{
+    Choices, Chosen, Criterion, NestedCv, SelectionPath, choose, cross_validate_choices,
+    cross_validate_selection, select,
+};
 
 use crate::estimation::{
     CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementNoise,

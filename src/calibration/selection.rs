@@ -42,6 +42,7 @@
 //! is the same on any number of threads. The selected model is then calibrated by
 //! Gauss-Newton as any other.
 
+use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale, with_scale};
 use super::{
     CalibrationError, ErrorStats, Identified, JointParams, Measurements, Options, RobotModel, Whitening,
     calibrate, errors, identifiable, observed, selection, standard_errors,
@@ -157,17 +158,65 @@ pub fn select(
     }
 }
 
-/// k-fold cross-validation of a selection made from the data, nested: pose `i` is held out in
-/// fold `i mod folds`, and on the other folds the whole choice is made again ([`select`] by
-/// `criterion`, `cv` with `folds` folds of its own on them) and the set it chose calibrated;
-/// the held-out poses are scored before and after. The selection made on every pose has seen
-/// the held-out ones, so cross-validating its set alone ([`cross_validate`](super::cross_validate)
-/// with [`SelectionPath::options`]) is optimistic; this is the figure to expect on new poses.
-pub fn cross_validate_selection(
+/// The choices made from the data before a calibration: the scale of a preset's priors
+/// (`--prior auto`), then the joint parameters (`--select`), with the priors in place.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Choices {
+    /// `--prior auto[:PRESET]`: the preset to scale, and the folds to choose its scale by.
+    pub auto_prior: Option<(AutoPrior, usize)>,
+    /// `--select`: how to choose the joint parameters.
+    pub select: Option<Criterion>,
+}
+
+/// What [`choose`] chose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Chosen {
+    /// The options to calibrate with: the scaled priors, the selected parameters.
+    pub options: Options,
+    /// The scale of the preset, and its curve.
+    pub scale: Option<PriorScale>,
+    /// The selection's path.
+    pub path: Option<SelectionPath>,
+}
+
+/// Make `choices` on `data`: the preset's scale first ([`choose_prior_scale`]), then the
+/// selection with those priors ([`select`]).
+pub fn choose(
     model: &RobotModel,
     data: &Measurements,
     options: &Options,
-    criterion: Criterion,
+    choices: &Choices,
+) -> Result<Chosen, CalibrationError> {
+    let mut chosen = Chosen { options: options.clone(), scale: None, path: None };
+    if let Some((auto, folds)) = &choices.auto_prior {
+        let scale = choose_prior_scale(model, data, options, auto, (*folds).min(data.len()))?;
+        chosen.options = with_scale(options, auto, scale.scale());
+        chosen.scale = Some(scale);
+    }
+    if let Some(criterion) = choices.select {
+        let criterion = match criterion {
+            Criterion::Cv { folds } => Criterion::Cv { folds: folds.min(data.len()) },
+            other => other,
+        };
+        let path = select(model, data, &chosen.options, criterion)?;
+        chosen.options = path.options(&chosen.options);
+        chosen.path = Some(path);
+    }
+    Ok(chosen)
+}
+
+/// k-fold cross-validation of the choices made from the data, nested: pose `i` is held out in
+/// fold `i mod folds`, and on the other folds every choice is made again ([`choose`]: the
+/// preset's scale, the selection, each with folds of its own on them) and the model chosen
+/// calibrated; the held-out poses are scored before and after. Choices made on every pose have
+/// seen the held-out ones, so cross-validating only what they chose
+/// ([`cross_validate`](super::cross_validate) with [`Chosen::options`]) is optimistic; this is
+/// the figure to expect on new poses.
+pub fn cross_validate_choices(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    choices: &Choices,
     folds: usize,
 ) -> Result<NestedCv, CalibrationError> {
     if folds < 2 || folds > data.len() {
@@ -176,33 +225,45 @@ pub fn cross_validate_selection(
             data.len()
         )));
     }
-    let (mut before, mut after, mut selected) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut before, mut after) = (Vec::new(), Vec::new());
+    let (mut selected, mut scales) = (Vec::new(), Vec::new());
     for fold in 0..folds {
         let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
         let train = data.subset(&train);
-        let inner = match criterion {
-            Criterion::Cv { folds: k } => Criterion::Cv { folds: k.min(train.len()) },
-            other => other,
-        };
-        let path = select(model, &train, options, inner)?;
-        let calibration = calibrate(model, &train, &path.options(options))?;
+        let chosen = choose(model, &train, options, choices)?;
+        let calibration = calibrate(model, &train, &chosen.options)?;
         let held_out = data.subset(&test);
         before.extend(errors(&calibration.chains, &calibration.before, &held_out));
         after.extend(errors(&calibration.chains, &calibration.after, &held_out));
-        selected.push(path.selected);
+        selected.extend(chosen.path.map(|p| p.selected));
+        scales.extend(chosen.scale.map(|s| s.scale()));
     }
-    Ok(NestedCv { before: ErrorStats::of(&before), after: ErrorStats::of(&after), selected })
+    Ok(NestedCv { before: ErrorStats::of(&before), after: ErrorStats::of(&after), selected, scales })
 }
 
-/// A nested k-fold cross-validation ([`cross_validate_selection`]).
+/// [`cross_validate_choices`] of a selection alone.
+pub fn cross_validate_selection(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    criterion: Criterion,
+    folds: usize,
+) -> Result<NestedCv, CalibrationError> {
+    let choices = Choices { select: Some(criterion), auto_prior: None };
+    cross_validate_choices(model, data, options, &choices, folds)
+}
+
+/// A nested k-fold cross-validation ([`cross_validate_choices`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct NestedCv {
     /// The held-out poses' errors before calibration (the registration on the other folds).
     pub before: ErrorStats,
-    /// Their errors after the selection and calibration on the other folds.
+    /// Their errors after the choices and calibration on the other folds.
     pub after: ErrorStats,
-    /// The joint parameters each fold's selection chose, fold by fold.
+    /// With a selection: the joint parameters each fold's selection chose, fold by fold.
     pub selected: Vec<Vec<String>>,
+    /// With `--prior auto`: the scale each fold chose, fold by fold.
+    pub scales: Vec<f64>,
 }
 
 /// Backward elimination by `|t|` ([`Criterion::T`]), `t = estimate / SE` with the SE of the
@@ -322,7 +383,7 @@ fn forward(
     let linear = LinearModel::new(model, data, options)?;
     let mut fits = linear.fits(criterion);
     let (steps, order) = walk(&mut fits, &linear, criterion);
-    let chosen = choose(&steps, criterion);
+    let chosen = choose_step(&steps, criterion);
     let mut columns: Vec<usize> = order[..chosen].iter().map(|&j| linear.kept.indices()[j]).collect();
     columns.sort_unstable();
     let selected = columns.iter().map(|&i| linear.params.get(i).name.clone()).collect();
@@ -513,7 +574,7 @@ fn bic(rss: f64, parameters: usize, equations: usize) -> f64 {
 
 /// The step a criterion chooses: for CV the first whose score is within one standard error of
 /// the lowest score's (the one-standard-error rule), otherwise the lowest.
-fn choose(steps: &[Step], criterion: Criterion) -> usize {
+fn choose_step(steps: &[Step], criterion: Criterion) -> usize {
     let best = (0..steps.len()).min_by(|&a, &b| steps[a].score.total_cmp(&steps[b].score)).unwrap_or(0);
     match criterion {
         Criterion::Cv { .. } => {

@@ -48,16 +48,9 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
         "calibrate on fewer poses",
     )?;
     let asked = options(request, &robot.model, &data.fit)?;
-    let mut options = asked.clone();
-    let path = match request.select {
-        Some(criterion) => {
-            let path = calibration::select(&robot.model, &data.fit, &options, criterion)
-                .with_context(|| format!("--select {}: {}", criterion.name(), request.data.display()))?;
-            options = path.options(&options);
-            Some(path)
-        }
-        None => None,
-    };
+    let chosen = calibration::choose(&robot.model, &data.fit, &asked, &choices(request))
+        .with_context(|| format!("{}: {}", choices_in_words(request).join(", "), request.data.display()))?;
+    let (options, path) = (chosen.options, chosen.path);
     let result = match request.method {
         Method::Given(_) => calibration::calibrate(&robot.model, &data.fit, &options),
         Method::Feasible => {
@@ -76,6 +69,9 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     }
     if let Some(path) = &path {
         report = report.with_selection(path);
+    }
+    if let Some(scale) = chosen.scale {
+        report = report.with_prior_scale(scale);
     }
     let predicted = predicted_accuracy(&report.sets, &result, &data)?;
     report = report.with_predicted(predicted);
@@ -250,25 +246,36 @@ fn cross_validate(
     asked: &Options,
 ) -> Result<Option<(String, ErrorStats, ErrorStats, CrossValidationReport)>> {
     let Some(k) = request.folds else { return Ok(None) };
-    let mut redone = Vec::new();
-    if let Some(criterion) = request.select {
-        redone.push(format!("--select {}", criterion.name()));
-    }
+    let mut redone = choices_in_words(request);
     if asked.loss != calibration::Loss::Squared {
         redone.push(format!("--loss {}'s weights", asked.loss));
     }
-    let (before, after, selected) = match request.select {
-        Some(criterion) => {
-            let nested = calibration::cross_validate_selection(model, fit, asked, criterion, k)?;
-            (nested.before, nested.after, nested.selected)
-        }
-        None => {
-            let (before, after) = calibration::cross_validate(model, fit, asked, k)?;
-            (before, after, Vec::new())
-        }
+    let choices = choices(request);
+    let (before, after, selected, scales) = if choices == calibration::Choices::default() {
+        let (before, after) = calibration::cross_validate(model, fit, asked, k)?;
+        (before, after, Vec::new(), Vec::new())
+    } else {
+        let nested = calibration::cross_validate_choices(model, fit, asked, &choices, k)?;
+        (nested.before, nested.after, nested.selected, nested.scales)
     };
-    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected };
+    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales };
     Ok(Some((how.label(), before, after, how)))
+}
+
+/// The choices `request` makes from the data: `--prior auto`'s scale (by `--folds` folds, 5
+/// unless told), `--select`.
+fn choices(request: &CalibrateRequest) -> calibration::Choices {
+    let folds = request.folds.unwrap_or(calibration::selection::DEFAULT_FOLDS);
+    calibration::Choices {
+        auto_prior: request.auto_prior.clone().map(|auto| (auto, folds)),
+        select: request.select,
+    }
+}
+
+/// Those choices as flags: `--prior auto:fabricated's scale`, `--select bic`.
+fn choices_in_words(request: &CalibrateRequest) -> Vec<String> {
+    let auto = request.auto_prior.iter().map(|a| format!("--prior auto:{}'s scale", a.preset));
+    auto.chain(request.select.map(|c| format!("--select {}", c.name()))).collect()
 }
 
 /// Write the JSON report, the poses, the figures, the page, the calibrated model and the

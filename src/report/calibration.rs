@@ -3,6 +3,7 @@
 //! the same content.
 
 use super::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
+use crate::calibration::prior_scale::PriorScale;
 use crate::calibration::selection::{Criterion, SelectionPath, Step};
 use crate::calibration::{Calibration, ErrorStats, FLAG_AT, SetEvaluation, Warning, pool, standard_errors};
 use crate::estimation::{NoiseEstimate, SigmaInterval};
@@ -80,6 +81,10 @@ pub struct CalibrationReport {
     /// ([`crate::design::accuracy`]), beside the error measured there.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub predicted: Vec<PredictedAccuracy>,
+    /// `--prior auto`: the scale of the preset's standard deviations, and the curve it was
+    /// chosen from ([`CalibrationReport::with_prior_scale`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior_scale: Option<PriorScale>,
     /// `--folds K`: what the k-fold cross-validation redid inside each fold
     /// ([`CalibrationReport::with_cross_validation`]).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -100,6 +105,9 @@ pub struct CrossValidationReport {
     /// With `--select`: the joint parameters each fold's selection chose, fold by fold.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub selected: Vec<Vec<String>>,
+    /// With `--prior auto`: the scale each fold chose, fold by fold.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub scales: Vec<f64>,
 }
 
 impl CrossValidationReport {
@@ -129,6 +137,10 @@ impl CrossValidationReport {
                 distinct.len(),
                 if distinct.len() == 1 { "" } else { "s" }
             );
+        }
+        if !self.scales.is_empty() {
+            let scales: Vec<String> = self.scales.iter().map(|s| format!("{s}")).collect();
+            let _ = write!(out, " (the folds' prior scales: {})", scales.join(", "));
         }
         out + "\n"
     }
@@ -186,6 +198,24 @@ fn stiffness_rows(rows: &[ParameterRow]) -> Vec<StiffnessRow> {
             }
         })
         .collect()
+}
+
+/// The scale `--prior auto` chose, with its curve.
+fn prior_scale_text(scale: &PriorScale) -> String {
+    let mut out = format!(
+        "prior scale: --prior auto:{} chose {} x its standard deviations, by {}-fold cross-validation \
+         (in-sample: --folds K gives the nested figure)\n{:>8} {:>12}\n",
+        scale.preset,
+        scale.scale(),
+        scale.folds,
+        "scale",
+        "CV RMS mm"
+    );
+    for (k, (s, rms)) in scale.scales.iter().zip(&scale.cv_rms).enumerate() {
+        let mark = if k == scale.chosen { "  <- chosen" } else { "" };
+        let _ = writeln!(out, "{s:>8} {rms:>12.4}{mark}");
+    }
+    out
 }
 
 /// What the scores of a selection path by `criterion` are, in words.
@@ -498,12 +528,19 @@ impl CalibrationReport {
             selection: None,
             predicted: Vec::new(),
             cross_validation: None,
+            prior_scale: None,
         }
     }
 
     /// The report with the accuracy predicted at the held-out sets' poses.
     pub fn with_predicted(mut self, predicted: Vec<PredictedAccuracy>) -> Self {
         self.predicted = predicted;
+        self
+    }
+
+    /// The report with the scale `--prior auto` chose.
+    pub fn with_prior_scale(mut self, scale: PriorScale) -> Self {
+        self.prior_scale = Some(scale);
         self
     }
 
@@ -652,6 +689,10 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             );
         }
         write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "pose");
+        if let Some(scale) = &self.prior_scale {
+            let _ = writeln!(out);
+            out.push_str(&prior_scale_text(scale));
+        }
         if let Some(selection) = &self.selection {
             let _ = writeln!(out);
             out.push_str(&selection.text());

@@ -34,8 +34,8 @@ fn corrections_past_a_physical_bound_are_warned_for_every_kind() {
     let mut wrong = RobotModel::preset("puma560").unwrap();
     wrong.joints[1].a += 30.0;
     wrong.joints[2].theta += 8f64.to_radians();
-    let data = robocal::io::load_measurements(Path::new("examples/puma560-measurements.csv"), &wrong, None)
-        .unwrap();
+    let data =
+        robocal::io::load_measurements(Path::new("examples/puma560-measurements.csv"), &wrong, None).unwrap();
     let markers = Options {
         estimator: Estimator::Ols,
         noise: None,
@@ -87,6 +87,7 @@ fn an_unconverged_calibration_is_warned_and_not_called_identified() {
     assert!(text.contains("(2 steps, not converged)"), "{text}");
     assert!(text.contains(" parameters estimated, not converged (rank "), "{text}");
     assert!(!text.contains("parameters identified"), "{text}");
-    let warning = text.lines().find(|l| l.trim_start().starts_with("not converged in 2 steps: the last moved"));
+    let warning =
+        text.lines().find(|l| l.trim_start().starts_with("not converged in 2 steps: the last moved"));
     assert!(warning.is_some_and(|w| w.contains("standard deviations and lowered the cost by")), "{text}");
 }

@@ -503,3 +503,29 @@ fn a_tree_is_a_urdf_calibrated_by_ols_or_wls_of_its_joints() {
     assert!(refused(calibrate_tree("torso.urdf", &["--params", "all"])).contains("never estimated"));
     assert!(refused(calibrate_tree("torso.urdf", &["--json", "v.csv"])).contains("--json"));
 }
+
+/// `--prior auto` takes `fabricated`, `auto:PRESET` that preset, once, beside other entries;
+/// an unknown preset, a second auto, fgls and calibrate-observations are refused.
+#[test]
+fn prior_auto_takes_a_preset_to_scale() {
+    let request = calibrate(&["--prior", "auto", "--prior", "j2.a=1mm"]).unwrap();
+    assert_eq!(request.auto_prior.as_ref().map(|a| a.preset.as_str()), Some("fabricated"));
+    assert_eq!(request.prior.len(), 1);
+    let request = calibrate(&["--prior", "auto:machined"]).unwrap();
+    let auto = request.auto_prior.unwrap();
+    assert_eq!((auto.preset.as_str(), auto.entries.len()), ("machined", 6));
+    assert!(request.prior.is_empty());
+    assert!(
+        refused(calibrate(&["--prior", "auto:milled"]))
+            .contains("a preset among machined, precision, fabricated")
+    );
+    assert!(
+        refused(calibrate(&["--prior", "auto", "--prior", "auto:machined"]))
+            .contains("--prior auto: give it once")
+    );
+    assert!(
+        refused(calibrate(&["--prior", "auto", "--estimator", "fgls"]))
+            .contains("--prior with --estimator fgls")
+    );
+    assert!(refused(observations(&["--prior", "auto"])).contains("--prior auto: calibrate only"));
+}
