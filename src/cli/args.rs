@@ -624,13 +624,12 @@ fn parse_prior(text: &str) -> Result<PriorArg, String> {
     PriorEntry::parse_list(text).map(PriorArg::Entries).map_err(|e| e.to_string())
 }
 
-/// A marker position "x,y,z" (mm).
-
 /// A loss: `squared`, `huber[:K]`, `cauchy[:K]`.
 fn parse_loss(text: &str) -> Result<Loss, String> {
     text.parse()
 }
 
+/// A marker position "x,y,z" (mm).
 fn parse_marker(text: &str) -> Result<Vector3<f64>, String> {
     match finite_numbers(text, ',').as_deref() {
         Some(&[x, y, z]) => Ok(Vector3::new(x, y, z)),
