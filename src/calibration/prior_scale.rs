@@ -2,7 +2,7 @@
 //! training poses by k-fold cross-validation. A preset's tolerances are a guess at how far a
 //! robot is from its drawing; how far this one is, the poses tell: each `s` of [`SCALES`]
 //! multiplies every standard deviation of the preset, the calibration with those priors is
-//! cross-validated ([`cross_validate`](super::cross_validate): pose `i` held out in fold
+//! cross-validated ([`cross_validate`]: pose `i` held out in fold
 //! `i mod k`), and the scale of the lowest held-out RMS is chosen (ties to the smaller scale,
 //! the stronger prior). The curve it was chosen from is reported. The choice is made from the
 //! data, so `--folds` cross-validates it nested
