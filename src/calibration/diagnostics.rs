@@ -8,8 +8,101 @@ use std::fmt;
 /// A joint length corrected by more than this (mm) is suspect: check the model and the units.
 pub const LARGE_CORRECTION_MM: f64 = 10.0;
 
+/// A joint angle corrected by more than this (deg) is suspect: a joint zero or an axis far off.
+pub const LARGE_ANGLE_DEG: f64 = 5.0;
+
+/// A revolute joint's play beyond this (deg) is suspect: it absorbs something else.
+pub const LARGE_PLAY_DEG: f64 = 1.0;
+
 /// Far-out observations listed in the text (the worst first; every one in the JSON).
 pub const LISTED: usize = 5;
+
+/// The physical range an estimate of a real arm stays within, whatever its standard error.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Bound {
+    /// A joint length or a joint origin's shift corrected by at most [`LARGE_CORRECTION_MM`].
+    Length,
+    /// A joint angle (offset, twist, `beta`, an origin's turn) corrected by at most
+    /// [`LARGE_ANGLE_DEG`].
+    Angle,
+    /// A revolute joint's compliance at most [`SOFTEST_COMPLIANCE`](super::SOFTEST_COMPLIANCE)
+    /// (a stiffness of 1000 N·m/rad or more).
+    Stiffness,
+    /// A compliance of at least 0.
+    Negative,
+    /// A revolute joint's play within [`LARGE_PLAY_DEG`] of 0.
+    Play,
+}
+
+/// An estimate outside its [`Bound`], with its 95% interval, in the report's units (mm, deg,
+/// rad/N·m or mm/N).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OutOfRange {
+    /// Its name (`j2.theta`).
+    pub parameter: String,
+    /// A length's or an angle's correction; a compliance's or a play's value.
+    pub value: f64,
+    /// `value - 1.96 SE`; NaN (null in JSON) without a standard error.
+    pub low: f64,
+    /// `value + 1.96 SE`; NaN (null in JSON) without a standard error.
+    pub high: f64,
+    /// Its unit.
+    pub unit: &'static str,
+}
+
+impl OutOfRange {
+    /// `j2.theta -80.000 deg (95% -85.000 to -75.000)`; a compliance in scientific notation
+    /// with its stiffness.
+    fn text(&self) -> String {
+        let compliance = self.unit.contains('/');
+        let number = |v: f64| if compliance { format!("{v:.3e}") } else { format!("{v:.3}") };
+        let interval = if self.low.is_finite() && self.high.is_finite() {
+            format!("95% {} to {}", number(self.low), number(self.high))
+        } else {
+            "no standard error".to_string()
+        };
+        let stiffness = if self.unit == "rad/N·m" && self.value > 0.0 {
+            format!("a stiffness of {:.4} N·m/rad; ", 1.0 / self.value)
+        } else {
+            String::new()
+        };
+        format!("{} {} {} ({stiffness}{interval})", self.parameter, number(self.value), self.unit)
+    }
+}
+
+impl Bound {
+    /// What the estimates past it are, by their number, and what to do.
+    fn describe(self, count: usize) -> (String, &'static str) {
+        let s = if count == 1 { "" } else { "s" };
+        match self {
+            Self::Length => (
+                format!("joint length{s} corrected by more than {LARGE_CORRECTION_MM} mm"),
+                "check the model and the units",
+            ),
+            Self::Angle => (
+                format!("joint angle{s} corrected by more than {LARGE_ANGLE_DEG} deg"),
+                "a joint zero or an axis this far off: check the model's zeros and conventions",
+            ),
+            Self::Stiffness => (
+                format!(
+                    "compliance{s} above {:e} rad/N·m (a stiffness below {:.0} N·m/rad)",
+                    super::SOFTEST_COMPLIANCE,
+                    1.0 / super::SOFTEST_COMPLIANCE
+                ),
+                "softer than a real joint: it absorbs something else (geometry, play, masses)",
+            ),
+            Self::Negative => (
+                format!("negative compliance{s}"),
+                "no joint has one: it absorbs something else (geometry, play, masses)",
+            ),
+            Self::Play => (
+                format!("play{s} beyond {LARGE_PLAY_DEG} deg"),
+                "more than a real joint's: it absorbs something else (an offset, a compliance)",
+            ),
+        }
+    }
+}
 
 /// One training observation (a pose, an observation row or a view) far out after calibration.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -56,12 +149,24 @@ impl Scored {
 #[serde(tag = "cause", rename_all = "snake_case")]
 #[non_exhaustive]
 pub enum Warning {
-    /// A joint length corrected by more than [`LARGE_CORRECTION_MM`].
-    LargeCorrection {
-        /// Its name (`j2.a`).
-        parameter: String,
-        /// The correction (mm).
-        correction_mm: f64,
+    /// Estimates outside a physical [`Bound`], whatever their standard errors: every one, the
+    /// largest first.
+    Implausible {
+        /// The range they left.
+        bound: Bound,
+        /// Each with its 95% interval.
+        estimates: Vec<OutOfRange>,
+    },
+    /// The fit stopped at its step limit before a stopping rule was met: its estimates and
+    /// standard errors are where it stopped, not a minimum's.
+    NotConverged {
+        /// The steps taken.
+        steps: usize,
+        /// The last step's size: the largest change of a whitened prediction it made
+        /// (standard deviations).
+        last_step: f64,
+        /// The cost's fall in that step, as a fraction of the cost.
+        last_fall: f64,
     },
     /// Training observations more than [`FLAG_AT`](super::FLAG_AT) standard deviations out after
     /// calibration, the worst first.
@@ -70,23 +175,6 @@ pub enum Warning {
         scored: Scored,
         /// Every one of them.
         observations: Vec<FarOut>,
-    },
-    /// A compliance below 0 by more than two standard errors: it absorbs something else.
-    NegativeCompliance {
-        /// Its name (`j2.compliance`).
-        parameter: String,
-        /// Its value.
-        value: f64,
-        /// Its unit.
-        unit: &'static str,
-    },
-    /// A compliance softer than any real joint (above
-    /// [`SOFTEST_COMPLIANCE`](super::SOFTEST_COMPLIANCE)) by more than two standard errors.
-    SoftCompliance {
-        /// Its name.
-        parameter: String,
-        /// Its value (rad/N·m).
-        value: f64,
     },
     /// The identified system's scaled condition number above
     /// [`CONDITION_WARNING`](super::CONDITION_WARNING).
@@ -142,20 +230,19 @@ impl Warning {
 impl fmt::Display for Warning {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::LargeCorrection { parameter, correction_mm } => write!(
+            Self::Implausible { bound, estimates } => {
+                let (what, why) = bound.describe(estimates.len());
+                let listed: Vec<String> = estimates.iter().take(LISTED).map(OutOfRange::text).collect();
+                let more = if estimates.len() > LISTED { ", ... (every one in --json)" } else { "" };
+                let count =
+                    if estimates.len() == 1 { String::new() } else { format!("{} ", estimates.len()) };
+                write!(f, "{count}{what}, whatever the standard error: {}{more}; {why}", listed.join(", "))
+            }
+            Self::NotConverged { steps, last_step, last_fall } => write!(
                 f,
-                "{parameter} is corrected by {correction_mm:.2} mm: more than {LARGE_CORRECTION_MM} mm, check the model and the units"
+                "not converged in {steps} steps: the last moved a prediction by {last_step:.3e} standard deviations and lowered the cost by {last_fall:.3e} of itself; the estimates and their standard errors are where the fit stopped, not those of an identified minimum (raise --iterations)"
             ),
             Self::FarOut { .. } => f.write_str(&self.render(&|_, line| format!("line {line}"))),
-            Self::NegativeCompliance { parameter, value, unit } => write!(
-                f,
-                "{parameter} is {value:.3e} {unit}: a negative compliance absorbs something else (geometry, play, masses)"
-            ),
-            Self::SoftCompliance { parameter, value } => write!(
-                f,
-                "{parameter} is {value:.3e} rad/N·m, a stiffness of {:.0} N·m/rad: softer than any real joint, it absorbs something else",
-                1.0 / value
-            ),
             Self::IllConditioned { condition_number } => write!(
                 f,
                 "the identified system's scaled condition number is {condition_number:.3e}, above {:e}: the estimates are poorly determined; measure more varied poses or identify fewer parameters",

@@ -18,6 +18,7 @@ mod data;
 pub mod diagnostics;
 pub mod evaluation;
 pub mod kinds;
+pub mod prior_scale;
 mod repeatability;
 pub mod robust;
 pub mod selection;
@@ -30,7 +31,10 @@ pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
 };
 pub use robust::{Loss, RobustFit};
-pub use selection::{Criterion, SelectionPath, select};
+pub use selection::{
+    Choices, Chosen, Criterion, NestedCv, SelectionPath, choose, cross_validate_choices,
+    cross_validate_selection, select,
+};
 
 use crate::estimation::{
     CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementNoise,
@@ -706,8 +710,7 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
         .map_err(|e| at_line(e, s.data))?;
     let training = (training_poses.pooled[0], training_poses.pooled[1]);
     let calibrated = fold(&s.registered, &s.params, &s.after, (&s.markers, 0), s.probe.as_ref());
-    let mut warnings = warnings(&s.params, (&s.before, &s.after), &training_poses);
-    warnings.extend(implausible_compliances(&calibrated, &s.params, &s.refined));
+    let mut warnings = warnings(&s, &calibrated, &training_poses);
     let condition_number = s.refined.estimate.diagnostics.condition_number;
     if condition_number > CONDITION_WARNING {
         warnings.push(Warning::IllConditioned { condition_number });
@@ -1198,12 +1201,13 @@ pub(crate) fn fold(
     out
 }
 
-/// Implausible results: large length corrections, and the training poses flagged by
-/// [`evaluation`]: a residual more than [`FLAG_AT`] standard deviations out once whitened by
-/// the full `V_k` of their pose (joint and measurement noise), or, without a noise model, by
-/// the residuals' own spread.
-fn warnings(params: &ParamSet, (before, after): (&[f64], &[f64]), training: &SetEvaluation) -> Vec<Warning> {
-    let mut out = large_corrections(params.iter(), before, after);
+/// Implausible estimates ([`implausible`]), and the training poses flagged by [`evaluation`]: a
+/// residual more than [`FLAG_AT`] standard deviations out once whitened by the full `V_k` of
+/// their pose (joint and measurement noise), or, without a noise model, by the residuals' own
+/// spread.
+fn warnings(s: &Stages<'_>, calibrated: &RobotModel, training: &SetEvaluation) -> Vec<Warning> {
+    let se = standard_errors_of(s.params.iter(), &s.refined.estimate);
+    let mut out = implausible(s.params.iter(), (&s.before, &s.after), &se, Some(calibrated));
     let flagged = (training.poses.iter().enumerate()).filter(|(_, p)| p.flagged).map(|(index, p)| FarOut {
         index,
         line: p.line,
@@ -1211,50 +1215,109 @@ fn warnings(params: &ParamSet, (before, after): (&[f64], &[f64]), training: &Set
         sd: p.worst,
     });
     out.extend(Warning::far_out(Scored::Pose, flagged));
+    out.extend(not_converged(&s.refined));
     out
 }
 
-/// A [`Warning::LargeCorrection`] for each joint length of `params` corrected from `before` to
-/// `after` by more than [`LARGE_CORRECTION_MM`](diagnostics::LARGE_CORRECTION_MM).
-pub(crate) fn large_corrections<'a>(
+/// A [`Warning::NotConverged`] for a fit that stopped at its step limit, with its last step;
+/// not for the paper's one-step estimate (`--iterations 1`, a single step is all it takes: a
+/// limit above 1 stops at 2 steps at least).
+pub(crate) fn not_converged(refined: &Refined) -> Option<Warning> {
+    let last = refined.history.last().filter(|_| !refined.converged && refined.history.len() > 1)?;
+    let last_fall = (last.cost - last.cost_after) / last.cost.max(f64::MIN_POSITIVE);
+    Some(Warning::NotConverged { steps: refined.history.len(), last_step: last.step, last_fall })
+}
+
+/// The standard error of each of `params` in `estimate` (NaN for those it did not estimate).
+pub(crate) fn standard_errors_of<'a>(
     params: impl Iterator<Item = &'a crate::model::ParamInfo>,
-    before: &[f64],
-    after: &[f64],
-) -> Vec<Warning> {
-    params
-        .enumerate()
-        .filter(|(_, p)| matches!(p.owner, ParamOwner::Joint(_)) && p.unit() == "mm")
-        .map(|(i, p)| (p, after[i] - before[i]))
-        .filter(|(_, c)| c.abs() > diagnostics::LARGE_CORRECTION_MM)
-        .map(|(p, correction_mm)| Warning::LargeCorrection { parameter: p.name.clone(), correction_mm })
-        .collect()
+    estimate: &crate::estimation::LinearEstimate,
+) -> Vec<f64> {
+    let se = estimate.standard_errors();
+    let by_name: std::collections::HashMap<&str, f64> =
+        estimate.names.iter().map(String::as_str).zip(se.iter().copied()).collect();
+    params.map(|p| by_name.get(p.name.as_str()).copied().unwrap_or(f64::NAN)).collect()
 }
 
-/// The stiffest a joint's compliance may claim to be before it is suspect: a revolute joint
-/// softer than 100 N·m/rad (a compliance above 1e-2 rad/N·m), or any negative compliance,
-/// is absorbing something else (an error of the geometry, play, a wrong mass).
-pub const SOFTEST_COMPLIANCE: f64 = 1e-2;
+/// The most compliant a revolute joint may be before it is suspect (rad/N·m): softer than
+/// 1000 N·m/rad, a joint's compliance absorbs something else (an error of the geometry, play,
+/// a wrong mass).
+pub const SOFTEST_COMPLIANCE: f64 = 1e-3;
 
-/// Warnings for the estimated compliances of `calibrated` (`refined` says which were estimated)
-/// that no joint has: negative, or softer than [`SOFTEST_COMPLIANCE`], by more than two standard
-/// errors; each with its stiffness.
-fn implausible_compliances(calibrated: &RobotModel, params: &ParamSet, refined: &Refined) -> Vec<Warning> {
-    let mut out = Vec::new();
-    let se = refined.estimate.standard_errors();
-    for (k, name) in refined.estimate.names.iter().enumerate() {
-        let Some(i) = params.index_by_name(name) else { continue };
-        let (ParamOwner::Joint(j), ParamKind::Compliance) = (params.get(i).owner, params.get(i).kind) else {
-            continue;
+/// Every estimate of `params` outside a physical [`Bound`](diagnostics::Bound), whatever its
+/// standard error `se` (full-vector order, internal units; NaN: none), one warning per bound,
+/// the largest first: a joint's length or origin shift corrected from `before` to `after` by
+/// more than 10 mm, an angle by more than 5 deg; with the `calibrated` model (its values are
+/// the estimates'), a revolute joint's compliance above [`SOFTEST_COMPLIANCE`], any negative
+/// compliance, and a revolute joint's play beyond 1 deg. Only the joints' parameters: the base
+/// and the markers are the registration's, any size.
+pub(crate) fn implausible<'a>(
+    params: impl Iterator<Item = &'a crate::model::ParamInfo>,
+    (before, after): (&[f64], &[f64]),
+    se: &[f64],
+    calibrated: Option<&RobotModel>,
+) -> Vec<Warning> {
+    use diagnostics::{Bound, OutOfRange};
+    let mut found: Vec<(Bound, OutOfRange)> = Vec::new();
+    for (i, p) in params.enumerate() {
+        let ParamOwner::Joint(j) = p.owner else { continue };
+        let correction = after[i] - before[i];
+        let estimated = se[i].is_finite() || correction != 0.0;
+        // A compliance's or a play's value: the calibrated model's (its nominal value and the
+        // correction), else the correction.
+        let joint = calibrated.and_then(|m| m.joints.get(j));
+        let (value, scale, unit, bound) = match (p.kind, p.unit()) {
+            (ParamKind::Compliance, unit) if estimated => {
+                let c = joint.map_or(correction, |joint| joint.compliance);
+                let bound = if c < 0.0 {
+                    Some(Bound::Negative)
+                } else {
+                    (unit == "rad/N·m" && c > SOFTEST_COMPLIANCE).then_some(Bound::Stiffness)
+                };
+                (c, 1.0, unit, bound)
+            }
+            (ParamKind::Play, "rad") if estimated => {
+                let play = joint.map_or(correction, |joint| joint.play).to_degrees();
+                (
+                    play,
+                    180.0 / std::f64::consts::PI,
+                    "deg",
+                    (play.abs() > diagnostics::LARGE_PLAY_DEG).then_some(Bound::Play),
+                )
+            }
+            (ParamKind::Compliance | ParamKind::Play | ParamKind::Mass, _) => continue,
+            (_, "rad") => {
+                let deg = correction.to_degrees();
+                (
+                    deg,
+                    180.0 / std::f64::consts::PI,
+                    "deg",
+                    (deg.abs() > diagnostics::LARGE_ANGLE_DEG).then_some(Bound::Angle),
+                )
+            }
+            (_, "mm") => (
+                correction,
+                1.0,
+                "mm",
+                (correction.abs() > diagnostics::LARGE_CORRECTION_MM).then_some(Bound::Length),
+            ),
+            _ => continue,
         };
-        let (value, unit, margin) = (calibrated.joints[j].compliance, params.get(i).unit(), 2.0 * se[k]);
-        let parameter = name.clone();
-        if value + margin < 0.0 {
-            out.push(Warning::NegativeCompliance { parameter, value, unit });
-        } else if value - margin > SOFTEST_COMPLIANCE && unit == "rad/N·m" {
-            out.push(Warning::SoftCompliance { parameter, value });
-        }
+        let Some(bound) = bound else { continue };
+        let margin = crate::estimation::Z_95 * se[i] * scale;
+        let parameter = p.name.clone();
+        found.push((bound, OutOfRange { parameter, value, low: value - margin, high: value + margin, unit }));
     }
-    out
+    let bounds = [Bound::Length, Bound::Angle, Bound::Stiffness, Bound::Negative, Bound::Play];
+    bounds
+        .into_iter()
+        .filter_map(|bound| {
+            let mut estimates: Vec<OutOfRange> =
+                found.iter().filter(|(b, _)| *b == bound).map(|(_, e)| e.clone()).collect();
+            estimates.sort_by(|a, b| b.value.abs().total_cmp(&a.value.abs()));
+            (!estimates.is_empty()).then_some(Warning::Implausible { bound, estimates })
+        })
+        .collect()
 }
 
 /// k-fold cross-validation: pose `i` is held out in fold `i mod k`; the errors of every
@@ -1278,53 +1341,137 @@ pub fn cross_validate(
 
 /// The standard error of every parameter (NaN for those not estimated), full-vector order.
 pub fn standard_errors(c: &Calibration) -> Vec<f64> {
-    let se: DVector<f64> = c.refined.estimate.standard_errors();
-    let mut out = vec![f64::NAN; c.params.len()];
-    for (name, s) in c.refined.estimate.names.iter().zip(se.iter()) {
-        if let Some(i) = c.params.index_by_name(name) {
-            out[i] = *s;
-        }
-    }
-    out
+    standard_errors_of(c.params.iter(), &c.refined.estimate)
 }
 
 #[cfg(test)]
-mod compliance_tests {
+mod plausibility_tests {
     use super::*;
     use crate::model::LinkMass;
+    use diagnostics::{Bound, OutOfRange};
 
-    /// A compliance estimated negative, or softer than any joint, by more than two standard
-    /// errors is warned about with its stiffness; a plausible or uncertain one is not.
-    #[test]
-    fn implausible_compliances_are_warned() {
+    /// The PUMA 560 with masses (so that it has compliances and plays), its parameters, and
+    /// the index of `name`.
+    fn puma() -> (RobotModel, ParamSet) {
         let mut model = RobotModel::preset("puma560").unwrap();
         model.masses = vec![LinkMass { mass: 1.0, com: Vector3::zeros() }; 6];
         let params = model.params();
-        let i = params.index_by_name("j2.compliance").unwrap();
-        let mut refined = Refined { estimate: nothing_estimated(), history: Vec::new(), converged: true };
-        refined.estimate.names = vec![params.get(i).name.clone()];
-        refined.estimate.covariance = DMatrix::from_element(1, 1, 1e-10); // SE 1e-5
-        let mut warned = |c: f64| {
-            model.joints[1].compliance = c;
-            implausible_compliances(&model, &params, &refined)
+        (model, params)
+    }
+
+    /// Every estimate past its physical bound is warned of whatever its standard error (a
+    /// huge one too), one warning per bound with each estimate and its 95% interval, the
+    /// largest first; within the bounds, nothing.
+    #[test]
+    fn every_estimate_past_a_physical_bound_is_warned_whatever_its_se() {
+        let (mut model, params) = puma();
+        let n = params.len();
+        let at = |name: &str| params.index_by_name(name).unwrap();
+        let (before, mut after, mut se) = (vec![0.0; n], vec![0.0; n], vec![f64::NAN; n]);
+        let mut set = |name: &str, value: f64, sd: f64| {
+            after[at(name)] = value;
+            se[at(name)] = sd;
         };
-        assert!(warned(4e-5).is_empty());
-        assert!(warned(-1e-5).is_empty(), "within two standard errors of zero");
-        let negative = warned(-1e-3);
+        // Within the bounds: 9 mm, 4.9 deg, a 0.9 deg play, a stiffness of 1250 N·m/rad.
+        set("j2.a", 9.0, 100.0);
+        set("j3.alpha", 4.9f64.to_radians(), 1.0);
+        set("j5.play", 0.9f64.to_radians(), 1e-3);
+        set("j2.compliance", 8e-4, 1.0);
+        model.joints[1].compliance = 8e-4;
+        model.joints[4].play = 0.9f64.to_radians();
+        // A correction of the base or a marker is the registration's: any size.
+        set("base.x", 500.0, 1.0);
+        assert_eq!(implausible(params.iter(), (&before, &after), &se, Some(&model)), []);
+
+        let mut set = |name: &str, value: f64, sd: f64| {
+            after[at(name)] = value;
+            se[at(name)] = sd;
+        };
+        set("j2.a", 105.0, 85.0);
+        set("j3.d", -12.0, 0.5);
+        set("j2.theta", (-80f64).to_radians(), 80f64.to_radians());
+        set("j2.compliance", 1.33, 5.0);
+        set("j3.compliance", -1e-6, 1e-5);
+        set("j6.play", 1.5f64.to_radians(), 0.5f64.to_radians());
+        model.joints[1].compliance = 1.33;
+        model.joints[2].compliance = -1e-6;
+        model.joints[5].play = 1.5f64.to_radians();
+        let warnings = implausible(params.iter(), (&before, &after), &se, Some(&model));
+        let bounds: Vec<Bound> = warnings
+            .iter()
+            .map(|w| match w {
+                Warning::Implausible { bound, .. } => *bound,
+                other => panic!("{other}"),
+            })
+            .collect();
+        assert_eq!(bounds, [Bound::Length, Bound::Angle, Bound::Stiffness, Bound::Negative, Bound::Play]);
+        let Warning::Implausible { estimates, .. } = &warnings[0] else { unreachable!() };
+        let names: Vec<&str> = estimates.iter().map(|e| e.parameter.as_str()).collect();
+        assert_eq!(names, ["j2.a", "j3.d"], "the largest first");
+        let z = crate::estimation::Z_95;
+        assert_eq!(
+            estimates[0],
+            OutOfRange {
+                parameter: "j2.a".into(),
+                value: 105.0,
+                low: 105.0 - z * 85.0,
+                high: 105.0 + z * 85.0,
+                unit: "mm"
+            }
+        );
+        let text: Vec<String> = warnings.iter().map(ToString::to_string).collect();
+        assert_eq!(
+            text[0],
+            "2 joint lengths corrected by more than 10 mm, whatever the standard error: j2.a 105.000 mm (95% -61.597 to \
+             271.597), j3.d -12.000 mm (95% -12.980 to -11.020); check the model and the units"
+        );
+        assert_eq!(
+            text[1],
+            "joint angle corrected by more than 5 deg, whatever the standard error: j2.theta -80.000 deg (95% -236.797 to \
+             76.797); a joint zero or an axis this far off: check the model's zeros and conventions"
+        );
+        assert_eq!(
+            text[2],
+            "compliance above 1e-3 rad/N·m (a stiffness below 1000 N·m/rad), whatever the standard error: j2.compliance \
+             1.330e0 rad/N·m (a stiffness of 0.7519 N·m/rad; 95% -8.470e0 to 1.113e1); softer than a real joint: it \
+             absorbs something else (geometry, play, masses)"
+        );
+        assert!(text[3].starts_with("negative compliance, whatever the standard error: j3.compliance -1.000e-6 rad/N·m (95% -2.060e-5 to 1.860e-5)"), "{}", text[3]);
         assert!(
-            matches!(negative.as_slice(), [Warning::NegativeCompliance { value, .. }] if *value == -1e-3)
+            text[4].starts_with(
+                "play beyond 1 deg, whatever the standard error: j6.play 1.500 deg (95% 0.520 to 2.480)"
+            ),
+            "{}",
+            text[4]
         );
-        assert_eq!(
-            negative[0].to_string(),
-            "j2.compliance is -1.000e-3 rad/N·m: a negative compliance absorbs something else (geometry, play, masses)"
-        );
-        let soft = warned(2e-2);
-        assert!(matches!(soft.as_slice(), [Warning::SoftCompliance { value, .. }] if *value == 2e-2));
-        assert_eq!(
-            soft.iter().map(ToString::to_string).collect::<Vec<_>>(),
-            [
-                "j2.compliance is 2.000e-2 rad/N·m, a stiffness of 50 N·m/rad: softer than any real joint, it absorbs something else"
-            ]
-        );
+    }
+
+    /// A fit stopped at its step limit is a warning with its last step's size and the cost's
+    /// fall; a converged one is not, nor the one-step estimate.
+    #[test]
+    fn an_unconverged_fit_is_a_warning_with_its_last_step() {
+        let step = |cost: f64, cost_after: f64, step: f64| crate::estimation::Iteration {
+            cost,
+            cost_after,
+            step,
+            damping: 0.0,
+        };
+        let mut refined = Refined {
+            estimate: nothing_estimated(),
+            history: vec![step(10.0, 4.0, 3.0), step(4.0, 3.0, 0.25)],
+            converged: false,
+        };
+        let warning = not_converged(&refined).unwrap();
+        assert_eq!(warning, Warning::NotConverged { steps: 2, last_step: 0.25, last_fall: 0.25 });
+        assert!(warning.to_string().starts_with(
+            "not converged in 2 steps: the last moved a prediction by 2.500e-1 standard deviations and lowered the cost \
+             by 2.500e-1 of itself; the estimates and their standard errors are where the fit stopped"
+        ));
+        refined.converged = true;
+        assert_eq!(not_converged(&refined), None);
+        // The one-step estimate stops after its step by design.
+        refined.converged = false;
+        refined.history.pop();
+        assert_eq!(not_converged(&refined), None);
     }
 }

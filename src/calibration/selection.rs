@@ -42,9 +42,10 @@
 //! is the same on any number of threads. The selected model is then calibrated by
 //! Gauss-Newton as any other.
 
+use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale, with_scale};
 use super::{
-    CalibrationError, Identified, JointParams, Measurements, Options, RobotModel, Whitening, calibrate,
-    identifiable, observed, selection, standard_errors,
+    CalibrationError, ErrorStats, Identified, JointParams, Measurements, Options, RobotModel, Whitening,
+    calibrate, errors, identifiable, observed, selection, standard_errors,
 };
 use crate::estimation::{PointProblem, Residuals, Weights};
 use crate::kinematics::Measured;
@@ -95,6 +96,10 @@ pub struct Step {
     pub score: f64,
     /// The CV RMS's standard error (mm); NaN for the other criteria.
     pub se: f64,
+    /// Why this parameter, when not by its score alone (`t`: a stand-in dropped before the
+    /// joint's zero or play it stands in for).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
 }
 
 /// The path of a selection and the parameters it chose.
@@ -112,6 +117,10 @@ pub struct SelectionPath {
     /// gauge's (the poses cannot tell them apart from the others, with the combination), an
     /// unloaded compliance's, and for `t` those of `--hold`.
     pub held: Vec<String>,
+    /// A joint's zero or play left out while a chosen parameter that stands in for it (their
+    /// estimates correlated by [`STANDS_IN`] or more) is in, each in words: the error the
+    /// zero or play would carry is carried by the other.
+    pub trades: Vec<String>,
 }
 
 impl SelectionPath {
@@ -149,15 +158,126 @@ pub fn select(
     }
 }
 
-/// Backward elimination by `|t|` ([`Criterion::T`]).
+/// The choices made from the data before a calibration: the scale of a preset's priors
+/// (`--prior auto`), then the joint parameters (`--select`), with the priors in place.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Choices {
+    /// `--prior auto[:PRESET]`: the preset to scale, and the folds to choose its scale by.
+    pub auto_prior: Option<(AutoPrior, usize)>,
+    /// `--select`: how to choose the joint parameters.
+    pub select: Option<Criterion>,
+}
+
+/// What [`choose`] chose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Chosen {
+    /// The options to calibrate with: the scaled priors, the selected parameters.
+    pub options: Options,
+    /// The scale of the preset, and its curve.
+    pub scale: Option<PriorScale>,
+    /// The selection's path.
+    pub path: Option<SelectionPath>,
+}
+
+/// Make `choices` on `data`: the preset's scale first ([`choose_prior_scale`]), then the
+/// selection with those priors ([`select`]).
+pub fn choose(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    choices: &Choices,
+) -> Result<Chosen, CalibrationError> {
+    let mut chosen = Chosen { options: options.clone(), scale: None, path: None };
+    if let Some((auto, folds)) = &choices.auto_prior {
+        let scale = choose_prior_scale(model, data, options, auto, (*folds).min(data.len()))?;
+        chosen.options = with_scale(options, auto, scale.scale());
+        chosen.scale = Some(scale);
+    }
+    if let Some(criterion) = choices.select {
+        let criterion = match criterion {
+            Criterion::Cv { folds } => Criterion::Cv { folds: folds.min(data.len()) },
+            other => other,
+        };
+        let path = select(model, data, &chosen.options, criterion)?;
+        chosen.options = path.options(&chosen.options);
+        chosen.path = Some(path);
+    }
+    Ok(chosen)
+}
+
+/// k-fold cross-validation of the choices made from the data, nested: pose `i` is held out in
+/// fold `i mod folds`, and on the other folds every choice is made again ([`choose`]: the
+/// preset's scale, the selection, each with folds of its own on them) and the model chosen
+/// calibrated; the held-out poses are scored before and after. Choices made on every pose have
+/// seen the held-out ones, so cross-validating only what they chose
+/// ([`cross_validate`](super::cross_validate) with [`Chosen::options`]) is optimistic; this is
+/// the figure to expect on new poses.
+pub fn cross_validate_choices(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    choices: &Choices,
+    folds: usize,
+) -> Result<NestedCv, CalibrationError> {
+    if folds < 2 || folds > data.len() {
+        return Err(CalibrationError::Scoring(format!(
+            "{folds} folds for {} poses: expected 2 to the number of poses",
+            data.len()
+        )));
+    }
+    let (mut before, mut after) = (Vec::new(), Vec::new());
+    let (mut selected, mut scales) = (Vec::new(), Vec::new());
+    for fold in 0..folds {
+        let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
+        let train = data.subset(&train);
+        let chosen = choose(model, &train, options, choices)?;
+        let calibration = calibrate(model, &train, &chosen.options)?;
+        let held_out = data.subset(&test);
+        before.extend(errors(&calibration.chains, &calibration.before, &held_out));
+        after.extend(errors(&calibration.chains, &calibration.after, &held_out));
+        selected.extend(chosen.path.map(|p| p.selected));
+        scales.extend(chosen.scale.map(|s| s.scale()));
+    }
+    Ok(NestedCv { before: ErrorStats::of(&before), after: ErrorStats::of(&after), selected, scales })
+}
+
+/// [`cross_validate_choices`] of a selection alone.
+pub fn cross_validate_selection(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    criterion: Criterion,
+    folds: usize,
+) -> Result<NestedCv, CalibrationError> {
+    let choices = Choices { select: Some(criterion), auto_prior: None };
+    cross_validate_choices(model, data, options, &choices, folds)
+}
+
+/// A nested k-fold cross-validation ([`cross_validate_choices`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NestedCv {
+    /// The held-out poses' errors before calibration (the registration on the other folds).
+    pub before: ErrorStats,
+    /// Their errors after the choices and calibration on the other folds.
+    pub after: ErrorStats,
+    /// With a selection: the joint parameters each fold's selection chose, fold by fold.
+    pub selected: Vec<Vec<String>>,
+    /// With `--prior auto`: the scale each fold chose, fold by fold.
+    pub scales: Vec<f64>,
+}
+
+/// Backward elimination by `|t|` ([`Criterion::T`]), `t = estimate / SE` with the SE of the
+/// calibration as it is made (the posterior's where there are priors). A joint's zero or play
+/// whose estimate a kept parameter can stand in for ([`stand_in`]) is not dropped while that
+/// parameter's `|t|` is below 2 too: the stand-in goes first (the step says so); when the
+/// stand-in is strong, the zero goes and the path records the trade.
 fn backward(
     model: &RobotModel,
     data: &Measurements,
     options: &Options,
 ) -> Result<SelectionPath, CalibrationError> {
-    let mut steps = vec![Step { parameter: None, score: f64::NAN, se: f64::NAN }];
-    let mut current = options.clone();
-    let mut held = None;
+    let mut steps = vec![Step { parameter: None, score: f64::NAN, se: f64::NAN, note: None }];
+    let (mut current, mut held, mut trades) = (options.clone(), None, Vec::new());
     loop {
         let c = calibrate(model, data, &current)?;
         let held = held.get_or_insert_with(|| c.fixed.clone());
@@ -167,25 +287,89 @@ fn backward(
             .filter(|&i| matches!(c.params.get(i).owner, ParamOwner::Joint(_)))
             .collect();
         let t = |i: usize| (c.after[i] - c.before[i]).abs() / se[i];
+        let weak = |i: usize| t(i) < 2.0 || t(i).is_nan();
         // The smallest |t|, ties to the earlier parameter; a NaN (no standard error) is dropped.
         let weakest = joints
             .iter()
             .copied()
             .min_by(|&i, &j| t(i).partial_cmp(&t(j)).unwrap_or(std::cmp::Ordering::Less));
-        match weakest {
-            Some(i) if t(i) < 2.0 || t(i).is_nan() => {
-                steps.push(Step { parameter: Some(c.params.get(i).name.clone()), score: t(i), se: f64::NAN });
-                let names: Vec<String> =
-                    joints.iter().filter(|&&j| j != i).map(|&j| c.params.get(j).name.clone()).collect();
-                current = asking(options, &names);
+        let Some(i) = weakest.filter(|&i| weak(i)) else {
+            let selected = joints.iter().map(|&j| c.params.get(j).name.clone()).collect();
+            let chosen = steps.len() - 1;
+            let held = std::mem::take(held);
+            return Ok(SelectionPath { criterion: Criterion::T, steps, chosen, selected, held, trades });
+        };
+        let name = |i: usize| c.params.get(i).name.clone();
+        let covariance = |a: usize, b: usize| estimate_covariance(&c, a, b);
+        let (drop, note) = match stand_in(&c.params, i, &joints, &covariance) {
+            Some((k, r)) if weak(k) => {
+                let note = format!(
+                    "{} (|t| {:.2}) before {}, for which it stands in (correlation {r:+.2}): a joint's zero \
+                     and play go last",
+                    name(k),
+                    t(k),
+                    name(i)
+                );
+                (k, Some(note))
             }
-            _ => {
-                let selected = joints.iter().map(|&j| c.params.get(j).name.clone()).collect();
-                let chosen = steps.len() - 1;
-                let held = std::mem::take(held);
-                return Ok(SelectionPath { criterion: Criterion::T, steps, chosen, selected, held });
+            Some((k, r)) => {
+                trades.push(format!(
+                    "{} dropped at |t| = {:.2} while {} (|t| = {:.2}) stays, which stands in for it \
+                     (correlation {r:+.2}): {} carries its error",
+                    name(i),
+                    t(i),
+                    name(k),
+                    t(k),
+                    name(k)
+                ));
+                (i, None)
             }
-        }
+            None => (i, None),
+        };
+        steps.push(Step { parameter: Some(name(drop)), score: t(drop), se: f64::NAN, note });
+        let names: Vec<String> = joints.iter().filter(|&&j| j != drop).map(|&j| name(j)).collect();
+        current = asking(options, &names);
+    }
+}
+
+/// The correlation above which one parameter's estimate stands in for a joint's zero or play:
+/// the poses (and priors) barely tell the two apart.
+pub const STANDS_IN: f64 = 0.9;
+
+/// Whether `p` is a joint's zero (its offset) or its play: kept before what can only stand in
+/// for it.
+fn is_zero_or_play(p: &crate::model::ParamInfo) -> bool {
+    matches!(p.owner, ParamOwner::Joint(_)) && (p.is_offset || p.kind == crate::model::ParamKind::Play)
+}
+
+/// The parameter among `kept` (full-vector indices) that stands in for `i`, a joint's zero or
+/// play, with their estimates' correlation (`covariance(a, b)` of the estimates, or of the
+/// inverse normal equations): the most correlated one, at least [`STANDS_IN`] in magnitude,
+/// that is not itself a zero or a play. `None` for any other `i`.
+fn stand_in(
+    params: &crate::model::ParamSet,
+    i: usize,
+    kept: &[usize],
+    covariance: &dyn Fn(usize, usize) -> f64,
+) -> Option<(usize, f64)> {
+    if !is_zero_or_play(params.get(i)) {
+        return None;
+    }
+    let correlation = |k: usize| covariance(i, k) / (covariance(i, i) * covariance(k, k)).sqrt();
+    (kept.iter().copied())
+        .filter(|&k| k != i && !is_zero_or_play(params.get(k)))
+        .map(|k| (k, correlation(k)))
+        .filter(|(_, r)| r.abs() >= STANDS_IN)
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+}
+
+/// The covariance of the estimates of parameters `a` and `b` (full-vector indices) of `c`.
+fn estimate_covariance(c: &super::Calibration, a: usize, b: usize) -> f64 {
+    let names = &c.refined.estimate.names;
+    let column = |i: usize| names.iter().position(|n| *n == c.params.get(i).name);
+    match (column(a), column(b)) {
+        (Some(a), Some(b)) => c.refined.estimate.covariance[(a, b)],
+        _ => f64::NAN,
     }
 }
 
@@ -199,11 +383,12 @@ fn forward(
     let linear = LinearModel::new(model, data, options)?;
     let mut fits = linear.fits(criterion);
     let (steps, order) = walk(&mut fits, &linear, criterion);
-    let chosen = choose(&steps, criterion);
+    let chosen = choose_step(&steps, criterion);
     let mut columns: Vec<usize> = order[..chosen].iter().map(|&j| linear.kept.indices()[j]).collect();
     columns.sort_unstable();
     let selected = columns.iter().map(|&i| linear.params.get(i).name.clone()).collect();
-    Ok(SelectionPath { criterion, steps, chosen, selected, held: linear.held })
+    let trades = linear.trades(&order[..chosen]);
+    Ok(SelectionPath { criterion, steps, chosen, selected, held: linear.held, trades })
 }
 
 /// The calibration linearised once about the registration ("before"), for the parameters
@@ -240,22 +425,67 @@ impl LinearModel {
             PointProblem::new(&frame.chains, &nothing, Measured::Position, joints, observed, zero, noise)?;
         let weights = Weights::for_problem(&base_problem, options.estimator)?;
         let asked = selection(params, &options.joints, options)?;
-        let Identified { kept, start, fixed: held, .. } =
-            identifiable(&base_problem, &weights, &asked, &frame.before, data, &options.gauge, None)?;
+        // With priors, the path is fitted and scored with them in place (maximum a posteriori):
+        // a parameter with a prior is never held, and its prior's rows join the whitened
+        // training rows of every fold (never a held-out row).
+        let prior_sd = crate::estimation::prior_sds(&options.prior, params)?;
+        let Identified { kept, start, fixed: held, prior, .. } = identifiable(
+            &base_problem,
+            &weights,
+            &asked,
+            &frame.before,
+            data,
+            &options.gauge,
+            Some(&prior_sd),
+        )?;
         let system = base_problem.reselect(&kept, frame.before.clone())?.system(&start.x);
         let scale: Vec<f64> =
             start.a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
         let rows = base_problem.rows_per_point();
+        let (a, b) = match &prior {
+            Some(prior) => prior.augment(&start.a, &start.b, &start.x),
+            None => (start.a.clone(), start.b.clone()),
+        };
         Ok(Self {
             params: params.clone(),
             kept,
             held,
-            whitened: Scaled::new(&start.a, &start.b, &scale),
+            whitened: Scaled::new(&a, &b, &scale),
             unweighted: Scaled::new(&system.h, &system.y, &scale),
             rows,
             markers: rows / 3,
             poses: data.len(),
         })
+    }
+
+    /// The trades of the model of the registration and the `chosen` columns: each candidate
+    /// joint zero or play left out for which a chosen parameter stands in ([`stand_in`]), from
+    /// the inverse normal equations on every pose (priors in place) with it added.
+    fn trades(&self, chosen: &[usize]) -> Vec<String> {
+        let all = Fit::new(&self.whitened, None);
+        let registration = (0..self.kept.len()).filter(|&c| self.is_registration(c));
+        let model: Vec<usize> = registration.chain(chosen.iter().copied()).collect();
+        let index = |c: usize| self.kept.indices()[c];
+        let mut out = Vec::new();
+        for o in
+            (0..self.kept.len()).filter(|c| !model.contains(c) && is_zero_or_play(self.params.get(index(*c))))
+        {
+            let columns: Vec<usize> = model.iter().copied().chain([o]).collect();
+            let gram =
+                DMatrix::from_fn(columns.len(), columns.len(), |a, b| all.gram[(columns[a], columns[b])]);
+            let Some(inverse) = gram.cholesky().map(|c| c.inverse()) else { continue };
+            let at = |i: usize| columns.iter().position(|&c| index(c) == i).expect("a column");
+            let covariance = |a: usize, b: usize| inverse[(at(a), at(b))];
+            let kept: Vec<usize> = chosen.iter().map(|&c| index(c)).collect();
+            if let Some((k, r)) = stand_in(&self.params, index(o), &kept, &covariance) {
+                let (zero, other) = (&self.params.get(index(o)).name, &self.params.get(k).name);
+                out.push(format!(
+                    "{zero} left out while {other} is in, which stands in for it (correlation {r:+.2}): {other} \
+                     carries its error"
+                ));
+            }
+        }
+        out
     }
 
     /// Whether column `c` is the base's or a marker's: always in the model.
@@ -292,10 +522,11 @@ impl LinearModel {
 /// lowest (scored in parallel, ties to the earlier column), until none is left that every fit
 /// can take. The steps, and the columns in the order added.
 fn walk(fits: &mut [Fit], linear: &LinearModel, criterion: Criterion) -> (Vec<Step>, Vec<usize>) {
-    let equations = linear.whitened.b.len();
+    // The data's equations (the prior's rows are not observations).
+    let equations = linear.poses * linear.rows;
     let now: Vec<Trial> = fits.iter().map(Fit::current).collect();
     let (first, first_se) = score(fits, &now, criterion, equations);
-    let mut steps = vec![Step { parameter: None, score: first, se: first_se }];
+    let mut steps = vec![Step { parameter: None, score: first, se: first_se, note: None }];
     let mut order = Vec::new();
     let mut left: Vec<usize> = (0..linear.kept.len()).filter(|&c| !linear.is_registration(c)).collect();
     while !left.is_empty() {
@@ -317,7 +548,7 @@ fn walk(fits: &mut [Fit], linear: &LinearModel, criterion: Criterion) -> (Vec<St
         }
         order.push(j);
         let name = linear.params.get(linear.kept.indices()[j]).name.clone();
-        steps.push(Step { parameter: Some(name), score: value, se });
+        steps.push(Step { parameter: Some(name), score: value, se, note: None });
     }
     (steps, order)
 }
@@ -343,7 +574,7 @@ fn bic(rss: f64, parameters: usize, equations: usize) -> f64 {
 
 /// The step a criterion chooses: for CV the first whose score is within one standard error of
 /// the lowest score's (the one-standard-error rule), otherwise the lowest.
-fn choose(steps: &[Step], criterion: Criterion) -> usize {
+fn choose_step(steps: &[Step], criterion: Criterion) -> usize {
     let best = (0..steps.len()).min_by(|&a, &b| steps[a].score.total_cmp(&steps[b].score)).unwrap_or(0);
     match criterion {
         Criterion::Cv { .. } => {
@@ -566,6 +797,43 @@ mod tests {
         }
         assert!(fit.trial(5).is_none(), "column 5 lies in the span of 0 and 1");
         assert!(fit.trial(2).is_some());
+    }
+
+    /// A joint's zero or play has a stand-in: the kept parameter, not itself a zero or a play,
+    /// whose estimate is the most correlated with its own, at 0.9 or more in magnitude; any other
+    /// parameter has none.
+    #[test]
+    fn a_stand_in_is_the_most_correlated_other_kind_of_parameter() {
+        let model = RobotModel::preset("puma560").unwrap();
+        let params = model.params();
+        let at = |name: &str| params.index_by_name(name).unwrap();
+        let (zero, length, twist, other_zero) = (at("j2.theta"), at("j2.a"), at("j3.alpha"), at("j3.theta"));
+        // Unit variances; correlations: zero-length -0.95, zero-twist 0.92, zero-other zero 0.99.
+        let correlation = |a: usize, b: usize| -> f64 {
+            let pair = |x: usize, y: usize| (a == x && b == y) || (a == y && b == x);
+            if a == b {
+                1.0
+            } else if pair(zero, length) {
+                -0.95
+            } else if pair(zero, twist) {
+                0.92
+            } else if pair(zero, other_zero) {
+                0.99
+            } else {
+                0.0
+            }
+        };
+        let kept = [length, twist, other_zero];
+        assert_eq!(stand_in(&params, zero, &kept, &correlation), Some((length, -0.95)));
+        assert_eq!(stand_in(&params, zero, &[twist, other_zero], &correlation), Some((twist, 0.92)));
+        assert_eq!(stand_in(&params, zero, &[other_zero], &correlation), None, "another zero is no stand-in");
+        assert_eq!(
+            stand_in(&params, length, &[zero, twist], &correlation),
+            None,
+            "only a zero or a play has one"
+        );
+        let weak = |a: usize, b: usize| correlation(a, b) * if a == b { 1.0 } else { 0.5 };
+        assert_eq!(stand_in(&params, zero, &kept, &weak), None, "below 0.9");
     }
 
     /// The CV RMS pools the folds' squared errors; its standard error is the spread of the

@@ -5,6 +5,7 @@
 use clap::{Args, ValueEnum};
 use nalgebra::Vector3;
 use robocal::calibration::Loss;
+use robocal::calibration::prior_scale::AutoPrior;
 use robocal::design::Criterion;
 use robocal::estimation::PriorEntry;
 use robocal::limits::{MAX_ANGLE_DEG, MAX_ITERATIONS, MAX_LENGTH_MM};
@@ -292,8 +293,11 @@ pub struct ModelChoiceArgs {
     /// A prior applies to the parameters --params asks for; with one, a parameter the poses
     /// cannot identify is not held, and the standard errors are the posterior ones. A noise
     /// file's [prior] table comes first. Example: `--prior 'machined,j6.theta=0.1deg'`.
+    /// `calibrate --prior auto[:PRESET]` (default preset `fabricated`) scales the preset's
+    /// standard deviations by one factor from 1/16 to 16, chosen by k-fold cross-validation
+    /// on the training poses (--folds K, default 5); other --prior entries override it.
     #[arg(long, value_name = "PATTERN=SD,...", value_parser = parse_prior)]
-    pub prior: Vec<Vec<PriorEntry>>,
+    pub prior: Vec<PriorArg>,
     /// The loss of each pose's whitened residual: `squared` (least squares), `huber[:K]`
     /// (K = 1.345 by default) or `cauchy[:K]` (K = 2.385), by iteratively reweighted least
     /// squares; a pose is down-weighted as a whole, and those weighted below 0.1 are listed.
@@ -356,8 +360,9 @@ pub struct CalibrateArgs {
     /// A measurement file of held-out poses to validate on; repeatable.
     #[arg(long)]
     pub validate: Vec<PathBuf>,
-    /// k-fold cross-validation on the data (k >= 2, at most the number of poses); with
-    /// --select cv, the selection's folds instead.
+    /// k-fold cross-validation on the data (k >= 2, at most the number of poses), nested with
+    /// --select (the selection made again inside each fold); with --select cv, the selection's
+    /// folds too.
     #[arg(long, value_parser = parse_count::<2>)]
     pub folds: Option<usize>,
     /// Fit with these markers of the data file only (their numbers, `x<k>` columns: `1,3`);
@@ -642,10 +647,21 @@ fn parse_iterations(text: &str) -> Result<usize, String> {
     }
 }
 
-/// A marker position "x,y,z" (mm).
-/// Prior entries, `PATTERN=SD` separated by commas, or presets.
-fn parse_prior(text: &str) -> Result<Vec<PriorEntry>, String> {
-    PriorEntry::parse_list(text).map_err(|e| e.to_string())
+/// One `--prior`: entries, or a preset to scale from the data.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PriorArg {
+    /// `PATTERN=SD` entries and presets.
+    Entries(Vec<PriorEntry>),
+    /// `auto[:PRESET]`.
+    Auto(AutoPrior),
+}
+
+/// Prior entries, `PATTERN=SD` separated by commas, or presets; or `auto[:PRESET]`.
+fn parse_prior(text: &str) -> Result<PriorArg, String> {
+    if let Some(auto) = AutoPrior::parse(text) {
+        return auto.map(PriorArg::Auto);
+    }
+    PriorEntry::parse_list(text).map(PriorArg::Entries).map_err(|e| e.to_string())
 }
 
 /// A loss: `squared`, `huber[:K]`, `cauchy[:K]`.
@@ -653,6 +669,7 @@ fn parse_loss(text: &str) -> Result<Loss, String> {
     text.parse()
 }
 
+/// A marker position "x,y,z" (mm).
 fn parse_marker(text: &str) -> Result<Vector3<f64>, String> {
     match finite_numbers(text, ',').as_deref() {
         Some(&[x, y, z]) => Ok(Vector3::new(x, y, z)),

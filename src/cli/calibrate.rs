@@ -12,7 +12,7 @@ use robocal::estimation::NoiseModel;
 use robocal::estimation::RefineOptions;
 use robocal::io::{self, UrdfChain};
 use robocal::model::{ModelRef, RobotModel};
-use robocal::report::calibration::CalibrationReport;
+use robocal::report::calibration::{CalibrationReport, CrossValidationReport};
 use std::path::Path;
 
 /// The nominal robot, with the text and links of its URDF file to write it back.
@@ -47,16 +47,10 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
         &what,
         "calibrate on fewer poses",
     )?;
-    let mut options = options(request, &robot.model, &data.fit)?;
-    let path = match request.select {
-        Some(criterion) => {
-            let path = calibration::select(&robot.model, &data.fit, &options, criterion)
-                .with_context(|| format!("--select {}: {}", criterion.name(), request.data.display()))?;
-            options = path.options(&options);
-            Some(path)
-        }
-        None => None,
-    };
+    let asked = options(request, &robot.model, &data.fit)?;
+    let chosen = calibration::choose(&robot.model, &data.fit, &asked, &choices(request))
+        .with_context(|| format!("{}: {}", choices_in_words(request).join(", "), request.data.display()))?;
+    let (options, path) = (chosen.options, chosen.path);
     let result = match request.method {
         Method::Given(_) => calibration::calibrate(&robot.model, &data.fit, &options),
         Method::Feasible => {
@@ -64,12 +58,20 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
         }
     }
     .map_err(|e| in_context(e, request))?;
-    let (held_out, folds) = validate(request, &robot.model, &data, &options, &result)?;
+    let held_out = validate(request, &robot.model, &data, &result)?;
+    let cv = cross_validate(request, &robot.model, &data.fit, &asked)?;
+    let folds = cv.as_ref().map(|(label, before, after, _)| (label.clone(), *before, *after));
     let name = request.method.name();
     let mut report =
         CalibrationReport::new(&result, &request.data.display().to_string(), name, held_out, folds);
+    if let Some((_, _, _, how)) = cv {
+        report = report.with_cross_validation(how);
+    }
     if let Some(path) = &path {
         report = report.with_selection(path);
+    }
+    if let Some(scale) = chosen.scale {
+        report = report.with_prior_scale(scale);
     }
     let predicted = predicted_accuracy(&report.sets, &result, &data)?;
     report = report.with_predicted(predicted);
@@ -218,17 +220,14 @@ pub(super) fn noise_for(
     })
 }
 
-/// Each held-out file scored pose by pose, then the cross-validation if asked for.
-#[allow(clippy::type_complexity)]
+/// Each held-out file scored pose by pose. They are scored only: no choice is made on them.
 fn validate(
     request: &CalibrateRequest,
     model: &RobotModel,
     data: &Data,
-    options: &Options,
     result: &Calibration,
-) -> Result<(Vec<SetEvaluation>, Option<(String, ErrorStats, ErrorStats)>)> {
-    let held_out = data
-        .held_out
+) -> Result<Vec<SetEvaluation>> {
+    data.held_out
         .iter()
         .map(|(name, d)| {
             let noise = match (&request.method, &result.noise_estimate) {
@@ -237,15 +236,50 @@ fn validate(
             };
             Ok(result.evaluate(name, d, noise.as_ref())?)
         })
-        .collect::<Result<_>>()?;
-    let folds = match request.folds {
-        Some(k) => {
-            let (before, after) = calibration::cross_validate(model, &data.fit, options, k)?;
-            Some((format!("{k}-fold cross-validation"), before, after))
-        }
-        None => None,
+        .collect()
+}
+
+/// `--folds K`: the k-fold cross-validation of the training poses with the options `asked`
+/// (before any selection), nested when the model is chosen from the data: with `--select`
+/// the selection is made again on each fold's training poses (a robust loss's weights always
+/// are). Its label, before and after, and how it was made.
+fn cross_validate(
+    request: &CalibrateRequest,
+    model: &RobotModel,
+    fit: &Measurements,
+    asked: &Options,
+) -> Result<Option<(String, ErrorStats, ErrorStats, CrossValidationReport)>> {
+    let Some(k) = request.folds else { return Ok(None) };
+    let mut redone = choices_in_words(request);
+    if asked.loss != calibration::Loss::Squared {
+        redone.push(format!("--loss {}'s weights", asked.loss));
+    }
+    let choices = choices(request);
+    let (before, after, selected, scales) = if choices == calibration::Choices::default() {
+        let (before, after) = calibration::cross_validate(model, fit, asked, k)?;
+        (before, after, Vec::new(), Vec::new())
+    } else {
+        let nested = calibration::cross_validate_choices(model, fit, asked, &choices, k)?;
+        (nested.before, nested.after, nested.selected, nested.scales)
     };
-    Ok((held_out, folds))
+    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales };
+    Ok(Some((how.label(), before, after, how)))
+}
+
+/// The choices `request` makes from the data: `--prior auto`'s scale (by `--folds` folds, 5
+/// unless told), `--select`.
+fn choices(request: &CalibrateRequest) -> calibration::Choices {
+    let folds = request.folds.unwrap_or(calibration::selection::DEFAULT_FOLDS);
+    calibration::Choices {
+        auto_prior: request.auto_prior.clone().map(|auto| (auto, folds)),
+        select: request.select,
+    }
+}
+
+/// Those choices as flags: `--prior auto:fabricated's scale`, `--select bic`.
+fn choices_in_words(request: &CalibrateRequest) -> Vec<String> {
+    let auto = request.auto_prior.iter().map(|a| format!("--prior auto:{}'s scale", a.preset));
+    auto.chain(request.select.map(|c| format!("--select {}", c.name()))).collect()
 }
 
 /// Write the JSON report, the poses, the figures, the page, the calibrated model and the

@@ -74,7 +74,9 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     if let Some(k) = request.folds {
         let score = cross_validate_kinds(&model, &data, &options, k)
             .with_context(|| format!("--folds {k}: {}", names.join(", ")))?;
-        held_out.push((format!("{k}-fold cross-validation"), score));
+        // A robust loss's weights are a choice made from the data: made again in each fold.
+        let nested = if options.loss == robocal::calibration::Loss::Squared { "" } else { ", nested" };
+        held_out.push((format!("{k}-fold cross-validation{nested}"), score));
     }
     let fitted = (data.observations.len(), data.joints.len());
     let report = ObservationsReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out)

@@ -5,7 +5,7 @@
 use super::args::{
     CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, DesignArgs, EstimatorName, EvaluateArgs,
     Excluded, JointUnit, LengthUnit, LinkArgs, MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs,
-    ParamsArg, PayloadArgs, PlanArgs, RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
+    ParamsArg, PayloadArgs, PlanArgs, PriorArg, RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::JointParams;
@@ -312,6 +312,8 @@ pub struct CalibrateRequest {
     pub markers: Vec<Vector3<f64>>,
     /// Prior entries from the flags, in order (a noise file's come first).
     pub prior: Vec<robocal::estimation::PriorEntry>,
+    /// `--prior auto[:PRESET]`: the preset whose scale is chosen from the data.
+    pub auto_prior: Option<robocal::calibration::prior_scale::AutoPrior>,
     /// The loss of each pose.
     pub loss: robocal::calibration::Loss,
     /// Gauss-Newton steps at most (>= 1).
@@ -367,7 +369,10 @@ impl CalibrateRequest {
             args.choice.loss == robocal::calibration::Loss::Squared || method != Method::Feasible,
             "--loss with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
         )?;
-        let folds = if matches!(select, Some(Criterion::Cv { .. })) { None } else { args.folds };
+        let (prior, auto_prior) = priors(args.choice.prior)?;
+        // With --select cv, --folds is both the selection's folds and the nested
+        // cross-validation's.
+        let folds = args.folds;
         let mut inputs = vec![("--model", Path::new(&model.name)), ("--data", data.as_path())];
         if let Some(NoiseSource::File(path)) = &noise {
             inputs.push(("--noise", path));
@@ -390,7 +395,8 @@ impl CalibrateRequest {
             keep: args.choice.keep,
             select,
             markers: args.marker,
-            prior: args.choice.prior.into_iter().flatten().collect(),
+            prior,
+            auto_prior,
             loss: args.choice.loss,
             iterations: args.iterations,
             validate: args.validate,
@@ -509,7 +515,14 @@ impl CalibrateObservationsRequest {
             per_session: args.per_session,
             folds: args.folds,
             gauge: robocal::calibration::Gauge { hold: args.choice.hold, keep: args.choice.keep },
-            prior: args.choice.prior.into_iter().flatten().collect(),
+            prior: match priors(args.choice.prior)? {
+                (prior, None) => prior,
+                (_, Some(_)) => {
+                    return Err(UsageError(
+                        "--prior auto: calibrate only; give calibrate-observations the preset (--prior fabricated) or its standard deviations".into(),
+                    ));
+                }
+            },
             loss: args.choice.loss,
             data: args.data,
             units: args.units.units()?,
@@ -594,6 +607,24 @@ fn noise_source(file: Option<PathBuf>, args: &NoiseArgs) -> Result<Option<NoiseS
 
 /// `--estimator` (default: wls with the noise, ols without): a weighted estimator needs the
 /// noise; fgls estimates it, so takes none, and does not cross-validate.
+/// The `--prior` entries in order, and the preset of `--prior auto` (at most one).
+fn priors(
+    args: Vec<PriorArg>,
+) -> Result<
+    (Vec<robocal::estimation::PriorEntry>, Option<robocal::calibration::prior_scale::AutoPrior>),
+    UsageError,
+> {
+    let (mut entries, mut auto) = (Vec::new(), None);
+    for arg in args {
+        match arg {
+            PriorArg::Entries(e) => entries.extend(e),
+            PriorArg::Auto(a) if auto.is_none() => auto = Some(a),
+            PriorArg::Auto(_) => return Err(UsageError("--prior auto: give it once".into())),
+        }
+    }
+    Ok((entries, auto))
+}
+
 fn method(name: Option<EstimatorName>, noise: bool, folds: bool) -> Result<Method, UsageError> {
     let estimator = match name {
         Some(EstimatorName::Fgls) => {

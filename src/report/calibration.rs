@@ -3,6 +3,7 @@
 //! the same content.
 
 use super::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
+use crate::calibration::prior_scale::PriorScale;
 use crate::calibration::selection::{Criterion, SelectionPath, Step};
 use crate::calibration::{Calibration, ErrorStats, SetEvaluation, Warning, pool, standard_errors};
 use crate::estimation::{NoiseEstimate, SigmaInterval};
@@ -80,6 +81,69 @@ pub struct CalibrationReport {
     /// ([`crate::design::accuracy`]), beside the error measured there.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub predicted: Vec<PredictedAccuracy>,
+    /// `--prior auto`: the scale of the preset's standard deviations, and the curve it was
+    /// chosen from ([`CalibrationReport::with_prior_scale`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior_scale: Option<PriorScale>,
+    /// `--folds K`: what the k-fold cross-validation redid inside each fold
+    /// ([`CalibrationReport::with_cross_validation`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cross_validation: Option<CrossValidationReport>,
+}
+
+/// How a k-fold cross-validation was made: nested when the model is chosen from the data
+/// (`--select`, a robust loss), every choice made again on each fold's training poses, so that
+/// its figure is one of poses no choice has seen.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CrossValidationReport {
+    /// The folds.
+    pub folds: usize,
+    /// Whether a choice made from the data was made again inside each fold.
+    pub nested: bool,
+    /// The choices made again inside each fold (`--select bic`, `--loss huber:1.345`).
+    pub redone: Vec<String>,
+    /// With `--select`: the joint parameters each fold's selection chose, fold by fold.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub selected: Vec<Vec<String>>,
+    /// With `--prior auto`: the scale each fold chose, fold by fold.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub scales: Vec<f64>,
+}
+
+impl CrossValidationReport {
+    /// The label of its row in the error table: `5-fold cross-validation`, `, nested` when it is.
+    pub fn label(&self) -> String {
+        format!("{}-fold cross-validation{}", self.folds, if self.nested { ", nested" } else { "" })
+    }
+
+    /// What it redid, in words.
+    pub fn text(&self) -> String {
+        if !self.nested {
+            return format!(
+                "{}: nothing is chosen from the data, each fold is calibrated as the whole is\n",
+                self.label()
+            );
+        }
+        let mut out = format!("{}: {} made again inside each fold", self.label(), self.redone.join(" and "));
+        if !self.selected.is_empty() {
+            let mut distinct = self.selected.clone();
+            distinct.sort();
+            distinct.dedup();
+            let sizes: Vec<String> = self.selected.iter().map(|s| s.len().to_string()).collect();
+            let _ = write!(
+                out,
+                " (the folds chose {} parameters; {} distinct set{}, each in --json)",
+                sizes.join(", "),
+                distinct.len(),
+                if distinct.len() == 1 { "" } else { "s" }
+            );
+        }
+        if !self.scales.is_empty() {
+            let scales: Vec<String> = self.scales.iter().map(|s| format!("{s}")).collect();
+            let _ = write!(out, " (the folds' prior scales: {})", scales.join(", "));
+        }
+        out + "\n"
+    }
 }
 
 /// The tool's position error predicted at a set's poses: `sqrt(trace(J_x Sigma_x J_x^T))` of
@@ -136,6 +200,37 @@ fn stiffness_rows(rows: &[ParameterRow]) -> Vec<StiffnessRow> {
         .collect()
 }
 
+/// The scale `--prior auto` chose, with its curve.
+fn prior_scale_text(scale: &PriorScale) -> String {
+    let mut out = format!(
+        "prior scale: --prior auto:{} chose {} x its standard deviations, by {}-fold cross-validation \
+         (in-sample: --folds K gives the nested figure)\n{:>8} {:>12}\n",
+        scale.preset,
+        scale.scale(),
+        scale.folds,
+        "scale",
+        "CV RMS mm"
+    );
+    for (k, (s, rms)) in scale.scales.iter().zip(&scale.cv_rms).enumerate() {
+        let mark = if k == scale.chosen { "  <- chosen" } else { "" };
+        let _ = writeln!(out, "{s:>8} {rms:>12.4}{mark}");
+    }
+    out
+}
+
+/// What the scores of a selection path by `criterion` are, in words.
+fn path_scores(criterion: Criterion) -> String {
+    let nested = "--folds K gives the nested cross-validation";
+    match criterion {
+        Criterion::Cv { .. } => format!(
+            "in-sample: the folds that score the steps also chose the path and the model, so the chosen \
+             step's CV RMS is not a held-out figure ({nested})"
+        ),
+        Criterion::Bic => format!("in-sample: BIC of the fit on every training pose ({nested})"),
+        Criterion::T => format!("in-sample: |t| of each dropped estimate on every training pose ({nested})"),
+    }
+}
+
 /// The path of a parameter selection, as reported.
 #[derive(Debug, Clone, Serialize)]
 pub struct SelectionReport {
@@ -147,6 +242,9 @@ pub struct SelectionReport {
     /// Every step, the start first: the parameter added (dropped for `t`), the score after it
     /// (CV RMS in mm, BIC, or the dropped parameter's |t|), the CV RMS's standard error.
     pub steps: Vec<Step>,
+    /// What the steps' scores are: figures of the training poses the path was chosen on, not
+    /// held-out ones.
+    pub scores: String,
     /// The step chosen.
     pub chosen: usize,
     /// The joint parameters chosen.
@@ -154,6 +252,10 @@ pub struct SelectionReport {
     /// The parameters asked for that the gauge holds, not candidates: each with its
     /// combination in words.
     pub held: Vec<String>,
+    /// A joint's zero or play left out while a chosen parameter that stands in for it is in,
+    /// in words.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub trades: Vec<String>,
 }
 
 impl SelectionReport {
@@ -187,6 +289,15 @@ impl SelectionReport {
             let _ = writeln!(out, "{k:>5}  {name:<22} {value:>22}{mark}");
         }
         let _ = writeln!(out, "selected ({}): {}", self.selected.len(), self.selected.join(", "));
+        let _ = writeln!(out, "path scores: {}", self.scores);
+        for (k, step) in self.steps.iter().enumerate() {
+            if let Some(note) = &step.note {
+                let _ = writeln!(out, "step {k}: {note}");
+            }
+        }
+        for trade in &self.trades {
+            let _ = writeln!(out, "trade: {trade}");
+        }
         if !self.held.is_empty() {
             // Only the names: the combinations are in the JSON.
             let names: Vec<&str> =
@@ -413,12 +524,26 @@ impl CalibrationReport {
             }),
             selection: None,
             predicted: Vec::new(),
+            cross_validation: None,
+            prior_scale: None,
         }
     }
 
     /// The report with the accuracy predicted at the held-out sets' poses.
     pub fn with_predicted(mut self, predicted: Vec<PredictedAccuracy>) -> Self {
         self.predicted = predicted;
+        self
+    }
+
+    /// The report with the scale `--prior auto` chose.
+    pub fn with_prior_scale(mut self, scale: PriorScale) -> Self {
+        self.prior_scale = Some(scale);
+        self
+    }
+
+    /// The report with how its k-fold cross-validation was made.
+    pub fn with_cross_validation(mut self, cv: CrossValidationReport) -> Self {
+        self.cross_validation = Some(cv);
         self
     }
 
@@ -436,9 +561,11 @@ impl CalibrationReport {
                 _ => None,
             },
             steps: path.steps.clone(),
+            scores: path_scores(path.criterion),
             chosen: path.chosen,
             selected: path.selected.clone(),
             held: path.held.clone(),
+            trades: path.trades.clone(),
         });
         self
     }
@@ -540,6 +667,15 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
                 self.rank,
                 self.condition_number
             );
+        } else if !self.converged && self.iterations > 1 {
+            let _ = writeln!(
+                out,
+                "\n{} parameters estimated, not converged (rank {}, condition number {:.3e}): not identified \
+                 estimates; their standard errors are those of where the fit stopped",
+                self.parameters.len(),
+                self.rank,
+                self.condition_number
+            );
         } else {
             let _ = writeln!(
                 out,
@@ -550,6 +686,10 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             );
         }
         write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "pose");
+        if let Some(scale) = &self.prior_scale {
+            let _ = writeln!(out);
+            out.push_str(&prior_scale_text(scale));
+        }
         if let Some(selection) = &self.selection {
             let _ = writeln!(out);
             out.push_str(&selection.text());
@@ -566,6 +706,10 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             self.weighting.before, self.weighting.after, self.weighting.errors, self.weighting.whitened
         );
         out.push_str(&self.error_tables());
+        if let Some(cv) = &self.cross_validation {
+            let _ = writeln!(out);
+            out.push_str(&cv.text());
+        }
         if !self.predicted.is_empty() {
             let _ = writeln!(
                 out,

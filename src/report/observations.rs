@@ -39,7 +39,9 @@ pub struct ObservationsReport {
     /// residual, and the RMS of the lengths (mm), of the angles (deg) and of the marker
     /// positions (mm).
     pub sets: Vec<(String, Score)>,
-    /// What to look at, one per cause: joint lengths corrected by more than 10 mm, the
+    /// What to look at, one per cause: estimates past a physical bound (a length corrected by
+    /// more than 10 mm, an angle by more than 5 deg, a compliance or play no joint has), an
+    /// unconverged fit, the
     /// training observations more than [`FLAG_AT`](crate::calibration::FLAG_AT) standard deviations out after
     /// calibration.
     pub warnings: Vec<Warning>,

@@ -112,7 +112,9 @@ fn real_puma(seed: u64) -> (robocal::kinematics::ChainAt, ChaCha8Rng) {
 }
 
 /// `calibrate-observations --prior --loss --hold --keep` end to end: the report shows the prior
-/// SD column, the loss's line, what --hold held; --hold and --keep of one name refused.
+/// SD column, the loss's line, what --hold held, its k-fold figure called nested (the robust
+/// weights made again in each fold; not without a robust loss); --hold and --keep of one name
+/// refused.
 #[test]
 fn the_command_takes_priors_losses_and_the_gauge() {
     let dir = std::env::temp_dir().join(format!("robocal-choice-{}", std::process::id()));
@@ -129,12 +131,19 @@ fn the_command_takes_priors_losses_and_the_gauge() {
             .output()
             .unwrap()
     };
-    let output = run(&["--prior", "machined", "--loss", "huber", "--hold", "j6.d", "--keep", "j6.a"]);
+    let output =
+        run(&["--prior", "machined", "--loss", "huber", "--hold", "j6.d", "--keep", "j6.a", "--folds", "3"]);
     let text = String::from_utf8(output.stdout).unwrap();
     assert!(output.status.success(), "{text}{}", String::from_utf8_lossy(&output.stderr));
     assert!(text.contains("prior SD") && text.contains("SD ratio"), "{text}");
     assert!(text.contains("robust loss huber:1.345: "), "{text}");
     assert!(text.contains("j6.d: held at its nominal value by --hold"), "{text}");
+    assert!(
+        text.contains("3-fold cross-validation, nested"),
+        "the loss's weights redone in each fold: {text}"
+    );
+    let squared = String::from_utf8(run(&["--folds", "3"]).stdout).unwrap();
+    assert!(squared.contains("3-fold cross-validation") && !squared.contains("nested"), "{squared}");
     let both = run(&["--hold", "j6.d", "--keep", "j6.d"]);
     assert_eq!(both.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&both.stderr).contains("both --hold and --keep"));

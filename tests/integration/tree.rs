@@ -528,7 +528,11 @@ fn calibrate_tree_warns_of_implausible_corrections_and_joints_beyond_their_limit
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     let warnings = &text[text.find("\nwarnings:\n").expect("warnings")..];
-    assert!(warnings.contains("more than 10 mm, check the model and the units"), "{warnings}");
+    assert!(
+        warnings.contains("joint lengths corrected by more than 10 mm, whatever the standard error: "),
+        "{warnings}"
+    );
+    assert!(warnings.contains("; check the model and the units"), "{warnings}");
     // A joint beyond its limits, named with its line.
     let dir = std::env::temp_dir().join(format!("robocal-tree-limits-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

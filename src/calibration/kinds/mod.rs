@@ -1456,8 +1456,11 @@ fn scored(calibration: &mut KindCalibration, data: &KindData) -> Result<(), Cali
         calibration.variance_factor = Some(f);
         calibration.training = calibration.score(data)?;
     }
+    let se = super::standard_errors_of(calibration.params.iter(), &calibration.refined.estimate);
+    let (before, after) = (&calibration.before, &calibration.after);
     calibration.warnings =
-        super::large_corrections(calibration.params.iter(), &calibration.before, &calibration.after);
+        super::implausible(calibration.params.iter(), (before, after), &se, Some(&calibration.calibrated));
+    calibration.warnings.extend(super::not_converged(&calibration.refined));
     let far_out = (calibration.training.observations.iter().enumerate())
         .filter(|(_, r)| r.whitened.abs() > FLAG_AT)
         .map(|(index, r)| FarOut { index, line: r.line, label: Some(r.label()), sd: r.whitened });

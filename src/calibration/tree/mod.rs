@@ -612,11 +612,14 @@ impl TreeCalibration {
         Ok(TreeScore { position: (rms(|v| v.before_mm), rms(|v| v.after_mm)), rotation, views })
     }
 
-    /// Joint lengths corrected by more than 10 mm (a wrong model or wrong units), and training
+    /// Estimates past a physical bound (a joint length corrected by more than 10 mm: a wrong
+    /// model or wrong units; an angle by more than 5 deg), an unconverged fit, and training
     /// views whose residual is more than [`FLAG_AT`] standard deviations out.
     fn warnings(&self) -> Vec<Warning> {
         let before = vec![0.0; self.after.len()];
-        let mut out = super::large_corrections(self.params.params.iter(), &before, &self.after);
+        let se = super::standard_errors_of(self.params.params.iter(), &self.refined.estimate);
+        let mut out = super::implausible(self.params.params.iter(), (&before, &self.after), &se, None);
+        out.extend(super::not_converged(&self.refined));
         let far_out = (self.training.views.iter().enumerate())
             .filter(|(_, v)| v.whitened > FLAG_AT)
             .map(|(index, v)| FarOut { index, line: v.line, label: None, sd: v.whitened });

@@ -407,8 +407,8 @@ fn select_takes_its_criterion_and_cv_the_folds() {
     let request = calibrate(&["--select", "cv", "--folds", "3"]).unwrap();
     assert_eq!(
         (request.select, request.folds),
-        (Some(Criterion::Cv { folds: 3 }), None),
-        "the selection's folds"
+        (Some(Criterion::Cv { folds: 3 }), Some(3)),
+        "the selection's folds and the nested cross-validation's"
     );
     let request = calibrate(&["--select", "bic", "--folds", "3"]).unwrap();
     assert_eq!((request.select, request.folds), (Some(Criterion::Bic), Some(3)), "the cross-validation's");
@@ -550,4 +550,30 @@ fn a_tree_is_a_urdf_calibrated_by_ols_or_wls_of_its_joints() {
     assert!(refused(calibrate_tree("torso.urdf", &["--estimator", "fgls"])).contains("ols or wls"));
     assert!(refused(calibrate_tree("torso.urdf", &["--params", "all"])).contains("never estimated"));
     assert!(refused(calibrate_tree("torso.urdf", &["--json", "v.csv"])).contains("--json"));
+}
+
+/// `--prior auto` takes `fabricated`, `auto:PRESET` that preset, once, beside other entries;
+/// an unknown preset, a second auto, fgls and calibrate-observations are refused.
+#[test]
+fn prior_auto_takes_a_preset_to_scale() {
+    let request = calibrate(&["--prior", "auto", "--prior", "j2.a=1mm"]).unwrap();
+    assert_eq!(request.auto_prior.as_ref().map(|a| a.preset.as_str()), Some("fabricated"));
+    assert_eq!(request.prior.len(), 1);
+    let request = calibrate(&["--prior", "auto:machined"]).unwrap();
+    let auto = request.auto_prior.unwrap();
+    assert_eq!((auto.preset.as_str(), auto.entries.len()), ("machined", 6));
+    assert!(request.prior.is_empty());
+    assert!(
+        refused(calibrate(&["--prior", "auto:milled"]))
+            .contains("a preset among machined, precision, fabricated")
+    );
+    assert!(
+        refused(calibrate(&["--prior", "auto", "--prior", "auto:machined"]))
+            .contains("--prior auto: give it once")
+    );
+    assert!(
+        refused(calibrate(&["--prior", "auto", "--estimator", "fgls"]))
+            .contains("--prior with --estimator fgls")
+    );
+    assert!(refused(observations(&["--prior", "auto"])).contains("--prior auto: calibrate only"));
 }
