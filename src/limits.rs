@@ -38,7 +38,9 @@ pub const MAX_STUDY_WORK: u64 = 10_000_000_000;
 
 /// The work of `plan`, in products of Jacobian rows and parameters in one pass of its
 /// exchange (candidates x points x rows a pose x parameters): beyond it, hours of work,
-/// refused with the estimate.
+/// refused with the estimate. Measured on two shared cores: about 1e8 a second; 9.7e9 (a
+/// million candidates, 140 points) took 37.5 min in 10 passes, with a progress bar and each
+/// pass's time left (the number of passes is not known in advance).
 pub const MAX_WORK: u64 = 10_000_000_000;
 
 /// The work of an instrument study, in products of Jacobian rows and parameters fitted (runs x
