@@ -335,15 +335,15 @@ pub struct CalibrateArgs {
     /// --fixed-markers say otherwise.
     #[arg(long, default_value = "joints", value_parser = parse_params)]
     pub params: ParamsArg,
-    /// Do not estimate the base: the measuring frame is the model's base frame.
+    /// A marker file: do not estimate the base (the measuring frame is the model's base frame).
     #[arg(long)]
     pub fixed_base: bool,
-    /// Do not estimate the marker positions.
+    /// A marker file: do not estimate the marker positions.
     #[arg(long)]
     pub fixed_markers: bool,
     #[command(flatten)]
     pub choice: ModelChoiceArgs,
-    /// Choose the joint parameters by held-out error among those --params names: `cv`
+    /// A marker file: choose the joint parameters by held-out error among those --params names: `cv`
     /// (forward selection by k-fold cross-validated RMS, --folds K, default 5,
     /// one-standard-error rule), `bic` (forward selection by the Bayesian information criterion), `t`
     /// (backward elimination of the estimates below 2 standard errors).
@@ -365,7 +365,7 @@ pub struct CalibrateArgs {
     /// folds too.
     #[arg(long, value_parser = parse_count::<2>)]
     pub folds: Option<usize>,
-    /// Fit with these markers of the data file only (their numbers, `x<k>` columns: `1,3`);
+    /// A marker file: fit with these markers only (their numbers, `x<k>` columns: `1,3`);
     /// held-out files are scored on those of them they hold. Default: every marker.
     #[arg(long, value_delimiter = ',', value_parser = parse_count::<1>)]
     pub markers: Option<Vec<usize>>,
