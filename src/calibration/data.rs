@@ -38,7 +38,16 @@ impl DataKind {
     /// The kind of the CSV `text`: a `target` column makes tree views, marker columns
     /// (`x<k>`) a marker file, anything else observations (whose reader checks the rest).
     pub fn of_csv_str(text: &str) -> Result<Self, DataError> {
-        let table = Table::parse(text)?;
+        // The header alone (the comments and the units line before it): the rows are read
+        // once, by the calibration that takes the file.
+        let mut end = 0;
+        for line in text.split_inclusive('\n') {
+            end += line.len();
+            if !line.trim().is_empty() && !line.trim_start().starts_with('#') {
+                break;
+            }
+        }
+        let table = Table::parse(&text[..end])?;
         Ok(match (table.column("target"), marker_columns(&table)?.is_empty()) {
             (Some(_), _) => Self::TreeViews,
             (None, false) => Self::Markers,

@@ -10,7 +10,7 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
-use robocal::calibration::{self, Gauge, JointParams, Loss, Measurements, Options};
+use robocal::calibration::{self, Measurements, Options};
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
 use robocal::kinematics::{Chain, ChainAt};
 use robocal::model::Placement;
@@ -184,6 +184,25 @@ fn marker_csv(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng) -> String {
     text
 }
 
+/// Gauss-Newton to the minimum: steps until they move no residual by 1e-12 mm.
+fn to_the_minimum() -> RefineOptions {
+    RefineOptions { step_tolerance: 1e-12, cost_tolerance: 0.0, ..RefineOptions::default() }
+}
+
+/// A marker file of `poses` poses of the true robot (errors on every parameter, seed `seed`),
+/// read both as `calibrate`'s measurements and as observations, with the model.
+fn marker_file(seed: u64, poses: usize) -> (robocal::model::RobotModel, Measurements, KindData) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let chains = chains();
+    let all: Vec<String> = chains[0].params().iter().map(|p| p.name.clone()).collect();
+    let real = true_chains(&errors_on(&chains[0], &all, &mut rng));
+    let text = marker_csv(&real, poses, &mut rng);
+    let model = puma();
+    let measurements = Measurements::from_csv_str(&text, &model, None).unwrap();
+    let observations = KindData::from_csv_str(&text, &model, None).unwrap();
+    (model, measurements, observations)
+}
+
 /// The same marker file calibrated by `calibrate` and by `calibrate-observations`: the same
 /// registration, the same "before" fit of the base and markers (by ordinary least squares), the
 /// same gauge, the same least-squares problem (one row per coordinate, in the same order), so
@@ -191,29 +210,10 @@ fn marker_csv(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng) -> String {
 /// measurement sigma alone (`V_k = sigma^2 I`) the weights are those of ols: the same again.
 #[test]
 fn a_marker_file_alone_calibrates_as_calibrate_does() {
-    let mut rng = ChaCha8Rng::seed_from_u64(82);
-    let chains = chains();
-    let all: Vec<String> = chains[0].params().iter().map(|p| p.name.clone()).collect();
-    let real = true_chains(&errors_on(&chains[0], &all, &mut rng));
-    let text = marker_csv(&real, 50, &mut rng);
-    let model = puma();
-    let measurements = Measurements::from_csv_str(&text, &model, None).unwrap();
-    let observations = KindData::from_csv_str(&text, &model, None).unwrap();
+    let (model, measurements, observations) = marker_file(82, 50);
     assert_eq!(observations.observations.len(), 50 * 9);
-    // Gauss-Newton to the minimum in both: steps until they move no residual by 1e-12 mm.
-    let refine = RefineOptions { step_tolerance: 1e-12, cost_tolerance: 0.0, ..RefineOptions::default() };
-    let options = Options {
-        estimator: Estimator::Ols,
-        noise: None,
-        joints: JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: MARKERS.to_vec(),
-        refine,
-        prior: Vec::new(),
-        loss: Loss::Squared,
-        gauge: Gauge::default(),
-    };
+    let refine = to_the_minimum();
+    let options = Options { markers: MARKERS.to_vec(), refine, ..Options::default() };
     let expected = calibration::calibrate(&model, &measurements, &options).unwrap();
     for estimator in [Estimator::Ols, Estimator::Wls] {
         let c = calibrate_kinds(&model, &observations, &KindOptions { refine, ..marker_options(estimator) })
@@ -252,29 +252,17 @@ fn a_marker_file_alone_calibrates_as_calibrate_does() {
 /// estimate differs by more than that (the test would fail on the diagonal weights).
 #[test]
 fn with_joint_noise_a_marker_file_weighs_each_pose_as_calibrate_does() {
-    let mut rng = ChaCha8Rng::seed_from_u64(83);
-    let chains = chains();
-    let all: Vec<String> = chains[0].params().iter().map(|p| p.name.clone()).collect();
-    let real = true_chains(&errors_on(&chains[0], &all, &mut rng));
-    let text = marker_csv(&real, 40, &mut rng);
-    let model = puma();
-    let measurements = Measurements::from_csv_str(&text, &model, None).unwrap();
-    let observations = KindData::from_csv_str(&text, &model, None).unwrap();
+    let (model, measurements, observations) = marker_file(83, 40);
     let sigmas: Vec<f64> =
         [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|s: &f64| s.to_radians()).collect();
     let sigma = observations.observations[0].sigma();
-    let refine = RefineOptions { step_tolerance: 1e-12, cost_tolerance: 0.0, ..RefineOptions::default() };
+    let refine = to_the_minimum();
     let options = Options {
         estimator: Estimator::Wls,
         noise: Some(NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(sigma, 0.0))),
-        joints: JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
         markers: MARKERS.to_vec(),
         refine,
-        prior: Vec::new(),
-        loss: Loss::Squared,
-        gauge: Gauge::default(),
+        ..Options::default()
     };
     let expected = calibration::calibrate(&model, &measurements, &options).unwrap();
     let joint_noise = options.noise.as_ref().map(|n| n.joint.clone());

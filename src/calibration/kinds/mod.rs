@@ -777,15 +777,20 @@ impl<'a> KindProblem<'a> {
         let observations = &self.data.observations;
         let mut v = DMatrix::zeros(observations.len(), blocks.width());
         let rows = self.joint_rows(joint_noise.is_some());
+        // Each row times Sigma_q once: an entry is then dot products, without allocating.
+        let weighted: Vec<Vec<(usize, RowDVector<f64>)>> = match joint_noise {
+            Some(sigma_q) => {
+                rows.iter().map(|r| r.iter().map(|(j, g)| (*j, g * sigma_q)).collect()).collect()
+            }
+            None => rows.clone(),
+        };
         for r in blocks.ranges(observations.len()) {
             for (a, i) in r.clone().enumerate() {
                 for (b, i2) in r.clone().enumerate().take(a + 1) {
-                    let joint = joint_noise.map_or(0.0, |sigma_q| {
-                        let common = rows[i].iter().flat_map(|(j, g)| {
-                            rows[i2].iter().filter(move |(j2, _)| j2 == j).map(move |(_, g2)| (g, g2))
-                        });
-                        common.map(|(g, g2)| (g * sigma_q * g2.transpose())[(0, 0)]).sum()
+                    let common = weighted[i].iter().flat_map(|(j, g)| {
+                        rows[i2].iter().filter(move |(j2, _)| j2 == j).map(move |(_, g2)| g.dot(g2))
                     });
+                    let joint: f64 = common.sum();
                     v[(i, b)] = joint;
                     v[(i2, a)] = joint;
                 }
