@@ -380,38 +380,71 @@ fn forward(
     options: &Options,
     criterion: Criterion,
 ) -> Result<SelectionPath, CalibrationError> {
-    let linear = LinearModel::new(model, data, options)?;
-    let mut fits = linear.fits(criterion);
-    let (steps, order) = walk(&mut fits, &linear, criterion);
-    let chosen = choose_step(&steps, criterion);
-    let mut columns: Vec<usize> = order[..chosen].iter().map(|&j| linear.kept.indices()[j]).collect();
-    columns.sort_unstable();
-    let selected = columns.iter().map(|&i| linear.params.get(i).name.clone()).collect();
-    let trades = linear.trades(&order[..chosen]);
-    Ok(SelectionPath { criterion, steps, chosen, selected, held: linear.held, trades })
+    let linear = LinearModel::of_markers(model, data, options)?;
+    Ok(linear.forward(criterion))
 }
 
 /// The calibration linearised once about the registration ("before"), for the parameters
 /// asked for that the poses identify: whitened by the estimator (`A = S H`, `b = S y`) to fit,
 /// unweighted (`H`, `y`) to score, both column-scaled alike.
-struct LinearModel {
+pub(super) struct LinearModel {
     params: crate::model::ParamSet,
-    /// The identified parameters: the columns.
-    kept: Selection,
+    /// Each column's parameter (an index of `params`); `None` for a set-up parameter.
+    columns: Vec<Option<usize>>,
+    /// Each column's name.
+    names: Vec<String>,
     /// The held ones, in words.
     held: Vec<String>,
     whitened: Scaled,
     unweighted: Scaled,
-    /// Rows per pose, and markers per pose.
-    rows: usize,
-    markers: usize,
-    poses: usize,
+    /// Each data row's pose: its fold is the pose's.
+    pose_of_row: Vec<usize>,
+    /// Each data row's share of one scored error: a third of a marker for its coordinates, one
+    /// for a length observation, none for an angle (whose unweighted row is zero).
+    share: Vec<f64>,
+}
+
+/// A linear model's system about the registration: [`LinearModel::new`]'s parts.
+pub(super) struct LinearParts {
+    /// `A = S H` and `b = S y` of the identified columns, the prior's rows below them.
+    pub whitened: (DMatrix<f64>, DVector<f64>),
+    /// `H` and `y`, unweighted, the rows that are not scored zero.
+    pub unweighted: (DMatrix<f64>, DVector<f64>),
+    /// Each data row's pose, and its share of one scored error.
+    pub rows: Vec<(usize, f64)>,
 }
 
 impl LinearModel {
+    /// The model of the columns `columns` (named `names`) of `params`, the held in `held`,
+    /// from `parts`; the columns scaled by the whitened system's column norms.
+    pub(super) fn new(
+        params: &crate::model::ParamSet,
+        (columns, names): (Vec<Option<usize>>, Vec<String>),
+        held: Vec<String>,
+        parts: LinearParts,
+    ) -> Self {
+        let LinearParts { whitened: (a, b), unweighted: (h, y), rows } = parts;
+        let data = rows.len();
+        let scale: Vec<f64> = (a.rows(0, data).column_iter())
+            .map(|c| c.norm())
+            .map(|n| if n > 0.0 { 1.0 / n } else { 1.0 })
+            .collect();
+        let (pose_of_row, share) = rows.into_iter().unzip();
+        Self {
+            params: params.clone(),
+            columns,
+            names,
+            held,
+            whitened: Scaled::new(&a, &b, &scale),
+            unweighted: Scaled::new(&h, &y, &scale),
+            pose_of_row,
+            share,
+        }
+    }
+
     /// The registration of `data` (base and markers fitted by [`calibrate`]), then the gauge
     /// of `options`' parameters and the system about it.
-    fn new(model: &RobotModel, data: &Measurements, options: &Options) -> Result<Self, CalibrationError> {
+    fn of_markers(model: &RobotModel, data: &Measurements, options: &Options) -> Result<Self, CalibrationError> {
         let frame = calibrate(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
         let noise = match &frame.whitening {
             Whitening::Covariance(noise) => Some(noise),
@@ -439,23 +472,19 @@ impl LinearModel {
             Some(&prior_sd),
         )?;
         let system = base_problem.reselect(&kept, frame.before.clone())?.system(&start.x);
-        let scale: Vec<f64> =
-            start.a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
         let rows = base_problem.rows_per_point();
-        let (a, b) = match &prior {
+        let whitened = match &prior {
             Some(prior) => prior.augment(&start.a, &start.b, &start.x),
             None => (start.a.clone(), start.b.clone()),
         };
-        Ok(Self {
-            params: params.clone(),
-            kept,
-            held,
-            whitened: Scaled::new(&a, &b, &scale),
-            unweighted: Scaled::new(&system.h, &system.y, &scale),
-            rows,
-            markers: rows / 3,
-            poses: data.len(),
-        })
+        let parts = LinearParts {
+            whitened,
+            unweighted: (system.h, system.y),
+            rows: (0..data.len() * rows).map(|r| (r / rows, 1.0 / 3.0)).collect(),
+        };
+        let columns = kept.indices().iter().map(|&i| Some(i)).collect();
+        let names = kept.indices().iter().map(|&i| params.get(i).name.clone()).collect();
+        Ok(Self::new(params, (columns, names), held, parts))
     }
 
     /// The trades of the model of the registration and the `chosen` columns: each candidate
@@ -463,22 +492,22 @@ impl LinearModel {
     /// the inverse normal equations on every pose (priors in place) with it added.
     fn trades(&self, chosen: &[usize]) -> Vec<String> {
         let all = Fit::new(&self.whitened, None);
-        let registration = (0..self.kept.len()).filter(|&c| self.is_registration(c));
+        let registration = (0..self.columns.len()).filter(|&c| self.is_registration(c));
         let model: Vec<usize> = registration.chain(chosen.iter().copied()).collect();
-        let index = |c: usize| self.kept.indices()[c];
+        let index = |c: usize| self.columns[c];
+        let zero_or_play = |c: usize| index(c).is_some_and(|i| is_zero_or_play(self.params.get(i)));
         let mut out = Vec::new();
-        for o in
-            (0..self.kept.len()).filter(|c| !model.contains(c) && is_zero_or_play(self.params.get(index(*c))))
-        {
+        for o in (0..self.columns.len()).filter(|&c| !model.contains(&c) && zero_or_play(c)) {
             let columns: Vec<usize> = model.iter().copied().chain([o]).collect();
             let gram =
                 DMatrix::from_fn(columns.len(), columns.len(), |a, b| all.gram[(columns[a], columns[b])]);
             let Some(inverse) = gram.cholesky().map(|c| c.inverse()) else { continue };
-            let at = |i: usize| columns.iter().position(|&c| index(c) == i).expect("a column");
+            let at = |i: usize| columns.iter().position(|&c| index(c) == Some(i)).expect("a column");
             let covariance = |a: usize, b: usize| inverse[(at(a), at(b))];
-            let kept: Vec<usize> = chosen.iter().map(|&c| index(c)).collect();
-            if let Some((k, r)) = stand_in(&self.params, index(o), &kept, &covariance) {
-                let (zero, other) = (&self.params.get(index(o)).name, &self.params.get(k).name);
+            let kept: Vec<usize> = chosen.iter().filter_map(|&c| index(c)).collect();
+            let Some(o) = index(o) else { continue };
+            if let Some((k, r)) = stand_in(&self.params, o, &kept, &covariance) {
+                let (zero, other) = (&self.params.get(o).name, &self.params.get(k).name);
                 out.push(format!(
                     "{zero} left out while {other} is in, which stands in for it (correlation {r:+.2}): {other} \
                      carries its error"
@@ -488,9 +517,23 @@ impl LinearModel {
         out
     }
 
-    /// Whether column `c` is the base's or a marker's: always in the model.
+    /// Whether column `c` is the registration's (the base's, a marker's, the tool's, the
+    /// set-up's): always in the model.
     fn is_registration(&self, c: usize) -> bool {
-        !matches!(self.params.get(self.kept.indices()[c]).owner, ParamOwner::Joint(_))
+        self.columns[c].is_none_or(|i| !matches!(self.params.get(i).owner, ParamOwner::Joint(_)))
+    }
+
+    /// The forward path by `criterion` ([`Criterion::Cv`], [`Criterion::Bic`]) and the model
+    /// it chooses.
+    pub(super) fn forward(self, criterion: Criterion) -> SelectionPath {
+        let mut fits = self.fits(criterion);
+        let (steps, order) = walk(&mut fits, &self, criterion);
+        let chosen = choose_step(&steps, criterion);
+        let mut columns: Vec<usize> = order[..chosen].to_vec();
+        columns.sort_unstable();
+        let selected = columns.iter().map(|&c| self.names[c].clone()).collect();
+        let trades = self.trades(&order[..chosen]);
+        SelectionPath { criterion, steps, chosen, selected, held: self.held, trades }
     }
 
     /// The fits a criterion compares, the registration's columns in: one per fold for CV (pose
@@ -499,15 +542,15 @@ impl LinearModel {
         let mut fits: Vec<Fit> = match criterion {
             Criterion::Cv { folds } => (0..folds)
                 .map(|f| {
-                    let test: Vec<usize> = (0..self.poses).filter(|k| k % folds == f).collect();
                     let rows: Vec<usize> =
-                        test.iter().flat_map(|k| k * self.rows..(k + 1) * self.rows).collect();
-                    Fit::new(&self.whitened, Some((&self.unweighted, &rows, test.len() * self.markers)))
+                        (0..self.pose_of_row.len()).filter(|&r| self.pose_of_row[r] % folds == f).collect();
+                    let count = rows.iter().map(|&r| self.share[r]).sum();
+                    Fit::new(&self.whitened, Some((&self.unweighted, &rows, count)))
                 })
                 .collect(),
             _ => vec![Fit::new(&self.whitened, None)],
         };
-        for c in (0..self.kept.len()).filter(|&c| self.is_registration(c)) {
+        for c in (0..self.columns.len()).filter(|&c| self.is_registration(c)) {
             for fit in &mut fits {
                 if let Some(trial) = fit.trial(c) {
                     fit.accept(c, trial);
@@ -523,12 +566,12 @@ impl LinearModel {
 /// can take. The steps, and the columns in the order added.
 fn walk(fits: &mut [Fit], linear: &LinearModel, criterion: Criterion) -> (Vec<Step>, Vec<usize>) {
     // The data's equations (the prior's rows are not observations).
-    let equations = linear.poses * linear.rows;
+    let equations = linear.pose_of_row.len();
     let now: Vec<Trial> = fits.iter().map(Fit::current).collect();
     let (first, first_se) = score(fits, &now, criterion, equations);
     let mut steps = vec![Step { parameter: None, score: first, se: first_se, note: None }];
     let mut order = Vec::new();
-    let mut left: Vec<usize> = (0..linear.kept.len()).filter(|&c| !linear.is_registration(c)).collect();
+    let mut left: Vec<usize> = (0..linear.columns.len()).filter(|&c| !linear.is_registration(c)).collect();
     while !left.is_empty() {
         let scored: Vec<Option<Scored>> = left
             .par_iter()
@@ -547,7 +590,7 @@ fn walk(fits: &mut [Fit], linear: &LinearModel, criterion: Criterion) -> (Vec<St
             fit.accept(j, trial);
         }
         order.push(j);
-        let name = linear.params.get(linear.kept.indices()[j]).name.clone();
+        let name = linear.names[j].clone();
         steps.push(Step { parameter: Some(name), score: value, se, note: None });
     }
     (steps, order)
@@ -585,15 +628,16 @@ fn choose_step(steps: &[Step], criterion: Criterion) -> usize {
     }
 }
 
-/// The CV RMS and its standard error from each fold's held-out `(SSE, markers)`.
-fn cv_rms(folds: impl Iterator<Item = (f64, usize)>) -> (f64, f64) {
-    let folds: Vec<(f64, usize)> = folds.collect();
-    let (sse, n): (f64, usize) = folds.iter().fold((0.0, 0), |(s, n), &(f, c)| (s + f, n + c));
-    let rms: Vec<f64> = folds.iter().map(|&(s, c)| (s.max(0.0) / c.max(1) as f64).sqrt()).collect();
+/// The CV RMS and its standard error from each fold's held-out `(SSE, errors)` (markers, or
+/// length observations).
+fn cv_rms(folds: impl Iterator<Item = (f64, f64)>) -> (f64, f64) {
+    let folds: Vec<(f64, f64)> = folds.collect();
+    let (sse, n): (f64, f64) = folds.iter().fold((0.0, 0.0), |(s, n), &(f, c)| (s + f, n + c));
+    let rms: Vec<f64> = folds.iter().map(|&(s, c)| (s.max(0.0) / c.max(1.0)).sqrt()).collect();
     let k = rms.len() as f64;
     let mean = rms.iter().sum::<f64>() / k;
     let sd = (rms.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (k - 1.0).max(1.0)).sqrt();
-    ((sse.max(0.0) / n.max(1) as f64).sqrt(), sd / k.sqrt())
+    ((sse.max(0.0) / n.max(1.0)).sqrt(), sd / k.sqrt())
 }
 
 /// A linear system with its columns scaled (`A D`, `b`), rows as the stacked system's.
@@ -626,7 +670,7 @@ struct Fit {
     gram: DMatrix<f64>,
     rhs: DVector<f64>,
     bb: f64,
-    test: Option<(DMatrix<f64>, DVector<f64>, f64, usize)>,
+    test: Option<(DMatrix<f64>, DVector<f64>, f64, f64)>,
     /// The columns in, in the order added.
     members: Vec<usize>,
     /// The Cholesky factor of `gram[members, members]` (rows and columns in `members` order).
@@ -651,8 +695,8 @@ struct Trial {
 
 impl Fit {
     /// The fit of no columns on every row of `whitened` but the held-out `test` ones
-    /// (`(unweighted system, its rows, markers)`), or on every row without a test.
-    fn new(whitened: &Scaled, test: Option<(&Scaled, &[usize], usize)>) -> Self {
+    /// (`(unweighted system, its rows, the errors they score)`), or on every row without a test.
+    fn new(whitened: &Scaled, test: Option<(&Scaled, &[usize], f64)>) -> Self {
         let p = whitened.a.ncols();
         let (mut gram, mut rhs, mut bb) = whitened.normal(&(0..whitened.b.len()).collect::<Vec<_>>());
         let test = test.map(|(unweighted, rows, count)| {
@@ -666,9 +710,9 @@ impl Fit {
         Self { gram, rhs, bb, test, members: Vec::new(), l: DMatrix::zeros(p, p), z: Vec::new() }
     }
 
-    /// Markers held out.
-    fn count(&self) -> usize {
-        self.test.as_ref().map_or(0, |t| t.3)
+    /// Errors held out (markers, or length observations).
+    fn count(&self) -> f64 {
+        self.test.as_ref().map_or(0.0, |t| t.3)
     }
 
     /// The whitened training cost of the current columns, `b^T b - |z|^2`.
@@ -781,7 +825,7 @@ mod tests {
         let (whitened, unweighted) = (Scaled::new(&a, &b, &scale), Scaled::new(&h, &y, &scale));
         let test: Vec<usize> = (0..m).filter(|i| i % 4 == 1).collect();
         let train: Vec<usize> = (0..m).filter(|i| i % 4 != 1).collect();
-        let mut fit = Fit::new(&whitened, Some((&unweighted, &test, test.len())));
+        let mut fit = Fit::new(&whitened, Some((&unweighted, &test, test.len() as f64)));
         let mut members = Vec::new();
         for j in [3, 0, 1, 4] {
             let trial = fit.trial(j).expect("independent");
@@ -840,7 +884,7 @@ mod tests {
     /// folds' RMS over the square root of their number.
     #[test]
     fn cv_rms_pools_the_folds() {
-        let (rms, se) = cv_rms([(4.0, 1), (16.0, 1)].into_iter());
+        let (rms, se) = cv_rms([(4.0, 1.0), (16.0, 1.0)].into_iter());
         assert!((rms - 10f64.sqrt()).abs() < 1e-15);
         // Fold RMS 2 and 4: sd sqrt(2), over sqrt(2).
         assert!((se - 1.0).abs() < 1e-15);
