@@ -42,14 +42,15 @@
 //! is the same on any number of threads. The selected model is then calibrated by
 //! Gauss-Newton as any other.
 
+use super::kinds::{self, KindCalibration, KindData, KindOptions};
 use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale, with_scale};
 use super::{
-    CalibrationError, ErrorStats, Identified, JointParams, Measurements, Options, RobotModel, Whitening,
-    calibrate, errors, identifiable, observed, selection, standard_errors,
+    CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel, Whitening,
+    calibrate, errors, identifiable, observed, selection, standard_errors_of,
 };
-use crate::estimation::{PointProblem, Residuals, Weights};
+use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights};
 use crate::kinematics::Measured;
-use crate::model::{ParamOwner, Selection};
+use crate::model::{ParamOwner, Selection, name_matches};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
@@ -128,6 +129,12 @@ impl SelectionPath {
     pub fn options(&self, options: &Options) -> Options {
         asking(options, &self.selected)
     }
+
+    /// `options` of an observation calibration of `model` asking for the selected joint
+    /// parameters only (and the set-up's that `--params` names).
+    pub fn kind_options(&self, model: &RobotModel, options: &KindOptions) -> KindOptions {
+        asking_kinds(model, options, &self.selected)
+    }
 }
 
 /// `options` asking for the joint parameters `names` only.
@@ -150,12 +157,91 @@ pub fn select(
         ));
     }
     match criterion {
-        Criterion::T => backward(model, data, options),
+        Criterion::T => backward(|names: Option<&[String]>| match names {
+            Some(names) => calibrate(model, data, &asking(options, names)),
+            None => calibrate(model, data, options),
+        }),
         Criterion::Cv { folds } if folds < 2 || folds > data.len() => Err(CalibrationError::Scoring(
             format!("{folds} folds for {} poses: expected 2 to the number of poses", data.len()),
         )),
         _ => forward(model, data, options, criterion),
     }
+}
+
+/// Choose among the joint parameters `options.joints` names of an observation calibration
+/// (distances, contacts, coordinates, cameras' views, markers: [`kinds`]) by `criterion`, as
+/// [`select`] does for a marker file: the registration is the set-up, the tool point and, with
+/// markers, the base and the markers, always estimated; a fold holds out the observations of
+/// its poses (a pair by its first); the CV RMS is of the lengths (mm), angles not scored.
+pub fn select_kinds(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    criterion: Criterion,
+) -> Result<SelectionPath, CalibrationError> {
+    let poses = data.joints.len();
+    match criterion {
+        Criterion::T => backward(|names: Option<&[String]>| {
+            let options = names.map_or_else(|| options.clone(), |n| asking_kinds(model, options, n));
+            kinds::calibrate_kinds(model, data, &options)
+        }),
+        Criterion::Cv { folds } if folds < 2 || folds > poses => Err(CalibrationError::Scoring(format!(
+            "{folds} folds for {poses} poses: expected 2 to the number of poses"
+        ))),
+        Criterion::Cv { .. } if data.observations.iter().all(|o| o.is_angle()) => Err(CalibrationError::Scoring(
+            "--select cv scores the held-out lengths (mm), and these observations are all angles: use --select bic \
+             or t"
+                .into(),
+        )),
+        _ => Ok(LinearModel::of_kinds(model, data, options)?.forward(criterion)),
+    }
+}
+
+/// [`select_kinds`], then [`kinds::calibrate_kinds`] with the parameters it chose
+/// ([`SelectionPath::kind_options`]); the folds of cv at most the poses.
+pub fn calibrate_kinds_selected(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    criterion: Criterion,
+) -> Result<(SelectionPath, KindCalibration), CalibrationError> {
+    let criterion = match criterion {
+        Criterion::Cv { folds } => Criterion::Cv { folds: folds.min(data.joints.len()) },
+        other => other,
+    };
+    let path = select_kinds(model, data, options, criterion)?;
+    let calibration = kinds::calibrate_kinds(model, data, &path.kind_options(model, options))?;
+    Ok((path, calibration))
+}
+
+/// Nested k-fold cross-validation of [`calibrate_kinds_selected`]: the selection made again on
+/// each fold's training observations ([`kinds::cross_validate_kinds`]'s folds), and the
+/// held-out ones scored with the model it chose.
+pub fn cross_validate_kinds_selection(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    criterion: Criterion,
+    folds: usize,
+) -> Result<kinds::Score, CalibrationError> {
+    kinds::cross_validate_kinds_by(data, folds, |train| {
+        Ok(calibrate_kinds_selected(model, train, options, criterion)?.1)
+    })
+}
+
+/// `options` of an observation calibration asking for the joint parameters `names` only; the
+/// patterns of `--params` that name no robot parameter (a set-up's, a marker's) kept.
+fn asking_kinds(model: &RobotModel, options: &KindOptions, names: &[String]) -> KindOptions {
+    let robot = model.params();
+    let others = match &options.joints {
+        JointParams::Named(patterns) => {
+            patterns.iter().filter(|p| !robot.iter().any(|q| name_matches(p, &q.name))).cloned().collect()
+        }
+        _ => Vec::new(),
+    };
+    let all: Vec<String> = names.iter().cloned().chain(others).collect();
+    let joints = if all.is_empty() { JointParams::None } else { JointParams::Named(all) };
+    KindOptions { joints, ..options.clone() }
 }
 
 /// The choices made from the data before a calibration: the scale of a preset's priors
@@ -271,22 +357,22 @@ pub struct NestedCv {
 /// whose estimate a kept parameter can stand in for ([`stand_in`]) is not dropped while that
 /// parameter's `|t|` is below 2 too: the stand-in goes first (the step says so); when the
 /// stand-in is strong, the zero goes and the path records the trade.
-fn backward(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
+fn backward<C: Fitted>(
+    calibrate: impl Fn(Option<&[String]>) -> Result<C, CalibrationError>,
 ) -> Result<SelectionPath, CalibrationError> {
     let mut steps = vec![Step { parameter: None, score: f64::NAN, se: f64::NAN, note: None }];
-    let (mut current, mut held, mut trades) = (options.clone(), None, Vec::new());
+    let (mut current, mut held, mut trades) = (None::<Vec<String>>, None, Vec::new());
     loop {
-        let c = calibrate(model, data, &current)?;
-        let held = held.get_or_insert_with(|| c.fixed.clone());
-        let se = standard_errors(&c);
-        let joints: Vec<usize> = (c.refined.estimate.names.iter())
-            .filter_map(|n| c.params.index_by_name(n))
-            .filter(|&i| matches!(c.params.get(i).owner, ParamOwner::Joint(_)))
+        let c = calibrate(current.as_deref())?;
+        let held = held.get_or_insert_with(|| c.held_words());
+        let (params, estimate) = (c.params(), c.estimate());
+        let (before, after) = c.values();
+        let se = standard_errors_of(params.iter(), estimate);
+        let joints: Vec<usize> = (estimate.names.iter())
+            .filter_map(|n| params.index_by_name(n))
+            .filter(|&i| matches!(params.get(i).owner, ParamOwner::Joint(_)))
             .collect();
-        let t = |i: usize| (c.after[i] - c.before[i]).abs() / se[i];
+        let t = |i: usize| (after[i] - before[i]).abs() / se[i];
         let weak = |i: usize| t(i) < 2.0 || t(i).is_nan();
         // The smallest |t|, ties to the earlier parameter; a NaN (no standard error) is dropped.
         let weakest = joints
@@ -294,14 +380,14 @@ fn backward(
             .copied()
             .min_by(|&i, &j| t(i).partial_cmp(&t(j)).unwrap_or(std::cmp::Ordering::Less));
         let Some(i) = weakest.filter(|&i| weak(i)) else {
-            let selected = joints.iter().map(|&j| c.params.get(j).name.clone()).collect();
+            let selected = joints.iter().map(|&j| params.get(j).name.clone()).collect();
             let chosen = steps.len() - 1;
             let held = std::mem::take(held);
             return Ok(SelectionPath { criterion: Criterion::T, steps, chosen, selected, held, trades });
         };
-        let name = |i: usize| c.params.get(i).name.clone();
-        let covariance = |a: usize, b: usize| estimate_covariance(&c, a, b);
-        let (drop, note) = match stand_in(&c.params, i, &joints, &covariance) {
+        let name = |i: usize| params.get(i).name.clone();
+        let covariance = |a: usize, b: usize| estimate_covariance(params, estimate, a, b);
+        let (drop, note) = match stand_in(params, i, &joints, &covariance) {
             Some((k, r)) if weak(k) => {
                 let note = format!(
                     "{} (|t| {:.2}) before {}, for which it stands in (correlation {r:+.2}): a joint's zero \
@@ -327,8 +413,46 @@ fn backward(
             None => (i, None),
         };
         steps.push(Step { parameter: Some(name(drop)), score: t(drop), se: f64::NAN, note });
-        let names: Vec<String> = joints.iter().filter(|&&j| j != drop).map(|&j| name(j)).collect();
-        current = asking(options, &names);
+        current = Some(joints.iter().filter(|&&j| j != drop).map(|&j| name(j)).collect());
+    }
+}
+
+/// A calibration the `t` rule reads: its parameters, their values before and after (full
+/// vector), its estimate, and what it held in words.
+trait Fitted {
+    fn params(&self) -> &crate::model::ParamSet;
+    fn values(&self) -> (&[f64], &[f64]);
+    fn estimate(&self) -> &LinearEstimate;
+    fn held_words(&self) -> Vec<String>;
+}
+
+impl Fitted for super::Calibration {
+    fn params(&self) -> &crate::model::ParamSet {
+        &self.params
+    }
+    fn values(&self) -> (&[f64], &[f64]) {
+        (&self.before, &self.after)
+    }
+    fn estimate(&self) -> &LinearEstimate {
+        &self.refined.estimate
+    }
+    fn held_words(&self) -> Vec<String> {
+        self.fixed.clone()
+    }
+}
+
+impl Fitted for KindCalibration {
+    fn params(&self) -> &crate::model::ParamSet {
+        &self.params
+    }
+    fn values(&self) -> (&[f64], &[f64]) {
+        (&self.before, &self.after)
+    }
+    fn estimate(&self) -> &LinearEstimate {
+        &self.refined.estimate
+    }
+    fn held_words(&self) -> Vec<String> {
+        self.fixed.iter().map(Held::text).collect()
     }
 }
 
@@ -363,12 +487,16 @@ fn stand_in(
         .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
 }
 
-/// The covariance of the estimates of parameters `a` and `b` (full-vector indices) of `c`.
-fn estimate_covariance(c: &super::Calibration, a: usize, b: usize) -> f64 {
-    let names = &c.refined.estimate.names;
-    let column = |i: usize| names.iter().position(|n| *n == c.params.get(i).name);
+/// The covariance in `estimate` of parameters `a` and `b` (indices of `params`).
+fn estimate_covariance(
+    params: &crate::model::ParamSet,
+    estimate: &LinearEstimate,
+    a: usize,
+    b: usize,
+) -> f64 {
+    let column = |i: usize| estimate.names.iter().position(|n| *n == params.get(i).name);
     match (column(a), column(b)) {
-        (Some(a), Some(b)) => c.refined.estimate.covariance[(a, b)],
+        (Some(a), Some(b)) => estimate.covariance[(a, b)],
         _ => f64::NAN,
     }
 }
@@ -485,6 +613,47 @@ impl LinearModel {
         let columns = kept.indices().iter().map(|&i| Some(i)).collect();
         let names = kept.indices().iter().map(|&i| params.get(i).name.clone()).collect();
         Ok(Self::new(params, (columns, names), held, parts))
+    }
+
+    /// The "before" fit of `data` (the set-up, the tool point; with markers the base and the
+    /// markers), then the gauge of `options`' parameters and the system about it. Its rows are
+    /// the observations, each in the fold of its pose (a pair by its first); a length counts
+    /// one error, an angle none (its unweighted row is zero: the CV RMS is of lengths, mm).
+    fn of_kinds(model: &RobotModel, data: &KindData, options: &KindOptions) -> Result<Self, CalibrationError> {
+        let prepared = kinds::prepare(model, data, options)?;
+        let started = kinds::start(&prepared, data, options)?;
+        let kinds::Gauged { identifiable, fixed, prior } = &started.gauged;
+        let (params, asked) = (&prepared.params, &prepared.asked);
+        let robot = asked.len();
+        let kept = Selection::from_indices(
+            params,
+            identifiable.iter().filter(|&&c| c < robot).map(|&c| asked.indices()[c]),
+        );
+        let kept_setup: Vec<usize> =
+            identifiable.iter().filter(|&&c| c >= robot).map(|&c| prepared.asked_setup[c - robot]).collect();
+        let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
+        let problem = started.base.reselect(&kept, before, before_setup, kept_setup);
+        let start = started.linearised.select(identifiable);
+        let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+        let mut y = problem.evaluate(&start.x, Some(&mut h));
+        let rows: Vec<(usize, f64)> =
+            data.observations.iter().map(|o| (o.pose(), if o.is_angle() { 0.0 } else { 1.0 })).collect();
+        for (r, _) in rows.iter().enumerate().filter(|(_, (_, share))| *share == 0.0) {
+            h.row_mut(r).fill(0.0);
+            y[r] = 0.0;
+        }
+        let whitened = match prior {
+            Some(prior) => prior.select(identifiable).augment(&start.a, &start.b, &start.x),
+            None => (start.a.clone(), start.b.clone()),
+        };
+        // The robot's kept parameters, then the set-up's.
+        let columns = (0..problem.parameters()).map(|c| kept.indices().get(c).copied()).collect();
+        let held = (fixed.iter().chain(&prepared.held_words))
+            .map(Held::text)
+            .chain(prepared.scale.map(|i| Held::Scale { parameter: params.get(i).name.clone() }.text()))
+            .collect();
+        let parts = LinearParts { whitened, unweighted: (h, y), rows };
+        Ok(Self::new(params, (columns, problem.names()), held, parts))
     }
 
     /// The trades of the model of the registration and the `chosen` columns: each candidate

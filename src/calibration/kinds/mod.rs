@@ -1343,13 +1343,13 @@ pub(super) struct Prepared {
     /// The robot's parameters asked for (`--params`, the registration's), less `--hold`'s.
     pub(super) asked: Selection,
     /// The set-up's parameters asked for, less `--hold`'s.
-    asked_setup: Vec<usize>,
+    pub(super) asked_setup: Vec<usize>,
     /// What `--hold` held.
-    held_words: Vec<Held>,
+    pub(super) held_words: Vec<Held>,
     /// The set-up values of the "before" fit: all but the length zeros not asked for.
     every: Vec<usize>,
     /// The robot's length held for the scale (contacts without a distance).
-    scale: Option<usize>,
+    pub(super) scale: Option<usize>,
     nothing: Selection,
 }
 
@@ -1567,6 +1567,16 @@ pub fn cross_validate_kinds(
     options: &KindOptions,
     folds: usize,
 ) -> Result<Score, CalibrationError> {
+    cross_validate_kinds_by(data, folds, |train| calibrate_kinds(model, train, options))
+}
+
+/// [`cross_validate_kinds`] with each fold's calibration made by `calibrate` from its training
+/// observations (every choice made from the data made again inside it).
+pub(crate) fn cross_validate_kinds_by(
+    data: &KindData,
+    folds: usize,
+    calibrate: impl Fn(&KindData) -> Result<KindCalibration, CalibrationError>,
+) -> Result<Score, CalibrationError> {
     let poses = data.joints.len();
     if folds < 2 || folds > poses {
         return Err(CalibrationError::Observations(format!(
@@ -1577,7 +1587,7 @@ pub fn cross_validate_kinds(
         .map(|fold| {
             let (test, train) =
                 (data.keeping(|o| o.pose() % folds == fold), data.keeping(|o| o.pose() % folds != fold));
-            let c = calibrate_kinds(model, &train, options)?;
+            let c = calibrate(&train)?;
             Ok((c.score(&test)?, test.observations))
         })
         .collect::<Result<Vec<_>, CalibrationError>>()?;
