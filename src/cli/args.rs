@@ -343,7 +343,7 @@ pub struct CalibrateArgs {
     pub fixed_markers: bool,
     #[command(flatten)]
     pub choice: ModelChoiceArgs,
-    /// A marker file: choose the joint parameters by held-out error among those --params names: `cv`
+    /// Choose the joint parameters by held-out error among those --params names: `cv`
     /// (forward selection by k-fold cross-validated RMS, --folds K, default 5,
     /// one-standard-error rule), `bic` (forward selection by the Bayesian information criterion), `t`
     /// (backward elimination of the estimates below 2 standard errors).
@@ -472,6 +472,11 @@ pub struct CalibrateObservationsArgs {
     /// `pair.zero`, mm: distance = |p - c| + zero) is held unless named here or in --params.
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     pub per_session: Vec<String>,
+    /// Choose the joint parameters by held-out error among those --params names: `cv`, `bic`
+    /// or `t`, as for a marker file (a fold holds out the observations of its poses; cv scores
+    /// the lengths).
+    #[arg(long, value_enum)]
+    pub select: Option<SelectName>,
     /// k-fold cross-validation on the data (k >= 2, at most the number of poses): the
     /// observations of pose p held out in fold p mod k, each fold calibrated with every flag
     /// (priors, loss, sessions) on the others; their held-out residuals pooled as a set.

@@ -9,6 +9,7 @@ use nalgebra::DMatrix;
 use robocal::calibration::kinds::{
     KindData, KindOptions, Observation, calibrate_kinds, cross_validate_kinds,
 };
+use robocal::calibration::selection::{calibrate_kinds_selected, cross_validate_kinds_selection};
 use robocal::estimation::RefineOptions;
 use robocal::io;
 use robocal::model::RobotModel;
@@ -61,7 +62,14 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
     };
     let names: Vec<String> = request.data.iter().map(|p| p.display().to_string()).collect();
-    let c = calibrate_kinds(&model, &data, &options).with_context(|| names.join(", "))?;
+    let (path, c) = match request.select {
+        Some(criterion) => {
+            let (path, c) = calibrate_kinds_selected(&model, &data, &options, criterion)
+                .with_context(|| format!("--select {}: {}", criterion.name(), names.join(", ")))?;
+            (Some(path), c)
+        }
+        None => (None, calibrate_kinds(&model, &data, &options).with_context(|| names.join(", "))?),
+    };
     let held_out = request
         .validate
         .iter()
@@ -72,15 +80,24 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     let mut held_out = held_out;
     if let Some(k) = request.folds {
-        let score = cross_validate_kinds(&model, &data, &options, k)
-            .with_context(|| format!("--folds {k}: {}", names.join(", ")))?;
-        // A robust loss's weights are a choice made from the data: made again in each fold.
-        let nested = if options.loss == robocal::calibration::Loss::Squared { "" } else { ", nested" };
+        let score = match request.select {
+            Some(criterion) => cross_validate_kinds_selection(&model, &data, &options, criterion, k),
+            None => cross_validate_kinds(&model, &data, &options, k),
+        };
+        let score = score.with_context(|| format!("--folds {k}: {}", names.join(", ")))?;
+        // A selection and a robust loss's weights are choices made from the data: made again
+        // in each fold.
+        let chosen = request.select.is_some() || options.loss != robocal::calibration::Loss::Squared;
+        let nested = if chosen { ", nested" } else { "" };
         held_out.push((format!("{k}-fold cross-validation{nested}"), score));
     }
     let fitted = (data.observations.len(), data.joints.len());
-    let report = ObservationsReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out)
-        .with_training_files(files);
+    let mut report =
+        ObservationsReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out)
+            .with_training_files(files);
+    if let Some(path) = &path {
+        report = report.with_selection(path, &c);
+    }
     print!("{}", report.text());
     let mut outputs = io::Outputs::new();
     if let Some(path) = &request.json {

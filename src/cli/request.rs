@@ -438,6 +438,8 @@ pub struct CalibrateObservationsRequest {
     pub per_session: Vec<String>,
     /// k-fold cross-validation, if asked for.
     pub folds: Option<usize>,
+    /// How the joint parameters are chosen from the data (`--select`), if they are.
+    pub select: Option<Criterion>,
     /// Held and kept parameters.
     pub gauge: robocal::calibration::Gauge,
     /// Prior standard deviations.
@@ -479,6 +481,15 @@ impl CalibrateObservationsRequest {
             "--params all: the base and the set-up are chosen by the observations; give --params joints",
         )?;
         let joints = joint_params(args.params, false)?;
+        let select = args.select.map(|name| match name {
+            SelectName::Cv => Criterion::Cv { folds: args.folds.unwrap_or(DEFAULT_FOLDS) },
+            SelectName::Bic => Criterion::Bic,
+            SelectName::T => Criterion::T,
+        });
+        require(
+            select.is_none() || joints != JointParams::None,
+            "--select chooses among the joint parameters --params names: not with --params none",
+        )?;
         let mut inputs = vec![("--model", Path::new(&model.name))];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
@@ -514,6 +525,7 @@ impl CalibrateObservationsRequest {
             model,
             per_session: args.per_session,
             folds: args.folds,
+            select,
             gauge: robocal::calibration::Gauge { hold: args.choice.hold, keep: args.choice.keep },
             prior: match priors(args.choice.prior)? {
                 (prior, None) => prior,

@@ -259,6 +259,23 @@ pub struct SelectionReport {
 }
 
 impl SelectionReport {
+    /// The report of `path`.
+    pub fn of(path: &SelectionPath) -> Self {
+        Self {
+            criterion: path.criterion.name().to_string(),
+            folds: match path.criterion {
+                Criterion::Cv { folds } => Some(folds),
+                _ => None,
+            },
+            steps: path.steps.clone(),
+            scores: path_scores(path.criterion),
+            chosen: path.chosen,
+            selected: path.selected.clone(),
+            held: path.held.clone(),
+            trades: path.trades.clone(),
+        }
+    }
+
     /// The path as a text table.
     pub fn text(&self) -> String {
         let mut out = String::new();
@@ -554,19 +571,7 @@ impl CalibrationReport {
             self.estimator,
             path.criterion.name()
         );
-        self.selection = Some(SelectionReport {
-            criterion: path.criterion.name().to_string(),
-            folds: match path.criterion {
-                Criterion::Cv { folds } => Some(folds),
-                _ => None,
-            },
-            steps: path.steps.clone(),
-            scores: path_scores(path.criterion),
-            chosen: path.chosen,
-            selected: path.selected.clone(),
-            held: path.held.clone(),
-            trades: path.trades.clone(),
-        });
+        self.selection = Some(SelectionReport::of(path));
         self
     }
 

@@ -7,6 +7,7 @@
 use super::calibration::{DownWeighted, ParameterRow, by_number};
 use crate::calibration::Warning;
 use crate::calibration::kinds::{KindCalibration, ObservationResidual, Score, SessionSetUp};
+use crate::calibration::selection::SelectionPath;
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -62,6 +63,9 @@ pub struct ObservationsReport {
     /// The training observations it weighted below 0.1, by line.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub down_weighted: Vec<DownWeighted>,
+    /// `--select`: how the joint parameters were chosen, its path.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub selection: Option<super::calibration::SelectionReport>,
 }
 
 /// `text` with the points on the last link named as the files name them: each marker by its
@@ -146,6 +150,7 @@ impl ObservationsReport {
                     .map(|(k, weight)| DownWeighted { line: c.training.observations[k].line, weight })
                     .collect()
             }),
+            selection: None,
         }
     }
 
@@ -153,6 +158,15 @@ impl ObservationsReport {
     /// observations, in the order fitted): its training rows say which file they are in.
     pub fn with_training_files(mut self, files: Vec<(String, usize)>) -> Self {
         self.training_files = files;
+        self
+    }
+
+    /// The report with the path of the selection that chose the joint parameters of `c`, its
+    /// held parameters named as the report names them.
+    pub fn with_selection(mut self, path: &SelectionPath, c: &KindCalibration) -> Self {
+        let mut selection = super::calibration::SelectionReport::of(path);
+        selection.held = selection.held.iter().map(|h| point_names(h, c)).collect();
+        self.selection = Some(selection);
         self
     }
 
@@ -185,6 +199,10 @@ impl ObservationsReport {
             &self.down_weighted,
             "observation",
         );
+        if let Some(selection) = &self.selection {
+            let _ = writeln!(out);
+            out.push_str(&selection.text());
+        }
         if !self.unseen.is_empty() {
             let _ = writeln!(out, "\nnot seen by these observations, held:");
         }

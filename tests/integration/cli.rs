@@ -533,17 +533,47 @@ fn the_old_calibration_commands_are_aliases_of_calibrate() {
     );
 }
 
+/// `calibrate --select bic --folds 5` of a ball bar's file prints the path and the parameters it
+/// chose, calibrates those, and cross-validates nested (the selection made again in each fold);
+/// the JSON has the path.
+#[test]
+fn calibrate_selects_on_observation_files() {
+    let dir = std::env::temp_dir().join(format!("robocal-select-kinds-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("r.json");
+    let args =
+        ["calibrate", "--model", "puma560", "--tool", "50,0,150", "--data", "examples/puma560-ballbar.csv"];
+    let mut args = args.to_vec();
+    args.extend(["--select", "bic", "--folds", "5", "--json", json.to_str().unwrap()]);
+    let out = robocal().args(&args).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("parameter selection: forward selection by BIC\n"), "{text}");
+    assert!(text.contains("5-fold cross-validation, nested (mm)"), "{text}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let selected: Vec<&str> =
+        report["selection"]["selected"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    assert_eq!(report["selection"]["criterion"], "bic");
+    assert!(!selected.is_empty() && selected.len() < 18, "{selected:?}");
+    let estimated: Vec<&str> = (report["parameters"].as_array().unwrap().iter())
+        .map(|p| p["name"].as_str().unwrap())
+        .filter(|n| n.starts_with('j'))
+        .collect();
+    assert_eq!(estimated, selected, "the calibration is of the parameters chosen");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// `calibrate` refuses, before any work, a flag the data's pipeline has no meaning for, naming
 /// the flag and saying what holds instead (exit code 2, nothing written).
 #[test]
 fn calibrate_refuses_marker_only_flags_on_observation_files() {
     let out = robocal()
-        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-ballbar.csv", "--select", "cv"])
+        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-ballbar.csv", "--fixed-base"])
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8(out.stderr).unwrap();
-    assert!(stderr.contains("--select is for a single file of marker positions"), "{stderr}");
+    assert!(stderr.contains("--fixed-base is for a single file of marker positions"), "{stderr}");
     let out = robocal()
         .args([
             "calibrate",

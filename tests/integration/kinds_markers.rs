@@ -10,6 +10,7 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
+use robocal::calibration::selection::{Criterion, SelectionPath, select, select_kinds};
 use robocal::calibration::{self, Measurements, Options};
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
 use robocal::kinematics::{Chain, ChainAt};
@@ -646,4 +647,41 @@ fn a_fixed_tool_with_markers_alone_is_said_to_change_nothing() {
         stderr.contains("--fixed-tool holds the tool point, which no observation here measures"),
         "{stderr}"
     );
+}
+
+/// `--select` on a marker file, by `calibrate` and by the observation pipeline: the same
+/// linear model about the same registration, so the same forward paths (each step's parameter;
+/// BIC and |t| to 1e-6, and the CV RMS times sqrt(3), the observation pipeline's being per coordinate
+/// and `calibrate`'s per marker), and the `t` rule's same choice.
+#[test]
+fn a_marker_file_selects_as_calibrate_does() {
+    let (model, measurements, observations) = marker_file(84, 40);
+    let sigmas: Vec<f64> =
+        [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|s: &f64| s.to_radians()).collect();
+    let sigma = observations.observations[0].sigma();
+    let noise = NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(sigma, 0.0));
+    let options = Options {
+        estimator: Estimator::Wls,
+        noise: Some(noise.clone()),
+        markers: MARKERS.to_vec(),
+        ..Options::default()
+    };
+    let kind_options =
+        KindOptions { joint_noise: Some(noise.joint.clone()), ..marker_options(Estimator::Wls) };
+    for criterion in [Criterion::Bic, Criterion::Cv { folds: 4 }, Criterion::T] {
+        let expected = select(&model, &measurements, &options, criterion).unwrap();
+        let found = select_kinds(&model, &observations, &kind_options, criterion).unwrap();
+        let names = |p: &SelectionPath| p.steps.iter().map(|s| s.parameter.clone()).collect::<Vec<_>>();
+        // Every parameter is in error: the forward paths take many steps, t drops none.
+        let steps = if criterion == Criterion::T { 1 } else { 11 };
+        assert!(expected.steps.len() >= steps, "{criterion:?}: {} steps", expected.steps.len());
+        assert!(expected.selected.len() > 10, "{criterion:?}: {:?}", expected.selected);
+        assert_eq!(names(&found), names(&expected), "{criterion:?}");
+        assert_eq!((found.chosen, &found.selected), (expected.chosen, &expected.selected), "{criterion:?}");
+        let factor = if matches!(criterion, Criterion::Cv { .. }) { 3f64.sqrt() } else { 1.0 };
+        for (a, b) in found.steps.iter().zip(&expected.steps).filter(|(a, _)| !a.score.is_nan()) {
+            let (a, b) = (a.score * factor, b.score);
+            assert!((a - b).abs() <= 1e-6 * b.abs(), "{criterion:?}: {a} against calibrate's {b}");
+        }
+    }
 }

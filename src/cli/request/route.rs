@@ -52,8 +52,6 @@ fn only_for_markers(given: bool, flag: &str, instead: &str) -> Result<(), UsageE
 
 /// The flags of the observation calibration, or the first marker-only flag given.
 fn observation_args(args: CalibrateArgs) -> Result<CalibrateObservationsArgs, UsageError> {
-    let not_yet = "not available yet (use --prior, --hold or --params to choose the model)";
-    only_for_markers(args.select.is_some(), "--select", not_yet)?;
     only_for_markers(
         args.noise.is_some(),
         "--noise",
@@ -93,6 +91,7 @@ fn observation_args(args: CalibrateArgs) -> Result<CalibrateObservationsArgs, Us
         iterations: args.iterations,
         validate: args.validate,
         per_session: args.observations.per_session,
+        select: args.select,
         folds: args.folds,
         json: args.report.json,
         out_model: args.out_model,

@@ -518,8 +518,12 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
     assert_eq!(is(route(&[Markers], &["--tool", "1,2,3"])), "observations");
     assert_eq!(is(route(&[TreeViews], &["--tips", "a,b"])), "tree");
     let refused = |kinds: &[DataKind], args: &[&str]| route(kinds, args).unwrap_err();
+    match route(&[Observations], &["--select", "cv", "--folds", "4"]).unwrap() {
+        CalibrationRequest::Observations(r) => assert_eq!(r.select, Some(Criterion::Cv { folds: 4 })),
+        other => panic!("{other:?}"),
+    }
     assert!(
-        refused(&[Observations], &["--select", "bic"]).starts_with("--select is for a single file of marker")
+        refused(&[Observations], &["--select", "t", "--params", "none"]).contains("not with --params none")
     );
     assert!(refused(&[Observations], &["--html", "r.html"]).starts_with("--poses-csv, --figures and --html"));
     assert!(refused(&[Markers, Markers], &["--fixed-base"]).starts_with("--fixed-base"));
