@@ -327,6 +327,38 @@ pub enum Held {
         /// The length held.
         parameter: String,
     },
+    /// Of a combination the poses cannot tell apart, `parameter + sum c_i name_i`, held so
+    /// that the others stay free, with what the combination shares its effect with (a marker
+    /// file's gauge: the base, the markers, the parameters of `--keep`, or the poses).
+    Confounded {
+        /// The parameter held.
+        parameter: String,
+        /// The combination's other terms: (parameter, coefficient).
+        terms: Vec<(String, f64)>,
+        /// What its effect is also: the flag that frees it follows from it.
+        with: Confounder,
+    },
+    /// A compliance or play whose joint gravity does not load at these poses (a vertical axis).
+    Unloaded {
+        /// The parameter.
+        parameter: String,
+    },
+}
+
+/// What a held combination's effect is also, and so the flag that frees it
+/// ([`Held::Confounded`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum Confounder {
+    /// It is not a joint's: held so that the parameters of `--keep` stay free.
+    Keep,
+    /// With the base estimated, it only moves the whole robot (`--fixed-base` frees it).
+    Base,
+    /// With the markers estimated, it only moves the markers (`--fixed-markers` frees it).
+    Markers,
+    /// These poses cannot tell it from the others' (other poses, or `--keep`, free it).
+    Poses,
 }
 
 impl Held {
@@ -337,6 +369,8 @@ impl Held {
             | Self::Unmoved { parameter }
             | Self::Unseen { parameter, .. }
             | Self::Combination { parameter, .. }
+            | Self::Confounded { parameter, .. }
+            | Self::Unloaded { parameter }
             | Self::Scale { parameter } => parameter,
         }
     }
@@ -347,8 +381,9 @@ impl Held {
             Self::ByUser { parameter, .. }
             | Self::Unmoved { parameter }
             | Self::Unseen { parameter, .. }
+            | Self::Unloaded { parameter }
             | Self::Scale { parameter } => *parameter = rename(parameter),
-            Self::Combination { parameter, terms } => {
+            Self::Combination { parameter, terms } | Self::Confounded { parameter, terms, .. } => {
                 *parameter = rename(parameter);
                 for (name, _) in terms {
                     *name = rename(name);
@@ -376,6 +411,38 @@ impl Held {
                 "{parameter}: held at its nominal value: contacts alone cannot see the robot's scale, which this \
                  longest length sets"
             ),
+            Self::Confounded { parameter, terms, with } => {
+                let combination = crate::estimation::combination_text(
+                    parameter,
+                    terms.iter().map(|(name, c)| (name.as_str(), *c)),
+                );
+                format!("{combination}: {}", with.advice(parameter))
+            }
+            Self::Unloaded { parameter } => {
+                format!("{parameter}: gravity does not load its joint at these poses (a vertical axis?)")
+            }
+        }
+    }
+}
+
+impl Confounder {
+    /// Why `parameter` is held, and the flag that frees it, in words.
+    pub fn advice(self, parameter: &str) -> String {
+        match self {
+            Self::Keep => "held so that the parameters of --keep stay free".to_string(),
+            Self::Base => format!(
+                "with the base estimated it only moves the whole robot: --fixed-base (if the measuring frame is \
+                 the robot's) or --keep {parameter} frees it"
+            ),
+            Self::Markers => format!(
+                "with the markers estimated it only moves the markers: --fixed-markers (if their positions are \
+                 known) or --keep {parameter} frees it"
+            ),
+            Self::Poses => {
+                format!(
+                    "these poses cannot tell it from the others: vary them, or --keep {parameter} to hold another"
+                )
+            }
         }
     }
 }

@@ -25,7 +25,7 @@ pub mod selection;
 pub mod tree;
 
 pub use data::{DataKind, Measurements};
-pub use diagnostics::{FarOut, Held, Scored, Warning};
+pub use diagnostics::{Confounder, FarOut, Held, Scored, Warning};
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
@@ -242,7 +242,7 @@ pub struct Calibration {
     pub refined: Refined,
     /// Parameters asked for that the poses cannot identify, held fixed: their combinations
     /// with the identified ones, in words.
-    pub fixed: Vec<String>,
+    pub fixed: Vec<Held>,
     /// Errors on the poses used for fitting, before and after.
     pub training: (ErrorStats, ErrorStats),
     /// The training poses scored pose by pose and marker by marker, before and after.
@@ -571,7 +571,7 @@ pub fn calibrate(
 /// and the system linearised about the "before" values, for the identified columns.
 struct Identified {
     kept: Selection,
-    fixed: Vec<String>,
+    fixed: Vec<Held>,
     start: crate::estimation::Linearisation,
     /// The priors' rows for the identified columns, if any parameter has a prior.
     prior: Option<PriorRows>,
@@ -642,31 +642,27 @@ fn identifiable(
     Ok(Identified { kept, fixed, start, prior, data_alone })
 }
 
-/// A held parameter in words a user can act on: the combination `c` of the parameters
-/// `infos` (by column) that the poses cannot tell apart, what it means, and the flag that
-/// frees it. A parameter confounded with the base alone only moves the whole robot as the
-/// base does; with the markers alone, the markers as their positions do.
-fn why_held(c: &crate::estimation::Combination, infos: &[&crate::model::ParamInfo]) -> String {
-    let names: Vec<&str> = infos.iter().map(|p| p.name.as_str()).collect();
-    let held = names[c.column];
+/// A held parameter, typed: the combination `c` of the parameters `infos` (by column) that
+/// the poses cannot tell apart, and what it shares its effect with. A parameter confounded
+/// with the base alone only moves the whole robot as the base does; with the markers alone,
+/// the markers as their positions do ([`Confounder`]).
+fn why_held(c: &crate::estimation::Combination, infos: &[&crate::model::ParamInfo]) -> Held {
     let owners: Vec<ParamOwner> = c.terms.iter().map(|&(t, _)| infos[t].owner).collect();
     let only = |f: fn(&ParamOwner) -> bool| !owners.is_empty() && owners.iter().all(f);
-    let reason = if !matches!(infos[c.column].owner, ParamOwner::Joint(_)) {
-        "held so that the parameters of --keep stay free".to_string()
+    let with = if !matches!(infos[c.column].owner, ParamOwner::Joint(_)) {
+        Confounder::Keep
     } else if only(|o| *o == ParamOwner::Base) {
-        format!(
-            "with the base estimated it only moves the whole robot: --fixed-base (if the measuring frame is \
-             the robot's) or --keep {held} frees it"
-        )
+        Confounder::Base
     } else if only(|o| matches!(o, ParamOwner::Marker(_) | ParamOwner::Tool)) {
-        format!(
-            "with the markers estimated it only moves the markers: --fixed-markers (if their positions are \
-             known) or --keep {held} frees it"
-        )
+        Confounder::Markers
     } else {
-        format!("these poses cannot tell it from the others: vary them, or --keep {held} to hold another")
+        Confounder::Poses
     };
-    format!("{}: {reason}", c.describe(&names))
+    Held::Confounded {
+        parameter: infos[c.column].name.clone(),
+        terms: c.terms.iter().map(|&(j, v)| (infos[j].name.clone(), v)).collect(),
+        with,
+    }
 }
 
 /// The results of the stages of [`calibrate`], to be scored and gathered.
@@ -678,7 +674,7 @@ struct Stages<'a> {
     before: Vec<f64>,
     after: Vec<f64>,
     refined: Refined,
-    fixed: Vec<String>,
+    fixed: Vec<Held>,
     chains: Vec<Chain>,
     noise: Option<NoiseModel>,
     data: &'a Measurements,
@@ -770,7 +766,7 @@ pub(crate) fn without_unloaded_responses(
     chain: &Chain,
     x: &[f64],
     joints: &[Vec<f64>],
-) -> (Selection, Vec<String>) {
+) -> (Selection, Vec<Held>) {
     let params = chain.params();
     let responses: Vec<(usize, usize)> = (asked.indices().iter())
         .filter_map(|&i| match params.get(i).owner {
@@ -793,15 +789,8 @@ pub(crate) fn without_unloaded_responses(
     let heaviest = largest.iter().copied().fold(0.0, f64::max);
     let unloaded: Vec<usize> =
         responses.iter().filter(|&&(_, j)| largest[j] <= 1e-9 * heaviest).map(|&(i, _)| i).collect();
-    let mut why: Vec<String> = unloaded
-        .iter()
-        .map(|&i| {
-            format!(
-                "{}: gravity does not load its joint at these poses (a vertical axis?)",
-                params.get(i).name
-            )
-        })
-        .collect();
+    let mut why: Vec<Held> =
+        unloaded.iter().map(|&i| Held::Unloaded { parameter: params.get(i).name.clone() }).collect();
     // The payload's mass moves the arm only through the compliances: with every one zero at
     // `x`, its column vanishes.
     let payload =
@@ -809,11 +798,12 @@ pub(crate) fn without_unloaded_responses(
     let mut held = unloaded;
     if let Some(i) = payload.filter(|_| !at.deflects()) {
         held.push(i);
-        why.push(format!(
-            "{}: the payload is seen only through the joints' compliances, all zero here: calibrate the \
-             compliances first (with a known payload or none), then its mass with the calibrated model",
-            params.get(i).name
-        ));
+        why.push(Held::Unseen {
+            parameter: params.get(i).name.clone(),
+            why: "the payload is seen only through the joints' compliances, all zero here: calibrate the \
+                  compliances first (with a known payload or none), then its mass with the calibrated model"
+                .into(),
+        });
     }
     let kept = asked.indices().iter().copied().filter(|i| !held.contains(i));
     (Selection::from_indices(params, kept), why)
@@ -1062,13 +1052,13 @@ fn held_in_words(
     params: &ParamSet,
     joints: &JointParams,
     options: &Options,
-) -> Result<Vec<String>, SelectionError> {
+) -> Result<Vec<Held>, SelectionError> {
     let without = Options { gauge: Gauge { hold: Vec::new(), ..options.gauge.clone() }, ..options.clone() };
     let asked = selection(params, joints, &without)?;
     let held = held_by_user(params, &options.gauge)?;
     Ok((asked.indices().iter())
         .filter(|&&i| held.column(i).is_some())
-        .map(|&i| format!("{}: held at its nominal value by --hold", params.get(i).name))
+        .map(|&i| Held::ByUser { parameter: params.get(i).name.clone(), setup: false })
         .collect())
 }
 

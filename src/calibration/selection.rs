@@ -437,7 +437,7 @@ impl Fitted for super::Calibration {
         &self.refined.estimate
     }
     fn held_words(&self) -> Vec<String> {
-        self.fixed.clone()
+        self.fixed.iter().map(Held::text).collect()
     }
 }
 
@@ -616,6 +616,7 @@ impl LinearModel {
         };
         let columns = kept.indices().iter().map(|&i| Some(i)).collect();
         let names = kept.indices().iter().map(|&i| params.get(i).name.clone()).collect();
+        let held = held.iter().map(Held::text).collect();
         Ok(Self::new(params, (columns, names), held, parts))
     }
 

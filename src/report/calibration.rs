@@ -48,8 +48,11 @@ pub struct CalibrationReport {
     pub rank: usize,
     /// `s_1 / s_r`.
     pub condition_number: f64,
-    /// Combinations held fixed because the poses cannot identify them.
+    /// Combinations held fixed because the poses cannot identify them, in words (a line each).
     pub fixed: Vec<String>,
+    /// The same, typed: the kind, the parameter, a combination's terms, what it is confounded
+    /// with.
+    pub held: Vec<crate::calibration::Held>,
     /// Errors on the fitting poses: before (base and markers fitted), after.
     pub training: [ErrorStats; 2],
     /// Errors on held-out poses: `(source, before, after)`.
@@ -451,6 +454,8 @@ impl CalibrationReport {
         folds: Option<(String, ErrorStats, ErrorStats)>,
     ) -> Self {
         let se = standard_errors(c);
+        let held: Vec<crate::calibration::Held> =
+            c.fixed.iter().map(|h| h.clone().renamed(|n| by_number(n, &c.marker_ids))).collect();
         let parameters: Vec<ParameterRow> = c
             .refined
             .estimate
@@ -525,7 +530,8 @@ impl CalibrationReport {
             parameters: parameters.clone(),
             rank: d.rank,
             condition_number: d.condition_number,
-            fixed: c.fixed.iter().map(|f| by_number(f, &c.marker_ids)).collect(),
+            fixed: held.iter().map(crate::calibration::Held::text).collect(),
+            held,
             training: [c.training.0, c.training.1],
             validation,
             sets,

@@ -4,6 +4,7 @@
 use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
+use robocal::calibration::Held;
 use robocal::calibration::{self, JointParams, Measurements, Options};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::kinematics::Chain;
@@ -324,6 +325,7 @@ fn a_payload_mass_is_estimated_where_the_compliances_show_it() {
         result
             .fixed
             .iter()
+            .map(Held::text)
             .any(|f| f.starts_with("payload.mass: the payload is seen only through the joints' compliances")),
         "{:?}",
         result.fixed

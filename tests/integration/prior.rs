@@ -22,7 +22,9 @@ fn infinitely_wide_priors_give_the_unregularised_fit() {
     let plain = calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap();
     let wide = with_prior(&c.options, "j*.*=1e12mm,j*.*=1e12deg");
     let map = calibration::calibrate(&c.nominal, &c.training, &wide).unwrap();
-    assert_eq!(map.fixed, plain.fixed);
+    // The same held parameters and combinations (their coefficients to rounding).
+    let text = |c: &calibration::Calibration| c.fixed.iter().map(|h| h.text()).collect::<Vec<_>>();
+    assert_eq!(text(&map), text(&plain));
     assert_eq!(map.refined.estimate.names, plain.refined.estimate.names);
     for (a, b) in map.after.iter().zip(&plain.after) {
         assert!((a - b).abs() < 1e-9, "{a} against {b}");
@@ -43,7 +45,7 @@ fn a_prior_sd_near_zero_keeps_the_parameter_nominal() {
     let map = calibration::calibrate(&c.nominal, &c.training, &options).unwrap();
     let at = |name: &str| map.after[map.params.index_by_name(name).unwrap()];
     assert!(map.refined.estimate.names.iter().any(|n| n == "j1.theta"), "kept with its prior");
-    assert!(!map.fixed.iter().any(|f| f.starts_with("j1.theta")), "{:?}", map.fixed);
+    assert!(!map.fixed.iter().any(|f| f.parameter() == "j1.theta"), "{:?}", map.fixed);
     assert!(at("j2.a").abs() < 1e-9 && at("j1.theta").abs() < 1e-9, "{} {}", at("j2.a"), at("j1.theta"));
     assert!(at("j3.a").abs() > 1e-3, "the others move: {}", at("j3.a"));
     let se = calibration::standard_errors(&map);

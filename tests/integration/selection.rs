@@ -4,6 +4,7 @@
 use nalgebra::Vector3;
 use robocal::calibration::selection::{Criterion, SelectionPath, select};
 use robocal::calibration::{self, Calibration, Gauge, JointParams, Measurements, Options};
+use robocal::calibration::{Confounder, Held};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::model::{ModelRef, RobotModel};
 use std::path::Path;
@@ -32,7 +33,7 @@ fn puma(joints: JointParams, gauge: Gauge) -> (RobotModel, Measurements, Options
 
 /// The names of the held parameters: the first word of each of `c.fixed`.
 fn held(c: &Calibration) -> Vec<String> {
-    c.fixed.iter().map(|f| f.split([' ', ':']).next().unwrap().to_string()).collect()
+    c.fixed.iter().map(|h| h.parameter().to_string()).collect()
 }
 
 /// The arm7 benchmark's model and files of `dir` (the training file and three sessions).
@@ -99,15 +100,17 @@ fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
         c.refined.estimate.names.iter().filter(|n| n.starts_with("base.") || n.starts_with("marker")).count()
             == 12
     );
+    assert!(matches!(&c.fixed[0], Held::Confounded { with: Confounder::Base, .. }), "{:?}", c.fixed[0]);
     assert_eq!(
-        c.fixed[0],
+        c.fixed[0].text(),
         "j1.theta - base.rz: with the base estimated it only moves the whole robot: --fixed-base (if the measuring \
          frame is the robot's) or --keep j1.theta frees it"
     );
-    assert!(c.fixed[8].starts_with("j6.d - marker1.z - marker2.z: with the markers estimated it only moves the markers: --fixed-markers"), "{}", c.fixed[8]);
+    assert!(matches!(&c.fixed[8], Held::Confounded { with: Confounder::Markers, .. }), "{:?}", c.fixed[8]);
+    assert!(c.fixed[8].text().starts_with("j6.d - marker1.z - marker2.z: with the markers estimated it only moves the markers: --fixed-markers"), "{:?}", c.fixed[8]);
     assert!(
-        c.fixed[3].starts_with("j3.d - j2.d: these poses cannot tell it from the others"),
-        "{}",
+        c.fixed[3].text().starts_with("j3.d - j2.d: these poses cannot tell it from the others"),
+        "{:?}",
         c.fixed[3]
     );
 
@@ -131,7 +134,7 @@ fn hold_and_keep_override_the_gauge() {
     let c = calibration::calibrate(&model, &data, &options).unwrap();
     assert!(c.refined.estimate.names.contains(&"j1.theta".to_string()));
     assert_eq!(held(&c)[0], "base.rz");
-    assert_eq!(c.fixed[0], "base.rz - j1.theta: held so that the parameters of --keep stay free");
+    assert_eq!(c.fixed[0].text(), "base.rz - j1.theta: held so that the parameters of --keep stay free");
 
     let hold = Gauge { hold: vec!["j*.beta".into(), "j2.d".into()], keep: vec![] };
     let (model, data, options) = puma(JointParams::All, hold);
@@ -139,7 +142,7 @@ fn hold_and_keep_override_the_gauge() {
     for name in ["j1.beta", "j2.beta", "j3.beta", "j4.beta", "j5.beta", "j6.beta", "j2.d"] {
         let i = c.params.index_by_name(name).unwrap();
         assert!(!c.refined.estimate.names.contains(&name.to_string()) && c.after[i] == 0.0, "{name}");
-        assert!(c.fixed.contains(&format!("{name}: held at its nominal value by --hold")), "{:?}", c.fixed);
+        assert!(c.fixed.contains(&Held::ByUser { parameter: name.into(), setup: false }), "{:?}", c.fixed);
     }
     // j2.d held, j3.d is no longer confounded with it: it is estimated.
     assert_eq!(held(&c)[..6], ["j1.theta", "j1.d", "j6.theta", "j6.d", "j6.a", "j6.alpha"]);
@@ -311,8 +314,8 @@ fn the_gauge_holds_a_prismatic_first_joints_zero() {
             "wrist.theta"
         ]
     );
-    assert!(c.fixed[6].starts_with("lift.d - "), "{}", c.fixed[6]);
-    assert!(c.fixed[6].ends_with("with the base estimated it only moves the whole robot: --fixed-base (if the measuring frame is the robot's) or --keep lift.d frees it"));
+    assert!(c.fixed[6].text().starts_with("lift.d - "), "{:?}", c.fixed[6]);
+    assert!(c.fixed[6].text().ends_with("with the base estimated it only moves the whole robot: --fixed-base (if the measuring frame is the robot's) or --keep lift.d frees it"));
     assert!(held(&c).iter().all(|n| !n.starts_with("base.") && !n.starts_with("marker")), "{:?}", held(&c));
 }
 
