@@ -168,7 +168,7 @@ fn tree(c: &mut Criterion) {
         estimator: Estimator::Wls,
         joint_noise: Some(nalgebra::DMatrix::from_diagonal_element(nominal.dof(), nominal.dof(), sigma_q)),
         joints: JointParams::All,
-        refine: RefineOptions::default(),
+        ..TreeOptions::default()
     };
     let mut group = c.benchmark_group("calibrate-tree");
     group.sample_size(10);

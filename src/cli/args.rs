@@ -836,6 +836,8 @@ pub struct CalibrateTreeArgs {
     /// never estimated: views cannot see it.
     #[arg(long, default_value = "joints", value_parser = parse_params)]
     pub params: ParamsArg,
+    #[command(flatten)]
+    pub choice: ModelChoiceArgs,
     /// Gauss-Newton steps at most (at least 1).
     #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
     pub iterations: usize,

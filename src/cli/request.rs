@@ -857,6 +857,12 @@ pub struct CalibrateTreeRequest {
     pub joints: JointParams,
     /// Gauss-Newton steps at most (>= 1).
     pub iterations: usize,
+    /// Held and kept parameters.
+    pub gauge: robocal::calibration::Gauge,
+    /// Prior standard deviations.
+    pub prior: Vec<robocal::estimation::PriorEntry>,
+    /// The loss of each view.
+    pub loss: robocal::calibration::Loss,
     /// Held-out files.
     pub validate: Vec<PathBuf>,
     /// Where the JSON report goes.
@@ -878,6 +884,19 @@ impl CalibrateTreeRequest {
             "--model: a URDF file (.urdf) whose links form a tree",
         )?;
         let joints = joint_params(args.params, false)?;
+        if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
+            return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
+        }
+        let prior = match priors(args.choice.prior)? {
+            (prior, None) => prior,
+            (_, Some(_)) => {
+                return Err(UsageError(
+                    "--prior auto: for a marker file; give a tree the preset (--prior fabricated) or its standard \
+                     deviations"
+                        .into(),
+                ));
+            }
+        };
         let mut inputs = vec![("--model", args.model.as_path())];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
@@ -895,6 +914,9 @@ impl CalibrateTreeRequest {
             joint_sigma_deg: args.joint_sigma_deg,
             joints,
             iterations: args.iterations,
+            gauge: robocal::calibration::Gauge { hold: args.choice.hold, keep: args.choice.keep },
+            prior,
+            loss: args.choice.loss,
             validate: args.validate,
             json: args.json,
             out_dir: args.out_dir,

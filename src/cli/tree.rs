@@ -38,6 +38,9 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         joint_noise: joint_noise(&tree, request.joint_sigma_deg.as_deref())?,
         joints: request.joints.clone(),
         refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
+        gauge: request.gauge.clone(),
+        prior: request.prior.clone(),
+        loss: request.loss,
     };
     let names: Vec<String> = request.data.iter().map(|p| p.display().to_string()).collect();
     let c = calibrate_tree(&tree, &data, &options).with_context(|| names.join(", "))?;

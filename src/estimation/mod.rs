@@ -33,7 +33,9 @@ pub use device::{Device, DeviceError};
 pub use noise::{MeasurementNoise, NoiseModel};
 pub(crate) use noise_file::DeviceTable;
 pub use noise_file::{NoiseFileError, NoiseSpec};
-pub use prior::{PRESETS as PRIOR_PRESETS, PriorEntry, PriorError, PriorRows, PriorUnit, prior_sds};
+pub use prior::{
+    PRESETS as PRIOR_PRESETS, PriorEntry, PriorError, PriorRows, PriorUnit, prior_sds, prior_sds_of,
+};
 pub use problem::{POSE_SIGMAS, PointProblem};
 pub use refine::{
     Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from, refine_map,

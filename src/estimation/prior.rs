@@ -216,10 +216,15 @@ impl PriorEntry {
 /// applies to no parameter is an error (a class, `offsets=0.5mm`, may find none: a robot
 /// without a prismatic joint).
 pub fn prior_sds(entries: &[PriorEntry], params: &ParamSet) -> Result<Vec<f64>, PriorError> {
+    prior_sds_of(entries, &params.iter().collect::<Vec<_>>())
+}
+
+/// [`prior_sds`] of the parameters `params` (a tree's, say, which are no one chain's set).
+pub fn prior_sds_of(entries: &[PriorEntry], params: &[&ParamInfo]) -> Result<Vec<f64>, PriorError> {
     let mut sd = vec![f64::INFINITY; params.len()];
     for entry in entries {
         let mut matched = false;
-        for (i, p) in params.iter().enumerate() {
+        for (i, &p) in params.iter().enumerate() {
             if entry.applies_to(p) {
                 sd[i] = entry.sd;
                 matched = true;

@@ -59,6 +59,12 @@ pub struct TreeReport {
     /// With several training files: each one's name and number of views, in order.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub training_files: Vec<(String, usize)>,
+    /// A robust loss (`huber:1.345`), if one was used.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loss: Option<String>,
+    /// The training views it weighted below 0.1, by line.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub down_weighted: Vec<super::calibration::DownWeighted>,
 }
 
 /// Views listed per set in the text, the worst first.
@@ -134,6 +140,15 @@ impl TreeReport {
             sets,
             warnings: c.warnings.clone(),
             training_files: Vec::new(),
+            loss: c.robust.as_ref().map(|r| r.loss.to_string()),
+            down_weighted: c.robust.as_ref().map_or_else(Vec::new, |r| {
+                (r.down_weighted())
+                    .map(|(k, weight)| super::calibration::DownWeighted {
+                        line: c.training.views[k].line,
+                        weight,
+                    })
+                    .collect()
+            }),
         }
     }
 
@@ -165,6 +180,7 @@ impl TreeReport {
         for p in &self.parameters {
             let _ = writeln!(out, "{:<width$} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
         }
+        super::calibration::write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "view");
         let _ = writeln!(out, "\ncameras and targets as calibrated (x, y, z mm; roll, pitch, yaw deg):");
         let width = self.frames.iter().map(|f| f.name.len()).max().unwrap_or(0);
         for f in &self.frames {

@@ -362,6 +362,7 @@ proptest! {
                     joint_noise: None,
                     joints: JointParams::Offsets,
                     refine: RefineOptions { max_iterations: 2, ..RefineOptions::default() },
+                    ..Default::default()
                 };
                 if let Ok(c) = robocal::calibration::tree::calibrate_tree(&tree, &data, &options) {
                     let _ = c.score(&data);

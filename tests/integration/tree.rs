@@ -6,11 +6,11 @@ use proptest::prelude::*;
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use robocal::calibration::Held;
-use robocal::calibration::JointParams;
 use robocal::calibration::tree::{
     Frame, Role, TreeCalibration, TreeData, TreeOptions, TreeParams, TreeProblem, calibrate_tree,
 };
-use robocal::estimation::{Estimator, RefineOptions, Residuals};
+use robocal::calibration::{Gauge, JointParams, Loss};
+use robocal::estimation::{Estimator, PriorEntry, Residuals};
 use robocal::model::RobotTree;
 use robocal::simulation::tree::{frame_at, perturbed_tree, simulate_views};
 
@@ -42,7 +42,7 @@ fn frames(tree: &RobotTree) -> (Vec<Frame>, Vec<f64>) {
 const PAIRS: [(usize, usize); 2] = [(0, 1), (0, 2)];
 
 fn options(estimator: Estimator) -> TreeOptions {
-    TreeOptions { estimator, joint_noise: None, joints: JointParams::All, refine: RefineOptions::default() }
+    TreeOptions { estimator, joint_noise: None, joints: JointParams::All, ..TreeOptions::default() }
 }
 
 #[test]
@@ -649,4 +649,73 @@ fn a_tracker_measuring_points_on_every_branch_recovers_every_chain() {
     let report = String::from_utf8(out.stdout).unwrap();
     assert!(report.contains("180 views at 60 poses") && !report.contains("(deg)"), "{report}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A tree's calibration with a prior, a robust loss and a held parameter, as a marker file's:
+/// each holds out within 1.2 times the plain fit's error; the held parameter (a length with no
+/// error) is not estimated and stays nominal, and `--keep` of a parameter the gauge holds frees it; a `--hold` name that
+/// matches nothing is refused.
+#[test]
+fn a_tree_takes_priors_robust_losses_and_held_parameters() {
+    let mut rng = ChaCha8Rng::seed_from_u64(62);
+    let nominal = torso();
+    let params = TreeParams::new(&nominal);
+    let (frames, placements) = frames(&nominal);
+    let training = nominal.uniform_configurations(80, &mut rng);
+    let exact = simulate_views(&nominal, &frames, &placements, &PAIRS, &training, [0.0; 2], &mut rng);
+    let plain = calibrate_tree(&nominal, &exact, &options(Estimator::Ols)).unwrap();
+    let kept = plain.refined.estimate.names.clone();
+    // A length with no error, to hold.
+    let length = |n: &String| params.params.iter().any(|p| p.name == *n && !p.is_angle());
+    let hold = kept.iter().find(|n| length(n)).unwrap().clone();
+    let mut truth_x = vec![0.0; params.len()];
+    for (i, p) in params.params.iter().enumerate() {
+        if kept.contains(&p.name) && p.name != hold {
+            truth_x[i] = if p.is_angle() { 0.003 } else { 0.8 } * (((i * 37) % 11) as f64 / 5.0 - 1.0);
+        }
+    }
+    let truth = params.fold(&nominal, &truth_x);
+    let sigma = [0.05, 0.01f64.to_radians()];
+    let noisy = simulate_views(&truth, &frames, &placements, &PAIRS, &training, sigma, &mut rng);
+    let held_q = nominal.uniform_configurations(80, &mut rng);
+    let validation = simulate_views(&truth, &frames, &placements, &PAIRS, &held_q, sigma, &mut rng);
+    let wls = options(Estimator::Wls);
+    let held_out = |o: &TreeOptions| {
+        let c = calibrate_tree(&nominal, &noisy, o).unwrap();
+        (c.score(&validation).unwrap().position.1, c)
+    };
+    let (reference, _) = held_out(&wls);
+    assert!(reference < 0.1, "plain wls: {reference} mm held out");
+    let held_combination = plain.fixed.iter().find(|h| matches!(h, Held::Combination { .. })).unwrap();
+    let cases = [
+        (
+            "--prior machined",
+            TreeOptions { prior: PriorEntry::parse_list("machined").unwrap(), ..wls.clone() },
+        ),
+        ("--loss huber", TreeOptions { loss: Loss::Huber(1.345), ..wls.clone() }),
+        ("--hold", TreeOptions { gauge: Gauge { hold: vec![hold.clone()], keep: vec![] }, ..wls.clone() }),
+    ];
+    for (name, o) in &cases {
+        let (found, c) = held_out(o);
+        assert!(found < 1.2 * reference, "{name}: {found} mm held out, plain {reference} mm");
+        if *name == "--hold" {
+            assert!(!c.refined.estimate.names.contains(&hold), "{name}: {hold} estimated");
+            assert_eq!(c.after[params.params.iter().position(|p| p.name == hold).unwrap()], 0.0);
+            assert!(
+                c.fixed.contains(&Held::ByUser { parameter: hold.clone(), setup: false }),
+                "{:?}",
+                c.fixed
+            );
+        }
+        if *name == "--loss huber" {
+            assert!(c.robust.is_some(), "{name}: its weights");
+        }
+    }
+    let freed = held_combination.parameter().to_string();
+    let keep = TreeOptions { gauge: Gauge { hold: vec![], keep: vec![freed.clone()] }, ..wls.clone() };
+    let c = calibrate_tree(&nominal, &noisy, &keep).unwrap();
+    assert!(c.refined.estimate.names.contains(&freed), "--keep {freed}: {:?}", c.fixed);
+    let nothing = TreeOptions { gauge: Gauge { hold: vec!["no_such.x".into()], keep: vec![] }, ..wls };
+    let error = calibrate_tree(&nominal, &noisy, &nothing).unwrap_err().to_string();
+    assert!(error.contains("no_such.x"), "{error}");
 }

@@ -50,13 +50,17 @@ mod data;
 pub use data::{Frame, Role, TreeData, View};
 
 use super::kinds::camera::{camera_start, isometry, mounted, placed, placement, relative_view};
-use super::kinds::identifiable;
-use super::{CalibrationError, FLAG_AT, FarOut, Held, JointParams, Scored, Warning, fold, gauge_class};
+use super::kinds::{Gauged, identifiable};
+use super::{
+    CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
+    gauge_class,
+};
 use crate::estimation::{
-    Estimator, POSE_SIGMAS, RefineOptions, Refined, Residuals, Weights, linearise, refine_from,
+    Estimator, Linearisation, POSE_SIGMAS, PriorEntry, PriorRows, RefineOptions, Refined, Residuals, Weights,
+    linearise, prior_sds_of, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
-use crate::model::{ParamInfo, ParamOwner, Placement, RobotTree, Selection, SelectionError};
+use crate::model::{ParamInfo, ParamOwner, Placement, RobotTree, Selection, SelectionError, name_matches};
 use nalgebra::{
     DMatrix, DMatrixView, DMatrixViewMut, DVector, Isometry3, Matrix6, Matrix6xX, Vector3, Vector6,
 };
@@ -73,6 +77,27 @@ pub struct TreeOptions {
     pub joints: JointParams,
     /// Gauss-Newton settings.
     pub refine: RefineOptions,
+    /// Parameters held at their nominal values (`--hold`) and kept free first (`--keep`).
+    pub gauge: Gauge,
+    /// Prior standard deviations of the tree's parameters (`--prior`): a maximum a posteriori
+    /// fit, as of a marker file.
+    pub prior: Vec<PriorEntry>,
+    /// The loss of each pose's views (`--loss`): squared, or robust by reweighting.
+    pub loss: Loss,
+}
+
+impl Default for TreeOptions {
+    fn default() -> Self {
+        Self {
+            estimator: Estimator::Wls,
+            joint_noise: None,
+            joints: JointParams::All,
+            refine: RefineOptions::default(),
+            gauge: Gauge::default(),
+            prior: Vec::new(),
+            loss: Loss::Squared,
+        }
+    }
 }
 
 /// The tree's error parameters: the base's, then each joint's once (named after it), and how
@@ -551,6 +576,8 @@ pub struct TreeCalibration {
     /// Implausible results, one per cause: joint lengths corrected by more than 10 mm, training
     /// views more than [`FLAG_AT`] standard deviations out after calibration.
     pub warnings: Vec<Warning>,
+    /// With a robust loss: its final weights, one per view (block of rows).
+    pub robust: Option<RobustFit>,
     joint_noise: Option<DMatrix<f64>>,
 }
 
@@ -715,6 +742,56 @@ fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, Calib
     Ok(values)
 }
 
+/// The tree parameters `options.joints` asks for, less those `--hold` names (each held one
+/// typed); a `--hold` pattern that names no parameter of the tree is refused.
+fn asked(params: &TreeParams, options: &TreeOptions) -> Result<(Vec<usize>, Vec<Held>), SelectionError> {
+    let asked = params.select(&options.joints)?;
+    let name = |i: usize| params.params[i].name.as_str();
+    let hold = &options.gauge.hold;
+    if let Some(p) = hold.iter().find(|p| !(0..params.len()).any(|i| name_matches(p, name(i)))) {
+        return Err(SelectionError { pattern: p.clone() });
+    }
+    let (held, kept): (Vec<usize>, Vec<usize>) =
+        asked.into_iter().partition(|&i| hold.iter().any(|p| name_matches(p, name(i))));
+    let words = held.iter().map(|&i| Held::ByUser { parameter: name(i).to_string(), setup: false });
+    Ok((kept, words.collect()))
+}
+
+/// The gauge of `problem` linearised in `linearised` (its columns: `asked` of `params`, then
+/// the cameras' and targets' placements): `--keep`'s columns free first, then by gauge
+/// class; with priors, what the data and the priors together cannot identify is held. The
+/// identifiable columns, the held ones, and the prior rows of every column.
+fn tree_gauge(
+    problem: &TreeProblem<'_>,
+    linearised: &Linearisation,
+    (params, asked): (&TreeParams, &[usize]),
+    options: &TreeOptions,
+    weights: &Weights,
+) -> Result<Gauged, CalibrationError> {
+    let names = problem.names();
+    let keep: Vec<usize> = (options.gauge.keep.iter())
+        .map(|p| {
+            let found: Vec<usize> = (0..names.len()).filter(|&c| name_matches(p, &names[c])).collect();
+            if found.is_empty() { Err(SelectionError { pattern: p.clone() }) } else { Ok(found) }
+        })
+        .collect::<Result<Vec<_>, _>>()?
+        .concat();
+    let priority: Vec<u32> = (0..problem.parameters())
+        .map(|c| match keep.contains(&c) {
+            true => 0,
+            false => 1 + asked.get(c).map_or(0, |&i| gauge_class(&params.params[i])),
+        })
+        .collect();
+    let infos: Vec<&ParamInfo> = params.params.iter().collect();
+    let sd = prior_sds_of(&options.prior, &infos)?;
+    let columns: Vec<f64> =
+        (0..problem.parameters()).map(|c| asked.get(c).map_or(f64::INFINITY, |&i| sd[i])).collect();
+    let prior = (columns.iter().any(|s| s.is_finite()))
+        .then(|| PriorRows::new(&columns, weights.scale().unwrap_or(1.0)));
+    let (identifiable, fixed) = identifiable(linearised, &names, &priority, prior.as_ref())?;
+    Ok(Gauged { identifiable, fixed, prior })
+}
+
 /// Calibrate `tree` from camera views between its branches: the cameras and targets fitted
 /// with the tree nominal ("before"), then the joint parameters asked for with them ("after");
 /// the base and what the views cannot see held and said ([`TreeCalibration::unseen`]), what
@@ -747,8 +824,8 @@ pub fn calibrate_tree(
     let fit = linearise(&base_problem, &weights, base_problem.start())?;
     let refined = refine_from(&base_problem, &weights, fit, &RefineOptions::default())?;
     let before_setup = base_problem.full(&refined.estimate.x).1;
-    // "After": the joint parameters asked for, with the cameras and targets.
-    let asked = params.select(&options.joints)?;
+    // "After": the joint parameters asked for, less --hold's, with the cameras and targets.
+    let (asked, held) = asked(&params, options)?;
     let problem = base_problem.reselect(asked.clone(), zero.clone(), before_setup.clone(), every.clone());
     if problem.equations() <= problem.parameters() {
         return Err(CalibrationError::TooFewPoses {
@@ -759,10 +836,8 @@ pub fn calibrate_tree(
         });
     }
     let linearised = linearise(&problem, &weights, problem.start())?;
-    let priority: Vec<u32> = (0..problem.parameters())
-        .map(|c| asked.get(c).map_or(0, |&i| gauge_class(&params.params[i])))
-        .collect();
-    let (identifiable, mut fixed) = identifiable(&linearised, &problem.names(), &priority, None)?;
+    let Gauged { identifiable, mut fixed, prior } =
+        tree_gauge(&problem, &linearised, (&params, &asked), options, &weights)?;
     for f in &mut fixed {
         let Held::Unmoved { parameter } = f else { continue };
         let turn = ["rx", "ry", "rz"].iter().any(|r| parameter.ends_with(&format!(".{r}")));
@@ -774,12 +849,16 @@ pub fn calibrate_tree(
             *f = Held::Unseen { parameter: std::mem::take(parameter), why };
         }
     }
+    fixed.extend(held);
     let robot = asked.len();
     let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
     let kept_setup: Vec<usize> =
         identifiable.iter().filter(|&&c| c >= robot).map(|&c| every[c - robot]).collect();
     let problem = base_problem.reselect(kept, zero, before_setup.clone(), kept_setup);
-    let estimate = refine_from(&problem, &weights, linearised.select(&identifiable), &options.refine)?;
+    let prior = prior.map(|p| p.select(&identifiable));
+    let start = linearised.select(&identifiable);
+    let (estimate, robust) =
+        super::robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);
     let calibrated = params.fold(tree, &after);
     let unseen = vec![match data.frames.iter().find(|f| f.on.is_none()) {
@@ -803,6 +882,7 @@ pub fn calibrate_tree(
         fixed,
         training: TreeScore { views: Vec::new(), position: (0.0, 0.0), rotation: None },
         warnings: Vec::new(),
+        robust,
         joint_noise: options.joint_noise.clone(),
     };
     calibration.training = calibration.score(data)?;

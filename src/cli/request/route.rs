@@ -3,8 +3,8 @@
 //! tree's; a flag the chosen one cannot honour is refused, saying why, before any work.
 
 use super::{CalibrateObservationsRequest, CalibrateRequest, CalibrateTreeRequest, UsageError, require};
-use crate::cli::args::{CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, ModelChoiceArgs};
-use robocal::calibration::{DataKind, Loss};
+use crate::cli::args::{CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs};
+use robocal::calibration::DataKind;
 use std::path::PathBuf;
 
 /// A validated `robocal calibrate`: the calibration its data and flags call for.
@@ -110,10 +110,6 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
             args.fixed_base || args.fixed_markers,
             "--fixed-base and --fixed-markers (a tree's base is never estimated)",
         ),
-        (
-            args.choice != ModelChoiceArgs { loss: Loss::Squared, ..Default::default() },
-            "--hold, --keep, --prior and --loss",
-        ),
         (args.select.is_some(), "--select"),
         (!args.marker.is_empty() || args.markers.is_some(), "--marker and --markers"),
         (args.folds.is_some(), "--folds"),
@@ -142,6 +138,7 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
         estimator: args.estimator,
         joint_sigma_deg: args.noise_flags.joint_sigma_deg,
         params: args.params,
+        choice: args.choice,
         iterations: args.iterations,
         validate: args.validate,
         json: args.report.json,

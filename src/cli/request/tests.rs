@@ -530,9 +530,11 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
     assert!(refused(&[Observations], &["--noise", "n.toml"]).contains("sigma columns"));
     assert!(refused(&[TreeViews, Observations], &[]).contains("fitted on their own"));
     assert!(refused(&[Observations], &["--tips", "a"]).starts_with("--model: a URDF file"), "--tips: a tree");
-    assert!(
-        refused(&[TreeViews], &["--prior", "machined"]).starts_with("--hold, --keep, --prior and --loss")
+    assert_eq!(
+        is(route(&[TreeViews], &["--prior", "machined", "--loss", "huber", "--hold", "torso.z"])),
+        "tree"
     );
+    assert!(refused(&[TreeViews], &["--select", "bic"]).starts_with("--select"));
     assert!(refused(&[TreeViews], &["--out-model", "m.toml"]).contains("--out-dir"));
 }
 
