@@ -439,12 +439,15 @@ impl LinearModel {
             Some(&prior_sd),
         )?;
         let system = base_problem.reselect(&kept, frame.before.clone())?.system(&start.x);
+        // The whitened system of `start`, held whole: the path fits it fold by fold.
+        let mut whitened = system.h.clone();
+        weights.apply(&mut whitened);
         let scale: Vec<f64> =
-            start.a.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
+            whitened.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
         let rows = base_problem.rows_per_point();
         let (a, b) = match &prior {
-            Some(prior) => prior.augment(&start.a, &start.b, &start.x),
-            None => (start.a.clone(), start.b.clone()),
+            Some(prior) => prior.augment(&whitened, &start.b, &start.x),
+            None => (whitened, start.b.clone()),
         };
         Ok(Self {
             params: params.clone(),

@@ -21,6 +21,7 @@ mod noise;
 mod noise_file;
 pub mod prior;
 mod problem;
+mod reduced;
 mod refine;
 mod solve;
 mod variance;
@@ -35,8 +36,10 @@ pub(crate) use noise_file::DeviceTable;
 pub use noise_file::{NoiseFileError, NoiseSpec};
 pub use prior::{PRESETS as PRIOR_PRESETS, PriorEntry, PriorError, PriorRows, PriorUnit, prior_sds};
 pub use problem::{POSE_SIGMAS, PointProblem};
+pub use reduced::Reduced;
 pub use refine::{
-    Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from, refine_map,
+    Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, linearise_rows, refine,
+    refine_from, refine_map,
 };
 pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE, combination_text};
 pub use variance::{ComponentFit, JointComponents, NoiseEstimate, SigmaInterval, sample_covariance};
@@ -439,9 +442,9 @@ pub fn diagnose(
 ) -> Result<Diagnostics, EstimationError> {
     system.validate()?;
     let weights = Weights::new(system.v.as_ref(), system.rows_per_point, estimator, true)?;
-    let mut a = system.h.clone();
-    weights.apply(&mut a);
-    Ok(solve::factorise(&a, rank_tolerance)?.diagnostics)
+    let w = weights.whiten(system);
+    let reduced = Reduced::of_whitened(&w.a, &w.b, &w.blocks, None);
+    solve::diagnose_reduced(&reduced, rank_tolerance, &[])
 }
 
 /// The pseudoinverse `pinv(A)` by the same rank-revealing factorisation as every estimate.

@@ -9,7 +9,7 @@
 //! on the unit of length, and one radian never counts as one millimetre.
 
 use super::refine::Residuals;
-use super::{EstimationError, LinearSystem, NoiseModel, Weights};
+use super::{EstimationError, LinearSystem, NoiseModel, Reduced, Weights};
 use crate::kinematics::{Chain, ChainAt, Measured, end_positions, marker_jacobians, pose_error};
 use crate::model::Selection;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX, Vector3};
@@ -248,6 +248,10 @@ impl Residuals for PointProblem<'_> {
     ) -> DVector<f64> {
         self.residuals(x, Some(weights), h)
     }
+
+    fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
+        self.stream(x, weights)
+    }
 }
 
 impl PointProblem<'_> {
@@ -293,49 +297,93 @@ impl PointProblem<'_> {
         mut h: Option<Vec<&mut [f64]>>,
     ) {
         let rows = self.rows_per_point();
-        let mut block = DMatrix::zeros(rows, self.selection.len());
-        let mut positions = vec![Vector3::zeros(); at.len()];
+        let mut scratch = self.scratch(at.len());
         for (i, y_k) in y.chunks_exact_mut(rows).enumerate() {
             let k = first + i;
-            let q = &self.joints[k];
-            match h.as_deref_mut() {
-                Some(columns) => {
-                    block.fill(0.0);
-                    let view = block.view_mut((0, 0), block.shape());
-                    if at.len() > 1 {
-                        // Markers: the arm walked once for all of them.
-                        marker_jacobians(at, q, self.selection, view, &mut positions);
-                    } else {
-                        positions[0] = at[0].identification_jacobian(q, self.selection, self.measured, view);
-                    }
-                    if let Some(weights) = weights {
-                        weights.apply_point(k, block.as_mut_slice());
-                    }
-                    for (column, values) in columns.iter_mut().zip(block.as_slice().chunks_exact(rows)) {
-                        for (to, from) in column[i * rows..(i + 1) * rows].iter_mut().zip(values) {
-                            *to = *from;
-                        }
+            self.pose(k, at, &mut scratch, h.is_some(), y_k);
+            if let Some(columns) = h.as_deref_mut() {
+                let block = &mut scratch.block;
+                if let Some(weights) = weights {
+                    weights.apply_point(k, block.as_mut_slice());
+                }
+                for (column, values) in columns.iter_mut().zip(block.as_slice().chunks_exact(rows)) {
+                    for (to, from) in column[i * rows..(i + 1) * rows].iter_mut().zip(values) {
+                        *to = *from;
                     }
                 }
-                None if self.measured == Measured::Position => end_positions(at, q, &mut positions),
-                None => {}
-            }
-            let observed = &self.observed[k * at.len()..(k + 1) * at.len()];
-            match self.measured {
-                Measured::Position => {
-                    for ((observed, position), y_m) in
-                        observed.iter().zip(&positions).zip(y_k.chunks_exact_mut(3))
-                    {
-                        y_m.copy_from_slice((observed.translation.vector - position).as_slice());
-                    }
-                }
-                Measured::Pose => y_k.copy_from_slice(pose_error(&observed[0], &at[0].pose(q)).as_slice()),
             }
             if let Some(weights) = weights {
                 weights.apply_point(k, y_k);
             }
         }
     }
+
+    /// The scratch space of [`PointProblem::pose`] for `chains` chains.
+    fn scratch(&self, chains: usize) -> Scratch {
+        Scratch {
+            block: DMatrix::zeros(self.rows_per_point(), self.selection.len()),
+            positions: vec![Vector3::zeros(); chains],
+        }
+    }
+
+    /// Pose `k`'s residual `y_k` (unwhitened) and, if `jacobian`, its rows of `H` in
+    /// `scratch.block`.
+    fn pose(&self, k: usize, at: &[ChainAt], scratch: &mut Scratch, jacobian: bool, y_k: &mut [f64]) {
+        let q = &self.joints[k];
+        let Scratch { block, positions } = scratch;
+        if jacobian {
+            block.fill(0.0);
+            let view = block.view_mut((0, 0), block.shape());
+            if at.len() > 1 {
+                // Markers: the arm walked once for all of them.
+                marker_jacobians(at, q, self.selection, view, positions);
+            } else {
+                positions[0] = at[0].identification_jacobian(q, self.selection, self.measured, view);
+            }
+        } else if self.measured == Measured::Position {
+            end_positions(at, q, positions);
+        }
+        let observed = &self.observed[k * at.len()..(k + 1) * at.len()];
+        match self.measured {
+            Measured::Position => {
+                for ((observed, position), y_m) in
+                    observed.iter().zip(positions.iter()).zip(y_k.chunks_exact_mut(3))
+                {
+                    y_m.copy_from_slice((observed.translation.vector - position).as_slice());
+                }
+            }
+            Measured::Pose => y_k.copy_from_slice(pose_error(&observed[0], &at[0].pose(q)).as_slice()),
+        }
+    }
+
+    /// [`Residuals::linearise_whitened`] without `H`: each pose's rows are built, whitened and
+    /// reduced into the triangular factor in one go ([`Reduced::reduce`]).
+    fn stream(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
+        let (rows, p) = (self.rows_per_point(), self.selection.len());
+        let full = self.full(x);
+        let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
+        let mut y = DVector::zeros(self.equations());
+        let reduced = Reduced::reduce(
+            &self.blocks(),
+            p,
+            weights.noise(),
+            y.as_mut_slice(),
+            || self.scratch(at.len()),
+            |scratch, k, out| {
+                let (h, y_k) = out.split_at_mut(rows * p);
+                self.pose(k, &at, scratch, true, y_k);
+                h.copy_from_slice(scratch.block.as_slice());
+                weights.apply_point(k, out);
+            },
+        );
+        (y, reduced)
+    }
+}
+
+/// The scratch space of one task of a linearisation: a pose's rows of `H`, the chains' ends.
+struct Scratch {
+    block: DMatrix<f64>,
+    positions: Vec<Vector3<f64>>,
 }
 
 /// `sigma_position / sigma_orientation` of pose blocks `V_k` stacked (`6N x 6`): the square
