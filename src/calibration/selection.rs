@@ -42,14 +42,15 @@
 //! is the same on any number of threads. The selected model is then calibrated by
 //! Gauss-Newton as any other.
 
+use super::kinds::{self, KindCalibration, KindData, KindOptions};
 use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale, with_scale};
 use super::{
-    CalibrationError, ErrorStats, Identified, JointParams, Measurements, Options, RobotModel, Whitening,
-    calibrate, errors, identifiable, observed, selection, standard_errors,
+    CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel, Whitening,
+    calibrate, errors, identifiable, observed, selection, standard_errors_of,
 };
-use crate::estimation::{PointProblem, Residuals, Weights};
+use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights, linearise_rows};
 use crate::kinematics::Measured;
-use crate::model::{ParamOwner, Selection};
+use crate::model::{ParamOwner, Selection, name_matches};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
@@ -128,6 +129,12 @@ impl SelectionPath {
     pub fn options(&self, options: &Options) -> Options {
         asking(options, &self.selected)
     }
+
+    /// `options` of an observation calibration of `model` asking for the selected joint
+    /// parameters only (and the set-up's that `--params` names).
+    pub fn kind_options(&self, model: &RobotModel, options: &KindOptions) -> KindOptions {
+        asking_kinds(model, options, &self.selected)
+    }
 }
 
 /// `options` asking for the joint parameters `names` only.
@@ -150,12 +157,91 @@ pub fn select(
         ));
     }
     match criterion {
-        Criterion::T => backward(model, data, options),
+        Criterion::T => backward(|names: Option<&[String]>| match names {
+            Some(names) => calibrate(model, data, &asking(options, names)),
+            None => calibrate(model, data, options),
+        }),
         Criterion::Cv { folds } if folds < 2 || folds > data.len() => Err(CalibrationError::Scoring(
             format!("{folds} folds for {} poses: expected 2 to the number of poses", data.len()),
         )),
         _ => forward(model, data, options, criterion),
     }
+}
+
+/// Choose among the joint parameters `options.joints` names of an observation calibration
+/// (distances, contacts, coordinates, cameras' views, markers: [`kinds`]) by `criterion`, as
+/// [`select`] does for a marker file: the registration is the set-up, the tool point and, with
+/// markers, the base and the markers, always estimated; a fold holds out the observations of
+/// its poses (a pair by its first); the CV RMS is of the lengths (mm), angles not scored.
+pub fn select_kinds(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    criterion: Criterion,
+) -> Result<SelectionPath, CalibrationError> {
+    let poses = data.joints.len();
+    match criterion {
+        Criterion::T => backward(|names: Option<&[String]>| {
+            let options = names.map_or_else(|| options.clone(), |n| asking_kinds(model, options, n));
+            kinds::calibrate_kinds(model, data, &options)
+        }),
+        Criterion::Cv { folds } if folds < 2 || folds > poses => Err(CalibrationError::Scoring(format!(
+            "{folds} folds for {poses} poses: expected 2 to the number of poses"
+        ))),
+        Criterion::Cv { .. } if data.observations.iter().all(|o| o.is_angle()) => Err(CalibrationError::Scoring(
+            "--select cv scores the held-out lengths (mm), and these observations are all angles: use --select bic \
+             or t"
+                .into(),
+        )),
+        _ => Ok(LinearModel::of_kinds(model, data, options)?.forward(criterion)),
+    }
+}
+
+/// [`select_kinds`], then [`kinds::calibrate_kinds`] with the parameters it chose
+/// ([`SelectionPath::kind_options`]); the folds of cv at most the poses.
+pub fn calibrate_kinds_selected(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    criterion: Criterion,
+) -> Result<(SelectionPath, KindCalibration), CalibrationError> {
+    let criterion = match criterion {
+        Criterion::Cv { folds } => Criterion::Cv { folds: folds.min(data.joints.len()) },
+        other => other,
+    };
+    let path = select_kinds(model, data, options, criterion)?;
+    let calibration = kinds::calibrate_kinds(model, data, &path.kind_options(model, options))?;
+    Ok((path, calibration))
+}
+
+/// Nested k-fold cross-validation of [`calibrate_kinds_selected`]: the selection made again on
+/// each fold's training observations ([`kinds::cross_validate_kinds`]'s folds), and the
+/// held-out ones scored with the model it chose.
+pub fn cross_validate_kinds_selection(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    criterion: Criterion,
+    folds: usize,
+) -> Result<kinds::Score, CalibrationError> {
+    kinds::cross_validate_kinds_by(data, folds, |train| {
+        Ok(calibrate_kinds_selected(model, train, options, criterion)?.1)
+    })
+}
+
+/// `options` of an observation calibration asking for the joint parameters `names` only; the
+/// patterns of `--params` that name no robot parameter (a set-up's, a marker's) kept.
+fn asking_kinds(model: &RobotModel, options: &KindOptions, names: &[String]) -> KindOptions {
+    let robot = model.params();
+    let others = match &options.joints {
+        JointParams::Named(patterns) => {
+            patterns.iter().filter(|p| !robot.iter().any(|q| name_matches(p, &q.name))).cloned().collect()
+        }
+        _ => Vec::new(),
+    };
+    let all: Vec<String> = names.iter().cloned().chain(others).collect();
+    let joints = if all.is_empty() { JointParams::None } else { JointParams::Named(all) };
+    KindOptions { joints, ..options.clone() }
 }
 
 /// The choices made from the data before a calibration: the scale of a preset's priors
@@ -271,22 +357,22 @@ pub struct NestedCv {
 /// whose estimate a kept parameter can stand in for ([`stand_in`]) is not dropped while that
 /// parameter's `|t|` is below 2 too: the stand-in goes first (the step says so); when the
 /// stand-in is strong, the zero goes and the path records the trade.
-fn backward(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
+fn backward<C: Fitted>(
+    calibrate: impl Fn(Option<&[String]>) -> Result<C, CalibrationError>,
 ) -> Result<SelectionPath, CalibrationError> {
     let mut steps = vec![Step { parameter: None, score: f64::NAN, se: f64::NAN, note: None }];
-    let (mut current, mut held, mut trades) = (options.clone(), None, Vec::new());
+    let (mut current, mut held, mut trades) = (None::<Vec<String>>, None, Vec::new());
     loop {
-        let c = calibrate(model, data, &current)?;
-        let held = held.get_or_insert_with(|| c.fixed.clone());
-        let se = standard_errors(&c);
-        let joints: Vec<usize> = (c.refined.estimate.names.iter())
-            .filter_map(|n| c.params.index_by_name(n))
-            .filter(|&i| matches!(c.params.get(i).owner, ParamOwner::Joint(_)))
+        let c = calibrate(current.as_deref())?;
+        let held = held.get_or_insert_with(|| c.held_words());
+        let (params, estimate) = (c.params(), c.estimate());
+        let (before, after) = c.values();
+        let se = standard_errors_of(params.iter(), estimate);
+        let joints: Vec<usize> = (estimate.names.iter())
+            .filter_map(|n| params.index_by_name(n))
+            .filter(|&i| matches!(params.get(i).owner, ParamOwner::Joint(_)))
             .collect();
-        let t = |i: usize| (c.after[i] - c.before[i]).abs() / se[i];
+        let t = |i: usize| (after[i] - before[i]).abs() / se[i];
         let weak = |i: usize| t(i) < 2.0 || t(i).is_nan();
         // The smallest |t|, ties to the earlier parameter; a NaN (no standard error) is dropped.
         let weakest = joints
@@ -294,14 +380,14 @@ fn backward(
             .copied()
             .min_by(|&i, &j| t(i).partial_cmp(&t(j)).unwrap_or(std::cmp::Ordering::Less));
         let Some(i) = weakest.filter(|&i| weak(i)) else {
-            let selected = joints.iter().map(|&j| c.params.get(j).name.clone()).collect();
+            let selected = joints.iter().map(|&j| params.get(j).name.clone()).collect();
             let chosen = steps.len() - 1;
             let held = std::mem::take(held);
             return Ok(SelectionPath { criterion: Criterion::T, steps, chosen, selected, held, trades });
         };
-        let name = |i: usize| c.params.get(i).name.clone();
-        let covariance = |a: usize, b: usize| estimate_covariance(&c, a, b);
-        let (drop, note) = match stand_in(&c.params, i, &joints, &covariance) {
+        let name = |i: usize| params.get(i).name.clone();
+        let covariance = |a: usize, b: usize| estimate_covariance(params, estimate, a, b);
+        let (drop, note) = match stand_in(params, i, &joints, &covariance) {
             Some((k, r)) if weak(k) => {
                 let note = format!(
                     "{} (|t| {:.2}) before {}, for which it stands in (correlation {r:+.2}): a joint's zero \
@@ -327,8 +413,46 @@ fn backward(
             None => (i, None),
         };
         steps.push(Step { parameter: Some(name(drop)), score: t(drop), se: f64::NAN, note });
-        let names: Vec<String> = joints.iter().filter(|&&j| j != drop).map(|&j| name(j)).collect();
-        current = asking(options, &names);
+        current = Some(joints.iter().filter(|&&j| j != drop).map(|&j| name(j)).collect());
+    }
+}
+
+/// A calibration the `t` rule reads: its parameters, their values before and after (full
+/// vector), its estimate, and what it held in words.
+trait Fitted {
+    fn params(&self) -> &crate::model::ParamSet;
+    fn values(&self) -> (&[f64], &[f64]);
+    fn estimate(&self) -> &LinearEstimate;
+    fn held_words(&self) -> Vec<String>;
+}
+
+impl Fitted for super::Calibration {
+    fn params(&self) -> &crate::model::ParamSet {
+        &self.params
+    }
+    fn values(&self) -> (&[f64], &[f64]) {
+        (&self.before, &self.after)
+    }
+    fn estimate(&self) -> &LinearEstimate {
+        &self.refined.estimate
+    }
+    fn held_words(&self) -> Vec<String> {
+        self.fixed.clone()
+    }
+}
+
+impl Fitted for KindCalibration {
+    fn params(&self) -> &crate::model::ParamSet {
+        &self.params
+    }
+    fn values(&self) -> (&[f64], &[f64]) {
+        (&self.before, &self.after)
+    }
+    fn estimate(&self) -> &LinearEstimate {
+        &self.refined.estimate
+    }
+    fn held_words(&self) -> Vec<String> {
+        self.fixed.iter().map(Held::text).collect()
     }
 }
 
@@ -363,12 +487,16 @@ fn stand_in(
         .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
 }
 
-/// The covariance of the estimates of parameters `a` and `b` (full-vector indices) of `c`.
-fn estimate_covariance(c: &super::Calibration, a: usize, b: usize) -> f64 {
-    let names = &c.refined.estimate.names;
-    let column = |i: usize| names.iter().position(|n| *n == c.params.get(i).name);
+/// The covariance in `estimate` of parameters `a` and `b` (indices of `params`).
+fn estimate_covariance(
+    params: &crate::model::ParamSet,
+    estimate: &LinearEstimate,
+    a: usize,
+    b: usize,
+) -> f64 {
+    let column = |i: usize| estimate.names.iter().position(|n| *n == params.get(i).name);
     match (column(a), column(b)) {
-        (Some(a), Some(b)) => c.refined.estimate.covariance[(a, b)],
+        (Some(a), Some(b)) => estimate.covariance[(a, b)],
         _ => f64::NAN,
     }
 }
@@ -380,38 +508,71 @@ fn forward(
     options: &Options,
     criterion: Criterion,
 ) -> Result<SelectionPath, CalibrationError> {
-    let linear = LinearModel::new(model, data, options)?;
-    let mut fits = linear.fits(criterion);
-    let (steps, order) = walk(&mut fits, &linear, criterion);
-    let chosen = choose_step(&steps, criterion);
-    let mut columns: Vec<usize> = order[..chosen].iter().map(|&j| linear.kept.indices()[j]).collect();
-    columns.sort_unstable();
-    let selected = columns.iter().map(|&i| linear.params.get(i).name.clone()).collect();
-    let trades = linear.trades(&order[..chosen]);
-    Ok(SelectionPath { criterion, steps, chosen, selected, held: linear.held, trades })
+    let linear = LinearModel::of_markers(model, data, options)?;
+    Ok(linear.forward(criterion))
 }
 
 /// The calibration linearised once about the registration ("before"), for the parameters
 /// asked for that the poses identify: whitened by the estimator (`A = S H`, `b = S y`) to fit,
 /// unweighted (`H`, `y`) to score, both column-scaled alike.
-struct LinearModel {
+pub(super) struct LinearModel {
     params: crate::model::ParamSet,
-    /// The identified parameters: the columns.
-    kept: Selection,
+    /// Each column's parameter (an index of `params`); `None` for a set-up parameter.
+    columns: Vec<Option<usize>>,
+    /// Each column's name.
+    names: Vec<String>,
     /// The held ones, in words.
     held: Vec<String>,
     whitened: Scaled,
     unweighted: Scaled,
-    /// Rows per pose, and markers per pose.
-    rows: usize,
-    markers: usize,
-    poses: usize,
+    /// Each data row's pose: its fold is the pose's.
+    pose_of_row: Vec<usize>,
+    /// Each data row's share of one scored error: a third of a marker for its coordinates, one
+    /// for a length observation, none for an angle (whose unweighted row is zero).
+    share: Vec<f64>,
+}
+
+/// A linear model's system about the registration: [`LinearModel::new`]'s parts.
+pub(super) struct LinearParts {
+    /// `A = S H` and `b = S y` of the identified columns, the prior's rows below them.
+    pub whitened: (DMatrix<f64>, DVector<f64>),
+    /// `H` and `y`, unweighted, the rows that are not scored zero.
+    pub unweighted: (DMatrix<f64>, DVector<f64>),
+    /// Each data row's pose, and its share of one scored error.
+    pub rows: Vec<(usize, f64)>,
 }
 
 impl LinearModel {
+    /// The model of the columns `columns` (named `names`) of `params`, the held in `held`,
+    /// from `parts`; the columns scaled by the whitened system's column norms.
+    pub(super) fn new(
+        params: &crate::model::ParamSet,
+        (columns, names): (Vec<Option<usize>>, Vec<String>),
+        held: Vec<String>,
+        parts: LinearParts,
+    ) -> Self {
+        let LinearParts { whitened: (a, b), unweighted: (h, y), rows } = parts;
+        let data = rows.len();
+        let scale: Vec<f64> = (a.rows(0, data).column_iter())
+            .map(|c| c.norm())
+            .map(|n| if n > 0.0 { 1.0 / n } else { 1.0 })
+            .collect();
+        let (pose_of_row, share) = rows.into_iter().unzip();
+        Self {
+            params: params.clone(),
+            columns,
+            names,
+            held,
+            whitened: Scaled::new(&a, &b, &scale),
+            unweighted: Scaled::new(&h, &y, &scale),
+            pose_of_row,
+            share,
+        }
+    }
+
     /// The registration of `data` (base and markers fitted by [`calibrate`]), then the gauge
     /// of `options`' parameters and the system about it.
-    fn new(model: &RobotModel, data: &Measurements, options: &Options) -> Result<Self, CalibrationError> {
+    fn of_markers(model: &RobotModel, data: &Measurements, options: &Options) -> Result<Self, CalibrationError> {
         let frame = calibrate(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
         let noise = match &frame.whitening {
             Whitening::Covariance(noise) => Some(noise),
@@ -439,26 +600,65 @@ impl LinearModel {
             Some(&prior_sd),
         )?;
         let system = base_problem.reselect(&kept, frame.before.clone())?.system(&start.x);
-        // The whitened system of `start`, held whole: the path fits it fold by fold.
-        let mut whitened = system.h.clone();
-        weights.apply(&mut whitened);
-        let scale: Vec<f64> =
-            whitened.column_iter().map(|c| c.norm()).map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
         let rows = base_problem.rows_per_point();
-        let (a, b) = match &prior {
-            Some(prior) => prior.augment(&whitened, &start.b, &start.x),
-            None => (whitened, start.b.clone()),
+        // The whitened system of `start`, held whole: the path fits it fold by fold.
+        let mut a = system.h.clone();
+        weights.apply(&mut a);
+        let whitened = match &prior {
+            Some(prior) => prior.augment(&a, &start.b, &start.x),
+            None => (a, start.b.clone()),
         };
-        Ok(Self {
-            params: params.clone(),
-            kept,
-            held,
-            whitened: Scaled::new(&a, &b, &scale),
-            unweighted: Scaled::new(&system.h, &system.y, &scale),
-            rows,
-            markers: rows / 3,
-            poses: data.len(),
-        })
+        let parts = LinearParts {
+            whitened,
+            unweighted: (system.h, system.y),
+            rows: (0..data.len() * rows).map(|r| (r / rows, 1.0 / 3.0)).collect(),
+        };
+        let columns = kept.indices().iter().map(|&i| Some(i)).collect();
+        let names = kept.indices().iter().map(|&i| params.get(i).name.clone()).collect();
+        Ok(Self::new(params, (columns, names), held, parts))
+    }
+
+    /// The "before" fit of `data` (the set-up, the tool point; with markers the base and the
+    /// markers), then the gauge of `options`' parameters and the system about it. Its rows are
+    /// the observations, each in the fold of its pose (a pair by its first); a length counts
+    /// one error, an angle none (its unweighted row is zero: the CV RMS is of lengths, mm).
+    fn of_kinds(model: &RobotModel, data: &KindData, options: &KindOptions) -> Result<Self, CalibrationError> {
+        let prepared = kinds::prepare(model, data, options)?;
+        let started = kinds::start(&prepared, data, options)?;
+        let kinds::Gauged { identifiable, fixed, prior } = &started.gauged;
+        let (params, asked) = (&prepared.params, &prepared.asked);
+        let robot = asked.len();
+        let kept = Selection::from_indices(
+            params,
+            identifiable.iter().filter(|&&c| c < robot).map(|&c| asked.indices()[c]),
+        );
+        let kept_setup: Vec<usize> =
+            identifiable.iter().filter(|&&c| c >= robot).map(|&c| prepared.asked_setup[c - robot]).collect();
+        let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
+        let problem = started.base.reselect(&kept, before, before_setup, kept_setup);
+        let start = started.linearised.select(identifiable);
+        let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+        let mut y = problem.evaluate(&start.x, Some(&mut h));
+        let rows: Vec<(usize, f64)> =
+            data.observations.iter().map(|o| (o.pose(), if o.is_angle() { 0.0 } else { 1.0 })).collect();
+        for (r, _) in rows.iter().enumerate().filter(|(_, (_, share))| *share == 0.0) {
+            h.row_mut(r).fill(0.0);
+            y[r] = 0.0;
+        }
+        // The whitened system of `start`, held whole: the path fits it fold by fold.
+        let (a, b) = linearise_rows(&problem, &started.weights, &start.x)?;
+        let whitened = match prior {
+            Some(prior) => prior.select(identifiable).augment(&a, &b, &start.x),
+            None => (a, b),
+        };
+        // The robot's kept parameters, then the set-up's.
+        let columns = (0..problem.parameters()).map(|c| kept.indices().get(c).copied()).collect();
+        let held = (fixed.iter().chain(&prepared.held_words))
+            .map(Held::text)
+            .chain(prepared.scale.map(|i| Held::Scale { parameter: params.get(i).name.clone() }.text()))
+            .collect();
+        let parts = LinearParts { whitened, unweighted: (h, y), rows };
+        Ok(Self::new(params, (columns, problem.names()), held, parts))
     }
 
     /// The trades of the model of the registration and the `chosen` columns: each candidate
@@ -466,22 +666,22 @@ impl LinearModel {
     /// the inverse normal equations on every pose (priors in place) with it added.
     fn trades(&self, chosen: &[usize]) -> Vec<String> {
         let all = Fit::new(&self.whitened, None);
-        let registration = (0..self.kept.len()).filter(|&c| self.is_registration(c));
+        let registration = (0..self.columns.len()).filter(|&c| self.is_registration(c));
         let model: Vec<usize> = registration.chain(chosen.iter().copied()).collect();
-        let index = |c: usize| self.kept.indices()[c];
+        let index = |c: usize| self.columns[c];
+        let zero_or_play = |c: usize| index(c).is_some_and(|i| is_zero_or_play(self.params.get(i)));
         let mut out = Vec::new();
-        for o in
-            (0..self.kept.len()).filter(|c| !model.contains(c) && is_zero_or_play(self.params.get(index(*c))))
-        {
+        for o in (0..self.columns.len()).filter(|&c| !model.contains(&c) && zero_or_play(c)) {
             let columns: Vec<usize> = model.iter().copied().chain([o]).collect();
             let gram =
                 DMatrix::from_fn(columns.len(), columns.len(), |a, b| all.gram[(columns[a], columns[b])]);
             let Some(inverse) = gram.cholesky().map(|c| c.inverse()) else { continue };
-            let at = |i: usize| columns.iter().position(|&c| index(c) == i).expect("a column");
+            let at = |i: usize| columns.iter().position(|&c| index(c) == Some(i)).expect("a column");
             let covariance = |a: usize, b: usize| inverse[(at(a), at(b))];
-            let kept: Vec<usize> = chosen.iter().map(|&c| index(c)).collect();
-            if let Some((k, r)) = stand_in(&self.params, index(o), &kept, &covariance) {
-                let (zero, other) = (&self.params.get(index(o)).name, &self.params.get(k).name);
+            let kept: Vec<usize> = chosen.iter().filter_map(|&c| index(c)).collect();
+            let Some(o) = index(o) else { continue };
+            if let Some((k, r)) = stand_in(&self.params, o, &kept, &covariance) {
+                let (zero, other) = (&self.params.get(o).name, &self.params.get(k).name);
                 out.push(format!(
                     "{zero} left out while {other} is in, which stands in for it (correlation {r:+.2}): {other} \
                      carries its error"
@@ -491,9 +691,23 @@ impl LinearModel {
         out
     }
 
-    /// Whether column `c` is the base's or a marker's: always in the model.
+    /// Whether column `c` is the registration's (the base's, a marker's, the tool's, the
+    /// set-up's): always in the model.
     fn is_registration(&self, c: usize) -> bool {
-        !matches!(self.params.get(self.kept.indices()[c]).owner, ParamOwner::Joint(_))
+        self.columns[c].is_none_or(|i| !matches!(self.params.get(i).owner, ParamOwner::Joint(_)))
+    }
+
+    /// The forward path by `criterion` ([`Criterion::Cv`], [`Criterion::Bic`]) and the model
+    /// it chooses.
+    pub(super) fn forward(self, criterion: Criterion) -> SelectionPath {
+        let mut fits = self.fits(criterion);
+        let (steps, order) = walk(&mut fits, &self, criterion);
+        let chosen = choose_step(&steps, criterion);
+        let mut columns: Vec<usize> = order[..chosen].to_vec();
+        columns.sort_unstable();
+        let selected = columns.iter().map(|&c| self.names[c].clone()).collect();
+        let trades = self.trades(&order[..chosen]);
+        SelectionPath { criterion, steps, chosen, selected, held: self.held, trades }
     }
 
     /// The fits a criterion compares, the registration's columns in: one per fold for CV (pose
@@ -502,15 +716,15 @@ impl LinearModel {
         let mut fits: Vec<Fit> = match criterion {
             Criterion::Cv { folds } => (0..folds)
                 .map(|f| {
-                    let test: Vec<usize> = (0..self.poses).filter(|k| k % folds == f).collect();
                     let rows: Vec<usize> =
-                        test.iter().flat_map(|k| k * self.rows..(k + 1) * self.rows).collect();
-                    Fit::new(&self.whitened, Some((&self.unweighted, &rows, test.len() * self.markers)))
+                        (0..self.pose_of_row.len()).filter(|&r| self.pose_of_row[r] % folds == f).collect();
+                    let count = rows.iter().map(|&r| self.share[r]).sum();
+                    Fit::new(&self.whitened, Some((&self.unweighted, &rows, count)))
                 })
                 .collect(),
             _ => vec![Fit::new(&self.whitened, None)],
         };
-        for c in (0..self.kept.len()).filter(|&c| self.is_registration(c)) {
+        for c in (0..self.columns.len()).filter(|&c| self.is_registration(c)) {
             for fit in &mut fits {
                 if let Some(trial) = fit.trial(c) {
                     fit.accept(c, trial);
@@ -526,12 +740,12 @@ impl LinearModel {
 /// can take. The steps, and the columns in the order added.
 fn walk(fits: &mut [Fit], linear: &LinearModel, criterion: Criterion) -> (Vec<Step>, Vec<usize>) {
     // The data's equations (the prior's rows are not observations).
-    let equations = linear.poses * linear.rows;
+    let equations = linear.pose_of_row.len();
     let now: Vec<Trial> = fits.iter().map(Fit::current).collect();
     let (first, first_se) = score(fits, &now, criterion, equations);
     let mut steps = vec![Step { parameter: None, score: first, se: first_se, note: None }];
     let mut order = Vec::new();
-    let mut left: Vec<usize> = (0..linear.kept.len()).filter(|&c| !linear.is_registration(c)).collect();
+    let mut left: Vec<usize> = (0..linear.columns.len()).filter(|&c| !linear.is_registration(c)).collect();
     while !left.is_empty() {
         let scored: Vec<Option<Scored>> = left
             .par_iter()
@@ -550,7 +764,7 @@ fn walk(fits: &mut [Fit], linear: &LinearModel, criterion: Criterion) -> (Vec<St
             fit.accept(j, trial);
         }
         order.push(j);
-        let name = linear.params.get(linear.kept.indices()[j]).name.clone();
+        let name = linear.names[j].clone();
         steps.push(Step { parameter: Some(name), score: value, se, note: None });
     }
     (steps, order)
@@ -588,15 +802,16 @@ fn choose_step(steps: &[Step], criterion: Criterion) -> usize {
     }
 }
 
-/// The CV RMS and its standard error from each fold's held-out `(SSE, markers)`.
-fn cv_rms(folds: impl Iterator<Item = (f64, usize)>) -> (f64, f64) {
-    let folds: Vec<(f64, usize)> = folds.collect();
-    let (sse, n): (f64, usize) = folds.iter().fold((0.0, 0), |(s, n), &(f, c)| (s + f, n + c));
-    let rms: Vec<f64> = folds.iter().map(|&(s, c)| (s.max(0.0) / c.max(1) as f64).sqrt()).collect();
+/// The CV RMS and its standard error from each fold's held-out `(SSE, errors)` (markers, or
+/// length observations).
+fn cv_rms(folds: impl Iterator<Item = (f64, f64)>) -> (f64, f64) {
+    let folds: Vec<(f64, f64)> = folds.collect();
+    let (sse, n): (f64, f64) = folds.iter().fold((0.0, 0.0), |(s, n), &(f, c)| (s + f, n + c));
+    let rms: Vec<f64> = folds.iter().map(|&(s, c)| (s.max(0.0) / c.max(1.0)).sqrt()).collect();
     let k = rms.len() as f64;
     let mean = rms.iter().sum::<f64>() / k;
     let sd = (rms.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / (k - 1.0).max(1.0)).sqrt();
-    ((sse.max(0.0) / n.max(1) as f64).sqrt(), sd / k.sqrt())
+    ((sse.max(0.0) / n.max(1.0)).sqrt(), sd / k.sqrt())
 }
 
 /// A linear system with its columns scaled (`A D`, `b`), rows as the stacked system's.
@@ -629,7 +844,7 @@ struct Fit {
     gram: DMatrix<f64>,
     rhs: DVector<f64>,
     bb: f64,
-    test: Option<(DMatrix<f64>, DVector<f64>, f64, usize)>,
+    test: Option<(DMatrix<f64>, DVector<f64>, f64, f64)>,
     /// The columns in, in the order added.
     members: Vec<usize>,
     /// The Cholesky factor of `gram[members, members]` (rows and columns in `members` order).
@@ -654,8 +869,8 @@ struct Trial {
 
 impl Fit {
     /// The fit of no columns on every row of `whitened` but the held-out `test` ones
-    /// (`(unweighted system, its rows, markers)`), or on every row without a test.
-    fn new(whitened: &Scaled, test: Option<(&Scaled, &[usize], usize)>) -> Self {
+    /// (`(unweighted system, its rows, the errors they score)`), or on every row without a test.
+    fn new(whitened: &Scaled, test: Option<(&Scaled, &[usize], f64)>) -> Self {
         let p = whitened.a.ncols();
         let (mut gram, mut rhs, mut bb) = whitened.normal(&(0..whitened.b.len()).collect::<Vec<_>>());
         let test = test.map(|(unweighted, rows, count)| {
@@ -669,9 +884,9 @@ impl Fit {
         Self { gram, rhs, bb, test, members: Vec::new(), l: DMatrix::zeros(p, p), z: Vec::new() }
     }
 
-    /// Markers held out.
-    fn count(&self) -> usize {
-        self.test.as_ref().map_or(0, |t| t.3)
+    /// Errors held out (markers, or length observations).
+    fn count(&self) -> f64 {
+        self.test.as_ref().map_or(0.0, |t| t.3)
     }
 
     /// The whitened training cost of the current columns, `b^T b - |z|^2`.
@@ -784,7 +999,7 @@ mod tests {
         let (whitened, unweighted) = (Scaled::new(&a, &b, &scale), Scaled::new(&h, &y, &scale));
         let test: Vec<usize> = (0..m).filter(|i| i % 4 == 1).collect();
         let train: Vec<usize> = (0..m).filter(|i| i % 4 != 1).collect();
-        let mut fit = Fit::new(&whitened, Some((&unweighted, &test, test.len())));
+        let mut fit = Fit::new(&whitened, Some((&unweighted, &test, test.len() as f64)));
         let mut members = Vec::new();
         for j in [3, 0, 1, 4] {
             let trial = fit.trial(j).expect("independent");
@@ -843,7 +1058,7 @@ mod tests {
     /// folds' RMS over the square root of their number.
     #[test]
     fn cv_rms_pools_the_folds() {
-        let (rms, se) = cv_rms([(4.0, 1), (16.0, 1)].into_iter());
+        let (rms, se) = cv_rms([(4.0, 1.0), (16.0, 1.0)].into_iter());
         assert!((rms - 10f64.sqrt()).abs() < 1e-15);
         // Fold RMS 2 and 4: sd sqrt(2), over sqrt(2).
         assert!((se - 1.0).abs() < 1e-15);

@@ -1260,6 +1260,105 @@ pub fn calibrate_kinds(
     data: &KindData,
     options: &KindOptions,
 ) -> Result<KindCalibration, CalibrationError> {
+    let prepared = prepare(model, data, options)?;
+    let Started { base, weights, before, before_setup, linearised, gauged } =
+        start(&prepared, data, options)?;
+    let Prepared { params, asked, asked_setup, .. } = &prepared;
+    let Gauged { identifiable, mut fixed, prior } = gauged;
+    fixed.extend(prepared.held_words.iter().cloned());
+    if let Some(i) = prepared.scale {
+        fixed.push(Held::Scale { parameter: params.get(i).name.clone() });
+    }
+    let robot = asked.len();
+    let kept = Selection::from_indices(
+        params,
+        identifiable.iter().filter(|&&c| c < robot).map(|&c| asked.indices()[c]),
+    );
+    let kept_setup = identifiable.iter().filter(|&&c| c >= robot).map(|&c| asked_setup[c - robot]).collect();
+    let problem = base.reselect(&kept, before.clone(), before_setup.clone(), kept_setup);
+    let prior = prior.map(|p| p.select(&identifiable));
+    let start = linearised.select(&identifiable);
+    let (estimate, robust) =
+        super::robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
+    // A pose's weight is every one of its observations'.
+    let robust = robust.map(|mut r| {
+        let blocks = problem.blocks();
+        r.weights = (0..r.weights.len()).flat_map(|k| vec![r.weights[k]; blocks.range(k).len()]).collect();
+        r
+    });
+    let (after, after_setup) = problem.full(&estimate.estimate.x);
+    drop(problem);
+    let Prepared { registered, chains, params, probe, points, markers, setup, nothing, .. } = prepared;
+    let calibrated_points = calibrated_points(&params, &after, &points);
+    // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
+    // 1, as `calibrate` makes it.
+    let tool_point = if data.sees_the_tool() { markers.len() } else { 0 };
+    let calibrated = fold(&registered, &params, &after, (&points, tool_point), probe.as_ref());
+    let frame = registered.marker_frame().isometry();
+    let prior_sd = prior_sds(&options.prior, &params)?;
+    let mut calibration = KindCalibration {
+        calibrated,
+        before,
+        after,
+        unseen: data.unseen(&setup, &setup.session_values(&after_setup, 0)),
+        params,
+        setup,
+        setup_values: (before_setup, after_setup),
+        refined: estimate,
+        fixed,
+        training: Score {
+            observations: Vec::new(),
+            lengths: (0.0, 0.0),
+            angles: None,
+            markers: None,
+            sessions: Vec::new(),
+        },
+        nothing,
+        robust,
+        prior_sd,
+        warnings: Vec::new(),
+        markers: markers.iter().zip(&calibrated_points).map(|(&m, p)| (m, (frame * p).coords)).collect(),
+        variance_factor: None,
+        registered_base: (!markers.is_empty()).then_some(registered.base),
+        joint_noise: options.joint_noise.clone(),
+        chains,
+    };
+    scored(&mut calibration, data)?;
+    Ok(calibration)
+}
+
+/// The robot and the set-up of a calibration of some data, before any fit: the model with its
+/// base registered on the markers, the chains of its points (the markers', then the tool's),
+/// the set-up and its start, and what is asked for.
+pub(super) struct Prepared {
+    registered: RobotModel,
+    pub(super) chains: Vec<Chain>,
+    pub(super) params: ParamSet,
+    probe: Option<Placement>,
+    points: Vec<Vector3<f64>>,
+    markers: Vec<usize>,
+    setup: SetUp,
+    /// The set-up's start values, one per session where per session.
+    setup_start: Vec<f64>,
+    /// The robot's parameters asked for (`--params`, the registration's), less `--hold`'s.
+    pub(super) asked: Selection,
+    /// The set-up's parameters asked for, less `--hold`'s.
+    pub(super) asked_setup: Vec<usize>,
+    /// What `--hold` held.
+    pub(super) held_words: Vec<Held>,
+    /// The set-up values of the "before" fit: all but the length zeros not asked for.
+    every: Vec<usize>,
+    /// The robot's length held for the scale (contacts without a distance).
+    pub(super) scale: Option<usize>,
+    nothing: Selection,
+}
+
+/// [`Prepared`] of `data` on `model` with `options`.
+pub(super) fn prepare(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+) -> Result<Prepared, CalibrationError> {
     data.check(model.dof())?;
     let markers = data.markers();
     let nominal_markers: Vec<Vector3<f64>> =
@@ -1292,32 +1391,62 @@ pub fn calibrate_kinds(
     let sessions = (0..data.session_count()).map(|k| data.session_name(k)).collect();
     let per_session = matching(&setup.base_names(), &options.per_session)?;
     let setup = setup.with_sessions(sessions, per_session);
-    let start = setup.expand(&start);
+    let setup_start = setup.expand(&start);
     let nothing = Selection::from_indices(&params, []);
     let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
     let (asked, asked_setup, held_words) =
         without_held(&params, asked, asked_setup, &setup, &options.gauge.hold)?;
-    // The before fit's set-up: all but the length zeros not asked for.
     let every: Vec<usize> =
         (0..setup.len()).filter(|&i| !setup.is_zero(setup.base_of(i)) || asked_setup.contains(&i)).collect();
-    let base_problem =
-        KindProblem::of_points(&chains, &markers, &nothing, data, &setup, zero.clone(), start, every.clone())
-            .with_noise(options.joint_noise.as_ref());
-    let weights = Weights::for_problem(&base_problem, options.estimator)?;
-    // "Before": the set-up and the tool point, the robot's joints nominal; with markers, the
-    // base and the markers too, by ordinary least squares whatever the estimator, as
-    // `calibrate` fits its base and markers (it minimises the very errors it reports).
+    let scale =
+        (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, &params)).flatten();
+    #[rustfmt::skip]
+    let prepared = Prepared {
+        registered, chains, params, probe, points, markers, setup, setup_start, asked, asked_setup,
+        held_words, every, scale, nothing,
+    };
+    Ok(prepared)
+}
+
+/// A calibration linearised at its "before" fit: the problem of every parameter held (its
+/// `V_k`), the estimator's weights, the "before" values, the system of what is asked for about
+/// them, and its gauge.
+pub(super) struct Started<'p> {
+    pub(super) base: KindProblem<'p>,
+    pub(super) weights: Weights,
+    pub(super) before: Vec<f64>,
+    pub(super) before_setup: Vec<f64>,
+    /// `A = S H`, `b = S y` of what is asked for, about "before".
+    pub(super) linearised: Linearisation,
+    pub(super) gauged: Gauged,
+}
+
+/// [`Started`] of `prepared` on `data`: the "before" fit (the set-up and the tool point, the
+/// robot's joints nominal; with markers, the base and the markers too, by ordinary least
+/// squares whatever the estimator, as `calibrate` fits its base and markers: it minimises the
+/// very errors it reports), then the system of what is asked for and its gauge.
+pub(super) fn start<'p>(
+    prepared: &'p Prepared,
+    data: &'p KindData,
+    options: &KindOptions,
+) -> Result<Started<'p>, CalibrationError> {
+    let Prepared { chains, markers, params, setup, asked, asked_setup, nothing, .. } = prepared;
+    let zero = vec![0.0; params.len()];
+    let (start, every) = (prepared.setup_start.clone(), prepared.every.clone());
+    let base = KindProblem::of_points(chains, markers, nothing, data, setup, zero, start, every.clone())
+        .with_noise(options.joint_noise.as_ref());
+    let weights = Weights::for_problem(&base, options.estimator)?;
     let frame = Selection::from_indices(
-        &params,
+        params,
         (asked.indices().iter().copied()).filter(|&i| match params.get(i).owner {
             ParamOwner::Marker(_) => true,
             ParamOwner::Joint(_) => false,
             _ => !markers.is_empty(),
         }),
     );
-    let (before, before_setup) = before_fit(&base_problem, &frame, every, &weights, markers.is_empty())?;
+    let (before, before_setup) = before_fit(&base, &frame, every, &weights, markers.is_empty())?;
     // "After": what was asked for that the observations identify.
-    let problem = base_problem.reselect(&asked, before.clone(), before_setup.clone(), asked_setup.clone());
+    let problem = base.reselect(asked, before.clone(), before_setup.clone(), asked_setup.clone());
     if problem.equations() <= problem.parameters() {
         return Err(CalibrationError::TooFewPoses {
             poses: data.joints.len(),
@@ -1328,68 +1457,8 @@ pub fn calibrate_kinds(
         });
     }
     let linearised = linearise(&problem, &weights, problem.start())?;
-    let Gauged { identifiable, mut fixed, prior } =
-        gauge(&problem, &linearised, (&params, &asked), options, &weights)?;
-    fixed.extend(held_words);
-    if let Some(i) =
-        (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, &params)).flatten()
-    {
-        fixed.push(Held::Scale { parameter: params.get(i).name.clone() });
-    }
-    let robot = asked.len();
-    let kept = Selection::from_indices(
-        &params,
-        identifiable.iter().filter(|&&c| c < robot).map(|&c| asked.indices()[c]),
-    );
-    let kept_setup = identifiable.iter().filter(|&&c| c >= robot).map(|&c| asked_setup[c - robot]).collect();
-    let problem = base_problem.reselect(&kept, before.clone(), before_setup.clone(), kept_setup);
-    let prior = prior.map(|p| p.select(&identifiable));
-    let start = linearised.select(&identifiable);
-    let (estimate, robust) =
-        super::robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
-    // A pose's weight is every one of its observations'.
-    let robust = robust.map(|mut r| {
-        let blocks = problem.blocks();
-        r.weights = (0..r.weights.len()).flat_map(|k| vec![r.weights[k]; blocks.range(k).len()]).collect();
-        r
-    });
-    let (after, after_setup) = problem.full(&estimate.estimate.x);
-    let calibrated_points = calibrated_points(&params, &after, &points);
-    // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
-    // 1, as `calibrate` makes it.
-    let tool_point = if data.sees_the_tool() { markers.len() } else { 0 };
-    let calibrated = fold(&registered, &params, &after, (&points, tool_point), probe.as_ref());
-    let frame = registered.marker_frame().isometry();
-    let prior_sd = prior_sds(&options.prior, &params)?;
-    let mut calibration = KindCalibration {
-        calibrated,
-        params,
-        before,
-        after,
-        unseen: data.unseen(&setup, &setup.session_values(&after_setup, 0)),
-        setup,
-        setup_values: (before_setup, after_setup),
-        refined: estimate,
-        fixed,
-        training: Score {
-            observations: Vec::new(),
-            lengths: (0.0, 0.0),
-            angles: None,
-            markers: None,
-            sessions: Vec::new(),
-        },
-        nothing: nothing.clone(),
-        robust,
-        prior_sd,
-        warnings: Vec::new(),
-        markers: markers.iter().zip(&calibrated_points).map(|(&m, p)| (m, (frame * p).coords)).collect(),
-        variance_factor: None,
-        registered_base: (!markers.is_empty()).then_some(registered.base),
-        joint_noise: options.joint_noise.clone(),
-        chains,
-    };
-    scored(&mut calibration, data)?;
-    Ok(calibration)
+    let gauged = gauge(&problem, &linearised, (params, asked), options, &weights)?;
+    Ok(Started { base, weights, before, before_setup, linearised, gauged })
 }
 
 /// The "before" fit of `base_problem`: the robot parameters `frame` (the tool point, with
@@ -1441,10 +1510,10 @@ fn gauge(
 }
 
 /// What [`gauge`] finds: the identifiable columns, the held ones in words, the prior rows.
-struct Gauged {
-    identifiable: Vec<usize>,
-    fixed: Vec<Held>,
-    prior: Option<PriorRows>,
+pub(super) struct Gauged {
+    pub(super) identifiable: Vec<usize>,
+    pub(super) fixed: Vec<Held>,
+    pub(super) prior: Option<PriorRows>,
 }
 
 /// `calibration` scored on its training `data`; with every sigma assumed and the joints exact,
@@ -1498,6 +1567,16 @@ pub fn cross_validate_kinds(
     options: &KindOptions,
     folds: usize,
 ) -> Result<Score, CalibrationError> {
+    cross_validate_kinds_by(data, folds, |train| calibrate_kinds(model, train, options))
+}
+
+/// [`cross_validate_kinds`] with each fold's calibration made by `calibrate` from its training
+/// observations (every choice made from the data made again inside it).
+pub(crate) fn cross_validate_kinds_by(
+    data: &KindData,
+    folds: usize,
+    calibrate: impl Fn(&KindData) -> Result<KindCalibration, CalibrationError>,
+) -> Result<Score, CalibrationError> {
     let poses = data.joints.len();
     if folds < 2 || folds > poses {
         return Err(CalibrationError::Observations(format!(
@@ -1508,7 +1587,7 @@ pub fn cross_validate_kinds(
         .map(|fold| {
             let (test, train) =
                 (data.keeping(|o| o.pose() % folds == fold), data.keeping(|o| o.pose() % folds != fold));
-            let c = calibrate_kinds(model, &train, options)?;
+            let c = calibrate(&train)?;
             Ok((c.score(&test)?, test.observations))
         })
         .collect::<Result<Vec<_>, CalibrationError>>()?;
