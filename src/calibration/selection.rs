@@ -45,8 +45,8 @@
 use super::kinds::{self, KindCalibration, KindData, KindOptions};
 use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale, with_scale};
 use super::{
-    CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel, Whitening,
-    calibrate, errors, identifiable, observed, selection, standard_errors_of,
+    CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel,
+    Whitening, calibrate, errors, identifiable, observed, selection, standard_errors_of,
 };
 use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights, linearise_rows};
 use crate::kinematics::Measured;
@@ -572,7 +572,11 @@ impl LinearModel {
 
     /// The registration of `data` (base and markers fitted by [`calibrate`]), then the gauge
     /// of `options`' parameters and the system about it.
-    fn of_markers(model: &RobotModel, data: &Measurements, options: &Options) -> Result<Self, CalibrationError> {
+    fn of_markers(
+        model: &RobotModel,
+        data: &Measurements,
+        options: &Options,
+    ) -> Result<Self, CalibrationError> {
         let frame = calibrate(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
         let noise = match &frame.whitening {
             Whitening::Covariance(noise) => Some(noise),
@@ -622,7 +626,11 @@ impl LinearModel {
     /// markers), then the gauge of `options`' parameters and the system about it. Its rows are
     /// the observations, each in the fold of its pose (a pair by its first); a length counts
     /// one error, an angle none (its unweighted row is zero: the CV RMS is of lengths, mm).
-    fn of_kinds(model: &RobotModel, data: &KindData, options: &KindOptions) -> Result<Self, CalibrationError> {
+    fn of_kinds(
+        model: &RobotModel,
+        data: &KindData,
+        options: &KindOptions,
+    ) -> Result<Self, CalibrationError> {
         let prepared = kinds::prepare(model, data, options)?;
         let started = kinds::start(&prepared, data, options)?;
         let kinds::Gauged { identifiable, fixed, prior } = &started.gauged;

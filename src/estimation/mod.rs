@@ -29,7 +29,7 @@ pub(crate) use variance::Z_95;
 
 pub use blocks::Blocks;
 use blocks::block_weights;
-pub(crate) use blocks::{block_diagonal_mul, check_covariance};
+pub(crate) use blocks::{block_diagonal_mul, check_covariance, whiten_in_place};
 pub use device::{Device, DeviceError};
 pub use noise::{MeasurementNoise, NoiseModel};
 pub(crate) use noise_file::DeviceTable;

@@ -14,6 +14,7 @@ use crate::kinematics::{Chain, ChainAt, Measured, end_positions, marker_jacobian
 use crate::model::Selection;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX, Vector3};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Poses measured on a robot: `y(x) = measured - f(q, x)` for the selected parameters `x`,
 /// the others held at fixed values. Each pose is one point of the estimators: the positions of
@@ -23,10 +24,12 @@ pub struct PointProblem<'a> {
     chains: &'a [Chain],
     selection: &'a Selection,
     measured: Measured,
-    joints: Vec<Vec<f64>>,
-    observed: Vec<Isometry3<f64>>,
+    /// The poses' joint values, what was measured and the blocks `V_k`: shared by the problems
+    /// [`PointProblem::reselect`] makes.
+    joints: Arc<Vec<Vec<f64>>>,
+    observed: Arc<Vec<Isometry3<f64>>>,
     fixed: Vec<f64>,
-    v: Option<DMatrix<f64>>,
+    v: Option<Arc<DMatrix<f64>>>,
     orientation_weight: f64,
 }
 
@@ -77,8 +80,8 @@ impl<'a> PointProblem<'a> {
             chains,
             selection,
             measured,
-            joints,
-            observed,
+            joints: Arc::new(joints),
+            observed: Arc::new(observed),
             fixed,
             v: None,
             orientation_weight: weight,
@@ -95,7 +98,7 @@ impl<'a> PointProblem<'a> {
             if measured == Measured::Pose {
                 problem.orientation_weight = orientation_weight(&v);
             }
-            problem.v = Some(v);
+            problem.v = Some(Arc::new(v));
         }
         Ok(problem)
     }
@@ -140,12 +143,17 @@ impl<'a> PointProblem<'a> {
     fn covariance_blocks(&self, noise: &NoiseModel) -> Result<DMatrix<f64>, EstimationError> {
         let rows = self.rows_per_point();
         noise.validate(self.chains[0].dof(), self.joints.len(), rows)?;
-        let blocks: Vec<DMatrix<f64>> = (self.manipulator_jacobians(&self.fixed).par_iter().enumerate())
-            .map(|(k, stacked)| noise.pose_covariance(k, stacked, self.measured))
-            .collect();
         let mut v = DMatrix::zeros(rows * self.joints.len(), rows);
-        for (k, block) in blocks.iter().enumerate() {
-            v.rows_mut(k * rows, rows).copy_from(block);
+        // A slice of poses at a time: their blocks are small matrices of their own.
+        for first in (0..self.joints.len()).step_by(BLOCKS_AT_ONCE) {
+            let poses = first..(first + BLOCKS_AT_ONCE).min(self.joints.len());
+            let blocks: Vec<DMatrix<f64>> =
+                (self.jacobians_of(&self.fixed, poses.clone()).par_iter().enumerate())
+                    .map(|(i, stacked)| noise.pose_covariance(first + i, stacked, self.measured))
+                    .collect();
+            for (k, block) in poses.zip(&blocks) {
+                v.rows_mut(k * rows, rows).copy_from(block);
+            }
         }
         Ok(v)
     }
@@ -153,10 +161,15 @@ impl<'a> PointProblem<'a> {
     /// The measured rows of the manipulator Jacobians `J_k` of every pose (`rows x dof`:
     /// 3 per marker, or 6 for a tool pose), at the full parameter vector `at`.
     pub fn manipulator_jacobians(&self, at: &[f64]) -> Vec<DMatrix<f64>> {
+        self.jacobians_of(at, 0..self.joints.len())
+    }
+
+    /// [`PointProblem::manipulator_jacobians`] of the poses `poses`.
+    fn jacobians_of(&self, at: &[f64], poses: std::ops::Range<usize>) -> Vec<DMatrix<f64>> {
         let (per, rows) = (self.measured.rows(), self.rows_per_point());
         let dof = self.chains[0].dof();
         let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(at)).collect();
-        self.joints
+        self.joints[poses]
             .par_iter()
             .map_init(
                 || Matrix6xX::zeros(dof),
@@ -205,7 +218,13 @@ impl<'a> PointProblem<'a> {
     pub fn system(&self, x: &DVector<f64>) -> LinearSystem {
         let mut h = DMatrix::zeros(self.equations(), self.selection.len());
         let y = self.evaluate(x, Some(&mut h));
-        LinearSystem { h, y, rows_per_point: self.rows_per_point(), v: self.v.clone(), names: self.names() }
+        LinearSystem {
+            h,
+            y,
+            rows_per_point: self.rows_per_point(),
+            v: self.v.as_deref().cloned(),
+            names: self.names(),
+        }
     }
 }
 
@@ -227,7 +246,7 @@ impl Residuals for PointProblem<'_> {
     }
 
     fn covariance(&self) -> Option<&DMatrix<f64>> {
-        self.v.as_ref()
+        self.v.as_deref()
     }
 
     fn ols_row_scale(&self) -> Option<Vec<f64>> {
@@ -397,6 +416,9 @@ fn orientation_weight(v: &DMatrix<f64>) -> f64 {
     }
     (position / orientation).sqrt()
 }
+
+/// Poses whose covariance blocks `V_k` are computed at once, before they are stacked.
+const BLOCKS_AT_ONCE: usize = 4096;
 
 /// Poses per parallel task of [`PointProblem`]'s linearisation: enough to outweigh a task's
 /// overhead, few enough to share a thousand poses between cores.
