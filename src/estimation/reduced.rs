@@ -34,8 +34,12 @@ enum RowNoise {
     Information(DMatrix<f64>),
 }
 
-/// A whitened least-squares system reduced to the triangular factor of `[A b]` (see the
-/// [module documentation](self)), with what is known of the covariance of `b`.
+/// A whitened least-squares system `min |b - A x|^2` reduced to the triangular factor of
+/// `[A b] = Q [R z; 0 rho]`, `(p + 1) x (p + 1)` whatever the number of rows, with what is known
+/// of the covariance of `b`: `|b - A x|^2 = |z - R x|^2 + rho^2`, and `R` has the singular values
+/// and right singular vectors of `A`. The rows are reduced block by block as they are computed
+/// (a tall-skinny QR), in parts fixed by the number of points: the same to the bit on any
+/// number of threads.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reduced {
     /// `[R z; 0 rho]`, `(p + 1) x (p + 1)`, upper triangular.
