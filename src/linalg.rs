@@ -4,18 +4,10 @@
 //! (`default-features = false`), so it composes with rayon. faer does not truncate small
 //! singular values: the rank decision is the caller's.
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 use rayon::prelude::*;
 
-/// `a^T b` by faer's blocked product: nalgebra's takes 6.5 ms for a 6000 x 30 Gram matrix.
-pub(crate) fn tr_mul(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
-    let a_ref = faer::MatRef::from_column_major_slice(a.as_slice(), a.nrows(), a.ncols());
-    let b_ref = faer::MatRef::from_column_major_slice(b.as_slice(), b.nrows(), b.ncols());
-    let product = a_ref.transpose() * b_ref;
-    DMatrix::from_fn(a.ncols(), b.ncols(), |i, j| product[(i, j)])
-}
-
-/// Rows per part of [`gram`] and [`r_factor`]: the parts are fixed, so the sums over them, and
+/// Rows per part of [`gram`]: the parts are fixed, so the sums over them, and
 /// every result, are the same on any number of threads.
 const ROWS_PER_PART: usize = 1024;
 
@@ -39,22 +31,100 @@ pub(crate) fn gram(a: &DMatrix<f64>) -> DMatrix<f64> {
     DMatrix::from_fn(n, n, |i, j| total[(i, j)])
 }
 
-/// The triangular factor `R` (`n x n`) of `a = Q R`: a QR of each fixed row part in parallel,
-/// then of their `R` factors stacked (the tall-skinny QR). `R` is unique up to the signs of
-/// its rows, which its singular values and right singular vectors do not see. With fewer rows
-/// than columns, zero rows complete it.
-pub(crate) fn r_factor(a: &DMatrix<f64>) -> DMatrix<f64> {
-    let n = a.ncols();
-    let parts: Vec<faer::Mat<f64>> = row_parts(a).map(|rows| rows.qr().thin_R().to_owned()).collect();
-    let stacked_rows: usize = parts.iter().map(|r| r.nrows()).sum();
-    let mut stacked = faer::Mat::<f64>::zeros(stacked_rows, n);
-    let mut row = 0;
-    for part in &parts {
-        stacked.as_mut().subrows_mut(row, part.nrows()).copy_from(part);
-        row += part.nrows();
+/// Rows a [`RowReducer`] gathers below its triangular factor before each QR: enough for
+/// faer's blocked Householder QR to run at speed, few enough to stay in cache.
+const REDUCE_ROWS: usize = 512;
+
+/// The triangular factor `R` (`n x n`) of a tall matrix whose rows are pushed block by block,
+/// never held together: the rows gathered so far are stacked below `R` and `[R; rows]` is
+/// reduced to its own `R` by a Householder QR in place (a tall-skinny QR), every
+/// [`REDUCE_ROWS`] rows. The arithmetic depends only on the sequence of rows pushed, not on
+/// how it is cut into pushes, and nothing is allocated after [`RowReducer::new`]. `R^T R =
+/// A^T A` and `R` has the singular values and right singular vectors of `A`, to rounding of
+/// the QR of `A` itself (unlike the Gram matrix, whose rounding is that of `A`'s condition
+/// number squared).
+pub(crate) struct RowReducer {
+    columns: usize,
+    /// `[R; rows gathered]`, `(n + REDUCE_ROWS) x n`.
+    work: faer::Mat<f64>,
+    /// The Householder coefficients of the last QR (not used after it).
+    coefficients: faer::Mat<f64>,
+    buffer: faer::dyn_stack::MemBuffer,
+    /// Rows gathered below `R`.
+    filled: usize,
+}
+
+impl RowReducer {
+    /// A reducer of rows of `columns` entries, with `R = 0`.
+    pub fn new(columns: usize) -> Self {
+        use faer::linalg::qr::no_pivoting::factor;
+        let rows = columns + REDUCE_ROWS;
+        let block = factor::recommended_block_size::<f64>(rows, columns).max(1);
+        let scratch =
+            factor::qr_in_place_scratch::<f64>(rows, columns, block, faer::Par::Seq, Default::default());
+        Self {
+            columns,
+            work: faer::Mat::zeros(rows, columns),
+            coefficients: faer::Mat::zeros(block, columns.max(1)),
+            buffer: faer::dyn_stack::MemBuffer::new(scratch),
+            filled: 0,
+        }
     }
-    let r = if parts.len() == 1 { stacked } else { stacked.qr().thin_R().to_owned() };
-    DMatrix::from_fn(n, n, |i, j| if i < r.nrows() { r[(i, j)] } else { 0.0 })
+
+    /// Push the rows of `block`, a column-major `rows x n` slice (`rows = block.len() / n`).
+    pub fn push(&mut self, block: &[f64]) {
+        let n = self.columns;
+        if n == 0 {
+            return;
+        }
+        let rows = block.len() / n;
+        let mut done = 0;
+        while done < rows {
+            if self.filled == REDUCE_ROWS {
+                self.reduce();
+            }
+            let take = (rows - done).min(REDUCE_ROWS - self.filled);
+            for (j, column) in block.chunks_exact(rows).enumerate() {
+                self.work.col_as_slice_mut(j)[n + self.filled..n + self.filled + take]
+                    .copy_from_slice(&column[done..done + take]);
+            }
+            self.filled += take;
+            done += take;
+        }
+    }
+
+    /// `[R; rows gathered]` reduced to `R` in place.
+    fn reduce(&mut self) {
+        use faer::linalg::qr::no_pivoting::factor;
+        let n = self.columns;
+        if self.filled == 0 {
+            return;
+        }
+        let rows = n + self.filled;
+        let stack = faer::dyn_stack::MemStack::new(&mut self.buffer);
+        factor::qr_in_place(
+            self.work.as_mut().subrows_mut(0, rows),
+            self.coefficients.as_mut(),
+            faer::Par::Seq,
+            stack,
+            Default::default(),
+        );
+        // The Householder vectors below the diagonal are not part of R.
+        for j in 0..n {
+            for i in j + 1..n {
+                self.work[(i, j)] = 0.0;
+            }
+        }
+        self.filled = 0;
+    }
+
+    /// `R` of every row pushed (`n x n`, upper triangular; zero rows where fewer rows than
+    /// columns were pushed).
+    pub fn finish(mut self) -> nalgebra::DMatrix<f64> {
+        self.reduce();
+        let n = self.columns;
+        nalgebra::DMatrix::from_fn(n, n, |i, j| if i <= j { self.work[(i, j)] } else { 0.0 })
+    }
 }
 
 /// `a b` by faer's blocked product: the planner multiplies a tall pool of candidate rows
@@ -150,14 +220,6 @@ impl TallSvd {
         }
     }
 
-    /// The first `n` entries of `Q^T b`; `b` may be shorter than `m` (zero rows follow).
-    pub fn qt(&self, b: &DVector<f64>) -> DVector<f64> {
-        let m = self.qr.Q_basis().nrows();
-        let mut work = faer::Mat::<f64>::from_fn(m, 1, |i, _| b.get(i).copied().unwrap_or(0.0));
-        self.apply_q(&mut work, true);
-        DVector::from_fn(self.qr.Q_basis().ncols(), |i, _| work[(i, 0)])
-    }
-
     /// The first `rows` rows of `Q [z; 0]` for `z` with `n` rows.
     pub fn q(&self, z: &DMatrix<f64>, rows: usize) -> DMatrix<f64> {
         let m = self.qr.Q_basis().nrows();
@@ -171,6 +233,7 @@ impl TallSvd {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::DVector;
 
     /// The matrix on which nalgebra 0.35's SVD lost three digits: R of a 18 x 5 column-scaled
     /// matrix whose last column is the sum of the first two.
@@ -192,7 +255,7 @@ mod tests {
         }
     }
 
-    /// `Q [U_R; 0] diag(s) V^T` rebuilds `A`, and `qt` is `U`'s transpose applied through `Q`.
+    /// `Q [U_R; 0] diag(s) V^T` rebuilds `A`.
     #[test]
     fn tall_svd_is_the_thin_svd() {
         let a = DMatrix::from_fn(50, 4, |r, c| ((r * 4 + c) as f64 * 0.71).sin());
@@ -200,8 +263,6 @@ mod tests {
         let u = tall.q(&tall.small.u, 50);
         let back = &u * DMatrix::from_diagonal(&tall.small.s.clone().into()) * tall.small.v.transpose();
         assert!((back - &a).amax() < 1e-13);
-        let b = DVector::from_fn(50, |r, _| (r as f64).cos());
-        assert!((tall.small.u.tr_mul(&tall.qt(&b)) - u.tr_mul(&b)).amax() < 1e-13);
         let thin = svd(&a).unwrap();
         assert!(thin.s.iter().zip(&tall.small.s).all(|(x, y)| (x - y).abs() < 1e-13));
         assert!(tall_svd(&a.transpose(), &[1.0; 50]).is_none(), "wide matrices are refused");
@@ -236,34 +297,9 @@ mod tests {
     }
 
     #[test]
-    fn r_factor_is_the_triangular_factor_of_a() {
-        for a in tall_matrices() {
-            let r = r_factor(&a);
-            let n = a.ncols();
-            assert_eq!(r.shape(), (n, n));
-            assert!((0..n).all(|j| (j + 1..n).all(|i| r[(i, j)] == 0.0)), "upper triangular");
-            let ata = a.transpose() * &a;
-            assert!(
-                (r.transpose() * &r - &ata).amax() < 1e-12 * ata.amax(),
-                "R^T R = A^T A, {} rows",
-                a.nrows()
-            );
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
-            assert_eq!(pool.install(|| r_factor(&a)), r, "the same on 3 threads");
-        }
-    }
-
-    #[test]
     fn mul_is_the_product() {
         let a = DMatrix::from_fn(37, 5, |r, c| ((r * 5 + c) as f64).sin());
         let b = DMatrix::from_fn(5, 3, |r, c| ((r * 3 + c) as f64).cos());
         assert!((mul(&a, &b) - &a * &b).amax() < 1e-12);
-    }
-
-    #[test]
-    fn tr_mul_is_the_transposed_product() {
-        let a = DMatrix::from_fn(37, 5, |r, c| ((r * 5 + c) as f64).sin());
-        let b = DMatrix::from_fn(37, 3, |r, c| ((r * 3 + c) as f64).cos());
-        assert!((tr_mul(&a, &b) - a.transpose() * &b).amax() < 1e-12);
     }
 }

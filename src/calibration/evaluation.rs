@@ -25,7 +25,7 @@
 //! only if it stands out from the others.
 
 use super::{CalibrationError, ErrorStats};
-use crate::estimation::{Estimator, NoiseModel, PointProblem, Residuals, Weights};
+use crate::estimation::{NoiseModel, PointProblem, Residuals};
 use crate::kinematics::{Chain, Measured};
 use crate::model::Selection;
 use nalgebra::{DVector, Vector3};
@@ -198,7 +198,10 @@ pub(crate) fn evaluate_on(
     let mut z = last.clone();
     match whitening {
         Whitening::Covariance(_) => {
-            Weights::new(problem.covariance(), rows, Estimator::Wls, false)?.apply(&mut z)
+            // V_k's whitening, block by block: S is not stored.
+            if let Some(v) = problem.covariance() {
+                crate::estimation::whiten_in_place(v, &crate::estimation::Blocks::Uniform(rows), &mut z)?
+            }
         }
         Whitening::Spread(sigma) if *sigma > 0.0 => {
             in_lengths(problem, &mut z);

@@ -48,7 +48,7 @@ use super::{
     CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel,
     Whitening, calibrate, errors, identifiable, observed, selection, standard_errors_of,
 };
-use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights};
+use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights, linearise_rows};
 use crate::kinematics::Measured;
 use crate::model::{ParamOwner, Selection, name_matches};
 use nalgebra::{DMatrix, DVector};
@@ -605,9 +605,12 @@ impl LinearModel {
         )?;
         let system = base_problem.reselect(&kept, frame.before.clone())?.system(&start.x);
         let rows = base_problem.rows_per_point();
+        // The whitened system of `start`, held whole: the path fits it fold by fold.
+        let mut a = system.h.clone();
+        weights.apply(&mut a);
         let whitened = match &prior {
-            Some(prior) => prior.augment(&start.a, &start.b, &start.x),
-            None => (start.a.clone(), start.b.clone()),
+            Some(prior) => prior.augment(&a, &start.b, &start.x),
+            None => (a, start.b.clone()),
         };
         let parts = LinearParts {
             whitened,
@@ -651,9 +654,11 @@ impl LinearModel {
             h.row_mut(r).fill(0.0);
             y[r] = 0.0;
         }
+        // The whitened system of `start`, held whole: the path fits it fold by fold.
+        let (a, b) = linearise_rows(&problem, &started.weights, &start.x)?;
         let whitened = match prior {
-            Some(prior) => prior.select(identifiable).augment(&start.a, &start.b, &start.x),
-            None => (start.a.clone(), start.b.clone()),
+            Some(prior) => prior.select(identifiable).augment(&a, &b, &start.x),
+            None => (a, b),
         };
         // The robot's kept parameters, then the set-up's.
         let columns = (0..problem.parameters()).map(|c| kept.indices().get(c).copied()).collect();

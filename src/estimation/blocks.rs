@@ -127,6 +127,60 @@ fn weigh_block<D: Dim>(
 where
     DefaultAllocator: Allocator<D, D> + Allocator<D>,
 {
+    let (s_k, v_k) = block_whitener(v, start, d, estimator, k)?;
+    noise.generic_view_mut((start, 0), (d, d)).copy_from(&(&s_k * v_k * s_k.transpose()));
+    s.generic_view_mut((start, 0), (d, d)).copy_from(&s_k);
+    Ok(())
+}
+
+/// `z` (`N_m` rows) multiplied in place by the Gauss-Markov whitening `S_k = L_k^-1` of the
+/// blocks `v`, point by point, `S` never stored: what [`super::Weights::apply`] does with
+/// unnormalised [`Estimator::Wls`] weights, to the bit.
+pub(crate) fn whiten_in_place(
+    v: &DMatrix<f64>,
+    blocks: &Blocks,
+    z: &mut DVector<f64>,
+) -> Result<(), EstimationError> {
+    for k in 0..blocks.points(v.nrows()) {
+        let r = blocks.range(k);
+        match r.len() {
+            3 => whiten_block(v, r.start, Const::<3>, k, z)?,
+            6 => whiten_block(v, r.start, Const::<6>, k, z)?,
+            n => whiten_block(v, r.start, Dyn(n), k, z)?,
+        }
+    }
+    Ok(())
+}
+
+/// [`whiten_in_place`] of the block of `d` rows at row `start` (point `k`).
+fn whiten_block<D: Dim>(
+    v: &DMatrix<f64>,
+    start: usize,
+    d: D,
+    k: usize,
+    z: &mut DVector<f64>,
+) -> Result<(), EstimationError>
+where
+    DefaultAllocator: Allocator<D, D> + Allocator<D>,
+{
+    let s_k = block_whitener(v, start, d, Estimator::Wls, k)?.0;
+    let z_k = OMatrix::<f64, D, Const<1>>::from_fn_generic(d, Const::<1>, |i, _| z[start + i]);
+    z.rows_mut(start, d.value()).copy_from_slice((s_k * z_k).as_slice());
+    Ok(())
+}
+
+/// `S_k` of `estimator` and `V_k` of the block of `d` rows at row `start` of `v` (point `k`).
+#[allow(clippy::type_complexity)]
+fn block_whitener<D: Dim>(
+    v: &DMatrix<f64>,
+    start: usize,
+    d: D,
+    estimator: Estimator,
+    k: usize,
+) -> Result<(OMatrix<f64, D, D>, OMatrix<f64, D, D>), EstimationError>
+where
+    DefaultAllocator: Allocator<D, D> + Allocator<D>,
+{
     let v_k = OMatrix::<f64, D, D>::from_fn_generic(d, d, |i, j| v[(start + i, j)]);
     let not_pd = || EstimationError::NotPositiveDefinite { point: k };
     let s_k = match estimator {
@@ -144,9 +198,7 @@ where
             OMatrix::from_diagonal(&v_k.diagonal().map(|d| d.powf(power)))
         }
     };
-    noise.generic_view_mut((start, 0), (d, d)).copy_from(&(&s_k * v_k * s_k.transpose()));
-    s.generic_view_mut((start, 0), (d, d)).copy_from(&s_k);
-    Ok(())
+    Ok((s_k, v_k))
 }
 
 /// `m` (`N_m` rows) times the block-diagonal matrix whose blocks are stacked in `stacked`

@@ -21,6 +21,7 @@ mod noise;
 mod noise_file;
 pub mod prior;
 mod problem;
+mod reduced;
 mod refine;
 mod solve;
 mod variance;
@@ -28,7 +29,7 @@ pub(crate) use variance::Z_95;
 
 pub use blocks::Blocks;
 use blocks::block_weights;
-pub(crate) use blocks::{block_diagonal_mul, check_covariance};
+pub(crate) use blocks::{block_diagonal_mul, check_covariance, whiten_in_place};
 pub use device::{Device, DeviceError};
 pub use noise::{MeasurementNoise, NoiseModel};
 pub(crate) use noise_file::DeviceTable;
@@ -37,8 +38,10 @@ pub use prior::{
     PRESETS as PRIOR_PRESETS, PriorEntry, PriorError, PriorRows, PriorUnit, prior_sds, prior_sds_of,
 };
 pub use problem::{POSE_SIGMAS, PointProblem};
+pub use reduced::Reduced;
 pub use refine::{
-    Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from, refine_map,
+    Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, linearise_rows, refine,
+    refine_from, refine_map,
 };
 pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE, combination_text};
 pub use variance::{ComponentFit, JointComponents, NoiseEstimate, SigmaInterval, sample_covariance};
@@ -441,9 +444,9 @@ pub fn diagnose(
 ) -> Result<Diagnostics, EstimationError> {
     system.validate()?;
     let weights = Weights::new(system.v.as_ref(), system.rows_per_point, estimator, true)?;
-    let mut a = system.h.clone();
-    weights.apply(&mut a);
-    Ok(solve::factorise(&a, rank_tolerance)?.diagnostics)
+    let w = weights.whiten(system);
+    let reduced = Reduced::of_whitened(&w.a, &w.b, &w.blocks, None);
+    solve::diagnose_reduced(&reduced, rank_tolerance, &[])
 }
 
 /// The pseudoinverse `pinv(A)` by the same rank-revealing factorisation as every estimate.

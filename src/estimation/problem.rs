@@ -9,11 +9,12 @@
 //! on the unit of length, and one radian never counts as one millimetre.
 
 use super::refine::Residuals;
-use super::{EstimationError, LinearSystem, NoiseModel, Weights};
+use super::{EstimationError, LinearSystem, NoiseModel, Reduced, Weights};
 use crate::kinematics::{Chain, ChainAt, Measured, end_positions, marker_jacobians, pose_error};
 use crate::model::Selection;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX, Vector3};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Poses measured on a robot: `y(x) = measured - f(q, x)` for the selected parameters `x`,
 /// the others held at fixed values. Each pose is one point of the estimators: the positions of
@@ -23,10 +24,12 @@ pub struct PointProblem<'a> {
     chains: &'a [Chain],
     selection: &'a Selection,
     measured: Measured,
-    joints: Vec<Vec<f64>>,
-    observed: Vec<Isometry3<f64>>,
+    /// The poses' joint values, what was measured and the blocks `V_k`: shared by the problems
+    /// [`PointProblem::reselect`] makes.
+    joints: Arc<Vec<Vec<f64>>>,
+    observed: Arc<Vec<Isometry3<f64>>>,
     fixed: Vec<f64>,
-    v: Option<DMatrix<f64>>,
+    v: Option<Arc<DMatrix<f64>>>,
     orientation_weight: f64,
 }
 
@@ -77,8 +80,8 @@ impl<'a> PointProblem<'a> {
             chains,
             selection,
             measured,
-            joints,
-            observed,
+            joints: Arc::new(joints),
+            observed: Arc::new(observed),
             fixed,
             v: None,
             orientation_weight: weight,
@@ -95,7 +98,7 @@ impl<'a> PointProblem<'a> {
             if measured == Measured::Pose {
                 problem.orientation_weight = orientation_weight(&v);
             }
-            problem.v = Some(v);
+            problem.v = Some(Arc::new(v));
         }
         Ok(problem)
     }
@@ -140,12 +143,17 @@ impl<'a> PointProblem<'a> {
     fn covariance_blocks(&self, noise: &NoiseModel) -> Result<DMatrix<f64>, EstimationError> {
         let rows = self.rows_per_point();
         noise.validate(self.chains[0].dof(), self.joints.len(), rows)?;
-        let blocks: Vec<DMatrix<f64>> = (self.manipulator_jacobians(&self.fixed).par_iter().enumerate())
-            .map(|(k, stacked)| noise.pose_covariance(k, stacked, self.measured))
-            .collect();
         let mut v = DMatrix::zeros(rows * self.joints.len(), rows);
-        for (k, block) in blocks.iter().enumerate() {
-            v.rows_mut(k * rows, rows).copy_from(block);
+        // A slice of poses at a time: their blocks are small matrices of their own.
+        for first in (0..self.joints.len()).step_by(BLOCKS_AT_ONCE) {
+            let poses = first..(first + BLOCKS_AT_ONCE).min(self.joints.len());
+            let blocks: Vec<DMatrix<f64>> =
+                (self.jacobians_of(&self.fixed, poses.clone()).par_iter().enumerate())
+                    .map(|(i, stacked)| noise.pose_covariance(first + i, stacked, self.measured))
+                    .collect();
+            for (k, block) in poses.zip(&blocks) {
+                v.rows_mut(k * rows, rows).copy_from(block);
+            }
         }
         Ok(v)
     }
@@ -153,10 +161,15 @@ impl<'a> PointProblem<'a> {
     /// The measured rows of the manipulator Jacobians `J_k` of every pose (`rows x dof`:
     /// 3 per marker, or 6 for a tool pose), at the full parameter vector `at`.
     pub fn manipulator_jacobians(&self, at: &[f64]) -> Vec<DMatrix<f64>> {
+        self.jacobians_of(at, 0..self.joints.len())
+    }
+
+    /// [`PointProblem::manipulator_jacobians`] of the poses `poses`.
+    fn jacobians_of(&self, at: &[f64], poses: std::ops::Range<usize>) -> Vec<DMatrix<f64>> {
         let (per, rows) = (self.measured.rows(), self.rows_per_point());
         let dof = self.chains[0].dof();
         let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(at)).collect();
-        self.joints
+        self.joints[poses]
             .par_iter()
             .map_init(
                 || Matrix6xX::zeros(dof),
@@ -205,7 +218,13 @@ impl<'a> PointProblem<'a> {
     pub fn system(&self, x: &DVector<f64>) -> LinearSystem {
         let mut h = DMatrix::zeros(self.equations(), self.selection.len());
         let y = self.evaluate(x, Some(&mut h));
-        LinearSystem { h, y, rows_per_point: self.rows_per_point(), v: self.v.clone(), names: self.names() }
+        LinearSystem {
+            h,
+            y,
+            rows_per_point: self.rows_per_point(),
+            v: self.v.as_deref().cloned(),
+            names: self.names(),
+        }
     }
 }
 
@@ -227,7 +246,7 @@ impl Residuals for PointProblem<'_> {
     }
 
     fn covariance(&self) -> Option<&DMatrix<f64>> {
-        self.v.as_ref()
+        self.v.as_deref()
     }
 
     fn ols_row_scale(&self) -> Option<Vec<f64>> {
@@ -247,6 +266,10 @@ impl Residuals for PointProblem<'_> {
         h: Option<&mut DMatrix<f64>>,
     ) -> DVector<f64> {
         self.residuals(x, Some(weights), h)
+    }
+
+    fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
+        self.stream(x, weights)
     }
 }
 
@@ -293,49 +316,93 @@ impl PointProblem<'_> {
         mut h: Option<Vec<&mut [f64]>>,
     ) {
         let rows = self.rows_per_point();
-        let mut block = DMatrix::zeros(rows, self.selection.len());
-        let mut positions = vec![Vector3::zeros(); at.len()];
+        let mut scratch = self.scratch(at.len());
         for (i, y_k) in y.chunks_exact_mut(rows).enumerate() {
             let k = first + i;
-            let q = &self.joints[k];
-            match h.as_deref_mut() {
-                Some(columns) => {
-                    block.fill(0.0);
-                    let view = block.view_mut((0, 0), block.shape());
-                    if at.len() > 1 {
-                        // Markers: the arm walked once for all of them.
-                        marker_jacobians(at, q, self.selection, view, &mut positions);
-                    } else {
-                        positions[0] = at[0].identification_jacobian(q, self.selection, self.measured, view);
-                    }
-                    if let Some(weights) = weights {
-                        weights.apply_point(k, block.as_mut_slice());
-                    }
-                    for (column, values) in columns.iter_mut().zip(block.as_slice().chunks_exact(rows)) {
-                        for (to, from) in column[i * rows..(i + 1) * rows].iter_mut().zip(values) {
-                            *to = *from;
-                        }
+            self.pose(k, at, &mut scratch, h.is_some(), y_k);
+            if let Some(columns) = h.as_deref_mut() {
+                let block = &mut scratch.block;
+                if let Some(weights) = weights {
+                    weights.apply_point(k, block.as_mut_slice());
+                }
+                for (column, values) in columns.iter_mut().zip(block.as_slice().chunks_exact(rows)) {
+                    for (to, from) in column[i * rows..(i + 1) * rows].iter_mut().zip(values) {
+                        *to = *from;
                     }
                 }
-                None if self.measured == Measured::Position => end_positions(at, q, &mut positions),
-                None => {}
-            }
-            let observed = &self.observed[k * at.len()..(k + 1) * at.len()];
-            match self.measured {
-                Measured::Position => {
-                    for ((observed, position), y_m) in
-                        observed.iter().zip(&positions).zip(y_k.chunks_exact_mut(3))
-                    {
-                        y_m.copy_from_slice((observed.translation.vector - position).as_slice());
-                    }
-                }
-                Measured::Pose => y_k.copy_from_slice(pose_error(&observed[0], &at[0].pose(q)).as_slice()),
             }
             if let Some(weights) = weights {
                 weights.apply_point(k, y_k);
             }
         }
     }
+
+    /// The scratch space of [`PointProblem::pose`] for `chains` chains.
+    fn scratch(&self, chains: usize) -> Scratch {
+        Scratch {
+            block: DMatrix::zeros(self.rows_per_point(), self.selection.len()),
+            positions: vec![Vector3::zeros(); chains],
+        }
+    }
+
+    /// Pose `k`'s residual `y_k` (unwhitened) and, if `jacobian`, its rows of `H` in
+    /// `scratch.block`.
+    fn pose(&self, k: usize, at: &[ChainAt], scratch: &mut Scratch, jacobian: bool, y_k: &mut [f64]) {
+        let q = &self.joints[k];
+        let Scratch { block, positions } = scratch;
+        if jacobian {
+            block.fill(0.0);
+            let view = block.view_mut((0, 0), block.shape());
+            if at.len() > 1 {
+                // Markers: the arm walked once for all of them.
+                marker_jacobians(at, q, self.selection, view, positions);
+            } else {
+                positions[0] = at[0].identification_jacobian(q, self.selection, self.measured, view);
+            }
+        } else if self.measured == Measured::Position {
+            end_positions(at, q, positions);
+        }
+        let observed = &self.observed[k * at.len()..(k + 1) * at.len()];
+        match self.measured {
+            Measured::Position => {
+                for ((observed, position), y_m) in
+                    observed.iter().zip(positions.iter()).zip(y_k.chunks_exact_mut(3))
+                {
+                    y_m.copy_from_slice((observed.translation.vector - position).as_slice());
+                }
+            }
+            Measured::Pose => y_k.copy_from_slice(pose_error(&observed[0], &at[0].pose(q)).as_slice()),
+        }
+    }
+
+    /// [`Residuals::linearise_whitened`] without `H`: each pose's rows are built, whitened and
+    /// reduced into the triangular factor in one go ([`Reduced::reduce`]).
+    fn stream(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
+        let (rows, p) = (self.rows_per_point(), self.selection.len());
+        let full = self.full(x);
+        let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
+        let mut y = DVector::zeros(self.equations());
+        let reduced = Reduced::reduce(
+            &self.blocks(),
+            p,
+            weights.noise(),
+            y.as_mut_slice(),
+            || self.scratch(at.len()),
+            |scratch, k, out| {
+                let (h, y_k) = out.split_at_mut(rows * p);
+                self.pose(k, &at, scratch, true, y_k);
+                h.copy_from_slice(scratch.block.as_slice());
+                weights.apply_point(k, out);
+            },
+        );
+        (y, reduced)
+    }
+}
+
+/// The scratch space of one task of a linearisation: a pose's rows of `H`, the chains' ends.
+struct Scratch {
+    block: DMatrix<f64>,
+    positions: Vec<Vector3<f64>>,
 }
 
 /// `sigma_position / sigma_orientation` of pose blocks `V_k` stacked (`6N x 6`): the square
@@ -349,6 +416,9 @@ fn orientation_weight(v: &DMatrix<f64>) -> f64 {
     }
     (position / orientation).sqrt()
 }
+
+/// Poses whose covariance blocks `V_k` are computed at once, before they are stacked.
+const BLOCKS_AT_ONCE: usize = 4096;
 
 /// Poses per parallel task of [`PointProblem`]'s linearisation: enough to outweigh a task's
 /// overhead, few enough to share a thousand poses between cores.

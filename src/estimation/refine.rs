@@ -3,10 +3,8 @@
 //! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
 
 use super::prior::PriorRows;
-use super::solve::{
-    Diagnostics, LinearEstimate, RANK_TOLERANCE, diagnose_rank, diagnose_rank_by_priority, factorise,
-};
-use super::{Blocks, EstimationError, Estimator, Weights};
+use super::solve::{Diagnostics, LinearEstimate, RANK_TOLERANCE, diagnose_reduced, factorise_reduced};
+use super::{Blocks, EstimationError, Estimator, Reduced, Weights};
 use nalgebra::{DMatrix, DVector};
 
 /// A least-squares problem that can be linearised about any parameter values.
@@ -55,6 +53,16 @@ pub trait Residuals {
         }
         weights.apply(&mut y);
         y
+    }
+    /// The whitened residual `S y(x)` and the whitened system `[S H(x) S y(x)]` reduced to its
+    /// triangular factor ([`Reduced`]), with the covariance of the whitened rows from `weights`.
+    /// By default [`Residuals::evaluate_whitened`] into a whole `H`, then reduced; a problem
+    /// that builds `H` point by point can reduce each block as it comes and never hold `H`.
+    fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
+        let mut h = DMatrix::zeros(self.equations(), self.parameters());
+        let y = self.evaluate_whitened(x, weights, Some(&mut h));
+        let reduced = Reduced::of_whitened(&h, &y, weights.blocks(), weights.noise());
+        (y, reduced)
     }
 }
 
@@ -111,35 +119,39 @@ pub struct Refined {
 }
 
 /// The whitened system of a problem about `x`: `A = S H(x)` and `b = S y(x)` (Eq. 1,
-/// weighted as in Eq. 4).
+/// weighted as in Eq. 4), `A` held only as the triangular factor of `[A b]` ([`Reduced`]).
 #[derive(Debug, Clone)]
 pub struct Linearisation {
     /// Where the problem was linearised.
     pub x: DVector<f64>,
-    /// `S H(x)`, `N_m x p`.
-    pub a: DMatrix<f64>,
     /// `S y(x)`, `N_m`.
     pub b: DVector<f64>,
+    /// `[S H(x) S y(x)]` reduced: `p + 1` numbers a column, whatever `N_m`.
+    pub system: Reduced,
 }
 
 impl Linearisation {
     /// The same system for a problem that keeps only `columns` (ascending) of the parameters:
     /// what the identifiable subset starts from, without linearising again.
     pub fn select(&self, columns: &[usize]) -> Self {
-        Self { x: self.x.select_rows(columns), a: self.a.select_columns(columns), b: self.b.clone() }
+        Self { x: self.x.select_rows(columns), b: self.b.clone(), system: self.system.select(columns) }
     }
 
     /// The system with the prior rows `c P` below it ([`PriorRows::augment`]): what can be
     /// identified once the priors are counted.
     pub fn with_prior(&self, prior: &PriorRows) -> Self {
-        let (a, b) = prior.augment(&self.a, &self.b, &self.x);
-        Self { x: self.x.clone(), a, b }
+        Self { x: self.x.clone(), b: self.b.clone(), system: self.system.with_prior(prior, &self.x) }
+    }
+
+    /// The norms of the columns of `A`, one a parameter.
+    pub fn column_norms(&self) -> Vec<f64> {
+        self.system.column_norms()
     }
 
     /// What the system can identify: rank, identifiable subset, non-identifiable combinations
     /// (as [`super::diagnose`], which starts from an unweighted system).
     pub fn diagnose(&self, rank_tolerance: f64) -> Result<Diagnostics, EstimationError> {
-        diagnose_rank(&self.a, rank_tolerance)
+        diagnose_reduced(&self.system, rank_tolerance, &[])
     }
 
     /// [`Linearisation::diagnose`], with the identifiable columns chosen class by class of
@@ -150,7 +162,7 @@ impl Linearisation {
         rank_tolerance: f64,
         priority: &[u32],
     ) -> Result<Diagnostics, EstimationError> {
-        diagnose_rank_by_priority(&self.a, rank_tolerance, priority)
+        diagnose_reduced(&self.system, rank_tolerance, priority)
     }
 }
 
@@ -186,13 +198,12 @@ impl Weights {
     }
 }
 
-/// `problem` linearised about `x` and whitened by `weights` (from [`Weights::for_problem`]),
-/// with every size and value checked.
-pub fn linearise(
+/// Whether `x` and `weights` fit `problem`.
+fn check_linearisable(
     problem: &impl Residuals,
     weights: &Weights,
-    x: DVector<f64>,
-) -> Result<Linearisation, EstimationError> {
+    x: &DVector<f64>,
+) -> Result<(), EstimationError> {
     let dims = |s: String| Err(EstimationError::Dimensions(s));
     if x.len() != problem.parameters() {
         return dims(format!("{} start values for {} parameters", x.len(), problem.parameters()));
@@ -203,10 +214,35 @@ pub fn linearise(
             problem.equations()
         ));
     }
+    Ok(())
+}
+
+/// `problem` linearised about `x` and whitened by `weights` (from [`Weights::for_problem`]),
+/// with every size and value checked.
+pub fn linearise(
+    problem: &impl Residuals,
+    weights: &Weights,
+    x: DVector<f64>,
+) -> Result<Linearisation, EstimationError> {
+    check_linearisable(problem, weights, &x)?;
+    let (b, system) = problem.linearise_whitened(&x, weights);
+    system.check_finite()?;
+    Ok(Linearisation { x, b, system })
+}
+
+/// `problem` linearised about `x` and whitened by `weights` with every row held: `(S H(x),
+/// S y(x))`, checked as [`linearise`] checks. For what needs the rows themselves (a model
+/// selection's folds); a fit needs only the reduced system of [`linearise`].
+pub fn linearise_rows(
+    problem: &impl Residuals,
+    weights: &Weights,
+    x: &DVector<f64>,
+) -> Result<(DMatrix<f64>, DVector<f64>), EstimationError> {
+    check_linearisable(problem, weights, x)?;
     let mut a = DMatrix::zeros(problem.equations(), problem.parameters());
-    let b = problem.evaluate_whitened(&x, weights, Some(&mut a));
+    let b = problem.evaluate_whitened(x, weights, Some(&mut a));
     super::finite_system(&a, &b)?;
-    Ok(Linearisation { x, a, b })
+    Ok((a, b))
 }
 
 /// Refine `x0` by Gauss-Newton with Levenberg-Marquardt damping, each step the weighted
@@ -267,8 +303,10 @@ fn iterate(
 ) -> Result<Refined, EstimationError> {
     let (m, p) = (problem.equations(), problem.parameters());
     let dims = |s: String| Err(EstimationError::Dimensions(s));
-    if start.a.shape() != (m, p) || start.b.len() != m || start.x.len() != p {
-        return dims(format!("a linearisation of {:?} for a problem of {m} x {p}", start.a.shape()));
+    if start.system.parameters() != p || start.system.rows() != m || start.b.len() != m || start.x.len() != p
+    {
+        let (rows, columns) = (start.system.rows(), start.system.parameters());
+        return dims(format!("a linearisation of ({rows}, {columns}) for a problem of {m} x {p}"));
     }
     if !weights.fits(m, &problem.blocks()) {
         return dims(format!("weights for other points than the problem's {m} equations"));
@@ -278,24 +316,23 @@ fn iterate(
         return dims(format!("{} names for {p} parameters", names.len()));
     }
     let names = super::column_names(names, p);
-    let Linearisation { mut x, mut a, mut b } = start;
-    // Two buffers for the whitened H: the current system's, and the trial's.
-    let mut spare = DMatrix::zeros(m, p);
+    // The current system, never held whole: its triangular factor and its residual.
+    let Linearisation { mut x, mut b, mut system } = start;
     let mut history = Vec::new();
     // The prior's part of the cost at `x`, and the stacked system (the data's alone without one).
     let prior_cost = |x: &DVector<f64>| prior.map_or(0.0, |p| p.cost(x));
     loop {
-        let stacked = prior.map(|p| p.augment(&a, &b, &x));
-        let (sa, sb) = stacked.as_ref().map_or((&a, &b), |(a, b)| (a, b));
-        let factorised = factorise(sa, options.rank_tolerance)?;
-        let cost = sb.norm_squared();
-        let gauss_newton = factorised.solve(sa, sb);
+        let stacked = prior.map(|p| system.with_prior(p, &x));
+        let ss = stacked.as_ref().unwrap_or(&system);
+        let factorised = factorise_reduced(ss, options.rank_tolerance)?;
+        let cost = b.norm_squared() + prior_cost(&x);
+        let gauss_newton = factorised.solve(ss);
 
         let one_step = options.max_iterations == 1;
         let taken = if one_step {
             // The paper's estimate: the linear solution, taken as it is; its cost is the
             // linearised residual's.
-            let linearised = (sb - sa * &gauss_newton).norm_squared();
+            let linearised = ss.cost_after(&gauss_newton);
             Some(Accepted { step: gauss_newton, cost_after: linearised, damping: 0.0, residual: None })
         } else {
             // Gauss-Newton, damped more and more until the cost falls, as Levenberg-Marquardt;
@@ -303,29 +340,39 @@ fn iterate(
             // minimum is reached and a failed step is rounding, not a reason to damp (a damped
             // step promises less still). Each trial is linearised at once: an accepted one is
             // the next step's system.
-            let promised = cost - (sb - sa * &gauss_newton).norm_squared();
+            let promised = cost - ss.cost_after(&gauss_newton);
             let at_minimum = promised <= options.cost_tolerance * cost;
             let mut trial = (gauss_newton, 0.0);
             loop {
                 // At the minimum this trial is the last one: its H would never be used.
-                let h = if at_minimum { None } else { Some(&mut spare) };
                 let moved_to = &x + &trial.0;
-                let y = problem.evaluate_whitened(&moved_to, weights, h);
+                let (y, next) = if at_minimum {
+                    (problem.evaluate_whitened(&moved_to, weights, None), None)
+                } else {
+                    let (y, next) = problem.linearise_whitened(&moved_to, weights);
+                    (y, Some(next))
+                };
                 let cost_after = y.norm_squared() + prior_cost(&moved_to);
                 if cost_after <= cost {
-                    let (step, damping, residual) = (trial.0, trial.1, Some((y, !at_minimum)));
+                    let (step, damping, residual) = (trial.0, trial.1, Some((y, next)));
                     break Some(Accepted { step, cost_after, damping, residual });
                 }
                 if at_minimum || trial.1 >= 1e12 {
                     break None;
                 }
                 let damping = if trial.1 == 0.0 { 1e-4 } else { trial.1 * 10.0 };
-                trial = (damped_step(sa, sb, damping, options.rank_tolerance)?, damping);
+                let damped = ss.damped(damping);
+                trial = (factorise_reduced(&damped, options.rank_tolerance)?.solve(&damped), damping);
             }
         };
         let (converged, final_cost, next) = match taken {
             Some(Accepted { step, cost_after, damping, residual }) => {
-                let moved = (&a * &step).amax();
+                // How far the step moved a whitened prediction: the change of the whitened
+                // residuals (those after the paper's one step are evaluated for it alone).
+                let moved = match &residual {
+                    Some((y, _)) => (y - &b).amax(),
+                    None => (problem.evaluate_whitened(&(&x + &step), weights, None) - &b).amax(),
+                };
                 x += &step;
                 history.push(Iteration { cost, cost_after, step: moved, damping });
                 let small =
@@ -335,18 +382,20 @@ fn iterate(
             None => (true, cost, None),
         };
         match next {
-            Some((mut y, linearised)) if !converged && history.len() < options.max_iterations => {
-                if !linearised {
-                    y = problem.evaluate_whitened(&x, weights, Some(&mut spare));
-                }
-                super::finite_system(&spare, &y)?;
-                std::mem::swap(&mut a, &mut spare);
+            Some((y, linearised)) if !converged && history.len() < options.max_iterations => {
+                let (y, next) = match linearised {
+                    Some(next) => (y, next),
+                    None => problem.linearise_whitened(&x, weights),
+                };
+                super::finite("y", y.as_slice(), y.len())?;
+                next.check_finite()?;
+                system = next;
                 b = y;
             }
             _ => {
                 let covariance = match prior {
-                    None => factorised.covariance(&a, weights.noise(), final_cost),
-                    Some(prior) => factorised.posterior_covariance(&a, weights.noise(), prior),
+                    None => factorised.covariance(&system, final_cost),
+                    Some(prior) => factorised.posterior_covariance(&system, prior),
                 };
                 let diagnostics = factorised.diagnostics;
                 let estimate = LinearEstimate { names, x, covariance, cost: final_cost, diagnostics };
@@ -362,28 +411,9 @@ struct Accepted {
     cost_after: f64,
     /// Levenberg-Marquardt damping that was needed.
     damping: f64,
-    /// `S y` after the step, and whether `S H` there was computed too (into the spare
-    /// buffer); `None` for the paper's one step.
-    residual: Option<(DVector<f64>, bool)>,
-}
-
-/// The Levenberg-Marquardt step: `min |b - A d|^2 + damping |diag(|A_j|) d|^2` (Marquardt's
-/// scaling, so the damping is the same for mm and rad), by the same rank-revealing solve.
-fn damped_step(
-    a: &DMatrix<f64>,
-    b: &DVector<f64>,
-    damping: f64,
-    tolerance: f64,
-) -> Result<DVector<f64>, EstimationError> {
-    let (m, p) = a.shape();
-    let mut augmented = DMatrix::zeros(m + p, p);
-    augmented.rows_mut(0, m).copy_from(a);
-    for (j, column) in a.column_iter().enumerate() {
-        augmented[(m + j, j)] = damping.sqrt() * column.norm();
-    }
-    let mut rhs = DVector::zeros(m + p);
-    rhs.rows_mut(0, m).copy_from(b);
-    Ok(factorise(&augmented, tolerance)?.solve(&augmented, &rhs))
+    /// `S y` after the step, and the system linearised there if it was (not at the minimum);
+    /// `None` for the paper's one step.
+    residual: Option<(DVector<f64>, Option<Reduced>)>,
 }
 
 #[cfg(test)]

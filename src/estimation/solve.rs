@@ -17,7 +17,7 @@
 //! `M^+` for Gauss-Markov and `(H^T H)^+ H^T V H (H^T H)^+` for OLS.
 
 use super::prior::PriorRows;
-use super::{EstimationError, Whitened};
+use super::{EstimationError, Reduced, Whitened};
 use nalgebra::{DMatrix, DVector};
 
 /// Default relative tolerance on the singular values of the column-scaled whitened `H` below
@@ -131,8 +131,10 @@ pub(crate) struct Factorised {
 enum Right {
     /// `U_r^T = U_R,r^T Q^T` with `Q` kept as Householder reflectors (`u_r` is `U_R,r`, `p x r`).
     Orthogonal { tall: Box<crate::linalg::TallSvd>, u_r: DMatrix<f64> },
-    /// `A^T` (the caller's `A`), for the normal equations; `gram` is `A^T A`.
-    Transpose { gram: DMatrix<f64> },
+    /// `A^T` (the caller's `A`), for the normal equations.
+    Transpose,
+    /// `U_R,r^T` of a [`Reduced`] system, whose `Q^T b` it holds (`u_r` is `p x r`).
+    Triangular { u_r: DMatrix<f64> },
 }
 
 /// Factor the whitened `a` as described in the [module documentation](self).
@@ -146,7 +148,11 @@ pub(crate) fn factorise(a: &DMatrix<f64>, tolerance: f64) -> Result<Factorised, 
 
 /// The sizes and the tolerance of a factorisation.
 fn check(a: &DMatrix<f64>, tolerance: f64) -> Result<(), EstimationError> {
-    let (m, p) = a.shape();
+    check_sizes(a.nrows(), a.ncols(), tolerance)
+}
+
+/// [`check`] of a system of `m` rows and `p` columns.
+fn check_sizes(m: usize, p: usize, tolerance: f64) -> Result<(), EstimationError> {
     if m == 0 || p == 0 {
         return Err(EstimationError::NothingToEstimate(match p {
             0 => "no parameter is selected, or none is left once those the data cannot see are held".into(),
@@ -190,31 +196,46 @@ pub(crate) fn factorise_rank_revealing(
     Ok(Factorised { left, right: Right::Orthogonal { tall: Box::new(tall), u_r }, pg, diagnostics })
 }
 
-/// The diagnostics of [`factorise_rank_revealing`] alone, which need only the triangular
-/// factor `R` of `A = Q R`, not `Q`: `R` comes from a QR of row parts computed in parallel
-/// ([`crate::linalg::r_factor`]).
-pub(crate) fn diagnose_rank(a: &DMatrix<f64>, tolerance: f64) -> Result<Diagnostics, EstimationError> {
-    diagnose_rank_by_priority(a, tolerance, &[])
+/// A [`Reduced`] system factored as in the [module documentation](self), by the SVD of its
+/// column-scaled triangular factor `R D` (`p x p`), which has the singular values and right
+/// singular vectors of `A D`.
+pub(crate) fn factorise_reduced(system: &Reduced, tolerance: f64) -> Result<Factorised, EstimationError> {
+    let m = system.rows();
+    check_sizes(m, system.parameters(), tolerance)?;
+    let (svd, d) = scaled_svd(system)?;
+    let (diagnostics, null_basis) = rank_revealed(&svd, &d, m, tolerance, &[])?;
+    let rank = diagnostics.rank;
+    let projector = complement_projector(&null_basis)?;
+    let pdv = &projector * &d * svd.v.columns(0, rank);
+    let inverse_s =
+        DMatrix::from_diagonal(&DVector::from_iterator(rank, svd.s[..rank].iter().map(|s| 1.0 / s)));
+    let left = &pdv * &inverse_s;
+    let u_r = svd.u.columns(0, rank).into_owned();
+    let pg = &pdv * &inverse_s * &inverse_s * svd.v.columns(0, rank).transpose() * &d;
+    Ok(Factorised { left, right: Right::Triangular { u_r }, pg, diagnostics })
 }
 
-/// [`diagnose_rank`], the identifiable columns chosen class by class: every column of
-/// `priority` class 0 that the earlier choices leave independent, then class 1, and so on
-/// (an empty `priority` puts every column in class 0). Which member of a non-identifiable
-/// combination is held then follows the classes: a calibration keeps the measuring frame and
-/// the markers free and holds the joint parameters they absorb.
-pub(crate) fn diagnose_rank_by_priority(
-    a: &DMatrix<f64>,
+/// The SVD of `R D` of a reduced system, `D` its column scales (`1 / |a_j|`, 1 for a zero
+/// column), with `D`.
+fn scaled_svd(system: &Reduced) -> Result<(crate::linalg::Svd, DMatrix<f64>), EstimationError> {
+    let scales: Vec<f64> =
+        system.column_norms().into_iter().map(|n| if n > 0.0 { 1.0 / n } else { 1.0 }).collect();
+    let r = system.r();
+    let scaled = DMatrix::from_fn(r.nrows(), r.ncols(), |i, j| r[(i, j)] * scales[j]);
+    let svd = crate::linalg::svd(&scaled).ok_or(EstimationError::NoConvergence)?;
+    Ok((svd, DMatrix::from_diagonal(&DVector::from_column_slice(&scales))))
+}
+
+/// [`diagnose_rank_by_priority`] of a [`Reduced`] system, from its triangular factor.
+pub(crate) fn diagnose_reduced(
+    system: &Reduced,
     tolerance: f64,
     priority: &[u32],
 ) -> Result<Diagnostics, EstimationError> {
-    check(a, tolerance)?;
-    let (scales, d) = column_scales(a);
-    let mut r = crate::linalg::r_factor(a);
-    for (mut column, scale) in r.column_iter_mut().zip(&scales) {
-        column *= *scale;
-    }
-    let svd = crate::linalg::svd(&r).ok_or(EstimationError::NoConvergence)?;
-    Ok(rank_revealed(&svd, &d, a.nrows(), tolerance, priority)?.0)
+    let m = system.rows();
+    check_sizes(m, system.parameters(), tolerance)?;
+    let (svd, d) = scaled_svd(system)?;
+    Ok(rank_revealed(&svd, &d, m, tolerance, priority)?.0)
 }
 
 /// `1 / |a_j|` for each column (1 for a zero column), as a list and as the diagonal `D`.
@@ -292,7 +313,7 @@ fn factorise_well_conditioned(a: &DMatrix<f64>, tolerance: f64) -> Option<Factor
         identifiable: (0..p).collect(),
         not_identifiable: Vec::new(),
     };
-    Some(Factorised { left: g.clone(), right: Right::Transpose { gram }, pg: g, diagnostics })
+    Some(Factorised { left: g.clone(), right: Right::Transpose, pg: g, diagnostics })
 }
 
 /// `I - Q Q^T`, `Q` an orthonormal basis of the span of `N`'s columns: the orthogonal projector
@@ -399,94 +420,57 @@ fn combinations(null_basis: &DMatrix<f64>, identifiable: &[usize]) -> Vec<Combin
         .collect()
 }
 
-/// Solve the whitened problem: estimate, covariance, cost and diagnostics.
+/// Solve the whitened problem: estimate, covariance, cost and diagnostics, by its
+/// [`Reduced`] form (as every linearisation of a [`super::Residuals`] problem).
 pub(crate) fn solve(
     w: &Whitened,
     tolerance: f64,
     names: Vec<String>,
 ) -> Result<LinearEstimate, EstimationError> {
-    let f = factorise(&w.a, tolerance)?;
-    let x = f.solve(&w.a, &w.b);
-    let cost = (&w.b - &w.a * &x).norm_squared();
-    let covariance = f.covariance(&w.a, w.noise.as_ref().map(|n| (n, &w.blocks)), cost);
+    let reduced = Reduced::of_whitened(&w.a, &w.b, &w.blocks, w.noise.as_ref().map(|n| (n, &w.blocks)));
+    let f = factorise_reduced(&reduced, tolerance)?;
+    let x = f.solve(&reduced);
+    let cost = reduced.cost_after(&x);
+    let covariance = f.covariance(&reduced, cost);
     Ok(LinearEstimate { names, x, covariance, cost, diagnostics: f.diagnostics })
 }
 
 impl Factorised {
-    /// `pinv(A) b` (Eq. 6 on the whitened system): `P D V_r S_r^-1 (U_r^T b)`, for the `a`
-    /// that was factored.
-    pub fn solve(&self, a: &DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
+    /// `pinv(A) b` of the [`Reduced`] system that was factored: `P D V_r S_r^-1 U_R,r^T z`.
+    pub fn solve(&self, system: &Reduced) -> DVector<f64> {
         match &self.right {
-            Right::Orthogonal { tall, u_r } => &self.left * u_r.tr_mul(&tall.qt(b)),
-            Right::Transpose { .. } => &self.left * a.tr_mul(b),
+            Right::Triangular { u_r } => &self.left * u_r.tr_mul(&system.z()),
+            // Dense factorisations are made for their pseudoinverse (`factorise`).
+            _ => unreachable!("only a factorise_reduced system is solved"),
         }
+    }
+
+    /// The covariance of the solve of the [`Reduced`] system that was factored:
+    /// `(P G) A^T N A (P G)^T`, `N` the covariance of `b` (the whitened noise blocks), or
+    /// `sigma^2 I` with `sigma^2 = cost / (N_m - rank)` where the noise is unknown. Gauss-Markov
+    /// whitening leaves `N = sigma_max^2 I`, and `A^T N A` is then `sigma_max^2 R^T R`.
+    pub(crate) fn covariance(&self, system: &Reduced, cost: f64) -> DMatrix<f64> {
+        let dof = system.rows().saturating_sub(self.diagnostics.rank);
+        let sigma2 = if dof > 0 { cost / dof as f64 } else { f64::NAN };
+        &self.pg * system.information(sigma2) * self.pg.transpose()
+    }
+
+    /// The covariance of a solve of the data rows `data` with the prior rows below them (this
+    /// factorisation's system, [`super::prior`]): `(P G) (C_data + C_prior) (P G)^T`, the data
+    /// rows' covariance the noise blocks (or `c^2 I` without them), the prior's
+    /// [`PriorRows::information`]. For Gauss-Markov, `(H^T V^-1 H + P^2)^-1`: the posterior.
+    pub(crate) fn posterior_covariance(&self, data: &Reduced, prior: &PriorRows) -> DMatrix<f64> {
+        let information = data.information(prior.scale().powi(2));
+        &self.pg * (information + prior.information()) * self.pg.transpose()
     }
 
     /// `pinv(A)` itself (`p x N_m`), for solving many right-hand sides.
     pub fn pinv(&self, a: &DMatrix<f64>) -> DMatrix<f64> {
         match &self.right {
             Right::Orthogonal { tall, u_r } => tall.q(&(u_r * self.left.transpose()), a.nrows()).transpose(),
-            Right::Transpose { .. } => &self.left * a.transpose(),
-        }
-    }
-
-    /// `(P G) C (P G)^T` with `C = sum_k A_k^T N_k A_k`, `N_k` the blocks of `Cov(b)`; without
-    /// them, `Cov(b) = sigma^2 I` with `sigma^2 = cost / (N_m - rank)`. Gauss-Markov whitening
-    /// leaves `N_k = sigma_max^2 I`; blocks within 1e-9 of such a multiple of the identity are
-    /// taken as it, so that `C` is the Gram matrix the normal equations already hold.
-    pub(crate) fn covariance(
-        &self,
-        a: &DMatrix<f64>,
-        noise: Option<(&DMatrix<f64>, &super::Blocks)>,
-        cost: f64,
-    ) -> DMatrix<f64> {
-        let gram = || match &self.right {
-            Right::Transpose { gram } => gram.clone(),
-            Right::Orthogonal { .. } => crate::linalg::gram(a),
-        };
-        let c = match noise {
-            Some(blocks) => information(a, blocks, gram),
-            None => {
-                let dof = a.nrows().saturating_sub(self.diagnostics.rank);
-                let sigma2 = if dof > 0 { cost / dof as f64 } else { f64::NAN };
-                gram() * sigma2
-            }
-        };
-        &self.pg * c * self.pg.transpose()
-    }
-
-    /// The covariance of a solve of the data rows `a` with the prior rows below them (this
-    /// factorisation's system, [`super::prior`]): `(P G) (C_data + C_prior) (P G)^T`, the data
-    /// rows' covariance the noise blocks (or `c^2 I` without them), the prior's
-    /// [`PriorRows::information`]. For Gauss-Markov, `(H^T V^-1 H + P^2)^-1`: the posterior.
-    pub(crate) fn posterior_covariance(
-        &self,
-        a: &DMatrix<f64>,
-        noise: Option<(&DMatrix<f64>, &super::Blocks)>,
-        prior: &PriorRows,
-    ) -> DMatrix<f64> {
-        let gram = || crate::linalg::gram(a);
-        let data = match noise {
-            Some(blocks) => information(a, blocks, gram),
-            None => gram() * prior.scale().powi(2),
-        };
-        &self.pg * (data + prior.information()) * self.pg.transpose()
-    }
-}
-
-/// `A^T N A` for the stacked blocks `N` of the covariance of the whitened data rows `a`; `gram`
-/// gives `A^T A`, used when every block is a multiple of the identity.
-fn information(
-    a: &DMatrix<f64>,
-    (stacked, blocks): (&DMatrix<f64>, &super::Blocks),
-    gram: impl Fn() -> DMatrix<f64>,
-) -> DMatrix<f64> {
-    match super::blocks::identity_multiple(stacked, blocks) {
-        Some(scale) => gram() * scale,
-        None => {
-            let mut na = a.clone();
-            super::block_diagonal_mul(stacked, blocks, &mut na);
-            crate::linalg::tr_mul(a, &na)
+            Right::Transpose => &self.left * a.transpose(),
+            // A reduced system's rows are gone: it is factored to be solved.
+            Right::Triangular { .. } => unreachable!("a factorise_reduced system has no pseudoinverse"),
         }
     }
 }

@@ -29,7 +29,7 @@
 //! covariance of `theta` is the inverse Fisher information `F^-1`, `F = A^T A` with `A` the
 //! weighted design. Intervals are `theta +- z se`, clipped at zero for variances.
 
-use super::EstimationError;
+use super::{Blocks, EstimationError, Reduced};
 use nalgebra::{DMatrix, DVector};
 
 /// One observed covariance: `S_k`, its degrees of freedom and the design of its expectation.
@@ -243,43 +243,54 @@ pub(crate) fn fit_components(
     if rows < m {
         return bad(format!("{rows} covariance entries cannot determine {m} components"));
     }
-    let system = |theta: Option<&DVector<f64>>| -> (DMatrix<f64>, DVector<f64>) {
-        let mut a = DMatrix::zeros(rows, m);
-        let mut y = DVector::zeros(rows);
-        let mut row = 0;
-        for sample in samples {
-            let b = sample.s.nrows();
+    // The weighted system `[A y]` (a row per entry of every `S_k`), never held: reduced sample
+    // by sample to its triangular factor `[R z; 0 rho]`, which [`nnls`] takes as `[R; 0]`,
+    // `[z; rho]` (the same least squares).
+    let blocks = Blocks::from_sizes(samples.iter().map(|s| s.s.len()));
+    let reduced = |theta: Option<&DVector<f64>>| -> (DMatrix<f64>, DVector<f64>) {
+        let fill = |_: &mut (), k: usize, out: &mut [f64]| {
+            let sample = &samples[k];
+            let n = sample.s.len();
             let w = theta.map(|t| whitener(sample, t));
             let weigh = |x: &DMatrix<f64>| match &w {
                 Some(w) => w * x * w.transpose(),
                 None => x.clone(),
             };
             let f = (sample.dof / 2.0).sqrt();
-            let s = weigh(&sample.s);
-            y.rows_mut(row, b * b).copy_from_slice((s * f).as_slice());
             for (c, d) in sample.design.iter().enumerate() {
-                a.view_mut((row, c), (b * b, 1)).copy_from_slice((weigh(d) * f).as_slice());
+                out[c * n..(c + 1) * n].copy_from_slice((weigh(d) * f).as_slice());
             }
-            row += b * b;
-        }
-        (a, y)
+            out[m * n..].copy_from_slice((weigh(&sample.s) * f).as_slice());
+        };
+        let factor = Reduced::reduce_rows(&blocks, rows, m, None, None, || (), fill).into_factor();
+        (factor.columns(0, m).into_owned(), factor.column(m).into_owned())
     };
-    let (a0, y0) = system(None);
+    // The largest fitted entry `|f_k sum_c theta_c D_c,k|` of the unweighted system.
+    let fitted = |theta: &DVector<f64>| {
+        let largest = |sample: &CovarianceSample| {
+            let f = (sample.dof / 2.0).sqrt();
+            (0..sample.s.len())
+                .map(|i| sample.design.iter().zip(theta.iter()).fold(0.0, |sum, (d, t)| sum + d[i] * f * t))
+                .fold(0.0, |a: f64, v| a.max(v.abs()))
+        };
+        samples.iter().map(largest).fold(0.0, f64::max)
+    };
+    let (a0, y0) = reduced(None);
     let mut theta = nnls(&a0, &y0, constrained);
     let mut iterations = 0;
     for _ in 0..50 {
         iterations += 1;
-        let (a, y) = system(Some(&theta));
+        let (a, y) = reduced(Some(&theta));
         let next = nnls(&a, &y, constrained);
         // Converged when the change no longer moves any fitted covariance noticeably.
-        let moved = (&a0 * (&next - &theta)).amax();
-        let size = (&a0 * &next).amax().max(f64::MIN_POSITIVE);
+        let moved = fitted(&(&next - &theta));
+        let size = fitted(&next).max(f64::MIN_POSITIVE);
         theta = next;
         if moved <= 1e-9 * size {
             break;
         }
     }
-    let (a, _) = system(Some(&theta));
+    let (a, _) = reduced(Some(&theta));
     let information = a.transpose() * &a;
     let scale = DVector::from_fn(m, |c, _| information[(c, c)].sqrt());
     if scale.iter().any(|&s| s.is_nan() || s <= 0.0 || !s.is_finite()) {

@@ -1838,7 +1838,7 @@ pub(super) fn identifiable(
     priority: &[u32],
     prior: Option<&PriorRows>,
 ) -> Result<(Vec<usize>, Vec<Held>), CalibrationError> {
-    let norms: Vec<f64> = linearised.a.column_iter().map(|c| c.norm()).collect();
+    let norms: Vec<f64> = linearised.column_norms();
     let largest = norms.iter().copied().fold(0.0, f64::max);
     let (seen, unseen): (Vec<usize>, Vec<usize>) =
         (0..norms.len()).partition(|&c| norms[c] > 1e-10 * largest);
