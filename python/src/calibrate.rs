@@ -221,15 +221,8 @@ impl Flags {
                 None
             }
             Some(name) => Some(name.parse::<Estimator>().map_err(|e| errors::argument("estimator", e))?),
-            None if noise => Some(Estimator::Wls),
-            None => Some(Estimator::Ols),
+            None => None,
         };
-        if let Some(e) = estimator.filter(|&e| e != Estimator::Ols && !noise) {
-            return Err(errors::argument(
-                "estimator",
-                format!("{e} needs the noise: give joint_sigma or noise"),
-            ));
-        }
         let joints = match self.params.iter().map(String::as_str).collect::<Vec<_>>()[..] {
             [] | ["joints"] => JointParams::All,
             ["all"] => {
@@ -533,6 +526,14 @@ fn markers(
     }
     let markers_mm = flags.marker_mm(request.noise_units);
     let noise = flags.noise(request, model, &fit)?;
+    // Weighted with the noise, OLS without; a weighted estimator needs the noise.
+    let estimator =
+        request.estimator.unwrap_or(if noise.is_some() { Estimator::Wls } else { Estimator::Ols });
+    if estimator != Estimator::Ols && noise.is_none() && !request.feasible {
+        let message =
+            format!("{estimator} needs the noise: give joint_sigma or noise, or use estimator fgls");
+        return Err(errors::argument("estimator", message));
+    }
     let mut prior = match &flags.noise {
         Some(path) => {
             robocal::io::load_noise(Path::new(path), model)
@@ -543,7 +544,7 @@ fn markers(
     };
     prior.extend(request.prior.iter().cloned());
     let asked = Options {
-        estimator: request.estimator.unwrap_or(Estimator::Ols),
+        estimator: if request.feasible { Estimator::Ols } else { estimator },
         noise,
         joints: request.joints.clone(),
         estimate_base: !flags.fixed_base,
