@@ -162,7 +162,7 @@ def calibrate(
     joint_unit: Optional[str] = None,
     length_unit: Optional[str] = None,
     estimator: Optional[str] = None,
-    joint_sigma: Optional[Sequence[float]] = None,
+    joint_sigma: Union[Sequence[float], np.ndarray, None] = None,
     sigma: Optional[float] = None,
     sigma_orientation: Optional[float] = None,
     noise: Optional[PathLike] = None,
