@@ -8,6 +8,7 @@ readers, and the reports are the command line's. Units inside are millimetres an
 
 from __future__ import annotations
 
+import json
 import os
 from dataclasses import dataclass
 from typing import Any, Optional, Sequence, Union
@@ -18,6 +19,9 @@ from ._errors import EstimationError, InputError, RobocalError
 from ._robocal import Calibration as _Calibration
 from ._robocal import Model, __version__, presets, studies
 from ._robocal import calibrate_source as _calibrate_source
+from ._robocal import evaluate as _evaluate
+from ._robocal import observability as _observability
+from ._robocal import plan as _plan
 from ._robocal import measurements_csv as _measurements_csv
 from ._robocal import simulate as _simulate
 
@@ -30,6 +34,9 @@ __all__ = [
     "RobocalError",
     "__version__",
     "calibrate",
+    "evaluate",
+    "observability",
+    "plan",
     "presets",
     "reproduce",
     "simulate",
@@ -203,7 +210,58 @@ def calibrate(
         held_out.append(s)
     if arrays and not given_units:
         joint_unit, length_unit = "rad", "m"
-    flags = {
+    flags = _flags(
+        joint_unit=joint_unit,
+        length_unit=length_unit,
+        estimator=estimator,
+        joint_sigma=joint_sigma,
+        sigma=sigma,
+        sigma_orientation=sigma_orientation,
+        noise=noise,
+        params=params,
+        hold=hold,
+        keep=keep,
+        select=select,
+        prior=prior,
+        loss=loss,
+        folds=folds,
+        fixed_base=fixed_base,
+        fixed_markers=fixed_markers,
+        fixed_tool=fixed_tool,
+        marker=marker,
+        tool=tool,
+        use_markers=use_markers,
+        iterations=iterations,
+    )
+    return Calibration(_calibrate_source(model, sources, held_out, flags))
+
+
+def _flags(
+    *,
+    joint_unit: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    estimator: Optional[str] = None,
+    joint_sigma: Any = None,
+    sigma: Optional[float] = None,
+    sigma_orientation: Optional[float] = None,
+    noise: Optional[PathLike] = None,
+    params: Union[str, Sequence[str]] = "joints",
+    hold: Sequence[str] = (),
+    keep: Sequence[str] = (),
+    select: Optional[str] = None,
+    prior: Optional[str] = None,
+    loss: Optional[str] = None,
+    folds: Optional[int] = None,
+    fixed_base: bool = False,
+    fixed_markers: bool = False,
+    fixed_tool: bool = False,
+    marker: Sequence[Sequence[float]] = (),
+    tool: Optional[Sequence[float]] = None,
+    use_markers: Optional[Sequence[int]] = None,
+    iterations: int = 50,
+) -> dict[str, Any]:
+    """The options as the extension takes them."""
+    return {
         "joint_unit": joint_unit,
         "length_unit": length_unit,
         "estimator": estimator,
@@ -226,7 +284,95 @@ def calibrate(
         "markers": None if use_markers is None else list(use_markers),
         "iterations": iterations,
     }
-    return Calibration(_calibrate_source(model, sources, held_out, flags))
+
+
+def evaluate(
+    model: Model,
+    data: Any,
+    markers: Any = None,
+    *,
+    joint_unit: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    joint_sigma: Any = None,
+    sigma: Optional[float] = None,
+    sigma_orientation: Optional[float] = None,
+    noise: Optional[PathLike] = None,
+    use_markers: Optional[Sequence[int]] = None,
+) -> dict[str, Any]:
+    """``model`` scored as it stands on ``data``, as ``robocal evaluate`` scores it."""
+    source, arrays = _source(model, data, markers, "arrays", joint_unit, length_unit)
+    if arrays and joint_unit is None and length_unit is None:
+        joint_unit, length_unit = "rad", "m"
+    flags = _flags(
+        joint_unit=joint_unit,
+        length_unit=length_unit,
+        joint_sigma=joint_sigma,
+        sigma=sigma,
+        sigma_orientation=sigma_orientation,
+        noise=noise,
+        use_markers=use_markers,
+    )
+    result: dict[str, Any] = json.loads(_evaluate(model, source, flags))
+    return result
+
+
+def _design_flags(
+    params: Union[str, Sequence[str]],
+    measured: str,
+    joint_sigma: Any,
+    sigma: Optional[float],
+    sigma_orientation: Optional[float],
+    joint_unit: str,
+    length_unit: str,
+) -> dict[str, Any]:
+    return {
+        "params": [params] if isinstance(params, str) else list(params),
+        "measured": measured,
+        "joint_sigma": None if joint_sigma is None else [float(s) for s in joint_sigma],
+        "sigma": sigma,
+        "sigma_orientation": sigma_orientation,
+        "joint_unit": joint_unit,
+        "length_unit": length_unit,
+    }
+
+
+def observability(
+    model: Model,
+    poses: Any,
+    *,
+    params: Union[str, Sequence[str]] = "joints",
+    measured: str = "position",
+    joint_sigma: Any = None,
+    sigma: Optional[float] = None,
+    sigma_orientation: Optional[float] = None,
+    joint_unit: str = "rad",
+    length_unit: str = "m",
+) -> dict[str, Any]:
+    """The observability indices O1-O5 of ``poses``, as ``robocal observability`` gives them."""
+    flags = _design_flags(params, measured, joint_sigma, sigma, sigma_orientation, joint_unit, length_unit)
+    result: dict[str, Any] = _observability(model, np.ascontiguousarray(poses, dtype=np.float64), flags)
+    return result
+
+
+def plan(
+    model: Model,
+    points: int,
+    *,
+    candidates: int = 5000,
+    criterion: str = "d",
+    seed: int = 1,
+    params: Union[str, Sequence[str]] = "joints",
+    measured: str = "position",
+    joint_sigma: Any = None,
+    sigma: Optional[float] = None,
+    sigma_orientation: Optional[float] = None,
+    joint_unit: str = "rad",
+    length_unit: str = "m",
+) -> dict[str, Any]:
+    """``points`` poses planned as ``robocal plan`` plans them (the same seed, the same poses)."""
+    flags = _design_flags(params, measured, joint_sigma, sigma, sigma_orientation, joint_unit, length_unit)
+    result: dict[str, Any] = _plan(model, points, candidates, criterion, seed, flags)
+    return result
 
 
 def simulate(study: str, *, threads: Optional[int] = None, noise: Optional[PathLike] = None) -> dict[str, Any]:

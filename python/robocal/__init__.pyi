@@ -179,6 +179,61 @@ def calibrate(
     make the calibration.
     """
 
+def evaluate(
+    model: Model,
+    data: Any,
+    markers: Any = None,
+    *,
+    joint_unit: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    joint_sigma: Union[Sequence[float], FloatArray, None] = None,
+    sigma: Optional[float] = None,
+    sigma_orientation: Optional[float] = None,
+    noise: Optional[PathLike] = None,
+    use_markers: Optional[Sequence[int]] = None,
+) -> dict[str, Any]:
+    """``model`` scored as it stands on ``data`` (as ``calibrate`` takes it: arrays, a
+    DataFrame, a file), as ``robocal evaluate`` scores it: for marker data, the set pose by pose
+    as its JSON has it (``pooled``: before, ``poses``, ``per_marker``; joint values in
+    degrees); for an observation file, its score with the set-up fitted and the robot held. A
+    model read from a file with ``[[markers]]``, or a calibration's model, brings its markers."""
+
+def observability(
+    model: Model,
+    poses: FloatArray,
+    *,
+    params: Union[str, Sequence[str]] = "joints",
+    measured: str = "position",
+    joint_sigma: Union[Sequence[float], FloatArray, None] = None,
+    sigma: Optional[float] = None,
+    sigma_orientation: Optional[float] = None,
+    joint_unit: str = "rad",
+    length_unit: str = "m",
+) -> dict[str, Any]:
+    """The observability indices of ``poses`` (n x dof), as ``robocal observability`` gives
+    them: ``scaled`` (and ``whitened`` with the noise) each with ``o1``..``o5``, ``log_det``,
+    ``condition_number``, ``rank``, ``singular_values``; and ``report``, the command's text."""
+
+def plan(
+    model: Model,
+    points: int,
+    *,
+    candidates: int = 5000,
+    criterion: str = "d",
+    seed: int = 1,
+    params: Union[str, Sequence[str]] = "joints",
+    measured: str = "position",
+    joint_sigma: Union[Sequence[float], FloatArray, None] = None,
+    sigma: Optional[float] = None,
+    sigma_orientation: Optional[float] = None,
+    joint_unit: str = "rad",
+    length_unit: str = "m",
+) -> dict[str, Any]:
+    """``points`` poses chosen among ``candidates`` random ones to maximise ``criterion`` (d,
+    o1..o5), as ``robocal plan`` chooses them with the same seed: ``joints`` (points x dof, rad
+    and mm), ``value`` and ``initial`` (the criterion's), ``summary`` (the command's text) and
+    ``csv`` (the pose file, degrees)."""
+
 def simulate(study: str, *, threads: Optional[int] = None, noise: Optional[PathLike] = None) -> dict[str, Any]:
     """Run a Monte Carlo study (a preset name or a TOML file) as ``robocal simulate`` does;
     the numbers do not depend on ``threads``. The dict holds ``name``, ``estimators``,

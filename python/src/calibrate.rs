@@ -17,7 +17,9 @@ use robocal::calibration::{
 use robocal::design::accuracy::{AccuracyModel, ParameterCovariance};
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PriorEntry, RefineOptions};
 use robocal::model::{JointKind, RobotModel};
-use robocal::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy};
+use robocal::report::calibration::{
+    CalibrationReport, CrossValidationReport, ParameterRow, PredictedAccuracy,
+};
 use robocal::report::observations::ObservationsReport;
 use robocal::table::Units;
 use std::path::Path;
@@ -338,6 +340,83 @@ pub struct Calibration {
     calibrated_toml: String,
 }
 
+impl Calibration {
+    /// The calibration of `report` (the command line's, text and JSON), its `estimate`'s
+    /// covariance, the scored `sets` (marker data) and the `calibrated` model.
+    fn new<R: ReportRows>(
+        py: Python<'_>,
+        report: &R,
+        estimate: &robocal::estimation::LinearEstimate,
+        rank: usize,
+        sets: Vec<SetEvaluation>,
+        calibrated: Model,
+    ) -> PyResult<Self> {
+        let rows = report.rows();
+        Ok(Self {
+            text: report.text(),
+            json: report.json(),
+            names: rows.iter().map(|p| p.name.clone()).collect(),
+            values: rows.iter().map(|p| p.value).collect(),
+            std_errors: rows.iter().map(|p| p.std_error).collect(),
+            units: rows.iter().map(|p| p.unit.to_string()).collect(),
+            covariance: estimate.covariance.clone(),
+            covariance_names: estimate.names.clone(),
+            rank,
+            held: report.held().to_vec(),
+            sets,
+            calibrated_toml: robocal::model::to_toml_with_markers(&calibrated.inner, &calibrated.markers),
+            calibrated: Py::new(py, calibrated)?,
+        })
+    }
+}
+
+/// What a [`Calibration`] takes from a report: its parameter rows, its held combinations and
+/// its text.
+trait ReportRows {
+    /// The parameter rows.
+    fn rows(&self) -> &[ParameterRow];
+    /// The combinations held.
+    fn held(&self) -> &[String];
+    /// The report's text.
+    fn text(&self) -> String;
+    /// The report's JSON, as the command line writes it.
+    fn json(&self) -> String;
+}
+
+impl ReportRows for CalibrationReport {
+    fn rows(&self) -> &[ParameterRow] {
+        &self.parameters
+    }
+    fn held(&self) -> &[String] {
+        &self.fixed
+    }
+    fn text(&self) -> String {
+        CalibrationReport::text(self)
+    }
+    fn json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a report serialises") + "\n"
+    }
+}
+
+impl ReportRows for ObservationsReport {
+    fn rows(&self) -> &[ParameterRow] {
+        &self.parameters
+    }
+    fn held(&self) -> &[String] {
+        &self.fixed
+    }
+    fn text(&self) -> String {
+        ObservationsReport::text(self)
+    }
+    fn json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a report serialises") + "\n"
+    }
+}
+
+/// A pose set's lines and errors (poses x stages x markers x 3, flattened to poses x
+/// (stages x markers) x 3).
+type PoseErrorArrays<'py> = (Bound<'py, PyArray1<usize>>, Bound<'py, PyArray3<f64>>);
+
 #[pymethods]
 impl Calibration {
     /// The report as `robocal calibrate` prints it.
@@ -421,11 +500,7 @@ impl Calibration {
     /// The position errors (measured minus predicted, mm) of each pose of a set: poses x
     /// stages (before, after) x markers x 3, with the poses' lines.
     #[pyo3(signature = (set="training"))]
-    fn pose_errors<'py>(
-        &self,
-        py: Python<'py>,
-        set: &str,
-    ) -> PyResult<(Bound<'py, PyArray1<usize>>, Bound<'py, PyArray3<f64>>)> {
+    fn pose_errors<'py>(&self, py: Python<'py>, set: &str) -> PyResult<PoseErrorArrays<'py>> {
         let Some(s) = self.sets.iter().find(|s| s.name == set) else {
             return Err(errors::argument("set", format!("`{set}`: expected one of {:?}", self.sets())));
         };
@@ -484,81 +559,11 @@ fn markers(
     request: &Request,
 ) -> PyResult<Calibration> {
     let model = &robot.inner;
-    let mut fit = read_markers(source, model, request.units)?;
-    let highest = fit.marker_ids.iter().copied().max().unwrap_or(0);
-    if let Some(ids) = &flags.markers {
-        let missing = ids.iter().find(|id| !fit.marker_ids.contains(id));
-        fit = match (fit.with_markers(ids), missing) {
-            (Some(chosen), None) => chosen,
-            _ => {
-                return Err(errors::argument(
-                    "markers",
-                    format!("{ids:?}: {} has markers {:?}", source.0, fit.marker_ids),
-                ));
-            }
-        };
-    }
-    require(
-        flags.marker.len() <= highest,
-        "marker",
-        &format!("{} given, {} has {highest} markers", flags.marker.len(), source.0),
-    )?;
-    let held_out = validate
-        .iter()
-        .map(|v| {
-            let all = read_markers(v, model, request.units)?;
-            let scored = all.with_markers(&fit.marker_ids).ok_or_else(|| {
-                errors::input(format!("{}: none of the fitted markers {:?}", v.0, fit.marker_ids))
-            })?;
-            require(
-                scored.orientations.is_some() == fit.orientations.is_some(),
-                "validate",
-                &format!("{}: orientation columns must be as in {}", v.0, source.0),
-            )?;
-            Ok((v.0.clone(), scored))
-        })
-        .collect::<PyResult<Vec<_>>>()?;
-    if let Some(k) = flags.folds.filter(|&k| k > fit.len()) {
-        return Err(errors::argument(
-            "folds",
-            format!("{k}: expected 2 to {} (the number of poses)", fit.len()),
-        ));
-    }
-    let markers_mm = flags.marker_mm(request.noise_units);
-    let noise = flags.noise(request, model, &fit)?;
-    // Weighted with the noise, OLS without; a weighted estimator needs the noise.
-    let estimator =
-        request.estimator.unwrap_or(if noise.is_some() { Estimator::Wls } else { Estimator::Ols });
-    if estimator != Estimator::Ols && noise.is_none() && !request.feasible {
-        let message =
-            format!("{estimator} needs the noise: give joint_sigma or noise, or use estimator fgls");
-        return Err(errors::argument("estimator", message));
-    }
-    let mut prior = match &flags.noise {
-        Some(path) => {
-            robocal::io::load_noise(Path::new(path), model)
-                .map_err(|e| errors::from_error(Kind::Input, &e, None))?
-                .prior
-        }
-        None => Vec::new(),
-    };
-    prior.extend(request.prior.iter().cloned());
-    let asked = Options {
-        estimator: if request.feasible { Estimator::Ols } else { estimator },
-        noise,
-        joints: request.joints.clone(),
-        estimate_base: !flags.fixed_base,
-        estimate_markers: !flags.fixed_markers,
-        markers: fit
-            .marker_ids
-            .iter()
-            .map(|&id| markers_mm.get(id - 1).copied().unwrap_or_default())
-            .collect(),
-        prior,
-        loss: request.loss,
-        refine: RefineOptions { max_iterations: flags.iterations, ..RefineOptions::default() },
-        gauge: Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
-    };
+    let (fit, held_out) = marker_sets(model, source, validate, flags, request)?;
+    let what = format!("calibrating the {} poses of {}", fit.len(), source.0);
+    robocal::io::check_memory(fit.memory_estimate(model.params().len()), &what, "calibrate on fewer poses")
+        .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
+    let asked = marker_options(model, &fit, flags, request)?;
     let folds = flags.folds.unwrap_or(DEFAULT_FOLDS);
     let choices =
         Choices { auto_prior: request.auto_prior.clone().map(|a| (a, folds)), select: request.select };
@@ -602,24 +607,97 @@ fn markers(
     let predicted = predicted_accuracy(&report.sets, &result, &held_out)
         .map_err(|e| errors::from_error(Kind::Estimation, &e, Some(&source.0)))?;
     report = report.with_predicted(predicted);
-    let json = serde_json::to_string_pretty(&report).expect("a report serialises") + "\n";
-    let estimate = &result.refined.estimate;
     let markers = result.marker_positions();
-    let calibrated_toml = robocal::model::to_toml_with_markers(&result.calibrated, &markers);
-    Ok(Calibration {
-        text: report.text(),
-        json,
-        names: report.parameters.iter().map(|p| p.name.clone()).collect(),
-        values: report.parameters.iter().map(|p| p.value).collect(),
-        std_errors: report.parameters.iter().map(|p| p.std_error).collect(),
-        units: report.parameters.iter().map(|p| p.unit.to_string()).collect(),
-        covariance: estimate.covariance.clone(),
-        covariance_names: estimate.names.clone(),
-        rank: report.rank,
-        held: report.fixed.clone(),
-        sets: report.sets.clone(),
-        calibrated: Py::new(py, Model::new(result.calibrated.clone(), robot.urdf.clone()))?,
-        calibrated_toml,
+    let calibrated = Model::new(result.calibrated.clone(), robot.urdf.clone()).with_markers(markers);
+    Calibration::new(py, &report, &result.refined.estimate, report.rank, report.sets.clone(), calibrated)
+}
+
+/// The fitted marker data (its markers chosen by `flags.markers`) and the held-out sets,
+/// scored on the same markers; the rules between them and the flags checked.
+fn marker_sets(
+    model: &RobotModel,
+    source: &Source,
+    validate: &[Source],
+    flags: &Flags,
+    request: &Request,
+) -> PyResult<(Measurements, Vec<(String, Measurements)>)> {
+    let mut fit = read_markers(source, model, request.units)?;
+    let highest = fit.marker_ids.iter().copied().max().unwrap_or(0);
+    if let Some(ids) = &flags.markers {
+        let missing = ids.iter().find(|id| !fit.marker_ids.contains(id));
+        fit = match (fit.with_markers(ids), missing) {
+            (Some(chosen), None) => chosen,
+            _ => {
+                let message = format!("{ids:?}: {} has markers {:?}", source.0, fit.marker_ids);
+                return Err(errors::argument("markers", message));
+            }
+        };
+    }
+    let given = flags.marker.len();
+    require(given <= highest, "marker", &format!("{given} given, {} has {highest} markers", source.0))?;
+    let held_out = validate
+        .iter()
+        .map(|v| {
+            let all = read_markers(v, model, request.units)?;
+            let scored = all.with_markers(&fit.marker_ids).ok_or_else(|| {
+                errors::input(format!("{}: none of the fitted markers {:?}", v.0, fit.marker_ids))
+            })?;
+            require(
+                scored.orientations.is_some() == fit.orientations.is_some(),
+                "validate",
+                &format!("{}: orientation columns must be as in {}", v.0, source.0),
+            )?;
+            Ok((v.0.clone(), scored))
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    if let Some(k) = flags.folds.filter(|&k| k > fit.len()) {
+        let message = format!("{k}: expected 2 to {} (the number of poses)", fit.len());
+        return Err(errors::argument("folds", message));
+    }
+    Ok((fit, held_out))
+}
+
+/// The library's options for the marker data `fit`: the noise (the flags' or a noise file's,
+/// with its prior first), the estimator, the parameters, the markers and the iterations.
+fn marker_options(
+    model: &RobotModel,
+    fit: &Measurements,
+    flags: &Flags,
+    request: &Request,
+) -> PyResult<Options> {
+    let noise = flags.noise(request, model, fit)?;
+    // Weighted with the noise, OLS without; a weighted estimator needs the noise.
+    let estimator =
+        request.estimator.unwrap_or(if noise.is_some() { Estimator::Wls } else { Estimator::Ols });
+    if estimator != Estimator::Ols && noise.is_none() && !request.feasible {
+        let message =
+            format!("{estimator} needs the noise: give joint_sigma or noise, or use estimator fgls");
+        return Err(errors::argument("estimator", message));
+    }
+    let mut prior = match &flags.noise {
+        Some(path) => {
+            robocal::io::load_noise(Path::new(path), model)
+                .map_err(|e| errors::from_error(Kind::Input, &e, None))?
+                .prior
+        }
+        None => Vec::new(),
+    };
+    prior.extend(request.prior.iter().cloned());
+    // The k-th `marker` is marker k of the data; the fitted ones are picked by number.
+    let markers_mm = flags.marker_mm(request.noise_units);
+    Ok(Options {
+        estimator: if request.feasible { Estimator::Ols } else { estimator },
+        noise,
+        joints: request.joints.clone(),
+        estimate_base: !flags.fixed_base,
+        estimate_markers: !flags.fixed_markers,
+        markers: (fit.marker_ids.iter())
+            .map(|&id| markers_mm.get(id - 1).copied().unwrap_or_default())
+            .collect(),
+        prior,
+        loss: request.loss,
+        refine: RefineOptions { max_iterations: flags.iterations, ..RefineOptions::default() },
+        gauge: Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
     })
 }
 
@@ -756,20 +834,48 @@ fn observations(
     let fitted = (data.observations.len(), data.joints.len());
     let report = ObservationsReport::new(&c, &names.join(", "), fitted, options.estimator.name(), scores)
         .with_training_files(files);
+    let calibrated = Model::new(c.calibrated.clone(), robot.urdf.clone()).with_markers(c.marker_positions());
     let estimate = &c.refined.estimate;
-    Ok(Calibration {
-        text: report.text(),
-        json: serde_json::to_string_pretty(&report).expect("a report serialises") + "\n",
-        names: report.parameters.iter().map(|p| p.name.clone()).collect(),
-        values: report.parameters.iter().map(|p| p.value).collect(),
-        std_errors: report.parameters.iter().map(|p| p.std_error).collect(),
-        units: report.parameters.iter().map(|p| p.unit.to_string()).collect(),
-        covariance: estimate.covariance.clone(),
-        covariance_names: estimate.names.clone(),
-        rank: estimate.diagnostics.rank,
-        held: report.fixed.clone(),
-        sets: Vec::new(),
-        calibrated: Py::new(py, Model::new(c.calibrated.clone(), robot.urdf.clone()))?,
-        calibrated_toml: robocal::model::to_toml_with_markers(&c.calibrated, &c.marker_positions()),
-    })
+    Calibration::new(py, &report, estimate, estimate.diagnostics.rank, Vec::new(), calibrated)
+}
+
+/// The model scored as it stands on `source`, as `robocal evaluate` scores it: marker data
+/// pose by pose (the JSON of its set, joint values in degrees), observation files with their
+/// set-up fitted and the robot held (the JSON of their score).
+#[pyfunction]
+pub fn evaluate(model: &Model, source: Source, flags: Flags) -> PyResult<String> {
+    let request = flags.request()?;
+    let robot = &model.inner;
+    let json = match data_kind(source.clone())? {
+        "markers" => {
+            let mut data = read_markers(&source, robot, request.units)?;
+            if let Some(ids) = &flags.markers {
+                data = data.with_markers(ids).ok_or_else(|| {
+                    errors::argument(
+                        "markers",
+                        format!("{ids:?}: {} has markers {:?}", source.0, data.marker_ids),
+                    )
+                })?;
+            }
+            let noise = flags.noise(&request, robot, &data)?;
+            let set = calibration::evaluate_model(robot, &model.markers, &source.0, &data, noise.as_ref())
+                .map_err(|e| errors::calibration(&e, &source.0))?;
+            serde_json::to_string(&robocal::report::poses::in_degrees(&set, &robot.joints))
+        }
+        "observations" => {
+            let data = KindData::from_csv_str(&text_of(&source)?, robot, request.units)
+                .map_err(|e| data_error(&source, &e))?;
+            let options = KindOptions { tool: robot.tool_point_in_marker_frame(), ..KindOptions::default() };
+            let score = robocal::calibration::kinds::evaluate_kinds(robot, &data, &options)
+                .map_err(|e| errors::calibration(&e, &source.0))?;
+            serde_json::to_string(&score)
+        }
+        _ => {
+            return Err(errors::input(format!(
+                "{}: views on a tree are not evaluated from Python yet",
+                source.0
+            )));
+        }
+    };
+    Ok(json.expect("a set serialises"))
 }

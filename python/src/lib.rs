@@ -6,6 +6,7 @@
 use pyo3::prelude::*;
 
 mod calibrate;
+mod design;
 mod errors;
 mod model;
 mod simulate;
@@ -18,6 +19,9 @@ fn _robocal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibrate::calibrate_source, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::measurements_csv, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::data_kind, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate::evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(design::observability, m)?)?;
+    m.add_function(wrap_pyfunction!(design::plan, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::studies, m)?)?;
     m.add_function(wrap_pyfunction!(model::presets, m)?)?;

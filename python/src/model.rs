@@ -19,6 +19,9 @@ pub struct Model {
     pub(crate) inner: RobotModel,
     /// Its URDF file, when it was read from one: the calibrated URDF is written from it.
     pub(crate) urdf: Option<UrdfChain>,
+    /// The positions of its markers (their numbers, mm in the marker frame), if it carries
+    /// any (a model file's `[[markers]]`, a calibration's).
+    pub(crate) markers: Vec<(usize, nalgebra::Vector3<f64>)>,
     /// The chain at the nominal parameters.
     nominal: ChainAt,
 }
@@ -27,7 +30,12 @@ impl Model {
     /// `model`, its chain compiled.
     pub(crate) fn new(inner: RobotModel, urdf: Option<UrdfChain>) -> Self {
         let nominal = Chain::new(&inner).with_errors(&vec![0.0; inner.params().len()]);
-        Self { inner, urdf, nominal }
+        Self { inner, urdf, markers: Vec::new(), nominal }
+    }
+
+    /// The model with its markers.
+    pub(crate) fn with_markers(self, markers: Vec<(usize, nalgebra::Vector3<f64>)>) -> Self {
+        Self { markers, ..self }
     }
 
     /// `q` as one value per joint, or an input error.
@@ -71,7 +79,12 @@ impl Model {
         }
         let model = io::load_model(&ModelRef::named(path_or_text))
             .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
-        Ok(Self::new(model, None))
+        let markers = match std::fs::read_to_string(path_or_text) {
+            Ok(text) => robocal::model::markers_from_toml_str(&text)
+                .map_err(|e| errors::from_error(Kind::Input, &e, Some(path_or_text)))?,
+            Err(_) => Vec::new(),
+        };
+        Ok(Self::new(model, None).with_markers(markers))
     }
 
     /// The chain of a URDF file from `base_link` to `tip_link` (by default the root link and

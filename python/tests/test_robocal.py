@@ -249,3 +249,33 @@ def test_simulate_gives_the_command_lines_samples(tmp_path: Path) -> None:
     assert np.array_equal(s["e_p_mean_mm"][:, 1], rows["wls_e_p_mean_mm"])
     assert np.array_equal(s["de_percent"][:, 0], rows["de_wls_percent"])
     assert s["estimators"] == ["ols", "wls"] and len(s["run"]) == 2 * 2 * 2 * 3
+
+
+def test_evaluate_scores_a_calibrated_model_as_the_command_line_does(puma: robocal.Model, tmp_path: Path) -> None:
+    c = robocal.calibrate(puma, DATA)
+    model = tmp_path / "calibrated.toml"
+    model.write_text(c.model_toml())
+    out = tmp_path / "evaluation.json"
+    run_cli("evaluate", "--model", str(model), "--data", str(VALIDATION), "--json", str(out), "--quiet")
+    theirs = json.loads(out.read_text())["sets"][0]
+    # The model read back from its file brings its markers, and is scored as the command line
+    # scores it.
+    assert_same(robocal.evaluate(robocal.Model.from_toml(str(model)), VALIDATION), theirs)
+    # The model in memory: its file holds angles in degrees, whose round trip moves the last
+    # digits.
+    close(robocal.evaluate(c.model, VALIDATION), theirs, 1e-9)
+
+
+def test_observability_and_plan_are_the_command_lines(puma: robocal.Model, tmp_path: Path) -> None:
+    planned = tmp_path / "planned.csv"
+    run_cli("plan", "--model", "puma560", "--points", "12", "--candidates", "300", "--seed", "3",
+            "--out", str(planned), "--quiet")
+    p = robocal.plan(puma, 12, candidates=300, seed=3)
+    rows = [line for line in planned.read_text().splitlines() if not line.startswith("#")]
+    assert [line for line in p["csv"].splitlines() if not line.startswith("#")] == rows
+    assert p["joints"].shape == (12, 6) and p["value"] >= p["initial"]
+    text = run_cli("observability", "--model", "puma560", str(planned), "--quiet")
+    o = robocal.observability(puma, p["joints"])
+    assert o["report"].replace("poses", "") == text.replace(str(planned), "").replace("poses", "")
+    assert o["scaled"]["rank"] == o["identifiable"] and o["whitened"] is None
+    assert len(o["scaled"]["singular_values"]) == o["identifiable"]
