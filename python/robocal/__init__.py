@@ -147,7 +147,7 @@ def _source(
         path = os.fspath(data)
         return (path, path, None), False
     if hasattr(data, "to_csv") and markers is None:  # a pandas DataFrame, columns as in a file
-        return (name, None, data.to_csv(index=False)), False
+        return ("DataFrame" if name == "arrays" else name, None, data.to_csv(index=False)), False
     if markers is None:
         raise InputError(f"{name}: give the markers with the joints, a DataFrame or a file", field="markers")
     joints = np.ascontiguousarray(data, dtype=np.float64)

@@ -7,6 +7,7 @@ import json
 import math
 import os
 import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -279,3 +280,15 @@ def test_observability_and_plan_are_the_command_lines(puma: robocal.Model, tmp_p
     assert o["report"].replace("poses", "") == text.replace(str(planned), "").replace("poses", "")
     assert o["scaled"]["rank"] == o["identifiable"] and o["whitened"] is None
     assert len(o["scaled"]["singular_values"]) == o["identifiable"]
+
+
+def test_the_readmes_python_example_prints_what_the_readme_shows() -> None:
+    pytest.importorskip("pandas")
+    readme = (ROOT / "README.md").read_text()
+    section = readme[readme.index("## From Python") :]
+    code = section[section.index("```python\n") + 10 :]
+    code = code[: code.index("```")]
+    shown = section[section.index("```text\n") + 8 :]
+    shown = shown[: shown.index("```")]
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
+    assert done.stdout == shown
