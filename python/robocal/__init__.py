@@ -375,11 +375,14 @@ def plan(
     return result
 
 
-def simulate(study: str, *, threads: Optional[int] = None, noise: Optional[PathLike] = None) -> dict[str, Any]:
+def simulate(
+    study: str, *, threads: Optional[int] = None, noise: Optional[PathLike] = None, quiet: bool = False
+) -> dict[str, Any]:
     """Run a Monte Carlo study (a preset name or a TOML file) as ``robocal simulate`` does."""
-    return _simulate(study, threads, None if noise is None else os.fspath(noise))
+    result: dict[str, Any] = _simulate(study, threads, None if noise is None else os.fspath(noise), quiet)
+    return result
 
 
-def reproduce(*, threads: Optional[int] = None) -> list[dict[str, Any]]:
+def reproduce(*, threads: Optional[int] = None, quiet: bool = False) -> list[dict[str, Any]]:
     """The paper's two studies, as ``robocal reproduce`` runs them."""
-    return [simulate(name, threads=threads) for name in ("paper-table1", "paper-table2")]
+    return [simulate(name, threads=threads, quiet=quiet) for name in ("paper-table1", "paper-table2")]

@@ -234,12 +234,15 @@ def plan(
     and mm), ``value`` and ``initial`` (the criterion's), ``summary`` (the command's text) and
     ``csv`` (the pose file, degrees)."""
 
-def simulate(study: str, *, threads: Optional[int] = None, noise: Optional[PathLike] = None) -> dict[str, Any]:
-    """Run a Monte Carlo study (a preset name or a TOML file) as ``robocal simulate`` does;
-    the numbers do not depend on ``threads``. The dict holds ``name``, ``estimators``,
+def simulate(
+    study: str, *, threads: Optional[int] = None, noise: Optional[PathLike] = None, quiet: bool = False
+) -> dict[str, Any]:
+    """Run a Monte Carlo study (a preset name or a TOML file) as ``robocal simulate`` does,
+    with its progress bar on a terminal (unless ``quiet``), the GIL released; ``noise``, a noise
+    file, replaces the study's noise. The numbers do not depend on ``threads``. The dict holds ``name``, ``estimators``,
     ``tables`` and ``samples_csv`` (the command line's files), and per run ``n_points``,
     ``sigma_me_mm``, ``set``, ``run``, then ``e_p_mean_mm``, ``e_p_rms_mm``, ``e_p_max_mm``,
     ``e_r_mean_deg`` (runs x estimators) and ``de_percent`` (runs x compared estimators)."""
 
-def reproduce(*, threads: Optional[int] = None) -> list[dict[str, Any]]:
+def reproduce(*, threads: Optional[int] = None, quiet: bool = False) -> list[dict[str, Any]]:
     """The paper's two studies (paper-table1, paper-table2), as ``robocal reproduce`` runs them."""

@@ -2,10 +2,12 @@
 //! and as the command line's CSV.
 
 use crate::errors::{self, Kind};
+use indicatif::{ProgressBar, ProgressStyle};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use robocal::simulation::{self, STUDIES};
+use std::io::IsTerminal;
 
 /// The names of the preset studies.
 #[pyfunction]
@@ -13,19 +15,32 @@ pub fn studies() -> Vec<&'static str> {
     STUDIES.iter().map(|(n, _)| *n).collect()
 }
 
+/// The command line's progress bar of `runs` runs, on standard error when it is a terminal
+/// (hidden otherwise, and when `quiet`).
+fn progress(runs: usize, name: &str, quiet: bool) -> ProgressBar {
+    if quiet || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(runs as u64).with_message(name.to_string());
+    let template = "{msg} {bar:40} {pos}/{len} runs, {elapsed} so far, about {eta} left";
+    bar.set_style(ProgressStyle::with_template(template).expect("a valid template"));
+    bar
+}
+
 /// Run the study named `study` (a preset or a TOML file) on `threads` threads (all cores by
 /// default; the results are the same on any number), its noise replaced by the noise file
-/// `noise` if given. Returns a dict: `name`, `estimators`, `tables` and `samples_csv` (the
+/// `noise` if given, with the command line's progress bar on a terminal unless `quiet`. Returns a dict: `name`, `estimators`, `tables` and `samples_csv` (the
 /// command line's `tables.txt` and `samples.csv`), and per run `n_points`, `sigma_me_mm`,
 /// `set`, `run` (arrays) and `e_p_mean_mm`, `e_p_rms_mm`, `e_p_max_mm`, `e_r_mean_deg` (runs x
 /// estimators) and `de_percent` (runs x compared estimators).
 #[pyfunction]
-#[pyo3(signature = (study, threads=None, noise=None))]
+#[pyo3(signature = (study, threads=None, noise=None, quiet=false))]
 pub fn simulate<'py>(
     py: Python<'py>,
     study: &str,
     threads: Option<usize>,
     noise: Option<&str>,
+    quiet: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let mut study = robocal::io::load_study(study).map_err(|e| errors::from_error(Kind::Input, &e, None))?;
     if let Some(path) = noise {
@@ -46,9 +61,11 @@ pub fn simulate<'py>(
         .num_threads(threads)
         .build()
         .map_err(|e| errors::input(format!("threads: {e}")))?;
+    let bar = progress(study.cases.len() * study.point_sets * study.runs_per_set, &study.name, quiet);
     let results = py
-        .detach(|| pool.install(|| simulation::run(&study, &|| ())))
+        .detach(|| pool.install(|| simulation::run(&study, &|| bar.inc(1))))
         .map_err(|e| errors::from_error(Kind::Estimation, &e, Some(&study.name)))?;
+    bar.finish_and_clear();
     let mut tables = robocal::report::study::tables(&study, &results);
     if let Some(comparison) = robocal::report::study::planned_against_random(&study, &results) {
         tables += &format!("\n{comparison}");
