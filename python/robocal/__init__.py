@@ -136,8 +136,6 @@ def _source(
     data: Any,
     markers: Any,
     name: str,
-    joint_unit: Optional[str],
-    length_unit: Optional[str],
     pose_sigma: Any = None,
     orientations: Any = None,
 ) -> tuple[tuple[str, Optional[str], Optional[str]], bool]:
@@ -199,14 +197,14 @@ def calibrate(
     ):  # observation files, fitted together
         sources = [(os.fspath(p), os.fspath(p), None) for p in joints]
     else:
-        source, arrays = _source(model, joints, markers, "arrays", joint_unit, length_unit, pose_sigma, orientations)
+        source, arrays = _source(model, joints, markers, "arrays", pose_sigma, orientations)
         sources = [source]
     held_out = []
     for k, v in enumerate(validate):
         if isinstance(v, tuple):
-            s, _ = _source(model, v[0], v[1], f"validate[{k}]", joint_unit, length_unit)
+            s, _ = _source(model, v[0], v[1], f"validate[{k}]")
         else:
-            s, _ = _source(model, v, None, f"validate[{k}]", joint_unit, length_unit)
+            s, _ = _source(model, v, None, f"validate[{k}]")
         held_out.append(s)
     if arrays and not given_units:
         joint_unit, length_unit = "rad", "m"
@@ -300,7 +298,7 @@ def evaluate(
     use_markers: Optional[Sequence[int]] = None,
 ) -> dict[str, Any]:
     """``model`` scored as it stands on ``data``, as ``robocal evaluate`` scores it."""
-    source, arrays = _source(model, data, markers, "arrays", joint_unit, length_unit)
+    source, arrays = _source(model, data, markers, "arrays")
     if arrays and joint_unit is None and length_unit is None:
         joint_unit, length_unit = "rad", "m"
     flags = _flags(

@@ -788,32 +788,7 @@ fn observations(
         files.push((s.0.clone(), file.observations.len()));
         data = data.join(&file);
     }
-    let joint_noise = match &flags.joint_sigma {
-        Some(sigmas) => {
-            let sigmas = joint_sigmas(model, sigmas, request.noise_units)?;
-            Some(nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
-                sigmas.len(),
-                sigmas.iter().map(|s| s * s),
-            )))
-        }
-        None => None,
-    };
-    let options = KindOptions {
-        per_session: Vec::new(),
-        prior: request.prior.clone(),
-        loss: request.loss,
-        gauge: Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
-        estimator: request.estimator.unwrap_or(Estimator::Wls),
-        joint_noise,
-        joints: request.joints.clone(),
-        estimate_tool: !flags.fixed_tool,
-        tool: flags.tool.map_or_else(
-            || model.tool_point_in_marker_frame(),
-            |t| Vector3::from(t) * request.noise_units.length_scale(),
-        ),
-        markers: flags.marker_mm(request.noise_units),
-        refine: RefineOptions { max_iterations: flags.iterations, ..RefineOptions::default() },
-    };
+    let options = kind_options(model, flags, request)?;
     let names: Vec<String> = sources.iter().map(|s| s.0.clone()).collect();
     let held: Vec<(String, KindData)> =
         validate.iter().map(|v| Ok((v.0.clone(), read(v)?))).collect::<PyResult<_>>()?;
@@ -878,4 +853,35 @@ pub fn evaluate(model: &Model, source: Source, flags: Flags) -> PyResult<String>
         }
     };
     Ok(json.expect("a set serialises"))
+}
+
+/// The library's options for observation files: the joint noise (`Sigma_q`, rad² and mm²),
+/// the estimator (wls unless told), the parameters, the tool point and the markers.
+fn kind_options(model: &RobotModel, flags: &Flags, request: &Request) -> PyResult<KindOptions> {
+    let joint_noise = match &flags.joint_sigma {
+        Some(sigmas) => {
+            let sigmas = joint_sigmas(model, sigmas, request.noise_units)?;
+            Some(nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
+                sigmas.len(),
+                sigmas.iter().map(|s| s * s),
+            )))
+        }
+        None => None,
+    };
+    Ok(KindOptions {
+        per_session: Vec::new(),
+        prior: request.prior.clone(),
+        loss: request.loss,
+        gauge: Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
+        estimator: request.estimator.unwrap_or(Estimator::Wls),
+        joint_noise,
+        joints: request.joints.clone(),
+        estimate_tool: !flags.fixed_tool,
+        tool: flags.tool.map_or_else(
+            || model.tool_point_in_marker_frame(),
+            |t| Vector3::from(t) * request.noise_units.length_scale(),
+        ),
+        markers: flags.marker_mm(request.noise_units),
+        refine: RefineOptions { max_iterations: flags.iterations, ..RefineOptions::default() },
+    })
 }
