@@ -1,0 +1,887 @@
+//! `robocal.calibrate`: the library's calibration of marker data (arrays, a DataFrame or a
+//! file, all read by the library's own reader) and of observation files, with the command
+//! line's options and its report.
+
+use crate::errors::{self, Kind, Place};
+use crate::model::Model;
+use nalgebra::Vector3;
+use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::prelude::*;
+use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds, cross_validate_kinds};
+use robocal::calibration::prior_scale::AutoPrior;
+use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
+use robocal::calibration::{
+    self, Choices, DataKind, ErrorStats, FeasibleOptions, Gauge, JointParams, Loss, Measurements, Options,
+    SetEvaluation,
+};
+use robocal::design::accuracy::{AccuracyModel, ParameterCovariance};
+use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PriorEntry, RefineOptions};
+use robocal::model::{JointKind, RobotModel};
+use robocal::report::calibration::{
+    CalibrationReport, CrossValidationReport, ParameterRow, PredictedAccuracy,
+};
+use robocal::report::observations::ObservationsReport;
+use robocal::table::Units;
+use std::path::Path;
+
+/// A data set: its name (a file's path, `arrays`) and a file to read or CSV text.
+type Source = (String, Option<String>, Option<String>);
+
+/// The text of a source: the file's or its own.
+fn text_of(source: &Source) -> PyResult<String> {
+    match source {
+        (_, Some(path), _) => std::fs::read_to_string(path).map_err(|e| {
+            errors::raise(
+                Kind::Input,
+                format!("{path}: cannot read: {e}"),
+                Place { file: Some(path.clone()), ..Place::default() },
+            )
+        }),
+        (_, None, Some(text)) => Ok(text.clone()),
+        (name, None, None) => Err(errors::input(format!("{name}: neither a file nor a table"))),
+    }
+}
+
+/// A data error of `source` as an input error naming the file (or the table) and the line.
+fn data_error(source: &Source, e: &robocal::table::DataError) -> PyErr {
+    errors::from_error(Kind::Input, e, Some(&source.0))
+}
+
+/// What the data holds, from its header: `markers`, `observations` or `tree-views`.
+#[pyfunction]
+pub fn data_kind(source: Source) -> PyResult<&'static str> {
+    let text = text_of(&source)?;
+    let kind = DataKind::of_csv_str(&text).map_err(|e| data_error(&source, &e))?;
+    Ok(match kind {
+        DataKind::Markers => "markers",
+        DataKind::Observations => "observations",
+        _ => "tree-views",
+    })
+}
+
+/// The CSV text of marker data given as arrays, for the library's reader: a header of the
+/// joint names, `x1,y1,z1`, ..., `sigma`, `qw,qx,qy,qz`, then one row per pose, each number
+/// written exactly (shortest round trip).
+#[pyfunction]
+#[pyo3(signature = (model, joints, markers, sigma=None, orientations=None))]
+pub fn measurements_csv(
+    model: &Model,
+    joints: PyReadonlyArray2<'_, f64>,
+    markers: PyReadonlyArray2<'_, f64>,
+    sigma: Option<PyReadonlyArray1<'_, f64>>,
+    orientations: Option<PyReadonlyArray2<'_, f64>>,
+) -> PyResult<String> {
+    let (joints, markers) = (joints.as_array(), markers.as_array());
+    let n = joints.nrows();
+    if joints.ncols() != model.inner.dof() {
+        return Err(errors::argument(
+            "joints",
+            format!(
+                "{} columns for the {} joints of {}",
+                joints.ncols(),
+                model.inner.dof(),
+                model.inner.name
+            ),
+        ));
+    }
+    if markers.nrows() != n || markers.ncols() == 0 || markers.ncols() % 3 != 0 {
+        return Err(errors::argument(
+            "markers",
+            format!(
+                "expected {n} rows (one per pose) of x, y, z per marker, got {} x {}",
+                markers.nrows(),
+                markers.ncols()
+            ),
+        ));
+    }
+    let sigma = sigma.as_ref().map(|s| s.as_array());
+    let orientations = orientations.as_ref().map(|o| o.as_array());
+    if sigma.as_ref().is_some_and(|s| s.len() != n) {
+        return Err(errors::argument("sigma", format!("expected {n} values, one per pose")));
+    }
+    if orientations.as_ref().is_some_and(|o| o.nrows() != n || o.ncols() != 4) {
+        return Err(errors::argument("orientations", format!("expected {n} rows of qw, qx, qy, qz")));
+    }
+    let mut header: Vec<String> = model.inner.joints.iter().map(|j| j.name.clone()).collect();
+    header
+        .extend((1..=markers.ncols() / 3).flat_map(|k| [format!("x{k}"), format!("y{k}"), format!("z{k}")]));
+    if sigma.is_some() {
+        header.push("sigma".into());
+    }
+    if orientations.is_some() {
+        header.extend(["qw", "qx", "qy", "qz"].map(String::from));
+    }
+    let mut text = header.join(",") + "\n";
+    for i in 0..n {
+        let mut row: Vec<f64> = joints.row(i).to_vec();
+        row.extend(markers.row(i).iter());
+        row.extend(sigma.as_ref().map(|s| s[i]));
+        if let Some(o) = &orientations {
+            row.extend(o.row(i).iter());
+        }
+        let cells: Vec<String> = row.iter().map(f64::to_string).collect();
+        text.push_str(&cells.join(","));
+        text.push('\n');
+    }
+    Ok(text)
+}
+
+/// The options of `robocal.calibrate`, as the command line's flags give them.
+#[derive(Debug, Clone, Default, FromPyObject)]
+#[pyo3(from_item_all)]
+pub struct Flags {
+    joint_unit: Option<String>,
+    length_unit: Option<String>,
+    estimator: Option<String>,
+    joint_sigma: Option<Vec<f64>>,
+    sigma: Option<f64>,
+    sigma_orientation: Option<f64>,
+    noise: Option<String>,
+    params: Vec<String>,
+    hold: Vec<String>,
+    keep: Vec<String>,
+    select: Option<String>,
+    prior: Option<String>,
+    loss: Option<String>,
+    folds: Option<usize>,
+    fixed_base: bool,
+    fixed_markers: bool,
+    fixed_tool: bool,
+    marker: Vec<[f64; 3]>,
+    tool: Option<[f64; 3]>,
+    markers: Option<Vec<usize>>,
+    iterations: usize,
+}
+
+/// The flags made into the library's values, every rule between them checked.
+struct Request {
+    units: Option<Units>,
+    noise_units: Units,
+    estimator: Option<Estimator>,
+    feasible: bool,
+    joints: JointParams,
+    prior: Vec<PriorEntry>,
+    auto_prior: Option<AutoPrior>,
+    loss: Loss,
+    select: Option<Criterion>,
+}
+
+/// `Err(InputError)` about `field` unless `ok`.
+fn require(ok: bool, field: &str, message: &str) -> PyResult<()> {
+    if ok { Ok(()) } else { Err(errors::argument(field, message)) }
+}
+
+impl Flags {
+    /// The units of the data (if given) and of the options (rad and m unless given).
+    fn units(&self) -> PyResult<(Option<Units>, Units)> {
+        let joint = match self.joint_unit.as_deref() {
+            None => None,
+            Some("rad") => Some(false),
+            Some("deg") => Some(true),
+            Some(other) => {
+                return Err(errors::argument("joint_unit", format!("`{other}`: expected rad or deg")));
+            }
+        };
+        let length = match self.length_unit.as_deref() {
+            None => None,
+            Some("m") => Some(true),
+            Some("mm") => Some(false),
+            Some(other) => {
+                return Err(errors::argument("length_unit", format!("`{other}`: expected m or mm")));
+            }
+        };
+        let given = match (joint, length) {
+            (None, None) => None,
+            (Some(j), Some(l)) => Some(Units { joints_in_degrees: j, lengths_in_metres: l }),
+            _ => return Err(errors::argument("joint_unit", "joint_unit and length_unit go together")),
+        };
+        Ok((given, given.unwrap_or(Units { joints_in_degrees: false, lengths_in_metres: true })))
+    }
+
+    /// The request, or the first rule the flags break (the command line's rules).
+    fn request(&self) -> PyResult<Request> {
+        let (units, noise_units) = self.units()?;
+        let noise = self.joint_sigma.is_some() || self.noise.is_some();
+        require(
+            !(self.joint_sigma.is_some() && self.noise.is_some()),
+            "noise",
+            "give noise or joint_sigma, not both",
+        )?;
+        let measurement = self.sigma.is_some() || self.sigma_orientation.is_some();
+        require(
+            !measurement || self.joint_sigma.is_some(),
+            "sigma",
+            "sigma needs joint_sigma too (zeros if the joints are exact)",
+        )?;
+        let feasible = self.estimator.as_deref() == Some("fgls");
+        let estimator = match self.estimator.as_deref() {
+            Some("fgls") => {
+                require(!noise, "estimator", "fgls estimates the noise: do not give noise or joint_sigma")?;
+                require(self.folds.is_none(), "folds", "not with estimator fgls")?;
+                require(self.prior.is_none(), "prior", "not with estimator fgls")?;
+                require(self.loss.is_none(), "loss", "not with estimator fgls")?;
+                None
+            }
+            Some(name) => Some(name.parse::<Estimator>().map_err(|e| errors::argument("estimator", e))?),
+            None => None,
+        };
+        let joints = match self.params.iter().map(String::as_str).collect::<Vec<_>>()[..] {
+            [] | ["joints"] => JointParams::All,
+            ["all"] => {
+                require(
+                    !self.fixed_base && !self.fixed_markers,
+                    "params",
+                    "all frees the base and the markers",
+                )?;
+                JointParams::All
+            }
+            ["offsets"] => JointParams::Offsets,
+            ["none"] => JointParams::None,
+            _ => JointParams::Named(self.params.clone()),
+        };
+        let (mut prior, mut auto_prior) = (Vec::new(), None);
+        if let Some(text) = &self.prior {
+            match AutoPrior::parse(text) {
+                Some(auto) => auto_prior = Some(auto.map_err(|e| errors::argument("prior", e))?),
+                None => prior = PriorEntry::parse_list(text).map_err(|e| errors::argument("prior", e))?,
+            }
+        }
+        let loss = match &self.loss {
+            Some(text) => text.parse::<Loss>().map_err(|e| errors::argument("loss", e))?,
+            None => Loss::Squared,
+        };
+        let select = match self.select.as_deref() {
+            None => None,
+            Some("cv") => Some(Criterion::Cv { folds: self.folds.unwrap_or(DEFAULT_FOLDS) }),
+            Some("bic") => Some(Criterion::Bic),
+            Some("t") => Some(Criterion::T),
+            Some(other) => {
+                return Err(errors::argument("select", format!("`{other}`: expected cv, bic or t")));
+            }
+        };
+        require(select.is_none() || !feasible, "select", "not with estimator fgls")?;
+        require(select.is_none() || joints != JointParams::None, "select", "not with params none")?;
+        if let Some(name) = self.hold.iter().find(|h| self.keep.contains(h)) {
+            return Err(errors::argument("hold", format!("`{name}` is given to both hold and keep")));
+        }
+        require(self.folds.is_none_or(|k| k >= 2), "folds", "expected at least 2")?;
+        require(
+            (1..=robocal::limits::MAX_ITERATIONS).contains(&self.iterations),
+            "iterations",
+            "expected 1 or more",
+        )?;
+        Ok(Request { units, noise_units, estimator, feasible, joints, prior, auto_prior, loss, select })
+    }
+
+    /// The noise of the flags, or of a noise file, at the poses of `data`.
+    fn noise(
+        &self,
+        request: &Request,
+        model: &RobotModel,
+        data: &Measurements,
+    ) -> PyResult<Option<NoiseModel>> {
+        if let Some(path) = &self.noise {
+            let spec = robocal::io::load_noise(Path::new(path), model)
+                .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
+            return calibration::noise_from_spec(&spec, data).map(Some).map_err(|e| {
+                errors::from_error(Kind::Input, &e, Some(&format!("{path}: the device's covariance")))
+            });
+        }
+        let Some(sigmas) = &self.joint_sigma else { return Ok(None) };
+        let joint = joint_sigmas(model, sigmas, request.noise_units)?;
+        let scale = request.noise_units.length_scale();
+        let orientation = request.noise_units.angle(self.sigma_orientation.unwrap_or(0.0));
+        let measurement = MeasurementNoise::isotropic(self.sigma.unwrap_or(0.0) * scale, orientation);
+        Ok(Some(NoiseModel::diagonal(&joint, measurement)))
+    }
+
+    /// The nominal marker positions (mm).
+    fn marker_mm(&self, units: Units) -> Vec<Vector3<f64>> {
+        self.marker.iter().map(|m| Vector3::from(*m) * units.length_scale()).collect()
+    }
+}
+
+/// One sigma per joint of `model` in `units` (the joint unit, the length unit for prismatic
+/// joints), in rad and mm.
+fn joint_sigmas(model: &RobotModel, sigmas: &[f64], units: Units) -> PyResult<Vec<f64>> {
+    if sigmas.len() != model.dof() {
+        return Err(errors::argument(
+            "joint_sigma",
+            format!("{} values for the {} joints of {}", sigmas.len(), model.dof(), model.name),
+        ));
+    }
+    Ok(model
+        .joints
+        .iter()
+        .zip(sigmas)
+        .map(|(j, &s)| match j.kind {
+            JointKind::Revolute => units.angle(s),
+            JointKind::Prismatic => s * units.length_scale(),
+        })
+        .collect())
+}
+
+/// A finished calibration: its report (text and JSON, as the command line's), its parameters,
+/// their covariance, and the calibrated model.
+#[pyclass(module = "robocal", frozen)]
+pub struct Calibration {
+    text: String,
+    json: String,
+    names: Vec<String>,
+    values: Vec<f64>,
+    std_errors: Vec<f64>,
+    units: Vec<String>,
+    covariance: nalgebra::DMatrix<f64>,
+    covariance_names: Vec<String>,
+    rank: usize,
+    held: Vec<String>,
+    sets: Vec<SetEvaluation>,
+    calibrated: Py<Model>,
+    calibrated_toml: String,
+}
+
+impl Calibration {
+    /// The calibration of `report` (the command line's, text and JSON), its `estimate`'s
+    /// covariance, the scored `sets` (marker data) and the `calibrated` model.
+    fn new<R: ReportRows>(
+        py: Python<'_>,
+        report: &R,
+        estimate: &robocal::estimation::LinearEstimate,
+        rank: usize,
+        sets: Vec<SetEvaluation>,
+        calibrated: Model,
+    ) -> PyResult<Self> {
+        let rows = report.rows();
+        Ok(Self {
+            text: report.text(),
+            json: report.json(),
+            names: rows.iter().map(|p| p.name.clone()).collect(),
+            values: rows.iter().map(|p| p.value).collect(),
+            std_errors: rows.iter().map(|p| p.std_error).collect(),
+            units: rows.iter().map(|p| p.unit.to_string()).collect(),
+            covariance: estimate.covariance.clone(),
+            covariance_names: estimate.names.clone(),
+            rank,
+            held: report.held().to_vec(),
+            sets,
+            calibrated_toml: robocal::model::to_toml_with_markers(&calibrated.inner, &calibrated.markers),
+            calibrated: Py::new(py, calibrated)?,
+        })
+    }
+}
+
+/// What a [`Calibration`] takes from a report: its parameter rows, its held combinations and
+/// its text.
+trait ReportRows {
+    /// The parameter rows.
+    fn rows(&self) -> &[ParameterRow];
+    /// The combinations held.
+    fn held(&self) -> &[String];
+    /// The report's text.
+    fn text(&self) -> String;
+    /// The report's JSON, as the command line writes it.
+    fn json(&self) -> String;
+}
+
+impl ReportRows for CalibrationReport {
+    fn rows(&self) -> &[ParameterRow] {
+        &self.parameters
+    }
+    fn held(&self) -> &[String] {
+        &self.fixed
+    }
+    fn text(&self) -> String {
+        CalibrationReport::text(self)
+    }
+    fn json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a report serialises") + "\n"
+    }
+}
+
+impl ReportRows for ObservationsReport {
+    fn rows(&self) -> &[ParameterRow] {
+        &self.parameters
+    }
+    fn held(&self) -> &[String] {
+        &self.fixed
+    }
+    fn text(&self) -> String {
+        ObservationsReport::text(self)
+    }
+    fn json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a report serialises") + "\n"
+    }
+}
+
+/// A pose set's lines and errors (poses x stages x markers x 3, flattened to poses x
+/// (stages x markers) x 3).
+type PoseErrorArrays<'py> = (Bound<'py, PyArray1<usize>>, Bound<'py, PyArray3<f64>>);
+
+#[pymethods]
+impl Calibration {
+    /// The report as `robocal calibrate` prints it.
+    fn report(&self) -> String {
+        self.text.clone()
+    }
+
+    /// The JSON report as `robocal calibrate --json` writes it.
+    fn to_json(&self) -> String {
+        self.json.clone()
+    }
+
+    /// The identified parameters' names.
+    #[getter]
+    fn names(&self) -> Vec<String> {
+        self.names.clone()
+    }
+
+    /// Their estimated errors, in the report's units (deg, mm).
+    #[getter]
+    fn estimates<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.values)
+    }
+
+    /// Their standard errors, in the report's units (deg, mm).
+    #[getter]
+    fn standard_errors<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, &self.std_errors)
+    }
+
+    /// Their units (`deg`, `mm`, ...).
+    #[getter]
+    fn units(&self) -> Vec<String> {
+        self.units.clone()
+    }
+
+    /// The covariance of the estimate in the library's units (mm, rad), rows and columns as
+    /// `covariance_names`.
+    #[getter]
+    fn covariance<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let n = self.covariance.nrows();
+        let rows: Vec<Vec<f64>> = (0..n).map(|r| self.covariance.row(r).iter().copied().collect()).collect();
+        PyArray2::from_vec2(py, &rows).expect("a square matrix")
+    }
+
+    /// The names of the covariance's rows and columns.
+    #[getter]
+    fn covariance_names(&self) -> Vec<String> {
+        self.covariance_names.clone()
+    }
+
+    /// The numerical rank of the identified system.
+    #[getter]
+    fn rank(&self) -> usize {
+        self.rank
+    }
+
+    /// The combinations held because the poses cannot identify them.
+    #[getter]
+    fn held(&self) -> Vec<String> {
+        self.held.clone()
+    }
+
+    /// The calibrated model.
+    #[getter]
+    fn model(&self, py: Python<'_>) -> Py<Model> {
+        self.calibrated.clone_ref(py)
+    }
+
+    /// The calibrated model as TOML with its markers, as `--out-model` writes it.
+    fn model_toml(&self) -> String {
+        self.calibrated_toml.clone()
+    }
+
+    /// The names of the scored sets: `training`, then each held-out set (marker data only).
+    #[getter]
+    fn sets(&self) -> Vec<String> {
+        self.sets.iter().map(|s| s.name.clone()).collect()
+    }
+
+    /// The position errors (measured minus predicted, mm) of each pose of a set: poses x
+    /// stages (before, after) x markers x 3, with the poses' lines.
+    #[pyo3(signature = (set="training"))]
+    fn pose_errors<'py>(&self, py: Python<'py>, set: &str) -> PyResult<PoseErrorArrays<'py>> {
+        let Some(s) = self.sets.iter().find(|s| s.name == set) else {
+            return Err(errors::argument("set", format!("`{set}`: expected one of {:?}", self.sets())));
+        };
+        let lines: Vec<usize> = s.poses.iter().map(|p| p.line).collect();
+        let stages = s.stages.len();
+        let markers = s.marker_ids.len();
+        let flat: Vec<f64> = (s.poses.iter())
+            .flat_map(|p| p.errors.iter().flat_map(|stage| stage.iter().flat_map(|e| e.iter().copied())))
+            .collect();
+        let errors = PyArray1::from_vec(py, flat).reshape([s.poses.len(), stages * markers, 3])?;
+        Ok((PyArray1::from_vec(py, lines), errors))
+    }
+
+    fn __repr__(&self) -> String {
+        format!("robocal.Calibration({} parameters, rank {})", self.names.len(), self.rank)
+    }
+}
+
+/// Calibrate `model` on `source` (marker data or observation files), with `validate` held out.
+#[pyfunction]
+#[pyo3(signature = (model, sources, validate, flags))]
+pub fn calibrate_source(
+    py: Python<'_>,
+    model: &Model,
+    sources: Vec<Source>,
+    validate: Vec<Source>,
+    flags: Flags,
+) -> PyResult<Calibration> {
+    let request = flags.request()?;
+    let kinds = sources.iter().map(|s| data_kind(s.clone())).collect::<PyResult<Vec<_>>>()?;
+    match kinds[..] {
+        ["markers"] => markers(py, model, &sources[0], &validate, &flags, &request),
+        _ if kinds.iter().all(|&k| k == "observations") => {
+            observations(py, model, &sources, &validate, &flags, &request)
+        }
+        _ => Err(errors::input(format!(
+            "{}: one file of marker positions, or observation files; views on a tree are not calibrated from \
+             Python yet (use robocal calibrate)",
+            sources.iter().map(|s| s.0.as_str()).collect::<Vec<_>>().join(", ")
+        ))),
+    }
+}
+
+/// The marker data of `source`, its markers chosen by `ids`.
+fn read_markers(source: &Source, model: &RobotModel, units: Option<Units>) -> PyResult<Measurements> {
+    Measurements::from_csv_str(&text_of(source)?, model, units).map_err(|e| data_error(source, &e))
+}
+
+/// The command line's `calibrate` of a marker file, without writing anything.
+fn markers(
+    py: Python<'_>,
+    robot: &Model,
+    source: &Source,
+    validate: &[Source],
+    flags: &Flags,
+    request: &Request,
+) -> PyResult<Calibration> {
+    let model = &robot.inner;
+    let (fit, held_out) = marker_sets(model, source, validate, flags, request)?;
+    let what = format!("calibrating the {} poses of {}", fit.len(), source.0);
+    robocal::io::check_memory(fit.memory_estimate(model.params().len()), &what, "calibrate on fewer poses")
+        .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
+    let asked = marker_options(model, &fit, flags, request)?;
+    let folds = flags.folds.unwrap_or(DEFAULT_FOLDS);
+    let choices =
+        Choices { auto_prior: request.auto_prior.clone().map(|a| (a, folds)), select: request.select };
+    let name = if request.feasible { "fgls" } else { asked.estimator.name() };
+    // Each held-out set scored with the noise at its own poses (a noise file's device), or
+    // with the noise feasible GLS estimated.
+    let held_noise =
+        held_out.iter().map(|(_, d)| flags.noise(request, model, d)).collect::<PyResult<Vec<_>>>()?;
+    let run = || -> Result<_, calibration::CalibrationError> {
+        let chosen = calibration::choose(model, &fit, &asked, &choices)?;
+        let result = if request.feasible {
+            calibration::calibrate_feasible(model, &fit, &chosen.options, &FeasibleOptions::default())?
+        } else {
+            calibration::calibrate(model, &fit, &chosen.options)?
+        };
+        let sets = (held_out.iter().zip(&held_noise))
+            .map(|((name, d), noise)| {
+                let estimated =
+                    result.noise_estimate.as_ref().filter(|_| request.feasible).map(|e| e.noise_model());
+                result.evaluate(name, d, estimated.as_ref().or(noise.as_ref()))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let cv = match flags.folds {
+            Some(k) => Some(cross_validate(model, &fit, &asked, &choices, k)?),
+            None => None,
+        };
+        Ok((chosen, result, sets, cv))
+    };
+    let (chosen, result, sets, cv) = py.detach(run).map_err(|e| errors::calibration(&e, &source.0))?;
+    let cv_row = cv.as_ref().map(|(label, before, after, _)| (label.clone(), *before, *after));
+    let mut report = CalibrationReport::new(&result, &source.0, name, sets, cv_row);
+    if let Some((_, _, _, how)) = cv {
+        report = report.with_cross_validation(how);
+    }
+    if let Some(path) = &chosen.path {
+        report = report.with_selection(path);
+    }
+    if let Some(scale) = chosen.scale {
+        report = report.with_prior_scale(scale);
+    }
+    let predicted = predicted_accuracy(&report.sets, &result, &held_out)
+        .map_err(|e| errors::from_error(Kind::Estimation, &e, Some(&source.0)))?;
+    report = report.with_predicted(predicted);
+    let markers = result.marker_positions();
+    let calibrated = Model::new(result.calibrated.clone(), robot.urdf.clone()).with_markers(markers);
+    Calibration::new(py, &report, &result.refined.estimate, report.rank, report.sets.clone(), calibrated)
+}
+
+/// The fitted marker data (its markers chosen by `flags.markers`) and the held-out sets,
+/// scored on the same markers; the rules between them and the flags checked.
+fn marker_sets(
+    model: &RobotModel,
+    source: &Source,
+    validate: &[Source],
+    flags: &Flags,
+    request: &Request,
+) -> PyResult<(Measurements, Vec<(String, Measurements)>)> {
+    let mut fit = read_markers(source, model, request.units)?;
+    let highest = fit.marker_ids.iter().copied().max().unwrap_or(0);
+    if let Some(ids) = &flags.markers {
+        let missing = ids.iter().find(|id| !fit.marker_ids.contains(id));
+        fit = match (fit.with_markers(ids), missing) {
+            (Some(chosen), None) => chosen,
+            _ => {
+                let message = format!("{ids:?}: {} has markers {:?}", source.0, fit.marker_ids);
+                return Err(errors::argument("markers", message));
+            }
+        };
+    }
+    let given = flags.marker.len();
+    require(given <= highest, "marker", &format!("{given} given, {} has {highest} markers", source.0))?;
+    let held_out = validate
+        .iter()
+        .map(|v| {
+            let all = read_markers(v, model, request.units)?;
+            let scored = all.with_markers(&fit.marker_ids).ok_or_else(|| {
+                errors::input(format!("{}: none of the fitted markers {:?}", v.0, fit.marker_ids))
+            })?;
+            require(
+                scored.orientations.is_some() == fit.orientations.is_some(),
+                "validate",
+                &format!("{}: orientation columns must be as in {}", v.0, source.0),
+            )?;
+            Ok((v.0.clone(), scored))
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    if let Some(k) = flags.folds.filter(|&k| k > fit.len()) {
+        let message = format!("{k}: expected 2 to {} (the number of poses)", fit.len());
+        return Err(errors::argument("folds", message));
+    }
+    Ok((fit, held_out))
+}
+
+/// The library's options for the marker data `fit`: the noise (the flags' or a noise file's,
+/// with its prior first), the estimator, the parameters, the markers and the iterations.
+fn marker_options(
+    model: &RobotModel,
+    fit: &Measurements,
+    flags: &Flags,
+    request: &Request,
+) -> PyResult<Options> {
+    let noise = flags.noise(request, model, fit)?;
+    // Weighted with the noise, OLS without; a weighted estimator needs the noise.
+    let estimator =
+        request.estimator.unwrap_or(if noise.is_some() { Estimator::Wls } else { Estimator::Ols });
+    if estimator != Estimator::Ols && noise.is_none() && !request.feasible {
+        let message =
+            format!("{estimator} needs the noise: give joint_sigma or noise, or use estimator fgls");
+        return Err(errors::argument("estimator", message));
+    }
+    let mut prior = match &flags.noise {
+        Some(path) => {
+            robocal::io::load_noise(Path::new(path), model)
+                .map_err(|e| errors::from_error(Kind::Input, &e, None))?
+                .prior
+        }
+        None => Vec::new(),
+    };
+    prior.extend(request.prior.iter().cloned());
+    // The k-th `marker` is marker k of the data; the fitted ones are picked by number.
+    let markers_mm = flags.marker_mm(request.noise_units);
+    Ok(Options {
+        estimator: if request.feasible { Estimator::Ols } else { estimator },
+        noise,
+        joints: request.joints.clone(),
+        estimate_base: !flags.fixed_base,
+        estimate_markers: !flags.fixed_markers,
+        markers: (fit.marker_ids.iter())
+            .map(|&id| markers_mm.get(id - 1).copied().unwrap_or_default())
+            .collect(),
+        prior,
+        loss: request.loss,
+        refine: RefineOptions { max_iterations: flags.iterations, ..RefineOptions::default() },
+        gauge: Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
+    })
+}
+
+/// The cross-validation of `calibrate --folds k`: nested when a choice is made from the data.
+fn cross_validate(
+    model: &RobotModel,
+    fit: &Measurements,
+    asked: &Options,
+    choices: &Choices,
+    k: usize,
+) -> Result<(String, ErrorStats, ErrorStats, CrossValidationReport), calibration::CalibrationError> {
+    let mut redone: Vec<String> =
+        choices.auto_prior.iter().map(|(a, _)| format!("--prior auto:{}'s scale", a.preset)).collect();
+    redone.extend(choices.select.map(|c| format!("--select {}", c.name())));
+    if asked.loss != Loss::Squared {
+        redone.push(format!("--loss {}'s weights", asked.loss));
+    }
+    let (before, after, selected, scales) = if *choices == Choices::default() {
+        let (before, after) = calibration::cross_validate(model, fit, asked, k)?;
+        (before, after, Vec::new(), Vec::new())
+    } else {
+        let nested = calibration::cross_validate_choices(model, fit, asked, choices, k)?;
+        (nested.before, nested.after, nested.selected, nested.scales)
+    };
+    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales };
+    Ok((how.label(), before, after, how))
+}
+
+/// The position error predicted at each held-out set's poses from the calibration's
+/// parameter covariance, as the command line's report gives it.
+fn predicted_accuracy(
+    sets: &[SetEvaluation],
+    result: &calibration::Calibration,
+    held_out: &[(String, Measurements)],
+) -> Result<Vec<PredictedAccuracy>, robocal::design::accuracy::CovarianceError> {
+    let floor_mm =
+        sets.iter().find(|s| s.name != "training").and_then(|s| s.pooled.last()).map_or(0.0, |s| s.rms);
+    let estimate = &result.refined.estimate;
+    let covariance = ParameterCovariance::new(estimate.names.clone(), &estimate.covariance, floor_mm);
+    let with_floor = AccuracyModel::new(&result.calibrated, &covariance)?;
+    let alone = AccuracyModel::new(&result.calibrated, &ParameterCovariance { floor_mm: 0.0, ..covariance })?;
+    Ok((held_out.iter())
+        .map(|(name, d)| {
+            let (all, params) = (with_floor.map(&d.joints), alone.map(&d.joints));
+            let n = all.len().max(1) as f64;
+            PredictedAccuracy {
+                set: name.clone(),
+                mean_mm: all.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
+                max_mm: all.iter().map(|p| p.1.position_mm).fold(0.0, f64::max),
+                parameters_mm: params.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
+                floor_mm,
+            }
+        })
+        .collect())
+}
+
+/// The command line's `calibrate` of observation files, without writing anything.
+fn observations(
+    py: Python<'_>,
+    robot: &Model,
+    sources: &[Source],
+    validate: &[Source],
+    flags: &Flags,
+    request: &Request,
+) -> PyResult<Calibration> {
+    let model = &robot.inner;
+    require(
+        !request.feasible && flags.noise.is_none() && flags.sigma.is_none(),
+        "estimator",
+        "observation files: each observation's sigma is its own; give joint_sigma only, and an estimator other than fgls",
+    )?;
+    require(
+        request.select.is_none() && request.auto_prior.is_none(),
+        "select",
+        "not with observation files",
+    )?;
+    let read = |s: &Source| -> PyResult<KindData> {
+        let data =
+            KindData::from_csv_str(&text_of(s)?, model, request.units).map_err(|e| data_error(s, &e))?;
+        let stem =
+            Path::new(&s.0).file_stem().map_or_else(|| s.0.clone(), |n| n.to_string_lossy().into_owned());
+        Ok(data.named(&stem))
+    };
+    let mut data = KindData::default();
+    let mut files = Vec::new();
+    for s in sources {
+        let file = read(s)?;
+        files.push((s.0.clone(), file.observations.len()));
+        data = data.join(&file);
+    }
+    let options = kind_options(model, flags, request)?;
+    let names: Vec<String> = sources.iter().map(|s| s.0.clone()).collect();
+    let held: Vec<(String, KindData)> =
+        validate.iter().map(|v| Ok((v.0.clone(), read(v)?))).collect::<PyResult<_>>()?;
+    let run = || -> Result<_, calibration::CalibrationError> {
+        let c = calibrate_kinds(model, &data, &options)?;
+        let mut scores = held
+            .iter()
+            .map(|(name, d)| Ok::<_, calibration::CalibrationError>((name.clone(), c.score(d)?)))
+            .collect::<Result<Vec<_>, _>>()?;
+        if let Some(k) = flags.folds {
+            let score = cross_validate_kinds(model, &data, &options, k)?;
+            let nested = if options.loss == Loss::Squared { "" } else { ", nested" };
+            scores.push((format!("{k}-fold cross-validation{nested}"), score));
+        }
+        Ok((c, scores))
+    };
+    let (c, scores) = py.detach(run).map_err(|e| errors::calibration(&e, &names.join(", ")))?;
+    let fitted = (data.observations.len(), data.joints.len());
+    let report = ObservationsReport::new(&c, &names.join(", "), fitted, options.estimator.name(), scores)
+        .with_training_files(files);
+    let calibrated = Model::new(c.calibrated.clone(), robot.urdf.clone()).with_markers(c.marker_positions());
+    let estimate = &c.refined.estimate;
+    Calibration::new(py, &report, estimate, estimate.diagnostics.rank, Vec::new(), calibrated)
+}
+
+/// The model scored as it stands on `source`, as `robocal evaluate` scores it: marker data
+/// pose by pose (the JSON of its set, joint values in degrees), observation files with their
+/// set-up fitted and the robot held (the JSON of their score).
+#[pyfunction]
+pub fn evaluate(model: &Model, source: Source, flags: Flags) -> PyResult<String> {
+    let request = flags.request()?;
+    let robot = &model.inner;
+    let json = match data_kind(source.clone())? {
+        "markers" => {
+            let mut data = read_markers(&source, robot, request.units)?;
+            if let Some(ids) = &flags.markers {
+                data = data.with_markers(ids).ok_or_else(|| {
+                    errors::argument(
+                        "markers",
+                        format!("{ids:?}: {} has markers {:?}", source.0, data.marker_ids),
+                    )
+                })?;
+            }
+            let noise = flags.noise(&request, robot, &data)?;
+            let set = calibration::evaluate_model(robot, &model.markers, &source.0, &data, noise.as_ref())
+                .map_err(|e| errors::calibration(&e, &source.0))?;
+            serde_json::to_string(&robocal::report::poses::in_degrees(&set, &robot.joints))
+        }
+        "observations" => {
+            let data = KindData::from_csv_str(&text_of(&source)?, robot, request.units)
+                .map_err(|e| data_error(&source, &e))?;
+            let options = KindOptions { tool: robot.tool_point_in_marker_frame(), ..KindOptions::default() };
+            let score = robocal::calibration::kinds::evaluate_kinds(robot, &data, &options)
+                .map_err(|e| errors::calibration(&e, &source.0))?;
+            serde_json::to_string(&score)
+        }
+        _ => {
+            return Err(errors::input(format!(
+                "{}: views on a tree are not evaluated from Python yet",
+                source.0
+            )));
+        }
+    };
+    Ok(json.expect("a set serialises"))
+}
+
+/// The library's options for observation files: the joint noise (`Sigma_q`, rad² and mm²),
+/// the estimator (wls unless told), the parameters, the tool point and the markers.
+fn kind_options(model: &RobotModel, flags: &Flags, request: &Request) -> PyResult<KindOptions> {
+    let joint_noise = match &flags.joint_sigma {
+        Some(sigmas) => {
+            let sigmas = joint_sigmas(model, sigmas, request.noise_units)?;
+            Some(nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
+                sigmas.len(),
+                sigmas.iter().map(|s| s * s),
+            )))
+        }
+        None => None,
+    };
+    Ok(KindOptions {
+        per_session: Vec::new(),
+        prior: request.prior.clone(),
+        loss: request.loss,
+        gauge: Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
+        estimator: request.estimator.unwrap_or(Estimator::Wls),
+        joint_noise,
+        joints: request.joints.clone(),
+        estimate_tool: !flags.fixed_tool,
+        tool: flags.tool.map_or_else(
+            || model.tool_point_in_marker_frame(),
+            |t| Vector3::from(t) * request.noise_units.length_scale(),
+        ),
+        markers: flags.marker_mm(request.noise_units),
+        refine: RefineOptions { max_iterations: flags.iterations, ..RefineOptions::default() },
+    })
+}

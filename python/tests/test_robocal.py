@@ -1,0 +1,294 @@
+"""The Python package against the command line built from the same crate: the same numbers,
+the same reports, the same errors."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import robocal
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = ROOT / "examples"
+DATA = EXAMPLES / "puma560-measurements.csv"
+VALIDATION = EXAMPLES / "puma560-validation.csv"
+NOISE = ["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002", "--sigma-mm", "0.02"]
+
+
+def cli() -> Path:
+    """The command built from this crate (`cargo build` or `cargo test` makes it)."""
+    path = Path(os.environ.get("ROBOCAL_BIN", ROOT / "target" / "debug" / "robocal"))
+    if not path.exists():
+        pytest.fail(f"{path}: build the command first (cargo build), or set ROBOCAL_BIN")
+    return path
+
+
+def run_cli(*args: str) -> str:
+    done = subprocess.run([str(cli()), *args], cwd=ROOT, capture_output=True, text=True, check=True)
+    return done.stdout
+
+
+def assert_same(ours: Any, theirs: Any, where: str = "", ignore: frozenset[str] = frozenset()) -> None:
+    """Equal structures, numbers within 1e-12 (relative above 1); keys in `ignore` not compared."""
+    if isinstance(theirs, dict):
+        assert isinstance(ours, dict) and ours.keys() == theirs.keys(), where
+        for key in theirs.keys() - ignore:
+            assert_same(ours[key], theirs[key], f"{where}.{key}", ignore)
+    elif isinstance(theirs, list):
+        assert isinstance(ours, list) and len(ours) == len(theirs), where
+        for i, (a, b) in enumerate(zip(ours, theirs)):
+            assert_same(a, b, f"{where}[{i}]", ignore)
+    elif isinstance(theirs, float) and not isinstance(ours, str):
+        assert math.isclose(ours, theirs, rel_tol=1e-12, abs_tol=1e-12), f"{where}: {ours} != {theirs}"
+    else:
+        assert ours == theirs, f"{where}: {ours!r} != {theirs!r}"
+
+
+def table(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """The joints (deg) and markers (mm) of a marker file with a units line and a header."""
+    values = np.loadtxt(path, delimiter=",", comments="#", skiprows=2)
+    return values[:, :6], values[:, 6:]
+
+
+@pytest.fixture(scope="module")
+def puma() -> robocal.Model:
+    return robocal.Model.preset("puma560")
+
+
+def test_fk_is_the_papers_ready_pose_and_fk_batch_is_fk_row_by_row(puma: robocal.Model) -> None:
+    ready = np.array([0.0, math.pi / 2, -math.pi / 2, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(puma.fk(ready)[:3, 3], [70.3, -150.05, 1013.6], atol=1e-9)
+    q = np.random.default_rng(7).uniform(-3.0, 3.0, size=(200, 6))
+    batch = puma.fk_batch(q)
+    assert batch.shape == (200, 4, 4)
+    for i in range(len(q)):
+        assert np.array_equal(batch[i], puma.fk(q[i]))
+    # A strided (not contiguous) array gives the same.
+    wide = np.zeros((200, 12))
+    wide[:, ::2] = q
+    assert np.array_equal(puma.fk_batch(wide[:, ::2]), batch)
+    assert puma.jacobian(ready).shape == (6, 6)
+
+
+def test_the_jacobian_is_the_derivative_of_fk(puma: robocal.Model) -> None:
+    q = np.array([0.3, 1.1, -0.7, 0.4, 0.9, -0.2])
+    j = puma.jacobian(q)
+    h = 1e-6
+    for k in range(6):
+        dq = np.zeros(6)
+        dq[k] = h
+        dp = (puma.fk(q + dq)[:3, 3] - puma.fk(q - dq)[:3, 3]) / (2 * h)
+        np.testing.assert_allclose(j[:3, k], dp, rtol=1e-6, atol=1e-6)
+
+
+def test_a_model_goes_through_toml_and_urdf_unchanged(puma: robocal.Model, tmp_path: Path) -> None:
+    q = np.random.default_rng(1).uniform(-2.0, 2.0, size=(20, 6))
+    again = robocal.Model.from_toml(puma.to_toml())
+    assert np.array_equal(again.fk_batch(q), puma.fk_batch(q))
+    assert again.joint_names == puma.joint_names == ["j1", "j2", "j3", "j4", "j5", "j6"]
+    urdf = tmp_path / "puma.urdf"
+    urdf.write_text(puma.to_urdf())
+    from_urdf = robocal.Model.from_urdf(str(urdf))
+    np.testing.assert_allclose(from_urdf.fk_batch(q)[:, :3, 3], puma.fk_batch(q)[:, :3, 3], atol=1e-6)
+    assert "puma560" in robocal.presets()
+
+
+def test_calibrate_from_a_file_is_the_command_lines_report(puma: robocal.Model, tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    text = run_cli("calibrate", "--model", "puma560", "--data", str(DATA), "--validate", str(VALIDATION),
+                   *NOISE, "--json", str(out), "--quiet")
+    c = robocal.calibrate(puma, DATA, validate=[VALIDATION], joint_sigma=[0.007] * 3 + [0.002] * 3,
+                          sigma=0.02, joint_unit="deg", length_unit="mm")
+    assert_same(json.loads(c.to_json()), json.loads(out.read_text()))
+    assert c.report() == text
+    assert c.sets == ["training", str(VALIDATION)]
+
+
+def test_calibrate_from_arrays_is_the_command_lines_report(puma: robocal.Model, tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    run_cli("calibrate", "--model", "puma560", "--data", str(DATA), "--validate", str(VALIDATION), *NOISE,
+            "--json", str(out), "--quiet")
+    joints, markers = table(DATA)
+    held_joints, held_markers = table(VALIDATION)
+    # In radians and metres, the defaults for arrays; the noise in the same units.
+    c = robocal.calibrate(puma, np.radians(joints), markers / 1000.0,
+                          validate=[(np.radians(held_joints), held_markers / 1000.0)],
+                          joint_sigma=np.radians([0.007] * 3 + [0.002] * 3), sigma=0.02 / 1000.0)
+    ours = c.to_json().replace('"arrays"', json.dumps(str(DATA))).replace('"validate[0]"', json.dumps(str(VALIDATION)))
+    theirs = json.loads(out.read_text())
+    # Degrees to radians and back, and metres, move the last digits only.
+    close(json.loads(ours), theirs, 1e-6)
+    # In the file's own units the numbers are the file's, and the report the same to 1e-12.
+    c = robocal.calibrate(puma, joints, markers, validate=[(held_joints, held_markers)],
+                          joint_sigma=[0.007] * 3 + [0.002] * 3, sigma=0.02, joint_unit="deg", length_unit="mm")
+    ours = c.to_json().replace('"arrays"', json.dumps(str(DATA))).replace('"validate[0]"', json.dumps(str(VALIDATION)))
+    # Rows of arrays are numbered from the table's header (line 1), not the file's.
+    assert_same(json.loads(ours), theirs, ignore=frozenset({"line"}))
+    p = c.parameters
+    assert len(p.names) == len(p.estimates) == len(p.standard_errors) == len(p.units)
+    assert p.names == [row["name"] for row in theirs["parameters"]]
+    assert c.rank == theirs["rank"] and c.held == theirs["fixed"]
+    assert c.covariance.shape == (len(c.covariance_names),) * 2
+    lines, errors = c.pose_errors()
+    assert lines[0] == 2 and errors.shape == (100, 4, 3)  # 100 poses, (before, after) x 2 markers
+
+
+def close(ours: Any, theirs: Any, tol: float, where: str = "") -> None:
+    if isinstance(theirs, dict):
+        for key in theirs:
+            close(ours[key], theirs[key], tol, f"{where}.{key}")
+    elif isinstance(theirs, list):
+        assert len(ours) == len(theirs), where
+        for i, (a, b) in enumerate(zip(ours, theirs)):
+            close(a, b, tol, f"{where}[{i}]")
+    elif isinstance(theirs, float):
+        assert math.isclose(ours, theirs, rel_tol=tol, abs_tol=tol), f"{where}: {ours} != {theirs}"
+
+
+def test_calibrate_from_a_dataframe(puma: robocal.Model) -> None:
+    pd = pytest.importorskip("pandas")
+    frame = pd.read_csv(DATA, comment="#")
+    c = robocal.calibrate(puma, frame, joint_unit="deg", length_unit="mm")
+    d = robocal.calibrate(puma, DATA)
+    assert np.array_equal(c.parameters.estimates, d.parameters.estimates)
+    df = c.parameters.to_pandas()
+    assert list(df.index) == c.parameters.names and list(df.columns) == ["estimate", "standard_error", "unit"]
+
+
+def test_calibrate_observation_files_is_the_command_lines_report(puma: robocal.Model, tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    data = EXAMPLES / "puma560-ballbar.csv"
+    run_cli("calibrate", "--model", "puma560", "--data", str(data), "--json", str(out), "--quiet")
+    c = robocal.calibrate(puma, [data])
+    assert_same(json.loads(c.to_json()), json.loads(out.read_text()))
+
+
+def test_bad_data_is_an_input_error_naming_file_line_and_column(puma: robocal.Model, tmp_path: Path) -> None:
+    bad = tmp_path / "bad.csv"
+    lines = DATA.read_text().splitlines()
+    cells = lines[4].split(",")
+    cells[6] = "oops"
+    lines[4] = ",".join(cells)
+    bad.write_text("\n".join(lines) + "\n")
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(puma, bad)
+    assert (e.value.file, e.value.line, e.value.field) == (str(bad), 5, "x1")
+    assert "line 5" in str(e.value) and "`oops` is not a number" in str(e.value)
+    # An array's NaN names its row's line in the table it makes (header on line 1).
+    joints, markers = table(DATA)
+    markers[2, 1] = np.nan
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(puma, joints, markers, joint_unit="deg", length_unit="mm")
+    assert (e.value.line, e.value.field) == (4, "y1")
+
+
+def test_a_bad_model_file_names_its_line_and_an_unknown_option_its_name(tmp_path: Path) -> None:
+    model = tmp_path / "m.toml"
+    model.write_text(robocal.Model.preset("puma560").to_toml().replace('convention = "', 'convention = "x', 1))
+    with pytest.raises(robocal.InputError) as e:
+        robocal.Model.from_toml(str(model))
+    assert e.value.file == str(model) and e.value.line is not None and e.value.line > 0
+    with pytest.raises(robocal.InputError) as e:
+        robocal.Model.preset("nosuch")
+    assert e.value.field == "name"
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(robocal.Model.preset("puma560"), DATA, estimator="wls")
+    assert e.value.field == "estimator" and "needs the noise" in str(e.value)
+
+
+def test_too_few_poses_is_an_estimation_error(puma: robocal.Model) -> None:
+    joints, markers = table(DATA)
+    with pytest.raises(robocal.EstimationError) as e:
+        robocal.calibrate(puma, joints[:2], markers[:2], joint_unit="deg", length_unit="mm")
+    assert "poses" in str(e.value)
+
+
+SMALL_STUDY = """
+name = "small"
+description = "a small study for the tests"
+robot = "puma560"
+measured = "position"
+parameters = "joints"
+estimators = ["ols", "wls"]
+iterations = 1
+seed = 7
+point_sets = 2
+runs_per_set = 3
+test_points = 50
+
+[noise]
+joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]
+
+[errors]
+offset_deg = 0.1
+angle_deg = 0.05
+length_mm = 0.5
+redraw = "run"
+
+[cases]
+points = [12, 24]
+sigma_me_mm = [0.0, 0.05]
+"""
+
+
+def test_simulate_gives_the_command_lines_samples(tmp_path: Path) -> None:
+    study = tmp_path / "small.toml"
+    study.write_text(SMALL_STUDY)
+    run_cli("simulate", str(study), "--out", str(tmp_path / "out"), "--quiet", "--threads", "1")
+    csv = (tmp_path / "out" / "small" / "samples.csv").read_text()
+    s = robocal.simulate(str(study), threads=2)
+    assert s["samples_csv"] == csv
+    rows = np.genfromtxt(csv.splitlines(), delimiter=",", names=True, dtype=None, encoding=None)
+    assert np.array_equal(s["e_p_mean_mm"][:, 1], rows["wls_e_p_mean_mm"])
+    assert np.array_equal(s["de_percent"][:, 0], rows["de_wls_percent"])
+    assert s["estimators"] == ["ols", "wls"] and len(s["run"]) == 2 * 2 * 2 * 3
+
+
+def test_evaluate_scores_a_calibrated_model_as_the_command_line_does(puma: robocal.Model, tmp_path: Path) -> None:
+    c = robocal.calibrate(puma, DATA)
+    model = tmp_path / "calibrated.toml"
+    model.write_text(c.model_toml())
+    out = tmp_path / "evaluation.json"
+    run_cli("evaluate", "--model", str(model), "--data", str(VALIDATION), "--json", str(out), "--quiet")
+    theirs = json.loads(out.read_text())["sets"][0]
+    # The model read back from its file brings its markers, and is scored as the command line
+    # scores it.
+    assert_same(robocal.evaluate(robocal.Model.from_toml(str(model)), VALIDATION), theirs)
+    # The model in memory: its file holds angles in degrees, whose round trip moves the last
+    # digits.
+    close(robocal.evaluate(c.model, VALIDATION), theirs, 1e-9)
+
+
+def test_observability_and_plan_are_the_command_lines(puma: robocal.Model, tmp_path: Path) -> None:
+    planned = tmp_path / "planned.csv"
+    run_cli("plan", "--model", "puma560", "--points", "12", "--candidates", "300", "--seed", "3",
+            "--out", str(planned), "--quiet")
+    p = robocal.plan(puma, 12, candidates=300, seed=3)
+    rows = [line for line in planned.read_text().splitlines() if not line.startswith("#")]
+    assert [line for line in p["csv"].splitlines() if not line.startswith("#")] == rows
+    assert p["joints"].shape == (12, 6) and p["value"] >= p["initial"]
+    text = run_cli("observability", "--model", "puma560", str(planned), "--quiet")
+    o = robocal.observability(puma, p["joints"])
+    assert o["report"].replace("poses", "") == text.replace(str(planned), "").replace("poses", "")
+    assert o["scaled"]["rank"] == o["identifiable"] and o["whitened"] is None
+    assert len(o["scaled"]["singular_values"]) == o["identifiable"]
+
+
+def test_the_readmes_python_example_prints_what_the_readme_shows() -> None:
+    pytest.importorskip("pandas")
+    readme = (ROOT / "README.md").read_text()
+    section = readme[readme.index("## From Python") :]
+    code = section[section.index("```python\n") + 10 :]
+    code = code[: code.index("```")]
+    shown = section[section.index("```text\n") + 8 :]
+    shown = shown[: shown.index("```")]
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
+    assert done.stdout == shown
