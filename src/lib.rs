@@ -45,6 +45,25 @@
 //! assert!((tool - nalgebra::Vector3::new(70.3, -150.05, 1013.6)).norm() < 1e-9);
 //! ```
 //!
+//! A calibration from the example's marker file, judged on poses it did not see (what
+//! `robocal calibrate --model puma560 --data examples/puma560-measurements.csv --validate
+//! examples/puma560-validation.csv --marker 50,0,150 --marker=-40,60,120` prints):
+//!
+//! ```
+//! use robocal::{Measurements, Options, RobotModel, calibrate};
+//!
+//! let model = RobotModel::preset("puma560").ok_or("no preset puma560")?;
+//! let read = |path: &str| Measurements::from_csv_str(&std::fs::read_to_string(path)?, &model, None)
+//!     .map_err(Box::<dyn std::error::Error>::from);
+//! let (training, held_out) =
+//!     (read("examples/puma560-measurements.csv")?, read("examples/puma560-validation.csv")?);
+//! let markers = vec![nalgebra::Vector3::new(50.0, 0.0, 150.0), nalgebra::Vector3::new(-40.0, 60.0, 120.0)];
+//! let calibration = calibrate(&model, &training, &Options { markers, ..Options::default() })?;
+//! let (before, after) = calibration.validate(&held_out); // RMS marker distances: 2.21 and 0.124 mm
+//! assert!(before.rms > 2.0 && after.rms < 0.13, "held out: {} mm before, {} mm after", before.rms, after.rms);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! Units inside the library are millimetres and radians; degrees appear only at the edges.
 //! The core (model, kinematics, estimation, simulation, calibration) does no I/O: files
 //! are read and written only in [`io`].
