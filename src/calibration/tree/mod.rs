@@ -792,6 +792,38 @@ fn tree_gauge(
     Ok(Gauged { identifiable, fixed, prior })
 }
 
+/// Each of `fixed` that no observation moves, said why where the data say it: a point's
+/// orientation (a reflector seen by its position), or a joint no view can see
+/// ([`TreeParams::unseen`]).
+fn say_why_unseen(fixed: &mut [Held], params: &TreeParams, data: &TreeData) {
+    for f in fixed {
+        let Held::Unmoved { parameter } = f else { continue };
+        let turn = ["rx", "ry", "rz"].iter().any(|r| parameter.ends_with(&format!(".{r}")));
+        let why = match data.position_only && parameter.starts_with("target.") && turn {
+            true => Some("a point measured by its position has no orientation: not seen".to_string()),
+            false => params.unseen(parameter, data),
+        };
+        if let Some(why) = why {
+            *f = Held::Unseen { parameter: std::mem::take(parameter), why };
+        }
+    }
+}
+
+/// Why views cannot see the tree's base, in words: a frame in the world absorbs it, or views
+/// see only frames relative to each other.
+fn base_unseen(params: &TreeParams, data: &TreeData) -> String {
+    match data.frames.iter().find(|f| f.on.is_none()) {
+        Some(world) => format!(
+            "base.*: {} is placed in the root link's frame, which absorbs the tree's placement: the base is held",
+            world.name(&params.tips)
+        ),
+        None => {
+            "base.*: a view sees one frame relative to another, never the tree's placement: the base is held"
+                .to_string()
+        }
+    }
+}
+
 /// Calibrate `tree` from camera views between its branches: the cameras and targets fitted
 /// with the tree nominal ("before"), then the joint parameters asked for with them ("after");
 /// the base and what the views cannot see held and said ([`TreeCalibration::unseen`]), what
@@ -838,17 +870,7 @@ pub fn calibrate_tree(
     let linearised = linearise(&problem, &weights, problem.start())?;
     let Gauged { identifiable, mut fixed, prior } =
         tree_gauge(&problem, &linearised, (&params, &asked), options, &weights)?;
-    for f in &mut fixed {
-        let Held::Unmoved { parameter } = f else { continue };
-        let turn = ["rx", "ry", "rz"].iter().any(|r| parameter.ends_with(&format!(".{r}")));
-        let why = match data.position_only && parameter.starts_with("target.") && turn {
-            true => Some("a point measured by its position has no orientation: not seen".to_string()),
-            false => params.unseen(parameter, data),
-        };
-        if let Some(why) = why {
-            *f = Held::Unseen { parameter: std::mem::take(parameter), why };
-        }
-    }
+    say_why_unseen(&mut fixed, &params, data);
     fixed.extend(held);
     let robot = asked.len();
     let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
@@ -861,16 +883,7 @@ pub fn calibrate_tree(
         super::robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
     let (after, after_setup) = problem.full(&estimate.estimate.x);
     let calibrated = params.fold(tree, &after);
-    let unseen = vec![match data.frames.iter().find(|f| f.on.is_none()) {
-        Some(world) => format!(
-            "base.*: {} is placed in the root link's frame, which absorbs the tree's placement: the base is held",
-            world.name(&params.tips)
-        ),
-        None => {
-            "base.*: a view sees one frame relative to another, never the tree's placement: the base is held"
-                .to_string()
-        }
-    }];
+    let unseen = vec![base_unseen(&params, data)];
     let mut calibration = TreeCalibration {
         calibrated,
         params: params.clone(),
