@@ -1329,6 +1329,16 @@ pub fn cross_validate(
     Ok((ErrorStats::of(&before), ErrorStats::of(&after)))
 }
 
+/// `folds` of a k-fold cross-validation of `poses` poses: 2 at least, the poses at most.
+pub(crate) fn check_folds(folds: usize, poses: usize) -> Result<(), CalibrationError> {
+    match (2..=poses).contains(&folds) {
+        true => Ok(()),
+        false => Err(CalibrationError::Scoring(format!(
+            "{folds} folds for {poses} poses: expected 2 to the number of poses"
+        ))),
+    }
+}
+
 /// The standard error of every parameter (NaN for those not estimated), full-vector order.
 pub fn standard_errors(c: &Calibration) -> Vec<f64> {
     standard_errors_of(c.params.iter(), &c.refined.estimate)

@@ -92,12 +92,8 @@ pub fn choose_prior_scale(
     auto: &AutoPrior,
     folds: usize,
 ) -> Result<PriorScale, CalibrationError> {
-    if folds < 2 || folds > data.len() {
-        return Err(CalibrationError::Scoring(format!(
-            "--prior auto: {folds} folds for {} poses: expected 2 to the number of poses",
-            data.len()
-        )));
-    }
+    super::check_folds(folds, data.len())
+        .map_err(|e| CalibrationError::Scoring(format!("--prior auto: {e}")))?;
     let cv_rms = SCALES
         .iter()
         .map(|&s| Ok(cross_validate(model, data, &with_scale(options, auto, s), folds)?.1.rms))

@@ -46,9 +46,9 @@ use super::kinds::{self, KindCalibration, KindData, KindOptions};
 use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale, with_scale};
 use super::{
     CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel,
-    Whitening, calibrate, errors, identifiable, observed, selection, standard_errors_of,
+    Whitening, calibrate, check_folds, errors, identifiable, observed, selection, standard_errors_of,
 };
-use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights, linearise_rows};
+use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights};
 use crate::kinematics::Measured;
 use crate::model::{ParamOwner, Selection, name_matches};
 use nalgebra::{DMatrix, DVector};
@@ -161,10 +161,10 @@ pub fn select(
             Some(names) => calibrate(model, data, &asking(options, names)),
             None => calibrate(model, data, options),
         }),
-        Criterion::Cv { folds } if folds < 2 || folds > data.len() => Err(CalibrationError::Scoring(
-            format!("{folds} folds for {} poses: expected 2 to the number of poses", data.len()),
-        )),
-        _ => forward(model, data, options, criterion),
+        Criterion::Cv { folds } => {
+            check_folds(folds, data.len()).and_then(|()| forward(model, data, options, criterion))
+        }
+        Criterion::Bic => forward(model, data, options, criterion),
     }
 }
 
@@ -179,15 +179,14 @@ pub fn select_kinds(
     options: &KindOptions,
     criterion: Criterion,
 ) -> Result<SelectionPath, CalibrationError> {
-    let poses = data.joints.len();
+    if let Criterion::Cv { folds } = criterion {
+        check_folds(folds, data.joints.len())?;
+    }
     match criterion {
         Criterion::T => backward(|names: Option<&[String]>| {
             let options = names.map_or_else(|| options.clone(), |n| asking_kinds(model, options, n));
             kinds::calibrate_kinds(model, data, &options)
         }),
-        Criterion::Cv { folds } if folds < 2 || folds > poses => Err(CalibrationError::Scoring(format!(
-            "{folds} folds for {poses} poses: expected 2 to the number of poses"
-        ))),
         Criterion::Cv { .. } if data.observations.iter().all(|o| o.is_angle()) => Err(CalibrationError::Scoring(
             "--select cv scores the held-out lengths (mm), and these observations are all angles: use --select bic \
              or t"
@@ -305,12 +304,7 @@ pub fn cross_validate_choices(
     choices: &Choices,
     folds: usize,
 ) -> Result<NestedCv, CalibrationError> {
-    if folds < 2 || folds > data.len() {
-        return Err(CalibrationError::Scoring(format!(
-            "{folds} folds for {} poses: expected 2 to the number of poses",
-            data.len()
-        )));
-    }
+    check_folds(folds, data.len())?;
     let (mut before, mut after) = (Vec::new(), Vec::new());
     let (mut selected, mut scales) = (Vec::new(), Vec::new());
     for fold in 0..folds {
@@ -635,39 +629,31 @@ impl LinearModel {
         let prepared = kinds::prepare(model, data, options)?;
         let started = kinds::start(&prepared, data, options)?;
         let kinds::Gauged { identifiable, fixed, prior } = &started.gauged;
-        let (params, asked) = (&prepared.params, &prepared.asked);
-        let robot = asked.len();
-        let kept = Selection::from_indices(
-            params,
-            identifiable.iter().filter(|&&c| c < robot).map(|&c| asked.indices()[c]),
-        );
-        let kept_setup: Vec<usize> =
-            identifiable.iter().filter(|&&c| c >= robot).map(|&c| prepared.asked_setup[c - robot]).collect();
+        let (kept, kept_setup) = prepared.kept(identifiable);
         let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
         let problem = started.base.reselect(&kept, before, before_setup, kept_setup);
         let start = started.linearised.select(identifiable);
         let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
         let mut y = problem.evaluate(&start.x, Some(&mut h));
+        // The whitened system of `start`, held whole: the path fits it fold by fold.
+        let (mut a, mut b) = (h.clone(), y.clone());
+        started.weights.apply(&mut a);
+        started.weights.apply(&mut b);
+        let whitened = match prior {
+            Some(prior) => prior.select(identifiable).augment(&a, &b, &start.x),
+            None => (a, b),
+        };
         let rows: Vec<(usize, f64)> =
             data.observations.iter().map(|o| (o.pose(), if o.is_angle() { 0.0 } else { 1.0 })).collect();
         for (r, _) in rows.iter().enumerate().filter(|(_, (_, share))| *share == 0.0) {
             h.row_mut(r).fill(0.0);
             y[r] = 0.0;
         }
-        // The whitened system of `start`, held whole: the path fits it fold by fold.
-        let (a, b) = linearise_rows(&problem, &started.weights, &start.x)?;
-        let whitened = match prior {
-            Some(prior) => prior.select(identifiable).augment(&a, &b, &start.x),
-            None => (a, b),
-        };
         // The robot's kept parameters, then the set-up's.
         let columns = (0..problem.parameters()).map(|c| kept.indices().get(c).copied()).collect();
-        let held = (fixed.iter().chain(&prepared.held_words))
-            .map(Held::text)
-            .chain(prepared.scale.map(|i| Held::Scale { parameter: params.get(i).name.clone() }.text()))
-            .collect();
+        let held = prepared.every_held(fixed.clone()).iter().map(Held::text).collect();
         let parts = LinearParts { whitened, unweighted: (h, y), rows };
-        Ok(Self::new(params, (columns, problem.names()), held, parts))
+        Ok(Self::new(&prepared.params, (columns, problem.names()), held, parts))
     }
 
     /// The trades of the model of the registration and the `chosen` columns: each candidate

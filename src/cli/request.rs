@@ -342,18 +342,10 @@ impl CalibrateRequest {
         let noise = noise_source(args.noise, &args.noise_flags)?;
         let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
         let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
-        let select = args.select.map(|name| match name {
-            SelectName::Cv => Criterion::Cv { folds: args.folds.unwrap_or(DEFAULT_FOLDS) },
-            SelectName::Bic => Criterion::Bic,
-            SelectName::T => Criterion::T,
-        });
+        let select = selection(args.select, args.folds, &joints)?;
         require(
             select.is_none() || method != Method::Feasible,
             "--select with --estimator fgls: not supported; estimate the noise once and give --noise",
-        )?;
-        require(
-            select.is_none() || joints != JointParams::None,
-            "--select chooses among the joint parameters --params names: not with --params none",
         )?;
         if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
             return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
@@ -454,6 +446,25 @@ pub struct CalibrateObservationsRequest {
     pub out_urdf: Option<PathBuf>,
 }
 
+/// The criterion of `--select`, cv's folds `--folds` (or [`DEFAULT_FOLDS`]); refused with
+/// `--params none`, which leaves nothing to choose among.
+fn selection(
+    select: Option<SelectName>,
+    folds: Option<usize>,
+    joints: &JointParams,
+) -> Result<Option<Criterion>, UsageError> {
+    let select = select.map(|name| match name {
+        SelectName::Cv => Criterion::Cv { folds: folds.unwrap_or(DEFAULT_FOLDS) },
+        SelectName::Bic => Criterion::Bic,
+        SelectName::T => Criterion::T,
+    });
+    require(
+        select.is_none() || *joints != JointParams::None,
+        "--select chooses among the joint parameters --params names: not with --params none",
+    )?;
+    Ok(select)
+}
+
 /// The session name of a data file: its stem.
 pub fn session_name(path: &Path) -> String {
     path.file_stem().map_or_else(|| path.display().to_string(), |s| s.to_string_lossy().into_owned())
@@ -481,15 +492,7 @@ impl CalibrateObservationsRequest {
             "--params all: the base and the set-up are chosen by the observations; give --params joints",
         )?;
         let joints = joint_params(args.params, false)?;
-        let select = args.select.map(|name| match name {
-            SelectName::Cv => Criterion::Cv { folds: args.folds.unwrap_or(DEFAULT_FOLDS) },
-            SelectName::Bic => Criterion::Bic,
-            SelectName::T => Criterion::T,
-        });
-        require(
-            select.is_none() || joints != JointParams::None,
-            "--select chooses among the joint parameters --params names: not with --params none",
-        )?;
+        let select = selection(args.select, args.folds, &joints)?;
         let mut inputs = vec![("--model", Path::new(&model.name))];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));

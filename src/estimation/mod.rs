@@ -40,8 +40,7 @@ pub use prior::{
 pub use problem::{POSE_SIGMAS, PointProblem};
 pub use reduced::Reduced;
 pub use refine::{
-    Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, linearise_rows, refine,
-    refine_from, refine_map,
+    Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from, refine_map,
 };
 pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE, combination_text};
 pub use variance::{ComponentFit, JointComponents, NoiseEstimate, SigmaInterval, sample_covariance};

@@ -230,21 +230,6 @@ pub fn linearise(
     Ok(Linearisation { x, b, system })
 }
 
-/// `problem` linearised about `x` and whitened by `weights` with every row held: `(S H(x),
-/// S y(x))`, checked as [`linearise`] checks. For what needs the rows themselves (a model
-/// selection's folds); a fit needs only the reduced system of [`linearise`].
-pub fn linearise_rows(
-    problem: &impl Residuals,
-    weights: &Weights,
-    x: &DVector<f64>,
-) -> Result<(DMatrix<f64>, DVector<f64>), EstimationError> {
-    check_linearisable(problem, weights, x)?;
-    let mut a = DMatrix::zeros(problem.equations(), problem.parameters());
-    let b = problem.evaluate_whitened(x, weights, Some(&mut a));
-    super::finite_system(&a, &b)?;
-    Ok((a, b))
-}
-
 /// Refine `x0` by Gauss-Newton with Levenberg-Marquardt damping, each step the weighted
 /// (or ordinary) least-squares solution of the system linearised about the current `x`.
 pub fn refine(

@@ -183,17 +183,39 @@ pub(crate) fn factorise_rank_revealing(
         crate::linalg::tall_svd(&padded, &scales)
     };
     let tall = tall.ok_or(EstimationError::NoConvergence)?;
-    let svd = &tall.small;
-    let (diagnostics, null_basis) = rank_revealed(svd, &d, m, tolerance, &[])?;
+    let FromSvd { left, u_r, pg, diagnostics } = from_svd(&tall.small, &d, m, tolerance)?;
+    Ok(Factorised { left, right: Right::Orthogonal { tall: Box::new(tall), u_r }, pg, diagnostics })
+}
+
+/// What [`from_svd`] finds: the parts of a [`Factorised`] but its right factor's kind.
+struct FromSvd {
+    /// `P D V_r S_r^-1`.
+    left: DMatrix<f64>,
+    /// `U_r`: the SVD's first `rank` left singular vectors.
+    u_r: DMatrix<f64>,
+    /// `P G`.
+    pg: DMatrix<f64>,
+    diagnostics: Diagnostics,
+}
+
+/// The factors of a system of `m` rows from the SVD of its column-scaled `A D` (or `R D`),
+/// as [`Factorised`] holds them, with the diagnostics of the rank-revealing solve.
+fn from_svd(
+    svd: &crate::linalg::Svd,
+    d: &DMatrix<f64>,
+    m: usize,
+    tolerance: f64,
+) -> Result<FromSvd, EstimationError> {
+    let (diagnostics, null_basis) = rank_revealed(svd, d, m, tolerance, &[])?;
     let rank = diagnostics.rank;
     let projector = complement_projector(&null_basis)?;
-    let pdv = &projector * &d * svd.v.columns(0, rank);
+    let pdv = &projector * d * svd.v.columns(0, rank);
     let inverse_s =
         DMatrix::from_diagonal(&DVector::from_iterator(rank, svd.s[..rank].iter().map(|s| 1.0 / s)));
     let left = &pdv * &inverse_s;
     let u_r = svd.u.columns(0, rank).into_owned();
-    let pg = &pdv * &inverse_s * &inverse_s * svd.v.columns(0, rank).transpose() * &d;
-    Ok(Factorised { left, right: Right::Orthogonal { tall: Box::new(tall), u_r }, pg, diagnostics })
+    let pg = &pdv * &inverse_s * &inverse_s * svd.v.columns(0, rank).transpose() * d;
+    Ok(FromSvd { left, u_r, pg, diagnostics })
 }
 
 /// A [`Reduced`] system factored as in the [module documentation](self), by the SVD of its
@@ -203,15 +225,7 @@ pub(crate) fn factorise_reduced(system: &Reduced, tolerance: f64) -> Result<Fact
     let m = system.rows();
     check_sizes(m, system.parameters(), tolerance)?;
     let (svd, d) = scaled_svd(system)?;
-    let (diagnostics, null_basis) = rank_revealed(&svd, &d, m, tolerance, &[])?;
-    let rank = diagnostics.rank;
-    let projector = complement_projector(&null_basis)?;
-    let pdv = &projector * &d * svd.v.columns(0, rank);
-    let inverse_s =
-        DMatrix::from_diagonal(&DVector::from_iterator(rank, svd.s[..rank].iter().map(|s| 1.0 / s)));
-    let left = &pdv * &inverse_s;
-    let u_r = svd.u.columns(0, rank).into_owned();
-    let pg = &pdv * &inverse_s * &inverse_s * svd.v.columns(0, rank).transpose() * &d;
+    let FromSvd { left, u_r, pg, diagnostics } = from_svd(&svd, &d, m, tolerance)?;
     Ok(Factorised { left, right: Right::Triangular { u_r }, pg, diagnostics })
 }
 

@@ -1263,18 +1263,9 @@ pub fn calibrate_kinds(
     let prepared = prepare(model, data, options)?;
     let Started { base, weights, before, before_setup, linearised, gauged } =
         start(&prepared, data, options)?;
-    let Prepared { params, asked, asked_setup, .. } = &prepared;
-    let Gauged { identifiable, mut fixed, prior } = gauged;
-    fixed.extend(prepared.held_words.iter().cloned());
-    if let Some(i) = prepared.scale {
-        fixed.push(Held::Scale { parameter: params.get(i).name.clone() });
-    }
-    let robot = asked.len();
-    let kept = Selection::from_indices(
-        params,
-        identifiable.iter().filter(|&&c| c < robot).map(|&c| asked.indices()[c]),
-    );
-    let kept_setup = identifiable.iter().filter(|&&c| c >= robot).map(|&c| asked_setup[c - robot]).collect();
+    let Gauged { identifiable, fixed, prior } = gauged;
+    let fixed = prepared.every_held(fixed);
+    let (kept, kept_setup) = prepared.kept(&identifiable);
     let problem = base.reselect(&kept, before.clone(), before_setup.clone(), kept_setup);
     let prior = prior.map(|p| p.select(&identifiable));
     let start = linearised.select(&identifiable);
@@ -1343,14 +1334,36 @@ pub(super) struct Prepared {
     /// The robot's parameters asked for (`--params`, the registration's), less `--hold`'s.
     pub(super) asked: Selection,
     /// The set-up's parameters asked for, less `--hold`'s.
-    pub(super) asked_setup: Vec<usize>,
+    asked_setup: Vec<usize>,
     /// What `--hold` held.
-    pub(super) held_words: Vec<Held>,
+    held_words: Vec<Held>,
     /// The set-up values of the "before" fit: all but the length zeros not asked for.
     every: Vec<usize>,
     /// The robot's length held for the scale (contacts without a distance).
-    pub(super) scale: Option<usize>,
+    scale: Option<usize>,
     nothing: Selection,
+}
+
+impl Prepared {
+    /// The robot's and the set-up's parameters of the `identifiable` columns (of the problem
+    /// of what is asked: the robot's, then the set-up's).
+    pub(super) fn kept(&self, identifiable: &[usize]) -> (Selection, Vec<usize>) {
+        let (asked, robot) = (&self.asked, self.asked.len());
+        let kept = Selection::from_indices(
+            &self.params,
+            identifiable.iter().filter(|&&c| c < robot).map(|&c| asked.indices()[c]),
+        );
+        let setup = identifiable.iter().filter(|&&c| c >= robot).map(|&c| self.asked_setup[c - robot]);
+        (kept, setup.collect())
+    }
+
+    /// What the gauge held (`fixed`), then what `--hold` held, then the length held for the
+    /// scale.
+    pub(super) fn every_held(&self, mut fixed: Vec<Held>) -> Vec<Held> {
+        fixed.extend(self.held_words.iter().cloned());
+        fixed.extend(self.scale.map(|i| Held::Scale { parameter: self.params.get(i).name.clone() }));
+        fixed
+    }
 }
 
 /// [`Prepared`] of `data` on `model` with `options`.
@@ -1577,12 +1590,7 @@ pub(crate) fn cross_validate_kinds_by(
     folds: usize,
     calibrate: impl Fn(&KindData) -> Result<KindCalibration, CalibrationError>,
 ) -> Result<Score, CalibrationError> {
-    let poses = data.joints.len();
-    if folds < 2 || folds > poses {
-        return Err(CalibrationError::Observations(format!(
-            "{folds} folds for {poses} poses: expected 2 to the number of poses"
-        )));
-    }
+    super::check_folds(folds, data.joints.len())?;
     let scores = (0..folds)
         .map(|fold| {
             let (test, train) =
@@ -1791,7 +1799,7 @@ fn prior_rows(
 
 /// The indices of `names` that the `patterns` match (`*` as in [`Selection::by_names`]); a
 /// pattern that matches none is refused.
-fn matching(names: &[String], patterns: &[String]) -> Result<Vec<usize>, SelectionError> {
+pub(super) fn matching(names: &[String], patterns: &[String]) -> Result<Vec<usize>, SelectionError> {
     let mut out = Vec::new();
     for pattern in patterns {
         let found: Vec<usize> = (0..names.len()).filter(|&i| name_matches(pattern, &names[i])).collect();

@@ -50,7 +50,7 @@ mod data;
 pub use data::{Frame, Role, TreeData, View};
 
 use super::kinds::camera::{camera_start, isometry, mounted, placed, placement, relative_view};
-use super::kinds::{Gauged, identifiable};
+use super::kinds::{Gauged, identifiable, matching};
 use super::{
     CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
     gauge_class,
@@ -60,7 +60,7 @@ use crate::estimation::{
     linearise, prior_sds_of, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
-use crate::model::{ParamInfo, ParamOwner, Placement, RobotTree, Selection, SelectionError, name_matches};
+use crate::model::{ParamInfo, ParamOwner, Placement, RobotTree, Selection, SelectionError};
 use nalgebra::{
     DMatrix, DMatrixView, DMatrixViewMut, DVector, Isometry3, Matrix6, Matrix6xX, Vector3, Vector6,
 };
@@ -746,14 +746,10 @@ fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, Calib
 /// typed); a `--hold` pattern that names no parameter of the tree is refused.
 fn asked(params: &TreeParams, options: &TreeOptions) -> Result<(Vec<usize>, Vec<Held>), SelectionError> {
     let asked = params.select(&options.joints)?;
-    let name = |i: usize| params.params[i].name.as_str();
-    let hold = &options.gauge.hold;
-    if let Some(p) = hold.iter().find(|p| !(0..params.len()).any(|i| name_matches(p, name(i)))) {
-        return Err(SelectionError { pattern: p.clone() });
-    }
-    let (held, kept): (Vec<usize>, Vec<usize>) =
-        asked.into_iter().partition(|&i| hold.iter().any(|p| name_matches(p, name(i))));
-    let words = held.iter().map(|&i| Held::ByUser { parameter: name(i).to_string(), setup: false });
+    let names: Vec<String> = params.params.iter().map(|p| p.name.clone()).collect();
+    let hold = matching(&names, &options.gauge.hold)?;
+    let (held, kept): (Vec<usize>, Vec<usize>) = asked.into_iter().partition(|i| hold.contains(i));
+    let words = held.iter().map(|&i| Held::ByUser { parameter: names[i].clone(), setup: false });
     Ok((kept, words.collect()))
 }
 
@@ -769,13 +765,7 @@ fn tree_gauge(
     weights: &Weights,
 ) -> Result<Gauged, CalibrationError> {
     let names = problem.names();
-    let keep: Vec<usize> = (options.gauge.keep.iter())
-        .map(|p| {
-            let found: Vec<usize> = (0..names.len()).filter(|&c| name_matches(p, &names[c])).collect();
-            if found.is_empty() { Err(SelectionError { pattern: p.clone() }) } else { Ok(found) }
-        })
-        .collect::<Result<Vec<_>, _>>()?
-        .concat();
+    let keep = matching(&names, &options.gauge.keep)?;
     let priority: Vec<u32> = (0..problem.parameters())
         .map(|c| match keep.contains(&c) {
             true => 0,
