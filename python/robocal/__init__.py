@@ -19,11 +19,13 @@ from ._errors import EstimationError, InputError, RobocalError
 from ._robocal import Calibration as _Calibration
 from ._robocal import Model, __version__, presets, studies
 from ._robocal import calibrate_source as _calibrate_source
+from ._robocal import compensate as _compensate
 from ._robocal import evaluate as _evaluate
 from ._robocal import observability as _observability
 from ._robocal import plan as _plan
 from ._robocal import measurements_csv as _measurements_csv
 from ._robocal import simulate as _simulate
+from ._robocal import table_csv as _table_csv
 
 __all__ = [
     "Calibration",
@@ -33,7 +35,15 @@ __all__ = [
     "Parameters",
     "RobocalError",
     "__version__",
+    "CameraViews",
+    "Coordinates",
+    "Observations",
+    "PairDistances",
+    "PlaneContacts",
+    "PointDistances",
     "calibrate",
+    "Compensation",
+    "compensate",
     "evaluate",
     "observability",
     "plan",
@@ -130,6 +140,201 @@ class Calibration:
 
 PathLike = Union[str, "os.PathLike[str]"]
 
+_UNITS = {"rad": "rad", "deg": "deg", "m": "m", "mm": "mm"}
+
+
+def _column(values: Any, n: int, name: str) -> np.ndarray:
+    """One value per row: an array of ``n``, or one number for every row."""
+    array = np.asarray(values, dtype=np.float64)
+    if array.ndim == 0:
+        return np.full(n, float(array))
+    if array.shape != (n,):
+        raise InputError(f"{name}: expected {n} values (one per row), got shape {array.shape}", field=name)
+    return array
+
+
+class Observations:
+    """Observations of one measuring session, as the columns of an observation file: the
+    library's reader reads them (the same checks, the same numbers as the file). Built by the
+    typed classes from arrays (``PairDistances``, ``PointDistances``, ``PlaneContacts``,
+    ``Coordinates``, ``CameraViews``) or by ``from_pandas`` from a DataFrame."""
+
+    def __init__(
+        self,
+        joints: Any,
+        columns: Sequence[tuple[str, Any]] = (),
+        *,
+        name: str,
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+        joints_b: Any = None,
+        constant: Sequence[tuple[str, str]] = (),
+    ) -> None:
+        if joint_unit not in ("rad", "deg"):
+            raise InputError(f"joint_unit: `{joint_unit}`: expected rad or deg", field="joint_unit")
+        if length_unit not in ("m", "mm"):
+            raise InputError(f"length_unit: `{length_unit}`: expected m or mm", field="length_unit")
+        self.name = name
+        self.joint_unit = joint_unit
+        self.length_unit = length_unit
+        self._frame: Optional[str] = None
+        self._joints = None if joints is None else np.asarray(joints, dtype=np.float64)
+        self._joints_b = None if joints_b is None else np.asarray(joints_b, dtype=np.float64)
+        n = 0 if self._joints is None else len(self._joints)
+        if self._joints is not None and self._joints.ndim != 2:
+            raise InputError(f"{name}: joints: a 2-D array, one row per pose", field="joints")
+        self._columns = [(c, _column(v, n, c)) for c, v in columns if v is not None]
+        self._constant = list(constant)
+
+    @classmethod
+    def from_pandas(
+        cls, frame: Any, *, name: str = "observations", joint_unit: str = "rad", length_unit: str = "m"
+    ) -> "Observations":
+        """A DataFrame with an observation file's columns (the joints by name, then
+        ``distance``, ``point``, ``plane``, ``x``..``yaw``, ``camera``, ``sigma``, ``kind``...),
+        its lengths and angles in ``length_unit`` and ``joint_unit``."""
+        made = cls(None, name=name, joint_unit=joint_unit, length_unit=length_unit)
+        made._frame = frame.to_csv(index=False)
+        return made
+
+    def _units_line(self) -> str:
+        return f"# units: joints={self.joint_unit}, lengths={self.length_unit}"
+
+    def to_csv(self, model: Model) -> str:
+        """The observation file these observations make for ``model`` (its joint names)."""
+        if self._frame is not None:
+            return self._units_line() + "\n" + self._frame
+        assert self._joints is not None
+        names = list(model.joint_names)
+        if self._joints.shape[1] != len(names):
+            raise InputError(
+                f"{self.name}: joints: {self._joints.shape[1]} columns for the {len(names)} joints of {model.name}",
+                field="joints",
+            )
+        columns = [self._joints[:, k] for k in range(len(names))]
+        if self._joints_b is not None:
+            if self._joints_b.shape != self._joints.shape:
+                raise InputError(f"{self.name}: joints_b: expected the shape of joints", field="joints_b")
+            names += [f"{j}_b" for j in model.joint_names]
+            columns += [self._joints_b[:, k] for k in range(self._joints_b.shape[1])]
+        names += [c for c, _ in self._columns]
+        columns += [v for _, v in self._columns]
+        return _table_csv(self._units_line(), names, [np.ascontiguousarray(c) for c in columns], self._constant)
+
+    def __repr__(self) -> str:
+        return f"robocal.{type(self).__name__}({self.name!r})"
+
+
+class PairDistances(Observations):
+    """Distances (ball bar, tape) between the tool point at two poses: ``joints`` and
+    ``joints_b`` (n x dof each), ``distance`` (n), ``sigma`` (one or n; default 0.01 mm)."""
+
+    def __init__(
+        self,
+        joints: Any,
+        joints_b: Any,
+        distance: Any,
+        *,
+        sigma: Any = None,
+        name: str = "pairs",
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+    ) -> None:
+        super().__init__(joints, [("distance", distance), ("sigma", sigma)], name=name, joint_unit=joint_unit,
+                         length_unit=length_unit, joints_b=joints_b)
+
+
+class PointDistances(Observations):
+    """Distances from the tool point to fixed points (a ball bar's centre, a laser tracker
+    measuring range only): ``joints`` (n x dof), ``distance`` (n), ``point`` (the fixed point's
+    number, 1, 2, ...: one or n; default 1), ``sigma`` (one or n; default 0.01 mm)."""
+
+    def __init__(
+        self,
+        joints: Any,
+        distance: Any,
+        *,
+        point: Any = None,
+        sigma: Any = None,
+        name: str = "points",
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+    ) -> None:
+        super().__init__(joints, [("distance", distance), ("point", point), ("sigma", sigma)], name=name,
+                         joint_unit=joint_unit, length_unit=length_unit)
+
+
+class PlaneContacts(Observations):
+    """The tool point touching planes: ``joints`` (n x dof), ``plane`` (the plane's number,
+    1, 2, ...: one or n; default 1), ``sigma`` (one or n; default 0.01 mm)."""
+
+    def __init__(
+        self,
+        joints: Any,
+        plane: Any = 1,
+        *,
+        sigma: Any = None,
+        name: str = "contacts",
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+    ) -> None:
+        super().__init__(joints, [("plane", plane), ("sigma", sigma)], name=name, joint_unit=joint_unit,
+                         length_unit=length_unit)
+
+
+class Coordinates(Observations):
+    """Coordinates of the tool in the measuring frame, any of them (NaN where not measured):
+    ``x``, ``y``, ``z`` (length unit), ``roll``, ``pitch``, ``yaw`` (joint unit, ``R = Rz(yaw)
+    Ry(pitch) Rx(roll)``), each n values; ``sigma`` and ``sigma_angle`` (one or n; default
+    0.01 mm and 0.01 deg)."""
+
+    def __init__(
+        self,
+        joints: Any,
+        *,
+        x: Any = None,
+        y: Any = None,
+        z: Any = None,
+        roll: Any = None,
+        pitch: Any = None,
+        yaw: Any = None,
+        sigma: Any = None,
+        sigma_angle: Any = None,
+        name: str = "coordinates",
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+    ) -> None:
+        given = [("x", x), ("y", y), ("z", z), ("roll", roll), ("pitch", pitch), ("yaw", yaw)]
+        given += [("sigma", sigma), ("sigma_angle", sigma_angle)]
+        super().__init__(joints, given, name=name, joint_unit=joint_unit, length_unit=length_unit)
+
+
+class CameraViews(Observations):
+    """A camera's views of its target: ``views`` (n x 6: the target's pose in the camera's
+    frame, x, y, z in the length unit, roll, pitch, yaw in the joint unit), ``camera``
+    ``hand`` (on the arm, the target fixed) or ``world`` (fixed, the target on the arm);
+    ``sigma`` and ``sigma_angle`` (one or n; default 0.5 mm and 0.1 deg)."""
+
+    def __init__(
+        self,
+        joints: Any,
+        views: Any,
+        *,
+        camera: str = "hand",
+        sigma: Any = None,
+        sigma_angle: Any = None,
+        name: str = "camera",
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+    ) -> None:
+        v = np.asarray(views, dtype=np.float64)
+        if v.ndim != 2 or v.shape[1] != 6:
+            raise InputError(f"{name}: views: expected n x 6 (x, y, z, roll, pitch, yaw), got {v.shape}",
+                             field="views")
+        axes = [(c, v[:, k]) for k, c in enumerate(("x", "y", "z", "roll", "pitch", "yaw"))]
+        super().__init__(joints, [*axes, ("sigma", sigma), ("sigma_angle", sigma_angle)], name=name,
+                         joint_unit=joint_unit, length_unit=length_unit, constant=[("camera", camera)])
+
 
 def _source(
     model: Model,
@@ -144,6 +349,8 @@ def _source(
     if isinstance(data, (str, os.PathLike)):
         path = os.fspath(data)
         return (path, path, None), False
+    if isinstance(data, Observations):
+        return (data.name, None, data.to_csv(model)), False
     if hasattr(data, "to_csv") and markers is None:  # a pandas DataFrame, columns as in a file
         return ("DataFrame" if name == "arrays" else name, None, data.to_csv(index=False)), False
     if markers is None:
@@ -161,9 +368,10 @@ def _source(
 
 def calibrate(
     model: Model,
-    joints: Any,
+    joints: Any = None,
     markers: Any = None,
     *,
+    observations: Sequence[Union[PathLike, Observations]] = (),
     joint_unit: Optional[str] = None,
     length_unit: Optional[str] = None,
     estimator: Optional[str] = None,
@@ -193,9 +401,13 @@ def calibrate(
     given_units = joint_unit is not None or length_unit is not None
     arrays = False
     if isinstance(joints, (list, tuple)) and markers is None and all(
-        isinstance(j, (str, os.PathLike)) for j in joints
+        isinstance(j, (str, os.PathLike, Observations)) for j in joints
     ):  # observation files, fitted together
-        sources = [(os.fspath(p), os.fspath(p), None) for p in joints]
+        observations, joints = list(joints), None
+    if len(observations) > 0:
+        if joints is not None or markers is not None:
+            raise InputError("give marker data or observations, not both", field="observations")
+        sources = [_source(model, o, None, "observations")[0] for o in observations]
     else:
         source, arrays = _source(model, joints, markers, "arrays", pose_sigma, orientations)
         sources = [source]
@@ -312,6 +524,73 @@ def evaluate(
     )
     result: dict[str, Any] = json.loads(_evaluate(model, source, flags))
     return result
+
+
+class Compensation:
+    """A compensated program: per target (in the order given) its line, whether it is reached,
+    the joint values to send and their change from the seed (rad; mm for prismatic joints; NaN
+    where unreachable), the remaining and the uncompensated errors (mm, deg), the iterations,
+    and why a target cannot be reached."""
+
+    def __init__(self, out: dict[str, Any]) -> None:
+        self.lines: np.ndarray = out["lines"]
+        self.reached: np.ndarray = out["reached"]
+        self.joints: np.ndarray = out["joints"]
+        self.change: np.ndarray = out["change"]
+        self.error_mm: np.ndarray = out["error_mm"]
+        self.error_deg: np.ndarray = out["error_deg"]
+        self.before_mm: np.ndarray = out["before_mm"]
+        self.before_deg: np.ndarray = out["before_deg"]
+        self.iterations: np.ndarray = out["iterations"]
+        self.reasons: list[Optional[str]] = out["reasons"]
+        self._report: str = out["report"]
+        self._csv: str = out["csv"]
+        self._json: str = out["json"]
+
+    def report(self) -> str:
+        """The report as ``robocal compensate`` prints it."""
+        return self._report
+
+    def to_csv(self) -> str:
+        """The compensated program as ``robocal compensate --out`` writes it (deg, mm)."""
+        return self._csv
+
+    def to_json(self) -> str:
+        """The JSON report as ``robocal compensate --json`` writes it."""
+        return self._json
+
+    def __repr__(self) -> str:
+        return f"robocal.Compensation({int(self.reached.sum())} of {len(self.reached)} targets reached)"
+
+
+def compensate(
+    model: Model,
+    nominal: Model,
+    targets: Any,
+    *,
+    seeds: Any = None,
+    marker: Optional[int] = None,
+    position_only: bool = False,
+    frame: str = "measuring",
+    max_joint_change_deg: float = 10.0,
+    joint_unit: Optional[str] = None,
+    length_unit: Optional[str] = None,
+) -> Compensation:
+    """The joints to send a controller computing with ``nominal`` so that ``model`` (the
+    calibrated robot) reaches each target, as ``robocal compensate`` solves them."""
+    flags = {
+        "marker": marker,
+        "position_only": position_only,
+        "frame": frame,
+        "max_joint_change_deg": float(max_joint_change_deg),
+        "joint_unit": joint_unit,
+        "length_unit": length_unit,
+    }
+    if isinstance(targets, (str, os.PathLike)):
+        return Compensation(_compensate(model, nominal, flags, file=os.fspath(targets)))
+    array = np.ascontiguousarray(targets, dtype=np.float64)
+    start = None if seeds is None else np.ascontiguousarray(seeds, dtype=np.float64)
+    return Compensation(_compensate(model, nominal, flags, targets=array, seeds=start))
 
 
 def _design_flags(

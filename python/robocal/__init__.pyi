@@ -124,11 +124,139 @@ class Calibration:
     def to_json(self) -> str:
         """The JSON report as ``robocal calibrate --json`` writes it."""
 
+class Observations:
+    """Observations of one measuring session as the columns of an observation file, read by
+    the library's reader (the same checks and numbers as the file's): built from arrays by
+    ``PairDistances``, ``PointDistances``, ``PlaneContacts``, ``Coordinates`` and
+    ``CameraViews``, or from a DataFrame by ``from_pandas``. ``name`` names the session (as a
+    file's stem does); lengths are in ``length_unit`` (m or mm), angles and joint values in
+    ``joint_unit`` (rad or deg): rad and m unless told."""
+
+    name: str
+    joint_unit: str
+    length_unit: str
+    def __init__(
+        self,
+        joints: Any,
+        columns: Sequence[tuple[str, Any]] = (),
+        *,
+        name: str,
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+        joints_b: Any = None,
+        constant: Sequence[tuple[str, str]] = (),
+    ) -> None:
+        """``joints`` (n x dof) and named columns of an observation file (n values, or one for
+        every row; NaN an empty cell), ``joints_b`` the second poses of pairs, ``constant``
+        text columns (``camera``)."""
+    @classmethod
+    def from_pandas(
+        cls, frame: Any, *, name: str = "observations", joint_unit: str = "rad", length_unit: str = "m"
+    ) -> Observations:
+        """A DataFrame with an observation file's columns (the joints by name, ``distance``,
+        ``point``, ``plane``, ``x``..``yaw``, ``camera``, ``sigma``, ``sigma_angle``,
+        ``kind`` for several kinds)."""
+    def to_csv(self, model: Model) -> str:
+        """The observation file these observations make for ``model`` (its joints' names)."""
+
+class PairDistances(Observations):
+    """Distances between the tool point at two poses (a ball bar between poses, a tape)."""
+
+    def __init__(
+        self,
+        joints: Any,
+        joints_b: Any,
+        distance: Any,
+        *,
+        sigma: Any = None,
+        name: str = "pairs",
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+    ) -> None:
+        """``joints`` and ``joints_b`` (n x dof), ``distance`` (n), ``sigma`` (one or n;
+        default 0.01 mm)."""
+
+class PointDistances(Observations):
+    """Distances from the tool point to fixed points (a ball bar's fixed ball)."""
+
+    def __init__(
+        self,
+        joints: Any,
+        distance: Any,
+        *,
+        point: Any = None,
+        sigma: Any = None,
+        name: str = "points",
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+    ) -> None:
+        """``joints`` (n x dof), ``distance`` (n), ``point`` (the point's number 1, 2, ...: one
+        or n; default 1), ``sigma`` (one or n; default 0.01 mm)."""
+
+class PlaneContacts(Observations):
+    """The tool point touching planes (signed distance 0)."""
+
+    def __init__(
+        self,
+        joints: Any,
+        plane: Any = 1,
+        *,
+        sigma: Any = None,
+        name: str = "contacts",
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+    ) -> None:
+        """``joints`` (n x dof), ``plane`` (the plane's number 1, 2, ...: one or n), ``sigma``
+        (one or n; default 0.01 mm)."""
+
+class Coordinates(Observations):
+    """Coordinates of the tool in the measuring frame, any of them."""
+
+    def __init__(
+        self,
+        joints: Any,
+        *,
+        x: Any = None,
+        y: Any = None,
+        z: Any = None,
+        roll: Any = None,
+        pitch: Any = None,
+        yaw: Any = None,
+        sigma: Any = None,
+        sigma_angle: Any = None,
+        name: str = "coordinates",
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+    ) -> None:
+        """``joints`` (n x dof); each coordinate given n values (NaN where not measured):
+        ``x, y, z`` (length unit), ``roll, pitch, yaw`` (joint unit, ``R = Rz(yaw) Ry(pitch)
+        Rx(roll)``); ``sigma`` and ``sigma_angle`` (one or n; default 0.01 mm and 0.01 deg)."""
+
+class CameraViews(Observations):
+    """A camera's views of its target: the target's pose in the camera's frame."""
+
+    def __init__(
+        self,
+        joints: Any,
+        views: Any,
+        *,
+        camera: str = "hand",
+        sigma: Any = None,
+        sigma_angle: Any = None,
+        name: str = "camera",
+        joint_unit: str = "rad",
+        length_unit: str = "m",
+    ) -> None:
+        """``joints`` (n x dof), ``views`` (n x 6: x, y, z, roll, pitch, yaw), ``camera``
+        ``hand`` (on the arm, the target fixed) or ``world`` (fixed, the target on the arm);
+        ``sigma`` and ``sigma_angle`` (one or n; default 0.5 mm and 0.1 deg)."""
+
 def calibrate(
     model: Model,
-    joints: Any,
+    joints: Any = None,
     markers: Any = None,
     *,
+    observations: Sequence[Union[PathLike, Observations]] = (),
     joint_unit: Optional[str] = None,
     length_unit: Optional[str] = None,
     estimator: Optional[str] = None,
@@ -158,9 +286,11 @@ def calibrate(
 
     The data: ``joints`` (n x dof) and ``markers`` (n x 3m, or n x m x 3) arrays, with
     ``pose_sigma`` (n) and ``orientations`` (n x 4, qw qx qy qz) if measured; or a pandas
-    DataFrame with a file's columns (``j1``..., ``x1,y1,z1``, ...); or a file's path; or a list
-    of observation files' paths (distances, plane contacts, coordinates, camera views), fitted
-    together. Arrays and DataFrames go through the same reader as the files.
+    DataFrame with a file's columns (``j1``..., ``x1,y1,z1``, ...); or a file's path. Or
+    ``observations``: observation files' paths (distances, plane contacts, coordinates, camera
+    views) and ``Observations`` (built from arrays or a DataFrame), each a session, fitted
+    together (a list of them as ``joints`` too). Arrays and DataFrames go through the same
+    reader as the files.
 
     Units: ``joint_unit`` ``"rad"`` or ``"deg"`` and ``length_unit`` ``"m"`` or ``"mm"``, given
     together; arrays default to rad and m, files to their own units line. The options in
@@ -193,10 +323,66 @@ def evaluate(
     use_markers: Optional[Sequence[int]] = None,
 ) -> dict[str, Any]:
     """``model`` scored as it stands on ``data`` (as ``calibrate`` takes it: arrays, a
-    DataFrame, a file), as ``robocal evaluate`` scores it: for marker data, the set pose by pose
+    DataFrame, a file, ``Observations``), as ``robocal evaluate`` scores it: for marker data, the set pose by pose
     as its JSON has it (``pooled``: before, ``poses``, ``per_marker``; joint values in
     degrees); for an observation file, its score with the set-up fitted and the robot held. A
     model read from a file with ``[[markers]]``, or a calibration's model, brings its markers."""
+
+class Compensation:
+    """A compensated program, one entry per target in the order given."""
+
+    lines: npt.NDArray[np.uint64]
+    """Each target's line in its file (arrays: its row + 2, the header on line 1)."""
+    reached: npt.NDArray[np.bool_]
+    """Whether it is reached (within the tolerances, on the seed's branch, within the limits)."""
+    joints: FloatArray
+    """The joint values to send (n x dof; rad, mm for prismatic joints; NaN where unreachable)."""
+    change: FloatArray
+    """Their change from the seed (n x dof; rad, mm; NaN where unreachable)."""
+    error_mm: FloatArray
+    """The calibrated model's remaining position error (mm; NaN where unreachable)."""
+    error_deg: FloatArray
+    """Its remaining orientation error (deg; 0 with ``position_only``)."""
+    before_mm: FloatArray
+    """Its position error at the seed, uncompensated (mm)."""
+    before_deg: FloatArray
+    """Its orientation error at the seed (deg)."""
+    iterations: npt.NDArray[np.uint64]
+    """Iterations taken (0 where unreachable)."""
+    reasons: list[Optional[str]]
+    """Why each target cannot be reached (None where it is), as the report words it."""
+    def report(self) -> str:
+        """The report as ``robocal compensate`` prints it."""
+    def to_csv(self) -> str:
+        """The compensated program as ``robocal compensate --out`` writes it (deg, mm)."""
+    def to_json(self) -> str:
+        """The JSON report as ``robocal compensate --json`` writes it (deg, mm)."""
+
+def compensate(
+    model: Model,
+    nominal: Model,
+    targets: Any,
+    *,
+    seeds: Optional[FloatArray] = None,
+    marker: Optional[int] = None,
+    position_only: bool = False,
+    frame: str = "measuring",
+    max_joint_change_deg: float = 10.0,
+    joint_unit: Optional[str] = None,
+    length_unit: Optional[str] = None,
+) -> Compensation:
+    """The joints to send a controller that computes with ``nominal`` so that ``model`` (the
+    calibrated robot, the joint limits its) reaches each target, as ``robocal compensate``
+    solves them (damped least squares from the seed), the GIL released.
+
+    ``targets``: joint values taught on the nominal model (n x dof, rad and mm: the target is
+    the nominal pose there, and its own seed); tool poses (n x 4 x 4, mm, as ``Model.fk_batch``
+    gives them) or positions (n x 3, mm, with ``position_only``), each with its row of
+    ``seeds`` (n x dof), the nominal joint solution; or a target file's path (its units line,
+    or ``joint_unit`` and ``length_unit``). ``marker``: the number of one of ``model``'s
+    markers (a model file's ``[[markers]]``, a calibration's) to bring to the targets in place
+    of the tool point; ``frame``: ``measuring`` (the calibrated base's frame) or ``base``;
+    ``max_joint_change_deg``: a larger move from the seed is a branch change (unreachable)."""
 
 def observability(
     model: Model,

@@ -11,15 +11,12 @@ use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds, cross_
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::calibration::{
-    self, Choices, DataKind, ErrorStats, FeasibleOptions, Gauge, JointParams, Loss, Measurements, Options,
-    SetEvaluation,
+    self, Choices, DataKind, Gauge, JointParams, Loss, Measurements, Options, SetEvaluation,
 };
-use robocal::design::accuracy::{AccuracyModel, ParameterCovariance};
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PriorEntry, RefineOptions};
 use robocal::model::{JointKind, RobotModel};
-use robocal::report::calibration::{
-    CalibrationReport, CrossValidationReport, ParameterRow, PredictedAccuracy,
-};
+use robocal::pipeline::{MarkerError, MarkerRequest, calibrate_markers};
+use robocal::report::calibration::{CalibrationReport, ParameterRow};
 use robocal::report::observations::ObservationsReport;
 use robocal::table::Units;
 use std::path::Path;
@@ -39,6 +36,16 @@ fn text_of(source: &Source) -> PyResult<String> {
         }),
         (_, None, Some(text)) => Ok(text.clone()),
         (name, None, None) => Err(errors::input(format!("{name}: neither a file nor a table"))),
+    }
+}
+
+/// The units to read `source` in: a table made in memory with its own units line (an
+/// observation object's) keeps them; files and DataFrames take the `given` ones (else their
+/// own line's).
+fn units_for(source: &Source, given: Option<Units>) -> Option<Units> {
+    match source {
+        (_, None, Some(text)) if text.starts_with("# units:") => None,
+        _ => given,
     }
 }
 
@@ -126,6 +133,37 @@ pub fn measurements_csv(
     Ok(text)
 }
 
+/// The CSV text of a table of observations given as columns, for the library's reader:
+/// `units_line` (`# units: ...`), a header of `names` then of the `constant` columns' names,
+/// then one row per value of the columns (all of one length), each number written exactly
+/// (shortest round trip), a NaN as an empty cell (not measured), the constant columns' text
+/// on every row.
+#[pyfunction]
+pub fn table_csv(
+    units_line: &str,
+    names: Vec<String>,
+    columns: Vec<PyReadonlyArray1<'_, f64>>,
+    constant: Vec<(String, String)>,
+) -> PyResult<String> {
+    let columns: Vec<_> = columns.iter().map(|c| c.as_array()).collect();
+    let n = columns.first().map_or(0, |c| c.len());
+    if names.len() != columns.len() {
+        return Err(errors::input(format!("{} names for {} columns", names.len(), columns.len())));
+    }
+    if let Some((name, c)) = names.iter().zip(&columns).find(|(_, c)| c.len() != n) {
+        return Err(errors::argument(name, format!("{} values, expected {n} (one per row)", c.len())));
+    }
+    let header: Vec<&str> = names.iter().chain(constant.iter().map(|c| &c.0)).map(String::as_str).collect();
+    let mut text = format!("{units_line}\n{}\n", header.join(","));
+    for i in 0..n {
+        let cells = columns.iter().map(|c| if c[i].is_nan() { String::new() } else { c[i].to_string() });
+        let cells: Vec<String> = cells.chain(constant.iter().map(|c| c.1.clone())).collect();
+        text.push_str(&cells.join(","));
+        text.push('\n');
+    }
+    Ok(text)
+}
+
 /// The options of `robocal.calibrate`, as the command line's flags give them.
 #[derive(Debug, Clone, Default, FromPyObject)]
 #[pyo3(from_item_all)]
@@ -172,8 +210,13 @@ fn require(ok: bool, field: &str, message: &str) -> PyResult<()> {
 }
 
 impl Flags {
+    /// The flags of the units `joint_unit` and `length_unit` alone.
+    pub(crate) fn with_units(joint_unit: Option<String>, length_unit: Option<String>) -> Self {
+        Self { joint_unit, length_unit, ..Self::default() }
+    }
+
     /// The units of the data (if given) and of the options (rad and m unless given).
-    fn units(&self) -> PyResult<(Option<Units>, Units)> {
+    pub(crate) fn units(&self) -> PyResult<(Option<Units>, Units)> {
         let joint = match self.joint_unit.as_deref() {
             None => None,
             Some("rad") => Some(false),
@@ -563,50 +606,34 @@ fn markers(
     let what = format!("calibrating the {} poses of {}", fit.len(), source.0);
     robocal::io::check_memory(fit.memory_estimate(model.params().len()), &what, "calibrate on fewer poses")
         .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
-    let asked = marker_options(model, &fit, flags, request)?;
+    let options = marker_options(model, &fit, flags, request)?;
     let folds = flags.folds.unwrap_or(DEFAULT_FOLDS);
     let choices =
         Choices { auto_prior: request.auto_prior.clone().map(|a| (a, folds)), select: request.select };
-    let name = if request.feasible { "fgls" } else { asked.estimator.name() };
     // Each held-out set scored with the noise at its own poses (a noise file's device), or
     // with the noise feasible GLS estimated.
-    let held_noise =
-        held_out.iter().map(|(_, d)| flags.noise(request, model, d)).collect::<PyResult<Vec<_>>>()?;
-    let run = || -> Result<_, calibration::CalibrationError> {
-        let chosen = calibration::choose(model, &fit, &asked, &choices)?;
-        let result = if request.feasible {
-            calibration::calibrate_feasible(model, &fit, &chosen.options, &FeasibleOptions::default())?
-        } else {
-            calibration::calibrate(model, &fit, &chosen.options)?
-        };
-        let sets = (held_out.iter().zip(&held_noise))
-            .map(|((name, d), noise)| {
-                let estimated =
-                    result.noise_estimate.as_ref().filter(|_| request.feasible).map(|e| e.noise_model());
-                result.evaluate(name, d, estimated.as_ref().or(noise.as_ref()))
-            })
-            .collect::<Result<Vec<_>, _>>()?;
-        let cv = match flags.folds {
-            Some(k) => Some(cross_validate(model, &fit, &asked, &choices, k)?),
-            None => None,
-        };
-        Ok((chosen, result, sets, cv))
+    let held_out = (held_out.into_iter())
+        .map(|(name, d)| {
+            let noise = flags.noise(request, model, &d)?;
+            Ok((name, d, noise))
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let asked = MarkerRequest {
+        data: source.0.clone(),
+        options,
+        choices,
+        feasible: request.feasible,
+        held_out,
+        folds: flags.folds,
     };
-    let (chosen, result, sets, cv) = py.detach(run).map_err(|e| errors::calibration(&e, &source.0))?;
-    let cv_row = cv.as_ref().map(|(label, before, after, _)| (label.clone(), *before, *after));
-    let mut report = CalibrationReport::new(&result, &source.0, name, sets, cv_row);
-    if let Some((_, _, _, how)) = cv {
-        report = report.with_cross_validation(how);
-    }
-    if let Some(path) = &chosen.path {
-        report = report.with_selection(path);
-    }
-    if let Some(scale) = chosen.scale {
-        report = report.with_prior_scale(scale);
-    }
-    let predicted = predicted_accuracy(&report.sets, &result, &held_out)
-        .map_err(|e| errors::from_error(Kind::Estimation, &e, Some(&source.0)))?;
-    report = report.with_predicted(predicted);
+    let outcome = py.detach(|| calibrate_markers(model, &fit, &asked)).map_err(|e| match e {
+        MarkerError::Accuracy(e) => errors::from_error(Kind::Estimation, &e, Some(&source.0)),
+        MarkerError::Choice(e)
+        | MarkerError::Calibration(e)
+        | MarkerError::Validation(e)
+        | MarkerError::CrossValidation(e) => errors::calibration(&e, &source.0),
+    })?;
+    let (report, result) = (outcome.report, outcome.calibration);
     let markers = result.marker_positions();
     let calibrated = Model::new(result.calibrated.clone(), robot.urdf.clone()).with_markers(markers);
     Calibration::new(py, &report, &result.refined.estimate, report.rank, report.sets.clone(), calibrated)
@@ -701,59 +728,6 @@ fn marker_options(
     })
 }
 
-/// The cross-validation of `calibrate --folds k`: nested when a choice is made from the data.
-fn cross_validate(
-    model: &RobotModel,
-    fit: &Measurements,
-    asked: &Options,
-    choices: &Choices,
-    k: usize,
-) -> Result<(String, ErrorStats, ErrorStats, CrossValidationReport), calibration::CalibrationError> {
-    let mut redone: Vec<String> =
-        choices.auto_prior.iter().map(|(a, _)| format!("--prior auto:{}'s scale", a.preset)).collect();
-    redone.extend(choices.select.map(|c| format!("--select {}", c.name())));
-    if asked.loss != Loss::Squared {
-        redone.push(format!("--loss {}'s weights", asked.loss));
-    }
-    let (before, after, selected, scales) = if *choices == Choices::default() {
-        let (before, after) = calibration::cross_validate(model, fit, asked, k)?;
-        (before, after, Vec::new(), Vec::new())
-    } else {
-        let nested = calibration::cross_validate_choices(model, fit, asked, choices, k)?;
-        (nested.before, nested.after, nested.selected, nested.scales)
-    };
-    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales };
-    Ok((how.label(), before, after, how))
-}
-
-/// The position error predicted at each held-out set's poses from the calibration's
-/// parameter covariance, as the command line's report gives it.
-fn predicted_accuracy(
-    sets: &[SetEvaluation],
-    result: &calibration::Calibration,
-    held_out: &[(String, Measurements)],
-) -> Result<Vec<PredictedAccuracy>, robocal::design::accuracy::CovarianceError> {
-    let floor_mm =
-        sets.iter().find(|s| s.name != "training").and_then(|s| s.pooled.last()).map_or(0.0, |s| s.rms);
-    let estimate = &result.refined.estimate;
-    let covariance = ParameterCovariance::new(estimate.names.clone(), &estimate.covariance, floor_mm);
-    let with_floor = AccuracyModel::new(&result.calibrated, &covariance)?;
-    let alone = AccuracyModel::new(&result.calibrated, &ParameterCovariance { floor_mm: 0.0, ..covariance })?;
-    Ok((held_out.iter())
-        .map(|(name, d)| {
-            let (all, params) = (with_floor.map(&d.joints), alone.map(&d.joints));
-            let n = all.len().max(1) as f64;
-            PredictedAccuracy {
-                set: name.clone(),
-                mean_mm: all.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
-                max_mm: all.iter().map(|p| p.1.position_mm).fold(0.0, f64::max),
-                parameters_mm: params.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
-                floor_mm,
-            }
-        })
-        .collect())
-}
-
 /// The command line's `calibrate` of observation files, without writing anything.
 fn observations(
     py: Python<'_>,
@@ -775,8 +749,8 @@ fn observations(
         "not with observation files",
     )?;
     let read = |s: &Source| -> PyResult<KindData> {
-        let data =
-            KindData::from_csv_str(&text_of(s)?, model, request.units).map_err(|e| data_error(s, &e))?;
+        let data = KindData::from_csv_str(&text_of(s)?, model, units_for(s, request.units))
+            .map_err(|e| data_error(s, &e))?;
         let stem =
             Path::new(&s.0).file_stem().map_or_else(|| s.0.clone(), |n| n.to_string_lossy().into_owned());
         Ok(data.named(&stem))
@@ -838,7 +812,7 @@ pub fn evaluate(model: &Model, source: Source, flags: Flags) -> PyResult<String>
             serde_json::to_string(&robocal::report::poses::in_degrees(&set, &robot.joints))
         }
         "observations" => {
-            let data = KindData::from_csv_str(&text_of(&source)?, robot, request.units)
+            let data = KindData::from_csv_str(&text_of(&source)?, robot, units_for(&source, request.units))
                 .map_err(|e| data_error(&source, &e))?;
             let options = KindOptions { tool: robot.tool_point_in_marker_frame(), ..KindOptions::default() };
             let score = robocal::calibration::kinds::evaluate_kinds(robot, &data, &options)

@@ -6,6 +6,7 @@
 use pyo3::prelude::*;
 
 mod calibrate;
+mod compensate;
 mod design;
 mod errors;
 mod model;
@@ -18,8 +19,10 @@ fn _robocal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<calibrate::Calibration>()?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate_source, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::measurements_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate::table_csv, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::data_kind, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(compensate::compensate, m)?)?;
     m.add_function(wrap_pyfunction!(design::observability, m)?)?;
     m.add_function(wrap_pyfunction!(design::plan, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;

@@ -292,3 +292,165 @@ def test_the_readmes_python_example_prints_what_the_readme_shows() -> None:
     shown = shown[: shown.index("```")]
     done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True)
     assert done.stdout == shown
+
+
+TRUE = EXAMPLES / "puma560-true.toml"
+
+
+def test_compensate_gives_the_command_lines_program(puma: robocal.Model, tmp_path: Path) -> None:
+    out, report = tmp_path / "program.csv", tmp_path / "program.json"
+    text = run_cli("compensate", str(VALIDATION), "--model", str(TRUE), "--nominal", "puma560", "--frame", "base",
+                   "--out", str(out), "--json", str(report))
+    real = robocal.Model.from_toml(str(TRUE))
+    c = robocal.compensate(real, puma, VALIDATION, frame="base")
+    assert c.report() == text.replace(f"wrote {out}\n", "")
+    theirs = json.loads(report.read_text())
+    assert_same(json.loads(c.to_json()), theirs)
+    assert [row for row in c.to_csv().splitlines() if not row.startswith("#")] == [
+        row for row in out.read_text().splitlines() if not row.startswith("#")
+    ]
+    # The arrays, target by target: the joints in rad against the JSON's degrees.
+    targets = theirs["targets"]
+    assert list(c.lines) == [t["line"] for t in targets]
+    assert list(c.reached) == [t["reached"] for t in targets] and 0 < c.reached.sum() < len(targets)
+    for i, t in enumerate(targets):
+        if t["reached"]:
+            np.testing.assert_allclose(np.degrees(c.joints[i]), t["joints"], rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(np.degrees(c.change[i]), t["change"], rtol=1e-12, atol=1e-12)
+            assert math.isclose(c.error_mm[i], t["error_mm"], rel_tol=1e-12, abs_tol=1e-15)
+            assert c.iterations[i] == t["iterations"] and c.reasons[i] is None
+        else:
+            assert np.isnan(c.joints[i]).all() and c.reasons[i] == t["reason"]
+    # The same joint targets as an array (rad): the same joints.
+    joints, _ = table(VALIDATION)
+    a = robocal.compensate(real, puma, np.radians(joints), frame="base")
+    assert np.array_equal(a.reached, c.reached)
+    np.testing.assert_allclose(a.joints[a.reached], c.joints[c.reached], rtol=1e-12, atol=1e-12)
+
+
+def test_compensated_pose_and_position_targets_are_reached_by_the_real_robot(puma: robocal.Model) -> None:
+    # The true robot on the nominal's base (the identity), so that every frame is the base's.
+    text = TRUE.read_text()
+    real = robocal.Model.from_toml(text[: text.index("[base]")] + text[text.index("[tool]") :])
+    joints, _ = table(VALIDATION)
+    q = np.radians(joints[:20])
+    # Pose targets, the nominal poses at q, seeded at q: the joint targets' solutions, to the
+    # solver's tolerance.
+    poses = puma.fk_batch(q)
+    by_joints = robocal.compensate(real, puma, q)
+    by_poses = robocal.compensate(real, puma, poses, seeds=q)
+    assert np.array_equal(by_poses.reached, by_joints.reached) and by_poses.reached.sum() >= 15
+    ok = by_poses.reached
+    np.testing.assert_allclose(by_poses.joints[ok], by_joints.joints[ok], atol=1e-9)
+    # The real robot at the compensated joints is at the targets; at the seeds it is not.
+    reached = real.fk_batch(by_poses.joints[ok])
+    np.testing.assert_allclose(reached[:, :3, 3], poses[ok, :3, 3], atol=1e-8)
+    np.testing.assert_allclose(reached[:, :3, :3], poses[ok, :3, :3], atol=1e-10)
+    assert np.all(by_poses.before_mm[ok] > 0.1)
+    # Positions only: the positions are reached, whatever the orientation.
+    moved = robocal.compensate(real, puma, poses[:, :3, 3], seeds=q, position_only=True)
+    ok = moved.reached
+    assert ok.sum() >= 15 and np.all(moved.error_deg[ok] == 0.0)
+    np.testing.assert_allclose(real.fk_batch(moved.joints[ok])[:, :3, 3], poses[ok, :3, 3], atol=1e-8)
+    with pytest.raises(robocal.InputError) as e:
+        robocal.compensate(real, puma, poses[:, :3, 3], seeds=q)
+    assert e.value.field == "targets"
+    with pytest.raises(robocal.InputError) as e:
+        robocal.compensate(real, puma, poses)
+    assert e.value.field == "seeds"
+    with pytest.raises(robocal.InputError) as e:
+        robocal.compensate(real, puma, q, marker=7)
+    assert e.value.field == "marker" and "7" in str(e.value)
+
+
+BALLBAR = EXAMPLES / "puma560-ballbar.csv"
+CAMERA = EXAMPLES / "puma560-camera.csv"
+
+
+def rows(path: Path) -> np.ndarray:
+    """The rows of an observation file (units line and header skipped), as text cells."""
+    lines = [line for line in path.read_text().splitlines() if not line.startswith("#")][1:]
+    return np.array([line.split(",") for line in lines])
+
+
+def as_files(report: str, paths: list[Path]) -> Any:
+    """A JSON report of observations named by their files' stems, named by the files."""
+    report = report.replace(json.dumps(", ".join(p.stem for p in paths)), json.dumps(", ".join(map(str, paths))))
+    for path in paths:
+        report = report.replace(json.dumps(path.stem), json.dumps(str(path)))
+    return json.loads(report)
+
+
+def test_observations_from_arrays_calibrate_as_their_files(puma: robocal.Model, tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    run_cli("calibrate", "--model", "puma560", "--data", str(BALLBAR), "--data", str(CAMERA), "--json", str(out),
+            "--quiet")
+    ballbar, camera = rows(BALLBAR).astype(float), rows(CAMERA)
+    units = {"joint_unit": "deg", "length_unit": "mm"}
+    distances = robocal.PointDistances(ballbar[:, :6], ballbar[:, 6], sigma=ballbar[:, 7], name=BALLBAR.stem,
+                                       **units)
+    assert set(camera[:, 6]) == {"hand"}
+    views = robocal.CameraViews(camera[:, :6].astype(float), camera[:, 7:13].astype(float), camera="hand",
+                                name=CAMERA.stem, **units)
+    c = robocal.calibrate(puma, observations=[distances, views])
+    # The same numbers and lines as the files' (the units line first, then the header).
+    assert_same(as_files(c.to_json(), [BALLBAR, CAMERA]), json.loads(out.read_text()))
+    # A DataFrame with the file's columns reads the same.
+    pd = pytest.importorskip("pandas")
+    frame = pd.read_csv(BALLBAR, comment="#")
+    d = robocal.calibrate(puma, observations=[robocal.Observations.from_pandas(frame, name=BALLBAR.stem, **units)])
+    assert np.array_equal(d.parameters.estimates, robocal.calibrate(puma, [BALLBAR]).parameters.estimates)
+
+
+def write_table(path: Path, columns: dict[str, Any], n: int) -> None:
+    """An observation file in deg and mm of named columns (n values, or one for every row):
+    numbers at 17 significant digits, NaN an empty cell, text as it is."""
+
+    def cell(v: Any) -> str:
+        return v if isinstance(v, str) else "" if math.isnan(v) else repr(float(v))
+
+    cells = [[cell(v[i] if np.ndim(v) > 0 else v) for v in columns.values()] for i in range(n)]
+    lines = ["# units: joints=deg, lengths=mm", ",".join(columns), *(",".join(row) for row in cells)]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_every_kind_of_observation_from_arrays_reads_as_its_file(puma: robocal.Model, tmp_path: Path) -> None:
+    q = np.random.default_rng(3).uniform(-60.0, 60.0, size=(12, 6))
+    tool = robocal.Model.from_toml(str(TRUE)).fk_batch(np.radians(q))
+    xyz, r = tool[:, :3, 3], tool[:, :3, :3]
+    rpy = np.degrees(np.stack([np.arctan2(r[:, 2, 1], r[:, 2, 2]), -np.arcsin(r[:, 2, 0]),
+                               np.arctan2(r[:, 1, 0], r[:, 0, 0])], axis=1))
+    pair = np.linalg.norm(xyz[:6] - xyz[6:], axis=1)
+    point = np.linalg.norm(xyz - [500.0, 0.0, 0.0], axis=1)
+    y = np.where(np.arange(12) % 3 == 0, np.nan, xyz[:, 1])
+    joints = {j: q[:, k] for k, j in enumerate(puma.joint_names)}
+    units = {"joint_unit": "deg", "length_unit": "mm"}
+    kinds: list[tuple[robocal.Observations, dict[str, Any]]] = [
+        (robocal.PairDistances(q[:6], q[6:], pair, sigma=0.02, name="pairs", **units),
+         {**{j: v[:6] for j, v in joints.items()}, **{f"{j}_b": v[6:] for j, v in joints.items()},
+          "distance": pair, "sigma": 0.02}),
+        (robocal.PointDistances(q, point, point=[1, 2] * 6, name="points", **units),
+         {**joints, "distance": point, "point": np.array([1, 2] * 6)}),
+        (robocal.Coordinates(q, x=xyz[:, 0], y=y, z=xyz[:, 2], name="coordinates", **units),
+         {**joints, "x": xyz[:, 0], "y": y, "z": xyz[:, 2]}),
+        (robocal.PlaneContacts(q, [1, 2, 3] * 4, sigma=np.full(12, 0.03), name="contacts", **units),
+         {**joints, "plane": np.array([1, 2, 3] * 4), "sigma": 0.03}),
+        (robocal.CameraViews(q, np.hstack([xyz, rpy]), camera="world", sigma_angle=0.2, name="camera", **units),
+         {**joints, **{c: v for c, v in zip(["x", "y", "z", "roll", "pitch", "yaw"], np.hstack([xyz, rpy]).T)},
+          "sigma_angle": 0.2, "camera": "world"}),
+    ]
+    paths = []
+    for observations, columns in kinds:
+        path = tmp_path / f"{observations.name}.csv"
+        write_table(path, columns, 6 if observations.name == "pairs" else 12)
+        paths.append(path)
+        # Scored as they stand (the set-up fitted: pairs have none, and are calibrated below):
+        # the same numbers, the same lines.
+        if observations.name != "pairs":
+            assert robocal.evaluate(puma, observations) == robocal.evaluate(puma, path), observations.name
+    # The distances and coordinates of the true robot calibrate the nominal one, arrays and files
+    # alike (the sessions named as the files).
+    from_files = robocal.calibrate(puma, observations=paths[:3])
+    from_arrays = robocal.calibrate(puma, observations=[o for o, _ in kinds[:3]])
+    assert_same(as_files(from_arrays.to_json(), paths[:3]), json.loads(from_files.to_json()))
+    assert from_arrays.parameters.names == from_files.parameters.names

@@ -5,14 +5,12 @@
 use super::request::{CalibrateRequest, Method, NoiseSource};
 use super::{ReportContent, check_marker_count, noise_model, write_report_files};
 use anyhow::{Context, Result, bail};
-use robocal::calibration::{
-    self, Calibration, ErrorStats, FeasibleOptions, Measurements, Options, SetEvaluation,
-};
+use robocal::calibration::{self, Calibration, Measurements, Options};
 use robocal::estimation::NoiseModel;
 use robocal::estimation::RefineOptions;
 use robocal::io::{self, UrdfChain};
 use robocal::model::{ModelRef, RobotModel};
-use robocal::report::calibration::{CalibrationReport, CrossValidationReport};
+use robocal::report::calibration::CalibrationReport;
 use std::path::Path;
 
 /// The nominal robot, with the text and links of its URDF file to write it back.
@@ -48,33 +46,31 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
         "calibrate on fewer poses",
     )?;
     let asked = options(request, &robot.model, &data.fit)?;
-    let chosen = calibration::choose(&robot.model, &data.fit, &asked, &choices(request))
-        .with_context(|| format!("{}: {}", choices_in_words(request).join(", "), request.data.display()))?;
-    let (options, path) = (chosen.options, chosen.path);
-    let result = match request.method {
-        Method::Given(_) => calibration::calibrate(&robot.model, &data.fit, &options),
-        Method::Feasible => {
-            calibration::calibrate_feasible(&robot.model, &data.fit, &options, &FeasibleOptions::default())
-        }
-    }
-    .map_err(|e| in_context(e, request))?;
-    let held_out = validate(request, &robot.model, &data, &result)?;
-    let cv = cross_validate(request, &robot.model, &data.fit, &asked)?;
-    let folds = cv.as_ref().map(|(label, before, after, _)| (label.clone(), *before, *after));
-    let name = request.method.name();
-    let mut report =
-        CalibrationReport::new(&result, &request.data.display().to_string(), name, held_out, folds);
-    if let Some((_, _, _, how)) = cv {
-        report = report.with_cross_validation(how);
-    }
-    if let Some(path) = &path {
-        report = report.with_selection(path);
-    }
-    if let Some(scale) = chosen.scale {
-        report = report.with_prior_scale(scale);
-    }
-    let predicted = predicted_accuracy(&report.sets, &result, &data)?;
-    report = report.with_predicted(predicted);
+    let marker_request = robocal::pipeline::MarkerRequest {
+        data: request.data.display().to_string(),
+        options: asked,
+        choices: choices(request),
+        feasible: request.method == Method::Feasible,
+        held_out: held_out_noise(request, &robot.model, data.held_out)?,
+        folds: request.folds,
+    };
+    let outcome =
+        robocal::pipeline::calibrate_markers(&robot.model, &data.fit, &marker_request).map_err(|e| {
+            use robocal::pipeline::MarkerError::{
+                Accuracy, Calibration, Choice, CrossValidation, Validation,
+            };
+            match e {
+                Choice(e) => anyhow::Error::new(e).context(format!(
+                    "{}: {}",
+                    robocal::pipeline::choices_in_words(&marker_request.choices).join(", "),
+                    request.data.display()
+                )),
+                Calibration(e) => in_context(e, request),
+                Validation(e) | CrossValidation(e) => e.into(),
+                Accuracy(e) => e.into(),
+            }
+        })?;
+    let (report, result) = (outcome.report, outcome.calibration);
     let text = report.text();
     print!("{text}");
     write(request, &robot, &report, &result, &text)
@@ -220,50 +216,20 @@ pub(super) fn noise_for(
     })
 }
 
-/// Each held-out file scored pose by pose. They are scored only: no choice is made on them.
-fn validate(
+/// Each held-out file with the noise at its poses (the flags' or a noise file's device). They
+/// are scored only: no choice is made on them.
+fn held_out_noise(
     request: &CalibrateRequest,
     model: &RobotModel,
-    data: &Data,
-    result: &Calibration,
-) -> Result<Vec<SetEvaluation>> {
-    data.held_out
-        .iter()
+    held_out: Vec<(String, Measurements)>,
+) -> Result<Vec<(String, Measurements, Option<NoiseModel>)>> {
+    held_out
+        .into_iter()
         .map(|(name, d)| {
-            let noise = match (&request.method, &result.noise_estimate) {
-                (Method::Feasible, Some(estimate)) => Some(estimate.noise_model()),
-                _ => noise_for(request.noise.as_ref(), model, d)?,
-            };
-            Ok(result.evaluate(name, d, noise.as_ref())?)
+            let noise = noise_for(request.noise.as_ref(), model, &d)?;
+            Ok((name, d, noise))
         })
         .collect()
-}
-
-/// `--folds K`: the k-fold cross-validation of the training poses with the options `asked`
-/// (before any selection), nested when the model is chosen from the data: with `--select`
-/// the selection is made again on each fold's training poses (a robust loss's weights always
-/// are). Its label, before and after, and how it was made.
-fn cross_validate(
-    request: &CalibrateRequest,
-    model: &RobotModel,
-    fit: &Measurements,
-    asked: &Options,
-) -> Result<Option<(String, ErrorStats, ErrorStats, CrossValidationReport)>> {
-    let Some(k) = request.folds else { return Ok(None) };
-    let mut redone = choices_in_words(request);
-    if asked.loss != calibration::Loss::Squared {
-        redone.push(format!("--loss {}'s weights", asked.loss));
-    }
-    let choices = choices(request);
-    let (before, after, selected, scales) = if choices == calibration::Choices::default() {
-        let (before, after) = calibration::cross_validate(model, fit, asked, k)?;
-        (before, after, Vec::new(), Vec::new())
-    } else {
-        let nested = calibration::cross_validate_choices(model, fit, asked, &choices, k)?;
-        (nested.before, nested.after, nested.selected, nested.scales)
-    };
-    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales };
-    Ok(Some((how.label(), before, after, how)))
 }
 
 /// The choices `request` makes from the data: `--prior auto`'s scale (by `--folds` folds, 5
@@ -274,12 +240,6 @@ fn choices(request: &CalibrateRequest) -> calibration::Choices {
         auto_prior: request.auto_prior.clone().map(|auto| (auto, folds)),
         select: request.select,
     }
-}
-
-/// Those choices as flags: `--prior auto:fabricated's scale`, `--select bic`.
-fn choices_in_words(request: &CalibrateRequest) -> Vec<String> {
-    let auto = request.auto_prior.iter().map(|a| format!("--prior auto:{}'s scale", a.preset));
-    auto.chain(request.select.map(|c| format!("--select {}", c.name()))).collect()
 }
 
 /// Write the JSON report, the poses, the figures, the page, the calibrated model and the
@@ -330,32 +290,4 @@ fn write(
         outputs.add(path, robocal::model::with_urdf_markers(&text, &markers)?);
     }
     super::commit(outputs)
-}
-
-/// The position error predicted at each held-out file's poses from the calibration's
-/// parameter covariance, as `robocal accuracy` predicts it from the written sidecar.
-fn predicted_accuracy(
-    sets: &[SetEvaluation],
-    result: &Calibration,
-    data: &Data,
-) -> Result<Vec<robocal::report::calibration::PredictedAccuracy>> {
-    use robocal::design::accuracy::{AccuracyModel, ParameterCovariance};
-    let sidecar = super::accuracy::covariance_sidecar(sets, result);
-    let covariance = ParameterCovariance::from_json(&sidecar)?;
-    let floor_mm = covariance.floor_mm;
-    let with_floor = AccuracyModel::new(&result.calibrated, &covariance)?;
-    let alone = AccuracyModel::new(&result.calibrated, &ParameterCovariance { floor_mm: 0.0, ..covariance })?;
-    Ok((data.held_out.iter())
-        .map(|(name, d)| {
-            let (all, params) = (with_floor.map(&d.joints), alone.map(&d.joints));
-            let n = all.len().max(1) as f64;
-            robocal::report::calibration::PredictedAccuracy {
-                set: name.clone(),
-                mean_mm: all.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
-                max_mm: all.iter().map(|p| p.1.position_mm).fold(0.0, f64::max),
-                parameters_mm: params.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
-                floor_mm,
-            }
-        })
-        .collect())
 }

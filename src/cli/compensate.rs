@@ -5,7 +5,7 @@ use super::args::UnitArgs;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use robocal::design::compensate::{CompensateOptions, Compensator, TargetFrame, targets_from_csv_str};
-use robocal::model::{ModelRef, Placement, RobotModel, Tool, markers_from_toml_str};
+use robocal::model::{ModelRef, RobotModel, markers_from_toml_str};
 use robocal::report::compensation;
 use std::path::{Path, PathBuf};
 
@@ -80,14 +80,7 @@ fn with_marker(model: RobotModel, path: &str, id: usize) -> Result<RobotModel> {
             if ids.is_empty() { "none".into() } else { ids.join(", ") }
         );
     };
-    let tool = match model.tool {
-        Tool::Point(_) => Tool::Point(*point),
-        Tool::Frame(frame) => Tool::Frame(Placement {
-            xyz: (frame.isometry() * nalgebra::Point3::from(*point)).coords,
-            rpy: frame.rpy,
-        }),
-    };
-    Ok(RobotModel { tool, ..model })
+    Ok(robocal::design::compensate::with_tool_point(model, *point))
 }
 
 /// Compensate the targets; write the program and the report.

@@ -266,14 +266,6 @@ pub enum Method {
 }
 
 impl Method {
-    /// The name in the report.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Given(estimator) => estimator.name(),
-            Self::Feasible => "fgls",
-        }
-    }
-
     /// The library's estimator: feasible GLS starts from OLS (and sets its own).
     pub fn estimator(self) -> Estimator {
         match self {

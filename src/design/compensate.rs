@@ -18,7 +18,7 @@
 //! robot's base as the calibrated base places it.
 
 use crate::kinematics::{ChainAt, pose_error};
-use crate::model::{Placement, RobotModel};
+use crate::model::{Placement, RobotModel, Tool};
 use crate::table::{DataError, Table, Units};
 use nalgebra::{Isometry3, Matrix6, Matrix6xX, Translation3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
@@ -370,6 +370,21 @@ impl Compensator {
         }
         Unreachable::NotConverged { iterations, error_mm, error_rad }
     }
+}
+
+/// `model` with `point` (mm, in the marker frame: a model file's `[[markers]]` position) as
+/// its tool point in place of its own, to bring a marker to the targets: with a tool point,
+/// `p_tool = point`; with a tool frame `T_tool`, the frame moved to `T_tool * point`, its
+/// orientation kept.
+pub fn with_tool_point(model: RobotModel, point: Vector3<f64>) -> RobotModel {
+    let tool = match model.tool {
+        Tool::Point(_) => Tool::Point(point),
+        Tool::Frame(frame) => Tool::Frame(Placement {
+            xyz: (frame.isometry() * nalgebra::Point3::from(point)).coords,
+            rpy: frame.rpy,
+        }),
+    };
+    RobotModel { tool, ..model }
 }
 
 /// One target of a target file, with its line.

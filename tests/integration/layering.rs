@@ -14,6 +14,7 @@ const LEVELS: &[&[&str]] = &[
     &["calibration", "design"],
     &["simulation"],
     &["io", "report"],
+    &["pipeline"],
 ];
 
 fn level(module: &str) -> Option<usize> {

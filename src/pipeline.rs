@@ -1,0 +1,170 @@
+//! The calibration of marker data as one library call: what `robocal calibrate` does between
+//! reading its inputs and writing its outputs (the choices made from the data, the
+//! calibration, the held-out sets scored, the cross-validation, the accuracy predicted at the
+//! held-out poses, the report), for the command line and the Python package alike, so that
+//! neither keeps a copy. Above every other module: it joins the calibration, the design's
+//! accuracy prediction and the report.
+
+use crate::calibration::{
+    self, Calibration, CalibrationError, Choices, ErrorStats, FeasibleOptions, Loss, Measurements, Options,
+    SetEvaluation,
+};
+use crate::design::accuracy::{AccuracyModel, CovarianceError, ParameterCovariance};
+use crate::estimation::NoiseModel;
+use crate::model::RobotModel;
+use crate::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy};
+
+/// A calibration of marker data as `robocal calibrate` asks for it.
+#[derive(Debug, Clone, Default)]
+pub struct MarkerRequest {
+    /// The data's name in the report (its file).
+    pub data: String,
+    /// The options before any choice is made from the data.
+    pub options: Options,
+    /// The choices made from the data (`--prior auto`, `--select`).
+    pub choices: Choices,
+    /// Feasible GLS (`--estimator fgls`): the noise estimated from the residuals, the
+    /// held-out sets scored with it.
+    pub feasible: bool,
+    /// The held-out sets: name, data, and the noise at their poses (unused with `feasible`
+    /// when the noise was estimated).
+    pub held_out: Vec<(String, Measurements, Option<NoiseModel>)>,
+    /// `--folds k`: the k-fold cross-validation of the training poses.
+    pub folds: Option<usize>,
+}
+
+/// Why a calibration of marker data failed, by the step that failed.
+#[derive(Debug, thiserror::Error)]
+pub enum MarkerError {
+    /// Making the choices from the data ([`calibration::choose`]).
+    #[error(transparent)]
+    Choice(CalibrationError),
+    /// The calibration itself.
+    #[error(transparent)]
+    Calibration(CalibrationError),
+    /// Scoring a held-out set.
+    #[error(transparent)]
+    Validation(CalibrationError),
+    /// The cross-validation.
+    #[error(transparent)]
+    CrossValidation(CalibrationError),
+    /// The accuracy predicted from the parameter covariance.
+    #[error(transparent)]
+    Accuracy(#[from] CovarianceError),
+}
+
+/// A finished calibration of marker data and its report (the command line's).
+#[derive(Debug, Clone)]
+pub struct MarkerOutcome {
+    /// The calibration, of the chosen options.
+    pub calibration: Calibration,
+    /// The report: the sets scored, the cross-validation, the choices, the accuracy predicted.
+    pub report: CalibrationReport,
+}
+
+/// The choices of `choices` as the command line's flags: `--prior auto:fabricated's scale`,
+/// `--select bic`.
+pub fn choices_in_words(choices: &Choices) -> Vec<String> {
+    let auto = choices.auto_prior.iter().map(|(a, _)| format!("--prior auto:{}'s scale", a.preset));
+    auto.chain(choices.select.map(|c| format!("--select {}", c.name()))).collect()
+}
+
+/// Calibrate `model` on `fit` as `request` asks: make its choices on `fit`
+/// ([`calibration::choose`]), calibrate with the chosen options (by feasible GLS if asked),
+/// score each held-out set pose by pose, cross-validate (nested when a choice is made from
+/// the data or the loss is robust), predict the position error at the held-out poses from the
+/// parameter covariance `C` (`sigma_p^2 = tr(J_p C J_p^T) + floor^2`, the floor the first
+/// held-out set's rms after calibration), and report.
+pub fn calibrate_markers(
+    model: &RobotModel,
+    fit: &Measurements,
+    request: &MarkerRequest,
+) -> Result<MarkerOutcome, MarkerError> {
+    let chosen =
+        calibration::choose(model, fit, &request.options, &request.choices).map_err(MarkerError::Choice)?;
+    let result = if request.feasible {
+        calibration::calibrate_feasible(model, fit, &chosen.options, &FeasibleOptions::default())
+    } else {
+        calibration::calibrate(model, fit, &chosen.options)
+    }
+    .map_err(MarkerError::Calibration)?;
+    let estimated = result.noise_estimate.as_ref().filter(|_| request.feasible).map(|e| e.noise_model());
+    let sets = (request.held_out.iter())
+        .map(|(name, d, noise)| result.evaluate(name, d, estimated.as_ref().or(noise.as_ref())))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(MarkerError::Validation)?;
+    let cv = match request.folds {
+        Some(k) => Some(cross_validate(model, fit, request, k).map_err(MarkerError::CrossValidation)?),
+        None => None,
+    };
+    let folds = cv.as_ref().map(|(before, after, how)| (how.label(), *before, *after));
+    let name = if request.feasible { "fgls" } else { request.options.estimator.name() };
+    let mut report = CalibrationReport::new(&result, &request.data, name, sets, folds);
+    if let Some((_, _, how)) = cv {
+        report = report.with_cross_validation(how);
+    }
+    if let Some(path) = &chosen.path {
+        report = report.with_selection(path);
+    }
+    if let Some(scale) = chosen.scale {
+        report = report.with_prior_scale(scale);
+    }
+    let predicted = predicted_accuracy(&report.sets, &result, &request.held_out)?;
+    let report = report.with_predicted(predicted);
+    Ok(MarkerOutcome { calibration: result, report })
+}
+
+/// The k-fold cross-validation of `fit` with the options asked (before any choice), nested
+/// when a choice is made from the data: with `--select` or `--prior auto` the choice is made
+/// again on each fold's training poses (a robust loss's weights always are). Before, after,
+/// and how it was made.
+fn cross_validate(
+    model: &RobotModel,
+    fit: &Measurements,
+    request: &MarkerRequest,
+    k: usize,
+) -> Result<(ErrorStats, ErrorStats, CrossValidationReport), CalibrationError> {
+    let (asked, choices) = (&request.options, &request.choices);
+    let mut redone = choices_in_words(choices);
+    if asked.loss != Loss::Squared {
+        redone.push(format!("--loss {}'s weights", asked.loss));
+    }
+    let (before, after, selected, scales) = if *choices == Choices::default() {
+        let (before, after) = calibration::cross_validate(model, fit, asked, k)?;
+        (before, after, Vec::new(), Vec::new())
+    } else {
+        let nested = calibration::cross_validate_choices(model, fit, asked, choices, k)?;
+        (nested.before, nested.after, nested.selected, nested.scales)
+    };
+    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales };
+    Ok((before, after, how))
+}
+
+/// The position error predicted at each held-out set's poses from the calibration's
+/// parameter covariance, with the floor (the first held-out set's rms after calibration) and
+/// without it, as `robocal accuracy` predicts it from the covariance sidecar.
+fn predicted_accuracy(
+    sets: &[SetEvaluation],
+    result: &Calibration,
+    held_out: &[(String, Measurements, Option<NoiseModel>)],
+) -> Result<Vec<PredictedAccuracy>, CovarianceError> {
+    let floor_mm =
+        sets.iter().find(|s| s.name != "training").and_then(|s| s.pooled.last()).map_or(0.0, |s| s.rms);
+    let estimate = &result.refined.estimate;
+    let covariance = ParameterCovariance::new(estimate.names.clone(), &estimate.covariance, floor_mm);
+    let with_floor = AccuracyModel::new(&result.calibrated, &covariance)?;
+    let alone = AccuracyModel::new(&result.calibrated, &ParameterCovariance { floor_mm: 0.0, ..covariance })?;
+    Ok((held_out.iter())
+        .map(|(name, d, _)| {
+            let (all, params) = (with_floor.map(&d.joints), alone.map(&d.joints));
+            let n = all.len().max(1) as f64;
+            PredictedAccuracy {
+                set: name.clone(),
+                mean_mm: all.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
+                max_mm: all.iter().map(|p| p.1.position_mm).fold(0.0, f64::max),
+                parameters_mm: params.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
+                floor_mm,
+            }
+        })
+        .collect())
+}
