@@ -1,18 +1,21 @@
-//! The calibration of marker data as one library call: what `robocal calibrate` does between
-//! reading its inputs and writing its outputs (the choices made from the data, the
-//! calibration, the held-out sets scored, the cross-validation, the accuracy predicted at the
-//! held-out poses, the report), for the command line and the Python package alike, so that
-//! neither keeps a copy. Above every other module: it joins the calibration, the design's
-//! accuracy prediction and the report.
+//! The calibrations as one library call each: what `robocal calibrate` does between reading
+//! its inputs and writing its outputs, for the command line and the Python package alike, so
+//! that neither keeps a copy. Of marker data ([`calibrate_markers`]): the choices made from
+//! the data, the calibration, the held-out sets scored, the cross-validation, the accuracy
+//! predicted at the held-out poses, the report. Of views on a tree ([`calibrate_views`]): the
+//! sessions joined, the calibration, the held-out sets scored, the report. Above every other
+//! module: it joins the calibration, the design's accuracy prediction and the report.
 
+use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree};
 use crate::calibration::{
     self, Calibration, CalibrationError, Choices, ErrorStats, FeasibleOptions, Loss, Measurements, Options,
     SetEvaluation,
 };
 use crate::design::accuracy::{AccuracyModel, CovarianceError, ParameterCovariance};
 use crate::estimation::NoiseModel;
-use crate::model::RobotModel;
+use crate::model::{RobotModel, RobotTree};
 use crate::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy};
+use crate::report::tree::TreeReport;
 
 /// A calibration of marker data as `robocal calibrate` asks for it.
 #[derive(Debug, Clone, Default)]
@@ -167,4 +170,56 @@ fn predicted_accuracy(
             }
         })
         .collect())
+}
+
+/// Why a calibration of views on a tree failed: the calibration's error, and the file (or
+/// files) it concerns.
+#[derive(Debug, thiserror::Error)]
+#[error("{context}")]
+pub struct TreeError {
+    /// The file or files: a session that cannot be joined, the sessions fitted, a held-out set.
+    pub context: String,
+    /// The calibration's error.
+    #[source]
+    pub source: CalibrationError,
+}
+
+/// A tree calibrated from views and its report (the command line's).
+#[derive(Debug, Clone)]
+pub struct TreeOutcome {
+    /// The calibration.
+    pub calibration: TreeCalibration,
+    /// The report: the training views and each held-out set scored, the files fitted.
+    pub report: TreeReport,
+}
+
+/// A function making a calibration's error a [`TreeError`] about `context`.
+fn in_context(context: &str) -> impl Fn(CalibrationError) -> TreeError + '_ {
+    move |source| TreeError { context: context.to_string(), source }
+}
+
+/// Calibrate `tree` from the views of `sessions` (each a file's name and views) fitted
+/// together ([`calibrate_tree`], which gives the model and its estimator), score each
+/// `held_out` set with the frames as calibrated, and report.
+pub fn calibrate_views(
+    tree: &RobotTree,
+    sessions: &[(String, TreeData)],
+    held_out: &[(String, TreeData)],
+    options: &TreeOptions,
+) -> Result<TreeOutcome, TreeError> {
+    let mut data = TreeData::default();
+    for (name, file) in sessions {
+        data = data.join(file).map_err(in_context(name))?;
+    }
+    let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
+    let names = names.join(", ");
+    let c = calibrate_tree(tree, &data, options).map_err(in_context(&names))?;
+    let scores = (held_out.iter())
+        .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
+        .collect::<Result<Vec<_>, TreeError>>()?;
+    let fitted = (data.views.len(), data.joints.len());
+    let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
+    let report =
+        TreeReport::new(&c, &names, fitted, options.estimator.name(), scores).with_training_files(files);
+    Ok(TreeOutcome { calibration: c, report })
 }

@@ -19,6 +19,7 @@ from ._errors import EstimationError, InputError, RobocalError
 from ._robocal import Calibration as _Calibration
 from ._robocal import Model, __version__, presets, studies
 from ._robocal import calibrate_source as _calibrate_source
+from ._robocal import calibrate_tree as _calibrate_tree
 from ._robocal import compensate as _compensate
 from ._robocal import evaluate as _evaluate
 from ._robocal import observability as _observability
@@ -42,6 +43,7 @@ __all__ = [
     "PlaneContacts",
     "PointDistances",
     "calibrate",
+    "calibrate_tree",
     "Compensation",
     "compensate",
     "evaluate",
@@ -111,6 +113,11 @@ class Calibration:
     def model(self) -> Model:
         """The calibrated model."""
         return self._inner.model
+
+    @property
+    def branches(self) -> dict[str, Model]:
+        """A tree's calibrated branches by tip link (empty for a chain)."""
+        return dict(self._inner.branches)
 
     @property
     def sets(self) -> list[str]:
@@ -444,6 +451,41 @@ def calibrate(
         iterations=iterations,
     )
     return Calibration(_calibrate_source(model, sources, held_out, flags))
+
+
+def calibrate_tree(
+    urdf: PathLike,
+    views: Sequence[Any],
+    *,
+    tips: Sequence[str] = (),
+    base_link: Optional[str] = None,
+    validate: Sequence[Any] = (),
+    joint_unit: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    estimator: Optional[str] = None,
+    joint_sigma: Union[Sequence[float], np.ndarray, None] = None,
+    params: Union[str, Sequence[str]] = "joints",
+    hold: Sequence[str] = (),
+    keep: Sequence[str] = (),
+    prior: Optional[str] = None,
+    loss: Optional[str] = None,
+    iterations: int = 50,
+) -> Calibration:
+    """Calibrate the tree of ``urdf`` from views between its branches, as ``robocal calibrate``
+    calibrates view files; see the stub."""
+
+    def source(data: Any, name: str) -> tuple[str, Optional[str], Optional[str]]:
+        if isinstance(data, (str, os.PathLike)):
+            return (os.fspath(data), os.fspath(data), None)
+        if hasattr(data, "to_csv"):
+            return (name, None, data.to_csv(index=False))
+        raise InputError(f"{name}: a view file's path or a DataFrame with its columns", field="views")
+
+    sources = [source(v, f"views[{k}]") for k, v in enumerate(views)]
+    held_out = [source(v, f"validate[{k}]") for k, v in enumerate(validate)]
+    flags = _flags(joint_unit=joint_unit, length_unit=length_unit, estimator=estimator, joint_sigma=joint_sigma,
+                   params=params, hold=hold, keep=keep, prior=prior, loss=loss, iterations=iterations)
+    return Calibration(_calibrate_tree(os.fspath(urdf), list(tips), base_link, sources, held_out, flags))
 
 
 def _flags(

@@ -109,7 +109,11 @@ class Calibration:
         """The combinations held because the poses cannot identify them, with the reason."""
     @property
     def model(self) -> Model:
-        """The calibrated model."""
+        """The calibrated model (of a chain; a tree's raises ``InputError``: see ``branches``)."""
+    @property
+    def branches(self) -> dict[str, Model]:
+        """A tree's calibrated branches by tip link, each a chain from the root (empty for a
+        chain)."""
     @property
     def sets(self) -> list[str]:
         """The scored sets: ``training``, then each held-out set (marker data only)."""
@@ -118,7 +122,8 @@ class Calibration:
         and their position errors, measured minus predicted (mm): poses x (stages x markers)
         x 3, stage-major (before, after)."""
     def model_toml(self) -> str:
-        """The calibrated model as TOML with its markers, as ``--out-model`` writes it."""
+        """The calibrated model as TOML with its markers, as ``--out-model`` writes it (a
+        chain's)."""
     def report(self) -> str:
         """The report as ``robocal calibrate`` prints it."""
     def to_json(self) -> str:
@@ -308,6 +313,34 @@ def calibrate(
     Raises ``InputError`` for bad data or options, ``EstimationError`` when the data cannot
     make the calibration.
     """
+
+def calibrate_tree(
+    urdf: PathLike,
+    views: Sequence[Any],
+    *,
+    tips: Sequence[str] = (),
+    base_link: Optional[str] = None,
+    validate: Sequence[Any] = (),
+    joint_unit: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    estimator: Optional[str] = None,
+    joint_sigma: Union[Sequence[float], FloatArray, None] = None,
+    params: Union[str, Sequence[str]] = "joints",
+    hold: Sequence[str] = (),
+    keep: Sequence[str] = (),
+    prior: Optional[str] = None,
+    loss: Optional[str] = None,
+    iterations: int = 50,
+) -> Calibration:
+    """Calibrate the tree of the URDF file ``urdf`` (from ``base_link``, default its only root,
+    to the ``tips``, default every leaf) from camera views between its branches, as ``robocal
+    calibrate --model tree.urdf --data views.csv`` does: ``views`` and ``validate`` are view
+    files' paths or DataFrames with their columns (``camera``, ``target``, the joints, ``x``..
+    ``yaw``, ``sigma``, ``sigma_angle``), fitted together and held out. ``estimator`` ols or
+    wls (default); ``joint_sigma`` one per tree joint or one for all, in ``joint_unit`` (rad
+    unless given); ``params`` the joint parameters (not ``all``: the base is never seen);
+    ``prior`` standard deviations or a preset. The result's ``branches`` are the calibrated
+    chains; its report and JSON are the command line's."""
 
 def evaluate(
     model: Model,

@@ -22,10 +22,10 @@ use robocal::table::Units;
 use std::path::Path;
 
 /// A data set: its name (a file's path, `arrays`) and a file to read or CSV text.
-type Source = (String, Option<String>, Option<String>);
+pub(crate) type Source = (String, Option<String>, Option<String>);
 
 /// The text of a source: the file's or its own.
-fn text_of(source: &Source) -> PyResult<String> {
+pub(crate) fn text_of(source: &Source) -> PyResult<String> {
     match source {
         (_, Some(path), _) => std::fs::read_to_string(path).map_err(|e| {
             errors::raise(
@@ -42,7 +42,7 @@ fn text_of(source: &Source) -> PyResult<String> {
 /// The units to read `source` in: a table made in memory with its own units line (an
 /// observation object's) keeps them; files and DataFrames take the `given` ones (else their
 /// own line's).
-fn units_for(source: &Source, given: Option<Units>) -> Option<Units> {
+pub(crate) fn units_for(source: &Source, given: Option<Units>) -> Option<Units> {
     match source {
         (_, None, Some(text)) if text.starts_with("# units:") => None,
         _ => given,
@@ -50,7 +50,7 @@ fn units_for(source: &Source, given: Option<Units>) -> Option<Units> {
 }
 
 /// A data error of `source` as an input error naming the file (or the table) and the line.
-fn data_error(source: &Source, e: &robocal::table::DataError) -> PyErr {
+pub(crate) fn data_error(source: &Source, e: &robocal::table::DataError) -> PyErr {
     errors::from_error(Kind::Input, e, Some(&source.0))
 }
 
@@ -168,44 +168,44 @@ pub fn table_csv(
 #[derive(Debug, Clone, Default, FromPyObject)]
 #[pyo3(from_item_all)]
 pub struct Flags {
-    joint_unit: Option<String>,
-    length_unit: Option<String>,
-    estimator: Option<String>,
-    joint_sigma: Option<Vec<f64>>,
-    sigma: Option<f64>,
-    sigma_orientation: Option<f64>,
-    noise: Option<String>,
-    params: Vec<String>,
-    hold: Vec<String>,
-    keep: Vec<String>,
-    select: Option<String>,
-    prior: Option<String>,
-    loss: Option<String>,
-    folds: Option<usize>,
-    fixed_base: bool,
-    fixed_markers: bool,
-    fixed_tool: bool,
-    marker: Vec<[f64; 3]>,
-    tool: Option<[f64; 3]>,
-    markers: Option<Vec<usize>>,
-    iterations: usize,
+    pub(crate) joint_unit: Option<String>,
+    pub(crate) length_unit: Option<String>,
+    pub(crate) estimator: Option<String>,
+    pub(crate) joint_sigma: Option<Vec<f64>>,
+    pub(crate) sigma: Option<f64>,
+    pub(crate) sigma_orientation: Option<f64>,
+    pub(crate) noise: Option<String>,
+    pub(crate) params: Vec<String>,
+    pub(crate) hold: Vec<String>,
+    pub(crate) keep: Vec<String>,
+    pub(crate) select: Option<String>,
+    pub(crate) prior: Option<String>,
+    pub(crate) loss: Option<String>,
+    pub(crate) folds: Option<usize>,
+    pub(crate) fixed_base: bool,
+    pub(crate) fixed_markers: bool,
+    pub(crate) fixed_tool: bool,
+    pub(crate) marker: Vec<[f64; 3]>,
+    pub(crate) tool: Option<[f64; 3]>,
+    pub(crate) markers: Option<Vec<usize>>,
+    pub(crate) iterations: usize,
 }
 
 /// The flags made into the library's values, every rule between them checked.
-struct Request {
-    units: Option<Units>,
-    noise_units: Units,
-    estimator: Option<Estimator>,
-    feasible: bool,
-    joints: JointParams,
-    prior: Vec<PriorEntry>,
-    auto_prior: Option<AutoPrior>,
-    loss: Loss,
-    select: Option<Criterion>,
+pub(crate) struct Request {
+    pub(crate) units: Option<Units>,
+    pub(crate) noise_units: Units,
+    pub(crate) estimator: Option<Estimator>,
+    pub(crate) feasible: bool,
+    pub(crate) joints: JointParams,
+    pub(crate) prior: Vec<PriorEntry>,
+    pub(crate) auto_prior: Option<AutoPrior>,
+    pub(crate) loss: Loss,
+    pub(crate) select: Option<Criterion>,
 }
 
 /// `Err(InputError)` about `field` unless `ok`.
-fn require(ok: bool, field: &str, message: &str) -> PyResult<()> {
+pub(crate) fn require(ok: bool, field: &str, message: &str) -> PyResult<()> {
     if ok { Ok(()) } else { Err(errors::argument(field, message)) }
 }
 
@@ -242,7 +242,7 @@ impl Flags {
     }
 
     /// The request, or the first rule the flags break (the command line's rules).
-    fn request(&self) -> PyResult<Request> {
+    pub(crate) fn request(&self) -> PyResult<Request> {
         let (units, noise_units) = self.units()?;
         let noise = self.joint_sigma.is_some() || self.noise.is_some();
         require(
@@ -379,20 +379,22 @@ pub struct Calibration {
     rank: usize,
     held: Vec<String>,
     sets: Vec<SetEvaluation>,
-    calibrated: Py<Model>,
-    calibrated_toml: String,
+    calibrated: Option<(Py<Model>, String)>,
+    branches: Vec<(String, Py<Model>)>,
 }
 
 impl Calibration {
     /// The calibration of `report` (the command line's, text and JSON), its `estimate`'s
-    /// covariance, the scored `sets` (marker data) and the `calibrated` model.
-    fn new<R: ReportRows>(
+    /// covariance, the scored `sets` (marker data) and the `calibrated` model (of a chain) or
+    /// the calibrated `branches` by tip (of a tree).
+    pub(crate) fn new<R: ReportRows>(
         py: Python<'_>,
         report: &R,
         estimate: &robocal::estimation::LinearEstimate,
         rank: usize,
         sets: Vec<SetEvaluation>,
-        calibrated: Model,
+        calibrated: Option<Model>,
+        branches: Vec<(String, Model)>,
     ) -> PyResult<Self> {
         let rows = report.rows();
         Ok(Self {
@@ -407,15 +409,30 @@ impl Calibration {
             rank,
             held: report.held().to_vec(),
             sets,
-            calibrated_toml: robocal::model::to_toml_with_markers(&calibrated.inner, &calibrated.markers),
-            calibrated: Py::new(py, calibrated)?,
+            calibrated: match calibrated {
+                Some(m) => {
+                    let toml = robocal::model::to_toml_with_markers(&m.inner, &m.markers);
+                    Some((Py::new(py, m)?, toml))
+                }
+                None => None,
+            },
+            branches: (branches.into_iter())
+                .map(|(tip, m)| Ok((tip, Py::new(py, m)?)))
+                .collect::<PyResult<Vec<_>>>()?,
         })
+    }
+}
+
+impl Calibration {
+    /// The error of asking a tree's calibration for its one model.
+    fn a_tree() -> PyErr {
+        errors::input("a tree's calibration has a model per branch: see branches")
     }
 }
 
 /// What a [`Calibration`] takes from a report: its parameter rows, its held combinations and
 /// its text.
-trait ReportRows {
+pub(crate) trait ReportRows {
     /// The parameter rows.
     fn rows(&self) -> &[ParameterRow];
     /// The combinations held.
@@ -523,15 +540,21 @@ impl Calibration {
         self.held.clone()
     }
 
-    /// The calibrated model.
+    /// The calibrated model (of a chain; a tree's are its `branches`).
     #[getter]
-    fn model(&self, py: Python<'_>) -> Py<Model> {
-        self.calibrated.clone_ref(py)
+    fn model(&self, py: Python<'_>) -> PyResult<Py<Model>> {
+        self.calibrated.as_ref().map(|(m, _)| m.clone_ref(py)).ok_or_else(Self::a_tree)
     }
 
     /// The calibrated model as TOML with its markers, as `--out-model` writes it.
-    fn model_toml(&self) -> String {
-        self.calibrated_toml.clone()
+    fn model_toml(&self) -> PyResult<String> {
+        self.calibrated.as_ref().map(|(_, toml)| toml.clone()).ok_or_else(Self::a_tree)
+    }
+
+    /// A tree's calibrated branches, by tip link (empty for a chain).
+    #[getter]
+    fn branches(&self, py: Python<'_>) -> Vec<(String, Py<Model>)> {
+        self.branches.iter().map(|(tip, m)| (tip.clone(), m.clone_ref(py))).collect()
     }
 
     /// The names of the scored sets: `training`, then each held-out set (marker data only).
@@ -581,7 +604,7 @@ pub fn calibrate_source(
         }
         _ => Err(errors::input(format!(
             "{}: one file of marker positions, or observation files; views on a tree are not calibrated from \
-             Python yet (use robocal calibrate)",
+             `calibrate` (use calibrate_tree)",
             sources.iter().map(|s| s.0.as_str()).collect::<Vec<_>>().join(", ")
         ))),
     }
@@ -636,7 +659,8 @@ fn markers(
     let (report, result) = (outcome.report, outcome.calibration);
     let markers = result.marker_positions();
     let calibrated = Model::new(result.calibrated.clone(), robot.urdf.clone()).with_markers(markers);
-    Calibration::new(py, &report, &result.refined.estimate, report.rank, report.sets.clone(), calibrated)
+    let (estimate, sets) = (&result.refined.estimate, report.sets.clone());
+    Calibration::new(py, &report, estimate, report.rank, sets, Some(calibrated), Vec::new())
 }
 
 /// The fitted marker data (its markers chosen by `flags.markers`) and the held-out sets,
@@ -785,7 +809,15 @@ fn observations(
         .with_training_files(files);
     let calibrated = Model::new(c.calibrated.clone(), robot.urdf.clone()).with_markers(c.marker_positions());
     let estimate = &c.refined.estimate;
-    Calibration::new(py, &report, estimate, estimate.diagnostics.rank, Vec::new(), calibrated)
+    Calibration::new(
+        py,
+        &report,
+        estimate,
+        estimate.diagnostics.rank,
+        Vec::new(),
+        Some(calibrated),
+        Vec::new(),
+    )
 }
 
 /// The model scored as it stands on `source`, as `robocal evaluate` scores it: marker data

@@ -11,6 +11,7 @@ mod design;
 mod errors;
 mod model;
 mod simulate;
+mod tree;
 
 /// The module `robocal._robocal`.
 #[pymodule]
@@ -23,6 +24,7 @@ fn _robocal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibrate::data_kind, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(compensate::compensate, m)?)?;
+    m.add_function(wrap_pyfunction!(tree::calibrate_tree, m)?)?;
     m.add_function(wrap_pyfunction!(design::observability, m)?)?;
     m.add_function(wrap_pyfunction!(design::plan, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;

@@ -454,3 +454,21 @@ def test_every_kind_of_observation_from_arrays_reads_as_its_file(puma: robocal.M
     from_arrays = robocal.calibrate(puma, observations=[o for o, _ in kinds[:3]])
     assert_same(as_files(from_arrays.to_json(), paths[:3]), json.loads(from_files.to_json()))
     assert from_arrays.parameters.names == from_files.parameters.names
+
+
+def test_calibrate_tree_is_the_command_lines_report(tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    urdf, views, held = ROOT / "presets" / "torso.urdf", EXAMPLES / "torso" / "views.csv", EXAMPLES / "torso" / "views-2.csv"
+    text = run_cli("calibrate", "--model", str(urdf), "--data", str(views), "--validate", str(held), "--json", str(out),
+                   "--quiet")
+    c = robocal.calibrate_tree(urdf, [views], validate=[held])
+    assert c.report() == text
+    assert_same(json.loads(c.to_json()), json.loads(out.read_text()))
+    assert sorted(c.branches) == ["head_camera", "l_hand", "r_hand"] and c.rank > 0
+    assert c.branches["l_hand"].joint_names[0] == "torso" and c.branches["l_hand"].dof == 7
+    with pytest.raises(robocal.InputError):
+        c.model
+    pd = pytest.importorskip("pandas")
+    frame = pd.read_csv(views, comment="#")
+    d = robocal.calibrate_tree(urdf, [frame], joint_unit="deg", length_unit="mm")
+    assert np.array_equal(d.parameters.estimates, robocal.calibrate_tree(urdf, [views]).parameters.estimates)

@@ -7,11 +7,11 @@ use super::from_flag_unit;
 use super::request::CalibrateTreeRequest;
 use anyhow::{Context, Result, bail};
 use nalgebra::{DMatrix, DVector};
-use robocal::calibration::tree::{TreeData, TreeOptions, calibrate_tree};
+use robocal::calibration::tree::{TreeData, TreeOptions};
 use robocal::estimation::RefineOptions;
 use robocal::io;
 use robocal::model::{RobotModel, RobotTree};
-use robocal::report::tree::TreeReport;
+use robocal::pipeline::TreeOutcome;
 use std::path::Path;
 
 /// Calibrate, print the report, write the files asked for.
@@ -20,19 +20,20 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     let text = std::fs::read_to_string(&request.model).with_context(|| format!("{name}: cannot read"))?;
     let tree =
         RobotTree::from_urdf_str(&text, request.base_link.as_deref(), &request.tips).with_context(|| name)?;
-    let mut data = TreeData::default();
-    let mut files = Vec::with_capacity(request.data.len());
+    let mut sessions = Vec::with_capacity(request.data.len());
     for path in &request.data {
         let file = read(path, &tree, request)?;
-        files.push((path.display().to_string(), file.views.len()));
         super::warn_joints_outside_limits(
             path,
             &tree.name,
             &tree.joints,
             file.views.iter().zip(&file.lines).map(|(v, &line)| (line, file.joints[v.pose].as_slice())),
         );
-        data = data.join(&file).with_context(|| path.display().to_string())?;
+        sessions.push((path.display().to_string(), file));
     }
+    let held_out = (request.validate.iter())
+        .map(|path| Ok((path.display().to_string(), read(path, &tree, request)?)))
+        .collect::<Result<Vec<_>>>()?;
     let options = TreeOptions {
         estimator: request.estimator,
         joint_noise: joint_noise(&tree, request.joint_sigma_deg.as_deref())?,
@@ -42,19 +43,8 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         prior: request.prior.clone(),
         loss: request.loss,
     };
-    let names: Vec<String> = request.data.iter().map(|p| p.display().to_string()).collect();
-    let c = calibrate_tree(&tree, &data, &options).with_context(|| names.join(", "))?;
-    let held_out = request
-        .validate
-        .iter()
-        .map(|path| {
-            let score = c.score(&read(path, &tree, request)?).with_context(|| path.display().to_string())?;
-            Ok((path.display().to_string(), score))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let fitted = (data.views.len(), data.joints.len());
-    let report = TreeReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out)
-        .with_training_files(files);
+    let TreeOutcome { calibration: c, report } =
+        robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options)?;
     print!("{}", report.text());
     let mut outputs = io::Outputs::new();
     if let Some(path) = &request.json {

@@ -1,0 +1,123 @@
+//! `robocal.calibrate_tree`: a robot of several chains (a URDF tree) calibrated from views
+//! between its branches, as `robocal calibrate` calibrates view files
+//! ([`robocal::pipeline::calibrate_views`]).
+
+use crate::calibrate::{Calibration, Flags, ReportRows, Source, data_error, require, text_of, units_for};
+use crate::errors::{self, Kind, Place};
+use crate::model::Model;
+use nalgebra::{DMatrix, DVector};
+use pyo3::prelude::*;
+use robocal::calibration::CalibrationError;
+use robocal::calibration::tree::{TreeData, TreeOptions};
+use robocal::estimation::{Estimator, RefineOptions};
+use robocal::model::{JointKind, RobotTree};
+use robocal::report::calibration::ParameterRow;
+use robocal::report::tree::TreeReport;
+use robocal::table::Units;
+
+impl ReportRows for TreeReport {
+    fn rows(&self) -> &[ParameterRow] {
+        &self.parameters
+    }
+    fn held(&self) -> &[String] {
+        &self.fixed
+    }
+    fn text(&self) -> String {
+        TreeReport::text(self)
+    }
+    fn json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("a report serialises") + "\n"
+    }
+}
+
+/// `Sigma_q` of the tree's joints (rad², mm²) from `sigmas` in `units` (the joint unit, the
+/// length unit for prismatic joints): one per joint, or one for all.
+fn joint_noise(tree: &RobotTree, sigmas: &[f64], units: Units) -> PyResult<DMatrix<f64>> {
+    if sigmas.len() != 1 && sigmas.len() != tree.dof() {
+        let joints: Vec<&str> = tree.joints.iter().map(|j| j.name.as_str()).collect();
+        let message = format!(
+            "{} values for the {} joints of {} ({}): give one per joint or one for all",
+            sigmas.len(),
+            tree.dof(),
+            tree.name,
+            joints.join(", ")
+        );
+        return Err(errors::argument("joint_sigma", message));
+    }
+    let sigma = |j: usize| sigmas[if sigmas.len() == 1 { 0 } else { j }];
+    let variances = tree.joints.iter().enumerate().map(|(j, joint)| match joint.kind {
+        JointKind::Revolute => units.angle(sigma(j)).powi(2),
+        JointKind::Prismatic => (sigma(j) * units.length_scale()).powi(2),
+    });
+    Ok(DMatrix::from_diagonal(&DVector::from_iterator(tree.dof(), variances)))
+}
+
+/// Calibrate the tree of the URDF file `urdf` (from `base_link`, default its only root, to
+/// the `tips`, default every leaf) from the views of `sources` fitted together, scoring
+/// `validate`, as `robocal calibrate` does with view files. The flags are `calibrate`'s; a
+/// tree takes ols or wls, its joint parameters (not `all`), priors as standard deviations or
+/// a preset, a loss, held and kept parameters, and `joint_sigma` one per joint or one for all.
+#[pyfunction]
+#[pyo3(signature = (urdf, tips, base_link, sources, validate, flags))]
+pub fn calibrate_tree(
+    py: Python<'_>,
+    urdf: String,
+    tips: Vec<String>,
+    base_link: Option<String>,
+    sources: Vec<Source>,
+    validate: Vec<Source>,
+    flags: Flags,
+) -> PyResult<Calibration> {
+    let request = flags.request()?;
+    let estimator = request.estimator.unwrap_or(Estimator::Wls);
+    require(matches!(estimator, Estimator::Ols | Estimator::Wls), "estimator", "a tree takes ols or wls")?;
+    require(
+        flags.params.iter().all(|p| p != "all"),
+        "params",
+        "all: the base is never estimated from views; give joints",
+    )?;
+    require(
+        request.auto_prior.is_none() && request.select.is_none() && flags.folds.is_none(),
+        "prior",
+        "a tree takes a preset or standard deviations as its prior, and no select or folds",
+    )?;
+    let text = std::fs::read_to_string(&urdf).map_err(|e| {
+        let place = Place { file: Some(urdf.clone()), ..Place::default() };
+        errors::raise(Kind::Input, format!("{urdf}: cannot read: {e}"), place)
+    })?;
+    let tree = RobotTree::from_urdf_str(&text, base_link.as_deref(), &tips)
+        .map_err(|e| errors::from_error(Kind::Input, &e, Some(&urdf)))?;
+    let read = |s: &Source| -> PyResult<(String, TreeData)> {
+        let data = TreeData::from_csv_str(&text_of(s)?, &tree, units_for(s, request.units))
+            .map_err(|e| data_error(s, &e))?;
+        Ok((s.0.clone(), data))
+    };
+    let sessions = sources.iter().map(read).collect::<PyResult<Vec<_>>>()?;
+    let held_out = validate.iter().map(read).collect::<PyResult<Vec<_>>>()?;
+    let joint_noise = match &flags.joint_sigma {
+        Some(sigmas) => Some(joint_noise(&tree, sigmas, request.noise_units)?),
+        None => None,
+    };
+    let options = TreeOptions {
+        estimator,
+        joint_noise,
+        joints: request.joints.clone(),
+        refine: RefineOptions { max_iterations: flags.iterations, ..RefineOptions::default() },
+        gauge: robocal::calibration::Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
+        prior: request.prior.clone(),
+        loss: request.loss,
+    };
+    let outcome = py
+        .detach(|| robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options))
+        .map_err(|e| match e.source {
+            CalibrationError::Selection(_) | CalibrationError::Prior(_) => {
+                errors::calibration(&e.source, &e.context)
+            }
+            _ => errors::from_error(Kind::Estimation, &e, None),
+        })?;
+    let (c, report) = (outcome.calibration, outcome.report);
+    let branches =
+        (c.calibrated.branches.iter()).map(|b| (b.tip.clone(), Model::new(b.model.clone(), None))).collect();
+    let estimate = &c.refined.estimate;
+    Calibration::new(py, &report, estimate, estimate.diagnostics.rank, Vec::new(), None, branches)
+}
