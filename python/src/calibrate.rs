@@ -443,35 +443,30 @@ pub(crate) trait ReportRows {
     fn json(&self) -> String;
 }
 
-impl ReportRows for CalibrationReport {
-    fn rows(&self) -> &[ParameterRow] {
-        &self.parameters
-    }
-    fn held(&self) -> &[String] {
-        &self.fixed
-    }
-    fn text(&self) -> String {
-        CalibrationReport::text(self)
-    }
-    fn json(&self) -> String {
-        serde_json::to_string_pretty(self).expect("a report serialises") + "\n"
-    }
+/// [`ReportRows`] of a report type with `parameters`, `fixed` and `text()`, serialised as the
+/// command line writes it.
+macro_rules! report_rows {
+    ($report:ty) => {
+        impl $crate::calibrate::ReportRows for $report {
+            fn rows(&self) -> &[robocal::report::calibration::ParameterRow] {
+                &self.parameters
+            }
+            fn held(&self) -> &[String] {
+                &self.fixed
+            }
+            fn text(&self) -> String {
+                <$report>::text(self)
+            }
+            fn json(&self) -> String {
+                serde_json::to_string_pretty(self).expect("a report serialises") + "\n"
+            }
+        }
+    };
 }
+pub(crate) use report_rows;
 
-impl ReportRows for ObservationsReport {
-    fn rows(&self) -> &[ParameterRow] {
-        &self.parameters
-    }
-    fn held(&self) -> &[String] {
-        &self.fixed
-    }
-    fn text(&self) -> String {
-        ObservationsReport::text(self)
-    }
-    fn json(&self) -> String {
-        serde_json::to_string_pretty(self).expect("a report serialises") + "\n"
-    }
-}
+report_rows!(CalibrationReport);
+report_rows!(ObservationsReport);
 
 /// A pose set's lines and errors (poses x stages x markers x 3, flattened to poses x
 /// (stages x markers) x 3).

@@ -2,7 +2,7 @@
 //! between its branches, as `robocal calibrate` calibrates view files
 //! ([`robocal::pipeline::calibrate_views`]).
 
-use crate::calibrate::{Calibration, Flags, ReportRows, Source, data_error, require, text_of, units_for};
+use crate::calibrate::{Calibration, Flags, Source, data_error, require, text_of, units_for};
 use crate::errors::{self, Kind, Place};
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
@@ -11,24 +11,10 @@ use robocal::calibration::CalibrationError;
 use robocal::calibration::tree::{TreeData, TreeOptions};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::model::{JointKind, RobotTree};
-use robocal::report::calibration::ParameterRow;
 use robocal::report::tree::TreeReport;
 use robocal::table::Units;
 
-impl ReportRows for TreeReport {
-    fn rows(&self) -> &[ParameterRow] {
-        &self.parameters
-    }
-    fn held(&self) -> &[String] {
-        &self.fixed
-    }
-    fn text(&self) -> String {
-        TreeReport::text(self)
-    }
-    fn json(&self) -> String {
-        serde_json::to_string_pretty(self).expect("a report serialises") + "\n"
-    }
-}
+crate::calibrate::report_rows!(TreeReport);
 
 /// `Sigma_q` of the tree's joints (rad², mm²) from `sigmas` in `units` (the joint unit, the
 /// length unit for prismatic joints): one per joint, or one for all.
