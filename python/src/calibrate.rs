@@ -598,8 +598,8 @@ pub fn calibrate_source(
             observations(py, model, &sources, &validate, &flags, &request)
         }
         _ => Err(errors::input(format!(
-            "{}: one file of marker positions, or observation files; views on a tree are not calibrated from \
-             `calibrate` (use calibrate_tree)",
+            "{}: one file of marker positions, or observation files; views on a tree are calibrated by \
+             calibrate_tree",
             sources.iter().map(|s| s.0.as_str()).collect::<Vec<_>>().join(", ")
         ))),
     }
