@@ -30,9 +30,9 @@
 //!   1-8), studies as data, reproducible on any number of threads.
 //! - [`io`]: reading files, with errors that name the file. [`report`], beside it: text
 //!   reports at fixed precision, CSV and SVG figures.
-//! - [`pipeline`]: the calibration of marker data as the command runs it, in one call (the
-//!   choices, the calibration, the held-out sets, the cross-validation, the report), for the
-//!   command line and the Python package alike.
+//! - [`pipeline`]: the calibration of marker data (the choices, the calibration, the held-out
+//!   sets, the cross-validation, the report) and of views on a tree, each in one call as the
+//!   command runs it, for the command line and the Python package alike.
 //!
 //! The PUMA 560 of the paper at its "ready" pose:
 //!
