@@ -472,3 +472,18 @@ def test_calibrate_tree_is_the_command_lines_report(tmp_path: Path) -> None:
     frame = pd.read_csv(views, comment="#")
     d = robocal.calibrate_tree(urdf, [frame], joint_unit="deg", length_unit="mm")
     assert np.array_equal(d.parameters.estimates, robocal.calibrate_tree(urdf, [views]).parameters.estimates)
+
+
+def test_bad_observations_are_input_errors_naming_their_row_and_column(puma: robocal.Model) -> None:
+    q = np.zeros((3, 6))
+    bad = robocal.PointDistances(q, [0.5, -0.2, 0.4], name="bar")
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(puma, observations=[bad])
+    # The units line is line 1 and the header line 2: the second row is line 4.
+    assert (e.value.line, e.value.field) == (4, "distance") and "bar" in str(e.value)
+    with pytest.raises(robocal.InputError) as e:
+        robocal.PointDistances(q, [0.5, 0.2], name="bar")
+    assert e.value.field == "distance"
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(puma, observations=[robocal.CameraViews(q, np.zeros((3, 6)), camera="nowhere")])
+    assert e.value.field == "camera"

@@ -54,22 +54,8 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
         held_out: held_out_noise(request, &robot.model, data.held_out)?,
         folds: request.folds,
     };
-    let outcome =
-        robocal::pipeline::calibrate_markers(&robot.model, &data.fit, &marker_request).map_err(|e| {
-            use robocal::pipeline::MarkerError::{
-                Accuracy, Calibration, Choice, CrossValidation, Validation,
-            };
-            match e {
-                Choice(e) => anyhow::Error::new(e).context(format!(
-                    "{}: {}",
-                    robocal::pipeline::choices_in_words(&marker_request.choices).join(", "),
-                    request.data.display()
-                )),
-                Calibration(e) => in_context(e, request),
-                Validation(e) | CrossValidation(e) => e.into(),
-                Accuracy(e) => e.into(),
-            }
-        })?;
+    let outcome = robocal::pipeline::calibrate_markers(&robot.model, &data.fit, &marker_request)
+        .map_err(|e| marker_error(e, request, &marker_request.choices))?;
     let (report, result) = (outcome.report, outcome.calibration);
     let text = report.text();
     print!("{text}");
@@ -90,6 +76,25 @@ fn in_context(e: calibration::CalibrationError, request: &CalibrateRequest) -> a
         _ => request.data.display().to_string(),
     };
     anyhow::Error::new(e).context(context)
+}
+
+/// The pipeline's error as the command says it: a choice's with the choices and the data, the
+/// calibration's by what it concerns ([`in_context`]), any other as it is.
+fn marker_error(
+    e: robocal::pipeline::MarkerError,
+    request: &CalibrateRequest,
+    choices: &calibration::Choices,
+) -> anyhow::Error {
+    use robocal::pipeline::MarkerError::{Accuracy, Calibration, Choice, CrossValidation, Validation};
+    match e {
+        Choice(e) => {
+            let words = robocal::pipeline::choices_in_words(choices).join(", ");
+            anyhow::Error::new(e).context(format!("{words}: {}", request.data.display()))
+        }
+        Calibration(e) => in_context(e, request),
+        Validation(e) | CrossValidation(e) => e.into(),
+        Accuracy(e) => e.into(),
+    }
 }
 
 /// Load the model: a preset, a model file, or a URDF chain, with the payload if one is given.
