@@ -58,13 +58,16 @@ fn summary(report: &CalibrationReport) -> String {
     let class = if verdict.warnings.is_empty() && verdict.converged { "card" } else { "card warned" };
     let mut out = format!("<section id=\"summary\" class=\"{class}\">\n<h2>Verdict</h2>\n");
     if let Some(h) = verdict.headline() {
+        let on = match h.role {
+            Role::Pooled => "the held-out files pooled".to_string(),
+            role => format!("{} ({})", h.set, role.words()),
+        };
         let _ = writeln!(
             out,
-            "<p class=\"headline\"><span class=\"big\">{:.4} mm</span> RMS after calibration on {} ({}), \
+            "<p class=\"headline\"><span class=\"big\">{:.4} mm</span> RMS after calibration on {}, \
              {:.4} mm before: {:.1} times lower; the largest {:.4} mm ({:.4} mm before).</p>",
             h.rms_mm[1],
-            escape(&h.set),
-            h.role.words(),
+            escape(&on),
             h.rms_mm[0],
             h.improvement(),
             h.max_mm[1],
@@ -301,11 +304,11 @@ fn selection_table(selection: &super::calibration::SelectionReport) -> String {
 
 /// What was held: each reason in words with its parameters, then the combinations.
 fn held(report: &CalibrationReport) -> String {
-    if report.held.is_empty() {
-        return String::new();
-    }
     let mut out =
         format!("<section id=\"held\">\n<h2>Held fixed ({} parameters)</h2>\n<ul>\n", report.held.len());
+    if report.held.is_empty() {
+        out.push_str("<li>Nothing: every parameter asked for was estimated.</li>\n");
+    }
     for g in held_groups(&report.held) {
         let names: Vec<String> = g.parameters.iter().map(|p| format!("<code>{}</code>", escape(p))).collect();
         let _ = writeln!(out, "<li>{}: {}</li>", names.join(", "), escape(&g.words));

@@ -126,7 +126,7 @@ impl From<Vec<Cell>> for Row {
 }
 
 /// An HTML table of class `class` (and `data-set` = `set` when given), captioned `caption`,
-/// the heads `head` (the first left-aligned), the rows `rows`.
+/// the heads `head` (left-aligned over the first column and over labels), the rows `rows`.
 pub fn table(class: &str, set: Option<&str>, caption: &str, head: &[&str], rows: &[Row]) -> String {
     let mut out = format!("<table class=\"{class}\"");
     if let Some(set) = set {
@@ -138,7 +138,9 @@ pub fn table(class: &str, set: Option<&str>, caption: &str, head: &[&str], rows:
     }
     out.push_str("<thead><tr>");
     for (k, h) in head.iter().enumerate() {
-        let class = if k == 0 { " class=\"name\"" } else { "" };
+        // a head over labels is left-aligned as they are
+        let label = rows.first().and_then(|r| r.cells.get(k)).is_some_and(|c| c.class == "name");
+        let class = if k == 0 || label { " class=\"name\"" } else { "" };
         let _ = write!(out, "<th{class}>{}</th>", escape(h));
     }
     out.push_str("</tr></thead>\n<tbody>\n");
