@@ -653,10 +653,13 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
 
     /// The first line: what was fitted, how, whether it converged.
     fn headline(&self) -> String {
+        format!("calibration of {} from {}: {}\n", self.model, self.data, self.fit_summary())
+    }
+
+    /// What was fitted and how: `100 poses, 2 markers, wls (3 steps, converged)`.
+    pub(super) fn fit_summary(&self) -> String {
         format!(
-            "calibration of {} from {}: {} poses, {} marker{}, {} ({} step{}, {})\n",
-            self.model,
-            self.data,
+            "{} poses, {} marker{}, {} ({} step{}, {})",
             self.poses,
             self.markers,
             if self.markers == 1 { "" } else { "s" },

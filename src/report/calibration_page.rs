@@ -12,16 +12,7 @@ use std::fmt::Write;
 
 /// The page of `report`, titled `title`, with `figures` (`(file name, SVG)`) inline.
 pub fn calibration_page(report: &CalibrationReport, title: &str, figures: &[(String, String)]) -> String {
-    let meta = format!(
-        "{} poses, {} marker{}, {}: {} step{}, {}",
-        report.poses,
-        report.markers,
-        if report.markers == 1 { "" } else { "s" },
-        report.estimator,
-        report.iterations,
-        if report.iterations == 1 { "" } else { "s" },
-        if report.converged { "converged" } else { "not converged" }
-    );
+    let meta = report.fit_summary();
     let mut out = super::html::start(title, &meta);
     out.push_str(&summary(report));
     out.push_str(&parameters(report));

@@ -450,23 +450,8 @@ fn the_json_schema_is_documented_and_every_documented_key_is_real() {
     args.extend(["--validate", validation, "--folds", "2", "--select", "bic", "--loss", "cauchy"]);
     args.extend(["--json", a.to_str().unwrap()]);
     run(&args);
-    run(&[
-        "calibrate",
-        "--model",
-        "examples/arm7/arm7.urdf",
-        "--data",
-        "examples/arm7/train.csv",
-        "--marker",
-        "40,0,25",
-        "--marker=-20,35,25",
-        "--marker=-20,-35,25",
-        "--params",
-        "joint*.theta,joint*.compliance",
-        "--estimator",
-        "fgls",
-        "--json",
-        b.to_str().unwrap(),
-    ]);
+    let arm7 = ["--params", "joint*.theta,joint*.compliance", "--estimator", "fgls"];
+    super::nested::calibrate_arm7(&arm7, &b);
     let documented = documented_keys();
     let top: Vec<&str> = documented.iter().map(|(k, _)| k.as_str()).filter(|k| !k.contains('.')).collect();
     assert_eq!(&top[..2], ["schema", "verdict"]);
