@@ -188,16 +188,25 @@ impl Verdict {
             );
             let _ = writeln!(out, "{}", line.trim_end());
         }
-        if self.warnings.is_empty() {
-            let _ = writeln!(out, "warnings: none");
-        } else {
-            let _ = writeln!(out, "warnings by cause (in full at the end):");
-            for w in &self.warnings {
-                let _ = writeln!(out, "  {:>4}  {}", w.count, w.about);
-            }
-        }
-        out
+        out + &warnings_text(&self.warnings)
     }
+}
+
+/// The warnings counted by cause as text: `warnings: none`, or a line per cause with its count.
+pub fn warnings_text(warnings: &[WarningCount]) -> String {
+    if warnings.is_empty() {
+        return "warnings: none\n".to_string();
+    }
+    let mut out = String::from("warnings by cause (in full at the end):\n");
+    for w in warnings {
+        let _ = writeln!(out, "  {:>4}  {}", w.count, w.about);
+    }
+    out
+}
+
+/// `warnings` counted by cause, as text ([`warnings_text`]).
+pub fn count_warnings(warnings: &[Warning]) -> String {
+    warnings_text(&warnings.iter().map(WarningCount::of).collect::<Vec<_>>())
 }
 
 /// Why a group of parameters is held.
