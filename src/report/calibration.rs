@@ -480,6 +480,31 @@ pub struct DownWeighted {
     pub weight: f64,
 }
 
+/// The estimated parameters of `c`, in the report's units (deg, mm), the markers' named by
+/// their numbers in the data.
+fn parameter_rows(c: &Calibration) -> Vec<ParameterRow> {
+    let se = standard_errors(c);
+    c.refined
+        .estimate
+        .names
+        .iter()
+        .filter_map(|name| c.params.index_by_name(name))
+        .map(|i| {
+            let p = c.params.get(i);
+            let scale = if p.is_angle() { 180.0 / std::f64::consts::PI } else { 1.0 };
+            let prior = c.prior_sd.get(i).copied().filter(|s| s.is_finite());
+            ParameterRow {
+                name: by_number(&p.name, &c.marker_ids),
+                value: c.after[i] * scale,
+                std_error: se[i] * scale,
+                unit: if p.is_angle() { "deg" } else { p.unit() },
+                prior_sd: prior.map(|s| s * scale),
+                sd_ratio: prior.map(|s| se[i] / s),
+            }
+        })
+        .collect()
+}
+
 impl CalibrationReport {
     /// Gather the report of `c`, fitted on `data` (a name) with `estimator`: `held_out` are
     /// the held-out files scored by [`Calibration::evaluate`], `folds` the k-fold
@@ -491,29 +516,9 @@ impl CalibrationReport {
         held_out: Vec<SetEvaluation>,
         folds: Option<(String, ErrorStats, ErrorStats)>,
     ) -> Self {
-        let se = standard_errors(c);
         let held: Vec<crate::calibration::Held> =
             c.fixed.iter().map(|h| h.clone().renamed(|n| by_number(n, &c.marker_ids))).collect();
-        let parameters: Vec<ParameterRow> = c
-            .refined
-            .estimate
-            .names
-            .iter()
-            .filter_map(|name| c.params.index_by_name(name))
-            .map(|i| {
-                let p = c.params.get(i);
-                let scale = if p.is_angle() { 180.0 / std::f64::consts::PI } else { 1.0 };
-                let prior = c.prior_sd.get(i).copied().filter(|s| s.is_finite());
-                ParameterRow {
-                    name: by_number(&p.name, &c.marker_ids),
-                    value: c.after[i] * scale,
-                    std_error: se[i] * scale,
-                    unit: if p.is_angle() { "deg" } else { p.unit() },
-                    prior_sd: prior.map(|s| s * scale),
-                    sd_ratio: prior.map(|s| se[i] / s),
-                }
-            })
-            .collect();
+        let parameters = parameter_rows(c);
         let base = &c.registered.base;
         let d = &c.refined.estimate.diagnostics;
         let joints = &c.registered.joints;
