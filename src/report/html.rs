@@ -247,7 +247,7 @@ pub fn poses(sets: &[&SetEvaluation]) -> String {
         let probe = set.orientation.is_some();
         let mut head: Vec<String> = vec!["line".into(), "marker".into()];
         for stage in &set.stages {
-            head.extend([format!("{stage} mm"), "x".into(), "y".into(), "z".into()]);
+            head.extend(["mm", "x", "y", "z"].map(|part| format!("{stage} {part}")));
             if probe {
                 head.push(format!("{stage} deg"));
             }
