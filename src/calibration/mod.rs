@@ -25,7 +25,7 @@ pub mod selection;
 pub mod tree;
 
 pub use data::{DataKind, Measurements};
-pub use diagnostics::{Confounder, FarOut, Held, Scored, Warning};
+pub use diagnostics::{Cause, Confounder, FarOut, Held, Scored, Warning};
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
