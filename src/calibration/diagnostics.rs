@@ -191,7 +191,75 @@ pub enum Warning {
     SigmaIgnored,
 }
 
+/// What a [`Warning`] is about, as its JSON `cause` names it: the key a report counts warnings
+/// by.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Cause {
+    /// [`Warning::Implausible`].
+    Implausible,
+    /// [`Warning::NotConverged`].
+    NotConverged,
+    /// [`Warning::FarOut`].
+    FarOut,
+    /// [`Warning::IllConditioned`].
+    IllConditioned,
+    /// [`Warning::NoiseUnsettled`].
+    NoiseUnsettled,
+    /// [`Warning::SigmaIgnored`].
+    SigmaIgnored,
+}
+
 impl Warning {
+    /// Its cause.
+    pub fn cause(&self) -> Cause {
+        match self {
+            Self::Implausible { .. } => Cause::Implausible,
+            Self::NotConverged { .. } => Cause::NotConverged,
+            Self::FarOut { .. } => Cause::FarOut,
+            Self::IllConditioned { .. } => Cause::IllConditioned,
+            Self::NoiseUnsettled { .. } => Cause::NoiseUnsettled,
+            Self::SigmaIgnored => Cause::SigmaIgnored,
+        }
+    }
+
+    /// How many things it concerns: the estimates past a bound, the far-out observations; 1
+    /// for the others.
+    pub fn count(&self) -> usize {
+        match self {
+            Self::Implausible { estimates, .. } => estimates.len(),
+            Self::FarOut { observations, .. } => observations.len(),
+            _ => 1,
+        }
+    }
+
+    /// What it is about in a few words, without the items (which [`fmt::Display`] lists):
+    /// `joint lengths corrected by more than 10 mm`, `training poses more than 5 standard
+    /// deviations out after calibration`.
+    pub fn headline(&self) -> String {
+        match self {
+            Self::Implausible { bound, estimates } => bound.describe(estimates.len()).0,
+            Self::NotConverged { steps, .. } => {
+                format!("not converged in {steps} steps (raise --iterations)")
+            }
+            Self::FarOut { scored, observations } => format!(
+                "training {} more than {} standard deviations out after calibration",
+                scored.name(observations.len()),
+                super::FLAG_AT
+            ),
+            Self::IllConditioned { condition_number } => {
+                format!(
+                    "scaled condition number {condition_number:.3e}, above {:e}",
+                    super::CONDITION_WARNING
+                )
+            }
+            Self::NoiseUnsettled { reweightings } => {
+                format!("feasible GLS: variance components not settled in {reweightings} re-weightings")
+            }
+            Self::SigmaIgnored => "feasible GLS ignored the sigma column".to_string(),
+        }
+    }
+
     /// The far-out ones of `scored` (`(index, line, label, sd)`), worst first; `None` if none.
     pub fn far_out(scored: Scored, found: impl IntoIterator<Item = FarOut>) -> Option<Self> {
         let mut observations: Vec<FarOut> = found.into_iter().collect();

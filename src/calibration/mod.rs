@@ -25,7 +25,7 @@ pub mod selection;
 pub mod tree;
 
 pub use data::{DataKind, Measurements};
-pub use diagnostics::{Confounder, FarOut, Held, Scored, Warning};
+pub use diagnostics::{Cause, Confounder, FarOut, Held, Scored, Warning};
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
@@ -907,7 +907,8 @@ pub fn calibrate_feasible(
     let mut previous: Option<NoiseEstimate> = None;
     let mut settled_at = None;
     for round in 0..feasible.max_iterations.max(1) {
-        let estimate = residual_noise(&calibration, &data, options.noise.as_ref(), feasible.joints)?;
+        let estimate =
+            residual_noise(&calibration, &data, options.noise.as_ref(), feasible.joints, previous.as_ref())?;
         let settled = previous.as_ref().is_some_and(|p| {
             (0..estimate.fit.values.len()).all(|c| {
                 let change = (p.fit.values[c] - estimate.fit.values[c]).abs();
@@ -935,12 +936,13 @@ pub fn calibrate_feasible(
 }
 
 /// The variance components fitted to the residuals of `c` (calibrated with `noise`, or by
-/// ordinary least squares without).
+/// ordinary least squares without), reweighted from the `previous` round's if any.
 fn residual_noise(
     c: &Calibration,
     data: &Measurements,
     noise: Option<&NoiseModel>,
     joints: JointComponents,
+    previous: Option<&NoiseEstimate>,
 ) -> Result<NoiseEstimate, CalibrationError> {
     let kept = Selection::from_indices(
         &c.params,
@@ -960,27 +962,12 @@ fn residual_noise(
     let rows = system.rows_per_point;
     let estimator = if noise.is_some() { Estimator::Wls } else { Estimator::Ols };
     let weights = Weights::for_problem(&problem, estimator)?;
-    // A = pinv(S H) S: the map from y to the estimate.
-    let mut sh = system.h.clone();
-    weights.apply(&mut sh);
-    let g = crate::estimation::pseudo_inverse(&sh)?;
-    let points = system.points();
-    let mut s_blocks = DMatrix::zeros(rows * points, rows);
-    for k in 0..points {
-        s_blocks.view_mut((k * rows, 0), (rows, rows)).fill_with_identity();
-    }
-    weights.apply(&mut s_blocks);
-    let mut a = DMatrix::zeros(g.nrows(), g.ncols());
-    for k in 0..points {
-        let block = g.columns(k * rows, rows) * s_blocks.rows(k * rows, rows);
-        a.columns_mut(k * rows, rows).copy_from(&block);
-    }
     let jacobians = problem.manipulator_jacobians(&c.after);
     let per = kind.rows();
     let designs: Vec<Vec<DMatrix<f64>>> = jacobians.iter().map(|j| noise_design(j, joints, per)).collect();
     let components: Vec<Vec<DMatrix<f64>>> =
         (0..designs[0].len()).map(|comp| designs.iter().map(|d| d[comp].clone()).collect()).collect();
-    let expected = residual_design(&system.h, &a, rows, &components);
+    let expected = residual_design(&system.h, &weights, &components)?;
     let samples: Vec<CovarianceSample> = expected
         .into_iter()
         .enumerate()
@@ -989,7 +976,7 @@ fn residual_noise(
             CovarianceSample { s: r * r.transpose(), dof: 1.0, design }
         })
         .collect();
-    Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), per)?)
+    Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), per, previous)?)
 }
 
 /// The noise model of a noise file for `data`: its `Sigma_q`, and at every pose the measurement

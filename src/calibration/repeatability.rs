@@ -175,7 +175,7 @@ pub fn repeatability(
         fit_samples.push(CovarianceSample { s, dof: nu, design: noise_design(&stacked, options.joints, 3) });
     }
     let measurements: usize = data.poses.iter().map(|p| p.measured.len()).sum();
-    let estimate = NoiseEstimate::fit(&fit_samples, options.joints, dof, 3)?;
+    let estimate = NoiseEstimate::fit(&fit_samples, options.joints, dof, 3, None)?;
     let freedom: f64 = fit_samples.iter().map(|s| s.dof).sum();
     let rms_spread = (spread / (freedom * data.markers as f64)).sqrt();
     Ok(Repeatability { estimate, poses: data.poses.len(), measurements, rms_spread })

@@ -274,6 +274,7 @@ fn write(
         sets: &report.sets,
         joints: &result.registered.joints,
         extra_figures,
+        calibration: Some(report),
     };
     write_report_files(&request.report, content, &mut outputs)?;
     let markers = result.marker_positions();

@@ -93,6 +93,7 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
         sets: &report.sets,
         joints: &model.joints,
         extra_figures,
+        calibration: None,
     };
     write_report_files(&request.report, content, &mut outputs)?;
     super::commit(outputs)

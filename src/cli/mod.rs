@@ -202,6 +202,8 @@ struct ReportContent<'a> {
     joints: &'a [robocal::model::Joint],
     /// `(file name, SVG)`.
     extra_figures: Vec<(String, String)>,
+    /// A calibration's report, for its designed page; without one the page shows `text`.
+    calibration: Option<&'a robocal::report::calibration::CalibrationReport>,
 }
 
 /// Stage in `outputs` the files of `report` that were asked for: the JSON, the poses (CSV),
@@ -227,7 +229,13 @@ fn write_report_files(
         outputs.add_folder(folder, &figures);
     }
     if let Some(path) = &report.html {
-        outputs.add(path, robocal::report::html::page(content.title, content.text, &sets, &figures));
+        let page = match content.calibration {
+            Some(report) => {
+                robocal::report::calibration_page::calibration_page(report, content.title, &figures)
+            }
+            None => robocal::report::html::page(content.title, content.text, &sets, &figures),
+        };
+        outputs.add(path, page);
     }
     Ok(())
 }

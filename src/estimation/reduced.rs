@@ -202,11 +202,6 @@ impl Reduced {
         )
     }
 
-    /// `[R z; 0 rho]` itself.
-    pub(crate) fn into_factor(self) -> DMatrix<f64> {
-        self.factor
-    }
-
     /// Number of parameters `p`.
     pub fn parameters(&self) -> usize {
         self.factor.ncols() - 1

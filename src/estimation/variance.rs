@@ -29,8 +29,9 @@
 //! covariance of `theta` is the inverse Fisher information `F^-1`, `F = A^T A` with `A` the
 //! weighted design. Intervals are `theta +- z se`, clipped at zero for variances.
 
-use super::{Blocks, EstimationError, Reduced};
+use super::{EstimationError, Reduced};
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 
 /// One observed covariance: `S_k`, its degrees of freedom and the design of its expectation.
 #[derive(Debug, Clone, PartialEq)]
@@ -171,35 +172,69 @@ pub(crate) fn noise_design(
 /// The design of feasible GLS: the expectation of each point's residual outer product
 /// `r_k r_k^T` per unit of each component, `D_c,k = (M V_c M^T)_kk`, for residuals `r = M e`
 /// of the weighted fit `x = (H^T W H)^+ H^T W y`, `M = I - H A`, `A = (H^T W H)^+ H^T W`.
-/// With `A_j` the columns of `A` of point `j` and `V_c` block diagonal,
+/// With `W = S^T S` (`weights`, block diagonal), `C = (H^T W H)^+ = pinv(R) pinv(R)^T` from
+/// the triangular factor `R` of `S H` (`R^T R = H^T W H`), `A_k = C (S_k H_k)^T S_k` the
+/// columns of `A` of point `k`, and `V_c` block diagonal,
 ///
-/// `(M V_c M^T)_kk = V_c,k - H_k A_k V_c,k - V_c,k A_k^T H_k^T + H_k (sum_j A_j V_c,j A_j^T) H_k^T`,
+/// `(M V_c M^T)_kk = V_c,k - P_k V_c,k - V_c,k P_k^T + H_k (sum_j A_j V_c,j A_j^T) H_k^T`,
+/// `P_k = H_k A_k`,
 ///
-/// never forming an `N_m x N_m` matrix. `a` is `A` (`p x N_m`); `components[c][k]` is
-/// `V_c,k`.
+/// point by point: no `N_m x N_m` matrix, no pseudoinverse of the tall `S H`, time and memory
+/// linear in the points. `h` is the unwhitened `H` (`N_m x p`, laid out by `weights`' blocks);
+/// `components[c][k]` is `V_c,k`. Points are shared between threads; every sum runs in the
+/// points' order, so the result does not depend on their number.
 pub(crate) fn residual_design(
     h: &DMatrix<f64>,
-    a: &DMatrix<f64>,
-    rows: usize,
+    weights: &super::Weights,
     components: &[Vec<DMatrix<f64>>],
-) -> Vec<Vec<DMatrix<f64>>> {
-    let points = h.nrows() / rows;
-    let mut out = vec![Vec::with_capacity(components.len()); points];
-    for blocks in components {
-        let mut middle = DMatrix::zeros(a.nrows(), a.nrows());
-        for (j, v) in blocks.iter().enumerate() {
-            let a_j = a.columns(j * rows, rows);
-            middle += a_j * v * a_j.transpose();
-        }
-        for (k, v) in blocks.iter().enumerate() {
-            let h_k = h.rows(k * rows, rows);
-            let p_kk = h_k * a.columns(k * rows, rows);
-            let pv = &p_kk * v;
-            let d = v - &pv - pv.transpose() + h_k * &middle * h_k.transpose();
-            out[k].push((&d + d.transpose()) / 2.0);
-        }
-    }
-    out
+) -> Result<Vec<Vec<DMatrix<f64>>>, EstimationError> {
+    let blocks = weights.blocks();
+    let points = blocks.points(h.nrows());
+    let mut sh = h.clone();
+    weights.apply(&mut sh);
+    let reduced = Reduced::of_whitened(&sh, &DVector::zeros(h.nrows()), blocks, None);
+    let r = reduced.r().into_owned();
+    let r_pinv = super::pseudo_inverse(&r)?;
+    let c = &r_pinv * r_pinv.transpose();
+    // A_k = C (S_k H_k)^T S_k, point by point.
+    let a: Vec<DMatrix<f64>> = (0..points)
+        .into_par_iter()
+        .map(|k| {
+            let range = blocks.range(k);
+            let mut s_k = DMatrix::identity(range.len(), range.len());
+            weights.apply_point(k, s_k.as_mut_slice());
+            &c * sh.rows(range.start, range.len()).transpose() * s_k
+        })
+        .collect();
+    // sum_j A_j V_c,j A_j^T, per component, summed in the points' order.
+    let middles: Vec<DMatrix<f64>> = components
+        .par_iter()
+        .map(|blocks_c| {
+            let mut middle = DMatrix::zeros(c.nrows(), c.nrows());
+            for (a_j, v) in a.iter().zip(blocks_c) {
+                middle += a_j * v * a_j.transpose();
+            }
+            middle
+        })
+        .collect();
+    Ok((0..points)
+        .into_par_iter()
+        .map(|k| {
+            let range = blocks.range(k);
+            let h_k = h.rows(range.start, range.len());
+            let p_k = h_k * &a[k];
+            components
+                .iter()
+                .zip(&middles)
+                .map(|(blocks_c, middle)| {
+                    let v = &blocks_c[k];
+                    let pv = &p_k * v;
+                    let d = v - &pv - pv.transpose() + h_k * middle * h_k.transpose();
+                    (&d + d.transpose()) / 2.0
+                })
+                .collect()
+        })
+        .collect())
 }
 
 /// Fit the components `theta` to `samples`, `E[S_k] = sum_c theta_c D_c,k`; `constrained[c]`
@@ -216,6 +251,7 @@ pub(crate) fn residual_design(
 pub(crate) fn fit_components(
     samples: &[CovarianceSample],
     constrained: &[bool],
+    start: Option<&DVector<f64>>,
 ) -> Result<ComponentFit, EstimationError> {
     let m = constrained.len();
     let bad = |s: String| Err(EstimationError::Noise(s));
@@ -243,28 +279,6 @@ pub(crate) fn fit_components(
     if rows < m {
         return bad(format!("{rows} covariance entries cannot determine {m} components"));
     }
-    // The weighted system `[A y]` (a row per entry of every `S_k`), never held: reduced sample
-    // by sample to its triangular factor `[R z; 0 rho]`, which [`nnls`] takes as `[R; 0]`,
-    // `[z; rho]` (the same least squares).
-    let blocks = Blocks::from_sizes(samples.iter().map(|s| s.s.len()));
-    let reduced = |theta: Option<&DVector<f64>>| -> (DMatrix<f64>, DVector<f64>) {
-        let fill = |_: &mut (), k: usize, out: &mut [f64]| {
-            let sample = &samples[k];
-            let n = sample.s.len();
-            let w = theta.map(|t| whitener(sample, t));
-            let weigh = |x: &DMatrix<f64>| match &w {
-                Some(w) => w * x * w.transpose(),
-                None => x.clone(),
-            };
-            let f = (sample.dof / 2.0).sqrt();
-            for (c, d) in sample.design.iter().enumerate() {
-                out[c * n..(c + 1) * n].copy_from_slice((weigh(d) * f).as_slice());
-            }
-            out[m * n..].copy_from_slice((weigh(&sample.s) * f).as_slice());
-        };
-        let factor = Reduced::reduce_rows(&blocks, rows, m, None, None, || (), fill).into_factor();
-        (factor.columns(0, m).into_owned(), factor.column(m).into_owned())
-    };
     // The largest fitted entry `|f_k sum_c theta_c D_c,k|` of the unweighted system.
     let fitted = |theta: &DVector<f64>| {
         let largest = |sample: &CovarianceSample| {
@@ -275,13 +289,17 @@ pub(crate) fn fit_components(
         };
         samples.iter().map(largest).fold(0.0, f64::max)
     };
-    let (a0, y0) = reduced(None);
-    let mut theta = nnls(&a0, &y0, constrained);
+    // From `start` (a previous fit's estimate) if given, else from the unweighted fit.
+    let mut theta = match start {
+        Some(start) if start.len() == m && start.iter().all(|t| t.is_finite()) => start.clone(),
+        _ => nnls_gram(&weighted_gram(samples, None), constrained),
+    };
+    let mut gram = DMatrix::zeros(m + 1, m + 1);
     let mut iterations = 0;
     for _ in 0..50 {
         iterations += 1;
-        let (a, y) = reduced(Some(&theta));
-        let next = nnls(&a, &y, constrained);
+        gram = weighted_gram(samples, Some(&theta));
+        let next = nnls_gram(&gram, constrained);
         // Converged when the change no longer moves any fitted covariance noticeably.
         let moved = fitted(&(&next - &theta));
         let size = fitted(&next).max(f64::MIN_POSITIVE);
@@ -290,8 +308,8 @@ pub(crate) fn fit_components(
             break;
         }
     }
-    let (a, _) = reduced(Some(&theta));
-    let information = a.transpose() * &a;
+    // The information at the estimate: the Gram matrix of the weights it was found with.
+    let information = gram.view((0, 0), (m, m)).into_owned();
     let scale = DVector::from_fn(m, |c, _| information[(c, c)].sqrt());
     if scale.iter().any(|&s| s.is_nan() || s <= 0.0 || !s.is_finite()) {
         return bad("a variance component has no influence on the data: it cannot be estimated".into());
@@ -306,6 +324,100 @@ pub(crate) fn fit_components(
     let covariance = DMatrix::from_fn(m, m, |i, j| inverse[(i, j)] / (scale[i] * scale[j]));
     let at_bound = (0..m).map(|c| constrained[c] && theta[c] == 0.0).collect();
     Ok(ComponentFit { values: theta, covariance, constrained: constrained.to_vec(), at_bound, iterations })
+}
+
+/// Samples per parallel task of [`weighted_gram`]: the tasks, and so the order of every sum,
+/// are the same on any number of threads.
+const SAMPLES_PER_TASK: usize = 64;
+
+/// The Gram matrix `[A y]^T [A y]` (`(m + 1) x (m + 1)`) of the weighted system of
+/// [`fit_components`]: a row per entry of every `S_k`, `A`'s columns the entries of
+/// `f_k L_k^-1 D_c,k L_k^-T` and `y` those of `f_k L_k^-1 S_k L_k^-T`, `f_k = sqrt(nu_k / 2)`,
+/// `L_k L_k^T = Sigma_k = sum_c theta_c D_c,k` (the identity without `theta`). Its entries
+/// are Frobenius products, `<L^-1 X L^-T, L^-1 Y L^-T> = tr(P X P Y)` with `P = Sigma_k^-1`
+/// ([`precision`]): one product `P X` per matrix of a sample, never the rows themselves.
+fn weighted_gram(samples: &[CovarianceSample], theta: Option<&DVector<f64>>) -> DMatrix<f64> {
+    let m = samples[0].design.len();
+    let parts: Vec<DMatrix<f64>> = samples
+        .par_chunks(SAMPLES_PER_TASK)
+        .map(|chunk| {
+            let mut gram = DMatrix::zeros(m + 1, m + 1);
+            let (mut products, mut transposes) = (Vec::new(), Vec::new());
+            for sample in chunk {
+                add_sample(sample, theta, &mut gram, (&mut products, &mut transposes));
+            }
+            gram
+        })
+        .collect();
+    parts.into_iter().fold(DMatrix::zeros(m + 1, m + 1), |sum, part| sum + part)
+}
+
+/// One sample's part of [`weighted_gram`]: `f^2 tr(P X P Y)` for every pair of its designs
+/// and its `S`, the products `P X` and their transposes in scratch reused from sample to
+/// sample.
+fn add_sample(
+    sample: &CovarianceSample,
+    theta: Option<&DVector<f64>>,
+    gram: &mut DMatrix<f64>,
+    (products, transposes): (&mut Vec<DMatrix<f64>>, &mut Vec<DMatrix<f64>>),
+) {
+    let b = sample.s.nrows();
+    let matrices = || sample.design.iter().chain([&sample.s]);
+    if products.first().is_some_and(|p| p.shape() != (b, b)) {
+        products.clear();
+        transposes.clear();
+    }
+    products.resize_with(sample.design.len() + 1, || DMatrix::zeros(b, b));
+    let precision = theta.map(|t| precision(sample, t));
+    for (x, product) in matrices().zip(products.iter_mut()) {
+        match &precision {
+            Some(p) => p.mul_to(x, product),
+            None => product.clone_from(x),
+        }
+    }
+    // tr(A C) = sum_rs A_rs (C^T)_rs: each product against the others' transposes.
+    transposes.resize_with(products.len(), || DMatrix::zeros(b, b));
+    for (product, transpose) in products.iter().zip(transposes.iter_mut()) {
+        product.transpose_to(transpose);
+    }
+    let f2 = sample.dof / 2.0;
+    for (i, a) in products.iter().enumerate() {
+        for (j, c) in transposes.iter().enumerate().take(i + 1) {
+            let trace: f64 = a.as_slice().iter().zip(c.as_slice()).map(|(a, c)| a * c).sum();
+            gram[(i, j)] += f2 * trace;
+            if i != j {
+                gram[(j, i)] += f2 * trace;
+            }
+        }
+    }
+}
+
+/// [`nnls`] of the least squares whose Gram matrix `[A y]^T [A y]` is `gram`: the same
+/// problem as `min |y - A theta|` (`|y - A theta|^2 = theta^T A^T A theta - 2 theta^T A^T y +
+/// y^T y`), posed through a square root of `A^T A` scaled to a unit diagonal, `A^T A =
+/// D^-1 V L V^T D^-1` (`D` the scaling, `V L V^T` its symmetric eigendecomposition): `A' =
+/// L^(1/2) V^T D^-1`, `y' = L^(-1/2) V^T D^-1 A^T y` (directions of a zero eigenvalue left out).
+fn nnls_gram(gram: &DMatrix<f64>, constrained: &[bool]) -> DVector<f64> {
+    let m = constrained.len();
+    let d: Vec<f64> =
+        (0..m).map(|c| if gram[(c, c)] > 0.0 { 1.0 / gram[(c, c)].sqrt() } else { 0.0 }).collect();
+    let scaled = DMatrix::from_fn(m, m, |i, j| gram[(i, j)] * d[i] * d[j]);
+    let eigen = scaled.symmetric_eigen();
+    let largest = eigen.eigenvalues.amax();
+    let mut a = DMatrix::zeros(m, m);
+    let mut y = DVector::zeros(m);
+    for (k, &lambda) in eigen.eigenvalues.iter().enumerate() {
+        if lambda <= 1e-15 * largest {
+            continue;
+        }
+        let v = eigen.eigenvectors.column(k);
+        let root = lambda.sqrt();
+        y[k] = (0..m).map(|c| v[c] * d[c] * gram[(c, m)]).sum::<f64>() / root;
+        for c in 0..m {
+            a[(k, c)] = if d[c] > 0.0 { root * v[c] / d[c] } else { 0.0 };
+        }
+    }
+    nnls(&a, &y, constrained)
 }
 
 /// Estimated noise: `Sigma_q` (its diagonal, or every entry) and `sigma_me^2` (and
@@ -344,19 +456,22 @@ impl SigmaInterval {
 
 impl NoiseEstimate {
     /// Fit the components to `samples` whose designs come from `noise_design` (or
-    /// `residual_design` of it) with `joints`, `dof` joints and `per` rows per measured item.
+    /// `residual_design` of it) with `joints`, `dof` joints and `per` rows per measured item;
+    /// the reweighting starts from `start`'s components if given (a previous round of feasible
+    /// GLS), else from the unweighted fit.
     pub(crate) fn fit(
         samples: &[CovarianceSample],
         joints: JointComponents,
         dof: usize,
         per: usize,
+        start: Option<&Self>,
     ) -> Result<Self, EstimationError> {
         let mut constrained: Vec<bool> = joints.entries(dof).iter().map(|(i, j)| i == j).collect();
         constrained.push(true);
         if per == 6 {
             constrained.push(true);
         }
-        let fit = fit_components(samples, &constrained)?;
+        let fit = fit_components(samples, &constrained, start.map(|s| &s.fit.values))?;
         Ok(Self { fit, joints, dof, orientation: per == 6 })
     }
 
@@ -442,9 +557,9 @@ impl NoiseEstimate {
     }
 }
 
-/// `L^-1` of `Sigma = sum_c theta_c D_c` (with a small ridge, so that a component at zero
-/// cannot make it singular).
-fn whitener(sample: &CovarianceSample, theta: &DVector<f64>) -> DMatrix<f64> {
+/// `P = Sigma^-1` of `Sigma = sum_c theta_c D_c` (with a small ridge, so that a component at
+/// zero cannot make it singular), by its Cholesky factorisation.
+fn precision(sample: &CovarianceSample, theta: &DVector<f64>) -> DMatrix<f64> {
     let b = sample.s.nrows();
     let mut sigma = DMatrix::zeros(b, b);
     for (d, t) in sample.design.iter().zip(theta.iter()) {
@@ -456,11 +571,11 @@ fn whitener(sample: &CovarianceSample, theta: &DVector<f64>) -> DMatrix<f64> {
         for i in 0..b {
             regular[(i, i)] += ridge * trace;
         }
-        if let Some(l) = regular.cholesky().and_then(|c| c.l().try_inverse()) {
-            return l;
+        if let Some(c) = regular.cholesky() {
+            return c.inverse();
         }
     }
-    DMatrix::identity(b, b) / trace.sqrt()
+    DMatrix::identity(b, b) / trace
 }
 
 /// Non-negative least squares with free variables: `min |b - A x|` subject to `x_c >= 0` where
@@ -566,9 +681,90 @@ mod tests {
                 CovarianceSample { s, dof: 10.0, design }
             })
             .collect();
-        let fit = fit_components(&samples, &[true; 3]).unwrap();
+        let fit = fit_components(&samples, &[true; 3], None).unwrap();
         for (c, t) in theta.iter().enumerate() {
             assert!((fit.values[c] - t).abs() < 1e-9, "{}", fit.values);
         }
+    }
+
+    /// `(M V_c M^T)_kk` point by point equals the diagonal blocks of the dense product, with
+    /// `M = I - H pinv(S H) S`, on a small problem with correlated weights of every kind.
+    #[test]
+    fn the_residual_design_is_the_dense_residual_makers() {
+        let (points, rows, p) = (5, 3, 2);
+        let n = points * rows;
+        let h = DMatrix::from_fn(n, p, |i, j| {
+            ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j))
+        });
+        let spd = |seed: usize| {
+            let b = DMatrix::from_fn(rows, rows, |i, j| (((seed + 1) * (i + 2) * (j + 3)) % 7) as f64 / 7.0);
+            &b * b.transpose() + DMatrix::identity(rows, rows) * 0.5
+        };
+        let stacked = |seed: usize| {
+            let mut v = DMatrix::zeros(n, rows);
+            for k in 0..points {
+                v.rows_mut(k * rows, rows).copy_from(&spd(seed + k));
+            }
+            v
+        };
+        let v = stacked(0);
+        let components: Vec<Vec<DMatrix<f64>>> =
+            (1..3).map(|c| (0..points).map(|k| spd(10 * c + k)).collect()).collect();
+        for estimator in [super::super::Estimator::Ols, super::super::Estimator::Wls] {
+            let weights = super::super::Weights::new(Some(&v), rows, estimator, true).unwrap();
+            let designs = residual_design(&h, &weights, &components).unwrap();
+            let mut s = DMatrix::identity(n, n);
+            weights.apply(&mut s);
+            let mut sh = h.clone();
+            weights.apply(&mut sh);
+            let m = DMatrix::identity(n, n) - &h * super::super::pseudo_inverse(&sh).unwrap() * &s;
+            for (c, blocks) in components.iter().enumerate() {
+                let mut v_c = DMatrix::zeros(n, n);
+                for (k, b) in blocks.iter().enumerate() {
+                    v_c.view_mut((k * rows, k * rows), (rows, rows)).copy_from(b);
+                }
+                let dense = &m * v_c * m.transpose();
+                for (k, design) in designs.iter().enumerate() {
+                    let want = dense.view((k * rows, k * rows), (rows, rows));
+                    assert!(
+                        (&design[c] - want).amax() < 1e-12 * want.amax().max(1.0),
+                        "{estimator:?} {c} {k}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The Gram matrix of the weighted rows, built sample by sample from `tr(P X P Y)`, gives
+    /// the same components as the rows `f L^-1 X L^-T` themselves fitted by [`nnls`].
+    #[test]
+    fn the_gram_matrix_fit_is_the_row_fit() {
+        let j = DMatrix::from_row_slice(3, 2, &[1.0, 2.0, 0.5, -1.0, 0.0, 3.0]);
+        let samples: Vec<CovarianceSample> = (0..6)
+            .map(|k| {
+                let jk = &j * (1.0 + k as f64 * 0.3);
+                let design = noise_design(&jk, JointComponents::Diagonal, 3);
+                let r = DVector::from_fn(3, |i, _| ((i + 2 * k) % 5) as f64 - 2.0);
+                CovarianceSample { s: &r * r.transpose(), dof: 1.0 + k as f64, design }
+            })
+            .collect();
+        let theta = DVector::from_vec(vec![0.2, 0.05, 0.3]);
+        let constrained = [true; 3];
+        let mut rows = Vec::new();
+        for sample in &samples {
+            let l = precision(sample, &theta).cholesky().unwrap().l().transpose();
+            let f = (sample.dof / 2.0).sqrt();
+            let weigh = |x: &DMatrix<f64>| (&l * x * l.transpose() * f).as_slice().to_vec();
+            let columns: Vec<Vec<f64>> = sample.design.iter().chain([&sample.s]).map(weigh).collect();
+            for e in 0..9 {
+                rows.extend(columns.iter().map(|c| c[e]));
+            }
+        }
+        let system = DMatrix::from_row_slice(rows.len() / 4, 4, &rows);
+        let want = nnls(&system.columns(0, 3).into_owned(), &system.column(3).into_owned(), &constrained);
+        let gram = weighted_gram(&samples, Some(&theta));
+        assert!((gram.clone() - system.transpose() * &system).amax() < 1e-10 * gram.amax());
+        let got = nnls_gram(&gram, &constrained);
+        assert!((&got - &want).amax() < 1e-9 * want.amax(), "{got} {want}");
     }
 }

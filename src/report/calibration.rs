@@ -3,6 +3,7 @@
 //! the same content.
 
 use super::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
+use super::verdict::{HeldGroup, Role, SetVerdict, Verdict, held_groups, held_text};
 use crate::calibration::prior_scale::PriorScale;
 use crate::calibration::selection::{Criterion, SelectionPath, Step};
 use crate::calibration::{Calibration, ErrorStats, SetEvaluation, Warning, pool, standard_errors};
@@ -11,10 +12,20 @@ use crate::model::{Joint, JointKind};
 use serde::Serialize;
 use std::fmt::Write;
 
-/// Everything a calibration report says, ready for text or JSON. Angles in degrees, lengths
-/// in millimetres.
+/// The version of the calibration report's JSON: its `schema` key, first. Version 2 leads
+/// with the verdict (docs/formats.md, "Calibration report (JSON)").
+pub const SCHEMA: u32 = 2;
+
+/// Everything a calibration report says, ready for text, JSON or HTML, the verdict first, then
+/// the parameters, then what was held, then the detail. Angles in degrees, lengths in
+/// millimetres. The JSON's keys come in the fields' order.
 #[derive(Debug, Clone, Serialize)]
 pub struct CalibrationReport {
+    /// The JSON's version, [`SCHEMA`].
+    pub schema: u32,
+    /// What the report leads with: per set the error before and after, the flags, the
+    /// warnings by cause.
+    pub verdict: Verdict,
     /// The model's name.
     pub model: String,
     /// The measurement file.
@@ -33,8 +44,6 @@ pub struct CalibrationReport {
     /// Feasible GLS only: whether its variance components settled.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise_settled: Option<bool>,
-    /// Which weighting each number uses.
-    pub weighting: Weighting,
     /// The registered base: xyz (mm) and roll-pitch-yaw (deg).
     pub registered_base: [f64; 6],
     /// A probe's calibrated frame, absolute, in the tip link's frame (the model's marker
@@ -43,55 +52,59 @@ pub struct CalibrationReport {
     pub tip_frame: Option<[f64; 6]>,
     /// The identified parameters.
     pub parameters: Vec<ParameterRow>,
+    /// Each estimated compliance as a stiffness.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub stiffness: Vec<StiffnessRow>,
     /// Numerical rank and condition number of the weighted, column-scaled H (of the data alone,
     /// with priors).
     pub rank: usize,
     /// `s_1 / s_r`.
     pub condition_number: f64,
-    /// Combinations held fixed because the poses cannot identify them, in words (a line each).
-    pub fixed: Vec<String>,
-    /// The same, typed: the kind, the parameter, a combination's terms, what it is confounded
-    /// with.
-    pub held: Vec<crate::calibration::Held>,
-    /// Errors on the fitting poses: before (base and markers fitted), after.
-    pub training: [ErrorStats; 2],
-    /// Errors on held-out poses: `(source, before, after)`.
-    pub validation: Vec<(String, ErrorStats, ErrorStats)>,
-    /// The training poses and each held-out file, pose by pose and marker by marker (joint
-    /// values in degrees, mm for prismatic joints).
-    pub sets: Vec<SetEvaluation>,
-    /// With several held-out files, all their poses pooled (summaries only).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub held_out: Option<SetEvaluation>,
-    /// Things to look at, one per cause.
-    pub warnings: Vec<Warning>,
-    /// The noise estimated by feasible GLS, with 95% intervals.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub noise: Option<Vec<NoiseRow>>,
     /// A robust loss (`huber:1.345`), if one was used.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub loss: Option<String>,
     /// The poses it down-weighted.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub down_weighted: Vec<DownWeighted>,
-    /// Each estimated compliance as a stiffness.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub stiffness: Vec<StiffnessRow>,
-    /// `--select`: how the joint parameters were chosen ([`CalibrationReport::with_selection`]).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub selection: Option<SelectionReport>,
-    /// The accuracy predicted at each held-out set's poses from the parameter covariance
-    /// ([`crate::design::accuracy`]), beside the error measured there.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub predicted: Vec<PredictedAccuracy>,
     /// `--prior auto`: the scale of the preset's standard deviations, and the curve it was
     /// chosen from ([`CalibrationReport::with_prior_scale`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub prior_scale: Option<PriorScale>,
+    /// `--select`: how the joint parameters were chosen ([`CalibrationReport::with_selection`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub selection: Option<SelectionReport>,
+    /// What was held, grouped by why, in plain words.
+    pub held_groups: Vec<HeldGroup>,
+    /// Each parameter held, in words with its combination (a line each).
+    pub fixed: Vec<String>,
+    /// The same, typed: the kind, the parameter, a combination's terms, what it is confounded
+    /// with.
+    pub held: Vec<crate::calibration::Held>,
+    /// Which weighting each number uses.
+    pub weighting: Weighting,
+    /// Errors on the fitting poses: before (base and markers fitted), after.
+    pub training: [ErrorStats; 2],
+    /// Errors on held-out poses: `(source, before, after)`.
+    pub validation: Vec<(String, ErrorStats, ErrorStats)>,
+    /// With several held-out files, all their poses pooled (summaries only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_out: Option<SetEvaluation>,
     /// `--folds K`: what the k-fold cross-validation redid inside each fold
     /// ([`CalibrationReport::with_cross_validation`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cross_validation: Option<CrossValidationReport>,
+    /// The accuracy predicted at each held-out set's poses from the parameter covariance
+    /// ([`crate::design::accuracy`]), beside the error measured there.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub predicted: Vec<PredictedAccuracy>,
+    /// The noise estimated by feasible GLS, with 95% intervals.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise: Option<Vec<NoiseRow>>,
+    /// Things to look at, one per cause.
+    pub warnings: Vec<Warning>,
+    /// The training poses and each held-out file, pose by pose and marker by marker (joint
+    /// values in degrees, mm for prismatic joints).
+    pub sets: Vec<SetEvaluation>,
 }
 
 /// How a k-fold cross-validation was made: nested when the model is chosen from the data
@@ -346,6 +359,31 @@ pub struct Weighting {
     pub whitened: String,
 }
 
+impl Weighting {
+    /// The weighting of `c`'s numbers, fitted with `estimator`.
+    fn of(c: &Calibration, estimator: &str) -> Self {
+        Weighting {
+            before: "base and markers fitted by ols (unweighted), joints nominal, whatever the estimator"
+                .into(),
+            after: match (c.prior_sd.iter().any(|s| s.is_finite()), &c.robust) {
+                (false, None) => format!("{estimator}: every parameter asked for that the poses identify"),
+                (priors, robust) => format!(
+                    "{estimator}{}{}: every parameter asked for {}",
+                    if priors { " with priors (maximum a posteriori)" } else { "" },
+                    robust.as_ref().map_or(String::new(), |r| format!(", robust loss {}", r.loss)),
+                    if priors {
+                        "with a prior, and those without one that the poses identify"
+                    } else {
+                        "that the poses identify"
+                    }
+                ),
+            },
+            errors: "distances and their components, unweighted".into(),
+            whitened: format!("{}; {}", c.whitening.describe(), c.whitening.flag_rule()),
+        }
+    }
+}
+
 /// `text` with the markers' parameters named by the markers' numbers in the data
 /// (`marker1.x` of a fit with markers `[2, 3]` is `marker2.x`).
 pub(super) fn by_number(text: &str, ids: &[usize]) -> String {
@@ -442,6 +480,31 @@ pub struct DownWeighted {
     pub weight: f64,
 }
 
+/// The estimated parameters of `c`, in the report's units (deg, mm), the markers' named by
+/// their numbers in the data.
+fn parameter_rows(c: &Calibration) -> Vec<ParameterRow> {
+    let se = standard_errors(c);
+    c.refined
+        .estimate
+        .names
+        .iter()
+        .filter_map(|name| c.params.index_by_name(name))
+        .map(|i| {
+            let p = c.params.get(i);
+            let scale = if p.is_angle() { 180.0 / std::f64::consts::PI } else { 1.0 };
+            let prior = c.prior_sd.get(i).copied().filter(|s| s.is_finite());
+            ParameterRow {
+                name: by_number(&p.name, &c.marker_ids),
+                value: c.after[i] * scale,
+                std_error: se[i] * scale,
+                unit: if p.is_angle() { "deg" } else { p.unit() },
+                prior_sd: prior.map(|s| s * scale),
+                sd_ratio: prior.map(|s| se[i] / s),
+            }
+        })
+        .collect()
+}
+
 impl CalibrationReport {
     /// Gather the report of `c`, fitted on `data` (a name) with `estimator`: `held_out` are
     /// the held-out files scored by [`Calibration::evaluate`], `folds` the k-fold
@@ -453,29 +516,9 @@ impl CalibrationReport {
         held_out: Vec<SetEvaluation>,
         folds: Option<(String, ErrorStats, ErrorStats)>,
     ) -> Self {
-        let se = standard_errors(c);
         let held: Vec<crate::calibration::Held> =
             c.fixed.iter().map(|h| h.clone().renamed(|n| by_number(n, &c.marker_ids))).collect();
-        let parameters: Vec<ParameterRow> = c
-            .refined
-            .estimate
-            .names
-            .iter()
-            .filter_map(|name| c.params.index_by_name(name))
-            .map(|i| {
-                let p = c.params.get(i);
-                let scale = if p.is_angle() { 180.0 / std::f64::consts::PI } else { 1.0 };
-                let prior = c.prior_sd.get(i).copied().filter(|s| s.is_finite());
-                ParameterRow {
-                    name: by_number(&p.name, &c.marker_ids),
-                    value: c.after[i] * scale,
-                    std_error: se[i] * scale,
-                    unit: if p.is_angle() { "deg" } else { p.unit() },
-                    prior_sd: prior.map(|s| s * scale),
-                    sd_ratio: prior.map(|s| se[i] / s),
-                }
-            })
-            .collect();
+        let parameters = parameter_rows(c);
         let base = &c.registered.base;
         let d = &c.refined.estimate.diagnostics;
         let joints = &c.registered.joints;
@@ -487,26 +530,10 @@ impl CalibrationReport {
         validation.extend(folds);
         let sets =
             std::iter::once(&c.training_poses).chain(&held_out).map(|s| in_degrees(s, joints)).collect();
-        let weighting = Weighting {
-            before: "base and markers fitted by ols (unweighted), joints nominal, whatever the estimator"
-                .into(),
-            after: match (c.prior_sd.iter().any(|s| s.is_finite()), &c.robust) {
-                (false, None) => format!("{estimator}: every parameter asked for that the poses identify"),
-                (priors, robust) => format!(
-                    "{estimator}{}{}: every parameter asked for {}",
-                    if priors { " with priors (maximum a posteriori)" } else { "" },
-                    robust.as_ref().map_or(String::new(), |r| format!(", robust loss {}", r.loss)),
-                    if priors {
-                        "with a prior, and those without one that the poses identify"
-                    } else {
-                        "that the poses identify"
-                    }
-                ),
-            },
-            errors: "distances and their components, unweighted".into(),
-            whitened: format!("{}; {}", c.whitening.describe(), c.whitening.flag_rule()),
-        };
-        Self {
+        let weighting = Weighting::of(c, estimator);
+        let report = Self {
+            schema: SCHEMA,
+            verdict: Verdict::new(false, Vec::new(), &[]),
             model: c.registered.name.clone(),
             data: data.to_string(),
             poses: c.training_poses.poses.len(),
@@ -530,6 +557,7 @@ impl CalibrationReport {
             parameters: parameters.clone(),
             rank: d.rank,
             condition_number: d.condition_number,
+            held_groups: held_groups(&held),
             fixed: held.iter().map(crate::calibration::Held::text).collect(),
             held,
             training: [c.training.0, c.training.1],
@@ -549,7 +577,27 @@ impl CalibrationReport {
             predicted: Vec::new(),
             cross_validation: None,
             prior_scale: None,
+        };
+        Self { verdict: report.verdict(), ..report }
+    }
+
+    /// The verdict of the report's sets: training, each held-out file, the files pooled, the
+    /// k-fold cross-validation (the entry of `validation` that is no set's).
+    fn verdict(&self) -> Verdict {
+        let held_out = &self.sets[1.min(self.sets.len())..];
+        let mut sets: Vec<SetVerdict> = (self.sets.iter().take(1).map(|s| (s, Role::Training)))
+            .chain(held_out.iter().map(|s| (s, Role::HeldOut)))
+            .map(|(s, role)| SetVerdict::of(s, role, s.poses.len()))
+            .collect();
+        if let Some(pooled) = &self.held_out {
+            sets.push(SetVerdict::of(pooled, Role::Pooled, held_out.iter().map(|s| s.poses.len()).sum()));
         }
+        sets.extend(
+            (self.validation.iter())
+                .filter(|(name, _, _)| !self.sets.iter().any(|s| &s.name == name))
+                .map(|(name, before, after)| SetVerdict::cross_validation(name, self.poses, before, after)),
+        );
+        Verdict::new(self.converged, sets, &self.warnings)
     }
 
     /// The report with the accuracy predicted at the held-out sets' poses.
@@ -608,14 +656,15 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         out
     }
 
-    /// The report as text, at fixed precision.
-    pub fn text(&self) -> String {
-        let mut out = String::new();
-        let _ = writeln!(
-            out,
-            "calibration of {} from {}: {} poses, {} marker{}, {} ({} step{}, {})",
-            self.model,
-            self.data,
+    /// The first line: what was fitted, how, whether it converged.
+    fn headline(&self) -> String {
+        format!("calibration of {} from {}: {}\n", self.model, self.data, self.fit_summary())
+    }
+
+    /// What was fitted and how: `100 poses, 2 markers, wls (3 steps, converged)`.
+    pub(super) fn fit_summary(&self) -> String {
+        format!(
+            "{} poses, {} marker{}, {} ({} step{}, {})",
             self.poses,
             self.markers,
             if self.markers == 1 { "" } else { "s" },
@@ -627,26 +676,36 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
                 (false, Some(false)) => "not converged: the variance components did not settle",
                 (false, _) => "not converged",
             }
-        );
+        )
+    }
+
+    /// Where the base was registered, and a probe's frame.
+    pub(super) fn setup_text(&self) -> String {
+        let mut out = String::new();
         let b = &self.registered_base;
         let _ = writeln!(
             out,
-            "base registered at xyz ({:.3}, {:.3}, {:.3}) mm, rpy ({:.4}, {:.4}, {:.4}) deg\n",
+            "base registered at xyz ({:.3}, {:.3}, {:.3}) mm, rpy ({:.4}, {:.4}, {:.4}) deg",
             b[0], b[1], b[2], b[3], b[4], b[5]
         );
         if let Some(t) = &self.tip_frame {
             let _ = writeln!(
                 out,
                 "probe frame in the tip link's frame: xyz ({:.3}, {:.3}, {:.3}) mm, rpy ({:.4}, {:.4}, {:.4}) deg \
-                 (the marker parameters below are its corrections)\n",
+                 (the marker parameters below are its corrections)",
                 t[0], t[1], t[2], t[3], t[4], t[5]
             );
         }
-        write_parameters(&mut out, &self.parameters);
+        out
+    }
+
+    /// The stiffness of each estimated compliance, as a table.
+    fn stiffness_text(&self) -> String {
+        let mut out = String::new();
         if !self.stiffness.is_empty() {
             let _ = writeln!(
                 out,
-                "\n{:<18} {:>12} {:>12} {:>12}  unit (1 / compliance, its 95% interval)",
+                "{:<18} {:>12} {:>12} {:>12}  unit (1 / compliance, its 95% interval)",
                 "joint stiffness", "estimate", "low", "high"
             );
             let number = |v: Option<f64>, none: &str| v.map_or(none.to_string(), |v| format!("{v:.4e}"));
@@ -668,12 +727,18 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
                 );
             }
         }
+        out
+    }
+
+    /// How many parameters were estimated, and how well the data determine them.
+    pub(super) fn identified_text(&self) -> String {
+        let mut out = String::new();
         if self.parameters.is_empty() {
-            let _ = writeln!(out, "\nnothing estimated: the model is scored as it stands");
+            let _ = writeln!(out, "nothing estimated: the model is scored as it stands");
         } else if self.parameters.iter().any(|p| p.prior_sd.is_some()) {
             let _ = writeln!(
                 out,
-                "\n{} parameters estimated with their priors; the data alone: rank {}, condition number {:.3e}",
+                "{} parameters estimated with their priors; the data alone: rank {}, condition number {:.3e}",
                 self.parameters.len(),
                 self.rank,
                 self.condition_number
@@ -681,7 +746,7 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         } else if !self.converged && self.iterations > 1 {
             let _ = writeln!(
                 out,
-                "\n{} parameters estimated, not converged (rank {}, condition number {:.3e}): not identified \
+                "{} parameters estimated, not converged (rank {}, condition number {:.3e}): not identified \
                  estimates; their standard errors are those of where the fit stopped",
                 self.parameters.len(),
                 self.rank,
@@ -690,12 +755,27 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         } else {
             let _ = writeln!(
                 out,
-                "\n{} parameters identified (rank {}), condition number {:.3e}",
+                "{} parameters identified (rank {}), condition number {:.3e}",
                 self.parameters.len(),
                 self.rank,
                 self.condition_number
             );
         }
+        out
+    }
+
+    /// The parameters: the table, the stiffnesses, how well they are identified, the robust
+    /// loss, the prior's scale, the selection's path.
+    fn parameters_text(&self) -> String {
+        let mut out = self.setup_text();
+        let _ = writeln!(out);
+        write_parameters(&mut out, &self.parameters);
+        if !self.stiffness.is_empty() {
+            let _ = writeln!(out);
+            out.push_str(&self.stiffness_text());
+        }
+        let _ = writeln!(out);
+        out.push_str(&self.identified_text());
         write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "pose");
         if let Some(scale) = &self.prior_scale {
             let _ = writeln!(out);
@@ -705,47 +785,51 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             let _ = writeln!(out);
             out.push_str(&selection.text());
         }
-        if !self.fixed.is_empty() {
-            let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");
-            for f in &self.fixed {
-                let _ = writeln!(out, "  {f}");
-            }
-        }
-        let _ = writeln!(
-            out,
-            "\nbefore:    {}\nafter:     {}\nerrors:    {}\nwhitened:  {}\n",
-            self.weighting.before, self.weighting.after, self.weighting.errors, self.weighting.whitened
-        );
-        out.push_str(&self.error_tables());
-        if let Some(cv) = &self.cross_validation {
-            let _ = writeln!(out);
-            out.push_str(&cv.text());
-        }
-        if !self.predicted.is_empty() {
+        out
+    }
+
+    /// The accuracy predicted at the held-out poses, if any.
+    fn predicted_text(&self) -> String {
+        let mut out = String::new();
+        if let Some(first) = self.predicted.first() {
             let _ = writeln!(
                 out,
-                "\npredicted position error SD at the held-out poses (parameter covariance, floor {:.4} mm in quadrature):",
-                self.predicted.first().map_or(0.0, |p| p.floor_mm)
+                "predicted position error SD at the held-out poses (parameter covariance, floor {:.4} mm in quadrature):",
+                first.floor_mm
             );
-            for p in &self.predicted {
-                let _ = writeln!(
-                    out,
-                    "  {}: mean {:.4} mm, max {:.4} mm; from the parameters alone {:.4} mm",
-                    p.set, p.mean_mm, p.max_mm, p.parameters_mm
-                );
-            }
         }
-        if let Some(noise) = &self.noise {
-            let _ = writeln!(out, "\nnoise estimated from the residuals (feasible GLS):");
-            out.push_str(&noise_table(noise));
-        }
-        if !self.warnings.is_empty() {
-            let _ = writeln!(out, "\nwarnings:");
-            for w in &self.warnings {
-                let _ = writeln!(out, "  {w}");
-            }
+        for p in &self.predicted {
+            let _ = writeln!(
+                out,
+                "  {}: mean {:.4} mm, max {:.4} mm; from the parameters alone {:.4} mm",
+                p.set, p.mean_mm, p.max_mm, p.parameters_mm
+            );
         }
         out
+    }
+
+    /// The report as text, at fixed precision: the verdict, the parameters, what was held,
+    /// then the detail (the weighting, the error tables, the worst poses, cross-validation,
+    /// the predicted accuracy, the noise, the warnings in full).
+    pub fn text(&self) -> String {
+        let mut parts = vec![self.headline(), self.verdict.text(), self.parameters_text()];
+        parts.push(held_text(&self.held));
+        parts.push(format!(
+            "before:    {}\nafter:     {}\nerrors:    {}\nwhitened:  {}\n",
+            self.weighting.before, self.weighting.after, self.weighting.errors, self.weighting.whitened
+        ));
+        parts.push(self.error_tables());
+        parts.extend(self.cross_validation.as_ref().map(CrossValidationReport::text));
+        parts.push(self.predicted_text());
+        if let Some(noise) = &self.noise {
+            parts.push(format!("noise estimated from the residuals (feasible GLS):\n{}", noise_table(noise)));
+        }
+        if !self.warnings.is_empty() {
+            let lines: Vec<String> = self.warnings.iter().map(|w| format!("  {w}\n")).collect();
+            parts.push(format!("warnings:\n{}", lines.concat()));
+        }
+        parts.retain(|p| !p.is_empty());
+        parts.join("\n")
     }
 }
 

@@ -1,7 +1,11 @@
-//! One self-contained HTML page: the report's text tables, a table of every pose of every
-//! set, and the figures inline as SVG. It refers to nothing outside itself (no scripts, no
-//! style sheets, no images by address), so it opens in any browser without a network, and it
-//! is written as well-formed XML (XHTML-compatible markup) so that an XML parser reads it.
+//! Self-contained HTML pages: the pieces every report page shares (the style, HTML tables, the
+//! figures inline as SVG with a caption that says what to look for, every pose of every set in
+//! a collapsible section), and the page of a report that has only text ([`page`]).
+//! [`crate::report::calibration_page`] builds the calibration's designed page from them.
+//!
+//! A page refers to nothing outside itself (no scripts, no style sheets, no images by
+//! address), so it opens in any browser without a network and prints; it is written as
+//! well-formed XML (XHTML-compatible markup) so that an XML parser reads it.
 
 use crate::calibration::SetEvaluation;
 use std::fmt::Write;
@@ -11,6 +15,158 @@ pub fn escape(text: &str) -> String {
     text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
 }
 
+/// The style of every page: readable on screen, printable (A4, no link or figure split
+/// across pages), colours from the Okabe-Ito palette (safe for colour-blind readers).
+const STYLE: &str = "\
+:root { --ink: #1b1f24; --muted: #57606a; --line: #d0d7de; --head: #f0f3f6; --good: #009E73;
+  --warn: #D55E00; --blue: #0072B2; }
+body { font: 14px/1.45 system-ui, 'Segoe UI', Roboto, 'DejaVu Sans', sans-serif; color: var(--ink);
+  max-width: 1240px; margin: 0 auto; padding: 24px 32px; }
+h1 { font-size: 24px; margin: 0 0 2px; }
+h2 { font-size: 18px; margin: 32px 0 8px; padding-bottom: 4px; border-bottom: 1px solid var(--line); }
+h3 { font-size: 15px; margin: 20px 0 6px; }
+p.meta { color: var(--muted); margin: 0 0 16px; }
+.card { border: 1px solid var(--line); border-left: 6px solid var(--good); border-radius: 8px;
+  padding: 12px 20px 16px; background: #f6fbf9; }
+.card.warned { border-left-color: var(--warn); background: #fdf8f4; }
+.card h2 { border: none; margin: 4px 0 8px; }
+.headline { font-size: 16px; margin: 4px 0 12px; }
+.big { font-size: 30px; font-weight: 700; }
+.note { color: var(--muted); }
+table { border-collapse: collapse; margin: 6px 0 18px; font-variant-numeric: tabular-nums; }
+caption { caption-side: top; text-align: left; font-weight: 600; padding: 4px 0; }
+th, td { padding: 3px 9px; border-bottom: 1px solid var(--line); text-align: right; white-space: nowrap; }
+th { background: var(--head); font-weight: 600; }
+th.name, td.name { text-align: left; }
+td.good { color: #006b4f; font-weight: 600; }
+tr.flagged td { background: #fbe3d5; }
+tr.group td { border-top: 2px solid var(--line); }
+td.bar { padding: 0 6px; }
+td.bar svg { display: block; }
+ul.warnings li { margin: 2px 0; }
+.count { display: inline-block; min-width: 2.2em; padding: 0 6px; margin-right: 6px; border-radius: 10px;
+  background: var(--warn); color: #fff; text-align: center; font-weight: 600; }
+code { font-family: ui-monospace, 'DejaVu Sans Mono', monospace; font-size: 12.5px; }
+details { margin: 8px 0; }
+summary { cursor: pointer; font-weight: 600; }
+dl.weighting { display: grid; grid-template-columns: max-content auto; gap: 2px 12px; }
+dl.weighting dt { font-weight: 600; }
+dl.weighting dd { margin: 0; }
+figure { margin: 18px 0 26px; break-inside: avoid; }
+figure svg { max-width: 100%; height: auto; border: 1px solid var(--line); }
+figcaption { max-width: 900px; margin-top: 4px; }
+figcaption b { font-family: ui-monospace, 'DejaVu Sans Mono', monospace; font-weight: 600; }
+pre { font-size: 12px; background: #f6f8fa; padding: 12px; overflow-x: auto; }
+@page { size: A4; margin: 12mm; }
+@media print {
+  body { max-width: none; padding: 0; font-size: 10.5px; }
+  .card, figure, table.small { break-inside: avoid; }
+  h2, h3, caption { break-after: avoid; }
+  details::details-content { content-visibility: visible; display: block; }
+  summary { list-style: none; }
+}
+";
+
+/// The page's start: the document type, the head with `title` and the style, the heading
+/// `title` and the line `meta` under it.
+pub fn start(title: &str, meta: &str) -> String {
+    format!(
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\"/>\n\
+         <meta name=\"viewport\" content=\"width=device-width, initial-scale=1\"/>\n<title>{0}</title>\n\
+         <style>\n{STYLE}</style>\n</head>\n<body>\n<header>\n<h1>{0}</h1>\n<p class=\"meta\">{1}</p>\n</header>\n",
+        escape(title),
+        escape(meta)
+    )
+}
+
+/// The page's end.
+pub fn end() -> &'static str {
+    "</body>\n</html>\n"
+}
+
+/// One cell of an HTML table: its markup (already escaped) and its class.
+#[derive(Debug, Clone, Default)]
+pub struct Cell {
+    /// Its content, HTML.
+    pub html: String,
+    /// Its class (`name` for a left-aligned label).
+    pub class: &'static str,
+}
+
+impl Cell {
+    /// A cell of `text`, escaped.
+    pub fn text(text: &str) -> Self {
+        Self { html: escape(text), class: "" }
+    }
+
+    /// A label: `text`, escaped, left-aligned.
+    pub fn name(text: &str) -> Self {
+        Self { html: escape(text), class: "name" }
+    }
+
+    /// A cell of markup, with a class.
+    pub fn html(html: String, class: &'static str) -> Self {
+        Self { html, class }
+    }
+}
+
+/// One row of an HTML table, with its class (`flagged`, `group`).
+#[derive(Debug, Clone, Default)]
+pub struct Row {
+    /// Its cells.
+    pub cells: Vec<Cell>,
+    /// Its class, if any.
+    pub class: &'static str,
+}
+
+impl From<Vec<Cell>> for Row {
+    fn from(cells: Vec<Cell>) -> Self {
+        Self { cells, class: "" }
+    }
+}
+
+/// An HTML table of class `class` (and `data-set` = `set` when given), captioned `caption`,
+/// the heads `head` (left-aligned over the first column and over labels), the rows `rows`.
+pub fn table(class: &str, set: Option<&str>, caption: &str, head: &[&str], rows: &[Row]) -> String {
+    let mut out = format!("<table class=\"{class}\"");
+    if let Some(set) = set {
+        let _ = write!(out, " data-set=\"{}\"", escape(set));
+    }
+    out.push_str(">\n");
+    if !caption.is_empty() {
+        let _ = writeln!(out, "<caption>{}</caption>", escape(caption));
+    }
+    out.push_str("<thead><tr>");
+    for (k, h) in head.iter().enumerate() {
+        // a head over labels is left-aligned as they are
+        let label = rows.first().and_then(|r| r.cells.get(k)).is_some_and(|c| c.class == "name");
+        let class = if k == 0 || label { " class=\"name\"" } else { "" };
+        let _ = write!(out, "<th{class}>{}</th>", escape(h));
+    }
+    out.push_str("</tr></thead>\n<tbody>\n");
+    for row in rows {
+        match row.class {
+            "" => out.push_str("<tr>"),
+            class => {
+                let _ = write!(out, "<tr class=\"{class}\">");
+            }
+        }
+        for cell in &row.cells {
+            match cell.class {
+                "" => {
+                    let _ = write!(out, "<td>{}</td>", cell.html);
+                }
+                class => {
+                    let _ = write!(out, "<td class=\"{class}\">{}</td>", cell.html);
+                }
+            }
+        }
+        out.push_str("</tr>\n");
+    }
+    out.push_str("</tbody>\n</table>\n");
+    out
+}
+
 /// An SVG from plotters made fit to sit inside HTML: without its XML declaration, and without
 /// the namespace address (HTML does not need it, and the page names no address).
 fn inline_svg(svg: &str) -> String {
@@ -18,69 +174,121 @@ fn inline_svg(svg: &str) -> String {
     svg[start..].replace(" xmlns=\"http://www.w3.org/2000/svg\"", "")
 }
 
-/// The page titled `title`: `text` (the report as printed) in a preformatted block, each
-/// set's poses as a table (line, marker, error at each stage, and a probe's orientation
-/// error, whitened residual, flag), and
-/// `figures` (`(file name, SVG text)`) inline.
-pub fn page(title: &str, text: &str, sets: &[&SetEvaluation], figures: &[(String, String)]) -> String {
+/// What a figure of [`crate::report::figures`] shows and what to look for in it, by the name
+/// its module gives it (`errors-by-pose-<set>.svg`, `histogram.svg`, `error-vs-<joint>.svg`,
+/// `error-vs-torque-<joint>.svg`, `selection-path.svg`).
+pub fn caption(name: &str) -> String {
+    let stem = name.strip_suffix(".svg").unwrap_or(name);
+    if let Some(set) = stem.strip_prefix("errors-by-pose-") {
+        return format!(
+            "Each pose of {set} in the file's order: its error (RMS over its markers, mm) at every stage on one \
+             scale; when the errors after are under a third of those before, a second panel draws them on their \
+             own scale, the ratio written. Look for poses that stay high after calibration (crossed when \
+             flagged) and runs of neighbouring poses that share an error (a drift while measuring)."
+        );
+    }
+    if stem == "histogram" {
+        return "The density of the marker errors after calibration (mm), each set on the same bins, so that sets of \
+                different sizes compare. Look for a held-out set that reaches further right than the training set \
+                (over-fitting, or a change between the sessions) and a long tail (outliers)."
+            .to_string();
+    }
+    if let Some(joint) = stem.strip_prefix("error-vs-torque-") {
+        return format!(
+            "Each marker's signed error after calibration (x, y, z, mm) against the gravity torque on {joint}. Look \
+             for a slope: a compliance the model leaves out."
+        );
+    }
+    if let Some(joint) = stem.strip_prefix("error-vs-") {
+        return format!(
+            "Each marker's signed error after calibration (x, y, z, mm; a probe's rotation too) against {joint}'s \
+             value. A flat band about zero is the aim; look for trends, steps where the motion turns (backlash) \
+             and waves (a gear's cyclic error): errors the model does not describe."
+        );
+    }
+    if stem == "selection-path" {
+        return "The selection's score after each step (the table of the path names each step's parameter). Look for \
+                where the curve flattens: the chosen step (circled) is the smallest model within one standard error \
+                of the best."
+            .to_string();
+    }
+    format!("The figure {name}.")
+}
+
+/// The figures (`(file name, SVG)`) inline, each with its name and [`caption`].
+pub fn figures(figures: &[(String, String)]) -> String {
     let mut out = String::new();
-    let _ = writeln!(out, "<!DOCTYPE html>");
-    let _ = writeln!(out, "<html lang=\"en\">");
-    let _ = writeln!(out, "<head>\n<meta charset=\"utf-8\"/>\n<title>{}</title>", escape(title));
-    let _ = writeln!(
-        out,
-        "<style>\nbody {{ font-family: sans-serif; margin: 2em; }}\npre {{ font-size: 12px; background: #f6f6f6; \
-         padding: 1em; overflow-x: auto; }}\ntable {{ border-collapse: collapse; font-size: 12px; }}\ntd, th {{ \
-         border: 1px solid #ccc; padding: 2px 6px; text-align: right; }}\ntr.flagged {{ background: #fdd; }}\n\
-         figure {{ display: inline-block; margin: 0.5em; }}\n</style>\n</head>\n<body>"
-    );
-    let _ = writeln!(out, "<h1>{}</h1>", escape(title));
-    let _ = writeln!(out, "<h2>Report</h2>\n<pre>{}</pre>", escape(text));
-    let _ = writeln!(out, "<h2>Figures</h2>");
     for (name, svg) in figures {
         let _ = writeln!(
             out,
-            "<figure id=\"{0}\">\n{1}\n<figcaption>{0}</figcaption>\n</figure>",
+            "<figure id=\"{0}\">\n{1}\n<figcaption><b>{0}</b>: {2}</figcaption>\n</figure>",
             escape(name),
-            inline_svg(svg)
+            inline_svg(svg),
+            escape(&caption(name))
         );
     }
+    out
+}
+
+/// Every pose of each set, a collapsible section per set: line, marker, the error at each
+/// stage (distance and x, y, z in mm; a probe's orientation error in deg), the whitened
+/// residual, its worst component and the flag.
+pub fn poses(sets: &[&SetEvaluation]) -> String {
+    let mut out = String::new();
     for set in sets.iter().filter(|s| !s.poses.is_empty()) {
-        let _ =
-            writeln!(out, "<h2>Poses: {}</h2>\n<table>\n<tr><th>line</th><th>marker</th>", escape(&set.name));
+        let flagged = set.flagged().count();
+        let _ = writeln!(
+            out,
+            "<details class=\"poses\">\n<summary>{}: {} poses, {} flagged</summary>",
+            escape(&set.name),
+            set.poses.len(),
+            flagged
+        );
         let probe = set.orientation.is_some();
+        let mut head: Vec<String> = vec!["line".into(), "marker".into()];
         for stage in &set.stages {
-            let _ = write!(out, "<th>{} (mm)</th><th>x</th><th>y</th><th>z</th>", escape(stage));
+            head.extend(["mm", "x", "y", "z"].map(|part| format!("{stage} {part}")));
             if probe {
-                let _ = write!(out, "<th>{} (deg)</th>", escape(stage));
+                head.push(format!("{stage} deg"));
             }
         }
-        let _ = writeln!(out, "<th>whitened</th><th>worst (sd)</th><th>flagged</th></tr>");
-        for p in &set.poses {
-            for (m, id) in set.marker_ids.iter().enumerate() {
-                let class = if p.flagged { " class=\"flagged\"" } else { "" };
-                let _ = write!(out, "<tr{class}><td>{}</td><td>{id}</td>", p.line);
+        head.extend(["whitened".into(), "worst (sd)".into(), "flagged".into()]);
+        let rows: Vec<Row> = (set.poses.iter())
+            .flat_map(|p| set.marker_ids.iter().enumerate().map(move |(m, id)| (p, m, id)))
+            .map(|(p, m, id)| {
+                let mut cells = vec![Cell::name(&p.line.to_string()), Cell::text(&id.to_string())];
                 for s in 0..set.stages.len() {
                     let e = p.errors[s][m];
-                    let _ = write!(
-                        out,
-                        "<td>{:.4}</td><td>{:.4}</td><td>{:.4}</td><td>{:.4}</td>",
-                        p.distance(s, m),
-                        e[0],
-                        e[1],
-                        e[2]
-                    );
+                    cells.push(Cell::text(&format!("{:.4}", p.distance(s, m))));
+                    cells.extend(e.iter().map(|v| Cell::text(&format!("{v:.4}"))));
                     if let Some(o) = &p.orientation {
-                        let _ = write!(out, "<td>{:.4}</td>", nalgebra::Vector3::from(o[s]).norm());
+                        cells.push(Cell::text(&format!("{:.4}", nalgebra::Vector3::from(o[s]).norm())));
                     }
                 }
-                let flag = if p.flagged { "yes" } else { "no" };
-                let _ =
-                    writeln!(out, "<td>{:.2}</td><td>{:.2}</td><td>{flag}</td></tr>", p.whitened, p.worst);
-            }
-        }
-        let _ = writeln!(out, "</table>");
+                cells.push(Cell::text(&format!("{:.2}", p.whitened)));
+                cells.push(Cell::text(&format!("{:.2}", p.worst)));
+                cells.push(Cell::text(if p.flagged { "yes" } else { "no" }));
+                Row { cells, class: if p.flagged { "flagged" } else { "" } }
+            })
+            .collect();
+        let head: Vec<&str> = head.iter().map(String::as_str).collect();
+        out.push_str(&table("poses", Some(&set.name), "", &head, &rows));
+        out.push_str("</details>\n");
     }
-    let _ = writeln!(out, "</body>\n</html>");
+    out
+}
+
+/// The page of a report that has only text (`evaluate`'s): `text` as printed, then the
+/// `figures` (`(file name, SVG text)`) inline with their captions, then every pose of `sets`.
+pub fn page(title: &str, text: &str, sets: &[&SetEvaluation], figures: &[(String, String)]) -> String {
+    let mut out = start(title, "");
+    let _ =
+        writeln!(out, "<section id=\"report\">\n<h2>Report</h2>\n<pre>{}</pre>\n</section>", escape(text));
+    if !figures.is_empty() {
+        let _ =
+            writeln!(out, "<section id=\"figures\">\n<h2>Figures</h2>\n{}</section>", self::figures(figures));
+    }
+    let _ = writeln!(out, "<section id=\"poses\">\n<h2>Every pose</h2>\n{}</section>", poses(sets));
+    out.push_str(end());
     out
 }

@@ -3,6 +3,7 @@
 
 pub mod accuracy;
 pub mod calibration;
+pub mod calibration_page;
 pub mod compensation;
 pub mod design;
 pub mod figures;
@@ -13,6 +14,7 @@ pub mod poses;
 pub mod replication;
 pub mod study;
 pub mod tree;
+pub mod verdict;
 
 use crate::model::{JointKind, RobotModel, degrees};
 use nalgebra::Isometry3;

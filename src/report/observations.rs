@@ -170,6 +170,26 @@ impl ObservationsReport {
         self
     }
 
+    /// The verdict: the RMS residuals of each set before and after, the warnings by cause.
+    fn verdict_text(&self) -> String {
+        let mut out = String::new();
+        let label = |score: &Score| if score.markers.is_some() { 17 } else { 9 };
+        let width = self.sets.iter().map(|r| r.0.len() + label(&r.1)).max().unwrap_or(0).max(24);
+        let _ = writeln!(out, "{:<width$} {:>10} {:>10}", "residuals, RMS", "before", "after");
+        for (name, score) in &self.sets {
+            let (before, after) = score.lengths;
+            let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
+            if let Some((before, after)) = score.markers {
+                let _ =
+                    writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} markers (mm)"));
+            }
+            if let Some((before, after)) = score.angles {
+                let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
+            }
+        }
+        out + &super::verdict::count_warnings(&self.warnings)
+    }
+
     /// The report as text, at fixed precision.
     pub fn text(&self) -> String {
         let mut out = String::new();
@@ -191,7 +211,7 @@ impl ObservationsReport {
                 b[0], b[1], b[2], b[3], b[4], b[5]
             );
         }
-        let _ = writeln!(out);
+        let _ = writeln!(out, "\n{}", self.verdict_text());
         super::calibration::write_parameters(&mut out, &self.parameters);
         super::calibration::write_down_weighted(
             &mut out,
@@ -214,20 +234,6 @@ impl ObservationsReport {
             let _ = writeln!(out, "{gap}held fixed, as these poses cannot tell them apart from the others:");
             for f in &self.fixed {
                 let _ = writeln!(out, "  {f}");
-            }
-        }
-        let label = |score: &Score| if score.markers.is_some() { 17 } else { 9 };
-        let width = self.sets.iter().map(|r| r.0.len() + label(&r.1)).max().unwrap_or(0).max(24);
-        let _ = writeln!(out, "\n{:<width$} {:>10} {:>10}", "residuals, RMS", "before", "after");
-        for (name, score) in &self.sets {
-            let (before, after) = score.lengths;
-            let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
-            if let Some((before, after)) = score.markers {
-                let _ =
-                    writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} markers (mm)"));
-            }
-            if let Some((before, after)) = score.angles {
-                let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
             }
         }
         let sessions: Vec<String> = (self.sets.iter().skip(1))

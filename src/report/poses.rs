@@ -95,6 +95,25 @@ fn table(title: &str, labels: &[(String, &ErrorStats)]) -> (String, usize) {
     (out, width)
 }
 
+/// The [`WORST`] poses of `set` with the largest marker error at the last stage, the worst
+/// first: `(pose, marker)`, the marker the pose's largest error.
+pub fn worst(set: &SetEvaluation) -> Vec<(usize, usize)> {
+    let last = set.stages.len().saturating_sub(1);
+    let mut ranked: Vec<(usize, usize, f64)> = set
+        .poses
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let (m, d) = (0..set.marker_ids.len())
+                .map(|m| (m, p.distance(last, m)))
+                .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+            (k, m, d)
+        })
+        .collect();
+    ranked.sort_by(|a, b| b.2.total_cmp(&a.2).then(a.0.cmp(&b.0)));
+    ranked.into_iter().take(WORST).map(|(k, m, _)| (k, m)).collect()
+}
+
 /// The [`WORST`] poses of each set with the largest marker error at the last stage: line,
 /// marker, the error at each stage, the whitened residual and the flag.
 pub fn worst_poses(sets: &[&SetEvaluation]) -> String {
@@ -107,20 +126,7 @@ pub fn worst_poses(sets: &[&SetEvaluation]) -> String {
     }
     let _ = writeln!(out, " {:>9} {:>6}  flagged", "whitened", "worst");
     for set in sets {
-        let last = set.stages.len() - 1;
-        let mut ranked: Vec<(usize, usize, f64)> = set
-            .poses
-            .iter()
-            .enumerate()
-            .map(|(k, p)| {
-                let (m, d) = (0..set.marker_ids.len())
-                    .map(|m| (m, p.distance(last, m)))
-                    .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
-                (k, m, d)
-            })
-            .collect();
-        ranked.sort_by(|a, b| b.2.total_cmp(&a.2).then(a.0.cmp(&b.0)));
-        for &(k, m, _) in ranked.iter().take(WORST) {
+        for (k, m) in worst(set) {
             let p = &set.poses[k];
             let _ = write!(out, "{:<width$} {:>6} {:>6}", set.name, p.line, set.marker_ids[m]);
             for s in 0..set.stages.len() {

@@ -158,6 +158,21 @@ impl TreeReport {
         Self { training_files: files, ..self }
     }
 
+    /// The verdict: the views' RMS errors of each set before and after, the warnings by cause.
+    fn verdict_text(&self) -> String {
+        let mut out = String::new();
+        let width = self.sets.iter().map(|r| r.0.len() + 9).max().unwrap_or(0).max(24);
+        let _ = writeln!(out, "{:<width$} {:>10} {:>10}", "view errors, RMS", "before", "after");
+        for (name, score) in &self.sets {
+            let (before, after) = score.position;
+            let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
+            if let Some((before, after)) = score.rotation {
+                let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
+            }
+        }
+        out + &super::verdict::count_warnings(&self.warnings)
+    }
+
     /// The report as text, at fixed precision.
     pub fn text(&self) -> String {
         let mut out = String::new();
@@ -175,6 +190,7 @@ impl TreeReport {
             if self.converged { "converged" } else { "not converged" }
         );
         let _ = writeln!(out, "joints: {}\n", self.joints.join(", "));
+        let _ = writeln!(out, "{}", self.verdict_text());
         let width = self.parameters.iter().map(|p| p.name.len()).max().unwrap_or(0).max(9);
         let _ = writeln!(out, "{:<width$} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
         for p in &self.parameters {
@@ -200,15 +216,6 @@ impl TreeReport {
             let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");
             for f in &self.fixed {
                 let _ = writeln!(out, "  {f}");
-            }
-        }
-        let width = self.sets.iter().map(|r| r.0.len() + 9).max().unwrap_or(0).max(24);
-        let _ = writeln!(out, "\n{:<width$} {:>10} {:>10}", "view errors, RMS", "before", "after");
-        for (name, score) in &self.sets {
-            let (before, after) = score.position;
-            let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
-            if let Some((before, after)) = score.rotation {
-                let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
             }
         }
         let _ = writeln!(out, "\nworst views after calibration ({WORST} per set; every one in --json):");

@@ -592,6 +592,14 @@ fn the_probe_frame_is_reported_absolutely_in_the_tip_link_frame() {
     let t = report.tip_frame.expect("in the report");
     assert!((t[0] - 52.0).abs() < 1e-4 && (t[5] - 0.5f64.to_degrees()).abs() < 1e-6, "{t:?}");
     assert!(report.text().contains("probe frame in the tip link's frame: xyz (52.000, 1.000, 148.000) mm"));
+    // The JSON's keys of a probe (docs/formats.md, "Calibration report (JSON)").
+    let json = serde_json::to_value(&report).unwrap();
+    assert!(json["tip_frame"].is_array(), "{json}");
+    let training = &json["verdict"]["sets"][0];
+    assert_eq!(training["role"], "training");
+    for key in ["orientation_rms_deg", "orientation_max_deg"] {
+        assert_eq!(training[key].as_array().map(Vec::len), Some(2), "{key}: {training}");
+    }
 }
 
 /// Without a noise model the training residuals are whitened by their spread, a pose's

@@ -120,7 +120,7 @@ fn cross_validation_after_selection_is_optimistic_and_the_nested_one_is_not() {
 
 /// Run `robocal calibrate` on the arm7 benchmark with `extra` flags, writing its JSON report to
 /// `json`; its standard output and the report.
-fn calibrate_arm7(extra: &[&str], json: &std::path::Path) -> (String, serde_json::Value) {
+pub(crate) fn calibrate_arm7(extra: &[&str], json: &std::path::Path) -> (String, serde_json::Value) {
     let mut args = vec![
         "calibrate",
         "--model",

@@ -310,18 +310,30 @@ fn poses_csv_has_a_row_per_pose_and_marker() {
     assert_eq!(lines.count(), 2 * 100 + 2 * 50);
 }
 
+/// The page leads with the verdict as a card, has a table per set, every figure inline with a
+/// caption that says what to look for, the combinations held and every pose in collapsible
+/// sections, and refers to nothing outside itself.
 #[test]
 fn the_page_is_one_well_formed_file_with_every_table_and_figure() {
     let dir = scratch("html");
     let (page, figures) = (dir.join("report.html"), dir.join("figures"));
     calibrate(&["--html", page.to_str().unwrap(), "--figures", figures.to_str().unwrap()]);
     let html = std::fs::read_to_string(&page).unwrap();
-    assert!(!html.contains("http") && !html.contains("src="), "the page refers to nothing outside itself");
+    assert!(!html.contains("http") && !html.contains("src=") && !html.contains("<script"), "self-contained");
     let document = roxmltree::Document::parse_with_options(
         &html,
         roxmltree::ParsingOptions { allow_dtd: true, ..Default::default() },
     )
     .expect("well-formed");
+    let body = document.descendants().find(|n| n.has_tag_name("body")).unwrap();
+    let sections: Vec<&str> =
+        body.children().filter(|n| n.has_tag_name("section")).filter_map(|n| n.attribute("id")).collect();
+    assert_eq!(sections, ["summary", "parameters", "held", "errors", "figures", "poses", "warnings"]);
+    let summary = body.children().find(|n| n.attribute("id") == Some("summary")).unwrap();
+    assert_eq!(summary.attribute("class"), Some("card"));
+    let verdict = summary.descendants().find(|n| n.has_tag_name("table")).expect("the verdict's table");
+    let verdict_text: String = verdict.descendants().filter_map(|n| n.text()).collect();
+    assert!(verdict_text.contains("examples/puma560-validation.csv") && verdict_text.contains("held out"));
     let mut names: Vec<String> = std::fs::read_dir(&figures)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -329,16 +341,41 @@ fn the_page_is_one_well_formed_file_with_every_table_and_figure() {
     names.sort();
     assert_eq!(names.len(), 2 + 1 + 6, "{names:?}");
     for name in &names {
-        let figure = document.descendants().find(|n| n.attribute("id") == Some(name.as_str()));
-        assert!(figure.is_some_and(|f| f.descendants().any(|n| n.has_tag_name("svg"))), "{name} inline");
+        let figure = document.descendants().find(|n| n.attribute("id") == Some(name.as_str())).unwrap();
+        assert!(
+            figure.has_tag_name("figure") && figure.descendants().any(|n| n.has_tag_name("svg")),
+            "{name}"
+        );
+        let caption = figure.children().find(|n| n.has_tag_name("figcaption")).expect("a caption");
+        let words: String = caption.descendants().filter_map(|n| n.text()).collect();
+        assert!(words.contains("Look for") || words.contains("look for"), "{name}: {words}");
         let svg = std::fs::read_to_string(figures.join(name)).unwrap();
         assert!(svg.contains("<svg"), "{name}");
     }
-    for table in ["marker position errors (mm)", "per marker (mm)", "worst poses", "parameter"] {
-        assert!(html.contains(table), "{table}");
+    // A table per set (pooled and per marker), the parameters with their intervals drawn.
+    let tables: Vec<roxmltree::Node> = document.descendants().filter(|n| n.has_tag_name("table")).collect();
+    for set in ["training", "examples/puma560-validation.csv"] {
+        let table = tables
+            .iter()
+            .find(|t| t.attribute("data-set") == Some(set) && t.attribute("class") == Some("set small"));
+        let rows = table
+            .unwrap_or_else(|| panic!("a table of {set}"))
+            .descendants()
+            .filter(|n| n.has_tag_name("tr"));
+        assert_eq!(
+            rows.count(),
+            1 + 2 * 3,
+            "{set}: a head, before and after for every marker, marker 1, marker 2"
+        );
     }
-    let tables = document.descendants().filter(|n| n.has_tag_name("table")).count();
-    assert_eq!(tables, 2, "one table of poses per set");
+    let parameters = tables.iter().find(|t| t.attribute("class") == Some("parameters")).unwrap();
+    let bars = parameters.descendants().filter(|n| n.has_tag_name("svg")).count();
+    assert_eq!(bars, 30, "an interval drawn per parameter");
+    // The combinations and the poses collapsed.
+    let details: Vec<roxmltree::Node> =
+        document.descendants().filter(|n| n.has_tag_name("details")).collect();
+    assert!(details.iter().any(|d| d.attribute("class") == Some("combinations")));
+    assert_eq!(details.iter().filter(|d| d.attribute("class") == Some("poses")).count(), 2);
     // A headless browser, where the machine has one, draws the same page offline.
     let url = format!("file://{}", page.display());
     let browser = ["chromium", "chromium-browser", "google-chrome"].into_iter().find_map(|name| {
@@ -347,9 +384,114 @@ fn the_page_is_one_well_formed_file_with_every_table_and_figure() {
     });
     if let Some(output) = browser {
         let dom = String::from_utf8_lossy(&output.stdout);
-        assert_eq!(dom.matches("<svg").count(), names.len(), "the browser sees every figure");
+        assert_eq!(dom.matches("<svg").count(), names.len() + 30, "the browser sees every figure and bar");
         assert!(dom.contains("worst poses"), "and the tables");
     }
+}
+
+/// The keys documented in docs/formats.md's section on the calibration report's JSON, as
+/// `(key, always present)`: the top-level ones and the verdict's (`verdict.sets[].rms_mm`).
+fn documented_keys() -> Vec<(String, bool)> {
+    let docs = std::fs::read_to_string("docs/formats.md").unwrap();
+    let start = docs.find("## Calibration report (JSON)").expect("the section");
+    let section = &docs[start..];
+    let section = &section[..section[3..].find("\n## ").map_or(section.len(), |e| e + 3)];
+    section
+        .lines()
+        .filter_map(|l| l.strip_prefix("| `"))
+        .filter_map(|l| {
+            let (key, rest) = l.split_once("` | ")?;
+            Some((key.to_string(), rest.starts_with("always")))
+        })
+        .collect()
+}
+
+/// Whether `path` (`a.b[].c`) names something in `json` (in some element of an array).
+fn has(json: &Value, path: &str) -> bool {
+    match path.split_once('.') {
+        None => match path.strip_suffix("[]") {
+            Some(key) => json.get(key).is_some_and(Value::is_array),
+            None => json.get(path).is_some(),
+        },
+        Some((head, rest)) => match head.strip_suffix("[]") {
+            Some(key) => {
+                json.get(key).and_then(Value::as_array).is_some_and(|a| a.iter().any(|e| has(e, rest)))
+            }
+            None => json.get(head).is_some_and(|v| has(v, rest)),
+        },
+    }
+}
+
+/// The JSON of a calibration is schema 2: every key it writes is documented, in the documented
+/// order, the verdict first; every key documented is in real output (a probe's and `--prior
+/// auto`'s in their own tests); the verdict's numbers are the tables'.
+#[test]
+fn the_json_schema_is_documented_and_every_documented_key_is_real() {
+    let dir = scratch("schema");
+    let (a, b) = (dir.join("a.json"), dir.join("b.json"));
+    // The README's file with marker 1 of line 10 moved by 20 mm: an outlier a robust loss
+    // weighs down.
+    let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    let moved: Vec<String> = (text.lines().enumerate())
+        .map(|(k, line)| match k {
+            9 => {
+                let mut cells: Vec<String> = line.split(',').map(String::from).collect();
+                cells[6] = format!("{}", cells[6].parse::<f64>().unwrap() + 20.0);
+                cells.join(",")
+            }
+            _ => line.to_string(),
+        })
+        .collect();
+    let outlier = dir.join("outlier.csv");
+    std::fs::write(&outlier, moved.join("\n") + "\n").unwrap();
+    let mut args = CALIBRATE.to_vec();
+    args[4] = outlier.to_str().unwrap();
+    let validation = "examples/puma560-validation.csv";
+    args.extend(["--validate", validation, "--folds", "2", "--select", "bic", "--loss", "cauchy"]);
+    args.extend(["--json", a.to_str().unwrap()]);
+    run(&args);
+    let arm7 = ["--params", "joint*.theta,joint*.compliance", "--estimator", "fgls"];
+    super::nested::calibrate_arm7(&arm7, &b);
+    let documented = documented_keys();
+    let top: Vec<&str> = documented.iter().map(|(k, _)| k.as_str()).filter(|k| !k.contains('.')).collect();
+    assert_eq!(&top[..2], ["schema", "verdict"]);
+    // A probe's keys are checked by calibration.rs's probe test, `--prior auto`'s by nested.rs.
+    let elsewhere = [
+        "tip_frame",
+        "verdict.sets[].orientation_rms_deg",
+        "verdict.sets[].orientation_max_deg",
+        "prior_scale",
+    ];
+    let reports: Vec<(String, Value)> =
+        [&a, &b].iter().map(|p| (std::fs::read_to_string(p).unwrap(), json(p))).collect();
+    for (text, report) in &reports {
+        assert_eq!(report["schema"], 2);
+        // Every top-level key documented, in the documented order.
+        let keys: Vec<&String> = report.as_object().unwrap().keys().collect();
+        for key in &keys {
+            assert!(top.contains(&key.as_str()), "`{key}` is not documented in docs/formats.md");
+        }
+        let at: Vec<usize> = (top.iter())
+            .filter(|k| keys.iter().any(|key| key == *k))
+            .map(|k| text.find(&format!("\n  \"{k}\": ")).unwrap())
+            .collect();
+        assert!(at.windows(2).all(|w| w[0] < w[1]), "the keys in the documented order");
+        for (key, always) in &documented {
+            assert!(!always || has(report, key), "`{key}` is always present");
+        }
+    }
+    for (key, _) in documented.iter().filter(|(k, _)| !elsewhere.contains(&k.as_str())) {
+        assert!(reports.iter().any(|(_, r)| has(r, key)), "`{key}` documented, in no real output");
+    }
+    // The verdict's numbers are the error tables'.
+    let report = &reports[0].1;
+    let sets = report["verdict"]["sets"].as_array().unwrap();
+    let roles: Vec<&str> = sets.iter().map(|s| s["role"].as_str().unwrap()).collect();
+    assert_eq!(roles, ["training", "held_out", "held_out", "pooled", "cross_validation"]);
+    assert_eq!(sets[0]["rms_mm"][1], report["training"][1]["rms"]);
+    assert_eq!(sets[1]["max_mm"][0], report["validation"][0][1]["max"]);
+    assert_eq!(sets[4]["rms_mm"][1], report["validation"][2][2]["rms"]);
+    assert_eq!(sets[3]["poses"], 100);
 }
 
 #[test]
