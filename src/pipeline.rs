@@ -2,10 +2,16 @@
 //! its inputs and writing its outputs, for the command line and the Python package alike, so
 //! that neither keeps a copy. Of marker data ([`calibrate_markers`]): the choices made from
 //! the data, the calibration, the held-out sets scored, the cross-validation, the accuracy
-//! predicted at the held-out poses, the report. Of views on a tree ([`calibrate_views`]): the
-//! sessions joined, the calibration, the held-out sets scored, the report. Above every other
+//! predicted at the held-out poses, the report. Of observation files
+//! ([`calibrate_observations`]) and of views on a tree ([`calibrate_views`]): the sessions
+//! joined, the calibration (with `--select`'s choice for observations), the held-out sets
+//! scored, the (nested) cross-validation, the report. Above every other
 //! module: it joins the calibration, the design's accuracy prediction and the report.
 
+use crate::calibration::kinds::{
+    KindCalibration, KindData, KindOptions, calibrate_kinds, cross_validate_kinds,
+};
+use crate::calibration::selection::{Criterion, calibrate_kinds_selected, cross_validate_kinds_selection};
 use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree};
 use crate::calibration::{
     self, Calibration, CalibrationError, Choices, ErrorStats, FeasibleOptions, Loss, Measurements, Options,
@@ -15,6 +21,7 @@ use crate::design::accuracy::{AccuracyModel, CovarianceError, ParameterCovarianc
 use crate::estimation::NoiseModel;
 use crate::model::{RobotModel, RobotTree};
 use crate::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy};
+use crate::report::observations::ObservationsReport;
 use crate::report::tree::TreeReport;
 
 /// A calibration of marker data as `robocal calibrate` asks for it.
@@ -172,11 +179,11 @@ fn predicted_accuracy(
         .collect())
 }
 
-/// Why a calibration of views on a tree failed: the calibration's error, and the file (or
-/// files) it concerns.
+/// Why a calibration of observation files or of views on a tree failed: the calibration's
+/// error, and the file (or files) it concerns.
 #[derive(Debug, thiserror::Error)]
 #[error("{context}")]
-pub struct TreeError {
+pub struct FilesError {
     /// The file or files: a session that cannot be joined, the sessions fitted, a held-out set.
     pub context: String,
     /// The calibration's error.
@@ -193,9 +200,9 @@ pub struct TreeOutcome {
     pub report: TreeReport,
 }
 
-/// A function making a calibration's error a [`TreeError`] about `context`.
-fn in_context(context: &str) -> impl Fn(CalibrationError) -> TreeError + '_ {
-    move |source| TreeError { context: context.to_string(), source }
+/// A function making a calibration's error a [`FilesError`] about `context`.
+fn in_context(context: &str) -> impl Fn(CalibrationError) -> FilesError + '_ {
+    move |source| FilesError { context: context.to_string(), source }
 }
 
 /// Calibrate `tree` from the views of `sessions` (each a file's name and views) fitted
@@ -206,7 +213,7 @@ pub fn calibrate_views(
     sessions: &[(String, TreeData)],
     held_out: &[(String, TreeData)],
     options: &TreeOptions,
-) -> Result<TreeOutcome, TreeError> {
+) -> Result<TreeOutcome, FilesError> {
     let mut data = TreeData::default();
     for (name, file) in sessions {
         data = data.join(file).map_err(in_context(name))?;
@@ -216,10 +223,71 @@ pub fn calibrate_views(
     let c = calibrate_tree(tree, &data, options).map_err(in_context(&names))?;
     let scores = (held_out.iter())
         .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
-        .collect::<Result<Vec<_>, TreeError>>()?;
+        .collect::<Result<Vec<_>, FilesError>>()?;
     let fitted = (data.views.len(), data.joints.len());
     let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
     let report =
         TreeReport::new(&c, &names, fitted, options.estimator.name(), scores).with_training_files(files);
     Ok(TreeOutcome { calibration: c, report })
+}
+
+/// An observation files' calibration and its report (the command line's).
+#[derive(Debug, Clone)]
+pub struct ObservationOutcome {
+    /// The calibration.
+    pub calibration: KindCalibration,
+    /// The report: the training observations, each held-out set and the cross-validation
+    /// scored, the files fitted, the selection's path if one was made.
+    pub report: ObservationsReport,
+}
+
+/// Calibrate `model` from the observations of `sessions` (each a file's name and
+/// observations) fitted together, the parameters chosen by `select` if given
+/// ([`calibrate_kinds_selected`]), else every one asked for ([`calibrate_kinds`]); score each
+/// `held_out` set with the calibrated robot and set-up; with `folds`, cross-validate the
+/// training poses, the selection and a robust loss's weights made again in each fold
+/// (labelled "nested"); and report.
+pub fn calibrate_observations(
+    model: &RobotModel,
+    sessions: &[(String, KindData)],
+    held_out: &[(String, KindData)],
+    options: &KindOptions,
+    select: Option<Criterion>,
+    folds: Option<usize>,
+) -> Result<ObservationOutcome, FilesError> {
+    let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
+    let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
+    let names = names.join(", ");
+    let (path, c) = match select {
+        Some(criterion) => {
+            let context = format!("--select {}: {names}", criterion.name());
+            let (path, c) =
+                calibrate_kinds_selected(model, &data, options, criterion).map_err(in_context(&context))?;
+            (Some(path), c)
+        }
+        None => (None, calibrate_kinds(model, &data, options).map_err(in_context(&names))?),
+    };
+    let mut scores = (held_out.iter())
+        .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
+        .collect::<Result<Vec<_>, FilesError>>()?;
+    if let Some(k) = folds {
+        let score = match select {
+            Some(criterion) => cross_validate_kinds_selection(model, &data, options, criterion, k),
+            None => cross_validate_kinds(model, &data, options, k),
+        };
+        let score = score.map_err(in_context(&format!("--folds {k}: {names}")))?;
+        // A selection and a robust loss's weights are choices made from the data: made again
+        // in each fold.
+        let chosen = select.is_some() || options.loss != Loss::Squared;
+        let nested = if chosen { ", nested" } else { "" };
+        scores.push((format!("{k}-fold cross-validation{nested}"), score));
+    }
+    let fitted = (data.observations.len(), data.joints.len());
+    let files = sessions.iter().map(|(name, file)| (name.clone(), file.observations.len())).collect();
+    let mut report = ObservationsReport::new(&c, &names, fitted, options.estimator.name(), scores)
+        .with_training_files(files);
+    if let Some(path) = &path {
+        report = report.with_selection(path, &c);
+    }
+    Ok(ObservationOutcome { calibration: c, report })
 }

@@ -7,7 +7,7 @@ use crate::model::Model;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
-use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds, cross_validate_kinds};
+use robocal::calibration::kinds::{KindData, KindOptions};
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::calibration::{
@@ -762,46 +762,30 @@ fn observations(
         "estimator",
         "observation files: each observation's sigma is its own; give joint_sigma only, and an estimator other than fgls",
     )?;
-    require(
-        request.select.is_none() && request.auto_prior.is_none(),
-        "select",
-        "not with observation files",
-    )?;
-    let read = |s: &Source| -> PyResult<KindData> {
+    require(request.auto_prior.is_none(), "prior", "auto: not with observation files")?;
+    let read = |s: &Source| -> PyResult<(String, KindData)> {
         let data = KindData::from_csv_str(&text_of(s)?, model, units_for(s, request.units))
             .map_err(|e| data_error(s, &e))?;
         let stem =
             Path::new(&s.0).file_stem().map_or_else(|| s.0.clone(), |n| n.to_string_lossy().into_owned());
-        Ok(data.named(&stem))
+        Ok((s.0.clone(), data.named(&stem)))
     };
-    let mut data = KindData::default();
-    let mut files = Vec::new();
-    for s in sources {
-        let file = read(s)?;
-        files.push((s.0.clone(), file.observations.len()));
-        data = data.join(&file);
-    }
+    let sessions: Vec<(String, KindData)> = sources.iter().map(read).collect::<PyResult<_>>()?;
+    let held: Vec<(String, KindData)> = validate.iter().map(read).collect::<PyResult<_>>()?;
     let options = kind_options(model, flags, request)?;
-    let names: Vec<String> = sources.iter().map(|s| s.0.clone()).collect();
-    let held: Vec<(String, KindData)> =
-        validate.iter().map(|v| Ok((v.0.clone(), read(v)?))).collect::<PyResult<_>>()?;
-    let run = || -> Result<_, calibration::CalibrationError> {
-        let c = calibrate_kinds(model, &data, &options)?;
-        let mut scores = held
-            .iter()
-            .map(|(name, d)| Ok::<_, calibration::CalibrationError>((name.clone(), c.score(d)?)))
-            .collect::<Result<Vec<_>, _>>()?;
-        if let Some(k) = flags.folds {
-            let score = cross_validate_kinds(model, &data, &options, k)?;
-            let nested = if options.loss == Loss::Squared { "" } else { ", nested" };
-            scores.push((format!("{k}-fold cross-validation{nested}"), score));
-        }
-        Ok((c, scores))
-    };
-    let (c, scores) = py.detach(run).map_err(|e| errors::calibration(&e, &names.join(", ")))?;
-    let fitted = (data.observations.len(), data.joints.len());
-    let report = ObservationsReport::new(&c, &names.join(", "), fitted, options.estimator.name(), scores)
-        .with_training_files(files);
+    let outcome = py
+        .detach(|| {
+            robocal::pipeline::calibrate_observations(
+                model,
+                &sessions,
+                &held,
+                &options,
+                request.select,
+                flags.folds,
+            )
+        })
+        .map_err(|e| errors::calibration(&e.source, &e.context))?;
+    let (c, report) = (outcome.calibration, outcome.report);
     let calibrated = Model::new(c.calibrated.clone(), robot.urdf.clone()).with_markers(c.marker_positions());
     let estimate = &c.refined.estimate;
     Calibration::new(

@@ -402,6 +402,16 @@ def test_observations_from_arrays_calibrate_as_their_files(puma: robocal.Model, 
     assert np.array_equal(d.parameters.estimates, robocal.calibrate(puma, [BALLBAR]).parameters.estimates)
 
 
+def test_selection_on_observation_files_is_the_command_lines(puma: robocal.Model, tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    run_cli("calibrate", "--model", "puma560", "--data", str(BALLBAR), "--select", "bic", "--folds", "3",
+            "--json", str(out), "--quiet")
+    c = robocal.calibrate(puma, [BALLBAR], select="bic", folds=3)
+    theirs = json.loads(out.read_text())
+    assert "selection" in theirs
+    assert_same(json.loads(c.to_json()), theirs)
+
+
 def write_table(path: Path, columns: dict[str, Any], n: int) -> None:
     """An observation file in deg and mm of named columns (n values, or one for every row):
     numbers at 17 significant digits, NaN an empty cell, text as it is."""

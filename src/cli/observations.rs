@@ -6,27 +6,20 @@ use super::from_flag_unit;
 use super::request::CalibrateObservationsRequest;
 use anyhow::{Context, Result, bail};
 use nalgebra::DMatrix;
-use robocal::calibration::kinds::{
-    KindData, KindOptions, Observation, calibrate_kinds, cross_validate_kinds,
-};
-use robocal::calibration::selection::{calibrate_kinds_selected, cross_validate_kinds_selection};
+use robocal::calibration::kinds::{KindData, KindOptions, Observation};
 use robocal::estimation::RefineOptions;
 use robocal::io;
 use robocal::model::RobotModel;
-use robocal::report::observations::ObservationsReport;
 use std::path::Path;
 
 /// Calibrate, print the report, write the files asked for.
 pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     let robot = super::calibrate::load_model(&request.model)?;
     let model = robot.model.clone();
-    let mut data = KindData::default();
-    let mut files = Vec::with_capacity(request.data.len());
-    for path in &request.data {
-        let file = read(path, &model, request)?;
-        files.push((path.display().to_string(), file.observations.len()));
-        data = data.join(&file);
-    }
+    let sessions = (request.data.iter())
+        .map(|path| Ok((path.display().to_string(), read(path, &model, request)?)))
+        .collect::<Result<Vec<_>>>()?;
+    let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
     let highest = data.markers().last().map_or(0, |m| m + 1);
     if request.markers.len() > highest {
         bail!(
@@ -61,43 +54,18 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         markers: request.markers.clone(),
         refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
     };
-    let names: Vec<String> = request.data.iter().map(|p| p.display().to_string()).collect();
-    let (path, c) = match request.select {
-        Some(criterion) => {
-            let (path, c) = calibrate_kinds_selected(&model, &data, &options, criterion)
-                .with_context(|| format!("--select {}: {}", criterion.name(), names.join(", ")))?;
-            (Some(path), c)
-        }
-        None => (None, calibrate_kinds(&model, &data, &options).with_context(|| names.join(", "))?),
-    };
-    let held_out = request
-        .validate
-        .iter()
-        .map(|path| {
-            let score = c.score(&read(path, &model, request)?).with_context(|| path.display().to_string())?;
-            Ok((path.display().to_string(), score))
-        })
+    let held_out = (request.validate.iter())
+        .map(|path| Ok((path.display().to_string(), read(path, &model, request)?)))
         .collect::<Result<Vec<_>>>()?;
-    let mut held_out = held_out;
-    if let Some(k) = request.folds {
-        let score = match request.select {
-            Some(criterion) => cross_validate_kinds_selection(&model, &data, &options, criterion, k),
-            None => cross_validate_kinds(&model, &data, &options, k),
-        };
-        let score = score.with_context(|| format!("--folds {k}: {}", names.join(", ")))?;
-        // A selection and a robust loss's weights are choices made from the data: made again
-        // in each fold.
-        let chosen = request.select.is_some() || options.loss != robocal::calibration::Loss::Squared;
-        let nested = if chosen { ", nested" } else { "" };
-        held_out.push((format!("{k}-fold cross-validation{nested}"), score));
-    }
-    let fitted = (data.observations.len(), data.joints.len());
-    let mut report =
-        ObservationsReport::new(&c, &names.join(", "), fitted, request.estimator.name(), held_out)
-            .with_training_files(files);
-    if let Some(path) = &path {
-        report = report.with_selection(path, &c);
-    }
+    let outcome = robocal::pipeline::calibrate_observations(
+        &model,
+        &sessions,
+        &held_out,
+        &options,
+        request.select,
+        request.folds,
+    )?;
+    let (c, report) = (outcome.calibration, outcome.report);
     print!("{}", report.text());
     let mut outputs = io::Outputs::new();
     if let Some(path) = &request.json {
