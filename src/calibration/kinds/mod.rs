@@ -1261,16 +1261,24 @@ pub fn calibrate_kinds(
     options: &KindOptions,
 ) -> Result<KindCalibration, CalibrationError> {
     let prepared = prepare(model, data, options)?;
-    let started = start(&prepared, data, options)?;
-    let Fitted { refined: estimate, robust, fixed, after, after_setup, blocks } =
-        fit_gauged(&prepared, &started, options)?;
+    let Started { base, weights, before, before_setup, linearised, gauged } =
+        start(&prepared, data, options)?;
+    let Gauged { identifiable, fixed, prior } = gauged;
     let fixed = prepared.every_held(fixed);
+    let (kept, kept_setup) = prepared.kept(&identifiable);
+    let problem = base.reselect(&kept, before.clone(), before_setup.clone(), kept_setup);
+    let prior = prior.map(|p| p.select(&identifiable));
+    let start = linearised.select(&identifiable);
+    let (estimate, robust) =
+        super::robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
     // A pose's weight is every one of its observations'.
     let robust = robust.map(|mut r| {
+        let blocks = problem.blocks();
         r.weights = (0..r.weights.len()).flat_map(|k| vec![r.weights[k]; blocks.range(k).len()]).collect();
         r
     });
-    let Started { before, before_setup, .. } = started;
+    let (after, after_setup) = problem.full(&estimate.estimate.x);
+    drop(problem);
     let Prepared { registered, chains, params, probe, points, markers, setup, nothing, .. } = prepared;
     let calibrated_points = calibrated_points(&params, &after, &points);
     // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
@@ -1308,106 +1316,6 @@ pub fn calibrate_kinds(
     };
     scored(&mut calibration, data)?;
     Ok(calibration)
-}
-
-/// Times at most the gauge is chosen again at the estimate ([`fit_gauged`]).
-const GAUGE_ROUNDS: usize = 3;
-
-/// What [`fit_gauged`] gives: the fit (every step of every round in its history), the robust
-/// fit's record, what the gauge held in words, the robot's and the set-up's values after.
-struct Fitted {
-    refined: Refined,
-    robust: Option<RobustFit>,
-    fixed: Vec<Held>,
-    after: Vec<f64>,
-    after_setup: Vec<f64>,
-    blocks: Blocks,
-}
-
-/// The fit of what `prepared` asks for from `started`, its gauge checked at the estimate: where
-/// the estimate identifies what the start did not (a tool point started on the last joint's
-/// axis holds a combination the fitted point identifies), or no longer identifies what the
-/// start held free ([`regauged`]), the gauge of the estimate is taken, what it holds back at its
-/// "before" value, and the fit made again from the estimate ([`GAUGE_ROUNDS`] at most). Every
-/// step of every round counts against the one step limit.
-fn fit_gauged(
-    prepared: &Prepared,
-    started: &Started<'_>,
-    options: &KindOptions,
-) -> Result<Fitted, CalibrationError> {
-    let Started { base, weights, before, before_setup, linearised, gauged } = started;
-    let (mut identifiable, mut fixed) = (gauged.identifiable.clone(), gauged.fixed.clone());
-    let (mut at, mut at_setup) = (before.clone(), before_setup.clone());
-    let mut start = linearised.select(&identifiable);
-    let mut history = Vec::new();
-    let limit = options.refine.max_iterations;
-    for round in 0..=GAUGE_ROUNDS {
-        let (kept, kept_setup) = prepared.kept(&identifiable);
-        let problem = base.reselect(&kept, at, at_setup, kept_setup.clone());
-        let prior = gauged.prior.as_ref().map(|p| p.select(&identifiable));
-        let (mut refined, robust) = super::robust::fit_after(
-            &problem,
-            weights,
-            start,
-            &options.refine,
-            prior.as_ref(),
-            options.loss,
-            history.len(),
-        )?;
-        history.append(&mut refined.history);
-        let (after, after_setup) = problem.full(&refined.estimate.x);
-        let again = round < GAUGE_ROUNDS && refined.converged && limit > 1 && history.len() < limit;
-        let regauge = match again {
-            true => regauged(prepared, started, (&after, &after_setup), &identifiable, options)?,
-            false => None,
-        };
-        let Some((g, there)) = regauge else {
-            refined.history = history;
-            let blocks = problem.blocks();
-            return Ok(Fitted { refined, robust, fixed, after, after_setup, blocks });
-        };
-        // What the estimate's gauge holds goes back to its "before" value.
-        let (new_kept, new_setup) = prepared.kept(&g.identifiable);
-        (at, at_setup) = (after.clone(), after_setup.clone());
-        for &i in kept.indices().iter().filter(|&&i| new_kept.column(i).is_none()) {
-            at[i] = before[i];
-        }
-        for &i in kept_setup.iter().filter(|i| !new_setup.contains(i)) {
-            at_setup[i] = before_setup[i];
-        }
-        start = match at == after && at_setup == after_setup {
-            true => there.select(&g.identifiable),
-            false => {
-                let moved = base.reselect(&new_kept, at.clone(), at_setup.clone(), new_setup);
-                linearise(&moved, weights, moved.start())?
-            }
-        };
-        (identifiable, fixed) = (g.identifiable, g.fixed);
-    }
-    unreachable!("the last round returns")
-}
-
-/// The gauge at the estimate `(after, after_setup)` of `started`, and the system of what is
-/// asked for there, if it is not the gauge of the columns `identifiable`: the estimate
-/// identifies more or fewer of the asked parameters, or does not identify every kept one.
-fn regauged(
-    prepared: &Prepared,
-    started: &Started<'_>,
-    (after, after_setup): (&[f64], &[f64]),
-    identifiable: &[usize],
-    options: &KindOptions,
-) -> Result<Option<(Gauged, Linearisation)>, CalibrationError> {
-    let (asked, asked_setup) = (&prepared.asked, prepared.asked_setup.clone());
-    let problem = started.base.reselect(asked, after.to_vec(), after_setup.to_vec(), asked_setup);
-    let there = linearise(&problem, &started.weights, problem.start())?;
-    let gauged = gauge(&problem, &there, (&prepared.params, asked), options, &started.weights)?;
-    let kept = there.select(identifiable);
-    let kept_rank = match gauged.prior.as_ref() {
-        Some(prior) => kept.with_prior(&prior.select(identifiable)).diagnose(RANK_TOLERANCE)?.rank,
-        None => kept.diagnose(RANK_TOLERANCE)?.rank,
-    };
-    let same = gauged.identifiable.len() == identifiable.len() && kept_rank == identifiable.len();
-    Ok((!same).then_some((gauged, there)))
 }
 
 /// The robot and the set-up of a calibration of some data, before any fit: the model with its
