@@ -170,24 +170,10 @@ pub(crate) fn fit(
     prior: Option<&PriorRows>,
     loss: Loss,
 ) -> Result<(Refined, Option<RobustFit>), EstimationError> {
-    fit_after(problem, weights, start, options, prior, loss, 0)
-}
-
-/// [`fit`] when `spent` steps (fewer than `options.max_iterations`) of the one limit were
-/// spent already; the history holds the new steps only.
-pub(crate) fn fit_after(
-    problem: &impl Residuals,
-    weights: &Weights,
-    start: Linearisation,
-    options: &RefineOptions,
-    prior: Option<&PriorRows>,
-    loss: Loss,
-    spent: usize,
-) -> Result<(Refined, Option<RobustFit>), EstimationError> {
     // Every step of every reweighted fit counts against the one limit.
     let cap = options.max_iterations;
     let once = |weights: &Weights, start: Linearisation, taken: usize| {
-        refine_within(problem, weights, start, options, prior, cap.saturating_sub(spent + taken))
+        refine_within(problem, weights, start, options, prior, cap.saturating_sub(taken))
     };
     let mut refined = once(weights, start, 0)?;
     if loss == Loss::Squared {
@@ -207,7 +193,7 @@ pub(crate) fn fit_after(
             break;
         }
         // The paper's one step is one step a reweighting; otherwise the limit is spent.
-        let used_up = cap > 1 && spent + history.len() >= cap;
+        let used_up = cap > 1 && history.len() >= cap;
         if reweightings == MAX_REWEIGHTINGS || used_up {
             refined.converged &= !used_up;
             break;
