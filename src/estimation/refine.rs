@@ -262,7 +262,7 @@ pub fn refine_from(
     start: Linearisation,
     options: &RefineOptions,
 ) -> Result<Refined, EstimationError> {
-    iterate(problem, weights, start, options, None, options.max_iterations)
+    refine_within(problem, weights, start, options, None, options.max_iterations)
 }
 
 /// [`refine_from`] with priors: the maximum a posteriori estimate, each step the least-squares
@@ -277,25 +277,7 @@ pub fn refine_map(
     options: &RefineOptions,
     prior: &PriorRows,
 ) -> Result<Refined, EstimationError> {
-    check_prior(problem, prior)?;
-    iterate(problem, weights, start, options, Some(prior), options.max_iterations)
-}
-
-/// [`refine_from`], or [`refine_map`] with a prior, in at most `budget` steps (at least 1)
-/// whatever `options.max_iterations` (which still says whether the steps are the paper's one
-/// step): a robust fit's reweighted fits share one limit.
-pub(crate) fn refine_within(
-    problem: &impl Residuals,
-    weights: &Weights,
-    start: Linearisation,
-    options: &RefineOptions,
-    prior: Option<&PriorRows>,
-    budget: usize,
-) -> Result<Refined, EstimationError> {
-    if let Some(prior) = prior {
-        check_prior(problem, prior)?;
-    }
-    iterate(problem, weights, start, options, prior, budget.max(1))
+    refine_within(problem, weights, start, options, Some(prior), options.max_iterations)
 }
 
 /// Whether `prior` has one column per parameter of `problem`.
@@ -310,7 +292,7 @@ fn check_prior(problem: &impl Residuals, prior: &PriorRows) -> Result<(), Estima
     Ok(())
 }
 
-/// What [`iterate`] works on: the problem, its weights and priors, and when to stop.
+/// What [`refine_within`] works on: the problem, its weights and priors, and when to stop.
 struct Context<'a, P> {
     problem: &'a P,
     weights: &'a Weights,
@@ -385,11 +367,11 @@ impl<P: Residuals> Context<'_, P> {
     }
 }
 
-/// Levenberg-Marquardt in a trust region ([`super::trust`]) on the whitened system, with the
-/// prior rows below it if given: at most `budget` steps (`options.max_iterations` but for a
-/// robust fit's reweightings, which share one). `options.max_iterations = 1` is the paper's
-/// one undamped step.
-fn iterate(
+/// [`refine_from`], or [`refine_map`] with a prior: Levenberg-Marquardt in a trust region
+/// ([`super::trust`]) on the whitened system, with the prior rows below it if given, in at most
+/// `budget` steps (at least 1; `options.max_iterations` but for a robust fit's reweightings,
+/// which share one limit). `options.max_iterations = 1` is the paper's one undamped step.
+pub(crate) fn refine_within(
     problem: &impl Residuals,
     weights: &Weights,
     start: Linearisation,
@@ -397,6 +379,10 @@ fn iterate(
     prior: Option<&PriorRows>,
     budget: usize,
 ) -> Result<Refined, EstimationError> {
+    if let Some(prior) = prior {
+        check_prior(problem, prior)?;
+    }
+    let budget = budget.max(1);
     let context = Context { problem, weights, options, prior };
     let names = context.check(&start)?;
     // The current system, never held whole: its triangular factor and its residual.
