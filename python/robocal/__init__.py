@@ -400,7 +400,7 @@ def calibrate(
     marker: Sequence[Sequence[float]] = (),
     tool: Optional[Sequence[float]] = None,
     use_markers: Optional[Sequence[int]] = None,
-    iterations: int = 50,
+    iterations: int = 200,
     pose_sigma: Any = None,
     orientations: Any = None,
 ) -> Calibration:
@@ -510,7 +510,7 @@ def _flags(
     marker: Sequence[Sequence[float]] = (),
     tool: Optional[Sequence[float]] = None,
     use_markers: Optional[Sequence[int]] = None,
-    iterations: int = 50,
+    iterations: int = 200,
 ) -> dict[str, Any]:
     """The options as the extension takes them."""
     return {

@@ -283,7 +283,7 @@ def calibrate(
     marker: Sequence[Sequence[float]] = (),
     tool: Optional[Sequence[float]] = None,
     use_markers: Optional[Sequence[int]] = None,
-    iterations: int = 50,
+    iterations: int = 200,
     pose_sigma: Any = None,
     orientations: Any = None,
 ) -> Calibration:

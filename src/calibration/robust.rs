@@ -21,13 +21,15 @@
 //!
 //! and the pose's whitening is multiplied by `sqrt(w_k)`, as if its covariance were `V_k / w_k`
 //! ([`crate::estimation::Weights::reweighted`]). The fit is repeated with the new weights until
-//! no weight moves by more than 1e-6 ([`MAX_REWEIGHTINGS`] at most). Everything is sequential
+//! no weight moves by more than 1e-6 ([`MAX_REWEIGHTINGS`] at most), every step of every fit
+//! counted against the one limit [`RefineOptions::max_iterations`] (but the paper's one-step
+//! estimate, `max_iterations = 1`, is one step a fit). Everything is sequential
 //! over the weights and deterministic. The covariance reported is that of the last weighted fit
 //! (the weights taken as fixed).
 
 use crate::estimation::{
     EstimationError, Linearisation, PriorRows, RefineOptions, Refined, Residuals, Weights, linearise,
-    refine_from, refine_map,
+    refine_within,
 };
 use std::fmt;
 use std::str::FromStr;
@@ -168,18 +170,19 @@ pub(crate) fn fit(
     prior: Option<&PriorRows>,
     loss: Loss,
 ) -> Result<(Refined, Option<RobustFit>), EstimationError> {
-    let once = |weights: &Weights, start: Linearisation| match prior {
-        Some(prior) => refine_map(problem, weights, start, options, prior),
-        None => refine_from(problem, weights, start, options),
+    // Every step of every reweighted fit counts against the one limit.
+    let cap = options.max_iterations;
+    let once = |weights: &Weights, start: Linearisation, taken: usize| {
+        refine_within(problem, weights, start, options, prior, cap.saturating_sub(taken))
     };
-    let mut refined = once(weights, start)?;
+    let mut refined = once(weights, start, 0)?;
     if loss == Loss::Squared {
         return Ok((refined, None));
     }
     let points = problem.blocks().points(problem.equations());
     let mut w = vec![1.0; points];
     let (mut reweightings, mut settled) = (0, false);
-    // Every Gauss-Newton step of every reweighting, for the report's count.
+    // Every step of every reweighting, for the report's count.
     let mut history = std::mem::take(&mut refined.history);
     loop {
         let next = pose_weights(problem, weights, &refined.estimate.x, loss);
@@ -189,13 +192,16 @@ pub(crate) fn fit(
             settled = true;
             break;
         }
-        if reweightings == MAX_REWEIGHTINGS {
+        // The paper's one step is one step a reweighting; otherwise the limit is spent.
+        let used_up = cap > 1 && history.len() >= cap;
+        if reweightings == MAX_REWEIGHTINGS || used_up {
+            refined.converged &= !used_up;
             break;
         }
         reweightings += 1;
         let reweighted = weights.reweighted(&w);
         let start = linearise(problem, &reweighted, refined.estimate.x.clone())?;
-        refined = once(&reweighted, start)?;
+        refined = once(&reweighted, start, if cap > 1 { history.len() } else { 0 })?;
         history.append(&mut refined.history);
     }
     refined.history = history;

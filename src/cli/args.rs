@@ -7,7 +7,7 @@ use nalgebra::Vector3;
 use robocal::calibration::Loss;
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::design::Criterion;
-use robocal::estimation::PriorEntry;
+use robocal::estimation::{PriorEntry, RefineOptions};
 use robocal::limits::{MAX_ANGLE_DEG, MAX_ITERATIONS, MAX_LENGTH_MM};
 use std::path::PathBuf;
 
@@ -354,8 +354,9 @@ pub struct CalibrateArgs {
     /// marker (missing ones start at that frame's origin).
     #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub marker: Vec<Vector3<f64>>,
-    /// Gauss-Newton steps at most (at least 1); 1 is the paper's one-step estimate.
-    #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
+    /// Gauss-Newton steps at most (at least 1), damped in a trust region where they overshoot;
+    /// a robust loss's reweightings share them; 1 is the paper's one-step estimate.
+    #[arg(long, default_value_t = RefineOptions::default().max_iterations, value_parser = parse_iterations)]
     pub iterations: usize,
     /// A measurement file of held-out poses to validate on; repeatable.
     #[arg(long)]
@@ -458,8 +459,8 @@ pub struct CalibrateObservationsArgs {
     pub marker: Vec<Vector3<f64>>,
     #[command(flatten)]
     pub choice: ModelChoiceArgs,
-    /// Gauss-Newton steps at most (at least 1).
-    #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
+    /// Gauss-Newton steps at most (at least 1), damped in a trust region where they overshoot.
+    #[arg(long, default_value_t = RefineOptions::default().max_iterations, value_parser = parse_iterations)]
     pub iterations: usize,
     /// A held-out file of the same kinds to validate on (the set-up as calibrated); repeatable.
     /// With --per-session, a file of a training file's stem takes that session's set-up; any
@@ -838,8 +839,8 @@ pub struct CalibrateTreeArgs {
     pub params: ParamsArg,
     #[command(flatten)]
     pub choice: ModelChoiceArgs,
-    /// Gauss-Newton steps at most (at least 1).
-    #[arg(long, default_value_t = 50, value_parser = parse_iterations)]
+    /// Gauss-Newton steps at most (at least 1), damped in a trust region where they overshoot.
+    #[arg(long, default_value_t = RefineOptions::default().max_iterations, value_parser = parse_iterations)]
     pub iterations: usize,
     /// A held-out file of views to validate on (the cameras and targets as calibrated);
     /// repeatable.

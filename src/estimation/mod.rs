@@ -24,6 +24,7 @@ mod problem;
 mod reduced;
 mod refine;
 mod solve;
+pub mod trust;
 mod variance;
 pub(crate) use variance::Z_95;
 
@@ -39,6 +40,7 @@ pub use prior::{
 };
 pub use problem::{POSE_SIGMAS, PointProblem};
 pub use reduced::Reduced;
+pub(crate) use refine::refine_within;
 pub use refine::{
     Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from, refine_map,
 };

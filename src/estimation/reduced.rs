@@ -288,6 +288,7 @@ impl Reduced {
 
     /// Marquardt's damped system: `sqrt(damping) |A_j|` on the diagonal of rows stacked below,
     /// their right-hand side zero.
+    #[cfg(test)]
     pub(crate) fn damped(&self, damping: f64) -> Self {
         let p = self.parameters();
         let norms = self.column_norms();

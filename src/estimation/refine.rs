@@ -1,9 +1,14 @@
 //! Nonlinear refinement: the paper's linear step, repeated about the updated parameters
-//! (Gauss-Newton), with Levenberg-Marquardt damping when a step fails to lower the weighted
-//! cost. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
+//! (Gauss-Newton), in a trust region (Levenberg-Marquardt, [`super::trust`]): the damping is
+//! kept from step to step, lowered after steps that keep the linearised system's promise,
+//! raised after those that do not; while Gauss-Newton's steps keep theirs, they are taken as
+//! they are. The paper's one-step estimate is the first iterate (`max_iterations = 1`).
 
 use super::prior::PriorRows;
-use super::solve::{Diagnostics, LinearEstimate, RANK_TOLERANCE, diagnose_reduced, factorise_reduced};
+use super::solve::{
+    Diagnostics, Factorised, LinearEstimate, RANK_TOLERANCE, diagnose_reduced, factorise_reduced,
+};
+use super::trust::{self, Region, Steps};
 use super::{Blocks, EstimationError, Estimator, Reduced, Weights};
 use nalgebra::{DMatrix, DVector};
 
@@ -69,7 +74,10 @@ pub trait Residuals {
 /// When to stop iterating.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RefineOptions {
-    /// At most this many linear steps; 1 is the paper's one-step estimate.
+    /// At most this many linear steps; 1 is the paper's one-step estimate. The default, 200,
+    /// converges a draw-wire's flat, curved valley (distances to one point from a tool point
+    /// near the last axis, poses from a narrow range) that takes the trust region 50 to 150
+    /// steps; a well-posed calibration takes 3 to 10.
     pub max_iterations: usize,
     /// Stop when no whitened residual moves by more than this in a step.
     pub step_tolerance: f64,
@@ -84,7 +92,7 @@ pub struct RefineOptions {
 impl Default for RefineOptions {
     fn default() -> Self {
         Self {
-            max_iterations: 50,
+            max_iterations: 200,
             step_tolerance: 1e-9,
             cost_tolerance: 1e-10,
             rank_tolerance: RANK_TOLERANCE,
@@ -101,7 +109,8 @@ pub struct Iteration {
     pub cost_after: f64,
     /// Largest change of a whitened prediction the step made.
     pub step: f64,
-    /// Levenberg-Marquardt damping that was needed (0: a plain Gauss-Newton step).
+    /// The trust region's Levenberg-Marquardt damping `lambda` of the scaled system (0: a plain
+    /// Gauss-Newton step; see [`super::trust`]).
     pub damping: f64,
 }
 
@@ -230,8 +239,9 @@ pub fn linearise(
     Ok(Linearisation { x, b, system })
 }
 
-/// Refine `x0` by Gauss-Newton with Levenberg-Marquardt damping, each step the weighted
-/// (or ordinary) least-squares solution of the system linearised about the current `x`.
+/// Refine `x0` by Gauss-Newton in a trust region (Levenberg-Marquardt, [`super::trust`]),
+/// each step the weighted (or ordinary) least-squares solution of the system linearised about
+/// the current `x`, damped when the region is shorter than it.
 pub fn refine(
     problem: &impl Residuals,
     estimator: Estimator,
@@ -252,7 +262,7 @@ pub fn refine_from(
     start: Linearisation,
     options: &RefineOptions,
 ) -> Result<Refined, EstimationError> {
-    iterate(problem, weights, start, options, None)
+    refine_within(problem, weights, start, options, None, options.max_iterations)
 }
 
 /// [`refine_from`] with priors: the maximum a posteriori estimate, each step the least-squares
@@ -267,6 +277,11 @@ pub fn refine_map(
     options: &RefineOptions,
     prior: &PriorRows,
 ) -> Result<Refined, EstimationError> {
+    refine_within(problem, weights, start, options, Some(prior), options.max_iterations)
+}
+
+/// Whether `prior` has one column per parameter of `problem`.
+fn check_prior(problem: &impl Residuals, prior: &PriorRows) -> Result<(), EstimationError> {
     if prior.columns() != problem.parameters() {
         return Err(EstimationError::Dimensions(format!(
             "priors for {} columns of a problem of {}",
@@ -274,100 +289,139 @@ pub fn refine_map(
             problem.parameters()
         )));
     }
-    iterate(problem, weights, start, options, Some(prior))
+    Ok(())
 }
 
-/// Gauss-Newton with Levenberg-Marquardt damping on the whitened system, with the prior rows
-/// below it if given.
-fn iterate(
+/// What [`refine_within`] works on: the problem, its weights and priors, and when to stop.
+struct Context<'a, P> {
+    problem: &'a P,
+    weights: &'a Weights,
+    options: &'a RefineOptions,
+    prior: Option<&'a PriorRows>,
+}
+
+impl<P: Residuals> Context<'_, P> {
+    /// The cost at `x` whose whitened residual is `y`: `|y|^2`, with the prior's `|c P x|^2`.
+    fn cost(&self, x: &DVector<f64>, y: &DVector<f64>) -> f64 {
+        y.norm_squared() + self.prior.map_or(0.0, |p| p.cost(x))
+    }
+
+    /// Whether `start`, the weights and the names fit the problem; the names.
+    fn check(&self, start: &Linearisation) -> Result<Vec<String>, EstimationError> {
+        let (m, p) = (self.problem.equations(), self.problem.parameters());
+        let dims = |s: String| Err(EstimationError::Dimensions(s));
+        let system = &start.system;
+        if system.parameters() != p || system.rows() != m || start.b.len() != m || start.x.len() != p {
+            let (rows, columns) = (system.rows(), system.parameters());
+            return dims(format!("a linearisation of ({rows}, {columns}) for a problem of {m} x {p}"));
+        }
+        if !self.weights.fits(m, &self.problem.blocks()) {
+            return dims(format!("weights for other points than the problem's {m} equations"));
+        }
+        let names = self.problem.names();
+        if !names.is_empty() && names.len() != p {
+            return dims(format!("{} names for {p} parameters", names.len()));
+        }
+        Ok(super::column_names(names, p))
+    }
+
+    /// The trials of one linearisation (`system`, the prior rows below it, factored as
+    /// `factorised`) about `x` of cost `cost`, each damped by the trust `region` ([`super::trust`])
+    /// and the region moved by its gain, until one does not raise the cost; `None` if none does
+    /// where no step can: at the minimum (the Gauss-Newton step promises a fall below the cost
+    /// tolerance, so a failed step is rounding) or once the region has collapsed below the step
+    /// tolerance. Each trial is linearised at once, but at the minimum: an accepted one is the
+    /// next step's system.
+    fn trials(
+        &self,
+        x: &DVector<f64>,
+        cost: f64,
+        system: &Reduced,
+        factorised: &Factorised,
+        region: &mut Region,
+    ) -> Option<Accepted> {
+        let steps = Steps::new(factorised, system);
+        let promised = cost - system.cost_after(&steps.step(0.0));
+        let at_minimum = promised <= self.options.cost_tolerance * cost;
+        loop {
+            let damping = region.damping(&steps.spectrum);
+            let step = steps.step(damping);
+            let moved_to = x + &step;
+            let (y, next) = if at_minimum {
+                (self.problem.evaluate_whitened(&moved_to, self.weights, None), None)
+            } else {
+                let (y, next) = self.problem.linearise_whitened(&moved_to, self.weights);
+                (y, Some(next))
+            };
+            let cost_after = self.cost(&moved_to, &y);
+            let gain = trust::gain(cost, cost_after, system.cost_after(&step));
+            region.update(gain, steps.spectrum.length(damping));
+            if cost_after <= cost {
+                let residual = Some((y, next));
+                return Some(Accepted { step, cost_after, damping, residual, gain, at_minimum });
+            }
+            if at_minimum || region.collapsed(&steps.spectrum, self.options.step_tolerance) {
+                return None;
+            }
+        }
+    }
+}
+
+/// [`refine_from`], or [`refine_map`] with a prior: Levenberg-Marquardt in a trust region
+/// ([`super::trust`]) on the whitened system, with the prior rows below it if given, in at most
+/// `budget` steps (at least 1; `options.max_iterations` but for a robust fit's reweightings,
+/// which share one limit). `options.max_iterations = 1` is the paper's one undamped step.
+pub(crate) fn refine_within(
     problem: &impl Residuals,
     weights: &Weights,
     start: Linearisation,
     options: &RefineOptions,
     prior: Option<&PriorRows>,
+    budget: usize,
 ) -> Result<Refined, EstimationError> {
-    let (m, p) = (problem.equations(), problem.parameters());
-    let dims = |s: String| Err(EstimationError::Dimensions(s));
-    if start.system.parameters() != p || start.system.rows() != m || start.b.len() != m || start.x.len() != p
-    {
-        let (rows, columns) = (start.system.rows(), start.system.parameters());
-        return dims(format!("a linearisation of ({rows}, {columns}) for a problem of {m} x {p}"));
+    if let Some(prior) = prior {
+        check_prior(problem, prior)?;
     }
-    if !weights.fits(m, &problem.blocks()) {
-        return dims(format!("weights for other points than the problem's {m} equations"));
-    }
-    let names = problem.names();
-    if !names.is_empty() && names.len() != p {
-        return dims(format!("{} names for {p} parameters", names.len()));
-    }
-    let names = super::column_names(names, p);
+    let budget = budget.max(1);
+    let context = Context { problem, weights, options, prior };
+    let names = context.check(&start)?;
     // The current system, never held whole: its triangular factor and its residual.
     let Linearisation { mut x, mut b, mut system } = start;
     let mut history = Vec::new();
-    // The prior's part of the cost at `x`, and the stacked system (the data's alone without one).
-    let prior_cost = |x: &DVector<f64>| prior.map_or(0.0, |p| p.cost(x));
+    let mut region = Region::default();
+    let one_step = options.max_iterations == 1;
     loop {
+        // The stacked system (the data's alone without a prior).
         let stacked = prior.map(|p| system.with_prior(p, &x));
         let ss = stacked.as_ref().unwrap_or(&system);
         let factorised = factorise_reduced(ss, options.rank_tolerance)?;
-        let cost = b.norm_squared() + prior_cost(&x);
-        let gauss_newton = factorised.solve(ss);
-
-        let one_step = options.max_iterations == 1;
+        let cost = context.cost(&x, &b);
         let taken = if one_step {
             // The paper's estimate: the linear solution, taken as it is; its cost is the
             // linearised residual's.
-            let linearised = ss.cost_after(&gauss_newton);
-            Some(Accepted { step: gauss_newton, cost_after: linearised, damping: 0.0, residual: None })
+            let step = factorised.solve(ss);
+            let cost_after = ss.cost_after(&step);
+            Some(Accepted { step, cost_after, damping: 0.0, residual: None, gain: 1.0, at_minimum: false })
         } else {
-            // Gauss-Newton, damped more and more until the cost falls, as Levenberg-Marquardt;
-            // but where the linearised model itself promises no decrease worth the name, the
-            // minimum is reached and a failed step is rounding, not a reason to damp (a damped
-            // step promises less still). Each trial is linearised at once: an accepted one is
-            // the next step's system.
-            let promised = cost - ss.cost_after(&gauss_newton);
-            let at_minimum = promised <= options.cost_tolerance * cost;
-            let mut trial = (gauss_newton, 0.0);
-            loop {
-                // At the minimum this trial is the last one: its H would never be used.
-                let moved_to = &x + &trial.0;
-                let (y, next) = if at_minimum {
-                    (problem.evaluate_whitened(&moved_to, weights, None), None)
-                } else {
-                    let (y, next) = problem.linearise_whitened(&moved_to, weights);
-                    (y, Some(next))
-                };
-                let cost_after = y.norm_squared() + prior_cost(&moved_to);
-                if cost_after <= cost {
-                    let (step, damping, residual) = (trial.0, trial.1, Some((y, next)));
-                    break Some(Accepted { step, cost_after, damping, residual });
-                }
-                if at_minimum || trial.1 >= 1e12 {
-                    break None;
-                }
-                let damping = if trial.1 == 0.0 { 1e-4 } else { trial.1 * 10.0 };
-                let damped = ss.damped(damping);
-                trial = (factorise_reduced(&damped, options.rank_tolerance)?.solve(&damped), damping);
-            }
+            context.trials(&x, cost, ss, &factorised, &mut region)
         };
         let (converged, final_cost, next) = match taken {
-            Some(Accepted { step, cost_after, damping, residual }) => {
+            Some(accepted) => {
                 // How far the step moved a whitened prediction: the change of the whitened
                 // residuals (those after the paper's one step are evaluated for it alone).
-                let moved = match &residual {
+                let moved = match &accepted.residual {
                     Some((y, _)) => (y - &b).amax(),
-                    None => (problem.evaluate_whitened(&(&x + &step), weights, None) - &b).amax(),
+                    None => (problem.evaluate_whitened(&(&x + &accepted.step), weights, None) - &b).amax(),
                 };
-                x += &step;
+                x += &accepted.step;
+                let Accepted { cost_after, damping, .. } = accepted;
                 history.push(Iteration { cost, cost_after, step: moved, damping });
-                let small =
-                    moved <= options.step_tolerance || cost - cost_after <= options.cost_tolerance * cost;
-                (!one_step && small, cost_after, residual)
+                (!one_step && accepted.stops(options, cost, moved), cost_after, accepted.residual)
             }
             None => (true, cost, None),
         };
         match next {
-            Some((y, linearised)) if !converged && history.len() < options.max_iterations => {
+            Some((y, linearised)) if !converged && history.len() < budget => {
                 let (y, next) = match linearised {
                     Some(next) => (y, next),
                     None => problem.linearise_whitened(&x, weights),
@@ -394,11 +448,33 @@ fn iterate(
 struct Accepted {
     step: DVector<f64>,
     cost_after: f64,
-    /// Levenberg-Marquardt damping that was needed.
+    /// The trust region's damping (0: the Gauss-Newton step).
     damping: f64,
     /// `S y` after the step, and the system linearised there if it was (not at the minimum);
     /// `None` for the paper's one step.
     residual: Option<(DVector<f64>, Option<Reduced>)>,
+    /// Its gain ratio ([`trust::gain`]).
+    gain: f64,
+    /// Whether it was taken at the minimum: the Gauss-Newton step promised a fall below the
+    /// cost tolerance.
+    at_minimum: bool,
+}
+
+impl Accepted {
+    /// Whether the stopping rules are met after the step, of cost `cost` before it, that moved
+    /// a whitened prediction by `moved` at most: it moved none by more than the step tolerance,
+    /// or it lowered the cost by less than the cost tolerance (a fraction of it). A step the
+    /// region cut short (damped) is judged only at the minimum, and a small fall only where the
+    /// linearised system promised little: at the minimum, or after a Gauss-Newton step that kept
+    /// a quarter of its promise at least (a step that jumped across a valley to as high a cost
+    /// promised much and lowered little, and says nothing of a minimum).
+    fn stops(&self, options: &RefineOptions, cost: f64, moved: f64) -> bool {
+        let undamped = self.damping == 0.0;
+        let still = moved <= options.step_tolerance && (undamped || self.at_minimum);
+        let flat = cost - self.cost_after <= options.cost_tolerance * cost
+            && (self.at_minimum || (undamped && self.gain >= 0.25));
+        still || flat
+    }
 }
 
 #[cfg(test)]
@@ -442,5 +518,65 @@ mod tests {
         let one = RefineOptions { max_iterations: 1, ..RefineOptions::default() };
         let paper = refine(&Arctangent, Estimator::Ols, start.clone(), &one).unwrap();
         assert!((paper.estimate.x[0] - (3.0 - 3f64.atan() * 10.0)).abs() < 1e-12, "one undamped step");
+    }
+
+    /// Gauss-Newton as it was before the trust region: every step tries the Gauss-Newton step,
+    /// then Marquardt's damping 1e-4, 1e-3, ... (from 0 again at every step) until the cost does
+    /// not rise; it stops when a step moves no whitened residual by more than the step
+    /// tolerance or lowers the cost by less than the cost tolerance, or when no damping lowers
+    /// it. The end point, its steps and whether a stopping rule was met.
+    fn reset_damping(problem: &impl Residuals, x0: f64, options: &RefineOptions) -> (f64, usize, bool) {
+        let weights = Weights::for_problem(problem, Estimator::Ols).unwrap();
+        let mut x = DVector::from_vec(vec![x0]);
+        for steps in 1..=options.max_iterations {
+            let (b, system) = problem.linearise_whitened(&x, &weights);
+            let cost = b.norm_squared();
+            let mut damping: f64 = 0.0;
+            let (step, y) = loop {
+                let damped = if damping == 0.0 { system.clone() } else { system.damped(damping) };
+                let step = factorise_reduced(&damped, options.rank_tolerance).unwrap().solve(&damped);
+                let y = problem.evaluate_whitened(&(&x + &step), &weights, None);
+                if y.norm_squared() <= cost || damping >= 1e12 {
+                    break (step, y);
+                }
+                damping = if damping == 0.0 { 1e-4 } else { damping * 10.0 };
+            };
+            if y.norm_squared() > cost {
+                return (x[0], steps, true);
+            }
+            x += step;
+            let fall = cost - y.norm_squared();
+            if (&y - &b).amax() <= options.step_tolerance || fall <= options.cost_tolerance * cost {
+                return (x[0], steps, true);
+            }
+        }
+        (x[0], options.max_iterations, false)
+    }
+
+    /// The arctangent's Gauss-Newton map `x -> x - atan(x) (1 + x^2)` has a cycle `x* -> -x*`
+    /// (`x* = 1.3917...`, where `atan(x)(1 + x^2) = 2x`). Started just inside it, every
+    /// Gauss-Newton step jumps across the valley `atan(x)^2` to nearly the same height: the
+    /// cost falls, by a fraction near 1e-11, so Gauss-Newton with damping reset at every step
+    /// takes the step and stops there, "converged" at `|x| = 1.39`, the valley's wall. The
+    /// trust region sees the step keep none of its promise (gain near 0), shrinks, and goes down
+    /// to the minimum at 0.
+    #[test]
+    fn the_trust_region_leaves_a_valley_that_stalls_gauss_newton() {
+        let cycle = |x: f64| x.atan() * (1.0 + x * x) - 2.0 * x;
+        let (mut low, mut high) = (1.0, 2.0);
+        for _ in 0..200 {
+            let mid = 0.5 * (low + high);
+            if cycle(mid) < 0.0 { low = mid } else { high = mid }
+        }
+        let start = low - 1e-11;
+        let options = RefineOptions::default();
+        let (stalled, steps, stopped) = reset_damping(&Arctangent, start, &options);
+        assert!(stopped && steps == 1 && (stalled.abs() - 1.3917).abs() < 1e-3, "{stalled} in {steps}");
+        let refined = refine(&Arctangent, Estimator::Ols, DVector::from_vec(vec![start]), &options).unwrap();
+        assert!(refined.converged && refined.estimate.x[0].abs() < 1e-8, "{:?}", refined.history);
+        assert!(refined.history.iter().any(|i| i.damping > 0.0), "{:?}", refined.history);
+        // From x = 3 both converge; the reset damping tries from nothing at every step.
+        let (x, _, stopped) = reset_damping(&Arctangent, 3.0, &options);
+        assert!(stopped && x.abs() < 1e-8);
     }
 }

@@ -452,11 +452,24 @@ pub(crate) fn solve(
 impl Factorised {
     /// `pinv(A) b` of the [`Reduced`] system that was factored: `P D V_r S_r^-1 U_R,r^T z`.
     pub fn solve(&self, system: &Reduced) -> DVector<f64> {
+        self.filtered(&self.projected(system))
+    }
+
+    /// `c = U_R,r^T z`: the right-hand side of the [`Reduced`] system that was factored, on the
+    /// `r` identifiable directions (the left singular vectors of the column-scaled `R D`).
+    pub(crate) fn projected(&self, system: &Reduced) -> DVector<f64> {
         match &self.right {
-            Right::Triangular { u_r } => &self.left * u_r.tr_mul(&system.z()),
+            Right::Triangular { u_r } => u_r.tr_mul(&system.z()),
             // Dense factorisations are made for their pseudoinverse (`factorise`).
             _ => unreachable!("only a factorise_reduced system is solved"),
         }
+    }
+
+    /// `P D V_r S_r^-1 c` for a projected right-hand side `c` (`r` entries): with
+    /// [`Factorised::projected`], the solve; with `c` filtered (`c_i s_i^2 / (s_i^2 + lambda)`),
+    /// the Levenberg-Marquardt step ([`super::trust`]).
+    pub(crate) fn filtered(&self, c: &DVector<f64>) -> DVector<f64> {
+        &self.left * c
     }
 
     /// The covariance of the solve of the [`Reduced`] system that was factored:

@@ -676,3 +676,25 @@ fn a_devices_orientation_sigma_is_the_default_for_a_probe() {
         calibration::calibrate(&nominal, &training, &probe_options(Estimator::Wls, Some(noise))).unwrap_err();
     assert!(err.to_string().contains("sigma_orientation_deg in the noise file"), "{err}");
 }
+
+/// On the example's marker file (the README's calibration, by ordinary least squares and
+/// Gauss-Markov with the paper's noise) every step of the trust region is Gauss-Newton's,
+/// undamped: the iterates, the estimate and the printed figures are those of the Gauss-Newton
+/// before it, to the bit (the README's outputs, tested against the code, are unchanged).
+#[test]
+fn the_example_calibrations_take_gauss_newton_steps_alone() {
+    let model = RobotModel::preset("puma560").unwrap();
+    let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    let data = Measurements::from_csv_str(&text, &model, None).unwrap();
+    let markers = vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
+    let sigmas: Vec<f64> =
+        [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
+    let noise = NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0));
+    for (estimator, noise) in [(Estimator::Ols, None), (Estimator::Wls, Some(noise))] {
+        let options = Options { markers: markers.clone(), estimator, noise, ..Options::default() };
+        let c = calibration::calibrate(&model, &data, &options).unwrap();
+        let history = &c.refined.history;
+        assert!(c.refined.converged && history.len() >= 3, "{history:?}");
+        assert!(history.iter().all(|step| step.damping == 0.0), "{estimator:?}: {history:?}");
+    }
+}

@@ -73,7 +73,7 @@ fn the_default_calibration_is_ols_of_the_joints_base_and_markers() {
     assert_eq!(request.method, Method::Given(Estimator::Ols));
     assert_eq!(request.joints, JointParams::All);
     assert!(request.estimate_base && request.estimate_markers);
-    assert_eq!((request.noise, request.units, request.iterations, request.folds), (None, None, 50, None));
+    assert_eq!((request.noise, request.units, request.iterations, request.folds), (None, None, 200, None));
 }
 
 #[test]
