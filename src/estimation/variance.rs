@@ -279,16 +279,6 @@ pub(crate) fn fit_components(
     if rows < m {
         return bad(format!("{rows} covariance entries cannot determine {m} components"));
     }
-    // The largest fitted entry `|f_k sum_c theta_c D_c,k|` of the unweighted system.
-    let fitted = |theta: &DVector<f64>| {
-        let largest = |sample: &CovarianceSample| {
-            let f = (sample.dof / 2.0).sqrt();
-            (0..sample.s.len())
-                .map(|i| sample.design.iter().zip(theta.iter()).fold(0.0, |sum, (d, t)| sum + d[i] * f * t))
-                .fold(0.0, |a: f64, v| a.max(v.abs()))
-        };
-        samples.iter().map(largest).fold(0.0, f64::max)
-    };
     // From `start` (a previous fit's estimate) if given, else from the unweighted fit.
     let mut theta = match start {
         Some(start) if start.len() == m && start.iter().all(|t| t.is_finite()) => start.clone(),
@@ -301,8 +291,8 @@ pub(crate) fn fit_components(
         gram = weighted_gram(samples, Some(&theta));
         let next = nnls_gram(&gram, constrained);
         // Converged when the change no longer moves any fitted covariance noticeably.
-        let moved = fitted(&(&next - &theta));
-        let size = fitted(&next).max(f64::MIN_POSITIVE);
+        let (moved, size) = largest_fitted(samples, &(&next - &theta), &next);
+        let size = size.max(f64::MIN_POSITIVE);
         theta = next;
         if moved <= 1e-9 * size {
             break;
@@ -324,6 +314,24 @@ pub(crate) fn fit_components(
     let covariance = DMatrix::from_fn(m, m, |i, j| inverse[(i, j)] / (scale[i] * scale[j]));
     let at_bound = (0..m).map(|c| constrained[c] && theta[c] == 0.0).collect();
     Ok(ComponentFit { values: theta, covariance, constrained: constrained.to_vec(), at_bound, iterations })
+}
+
+/// The largest fitted entries `|f_k sum_c theta_c D_c,k|` of the unweighted system, of the
+/// components `change` and of `theta`, in one pass over the samples (a maximum: the same on
+/// any number of threads).
+fn largest_fitted(samples: &[CovarianceSample], change: &DVector<f64>, theta: &DVector<f64>) -> (f64, f64) {
+    let largest = |sample: &CovarianceSample| {
+        let f = (sample.dof / 2.0).sqrt();
+        (0..sample.s.len()).fold((0.0_f64, 0.0_f64), |(a, b), i| {
+            let (mut u, mut v) = (0.0, 0.0);
+            for ((d, c), t) in sample.design.iter().zip(change.iter()).zip(theta.iter()) {
+                u += d[i] * c;
+                v += d[i] * t;
+            }
+            (a.max((u * f).abs()), b.max((v * f).abs()))
+        })
+    };
+    samples.par_iter().map(largest).reduce(|| (0.0, 0.0), |a, b| (a.0.max(b.0), a.1.max(b.1)))
 }
 
 /// Samples per parallel task of [`weighted_gram`]: the tasks, and so the order of every sum,
