@@ -272,6 +272,7 @@ def calibrate(
     params: Union[str, Sequence[str]] = "joints",
     hold: Sequence[str] = (),
     keep: Sequence[str] = (),
+    per_session: Sequence[str] = (),
     validate: Sequence[Any] = (),
     folds: Optional[int] = None,
     select: Optional[str] = None,
@@ -308,7 +309,10 @@ def calibrate(
     ``validate``: held-out sets, each ``(joints, markers)``, a DataFrame or a path; ``folds``:
     k-fold cross-validation; ``select``: ``cv``, ``bic`` or ``t``; ``prior``: ``PATTERN=SD,...``,
     a preset, or ``auto[:PRESET]``; ``loss``: ``huber:1.345`` and the like; ``use_markers``: the
-    marker numbers to fit (``--markers``); ``iterations``: Gauss-Newton steps at most.
+    marker numbers to fit (``--markers``); ``iterations``: solver steps at most;
+    ``per_session``: set-up parameters (names and patterns, ``point1.zero``, ``point*``) one
+    per observation file, each file a session named by its stem (or its ``name``): an
+    instrument re-zeroed or moved between sessions (two files or more).
 
     Raises ``InputError`` for bad data or options, ``EstimationError`` when the data cannot
     make the calibration.

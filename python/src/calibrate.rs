@@ -178,6 +178,7 @@ pub struct Flags {
     pub(crate) params: Vec<String>,
     pub(crate) hold: Vec<String>,
     pub(crate) keep: Vec<String>,
+    pub(crate) per_session: Vec<String>,
     pub(crate) select: Option<String>,
     pub(crate) prior: Option<String>,
     pub(crate) loss: Option<String>,
@@ -620,6 +621,11 @@ fn markers(
     request: &Request,
 ) -> PyResult<Calibration> {
     let model = &robot.inner;
+    require(
+        flags.per_session.is_empty(),
+        "per_session",
+        "observation files only: marker data are one session",
+    )?;
     let (fit, held_out) = marker_sets(model, source, validate, flags, request)?;
     let what = format!("calibrating the {} poses of {}", fit.len(), source.0);
     robocal::io::check_memory(fit.memory_estimate(model.params().len()), &what, "calibrate on fewer poses")
@@ -763,6 +769,11 @@ fn observations(
         "observation files: each observation's sigma is its own; give joint_sigma only, and an estimator other than fgls",
     )?;
     require(request.auto_prior.is_none(), "prior", "auto: not with observation files")?;
+    require(
+        flags.per_session.is_empty() || sources.len() >= 2,
+        "per_session",
+        "one value per observation file (each file a session): give two files or more",
+    )?;
     let read = |s: &Source| -> PyResult<(String, KindData)> {
         let data = KindData::from_csv_str(&text_of(s)?, model, units_for(s, request.units))
             .map_err(|e| data_error(s, &e))?;
@@ -854,7 +865,7 @@ fn kind_options(model: &RobotModel, flags: &Flags, request: &Request) -> PyResul
         None => None,
     };
     Ok(KindOptions {
-        per_session: Vec::new(),
+        per_session: flags.per_session.clone(),
         prior: request.prior.clone(),
         loss: request.loss,
         gauge: Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },

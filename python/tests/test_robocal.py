@@ -412,6 +412,19 @@ def test_selection_on_observation_files_is_the_command_lines(puma: robocal.Model
     assert_same(json.loads(c.to_json()), theirs)
 
 
+def test_per_session_zeros_are_the_command_lines(puma: robocal.Model, tmp_path: Path) -> None:
+    second = EXAMPLES / "puma560-ballbar-2.csv"
+    out = tmp_path / "report.json"
+    run_cli("calibrate", "--model", "puma560", "--data", str(BALLBAR), "--data", str(second),
+            "--per-session", "point1.zero", "--json", str(out), "--quiet")
+    c = robocal.calibrate(puma, [BALLBAR, second], per_session=["point1.zero"])
+    theirs = json.loads(out.read_text())
+    assert any("point1.zero@" in name for name in json.dumps(theirs).split('"')), theirs
+    assert_same(json.loads(c.to_json()), theirs)
+    with pytest.raises(robocal.InputError, match="two files or more"):
+        robocal.calibrate(puma, [BALLBAR], per_session=["point1.zero"])
+
+
 def write_table(path: Path, columns: dict[str, Any], n: int) -> None:
     """An observation file in deg and mm of named columns (n values, or one for every row):
     numbers at 17 significant digits, NaN an empty cell, text as it is."""
