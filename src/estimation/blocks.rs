@@ -247,8 +247,10 @@ fn fixed_block_mul<'c, const B: usize>(
 ) {
     let block: SMatrix<f64, B, B> = blocks.fixed_view::<B, B>(start, 0).into_owned();
     for column in columns {
-        let product = block * nalgebra::SVector::<f64, B>::from_column_slice(column);
-        column.copy_from_slice(product.as_slice());
+        let column: &mut [f64; B] = column.try_into().expect("a column of one block's height");
+        let product = block * nalgebra::SVector::<f64, B>::from(*column);
+        // Element by element, of a length known at compile time: no call to memmove.
+        *column = product.into();
     }
 }
 
