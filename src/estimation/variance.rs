@@ -294,7 +294,7 @@ pub(crate) fn fit_components(
         let (moved, size) = largest_fitted(samples, &(&next - &theta), &next);
         let size = size.max(f64::MIN_POSITIVE);
         theta = next;
-        if moved <= 1e-9 * size {
+        if moved <= COMPONENT_TOLERANCE * size {
             break;
         }
     }
@@ -333,6 +333,11 @@ fn largest_fitted(samples: &[CovarianceSample], change: &DVector<f64>, theta: &D
     };
     samples.par_iter().map(largest).reduce(|| (0.0, 0.0), |a, b| (a.0.max(b.0), a.1.max(b.1)))
 }
+
+/// The reweighting of [`fit_components`] stops when a pass moves no fitted covariance entry by
+/// more than this fraction of the largest: a thousand times below any component's standard
+/// error on data of a few thousand entries, and each pass costs one sweep over the samples.
+const COMPONENT_TOLERANCE: f64 = 1e-7;
 
 /// Samples per parallel task of [`weighted_gram`]: the tasks, and so the order of every sum,
 /// are the same on any number of threads.
