@@ -12,7 +12,7 @@ use crate::calibration::kinds::{
     KindCalibration, KindData, KindOptions, calibrate_kinds, cross_validate_kinds,
 };
 use crate::calibration::selection::{Criterion, calibrate_kinds_selected, cross_validate_kinds_selection};
-use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree};
+use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree, cross_validate_tree};
 use crate::calibration::{
     self, Calibration, CalibrationError, Choices, ErrorStats, FeasibleOptions, Loss, Measurements, Options,
     SetEvaluation,
@@ -207,12 +207,15 @@ fn in_context(context: &str) -> impl Fn(CalibrationError) -> FilesError + '_ {
 
 /// Calibrate `tree` from the views of `sessions` (each a file's name and views) fitted
 /// together ([`calibrate_tree`], which gives the model and its estimator), score each
-/// `held_out` set with the frames as calibrated, and report.
+/// `held_out` set with the frames as calibrated, with `folds` cross-validate the training
+/// poses ([`cross_validate_tree`]; "nested" with a robust loss, whose weights each fold
+/// chooses again), and report.
 pub fn calibrate_views(
     tree: &RobotTree,
     sessions: &[(String, TreeData)],
     held_out: &[(String, TreeData)],
     options: &TreeOptions,
+    folds: Option<usize>,
 ) -> Result<TreeOutcome, FilesError> {
     let mut data = TreeData::default();
     for (name, file) in sessions {
@@ -221,9 +224,15 @@ pub fn calibrate_views(
     let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
     let names = names.join(", ");
     let c = calibrate_tree(tree, &data, options).map_err(in_context(&names))?;
-    let scores = (held_out.iter())
+    let mut scores = (held_out.iter())
         .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
         .collect::<Result<Vec<_>, FilesError>>()?;
+    if let Some(k) = folds {
+        let score = cross_validate_tree(tree, &data, options, k)
+            .map_err(in_context(&format!("--folds {k}: {names}")))?;
+        let nested = if options.loss == Loss::Squared { "" } else { ", nested" };
+        scores.push((format!("{k}-fold cross-validation{nested}"), score));
+    }
     let fitted = (data.views.len(), data.joints.len());
     let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
     let report =

@@ -471,7 +471,8 @@ def calibrate_tree(
     keep: Sequence[str] = (),
     prior: Optional[str] = None,
     loss: Optional[str] = None,
-    iterations: int = 50,
+    iterations: int = 200,
+    folds: Optional[int] = None,
 ) -> Calibration:
     """Calibrate the tree of ``urdf`` from views between its branches, as ``robocal calibrate``
     calibrates view files; see the stub."""
@@ -486,7 +487,8 @@ def calibrate_tree(
     sources = [source(v, f"views[{k}]") for k, v in enumerate(views)]
     held_out = [source(v, f"validate[{k}]") for k, v in enumerate(validate)]
     flags = _flags(joint_unit=joint_unit, length_unit=length_unit, estimator=estimator, joint_sigma=joint_sigma,
-                   params=params, hold=hold, keep=keep, prior=prior, loss=loss, iterations=iterations)
+                   params=params, hold=hold, keep=keep, prior=prior, loss=loss, iterations=iterations,
+                   folds=folds)
     return Calibration(_calibrate_tree(os.fspath(urdf), list(tips), base_link, sources, held_out, flags))
 
 

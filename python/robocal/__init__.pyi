@@ -334,7 +334,8 @@ def calibrate_tree(
     keep: Sequence[str] = (),
     prior: Optional[str] = None,
     loss: Optional[str] = None,
-    iterations: int = 50,
+    iterations: int = 200,
+    folds: Optional[int] = None,
 ) -> Calibration:
     """Calibrate the tree of the URDF file ``urdf`` (from ``base_link``, default its only root,
     to the ``tips``, default every leaf) from camera views between its branches, as ``robocal
@@ -343,8 +344,9 @@ def calibrate_tree(
     ``yaw``, ``sigma``, ``sigma_angle``), fitted together and held out. ``estimator`` ols or
     wls (default); ``joint_sigma`` one per tree joint or one for all, in ``joint_unit`` (rad
     unless given); ``params`` the joint parameters (not ``all``: the base is never seen);
-    ``prior`` standard deviations or a preset. The result's ``branches`` are the calibrated
-    chains; its report and JSON are the command line's."""
+    ``prior`` standard deviations or a preset; ``folds`` k-fold cross-validation of the poses.
+    The result's ``branches`` are the calibrated chains; its report and JSON are the command
+    line's."""
 
 def evaluate(
     model: Model,

@@ -94,7 +94,7 @@ pub fn calibrate_tree(
         loss: request.loss,
     };
     let outcome = py
-        .detach(|| robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options))
+        .detach(|| robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options, flags.folds))
         .map_err(|e| match e.source {
             CalibrationError::Selection(_) | CalibrationError::Prior(_) => {
                 errors::calibration(&e.source, &e.context)

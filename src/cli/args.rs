@@ -846,6 +846,11 @@ pub struct CalibrateTreeArgs {
     /// repeatable.
     #[arg(long)]
     pub validate: Vec<PathBuf>,
+    /// k-fold cross-validation on the data (k >= 2, at most the number of poses): the views of
+    /// pose p held out in fold p mod k, each fold calibrated with every flag on the others;
+    /// their held-out residuals pooled as a set.
+    #[arg(long, value_parser = parse_count::<2>)]
+    pub folds: Option<usize>,
     /// Write the report as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,

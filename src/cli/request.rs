@@ -860,6 +860,8 @@ pub struct CalibrateTreeRequest {
     pub loss: robocal::calibration::Loss,
     /// Held-out files.
     pub validate: Vec<PathBuf>,
+    /// `--folds k`: the k-fold cross-validation of the training poses.
+    pub folds: Option<usize>,
     /// Where the JSON report goes.
     pub json: Option<PathBuf>,
     /// Where the calibrated branches go.
@@ -913,6 +915,7 @@ impl CalibrateTreeRequest {
             prior,
             loss: args.choice.loss,
             validate: args.validate,
+            folds: args.folds,
             json: args.json,
             out_dir: args.out_dir,
         })

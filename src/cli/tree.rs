@@ -44,7 +44,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         loss: request.loss,
     };
     let TreeOutcome { calibration: c, report } =
-        robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options)?;
+        robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options, request.folds)?;
     print!("{}", report.text());
     let mut outputs = io::Outputs::new();
     if let Some(path) = &request.json {

@@ -8,6 +8,7 @@ use rand::rngs::ChaCha8Rng;
 use robocal::calibration::Held;
 use robocal::calibration::tree::{
     Frame, Role, TreeCalibration, TreeData, TreeOptions, TreeParams, TreeProblem, calibrate_tree,
+    cross_validate_tree,
 };
 use robocal::calibration::{Gauge, JointParams, Loss};
 use robocal::estimation::{Estimator, PriorEntry, Residuals};
@@ -718,4 +719,57 @@ fn a_tree_takes_priors_robust_losses_and_held_parameters() {
     let nothing = TreeOptions { gauge: Gauge { hold: vec!["no_such.x".into()], keep: vec![] }, ..wls };
     let error = calibrate_tree(&nominal, &noisy, &nothing).unwrap_err().to_string();
     assert!(error.contains("no_such.x"), "{error}");
+}
+
+/// k-fold cross-validation of a tree: every view held out exactly once, in the fold of its
+/// pose, and scored by a fit that did not see it: its RMS is above the training fit's and near
+/// that of a held-out set of the same robot (within 25%); and the command prints the row.
+#[test]
+fn a_tree_cross_validates_each_view_once_by_a_fit_without_it() {
+    let mut rng = ChaCha8Rng::seed_from_u64(63);
+    let nominal = torso();
+    let params = TreeParams::new(&nominal);
+    let (frames, placements) = frames(&nominal);
+    let training = nominal.uniform_configurations(60, &mut rng);
+    let truth_x: Vec<f64> = (0..params.len())
+        .map(|i| if params.params[i].is_angle() { 0.002 } else { 0.5 } * (((i * 37) % 11) as f64 / 5.0 - 1.0))
+        .collect();
+    let truth = params.fold(&nominal, &truth_x);
+    let sigma = [0.05, 0.01f64.to_radians()];
+    let data = simulate_views(&truth, &frames, &placements, &PAIRS, &training, sigma, &mut rng);
+    let held_q = nominal.uniform_configurations(60, &mut rng);
+    let validation = simulate_views(&truth, &frames, &placements, &PAIRS, &held_q, sigma, &mut rng);
+    let wls = options(Estimator::Wls);
+    let c = calibrate_tree(&nominal, &data, &wls).unwrap();
+    let cv = cross_validate_tree(&nominal, &data, &wls, 4).unwrap();
+    let mut lines: Vec<usize> = cv.views.iter().map(|v| v.line).collect();
+    lines.sort_unstable();
+    let mut all = data.lines.clone();
+    all.sort_unstable();
+    assert_eq!(lines, all, "every view held out once");
+    let held_out = c.score(&validation).unwrap().position.1;
+    assert!(cv.position.1 > c.training.position.1, "{:?} against {:?}", cv.position, c.training.position);
+    assert!(
+        (cv.position.1 / held_out - 1.0).abs() < 0.25,
+        "k-fold {} mm, held out {held_out} mm",
+        cv.position.1
+    );
+    assert!(cross_validate_tree(&nominal, &data, &wls, 61).is_err(), "more folds than poses");
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args([
+            "calibrate",
+            "--model",
+            "presets/torso.urdf",
+            "--data",
+            "examples/torso/views.csv",
+            "--folds",
+            "3",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8(output.stdout).unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    assert!(text.contains("3-fold cross-validation (mm)"), "{text}");
 }

@@ -245,6 +245,14 @@ impl TreeData {
         Self { position_only: true, ..self }
     }
 
+    /// The views taken at the poses `keep` accepts, with their lines; the poses, frames and
+    /// everything else as they are (a fold of a cross-validation).
+    pub fn keeping(&self, keep: impl Fn(usize) -> bool) -> Self {
+        let (views, lines) =
+            self.views.iter().zip(&self.lines).filter(|(v, _)| keep(v.pose)).map(|(v, l)| (*v, *l)).unzip();
+        Self { views, lines, ..self.clone() }
+    }
+
     /// These views and `other`'s in one set (the same camera or target is the same frame); an
     /// error if one set has rotations and the other positions only.
     pub fn join(mut self, other: &Self) -> Result<Self, CalibrationError> {

@@ -551,6 +551,39 @@ pub struct TreeScore {
     pub rotation: Option<(f64, f64)>,
 }
 
+impl TreeScore {
+    /// `views` scored: the RMS of their position (mm) and, unless `position_only`, rotation
+    /// (deg) residual norms, before and after.
+    fn of(views: Vec<ViewResidual>, position_only: bool) -> Self {
+        let rms = |f: fn(&ViewResidual) -> f64| {
+            (views.iter().map(|v| f(v).powi(2)).sum::<f64>() / views.len().max(1) as f64).sqrt()
+        };
+        let rotation = (!position_only)
+            .then(|| (rms(|v| v.before_deg.unwrap_or(0.0)), rms(|v| v.after_deg.unwrap_or(0.0))));
+        Self { position: (rms(|v| v.before_mm), rms(|v| v.after_mm)), rotation, views }
+    }
+}
+
+/// `data`'s poses cross-validated in `folds` folds (pose `i` held out in fold `i mod k`): the
+/// tree calibrated on the views of the other poses, every choice made from the data (a robust
+/// loss's weights) made again in each fold, and the held-out views scored with the frames as
+/// that fold calibrated them; the scores of every fold pooled, view by view.
+pub fn cross_validate_tree(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+    folds: usize,
+) -> Result<TreeScore, CalibrationError> {
+    super::check_folds(folds, data.joints.len())?;
+    let mut views = Vec::with_capacity(data.views.len());
+    for fold in 0..folds {
+        let (test, train) =
+            (data.keeping(|pose| pose % folds == fold), data.keeping(|pose| pose % folds != fold));
+        views.extend(calibrate_tree(tree, &train, options)?.score(&test)?.views);
+    }
+    Ok(TreeScore::of(views, data.position_only))
+}
+
 /// A tree calibrated from camera views.
 #[derive(Debug, Clone)]
 pub struct TreeCalibration {
@@ -631,12 +664,7 @@ impl TreeCalibration {
                 ViewResidual { line: data.lines[k], before_mm, after_mm, before_deg, after_deg, whitened }
             })
             .collect();
-        let rms = |f: fn(&ViewResidual) -> f64| {
-            (views.iter().map(|v| f(v).powi(2)).sum::<f64>() / views.len().max(1) as f64).sqrt()
-        };
-        let rotation = (!data.position_only)
-            .then(|| (rms(|v| v.before_deg.unwrap_or(0.0)), rms(|v| v.after_deg.unwrap_or(0.0))));
-        Ok(TreeScore { position: (rms(|v| v.before_mm), rms(|v| v.after_mm)), rotation, views })
+        Ok(TreeScore::of(views, data.position_only))
     }
 
     /// Estimates past a physical bound (a joint length corrected by more than 10 mm: a wrong

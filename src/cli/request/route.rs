@@ -112,7 +112,6 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
         ),
         (args.select.is_some(), "--select"),
         (!args.marker.is_empty() || args.markers.is_some(), "--marker and --markers"),
-        (args.folds.is_some(), "--folds"),
         (
             args.report.poses_csv.is_some() || args.report.figures.is_some() || args.report.html.is_some(),
             "--poses-csv, --figures and --html",
@@ -141,6 +140,7 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
         choice: args.choice,
         iterations: args.iterations,
         validate: args.validate,
+        folds: args.folds,
         json: args.report.json,
         out_dir: args.tree.out_dir,
     })
