@@ -497,6 +497,16 @@ def test_calibrate_tree_is_the_command_lines_report(tmp_path: Path) -> None:
     assert np.array_equal(d.parameters.estimates, robocal.calibrate_tree(urdf, [views]).parameters.estimates)
 
 
+def test_a_trees_cross_validation_is_the_command_lines(tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    urdf, views = ROOT / "presets" / "torso.urdf", EXAMPLES / "torso" / "views.csv"
+    text = run_cli("calibrate", "--model", str(urdf), "--data", str(views), "--folds", "3", "--json", str(out),
+                   "--quiet")
+    c = robocal.calibrate_tree(urdf, [views], folds=3)
+    assert "3-fold cross-validation" in text and c.report() == text
+    assert_same(json.loads(c.to_json()), json.loads(out.read_text()))
+
+
 def test_bad_observations_are_input_errors_naming_their_row_and_column(puma: robocal.Model) -> None:
     q = np.zeros((3, 6))
     bad = robocal.PointDistances(q, [0.5, -0.2, 0.4], name="bar")
