@@ -63,10 +63,11 @@ pub fn calibrate_tree(
         "all: the base is never estimated from views; give joints",
     )?;
     require(
-        request.auto_prior.is_none() && request.select.is_none() && flags.folds.is_none(),
+        request.auto_prior.is_none(),
         "prior",
-        "a tree takes a preset or standard deviations as its prior, and no select or folds",
+        "auto: a tree takes a preset or standard deviations as its prior",
     )?;
+    require(request.select.is_none(), "select", "not for a tree yet")?;
     let text = std::fs::read_to_string(&urdf).map_err(|e| {
         let place = Place { file: Some(urdf.clone()), ..Place::default() };
         errors::raise(Kind::Input, format!("{urdf}: cannot read: {e}"), place)
