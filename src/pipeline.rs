@@ -20,7 +20,7 @@ use crate::calibration::{
 use crate::design::accuracy::{AccuracyModel, CovarianceError, ParameterCovariance};
 use crate::estimation::NoiseModel;
 use crate::model::{RobotModel, RobotTree};
-use crate::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy};
+use crate::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy, fold_label};
 use crate::report::observations::ObservationsReport;
 use crate::report::tree::TreeReport;
 
@@ -230,8 +230,7 @@ pub fn calibrate_views(
     if let Some(k) = folds {
         let score = cross_validate_tree(tree, &data, options, k)
             .map_err(in_context(&format!("--folds {k}: {names}")))?;
-        let nested = if options.loss == Loss::Squared { "" } else { ", nested" };
-        scores.push((format!("{k}-fold cross-validation{nested}"), score));
+        scores.push((fold_label(k, options.loss != Loss::Squared), score));
     }
     let fitted = (data.views.len(), data.joints.len());
     let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
@@ -287,9 +286,7 @@ pub fn calibrate_observations(
         let score = score.map_err(in_context(&format!("--folds {k}: {names}")))?;
         // A selection and a robust loss's weights are choices made from the data: made again
         // in each fold.
-        let chosen = select.is_some() || options.loss != Loss::Squared;
-        let nested = if chosen { ", nested" } else { "" };
-        scores.push((format!("{k}-fold cross-validation{nested}"), score));
+        scores.push((fold_label(k, select.is_some() || options.loss != Loss::Squared), score));
     }
     let fitted = (data.observations.len(), data.joints.len());
     let files = sessions.iter().map(|(name, file)| (name.clone(), file.observations.len())).collect();

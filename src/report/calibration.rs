@@ -107,6 +107,12 @@ pub struct CalibrationReport {
     pub sets: Vec<SetEvaluation>,
 }
 
+/// The label of a k-fold cross-validation's row: `5-fold cross-validation`, and `, nested`
+/// when every choice made from the data was made again inside each fold.
+pub fn fold_label(folds: usize, nested: bool) -> String {
+    format!("{folds}-fold cross-validation{}", if nested { ", nested" } else { "" })
+}
+
 /// How a k-fold cross-validation was made: nested when the model is chosen from the data
 /// (`--select`, a robust loss), every choice made again on each fold's training poses, so that
 /// its figure is one of poses no choice has seen.
@@ -129,7 +135,7 @@ pub struct CrossValidationReport {
 impl CrossValidationReport {
     /// The label of its row in the error table: `5-fold cross-validation`, `, nested` when it is.
     pub fn label(&self) -> String {
-        format!("{}-fold cross-validation{}", self.folds, if self.nested { ", nested" } else { "" })
+        fold_label(self.folds, self.nested)
     }
 
     /// What it redid, in words.
