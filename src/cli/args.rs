@@ -401,6 +401,8 @@ pub struct ObservationArgs {
     /// stem), estimated: names or patterns (`point1.zero`, `pair.zero`, `target.*`), for an
     /// instrument re-zeroed or moved between sessions. A length zero (`point<i>.zero`,
     /// `pair.zero`, mm: distance = |p - c| + zero) is held unless named here or in --params.
+    /// `tracker.*`: marker files measured by a tracker moved between sessions, each later
+    /// session's tracker placed in the first one's frame (mm, rotation vector in deg).
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     pub per_session: Vec<String>,
 }
@@ -471,6 +473,8 @@ pub struct CalibrateObservationsArgs {
     /// stem), estimated: names or patterns (`point1.zero`, `pair.zero`, `target.*`), for an
     /// instrument re-zeroed or moved between sessions. A length zero (`point<i>.zero`,
     /// `pair.zero`, mm: distance = |p - c| + zero) is held unless named here or in --params.
+    /// `tracker.*`: marker files measured by a tracker moved between sessions, each later
+    /// session's tracker placed in the first one's frame (mm, rotation vector in deg).
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     pub per_session: Vec<String>,
     /// Choose the joint parameters by held-out error among those --params names: `cv`, `bic`

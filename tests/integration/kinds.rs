@@ -66,12 +66,14 @@ fn check_kind_jacobians(model: &RobotModel, u: &[f64], angles: bool) -> Result<(
 /// chain each sharing the parameters ([`Chain::markers`]), each marker's x, y, z at three
 /// poses (two markers at one) with every kind of the tool point's; with `angles`, roll, pitch
 /// and yaw too, the tool a frame ([`Chain::markers_and_probe`]); with `camera`, a camera's
-/// views at two poses too (the tool's frame, the rotation rows of every point's `H_j`).
+/// views at two poses too (the tool's frame, the rotation rows of every point's `H_j`); with
+/// `tracker`, the markers read in a tracker frame placed away from the measuring frame
+/// ([`SetUp::with_tracker`]).
 fn check_marker_jacobians(
     model: &RobotModel,
     u: &[f64],
     angles: bool,
-    camera: Option<CameraSite>,
+    (camera, tracker): (Option<CameraSite>, bool),
 ) -> Result<(), TestCaseError> {
     let points = [0, 7, 3].map(|i| Vector3::new(u[i], u[i + 1], u[i + 2]) * 200.0);
     let chains = match angles || camera.is_some() {
@@ -110,6 +112,10 @@ fn check_marker_jacobians(
     // With markers, the coordinates x, y, z are read in a device frame of their own.
     setup = setup.with_device();
     s.extend((0..6).map(|i| u[82 + i] * if i < 3 { 300.0 } else { 0.5 }));
+    if tracker {
+        setup = setup.with_tracker();
+        s.extend((0..6).map(|i| u[89 + i] * if i < 3 { 300.0 } else { 0.5 }));
+    }
     s.push(u[88] * 3.0);
     let all = Selection::all(params);
     let every: Vec<usize> = (0..setup.len()).collect();
@@ -184,27 +190,37 @@ proptest! {
 
     #[test]
     fn marker_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, false, None)?;
+        check_marker_jacobians(&model, &u, false, (None, false))?;
     }
 
     #[test]
     fn marker_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, false, None)?;
+        check_marker_jacobians(&model, &u, false, (None, false))?;
+    }
+
+    #[test]
+    fn tracker_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, false, (None, true))?;
+    }
+
+    #[test]
+    fn tracker_and_camera_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, true, (Some(CameraSite::World), true))?;
     }
 
     #[test]
     fn marker_and_angle_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, true, None)?;
+        check_marker_jacobians(&model, &u, true, (None, false))?;
     }
 
     #[test]
     fn marker_and_camera_jacobians_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, false, Some(CameraSite::Hand))?;
+        check_marker_jacobians(&model, &u, false, (Some(CameraSite::Hand), false))?;
     }
 
     #[test]
     fn marker_and_camera_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, true, Some(CameraSite::World))?;
+        check_marker_jacobians(&model, &u, true, (Some(CameraSite::World), false))?;
     }
 
     #[test]

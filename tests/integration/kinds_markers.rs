@@ -23,7 +23,7 @@ const MARKERS: [Vector3<f64>; 3] =
 
 /// The measuring device's frame: far from the robot's and turned (its base in the device's
 /// frame), so that the registration has work to do.
-fn device() -> Placement {
+pub(crate) fn device() -> Placement {
     Placement { xyz: Vector3::new(1500.0, -800.0, 300.0), rpy: Vector3::new(0.05, -0.03, 2.0) }
 }
 
@@ -38,8 +38,13 @@ pub(crate) fn true_chains(x: &[f64]) -> Vec<ChainAt> {
 
 /// [`true_chains`] with the tool point at `tool`.
 fn true_chains_with(x: &[f64], tool: Vector3<f64>) -> Vec<ChainAt> {
+    true_chains_seen(x, tool, device())
+}
+
+/// [`true_chains`] seen from a device whose frame places the robot's base at `base`.
+pub(crate) fn true_chains_seen(x: &[f64], tool: Vector3<f64>, base: Placement) -> Vec<ChainAt> {
     let mut model = puma();
-    model.base = device();
+    model.base = base;
     let points: Vec<Vector3<f64>> = MARKERS.iter().copied().chain([tool]).collect();
     Chain::markers(&model, &points).iter().map(|c| c.with_errors(x)).collect()
 }
@@ -167,7 +172,7 @@ fn markers_and_a_ball_bar_calibrate_the_robot_the_markers_the_base_and_the_pivot
 
 /// A marker file in `calibrate`'s format: `poses` random poses of `real`, the three markers'
 /// x, y, z with noise 0.01 mm, every cell measured.
-fn marker_csv(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng) -> String {
+pub(crate) fn marker_csv(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng) -> String {
     let mut text =
         String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,x2,y2,z2,x3,y3,z3\n");
     for _ in 0..poses {

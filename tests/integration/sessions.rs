@@ -266,3 +266,149 @@ fn a_camera_target_moved_between_sessions_is_one_placement_per_session() {
         one_board.training.lengths.1
     );
 }
+
+/// Where the tracker stood in the second session, in the first session's measuring frame:
+/// moved by 41 mm and turned by 1.5 deg.
+fn moved_tracker() -> nalgebra::Isometry3<f64> {
+    robocal::model::Placement { xyz: Vector3::new(30.0, -25.0, 12.0), rpy: Vector3::new(0.01, -0.02, 0.015) }
+        .isometry()
+}
+
+/// Marker sessions `monday` and `tuesday` of one robot with errors on its joints, the tracker
+/// moved between them ([`moved_tracker`]): training files of `poses` poses each, and held-out
+/// files of the same names.
+fn tracker_sessions(seed: u64, poses: usize) -> (KindData, Vec<KindData>) {
+    use crate::kinds_markers::{chains, device, markers, true_chains_seen};
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let chain = &chains()[0];
+    let joints: Vec<String> =
+        chain.params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
+    let x = errors_on(chain, &joints, &mut rng);
+    let tuesday =
+        robocal::model::Placement::from_isometry(&(moved_tracker().inverse() * device().isometry()));
+    let real = [true_chains_seen(&x, TOOL, device()), true_chains_seen(&x, TOOL, tuesday)];
+    let names = ["monday", "tuesday"];
+    let mut session = |s: usize, n: usize| markers(&real[s], n, &mut rng, 0.01).named(names[s]);
+    let training = session(0, poses).join(&session(1, poses));
+    let held_out = vec![session(0, 20), session(1, 20)];
+    (training, held_out)
+}
+
+/// A tracker moved between two marker sessions, `--per-session 'tracker.*'`: its placement in
+/// the first session's frame recovered within 3 standard errors, and each held-out file, scored
+/// with its session's tracker, at the markers' noise; one frame for both sessions leaves
+/// held-out errors many times larger.
+#[test]
+fn a_tracker_moved_between_marker_sessions_is_modelled_by_a_per_session_placement() {
+    let (training, held_out) = tracker_sessions(21, 40);
+    let options = KindOptions {
+        per_session: vec!["tracker.*".into()],
+        ..crate::kinds_markers::marker_options(Estimator::Wls)
+    };
+    let c = calibrate_kinds(&puma(), &training, &options).unwrap();
+    let est = &c.refined.estimate;
+    let se = est.standard_errors();
+    let truth = moved_tracker();
+    let truth: Vec<f64> =
+        truth.translation.vector.iter().chain(truth.rotation.scaled_axis().iter()).copied().collect();
+    for (k, axis) in ["x", "y", "z", "rx", "ry", "rz"].iter().enumerate() {
+        let name = format!("tracker.{axis}@tuesday");
+        let i =
+            est.names.iter().position(|n| *n == name).unwrap_or_else(|| panic!("{name} in {:?}", est.names));
+        assert!(
+            (est.x[i] - truth[k]).abs() < 3.0 * se[i],
+            "{name}: {} against {}, SE {}",
+            est.x[i],
+            truth[k],
+            se[i]
+        );
+    }
+    assert!(
+        !est.names.iter().any(|n| n.contains("@monday")),
+        "the first session's tracker is the frame: {:?}",
+        est.names
+    );
+    let after = |c: &KindCalibration| -> Vec<f64> {
+        held_out.iter().map(|f| c.score(f).unwrap().markers.unwrap().1).collect()
+    };
+    let with = after(&c);
+    assert!(with.iter().all(|&rms| rms < 0.05), "held out per session: {with:?} mm");
+    // Tuesday's held-out file under another name: its tracker fitted on it alone, the robot held.
+    let renamed = c.score(&held_out[1].clone().named("thursday")).unwrap();
+    assert_eq!(renamed.sessions, vec![("thursday".to_string(), SessionSetUp::Fitted)]);
+    assert!(renamed.markers.unwrap().1 < 0.05, "fitted tracker: {:?}", renamed.markers);
+    let shared =
+        calibrate_kinds(&puma(), &training, &crate::kinds_markers::marker_options(Estimator::Wls)).unwrap();
+    for (w, without) in with.iter().zip(after(&shared)) {
+        assert!(without > 10.0 * w, "held out: {without} mm in one frame, {w} mm per session");
+    }
+}
+
+/// `robocal calibrate --per-session 'tracker.*'` on two marker files of a tracker moved between
+/// them: the second session's placement reported, each held-out file scored with its session's
+/// tracker at the markers' noise; `tracker.*` without markers in several files refused, naming
+/// the pattern.
+#[test]
+fn the_command_models_a_tracker_moved_between_marker_files() {
+    use crate::kinds_markers::{chains, device, marker_csv, true_chains_seen};
+    let dir = std::env::temp_dir().join(format!("robocal-tracker-sessions-{}", std::process::id()));
+    let (train_dir, test_dir) = (dir.join("train"), dir.join("test"));
+    std::fs::create_dir_all(&train_dir).unwrap();
+    std::fs::create_dir_all(&test_dir).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let chain = &chains()[0];
+    let joints: Vec<String> =
+        chain.params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
+    let x = errors_on(chain, &joints, &mut rng);
+    let tuesday =
+        robocal::model::Placement::from_isometry(&(moved_tracker().inverse() * device().isometry()));
+    let real = [true_chains_seen(&x, TOOL, device()), true_chains_seen(&x, TOOL, tuesday)];
+    let path = |p: std::path::PathBuf| p.to_str().unwrap().to_string();
+    let mut args: Vec<String> = ["calibrate", "--model", "puma560", "--marker", "60,0,90"]
+        .into_iter()
+        .chain(["--marker=-30,50,90", "--marker=-30,-50,90"])
+        .map(String::from)
+        .collect();
+    for (s, name) in ["monday", "tuesday"].iter().enumerate() {
+        let file = train_dir.join(format!("{name}.csv"));
+        std::fs::write(&file, marker_csv(&real[s], 40, &mut rng)).unwrap();
+        args.extend(["--data".into(), path(file)]);
+        let held_out = test_dir.join(format!("{name}.csv"));
+        std::fs::write(&held_out, marker_csv(&real[s], 20, &mut rng)).unwrap();
+        args.extend(["--validate".into(), path(held_out)]);
+    }
+    let run = |extra: &[&str]| {
+        let output =
+            assert_cmd::Command::cargo_bin("robocal").unwrap().args(&args).args(extra).output().unwrap();
+        let text = String::from_utf8(output.stdout).unwrap();
+        (output.status.code(), text, String::from_utf8(output.stderr).unwrap())
+    };
+    let (code, text, stderr) = run(&["--per-session", "tracker.*"]);
+    assert_eq!(code, Some(0), "{text}{stderr}");
+    for axis in ["x", "y", "z", "rx", "ry", "rz"] {
+        assert!(text.contains(&format!("tracker.{axis}@tuesday ")), "{text}");
+    }
+    let after = |text: &str, file: &str| -> f64 {
+        let row = (text.lines())
+            .find(|l| l.contains(file) && l.contains("markers (mm)"))
+            .unwrap_or_else(|| panic!("{file}:\n{text}"));
+        row.split_whitespace().last().unwrap().parse().unwrap()
+    };
+    let shared = run(&[]).1;
+    for file in ["test/monday.csv", "test/tuesday.csv"] {
+        let (with, without) = (after(&text, file), after(&shared, file));
+        assert!(with < 0.05, "{file}: {with} mm\n{text}");
+        assert!(without > 10.0 * with, "{file}: {without} mm in one frame, {with} mm per session");
+    }
+    let balls = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "--model", "puma560", "--tool", "50,0,150"])
+        .args(["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002"])
+        .args(["--data", "examples/puma560-ballbar.csv", "--data", "examples/puma560-ballbar-2.csv"])
+        .args(["--per-session", "tracker.*"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&balls.stderr);
+    assert!(!balls.status.success() && stderr.contains("`tracker.*`: a tracker's placement"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -188,6 +188,9 @@ pub struct SetUp {
     /// Whether the coordinates (x, y, z) are read in a device frame of their own (with
     /// markers: a height gauge's, placed in the markers' measuring frame).
     device: bool,
+    /// Whether the markers are read in a tracker frame of each session's own (`tracker.*`,
+    /// the first session's the measuring frame itself): a tracker moved between sessions.
+    tracker: bool,
     /// Whether distances between poses have a length zero (`pair.zero`).
     pair_zero: bool,
     /// The sessions' names (one per data file; empty: one session).
@@ -215,6 +218,7 @@ impl SetUp {
             bases,
             camera: None,
             device: false,
+            tracker: false,
             pair_zero: false,
             sessions: Vec::new(),
             per_session: Vec::new(),
@@ -299,7 +303,26 @@ impl SetUp {
 
     /// Where the length zeros start.
     fn zeros_at(&self) -> usize {
+        self.tracker_at() + if self.tracker { 6 } else { 0 }
+    }
+
+    /// Where the tracker's parameters start.
+    fn tracker_at(&self) -> usize {
         self.device_at() + if self.device { 6 } else { 0 }
+    }
+
+    /// The same set-up with a tracker frame per session: 6 parameters more, `tracker.x, y, z,
+    /// rx, ry, rz`, the placement `P` of the session's tracker in the first session's measuring
+    /// frame, a marker `m` read as `P^-1 m` ([`predict`]). The first session's is the identity,
+    /// always held ([`SetUp::is_fixed_frame`]): the base registration places that frame.
+    pub fn with_tracker(self) -> Self {
+        Self { tracker: true, ..self }
+    }
+
+    /// Whether value `i` is held by the layout itself: the first session's tracker placement,
+    /// which the base registration stands for.
+    pub fn is_fixed_frame(&self, i: usize) -> bool {
+        self.tracker && (self.tracker_at()..self.tracker_at() + 6).contains(&i)
     }
 
     /// The parameters of one session.
@@ -330,7 +353,8 @@ impl SetUp {
     }
 
     /// Parameters: 3 per point, then 3 per plane (`alpha, beta, d`), then 6 for the camera
-    /// and 6 for its target, then 6 for the coordinates' device, then each point's length
+    /// and 6 for its target, then 6 for the coordinates' device, 6 for the markers' tracker,
+    /// then each point's length
     /// zero and the pairs'; then, with sessions, the per-session ones of every session after
     /// the first ([`SetUp::slot`]).
     pub fn len(&self) -> usize {
@@ -377,9 +401,13 @@ impl SetUp {
         let points = (1..=self.points).flat_map(|i| ["x", "y", "z"].map(|c| format!("point{i}.{c}")));
         let planes =
             (1..=self.bases.len()).flat_map(|i| ["alpha", "beta", "d"].map(|c| format!("plane{i}.{c}")));
-        let placements = ["camera", "target", "device"]
+        let placements = ["camera", "target", "device", "tracker"]
             .into_iter()
-            .filter(|f| if *f == "device" { self.device } else { self.camera.is_some() })
+            .filter(|f| match *f {
+                "device" => self.device,
+                "tracker" => self.tracker,
+                _ => self.camera.is_some(),
+            })
             .flat_map(|f| ["x", "y", "z", "rx", "ry", "rz"].map(|c| format!("{f}.{c}")));
         let zeros = (1..=self.points).map(|i| format!("point{i}.zero"));
         let pair = self.pair_zero.then(|| "pair.zero".to_string());
@@ -441,6 +469,29 @@ fn by_setup<const N: usize>(derivatives: [(usize, f64); N]) -> ([(usize, f64); 1
     (out, N)
 }
 
+/// Coordinate `axis` (x, y, z) of the point of frame `T = frames[pose]` read in a frame `D`
+/// placed by the set-up values `s[at..at + 6]` (a device's, a tracker's): the row of the view
+/// `D^-1 T` ([`relative_view`]), its derivatives by the point's twist and by the placement.
+fn placed_row(
+    at: usize,
+    s: &[f64],
+    (frames, pose): (&[Isometry3<f64>], usize),
+    axis: usize,
+    measured: f64,
+) -> Prediction {
+    let (frame, by_placement) = camera::placed(&s[at..at + 6]);
+    let view = relative_view(&Vector6::ith(axis, measured), &frame, &frames[pose]);
+    let by_frame = view.by_a * by_placement;
+    let (by_setup, setups) = by_setup(std::array::from_fn::<_, 6, _>(|i| (at + i, by_frame[(axis, i)])));
+    Prediction {
+        residual: view.residual[axis],
+        by_point: [(pose, view.by_b.row(axis).transpose()), (0, Vector6::zeros())],
+        poses: 1,
+        by_setup,
+        setups,
+    }
+}
+
 /// `f_k` of the [module](self) and its derivatives, at the tool frames `frames` of every pose
 /// (their rotations used by angles only). The derivatives `g_kj` are with respect to the pose
 /// error of the tool at pose `j`: its position (mm), then its rotation vector (rad, measuring
@@ -483,19 +534,11 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
         }
         Observation::Coordinate { pose, axis, measured, .. } if axis < 3 && setup.device => {
             // In the device's frame D: the row of the view D^-1 T of the point's frame T.
-            let at = setup.device_at();
-            let (device, by_placement) = camera::placed(&s[at..at + 6]);
-            let view = relative_view(&Vector6::ith(axis, measured), &device, &frames[pose]);
-            let by_device = view.by_a * by_placement;
-            let (by_setup, setups) =
-                by_setup(std::array::from_fn::<_, 6, _>(|i| (at + i, by_device[(axis, i)])));
-            Prediction {
-                residual: view.residual[axis],
-                by_point: [(pose, view.by_b.row(axis).transpose()), none],
-                poses: 1,
-                by_setup,
-                setups,
-            }
+            placed_row(setup.device_at(), s, (frames, pose), axis, measured)
+        }
+        Observation::Marker { pose, axis, measured, .. } if setup.tracker => {
+            // Read in the session's tracker frame P: the row of the view P^-1 T.
+            placed_row(setup.tracker_at(), s, (frames, pose), axis, measured)
         }
         Observation::Coordinate { pose, axis, .. } | Observation::Marker { pose, axis, .. } if axis < 3 => {
             Prediction {
@@ -1400,7 +1443,7 @@ pub(super) fn prepare(
         let at = chains[chains.len() - 1].with_errors(&zero);
         data.joints.iter().map(|q| at.pose(q)).collect()
     };
-    let (setup, start) = data.initial_setup(&nominal)?;
+    let (setup, start) = with_tracker(data.initial_setup(&nominal)?, data, options)?;
     let sessions = (0..data.session_count()).map(|k| data.session_name(k)).collect();
     let per_session = matching(&setup.base_names(), &options.per_session)?;
     let setup = setup.with_sessions(sessions, per_session);
@@ -1409,8 +1452,11 @@ pub(super) fn prepare(
     let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
     let (asked, asked_setup, held_words) =
         without_held(&params, asked, asked_setup, &setup, &options.gauge.hold)?;
-    let every: Vec<usize> =
-        (0..setup.len()).filter(|&i| !setup.is_zero(setup.base_of(i)) || asked_setup.contains(&i)).collect();
+    let every: Vec<usize> = (0..setup.len())
+        .filter(|&i| {
+            !setup.is_fixed_frame(i) && (!setup.is_zero(setup.base_of(i)) || asked_setup.contains(&i))
+        })
+        .collect();
     let scale =
         (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, &params)).flatten();
     #[rustfmt::skip]
@@ -1419,6 +1465,31 @@ pub(super) fn prepare(
         held_words, every, scale, nothing,
     };
     Ok(prepared)
+}
+
+/// The set-up `(setup, start)` with a tracker frame per session ([`SetUp::with_tracker`], its
+/// start the identity) when markers are read in several sessions and `--per-session` names
+/// `tracker.*`; else as it is. A pattern naming the tracker without such files is refused.
+fn with_tracker(
+    (setup, mut start): (SetUp, Vec<f64>),
+    data: &KindData,
+    options: &KindOptions,
+) -> Result<(SetUp, Vec<f64>), CalibrationError> {
+    let names = ["x", "y", "z", "rx", "ry", "rz"].map(|c| format!("tracker.{c}"));
+    let named = options.per_session.iter().find(|p| names.iter().any(|n| name_matches(p, n)));
+    let Some(pattern) = named else { return Ok((setup, start)) };
+    if data.markers().is_empty() || data.session_count() < 2 {
+        return Err(CalibrationError::Observations(format!(
+            "--per-session `{pattern}`: a tracker's placement per session needs marker positions (x1, y1, z1 \
+             columns) in two data files or more; these have {} session(s) and {} marker(s)",
+            data.session_count(),
+            data.markers().len()
+        )));
+    }
+    let setup = setup.with_tracker();
+    let at = setup.tracker_at();
+    start.splice(at..at, [0.0; 6]);
+    Ok((setup, start))
 }
 
 /// A calibration linearised at its "before" fit: the problem of every parameter held (its
@@ -1717,7 +1788,8 @@ fn asked(
         unseen.contains(&b)
             || (setup.is_zero(b) && !setup_named.contains(&b) && !setup.per_session().contains(&b))
     };
-    Ok((robot, (0..setup.len()).filter(|&i| !held(setup.base_of(i))).collect()))
+    let setup_asked = (0..setup.len()).filter(|&i| !setup.is_fixed_frame(i) && !held(setup.base_of(i)));
+    Ok((robot, setup_asked.collect()))
 }
 
 /// The columns of `problem` (robot then set-up, by [`Residuals::names`], a per-session
