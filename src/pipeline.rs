@@ -8,10 +8,8 @@
 //! scored, the (nested) cross-validation, the report. Above every other
 //! module: it joins the calibration, the design's accuracy prediction and the report.
 
-use crate::calibration::kinds::{
-    KindCalibration, KindData, KindOptions, calibrate_kinds, cross_validate_kinds,
-};
-use crate::calibration::selection::{Criterion, calibrate_kinds_selected, cross_validate_kinds_selection};
+use crate::calibration::kinds::{KindCalibration, KindData, KindOptions};
+use crate::calibration::selection::{calibrate_kinds_chosen, cross_validate_kinds_choices};
 use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree, cross_validate_tree};
 use crate::calibration::{
     self, Calibration, CalibrationError, Choices, ErrorStats, FeasibleOptions, Loss, Measurements, Options,
@@ -250,50 +248,47 @@ pub struct ObservationOutcome {
 }
 
 /// Calibrate `model` from the observations of `sessions` (each a file's name and
-/// observations) fitted together, the parameters chosen by `select` if given
-/// ([`calibrate_kinds_selected`]), else every one asked for ([`calibrate_kinds`]); score each
-/// `held_out` set with the calibrated robot and set-up; with `folds`, cross-validate the
-/// training poses, the selection and a robust loss's weights made again in each fold
-/// (labelled "nested"); and report.
+/// observations) fitted together, with `choices` made from them ([`calibrate_kinds_chosen`]:
+/// `--prior auto`'s scale, then `--select`'s parameters; none: every parameter asked for);
+/// score each `held_out` set with the calibrated robot and set-up; with `folds`,
+/// cross-validate the training poses, the choices and a robust loss's weights made again in
+/// each fold (labelled "nested"); and report.
 pub fn calibrate_observations(
     model: &RobotModel,
     sessions: &[(String, KindData)],
     held_out: &[(String, KindData)],
     options: &KindOptions,
-    select: Option<Criterion>,
+    choices: &Choices,
     folds: Option<usize>,
 ) -> Result<ObservationOutcome, FilesError> {
     let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
     let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
     let names = names.join(", ");
-    let (path, c) = match select {
-        Some(criterion) => {
-            let context = format!("--select {}: {names}", criterion.name());
-            let (path, c) =
-                calibrate_kinds_selected(model, &data, options, criterion).map_err(in_context(&context))?;
-            (Some(path), c)
-        }
-        None => (None, calibrate_kinds(model, &data, options).map_err(in_context(&names))?),
+    let context = match choices_in_words(choices) {
+        words if words.is_empty() => names.clone(),
+        words => format!("{}: {names}", words.join(", ")),
     };
+    let chosen = calibrate_kinds_chosen(model, &data, options, choices).map_err(in_context(&context))?;
+    let c = chosen.calibration;
     let mut scores = (held_out.iter())
         .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
         .collect::<Result<Vec<_>, FilesError>>()?;
     if let Some(k) = folds {
-        let score = match select {
-            Some(criterion) => cross_validate_kinds_selection(model, &data, options, criterion, k),
-            None => cross_validate_kinds(model, &data, options, k),
-        };
-        let score = score.map_err(in_context(&format!("--folds {k}: {names}")))?;
-        // A selection and a robust loss's weights are choices made from the data: made again
-        // in each fold.
-        scores.push((fold_label(k, select.is_some() || options.loss != Loss::Squared), score));
+        let score = cross_validate_kinds_choices(model, &data, options, choices, k)
+            .map_err(in_context(&format!("--folds {k}: {names}")))?;
+        // The choices and a robust loss's weights are made from the data: made again in each
+        // fold.
+        scores.push((fold_label(k, *choices != Choices::default() || options.loss != Loss::Squared), score));
     }
     let fitted = (data.observations.len(), data.joints.len());
     let files = sessions.iter().map(|(name, file)| (name.clone(), file.observations.len())).collect();
     let mut report = ObservationsReport::new(&c, &names, fitted, options.estimator.name(), scores)
         .with_training_files(files);
-    if let Some(path) = &path {
+    if let Some(path) = &chosen.path {
         report = report.with_selection(path, &c);
+    }
+    if let Some(scale) = chosen.scale {
+        report = report.with_prior_scale(scale);
     }
     Ok(ObservationOutcome { calibration: c, report })
 }

@@ -631,9 +631,7 @@ fn markers(
     robocal::io::check_memory(fit.memory_estimate(model.params().len()), &what, "calibrate on fewer poses")
         .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
     let options = marker_options(model, &fit, flags, request)?;
-    let folds = flags.folds.unwrap_or(DEFAULT_FOLDS);
-    let choices =
-        Choices { auto_prior: request.auto_prior.clone().map(|a| (a, folds)), select: request.select };
+    let choices = Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
     // Each held-out set scored with the noise at its own poses (a noise file's device), or
     // with the noise feasible GLS estimated.
     let held_out = (held_out.into_iter())
@@ -768,7 +766,6 @@ fn observations(
         "estimator",
         "observation files: each observation's sigma is its own; give joint_sigma only, and an estimator other than fgls",
     )?;
-    require(request.auto_prior.is_none(), "prior", "auto: not with observation files")?;
     require(
         flags.per_session.is_empty() || sources.len() >= 2,
         "per_session",
@@ -791,7 +788,7 @@ fn observations(
                 &sessions,
                 &held,
                 &options,
-                request.select,
+                &Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds),
                 flags.folds,
             )
         })

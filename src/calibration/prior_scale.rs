@@ -8,6 +8,7 @@
 //! data, so `--folds` cross-validates it nested
 //! ([`cross_validate_choices`](super::selection::cross_validate_choices)).
 
+use super::kinds::{KindData, KindOptions, cross_validate_kinds};
 use super::{CalibrationError, Measurements, Options, RobotModel, cross_validate};
 use crate::estimation::PriorEntry;
 
@@ -51,6 +52,12 @@ impl AutoPrior {
         let at = |e: &PriorEntry| PriorEntry { sd: e.sd * s, text: format!("{} x {s}", e.text), ..e.clone() };
         self.entries.iter().map(at).collect()
     }
+
+    /// Its entries scaled by `s` ([`AutoPrior::scaled`]), then `own` (which win where both
+    /// name a parameter).
+    pub fn before(&self, own: &[PriorEntry], s: f64) -> Vec<PriorEntry> {
+        self.scaled(s).into_iter().chain(own.iter().cloned()).collect()
+    }
 }
 
 /// The scale chosen, and the curve it was chosen from.
@@ -78,9 +85,12 @@ impl PriorScale {
 /// `options` with `auto`'s preset scaled by `s` before its own priors (which win where both
 /// name a parameter).
 pub fn with_scale(options: &Options, auto: &AutoPrior, s: f64) -> Options {
-    let mut prior = auto.scaled(s);
-    prior.extend(options.prior.iter().cloned());
-    Options { prior, ..options.clone() }
+    Options { prior: auto.before(&options.prior, s), ..options.clone() }
+}
+
+/// [`with_scale`] for a calibration from observation files.
+pub fn with_kinds_scale(options: &KindOptions, auto: &AutoPrior, s: f64) -> KindOptions {
+    KindOptions { prior: auto.before(&options.prior, s), ..options.clone() }
 }
 
 /// Choose the scale of `auto`'s preset for calibrating `data` with `options` by `folds`-fold
@@ -92,12 +102,36 @@ pub fn choose_prior_scale(
     auto: &AutoPrior,
     folds: usize,
 ) -> Result<PriorScale, CalibrationError> {
-    super::check_folds(folds, data.len())
-        .map_err(|e| CalibrationError::Scoring(format!("--prior auto: {e}")))?;
-    let cv_rms = SCALES
-        .iter()
-        .map(|&s| Ok(cross_validate(model, data, &with_scale(options, auto, s), folds)?.1.rms))
-        .collect::<Result<Vec<f64>, CalibrationError>>()?;
+    scale_by_curve(auto, folds, data.len(), |s| {
+        Ok(cross_validate(model, data, &with_scale(options, auto, s), folds)?.1.rms)
+    })
+}
+
+/// [`choose_prior_scale`] for observation files: each scale scored by the cross-validated RMS
+/// of the length residuals (mm; [`cross_validate_kinds`]'s folds, every observation of a pose
+/// held out together).
+pub fn choose_kinds_prior_scale(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    auto: &AutoPrior,
+    folds: usize,
+) -> Result<PriorScale, CalibrationError> {
+    scale_by_curve(auto, folds, data.joints.len(), |s| {
+        Ok(cross_validate_kinds(model, data, &with_kinds_scale(options, auto, s), folds)?.lengths.1)
+    })
+}
+
+/// The scale of [`SCALES`] of the lowest `cv_rms_at(s)` (ties to the smaller scale), with the
+/// curve; `folds` checked against the `poses` first.
+fn scale_by_curve(
+    auto: &AutoPrior,
+    folds: usize,
+    poses: usize,
+    cv_rms_at: impl Fn(f64) -> Result<f64, CalibrationError>,
+) -> Result<PriorScale, CalibrationError> {
+    super::check_folds(folds, poses).map_err(|e| CalibrationError::Scoring(format!("--prior auto: {e}")))?;
+    let cv_rms = SCALES.iter().map(|&s| cv_rms_at(s)).collect::<Result<Vec<f64>, CalibrationError>>()?;
     let chosen = (0..cv_rms.len()).min_by(|&a, &b| cv_rms[a].total_cmp(&cv_rms[b])).unwrap_or(0);
     Ok(PriorScale { preset: auto.preset.clone(), folds, scales: SCALES.to_vec(), cv_rms, chosen })
 }

@@ -43,7 +43,9 @@
 //! Gauss-Newton as any other.
 
 use super::kinds::{self, KindCalibration, KindData, KindOptions};
-use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale, with_scale};
+use super::prior_scale::{
+    AutoPrior, PriorScale, choose_kinds_prior_scale, choose_prior_scale, with_kinds_scale, with_scale,
+};
 use super::{
     CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel,
     Whitening, calibrate, check_folds, errors, identifiable, observed, selection, standard_errors_of,
@@ -213,21 +215,6 @@ pub fn calibrate_kinds_selected(
     Ok((path, calibration))
 }
 
-/// Nested k-fold cross-validation of [`calibrate_kinds_selected`]: the selection made again on
-/// each fold's training observations ([`kinds::cross_validate_kinds`]'s folds), and the
-/// held-out ones scored with the model it chose.
-pub fn cross_validate_kinds_selection(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
-    criterion: Criterion,
-    folds: usize,
-) -> Result<kinds::Score, CalibrationError> {
-    kinds::cross_validate_kinds_by(data, folds, |train| {
-        Ok(calibrate_kinds_selected(model, train, options, criterion)?.1)
-    })
-}
-
 /// `options` of an observation calibration asking for the joint parameters `names` only; the
 /// patterns of `--params` that name no robot parameter (a set-up's, a marker's) kept.
 fn asking_kinds(model: &RobotModel, options: &KindOptions, names: &[String]) -> KindOptions {
@@ -251,6 +238,19 @@ pub struct Choices {
     pub auto_prior: Option<(AutoPrior, usize)>,
     /// `--select`: how to choose the joint parameters.
     pub select: Option<Criterion>,
+}
+
+impl Choices {
+    /// The choices of the command line's flags: `--prior auto`'s preset, its scale chosen by
+    /// `folds`-fold cross-validation ([`DEFAULT_FOLDS`] unless given), and `--select`.
+    pub fn from_flags(
+        auto_prior: Option<AutoPrior>,
+        select: Option<Criterion>,
+        folds: Option<usize>,
+    ) -> Self {
+        let folds = folds.unwrap_or(DEFAULT_FOLDS);
+        Self { auto_prior: auto_prior.map(|auto| (auto, folds)), select }
+    }
 }
 
 /// What [`choose`] chose.
@@ -319,6 +319,59 @@ pub fn cross_validate_choices(
         scales.extend(chosen.scale.map(|s| s.scale()));
     }
     Ok(NestedCv { before: ErrorStats::of(&before), after: ErrorStats::of(&after), selected, scales })
+}
+
+/// An observation calibration with its choices made ([`calibrate_kinds_chosen`]).
+#[derive(Debug, Clone)]
+pub struct KindsChosen {
+    /// The options calibrated with: the scaled priors, the selected parameters.
+    pub options: KindOptions,
+    /// The scale of the preset, and its curve.
+    pub scale: Option<PriorScale>,
+    /// The selection's path.
+    pub path: Option<SelectionPath>,
+    /// The calibration with the options chosen.
+    pub calibration: KindCalibration,
+}
+
+/// Make `choices` on observation `data` as [`choose`] makes them on marker data (the preset's
+/// scale first, [`choose_kinds_prior_scale`], then the selection with those priors,
+/// [`calibrate_kinds_selected`]) and calibrate with them.
+pub fn calibrate_kinds_chosen(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    choices: &Choices,
+) -> Result<KindsChosen, CalibrationError> {
+    let (mut options, mut scale) = (options.clone(), None);
+    if let Some((auto, folds)) = &choices.auto_prior {
+        let chosen = choose_kinds_prior_scale(model, data, &options, auto, (*folds).min(data.joints.len()))?;
+        options = with_kinds_scale(&options, auto, chosen.scale());
+        scale = Some(chosen);
+    }
+    let (path, calibration) = match choices.select {
+        Some(criterion) => {
+            let (path, c) = calibrate_kinds_selected(model, data, &options, criterion)?;
+            (Some(path), c)
+        }
+        None => (None, kinds::calibrate_kinds(model, data, &options)?),
+    };
+    Ok(KindsChosen { options, scale, path, calibration })
+}
+
+/// Nested k-fold cross-validation of [`calibrate_kinds_chosen`]: every choice made again on
+/// each fold's training observations ([`kinds::cross_validate_kinds`]'s folds), the held-out
+/// ones scored with the model chosen.
+pub fn cross_validate_kinds_choices(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    choices: &Choices,
+    folds: usize,
+) -> Result<kinds::Score, CalibrationError> {
+    kinds::cross_validate_kinds_by(data, folds, |train| {
+        Ok(calibrate_kinds_chosen(model, train, options, choices)?.calibration)
+    })
 }
 
 /// [`cross_validate_choices`] of a selection alone.

@@ -49,7 +49,7 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
     let marker_request = robocal::pipeline::MarkerRequest {
         data: request.data.display().to_string(),
         options: asked,
-        choices: choices(request),
+        choices: calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds),
         feasible: request.method == Method::Feasible,
         held_out: held_out_noise(request, &robot.model, data.held_out)?,
         folds: request.folds,
@@ -235,16 +235,6 @@ fn held_out_noise(
             Ok((name, d, noise))
         })
         .collect()
-}
-
-/// The choices `request` makes from the data: `--prior auto`'s scale (by `--folds` folds, 5
-/// unless told), `--select`.
-fn choices(request: &CalibrateRequest) -> calibration::Choices {
-    let folds = request.folds.unwrap_or(calibration::selection::DEFAULT_FOLDS);
-    calibration::Choices {
-        auto_prior: request.auto_prior.clone().map(|auto| (auto, folds)),
-        select: request.select,
-    }
 }
 
 /// Write the JSON report, the poses, the figures, the page, the calibrated model and the

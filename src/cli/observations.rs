@@ -62,7 +62,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         &sessions,
         &held_out,
         &options,
-        request.select,
+        &robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds),
         request.folds,
     )?;
     let (c, report) = (outcome.calibration, outcome.report);

@@ -428,6 +428,8 @@ pub struct CalibrateObservationsRequest {
     pub gauge: robocal::calibration::Gauge,
     /// Prior standard deviations.
     pub prior: Vec<robocal::estimation::PriorEntry>,
+    /// `--prior auto[:PRESET]`: the preset whose scale is chosen from the data.
+    pub auto_prior: Option<robocal::calibration::prior_scale::AutoPrior>,
     /// The loss of each observation.
     pub loss: robocal::calibration::Loss,
     /// Where the JSON report goes.
@@ -516,20 +518,15 @@ impl CalibrateObservationsRequest {
         if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
             return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
         }
+        let (prior, auto_prior) = priors(args.choice.prior)?;
         Ok(Self {
             model,
             per_session: args.per_session,
             folds: args.folds,
             select,
             gauge: robocal::calibration::Gauge { hold: args.choice.hold, keep: args.choice.keep },
-            prior: match priors(args.choice.prior)? {
-                (prior, None) => prior,
-                (_, Some(_)) => {
-                    return Err(UsageError(
-                        "--prior auto: calibrate only; give calibrate-observations the preset (--prior fabricated) or its standard deviations".into(),
-                    ));
-                }
-            },
+            prior,
+            auto_prior,
             loss: args.choice.loss,
             data: args.data,
             units: args.units.units()?,

@@ -223,7 +223,7 @@ fn stiffness_rows(rows: &[ParameterRow]) -> Vec<StiffnessRow> {
 }
 
 /// The scale `--prior auto` chose, with its curve.
-fn prior_scale_text(scale: &PriorScale) -> String {
+pub(super) fn prior_scale_text(scale: &PriorScale) -> String {
     let mut out = format!(
         "prior scale: --prior auto:{} chose {} x its standard deviations, by {}-fold cross-validation \
          (in-sample: --folds K gives the nested figure)\n{:>8} {:>12}\n",

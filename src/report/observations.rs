@@ -7,6 +7,7 @@
 use super::calibration::{DownWeighted, ParameterRow, by_number};
 use crate::calibration::Warning;
 use crate::calibration::kinds::{KindCalibration, ObservationResidual, Score, SessionSetUp};
+use crate::calibration::prior_scale::PriorScale;
 use crate::calibration::selection::SelectionPath;
 use serde::Serialize;
 use std::fmt::Write;
@@ -66,6 +67,10 @@ pub struct ObservationsReport {
     /// `--select`: how the joint parameters were chosen, its path.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub selection: Option<super::calibration::SelectionReport>,
+    /// `--prior auto`: the scale chosen for the preset's standard deviations, and the curve
+    /// (cross-validated RMS of the length residuals, mm) it was chosen from.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior_scale: Option<PriorScale>,
 }
 
 /// `text` with the points on the last link named as the files name them: each marker by its
@@ -151,6 +156,7 @@ impl ObservationsReport {
                     .collect()
             }),
             selection: None,
+            prior_scale: None,
         }
     }
 
@@ -167,6 +173,12 @@ impl ObservationsReport {
         let mut selection = super::calibration::SelectionReport::of(path);
         selection.held = selection.held.iter().map(|h| point_names(h, c)).collect();
         self.selection = Some(selection);
+        self
+    }
+
+    /// The report with the scale `--prior auto` chose and its curve.
+    pub fn with_prior_scale(mut self, scale: PriorScale) -> Self {
+        self.prior_scale = Some(scale);
         self
     }
 
@@ -219,6 +231,10 @@ impl ObservationsReport {
             &self.down_weighted,
             "observation",
         );
+        if let Some(scale) = &self.prior_scale {
+            let _ = writeln!(out);
+            out.push_str(&super::calibration::prior_scale_text(scale));
+        }
         if let Some(selection) = &self.selection {
             let _ = writeln!(out);
             out.push_str(&selection.text());

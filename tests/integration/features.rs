@@ -12,7 +12,9 @@ use crate::kinds_markers::{chains, marker_options, markers, true_chains};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use robocal::calibration::kinds::{CameraSite, KindData, KindOptions, calibrate_kinds, cross_validate_kinds};
-use robocal::calibration::selection::{Criterion, calibrate_kinds_selected, cross_validate_kinds_selection};
+use robocal::calibration::selection::{
+    Choices, Criterion, calibrate_kinds_selected, cross_validate_kinds_choices,
+};
 use robocal::calibration::{Gauge, Loss};
 use robocal::estimation::{Estimator, PriorEntry};
 use robocal::kinematics::{Chain, ChainAt};
@@ -140,10 +142,9 @@ fn selection_works_on_every_kind_as_well_as_the_plain_fit() {
             let every = c.refined.estimate.names.iter().filter(|n| n.starts_with('j')).count();
             assert_eq!(every, path.selected.len(), "{name}: calibrated what it chose");
         }
-        let nested = cross_validate_kinds_selection(&puma(), &case.training, &case.plain, Criterion::Bic, 5)
-            .unwrap()
-            .lengths
-            .1;
+        let bic = Choices { select: Some(Criterion::Bic), auto_prior: None };
+        let nested =
+            cross_validate_kinds_choices(&puma(), &case.training, &case.plain, &bic, 5).unwrap().lengths.1;
         assert!(
             nested < 1.5 * plain && plain < 1.5 * nested,
             "{}: nested 5-fold {nested} mm against held out {plain} mm",

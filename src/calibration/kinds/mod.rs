@@ -313,7 +313,7 @@ impl SetUp {
 
     /// The same set-up with a tracker frame per session: 6 parameters more, `tracker.x, y, z,
     /// rx, ry, rz`, the placement `P` of the session's tracker in the first session's measuring
-    /// frame, a marker `m` read as `P^-1 m` ([`predict`]). The first session's is the identity,
+    /// frame, a marker `m` read as `P^-1 m`. The first session's is the identity,
     /// always held ([`SetUp::is_fixed_frame`]): the base registration places that frame.
     pub fn with_tracker(self) -> Self {
         Self { tracker: true, ..self }

@@ -581,5 +581,7 @@ fn prior_auto_takes_a_preset_to_scale() {
         refused(calibrate(&["--prior", "auto", "--estimator", "fgls"]))
             .contains("--prior with --estimator fgls")
     );
-    assert!(refused(observations(&["--prior", "auto"])).contains("--prior auto: calibrate only"));
+    let request = observations(&["--prior", "auto:precision", "--prior", "j1.theta=0.1deg"]).unwrap();
+    assert_eq!(request.auto_prior.map(|a| a.preset), Some("precision".to_string()));
+    assert_eq!(request.prior.len(), 1, "the explicit entry, on top of the scaled preset");
 }
