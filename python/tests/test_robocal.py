@@ -412,6 +412,16 @@ def test_selection_on_observation_files_is_the_command_lines(puma: robocal.Model
     assert_same(json.loads(c.to_json()), theirs)
 
 
+def test_a_scaled_prior_on_observation_files_is_the_command_lines(puma: robocal.Model, tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    run_cli("calibrate", "--model", "puma560", "--data", str(BALLBAR), "--prior", "auto:machined",
+            "--folds", "3", "--json", str(out), "--quiet")
+    c = robocal.calibrate(puma, [BALLBAR], prior="auto:machined", folds=3)
+    theirs = json.loads(out.read_text())
+    assert theirs["prior_scale"]["preset"] == "machined"
+    assert_same(json.loads(c.to_json()), theirs)
+
+
 def test_per_session_zeros_are_the_command_lines(puma: robocal.Model, tmp_path: Path) -> None:
     second = EXAMPLES / "puma560-ballbar-2.csv"
     out = tmp_path / "report.json"
