@@ -490,6 +490,10 @@ pub struct CalibrateObservationsArgs {
     /// Write the report as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Write the report as a self-contained HTML page here: the verdict first, the parameters
+    /// with their 95% intervals drawn, what was held, the text report in full.
+    #[arg(long)]
+    pub html: Option<PathBuf>,
     /// Write the calibrated model (TOML; its tool the calibrated tool point) here.
     #[arg(long)]
     pub out_model: Option<PathBuf>,
@@ -858,6 +862,10 @@ pub struct CalibrateTreeArgs {
     /// Write the report as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Write the report as a self-contained HTML page here: the verdict first, the parameters
+    /// with their 95% intervals drawn, what was held, the text report in full.
+    #[arg(long)]
+    pub html: Option<PathBuf>,
     /// Write each branch's calibrated model here, as `<tip>.toml` (a serial model TOML that
     /// every other command reads), and the cameras and targets as `frames.json`. The branches
     /// are right relative to each other; their placement in the root link's frame is what the

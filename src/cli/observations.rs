@@ -66,10 +66,14 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         request.folds,
     )?;
     let (c, report) = (outcome.calibration, outcome.report);
-    print!("{}", report.text());
+    let text = report.text();
+    print!("{text}");
     let mut outputs = io::Outputs::new();
     if let Some(path) = &request.json {
         outputs.add(path, serde_json::to_string_pretty(&report)? + "\n");
+    }
+    if let Some(path) = &request.html {
+        outputs.add(path, report.page(&format!("Calibration of {}", report.model), &text));
     }
     if let Some(path) = &request.out_model {
         outputs.add(path, robocal::model::to_toml_with_markers(&c.calibrated, &c.marker_positions()));

@@ -434,6 +434,8 @@ pub struct CalibrateObservationsRequest {
     pub loss: robocal::calibration::Loss,
     /// Where the JSON report goes.
     pub json: Option<PathBuf>,
+    /// Where the HTML page goes.
+    pub html: Option<PathBuf>,
     /// Where the calibrated model TOML goes.
     pub out_model: Option<PathBuf>,
     /// Where the calibrated URDF goes (URDF input only).
@@ -495,6 +497,7 @@ impl CalibrateObservationsRequest {
             &inputs,
             &[
                 ("--json", args.json.as_deref()),
+                ("--html", args.html.as_deref()),
                 ("--out-model", args.out_model.as_deref()),
                 ("--out-urdf", args.out_urdf.as_deref()),
             ],
@@ -539,6 +542,7 @@ impl CalibrateObservationsRequest {
             iterations: args.iterations,
             validate: args.validate,
             json: args.json,
+            html: args.html,
             out_model: args.out_model,
             out_urdf: args.out_urdf,
         })
@@ -861,6 +865,8 @@ pub struct CalibrateTreeRequest {
     pub folds: Option<usize>,
     /// Where the JSON report goes.
     pub json: Option<PathBuf>,
+    /// Where the HTML page goes.
+    pub html: Option<PathBuf>,
     /// Where the calibrated branches go.
     pub out_dir: Option<PathBuf>,
 }
@@ -896,7 +902,11 @@ impl CalibrateTreeRequest {
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
         distinct_outputs(
             &inputs,
-            &[("--json", args.json.as_deref()), ("--out-dir", args.out_dir.as_deref())],
+            &[
+                ("--json", args.json.as_deref()),
+                ("--html", args.html.as_deref()),
+                ("--out-dir", args.out_dir.as_deref()),
+            ],
         )?;
         Ok(Self {
             model: args.model,
@@ -914,6 +924,7 @@ impl CalibrateTreeRequest {
             validate: args.validate,
             folds: args.folds,
             json: args.json,
+            html: args.html,
             out_dir: args.out_dir,
         })
     }

@@ -45,10 +45,14 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     };
     let TreeOutcome { calibration: c, report } =
         robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options, request.folds)?;
-    print!("{}", report.text());
+    let text = report.text();
+    print!("{text}");
     let mut outputs = io::Outputs::new();
     if let Some(path) = &request.json {
         outputs.add(path, serde_json::to_string_pretty(&report)? + "\n");
+    }
+    if let Some(path) = &request.html {
+        outputs.add(path, report.page(&format!("Calibration of {}", report.model), &text));
     }
     if let Some(folder) = &request.out_dir {
         let note = "calibrated by robocal calibrate from camera views between branches: right relative to the \

@@ -7,7 +7,7 @@
 use super::calibration::{CalibrationReport, ParameterRow};
 use super::html::{Cell, Row, escape, table};
 use super::verdict::{Role, SetVerdict, combination, held_groups};
-use crate::calibration::{ErrorStats, SetEvaluation};
+use crate::calibration::{ErrorStats, Held, SetEvaluation};
 use std::fmt::Write;
 
 /// The page of `report`, titled `title`, with `figures` (`(file name, SVG)`) inline.
@@ -143,7 +143,7 @@ fn number(v: f64, unit: &str) -> String {
 }
 
 /// The parameter table, the interval of each drawn on one scale per unit.
-fn parameter_table(parameters: &[ParameterRow]) -> String {
+pub(super) fn parameter_table(parameters: &[ParameterRow]) -> String {
     let priors = parameters.iter().any(|p| p.prior_sd.is_some());
     let reach = |p: &ParameterRow| p.value.abs() + crate::estimation::Z_95 * p.std_error;
     let scale = |unit: &str| {
@@ -233,7 +233,7 @@ fn report_lines(text: &str) -> impl Iterator<Item = &str> {
 }
 
 /// `--prior auto`'s curve as a table, the chosen scale marked.
-fn prior_scale(scale: &crate::calibration::prior_scale::PriorScale) -> String {
+pub(super) fn prior_scale(scale: &crate::calibration::prior_scale::PriorScale) -> String {
     let rows: Vec<Row> = (scale.scales.iter().zip(&scale.cv_rms).enumerate())
         .map(|(k, (s, rms))| {
             let cells = vec![Cell::name(&format!("{s}")), Cell::text(&format!("{rms:.4}"))];
@@ -251,7 +251,7 @@ fn prior_scale(scale: &crate::calibration::prior_scale::PriorScale) -> String {
 }
 
 /// `--select`'s path as a table, the chosen step marked, and its notes.
-fn selection_table(selection: &super::calibration::SelectionReport) -> String {
+pub(super) fn selection_table(selection: &super::calibration::SelectionReport) -> String {
     let start = if selection.criterion == "t" { "every candidate" } else { "no joint parameter" };
     let rows: Vec<Row> = (selection.steps.iter().enumerate())
         .map(|(k, step)| {
@@ -295,17 +295,22 @@ fn selection_table(selection: &super::calibration::SelectionReport) -> String {
 
 /// What was held: each reason in words with its parameters, then the combinations.
 fn held(report: &CalibrationReport) -> String {
-    let mut out =
-        format!("<section id=\"held\">\n<h2>Held fixed ({} parameters)</h2>\n<ul>\n", report.held.len());
-    if report.held.is_empty() {
+    held_section(&report.held)
+}
+
+/// The section of what was held (`held`): each reason in words with its parameters, then the
+/// combinations in a collapsible list.
+pub(super) fn held_section(held: &[Held]) -> String {
+    let mut out = format!("<section id=\"held\">\n<h2>Held fixed ({} parameters)</h2>\n<ul>\n", held.len());
+    if held.is_empty() {
         out.push_str("<li>Nothing: every parameter asked for was estimated.</li>\n");
     }
-    for g in held_groups(&report.held) {
+    for g in held_groups(held) {
         let names: Vec<String> = g.parameters.iter().map(|p| format!("<code>{}</code>", escape(p))).collect();
         let _ = writeln!(out, "<li>{}: {}</li>", names.join(", "), escape(&g.words));
     }
     out.push_str("</ul>\n");
-    let combinations: Vec<String> = report.held.iter().filter_map(combination).collect();
+    let combinations: Vec<String> = held.iter().filter_map(combination).collect();
     if !combinations.is_empty() {
         let _ = writeln!(
             out,

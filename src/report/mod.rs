@@ -7,6 +7,7 @@ pub mod calibration_page;
 pub mod compensation;
 pub mod design;
 pub mod figures;
+pub mod files_page;
 pub mod html;
 pub mod instruments;
 pub mod observations;

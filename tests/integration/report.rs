@@ -584,3 +584,84 @@ fn every_error_is_printed_once() {
         }
     }
 }
+
+/// The page of `args`' calibration (observation files or a tree's views), parsed: its body's
+/// section ids, the verdict table's text, and every table's text.
+fn files_page(args: &[&str], name: &str) -> (Vec<String>, String, String) {
+    let dir = scratch(name);
+    let page = dir.join("report.html");
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(args)
+        .args(["--html", page.to_str().unwrap(), "--quiet"])
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(!html.contains("http") && !html.contains("src=") && !html.contains("<script"), "self-contained");
+    let document = roxmltree::Document::parse_with_options(
+        &html,
+        roxmltree::ParsingOptions { allow_dtd: true, ..Default::default() },
+    )
+    .expect("well-formed");
+    let body = document.descendants().find(|n| n.has_tag_name("body")).unwrap();
+    let sections = body
+        .children()
+        .filter(|n| n.has_tag_name("section"))
+        .filter_map(|n| n.attribute("id"))
+        .map(String::from);
+    let text = |n: roxmltree::Node| -> String { n.descendants().filter_map(|d| d.text()).collect() };
+    let summary = body.children().find(|n| n.attribute("id") == Some("summary")).expect("a verdict");
+    let verdict = text(summary.descendants().find(|n| n.has_tag_name("table")).expect("the verdict's table"));
+    let tables = document.descendants().filter(|n| n.has_tag_name("table")).map(text).collect();
+    (sections.collect(), verdict, tables)
+}
+
+/// Observation files and a tree's views get the designed page too: the verdict first (a row per
+/// set and quantity, the held-out file's), the robot's parameters apart from the set-up's, the
+/// prior's curve when `--prior auto` chose it, the text report in full.
+#[test]
+fn observation_files_and_trees_have_a_page_that_leads_with_the_verdict() {
+    let ball_bar = [
+        "calibrate",
+        "--model",
+        "puma560",
+        "--tool",
+        "50,0,150",
+        "--data",
+        "examples/puma560-ballbar.csv",
+        "--validate",
+        "examples/puma560-ballbar-2.csv",
+        "--joint-sigma-deg",
+        "0.007,0.007,0.007,0.002,0.002,0.002",
+        "--prior",
+        "auto:machined",
+        "--folds",
+        "3",
+    ];
+    let (sections, verdict, tables) = files_page(&ball_bar, "ballbar-page");
+    assert_eq!(sections, ["summary", "parameters", "held", "unseen", "report"]);
+    for row in
+        ["training", "examples/puma560-ballbar-2.csv", "3-fold cross-validation, nested", "residuals (mm)"]
+    {
+        assert!(verdict.contains(row), "{row}: {verdict}");
+    }
+    assert!(
+        tables.contains("j2.theta") && tables.contains("point1.x") && tables.contains("CV RMS mm"),
+        "{tables}"
+    );
+    let torso = [
+        "calibrate",
+        "--model",
+        "presets/torso.urdf",
+        "--data",
+        "examples/torso/views.csv",
+        "--validate",
+        "examples/torso/views-2.csv",
+    ];
+    let (sections, verdict, _) = files_page(&torso, "tree-page");
+    assert_eq!(sections[0], "summary");
+    for row in ["examples/torso/views-2.csv", "view positions (mm)", "view rotations (deg)"] {
+        assert!(verdict.contains(row), "{row}: {verdict}");
+    }
+}

@@ -70,12 +70,11 @@ fn observation_args(args: CalibrateArgs) -> Result<CalibrateObservationsArgs, Us
     )?;
     only_for_markers(args.fixed_markers, "--fixed-markers", "the markers are always estimated")?;
     only_for_markers(args.markers.is_some(), "--markers", "every marker of the files is fitted")?;
-    let figures =
-        args.report.poses_csv.is_some() || args.report.figures.is_some() || args.report.html.is_some();
+    let figures = args.report.poses_csv.is_some() || args.report.figures.is_some();
     only_for_markers(
         figures,
-        "--poses-csv, --figures and --html",
-        "--json holds every observation's residual",
+        "--poses-csv and --figures",
+        "--json holds every observation's residual and --html the report as a page",
     )?;
     Ok(CalibrateObservationsArgs {
         model: args.model,
@@ -94,6 +93,7 @@ fn observation_args(args: CalibrateArgs) -> Result<CalibrateObservationsArgs, Us
         select: args.select,
         folds: args.folds,
         json: args.report.json,
+        html: args.report.html,
         out_model: args.out_model,
         out_urdf: args.out_urdf,
     })
@@ -113,8 +113,8 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
         (args.select.is_some(), "--select"),
         (!args.marker.is_empty() || args.markers.is_some(), "--marker and --markers"),
         (
-            args.report.poses_csv.is_some() || args.report.figures.is_some() || args.report.html.is_some(),
-            "--poses-csv, --figures and --html",
+            args.report.poses_csv.is_some() || args.report.figures.is_some(),
+            "--poses-csv and --figures (--json holds every view's residual, --html the report as a page)",
         ),
         (
             args.out_model.is_some() || args.out_urdf.is_some(),
@@ -142,6 +142,7 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
         validate: args.validate,
         folds: args.folds,
         json: args.report.json,
+        html: args.report.html,
         out_dir: args.tree.out_dir,
     })
 }

@@ -525,7 +525,12 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
     assert!(
         refused(&[Observations], &["--select", "t", "--params", "none"]).contains("not with --params none")
     );
-    assert!(refused(&[Observations], &["--html", "r.html"]).starts_with("--poses-csv, --figures and --html"));
+    assert!(refused(&[Observations], &["--figures", "f"]).starts_with("--poses-csv and --figures"));
+    match route(&[Observations], &["--html", "r.html"]).unwrap() {
+        CalibrationRequest::Observations(r) => assert_eq!(r.html, Some("r.html".into())),
+        other => panic!("{other:?}"),
+    }
+    assert!(refused(&[Observations], &["--html", "r.html", "--json", "r.html"]).contains("r.html"));
     assert!(refused(&[Markers, Markers], &["--fixed-base"]).starts_with("--fixed-base"));
     assert!(refused(&[Observations], &["--noise", "n.toml"]).contains("sigma columns"));
     assert!(refused(&[TreeViews, Observations], &[]).contains("fitted on their own"));

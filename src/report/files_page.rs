@@ -1,0 +1,226 @@
+//! The report of a calibration from observation files ([`ObservationsReport`]) or from a
+//! tree's views ([`TreeReport`]) as a designed, self-contained page, as
+//! [`calibration_page`](super::calibration_page) makes the marker report's: the verdict as a
+//! card (each set's RMS residuals before and after calibration, by quantity, the warnings by
+//! cause), the parameters with their 95% intervals drawn, the choices made from the data (a
+//! prior's scale, a selection's path), what was held and what the data cannot see, and the
+//! text report in full in a collapsible section. No script, no address.
+
+use super::calibration::ParameterRow;
+use super::calibration_page::{held_section, parameter_table, prior_scale, selection_table};
+use super::html::{Cell, Row, escape, table};
+use super::observations::ObservationsReport;
+use super::tree::TreeReport;
+use super::verdict::WarningCount;
+use crate::calibration::{Held, Warning};
+use std::fmt::Write;
+
+/// One quantity of one set in the verdict: the RMS residual before and after calibration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResidualRow {
+    /// The set: `training`, a held-out file, the k-fold cross-validation.
+    pub set: String,
+    /// What is measured: `residuals` (lengths and positions), `marker positions`, `angles`.
+    pub quantity: &'static str,
+    /// Its unit: `mm` or `deg`.
+    pub unit: &'static str,
+    /// The RMS before calibration.
+    pub before: f64,
+    /// The RMS after calibration.
+    pub after: f64,
+}
+
+/// What a page of observation files or views shows ([`page`]).
+#[derive(Debug, Clone)]
+pub struct FilesPage<'a> {
+    /// The fit in one line (the text report's first).
+    pub meta: &'a str,
+    /// The verdict's rows, the training set's first.
+    pub residuals: Vec<ResidualRow>,
+    /// Whether the fit converged.
+    pub converged: bool,
+    /// The warnings.
+    pub warnings: &'a [Warning],
+    /// The estimates.
+    pub parameters: &'a [ParameterRow],
+    /// What was held, typed.
+    pub held: &'a [Held],
+    /// What the data cannot see, in words.
+    pub unseen: &'a [String],
+    /// `--prior auto`'s scale and curve.
+    pub prior_scale: Option<&'a crate::calibration::prior_scale::PriorScale>,
+    /// `--select`'s path.
+    pub selection: Option<&'a super::calibration::SelectionReport>,
+    /// The text report, in full.
+    pub text: &'a str,
+}
+
+/// The page of `report`, titled `title`.
+pub fn page(report: &FilesPage<'_>, title: &str) -> String {
+    let mut out = super::html::start(title, report.meta);
+    out.push_str(&summary(report));
+    out.push_str("<section id=\"parameters\">\n<h2>Parameters</h2>\n");
+    let (setup, robot): (Vec<ParameterRow>, Vec<ParameterRow>) =
+        report.parameters.iter().cloned().partition(|p| is_setup(&p.name));
+    out.push_str(&parameter_table(&robot));
+    out.push_str(
+        "<p class=\"note\">The robot's corrections: the bars draw each estimate (dot) and its 95% interval \
+         (estimate ± 1.96 standard errors) on one scale per unit, 0 at the centre line.</p>\n",
+    );
+    if !setup.is_empty() {
+        out.push_str("<h3>The set-up</h3>\n");
+        out.push_str(&parameter_table(&setup));
+        out.push_str(
+            "<p class=\"note\">Where the instruments are (fixed points, planes, cameras and targets, a device's \
+             or a tracker's placement, length zeros): values, not corrections.</p>\n",
+        );
+    }
+    if let Some(scale) = report.prior_scale {
+        out.push_str(&prior_scale(scale));
+    }
+    if let Some(selection) = report.selection {
+        out.push_str(&selection_table(selection));
+    }
+    out.push_str("</section>\n");
+    out.push_str(&held_section(report.held));
+    if !report.unseen.is_empty() {
+        out.push_str("<section id=\"unseen\">\n<h2>Not seen by these data, held</h2>\n<ul>\n");
+        for u in report.unseen {
+            let _ = writeln!(out, "<li>{}</li>", escape(u));
+        }
+        out.push_str("</ul>\n</section>\n");
+    }
+    let _ = writeln!(
+        out,
+        "<section id=\"report\">\n<h2>The report in full</h2>\n<details>\n<summary>The text report (every \
+         residual is in --json)</summary>\n<pre>{}</pre>\n</details>\n</section>",
+        escape(report.text)
+    );
+    out.push_str(super::html::end());
+    out
+}
+
+/// Whether the parameter `name` is the set-up's (`point1.x`, `plane2.d`, `camera.rx`,
+/// `tracker.z@tuesday`, `pair.zero`), not the robot's.
+fn is_setup(name: &str) -> bool {
+    let owner = name.split('.').next().unwrap_or(name);
+    let numbered =
+        |prefix: &str| owner.strip_prefix(prefix).is_some_and(|n| n.chars().all(|c| c.is_ascii_digit()));
+    numbered("point")
+        || numbered("plane")
+        || ["camera", "target", "device", "tracker", "pair"].contains(&owner)
+}
+
+/// The verdict card: the headline (the first held-out set's first quantity, else the
+/// training set's), a row per set and quantity, the warnings by cause.
+fn summary(report: &FilesPage<'_>) -> String {
+    let class = if report.warnings.is_empty() && report.converged { "card" } else { "card warned" };
+    let mut out = format!("<section id=\"summary\" class=\"{class}\">\n<h2>Verdict</h2>\n");
+    let headline = (report.residuals.iter().find(|r| r.set != "training")).or(report.residuals.first());
+    if let Some(h) = headline {
+        let (value, unit) = (h.quantity, h.unit);
+        let role = if h.set == "training" { "training" } else { "held out" };
+        let _ = writeln!(
+            out,
+            "<p class=\"headline\"><span class=\"big\">{:.4} {unit}</span> RMS of the {value} after calibration on \
+             {} ({role}), {:.4} {unit} before: {:.1} times lower.</p>",
+            h.after,
+            escape(&h.set),
+            h.before,
+            h.before / h.after.max(f64::MIN_POSITIVE)
+        );
+    }
+    let rows: Vec<Row> = (report.residuals.iter())
+        .map(|r| {
+            let cells = vec![
+                Cell::name(&r.set),
+                Cell::name(&format!("{} ({})", r.quantity, r.unit)),
+                Cell::text(&format!("{:.4}", r.before)),
+                Cell::html(format!("{:.4}", r.after), "good"),
+            ];
+            cells.into()
+        })
+        .collect();
+    let head = ["set", "residuals", "RMS before", "RMS after"];
+    out.push_str(&table("verdict small", None, "Residuals before and after calibration", &head, &rows));
+    if !report.converged {
+        out.push_str("<p><strong>The fit did not converge</strong>: see the warnings.</p>\n");
+    }
+    if report.warnings.is_empty() {
+        out.push_str("<p>No warnings.</p>\n");
+    } else {
+        out.push_str("<p>Warnings by cause:</p>\n<ul class=\"warnings\">\n");
+        for w in report.warnings.iter().map(WarningCount::of) {
+            let _ = writeln!(out, "<li><span class=\"count\">{}</span>{}</li>", w.count, escape(&w.about));
+        }
+        out.push_str("</ul>\n");
+    }
+    out.push_str("</section>\n");
+    out
+}
+
+/// `(before, after)` of `set` measured as `quantity` in `unit`, if there is one.
+fn row(
+    set: &str,
+    (quantity, unit): (&'static str, &'static str),
+    v: Option<(f64, f64)>,
+) -> Option<ResidualRow> {
+    v.map(|(before, after)| ResidualRow { set: set.to_string(), quantity, unit, before, after })
+}
+
+impl ObservationsReport {
+    /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`].
+    pub fn page(&self, title: &str, text: &str) -> String {
+        let residuals = (self.sets.iter())
+            .flat_map(|(set, s)| {
+                [
+                    row(set, ("residuals", "mm"), Some(s.lengths)),
+                    row(set, ("marker positions", "mm"), s.markers),
+                    row(set, ("angles", "deg"), s.angles),
+                ]
+            })
+            .flatten()
+            .collect();
+        let content = FilesPage {
+            meta: text.lines().next().unwrap_or(""),
+            residuals,
+            converged: self.converged,
+            warnings: &self.warnings,
+            parameters: &self.parameters,
+            held: &self.held,
+            unseen: &self.unseen,
+            prior_scale: self.prior_scale.as_ref(),
+            selection: self.selection.as_ref(),
+            text,
+        };
+        page(&content, title)
+    }
+}
+
+impl TreeReport {
+    /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`].
+    pub fn page(&self, title: &str, text: &str) -> String {
+        let residuals = (self.sets.iter())
+            .flat_map(|(set, s)| {
+                [
+                    row(set, ("view positions", "mm"), Some(s.position)),
+                    row(set, ("view rotations", "deg"), s.rotation),
+                ]
+            })
+            .flatten()
+            .collect();
+        let content = FilesPage {
+            meta: text.lines().next().unwrap_or(""),
+            residuals,
+            converged: self.converged,
+            warnings: &self.warnings,
+            parameters: &self.parameters,
+            held: &self.held,
+            unseen: &self.unseen,
+            prior_scale: None,
+            selection: None,
+            text,
+        };
+        page(&content, title)
+    }
+}
