@@ -510,15 +510,18 @@ fn panel_figure(title: &str, panels: &[Panel], notes: &[String]) -> Result<Strin
 /// A chart of `(x, y)` over a linear y axis and an x axis `X` (linear by default).
 type Chart<'a, 'b, X = RangedCoordf64> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<X, RangedCoordf64>>;
 
-/// A 640 x 420 figure with one chart titled `caption` over `x` and `y`, drawn by `draw`, and
-/// the series' legend (top right) if `with_legend`.
-fn single_chart(
+/// A 640 x 420 figure with one chart titled `caption` over `x` (a range, or a log axis) and
+/// `y`, drawn by `draw`, and the series' legend (top right) if `with_legend`.
+fn single_chart<X>(
     caption: &str,
-    x: std::ops::Range<f64>,
+    x: X,
     y: std::ops::Range<f64>,
     with_legend: bool,
-    draw: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), String>,
-) -> Result<String, String> {
+    draw: impl FnOnce(&mut Chart<'_, '_, X::CoordDescType>) -> Result<(), String>,
+) -> Result<String, String>
+where
+    X: plotters::coord::ranged1d::AsRangedCoord<Value = f64>,
+{
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
@@ -1056,6 +1059,68 @@ pub fn selection_figure(
     })
     .map_err(|m| error(&name, m))?;
     Ok((name, svg))
+}
+
+/// The curve `--prior auto` chose its scale from (`prior-scale.svg`): the cross-validated RMS
+/// marker error after calibration (mm) against the scale `s` multiplying every standard
+/// deviation of the preset, on a log axis ticked at the scales tried, the chosen scale (the
+/// lowest RMS, ties to the smaller `s`) circled. Scales whose calibration failed (no finite RMS)
+/// are left out.
+pub fn prior_scale_figure(
+    scale: &crate::calibration::prior_scale::PriorScale,
+) -> Result<(String, String), FigureError> {
+    let name = "prior-scale.svg".to_string();
+    let points: Vec<(f64, f64)> = (scale.scales.iter().zip(&scale.cv_rms))
+        .filter(|(s, r)| **s > 0.0 && s.is_finite() && r.is_finite())
+        .map(|(&s, &r)| (s, r))
+        .collect();
+    if points.is_empty() {
+        return Err(error(&name, "no scale has a finite cross-validated RMS".into()));
+    }
+    let (x0, x1) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.0), b.max(p.0)));
+    let (y0, y1) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.1), b.max(p.1)));
+    let pad = ((y1 - y0) * 0.15).max(1e-3 * y1.max(1e-9));
+    let ticks: Vec<f64> = points.iter().map(|p| p.0).collect();
+    let x = ((x0 / 1.4)..(x1 * 1.4)).log_scale().with_key_points(ticks);
+    let chosen = scale.scales.get(scale.chosen).zip(scale.cv_rms.get(scale.chosen));
+    let caption = format!("--prior auto:{}, {}-fold cross-validated RMS by scale", scale.preset, scale.folds);
+    let svg = single_chart(&caption, x, (y0 - pad)..(y1 + 2.0 * pad), true, |chart| {
+        chart
+            .configure_mesh()
+            .x_desc(format!("scale s of {}'s standard deviations (log scale)", scale.preset))
+            .y_desc("CV RMS marker error (mm)")
+            .x_label_formatter(&|v| scale_tick(*v))
+            .y_label_formatter(&|v| shown_tick(*v))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(LineSeries::new(points.clone(), colour(0).stroke_width(2)))
+            .map_err(|e| e.to_string())?
+            .label("CV RMS at each scale")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour(0).stroke_width(2)));
+        chart
+            .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour(0).filled())))
+            .map_err(|e| e.to_string())?;
+        if let Some((&s, &rms)) = chosen.filter(|(s, r)| **s > 0.0 && r.is_finite()) {
+            chart
+                .draw_series([Circle::new((s, rms), 8, colour(1).stroke_width(2))])
+                .map_err(|e| e.to_string())?
+                .label(format!("chosen: s = {}, {} mm", scale_tick(s), shown(rms)))
+                .legend(|(x, y)| Circle::new((x + 10, y), 6, colour(1).stroke_width(2)));
+        }
+        Ok(())
+    })
+    .map_err(|m| error(&name, m))?;
+    Ok((name, svg))
+}
+
+/// A scale as a tick: `1/16` ... `1/2` below 1, `2` ... `16` above.
+fn scale_tick(s: f64) -> String {
+    if s < 1.0 && s > 0.0 && (1.0 / s).fract().abs() < 1e-9 {
+        format!("1/{}", shown_tick(1.0 / s))
+    } else {
+        shown_tick(s)
+    }
 }
 
 #[cfg(test)]
