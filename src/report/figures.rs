@@ -938,11 +938,21 @@ fn against(sets: &[&SetEvaluation], xs: &[Vec<f64>], x_label: &str) -> Result<St
     let stage = &sets[0].stages[sets[0].stages.len() - 1];
     let mut svg = String::new();
     {
-        let height = 170 * components.len() as u32 + 90;
+        let height = 170 * components.len() as u32 + 114;
         let root = SVGBackend::with_string(&mut svg, (760, height)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let title = format!("marker errors (measured - predicted), {stage}, against {x_label}");
         let root = root.titled(&title, ("sans-serif", 18)).map_err(|e| e.to_string())?;
+        // The sets' legend in a row of its own, above the panels: it hides no point.
+        let (key, root) = root.split_vertically(24);
+        let mut x = 80;
+        for (i, set) in sets.iter().enumerate() {
+            key.draw(&Circle::new((x, 10), 4, colour(i).filled())).map_err(|e| e.to_string())?;
+            let text = Text::new(set.name.as_str(), (x + 10, 3), ("sans-serif", 14));
+            key.draw(&text).map_err(|e| e.to_string())?;
+            // About 8 px a character at 14 px, and a gap.
+            x += 10 + 8 * set.name.chars().count() as i32 + 40;
+        }
         let panels = root.split_evenly((components.len(), 1));
         for (c, (panel, &(name, unit))) in panels.iter().zip(components).enumerate() {
             let last = c + 1 == components.len();
@@ -963,19 +973,10 @@ fn against(sets: &[&SetEvaluation], xs: &[Vec<f64>], x_label: &str) -> Result<St
             mesh.draw().map_err(|e| e.to_string())?;
             let zero = [(x0 - pad, 0.0), (x1 + pad, 0.0)];
             chart.draw_series(LineSeries::new(zero, BLACK.stroke_width(1))).map_err(|e| e.to_string())?;
-            for (i, (set, p)) in sets.iter().zip(&points[c]).enumerate() {
-                let colour = colour(i);
-                let series = chart
-                    .draw_series(p.iter().map(|&xy| Circle::new(xy, 2, colour.filled())))
+            for (i, p) in points[c].iter().enumerate() {
+                chart
+                    .draw_series(p.iter().map(|&xy| Circle::new(xy, 2, colour(i).filled())))
                     .map_err(|e| e.to_string())?;
-                if c == 0 {
-                    series
-                        .label(set.name.as_str())
-                        .legend(move |(x, y)| Circle::new((x + 6, y), 3, colour.filled()));
-                }
-            }
-            if c == 0 {
-                legend(&mut chart)?;
             }
         }
         root.present().map_err(|e| e.to_string())?;
