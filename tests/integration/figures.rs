@@ -121,25 +121,14 @@ fn a_sign_flip_against_a_joint_shows_in_its_signed_components() {
     let at = chain.with_errors(&vec![0.0; chain.params().len()]);
     let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(29);
     let middle = (model.joints[1].limits[0] + model.joints[1].limits[1]) / 2.0;
-    let mut text = String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n");
+    let mut text = String::from(crate::calibration::PROBE_HEADER);
     for _ in 0..80 {
         let q: Vec<f64> = model.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect();
         let step = if q[1] > middle { 1.0 } else { -1.0 };
         let pose = at.pose(&q);
         let p = pose.translation.vector + Vector3::new(0.3 * step, 0.0, 0.0);
         let r = UnitQuaternion::from_euler_angles(0.0, 0.0, (0.1 * step).to_radians()) * pose.rotation;
-        let degrees: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
-        text += &format!(
-            "{},{:.6},{:.6},{:.6},{:.12},{:.12},{:.12},{:.12}\n",
-            degrees.join(","),
-            p.x,
-            p.y,
-            p.z,
-            r.w,
-            r.i,
-            r.j,
-            r.k
-        );
+        text += &crate::calibration::probe_row(&q, &p, &r);
     }
     let data = Measurements::from_csv_str(&text, &model, None).unwrap();
     let options = Options { markers: vec![mounting.xyz], ..Options::default() };
