@@ -249,11 +249,15 @@ fn write(
     let title = format!("calibration of {} from {}", report.model, report.data);
     let json = serde_json::to_string_pretty(report)? + "\n";
     let mut outputs = io::Outputs::new();
-    let mut extra_figures = match &report.selection {
-        Some(selection) => vec![robocal::report::figures::selection_figure(selection)?],
-        None => Vec::new(),
-    };
+    let mut extra_figures = Vec::new();
     if request.report.figures.is_some() || request.report.html.is_some() {
+        // The choices made from the data: the prior's scale curve, the selection's path.
+        if let Some(scale) = &report.prior_scale {
+            extra_figures.push(robocal::report::figures::prior_scale_figure(scale)?);
+        }
+        if let Some(selection) = &report.selection {
+            extra_figures.push(robocal::report::figures::selection_figure(selection)?);
+        }
         let sets: Vec<_> = report.sets.iter().collect();
         extra_figures.extend(robocal::report::figures::torque_figures(&sets, &result.calibrated)?);
     }

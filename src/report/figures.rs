@@ -36,26 +36,34 @@ pub struct FigureError {
 
 /// Every figure of a study, as `(file name, SVG text)`:
 /// - `histogram-<estimator>-np<N>-sigma<s>.svg`: the distribution of dE in each case (the
-///   paper's Figs. 1 and 4), every one on the same bins and height, the paper's mean drawn
-///   where the study has the paper's row;
+///   paper's Figs. 1 and 4), every one on the same bins, x-range and height; where the study has
+///   the paper's row, its mean (solid vermillion), lowest and highest (dashed vermillion) drawn
+///   and its SD and share above zero written, beside this study's mean (dashed black);
 /// - `improvement-vs-points-<estimator>.svg`: mean dE against `N_p` on a log axis, with the
 ///   mean of each point set (Fig. 2), when the study has several `N_p`;
 /// - `improvement-vs-sigma-<estimator>.svg`: mean dE against `sigma_me` (Fig. 3), when it has
 ///   several `sigma_me`; the paper's means on both as black squares.
+///
+/// The paper's values are cited by [`reference_source`].
 pub fn study_figures(study: &Study, results: &StudyResults) -> Result<Vec<(String, String)>, FigureError> {
     let mut figures = Vec::new();
     let compared = || (1..study.estimators.len()).flat_map(|e| (0..study.cases.len()).map(move |c| (c, e)));
-    // Every histogram on the same bins and the same height, so that the panels compare.
+    // Every histogram on the same bins, x-range and height, so that the panels compare; the
+    // range reaches the paper's lowest and highest too.
     let groups: Vec<Vec<f64>> = compared().map(|(c, e)| results.improvements(c, e)).collect();
-    let scale = HistogramScale::shared(&groups);
+    let extremes: Vec<f64> = (study.cases.iter().filter_map(|c| paper_row(study, c)))
+        .flat_map(|r| [r.lowest, r.highest])
+        .collect();
+    let scale = HistogramScale::shared(&groups, &extremes);
+    let source = reference_source(study);
     for ((c, e), values) in compared().zip(&groups) {
         let (case, estimator) = (&study.cases[c], &study.estimators[e]);
         let (suffix, poses) = pose_labels(case.poses);
         let name = format!("histogram-{estimator}-np{}-sigma{}{suffix}.svg", case.points, case.sigma_me);
         let title =
             format!("dE of {estimator}: N_p = {}, sigma_me = {} mm{poses}", case.points, case.sigma_me);
-        let paper = paper_mean(study, case).map(|m| (m, format!("the paper's mean {m}")));
-        let svg = histogram(&title, values, scale, paper).map_err(|m| error(&name, m))?;
+        let marks = study_marks(values, paper_row(study, case), &source);
+        let svg = histogram(&title, values, scale, &marks).map_err(|m| error(&name, m))?;
         figures.push((name, svg));
     }
     for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
@@ -69,10 +77,52 @@ pub fn study_figures(study: &Study, results: &StudyResults) -> Result<Vec<(Strin
     Ok(figures)
 }
 
-/// The paper's mean dE for `case`, when the study has the paper's row and draws its poses
-/// at random, as the paper does.
+/// Where the study's reference rows come from, to cite on its figures: the part of its
+/// description before the first colon (`Zak et al., Table 1` for the embedded `paper-table1`),
+/// or `the study's reference rows` when its description has no such short prefix.
+pub fn reference_source(study: &Study) -> String {
+    match study.description.split_once(':') {
+        Some((source, _)) if !source.trim().is_empty() && source.len() <= 40 => source.trim().to_string(),
+        _ => "the study's reference rows".to_string(),
+    }
+}
+
+/// The lines drawn over a study's histogram of `values`: the paper's row (mean solid, lowest
+/// and highest dashed, vermillion, cited as `source`) if any, and this study's mean (dashed
+/// black) with its SD and share above zero.
+fn study_marks(values: &[f64], paper: Option<&crate::simulation::Reference>, source: &str) -> Vec<Mark> {
+    let mut marks = Vec::new();
+    if let Some(r) = paper {
+        let label = format!("paper's mean {} ({source}; SD {}, {}% > 0)", r.mean, r.sd, r.above_zero);
+        marks.push(Mark { at: vec![r.mean], label, colour: colour(1), dashed: false });
+        let label = format!("paper's lowest {} and highest {}", r.lowest, r.highest);
+        marks.push(Mark { at: vec![r.lowest, r.highest], label, colour: colour(1), dashed: true });
+    }
+    if values.len() >= 2 {
+        let ours = Summary::of(values);
+        let label = format!(
+            "this study's mean {} (SD {}, {}% > 0)",
+            shown(ours.mean),
+            shown(ours.sd),
+            shown(ours.above_zero)
+        );
+        marks.push(Mark { at: vec![ours.mean], label, colour: BLACK, dashed: true });
+    }
+    marks
+}
+
+/// The paper's row for `case`, when the study has it and draws its poses at random, as the
+/// paper does.
+fn paper_row<'a>(
+    study: &'a Study,
+    case: &crate::simulation::Case,
+) -> Option<&'a crate::simulation::Reference> {
+    (case.poses == PoseChoice::Random).then(|| study.reference_for(case)).flatten()
+}
+
+/// The paper's mean dE for `case` ([`paper_row`]).
 fn paper_mean(study: &Study, case: &crate::simulation::Case) -> Option<f64> {
-    (case.poses == PoseChoice::Random).then(|| study.reference_for(case)).flatten().map(|r| r.mean)
+    paper_row(study, case).map(|r| r.mean)
 }
 
 /// The x axis of a trend figure.
@@ -136,7 +186,7 @@ fn trend_figure(
             label += &format!(", {} poses", choice.name());
         }
         if !theirs.is_empty() {
-            paper.push((format!("the paper's mean, {label}"), theirs));
+            paper.push((format!("the paper's mean ({}), {label}", reference_source(study)), theirs));
         }
         series.push((label, means, sets));
     }
@@ -186,8 +236,8 @@ fn all_finite(values: impl IntoIterator<Item = f64>) -> Result<(), String> {
 }
 
 /// The bins and the height shared by the histograms of a study: bins 5 points of dE wide (wider
-/// if they would be more than [`MAX_BINS`]) over every finite value of every histogram, and
-/// the highest count of any.
+/// if they would be more than [`MAX_BINS`]) over every finite value of every histogram and the
+/// values to be marked on them (the paper's lowest and highest), and the highest count of any.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct HistogramScale {
     bins: Bins,
@@ -195,10 +245,12 @@ struct HistogramScale {
 }
 
 impl HistogramScale {
-    /// The scale of the histograms of `groups`.
-    fn shared(groups: &[Vec<f64>]) -> Self {
-        let all: Vec<f64> =
-            groups.iter().flatten().copied().filter(|v| v.is_finite() && v.abs() < 1e300).collect();
+    /// The scale of the histograms of `groups`, reaching `marked` too.
+    fn shared(groups: &[Vec<f64>], marked: &[f64]) -> Self {
+        let all: Vec<f64> = (groups.iter().flatten().chain(marked))
+            .copied()
+            .filter(|v| v.is_finite() && v.abs() < 1e300)
+            .collect();
         let range = all.iter().fold(0.0f64, |m, v| m.max(v.abs())) * 2.0;
         let width = 5.0 * (range / 5.0 / MAX_BINS as f64).ceil().max(1.0);
         let low = (all.iter().copied().fold(0.0, f64::min) / width).floor() * width;
@@ -208,13 +260,8 @@ impl HistogramScale {
     }
 }
 
-/// Histogram of dE (%) on the shared `scale`, the paper's value (if any) a vermillion line.
-fn histogram(
-    title: &str,
-    values: &[f64],
-    scale: HistogramScale,
-    paper: Option<(f64, String)>,
-) -> Result<String, String> {
+/// Histogram of dE (%) on the shared `scale`, with `marks` drawn over it.
+fn histogram(title: &str, values: &[f64], scale: HistogramScale, marks: &[Mark]) -> Result<String, String> {
     all_finite(values.iter().copied())?;
     if values.is_empty() {
         return Err("no values".into());
@@ -224,10 +271,11 @@ fn histogram(
     }
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (720, 460)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let y = "number of runs N_r (one scale for every histogram of the study)";
-        draw_histogram(&root, title, values, scale.bins, "dE (%)", y, paper, Some(scale.top))?;
+        let x = "dE (%) (one range for every histogram of the study)";
+        draw_histogram(&root, title, values, scale.bins, (x, y), marks, Some(scale.top))?;
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
@@ -282,23 +330,34 @@ impl Bins {
     }
 }
 
-/// A histogram of `values` on `area`, with a vermillion vertical line at `marker` (value,
-/// label), up to `highest` counts (default: its own highest).
-#[allow(clippy::too_many_arguments)]
+/// Vertical lines at the values `at` drawn over a histogram, with one legend entry.
+#[derive(Debug, Clone, PartialEq)]
+struct Mark {
+    /// Where (x, the histogram's unit).
+    at: Vec<f64>,
+    /// The legend's text.
+    label: String,
+    /// The lines' colour.
+    colour: RGBColor,
+    /// Dashed rather than solid.
+    dashed: bool,
+}
+
+/// A histogram of `values` on `area` (axes described by `desc`, x then y), with `marks` drawn
+/// over it, up to `highest` counts (default: its own highest).
 fn draw_histogram(
     area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
     title: &str,
     values: &[f64],
     bins: Bins,
-    x_desc: &str,
-    y_desc: &str,
-    marker: Option<(f64, String)>,
+    (x_desc, y_desc): (&str, &str),
+    marks: &[Mark],
     highest: Option<f64>,
 ) -> Result<(), String> {
     let Bins { low, width, count } = bins;
     let counts = bins.counts(values);
-    // Room above the bars for the marker's legend.
-    let headroom = if marker.is_some() { 1.3 } else { 1.0 };
+    // Room above the bars for the marks' legend.
+    let headroom = if marks.is_empty() { 1.0 } else { 1.15 + 0.12 * marks.len() as f64 };
     let highest = highest.unwrap_or_else(|| f64::from(*counts.iter().max().unwrap_or(&1)));
     let top = (highest * headroom).ceil() + 1.0;
     let high = low + count as f64 * width;
@@ -326,13 +385,35 @@ fn draw_histogram(
         Rectangle::new([(x0, 0.0), (x0 + width, f64::from(n))], colour(0).mix(0.6).filled())
     });
     chart.draw_series(bars).map_err(|e| e.to_string())?;
-    if let Some((x, label)) = marker {
-        chart
-            .draw_series(LineSeries::new([(x, 0.0), (x, top)], colour(1).stroke_width(3)))
-            .map_err(|e| e.to_string())?
-            .label(label)
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour(1).stroke_width(3)));
+    for mark in marks {
+        draw_mark(&mut chart, mark, top)?;
+    }
+    if !marks.is_empty() {
         legend(&mut chart)?;
+    }
+    Ok(())
+}
+
+/// `mark`'s lines from 0 to `top` on `chart`, and its legend entry.
+fn draw_mark<'b>(chart: &mut Chart<'b, 'b>, mark: &Mark, top: f64) -> Result<(), String> {
+    let style = mark.colour.stroke_width(if mark.dashed { 2 } else { 3 });
+    let mut drawn = None;
+    for &x in &mark.at {
+        let line = [(x, 0.0), (x, top)];
+        drawn = Some(if mark.dashed {
+            chart.draw_series(DashedLineSeries::new(line, 8, 5, style)).map_err(|e| e.to_string())?
+        } else {
+            chart.draw_series(LineSeries::new(line, style)).map_err(|e| e.to_string())?
+        });
+    }
+    if let Some(drawn) = drawn {
+        // A dashed line's entry in two dashes, a solid line's in one.
+        let gap = if mark.dashed { (8, 12) } else { (20, 0) };
+        drawn.label(mark.label.as_str()).legend(move |(x, y)| {
+            EmptyElement::at((x, y))
+                + PathElement::new(vec![(0, 0), (gap.0, 0)], style)
+                + PathElement::new(vec![(gap.1, 0), (20, 0)], style)
+        });
     }
     Ok(())
 }
@@ -347,6 +428,7 @@ pub fn replication_figures(
 ) -> Result<Vec<(String, String)>, FigureError> {
     let mut figures = Vec::new();
     let count = replications.replications.len();
+    let source = reference_source(study);
     for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
         for (c, case) in study.cases.iter().enumerate() {
             let (suffix, poses) = pose_labels(case.poses);
@@ -375,7 +457,7 @@ pub fn replication_figures(
                 format!("{count} replications of {}", study.name),
                 format!("master seeds derived from {}", replications.seed),
                 format!("{} point sets x {} runs each", study.point_sets, study.runs_per_set),
-                "vermillion line: the paper's value".to_string(),
+                format!("vermillion line: the paper's value ({source})"),
             ];
             let svg = panel_figure(&title, &panels, &notes).map_err(|m| error(&name, m))?;
             figures.push((name, svg));
@@ -403,8 +485,15 @@ fn panel_figure(title: &str, panels: &[Panel], notes: &[String]) -> Result<Strin
         for (cell, panel) in cells.iter().zip(panels) {
             let name = panel.statistic.name();
             let x_desc = format!("{name} of dE (%)");
-            let marker = panel.marker.clone();
-            draw_histogram(cell, name, &panel.values, panel.bins, &x_desc, "replications", marker, None)?;
+            let marks: Vec<Mark> = (panel.marker.iter())
+                .map(|(at, label)| Mark {
+                    at: vec![*at],
+                    label: label.clone(),
+                    colour: colour(1),
+                    dashed: false,
+                })
+                .collect();
+            draw_histogram(cell, name, &panel.values, panel.bins, (&x_desc, "replications"), &marks, None)?;
         }
         if let Some(cell) = cells.get(panels.len()) {
             for (i, line) in notes.iter().enumerate() {
@@ -421,15 +510,18 @@ fn panel_figure(title: &str, panels: &[Panel], notes: &[String]) -> Result<Strin
 /// A chart of `(x, y)` over a linear y axis and an x axis `X` (linear by default).
 type Chart<'a, 'b, X = RangedCoordf64> = ChartContext<'a, SVGBackend<'b>, Cartesian2d<X, RangedCoordf64>>;
 
-/// A 640 x 420 figure with one chart titled `caption` over `x` and `y`, drawn by `draw`, and
-/// the series' legend (top right) if `with_legend`.
-fn single_chart(
+/// A 640 x 420 figure with one chart titled `caption` over `x` (a range, or a log axis) and
+/// `y`, drawn by `draw`, and the series' legend (top right) if `with_legend`.
+fn single_chart<X>(
     caption: &str,
-    x: std::ops::Range<f64>,
+    x: X,
     y: std::ops::Range<f64>,
     with_legend: bool,
-    draw: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), String>,
-) -> Result<String, String> {
+    draw: impl FnOnce(&mut Chart<'_, '_, X::CoordDescType>) -> Result<(), String>,
+) -> Result<String, String>
+where
+    X: plotters::coord::ranged1d::AsRangedCoord<Value = f64>,
+{
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
@@ -480,7 +572,9 @@ fn trend(
     for &(x, y) in all() {
         (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
     }
-    let y = (y0 - 5.0)..(y1 + 5.0);
+    // Room above the data for the legend, an entry a line.
+    let entries = (series.len() + paper.len()) as f64;
+    let y = (y0 - 5.0)..(y1 + 5.0 + 0.09 * entries * (y1 - y0 + 10.0));
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
@@ -844,11 +938,21 @@ fn against(sets: &[&SetEvaluation], xs: &[Vec<f64>], x_label: &str) -> Result<St
     let stage = &sets[0].stages[sets[0].stages.len() - 1];
     let mut svg = String::new();
     {
-        let height = 170 * components.len() as u32 + 90;
+        let height = 170 * components.len() as u32 + 114;
         let root = SVGBackend::with_string(&mut svg, (760, height)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
         let title = format!("marker errors (measured - predicted), {stage}, against {x_label}");
         let root = root.titled(&title, ("sans-serif", 18)).map_err(|e| e.to_string())?;
+        // The sets' legend in a row of its own, above the panels: it hides no point.
+        let (key, root) = root.split_vertically(24);
+        let mut x = 80;
+        for (i, set) in sets.iter().enumerate() {
+            key.draw(&Circle::new((x, 10), 4, colour(i).filled())).map_err(|e| e.to_string())?;
+            let text = Text::new(set.name.as_str(), (x + 10, 3), ("sans-serif", 14));
+            key.draw(&text).map_err(|e| e.to_string())?;
+            // About 8 px a character at 14 px, and a gap.
+            x += 10 + 8 * set.name.chars().count() as i32 + 40;
+        }
         let panels = root.split_evenly((components.len(), 1));
         for (c, (panel, &(name, unit))) in panels.iter().zip(components).enumerate() {
             let last = c + 1 == components.len();
@@ -869,19 +973,10 @@ fn against(sets: &[&SetEvaluation], xs: &[Vec<f64>], x_label: &str) -> Result<St
             mesh.draw().map_err(|e| e.to_string())?;
             let zero = [(x0 - pad, 0.0), (x1 + pad, 0.0)];
             chart.draw_series(LineSeries::new(zero, BLACK.stroke_width(1))).map_err(|e| e.to_string())?;
-            for (i, (set, p)) in sets.iter().zip(&points[c]).enumerate() {
-                let colour = colour(i);
-                let series = chart
-                    .draw_series(p.iter().map(|&xy| Circle::new(xy, 2, colour.filled())))
+            for (i, p) in points[c].iter().enumerate() {
+                chart
+                    .draw_series(p.iter().map(|&xy| Circle::new(xy, 2, colour(i).filled())))
                     .map_err(|e| e.to_string())?;
-                if c == 0 {
-                    series
-                        .label(set.name.as_str())
-                        .legend(move |(x, y)| Circle::new((x + 6, y), 3, colour.filled()));
-                }
-            }
-            if c == 0 {
-                legend(&mut chart)?;
             }
         }
         root.present().map_err(|e| e.to_string())?;
@@ -967,6 +1062,68 @@ pub fn selection_figure(
     Ok((name, svg))
 }
 
+/// The curve `--prior auto` chose its scale from (`prior-scale.svg`): the cross-validated RMS
+/// marker error after calibration (mm) against the scale `s` multiplying every standard
+/// deviation of the preset, on a log axis ticked at the scales tried, the chosen scale (the
+/// lowest RMS, ties to the smaller `s`) circled. Scales whose calibration failed (no finite RMS)
+/// are left out.
+pub fn prior_scale_figure(
+    scale: &crate::calibration::prior_scale::PriorScale,
+) -> Result<(String, String), FigureError> {
+    let name = "prior-scale.svg".to_string();
+    let points: Vec<(f64, f64)> = (scale.scales.iter().zip(&scale.cv_rms))
+        .filter(|(s, r)| **s > 0.0 && s.is_finite() && r.is_finite())
+        .map(|(&s, &r)| (s, r))
+        .collect();
+    if points.is_empty() {
+        return Err(error(&name, "no scale has a finite cross-validated RMS".into()));
+    }
+    let (x0, x1) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.0), b.max(p.0)));
+    let (y0, y1) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.1), b.max(p.1)));
+    let pad = ((y1 - y0) * 0.15).max(1e-3 * y1.max(1e-9));
+    let ticks: Vec<f64> = points.iter().map(|p| p.0).collect();
+    let x = ((x0 / 1.4)..(x1 * 1.4)).log_scale().with_key_points(ticks);
+    let chosen = scale.scales.get(scale.chosen).zip(scale.cv_rms.get(scale.chosen));
+    let caption = format!("--prior auto:{}, {}-fold cross-validated RMS by scale", scale.preset, scale.folds);
+    let svg = single_chart(&caption, x, (y0 - pad)..(y1 + 2.0 * pad), true, |chart| {
+        chart
+            .configure_mesh()
+            .x_desc(format!("scale s of {}'s standard deviations (log scale)", scale.preset))
+            .y_desc("CV RMS marker error (mm)")
+            .x_label_formatter(&|v| scale_tick(*v))
+            .y_label_formatter(&|v| shown_tick(*v))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        chart
+            .draw_series(LineSeries::new(points.clone(), colour(0).stroke_width(2)))
+            .map_err(|e| e.to_string())?
+            .label("CV RMS at each scale")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour(0).stroke_width(2)));
+        chart
+            .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour(0).filled())))
+            .map_err(|e| e.to_string())?;
+        if let Some((&s, &rms)) = chosen.filter(|(s, r)| **s > 0.0 && r.is_finite()) {
+            chart
+                .draw_series([Circle::new((s, rms), 8, colour(1).stroke_width(2))])
+                .map_err(|e| e.to_string())?
+                .label(format!("chosen: s = {}, {} mm", scale_tick(s), shown(rms)))
+                .legend(|(x, y)| Circle::new((x + 10, y), 6, colour(1).stroke_width(2)));
+        }
+        Ok(())
+    })
+    .map_err(|m| error(&name, m))?;
+    Ok((name, svg))
+}
+
+/// A scale as a tick: `1/16` ... `1/2` below 1, `2` ... `16` above.
+fn scale_tick(s: f64) -> String {
+    if s < 1.0 && s > 0.0 && (1.0 / s).fract().abs() < 1e-9 {
+        format!("1/{}", shown_tick(1.0 / s))
+    } else {
+        shown_tick(s)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1007,11 +1164,16 @@ mod tests {
 
     #[test]
     fn the_study_histograms_share_their_bins_and_height() {
-        let scale = HistogramScale::shared(&[vec![1.0, 2.0, 3.0], vec![-22.0, 61.0]]);
+        let scale = HistogramScale::shared(&[vec![1.0, 2.0, 3.0], vec![-22.0, 61.0]], &[]);
         let Bins { low, width, count } = scale.bins;
         assert_eq!((low, width), (-25.0, 5.0));
         assert!(low + count as f64 * width > 61.0);
         assert_eq!(scale.top, 3.0, "the highest count of any histogram");
+        // The paper's lowest and highest widen the range, not the height.
+        let marked = HistogramScale::shared(&[vec![1.0, 2.0, 3.0], vec![-22.0, 61.0]], &[-53.0, 80.2]);
+        let Bins { low, width, count } = marked.bins;
+        assert_eq!((low, width, marked.top), (-55.0, 5.0, 3.0));
+        assert!(low + count as f64 * width > 80.2);
     }
 
     #[test]

@@ -176,7 +176,7 @@ fn inline_svg(svg: &str) -> String {
 
 /// What a figure of [`crate::report::figures`] shows and what to look for in it, by the name
 /// its module gives it (`errors-by-pose-<set>.svg`, `histogram.svg`, `error-vs-<joint>.svg`,
-/// `error-vs-torque-<joint>.svg`, `selection-path.svg`).
+/// `error-vs-torque-<joint>.svg`, `selection-path.svg`, `prior-scale.svg`).
 pub fn caption(name: &str) -> String {
     let stem = name.strip_suffix(".svg").unwrap_or(name);
     if let Some(set) = stem.strip_prefix("errors-by-pose-") {
@@ -210,6 +210,13 @@ pub fn caption(name: &str) -> String {
         return "The selection's score after each step (the table of the path names each step's parameter). Look for \
                 where the curve flattens: the chosen step (circled) is the smallest model within one standard error \
                 of the best."
+            .to_string();
+    }
+    if stem == "prior-scale" {
+        return "The cross-validated RMS marker error (mm) after calibrating with the preset's standard deviations \
+                times each scale s (log axis); the chosen scale, the lowest, is circled. Look for a clear minimum: \
+                a flat curve says the data barely care how strong the prior is, a minimum at an end that the \
+                preset is far from this robot."
             .to_string();
     }
     format!("The figure {name}.")

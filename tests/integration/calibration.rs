@@ -295,7 +295,7 @@ fn probe_file(
     sigmas: &[f64],
     rng: &mut ChaCha8Rng,
 ) -> Measurements {
-    let mut text = String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n");
+    let mut text = String::from(PROBE_HEADER);
     for q in poses(nominal, count, rng) {
         let noisy: Vec<f64> = q
             .iter()
@@ -306,21 +306,30 @@ fn probe_file(
             })
             .collect();
         let pose = real.pose(&noisy);
-        let (p, r) = (pose.translation.vector, pose.rotation);
-        let degrees: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
-        text += &format!(
-            "{},{:.6},{:.6},{:.6},{:.12},{:.12},{:.12},{:.12}\n",
-            degrees.join(","),
-            p.x,
-            p.y,
-            p.z,
-            r.w,
-            r.i,
-            r.j,
-            r.k
-        );
+        text += &probe_row(&q, &pose.translation.vector, &pose.rotation);
     }
     Measurements::from_csv_str(&text, nominal, None).unwrap()
+}
+
+/// The header of a 6-DOF probe's file on a 6-joint arm: the joints, marker 1, the quaternion.
+pub(crate) const PROBE_HEADER: &str =
+    "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n";
+
+/// A row of a 6-DOF probe's file: the joints `q` (rad, written in deg), the frame's origin `p`
+/// (mm) and orientation `r`.
+pub(crate) fn probe_row(q: &[f64], p: &Vector3<f64>, r: &nalgebra::UnitQuaternion<f64>) -> String {
+    let degrees: Vec<String> = q.iter().map(|v| format!("{:.9}", v.to_degrees())).collect();
+    format!(
+        "{},{:.6},{:.6},{:.6},{:.12},{:.12},{:.12},{:.12}\n",
+        degrees.join(","),
+        p.x,
+        p.y,
+        p.z,
+        r.w,
+        r.i,
+        r.j,
+        r.k
+    )
 }
 
 /// A 6-DOF probe: the file gives marker 1's position and the frame's orientation (quaternion);
