@@ -496,14 +496,16 @@ pub fn calibrate(
     // "After": everything asked for that the poses can identify.
     let asked = selection(&params, &options.joints, options)?;
     let prior_sd = prior_sds(&options.prior, &params)?;
-    // With fewer equations than parameters the rank cannot tell structure from lack of data.
+    // With fewer equations than parameters the rank cannot tell structure from lack of data;
+    // a parameter with a prior is anchored by it, so only the others count.
     let equations = data.len() * rows;
-    if equations <= asked.len() {
-        let needed = asked.len() / rows + 1;
+    let unanchored = asked.indices().iter().filter(|&&i| !prior_sd[i].is_finite()).count();
+    if equations <= unanchored {
+        let needed = unanchored / rows + 1;
         return Err(CalibrationError::TooFewPoses {
             poses: data.len(),
             equations,
-            parameters: asked.len(),
+            parameters: unanchored,
             needed,
         });
     }

@@ -234,3 +234,62 @@ fn priors_beat_every_parameter_and_the_offsets_on_the_arm7_benchmark() {
     assert!(prior < joints - MARGIN_JOINTS, "priors {prior:.4} mm, every parameter {joints:.4} mm");
     assert!(prior < offsets - MARGIN_OFFSETS, "priors {prior:.4} mm, offsets {offsets:.4} mm");
 }
+
+/// `calibrate` on the first `poses` poses of `file` (a marker file or a ball bar's) with
+/// `extra` flags, validated on `validate`: the exit code, standard output and error.
+fn on_few_poses(file: &str, poses: usize, validate: &str, extra: &[&str]) -> (Option<i32>, String, String) {
+    let text = std::fs::read_to_string(file).unwrap();
+    let kept: Vec<&str> = text.lines().take(2 + poses).collect();
+    let dir =
+        std::env::temp_dir().join(format!("robocal-few-{}-{poses}-{}", std::process::id(), extra.len()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("few.csv");
+    std::fs::write(&path, kept.join("\n") + "\n").unwrap();
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "--model", "puma560", "--data", path.to_str().unwrap(), "--validate", validate])
+        .args(extra)
+        .output()
+        .unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let text = |b: Vec<u8>| String::from_utf8(b).unwrap();
+    (output.status.code(), text(output.stdout), text(output.stderr))
+}
+
+/// The RMS before and after of the report's row for `set` (mm): its numbers `at` and `at + 1`.
+fn held_out_rms(text: &str, set: &str, at: usize) -> (f64, f64) {
+    let row = text.lines().find(|l| l.starts_with(set)).unwrap_or_else(|| panic!("{set}:\n{text}"));
+    let numbers: Vec<f64> = row.split_whitespace().filter_map(|w| w.parse().ok()).collect();
+    (numbers[at], numbers[at + 1])
+}
+
+/// Fewer equations than parameters: refused without priors (the rank cannot tell the
+/// structure from the lack of data), calibrated with them (each parameter with a prior is
+/// anchored by it), on five poses of markers and on twenty ball-bar readings; held out, better
+/// than before calibration.
+#[test]
+fn priors_anchor_what_too_few_poses_cannot() {
+    let markers = ["--marker", "50,0,150", "--marker=-40,60,120"];
+    let file = "examples/puma560-measurements.csv";
+    let validation = "examples/puma560-validation.csv";
+    let (code, _, stderr) = on_few_poses(file, 5, validation, &markers);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("5 poses give 30 equations for"), "{stderr}");
+    let with_prior = [&markers[..], &["--prior", "fabricated"]].concat();
+    let (code, text, stderr) = on_few_poses(file, 5, validation, &with_prior);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (before, after) = held_out_rms(&text, "examples/puma560-validation.csv (held out)", 1);
+    assert!(after < 0.5 * before, "held out {before} -> {after} mm\n{text}");
+
+    let ball_bar = ["--tool", "50,0,150", "--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002"];
+    let (code, _, stderr) =
+        on_few_poses("examples/puma560-ballbar.csv", 20, "examples/puma560-ballbar-2.csv", &ball_bar);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(stderr.contains("20 poses give 20 equations"), "{stderr}");
+    let with_prior = [&ball_bar[..], &["--prior", "machined"]].concat();
+    let (code, text, stderr) =
+        on_few_poses("examples/puma560-ballbar.csv", 20, "examples/puma560-ballbar-2.csv", &with_prior);
+    assert_eq!(code, Some(0), "{stderr}");
+    let (before, after) = held_out_rms(&text, "examples/puma560-ballbar-2.csv (mm)", 0);
+    assert!(after < 0.5 * before, "held out {before} -> {after} mm\n{text}");
+}

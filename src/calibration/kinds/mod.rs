@@ -1531,13 +1531,16 @@ pub(super) fn start<'p>(
     let (before, before_setup) = before_fit(&base, &frame, every, &weights, markers.is_empty())?;
     // "After": what was asked for that the observations identify.
     let problem = base.reselect(asked, before.clone(), before_setup.clone(), asked_setup.clone());
-    if problem.equations() <= problem.parameters() {
+    // A parameter with a prior is anchored by it: only the others need the data's equations.
+    let sd = prior_sds(&options.prior, params)?;
+    let unanchored = problem.parameters() - asked.indices().iter().filter(|&&i| sd[i].is_finite()).count();
+    if problem.equations() <= unanchored {
         return Err(CalibrationError::TooFewPoses {
             poses: data.joints.len(),
             equations: problem.equations(),
-            parameters: problem.parameters(),
+            parameters: unanchored,
             // Poses at the data's equations per pose for one redundant equation.
-            needed: ((problem.parameters() + 1) * data.joints.len()).div_ceil(problem.equations().max(1)),
+            needed: ((unanchored + 1) * data.joints.len()).div_ceil(problem.equations().max(1)),
         });
     }
     let linearised = linearise(&problem, &weights, problem.start())?;

@@ -877,12 +877,15 @@ pub fn calibrate_tree(
     // "After": the joint parameters asked for, less --hold's, with the cameras and targets.
     let (asked, held) = asked(&params, options)?;
     let problem = base_problem.reselect(asked.clone(), zero.clone(), before_setup.clone(), every.clone());
-    if problem.equations() <= problem.parameters() {
+    // A parameter with a prior is anchored by it: only the others need the views' equations.
+    let sd = prior_sds_of(&options.prior, &params.params.iter().collect::<Vec<_>>())?;
+    let unanchored = problem.parameters() - asked.iter().filter(|&&i| sd[i].is_finite()).count();
+    if problem.equations() <= unanchored {
         return Err(CalibrationError::TooFewPoses {
             poses: data.joints.len(),
             equations: problem.equations(),
-            parameters: problem.parameters(),
-            needed: problem.parameters().div_ceil(6) + 1,
+            parameters: unanchored,
+            needed: unanchored.div_ceil(6) + 1,
         });
     }
     let linearised = linearise(&problem, &weights, problem.start())?;
