@@ -62,11 +62,6 @@ pub fn calibrate_tree(
         "params",
         "all: the base is never estimated from views; give joints",
     )?;
-    require(
-        request.auto_prior.is_none(),
-        "prior",
-        "auto: a tree takes a preset or standard deviations as its prior",
-    )?;
     require(request.select.is_none(), "select", "not for a tree yet")?;
     let text = std::fs::read_to_string(&urdf).map_err(|e| {
         let place = Place { file: Some(urdf.clone()), ..Place::default() };
@@ -94,8 +89,18 @@ pub fn calibrate_tree(
         prior: request.prior.clone(),
         loss: request.loss,
     };
+    let auto =
+        robocal::calibration::Choices::from_flags(request.auto_prior.clone(), None, flags.folds).auto_prior;
     let outcome = py
-        .detach(|| robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options, flags.folds))
+        .detach(|| {
+            robocal::pipeline::calibrate_views(
+                &tree,
+                &sessions,
+                &held_out,
+                &options,
+                (auto.as_ref(), flags.folds),
+            )
+        })
         .map_err(|e| match e.source {
             CalibrationError::Selection(_) | CalibrationError::Prior(_) => {
                 errors::calibration(&e.source, &e.context)

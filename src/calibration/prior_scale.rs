@@ -9,8 +9,10 @@
 //! ([`cross_validate_choices`](super::selection::cross_validate_choices)).
 
 use super::kinds::{KindData, KindOptions, cross_validate_kinds};
+use super::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree, cross_validate_tree};
 use super::{CalibrationError, Measurements, Options, RobotModel, cross_validate};
 use crate::estimation::PriorEntry;
+use crate::model::RobotTree;
 
 /// The scales tried: powers of 2 from 1/16 to 16.
 pub const SCALES: [f64; 9] = [0.0625, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
@@ -120,6 +122,39 @@ pub fn choose_kinds_prior_scale(
     scale_by_curve(auto, folds, data.joints.len(), |s| {
         Ok(cross_validate_kinds(model, data, &with_kinds_scale(options, auto, s), folds)?.lengths.1)
     })
+}
+
+/// [`with_scale`] for a tree's views.
+pub fn with_tree_scale(options: &TreeOptions, auto: &AutoPrior, s: f64) -> TreeOptions {
+    TreeOptions { prior: auto.before(&options.prior, s), ..options.clone() }
+}
+
+/// [`choose_prior_scale`] for a tree's views: each scale scored by the cross-validated RMS of
+/// the views' position residuals (mm; [`cross_validate_tree`]'s folds).
+pub fn choose_tree_prior_scale(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+    auto: &AutoPrior,
+    folds: usize,
+) -> Result<PriorScale, CalibrationError> {
+    scale_by_curve(auto, folds, data.joints.len(), |s| {
+        Ok(cross_validate_tree(tree, data, &with_tree_scale(options, auto, s), folds)?.position.1)
+    })
+}
+
+/// A tree calibrated with `--prior auto`'s scale chosen on `data` first
+/// ([`choose_tree_prior_scale`], by `folds` folds at most the poses); without `auto`, as asked.
+pub fn calibrate_tree_scaled(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+    auto: Option<&(AutoPrior, usize)>,
+) -> Result<(TreeCalibration, Option<PriorScale>), CalibrationError> {
+    let Some((auto, folds)) = auto else { return Ok((calibrate_tree(tree, data, options)?, None)) };
+    let scale = choose_tree_prior_scale(tree, data, options, auto, (*folds).min(data.joints.len()))?;
+    let calibration = calibrate_tree(tree, data, &with_tree_scale(options, auto, scale.scale()))?;
+    Ok((calibration, Some(scale)))
 }
 
 /// The scale of [`SCALES`] of the lowest `cv_rms_at(s)` (ties to the smaller scale), with the

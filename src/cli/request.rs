@@ -857,6 +857,8 @@ pub struct CalibrateTreeRequest {
     pub gauge: robocal::calibration::Gauge,
     /// Prior standard deviations.
     pub prior: Vec<robocal::estimation::PriorEntry>,
+    /// `--prior auto[:PRESET]`: the preset whose scale is chosen from the views.
+    pub auto_prior: Option<robocal::calibration::prior_scale::AutoPrior>,
     /// The loss of each view.
     pub loss: robocal::calibration::Loss,
     /// Held-out files.
@@ -887,16 +889,7 @@ impl CalibrateTreeRequest {
         if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
             return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
         }
-        let prior = match priors(args.choice.prior)? {
-            (prior, None) => prior,
-            (_, Some(_)) => {
-                return Err(UsageError(
-                    "--prior auto: for a marker file; give a tree the preset (--prior fabricated) or its standard \
-                     deviations"
-                        .into(),
-                ));
-            }
-        };
+        let (prior, auto_prior) = priors(args.choice.prior)?;
         let mut inputs = vec![("--model", args.model.as_path())];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
@@ -920,6 +913,7 @@ impl CalibrateTreeRequest {
             iterations: args.iterations,
             gauge: robocal::calibration::Gauge { hold: args.choice.hold, keep: args.choice.keep },
             prior,
+            auto_prior,
             loss: args.choice.loss,
             validate: args.validate,
             folds: args.folds,

@@ -217,7 +217,7 @@ impl TreeReport {
             parameters: &self.parameters,
             held: &self.held,
             unseen: &self.unseen,
-            prior_scale: None,
+            prior_scale: self.prior_scale.as_ref(),
             selection: None,
             text,
         };

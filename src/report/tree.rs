@@ -65,6 +65,10 @@ pub struct TreeReport {
     /// The training views it weighted below 0.1, by line.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub down_weighted: Vec<super::calibration::DownWeighted>,
+    /// `--prior auto`: the scale chosen for the preset's standard deviations, and the curve
+    /// (cross-validated RMS of the views' position residuals, mm) it was chosen from.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior_scale: Option<crate::calibration::prior_scale::PriorScale>,
 }
 
 /// Views listed per set in the text, the worst first.
@@ -149,6 +153,7 @@ impl TreeReport {
                     })
                     .collect()
             }),
+            prior_scale: None,
         }
     }
 
@@ -156,6 +161,11 @@ impl TreeReport {
     /// the order fitted): its worst training views say which file they are in.
     pub fn with_training_files(self, files: Vec<(String, usize)>) -> Self {
         Self { training_files: files, ..self }
+    }
+
+    /// The report with the scale `--prior auto` chose and its curve.
+    pub fn with_prior_scale(self, scale: crate::calibration::prior_scale::PriorScale) -> Self {
+        Self { prior_scale: Some(scale), ..self }
     }
 
     /// The verdict: the views' RMS errors of each set before and after, the warnings by cause.
@@ -197,6 +207,10 @@ impl TreeReport {
             let _ = writeln!(out, "{:<width$} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
         }
         super::calibration::write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "view");
+        if let Some(scale) = &self.prior_scale {
+            let _ = writeln!(out);
+            out.push_str(&super::calibration::prior_scale_text(scale));
+        }
         let _ = writeln!(out, "\ncameras and targets as calibrated (x, y, z mm; roll, pitch, yaw deg):");
         let width = self.frames.iter().map(|f| f.name.len()).max().unwrap_or(0);
         for f in &self.frames {

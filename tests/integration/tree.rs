@@ -773,3 +773,33 @@ fn a_tree_cross_validates_each_view_once_by_a_fit_without_it() {
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     assert!(text.contains("3-fold cross-validation (mm)"), "{text}");
 }
+
+/// `calibrate --prior auto:machined --folds 3` on a tree's views: the scale chosen by the
+/// cross-validated view positions, printed with its curve, in the JSON and on the page; the
+/// k-fold row nested, each fold choosing its scale again.
+#[test]
+fn a_tree_scales_a_preset_prior_from_its_views() {
+    let dir = std::env::temp_dir().join(format!("robocal-tree-prior-auto-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (json, page) = (dir.join("report.json"), dir.join("report.html"));
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "--model", "presets/torso.urdf", "--data", "examples/torso/views.csv"])
+        .args(["--validate", "examples/torso/views-2.csv", "--prior", "auto:machined", "--folds", "3"])
+        .args(["--json", json.to_str().unwrap(), "--html", page.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let text = String::from_utf8(output.stdout).unwrap();
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let scale = &report["prior_scale"];
+    let chosen = scale["chosen"].as_u64().unwrap() as usize;
+    let rms: Vec<f64> = scale["cv_rms"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert!(rms.len() == 9 && rms.iter().all(|r| *r >= rms[chosen]), "{rms:?}");
+    let s = scale["scales"][chosen].as_f64().unwrap();
+    let line = format!("prior scale: --prior auto:machined chose {s} x its standard deviations, by 3-fold");
+    assert!(text.contains(&line), "{text}");
+    assert!(text.contains("3-fold cross-validation, nested (mm)"), "{text}");
+    assert!(std::fs::read_to_string(&page).unwrap().contains("Prior scale: --prior auto:machined chose"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

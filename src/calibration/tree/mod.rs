@@ -574,12 +574,22 @@ pub fn cross_validate_tree(
     options: &TreeOptions,
     folds: usize,
 ) -> Result<TreeScore, CalibrationError> {
+    cross_validate_tree_by(data, folds, |train| calibrate_tree(tree, train, options))
+}
+
+/// [`cross_validate_tree`] with each fold's calibration made by `calibrate` from its training
+/// views (every choice made from the data made again inside it: nested).
+pub fn cross_validate_tree_by(
+    data: &TreeData,
+    folds: usize,
+    calibrate: impl Fn(&TreeData) -> Result<TreeCalibration, CalibrationError>,
+) -> Result<TreeScore, CalibrationError> {
     super::check_folds(folds, data.joints.len())?;
     let mut views = Vec::with_capacity(data.views.len());
     for fold in 0..folds {
         let (test, train) =
             (data.keeping(|pose| pose % folds == fold), data.keeping(|pose| pose % folds != fold));
-        views.extend(calibrate_tree(tree, &train, options)?.score(&test)?.views);
+        views.extend(calibrate(&train)?.score(&test)?.views);
     }
     Ok(TreeScore::of(views, data.position_only))
 }
