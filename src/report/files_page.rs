@@ -168,6 +168,26 @@ fn row(
     v.map(|(before, after)| ResidualRow { set: set.to_string(), quantity, unit, before, after })
 }
 
+/// The page of a report of observation files or views (`$report`, whose text is `$text`), its
+/// verdict's rows `$residuals` and its selection `$selection`: the fields both reports share
+/// by name, taken once.
+macro_rules! files_page {
+    ($report:expr, $text:expr, $residuals:expr, $selection:expr) => {
+        FilesPage {
+            meta: $text.lines().next().unwrap_or(""),
+            residuals: $residuals,
+            converged: $report.converged,
+            warnings: &$report.warnings,
+            parameters: &$report.parameters,
+            held: &$report.held,
+            unseen: &$report.unseen,
+            prior_scale: $report.prior_scale.as_ref(),
+            selection: $selection,
+            text: $text,
+        }
+    };
+}
+
 impl ObservationsReport {
     /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`].
     pub fn page(&self, title: &str, text: &str) -> String {
@@ -181,19 +201,7 @@ impl ObservationsReport {
             })
             .flatten()
             .collect();
-        let content = FilesPage {
-            meta: text.lines().next().unwrap_or(""),
-            residuals,
-            converged: self.converged,
-            warnings: &self.warnings,
-            parameters: &self.parameters,
-            held: &self.held,
-            unseen: &self.unseen,
-            prior_scale: self.prior_scale.as_ref(),
-            selection: self.selection.as_ref(),
-            text,
-        };
-        page(&content, title)
+        page(&files_page!(self, text, residuals, self.selection.as_ref()), title)
     }
 }
 
@@ -209,18 +217,6 @@ impl TreeReport {
             })
             .flatten()
             .collect();
-        let content = FilesPage {
-            meta: text.lines().next().unwrap_or(""),
-            residuals,
-            converged: self.converged,
-            warnings: &self.warnings,
-            parameters: &self.parameters,
-            held: &self.held,
-            unseen: &self.unseen,
-            prior_scale: self.prior_scale.as_ref(),
-            selection: None,
-            text,
-        };
-        page(&content, title)
+        page(&files_page!(self, text, residuals, None), title)
     }
 }

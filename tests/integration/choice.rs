@@ -340,14 +340,21 @@ fn the_command_scales_a_prior_on_observation_files() {
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let text = String::from_utf8(output.stdout).unwrap();
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_prior_scale(&report, &text, 3);
+    assert!(text.contains("3-fold cross-validation, nested (mm)"), "{text}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A command's `--prior auto:machined` with `folds` folds, in its JSON `report` and its `text`:
+/// the scale chosen the lowest of the 9 scales' curve, printed with the curve.
+pub(crate) fn assert_prior_scale(report: &serde_json::Value, text: &str, folds: u64) {
     let scale = &report["prior_scale"];
-    assert_eq!((scale["preset"].as_str(), scale["folds"].as_u64()), (Some("machined"), Some(3)));
+    assert_eq!((scale["preset"].as_str(), scale["folds"].as_u64()), (Some("machined"), Some(folds)));
     let chosen = scale["chosen"].as_u64().unwrap() as usize;
     let rms: Vec<f64> = scale["cv_rms"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     assert!(rms.len() == 9 && rms.iter().all(|r| *r >= rms[chosen]), "{rms:?}");
     let s = scale["scales"][chosen].as_f64().unwrap();
-    let line = format!("prior scale: --prior auto:machined chose {s} x its standard deviations, by 3-fold");
+    let line =
+        format!("prior scale: --prior auto:machined chose {s} x its standard deviations, by {folds}-fold");
     assert!(text.contains(&line) && text.contains("  <- chosen\n"), "{text}");
-    assert!(text.contains("3-fold cross-validation, nested (mm)"), "{text}");
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -320,11 +320,7 @@ fn the_page_is_one_well_formed_file_with_every_table_and_figure() {
     calibrate(&["--html", page.to_str().unwrap(), "--figures", figures.to_str().unwrap()]);
     let html = std::fs::read_to_string(&page).unwrap();
     assert!(!html.contains("http") && !html.contains("src=") && !html.contains("<script"), "self-contained");
-    let document = roxmltree::Document::parse_with_options(
-        &html,
-        roxmltree::ParsingOptions { allow_dtd: true, ..Default::default() },
-    )
-    .expect("well-formed");
+    let document = parse_page(&html);
     let body = document.descendants().find(|n| n.has_tag_name("body")).unwrap();
     let sections: Vec<&str> =
         body.children().filter(|n| n.has_tag_name("section")).filter_map(|n| n.attribute("id")).collect();
@@ -599,11 +595,7 @@ fn files_page(args: &[&str], name: &str) -> (Vec<String>, String, String) {
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let html = std::fs::read_to_string(&page).unwrap();
     assert!(!html.contains("http") && !html.contains("src=") && !html.contains("<script"), "self-contained");
-    let document = roxmltree::Document::parse_with_options(
-        &html,
-        roxmltree::ParsingOptions { allow_dtd: true, ..Default::default() },
-    )
-    .expect("well-formed");
+    let document = parse_page(&html);
     let body = document.descendants().find(|n| n.has_tag_name("body")).unwrap();
     let sections = body
         .children()
@@ -622,23 +614,12 @@ fn files_page(args: &[&str], name: &str) -> (Vec<String>, String, String) {
 /// prior's curve when `--prior auto` chose it, the text report in full.
 #[test]
 fn observation_files_and_trees_have_a_page_that_leads_with_the_verdict() {
-    let ball_bar = [
-        "calibrate",
-        "--model",
-        "puma560",
-        "--tool",
-        "50,0,150",
-        "--data",
-        "examples/puma560-ballbar.csv",
-        "--validate",
-        "examples/puma560-ballbar-2.csv",
-        "--joint-sigma-deg",
-        "0.007,0.007,0.007,0.002,0.002,0.002",
-        "--prior",
-        "auto:machined",
-        "--folds",
-        "3",
-    ];
+    let ball_bar: Vec<&str> =
+        "calibrate --model puma560 --tool 50,0,150 --data examples/puma560-ballbar.csv \
+         --validate examples/puma560-ballbar-2.csv --joint-sigma-deg 0.007,0.007,0.007,0.002,0.002,0.002 \
+         --prior auto:machined --folds 3"
+            .split_whitespace()
+            .collect();
     let (sections, verdict, tables) = files_page(&ball_bar, "ballbar-page");
     assert_eq!(sections, ["summary", "parameters", "held", "unseen", "report"]);
     for row in
@@ -650,18 +631,22 @@ fn observation_files_and_trees_have_a_page_that_leads_with_the_verdict() {
         tables.contains("j2.theta") && tables.contains("point1.x") && tables.contains("CV RMS mm"),
         "{tables}"
     );
-    let torso = [
-        "calibrate",
-        "--model",
-        "presets/torso.urdf",
-        "--data",
-        "examples/torso/views.csv",
-        "--validate",
-        "examples/torso/views-2.csv",
-    ];
+    let torso: Vec<&str> =
+        "calibrate --model presets/torso.urdf --data examples/torso/views.csv --validate examples/torso/views-2.csv"
+            .split_whitespace()
+            .collect();
     let (sections, verdict, _) = files_page(&torso, "tree-page");
     assert_eq!(sections[0], "summary");
     for row in ["examples/torso/views-2.csv", "view positions (mm)", "view rotations (deg)"] {
         assert!(verdict.contains(row), "{row}: {verdict}");
     }
+}
+
+/// `html` parsed as XML (its document type allowed): a page must be well-formed.
+fn parse_page(html: &str) -> roxmltree::Document<'_> {
+    roxmltree::Document::parse_with_options(
+        html,
+        roxmltree::ParsingOptions { allow_dtd: true, ..Default::default() },
+    )
+    .expect("well-formed")
 }

@@ -139,10 +139,7 @@ fn csv(data: &KindData) -> String {
 /// its zero fitted (said); one --data file, or two of one stem, refused.
 #[test]
 fn the_command_models_sessions_from_the_files() {
-    let dir = std::env::temp_dir().join(format!("robocal-sessions-{}", std::process::id()));
-    let (train_dir, test_dir) = (dir.join("train"), dir.join("test"));
-    std::fs::create_dir_all(&train_dir).unwrap();
-    std::fs::create_dir_all(&test_dir).unwrap();
+    let (dir, train_dir, test_dir) = session_folders("sessions");
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
     let joints: Vec<String> =
@@ -351,10 +348,7 @@ fn a_tracker_moved_between_marker_sessions_is_modelled_by_a_per_session_placemen
 #[test]
 fn the_command_models_a_tracker_moved_between_marker_files() {
     use crate::kinds_markers::{chains, device, marker_csv, true_chains_seen};
-    let dir = std::env::temp_dir().join(format!("robocal-tracker-sessions-{}", std::process::id()));
-    let (train_dir, test_dir) = (dir.join("train"), dir.join("test"));
-    std::fs::create_dir_all(&train_dir).unwrap();
-    std::fs::create_dir_all(&test_dir).unwrap();
+    let (dir, train_dir, test_dir) = session_folders("tracker-sessions");
     let mut rng = ChaCha8Rng::seed_from_u64(23);
     let chain = &chains()[0];
     let joints: Vec<String> =
@@ -411,4 +405,13 @@ fn the_command_models_a_tracker_moved_between_marker_files() {
     let stderr = String::from_utf8_lossy(&balls.stderr);
     assert!(!balls.status.success() && stderr.contains("`tracker.*`: a tracker's placement"), "{stderr}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A scratch folder named after `name` and this process, with `train` and `test` in it.
+fn session_folders(name: &str) -> (std::path::PathBuf, std::path::PathBuf, std::path::PathBuf) {
+    let dir = std::env::temp_dir().join(format!("robocal-{name}-{}", std::process::id()));
+    let (train, test) = (dir.join("train"), dir.join("test"));
+    std::fs::create_dir_all(&train).unwrap();
+    std::fs::create_dir_all(&test).unwrap();
+    (dir, train, test)
 }

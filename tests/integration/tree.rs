@@ -792,13 +792,7 @@ fn a_tree_scales_a_preset_prior_from_its_views() {
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let text = String::from_utf8(output.stdout).unwrap();
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let scale = &report["prior_scale"];
-    let chosen = scale["chosen"].as_u64().unwrap() as usize;
-    let rms: Vec<f64> = scale["cv_rms"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
-    assert!(rms.len() == 9 && rms.iter().all(|r| *r >= rms[chosen]), "{rms:?}");
-    let s = scale["scales"][chosen].as_f64().unwrap();
-    let line = format!("prior scale: --prior auto:machined chose {s} x its standard deviations, by 3-fold");
-    assert!(text.contains(&line), "{text}");
+    crate::choice::assert_prior_scale(&report, &text, 3);
     assert!(text.contains("3-fold cross-validation, nested (mm)"), "{text}");
     assert!(std::fs::read_to_string(&page).unwrap().contains("Prior scale: --prior auto:machined chose"));
     std::fs::remove_dir_all(&dir).unwrap();
