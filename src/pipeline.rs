@@ -9,8 +9,9 @@
 //! module: it joins the calibration, the design's accuracy prediction and the report.
 
 use crate::calibration::kinds::{KindCalibration, KindData, KindOptions};
-use crate::calibration::prior_scale::{AutoPrior, calibrate_tree_scaled};
-use crate::calibration::selection::{calibrate_kinds_chosen, cross_validate_kinds_choices};
+use crate::calibration::selection::{
+    calibrate_kinds_chosen, calibrate_tree_chosen, cross_validate_kinds_choices,
+};
 use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, cross_validate_tree_by};
 use crate::calibration::{
     self, Calibration, CalibrationError, Choices, ErrorStats, FeasibleOptions, Loss, Measurements, Options,
@@ -205,17 +206,19 @@ fn in_context(context: &str) -> impl Fn(CalibrationError) -> FilesError + '_ {
 }
 
 /// Calibrate `tree` from the views of `sessions` (each a file's name and views) fitted
-/// together ([`calibrate_tree`](crate::calibration::tree::calibrate_tree), which gives the model and its estimator; with `auto`, the
-/// preset's scale chosen first, [`calibrate_tree_scaled`]), score each `held_out` set with the
-/// frames as calibrated, with `folds` cross-validate the training poses
-/// ([`cross_validate_tree_by`]; "nested" with `auto` or a robust loss, each fold choosing
-/// them again), and report.
+/// together, with `choices` made from them ([`calibrate_tree_chosen`]: `--prior auto`'s
+/// scale, then `--select t`'s parameters; none: the tree as
+/// [`calibrate_tree`](crate::calibration::tree::calibrate_tree) calibrates it, which gives the
+/// model and its estimator), score each `held_out` set with the frames as calibrated, with
+/// `folds` cross-validate the training poses ([`cross_validate_tree_by`]; "nested" with a
+/// choice or a robust loss, each fold making them again), and report.
 pub fn calibrate_views(
     tree: &RobotTree,
     sessions: &[(String, TreeData)],
     held_out: &[(String, TreeData)],
     options: &TreeOptions,
-    (auto, folds): (Option<&(AutoPrior, usize)>, Option<usize>),
+    choices: &Choices,
+    folds: Option<usize>,
 ) -> Result<TreeOutcome, FilesError> {
     let mut data = TreeData::default();
     for (name, file) in sessions {
@@ -223,26 +226,27 @@ pub fn calibrate_views(
     }
     let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
     let names = names.join(", ");
-    let (c, scale) = calibrate_tree_scaled(tree, &data, options, auto).map_err(in_context(&names))?;
+    let chosen = calibrate_tree_chosen(tree, &data, options, choices).map_err(in_context(&names))?;
+    let c = chosen.calibration;
     let mut scores = (held_out.iter())
         .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
         .collect::<Result<Vec<_>, FilesError>>()?;
     if let Some(k) = folds {
-        let score =
-            cross_validate_tree_by(
-                &data,
-                k,
-                |train| Ok(calibrate_tree_scaled(tree, train, options, auto)?.0),
-            )
+        let calibrate =
+            |train: &TreeData| Ok(calibrate_tree_chosen(tree, train, options, choices)?.calibration);
+        let score = cross_validate_tree_by(&data, k, calibrate)
             .map_err(in_context(&format!("--folds {k}: {names}")))?;
-        scores.push((fold_label(k, auto.is_some() || options.loss != Loss::Squared), score));
+        scores.push((fold_label(k, *choices != Choices::default() || options.loss != Loss::Squared), score));
     }
     let fitted = (data.views.len(), data.joints.len());
     let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
     let mut report =
         TreeReport::new(&c, &names, fitted, options.estimator.name(), scores).with_training_files(files);
-    if let Some(scale) = scale {
+    if let Some(scale) = chosen.scale {
         report = report.with_prior_scale(scale);
+    }
+    if let Some(path) = &chosen.path {
+        report = report.with_selection(path);
     }
     Ok(TreeOutcome { calibration: c, report })
 }

@@ -62,7 +62,11 @@ pub fn calibrate_tree(
         "params",
         "all: the base is never estimated from views; give joints",
     )?;
-    require(request.select.is_none(), "select", "not for a tree yet")?;
+    require(
+        matches!(request.select, None | Some(robocal::calibration::selection::Criterion::T)),
+        "select",
+        "cv and bic: not for a tree's views yet; select=\"t\" chooses their parameters",
+    )?;
     let text = std::fs::read_to_string(&urdf).map_err(|e| {
         let place = Place { file: Some(urdf.clone()), ..Place::default() };
         errors::raise(Kind::Input, format!("{urdf}: cannot read: {e}"), place)
@@ -89,17 +93,11 @@ pub fn calibrate_tree(
         prior: request.prior.clone(),
         loss: request.loss,
     };
-    let auto =
-        robocal::calibration::Choices::from_flags(request.auto_prior.clone(), None, flags.folds).auto_prior;
+    let choices =
+        robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
     let outcome = py
         .detach(|| {
-            robocal::pipeline::calibrate_views(
-                &tree,
-                &sessions,
-                &held_out,
-                &options,
-                (auto.as_ref(), flags.folds),
-            )
+            robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options, &choices, flags.folds)
         })
         .map_err(|e| match e.source {
             CalibrationError::Selection(_) | CalibrationError::Prior(_) => {

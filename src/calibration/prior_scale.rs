@@ -9,7 +9,7 @@
 //! ([`cross_validate_choices`](super::selection::cross_validate_choices)).
 
 use super::kinds::{KindData, KindOptions, cross_validate_kinds};
-use super::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree, cross_validate_tree};
+use super::tree::{TreeData, TreeOptions, cross_validate_tree};
 use super::{CalibrationError, Measurements, Options, RobotModel, cross_validate};
 use crate::estimation::PriorEntry;
 use crate::model::RobotTree;
@@ -141,20 +141,6 @@ pub fn choose_tree_prior_scale(
     scale_by_curve(auto, folds, data.joints.len(), |s| {
         Ok(cross_validate_tree(tree, data, &with_tree_scale(options, auto, s), folds)?.position.1)
     })
-}
-
-/// A tree calibrated with `--prior auto`'s scale chosen on `data` first
-/// ([`choose_tree_prior_scale`], by `folds` folds at most the poses); without `auto`, as asked.
-pub fn calibrate_tree_scaled(
-    tree: &RobotTree,
-    data: &TreeData,
-    options: &TreeOptions,
-    auto: Option<&(AutoPrior, usize)>,
-) -> Result<(TreeCalibration, Option<PriorScale>), CalibrationError> {
-    let Some((auto, folds)) = auto else { return Ok((calibrate_tree(tree, data, options)?, None)) };
-    let scale = choose_tree_prior_scale(tree, data, options, auto, (*folds).min(data.joints.len()))?;
-    let calibration = calibrate_tree(tree, data, &with_tree_scale(options, auto, scale.scale()))?;
-    Ok((calibration, Some(scale)))
 }
 
 /// The scale of [`SCALES`] of the lowest `cv_rms_at(s)` (ties to the smaller scale), with the

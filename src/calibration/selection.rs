@@ -44,14 +44,17 @@
 
 use super::kinds::{self, KindCalibration, KindData, KindOptions};
 use super::prior_scale::{
-    AutoPrior, PriorScale, choose_kinds_prior_scale, choose_prior_scale, with_kinds_scale, with_scale,
+    AutoPrior, PriorScale, choose_kinds_prior_scale, choose_prior_scale, choose_tree_prior_scale,
+    with_kinds_scale, with_scale, with_tree_scale,
 };
+use super::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree};
 use super::{
     CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel,
     Whitening, calibrate, check_folds, errors, identifiable, observed, selection, standard_errors_of,
 };
 use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights};
 use crate::kinematics::Measured;
+use crate::model::RobotTree;
 use crate::model::{ParamOwner, Selection, name_matches};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -413,6 +416,7 @@ fn backward<C: Fitted>(
         let c = calibrate(current.as_deref())?;
         let held = held.get_or_insert_with(|| c.held_words());
         let (params, estimate) = (c.params(), c.estimate());
+        let params: &crate::model::ParamSet = &params;
         let (before, after) = c.values();
         let se = standard_errors_of(params.iter(), estimate);
         let joints: Vec<usize> = (estimate.names.iter())
@@ -467,18 +471,18 @@ fn backward<C: Fitted>(
 /// A calibration the `t` rule reads: its parameters, their values before and after (full
 /// vector), its estimate, and what it held in words.
 trait Fitted {
-    fn params(&self) -> &crate::model::ParamSet;
-    fn values(&self) -> (&[f64], &[f64]);
+    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet>;
+    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]);
     fn estimate(&self) -> &LinearEstimate;
     fn held_words(&self) -> Vec<String>;
 }
 
 impl Fitted for super::Calibration {
-    fn params(&self) -> &crate::model::ParamSet {
-        &self.params
+    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet> {
+        std::borrow::Cow::Borrowed(&self.params)
     }
-    fn values(&self) -> (&[f64], &[f64]) {
-        (&self.before, &self.after)
+    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]) {
+        (std::borrow::Cow::Borrowed(&self.before), &self.after)
     }
     fn estimate(&self) -> &LinearEstimate {
         &self.refined.estimate
@@ -489,11 +493,11 @@ impl Fitted for super::Calibration {
 }
 
 impl Fitted for KindCalibration {
-    fn params(&self) -> &crate::model::ParamSet {
-        &self.params
+    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet> {
+        std::borrow::Cow::Borrowed(&self.params)
     }
-    fn values(&self) -> (&[f64], &[f64]) {
-        (&self.before, &self.after)
+    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]) {
+        (std::borrow::Cow::Borrowed(&self.before), &self.after)
     }
     fn estimate(&self) -> &LinearEstimate {
         &self.refined.estimate
@@ -501,6 +505,71 @@ impl Fitted for KindCalibration {
     fn held_words(&self) -> Vec<String> {
         self.fixed.iter().map(Held::text).collect()
     }
+}
+
+impl Fitted for TreeCalibration {
+    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet> {
+        std::borrow::Cow::Owned(crate::model::ParamSet::from_params(self.params.params.clone()))
+    }
+    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]) {
+        // "Before" is the nominal tree.
+        (std::borrow::Cow::Owned(vec![0.0; self.after.len()]), &self.after)
+    }
+    fn estimate(&self) -> &LinearEstimate {
+        &self.refined.estimate
+    }
+    fn held_words(&self) -> Vec<String> {
+        self.fixed.iter().map(Held::text).collect()
+    }
+}
+
+/// A tree calibrated with its choices made ([`calibrate_tree_chosen`]).
+#[derive(Debug, Clone)]
+pub struct TreeChosen {
+    /// The scale of the preset, and its curve.
+    pub scale: Option<PriorScale>,
+    /// The selection's path.
+    pub path: Option<SelectionPath>,
+    /// The calibration with the options chosen.
+    pub calibration: TreeCalibration,
+}
+
+/// Make `choices` on a tree's views `data` and calibrate with them: the preset's scale first
+/// ([`choose_tree_prior_scale`]), then the selection with those priors by the `t` rule
+/// (backward elimination, as for a marker file). `bic` and `cv` are refused: their linear
+/// model of the path is the marker and observation calibrations' only.
+pub fn calibrate_tree_chosen(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+    choices: &Choices,
+) -> Result<TreeChosen, CalibrationError> {
+    let (mut options, mut scale) = (options.clone(), None);
+    if let Some((auto, folds)) = &choices.auto_prior {
+        let chosen = choose_tree_prior_scale(tree, data, &options, auto, (*folds).min(data.joints.len()))?;
+        options = with_tree_scale(&options, auto, chosen.scale());
+        scale = Some(chosen);
+    }
+    let asking = |names: &[String]| {
+        let joints = if names.is_empty() { JointParams::None } else { JointParams::Named(names.to_vec()) };
+        TreeOptions { joints, ..options.clone() }
+    };
+    let path = match choices.select {
+        None => None,
+        Some(Criterion::T) => Some(backward(|names: Option<&[String]>| match names {
+            Some(names) => calibrate_tree(tree, data, &asking(names)),
+            None => calibrate_tree(tree, data, &options),
+        })?),
+        Some(other) => {
+            return Err(CalibrationError::Scoring(format!(
+                "--select {}: not for a tree's views yet; --select t chooses their parameters",
+                other.name()
+            )));
+        }
+    };
+    let options = path.as_ref().map_or(options.clone(), |p| asking(&p.selected));
+    let calibration = calibrate_tree(tree, data, &options)?;
+    Ok(TreeChosen { scale, path, calibration })
 }
 
 /// The correlation above which one parameter's estimate stands in for a joint's zero or play:

@@ -854,6 +854,11 @@ pub struct CalibrateTreeArgs {
     /// repeatable.
     #[arg(long)]
     pub validate: Vec<PathBuf>,
+    /// Choose the joint parameters among those --params names by `t`: backward elimination of
+    /// the estimates below 2 standard errors, as for a marker file (`cv` and `bic` are not for a
+    /// tree's views yet).
+    #[arg(long, value_enum)]
+    pub select: Option<SelectName>,
     /// k-fold cross-validation on the data (k >= 2, at most the number of poses): the views of
     /// pose p held out in fold p mod k, each fold calibrated with every flag on the others;
     /// their held-out residuals pooled as a set.

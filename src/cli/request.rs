@@ -859,6 +859,8 @@ pub struct CalibrateTreeRequest {
     pub prior: Vec<robocal::estimation::PriorEntry>,
     /// `--prior auto[:PRESET]`: the preset whose scale is chosen from the views.
     pub auto_prior: Option<robocal::calibration::prior_scale::AutoPrior>,
+    /// How the joint parameters are chosen from the views (`--select t`), if they are.
+    pub select: Option<Criterion>,
     /// The loss of each view.
     pub loss: robocal::calibration::Loss,
     /// Held-out files.
@@ -890,6 +892,11 @@ impl CalibrateTreeRequest {
             return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
         }
         let (prior, auto_prior) = priors(args.choice.prior)?;
+        let select = selection(args.select, args.folds, &joints)?;
+        require(
+            matches!(select, None | Some(Criterion::T)),
+            "--select cv and bic: not for a tree's views yet; --select t chooses their parameters",
+        )?;
         let mut inputs = vec![("--model", args.model.as_path())];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
@@ -914,6 +921,7 @@ impl CalibrateTreeRequest {
             gauge: robocal::calibration::Gauge { hold: args.choice.hold, keep: args.choice.keep },
             prior,
             auto_prior,
+            select,
             loss: args.choice.loss,
             validate: args.validate,
             folds: args.folds,

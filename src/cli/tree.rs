@@ -43,15 +43,10 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         prior: request.prior.clone(),
         loss: request.loss,
     };
-    let auto =
-        robocal::calibration::Choices::from_flags(request.auto_prior.clone(), None, request.folds).auto_prior;
-    let TreeOutcome { calibration: c, report } = robocal::pipeline::calibrate_views(
-        &tree,
-        &sessions,
-        &held_out,
-        &options,
-        (auto.as_ref(), request.folds),
-    )?;
+    let choices =
+        robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds);
+    let TreeOutcome { calibration: c, report } =
+        robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options, &choices, request.folds)?;
     let text = report.text();
     print!("{text}");
     let mut outputs = io::Outputs::new();

@@ -144,6 +144,11 @@ pub struct ParamSet {
 }
 
 impl ParamSet {
+    /// The set of `params`, in their order (a tree's, which no one chain's model builds).
+    pub fn from_params(params: Vec<ParamInfo>) -> Self {
+        Self { params }
+    }
+
     /// The parameters of `model`, with its tool.
     pub fn new(model: &RobotModel) -> Self {
         Self::build(model, None)

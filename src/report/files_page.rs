@@ -217,6 +217,6 @@ impl TreeReport {
             })
             .flatten()
             .collect();
-        page(&files_page!(self, text, residuals, None), title)
+        page(&files_page!(self, text, residuals, self.selection.as_ref()), title)
     }
 }

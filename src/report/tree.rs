@@ -69,6 +69,9 @@ pub struct TreeReport {
     /// (cross-validated RMS of the views' position residuals, mm) it was chosen from.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub prior_scale: Option<crate::calibration::prior_scale::PriorScale>,
+    /// `--select`: how the joint parameters were chosen, its path.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub selection: Option<super::calibration::SelectionReport>,
 }
 
 /// Views listed per set in the text, the worst first.
@@ -154,6 +157,7 @@ impl TreeReport {
                     .collect()
             }),
             prior_scale: None,
+            selection: None,
         }
     }
 
@@ -166,6 +170,11 @@ impl TreeReport {
     /// The report with the scale `--prior auto` chose and its curve.
     pub fn with_prior_scale(self, scale: crate::calibration::prior_scale::PriorScale) -> Self {
         Self { prior_scale: Some(scale), ..self }
+    }
+
+    /// The report with the path of the selection that chose the tree's joint parameters.
+    pub fn with_selection(self, path: &crate::calibration::selection::SelectionPath) -> Self {
+        Self { selection: Some(super::calibration::SelectionReport::of(path)), ..self }
     }
 
     /// The verdict: the views' RMS errors of each set before and after, the warnings by cause.
@@ -210,6 +219,10 @@ impl TreeReport {
         if let Some(scale) = &self.prior_scale {
             let _ = writeln!(out);
             out.push_str(&super::calibration::prior_scale_text(scale));
+        }
+        if let Some(selection) = &self.selection {
+            let _ = writeln!(out);
+            out.push_str(&selection.text());
         }
         let _ = writeln!(out, "\ncameras and targets as calibrated (x, y, z mm; roll, pitch, yaw deg):");
         let width = self.frames.iter().map(|f| f.name.len()).max().unwrap_or(0);

@@ -797,3 +797,51 @@ fn a_tree_scales_a_preset_prior_from_its_views() {
     assert!(std::fs::read_to_string(&page).unwrap().contains("Prior scale: --prior auto:machined chose"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `calibrate --select t` on a tree's views: the backward path printed and in the JSON, the
+/// parameters it kept calibrated, held out within 1.2 times the plain fit's error; `--select
+/// bic` refused, saying what a tree takes.
+#[test]
+fn a_tree_selects_its_parameters_by_the_t_rule() {
+    let dir = std::env::temp_dir().join(format!("robocal-tree-select-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("report.json");
+    let torso = ["calibrate", "--model", "presets/torso.urdf", "--data", "examples/torso/views.csv"];
+    let run = |extra: &[&str]| {
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(torso)
+            .args(["--validate", "examples/torso/views-2.csv", "--json", json.to_str().unwrap()])
+            .args(extra)
+            .output()
+            .unwrap();
+        let report = std::fs::read_to_string(&json)
+            .ok()
+            .map(|t| serde_json::from_str::<serde_json::Value>(&t).unwrap());
+        (
+            output.status.code(),
+            String::from_utf8(output.stdout).unwrap(),
+            String::from_utf8(output.stderr).unwrap(),
+            report,
+        )
+    };
+    let held_out = |report: &serde_json::Value| report["sets"][1][1]["position"][1].as_f64().unwrap();
+    let (code, _, stderr, plain) = run(&[]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let plain = held_out(&plain.unwrap());
+    let (code, text, stderr, report) = run(&["--select", "t"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let report = report.unwrap();
+    assert!(text.contains("parameter selection: backward elimination while |t| < 2"), "{text}");
+    let selected: Vec<&str> =
+        report["selection"]["selected"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    let estimated: Vec<&str> =
+        report["parameters"].as_array().unwrap().iter().map(|p| p["name"].as_str().unwrap()).collect();
+    assert!(!selected.is_empty() && selected.iter().all(|s| estimated.contains(s)), "{selected:?}");
+    let found = held_out(&report);
+    assert!(found < 1.2 * plain, "held out {found} mm with --select t, {plain} mm plain");
+    let (code, _, stderr, _) = run(&["--select", "bic"]);
+    assert_eq!(code, Some(2), "{stderr}");
+    assert!(stderr.contains("--select t chooses their parameters"), "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -110,7 +110,6 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
             args.fixed_base || args.fixed_markers,
             "--fixed-base and --fixed-markers (a tree's base is never estimated)",
         ),
-        (args.select.is_some(), "--select"),
         (!args.marker.is_empty() || args.markers.is_some(), "--marker and --markers"),
         (
             args.report.poses_csv.is_some() || args.report.figures.is_some(),
@@ -140,6 +139,7 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
         choice: args.choice,
         iterations: args.iterations,
         validate: args.validate,
+        select: args.select,
         folds: args.folds,
         json: args.report.json,
         html: args.report.html,
