@@ -596,8 +596,8 @@ fn dot(a: &[f64], c: &[f64]) -> f64 {
     let (a4, c4) = (a.chunks_exact(4), c.chunks_exact(4));
     let rest: f64 = a4.remainder().iter().zip(c4.remainder()).map(|(a, c)| a * c).sum();
     for (a, c) in a4.zip(c4) {
-        for i in 0..4 {
-            sums[i] += a[i] * c[i];
+        for (sum, (a, c)) in sums.iter_mut().zip(a.iter().zip(c)) {
+            *sum += a * c;
         }
     }
     (sums[0] + sums[1]) + (sums[2] + sums[3]) + rest
