@@ -39,8 +39,7 @@ pub use selection::{
 use crate::estimation::{
     CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementNoise,
     NoiseEstimate, NoiseModel, NoiseSpec, PointProblem, PriorEntry, PriorError, PriorRows, RANK_TOLERANCE,
-    RefineOptions, Refined, Residuals, Weights, linearise, noise_design, prior_sds, refine_from,
-    residual_design,
+    RefineOptions, Refined, Residuals, Weights, linearise, prior_sds, refine_from, residual_design,
 };
 use crate::kinematics::{Chain, Measured, end_positions};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
@@ -966,10 +965,7 @@ fn residual_noise(
     let weights = Weights::for_problem(&problem, estimator)?;
     let jacobians = problem.manipulator_jacobians(&c.after);
     let per = kind.rows();
-    let designs: Vec<Vec<DMatrix<f64>>> = jacobians.iter().map(|j| noise_design(j, joints, per)).collect();
-    let components: Vec<Vec<DMatrix<f64>>> =
-        (0..designs[0].len()).map(|comp| designs.iter().map(|d| d[comp].clone()).collect()).collect();
-    let expected = residual_design(&system.h, &weights, &components)?;
+    let expected = residual_design(&system.h, &weights, &jacobians, joints, per)?;
     let samples: Vec<CovarianceSample> = expected
         .into_iter()
         .enumerate()
