@@ -222,6 +222,14 @@ fn stiffness_rows(rows: &[ParameterRow]) -> Vec<StiffnessRow> {
         .collect()
 }
 
+/// The choices made from the data, each after a blank line: `--prior auto`'s scale with its
+/// curve ([`prior_scale_text`]), then `--select`'s path.
+pub(super) fn choices_text(scale: Option<&PriorScale>, selection: Option<&SelectionReport>) -> String {
+    let scale = scale.map(|s| format!("\n{}", prior_scale_text(s)));
+    let selection = selection.map(|s| format!("\n{}", s.text()));
+    scale.into_iter().chain(selection).collect()
+}
+
 /// The scale `--prior auto` chose, with its curve.
 pub(super) fn prior_scale_text(scale: &PriorScale) -> String {
     let mut out = format!(
@@ -783,14 +791,7 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         let _ = writeln!(out);
         out.push_str(&self.identified_text());
         write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "pose");
-        if let Some(scale) = &self.prior_scale {
-            let _ = writeln!(out);
-            out.push_str(&prior_scale_text(scale));
-        }
-        if let Some(selection) = &self.selection {
-            let _ = writeln!(out);
-            out.push_str(&selection.text());
-        }
+        out.push_str(&choices_text(self.prior_scale.as_ref(), self.selection.as_ref()));
         out
     }
 

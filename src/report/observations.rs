@@ -231,14 +231,7 @@ impl ObservationsReport {
             &self.down_weighted,
             "observation",
         );
-        if let Some(scale) = &self.prior_scale {
-            let _ = writeln!(out);
-            out.push_str(&super::calibration::prior_scale_text(scale));
-        }
-        if let Some(selection) = &self.selection {
-            let _ = writeln!(out);
-            out.push_str(&selection.text());
-        }
+        out.push_str(&super::calibration::choices_text(self.prior_scale.as_ref(), self.selection.as_ref()));
         if !self.unseen.is_empty() {
             let _ = writeln!(out, "\nnot seen by these observations, held:");
         }

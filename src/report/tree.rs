@@ -216,14 +216,7 @@ impl TreeReport {
             let _ = writeln!(out, "{:<width$} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
         }
         super::calibration::write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "view");
-        if let Some(scale) = &self.prior_scale {
-            let _ = writeln!(out);
-            out.push_str(&super::calibration::prior_scale_text(scale));
-        }
-        if let Some(selection) = &self.selection {
-            let _ = writeln!(out);
-            out.push_str(&selection.text());
-        }
+        out.push_str(&super::calibration::choices_text(self.prior_scale.as_ref(), self.selection.as_ref()));
         let _ = writeln!(out, "\ncameras and targets as calibrated (x, y, z mm; roll, pitch, yaw deg):");
         let width = self.frames.iter().map(|f| f.name.len()).max().unwrap_or(0);
         for f in &self.frames {
