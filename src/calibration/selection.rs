@@ -43,7 +43,7 @@
 //! Gauss-Newton as any other.
 
 use super::kinds::{self, KindCalibration, KindData, KindOptions};
-use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale, with_scale};
+use super::prior_scale::{AutoPrior, PriorScale, choose_scale, with_scale};
 use super::{
     CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel,
     Whitening, calibrate, check_folds, errors, identifiable, observed, selection, standard_errors_of,
@@ -247,7 +247,8 @@ fn asking_kinds(model: &RobotModel, options: &KindOptions, names: &[String]) -> 
 /// (`--prior auto`), then the joint parameters (`--select`), with the priors in place.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Choices {
-    /// `--prior auto[:PRESET]`: the preset to scale, and the folds to choose its scale by.
+    /// `--prior auto[:PRESET]` or `auto-ml[:PRESET]`: the preset to scale, and the folds to
+    /// choose its scale by (unused by the marginal likelihood).
     pub auto_prior: Option<(AutoPrior, usize)>,
     /// `--select`: how to choose the joint parameters.
     pub select: Option<Criterion>,
@@ -264,7 +265,8 @@ pub struct Chosen {
     pub path: Option<SelectionPath>,
 }
 
-/// Make `choices` on `data`: the preset's scale first ([`choose_prior_scale`]), then the
+/// Make `choices` on `data`: the preset's scale first ([`choose_scale`]: by cross-validation
+/// or the marginal likelihood), then the
 /// selection with those priors ([`select`]).
 pub fn choose(
     model: &RobotModel,
@@ -274,7 +276,7 @@ pub fn choose(
 ) -> Result<Chosen, CalibrationError> {
     let mut chosen = Chosen { options: options.clone(), scale: None, path: None };
     if let Some((auto, folds)) = &choices.auto_prior {
-        let scale = choose_prior_scale(model, data, options, auto, (*folds).min(data.len()))?;
+        let scale = choose_scale(model, data, options, auto, (*folds).min(data.len()))?;
         chosen.options = with_scale(options, auto, scale.scale());
         chosen.scale = Some(scale);
     }

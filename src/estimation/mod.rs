@@ -17,6 +17,7 @@
 
 mod blocks;
 mod device;
+pub mod evidence;
 mod noise;
 mod noise_file;
 pub mod prior;

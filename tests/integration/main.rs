@@ -9,6 +9,7 @@ mod compensate;
 mod compliance;
 mod conventions;
 mod estimation;
+mod evidence;
 mod export;
 mod features;
 mod fgls;

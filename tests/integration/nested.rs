@@ -12,11 +12,11 @@ use robocal::kinematics::Chain;
 use robocal::model::RobotModel;
 
 /// The marker of the simulated PUMA 560 (mm, last joint frame).
-const MARKER: Vector3<f64> = Vector3::new(30.0, -20.0, 100.0);
+pub(crate) const MARKER: Vector3<f64> = Vector3::new(30.0, -20.0, 100.0);
 
 /// `n` poses of a PUMA 560 whose joints carry the errors `x` (full parameter vector of the
 /// marker's chain), within the middle `band` of each joint's range, measured with `sigma` mm.
-fn measured(x: &[f64], n: usize, band: f64, sigma: f64, rng: &mut ChaCha8Rng) -> Measurements {
+pub(crate) fn measured(x: &[f64], n: usize, band: f64, sigma: f64, rng: &mut ChaCha8Rng) -> Measurements {
     let model = RobotModel::preset("puma560").unwrap();
     let chain = Chain::markers(&model, &[MARKER]).remove(0);
     let at = chain.with_errors(x);
@@ -49,7 +49,7 @@ fn measured(x: &[f64], n: usize, band: f64, sigma: f64, rng: &mut ChaCha8Rng) ->
     }
 }
 
-fn options() -> Options {
+pub(crate) fn options() -> Options {
     Options {
         estimator: Estimator::Ols,
         noise: None,
@@ -231,7 +231,7 @@ fn prior_auto_scales_the_preset_with_the_robot() {
 }
 
 /// The measurement noise of [`measured`]: 0.2 mm per axis, exact joints.
-fn noise() -> robocal::estimation::NoiseModel {
+pub(crate) fn noise() -> robocal::estimation::NoiseModel {
     robocal::estimation::NoiseModel {
         joint: nalgebra::DMatrix::zeros(6, 6),
         measurement: robocal::estimation::MeasurementNoise::PerAxis([0.2, 0.2, 0.2, 0.0, 0.0, 0.0]),
