@@ -16,6 +16,7 @@
 
 mod data;
 pub mod diagnostics;
+pub mod noise_check;
 pub mod evaluation;
 pub mod kinds;
 pub mod prior_scale;
@@ -546,7 +547,14 @@ pub fn calibrate(
         estimate.estimate.diagnostics = data_alone;
     }
     let after = problem.full(&estimate.estimate.x);
-    finish(
+    let noise_warning = match (&noise, options.loss) {
+        (Some(given), Loss::Squared) => {
+            let kept_sd: Vec<f64> = kept.indices().iter().map(|&i| prior_sd[i]).collect();
+            noise_check::noise_check(&problem, &estimate.estimate.x, given, &kept_sd)
+        }
+        _ => None,
+    };
+    let mut calibration = finish(
         Stages {
             registered,
             probe,
@@ -564,7 +572,9 @@ pub fn calibrate(
             robust,
         },
         &base_problem,
-    )
+    )?;
+    calibration.warnings.extend(noise_warning);
+    Ok(calibration)
 }
 
 /// What [`identifiable`] finds: the parameters the poses identify, why the others are held,

@@ -24,6 +24,7 @@ pub mod prior;
 mod problem;
 mod reduced;
 mod refine;
+pub mod reml;
 mod solve;
 pub mod trust;
 mod variance;

@@ -23,6 +23,7 @@ mod layering;
 mod model_files;
 mod nested;
 mod noise;
+mod noise_check;
 mod observability;
 mod planning;
 mod plausibility;
