@@ -22,6 +22,7 @@ mod kinematics;
 mod layering;
 mod model_files;
 mod nested;
+mod overfit;
 mod noise;
 mod noise_check;
 mod observability;
