@@ -15,8 +15,9 @@
 //! with `V_k(rho) = rho V_q,k + V_m,k = L_k L_k^T`, the whitened blocks `L_k^-1 H_k`,
 //! `L_k^-1 r_k` summed to `M = sum H_k^T V_k^-1 H_k` (`p x p`), `g = sum H_k^T V_k^-1 r_k`,
 //! `|w|^2 = sum r_k^T V_k^-1 r_k`; `n` rows, `q` the rank of `M` (its pseudo-determinant and
-//! inverse over the `q` largest eigenvalues). Only blocks of a point and `p x p` matrices: never
-//! an `n x n` one. `rho` is searched on a grid of `log rho` ([`RHO_GRID`]) and the estimate is
+//! quadratic form on a fixed basis of its range). Only blocks of a point and `p x p` matrices:
+//! never an `n x n` one. `rho` is searched on a coarse grid of `log rho` ([`RHO_GRID`]), then
+//! by golden section, and the estimate is
 //! `a = rho b(rho)`, `b = b(rho)`; `b(1)` is the whitened residual variance of the noise as
 //! given, the simple check (`sum r^T V^-1 r / (n - q)`, 1 when the noise is right).
 //!
@@ -29,8 +30,13 @@
 
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 
-/// The grid of `log2 rho`: `rho = 2^(k/4)` for `k` from -40 to 40 (`2^-10` to `2^10`).
-pub const RHO_GRID: std::ops::RangeInclusive<i32> = -40..=40;
+/// The coarse grid of `log2 rho`: `rho = 2^k` for `k` from -10 to 10, every other (`4^-5` to
+/// `4^5`); the best is refined by golden-section search between its neighbours.
+pub const RHO_GRID: std::ops::RangeInclusive<i32> = -5..=5;
+
+/// Golden-section steps refining `log2 rho` within the coarse grid's bracket (4 wide): to
+/// `4 * 0.618^16`, about 0.0005.
+const GOLDEN_STEPS: usize = 16;
 
 /// Relative size (to the largest) of an eigenvalue of the column-scaled `M` counted in its rank.
 const RANK_TOLERANCE: f64 = 1e-12;
@@ -114,17 +120,22 @@ impl Components {
         Some((sums.log_det + log_pdet + dof * b.max(f64::MIN_POSITIVE).ln(), b))
     }
 
-    /// The components the residuals make likeliest ([`Components::profile`] on the grid
-    /// [`RHO_GRID`], or at `rho = 1` alone without joint noise).
+    /// The components the residuals make likeliest ([`Components::profile`] on the coarse grid
+    /// `rho = 4^k`, `k` in [`RHO_GRID`], then by golden-section search on `log2 rho` between the
+    /// best one's neighbours; at `rho = 1` alone without joint noise).
     pub fn estimate(&self) -> Option<ComponentEstimate> {
         let (given, whitened) = self.profile(1.0)?;
         let mut best = (1.0, given, whitened);
         if self.has_joint_noise() {
-            for k in RHO_GRID {
-                let rho = 2f64.powf(f64::from(k) / 4.0);
-                if let Some((value, b)) = self.profile(rho).filter(|(v, _)| *v < best.1) {
-                    best = (rho, value, b);
-                }
+            let at = |log2: f64| self.profile(2f64.powf(log2)).map(|(v, b)| (2f64.powf(log2), v, b));
+            let grid: Vec<(f64, f64, f64)> = RHO_GRID.filter_map(|k| at(2.0 * f64::from(k))).collect();
+            let coarse = grid.iter().copied().min_by(|x, y| x.1.total_cmp(&y.1))?;
+            let refined = golden(|log2| at(log2).map_or(f64::INFINITY, |(_, v, _)| v), coarse.0.log2())
+                .and_then(at)
+                .filter(|r| r.1 < coarse.1)
+                .unwrap_or(coarse);
+            if refined.1 < best.1 {
+                best = refined;
             }
         }
         let (rho, value, b) = best;
@@ -176,6 +187,28 @@ impl Components {
         }
         Some(s)
     }
+}
+
+/// The minimum of `f` by golden-section search in `[centre - 2, centre + 2]`
+/// ([`GOLDEN_STEPS`] steps); `None` if `f` is nowhere finite there.
+fn golden(f: impl Fn(f64) -> f64, centre: f64) -> Option<f64> {
+    let ratio = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut low, mut high) = (centre - 2.0, centre + 2.0);
+    let (mut x1, mut x2) = (high - ratio * (high - low), low + ratio * (high - low));
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    for _ in 0..GOLDEN_STEPS {
+        if f1 < f2 {
+            (high, x2, f2) = (x2, x1, f1);
+            x1 = high - ratio * (high - low);
+            f1 = f(x1);
+        } else {
+            (low, x1, f1) = (x1, x2, f2);
+            x2 = low + ratio * (high - low);
+            f2 = f(x2);
+        }
+    }
+    let x = if f1 < f2 { x1 } else { x2 };
+    f(x).is_finite().then_some(x)
 }
 
 /// A basis `T` (`p x q`) of the range of the symmetric positive semi-definite `m`: the
