@@ -170,7 +170,10 @@ fn choices(c: &mut Criterion) {
     use robocal::calibration::prior_scale::AutoPrior;
     use robocal::calibration::selection::{Choices, choose, cross_validate_choices};
     let (nominal, data, options) = two_pumas();
-    let auto = |text: &str| Choices { auto_prior: Some((AutoPrior::parse(text).unwrap().unwrap(), 5)), select: None };
+    let auto = |text: &str| Choices {
+        auto_prior: Some((AutoPrior::parse(text).unwrap().unwrap(), 5)),
+        select: None,
+    };
     let (cv, ml) = (auto("auto"), auto("auto-ml"));
     let noise = NoiseModel::diagonal(&[1e-5; 12], MeasurementNoise::isotropic(0.05, 0.0));
     let with_noise = Options { estimator: Estimator::Wls, noise: Some(noise), ..options.clone() };
@@ -196,9 +199,10 @@ fn choices(c: &mut Criterion) {
     group.bench_function("plain calibration, 100 poses, 60 candidates", |b| {
         b.iter(|| calibration::calibrate(&nominal, &data, &options).unwrap())
     });
-    group.bench_function("plain wls calibration, the noise given (and checked), 100 poses, 60 candidates", |b| {
-        b.iter(|| calibration::calibrate(&nominal, &data, &with_noise).unwrap())
-    });
+    group.bench_function(
+        "plain wls calibration, the noise given (and checked), 100 poses, 60 candidates",
+        |b| b.iter(|| calibration::calibrate(&nominal, &data, &with_noise).unwrap()),
+    );
     group.bench_function("--loss huber, 100 poses, 60 candidates", |b| {
         b.iter(|| calibration::calibrate(&nominal, &data, &huber).unwrap())
     });

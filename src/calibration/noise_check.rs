@@ -77,9 +77,11 @@ fn components(problem: &PointProblem<'_>, x: &DVector<f64>, noise: &NoiseModel) 
         return None;
     }
     let jacobians = problem.manipulator_jacobians(&problem.full(x));
-    let joint_only = NoiseModel { joint: noise.joint.clone(), measurement: MeasurementNoise::PerAxis([0.0; 6]) };
+    let joint_only =
+        NoiseModel { joint: noise.joint.clone(), measurement: MeasurementNoise::PerAxis([0.0; 6]) };
     let dof = noise.joint.nrows();
-    let measurement_only = NoiseModel { joint: DMatrix::zeros(dof, dof), measurement: noise.measurement.clone() };
+    let measurement_only =
+        NoiseModel { joint: DMatrix::zeros(dof, dof), measurement: noise.measurement.clone() };
     let rows = problem.rows_per_point();
     let points = (jacobians.iter().enumerate())
         .map(|(k, j)| Point {

@@ -17,8 +17,8 @@
 //! scale, on the grid [`evidence_scales`] (1/64 to 64 in steps of `2^(1/8)`).
 
 use super::{
-    CalibrationError, JointParams, Measurements, Options, RobotModel, Whitening, calibrate, cross_validate,
-    observed, selection,
+    CalibrationError, JointParams, Measurements, Options, RobotModel, Whitening, calibrate_quietly,
+    cross_validate, observed, selection,
 };
 use crate::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
 use crate::estimation::{Estimator, PointProblem, PriorEntry, Weights, linearise, prior_sds};
@@ -220,7 +220,7 @@ pub fn choose_prior_scale_ml(
             break;
         }
         previous = Some(chosen);
-        about = Some(calibrate(model, data, &with_scale(options, auto, scales[chosen]))?.after);
+        about = Some(calibrate_quietly(model, data, &with_scale(options, auto, scales[chosen]))?.after);
     }
     let chosen = arg_max(&curve);
     let log_evidence = curve.iter().map(|l| l - curve[chosen]).collect();
@@ -237,7 +237,7 @@ pub fn choose_prior_scale_ml(
 
 /// The [`Evidence`] of `data` for the scale of `auto`'s preset: the system of the parameters
 /// `options` asks for, linearised about `about` (a full parameter vector of a calibration of
-/// `data`; `None`: the registration, the base and markers fitted as [`calibrate`]'s "before")
+/// `data`; `None`: the registration, the base and markers fitted as [`calibrate`](super::calibrate)'s "before")
 /// and whitened by Gauss-Markov (`S V S^T = I`: the rows divided by the normalisation
 /// `c = sigma_max`). About `x0` the model is linear in the errors `x` from nominal,
 /// `w0 + A x0 = A x + e` (`w0` the whitened residual at `x0`), so with `A = R / c`
@@ -253,7 +253,7 @@ pub fn scale_evidence(
     auto: &AutoPrior,
     about: Option<&[f64]>,
 ) -> Result<Evidence, CalibrationError> {
-    let frame = calibrate(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
+    let frame = calibrate_quietly(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
     let Whitening::Covariance(noise) = &frame.whitening else {
         return Err(CalibrationError::Scoring(format!(
             "--prior {}: the marginal likelihood needs the noise; give it (--sigma-mm with \
@@ -266,8 +266,15 @@ pub fn scale_evidence(
     let zero = vec![0.0; params.len()];
     let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
     let nothing = Selection::from_indices(params, []);
-    let base_problem =
-        PointProblem::new(&frame.chains, &nothing, kind, data.joints.clone(), observed(data), zero, Some(noise))?;
+    let base_problem = PointProblem::new(
+        &frame.chains,
+        &nothing,
+        kind,
+        data.joints.clone(),
+        observed(data),
+        zero,
+        Some(noise),
+    )?;
     let weights = Weights::for_problem(&base_problem, Estimator::Wls)?;
     let c2 = weights.scale().unwrap_or(1.0).powi(2);
     let asked = selection(params, &options.joints, options)?;

@@ -70,8 +70,10 @@ impl Evidence {
                 gram[(j, j)] += 1.0 / (t * t);
             }
         }
-        let scaled: Vec<usize> = (0..columns.len()).filter(|&j| matches!(columns[j], Column::Scaled(_))).collect();
-        let flat: Vec<usize> = (0..columns.len()).filter(|&j| !matches!(columns[j], Column::Scaled(_))).collect();
+        let scaled: Vec<usize> =
+            (0..columns.len()).filter(|&j| matches!(columns[j], Column::Scaled(_))).collect();
+        let flat: Vec<usize> =
+            (0..columns.len()).filter(|&j| !matches!(columns[j], Column::Scaled(_))).collect();
         let gff_pinv = pseudo_inverse(&gram.select_rows(&flat).select_columns(&flat));
         let gxf = gram.select_rows(&scaled).select_columns(&flat);
         let (hx, hf) = (atw.select_rows(&scaled), atw.select_rows(&flat));
@@ -88,7 +90,11 @@ impl Evidence {
         let b = DMatrix::from_fn(d.len(), d.len(), |i, k| d[i] * schur[(i, k)] * d[k]);
         let eigen = SymmetricEigen::new((&b + b.transpose()) * 0.5);
         let g = eigen.eigenvectors.tr_mul(&d.component_mul(&h));
-        Self { lambda: eigen.eigenvalues.iter().map(|l| l.max(0.0)).collect(), g: g.iter().copied().collect(), residual2 }
+        Self {
+            lambda: eigen.eigenvalues.iter().map(|l| l.max(0.0)).collect(),
+            g: g.iter().copied().collect(),
+            residual2,
+        }
     }
 
     /// `log det(I + s^2 B B^T) = sum_i log(1 + s^2 lambda_i)` (the determinant lemma).
@@ -99,7 +105,8 @@ impl Evidence {
     /// `w^T (I + s^2 B B^T)^-1 w = w'^2 - sum_i s^2 g_i^2 / (1 + s^2 lambda_i)` (Woodbury).
     pub fn quadratic(&self, s: f64) -> f64 {
         let s2 = s * s;
-        self.residual2 - self.lambda.iter().zip(&self.g).map(|(l, g)| s2 * g * g / (1.0 + s2 * l)).sum::<f64>()
+        self.residual2
+            - self.lambda.iter().zip(&self.g).map(|(l, g)| s2 * g * g / (1.0 + s2 * l)).sum::<f64>()
     }
 
     /// `log p(y | s) = -1/2 [log_det(s) + quadratic(s)]`, up to a constant independent of `s`.

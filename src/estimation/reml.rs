@@ -155,7 +155,10 @@ impl Components {
         (x, sd): (&DVector<f64>, &[f64]),
         scored: &[bool],
     ) -> Option<f64> {
-        let precision = DVector::from_iterator(sd.len(), sd.iter().map(|s| if s.is_finite() { 1.0 / (s * s) } else { 0.0 }));
+        let precision = DVector::from_iterator(
+            sd.len(),
+            sd.iter().map(|s| if s.is_finite() { 1.0 / (s * s) } else { 0.0 }),
+        );
         let (mut sse, mut count) = (0.0, 0usize);
         for fold in 0..folds {
             let sums = self.sums(a, b, |k| k % folds != fold)?;
@@ -219,7 +222,8 @@ fn golden(f: impl Fn(f64) -> f64, centre: f64) -> Option<f64> {
 fn range_basis(m: &DMatrix<f64>) -> DMatrix<f64> {
     let (e, eigen) = scaled_eigen(m);
     let largest = eigen.eigenvalues.iter().copied().fold(0.0, f64::max);
-    let kept: Vec<usize> = (0..m.nrows()).filter(|&i| eigen.eigenvalues[i] > RANK_TOLERANCE * largest).collect();
+    let kept: Vec<usize> =
+        (0..m.nrows()).filter(|&i| eigen.eigenvalues[i] > RANK_TOLERANCE * largest).collect();
     let w = eigen.eigenvectors.select_columns(&kept);
     DMatrix::from_fn(w.nrows(), w.ncols(), |i, j| w[(i, j)] / e[i])
 }
@@ -262,7 +266,8 @@ mod tests {
                 let h = DMatrix::from_fn(3, 5, |_, _| z());
                 let j = DMatrix::from_fn(3, 2, |_, _| z());
                 let joint = &j * j.transpose();
-                let noise = &j * DVector::from_fn(2, |_, _| z()) * a0.sqrt() + DVector::from_fn(3, |_, _| z()) * b0.sqrt();
+                let noise = &j * DVector::from_fn(2, |_, _| z()) * a0.sqrt()
+                    + DVector::from_fn(3, |_, _| z()) * b0.sqrt();
                 let r = &h * &x + noise;
                 Point { h, r, joint, measurement: DMatrix::identity(3, 3) }
             })

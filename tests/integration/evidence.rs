@@ -7,8 +7,8 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::prior_scale::{AutoPrior, ScaleBy, choose_prior_scale_ml};
-use robocal::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
 use robocal::estimation::Estimator;
+use robocal::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
 use robocal::kinematics::Chain;
 use robocal::model::RobotModel;
 
@@ -37,9 +37,11 @@ fn the_marginal_likelihood_finds_the_scale_the_truth_was_drawn_at() {
             false => 100.0 * normal(&mut rng),
         });
         let y = &h * x + DVector::from_fn(m, |_, _| normal(&mut rng));
-        let columns: Vec<Column> =
-            (0..scaled + flat).map(|j| if j < scaled { Column::Scaled(d[j]) } else { Column::Flat }).collect();
-        let evidence = Evidence::new(&(h.transpose() * &h), &(h.transpose() * &y), y.norm_squared(), &columns);
+        let columns: Vec<Column> = (0..scaled + flat)
+            .map(|j| if j < scaled { Column::Scaled(d[j]) } else { Column::Flat })
+            .collect();
+        let evidence =
+            Evidence::new(&(h.transpose() * &h), &(h.transpose() * &y), y.norm_squared(), &columns);
         let curve: Vec<f64> = scales.iter().map(|&s| evidence.log_evidence(s)).collect();
         let ratio = scales[arg_max(&curve)] / s0;
         ratios.push(ratio);
@@ -66,7 +68,11 @@ fn auto_ml_finds_the_scale_of_a_robot() {
         let s0 = if seed % 2 == 0 { 1.0 } else { 4.0 };
         let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
         let x: Vec<f64> = (chain.params().iter().zip(&sd))
-            .map(|(p, s)| if p.name.starts_with('j') && s.is_finite() { normal(&mut rng) * s * s0 } else { 0.0 })
+            .map(
+                |(p, s)| {
+                    if p.name.starts_with('j') && s.is_finite() { normal(&mut rng) * s * s0 } else { 0.0 }
+                },
+            )
             .collect();
         let train = measured(&x, 60, 0.8, 0.2, &mut rng);
         let scale = choose_prior_scale_ml(&model, &train, &o, &auto).unwrap();
@@ -116,7 +122,8 @@ fn the_report_gives_the_marginal_likelihood_scale() {
     let scale = &report["prior_scale"];
     assert_eq!((scale["preset"].as_str(), scale["by"].as_str()), (Some("machined"), Some("ml")));
     assert!(scale.get("folds").is_none() && scale.get("cv_rms").is_none(), "{scale}");
-    let curve: Vec<f64> = scale["log_evidence"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    let curve: Vec<f64> =
+        scale["log_evidence"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
     assert_eq!((curve.len(), scale["scales"].as_array().unwrap().len()), (97, 97));
     let chosen = scale["chosen"].as_u64().unwrap() as usize;
     assert_eq!(curve[chosen], 0.0);

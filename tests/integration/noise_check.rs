@@ -11,7 +11,10 @@ use robocal::model::RobotModel;
 
 /// Measurement noise of `sigma` mm per axis, exact joints.
 fn noise(sigma: f64) -> NoiseModel {
-    NoiseModel { joint: nalgebra::DMatrix::zeros(6, 6), measurement: MeasurementNoise::PerAxis([sigma, sigma, sigma, 0.0, 0.0, 0.0]) }
+    NoiseModel {
+        joint: nalgebra::DMatrix::zeros(6, 6),
+        measurement: MeasurementNoise::PerAxis([sigma, sigma, sigma, 0.0, 0.0, 0.0]),
+    }
 }
 
 /// A PUMA 560 measured with 0.2 mm of noise (60 poses), calibrated by Gauss-Markov with the
@@ -40,7 +43,10 @@ fn a_guessed_noise_off_by_a_factor_4_is_warned_of() {
         assert!((n.measurement_factor / factor - 1.0).abs() < 0.2, "{sigma}: {n:?}");
         assert!((n.whitened_sd / factor - 1.0).abs() < 0.2, "{sigma}: {n:?}");
         assert_eq!((n.joint_factor, n.folds), (None, 5));
-        assert!(n.cv_given > 0.15 && n.cv_given < 0.5 && n.cv_estimated > 0.15 && n.cv_estimated < 0.5, "{n:?}");
+        assert!(
+            n.cv_given > 0.15 && n.cv_given < 0.5 && n.cv_estimated > 0.15 && n.cv_estimated < 0.5,
+            "{n:?}"
+        );
         assert!(text.starts_with("the noise given disagrees with the residuals: their REML estimate is the measurement sigmas x"), "{text}");
         assert!(text.contains("5-fold CV RMS"), "{text}");
     }
@@ -50,7 +56,13 @@ fn a_guessed_noise_off_by_a_factor_4_is_warned_of() {
 #[test]
 fn nothing_given_nothing_checked() {
     let model = RobotModel::preset("puma560").unwrap();
-    let data = measured(&vec![0.0; Chain::markers(&model, &[MARKER])[0].params().len()], 30, 0.8, 0.2, &mut ChaCha8Rng::seed_from_u64(6));
+    let data = measured(
+        &vec![0.0; Chain::markers(&model, &[MARKER])[0].params().len()],
+        30,
+        0.8,
+        0.2,
+        &mut ChaCha8Rng::seed_from_u64(6),
+    );
     let c = calibration::calibrate(&model, &data, &options()).unwrap();
     assert!(c.warnings.iter().all(|w| w.cause() != Cause::NoiseDisagrees), "{:?}", c.warnings);
 }
