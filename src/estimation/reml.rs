@@ -61,7 +61,60 @@ pub struct Point {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Components {
     points: Vec<Point>,
+    rotated: Rotated,
     basis: DMatrix<f64>,
+}
+
+/// The points' rows in the coordinates that diagonalise both components at once
+/// ([`Rotated::new`]), stacked.
+#[derive(Debug, Clone, PartialEq)]
+struct Rotated {
+    /// `U_k^T L_k^-1 H_k`, every point's rows.
+    g: DMatrix<f64>,
+    /// `U_k^T L_k^-1 r_k`.
+    c: DVector<f64>,
+    /// `lambda_k,i`, the eigenvalues of `L_k^-1 V_q,k L_k^-T`.
+    lambda: Vec<f64>,
+    /// Each row's point.
+    point_of_row: Vec<usize>,
+    /// `log det V_m,k`, point by point.
+    log_det_m: Vec<f64>,
+}
+
+impl Rotated {
+    /// With `V_m,k = L_k L_k^T` and `L_k^-1 V_q,k L_k^-T = U_k diag(lambda_k) U_k^T`,
+    /// `V_k(a, b) = a V_q,k + b V_m,k = L_k U_k diag(a lambda_k + b) U_k^T L_k^T`: the rows
+    /// `U_k^T L_k^-1 [H_k r_k]` are whitened by `1 / sqrt(a lambda_k,i + b)` each, and
+    /// `log det V_k(a, b) = log det V_m,k + sum_i log(a lambda_k,i + b)`. `None` where a
+    /// `V_m,k` is not positive definite.
+    fn new(points: &[Point]) -> Option<Self> {
+        let p = points.first().map_or(0, |q| q.h.ncols());
+        let n: usize = points.iter().map(|q| q.r.len()).sum();
+        let mut s = Self {
+            g: DMatrix::zeros(n, p),
+            c: DVector::zeros(n),
+            lambda: Vec::with_capacity(n),
+            point_of_row: Vec::with_capacity(n),
+            log_det_m: Vec::with_capacity(points.len()),
+        };
+        let mut row = 0;
+        for (k, point) in points.iter().enumerate() {
+            let l = point.measurement.clone().cholesky()?;
+            let lq = l.l().solve_lower_triangular(&point.joint)?;
+            let c = l.l().solve_lower_triangular(&lq.transpose())?;
+            let eigen = SymmetricEigen::new((&c + c.transpose()) * 0.5);
+            let u = &eigen.eigenvectors;
+            let h = u.tr_mul(&l.l().solve_lower_triangular(&point.h)?);
+            let r = u.tr_mul(&l.l().solve_lower_triangular(&point.r)?);
+            s.g.rows_mut(row, h.nrows()).copy_from(&h);
+            s.c.rows_mut(row, r.len()).copy_from(&r);
+            s.lambda.extend(eigen.eigenvalues.iter().map(|v| v.max(0.0)));
+            s.point_of_row.extend(std::iter::repeat_n(k, r.len()));
+            s.log_det_m.push(2.0 * l.l().diagonal().iter().map(|d| d.ln()).sum::<f64>());
+            row += r.len();
+        }
+        Some(s)
+    }
 }
 
 /// The sums of the whitened points at one covariance.
@@ -92,7 +145,8 @@ impl Components {
     /// The points of a fit, the range of `M` from the covariance as given; `None` where a
     /// block is not positive definite.
     pub fn new(points: Vec<Point>) -> Option<Self> {
-        let mut c = Self { points, basis: DMatrix::zeros(0, 0) };
+        let rotated = Rotated::new(&points)?;
+        let mut c = Self { points, rotated, basis: DMatrix::zeros(0, 0) };
         c.basis = range_basis(&c.sums(1.0, 1.0, |_| true)?.m);
         Some(c)
     }
@@ -174,21 +228,28 @@ impl Components {
         Some((sse / (count as f64 / 3.0).max(1.0)).sqrt())
     }
 
-    /// The sums of the points `take` keeps, whitened by `V_k = a V_q,k + b V_m,k`.
+    /// The sums of the points `take` keeps, whitened by `V_k = a V_q,k + b V_m,k`
+    /// ([`Rotated::new`]): one product of the stacked rows, each scaled by
+    /// `1 / sqrt(a lambda + b)`. `None` where a block is not positive definite.
     fn sums(&self, a: f64, b: f64, take: impl Fn(usize) -> bool) -> Option<Sums> {
-        let p = self.points.first().map_or(0, |q| q.h.ncols());
-        let mut s = Sums { log_det: 0.0, m: DMatrix::zeros(p, p), g: DVector::zeros(p), ww: 0.0, rows: 0 };
-        for (_, point) in self.points.iter().enumerate().filter(|(k, _)| take(*k)) {
-            let v = &point.joint * a + &point.measurement * b;
-            let l = v.cholesky()?;
-            let (h, r) = (l.l().solve_lower_triangular(&point.h)?, l.l().solve_lower_triangular(&point.r)?);
-            s.log_det += 2.0 * l.l().diagonal().iter().map(|d| d.ln()).sum::<f64>();
-            s.m += h.tr_mul(&h);
-            s.g += h.tr_mul(&r);
-            s.ww += r.norm_squared();
-            s.rows += r.len();
+        let t = &self.rotated;
+        let rows: Vec<usize> = (0..t.c.len()).filter(|&i| take(t.point_of_row[i])).collect();
+        let variance: Vec<f64> = rows.iter().map(|&i| a * t.lambda[i] + b).collect();
+        if variance.iter().any(|v| *v <= 0.0) {
+            return None;
         }
-        Some(s)
+        let scale: Vec<f64> = variance.iter().map(|v| 1.0 / v.sqrt()).collect();
+        let h = DMatrix::from_fn(rows.len(), t.g.ncols(), |r, j| t.g[(rows[r], j)] * scale[r]);
+        let w = DVector::from_fn(rows.len(), |r, _| t.c[rows[r]] * scale[r]);
+        let points = (0..self.points.len()).filter(|&k| take(k));
+        Some(Sums {
+            log_det: points.map(|k| t.log_det_m[k]).sum::<f64>()
+                + variance.iter().map(|v| v.ln()).sum::<f64>(),
+            m: h.tr_mul(&h),
+            g: h.tr_mul(&w),
+            ww: w.norm_squared(),
+            rows: rows.len(),
+        })
     }
 }
 
@@ -310,5 +371,45 @@ mod tests {
         }
         let (a, b) = (c.estimate().unwrap(), repeated.estimate().unwrap());
         assert!((a.joint - b.joint).abs() < 1e-9 * a.joint, "{a:?} {b:?}");
+    }
+
+    /// The rotated sums ([`Rotated::new`]) are the direct ones, `L^-1 H` and `L^-1 r` with
+    /// `a V_q,k + b V_m,k = L L^T`, for a measurement part that is not a multiple of `I`.
+    #[test]
+    fn the_rotated_sums_are_the_direct_ones() {
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let mut z = || -> f64 { StandardNormal.sample(&mut rng) };
+        let points: Vec<Point> = (0..20)
+            .map(|_| {
+                let (j, m) = (DMatrix::from_fn(3, 2, |_, _| z()), DMatrix::from_fn(3, 3, |_, _| z()));
+                let h = DMatrix::from_fn(3, 4, |_, _| z());
+                let r = DVector::from_fn(3, |_, _| z());
+                Point {
+                    h,
+                    r,
+                    joint: &j * j.transpose(),
+                    measurement: &m * m.transpose() + DMatrix::identity(3, 3),
+                }
+            })
+            .collect();
+        let c = Components::new(points.clone()).unwrap();
+        let (a, b) = (2.5, 0.3);
+        let rotated = c.sums(a, b, |k| k % 3 != 1).unwrap();
+        let (mut log_det, mut m, mut g, mut ww) = (0.0, DMatrix::zeros(4, 4), DVector::zeros(4), 0.0);
+        for point in points.iter().enumerate().filter(|(k, _)| k % 3 != 1).map(|(_, p)| p) {
+            let l = (&point.joint * a + &point.measurement * b).cholesky().unwrap();
+            let (h, r) = (
+                l.l().solve_lower_triangular(&point.h).unwrap(),
+                l.l().solve_lower_triangular(&point.r).unwrap(),
+            );
+            log_det += 2.0 * l.l().diagonal().iter().map(|d| d.ln()).sum::<f64>();
+            m += h.tr_mul(&h);
+            g += h.tr_mul(&r);
+            ww += r.norm_squared();
+        }
+        assert!((rotated.log_det - log_det).abs() < 1e-9 * log_det.abs().max(1.0));
+        assert!((&rotated.m - &m).norm() < 1e-9 * m.norm());
+        assert!((&rotated.g - &g).norm() < 1e-9 * g.norm());
+        assert!((rotated.ww - ww).abs() < 1e-9 * ww);
     }
 }
