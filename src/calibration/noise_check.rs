@@ -91,5 +91,27 @@ fn components(problem: &PointProblem<'_>, x: &DVector<f64>, noise: &NoiseModel) 
             measurement: measurement_only.pose_covariance(k, j, problem.measured()),
         })
         .collect();
-    Components::new(points)
+    Components::new(without_outliers(points))
+}
+
+/// A point whose whitened residual per row, `q_k = r_k^T V_k^-1 r_k / rows`, exceeds this many
+/// times the median of the points' is left out of the check: one gross outlier would otherwise
+/// say the noise is larger (it is warned of as far out on its own).
+pub const OUTLIER_FACTOR: f64 = 25.0;
+
+/// `points` without those whose `q_k` exceeds [`OUTLIER_FACTOR`] times the median `q` (the
+/// noise as given, `V_k = V_q,k + V_m,k`); a point whose `V_k` is not positive definite is kept
+/// (the check then declines).
+fn without_outliers(points: Vec<Point>) -> Vec<Point> {
+    let q: Vec<f64> = (points.iter())
+        .map(|p| {
+            let v = &p.joint + &p.measurement;
+            let whitened = v.cholesky().and_then(|l| l.l().solve_lower_triangular(&p.r));
+            whitened.map_or(0.0, |w| w.norm_squared() / p.r.len().max(1) as f64)
+        })
+        .collect();
+    let mut sorted = q.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    (points.into_iter().zip(q)).filter(|(_, q)| *q <= OUTLIER_FACTOR * median).map(|(p, _)| p).collect()
 }

@@ -104,21 +104,10 @@ fn auto_ml_without_noise_says_what_it_needs() {
 /// `folds` nor `cv_rms`); `--folds 2` chooses it again in each fold.
 #[test]
 fn the_report_gives_the_marginal_likelihood_scale() {
-    let dir = std::env::temp_dir().join(format!("robocal-prior-auto-ml-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let json = dir.join("report.json");
-    let output = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
-        .args(["--marker", "50,0,150", "--marker=-40,60,120", "--sigma-mm", "0.01"])
-        .args(["--joint-sigma-deg", "0.007,0.007,0.007,0.007,0.007,0.007"])
-        .args(["--prior", "auto-ml:machined", "--folds", "2", "--json"])
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    let text = String::from_utf8(output.stdout).unwrap();
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let sigmas = ["--sigma-mm", "0.01", "--joint-sigma-deg", "0.007,0.007,0.007,0.007,0.007,0.007"];
+    let (text, report) = super::nested::calibrate_puma(
+        &[&sigmas[..], &["--prior", "auto-ml:machined", "--folds", "2"]].concat(),
+    );
     let scale = &report["prior_scale"];
     assert_eq!((scale["preset"].as_str(), scale["by"].as_str()), (Some("machined"), Some("ml")));
     assert!(scale.get("folds").is_none() && scale.get("cv_rms").is_none(), "{scale}");
@@ -135,5 +124,4 @@ fn the_report_gives_the_marginal_likelihood_scale() {
     );
     assert!(text.contains("log evidence") && text.contains("  <- chosen\n"), "{text}");
     assert_eq!(report["cross_validation"]["redone"], serde_json::json!(["--prior auto-ml:machined's scale"]));
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -28,11 +28,15 @@ const BAND: [f64; 7] = [0.4, 0.4, 0.4, 0.4, 0.2, 0.2, 0.2];
 const DESIGN: [[f64; 3]; 3] = [[40.0, 0.0, 25.0], [-20.0, 35.0, 25.0], [-20.0, -35.0, 25.0]];
 const TRUE: [[f64; 3]; 3] = [[40.3, 0.4, 25.2], [-19.6, 35.3, 24.7], [-20.4, -34.8, 25.4]];
 
-/// The nominal robot with random origin and offset errors (0.3 mm, 0.03 deg, 0.05 deg).
+/// The nominal robot with random origin and offset errors (0.3 mm, 0.03 deg, 0.05 deg), its
+/// joints deflecting under gravity ([`COMPLIANCE`]) and joint 6 with play: the model reaches
+/// `q + c tau(q) + p sgn(tau(q))`.
 fn true_robot(nominal: &RobotModel, rng: &mut ChaCha8Rng) -> RobotModel {
     let mut n = || -> f64 { StandardNormal.sample(rng) };
     let mut truth = nominal.clone();
-    for joint in &mut truth.joints {
+    for (j, joint) in truth.joints.iter_mut().enumerate() {
+        joint.compliance = COMPLIANCE[j];
+        joint.play = if j == 5 { PLAY_DEG.to_radians() } else { 0.0 };
         let displacement = Isometry3::translation(0.3 * n(), 0.3 * n(), 0.3 * n())
             * UnitQuaternion::from_scaled_axis(Vector3::new(n(), n(), n()) * 0.03f64.to_radians());
         let offset = Isometry3::rotation(joint.axis * 0.05f64.to_radians() * n());
@@ -57,8 +61,8 @@ fn poses(model: &RobotModel, count: usize, outside: f64, rng: &mut ChaCha8Rng) -
         .collect()
 }
 
-/// The true robot's markers at `joints` (deflected by gravity, with play), seen by an
-/// instrument placed at `instrument` from the robot's base, with noise.
+/// The true robot's markers at `joints`, seen by an instrument placed at `instrument` from the
+/// robot's base, with noise.
 fn measure(
     truth: &RobotModel,
     joints: Vec<Vec<f64>>,
@@ -68,24 +72,16 @@ fn measure(
     let markers: Vec<Vector3<f64>> = TRUE.iter().map(|m| Vector3::from(*m)).collect();
     let chains = Chain::markers(truth, &markers);
     let at: Vec<_> = chains.iter().map(|c| c.with_errors(&vec![0.0; c.params().len()])).collect();
-    let mut tau = vec![0.0; truth.dof()];
+    let mut noise = || {
+        Vector3::from_fn(|_, _| {
+            let z: f64 = StandardNormal.sample(&mut *rng);
+            SIGMA_MM * z
+        })
+    };
     let measured = (joints.iter())
         .map(|q| {
-            at[0].gravity_torques(q, &mut tau);
-            let reached: Vec<f64> = (0..q.len())
-                .map(|j| {
-                    let play = if j == 5 { PLAY_DEG.to_radians() * tau[j].signum() } else { 0.0 };
-                    q[j] + COMPLIANCE[j] * tau[j] + play
-                })
-                .collect();
-            (at.iter())
-                .map(|c| {
-                    let noise = Vector3::from_fn(|_, _| {
-                        let z: f64 = StandardNormal.sample(&mut *rng);
-                        SIGMA_MM * z
-                    });
-                    instrument.inverse_transform_point(&c.position(&reached).into()).coords + noise
-                })
+            at.iter()
+                .map(|c| instrument.inverse_transform_point(&c.position(q).into()).coords + noise())
                 .collect()
         })
         .collect();
