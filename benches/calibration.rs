@@ -5,7 +5,9 @@
 //! `select` by 5-fold cross-validation on 100 poses of a 12-joint arm (two PUMA 560 arms end
 //! to end) with three markers: 60 candidate joint parameters; and `calibrate_tree` on the
 //! torso preset (15 joints, 3 branches) from 500 poses of its head camera seeing both hands
-//! (1000 views, 6000 rows, 123 parameters asked for), WLS with joint noise, to convergence.
+//! (1000 views, 6000 rows, 123 parameters asked for), WLS with joint noise, to convergence;
+//! and on the same 100 poses and 60 candidates the choices made from the data (`--prior auto`,
+//! `--prior auto-ml`, nested `--select cv --folds 5`) and `--loss huber` beside the plain fit.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;
@@ -94,9 +96,10 @@ fn calibration(c: &mut Criterion) {
     group.finish();
 }
 
-/// `select` by 5-fold cross-validation: 100 poses, 3 markers, 60 candidate joint parameters
-/// (12 DH joints), by OLS; the registration, the linearisation, the gauge and the whole path.
-fn selection(c: &mut Criterion) {
+/// Two PUMA 560 arms end to end (12 DH joints, 60 candidate joint parameters) off by a
+/// little, 100 poses seen by 3 markers with 0.05 mm of noise, and the options of an OLS
+/// calibration of every joint parameter.
+fn two_pumas() -> (RobotModel, Measurements, Options) {
     let puma = RobotModel::preset("puma560").unwrap();
     let mut nominal = puma.clone();
     nominal.joints.extend(puma.joints.iter().cloned().map(|mut j| {
@@ -136,6 +139,13 @@ fn selection(c: &mut Criterion) {
         loss: robocal::calibration::Loss::Squared,
     };
     assert_eq!(robocal::model::Selection::joints(&nominal.params()).len(), 60);
+    (nominal, data, options)
+}
+
+/// `select` by 5-fold cross-validation: 100 poses, 3 markers, 60 candidate joint parameters
+/// (12 DH joints), by OLS; the registration, the linearisation, the gauge and the whole path.
+fn selection(c: &mut Criterion) {
+    let (nominal, data, options) = two_pumas();
     let path = selection::select(&nominal, &data, &options, Select::Cv { folds: 5 }).unwrap();
     eprintln!(
         "the path: {} steps (the candidates the poses identify), {} chosen",
@@ -146,6 +156,55 @@ fn selection(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("cv, 5 folds, 100 poses, 3 markers, 60 candidates", |b| {
         b.iter(|| selection::select(&nominal, &data, &options, Select::Cv { folds: 5 }).unwrap())
+    });
+    group.finish();
+}
+
+/// The choices made from the data on [`two_pumas`] (issue 24's targets: under 2 s on 2 cores,
+/// a robust loss at most 3 times the plain fit): `--prior auto` (the scale of `fabricated` by
+/// 5-fold cross-validation: 9 scales, 45 calibrations, then the calibration), `--prior auto-ml`
+/// (the marginal likelihood, the noise given), the nested 5-fold cross-validation of
+/// `--select cv --folds 5` (the selection and the calibration again in each fold), and the
+/// calibration with `--loss huber` beside the plain one.
+fn choices(c: &mut Criterion) {
+    use robocal::calibration::prior_scale::AutoPrior;
+    use robocal::calibration::selection::{Choices, choose, cross_validate_choices};
+    let (nominal, data, options) = two_pumas();
+    let auto = |text: &str| Choices {
+        auto_prior: Some((AutoPrior::parse(text).unwrap().unwrap(), 5)),
+        select: None,
+    };
+    let (cv, ml) = (auto("auto"), auto("auto-ml"));
+    let noise = NoiseModel::diagonal(&[1e-5; 12], MeasurementNoise::isotropic(0.05, 0.0));
+    let with_noise = Options { estimator: Estimator::Wls, noise: Some(noise), ..options.clone() };
+    let select = Choices { auto_prior: None, select: Some(Select::Cv { folds: 5 }) };
+    let huber = Options { loss: "huber".parse().unwrap(), ..options.clone() };
+    let mut group = c.benchmark_group("choices");
+    group.sample_size(10);
+    group.bench_function("--prior auto, 5 folds, 100 poses, 60 candidates, then calibrate", |b| {
+        b.iter(|| {
+            let chosen = choose(&nominal, &data, &options, &cv).unwrap();
+            calibration::calibrate(&nominal, &data, &chosen.options).unwrap()
+        })
+    });
+    group.bench_function("--prior auto-ml, 100 poses, 60 candidates, then calibrate", |b| {
+        b.iter(|| {
+            let chosen = choose(&nominal, &data, &with_noise, &ml).unwrap();
+            calibration::calibrate(&nominal, &data, &chosen.options).unwrap()
+        })
+    });
+    group.bench_function("--select cv --folds 5 nested, 100 poses, 60 candidates", |b| {
+        b.iter(|| cross_validate_choices(&nominal, &data, &options, &select, 5).unwrap())
+    });
+    group.bench_function("plain calibration, 100 poses, 60 candidates", |b| {
+        b.iter(|| calibration::calibrate(&nominal, &data, &options).unwrap())
+    });
+    group.bench_function(
+        "plain wls calibration, the noise given (and checked), 100 poses, 60 candidates",
+        |b| b.iter(|| calibration::calibrate(&nominal, &data, &with_noise).unwrap()),
+    );
+    group.bench_function("--loss huber, 100 poses, 60 candidates", |b| {
+        b.iter(|| calibration::calibrate(&nominal, &data, &huber).unwrap())
     });
     group.finish();
 }
@@ -178,5 +237,5 @@ fn tree(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, calibration, selection, tree);
+criterion_group!(benches, calibration, selection, choices, tree);
 criterion_main!(benches);

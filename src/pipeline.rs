@@ -75,7 +75,7 @@ pub struct MarkerOutcome {
 /// The choices of `choices` as the command line's flags: `--prior auto:fabricated's scale`,
 /// `--select bic`.
 pub fn choices_in_words(choices: &Choices) -> Vec<String> {
-    let auto = choices.auto_prior.iter().map(|(a, _)| format!("--prior auto:{}'s scale", a.preset));
+    let auto = choices.auto_prior.iter().map(|(a, _)| format!("--prior {}'s scale", a.label()));
     auto.chain(choices.select.map(|c| format!("--select {}", c.name()))).collect()
 }
 

@@ -189,6 +189,37 @@ pub enum Warning {
     },
     /// Feasible GLS ignored the data's sigma column.
     SigmaIgnored,
+    /// The noise given disagrees with the residuals by more than a factor
+    /// [`NOISE_FACTOR`](super::noise_check::NOISE_FACTOR).
+    NoiseDisagrees(NoiseDisagrees),
+}
+
+/// What the residuals say of the noise given ([`super::noise_check`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct NoiseDisagrees {
+    /// The factor of the joint sigmas the residuals say (REML); none without joint noise.
+    pub joint_factor: Option<f64>,
+    /// The factor of the measurement sigmas.
+    pub measurement_factor: f64,
+    /// The whitened residuals' standard deviation with the noise given (1 if it is right).
+    pub whitened_sd: f64,
+    /// The folds of the cross-validated errors.
+    pub folds: usize,
+    /// The k-fold CV RMS (mm) with the sigmas given, linearised about the fit.
+    pub cv_given: f64,
+    /// The same with the sigmas times their factors.
+    pub cv_estimated: f64,
+}
+
+impl NoiseDisagrees {
+    /// `the joint sigmas x0.45 and the measurement sigmas x2.31`.
+    fn factors(&self) -> String {
+        let measurement = format!("the measurement sigmas x{:.3}", self.measurement_factor);
+        match self.joint_factor {
+            Some(j) => format!("the joint sigmas x{j:.3} and {measurement}"),
+            None => measurement,
+        }
+    }
 }
 
 /// What a [`Warning`] is about, as its JSON `cause` names it: the key a report counts warnings
@@ -208,6 +239,8 @@ pub enum Cause {
     NoiseUnsettled,
     /// [`Warning::SigmaIgnored`].
     SigmaIgnored,
+    /// [`Warning::NoiseDisagrees`].
+    NoiseDisagrees,
 }
 
 impl Warning {
@@ -220,6 +253,7 @@ impl Warning {
             Self::IllConditioned { .. } => Cause::IllConditioned,
             Self::NoiseUnsettled { .. } => Cause::NoiseUnsettled,
             Self::SigmaIgnored => Cause::SigmaIgnored,
+            Self::NoiseDisagrees(_) => Cause::NoiseDisagrees,
         }
     }
 
@@ -257,6 +291,7 @@ impl Warning {
                 format!("feasible GLS: variance components not settled in {reweightings} re-weightings")
             }
             Self::SigmaIgnored => "feasible GLS ignored the sigma column".to_string(),
+            Self::NoiseDisagrees(n) => format!("the residuals say {}", n.factors()),
         }
     }
 
@@ -325,6 +360,18 @@ impl fmt::Display for Warning {
             Self::SigmaIgnored => {
                 f.write_str("feasible GLS ignored the sigma column: it estimates sigma_me itself")
             }
+            Self::NoiseDisagrees(n) => write!(
+                f,
+                "the noise given disagrees with the residuals: their REML estimate is {} (whitened residual SD \
+                 {:.3}, 1 if the noise were right); the weights and every prior's strength follow the sigmas: \
+                 {}-fold CV RMS {:.4} mm with the sigmas given, {:.4} mm with the estimated ones (linearised about \
+                 the fit); give the noise measured (robocal repeatability) or estimate it (--estimator fgls)",
+                n.factors(),
+                n.whitened_sd,
+                n.folds,
+                n.cv_given,
+                n.cv_estimated
+            ),
         }
     }
 }

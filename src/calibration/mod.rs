@@ -18,6 +18,7 @@ mod data;
 pub mod diagnostics;
 pub mod evaluation;
 pub mod kinds;
+pub mod noise_check;
 pub mod prior_scale;
 mod repeatability;
 pub mod robust;
@@ -432,11 +433,32 @@ fn errors(chains: &[Chain], x: &[f64], data: &Measurements) -> Vec<Vector3<f64>>
         .collect()
 }
 
-/// Calibrate `model` from `data` with `options`.
+/// Calibrate `model` from `data` with `options`; with a noise model and the squared loss, the
+/// noise is checked against the residuals ([`noise_check`]).
 pub fn calibrate(
     model: &RobotModel,
     data: &Measurements,
     options: &Options,
+) -> Result<Calibration, CalibrationError> {
+    calibrate_checking(model, data, options, true)
+}
+
+/// [`calibrate`] without the check of the noise: the calibrations inside a choice or a
+/// cross-validation, whose warnings nobody reads.
+pub(crate) fn calibrate_quietly(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+) -> Result<Calibration, CalibrationError> {
+    calibrate_checking(model, data, options, false)
+}
+
+/// [`calibrate`], the noise checked if `check_noise`.
+fn calibrate_checking(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    check_noise: bool,
 ) -> Result<Calibration, CalibrationError> {
     let marker_count = data.marker_count();
     let markers: Vec<Vector3<f64>> =
@@ -547,7 +569,14 @@ pub fn calibrate(
         estimate.estimate.diagnostics = data_alone;
     }
     let after = problem.full(&estimate.estimate.x);
-    finish(
+    let noise_warning = match (&noise, options.loss) {
+        (Some(given), Loss::Squared) if check_noise => {
+            let kept_sd: Vec<f64> = kept.indices().iter().map(|&i| prior_sd[i]).collect();
+            noise_check::noise_check(&problem, &estimate.estimate.x, given, &kept_sd)
+        }
+        _ => None,
+    };
+    let mut calibration = finish(
         Stages {
             registered,
             probe,
@@ -565,7 +594,9 @@ pub fn calibrate(
             robust,
         },
         &base_problem,
-    )
+    )?;
+    calibration.warnings.extend(noise_warning);
+    Ok(calibration)
 }
 
 /// What [`identifiable`] finds: the parameters the poses identify, why the others are held,
@@ -904,7 +935,7 @@ pub fn calibrate_feasible(
     let mut data = data.clone();
     let ignored_sigma = data.sigma.take().is_some();
     let mut options = Options { estimator: Estimator::Ols, noise: None, ..options.clone() };
-    let mut calibration = calibrate(model, &data, &options)?;
+    let mut calibration = calibrate_quietly(model, &data, &options)?;
     let mut previous: Option<NoiseEstimate> = None;
     let mut settled_at = None;
     for round in 0..feasible.max_iterations.max(1) {
@@ -923,7 +954,7 @@ pub fn calibrate_feasible(
             settled_at = Some(round);
             break;
         }
-        calibration = calibrate(model, &data, &options)?;
+        calibration = calibrate_quietly(model, &data, &options)?;
     }
     calibration.noise_settled = Some(settled_at.is_some());
     if settled_at.is_none() {
@@ -1306,7 +1337,7 @@ pub fn cross_validate(
     let (mut before, mut after) = (Vec::new(), Vec::new());
     for fold in 0..folds {
         let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
-        let calibration = calibrate(model, &data.subset(&train), options)?;
+        let calibration = calibrate_quietly(model, &data.subset(&train), options)?;
         let held_out = data.subset(&test);
         before.extend(errors(&calibration.chains, &calibration.before, &held_out));
         after.extend(errors(&calibration.chains, &calibration.after, &held_out));

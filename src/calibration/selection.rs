@@ -4,7 +4,7 @@
 //! error); a fit that drives every weakly identified parameter absorbs them into terms the
 //! training poses barely see, and loses on the poses it did not see. The candidates are the
 //! joint parameters [`Options::joints`] names that the poses identify (the gauge of
-//! [`calibrate`] holds the others); the base and the markers (the registration) are always
+//! [`calibrate`](super::calibrate) holds the others); the base and the markers (the registration) are always
 //! estimated. Three criteria:
 //!
 //! - [`Criterion::Cv`]: forward stepwise selection by `F`-fold cross-validation. Pose `k` is
@@ -21,7 +21,7 @@
 //!   `BIC = N ln(RSS / N) + p ln N` (`N` equations, `p` parameters with the registration's);
 //!   the step of the lowest BIC is chosen.
 //! - [`Criterion::T`]: backward elimination from every candidate: calibrate (Gauss-Newton, as
-//!   [`calibrate`]), drop the candidate of the smallest `|t| = |estimate| / SE` while it is
+//!   [`calibrate`](super::calibrate)), drop the candidate of the smallest `|t| = |estimate| / SE` while it is
 //!   below 2, and calibrate again.
 //!
 //! Each candidate is one parameter, for a URDF joint too: its origin's six numbers are not one
@@ -44,13 +44,13 @@
 
 use super::kinds::{self, KindCalibration, KindData, KindOptions};
 use super::prior_scale::{
-    AutoPrior, PriorScale, choose_kinds_prior_scale, choose_prior_scale, choose_tree_prior_scale,
-    with_kinds_scale, with_scale, with_tree_scale,
+    AutoPrior, PriorScale, choose_kinds_prior_scale, choose_scale, choose_tree_prior_scale, with_kinds_scale,
+    with_scale, with_tree_scale,
 };
 use super::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree};
 use super::{
     CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel,
-    Whitening, calibrate, check_folds, errors, identifiable, observed, selection, standard_errors_of,
+    Whitening, calibrate_quietly, check_folds, errors, identifiable, observed, selection, standard_errors_of,
 };
 use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights};
 use crate::kinematics::Measured;
@@ -149,7 +149,7 @@ fn asking(options: &Options, names: &[String]) -> Options {
 }
 
 /// Choose among the joint parameters `options.joints` names by `criterion` (see the
-/// [module documentation](self)), then [`calibrate`] with [`SelectionPath::options`].
+/// [module documentation](self)), then [`calibrate`](super::calibrate) with [`SelectionPath::options`].
 pub fn select(
     model: &RobotModel,
     data: &Measurements,
@@ -163,8 +163,8 @@ pub fn select(
     }
     match criterion {
         Criterion::T => backward(|names: Option<&[String]>| match names {
-            Some(names) => calibrate(model, data, &asking(options, names)),
-            None => calibrate(model, data, options),
+            Some(names) => calibrate_quietly(model, data, &asking(options, names)),
+            None => calibrate_quietly(model, data, options),
         }),
         Criterion::Cv { folds } => {
             check_folds(folds, data.len()).and_then(|()| forward(model, data, options, criterion))
@@ -237,7 +237,8 @@ fn asking_kinds(model: &RobotModel, options: &KindOptions, names: &[String]) -> 
 /// (`--prior auto`), then the joint parameters (`--select`), with the priors in place.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Choices {
-    /// `--prior auto[:PRESET]`: the preset to scale, and the folds to choose its scale by.
+    /// `--prior auto[:PRESET]` or `auto-ml[:PRESET]`: the preset to scale, and the folds to
+    /// choose its scale by (unused by the marginal likelihood).
     pub auto_prior: Option<(AutoPrior, usize)>,
     /// `--select`: how to choose the joint parameters.
     pub select: Option<Criterion>,
@@ -267,7 +268,8 @@ pub struct Chosen {
     pub path: Option<SelectionPath>,
 }
 
-/// Make `choices` on `data`: the preset's scale first ([`choose_prior_scale`]), then the
+/// Make `choices` on `data`: the preset's scale first ([`choose_scale`]: by cross-validation
+/// or the marginal likelihood), then the
 /// selection with those priors ([`select`]).
 pub fn choose(
     model: &RobotModel,
@@ -277,7 +279,7 @@ pub fn choose(
 ) -> Result<Chosen, CalibrationError> {
     let mut chosen = Chosen { options: options.clone(), scale: None, path: None };
     if let Some((auto, folds)) = &choices.auto_prior {
-        let scale = choose_prior_scale(model, data, options, auto, (*folds).min(data.len()))?;
+        let scale = choose_scale(model, data, options, auto, (*folds).min(data.len()))?;
         chosen.options = with_scale(options, auto, scale.scale());
         chosen.scale = Some(scale);
     }
@@ -314,7 +316,7 @@ pub fn cross_validate_choices(
         let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
         let train = data.subset(&train);
         let chosen = choose(model, &train, options, choices)?;
-        let calibration = calibrate(model, &train, &chosen.options)?;
+        let calibration = calibrate_quietly(model, &train, &chosen.options)?;
         let held_out = data.subset(&test);
         before.extend(errors(&calibration.chains, &calibration.before, &held_out));
         after.extend(errors(&calibration.chains, &calibration.after, &held_out));
@@ -686,14 +688,15 @@ impl LinearModel {
         }
     }
 
-    /// The registration of `data` (base and markers fitted by [`calibrate`]), then the gauge
+    /// The registration of `data` (base and markers fitted by [`calibrate`](super::calibrate)), then the gauge
     /// of `options`' parameters and the system about it.
     fn of_markers(
         model: &RobotModel,
         data: &Measurements,
         options: &Options,
     ) -> Result<Self, CalibrationError> {
-        let frame = calibrate(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
+        let frame =
+            calibrate_quietly(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
         let noise = match &frame.whitening {
             Whitening::Covariance(noise) => Some(noise),
             Whitening::Spread(_) => None,

@@ -296,6 +296,9 @@ pub struct ModelChoiceArgs {
     /// `calibrate --prior auto[:PRESET]` (default preset `fabricated`) scales the preset's
     /// standard deviations by one factor from 1/16 to 16, chosen by k-fold cross-validation
     /// on the training poses (--folds K, default 5); other --prior entries override it.
+    /// `--prior auto-ml[:PRESET]` chooses the factor (1/64 to 64 in steps of 2^(1/8)) by the
+    /// marginal likelihood instead (type-II maximum likelihood), which needs the noise
+    /// (--sigma-mm with --joint-sigma-deg, or --noise) and no refit per factor.
     #[arg(long, value_name = "PATTERN=SD,...", value_parser = parse_prior)]
     pub prior: Vec<PriorArg>,
     /// The loss of each pose's whitened residual: `squared` (least squares), `huber[:K]`
@@ -666,11 +669,12 @@ fn parse_iterations(text: &str) -> Result<usize, String> {
 pub enum PriorArg {
     /// `PATTERN=SD` entries and presets.
     Entries(Vec<PriorEntry>),
-    /// `auto[:PRESET]`.
+    /// `auto[:PRESET]` or `auto-ml[:PRESET]`.
     Auto(AutoPrior),
 }
 
-/// Prior entries, `PATTERN=SD` separated by commas, or presets; or `auto[:PRESET]`.
+/// Prior entries, `PATTERN=SD` separated by commas, or presets; or `auto[:PRESET]` or
+/// `auto-ml[:PRESET]`.
 fn parse_prior(text: &str) -> Result<PriorArg, String> {
     if let Some(auto) = AutoPrior::parse(text) {
         return auto.map(PriorArg::Auto);

@@ -304,7 +304,8 @@ pub struct CalibrateRequest {
     pub markers: Vec<Vector3<f64>>,
     /// Prior entries from the flags, in order (a noise file's come first).
     pub prior: Vec<robocal::estimation::PriorEntry>,
-    /// `--prior auto[:PRESET]`: the preset whose scale is chosen from the data.
+    /// `--prior auto[:PRESET]` or `auto-ml[:PRESET]`: the preset whose scale is chosen from
+    /// the data.
     pub auto_prior: Option<robocal::calibration::prior_scale::AutoPrior>,
     /// The loss of each pose.
     pub loss: robocal::calibration::Loss,

@@ -17,12 +17,14 @@
 
 mod blocks;
 mod device;
+pub mod evidence;
 mod noise;
 mod noise_file;
 pub mod prior;
 mod problem;
 mod reduced;
 mod refine;
+pub mod reml;
 mod solve;
 pub mod trust;
 mod variance;

@@ -4,7 +4,7 @@
 
 use super::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
 use super::verdict::{HeldGroup, Role, SetVerdict, Verdict, held_groups, held_text};
-use crate::calibration::prior_scale::PriorScale;
+use crate::calibration::prior_scale::{PriorScale, ScaleBy};
 use crate::calibration::selection::{Criterion, SelectionPath, Step};
 use crate::calibration::{Calibration, ErrorStats, SetEvaluation, Warning, pool, standard_errors};
 use crate::estimation::{NoiseEstimate, SigmaInterval};
@@ -161,7 +161,7 @@ impl CrossValidationReport {
             );
         }
         if !self.scales.is_empty() {
-            let scales: Vec<String> = self.scales.iter().map(|s| format!("{s}")).collect();
+            let scales: Vec<String> = self.scales.iter().map(|&s| short(s)).collect();
             let _ = write!(out, " (the folds' prior scales: {})", scales.join(", "));
         }
         out + "\n"
@@ -230,22 +230,47 @@ pub(super) fn choices_text(scale: Option<&PriorScale>, selection: Option<&Select
     scale.into_iter().chain(selection).collect()
 }
 
-/// The scale `--prior auto` chose, with its curve.
+/// The scale `--prior auto` or `auto-ml` chose, with its curve: every scale tried by
+/// cross-validation; of the marginal likelihood's fine grid, the powers of 2 and the scale
+/// chosen (the JSON has every one).
 pub(super) fn prior_scale_text(scale: &PriorScale) -> String {
     let mut out = format!(
-        "prior scale: --prior auto:{} chose {} x its standard deviations, by {}-fold cross-validation \
-         (in-sample: --folds K gives the nested figure)\n{:>8} {:>12}\n",
-        scale.preset,
-        scale.scale(),
-        scale.folds,
-        "scale",
-        "CV RMS mm"
+        "prior scale: --prior {} chose {} x its standard deviations, by {} (in-sample: --folds K gives the \
+         nested figure)\n",
+        scale.label(),
+        short(scale.scale()),
+        prior_scale_method(scale),
     );
-    for (k, (s, rms)) in scale.scales.iter().zip(&scale.cv_rms).enumerate() {
+    let (heading, values) = match scale.by {
+        ScaleBy::Cv => ("CV RMS mm", &scale.cv_rms),
+        ScaleBy::Ml => ("log evidence", &scale.log_evidence),
+    };
+    let _ = writeln!(out, "{:>8} {:>12}", "scale", heading);
+    for (k, (s, value)) in scale.scales.iter().zip(values).enumerate() {
+        if scale.by == ScaleBy::Ml && k != scale.chosen && s.log2().fract() != 0.0 {
+            continue;
+        }
         let mark = if k == scale.chosen { "  <- chosen" } else { "" };
-        let _ = writeln!(out, "{s:>8} {rms:>12.4}{mark}");
+        let _ = writeln!(out, "{:>8} {value:>12.4}{mark}", short(*s));
     }
     out
+}
+
+/// How a prior's scale was chosen, in words.
+pub(crate) fn prior_scale_method(scale: &PriorScale) -> String {
+    match (scale.by, scale.folds) {
+        (ScaleBy::Cv, Some(k)) => format!("{k}-fold cross-validation"),
+        (ScaleBy::Cv, None) => "cross-validation".into(),
+        (ScaleBy::Ml, _) => "the marginal likelihood (type-II maximum likelihood, the noise as given)".into(),
+    }
+}
+
+/// A scale with 4 significant digits at most (`0.0625`, `2.181`, `16`).
+fn short(s: f64) -> String {
+    let text = format!("{s:.4}");
+    let digits = if s >= 1.0 { format!("{s:.3}") } else { text };
+    let trimmed = digits.trim_end_matches('0').trim_end_matches('.');
+    trimmed.to_string()
 }
 
 /// What the scores of a selection path by `criterion` are, in words.

@@ -232,22 +232,28 @@ fn report_lines(text: &str) -> impl Iterator<Item = &str> {
     text.lines().map(str::trim).filter(|l| !l.is_empty())
 }
 
-/// `--prior auto`'s curve as a table, the chosen scale marked.
+/// `--prior auto`'s or `auto-ml`'s curve as a table, the chosen scale marked.
 pub(super) fn prior_scale(scale: &crate::calibration::prior_scale::PriorScale) -> String {
-    let rows: Vec<Row> = (scale.scales.iter().zip(&scale.cv_rms).enumerate())
-        .map(|(k, (s, rms))| {
-            let cells = vec![Cell::name(&format!("{s}")), Cell::text(&format!("{rms:.4}"))];
+    use crate::calibration::prior_scale::ScaleBy;
+    let (heading, values) = match scale.by {
+        ScaleBy::Cv => ("CV RMS mm", &scale.cv_rms),
+        ScaleBy::Ml => ("log evidence", &scale.log_evidence),
+    };
+    let rows: Vec<Row> = (scale.scales.iter().zip(values).enumerate())
+        .filter(|(k, (s, _))| scale.by == ScaleBy::Cv || *k == scale.chosen || s.log2().fract() == 0.0)
+        .map(|(k, (s, value))| {
+            let cells = vec![Cell::name(&format!("{s:.4}")), Cell::text(&format!("{value:.4}"))];
             Row { cells, class: if k == scale.chosen { "flagged" } else { "" } }
         })
         .collect();
     let caption = format!(
-        "Prior scale: --prior auto:{} chose {} times its standard deviations by {}-fold cross-validation \
-         (in-sample: --folds K gives the nested figure)",
-        scale.preset,
+        "Prior scale: --prior {} chose {:.4} times its standard deviations by {} (in-sample: --folds K gives \
+         the nested figure)",
+        scale.label(),
         scale.scale(),
-        scale.folds
+        super::calibration::prior_scale_method(scale),
     );
-    table("small", None, &caption, &["scale", "CV RMS mm"], &rows)
+    table("small", None, &caption, &["scale", heading], &rows)
 }
 
 /// `--select`'s path as a table, the chosen step marked, and its notes.

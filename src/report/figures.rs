@@ -1070,26 +1070,37 @@ pub fn selection_figure(
 pub fn prior_scale_figure(
     scale: &crate::calibration::prior_scale::PriorScale,
 ) -> Result<(String, String), FigureError> {
+    use crate::calibration::prior_scale::ScaleBy;
     let name = "prior-scale.svg".to_string();
-    let points: Vec<(f64, f64)> = (scale.scales.iter().zip(&scale.cv_rms))
+    let (values, what, unit) = match scale.by {
+        ScaleBy::Cv => (&scale.cv_rms, "CV RMS error (mm)", " mm"),
+        ScaleBy::Ml => (&scale.log_evidence, "log evidence, less its largest", ""),
+    };
+    let points: Vec<(f64, f64)> = (scale.scales.iter().zip(values))
         .filter(|(s, r)| **s > 0.0 && s.is_finite() && r.is_finite())
         .map(|(&s, &r)| (s, r))
         .collect();
     if points.is_empty() {
-        return Err(error(&name, "no scale has a finite cross-validated RMS".into()));
+        return Err(error(&name, "no scale has a finite score".into()));
     }
     let (x0, x1) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.0), b.max(p.0)));
-    let (y0, y1) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.1), b.max(p.1)));
-    let pad = ((y1 - y0) * 0.15).max(1e-3 * y1.max(1e-9));
-    let ticks: Vec<f64> = points.iter().map(|p| p.0).collect();
+    let (y0, y1) =
+        points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
+    let pad = ((y1 - y0) * 0.15).max(1e-3 * y1.abs().max(1e-9));
+    // The powers of 2 as ticks (the marginal likelihood's grid is finer).
+    let ticks: Vec<f64> = points.iter().map(|p| p.0).filter(|s| s.log2().fract().abs() < 1e-9).collect();
     let x = ((x0 / 1.4)..(x1 * 1.4)).log_scale().with_key_points(ticks);
-    let chosen = scale.scales.get(scale.chosen).zip(scale.cv_rms.get(scale.chosen));
-    let caption = format!("--prior auto:{}, {}-fold cross-validated RMS by scale", scale.preset, scale.folds);
+    let chosen = scale.scales.get(scale.chosen).zip(values.get(scale.chosen));
+    let caption = format!(
+        "--prior {}, by {}: {what} by scale",
+        scale.label(),
+        super::calibration::prior_scale_method(scale)
+    );
     let svg = single_chart(&caption, x, (y0 - pad)..(y1 + 2.0 * pad), true, |chart| {
         chart
             .configure_mesh()
             .x_desc(format!("scale s of {}'s standard deviations (log scale)", scale.preset))
-            .y_desc("CV RMS marker error (mm)")
+            .y_desc(what)
             .x_label_formatter(&|v| scale_tick(*v))
             .y_label_formatter(&|v| shown_tick(*v))
             .draw()
@@ -1097,7 +1108,7 @@ pub fn prior_scale_figure(
         chart
             .draw_series(LineSeries::new(points.clone(), colour(0).stroke_width(2)))
             .map_err(|e| e.to_string())?
-            .label("CV RMS at each scale")
+            .label(format!("{what} at each scale"))
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour(0).stroke_width(2)));
         chart
             .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour(0).filled())))
@@ -1106,7 +1117,7 @@ pub fn prior_scale_figure(
             chart
                 .draw_series([Circle::new((s, rms), 8, colour(1).stroke_width(2))])
                 .map_err(|e| e.to_string())?
-                .label(format!("chosen: s = {}, {} mm", scale_tick(s), shown(rms)))
+                .label(format!("chosen: s = {}, {}{unit}", scale_tick(s), shown(rms)))
                 .legend(|(x, y)| Circle::new((x + 10, y), 6, colour(1).stroke_width(2)));
         }
         Ok(())

@@ -12,11 +12,11 @@ use robocal::kinematics::Chain;
 use robocal::model::RobotModel;
 
 /// The marker of the simulated PUMA 560 (mm, last joint frame).
-const MARKER: Vector3<f64> = Vector3::new(30.0, -20.0, 100.0);
+pub(crate) const MARKER: Vector3<f64> = Vector3::new(30.0, -20.0, 100.0);
 
 /// `n` poses of a PUMA 560 whose joints carry the errors `x` (full parameter vector of the
 /// marker's chain), within the middle `band` of each joint's range, measured with `sigma` mm.
-fn measured(x: &[f64], n: usize, band: f64, sigma: f64, rng: &mut ChaCha8Rng) -> Measurements {
+pub(crate) fn measured(x: &[f64], n: usize, band: f64, sigma: f64, rng: &mut ChaCha8Rng) -> Measurements {
     let model = RobotModel::preset("puma560").unwrap();
     let chain = Chain::markers(&model, &[MARKER]).remove(0);
     let at = chain.with_errors(x);
@@ -49,7 +49,7 @@ fn measured(x: &[f64], n: usize, band: f64, sigma: f64, rng: &mut ChaCha8Rng) ->
     }
 }
 
-fn options() -> Options {
+pub(crate) fn options() -> Options {
     Options {
         estimator: Estimator::Ols,
         noise: None,
@@ -231,7 +231,7 @@ fn prior_auto_scales_the_preset_with_the_robot() {
 }
 
 /// The measurement noise of [`measured`]: 0.2 mm per axis, exact joints.
-fn noise() -> robocal::estimation::NoiseModel {
+pub(crate) fn noise() -> robocal::estimation::NoiseModel {
     robocal::estimation::NoiseModel {
         joint: nalgebra::DMatrix::zeros(6, 6),
         measurement: robocal::estimation::MeasurementNoise::PerAxis([0.2, 0.2, 0.2, 0.0, 0.0, 0.0]),
@@ -242,20 +242,7 @@ fn noise() -> robocal::estimation::NoiseModel {
 /// cross-validates nested with the folds' scales; the JSON has both.
 #[test]
 fn the_report_gives_the_prior_scale_and_its_curve() {
-    let dir = std::env::temp_dir().join(format!("robocal-prior-auto-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let json = dir.join("report.json");
-    let output = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
-        .args(["--marker", "50,0,150", "--marker=-40,60,120", "--params", "offsets"])
-        .args(["--prior", "auto:machined", "--folds", "2", "--json"])
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    let text = String::from_utf8(output.stdout).unwrap();
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let (text, report) = calibrate_puma(&["--params", "offsets", "--prior", "auto:machined", "--folds", "2"]);
     let scale = &report["prior_scale"];
     assert_eq!((scale["preset"].as_str(), scale["folds"].as_u64()), (Some("machined"), Some(2)));
     assert_eq!(scale["scales"].as_array().unwrap().len(), 9);
@@ -274,5 +261,25 @@ fn the_report_gives_the_prior_scale_and_its_curve() {
     assert_eq!(cv["redone"], serde_json::json!(["--prior auto:machined's scale"]));
     assert_eq!(cv["scales"].as_array().unwrap().len(), 2);
     assert!(text.contains("2-fold cross-validation, nested: --prior auto:machined's scale made again inside each fold (the folds' prior scales: "), "{text}");
+}
+
+/// `calibrate` of the PUMA 560 example (its two markers) with `extra`, the report as JSON:
+/// the text printed and the JSON.
+pub(crate) fn calibrate_puma(extra: &[&str]) -> (String, serde_json::Value) {
+    let tag = extra.join("").replace(|c: char| !c.is_ascii_alphanumeric(), "");
+    let dir = std::env::temp_dir().join(format!("robocal-puma-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("report.json");
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
+        .args(["--marker", "50,0,150", "--marker=-40,60,120", "--json"])
+        .arg(&json)
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
+    (String::from_utf8(output.stdout).unwrap(), report)
 }

@@ -1,0 +1,117 @@
+//! Whether the noise given agrees with the residuals (`calibrate` with a noise model): the
+//! joint and measurement variance components estimated by REML about the fit
+//! ([`crate::estimation::reml`]), and where a sigma is off by more than a factor
+//! [`NOISE_FACTOR`], a [`Warning::NoiseDisagrees`] with the k-fold cross-validated error at the
+//! sigmas given and at the estimated ones (linearised about the fit: no refit). The weights
+//! and every prior's strength follow the sigmas, so a guess off by a factor moves the estimate.
+
+use super::Warning;
+use super::diagnostics::NoiseDisagrees;
+use crate::estimation::reml::{ComponentEstimate, Components, Point};
+use crate::estimation::{MeasurementNoise, NoiseModel, PointProblem, Residuals};
+use nalgebra::{DMatrix, DVector};
+
+/// A sigma off by more than this factor (either way) is warned of.
+pub const NOISE_FACTOR: f64 = 2.0;
+
+/// The likelihood ratio above which the residuals reject the ratio of the joint to the
+/// measurement variance given (chi-square, one degree of freedom, 95%); below it both sigmas
+/// are taken as off by the whitened residual's factor alone.
+pub const RATIO_REJECTED: f64 = 3.841_458_820_694_124;
+
+/// Folds of the cross-validated error the warning gives.
+pub const CHECK_FOLDS: usize = 5;
+
+/// Residual degrees of freedom below which nothing is checked: too few to tell.
+const MIN_DOF: usize = 10;
+
+/// The check of `noise` against the fit `x` of `problem` (its selected parameters, with the
+/// priors' standard deviations `prior_sd`, infinite: none); `None` when it agrees, or too few
+/// residuals tell.
+pub(crate) fn noise_check(
+    problem: &PointProblem<'_>,
+    x: &DVector<f64>,
+    noise: &NoiseModel,
+    prior_sd: &[f64],
+) -> Option<Warning> {
+    let components = components(problem, x, noise)?;
+    let estimate = components.estimate()?;
+    let (joint, measurement) = factors(&estimate, components.has_joint_noise());
+    let off = |f: f64| !(1.0 / NOISE_FACTOR..=NOISE_FACTOR).contains(&f);
+    if !(off(measurement) || joint.is_some_and(off)) {
+        return None;
+    }
+    let per = problem.measured().rows();
+    let scored: Vec<bool> = (0..problem.rows_per_point()).map(|r| r % per < 3).collect();
+    let folds = CHECK_FOLDS.min(components.points());
+    let cv = |a: f64, b: f64| components.cv_rms((a, b), folds, (x, prior_sd), &scored);
+    let estimated = (joint.map_or(1.0, |f| f * f), measurement * measurement);
+    Some(Warning::NoiseDisagrees(NoiseDisagrees {
+        joint_factor: joint,
+        measurement_factor: measurement,
+        whitened_sd: estimate.whitened.sqrt(),
+        folds,
+        cv_given: cv(1.0, 1.0)?,
+        cv_estimated: cv(estimated.0, estimated.1)?,
+    }))
+}
+
+/// The sigmas' factors the residuals say, `(joint, measurement)`: `sqrt(a)` and `sqrt(b)` where
+/// the ratio given is rejected ([`RATIO_REJECTED`]), else the whitened residual's `sqrt(b(1))`
+/// for both; no joint factor without joint noise.
+fn factors(estimate: &ComponentEstimate, joint_noise: bool) -> (Option<f64>, f64) {
+    let both = estimate.whitened.sqrt();
+    match (joint_noise, estimate.likelihood_ratio > RATIO_REJECTED) {
+        (false, _) => (None, both),
+        (true, true) => (Some(estimate.joint.sqrt()), estimate.measurement.sqrt()),
+        (true, false) => (Some(both), both),
+    }
+}
+
+/// The points of `problem` linearised about `x`, each with its joint part `J_k Sigma_q J_k^T`
+/// and its measurement part `Sigma_m,k` of `noise`; `None` with too few residual degrees of
+/// freedom or a block not positive definite.
+fn components(problem: &PointProblem<'_>, x: &DVector<f64>, noise: &NoiseModel) -> Option<Components> {
+    let system = problem.system(x);
+    if system.h.nrows() < system.h.ncols() + MIN_DOF {
+        return None;
+    }
+    let jacobians = problem.manipulator_jacobians(&problem.full(x));
+    let joint_only =
+        NoiseModel { joint: noise.joint.clone(), measurement: MeasurementNoise::PerAxis([0.0; 6]) };
+    let dof = noise.joint.nrows();
+    let measurement_only =
+        NoiseModel { joint: DMatrix::zeros(dof, dof), measurement: noise.measurement.clone() };
+    let rows = problem.rows_per_point();
+    let points = (jacobians.iter().enumerate())
+        .map(|(k, j)| Point {
+            h: system.h.rows(k * rows, rows).into_owned(),
+            r: system.y.rows(k * rows, rows).into_owned(),
+            joint: joint_only.pose_covariance(k, j, problem.measured()),
+            measurement: measurement_only.pose_covariance(k, j, problem.measured()),
+        })
+        .collect();
+    Components::new(without_outliers(points))
+}
+
+/// A point whose whitened residual per row, `q_k = r_k^T V_k^-1 r_k / rows`, exceeds this many
+/// times the median of the points' is left out of the check: one gross outlier would otherwise
+/// say the noise is larger (it is warned of as far out on its own).
+pub const OUTLIER_FACTOR: f64 = 25.0;
+
+/// `points` without those whose `q_k` exceeds [`OUTLIER_FACTOR`] times the median `q` (the
+/// noise as given, `V_k = V_q,k + V_m,k`); a point whose `V_k` is not positive definite is kept
+/// (the check then declines).
+fn without_outliers(points: Vec<Point>) -> Vec<Point> {
+    let q: Vec<f64> = (points.iter())
+        .map(|p| {
+            let v = &p.joint + &p.measurement;
+            let whitened = v.cholesky().and_then(|l| l.l().solve_lower_triangular(&p.r));
+            whitened.map_or(0.0, |w| w.norm_squared() / p.r.len().max(1) as f64)
+        })
+        .collect();
+    let mut sorted = q.clone();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    (points.into_iter().zip(q)).filter(|(_, q)| *q <= OUTLIER_FACTOR * median).map(|(p, _)| p).collect()
+}

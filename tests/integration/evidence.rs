@@ -1,0 +1,127 @@
+//! The prior's scale by the marginal likelihood (`--prior auto-ml`): type-II maximum
+//! likelihood against a Monte Carlo whose truth is drawn from a prior of known scale.
+
+use super::nested::{MARKER, measured, noise, options};
+use nalgebra::{DMatrix, DVector};
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+use robocal::calibration::prior_scale::{AutoPrior, ScaleBy, choose_prior_scale_ml};
+use robocal::estimation::Estimator;
+use robocal::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
+use robocal::kinematics::Chain;
+use robocal::model::RobotModel;
+
+/// A standard normal draw.
+fn normal(rng: &mut ChaCha8Rng) -> f64 {
+    StandardNormal.sample(rng)
+}
+
+/// 200 linear problems `y = H x + e` (90 rows, `e ~ N(0, I)`; 24 columns with a prior of
+/// standard deviations `s0 d_j`, `d_j` from 0.5 to 2, and 6 flat ones carrying any value),
+/// the truth `x` drawn from the prior, `s0 = 2^u` with `u` uniform on [-2, 2]: the scale of
+/// the largest marginal likelihood is within a factor 1.5 of `s0` on at least 80% of them.
+#[test]
+fn the_marginal_likelihood_finds_the_scale_the_truth_was_drawn_at() {
+    let (m, scaled, flat) = (90, 24, 6);
+    let mut rng = ChaCha8Rng::seed_from_u64(24);
+    let scales = evidence_scales();
+    let mut within = 0;
+    let mut ratios = Vec::new();
+    for _ in 0..200 {
+        let s0 = 2f64.powf(rng.random_range(-2.0..2.0));
+        let d: Vec<f64> = (0..scaled).map(|_| rng.random_range(0.5..2.0)).collect();
+        let h = DMatrix::from_fn(m, scaled + flat, |_, _| normal(&mut rng));
+        let x = DVector::from_fn(scaled + flat, |j, _| match j < scaled {
+            true => s0 * d[j] * normal(&mut rng),
+            false => 100.0 * normal(&mut rng),
+        });
+        let y = &h * x + DVector::from_fn(m, |_, _| normal(&mut rng));
+        let columns: Vec<Column> = (0..scaled + flat)
+            .map(|j| if j < scaled { Column::Scaled(d[j]) } else { Column::Flat })
+            .collect();
+        let evidence =
+            Evidence::new(&(h.transpose() * &h), &(h.transpose() * &y), y.norm_squared(), &columns);
+        let curve: Vec<f64> = scales.iter().map(|&s| evidence.log_evidence(s)).collect();
+        let ratio = scales[arg_max(&curve)] / s0;
+        ratios.push(ratio);
+        within += usize::from((1.0 / 1.5..=1.5).contains(&ratio));
+    }
+    assert!(within >= 160, "{within} of 200 within a factor 1.5: {ratios:?}");
+    // Not a grid edge nor a constant: the chosen scales spread as the truths do.
+    assert!(ratios.iter().any(|r| *r < 1.0) && ratios.iter().any(|r| *r > 1.0), "{ratios:?}");
+}
+
+/// A PUMA 560 whose joint errors are drawn from the `machined` tolerances times `s0` (1 or 4),
+/// 60 poses, 0.2 mm of known noise: `--prior auto-ml:machined`'s scale is within a factor 1.5 of `s0` on at least 8 of 10
+/// robots, and larger for the robots 4 times further off.
+#[test]
+fn auto_ml_finds_the_scale_of_a_robot() {
+    let model = RobotModel::preset("puma560").unwrap();
+    let chain = Chain::markers(&model, &[MARKER]).remove(0);
+    let auto = AutoPrior::parse("auto-ml:machined").unwrap().unwrap();
+    assert_eq!(auto.by, ScaleBy::Ml);
+    let sd = robocal::estimation::prior_sds(&auto.entries, chain.params()).unwrap();
+    let o = robocal::calibration::Options { estimator: Estimator::Wls, noise: Some(noise()), ..options() };
+    let (mut within, mut found) = (0, Vec::new());
+    for seed in 0..10 {
+        let s0 = if seed % 2 == 0 { 1.0 } else { 4.0 };
+        let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
+        let x: Vec<f64> = (chain.params().iter().zip(&sd))
+            .map(
+                |(p, s)| {
+                    if p.name.starts_with('j') && s.is_finite() { normal(&mut rng) * s * s0 } else { 0.0 }
+                },
+            )
+            .collect();
+        let train = measured(&x, 60, 0.8, 0.2, &mut rng);
+        let scale = choose_prior_scale_ml(&model, &train, &o, &auto).unwrap();
+        assert_eq!((scale.log_evidence[scale.chosen], scale.folds), (0.0, None));
+        assert!(scale.log_evidence.iter().all(|l| *l <= 0.0));
+        let ratio = scale.scale() / s0;
+        within += usize::from((1.0 / 1.5..=1.5).contains(&ratio));
+        found.push((s0, scale.scale()));
+    }
+    assert!(within >= 8, "{within} of 10 within a factor 1.5: {found:?}");
+    let mean = |at: f64| found.iter().filter(|(s, _)| *s == at).map(|(_, f)| f.ln()).sum::<f64>() / 5.0;
+    assert!(mean(4.0) - mean(1.0) > 4f64.ln() / 2.0, "{found:?}");
+}
+
+/// Without the noise the marginal likelihood is not defined: a clear error, naming the way out.
+#[test]
+fn auto_ml_without_noise_says_what_it_needs() {
+    let model = RobotModel::preset("puma560").unwrap();
+    let auto = AutoPrior::parse("auto-ml").unwrap().unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let x = vec![0.0; Chain::markers(&model, &[MARKER])[0].params().len()];
+    let train = measured(&x, 20, 0.8, 0.2, &mut rng);
+    let e = choose_prior_scale_ml(&model, &train, &options(), &auto).unwrap_err().to_string();
+    assert!(e.contains("--prior auto-ml:fabricated: the marginal likelihood needs the noise"), "{e}");
+}
+
+/// `calibrate --prior auto-ml:machined` with the noise prints the scale it chose by the
+/// marginal likelihood with its curve, and `--json` has it (`by: ml`, `log_evidence`, no
+/// `folds` nor `cv_rms`); `--folds 2` chooses it again in each fold.
+#[test]
+fn the_report_gives_the_marginal_likelihood_scale() {
+    let sigmas = ["--sigma-mm", "0.01", "--joint-sigma-deg", "0.007,0.007,0.007,0.007,0.007,0.007"];
+    let (text, report) = super::nested::calibrate_puma(
+        &[&sigmas[..], &["--prior", "auto-ml:machined", "--folds", "2"]].concat(),
+    );
+    let scale = &report["prior_scale"];
+    assert_eq!((scale["preset"].as_str(), scale["by"].as_str()), (Some("machined"), Some("ml")));
+    assert!(scale.get("folds").is_none() && scale.get("cv_rms").is_none(), "{scale}");
+    let curve: Vec<f64> =
+        scale["log_evidence"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert_eq!((curve.len(), scale["scales"].as_array().unwrap().len()), (97, 97));
+    let chosen = scale["chosen"].as_u64().unwrap() as usize;
+    assert_eq!(curve[chosen], 0.0);
+    assert!(curve.iter().all(|l| *l <= 0.0), "{curve:?}");
+    assert!(
+        text.contains("prior scale: --prior auto-ml:machined chose ")
+            && text.contains("by the marginal likelihood (type-II maximum likelihood, the noise as given)"),
+        "{text}"
+    );
+    assert!(text.contains("log evidence") && text.contains("  <- chosen\n"), "{text}");
+    assert_eq!(report["cross_validation"]["redone"], serde_json::json!(["--prior auto-ml:machined's scale"]));
+}

@@ -1,0 +1,68 @@
+//! The noise given against the residuals: a guess off by more than a factor 2 is warned of,
+//! with the factor the residuals say and the cross-validated error at both.
+
+use super::nested::{MARKER, measured, options};
+use rand::SeedableRng;
+use rand::rngs::ChaCha8Rng;
+use robocal::calibration::{self, Cause, Warning};
+use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel};
+use robocal::kinematics::Chain;
+use robocal::model::RobotModel;
+
+/// Measurement noise of `sigma` mm per axis, exact joints.
+fn noise(sigma: f64) -> NoiseModel {
+    NoiseModel {
+        joint: nalgebra::DMatrix::zeros(6, 6),
+        measurement: MeasurementNoise::PerAxis([sigma, sigma, sigma, 0.0, 0.0, 0.0]),
+    }
+}
+
+/// A PUMA 560 measured with 0.2 mm of noise (60 poses), calibrated by Gauss-Markov with the
+/// noise said to be 0.05 mm, 0.2 mm and 0.8 mm: the right one passes, the others are warned of
+/// once, with the factor the residuals say within 20% of the truth (4 and 1/4), no joint factor
+/// (no joint noise given), and the cross-validated errors at both.
+#[test]
+fn a_guessed_noise_off_by_a_factor_4_is_warned_of() {
+    let model = RobotModel::preset("puma560").unwrap();
+    let chain = Chain::markers(&model, &[MARKER]).remove(0);
+    let x: Vec<f64> = (0..chain.params().len()).map(|i| if i % 3 == 0 { 1e-3 } else { 0.0 }).collect();
+    let data = measured(&x, 60, 0.8, 0.2, &mut ChaCha8Rng::seed_from_u64(5));
+    let disagreement = |sigma: f64| {
+        let o = calibration::Options { estimator: Estimator::Wls, noise: Some(noise(sigma)), ..options() };
+        let c = calibration::calibrate(&model, &data, &o).unwrap();
+        let found: Vec<&Warning> = c.warnings.iter().filter(|w| w.cause() == Cause::NoiseDisagrees).collect();
+        assert!(found.len() <= 1, "{found:?}");
+        found.first().map(|w| match w {
+            Warning::NoiseDisagrees(n) => (*n, w.to_string()),
+            _ => unreachable!(),
+        })
+    };
+    assert_eq!(disagreement(0.2), None);
+    for (sigma, factor) in [(0.05, 4.0), (0.8, 0.25)] {
+        let (n, text) = disagreement(sigma).unwrap();
+        assert!((n.measurement_factor / factor - 1.0).abs() < 0.2, "{sigma}: {n:?}");
+        assert!((n.whitened_sd / factor - 1.0).abs() < 0.2, "{sigma}: {n:?}");
+        assert_eq!((n.joint_factor, n.folds), (None, 5));
+        assert!(
+            n.cv_given > 0.15 && n.cv_given < 0.5 && n.cv_estimated > 0.15 && n.cv_estimated < 0.5,
+            "{n:?}"
+        );
+        assert!(text.starts_with("the noise given disagrees with the residuals: their REML estimate is the measurement sigmas x"), "{text}");
+        assert!(text.contains("5-fold CV RMS"), "{text}");
+    }
+}
+
+/// Without a noise model (OLS, nothing given) nothing is checked.
+#[test]
+fn nothing_given_nothing_checked() {
+    let model = RobotModel::preset("puma560").unwrap();
+    let data = measured(
+        &vec![0.0; Chain::markers(&model, &[MARKER])[0].params().len()],
+        30,
+        0.8,
+        0.2,
+        &mut ChaCha8Rng::seed_from_u64(6),
+    );
+    let c = calibration::calibrate(&model, &data, &options()).unwrap();
+    assert!(c.warnings.iter().all(|w| w.cause() != Cause::NoiseDisagrees), "{:?}", c.warnings);
+}
