@@ -236,7 +236,7 @@ fn the_prior_scale_curve_is_drawn_on_a_log_axis() {
     let ticks = ["1/16", "1/8", "1/4", "1/2", "1", "2", "4", "8", "16"];
     assert!(evenly_spaced(&tick_xs(&svg, &ticks)), "the scales on a log axis");
     assert!(svg.contains("chosen: s = 1, 1.71 mm"), "the chosen scale named");
-    assert!(svg.contains("CV RMS marker error (mm)"));
+    assert!(svg.contains("CV RMS error (mm)"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
