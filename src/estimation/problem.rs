@@ -158,6 +158,22 @@ impl<'a> PointProblem<'a> {
         Ok(v)
     }
 
+    /// The number of poses (points).
+    pub fn poses(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// The same problem at the poses `poses` only (indices into this one's), without its
+    /// noise blocks `V_k`: the rows `H_k`, `y_k` and Jacobians of a sample of the poses, for a
+    /// check that needs no more.
+    pub fn at_poses(&self, poses: &[usize]) -> PointProblem<'a> {
+        let m = self.chains.len();
+        let joints = poses.iter().map(|&k| self.joints[k].clone()).collect();
+        let observed =
+            poses.iter().flat_map(|&k| (0..m).map(move |c| k * m + c)).map(|i| self.observed[i]).collect();
+        PointProblem { joints: Arc::new(joints), observed: Arc::new(observed), v: None, ..self.clone() }
+    }
+
     /// The measured rows of the manipulator Jacobians `J_k` of every pose (`rows x dof`:
     /// 3 per marker, or 6 for a tool pose), at the full parameter vector `at`.
     pub fn manipulator_jacobians(&self, at: &[f64]) -> Vec<DMatrix<f64>> {
