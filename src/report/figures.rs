@@ -1091,11 +1091,7 @@ pub fn prior_scale_figure(
     let ticks: Vec<f64> = points.iter().map(|p| p.0).filter(|s| s.log2().fract().abs() < 1e-9).collect();
     let x = ((x0 / 1.4)..(x1 * 1.4)).log_scale().with_key_points(ticks);
     let chosen = scale.scales.get(scale.chosen).zip(values.get(scale.chosen));
-    let caption = format!(
-        "--prior {}, by {}: {what} by scale",
-        scale.label(),
-        super::calibration::prior_scale_method(scale)
-    );
+    let caption = format!("--prior {}: {what} by scale", scale.label());
     let svg = single_chart(&caption, x, (y0 - pad)..(y1 + 2.0 * pad), true, |chart| {
         chart
             .configure_mesh()
@@ -1117,7 +1113,10 @@ pub fn prior_scale_figure(
             chart
                 .draw_series([Circle::new((s, rms), 8, colour(1).stroke_width(2))])
                 .map_err(|e| e.to_string())?
-                .label(format!("chosen: s = {}, {}{unit}", scale_tick(s), shown(rms)))
+                .label(match scale.by {
+                    ScaleBy::Cv => format!("chosen: s = {}, {}{unit}", scale_tick(s), shown(rms)),
+                    ScaleBy::Ml => format!("chosen: s = {s:.3}, the largest evidence"),
+                })
                 .legend(|(x, y)| Circle::new((x + 10, y), 6, colour(1).stroke_width(2)));
         }
         Ok(())
