@@ -1337,12 +1337,20 @@ pub fn cross_validate(
     let (mut before, mut after) = (Vec::new(), Vec::new());
     for fold in 0..folds {
         let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
-        let calibration = calibrate_quietly(model, &data.subset(&train), options)?;
+        let calibration = calibrate_quietly(model, &data.subset(&train), &options.at_poses(&train))?;
         let held_out = data.subset(&test);
         before.extend(errors(&calibration.chains, &calibration.before, &held_out));
         after.extend(errors(&calibration.chains, &calibration.after, &held_out));
     }
     Ok((ErrorStats::of(&before), ErrorStats::of(&after)))
+}
+
+impl Options {
+    /// The same options for the poses `poses` of the data (a fold's): a noise model's per-pose
+    /// measurement covariances (a noise file's device) follow their poses.
+    pub fn at_poses(&self, poses: &[usize]) -> Self {
+        Self { noise: self.noise.as_ref().map(|n| n.at_points(poses)), ..self.clone() }
+    }
 }
 
 /// `folds` of a k-fold cross-validation of `poses` poses: 2 at least, the poses at most.

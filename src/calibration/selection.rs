@@ -314,8 +314,8 @@ pub fn cross_validate_choices(
     let (mut selected, mut scales) = (Vec::new(), Vec::new());
     for fold in 0..folds {
         let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
-        let train = data.subset(&train);
-        let chosen = choose(model, &train, options, choices)?;
+        let (train, options) = (data.subset(&train), options.at_poses(&train));
+        let chosen = choose(model, &train, &options, choices)?;
         let calibration = calibrate_quietly(model, &train, &chosen.options)?;
         let held_out = data.subset(&test);
         before.extend(errors(&calibration.chains, &calibration.before, &held_out));

@@ -305,3 +305,41 @@ fn theodolite_stations_are_exactly_two_points_of_three_coordinates() {
     let message = noise_error(&device("[[0, 0, 0, 5], [2000, 0, 0]]"));
     assert!(message.contains("invalid length 4, expected 3 numbers in each array"), "{message}");
 }
+
+/// A noise file's per-pose measurement covariances follow the poses into each fold: `--noise
+/// FILE` with `--folds 2`, `--prior auto` and nested `--select cv` calibrates (it was refused,
+/// "100 measurement covariances for 50 points"), and the 2-fold figure is near the held-out one.
+#[test]
+fn a_noise_files_covariances_follow_the_poses_into_each_fold() {
+    let base = [
+        "calibrate",
+        "--model",
+        "puma560",
+        "--data",
+        "examples/puma560-measurements.csv",
+        "--marker",
+        "50,0,150",
+        "--marker=-40,60,120",
+        "--validate",
+        "examples/puma560-validation.csv",
+        "--noise",
+        "examples/puma560-noise.toml",
+    ];
+    for extra in [&["--folds", "2"][..], &["--prior", "auto:machined"], &["--select", "cv", "--folds", "3"]] {
+        let output =
+            assert_cmd::Command::cargo_bin("robocal").unwrap().args(base).args(extra).output().unwrap();
+        let text = String::from_utf8(output.stdout).unwrap();
+        assert!(output.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&output.stderr));
+        let after = |label: &str| -> Option<f64> {
+            let row = text.lines().find(|l| l.starts_with(label))?;
+            row.split_whitespace().skip_while(|w| *w != "->").nth(1)?.parse().ok()
+        };
+        let held_out = after("examples/puma560-validation.csv (held out)").expect("the held-out row");
+        if let Some(folds) = after("2-fold cross-validation").or(after("3-fold cross-validation")) {
+            assert!(
+                (folds - held_out).abs() < 0.25 * held_out,
+                "{extra:?}: {folds} against {held_out} mm\n{text}"
+            );
+        }
+    }
+}
