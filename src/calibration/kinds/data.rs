@@ -436,6 +436,40 @@ impl KindData {
         self.observations.iter().any(|o| !matches!(o, Observation::Contact { .. }))
     }
 
+    /// Fixed point `i` by the linear sphere fit of its distances from the nominal tool points
+    /// `nominal`: `2 p_k . c - t = |p_k|^2 - m_k^2`, `t = |c|^2` (at least 4, not on one plane).
+    fn sphere_start(&self, i: usize, nominal: &[Vector3<f64>]) -> Result<[f64; 3], CalibrationError> {
+        let rows: Vec<(Vector3<f64>, f64)> = (self.observations.iter())
+            .filter_map(|o| match *o {
+                Observation::ToPoint { pose, point, measured, .. } if point == i => {
+                    Some((nominal[pose], measured))
+                }
+                _ => None,
+            })
+            .collect();
+        let few = |what: String| CalibrationError::Observations(what);
+        let too_few = || {
+            few(format!(
+                "fixed point {}: {} distances, expected at least 4 from poses not on one plane",
+                i + 1,
+                rows.len()
+            ))
+        };
+        if rows.len() < 4 {
+            return Err(too_few());
+        }
+        let a = DMatrix::from_fn(rows.len(), 4, |r, c| if c < 3 { 2.0 * rows[r].0[c] } else { -1.0 });
+        let b = DVector::from_fn(rows.len(), |r, _| rows[r].0.norm_squared() - rows[r].1 * rows[r].1);
+        let svd = a.svd(true, true);
+        let largest = svd.singular_values.max();
+        let smallest = svd.singular_values.min();
+        if smallest.is_nan() || smallest <= 1e-9 * largest {
+            return Err(too_few());
+        }
+        let c = svd.solve(&b, 1e-12 * largest).map_err(|e| few(e.to_string()))?;
+        Ok([c[0], c[1], c[2]])
+    }
+
     /// The set-up and its start values, from the tool frame at every pose on the nominal robot
     /// (`nominal`): each fixed point by the linear sphere fit `2 p_k . c - t = |p_k|^2 - m_k^2`
     /// (`t = |c|^2`; at least 4 distances), each plane by the total least-squares plane of its
@@ -448,34 +482,7 @@ impl KindData {
         let mut values = Vec::with_capacity(3 * (points + planes));
         let few = |what: String| CalibrationError::Observations(what);
         for i in 0..points {
-            let rows: Vec<(Vector3<f64>, f64)> = (self.observations.iter())
-                .filter_map(|o| match *o {
-                    Observation::ToPoint { pose, point, measured, .. } if point == i => {
-                        Some((nominal[pose], measured))
-                    }
-                    _ => None,
-                })
-                .collect();
-            let too_few = || {
-                few(format!(
-                    "fixed point {}: {} distances, expected at least 4 from poses not on one plane",
-                    i + 1,
-                    rows.len()
-                ))
-            };
-            if rows.len() < 4 {
-                return Err(too_few());
-            }
-            let a = DMatrix::from_fn(rows.len(), 4, |r, c| if c < 3 { 2.0 * rows[r].0[c] } else { -1.0 });
-            let b = DVector::from_fn(rows.len(), |r, _| rows[r].0.norm_squared() - rows[r].1 * rows[r].1);
-            let svd = a.svd(true, true);
-            let largest = svd.singular_values.max();
-            let smallest = svd.singular_values.min();
-            if smallest.is_nan() || smallest <= 1e-9 * largest {
-                return Err(too_few());
-            }
-            let c = svd.solve(&b, 1e-12 * largest).map_err(|e| few(e.to_string()))?;
-            values.extend([c[0], c[1], c[2]]);
+            values.extend(self.sphere_start(i, &nominal)?);
         }
         let mut normals = Vec::with_capacity(planes);
         for i in 0..planes {

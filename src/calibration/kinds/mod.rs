@@ -561,47 +561,63 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
                 setups: 0,
             }
         }
-        Observation::Contact { pose, plane, .. } => {
-            let (n, d) = setup.plane(s, plane);
-            let [dn_a, dn_b] = setup.normal_derivatives(s, plane);
-            let at = 3 * (setup.points + plane);
-            let (by_setup, setups) =
-                by_setup([(at, dn_a.dot(&p(pose))), (at + 1, dn_b.dot(&p(pose))), (at + 2, -1.0)]);
-            Prediction {
-                residual: o.residual(n.dot(&p(pose)) - d),
-                by_point: [(pose, point(n)), none],
-                poses: 1,
-                by_setup,
-                setups,
-            }
-        }
+        Observation::Contact { pose, plane, .. } => contact_prediction(o, (p(pose), pose), plane, setup, s),
         Observation::Camera { pose, axis, view, site, .. } => {
-            let c = setup.camera_at();
-            let (mounted, placed) = match site {
-                CameraSite::Hand => (c, c + 6),
-                CameraSite::World => (c + 6, c),
-            };
-            let row = camera::view_row(
-                &view,
-                axis,
-                &frames[pose],
-                site,
-                &s[mounted..mounted + 6],
-                &s[placed..placed + 6],
-            );
-            let mut out = [(0, 0.0); 12];
-            for i in 0..6 {
-                out[i] = (mounted + i, row.by_mounting[i]);
-                out[6 + i] = (placed + i, row.by_world[i]);
-            }
-            Prediction {
-                residual: row.residual,
-                by_point: [(pose, row.by_tool), none],
-                poses: 1,
-                by_setup: out,
-                setups: 12,
-            }
+            camera_prediction((frames, pose), (axis, &view, site), setup, s)
         }
+    }
+}
+
+/// A contact of the tool point `p` at `pose` with plane `plane`, its signed distance
+/// `f = n . p - d` (0 measured) and its derivatives: `n` by the point, `dn/dalpha . p`,
+/// `dn/dbeta . p` and `-1` by the plane's tilts and offset.
+fn contact_prediction(
+    o: &Observation,
+    (p, pose): (Vector3<f64>, usize),
+    plane: usize,
+    setup: &SetUp,
+    s: &[f64],
+) -> Prediction {
+    let (n, d) = setup.plane(s, plane);
+    let [dn_a, dn_b] = setup.normal_derivatives(s, plane);
+    let at = 3 * (setup.points + plane);
+    let (by_setup, setups) = by_setup([(at, dn_a.dot(&p)), (at + 1, dn_b.dot(&p)), (at + 2, -1.0)]);
+    Prediction {
+        residual: o.residual(n.dot(&p) - d),
+        by_point: [(pose, Vector6::new(n.x, n.y, n.z, 0.0, 0.0, 0.0)), (0, Vector6::zeros())],
+        poses: 1,
+        by_setup,
+        setups,
+    }
+}
+
+/// Row `axis` of the camera's view `view` (at `site`) of the target at `frames[pose]`
+/// ([`camera::view_row`]), its derivatives by the tool's twist and by the camera's mounting
+/// and the target's placement, the set-up values `s`.
+fn camera_prediction(
+    (frames, pose): (&[Isometry3<f64>], usize),
+    (axis, view, site): (usize, &Vector6<f64>, CameraSite),
+    setup: &SetUp,
+    s: &[f64],
+) -> Prediction {
+    let c = setup.camera_at();
+    let (mounted, placed) = match site {
+        CameraSite::Hand => (c, c + 6),
+        CameraSite::World => (c + 6, c),
+    };
+    let row =
+        camera::view_row(view, axis, &frames[pose], site, &s[mounted..mounted + 6], &s[placed..placed + 6]);
+    let mut out = [(0, 0.0); 12];
+    for i in 0..6 {
+        out[i] = (mounted + i, row.by_mounting[i]);
+        out[6 + i] = (placed + i, row.by_world[i]);
+    }
+    Prediction {
+        residual: row.residual,
+        by_point: [(pose, row.by_tool), (0, Vector6::zeros())],
+        poses: 1,
+        by_setup: out,
+        setups: 12,
     }
 }
 
