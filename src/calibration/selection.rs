@@ -326,17 +326,16 @@ pub fn cross_validate_choices(
     Ok(NestedCv { before: ErrorStats::of(&before), after: ErrorStats::of(&after), selected, scales })
 }
 
-/// An observation calibration with its choices made ([`calibrate_kinds_chosen`]).
+/// A calibration (`C`: of observation files, of a tree's views) with the choices made from
+/// its data ([`calibrate_kinds_chosen`], [`calibrate_tree_chosen`]).
 #[derive(Debug, Clone)]
-pub struct KindsChosen {
-    /// The options calibrated with: the scaled priors, the selected parameters.
-    pub options: KindOptions,
+pub struct ChosenFit<C> {
     /// The scale of the preset, and its curve.
     pub scale: Option<PriorScale>,
     /// The selection's path.
     pub path: Option<SelectionPath>,
     /// The calibration with the options chosen.
-    pub calibration: KindCalibration,
+    pub calibration: C,
 }
 
 /// Make `choices` on observation `data` as [`choose`] makes them on marker data (the preset's
@@ -347,7 +346,7 @@ pub fn calibrate_kinds_chosen(
     data: &KindData,
     options: &KindOptions,
     choices: &Choices,
-) -> Result<KindsChosen, CalibrationError> {
+) -> Result<ChosenFit<KindCalibration>, CalibrationError> {
     let (mut options, mut scale) = (options.clone(), None);
     if let Some((auto, folds)) = &choices.auto_prior {
         let chosen = choose_kinds_prior_scale(model, data, &options, auto, (*folds).min(data.joints.len()))?;
@@ -361,7 +360,7 @@ pub fn calibrate_kinds_chosen(
         }
         None => (None, kinds::calibrate_kinds(model, data, &options)?),
     };
-    Ok(KindsChosen { options, scale, path, calibration })
+    Ok(ChosenFit { scale, path, calibration })
 }
 
 /// Nested k-fold cross-validation of [`calibrate_kinds_chosen`]: every choice made again on
@@ -525,17 +524,6 @@ impl Fitted for TreeCalibration {
     }
 }
 
-/// A tree calibrated with its choices made ([`calibrate_tree_chosen`]).
-#[derive(Debug, Clone)]
-pub struct TreeChosen {
-    /// The scale of the preset, and its curve.
-    pub scale: Option<PriorScale>,
-    /// The selection's path.
-    pub path: Option<SelectionPath>,
-    /// The calibration with the options chosen.
-    pub calibration: TreeCalibration,
-}
-
 /// Make `choices` on a tree's views `data` and calibrate with them: the preset's scale first
 /// ([`choose_tree_prior_scale`]), then the selection with those priors by the `t` rule
 /// (backward elimination, as for a marker file). `bic` and `cv` are refused: their linear
@@ -545,7 +533,7 @@ pub fn calibrate_tree_chosen(
     data: &TreeData,
     options: &TreeOptions,
     choices: &Choices,
-) -> Result<TreeChosen, CalibrationError> {
+) -> Result<ChosenFit<TreeCalibration>, CalibrationError> {
     let (mut options, mut scale) = (options.clone(), None);
     if let Some((auto, folds)) = &choices.auto_prior {
         let chosen = choose_tree_prior_scale(tree, data, &options, auto, (*folds).min(data.joints.len()))?;
@@ -571,7 +559,7 @@ pub fn calibrate_tree_chosen(
     };
     let options = path.as_ref().map_or(options.clone(), |p| asking(&p.selected));
     let calibration = calibrate_tree(tree, data, &options)?;
-    Ok(TreeChosen { scale, path, calibration })
+    Ok(ChosenFit { scale, path, calibration })
 }
 
 /// The correlation above which one parameter's estimate stands in for a joint's zero or play:
