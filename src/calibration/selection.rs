@@ -144,8 +144,12 @@ impl SelectionPath {
 
 /// `options` asking for the joint parameters `names` only.
 fn asking(options: &Options, names: &[String]) -> Options {
-    let joints = if names.is_empty() { JointParams::None } else { JointParams::Named(names.to_vec()) };
-    Options { joints, ..options.clone() }
+    Options { joints: named_joints(names.to_vec()), ..options.clone() }
+}
+
+/// The joint parameters `names`; none when empty.
+fn named_joints(names: Vec<String>) -> JointParams {
+    if names.is_empty() { JointParams::None } else { JointParams::Named(names) }
 }
 
 /// Choose among the joint parameters `options.joints` names by `criterion` (see the
@@ -229,7 +233,7 @@ fn asking_kinds(model: &RobotModel, options: &KindOptions, names: &[String]) -> 
         _ => Vec::new(),
     };
     let all: Vec<String> = names.iter().cloned().chain(others).collect();
-    let joints = if all.is_empty() { JointParams::None } else { JointParams::Named(all) };
+    let joints = named_joints(all);
     KindOptions { joints, ..options.clone() }
 }
 
@@ -540,10 +544,7 @@ pub fn calibrate_tree_chosen(
         options = with_tree_scale(&options, auto, chosen.scale());
         scale = Some(chosen);
     }
-    let asking = |names: &[String]| {
-        let joints = if names.is_empty() { JointParams::None } else { JointParams::Named(names.to_vec()) };
-        TreeOptions { joints, ..options.clone() }
-    };
+    let asking = |names: &[String]| TreeOptions { joints: named_joints(names.to_vec()), ..options.clone() };
     let path = match choices.select {
         None => None,
         Some(Criterion::T) => Some(backward(|names: Option<&[String]>| match names {

@@ -271,19 +271,26 @@ fn moved_tracker() -> nalgebra::Isometry3<f64> {
         .isometry()
 }
 
+/// One robot with errors on its joints, seen by the tracker of the first session and of the
+/// second ([`moved_tracker`]): the chains of its markers and tool point in each tracker's frame.
+fn tracker_robot(rng: &mut ChaCha8Rng) -> [Vec<robocal::kinematics::ChainAt>; 2] {
+    use crate::kinds_markers::{chains, device, true_chains_seen};
+    let chain = &chains()[0];
+    let joints: Vec<String> =
+        chain.params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
+    let x = errors_on(chain, &joints, rng);
+    let tuesday =
+        robocal::model::Placement::from_isometry(&(moved_tracker().inverse() * device().isometry()));
+    [true_chains_seen(&x, TOOL, device()), true_chains_seen(&x, TOOL, tuesday)]
+}
+
 /// Marker sessions `monday` and `tuesday` of one robot with errors on its joints, the tracker
 /// moved between them ([`moved_tracker`]): training files of `poses` poses each, and held-out
 /// files of the same names.
 fn tracker_sessions(seed: u64, poses: usize) -> (KindData, Vec<KindData>) {
-    use crate::kinds_markers::{chains, device, markers, true_chains_seen};
+    use crate::kinds_markers::markers;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let chain = &chains()[0];
-    let joints: Vec<String> =
-        chain.params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
-    let x = errors_on(chain, &joints, &mut rng);
-    let tuesday =
-        robocal::model::Placement::from_isometry(&(moved_tracker().inverse() * device().isometry()));
-    let real = [true_chains_seen(&x, TOOL, device()), true_chains_seen(&x, TOOL, tuesday)];
+    let real = tracker_robot(&mut rng);
     let names = ["monday", "tuesday"];
     let mut session = |s: usize, n: usize| markers(&real[s], n, &mut rng, 0.01).named(names[s]);
     let training = session(0, poses).join(&session(1, poses));
@@ -347,16 +354,10 @@ fn a_tracker_moved_between_marker_sessions_is_modelled_by_a_per_session_placemen
 /// the pattern.
 #[test]
 fn the_command_models_a_tracker_moved_between_marker_files() {
-    use crate::kinds_markers::{chains, device, marker_csv, true_chains_seen};
+    use crate::kinds_markers::marker_csv;
     let (dir, train_dir, test_dir) = session_folders("tracker-sessions");
     let mut rng = ChaCha8Rng::seed_from_u64(23);
-    let chain = &chains()[0];
-    let joints: Vec<String> =
-        chain.params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
-    let x = errors_on(chain, &joints, &mut rng);
-    let tuesday =
-        robocal::model::Placement::from_isometry(&(moved_tracker().inverse() * device().isometry()));
-    let real = [true_chains_seen(&x, TOOL, device()), true_chains_seen(&x, TOOL, tuesday)];
+    let real = tracker_robot(&mut rng);
     let path = |p: std::path::PathBuf| p.to_str().unwrap().to_string();
     let mut args: Vec<String> = ["calibrate", "--model", "puma560", "--marker", "60,0,90"]
         .into_iter()
