@@ -189,12 +189,36 @@ pub(crate) fn evaluate_on(
     problem: &PointProblem<'_>,
 ) -> Result<SetEvaluation, CalibrationError> {
     let nothing = Selection::from_indices(scored.chains[0].params(), []);
-    let rows = problem.rows_per_point();
     let residuals: Vec<DVector<f64>> = stages
         .iter()
         .map(|(_, x)| Ok(problem.reselect(&nothing, x.to_vec())?.evaluate(&DVector::zeros(0), None)))
         .collect::<Result<_, CalibrationError>>()?;
-    let last = residuals.last().expect("at least one stage");
+    let (z, bulk) = whitened(problem, whitening, residuals.last().expect("at least one stage"))?;
+    let poses = pose_errors(scored, data, &residuals, &z, bulk * FLAG_AT);
+    let probe = scored.kind == Measured::Pose;
+    let (pooled, per_marker, orientation) = summaries(&poses, stages.len(), scored.chains.len(), probe);
+    Ok(SetEvaluation {
+        name: name.to_string(),
+        stages: stages.iter().map(|(n, _)| n.to_string()).collect(),
+        marker_ids: scored.marker_ids.to_vec(),
+        poses,
+        pooled,
+        per_marker,
+        orientation,
+        whitening: whitening.describe(),
+    })
+}
+
+/// The last stage's residuals `last` whitened (by `V_k` block by block, or by the spread in
+/// lengths), and the bulk's robust scale under a noise model (1 otherwise): when the poses all
+/// lie further out than `V_k` says (a fit pulled by a gross error, effects the model lacks), a
+/// pose's flag threshold grows with it.
+fn whitened(
+    problem: &PointProblem<'_>,
+    whitening: &Whitening,
+    last: &DVector<f64>,
+) -> Result<(DVector<f64>, f64), CalibrationError> {
+    let rows = problem.rows_per_point();
     let mut z = last.clone();
     match whitening {
         Whitening::Covariance(_) => {
@@ -202,39 +226,41 @@ pub(crate) fn evaluate_on(
             if let Some(v) = problem.covariance() {
                 crate::estimation::whiten_in_place(v, &crate::estimation::Blocks::Uniform(rows), &mut z)?
             }
-        }
-        Whitening::Spread(sigma) if *sigma > 0.0 => {
-            in_lengths(problem, &mut z);
-            z /= *sigma
-        }
-        Whitening::Spread(_) => {}
-    }
-    // Under a noise model, a pose stands out against the bulk of the poses: when they all lie
-    // further out than V_k says (a fit pulled by a gross error, effects the model lacks), the
-    // flag's threshold grows with their robust scale.
-    let bulk = match whitening {
-        Whitening::Covariance(_) => {
             let norms: Vec<f64> = z
                 .as_slice()
                 .chunks_exact(rows)
                 .map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt())
                 .collect();
-            super::robust::robust_scale(&norms, rows).max(1.0)
+            Ok((z, super::robust::robust_scale(&norms, rows).max(1.0)))
         }
-        Whitening::Spread(_) => 1.0,
-    };
+        Whitening::Spread(sigma) => {
+            if *sigma > 0.0 {
+                in_lengths(problem, &mut z);
+                z /= *sigma
+            }
+            Ok((z, 1.0))
+        }
+    }
+}
+
+/// Each pose's errors at every stage (`residuals`, one vector per stage), its whitened
+/// residual `z`'s norm and largest entry, flagged beyond `flag_at`.
+fn pose_errors(
+    scored: &Scored<'_>,
+    data: &super::Measurements,
+    residuals: &[DVector<f64>],
+    z: &DVector<f64>,
+    flag_at: f64,
+) -> Vec<PoseErrors> {
     let probe = scored.kind == Measured::Pose;
     let per = scored.kind.rows();
     let markers = scored.chains.len();
-    let poses: Vec<PoseErrors> = (0..data.len())
+    let rows = per * markers;
+    (0..data.len())
         .map(|k| {
-            let block = |y: &DVector<f64>| y.rows(k * rows, rows).into_owned();
             let errors = residuals
                 .iter()
-                .map(|y| {
-                    let b = block(y);
-                    (0..markers).map(|m| [b[m * per], b[m * per + 1], b[m * per + 2]]).collect()
-                })
+                .map(|y| (0..markers).map(|m| [0, 1, 2].map(|c| y[k * rows + m * per + c])).collect())
                 .collect();
             let orientation = probe
                 .then(|| residuals.iter().map(|y| [3, 4, 5].map(|r| y[k * rows + r].to_degrees())).collect());
@@ -247,10 +273,21 @@ pub(crate) fn evaluate_on(
                 orientation,
                 whitened: zk.norm(),
                 worst,
-                flagged: worst > FLAG_AT * bulk,
+                flagged: worst > flag_at,
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The poses' error statistics at each of `stages` stages: pooled, per marker, and of the
+/// orientation for a probe.
+#[allow(clippy::type_complexity)]
+fn summaries(
+    poses: &[PoseErrors],
+    stages: usize,
+    markers: usize,
+    probe: bool,
+) -> (Vec<ErrorStats>, Vec<Vec<ErrorStats>>, Option<Vec<ErrorStats>>) {
     let stats = |s: usize, m: Option<usize>| {
         let vectors: Vec<Vector3<f64>> = poses
             .iter()
@@ -260,10 +297,10 @@ pub(crate) fn evaluate_on(
             .collect();
         ErrorStats::of(&vectors)
     };
-    let pooled = (0..stages.len()).map(|s| stats(s, None)).collect();
-    let per_marker = (0..markers).map(|m| (0..stages.len()).map(|s| stats(s, Some(m))).collect()).collect();
+    let pooled = (0..stages).map(|s| stats(s, None)).collect();
+    let per_marker = (0..markers).map(|m| (0..stages).map(|s| stats(s, Some(m))).collect()).collect();
     let orientation = probe.then(|| {
-        (0..stages.len())
+        (0..stages)
             .map(|s| {
                 let v: Vec<Vector3<f64>> = poses
                     .iter()
@@ -273,16 +310,7 @@ pub(crate) fn evaluate_on(
             })
             .collect()
     });
-    Ok(SetEvaluation {
-        name: name.to_string(),
-        stages: stages.iter().map(|(n, _)| n.to_string()).collect(),
-        marker_ids: scored.marker_ids.to_vec(),
-        poses,
-        pooled,
-        per_marker,
-        orientation,
-        whitening: whitening.describe(),
-    })
+    (pooled, per_marker, orientation)
 }
 
 /// The sets pooled into one: every pose of each (their stages must agree; markers are pooled

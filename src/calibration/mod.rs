@@ -453,72 +453,104 @@ pub(crate) fn calibrate_quietly(
     calibrate_checking(model, data, options, false)
 }
 
-/// [`calibrate`], the noise checked if `check_noise`.
-fn calibrate_checking(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
-    check_noise: bool,
-) -> Result<Calibration, CalibrationError> {
-    let marker_count = data.marker_count();
-    let markers: Vec<Vector3<f64>> =
-        (0..marker_count).map(|k| options.markers.get(k).copied().unwrap_or_else(Vector3::zeros)).collect();
-    let mut registered = model.clone();
-    if options.estimate_base {
-        let chains = Chain::markers(model, &markers);
-        let zero = vec![0.0; chains[0].params().len()];
-        let measured: Vec<Vector3<f64>> = data.markers.iter().flatten().copied().collect();
-        let predicted: Vec<Vector3<f64>> =
-            errors(&chains, &zero, data).iter().zip(&measured).map(|(e, m)| m - e).collect();
-        registered = with_registered_base(model, &predicted, &measured);
+/// The robot before any fit: the base registered to the markers if it is estimated, a
+/// probe's mounting started from the data, and the chains of its markers (or its probe).
+struct Start {
+    registered: RobotModel,
+    probe: Option<Placement>,
+    markers: Vec<Vector3<f64>>,
+    chains: Vec<Chain>,
+    kind: Measured,
+}
+
+impl Start {
+    fn new(model: &RobotModel, data: &Measurements, options: &Options) -> Self {
+        let markers: Vec<Vector3<f64>> = (0..data.marker_count())
+            .map(|k| options.markers.get(k).copied().unwrap_or_else(Vector3::zeros))
+            .collect();
+        let mut registered = model.clone();
+        if options.estimate_base {
+            let chains = Chain::markers(model, &markers);
+            let zero = vec![0.0; chains[0].params().len()];
+            let measured: Vec<Vector3<f64>> = data.markers.iter().flatten().copied().collect();
+            let predicted: Vec<Vector3<f64>> =
+                errors(&chains, &zero, data).iter().zip(&measured).map(|(e, m)| m - e).collect();
+            registered = with_registered_base(model, &predicted, &measured);
+        }
+        // With orientations, marker 1 is a probe frame: its mounting rotation starts from the data.
+        let probe = data
+            .orientations
+            .as_ref()
+            .map(|measured| probe_mounting(&registered, markers[0], data, measured));
+        let chains = match &probe {
+            Some(probe) => vec![Chain::probe(&registered, probe)],
+            None => Chain::markers(&registered, &markers),
+        };
+        let kind = if probe.is_some() { Measured::Pose } else { Measured::Position };
+        Self { registered, probe, markers, chains, kind }
     }
-    // With orientations, marker 1 is a probe frame: its mounting rotation starts from the data.
-    let probe =
-        data.orientations.as_ref().map(|measured| probe_mounting(&registered, markers[0], data, measured));
-    let chains = match &probe {
-        Some(probe) => vec![Chain::probe(&registered, probe)],
-        None => Chain::markers(&registered, &markers),
-    };
-    let kind = if probe.is_some() { Measured::Pose } else { Measured::Position };
-    let rows = kind.rows() * chains.len();
-    let params = chains[0].params().clone();
-    let noise = noise_for(options.noise.clone(), data, rows);
-    let observed = observed(data);
+
+    /// The stages of a calibration from this start: `params` fitted to `before`, then `after`.
+    fn stages<'a>(&self, data: &'a Measurements, fit: Fit) -> Stages<'a> {
+        Stages {
+            registered: self.registered.clone(),
+            probe: self.probe,
+            markers: self.markers.clone(),
+            params: fit.params,
+            before: fit.before,
+            after: fit.after,
+            refined: fit.refined,
+            fixed: fit.fixed,
+            chains: self.chains.clone(),
+            noise: fit.noise,
+            data,
+            marker_ids: data.marker_ids.clone(),
+            prior_sd: fit.prior_sd,
+            robust: fit.robust,
+        }
+    }
+}
+
+/// What a calibration fitted from its [`Start`].
+struct Fit {
+    params: ParamSet,
+    before: Vec<f64>,
+    after: Vec<f64>,
+    refined: Refined,
+    fixed: Vec<Held>,
+    noise: Option<NoiseModel>,
+    prior_sd: Vec<f64>,
+    robust: Option<RobustFit>,
+}
+
+/// The "before" values: the base and markers fitted by ordinary least squares whatever the
+/// estimator (the joint parameters at nominal), or zero when nothing of the frame is asked.
+fn fit_before(
+    base: &PointProblem<'_>,
+    params: &ParamSet,
+    options: &Options,
+) -> Result<Vec<f64>, CalibrationError> {
     let zero = vec![0.0; params.len()];
+    let frame = selection(params, &JointParams::None, options)?;
+    if frame.is_empty() {
+        return Ok(zero);
+    }
+    let unweighted = Weights::for_problem(base, Estimator::Ols)?;
+    let problem = base.reselect(&frame, zero)?;
+    let start = linearise(&problem, &unweighted, problem.start())?;
+    let fitted = refine_from(&problem, &unweighted, start, &RefineOptions::default())?;
+    Ok(problem.full(&fitted.estimate.x))
+}
 
-    // One problem, and its covariance blocks V_k, for every stage.
-    let nothing = Selection::from_indices(&params, []);
-    let base_problem = PointProblem::new(
-        &chains,
-        &nothing,
-        kind,
-        data.joints.clone(),
-        observed,
-        zero.clone(),
-        noise.as_ref(),
-    )?;
-
-    // The estimator's weights for the calibration.
-    let weights =
-        Weights::for_problem(&base_problem, options.estimator).map_err(|e| at_line(e.into(), data))?;
-
-    // "Before": base and markers only, by ordinary least squares whatever the estimator.
-    let frame = selection(&params, &JointParams::None, options)?;
-    let before = if frame.is_empty() {
-        zero.clone()
-    } else {
-        let unweighted = Weights::for_problem(&base_problem, Estimator::Ols)?;
-        let problem = base_problem.reselect(&frame, zero.clone())?;
-        let start = linearise(&problem, &unweighted, problem.start())?;
-        let fitted = refine_from(&problem, &unweighted, start, &RefineOptions::default())?;
-        problem.full(&fitted.estimate.x)
-    };
-
-    // "After": everything asked for that the poses can identify.
-    let asked = selection(&params, &options.joints, options)?;
-    let prior_sd = prior_sds(&options.prior, &params)?;
-    // With fewer equations than parameters the rank cannot tell structure from lack of data;
-    // a parameter with a prior is anchored by it, so only the others count.
+/// Refused when the poses cannot identify what is asked: fewer equations than the parameters
+/// without a prior (a parameter with a prior is anchored by it; with fewer equations the rank
+/// cannot tell structure from lack of data), or every pose at the same joint values.
+fn check_enough_poses(
+    data: &Measurements,
+    rows: usize,
+    asked: &Selection,
+    prior_sd: &[f64],
+) -> Result<(), CalibrationError> {
     let equations = data.len() * rows;
     let unanchored = asked.indices().iter().filter(|&&i| !prior_sd[i].is_finite()).count();
     if equations <= unanchored {
@@ -530,71 +562,82 @@ fn calibrate_checking(
             needed,
         });
     }
-    if asked.is_empty() {
-        // Nothing to estimate: the model as it stands is scored.
-        return finish(
-            Stages {
-                registered,
-                probe,
-                markers,
-                params,
-                before: before.clone(),
-                after: before,
-                refined: Refined { estimate: nothing_estimated(), history: Vec::new(), converged: true },
-                fixed: held_in_words(chains[0].params(), &options.joints, options)?,
-                chains: chains.clone(),
-                noise,
-                data,
-                marker_ids: data.marker_ids.clone(),
-                prior_sd,
-                robust: None,
-            },
-            &base_problem,
-        );
-    }
-    if data.joints.first().is_some_and(|q| data.joints.iter().all(|other| other == q)) {
+    if !asked.is_empty() && data.joints.first().is_some_and(|q| data.joints.iter().all(|other| other == q)) {
         let line = data.lines.first().copied().unwrap_or(0);
         return Err(CalibrationError::NothingIdentified(format!(
             "all {} poses have the joint values of line {line}: measure the robot at different poses",
             data.len()
         )));
     }
-    let Identified { kept, mut fixed, start, prior, data_alone } =
-        identifiable(&base_problem, &weights, &asked, &before, data, &options.gauge, Some(&prior_sd))?;
-    fixed.extend(held_in_words(&params, &options.joints, options)?);
-    let problem = base_problem.reselect(&kept, before.clone())?;
-    let (mut estimate, robust) =
-        robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
-    if let Some(data_alone) = data_alone {
-        estimate.estimate.diagnostics = data_alone;
+    Ok(())
+}
+
+/// [`calibrate`], the noise checked if `check_noise`: the [`Start`], one problem (and its
+/// covariance blocks `V_k`) for every stage, the "before" fit, what the poses identify, the
+/// robust fit of it, the scores.
+fn calibrate_checking(
+    model: &RobotModel,
+    data: &Measurements,
+    options: &Options,
+    check_noise: bool,
+) -> Result<Calibration, CalibrationError> {
+    let start = Start::new(model, data, options);
+    let rows = start.kind.rows() * start.chains.len();
+    let params = start.chains[0].params().clone();
+    let noise = noise_for(options.noise.clone(), data, rows);
+    let zero = vec![0.0; params.len()];
+    let nothing = Selection::from_indices(&params, []);
+    let base_problem = PointProblem::new(
+        &start.chains,
+        &nothing,
+        start.kind,
+        data.joints.clone(),
+        observed(data),
+        zero,
+        noise.as_ref(),
+    )?;
+    let weights =
+        Weights::for_problem(&base_problem, options.estimator).map_err(|e| at_line(e.into(), data))?;
+    let before = fit_before(&base_problem, &params, options)?;
+    // "After": everything asked for that the poses can identify.
+    let asked = selection(&params, &options.joints, options)?;
+    let prior_sd = prior_sds(&options.prior, &params)?;
+    check_enough_poses(data, rows, &asked, &prior_sd)?;
+    let held_by_flags = held_in_words(&params, &options.joints, options)?;
+    if asked.is_empty() {
+        // Nothing to estimate: the model as it stands is scored.
+        let refined = Refined { estimate: nothing_estimated(), history: Vec::new(), converged: true };
+        let fit = Fit {
+            params,
+            after: before.clone(),
+            before,
+            refined,
+            fixed: held_by_flags,
+            noise,
+            prior_sd,
+            robust: None,
+        };
+        return finish(start.stages(data, fit), &base_problem);
     }
-    let after = problem.full(&estimate.estimate.x);
+    let Identified { kept, mut fixed, start: linearised, prior, data_alone } =
+        identifiable(&base_problem, &weights, &asked, &before, data, &options.gauge, Some(&prior_sd))?;
+    fixed.extend(held_by_flags);
+    let problem = base_problem.reselect(&kept, before.clone())?;
+    let (mut refined, robust) =
+        robust::fit(&problem, &weights, linearised, &options.refine, prior.as_ref(), options.loss)?;
+    if let Some(data_alone) = data_alone {
+        refined.estimate.diagnostics = data_alone;
+    }
+    let after = problem.full(&refined.estimate.x);
     let noise_warning = match (&noise, options.loss) {
         (Some(given), Loss::Squared) if check_noise => {
             let kept_sd: Vec<f64> = kept.indices().iter().map(|&i| prior_sd[i]).collect();
-            noise_check::noise_check(&problem, &estimate.estimate.x, given, &kept_sd)
+            noise_check::noise_check(&problem, &refined.estimate.x, given, &kept_sd)
         }
         _ => None,
     };
-    let mut calibration = finish(
-        Stages {
-            registered,
-            probe,
-            markers,
-            params,
-            before,
-            after,
-            refined: estimate,
-            fixed,
-            chains: chains.clone(),
-            noise,
-            data,
-            marker_ids: data.marker_ids.clone(),
-            prior_sd,
-            robust,
-        },
-        &base_problem,
-    )?;
+    let fit = Fit { params, before, after, refined, fixed, noise, prior_sd, robust };
+    let mut calibration = finish(start.stages(data, fit), &base_problem)?;
     calibration.warnings.extend(noise_warning);
     Ok(calibration)
 }
@@ -1443,6 +1486,11 @@ mod plausibility_tests {
                 unit: "mm"
             }
         );
+        warnings_read_as_they_should(&warnings);
+    }
+
+    /// The text of each warning of [`every_estimate_past_a_physical_bound_is_warned_whatever_its_se`].
+    fn warnings_read_as_they_should(warnings: &[Warning]) {
         let text: Vec<String> = warnings.iter().map(ToString::to_string).collect();
         assert_eq!(
             text[0],

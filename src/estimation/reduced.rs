@@ -51,6 +51,48 @@ pub struct Reduced {
     non_finite: Option<EstimationError>,
 }
 
+/// The points `0..points` of `blocks` in parts of [`part_points`] each: each part's range of
+/// points, its first row, and its rows of `b` if `b` is given.
+#[allow(clippy::type_complexity)]
+fn parts_of<'b>(
+    blocks: &Blocks,
+    points: usize,
+    b: Option<&'b mut [f64]>,
+) -> Vec<(std::ops::Range<usize>, usize, Option<&'b mut [f64]>)> {
+    let per_part = part_points(points);
+    let mut slices = Vec::with_capacity(points.div_ceil(per_part));
+    let mut rest = b;
+    for first in (0..points).step_by(per_part) {
+        let last = (first + per_part).min(points) - 1;
+        let (start, end) = (blocks.range(first).start, blocks.range(last).end);
+        let mine = match rest.take() {
+            Some(all) => {
+                let (mine, others) = all.split_at_mut(end - start);
+                rest = Some(others);
+                Some(mine)
+            }
+            None => None,
+        };
+        slices.push((first..last + 1, start, mine));
+    }
+    slices
+}
+
+/// The triangular factors of the parts, in order, reduced to one (`[R z; 0 rho]`, `p1` square).
+fn combined(parts: Vec<Part>, p1: usize) -> DMatrix<f64> {
+    match parts.len() {
+        0 => DMatrix::zeros(p1, p1),
+        1 => parts.into_iter().next().map(|part| part.factor).expect("one part"),
+        _ => {
+            let mut reducer = RowReducer::new(p1);
+            for part in &parts {
+                reducer.push(part.factor.as_slice());
+            }
+            reducer.finish()
+        }
+    }
+}
+
 /// Points per part of a reduction: about 64 parts, of at least 32 points, so that a part
 /// outweighs its overhead and a thousand points still share two cores.
 fn part_points(points: usize) -> usize {
@@ -98,22 +140,7 @@ impl Reduced {
             (Some((n, _)), None) => Some(n),
             _ => None,
         };
-        let per_part = part_points(points);
-        let mut slices = Vec::with_capacity(points.div_ceil(per_part));
-        let mut rest = b;
-        for first in (0..points).step_by(per_part) {
-            let last = (first + per_part).min(points) - 1;
-            let (start, end) = (blocks.range(first).start, blocks.range(last).end);
-            let mine = match rest.take() {
-                Some(all) => {
-                    let (mine, others) = all.split_at_mut(end - start);
-                    rest = Some(others);
-                    Some(mine)
-                }
-                None => None,
-            };
-            slices.push((first..last + 1, start, mine));
-        }
+        let slices = parts_of(blocks, points, b);
         let width = blocks.width();
         let parts: Vec<Part> = slices
             .into_par_iter()
@@ -160,17 +187,7 @@ impl Reduced {
                     .fold(DMatrix::zeros(p, p), |s, i| s + i),
             ),
         };
-        let factor = match parts.len() {
-            0 => DMatrix::zeros(p + 1, p + 1),
-            1 => parts.into_iter().next().map(|part| part.factor).expect("one part"),
-            _ => {
-                let mut reducer = RowReducer::new(p + 1);
-                for part in &parts {
-                    reducer.push(part.factor.as_slice());
-                }
-                reducer.finish()
-            }
-        };
+        let factor = combined(parts, p + 1);
         Self { factor, rows, noise, non_finite }
     }
 

@@ -170,3 +170,106 @@ fn the_check_sees_grouped_and_inline_paths() {
     assert!(first("use super::super::super::super::x;").is_empty());
     assert_eq!(without_comments("a // crate::report\n/// crate::io\nb"), "a \n\nb");
 }
+
+/// The longest function a module of the calibration may have: a longer one is several steps
+/// that want names of their own.
+const MAX_FUNCTION_LINES: usize = 80;
+
+/// Each function of `text` (`fn` at the start of a line, after any `pub`, `const` or
+/// `unsafe`) with its first line (from 1) and its length in lines, from its `fn` line to the
+/// line that closes its body. Comments, strings and character literals do not count braces.
+fn function_lengths(text: &str) -> Vec<(usize, String, usize)> {
+    let lines: Vec<String> = without_comments(text).lines().map(without_literals).collect();
+    let mut found = Vec::new();
+    let mut i = 0;
+    while i < lines.len() {
+        let Some(name) = fn_name(&lines[i]) else {
+            i += 1;
+            continue;
+        };
+        let (mut depth, mut opened, mut end) = (0i64, false, None);
+        for (j, line) in lines.iter().enumerate().skip(i) {
+            depth += line.matches('{').count() as i64 - line.matches('}').count() as i64;
+            opened |= line.contains('{');
+            if (opened && depth <= 0) || (!opened && line.contains(';')) {
+                end = Some(j);
+                break;
+            }
+        }
+        let end = end.unwrap_or(lines.len() - 1);
+        if opened {
+            found.push((i + 1, name, end - i + 1));
+        }
+        i = end + 1;
+    }
+    found
+}
+
+/// The name of the function a line declares, if it does.
+fn fn_name(line: &str) -> Option<String> {
+    let mut rest = line.trim_start();
+    for prefix in ["pub(crate) ", "pub(super) ", "pub ", "const ", "unsafe ", "async "] {
+        rest = rest.strip_prefix(prefix).unwrap_or(rest);
+    }
+    rest.strip_prefix("fn ").map(first_name)
+}
+
+/// `line` with its string and character literals emptied (their braces are not code).
+fn without_literals(line: &str) -> String {
+    let mut out = String::new();
+    let mut chars = line.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '"' => {
+                while let Some(d) = chars.next() {
+                    match d {
+                        '\\' => {
+                            chars.next();
+                        }
+                        '"' => break,
+                        _ => {}
+                    }
+                }
+                out.push_str("\"\"");
+            }
+            '\'' if chars.clone().nth(1) == Some('\'') || chars.peek() == Some(&'\\') => {
+                // A character literal ('{', '\n'); a lifetime ('a) is left as it is.
+                for d in chars.by_ref() {
+                    if d == '\'' {
+                        break;
+                    }
+                }
+                out.push_str("' '");
+            }
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+#[test]
+fn no_function_of_the_calibration_is_over_80_lines() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/calibration");
+    let mut files = Vec::new();
+    visit(&dir, &mut files);
+    let mut seen = 0;
+    let mut long = Vec::new();
+    for file in &files {
+        let text = std::fs::read_to_string(file).unwrap();
+        for (line, name, length) in function_lengths(&text) {
+            seen += 1;
+            if length > MAX_FUNCTION_LINES {
+                long.push(format!("{}:{line}: `{name}` is {length} lines", file.display()));
+            }
+        }
+    }
+    assert!(seen > 200, "the check read too few functions ({seen}): is it reading src/calibration?");
+    assert!(long.is_empty(), "functions over {MAX_FUNCTION_LINES} lines:\n{}", long.join("\n"));
+}
+
+#[test]
+fn the_length_check_counts_bodies_not_braces_in_text() {
+    let text = "pub(crate) fn a(x: u8) -> u8 {\n    let s = \"{{\"; let c = '{';\n    x\n}\n\
+                fn declared(&self);\nfn b<'a>(v: &'a str) {\n    // }\n    if true {\n    }\n}\n";
+    assert_eq!(function_lengths(text), [(1, "a".to_string(), 4), (6, "b".to_string(), 5)]);
+}

@@ -890,28 +890,11 @@ impl KindColumns {
         units: Units,
         data: &mut KindData,
     ) -> Result<(), DataError> {
-        let optional = |c: Option<usize>| c.filter(|&c| !row.cells[c].is_empty());
-        let (default_mm, default_deg) = match kind {
-            RowKind::Camera => (DEFAULT_CAMERA_SIGMA_MM, DEFAULT_CAMERA_SIGMA_DEG),
-            _ => (DEFAULT_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG),
-        };
-        let s = match optional(self.sigma) {
-            Some(c) => positive(table, row, c, units.length_scale())?,
-            None => default_mm,
-        };
-        let s_angle = match optional(self.sigma_angle) {
-            Some(c) => units.angle(positive(table, row, c, 1.0)?),
-            None => default_deg.to_radians(),
-        };
-        let assumed = (optional(self.sigma).is_none(), optional(self.sigma_angle).is_none());
+        let sigmas = self.sigmas(table, row, kind, units)?;
+        let s = sigmas.length;
         let pose = data.joints.len();
         data.joints.push(table.joint_values(row, &self.joints, model, units)?);
-        let push = |data: &mut KindData, o: Observation| {
-            data.assumed_sigmas += usize::from(if o.is_angle() { assumed.1 } else { assumed.0 });
-            data.observations.push(o);
-            data.lines.push(row.line);
-        };
-        match kind {
+        let observations = match kind {
             RowKind::Pair => {
                 let second = self.second.as_ref().ok_or_else(|| {
                     DataError::new(
@@ -922,90 +905,155 @@ impl KindColumns {
                 })?;
                 let c = self.needed(row, self.distance, "distance")?;
                 let measured = positive(table, row, c, units.length_scale())?;
-                push(data, Observation::Distance { a: pose, b: pose + 1, measured, sigma: s });
                 data.joints.push(table.joint_values(row, second, model, units)?);
+                vec![Observation::Distance { a: pose, b: pose + 1, measured, sigma: s }]
             }
             RowKind::ToPoint => {
                 let c = self.needed(row, self.distance, "distance")?;
                 let measured = positive(table, row, c, units.length_scale())?;
-                let point = optional(self.point).map_or(Ok(0), |c| id(table, row, c))?;
-                push(data, Observation::ToPoint { pose, point, measured, sigma: s });
+                let point = self.optional(row, self.point).map_or(Ok(0), |c| id(table, row, c))?;
+                vec![Observation::ToPoint { pose, point, measured, sigma: s }]
             }
             RowKind::Contact => {
                 let c = self.needed(row, self.plane, "plane")?;
-                push(data, Observation::Contact { pose, plane: id(table, row, c)?, sigma: s });
+                vec![Observation::Contact { pose, plane: id(table, row, c)?, sigma: s }]
             }
-            RowKind::Camera => {
-                let c = self.needed(row, self.camera, "camera")?;
-                let site = match row.cells[c].as_str() {
-                    "hand" => CameraSite::Hand,
-                    "world" => CameraSite::World,
-                    other => {
-                        let message = format!("`{other}`: expected hand (on the arm) or world (fixed)");
-                        return Err(DataError::new(row.line, Some("camera"), message));
-                    }
-                };
-                if let Some(first) = data.camera()
-                    && first != site
-                {
-                    let message = format!(
-                        "a camera on the {}, the earlier rows' is on the {}: one camera per file",
-                        site.name(),
-                        first.name()
-                    );
-                    return Err(DataError::new(row.line, Some("camera"), message));
-                }
-                let mut v = [0.0; 6];
-                for (axis, name) in ["x", "y", "z", "roll", "pitch", "yaw"].into_iter().enumerate() {
-                    let c = self.needed(row, self.axes[axis], name)?;
-                    let value = table.number(row, c)?;
-                    v[axis] = match axis < 3 {
-                        true => table.within(row, c, value * units.length_scale(), MAX_LENGTH_MM, "mm")?,
-                        false => units.angle(value),
-                    };
-                }
-                let rotation = UnitQuaternion::from_euler_angles(v[3], v[4], v[5]).scaled_axis();
-                let view = Vector6::new(v[0], v[1], v[2], rotation.x, rotation.y, rotation.z);
-                for axis in 0..6 {
-                    let sigma = if axis < 3 { s } else { s_angle };
-                    push(data, Observation::Camera { axis, pose, view, site, sigma });
-                }
-            }
-            RowKind::Markers => {
-                let mut any = false;
-                for &(k, cells) in &self.markers {
-                    for (axis, c) in cells.into_iter().enumerate() {
-                        let Some(c) = optional(Some(c)) else { continue };
-                        let v = table.number(row, c)? * units.length_scale();
-                        let measured = table.within(row, c, v, MAX_LENGTH_MM, "mm")?;
-                        push(data, Observation::Marker { marker: k - 1, axis, pose, measured, sigma: s });
-                        any = true;
-                    }
-                }
-                if !any {
-                    return Err(DataError::new(row.line, None, "no marker coordinate: every cell is empty"));
-                }
-            }
-            RowKind::Coordinates => {
-                let mut any = false;
-                for (axis, c) in self.axes.iter().enumerate() {
-                    let Some(c) = optional(*c) else { continue };
-                    let v = table.number(row, c)?;
-                    let (measured, sigma) = if axis < 3 {
-                        (table.within(row, c, v * units.length_scale(), MAX_LENGTH_MM, "mm")?, s)
-                    } else {
-                        (units.angle(v), s_angle)
-                    };
-                    push(data, Observation::Coordinate { pose, axis, measured, sigma });
-                    any = true;
-                }
-                if !any {
-                    let message = "no coordinate: give at least one of x, y, z, roll, pitch, yaw";
-                    return Err(DataError::new(row.line, None, message));
-                }
-            }
+            RowKind::Camera => self.camera_row(table, row, pose, &sigmas, units, data.camera())?,
+            RowKind::Markers => self.marker_row(table, row, pose, s, units)?,
+            RowKind::Coordinates => self.coordinate_row(table, row, pose, &sigmas, units)?,
+        };
+        for o in observations {
+            let assumed = if o.is_angle() { sigmas.assumed.1 } else { sigmas.assumed.0 };
+            data.assumed_sigmas += usize::from(assumed);
+            data.observations.push(o);
+            data.lines.push(row.line);
         }
         Ok(())
+    }
+
+    /// `column` of `row` if the file has it and the cell is not empty.
+    fn optional(&self, row: &Row, column: Option<usize>) -> Option<usize> {
+        column.filter(|&c| !row.cells[c].is_empty())
+    }
+
+    /// The sigmas of `row` (its `sigma` and `sigma_angle` cells, or the defaults of its `kind`).
+    fn sigmas(&self, table: &Table, row: &Row, kind: RowKind, units: Units) -> Result<RowSigmas, DataError> {
+        let (default_mm, default_deg) = match kind {
+            RowKind::Camera => (DEFAULT_CAMERA_SIGMA_MM, DEFAULT_CAMERA_SIGMA_DEG),
+            _ => (DEFAULT_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG),
+        };
+        let (length, angle) = (self.optional(row, self.sigma), self.optional(row, self.sigma_angle));
+        Ok(RowSigmas {
+            length: match length {
+                Some(c) => positive(table, row, c, units.length_scale())?,
+                None => default_mm,
+            },
+            angle: match angle {
+                Some(c) => units.angle(positive(table, row, c, 1.0)?),
+                None => default_deg.to_radians(),
+            },
+            assumed: (length.is_none(), angle.is_none()),
+        })
+    }
+
+    /// A camera's view of `row`: six observations, the camera's site the same as the earlier
+    /// rows' (`first`).
+    fn camera_row(
+        &self,
+        table: &Table,
+        row: &Row,
+        pose: usize,
+        sigmas: &RowSigmas,
+        units: Units,
+        first: Option<CameraSite>,
+    ) -> Result<Vec<Observation>, DataError> {
+        let c = self.needed(row, self.camera, "camera")?;
+        let site = match row.cells[c].as_str() {
+            "hand" => CameraSite::Hand,
+            "world" => CameraSite::World,
+            other => {
+                let message = format!("`{other}`: expected hand (on the arm) or world (fixed)");
+                return Err(DataError::new(row.line, Some("camera"), message));
+            }
+        };
+        if let Some(first) = first
+            && first != site
+        {
+            let message = format!(
+                "a camera on the {}, the earlier rows' is on the {}: one camera per file",
+                site.name(),
+                first.name()
+            );
+            return Err(DataError::new(row.line, Some("camera"), message));
+        }
+        let mut v = [0.0; 6];
+        for (axis, name) in ["x", "y", "z", "roll", "pitch", "yaw"].into_iter().enumerate() {
+            let c = self.needed(row, self.axes[axis], name)?;
+            let value = table.number(row, c)?;
+            v[axis] = match axis < 3 {
+                true => table.within(row, c, value * units.length_scale(), MAX_LENGTH_MM, "mm")?,
+                false => units.angle(value),
+            };
+        }
+        let rotation = UnitQuaternion::from_euler_angles(v[3], v[4], v[5]).scaled_axis();
+        let view = Vector6::new(v[0], v[1], v[2], rotation.x, rotation.y, rotation.z);
+        Ok((0..6)
+            .map(|axis| {
+                let sigma = if axis < 3 { sigmas.length } else { sigmas.angle };
+                Observation::Camera { axis, pose, view, site, sigma }
+            })
+            .collect())
+    }
+
+    /// The marker coordinates of `row` (its non-empty cells: at least one), each with `sigma`.
+    fn marker_row(
+        &self,
+        table: &Table,
+        row: &Row,
+        pose: usize,
+        sigma: f64,
+        units: Units,
+    ) -> Result<Vec<Observation>, DataError> {
+        let mut observations = Vec::new();
+        for &(k, cells) in &self.markers {
+            for (axis, c) in cells.into_iter().enumerate() {
+                let Some(c) = self.optional(row, Some(c)) else { continue };
+                let v = table.number(row, c)? * units.length_scale();
+                let measured = table.within(row, c, v, MAX_LENGTH_MM, "mm")?;
+                observations.push(Observation::Marker { marker: k - 1, axis, pose, measured, sigma });
+            }
+        }
+        if observations.is_empty() {
+            return Err(DataError::new(row.line, None, "no marker coordinate: every cell is empty"));
+        }
+        Ok(observations)
+    }
+
+    /// The coordinates of `row` (x, y, z in mm and roll, pitch, yaw: at least one).
+    fn coordinate_row(
+        &self,
+        table: &Table,
+        row: &Row,
+        pose: usize,
+        sigmas: &RowSigmas,
+        units: Units,
+    ) -> Result<Vec<Observation>, DataError> {
+        let mut observations = Vec::new();
+        for (axis, c) in self.axes.iter().enumerate() {
+            let Some(c) = self.optional(row, *c) else { continue };
+            let v = table.number(row, c)?;
+            let (measured, sigma) = if axis < 3 {
+                (table.within(row, c, v * units.length_scale(), MAX_LENGTH_MM, "mm")?, sigmas.length)
+            } else {
+                (units.angle(v), sigmas.angle)
+            };
+            observations.push(Observation::Coordinate { pose, axis, measured, sigma });
+        }
+        if observations.is_empty() {
+            let message = "no coordinate: give at least one of x, y, z, roll, pitch, yaw";
+            return Err(DataError::new(row.line, None, message));
+        }
+        Ok(observations)
     }
 }
 
@@ -1033,4 +1081,11 @@ fn id(table: &Table, row: &Row, column: usize) -> Result<usize, DataError> {
         ));
     }
     Ok(v as usize - 1)
+}
+
+/// A row's measurement sigmas: lengths (mm), angles (rad), and whether each is the default.
+struct RowSigmas {
+    length: f64,
+    angle: f64,
+    assumed: (bool, bool),
 }
