@@ -433,10 +433,8 @@ pub struct CalibrateObservationsRequest {
     pub auto_prior: Option<robocal::calibration::prior_scale::AutoPrior>,
     /// The loss of each observation.
     pub loss: robocal::calibration::Loss,
-    /// Where the JSON report goes.
-    pub json: Option<PathBuf>,
-    /// Where the HTML page goes.
-    pub html: Option<PathBuf>,
+    /// Where the JSON report, the CSV of every residual, the figures and the HTML page go.
+    pub report: ReportArgs,
     /// Where the calibrated model TOML goes.
     pub out_model: Option<PathBuf>,
     /// Where the calibrated URDF goes (URDF input only).
@@ -497,11 +495,10 @@ impl CalibrateObservationsRequest {
         distinct_outputs(
             &inputs,
             &[
-                ("--json", args.json.as_deref()),
-                ("--html", args.html.as_deref()),
-                ("--out-model", args.out_model.as_deref()),
-                ("--out-urdf", args.out_urdf.as_deref()),
-            ],
+                args.report.outputs().as_slice(),
+                &[("--out-model", args.out_model.as_deref()), ("--out-urdf", args.out_urdf.as_deref())],
+            ]
+            .concat(),
         )?;
         if !args.per_session.is_empty() {
             require(
@@ -542,8 +539,7 @@ impl CalibrateObservationsRequest {
             markers: args.marker,
             iterations: args.iterations,
             validate: args.validate,
-            json: args.json,
-            html: args.html,
+            report: args.report,
             out_model: args.out_model,
             out_urdf: args.out_urdf,
         })
@@ -868,10 +864,8 @@ pub struct CalibrateTreeRequest {
     pub validate: Vec<PathBuf>,
     /// `--folds k`: the k-fold cross-validation of the training poses.
     pub folds: Option<usize>,
-    /// Where the JSON report goes.
-    pub json: Option<PathBuf>,
-    /// Where the HTML page goes.
-    pub html: Option<PathBuf>,
+    /// Where the JSON report, the CSV of every residual, the figures and the HTML page go.
+    pub report: ReportArgs,
     /// Where the calibrated branches go.
     pub out_dir: Option<PathBuf>,
 }
@@ -903,11 +897,7 @@ impl CalibrateTreeRequest {
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
         distinct_outputs(
             &inputs,
-            &[
-                ("--json", args.json.as_deref()),
-                ("--html", args.html.as_deref()),
-                ("--out-dir", args.out_dir.as_deref()),
-            ],
+            &[args.report.outputs().as_slice(), &[("--out-dir", args.out_dir.as_deref())]].concat(),
         )?;
         Ok(Self {
             model: args.model,
@@ -926,8 +916,7 @@ impl CalibrateTreeRequest {
             loss: args.choice.loss,
             validate: args.validate,
             folds: args.folds,
-            json: args.json,
-            html: args.html,
+            report: args.report,
             out_dir: args.out_dir,
         })
     }
