@@ -532,18 +532,29 @@ pub struct EvaluateArgs {
     /// it).
     #[arg(long)]
     pub model: String,
-    /// URDF: the link the chain starts from.
-    #[arg(long, default_value = "measuring_frame")]
-    pub base_link: String,
+    /// URDF: the link the chain starts from (default: `measuring_frame`; for a tree, its
+    /// root link).
+    #[arg(long)]
+    pub base_link: Option<String>,
     /// URDF: the link the chain ends at (its markers are the `marker_<k>` links beside it).
     #[arg(long, default_value = "tool")]
     pub tip_link: String,
+    /// A URDF tree's branches: their tip links, comma-separated, as `calibrate --tips` takes
+    /// them (with views between branches, default: every leaf link with a moving joint on its
+    /// way).
+    #[arg(long, value_delimiter = ',')]
+    pub tips: Vec<String>,
+    /// A URDF tree: score the branches as `calibrate --out-dir` wrote them in this folder
+    /// (`<tip>.toml`), the tree's joints taken from them.
+    #[arg(long, value_name = "DIR")]
+    pub branches: Option<PathBuf>,
     #[command(flatten)]
     pub payload: PayloadArgs,
     /// Files to score (CSV); repeatable, or several after one --data. A marker file is scored
     /// as it stands (no registration); a file of any other kind (distances, contacts,
     /// coordinates, camera views) with its set-up (pivots, planes, camera and target) fitted
-    /// to it, the model and its tool point held.
+    /// to it, the model and its tool point held; a file of views between a tree's branches
+    /// with its cameras and targets fitted, the tree held.
     #[arg(long, required = true, num_args = 1..)]
     pub data: Vec<PathBuf>,
     #[command(flatten)]

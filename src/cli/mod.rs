@@ -6,6 +6,7 @@ mod args;
 mod calibrate;
 mod compensate;
 mod evaluate;
+mod evaluate_tree;
 mod fk;
 mod manual;
 mod model;

@@ -561,20 +561,32 @@ pub struct EvaluateRequest {
     pub marker_ids: Option<Vec<usize>>,
     /// Where the JSON, CSV, figures and HTML go.
     pub report: ReportArgs,
+    /// A URDF tree's branches (`--tips`), to score views between them.
+    pub tips: Vec<String>,
+    /// A tree's branches as `calibrate --out-dir` wrote them, if given.
+    pub branches: Option<PathBuf>,
+    /// `--base-link` as given: for a tree, the link its branches start from (default: its
+    /// root link).
+    pub tree_root: Option<String>,
 }
 
 impl EvaluateRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: EvaluateArgs) -> Result<Self, UsageError> {
         // A calibrated URDF: the chain from its measuring frame to its tool, by default.
+        let tree = !args.tips.is_empty() || args.branches.is_some();
         let links = ModelRef {
             name: args.model,
-            base_link: Some(args.base_link),
+            base_link: Some(args.base_link.clone().unwrap_or_else(|| "measuring_frame".into())),
             tip_link: Some(args.tip_link),
             payload: args.payload.payload()?,
         };
         let model =
             if links.is_urdf() { links } else { ModelRef { base_link: None, tip_link: None, ..links } };
+        require(
+            !tree || model.is_urdf(),
+            "--tips and --branches: a tree's branches are read from its URDF file; give it to --model",
+        )?;
         let noise = noise_source(args.noise, &args.noise_flags)?;
         let mut inputs = vec![("--model", Path::new(&model.name))];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
@@ -589,6 +601,9 @@ impl EvaluateRequest {
             noise,
             marker_ids: args.markers,
             report: args.report,
+            tips: args.tips,
+            branches: args.branches,
+            tree_root: args.base_link,
         })
     }
 }
