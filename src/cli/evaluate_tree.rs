@@ -38,12 +38,15 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
         );
     }
     if request.report.figures.is_some() {
-        bail!("--figures: not for a tree's views in evaluate yet (calibrate --figures draws them before and after)");
+        bail!(
+            "--figures: not for a tree's views in evaluate yet (calibrate --figures draws them before and after)"
+        );
     }
     let tree = load_tree(request)?;
     let files = (request.data.iter())
         .map(|path| {
-            let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+            let text =
+                std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
             let data = TreeData::from_csv_str(&text, &tree, request.units.clone())
                 .with_context(|| path.display().to_string())?;
             Ok((path.display().to_string(), data))
@@ -65,7 +68,8 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
     };
     let sets = (files.iter().zip(&report.views))
         .map(|((name, data), (_, score))| {
-            ResidualSet::of_views(name, score, &[(name.as_str(), data)], &tree.joints).map_err(anyhow::Error::msg)
+            ResidualSet::of_views(name, score, &[(name.as_str(), data)], &tree.joints)
+                .map_err(anyhow::Error::msg)
         })
         .collect::<Result<Vec<_>>>()?;
     let title = format!("{} scored as it stands", tree.name);
@@ -97,16 +101,29 @@ fn load_tree(request: &EvaluateRequest) -> Result<RobotTree> {
         let model = io::load_model(&ModelRef::named(&path.display().to_string()))?;
         let shown = path.display();
         if model.joints.len() != branch.joints.len() {
-            bail!("{shown}: {} joints, the branch to {} has {}", model.joints.len(), branch.tip, branch.joints.len());
+            bail!(
+                "{shown}: {} joints, the branch to {} has {}",
+                model.joints.len(),
+                branch.tip,
+                branch.joints.len()
+            );
         }
         for (joint, &j) in model.joints.iter().zip(&branch.joints) {
             if joint.name != tree.joints[j].name {
-                bail!("{shown}: joint `{}` where the branch to {} has `{}`", joint.name, branch.tip, tree.joints[j].name);
+                bail!(
+                    "{shown}: joint `{}` where the branch to {} has `{}`",
+                    joint.name,
+                    branch.tip,
+                    tree.joints[j].name
+                );
             }
             if let Some(other) = &from[j]
                 && joints[j] != *joint
             {
-                bail!("{shown}: joint `{}` differs from {other}'s: one geometry on every branch it is on", joint.name);
+                bail!(
+                    "{shown}: joint `{}` differs from {other}'s: one geometry on every branch it is on",
+                    joint.name
+                );
             }
             joints[j] = joint.clone();
             from[j] = Some(shown.to_string());

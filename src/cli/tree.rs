@@ -11,8 +11,8 @@ use robocal::calibration::tree::{TreeData, TreeOptions, TreeScore};
 use robocal::estimation::RefineOptions;
 use robocal::io;
 use robocal::model::{Joint, RobotModel, RobotTree};
-use robocal::report::residuals::ResidualSet;
 use robocal::pipeline::TreeOutcome;
+use robocal::report::residuals::ResidualSet;
 use std::path::Path;
 
 /// Calibrate, print the report, write the files asked for.
@@ -87,7 +87,9 @@ fn residual_sets(
 ) -> Result<Vec<ResidualSet>> {
     let files = std::iter::once(super::by_name(sessions)).chain(held_out.chunks(1).map(super::by_name));
     (files.zip(scores))
-        .map(|(files, (name, score))| ResidualSet::of_views(name, score, &files, joints).map_err(anyhow::Error::msg))
+        .map(|(files, (name, score))| {
+            ResidualSet::of_views(name, score, &files, joints).map_err(anyhow::Error::msg)
+        })
         .collect()
 }
 

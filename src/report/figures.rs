@@ -858,7 +858,8 @@ fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
         .iter()
         .map(|set| {
             let last = set.stages.len() - 1;
-            let errors = set.poses.iter().flat_map(|p| (0..p.errors[last].len()).map(move |m| p.distance(last, m)));
+            let errors =
+                set.poses.iter().flat_map(|p| (0..p.errors[last].len()).map(move |m| p.distance(last, m)));
             (set.name.as_str(), errors.collect())
         })
         .collect();

@@ -155,7 +155,9 @@ pub fn residuals_csv(sets: &[&ResidualSet], joints: &[Joint]) -> String {
         JointKind::Revolute => format!("{}_deg", j.name),
         JointKind::Prismatic => format!("{}_mm", j.name),
     }));
-    head.extend(["before_mm", "after_mm", "before_deg", "after_deg", "whitened", "flagged"].map(String::from));
+    head.extend(
+        ["before_mm", "after_mm", "before_deg", "after_deg", "whitened", "flagged"].map(String::from),
+    );
     let mut out = head.join(",") + "\n";
     for set in sets {
         for r in &set.residuals {
@@ -199,7 +201,10 @@ fn suffix(unit: &str) -> &'static str {
 ///   set.
 ///
 /// Sets without residuals are skipped.
-pub fn residual_figures(sets: &[&ResidualSet], joints: &[Joint]) -> Result<Vec<(String, String)>, FigureError> {
+pub fn residual_figures(
+    sets: &[&ResidualSet],
+    joints: &[Joint],
+) -> Result<Vec<(String, String)>, FigureError> {
     let sets: Vec<&ResidualSet> = sets.iter().copied().filter(|s| !s.residuals.is_empty()).collect();
     let units: Vec<&str> = (["mm", "deg"].into_iter())
         .filter(|&u| sets.iter().any(|s| s.residuals.iter().any(|r| in_unit(r, u).is_some())))
@@ -207,7 +212,9 @@ pub fn residual_figures(sets: &[&ResidualSet], joints: &[Joint]) -> Result<Vec<(
     let stages = ["before".to_string(), "after".to_string()];
     let mut figures = Vec::new();
     for (i, set) in sets.iter().enumerate() {
-        let twice = sets[..i].iter().any(|s| super::figures::file_stem(&s.name) == super::figures::file_stem(&set.name));
+        let twice = sets[..i]
+            .iter()
+            .any(|s| super::figures::file_stem(&s.name) == super::figures::file_stem(&set.name));
         let number = if twice { format!("-{}", i + 1) } else { String::new() };
         for &unit in &units {
             let of: Vec<&Residual> = set.residuals.iter().filter(|r| in_unit(r, unit).is_some()).collect();
@@ -216,7 +223,11 @@ pub fn residual_figures(sets: &[&ResidualSet], joints: &[Joint]) -> Result<Vec<(
             }
             let stem = super::figures::file_stem(&set.name);
             let name = format!("errors-by-{}-{stem}{number}{}.svg", set.item, suffix(unit));
-            let size = |s: usize| of.iter().map(|r| in_unit(r, unit).map_or(0.0, |p| if s == 0 { p.0 } else { p.1 }).abs()).collect();
+            let size = |s: usize| {
+                of.iter()
+                    .map(|r| in_unit(r, unit).map_or(0.0, |p| if s == 0 { p.0 } else { p.1 }).abs())
+                    .collect()
+            };
             let bars = Bars {
                 title: format!("residual of each {}, {} ({unit})", set.item, set.name),
                 stages: &stages,
@@ -235,7 +246,12 @@ pub fn residual_figures(sets: &[&ResidualSet], joints: &[Joint]) -> Result<Vec<(
     for &unit in &units {
         let name = format!("histogram{}.svg", suffix(unit));
         let values: Vec<(&str, Vec<f64>)> = (sets.iter())
-            .map(|s| (s.name.as_str(), s.residuals.iter().filter_map(|r| in_unit(r, unit)).map(|p| p.1.abs()).collect()))
+            .map(|s| {
+                (
+                    s.name.as_str(),
+                    s.residuals.iter().filter_map(|r| in_unit(r, unit)).map(|p| p.1.abs()).collect(),
+                )
+            })
             .collect();
         let what = format!("{} residuals after calibration", sets[0].item);
         figures.push((name.clone(), density_figure(&what, &values, unit).map_err(|m| error(&name, m))?));
@@ -252,7 +268,18 @@ fn joint_figures(
 ) -> Result<Vec<(String, String)>, FigureError> {
     let signed = sets.iter().all(|s| s.signed);
     let components: Vec<(&str, &str)> = (units.iter())
-        .map(|&u| (if signed { "residual" } else if u == "mm" { "|position error|" } else { "|rotation error|" }, u))
+        .map(|&u| {
+            (
+                if signed {
+                    "residual"
+                } else if u == "mm" {
+                    "|position error|"
+                } else {
+                    "|rotation error|"
+                },
+                u,
+            )
+        })
         .collect();
     let mut figures = Vec::new();
     for (j, joint) in joints.iter().enumerate() {
@@ -262,7 +289,9 @@ fn joint_figures(
         let points = (units.iter())
             .map(|&u| {
                 (sets.iter())
-                    .map(|s| s.residuals.iter().filter_map(|r| Some((r.joints[j], in_unit(r, u)?.1))).collect())
+                    .map(|s| {
+                        s.residuals.iter().filter_map(|r| Some((r.joints[j], in_unit(r, u)?.1))).collect()
+                    })
                     .collect()
             })
             .collect();

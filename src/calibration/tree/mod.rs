@@ -574,7 +574,12 @@ pub fn evaluate_tree(
     data: &TreeData,
     options: &TreeOptions,
 ) -> Result<TreeScore, CalibrationError> {
-    let held = TreeOptions { joints: JointParams::None, prior: Vec::new(), gauge: Gauge::default(), ..options.clone() };
+    let held = TreeOptions {
+        joints: JointParams::None,
+        prior: Vec::new(),
+        gauge: Gauge::default(),
+        ..options.clone()
+    };
     Ok(calibrate_tree(tree, data, &held)?.training)
 }
 

@@ -538,7 +538,10 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
         }
         other => panic!("{other:?}"),
     }
-    assert!(refused(&[TreeViews], &["--tips", "a,b", "--poses-csv", "f0.csv"]).contains("f0.csv"), "an input overwritten");
+    assert!(
+        refused(&[TreeViews], &["--tips", "a,b", "--poses-csv", "f0.csv"]).contains("f0.csv"),
+        "an input overwritten"
+    );
     assert!(refused(&[Observations], &["--html", "r.html", "--json", "r.html"]).contains("r.html"));
     assert!(refused(&[Markers, Markers], &["--fixed-base"]).starts_with("--fixed-base"));
     assert!(refused(&[Observations], &["--noise", "n.toml"]).contains("sigma columns"));
