@@ -47,7 +47,7 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
         .map(|path| {
             let text =
                 std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-            let data = TreeData::from_csv_str(&text, &tree, request.units.clone())
+            let data = TreeData::from_csv_str(&text, &tree, request.units)
                 .with_context(|| path.display().to_string())?;
             Ok((path.display().to_string(), data))
         })
@@ -98,7 +98,7 @@ fn load_tree(request: &EvaluateRequest) -> Result<RobotTree> {
     let mut from: Vec<Option<String>> = vec![None; tree.dof()];
     for branch in &tree.branches {
         let path = folder.join(format!("{}.toml", branch.tip));
-        let model = io::load_model(&ModelRef::named(&path.display().to_string()))?;
+        let model = io::load_model(&ModelRef::named(path.display().to_string()))?;
         let shown = path.display();
         if model.joints.len() != branch.joints.len() {
             bail!(
