@@ -37,11 +37,6 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
             path.display()
         );
     }
-    if request.report.figures.is_some() {
-        bail!(
-            "--figures: not for a tree's views in evaluate yet (calibrate --figures draws them before and after)"
-        );
-    }
     let tree = load_tree(request)?;
     let files = (request.data.iter())
         .map(|path| {
@@ -68,8 +63,8 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
     };
     let sets = (files.iter().zip(&report.views))
         .map(|((name, data), (_, score))| {
-            ResidualSet::of_views(name, score, &[(name.as_str(), data)], &tree.joints)
-                .map_err(anyhow::Error::msg)
+            let set = ResidualSet::of_views(name, score, &[(name.as_str(), data)], &tree.joints);
+            Ok(set.map_err(anyhow::Error::msg)?.at_one_stage("as it stands"))
         })
         .collect::<Result<Vec<_>>>()?;
     let title = format!("{} scored as it stands", tree.name);

@@ -53,6 +53,9 @@ pub struct ResidualSet {
     pub item: &'static str,
     /// Whether the residuals are signed (an observation's `m - f`) or norms (a view's).
     pub signed: bool,
+    /// The stages drawn: `before` and `after` a calibration, or one (`as it stands`: a model
+    /// scored by `evaluate`, whose residuals' `after` it draws).
+    pub stages: Vec<String>,
     /// Every residual, in the files' order.
     pub residuals: Vec<Residual>,
 }
@@ -103,7 +106,13 @@ impl ResidualSet {
                 });
             }
         }
-        Ok(Self { name: name.to_string(), item: "observation", signed: true, residuals })
+        Ok(Self {
+            name: name.to_string(),
+            item: "observation",
+            signed: true,
+            stages: before_after(),
+            residuals,
+        })
     }
 
     /// The set `name` of view files `files` (each a name and its views, in the order they
@@ -135,7 +144,20 @@ impl ResidualSet {
                 });
             }
         }
-        Ok(Self { name: name.to_string(), item: "view", signed: false, residuals })
+        Ok(Self { name: name.to_string(), item: "view", signed: false, stages: before_after(), residuals })
+    }
+}
+
+/// A calibration's stages: `before` and `after`.
+fn before_after() -> Vec<String> {
+    vec!["before".to_string(), "after".to_string()]
+}
+
+/// The same set scored as it stands (`evaluate`): one stage, its residuals' `after`.
+impl ResidualSet {
+    /// The set drawn at one stage, `stage` (its residuals' `after`).
+    pub fn at_one_stage(self, stage: &str) -> Self {
+        Self { stages: vec![stage.to_string()], ..self }
     }
 }
 
@@ -195,11 +217,13 @@ fn suffix(unit: &str) -> &'static str {
 /// - `errors-by-<item>-<set>.svg`: each residual's size `|r|` before and after on one scale,
 ///   bars in the files' order labelled by line, and after on its own scale (the ratio
 ///   written) when it is under a third of before; the flagged ones crossed;
-/// - `histogram.svg`: the density of the sizes after calibration, each set on the same bins;
+/// - `histogram.svg`: the density of the sizes after calibration (at the last stage), each
+///   set on the same bins;
 /// - `error-vs-<joint>.svg`: each residual after calibration (an observation's signed, a
 ///   view's norm) against the joint's value at its pose, one panel per unit, one colour per
 ///   set.
 ///
+/// A set at one stage ([`ResidualSet::at_one_stage`]) has one bar per residual, its `after`.
 /// Sets without residuals are skipped.
 pub fn residual_figures(
     sets: &[&ResidualSet],
@@ -209,7 +233,6 @@ pub fn residual_figures(
     let units: Vec<&str> = (["mm", "deg"].into_iter())
         .filter(|&u| sets.iter().any(|s| s.residuals.iter().any(|r| in_unit(r, u).is_some())))
         .collect();
-    let stages = ["before".to_string(), "after".to_string()];
     let mut figures = Vec::new();
     for (i, set) in sets.iter().enumerate() {
         let twice = sets[..i]
@@ -223,18 +246,20 @@ pub fn residual_figures(
             }
             let stem = super::figures::file_stem(&set.name);
             let name = format!("errors-by-{}-{stem}{number}{}.svg", set.item, suffix(unit));
-            let size = |s: usize| {
+            // The last stage is after; with two, the first is before.
+            let size = |before: bool| {
                 of.iter()
-                    .map(|r| in_unit(r, unit).map_or(0.0, |p| if s == 0 { p.0 } else { p.1 }).abs())
+                    .map(|r| in_unit(r, unit).map_or(0.0, |p| if before { p.0 } else { p.1 }).abs())
                     .collect()
             };
+            let last = set.stages.len() - 1;
             let bars = Bars {
                 title: format!("residual of each {}, {} ({unit})", set.item, set.name),
-                stages: &stages,
+                stages: &set.stages,
                 item: set.item,
                 unit,
                 lines: of.iter().map(|r| r.line).collect(),
-                values: vec![size(0), size(1)],
+                values: (0..=last).map(|s| size(s < last)).collect(),
                 flagged: of.iter().map(|r| r.flagged()).collect(),
             };
             figures.push((name.clone(), bar_figure(&bars).map_err(|m| error(&name, m))?));
@@ -253,7 +278,7 @@ pub fn residual_figures(
                 )
             })
             .collect();
-        let what = format!("{} residuals after calibration", sets[0].item);
+        let what = format!("{} residuals, {}", sets[0].item, stage(&sets));
         figures.push((name.clone(), density_figure(&what, &values, unit).map_err(|m| error(&name, m))?));
     }
     figures.extend(joint_figures(&sets, joints, &units)?);
@@ -297,7 +322,7 @@ fn joint_figures(
             .collect();
         let what = if signed { "residuals (measured - predicted)" } else { "view errors" };
         let against = Against {
-            title: format!("{what} after calibration, against {x_label}"),
+            title: format!("{what}, {}, against {x_label}", stage(sets)),
             sets: sets.iter().map(|s| s.name.as_str()).collect(),
             components: &components,
             points,
@@ -307,6 +332,12 @@ fn joint_figures(
         figures.push((name.clone(), against_figure(&against).map_err(|m| error(&name, m))?));
     }
     Ok(figures)
+}
+
+/// The last stage of `sets` (`after`; `as it stands`), which the histogram and the figures
+/// against the joints draw.
+fn stage(sets: &[&ResidualSet]) -> String {
+    sets[0].stages.last().map_or_else(String::new, Clone::clone)
 }
 
 /// A figure that could not be drawn.
