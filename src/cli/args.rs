@@ -490,13 +490,8 @@ pub struct CalibrateObservationsArgs {
     /// (priors, loss, sessions) on the others; their held-out residuals pooled as a set.
     #[arg(long, value_parser = parse_count::<2>)]
     pub folds: Option<usize>,
-    /// Write the report as JSON here.
-    #[arg(long)]
-    pub json: Option<PathBuf>,
-    /// Write the report as a self-contained HTML page here: the verdict first, the parameters
-    /// with their 95% intervals drawn, what was held, the text report in full.
-    #[arg(long)]
-    pub html: Option<PathBuf>,
+    #[command(flatten)]
+    pub report: ReportArgs,
     /// Write the calibrated model (TOML; its tool the calibrated tool point) here.
     #[arg(long)]
     pub out_model: Option<PathBuf>,
@@ -513,12 +508,15 @@ pub struct ReportArgs {
     /// Write the report as JSON here (every pose of every set included).
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// Write every pose of every set here (CSV: one row per pose and marker; errors before and
-    /// after, whitened residual, flag).
+    /// Write every pose of every set here (CSV; `-`: standard output): for a marker file one
+    /// row per pose and marker (errors before and after, whitened residual, flag); for
+    /// observation files and a tree's views one row per observation or view (file, line,
+    /// kind, pose, joint values, residual before and after in mm or deg, whitened, flag).
     #[arg(long, value_name = "FILE")]
     pub poses_csv: Option<PathBuf>,
-    /// Write the figures here (SVG): per-pose errors, the errors' densities, the signed errors
-    /// against each joint (and its gravity load, for a model with masses).
+    /// Write the figures here (SVG): per-pose (per-observation, per-view) errors before and
+    /// after on one scale, the errors' densities, the errors against each joint (and its
+    /// gravity load, for a model with masses), the curve --prior auto chose its scale from.
     #[arg(long, value_name = "DIR")]
     pub figures: Option<PathBuf>,
     /// Write one self-contained HTML page here: the report's tables and figures inline.
@@ -534,18 +532,29 @@ pub struct EvaluateArgs {
     /// it).
     #[arg(long)]
     pub model: String,
-    /// URDF: the link the chain starts from.
-    #[arg(long, default_value = "measuring_frame")]
-    pub base_link: String,
+    /// URDF: the link the chain starts from (default: `measuring_frame`; for a tree, its
+    /// root link).
+    #[arg(long)]
+    pub base_link: Option<String>,
     /// URDF: the link the chain ends at (its markers are the `marker_<k>` links beside it).
     #[arg(long, default_value = "tool")]
     pub tip_link: String,
+    /// A URDF tree's branches: their tip links, comma-separated, as `calibrate --tips` takes
+    /// them (with views between branches, default: every leaf link with a moving joint on its
+    /// way).
+    #[arg(long, value_delimiter = ',')]
+    pub tips: Vec<String>,
+    /// A URDF tree: score the branches as `calibrate --out-dir` wrote them in this folder
+    /// (`<tip>.toml`), the tree's joints taken from them.
+    #[arg(long, value_name = "DIR")]
+    pub branches: Option<PathBuf>,
     #[command(flatten)]
     pub payload: PayloadArgs,
     /// Files to score (CSV); repeatable, or several after one --data. A marker file is scored
     /// as it stands (no registration); a file of any other kind (distances, contacts,
     /// coordinates, camera views) with its set-up (pivots, planes, camera and target) fitted
-    /// to it, the model and its tool point held.
+    /// to it, the model and its tool point held; a file of views between a tree's branches
+    /// with its cameras and targets fitted, the tree held.
     #[arg(long, required = true, num_args = 1..)]
     pub data: Vec<PathBuf>,
     #[command(flatten)]
@@ -868,13 +877,8 @@ pub struct CalibrateTreeArgs {
     /// their held-out residuals pooled as a set.
     #[arg(long, value_parser = parse_count::<2>)]
     pub folds: Option<usize>,
-    /// Write the report as JSON here.
-    #[arg(long)]
-    pub json: Option<PathBuf>,
-    /// Write the report as a self-contained HTML page here: the verdict first, the parameters
-    /// with their 95% intervals drawn, what was held, the text report in full.
-    #[arg(long)]
-    pub html: Option<PathBuf>,
+    #[command(flatten)]
+    pub report: ReportArgs,
     /// Write each branch's calibrated model here, as `<tip>.toml` (a serial model TOML that
     /// every other command reads), and the cameras and targets as `frames.json`. The branches
     /// are right relative to each other; their placement in the root link's frame is what the

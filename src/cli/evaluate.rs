@@ -6,7 +6,7 @@ use super::request::EvaluateRequest;
 use super::{ReportContent, write_report_files};
 use anyhow::{Context, Result};
 use robocal::calibration::kinds::{KindData, KindOptions, Score, evaluate_kinds};
-use robocal::calibration::{SetEvaluation, evaluate_model, pool};
+use robocal::calibration::{DataKind, SetEvaluation, evaluate_model, pool};
 use robocal::io;
 use robocal::report::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
 use serde::Serialize;
@@ -30,6 +30,10 @@ struct EvaluationReport {
 
 /// Score the model on every file, print the tables, write the files asked for.
 pub fn run(request: &EvaluateRequest) -> Result<()> {
+    let kinds = (request.data.iter()).map(|path| io::data_kind(path)).collect::<Result<Vec<_>, _>>()?;
+    if !request.tips.is_empty() || request.branches.is_some() || kinds.contains(&DataKind::TreeViews) {
+        return super::evaluate_tree::run(request, &kinds);
+    }
     let model = io::load_model(&request.model)?;
     let path = Path::new(&request.model.name);
     let markers = if request.model.is_urdf() {

@@ -6,6 +6,7 @@ mod args;
 mod calibrate;
 mod compensate;
 mod evaluate;
+mod evaluate_tree;
 mod fk;
 mod manual;
 mod model;
@@ -238,6 +239,57 @@ fn write_report_files(
         outputs.add(path, page);
     }
     Ok(())
+}
+
+/// What a calibration of observation files or of a tree's views reports: its JSON and page,
+/// each scored set's residuals (the training files', each held-out file's) and the choices
+/// made from the data.
+struct ResidualContent<'a> {
+    json: String,
+    page: String,
+    sets: Vec<robocal::report::residuals::ResidualSet>,
+    /// The robot's (the tree's) joints, in the order of each residual's joint values.
+    joints: &'a [robocal::model::Joint],
+    /// `--prior auto`'s scale and curve, if it chose one.
+    prior_scale: Option<&'a robocal::calibration::prior_scale::PriorScale>,
+    /// `--select`'s path, if it chose the parameters.
+    selection: Option<&'a robocal::report::calibration::SelectionReport>,
+}
+
+/// Stage in `outputs` the files of `report` that were asked for: the JSON, every residual
+/// (CSV), the figures (SVG) and the page, as [`write_report_files`] stages a marker file's.
+fn write_residual_files(
+    report: &ReportArgs,
+    content: ResidualContent<'_>,
+    outputs: &mut io::Outputs,
+) -> Result<()> {
+    use robocal::report::{figures, residuals};
+    if let Some(path) = &report.json {
+        outputs.add(path, content.json);
+    }
+    let sets: Vec<&residuals::ResidualSet> = content.sets.iter().collect();
+    if let Some(path) = &report.poses_csv {
+        outputs.add(path, residuals::residuals_csv(&sets, content.joints));
+    }
+    if let Some(folder) = &report.figures {
+        let mut all = residuals::residual_figures(&sets, content.joints)?;
+        if let Some(scale) = content.prior_scale {
+            all.push(figures::prior_scale_figure(scale)?);
+        }
+        if let Some(selection) = content.selection {
+            all.push(figures::selection_figure(selection)?);
+        }
+        outputs.add_folder(folder, &all);
+    }
+    if let Some(path) = &report.html {
+        outputs.add(path, content.page);
+    }
+    Ok(())
+}
+
+/// Each `(name, file)` of `files` with its name borrowed.
+fn by_name<T>(files: &[(String, T)]) -> Vec<(&str, &T)> {
+    files.iter().map(|(name, file)| (name.as_str(), file)).collect()
 }
 
 /// A joint value given on the command line (degrees; mm for a prismatic joint) in the model's

@@ -6,10 +6,11 @@ use super::from_flag_unit;
 use super::request::CalibrateObservationsRequest;
 use anyhow::{Context, Result, bail};
 use nalgebra::DMatrix;
-use robocal::calibration::kinds::{KindData, KindOptions, Observation};
+use robocal::calibration::kinds::{KindData, KindOptions, Observation, Score};
 use robocal::estimation::RefineOptions;
 use robocal::io;
-use robocal::model::RobotModel;
+use robocal::model::{Joint, RobotModel};
+use robocal::report::residuals::ResidualSet;
 use std::path::Path;
 
 /// Calibrate, print the report, write the files asked for.
@@ -69,11 +70,16 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     let text = report.text();
     print!("{text}");
     let mut outputs = io::Outputs::new();
-    if let Some(path) = &request.json {
-        outputs.add(path, serde_json::to_string_pretty(&report)? + "\n");
-    }
-    if let Some(path) = &request.html {
-        outputs.add(path, report.page(&format!("Calibration of {}", report.model), &text));
+    if request.report != super::args::ReportArgs::default() {
+        let content = super::ResidualContent {
+            json: serde_json::to_string_pretty(&report)? + "\n",
+            page: report.page(&format!("Calibration of {}", report.model), &text),
+            sets: residual_sets(&report.sets, &sessions, &held_out, &model.joints)?,
+            joints: &model.joints,
+            prior_scale: report.prior_scale.as_ref(),
+            selection: report.selection.as_ref(),
+        };
+        super::write_residual_files(&request.report, content, &mut outputs)?;
     }
     if let Some(path) = &request.out_model {
         outputs.add(path, robocal::model::to_toml_with_markers(&c.calibrated, &c.marker_positions()));
@@ -84,6 +90,22 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         outputs.add(path, robocal::model::with_urdf_markers(&text, &c.marker_positions())?);
     }
     super::commit(outputs)
+}
+
+/// The residuals of each scored set (`scores`: the training files', then each held-out
+/// file's, then any cross-validation's, left out here) with their files.
+fn residual_sets(
+    scores: &[(String, Score)],
+    sessions: &[(String, KindData)],
+    held_out: &[(String, KindData)],
+    joints: &[Joint],
+) -> Result<Vec<ResidualSet>> {
+    let files = std::iter::once(super::by_name(sessions)).chain(held_out.chunks(1).map(super::by_name));
+    (files.zip(scores))
+        .map(|(files, (name, score))| {
+            ResidualSet::of_observations(name, score, &files, joints).map_err(anyhow::Error::msg)
+        })
+        .collect()
 }
 
 /// One observation file.

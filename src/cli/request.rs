@@ -433,10 +433,8 @@ pub struct CalibrateObservationsRequest {
     pub auto_prior: Option<robocal::calibration::prior_scale::AutoPrior>,
     /// The loss of each observation.
     pub loss: robocal::calibration::Loss,
-    /// Where the JSON report goes.
-    pub json: Option<PathBuf>,
-    /// Where the HTML page goes.
-    pub html: Option<PathBuf>,
+    /// Where the JSON report, the CSV of every residual, the figures and the HTML page go.
+    pub report: ReportArgs,
     /// Where the calibrated model TOML goes.
     pub out_model: Option<PathBuf>,
     /// Where the calibrated URDF goes (URDF input only).
@@ -497,11 +495,10 @@ impl CalibrateObservationsRequest {
         distinct_outputs(
             &inputs,
             &[
-                ("--json", args.json.as_deref()),
-                ("--html", args.html.as_deref()),
-                ("--out-model", args.out_model.as_deref()),
-                ("--out-urdf", args.out_urdf.as_deref()),
-            ],
+                args.report.outputs().as_slice(),
+                &[("--out-model", args.out_model.as_deref()), ("--out-urdf", args.out_urdf.as_deref())],
+            ]
+            .concat(),
         )?;
         if !args.per_session.is_empty() {
             require(
@@ -542,8 +539,7 @@ impl CalibrateObservationsRequest {
             markers: args.marker,
             iterations: args.iterations,
             validate: args.validate,
-            json: args.json,
-            html: args.html,
+            report: args.report,
             out_model: args.out_model,
             out_urdf: args.out_urdf,
         })
@@ -565,20 +561,32 @@ pub struct EvaluateRequest {
     pub marker_ids: Option<Vec<usize>>,
     /// Where the JSON, CSV, figures and HTML go.
     pub report: ReportArgs,
+    /// A URDF tree's branches (`--tips`), to score views between them.
+    pub tips: Vec<String>,
+    /// A tree's branches as `calibrate --out-dir` wrote them, if given.
+    pub branches: Option<PathBuf>,
+    /// `--base-link` as given: for a tree, the link its branches start from (default: its
+    /// root link).
+    pub tree_root: Option<String>,
 }
 
 impl EvaluateRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: EvaluateArgs) -> Result<Self, UsageError> {
         // A calibrated URDF: the chain from its measuring frame to its tool, by default.
+        let tree = !args.tips.is_empty() || args.branches.is_some();
         let links = ModelRef {
             name: args.model,
-            base_link: Some(args.base_link),
+            base_link: Some(args.base_link.clone().unwrap_or_else(|| "measuring_frame".into())),
             tip_link: Some(args.tip_link),
             payload: args.payload.payload()?,
         };
         let model =
             if links.is_urdf() { links } else { ModelRef { base_link: None, tip_link: None, ..links } };
+        require(
+            !tree || model.is_urdf(),
+            "--tips and --branches: a tree's branches are read from its URDF file; give it to --model",
+        )?;
         let noise = noise_source(args.noise, &args.noise_flags)?;
         let mut inputs = vec![("--model", Path::new(&model.name))];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
@@ -593,6 +601,9 @@ impl EvaluateRequest {
             noise,
             marker_ids: args.markers,
             report: args.report,
+            tips: args.tips,
+            branches: args.branches,
+            tree_root: args.base_link,
         })
     }
 }
@@ -868,10 +879,8 @@ pub struct CalibrateTreeRequest {
     pub validate: Vec<PathBuf>,
     /// `--folds k`: the k-fold cross-validation of the training poses.
     pub folds: Option<usize>,
-    /// Where the JSON report goes.
-    pub json: Option<PathBuf>,
-    /// Where the HTML page goes.
-    pub html: Option<PathBuf>,
+    /// Where the JSON report, the CSV of every residual, the figures and the HTML page go.
+    pub report: ReportArgs,
     /// Where the calibrated branches go.
     pub out_dir: Option<PathBuf>,
 }
@@ -903,11 +912,7 @@ impl CalibrateTreeRequest {
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
         distinct_outputs(
             &inputs,
-            &[
-                ("--json", args.json.as_deref()),
-                ("--html", args.html.as_deref()),
-                ("--out-dir", args.out_dir.as_deref()),
-            ],
+            &[args.report.outputs().as_slice(), &[("--out-dir", args.out_dir.as_deref())]].concat(),
         )?;
         Ok(Self {
             model: args.model,
@@ -926,8 +931,7 @@ impl CalibrateTreeRequest {
             loss: args.choice.loss,
             validate: args.validate,
             folds: args.folds,
-            json: args.json,
-            html: args.html,
+            report: args.report,
             out_dir: args.out_dir,
         })
     }

@@ -7,11 +7,12 @@ use super::from_flag_unit;
 use super::request::CalibrateTreeRequest;
 use anyhow::{Context, Result, bail};
 use nalgebra::{DMatrix, DVector};
-use robocal::calibration::tree::{TreeData, TreeOptions};
+use robocal::calibration::tree::{TreeData, TreeOptions, TreeScore};
 use robocal::estimation::RefineOptions;
 use robocal::io;
-use robocal::model::{RobotModel, RobotTree};
+use robocal::model::{Joint, RobotModel, RobotTree};
 use robocal::pipeline::TreeOutcome;
+use robocal::report::residuals::ResidualSet;
 use std::path::Path;
 
 /// Calibrate, print the report, write the files asked for.
@@ -50,11 +51,16 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     let text = report.text();
     print!("{text}");
     let mut outputs = io::Outputs::new();
-    if let Some(path) = &request.json {
-        outputs.add(path, serde_json::to_string_pretty(&report)? + "\n");
-    }
-    if let Some(path) = &request.html {
-        outputs.add(path, report.page(&format!("Calibration of {}", report.model), &text));
+    if request.report != super::args::ReportArgs::default() {
+        let content = super::ResidualContent {
+            json: serde_json::to_string_pretty(&report)? + "\n",
+            page: report.page(&format!("Calibration of {}", report.model), &text),
+            sets: residual_sets(&report.sets, &sessions, &held_out, &tree.joints)?,
+            joints: &tree.joints,
+            prior_scale: report.prior_scale.as_ref(),
+            selection: report.selection.as_ref(),
+        };
+        super::write_residual_files(&request.report, content, &mut outputs)?;
     }
     if let Some(folder) = &request.out_dir {
         let note = "calibrated by robocal calibrate from camera views between branches: right relative to the \
@@ -69,6 +75,22 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         outputs.add_folder(folder, &files);
     }
     super::commit(outputs)
+}
+
+/// The residuals of each scored set (`scores`: the training files', then each held-out
+/// file's, then any cross-validation's, left out here) with their files.
+fn residual_sets(
+    scores: &[(String, TreeScore)],
+    sessions: &[(String, TreeData)],
+    held_out: &[(String, TreeData)],
+    joints: &[Joint],
+) -> Result<Vec<ResidualSet>> {
+    let files = std::iter::once(super::by_name(sessions)).chain(held_out.chunks(1).map(super::by_name));
+    (files.zip(scores))
+        .map(|(files, (name, score))| {
+            ResidualSet::of_views(name, score, &files, joints).map_err(anyhow::Error::msg)
+        })
+        .collect()
 }
 
 /// One view file.

@@ -692,7 +692,7 @@ pub fn pose_figures(sets: &[&SetEvaluation], joints: &[Joint]) -> Result<Vec<(St
 }
 
 /// A name made of letters, digits and `-` only, for a file name.
-fn file_stem(name: &str) -> String {
+pub(crate) fn file_stem(name: &str) -> String {
     let stem: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '-' }).collect();
     stem.trim_matches('-').to_string()
 }
@@ -703,42 +703,75 @@ fn pose_rms(p: &PoseErrors, s: usize) -> f64 {
     ((0..p.errors[s].len()).map(|m| p.distance(s, m).powi(2)).sum::<f64>() / n).sqrt()
 }
 
-/// One panel with every stage's bar per pose on one scale, in the file's order, labelled by
-/// its line in the file; when the last stage's errors are under a third of that scale, a
-/// second panel with the last stage on its own scale, the ratio of the scales written.
+/// The bars of one set's items (a pose of markers, an observation, a view), each one's size at
+/// every stage, as [`bar_figure`] draws them.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Bars<'a> {
+    /// The figure's title.
+    pub title: String,
+    /// The stages (`before`, `after`; `model`).
+    pub stages: &'a [String],
+    /// What an item is, for the x axis: `pose`, `observation`, `view`.
+    pub item: &'a str,
+    /// The unit of the sizes: `mm`, `deg`.
+    pub unit: &'a str,
+    /// Each item's line in its file.
+    pub lines: Vec<usize>,
+    /// `values[stage][item]`, at least 0.
+    pub values: Vec<Vec<f64>>,
+    /// The items flagged at the last stage.
+    pub flagged: Vec<bool>,
+}
+
+/// The bars of `set`'s poses: each pose's error, the RMS over its markers, at every stage.
 fn pose_bars(set: &SetEvaluation) -> Result<String, String> {
     let stages = set.stages.len();
-    let values: Vec<Vec<f64>> =
-        (0..stages).map(|s| set.poses.iter().map(|p| pose_rms(p, s)).collect()).collect();
+    bar_figure(&Bars {
+        title: format!("error of each pose, {} (RMS over its markers)", set.name),
+        stages: &set.stages,
+        item: "pose",
+        unit: "mm",
+        lines: set.poses.iter().map(|p| p.line).collect(),
+        values: (0..stages).map(|s| set.poses.iter().map(|p| pose_rms(p, s)).collect()).collect(),
+        flagged: set.poses.iter().map(|p| p.flagged).collect(),
+    })
+}
+
+/// One panel with every stage's bar per item on one scale, in the file's order, labelled by
+/// its line in the file; when the last stage's values are under a third of that scale, a
+/// second panel with the last stage on its own scale, the ratio of the scales written.
+pub(crate) fn bar_figure(bars: &Bars<'_>) -> Result<String, String> {
+    all_finite(bars.values.iter().flatten().copied())?;
+    let stages = bars.stages.len();
+    let values = &bars.values;
     let top = |v: &[f64]| v.iter().copied().fold(0.0, f64::max).max(1e-9) * 1.1;
     let common = values.iter().map(|v| top(v)).fold(1e-9, f64::max);
     let own = top(&values[stages - 1]);
     let zoom = stages > 1 && own < common / 3.0;
+    let unit = bars.unit;
     let mut svg = String::new();
     {
         let height = 300 * (1 + u32::from(zoom)) + 40;
         let root = SVGBackend::with_string(&mut svg, (900, height)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let root = root
-            .titled(&format!("error of each pose, {} (RMS over its markers)", set.name), ("sans-serif", 18))
-            .map_err(|e| e.to_string())?;
+        let root = root.titled(&bars.title, ("sans-serif", 18)).map_err(|e| e.to_string())?;
         let panels = root.split_evenly((1 + usize::from(zoom), 1));
-        let names: Vec<&str> = set.stages.iter().map(String::as_str).collect();
+        let names: Vec<&str> = bars.stages.iter().map(String::as_str).collect();
         let caption = if stages > 1 {
-            format!("{}: one scale, 0 to {} mm", names.join(" and "), shown(common))
+            format!("{}: one scale, 0 to {} {unit}", names.join(" and "), shown(common))
         } else {
-            format!("{}: 0 to {} mm", names[0], shown(common))
+            format!("{}: 0 to {} {unit}", names[0], shown(common))
         };
         let all: Vec<usize> = (0..stages).collect();
-        pose_panel(&panels[0], set, &values, &all, &caption, common)?;
+        bar_panel(&panels[0], bars, &all, &caption, common)?;
         if zoom {
-            let last = &set.stages[stages - 1];
+            let last = &bars.stages[stages - 1];
             let caption = format!(
-                "{last} alone: 0 to {} mm, a scale {:.0} times finer than above",
+                "{last} alone: 0 to {} {unit}, a scale {:.0} times finer than above",
                 shown(own),
                 common / own
             );
-            pose_panel(&panels[1], set, &values, &[stages - 1], &caption, own)?;
+            bar_panel(&panels[1], bars, &[stages - 1], &caption, own)?;
         }
         root.present().map_err(|e| e.to_string())?;
     }
@@ -751,49 +784,50 @@ fn shown(value: f64) -> String {
     format!("{value:.digits$}")
 }
 
-/// A panel of `set`'s poses: the bars of the stages `shown_stages` side by side per pose
-/// (`values[stage][pose]`) from 0 to `top` mm, the flagged poses of the last stage crossed.
-fn pose_panel(
+/// A panel of `bars`' items: the bars of the stages `shown_stages` side by side per item
+/// from 0 to `top`, the flagged items of the last stage crossed.
+fn bar_panel(
     panel: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
-    set: &SetEvaluation,
-    values: &[Vec<f64>],
+    bars: &Bars<'_>,
     shown_stages: &[usize],
     caption: &str,
     top: f64,
 ) -> Result<(), String> {
-    let n = set.poses.len();
+    let (n, values) = (bars.lines.len(), &bars.values);
     let mut chart = ChartBuilder::on(panel)
         .caption(caption, ("sans-serif", 15))
         .margin(10)
         .x_label_area_size(36)
         .y_label_area_size(56)
-        .build_cartesian_2d(0.0..n as f64, 0.0..top)
+        .build_cartesian_2d(0.0..n.max(1) as f64, 0.0..top)
         .map_err(|e| e.to_string())?;
+    let x_desc = format!("{}, by its line in the file (as the tables name it)", bars.item);
+    let y_desc = format!("error ({})", bars.unit);
     chart
         .configure_mesh()
-        .x_desc("pose, by its line in the file (as the tables name it)")
-        .y_desc("error (mm)")
-        .x_label_formatter(&|v| set.poses.get(*v as usize).map_or(String::new(), |p| p.line.to_string()))
+        .x_desc(x_desc)
+        .y_desc(y_desc)
+        .x_label_formatter(&|v| bars.lines.get(*v as usize).map_or(String::new(), usize::to_string))
         .y_label_formatter(&|v| shown_tick(*v))
         .draw()
         .map_err(|e| e.to_string())?;
     let share = 0.8 / shown_stages.len() as f64;
-    let last = set.stages.len() - 1;
+    let last = bars.stages.len() - 1;
     for (slot, &s) in shown_stages.iter().enumerate() {
         let colour = colour(s);
-        let bars = values[s].iter().enumerate().map(|(k, &v)| {
+        let rectangles = values[s].iter().enumerate().map(|(k, &v)| {
             let x0 = k as f64 + 0.1 + slot as f64 * share;
             Rectangle::new([(x0, 0.0), (x0 + share, v)], colour.filled())
         });
-        let series = chart.draw_series(bars).map_err(|e| e.to_string())?;
+        let series = chart.draw_series(rectangles).map_err(|e| e.to_string())?;
         if shown_stages.len() > 1 {
             series
-                .label(set.stages[s].as_str())
+                .label(bars.stages[s].as_str())
                 .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 12, y + 5)], colour.filled()));
         }
         if s == last {
             let x = |k: usize| k as f64 + 0.1 + (slot as f64 + 0.5) * share;
-            let flagged = set.poses.iter().enumerate().filter(|(_, p)| p.flagged);
+            let flagged = bars.flagged.iter().enumerate().filter(|(_, f)| **f);
             chart
                 .draw_series(flagged.map(|(k, _)| Cross::new((x(k), values[s][k]), 5, BLACK.stroke_width(2))))
                 .map_err(|e| e.to_string())?;
@@ -820,33 +854,41 @@ fn densities(values: &[f64], width: f64, bins: usize) -> Vec<f64> {
 /// The markers' errors at the last stage: each set's density on the same bins, as an outline
 /// (the sets overlaid, not interleaved).
 fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
-    let values: Vec<Vec<f64>> = sets
+    let values: Vec<(&str, Vec<f64>)> = sets
         .iter()
         .map(|set| {
             let last = set.stages.len() - 1;
-            set.poses
-                .iter()
-                .flat_map(|p| (0..p.errors[last].len()).map(move |m| p.distance(last, m)))
-                .collect()
+            let errors =
+                set.poses.iter().flat_map(|p| (0..p.errors[last].len()).map(move |m| p.distance(last, m)));
+            (set.name.as_str(), errors.collect())
         })
         .collect();
-    let high = values.iter().flatten().copied().fold(0.0, f64::max).max(1e-9);
+    let stage = &sets[0].stages[sets[0].stages.len() - 1];
+    density_figure(&format!("marker errors, {stage}"), &values, "mm")
+}
+
+/// The sizes `values` (`(set, sizes)`, at least 0, in `unit`) titled `what`: each set's
+/// density on the same bins, as an outline (the sets overlaid, not interleaved).
+pub(crate) fn density_figure(what: &str, values: &[(&str, Vec<f64>)], unit: &str) -> Result<String, String> {
+    all_finite(values.iter().flat_map(|(_, v)| v.iter().copied()))?;
+    let high = values.iter().flat_map(|(_, v)| v).copied().fold(0.0, f64::max).max(1e-9);
     let width = round_width(high / 20.0);
     let bins = (high / width).floor() as usize + 1;
-    let density: Vec<Vec<f64>> = values.iter().map(|v| densities(v, width, bins)).collect();
+    let density: Vec<Vec<f64>> = values.iter().map(|(_, v)| densities(v, width, bins)).collect();
     let top = density.iter().flatten().copied().fold(0.0, f64::max).max(1e-9) * 1.15;
-    let stage = &sets[0].stages[sets[0].stages.len() - 1];
-    let caption = format!("marker errors, {stage}: each set's density, bins {} mm", shown_tick(width));
+    let caption = format!("{what}: each set's density, bins {} {unit}", shown_tick(width));
+    let (x_desc, y_desc) =
+        (format!("error ({unit})"), format!("density (1/{unit}): share of the set's errors per {unit}"));
     single_chart(&caption, 0.0..width * bins as f64, 0.0..top, true, |chart| {
         chart
             .configure_mesh()
-            .x_desc("error (mm)")
-            .y_desc("density (1/mm): share of the set's errors per mm")
+            .x_desc(x_desc)
+            .y_desc(y_desc)
             .x_label_formatter(&|v| shown_tick(*v))
             .y_label_formatter(&|v| shown_tick(*v))
             .draw()
             .map_err(|e| e.to_string())?;
-        for (i, ((set, d), v)) in sets.iter().zip(&density).zip(&values).enumerate() {
+        for (i, ((name, v), d)) in values.iter().zip(&density).enumerate() {
             let colour = colour(i);
             let mut outline = vec![(0.0, 0.0)];
             for (b, &h) in d.iter().enumerate() {
@@ -859,7 +901,7 @@ fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
             chart
                 .draw_series(LineSeries::new(outline, colour.stroke_width(2)))
                 .map_err(|e| e.to_string())?
-                .label(format!("{} ({} errors)", set.name, v.len()))
+                .label(format!("{name} ({} errors)", v.len()))
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2)));
         }
         Ok(())
@@ -912,9 +954,8 @@ pub fn torque_figures(
 
 /// Each marker's signed error at the last stage (measured minus predicted, x, y, z in mm; with
 /// a probe its orientation error's rx, ry, rz in deg) against a value of each pose (`xs[set][pose]`:
-/// a joint's value, its gravity load): one panel per component, one scale for the components
-/// of a unit, a line at zero, one colour per set. A sign that changes with the joint
-/// (backlash, gravity) shows here, and not in the norm.
+/// a joint's value, its gravity load), as [`against_figure`] draws it. A sign that changes
+/// with the joint (backlash, gravity) shows here, and not in the norm.
 fn against(sets: &[&SetEvaluation], xs: &[Vec<f64>], x_label: &str) -> Result<String, String> {
     let probe = sets.iter().any(|s| s.poses.iter().any(|p| p.orientation.is_some()));
     let components: &[(&str, &str)] = if probe {
@@ -922,36 +963,65 @@ fn against(sets: &[&SetEvaluation], xs: &[Vec<f64>], x_label: &str) -> Result<St
     } else {
         &[("x", "mm"), ("y", "mm"), ("z", "mm")]
     };
-    // points[component][set]: (joint value, error).
-    let points: Vec<Vec<Vec<(f64, f64)>>> = (0..components.len())
-        .map(|c| sets.iter().enumerate().map(|(s, set)| component_points(set, &xs[s], c)).collect())
-        .collect();
+    let stage = &sets[0].stages[sets[0].stages.len() - 1];
+    against_figure(&Against {
+        title: format!("marker errors (measured - predicted), {stage}, against {x_label}"),
+        sets: sets.iter().map(|s| s.name.as_str()).collect(),
+        components,
+        points: (0..components.len())
+            .map(|c| sets.iter().enumerate().map(|(s, set)| component_points(set, &xs[s], c)).collect())
+            .collect(),
+        x_label,
+        signed: true,
+    })
+}
+
+/// Values of each set's items against a value of each item (a joint's), one panel per
+/// component, as [`against_figure`] draws them.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Against<'a> {
+    /// The figure's title.
+    pub title: String,
+    /// The sets' names, one colour each.
+    pub sets: Vec<&'a str>,
+    /// Each panel's component and unit: `("x", "mm")`.
+    pub components: &'a [(&'a str, &'a str)],
+    /// `points[component][set]`: `(x, value)`.
+    pub points: Vec<Vec<Vec<(f64, f64)>>>,
+    /// The x axis' label.
+    pub x_label: &'a str,
+    /// Signed values (a panel from `-y` to `y`, a line at zero), or sizes (from 0).
+    pub signed: bool,
+}
+
+/// One panel per component, one scale for the components of a unit, a line at zero (signed
+/// values), one colour per set, the sets' legend in a row of its own above the panels.
+pub(crate) fn against_figure(a: &Against<'_>) -> Result<String, String> {
+    let (components, points) = (a.components, &a.points);
     all_finite(points.iter().flatten().flatten().flat_map(|&(x, y)| [x, y]))?;
     let all = || points.iter().flatten().flatten();
     let (x0, x1) = all().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
     let (x0, x1) = if x0 <= x1 { (x0, x1) } else { (0.0, 1.0) };
     let pad = 0.03 * (x1 - x0).max(1e-6);
     let reach = |unit: &str| {
-        let of = components.iter().zip(&points).filter(|((_, u), _)| *u == unit);
+        let of = components.iter().zip(points).filter(|((_, u), _)| *u == unit);
         of.flat_map(|(_, p)| p.iter().flatten()).fold(1e-9, |m: f64, p| m.max(p.1.abs())) * 1.1
     };
-    let stage = &sets[0].stages[sets[0].stages.len() - 1];
     let mut svg = String::new();
     {
         let height = 170 * components.len() as u32 + 114;
         let root = SVGBackend::with_string(&mut svg, (760, height)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let title = format!("marker errors (measured - predicted), {stage}, against {x_label}");
-        let root = root.titled(&title, ("sans-serif", 18)).map_err(|e| e.to_string())?;
+        let root = root.titled(&a.title, ("sans-serif", 18)).map_err(|e| e.to_string())?;
         // The sets' legend in a row of its own, above the panels: it hides no point.
         let (key, root) = root.split_vertically(24);
         let mut x = 80;
-        for (i, set) in sets.iter().enumerate() {
+        for (i, set) in a.sets.iter().enumerate() {
             key.draw(&Circle::new((x, 10), 4, colour(i).filled())).map_err(|e| e.to_string())?;
-            let text = Text::new(set.name.as_str(), (x + 10, 3), ("sans-serif", 14));
+            let text = Text::new(*set, (x + 10, 3), ("sans-serif", 14));
             key.draw(&text).map_err(|e| e.to_string())?;
             // About 8 px a character at 14 px, and a gap.
-            x += 10 + 8 * set.name.chars().count() as i32 + 40;
+            x += 10 + 8 * set.chars().count() as i32 + 40;
         }
         let panels = root.split_evenly((components.len(), 1));
         for (c, (panel, &(name, unit))) in panels.iter().zip(components).enumerate() {
@@ -961,14 +1031,14 @@ fn against(sets: &[&SetEvaluation], xs: &[Vec<f64>], x_label: &str) -> Result<St
                 .margin(8)
                 .x_label_area_size(if last { 40 } else { 20 })
                 .y_label_area_size(60)
-                .build_cartesian_2d((x0 - pad)..(x1 + pad), -y..y)
+                .build_cartesian_2d((x0 - pad)..(x1 + pad), if a.signed { -y } else { 0.0 }..y)
                 .map_err(|e| e.to_string())?;
             let y_desc = format!("{name} ({unit})");
             let mut mesh = chart.configure_mesh();
             mesh.y_desc(y_desc.as_str()).y_labels(5).y_label_formatter(&|v| shown_tick(*v));
             mesh.x_label_formatter(&|v| shown_tick(*v));
             if last {
-                mesh.x_desc(x_label);
+                mesh.x_desc(a.x_label);
             }
             mesh.draw().map_err(|e| e.to_string())?;
             let zero = [(x0 - pad, 0.0), (x1 + pad, 0.0)];

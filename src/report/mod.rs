@@ -13,6 +13,7 @@ pub mod instruments;
 pub mod observations;
 pub mod poses;
 pub mod replication;
+pub mod residuals;
 pub mod study;
 pub mod tree;
 pub mod verdict;

@@ -199,7 +199,7 @@ pub fn poses_csv(sets: &[&SetEvaluation], joints: &[Joint]) -> String {
 }
 
 /// A CSV cell, quoted if it holds a comma or a quote.
-fn csv_cell(text: &str) -> String {
+pub(crate) fn csv_cell(text: &str) -> String {
     if text.contains([',', '"', '\n']) {
         format!("\"{}\"", text.replace('"', "\"\""))
     } else {

@@ -34,6 +34,7 @@ mod reliability;
 mod repeatability;
 mod replication;
 mod report;
+mod residuals;
 mod robust;
 mod selection;
 mod sessions;

@@ -564,6 +564,25 @@ impl TreeScore {
     }
 }
 
+/// `tree` scored as it stands on `data`: the cameras and targets fitted to it (the "before"
+/// fit of [`calibrate_tree`]) with the tree's joints held as they are; the views' residuals
+/// after that fit. What `robocal evaluate` reports of a file of views: a tree calibrated on
+/// `data` re-scores there as its calibration scored it, at the same minimum of
+/// `sum_k y_k^T W_k y_k` over the frames.
+pub fn evaluate_tree(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+) -> Result<TreeScore, CalibrationError> {
+    let held = TreeOptions {
+        joints: JointParams::None,
+        prior: Vec::new(),
+        gauge: Gauge::default(),
+        ..options.clone()
+    };
+    Ok(calibrate_tree(tree, data, &held)?.training)
+}
+
 /// `data`'s poses cross-validated in `folds` folds (pose `i` held out in fold `i mod k`): the
 /// tree calibrated on the views of the other poses, every choice made from the data (a robust
 /// loss's weights) made again in each fold, and the held-out views scored with the frames as

@@ -70,12 +70,6 @@ fn observation_args(args: CalibrateArgs) -> Result<CalibrateObservationsArgs, Us
     )?;
     only_for_markers(args.fixed_markers, "--fixed-markers", "the markers are always estimated")?;
     only_for_markers(args.markers.is_some(), "--markers", "every marker of the files is fitted")?;
-    let figures = args.report.poses_csv.is_some() || args.report.figures.is_some();
-    only_for_markers(
-        figures,
-        "--poses-csv and --figures",
-        "--json holds every observation's residual and --html the report as a page",
-    )?;
     Ok(CalibrateObservationsArgs {
         model: args.model,
         data: args.data,
@@ -92,8 +86,7 @@ fn observation_args(args: CalibrateArgs) -> Result<CalibrateObservationsArgs, Us
         per_session: args.observations.per_session,
         select: args.select,
         folds: args.folds,
-        json: args.report.json,
-        html: args.report.html,
+        report: args.report,
         out_model: args.out_model,
         out_urdf: args.out_urdf,
     })
@@ -111,10 +104,6 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
             "--fixed-base and --fixed-markers (a tree's base is never estimated)",
         ),
         (!args.marker.is_empty() || args.markers.is_some(), "--marker and --markers"),
-        (
-            args.report.poses_csv.is_some() || args.report.figures.is_some(),
-            "--poses-csv and --figures (--json holds every view's residual, --html the report as a page)",
-        ),
         (
             args.out_model.is_some() || args.out_urdf.is_some(),
             "--out-model and --out-urdf (a tree's branches go to --out-dir)",
@@ -141,8 +130,7 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
         validate: args.validate,
         select: args.select,
         folds: args.folds,
-        json: args.report.json,
-        html: args.report.html,
+        report: args.report,
         out_dir: args.tree.out_dir,
     })
 }

@@ -525,11 +525,23 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
     assert!(
         refused(&[Observations], &["--select", "t", "--params", "none"]).contains("not with --params none")
     );
-    assert!(refused(&[Observations], &["--figures", "f"]).starts_with("--poses-csv and --figures"));
-    match route(&[Observations], &["--html", "r.html"]).unwrap() {
-        CalibrationRequest::Observations(r) => assert_eq!(r.html, Some("r.html".into())),
+    match route(&[Observations], &["--html", "r.html", "--poses-csv", "p.csv", "--figures", "f"]).unwrap() {
+        CalibrationRequest::Observations(r) => {
+            assert_eq!(r.report.html, Some("r.html".into()));
+            assert_eq!((r.report.poses_csv, r.report.figures), (Some("p.csv".into()), Some("f".into())));
+        }
         other => panic!("{other:?}"),
     }
+    match route(&[TreeViews], &["--tips", "a,b", "--poses-csv", "-", "--figures", "f"]).unwrap() {
+        CalibrationRequest::Tree(r) => {
+            assert_eq!((r.report.poses_csv, r.report.figures), (Some("-".into()), Some("f".into())));
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(
+        refused(&[TreeViews], &["--tips", "a,b", "--poses-csv", "f0.csv"]).contains("f0.csv"),
+        "an input overwritten"
+    );
     assert!(refused(&[Observations], &["--html", "r.html", "--json", "r.html"]).contains("r.html"));
     assert!(refused(&[Markers, Markers], &["--fixed-base"]).starts_with("--fixed-base"));
     assert!(refused(&[Observations], &["--noise", "n.toml"]).contains("sigma columns"));

@@ -1,0 +1,343 @@
+//! One pipeline for every kind (issue #23): `calibrate --poses-csv` and `--figures` for
+//! observation files and a tree's views, and `evaluate` of a tree's views; a written model
+//! (an observation file's `--out-model`, a tree's `--out-dir`) re-scores its training file as
+//! its calibration scored it.
+
+use std::path::{Path, PathBuf};
+
+/// A fresh scratch folder for test `name`.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("robocal-residuals-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// `robocal args`, which must succeed: its standard output.
+fn robocal(args: &[&str]) -> String {
+    let output = assert_cmd::Command::cargo_bin("robocal").unwrap().args(args).output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "robocal {}: {stderr}", args.join(" "));
+    String::from_utf8(output.stdout).unwrap()
+}
+
+/// `path` as a `&str`.
+fn s(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+/// A JSON file.
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// The CSV at `path`: its header, and its rows as cells by column name.
+fn csv(text: &str) -> (String, Vec<std::collections::HashMap<String, String>>) {
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().to_string();
+    let names: Vec<&str> = header.split(',').collect();
+    let rows = lines
+        .map(|line| {
+            let cells: Vec<&str> = line.split(',').collect();
+            assert_eq!(cells.len(), names.len(), "{line}");
+            names.iter().zip(cells).map(|(n, c)| (n.to_string(), c.to_string())).collect()
+        })
+        .collect();
+    (header, rows)
+}
+
+/// The files in `dir`, sorted, each SVG parsed (roxmltree) and drawn with at least one shape.
+fn figures(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    for name in &names {
+        let text = std::fs::read_to_string(dir.join(name)).unwrap();
+        let document = roxmltree::Document::parse(&text).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let shapes = document
+            .descendants()
+            .filter(|n| matches!(n.tag_name().name(), "rect" | "circle" | "polyline" | "path"));
+        assert!(shapes.count() > 3, "{name}: nothing drawn");
+    }
+    names
+}
+
+/// The RMS of the cells `column` of `rows`.
+fn rms(rows: &[&std::collections::HashMap<String, String>], column: &str) -> f64 {
+    let values: Vec<f64> = rows.iter().map(|r| r[column].parse::<f64>().unwrap()).collect();
+    (values.iter().map(|v| v * v).sum::<f64>() / values.len() as f64).sqrt()
+}
+
+/// `(a - b) / b`.
+fn relative(a: f64, b: f64) -> f64 {
+    ((a - b) / b).abs()
+}
+
+const BALL_BAR: &str = "examples/puma560-ballbar.csv";
+const BALL_BAR_2: &str = "examples/puma560-ballbar-2.csv";
+
+/// A ball bar's calibration writes one row per observation, training and held out, each at
+/// its file's line and joint values, and the residual figures with the prior's scale curve.
+#[test]
+fn a_ball_bar_writes_a_row_per_observation_and_its_figures() {
+    let dir = scratch("ball-bar");
+    let (poses, folder, report) = (dir.join("residuals.csv"), dir.join("figures"), dir.join("report.json"));
+    let args = ["calibrate", "-q", "--model", "puma560", "--tool", "50,0,150", "--data", BALL_BAR];
+    let mut args = args.to_vec();
+    args.extend(["--validate", BALL_BAR_2, "--prior", "auto", "--json", s(&report)]);
+    args.extend(["--poses-csv", s(&poses), "--figures", s(&folder)]);
+    robocal(&args);
+    let (header, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
+    assert_eq!(
+        header,
+        "set,file,line,kind,pose,pose_b,j1_deg,j2_deg,j3_deg,j4_deg,j5_deg,j6_deg,\
+         before_mm,after_mm,before_deg,after_deg,whitened,flagged"
+    );
+    let training: Vec<_> = rows.iter().filter(|r| r["set"] == "training").collect();
+    let held_out: Vec<_> = rows.iter().filter(|r| r["set"] == BALL_BAR_2).collect();
+    assert_eq!((training.len(), held_out.len(), rows.len()), (150, 60, 210));
+    assert!(
+        rows.iter().all(|r| r["kind"] == "point" && r["before_deg"].is_empty() && r["after_deg"].is_empty())
+    );
+    // Each row where its file has it: line L is the file's (L - 2)-th pose, at its joint values.
+    let file: Vec<String> = std::fs::read_to_string(BALL_BAR).unwrap().lines().map(String::from).collect();
+    for r in &training {
+        let line: usize = r["line"].parse().unwrap();
+        assert_eq!(r["pose"], (line - 2).to_string());
+        let j2: f64 = file[line - 1].split(',').nth(1).unwrap().parse().unwrap();
+        assert!((r["j2_deg"].parse::<f64>().unwrap() - j2).abs() < 1e-9, "line {line}");
+    }
+    // The rows' RMS after is the report's.
+    let scored = json(&report);
+    assert!(
+        relative(rms(&training, "after_mm"), scored["sets"][0][1]["lengths"][1].as_f64().unwrap()) < 1e-9
+    );
+    assert!(
+        relative(rms(&held_out, "before_mm"), scored["sets"][1][1]["lengths"][0].as_f64().unwrap()) < 1e-9
+    );
+    let mut expected: Vec<String> = (1..=6).map(|j| format!("error-vs-j{j}.svg")).collect();
+    expected.extend(
+        [
+            "errors-by-observation-examples-puma560-ballbar-2-csv.svg",
+            "errors-by-observation-training.svg",
+            "histogram.svg",
+            "prior-scale.svg",
+        ]
+        .map(String::from),
+    );
+    expected.sort();
+    assert_eq!(figures(&folder), expected);
+    let bars = std::fs::read_to_string(folder.join("errors-by-observation-training.svg")).unwrap();
+    assert!(bars.contains("before and after: one scale, 0 to"), "before and after on one scale");
+    // `-`: the rows on standard output.
+    let out = robocal(&[
+        "calibrate",
+        "-q",
+        "--model",
+        "puma560",
+        "--tool",
+        "50,0,150",
+        "--data",
+        BALL_BAR,
+        "--poses-csv",
+        "-",
+    ]);
+    assert!(out.contains("\nset,file,line,kind,pose,pose_b,j1_deg"), "{out}");
+    assert_eq!(out.lines().filter(|l| l.starts_with("training,")).count(), 150);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A camera's views: its angle rows in degrees, its length rows in mm, a figure of each.
+#[test]
+fn a_camera_file_writes_its_angles_in_degrees_and_its_lengths_in_mm() {
+    let dir = scratch("camera");
+    let (poses, folder) = (dir.join("residuals.csv"), dir.join("figures"));
+    robocal(&[
+        "calibrate",
+        "-q",
+        "--model",
+        "puma560",
+        "--data",
+        "examples/puma560-camera.csv",
+        "--poses-csv",
+        s(&poses),
+        "--figures",
+        s(&folder),
+    ]);
+    let (_, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
+    let rows_in_file = std::fs::read_to_string("examples/puma560-camera.csv").unwrap().lines().count() - 2;
+    assert_eq!(rows.len(), rows_in_file * 6, "six numbers a view");
+    for r in &rows {
+        let angle = ["camera rx", "camera ry", "camera rz"].contains(&r["kind"].as_str());
+        assert_eq!(r["after_deg"].is_empty(), !angle, "{r:?}");
+        assert_eq!(r["after_mm"].is_empty(), angle, "{r:?}");
+    }
+    let names = figures(&folder);
+    for name in [
+        "errors-by-observation-training.svg",
+        "errors-by-observation-training-deg.svg",
+        "histogram.svg",
+        "histogram-deg.svg",
+    ] {
+        assert!(names.contains(&name.to_string()), "{name}: {names:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// An observation file's written model re-scores its training file as its calibration scored
+/// it, to 1e-9.
+#[test]
+fn an_observation_files_written_model_rescores_its_training_file() {
+    let dir = scratch("rescore-ball-bar");
+    let (model, calibrated, evaluated) = (dir.join("model.toml"), dir.join("c.json"), dir.join("e.json"));
+    robocal(&[
+        "calibrate",
+        "-q",
+        "--model",
+        "puma560",
+        "--tool",
+        "50,0,150",
+        "--data",
+        BALL_BAR,
+        "--out-model",
+        s(&model),
+        "--json",
+        s(&calibrated),
+    ]);
+    robocal(&["evaluate", "-q", "--model", s(&model), "--data", BALL_BAR, "--json", s(&evaluated)]);
+    let after = json(&calibrated)["sets"][0][1]["lengths"][1].as_f64().unwrap();
+    let again = json(&evaluated)["observations"][0][1]["lengths"][1].as_f64().unwrap();
+    assert!(relative(again, after) < 1e-9, "re-scored {again} mm, calibrated {after} mm");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+const TORSO: &str = "presets/torso.urdf";
+const VIEWS: &str = "examples/torso/views.csv";
+const VIEWS_2: &str = "examples/torso/views-2.csv";
+
+/// A tree's calibration writes one row per view (its position error in mm, its rotation's in
+/// deg) and the residual figures; `evaluate` of the branches it wrote re-scores its training
+/// views as the calibration scored them after, and of the URDF as it stands before, to 1e-9.
+#[test]
+fn a_tree_writes_a_row_per_view_and_its_branches_rescore_its_views() {
+    let dir = scratch("tree");
+    let (poses, folder, report, out) =
+        (dir.join("views.csv"), dir.join("figures"), dir.join("report.json"), dir.join("branches"));
+    robocal(&[
+        "calibrate",
+        "-q",
+        "--model",
+        TORSO,
+        "--data",
+        VIEWS,
+        "--validate",
+        VIEWS_2,
+        "--json",
+        s(&report),
+        "--poses-csv",
+        s(&poses),
+        "--figures",
+        s(&folder),
+        "--out-dir",
+        s(&out),
+    ]);
+    let (header, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
+    assert!(header.starts_with("set,file,line,kind,pose,pose_b,torso_deg,head_pan_deg,"), "{header}");
+    assert!(header.ends_with(",r_wrist_pitch_deg,before_mm,after_mm,before_deg,after_deg,whitened,flagged"));
+    let training: Vec<_> = rows.iter().filter(|r| r["set"] == "training").collect();
+    let held_out: Vec<_> = rows.iter().filter(|r| r["set"] == VIEWS_2).collect();
+    assert_eq!((training.len(), held_out.len(), rows.len()), (120, 80, 200));
+    assert!(rows.iter().all(|r| r["kind"] == "view" && !r["after_deg"].is_empty()));
+    let calibrated = json(&report);
+    let score =
+        |set: usize, what: &str, stage: usize| calibrated["sets"][set][1][what][stage].as_f64().unwrap();
+    assert!(relative(rms(&training, "after_mm"), score(0, "position", 1)) < 1e-9);
+    assert!(relative(rms(&held_out, "after_deg"), score(1, "rotation", 1)) < 1e-9);
+    let names = figures(&folder);
+    for name in [
+        "errors-by-view-training.svg",
+        "errors-by-view-training-deg.svg",
+        "errors-by-view-examples-torso-views-2-csv.svg",
+        "histogram.svg",
+        "histogram-deg.svg",
+        "error-vs-torso.svg",
+        "error-vs-r-wrist-pitch.svg",
+    ] {
+        assert!(names.contains(&name.to_string()), "{name}: {names:?}");
+    }
+    assert_eq!(names.len(), 6 + 15, "{names:?}");
+    // The written branches re-score the training views as calibrated; the URDF as it stands,
+    // as before calibration.
+    let evaluated = dir.join("evaluated.json");
+    let text = robocal(&[
+        "evaluate",
+        "--model",
+        TORSO,
+        "--branches",
+        s(&out),
+        "--data",
+        VIEWS,
+        "--json",
+        s(&evaluated),
+        "--poses-csv",
+        s(&poses),
+        "--figures",
+        s(&dir.join("evaluated")),
+    ]);
+    assert!(text.contains("view errors, RMS") && text.contains("as it stands"), "{text}");
+    let (_, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
+    assert_eq!(rows.len(), 120);
+    assert!(rows.iter().all(|r| r["set"] == VIEWS && r["before_mm"] == r["after_mm"]), "as it stands");
+    let names = figures(&dir.join("evaluated"));
+    assert_eq!(names.len(), 4 + 15, "{names:?}");
+    let bars =
+        std::fs::read_to_string(dir.join("evaluated/errors-by-view-examples-torso-views-csv.svg")).unwrap();
+    assert!(bars.contains("as it stands: 0 to") && !bars.contains("before"), "one stage");
+    let again = json(&evaluated);
+    let view = |what: &str| again["views"][0][1][what][1].as_f64().unwrap();
+    assert!(relative(view("position"), score(0, "position", 1)) < 1e-9, "{} mm", view("position"));
+    assert!(relative(view("rotation"), score(0, "rotation", 1)) < 1e-9, "{} deg", view("rotation"));
+    robocal(&[
+        "evaluate",
+        "--model",
+        TORSO,
+        "--tips",
+        "head_camera,l_hand,r_hand",
+        "--data",
+        VIEWS,
+        "--json",
+        s(&evaluated),
+    ]);
+    let nominal = json(&evaluated)["views"][0][1]["position"][1].as_f64().unwrap();
+    assert!(relative(nominal, score(0, "position", 0)) < 1e-9, "{nominal} mm as it stands");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `evaluate` of a tree: a model that is no URDF, a file that holds no views, a branch file
+/// of another tree are refused, naming what.
+#[test]
+fn evaluate_of_a_tree_refuses_what_it_cannot_score() {
+    let dir = scratch("tree-refusals");
+    let fails = |args: &[&str]| {
+        let output = assert_cmd::Command::cargo_bin("robocal").unwrap().args(args).output().unwrap();
+        (output.status.code(), String::from_utf8_lossy(&output.stderr).into_owned())
+    };
+    let (code, message) = fails(&["evaluate", "--model", "puma560", "--tips", "a,b", "--data", VIEWS]);
+    assert_eq!(code, Some(2), "{message}");
+    assert!(message.contains("--tips and --branches"), "{message}");
+    let (code, message) =
+        fails(&["evaluate", "--model", TORSO, "--tips", "head_camera,l_hand", "--data", BALL_BAR]);
+    assert_eq!(code, Some(1));
+    assert!(message.contains(BALL_BAR) && message.contains("not a file of views"), "{message}");
+    std::fs::write(
+        dir.join("head_camera.toml"),
+        std::fs::read_to_string("examples/puma560-true.toml").unwrap(),
+    )
+    .unwrap();
+    let (code, message) = fails(&["evaluate", "--model", TORSO, "--branches", s(&dir), "--data", VIEWS]);
+    assert_eq!(code, Some(1));
+    assert!(message.contains("head_camera.toml"), "{message}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
