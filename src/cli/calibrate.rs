@@ -247,7 +247,7 @@ fn write(
     text: &str,
 ) -> Result<()> {
     let title = format!("calibration of {} from {}", report.model, report.data);
-    let json = serde_json::to_string_pretty(report)? + "\n";
+    let json = super::json_if_asked(&request.report, report)?;
     let mut outputs = io::Outputs::new();
     let mut extra_figures = Vec::new();
     if request.report.figures.is_some() || request.report.html.is_some() {
@@ -264,7 +264,7 @@ fn write(
     let content = ReportContent {
         title: &title,
         text,
-        json: &json,
+        json,
         sets: &report.sets,
         joints: &result.registered.joints,
         extra_figures,

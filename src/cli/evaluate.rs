@@ -82,7 +82,7 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     }
     print!("{text}");
     let report = EvaluationReport { model: model.name.clone(), sets, pooled, observations };
-    let json = serde_json::to_string_pretty(&report)? + "\n";
+    let json = super::json_if_asked(&request.report, &report)?;
     let title = format!("{} scored as it stands", model.name);
     let mut outputs = io::Outputs::new();
     let extra_figures = if request.report.figures.is_some() || request.report.html.is_some() {
@@ -93,7 +93,7 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     let content = ReportContent {
         title: &title,
         text: &text,
-        json: &json,
+        json,
         sets: &report.sets,
         joints: &model.joints,
         extra_figures,

@@ -197,7 +197,8 @@ fn calibrate_any(args: args::CalibrateArgs) -> Result<()> {
 struct ReportContent<'a> {
     title: &'a str,
     text: &'a str,
-    json: &'a str,
+    /// The JSON report, built only if `--json` asks for it ([`json_if_asked`]).
+    json: Option<String>,
     /// With their joint values in degrees (mm for prismatic joints).
     sets: &'a [robocal::calibration::SetEvaluation],
     joints: &'a [robocal::model::Joint],
@@ -214,8 +215,8 @@ fn write_report_files(
     content: ReportContent<'_>,
     outputs: &mut io::Outputs,
 ) -> Result<()> {
-    if let Some(path) = &report.json {
-        outputs.add(path, content.json);
+    if let (Some(path), Some(json)) = (&report.json, content.json) {
+        outputs.add(path, json);
     }
     let sets: Vec<&robocal::calibration::SetEvaluation> = content.sets.iter().collect();
     if let Some(path) = &report.poses_csv {
@@ -239,6 +240,15 @@ fn write_report_files(
         outputs.add(path, page);
     }
     Ok(())
+}
+
+/// `value` as the JSON report (pretty, one trailing newline) if `report` asks for one: a
+/// large campaign's JSON is many times its input, and is not built for nothing.
+fn json_if_asked<T: serde::Serialize>(report: &ReportArgs, value: &T) -> Result<Option<String>> {
+    Ok(match report.json {
+        Some(_) => Some(serde_json::to_string_pretty(value)? + "\n"),
+        None => None,
+    })
 }
 
 /// What a calibration of observation files or of a tree's views reports: its JSON and page,
