@@ -17,7 +17,7 @@
 //! scale, on the grid [`evidence_scales`] (1/64 to 64 in steps of `2^(1/8)`).
 
 use super::kinds::{self, KindCalibration, KindData, KindOptions, cross_validate_kinds};
-use super::tree::{TreeData, TreeOptions, cross_validate_tree};
+use super::tree::{TreeCalibration, TreeData, TreeOptions, cross_validate_tree};
 use super::{
     CalibrationError, JointParams, Measurements, Options, RobotModel, Whitening, calibrate_quietly,
     cross_validate, observed, selection,
@@ -292,7 +292,8 @@ pub fn choose_kinds_prior_scale(
 }
 
 /// [`choose_prior_scale`] for a tree's views: each scale scored by the cross-validated RMS of
-/// the views' position residuals (mm; [`cross_validate_tree`]'s folds).
+/// the views' position residuals (mm; [`cross_validate_tree`]'s folds); by the marginal
+/// likelihood for `auto-ml` ([`choose_tree_prior_scale_ml`], `folds` unused).
 pub fn choose_tree_prior_scale(
     tree: &RobotTree,
     data: &TreeData,
@@ -301,12 +302,7 @@ pub fn choose_tree_prior_scale(
     folds: usize,
 ) -> Result<PriorScale, CalibrationError> {
     if auto.by == ScaleBy::Ml {
-        return Err(CalibrationError::Scoring(format!(
-            "--prior {}: the marginal likelihood is not for a tree's views yet; --prior auto:{} chooses the \
-             scale by cross-validation",
-            auto.label(),
-            auto.preset
-        )));
+        return choose_tree_prior_scale_ml(tree, data, options, auto);
     }
     scale_by_curve(auto, folds, data.joints.len(), |s| {
         Ok(cross_validate_tree(tree, data, &with_tree_scale(options, auto, s), folds)?.position.1)
@@ -397,6 +393,23 @@ pub fn choose_kinds_prior_scale_ml(
         |entries| {
             let prior = entries.iter().chain(&options.prior).cloned().collect();
             kinds::calibrate_kinds(model, data, &KindOptions { prior, ..options.clone() })
+        },
+    )
+}
+
+/// [`choose_prior_scale_ml`] for a tree's views ([`tree_scale_evidence`]).
+pub fn choose_tree_prior_scale_ml(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+    auto: &AutoPrior,
+) -> Result<PriorScale, CalibrationError> {
+    choose_by_evidence(
+        auto,
+        |about: Option<&TreeCalibration>| tree_scale_evidence(tree, data, options, auto, about),
+        |entries| {
+            let prior = entries.iter().chain(&options.prior).cloned().collect();
+            super::tree::calibrate_tree(tree, data, &TreeOptions { prior, ..options.clone() })
         },
     )
 }
@@ -536,10 +549,40 @@ pub fn kinds_scale_evidence(
     }
     let options = KindOptions { estimator: Estimator::Wls, ..options.clone() };
     let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
-    let system = kinds::evidence_system(model, data, &options, about)?;
+    system_evidence(auto, &options.prior, &kinds::evidence_system(model, data, &options, about)?)
+}
+
+/// The [`Evidence`] of a tree's views for the scale of `auto`'s preset, as
+/// [`kinds_scale_evidence`]'s of observation files: the tree's parameters `options` asks for,
+/// then the cameras' and targets' placements (flat), whitened by each view's `V_k` (weighted
+/// least squares, [`tree::evidence_system`](super::tree::evidence_system)), about `about`'s
+/// estimate (`None`: the "before" fit). The noise must be known: the views' sigma columns or
+/// the joint noise.
+pub fn tree_scale_evidence(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+    auto: &AutoPrior,
+    about: Option<&TreeCalibration>,
+) -> Result<Evidence, CalibrationError> {
+    if options.joint_noise.is_none() && data.assumed_sigmas {
+        return Err(needs_the_noise(auto, "sigma and sigma_angle columns in the views' file, or --joint-sigma-deg"));
+    }
+    let options = TreeOptions { estimator: Estimator::Wls, ..options.clone() };
+    let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
+    system_evidence(auto, &options.prior, &super::tree::evidence_system(tree, data, &options, about)?)
+}
+
+/// The [`Evidence`] of a whitened `system` ([`linear_evidence`]), its columns by
+/// [`evidence_columns`] (`own` the user's fixed priors; after the parameters, flat set-up ones).
+fn system_evidence(
+    auto: &AutoPrior,
+    own: &[PriorEntry],
+    system: &kinds::EvidenceSystem,
+) -> Result<Evidence, CalibrationError> {
     let infos: Vec<&ParamInfo> = system.params.iter().collect();
     let extra = system.linearised.x.len() - system.asked.len();
-    let (columns, classes) = evidence_columns(auto, &options.prior, &infos, &system.asked, extra)?;
+    let (columns, classes) = evidence_columns(auto, own, &infos, &system.asked, extra)?;
     Ok(linear_evidence(&system.linearised, system.c * system.c, &columns, &classes))
 }
 

@@ -1564,14 +1564,15 @@ pub(super) fn start<'p>(
     Ok(Started { base, weights, before, before_setup, linearised, gauged })
 }
 
-/// What the marginal likelihood needs of observation files
-/// ([`kinds_scale_evidence`](super::prior_scale::kinds_scale_evidence)): the system of what is
+/// What the marginal likelihood needs of observation files or a tree's views
+/// ([`kinds_scale_evidence`](super::prior_scale::kinds_scale_evidence),
+/// [`tree_scale_evidence`](super::prior_scale::tree_scale_evidence)): the system of what is
 /// asked for, whitened by `S` (`S V S^T = c^2 I`: each pose's block `V_k` of the observations'
 /// sigmas and the joint noise, divided by the normalisation `c`), its columns the robot's
 /// parameters `asked` (indices into `params`) then the set-up's.
 pub(crate) struct EvidenceSystem {
-    /// The robot's parameters.
-    pub(crate) params: ParamSet,
+    /// The robot's (or tree's) parameters.
+    pub(crate) params: Vec<crate::model::ParamInfo>,
     /// The robot's parameters of the first columns, in order.
     pub(crate) asked: Vec<usize>,
     /// `A = S H`, `b = S y` about the point asked for.
@@ -1601,7 +1602,7 @@ pub(crate) fn evidence_system(
         }
     };
     let asked = prepared.asked.indices().to_vec();
-    Ok(EvidenceSystem { params: prepared.params.clone(), asked, linearised, c })
+    Ok(EvidenceSystem { params: prepared.params.iter().cloned().collect(), asked, linearised, c })
 }
 
 /// The "before" fit of `base_problem`: the robot parameters `frame` (the tool point, with
