@@ -23,7 +23,9 @@ use super::{
     cross_validate, observed, selection,
 };
 use crate::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
-use crate::estimation::{Estimator, Linearisation, PointProblem, PriorEntry, Weights, linearise, prior_sds_of};
+use crate::estimation::{
+    Estimator, Linearisation, PointProblem, PriorEntry, Weights, linearise, prior_sds_of,
+};
 use crate::kinematics::Measured;
 use crate::model::{ParamInfo, RobotTree, Selection};
 
@@ -477,7 +479,9 @@ fn ml_scale(auto: &AutoPrior, evidence: &Evidence, grid: &[f64], at: &[usize]) -
         .collect();
     let top = match classes.is_empty() {
         true => curve[chosen],
-        false => curve[chosen].max(evidence.log_evidence_of(&at.iter().map(|&k| grid[k]).collect::<Vec<_>>())),
+        false => {
+            curve[chosen].max(evidence.log_evidence_of(&at.iter().map(|&k| grid[k]).collect::<Vec<_>>()))
+        }
     };
     PriorScale {
         preset: auto.preset.clone(),
@@ -566,7 +570,10 @@ pub fn tree_scale_evidence(
     about: Option<&TreeCalibration>,
 ) -> Result<Evidence, CalibrationError> {
     if options.joint_noise.is_none() && data.assumed_sigmas {
-        return Err(needs_the_noise(auto, "sigma and sigma_angle columns in the views' file, or --joint-sigma-deg"));
+        return Err(needs_the_noise(
+            auto,
+            "sigma and sigma_angle columns in the views' file, or --joint-sigma-deg",
+        ));
     }
     let options = TreeOptions { estimator: Estimator::Wls, ..options.clone() };
     let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));

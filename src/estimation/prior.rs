@@ -252,9 +252,7 @@ pub fn prior_sds_of(entries: &[PriorEntry], params: &[&ParamInfo]) -> Result<Vec
 /// parameters into its classes (`lengths`, `angles`, `offsets`, `plays`, `compliances`: the
 /// entries' targets).
 pub fn prior_entry_of(entries: &[PriorEntry], params: &[&ParamInfo]) -> Vec<Option<usize>> {
-    (params.iter())
-        .map(|&p| (0..entries.len()).rev().find(|&e| entries[e].applies_to(p)))
-        .collect()
+    (params.iter()).map(|&p| (0..entries.len()).rev().find(|&e| entries[e].applies_to(p))).collect()
 }
 
 /// The prior rows `c P` of a problem's columns: `weights[j] = c / s_j` (0 without a prior), and

@@ -268,7 +268,10 @@ pub(super) fn prior_scale(scale: &crate::calibration::prior_scale::PriorScale) -
         false => table(
             "small",
             None,
-            &format!("Prior scales per class: --prior {} (the one scale's curve below, for comparison)", scale.label()),
+            &format!(
+                "Prior scales per class: --prior {} (the one scale's curve below, for comparison)",
+                scale.label()
+            ),
             &["class", "parameters", "scale"],
             &classes,
         ),

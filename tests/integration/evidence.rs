@@ -190,7 +190,9 @@ fn auto_ml_by_class_finds_each_class_scale() {
         assert!(off < 1.5f64.ln(), "{class}: geometric mean {} x its truth: {found:?}", off.exp());
     }
     let mean_ratio = ratios.iter().sum::<f64>() / ratios.len() as f64;
-    eprintln!("within {within} of {pairs}; held-out ratio per class / one scale: mean {mean_ratio:.4} {ratios:?}");
+    eprintln!(
+        "within {within} of {pairs}; held-out ratio per class / one scale: mean {mean_ratio:.4} {ratios:?}"
+    );
     eprintln!("{found:?}");
     assert!(mean_ratio <= 1.0, "held out, per class over one scale: {ratios:?}");
 }
@@ -216,7 +218,11 @@ fn auto_ml_finds_the_scale_of_a_robot_under_a_ball_bar() {
         let s0 = if seed % 2 == 0 { 1.0 } else { 4.0 };
         let mut rng = ChaCha8Rng::seed_from_u64(700 + seed);
         let x: Vec<f64> = (chain.params().iter().zip(&sd))
-            .map(|(p, s)| if p.name.starts_with('j') && s.is_finite() { normal(&mut rng) * s * s0 } else { 0.0 })
+            .map(
+                |(p, s)| {
+                    if p.name.starts_with('j') && s.is_finite() { normal(&mut rng) * s * s0 } else { 0.0 }
+                },
+            )
             .collect();
         let real = chain.with_errors(&x);
         let (train, test) = (ball_bar(&real, &mut rng, 0.05), ball_bar(&real, &mut rng, 0.05));
@@ -228,10 +234,14 @@ fn auto_ml_finds_the_scale_of_a_robot_under_a_ball_bar() {
             let c = robocal::calibration::kinds::calibrate_kinds(&puma(), &train, o).unwrap();
             c.score(&test).unwrap().lengths.1
         };
-        let chosen = robocal::calibration::kinds::KindOptions { prior: auto.chosen(&[], &scale), ..plain.clone() };
+        let chosen =
+            robocal::calibration::kinds::KindOptions { prior: auto.chosen(&[], &scale), ..plain.clone() };
         let (at, wls) = (held(&chosen), held(&plain));
         found.push((s0, scale.scale(), at, wls));
-        assert!(at < 1.2 * wls, "seed {seed}: held out {at} mm at the scale chosen, {wls} mm plain: {found:?}");
+        assert!(
+            at < 1.2 * wls,
+            "seed {seed}: held out {at} mm at the scale chosen, {wls} mm plain: {found:?}"
+        );
     }
     eprintln!("ball bar: {within} of 20 within a factor 1.5: {found:?}");
     assert!(within >= 14, "{within} of 20 within a factor 1.5: {found:?}");
@@ -248,6 +258,91 @@ fn auto_ml_on_observations_without_noise_says_what_it_needs() {
     let mut data = ball_bar(&chain.with_errors(&vec![0.0; chain.params().len()]), &mut rng, 0.05);
     data.assumed_sigmas = data.observations.len();
     let auto = AutoPrior::parse("auto-ml:machined").unwrap().unwrap();
-    let e = choose_kinds_prior_scale(&puma(), &data, &options(Estimator::Wls), &auto, 5).unwrap_err().to_string();
-    assert!(e.contains("needs the noise; give it (a sigma column in the observation file, or --joint-sigma-deg)"), "{e}");
+    let e =
+        choose_kinds_prior_scale(&puma(), &data, &options(Estimator::Wls), &auto, 5).unwrap_err().to_string();
+    assert!(
+        e.contains("needs the noise; give it (a sigma column in the observation file, or --joint-sigma-deg)"),
+        "{e}"
+    );
+}
+
+/// `calibrate --prior auto-ml:machined:classes` prints each class's scale, then the one scale
+/// for comparison; `--json`'s `prior_scale` has `classes` (class, parameters, scale, chosen,
+/// each one's profile `log_evidence` with 0 at its scale) beside the one scale's curve, which
+/// is at or below 0 (the scales per class explain the data at least as well).
+#[test]
+fn the_report_gives_the_scales_per_class() {
+    let sigmas = ["--sigma-mm", "0.01", "--joint-sigma-deg", "0.007,0.007,0.007,0.007,0.007,0.007"];
+    let (text, report) =
+        super::nested::calibrate_puma(&[&sigmas[..], &["--prior", "auto-ml:machined:classes"]].concat());
+    let scale = &report["prior_scale"];
+    assert_eq!(scale["by"].as_str(), Some("ml"));
+    let classes = scale["classes"].as_array().unwrap();
+    let names: Vec<&str> = classes.iter().map(|c| c["class"].as_str().unwrap()).collect();
+    assert_eq!(names, ["lengths", "angles", "offsets"], "{scale}");
+    for c in classes {
+        let curve: Vec<f64> =
+            c["log_evidence"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        let chosen = c["chosen"].as_u64().unwrap() as usize;
+        assert_eq!((curve.len(), curve[chosen]), (97, 0.0), "{c}");
+        assert_eq!(c["scale"].as_f64(), scale["scales"][chosen].as_f64());
+        assert!(c["parameters"].as_u64().unwrap() > 0, "{c}");
+    }
+    let one: Vec<f64> =
+        scale["log_evidence"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+    assert!(one.iter().all(|l| *l <= 0.0), "{one:?}");
+    assert!(
+        text.contains(
+            "prior scale: --prior auto-ml:machined:classes chose a scale per class of its standard deviations"
+        ) && text.contains("one scale for every class: "),
+        "{text}"
+    );
+    for name in names {
+        assert!(text.lines().any(|l| l.trim_start().starts_with(name)), "{name}: {text}");
+    }
+    println!("{text}");
+}
+
+/// A scale per class by cross-validation is refused by the parser, naming the spelling that
+/// has it; the label round-trips.
+#[test]
+fn classes_are_the_marginal_likelihoods() {
+    let e = AutoPrior::parse("auto:machined:classes").unwrap().unwrap_err();
+    assert!(e.contains("auto-ml:machined:classes"), "{e}");
+    let default = AutoPrior::parse("auto-ml:classes").unwrap().unwrap();
+    assert_eq!((default.preset.as_str(), default.by_class), ("fabricated", true));
+    assert_eq!(default.label(), "auto-ml:fabricated:classes");
+    assert_eq!(default.classes(), ["lengths", "angles", "offsets", "plays"]);
+    let e = AutoPrior::parse("auto-ml:machined:lengths").unwrap().unwrap_err();
+    assert!(e.contains("auto-ml[:PRESET]:classes"), "{e}");
+    // Each class's entries at its own scale.
+    let scaled = default.scaled_by(&[2.0, 0.5, 1.0, 4.0]);
+    let (lengths, angles) = (&scaled[0], &scaled[1]);
+    assert_eq!((lengths.target.as_str(), angles.target.as_str()), ("lengths", "angles"));
+    assert!((lengths.sd - 2.0 * default.entries[0].sd).abs() < 1e-15);
+    assert!((angles.sd - 0.5 * default.entries[1].sd).abs() < 1e-15);
+}
+
+/// The README's per-class block is the real output of its command.
+#[test]
+fn the_readme_classes_example_is_the_real_output() {
+    crate::cli::the_readme_block_is_printed(
+        "$ robocal calibrate --model puma560 --data examples/puma560-measurements.csv \\\n    --marker 50,0,150 --marker=-40,60,120 --sigma-mm 0.01",
+        &[
+            "calibrate",
+            "--model",
+            "puma560",
+            "--data",
+            "examples/puma560-measurements.csv",
+            "--marker",
+            "50,0,150",
+            "--marker=-40,60,120",
+            "--sigma-mm",
+            "0.01",
+            "--joint-sigma-deg",
+            "0.007,0.007,0.007,0.007,0.007,0.007",
+            "--prior",
+            "auto-ml:machined:classes",
+        ],
+    );
 }

@@ -875,21 +875,37 @@ fn auto_ml_finds_the_scale_of_a_tree() {
             })
             .collect::<Vec<f64>>();
         let truth = params.fold(&nominal, &x);
-        let (training, held) = (nominal.uniform_configurations(40, &mut rng), nominal.uniform_configurations(40, &mut rng));
+        let (training, held) =
+            (nominal.uniform_configurations(40, &mut rng), nominal.uniform_configurations(40, &mut rng));
         let train = simulate_views(&truth, &frames, &placements, &PAIRS, &training, sigma, &mut rng);
         let test = simulate_views(&truth, &frames, &placements, &PAIRS, &held, sigma, &mut rng);
         let scale = choose_tree_prior_scale(&nominal, &train, &plain, &auto, 5).unwrap();
         assert_eq!((scale.folds, scale.log_evidence[scale.chosen]), (None, 0.0));
         within += usize::from((1.0 / 1.5..=1.5).contains(&(scale.scale() / s0)));
-        let score = |o: &TreeOptions| calibrate_tree(&nominal, &train, o).unwrap().score(&test).unwrap().position.1;
+        let score =
+            |o: &TreeOptions| calibrate_tree(&nominal, &train, o).unwrap().score(&test).unwrap().position.1;
         let chosen = TreeOptions { prior: auto.chosen(&[], &scale), ..plain.clone() };
         let (at, wls) = (score(&chosen), score(&plain));
         found.push((s0, scale.scale(), at, wls));
-        assert!(at < 1.2 * wls, "seed {seed}: held out {at} mm at the scale chosen, {wls} mm plain: {found:?}");
+        assert!(
+            at < 1.2 * wls,
+            "seed {seed}: held out {at} mm at the scale chosen, {wls} mm plain: {found:?}"
+        );
     }
     eprintln!("tree: {within} of 10 within a factor 1.5: {found:?}");
     assert!(within >= 8, "{within} of 10 within a factor 1.5: {found:?}");
-    let assumed = TreeData { assumed_sigmas: true, ..simulate_views(&nominal, &frames, &placements, &PAIRS, &nominal.uniform_configurations(20, &mut ChaCha8Rng::seed_from_u64(1)), sigma, &mut ChaCha8Rng::seed_from_u64(2)) };
+    let assumed = TreeData {
+        assumed_sigmas: true,
+        ..simulate_views(
+            &nominal,
+            &frames,
+            &placements,
+            &PAIRS,
+            &nominal.uniform_configurations(20, &mut ChaCha8Rng::seed_from_u64(1)),
+            sigma,
+            &mut ChaCha8Rng::seed_from_u64(2),
+        )
+    };
     let e = choose_tree_prior_scale(&nominal, &assumed, &plain, &auto, 5).unwrap_err().to_string();
     assert!(e.contains("the marginal likelihood needs the noise"), "{e}");
 }
