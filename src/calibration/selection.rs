@@ -324,7 +324,8 @@ pub fn cross_validate_choices(
         before.extend(errors(&calibration.chains, &calibration.before, &held_out));
         after.extend(errors(&calibration.chains, &calibration.after, &held_out));
         selected.extend(chosen.path.map(|p| p.selected));
-        scales.extend(chosen.scale.map(|s| s.scale()));
+        // A scale per class (auto-ml:PRESET:classes) is no one number: not listed.
+        scales.extend(chosen.scale.filter(|s| s.classes.is_empty()).map(|s| s.scale()));
     }
     Ok(NestedCv { before: ErrorStats::of(&before), after: ErrorStats::of(&after), selected, scales })
 }
@@ -402,7 +403,8 @@ pub struct NestedCv {
     pub after: ErrorStats,
     /// With a selection: the joint parameters each fold's selection chose, fold by fold.
     pub selected: Vec<Vec<String>>,
-    /// With `--prior auto`: the scale each fold chose, fold by fold.
+    /// With `--prior auto`: the scale each fold chose, fold by fold (none with a scale per
+    /// class, `auto-ml:PRESET:classes`).
     pub scales: Vec<f64>,
 }
 
