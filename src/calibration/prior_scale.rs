@@ -16,16 +16,18 @@
 //! ([`crate::estimation::evidence`]). It needs no refit: one linearisation, then `O(p)` a
 //! scale, on the grid [`evidence_scales`] (1/64 to 64 in steps of `2^(1/8)`).
 
-use super::kinds::{KindData, KindOptions, cross_validate_kinds};
-use super::tree::{TreeData, TreeOptions, cross_validate_tree};
+use super::kinds::{self, KindCalibration, KindData, KindOptions, cross_validate_kinds};
+use super::tree::{TreeCalibration, TreeData, TreeOptions, cross_validate_tree};
 use super::{
     CalibrationError, JointParams, Measurements, Options, RobotModel, Whitening, calibrate_quietly,
     cross_validate, observed, selection,
 };
 use crate::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
-use crate::estimation::{Estimator, PointProblem, PriorEntry, Weights, linearise, prior_sds};
+use crate::estimation::{
+    Estimator, Linearisation, PointProblem, PriorEntry, Weights, linearise, prior_sds_of,
+};
 use crate::kinematics::Measured;
-use crate::model::{RobotTree, Selection};
+use crate::model::{ParamInfo, RobotTree, Selection};
 
 /// The scales tried: powers of 2 from 1/16 to 16.
 pub const SCALES: [f64; 9] = [0.0625, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
@@ -63,66 +65,120 @@ pub struct AutoPrior {
     pub entries: Vec<PriorEntry>,
     /// How the scale is chosen.
     pub by: ScaleBy,
+    /// One scale per class of the preset's parameters (`auto-ml:PRESET:classes`,
+    /// [`AutoPrior::classes`]), not one for all.
+    pub by_class: bool,
 }
+
+/// The word after a preset that asks for one scale per class: `auto-ml:PRESET:classes`.
+pub const BY_CLASS: &str = "classes";
 
 impl AutoPrior {
     /// `auto`, `auto:PRESET` (by cross-validation), `auto-ml` or `auto-ml:PRESET` (by the
-    /// marginal likelihood): the preset's entries; `None` for any other text; an error naming
-    /// the presets for an unknown one.
+    /// marginal likelihood), `auto-ml:PRESET:classes` or `auto-ml:classes` (one scale per class,
+    /// by the marginal likelihood): the preset's entries; `None` for any other text; an error
+    /// naming the presets for an unknown one, and for classes by cross-validation.
     pub fn parse(text: &str) -> Option<Result<Self, String>> {
         let trimmed = text.trim();
         let (by, rest) = match trimmed.strip_prefix("auto-ml") {
             Some(rest) => (ScaleBy::Ml, rest),
             None => (ScaleBy::Cv, trimmed.strip_prefix("auto")?),
         };
-        let preset = match rest {
-            "" => DEFAULT_PRESET,
-            other => other.strip_prefix(':')?.trim(),
+        let words: Vec<&str> = match rest {
+            "" => Vec::new(),
+            other => other.strip_prefix(':')?.split(':').map(str::trim).collect(),
         };
+        let (preset, by_class) = match words.as_slice() {
+            [] => (DEFAULT_PRESET, false),
+            [BY_CLASS] => (DEFAULT_PRESET, true),
+            [preset] => (*preset, false),
+            [preset, BY_CLASS] => (*preset, true),
+            _ => return Some(Err(Self::expected(text))),
+        };
+        if by_class && by == ScaleBy::Cv {
+            return Some(Err(format!(
+                "`{text}`: a scale per class is chosen by the marginal likelihood only: auto-ml:{preset}:classes"
+            )));
+        }
         let known = crate::estimation::PRIOR_PRESETS.iter().find(|(name, _)| *name == preset);
         Some(match known {
             Some((name, _)) => PriorEntry::parse_list(name)
-                .map(|entries| Self { preset: name.to_string(), entries, by })
+                .map(|entries| Self { preset: name.to_string(), entries, by, by_class })
                 .map_err(|e| e.to_string()),
-            None => {
-                let names: Vec<&str> = crate::estimation::PRIOR_PRESETS.iter().map(|(n, _)| *n).collect();
-                Err(format!(
-                    "`{text}`: expected auto[:PRESET] or auto-ml[:PRESET], a preset among {}",
-                    names.join(", ")
-                ))
-            }
+            None => Err(Self::expected(text)),
         })
     }
 
-    /// `auto:PRESET` or `auto-ml:PRESET`, as `--prior` takes it.
+    /// The error of a `--prior auto...` that is none of [`AutoPrior::parse`]'s spellings.
+    fn expected(text: &str) -> String {
+        let names: Vec<&str> = crate::estimation::PRIOR_PRESETS.iter().map(|(n, _)| *n).collect();
+        format!(
+            "`{text}`: expected auto[:PRESET], auto-ml[:PRESET] or auto-ml[:PRESET]:classes, a preset among {}",
+            names.join(", ")
+        )
+    }
+
+    /// The classes of its parameters, one scale each with [`AutoPrior::by_class`]: its
+    /// entries' targets in order, once each (`lengths`, `angles`, `offsets`, `plays`).
+    pub fn classes(&self) -> Vec<String> {
+        let mut classes: Vec<String> = Vec::new();
+        for e in &self.entries {
+            if !classes.contains(&e.target) {
+                classes.push(e.target.clone());
+            }
+        }
+        classes
+    }
+
+    /// The class index of each of `params` ([`AutoPrior::classes`]; 0 for every one unless
+    /// [`AutoPrior::by_class`]), by the entry that sets its prior; 0 for one without.
+    fn class_of(&self, params: &[&crate::model::ParamInfo]) -> Vec<usize> {
+        let classes = self.classes();
+        let class = |e: usize| classes.iter().position(|c| *c == self.entries[e].target).unwrap_or(0);
+        (crate::estimation::prior_entry_of(&self.entries, params).into_iter())
+            .map(|e| if self.by_class { e.map_or(0, class) } else { 0 })
+            .collect()
+    }
+
+    /// Its entries, each standard deviation times its class's scale: `scales[c]` of class `c`
+    /// of [`AutoPrior::classes`], or one scale for all (`scales` of length 1).
+    pub fn scaled_by(&self, scales: &[f64]) -> Vec<PriorEntry> {
+        let classes = self.classes();
+        let at = |e: &PriorEntry| {
+            let c = classes.iter().position(|c| *c == e.target).unwrap_or(0);
+            let s = if scales.len() == 1 { scales[0] } else { scales[c] };
+            PriorEntry { sd: e.sd * s, text: format!("{} x {s}", e.text), ..e.clone() }
+        };
+        self.entries.iter().map(at).collect()
+    }
+
+    /// Its entries at the scales `chosen` chose (one for all, or one per class), then `own`
+    /// (which win where both name a parameter).
+    pub fn chosen(&self, own: &[PriorEntry], chosen: &PriorScale) -> Vec<PriorEntry> {
+        let scales: Vec<f64> = match chosen.classes.is_empty() {
+            true => vec![chosen.scale()],
+            false => (self.classes().iter())
+                .map(|c| chosen.classes.iter().find(|k| k.class == *c).map_or(chosen.scale(), |k| k.scale))
+                .collect(),
+        };
+        self.scaled_by(&scales).into_iter().chain(own.iter().cloned()).collect()
+    }
+
+    /// `auto:PRESET`, `auto-ml:PRESET` or `auto-ml:PRESET:classes`, as `--prior` takes it.
     pub fn label(&self) -> String {
-        format!("{}:{}", self.by.word(), self.preset)
+        let classes = if self.by_class { format!(":{BY_CLASS}") } else { String::new() };
+        format!("{}:{}{classes}", self.by.word(), self.preset)
     }
 
     /// Its entries with every standard deviation times `s`.
     pub fn scaled(&self, s: f64) -> Vec<PriorEntry> {
-        let at = |e: &PriorEntry| PriorEntry { sd: e.sd * s, text: format!("{} x {s}", e.text), ..e.clone() };
-        self.entries.iter().map(at).collect()
+        self.scaled_by(&[s])
     }
 
     /// Its entries scaled by `s` ([`AutoPrior::scaled`]), then `own` (which win where both
     /// name a parameter).
     pub fn before(&self, own: &[PriorEntry], s: f64) -> Vec<PriorEntry> {
         self.scaled(s).into_iter().chain(own.iter().cloned()).collect()
-    }
-
-    /// An error unless the scale is chosen by cross-validation: the marginal likelihood
-    /// ([`choose_prior_scale_ml`]) is of marker data only, so far; `data` names what this is.
-    pub fn by_cross_validation(&self, data: &str) -> Result<(), CalibrationError> {
-        match self.by {
-            ScaleBy::Cv => Ok(()),
-            ScaleBy::Ml => Err(CalibrationError::Scoring(format!(
-                "--prior {}: the marginal likelihood is for marker files yet, not {data}; --prior auto:{} \
-                 chooses the scale by cross-validation",
-                self.label(),
-                self.preset
-            ))),
-        }
     }
 }
 
@@ -146,19 +202,45 @@ pub struct PriorScale {
     /// scale chosen).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub log_evidence: Vec<f64>,
-    /// The index of the scale chosen.
+    /// The index of the scale chosen (with [`PriorScale::classes`]: of the one scale for every
+    /// class, for comparison).
     pub chosen: usize,
+    /// `auto-ml:PRESET:classes`: each class's scale and its profile; `log_evidence` is then
+    /// the one-scale curve less the largest evidence of the scales per class (its largest
+    /// below 0 by what the scales per class gain).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub classes: Vec<ClassScale>,
+}
+
+/// One class's scale (`auto-ml:PRESET:classes`), chosen by the marginal likelihood with the
+/// other classes' ([`Evidence::class_ascent`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ClassScale {
+    /// The class: a preset entry's target (`lengths`, `angles`, `offsets`, `plays`,
+    /// `compliances`).
+    pub class: String,
+    /// How many estimated parameters have the class's prior.
+    pub parameters: usize,
+    /// The scale chosen.
+    pub scale: f64,
+    /// The index of the scale chosen in [`PriorScale::scales`].
+    pub chosen: usize,
+    /// `log p(y | s)` with this class's scale at each of [`PriorScale::scales`] and the
+    /// others' at theirs, less its largest (0 at the scale chosen).
+    pub log_evidence: Vec<f64>,
 }
 
 impl PriorScale {
-    /// The scale chosen.
+    /// The scale chosen (with [`PriorScale::classes`]: the one scale for every class, for
+    /// comparison; each class's is in [`ClassScale::scale`]).
     pub fn scale(&self) -> f64 {
         self.scales[self.chosen]
     }
 
-    /// `auto:PRESET` or `auto-ml:PRESET`, as `--prior` took it.
+    /// `auto:PRESET`, `auto-ml:PRESET` or `auto-ml:PRESET:classes`, as `--prior` took it.
     pub fn label(&self) -> String {
-        format!("{}:{}", self.by.word(), self.preset)
+        let classes = if self.classes.is_empty() { String::new() } else { format!(":{BY_CLASS}") };
+        format!("{}:{}{classes}", self.by.word(), self.preset)
     }
 }
 
@@ -194,7 +276,8 @@ pub fn choose_prior_scale(
 
 /// [`choose_prior_scale`] for observation files: each scale scored by the cross-validated RMS
 /// of the length residuals (mm; [`cross_validate_kinds`]'s folds, every observation of a pose
-/// held out together).
+/// held out together); by the marginal likelihood for `auto-ml`
+/// ([`choose_kinds_prior_scale_ml`], `folds` unused).
 pub fn choose_kinds_prior_scale(
     model: &RobotModel,
     data: &KindData,
@@ -202,14 +285,17 @@ pub fn choose_kinds_prior_scale(
     auto: &AutoPrior,
     folds: usize,
 ) -> Result<PriorScale, CalibrationError> {
-    auto.by_cross_validation("observation files")?;
+    if auto.by == ScaleBy::Ml {
+        return choose_kinds_prior_scale_ml(model, data, options, auto);
+    }
     scale_by_curve(auto, folds, data.joints.len(), |s| {
         Ok(cross_validate_kinds(model, data, &with_kinds_scale(options, auto, s), folds)?.lengths.1)
     })
 }
 
 /// [`choose_prior_scale`] for a tree's views: each scale scored by the cross-validated RMS of
-/// the views' position residuals (mm; [`cross_validate_tree`]'s folds).
+/// the views' position residuals (mm; [`cross_validate_tree`]'s folds); by the marginal
+/// likelihood for `auto-ml` ([`choose_tree_prior_scale_ml`], `folds` unused).
 pub fn choose_tree_prior_scale(
     tree: &RobotTree,
     data: &TreeData,
@@ -217,7 +303,9 @@ pub fn choose_tree_prior_scale(
     auto: &AutoPrior,
     folds: usize,
 ) -> Result<PriorScale, CalibrationError> {
-    auto.by_cross_validation("a tree's views")?;
+    if auto.by == ScaleBy::Ml {
+        return choose_tree_prior_scale_ml(tree, data, options, auto);
+    }
     scale_by_curve(auto, folds, data.joints.len(), |s| {
         Ok(cross_validate_tree(tree, data, &with_tree_scale(options, auto, s), folds)?.position.1)
     })
@@ -242,6 +330,7 @@ fn scale_by_curve(
         cv_rms,
         log_evidence: Vec::new(),
         chosen,
+        classes: Vec::new(),
     })
 }
 
@@ -273,49 +362,146 @@ pub const EVIDENCE_ROUNDS: usize = 4;
 /// second-order residual that a larger scale would explain), until the scale stays (at most
 /// [`EVIDENCE_ROUNDS`] linearisations). The noise must be known (`options.noise`);
 /// `options.prior` applies unscaled, where both name a parameter instead of the preset's.
+/// With [`AutoPrior::by_class`], one scale per class, `argmax log p(y | s_1..s_n)` by
+/// [`Evidence::class_ascent`] from the one scale's choice, in the same rounds.
 pub fn choose_prior_scale_ml(
     model: &RobotModel,
     data: &Measurements,
     options: &Options,
     auto: &AutoPrior,
 ) -> Result<PriorScale, CalibrationError> {
-    let scales = evidence_scales();
+    choose_by_evidence(
+        auto,
+        |about: Option<&Vec<f64>>| scale_evidence(model, data, options, auto, about.map(Vec::as_slice)),
+        |entries| {
+            let prior = entries.iter().chain(&options.prior).cloned().collect();
+            Ok(calibrate_quietly(model, data, &Options { prior, ..options.clone() })?.after)
+        },
+    )
+}
+
+/// [`choose_prior_scale_ml`] for observation files: the evidence of their whitened system
+/// ([`kinds_scale_evidence`]: each pose's block `V_k` of the observations' sigmas and the
+/// joint noise), about the "before" fit, then about the calibration at the scales chosen.
+pub fn choose_kinds_prior_scale_ml(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    auto: &AutoPrior,
+) -> Result<PriorScale, CalibrationError> {
+    choose_by_evidence(
+        auto,
+        |about: Option<&KindCalibration>| kinds_scale_evidence(model, data, options, auto, about),
+        |entries| {
+            let prior = entries.iter().chain(&options.prior).cloned().collect();
+            kinds::calibrate_kinds(model, data, &KindOptions { prior, ..options.clone() })
+        },
+    )
+}
+
+/// [`choose_prior_scale_ml`] for a tree's views ([`tree_scale_evidence`]).
+pub fn choose_tree_prior_scale_ml(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+    auto: &AutoPrior,
+) -> Result<PriorScale, CalibrationError> {
+    choose_by_evidence(
+        auto,
+        |about: Option<&TreeCalibration>| tree_scale_evidence(tree, data, options, auto, about),
+        |entries| {
+            let prior = entries.iter().chain(&options.prior).cloned().collect();
+            super::tree::calibrate_tree(tree, data, &TreeOptions { prior, ..options.clone() })
+        },
+    )
+}
+
+/// The marginal likelihood's rounds (see [`choose_prior_scale_ml`]) for any calibration `F`:
+/// `evidence_about(None)` about the start, `evidence_about(Some(f))` about the fit `f`, which
+/// `fit_at(entries)` makes with the preset's entries at the scales chosen.
+fn choose_by_evidence<F>(
+    auto: &AutoPrior,
+    evidence_about: impl Fn(Option<&F>) -> Result<Evidence, CalibrationError>,
+    fit_at: impl Fn(&[PriorEntry]) -> Result<F, CalibrationError>,
+) -> Result<PriorScale, CalibrationError> {
+    let grid = evidence_scales();
     let (mut about, mut previous) = (None, None);
-    let mut curve = Vec::new();
+    let mut last = None;
     for _ in 0..EVIDENCE_ROUNDS {
-        let evidence = scale_evidence(model, data, options, auto, about.as_deref())?;
-        curve = scales.iter().map(|&s| evidence.log_evidence(s)).collect();
-        let chosen = arg_max(&curve);
-        if previous == Some(chosen) {
+        let evidence = evidence_about(about.as_ref())?;
+        let at = evidence_choice(&evidence, &grid, auto);
+        let stays = previous.as_ref() == Some(&at);
+        last = Some((evidence, at.clone()));
+        if stays {
             break;
         }
-        previous = Some(chosen);
-        about = Some(calibrate_quietly(model, data, &with_scale(options, auto, scales[chosen]))?.after);
+        let scales: Vec<f64> = at.iter().map(|&k| grid[k]).collect();
+        about = Some(fit_at(&auto.scaled_by(&scales))?);
+        previous = Some(at);
     }
+    let (evidence, at) = last.expect("at least one round");
+    Ok(ml_scale(auto, &evidence, &grid, &at))
+}
+
+/// The grid indices the evidence chooses: the one scale of the largest
+/// [`Evidence::log_evidence`]; with [`AutoPrior::by_class`], one per class of
+/// [`AutoPrior::classes`] by [`Evidence::class_ascent`] from it (a class without an estimated
+/// parameter at the one scale).
+fn evidence_choice(evidence: &Evidence, grid: &[f64], auto: &AutoPrior) -> Vec<usize> {
+    let one = arg_max(&grid.iter().map(|&s| evidence.log_evidence(s)).collect::<Vec<_>>());
+    if !auto.by_class {
+        return vec![one];
+    }
+    let mut at = evidence.class_ascent(grid, one);
+    at.resize(auto.classes().len().max(at.len()), one);
+    at
+}
+
+/// The [`PriorScale`] of the marginal likelihood chosen at the grid indices `at`
+/// ([`evidence_choice`]): the one-scale curve, and with classes each class's profile.
+fn ml_scale(auto: &AutoPrior, evidence: &Evidence, grid: &[f64], at: &[usize]) -> PriorScale {
+    let curve: Vec<f64> = grid.iter().map(|&s| evidence.log_evidence(s)).collect();
     let chosen = arg_max(&curve);
-    let log_evidence = curve.iter().map(|l| l - curve[chosen]).collect();
-    Ok(PriorScale {
+    let (sizes, names) = (evidence.class_sizes(), auto.classes());
+    let classes: Vec<ClassScale> = (0..sizes.len())
+        .filter(|&c| auto.by_class && sizes[c] > 0)
+        .map(|c| {
+            let profile = evidence.profile(grid, at, c);
+            let top = profile.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            ClassScale {
+                class: names[c].clone(),
+                parameters: sizes[c],
+                scale: grid[at[c]],
+                chosen: at[c],
+                log_evidence: profile.iter().map(|l| l - top).collect(),
+            }
+        })
+        .collect();
+    let top = match classes.is_empty() {
+        true => curve[chosen],
+        false => {
+            curve[chosen].max(evidence.log_evidence_of(&at.iter().map(|&k| grid[k]).collect::<Vec<_>>()))
+        }
+    };
+    PriorScale {
         preset: auto.preset.clone(),
         by: ScaleBy::Ml,
         folds: None,
-        scales,
+        scales: grid.to_vec(),
         cv_rms: Vec::new(),
-        log_evidence,
+        log_evidence: curve.iter().map(|l| l - top).collect(),
         chosen,
-    })
+        classes,
+    }
 }
 
 /// The [`Evidence`] of `data` for the scale of `auto`'s preset: the system of the parameters
 /// `options` asks for, linearised about `about` (a full parameter vector of a calibration of
 /// `data`; `None`: the registration, the base and markers fitted as [`calibrate`](super::calibrate)'s "before")
 /// and whitened by Gauss-Markov (`S V S^T = I`: the rows divided by the normalisation
-/// `c = sigma_max`). About `x0` the model is linear in the errors `x` from nominal,
-/// `w0 + A x0 = A x + e` (`w0` the whitened residual at `x0`), so with `A = R / c`
-/// (`R^T R = A^T A c^2`, `z` and `rho` of [`crate::estimation::Reduced`]):
-/// `G = R^T R / c^2`, `A^T w = (R^T z + R^T R x0) / c^2`,
-/// `|w|^2 = (|z|^2 + rho^2 + 2 x0^T R^T z + x0^T R^T R x0) / c^2`. A parameter with an entry of
-/// `options.prior` has that fixed prior, one with the preset's only is scaled, the others are
-/// flat.
+/// `c = sigma_max`; [`linear_evidence`]). A parameter with an entry of `options.prior` has
+/// that fixed prior, one with the preset's only is scaled, the others are flat
+/// ([`evidence_columns`]).
 pub fn scale_evidence(
     model: &RobotModel,
     data: &Measurements,
@@ -325,12 +511,7 @@ pub fn scale_evidence(
 ) -> Result<Evidence, CalibrationError> {
     let frame = calibrate_quietly(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
     let Whitening::Covariance(noise) = &frame.whitening else {
-        return Err(CalibrationError::Scoring(format!(
-            "--prior {}: the marginal likelihood needs the noise; give it (--sigma-mm with \
-             --joint-sigma-deg, or --noise), or choose the scale by cross-validation (--prior auto:{})",
-            auto.label(),
-            auto.preset
-        )));
+        return Err(needs_the_noise(auto, "--sigma-mm with --joint-sigma-deg, or --noise"));
     };
     let params = &frame.params;
     let zero = vec![0.0; params.len()];
@@ -350,17 +531,110 @@ pub fn scale_evidence(
     let asked = selection(params, &options.joints, options)?;
     let problem = base_problem.reselect(&asked, about.unwrap_or(&frame.before).to_vec())?;
     let start = linearise(&problem, &weights, problem.start())?;
-    let (fixed, preset) = (prior_sds(&options.prior, params)?, prior_sds(&auto.entries, params)?);
-    let columns: Vec<Column> = (asked.indices().iter())
-        .map(|&i| match (fixed[i].is_finite(), preset[i].is_finite()) {
-            (true, _) => Column::Fixed(fixed[i]),
-            (false, true) => Column::Scaled(preset[i]),
-            (false, false) => Column::Flat,
-        })
-        .collect();
+    let infos: Vec<&ParamInfo> = params.iter().collect();
+    let (columns, classes) = evidence_columns(auto, &options.prior, &infos, asked.indices(), 0)?;
+    Ok(linear_evidence(&start, c2, &columns, &classes))
+}
+
+/// The [`Evidence`] of observation files for the scale of `auto`'s preset: their system of
+/// what `options` asks for (the robot's parameters, then the set-up's, flat), whitened by
+/// `V_k` (weighted least squares, [`kinds::evidence_system`]), linearised about `about`'s
+/// estimate (`None`: the "before" fit). The noise must be known: a sigma column or the joint
+/// noise (`--joint-sigma-deg`).
+pub fn kinds_scale_evidence(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    auto: &AutoPrior,
+    about: Option<&KindCalibration>,
+) -> Result<Evidence, CalibrationError> {
+    if options.joint_noise.is_none() && data.assumed_sigmas == data.observations.len() {
+        return Err(needs_the_noise(auto, "a sigma column in the observation file, or --joint-sigma-deg"));
+    }
+    let options = KindOptions { estimator: Estimator::Wls, ..options.clone() };
+    let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
+    system_evidence(auto, &options.prior, &kinds::evidence_system(model, data, &options, about)?)
+}
+
+/// The [`Evidence`] of a tree's views for the scale of `auto`'s preset, as
+/// [`kinds_scale_evidence`]'s of observation files: the tree's parameters `options` asks for,
+/// then the cameras' and targets' placements (flat), whitened by each view's `V_k` (weighted
+/// least squares, [`tree::evidence_system`](super::tree::evidence_system)), about `about`'s
+/// estimate (`None`: the "before" fit). The noise must be known: the views' sigma columns or
+/// the joint noise.
+pub fn tree_scale_evidence(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+    auto: &AutoPrior,
+    about: Option<&TreeCalibration>,
+) -> Result<Evidence, CalibrationError> {
+    if options.joint_noise.is_none() && data.assumed_sigmas {
+        return Err(needs_the_noise(
+            auto,
+            "sigma and sigma_angle columns in the views' file, or --joint-sigma-deg",
+        ));
+    }
+    let options = TreeOptions { estimator: Estimator::Wls, ..options.clone() };
+    let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
+    system_evidence(auto, &options.prior, &super::tree::evidence_system(tree, data, &options, about)?)
+}
+
+/// The [`Evidence`] of a whitened `system` ([`linear_evidence`]), its columns by
+/// [`evidence_columns`] (`own` the user's fixed priors; after the parameters, flat set-up ones).
+fn system_evidence(
+    auto: &AutoPrior,
+    own: &[PriorEntry],
+    system: &kinds::EvidenceSystem,
+) -> Result<Evidence, CalibrationError> {
+    let infos: Vec<&ParamInfo> = system.params.iter().collect();
+    let extra = system.linearised.x.len() - system.asked.len();
+    let (columns, classes) = evidence_columns(auto, own, &infos, &system.asked, extra)?;
+    Ok(linear_evidence(&system.linearised, system.c * system.c, &columns, &classes))
+}
+
+/// The error of the marginal likelihood without the noise: `give` says how to give it.
+fn needs_the_noise(auto: &AutoPrior, give: &str) -> CalibrationError {
+    CalibrationError::Scoring(format!(
+        "--prior {}: the marginal likelihood needs the noise; give it ({give}), or choose the scale by \
+         cross-validation (--prior auto:{})",
+        auto.label(),
+        auto.preset
+    ))
+}
+
+/// How each column of a system enters the evidence, and its class
+/// ([`AutoPrior::class_of`]): the first are the parameters `asked` (indices into `params`),
+/// one with an entry of `own` a fixed prior, one with `auto`'s only scaled, the others flat;
+/// then `extra` flat ones (a set-up's).
+fn evidence_columns(
+    auto: &AutoPrior,
+    own: &[PriorEntry],
+    params: &[&ParamInfo],
+    asked: &[usize],
+    extra: usize,
+) -> Result<(Vec<Column>, Vec<usize>), CalibrationError> {
+    let (fixed, preset) = (prior_sds_of(own, params)?, prior_sds_of(&auto.entries, params)?);
+    let class = auto.class_of(params);
+    let robot = asked.iter().map(|&i| match (fixed[i].is_finite(), preset[i].is_finite()) {
+        (true, _) => Column::Fixed(fixed[i]),
+        (false, true) => Column::Scaled(preset[i]),
+        (false, false) => Column::Flat,
+    });
+    let columns = robot.chain(std::iter::repeat_n(Column::Flat, extra)).collect();
+    let classes = asked.iter().map(|&i| class[i]).chain(std::iter::repeat_n(0, extra)).collect();
+    Ok((columns, classes))
+}
+
+/// The [`Evidence`] of a system linearised about `x0` (`A` held as `R`, `R^T R = A^T A c^2`,
+/// `z` and `rho` of [`crate::estimation::Reduced`], the rows whitened and divided by `c`).
+/// About `x0` the model is linear in the errors `x` from nominal, `w0 + A x0 = A x + e` (`w0`
+/// the whitened residual at `x0`), so `G = R^T R / c^2`, `A^T w = (R^T z + R^T R x0) / c^2`,
+/// `|w|^2 = (|z|^2 + rho^2 + 2 x0^T R^T z + x0^T R^T R x0) / c^2`.
+fn linear_evidence(start: &Linearisation, c2: f64, columns: &[Column], classes: &[usize]) -> Evidence {
     let (r, z, x0) = (start.system.r(), start.system.z(), &start.x);
     let gram = r.tr_mul(&r);
     let (rtz, gx) = (r.tr_mul(&z), &gram * x0);
     let ww = start.system.cost_after(&(x0 * 0.0)) + 2.0 * x0.dot(&rtz) + x0.dot(&gx);
-    Ok(Evidence::new(&(gram / c2), &((rtz + gx) / c2), ww / c2, &columns))
+    Evidence::with_classes(&(gram / c2), &((rtz + gx) / c2), ww / c2, columns, classes)
 }

@@ -44,8 +44,7 @@
 
 use super::kinds::{self, KindCalibration, KindData, KindOptions};
 use super::prior_scale::{
-    AutoPrior, PriorScale, choose_kinds_prior_scale, choose_scale, choose_tree_prior_scale, with_kinds_scale,
-    with_scale, with_tree_scale,
+    AutoPrior, PriorScale, choose_kinds_prior_scale, choose_scale, choose_tree_prior_scale,
 };
 use super::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree};
 use super::{
@@ -284,7 +283,7 @@ pub fn choose(
     let mut chosen = Chosen { options: options.clone(), scale: None, path: None };
     if let Some((auto, folds)) = &choices.auto_prior {
         let scale = choose_scale(model, data, options, auto, (*folds).min(data.len()))?;
-        chosen.options = with_scale(options, auto, scale.scale());
+        chosen.options = Options { prior: auto.chosen(&options.prior, &scale), ..options.clone() };
         chosen.scale = Some(scale);
     }
     if let Some(criterion) = choices.select {
@@ -325,7 +324,8 @@ pub fn cross_validate_choices(
         before.extend(errors(&calibration.chains, &calibration.before, &held_out));
         after.extend(errors(&calibration.chains, &calibration.after, &held_out));
         selected.extend(chosen.path.map(|p| p.selected));
-        scales.extend(chosen.scale.map(|s| s.scale()));
+        // A scale per class (auto-ml:PRESET:classes) is no one number: not listed.
+        scales.extend(chosen.scale.filter(|s| s.classes.is_empty()).map(|s| s.scale()));
     }
     Ok(NestedCv { before: ErrorStats::of(&before), after: ErrorStats::of(&after), selected, scales })
 }
@@ -354,7 +354,7 @@ pub fn calibrate_kinds_chosen(
     let (mut options, mut scale) = (options.clone(), None);
     if let Some((auto, folds)) = &choices.auto_prior {
         let chosen = choose_kinds_prior_scale(model, data, &options, auto, (*folds).min(data.joints.len()))?;
-        options = with_kinds_scale(&options, auto, chosen.scale());
+        options = KindOptions { prior: auto.chosen(&options.prior, &chosen), ..options };
         scale = Some(chosen);
     }
     let (path, calibration) = match choices.select {
@@ -403,7 +403,8 @@ pub struct NestedCv {
     pub after: ErrorStats,
     /// With a selection: the joint parameters each fold's selection chose, fold by fold.
     pub selected: Vec<Vec<String>>,
-    /// With `--prior auto`: the scale each fold chose, fold by fold.
+    /// With `--prior auto`: the scale each fold chose, fold by fold (none with a scale per
+    /// class, `auto-ml:PRESET:classes`).
     pub scales: Vec<f64>,
 }
 
@@ -541,7 +542,7 @@ pub fn calibrate_tree_chosen(
     let (mut options, mut scale) = (options.clone(), None);
     if let Some((auto, folds)) = &choices.auto_prior {
         let chosen = choose_tree_prior_scale(tree, data, &options, auto, (*folds).min(data.joints.len()))?;
-        options = with_tree_scale(&options, auto, chosen.scale());
+        options = TreeOptions { prior: auto.chosen(&options.prior, &chosen), ..options };
         scale = Some(chosen);
     }
     let asking = |names: &[String]| TreeOptions { joints: named_joints(names.to_vec()), ..options.clone() };

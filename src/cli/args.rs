@@ -298,7 +298,10 @@ pub struct ModelChoiceArgs {
     /// on the training poses (--folds K, default 5); other --prior entries override it.
     /// `--prior auto-ml[:PRESET]` chooses the factor (1/64 to 64 in steps of 2^(1/8)) by the
     /// marginal likelihood instead (type-II maximum likelihood), which needs the noise
-    /// (--sigma-mm with --joint-sigma-deg, or --noise) and no refit per factor.
+    /// (--sigma-mm with --joint-sigma-deg, or --noise; on observation files their sigma
+    /// columns or --joint-sigma-deg) and no refit per factor. `--prior auto-ml:PRESET:classes`
+    /// (or `auto-ml:classes`) chooses one factor per class of the preset (lengths, angles,
+    /// offsets, plays) by the marginal likelihood, each reported with the one factor's.
     #[arg(long, value_name = "PATTERN=SD,...", value_parser = parse_prior)]
     pub prior: Vec<PriorArg>,
     /// The loss of each pose's whitened residual: `squared` (least squares), `huber[:K]`
@@ -678,12 +681,12 @@ fn parse_iterations(text: &str) -> Result<usize, String> {
 pub enum PriorArg {
     /// `PATTERN=SD` entries and presets.
     Entries(Vec<PriorEntry>),
-    /// `auto[:PRESET]` or `auto-ml[:PRESET]`.
+    /// `auto[:PRESET]`, `auto-ml[:PRESET]` or `auto-ml[:PRESET]:classes`.
     Auto(AutoPrior),
 }
 
-/// Prior entries, `PATTERN=SD` separated by commas, or presets; or `auto[:PRESET]` or
-/// `auto-ml[:PRESET]`.
+/// Prior entries, `PATTERN=SD` separated by commas, or presets; or `auto[:PRESET]`,
+/// `auto-ml[:PRESET]` or `auto-ml[:PRESET]:classes` ([`AutoPrior::parse`], the one parser).
 fn parse_prior(text: &str) -> Result<PriorArg, String> {
     if let Some(auto) = AutoPrior::parse(text) {
         return auto.map(PriorArg::Auto);

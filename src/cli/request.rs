@@ -304,7 +304,7 @@ pub struct CalibrateRequest {
     pub markers: Vec<Vector3<f64>>,
     /// Prior entries from the flags, in order (a noise file's come first).
     pub prior: Vec<robocal::estimation::PriorEntry>,
-    /// `--prior auto[:PRESET]` or `auto-ml[:PRESET]`: the preset whose scale is chosen from
+    /// `--prior auto[:PRESET]`, `auto-ml[:PRESET]` or `auto-ml[:PRESET]:classes`: the preset whose scale is chosen from
     /// the data.
     pub auto_prior: Option<robocal::calibration::prior_scale::AutoPrior>,
     /// The loss of each pose.

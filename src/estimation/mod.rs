@@ -38,7 +38,8 @@ pub use noise::{MeasurementNoise, NoiseModel};
 pub(crate) use noise_file::DeviceTable;
 pub use noise_file::{NoiseFileError, NoiseSpec};
 pub use prior::{
-    PRESETS as PRIOR_PRESETS, PriorEntry, PriorError, PriorRows, PriorUnit, prior_sds, prior_sds_of,
+    PRESETS as PRIOR_PRESETS, PriorEntry, PriorError, PriorRows, PriorUnit, prior_entry_of, prior_sds,
+    prior_sds_of,
 };
 pub use problem::{POSE_SIGMAS, PointProblem};
 pub use reduced::Reduced;

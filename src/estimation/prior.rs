@@ -247,6 +247,14 @@ pub fn prior_sds_of(entries: &[PriorEntry], params: &[&ParamInfo]) -> Result<Vec
     Ok(sd)
 }
 
+/// The entry of `entries` that sets each parameter's prior in [`prior_sds_of`] (the last that
+/// applies to it), by index; `None` for a parameter without a prior. What sorts a preset's
+/// parameters into its classes (`lengths`, `angles`, `offsets`, `plays`, `compliances`: the
+/// entries' targets).
+pub fn prior_entry_of(entries: &[PriorEntry], params: &[&ParamInfo]) -> Vec<Option<usize>> {
+    (params.iter()).map(|&p| (0..entries.len()).rev().find(|&e| entries[e].applies_to(p))).collect()
+}
+
 /// The prior rows `c P` of a problem's columns: `weights[j] = c / s_j` (0 without a prior), and
 /// the scale `c` of the whitened data rows.
 #[derive(Debug, Clone, PartialEq)]

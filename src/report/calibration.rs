@@ -234,6 +234,9 @@ pub(super) fn choices_text(scale: Option<&PriorScale>, selection: Option<&Select
 /// cross-validation; of the marginal likelihood's fine grid, the powers of 2 and the scale
 /// chosen (the JSON has every one).
 pub(super) fn prior_scale_text(scale: &PriorScale) -> String {
+    if !scale.classes.is_empty() {
+        return class_scales_text(scale);
+    }
     let mut out = format!(
         "prior scale: --prior {} chose {} x its standard deviations, by {} (in-sample: --folds K gives the \
          nested figure)\n",
@@ -253,6 +256,28 @@ pub(super) fn prior_scale_text(scale: &PriorScale) -> String {
         let mark = if k == scale.chosen { "  <- chosen" } else { "" };
         let _ = writeln!(out, "{:>8} {value:>12.4}{mark}", short(*s));
     }
+    out
+}
+
+/// The scales `--prior auto-ml:PRESET:classes` chose, one per class, then the one scale for
+/// every class for comparison, its log evidence below the classes'.
+fn class_scales_text(scale: &PriorScale) -> String {
+    let mut out = format!(
+        "prior scale: --prior {} chose a scale per class of its standard deviations, by {} (in-sample: \
+         --folds K gives the nested figure)\n",
+        scale.label(),
+        prior_scale_method(scale),
+    );
+    let _ = writeln!(out, "{:>12} {:>10} {:>8}", "class", "parameters", "scale");
+    for c in &scale.classes {
+        let _ = writeln!(out, "{:>12} {:>10} {:>8}", c.class, c.parameters, short(c.scale));
+    }
+    let _ = writeln!(
+        out,
+        "one scale for every class: {} x, log evidence {:.4} below the scales per class",
+        short(scale.scale()),
+        -scale.log_evidence[scale.chosen]
+    );
     out
 }
 

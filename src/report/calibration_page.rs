@@ -253,7 +253,30 @@ pub(super) fn prior_scale(scale: &crate::calibration::prior_scale::PriorScale) -
         scale.scale(),
         super::calibration::prior_scale_method(scale),
     );
-    table("small", None, &caption, &["scale", heading], &rows)
+    let classes: Vec<Row> = (scale.classes.iter())
+        .map(|c| Row {
+            cells: vec![
+                Cell::name(&c.class),
+                Cell::text(&c.parameters.to_string()),
+                Cell::text(&format!("{:.4}", c.scale)),
+            ],
+            class: "",
+        })
+        .collect();
+    let by_class = match classes.is_empty() {
+        true => String::new(),
+        false => table(
+            "small",
+            None,
+            &format!(
+                "Prior scales per class: --prior {} (the one scale's curve below, for comparison)",
+                scale.label()
+            ),
+            &["class", "parameters", "scale"],
+            &classes,
+        ),
+    };
+    by_class + &table("small", None, &caption, &["scale", heading], &rows)
 }
 
 /// `--select`'s path as a table, the chosen step marked, and its notes.

@@ -845,3 +845,67 @@ fn a_tree_selects_its_parameters_by_the_t_rule() {
     assert!(stderr.contains("--select t chooses their parameters"), "{stderr}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The marginal likelihood on a tree's views (`--prior auto-ml:machined`): the torso whose
+/// joint errors are drawn from the `machined` tolerances times `s0` (1 or 4), the head camera
+/// seeing both hands at 40 configurations (0.05 mm, 0.01 deg, the sigmas known), held out on
+/// 40 more, 10 trees: the scale chosen is within a factor 1.5 of `s0` on at least 8 of 10
+/// (measured 10 of 10, in 10 s), and the held-out position RMS at that scale within 1.2 times the plain
+/// weighted least squares fit's on every tree. Views without their sigmas nor the joint noise
+/// are refused.
+#[test]
+fn auto_ml_finds_the_scale_of_a_tree() {
+    use rand_distr::{Distribution, StandardNormal};
+    use robocal::calibration::prior_scale::{AutoPrior, choose_tree_prior_scale};
+    let nominal = torso();
+    let params = TreeParams::new(&nominal);
+    let (frames, placements) = frames(&nominal);
+    let auto = AutoPrior::parse("auto-ml:machined").unwrap().unwrap();
+    let infos: Vec<_> = params.params.iter().collect();
+    let sd = robocal::estimation::prior_sds_of(&auto.entries, &infos).unwrap();
+    let (plain, sigma) = (options(Estimator::Wls), [0.05, 0.01f64.to_radians()]);
+    let (mut within, mut found) = (0, Vec::new());
+    for seed in 0..10 {
+        let s0 = if seed % 2 == 0 { 1.0 } else { 4.0 };
+        let mut rng = ChaCha8Rng::seed_from_u64(900 + seed);
+        let x: Vec<f64> = (0..infos.len())
+            .map(|i| match sd[i].is_finite() && !infos[i].name.starts_with("base.") {
+                true => Distribution::<f64>::sample(&StandardNormal, &mut rng) * sd[i] * s0,
+                false => 0.0,
+            })
+            .collect::<Vec<f64>>();
+        let truth = params.fold(&nominal, &x);
+        let (training, held) =
+            (nominal.uniform_configurations(40, &mut rng), nominal.uniform_configurations(40, &mut rng));
+        let train = simulate_views(&truth, &frames, &placements, &PAIRS, &training, sigma, &mut rng);
+        let test = simulate_views(&truth, &frames, &placements, &PAIRS, &held, sigma, &mut rng);
+        let scale = choose_tree_prior_scale(&nominal, &train, &plain, &auto, 5).unwrap();
+        assert_eq!((scale.folds, scale.log_evidence[scale.chosen]), (None, 0.0));
+        within += usize::from((1.0 / 1.5..=1.5).contains(&(scale.scale() / s0)));
+        let score =
+            |o: &TreeOptions| calibrate_tree(&nominal, &train, o).unwrap().score(&test).unwrap().position.1;
+        let chosen = TreeOptions { prior: auto.chosen(&[], &scale), ..plain.clone() };
+        let (at, wls) = (score(&chosen), score(&plain));
+        found.push((s0, scale.scale(), at, wls));
+        assert!(
+            at < 1.2 * wls,
+            "seed {seed}: held out {at} mm at the scale chosen, {wls} mm plain: {found:?}"
+        );
+    }
+    eprintln!("tree: {within} of 10 within a factor 1.5: {found:?}");
+    assert!(within >= 8, "{within} of 10 within a factor 1.5: {found:?}");
+    let assumed = TreeData {
+        assumed_sigmas: true,
+        ..simulate_views(
+            &nominal,
+            &frames,
+            &placements,
+            &PAIRS,
+            &nominal.uniform_configurations(20, &mut ChaCha8Rng::seed_from_u64(1)),
+            sigma,
+            &mut ChaCha8Rng::seed_from_u64(2),
+        )
+    };
+    let e = choose_tree_prior_scale(&nominal, &assumed, &plain, &auto, 5).unwrap_err().to_string();
+    assert!(e.contains("the marginal likelihood needs the noise"), "{e}");
+}

@@ -1564,6 +1564,47 @@ pub(super) fn start<'p>(
     Ok(Started { base, weights, before, before_setup, linearised, gauged })
 }
 
+/// What the marginal likelihood needs of observation files or a tree's views
+/// ([`kinds_scale_evidence`](super::prior_scale::kinds_scale_evidence),
+/// [`tree_scale_evidence`](super::prior_scale::tree_scale_evidence)): the system of what is
+/// asked for, whitened by `S` (`S V S^T = c^2 I`: each pose's block `V_k` of the observations'
+/// sigmas and the joint noise, divided by the normalisation `c`), its columns the robot's
+/// parameters `asked` (indices into `params`) then the set-up's.
+pub(crate) struct EvidenceSystem {
+    /// The robot's (or tree's) parameters.
+    pub(crate) params: Vec<crate::model::ParamInfo>,
+    /// The robot's parameters of the first columns, in order.
+    pub(crate) asked: Vec<usize>,
+    /// `A = S H`, `b = S y` about the point asked for.
+    pub(crate) linearised: Linearisation,
+    /// The normalisation `c` of the whitening.
+    pub(crate) c: f64,
+}
+
+/// The [`EvidenceSystem`] of `data` with `options` (their estimator's weights), linearised
+/// about `about` (the robot's full vector and the set-up's values of a calibration of `data`)
+/// or, `None`, about the "before" fit.
+pub(crate) fn evidence_system(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    about: Option<(&[f64], &[f64])>,
+) -> Result<EvidenceSystem, CalibrationError> {
+    let prepared = prepare(model, data, options)?;
+    let started = start(&prepared, data, options)?;
+    let c = started.weights.scale().unwrap_or(1.0);
+    let linearised = match about {
+        None => started.linearised,
+        Some((fixed, setup)) => {
+            let (asked, asked_setup) = (&prepared.asked, prepared.asked_setup.clone());
+            let problem = started.base.reselect(asked, fixed.to_vec(), setup.to_vec(), asked_setup);
+            linearise(&problem, &started.weights, problem.start())?
+        }
+    };
+    let asked = prepared.asked.indices().to_vec();
+    Ok(EvidenceSystem { params: prepared.params.iter().cloned().collect(), asked, linearised, c })
+}
+
 /// The "before" fit of `base_problem`: the robot parameters `frame` (the tool point, with
 /// markers the base and the markers) and the set-up values `every` from the robot nominal, by
 /// the estimator's `weights`, or with markers by ordinary least squares; nothing to fit, the

@@ -87,6 +87,9 @@ pub struct TreeData {
     /// Whether the views are positions only (the target's `x, y, z` in the camera's frame, a
     /// tracker's), their rotations unmeasured.
     pub position_only: bool,
+    /// Whether every view's sigmas are the defaults (the file has neither a `sigma` nor a
+    /// `sigma_angle` column): the noise assumed, not known.
+    pub assumed_sigmas: bool,
 }
 
 impl TreeData {
@@ -113,7 +116,8 @@ impl TreeData {
             if position_only { &["x", "y", "z"][..] } else { &["x", "y", "z", "roll", "pitch", "yaw"][..] };
         let axes: Vec<usize> = measured.iter().map(|a| needed(a)).collect::<Result<_, _>>()?;
         let (sigma, sigma_angle) = (table.column("sigma"), table.column("sigma_angle"));
-        let mut data = Self { position_only, ..Self::default() };
+        let assumed_sigmas = sigma.is_none() && sigma_angle.is_none();
+        let mut data = Self { position_only, assumed_sigmas, ..Self::default() };
         for row in table.nonempty_rows()? {
             let camera = data.frame(tree, &table, row, camera, Role::Camera)?;
             let target = data.frame(tree, &table, row, target, Role::Target)?;

@@ -871,6 +871,40 @@ fn base_unseen(params: &TreeParams, data: &TreeData) -> String {
     }
 }
 
+/// The [`EvidenceSystem`](super::kinds::EvidenceSystem) of a tree's views with `options`
+/// (their estimator's weights): the tree's parameters `options` asks for (less `--hold`'s),
+/// then every camera's and target's placement, linearised about `about` (the tree's full
+/// vector and the placements of a calibration of `data`) or, `None`, about the "before" fit
+/// (the placements fitted with the tree nominal), as [`calibrate_tree`] starts.
+pub(crate) fn evidence_system(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+    about: Option<(&[f64], &[f64])>,
+) -> Result<super::kinds::EvidenceSystem, CalibrationError> {
+    let params = TreeParams::new(tree);
+    data.check(&params)?;
+    let start = initial_setup(&params, data)?;
+    let zero = vec![0.0; params.len()];
+    let every: Vec<usize> = (0..start.len()).collect();
+    let noise = options.joint_noise.as_ref();
+    let base_problem = TreeProblem::new(&params, data, Vec::new(), zero.clone(), start, every.clone(), noise);
+    let weights = Weights::for_problem(&base_problem, options.estimator)?;
+    let (fixed, setup) = match about {
+        Some((fixed, setup)) => (fixed.to_vec(), setup.to_vec()),
+        None => {
+            let fit = linearise(&base_problem, &weights, base_problem.start())?;
+            let refined = refine_from(&base_problem, &weights, fit, &RefineOptions::default())?;
+            (zero, base_problem.full(&refined.estimate.x).1)
+        }
+    };
+    let (asked, _) = asked(&params, options)?;
+    let problem = base_problem.reselect(asked.clone(), fixed, setup, every);
+    let linearised = linearise(&problem, &weights, problem.start())?;
+    let c = weights.scale().unwrap_or(1.0);
+    Ok(super::kinds::EvidenceSystem { params: params.params.clone(), asked, linearised, c })
+}
+
 /// Calibrate `tree` from camera views between its branches: the cameras and targets fitted
 /// with the tree nominal ("before"), then the joint parameters asked for with them ("after");
 /// the base and what the views cannot see held and said ([`TreeCalibration::unseen`]), what
