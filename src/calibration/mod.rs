@@ -38,9 +38,10 @@ pub use selection::{
 };
 
 use crate::estimation::{
-    CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementNoise,
-    NoiseEstimate, NoiseModel, NoiseSpec, PointProblem, PriorEntry, PriorError, PriorRows, RANK_TOLERANCE,
-    RefineOptions, Refined, Residuals, Weights, linearise, prior_sds, refine_from, residual_design,
+    CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementClass,
+    MeasurementNoise, NoiseEstimate, NoiseLayout, NoiseModel, NoiseSpec, PointProblem, PriorEntry,
+    PriorError, PriorRows, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds,
+    refine_from, residual_design,
 };
 use crate::kinematics::{Chain, Measured, end_positions};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
@@ -996,7 +997,8 @@ fn residual_noise(
     let weights = Weights::for_problem(&problem, estimator)?;
     let jacobians = problem.manipulator_jacobians(&c.after);
     let per = kind.rows();
-    let expected = residual_design(&system.h, &weights, &jacobians, joints, per)?;
+    let layout = NoiseLayout::of_points(jacobians, per, weights.blocks());
+    let expected = residual_design(&system.h, &weights, &layout, joints)?;
     let samples: Vec<CovarianceSample> = expected
         .into_iter()
         .enumerate()
@@ -1005,7 +1007,7 @@ fn residual_noise(
             CovarianceSample { s: r * r.transpose(), dof: 1.0, design }
         })
         .collect();
-    Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), per, previous)?)
+    Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), MeasurementClass::of_points(per), previous)?)
 }
 
 /// The noise model of a noise file for `data`: its `Sigma_q`, and at every pose the measurement
