@@ -708,7 +708,7 @@ fn nnls_gram(gram: &DMatrix<f64>, constrained: &[bool]) -> DVector<f64> {
 
 /// What a measurement variance component is the variance of: a marker's position
 /// coordinates, a probe's orientation, or one kind of observation of an observation file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MeasurementClass {
     /// A marker's coordinates in a marker calibration (mm): `sigma_me`.
