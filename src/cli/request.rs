@@ -886,6 +886,11 @@ pub struct CalibrateTreeRequest {
 impl CalibrateTreeRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: CalibrateTreeArgs) -> Result<Self, UsageError> {
+        require(
+            args.estimator != Some(EstimatorName::Fgls),
+            "--estimator fgls: not available for a tree's views yet (marker and observation files take it); give \
+             the joint noise (--joint-sigma-deg) and the views' sigma and sigma_angle columns, and use wls",
+        )?;
         let estimator = ols_or_wls(args.estimator, "a tree takes ols or wls")?;
         require(
             args.params != ParamsArg::All,
