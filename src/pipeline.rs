@@ -339,8 +339,7 @@ fn observations_outcome(
 ) -> ObservationOutcome {
     let c = chosen.calibration;
     let files = sessions.iter().map(|(name, file)| (name.clone(), file.observations.len())).collect();
-    let mut report =
-        ObservationsReport::new(&c, &names, fitted, estimator, scores).with_training_files(files);
+    let mut report = ObservationsReport::new(&c, names, fitted, estimator, scores).with_training_files(files);
     if let Some(path) = &chosen.path {
         report = report.with_selection(path, &c);
     }
