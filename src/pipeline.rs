@@ -12,7 +12,9 @@ use crate::calibration::kinds::{KindCalibration, KindData, KindOptions, Score, c
 use crate::calibration::selection::{
     ChosenFit, calibrate_kinds_chosen, calibrate_tree_chosen, cross_validate_kinds_choices,
 };
-use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, cross_validate_tree_by};
+use crate::calibration::tree::{
+    TreeCalibration, TreeData, TreeOptions, calibrate_tree_feasible, cross_validate_tree_by,
+};
 use crate::calibration::{
     self, Calibration, CalibrationError, Choices, ErrorStats, FeasibleOptions, Loss, Measurements, Options,
     SetEvaluation,
@@ -248,6 +250,33 @@ pub fn calibrate_views(
     if let Some(path) = &chosen.path {
         report = report.with_selection(path);
     }
+    Ok(TreeOutcome { calibration: c, report })
+}
+
+/// Calibrate `tree` from the views of `sessions` fitted together by feasible GLS
+/// ([`calibrate_tree_feasible`]: the tree's joint noise and the views' position and rotation
+/// noise estimated from the residuals), score each `held_out` set whitened by the estimate, and
+/// report, the estimate with it.
+pub fn calibrate_views_feasible(
+    tree: &RobotTree,
+    sessions: &[(String, TreeData)],
+    held_out: &[(String, TreeData)],
+    options: &TreeOptions,
+    feasible: &FeasibleOptions,
+) -> Result<TreeOutcome, FilesError> {
+    let mut data = TreeData::default();
+    for (name, file) in sessions {
+        data = data.join(file).map_err(in_context(name))?;
+    }
+    let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
+    let names = names.join(", ");
+    let c = calibrate_tree_feasible(tree, &data, options, feasible).map_err(in_context(&names))?;
+    let scores = (held_out.iter())
+        .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
+        .collect::<Result<Vec<_>, FilesError>>()?;
+    let fitted = (data.views.len(), data.joints.len());
+    let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
+    let report = TreeReport::new(&c, &names, fitted, "fgls", scores).with_training_files(files);
     Ok(TreeOutcome { calibration: c, report })
 }
 

@@ -853,8 +853,10 @@ pub struct CalibrateTreeRequest {
     pub data: Vec<PathBuf>,
     /// The files' units, if given.
     pub units: Option<Units>,
-    /// The estimator: ols or wls.
+    /// The estimator: ols or wls (ols to start feasible GLS with).
     pub estimator: Estimator,
+    /// Feasible GLS (`--estimator fgls`): the noise estimated from the residuals.
+    pub feasible: bool,
     /// Joint sigmas (deg; mm for prismatic joints), one per tree joint or one for all.
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// The joint parameters to identify.
@@ -886,12 +888,11 @@ pub struct CalibrateTreeRequest {
 impl CalibrateTreeRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: CalibrateTreeArgs) -> Result<Self, UsageError> {
-        require(
-            args.estimator != Some(EstimatorName::Fgls),
-            "--estimator fgls: not available for a tree's views yet (marker and observation files take it); give \
-             the joint noise (--joint-sigma-deg) and the views' sigma and sigma_angle columns, and use wls",
-        )?;
-        let estimator = ols_or_wls(args.estimator, "a tree takes ols or wls")?;
+        let feasible = args.estimator == Some(EstimatorName::Fgls);
+        let estimator = match feasible {
+            true => method(args.estimator, args.joint_sigma_deg.is_some(), args.folds.is_some())?.estimator(),
+            false => ols_or_wls(args.estimator, "a tree takes ols, wls or fgls")?,
+        };
         require(
             args.params != ParamsArg::All,
             "--params all: the base is never estimated from views; give --params joints",
@@ -904,8 +905,11 @@ impl CalibrateTreeRequest {
         if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
             return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
         }
-        let (prior, auto_prior) = priors(args.choice.prior)?;
         let select = selection(args.select, args.folds, &joints)?;
+        if feasible {
+            feasible_alone(select.is_some(), &args.choice)?;
+        }
+        let (prior, auto_prior) = priors(args.choice.prior)?;
         require(
             matches!(select, None | Some(Criterion::T)),
             "--select cv and bic: not for a tree's views yet; --select t chooses their parameters",
@@ -928,6 +932,7 @@ impl CalibrateTreeRequest {
             data: args.data,
             units: args.units.units()?,
             estimator,
+            feasible,
             joint_sigma_deg: args.joint_sigma_deg,
             joints,
             iterations: args.iterations,

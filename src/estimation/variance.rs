@@ -535,17 +535,27 @@ pub(crate) fn fit_components(
     // The information at the estimate: the Gram matrix of the weights it was found with.
     let information = gram.view((0, 0), (m, m)).into_owned();
     let scale = DVector::from_fn(m, |c, _| information[(c, c)].sqrt());
-    if scale.iter().any(|&s| s.is_nan() || s <= 0.0 || !s.is_finite()) {
+    // A variance whose design is zero everywhere (a joint no observation moves) stays at 0,
+    // unbounded: its variance is infinite, and it is left out of the inverse.
+    let seen: Vec<usize> = (0..m).filter(|&c| !(constrained[c] && scale[c] == 0.0)).collect();
+    if seen.iter().any(|&c| scale[c].is_nan() || scale[c] <= 0.0 || !scale[c].is_finite()) {
         return bad("a variance component has no influence on the data: it cannot be estimated".into());
     }
-    let scaled = DMatrix::from_fn(m, m, |i, j| information[(i, j)] / (scale[i] * scale[j]));
+    let scaled = DMatrix::from_fn(seen.len(), seen.len(), |i, j| {
+        information[(seen[i], seen[j])] / (scale[seen[i]] * scale[seen[j]])
+    });
     let inverse = scaled
         .cholesky()
         .ok_or(EstimationError::Noise(
             "the variance components cannot be told apart by these poses (singular information)".into(),
         ))?
         .inverse();
-    let covariance = DMatrix::from_fn(m, m, |i, j| inverse[(i, j)] / (scale[i] * scale[j]));
+    let mut covariance = DMatrix::from_fn(m, m, |i, j| if i == j { f64::INFINITY } else { 0.0 });
+    for (a, &i) in seen.iter().enumerate() {
+        for (b, &j) in seen.iter().enumerate() {
+            covariance[(i, j)] = inverse[(a, b)] / (scale[i] * scale[j]);
+        }
+    }
     let at_bound = (0..m).map(|c| constrained[c] && theta[c] == 0.0).collect();
     Ok(ComponentFit { values: theta, covariance, constrained: constrained.to_vec(), at_bound, iterations })
 }

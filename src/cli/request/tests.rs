@@ -582,11 +582,18 @@ fn a_tree_is_a_urdf_calibrated_by_ols_or_wls_of_its_joints() {
     assert_eq!(r.joints, JointParams::All);
     assert_eq!(r.tips, ["head_camera", "l_hand"]);
     assert!(refused(calibrate_tree("puma560", &[])).contains("--model: a URDF file"));
+    let fgls = calibrate_tree("torso.urdf", &["--estimator", "fgls"]).unwrap();
+    assert!(fgls.feasible && fgls.estimator == Estimator::Ols);
+    assert!(!r.feasible);
     assert!(
-        refused(calibrate_tree("torso.urdf", &["--estimator", "fgls"]))
-            .starts_with("--estimator fgls: not available for a tree's views yet")
+        refused(calibrate_tree("torso.urdf", &["--estimator", "fgls", "--loss", "huber"]))
+            .starts_with("--loss with --estimator fgls: not supported")
     );
-    assert!(refused(calibrate_tree("torso.urdf", &["--estimator", "wls-diag"])).contains("ols or wls"));
+    assert!(
+        refused(calibrate_tree("torso.urdf", &["--estimator", "fgls", "--joint-sigma-deg", "0.01"]))
+            .starts_with("--estimator fgls estimates the noise")
+    );
+    assert!(refused(calibrate_tree("torso.urdf", &["--estimator", "wls-diag"])).contains("ols, wls or fgls"));
     assert!(refused(calibrate_tree("torso.urdf", &["--params", "all"])).contains("never estimated"));
     assert!(refused(calibrate_tree("torso.urdf", &["--json", "v.csv"])).contains("--json"));
 }
