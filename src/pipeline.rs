@@ -8,11 +8,13 @@
 //! scored, the (nested) cross-validation, the report. Above every other
 //! module: it joins the calibration, the design's accuracy prediction and the report.
 
-use crate::calibration::kinds::{KindCalibration, KindData, KindOptions};
+use crate::calibration::kinds::{KindCalibration, KindData, KindOptions, Score, calibrate_kinds_feasible};
 use crate::calibration::selection::{
-    calibrate_kinds_chosen, calibrate_tree_chosen, cross_validate_kinds_choices,
+    ChosenFit, calibrate_kinds_chosen, calibrate_tree_chosen, cross_validate_kinds_choices,
 };
-use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, cross_validate_tree_by};
+use crate::calibration::tree::{
+    TreeCalibration, TreeData, TreeOptions, calibrate_tree_feasible, cross_validate_tree_by,
+};
 use crate::calibration::{
     self, Calibration, CalibrationError, Choices, ErrorStats, FeasibleOptions, Loss, Measurements, Options,
     SetEvaluation,
@@ -251,6 +253,33 @@ pub fn calibrate_views(
     Ok(TreeOutcome { calibration: c, report })
 }
 
+/// Calibrate `tree` from the views of `sessions` fitted together by feasible GLS
+/// ([`calibrate_tree_feasible`]: the tree's joint noise and the views' position and rotation
+/// noise estimated from the residuals), score each `held_out` set whitened by the estimate, and
+/// report, the estimate with it.
+pub fn calibrate_views_feasible(
+    tree: &RobotTree,
+    sessions: &[(String, TreeData)],
+    held_out: &[(String, TreeData)],
+    options: &TreeOptions,
+    feasible: &FeasibleOptions,
+) -> Result<TreeOutcome, FilesError> {
+    let mut data = TreeData::default();
+    for (name, file) in sessions {
+        data = data.join(file).map_err(in_context(name))?;
+    }
+    let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
+    let names = names.join(", ");
+    let c = calibrate_tree_feasible(tree, &data, options, feasible).map_err(in_context(&names))?;
+    let scores = (held_out.iter())
+        .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
+        .collect::<Result<Vec<_>, FilesError>>()?;
+    let fitted = (data.views.len(), data.joints.len());
+    let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
+    let report = TreeReport::new(&c, &names, fitted, "fgls", scores).with_training_files(files);
+    Ok(TreeOutcome { calibration: c, report })
+}
+
 /// An observation files' calibration and its report (the command line's).
 #[derive(Debug, Clone)]
 pub struct ObservationOutcome {
@@ -275,18 +304,13 @@ pub fn calibrate_observations(
     choices: &Choices,
     folds: Option<usize>,
 ) -> Result<ObservationOutcome, FilesError> {
-    let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
-    let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
-    let names = names.join(", ");
+    let (data, names) = joined(sessions);
     let context = match choices_in_words(choices) {
         words if words.is_empty() => names.clone(),
         words => format!("{}: {names}", words.join(", ")),
     };
     let chosen = calibrate_kinds_chosen(model, &data, options, choices).map_err(in_context(&context))?;
-    let c = chosen.calibration;
-    let mut scores = (held_out.iter())
-        .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
-        .collect::<Result<Vec<_>, FilesError>>()?;
+    let mut scores = held_out_scores(&chosen.calibration, held_out)?;
     if let Some(k) = folds {
         let score = cross_validate_kinds_choices(model, &data, options, choices, k)
             .map_err(in_context(&format!("--folds {k}: {names}")))?;
@@ -295,14 +319,61 @@ pub fn calibrate_observations(
         scores.push((fold_label(k, *choices != Choices::default() || options.loss != Loss::Squared), score));
     }
     let fitted = (data.observations.len(), data.joints.len());
+    Ok(observations_outcome(chosen, (sessions, &names, fitted), options.estimator.name(), scores))
+}
+
+/// Calibrate `model` from the observations of `sessions` fitted together by feasible GLS
+/// ([`calibrate_kinds_feasible`]: the joint noise and each kind of observation's measurement
+/// noise estimated from the residuals), score each `held_out` set with the calibrated robot
+/// and set-up, whitened by the estimated noise, and report, the estimate with it.
+pub fn calibrate_observations_feasible(
+    model: &RobotModel,
+    sessions: &[(String, KindData)],
+    held_out: &[(String, KindData)],
+    options: &KindOptions,
+    feasible: &FeasibleOptions,
+) -> Result<ObservationOutcome, FilesError> {
+    let (data, names) = joined(sessions);
+    let calibration =
+        calibrate_kinds_feasible(model, &data, options, feasible).map_err(in_context(&names))?;
+    let scores = held_out_scores(&calibration, held_out)?;
+    let chosen = ChosenFit { scale: None, path: None, calibration };
+    let fitted = (data.observations.len(), data.joints.len());
+    Ok(observations_outcome(chosen, (sessions, &names, fitted), "fgls", scores))
+}
+
+/// The observations of `sessions` as one set, and their names, joined by commas.
+fn joined(sessions: &[(String, KindData)]) -> (KindData, String) {
+    let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
+    let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
+    (data, names.join(", "))
+}
+
+/// Each `held_out` set scored by `c`, with its name.
+fn held_out_scores(
+    c: &KindCalibration,
+    held_out: &[(String, KindData)],
+) -> Result<Vec<(String, Score)>, FilesError> {
+    (held_out.iter()).map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?))).collect()
+}
+
+/// The outcome of the calibration `chosen` of `sessions` (named `names`, with the observations
+/// and poses `fitted`) by `estimator`, with the `scores` of the held-out sets and the
+/// cross-validation.
+fn observations_outcome(
+    chosen: ChosenFit<KindCalibration>,
+    (sessions, names, fitted): (&[(String, KindData)], &str, (usize, usize)),
+    estimator: &str,
+    scores: Vec<(String, Score)>,
+) -> ObservationOutcome {
+    let c = chosen.calibration;
     let files = sessions.iter().map(|(name, file)| (name.clone(), file.observations.len())).collect();
-    let mut report = ObservationsReport::new(&c, &names, fitted, options.estimator.name(), scores)
-        .with_training_files(files);
+    let mut report = ObservationsReport::new(&c, names, fitted, estimator, scores).with_training_files(files);
     if let Some(path) = &chosen.path {
         report = report.with_selection(path, &c);
     }
     if let Some(scale) = chosen.scale {
         report = report.with_prior_scale(scale);
     }
-    Ok(ObservationOutcome { calibration: c, report })
+    ObservationOutcome { calibration: c, report }
 }

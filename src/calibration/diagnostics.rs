@@ -187,7 +187,7 @@ pub enum Warning {
         /// The re-weightings made.
         reweightings: usize,
     },
-    /// Feasible GLS ignored the data's sigma column.
+    /// Feasible GLS ignored the data's sigma column (of observation files, their sigma columns).
     SigmaIgnored,
     /// The noise given disagrees with the residuals by more than a factor
     /// [`NOISE_FACTOR`](super::noise_check::NOISE_FACTOR).
@@ -357,9 +357,9 @@ impl fmt::Display for Warning {
                     "feasible GLS: the variance components did not settle in {reweightings} re-weightings"
                 )
             }
-            Self::SigmaIgnored => {
-                f.write_str("feasible GLS ignored the sigma column: it estimates sigma_me itself")
-            }
+            Self::SigmaIgnored => f.write_str(
+                "feasible GLS ignored the sigma column: it estimates the measurement noise itself",
+            ),
             Self::NoiseDisagrees(n) => write!(
                 f,
                 "the noise given disagrees with the residuals: their REML estimate is {} (whitened residual SD \

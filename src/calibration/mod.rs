@@ -38,9 +38,10 @@ pub use selection::{
 };
 
 use crate::estimation::{
-    CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementNoise,
-    NoiseEstimate, NoiseModel, NoiseSpec, PointProblem, PriorEntry, PriorError, PriorRows, RANK_TOLERANCE,
-    RefineOptions, Refined, Residuals, Weights, linearise, prior_sds, refine_from, residual_design,
+    CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementClass,
+    MeasurementNoise, NoiseEstimate, NoiseLayout, NoiseModel, NoiseSpec, PointProblem, PriorEntry,
+    PriorError, PriorRows, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds,
+    refine_from, residual_design,
 };
 use crate::kinematics::{Chain, Measured, end_positions};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
@@ -977,37 +978,72 @@ pub fn calibrate_feasible(
 ) -> Result<Calibration, CalibrationError> {
     let mut data = data.clone();
     let ignored_sigma = data.sigma.take().is_some();
-    let mut options = Options { estimator: Estimator::Ols, noise: None, ..options.clone() };
-    let mut calibration = calibrate_quietly(model, &data, &options)?;
-    let mut previous: Option<NoiseEstimate> = None;
-    let mut settled_at = None;
-    for round in 0..feasible.max_iterations.max(1) {
-        let estimate =
-            residual_noise(&calibration, &data, options.noise.as_ref(), feasible.joints, previous.as_ref())?;
-        let settled = previous.as_ref().is_some_and(|p| {
-            (0..estimate.fit.values.len()).all(|c| {
-                let change = (p.fit.values[c] - estimate.fit.values[c]).abs();
-                change <= feasible.tolerance * estimate.fit.standard_error(c)
-            })
-        });
-        options.estimator = Estimator::Wls;
-        options.noise = Some(estimate.noise_model());
-        previous = Some(estimate);
-        if settled {
-            settled_at = Some(round);
-            break;
-        }
-        calibration = calibrate_quietly(model, &data, &options)?;
-    }
-    calibration.noise_settled = Some(settled_at.is_some());
-    if settled_at.is_none() {
-        calibration.warnings.push(Warning::NoiseUnsettled { reweightings: feasible.max_iterations.max(1) });
-    }
+    let ols = Options { estimator: Estimator::Ols, noise: None, ..options.clone() };
+    let calibrate = |estimate: Option<&NoiseEstimate>| {
+        let weighted = Options {
+            estimator: if estimate.is_some() { Estimator::Wls } else { Estimator::Ols },
+            noise: estimate.map(NoiseEstimate::noise_model),
+            ..ols.clone()
+        };
+        calibrate_quietly(model, &data, &weighted)
+    };
+    let estimate = |c: &Calibration, previous: Option<&NoiseEstimate>| {
+        let noise = previous.map(NoiseEstimate::noise_model);
+        residual_noise(c, &data, noise.as_ref(), feasible.joints, previous)
+    };
+    let Reweighted { mut calibration, estimate, settled } = reweighted(feasible, calibrate, estimate)?;
+    calibration.noise_settled = Some(settled);
+    calibration.warnings.extend(unsettled(feasible, settled));
     if ignored_sigma {
         calibration.warnings.push(Warning::SigmaIgnored);
     }
-    calibration.noise_estimate = previous;
+    calibration.noise_estimate = Some(estimate);
     Ok(calibration)
+}
+
+/// What [`reweighted`] ends with: the last calibration, the last estimate (settled: from that
+/// calibration's residuals; else the one it was weighted with), and whether the components
+/// settled.
+pub(crate) struct Reweighted<C> {
+    pub(crate) calibration: C,
+    pub(crate) estimate: NoiseEstimate,
+    pub(crate) settled: bool,
+}
+
+/// The rounds of feasible GLS over any calibration `C`: `calibrate(None)` by ordinary least
+/// squares; then, up to `feasible.max_iterations` times, the components estimated from its
+/// residuals (`estimate(c, previous)`, `previous` the estimate `c` was weighted with, where
+/// the fit of the components starts) and `calibrate(Some(estimate))` with them, until no
+/// component moves by more than `feasible.tolerance` of its standard error between two
+/// rounds (settled: the calibration of the round before, and the estimate from its residuals).
+pub(crate) fn reweighted<C>(
+    feasible: &FeasibleOptions,
+    calibrate: impl Fn(Option<&NoiseEstimate>) -> Result<C, CalibrationError>,
+    estimate: impl Fn(&C, Option<&NoiseEstimate>) -> Result<NoiseEstimate, CalibrationError>,
+) -> Result<Reweighted<C>, CalibrationError> {
+    let mut calibration = calibrate(None)?;
+    let mut previous: Option<NoiseEstimate> = None;
+    for _ in 0..feasible.max_iterations.max(1) {
+        let next = estimate(&calibration, previous.as_ref())?;
+        let settled = previous.as_ref().is_some_and(|p| {
+            (0..next.fit.values.len()).all(|c| {
+                let change = (p.fit.values[c] - next.fit.values[c]).abs();
+                change <= feasible.tolerance * next.fit.standard_error(c)
+            })
+        });
+        if settled {
+            return Ok(Reweighted { calibration, estimate: next, settled: true });
+        }
+        calibration = calibrate(Some(&next))?;
+        previous = Some(next);
+    }
+    let estimate = previous.expect("at least one round");
+    Ok(Reweighted { calibration, estimate, settled: false })
+}
+
+/// [`Warning::NoiseUnsettled`] unless `settled`.
+pub(crate) fn unsettled(feasible: &FeasibleOptions, settled: bool) -> Option<Warning> {
+    (!settled).then_some(Warning::NoiseUnsettled { reweightings: feasible.max_iterations.max(1) })
 }
 
 /// The variance components fitted to the residuals of `c` (calibrated with `noise`, or by
@@ -1039,7 +1075,8 @@ fn residual_noise(
     let weights = Weights::for_problem(&problem, estimator)?;
     let jacobians = problem.manipulator_jacobians(&c.after);
     let per = kind.rows();
-    let expected = residual_design(&system.h, &weights, &jacobians, joints, per)?;
+    let layout = NoiseLayout::of_points(jacobians, per, weights.blocks());
+    let expected = residual_design(&system.h, &weights, &layout, joints)?;
     let samples: Vec<CovarianceSample> = expected
         .into_iter()
         .enumerate()
@@ -1048,7 +1085,7 @@ fn residual_noise(
             CovarianceSample { s: r * r.transpose(), dof: 1.0, design }
         })
         .collect();
-    Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), per, previous)?)
+    Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), MeasurementClass::of_points(per), previous)?)
 }
 
 /// The noise model of a noise file for `data`: its `Sigma_q`, and at every pose the measurement

@@ -19,7 +19,8 @@
 
 use super::{Measurements, register};
 use crate::estimation::{
-    CovarianceSample, EstimationError, JointComponents, NoiseEstimate, noise_design, sample_covariance,
+    CovarianceSample, EstimationError, JointComponents, MeasurementClass, NoiseEstimate, noise_design,
+    sample_covariance,
 };
 use crate::kinematics::Chain;
 use crate::model::RobotModel;
@@ -175,7 +176,8 @@ pub fn repeatability(
         fit_samples.push(CovarianceSample { s, dof: nu, design: noise_design(&stacked, options.joints, 3) });
     }
     let measurements: usize = data.poses.iter().map(|p| p.measured.len()).sum();
-    let estimate = NoiseEstimate::fit(&fit_samples, options.joints, dof, 3, None)?;
+    let estimate =
+        NoiseEstimate::fit(&fit_samples, options.joints, dof, MeasurementClass::of_points(3), None)?;
     let freedom: f64 = fit_samples.iter().map(|s| s.dof).sum();
     let rms_spread = (spread / (freedom * data.markers as f64)).sqrt();
     Ok(Repeatability { estimate, poses: data.poses.len(), measurements, rms_spread })

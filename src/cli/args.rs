@@ -40,7 +40,8 @@ pub enum EstimatorName {
     WlsDiag,
     /// 1/sigma of each coordinate instead of 1/sigma^2 (needs the noise).
     WlsSigma,
-    /// Feasible GLS: the joint sigmas and sigma_me estimated from the residuals, iterated.
+    /// Feasible GLS: the joint sigmas and the measurement sigmas (sigma_me; of observation
+    /// files, one per kind of observation) estimated from the residuals, iterated.
     Fgls,
 }
 

@@ -3,9 +3,10 @@
 //! before anything is written.
 
 use super::from_flag_unit;
-use super::request::CalibrateObservationsRequest;
+use super::request::{CalibrateObservationsRequest, Method};
 use anyhow::{Context, Result, bail};
 use nalgebra::DMatrix;
+use robocal::calibration::FeasibleOptions;
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, Score};
 use robocal::estimation::RefineOptions;
 use robocal::io;
@@ -47,7 +48,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         prior: request.prior.clone(),
         loss: request.loss,
         gauge: request.gauge.clone(),
-        estimator: request.estimator,
+        estimator: request.method.estimator(),
         joint_noise: joint_noise(&model, request.joint_sigma_deg.as_deref())?,
         joints: request.joints.clone(),
         estimate_tool: request.estimate_tool,
@@ -58,14 +59,27 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     let held_out = (request.validate.iter())
         .map(|path| Ok((path.display().to_string(), read(path, &model, request)?)))
         .collect::<Result<Vec<_>>>()?;
-    let outcome = robocal::pipeline::calibrate_observations(
-        &model,
-        &sessions,
-        &held_out,
-        &options,
-        &robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds),
-        request.folds,
-    )?;
+    let outcome = match request.method {
+        Method::Feasible => robocal::pipeline::calibrate_observations_feasible(
+            &model,
+            &sessions,
+            &held_out,
+            &options,
+            &FeasibleOptions::default(),
+        )?,
+        Method::Given(_) => robocal::pipeline::calibrate_observations(
+            &model,
+            &sessions,
+            &held_out,
+            &options,
+            &robocal::calibration::Choices::from_flags(
+                request.auto_prior.clone(),
+                request.select,
+                request.folds,
+            ),
+            request.folds,
+        )?,
+    };
     let (c, report) = (outcome.calibration, outcome.report);
     let text = report.text();
     print!("{text}");

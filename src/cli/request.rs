@@ -336,24 +336,12 @@ impl CalibrateRequest {
         let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
         let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
         let select = selection(args.select, args.folds, &joints)?;
-        require(
-            select.is_none() || method != Method::Feasible,
-            "--select with --estimator fgls: not supported; estimate the noise once and give --noise",
-        )?;
+        if method == Method::Feasible {
+            feasible_alone(select.is_some(), &args.choice)?;
+        }
         if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
             return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
         }
-        // Feasible GLS estimates the noise from the residuals of plain least squares: a prior
-        // shrinks them, a robust loss sets poses aside, and the variance components would be
-        // those of another fit.
-        require(
-            args.choice.prior.is_empty() || method != Method::Feasible,
-            "--prior with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
-        )?;
-        require(
-            args.choice.loss == robocal::calibration::Loss::Squared || method != Method::Feasible,
-            "--loss with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
-        )?;
         let (prior, auto_prior) = priors(args.choice.prior)?;
         // With --select cv, --folds is both the selection's folds and the nested
         // cross-validation's.
@@ -403,8 +391,8 @@ pub struct CalibrateObservationsRequest {
     pub data: Vec<PathBuf>,
     /// The files' units, if given.
     pub units: Option<Units>,
-    /// The estimator: ols or wls.
-    pub estimator: Estimator,
+    /// The estimator (wls by default: the files' sigma columns are the noise), or feasible GLS.
+    pub method: Method,
     /// Joint sigmas (deg; mm for prismatic joints), if given.
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// The joint parameters to identify.
@@ -469,17 +457,14 @@ impl CalibrateObservationsRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: CalibrateObservationsArgs) -> Result<Self, UsageError> {
         let model = args.model.model_ref()?;
-        let estimator = match args.estimator {
-            None | Some(EstimatorName::Wls) => Estimator::Wls,
-            Some(EstimatorName::Ols) => Estimator::Ols,
-            Some(EstimatorName::WlsDiag) => Estimator::WlsDiag,
-            Some(EstimatorName::WlsSigma) => Estimator::WlsSigma,
-            Some(EstimatorName::Fgls) => {
-                return Err(UsageError(
-                    "--estimator fgls: not available for observation files yet; give the joint noise \
-                     (--joint-sigma-deg) and each file's sigma columns, and use wls"
-                        .into(),
-                ));
+        // The files' sigma columns are the noise: wls by default. Feasible GLS estimates it.
+        let method = match args.estimator {
+            None | Some(EstimatorName::Wls) => Method::Given(Estimator::Wls),
+            Some(EstimatorName::Ols) => Method::Given(Estimator::Ols),
+            Some(EstimatorName::WlsDiag) => Method::Given(Estimator::WlsDiag),
+            Some(EstimatorName::WlsSigma) => Method::Given(Estimator::WlsSigma),
+            fgls @ Some(EstimatorName::Fgls) => {
+                method(fgls, args.joint_sigma_deg.is_some(), args.folds.is_some())?
             }
         };
         require(
@@ -488,6 +473,9 @@ impl CalibrateObservationsRequest {
         )?;
         let joints = joint_params(args.params, false)?;
         let select = selection(args.select, args.folds, &joints)?;
+        if method == Method::Feasible {
+            feasible_alone(select.is_some(), &args.choice)?;
+        }
         let mut inputs = vec![("--model", Path::new(&model.name))];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
@@ -531,7 +519,7 @@ impl CalibrateObservationsRequest {
             loss: args.choice.loss,
             data: args.data,
             units: args.units.units()?,
-            estimator,
+            method,
             joint_sigma_deg: args.joint_sigma_deg,
             joints,
             tool: args.tool,
@@ -625,8 +613,25 @@ fn noise_source(file: Option<PathBuf>, args: &NoiseArgs) -> Result<Option<NoiseS
     }
 }
 
-/// `--estimator` (default: wls with the noise, ols without): a weighted estimator needs the
-/// noise; fgls estimates it, so takes none, and does not cross-validate.
+/// What `--estimator fgls` refuses besides a noise and `--folds` ([`method`]), of marker and
+/// observation files alike: `--select` (`selected`), a prior or a robust loss. Feasible GLS
+/// estimates the noise from the residuals of plain least squares: a prior shrinks them, a
+/// robust loss sets poses aside, and the variance components would be those of another fit.
+fn feasible_alone(selected: bool, choice: &crate::cli::args::ModelChoiceArgs) -> Result<(), UsageError> {
+    require(
+        !selected,
+        "--select with --estimator fgls: not supported; estimate the noise once and give --noise",
+    )?;
+    require(
+        choice.prior.is_empty(),
+        "--prior with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
+    )?;
+    require(
+        choice.loss == robocal::calibration::Loss::Squared,
+        "--loss with --estimator fgls: not supported; estimate the noise first (fgls reports it) and give it with --noise or the sigma flags",
+    )
+}
+
 /// The `--prior` entries in order, and the preset of `--prior auto` (at most one).
 fn priors(
     args: Vec<PriorArg>,
@@ -645,6 +650,8 @@ fn priors(
     Ok((entries, auto))
 }
 
+/// `--estimator` (default: wls with the noise, ols without): a weighted estimator needs the
+/// noise; fgls estimates it, so takes none, and does not cross-validate.
 fn method(name: Option<EstimatorName>, noise: bool, folds: bool) -> Result<Method, UsageError> {
     let estimator = match name {
         Some(EstimatorName::Fgls) => {
@@ -857,8 +864,10 @@ pub struct CalibrateTreeRequest {
     pub data: Vec<PathBuf>,
     /// The files' units, if given.
     pub units: Option<Units>,
-    /// The estimator: ols or wls.
+    /// The estimator: ols or wls (ols to start feasible GLS with).
     pub estimator: Estimator,
+    /// Feasible GLS (`--estimator fgls`): the noise estimated from the residuals.
+    pub feasible: bool,
     /// Joint sigmas (deg; mm for prismatic joints), one per tree joint or one for all.
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// The joint parameters to identify.
@@ -888,7 +897,11 @@ pub struct CalibrateTreeRequest {
 impl CalibrateTreeRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     pub fn from_args(args: CalibrateTreeArgs) -> Result<Self, UsageError> {
-        let estimator = ols_or_wls(args.estimator, "a tree takes ols or wls")?;
+        let feasible = args.estimator == Some(EstimatorName::Fgls);
+        let estimator = match feasible {
+            true => method(args.estimator, args.joint_sigma_deg.is_some(), args.folds.is_some())?.estimator(),
+            false => ols_or_wls(args.estimator, "a tree takes ols, wls or fgls")?,
+        };
         require(
             args.params != ParamsArg::All,
             "--params all: the base is never estimated from views; give --params joints",
@@ -901,8 +914,11 @@ impl CalibrateTreeRequest {
         if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
             return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
         }
-        let (prior, auto_prior) = priors(args.choice.prior)?;
         let select = selection(args.select, args.folds, &joints)?;
+        if feasible {
+            feasible_alone(select.is_some(), &args.choice)?;
+        }
+        let (prior, auto_prior) = priors(args.choice.prior)?;
         require(
             matches!(select, None | Some(Criterion::T)),
             "--select cv and bic: not for a tree's views yet; --select t chooses their parameters",
@@ -921,6 +937,7 @@ impl CalibrateTreeRequest {
             data: args.data,
             units: args.units.units()?,
             estimator,
+            feasible,
             joint_sigma_deg: args.joint_sigma_deg,
             joints,
             iterations: args.iterations,

@@ -48,8 +48,10 @@ pub use refine::{
     Iteration, Linearisation, RefineOptions, Refined, Residuals, linearise, refine, refine_from, refine_map,
 };
 pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE, combination_text};
-pub use variance::{ComponentFit, JointComponents, NoiseEstimate, SigmaInterval, sample_covariance};
-pub(crate) use variance::{CovarianceSample, noise_design, residual_design};
+pub use variance::{
+    ComponentFit, JointComponents, MeasurementClass, NoiseEstimate, SigmaInterval, sample_covariance,
+};
+pub(crate) use variance::{CovarianceSample, NoiseLayout, noise_design, residual_design};
 
 use nalgebra::storage::{IsContiguous, StorageMut};
 use nalgebra::{DMatrix, DVector, Dim, Dyn, Matrix};

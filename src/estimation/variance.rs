@@ -149,25 +149,86 @@ pub(crate) fn noise_design(
     per: usize,
 ) -> Vec<DMatrix<f64>> {
     let b = jacobian.nrows();
+    let classes: Vec<usize> = (0..b).map(|r| point_row_class(per, r)).collect();
+    block_noise_design(jacobian, jacobian.ncols(), joints, (&classes, if per == 6 { 2 } else { 1 }))
+}
+
+/// The measurement class of row `r` of a point of `per` rows a measured item (3: positions, 0;
+/// 6: a pose's position 0 and orientation 1).
+fn point_row_class(per: usize, r: usize) -> usize {
+    usize::from(per == 6 && r % 6 >= 3)
+}
+
+/// The design `D_c` of one block whose rows see the joint noise of `P` poses through
+/// `jacobian` (`b x P dof`: `J^p`, the rows' derivatives by pose `p`'s joints, side by side,
+/// zero where a row does not see that pose) and whose rows are of the measurement classes
+/// `classes` (`(class of each row, number of classes)`): for joint component `(i, j)`,
+/// `sum_p J^p E_ij (J^p)^T` (the joint noise of different poses independent); then for each
+/// class `m`, the identity on the rows of that class.
+pub(crate) fn block_noise_design(
+    jacobian: &DMatrix<f64>,
+    dof: usize,
+    joints: JointComponents,
+    (classes, class_count): (&[usize], usize),
+) -> Vec<DMatrix<f64>> {
+    let b = jacobian.nrows();
+    let poses = jacobian.ncols().checked_div(dof).unwrap_or(0);
     let mut design: Vec<DMatrix<f64>> = joints
-        .entries(jacobian.ncols())
+        .entries(dof)
         .into_iter()
         .map(|(i, j)| {
-            let (ci, cj) = (jacobian.column(i), jacobian.column(j));
-            if i == j { ci * ci.transpose() } else { ci * cj.transpose() + cj * ci.transpose() }
+            (0..poses).fold(DMatrix::zeros(b, b), |sum, p| {
+                let (ci, cj) = (jacobian.column(p * dof + i), jacobian.column(p * dof + j));
+                sum + if i == j { ci * ci.transpose() } else { ci * cj.transpose() + cj * ci.transpose() }
+            })
         })
         .collect();
-    let rows =
-        |orientation: bool| {
-            DMatrix::from_fn(b, b, |r, c| {
-                if r == c && ((per == 6 && r % 6 >= 3) == orientation) { 1.0 } else { 0.0 }
-            })
-        };
-    design.push(rows(false));
-    if per == 6 {
-        design.push(rows(true));
+    for class in 0..class_count {
+        design.push(DMatrix::from_fn(b, b, |r, c| f64::from(u8::from(r == c && classes[r] == class))));
     }
     design
+}
+
+/// How the noise enters the rows of a system for [`residual_design`]: each point's joint-noise
+/// Jacobian `J_k` (`b_k x P_k dof`, the derivatives of its rows by the joints of each of the
+/// `P_k` poses they see, side by side: [`block_noise_design`]'s), and the measurement class of
+/// every row of the system.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct NoiseLayout {
+    /// `J_k` of every point.
+    pub jacobians: Vec<DMatrix<f64>>,
+    /// Joints of each pose.
+    pub dof: usize,
+    /// The class of every row (`N_m`), each below `class_count`.
+    pub classes: Vec<usize>,
+    /// The number of measurement classes, one variance component each.
+    pub class_count: usize,
+}
+
+impl NoiseLayout {
+    /// The layout of points of `per` rows a measured item (a marker's position, 3; a probe's
+    /// pose, 6: [`noise_design`]'s classes), each seeing its pose through its manipulator
+    /// Jacobian `jacobians[k]` (`b_k x dof`), laid out by `blocks`.
+    pub(crate) fn of_points(jacobians: Vec<DMatrix<f64>>, per: usize, blocks: &super::Blocks) -> Self {
+        let dof = jacobians.first().map_or(0, DMatrix::ncols);
+        let rows = (0..jacobians.len()).map(|k| blocks.range(k)).map(|r| r.len());
+        let classes = rows.flat_map(|b| (0..b).map(|r| point_row_class(per, r))).collect();
+        Self { jacobians, dof, classes, class_count: if per == 6 { 2 } else { 1 } }
+    }
+
+    /// Whether it fits a system of `rows` rows laid out by `blocks`: one `J_k` per point, of
+    /// its rows and a whole number of poses, and a class below `class_count` per row.
+    fn fits(&self, blocks: &super::Blocks, rows: usize) -> bool {
+        let points = blocks.points(rows);
+        self.jacobians.len() == points
+            && self.dof > 0
+            && (0..points).all(|k| {
+                let j = &self.jacobians[k];
+                j.nrows() == blocks.range(k).len() && j.ncols() % self.dof == 0
+            })
+            && self.classes.len() == rows
+            && self.classes.iter().all(|&c| c < self.class_count)
+    }
 }
 
 /// The design of feasible GLS: the expectation of each point's residual outer product
@@ -181,30 +242,65 @@ pub(crate) fn noise_design(
 /// `N_c = sum_j A_j V_c,j A_j^T`,
 ///
 /// point by point: no `N_m x N_m` matrix, no pseudoinverse of the tall `S H`, time and memory
-/// linear in the points. The components are [`noise_design`]'s for the points' manipulator
-/// Jacobians `jacobians` (`J_k`, `b_k x dof`), `joints` and `per`: a joint component is
-/// `V_c,k = J_k E_c J_k^T`, so `N_c = sum_j Z_j E_c Z_j^T` with `Z_j = A_j J_j` (`p x dof`),
-/// `U_i^T U_i` for `sigma_i^2` and `U_i^T U_j + U_j^T U_i` for a covariance, `U_i` the
-/// columns `i` of every `Z_j` stacked as rows; a measurement component is the identity on
-/// some rows, and `N_c` the Gram matrix of those columns of `A`. `h` is the unwhitened `H`
-/// (`N_m x p`, laid out by `weights`' blocks). Points are shared between threads in tasks of
-/// a fixed size; every sum runs in the points' order, so the result does not depend on the
-/// number of threads.
+/// linear in the points. The components are [`block_noise_design`]'s of `layout`'s Jacobians
+/// `J_k` (`b_k x P_k dof`, one `J_k^p` per pose the point's rows see) and classes: a joint
+/// component is `V_c,k = sum_p J_k^p E_c (J_k^p)^T`, so `N_c = sum_jp Z_jp E_c Z_jp^T` with
+/// `Z_jp = A_j J_j^p` (`p x dof`), `U_i^T U_i` for `sigma_i^2` and `U_i^T U_j + U_j^T U_i` for
+/// a covariance, `U_i` the columns `i` of every `Z_jp` stacked as rows; a measurement
+/// component is the identity on the rows of its class, and `N_c` the Gram matrix of those
+/// columns of `A`. `h` is the unwhitened `H` (`N_m x p`, laid out by `weights`' blocks).
+/// Points are shared between threads in tasks of a fixed size; every sum runs in the points'
+/// order, so the result does not depend on the number of threads.
 pub(crate) fn residual_design(
     h: &DMatrix<f64>,
     weights: &super::Weights,
-    jacobians: &[DMatrix<f64>],
+    layout: &NoiseLayout,
     joints: JointComponents,
-    per: usize,
 ) -> Result<Vec<Vec<DMatrix<f64>>>, EstimationError> {
     let blocks = weights.blocks();
     let points = blocks.points(h.nrows());
-    if jacobians.len() != points || (0..points).any(|k| jacobians[k].nrows() != blocks.range(k).len()) {
+    if !layout.fits(blocks, h.nrows()) {
         return Err(EstimationError::Dimensions(format!(
-            "{} Jacobians for the {points} points of the residual design",
-            jacobians.len()
+            "{} Jacobians and {} row classes for the {points} points and {} rows of the residual design",
+            layout.jacobians.len(),
+            layout.classes.len(),
+            h.nrows()
         )));
     }
+    let a = influence(h, weights)?;
+    let middles = design_middles(&a, blocks, layout, joints);
+    let tasks: Vec<Vec<Vec<DMatrix<f64>>>> = (0..points)
+        .collect::<Vec<_>>()
+        .par_chunks(POINTS_PER_TASK)
+        .map(|task| {
+            let rows = blocks.range(task[0]).start..blocks.range(task[task.len() - 1]).end;
+            // H^T and N_c H^T of the task's rows (`p x rows`): their columns are contiguous.
+            let ht = h.rows(rows.start, rows.len()).transpose();
+            let nht: Vec<DMatrix<f64>> = middles.iter().map(|n| n * &ht).collect();
+            let point = |k: usize| {
+                let range = blocks.range(k);
+                let at = range.start - rows.start..range.end - rows.start;
+                let terms = PointTerms {
+                    ht: ht.columns(at.start, at.len()),
+                    a: a.columns(range.start, range.len()),
+                    jacobian: &layout.jacobians[k],
+                    dof: layout.dof,
+                    classes: &layout.classes[range],
+                };
+                let nht = nht.iter().map(|n| n.columns(at.start, at.len()));
+                terms.designs(nht, joints)
+            };
+            task.iter().map(|&k| point(k)).collect()
+        })
+        .collect();
+    Ok(tasks.into_iter().flatten().collect())
+}
+
+/// `A = (H^T W H)^+ H^T W` (`p x N_m`) of [`residual_design`], point by point:
+/// `A_k = C (S_k H_k)^T S_k`, `C = pinv(R) pinv(R)^T` from the triangular factor `R` of `S H`.
+fn influence(h: &DMatrix<f64>, weights: &super::Weights) -> Result<DMatrix<f64>, EstimationError> {
+    let blocks = weights.blocks();
+    let points = blocks.points(h.nrows());
     let mut sh = h.clone();
     weights.apply(&mut sh);
     let reduced = Reduced::of_whitened(&sh, &DVector::zeros(h.nrows()), blocks, None);
@@ -212,7 +308,6 @@ pub(crate) fn residual_design(
     let r_pinv = super::pseudo_inverse(&r)?;
     let c = &r_pinv * r_pinv.transpose();
     drop(sh);
-    // A = C (S H)^T S (`p x N_m`), point by point: A_k = C (S_k H_k)^T S_k.
     let mut a = DMatrix::zeros(c.nrows(), h.nrows());
     let chunks: Vec<(usize, DMatrix<f64>)> = (0..points)
         .into_par_iter()
@@ -228,65 +323,44 @@ pub(crate) fn residual_design(
     for (start, a_k) in chunks {
         a.columns_mut(start, a_k.ncols()).copy_from(&a_k);
     }
-    let middles = design_middles(&a, blocks, jacobians, joints, per);
-    let tasks: Vec<Vec<Vec<DMatrix<f64>>>> = (0..points)
-        .collect::<Vec<_>>()
-        .par_chunks(POINTS_PER_TASK)
-        .map(|task| {
-            let rows = blocks.range(task[0]).start..blocks.range(task[task.len() - 1]).end;
-            // H^T and N_c H^T of the task's rows (`p x rows`): their columns are contiguous.
-            let ht = h.rows(rows.start, rows.len()).transpose();
-            let nht: Vec<DMatrix<f64>> = middles.iter().map(|n| n * &ht).collect();
-            let point = |k: usize| {
-                let range = blocks.range(k);
-                let at = range.start - rows.start..range.end - rows.start;
-                let terms = PointTerms {
-                    ht: ht.columns(at.start, at.len()),
-                    a: a.columns(range.start, range.len()),
-                    jacobian: &jacobians[k],
-                };
-                let nht = nht.iter().map(|n| n.columns(at.start, at.len()));
-                terms.designs(nht, joints, per)
-            };
-            task.iter().map(|&k| point(k)).collect()
-        })
-        .collect();
-    Ok(tasks.into_iter().flatten().collect())
+    Ok(a)
 }
 
 /// What [`residual_design`] needs of point `k` for its designs: `H_k^T` (`p x b`), `A_k`
-/// (`p x b`) and `J_k` (`b x dof`).
+/// (`p x b`), `J_k` (`b x P dof`) and its rows' measurement classes.
 struct PointTerms<'a> {
     ht: nalgebra::DMatrixView<'a, f64>,
     a: nalgebra::DMatrixView<'a, f64>,
     jacobian: &'a DMatrix<f64>,
+    dof: usize,
+    classes: &'a [usize],
 }
 
 impl PointTerms<'_> {
     /// `D_c,k = V_c,k - P_k V_c,k - (P_k V_c,k)^T + (H_k N_c H_k^T + its transpose) / 2` of
-    /// every component, `nht` the `N_c H_k^T`, with `P_k = H_k A_k`: `V_c,k = J E_c J^T` of a
-    /// joint component (`P V = (P J) E_c J^T`), the identity on some rows for a measurement
-    /// component.
+    /// every component, `nht` the `N_c H_k^T`, with `P_k = H_k A_k`: `V_c,k = sum_p J^p E_c
+    /// (J^p)^T` of a joint component (`P V = sum_p (P J^p) E_c (J^p)^T`), the identity on the
+    /// rows of its class for a measurement component.
     fn designs<'n>(
         &self,
         nht: impl Iterator<Item = nalgebra::DMatrixView<'n, f64>>,
         joints: JointComponents,
-        per: usize,
     ) -> Vec<DMatrix<f64>> {
-        let (b, dof) = (self.jacobian.nrows(), self.jacobian.ncols());
+        let b = self.jacobian.nrows();
         let h = self.ht.transpose();
         let mut p = DMatrix::zeros(b, b);
         p.gemm(1.0, &h, &self.a, 0.0);
         let pj = &p * self.jacobian;
         let j = self.jacobian;
-        let components = joints.entries(dof);
+        let components = joints.entries(self.dof);
+        let on = Rows { dof: self.dof, poses: j.ncols() / self.dof, classes: self.classes };
         let mut hnh = DMatrix::zeros(b, b);
         nht.enumerate()
             .map(|(c, nht)| {
                 hnh.gemm(1.0, &h, &nht, 0.0);
                 let (v, pv) = match components.get(c) {
-                    Some(&(i, k)) => Component::Joint(i, k).terms(j, &pj),
-                    None => Component::Rows { orientation: c > components.len(), per }.terms(j, &p),
+                    Some(&(i, k)) => on.terms(Component::Joint(i, k), j, &pj),
+                    None => on.terms(Component::Class(c - components.len()), j, &p),
                 };
                 DMatrix::from_fn(b, b, |r, s| {
                     v(r, s) - pv(r, s) - pv(s, r) + (hnh[(r, s)] + hnh[(s, r)]) / 2.0
@@ -296,33 +370,52 @@ impl PointTerms<'_> {
     }
 }
 
-/// A component of [`noise_design`], as [`PointTerms::designs`] builds its terms.
+/// A component of [`block_noise_design`], as [`PointTerms::designs`] builds its terms.
 #[derive(Clone, Copy)]
 enum Component {
-    /// Entry `(i, k)` of `Sigma_q`: `V = J E_ik J^T`.
+    /// Entry `(i, k)` of `Sigma_q`: `V = sum_p J^p E_ik (J^p)^T`.
     Joint(usize, usize),
-    /// The identity on the position rows, or on a pose's orientation rows.
-    Rows { orientation: bool, per: usize },
+    /// The identity on the rows of a measurement class.
+    Class(usize),
 }
 
-impl Component {
-    /// Entry `(r, s)` of `V` and of `P V`, from `J` and `m`: `P J` for a joint component, `P`
-    /// for the rows.
+/// A point's rows as [`Component::terms`] reads them: `P` poses of `dof` joints side by side
+/// in `J`, and each row's class.
+#[derive(Clone, Copy)]
+struct Rows<'a> {
+    dof: usize,
+    poses: usize,
+    classes: &'a [usize],
+}
+
+impl<'a> Rows<'a> {
+    /// Entry `(r, s)` of `V` and of `P V` of `component`, from `J` and `m`: `P J` for a joint
+    /// component, `P` for a class.
     fn terms<'m>(
         self,
+        component: Component,
         j: &'m DMatrix<f64>,
         m: &'m DMatrix<f64>,
-    ) -> (impl Fn(usize, usize) -> f64 + 'm, impl Fn(usize, usize) -> f64 + 'm) {
-        let v = move |r: usize, s: usize| match self {
-            Self::Joint(i, k) if i == k => j[(r, i)] * j[(s, i)],
-            Self::Joint(i, k) => j[(r, i)] * j[(s, k)] + j[(r, k)] * j[(s, i)],
-            Self::Rows { .. } => f64::from(u8::from(r == s && self.on(s))),
+    ) -> (impl Fn(usize, usize) -> f64 + 'm, impl Fn(usize, usize) -> f64 + 'm)
+    where
+        'a: 'm,
+    {
+        let (dof, poses, classes) = (self.dof, self.poses, self.classes);
+        // sum_p x[(r, p dof + i)] j[(s, p dof + k)] (+ the same with i and k swapped).
+        let joint = move |x: &DMatrix<f64>, r: usize, s: usize, i: usize, k: usize| -> f64 {
+            let one = |i: usize, k: usize| {
+                (0..poses).map(|p| x[(r, p * dof + i)] * j[(s, p * dof + k)]).sum::<f64>()
+            };
+            if i == k { one(i, i) } else { one(i, k) + one(k, i) }
         };
-        let pv = move |r: usize, s: usize| match self {
-            Self::Joint(i, k) if i == k => m[(r, i)] * j[(s, i)],
-            Self::Joint(i, k) => m[(r, i)] * j[(s, k)] + m[(r, k)] * j[(s, i)],
-            Self::Rows { .. } => {
-                if self.on(s) {
+        let v = move |r: usize, s: usize| match component {
+            Component::Joint(i, k) => joint(j, r, s, i, k),
+            Component::Class(c) => f64::from(u8::from(r == s && classes[s] == c)),
+        };
+        let pv = move |r: usize, s: usize| match component {
+            Component::Joint(i, k) => joint(m, r, s, i, k),
+            Component::Class(c) => {
+                if classes[s] == c {
                     m[(r, s)]
                 } else {
                     0.0
@@ -331,14 +424,6 @@ impl Component {
         };
         (v, pv)
     }
-
-    /// Whether row `s` is among the rows of a [`Component::Rows`].
-    fn on(self, s: usize) -> bool {
-        match self {
-            Self::Rows { orientation, per } => (per == 6 && s % 6 >= 3) == orientation,
-            Self::Joint(..) => false,
-        }
-    }
 }
 
 /// Points per parallel task of [`residual_design`]'s last step: the tasks, and so every
@@ -346,26 +431,29 @@ impl Component {
 const POINTS_PER_TASK: usize = 64;
 
 /// `N_c = sum_j A_j V_c,j A_j^T` of every component of [`residual_design`], from `A`
-/// (`p x N_m`, point `j`'s columns `A_j`): for joint components through `U_i` (`N x p`, row `j`
-/// the column `i` of `Z_j = A_j J_j`), `N_ii = U_i^T U_i`, `N_ij = U_i^T U_j + U_j^T U_i`; for
-/// a measurement component (the identity on the position rows, or on the orientation rows of
-/// a pose, `per = 6`), the Gram matrix of those columns of `A`.
+/// (`p x N_m`, point `j`'s columns `A_j`): for joint components through `U_i` (`R x p`, a row
+/// per point `j` and pose `q` it sees, the column `i` of `Z_jq = A_j J_j^q`), `N_ii = U_i^T U_i`,
+/// `N_ij = U_i^T U_j + U_j^T U_i`; for a measurement class, the Gram matrix of the columns of
+/// `A` of its rows.
 fn design_middles(
     a: &DMatrix<f64>,
     blocks: &super::Blocks,
-    jacobians: &[DMatrix<f64>],
+    layout: &NoiseLayout,
     joints: JointComponents,
-    per: usize,
 ) -> Vec<DMatrix<f64>> {
-    let (p, dof, points) = (a.nrows(), jacobians[0].ncols(), jacobians.len());
-    let z: Vec<DMatrix<f64>> = (0..points)
+    let (p, dof) = (a.nrows(), layout.dof);
+    let z: Vec<DMatrix<f64>> = (0..layout.jacobians.len())
         .into_par_iter()
         .map(|k| {
             let range = blocks.range(k);
-            a.columns(range.start, range.len()) * &jacobians[k]
+            a.columns(range.start, range.len()) * &layout.jacobians[k]
         })
         .collect();
-    let u: Vec<DMatrix<f64>> = (0..dof).map(|i| DMatrix::from_fn(points, p, |k, r| z[k][(r, i)])).collect();
+    let replicas: Vec<(usize, usize)> =
+        z.iter().enumerate().flat_map(|(k, z)| (0..z.ncols() / dof).map(move |q| (k, q * dof))).collect();
+    let u: Vec<DMatrix<f64>> = (0..dof)
+        .map(|i| DMatrix::from_fn(replicas.len(), p, |n, r| z[replicas[n].0][(r, replicas[n].1 + i)]))
+        .collect();
     drop(z);
     let mut middles: Vec<DMatrix<f64>> = joints
         .entries(dof)
@@ -375,25 +463,12 @@ fn design_middles(
             if i == j { n } else { &n + n.transpose() }
         })
         .collect();
-    let rows_of = |orientation: bool| -> Vec<usize> {
-        (0..a.ncols())
-            .filter(|&row| (per == 6 && row_in_block(blocks, row) % 6 >= 3) == orientation)
-            .collect()
-    };
-    let kinds: &[bool] = if per == 6 { &[false, true] } else { &[false] };
-    for &orientation in kinds {
-        let selected = a.select_columns(&rows_of(orientation));
+    for class in 0..layout.class_count {
+        let rows: Vec<usize> = (0..a.ncols()).filter(|&row| layout.classes[row] == class).collect();
+        let selected = a.select_columns(&rows);
         middles.push(&selected * selected.transpose());
     }
     middles
-}
-
-/// The row within its point's block of row `row` of a system laid out by `blocks`.
-fn row_in_block(blocks: &super::Blocks, row: usize) -> usize {
-    match blocks {
-        super::Blocks::Uniform(b) => row % b,
-        super::Blocks::Ragged(starts) => row - starts[starts.partition_point(|&s| s <= row) - 1],
-    }
 }
 
 /// Fit the components `theta` to `samples`, `E[S_k] = sum_c theta_c D_c,k`; `constrained[c]`
@@ -460,17 +535,27 @@ pub(crate) fn fit_components(
     // The information at the estimate: the Gram matrix of the weights it was found with.
     let information = gram.view((0, 0), (m, m)).into_owned();
     let scale = DVector::from_fn(m, |c, _| information[(c, c)].sqrt());
-    if scale.iter().any(|&s| s.is_nan() || s <= 0.0 || !s.is_finite()) {
+    // A variance whose design is zero everywhere (a joint no observation moves) stays at 0,
+    // unbounded: its variance is infinite, and it is left out of the inverse.
+    let seen: Vec<usize> = (0..m).filter(|&c| !(constrained[c] && scale[c] == 0.0)).collect();
+    if seen.iter().any(|&c| scale[c].is_nan() || scale[c] <= 0.0 || !scale[c].is_finite()) {
         return bad("a variance component has no influence on the data: it cannot be estimated".into());
     }
-    let scaled = DMatrix::from_fn(m, m, |i, j| information[(i, j)] / (scale[i] * scale[j]));
+    let scaled = DMatrix::from_fn(seen.len(), seen.len(), |i, j| {
+        information[(seen[i], seen[j])] / (scale[seen[i]] * scale[seen[j]])
+    });
     let inverse = scaled
         .cholesky()
         .ok_or(EstimationError::Noise(
             "the variance components cannot be told apart by these poses (singular information)".into(),
         ))?
         .inverse();
-    let covariance = DMatrix::from_fn(m, m, |i, j| inverse[(i, j)] / (scale[i] * scale[j]));
+    let mut covariance = DMatrix::from_fn(m, m, |i, j| if i == j { f64::INFINITY } else { 0.0 });
+    for (a, &i) in seen.iter().enumerate() {
+        for (b, &j) in seen.iter().enumerate() {
+            covariance[(i, j)] = inverse[(a, b)] / (scale[i] * scale[j]);
+        }
+    }
     let at_bound = (0..m).map(|c| constrained[c] && theta[c] == 0.0).collect();
     Ok(ComponentFit { values: theta, covariance, constrained: constrained.to_vec(), at_bound, iterations })
 }
@@ -631,10 +716,64 @@ fn nnls_gram(gram: &DMatrix<f64>, constrained: &[bool]) -> DVector<f64> {
     nnls(&a, &y, constrained)
 }
 
-/// Estimated noise: `Sigma_q` (its diagonal, or every entry) and `sigma_me^2` (and
-/// `sigma_orientation^2` for poses), with their covariance; the components in the order:
-/// the estimated entries of `Sigma_q` (its diagonal, or its upper triangle row by row), then
-/// `sigma_me^2`, then `sigma_orientation^2` if orientations were measured.
+/// What a measurement variance component is the variance of: a marker's position
+/// coordinates, a probe's orientation, or one kind of observation of an observation file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MeasurementClass {
+    /// A marker's coordinates in a marker calibration (mm): `sigma_me`.
+    Position,
+    /// A probe's orientation (rad): `sigma_orientation`.
+    Orientation,
+    /// A distance, between two poses or to a fixed point (mm): a ball bar, a length artefact.
+    Distance,
+    /// A plane contact (mm): a touch probe.
+    Contact,
+    /// A coordinate x, y or z of the tool point (mm).
+    Coordinate,
+    /// A roll, pitch or yaw of the tool frame (rad): an inclinometer.
+    Angle,
+    /// A marker's coordinate in an observation file (mm): a tracker.
+    Marker,
+    /// The position of a camera's view of its target (mm).
+    CameraPosition,
+    /// The rotation of a camera's view of its target (rad).
+    CameraRotation,
+}
+
+impl MeasurementClass {
+    /// The component's name in a report: `sigma_me`, `sigma_distance`, `sigma_camera_rotation`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Position => "sigma_me",
+            Self::Orientation => "sigma_orientation",
+            Self::Distance => "sigma_distance",
+            Self::Contact => "sigma_contact",
+            Self::Coordinate => "sigma_coordinate",
+            Self::Angle => "sigma_angle",
+            Self::Marker => "sigma_marker",
+            Self::CameraPosition => "sigma_camera_position",
+            Self::CameraRotation => "sigma_camera_rotation",
+        }
+    }
+
+    /// Whether its sigma is an angle (rad), else a length (mm).
+    pub fn is_angle(self) -> bool {
+        matches!(self, Self::Orientation | Self::Angle | Self::CameraRotation)
+    }
+
+    /// The classes of a marker calibration's rows, `per` rows a measured item: positions
+    /// (`sigma_me`), and for a probe's poses (`per = 6`) orientations.
+    pub fn of_points(per: usize) -> Vec<Self> {
+        if per == 6 { vec![Self::Position, Self::Orientation] } else { vec![Self::Position] }
+    }
+}
+
+/// Estimated noise: `Sigma_q` (its diagonal, or every entry) and one measurement variance per
+/// class (`sigma_me^2`, and `sigma_orientation^2` for poses; of observation files, one per kind
+/// of observation), with their covariance; the components in the order: the estimated entries
+/// of `Sigma_q` (its diagonal, or its upper triangle row by row), then the measurement
+/// classes' variances in the order of [`NoiseEstimate::measurement`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct NoiseEstimate {
     /// The fitted components.
@@ -643,8 +782,8 @@ pub struct NoiseEstimate {
     pub joints: JointComponents,
     /// Number of joints.
     pub dof: usize,
-    /// Whether orientations were measured (a `sigma_orientation^2` component follows `sigma_me^2`).
-    pub orientation: bool,
+    /// The measurement classes, one variance component each after the joints'.
+    pub measurement: Vec<MeasurementClass>,
 }
 
 /// A standard deviation with its 95% interval (the square roots of the variance's).
@@ -667,23 +806,20 @@ impl SigmaInterval {
 
 impl NoiseEstimate {
     /// Fit the components to `samples` whose designs come from `noise_design` (or
-    /// `residual_design` of it) with `joints`, `dof` joints and `per` rows per measured item;
+    /// `residual_design` of it) with `joints`, `dof` joints and the `measurement` classes;
     /// the reweighting starts from `start`'s components if given (a previous round of feasible
     /// GLS), else from the unweighted fit.
     pub(crate) fn fit(
         samples: &[CovarianceSample],
         joints: JointComponents,
         dof: usize,
-        per: usize,
+        measurement: Vec<MeasurementClass>,
         start: Option<&Self>,
     ) -> Result<Self, EstimationError> {
         let mut constrained: Vec<bool> = joints.entries(dof).iter().map(|(i, j)| i == j).collect();
-        constrained.push(true);
-        if per == 6 {
-            constrained.push(true);
-        }
+        constrained.extend(measurement.iter().map(|_| true));
         let fit = fit_components(samples, &constrained, start.map(|s| &s.fit.values))?;
-        Ok(Self { fit, joints, dof, orientation: per == 6 })
+        Ok(Self { fit, joints, dof, measurement })
     }
 
     /// Index of component `sigma_j^2` of joint `j`.
@@ -701,14 +837,34 @@ impl NoiseEstimate {
         self.sigma(self.joint_index(j))
     }
 
-    /// `sigma_me` (mm) with its 95% interval.
+    /// The index of `class`'s component, if estimated.
+    fn class_index(&self, class: MeasurementClass) -> Option<usize> {
+        let first = self.joints.entries(self.dof).len();
+        self.measurement.iter().position(|&c| c == class).map(|m| first + m)
+    }
+
+    /// The sigma of the measurement class `class` (mm or rad) with its 95% interval, if
+    /// estimated.
+    pub fn measurement_sigma(&self, class: MeasurementClass) -> Option<SigmaInterval> {
+        self.class_index(class).map(|c| self.sigma(c))
+    }
+
+    /// Every measurement class's sigma (mm or rad) with its 95% interval, in order.
+    pub fn measurement_sigmas(&self) -> Vec<(MeasurementClass, SigmaInterval)> {
+        let first = self.joints.entries(self.dof).len();
+        self.measurement.iter().enumerate().map(|(m, &class)| (class, self.sigma(first + m))).collect()
+    }
+
+    /// `sigma_me` (mm) with its 95% interval: the marker positions' (of observation files, the
+    /// first measurement class's).
     pub fn sigma_me(&self) -> SigmaInterval {
-        self.sigma(self.joints.entries(self.dof).len())
+        let first = self.joints.entries(self.dof).len();
+        self.sigma(self.class_index(MeasurementClass::Position).unwrap_or(first))
     }
 
     /// `sigma_orientation` (rad) with its 95% interval, when orientations were measured.
     pub fn sigma_orientation(&self) -> Option<SigmaInterval> {
-        self.orientation.then(|| self.sigma(self.joints.entries(self.dof).len() + 1))
+        self.measurement_sigma(MeasurementClass::Orientation)
     }
 
     /// `Sigma_q` from the components, made positive semi-definite (negative eigenvalues of a
@@ -728,19 +884,26 @@ impl NoiseEstimate {
         m
     }
 
-    /// The measurement sigmas to weight with: `sigma_me` and `sigma_orientation`, each
-    /// replaced, where its variance ended at the bound 0, by the square root of the variance's
-    /// standard error. Zero measurement noise would claim that the markers are exact in every
+    /// The sigma to weight the rows of `class` with: its estimate, or, where its variance ended
+    /// at the bound 0, the square root of the variance's standard error (0 for a class not
+    /// estimated). Zero measurement noise would claim that the markers are exact in every
     /// direction the joint noise cannot move them (with two markers on the last link, the turn
     /// about the line through them), and `V_k` would be singular; one standard error above
     /// zero is what the data cannot rule out.
-    pub fn weighting_sigmas(&self) -> (f64, f64) {
-        let m = self.joints.entries(self.dof).len();
-        let usable = |c: usize| {
+    pub fn weighting_sigma(&self, class: MeasurementClass) -> f64 {
+        self.class_index(class).map_or(0.0, |c| {
             let v = self.fit.values[c];
             if v > 0.0 { v.sqrt() } else { self.fit.standard_error(c).sqrt() }
-        };
-        (usable(m), if self.orientation { usable(m + 1) } else { 0.0 })
+        })
+    }
+
+    /// The measurement sigmas of a marker calibration to weight with: `sigma_me` and
+    /// `sigma_orientation` ([`NoiseEstimate::weighting_sigma`]).
+    pub fn weighting_sigmas(&self) -> (f64, f64) {
+        (
+            self.weighting_sigma(MeasurementClass::Position),
+            self.weighting_sigma(MeasurementClass::Orientation),
+        )
     }
 
     /// The estimate as a noise file: `Sigma_q`, and `sigma_me` isotropic (as
@@ -930,7 +1093,8 @@ mod tests {
         for (per, joints) in [(3, JointComponents::Full), (6, JointComponents::Diagonal)] {
             for estimator in [super::super::Estimator::Ols, super::super::Estimator::Wls] {
                 let weights = super::super::Weights::new(Some(&v), rows, estimator, true).unwrap();
-                let designs = residual_design(&h, &weights, &jacobians, joints, per).unwrap();
+                let layout = NoiseLayout::of_points(jacobians.clone(), per, weights.blocks());
+                let designs = residual_design(&h, &weights, &layout, joints).unwrap();
                 let mut s = DMatrix::identity(n, n);
                 weights.apply(&mut s);
                 let mut sh = h.clone();
@@ -957,6 +1121,84 @@ mod tests {
         }
     }
 
+    /// The same for an observation file's layout: ragged blocks (1 to 6 rows), each row seeing
+    /// one or two poses (a distance between two), rows of three measurement classes, the
+    /// estimator's weights and correlated ones; and the exact components recovered from the
+    /// dense expectation `E[r r^T] = M V M^T`.
+    #[test]
+    fn the_residual_design_of_ragged_blocks_is_the_dense_residual_makers() {
+        let (p, dof) = (4, 2);
+        let sizes: Vec<usize> = (0..POINTS_PER_TASK + 5).map(|k| 1 + (k * 5) % 6).collect();
+        let blocks = super::super::Blocks::from_sizes(sizes.clone());
+        let n: usize = sizes.iter().sum();
+        let h = DMatrix::from_fn(n, p, |i, j| {
+            ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j))
+        });
+        let jacobians: Vec<DMatrix<f64>> = (sizes.iter().enumerate())
+            .map(|(k, &b)| {
+                let poses = 1 + k % 2;
+                DMatrix::from_fn(b, poses * dof, |i, j| {
+                    // The second pose seen by the first row only (a distance to another pose).
+                    if j >= dof && i > 0 { 0.0 } else { (((k + 2) * (i + 1) + 5 * j) % 9) as f64 / 4.0 - 1.0 }
+                })
+            })
+            .collect();
+        let classes: Vec<usize> = (0..n).map(|r| (r * 7 / 3) % 3).collect();
+        let layout = NoiseLayout { jacobians, dof, classes, class_count: 3 };
+        let theta = [0.3, 0.2, 0.05, 0.01, 0.02];
+        let mut v = DMatrix::zeros(n, blocks.width());
+        let dense_v = |c: Option<usize>| {
+            let mut full = DMatrix::zeros(n, n);
+            for (k, r) in blocks.ranges(n).enumerate() {
+                let design = block_noise_design(
+                    &layout.jacobians[k],
+                    dof,
+                    JointComponents::Diagonal,
+                    (&layout.classes[r.clone()], 3),
+                );
+                let block = match c {
+                    Some(c) => design[c].clone(),
+                    None => {
+                        design.iter().zip(theta).fold(DMatrix::zeros(r.len(), r.len()), |s, (d, t)| s + d * t)
+                    }
+                };
+                full.view_mut((r.start, r.start), (r.len(), r.len())).copy_from(&block);
+            }
+            full
+        };
+        let true_v = dense_v(None);
+        for r in blocks.ranges(n) {
+            v.view_mut((r.start, 0), (r.len(), r.len()))
+                .copy_from(&true_v.view((r.start, r.start), (r.len(), r.len())));
+        }
+        for estimator in [super::super::Estimator::Ols, super::super::Estimator::Wls] {
+            let weights =
+                super::super::Weights::of_blocks(Some(&v), blocks.clone(), estimator, true).unwrap();
+            let designs = residual_design(&h, &weights, &layout, JointComponents::Diagonal).unwrap();
+            let mut s = DMatrix::identity(n, n);
+            weights.apply(&mut s);
+            let mut sh = h.clone();
+            weights.apply(&mut sh);
+            let m = DMatrix::identity(n, n) - &h * super::super::pseudo_inverse(&sh).unwrap() * &s;
+            let mut samples = Vec::new();
+            for (k, r) in blocks.ranges(n).enumerate() {
+                for (c, got) in designs[k].iter().enumerate() {
+                    let want = (&m * dense_v(Some(c)) * m.transpose())
+                        .view((r.start, r.start), (r.len(), r.len()))
+                        .into_owned();
+                    assert!((got - &want).amax() < 1e-12 * want.amax().max(1.0), "{estimator:?} {c} {k}");
+                }
+                let expected =
+                    (&m * &true_v * m.transpose()).view((r.start, r.start), (r.len(), r.len())).into_owned();
+                samples.push(CovarianceSample { s: expected, dof: 1.0, design: designs[k].clone() });
+            }
+            let fit = fit_components(&samples, &[true; 5], None).unwrap();
+            for (c, t) in theta.iter().enumerate() {
+                assert!((fit.values[c] - t).abs() < 1e-8, "{estimator:?}: {}", fit.values);
+            }
+        }
+    }
+
     /// The designs and the fitted components are the same, to the bit, on one thread and on
     /// three (the parallel tasks are of fixed sizes, every sum in the points' order).
     #[test]
@@ -971,7 +1213,8 @@ mod tests {
             .collect();
         let weights = super::super::Weights::new(None, rows, super::super::Estimator::Ols, false).unwrap();
         let run = || {
-            let designs = residual_design(&h, &weights, &jacobians, JointComponents::Diagonal, 3).unwrap();
+            let layout = NoiseLayout::of_points(jacobians.clone(), 3, weights.blocks());
+            let designs = residual_design(&h, &weights, &layout, JointComponents::Diagonal).unwrap();
             let samples: Vec<CovarianceSample> = designs
                 .into_iter()
                 .enumerate()

@@ -480,7 +480,9 @@ pub struct NoiseRow {
 }
 
 /// The rows of an estimated noise for the robot's `joints`: each joint's sigma (deg, mm), then
-/// `sigma_me` (mm) and `sigma_orientation` (deg).
+/// each measurement class's (`sigma_me` mm and `sigma_orientation` deg of marker files;
+/// `sigma_distance`, `sigma_camera_rotation`, ... of observation files): lengths in mm, angles
+/// in deg.
 pub fn noise_rows(joints: &[Joint], estimate: &NoiseEstimate) -> Vec<NoiseRow> {
     let row = |name: String, s: SigmaInterval, scale: f64, unit| NoiseRow {
         name,
@@ -497,9 +499,11 @@ pub fn noise_rows(joints: &[Joint], estimate: &NoiseEstimate) -> Vec<NoiseRow> {
             JointKind::Prismatic => row(j.name.clone(), estimate.joint_sigma(i), 1.0, "mm"),
         })
         .collect();
-    rows.push(row("sigma_me".into(), estimate.sigma_me(), 1.0, "mm"));
-    if let Some(o) = estimate.sigma_orientation() {
-        rows.push(row("sigma_orientation".into(), o, 1f64.to_degrees(), "deg"));
+    for (class, s) in estimate.measurement_sigmas() {
+        rows.push(match class.is_angle() {
+            true => row(class.name().into(), s, 1f64.to_degrees(), "deg"),
+            false => row(class.name().into(), s, 1.0, "mm"),
+        });
     }
     rows
 }

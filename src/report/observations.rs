@@ -27,8 +27,15 @@ pub struct ObservationsReport {
     pub estimator: String,
     /// Gauss-Newton steps taken.
     pub iterations: usize,
-    /// Whether a stopping rule was met.
+    /// Whether a stopping rule was met (with feasible GLS, and the variance components settled).
     pub converged: bool,
+    /// Feasible GLS: whether its variance components settled.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_settled: Option<bool>,
+    /// Feasible GLS: the noise estimated from the residuals, the joints' then each measurement
+    /// class's, with 95% intervals.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise: Option<Vec<super::calibration::NoiseRow>>,
     /// The estimated parameters, the robot's then the set-up's (`point1.x`, `plane1.d`, ...).
     pub parameters: Vec<ParameterRow>,
     /// What the observations cannot see, held, in words.
@@ -137,7 +144,9 @@ impl ObservationsReport {
             poses: fitted.1,
             estimator: estimator.to_string(),
             iterations: c.refined.history.len(),
-            converged: c.refined.converged,
+            converged: c.refined.converged && c.noise_settled != Some(false),
+            noise_settled: c.noise_settled,
+            noise: c.noise_estimate.as_ref().map(|e| super::calibration::noise_rows(&c.calibrated.joints, e)),
             parameters,
             unseen: c.unseen.clone(),
             fixed: held.iter().map(crate::calibration::Held::text).collect(),
@@ -214,7 +223,11 @@ impl ObservationsReport {
             self.poses,
             self.estimator,
             self.iterations,
-            if self.converged { "converged" } else { "not converged" }
+            match (self.converged, self.noise_settled) {
+                (true, _) => "converged",
+                (false, Some(false)) => "not converged: the variance components did not settle",
+                (false, _) => "not converged",
+            }
         );
         if let Some(b) = &self.registered_base {
             let _ = writeln!(
@@ -225,6 +238,10 @@ impl ObservationsReport {
         }
         let _ = writeln!(out, "\n{}", self.verdict_text());
         super::calibration::write_parameters(&mut out, &self.parameters);
+        if let Some(noise) = &self.noise {
+            let table = super::calibration::noise_table(noise);
+            let _ = write!(out, "\nnoise estimated from the residuals (feasible GLS):\n{table}");
+        }
         super::calibration::write_down_weighted(
             &mut out,
             self.loss.as_deref(),

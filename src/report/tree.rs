@@ -42,6 +42,13 @@ pub struct TreeReport {
     pub iterations: usize,
     /// Whether a stopping rule was met.
     pub converged: bool,
+    /// Feasible GLS: whether its variance components settled.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_settled: Option<bool>,
+    /// Feasible GLS: the noise estimated from the residuals, each tree joint's and the views'
+    /// position and rotation sigmas, with 95% intervals.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise: Option<Vec<super::calibration::NoiseRow>>,
     /// The estimated parameters, the tree's then the cameras' and targets'.
     pub parameters: Vec<ParameterRow>,
     /// The cameras and targets as calibrated.
@@ -138,7 +145,9 @@ impl TreeReport {
             poses: fitted.1,
             estimator: estimator.to_string(),
             iterations: c.refined.history.len(),
-            converged: c.refined.converged,
+            converged: c.refined.converged && c.noise_settled != Some(false),
+            noise_settled: c.noise_settled,
+            noise: c.noise_estimate.as_ref().map(|e| super::calibration::noise_rows(&c.calibrated.joints, e)),
             parameters,
             frames,
             unseen: c.unseen.clone(),
@@ -206,7 +215,11 @@ impl TreeReport {
             self.poses,
             self.estimator,
             self.iterations,
-            if self.converged { "converged" } else { "not converged" }
+            match (self.converged, self.noise_settled) {
+                (true, _) => "converged",
+                (false, Some(false)) => "not converged: the variance components did not settle",
+                (false, _) => "not converged",
+            }
         );
         let _ = writeln!(out, "joints: {}\n", self.joints.join(", "));
         let _ = writeln!(out, "{}", self.verdict_text());
@@ -214,6 +227,10 @@ impl TreeReport {
         let _ = writeln!(out, "{:<width$} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
         for p in &self.parameters {
             let _ = writeln!(out, "{:<width$} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
+        }
+        if let Some(noise) = &self.noise {
+            let table = super::calibration::noise_table(noise);
+            let _ = write!(out, "\nnoise estimated from the residuals (feasible GLS):\n{table}");
         }
         super::calibration::write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "view");
         out.push_str(&super::calibration::choices_text(self.prior_scale.as_ref(), self.selection.as_ref()));

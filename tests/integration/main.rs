@@ -17,6 +17,7 @@ mod figures;
 mod fuzz;
 mod instruments;
 mod kinds;
+mod kinds_fgls;
 mod kinds_markers;
 mod kinematics;
 mod layering;

@@ -23,6 +23,7 @@
 use super::SetUp;
 use super::camera::{camera_start, isometry};
 use crate::calibration::CalibrationError;
+use crate::estimation::MeasurementClass;
 use crate::limits::MAX_LENGTH_MM;
 use crate::model::RobotModel;
 use crate::table::{DataError, Row, Table, Units};
@@ -215,6 +216,34 @@ impl Observation {
             }
             _ => r,
         }
+    }
+
+    /// The measurement class whose variance feasible GLS estimates for it: a distance (between
+    /// poses or to a fixed point), a contact, a coordinate or an angle, a marker's coordinate,
+    /// a camera view's position or rotation.
+    pub fn class(&self) -> MeasurementClass {
+        match *self {
+            Self::Distance { .. } | Self::ToPoint { .. } => MeasurementClass::Distance,
+            Self::Contact { .. } => MeasurementClass::Contact,
+            Self::Coordinate { axis: 3.., .. } => MeasurementClass::Angle,
+            Self::Coordinate { .. } => MeasurementClass::Coordinate,
+            Self::Marker { .. } => MeasurementClass::Marker,
+            Self::Camera { axis: 3.., .. } => MeasurementClass::CameraRotation,
+            Self::Camera { .. } => MeasurementClass::CameraPosition,
+        }
+    }
+
+    /// The same observation with standard deviation `to` (mm, or rad for an angle).
+    pub fn with_sigma(mut self, to: f64) -> Self {
+        match &mut self {
+            Self::Distance { sigma, .. }
+            | Self::ToPoint { sigma, .. }
+            | Self::Contact { sigma, .. }
+            | Self::Coordinate { sigma, .. }
+            | Self::Marker { sigma, .. }
+            | Self::Camera { sigma, .. } => *sigma = to,
+        }
+        self
     }
 
     /// Its standard deviation `sigma_k` (mm).

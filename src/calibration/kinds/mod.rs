@@ -94,8 +94,11 @@
 
 pub mod camera;
 mod data;
+mod feasible;
 
 use camera::relative_view;
+
+pub use feasible::calibrate_kinds_feasible;
 
 pub use data::{
     CameraSite, DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM,
@@ -107,8 +110,8 @@ use super::{
     gauge_class,
 };
 use crate::estimation::{
-    Blocks, Estimator, Linearisation, POSE_SIGMAS, PriorEntry, PriorRows, RANK_TOLERANCE, RefineOptions,
-    Refined, Residuals, Weights, linearise, prior_sds, refine_from,
+    Blocks, Estimator, Linearisation, MeasurementClass, NoiseEstimate, NoiseLayout, POSE_SIGMAS, PriorEntry,
+    PriorRows, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
@@ -895,6 +898,43 @@ impl<'a> KindProblem<'a> {
         self.data.observations.iter().map(row).collect()
     }
 
+    /// How the noise enters the rows, for feasible GLS ([`residual_design`]): each pose
+    /// block's joint-noise Jacobian, its observations' rows `g_kj^T J_kj` by the distinct poses
+    /// `j` they see, side by side (a distance between two poses sees both), at the problem's
+    /// values; each observation's measurement class among those present, which are returned
+    /// in order ([`Observation::class`]).
+    ///
+    /// [`residual_design`]: crate::estimation::residual_design
+    pub(crate) fn noise_layout(&self) -> (NoiseLayout, Vec<MeasurementClass>) {
+        let observations = &self.data.observations;
+        let mut present: Vec<MeasurementClass> = observations.iter().map(Observation::class).collect();
+        present.sort();
+        present.dedup();
+        let classes = (observations.iter())
+            .map(|o| present.iter().position(|&c| c == o.class()).expect("present"))
+            .collect();
+        let rows = self.joint_rows(true);
+        let dof = self.chains[0].dof();
+        let jacobians = (self.blocks.ranges(observations.len()))
+            .map(|range| {
+                let mut poses: Vec<usize> =
+                    range.clone().flat_map(|i| rows[i].iter().map(|(j, _)| *j)).collect();
+                poses.sort_unstable();
+                poses.dedup();
+                let mut block = DMatrix::zeros(range.len(), poses.len() * dof);
+                for (r, i) in range.enumerate() {
+                    for (j, g) in &rows[i] {
+                        let p = poses.binary_search(j).expect("a pose of the block");
+                        let mut at = block.view_mut((r, p * dof), (1, dof));
+                        at += g;
+                    }
+                }
+                block
+            })
+            .collect();
+        (NoiseLayout { jacobians, dof, classes, class_count: present.len() }, present)
+    }
+
     /// What the chains' ends are: points ([`Measured::Position`]) or, for angles and cameras,
     /// frames ([`Measured::Pose`]; with markers, the points' frames, their rotation the last
     /// link's).
@@ -1055,6 +1095,11 @@ pub struct KindCalibration {
     /// What to look at, one per cause: joint lengths corrected by more than 10 mm, training
     /// observations far out.
     pub warnings: Vec<Warning>,
+    /// Feasible GLS ([`calibrate_kinds_feasible`]): the noise estimated from the residuals,
+    /// the joints' and each measurement class's, with which the calibration was weighted.
+    pub noise_estimate: Option<NoiseEstimate>,
+    /// Feasible GLS: whether its variance components settled.
+    pub noise_settled: Option<bool>,
 }
 
 /// One observation scored: its residual `m_k - f_k` before and after (mm; rad for an angle),
@@ -1176,8 +1221,11 @@ impl Score {
 
 impl KindCalibration {
     /// `data` scored before and after, the set-up as calibrated, whitened by `V_k` with the
-    /// calibration's joint noise.
+    /// calibration's joint noise (by feasible GLS, with the estimated noise: each observation's
+    /// sigma its class's).
     pub fn score(&self, data: &KindData) -> Result<Score, CalibrationError> {
+        let estimated = self.noise_estimate.as_ref().map(|e| feasible::with_class_sigmas(data, e));
+        let data = estimated.as_ref().unwrap_or(data);
         data.check(self.chains[0].dof())?;
         let (setup, values, sessions) = self.setup_for(data)?;
         data.check_against(&setup)?;
@@ -1372,6 +1420,8 @@ pub fn calibrate_kinds(
         registered_base: (!markers.is_empty()).then_some(registered.base),
         joint_noise: options.joint_noise.clone(),
         chains,
+        noise_estimate: None,
+        noise_settled: None,
     };
     scored(&mut calibration, data)?;
     Ok(calibration)

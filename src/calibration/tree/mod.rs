@@ -46,8 +46,10 @@
 //! camera-target pair that has it.
 
 mod data;
+mod feasible;
 
 pub use data::{Frame, Role, TreeData, View};
+pub use feasible::calibrate_tree_feasible;
 
 use super::kinds::camera::{camera_start, isometry, mounted, placed, placement, relative_view};
 use super::kinds::{Gauged, identifiable, matching};
@@ -56,8 +58,8 @@ use super::{
     gauge_class,
 };
 use crate::estimation::{
-    Estimator, Linearisation, POSE_SIGMAS, PriorEntry, PriorRows, RefineOptions, Refined, Residuals, Weights,
-    linearise, prior_sds_of, refine_from,
+    Estimator, Linearisation, MeasurementClass, NoiseEstimate, NoiseLayout, POSE_SIGMAS, PriorEntry,
+    PriorRows, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds_of, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamInfo, ParamOwner, Placement, RobotTree, Selection, SelectionError};
@@ -387,7 +389,6 @@ impl<'a> TreeProblem<'a> {
     fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
         let (full, s) = self.full(&self.start());
         let chains = self.chains_at(&full);
-        let dof = joint_noise.map_or(0, |n| n.nrows());
         let rows = self.data.rows();
         let mut v = DMatrix::zeros(rows * self.data.views.len(), rows);
         for (k, view) in self.data.views.iter().enumerate() {
@@ -400,28 +401,63 @@ impl<'a> TreeProblem<'a> {
                 view.sigma[1].powi(2),
             ));
             if let Some(sigma_q) = joint_noise {
-                let (a, b) = (
-                    self.frame_at(&chains, &s, view.camera, view.pose),
-                    self.frame_at(&chains, &s, view.target, view.pose),
-                );
-                let relative = relative_view(&view.view, &a.frame, &b.frame);
-                let mut g = DMatrix::zeros(6, dof);
-                for (at, by) in [(&a, relative.by_a), (&b, relative.by_b)] {
-                    let Some((branch, by_tip)) = at.on else { continue };
-                    let q = &self.values[branch][view.pose];
-                    let mut j = Matrix6xX::zeros(q.len());
-                    chains[branch].manipulator_jacobian(q, &mut j);
-                    let gj = by * by_tip * j;
-                    for (c, &t) in self.params.joints[branch].iter().enumerate() {
-                        let mut column = g.column_mut(t);
-                        column += gj.column(c);
-                    }
-                }
+                let g = self.view_jacobian(&chains, &s, view, sigma_q.nrows());
                 block += Matrix6::from_iterator((&g * sigma_q * g.transpose()).iter().copied());
             }
             v.view_mut((rows * k, 0), (rows, rows)).copy_from(&block.view((0, 0), (rows, rows)));
         }
         v
+    }
+
+    /// `G = dy/dq` of `view` (6 x `dof`, the tree's joints): the joint noise of its pose moves
+    /// both its frames, each through its branch's manipulator Jacobian.
+    fn view_jacobian(&self, chains: &[ChainAt], s: &[f64], view: &View, dof: usize) -> DMatrix<f64> {
+        let (a, b) = (
+            self.frame_at(chains, s, view.camera, view.pose),
+            self.frame_at(chains, s, view.target, view.pose),
+        );
+        let relative = relative_view(&view.view, &a.frame, &b.frame);
+        let mut g = DMatrix::zeros(6, dof);
+        for (at, by) in [(&a, relative.by_a), (&b, relative.by_b)] {
+            let Some((branch, by_tip)) = at.on else { continue };
+            let q = &self.values[branch][view.pose];
+            let mut j = Matrix6xX::zeros(q.len());
+            chains[branch].manipulator_jacobian(q, &mut j);
+            let gj = by * by_tip * j;
+            for (c, &t) in self.params.joints[branch].iter().enumerate() {
+                let mut column = g.column_mut(t);
+                column += gj.column(c);
+            }
+        }
+        g
+    }
+
+    /// How the noise enters the rows, for feasible GLS: each view's `G` (its rows) at the
+    /// problem's values, the tree's `dof` joints; its position rows of the class
+    /// [`MeasurementClass::CameraPosition`], its rotation rows of
+    /// [`MeasurementClass::CameraRotation`] (none for positions only). A joint that moves no
+    /// view's frames relative to each other has a zero column: its variance stays at 0,
+    /// unbounded.
+    pub(crate) fn noise_layout(&self, dof: usize) -> (NoiseLayout, Vec<MeasurementClass>) {
+        let (full, s) = self.full(&self.start());
+        let chains = self.chains_at(&full);
+        let rows = self.data.rows();
+        let mut jacobians: Vec<DMatrix<f64>> = (self.data.views.iter())
+            .map(|view| self.view_jacobian(&chains, &s, view, dof).rows(0, rows).into_owned())
+            .collect();
+        // A joint on the way to both frames of every view moves none (`torso` under a head
+        // camera): its column is rounding alone, zeroed, and its variance left unestimated.
+        let largest = |t: usize| jacobians.iter().map(|j| j.column(t).amax()).fold(0.0, f64::max);
+        let overall = (0..dof).map(largest).fold(0.0, f64::max);
+        for t in (0..dof).filter(|&t| largest(t) <= 1e-9 * overall).collect::<Vec<_>>() {
+            jacobians.iter_mut().for_each(|j| j.column_mut(t).fill(0.0));
+        }
+        let classes = (0..rows * self.data.views.len()).map(|r| usize::from(r % rows >= 3)).collect();
+        let present = match rows {
+            6 => vec![MeasurementClass::CameraPosition, MeasurementClass::CameraRotation],
+            _ => vec![MeasurementClass::CameraPosition],
+        };
+        (NoiseLayout { jacobians, dof, classes, class_count: present.len() }, present)
     }
 }
 
@@ -640,6 +676,11 @@ pub struct TreeCalibration {
     pub warnings: Vec<Warning>,
     /// With a robust loss: its final weights, one per view (block of rows).
     pub robust: Option<RobustFit>,
+    /// Feasible GLS ([`calibrate_tree_feasible`]): the noise estimated from the residuals, the
+    /// tree's joints' and the views' position and rotation sigmas, with which it was weighted.
+    pub noise_estimate: Option<NoiseEstimate>,
+    /// Feasible GLS: whether its variance components settled.
+    pub noise_settled: Option<bool>,
     joint_noise: Option<DMatrix<f64>>,
 }
 
@@ -652,6 +693,8 @@ impl TreeCalibration {
     /// `data` scored before and after: its views' residuals with the frames as calibrated
     /// (every camera and target of `data` must be one of the calibration's).
     pub fn score(&self, data: &TreeData) -> Result<TreeScore, CalibrationError> {
+        let estimated = self.noise_estimate.as_ref().map(|e| feasible::with_estimated_sigmas(data, e));
+        let data = estimated.as_ref().unwrap_or(data);
         data.check(&self.params)?;
         // Every view's frames as the calibration's.
         let mut index = Vec::with_capacity(data.frames.len());
@@ -980,6 +1023,8 @@ pub fn calibrate_tree(
         training: TreeScore { views: Vec::new(), position: (0.0, 0.0), rotation: None },
         warnings: Vec::new(),
         robust,
+        noise_estimate: None,
+        noise_settled: None,
         joint_noise: options.joint_noise.clone(),
     };
     calibration.training = calibration.score(data)?;

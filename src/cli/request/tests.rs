@@ -457,23 +457,47 @@ fn observations(args: &[&str]) -> Result<CalibrateObservationsRequest, String> {
     })
 }
 
+/// `--estimator fgls` on observation files refuses what it refuses on a marker file, in the
+/// same words: a given joint noise, `--folds`, `--select`, a prior, a robust loss.
 #[test]
-fn calibrate_observations_weights_by_default_and_takes_every_estimator_but_fgls() {
+fn fgls_on_observation_files_refuses_what_it_refuses_on_markers() {
+    let fgls = ["--estimator", "fgls"];
+    let with = |more: &[&str]| observations(&[&fgls[..], more].concat()).unwrap_err();
+    assert_eq!(
+        with(&["--joint-sigma-deg", SIGMAS]),
+        "--estimator fgls estimates the noise: do not give --noise or --joint-sigma-deg"
+    );
+    assert_eq!(
+        with(&["--folds", "5"]),
+        "--folds with --estimator fgls: not supported; estimate the noise once and give --noise"
+    );
+    assert_eq!(
+        with(&["--select", "bic"]),
+        "--select with --estimator fgls: not supported; estimate the noise once and give --noise"
+    );
+    assert!(with(&["--prior", "machined"]).starts_with("--prior with --estimator fgls: not supported"));
+    assert!(with(&["--prior", "auto"]).starts_with("--prior with --estimator fgls: not supported"));
+    assert!(with(&["--loss", "huber"]).starts_with("--loss with --estimator fgls: not supported"));
+}
+
+#[test]
+fn calibrate_observations_weights_by_default_and_takes_every_estimator() {
     let request = observations(&["--data", "e.csv", "--tool", "1,2,3", "--fixed-tool"]).unwrap();
-    assert_eq!(request.estimator, Estimator::Wls);
+    assert_eq!(request.method, Method::Given(Estimator::Wls));
     assert_eq!(request.data, [PathBuf::from("d.csv"), PathBuf::from("e.csv")]);
     assert_eq!(request.tool, Some(Vector3::new(1.0, 2.0, 3.0)));
     assert!(!request.estimate_tool);
-    assert_eq!(observations(&["--estimator", "ols"]).unwrap().estimator, Estimator::Ols);
-    assert!(
-        observations(&["--estimator", "fgls"]).unwrap_err().starts_with("--estimator fgls: not available")
-    );
+    assert_eq!(observations(&["--estimator", "ols"]).unwrap().method, Method::Given(Estimator::Ols));
+    assert_eq!(observations(&["--estimator", "fgls"]).unwrap().method, Method::Feasible);
     assert_eq!(
         observations(&["--params", "all"]).unwrap_err(),
         "--params all: the base and the set-up are chosen by the observations; give --params joints"
     );
-    assert_eq!(observations(&["--estimator", "wls-diag"]).unwrap().estimator, Estimator::WlsDiag);
-    assert_eq!(observations(&["--estimator", "wls-sigma"]).unwrap().estimator, Estimator::WlsSigma);
+    assert_eq!(observations(&["--estimator", "wls-diag"]).unwrap().method, Method::Given(Estimator::WlsDiag));
+    assert_eq!(
+        observations(&["--estimator", "wls-sigma"]).unwrap().method,
+        Method::Given(Estimator::WlsSigma)
+    );
     assert!(observations(&["--json", "d.csv"]).unwrap_err().contains("d.csv"));
 }
 
@@ -570,7 +594,18 @@ fn a_tree_is_a_urdf_calibrated_by_ols_or_wls_of_its_joints() {
     assert_eq!(r.joints, JointParams::All);
     assert_eq!(r.tips, ["head_camera", "l_hand"]);
     assert!(refused(calibrate_tree("puma560", &[])).contains("--model: a URDF file"));
-    assert!(refused(calibrate_tree("torso.urdf", &["--estimator", "fgls"])).contains("ols or wls"));
+    let fgls = calibrate_tree("torso.urdf", &["--estimator", "fgls"]).unwrap();
+    assert!(fgls.feasible && fgls.estimator == Estimator::Ols);
+    assert!(!r.feasible);
+    assert!(
+        refused(calibrate_tree("torso.urdf", &["--estimator", "fgls", "--loss", "huber"]))
+            .starts_with("--loss with --estimator fgls: not supported")
+    );
+    assert!(
+        refused(calibrate_tree("torso.urdf", &["--estimator", "fgls", "--joint-sigma-deg", "0.01"]))
+            .starts_with("--estimator fgls estimates the noise")
+    );
+    assert!(refused(calibrate_tree("torso.urdf", &["--estimator", "wls-diag"])).contains("ols, wls or fgls"));
     assert!(refused(calibrate_tree("torso.urdf", &["--params", "all"])).contains("never estimated"));
     assert!(refused(calibrate_tree("torso.urdf", &["--json", "v.csv"])).contains("--json"));
 }

@@ -1,0 +1,119 @@
+//! Feasible GLS of observation files: the joint noise and one measurement variance per kind
+//! of observation estimated from the calibration's own residuals, as
+//! [`calibrate_feasible`](crate::calibration::calibrate_feasible) does for marker files, by
+//! the same rounds ([`reweighted`]) and the same fit of variance components
+//! ([`residual_design`], [`NoiseEstimate`]).
+//!
+//! Each pose's observations are one block, `V_k = sum_j G_kj Sigma_q G_kj^T + Sigma_m,k`, as
+//! the [module](super) builds them: `G_kj = g_kj^T J_j` the derivatives of the block's rows by
+//! the joints of each pose `j` they see, `Sigma_m,k` diagonal with one variance per
+//! measurement class ([`super::Observation::class`]): distances, contacts, coordinates (mm), angles
+//! (rad), marker coordinates (mm), a camera view's position (mm) and rotation (rad), one
+//! component for each class the data hold.
+
+use super::{KindCalibration, KindData, KindOptions, KindProblem, calibrate_kinds};
+use crate::calibration::{
+    CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
+};
+use crate::estimation::{CovarianceSample, Estimator, NoiseEstimate, Residuals, Weights, residual_design};
+use crate::model::{RobotModel, Selection};
+use nalgebra::DMatrix;
+
+/// Feasible GLS of observation files: calibrate by ordinary least squares, fit the variance
+/// components (the joint variances, or every entry of `Sigma_q`, and each measurement class's
+/// variance) to the residuals' outer products `r_k r_k^T` of each pose's block, whose
+/// expectation is `(M V M^T)_kk` with `M` the residual maker of the weighted fit; calibrate
+/// again by Gauss-Markov with `V_k` from the estimate (every observation's sigma its class's,
+/// `Sigma_q` the joints'); repeat until the components settle. The result carries the last
+/// estimate in [`KindCalibration::noise_estimate`], with a [`Warning::NoiseUnsettled`] if they
+/// did not settle and a [`Warning::SigmaIgnored`] if the files gave sigmas (their noise is
+/// what is estimated). `options.estimator` and `options.joint_noise` are not used; a prior or
+/// a robust loss is refused (the components would be those of another fit).
+pub fn calibrate_kinds_feasible(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    feasible: &FeasibleOptions,
+) -> Result<KindCalibration, CalibrationError> {
+    if !options.prior.is_empty() || options.loss != Loss::Squared {
+        return Err(CalibrationError::Observations(
+            "feasible GLS estimates the noise from the residuals of plain least squares: not with a prior \
+             or a robust loss"
+                .into(),
+        ));
+    }
+    let ols = KindOptions { estimator: Estimator::Ols, joint_noise: None, ..options.clone() };
+    let calibrate = |estimate: Option<&NoiseEstimate>| match estimate {
+        None => calibrate_kinds(model, data, &ols),
+        Some(e) => {
+            let weighted = KindOptions {
+                estimator: Estimator::Wls,
+                joint_noise: Some(e.joint_covariance()),
+                ..ols.clone()
+            };
+            calibrate_kinds(model, &with_class_sigmas(data, e), &weighted)
+        }
+    };
+    let estimate = |c: &KindCalibration, previous: Option<&NoiseEstimate>| {
+        residual_noise(c, data, feasible.joints, previous)
+    };
+    let Reweighted { mut calibration, estimate, settled } = reweighted(feasible, calibrate, estimate)?;
+    calibration.noise_settled = Some(settled);
+    calibration.warnings.extend(unsettled(feasible, settled));
+    if data.assumed_sigmas < data.observations.len() {
+        calibration.warnings.push(Warning::SigmaIgnored);
+    }
+    calibration.noise_estimate = Some(estimate);
+    Ok(calibration)
+}
+
+/// `data` with every observation's sigma its class's in `estimate`
+/// ([`NoiseEstimate::weighting_sigma`]; its own for a class `estimate` does not hold: a
+/// held-out file's other kinds), none counted as assumed.
+pub(super) fn with_class_sigmas(data: &KindData, estimate: &NoiseEstimate) -> KindData {
+    let sigma = |o: &super::Observation| match estimate.measurement.contains(&o.class()) {
+        true => estimate.weighting_sigma(o.class()),
+        false => o.sigma(),
+    };
+    let observations = data.observations.iter().map(|o| o.with_sigma(sigma(o))).collect();
+    KindData { observations, assumed_sigmas: 0, ..data.clone() }
+}
+
+/// The variance components fitted to the residuals of `c` on its training `data`, each pose's
+/// block one sample: calibrated by ordinary least squares without `previous`, else weighted
+/// with it (where the fit of the components starts).
+fn residual_noise(
+    c: &KindCalibration,
+    data: &KindData,
+    joints: JointComponents,
+    previous: Option<&NoiseEstimate>,
+) -> Result<NoiseEstimate, CalibrationError> {
+    let names = &c.refined.estimate.names;
+    let kept = Selection::from_indices(&c.params, names.iter().filter_map(|n| c.params.index_by_name(n)));
+    let setup = c.setup.names();
+    let kept_setup: Vec<usize> = (names.iter())
+        .filter(|n| c.params.index_by_name(n).is_none())
+        .filter_map(|n| setup.iter().position(|s| s == n))
+        .collect();
+    let markers: Vec<usize> = c.markers.iter().map(|m| m.0).collect();
+    let weighted = previous.map(|e| with_class_sigmas(data, e));
+    let data = weighted.as_ref().unwrap_or(data);
+    let (x, s) = (c.after.clone(), c.setup_values.1.clone());
+    let problem = KindProblem::of_points(&c.chains, &markers, &kept, data, &c.setup, x, s, kept_setup);
+    let problem = problem.with_noise(previous.map(NoiseEstimate::joint_covariance).as_ref());
+    let estimator = if previous.is_some() { Estimator::Wls } else { Estimator::Ols };
+    let weights = Weights::for_problem(&problem, estimator)?;
+    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+    let y = problem.evaluate(&problem.start(), Some(&mut h));
+    let (layout, classes) = problem.noise_layout();
+    let dof = layout.dof;
+    let expected = residual_design(&h, &weights, &layout, joints)?;
+    let blocks = problem.blocks();
+    let samples: Vec<CovarianceSample> = (expected.into_iter().enumerate())
+        .map(|(k, design)| {
+            let r = y.rows(blocks.range(k).start, blocks.range(k).len());
+            CovarianceSample { s: r * r.transpose(), dof: 1.0, design }
+        })
+        .collect();
+    Ok(NoiseEstimate::fit(&samples, joints, dof, classes, previous)?)
+}

@@ -1,0 +1,124 @@
+//! Feasible GLS of a tree's views: the tree's joint variances and the views' position and
+//! rotation variances estimated from the calibration's own residuals, by the rounds and the
+//! fit of variance components of marker and observation files ([`reweighted`],
+//! [`residual_design`], [`NoiseEstimate`]). Each view is one block,
+//! `V_k = G_k Sigma_q G_k^T + diag(sigma_p^2 I, sigma_r^2 I)`, `G_k` the derivative of its six
+//! rows by the tree's joints (both its frames moved by their branches).
+
+use super::{TreeCalibration, TreeData, TreeOptions, TreeParams, TreeProblem, calibrate_tree};
+use crate::calibration::{
+    CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
+};
+use crate::estimation::{
+    CovarianceSample, Estimator, MeasurementClass, NoiseEstimate, Residuals, Weights, residual_design,
+};
+use crate::model::RobotTree;
+use nalgebra::DMatrix;
+
+/// Feasible GLS of a tree's views: calibrate by ordinary least squares, fit the tree's joint
+/// variances (or every entry of `Sigma_q`) and the views' position (mm) and rotation (rad)
+/// variances to each view's residual outer product `r_k r_k^T`, whose expectation is
+/// `(M V M^T)_kk`, `M` the residual maker of the weighted fit; calibrate again by Gauss-Markov
+/// with `V_k` from the estimate; repeat until the components settle. The estimate is
+/// [`TreeCalibration::noise_estimate`], with a [`Warning::NoiseUnsettled`] if it did not
+/// settle and a [`Warning::SigmaIgnored`]. `options.estimator` and `options.joint_noise` are
+/// not used; a prior or a robust loss is refused.
+pub fn calibrate_tree_feasible(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+    feasible: &FeasibleOptions,
+) -> Result<TreeCalibration, CalibrationError> {
+    if !options.prior.is_empty() || options.loss != Loss::Squared {
+        return Err(CalibrationError::Observations(
+            "feasible GLS estimates the noise from the residuals of plain least squares: not with a prior \
+             or a robust loss"
+                .into(),
+        ));
+    }
+    let ols = TreeOptions { estimator: Estimator::Ols, joint_noise: None, ..options.clone() };
+    let calibrate = |estimate: Option<&NoiseEstimate>| match estimate {
+        None => calibrate_tree(tree, data, &ols),
+        Some(e) => {
+            let weighted = TreeOptions {
+                estimator: Estimator::Wls,
+                joint_noise: Some(e.joint_covariance()),
+                ..ols.clone()
+            };
+            calibrate_tree(tree, &with_estimated_sigmas(data, e), &weighted)
+        }
+    };
+    let estimate = |c: &TreeCalibration, previous: Option<&NoiseEstimate>| {
+        residual_noise(c, data, (tree.dof(), feasible.joints), previous)
+    };
+    let Reweighted { mut calibration, estimate, settled } = reweighted(feasible, calibrate, estimate)?;
+    calibration.noise_settled = Some(settled);
+    calibration.warnings.extend(unsettled(feasible, settled));
+    calibration.warnings.push(Warning::SigmaIgnored);
+    calibration.noise_estimate = Some(estimate);
+    Ok(calibration)
+}
+
+/// `data` with every view's sigmas the estimate's ([`NoiseEstimate::weighting_sigma`]; its own
+/// where the estimate has none).
+pub(super) fn with_estimated_sigmas(data: &TreeData, estimate: &NoiseEstimate) -> TreeData {
+    let mut data = data.clone();
+    for view in &mut data.views {
+        for (s, class) in
+            view.sigma.iter_mut().zip([MeasurementClass::CameraPosition, MeasurementClass::CameraRotation])
+        {
+            if estimate.measurement.contains(&class) {
+                *s = estimate.weighting_sigma(class);
+            }
+        }
+    }
+    data
+}
+
+/// The variance components fitted to the residuals of `c` on its training `data` (`dof` tree
+/// joints), each view one sample: calibrated by ordinary least squares without `previous`,
+/// else weighted with it (where the fit of the components starts).
+fn residual_noise(
+    c: &TreeCalibration,
+    data: &TreeData,
+    (dof, joints): (usize, JointComponents),
+    previous: Option<&NoiseEstimate>,
+) -> Result<NoiseEstimate, CalibrationError> {
+    let (selection, setup_selection) = selected(&c.params, c, data);
+    let weighted = previous.map(|e| with_estimated_sigmas(data, e));
+    let data = weighted.as_ref().unwrap_or(data);
+    let noise = previous.map(NoiseEstimate::joint_covariance);
+    let (x, s) = (c.after.clone(), c.setup_values.1.clone());
+    let problem = TreeProblem::new(&c.params, data, selection, x, s, setup_selection, noise.as_ref());
+    let estimator = if previous.is_some() { Estimator::Wls } else { Estimator::Ols };
+    let weights = Weights::for_problem(&problem, estimator)?;
+    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+    let y = problem.evaluate(&problem.start(), Some(&mut h));
+    let (layout, classes) = problem.noise_layout(dof);
+    let expected = residual_design(&h, &weights, &layout, joints)?;
+    let rows = data.rows();
+    let samples: Vec<CovarianceSample> = (expected.into_iter().enumerate())
+        .map(|(k, design)| {
+            let r = y.rows(k * rows, rows);
+            CovarianceSample { s: r * r.transpose(), dof: 1.0, design }
+        })
+        .collect();
+    Ok(NoiseEstimate::fit(&samples, joints, dof, classes, previous)?)
+}
+
+/// The tree parameters and the frame parameters `c` estimated, as indices, from its names.
+fn selected(params: &TreeParams, c: &TreeCalibration, data: &TreeData) -> (Vec<usize>, Vec<usize>) {
+    let frames: Vec<String> = (data.frames.iter())
+        .flat_map(|f| {
+            let name = f.name(&params.tips);
+            ["x", "y", "z", "rx", "ry", "rz"].map(move |a| format!("{name}.{a}"))
+        })
+        .collect();
+    let names = &c.refined.estimate.names;
+    let tree = names.iter().filter_map(|n| params.params.iter().position(|p| &p.name == n)).collect();
+    let setup = (names.iter())
+        .filter(|n| !params.params.iter().any(|p| &p.name == *n))
+        .filter_map(|n| frames.iter().position(|f| f == n))
+        .collect();
+    (tree, setup)
+}
