@@ -908,6 +908,7 @@ fn auto_ml_finds_the_scale_of_a_tree() {
     };
     let e = choose_tree_prior_scale(&nominal, &assumed, &plain, &auto, 5).unwrap_err().to_string();
     assert!(e.contains("the marginal likelihood needs the noise"), "{e}");
+}
 
 /// Feasible GLS of a tree's views (`calibrate_tree_feasible`): a torso whose joints carry
 /// errors of 0.5 mm and 0.3 deg, seen by the head camera with 0.1 mm and 0.02 deg of noise
