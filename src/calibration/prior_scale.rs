@@ -499,9 +499,9 @@ fn ml_scale(auto: &AutoPrior, evidence: &Evidence, grid: &[f64], at: &[usize]) -
 /// `options` asks for, linearised about `about` (a full parameter vector of a calibration of
 /// `data`; `None`: the registration, the base and markers fitted as [`calibrate`](super::calibrate)'s "before")
 /// and whitened by Gauss-Markov (`S V S^T = I`: the rows divided by the normalisation
-/// `c = sigma_max`; [`linear_evidence`]). A parameter with an entry of `options.prior` has
+/// `c = sigma_max`; `linear_evidence`). A parameter with an entry of `options.prior` has
 /// that fixed prior, one with the preset's only is scaled, the others are flat
-/// ([`evidence_columns`]).
+/// (`evidence_columns`).
 pub fn scale_evidence(
     model: &RobotModel,
     data: &Measurements,
@@ -538,7 +538,7 @@ pub fn scale_evidence(
 
 /// The [`Evidence`] of observation files for the scale of `auto`'s preset: their system of
 /// what `options` asks for (the robot's parameters, then the set-up's, flat), whitened by
-/// `V_k` (weighted least squares, [`kinds::evidence_system`]), linearised about `about`'s
+/// `V_k` (weighted least squares, `kinds::evidence_system`), linearised about `about`'s
 /// estimate (`None`: the "before" fit). The noise must be known: a sigma column or the joint
 /// noise (`--joint-sigma-deg`).
 pub fn kinds_scale_evidence(
@@ -559,7 +559,7 @@ pub fn kinds_scale_evidence(
 /// The [`Evidence`] of a tree's views for the scale of `auto`'s preset, as
 /// [`kinds_scale_evidence`]'s of observation files: the tree's parameters `options` asks for,
 /// then the cameras' and targets' placements (flat), whitened by each view's `V_k` (weighted
-/// least squares, [`tree::evidence_system`](super::tree::evidence_system)), about `about`'s
+/// least squares, `tree::evidence_system`), about `about`'s
 /// estimate (`None`: the "before" fit). The noise must be known: the views' sigma columns or
 /// the joint noise.
 pub fn tree_scale_evidence(
