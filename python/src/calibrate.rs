@@ -762,9 +762,9 @@ fn observations(
 ) -> PyResult<Calibration> {
     let model = &robot.inner;
     require(
-        !request.feasible && flags.noise.is_none() && flags.sigma.is_none(),
-        "estimator",
-        "observation files: each observation's sigma is its own; give joint_sigma only, and an estimator other than fgls",
+        flags.noise.is_none() && flags.sigma.is_none(),
+        "noise",
+        "observation files: each observation's sigma is its own; give joint_sigma only (or estimator fgls)",
     )?;
     require(
         flags.per_session.is_empty() || sources.len() >= 2,
@@ -782,15 +782,23 @@ fn observations(
     let held: Vec<(String, KindData)> = validate.iter().map(read).collect::<PyResult<_>>()?;
     let options = kind_options(model, flags, request)?;
     let outcome = py
-        .detach(|| {
-            robocal::pipeline::calibrate_observations(
+        .detach(|| match request.feasible {
+            // Feasible GLS: the joint variances and one measurement variance per kind.
+            true => robocal::pipeline::calibrate_observations_feasible(
+                model,
+                &sessions,
+                &held,
+                &options,
+                &robocal::calibration::FeasibleOptions::default(),
+            ),
+            false => robocal::pipeline::calibrate_observations(
                 model,
                 &sessions,
                 &held,
                 &options,
                 &Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds),
                 flags.folds,
-            )
+            ),
         })
         .map_err(|e| errors::calibration(&e.source, &e.context))?;
     let (c, report) = (outcome.calibration, outcome.report);

@@ -412,6 +412,16 @@ def test_selection_on_observation_files_is_the_command_lines(puma: robocal.Model
     assert_same(json.loads(c.to_json()), theirs)
 
 
+def test_feasible_gls_on_observation_files_is_the_command_lines(puma: robocal.Model, tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    run_cli("calibrate", "--model", "puma560", "--data", str(BALLBAR), "--estimator", "fgls",
+            "--json", str(out), "--quiet")
+    c = robocal.calibrate(puma, [BALLBAR], estimator="fgls")
+    theirs = json.loads(out.read_text())
+    assert theirs["noise"] and theirs["noise_settled"] is not None, "the estimated noise is reported"
+    assert_same(json.loads(c.to_json()), theirs)
+
+
 def test_a_scaled_prior_on_observation_files_is_the_command_lines(puma: robocal.Model, tmp_path: Path) -> None:
     out = tmp_path / "report.json"
     run_cli("calibrate", "--model", "puma560", "--data", str(BALLBAR), "--prior", "auto:machined",
