@@ -22,40 +22,8 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         .map(|path| Ok((path.display().to_string(), read(path, &model, request)?)))
         .collect::<Result<Vec<_>>>()?;
     let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
-    let highest = data.markers().last().map_or(0, |m| m + 1);
-    if request.markers.len() > highest {
-        bail!(
-            "{} --marker given, the files ({}) have {highest} markers: the k-th --marker is marker k of a marker file",
-            request.markers.len(),
-            request.data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
-        );
-    }
-    let angles = data.observations.iter().any(|o| matches!(o, Observation::Coordinate { axis: 3.., .. }));
-    if highest > 0 && angles {
-        eprintln!(
-            "warning: roll, pitch and yaw fitted with markers are read in the markers' (the tracker's) frame: an \
-             inclinometer reading against gravity is not; fit it in a run of its own"
-        );
-    }
-    if !request.estimate_tool && !data.measures_the_tool_point() {
-        eprintln!(
-            "warning: --fixed-tool holds the tool point, which no observation here measures (markers are points of \
-             their own, always estimated; a camera's mounting is the set-up's): it changes nothing"
-        );
-    }
-    let options = KindOptions {
-        per_session: request.per_session.clone(),
-        prior: request.prior.clone(),
-        loss: request.loss,
-        gauge: request.gauge.clone(),
-        estimator: request.method.estimator(),
-        joint_noise: joint_noise(&model, request.joint_sigma_deg.as_deref())?,
-        joints: request.joints.clone(),
-        estimate_tool: request.estimate_tool,
-        tool: request.tool.unwrap_or_else(|| model.tool_point_in_marker_frame()),
-        markers: request.markers.clone(),
-        refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
-    };
+    check_and_warn(request, &data)?;
+    let options = kind_options(request, &model)?;
     let held_out = (request.validate.iter())
         .map(|path| Ok((path.display().to_string(), read(path, &model, request)?)))
         .collect::<Result<Vec<_>>>()?;
@@ -104,6 +72,51 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         outputs.add(path, robocal::model::with_urdf_markers(&text, &c.marker_positions())?);
     }
     super::commit(outputs)
+}
+
+/// The markers given against the files' (an error if more `--marker` than markers), and the
+/// warnings of what the data cannot honour: angles read with markers, a fixed tool point
+/// nothing measures.
+fn check_and_warn(request: &CalibrateObservationsRequest, data: &KindData) -> Result<()> {
+    let highest = data.markers().last().map_or(0, |m| m + 1);
+    if request.markers.len() > highest {
+        bail!(
+            "{} --marker given, the files ({}) have {highest} markers: the k-th --marker is marker k of a marker file",
+            request.markers.len(),
+            request.data.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+        );
+    }
+    let angles = data.observations.iter().any(|o| matches!(o, Observation::Coordinate { axis: 3.., .. }));
+    if highest > 0 && angles {
+        eprintln!(
+            "warning: roll, pitch and yaw fitted with markers are read in the markers' (the tracker's) frame: an \
+             inclinometer reading against gravity is not; fit it in a run of its own"
+        );
+    }
+    if !request.estimate_tool && !data.measures_the_tool_point() {
+        eprintln!(
+            "warning: --fixed-tool holds the tool point, which no observation here measures (markers are points of \
+             their own, always estimated; a camera's mounting is the set-up's): it changes nothing"
+        );
+    }
+    Ok(())
+}
+
+/// The options of the observation calibration `request` asks for on `model`.
+fn kind_options(request: &CalibrateObservationsRequest, model: &RobotModel) -> Result<KindOptions> {
+    Ok(KindOptions {
+        per_session: request.per_session.clone(),
+        prior: request.prior.clone(),
+        loss: request.loss,
+        gauge: request.gauge.clone(),
+        estimator: request.method.estimator(),
+        joint_noise: joint_noise(model, request.joint_sigma_deg.as_deref())?,
+        joints: request.joints.clone(),
+        estimate_tool: request.estimate_tool,
+        tool: request.tool.unwrap_or_else(|| model.tool_point_in_marker_frame()),
+        markers: request.markers.clone(),
+        refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
+    })
 }
 
 /// The residuals of each scored set (`scores`: the training files', then each held-out
