@@ -13,7 +13,7 @@ use crate::calibration::selection::{
     ChosenFit, calibrate_kinds_chosen, calibrate_tree_chosen, cross_validate_kinds_choices,
 };
 use crate::calibration::tree::{
-    TreeCalibration, TreeData, TreeOptions, calibrate_tree_feasible, cross_validate_tree_by,
+    TreeCalibration, TreeData, TreeOptions, TreeScore, calibrate_tree_feasible, cross_validate_tree_by,
 };
 use crate::calibration::{
     self, Calibration, CalibrationError, Choices, ErrorStats, FeasibleOptions, Loss, Measurements, Options,
@@ -222,17 +222,10 @@ pub fn calibrate_views(
     choices: &Choices,
     folds: Option<usize>,
 ) -> Result<TreeOutcome, FilesError> {
-    let mut data = TreeData::default();
-    for (name, file) in sessions {
-        data = data.join(file).map_err(in_context(name))?;
-    }
-    let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
-    let names = names.join(", ");
+    let (data, names) = joined_views(sessions)?;
     let chosen = calibrate_tree_chosen(tree, &data, options, choices).map_err(in_context(&names))?;
     let c = chosen.calibration;
-    let mut scores = (held_out.iter())
-        .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
-        .collect::<Result<Vec<_>, FilesError>>()?;
+    let mut scores = view_scores(&c, held_out)?;
     if let Some(k) = folds {
         let calibrate =
             |train: &TreeData| Ok(calibrate_tree_chosen(tree, train, options, choices)?.calibration);
@@ -264,20 +257,32 @@ pub fn calibrate_views_feasible(
     options: &TreeOptions,
     feasible: &FeasibleOptions,
 ) -> Result<TreeOutcome, FilesError> {
+    let (data, names) = joined_views(sessions)?;
+    let c = calibrate_tree_feasible(tree, &data, options, feasible).map_err(in_context(&names))?;
+    let scores = view_scores(&c, held_out)?;
+    let fitted = (data.views.len(), data.joints.len());
+    let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
+    let report = TreeReport::new(&c, &names, fitted, "fgls", scores).with_training_files(files);
+    Ok(TreeOutcome { calibration: c, report })
+}
+
+/// The views of `sessions` joined into one set (an error naming the file that does not join),
+/// and the sessions' names.
+fn joined_views(sessions: &[(String, TreeData)]) -> Result<(TreeData, String), FilesError> {
     let mut data = TreeData::default();
     for (name, file) in sessions {
         data = data.join(file).map_err(in_context(name))?;
     }
     let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
-    let names = names.join(", ");
-    let c = calibrate_tree_feasible(tree, &data, options, feasible).map_err(in_context(&names))?;
-    let scores = (held_out.iter())
-        .map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?)))
-        .collect::<Result<Vec<_>, FilesError>>()?;
-    let fitted = (data.views.len(), data.joints.len());
-    let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
-    let report = TreeReport::new(&c, &names, fitted, "fgls", scores).with_training_files(files);
-    Ok(TreeOutcome { calibration: c, report })
+    Ok((data, names.join(", ")))
+}
+
+/// Each `held_out` set of views scored by `c`, with its name.
+fn view_scores(
+    c: &TreeCalibration,
+    held_out: &[(String, TreeData)],
+) -> Result<Vec<(String, TreeScore)>, FilesError> {
+    (held_out.iter()).map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?))).collect()
 }
 
 /// An observation files' calibration and its report (the command line's).
