@@ -211,6 +211,88 @@ impl ObservationsReport {
         out + &super::verdict::count_warnings(&self.warnings)
     }
 
+    /// What the observations do not see, what is held, and where each held-out session's set-up comes from.
+    fn write_held(&self, out: &mut String) {
+        if !self.unseen.is_empty() {
+            let _ = writeln!(*out, "\nnot seen by these observations, held:");
+        }
+        for u in &self.unseen {
+            let _ = writeln!(*out, "  {u}");
+        }
+        if !self.fixed.is_empty() {
+            let gap = if self.unseen.is_empty() { "\n" } else { "" };
+            let _ = writeln!(*out, "{gap}held fixed, as these poses cannot tell them apart from the others:");
+            for f in &self.fixed {
+                let _ = writeln!(*out, "  {f}");
+            }
+        }
+        let sessions: Vec<String> = (self.sets.iter().skip(1))
+            .flat_map(|(name, score)| score.sessions.iter().map(move |s| (name, s)))
+            .map(|(name, (session, source))| match source {
+                SessionSetUp::Training(t) => format!("  {name}: the per-session set-up of training session `{t}`"),
+                _ => format!("  {name}: session `{session}` is no training file's: its per-session set-up fitted on it, the robot held"),
+            })
+            .collect();
+        if !sessions.is_empty() {
+            let _ = writeln!(*out, "\nheld-out sessions:\n{}", sessions.join("\n"));
+        }
+    }
+
+    /// The worst observations of each set after calibration, whitened.
+    fn write_worst(&self, out: &mut String) {
+        let _ =
+            writeln!(*out, "\nworst observations after calibration ({WORST} per set; every one in --json):");
+        for (set, (name, score)) in self.sets.iter().enumerate() {
+            let mut worst: Vec<(usize, &ObservationResidual)> =
+                score.observations.iter().enumerate().collect();
+            worst.sort_by(|a, b| b.1.whitened.abs().total_cmp(&a.1.whitened.abs()));
+            let files: &[(String, usize)] = if set == 0 { &self.training_files } else { &[] };
+            for (k, r) in worst.iter().take(WORST) {
+                let _ = writeln!(
+                    out,
+                    "  {name}, {} ({}): {:.4} {unit} before, {:.4} {unit} after, {:.1} sd",
+                    super::line_in(files, *k, r.line),
+                    r.label(),
+                    r.before,
+                    r.after,
+                    r.whitened,
+                    unit = r.unit
+                );
+            }
+        }
+    }
+
+    /// What before and after mean, the sigmas' scale, and the warnings.
+    fn write_notes(&self, out: &mut String) {
+        let _ = writeln!(
+            *out,
+            "\nbefore: the set-up (points, planes, camera and target) and the tool point fitted with the robot nominal; after: the robot and the set-up"
+        );
+        if let Some(f) = self.variance_factor {
+            let _ = writeln!(
+                out,
+                "no sigma given and the joints exact: standard errors and flags from the residuals' spread (the default sigmas times {:.4})",
+                f.sqrt()
+            );
+        }
+        if self.sets.iter().any(|(_, score)| score.markers.is_some()) {
+            let _ = writeln!(
+                out,
+                "with markers: before, the base and the points on the last link fitted too; markers (mm): the RMS of the marker positions' errors"
+            );
+        }
+        if !self.warnings.is_empty() {
+            let _ = writeln!(*out, "\nwarnings:");
+            for w in &self.warnings {
+                let _ = writeln!(
+                    *out,
+                    "  {}",
+                    w.render(&|k, line| super::line_in(&self.training_files, k, line))
+                );
+            }
+        }
+    }
+
     /// The report as text, at fixed precision.
     pub fn text(&self) -> String {
         let mut out = String::new();
@@ -249,73 +331,9 @@ impl ObservationsReport {
             "observation",
         );
         out.push_str(&super::calibration::choices_text(self.prior_scale.as_ref(), self.selection.as_ref()));
-        if !self.unseen.is_empty() {
-            let _ = writeln!(out, "\nnot seen by these observations, held:");
-        }
-        for u in &self.unseen {
-            let _ = writeln!(out, "  {u}");
-        }
-        if !self.fixed.is_empty() {
-            let gap = if self.unseen.is_empty() { "\n" } else { "" };
-            let _ = writeln!(out, "{gap}held fixed, as these poses cannot tell them apart from the others:");
-            for f in &self.fixed {
-                let _ = writeln!(out, "  {f}");
-            }
-        }
-        let sessions: Vec<String> = (self.sets.iter().skip(1))
-            .flat_map(|(name, score)| score.sessions.iter().map(move |s| (name, s)))
-            .map(|(name, (session, source))| match source {
-                SessionSetUp::Training(t) => format!("  {name}: the per-session set-up of training session `{t}`"),
-                _ => format!("  {name}: session `{session}` is no training file's: its per-session set-up fitted on it, the robot held"),
-            })
-            .collect();
-        if !sessions.is_empty() {
-            let _ = writeln!(out, "\nheld-out sessions:\n{}", sessions.join("\n"));
-        }
-        let _ =
-            writeln!(out, "\nworst observations after calibration ({WORST} per set; every one in --json):");
-        for (set, (name, score)) in self.sets.iter().enumerate() {
-            let mut worst: Vec<(usize, &ObservationResidual)> =
-                score.observations.iter().enumerate().collect();
-            worst.sort_by(|a, b| b.1.whitened.abs().total_cmp(&a.1.whitened.abs()));
-            let files: &[(String, usize)] = if set == 0 { &self.training_files } else { &[] };
-            for (k, r) in worst.iter().take(WORST) {
-                let _ = writeln!(
-                    out,
-                    "  {name}, {} ({}): {:.4} {unit} before, {:.4} {unit} after, {:.1} sd",
-                    super::line_in(files, *k, r.line),
-                    r.label(),
-                    r.before,
-                    r.after,
-                    r.whitened,
-                    unit = r.unit
-                );
-            }
-        }
-        let _ = writeln!(
-            out,
-            "\nbefore: the set-up (points, planes, camera and target) and the tool point fitted with the robot nominal; after: the robot and the set-up"
-        );
-        if let Some(f) = self.variance_factor {
-            let _ = writeln!(
-                out,
-                "no sigma given and the joints exact: standard errors and flags from the residuals' spread (the default sigmas times {:.4})",
-                f.sqrt()
-            );
-        }
-        if self.sets.iter().any(|(_, score)| score.markers.is_some()) {
-            let _ = writeln!(
-                out,
-                "with markers: before, the base and the points on the last link fitted too; markers (mm): the RMS of the marker positions' errors"
-            );
-        }
-        if !self.warnings.is_empty() {
-            let _ = writeln!(out, "\nwarnings:");
-            for w in &self.warnings {
-                let _ =
-                    writeln!(out, "  {}", w.render(&|k, line| super::line_in(&self.training_files, k, line)));
-            }
-        }
+        self.write_held(&mut out);
+        self.write_worst(&mut out);
+        self.write_notes(&mut out);
         out
     }
 }
