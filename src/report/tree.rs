@@ -94,45 +94,7 @@ impl TreeReport {
         estimator: &str,
         held_out: Vec<(String, TreeScore)>,
     ) -> Self {
-        let se = c.refined.estimate.standard_errors();
-        let frame_names = c.frame_names();
-        let parameters = (c.refined.estimate.names.iter().enumerate())
-            .map(|(k, name)| {
-                let (value, angle) = match c.params.params.iter().position(|p| p.name == *name) {
-                    Some(i) => (c.after[i], c.params.params[i].is_angle()),
-                    None => {
-                        let (frame, axis) = name.rsplit_once('.').expect("a frame's parameter");
-                        let f = frame_names.iter().position(|n| n == frame).expect("a frame");
-                        let a = ["x", "y", "z", "rx", "ry", "rz"]
-                            .iter()
-                            .position(|n| *n == axis)
-                            .expect("an axis");
-                        (c.setup_values.1[6 * f + a], a >= 3)
-                    }
-                };
-                let scale = if angle { 180.0 / std::f64::consts::PI } else { 1.0 };
-                ParameterRow {
-                    name: name.clone(),
-                    value: value * scale,
-                    std_error: se[k] * scale,
-                    unit: if angle { "deg" } else { "mm" },
-                    prior_sd: None,
-                    sd_ratio: None,
-                }
-            })
-            .collect();
-        let frames = (frame_names.iter().enumerate())
-            .map(|(f, name)| {
-                let placement = c.frame(f);
-                let (roll, pitch, yaw) = placement.rotation.euler_angles();
-                let t = placement.translation.vector;
-                FrameRow {
-                    name: name.clone(),
-                    xyz_mm: [t.x, t.y, t.z],
-                    rpy_deg: [roll, pitch, yaw].map(f64::to_degrees),
-                }
-            })
-            .collect();
+        let (parameters, frames) = (parameter_rows(c), frame_rows(c));
         let mut sets = vec![("training".to_string(), c.training.clone())];
         sets.extend(held_out);
         let held: Vec<crate::calibration::Held> = c.fixed.clone();
@@ -201,6 +163,27 @@ impl TreeReport {
         out + &super::verdict::count_warnings(&self.warnings)
     }
 
+    /// The worst views of each set after calibration.
+    fn write_worst(&self, out: &mut String) {
+        let _ = writeln!(*out, "\nworst views after calibration ({WORST} per set; every one in --json):");
+        for (set, (name, score)) in self.sets.iter().enumerate() {
+            let mut worst: Vec<(usize, &ViewResidual)> = score.views.iter().enumerate().collect();
+            worst.sort_by(|a, b| b.1.after_mm.total_cmp(&a.1.after_mm));
+            let files: &[(String, usize)] = if set == 0 { &self.training_files } else { &[] };
+            for &(k, v) in worst.iter().take(WORST) {
+                let (before, after) = match (v.before_deg, v.after_deg) {
+                    (Some(b), Some(a)) => (
+                        format!("{:.4} mm / {b:.5} deg", v.before_mm),
+                        format!("{:.4} mm / {a:.5} deg", v.after_mm),
+                    ),
+                    _ => (format!("{:.4} mm", v.before_mm), format!("{:.4} mm", v.after_mm)),
+                };
+                let at = super::line_in(files, k, v.line);
+                let _ = writeln!(*out, "  {name}, {at}: {before} before, {after} after");
+            }
+        }
+    }
+
     /// The report as text, at fixed precision.
     pub fn text(&self) -> String {
         let mut out = String::new();
@@ -255,23 +238,7 @@ impl TreeReport {
                 let _ = writeln!(out, "  {f}");
             }
         }
-        let _ = writeln!(out, "\nworst views after calibration ({WORST} per set; every one in --json):");
-        for (set, (name, score)) in self.sets.iter().enumerate() {
-            let mut worst: Vec<(usize, &ViewResidual)> = score.views.iter().enumerate().collect();
-            worst.sort_by(|a, b| b.1.after_mm.total_cmp(&a.1.after_mm));
-            let files: &[(String, usize)] = if set == 0 { &self.training_files } else { &[] };
-            for &(k, v) in worst.iter().take(WORST) {
-                let (before, after) = match (v.before_deg, v.after_deg) {
-                    (Some(b), Some(a)) => (
-                        format!("{:.4} mm / {b:.5} deg", v.before_mm),
-                        format!("{:.4} mm / {a:.5} deg", v.after_mm),
-                    ),
-                    _ => (format!("{:.4} mm", v.before_mm), format!("{:.4} mm", v.after_mm)),
-                };
-                let at = super::line_in(files, k, v.line);
-                let _ = writeln!(out, "  {name}, {at}: {before} before, {after} after");
-            }
-        }
+        self.write_worst(&mut out);
         let _ = writeln!(
             out,
             "\nbefore: the cameras and targets fitted with the tree nominal; after: the tree's joints with them"
@@ -285,4 +252,50 @@ impl TreeReport {
         }
         out
     }
+}
+
+/// Each estimated parameter of `c` (the tree's, then each frame's placement) with its standard
+/// error, angles in degrees.
+fn parameter_rows(c: &TreeCalibration) -> Vec<ParameterRow> {
+    let se = c.refined.estimate.standard_errors();
+    let frame_names = c.frame_names();
+    (c.refined.estimate.names.iter().enumerate())
+        .map(|(k, name)| {
+            let (value, angle) = match c.params.params.iter().position(|p| p.name == *name) {
+                Some(i) => (c.after[i], c.params.params[i].is_angle()),
+                None => {
+                    let (frame, axis) = name.rsplit_once('.').expect("a frame's parameter");
+                    let f = frame_names.iter().position(|n| n == frame).expect("a frame");
+                    let a =
+                        ["x", "y", "z", "rx", "ry", "rz"].iter().position(|n| *n == axis).expect("an axis");
+                    (c.setup_values.1[6 * f + a], a >= 3)
+                }
+            };
+            let scale = if angle { 180.0 / std::f64::consts::PI } else { 1.0 };
+            ParameterRow {
+                name: name.clone(),
+                value: value * scale,
+                std_error: se[k] * scale,
+                unit: if angle { "deg" } else { "mm" },
+                prior_sd: None,
+                sd_ratio: None,
+            }
+        })
+        .collect()
+}
+
+/// Each frame's placement after calibration: xyz (mm) and roll, pitch, yaw (deg).
+fn frame_rows(c: &TreeCalibration) -> Vec<FrameRow> {
+    (c.frame_names().iter().enumerate())
+        .map(|(f, name)| {
+            let placement = c.frame(f);
+            let (roll, pitch, yaw) = placement.rotation.euler_angles();
+            let t = placement.translation.vector;
+            FrameRow {
+                name: name.clone(),
+                xyz_mm: [t.x, t.y, t.z],
+                rpy_deg: [roll, pitch, yaw].map(f64::to_degrees),
+            }
+        })
+        .collect()
 }
