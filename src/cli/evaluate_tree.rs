@@ -69,7 +69,7 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     let title = format!("{} scored as it stands", tree.name);
     let content = super::ResidualContent {
-        json: serde_json::to_string_pretty(&report)? + "\n",
+        json: super::json_if_asked(&request.report, &report)?,
         page: robocal::report::html::page(&title, &text, &[], &[]),
         sets,
         joints: &tree.joints,

@@ -255,7 +255,8 @@ fn json_if_asked<T: serde::Serialize>(report: &ReportArgs, value: &T) -> Result<
 /// each scored set's residuals (the training files', each held-out file's) and the choices
 /// made from the data.
 struct ResidualContent<'a> {
-    json: String,
+    /// The JSON report, built only if `--json` asks for it ([`json_if_asked`]).
+    json: Option<String>,
     page: String,
     sets: Vec<robocal::report::residuals::ResidualSet>,
     /// The robot's (the tree's) joints, in the order of each residual's joint values.
@@ -274,8 +275,8 @@ fn write_residual_files(
     outputs: &mut io::Outputs,
 ) -> Result<()> {
     use robocal::report::{figures, residuals};
-    if let Some(path) = &report.json {
-        outputs.add(path, content.json);
+    if let (Some(path), Some(json)) = (&report.json, content.json) {
+        outputs.add(path, json);
     }
     let sets: Vec<&residuals::ResidualSet> = content.sets.iter().collect();
     if let Some(path) = &report.poses_csv {

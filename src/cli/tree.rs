@@ -68,7 +68,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     let mut outputs = io::Outputs::new();
     if request.report != super::args::ReportArgs::default() {
         let content = super::ResidualContent {
-            json: serde_json::to_string_pretty(&report)? + "\n",
+            json: super::json_if_asked(&request.report, &report)?,
             page: report.page(&format!("Calibration of {}", report.model), &text),
             sets: residual_sets(&report.sets, &sessions, &held_out, &tree.joints)?,
             joints: &tree.joints,

@@ -739,11 +739,7 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
             self.estimator,
             self.iterations,
             if self.iterations == 1 { "" } else { "s" },
-            match (self.converged, self.noise_settled) {
-                (true, _) => "converged",
-                (false, Some(false)) => "not converged: the variance components did not settle",
-                (false, _) => "not converged",
-            }
+            convergence(self.converged, self.noise_settled)
         )
     }
 
@@ -944,6 +940,16 @@ pub(super) fn write_down_weighted(out: &mut String, loss: Option<&str>, down: &[
     );
     for d in down {
         let _ = writeln!(out, "  line {}: weight {:.4}", d.line, d.weight);
+    }
+}
+
+/// A fit's end in words: converged, or not, and why when feasible GLS's variance components
+/// did not settle (`noise_settled` `Some(false)`).
+pub(crate) fn convergence(converged: bool, noise_settled: Option<bool>) -> &'static str {
+    match (converged, noise_settled) {
+        (true, _) => "converged",
+        (false, Some(false)) => "not converged: the variance components did not settle",
+        (false, _) => "not converged",
     }
 }
 

@@ -305,11 +305,7 @@ impl ObservationsReport {
             self.poses,
             self.estimator,
             self.iterations,
-            match (self.converged, self.noise_settled) {
-                (true, _) => "converged",
-                (false, Some(false)) => "not converged: the variance components did not settle",
-                (false, _) => "not converged",
-            }
+            super::calibration::convergence(self.converged, self.noise_settled)
         );
         if let Some(b) = &self.registered_base {
             let _ = writeln!(

@@ -198,11 +198,7 @@ impl TreeReport {
             self.poses,
             self.estimator,
             self.iterations,
-            match (self.converged, self.noise_settled) {
-                (true, _) => "converged",
-                (false, Some(false)) => "not converged: the variance components did not settle",
-                (false, _) => "not converged",
-            }
+            super::calibration::convergence(self.converged, self.noise_settled)
         );
         let _ = writeln!(out, "joints: {}\n", self.joints.join(", "));
         let _ = writeln!(out, "{}", self.verdict_text());
