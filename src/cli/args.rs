@@ -157,8 +157,8 @@ pub struct LinkArgs {
 /// The noise given as numbers: joint sigmas, measurement sigma, orientation sigma.
 #[derive(Args, Debug)]
 pub struct NoiseArgs {
-    /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints): the
-    /// weights of calibrate, the whitened H of plan and observability, the whitened residuals
+    /// Joint noise standard deviations, one per joint or one for every joint (deg; mm for
+    /// prismatic joints): the weights of calibrate, the whitened H of plan and observability, the whitened residuals
     /// of evaluate. Give --sigma-mm too: joint noise alone can leave a pose's covariance
     /// singular.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma_deg)]
@@ -444,8 +444,8 @@ pub struct CalibrateObservationsArgs {
     /// with --joint-sigma-deg, the joint noise they share), wls-diag, wls-sigma or ols.
     #[arg(long, hide_possible_values = true)]
     pub estimator: Option<EstimatorName>,
-    /// Joint noise standard deviations, one per joint (deg; mm for prismatic joints): a
-    /// distance between two poses carries the joint noise of both.
+    /// Joint noise standard deviations, one per joint or one for every joint (deg; mm for
+    /// prismatic joints): a distance between two poses carries the joint noise of both.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma_deg)]
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// Parameters to identify: `joints` (every joint parameter), `offsets`, `none` (the tool
@@ -526,6 +526,13 @@ pub struct ReportArgs {
     /// Write one self-contained HTML page here: the report's tables and figures inline.
     #[arg(long, value_name = "FILE")]
     pub html: Option<PathBuf>,
+}
+
+impl ReportArgs {
+    /// Whether it asks for files of every pose (`--poses-csv`, `--figures` or `--html`).
+    pub fn wants_files(&self) -> bool {
+        self.poses_csv.is_some() || self.figures.is_some() || self.html.is_some()
+    }
 }
 
 /// The flags of `robocal evaluate`.

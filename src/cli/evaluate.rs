@@ -4,11 +4,12 @@
 use super::calibrate::noise_for;
 use super::request::EvaluateRequest;
 use super::{ReportContent, write_report_files};
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use robocal::calibration::kinds::{KindData, KindOptions, Score, evaluate_kinds};
 use robocal::calibration::{DataKind, SetEvaluation, evaluate_model, pool};
 use robocal::io;
 use robocal::report::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
+use robocal::report::residuals::ResidualSet;
 use serde::Serialize;
 use std::fmt::Write;
 use std::path::Path;
@@ -46,17 +47,10 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     // Marker files are scored as they are; any other kind with its set-up fitted.
     let (marker_files, others): (Vec<&std::path::PathBuf>, Vec<&std::path::PathBuf>) =
         request.data.iter().partition(|p| read(p).is_ok_and(|t| is_marker_file(&t)));
-    let observations = others
-        .iter()
-        .map(|path| {
-            let data = KindData::from_csv_str(&read(path)?, &model, request.units)
-                .with_context(|| path.display().to_string())?;
-            let options = KindOptions { tool: model.tool_point_in_marker_frame(), ..KindOptions::default() };
-            let score =
-                evaluate_kinds(&model, &data, &options).with_context(|| path.display().to_string())?;
-            Ok((path.display().to_string(), score))
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let observed =
+        others.iter().map(|path| observation_file(path, &model, request)).collect::<Result<Vec<_>>>()?;
+    let observations: Vec<(String, Score)> =
+        observed.iter().map(|(name, _, score)| (name.clone(), score.clone())).collect();
     let mut sets = Vec::new();
     for path in marker_files {
         let mut data = io::load_measurements(path, &model, request.units)?;
@@ -85,6 +79,16 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     let json = super::json_if_asked(&request.report, &report)?;
     let title = format!("{} scored as it stands", model.name);
     let mut outputs = io::Outputs::new();
+    if report.sets.is_empty() {
+        write_observation_files(request, &model, &observed, json, &title, &text, &mut outputs)?;
+        return super::commit(outputs);
+    }
+    if !observed.is_empty() && request.report.wants_files() {
+        bail!(
+            "--poses-csv, --figures and --html: marker files and observation files have files of their own; \
+             evaluate them in two runs"
+        );
+    }
     let extra_figures = if request.report.figures.is_some() || request.report.html.is_some() {
         robocal::report::figures::torque_figures(&report.sets.iter().collect::<Vec<_>>(), &model)?
     } else {
@@ -101,6 +105,48 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     };
     write_report_files(&request.report, content, &mut outputs)?;
     super::commit(outputs)
+}
+
+/// An observation file read and scored as it stands, its set-up fitted, the model held:
+/// its name, its observations and their residuals.
+fn observation_file(
+    path: &Path,
+    model: &robocal::model::RobotModel,
+    request: &EvaluateRequest,
+) -> Result<(String, KindData, Score)> {
+    let data = KindData::from_csv_str(&read(path)?, model, request.units)
+        .with_context(|| path.display().to_string())?;
+    let options = KindOptions { tool: model.tool_point_in_marker_frame(), ..KindOptions::default() };
+    let score = evaluate_kinds(model, &data, &options).with_context(|| path.display().to_string())?;
+    Ok((path.display().to_string(), data, score))
+}
+
+/// Stage the files `request` asks for of observation files scored as they stand: the JSON,
+/// every observation's residual (`--poses-csv`), the residual figures and the page.
+fn write_observation_files(
+    request: &EvaluateRequest,
+    model: &robocal::model::RobotModel,
+    observed: &[(String, KindData, Score)],
+    json: Option<String>,
+    title: &str,
+    text: &str,
+    outputs: &mut io::Outputs,
+) -> Result<()> {
+    let sets = (observed.iter())
+        .map(|(name, data, score)| {
+            let set = ResidualSet::of_observations(name, score, &[(name.as_str(), data)], &model.joints);
+            Ok(set.map_err(anyhow::Error::msg)?.at_one_stage("as it stands"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let content = super::ResidualContent {
+        json,
+        page: &|figures| robocal::report::html::page(title, text, &[], figures),
+        sets,
+        joints: &model.joints,
+        prior_scale: None,
+        selection: None,
+    };
+    super::write_residual_files(&request.report, content, outputs)
 }
 
 /// Whether `text` is a marker file: a header with marker columns (`x1`, `y2`, ...).

@@ -70,7 +70,7 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
     let title = format!("{} scored as it stands", tree.name);
     let content = super::ResidualContent {
         json: super::json_if_asked(&request.report, &report)?,
-        page: robocal::report::html::page(&title, &text, &[], &[]),
+        page: &|figures| robocal::report::html::page(&title, &text, &[], figures),
         sets,
         joints: &tree.joints,
         prior_scale: None,

@@ -257,7 +257,8 @@ fn json_if_asked<T: serde::Serialize>(report: &ReportArgs, value: &T) -> Result<
 struct ResidualContent<'a> {
     /// The JSON report, built only if `--json` asks for it ([`json_if_asked`]).
     json: Option<String>,
-    page: String,
+    /// The page, of the figures it embeds.
+    page: &'a dyn Fn(&[(String, String)]) -> String,
     sets: Vec<robocal::report::residuals::ResidualSet>,
     /// The robot's (the tree's) joints, in the order of each residual's joint values.
     joints: &'a [robocal::model::Joint],
@@ -268,7 +269,8 @@ struct ResidualContent<'a> {
 }
 
 /// Stage in `outputs` the files of `report` that were asked for: the JSON, every residual
-/// (CSV), the figures (SVG) and the page, as [`write_report_files`] stages a marker file's.
+/// (CSV), the figures (SVG) and the page with the figures inline, as [`write_report_files`]
+/// stages a marker file's.
 fn write_residual_files(
     report: &ReportArgs,
     content: ResidualContent<'_>,
@@ -282,18 +284,21 @@ fn write_residual_files(
     if let Some(path) = &report.poses_csv {
         outputs.add(path, residuals::residuals_csv(&sets, content.joints));
     }
-    if let Some(folder) = &report.figures {
-        let mut all = residuals::residual_figures(&sets, content.joints)?;
-        if let Some(scale) = content.prior_scale {
-            all.push(figures::prior_scale_figure(scale)?);
-        }
-        if let Some(selection) = content.selection {
-            all.push(figures::selection_figure(selection)?);
-        }
-        outputs.add_folder(folder, &all);
+    if report.figures.is_none() && report.html.is_none() {
+        return Ok(());
+    }
+    let mut all = residuals::residual_figures(&sets, content.joints)?;
+    if let Some(scale) = content.prior_scale {
+        all.push(figures::prior_scale_figure(scale)?);
+    }
+    if let Some(selection) = content.selection {
+        all.push(figures::selection_figure(selection)?);
     }
     if let Some(path) = &report.html {
-        outputs.add(path, content.page);
+        outputs.add(path, (content.page)(&all));
+    }
+    if let Some(folder) = &report.figures {
+        outputs.add_folder(folder, &all);
     }
     Ok(())
 }
@@ -312,13 +317,38 @@ fn from_flag_unit(kind: JointKind, value: f64) -> f64 {
 /// The noise model of `--joint-sigma-deg`, `--sigma-mm` and `--sigma-orientation-deg`: one joint
 /// sigma per joint of `model`.
 fn noise_model(model: &RobotModel, flags: &NoiseFlags) -> Result<NoiseModel> {
-    let sigmas = &flags.joint_sigma_deg;
-    if sigmas.len() != model.dof() {
-        bail!("--joint-sigma-deg: {} values for the {} joints of {}", sigmas.len(), model.dof(), model.name);
-    }
-    let joint: Vec<f64> = model.joints.iter().zip(sigmas).map(|(j, &s)| from_flag_unit(j.kind, s)).collect();
+    let joint = joint_sigmas(&model.name, &model.joints, &flags.joint_sigma_deg)?;
     let measurement = MeasurementNoise::isotropic(flags.sigma_mm, flags.sigma_orientation_deg.to_radians());
     Ok(NoiseModel::diagonal(&joint, measurement))
+}
+
+/// The joint noise standard deviations of `--joint-sigma-deg` (deg, mm for prismatic joints)
+/// in the model's units (rad, mm): one value per joint of the robot `name`, or one for every
+/// joint. The one reader of the flag for every command.
+fn joint_sigmas(name: &str, joints: &[robocal::model::Joint], sigmas: &[f64]) -> Result<Vec<f64>> {
+    if sigmas.len() != 1 && sigmas.len() != joints.len() {
+        let names: Vec<&str> = joints.iter().map(|j| j.name.as_str()).collect();
+        bail!(
+            "--joint-sigma-deg: {} values for the {} joints of {} ({}): give one per joint or one for all",
+            sigmas.len(),
+            joints.len(),
+            name,
+            names.join(", ")
+        );
+    }
+    let sigma = |j: usize| if sigmas.len() == 1 { sigmas[0] } else { sigmas[j] };
+    Ok(joints.iter().enumerate().map(|(j, joint)| from_flag_unit(joint.kind, sigma(j))).collect())
+}
+
+/// `Sigma_q = diag(sigma_j^2)` (rad², mm²) of `--joint-sigma-deg`, if given ([`joint_sigmas`]).
+fn joint_covariance(
+    name: &str,
+    joints: &[robocal::model::Joint],
+    sigmas: Option<&[f64]>,
+) -> Result<Option<nalgebra::DMatrix<f64>>> {
+    let Some(sigmas) = sigmas else { return Ok(None) };
+    let variances = joint_sigmas(name, joints, sigmas)?.into_iter().map(|s| s * s);
+    Ok(Some(nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(joints.len(), variances))))
 }
 
 /// The design of `observability` and `plan`: the model loaded, the parameters chosen.

@@ -2,10 +2,8 @@
 //! partial coordinates, cameras' views and marker positions ([`robocal::calibration::kinds`]); every file read and the fit made
 //! before anything is written.
 
-use super::from_flag_unit;
 use super::request::{CalibrateObservationsRequest, Method};
 use anyhow::{Context, Result, bail};
-use nalgebra::DMatrix;
 use robocal::calibration::FeasibleOptions;
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, Score};
 use robocal::estimation::RefineOptions;
@@ -55,7 +53,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     if request.report != super::args::ReportArgs::default() {
         let content = super::ResidualContent {
             json: super::json_if_asked(&request.report, &report)?,
-            page: report.page(&format!("Calibration of {}", report.model), &text),
+            page: &|figures| report.page(&format!("Calibration of {}", report.model), &text, figures),
             sets: residual_sets(&report.sets, &sessions, &held_out, &model.joints)?,
             joints: &model.joints,
             prior_scale: report.prior_scale.as_ref(),
@@ -110,7 +108,7 @@ fn kind_options(request: &CalibrateObservationsRequest, model: &RobotModel) -> R
         loss: request.loss,
         gauge: request.gauge.clone(),
         estimator: request.method.estimator(),
-        joint_noise: joint_noise(model, request.joint_sigma_deg.as_deref())?,
+        joint_noise: super::joint_covariance(&model.name, &model.joints, request.joint_sigma_deg.as_deref())?,
         joints: request.joints.clone(),
         estimate_tool: request.estimate_tool,
         tool: request.tool.unwrap_or_else(|| model.tool_point_in_marker_frame()),
@@ -142,14 +140,4 @@ fn read(path: &Path, model: &RobotModel, request: &CalibrateObservationsRequest)
         KindData::from_csv_str(&text, model, request.units).with_context(|| path.display().to_string())?;
     super::status(format!("{}: read {}", path.display(), data.summary()));
     Ok(data.named(&super::request::session_name(path)))
-}
-
-/// `Sigma_q` of `--joint-sigma-deg` (rad², mm²), one sigma per joint of `model`.
-fn joint_noise(model: &RobotModel, sigmas: Option<&[f64]>) -> Result<Option<DMatrix<f64>>> {
-    let Some(sigmas) = sigmas else { return Ok(None) };
-    if sigmas.len() != model.dof() {
-        bail!("--joint-sigma-deg: {} values for the {} joints of {}", sigmas.len(), model.dof(), model.name);
-    }
-    let variances = model.joints.iter().zip(sigmas).map(|(j, &s)| from_flag_unit(j.kind, s).powi(2));
-    Ok(Some(DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(sigmas.len(), variances))))
 }

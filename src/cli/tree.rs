@@ -3,10 +3,8 @@
 //! ([`robocal::calibration::tree`]); every file read and the fit made before anything is
 //! written.
 
-use super::from_flag_unit;
 use super::request::CalibrateTreeRequest;
-use anyhow::{Context, Result, bail};
-use nalgebra::{DMatrix, DVector};
+use anyhow::{Context, Result};
 use robocal::calibration::tree::{TreeData, TreeOptions, TreeScore};
 use robocal::estimation::RefineOptions;
 use robocal::io;
@@ -37,7 +35,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     let options = TreeOptions {
         estimator: request.estimator,
-        joint_noise: joint_noise(&tree, request.joint_sigma_deg.as_deref())?,
+        joint_noise: super::joint_covariance(&tree.name, &tree.joints, request.joint_sigma_deg.as_deref())?,
         joints: request.joints.clone(),
         refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
         gauge: request.gauge.clone(),
@@ -69,7 +67,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     if request.report != super::args::ReportArgs::default() {
         let content = super::ResidualContent {
             json: super::json_if_asked(&request.report, &report)?,
-            page: report.page(&format!("Calibration of {}", report.model), &text),
+            page: &|figures| report.page(&format!("Calibration of {}", report.model), &text, figures),
             sets: residual_sets(&report.sets, &sessions, &held_out, &tree.joints)?,
             joints: &tree.joints,
             prior_scale: report.prior_scale.as_ref(),
@@ -112,25 +110,4 @@ fn residual_sets(
 fn read(path: &Path, tree: &RobotTree, request: &CalibrateTreeRequest) -> Result<TreeData> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
     TreeData::from_csv_str(&text, tree, request.units).with_context(|| path.display().to_string())
-}
-
-/// `Sigma_q` of `--joint-sigma-deg` (rad², mm²): one sigma per tree joint, or one for all.
-fn joint_noise(tree: &RobotTree, sigmas: Option<&[f64]>) -> Result<Option<DMatrix<f64>>> {
-    let Some(sigmas) = sigmas else { return Ok(None) };
-    let sigma = |j: usize| match sigmas {
-        [one] => *one,
-        many => many[j],
-    };
-    if sigmas.len() != 1 && sigmas.len() != tree.dof() {
-        let joints: Vec<&str> = tree.joints.iter().map(|j| j.name.as_str()).collect();
-        bail!(
-            "--joint-sigma-deg: {} values for the {} joints of {} ({}): give one per joint or one for all",
-            sigmas.len(),
-            tree.dof(),
-            tree.name,
-            joints.join(", ")
-        );
-    }
-    let variances = (0..tree.dof()).map(|j| from_flag_unit(tree.joints[j].kind, sigma(j)).powi(2));
-    Ok(Some(DMatrix::from_diagonal(&DVector::from_iterator(tree.dof(), variances))))
 }

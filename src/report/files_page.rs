@@ -3,8 +3,8 @@
 //! [`calibration_page`](super::calibration_page) makes the marker report's: the verdict as a
 //! card (each set's RMS residuals before and after calibration, by quantity, the warnings by
 //! cause), the parameters with their 95% intervals drawn, the choices made from the data (a
-//! prior's scale, a selection's path), what was held and what the data cannot see, and the
-//! text report in full in a collapsible section. No script, no address.
+//! prior's scale, a selection's path), what was held, the figures inline, what the data cannot
+//! see, and the text report in full in a collapsible section. No script, no address.
 
 use super::calibration::ParameterRow;
 use super::calibration_page::{held_section, parameter_table, prior_scale, selection_table};
@@ -53,6 +53,8 @@ pub struct FilesPage<'a> {
     pub selection: Option<&'a super::calibration::SelectionReport>,
     /// The text report, in full.
     pub text: &'a str,
+    /// The figures, inline: `(file name, SVG)` ([`super::html::figures`]).
+    pub figures: &'a [(String, String)],
 }
 
 /// The page of `report`, titled `title`.
@@ -89,6 +91,13 @@ pub fn page(report: &FilesPage<'_>, title: &str) -> String {
             let _ = writeln!(out, "<li>{}</li>", escape(u));
         }
         out.push_str("</ul>\n</section>\n");
+    }
+    if !report.figures.is_empty() {
+        let _ = writeln!(
+            out,
+            "<section id=\"figures\">\n<h2>Figures</h2>\n{}</section>",
+            super::html::figures(report.figures)
+        );
     }
     let _ = writeln!(
         out,
@@ -172,7 +181,7 @@ fn row(
 /// verdict's rows `$residuals` and its selection `$selection`: the fields both reports share
 /// by name, taken once.
 macro_rules! files_page {
-    ($report:expr, $text:expr, $residuals:expr, $selection:expr) => {
+    ($report:expr, $text:expr, $residuals:expr, $selection:expr, $figures:expr) => {
         FilesPage {
             meta: $text.lines().next().unwrap_or(""),
             residuals: $residuals,
@@ -184,13 +193,15 @@ macro_rules! files_page {
             prior_scale: $report.prior_scale.as_ref(),
             selection: $selection,
             text: $text,
+            figures: $figures,
         }
     };
 }
 
 impl ObservationsReport {
-    /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`].
-    pub fn page(&self, title: &str, text: &str) -> String {
+    /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
+    /// `figures` the figures it shows inline (`(file name, SVG)`).
+    pub fn page(&self, title: &str, text: &str, figures: &[(String, String)]) -> String {
         let residuals = (self.sets.iter())
             .flat_map(|(set, s)| {
                 [
@@ -201,13 +212,14 @@ impl ObservationsReport {
             })
             .flatten()
             .collect();
-        page(&files_page!(self, text, residuals, self.selection.as_ref()), title)
+        page(&files_page!(self, text, residuals, self.selection.as_ref(), figures), title)
     }
 }
 
 impl TreeReport {
-    /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`].
-    pub fn page(&self, title: &str, text: &str) -> String {
+    /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
+    /// `figures` the figures it shows inline (`(file name, SVG)`).
+    pub fn page(&self, title: &str, text: &str, figures: &[(String, String)]) -> String {
         let residuals = (self.sets.iter())
             .flat_map(|(set, s)| {
                 [
@@ -217,6 +229,6 @@ impl TreeReport {
             })
             .flatten()
             .collect();
-        page(&files_page!(self, text, residuals, self.selection.as_ref()), title)
+        page(&files_page!(self, text, residuals, self.selection.as_ref(), figures), title)
     }
 }

@@ -187,11 +187,23 @@ pub fn caption(name: &str) -> String {
              flagged) and runs of neighbouring poses that share an error (a drift while measuring)."
         );
     }
-    if stem == "histogram" {
-        return "The density of the marker errors after calibration (mm), each set on the same bins, so that sets of \
-                different sizes compare. Look for a held-out set that reaches further right than the training set \
-                (over-fitting, or a change between the sessions) and a long tail (outliers)."
-            .to_string();
+    if let Some(set) = ["errors-by-observation-", "errors-by-view-"].iter().find_map(|p| stem.strip_prefix(p))
+    {
+        let (set, unit) = set.strip_suffix("-deg").map_or((set, "mm"), |set| (set, "deg"));
+        return format!(
+            "Each observation of {set} by its line in the file: its error ({unit}) at every stage on one scale, \
+             crossed when flagged. Look for lines that stay high after calibration and runs of neighbouring lines \
+             that share an error (a drift while measuring)."
+        );
+    }
+    if let Some(unit) =
+        ["histogram", "histogram-deg"].iter().position(|h| *h == stem).map(|i| ["mm", "deg"][i])
+    {
+        return format!(
+            "The density of the errors at the last stage ({unit}), each set on the same bins, so that sets of \
+             different sizes compare. Look for a held-out set that reaches further right than the training set \
+             (over-fitting, or a change between the sessions) and a long tail (outliers)."
+        );
     }
     if let Some(joint) = stem.strip_prefix("error-vs-torque-") {
         return format!(
@@ -201,8 +213,8 @@ pub fn caption(name: &str) -> String {
     }
     if let Some(joint) = stem.strip_prefix("error-vs-") {
         return format!(
-            "Each marker's signed error after calibration (x, y, z, mm; a probe's rotation too) against {joint}'s \
-             value. A flat band about zero is the aim; look for trends, steps where the motion turns (backlash) \
+            "Each signed residual at the last stage (a marker's x, y, z or an observation's row, mm; a probe's \
+             rotation too) against {joint}'s value. A flat band about zero is the aim; look for trends, steps where the motion turns (backlash) \
              and waves (a gear's cyclic error): errors the model does not describe."
         );
     }
@@ -213,7 +225,7 @@ pub fn caption(name: &str) -> String {
             .to_string();
     }
     if stem == "prior-scale" {
-        return "The cross-validated RMS marker error (mm) after calibrating with the preset's standard deviations \
+        return "The cross-validated RMS error (mm) after calibrating with the preset's standard deviations \
                 times each scale s (log axis); the chosen scale, the lowest, is circled. Look for a clear minimum: \
                 a flat curve says the data barely care how strong the prior is, a minimum at an end that the \
                 preset is far from this robot."

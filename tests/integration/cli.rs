@@ -589,3 +589,46 @@ fn calibrate_refuses_marker_only_flags_on_observation_files() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8(out.stderr).unwrap().contains("no-such.csv"));
 }
+
+/// `--joint-sigma-deg` reads one value per joint or one for every joint, the same for a marker
+/// file and an observation file (one reader of the flag), and names the joints when the count
+/// is neither.
+#[test]
+fn one_joint_sigma_is_every_joints() {
+    let stdout = |args: &[&str]| {
+        let out = robocal().args(args).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let ball_bar = |sigmas: &'static str| {
+        [
+            "calibrate",
+            "--model",
+            "puma560",
+            "--tool",
+            "50,0,150",
+            "--data",
+            "examples/puma560-ballbar.csv",
+            "--joint-sigma-deg",
+            sigmas,
+        ]
+    };
+    for args in [CALIBRATE.to_vec(), ball_bar("").to_vec()] {
+        let sigma_at = args.iter().position(|a| *a == "--joint-sigma-deg").unwrap() + 1;
+        let (mut one, mut six) = (args.clone(), args.clone());
+        one[sigma_at] = "0.005";
+        six[sigma_at] = "0.005,0.005,0.005,0.005,0.005,0.005";
+        let (one, six) = (stdout(&one), stdout(&six));
+        assert!(one.contains("after"), "{one}");
+        assert_eq!(one, six);
+        let mut three = args.clone();
+        three[sigma_at] = "0.005,0.005,0.005";
+        let message = stderr_of(&three);
+        assert!(
+            message
+                .contains("--joint-sigma-deg: 3 values for the 6 joints of puma560 (j1, j2, j3, j4, j5, j6)")
+                && message.contains("give one per joint or one for all"),
+            "{message}"
+        );
+    }
+}

@@ -621,7 +621,7 @@ fn observation_files_and_trees_have_a_page_that_leads_with_the_verdict() {
             .split_whitespace()
             .collect();
     let (sections, verdict, tables) = files_page(&ball_bar, "ballbar-page");
-    assert_eq!(sections, ["summary", "parameters", "held", "unseen", "report"]);
+    assert_eq!(sections, ["summary", "parameters", "held", "unseen", "figures", "report"]);
     for row in
         ["training", "examples/puma560-ballbar-2.csv", "3-fold cross-validation, nested", "residuals (mm)"]
     {

@@ -206,10 +206,52 @@ fn an_observation_files_written_model_rescores_its_training_file() {
         "--json",
         s(&calibrated),
     ]);
+    let (poses, folder, page) = (dir.join("rows.csv"), dir.join("figures"), dir.join("page.html"));
     robocal(&["evaluate", "-q", "--model", s(&model), "--data", BALL_BAR, "--json", s(&evaluated)]);
+    robocal(&["evaluate", "-q", "--model", s(&model), "--data", BALL_BAR, "--poses-csv", s(&poses)]);
+    robocal(&["evaluate", "-q", "--model", s(&model), "--data", BALL_BAR, "--figures", s(&folder)]);
+    robocal(&["evaluate", "-q", "--model", s(&model), "--data", BALL_BAR, "--html", s(&page)]);
     let after = json(&calibrated)["sets"][0][1]["lengths"][1].as_f64().unwrap();
     let again = json(&evaluated)["observations"][0][1]["lengths"][1].as_f64().unwrap();
     assert!(relative(again, after) < 1e-9, "re-scored {again} mm, calibrated {after} mm");
+    // Its rows, one per observation as it stands, their RMS the score; its figures; its page
+    // with them.
+    let (_, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
+    let rows: Vec<_> = rows.iter().collect();
+    assert_eq!(rows.len(), 150);
+    assert!(rows.iter().all(|r| r["set"] == BALL_BAR && r["before_mm"] == r["after_mm"]), "as it stands");
+    assert!(relative(rms(&rows, "after_mm"), after) < 1e-9);
+    let mut expected: Vec<String> = (1..=6).map(|j| format!("error-vs-j{j}.svg")).collect();
+    expected.extend(
+        ["errors-by-observation-examples-puma560-ballbar-csv.svg", "histogram.svg"].map(String::from),
+    );
+    expected.sort();
+    assert_eq!(figures(&folder), expected);
+    let html = std::fs::read_to_string(&page).unwrap();
+    let figures_section = html.split("<section id=\"figures\"").nth(1).expect("a figures section");
+    assert_eq!(figures_section.matches("<svg").count(), 8, "the eight figures on the page");
+    // Marker and observation files together: their files apart, in two runs.
+    let markers = dir.join("one-marker.csv");
+    let one_marker: Vec<String> = (std::fs::read_to_string("examples/puma560-measurements.csv").unwrap())
+        .lines()
+        .map(|l| {
+            if l.starts_with('#') {
+                l.to_string()
+            } else {
+                l.split(',').take(9).collect::<Vec<_>>().join(",")
+            }
+        })
+        .collect();
+    std::fs::write(&markers, one_marker.join("\n")).unwrap();
+    robocal(&["evaluate", "-q", "--model", s(&model), "--data", s(&markers)]);
+    let out = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["evaluate", "--model", s(&model), "--data", BALL_BAR, "--data", s(&markers)])
+        .args(["--html", s(&page)])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("evaluate them in two runs"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

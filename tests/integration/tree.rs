@@ -794,7 +794,12 @@ fn a_tree_scales_a_preset_prior_from_its_views() {
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     crate::choice::assert_prior_scale(&report, &text, 3);
     assert!(text.contains("3-fold cross-validation, nested (mm)"), "{text}");
-    assert!(std::fs::read_to_string(&page).unwrap().contains("Prior scale: --prior auto:machined chose"));
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(html.contains("Prior scale: --prior auto:machined chose"));
+    // The page embeds the residual figures and the scale's curve.
+    let figures = html.split("<section id=\"figures\"").nth(1).expect("a figures section");
+    assert!(figures.contains("<figure id=\"prior-scale.svg\">"), "the scale's curve on the page");
+    assert!(figures.contains("<figure id=\"histogram.svg\">") && figures.matches("<svg").count() > 10);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
