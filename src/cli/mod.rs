@@ -251,6 +251,9 @@ fn json_if_asked<T: serde::Serialize>(report: &ReportArgs, value: &T) -> Result<
     })
 }
 
+/// A page of the figures (`(file name, SVG)`) it embeds.
+type PageOf<'a> = &'a dyn Fn(&[(String, String)]) -> String;
+
 /// What a calibration of observation files or of a tree's views reports: its JSON and page,
 /// each scored set's residuals (the training files', each held-out file's) and the choices
 /// made from the data.
@@ -258,7 +261,7 @@ struct ResidualContent<'a> {
     /// The JSON report, built only if `--json` asks for it ([`json_if_asked`]).
     json: Option<String>,
     /// The page, of the figures it embeds.
-    page: &'a dyn Fn(&[(String, String)]) -> String,
+    page: PageOf<'a>,
     sets: Vec<robocal::report::residuals::ResidualSet>,
     /// The robot's (the tree's) joints, in the order of each residual's joint values.
     joints: &'a [robocal::model::Joint],
