@@ -38,10 +38,10 @@ pub use selection::{
 };
 
 use crate::estimation::{
-    CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementClass,
-    MeasurementNoise, NoiseEstimate, NoiseLayout, NoiseModel, NoiseSpec, PointProblem, PriorEntry,
-    PriorError, PriorRows, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds,
-    refine_from, residual_design,
+    DeviceError, EstimationError, Estimator, JointComponents, MeasurementClass, MeasurementNoise,
+    NoiseEstimate, NoiseLayout, NoiseModel, NoiseSpec, PointProblem, PriorEntry, PriorError, PriorRows,
+    RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds, refine_from,
+    residual_samples,
 };
 use crate::kinematics::{Chain, Measured, end_positions};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
@@ -1070,21 +1070,14 @@ fn residual_noise(
         noise,
     )?;
     let system = problem.system(&problem.start());
-    let rows = system.rows_per_point;
     let estimator = if noise.is_some() { Estimator::Wls } else { Estimator::Ols };
     let weights = Weights::for_problem(&problem, estimator)?;
     let jacobians = problem.manipulator_jacobians(&c.after);
     let per = kind.rows();
     let layout = NoiseLayout::of_points(jacobians, per, weights.blocks());
-    let expected = residual_design(&system.h, &weights, &layout, joints)?;
-    let samples: Vec<CovarianceSample> = expected
-        .into_iter()
-        .enumerate()
-        .map(|(k, design)| {
-            let r = system.y.rows(k * rows, rows);
-            CovarianceSample { s: r * r.transpose(), dof: 1.0, design }
-        })
-        .collect();
+    let samples = residual_samples(&system.h, &system.y, &weights, &layout, joints)?;
+    // The fit needs the packed samples alone.
+    drop((system, weights, layout, problem));
     Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), MeasurementClass::of_points(per), previous)?)
 }
 
