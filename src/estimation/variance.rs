@@ -199,23 +199,23 @@ impl Samples for ResidualSamples {
         let rows = self.blocks.range(k);
         let b = rows.len();
         let size = b * b;
-        scratch.clear();
+        // Every entry is written below: no clearing.
         scratch.resize((self.components + 1) * size, 0.0);
         let (design, s) = scratch.split_at_mut(self.components * size);
         let packed = &self.packed[self.starts[k]..self.starts[k + 1]];
         for (full, packed) in design.chunks_exact_mut(size).zip(packed.chunks_exact(triangle(b))) {
             for col in 0..b {
-                for row in 0..=col {
-                    let v = packed[triangle(col) + row];
-                    full[col * b + row] = v;
+                let column = &packed[triangle(col)..triangle(col) + col + 1];
+                full[col * b..col * b + col + 1].copy_from_slice(column);
+                for (row, &v) in column.iter().enumerate().take(col) {
                     full[row * b + col] = v;
                 }
             }
         }
         let r = &self.r[rows];
-        for col in 0..b {
-            for row in 0..b {
-                s[col * b + row] = r[row] * r[col];
+        for (col, s) in s.chunks_exact_mut(b).enumerate() {
+            for (s, r_row) in s.iter_mut().zip(r) {
+                *s = r_row * r[col];
             }
         }
         SampleView { b, dof: 1.0, s, design }
@@ -420,9 +420,8 @@ impl NoiseLayout {
 /// ([`ResidualSamples`]). The same arithmetic point by point, without holding what
 /// [`residual_design`] holds for all points at once: `R` of `S H` reduced row block by row
 /// block (no whitened copy of `H`), `A_k = C (S_k H_k)^T S_k` of each point computed where it
-/// is used (no `p x N_m` matrix `A`), `N_c = sum_j A_j V_c,j A_j^T` accumulated point by point
-/// by rank-one updates (`N_ii += z_i z_i^T`, `N_ij += z_i z_j^T + z_j z_i^T`, `z = A_j J_j^q`;
-/// a class's `a a^T` of each column `a` of `A_j` on its rows). Points are shared between
+/// is used (no `p x N_m` matrix `A`), `N_c = sum_j A_j V_c,j A_j^T` accumulated task by task
+/// ([`streamed_middles`]). Points are shared between
 /// threads in tasks of [`POINTS_PER_TASK`], the tasks' sums added in order: the result does
 /// not depend on the number of threads.
 pub(crate) fn residual_samples(
@@ -526,8 +525,11 @@ fn point_influence(h: &DMatrix<f64>, weights: &super::Weights, c: &DMatrix<f64>,
     c * sh_k.transpose() * s_k
 }
 
-/// `N_c = sum_j A_j V_c,j A_j^T` of every component ([`design_middles`]'s), accumulated
-/// point by point in tasks of [`POINTS_PER_TASK`] points, the tasks' sums added in order.
+/// `N_c = sum_j A_j V_c,j A_j^T` of every component ([`design_middles`]'s), accumulated in
+/// tasks of [`POINTS_PER_TASK`] points, the tasks' sums added in order: of each task, `U_i`
+/// (`p x R`, a column per point `j` and pose `q` it sees, the column `i` of `Z_jq = A_j J_j^q`)
+/// gives `U_i U_i^T` for `sigma_i^2` and `U_i U_j^T + U_j U_i^T` for a covariance; a class,
+/// the Gram matrix of the task's columns of `A` on its rows.
 fn streamed_middles(
     h: &DMatrix<f64>,
     weights: &super::Weights,
@@ -543,23 +545,35 @@ fn streamed_middles(
     let parts: Vec<Vec<DMatrix<f64>>> = (0..points.div_ceil(POINTS_PER_TASK))
         .into_par_iter()
         .map(|task| {
-            let mut sums = vec![DMatrix::zeros(p, p); m];
-            for k in task * POINTS_PER_TASK..((task + 1) * POINTS_PER_TASK).min(points) {
-                let a_k = point_influence(h, weights, c, k);
-                let z = &a_k * &layout.jacobians[k];
-                for q in 0..z.ncols() / dof {
-                    for (sum, &(i, j)) in sums.iter_mut().zip(&entries) {
-                        let (zi, zj) = (z.column(q * dof + i), z.column(q * dof + j));
-                        sum.ger(1.0, &zi, &zj, 1.0);
-                        if i != j {
-                            sum.ger(1.0, &zj, &zi, 1.0);
-                        }
-                    }
-                }
-                let start = blocks.range(k).start;
-                for (r, a) in a_k.column_iter().enumerate() {
-                    sums[entries.len() + layout.classes[start + r]].ger(1.0, &a, &a, 1.0);
-                }
+            let task = task * POINTS_PER_TASK..((task + 1) * POINTS_PER_TASK).min(points);
+            // The task's `Z_jq` side by side (`p x` a column per pose seen and joint), and its
+            // columns of `A` by class: products of the task at once.
+            let influences: Vec<DMatrix<f64>> =
+                task.clone().map(|k| point_influence(h, weights, c, k)).collect();
+            let z: Vec<DMatrix<f64>> =
+                task.clone().zip(&influences).map(|(k, a)| a * &layout.jacobians[k]).collect();
+            let replicas: Vec<(usize, usize)> = (z.iter().enumerate())
+                .flat_map(|(t, z)| (0..z.ncols() / dof).map(move |q| (t, q * dof)))
+                .collect();
+            let u: Vec<DMatrix<f64>> = (0..dof)
+                .map(|i| DMatrix::from_fn(p, replicas.len(), |r, n| z[replicas[n].0][(r, replicas[n].1 + i)]))
+                .collect();
+            let mut sums: Vec<DMatrix<f64>> = (entries.iter())
+                .map(|&(i, j)| {
+                    let n = &u[i] * u[j].transpose();
+                    if i == j { n } else { &n + n.transpose() }
+                })
+                .collect();
+            for class in 0..layout.class_count {
+                let columns: Vec<(usize, usize)> = (task.clone().enumerate())
+                    .flat_map(|(t, k)| blocks.range(k).map(move |row| (t, row)))
+                    .filter(|&(_, row)| layout.classes[row] == class)
+                    .collect();
+                let selected = DMatrix::from_fn(p, columns.len(), |r, n| {
+                    let (t, row) = columns[n];
+                    influences[t][(r, row - blocks.range(task.start + t).start)]
+                });
+                sums.push(&selected * selected.transpose());
             }
             sums
         })
