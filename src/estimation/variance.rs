@@ -696,9 +696,11 @@ struct PointTerms<'a> {
 
 impl PointTerms<'_> {
     /// `D_c,k = V_c,k - P_k V_c,k - (P_k V_c,k)^T + (H_k N_c H_k^T + its transpose) / 2` of
-    /// every component, `nht` the `N_c H_k^T`, with `P_k = H_k A_k`: `V_c,k = sum_p J^p E_c
-    /// (J^p)^T` of a joint component (`P V = sum_p (P J^p) E_c (J^p)^T`), the identity on the
-    /// rows of its class for a measurement component.
+    /// every component, `nht` the `N_c H_k^T`, with `P_k = H_k A_k`: for a joint component
+    /// `(i, l)`, `V_c,k = sum_p (J^p_i (J^p_l)^T + J^p_l (J^p_i)^T)` (`J^p_i (J^p_i)^T` on the
+    /// diagonal) and `P V = sum_p ((P J^p)_i (J^p_l)^T + (P J^p)_l (J^p_i)^T)`, by rank-one
+    /// updates; for a measurement component, `V` the identity on the rows of its class and
+    /// `P V` the columns of `P` on them.
     fn designs<'n>(
         &self,
         nht: impl Iterator<Item = nalgebra::DMatrixView<'n, f64>>,
@@ -708,79 +710,41 @@ impl PointTerms<'_> {
         let h = self.ht.transpose();
         let mut p = DMatrix::zeros(b, b);
         p.gemm(1.0, &h, &self.a, 0.0);
-        let pj = &p * self.jacobian;
         let j = self.jacobian;
-        let components = joints.entries(self.dof);
-        let on = Rows { dof: self.dof, poses: j.ncols() / self.dof, classes: self.classes };
-        let mut hnh = DMatrix::zeros(b, b);
+        let pj = &p * j;
+        let (dof, poses) = (self.dof, j.ncols() / self.dof);
+        let components = joints.entries(dof);
+        let (mut hnh, mut v, mut pv) = (DMatrix::zeros(b, b), DMatrix::zeros(b, b), DMatrix::zeros(b, b));
         nht.enumerate()
             .map(|(c, nht)| {
                 hnh.gemm(1.0, &h, &nht, 0.0);
-                let (v, pv) = match components.get(c) {
-                    Some(&(i, k)) => on.terms(Component::Joint(i, k), j, &pj),
-                    None => on.terms(Component::Class(c - components.len()), j, &p),
-                };
+                v.fill(0.0);
+                pv.fill(0.0);
+                match components.get(c) {
+                    Some(&(i, l)) => {
+                        for q in 0..poses {
+                            let (ji, jl) = (j.column(q * dof + i), j.column(q * dof + l));
+                            v.ger(1.0, &ji, &jl, 1.0);
+                            pv.ger(1.0, &pj.column(q * dof + i), &jl, 1.0);
+                            if i != l {
+                                v.ger(1.0, &jl, &ji, 1.0);
+                                pv.ger(1.0, &pj.column(q * dof + l), &ji, 1.0);
+                            }
+                        }
+                    }
+                    None => {
+                        let class = c - components.len();
+                        for row in (0..b).filter(|&row| self.classes[row] == class) {
+                            v[(row, row)] = 1.0;
+                            pv.column_mut(row).copy_from(&p.column(row));
+                        }
+                    }
+                }
                 DMatrix::from_fn(b, b, |r, s| {
-                    v(r, s) - pv(r, s) - pv(s, r) + (hnh[(r, s)] + hnh[(s, r)]) / 2.0
+                    v[(r, s)] - pv[(r, s)] - pv[(s, r)] + (hnh[(r, s)] + hnh[(s, r)]) / 2.0
                 })
             })
             .collect()
-    }
-}
-
-/// A component of [`block_noise_design`], as [`PointTerms::designs`] builds its terms.
-#[derive(Clone, Copy)]
-enum Component {
-    /// Entry `(i, k)` of `Sigma_q`: `V = sum_p J^p E_ik (J^p)^T`.
-    Joint(usize, usize),
-    /// The identity on the rows of a measurement class.
-    Class(usize),
-}
-
-/// A point's rows as [`Component::terms`] reads them: `P` poses of `dof` joints side by side
-/// in `J`, and each row's class.
-#[derive(Clone, Copy)]
-struct Rows<'a> {
-    dof: usize,
-    poses: usize,
-    classes: &'a [usize],
-}
-
-impl<'a> Rows<'a> {
-    /// Entry `(r, s)` of `V` and of `P V` of `component`, from `J` and `m`: `P J` for a joint
-    /// component, `P` for a class.
-    fn terms<'m>(
-        self,
-        component: Component,
-        j: &'m DMatrix<f64>,
-        m: &'m DMatrix<f64>,
-    ) -> (impl Fn(usize, usize) -> f64 + 'm, impl Fn(usize, usize) -> f64 + 'm)
-    where
-        'a: 'm,
-    {
-        let (dof, poses, classes) = (self.dof, self.poses, self.classes);
-        // sum_p x[(r, p dof + i)] j[(s, p dof + k)] (+ the same with i and k swapped).
-        let joint = move |x: &DMatrix<f64>, r: usize, s: usize, i: usize, k: usize| -> f64 {
-            let one = |i: usize, k: usize| {
-                (0..poses).map(|p| x[(r, p * dof + i)] * j[(s, p * dof + k)]).sum::<f64>()
-            };
-            if i == k { one(i, i) } else { one(i, k) + one(k, i) }
-        };
-        let v = move |r: usize, s: usize| match component {
-            Component::Joint(i, k) => joint(j, r, s, i, k),
-            Component::Class(c) => f64::from(u8::from(r == s && classes[s] == c)),
-        };
-        let pv = move |r: usize, s: usize| match component {
-            Component::Joint(i, k) => joint(m, r, s, i, k),
-            Component::Class(c) => {
-                if classes[s] == c {
-                    m[(r, s)]
-                } else {
-                    0.0
-                }
-            }
-        };
-        (v, pv)
     }
 }
 
