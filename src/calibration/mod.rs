@@ -1085,11 +1085,13 @@ fn residual_noise(
     let estimator = if noise.is_some() { Estimator::Wls } else { Estimator::Ols };
     let weights = Weights::for_problem(&problem, estimator)?;
     let jacobians = problem.manipulator_jacobians(&c.after);
+    // The covariance blocks are in the weights: the problem is done with.
+    drop(problem);
     let per = kind.rows();
     let layout = NoiseLayout::of_points(jacobians, per, weights.blocks());
     let samples = residual_samples(&system.h, &system.y, &weights, &layout, joints)?;
     // The fit needs the packed samples alone.
-    drop((system, weights, layout, problem));
+    drop((system, weights, layout));
     Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), MeasurementClass::of_points(per), previous)?)
 }
 
