@@ -38,10 +38,10 @@ pub use selection::{
 };
 
 use crate::estimation::{
-    CovarianceSample, DeviceError, EstimationError, Estimator, JointComponents, MeasurementClass,
-    MeasurementNoise, NoiseEstimate, NoiseLayout, NoiseModel, NoiseSpec, PointProblem, PriorEntry,
-    PriorError, PriorRows, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds,
-    refine_from, residual_design,
+    DeviceError, EstimationError, Estimator, JointComponents, MeasurementClass, MeasurementNoise,
+    NoiseEstimate, NoiseLayout, NoiseModel, NoiseSpec, PointProblem, PriorEntry, PriorError, PriorRows,
+    RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds, refine_from,
+    residual_samples,
 };
 use crate::kinematics::{Chain, Measured, end_positions};
 use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool};
@@ -441,7 +441,7 @@ pub fn calibrate(
     data: &Measurements,
     options: &Options,
 ) -> Result<Calibration, CalibrationError> {
-    calibrate_checking(model, data, options, true)
+    calibrate_checking(model, data, options, (true, None))
 }
 
 /// [`calibrate`] without the check of the noise: the calibrations inside a choice or a
@@ -451,7 +451,7 @@ pub(crate) fn calibrate_quietly(
     data: &Measurements,
     options: &Options,
 ) -> Result<Calibration, CalibrationError> {
-    calibrate_checking(model, data, options, false)
+    calibrate_checking(model, data, options, (false, None))
 }
 
 /// The robot before any fit: the base registered to the markers if it is estimated, a
@@ -574,13 +574,14 @@ fn check_enough_poses(
 }
 
 /// [`calibrate`], the noise checked if `check_noise`: the [`Start`], one problem (and its
-/// covariance blocks `V_k`) for every stage, the "before" fit, what the poses identify, the
+/// covariance blocks `V_k`) for every stage, the "before" fit (`known_before` if given: it is
+/// the same whatever the noise, as feasible GLS's rounds know), what the poses identify, the
 /// robust fit of it, the scores.
 fn calibrate_checking(
     model: &RobotModel,
     data: &Measurements,
     options: &Options,
-    check_noise: bool,
+    (check_noise, known_before): (bool, Option<&[f64]>),
 ) -> Result<Calibration, CalibrationError> {
     let start = Start::new(model, data, options);
     let rows = start.kind.rows() * start.chains.len();
@@ -599,7 +600,10 @@ fn calibrate_checking(
     )?;
     let weights =
         Weights::for_problem(&base_problem, options.estimator).map_err(|e| at_line(e.into(), data))?;
-    let before = fit_before(&base_problem, &params, options)?;
+    let before = match known_before {
+        Some(before) if before.len() == params.len() => before.to_vec(),
+        _ => fit_before(&base_problem, &params, options)?,
+    };
     // "After": everything asked for that the poses can identify.
     let asked = selection(&params, &options.joints, options)?;
     let prior_sd = prior_sds(&options.prior, &params)?;
@@ -979,13 +983,21 @@ pub fn calibrate_feasible(
     let mut data = data.clone();
     let ignored_sigma = data.sigma.take().is_some();
     let ols = Options { estimator: Estimator::Ols, noise: None, ..options.clone() };
+    // The "before" fit of marker positions is by ordinary least squares whatever the noise:
+    // the first round's serves every round. (A probe's OLS rows are scaled by the noise's
+    // orientation weight: fitted again.)
+    let before = std::sync::OnceLock::new();
+    let reuse_before = data.orientations.is_none();
     let calibrate = |estimate: Option<&NoiseEstimate>| {
         let weighted = Options {
             estimator: if estimate.is_some() { Estimator::Wls } else { Estimator::Ols },
             noise: estimate.map(NoiseEstimate::noise_model),
             ..ols.clone()
         };
-        calibrate_quietly(model, &data, &weighted)
+        let known = before.get().filter(|_| reuse_before).map(Vec::as_slice);
+        let c = calibrate_checking(model, &data, &weighted, (false, known))?;
+        before.get_or_init(|| c.before.clone());
+        Ok(c)
     };
     let estimate = |c: &Calibration, previous: Option<&NoiseEstimate>| {
         let noise = previous.map(NoiseEstimate::noise_model);
@@ -1070,21 +1082,16 @@ fn residual_noise(
         noise,
     )?;
     let system = problem.system(&problem.start());
-    let rows = system.rows_per_point;
     let estimator = if noise.is_some() { Estimator::Wls } else { Estimator::Ols };
     let weights = Weights::for_problem(&problem, estimator)?;
     let jacobians = problem.manipulator_jacobians(&c.after);
+    // The covariance blocks are in the weights: the problem is done with.
+    drop(problem);
     let per = kind.rows();
     let layout = NoiseLayout::of_points(jacobians, per, weights.blocks());
-    let expected = residual_design(&system.h, &weights, &layout, joints)?;
-    let samples: Vec<CovarianceSample> = expected
-        .into_iter()
-        .enumerate()
-        .map(|(k, design)| {
-            let r = system.y.rows(k * rows, rows);
-            CovarianceSample { s: r * r.transpose(), dof: 1.0, design }
-        })
-        .collect();
+    let samples = residual_samples(&system.h, &system.y, &weights, &layout, joints)?;
+    // The fit needs the packed samples alone.
+    drop((system, weights, layout));
     Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), MeasurementClass::of_points(per), previous)?)
 }
 

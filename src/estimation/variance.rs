@@ -45,6 +45,190 @@ pub struct CovarianceSample {
     pub design: Vec<DMatrix<f64>>,
 }
 
+/// One observed covariance as [`fit_components`] reads it: `S_k` and the designs `D_c,k`,
+/// each `b x b` column-major, the designs one after the other.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SampleView<'a> {
+    /// Rows of the block, `b`.
+    pub b: usize,
+    /// Degrees of freedom `nu_k`.
+    pub dof: f64,
+    /// `S_k`.
+    pub s: &'a [f64],
+    /// `D_c,k` of every component, in order.
+    pub design: &'a [f64],
+}
+
+impl<'a> SampleView<'a> {
+    /// Each `D_c,k`, in order.
+    fn designs(&self) -> std::slice::ChunksExact<'a, f64> {
+        self.design.chunks_exact((self.b * self.b).max(1))
+    }
+}
+
+/// What [`fit_components`] fits: observed covariances `S_k` with the designs of their
+/// expectation `E[S_k] = sum_c theta_c D_c,k`, read one at a time ([`SampleView`]) so that
+/// they can be held packed ([`ResidualSamples`]).
+pub(crate) trait Samples: Sync {
+    /// The number of samples.
+    fn count(&self) -> usize;
+    /// The number of components `m`.
+    fn components(&self) -> usize;
+    /// Entries of every `S_k`, `sum_k b_k^2`.
+    fn entries(&self) -> usize;
+    /// Sample `k`, unpacked into `scratch` where it is not held whole.
+    fn view<'s>(&'s self, k: usize, scratch: &'s mut Vec<f64>) -> SampleView<'s>;
+    /// Refused, said why, unless every sample has `m` designs of its size and finite values,
+    /// its degrees of freedom positive.
+    fn check(&self, m: usize) -> Result<(), String>;
+}
+
+impl Samples for [CovarianceSample] {
+    fn count(&self) -> usize {
+        self.len()
+    }
+
+    fn components(&self) -> usize {
+        self.first().map_or(0, |s| s.design.len())
+    }
+
+    fn entries(&self) -> usize {
+        self.iter().map(|s| s.s.len()).sum()
+    }
+
+    fn view<'s>(&'s self, k: usize, scratch: &'s mut Vec<f64>) -> SampleView<'s> {
+        let sample = &self[k];
+        scratch.clear();
+        for d in &sample.design {
+            scratch.extend_from_slice(d.as_slice());
+        }
+        SampleView { b: sample.s.nrows(), dof: sample.dof, s: sample.s.as_slice(), design: scratch }
+    }
+
+    fn check(&self, m: usize) -> Result<(), String> {
+        for (k, sample) in self.iter().enumerate() {
+            let b = sample.s.nrows();
+            if sample.design.len() != m
+                || sample.design.iter().any(|d| d.shape() != (b, b))
+                || sample.s.ncols() != b
+            {
+                return Err(format!(
+                    "covariance {k}: the design does not match its {b} x {b} matrix and {m} components"
+                ));
+            }
+            if sample.dof.is_nan()
+                || sample.dof <= 0.0
+                || sample.s.iter().chain(sample.design.iter().flatten()).any(|v| !v.is_finite())
+            {
+                return Err(format!("covariance {k}: expected finite values and degrees of freedom > 0"));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Samples for Vec<CovarianceSample> {
+    fn count(&self) -> usize {
+        self.as_slice().count()
+    }
+
+    fn components(&self) -> usize {
+        self.as_slice().components()
+    }
+
+    fn entries(&self) -> usize {
+        self.as_slice().entries()
+    }
+
+    fn view<'s>(&'s self, k: usize, scratch: &'s mut Vec<f64>) -> SampleView<'s> {
+        self.as_slice().view(k, scratch)
+    }
+
+    fn check(&self, m: usize) -> Result<(), String> {
+        self.as_slice().check(m)
+    }
+}
+
+/// The samples of feasible GLS held packed ([`residual_samples`]): each point's residual
+/// `r_k` (`S_k = r_k r_k^T`, `nu_k = 1`) and the upper triangle of each of its designs
+/// `D_c,k` (symmetric), column by column: `m b_k (b_k + 1) / 2 + b_k` numbers a point
+/// instead of `(m + 1) b_k^2` in matrices of their own.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ResidualSamples {
+    /// The points' rows.
+    blocks: super::Blocks,
+    /// `r` (`N_m`).
+    r: Vec<f64>,
+    /// Where each point's packed designs start, and their end.
+    starts: Vec<usize>,
+    /// The packed designs.
+    packed: Vec<f64>,
+    /// `m`.
+    components: usize,
+}
+
+/// Entries of the upper triangle of a `b x b` matrix.
+fn triangle(b: usize) -> usize {
+    b * (b + 1) / 2
+}
+
+impl ResidualSamples {
+    /// `D_c,k` of every component of point `k`, unpacked.
+    #[cfg(test)]
+    fn designs_of(&self, k: usize) -> Vec<DMatrix<f64>> {
+        let mut scratch = Vec::new();
+        let view = self.view(k, &mut scratch);
+        view.designs().map(|d| DMatrix::from_column_slice(view.b, view.b, d)).collect()
+    }
+}
+
+impl Samples for ResidualSamples {
+    fn count(&self) -> usize {
+        self.starts.len() - 1
+    }
+
+    fn components(&self) -> usize {
+        self.components
+    }
+
+    fn entries(&self) -> usize {
+        self.blocks.ranges(self.r.len()).map(|r| r.len() * r.len()).sum()
+    }
+
+    fn view<'s>(&'s self, k: usize, scratch: &'s mut Vec<f64>) -> SampleView<'s> {
+        let rows = self.blocks.range(k);
+        let b = rows.len();
+        let size = b * b;
+        // Every entry is written below: no clearing.
+        scratch.resize((self.components + 1) * size, 0.0);
+        let (design, s) = scratch.split_at_mut(self.components * size);
+        let packed = &self.packed[self.starts[k]..self.starts[k + 1]];
+        for (full, packed) in design.chunks_exact_mut(size).zip(packed.chunks_exact(triangle(b))) {
+            for col in 0..b {
+                let column = &packed[triangle(col)..triangle(col) + col + 1];
+                full[col * b..col * b + col + 1].copy_from_slice(column);
+                for (row, &v) in column.iter().enumerate().take(col) {
+                    full[row * b + col] = v;
+                }
+            }
+        }
+        let r = &self.r[rows];
+        for (col, s) in s.chunks_exact_mut(b).enumerate() {
+            for (s, r_row) in s.iter_mut().zip(r) {
+                *s = r_row * r[col];
+            }
+        }
+        SampleView { b, dof: 1.0, s, design }
+    }
+
+    fn check(&self, _m: usize) -> Result<(), String> {
+        match self.r.iter().chain(&self.packed).all(|v| v.is_finite()) {
+            true => Ok(()),
+            false => Err("the residuals or their expected covariances are not finite".into()),
+        }
+    }
+}
+
 /// The fitted components.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ComponentFit {
@@ -231,6 +415,179 @@ impl NoiseLayout {
     }
 }
 
+/// The samples of feasible GLS, streamed: each point's residual `r_k` (of `y`, laid out by
+/// `weights`' blocks) with the designs `D_c,k = (M V_c M^T)_kk` of [`residual_design`], packed
+/// ([`ResidualSamples`]). The same arithmetic point by point, without holding what
+/// [`residual_design`] holds for all points at once: `R` of `S H` reduced row block by row
+/// block (no whitened copy of `H`), `A_k = C (S_k H_k)^T S_k` of each point computed where it
+/// is used (no `p x N_m` matrix `A`), `N_c = sum_j A_j V_c,j A_j^T` accumulated task by task
+/// ([`streamed_middles`]). Points are shared between
+/// threads in tasks of [`POINTS_PER_TASK`], the tasks' sums added in order: the result does
+/// not depend on the number of threads.
+pub(crate) fn residual_samples(
+    h: &DMatrix<f64>,
+    y: &DVector<f64>,
+    weights: &super::Weights,
+    layout: &NoiseLayout,
+    joints: JointComponents,
+) -> Result<ResidualSamples, EstimationError> {
+    let blocks = weights.blocks();
+    let points = blocks.points(h.nrows());
+    if !layout.fits(blocks, h.nrows()) || y.len() != h.nrows() {
+        return Err(EstimationError::Dimensions(format!(
+            "{} Jacobians, {} row classes and {} residuals for the {points} points and {} rows of the residual design",
+            layout.jacobians.len(),
+            layout.classes.len(),
+            y.len(),
+            h.nrows()
+        )));
+    }
+    let c = spread(h, weights)?;
+    let middles = streamed_middles(h, weights, &c, layout, joints);
+    let m = middles.len();
+    let mut starts = vec![0];
+    for k in 0..points {
+        starts.push(starts[k] + m * triangle(blocks.range(k).len()));
+    }
+    let mut packed = vec![0.0; starts[points]];
+    let tasks: Vec<std::ops::Range<usize>> =
+        (0..points).step_by(POINTS_PER_TASK).map(|s| s..(s + POINTS_PER_TASK).min(points)).collect();
+    let mut slices = Vec::with_capacity(tasks.len());
+    let mut rest = packed.as_mut_slice();
+    for task in &tasks {
+        let (mine, others) = rest.split_at_mut(starts[task.end] - starts[task.start]);
+        slices.push(mine);
+        rest = others;
+    }
+    tasks.into_par_iter().zip(slices).for_each(|(task, out)| {
+        let rows = blocks.range(task.start).start..blocks.range(task.end - 1).end;
+        let ht = h.rows(rows.start, rows.len()).transpose();
+        let nht: Vec<DMatrix<f64>> = middles.iter().map(|n| n * &ht).collect();
+        for k in task.clone() {
+            let range = blocks.range(k);
+            let at = range.start - rows.start..range.end - rows.start;
+            let a_k = point_influence(h, weights, &c, k);
+            let terms = PointTerms {
+                ht: ht.columns(at.start, at.len()),
+                a: a_k.columns(0, a_k.ncols()),
+                jacobian: &layout.jacobians[k],
+                dof: layout.dof,
+                classes: &layout.classes[range.clone()],
+            };
+            let designs = terms.designs(nht.iter().map(|n| n.columns(at.start, at.len())), joints);
+            let b = range.len();
+            let out = &mut out[starts[k] - starts[task.start]..starts[k + 1] - starts[task.start]];
+            for (design, packed) in designs.iter().zip(out.chunks_exact_mut(triangle(b))) {
+                for col in 0..b {
+                    for row in 0..=col {
+                        packed[triangle(col) + row] = design[(row, col)];
+                    }
+                }
+            }
+        }
+    });
+    let r = y.as_slice().to_vec();
+    Ok(ResidualSamples { blocks: blocks.clone(), r, starts, packed, components: m })
+}
+
+/// `C = (H^T W H)^+ = pinv(R) pinv(R)^T`, `R` the triangular factor of `S H` reduced point by
+/// point (each point's rows whitened as they are copied).
+fn spread(h: &DMatrix<f64>, weights: &super::Weights) -> Result<DMatrix<f64>, EstimationError> {
+    let blocks = weights.blocks();
+    let (n, p) = h.shape();
+    let reduced = Reduced::reduce_rows(
+        blocks,
+        n,
+        p,
+        None,
+        None,
+        || (),
+        |_, k, rows| {
+            let r = blocks.range(k);
+            let b = r.len();
+            for j in 0..p {
+                rows[j * b..(j + 1) * b].copy_from_slice(&h.as_slice()[j * n + r.start..j * n + r.end]);
+            }
+            weights.apply_point(k, &mut rows[..p * b]);
+        },
+    );
+    let r_pinv = super::pseudo_inverse(&reduced.r().into_owned())?;
+    Ok(&r_pinv * r_pinv.transpose())
+}
+
+/// `A_k = C (S_k H_k)^T S_k` (`p x b_k`), point `k`'s columns of `A = (H^T W H)^+ H^T W`.
+fn point_influence(h: &DMatrix<f64>, weights: &super::Weights, c: &DMatrix<f64>, k: usize) -> DMatrix<f64> {
+    let range = weights.blocks().range(k);
+    let mut sh_k = h.rows(range.start, range.len()).into_owned();
+    weights.apply_point(k, sh_k.as_mut_slice());
+    let mut s_k = DMatrix::identity(range.len(), range.len());
+    weights.apply_point(k, s_k.as_mut_slice());
+    c * sh_k.transpose() * s_k
+}
+
+/// `N_c = sum_j A_j V_c,j A_j^T` of every component ([`design_middles`]'s), accumulated in
+/// tasks of [`POINTS_PER_TASK`] points, the tasks' sums added in order: of each task, `U_i`
+/// (`p x R`, a column per point `j` and pose `q` it sees, the column `i` of `Z_jq = A_j J_j^q`)
+/// gives `U_i U_i^T` for `sigma_i^2` and `U_i U_j^T + U_j U_i^T` for a covariance; a class,
+/// the Gram matrix of the task's columns of `A` on its rows.
+fn streamed_middles(
+    h: &DMatrix<f64>,
+    weights: &super::Weights,
+    c: &DMatrix<f64>,
+    layout: &NoiseLayout,
+    joints: JointComponents,
+) -> Vec<DMatrix<f64>> {
+    let (p, dof) = (h.ncols(), layout.dof);
+    let blocks = weights.blocks();
+    let points = blocks.points(h.nrows());
+    let entries = joints.entries(dof);
+    let m = entries.len() + layout.class_count;
+    let parts: Vec<Vec<DMatrix<f64>>> = (0..points.div_ceil(POINTS_PER_TASK))
+        .into_par_iter()
+        .map(|task| {
+            let task = task * POINTS_PER_TASK..((task + 1) * POINTS_PER_TASK).min(points);
+            // The task's `Z_jq` side by side (`p x` a column per pose seen and joint), and its
+            // columns of `A` by class: products of the task at once.
+            let influences: Vec<DMatrix<f64>> =
+                task.clone().map(|k| point_influence(h, weights, c, k)).collect();
+            let z: Vec<DMatrix<f64>> =
+                task.clone().zip(&influences).map(|(k, a)| a * &layout.jacobians[k]).collect();
+            let replicas: Vec<(usize, usize)> = (z.iter().enumerate())
+                .flat_map(|(t, z)| (0..z.ncols() / dof).map(move |q| (t, q * dof)))
+                .collect();
+            let u: Vec<DMatrix<f64>> = (0..dof)
+                .map(|i| DMatrix::from_fn(p, replicas.len(), |r, n| z[replicas[n].0][(r, replicas[n].1 + i)]))
+                .collect();
+            let mut sums: Vec<DMatrix<f64>> = (entries.iter())
+                .map(|&(i, j)| {
+                    let n = &u[i] * u[j].transpose();
+                    if i == j { n } else { &n + n.transpose() }
+                })
+                .collect();
+            for class in 0..layout.class_count {
+                let columns: Vec<(usize, usize)> = (task.clone().enumerate())
+                    .flat_map(|(t, k)| blocks.range(k).map(move |row| (t, row)))
+                    .filter(|&(_, row)| layout.classes[row] == class)
+                    .collect();
+                let selected = DMatrix::from_fn(p, columns.len(), |r, n| {
+                    let (t, row) = columns[n];
+                    influences[t][(r, row - blocks.range(task.start + t).start)]
+                });
+                sums.push(&selected * selected.transpose());
+            }
+            sums
+        })
+        .collect();
+    let mut middles = vec![DMatrix::zeros(p, p); m];
+    for part in parts {
+        for (sum, n) in middles.iter_mut().zip(part) {
+            *sum += n;
+        }
+    }
+    middles
+}
+
+#[cfg(test)]
 /// The design of feasible GLS: the expectation of each point's residual outer product
 /// `r_k r_k^T` per unit of each component, `D_c,k = (M V_c M^T)_kk`, for residuals `r = M e`
 /// of the weighted fit `x = (H^T W H)^+ H^T W y`, `M = I - H A`, `A = (H^T W H)^+ H^T W`.
@@ -296,6 +653,7 @@ pub(crate) fn residual_design(
     Ok(tasks.into_iter().flatten().collect())
 }
 
+#[cfg(test)]
 /// `A = (H^T W H)^+ H^T W` (`p x N_m`) of [`residual_design`], point by point:
 /// `A_k = C (S_k H_k)^T S_k`, `C = pinv(R) pinv(R)^T` from the triangular factor `R` of `S H`.
 fn influence(h: &DMatrix<f64>, weights: &super::Weights) -> Result<DMatrix<f64>, EstimationError> {
@@ -338,9 +696,11 @@ struct PointTerms<'a> {
 
 impl PointTerms<'_> {
     /// `D_c,k = V_c,k - P_k V_c,k - (P_k V_c,k)^T + (H_k N_c H_k^T + its transpose) / 2` of
-    /// every component, `nht` the `N_c H_k^T`, with `P_k = H_k A_k`: `V_c,k = sum_p J^p E_c
-    /// (J^p)^T` of a joint component (`P V = sum_p (P J^p) E_c (J^p)^T`), the identity on the
-    /// rows of its class for a measurement component.
+    /// every component, `nht` the `N_c H_k^T`, with `P_k = H_k A_k`: for a joint component
+    /// `(i, l)`, `V_c,k = sum_p (J^p_i (J^p_l)^T + J^p_l (J^p_i)^T)` (`J^p_i (J^p_i)^T` on the
+    /// diagonal) and `P V = sum_p ((P J^p)_i (J^p_l)^T + (P J^p)_l (J^p_i)^T)`, by rank-one
+    /// updates; for a measurement component, `V` the identity on the rows of its class and
+    /// `P V` the columns of `P` on them.
     fn designs<'n>(
         &self,
         nht: impl Iterator<Item = nalgebra::DMatrixView<'n, f64>>,
@@ -350,79 +710,41 @@ impl PointTerms<'_> {
         let h = self.ht.transpose();
         let mut p = DMatrix::zeros(b, b);
         p.gemm(1.0, &h, &self.a, 0.0);
-        let pj = &p * self.jacobian;
         let j = self.jacobian;
-        let components = joints.entries(self.dof);
-        let on = Rows { dof: self.dof, poses: j.ncols() / self.dof, classes: self.classes };
-        let mut hnh = DMatrix::zeros(b, b);
+        let pj = &p * j;
+        let (dof, poses) = (self.dof, j.ncols() / self.dof);
+        let components = joints.entries(dof);
+        let (mut hnh, mut v, mut pv) = (DMatrix::zeros(b, b), DMatrix::zeros(b, b), DMatrix::zeros(b, b));
         nht.enumerate()
             .map(|(c, nht)| {
                 hnh.gemm(1.0, &h, &nht, 0.0);
-                let (v, pv) = match components.get(c) {
-                    Some(&(i, k)) => on.terms(Component::Joint(i, k), j, &pj),
-                    None => on.terms(Component::Class(c - components.len()), j, &p),
-                };
+                v.fill(0.0);
+                pv.fill(0.0);
+                match components.get(c) {
+                    Some(&(i, l)) => {
+                        for q in 0..poses {
+                            let (ji, jl) = (j.column(q * dof + i), j.column(q * dof + l));
+                            v.ger(1.0, &ji, &jl, 1.0);
+                            pv.ger(1.0, &pj.column(q * dof + i), &jl, 1.0);
+                            if i != l {
+                                v.ger(1.0, &jl, &ji, 1.0);
+                                pv.ger(1.0, &pj.column(q * dof + l), &ji, 1.0);
+                            }
+                        }
+                    }
+                    None => {
+                        let class = c - components.len();
+                        for row in (0..b).filter(|&row| self.classes[row] == class) {
+                            v[(row, row)] = 1.0;
+                            pv.column_mut(row).copy_from(&p.column(row));
+                        }
+                    }
+                }
                 DMatrix::from_fn(b, b, |r, s| {
-                    v(r, s) - pv(r, s) - pv(s, r) + (hnh[(r, s)] + hnh[(s, r)]) / 2.0
+                    v[(r, s)] - pv[(r, s)] - pv[(s, r)] + (hnh[(r, s)] + hnh[(s, r)]) / 2.0
                 })
             })
             .collect()
-    }
-}
-
-/// A component of [`block_noise_design`], as [`PointTerms::designs`] builds its terms.
-#[derive(Clone, Copy)]
-enum Component {
-    /// Entry `(i, k)` of `Sigma_q`: `V = sum_p J^p E_ik (J^p)^T`.
-    Joint(usize, usize),
-    /// The identity on the rows of a measurement class.
-    Class(usize),
-}
-
-/// A point's rows as [`Component::terms`] reads them: `P` poses of `dof` joints side by side
-/// in `J`, and each row's class.
-#[derive(Clone, Copy)]
-struct Rows<'a> {
-    dof: usize,
-    poses: usize,
-    classes: &'a [usize],
-}
-
-impl<'a> Rows<'a> {
-    /// Entry `(r, s)` of `V` and of `P V` of `component`, from `J` and `m`: `P J` for a joint
-    /// component, `P` for a class.
-    fn terms<'m>(
-        self,
-        component: Component,
-        j: &'m DMatrix<f64>,
-        m: &'m DMatrix<f64>,
-    ) -> (impl Fn(usize, usize) -> f64 + 'm, impl Fn(usize, usize) -> f64 + 'm)
-    where
-        'a: 'm,
-    {
-        let (dof, poses, classes) = (self.dof, self.poses, self.classes);
-        // sum_p x[(r, p dof + i)] j[(s, p dof + k)] (+ the same with i and k swapped).
-        let joint = move |x: &DMatrix<f64>, r: usize, s: usize, i: usize, k: usize| -> f64 {
-            let one = |i: usize, k: usize| {
-                (0..poses).map(|p| x[(r, p * dof + i)] * j[(s, p * dof + k)]).sum::<f64>()
-            };
-            if i == k { one(i, i) } else { one(i, k) + one(k, i) }
-        };
-        let v = move |r: usize, s: usize| match component {
-            Component::Joint(i, k) => joint(j, r, s, i, k),
-            Component::Class(c) => f64::from(u8::from(r == s && classes[s] == c)),
-        };
-        let pv = move |r: usize, s: usize| match component {
-            Component::Joint(i, k) => joint(m, r, s, i, k),
-            Component::Class(c) => {
-                if classes[s] == c {
-                    m[(r, s)]
-                } else {
-                    0.0
-                }
-            }
-        };
-        (v, pv)
     }
 }
 
@@ -430,6 +752,7 @@ impl<'a> Rows<'a> {
 /// product, are the same on any number of threads.
 const POINTS_PER_TASK: usize = 64;
 
+#[cfg(test)]
 /// `N_c = sum_j A_j V_c,j A_j^T` of every component of [`residual_design`], from `A`
 /// (`p x N_m`, point `j`'s columns `A_j`): for joint components through `U_i` (`R x p`, a row
 /// per point `j` and pose `q` it sees, the column `i` of `Z_jq = A_j J_j^q`), `N_ii = U_i^T U_i`,
@@ -483,33 +806,17 @@ fn design_middles(
 /// so these weights are the inverse covariance of the observations, and `Cov(theta) = F^-1`
 /// with `F = A^T A`, `A` the weighted design (the Fisher information).
 pub(crate) fn fit_components(
-    samples: &[CovarianceSample],
+    samples: &(impl Samples + ?Sized),
     constrained: &[bool],
     start: Option<&DVector<f64>>,
 ) -> Result<ComponentFit, EstimationError> {
     let m = constrained.len();
     let bad = |s: String| Err(EstimationError::Noise(s));
-    if samples.is_empty() {
+    if samples.count() == 0 {
         return bad("no covariances to fit the variance components to".into());
     }
-    for (k, sample) in samples.iter().enumerate() {
-        let b = sample.s.nrows();
-        if sample.design.len() != m
-            || sample.design.iter().any(|d| d.shape() != (b, b))
-            || sample.s.ncols() != b
-        {
-            return bad(format!(
-                "covariance {k}: the design does not match its {b} x {b} matrix and {m} components"
-            ));
-        }
-        if sample.dof.is_nan()
-            || sample.dof <= 0.0
-            || sample.s.iter().chain(sample.design.iter().flatten()).any(|v| !v.is_finite())
-        {
-            return bad(format!("covariance {k}: expected finite values and degrees of freedom > 0"));
-        }
-    }
-    let rows: usize = samples.iter().map(|s| s.s.len()).sum();
+    samples.check(m).map_err(EstimationError::Noise)?;
+    let rows = samples.entries();
     if rows < m {
         return bad(format!("{rows} covariance entries cannot determine {m} components"));
     }
@@ -563,15 +870,20 @@ pub(crate) fn fit_components(
 /// The largest fitted entries `|f_k sum_c theta_c D_c,k|` of the unweighted system, of the
 /// components `change` and of `theta`, in one pass over the samples (a maximum: the same on
 /// any number of threads).
-fn largest_fitted(samples: &[CovarianceSample], change: &DVector<f64>, theta: &DVector<f64>) -> (f64, f64) {
-    let largest = |(u, v): &mut (Vec<f64>, Vec<f64>), sample: &CovarianceSample| {
+fn largest_fitted(
+    samples: &(impl Samples + ?Sized),
+    change: &DVector<f64>,
+    theta: &DVector<f64>,
+) -> (f64, f64) {
+    let largest = |(u, v, scratch): &mut (Vec<f64>, Vec<f64>, Vec<f64>), k: usize| {
+        let sample = samples.view(k, scratch);
         let f = (sample.dof / 2.0).sqrt();
         for w in [&mut *u, &mut *v] {
             w.clear();
             w.resize(sample.s.len(), 0.0);
         }
-        for ((d, c), t) in sample.design.iter().zip(change.iter()).zip(theta.iter()) {
-            for ((u, v), d) in u.iter_mut().zip(v.iter_mut()).zip(d.as_slice()) {
+        for ((d, c), t) in sample.designs().zip(change.iter()).zip(theta.iter()) {
+            for ((u, v), d) in u.iter_mut().zip(v.iter_mut()).zip(d) {
                 *u += d * c;
                 *v += d * t;
             }
@@ -579,9 +891,9 @@ fn largest_fitted(samples: &[CovarianceSample], change: &DVector<f64>, theta: &D
         let most = |w: &[f64]| w.iter().fold(0.0_f64, |a, w| a.max((w * f).abs()));
         (most(u), most(v))
     };
-    samples
-        .par_iter()
-        .map_init(|| (Vec::new(), Vec::new()), largest)
+    (0..samples.count())
+        .into_par_iter()
+        .map_init(|| (Vec::new(), Vec::new(), Vec::new()), largest)
         .reduce(|| (0.0, 0.0), |a, b| (a.0.max(b.0), a.1.max(b.1)))
 }
 
@@ -600,15 +912,15 @@ const SAMPLES_PER_TASK: usize = 64;
 /// `L_k L_k^T = Sigma_k = sum_c theta_c D_c,k` (the identity without `theta`). Its entries
 /// are Frobenius products, `<L^-1 X L^-T, L^-1 Y L^-T> = tr(P X P Y)` with `P = Sigma_k^-1`
 /// ([`add_sample`]): one product `P X` per matrix of a sample, never the rows themselves.
-fn weighted_gram(samples: &[CovarianceSample], theta: Option<&DVector<f64>>) -> DMatrix<f64> {
-    let m = samples[0].design.len();
-    let parts: Vec<DMatrix<f64>> = samples
-        .par_chunks(SAMPLES_PER_TASK)
-        .map(|chunk| {
+fn weighted_gram(samples: &(impl Samples + ?Sized), theta: Option<&DVector<f64>>) -> DMatrix<f64> {
+    let (n, m) = (samples.count(), samples.components());
+    let parts: Vec<DMatrix<f64>> = (0..n.div_ceil(SAMPLES_PER_TASK))
+        .into_par_iter()
+        .map(|task| {
             let mut gram = DMatrix::zeros(m + 1, m + 1);
-            let mut scratch = Vec::new();
-            for sample in chunk {
-                add_sample(sample, theta, &mut gram, &mut scratch);
+            let (mut unpacked, mut scratch) = (Vec::new(), Vec::new());
+            for k in task * SAMPLES_PER_TASK..((task + 1) * SAMPLES_PER_TASK).min(n) {
+                add_sample(samples.view(k, &mut unpacked), theta, &mut gram, &mut scratch);
             }
             gram
         })
@@ -620,12 +932,12 @@ fn weighted_gram(samples: &[CovarianceSample], theta: Option<&DVector<f64>>) -> 
 /// and its `S`. Blocks of 3, 6, 9 and 12 rows (one to four markers, a pose) are worked on the
 /// stack, the products kept in `scratch`, reused from sample to sample: no allocation.
 fn add_sample(
-    sample: &CovarianceSample,
+    sample: SampleView<'_>,
     theta: Option<&DVector<f64>>,
     gram: &mut DMatrix<f64>,
     scratch: &mut Vec<f64>,
 ) {
-    match sample.s.nrows() {
+    match sample.b {
         3 => add_sized(Const::<3>, sample, theta, gram, scratch),
         6 => add_sized(Const::<6>, sample, theta, gram, scratch),
         9 => add_sized(Const::<9>, sample, theta, gram, scratch),
@@ -638,7 +950,7 @@ fn add_sample(
 /// `scratch` (`tr(A C) = sum_rs A_rs (C^T)_rs`), `P` from [`precision`].
 fn add_sized<D: Dim>(
     d: D,
-    sample: &CovarianceSample,
+    sample: SampleView<'_>,
     theta: Option<&DVector<f64>>,
     gram: &mut DMatrix<f64>,
     scratch: &mut Vec<f64>,
@@ -647,15 +959,15 @@ fn add_sized<D: Dim>(
 {
     let b = d.value();
     let size = b * b;
-    let count = sample.design.len() + 1;
+    let count = sample.design.len() / size + 1;
     scratch.resize(2 * count * size, 0.0);
     let (products, transposes) = scratch.split_at_mut(count * size);
-    let matrices = || sample.design.iter().chain([&sample.s]);
+    let matrices = || sample.designs().chain([sample.s]);
     let precision = theta.map(|t| precision(d, sample, t));
     for ((x, product), transpose) in
         matrices().zip(products.chunks_exact_mut(size)).zip(transposes.chunks_exact_mut(size))
     {
-        let x = OMatrix::<f64, D, D>::from_column_slice_generic(d, d, x.as_slice());
+        let x = OMatrix::<f64, D, D>::from_column_slice_generic(d, d, x);
         let px = match &precision {
             Some(p) => p * x,
             None => x,
@@ -810,7 +1122,7 @@ impl NoiseEstimate {
     /// the reweighting starts from `start`'s components if given (a previous round of feasible
     /// GLS), else from the unweighted fit.
     pub(crate) fn fit(
-        samples: &[CovarianceSample],
+        samples: &(impl Samples + ?Sized),
         joints: JointComponents,
         dof: usize,
         measurement: Vec<MeasurementClass>,
@@ -935,18 +1247,19 @@ impl NoiseEstimate {
 /// `1e-10, 1e-6, 1e-3, 1` times the mean variance (the larger of `Sigma`'s and `S`'s) added to
 /// its diagonal that leaves it positive definite, so that a component at zero cannot make it
 /// singular (`I` over the mean variance if none does), by its Cholesky factorisation.
-fn precision<D: Dim>(d: D, sample: &CovarianceSample, theta: &DVector<f64>) -> OMatrix<f64, D, D>
+fn precision<D: Dim>(d: D, sample: SampleView<'_>, theta: &DVector<f64>) -> OMatrix<f64, D, D>
 where
     DefaultAllocator: Allocator<D, D> + Allocator<D>,
 {
     let b = d.value();
     let mut sigma = OMatrix::<f64, D, D>::zeros_generic(d, d);
-    for (x, t) in sample.design.iter().zip(theta.iter()) {
-        for (s, x) in sigma.as_mut_slice().iter_mut().zip(x.as_slice()) {
+    for (x, t) in sample.designs().zip(theta.iter()) {
+        for (s, x) in sigma.as_mut_slice().iter_mut().zip(x) {
             *s += x * t;
         }
     }
-    let trace = (sigma.trace() / b as f64).max(sample.s.trace() / b as f64).max(f64::MIN_POSITIVE);
+    let s_trace: f64 = (0..b).map(|i| sample.s[i * b + i]).sum();
+    let trace = (sigma.trace() / b as f64).max(s_trace / b as f64).max(f64::MIN_POSITIVE);
     for ridge in [1e-10, 1e-6, 1e-3, 1.0] {
         let mut regular = sigma.clone();
         for i in 0..b {
@@ -1251,8 +1564,9 @@ mod tests {
             DVector::from_fn(7, |c, _| f64::from(u8::from(c == 0))),
         ] {
             let (mut fixed, mut general) = (DMatrix::zeros(8, 8), DMatrix::zeros(8, 8));
-            let mut scratch = Vec::new();
-            for sample in &samples {
+            let (mut scratch, mut unpacked) = (Vec::new(), Vec::new());
+            for k in 0..samples.len() {
+                let sample = samples.view(k, &mut unpacked);
                 add_sample(sample, Some(&theta), &mut fixed, &mut scratch);
                 add_sized(Dyn(12), sample, Some(&theta), &mut general, &mut scratch);
             }
@@ -1277,8 +1591,10 @@ mod tests {
         let theta = DVector::from_vec(vec![0.2, 0.05, 0.3]);
         let constrained = [true; 3];
         let mut rows = Vec::new();
-        for sample in &samples {
-            let l = precision(Dyn(3), sample, &theta).cholesky().unwrap().l().transpose();
+        let mut unpacked = Vec::new();
+        for (k, sample) in samples.iter().enumerate() {
+            let view = samples.view(k, &mut unpacked);
+            let l = precision(Dyn(3), view, &theta).cholesky().unwrap().l().transpose();
             let f = (sample.dof / 2.0).sqrt();
             let weigh = |x: &DMatrix<f64>| (&l * x * l.transpose() * f).as_slice().to_vec();
             let columns: Vec<Vec<f64>> = sample.design.iter().chain([&sample.s]).map(weigh).collect();
@@ -1292,5 +1608,134 @@ mod tests {
         assert!((gram.clone() - system.transpose() * &system).amax() < 1e-10 * gram.amax());
         let got = nnls_gram(&gram, &constrained);
         assert!((&got - &want).amax() < 1e-9 * want.amax(), "{got} {want}");
+    }
+
+    /// The streamed, packed samples ([`residual_samples`]) hold the designs of the dense path
+    /// ([`residual_design`]) to `1e-10` of the largest entry, and `S_k = r_k r_k^T`: on points
+    /// of a pose's six rows with correlated weights (a full `Sigma_q` and joint variances, OLS
+    /// and Gauss-Markov) and on ragged blocks of three classes seeing one or two poses; and
+    /// the components fitted to them are the dense samples' to `1e-10`.
+    #[test]
+    fn the_streamed_samples_are_the_dense_designs() {
+        let check = |h: &DMatrix<f64>, weights: &super::super::Weights, layout: &NoiseLayout, joints| {
+            let n = h.nrows();
+            let y = DVector::from_fn(n, |i, _| ((i * 5) % 13) as f64 / 6.0 - 1.0);
+            let dense = residual_design(h, weights, layout, joints).unwrap();
+            let streamed = residual_samples(h, &y, weights, layout, joints).unwrap();
+            assert_eq!(streamed.count(), dense.len());
+            let mut samples = Vec::new();
+            let mut scratch = Vec::new();
+            for (k, want) in dense.into_iter().enumerate() {
+                let got = streamed.designs_of(k);
+                assert_eq!(got.len(), want.len());
+                for (c, (got, want)) in got.iter().zip(&want).enumerate() {
+                    assert!((got - want).amax() <= 1e-10 * want.amax().max(1e-300), "{k} {c}: {got} {want}");
+                }
+                let r = y.rows(weights.blocks().range(k).start, got[0].nrows());
+                let s = r * r.transpose();
+                assert_eq!(streamed.view(k, &mut scratch).s, s.as_slice());
+                samples.push(CovarianceSample { s, dof: 1.0, design: want });
+            }
+            let m = samples[0].design.len();
+            let constrained = vec![true; m];
+            let (want, got) = (
+                fit_components(&samples, &constrained, None).unwrap(),
+                fit_components(&streamed, &constrained, None).unwrap(),
+            );
+            for c in 0..m {
+                let scale = want.values.amax();
+                assert!(
+                    (got.values[c] - want.values[c]).abs() <= 1e-10 * scale,
+                    "{} {}",
+                    got.values,
+                    want.values
+                );
+                let se = want.standard_error(c);
+                assert!((got.standard_error(c) - se).abs() <= 1e-10 * se.max(1e-300));
+            }
+        };
+        // A pose's six rows a point, correlated weights.
+        let (points, rows, p, dof) = (2 * POINTS_PER_TASK + 3, 6, 4, 3);
+        let n = points * rows;
+        let h = DMatrix::from_fn(n, p, |i, j| {
+            ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j))
+        });
+        let mut v = DMatrix::zeros(n, rows);
+        for k in 0..points {
+            let b = DMatrix::from_fn(rows, rows, |i, j| (((k + 1) * (i + 2) * (j + 3)) % 7) as f64 / 7.0);
+            v.rows_mut(k * rows, rows).copy_from(&(&b * b.transpose() + DMatrix::identity(rows, rows) * 0.5));
+        }
+        let jacobians: Vec<DMatrix<f64>> = (0..points)
+            .map(|k| DMatrix::from_fn(rows, dof, |i, j| (((k + 2) * (i + 1) + 5 * j) % 9) as f64 / 4.0 - 1.0))
+            .collect();
+        for (per, joints) in [(3, JointComponents::Full), (6, JointComponents::Diagonal)] {
+            for estimator in [super::super::Estimator::Ols, super::super::Estimator::Wls] {
+                let weights = super::super::Weights::new(Some(&v), rows, estimator, true).unwrap();
+                let layout = NoiseLayout::of_points(jacobians.clone(), per, weights.blocks());
+                check(&h, &weights, &layout, joints);
+            }
+        }
+        // Ragged blocks of three classes, some rows seeing two poses.
+        let dof = 2;
+        let sizes: Vec<usize> = (0..POINTS_PER_TASK + 5).map(|k| 1 + (k * 5) % 6).collect();
+        let blocks = super::super::Blocks::from_sizes(sizes.clone());
+        let n: usize = sizes.iter().sum();
+        let h = DMatrix::from_fn(n, p, |i, j| {
+            ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j))
+        });
+        let jacobians: Vec<DMatrix<f64>> = (sizes.iter().enumerate())
+            .map(|(k, &b)| {
+                DMatrix::from_fn(b, (1 + k % 2) * dof, |i, j| {
+                    if j >= dof && i > 0 { 0.0 } else { (((k + 2) * (i + 1) + 5 * j) % 9) as f64 / 4.0 - 1.0 }
+                })
+            })
+            .collect();
+        let classes: Vec<usize> = (0..n).map(|r| (r * 7 / 3) % 3).collect();
+        let layout = NoiseLayout { jacobians, dof, classes, class_count: 3 };
+        let mut v = DMatrix::zeros(n, blocks.width());
+        for r in blocks.ranges(n) {
+            let b = r.len();
+            let m = DMatrix::from_fn(b, b, |i, j| ((r.start + i * 3 + j) % 5) as f64 / 5.0);
+            v.view_mut((r.start, 0), (b, b)).copy_from(&(&m * m.transpose() + DMatrix::identity(b, b)));
+        }
+        for estimator in [super::super::Estimator::Ols, super::super::Estimator::Wls] {
+            let weights =
+                super::super::Weights::of_blocks(Some(&v), blocks.clone(), estimator, true).unwrap();
+            check(&h, &weights, &layout, JointComponents::Diagonal);
+        }
+    }
+
+    /// The streamed samples and the components fitted to them are the same, to the bit, on
+    /// one thread and on two (tasks of fixed sizes, their sums added in order), with
+    /// Gauss-Markov weights and more points than two tasks take.
+    #[test]
+    fn the_streamed_fit_does_not_depend_on_the_threads() {
+        let (points, rows, p, dof) = (2 * POINTS_PER_TASK + 5, 12, 5, 3);
+        let n = points * rows;
+        let h = DMatrix::from_fn(n, p, |i, j| ((i * 13 + j * 7) % 17) as f64 / 8.0 - 1.0);
+        let y = DVector::from_fn(n, |i, _| ((i * 3) % 7) as f64 / 3.0 - 1.0);
+        let jacobians: Vec<DMatrix<f64>> = (0..points)
+            .map(|k| {
+                DMatrix::from_fn(rows, dof, |i, j| (((k + 3) * (i + 2) + 7 * j) % 11) as f64 / 5.0 - 1.0)
+            })
+            .collect();
+        let mut v = DMatrix::zeros(n, rows);
+        for (k, j) in jacobians.iter().enumerate() {
+            let jv = j * j.transpose() * 0.1;
+            v.rows_mut(k * rows, rows).copy_from(&(jv + DMatrix::identity(rows, rows)));
+        }
+        let weights = super::super::Weights::new(Some(&v), rows, super::super::Estimator::Wls, true).unwrap();
+        let run = || {
+            let layout = NoiseLayout::of_points(jacobians.clone(), 3, weights.blocks());
+            let samples = residual_samples(&h, &y, &weights, &layout, JointComponents::Full).unwrap();
+            let fit = fit_components(&samples, &[true, false, false, true, false, true, true], None).unwrap();
+            (samples, fit)
+        };
+        let on = |threads: usize| {
+            rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(run)
+        };
+        let (one, two) = (on(1), on(2));
+        assert!(one.0 == two.0 && one.1 == two.1, "{} {}", one.1.values, two.1.values);
+        assert!(one.1.iterations > 1, "reweighted: {}", one.1.iterations);
     }
 }

@@ -2,7 +2,7 @@
 //! of observation estimated from the calibration's own residuals, as
 //! [`calibrate_feasible`](crate::calibration::calibrate_feasible) does for marker files, by
 //! the same rounds ([`reweighted`]) and the same fit of variance components
-//! ([`residual_design`], [`NoiseEstimate`]).
+//! ([`residual_samples`], [`NoiseEstimate`]).
 //!
 //! Each pose's observations are one block, `V_k = sum_j G_kj Sigma_q G_kj^T + Sigma_m,k`, as
 //! the [module](super) builds them: `G_kj = g_kj^T J_j` the derivatives of the block's rows by
@@ -15,7 +15,7 @@ use super::{KindCalibration, KindData, KindOptions, KindProblem, calibrate_kinds
 use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
-use crate::estimation::{CovarianceSample, Estimator, NoiseEstimate, Residuals, Weights, residual_design};
+use crate::estimation::{Estimator, NoiseEstimate, Residuals, Weights, residual_samples};
 use crate::model::{RobotModel, Selection};
 use nalgebra::DMatrix;
 
@@ -107,13 +107,7 @@ fn residual_noise(
     let y = problem.evaluate(&problem.start(), Some(&mut h));
     let (layout, classes) = problem.noise_layout();
     let dof = layout.dof;
-    let expected = residual_design(&h, &weights, &layout, joints)?;
-    let blocks = problem.blocks();
-    let samples: Vec<CovarianceSample> = (expected.into_iter().enumerate())
-        .map(|(k, design)| {
-            let r = y.rows(blocks.range(k).start, blocks.range(k).len());
-            CovarianceSample { s: r * r.transpose(), dof: 1.0, design }
-        })
-        .collect();
+    let samples = residual_samples(&h, &y, &weights, &layout, joints)?;
+    drop((h, y, weights, layout));
     Ok(NoiseEstimate::fit(&samples, joints, dof, classes, previous)?)
 }

@@ -898,13 +898,13 @@ impl<'a> KindProblem<'a> {
         self.data.observations.iter().map(row).collect()
     }
 
-    /// How the noise enters the rows, for feasible GLS ([`residual_design`]): each pose
+    /// How the noise enters the rows, for feasible GLS ([`residual_samples`]): each pose
     /// block's joint-noise Jacobian, its observations' rows `g_kj^T J_kj` by the distinct poses
     /// `j` they see, side by side (a distance between two poses sees both), at the problem's
     /// values; each observation's measurement class among those present, which are returned
     /// in order ([`Observation::class`]).
     ///
-    /// [`residual_design`]: crate::estimation::residual_design
+    /// [`residual_samples`]: crate::estimation::residual_samples
     pub(crate) fn noise_layout(&self) -> (NoiseLayout, Vec<MeasurementClass>) {
         let observations = &self.data.observations;
         let mut present: Vec<MeasurementClass> = observations.iter().map(Observation::class).collect();

@@ -1,7 +1,7 @@
 //! Feasible GLS of a tree's views: the tree's joint variances and the views' position and
 //! rotation variances estimated from the calibration's own residuals, by the rounds and the
 //! fit of variance components of marker and observation files ([`reweighted`],
-//! [`residual_design`], [`NoiseEstimate`]). Each view is one block,
+//! [`residual_samples`], [`NoiseEstimate`]). Each view is one block,
 //! `V_k = G_k Sigma_q G_k^T + diag(sigma_p^2 I, sigma_r^2 I)`, `G_k` the derivative of its six
 //! rows by the tree's joints (both its frames moved by their branches).
 
@@ -9,9 +9,7 @@ use super::{TreeCalibration, TreeData, TreeOptions, TreeParams, TreeProblem, cal
 use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
-use crate::estimation::{
-    CovarianceSample, Estimator, MeasurementClass, NoiseEstimate, Residuals, Weights, residual_design,
-};
+use crate::estimation::{Estimator, MeasurementClass, NoiseEstimate, Residuals, Weights, residual_samples};
 use crate::model::RobotTree;
 use nalgebra::DMatrix;
 
@@ -95,14 +93,8 @@ fn residual_noise(
     let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
     let y = problem.evaluate(&problem.start(), Some(&mut h));
     let (layout, classes) = problem.noise_layout(dof);
-    let expected = residual_design(&h, &weights, &layout, joints)?;
-    let rows = data.rows();
-    let samples: Vec<CovarianceSample> = (expected.into_iter().enumerate())
-        .map(|(k, design)| {
-            let r = y.rows(k * rows, rows);
-            CovarianceSample { s: r * r.transpose(), dof: 1.0, design }
-        })
-        .collect();
+    let samples = residual_samples(&h, &y, &weights, &layout, joints)?;
+    drop((h, y, weights, layout));
     Ok(NoiseEstimate::fit(&samples, joints, dof, classes, previous)?)
 }
 
