@@ -1194,7 +1194,7 @@ pub fn prior_scale_figure(
         for (i, (label, curve)) in classes.iter().enumerate() {
             // Blue and vermillion are the one-scale curve and the chosen circle's.
             let c = colour(2 + i);
-            let dashed = DashedLineSeries::new(curve.clone(), 6, 4, c.stroke_width(2).into());
+            let dashed = DashedLineSeries::new(curve.clone(), 6, 4, c.stroke_width(2));
             chart
                 .draw_series(dashed)
                 .map_err(|e| e.to_string())?
