@@ -192,6 +192,17 @@ pub enum Warning {
     /// The noise given disagrees with the residuals by more than a factor
     /// [`NOISE_FACTOR`](super::noise_check::NOISE_FACTOR).
     NoiseDisagrees(NoiseDisagrees),
+    /// The gauge found at the estimate kept other parameters than the start's
+    /// (the module `calibration::regauge`): the fit was made again from the estimate with it. The
+    /// estimates are those of the estimate's gauge; from another start they would be the same.
+    GaugeMoved {
+        /// Held at the start, estimated (the estimate identifies them).
+        freed: Vec<String>,
+        /// Estimated at the start, held (the estimate cannot tell them from the others).
+        held: Vec<String>,
+        /// The gauges found after the start's.
+        rounds: usize,
+    },
 }
 
 /// What the residuals say of the noise given ([`super::noise_check`]).
@@ -241,6 +252,8 @@ pub enum Cause {
     SigmaIgnored,
     /// [`Warning::NoiseDisagrees`].
     NoiseDisagrees,
+    /// [`Warning::GaugeMoved`].
+    GaugeMoved,
 }
 
 impl Warning {
@@ -254,6 +267,7 @@ impl Warning {
             Self::NoiseUnsettled { .. } => Cause::NoiseUnsettled,
             Self::SigmaIgnored => Cause::SigmaIgnored,
             Self::NoiseDisagrees(_) => Cause::NoiseDisagrees,
+            Self::GaugeMoved { .. } => Cause::GaugeMoved,
         }
     }
 
@@ -292,6 +306,7 @@ impl Warning {
             }
             Self::SigmaIgnored => "feasible GLS ignored the sigma column".to_string(),
             Self::NoiseDisagrees(n) => format!("the residuals say {}", n.factors()),
+            Self::GaugeMoved { .. } => "the gauge found again at the estimate".to_string(),
         }
     }
 
@@ -372,6 +387,17 @@ impl fmt::Display for Warning {
                 n.cv_given,
                 n.cv_estimated
             ),
+            Self::GaugeMoved { freed, held, rounds } => {
+                let list = |v: &[String]| if v.is_empty() { "nothing".to_string() } else { v.join(", ") };
+                write!(
+                    f,
+                    "the gauge found at the estimate is not the start's: estimated {} and held {} that the start's \
+                     gauge held and estimated ({rounds} fit(s) again from the estimate); the estimates no longer \
+                     depend on the start",
+                    list(freed),
+                    list(held)
+                )
+            }
         }
     }
 }

@@ -20,6 +20,7 @@ pub mod evaluation;
 pub mod kinds;
 pub mod noise_check;
 pub mod prior_scale;
+mod regauge;
 mod repeatability;
 pub mod robust;
 pub mod selection;
@@ -624,16 +625,12 @@ fn calibrate_checking(
         };
         return finish(start.stages(data, fit), &base_problem);
     }
-    let Identified { kept, mut fixed, start: linearised, prior, data_alone } =
-        identifiable(&base_problem, &weights, &asked, &before, data, &options.gauge, Some(&prior_sd))?;
+    let gauged = fit_gauged(&base_problem, &weights, (&asked, &before), data, (options, &prior_sd))?;
+    let (kept, refined, robust, after, change) =
+        (gauged.gauge.kept, gauged.refined, gauged.fitted, gauged.after, gauged.change);
+    let mut fixed = gauged.gauge.fixed;
     fixed.extend(held_by_flags);
-    let problem = base_problem.reselect(&kept, before.clone())?;
-    let (mut refined, robust) =
-        robust::fit(&problem, &weights, linearised, &options.refine, prior.as_ref(), options.loss)?;
-    if let Some(data_alone) = data_alone {
-        refined.estimate.diagnostics = data_alone;
-    }
-    let after = problem.full(&refined.estimate.x);
+    let problem = base_problem.reselect(&kept, after.clone())?;
     let noise_warning = match (&noise, options.loss) {
         (Some(given), Loss::Squared) if check_noise => {
             let kept_sd: Vec<f64> = kept.indices().iter().map(|&i| prior_sd[i]).collect();
@@ -644,7 +641,105 @@ fn calibrate_checking(
     let fit = Fit { params, before, after, refined, fixed, noise, prior_sd, robust };
     let mut calibration = finish(start.stages(data, fit), &base_problem)?;
     calibration.warnings.extend(noise_warning);
+    calibration.warnings.extend(change);
     Ok(calibration)
+}
+
+/// An [`Identified`] as the fit loop of [`fit_gauged`] takes it: the positions in what is
+/// asked for of the parameters it keeps, its start's system until the first fit takes it.
+struct Marked {
+    kept: Selection,
+    columns: Vec<usize>,
+    fixed: Vec<Held>,
+    start: Option<crate::estimation::Linearisation>,
+    prior: Option<PriorRows>,
+    data_alone: Option<crate::estimation::Diagnostics>,
+}
+
+impl Marked {
+    fn new(id: Identified, asked: &Selection) -> Self {
+        let columns = (asked.indices().iter().enumerate())
+            .filter(|&(_, &i)| id.kept.column(i).is_some())
+            .map(|(p, _)| p)
+            .collect();
+        let Identified { kept, fixed, start, prior, data_alone } = id;
+        Self { kept, columns, fixed, start: Some(start), prior, data_alone }
+    }
+}
+
+impl regauge::Kept for Marked {
+    fn kept(&self) -> &[usize] {
+        &self.columns
+    }
+
+    /// A combination of no other term is a zero column; an unloaded response has none.
+    fn unmoved(&self) -> Vec<&str> {
+        (self.fixed.iter())
+            .filter_map(|h| match h {
+                Held::Confounded { parameter, terms, .. } if terms.is_empty() => Some(parameter.as_str()),
+                Held::Unloaded { parameter } => Some(parameter.as_str()),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+/// What [`fit_gauged`] gives: the last gauge, its fit (the data's identifiability alone where
+/// priors were given), the robust fit's record, the values after, what the gauge changed.
+struct MarkerFit {
+    gauge: Marked,
+    refined: Refined,
+    fitted: Option<RobustFit>,
+    after: Vec<f64>,
+    change: Option<Warning>,
+}
+
+/// The fit of `asked` from `before` on `base_problem` weighted by `weights`, the gauge found
+/// ([`identifiable`]) at "before", then again at the estimate ([`regauge`]).
+fn fit_gauged(
+    base_problem: &PointProblem<'_>,
+    weights: &Weights,
+    (asked, before): (&Selection, &[f64]),
+    data: &Measurements,
+    (options, prior_sd): (&Options, &[f64]),
+) -> Result<MarkerFit, CalibrationError> {
+    let params = base_problem.params();
+    let gauge_at = |at: &[f64]| -> Result<Marked, CalibrationError> {
+        let mut full = before.to_vec();
+        asked.indices().iter().zip(at).for_each(|(&i, &v)| full[i] = v);
+        let id = identifiable(base_problem, weights, asked, &full, data, &options.gauge, Some(prior_sd))?;
+        Ok(Marked::new(id, asked))
+    };
+    let x0: Vec<f64> = asked.indices().iter().map(|&i| before[i]).collect();
+    let first = gauge_at(&x0)?;
+    let gauge_at = |at: &[f64]| -> Result<(Marked, f64), CalibrationError> {
+        let g = gauge_at(at)?;
+        let weakest =
+            regauge::weakest(g.start.as_ref().expect("a gauge found, not fitted"), g.prior.as_ref());
+        Ok((g, weakest))
+    };
+    let fit = |g: &mut Marked, at: &[f64], steps: usize| -> Result<(Refined, _), CalibrationError> {
+        let mut full = before.to_vec();
+        asked.indices().iter().zip(at).for_each(|(&i, &v)| full[i] = v);
+        let problem = base_problem.reselect(&g.kept, full)?;
+        let start = match g.start.take() {
+            Some(start) => start,
+            None => linearise(&problem, weights, problem.start())?,
+        };
+        let refine = RefineOptions { max_iterations: steps, ..options.refine };
+        let (mut refined, robust) =
+            robust::fit(&problem, weights, start, &refine, g.prior.as_ref(), options.loss)?;
+        if let Some(data_alone) = g.data_alone.clone() {
+            refined.estimate.diagnostics = data_alone;
+        }
+        let after = problem.full(&refined.estimate.x);
+        Ok((refined, (robust, after)))
+    };
+    let names: Vec<String> = asked.indices().iter().map(|&i| params.get(i).name.clone()).collect();
+    let limit = options.refine.max_iterations;
+    let r = regauge::fit_regauged((&x0, &names), first, limit, fit, gauge_at)?;
+    let (fitted, after) = r.fitted;
+    Ok(MarkerFit { gauge: r.gauge, refined: r.refined, fitted, after, change: r.change })
 }
 
 /// What [`identifiable`] finds: the parameters the poses identify, why the others are held,

@@ -1136,7 +1136,9 @@ pub fn selection_figure(
 /// marker error after calibration (mm) against the scale `s` multiplying every standard
 /// deviation of the preset, on a log axis ticked at the scales tried, the chosen scale (the
 /// lowest RMS, ties to the smaller `s`) circled. Scales whose calibration failed (no finite RMS)
-/// are left out.
+/// are left out. By the marginal likelihood with a scale per class (`auto-ml:PRESET:classes`),
+/// each class's profile log evidence `log p(y | s_c, s_others)` (less the largest of the scales
+/// per class) dashed beside the one-scale curve, named with its scale.
 pub fn prior_scale_figure(
     scale: &crate::calibration::prior_scale::PriorScale,
 ) -> Result<(String, String), FigureError> {
@@ -1153,9 +1155,19 @@ pub fn prior_scale_figure(
     if points.is_empty() {
         return Err(error(&name, "no scale has a finite score".into()));
     }
+    // `auto-ml:PRESET:classes`: each class's profile, the others at their scales.
+    let classes: Vec<(String, Vec<(f64, f64)>)> = (scale.classes.iter())
+        .map(|c| {
+            let finite = (scale.scales.iter().zip(&c.log_evidence))
+                .filter(|(s, e)| **s > 0.0 && s.is_finite() && e.is_finite())
+                .map(|(&s, &e)| (s, e));
+            let label = format!("{} ({} parameters): s = {:.3}", c.class, c.parameters, c.scale);
+            (label, finite.collect())
+        })
+        .collect();
     let (x0, x1) = points.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.0), b.max(p.0)));
-    let (y0, y1) =
-        points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
+    let every = points.iter().chain(classes.iter().flat_map(|c| &c.1));
+    let (y0, y1) = every.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.1), b.max(p.1)));
     let pad = ((y1 - y0) * 0.15).max(1e-3 * y1.abs().max(1e-9));
     // The powers of 2 as ticks (the marginal likelihood's grid is finer).
     let ticks: Vec<f64> = points.iter().map(|p| p.0).filter(|s| s.log2().fract().abs() < 1e-9).collect();
@@ -1179,6 +1191,16 @@ pub fn prior_scale_figure(
         chart
             .draw_series(points.iter().map(|&p| Circle::new(p, 3, colour(0).filled())))
             .map_err(|e| e.to_string())?;
+        for (i, (label, curve)) in classes.iter().enumerate() {
+            // Blue and vermillion are the one-scale curve and the chosen circle's.
+            let c = colour(2 + i);
+            let dashed = DashedLineSeries::new(curve.clone(), 6, 4, c.stroke_width(2));
+            chart
+                .draw_series(dashed)
+                .map_err(|e| e.to_string())?
+                .label(label.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        }
         if let Some((&s, &rms)) = chosen.filter(|(s, r)| **s > 0.0 && r.is_finite()) {
             chart
                 .draw_series([Circle::new((s, rms), 8, colour(1).stroke_width(2))])

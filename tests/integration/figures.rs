@@ -240,6 +240,29 @@ fn the_prior_scale_curve_is_drawn_on_a_log_axis() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `--prior auto-ml:machined:classes` draws each class's profile log evidence beside the one
+/// scale's curve: one dashed curve per class (lengths, angles, offsets), each in its own
+/// colour of the palette and named with its scale in the legend.
+#[test]
+fn the_prior_scale_figure_has_a_curve_per_class() {
+    let sigmas = ["--sigma-mm", "0.01", "--joint-sigma-deg", "0.007,0.007,0.007,0.007,0.007,0.007"];
+    let (names, dir) =
+        figures_of("puma560", &[&sigmas[..], &["--prior", "auto-ml:machined:classes"]].concat());
+    assert!(names.contains(&"prior-scale.svg".to_string()), "{names:?}");
+    let svg = std::fs::read_to_string(dir.join("prior-scale.svg")).unwrap();
+    let text = words(&svg);
+    for class in ["lengths", "angles", "offsets"] {
+        assert!(text.lines().any(|l| l.starts_with(&format!("{class} (")) && l.contains("s = ")), "{text}");
+    }
+    // The one scale's curve in blue, each class's in a colour of its own after vermillion.
+    let palette = robocal::report::figures::PALETTE.map(|c| [c.0, c.1, c.2]);
+    let used = colours(&svg);
+    for (i, colour) in palette.iter().enumerate().filter(|&(i, _)| i != 1) {
+        assert!(used.contains(colour), "colour {i} {colour:?} not drawn: {used:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// The paper's first study, reduced (2 point sets x 2 runs, 100 test points), with its
 /// Table 1 rows.
 fn reduced_table1() -> robocal::simulation::Study {

@@ -989,6 +989,44 @@ fn a_draw_wire_converges_from_three_starts_to_one_estimate() {
     }
 }
 
+/// The draw-wire of [`draw_wire`] with its tool point started on the last joint's axis and
+/// off it: the "before" fit (the tool point and the fixed point, the robot nominal) takes both
+/// to one point 2.0 mm off the axis, where the gauge is found, so both hold the same parameters
+/// (the last joint's, which the tool point absorbs; the third joint's `d`, the second's along the
+/// parallel axis), the gauge found again at the estimate keeps as many as the start's (the start's
+/// choice stands, no [`Warning::GaugeMoved`](robocal::calibration::Warning)), and every
+/// estimate is within 1e-4 of its standard error from the other start's (the solver stops in the
+/// flat valley of `j5.theta` 1.3e-5 of its standard error apart).
+#[test]
+fn a_tool_point_started_on_the_axis_is_gauged_as_one_started_off_it() {
+    let (data, _) = draw_wire();
+    let model = puma();
+    let fit = |tool| calibrate_kinds(&model, &data, &KindOptions { tool, ..KindOptions::default() }).unwrap();
+    let tools = [Vector3::new(0.0, 0.0, 60.0), Vector3::new(2.0, 1.0, 60.0)];
+    let (on, off) = (fit(tools[0]), fit(tools[1]));
+    let moved = |c: &KindCalibration| {
+        c.warnings.iter().any(|w| matches!(w, robocal::calibration::Warning::GaugeMoved { .. }))
+    };
+    assert!(!moved(&on) && !moved(&off), "{:?}\n{:?}", on.warnings, off.warnings);
+    let held = |c: &KindCalibration| c.fixed.iter().map(|h| h.parameter().to_string()).collect::<Vec<_>>();
+    assert_eq!(held(&on), held(&off));
+    assert!(
+        held(&on).iter().any(|h| h == "j6.theta") && held(&on).iter().any(|h| h == "j3.d"),
+        "{:?}",
+        held(&on)
+    );
+    assert_eq!(on.refined.estimate.names, off.refined.estimate.names);
+    let se = off.refined.estimate.standard_errors();
+    for (k, name) in off.refined.estimate.names.iter().enumerate() {
+        // The tool point's parameters are its errors from the tool started at.
+        let from = |tool: Vector3<f64>| {
+            ["x", "y", "z"].iter().position(|a| *name == format!("marker1.{a}")).map_or(0.0, |i| tool[i])
+        };
+        let (a, b) = (on.refined.estimate.x[k] + from(tools[0]), off.refined.estimate.x[k] + from(tools[1]));
+        assert!((a - b).abs() < 1e-4 * se[k], "{name}: {a} from the axis, {b} off it, SE {}", se[k]);
+    }
+}
+
 /// A robust fit counts every step of every reweighting against the one step limit: on the
 /// draw-wire, Huber's loss with a limit of 30 stops at 30 steps in all, unconverged and said so.
 #[test]

@@ -1368,24 +1368,11 @@ pub fn calibrate_kinds(
     options: &KindOptions,
 ) -> Result<KindCalibration, CalibrationError> {
     let prepared = prepare(model, data, options)?;
-    let Started { base, weights, before, before_setup, linearised, gauged } =
-        start(&prepared, data, options)?;
-    let Gauged { identifiable, fixed, prior } = gauged;
+    let started = start(&prepared, data, options)?;
+    let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
+    let Fitted { refined: estimate, robust, fixed, after, after_setup, change } =
+        fit_gauged(&prepared, started, options)?;
     let fixed = prepared.every_held(fixed);
-    let (kept, kept_setup) = prepared.kept(&identifiable);
-    let problem = base.reselect(&kept, before.clone(), before_setup.clone(), kept_setup);
-    let prior = prior.map(|p| p.select(&identifiable));
-    let start = linearised.select(&identifiable);
-    let (estimate, robust) =
-        super::robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
-    // A pose's weight is every one of its observations'.
-    let robust = robust.map(|mut r| {
-        let blocks = problem.blocks();
-        r.weights = (0..r.weights.len()).flat_map(|k| vec![r.weights[k]; blocks.range(k).len()]).collect();
-        r
-    });
-    let (after, after_setup) = problem.full(&estimate.estimate.x);
-    drop(problem);
     let Prepared { registered, chains, params, probe, points, markers, setup, nothing, .. } = prepared;
     let calibrated_points = calibrated_points(&params, &after, &points);
     // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
@@ -1424,7 +1411,87 @@ pub fn calibrate_kinds(
         noise_settled: None,
     };
     scored(&mut calibration, data)?;
+    calibration.warnings.extend(change);
     Ok(calibration)
+}
+
+/// What [`fit_gauged`] gives: the fit (every step of every round in its history), the robust
+/// fit's record, what the last gauge held, the robot's and the set-up's values after, and what
+/// the gauge found at the estimate changed.
+struct Fitted {
+    refined: Refined,
+    robust: Option<RobustFit>,
+    fixed: Vec<Held>,
+    after: Vec<f64>,
+    after_setup: Vec<f64>,
+    change: Option<Warning>,
+}
+
+impl super::regauge::Kept for Gauged {
+    fn kept(&self) -> &[usize] {
+        &self.identifiable
+    }
+
+    fn unmoved(&self) -> Vec<&str> {
+        (self.fixed.iter())
+            .filter_map(|h| match h {
+                Held::Unmoved { parameter } => Some(parameter.as_str()),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+/// The fit of what `prepared` asks for from `started`, the gauge found again at the estimate
+/// ([`super::regauge`]): with the start's gauge from "before", then, while the gauge found at
+/// the estimate's settled point keeps other columns, with it from the estimate.
+fn fit_gauged(
+    prepared: &Prepared,
+    started: Started<'_>,
+    options: &KindOptions,
+) -> Result<Fitted, CalibrationError> {
+    let Started { base, weights, before, before_setup, linearised, gauged } = started;
+    let (asked, asked_setup) = (&prepared.asked, &prepared.asked_setup);
+    let whole = base.reselect(asked, before, before_setup, asked_setup.clone());
+    let x0: Vec<f64> = whole.start().iter().copied().collect();
+    let names = whole.names();
+    let mut first = Some(linearised);
+    type Out = (Option<RobustFit>, Vec<f64>, Vec<f64>);
+    let fit = |g: &mut Gauged, at: &[f64], steps: usize| -> Result<(Refined, Out), CalibrationError> {
+        let (full, full_setup) = whole.full(&DVector::from_column_slice(at));
+        let (kept, kept_setup) = prepared.kept(&g.identifiable);
+        let problem = base.reselect(&kept, full, full_setup, kept_setup);
+        let start = match first.take() {
+            Some(at_before) => at_before.select(&g.identifiable),
+            None => linearise(&problem, &weights, problem.start())?,
+        };
+        let prior = g.prior.as_ref().map(|p| p.select(&g.identifiable));
+        let refine = RefineOptions { max_iterations: steps, ..options.refine };
+        let (refined, robust) =
+            super::robust::fit(&problem, &weights, start, &refine, prior.as_ref(), options.loss)?;
+        // A pose's weight is every one of its observations'.
+        let blocks = problem.blocks();
+        let robust = robust.map(|mut r| {
+            r.weights =
+                (0..r.weights.len()).flat_map(|k| vec![r.weights[k]; blocks.range(k).len()]).collect();
+            r
+        });
+        let (after, after_setup) = problem.full(&refined.estimate.x);
+        Ok((refined, (robust, after, after_setup)))
+    };
+    let gauge_at = |x: &[f64]| -> Result<(Gauged, f64), CalibrationError> {
+        let (full, full_setup) = whole.full(&DVector::from_column_slice(x));
+        let problem = base.reselect(asked, full, full_setup, asked_setup.clone());
+        let there = linearise(&problem, &weights, problem.start())?;
+        let g = gauge(&problem, &there, (&prepared.params, asked), options, &weights)?;
+        let prior = g.prior.as_ref().map(|p| p.select(&g.identifiable));
+        let weakest = super::regauge::weakest(&there.select(&g.identifiable), prior.as_ref());
+        Ok((g, weakest))
+    };
+    let limit = options.refine.max_iterations;
+    let r = super::regauge::fit_regauged((&x0, &names), gauged, limit, fit, gauge_at)?;
+    let (robust, after, after_setup) = r.fitted;
+    Ok(Fitted { refined: r.refined, robust, fixed: r.gauge.fixed, after, after_setup, change: r.change })
 }
 
 /// The robot and the set-up of a calibration of some data, before any fit: the model with its

@@ -994,21 +994,10 @@ pub fn calibrate_tree(
             needed: unanchored.div_ceil(6) + 1,
         });
     }
-    let linearised = linearise(&problem, &weights, problem.start())?;
-    let Gauged { identifiable, mut fixed, prior } =
-        tree_gauge(&problem, &linearised, (&params, &asked), options, &weights)?;
+    let r = fit_tree_gauged(&problem, &weights, (&params, &asked), options)?;
+    let (estimate, (robust, after, after_setup), mut fixed) = (r.refined, r.fitted, r.gauge.fixed);
     say_why_unseen(&mut fixed, &params, data);
     fixed.extend(held);
-    let robot = asked.len();
-    let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
-    let kept_setup: Vec<usize> =
-        identifiable.iter().filter(|&&c| c >= robot).map(|&c| every[c - robot]).collect();
-    let problem = base_problem.reselect(kept, zero, before_setup.clone(), kept_setup);
-    let prior = prior.map(|p| p.select(&identifiable));
-    let start = linearised.select(&identifiable);
-    let (estimate, robust) =
-        super::robust::fit(&problem, &weights, start, &options.refine, prior.as_ref(), options.loss)?;
-    let (after, after_setup) = problem.full(&estimate.estimate.x);
     let calibrated = params.fold(tree, &after);
     let unseen = vec![base_unseen(&params, data)];
     let mut calibration = TreeCalibration {
@@ -1029,5 +1018,56 @@ pub fn calibrate_tree(
     };
     calibration.training = calibration.score(data)?;
     calibration.warnings = calibration.warnings();
+    calibration.warnings.extend(r.change);
     Ok(calibration)
+}
+
+/// The robust fit's record, the tree's and the placements' values after.
+type TreeFitted = (Option<super::RobustFit>, Vec<f64>, Vec<f64>);
+
+/// The fit of the parameters of `whole` (the tree's `asked` of `params`, then every
+/// placement, about "before"), the gauge found at "before" ([`tree_gauge`]), then again at the
+/// estimate ([`super::regauge`]).
+fn fit_tree_gauged(
+    whole: &TreeProblem<'_>,
+    weights: &Weights,
+    (params, asked): (&TreeParams, &[usize]),
+    options: &TreeOptions,
+) -> Result<super::regauge::Regauged<Gauged, TreeFitted>, CalibrationError> {
+    let (robot, placements) = (asked.len(), whole.setup_selection.clone());
+    let gauge_at = |at: &[f64]| -> Result<(Gauged, Linearisation), CalibrationError> {
+        let (full, setup) = whole.full(&DVector::from_column_slice(at));
+        let problem = whole.reselect(asked.to_vec(), full, setup, placements.clone());
+        let there = linearise(&problem, weights, problem.start())?;
+        Ok((tree_gauge(&problem, &there, (params, asked), options, weights)?, there))
+    };
+    let x0: Vec<f64> = whole.start().iter().copied().collect();
+    let (first, linearised) = gauge_at(&x0)?;
+    let mut linearised = Some(linearised);
+    let fit = |g: &mut Gauged, at: &[f64], steps: usize| -> Result<(Refined, TreeFitted), CalibrationError> {
+        let (full, setup) = whole.full(&DVector::from_column_slice(at));
+        let kept: Vec<usize> = g.identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
+        let kept_setup: Vec<usize> =
+            g.identifiable.iter().filter(|&&c| c >= robot).map(|&c| placements[c - robot]).collect();
+        let problem = whole.reselect(kept, full, setup, kept_setup);
+        let start = match linearised.take() {
+            Some(at_before) => at_before.select(&g.identifiable),
+            None => linearise(&problem, weights, problem.start())?,
+        };
+        let prior = g.prior.as_ref().map(|p| p.select(&g.identifiable));
+        let refine = RefineOptions { max_iterations: steps, ..options.refine };
+        let (refined, robust) =
+            super::robust::fit(&problem, weights, start, &refine, prior.as_ref(), options.loss)?;
+        let (after, after_setup) = problem.full(&refined.estimate.x);
+        Ok((refined, (robust, after, after_setup)))
+    };
+    let names = whole.names();
+    let limit = options.refine.max_iterations;
+    let weakest = |at: &[f64]| -> Result<(Gauged, f64), CalibrationError> {
+        let (g, there) = gauge_at(at)?;
+        let prior = g.prior.as_ref().map(|p| p.select(&g.identifiable));
+        let weakest = super::regauge::weakest(&there.select(&g.identifiable), prior.as_ref());
+        Ok((g, weakest))
+    };
+    super::regauge::fit_regauged((&x0, &names), first, limit, fit, weakest)
 }
