@@ -531,8 +531,9 @@ impl Fitted for TreeCalibration {
 
 /// Make `choices` on a tree's views `data` and calibrate with them: the preset's scale first
 /// ([`choose_tree_prior_scale`]), then the selection with those priors by the `t` rule
-/// (backward elimination, as for a marker file). `bic` and `cv` are refused: their linear
-/// model of the path is the marker and observation calibrations' only.
+/// (backward elimination, as for a marker file), or by `cv` or `bic` forward on the tree's
+/// views linearised about "before" ([`tree::selection_model`](super::tree)), as for
+/// observation files.
 pub fn calibrate_tree_chosen(
     tree: &RobotTree,
     data: &TreeData,
@@ -552,11 +553,13 @@ pub fn calibrate_tree_chosen(
             Some(names) => calibrate_tree(tree, data, &asking(names)),
             None => calibrate_tree(tree, data, &options),
         })?),
-        Some(other) => {
-            return Err(CalibrationError::Scoring(format!(
-                "--select {}: not for a tree's views yet; --select t chooses their parameters",
-                other.name()
-            )));
+        Some(Criterion::Cv { folds }) => {
+            let folds = folds.min(data.joints.len());
+            check_folds(folds, data.joints.len())?;
+            Some(super::tree::selection_model(tree, data, &options)?.forward(Criterion::Cv { folds }))
+        }
+        Some(Criterion::Bic) => {
+            Some(super::tree::selection_model(tree, data, &options)?.forward(Criterion::Bic))
         }
     };
     let options = path.as_ref().map_or(options.clone(), |p| asking(&p.selected));
@@ -623,7 +626,7 @@ fn forward(
 /// The calibration linearised once about the registration ("before"), for the parameters
 /// asked for that the poses identify: whitened by the estimator (`A = S H`, `b = S y`) to fit,
 /// unweighted (`H`, `y`) to score, both column-scaled alike.
-pub(super) struct LinearModel {
+pub(crate) struct LinearModel {
     params: crate::model::ParamSet,
     /// Each column's parameter (an index of `params`); `None` for a set-up parameter.
     columns: Vec<Option<usize>>,
@@ -641,7 +644,7 @@ pub(super) struct LinearModel {
 }
 
 /// A linear model's system about the registration: [`LinearModel::new`]'s parts.
-pub(super) struct LinearParts {
+pub(crate) struct LinearParts {
     /// `A = S H` and `b = S y` of the identified columns, the prior's rows below them.
     pub whitened: (DMatrix<f64>, DVector<f64>),
     /// `H` and `y`, unweighted, the rows that are not scored zero.
@@ -653,7 +656,7 @@ pub(super) struct LinearParts {
 impl LinearModel {
     /// The model of the columns `columns` (named `names`) of `params`, the held in `held`,
     /// from `parts`; the columns scaled by the whitened system's column norms.
-    pub(super) fn new(
+    pub(crate) fn new(
         params: &crate::model::ParamSet,
         (columns, names): (Vec<Option<usize>>, Vec<String>),
         held: Vec<String>,
@@ -809,7 +812,7 @@ impl LinearModel {
 
     /// The forward path by `criterion` ([`Criterion::Cv`], [`Criterion::Bic`]) and the model
     /// it chooses.
-    pub(super) fn forward(self, criterion: Criterion) -> SelectionPath {
+    pub(crate) fn forward(self, criterion: Criterion) -> SelectionPath {
         let mut fits = self.fits(criterion);
         let (steps, order) = walk(&mut fits, &self, criterion);
         let chosen = choose_step(&steps, criterion);

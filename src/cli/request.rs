@@ -919,10 +919,6 @@ impl CalibrateTreeRequest {
             feasible_alone(select.is_some(), &args.choice)?;
         }
         let (prior, auto_prior) = priors(args.choice.prior)?;
-        require(
-            matches!(select, None | Some(Criterion::T)),
-            "--select cv and bic: not for a tree's views yet; --select t chooses their parameters",
-        )?;
         let mut inputs = vec![("--model", args.model.as_path())];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));

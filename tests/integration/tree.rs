@@ -805,7 +805,7 @@ fn a_tree_scales_a_preset_prior_from_its_views() {
 
 /// `calibrate --select t` on a tree's views: the backward path printed and in the JSON, the
 /// parameters it kept calibrated, held out within 1.2 times the plain fit's error; `--select
-/// bic` refused, saying what a tree takes.
+/// cv` and `bic` likewise, forward on the views linearised about "before".
 #[test]
 fn a_tree_selects_its_parameters_by_the_t_rule() {
     let dir = std::env::temp_dir().join(format!("robocal-tree-select-{}", std::process::id()));
@@ -845,9 +845,27 @@ fn a_tree_selects_its_parameters_by_the_t_rule() {
     assert!(!selected.is_empty() && selected.iter().all(|s| estimated.contains(s)), "{selected:?}");
     let found = held_out(&report);
     assert!(found < 1.2 * plain, "held out {found} mm with --select t, {plain} mm plain");
-    let (code, _, stderr, _) = run(&["--select", "bic"]);
-    assert_eq!(code, Some(2), "{stderr}");
-    assert!(stderr.contains("--select t chooses their parameters"), "{stderr}");
+    // Forward by cv and bic on the views linearised about "before": the path printed and in the
+    // JSON, the set chosen calibrated, held out within 1.2 times the plain fit's error.
+    for (criterion, words) in [
+        ("cv", "parameter selection: forward selection by 3-fold cross-validation"),
+        ("bic", "parameter selection: forward selection by BIC"),
+    ] {
+        let (code, text, stderr, report) = run(&["--select", criterion, "--folds", "3"]);
+        assert_eq!(code, Some(0), "{stderr}");
+        let report = report.unwrap();
+        assert!(text.contains(words), "{criterion}: {text}");
+        assert!(text.contains("nested"), "the k-fold row chooses again in each fold: {text}");
+        let selection = &report["selection"];
+        assert_eq!(selection["criterion"], criterion);
+        let selected = selection["selected"].as_array().unwrap();
+        assert!(!selected.is_empty() && selected.len() == selection["chosen"].as_u64().unwrap() as usize);
+        let estimated: Vec<&str> =
+            report["parameters"].as_array().unwrap().iter().map(|p| p["name"].as_str().unwrap()).collect();
+        assert!(selected.iter().all(|s| estimated.contains(&s.as_str().unwrap())), "{selected:?}");
+        let found = held_out(&report);
+        assert!(found < 1.2 * plain, "held out {found} mm with --select {criterion}, {plain} mm plain");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -935,17 +935,77 @@ pub(crate) fn evidence_system(
     let weights = Weights::for_problem(&base_problem, options.estimator)?;
     let (fixed, setup) = match about {
         Some((fixed, setup)) => (fixed.to_vec(), setup.to_vec()),
-        None => {
-            let fit = linearise(&base_problem, &weights, base_problem.start())?;
-            let refined = refine_from(&base_problem, &weights, fit, &RefineOptions::default())?;
-            (zero, base_problem.full(&refined.estimate.x).1)
-        }
+        None => (zero, before_setup(&base_problem, &weights)?),
     };
     let (asked, _) = asked(&params, options)?;
     let problem = base_problem.reselect(asked.clone(), fixed, setup, every);
     let linearised = linearise(&problem, &weights, problem.start())?;
     let c = weights.scale().unwrap_or(1.0);
     Ok(super::kinds::EvidenceSystem { params: params.params.clone(), asked, linearised, c })
+}
+
+/// "Before": the cameras' and targets' placements of `base_problem` (which estimates them
+/// alone) fitted with the tree nominal.
+fn before_setup(base_problem: &TreeProblem<'_>, weights: &Weights) -> Result<Vec<f64>, CalibrationError> {
+    let fit = linearise(base_problem, weights, base_problem.start())?;
+    let refined = refine_from(base_problem, weights, fit, &RefineOptions::default())?;
+    Ok(base_problem.full(&refined.estimate.x).1)
+}
+
+/// The linear model of `--select cv` and `bic` ([`super::selection`]) of a tree's views:
+/// linearised once about "before" (the placements fitted, the tree nominal), the columns the
+/// gauge there keeps (the joint parameters asked for, then the placements, the registration),
+/// whitened by the estimator (with the prior's rows) to fit, unweighted to score. Each view's
+/// rows are in the fold of its pose; a position coordinate counts a third of one scored error,
+/// a rotation none: the CV RMS is of the view positions (mm), as `--folds` scores them.
+pub(crate) fn selection_model(
+    tree: &RobotTree,
+    data: &TreeData,
+    options: &TreeOptions,
+) -> Result<super::selection::LinearModel, CalibrationError> {
+    let params = TreeParams::new(tree);
+    data.check(&params)?;
+    let start = initial_setup(&params, data)?;
+    let zero = vec![0.0; params.len()];
+    let every: Vec<usize> = (0..start.len()).collect();
+    let noise = options.joint_noise.as_ref();
+    let base_problem = TreeProblem::new(&params, data, Vec::new(), zero.clone(), start, every.clone(), noise);
+    let weights = Weights::for_problem(&base_problem, options.estimator)?;
+    let before = before_setup(&base_problem, &weights)?;
+    let (asked, held) = asked(&params, options)?;
+    let whole = base_problem.reselect(asked.clone(), zero.clone(), before.clone(), every.clone());
+    let linearised = linearise(&whole, &weights, whole.start())?;
+    let Gauged { identifiable, mut fixed, prior } =
+        tree_gauge(&whole, &linearised, (&params, &asked), options, &weights)?;
+    let robot = asked.len();
+    let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
+    let kept_setup: Vec<usize> = identifiable.iter().filter(|&&c| c >= robot).map(|&c| c - robot).collect();
+    let problem = whole.reselect(kept.clone(), zero, before, kept_setup);
+    let x = problem.start();
+    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+    let mut y = problem.evaluate(&x, Some(&mut h));
+    let (mut a, mut b) = (h.clone(), y.clone());
+    weights.apply(&mut a);
+    weights.apply(&mut b);
+    let whitened = match prior {
+        Some(prior) => prior.select(&identifiable).augment(&a, &b, &x),
+        None => (a, b),
+    };
+    let n = data.rows();
+    let rows: Vec<(usize, f64)> = (data.views.iter())
+        .flat_map(|v| (0..n).map(move |r| (v.pose, if r < 3 { 1.0 / 3.0 } else { 0.0 })))
+        .collect();
+    for (r, _) in rows.iter().enumerate().filter(|(_, (_, share))| *share == 0.0) {
+        h.row_mut(r).fill(0.0);
+        y[r] = 0.0;
+    }
+    say_why_unseen(&mut fixed, &params, data);
+    fixed.extend(held);
+    let columns = (0..problem.parameters()).map(|c| kept.get(c).copied()).collect();
+    let held = fixed.iter().map(Held::text).collect();
+    let parts = super::selection::LinearParts { whitened, unweighted: (h, y), rows };
+    let set = crate::model::ParamSet::from_params(params.params.clone());
+    Ok(super::selection::LinearModel::new(&set, (columns, problem.names()), held, parts))
 }
 
 /// Calibrate `tree` from camera views between its branches: the cameras and targets fitted
@@ -976,10 +1036,7 @@ pub fn calibrate_tree(
     let noise = options.joint_noise.as_ref();
     let base_problem = TreeProblem::new(&params, data, Vec::new(), zero.clone(), start, every.clone(), noise);
     let weights = Weights::for_problem(&base_problem, options.estimator)?;
-    // "Before": the cameras and targets alone, the tree nominal.
-    let fit = linearise(&base_problem, &weights, base_problem.start())?;
-    let refined = refine_from(&base_problem, &weights, fit, &RefineOptions::default())?;
-    let before_setup = base_problem.full(&refined.estimate.x).1;
+    let before_setup = before_setup(&base_problem, &weights)?;
     // "After": the joint parameters asked for, less --hold's, with the cameras and targets.
     let (asked, held) = asked(&params, options)?;
     let problem = base_problem.reselect(asked.clone(), zero.clone(), before_setup.clone(), every.clone());
