@@ -1545,9 +1545,31 @@ pub(crate) fn check_folds(folds: usize, poses: usize) -> Result<(), CalibrationE
     }
 }
 
+/// The held-out items of a k-fold cross-validation, scored fold by fold (`scored`: fold 0's in
+/// their order, then fold 1's, ...), put back in the data's order: item `k` of the data, of
+/// pose `pose_of[k]`, is held out in fold `pose_of[k] mod folds`.
+pub(crate) fn in_data_order<T>(scored: Vec<T>, pose_of: &[usize], folds: usize) -> Vec<T> {
+    let order = (0..folds).flat_map(|f| (0..pose_of.len()).filter(move |&k| pose_of[k] % folds == f));
+    let mut indexed: Vec<(usize, T)> = order.zip(scored).collect();
+    indexed.sort_by_key(|(k, _)| *k);
+    indexed.into_iter().map(|(_, item)| item).collect()
+}
+
 /// The standard error of every parameter (NaN for those not estimated), full-vector order.
 pub fn standard_errors(c: &Calibration) -> Vec<f64> {
     standard_errors_of(c.params.iter(), &c.refined.estimate)
+}
+
+#[cfg(test)]
+mod fold_tests {
+    /// Poses 0..5 in 2 folds, pose 1 with two items: fold 0 scored poses 0, 2, 4, fold 1
+    /// poses 1, 1, 3; put back, every item at its place in the data.
+    #[test]
+    fn held_out_items_go_back_to_the_datas_order() {
+        let pose_of = [0, 1, 1, 2, 3, 4];
+        let scored = vec!["p0", "p2", "p4", "p1a", "p1b", "p3"];
+        assert_eq!(super::in_data_order(scored, &pose_of, 2), ["p0", "p1a", "p1b", "p2", "p3", "p4"]);
+    }
 }
 
 #[cfg(test)]

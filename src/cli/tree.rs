@@ -91,14 +91,16 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
 }
 
 /// The residuals of each scored set (`scores`: the training files', then each held-out
-/// file's, then any cross-validation's, left out here) with their files.
+/// file's, then any cross-validation's, each training view held out in its fold) with their
+/// files.
 fn residual_sets(
     scores: &[(String, TreeScore)],
     sessions: &[(String, TreeData)],
     held_out: &[(String, TreeData)],
     joints: &[Joint],
 ) -> Result<Vec<ResidualSet>> {
-    let files = std::iter::once(super::by_name(sessions)).chain(held_out.chunks(1).map(super::by_name));
+    let training = || std::iter::once(super::by_name(sessions));
+    let files = training().chain(held_out.chunks(1).map(super::by_name)).chain(training());
     (files.zip(scores))
         .map(|(files, (name, score))| {
             ResidualSet::of_views(name, score, &files, joints).map_err(anyhow::Error::msg)

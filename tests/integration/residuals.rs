@@ -383,3 +383,35 @@ fn evaluate_of_a_tree_refuses_what_it_cannot_score() {
     assert!(message.contains("head_camera.toml"), "{message}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `--folds K` writes each training observation (view) once more, held out in its fold, in
+/// the file's order: its line and pose the training row's, the rows' RMS after the report's
+/// cross-validation row; for observation files and a tree's views.
+#[test]
+fn the_folds_rows_are_each_observation_held_out_in_its_fold() {
+    let dir = scratch("folds-rows");
+    let (poses, report) = (dir.join("residuals.csv"), dir.join("report.json"));
+    let ball_bar = ["calibrate", "-q", "--model", "puma560", "--tool", "50,0,150", "--data", BALL_BAR];
+    let views = ["calibrate", "-q", "--model", TORSO, "--data", VIEWS];
+    for (args, quantity, n) in [(&ball_bar[..], "lengths", 150), (&views[..], "position", 120)] {
+        let mut args = args.to_vec();
+        args.extend(["--folds", "3", "--json", s(&report), "--poses-csv", s(&poses)]);
+        robocal(&args);
+        let (_, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
+        let training: Vec<_> = rows.iter().filter(|r| r["set"] == "training").collect();
+        let folds: Vec<_> = rows.iter().filter(|r| r["set"] == "3-fold cross-validation").collect();
+        assert_eq!((training.len(), folds.len()), (n, n), "{args:?}");
+        for (t, f) in training.iter().zip(&folds) {
+            assert_eq!((&t["line"], &t["pose"], &t["kind"]), (&f["line"], &f["pose"], &f["kind"]));
+        }
+        let scored = json(&report);
+        let sets = scored["sets"].as_array().unwrap();
+        let cv = sets.last().unwrap();
+        assert_eq!(cv[0], "3-fold cross-validation");
+        let after = cv[1][quantity][1].as_f64().unwrap();
+        assert!(relative(rms(&folds, "after_mm"), after) < 1e-9, "{args:?}: {after} mm");
+        // Held out, each row is worse on average than in training.
+        assert!(rms(&folds, "after_mm") > rms(&training, "after_mm"), "{args:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

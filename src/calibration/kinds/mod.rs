@@ -1820,7 +1820,7 @@ pub fn evaluate_kinds(
 /// a view, every marker of a pose; a pair by its first pose) are held out in fold `p mod
 /// folds`, the others calibrated with `options` (every choice, the prior's and the loss's,
 /// made again inside each fold) and the held-out ones scored; the folds' held-out residuals
-/// pooled, in fold order. The sessions are kept in every fold: each fold's held-out
+/// pooled (the RMS summed fold by fold), each listed in the data's order. The sessions are kept in every fold: each fold's held-out
 /// observations are scored with the set-up of their own session.
 pub fn cross_validate_kinds(
     model: &RobotModel,
@@ -1847,7 +1847,11 @@ pub(crate) fn cross_validate_kinds_by(
             Ok((c.score(&test)?, test.observations))
         })
         .collect::<Result<Vec<_>, CalibrationError>>()?;
-    Ok(Score::pooled(&scores))
+    // Scored fold by fold; listed in the data's order.
+    let mut pooled = Score::pooled(&scores);
+    let pose_of: Vec<usize> = data.observations.iter().map(Observation::pose).collect();
+    pooled.observations = super::in_data_order(pooled.observations, &pose_of, folds);
+    Ok(pooled)
 }
 
 /// `model` with its base placed by the rigid registration of the nominal markers (the

@@ -622,7 +622,8 @@ pub fn evaluate_tree(
 /// `data`'s poses cross-validated in `folds` folds (pose `i` held out in fold `i mod k`): the
 /// tree calibrated on the views of the other poses, every choice made from the data (a robust
 /// loss's weights) made again in each fold, and the held-out views scored with the frames as
-/// that fold calibrated them; the scores of every fold pooled, view by view.
+/// that fold calibrated them; the scores of every fold pooled, view by view (the RMS summed
+/// fold by fold), each view listed in the data's order.
 pub fn cross_validate_tree(
     tree: &RobotTree,
     data: &TreeData,
@@ -646,7 +647,11 @@ pub fn cross_validate_tree_by(
             (data.keeping(|pose| pose % folds == fold), data.keeping(|pose| pose % folds != fold));
         views.extend(calibrate(&train)?.score(&test)?.views);
     }
-    Ok(TreeScore::of(views, data.position_only))
+    // Scored fold by fold; listed in the data's order.
+    let mut pooled = TreeScore::of(views, data.position_only);
+    let pose_of: Vec<usize> = data.views.iter().map(|v| v.pose).collect();
+    pooled.views = super::in_data_order(pooled.views, &pose_of, folds);
+    Ok(pooled)
 }
 
 /// A tree calibrated from camera views.
