@@ -1,13 +1,13 @@
 //! Every tool of the one calibration pipeline on every kind of observation: a simulated PUMA
 //! 560 with known joint errors measured by markers, a ball bar, a length artefact, plane
-//! contacts, a wrist camera and a fixed camera; each calibrated plainly (wls), with a prior,
+//! contacts, a height gauge, a wrist camera and a fixed camera; each calibrated plainly (wls), with a prior,
 //! a robust loss, a held parameter, the diagonal weights and feasible GLS, and cross-validated. Each tool's
 //! held-out error is within 1.2 times the plain fit's or better (the tools must not cost
 //! accuracy on data that need none of them), and the k-fold figure is within a factor 1.5 of
 //! the held-out one (both estimate the same error).
 
 use crate::camera::{flange, truth, views};
-use crate::kinds::{TOOL, ball_bar, contacts, errors_on, options, pairs, puma};
+use crate::kinds::{TOOL, ball_bar, contacts, errors_on, heights, options, pairs, puma};
 use crate::kinds_markers::{chains, marker_options, markers, true_chains};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
@@ -79,6 +79,7 @@ fn cases() -> Vec<Case> {
         tool_point_case("ball bar", 62, &|real, rng| ball_bar(real, rng, 0.01)),
         tool_point_case("length artefact", 63, &|real, rng| pairs(real, rng, 0.01)),
         tool_point_case("plane contacts", 64, &|real, rng| contacts(3)(real, rng, 0.01)),
+        tool_point_case("height gauge", 68, &|real, rng| heights(real, rng, 0.01)),
         camera_case("wrist camera", CameraSite::Hand, 65),
         camera_case("fixed camera", CameraSite::World, 66),
     ]

@@ -527,27 +527,30 @@ fn a_table_alone_cannot_see_turns_about_its_normal() {
     );
 }
 
+/// A height gauge: the tool point's z in the measuring frame at 200 random poses of `real`,
+/// with noise `sigma` (mm; its sigma column at least 0.01).
+pub(crate) fn heights(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> KindData {
+    let mut data = KindData::default();
+    for k in 0..200 {
+        let q = random_pose(&puma(), rng);
+        let z: f64 = StandardNormal.sample(&mut *rng);
+        let measured = real.position(&q).z + sigma * z;
+        data.joints.push(q);
+        data.observations.push(Observation::Coordinate {
+            pose: k,
+            axis: 2,
+            measured,
+            sigma: sigma.max(0.01),
+        });
+        data.lines.push(k + 3);
+    }
+    data
+}
+
 /// Heights only (a height gauge): z of the tool point in the measuring frame. The base's z,
 /// roll and pitch are seen, its x, y and yaw are not; the robot's parameters are recovered.
 #[test]
 fn heights_alone_calibrate_what_they_see() {
-    let heights = |real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64| {
-        let mut data = KindData::default();
-        for k in 0..200 {
-            let q = random_pose(&puma(), rng);
-            let z: f64 = StandardNormal.sample(&mut *rng);
-            let measured = real.position(&q).z + sigma * z;
-            data.joints.push(q);
-            data.observations.push(Observation::Coordinate {
-                pose: k,
-                axis: 2,
-                measured,
-                sigma: sigma.max(0.01),
-            });
-            data.lines.push(k + 3);
-        }
-        data
-    };
     let c = recovers(&heights, None, false, 65);
     let names = &c.refined.estimate.names;
     assert!(names.iter().any(|n| n == "base.z"), "{names:?}");
