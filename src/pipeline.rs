@@ -141,15 +141,12 @@ fn cross_validate(
     if asked.loss != Loss::Squared {
         redone.push(format!("--loss {}'s weights", asked.loss));
     }
-    let (before, after, selected, scales) = if *choices == Choices::default() {
-        let (before, after) = calibration::cross_validate(model, fit, asked, k)?;
-        (before, after, Vec::new(), Vec::new())
-    } else {
-        let nested = calibration::cross_validate_choices(model, fit, asked, choices, k)?;
-        (nested.before, nested.after, nested.selected, nested.scales)
-    };
-    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales };
-    Ok((before, after, how))
+    // Without choices, each fold calibrates with the options asked ([`calibration::cross_validate`]'s folds).
+    let cv = calibration::cross_validate_choices(model, fit, asked, choices, k)?;
+    let poses = Some(crate::report::poses::in_degrees(&cv.poses, &model.joints));
+    let (selected, scales) = (cv.selected, cv.scales);
+    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales, poses };
+    Ok((cv.before, cv.after, how))
 }
 
 /// The position error predicted at each held-out set's poses from the calibration's

@@ -209,6 +209,20 @@ pub(crate) fn evaluate_on(
     })
 }
 
+/// The held-out poses of a k-fold cross-validation as one set named `name`: `folds[f]` scored
+/// the poses `i` with `i mod k = f` (`k = folds.len()`) with the calibration of the others;
+/// their poses joined in the data's order, the summaries over them all.
+pub(crate) fn joined(name: &str, folds: Vec<SetEvaluation>) -> SetEvaluation {
+    let k = folds.len();
+    let first = folds.first().expect("at least two folds").clone();
+    let poses: Vec<PoseErrors> = folds.into_iter().flat_map(|f| f.poses).collect();
+    let index: Vec<usize> = (0..poses.len()).collect();
+    let poses = super::in_data_order(poses, &index, k);
+    let (stages, markers) = (first.stages.len(), first.marker_ids.len());
+    let (pooled, per_marker, orientation) = summaries(&poses, stages, markers, first.orientation.is_some());
+    SetEvaluation { name: name.to_string(), poses, pooled, per_marker, orientation, ..first }
+}
+
 /// The last stage's residuals `last` whitened (by `V_k` block by block, or by the spread in
 /// lengths), and the bulk's robust scale under a noise model (1 otherwise): when the poses all
 /// lie further out than `V_k` says (a fit pulled by a gross error, effects the model lacks), a

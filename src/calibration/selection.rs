@@ -314,20 +314,24 @@ pub fn cross_validate_choices(
 ) -> Result<NestedCv, CalibrationError> {
     check_folds(folds, data.len())?;
     let (mut before, mut after) = (Vec::new(), Vec::new());
-    let (mut selected, mut scales) = (Vec::new(), Vec::new());
+    let (mut selected, mut scales, mut scored) = (Vec::new(), Vec::new(), Vec::new());
+    let name = format!("{folds}-fold cross-validation");
     for fold in 0..folds {
         let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
-        let (train, options) = (data.subset(&train), options.at_poses(&train));
-        let chosen = choose(model, &train, &options, choices)?;
+        let (train, fold_options) = (data.subset(&train), options.at_poses(&train));
+        let chosen = choose(model, &train, &fold_options, choices)?;
         let calibration = calibrate_quietly(model, &train, &chosen.options)?;
         let held_out = data.subset(&test);
         before.extend(errors(&calibration.chains, &calibration.before, &held_out));
         after.extend(errors(&calibration.chains, &calibration.after, &held_out));
+        let noise = options.noise.as_ref().map(|n| n.at_points(&test));
+        scored.push(calibration.evaluate(&name, &held_out, noise.as_ref())?);
         selected.extend(chosen.path.map(|p| p.selected));
         // A scale per class (auto-ml:PRESET:classes) is no one number: not listed.
         scales.extend(chosen.scale.filter(|s| s.classes.is_empty()).map(|s| s.scale()));
     }
-    Ok(NestedCv { before: ErrorStats::of(&before), after: ErrorStats::of(&after), selected, scales })
+    let (before, after) = (ErrorStats::of(&before), ErrorStats::of(&after));
+    Ok(NestedCv { before, after, selected, scales, poses: super::evaluation::joined(&name, scored) })
 }
 
 /// A calibration (`C`: of observation files, of a tree's views) with the choices made from
@@ -406,6 +410,10 @@ pub struct NestedCv {
     /// With `--prior auto`: the scale each fold chose, fold by fold (none with a scale per
     /// class, `auto-ml:PRESET:classes`).
     pub scales: Vec<f64>,
+    /// Every pose held out in its fold, scored pose by pose with that fold's calibration, in
+    /// the data's order (`K-fold cross-validation`): "before" its registration, "after" its
+    /// choices and calibration.
+    pub poses: super::SetEvaluation,
 }
 
 /// Backward elimination by `|t|` ([`Criterion::T`]), `t = estimate / SE` with the SE of the

@@ -261,11 +261,14 @@ fn write(
         let sets: Vec<_> = report.sets.iter().collect();
         extra_figures.extend(robocal::report::figures::torque_figures(&sets, &result.calibrated)?);
     }
+    // With --folds, the training poses held out in their folds after the sets scored.
+    let cv = report.cross_validation.as_ref().and_then(|cv| cv.poses.clone());
+    let sets: Vec<_> = report.sets.iter().cloned().chain(cv).collect();
     let content = ReportContent {
         title: &title,
         text,
         json,
-        sets: &report.sets,
+        sets: &sets,
         joints: &result.registered.joints,
         extra_figures,
         calibration: Some(report),

@@ -130,6 +130,11 @@ pub struct CrossValidationReport {
     /// With `--prior auto`: the scale each fold chose, fold by fold.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub scales: Vec<f64>,
+    /// Every training pose held out in its fold, scored with that fold's calibration, in the
+    /// file's order, joint values in degrees (mm for a prismatic joint): the rows of
+    /// `--poses-csv` and the figures; not in the JSON (its summary is the table's row).
+    #[serde(skip)]
+    pub poses: Option<SetEvaluation>,
 }
 
 impl CrossValidationReport {
