@@ -575,7 +575,10 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
         is(route(&[TreeViews], &["--prior", "machined", "--loss", "huber", "--hold", "torso.z"])),
         "tree"
     );
-    assert!(refused(&[TreeViews], &["--select", "bic"]).starts_with("--select"));
+    match route(&[TreeViews], &["--select", "bic"]).unwrap() {
+        CalibrationRequest::Tree(r) => assert_eq!(r.select, Some(Criterion::Bic)),
+        other => panic!("{other:?}"),
+    }
     assert!(refused(&[TreeViews], &["--out-model", "m.toml"]).contains("--out-dir"));
 }
 
