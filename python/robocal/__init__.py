@@ -470,6 +470,7 @@ def calibrate_tree(
     hold: Sequence[str] = (),
     keep: Sequence[str] = (),
     prior: Optional[str] = None,
+    select: Optional[str] = None,
     loss: Optional[str] = None,
     iterations: int = 200,
     folds: Optional[int] = None,
@@ -488,7 +489,7 @@ def calibrate_tree(
     held_out = [source(v, f"validate[{k}]") for k, v in enumerate(validate)]
     flags = _flags(joint_unit=joint_unit, length_unit=length_unit, estimator=estimator, joint_sigma=joint_sigma,
                    params=params, hold=hold, keep=keep, prior=prior, loss=loss, iterations=iterations,
-                   folds=folds)
+                   folds=folds, select=select)
     return Calibration(_calibrate_tree(os.fspath(urdf), list(tips), base_link, sources, held_out, flags))
 
 

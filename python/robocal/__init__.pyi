@@ -333,6 +333,7 @@ def calibrate_tree(
     hold: Sequence[str] = (),
     keep: Sequence[str] = (),
     prior: Optional[str] = None,
+    select: Optional[str] = None,
     loss: Optional[str] = None,
     iterations: int = 200,
     folds: Optional[int] = None,
@@ -341,10 +342,12 @@ def calibrate_tree(
     to the ``tips``, default every leaf) from camera views between its branches, as ``robocal
     calibrate --model tree.urdf --data views.csv`` does: ``views`` and ``validate`` are view
     files' paths or DataFrames with their columns (``camera``, ``target``, the joints, ``x``..
-    ``yaw``, ``sigma``, ``sigma_angle``), fitted together and held out. ``estimator`` ols or
-    wls (default); ``joint_sigma`` one per tree joint or one for all, in ``joint_unit`` (rad
-    unless given); ``params`` the joint parameters (not ``all``: the base is never seen);
-    ``prior`` standard deviations or a preset; ``folds`` k-fold cross-validation of the poses.
+    ``yaw``, ``sigma``, ``sigma_angle``), fitted together and held out. ``estimator`` ols,
+    wls (default) or fgls (the joint and view noise estimated from the residuals);
+    ``joint_sigma`` one per tree joint or one for all, in ``joint_unit`` (rad unless given);
+    ``params`` the joint parameters (not ``all``: the base is never seen); ``prior`` standard
+    deviations or a preset; ``select`` cv, bic or t; ``folds`` k-fold cross-validation of the
+    poses.
     The result's ``branches`` are the calibrated chains; its report and JSON are the command
     line's."""
 

@@ -41,8 +41,9 @@ fn joint_noise(tree: &RobotTree, sigmas: &[f64], units: Units) -> PyResult<DMatr
 /// Calibrate the tree of the URDF file `urdf` (from `base_link`, default its only root, to
 /// the `tips`, default every leaf) from the views of `sources` fitted together, scoring
 /// `validate`, as `robocal calibrate` does with view files. The flags are `calibrate`'s; a
-/// tree takes ols or wls, its joint parameters (not `all`), priors as standard deviations or
-/// a preset, a loss, held and kept parameters, and `joint_sigma` one per joint or one for all.
+/// tree takes ols, wls or fgls (the joint and view noise estimated from the residuals), its
+/// joint parameters (not `all`), priors as standard deviations or a preset, a loss, held and
+/// kept parameters, every selection, and `joint_sigma` one per joint or one for all.
 #[pyfunction]
 #[pyo3(signature = (urdf, tips, base_link, sources, validate, flags))]
 pub fn calibrate_tree(
@@ -55,17 +56,18 @@ pub fn calibrate_tree(
     flags: Flags,
 ) -> PyResult<Calibration> {
     let request = flags.request()?;
-    let estimator = request.estimator.unwrap_or(Estimator::Wls);
-    require(matches!(estimator, Estimator::Ols | Estimator::Wls), "estimator", "a tree takes ols or wls")?;
+    // fgls: ordinary least squares first, then the noise estimated from the residuals.
+    let estimator =
+        request.estimator.unwrap_or(if request.feasible { Estimator::Ols } else { Estimator::Wls });
+    require(
+        matches!(estimator, Estimator::Ols | Estimator::Wls),
+        "estimator",
+        "a tree takes ols, wls or fgls",
+    )?;
     require(
         flags.params.iter().all(|p| p != "all"),
         "params",
         "all: the base is never estimated from views; give joints",
-    )?;
-    require(
-        matches!(request.select, None | Some(robocal::calibration::selection::Criterion::T)),
-        "select",
-        "cv and bic: not for a tree's views yet; select=\"t\" chooses their parameters",
     )?;
     let text = std::fs::read_to_string(&urdf).map_err(|e| {
         let place = Place { file: Some(urdf.clone()), ..Place::default() };
@@ -96,8 +98,22 @@ pub fn calibrate_tree(
     let choices =
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
     let outcome = py
-        .detach(|| {
-            robocal::pipeline::calibrate_views(&tree, &sessions, &held_out, &options, &choices, flags.folds)
+        .detach(|| match request.feasible {
+            true => robocal::pipeline::calibrate_views_feasible(
+                &tree,
+                &sessions,
+                &held_out,
+                &options,
+                &robocal::calibration::FeasibleOptions::default(),
+            ),
+            false => robocal::pipeline::calibrate_views(
+                &tree,
+                &sessions,
+                &held_out,
+                &options,
+                &choices,
+                flags.folds,
+            ),
         })
         .map_err(|e| match e.source {
             CalibrationError::Selection(_) | CalibrationError::Prior(_) => {

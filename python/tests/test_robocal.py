@@ -527,6 +527,16 @@ def test_a_trees_cross_validation_is_the_command_lines(tmp_path: Path) -> None:
     assert_same(json.loads(c.to_json()), json.loads(out.read_text()))
 
 
+def test_a_trees_fgls_and_selection_are_the_command_lines(tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    urdf, views = ROOT / "presets" / "torso.urdf", EXAMPLES / "torso" / "views.csv"
+    fgls, bic = robocal.calibrate_tree(urdf, [views], estimator="fgls"), robocal.calibrate_tree(urdf, [views], select="bic")
+    for flags, c in [(["--estimator", "fgls"], fgls), (["--select", "bic"], bic)]:
+        text = run_cli("calibrate", "--model", str(urdf), "--data", str(views), *flags, "--json", str(out), "--quiet")
+        assert c.report() == text
+        assert_same(json.loads(c.to_json()), json.loads(out.read_text()))
+
+
 def test_bad_observations_are_input_errors_naming_their_row_and_column(puma: robocal.Model) -> None:
     q = np.zeros((3, 6))
     bad = robocal.PointDistances(q, [0.5, -0.2, 0.4], name="bar")

@@ -2,7 +2,7 @@
 //! `calibrate` (pooled, per marker, worst poses) and its files (JSON, poses, figures, page).
 
 use super::calibrate::noise_for;
-use super::request::EvaluateRequest;
+use super::request::{EvaluateRequest, NoiseSource};
 use super::{ReportContent, write_report_files};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::kinds::{KindData, KindOptions, Score, evaluate_kinds};
@@ -107,8 +107,9 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     super::commit(outputs)
 }
 
-/// An observation file read and scored as it stands, its set-up fitted, the model held:
-/// its name, its observations and their residuals.
+/// An observation file read and scored as it stands, its set-up fitted, the model held, its
+/// whitened residuals under its sigma column and `--joint-sigma-deg`'s joint noise: its name,
+/// its observations and their residuals.
 fn observation_file(
     path: &Path,
     model: &robocal::model::RobotModel,
@@ -116,7 +117,19 @@ fn observation_file(
 ) -> Result<(String, KindData, Score)> {
     let data = KindData::from_csv_str(&read(path)?, model, request.units)
         .with_context(|| path.display().to_string())?;
-    let options = KindOptions { tool: model.tool_point_in_marker_frame(), ..KindOptions::default() };
+    let joint_noise = match &request.noise {
+        None => None,
+        Some(NoiseSource::Flags(flags)) => {
+            super::joint_covariance(&model.name, &model.joints, Some(&flags.joint_sigma_deg))?
+        }
+        Some(NoiseSource::File(_)) => bail!(
+            "{}: --noise is for marker files; an observation file's sigma column is its measurement noise: give \
+             the joint noise by --joint-sigma-deg",
+            path.display()
+        ),
+    };
+    let tool = model.tool_point_in_marker_frame();
+    let options = KindOptions { tool, joint_noise, ..KindOptions::default() };
     let score = evaluate_kinds(model, &data, &options).with_context(|| path.display().to_string())?;
     Ok((path.display().to_string(), data, score))
 }
