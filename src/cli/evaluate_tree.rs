@@ -2,7 +2,7 @@
 //! with the branches `calibrate --out-dir` wrote (`--branches`), scored on files of views
 //! between its branches, each file's cameras and targets fitted to it, the tree held.
 
-use super::request::EvaluateRequest;
+use super::request::{EvaluateRequest, NoiseSource};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::DataKind;
 use robocal::calibration::tree::{TreeData, TreeOptions, TreeScore, ViewResidual, evaluate_tree};
@@ -47,9 +47,20 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
             Ok((path.display().to_string(), data))
         })
         .collect::<Result<Vec<_>>>()?;
+    let joint_noise = match &request.noise {
+        None => None,
+        Some(NoiseSource::Flags(flags)) => {
+            super::joint_covariance(&tree.name, &tree.joints, Some(&flags.joint_sigma_deg))?
+        }
+        Some(NoiseSource::File(_)) => bail!(
+            "--noise is for marker files; a view file's sigma columns are its measurement noise: give the \
+             joint noise by --joint-sigma-deg"
+        ),
+    };
+    let options = TreeOptions { joint_noise, ..TreeOptions::default() };
     let views = (files.iter())
         .map(|(name, data)| {
-            let score = evaluate_tree(&tree, data, &TreeOptions::default()).with_context(|| name.clone())?;
+            let score = evaluate_tree(&tree, data, &options).with_context(|| name.clone())?;
             Ok((name.clone(), score))
         })
         .collect::<Result<Vec<_>>>()?;

@@ -480,3 +480,34 @@ fn evaluate_whitens_an_observation_file_by_the_joint_noise() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("give the joint noise by --joint-sigma-deg"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// `evaluate` of a tree's views takes `--joint-sigma-deg` into each view's covariance: the
+/// nominal torso's views are millimetres out (5 mm RMS), tens of their own sigmas (0.2 mm,
+/// 0.05 deg); a joint noise of 1 deg (about 9 mm at half a metre) covers them, each view
+/// within 2 standard deviations. A wrong count names the tree's joints.
+#[test]
+fn evaluate_of_a_tree_whitens_by_the_joint_noise() {
+    let dir = scratch("evaluate-tree-joint-noise");
+    let report = dir.join("e.json");
+    let largest = |extra: &[&str]| {
+        let mut args = vec!["evaluate", "-q", "--model", TORSO, "--tips", "head_camera,l_hand,r_hand"];
+        args.extend(["--data", VIEWS, "--json", s(&report)]);
+        args.extend(extra);
+        robocal(&args);
+        let views = json(&report)["views"][0][1]["views"].as_array().unwrap().clone();
+        views.iter().map(|v| v["whitened"].as_f64().unwrap().abs()).fold(0.0, f64::max)
+    };
+    let (noisy, alone) = (largest(&["--joint-sigma-deg", "1", "--sigma-mm", "0.2"]), largest(&[]));
+    assert!(
+        noisy < 2.0 && alone > 20.0,
+        "largest whitened {noisy} with 1 deg of joint noise, {alone} without"
+    );
+    let out = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["evaluate", "--model", TORSO, "--tips", "head_camera,l_hand,r_hand", "--data", VIEWS])
+        .args(["--joint-sigma-deg", "1,1"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("2 values for the 15 joints of torso"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
