@@ -245,7 +245,7 @@ impl Components {
         Some(Sums {
             log_det: points.map(|k| t.log_det_m[k]).sum::<f64>()
                 + variance.iter().map(|v| v.ln()).sum::<f64>(),
-            m: h.tr_mul(&h),
+            m: crate::linalg::gram(&h),
             g: h.tr_mul(&w),
             ww: w.norm_squared(),
             rows: rows.len(),
