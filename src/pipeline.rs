@@ -204,6 +204,67 @@ fn in_context(context: &str) -> impl Fn(CalibrationError) -> FilesError + '_ {
     move |source| FilesError { context: context.to_string(), source }
 }
 
+/// How a calibration of observation files or of a tree's views is fitted: with the noise
+/// given (the files' sigmas and the joint noise), `choices` made from the data and `folds`
+/// cross-validating it; or by feasible GLS, the noise estimated from the residuals.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Fitting {
+    /// The noise given: [`calibrate_observations`], [`calibrate_views`].
+    Given {
+        /// The choices made from the data.
+        choices: Choices,
+        /// `--folds k`: the k-fold cross-validation of the training poses.
+        folds: Option<usize>,
+    },
+    /// The noise estimated: [`calibrate_observations_feasible`], [`calibrate_views_feasible`].
+    Feasible(FeasibleOptions),
+}
+
+impl Fitting {
+    /// Feasible GLS (its default options) if `feasible`, else the noise given with `choices`
+    /// and `folds`.
+    pub fn new(feasible: bool, choices: Choices, folds: Option<usize>) -> Self {
+        match feasible {
+            true => Self::Feasible(FeasibleOptions::default()),
+            false => Self::Given { choices, folds },
+        }
+    }
+}
+
+/// [`calibrate_views`] or [`calibrate_views_feasible`], as `fitting` says.
+pub fn calibrate_views_by(
+    tree: &RobotTree,
+    sessions: &[(String, TreeData)],
+    held_out: &[(String, TreeData)],
+    options: &TreeOptions,
+    fitting: &Fitting,
+) -> Result<TreeOutcome, FilesError> {
+    match fitting {
+        Fitting::Given { choices, folds } => {
+            calibrate_views(tree, sessions, held_out, options, choices, *folds)
+        }
+        Fitting::Feasible(feasible) => calibrate_views_feasible(tree, sessions, held_out, options, feasible),
+    }
+}
+
+/// [`calibrate_observations`] or [`calibrate_observations_feasible`], as `fitting` says.
+pub fn calibrate_observations_by(
+    model: &RobotModel,
+    sessions: &[(String, KindData)],
+    held_out: &[(String, KindData)],
+    options: &KindOptions,
+    fitting: &Fitting,
+) -> Result<ObservationOutcome, FilesError> {
+    match fitting {
+        Fitting::Given { choices, folds } => {
+            calibrate_observations(model, sessions, held_out, options, choices, *folds)
+        }
+        Fitting::Feasible(feasible) => {
+            calibrate_observations_feasible(model, sessions, held_out, options, feasible)
+        }
+    }
+}
+
 /// Calibrate `tree` from the views of `sessions` (each a file's name and views) fitted
 /// together, with `choices` made from them ([`calibrate_tree_chosen`]: `--prior auto`'s
 /// scale, then `--select t`'s parameters; none: the tree as

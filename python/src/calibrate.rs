@@ -781,25 +781,11 @@ fn observations(
     let sessions: Vec<(String, KindData)> = sources.iter().map(read).collect::<PyResult<_>>()?;
     let held: Vec<(String, KindData)> = validate.iter().map(read).collect::<PyResult<_>>()?;
     let options = kind_options(model, flags, request)?;
+    // Feasible GLS: the joint variances and one measurement variance per kind.
+    let choices = Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
+    let fitting = robocal::pipeline::Fitting::new(request.feasible, choices, flags.folds);
     let outcome = py
-        .detach(|| match request.feasible {
-            // Feasible GLS: the joint variances and one measurement variance per kind.
-            true => robocal::pipeline::calibrate_observations_feasible(
-                model,
-                &sessions,
-                &held,
-                &options,
-                &robocal::calibration::FeasibleOptions::default(),
-            ),
-            false => robocal::pipeline::calibrate_observations(
-                model,
-                &sessions,
-                &held,
-                &options,
-                &Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds),
-                flags.folds,
-            ),
-        })
+        .detach(|| robocal::pipeline::calibrate_observations_by(model, &sessions, &held, &options, &fitting))
         .map_err(|e| errors::calibration(&e.source, &e.context))?;
     let (c, report) = (outcome.calibration, outcome.report);
     let calibrated = Model::new(c.calibrated.clone(), robot.urdf.clone()).with_markers(c.marker_positions());

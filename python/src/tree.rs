@@ -97,24 +97,9 @@ pub fn calibrate_tree(
     };
     let choices =
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
+    let fitting = robocal::pipeline::Fitting::new(request.feasible, choices, flags.folds);
     let outcome = py
-        .detach(|| match request.feasible {
-            true => robocal::pipeline::calibrate_views_feasible(
-                &tree,
-                &sessions,
-                &held_out,
-                &options,
-                &robocal::calibration::FeasibleOptions::default(),
-            ),
-            false => robocal::pipeline::calibrate_views(
-                &tree,
-                &sessions,
-                &held_out,
-                &options,
-                &choices,
-                flags.folds,
-            ),
-        })
+        .detach(|| robocal::pipeline::calibrate_views_by(&tree, &sessions, &held_out, &options, &fitting))
         .map_err(|e| match e.source {
             CalibrationError::Selection(_) | CalibrationError::Prior(_) => {
                 errors::calibration(&e.source, &e.context)

@@ -4,7 +4,6 @@
 
 use super::request::{CalibrateObservationsRequest, Method};
 use anyhow::{Context, Result, bail};
-use robocal::calibration::FeasibleOptions;
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, Score};
 use robocal::estimation::RefineOptions;
 use robocal::io;
@@ -25,27 +24,11 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     let held_out = (request.validate.iter())
         .map(|path| Ok((path.display().to_string(), read(path, &model, request)?)))
         .collect::<Result<Vec<_>>>()?;
-    let outcome = match request.method {
-        Method::Feasible => robocal::pipeline::calibrate_observations_feasible(
-            &model,
-            &sessions,
-            &held_out,
-            &options,
-            &FeasibleOptions::default(),
-        )?,
-        Method::Given(_) => robocal::pipeline::calibrate_observations(
-            &model,
-            &sessions,
-            &held_out,
-            &options,
-            &robocal::calibration::Choices::from_flags(
-                request.auto_prior.clone(),
-                request.select,
-                request.folds,
-            ),
-            request.folds,
-        )?,
-    };
+    let choices =
+        robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds);
+    let fitting = robocal::pipeline::Fitting::new(request.method == Method::Feasible, choices, request.folds);
+    let outcome =
+        robocal::pipeline::calibrate_observations_by(&model, &sessions, &held_out, &options, &fitting)?;
     let (c, report) = (outcome.calibration, outcome.report);
     let text = report.text();
     print!("{text}");

@@ -44,23 +44,9 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     };
     let choices =
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds);
-    let TreeOutcome { calibration: c, report } = match request.feasible {
-        true => robocal::pipeline::calibrate_views_feasible(
-            &tree,
-            &sessions,
-            &held_out,
-            &options,
-            &robocal::calibration::FeasibleOptions::default(),
-        )?,
-        false => robocal::pipeline::calibrate_views(
-            &tree,
-            &sessions,
-            &held_out,
-            &options,
-            &choices,
-            request.folds,
-        )?,
-    };
+    let fitting = robocal::pipeline::Fitting::new(request.feasible, choices, request.folds);
+    let TreeOutcome { calibration: c, report } =
+        robocal::pipeline::calibrate_views_by(&tree, &sessions, &held_out, &options, &fitting)?;
     let text = report.text();
     print!("{text}");
     let mut outputs = io::Outputs::new();

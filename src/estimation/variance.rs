@@ -1434,6 +1434,18 @@ mod tests {
         }
     }
 
+    /// Ragged blocks of 1 to 6 rows over more points than a task's (their sizes, the blocks,
+    /// their rows `n`), and a fixed full-rank `H` (`n x p`).
+    fn ragged_blocks(p: usize) -> (Vec<usize>, super::super::Blocks, usize, DMatrix<f64>) {
+        let sizes: Vec<usize> = (0..POINTS_PER_TASK + 5).map(|k| 1 + (k * 5) % 6).collect();
+        let blocks = super::super::Blocks::from_sizes(sizes.clone());
+        let n: usize = sizes.iter().sum();
+        let h = DMatrix::from_fn(n, p, |i, j| {
+            ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j))
+        });
+        (sizes, blocks, n, h)
+    }
+
     /// The same for an observation file's layout: ragged blocks (1 to 6 rows), each row seeing
     /// one or two poses (a distance between two), rows of three measurement classes, the
     /// estimator's weights and correlated ones; and the exact components recovered from the
@@ -1441,12 +1453,7 @@ mod tests {
     #[test]
     fn the_residual_design_of_ragged_blocks_is_the_dense_residual_makers() {
         let (p, dof) = (4, 2);
-        let sizes: Vec<usize> = (0..POINTS_PER_TASK + 5).map(|k| 1 + (k * 5) % 6).collect();
-        let blocks = super::super::Blocks::from_sizes(sizes.clone());
-        let n: usize = sizes.iter().sum();
-        let h = DMatrix::from_fn(n, p, |i, j| {
-            ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j))
-        });
+        let (sizes, blocks, n, h) = ragged_blocks(p);
         let jacobians: Vec<DMatrix<f64>> = (sizes.iter().enumerate())
             .map(|(k, &b)| {
                 let poses = 1 + k % 2;
@@ -1677,12 +1684,7 @@ mod tests {
         }
         // Ragged blocks of three classes, some rows seeing two poses.
         let dof = 2;
-        let sizes: Vec<usize> = (0..POINTS_PER_TASK + 5).map(|k| 1 + (k * 5) % 6).collect();
-        let blocks = super::super::Blocks::from_sizes(sizes.clone());
-        let n: usize = sizes.iter().sum();
-        let h = DMatrix::from_fn(n, p, |i, j| {
-            ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j))
-        });
+        let (sizes, blocks, n, h) = ragged_blocks(p);
         let jacobians: Vec<DMatrix<f64>> = (sizes.iter().enumerate())
             .map(|(k, &b)| {
                 DMatrix::from_fn(b, (1 + k % 2) * dof, |i, j| {

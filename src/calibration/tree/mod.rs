@@ -931,13 +931,8 @@ pub(crate) fn evidence_system(
     about: Option<(&[f64], &[f64])>,
 ) -> Result<super::kinds::EvidenceSystem, CalibrationError> {
     let params = TreeParams::new(tree);
-    data.check(&params)?;
-    let start = initial_setup(&params, data)?;
-    let zero = vec![0.0; params.len()];
-    let every: Vec<usize> = (0..start.len()).collect();
-    let noise = options.joint_noise.as_ref();
-    let base_problem = TreeProblem::new(&params, data, Vec::new(), zero.clone(), start, every.clone(), noise);
-    let weights = Weights::for_problem(&base_problem, options.estimator)?;
+    let (base_problem, weights) = placements_problem(&params, data, options)?;
+    let (zero, every) = (vec![0.0; params.len()], base_problem.setup_selection.clone());
     let (fixed, setup) = match about {
         Some((fixed, setup)) => (fixed.to_vec(), setup.to_vec()),
         None => (zero, before_setup(&base_problem, &weights)?),
@@ -947,6 +942,23 @@ pub(crate) fn evidence_system(
     let linearised = linearise(&problem, &weights, problem.start())?;
     let c = weights.scale().unwrap_or(1.0);
     Ok(super::kinds::EvidenceSystem { params: params.params.clone(), asked, linearised, c })
+}
+
+/// The problem of `data`'s placements alone (every camera's and target's, from their start
+/// [`initial_setup`], the tree at `params`' nominal), where every fit of the views starts, and
+/// its weights.
+fn placements_problem<'a>(
+    params: &'a TreeParams,
+    data: &'a TreeData,
+    options: &TreeOptions,
+) -> Result<(TreeProblem<'a>, Weights), CalibrationError> {
+    data.check(params)?;
+    let start = initial_setup(params, data)?;
+    let every: Vec<usize> = (0..start.len()).collect();
+    let (zero, noise) = (vec![0.0; params.len()], options.joint_noise.as_ref());
+    let problem = TreeProblem::new(params, data, Vec::new(), zero, start, every, noise);
+    let weights = Weights::for_problem(&problem, options.estimator)?;
+    Ok((problem, weights))
 }
 
 /// "Before": the cameras' and targets' placements of `base_problem` (which estimates them
@@ -969,13 +981,8 @@ pub(crate) fn selection_model(
     options: &TreeOptions,
 ) -> Result<super::selection::LinearModel, CalibrationError> {
     let params = TreeParams::new(tree);
-    data.check(&params)?;
-    let start = initial_setup(&params, data)?;
-    let zero = vec![0.0; params.len()];
-    let every: Vec<usize> = (0..start.len()).collect();
-    let noise = options.joint_noise.as_ref();
-    let base_problem = TreeProblem::new(&params, data, Vec::new(), zero.clone(), start, every.clone(), noise);
-    let weights = Weights::for_problem(&base_problem, options.estimator)?;
+    let (base_problem, weights) = placements_problem(&params, data, options)?;
+    let (zero, every) = (vec![0.0; params.len()], base_problem.setup_selection.clone());
     let before = before_setup(&base_problem, &weights)?;
     let (asked, held) = asked(&params, options)?;
     let whole = base_problem.reselect(asked.clone(), zero.clone(), before.clone(), every.clone());
@@ -1035,12 +1042,8 @@ pub fn calibrate_tree(
             tree.dof()
         )));
     }
-    let start = initial_setup(&params, data)?;
-    let zero = vec![0.0; params.len()];
-    let every: Vec<usize> = (0..start.len()).collect();
-    let noise = options.joint_noise.as_ref();
-    let base_problem = TreeProblem::new(&params, data, Vec::new(), zero.clone(), start, every.clone(), noise);
-    let weights = Weights::for_problem(&base_problem, options.estimator)?;
+    let (base_problem, weights) = placements_problem(&params, data, options)?;
+    let (zero, every) = (vec![0.0; params.len()], base_problem.setup_selection.clone());
     let before_setup = before_setup(&base_problem, &weights)?;
     // "After": the joint parameters asked for, less --hold's, with the cameras and targets.
     let (asked, held) = asked(&params, options)?;
