@@ -1434,6 +1434,11 @@ mod tests {
         }
     }
 
+    /// What `run` gives on a pool of `threads` threads.
+    fn on_threads<T: Send>(threads: usize, run: impl Fn() -> T + Send + Sync) -> T {
+        rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(run)
+    }
+
     /// Ragged blocks of 1 to 6 rows over more points than a task's (their sizes, the blocks,
     /// their rows `n`), and a fixed full-rank `H` (`n x p`).
     fn ragged_blocks(p: usize) -> (Vec<usize>, super::super::Blocks, usize, DMatrix<f64>) {
@@ -1546,10 +1551,7 @@ mod tests {
             let fit = fit_components(&samples, &[true; 4], None).unwrap();
             (samples, fit)
         };
-        let on = |threads: usize| {
-            rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(run)
-        };
-        let (one, three) = (on(1), on(3));
+        let (one, three) = (on_threads(1, run), on_threads(3, run));
         assert!(one.0 == three.0 && one.1 == three.1, "{} {}", one.1.values, three.1.values);
         assert!(one.1.iterations > 1, "reweighted: {}", one.1.iterations);
     }
@@ -1733,10 +1735,7 @@ mod tests {
             let fit = fit_components(&samples, &[true, false, false, true, false, true, true], None).unwrap();
             (samples, fit)
         };
-        let on = |threads: usize| {
-            rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(run)
-        };
-        let (one, two) = (on(1), on(2));
+        let (one, two) = (on_threads(1, run), on_threads(2, run));
         assert!(one.0 == two.0 && one.1 == two.1, "{} {}", one.1.values, two.1.values);
         assert!(one.1.iterations > 1, "reweighted: {}", one.1.iterations);
     }
