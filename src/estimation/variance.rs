@@ -1389,20 +1389,7 @@ mod tests {
     fn the_residual_design_is_the_dense_residual_makers() {
         let (points, rows, p, dof) = (POINTS_PER_TASK + 3, 6, 4, 3);
         let n = points * rows;
-        let h = DMatrix::from_fn(n, p, |i, j| {
-            ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j))
-        });
-        let spd = |seed: usize| {
-            let b = DMatrix::from_fn(rows, rows, |i, j| (((seed + 1) * (i + 2) * (j + 3)) % 7) as f64 / 7.0);
-            &b * b.transpose() + DMatrix::identity(rows, rows) * 0.5
-        };
-        let mut v = DMatrix::zeros(n, rows);
-        for k in 0..points {
-            v.rows_mut(k * rows, rows).copy_from(&spd(k));
-        }
-        let jacobians: Vec<DMatrix<f64>> = (0..points)
-            .map(|k| DMatrix::from_fn(rows, dof, |i, j| (((k + 2) * (i + 1) + 5 * j) % 9) as f64 / 4.0 - 1.0))
-            .collect();
+        let (h, v, jacobians) = pose_blocks(points, p, dof);
         for (per, joints) in [(3, JointComponents::Full), (6, JointComponents::Diagonal)] {
             for estimator in [super::super::Estimator::Ols, super::super::Estimator::Wls] {
                 let weights = super::super::Weights::new(Some(&v), rows, estimator, true).unwrap();
@@ -1432,6 +1419,25 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// `points` poses of six rows each: a fixed full-rank `H` (`6 points x p`), each pose's
+    /// correlated covariance block `B B^T + I / 2` stacked (`6 points x 6`), and each pose's
+    /// joint Jacobian (`6 x dof`).
+    fn pose_blocks(points: usize, p: usize, dof: usize) -> (DMatrix<f64>, DMatrix<f64>, Vec<DMatrix<f64>>) {
+        let (rows, n) = (6, 6 * points);
+        let h = DMatrix::from_fn(n, p, |i, j| {
+            ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j))
+        });
+        let mut v = DMatrix::zeros(n, rows);
+        for k in 0..points {
+            let b = DMatrix::from_fn(rows, rows, |i, j| (((k + 1) * (i + 2) * (j + 3)) % 7) as f64 / 7.0);
+            v.rows_mut(k * rows, rows).copy_from(&(&b * b.transpose() + DMatrix::identity(rows, rows) * 0.5));
+        }
+        let jacobians = (0..points)
+            .map(|k| DMatrix::from_fn(rows, dof, |i, j| (((k + 2) * (i + 1) + 5 * j) % 9) as f64 / 4.0 - 1.0))
+            .collect();
+        (h, v, jacobians)
     }
 
     /// What `run` gives on a pool of `threads` threads.
@@ -1665,18 +1671,7 @@ mod tests {
         };
         // A pose's six rows a point, correlated weights.
         let (points, rows, p, dof) = (2 * POINTS_PER_TASK + 3, 6, 4, 3);
-        let n = points * rows;
-        let h = DMatrix::from_fn(n, p, |i, j| {
-            ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j))
-        });
-        let mut v = DMatrix::zeros(n, rows);
-        for k in 0..points {
-            let b = DMatrix::from_fn(rows, rows, |i, j| (((k + 1) * (i + 2) * (j + 3)) % 7) as f64 / 7.0);
-            v.rows_mut(k * rows, rows).copy_from(&(&b * b.transpose() + DMatrix::identity(rows, rows) * 0.5));
-        }
-        let jacobians: Vec<DMatrix<f64>> = (0..points)
-            .map(|k| DMatrix::from_fn(rows, dof, |i, j| (((k + 2) * (i + 1) + 5 * j) % 9) as f64 / 4.0 - 1.0))
-            .collect();
+        let (h, v, jacobians) = pose_blocks(points, p, dof);
         for (per, joints) in [(3, JointComponents::Full), (6, JointComponents::Diagonal)] {
             for estimator in [super::super::Estimator::Ols, super::super::Estimator::Wls] {
                 let weights = super::super::Weights::new(Some(&v), rows, estimator, true).unwrap();
