@@ -12,7 +12,8 @@
 //! marker) may follow as `qw,qx,qy,qz` or as `roll,pitch,yaw` (the joints' angle unit,
 //! `R = Rz(yaw) Ry(pitch) Rx(roll)`). Units
 //! are declared by the first line (`# units: joints=deg|rad, lengths=mm|m`) or by the caller;
-//! prismatic joints take the length unit. Other columns are ignored and listed. Lines starting
+//! prismatic joints take the length unit. An observation file's columns (`distance`, `x`, ...)
+//! are refused: such a file fits two kinds. Other columns are ignored and listed. Lines starting
 //! with `#` are comments.
 
 use crate::limits::MAX_LENGTH_MM;
@@ -180,6 +181,10 @@ impl Measurements {
     }
 }
 
+/// The columns of an observation file that a marker file cannot have (its `roll`, `pitch`,
+/// `yaw` are a probe's orientation).
+pub(crate) const OTHER_KINDS: [&str; 8] = ["kind", "distance", "point", "plane", "camera", "x", "y", "z"];
+
 /// The number `k` and the columns `x_k, y_k, z_k` of each marker of `table`'s header, by
 /// number: markers are numbered by their columns, `x1,y1,z1`, `x3,y3,z3`, ... (gaps allowed);
 /// an `x_k` without its `y_k` or `z_k` is an error, and so are a `y_k` or `z_k` without its
@@ -260,6 +265,15 @@ impl Columns {
         let markers = marker_columns(table)?;
         if markers.is_empty() {
             return Err(at_header(None, "no marker columns: expected x1,y1,z1 (and x2,y2,z2, ...)".into()));
+        }
+        // A column of another kind: the file fits two kinds; read as neither, said why.
+        if let Some(name) = OTHER_KINDS.into_iter().find(|c| table.column(c).is_some()) {
+            let message = format!(
+                "a marker file (x1,y1,z1, ...) holds marker positions and a probe's orientation only: `{name}` is \
+                 an observation file's column (distances, contacts, coordinates, camera views); give those in a \
+                 file of their own"
+            );
+            return Err(at_header(Some(name), message));
         }
         let quaternion = ["qw", "qx", "qy", "qz"].map(|c| table.column(c));
         let rpy = ["roll", "pitch", "yaw"].map(|c| table.column(c));

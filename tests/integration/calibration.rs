@@ -422,6 +422,13 @@ fn orientation_columns_read_and_their_errors() {
         data_error(&format!("{head}j1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n1,2,3,4,5,6,7,8,9,0.9,0,0,0\n")),
         "line 3, column `qw`: a unit quaternion, its norm is 0.900000"
     );
+    // A file that fits two kinds (marker columns and a distance) is read as neither, said why.
+    assert_eq!(
+        data_error(&format!("{head}j1,j2,j3,j4,j5,j6,x1,y1,z1,distance\n1,2,3,4,5,6,7,8,9,500\n")),
+        "line 2, column `distance`: a marker file (x1,y1,z1, ...) holds marker positions and a probe's \
+         orientation only: `distance` is an observation file's column (distances, contacts, coordinates, \
+         camera views); give those in a file of their own"
+    );
 }
 
 /// The gauge is physical: of every combination the poses cannot tell apart, the joint
