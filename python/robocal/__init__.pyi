@@ -301,7 +301,7 @@ def calibrate(
     Units: ``joint_unit`` ``"rad"`` or ``"deg"`` and ``length_unit`` ``"m"`` or ``"mm"``, given
     together; arrays default to rad and m, files to their own units line. The options in
     units (``joint_sigma``, ``sigma``, ``sigma_orientation``, ``marker``, ``tool``) are in these
-    units (rad and m when none are given).
+    units (rad and m when none are given); ``joint_sigma`` is one per joint or one for all.
 
     ``estimator``: ``ols``, ``wls``, ``wls-diag``, ``wls-sigma`` or ``fgls`` (default: wls
     with the noise, ols without); ``noise``: a noise file instead of the sigmas; ``params``:
@@ -367,7 +367,8 @@ def evaluate(
     """``model`` scored as it stands on ``data`` (as ``calibrate`` takes it: arrays, a
     DataFrame, a file, ``Observations``), as ``robocal evaluate`` scores it: for marker data, the set pose by pose
     as its JSON has it (``pooled``: before, ``poses``, ``per_marker``; joint values in
-    degrees); for an observation file, its score with the set-up fitted and the robot held. A
+    degrees); for an observation file, its score with the set-up fitted and the robot held, its
+    residuals whitened by the file's sigma column and ``joint_sigma``. A
     model read from a file with ``[[markers]]``, or a calibration's model, brings its markers."""
 
 class Compensation:

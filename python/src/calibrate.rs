@@ -346,21 +346,26 @@ impl Flags {
 }
 
 /// One sigma per joint of `model` in `units` (the joint unit, the length unit for prismatic
-/// joints), in rad and mm.
+/// joints), in rad and mm, from one value per joint or one for every joint.
 fn joint_sigmas(model: &RobotModel, sigmas: &[f64], units: Units) -> PyResult<Vec<f64>> {
-    if sigmas.len() != model.dof() {
+    if sigmas.len() != 1 && sigmas.len() != model.dof() {
+        let joints: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
         return Err(errors::argument(
             "joint_sigma",
-            format!("{} values for the {} joints of {}", sigmas.len(), model.dof(), model.name),
+            format!(
+                "{} values for the {} joints of {} ({}): give one per joint or one for all",
+                sigmas.len(),
+                model.dof(),
+                model.name,
+                joints.join(", ")
+            ),
         ));
     }
-    Ok(model
-        .joints
-        .iter()
-        .zip(sigmas)
-        .map(|(j, &s)| match j.kind {
-            JointKind::Revolute => units.angle(s),
-            JointKind::Prismatic => s * units.length_scale(),
+    let sigma = |j: usize| sigmas[if sigmas.len() == 1 { 0 } else { j }];
+    Ok((model.joints.iter().enumerate())
+        .map(|(i, j)| match j.kind {
+            JointKind::Revolute => units.angle(sigma(i)),
+            JointKind::Prismatic => sigma(i) * units.length_scale(),
         })
         .collect())
 }
@@ -827,7 +832,10 @@ pub fn evaluate(model: &Model, source: Source, flags: Flags) -> PyResult<String>
         "observations" => {
             let data = KindData::from_csv_str(&text_of(&source)?, robot, units_for(&source, request.units))
                 .map_err(|e| data_error(&source, &e))?;
-            let options = KindOptions { tool: robot.tool_point_in_marker_frame(), ..KindOptions::default() };
+            // Whitened by the file's sigma column and the joint noise, as `robocal evaluate`.
+            let joint_noise = kind_options(robot, &flags, &request)?.joint_noise;
+            let tool = robot.tool_point_in_marker_frame();
+            let options = KindOptions { tool, joint_noise, ..KindOptions::default() };
             let score = robocal::calibration::kinds::evaluate_kinds(robot, &data, &options)
                 .map_err(|e| errors::calibration(&e, &source.0))?;
             serde_json::to_string(&score)

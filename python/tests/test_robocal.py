@@ -537,6 +537,17 @@ def test_a_trees_fgls_and_selection_are_the_command_lines(tmp_path: Path) -> Non
         assert_same(json.loads(c.to_json()), json.loads(out.read_text()))
 
 
+def test_evaluate_whitens_an_observation_file_as_the_command_line_does(puma: robocal.Model, tmp_path: Path) -> None:
+    out = tmp_path / "evaluation.json"
+    sigmas = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]
+    run_cli("evaluate", "--model", "puma560", "--data", str(BALLBAR), "--joint-sigma-deg", ",".join(map(str, sigmas)),
+            "--json", str(out), "--quiet")
+    theirs = json.loads(out.read_text())["observations"][0][1]
+    ours = robocal.evaluate(puma, BALLBAR, joint_sigma=sigmas, joint_unit="deg", length_unit="mm")
+    assert_same(ours, theirs)
+    assert ours != robocal.evaluate(puma, BALLBAR), "the joint noise changes the whitened residuals"
+
+
 def test_bad_observations_are_input_errors_naming_their_row_and_column(puma: robocal.Model) -> None:
     q = np.zeros((3, 6))
     bad = robocal.PointDistances(q, [0.5, -0.2, 0.4], name="bar")
