@@ -833,6 +833,11 @@ pub fn evaluate(model: &Model, source: Source, flags: Flags) -> PyResult<String>
             let data = KindData::from_csv_str(&text_of(&source)?, robot, units_for(&source, request.units))
                 .map_err(|e| data_error(&source, &e))?;
             // Whitened by the file's sigma column and the joint noise, as `robocal evaluate`.
+            require(
+                flags.noise.is_none() && flags.sigma.is_none() && flags.sigma_orientation.is_none(),
+                "noise",
+                "observation files: each observation's sigma is its own; give joint_sigma only",
+            )?;
             let joint_noise = kind_options(robot, &flags, &request)?.joint_noise;
             let tool = robot.tool_point_in_marker_frame();
             let options = KindOptions { tool, joint_noise, ..KindOptions::default() };

@@ -546,6 +546,8 @@ def test_evaluate_whitens_an_observation_file_as_the_command_line_does(puma: rob
     ours = robocal.evaluate(puma, BALLBAR, joint_sigma=sigmas, joint_unit="deg", length_unit="mm")
     assert_same(ours, theirs)
     assert ours != robocal.evaluate(puma, BALLBAR), "the joint noise changes the whitened residuals"
+    with pytest.raises(robocal.InputError):
+        robocal.evaluate(puma, BALLBAR, joint_sigma=sigmas, sigma=0.005, joint_unit="deg", length_unit="mm")
 
 
 def test_bad_observations_are_input_errors_naming_their_row_and_column(puma: robocal.Model) -> None:

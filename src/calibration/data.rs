@@ -185,6 +185,12 @@ impl Measurements {
 /// `yaw` are a probe's orientation).
 pub(crate) const OTHER_KINDS: [&str; 8] = ["kind", "distance", "point", "plane", "camera", "x", "y", "z"];
 
+/// The first of `names` that `table` has as a column other than a joint's (`joints`: the
+/// joint columns; a gantry's joint may be named `x`).
+pub(crate) fn other_kinds_column<'n>(table: &Table, joints: &[usize], names: &[&'n str]) -> Option<&'n str> {
+    names.iter().copied().find(|c| table.column(c).is_some_and(|i| !joints.contains(&i)))
+}
+
 /// The number `k` and the columns `x_k, y_k, z_k` of each marker of `table`'s header, by
 /// number: markers are numbered by their columns, `x1,y1,z1`, `x3,y3,z3`, ... (gaps allowed);
 /// an `x_k` without its `y_k` or `z_k` is an error, and so are a `y_k` or `z_k` without its
@@ -267,7 +273,7 @@ impl Columns {
             return Err(at_header(None, "no marker columns: expected x1,y1,z1 (and x2,y2,z2, ...)".into()));
         }
         // A column of another kind: the file fits two kinds; read as neither, said why.
-        if let Some(name) = OTHER_KINDS.into_iter().find(|c| table.column(c).is_some()) {
+        if let Some(name) = other_kinds_column(table, &joints, &OTHER_KINDS) {
             let message = format!(
                 "a marker file (x1,y1,z1, ...) holds marker positions and a probe's orientation only: `{name}` is \
                  an observation file's column (distances, contacts, coordinates, camera views); give those in a \

@@ -220,7 +220,9 @@ pub(crate) fn joined(name: &str, folds: Vec<SetEvaluation>) -> SetEvaluation {
     let poses = super::in_data_order(poses, &index, k);
     let (stages, markers) = (first.stages.len(), first.marker_ids.len());
     let (pooled, per_marker, orientation) = summaries(&poses, stages, markers, first.orientation.is_some());
-    SetEvaluation { name: name.to_string(), poses, pooled, per_marker, orientation, ..first }
+    // Each pose whitened, and flagged, as its fold's calibration whitens its own.
+    let whitening = format!("each fold's own: {}", first.whitening);
+    SetEvaluation { name: name.to_string(), poses, pooled, per_marker, orientation, whitening, ..first }
 }
 
 /// The last stage's residuals `last` whitened (by `V_k` block by block, or by the spread in

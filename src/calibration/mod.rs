@@ -713,9 +713,12 @@ fn fit_gauged(
     let x0: Vec<f64> = asked.indices().iter().map(|&i| before[i]).collect();
     let first = gauge_at(&x0)?;
     let gauge_at = |at: &[f64]| -> Result<(Marked, f64), CalibrationError> {
-        let g = gauge_at(at)?;
+        let mut g = gauge_at(at)?;
         let weakest =
             regauge::weakest(g.start.as_ref().expect("a gauge found, not fitted"), g.prior.as_ref());
+        // Linearised at the settled point, which the next round does not start from: its fit
+        // linearises at its own start.
+        g.start = None;
         Ok((g, weakest))
     };
     let fit = |g: &mut Marked, at: &[f64], steps: usize| -> Result<(Refined, _), CalibrationError> {
@@ -1549,6 +1552,7 @@ pub(crate) fn check_folds(folds: usize, poses: usize) -> Result<(), CalibrationE
 /// their order, then fold 1's, ...), put back in the data's order: item `k` of the data, of
 /// pose `pose_of[k]`, is held out in fold `pose_of[k] mod folds`.
 pub(crate) fn in_data_order<T>(scored: Vec<T>, pose_of: &[usize], folds: usize) -> Vec<T> {
+    debug_assert_eq!(scored.len(), pose_of.len(), "one scored item for each of the data's");
     let order = (0..folds).flat_map(|f| (0..pose_of.len()).filter(move |&k| pose_of[k] % folds == f));
     let mut indexed: Vec<(usize, T)> = order.zip(scored).collect();
     indexed.sort_by_key(|(k, _)| *k);

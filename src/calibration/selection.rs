@@ -8,7 +8,8 @@
 //! estimated. Three criteria:
 //!
 //! - [`Criterion::Cv`]: forward stepwise selection by `F`-fold cross-validation. Pose `k` is
-//!   held out in fold `k mod F`. From the registration, each step adds the candidate whose
+//!   held out in fold `k mod F` (`k` numbered among the poses the data have, so that inside an
+//!   outer fold no inner fold is empty). From the registration, each step adds the candidate whose
 //!   model has the lowest cross-validated RMS
 //!   `CV = sqrt(sum_f SSE_f / sum_f n_f)`, `SSE_f = sum |y_t - H_t x_f|^2` over the markers of
 //!   fold `f`'s held-out poses (unweighted distances, mm; `n_f` markers), `x_f` the estimate
@@ -676,7 +677,7 @@ impl LinearModel {
             .map(|c| c.norm())
             .map(|n| if n > 0.0 { 1.0 / n } else { 1.0 })
             .collect();
-        let (pose_of_row, share) = rows.into_iter().unzip();
+        let (pose_of_row, share): (Vec<usize>, Vec<f64>) = rows.into_iter().unzip();
         Self {
             params: params.clone(),
             columns,
@@ -684,7 +685,7 @@ impl LinearModel {
             held,
             whitened: Scaled::new(&a, &b, &scale),
             unweighted: Scaled::new(&h, &y, &scale),
-            pose_of_row,
+            pose_of_row: dense(&pose_of_row),
             share,
         }
     }
@@ -832,11 +833,15 @@ impl LinearModel {
     }
 
     /// The fits a criterion compares, the registration's columns in: one per fold for CV (pose
-    /// `k` held out in fold `k mod F`), one on every pose for BIC.
+    /// `k` held out in fold `k mod F`, `k` its number among the poses that have rows, [`dense`];
+    /// `F` at most their number), one on every pose for BIC.
     fn fits(&self, criterion: Criterion) -> Vec<Fit> {
+        // No empty fold: at most one per pose.
+        let poses = self.pose_of_row.iter().max().map_or(1, |p| p + 1);
         let mut fits: Vec<Fit> = match criterion {
-            Criterion::Cv { folds } => (0..folds)
+            Criterion::Cv { folds } => (0..folds.min(poses))
                 .map(|f| {
+                    let folds = folds.min(poses);
                     let rows: Vec<usize> =
                         (0..self.pose_of_row.len()).filter(|&r| self.pose_of_row[r] % folds == f).collect();
                     let count = rows.iter().map(|&r| self.share[r]).sum();
@@ -854,6 +859,16 @@ impl LinearModel {
         }
         fits
     }
+}
+
+/// Each row's pose numbered among the poses that have rows (`0..n`, in order): a fold's
+/// training rows keep the data's pose numbers, some with no rows left, and pose `p` goes to
+/// fold `p mod F` by its number here, so that no fold is empty.
+fn dense(pose_of_row: &[usize]) -> Vec<usize> {
+    let mut poses = pose_of_row.to_vec();
+    poses.sort_unstable();
+    poses.dedup();
+    pose_of_row.iter().map(|p| poses.binary_search(p).expect("a pose of the rows")).collect()
 }
 
 /// The forward path from `fits`: at each step the candidate of `linear` whose trial scores
@@ -1100,6 +1115,31 @@ impl Fit {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A fold's training rows keep the data's pose numbers (here the poses of an outer 3-fold
+    /// split, fold 0 held out: 1, 2, 4, 5, 7, 8, 10, 11): numbered among themselves, every
+    /// inner fold of 3 holds poses out (3, 3 and 2; by their own numbers, `p mod 3`, one fold
+    /// would hold none); with more folds than poses, one pose each.
+    #[test]
+    fn inner_folds_are_never_empty() {
+        let poses: Vec<usize> = (0..12).filter(|p| p % 3 != 0).collect();
+        assert_eq!(dense(&[4, 4, 1, 7]), [1, 1, 0, 2]);
+        let rows: Vec<(usize, f64)> = poses.iter().flat_map(|&p| [(p, 1.0 / 3.0); 3]).collect();
+        let value =
+            |i: usize, j: usize| ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0 + f64::from(u8::from(i == j));
+        let (a, y) =
+            (DMatrix::from_fn(rows.len(), 2, value), DVector::from_fn(rows.len(), |i, _| value(i, 5)));
+        let params = crate::model::ParamSet::new(&RobotModel::preset("puma560").unwrap());
+        let parts = LinearParts { whitened: (a.clone(), y.clone()), unweighted: (a, y), rows };
+        let linear =
+            LinearModel::new(&params, (vec![None, Some(0)], vec!["s".into(), "j".into()]), Vec::new(), parts);
+        for (folds, expected) in [(3, vec![3.0, 3.0, 2.0]), (20, vec![1.0; 8])] {
+            let held: Vec<f64> = (linear.fits(Criterion::Cv { folds }).iter())
+                .map(|fit| fit.test.as_ref().map(|t| t.3.round()).expect("a held-out part"))
+                .collect();
+            assert_eq!(held, expected, "{folds} folds: the errors each holds out");
+        }
+    }
 
     /// The incremental fit (Cholesky row by row, the held-out error as a quadratic form) gives
     /// the direct least-squares answer of every growing subset: training cost, held-out error,

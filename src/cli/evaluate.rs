@@ -117,21 +117,37 @@ fn observation_file(
 ) -> Result<(String, KindData, Score)> {
     let data = KindData::from_csv_str(&read(path)?, model, request.units)
         .with_context(|| path.display().to_string())?;
-    let joint_noise = match &request.noise {
-        None => None,
-        Some(NoiseSource::Flags(flags)) => {
-            super::joint_covariance(&model.name, &model.joints, Some(&flags.joint_sigma_deg))?
-        }
-        Some(NoiseSource::File(_)) => bail!(
-            "{}: --noise is for marker files; an observation file's sigma column is its measurement noise: give \
-             the joint noise by --joint-sigma-deg",
-            path.display()
-        ),
-    };
+    let joint_noise = observation_joint_noise(request, (&model.name, &model.joints))
+        .with_context(|| path.display().to_string())?;
     let tool = model.tool_point_in_marker_frame();
     let options = KindOptions { tool, joint_noise, ..KindOptions::default() };
     let score = evaluate_kinds(model, &data, &options).with_context(|| path.display().to_string())?;
     Ok((path.display().to_string(), data, score))
+}
+
+/// The joint noise `--joint-sigma-deg` gives for scoring observation or view files (of the
+/// robot `name` with `joints`); `--noise`, `--sigma-mm` and `--sigma-orientation-deg` refused:
+/// such a file's sigma columns are its measurement noise.
+pub(super) fn observation_joint_noise(
+    request: &EvaluateRequest,
+    (name, joints): (&str, &[robocal::model::Joint]),
+) -> Result<Option<nalgebra::DMatrix<f64>>> {
+    match &request.noise {
+        None => Ok(None),
+        Some(NoiseSource::Flags(flags)) if flags.sigma_mm != 0.0 || flags.sigma_orientation_deg != 0.0 => {
+            bail!(
+                "--sigma-mm and --sigma-orientation-deg are for marker files: the sigma and sigma_angle columns give \
+             the measurement noise here, --joint-sigma-deg the joints'"
+            )
+        }
+        Some(NoiseSource::Flags(flags)) => {
+            super::joint_covariance(name, joints, Some(&flags.joint_sigma_deg))
+        }
+        Some(NoiseSource::File(_)) => bail!(
+            "--noise is for marker files: the sigma and sigma_angle columns give the measurement noise here; give \
+             the joint noise by --joint-sigma-deg"
+        ),
+    }
 }
 
 /// Stage the files `request` asks for of observation files scored as they stand: the JSON,

@@ -2,7 +2,7 @@
 //! with the branches `calibrate --out-dir` wrote (`--branches`), scored on files of views
 //! between its branches, each file's cameras and targets fitted to it, the tree held.
 
-use super::request::{EvaluateRequest, NoiseSource};
+use super::request::EvaluateRequest;
 use anyhow::{Context, Result, bail};
 use robocal::calibration::DataKind;
 use robocal::calibration::tree::{TreeData, TreeOptions, TreeScore, ViewResidual, evaluate_tree};
@@ -47,16 +47,7 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
             Ok((path.display().to_string(), data))
         })
         .collect::<Result<Vec<_>>>()?;
-    let joint_noise = match &request.noise {
-        None => None,
-        Some(NoiseSource::Flags(flags)) => {
-            super::joint_covariance(&tree.name, &tree.joints, Some(&flags.joint_sigma_deg))?
-        }
-        Some(NoiseSource::File(_)) => bail!(
-            "--noise is for marker files; a view file's sigma columns are its measurement noise: give the \
-             joint noise by --joint-sigma-deg"
-        ),
-    };
+    let joint_noise = super::evaluate::observation_joint_noise(request, (&tree.name, &tree.joints))?;
     let options = TreeOptions { joint_noise, ..TreeOptions::default() };
     let views = (files.iter())
         .map(|(name, data)| {

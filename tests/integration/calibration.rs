@@ -429,6 +429,11 @@ fn orientation_columns_read_and_their_errors() {
          orientation only: `distance` is an observation file's column (distances, contacts, coordinates, \
          camera views); give those in a file of their own"
     );
+    // A joint named as one of those columns (a gantry's `x`) is the joint's.
+    let mut gantry = RobotModel::preset("puma560").unwrap();
+    gantry.joints[0].name = "x".into();
+    let text = format!("{head}x,j2,j3,j4,j5,j6,x1,y1,z1\n1,2,3,4,5,6,7,8,9\n");
+    assert_eq!(Measurements::from_csv_str(&text, &gantry, None).unwrap().joints[0][0], 1f64.to_radians());
 }
 
 /// The gauge is physical: of every combination the poses cannot tell apart, the joint

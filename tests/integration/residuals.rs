@@ -467,7 +467,7 @@ fn evaluate_whitens_an_observation_file_by_the_joint_noise() {
         rows.iter().filter(|r| r["flagged"] == "true").count()
     };
     let sigmas = "0.007,0.007,0.007,0.002,0.002,0.002";
-    assert_eq!(flagged(&["--joint-sigma-deg", sigmas, "--sigma-mm", "0.005"]), 0);
+    assert_eq!(flagged(&["--joint-sigma-deg", sigmas]), 0);
     assert!(flagged(&[]) > 75, "the joints' noise left out");
     std::fs::write(dir.join("noise.toml"), "").unwrap();
     let out = assert_cmd::Command::cargo_bin("robocal")
@@ -478,6 +478,18 @@ fn evaluate_whitens_an_observation_file_by_the_joint_noise() {
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains("give the joint noise by --joint-sigma-deg"));
+    // The file's sigma column is the measurement noise: --sigma-mm is refused, not ignored.
+    let out = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(truth)
+        .args(["--joint-sigma-deg", sigmas, "--sigma-mm", "0.005"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&out.stderr)
+            .contains("--sigma-mm and --sigma-orientation-deg are for marker files")
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -497,7 +509,7 @@ fn evaluate_of_a_tree_whitens_by_the_joint_noise() {
         let views = json(&report)["views"][0][1]["views"].as_array().unwrap().clone();
         views.iter().map(|v| v["whitened"].as_f64().unwrap().abs()).fold(0.0, f64::max)
     };
-    let (noisy, alone) = (largest(&["--joint-sigma-deg", "1", "--sigma-mm", "0.2"]), largest(&[]));
+    let (noisy, alone) = (largest(&["--joint-sigma-deg", "1"]), largest(&[]));
     assert!(
         noisy < 2.0 && alone > 20.0,
         "largest whitened {noisy} with 1 deg of joint noise, {alone} without"

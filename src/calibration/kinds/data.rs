@@ -862,8 +862,9 @@ impl KindColumns {
         if !columns.markers.is_empty() {
             let others =
                 ["kind", "distance", "point", "plane", "camera", "x", "y", "z", "roll", "pitch", "yaw"];
-            let others = ["qw", "qx", "qy", "qz"].iter().chain(&others);
-            if let Some(name) = others.into_iter().find(|c| table.column(c).is_some()) {
+            let others: Vec<&str> = ["qw", "qx", "qy", "qz"].into_iter().chain(others).collect();
+            if let Some(name) = crate::calibration::data::other_kinds_column(table, &columns.joints, &others)
+            {
                 return Err(header(
                     Some(name),
                     "a marker file (x1,y1,z1, ...) has marker positions only: give the other kinds, and a \
