@@ -22,6 +22,7 @@ from ._robocal import calibrate_source as _calibrate_source
 from ._robocal import calibrate_tree as _calibrate_tree
 from ._robocal import compensate as _compensate
 from ._robocal import evaluate as _evaluate
+from ._robocal import evaluate_tree as _evaluate_tree
 from ._robocal import observability as _observability
 from ._robocal import plan as _plan
 from ._robocal import measurements_csv as _measurements_csv
@@ -47,6 +48,7 @@ __all__ = [
     "Compensation",
     "compensate",
     "evaluate",
+    "evaluate_tree",
     "observability",
     "plan",
     "presets",
@@ -478,19 +480,39 @@ def calibrate_tree(
     """Calibrate the tree of ``urdf`` from views between its branches, as ``robocal calibrate``
     calibrates view files; see the stub."""
 
-    def source(data: Any, name: str) -> tuple[str, Optional[str], Optional[str]]:
-        if isinstance(data, (str, os.PathLike)):
-            return (os.fspath(data), os.fspath(data), None)
-        if hasattr(data, "to_csv"):
-            return (name, None, data.to_csv(index=False))
-        raise InputError(f"{name}: a view file's path or a DataFrame with its columns", field="views")
-
-    sources = [source(v, f"views[{k}]") for k, v in enumerate(views)]
-    held_out = [source(v, f"validate[{k}]") for k, v in enumerate(validate)]
+    sources = [_view_source(v, f"views[{k}]") for k, v in enumerate(views)]
+    held_out = [_view_source(v, f"validate[{k}]") for k, v in enumerate(validate)]
     flags = _flags(joint_unit=joint_unit, length_unit=length_unit, estimator=estimator, joint_sigma=joint_sigma,
                    params=params, hold=hold, keep=keep, prior=prior, loss=loss, iterations=iterations,
                    folds=folds, select=select)
     return Calibration(_calibrate_tree(os.fspath(urdf), list(tips), base_link, sources, held_out, flags))
+
+
+def _view_source(data: Any, name: str) -> tuple[str, Optional[str], Optional[str]]:
+    """A view file's path or a DataFrame of its columns, as the extension takes it."""
+    if isinstance(data, (str, os.PathLike)):
+        return (os.fspath(data), os.fspath(data), None)
+    if hasattr(data, "to_csv"):
+        return (name, None, data.to_csv(index=False))
+    raise InputError(f"{name}: a view file's path or a DataFrame with its columns", field="views")
+
+
+def evaluate_tree(
+    urdf: PathLike,
+    views: Any,
+    *,
+    tips: Sequence[str] = (),
+    base_link: Optional[str] = None,
+    joint_unit: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    joint_sigma: Any = None,
+) -> dict[str, Any]:
+    """The tree of ``urdf`` scored as it stands on ``views``, as ``robocal evaluate`` scores a
+    file of views; see the stub."""
+    flags = _flags(joint_unit=joint_unit, length_unit=length_unit, joint_sigma=joint_sigma)
+    source = _view_source(views, "views")
+    result: dict[str, Any] = json.loads(_evaluate_tree(os.fspath(urdf), list(tips), base_link, source, flags))
+    return result
 
 
 def _flags(

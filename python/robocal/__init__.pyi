@@ -351,6 +351,24 @@ def calibrate_tree(
     The result's ``branches`` are the calibrated chains; its report and JSON are the command
     line's."""
 
+def evaluate_tree(
+    urdf: PathLike,
+    views: Any,
+    *,
+    tips: Sequence[str] = (),
+    base_link: Optional[str] = None,
+    joint_unit: Optional[str] = None,
+    length_unit: Optional[str] = None,
+    joint_sigma: Union[Sequence[float], FloatArray, None] = None,
+) -> dict[str, Any]:
+    """The tree of the URDF file ``urdf`` (from ``base_link`` to the ``tips``, as
+    ``calibrate_tree`` reads it) scored as it stands on ``views`` (a view file's path or a
+    DataFrame of its columns), as ``robocal evaluate --model tree.urdf --tips ...`` scores it:
+    its cameras and targets fitted to the views, the tree held, each view's residuals whitened
+    by its sigmas and ``joint_sigma`` (one per tree joint or one for all, in ``joint_unit``).
+    The score as the command's JSON has it (``views``: each view's residual; ``position`` and
+    ``rotation``: their RMS)."""
+
 def evaluate(
     model: Model,
     data: Any,

@@ -25,6 +25,7 @@ fn _robocal(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibrate::evaluate, m)?)?;
     m.add_function(wrap_pyfunction!(compensate::compensate, m)?)?;
     m.add_function(wrap_pyfunction!(tree::calibrate_tree, m)?)?;
+    m.add_function(wrap_pyfunction!(tree::evaluate_tree, m)?)?;
     m.add_function(wrap_pyfunction!(design::observability, m)?)?;
     m.add_function(wrap_pyfunction!(design::plan, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;

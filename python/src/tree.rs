@@ -69,12 +69,7 @@ pub fn calibrate_tree(
         "params",
         "all: the base is never estimated from views; give joints",
     )?;
-    let text = std::fs::read_to_string(&urdf).map_err(|e| {
-        let place = Place { file: Some(urdf.clone()), ..Place::default() };
-        errors::raise(Kind::Input, format!("{urdf}: cannot read: {e}"), place)
-    })?;
-    let tree = RobotTree::from_urdf_str(&text, base_link.as_deref(), &tips)
-        .map_err(|e| errors::from_error(Kind::Input, &e, Some(&urdf)))?;
+    let tree = read_tree(&urdf, base_link.as_deref(), &tips)?;
     let read = |s: &Source| -> PyResult<(String, TreeData)> {
         let data = TreeData::from_csv_str(&text_of(s)?, &tree, units_for(s, request.units))
             .map_err(|e| data_error(s, &e))?;
@@ -111,4 +106,48 @@ pub fn calibrate_tree(
         (c.calibrated.branches.iter()).map(|b| (b.tip.clone(), Model::new(b.model.clone(), None))).collect();
     let estimate = &c.refined.estimate;
     Calibration::new(py, &report, estimate, estimate.diagnostics.rank, Vec::new(), None, branches)
+}
+
+/// The tree of the URDF file `urdf` (from `base_link` to the `tips`) scored as it stands on the
+/// views of `source`, as `robocal evaluate --model tree.urdf --tips ...` scores a file: its
+/// cameras and targets fitted to it, the tree held, whitened by the views' sigmas and
+/// `joint_sigma`. The score as JSON (`views`, `position`, `rotation`).
+#[pyfunction]
+#[pyo3(signature = (urdf, tips, base_link, source, flags))]
+pub fn evaluate_tree(
+    py: Python<'_>,
+    urdf: String,
+    tips: Vec<String>,
+    base_link: Option<String>,
+    source: Source,
+    flags: Flags,
+) -> PyResult<String> {
+    let request = flags.request()?;
+    require(
+        flags.noise.is_none() && flags.sigma.is_none() && flags.sigma_orientation.is_none(),
+        "noise",
+        "views: their sigma columns are the measurement noise; give joint_sigma only",
+    )?;
+    let tree = read_tree(&urdf, base_link.as_deref(), &tips)?;
+    let data = TreeData::from_csv_str(&text_of(&source)?, &tree, units_for(&source, request.units))
+        .map_err(|e| data_error(&source, &e))?;
+    let joint_noise = match &flags.joint_sigma {
+        Some(sigmas) => Some(joint_noise(&tree, sigmas, request.noise_units)?),
+        None => None,
+    };
+    let options = TreeOptions { joint_noise, ..TreeOptions::default() };
+    let score = py
+        .detach(|| robocal::calibration::tree::evaluate_tree(&tree, &data, &options))
+        .map_err(|e| errors::calibration(&e, &source.0))?;
+    Ok(serde_json::to_string(&score).expect("a score serialises"))
+}
+
+/// The tree of the URDF file `urdf`, from `base_link` to `tips`; an input error naming the file.
+fn read_tree(urdf: &str, base_link: Option<&str>, tips: &[String]) -> PyResult<RobotTree> {
+    let text = std::fs::read_to_string(urdf).map_err(|e| {
+        let place = Place { file: Some(urdf.to_string()), ..Place::default() };
+        errors::raise(Kind::Input, format!("{urdf}: cannot read: {e}"), place)
+    })?;
+    RobotTree::from_urdf_str(&text, base_link, tips)
+        .map_err(|e| errors::from_error(Kind::Input, &e, Some(urdf)))
 }

@@ -550,6 +550,18 @@ def test_evaluate_whitens_an_observation_file_as_the_command_line_does(puma: rob
         robocal.evaluate(puma, BALLBAR, joint_sigma=sigmas, sigma=0.005, joint_unit="deg", length_unit="mm")
 
 
+def test_evaluate_tree_scores_views_as_the_command_line_does(tmp_path: Path) -> None:
+    out = tmp_path / "evaluation.json"
+    urdf, views = ROOT / "presets" / "torso.urdf", EXAMPLES / "torso" / "views.csv"
+    tips = ["head_camera", "l_hand", "r_hand"]
+    run_cli("evaluate", "--model", str(urdf), "--tips", ",".join(tips), "--data", str(views), "--joint-sigma-deg", "0.05",
+            "--json", str(out), "--quiet")
+    theirs = json.loads(out.read_text())["views"][0][1]
+    ours = robocal.evaluate_tree(urdf, views, tips=tips, joint_sigma=[0.05], joint_unit="deg", length_unit="mm")
+    assert_same(ours, theirs)
+    assert len(ours["views"]) == 120
+
+
 def test_bad_observations_are_input_errors_naming_their_row_and_column(puma: robocal.Model) -> None:
     q = np.zeros((3, 6))
     bad = robocal.PointDistances(q, [0.5, -0.2, 0.4], name="bar")
