@@ -14,7 +14,7 @@ use robocal::calibration::{
     self, Choices, DataKind, Gauge, JointParams, Loss, Measurements, Options, SetEvaluation,
 };
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PriorEntry, RefineOptions};
-use robocal::model::{JointKind, RobotModel};
+use robocal::model::{Joint, JointKind, RobotModel};
 use robocal::pipeline::{MarkerError, MarkerRequest, calibrate_markers};
 use robocal::report::calibration::{CalibrationReport, ParameterRow};
 use robocal::report::observations::ObservationsReport;
@@ -332,7 +332,7 @@ impl Flags {
             });
         }
         let Some(sigmas) = &self.joint_sigma else { return Ok(None) };
-        let joint = joint_sigmas(model, sigmas, request.noise_units)?;
+        let joint = joint_sigmas((&model.name, &model.joints), sigmas, request.noise_units)?;
         let scale = request.noise_units.length_scale();
         let orientation = request.noise_units.angle(self.sigma_orientation.unwrap_or(0.0));
         let measurement = MeasurementNoise::isotropic(self.sigma.unwrap_or(0.0) * scale, orientation);
@@ -345,24 +345,28 @@ impl Flags {
     }
 }
 
-/// One sigma per joint of `model` in `units` (the joint unit, the length unit for prismatic
-/// joints), in rad and mm, from one value per joint or one for every joint.
-fn joint_sigmas(model: &RobotModel, sigmas: &[f64], units: Units) -> PyResult<Vec<f64>> {
-    if sigmas.len() != 1 && sigmas.len() != model.dof() {
-        let joints: Vec<&str> = model.joints.iter().map(|j| j.name.as_str()).collect();
+/// One sigma per joint of the robot `name` with `joints` in `units` (the joint unit, the
+/// length unit for prismatic joints), in rad and mm, from one value per joint or one for every
+/// joint; the one reader of `joint_sigma` for chains and trees.
+pub(crate) fn joint_sigmas(
+    (name, joints): (&str, &[Joint]),
+    sigmas: &[f64],
+    units: Units,
+) -> PyResult<Vec<f64>> {
+    if sigmas.len() != 1 && sigmas.len() != joints.len() {
+        let names: Vec<&str> = joints.iter().map(|j| j.name.as_str()).collect();
         return Err(errors::argument(
             "joint_sigma",
             format!(
-                "{} values for the {} joints of {} ({}): give one per joint or one for all",
+                "{} values for the {} joints of {name} ({}): give one per joint or one for all",
                 sigmas.len(),
-                model.dof(),
-                model.name,
-                joints.join(", ")
+                joints.len(),
+                names.join(", ")
             ),
         ));
     }
     let sigma = |j: usize| sigmas[if sigmas.len() == 1 { 0 } else { j }];
-    Ok((model.joints.iter().enumerate())
+    Ok((joints.iter().enumerate())
         .map(|(i, j)| match j.kind {
             JointKind::Revolute => units.angle(sigma(i)),
             JointKind::Prismatic => sigma(i) * units.length_scale(),
@@ -860,7 +864,7 @@ pub fn evaluate(model: &Model, source: Source, flags: Flags) -> PyResult<String>
 fn kind_options(model: &RobotModel, flags: &Flags, request: &Request) -> PyResult<KindOptions> {
     let joint_noise = match &flags.joint_sigma {
         Some(sigmas) => {
-            let sigmas = joint_sigmas(model, sigmas, request.noise_units)?;
+            let sigmas = joint_sigmas((&model.name, &model.joints), sigmas, request.noise_units)?;
             Some(nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(
                 sigmas.len(),
                 sigmas.iter().map(|s| s * s),

@@ -2,7 +2,7 @@
 //! between its branches, as `robocal calibrate` calibrates view files
 //! ([`robocal::pipeline::calibrate_views`]).
 
-use crate::calibrate::{Calibration, Flags, Source, data_error, require, text_of, units_for};
+use crate::calibrate::{Calibration, Flags, Source, data_error, joint_sigmas, require, text_of, units_for};
 use crate::errors::{self, Kind, Place};
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use robocal::calibration::CalibrationError;
 use robocal::calibration::tree::{TreeData, TreeOptions};
 use robocal::estimation::{Estimator, RefineOptions};
-use robocal::model::{JointKind, RobotTree};
+use robocal::model::RobotTree;
 use robocal::report::tree::TreeReport;
 use robocal::table::Units;
 
@@ -19,23 +19,8 @@ crate::calibrate::report_rows!(TreeReport);
 /// `Sigma_q` of the tree's joints (rad², mm²) from `sigmas` in `units` (the joint unit, the
 /// length unit for prismatic joints): one per joint, or one for all.
 fn joint_noise(tree: &RobotTree, sigmas: &[f64], units: Units) -> PyResult<DMatrix<f64>> {
-    if sigmas.len() != 1 && sigmas.len() != tree.dof() {
-        let joints: Vec<&str> = tree.joints.iter().map(|j| j.name.as_str()).collect();
-        let message = format!(
-            "{} values for the {} joints of {} ({}): give one per joint or one for all",
-            sigmas.len(),
-            tree.dof(),
-            tree.name,
-            joints.join(", ")
-        );
-        return Err(errors::argument("joint_sigma", message));
-    }
-    let sigma = |j: usize| sigmas[if sigmas.len() == 1 { 0 } else { j }];
-    let variances = tree.joints.iter().enumerate().map(|(j, joint)| match joint.kind {
-        JointKind::Revolute => units.angle(sigma(j)).powi(2),
-        JointKind::Prismatic => (sigma(j) * units.length_scale()).powi(2),
-    });
-    Ok(DMatrix::from_diagonal(&DVector::from_iterator(tree.dof(), variances)))
+    let sigmas = joint_sigmas((&tree.name, &tree.joints), sigmas, units)?;
+    Ok(DMatrix::from_diagonal(&DVector::from_iterator(sigmas.len(), sigmas.iter().map(|s| s * s))))
 }
 
 /// Calibrate the tree of the URDF file `urdf` (from `base_link`, default its only root, to

@@ -214,15 +214,26 @@ pub(crate) fn evaluate_on(
 /// their poses joined in the data's order, the summaries over them all.
 pub(crate) fn joined(name: &str, folds: Vec<SetEvaluation>) -> SetEvaluation {
     let k = folds.len();
-    let first = folds.first().expect("at least two folds").clone();
-    let poses: Vec<PoseErrors> = folds.into_iter().flat_map(|f| f.poses).collect();
-    let index: Vec<usize> = (0..poses.len()).collect();
-    let poses = super::in_data_order(poses, &index, k);
-    let (stages, markers) = (first.stages.len(), first.marker_ids.len());
-    let (pooled, per_marker, orientation) = summaries(&poses, stages, markers, first.orientation.is_some());
+    let mut folds = folds.into_iter();
+    let first = folds.next().expect("at least two folds");
+    let (stages, markers, probe) = (first.stages.len(), first.marker_ids.len(), first.orientation.is_some());
     // Each pose whitened, and flagged, as its fold's calibration whitens its own.
     let whitening = format!("each fold's own: {}", first.whitening);
-    SetEvaluation { name: name.to_string(), poses, pooled, per_marker, orientation, whitening, ..first }
+    let (marker_ids, stage_names) = (first.marker_ids, first.stages);
+    let poses: Vec<PoseErrors> = first.poses.into_iter().chain(folds.flat_map(|f| f.poses)).collect();
+    let index: Vec<usize> = (0..poses.len()).collect();
+    let poses = super::in_data_order(poses, &index, k);
+    let (pooled, per_marker, orientation) = summaries(&poses, stages, markers, probe);
+    SetEvaluation {
+        name: name.to_string(),
+        stages: stage_names,
+        marker_ids,
+        poses,
+        pooled,
+        per_marker,
+        orientation,
+        whitening,
+    }
 }
 
 /// The last stage's residuals `last` whitened (by `V_k` block by block, or by the spread in

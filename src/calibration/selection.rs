@@ -662,6 +662,33 @@ pub(crate) struct LinearParts {
     pub rows: Vec<(usize, f64)>,
 }
 
+impl LinearParts {
+    /// The parts of `problem` linearised at `x` (its columns those the gauge keeps): `H` and
+    /// `y` unweighted, the rows of `rows` that score nothing (share 0) zeroed, and whitened by
+    /// `weights` with the `prior`'s rows below them.
+    pub(crate) fn of_problem(
+        problem: &impl Residuals,
+        (x, weights, prior): (&DVector<f64>, &Weights, Option<crate::estimation::PriorRows>),
+        rows: Vec<(usize, f64)>,
+    ) -> Self {
+        let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+        let mut y = problem.evaluate(x, Some(&mut h));
+        // The whitened system, held whole: the path fits it fold by fold.
+        let (mut a, mut b) = (h.clone(), y.clone());
+        weights.apply(&mut a);
+        weights.apply(&mut b);
+        let whitened = match prior {
+            Some(prior) => prior.augment(&a, &b, x),
+            None => (a, b),
+        };
+        for (r, _) in rows.iter().enumerate().filter(|(_, (_, share))| *share == 0.0) {
+            h.row_mut(r).fill(0.0);
+            y[r] = 0.0;
+        }
+        Self { whitened, unweighted: (h, y), rows }
+    }
+}
+
 impl LinearModel {
     /// The model of the columns `columns` (named `names`) of `params`, the held in `held`,
     /// from `parts`; the columns scaled by the whitened system's column norms.
@@ -760,26 +787,13 @@ impl LinearModel {
         let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
         let problem = started.base.reselect(&kept, before, before_setup, kept_setup);
         let start = started.linearised.select(identifiable);
-        let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
-        let mut y = problem.evaluate(&start.x, Some(&mut h));
-        // The whitened system of `start`, held whole: the path fits it fold by fold.
-        let (mut a, mut b) = (h.clone(), y.clone());
-        started.weights.apply(&mut a);
-        started.weights.apply(&mut b);
-        let whitened = match prior {
-            Some(prior) => prior.select(identifiable).augment(&a, &b, &start.x),
-            None => (a, b),
-        };
         let rows: Vec<(usize, f64)> =
             data.observations.iter().map(|o| (o.pose(), if o.is_angle() { 0.0 } else { 1.0 })).collect();
-        for (r, _) in rows.iter().enumerate().filter(|(_, (_, share))| *share == 0.0) {
-            h.row_mut(r).fill(0.0);
-            y[r] = 0.0;
-        }
+        let prior = prior.as_ref().map(|p| p.select(identifiable));
+        let parts = LinearParts::of_problem(&problem, (&start.x, &started.weights, prior), rows);
         // The robot's kept parameters, then the set-up's.
         let columns = (0..problem.parameters()).map(|c| kept.indices().get(c).copied()).collect();
         let held = prepared.every_held(fixed.clone()).iter().map(Held::text).collect();
-        let parts = LinearParts { whitened, unweighted: (h, y), rows };
         Ok(Self::new(&prepared.params, (columns, problem.names()), held, parts))
     }
 

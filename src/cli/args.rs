@@ -158,9 +158,9 @@ pub struct LinkArgs {
 #[derive(Args, Debug)]
 pub struct NoiseArgs {
     /// Joint noise standard deviations, one per joint or one for every joint (deg; mm for
-    /// prismatic joints): the weights of calibrate, the whitened H of plan and observability, the whitened residuals
-    /// of evaluate. Give --sigma-mm too: joint noise alone can leave a pose's covariance
-    /// singular.
+    /// prismatic joints): the weights of calibrate, the whitened H of plan and observability,
+    /// the whitened residuals of evaluate. Give --sigma-mm too: joint noise alone can leave a
+    /// pose's covariance singular.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma_deg)]
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// Measurement noise standard deviation (mm), with --joint-sigma-deg; a data file's `sigma`

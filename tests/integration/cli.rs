@@ -600,20 +600,9 @@ fn one_joint_sigma_is_every_joints() {
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         String::from_utf8(out.stdout).unwrap()
     };
-    let ball_bar = |sigmas: &'static str| {
-        [
-            "calibrate",
-            "--model",
-            "puma560",
-            "--tool",
-            "50,0,150",
-            "--data",
-            "examples/puma560-ballbar.csv",
-            "--joint-sigma-deg",
-            sigmas,
-        ]
-    };
-    for args in [CALIBRATE.to_vec(), ball_bar("").to_vec()] {
+    let mut ball_bar = crate::kinds_fgls::BALL_BAR[..7].to_vec();
+    ball_bar.extend(["--joint-sigma-deg", ""]);
+    for args in [CALIBRATE.to_vec(), ball_bar] {
         let sigma_at = args.iter().position(|a| *a == "--joint-sigma-deg").unwrap() + 1;
         let (mut one, mut six) = (args.clone(), args.clone());
         one[sigma_at] = "0.005";

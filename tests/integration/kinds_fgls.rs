@@ -215,7 +215,7 @@ fn robocal(args: &[&str]) -> std::process::Output {
     assert_cmd::Command::cargo_bin("robocal").unwrap().args(args).output().unwrap()
 }
 
-const BALL_BAR: [&str; 9] = [
+pub(crate) const BALL_BAR: [&str; 9] = [
     "calibrate",
     "--model",
     "puma560",

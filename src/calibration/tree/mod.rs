@@ -994,28 +994,16 @@ pub(crate) fn selection_model(
     let kept_setup: Vec<usize> = identifiable.iter().filter(|&&c| c >= robot).map(|&c| c - robot).collect();
     let problem = whole.reselect(kept.clone(), zero, before, kept_setup);
     let x = problem.start();
-    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
-    let mut y = problem.evaluate(&x, Some(&mut h));
-    let (mut a, mut b) = (h.clone(), y.clone());
-    weights.apply(&mut a);
-    weights.apply(&mut b);
-    let whitened = match prior {
-        Some(prior) => prior.select(&identifiable).augment(&a, &b, &x),
-        None => (a, b),
-    };
     let n = data.rows();
     let rows: Vec<(usize, f64)> = (data.views.iter())
         .flat_map(|v| (0..n).map(move |r| (v.pose, if r < 3 { 1.0 / 3.0 } else { 0.0 })))
         .collect();
-    for (r, _) in rows.iter().enumerate().filter(|(_, (_, share))| *share == 0.0) {
-        h.row_mut(r).fill(0.0);
-        y[r] = 0.0;
-    }
+    let prior = prior.map(|p| p.select(&identifiable));
+    let parts = super::selection::LinearParts::of_problem(&problem, (&x, &weights, prior), rows);
     say_why_unseen(&mut fixed, &params, data);
     fixed.extend(held);
     let columns = (0..problem.parameters()).map(|c| kept.get(c).copied()).collect();
     let held = fixed.iter().map(Held::text).collect();
-    let parts = super::selection::LinearParts { whitened, unweighted: (h, y), rows };
     let set = crate::model::ParamSet::from_params(params.params.clone());
     Ok(super::selection::LinearModel::new(&set, (columns, problem.names()), held, parts))
 }
