@@ -66,8 +66,8 @@ impl DataError {
 pub(crate) struct Row {
     /// Line in the file (1-based).
     pub line: usize,
-    /// The cells, as many as the header's or fewer.
-    pub cells: Vec<String>,
+    /// The cells, as many as the header's or fewer: one buffer a row, not a string a cell.
+    pub cells: csv::StringRecord,
 }
 
 /// A table file read whole: the declared units, the header and the rows.
@@ -131,7 +131,7 @@ impl Table {
                 let message = format!("{} values, the header has {}", record.len(), header.len());
                 return Err(DataError::new(line, None, message));
             }
-            rows.push(Row { line, cells: record.iter().map(str::to_string).collect() });
+            rows.push(Row { line, cells: record });
         }
         Ok(Self { declared, header, header_line, rows })
     }
@@ -343,7 +343,10 @@ mod tests {
             "line 2, column `j1`: `x` is not a number"
         );
         assert_eq!(
-            table.number(&Row { line: 9, cells: vec!["inf".into()] }, 0).unwrap_err().to_string(),
+            table
+                .number(&Row { line: 9, cells: csv::StringRecord::from(vec!["inf"]) }, 0)
+                .unwrap_err()
+                .to_string(),
             "line 9, column `j1`: inf: expected a finite number"
         );
     }

@@ -238,8 +238,8 @@ pub(crate) fn check_markers_measured(
 ) -> Result<(), DataError> {
     for &(k, columns) in markers {
         let cells = || table.rows.iter().flat_map(|row| columns.iter().filter_map(|&c| row.cells.get(c)));
-        let zero = |text: &String| text.parse::<f64>().is_ok_and(|v| v == 0.0);
-        if cells().any(zero) && cells().all(|text| text.is_empty() || zero(text)) {
+        let zero = |text: &str| text.parse::<f64>().is_ok_and(|v| v == 0.0);
+        if cells().all(|text| text.is_empty() || zero(text)) && cells().any(zero) {
             let message = format!(
                 "marker {k} is at 0, 0, 0 in every row: a placeholder, not a measurement; measure it, or \
                  leave out its columns x{k},y{k},z{k}"

@@ -62,7 +62,7 @@ impl RepeatabilityData {
         let mut poses: Vec<RepeatedPose> = Vec::new();
         for (k, row) in table.rows.iter().enumerate() {
             let line = row.line;
-            let id = row.cells[column].clone();
+            let id = row.cells[column].to_string();
             if id.is_empty() {
                 return Err(DataError::new(line, Some("pose"), "empty pose id"));
             }

@@ -293,7 +293,7 @@ impl KindData {
             let kind = match columns.kind {
                 Some(c) => RowKind::named(&row.cells[c]).ok_or_else(|| {
                     let message =
-                        format!("`{}`: expected pair, point, contact, coordinates or camera", row.cells[c]);
+                        format!("`{}`: expected pair, point, contact, coordinates or camera", &row.cells[c]);
                     DataError::new(row.line, Some("kind"), message)
                 })?,
                 None => columns.file_kind.expect("a file without a kind column has one kind"),
@@ -998,7 +998,7 @@ impl KindColumns {
         first: Option<CameraSite>,
     ) -> Result<Vec<Observation>, DataError> {
         let c = self.needed(row, self.camera, "camera")?;
-        let site = match row.cells[c].as_str() {
+        let site = match &row.cells[c] {
             "hand" => CameraSite::Hand,
             "world" => CameraSite::World,
             other => {

@@ -180,7 +180,7 @@ impl TreeData {
         column: usize,
         role: Role,
     ) -> Result<usize, DataError> {
-        let name = row.cells[column].as_str();
+        let name = &row.cells[column];
         let on = match name {
             "world" => None,
             tip => Some(tree.branch(tip).ok_or_else(|| {
