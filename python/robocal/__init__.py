@@ -503,6 +503,7 @@ def evaluate_tree(
     *,
     tips: Sequence[str] = (),
     base_link: Optional[str] = None,
+    branches: Optional[PathLike] = None,
     joint_unit: Optional[str] = None,
     length_unit: Optional[str] = None,
     joint_sigma: Any = None,
@@ -511,7 +512,10 @@ def evaluate_tree(
     file of views; see the stub."""
     flags = _flags(joint_unit=joint_unit, length_unit=length_unit, joint_sigma=joint_sigma)
     source = _view_source(views, "views")
-    result: dict[str, Any] = json.loads(_evaluate_tree(os.fspath(urdf), list(tips), base_link, source, flags))
+    folder = None if branches is None else os.fspath(branches)
+    result: dict[str, Any] = json.loads(
+        _evaluate_tree(os.fspath(urdf), list(tips), base_link, folder, source, flags)
+    )
     return result
 
 

@@ -357,6 +357,7 @@ def evaluate_tree(
     *,
     tips: Sequence[str] = (),
     base_link: Optional[str] = None,
+    branches: Optional[PathLike] = None,
     joint_unit: Optional[str] = None,
     length_unit: Optional[str] = None,
     joint_sigma: Union[Sequence[float], FloatArray, None] = None,
@@ -366,8 +367,11 @@ def evaluate_tree(
     DataFrame of its columns), as ``robocal evaluate --model tree.urdf --tips ...`` scores it:
     its cameras and targets fitted to the views, the tree held, each view's residuals whitened
     by its sigmas and ``joint_sigma`` (one per tree joint or one for all, in ``joint_unit``).
-    The score as the command's JSON has it (``views``: each view's residual; ``position`` and
-    ``rotation``: their RMS)."""
+    With ``branches`` (a folder, as ``--branches``), the tree's joints are those of the branch
+    models ``calibrate --out-dir`` wrote there (``<tip>.toml`` per branch; a joint on several
+    branches one geometry in every file, else an ``InputError`` naming the file): the
+    calibrated tree scored on new views. The score as the command's JSON has it (``views``:
+    each view's residual; ``position`` and ``rotation``: their RMS)."""
 
 def evaluate(
     model: Model,

@@ -106,7 +106,8 @@ fn file_of(error: &InputError) -> Option<String> {
         | InputError::Model { path, .. }
         | InputError::Study { path, .. }
         | InputError::Data { path, .. }
-        | InputError::Noise { path, .. } => Some(path.display().to_string()),
+        | InputError::Noise { path, .. }
+        | InputError::Branch { path, .. } => Some(path.display().to_string()),
         _ => None,
     }
 }

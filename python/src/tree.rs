@@ -96,14 +96,17 @@ pub fn calibrate_tree(
 /// The tree of the URDF file `urdf` (from `base_link` to the `tips`) scored as it stands on the
 /// views of `source`, as `robocal evaluate --model tree.urdf --tips ...` scores a file: its
 /// cameras and targets fitted to it, the tree held, whitened by the views' sigmas and
-/// `joint_sigma`. The score as JSON (`views`, `position`, `rotation`).
+/// `joint_sigma`; its joints those of the branch models in `branches` if given (as
+/// `--branches`: the `<tip>.toml` that `calibrate --out-dir` wrote). The score as JSON
+/// (`views`, `position`, `rotation`).
 #[pyfunction]
-#[pyo3(signature = (urdf, tips, base_link, source, flags))]
+#[pyo3(signature = (urdf, tips, base_link, branches, source, flags))]
 pub fn evaluate_tree(
     py: Python<'_>,
     urdf: String,
     tips: Vec<String>,
     base_link: Option<String>,
+    branches: Option<String>,
     source: Source,
     flags: Flags,
 ) -> PyResult<String> {
@@ -114,6 +117,11 @@ pub fn evaluate_tree(
         "views: their sigma columns are the measurement noise; give joint_sigma only",
     )?;
     let tree = read_tree(&urdf, base_link.as_deref(), &tips)?;
+    let tree = match branches {
+        Some(folder) => robocal::io::load_branches(&tree, std::path::Path::new(&folder))
+            .map_err(|e| errors::from_error(errors::Kind::Input, &e, None))?,
+        None => tree,
+    };
     let data = TreeData::from_csv_str(&text_of(&source)?, &tree, units_for(&source, request.units))
         .map_err(|e| data_error(&source, &e))?;
     let joint_noise = match &flags.joint_sigma {

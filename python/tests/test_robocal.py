@@ -562,6 +562,27 @@ def test_evaluate_tree_scores_views_as_the_command_line_does(tmp_path: Path) -> 
     assert len(ours["views"]) == 120
 
 
+def test_evaluate_tree_scores_written_branches_as_the_command_line_does(tmp_path: Path) -> None:
+    out, branches = tmp_path / "evaluation.json", tmp_path / "branches"
+    urdf, views, held = ROOT / "presets" / "torso.urdf", EXAMPLES / "torso" / "views.csv", EXAMPLES / "torso" / "views-2.csv"
+    tips = ["head_camera", "l_hand", "r_hand"]
+    run_cli("calibrate", "--model", str(urdf), "--tips", ",".join(tips), "--data", str(views), "--out-dir", str(branches),
+            "--quiet")
+    run_cli("evaluate", "--model", str(urdf), "--branches", str(branches), "--data", str(held), "--json", str(out),
+            "--quiet")
+    theirs = json.loads(out.read_text())["views"][0][1]
+    ours = robocal.evaluate_tree(urdf, held, tips=tips, branches=branches, joint_unit="deg", length_unit="mm")
+    assert_same(ours, theirs)
+    nominal = robocal.evaluate_tree(urdf, held, tips=tips, joint_unit="deg", length_unit="mm")
+    assert ours["position"][1] < nominal["position"][1]
+    # A branch of another robot is refused, naming its file.
+    (branches / "head_camera.toml").write_text((EXAMPLES / "puma560-true.toml").read_text())
+    with pytest.raises(robocal.InputError) as e:
+        robocal.evaluate_tree(urdf, held, tips=tips, branches=branches, joint_unit="deg", length_unit="mm")
+    assert e.value.file is not None and e.value.file.endswith("head_camera.toml")
+    assert "joints, the branch to head_camera has" in str(e.value)
+
+
 def test_bad_observations_are_input_errors_naming_their_row_and_column(puma: robocal.Model) -> None:
     q = np.zeros((3, 6))
     bad = robocal.PointDistances(q, [0.5, -0.2, 0.4], name="bar")

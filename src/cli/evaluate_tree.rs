@@ -7,7 +7,7 @@ use anyhow::{Context, Result, bail};
 use robocal::calibration::DataKind;
 use robocal::calibration::tree::{TreeData, TreeOptions, TreeScore, ViewResidual, evaluate_tree};
 use robocal::io;
-use robocal::model::{ModelRef, RobotTree};
+use robocal::model::RobotTree;
 use robocal::report::residuals::ResidualSet;
 use serde::Serialize;
 use std::fmt::Write;
@@ -84,49 +84,16 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
 }
 
 /// The tree of `--model` and `--tips`, its joints those of the branches in `--branches` if
-/// given (each `<tip>.toml`; a joint on several branches one geometry in every file).
+/// given ([`io::load_branches`]).
 fn load_tree(request: &EvaluateRequest) -> Result<RobotTree> {
     let name = request.model.name.as_str();
     let text = std::fs::read_to_string(name).with_context(|| format!("{name}: cannot read"))?;
     let tree = RobotTree::from_urdf_str(&text, request.tree_root.as_deref(), &request.tips)
         .with_context(|| name.to_string())?;
-    let Some(folder) = &request.branches else { return Ok(tree) };
-    let mut joints = tree.joints.clone();
-    let mut from: Vec<Option<String>> = vec![None; tree.dof()];
-    for branch in &tree.branches {
-        let path = folder.join(format!("{}.toml", branch.tip));
-        let model = io::load_model(&ModelRef::named(path.display().to_string()))?;
-        let shown = path.display();
-        if model.joints.len() != branch.joints.len() {
-            bail!(
-                "{shown}: {} joints, the branch to {} has {}",
-                model.joints.len(),
-                branch.tip,
-                branch.joints.len()
-            );
-        }
-        for (joint, &j) in model.joints.iter().zip(&branch.joints) {
-            if joint.name != tree.joints[j].name {
-                bail!(
-                    "{shown}: joint `{}` where the branch to {} has `{}`",
-                    joint.name,
-                    branch.tip,
-                    tree.joints[j].name
-                );
-            }
-            if let Some(other) = &from[j]
-                && joints[j] != *joint
-            {
-                bail!(
-                    "{shown}: joint `{}` differs from {other}'s: one geometry on every branch it is on",
-                    joint.name
-                );
-            }
-            joints[j] = joint.clone();
-            from[j] = Some(shown.to_string());
-        }
+    match &request.branches {
+        Some(folder) => Ok(io::load_branches(&tree, folder)?),
+        None => Ok(tree),
     }
-    Ok(tree.with_joints(joints))
 }
 
 /// The view errors of each file, as the tree's calibration report gives them after

@@ -59,6 +59,14 @@ pub enum InputError {
         /// The field or line, and the problem.
         source: NoiseFileError,
     },
+    /// A branch model that does not fit its tree ([`load_branches`]).
+    #[error("{}", path.display())]
+    Branch {
+        /// The branch's file.
+        path: PathBuf,
+        /// How it does not fit.
+        source: BranchError,
+    },
     /// Neither a preset nor an existing file.
     #[error("no model `{name}`: not a preset ({presets}) and no such file")]
     UnknownModel {
@@ -67,6 +75,74 @@ pub enum InputError {
         /// The preset names, comma-separated.
         presets: String,
     },
+}
+
+/// How a branch model written by `calibrate --out-dir` does not fit the tree it is read into.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum BranchError {
+    /// Another number of joints than the branch's.
+    #[error("{found} joints, the branch to {tip} has {expected}")]
+    JointCount {
+        /// The branch's tip link.
+        tip: String,
+        /// Joints in the file.
+        found: usize,
+        /// Joints of the branch.
+        expected: usize,
+    },
+    /// A joint named otherwise than the branch's joint at its place.
+    #[error("joint `{found}` where the branch to {tip} has `{expected}`")]
+    JointName {
+        /// The branch's tip link.
+        tip: String,
+        /// The file's joint.
+        found: String,
+        /// The branch's joint.
+        expected: String,
+    },
+    /// A joint shared with a branch read before, with another geometry.
+    #[error("joint `{joint}` differs from {other}'s: one geometry on every branch it is on")]
+    Differs {
+        /// The joint.
+        joint: String,
+        /// The file it was read from before.
+        other: String,
+    },
+}
+
+/// `tree` with the joints of the branch models `calibrate --out-dir` wrote to `folder` (one
+/// `<tip>.toml` per branch): a joint on several branches must have one geometry in every file.
+pub fn load_branches(
+    tree: &crate::model::RobotTree,
+    folder: &Path,
+) -> Result<crate::model::RobotTree, InputError> {
+    let mut joints = tree.joints.clone();
+    let mut from: Vec<Option<PathBuf>> = vec![None; tree.dof()];
+    for branch in &tree.branches {
+        let path = folder.join(format!("{}.toml", branch.tip));
+        let model = load_model(&ModelRef::named(path.display().to_string()))?;
+        let bad = |source| InputError::Branch { path: path.clone(), source };
+        if model.joints.len() != branch.joints.len() {
+            let (found, expected) = (model.joints.len(), branch.joints.len());
+            return Err(bad(BranchError::JointCount { tip: branch.tip.clone(), found, expected }));
+        }
+        for (joint, &j) in model.joints.iter().zip(&branch.joints) {
+            if joint.name != tree.joints[j].name {
+                let (found, expected) = (joint.name.clone(), tree.joints[j].name.clone());
+                return Err(bad(BranchError::JointName { tip: branch.tip.clone(), found, expected }));
+            }
+            if let Some(other) = &from[j]
+                && joints[j] != *joint
+            {
+                let other = other.display().to_string();
+                return Err(bad(BranchError::Differs { joint: joint.name.clone(), other }));
+            }
+            joints[j] = joint.clone();
+            from[j] = Some(path.clone());
+        }
+    }
+    Ok(tree.with_joints(joints))
 }
 
 /// A file that could not be written.
