@@ -544,6 +544,23 @@ fn fit_before(
     Ok(problem.full(&fitted.estimate.x))
 }
 
+/// [`CalibrationError::TooFewPoses`] when `poses` giving `equations` do not outnumber the
+/// `unanchored` parameters (those without a prior, which anchors the others): with no
+/// redundant equation the rank cannot tell structure from lack of data. The poses needed for
+/// one redundant equation at the data's mean equations per pose,
+/// `ceil((unanchored + 1) poses / equations)`: every kind of observation, one rule.
+pub(crate) fn enough_equations(
+    poses: usize,
+    equations: usize,
+    unanchored: usize,
+) -> Result<(), CalibrationError> {
+    if equations > unanchored {
+        return Ok(());
+    }
+    let needed = ((unanchored + 1) * poses).div_ceil(equations.max(1));
+    Err(CalibrationError::TooFewPoses { poses, equations, parameters: unanchored, needed })
+}
+
 /// Refused when the poses cannot identify what is asked: fewer equations than the parameters
 /// without a prior (a parameter with a prior is anchored by it; with fewer equations the rank
 /// cannot tell structure from lack of data), or every pose at the same joint values.
@@ -553,17 +570,8 @@ fn check_enough_poses(
     asked: &Selection,
     prior_sd: &[f64],
 ) -> Result<(), CalibrationError> {
-    let equations = data.len() * rows;
     let unanchored = asked.indices().iter().filter(|&&i| !prior_sd[i].is_finite()).count();
-    if equations <= unanchored {
-        let needed = unanchored / rows + 1;
-        return Err(CalibrationError::TooFewPoses {
-            poses: data.len(),
-            equations,
-            parameters: unanchored,
-            needed,
-        });
-    }
+    enough_equations(data.len(), data.len() * rows, unanchored)?;
     if !asked.is_empty() && data.joints.first().is_some_and(|q| data.joints.iter().all(|other| other == q)) {
         let line = data.lines.first().copied().unwrap_or(0);
         return Err(CalibrationError::NothingIdentified(format!(
@@ -1710,5 +1718,36 @@ mod plausibility_tests {
         refined.converged = false;
         refined.history.pop();
         assert_eq!(not_converged(&refined), None);
+    }
+}
+
+#[cfg(test)]
+mod enough_equations_tests {
+    use super::*;
+
+    fn needed(poses: usize, equations: usize, unanchored: usize) -> Option<usize> {
+        match enough_equations(poses, equations, unanchored) {
+            Ok(()) => None,
+            Err(CalibrationError::TooFewPoses { needed, .. }) => Some(needed),
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    /// One more equation than unanchored parameters passes, as many is refused; the poses
+    /// needed give one redundant equation at the data's equations per pose, and no fewer do.
+    #[test]
+    fn the_poses_needed_give_one_redundant_equation() {
+        assert_eq!(needed(2, 12, 11), None);
+        assert_eq!(needed(2, 12, 12), Some(3));
+        assert_eq!(needed(6, 36, 42), Some(8));
+        for (poses, equations, unanchored) in [(3, 10, 10), (5, 7, 30), (1, 6, 6), (4, 24, 40), (0, 0, 3)] {
+            let n = needed(poses, equations, unanchored).unwrap();
+            let per_pose = equations as f64 / poses.max(1) as f64;
+            let at = |n: usize| n as f64 * per_pose;
+            if equations > 0 {
+                let redundant = (unanchored + 1) as f64;
+                assert!(at(n) >= redundant && at(n - 1) < redundant, "{poses} {equations} {unanchored}");
+            }
+        }
     }
 }

@@ -1667,15 +1667,7 @@ pub(super) fn start<'p>(
     // A parameter with a prior is anchored by it: only the others need the data's equations.
     let sd = prior_sds(&options.prior, params)?;
     let unanchored = problem.parameters() - asked.indices().iter().filter(|&&i| sd[i].is_finite()).count();
-    if problem.equations() <= unanchored {
-        return Err(CalibrationError::TooFewPoses {
-            poses: data.joints.len(),
-            equations: problem.equations(),
-            parameters: unanchored,
-            // Poses at the data's equations per pose for one redundant equation.
-            needed: ((unanchored + 1) * data.joints.len()).div_ceil(problem.equations().max(1)),
-        });
-    }
+    super::enough_equations(data.joints.len(), problem.equations(), unanchored)?;
     let linearised = linearise(&problem, &weights, problem.start())?;
     let gauged = gauge(&problem, &linearised, (params, asked), options, &weights)?;
     Ok(Started { base, weights, before, before_setup, linearised, gauged })

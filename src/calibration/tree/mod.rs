@@ -1039,14 +1039,7 @@ pub fn calibrate_tree(
     // A parameter with a prior is anchored by it: only the others need the views' equations.
     let sd = prior_sds_of(&options.prior, &params.params.iter().collect::<Vec<_>>())?;
     let unanchored = problem.parameters() - asked.iter().filter(|&&i| sd[i].is_finite()).count();
-    if problem.equations() <= unanchored {
-        return Err(CalibrationError::TooFewPoses {
-            poses: data.joints.len(),
-            equations: problem.equations(),
-            parameters: unanchored,
-            needed: unanchored.div_ceil(6) + 1,
-        });
-    }
+    super::enough_equations(data.joints.len(), problem.equations(), unanchored)?;
     let r = fit_tree_gauged(&problem, &weights, (&params, &asked), options)?;
     let (estimate, (robust, after, after_setup), mut fixed) = (r.refined, r.fitted, r.gauge.fixed);
     say_why_unseen(&mut fixed, &params, data);
