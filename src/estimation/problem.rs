@@ -10,11 +10,13 @@
 
 use super::refine::Residuals;
 use super::{EstimationError, LinearSystem, NoiseModel, Reduced, Weights};
-use crate::kinematics::{Chain, ChainAt, Measured, end_positions, marker_jacobians, pose_error};
+use crate::kinematics::{
+    Chain, ChainAt, HeldArm, Measured, end_positions, marker_jacobians_held, pose_error,
+};
 use crate::model::Selection;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX, Vector3};
 use rayon::prelude::*;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// Poses measured on a robot: `y(x) = measured - f(q, x)` for the selected parameters `x`,
 /// the others held at fixed values. Each pose is one point of the estimators: the positions of
@@ -31,6 +33,9 @@ pub struct PointProblem<'a> {
     fixed: Vec<f64>,
     v: Option<Arc<DMatrix<f64>>>,
     orientation_weight: f64,
+    /// The markers' arm steps no selected parameter moves, undone at each pose once for every
+    /// linearisation ([`PointProblem::held`]).
+    held: OnceLock<Option<Arc<Vec<HeldArm>>>>,
 }
 
 /// The position and orientation standard deviations (mm, rad) that weight a pose's rows for
@@ -85,6 +90,7 @@ impl<'a> PointProblem<'a> {
             fixed,
             v: None,
             orientation_weight: weight,
+            held: OnceLock::new(),
         };
         if let Some(noise) = noise {
             if measured == Measured::Pose && !noise.measures_orientation() {
@@ -129,6 +135,7 @@ impl<'a> PointProblem<'a> {
             fixed,
             v: self.v.clone(),
             orientation_weight: self.orientation_weight,
+            held: OnceLock::new(),
         })
     }
 
@@ -171,7 +178,8 @@ impl<'a> PointProblem<'a> {
         let joints = poses.iter().map(|&k| self.joints[k].clone()).collect();
         let observed =
             poses.iter().flat_map(|&k| (0..m).map(move |c| k * m + c)).map(|i| self.observed[i]).collect();
-        PointProblem { joints: Arc::new(joints), observed: Arc::new(observed), v: None, ..self.clone() }
+        let (joints, observed) = (Arc::new(joints), Arc::new(observed));
+        PointProblem { joints, observed, v: None, held: OnceLock::new(), ..self.clone() }
     }
 
     /// The measured rows of the manipulator Jacobians `J_k` of every pose (`rows x dof`:
@@ -370,8 +378,9 @@ impl PointProblem<'_> {
             block.fill(0.0);
             let view = block.view_mut((0, 0), block.shape());
             if at.len() > 1 {
-                // Markers: the arm walked once for all of them.
-                marker_jacobians(at, q, self.selection, view, positions);
+                // Markers: the arm walked once for all of them, from its held steps on.
+                let held = self.held(at).map(|held| &held[k]);
+                marker_jacobians_held(at, q, self.selection, view, positions, held);
             } else {
                 positions[0] = at[0].identification_jacobian(q, self.selection, self.measured, view);
             }
@@ -389,6 +398,19 @@ impl PointProblem<'_> {
             }
             Measured::Pose => y_k.copy_from_slice(pose_error(&observed[0], &at[0].pose(q)).as_slice()),
         }
+    }
+
+    /// The markers' arm steps that no selected parameter moves, undone at every pose
+    /// ([`HeldArm`]), found at the first linearisation and kept for the problem's others: the
+    /// parameters it does not select are fixed, so those steps are the same at any `x`. `at`:
+    /// the marker chains at the current `x`; `None` for one chain, or nothing to hold.
+    fn held(&self, at: &[ChainAt]) -> Option<&[HeldArm]> {
+        let held = self.held.get_or_init(|| {
+            let from = at.first().filter(|_| at.len() > 1)?.held_from(self.selection)?;
+            let chain = self.chains[0].with_errors(&self.fixed);
+            Some(Arc::new(self.joints.par_iter().map(|q| chain.held_arm(q, from)).collect()))
+        });
+        held.as_deref().map(Vec::as_slice)
     }
 
     /// [`Residuals::linearise_whitened`] without `H`: each pose's rows are built, whitened and

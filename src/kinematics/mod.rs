@@ -141,7 +141,7 @@ impl Deflection {
 }
 
 /// A frame during the walk along the chain: rotation columns are the frame's axes.
-#[derive(Clone, Copy)]
+#[derive(Debug, Clone, Copy)]
 struct Frame {
     r: Matrix3<f64>,
     p: Vector3<f64>,
@@ -605,6 +605,43 @@ impl ChainAt {
     }
 }
 
+/// The arm's steps from `from` to its end that no selected parameter moves, undone at one
+/// pose: the frame [`walk_back`] reaches there, where each linearisation's walk back can start
+/// instead of at the end ([`marker_jacobians_held`]). The same arithmetic in the same order:
+/// the Jacobians are bit for bit those of the whole walk. A registration's fits (base and
+/// markers alone) walk only the base's steps.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct HeldArm {
+    /// The first step held.
+    from: usize,
+    /// The frame after undoing the steps `from..arm`.
+    frame: Frame,
+}
+
+impl ChainAt {
+    /// The first step of the arm from which on no parameter of `selection` moves a step (its
+    /// own, its joint's compliance or play); `None` when one moves the arm's last step (nothing
+    /// to hold), the payload's mass is selected (its column sums over every joint) or a joint
+    /// deflects (its gravity load, and so where it reaches, moves with every parameter).
+    pub(crate) fn held_from(&self, selection: &Selection) -> Option<usize> {
+        if self.deflects() || self.payload.and_then(|i| selection.column(i)).is_some() {
+            return None;
+        }
+        let selected = |i: Option<usize>| i.and_then(|i| selection.column(i)).is_some();
+        let moved =
+            |r: &Resolved| selected(r.step.param) || selected(r.step.compliance) || selected(r.step.play);
+        let from = self.steps[..self.arm].iter().rposition(moved).map_or(0, |i| i + 1);
+        (from < self.arm).then_some(from)
+    }
+
+    /// The steps `from..arm` undone at the joint values `q` reaches ([`ChainAt::held_from`]).
+    pub(crate) fn held_arm(&self, q: &[f64], from: usize) -> HeldArm {
+        let frame =
+            self.at_reached(q, |q| back_from(&self.steps[from..self.arm], q, Frame::IDENTITY, |_, _| ()));
+        HeldArm { from, frame }
+    }
+}
+
 /// The identification Jacobians of several markers on the last link (chains from
 /// [`Chain::markers`], with the same errors applied), stacked 3 rows per marker into `h`
 /// (`3 * markers x selection.len()`), with each marker's position written into `positions`.
@@ -619,8 +656,21 @@ pub fn marker_jacobians(
     markers: &[ChainAt],
     q: &[f64],
     selection: &Selection,
+    h: DMatrixViewMut<'_, f64>,
+    positions: &mut [Vector3<f64>],
+) {
+    marker_jacobians_held(markers, q, selection, h, positions, None);
+}
+
+/// [`marker_jacobians`], the walk back starting at `held`'s frame if given (this pose's, from
+/// [`ChainAt::held_arm`]; the steps it holds are not visited: no selected parameter moves them).
+pub(crate) fn marker_jacobians_held(
+    markers: &[ChainAt],
+    q: &[f64],
+    selection: &Selection,
     mut h: DMatrixViewMut<'_, f64>,
     positions: &mut [Vector3<f64>],
+    held: Option<&HeldArm>,
 ) {
     let first = &markers[0];
     assert_eq!(q.len(), first.dof, "q has one value per joint");
@@ -641,7 +691,11 @@ pub fn marker_jacobians(
         h.column_mut(c).fill(0.0);
     }
     let mut visit = |loads: &Loads<'_>, q: &[f64]| {
-        walk_back(&first.steps[..first.arm], q, |step, frame| {
+        let (steps, start) = match held {
+            Some(held) => (&first.steps[..held.from], held.frame),
+            None => (&first.steps[..first.arm], Frame::IDENTITY),
+        };
+        let walked = back_from(steps, q, start, |step, frame| {
             let column = step.param.and_then(|i| selection.column(i)).map(|c| (c, 1.0));
             // A load response moves its joint: its column is the joint's, scaled.
             let mut responses = step.load_columns(selection, loads).peekable();
@@ -657,7 +711,8 @@ pub fn marker_jacobians(
                     h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&moved);
                 }
             }
-        })
+        });
+        seen_from_the_end(walked)
     };
     let end = first.with_loads(selection, q, |loads| first.at_reached(q, |reached| visit(loads, reached)));
     for (m, at) in markers.iter().enumerate() {
@@ -718,8 +773,13 @@ fn advance(frame: &mut Frame, resolved: &Resolved, q: &[f64]) {
 /// acts in, expressed in the end frame's coordinates (where the end point is the origin);
 /// returns the end frame in world coordinates. A step's axis and, for a rotation, its origin
 /// are the same before and after it, so each frame is the one left by undoing the later steps.
-fn walk_back(steps: &[Resolved], q: &[f64], mut visit: impl FnMut(&Step, &Frame)) -> Frame {
-    let mut frame = Frame::IDENTITY;
+fn walk_back(steps: &[Resolved], q: &[f64], visit: impl FnMut(&Step, &Frame)) -> Frame {
+    seen_from_the_end(back_from(steps, q, Frame::IDENTITY, visit))
+}
+
+/// [`walk_back`]'s loop from `frame` (the frame after the later steps were undone, `IDENTITY`
+/// at the end): the frame after undoing `steps` too, still in the end frame's coordinates.
+fn back_from(steps: &[Resolved], q: &[f64], mut frame: Frame, mut visit: impl FnMut(&Step, &Frame)) -> Frame {
     for resolved in steps.iter().rev() {
         let step = &resolved.step;
         visit(step, &frame);
@@ -734,7 +794,12 @@ fn walk_back(steps: &[Resolved], q: &[f64], mut visit: impl FnMut(&Step, &Frame)
             }
         }
     }
-    // `frame` is now the world frame seen from the end: invert it.
+    frame
+}
+
+/// The end frame in world coordinates from the world frame seen from the end (`frame`, all
+/// steps undone): its inverse.
+fn seen_from_the_end(frame: Frame) -> Frame {
     let r = frame.r.transpose();
     Frame { r, p: -(r * frame.p) }
 }
@@ -759,4 +824,53 @@ pub fn pose_error(actual: &Isometry3<f64>, nominal: &Isometry3<f64>) -> Vector6<
     let dp = actual.translation.vector - nominal.translation.vector;
     let omega = (actual.rotation * nominal.rotation.inverse()).scaled_axis();
     Vector6::new(dp.x, dp.y, dp.z, omega.x, omega.y, omega.z)
+}
+
+#[cfg(test)]
+mod held_tests {
+    use super::*;
+    use crate::model::RobotModel;
+
+    /// The markers' Jacobians walked back from the held steps are bit for bit the whole walk's,
+    /// for a registration (base and markers), with early joint parameters selected too, and
+    /// with none of the base: the steps held differ, the numbers do not.
+    #[test]
+    fn the_held_walk_is_the_whole_walk() {
+        let model = RobotModel::preset("puma560").unwrap();
+        let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
+        let chains = Chain::markers(&model, &markers);
+        let params = chains[0].params().clone();
+        let x: Vec<f64> = (0..params.len()).map(|i| 1e-3 * ((i * 7 % 11) as f64 - 5.0)).collect();
+        let at: Vec<ChainAt> = chains.iter().map(|c| c.with_errors(&x)).collect();
+        let named = |names: &[&str]| Selection::by_names(&params, names).unwrap();
+        for selection in [
+            named(&["base.*", "marker*.*"]),
+            named(&["base.*", "marker*.*", "j1.*", "j2.a"]),
+            named(&["marker*.*"]),
+        ] {
+            let from = at[0].held_from(&selection).expect("steps to hold");
+            for k in 0..5 {
+                let q: Vec<f64> = (0..6).map(|j| 0.3 * (k as f64) - 0.2 * j as f64).collect();
+                let rows = 3 * markers.len();
+                let (mut whole, mut held) =
+                    (DMatrix::zeros(rows, selection.len()), DMatrix::zeros(rows, selection.len()));
+                let (mut p, mut p_held) = (vec![Vector3::zeros(); 2], vec![Vector3::zeros(); 2]);
+                marker_jacobians(
+                    &at,
+                    &q,
+                    &selection,
+                    whole.view_mut((0, 0), (rows, selection.len())),
+                    &mut p,
+                );
+                let arm = at[0].held_arm(&q, from);
+                let view = held.view_mut((0, 0), (rows, selection.len()));
+                marker_jacobians_held(&at, &q, &selection, view, &mut p_held, Some(&arm));
+                assert_eq!((whole, p), (held, p_held), "from step {from}");
+            }
+        }
+        let froms: Vec<_> =
+            [&["base.*"][..], &["j1.*"], &["marker*.*"]].map(|n| at[0].held_from(&named(n))).to_vec();
+        // The markers' parameters are past the arm: with them alone, the whole arm is held.
+        assert!(froms[2] == Some(0) && froms[0] > froms[2] && froms[1] > froms[0], "{froms:?}");
+    }
 }
