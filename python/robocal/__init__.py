@@ -544,7 +544,11 @@ def _flags(
     use_markers: Optional[Sequence[int]] = None,
     iterations: int = 200,
 ) -> dict[str, Any]:
-    """The options as the extension takes them."""
+    """The options as the extension takes them; a count that is not a whole number in range
+    is an ``InputError`` on its field (as the command line's usage error), not a TypeError."""
+    for field, value, least in (("folds", folds, 2), ("iterations", iterations, 1)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < least):
+            raise InputError(f"{field}: {value!r}: expected a whole number >= {least}", field=field)
     return {
         "joint_unit": joint_unit,
         "length_unit": length_unit,

@@ -253,6 +253,12 @@ impl Flags {
         )?;
         let measurement = self.sigma.is_some() || self.sigma_orientation.is_some();
         require(
+            !(measurement && self.noise.is_some()),
+            if self.sigma.is_some() { "sigma" } else { "sigma_orientation" },
+            "noise gives the measurement noise too: do not give sigma or sigma_orientation with it",
+        )?;
+        self.check_sigmas()?;
+        require(
             !measurement || self.joint_sigma.is_some(),
             "sigma",
             "sigma needs joint_sigma too (zeros if the joints are exact)",
@@ -309,12 +315,29 @@ impl Flags {
             return Err(errors::argument("hold", format!("`{name}` is given to both hold and keep")));
         }
         require(self.folds.is_none_or(|k| k >= 2), "folds", "expected at least 2")?;
-        require(
-            (1..=robocal::limits::MAX_ITERATIONS).contains(&self.iterations),
-            "iterations",
-            "expected 1 or more",
-        )?;
+        if !(1..=robocal::limits::MAX_ITERATIONS).contains(&self.iterations) {
+            let message = format!("expected a whole number from 1 to {}", robocal::limits::MAX_ITERATIONS);
+            return Err(errors::argument("iterations", message));
+        }
         Ok(Request { units, noise_units, estimator, feasible, joints, prior, auto_prior, loss, select })
+    }
+
+    /// Every standard deviation given a finite number from 0 to the bound of its unit (the
+    /// command line's): a negative one would be squared into a valid variance unnoticed.
+    fn check_sigmas(&self) -> PyResult<()> {
+        use robocal::limits::{MAX_ANGLE_DEG, MAX_LENGTH_MM};
+        let given = (self.joint_sigma.iter().flatten().map(|&s| ("joint_sigma", s, MAX_ANGLE_DEG)))
+            .chain(self.sigma.map(|s| ("sigma", s, MAX_LENGTH_MM)))
+            .chain(self.sigma_orientation.map(|s| ("sigma_orientation", s, MAX_ANGLE_DEG)));
+        for (field, s, bound) in given {
+            if !(s.is_finite() && (0.0..=bound).contains(&s)) {
+                return Err(errors::argument(
+                    field,
+                    format!("{s}: expected a finite number from 0 to {bound:e}"),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// The noise of the flags, or of a noise file, at the poses of `data`.
@@ -771,9 +794,26 @@ fn observations(
 ) -> PyResult<Calibration> {
     let model = &robot.inner;
     require(
-        flags.noise.is_none() && flags.sigma.is_none(),
+        flags.noise.is_none() && flags.sigma.is_none() && flags.sigma_orientation.is_none(),
         "noise",
         "observation files: each observation's sigma is its own; give joint_sigma only (or estimator fgls)",
+    )?;
+    let only_for_markers = |given: bool, field: &str, why: &str| {
+        let message =
+            format!("{field} is for a single file of marker positions; with observation files {why}");
+        require(!given, field, &message)
+    };
+    only_for_markers(
+        flags.fixed_base,
+        "fixed_base",
+        "the base is estimated where the data see it (markers, coordinates) and held otherwise",
+    )?;
+    only_for_markers(flags.fixed_markers, "fixed_markers", "the markers are always estimated")?;
+    only_for_markers(flags.markers.is_some(), "use_markers", "every marker of the files is fitted")?;
+    require(
+        flags.params != ["all"],
+        "params",
+        "all: the base and the set-up are chosen by the observations; give params=\"joints\"",
     )?;
     require(
         flags.per_session.is_empty() || sources.len() >= 2,
@@ -788,6 +828,16 @@ fn observations(
         Ok((s.0.clone(), data.named(&stem)))
     };
     let sessions: Vec<(String, KindData)> = sources.iter().map(read).collect::<PyResult<_>>()?;
+    let highest = sessions.iter().filter_map(|(_, d)| d.markers().last().map(|m| m + 1)).max().unwrap_or(0);
+    if flags.marker.len() > highest {
+        let files: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
+        let message = format!(
+            "{} marker given, the files ({}) have {highest} markers: the k-th marker is marker k of a marker file",
+            flags.marker.len(),
+            files.join(", ")
+        );
+        return Err(errors::argument("marker", message));
+    }
     let held: Vec<(String, KindData)> = validate.iter().map(read).collect::<PyResult<_>>()?;
     let options = kind_options(model, flags, request)?;
     // Feasible GLS: the joint variances and one measurement variance per kind.

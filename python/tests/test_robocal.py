@@ -583,6 +583,30 @@ def test_evaluate_tree_scores_written_branches_as_the_command_line_does(tmp_path
     assert "joints, the branch to head_camera has" in str(e.value)
 
 
+def test_what_the_command_line_refuses_python_refuses(puma: robocal.Model) -> None:
+    """The command line's refusals of options that observation files cannot honour, of
+    standard deviations out of range, and of counts, as InputErrors naming the field."""
+    refused: list[tuple[dict[str, Any], str]] = [
+        (dict(fixed_base=True), "fixed_base"),
+        (dict(fixed_markers=True), "fixed_markers"),
+        (dict(use_markers=[1]), "use_markers"),
+        (dict(params="all"), "params"),
+        (dict(joint_sigma=[0.01], sigma_orientation=0.01), "noise"),
+        (dict(marker=[[0.0, 0.0, 0.0]]), "marker"),
+        (dict(tool=[float("nan"), 0.0, 0.0]), "tool"),
+        (dict(joint_sigma=[-0.01]), "joint_sigma"),
+        (dict(folds=-1), "folds"),
+        (dict(iterations=10**9), "iterations"),
+    ]
+    for options, field in refused:
+        with pytest.raises(robocal.InputError) as e:
+            robocal.calibrate(puma, observations=[BALLBAR], joint_unit="deg", length_unit="mm", **options)
+        assert e.value.field == field, (options, str(e.value))
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(puma, DATA, noise=EXAMPLES / "puma560-noise.toml", sigma=0.01)
+    assert e.value.field == "sigma" and "noise gives the measurement noise too" in str(e.value)
+
+
 def test_bad_observations_are_input_errors_naming_their_row_and_column(puma: robocal.Model) -> None:
     q = np.zeros((3, 6))
     bad = robocal.PointDistances(q, [0.5, -0.2, 0.4], name="bar")

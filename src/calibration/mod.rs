@@ -165,6 +165,18 @@ pub enum CalibrationError {
         /// Poses needed for one redundant equation.
         needed: usize,
     },
+    /// A point of the options (the tool point, a marker's nominal position) that is not three
+    /// finite numbers of magnitude at most [`MAX_LENGTH_MM`](crate::limits::MAX_LENGTH_MM).
+    #[error(
+        "{field}: ({}, {}, {}) mm: expected three finite numbers, each of magnitude at most {:e} mm",
+        value[0], value[1], value[2], crate::limits::MAX_LENGTH_MM
+    )]
+    Point {
+        /// `tool`, or `marker 2` (numbered from 1).
+        field: String,
+        /// What was given (mm).
+        value: [f64; 3],
+    },
     /// A set of poses cannot be scored: its markers, or its noise, do not fit the model's.
     #[error("{0}")]
     Scoring(String),
@@ -561,6 +573,23 @@ pub(crate) fn enough_equations(
     Err(CalibrationError::TooFewPoses { poses, equations, parameters: unanchored, needed })
 }
 
+/// [`CalibrationError::Point`] unless the tool point `tool` (if any) and every marker of
+/// `markers` are finite and within [`MAX_LENGTH_MM`](crate::limits::MAX_LENGTH_MM): a NaN
+/// start never reaches the solver.
+pub(crate) fn check_points(
+    tool: Option<&Vector3<f64>>,
+    markers: &[Vector3<f64>],
+) -> Result<(), CalibrationError> {
+    let named = tool.map(|t| ("tool".to_string(), t));
+    let markers = markers.iter().enumerate().map(|(m, p)| (format!("marker {}", m + 1), p));
+    for (field, p) in named.into_iter().chain(markers) {
+        if !p.iter().all(|v| v.is_finite() && v.abs() <= crate::limits::MAX_LENGTH_MM) {
+            return Err(CalibrationError::Point { field, value: [p.x, p.y, p.z] });
+        }
+    }
+    Ok(())
+}
+
 /// Refused when the poses cannot identify what is asked: fewer equations than the parameters
 /// without a prior (a parameter with a prior is anchored by it; with fewer equations the rank
 /// cannot tell structure from lack of data), or every pose at the same joint values.
@@ -592,6 +621,7 @@ fn calibrate_checking(
     options: &Options,
     (check_noise, known_before): (bool, Option<&[f64]>),
 ) -> Result<Calibration, CalibrationError> {
+    check_points(None, &options.markers)?;
     let start = Start::new(model, data, options);
     let rows = start.kind.rows() * start.chains.len();
     let params = start.chains[0].params().clone();

@@ -169,9 +169,11 @@ impl Region {
     }
 
     /// Whether no step inside the region can move a whitened prediction by more than
-    /// `tolerance`: `s_1 Delta <= tolerance` (`|R D u| <= s_1 |u|`).
+    /// `tolerance`: `s_1 Delta <= tolerance` (`|R D u| <= s_1 |u|`). A region made NaN by a
+    /// NaN trial (a system that is not finite) has collapsed too: the trials stop, never spin.
     pub(crate) fn collapsed(&self, spectrum: &Spectrum, tolerance: f64) -> bool {
-        spectrum.largest() * self.radius <= tolerance
+        let reach = spectrum.largest() * self.radius;
+        reach.is_nan() || reach <= tolerance
     }
 }
 
@@ -233,5 +235,18 @@ mod tests {
         assert_eq!(gain(10.0, 4.0, 2.0), 0.75);
         assert_eq!(gain(10.0, 10.0, 10.0), 1.0);
         assert_eq!(gain(10.0, 11.0, 10.0), 0.0);
+    }
+
+    /// A region made NaN (a NaN step's length, a system that is not finite) has collapsed: the
+    /// trials stop instead of spinning (a NaN tool point once hung a calibration).
+    #[test]
+    fn a_nan_region_has_collapsed() {
+        let spectrum = Spectrum::new(&[3.0, 1.0], DVector::from_vec(vec![0.5, -2.0]));
+        let mut region = Region::default();
+        assert!(!region.collapsed(&spectrum, 1e-9));
+        region.update(f64::NAN, f64::NAN);
+        assert!(region.radius.is_nan() && region.collapsed(&spectrum, 1e-9));
+        let nan = Spectrum::new(&[f64::NAN, 1.0], DVector::from_vec(vec![0.5, -2.0]));
+        assert!(Region::default().collapsed(&nan, 1e-9));
     }
 }

@@ -1061,3 +1061,43 @@ fn a_robust_fit_counts_its_reweightings_steps_against_one_limit() {
     );
     assert!(c.refined.history.len() < plenty.refine.max_iterations);
 }
+
+/// A tool point or marker that is not finite, or beyond 1e6 mm, is refused before any solve,
+/// naming which: a NaN tool point once hung the ball bar's sphere start (nalgebra's SVD of a
+/// NaN matrix does not return) for every user of the library and the Python package.
+#[test]
+fn a_tool_or_marker_not_finite_is_refused_before_any_solve() {
+    use robocal::calibration::CalibrationError;
+    let model = RobotModel::preset("puma560").unwrap();
+    let text = std::fs::read_to_string("examples/puma560-ballbar.csv").unwrap();
+    let data = KindData::from_csv_str(&text, &model, None).unwrap();
+    for (tool, markers, field) in [
+        (Vector3::new(f64::NAN, 0.0, 0.0), vec![], "tool"),
+        (Vector3::new(0.0, 2e6, 0.0), vec![], "tool"),
+        (Vector3::zeros(), vec![Vector3::zeros(), Vector3::new(0.0, 0.0, f64::INFINITY)], "marker 2"),
+    ] {
+        let options = KindOptions { tool, markers, ..KindOptions::default() };
+        match calibrate_kinds(&model, &data, &options) {
+            Err(e @ CalibrationError::Point { .. }) => {
+                let message = e.to_string();
+                assert!(
+                    message.starts_with(&format!("{field}: (")) && message.contains("finite"),
+                    "{message}"
+                );
+            }
+            other => panic!("{field}: {:?}", other.map(|c| c.training.lengths)),
+        }
+    }
+    let markers = robocal::calibration::Options {
+        markers: vec![Vector3::new(f64::NAN, 0.0, 0.0)],
+        ..robocal::calibration::Options::default()
+    };
+    let measured = robocal::calibration::Measurements::from_csv_str(
+        &std::fs::read_to_string("examples/puma560-measurements.csv").unwrap(),
+        &model,
+        None,
+    )
+    .unwrap();
+    let refused = robocal::calibration::calibrate(&model, &measured, &markers).unwrap_err();
+    assert!(matches!(&refused, CalibrationError::Point { field, .. } if field == "marker 1"), "{refused}");
+}

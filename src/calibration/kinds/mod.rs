@@ -1549,6 +1549,7 @@ pub(super) fn prepare(
     options: &KindOptions,
 ) -> Result<Prepared, CalibrationError> {
     data.check(model.dof())?;
+    super::check_points(Some(&options.tool), &options.markers)?;
     let markers = data.markers();
     let nominal_markers: Vec<Vector3<f64>> =
         markers.iter().map(|&m| options.markers.get(m).copied().unwrap_or_else(Vector3::zeros)).collect();
