@@ -11,7 +11,7 @@ use robocal::calibration::kinds::{KindData, KindOptions};
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::calibration::{
-    self, Choices, DataKind, Gauge, JointParams, Loss, Measurements, Options, SetEvaluation,
+    self, Choices, DataKind, Gauge, JointParams, Loss, Measurements, Options, ParamWords, SetEvaluation,
 };
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PriorEntry, RefineOptions};
 use robocal::model::{Joint, JointKind, RobotModel};
@@ -275,9 +275,9 @@ impl Flags {
             Some(name) => Some(name.parse::<Estimator>().map_err(|e| errors::argument("estimator", e))?),
             None => None,
         };
-        let joints = match self.params.iter().map(String::as_str).collect::<Vec<_>>()[..] {
-            [] | ["joints"] => JointParams::All,
-            ["all"] => {
+        let joints = match self.params_words()? {
+            ParamWords::Joints => JointParams::All,
+            ParamWords::All => {
                 require(
                     !self.fixed_base && !self.fixed_markers,
                     "params",
@@ -285,9 +285,9 @@ impl Flags {
                 )?;
                 JointParams::All
             }
-            ["offsets"] => JointParams::Offsets,
-            ["none"] => JointParams::None,
-            _ => JointParams::Named(self.params.clone()),
+            ParamWords::Offsets => JointParams::Offsets,
+            ParamWords::None => JointParams::None,
+            ParamWords::Named(names) => JointParams::Named(names),
         };
         let (mut prior, mut auto_prior) = (Vec::new(), None);
         if let Some(text) = &self.prior {
@@ -320,6 +320,12 @@ impl Flags {
             return Err(errors::argument("iterations", message));
         }
         Ok(Request { units, noise_units, estimator, feasible, joints, prior, auto_prior, loss, select })
+    }
+
+    /// `params` as the command line's `--params` reads it ([`ParamWords::parse`]): a list is
+    /// its entries joined by commas, each entry a set's word or comma-separated names.
+    pub(crate) fn params_words(&self) -> PyResult<ParamWords> {
+        ParamWords::parse(&self.params.join(",")).map_err(|e| errors::argument("params", e))
     }
 
     /// Every standard deviation given a finite number from 0 to the bound of its unit (the
@@ -811,7 +817,7 @@ fn observations(
     only_for_markers(flags.fixed_markers, "fixed_markers", "the markers are always estimated")?;
     only_for_markers(flags.markers.is_some(), "use_markers", "every marker of the files is fitted")?;
     require(
-        flags.params != ["all"],
+        flags.params_words()? != ParamWords::All,
         "params",
         "all: the base and the set-up are chosen by the observations; give params=\"joints\"",
     )?;

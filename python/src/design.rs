@@ -6,10 +6,11 @@ use crate::model::Model;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use robocal::calibration::ParamWords;
 use robocal::design::{Constraints, Criterion, Design, Indices};
 use robocal::estimation::{MeasurementNoise, NoiseModel};
 use robocal::kinematics::Measured;
-use robocal::model::{JointKind, Selection};
+use robocal::model::JointKind;
 use robocal::table::Units;
 
 /// The design's settings, as the command line's flags give them.
@@ -45,12 +46,13 @@ impl DesignFlags {
     fn design(&self, model: &Model) -> PyResult<Design> {
         let model = &model.inner;
         let params = model.params();
-        let selection = match self.params.iter().map(String::as_str).collect::<Vec<_>>()[..] {
-            [] | ["joints"] => Selection::joints(&params),
-            ["all"] => Selection::all(&params),
-            ["offsets"] => Selection::offsets(&params),
-            _ => Selection::by_names(&params, &self.params).map_err(|e| errors::argument("params", e))?,
-        };
+        // As `--params`: a list joined by commas; `none` leaves nothing to assess.
+        let words = ParamWords::parse(&self.params.join(",")).map_err(|e| errors::argument("params", e))?;
+        if words == ParamWords::None {
+            let message = "none: nothing to assess; give joints, all, offsets, or parameter names";
+            return Err(errors::argument("params", message));
+        }
+        let selection = words.select(&params).map_err(|e| errors::argument("params", e))?;
         let measured = match self.measured.as_str() {
             "position" => Measured::Position,
             "pose" => Measured::Pose,

@@ -7,8 +7,8 @@ use crate::errors::{self, Kind, Place};
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 use pyo3::prelude::*;
-use robocal::calibration::CalibrationError;
 use robocal::calibration::tree::{TreeData, TreeOptions};
+use robocal::calibration::{CalibrationError, ParamWords};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::model::RobotTree;
 use robocal::report::tree::TreeReport;
@@ -50,7 +50,7 @@ pub fn calibrate_tree(
         "a tree takes ols, wls or fgls",
     )?;
     require(
-        flags.params.iter().all(|p| p != "all"),
+        flags.params_words()? != ParamWords::All,
         "params",
         "all: the base is never estimated from views; give joints",
     )?;

@@ -602,6 +602,13 @@ def test_what_the_command_line_refuses_python_refuses(puma: robocal.Model) -> No
         with pytest.raises(robocal.InputError) as e:
             robocal.calibrate(puma, observations=[BALLBAR], joint_unit="deg", length_unit="mm", **options)
         assert e.value.field == field, (options, str(e.value))
+    # params as --params reads it: comma-separated names, a set's word alone, not nothing.
+    for params, words in ((["joints", "j1.a"], "is a parameter set"), ([], "expected joints, all")):
+        with pytest.raises(robocal.InputError) as e:
+            robocal.calibrate(puma, DATA, params=params)
+        assert e.value.field == "params" and words in str(e.value), str(e.value)
+    named = robocal.calibrate(puma, DATA, params="j2.a, j3.a")
+    assert {"j2.a", "j3.a"} <= set(named.parameters.names)
     with pytest.raises(robocal.InputError) as e:
         robocal.calibrate(puma, DATA, noise=EXAMPLES / "puma560-noise.toml", sigma=0.01)
     assert e.value.field == "sigma" and "noise gives the measurement noise too" in str(e.value)

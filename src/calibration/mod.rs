@@ -49,6 +49,61 @@ use crate::model::{ParamKind, ParamOwner, ParamSet, Placement, RobotModel, Selec
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
+/// What `--params` (and Python's `params`) names: a parameter set, or parameter names and
+/// patterns; read by [`ParamWords::parse`], one reader for the command line and Python.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ParamWords {
+    /// Every joint parameter.
+    Joints,
+    /// Every parameter: the joints, the base and the tool (the markers in `calibrate`).
+    All,
+    /// The joint offsets.
+    Offsets,
+    /// No joint parameter (`calibrate` only: the base and the markers).
+    None,
+    /// These names and patterns (`j*.theta`, `j2.a`).
+    Named(Vec<String>),
+}
+
+impl ParamWords {
+    /// `joints`, `all`, `offsets`, `none`, or comma-separated names and patterns; a set's word
+    /// among names, or nothing at all, is refused, saying what is expected.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let set = match text.trim() {
+            "joints" => Self::Joints,
+            "all" => Self::All,
+            "offsets" => Self::Offsets,
+            "none" => Self::None,
+            _ => {
+                let names: Vec<String> =
+                    text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(String::from).collect();
+                if let Some(word) =
+                    names.iter().find(|n| ["joints", "all", "offsets", "none"].contains(&n.as_str()))
+                {
+                    return Err(format!("`{word}` is a parameter set: give it alone, not with names"));
+                }
+                if names.is_empty() {
+                    return Err("expected joints, all, offsets, none, or parameter names".into());
+                }
+                Self::Named(names)
+            }
+        };
+        Ok(set)
+    }
+
+    /// These parameters among `params` (`All` every one, the base's and the tool's too; `None`
+    /// nothing), as a design assesses them.
+    pub fn select(&self, params: &ParamSet) -> Result<Selection, SelectionError> {
+        Ok(match self {
+            Self::Joints => Selection::joints(params),
+            Self::All => Selection::all(params),
+            Self::Offsets => Selection::offsets(params),
+            Self::Named(names) => Selection::by_names(params, names)?,
+            Self::None => Selection::from_indices(params, []),
+        })
+    }
+}
+
 /// Which joint parameters to identify.
 #[derive(Debug, Clone, PartialEq)]
 pub enum JointParams {

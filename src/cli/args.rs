@@ -4,8 +4,8 @@
 
 use clap::{Args, ValueEnum};
 use nalgebra::Vector3;
-use robocal::calibration::Loss;
 use robocal::calibration::prior_scale::AutoPrior;
+use robocal::calibration::{Loss, ParamWords};
 use robocal::design::Criterion;
 use robocal::estimation::{PriorEntry, RefineOptions};
 use robocal::limits::{MAX_ANGLE_DEG, MAX_ITERATIONS, MAX_LENGTH_MM};
@@ -63,21 +63,6 @@ pub enum MeasuredName {
     Position,
     /// The tool's position and orientation.
     Pose,
-}
-
-/// A `--params` value: a named parameter set, or parameter names and patterns.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum ParamsArg {
-    /// Every joint parameter.
-    Joints,
-    /// Every parameter: the joints, the base and the tool (the markers in `calibrate`).
-    All,
-    /// The joint offsets.
-    Offsets,
-    /// No joint parameter (`calibrate` only: the base and the markers).
-    None,
-    /// These names and patterns (`j*.theta`, `j2.a`).
-    Named(Vec<String>),
 }
 
 /// A box the tool point must stay in (mm, the robot's base frame).
@@ -341,7 +326,7 @@ pub struct CalibrateArgs {
     /// (`j*.theta,j2.a`). The base and the markers are estimated unless --fixed-base and
     /// --fixed-markers say otherwise.
     #[arg(long, default_value = "joints", value_parser = parse_params)]
-    pub params: ParamsArg,
+    pub params: ParamWords,
     /// A marker file: do not estimate the base (the measuring frame is the model's base frame).
     #[arg(long)]
     pub fixed_base: bool,
@@ -452,7 +437,7 @@ pub struct CalibrateObservationsArgs {
     /// and the set-up only), or names and patterns (`j*.theta,j2.a`). The base is estimated
     /// only from coordinates and markers: distances, contacts and cameras cannot see it.
     #[arg(long, default_value = "joints", value_parser = parse_params)]
-    pub params: ParamsArg,
+    pub params: ParamWords,
     /// The tool point on the last link, "x,y,z" in mm, in the tool frame (default: the model's
     /// tool point); unused with a camera's views alone (its mounting is in the tool frame).
     #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
@@ -591,7 +576,7 @@ pub struct DesignArgs {
     /// parameter: the joints, the base and the tool), `offsets` (the joint offsets), or names
     /// and patterns (`j*.theta,j2.a`).
     #[arg(long, default_value = "joints", value_parser = parse_params)]
-    pub params: ParamsArg,
+    pub params: ParamWords,
     /// What is measured at each pose.
     #[arg(long, value_enum, default_value_t = MeasuredName::Position)]
     pub measured: MeasuredName,
@@ -762,28 +747,9 @@ fn parse_joint_values(text: &str) -> Result<JointValues, String> {
         .map(JointValues)
 }
 
-/// `joints`, `all`, `offsets`, `none`, or comma-separated names and patterns.
-fn parse_params(text: &str) -> Result<ParamsArg, String> {
-    let set = match text.trim() {
-        "joints" => ParamsArg::Joints,
-        "all" => ParamsArg::All,
-        "offsets" => ParamsArg::Offsets,
-        "none" => ParamsArg::None,
-        _ => {
-            let names: Vec<String> =
-                text.split(',').map(str::trim).filter(|s| !s.is_empty()).map(String::from).collect();
-            if let Some(word) =
-                names.iter().find(|n| ["joints", "all", "offsets", "none"].contains(&n.as_str()))
-            {
-                return Err(format!("`{word}` is a parameter set: give it alone, not with names"));
-            }
-            if names.is_empty() {
-                return Err("expected joints, all, offsets, none, or parameter names".into());
-            }
-            ParamsArg::Named(names)
-        }
-    };
-    Ok(set)
+/// `--params`: [`ParamWords::parse`].
+fn parse_params(text: &str) -> Result<ParamWords, String> {
+    ParamWords::parse(text)
 }
 
 /// The subcommands of `robocal model`.
@@ -868,7 +834,7 @@ pub struct CalibrateTreeArgs {
     /// cameras and targets only), or names and patterns (`l_*.x,head_tilt.*`). The base is
     /// never estimated: views cannot see it.
     #[arg(long, default_value = "joints", value_parser = parse_params)]
-    pub params: ParamsArg,
+    pub params: ParamWords,
     #[command(flatten)]
     pub choice: ModelChoiceArgs,
     /// Gauss-Newton steps at most (at least 1), damped in a trust region where they overshoot.

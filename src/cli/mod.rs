@@ -22,7 +22,7 @@ mod tree;
 use anyhow::{Context, Result, bail};
 use args::{
     CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, EvaluateArgs, FkArgs, MergeArgs,
-    ObservabilityArgs, ParamsArg, PlanArgs, RepeatabilityArgs, ReportArgs, SimulateArgs, StudyOutputArgs,
+    ObservabilityArgs, PlanArgs, RepeatabilityArgs, ReportArgs, SimulateArgs, StudyOutputArgs,
 };
 use clap::{CommandFactory, Parser, Subcommand};
 use request::{
@@ -32,7 +32,7 @@ use request::{
 use robocal::design::Design;
 use robocal::estimation::{MeasurementNoise, NoiseModel};
 use robocal::io;
-use robocal::model::{JointKind, RobotModel, Selection};
+use robocal::model::{JointKind, RobotModel};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -358,13 +358,7 @@ fn joint_covariance(
 fn design(request: &DesignRequest) -> Result<Design> {
     let model = io::load_model(&request.model)?;
     let params = model.params();
-    let selection = match &request.params {
-        ParamsArg::Joints => Selection::joints(&params),
-        ParamsArg::All => Selection::all(&params),
-        ParamsArg::Offsets => Selection::offsets(&params),
-        ParamsArg::Named(names) => Selection::by_names(&params, names).context("--params")?,
-        ParamsArg::None => Selection::from_indices(&params, []),
-    };
+    let selection = request.params.select(&params).context("--params")?;
     let noise = request.noise.as_ref().map(|flags| noise_model(&model, flags)).transpose()?;
     Ok(Design::new(&model, selection, request.measured, noise)?)
 }

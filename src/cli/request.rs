@@ -5,10 +5,11 @@
 use super::args::{
     CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, DesignArgs, EstimatorName, EvaluateArgs,
     Excluded, JointUnit, LengthUnit, LinkArgs, MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs,
-    ParamsArg, PayloadArgs, PlanArgs, PriorArg, RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
+    PayloadArgs, PlanArgs, PriorArg, RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::JointParams;
+use robocal::calibration::ParamWords;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::design::Criterion as DesignCriterion;
 use robocal::estimation::Estimator;
@@ -468,7 +469,7 @@ impl CalibrateObservationsRequest {
             }
         };
         require(
-            args.params != ParamsArg::All,
+            args.params != ParamWords::All,
             "--params all: the base and the set-up are chosen by the observations; give --params joints",
         )?;
         let joints = joint_params(args.params, false)?;
@@ -683,9 +684,9 @@ fn method(name: Option<EstimatorName>, noise: bool, folds: bool) -> Result<Metho
 
 /// `--params` in calibrate: `joints` and `all` identify every joint parameter, and `all` frees
 /// the base and the markers too, so it refuses `--fixed-base` and `--fixed-markers`.
-fn joint_params(params: ParamsArg, fixed_base_or_markers: bool) -> Result<JointParams, UsageError> {
+fn joint_params(params: ParamWords, fixed_base_or_markers: bool) -> Result<JointParams, UsageError> {
     Ok(match params {
-        ParamsArg::All => {
+        ParamWords::All => {
             require(
                 !fixed_base_or_markers,
                 "--params all frees the base and the markers: with --fixed-base or --fixed-markers, give \
@@ -693,10 +694,10 @@ fn joint_params(params: ParamsArg, fixed_base_or_markers: bool) -> Result<JointP
             )?;
             JointParams::All
         }
-        ParamsArg::Joints => JointParams::All,
-        ParamsArg::Offsets => JointParams::Offsets,
-        ParamsArg::None => JointParams::None,
-        ParamsArg::Named(names) => JointParams::Named(names),
+        ParamWords::Joints => JointParams::All,
+        ParamWords::Offsets => JointParams::Offsets,
+        ParamWords::None => JointParams::None,
+        ParamWords::Named(names) => JointParams::Named(names),
     })
 }
 
@@ -705,8 +706,8 @@ fn joint_params(params: ParamsArg, fixed_base_or_markers: bool) -> Result<JointP
 pub struct DesignRequest {
     /// The nominal robot.
     pub model: ModelRef,
-    /// The parameters to identify (not [`ParamsArg::None`]).
-    pub params: ParamsArg,
+    /// The parameters to identify (not [`ParamWords::None`]).
+    pub params: ParamWords,
     /// What is measured at each pose.
     pub measured: Measured,
     /// The noise, if given.
@@ -717,7 +718,7 @@ impl DesignRequest {
     /// The request, or the first rule between `args`' flags that it breaks.
     fn from_args(args: DesignArgs) -> Result<Self, UsageError> {
         require(
-            args.params != ParamsArg::None,
+            args.params != ParamWords::None,
             "--params none: nothing to assess; give joints, all, offsets, or parameter names",
         )?;
         let noise = args.noise.flags();
@@ -903,7 +904,7 @@ impl CalibrateTreeRequest {
             false => ols_or_wls(args.estimator, "a tree takes ols, wls or fgls")?,
         };
         require(
-            args.params != ParamsArg::All,
+            args.params != ParamWords::All,
             "--params all: the base is never estimated from views; give --params joints",
         )?;
         require(

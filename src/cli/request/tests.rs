@@ -234,8 +234,8 @@ fn params_words_and_names() {
     assert_eq!(calibrate(&["--params", "j*.theta, j2.a"]).unwrap().joints, names);
     let message = refused(calibrate(&["--params", "all,j2.a"]));
     assert!(message.contains("`all` is a parameter set: give it alone, not with names"), "{message}");
-    assert_eq!(plan(&[]).unwrap().design.params, ParamsArg::Joints);
-    assert_eq!(plan(&["--params", "all"]).unwrap().design.params, ParamsArg::All);
+    assert_eq!(plan(&[]).unwrap().design.params, ParamWords::Joints);
+    assert_eq!(plan(&["--params", "all"]).unwrap().design.params, ParamWords::All);
 }
 
 #[test]
