@@ -296,7 +296,12 @@ def calibrate(
     ``observations``: observation files' paths (distances, plane contacts, coordinates, camera
     views) and ``Observations`` (built from arrays or a DataFrame), each a session, fitted
     together (a list of them as ``joints`` too). Arrays and DataFrames go through the same
-    reader as the files.
+    reader as the files. As the command line routes them, one marker file alone is fitted by
+    the marker calibration unless ``tool``, ``fixed_tool`` or ``per_session`` is given; then,
+    and for several marker files or marker files among observation files, by the
+    observations' fit (where ``fixed_base``, ``fixed_markers``, ``use_markers``, ``sigma``,
+    ``sigma_orientation`` and ``params="all"`` are refused, as the command refuses them).
+    ``params`` is read as ``--params``: a list is joined by commas.
 
     Units: ``joint_unit`` ``"rad"`` or ``"deg"`` and ``length_unit`` ``"m"`` or ``"mm"``, given
     together; arrays default to rad and m, files to their own units line. The options in

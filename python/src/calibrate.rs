@@ -631,13 +631,17 @@ pub fn calibrate_source(
 ) -> PyResult<Calibration> {
     let request = flags.request()?;
     let kinds = sources.iter().map(|s| data_kind(s.clone())).collect::<PyResult<Vec<_>>>()?;
+    // As the command routes them: one marker file alone is `calibrate`'s, unless a flag of the
+    // observations' (a tool point, per-session parameters) asks for their fit, which takes
+    // several marker files and any mix with observation files too.
+    let observation_flags = flags.tool.is_some() || flags.fixed_tool || !flags.per_session.is_empty();
     match kinds[..] {
-        ["markers"] => markers(py, model, &sources[0], &validate, &flags, &request),
-        _ if kinds.iter().all(|&k| k == "observations") => {
+        ["markers"] if !observation_flags => markers(py, model, &sources[0], &validate, &flags, &request),
+        _ if kinds.iter().all(|&k| k == "observations" || k == "markers") => {
             observations(py, model, &sources, &validate, &flags, &request)
         }
         _ => Err(errors::input(format!(
-            "{}: one file of marker positions, or observation files; views on a tree are calibrated by \
+            "{}: files of marker positions or observations; views on a tree are calibrated by \
              calibrate_tree",
             sources.iter().map(|s| s.0.as_str()).collect::<Vec<_>>().join(", ")
         ))),

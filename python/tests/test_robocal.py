@@ -171,6 +171,19 @@ def test_calibrate_observation_files_is_the_command_lines_report(puma: robocal.M
     assert_same(json.loads(c.to_json()), json.loads(out.read_text()))
 
 
+def test_marker_files_with_a_tool_or_together_are_routed_as_the_command_line_does(
+    puma: robocal.Model, tmp_path: Path
+) -> None:
+    """A marker file with a tool point, and two marker files, go to the observations' fit, as
+    ``robocal calibrate`` routes them (Python ignored the tool, and refused the two files)."""
+    out = tmp_path / "report.json"
+    run_cli("calibrate", "--model", "puma560", "--data", str(DATA), "--tool", "0,0,100", "--json", str(out), "--quiet")
+    assert_same(json.loads(robocal.calibrate(puma, DATA, tool=[0.0, 0.0, 100.0]).to_json()), json.loads(out.read_text()))
+    run_cli("calibrate", "--model", "puma560", "--data", str(DATA), "--data", str(VALIDATION), "--json", str(out),
+            "--quiet")
+    assert_same(json.loads(robocal.calibrate(puma, [DATA, VALIDATION]).to_json()), json.loads(out.read_text()))
+
+
 def test_bad_data_is_an_input_error_naming_file_line_and_column(puma: robocal.Model, tmp_path: Path) -> None:
     bad = tmp_path / "bad.csv"
     lines = DATA.read_text().splitlines()
