@@ -838,6 +838,17 @@ fn observations(
         Ok((s.0.clone(), data.named(&stem)))
     };
     let sessions: Vec<(String, KindData)> = sources.iter().map(read).collect::<PyResult<_>>()?;
+    if !flags.per_session.is_empty() {
+        let stems: Vec<&str> = sessions.iter().map(|(_, d)| d.sessions[0].0.as_str()).collect();
+        if let Some((k, stem)) = stems.iter().enumerate().find(|(k, s)| stems[..*k].contains(s)) {
+            let first = stems.iter().position(|s| s == stem).unwrap_or(0);
+            let message = format!(
+                "{} and {} have one name, `{stem}`: each session's file stem (or name) names it",
+                sessions[first].0, sessions[k].0
+            );
+            return Err(errors::argument("per_session", message));
+        }
+    }
     let highest = sessions.iter().filter_map(|(_, d)| d.markers().last().map(|m| m + 1)).max().unwrap_or(0);
     if flags.marker.len() > highest {
         let files: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();

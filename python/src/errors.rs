@@ -91,6 +91,10 @@ pub fn calibration(error: &CalibrationError, data: &str) -> PyErr {
             let place = Place { field: Some("params".into()), ..Place::default() };
             raise(Kind::Input, format!("params, hold or keep: {}", robocal::error::chain(error)), place)
         }
+        CalibrationError::Folds { .. } => {
+            let place = Place { field: Some("folds".into()), ..Place::default() };
+            raise(Kind::Input, robocal::error::chain(error), place)
+        }
         CalibrationError::Point { field, .. } => {
             let field = if field == "tool" { "tool" } else { "marker" };
             let place = Place { field: Some(field.into()), ..Place::default() };

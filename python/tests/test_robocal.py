@@ -596,6 +596,16 @@ def test_evaluate_tree_scores_written_branches_as_the_command_line_does(tmp_path
     assert "joints, the branch to head_camera has" in str(e.value)
 
 
+def test_sessions_of_one_name_are_refused(puma: robocal.Model, tmp_path: Path) -> None:
+    for folder in ("a", "b"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "ballbar.csv").write_text(BALLBAR.read_text())
+    files = [tmp_path / "a" / "ballbar.csv", tmp_path / "b" / "ballbar.csv"]
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(puma, files, per_session=["point1.zero"])
+    assert e.value.field == "per_session" and "`ballbar`" in str(e.value)
+
+
 def test_what_the_command_line_refuses_python_refuses(puma: robocal.Model) -> None:
     """The command line's refusals of options that observation files cannot honour, of
     standard deviations out of range, and of counts, as InputErrors naming the field."""
@@ -615,6 +625,9 @@ def test_what_the_command_line_refuses_python_refuses(puma: robocal.Model) -> No
         with pytest.raises(robocal.InputError) as e:
             robocal.calibrate(puma, observations=[BALLBAR], joint_unit="deg", length_unit="mm", **options)
         assert e.value.field == field, (options, str(e.value))
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(puma, [BALLBAR], folds=10000)
+    assert e.value.field == "folds" and "10000 folds for" in str(e.value)
     # params as --params reads it: comma-separated names, a set's word alone, not nothing.
     for params, words in ((["joints", "j1.a"], "is a parameter set"), ([], "expected joints, all")):
         with pytest.raises(robocal.InputError) as e:

@@ -232,6 +232,14 @@ pub enum CalibrationError {
         /// What was given (mm).
         value: [f64; 3],
     },
+    /// A k-fold cross-validation of other than 2 to the number of poses folds.
+    #[error("{folds} folds for {poses} poses: expected 2 to the number of poses")]
+    Folds {
+        /// The folds asked for.
+        folds: usize,
+        /// The poses there are.
+        poses: usize,
+    },
     /// A set of poses cannot be scored: its markers, or its noise, do not fit the model's.
     #[error("{0}")]
     Scoring(String),
@@ -1635,9 +1643,7 @@ impl Options {
 pub(crate) fn check_folds(folds: usize, poses: usize) -> Result<(), CalibrationError> {
     match (2..=poses).contains(&folds) {
         true => Ok(()),
-        false => Err(CalibrationError::Scoring(format!(
-            "{folds} folds for {poses} poses: expected 2 to the number of poses"
-        ))),
+        false => Err(CalibrationError::Folds { folds, poses }),
     }
 }
 

@@ -319,7 +319,7 @@ fn scale_by_curve(
     poses: usize,
     cv_rms_at: impl Fn(f64) -> Result<f64, CalibrationError>,
 ) -> Result<PriorScale, CalibrationError> {
-    super::check_folds(folds, poses).map_err(|e| CalibrationError::Scoring(format!("--prior auto: {e}")))?;
+    super::check_folds(folds, poses)?;
     let cv_rms = SCALES.iter().map(|&s| cv_rms_at(s)).collect::<Result<Vec<f64>, CalibrationError>>()?;
     let chosen = (0..cv_rms.len()).min_by(|&a, &b| cv_rms[a].total_cmp(&cv_rms[b])).unwrap_or(0);
     Ok(PriorScale {
