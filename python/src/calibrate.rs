@@ -269,7 +269,6 @@ impl Flags {
                 require(!noise, "estimator", "fgls estimates the noise: do not give noise or joint_sigma")?;
                 require(self.folds.is_none(), "folds", "not with estimator fgls")?;
                 require(self.prior.is_none(), "prior", "not with estimator fgls")?;
-                require(self.loss.is_none(), "loss", "not with estimator fgls")?;
                 None
             }
             Some(name) => Some(name.parse::<Estimator>().map_err(|e| errors::argument("estimator", e))?),
@@ -300,6 +299,12 @@ impl Flags {
             Some(text) => text.parse::<Loss>().map_err(|e| errors::argument("loss", e))?,
             None => Loss::Squared,
         };
+        require(
+            !feasible || loss == Loss::Squared,
+            "loss",
+            "a robust loss with estimator fgls: not supported; estimate the noise first (fgls reports it) and \
+             give it with noise or joint_sigma",
+        )?;
         let select = match self.select.as_deref() {
             None => None,
             Some("cv") => Some(Criterion::Cv { folds: self.folds.unwrap_or(DEFAULT_FOLDS) }),

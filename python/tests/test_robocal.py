@@ -625,6 +625,12 @@ def test_what_the_command_line_refuses_python_refuses(puma: robocal.Model) -> No
         with pytest.raises(robocal.InputError) as e:
             robocal.calibrate(puma, observations=[BALLBAR], joint_unit="deg", length_unit="mm", **options)
         assert e.value.field == field, (options, str(e.value))
+    # A robust loss and fgls do not go together; the squared loss is fgls's own.
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(puma, [BALLBAR], estimator="fgls", loss="huber")
+    assert e.value.field == "loss"
+    squared = robocal.calibrate(puma, [BALLBAR], estimator="fgls", loss="squared").to_json()
+    assert squared == robocal.calibrate(puma, [BALLBAR], estimator="fgls").to_json()
     with pytest.raises(robocal.InputError) as e:
         robocal.calibrate(puma, [BALLBAR], folds=10000)
     assert e.value.field == "folds" and "10000 folds for" in str(e.value)
