@@ -251,7 +251,7 @@ impl Flags {
             "noise",
             "give noise or joint_sigma, not both",
         )?;
-        let measurement = self.sigma.is_some() || self.sigma_orientation.is_some();
+        let measurement = self.measurement_sigmas();
         require(
             !(measurement && self.noise.is_some()),
             if self.sigma.is_some() { "sigma" } else { "sigma_orientation" },
@@ -331,6 +331,13 @@ impl Flags {
     /// its entries joined by commas, each entry a set's word or comma-separated names.
     pub(crate) fn params_words(&self) -> PyResult<ParamWords> {
         ParamWords::parse(&self.params.join(",")).map_err(|e| errors::argument("params", e))
+    }
+
+    /// Whether a measurement sigma is given (`sigma`, `sigma_orientation`): a zero one is
+    /// none, as the command's default `--sigma-mm 0` is.
+    pub(crate) fn measurement_sigmas(&self) -> bool {
+        let given = |s: Option<f64>| s.is_some_and(|s| s != 0.0);
+        given(self.sigma) || given(self.sigma_orientation)
     }
 
     /// Every standard deviation given a finite number from 0 to the bound of its unit (the
@@ -809,7 +816,7 @@ fn observations(
 ) -> PyResult<Calibration> {
     let model = &robot.inner;
     require(
-        flags.noise.is_none() && flags.sigma.is_none() && flags.sigma_orientation.is_none(),
+        flags.noise.is_none() && !flags.measurement_sigmas(),
         "noise",
         "observation files: each observation's sigma is its own; give joint_sigma only (or estimator fgls)",
     )?;
@@ -914,7 +921,7 @@ pub fn evaluate(model: &Model, source: Source, flags: Flags) -> PyResult<String>
                 .map_err(|e| data_error(&source, &e))?;
             // Whitened by the file's sigma column and the joint noise, as `robocal evaluate`.
             require(
-                flags.noise.is_none() && flags.sigma.is_none() && flags.sigma_orientation.is_none(),
+                flags.noise.is_none() && !flags.measurement_sigmas(),
                 "noise",
                 "observation files: each observation's sigma is its own; give joint_sigma only",
             )?;

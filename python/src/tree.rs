@@ -112,7 +112,7 @@ pub fn evaluate_tree(
 ) -> PyResult<String> {
     let request = flags.request()?;
     require(
-        flags.noise.is_none() && flags.sigma.is_none() && flags.sigma_orientation.is_none(),
+        flags.noise.is_none() && !flags.measurement_sigmas(),
         "noise",
         "views: their sigma columns are the measurement noise; give joint_sigma only",
     )?;

@@ -625,6 +625,9 @@ def test_what_the_command_line_refuses_python_refuses(puma: robocal.Model) -> No
         with pytest.raises(robocal.InputError) as e:
             robocal.calibrate(puma, observations=[BALLBAR], joint_unit="deg", length_unit="mm", **options)
         assert e.value.field == field, (options, str(e.value))
+    # A zero measurement sigma is none, as the command's default --sigma-mm 0.
+    zero = robocal.calibrate(puma, DATA, sigma=0.0).to_json()
+    assert zero == robocal.calibrate(puma, DATA).to_json()
     # A robust loss and fgls do not go together; the squared loss is fgls's own.
     with pytest.raises(robocal.InputError) as e:
         robocal.calibrate(puma, [BALLBAR], estimator="fgls", loss="huber")
