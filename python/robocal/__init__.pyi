@@ -276,7 +276,7 @@ def calibrate(
     validate: Sequence[Any] = (),
     folds: Optional[int] = None,
     select: Optional[str] = None,
-    prior: Optional[str] = None,
+    prior: Union[str, Sequence[str], None] = None,
     loss: Optional[str] = None,
     fixed_base: bool = False,
     fixed_markers: bool = False,
@@ -313,7 +313,8 @@ def calibrate(
     ``joints``, ``all``, ``offsets``, ``none`` or names and patterns (``j*.theta``);
     ``validate``: held-out sets, each ``(joints, markers)``, a DataFrame or a path; ``folds``:
     k-fold cross-validation; ``select``: ``cv``, ``bic`` or ``t``; ``prior``: ``PATTERN=SD,...``,
-    a preset, or ``auto[:PRESET]``; ``loss``: ``huber:1.345`` and the like; ``use_markers``: the
+    a preset, or ``auto[:PRESET]``, or a list of them as repeated ``--prior`` (``auto`` once);
+    ``loss``: ``huber:1.345`` and the like; ``use_markers``: the
     marker numbers to fit (``--markers``); ``iterations``: solver steps at most;
     ``per_session``: set-up parameters (names and patterns, ``point1.zero``, ``point*``) one
     per observation file, each file a session named by its stem (or its ``name``): an
@@ -337,7 +338,7 @@ def calibrate_tree(
     params: Union[str, Sequence[str]] = "joints",
     hold: Sequence[str] = (),
     keep: Sequence[str] = (),
-    prior: Optional[str] = None,
+    prior: Union[str, Sequence[str], None] = None,
     select: Optional[str] = None,
     loss: Optional[str] = None,
     iterations: int = 200,

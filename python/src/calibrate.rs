@@ -180,7 +180,7 @@ pub struct Flags {
     pub(crate) keep: Vec<String>,
     pub(crate) per_session: Vec<String>,
     pub(crate) select: Option<String>,
-    pub(crate) prior: Option<String>,
+    pub(crate) prior: Vec<String>,
     pub(crate) loss: Option<String>,
     pub(crate) folds: Option<usize>,
     pub(crate) fixed_base: bool,
@@ -268,7 +268,7 @@ impl Flags {
             Some("fgls") => {
                 require(!noise, "estimator", "fgls estimates the noise: do not give noise or joint_sigma")?;
                 require(self.folds.is_none(), "folds", "not with estimator fgls")?;
-                require(self.prior.is_none(), "prior", "not with estimator fgls")?;
+                require(self.prior.is_empty(), "prior", "not with estimator fgls")?;
                 None
             }
             Some(name) => Some(name.parse::<Estimator>().map_err(|e| errors::argument("estimator", e))?),
@@ -288,11 +288,15 @@ impl Flags {
             ParamWords::None => JointParams::None,
             ParamWords::Named(names) => JointParams::Named(names),
         };
+        // As repeated --prior: the entries in order, and `auto` at most once.
         let (mut prior, mut auto_prior) = (Vec::new(), None);
-        if let Some(text) = &self.prior {
+        for text in &self.prior {
             match AutoPrior::parse(text) {
+                Some(_) if auto_prior.is_some() => {
+                    return Err(errors::argument("prior", "auto: give it once"));
+                }
                 Some(auto) => auto_prior = Some(auto.map_err(|e| errors::argument("prior", e))?),
-                None => prior = PriorEntry::parse_list(text).map_err(|e| errors::argument("prior", e))?,
+                None => prior.extend(PriorEntry::parse_list(text).map_err(|e| errors::argument("prior", e))?),
             }
         }
         let loss = match &self.loss {

@@ -596,6 +596,17 @@ def test_evaluate_tree_scores_written_branches_as_the_command_line_does(tmp_path
     assert "joints, the branch to head_camera has" in str(e.value)
 
 
+def test_priors_given_as_a_list_are_repeated_prior_flags(puma: robocal.Model, tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    run_cli("calibrate", "--model", "puma560", "--data", str(DATA), "--prior", "j2.theta=0.01deg",
+            "--prior", "j3.theta=0.02deg", "--json", str(out), "--quiet")
+    ours = robocal.calibrate(puma, DATA, prior=["j2.theta=0.01deg", "j3.theta=0.02deg"])
+    assert_same(json.loads(ours.to_json()), json.loads(out.read_text()))
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(puma, DATA, prior=["auto", "auto:machined"])
+    assert e.value.field == "prior" and "give it once" in str(e.value)
+
+
 def test_sessions_of_one_name_are_refused(puma: robocal.Model, tmp_path: Path) -> None:
     for folder in ("a", "b"):
         (tmp_path / folder).mkdir()
