@@ -274,20 +274,13 @@ impl Flags {
             Some(name) => Some(name.parse::<Estimator>().map_err(|e| errors::argument("estimator", e))?),
             None => None,
         };
-        let joints = match self.params_words()? {
-            ParamWords::Joints => JointParams::All,
-            ParamWords::All => {
-                require(
-                    !self.fixed_base && !self.fixed_markers,
-                    "params",
-                    "all frees the base and the markers",
-                )?;
-                JointParams::All
-            }
-            ParamWords::Offsets => JointParams::Offsets,
-            ParamWords::None => JointParams::None,
-            ParamWords::Named(names) => JointParams::Named(names),
-        };
+        let words = self.params_words()?;
+        require(
+            words != ParamWords::All || !(self.fixed_base || self.fixed_markers),
+            "params",
+            "all frees the base and the markers",
+        )?;
+        let joints = words.joint_params();
         // As repeated --prior: the entries in order, and `auto` at most once.
         let (mut prior, mut auto_prior) = (Vec::new(), None);
         for text in &self.prior {
@@ -856,8 +849,10 @@ fn observations(
     let sessions: Vec<(String, KindData)> = sources.iter().map(read).collect::<PyResult<_>>()?;
     if !flags.per_session.is_empty() {
         let stems: Vec<&str> = sessions.iter().map(|(_, d)| d.sessions[0].0.as_str()).collect();
-        if let Some((k, stem)) = stems.iter().enumerate().find(|(k, s)| stems[..*k].contains(s)) {
-            let first = stems.iter().position(|s| s == stem).unwrap_or(0);
+        let twice =
+            (1..stems.len()).find_map(|k| stems[..k].iter().position(|s| *s == stems[k]).map(|f| (f, k)));
+        if let Some((first, k)) = twice {
+            let stem = stems[k];
             let message = format!(
                 "{} and {} have one name, `{stem}`: each session's file stem (or name) names it",
                 sessions[first].0, sessions[k].0
@@ -877,7 +872,6 @@ fn observations(
     }
     let held: Vec<(String, KindData)> = validate.iter().map(read).collect::<PyResult<_>>()?;
     let options = kind_options(model, flags, request)?;
-    // Feasible GLS: the joint variances and one measurement variance per kind.
     let choices = Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
     let fitting = robocal::pipeline::Fitting::new(request.feasible, choices, flags.folds);
     let outcome = py

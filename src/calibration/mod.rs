@@ -91,6 +91,17 @@ impl ParamWords {
         Ok(set)
     }
 
+    /// The joint parameters a calibration identifies: `joints` and `all` every one (`all`
+    /// frees the base and the markers too, which each front-end checks against its flags).
+    pub fn joint_params(self) -> JointParams {
+        match self {
+            Self::Joints | Self::All => JointParams::All,
+            Self::Offsets => JointParams::Offsets,
+            Self::None => JointParams::None,
+            Self::Named(names) => JointParams::Named(names),
+        }
+    }
+
     /// These parameters among `params` (`All` every one, the base's and the tool's too; `None`
     /// nothing), as a design assesses them.
     pub fn select(&self, params: &ParamSet) -> Result<Selection, SelectionError> {

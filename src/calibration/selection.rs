@@ -853,15 +853,18 @@ impl LinearModel {
         // No empty fold: at most one per pose.
         let poses = self.pose_of_row.iter().max().map_or(1, |p| p + 1);
         let mut fits: Vec<Fit> = match criterion {
-            Criterion::Cv { folds } => (0..folds.min(poses))
-                .map(|f| {
-                    let folds = folds.min(poses);
-                    let rows: Vec<usize> =
-                        (0..self.pose_of_row.len()).filter(|&r| self.pose_of_row[r] % folds == f).collect();
-                    let count = rows.iter().map(|&r| self.share[r]).sum();
-                    Fit::new(&self.whitened, Some((&self.unweighted, &rows, count)))
-                })
-                .collect(),
+            Criterion::Cv { folds } => {
+                let folds = folds.min(poses);
+                (0..folds)
+                    .map(|f| {
+                        let rows: Vec<usize> = (0..self.pose_of_row.len())
+                            .filter(|&r| self.pose_of_row[r] % folds == f)
+                            .collect();
+                        let count = rows.iter().map(|&r| self.share[r]).sum();
+                        Fit::new(&self.whitened, Some((&self.unweighted, &rows, count)))
+                    })
+                    .collect()
+            }
             _ => vec![Fit::new(&self.whitened, None)],
         };
         for c in (0..self.columns.len()).filter(|&c| self.is_registration(c)) {

@@ -8,9 +8,8 @@ use super::args::{
     PayloadArgs, PlanArgs, PriorArg, RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
-use robocal::calibration::JointParams;
-use robocal::calibration::ParamWords;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
+use robocal::calibration::{JointParams, ParamWords};
 use robocal::design::Criterion as DesignCriterion;
 use robocal::estimation::Estimator;
 use robocal::kinematics::Measured;
@@ -685,20 +684,11 @@ fn method(name: Option<EstimatorName>, noise: bool, folds: bool) -> Result<Metho
 /// `--params` in calibrate: `joints` and `all` identify every joint parameter, and `all` frees
 /// the base and the markers too, so it refuses `--fixed-base` and `--fixed-markers`.
 fn joint_params(params: ParamWords, fixed_base_or_markers: bool) -> Result<JointParams, UsageError> {
-    Ok(match params {
-        ParamWords::All => {
-            require(
-                !fixed_base_or_markers,
-                "--params all frees the base and the markers: with --fixed-base or --fixed-markers, give \
-                 --params joints",
-            )?;
-            JointParams::All
-        }
-        ParamWords::Joints => JointParams::All,
-        ParamWords::Offsets => JointParams::Offsets,
-        ParamWords::None => JointParams::None,
-        ParamWords::Named(names) => JointParams::Named(names),
-    })
+    require(
+        params != ParamWords::All || !fixed_base_or_markers,
+        "--params all frees the base and the markers: with --fixed-base or --fixed-markers, give --params joints",
+    )?;
+    Ok(params.joint_params())
 }
 
 /// The parameters, measurements and noise of a validated `plan` or `observability`.

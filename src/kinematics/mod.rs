@@ -620,9 +620,10 @@ pub(crate) struct HeldArm {
 
 impl ChainAt {
     /// The first step of the arm from which on no parameter of `selection` moves a step (its
-    /// own, its joint's compliance or play); `None` when one moves the arm's last step (nothing
-    /// to hold), the payload's mass is selected (its column sums over every joint) or a joint
-    /// deflects (its gravity load, and so where it reaches, moves with every parameter).
+    /// own, its joint's compliance or play); `None` when no joint's step is among those (no
+    /// trigonometry to save: the fixed steps after the last joint cost next to nothing), the
+    /// payload's mass is selected (its column sums over every joint) or a joint deflects (its
+    /// gravity load, and so where it reaches, moves with every parameter).
     pub(crate) fn held_from(&self, selection: &Selection) -> Option<usize> {
         if self.deflects() || self.payload.and_then(|i| selection.column(i)).is_some() {
             return None;
@@ -631,7 +632,7 @@ impl ChainAt {
         let moved =
             |r: &Resolved| selected(r.step.param) || selected(r.step.compliance) || selected(r.step.play);
         let from = self.steps[..self.arm].iter().rposition(moved).map_or(0, |i| i + 1);
-        (from < self.arm).then_some(from)
+        self.steps[from..self.arm].iter().any(|r| r.step.joint.is_some()).then_some(from)
     }
 
     /// The steps `from..arm` undone at the joint values `q` reaches ([`ChainAt::held_from`]).

@@ -860,11 +860,14 @@ impl KindColumns {
             file_kind: None,
         };
         if !columns.markers.is_empty() {
-            let others =
-                ["kind", "distance", "point", "plane", "camera", "x", "y", "z", "roll", "pitch", "yaw"];
-            let others: Vec<&str> = ["qw", "qx", "qy", "qz"].into_iter().chain(others).collect();
-            if let Some(name) = crate::calibration::data::other_kinds_column(table, &columns.joints, &others)
-            {
+            use crate::calibration::data::{OTHER_KINDS, other_kinds_column};
+            // A marker file's own columns of other kinds, and a probe's orientation.
+            let others: Vec<&str> = ["qw", "qx", "qy", "qz"]
+                .into_iter()
+                .chain(OTHER_KINDS)
+                .chain(["roll", "pitch", "yaw"])
+                .collect();
+            if let Some(name) = other_kinds_column(table, &columns.joints, &others) {
                 return Err(header(
                     Some(name),
                     "a marker file (x1,y1,z1, ...) has marker positions only: give the other kinds, and a \
