@@ -235,8 +235,43 @@ pub(crate) fn finite(what: &'static str, values: &[f64], rows: usize) -> Result<
 pub(crate) struct Whitened {
     pub a: DMatrix<f64>,
     pub b: DVector<f64>,
-    pub noise: Option<DMatrix<f64>>,
+    pub noise: Option<RowCovariance>,
     pub blocks: Blocks,
+}
+
+/// The covariance of the whitened rows, `S_k V_k S_k^T` of every point.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum RowCovariance {
+    /// Every block `c I` to a relative 1e-9 (Gauss-Markov whitening leaves `sigma_max^2 I` to
+    /// rounding): `c` alone, `N_m x width` numbers not held.
+    Scale(f64),
+    /// The blocks stacked (`N_m x width`, laid out as the rows).
+    Blocks(DMatrix<f64>),
+}
+
+impl RowCovariance {
+    /// The covariance of the stacked blocks `stacked` laid out by `blocks`: [`Self::Scale`] if
+    /// every block is a multiple of the identity ([`blocks::identity_multiple`]).
+    fn of(stacked: DMatrix<f64>, blocks: &Blocks) -> Self {
+        match blocks::identity_multiple(&stacked, blocks) {
+            Some(c) => Self::Scale(c),
+            None => Self::Blocks(stacked),
+        }
+    }
+
+    /// The stacked blocks, `c I` written out for [`Self::Scale`] (`rows` rows).
+    fn into_blocks(self, blocks: &Blocks, rows: usize) -> DMatrix<f64> {
+        match self {
+            Self::Blocks(stacked) => stacked,
+            Self::Scale(c) => {
+                let mut stacked = DMatrix::zeros(rows, blocks.width());
+                for r in blocks.ranges(rows) {
+                    stacked.view_mut((r.start, 0), (r.len(), r.len())).fill_diagonal(c);
+                }
+                stacked
+            }
+        }
+    }
 }
 
 /// The whitening operator `S = blockdiag(S_k)` of an estimator, with the paper's normalisation.
@@ -245,7 +280,7 @@ pub struct Weights {
     /// `S_k` stacked (`N_m x width`, laid out by `blocks`); `None` for OLS (the identity).
     s: Option<DMatrix<f64>>,
     /// `S_k V_k S_k^T` stacked, if `V` is known.
-    noise: Option<DMatrix<f64>>,
+    noise: Option<RowCovariance>,
     blocks: Blocks,
     /// The standard deviation of a whitened row, `sigma_max` of the normalisation (1 without
     /// it), if `V` is known.
@@ -282,7 +317,7 @@ impl Weights {
         };
         let sigma_max = blocks.diagonal(v).into_iter().fold(0.0, f64::max).sqrt();
         if estimator == Estimator::Ols {
-            let noise = Some(v.clone());
+            let noise = Some(RowCovariance::of(v.clone(), &blocks));
             return Ok(Self { s: None, noise, blocks, scale: Some(sigma_max), whitened: false });
         }
         let (mut s, mut noise) = block_weights(v, &blocks, estimator)?;
@@ -296,7 +331,8 @@ impl Weights {
                 scale = sigma_max;
             }
         }
-        Ok(Self { s: Some(s), noise: Some(noise), blocks, scale: Some(scale), whitened: true })
+        let noise = Some(RowCovariance::of(noise, &blocks));
+        Ok(Self { s: Some(s), noise, blocks, scale: Some(scale), whitened: true })
     }
 
     /// The standard deviation `c` of a whitened row: `sigma_max` under the paper's
@@ -333,7 +369,7 @@ impl Weights {
                 identity
             }
         };
-        let mut noise = self.noise.clone();
+        let mut noise = self.noise.clone().map(|n| n.into_blocks(b, rows));
         for (k, &w_k) in w.iter().enumerate() {
             let r = b.range(k);
             s.rows_mut(r.start, r.len()).scale_mut(w_k.sqrt());
@@ -341,6 +377,7 @@ impl Weights {
                 noise.rows_mut(r.start, r.len()).scale_mut(w_k);
             }
         }
+        let noise = noise.map(RowCovariance::Blocks);
         Self { s: Some(s), noise, blocks: b.clone(), scale: self.scale, whitened: self.whitened }
     }
 
@@ -366,13 +403,17 @@ impl Weights {
         }
         // The rows' largest standard deviation, as OLS with a noise model takes it.
         let sigma_max = noise.as_ref().map(|n| blocks.diagonal(n).into_iter().fold(0.0, f64::max).sqrt());
+        let noise = noise.map(RowCovariance::Blocks);
         Self { s: Some(s), noise, blocks, scale: sigma_max, whitened: false }
     }
 
     /// Whether these weights are for `equations` rows in points laid out by `blocks`.
     pub(crate) fn fits(&self, equations: usize, blocks: &Blocks) -> bool {
         self.blocks == *blocks
-            && self.s.as_ref().or(self.noise.as_ref()).is_none_or(|s| s.nrows() == equations)
+            && match (&self.s, &self.noise) {
+                (Some(s), _) | (None, Some(RowCovariance::Blocks(s))) => s.nrows() == equations,
+                _ => true,
+            }
     }
 
     /// Multiply `m` (`N_m` rows) by `S` in place, block by block, without allocating.
@@ -392,10 +433,10 @@ impl Weights {
         }
     }
 
-    /// The covariance of the whitened errors, `S_k V_k S_k^T` stacked (`V` itself for OLS),
-    /// with its layout; `None` without a noise model.
-    pub(crate) fn noise(&self) -> Option<(&DMatrix<f64>, &Blocks)> {
-        self.noise.as_ref().map(|n| (n, &self.blocks))
+    /// The covariance of the whitened errors, `S_k V_k S_k^T` (`V` itself for OLS), laid out
+    /// by [`Self::blocks`]; `None` without a noise model.
+    pub(crate) fn noise(&self) -> Option<&RowCovariance> {
+        self.noise.as_ref()
     }
 
     /// `A = S H`, `b = S y` and the whitened noise blocks of `system`.

@@ -17,7 +17,7 @@
 //! same to the bit on any number of threads.
 
 use super::prior::PriorRows;
-use super::{Blocks, EstimationError};
+use super::{Blocks, EstimationError, RowCovariance};
 use crate::linalg::RowReducer;
 use nalgebra::{DMatrix, DMatrixView, DVector};
 use rayon::prelude::*;
@@ -115,7 +115,7 @@ impl Reduced {
     pub(crate) fn reduce<S>(
         blocks: &Blocks,
         p: usize,
-        noise: Option<(&DMatrix<f64>, &Blocks)>,
+        noise: Option<&RowCovariance>,
         b: &mut [f64],
         init: impl Fn() -> S + Sync,
         fill: impl Fn(&mut S, usize, &mut [f64]) + Sync,
@@ -129,16 +129,19 @@ impl Reduced {
         blocks: &Blocks,
         rows: usize,
         p: usize,
-        noise: Option<(&DMatrix<f64>, &Blocks)>,
+        noise: Option<&RowCovariance>,
         b: Option<&mut [f64]>,
         init: impl Fn() -> S + Sync,
         fill: impl Fn(&mut S, usize, &mut [f64]) + Sync,
     ) -> Self {
         let points = blocks.points(rows);
-        let scale = noise.and_then(|(n, blocks)| super::blocks::identity_multiple(n, blocks));
-        let information = match (noise, scale) {
-            (Some((n, _)), None) => Some(n),
-            _ => None,
+        let (scale, information) = match noise {
+            Some(RowCovariance::Scale(c)) => (Some(*c), None),
+            Some(RowCovariance::Blocks(n)) => match super::blocks::identity_multiple(n, blocks) {
+                Some(c) => (Some(c), None),
+                None => (None, Some(n)),
+            },
+            None => (None, None),
         };
         let slices = parts_of(blocks, points, b);
         let width = blocks.width();
@@ -198,7 +201,7 @@ impl Reduced {
         a: &DMatrix<f64>,
         b: &DVector<f64>,
         blocks: &Blocks,
-        noise: Option<(&DMatrix<f64>, &Blocks)>,
+        noise: Option<&RowCovariance>,
     ) -> Self {
         let (m, p) = a.shape();
         let mut copy = b.clone();

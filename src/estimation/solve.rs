@@ -441,7 +441,7 @@ pub(crate) fn solve(
     tolerance: f64,
     names: Vec<String>,
 ) -> Result<LinearEstimate, EstimationError> {
-    let reduced = Reduced::of_whitened(&w.a, &w.b, &w.blocks, w.noise.as_ref().map(|n| (n, &w.blocks)));
+    let reduced = Reduced::of_whitened(&w.a, &w.b, &w.blocks, w.noise.as_ref());
     let f = factorise_reduced(&reduced, tolerance)?;
     let x = f.solve(&reduced);
     let cost = reduced.cost_after(&x);

@@ -5,6 +5,23 @@ fn identity_multiple((stacked, blocks): (&DMatrix<f64>, &Blocks)) -> Option<f64>
     blocks::identity_multiple(stacked, blocks)
 }
 
+/// The multiple `c` of the identity that every block of `weights`' whitened noise is, if so:
+/// held as [`RowCovariance::Scale`], or found in the stacked blocks.
+fn noise_scale(weights: &Weights) -> Option<f64> {
+    match weights.noise()? {
+        RowCovariance::Scale(c) => Some(*c),
+        RowCovariance::Blocks(stacked) => identity_multiple((stacked, weights.blocks())),
+    }
+}
+
+/// The stacked blocks of `weights`' whitened noise; panics if they are held as a scale.
+fn noise_blocks(weights: &Weights) -> &DMatrix<f64> {
+    match weights.noise() {
+        Some(RowCovariance::Blocks(stacked)) => stacked,
+        other => panic!("expected stacked blocks, found {other:?}"),
+    }
+}
+
 /// A small system with a known answer: 4 points of 3 rows, 2 parameters.
 fn small_system() -> LinearSystem {
     let h = DMatrix::from_fn(12, 2, |r, c| ((r * 7 + c * 3) as f64 * 0.91).sin() + c as f64);
@@ -39,8 +56,12 @@ fn gauss_markov_whitening_gives_identity_noise() {
     let system = small_system();
     let weights = Weights::new(system.v.as_ref(), 3, Estimator::Wls, false).unwrap();
     let noise = weights.whiten(&system).noise.unwrap();
+    assert!(matches!(noise, RowCovariance::Scale(c) if (c - 1.0).abs() < 1e-12), "{noise:?}");
+    // Held as one number; written out, every block the identity to rounding.
+    let reweighted = weights.reweighted(&[1.0; 4]);
+    let stacked = noise_blocks(&reweighted);
     for k in 0..4 {
-        assert!((noise.rows(3 * k, 3) - DMatrix::identity(3, 3)).amax() < 1e-12);
+        assert!((stacked.rows(3 * k, 3) - DMatrix::identity(3, 3)).amax() < 1e-12);
     }
 }
 
@@ -124,11 +145,11 @@ fn whitening_gives_the_mahalanobis_norm_for_any_block_size() {
 fn whitened_gauss_markov_noise_is_a_multiple_of_the_identity() {
     let system = small_system();
     let weights = Weights::new(system.v.as_ref(), 3, Estimator::Wls, true).unwrap();
-    let scale = identity_multiple(weights.noise().unwrap()).expect("sigma_max^2 I");
+    let scale = noise_scale(&weights).expect("sigma_max^2 I");
     let sigma_max2 = (0..12).map(|r| system.v.as_ref().unwrap()[(r, r % 3)]).fold(0.0, f64::max);
     assert!((scale - sigma_max2).abs() < 1e-12 * sigma_max2, "{scale} vs {sigma_max2}");
     let diag = Weights::new(system.v.as_ref(), 3, Estimator::WlsDiag, true).unwrap();
-    assert_eq!(identity_multiple(diag.noise().unwrap()), None, "correlated blocks");
+    assert_eq!(noise_scale(&diag), None, "correlated blocks");
     assert_eq!(
         identity_multiple((system.v.as_ref().unwrap(), &Blocks::Uniform(3))),
         None,
@@ -153,7 +174,7 @@ fn scaled_rows_are_the_ols_of_the_scaled_system() {
     };
     let prepared = Prepared::with_weights(&system.h, weights.clone(), RANK_TOLERANCE).unwrap();
     assert!((prepared.estimate(&system.y) - &by_hand).amax() < 1e-12);
-    let noise = weights.noise().unwrap().0;
+    let noise = noise_blocks(&weights);
     let v = system.v.as_ref().unwrap();
     assert!(
         (noise[(5, 2)] - 250.0 * v[(5, 2)] * 250.0).abs() < 1e-9 && (noise[(3, 1)] - v[(3, 1)]).abs() < 1e-12
@@ -205,8 +226,7 @@ fn ragged_blocks_whiten_and_estimate_as_the_dense_gauss_markov() {
     let x = solve::factorise_reduced(&reduced, RANK_TOLERANCE).unwrap().solve(&reduced);
     let gls = (h.transpose() * &v_inv * &h).try_inverse().unwrap() * h.transpose() * &v_inv * &y;
     assert!((&x - &gls).amax() < 1e-10 * gls.amax(), "{x} vs {gls}");
-    let (noise, layout) = weights.noise().unwrap();
-    let c = identity_multiple((noise, layout)).expect("S_k V_k S_k^T = I in every block");
+    let c = noise_scale(&weights).expect("S_k V_k S_k^T = I in every block");
     assert!((c - 1.0).abs() < 1e-12, "{c}");
     // A point's weight scales its rows only.
     let reweighted = weights.reweighted(&[1.0, 4.0, 1.0, 1.0, 1.0]);
