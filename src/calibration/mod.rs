@@ -623,7 +623,7 @@ fn fit_before(
     if frame.is_empty() {
         return Ok(zero);
     }
-    let unweighted = Weights::for_problem(base, Estimator::Ols)?;
+    let unweighted = Weights::ols_without_noise(base);
     let problem = base.reselect(&frame, zero)?;
     let start = linearise(&problem, &unweighted, problem.start())?;
     let fitted = refine_from(&problem, &unweighted, start, &RefineOptions::default())?;

@@ -205,6 +205,19 @@ impl Weights {
             _ => Weights::of_blocks(problem.covariance(), blocks, estimator, true),
         }
     }
+
+    /// [`Weights::for_problem`]'s ordinary least squares without the noise: the same rows, so
+    /// the same fit to the bit, but no covariance of the whitened rows is held or summed (the
+    /// estimate's covariance then comes from the residuals). For a fit whose values alone are
+    /// used, such as a calibration's "before" fit, where the noise would cost a copy of `V`
+    /// and a `p x p` product per point in every linearisation.
+    pub fn ols_without_noise(problem: &impl Residuals) -> Self {
+        let blocks = problem.blocks();
+        match problem.ols_row_scale() {
+            Some(scale) if scale.len() == problem.equations() => Weights::scaled_rows(None, blocks, &scale),
+            _ => Weights { s: None, noise: None, blocks, scale: None, whitened: false },
+        }
+    }
 }
 
 /// Whether `x` and `weights` fit `problem`.
