@@ -1733,7 +1733,7 @@ fn before_fit(
     let problem = base_problem.reselect(frame, zero, base_problem.setup_values.clone(), every);
     let ols = match no_markers {
         true => weights.clone(),
-        false => Weights::for_problem(base_problem, Estimator::Ols)?,
+        false => Weights::ols_without_noise(base_problem),
     };
     let fit = linearise(&problem, &ols, problem.start())?;
     let refined = refine_from(&problem, &ols, fit, &RefineOptions::default())?;
