@@ -11,6 +11,7 @@ use super::{EstimationError, Estimator};
 use nalgebra::allocator::Allocator;
 use nalgebra::storage::{IsContiguous, StorageMut};
 use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, Dyn, Matrix, OMatrix, SMatrix};
+use rayon::prelude::*;
 use std::ops::Range;
 
 /// Where each point's rows lie in the stacked system.
@@ -102,34 +103,74 @@ pub(crate) fn block_weights(
     blocks: &Blocks,
     estimator: Estimator,
 ) -> Result<(DMatrix<f64>, DMatrix<f64>), EstimationError> {
-    let (mut s, mut noise) = (DMatrix::zeros(v.nrows(), v.ncols()), DMatrix::zeros(v.nrows(), v.ncols()));
-    for k in 0..blocks.points(v.nrows()) {
-        let r = blocks.range(k);
-        match r.len() {
-            3 => weigh_block(v, r.start, Const::<3>, estimator, k, (&mut s, &mut noise))?,
-            6 => weigh_block(v, r.start, Const::<6>, estimator, k, (&mut s, &mut noise))?,
-            n => weigh_block(v, r.start, Dyn(n), estimator, k, (&mut s, &mut noise))?,
-        }
-    }
+    let (rows, width) = v.shape();
+    let (mut s, mut noise) = (DMatrix::zeros(rows, width), DMatrix::zeros(rows, width));
+    let points = blocks.points(rows);
+    let parts: Vec<Range<usize>> =
+        (0..points).step_by(PART_POINTS).map(|p| p..(p + PART_POINTS).min(points)).collect();
+    let bounds: Vec<usize> = parts.iter().map(|p| blocks.range(p.start).start).chain([rows]).collect();
+    let (s_parts, noise_parts) = (column_parts(&mut s, &bounds), column_parts(&mut noise, &bounds));
+    let weighed: Vec<Result<(), EstimationError>> = (parts.into_par_iter().zip(s_parts).zip(noise_parts))
+        .map(|((points, mut s), mut noise)| {
+            let first = blocks.range(points.start).start;
+            for k in points {
+                let r = blocks.range(k);
+                let out = (r.start - first, &mut s[..], &mut noise[..]);
+                match r.len() {
+                    3 => weigh_block(v, r.start, Const::<3>, estimator, k, out)?,
+                    6 => weigh_block(v, r.start, Const::<6>, estimator, k, out)?,
+                    n => weigh_block(v, r.start, Dyn(n), estimator, k, out)?,
+                }
+            }
+            Ok(())
+        })
+        .collect();
+    // The first point's error, whatever the threads.
+    weighed.into_iter().collect::<Result<Vec<()>, _>>()?;
     Ok((s, noise))
 }
 
+/// Points weighed by one task of [`block_weights`].
+const PART_POINTS: usize = 2048;
+
+/// The columns of `m` cut at the rows `bounds` (ascending, the last `m`'s rows): part `i` holds
+/// rows `bounds[i]..bounds[i + 1]` of every column, in order, so that parts of the stacked
+/// blocks can be written on threads of their own.
+fn column_parts<'m>(m: &'m mut DMatrix<f64>, bounds: &[usize]) -> Vec<Vec<&'m mut [f64]>> {
+    let rows = m.nrows();
+    let mut parts: Vec<Vec<&mut [f64]>> = bounds.windows(2).map(|_| Vec::new()).collect();
+    for column in m.as_mut_slice().chunks_exact_mut(rows.max(1)) {
+        let mut rest = column;
+        for (part, w) in parts.iter_mut().zip(bounds.windows(2)) {
+            let (head, tail) = std::mem::take(&mut rest).split_at_mut(w[1] - w[0]);
+            part.push(head);
+            rest = tail;
+        }
+    }
+    parts
+}
+
 /// `S_k` and `S_k V_k S_k^T` of the block of `d` rows at row `start` of `v` (point `k`),
-/// written into the stacked `s` and `noise`.
+/// written at row `at` of the column parts `s` and `noise` ([`column_parts`]).
 fn weigh_block<D: Dim>(
     v: &DMatrix<f64>,
     start: usize,
     d: D,
     estimator: Estimator,
     k: usize,
-    (s, noise): (&mut DMatrix<f64>, &mut DMatrix<f64>),
+    (at, s, noise): (usize, &mut [&mut [f64]], &mut [&mut [f64]]),
 ) -> Result<(), EstimationError>
 where
     DefaultAllocator: Allocator<D, D> + Allocator<D>,
 {
     let (s_k, v_k) = block_whitener(v, start, d, estimator, k)?;
-    noise.generic_view_mut((start, 0), (d, d)).copy_from(&(&s_k * v_k * s_k.transpose()));
-    s.generic_view_mut((start, 0), (d, d)).copy_from(&s_k);
+    let whitened = &s_k * v_k * s_k.transpose();
+    for (j, (s, noise)) in s.iter_mut().zip(noise.iter_mut()).take(d.value()).enumerate() {
+        for i in 0..d.value() {
+            s[at + i] = s_k[(i, j)];
+            noise[at + i] = whitened[(i, j)];
+        }
+    }
     Ok(())
 }
 
