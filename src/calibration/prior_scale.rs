@@ -2,11 +2,12 @@
 //! training poses by k-fold cross-validation. A preset's tolerances are a guess at how far a
 //! robot is from its drawing; how far this one is, the poses tell: each `s` of [`SCALES`]
 //! multiplies every standard deviation of the preset, the calibration with those priors is
-//! cross-validated ([`cross_validate`]: pose `i` held out in fold
-//! `i mod k`), and the scale of the lowest held-out RMS is chosen (ties to the smaller scale,
-//! the stronger prior). The curve it was chosen from is reported. The choice is made from the
-//! data, so `--folds` cross-validates it nested
-//! ([`cross_validate_choices`](super::selection::cross_validate_choices)).
+//! cross-validated ([`Front::cv_rms`]: pose `i` held out in fold `i mod k`), and the scale of
+//! the lowest held-out RMS is chosen (ties to the smaller scale, the stronger prior). The
+//! curve it was chosen from is reported. The choice is made from the data, so `--folds`
+//! cross-validates it nested ([`cross_validate_choices`](super::selection::cross_validate_choices)).
+//! Written once for the three calibrations ([`Front`]: markers, observation files, a tree's
+//! views).
 //!
 //! `--prior auto-ml[:PRESET]` chooses `s` by the marginal likelihood instead (type-II maximum
 //! likelihood, [`choose_prior_scale_ml`]), where the noise is known: the `s` that makes the
@@ -16,11 +17,12 @@
 //! ([`crate::estimation::evidence`]). It needs no refit: one linearisation, then `O(p)` a
 //! scale, on the grid [`evidence_scales`] (1/64 to 64 in steps of `2^(1/8)`).
 
-use super::kinds::{self, KindCalibration, KindData, KindOptions, cross_validate_kinds};
-use super::tree::{TreeCalibration, TreeData, TreeOptions, cross_validate_tree};
+use super::front::Front;
+use super::kinds::{self, KindCalibration, KindData, KindOptions};
+use super::tree::{TreeCalibration, TreeData, TreeOptions};
 use super::{
     CalibrationError, JointParams, Measurements, Options, RobotModel, Whitening, calibrate_quietly,
-    cross_validate, observed, selection,
+    check_folds, observed, selection,
 };
 use crate::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
 use crate::estimation::{
@@ -246,81 +248,30 @@ impl PriorScale {
 
 /// `options` with `auto`'s preset scaled by `s` before its own priors (which win where both
 /// name a parameter).
-pub fn with_scale(options: &Options, auto: &AutoPrior, s: f64) -> Options {
-    Options { prior: auto.before(&options.prior, s), ..options.clone() }
+pub fn with_scale<F: Front>(options: &F::Options, auto: &AutoPrior, s: f64) -> F::Options {
+    F::with_prior(options, |own| auto.before(own, s))
 }
 
-/// [`with_scale`] for a calibration from observation files.
-pub fn with_kinds_scale(options: &KindOptions, auto: &AutoPrior, s: f64) -> KindOptions {
-    KindOptions { prior: auto.before(&options.prior, s), ..options.clone() }
-}
-
-/// [`with_scale`] for a tree's views.
-pub fn with_tree_scale(options: &TreeOptions, auto: &AutoPrior, s: f64) -> TreeOptions {
-    TreeOptions { prior: auto.before(&options.prior, s), ..options.clone() }
-}
-
-/// Choose the scale of `auto`'s preset for calibrating `data` with `options` by `folds`-fold
-/// cross-validation (see the [module documentation](self)).
-pub fn choose_prior_scale(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
-    auto: &AutoPrior,
-    folds: usize,
-) -> Result<PriorScale, CalibrationError> {
-    scale_by_curve(auto, folds, data.len(), |s| {
-        Ok(cross_validate(model, data, &with_scale(options, auto, s), folds)?.1.rms)
-    })
-}
-
-/// [`choose_prior_scale`] for observation files: each scale scored by the cross-validated RMS
-/// of the length residuals (mm; [`cross_validate_kinds`]'s folds, every observation of a pose
-/// held out together); by the marginal likelihood for `auto-ml`
-/// ([`choose_kinds_prior_scale_ml`], `folds` unused).
-pub fn choose_kinds_prior_scale(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
+/// Choose the scale of `auto`'s preset for calibrating `data` with `options` by `auto`'s
+/// method: by `folds`-fold cross-validation (see the [module documentation](self)), each scale
+/// scored by the front's cross-validated RMS ([`Front::cv_rms`]: of the marker positions, of
+/// the observations' lengths, every observation of a pose held out together, of the views'
+/// positions; mm), or by the marginal likelihood for `auto-ml` ([`choose_prior_scale_ml`],
+/// `folds` unused).
+pub fn choose_prior_scale<F: Front>(
+    front: &F,
+    data: &F::Data,
+    options: &F::Options,
     auto: &AutoPrior,
     folds: usize,
 ) -> Result<PriorScale, CalibrationError> {
     if auto.by == ScaleBy::Ml {
-        return choose_kinds_prior_scale_ml(model, data, options, auto);
+        return choose_prior_scale_ml(front, data, options, auto);
     }
-    scale_by_curve(auto, folds, data.joints.len(), |s| {
-        Ok(cross_validate_kinds(model, data, &with_kinds_scale(options, auto, s), folds)?.lengths.1)
-    })
-}
-
-/// [`choose_prior_scale`] for a tree's views: each scale scored by the cross-validated RMS of
-/// the views' position residuals (mm; [`cross_validate_tree`]'s folds); by the marginal
-/// likelihood for `auto-ml` ([`choose_tree_prior_scale_ml`], `folds` unused).
-pub fn choose_tree_prior_scale(
-    tree: &RobotTree,
-    data: &TreeData,
-    options: &TreeOptions,
-    auto: &AutoPrior,
-    folds: usize,
-) -> Result<PriorScale, CalibrationError> {
-    if auto.by == ScaleBy::Ml {
-        return choose_tree_prior_scale_ml(tree, data, options, auto);
-    }
-    scale_by_curve(auto, folds, data.joints.len(), |s| {
-        Ok(cross_validate_tree(tree, data, &with_tree_scale(options, auto, s), folds)?.position.1)
-    })
-}
-
-/// The scale of [`SCALES`] of the lowest `cv_rms_at(s)` (ties to the smaller scale), with the
-/// curve; `folds` checked against the `poses` first.
-fn scale_by_curve(
-    auto: &AutoPrior,
-    folds: usize,
-    poses: usize,
-    cv_rms_at: impl Fn(f64) -> Result<f64, CalibrationError>,
-) -> Result<PriorScale, CalibrationError> {
-    super::check_folds(folds, poses)?;
-    let cv_rms = SCALES.iter().map(|&s| cv_rms_at(s)).collect::<Result<Vec<f64>, CalibrationError>>()?;
+    check_folds(folds, F::poses(data))?;
+    let cv_rms = (SCALES.iter())
+        .map(|&s| front.cv_rms(data, &with_scale::<F>(options, auto, s), folds))
+        .collect::<Result<Vec<f64>, CalibrationError>>()?;
     let chosen = (0..cv_rms.len()).min_by(|&a, &b| cv_rms[a].total_cmp(&cv_rms[b])).unwrap_or(0);
     Ok(PriorScale {
         preset: auto.preset.clone(),
@@ -334,101 +285,31 @@ fn scale_by_curve(
     })
 }
 
-/// The scale of `auto`'s preset by the preset's and `auto`'s method: cross-validation
-/// ([`choose_prior_scale`], `folds` folds) or the marginal likelihood
-/// ([`choose_prior_scale_ml`]).
-pub fn choose_scale(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
-    auto: &AutoPrior,
-    folds: usize,
-) -> Result<PriorScale, CalibrationError> {
-    match auto.by {
-        ScaleBy::Cv => choose_prior_scale(model, data, options, auto, folds),
-        ScaleBy::Ml => choose_prior_scale_ml(model, data, options, auto),
-    }
-}
-
 /// Linearisations about the maximum a posteriori estimate after the first, about the
 /// registration, at most: the scale is chosen again about the estimate at the scale chosen
 /// until it stays.
 pub const EVIDENCE_ROUNDS: usize = 4;
 
 /// Choose the scale of `auto`'s preset for calibrating `data` with `options` by the marginal
-/// likelihood: `s = argmax log p(y | s)` over [`evidence_scales`] ([`scale_evidence`]), about
-/// the registration first, then about the calibration at the scale chosen (MacKay's
-/// re-estimation: where the errors are large, the registration's linearisation leaves a
-/// second-order residual that a larger scale would explain), until the scale stays (at most
-/// [`EVIDENCE_ROUNDS`] linearisations). The noise must be known (`options.noise`);
-/// `options.prior` applies unscaled, where both name a parameter instead of the preset's.
-/// With [`AutoPrior::by_class`], one scale per class, `argmax log p(y | s_1..s_n)` by
+/// likelihood: `s = argmax log p(y | s)` over [`evidence_scales`] ([`Front::evidence`]), about
+/// the registration (the "before" fit) first, then about the calibration at the scale chosen
+/// (MacKay's re-estimation: where the errors are large, the registration's linearisation
+/// leaves a second-order residual that a larger scale would explain), until the scale stays
+/// (at most [`EVIDENCE_ROUNDS`] linearisations). The noise must be known; `options.prior`
+/// applies unscaled, where both name a parameter instead of the preset's. With
+/// [`AutoPrior::by_class`], one scale per class, `argmax log p(y | s_1..s_n)` by
 /// [`Evidence::class_ascent`] from the one scale's choice, in the same rounds.
-pub fn choose_prior_scale_ml(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
+pub fn choose_prior_scale_ml<F: Front>(
+    front: &F,
+    data: &F::Data,
+    options: &F::Options,
     auto: &AutoPrior,
-) -> Result<PriorScale, CalibrationError> {
-    choose_by_evidence(
-        auto,
-        |about: Option<&Vec<f64>>| scale_evidence(model, data, options, auto, about.map(Vec::as_slice)),
-        |entries| {
-            let prior = entries.iter().chain(&options.prior).cloned().collect();
-            Ok(calibrate_quietly(model, data, &Options { prior, ..options.clone() })?.after)
-        },
-    )
-}
-
-/// [`choose_prior_scale_ml`] for observation files: the evidence of their whitened system
-/// ([`kinds_scale_evidence`]: each pose's block `V_k` of the observations' sigmas and the
-/// joint noise), about the "before" fit, then about the calibration at the scales chosen.
-pub fn choose_kinds_prior_scale_ml(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
-    auto: &AutoPrior,
-) -> Result<PriorScale, CalibrationError> {
-    choose_by_evidence(
-        auto,
-        |about: Option<&KindCalibration>| kinds_scale_evidence(model, data, options, auto, about),
-        |entries| {
-            let prior = entries.iter().chain(&options.prior).cloned().collect();
-            kinds::calibrate_kinds(model, data, &KindOptions { prior, ..options.clone() })
-        },
-    )
-}
-
-/// [`choose_prior_scale_ml`] for a tree's views ([`tree_scale_evidence`]).
-pub fn choose_tree_prior_scale_ml(
-    tree: &RobotTree,
-    data: &TreeData,
-    options: &TreeOptions,
-    auto: &AutoPrior,
-) -> Result<PriorScale, CalibrationError> {
-    choose_by_evidence(
-        auto,
-        |about: Option<&TreeCalibration>| tree_scale_evidence(tree, data, options, auto, about),
-        |entries| {
-            let prior = entries.iter().chain(&options.prior).cloned().collect();
-            super::tree::calibrate_tree(tree, data, &TreeOptions { prior, ..options.clone() })
-        },
-    )
-}
-
-/// The marginal likelihood's rounds (see [`choose_prior_scale_ml`]) for any calibration `F`:
-/// `evidence_about(None)` about the start, `evidence_about(Some(f))` about the fit `f`, which
-/// `fit_at(entries)` makes with the preset's entries at the scales chosen.
-fn choose_by_evidence<F>(
-    auto: &AutoPrior,
-    evidence_about: impl Fn(Option<&F>) -> Result<Evidence, CalibrationError>,
-    fit_at: impl Fn(&[PriorEntry]) -> Result<F, CalibrationError>,
 ) -> Result<PriorScale, CalibrationError> {
     let grid = evidence_scales();
     let (mut about, mut previous) = (None, None);
     let mut last = None;
     for _ in 0..EVIDENCE_ROUNDS {
-        let evidence = evidence_about(about.as_ref())?;
+        let evidence = front.evidence(data, options, auto, about.as_ref())?;
         let at = evidence_choice(&evidence, &grid, auto);
         let stays = previous.as_ref() == Some(&at);
         last = Some((evidence, at.clone()));
@@ -436,7 +317,9 @@ fn choose_by_evidence<F>(
             break;
         }
         let scales: Vec<f64> = at.iter().map(|&k| grid[k]).collect();
-        about = Some(fit_at(&auto.scaled_by(&scales))?);
+        let entries = auto.scaled_by(&scales);
+        let options = F::with_prior(options, |own| entries.iter().chain(own).cloned().collect());
+        about = Some(front.calibrate(data, &options)?);
         previous = Some(at);
     }
     let (evidence, at) = last.expect("at least one round");

@@ -1,0 +1,338 @@
+//! The three calibrations as the choices made from the data see them: a marker file
+//! ([`Markers`]), observation files ([`Kinds`]) and a tree's views ([`Tree`]), each a
+//! [`Front`]. The choices (`--prior auto`'s scale, [`choose_prior_scale`]; `--select`,
+//! [`select`]; both, [`choose`]; nested, [`cross_validate_choices`]) are written once over it;
+//! what differs between the fronts is here, side by side.
+//!
+//! [`choose_prior_scale`]: super::prior_scale::choose_prior_scale
+//! [`select`]: super::selection::select
+//! [`choose`]: super::selection::choose
+//! [`cross_validate_choices`]: super::selection::cross_validate_choices
+
+use super::kinds::{self, KindCalibration, KindData, KindOptions, Score};
+use super::prior_scale::{AutoPrior, kinds_scale_evidence, scale_evidence, tree_scale_evidence};
+use super::selection::{ChosenFit, Criterion, Fitted, LinearModel, SelectionPath, named_joints};
+use super::tree::{self, TreeCalibration, TreeData, TreeOptions, TreeScore};
+use super::{
+    Calibration, CalibrationError, ErrorStats, JointParams, Measurements, NestedCv, Options, RobotModel,
+    calibrate_quietly, check_folds, errors,
+};
+use crate::estimation::PriorEntry;
+use crate::estimation::evidence::Evidence;
+use crate::model::{RobotTree, name_matches};
+
+/// Each fold's calibration of a nested cross-validation: the choices made on its training data
+/// with its options, and the model chosen calibrated
+/// ([`calibrate_chosen`](super::selection::calibrate_chosen)).
+pub type FoldFit<'f, F> = &'f dyn Fn(
+    &<F as Front>::Data,
+    &<F as Front>::Options,
+) -> Result<ChosenFit<<F as Front>::Fit>, CalibrationError>;
+
+/// A calibration front-end: its data, options and calibration, and what the choices made from
+/// the data ask of them.
+pub trait Front: Sized {
+    /// The data calibrated from.
+    type Data;
+    /// How to calibrate.
+    type Options: Clone;
+    /// A calibration.
+    type Fit: Fitted;
+    /// A nested cross-validation's report ([`Front::nested`]).
+    type Nested;
+
+    /// The data's poses (the folds at most).
+    fn poses(data: &Self::Data) -> usize;
+
+    /// The options' prior entries.
+    fn prior(options: &mut Self::Options) -> &mut Vec<PriorEntry>;
+
+    /// `options` with the prior `prior` makes of their own entries.
+    fn with_prior(
+        options: &Self::Options,
+        prior: impl FnOnce(&[PriorEntry]) -> Vec<PriorEntry>,
+    ) -> Self::Options {
+        let mut options = options.clone();
+        let own = Self::prior(&mut options);
+        *own = prior(own);
+        options
+    }
+
+    /// `options` asking for the joint parameters `names` only.
+    fn with_joints(&self, options: &Self::Options, names: &[String]) -> Self::Options;
+
+    /// Calibrate `data` with `options`.
+    fn calibrate(&self, data: &Self::Data, options: &Self::Options) -> Result<Self::Fit, CalibrationError>;
+
+    /// The cross-validated RMS of `--prior auto`'s curve (mm), `folds` folds.
+    fn cv_rms(
+        &self,
+        data: &Self::Data,
+        options: &Self::Options,
+        folds: usize,
+    ) -> Result<f64, CalibrationError>;
+
+    /// The marginal likelihood's [`Evidence`] for `auto`'s scale, linearised about `about`
+    /// (`None`: the "before" fit).
+    fn evidence(
+        &self,
+        data: &Self::Data,
+        options: &Self::Options,
+        auto: &AutoPrior,
+        about: Option<&Self::Fit>,
+    ) -> Result<Evidence, CalibrationError>;
+
+    /// Refuse `--select` on `data` before anything is done: a probe's orientations.
+    fn refuse_select(_data: &Self::Data) -> Result<(), CalibrationError> {
+        Ok(())
+    }
+
+    /// The forward path of `criterion` (`cv`, `bic`) on one linearisation about "before".
+    fn forward(
+        &self,
+        data: &Self::Data,
+        options: &Self::Options,
+        criterion: Criterion,
+    ) -> Result<SelectionPath, CalibrationError>;
+
+    /// The `folds`-fold cross-validation of `fit` (each fold's choices and calibration).
+    fn nested(
+        &self,
+        data: &Self::Data,
+        options: &Self::Options,
+        folds: usize,
+        fit: FoldFit<Self>,
+    ) -> Result<Self::Nested, CalibrationError>;
+}
+
+/// A robot calibrated from a marker file ([`calibrate`](super::calibrate)).
+#[derive(Debug, Clone, Copy)]
+pub struct Markers<'a>(pub &'a RobotModel);
+
+impl Front for Markers<'_> {
+    type Data = Measurements;
+    type Options = Options;
+    type Fit = Calibration;
+    type Nested = NestedCv;
+
+    fn poses(data: &Measurements) -> usize {
+        data.len()
+    }
+
+    fn prior(options: &mut Options) -> &mut Vec<PriorEntry> {
+        &mut options.prior
+    }
+
+    fn with_joints(&self, options: &Options, names: &[String]) -> Options {
+        Options { joints: named_joints(names.to_vec()), ..options.clone() }
+    }
+
+    fn calibrate(&self, data: &Measurements, options: &Options) -> Result<Calibration, CalibrationError> {
+        calibrate_quietly(self.0, data, options)
+    }
+
+    /// The marker positions' ([`cross_validate`](super::cross_validate)).
+    fn cv_rms(&self, data: &Measurements, options: &Options, folds: usize) -> Result<f64, CalibrationError> {
+        Ok(super::cross_validate(self.0, data, options, folds)?.1.rms)
+    }
+
+    fn evidence(
+        &self,
+        data: &Measurements,
+        options: &Options,
+        auto: &AutoPrior,
+        about: Option<&Calibration>,
+    ) -> Result<Evidence, CalibrationError> {
+        scale_evidence(self.0, data, options, auto, about.map(|c| c.after.as_slice()))
+    }
+
+    /// `--select` scores marker positions.
+    fn refuse_select(data: &Measurements) -> Result<(), CalibrationError> {
+        match data.orientations {
+            Some(_) => Err(CalibrationError::Scoring(
+                "--select scores marker positions: a probe's orientations are not supported".into(),
+            )),
+            None => Ok(()),
+        }
+    }
+
+    fn forward(
+        &self,
+        data: &Measurements,
+        options: &Options,
+        criterion: Criterion,
+    ) -> Result<SelectionPath, CalibrationError> {
+        Ok(LinearModel::of_markers(self.0, data, options)?.forward(criterion))
+    }
+
+    /// Pose `i` held out in fold `i mod folds`, each fold's options [`Options::at_poses`]; the
+    /// held-out poses scored before and after, pose by pose, with each fold's selection and
+    /// scale.
+    fn nested(
+        &self,
+        data: &Measurements,
+        options: &Options,
+        folds: usize,
+        fit: FoldFit<Self>,
+    ) -> Result<NestedCv, CalibrationError> {
+        check_folds(folds, data.len())?;
+        let (mut before, mut after) = (Vec::new(), Vec::new());
+        let (mut selected, mut scales, mut scored) = (Vec::new(), Vec::new(), Vec::new());
+        let name = format!("{folds}-fold cross-validation");
+        for fold in 0..folds {
+            let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
+            let chosen = fit(&data.subset(&train), &options.at_poses(&train))?;
+            let calibration = chosen.calibration;
+            let held_out = data.subset(&test);
+            before.extend(errors(&calibration.chains, &calibration.before, &held_out));
+            after.extend(errors(&calibration.chains, &calibration.after, &held_out));
+            let noise = options.noise.as_ref().map(|n| n.at_points(&test));
+            scored.push(calibration.evaluate(&name, &held_out, noise.as_ref())?);
+            selected.extend(chosen.path.map(|p| p.selected));
+            // A scale per class (auto-ml:PRESET:classes) is no one number: not listed.
+            scales.extend(chosen.scale.filter(|s| s.classes.is_empty()).map(|s| s.scale()));
+        }
+        let (before, after) = (ErrorStats::of(&before), ErrorStats::of(&after));
+        Ok(NestedCv { before, after, selected, scales, poses: super::evaluation::joined(&name, scored) })
+    }
+}
+
+/// A robot calibrated from observation files ([`kinds::calibrate_kinds`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Kinds<'a>(pub &'a RobotModel);
+
+impl Front for Kinds<'_> {
+    type Data = KindData;
+    type Options = KindOptions;
+    type Fit = KindCalibration;
+    type Nested = Score;
+
+    fn poses(data: &KindData) -> usize {
+        data.joints.len()
+    }
+
+    fn prior(options: &mut KindOptions) -> &mut Vec<PriorEntry> {
+        &mut options.prior
+    }
+
+    /// The patterns of `--params` that name no robot parameter (a set-up's, a marker's) kept.
+    fn with_joints(&self, options: &KindOptions, names: &[String]) -> KindOptions {
+        let robot = self.0.params();
+        let others = match &options.joints {
+            JointParams::Named(patterns) => {
+                patterns.iter().filter(|p| !robot.iter().any(|q| name_matches(p, &q.name))).cloned().collect()
+            }
+            _ => Vec::new(),
+        };
+        let joints = named_joints(names.iter().cloned().chain(others).collect());
+        KindOptions { joints, ..options.clone() }
+    }
+
+    fn calibrate(&self, data: &KindData, options: &KindOptions) -> Result<KindCalibration, CalibrationError> {
+        kinds::calibrate_kinds(self.0, data, options)
+    }
+
+    /// The length residuals' ([`kinds::cross_validate_kinds`]: every observation of a pose held
+    /// out together).
+    fn cv_rms(&self, data: &KindData, options: &KindOptions, folds: usize) -> Result<f64, CalibrationError> {
+        Ok(kinds::cross_validate_kinds(self.0, data, options, folds)?.lengths.1)
+    }
+
+    fn evidence(
+        &self,
+        data: &KindData,
+        options: &KindOptions,
+        auto: &AutoPrior,
+        about: Option<&KindCalibration>,
+    ) -> Result<Evidence, CalibrationError> {
+        kinds_scale_evidence(self.0, data, options, auto, about)
+    }
+
+    /// The CV RMS is of the lengths: observations that are all angles refuse `cv`.
+    fn forward(
+        &self,
+        data: &KindData,
+        options: &KindOptions,
+        criterion: Criterion,
+    ) -> Result<SelectionPath, CalibrationError> {
+        if matches!(criterion, Criterion::Cv { .. }) && data.observations.iter().all(|o| o.is_angle()) {
+            return Err(CalibrationError::Scoring(
+                "--select cv scores the held-out lengths (mm), and these observations are all angles: use \
+                 --select bic or t"
+                    .into(),
+            ));
+        }
+        Ok(LinearModel::of_kinds(self.0, data, options)?.forward(criterion))
+    }
+
+    fn nested(
+        &self,
+        data: &KindData,
+        options: &KindOptions,
+        folds: usize,
+        fit: FoldFit<Self>,
+    ) -> Result<Score, CalibrationError> {
+        kinds::cross_validate_kinds_by(data, folds, |train| Ok(fit(train, options)?.calibration))
+    }
+}
+
+/// A tree calibrated from its views ([`tree::calibrate_tree`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Tree<'a>(pub &'a RobotTree);
+
+impl Front for Tree<'_> {
+    type Data = TreeData;
+    type Options = TreeOptions;
+    type Fit = TreeCalibration;
+    type Nested = TreeScore;
+
+    fn poses(data: &TreeData) -> usize {
+        data.joints.len()
+    }
+
+    fn prior(options: &mut TreeOptions) -> &mut Vec<PriorEntry> {
+        &mut options.prior
+    }
+
+    fn with_joints(&self, options: &TreeOptions, names: &[String]) -> TreeOptions {
+        TreeOptions { joints: named_joints(names.to_vec()), ..options.clone() }
+    }
+
+    fn calibrate(&self, data: &TreeData, options: &TreeOptions) -> Result<TreeCalibration, CalibrationError> {
+        tree::calibrate_tree(self.0, data, options)
+    }
+
+    /// The views' positions' ([`tree::cross_validate_tree`]).
+    fn cv_rms(&self, data: &TreeData, options: &TreeOptions, folds: usize) -> Result<f64, CalibrationError> {
+        Ok(tree::cross_validate_tree(self.0, data, options, folds)?.position.1)
+    }
+
+    fn evidence(
+        &self,
+        data: &TreeData,
+        options: &TreeOptions,
+        auto: &AutoPrior,
+        about: Option<&TreeCalibration>,
+    ) -> Result<Evidence, CalibrationError> {
+        tree_scale_evidence(self.0, data, options, auto, about)
+    }
+
+    fn forward(
+        &self,
+        data: &TreeData,
+        options: &TreeOptions,
+        criterion: Criterion,
+    ) -> Result<SelectionPath, CalibrationError> {
+        Ok(tree::selection_model(self.0, data, options)?.forward(criterion))
+    }
+
+    fn nested(
+        &self,
+        data: &TreeData,
+        options: &TreeOptions,
+        folds: usize,
+        fit: FoldFit<Self>,
+    ) -> Result<TreeScore, CalibrationError> {
+        tree::cross_validate_tree_by(data, folds, |train| Ok(fit(train, options)?.calibration))
+    }
+}
