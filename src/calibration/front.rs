@@ -9,25 +9,28 @@
 //! [`choose`]: super::selection::choose
 //! [`cross_validate_choices`]: super::selection::cross_validate_choices
 
+use super::kinds::EvidenceSystem;
 use super::kinds::{self, KindCalibration, KindData, KindOptions, Score};
-use super::prior_scale::{AutoPrior, kinds_scale_evidence, scale_evidence, tree_scale_evidence};
+use super::prior_scale::{AutoPrior, needs_the_noise, system_evidence};
 use super::selection::{ChosenFit, Criterion, Fitted, LinearModel, SelectionPath, named_joints};
 use super::tree::{self, TreeCalibration, TreeData, TreeOptions, TreeScore};
 use super::{
     Calibration, CalibrationError, ErrorStats, JointParams, Measurements, NestedCv, Options, RobotModel,
-    calibrate_quietly, check_folds, errors,
+    Whitening, calibrate_quietly, check_folds, errors, observed, selection,
 };
-use crate::estimation::PriorEntry;
 use crate::estimation::evidence::Evidence;
-use crate::model::{RobotTree, name_matches};
+use crate::estimation::{Estimator, PointProblem, PriorEntry, Weights, linearise};
+use crate::kinematics::Measured;
+use crate::model::{RobotTree, Selection, name_matches};
+
+/// A result of the choices' stages.
+type Result<T> = std::result::Result<T, CalibrationError>;
 
 /// Each fold's calibration of a nested cross-validation: the choices made on its training data
 /// with its options, and the model chosen calibrated
 /// ([`calibrate_chosen`](super::selection::calibrate_chosen)).
-pub type FoldFit<'f, F> = &'f dyn Fn(
-    &<F as Front>::Data,
-    &<F as Front>::Options,
-) -> Result<ChosenFit<<F as Front>::Fit>, CalibrationError>;
+pub type FoldFit<'f, F> =
+    &'f dyn Fn(&<F as Front>::Data, &<F as Front>::Options) -> Result<ChosenFit<<F as Front>::Fit>>;
 
 /// A calibration front-end: its data, options and calibration, and what the choices made from
 /// the data ask of them.
@@ -62,15 +65,10 @@ pub trait Front: Sized {
     fn with_joints(&self, options: &Self::Options, names: &[String]) -> Self::Options;
 
     /// Calibrate `data` with `options`.
-    fn calibrate(&self, data: &Self::Data, options: &Self::Options) -> Result<Self::Fit, CalibrationError>;
+    fn calibrate(&self, data: &Self::Data, options: &Self::Options) -> Result<Self::Fit>;
 
     /// The cross-validated RMS of `--prior auto`'s curve (mm), `folds` folds.
-    fn cv_rms(
-        &self,
-        data: &Self::Data,
-        options: &Self::Options,
-        folds: usize,
-    ) -> Result<f64, CalibrationError>;
+    fn cv_rms(&self, data: &Self::Data, options: &Self::Options, folds: usize) -> Result<f64>;
 
     /// The marginal likelihood's [`Evidence`] for `auto`'s scale, linearised about `about`
     /// (`None`: the "before" fit).
@@ -80,10 +78,10 @@ pub trait Front: Sized {
         options: &Self::Options,
         auto: &AutoPrior,
         about: Option<&Self::Fit>,
-    ) -> Result<Evidence, CalibrationError>;
+    ) -> Result<Evidence>;
 
     /// Refuse `--select` on `data` before anything is done: a probe's orientations.
-    fn refuse_select(_data: &Self::Data) -> Result<(), CalibrationError> {
+    fn refuse_select(_data: &Self::Data) -> Result<()> {
         Ok(())
     }
 
@@ -93,7 +91,7 @@ pub trait Front: Sized {
         data: &Self::Data,
         options: &Self::Options,
         criterion: Criterion,
-    ) -> Result<SelectionPath, CalibrationError>;
+    ) -> Result<SelectionPath>;
 
     /// The `folds`-fold cross-validation of `fit` (each fold's choices and calibration).
     fn nested(
@@ -102,7 +100,7 @@ pub trait Front: Sized {
         options: &Self::Options,
         folds: usize,
         fit: FoldFit<Self>,
-    ) -> Result<Self::Nested, CalibrationError>;
+    ) -> Result<Self::Nested>;
 }
 
 /// A robot calibrated from a marker file ([`calibrate`](super::calibrate)).
@@ -127,27 +125,49 @@ impl Front for Markers<'_> {
         Options { joints: named_joints(names.to_vec()), ..options.clone() }
     }
 
-    fn calibrate(&self, data: &Measurements, options: &Options) -> Result<Calibration, CalibrationError> {
+    fn calibrate(&self, data: &Measurements, options: &Options) -> Result<Calibration> {
         calibrate_quietly(self.0, data, options)
     }
 
     /// The marker positions' ([`cross_validate`](super::cross_validate)).
-    fn cv_rms(&self, data: &Measurements, options: &Options, folds: usize) -> Result<f64, CalibrationError> {
+    fn cv_rms(&self, data: &Measurements, options: &Options, folds: usize) -> Result<f64> {
         Ok(super::cross_validate(self.0, data, options, folds)?.1.rms)
     }
 
+    /// The system of the parameters `options` asks for, linearised about `about` (`None`: the
+    /// registration, the base and markers fitted as [`calibrate`](super::calibrate)'s "before")
+    /// and whitened by Gauss-Markov (`S V S^T = I`: the rows divided by the normalisation
+    /// `c = sigma_max`). A parameter with an entry of `options.prior` has that fixed prior, one
+    /// with the preset's only is scaled, the others are flat.
     fn evidence(
         &self,
         data: &Measurements,
         options: &Options,
         auto: &AutoPrior,
         about: Option<&Calibration>,
-    ) -> Result<Evidence, CalibrationError> {
-        scale_evidence(self.0, data, options, auto, about.map(|c| c.after.as_slice()))
+    ) -> Result<Evidence> {
+        let frame =
+            calibrate_quietly(self.0, data, &Options { joints: JointParams::None, ..options.clone() })?;
+        let Whitening::Covariance(noise) = &frame.whitening else {
+            return Err(needs_the_noise(auto, "--sigma-mm with --joint-sigma-deg, or --noise"));
+        };
+        let params = &frame.params;
+        let (zero, nothing) = (vec![0.0; params.len()], Selection::from_indices(params, []));
+        let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
+        let (joints, observed) = (data.joints.clone(), observed(data));
+        let base_problem =
+            PointProblem::new(&frame.chains, &nothing, kind, joints, observed, zero, Some(noise))?;
+        let weights = Weights::for_problem(&base_problem, Estimator::Wls)?;
+        let asked = selection(params, &options.joints, options)?;
+        let problem = base_problem.reselect(&asked, about.map_or(&frame.before, |c| &c.after).clone())?;
+        let linearised = linearise(&problem, &weights, problem.start())?;
+        let (params, asked) = (params.iter().cloned().collect(), asked.indices().to_vec());
+        let c = weights.scale().unwrap_or(1.0);
+        system_evidence(auto, &options.prior, &EvidenceSystem { params, asked, linearised, c })
     }
 
     /// `--select` scores marker positions.
-    fn refuse_select(data: &Measurements) -> Result<(), CalibrationError> {
+    fn refuse_select(data: &Measurements) -> Result<()> {
         match data.orientations {
             Some(_) => Err(CalibrationError::Scoring(
                 "--select scores marker positions: a probe's orientations are not supported".into(),
@@ -156,12 +176,7 @@ impl Front for Markers<'_> {
         }
     }
 
-    fn forward(
-        &self,
-        data: &Measurements,
-        options: &Options,
-        criterion: Criterion,
-    ) -> Result<SelectionPath, CalibrationError> {
+    fn forward(&self, data: &Measurements, options: &Options, criterion: Criterion) -> Result<SelectionPath> {
         Ok(LinearModel::of_markers(self.0, data, options)?.forward(criterion))
     }
 
@@ -174,7 +189,7 @@ impl Front for Markers<'_> {
         options: &Options,
         folds: usize,
         fit: FoldFit<Self>,
-    ) -> Result<NestedCv, CalibrationError> {
+    ) -> Result<NestedCv> {
         check_folds(folds, data.len())?;
         let (mut before, mut after) = (Vec::new(), Vec::new());
         let (mut selected, mut scales, mut scored) = (Vec::new(), Vec::new(), Vec::new());
@@ -228,33 +243,40 @@ impl Front for Kinds<'_> {
         KindOptions { joints, ..options.clone() }
     }
 
-    fn calibrate(&self, data: &KindData, options: &KindOptions) -> Result<KindCalibration, CalibrationError> {
+    fn calibrate(&self, data: &KindData, options: &KindOptions) -> Result<KindCalibration> {
         kinds::calibrate_kinds(self.0, data, options)
     }
 
     /// The length residuals' ([`kinds::cross_validate_kinds`]: every observation of a pose held
     /// out together).
-    fn cv_rms(&self, data: &KindData, options: &KindOptions, folds: usize) -> Result<f64, CalibrationError> {
+    fn cv_rms(&self, data: &KindData, options: &KindOptions, folds: usize) -> Result<f64> {
         Ok(kinds::cross_validate_kinds(self.0, data, options, folds)?.lengths.1)
     }
 
+    /// Their system of what `options` asks for (the robot's parameters, then the set-up's,
+    /// flat), whitened by `V_k` (weighted least squares, [`kinds::evidence_system`]), about
+    /// `about`'s estimate (`None`: the "before" fit). The noise must be known: a sigma column or
+    /// the joint noise (`--joint-sigma-deg`).
     fn evidence(
         &self,
         data: &KindData,
         options: &KindOptions,
         auto: &AutoPrior,
         about: Option<&KindCalibration>,
-    ) -> Result<Evidence, CalibrationError> {
-        kinds_scale_evidence(self.0, data, options, auto, about)
+    ) -> Result<Evidence> {
+        if options.joint_noise.is_none() && data.assumed_sigmas == data.observations.len() {
+            return Err(needs_the_noise(
+                auto,
+                "a sigma column in the observation file, or --joint-sigma-deg",
+            ));
+        }
+        let options = KindOptions { estimator: Estimator::Wls, ..options.clone() };
+        let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
+        system_evidence(auto, &options.prior, &kinds::evidence_system(self.0, data, &options, about)?)
     }
 
     /// The CV RMS is of the lengths: observations that are all angles refuse `cv`.
-    fn forward(
-        &self,
-        data: &KindData,
-        options: &KindOptions,
-        criterion: Criterion,
-    ) -> Result<SelectionPath, CalibrationError> {
+    fn forward(&self, data: &KindData, options: &KindOptions, criterion: Criterion) -> Result<SelectionPath> {
         if matches!(criterion, Criterion::Cv { .. }) && data.observations.iter().all(|o| o.is_angle()) {
             return Err(CalibrationError::Scoring(
                 "--select cv scores the held-out lengths (mm), and these observations are all angles: use \
@@ -271,7 +293,7 @@ impl Front for Kinds<'_> {
         options: &KindOptions,
         folds: usize,
         fit: FoldFit<Self>,
-    ) -> Result<Score, CalibrationError> {
+    ) -> Result<Score> {
         kinds::cross_validate_kinds_by(data, folds, |train| Ok(fit(train, options)?.calibration))
     }
 }
@@ -298,31 +320,35 @@ impl Front for Tree<'_> {
         TreeOptions { joints: named_joints(names.to_vec()), ..options.clone() }
     }
 
-    fn calibrate(&self, data: &TreeData, options: &TreeOptions) -> Result<TreeCalibration, CalibrationError> {
+    fn calibrate(&self, data: &TreeData, options: &TreeOptions) -> Result<TreeCalibration> {
         tree::calibrate_tree(self.0, data, options)
     }
 
     /// The views' positions' ([`tree::cross_validate_tree`]).
-    fn cv_rms(&self, data: &TreeData, options: &TreeOptions, folds: usize) -> Result<f64, CalibrationError> {
+    fn cv_rms(&self, data: &TreeData, options: &TreeOptions, folds: usize) -> Result<f64> {
         Ok(tree::cross_validate_tree(self.0, data, options, folds)?.position.1)
     }
 
+    /// As of observation files: the tree's parameters `options` asks for, then the cameras' and
+    /// targets' placements (flat), whitened by each view's `V_k` ([`tree::evidence_system`]).
+    /// The noise must be known: the views' sigma columns or the joint noise.
     fn evidence(
         &self,
         data: &TreeData,
         options: &TreeOptions,
         auto: &AutoPrior,
         about: Option<&TreeCalibration>,
-    ) -> Result<Evidence, CalibrationError> {
-        tree_scale_evidence(self.0, data, options, auto, about)
+    ) -> Result<Evidence> {
+        if options.joint_noise.is_none() && data.assumed_sigmas {
+            let give = "sigma and sigma_angle columns in the views' file, or --joint-sigma-deg";
+            return Err(needs_the_noise(auto, give));
+        }
+        let options = TreeOptions { estimator: Estimator::Wls, ..options.clone() };
+        let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
+        system_evidence(auto, &options.prior, &tree::evidence_system(self.0, data, &options, about)?)
     }
 
-    fn forward(
-        &self,
-        data: &TreeData,
-        options: &TreeOptions,
-        criterion: Criterion,
-    ) -> Result<SelectionPath, CalibrationError> {
+    fn forward(&self, data: &TreeData, options: &TreeOptions, criterion: Criterion) -> Result<SelectionPath> {
         Ok(tree::selection_model(self.0, data, options)?.forward(criterion))
     }
 
@@ -332,7 +358,7 @@ impl Front for Tree<'_> {
         options: &TreeOptions,
         folds: usize,
         fit: FoldFit<Self>,
-    ) -> Result<TreeScore, CalibrationError> {
+    ) -> Result<TreeScore> {
         tree::cross_validate_tree_by(data, folds, |train| Ok(fit(train, options)?.calibration))
     }
 }

@@ -18,18 +18,11 @@
 //! scale, on the grid [`evidence_scales`] (1/64 to 64 in steps of `2^(1/8)`).
 
 use super::front::Front;
-use super::kinds::{self, KindCalibration, KindData, KindOptions};
-use super::tree::{TreeCalibration, TreeData, TreeOptions};
-use super::{
-    CalibrationError, JointParams, Measurements, Options, RobotModel, Whitening, calibrate_quietly,
-    check_folds, observed, selection,
-};
+use super::kinds::EvidenceSystem;
+use super::{CalibrationError, check_folds};
 use crate::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
-use crate::estimation::{
-    Estimator, Linearisation, PointProblem, PriorEntry, Weights, linearise, prior_sds_of,
-};
-use crate::kinematics::Measured;
-use crate::model::{ParamInfo, RobotTree, Selection};
+use crate::estimation::{Linearisation, PriorEntry, prior_sds_of};
+use crate::model::ParamInfo;
 
 /// The scales tried: powers of 2 from 1/16 to 16.
 pub const SCALES: [f64; 9] = [0.0625, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
@@ -163,7 +156,7 @@ impl AutoPrior {
                 .map(|c| chosen.classes.iter().find(|k| k.class == *c).map_or(chosen.scale(), |k| k.scale))
                 .collect(),
         };
-        self.scaled_by(&scales).into_iter().chain(own.iter().cloned()).collect()
+        self.before(own, &scales)
     }
 
     /// `auto:PRESET`, `auto-ml:PRESET` or `auto-ml:PRESET:classes`, as `--prior` takes it.
@@ -172,15 +165,10 @@ impl AutoPrior {
         format!("{}:{}{classes}", self.by.word(), self.preset)
     }
 
-    /// Its entries with every standard deviation times `s`.
-    pub fn scaled(&self, s: f64) -> Vec<PriorEntry> {
-        self.scaled_by(&[s])
-    }
-
-    /// Its entries scaled by `s` ([`AutoPrior::scaled`]), then `own` (which win where both
-    /// name a parameter).
-    pub fn before(&self, own: &[PriorEntry], s: f64) -> Vec<PriorEntry> {
-        self.scaled(s).into_iter().chain(own.iter().cloned()).collect()
+    /// Its entries scaled by `scales` ([`AutoPrior::scaled_by`]), then `own` (which win where
+    /// both name a parameter).
+    pub fn before(&self, own: &[PriorEntry], scales: &[f64]) -> Vec<PriorEntry> {
+        self.scaled_by(scales).into_iter().chain(own.iter().cloned()).collect()
     }
 }
 
@@ -249,7 +237,7 @@ impl PriorScale {
 /// `options` with `auto`'s preset scaled by `s` before its own priors (which win where both
 /// name a parameter).
 pub fn with_scale<F: Front>(options: &F::Options, auto: &AutoPrior, s: f64) -> F::Options {
-    F::with_prior(options, |own| auto.before(own, s))
+    F::with_prior(options, |own| auto.before(own, &[s]))
 }
 
 /// Choose the scale of `auto`'s preset for calibrating `data` with `options` by `auto`'s
@@ -317,8 +305,7 @@ pub fn choose_prior_scale_ml<F: Front>(
             break;
         }
         let scales: Vec<f64> = at.iter().map(|&k| grid[k]).collect();
-        let entries = auto.scaled_by(&scales);
-        let options = F::with_prior(options, |own| entries.iter().chain(own).cloned().collect());
+        let options = F::with_prior(options, |own| auto.before(own, &scales));
         about = Some(front.calibrate(data, &options)?);
         previous = Some(at);
     }
@@ -378,97 +365,12 @@ fn ml_scale(auto: &AutoPrior, evidence: &Evidence, grid: &[f64], at: &[usize]) -
     }
 }
 
-/// The [`Evidence`] of `data` for the scale of `auto`'s preset: the system of the parameters
-/// `options` asks for, linearised about `about` (a full parameter vector of a calibration of
-/// `data`; `None`: the registration, the base and markers fitted as [`calibrate`](super::calibrate)'s "before")
-/// and whitened by Gauss-Markov (`S V S^T = I`: the rows divided by the normalisation
-/// `c = sigma_max`; `linear_evidence`). A parameter with an entry of `options.prior` has
-/// that fixed prior, one with the preset's only is scaled, the others are flat
-/// (`evidence_columns`).
-pub fn scale_evidence(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
-    auto: &AutoPrior,
-    about: Option<&[f64]>,
-) -> Result<Evidence, CalibrationError> {
-    let frame = calibrate_quietly(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
-    let Whitening::Covariance(noise) = &frame.whitening else {
-        return Err(needs_the_noise(auto, "--sigma-mm with --joint-sigma-deg, or --noise"));
-    };
-    let params = &frame.params;
-    let zero = vec![0.0; params.len()];
-    let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
-    let nothing = Selection::from_indices(params, []);
-    let base_problem = PointProblem::new(
-        &frame.chains,
-        &nothing,
-        kind,
-        data.joints.clone(),
-        observed(data),
-        zero,
-        Some(noise),
-    )?;
-    let weights = Weights::for_problem(&base_problem, Estimator::Wls)?;
-    let c2 = weights.scale().unwrap_or(1.0).powi(2);
-    let asked = selection(params, &options.joints, options)?;
-    let problem = base_problem.reselect(&asked, about.unwrap_or(&frame.before).to_vec())?;
-    let start = linearise(&problem, &weights, problem.start())?;
-    let infos: Vec<&ParamInfo> = params.iter().collect();
-    let (columns, classes) = evidence_columns(auto, &options.prior, &infos, asked.indices(), 0)?;
-    Ok(linear_evidence(&start, c2, &columns, &classes))
-}
-
-/// The [`Evidence`] of observation files for the scale of `auto`'s preset: their system of
-/// what `options` asks for (the robot's parameters, then the set-up's, flat), whitened by
-/// `V_k` (weighted least squares, `kinds::evidence_system`), linearised about `about`'s
-/// estimate (`None`: the "before" fit). The noise must be known: a sigma column or the joint
-/// noise (`--joint-sigma-deg`).
-pub fn kinds_scale_evidence(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
-    auto: &AutoPrior,
-    about: Option<&KindCalibration>,
-) -> Result<Evidence, CalibrationError> {
-    if options.joint_noise.is_none() && data.assumed_sigmas == data.observations.len() {
-        return Err(needs_the_noise(auto, "a sigma column in the observation file, or --joint-sigma-deg"));
-    }
-    let options = KindOptions { estimator: Estimator::Wls, ..options.clone() };
-    let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
-    system_evidence(auto, &options.prior, &kinds::evidence_system(model, data, &options, about)?)
-}
-
-/// The [`Evidence`] of a tree's views for the scale of `auto`'s preset, as
-/// [`kinds_scale_evidence`]'s of observation files: the tree's parameters `options` asks for,
-/// then the cameras' and targets' placements (flat), whitened by each view's `V_k` (weighted
-/// least squares, `tree::evidence_system`), about `about`'s
-/// estimate (`None`: the "before" fit). The noise must be known: the views' sigma columns or
-/// the joint noise.
-pub fn tree_scale_evidence(
-    tree: &RobotTree,
-    data: &TreeData,
-    options: &TreeOptions,
-    auto: &AutoPrior,
-    about: Option<&TreeCalibration>,
-) -> Result<Evidence, CalibrationError> {
-    if options.joint_noise.is_none() && data.assumed_sigmas {
-        return Err(needs_the_noise(
-            auto,
-            "sigma and sigma_angle columns in the views' file, or --joint-sigma-deg",
-        ));
-    }
-    let options = TreeOptions { estimator: Estimator::Wls, ..options.clone() };
-    let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
-    system_evidence(auto, &options.prior, &super::tree::evidence_system(tree, data, &options, about)?)
-}
-
 /// The [`Evidence`] of a whitened `system` ([`linear_evidence`]), its columns by
 /// [`evidence_columns`] (`own` the user's fixed priors; after the parameters, flat set-up ones).
-fn system_evidence(
+pub(crate) fn system_evidence(
     auto: &AutoPrior,
     own: &[PriorEntry],
-    system: &kinds::EvidenceSystem,
+    system: &EvidenceSystem,
 ) -> Result<Evidence, CalibrationError> {
     let infos: Vec<&ParamInfo> = system.params.iter().collect();
     let extra = system.linearised.x.len() - system.asked.len();
@@ -477,7 +379,7 @@ fn system_evidence(
 }
 
 /// The error of the marginal likelihood without the noise: `give` says how to give it.
-fn needs_the_noise(auto: &AutoPrior, give: &str) -> CalibrationError {
+pub(crate) fn needs_the_noise(auto: &AutoPrior, give: &str) -> CalibrationError {
     CalibrationError::Scoring(format!(
         "--prior {}: the marginal likelihood needs the noise; give it ({give}), or choose the scale by \
          cross-validation (--prior auto:{})",
