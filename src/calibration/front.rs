@@ -254,7 +254,7 @@ impl Front for Kinds<'_> {
     }
 
     /// Their system of what `options` asks for (the robot's parameters, then the set-up's,
-    /// flat), whitened by `V_k` (weighted least squares, [`kinds::evidence_system`]), about
+    /// flat), whitened by `V_k` (weighted least squares, `kinds::evidence_system`), about
     /// `about`'s estimate (`None`: the "before" fit). The noise must be known: a sigma column or
     /// the joint noise (`--joint-sigma-deg`).
     fn evidence(
@@ -330,7 +330,7 @@ impl Front for Tree<'_> {
     }
 
     /// As of observation files: the tree's parameters `options` asks for, then the cameras' and
-    /// targets' placements (flat), whitened by each view's `V_k` ([`tree::evidence_system`]).
+    /// targets' placements (flat), whitened by each view's `V_k` (`tree::evidence_system`).
     /// The noise must be known: the views' sigma columns or the joint noise.
     fn evidence(
         &self,
