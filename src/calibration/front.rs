@@ -22,6 +22,7 @@ use crate::estimation::evidence::Evidence;
 use crate::estimation::{Estimator, PointProblem, PriorEntry, Weights, linearise};
 use crate::kinematics::Measured;
 use crate::model::{RobotTree, Selection, name_matches};
+use std::borrow::Cow;
 
 /// A result of the choices' stages.
 type Result<T> = std::result::Result<T, CalibrationError>;
@@ -40,7 +41,7 @@ pub trait Front: Sized {
     /// How to calibrate.
     type Options: Clone;
     /// A calibration.
-    type Fit: Fitted;
+    type Fit;
     /// A nested cross-validation's report ([`Front::nested`]).
     type Nested;
 
@@ -66,6 +67,9 @@ pub trait Front: Sized {
 
     /// Calibrate `data` with `options`.
     fn calibrate(&self, data: &Self::Data, options: &Self::Options) -> Result<Self::Fit>;
+
+    /// What the `t` rule of `--select` reads of `fit`.
+    fn fitted(fit: &Self::Fit) -> Fitted<'_>;
 
     /// The cross-validated RMS of `--prior auto`'s curve (mm), `folds` folds.
     fn cv_rms(&self, data: &Self::Data, options: &Self::Options, folds: usize) -> Result<f64>;
@@ -125,8 +129,16 @@ impl Front for Markers<'_> {
         Options { joints: named_joints(names.to_vec()), ..options.clone() }
     }
 
+    /// Without [`calibrate`](super::calibrate)'s check of the noise: inside a choice, nobody
+    /// reads its warnings.
     fn calibrate(&self, data: &Measurements, options: &Options) -> Result<Calibration> {
         calibrate_quietly(self.0, data, options)
+    }
+
+    fn fitted(c: &Calibration) -> Fitted<'_> {
+        let (params, values) =
+            (Cow::Borrowed(&c.params), (Cow::Borrowed(c.before.as_slice()), c.after.as_slice()));
+        Fitted { params, values, estimate: &c.refined.estimate, fixed: &c.fixed }
     }
 
     /// The marker positions' ([`cross_validate`](super::cross_validate)).
@@ -247,6 +259,12 @@ impl Front for Kinds<'_> {
         kinds::calibrate_kinds(self.0, data, options)
     }
 
+    fn fitted(c: &KindCalibration) -> Fitted<'_> {
+        let (params, values) =
+            (Cow::Borrowed(&c.params), (Cow::Borrowed(c.before.as_slice()), c.after.as_slice()));
+        Fitted { params, values, estimate: &c.refined.estimate, fixed: &c.fixed }
+    }
+
     /// The length residuals' ([`kinds::cross_validate_kinds`]: every observation of a pose held
     /// out together).
     fn cv_rms(&self, data: &KindData, options: &KindOptions, folds: usize) -> Result<f64> {
@@ -322,6 +340,13 @@ impl Front for Tree<'_> {
 
     fn calibrate(&self, data: &TreeData, options: &TreeOptions) -> Result<TreeCalibration> {
         tree::calibrate_tree(self.0, data, options)
+    }
+
+    /// "Before" is the nominal tree.
+    fn fitted(c: &TreeCalibration) -> Fitted<'_> {
+        let params = Cow::Owned(crate::model::ParamSet::from_params(c.params.params.clone()));
+        let values = (Cow::Owned(vec![0.0; c.after.len()]), c.after.as_slice());
+        Fitted { params, values, estimate: &c.refined.estimate, fixed: &c.fixed }
     }
 
     /// The views' positions' ([`tree::cross_validate_tree`]).

@@ -44,9 +44,8 @@
 //! Gauss-Newton as any other.
 
 use super::front::Front;
-use super::kinds::{self, KindCalibration, KindData, KindOptions};
+use super::kinds::{self, KindData, KindOptions};
 use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale};
-use super::tree::TreeCalibration;
 use super::{
     CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel,
     Whitening, calibrate_quietly, check_folds, identifiable, observed, selection, standard_errors_of,
@@ -56,6 +55,7 @@ use crate::kinematics::Measured;
 use crate::model::{ParamOwner, Selection};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use std::borrow::Cow;
 
 /// Folds of `--select cv` unless told.
 pub const DEFAULT_FOLDS: usize = 5;
@@ -157,7 +157,7 @@ pub fn select<F: Front>(
         check_folds(folds, F::poses(data))?;
     }
     match criterion {
-        Criterion::T => backward(|names: Option<&[String]>| match names {
+        Criterion::T => backward::<F>(|names: Option<&[String]>| match names {
             Some(names) => front.calibrate(data, &front.with_joints(options, names)),
             None => front.calibrate(data, options),
         }),
@@ -291,17 +291,16 @@ pub struct NestedCv {
 /// whose estimate a kept parameter can stand in for ([`stand_in`]) is not dropped while that
 /// parameter's `|t|` is below 2 too: the stand-in goes first (the step says so); when the
 /// stand-in is strong, the zero goes and the path records the trade.
-fn backward<C: Fitted>(
-    calibrate: impl Fn(Option<&[String]>) -> Result<C, CalibrationError>,
+fn backward<F: Front>(
+    calibrate: impl Fn(Option<&[String]>) -> Result<F::Fit, CalibrationError>,
 ) -> Result<SelectionPath, CalibrationError> {
     let mut steps = vec![Step { parameter: None, score: f64::NAN, se: f64::NAN, note: None }];
     let (mut current, mut held, mut trades) = (None::<Vec<String>>, None, Vec::new());
     loop {
         let c = calibrate(current.as_deref())?;
-        let held = held.get_or_insert_with(|| c.held_words());
-        let (params, estimate) = (c.params(), c.estimate());
+        let Fitted { params, values: (before, after), estimate, fixed } = F::fitted(&c);
+        let held = held.get_or_insert_with(|| fixed.iter().map(Held::text).collect());
         let params: &crate::model::ParamSet = &params;
-        let (before, after) = c.values();
         let se = standard_errors_of(params.iter(), estimate);
         let joints: Vec<usize> = (estimate.names.iter())
             .filter_map(|n| params.index_by_name(n))
@@ -352,62 +351,16 @@ fn backward<C: Fitted>(
     }
 }
 
-/// A calibration the `t` rule of [`select`] reads.
-pub trait Fitted {
+/// A calibration as the `t` rule of [`select`] reads it ([`Front::fitted`]).
+pub struct Fitted<'a> {
     /// Its parameters.
-    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet>;
-    /// Their values before and after (full vector).
-    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]);
+    pub params: Cow<'a, crate::model::ParamSet>,
+    /// Their values before and after (full vectors).
+    pub values: (Cow<'a, [f64]>, &'a [f64]),
     /// Its estimate.
-    fn estimate(&self) -> &LinearEstimate;
-    /// What it held, in words.
-    fn held_words(&self) -> Vec<String>;
-}
-
-impl Fitted for super::Calibration {
-    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet> {
-        std::borrow::Cow::Borrowed(&self.params)
-    }
-    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]) {
-        (std::borrow::Cow::Borrowed(&self.before), &self.after)
-    }
-    fn estimate(&self) -> &LinearEstimate {
-        &self.refined.estimate
-    }
-    fn held_words(&self) -> Vec<String> {
-        self.fixed.iter().map(Held::text).collect()
-    }
-}
-
-impl Fitted for KindCalibration {
-    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet> {
-        std::borrow::Cow::Borrowed(&self.params)
-    }
-    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]) {
-        (std::borrow::Cow::Borrowed(&self.before), &self.after)
-    }
-    fn estimate(&self) -> &LinearEstimate {
-        &self.refined.estimate
-    }
-    fn held_words(&self) -> Vec<String> {
-        self.fixed.iter().map(Held::text).collect()
-    }
-}
-
-impl Fitted for TreeCalibration {
-    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet> {
-        std::borrow::Cow::Owned(crate::model::ParamSet::from_params(self.params.params.clone()))
-    }
-    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]) {
-        // "Before" is the nominal tree.
-        (std::borrow::Cow::Owned(vec![0.0; self.after.len()]), &self.after)
-    }
-    fn estimate(&self) -> &LinearEstimate {
-        &self.refined.estimate
-    }
-    fn held_words(&self) -> Vec<String> {
-        self.fixed.iter().map(Held::text).collect()
-    }
+    pub estimate: &'a LinearEstimate,
+    /// What it held.
+    pub fixed: &'a [Held],
 }
 
 /// The correlation above which one parameter's estimate stands in for a joint's zero or play:
