@@ -146,7 +146,8 @@ fn two_pumas() -> (RobotModel, Measurements, Options) {
 /// (12 DH joints), by OLS; the registration, the linearisation, the gauge and the whole path.
 fn selection(c: &mut Criterion) {
     let (nominal, data, options) = two_pumas();
-    let path = selection::select(&nominal, &data, &options, Select::Cv { folds: 5 }).unwrap();
+    let path =
+        selection::select(&calibration::Markers(&nominal), &data, &options, Select::Cv { folds: 5 }).unwrap();
     eprintln!(
         "the path: {} steps (the candidates the poses identify), {} chosen",
         path.steps.len() - 1,
@@ -155,7 +156,10 @@ fn selection(c: &mut Criterion) {
     let mut group = c.benchmark_group("select");
     group.sample_size(10);
     group.bench_function("cv, 5 folds, 100 poses, 3 markers, 60 candidates", |b| {
-        b.iter(|| selection::select(&nominal, &data, &options, Select::Cv { folds: 5 }).unwrap())
+        b.iter(|| {
+            selection::select(&calibration::Markers(&nominal), &data, &options, Select::Cv { folds: 5 })
+                .unwrap()
+        })
     });
     group.finish();
 }
@@ -183,18 +187,20 @@ fn choices(c: &mut Criterion) {
     group.sample_size(10);
     group.bench_function("--prior auto, 5 folds, 100 poses, 60 candidates, then calibrate", |b| {
         b.iter(|| {
-            let chosen = choose(&nominal, &data, &options, &cv).unwrap();
+            let chosen = choose(&calibration::Markers(&nominal), &data, &options, &cv).unwrap();
             calibration::calibrate(&nominal, &data, &chosen.options).unwrap()
         })
     });
     group.bench_function("--prior auto-ml, 100 poses, 60 candidates, then calibrate", |b| {
         b.iter(|| {
-            let chosen = choose(&nominal, &data, &with_noise, &ml).unwrap();
+            let chosen = choose(&calibration::Markers(&nominal), &data, &with_noise, &ml).unwrap();
             calibration::calibrate(&nominal, &data, &chosen.options).unwrap()
         })
     });
     group.bench_function("--select cv --folds 5 nested, 100 poses, 60 candidates", |b| {
-        b.iter(|| cross_validate_choices(&nominal, &data, &options, &select, 5).unwrap())
+        b.iter(|| {
+            cross_validate_choices(&calibration::Markers(&nominal), &data, &options, &select, 5).unwrap()
+        })
     });
     group.bench_function("plain calibration, 100 poses, 60 candidates", |b| {
         b.iter(|| calibration::calibrate(&nominal, &data, &options).unwrap())

@@ -9,15 +9,10 @@
 //! module: it joins the calibration, the design's accuracy prediction and the report.
 
 use crate::calibration::kinds::{KindCalibration, KindData, KindOptions, Score, calibrate_kinds_feasible};
-use crate::calibration::selection::{
-    ChosenFit, calibrate_kinds_chosen, calibrate_tree_chosen, cross_validate_kinds_choices,
-};
-use crate::calibration::tree::{
-    TreeCalibration, TreeData, TreeOptions, TreeScore, calibrate_tree_feasible, cross_validate_tree_by,
-};
+use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, TreeScore, calibrate_tree_feasible};
 use crate::calibration::{
-    self, Calibration, CalibrationError, Choices, ErrorStats, FeasibleOptions, Loss, Measurements, Options,
-    SetEvaluation,
+    self, Calibration, CalibrationError, Choices, ChosenFit, ErrorStats, FeasibleOptions, Kinds, Loss,
+    Markers, Measurements, Options, SetEvaluation, Tree, calibrate_chosen, cross_validate_choices,
 };
 use crate::design::accuracy::{AccuracyModel, CovarianceError, ParameterCovariance};
 use crate::estimation::NoiseModel;
@@ -92,8 +87,8 @@ pub fn calibrate_markers(
     fit: &Measurements,
     request: &MarkerRequest,
 ) -> Result<MarkerOutcome, MarkerError> {
-    let chosen =
-        calibration::choose(model, fit, &request.options, &request.choices).map_err(MarkerError::Choice)?;
+    let chosen = calibration::choose(&Markers(model), fit, &request.options, &request.choices)
+        .map_err(MarkerError::Choice)?;
     let result = if request.feasible {
         calibration::calibrate_feasible(model, fit, &chosen.options, &FeasibleOptions::default())
     } else {
@@ -142,7 +137,7 @@ fn cross_validate(
         redone.push(format!("--loss {}'s weights", asked.loss));
     }
     // Without choices, each fold calibrates with the options asked ([`calibration::cross_validate`]'s folds).
-    let cv = calibration::cross_validate_choices(model, fit, asked, choices, k)?;
+    let cv = cross_validate_choices(&Markers(model), fit, asked, choices, k)?;
     let poses = Some(crate::report::poses::in_degrees(&cv.poses, &model.joints));
     let (selected, scales) = (cv.selected, cv.scales);
     let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales, poses };
@@ -266,11 +261,11 @@ pub fn calibrate_observations_by(
 }
 
 /// Calibrate `tree` from the views of `sessions` (each a file's name and views) fitted
-/// together, with `choices` made from them ([`calibrate_tree_chosen`]: `--prior auto`'s
-/// scale, then `--select t`'s parameters; none: the tree as
+/// together, with `choices` made from them ([`calibrate_chosen`]: `--prior auto`'s
+/// scale, then `--select`'s parameters; none: the tree as
 /// [`calibrate_tree`](crate::calibration::tree::calibrate_tree) calibrates it, which gives the
 /// model and its estimator), score each `held_out` set with the frames as calibrated, with
-/// `folds` cross-validate the training poses ([`cross_validate_tree_by`]; "nested" with a
+/// `folds` cross-validate the training poses ([`cross_validate_choices`]; "nested" with a
 /// choice or a robust loss, each fold making them again), and report.
 pub fn calibrate_views(
     tree: &RobotTree,
@@ -281,13 +276,11 @@ pub fn calibrate_views(
     folds: Option<usize>,
 ) -> Result<TreeOutcome, FilesError> {
     let (data, names) = joined_views(sessions)?;
-    let chosen = calibrate_tree_chosen(tree, &data, options, choices).map_err(in_context(&names))?;
+    let chosen = calibrate_chosen(&Tree(tree), &data, options, choices).map_err(in_context(&names))?;
     let c = chosen.calibration;
     let mut scores = view_scores(&c, held_out)?;
     if let Some(k) = folds {
-        let calibrate =
-            |train: &TreeData| Ok(calibrate_tree_chosen(tree, train, options, choices)?.calibration);
-        let score = cross_validate_tree_by(&data, k, calibrate)
+        let score = cross_validate_choices(&Tree(tree), &data, options, choices, k)
             .map_err(in_context(&format!("--folds {k}: {names}")))?;
         scores.push((fold_label(k, *choices != Choices::default() || options.loss != Loss::Squared), score));
     }
@@ -354,7 +347,7 @@ pub struct ObservationOutcome {
 }
 
 /// Calibrate `model` from the observations of `sessions` (each a file's name and
-/// observations) fitted together, with `choices` made from them ([`calibrate_kinds_chosen`]:
+/// observations) fitted together, with `choices` made from them ([`calibrate_chosen`]:
 /// `--prior auto`'s scale, then `--select`'s parameters; none: every parameter asked for);
 /// score each `held_out` set with the calibrated robot and set-up; with `folds`,
 /// cross-validate the training poses, the choices and a robust loss's weights made again in
@@ -372,10 +365,10 @@ pub fn calibrate_observations(
         words if words.is_empty() => names.clone(),
         words => format!("{}: {names}", words.join(", ")),
     };
-    let chosen = calibrate_kinds_chosen(model, &data, options, choices).map_err(in_context(&context))?;
+    let chosen = calibrate_chosen(&Kinds(model), &data, options, choices).map_err(in_context(&context))?;
     let mut scores = held_out_scores(&chosen.calibration, held_out)?;
     if let Some(k) = folds {
-        let score = cross_validate_kinds_choices(model, &data, options, choices, k)
+        let score = cross_validate_choices(&Kinds(model), &data, options, choices, k)
             .map_err(in_context(&format!("--folds {k}: {names}")))?;
         // The choices and a robust loss's weights are made from the data: made again in each
         // fold.

@@ -17,6 +17,7 @@
 mod data;
 pub mod diagnostics;
 pub mod evaluation;
+pub mod front;
 pub mod kinds;
 pub mod noise_check;
 pub mod prior_scale;
@@ -29,13 +30,14 @@ pub mod tree;
 pub use data::{DataKind, Measurements};
 pub use diagnostics::{Cause, Confounder, FarOut, Held, Scored, Warning};
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
+pub use front::{Front, Kinds, Markers, Tree};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
 };
 pub use robust::{Loss, RobustFit};
 pub use selection::{
-    Choices, Chosen, Criterion, NestedCv, SelectionPath, choose, cross_validate_choices,
-    cross_validate_selection, select,
+    Choices, Chosen, ChosenFit, Criterion, NestedCv, SelectionPath, calibrate_chosen, choose,
+    cross_validate_choices, select,
 };
 
 use crate::estimation::{

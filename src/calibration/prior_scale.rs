@@ -2,11 +2,12 @@
 //! training poses by k-fold cross-validation. A preset's tolerances are a guess at how far a
 //! robot is from its drawing; how far this one is, the poses tell: each `s` of [`SCALES`]
 //! multiplies every standard deviation of the preset, the calibration with those priors is
-//! cross-validated ([`cross_validate`]: pose `i` held out in fold
-//! `i mod k`), and the scale of the lowest held-out RMS is chosen (ties to the smaller scale,
-//! the stronger prior). The curve it was chosen from is reported. The choice is made from the
-//! data, so `--folds` cross-validates it nested
-//! ([`cross_validate_choices`](super::selection::cross_validate_choices)).
+//! cross-validated ([`Front::cv_rms`]: pose `i` held out in fold `i mod k`), and the scale of
+//! the lowest held-out RMS is chosen (ties to the smaller scale, the stronger prior). The
+//! curve it was chosen from is reported. The choice is made from the data, so `--folds`
+//! cross-validates it nested ([`cross_validate_choices`](super::selection::cross_validate_choices)).
+//! Written once for the three calibrations ([`Front`]: markers, observation files, a tree's
+//! views).
 //!
 //! `--prior auto-ml[:PRESET]` chooses `s` by the marginal likelihood instead (type-II maximum
 //! likelihood, [`choose_prior_scale_ml`]), where the noise is known: the `s` that makes the
@@ -16,18 +17,12 @@
 //! ([`crate::estimation::evidence`]). It needs no refit: one linearisation, then `O(p)` a
 //! scale, on the grid [`evidence_scales`] (1/64 to 64 in steps of `2^(1/8)`).
 
-use super::kinds::{self, KindCalibration, KindData, KindOptions, cross_validate_kinds};
-use super::tree::{TreeCalibration, TreeData, TreeOptions, cross_validate_tree};
-use super::{
-    CalibrationError, JointParams, Measurements, Options, RobotModel, Whitening, calibrate_quietly,
-    cross_validate, observed, selection,
-};
+use super::front::Front;
+use super::kinds::EvidenceSystem;
+use super::{CalibrationError, check_folds};
 use crate::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
-use crate::estimation::{
-    Estimator, Linearisation, PointProblem, PriorEntry, Weights, linearise, prior_sds_of,
-};
-use crate::kinematics::Measured;
-use crate::model::{ParamInfo, RobotTree, Selection};
+use crate::estimation::{Linearisation, PriorEntry, prior_sds_of};
+use crate::model::ParamInfo;
 
 /// The scales tried: powers of 2 from 1/16 to 16.
 pub const SCALES: [f64; 9] = [0.0625, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0];
@@ -161,7 +156,7 @@ impl AutoPrior {
                 .map(|c| chosen.classes.iter().find(|k| k.class == *c).map_or(chosen.scale(), |k| k.scale))
                 .collect(),
         };
-        self.scaled_by(&scales).into_iter().chain(own.iter().cloned()).collect()
+        self.before(own, &scales)
     }
 
     /// `auto:PRESET`, `auto-ml:PRESET` or `auto-ml:PRESET:classes`, as `--prior` takes it.
@@ -170,15 +165,10 @@ impl AutoPrior {
         format!("{}:{}{classes}", self.by.word(), self.preset)
     }
 
-    /// Its entries with every standard deviation times `s`.
-    pub fn scaled(&self, s: f64) -> Vec<PriorEntry> {
-        self.scaled_by(&[s])
-    }
-
-    /// Its entries scaled by `s` ([`AutoPrior::scaled`]), then `own` (which win where both
-    /// name a parameter).
-    pub fn before(&self, own: &[PriorEntry], s: f64) -> Vec<PriorEntry> {
-        self.scaled(s).into_iter().chain(own.iter().cloned()).collect()
+    /// Its entries scaled by `scales` ([`AutoPrior::scaled_by`]), then `own` (which win where
+    /// both name a parameter).
+    pub fn before(&self, own: &[PriorEntry], scales: &[f64]) -> Vec<PriorEntry> {
+        self.scaled_by(scales).into_iter().chain(own.iter().cloned()).collect()
     }
 }
 
@@ -246,81 +236,30 @@ impl PriorScale {
 
 /// `options` with `auto`'s preset scaled by `s` before its own priors (which win where both
 /// name a parameter).
-pub fn with_scale(options: &Options, auto: &AutoPrior, s: f64) -> Options {
-    Options { prior: auto.before(&options.prior, s), ..options.clone() }
+pub fn with_scale<F: Front>(options: &F::Options, auto: &AutoPrior, s: f64) -> F::Options {
+    F::with_prior(options, |own| auto.before(own, &[s]))
 }
 
-/// [`with_scale`] for a calibration from observation files.
-pub fn with_kinds_scale(options: &KindOptions, auto: &AutoPrior, s: f64) -> KindOptions {
-    KindOptions { prior: auto.before(&options.prior, s), ..options.clone() }
-}
-
-/// [`with_scale`] for a tree's views.
-pub fn with_tree_scale(options: &TreeOptions, auto: &AutoPrior, s: f64) -> TreeOptions {
-    TreeOptions { prior: auto.before(&options.prior, s), ..options.clone() }
-}
-
-/// Choose the scale of `auto`'s preset for calibrating `data` with `options` by `folds`-fold
-/// cross-validation (see the [module documentation](self)).
-pub fn choose_prior_scale(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
-    auto: &AutoPrior,
-    folds: usize,
-) -> Result<PriorScale, CalibrationError> {
-    scale_by_curve(auto, folds, data.len(), |s| {
-        Ok(cross_validate(model, data, &with_scale(options, auto, s), folds)?.1.rms)
-    })
-}
-
-/// [`choose_prior_scale`] for observation files: each scale scored by the cross-validated RMS
-/// of the length residuals (mm; [`cross_validate_kinds`]'s folds, every observation of a pose
-/// held out together); by the marginal likelihood for `auto-ml`
-/// ([`choose_kinds_prior_scale_ml`], `folds` unused).
-pub fn choose_kinds_prior_scale(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
+/// Choose the scale of `auto`'s preset for calibrating `data` with `options` by `auto`'s
+/// method: by `folds`-fold cross-validation (see the [module documentation](self)), each scale
+/// scored by the front's cross-validated RMS ([`Front::cv_rms`]: of the marker positions, of
+/// the observations' lengths, every observation of a pose held out together, of the views'
+/// positions; mm), or by the marginal likelihood for `auto-ml` ([`choose_prior_scale_ml`],
+/// `folds` unused).
+pub fn choose_prior_scale<F: Front>(
+    front: &F,
+    data: &F::Data,
+    options: &F::Options,
     auto: &AutoPrior,
     folds: usize,
 ) -> Result<PriorScale, CalibrationError> {
     if auto.by == ScaleBy::Ml {
-        return choose_kinds_prior_scale_ml(model, data, options, auto);
+        return choose_prior_scale_ml(front, data, options, auto);
     }
-    scale_by_curve(auto, folds, data.joints.len(), |s| {
-        Ok(cross_validate_kinds(model, data, &with_kinds_scale(options, auto, s), folds)?.lengths.1)
-    })
-}
-
-/// [`choose_prior_scale`] for a tree's views: each scale scored by the cross-validated RMS of
-/// the views' position residuals (mm; [`cross_validate_tree`]'s folds); by the marginal
-/// likelihood for `auto-ml` ([`choose_tree_prior_scale_ml`], `folds` unused).
-pub fn choose_tree_prior_scale(
-    tree: &RobotTree,
-    data: &TreeData,
-    options: &TreeOptions,
-    auto: &AutoPrior,
-    folds: usize,
-) -> Result<PriorScale, CalibrationError> {
-    if auto.by == ScaleBy::Ml {
-        return choose_tree_prior_scale_ml(tree, data, options, auto);
-    }
-    scale_by_curve(auto, folds, data.joints.len(), |s| {
-        Ok(cross_validate_tree(tree, data, &with_tree_scale(options, auto, s), folds)?.position.1)
-    })
-}
-
-/// The scale of [`SCALES`] of the lowest `cv_rms_at(s)` (ties to the smaller scale), with the
-/// curve; `folds` checked against the `poses` first.
-fn scale_by_curve(
-    auto: &AutoPrior,
-    folds: usize,
-    poses: usize,
-    cv_rms_at: impl Fn(f64) -> Result<f64, CalibrationError>,
-) -> Result<PriorScale, CalibrationError> {
-    super::check_folds(folds, poses)?;
-    let cv_rms = SCALES.iter().map(|&s| cv_rms_at(s)).collect::<Result<Vec<f64>, CalibrationError>>()?;
+    check_folds(folds, F::poses(data))?;
+    let cv_rms = (SCALES.iter())
+        .map(|&s| front.cv_rms(data, &with_scale::<F>(options, auto, s), folds))
+        .collect::<Result<Vec<f64>, CalibrationError>>()?;
     let chosen = (0..cv_rms.len()).min_by(|&a, &b| cv_rms[a].total_cmp(&cv_rms[b])).unwrap_or(0);
     Ok(PriorScale {
         preset: auto.preset.clone(),
@@ -334,101 +273,31 @@ fn scale_by_curve(
     })
 }
 
-/// The scale of `auto`'s preset by the preset's and `auto`'s method: cross-validation
-/// ([`choose_prior_scale`], `folds` folds) or the marginal likelihood
-/// ([`choose_prior_scale_ml`]).
-pub fn choose_scale(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
-    auto: &AutoPrior,
-    folds: usize,
-) -> Result<PriorScale, CalibrationError> {
-    match auto.by {
-        ScaleBy::Cv => choose_prior_scale(model, data, options, auto, folds),
-        ScaleBy::Ml => choose_prior_scale_ml(model, data, options, auto),
-    }
-}
-
 /// Linearisations about the maximum a posteriori estimate after the first, about the
 /// registration, at most: the scale is chosen again about the estimate at the scale chosen
 /// until it stays.
 pub const EVIDENCE_ROUNDS: usize = 4;
 
 /// Choose the scale of `auto`'s preset for calibrating `data` with `options` by the marginal
-/// likelihood: `s = argmax log p(y | s)` over [`evidence_scales`] ([`scale_evidence`]), about
-/// the registration first, then about the calibration at the scale chosen (MacKay's
-/// re-estimation: where the errors are large, the registration's linearisation leaves a
-/// second-order residual that a larger scale would explain), until the scale stays (at most
-/// [`EVIDENCE_ROUNDS`] linearisations). The noise must be known (`options.noise`);
-/// `options.prior` applies unscaled, where both name a parameter instead of the preset's.
-/// With [`AutoPrior::by_class`], one scale per class, `argmax log p(y | s_1..s_n)` by
+/// likelihood: `s = argmax log p(y | s)` over [`evidence_scales`] ([`Front::evidence`]), about
+/// the registration (the "before" fit) first, then about the calibration at the scale chosen
+/// (MacKay's re-estimation: where the errors are large, the registration's linearisation
+/// leaves a second-order residual that a larger scale would explain), until the scale stays
+/// (at most [`EVIDENCE_ROUNDS`] linearisations). The noise must be known; `options.prior`
+/// applies unscaled, where both name a parameter instead of the preset's. With
+/// [`AutoPrior::by_class`], one scale per class, `argmax log p(y | s_1..s_n)` by
 /// [`Evidence::class_ascent`] from the one scale's choice, in the same rounds.
-pub fn choose_prior_scale_ml(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
+pub fn choose_prior_scale_ml<F: Front>(
+    front: &F,
+    data: &F::Data,
+    options: &F::Options,
     auto: &AutoPrior,
-) -> Result<PriorScale, CalibrationError> {
-    choose_by_evidence(
-        auto,
-        |about: Option<&Vec<f64>>| scale_evidence(model, data, options, auto, about.map(Vec::as_slice)),
-        |entries| {
-            let prior = entries.iter().chain(&options.prior).cloned().collect();
-            Ok(calibrate_quietly(model, data, &Options { prior, ..options.clone() })?.after)
-        },
-    )
-}
-
-/// [`choose_prior_scale_ml`] for observation files: the evidence of their whitened system
-/// ([`kinds_scale_evidence`]: each pose's block `V_k` of the observations' sigmas and the
-/// joint noise), about the "before" fit, then about the calibration at the scales chosen.
-pub fn choose_kinds_prior_scale_ml(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
-    auto: &AutoPrior,
-) -> Result<PriorScale, CalibrationError> {
-    choose_by_evidence(
-        auto,
-        |about: Option<&KindCalibration>| kinds_scale_evidence(model, data, options, auto, about),
-        |entries| {
-            let prior = entries.iter().chain(&options.prior).cloned().collect();
-            kinds::calibrate_kinds(model, data, &KindOptions { prior, ..options.clone() })
-        },
-    )
-}
-
-/// [`choose_prior_scale_ml`] for a tree's views ([`tree_scale_evidence`]).
-pub fn choose_tree_prior_scale_ml(
-    tree: &RobotTree,
-    data: &TreeData,
-    options: &TreeOptions,
-    auto: &AutoPrior,
-) -> Result<PriorScale, CalibrationError> {
-    choose_by_evidence(
-        auto,
-        |about: Option<&TreeCalibration>| tree_scale_evidence(tree, data, options, auto, about),
-        |entries| {
-            let prior = entries.iter().chain(&options.prior).cloned().collect();
-            super::tree::calibrate_tree(tree, data, &TreeOptions { prior, ..options.clone() })
-        },
-    )
-}
-
-/// The marginal likelihood's rounds (see [`choose_prior_scale_ml`]) for any calibration `F`:
-/// `evidence_about(None)` about the start, `evidence_about(Some(f))` about the fit `f`, which
-/// `fit_at(entries)` makes with the preset's entries at the scales chosen.
-fn choose_by_evidence<F>(
-    auto: &AutoPrior,
-    evidence_about: impl Fn(Option<&F>) -> Result<Evidence, CalibrationError>,
-    fit_at: impl Fn(&[PriorEntry]) -> Result<F, CalibrationError>,
 ) -> Result<PriorScale, CalibrationError> {
     let grid = evidence_scales();
     let (mut about, mut previous) = (None, None);
     let mut last = None;
     for _ in 0..EVIDENCE_ROUNDS {
-        let evidence = evidence_about(about.as_ref())?;
+        let evidence = front.evidence(data, options, auto, about.as_ref())?;
         let at = evidence_choice(&evidence, &grid, auto);
         let stays = previous.as_ref() == Some(&at);
         last = Some((evidence, at.clone()));
@@ -436,7 +305,8 @@ fn choose_by_evidence<F>(
             break;
         }
         let scales: Vec<f64> = at.iter().map(|&k| grid[k]).collect();
-        about = Some(fit_at(&auto.scaled_by(&scales))?);
+        let options = F::with_prior(options, |own| auto.before(own, &scales));
+        about = Some(front.calibrate(data, &options)?);
         previous = Some(at);
     }
     let (evidence, at) = last.expect("at least one round");
@@ -495,97 +365,12 @@ fn ml_scale(auto: &AutoPrior, evidence: &Evidence, grid: &[f64], at: &[usize]) -
     }
 }
 
-/// The [`Evidence`] of `data` for the scale of `auto`'s preset: the system of the parameters
-/// `options` asks for, linearised about `about` (a full parameter vector of a calibration of
-/// `data`; `None`: the registration, the base and markers fitted as [`calibrate`](super::calibrate)'s "before")
-/// and whitened by Gauss-Markov (`S V S^T = I`: the rows divided by the normalisation
-/// `c = sigma_max`; `linear_evidence`). A parameter with an entry of `options.prior` has
-/// that fixed prior, one with the preset's only is scaled, the others are flat
-/// (`evidence_columns`).
-pub fn scale_evidence(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
-    auto: &AutoPrior,
-    about: Option<&[f64]>,
-) -> Result<Evidence, CalibrationError> {
-    let frame = calibrate_quietly(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
-    let Whitening::Covariance(noise) = &frame.whitening else {
-        return Err(needs_the_noise(auto, "--sigma-mm with --joint-sigma-deg, or --noise"));
-    };
-    let params = &frame.params;
-    let zero = vec![0.0; params.len()];
-    let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
-    let nothing = Selection::from_indices(params, []);
-    let base_problem = PointProblem::new(
-        &frame.chains,
-        &nothing,
-        kind,
-        data.joints.clone(),
-        observed(data),
-        zero,
-        Some(noise),
-    )?;
-    let weights = Weights::for_problem(&base_problem, Estimator::Wls)?;
-    let c2 = weights.scale().unwrap_or(1.0).powi(2);
-    let asked = selection(params, &options.joints, options)?;
-    let problem = base_problem.reselect(&asked, about.unwrap_or(&frame.before).to_vec())?;
-    let start = linearise(&problem, &weights, problem.start())?;
-    let infos: Vec<&ParamInfo> = params.iter().collect();
-    let (columns, classes) = evidence_columns(auto, &options.prior, &infos, asked.indices(), 0)?;
-    Ok(linear_evidence(&start, c2, &columns, &classes))
-}
-
-/// The [`Evidence`] of observation files for the scale of `auto`'s preset: their system of
-/// what `options` asks for (the robot's parameters, then the set-up's, flat), whitened by
-/// `V_k` (weighted least squares, `kinds::evidence_system`), linearised about `about`'s
-/// estimate (`None`: the "before" fit). The noise must be known: a sigma column or the joint
-/// noise (`--joint-sigma-deg`).
-pub fn kinds_scale_evidence(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
-    auto: &AutoPrior,
-    about: Option<&KindCalibration>,
-) -> Result<Evidence, CalibrationError> {
-    if options.joint_noise.is_none() && data.assumed_sigmas == data.observations.len() {
-        return Err(needs_the_noise(auto, "a sigma column in the observation file, or --joint-sigma-deg"));
-    }
-    let options = KindOptions { estimator: Estimator::Wls, ..options.clone() };
-    let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
-    system_evidence(auto, &options.prior, &kinds::evidence_system(model, data, &options, about)?)
-}
-
-/// The [`Evidence`] of a tree's views for the scale of `auto`'s preset, as
-/// [`kinds_scale_evidence`]'s of observation files: the tree's parameters `options` asks for,
-/// then the cameras' and targets' placements (flat), whitened by each view's `V_k` (weighted
-/// least squares, `tree::evidence_system`), about `about`'s
-/// estimate (`None`: the "before" fit). The noise must be known: the views' sigma columns or
-/// the joint noise.
-pub fn tree_scale_evidence(
-    tree: &RobotTree,
-    data: &TreeData,
-    options: &TreeOptions,
-    auto: &AutoPrior,
-    about: Option<&TreeCalibration>,
-) -> Result<Evidence, CalibrationError> {
-    if options.joint_noise.is_none() && data.assumed_sigmas {
-        return Err(needs_the_noise(
-            auto,
-            "sigma and sigma_angle columns in the views' file, or --joint-sigma-deg",
-        ));
-    }
-    let options = TreeOptions { estimator: Estimator::Wls, ..options.clone() };
-    let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
-    system_evidence(auto, &options.prior, &super::tree::evidence_system(tree, data, &options, about)?)
-}
-
 /// The [`Evidence`] of a whitened `system` ([`linear_evidence`]), its columns by
 /// [`evidence_columns`] (`own` the user's fixed priors; after the parameters, flat set-up ones).
-fn system_evidence(
+pub(crate) fn system_evidence(
     auto: &AutoPrior,
     own: &[PriorEntry],
-    system: &kinds::EvidenceSystem,
+    system: &EvidenceSystem,
 ) -> Result<Evidence, CalibrationError> {
     let infos: Vec<&ParamInfo> = system.params.iter().collect();
     let extra = system.linearised.x.len() - system.asked.len();
@@ -594,7 +379,7 @@ fn system_evidence(
 }
 
 /// The error of the marginal likelihood without the noise: `give` says how to give it.
-fn needs_the_noise(auto: &AutoPrior, give: &str) -> CalibrationError {
+pub(crate) fn needs_the_noise(auto: &AutoPrior, give: &str) -> CalibrationError {
     CalibrationError::Scoring(format!(
         "--prior {}: the marginal likelihood needs the noise; give it ({give}), or choose the scale by \
          cross-validation (--prior auto:{})",

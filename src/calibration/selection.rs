@@ -43,21 +43,19 @@
 //! is the same on any number of threads. The selected model is then calibrated by
 //! Gauss-Newton as any other.
 
-use super::kinds::{self, KindCalibration, KindData, KindOptions};
-use super::prior_scale::{
-    AutoPrior, PriorScale, choose_kinds_prior_scale, choose_scale, choose_tree_prior_scale,
-};
-use super::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree};
+use super::front::Front;
+use super::kinds::{self, KindData, KindOptions};
+use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale};
 use super::{
     CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel,
-    Whitening, calibrate_quietly, check_folds, errors, identifiable, observed, selection, standard_errors_of,
+    Whitening, calibrate_quietly, check_folds, identifiable, observed, selection, standard_errors_of,
 };
 use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights};
 use crate::kinematics::Measured;
-use crate::model::RobotTree;
-use crate::model::{ParamOwner, Selection, name_matches};
+use crate::model::{ParamOwner, Selection};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
+use std::borrow::Cow;
 
 /// Folds of `--select cv` unless told.
 pub const DEFAULT_FOLDS: usize = 5;
@@ -130,111 +128,41 @@ pub struct SelectionPath {
 }
 
 impl SelectionPath {
-    /// `options` asking for the selected parameters only.
-    pub fn options(&self, options: &Options) -> Options {
-        asking(options, &self.selected)
+    /// `options` of `front` asking for the selected parameters only ([`Front::with_joints`]).
+    pub fn options<F: Front>(&self, front: &F, options: &F::Options) -> F::Options {
+        front.with_joints(options, &self.selected)
     }
-
-    /// `options` of an observation calibration of `model` asking for the selected joint
-    /// parameters only (and the set-up's that `--params` names).
-    pub fn kind_options(&self, model: &RobotModel, options: &KindOptions) -> KindOptions {
-        asking_kinds(model, options, &self.selected)
-    }
-}
-
-/// `options` asking for the joint parameters `names` only.
-fn asking(options: &Options, names: &[String]) -> Options {
-    Options { joints: named_joints(names.to_vec()), ..options.clone() }
 }
 
 /// The joint parameters `names`; none when empty.
-fn named_joints(names: Vec<String>) -> JointParams {
+pub(crate) fn named_joints(names: Vec<String>) -> JointParams {
     if names.is_empty() { JointParams::None } else { JointParams::Named(names) }
 }
 
 /// Choose among the joint parameters `options.joints` names by `criterion` (see the
-/// [module documentation](self)), then [`calibrate`](super::calibrate) with [`SelectionPath::options`].
-pub fn select(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
+/// [module documentation](self)), for any of the calibrations ([`Front`]): of a marker file,
+/// of observation files (distances, contacts, coordinates, cameras' views, markers: the
+/// registration is the set-up, the tool point and, with markers, the base and the markers; a
+/// fold holds out the observations of its poses, a pair by its first; the CV RMS is of the
+/// lengths, mm, angles not scored), of a tree's views (the CV RMS of the views' positions).
+/// Then calibrate with [`SelectionPath::options`].
+pub fn select<F: Front>(
+    front: &F,
+    data: &F::Data,
+    options: &F::Options,
     criterion: Criterion,
 ) -> Result<SelectionPath, CalibrationError> {
-    if data.orientations.is_some() {
-        return Err(CalibrationError::Scoring(
-            "--select scores marker positions: a probe's orientations are not supported".into(),
-        ));
-    }
-    match criterion {
-        Criterion::T => backward(|names: Option<&[String]>| match names {
-            Some(names) => calibrate_quietly(model, data, &asking(options, names)),
-            None => calibrate_quietly(model, data, options),
-        }),
-        Criterion::Cv { folds } => {
-            check_folds(folds, data.len()).and_then(|()| forward(model, data, options, criterion))
-        }
-        Criterion::Bic => forward(model, data, options, criterion),
-    }
-}
-
-/// Choose among the joint parameters `options.joints` names of an observation calibration
-/// (distances, contacts, coordinates, cameras' views, markers: [`kinds`]) by `criterion`, as
-/// [`select`] does for a marker file: the registration is the set-up, the tool point and, with
-/// markers, the base and the markers, always estimated; a fold holds out the observations of
-/// its poses (a pair by its first); the CV RMS is of the lengths (mm), angles not scored.
-pub fn select_kinds(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
-    criterion: Criterion,
-) -> Result<SelectionPath, CalibrationError> {
+    F::refuse_select(data)?;
     if let Criterion::Cv { folds } = criterion {
-        check_folds(folds, data.joints.len())?;
+        check_folds(folds, F::poses(data))?;
     }
     match criterion {
-        Criterion::T => backward(|names: Option<&[String]>| {
-            let options = names.map_or_else(|| options.clone(), |n| asking_kinds(model, options, n));
-            kinds::calibrate_kinds(model, data, &options)
+        Criterion::T => backward::<F>(|names: Option<&[String]>| match names {
+            Some(names) => front.calibrate(data, &front.with_joints(options, names)),
+            None => front.calibrate(data, options),
         }),
-        Criterion::Cv { .. } if data.observations.iter().all(|o| o.is_angle()) => Err(CalibrationError::Scoring(
-            "--select cv scores the held-out lengths (mm), and these observations are all angles: use --select bic \
-             or t"
-                .into(),
-        )),
-        _ => Ok(LinearModel::of_kinds(model, data, options)?.forward(criterion)),
+        _ => front.forward(data, options, criterion),
     }
-}
-
-/// [`select_kinds`], then [`kinds::calibrate_kinds`] with the parameters it chose
-/// ([`SelectionPath::kind_options`]); the folds of cv at most the poses.
-pub fn calibrate_kinds_selected(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
-    criterion: Criterion,
-) -> Result<(SelectionPath, KindCalibration), CalibrationError> {
-    let criterion = match criterion {
-        Criterion::Cv { folds } => Criterion::Cv { folds: folds.min(data.joints.len()) },
-        other => other,
-    };
-    let path = select_kinds(model, data, options, criterion)?;
-    let calibration = kinds::calibrate_kinds(model, data, &path.kind_options(model, options))?;
-    Ok((path, calibration))
-}
-
-/// `options` of an observation calibration asking for the joint parameters `names` only; the
-/// patterns of `--params` that name no robot parameter (a set-up's, a marker's) kept.
-fn asking_kinds(model: &RobotModel, options: &KindOptions, names: &[String]) -> KindOptions {
-    let robot = model.params();
-    let others = match &options.joints {
-        JointParams::Named(patterns) => {
-            patterns.iter().filter(|p| !robot.iter().any(|q| name_matches(p, &q.name))).cloned().collect()
-        }
-        _ => Vec::new(),
-    };
-    let all: Vec<String> = names.iter().cloned().chain(others).collect();
-    let joints = named_joints(all);
-    KindOptions { joints, ..options.clone() }
 }
 
 /// The choices made from the data before a calibration: the scale of a preset's priors
@@ -263,80 +191,44 @@ impl Choices {
 
 /// What [`choose`] chose.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Chosen {
+pub struct Chosen<O> {
     /// The options to calibrate with: the scaled priors, the selected parameters.
-    pub options: Options,
+    pub options: O,
     /// The scale of the preset, and its curve.
     pub scale: Option<PriorScale>,
     /// The selection's path.
     pub path: Option<SelectionPath>,
 }
 
-/// Make `choices` on `data`: the preset's scale first ([`choose_scale`]: by cross-validation
-/// or the marginal likelihood), then the
-/// selection with those priors ([`select`]).
-pub fn choose(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
+/// Make `choices` on `data`: the preset's scale first ([`choose_prior_scale`]: by
+/// cross-validation or the marginal likelihood), then the selection with those priors
+/// ([`select`]); the folds of each at most the poses.
+pub fn choose<F: Front>(
+    front: &F,
+    data: &F::Data,
+    options: &F::Options,
     choices: &Choices,
-) -> Result<Chosen, CalibrationError> {
+) -> Result<Chosen<F::Options>, CalibrationError> {
+    let poses = F::poses(data);
     let mut chosen = Chosen { options: options.clone(), scale: None, path: None };
     if let Some((auto, folds)) = &choices.auto_prior {
-        let scale = choose_scale(model, data, options, auto, (*folds).min(data.len()))?;
-        chosen.options = Options { prior: auto.chosen(&options.prior, &scale), ..options.clone() };
+        let scale = choose_prior_scale(front, data, options, auto, (*folds).min(poses))?;
+        chosen.options = F::with_prior(options, |own| auto.chosen(own, &scale));
         chosen.scale = Some(scale);
     }
     if let Some(criterion) = choices.select {
         let criterion = match criterion {
-            Criterion::Cv { folds } => Criterion::Cv { folds: folds.min(data.len()) },
+            Criterion::Cv { folds } => Criterion::Cv { folds: folds.min(poses) },
             other => other,
         };
-        let path = select(model, data, &chosen.options, criterion)?;
-        chosen.options = path.options(&chosen.options);
+        let path = select(front, data, &chosen.options, criterion)?;
+        chosen.options = path.options(front, &chosen.options);
         chosen.path = Some(path);
     }
     Ok(chosen)
 }
 
-/// k-fold cross-validation of the choices made from the data, nested: pose `i` is held out in
-/// fold `i mod folds`, and on the other folds every choice is made again ([`choose`]: the
-/// preset's scale, the selection, each with folds of its own on them) and the model chosen
-/// calibrated; the held-out poses are scored before and after. Choices made on every pose have
-/// seen the held-out ones, so cross-validating only what they chose
-/// ([`cross_validate`](super::cross_validate) with [`Chosen::options`]) is optimistic; this is
-/// the figure to expect on new poses.
-pub fn cross_validate_choices(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
-    choices: &Choices,
-    folds: usize,
-) -> Result<NestedCv, CalibrationError> {
-    check_folds(folds, data.len())?;
-    let (mut before, mut after) = (Vec::new(), Vec::new());
-    let (mut selected, mut scales, mut scored) = (Vec::new(), Vec::new(), Vec::new());
-    let name = format!("{folds}-fold cross-validation");
-    for fold in 0..folds {
-        let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
-        let (train, fold_options) = (data.subset(&train), options.at_poses(&train));
-        let chosen = choose(model, &train, &fold_options, choices)?;
-        let calibration = calibrate_quietly(model, &train, &chosen.options)?;
-        let held_out = data.subset(&test);
-        before.extend(errors(&calibration.chains, &calibration.before, &held_out));
-        after.extend(errors(&calibration.chains, &calibration.after, &held_out));
-        let noise = options.noise.as_ref().map(|n| n.at_points(&test));
-        scored.push(calibration.evaluate(&name, &held_out, noise.as_ref())?);
-        selected.extend(chosen.path.map(|p| p.selected));
-        // A scale per class (auto-ml:PRESET:classes) is no one number: not listed.
-        scales.extend(chosen.scale.filter(|s| s.classes.is_empty()).map(|s| s.scale()));
-    }
-    let (before, after) = (ErrorStats::of(&before), ErrorStats::of(&after));
-    Ok(NestedCv { before, after, selected, scales, poses: super::evaluation::joined(&name, scored) })
-}
-
-/// A calibration (`C`: of observation files, of a tree's views) with the choices made from
-/// its data ([`calibrate_kinds_chosen`], [`calibrate_tree_chosen`]).
+/// A calibration with the choices made from its data ([`calibrate_chosen`]).
 #[derive(Debug, Clone)]
 pub struct ChosenFit<C> {
     /// The scale of the preset, and its curve.
@@ -347,56 +239,33 @@ pub struct ChosenFit<C> {
     pub calibration: C,
 }
 
-/// Make `choices` on observation `data` as [`choose`] makes them on marker data (the preset's
-/// scale first, [`choose_kinds_prior_scale`], then the selection with those priors,
-/// [`calibrate_kinds_selected`]) and calibrate with them.
-pub fn calibrate_kinds_chosen(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
+/// Make `choices` on `data` ([`choose`]) and calibrate with them ([`Front::calibrate`]).
+pub fn calibrate_chosen<F: Front>(
+    front: &F,
+    data: &F::Data,
+    options: &F::Options,
     choices: &Choices,
-) -> Result<ChosenFit<KindCalibration>, CalibrationError> {
-    let (mut options, mut scale) = (options.clone(), None);
-    if let Some((auto, folds)) = &choices.auto_prior {
-        let chosen = choose_kinds_prior_scale(model, data, &options, auto, (*folds).min(data.joints.len()))?;
-        options = KindOptions { prior: auto.chosen(&options.prior, &chosen), ..options };
-        scale = Some(chosen);
-    }
-    let (path, calibration) = match choices.select {
-        Some(criterion) => {
-            let (path, c) = calibrate_kinds_selected(model, data, &options, criterion)?;
-            (Some(path), c)
-        }
-        None => (None, kinds::calibrate_kinds(model, data, &options)?),
-    };
-    Ok(ChosenFit { scale, path, calibration })
+) -> Result<ChosenFit<F::Fit>, CalibrationError> {
+    let Chosen { options, scale, path } = choose(front, data, options, choices)?;
+    Ok(ChosenFit { scale, path, calibration: front.calibrate(data, &options)? })
 }
 
-/// Nested k-fold cross-validation of [`calibrate_kinds_chosen`]: every choice made again on
-/// each fold's training observations ([`kinds::cross_validate_kinds`]'s folds), the held-out
-/// ones scored with the model chosen.
-pub fn cross_validate_kinds_choices(
-    model: &RobotModel,
-    data: &KindData,
-    options: &KindOptions,
+/// k-fold cross-validation of the choices made from the data, nested: pose `i` is held out in
+/// fold `i mod folds`, and on the other folds every choice is made again and the model chosen
+/// calibrated ([`calibrate_chosen`]: the preset's scale, the selection, each with folds of its
+/// own on them); the held-out poses are scored ([`Front::nested`]: of a marker file before and
+/// after, pose by pose, with each fold's choices; of observation files or a tree's views as
+/// their `--folds` scores them). Choices made on every pose have seen the held-out ones, so
+/// cross-validating only what they chose ([`cross_validate`](super::cross_validate) with
+/// [`Chosen::options`]) is optimistic; this is the figure to expect on new poses.
+pub fn cross_validate_choices<F: Front>(
+    front: &F,
+    data: &F::Data,
+    options: &F::Options,
     choices: &Choices,
     folds: usize,
-) -> Result<kinds::Score, CalibrationError> {
-    kinds::cross_validate_kinds_by(data, folds, |train| {
-        Ok(calibrate_kinds_chosen(model, train, options, choices)?.calibration)
-    })
-}
-
-/// [`cross_validate_choices`] of a selection alone.
-pub fn cross_validate_selection(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
-    criterion: Criterion,
-    folds: usize,
-) -> Result<NestedCv, CalibrationError> {
-    let choices = Choices { select: Some(criterion), auto_prior: None };
-    cross_validate_choices(model, data, options, &choices, folds)
+) -> Result<F::Nested, CalibrationError> {
+    front.nested(data, options, folds, &|train, options| calibrate_chosen(front, train, options, choices))
 }
 
 /// A nested k-fold cross-validation ([`cross_validate_choices`]).
@@ -422,17 +291,16 @@ pub struct NestedCv {
 /// whose estimate a kept parameter can stand in for ([`stand_in`]) is not dropped while that
 /// parameter's `|t|` is below 2 too: the stand-in goes first (the step says so); when the
 /// stand-in is strong, the zero goes and the path records the trade.
-fn backward<C: Fitted>(
-    calibrate: impl Fn(Option<&[String]>) -> Result<C, CalibrationError>,
+fn backward<F: Front>(
+    calibrate: impl Fn(Option<&[String]>) -> Result<F::Fit, CalibrationError>,
 ) -> Result<SelectionPath, CalibrationError> {
     let mut steps = vec![Step { parameter: None, score: f64::NAN, se: f64::NAN, note: None }];
     let (mut current, mut held, mut trades) = (None::<Vec<String>>, None, Vec::new());
     loop {
         let c = calibrate(current.as_deref())?;
-        let held = held.get_or_insert_with(|| c.held_words());
-        let (params, estimate) = (c.params(), c.estimate());
+        let Fitted { params, values: (before, after), estimate, fixed } = F::fitted(&c);
+        let held = held.get_or_insert_with(|| fixed.iter().map(Held::text).collect());
         let params: &crate::model::ParamSet = &params;
-        let (before, after) = c.values();
         let se = standard_errors_of(params.iter(), estimate);
         let joints: Vec<usize> = (estimate.names.iter())
             .filter_map(|n| params.index_by_name(n))
@@ -483,97 +351,16 @@ fn backward<C: Fitted>(
     }
 }
 
-/// A calibration the `t` rule reads: its parameters, their values before and after (full
-/// vector), its estimate, and what it held in words.
-trait Fitted {
-    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet>;
-    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]);
-    fn estimate(&self) -> &LinearEstimate;
-    fn held_words(&self) -> Vec<String>;
-}
-
-impl Fitted for super::Calibration {
-    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet> {
-        std::borrow::Cow::Borrowed(&self.params)
-    }
-    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]) {
-        (std::borrow::Cow::Borrowed(&self.before), &self.after)
-    }
-    fn estimate(&self) -> &LinearEstimate {
-        &self.refined.estimate
-    }
-    fn held_words(&self) -> Vec<String> {
-        self.fixed.iter().map(Held::text).collect()
-    }
-}
-
-impl Fitted for KindCalibration {
-    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet> {
-        std::borrow::Cow::Borrowed(&self.params)
-    }
-    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]) {
-        (std::borrow::Cow::Borrowed(&self.before), &self.after)
-    }
-    fn estimate(&self) -> &LinearEstimate {
-        &self.refined.estimate
-    }
-    fn held_words(&self) -> Vec<String> {
-        self.fixed.iter().map(Held::text).collect()
-    }
-}
-
-impl Fitted for TreeCalibration {
-    fn params(&self) -> std::borrow::Cow<'_, crate::model::ParamSet> {
-        std::borrow::Cow::Owned(crate::model::ParamSet::from_params(self.params.params.clone()))
-    }
-    fn values(&self) -> (std::borrow::Cow<'_, [f64]>, &[f64]) {
-        // "Before" is the nominal tree.
-        (std::borrow::Cow::Owned(vec![0.0; self.after.len()]), &self.after)
-    }
-    fn estimate(&self) -> &LinearEstimate {
-        &self.refined.estimate
-    }
-    fn held_words(&self) -> Vec<String> {
-        self.fixed.iter().map(Held::text).collect()
-    }
-}
-
-/// Make `choices` on a tree's views `data` and calibrate with them: the preset's scale first
-/// ([`choose_tree_prior_scale`]), then the selection with those priors by the `t` rule
-/// (backward elimination, as for a marker file), or by `cv` or `bic` forward on the tree's
-/// views linearised about "before" ([`tree::selection_model`](super::tree)), as for
-/// observation files.
-pub fn calibrate_tree_chosen(
-    tree: &RobotTree,
-    data: &TreeData,
-    options: &TreeOptions,
-    choices: &Choices,
-) -> Result<ChosenFit<TreeCalibration>, CalibrationError> {
-    let (mut options, mut scale) = (options.clone(), None);
-    if let Some((auto, folds)) = &choices.auto_prior {
-        let chosen = choose_tree_prior_scale(tree, data, &options, auto, (*folds).min(data.joints.len()))?;
-        options = TreeOptions { prior: auto.chosen(&options.prior, &chosen), ..options };
-        scale = Some(chosen);
-    }
-    let asking = |names: &[String]| TreeOptions { joints: named_joints(names.to_vec()), ..options.clone() };
-    let path = match choices.select {
-        None => None,
-        Some(Criterion::T) => Some(backward(|names: Option<&[String]>| match names {
-            Some(names) => calibrate_tree(tree, data, &asking(names)),
-            None => calibrate_tree(tree, data, &options),
-        })?),
-        Some(Criterion::Cv { folds }) => {
-            let folds = folds.min(data.joints.len());
-            check_folds(folds, data.joints.len())?;
-            Some(super::tree::selection_model(tree, data, &options)?.forward(Criterion::Cv { folds }))
-        }
-        Some(Criterion::Bic) => {
-            Some(super::tree::selection_model(tree, data, &options)?.forward(Criterion::Bic))
-        }
-    };
-    let options = path.as_ref().map_or(options.clone(), |p| asking(&p.selected));
-    let calibration = calibrate_tree(tree, data, &options)?;
-    Ok(ChosenFit { scale, path, calibration })
+/// A calibration as the `t` rule of [`select`] reads it ([`Front::fitted`]).
+pub struct Fitted<'a> {
+    /// Its parameters.
+    pub params: Cow<'a, crate::model::ParamSet>,
+    /// Their values before and after (full vectors).
+    pub values: (Cow<'a, [f64]>, &'a [f64]),
+    /// Its estimate.
+    pub estimate: &'a LinearEstimate,
+    /// What it held.
+    pub fixed: &'a [Held],
 }
 
 /// The correlation above which one parameter's estimate stands in for a joint's zero or play:
@@ -619,17 +406,6 @@ fn estimate_covariance(
         (Some(a), Some(b)) => estimate.covariance[(a, b)],
         _ => f64::NAN,
     }
-}
-
-/// Forward stepwise selection ([`Criterion::Cv`], [`Criterion::Bic`]) on one linearisation.
-fn forward(
-    model: &RobotModel,
-    data: &Measurements,
-    options: &Options,
-    criterion: Criterion,
-) -> Result<SelectionPath, CalibrationError> {
-    let linear = LinearModel::of_markers(model, data, options)?;
-    Ok(linear.forward(criterion))
 }
 
 /// The calibration linearised once about the registration ("before"), for the parameters
@@ -719,7 +495,7 @@ impl LinearModel {
 
     /// The registration of `data` (base and markers fitted by [`calibrate`](super::calibrate)), then the gauge
     /// of `options`' parameters and the system about it.
-    fn of_markers(
+    pub(crate) fn of_markers(
         model: &RobotModel,
         data: &Measurements,
         options: &Options,
@@ -775,7 +551,7 @@ impl LinearModel {
     /// markers), then the gauge of `options`' parameters and the system about it. Its rows are
     /// the observations, each in the fold of its pose (a pair by its first); a length counts
     /// one error, an angle none (its unweighted row is zero: the CV RMS is of lengths, mm).
-    fn of_kinds(
+    pub(crate) fn of_kinds(
         model: &RobotModel,
         data: &KindData,
         options: &KindOptions,

@@ -291,7 +291,8 @@ fn few_readings(real: &robocal::kinematics::ChainAt, n: usize, sigma: f64, rng: 
 /// of the best of the scales' (an oracle that sees the held-out readings).
 #[test]
 fn prior_auto_scales_the_preset_with_the_robot_under_a_ball_bar() {
-    use robocal::calibration::prior_scale::{AutoPrior, SCALES, choose_kinds_prior_scale, with_kinds_scale};
+    use robocal::calibration::Kinds;
+    use robocal::calibration::prior_scale::{AutoPrior, SCALES, choose_prior_scale, with_scale};
     let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
     let auto = AutoPrior::parse("auto:machined").unwrap().unwrap();
     let sd = robocal::estimation::prior_sds(&auto.entries, chain.params()).unwrap();
@@ -309,9 +310,9 @@ fn prior_auto_scales_the_preset_with_the_robot_under_a_ball_bar() {
             let real = chain.with_errors(&x);
             let (train, test) =
                 (few_readings(&real, 60, 0.05, &mut rng), few_readings(&real, 300, 0.05, &mut rng));
-            let scale = choose_kinds_prior_scale(&puma(), &train, &plain, &auto, 5).unwrap();
+            let scale = choose_prior_scale(&Kinds(&puma()), &train, &plain, &auto, 5).unwrap();
             assert_eq!(scale.cv_rms.len(), SCALES.len());
-            let held = |s: f64| held_out(&train, &test, &with_kinds_scale(&plain, &auto, s));
+            let held = |s: f64| held_out(&train, &test, &with_scale::<Kinds>(&plain, &auto, s));
             let all: Vec<f64> = SCALES.iter().map(|&s| held(s)).collect();
             let (found, best) = (all[scale.chosen], all.iter().copied().fold(f64::INFINITY, f64::min));
             assert!(found < 1.15 * best, "seed {seed}, x{truth}: {found} against the best {best}: {all:?}");

@@ -6,6 +6,7 @@ use nalgebra::{DMatrix, DVector};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
+use robocal::calibration::Markers;
 use robocal::calibration::prior_scale::{AutoPrior, ScaleBy, choose_prior_scale_ml};
 use robocal::estimation::Estimator;
 use robocal::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
@@ -75,7 +76,7 @@ fn auto_ml_finds_the_scale_of_a_robot() {
             )
             .collect();
         let train = measured(&x, 60, 0.8, 0.2, &mut rng);
-        let scale = choose_prior_scale_ml(&model, &train, &o, &auto).unwrap();
+        let scale = choose_prior_scale_ml(&Markers(&model), &train, &o, &auto).unwrap();
         assert_eq!((scale.log_evidence[scale.chosen], scale.folds), (0.0, None));
         assert!(scale.log_evidence.iter().all(|l| *l <= 0.0));
         let ratio = scale.scale() / s0;
@@ -95,7 +96,7 @@ fn auto_ml_without_noise_says_what_it_needs() {
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let x = vec![0.0; Chain::markers(&model, &[MARKER])[0].params().len()];
     let train = measured(&x, 20, 0.8, 0.2, &mut rng);
-    let e = choose_prior_scale_ml(&model, &train, &options(), &auto).unwrap_err().to_string();
+    let e = choose_prior_scale_ml(&Markers(&model), &train, &options(), &auto).unwrap_err().to_string();
     assert!(e.contains("--prior auto-ml:fabricated: the marginal likelihood needs the noise"), "{e}");
 }
 
@@ -162,7 +163,7 @@ fn auto_ml_by_class_finds_each_class_scale() {
             })
             .collect();
         let (train, held) = (measured(&x, 60, 0.8, 0.2, &mut rng), measured(&x, 60, 0.8, 0.2, &mut rng));
-        let scale = choose_prior_scale_ml(&model, &train, &o, &by_class).unwrap();
+        let scale = choose_prior_scale_ml(&Markers(&model), &train, &o, &by_class).unwrap();
         let names: Vec<&str> = scale.classes.iter().map(|c| c.class.as_str()).collect();
         assert_eq!(names, ["lengths", "angles", "offsets"], "{scale:?}");
         for c in &scale.classes {
@@ -173,7 +174,7 @@ fn auto_ml_by_class_finds_each_class_scale() {
         }
         // The scales per class explain the data at least as well as the one scale.
         assert!(scale.log_evidence.iter().all(|l| *l <= 0.0), "{:?}", scale.log_evidence);
-        let single = choose_prior_scale_ml(&model, &train, &o, &one).unwrap();
+        let single = choose_prior_scale_ml(&Markers(&model), &train, &o, &one).unwrap();
         let held_out = |auto: &AutoPrior, chosen| {
             let options = robocal::calibration::Options { prior: auto.chosen(&[], chosen), ..o.clone() };
             robocal::calibration::calibrate(&model, &train, &options).unwrap().validate(&held).1.rms
@@ -208,7 +209,7 @@ fn auto_ml_by_class_finds_each_class_scale() {
 #[test]
 fn auto_ml_finds_the_scale_of_a_robot_under_a_ball_bar() {
     use super::kinds::{TOOL, ball_bar, options, puma};
-    use robocal::calibration::prior_scale::choose_kinds_prior_scale;
+    use robocal::calibration::{Kinds, prior_scale::choose_prior_scale};
     let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
     let auto = AutoPrior::parse("auto-ml:machined").unwrap().unwrap();
     let sd = robocal::estimation::prior_sds(&auto.entries, chain.params()).unwrap();
@@ -226,7 +227,7 @@ fn auto_ml_finds_the_scale_of_a_robot_under_a_ball_bar() {
             .collect();
         let real = chain.with_errors(&x);
         let (train, test) = (ball_bar(&real, &mut rng, 0.05), ball_bar(&real, &mut rng, 0.05));
-        let scale = choose_kinds_prior_scale(&puma(), &train, &plain, &auto, 5).unwrap();
+        let scale = choose_prior_scale(&Kinds(&puma()), &train, &plain, &auto, 5).unwrap();
         assert_eq!((scale.by, scale.folds, scale.log_evidence[scale.chosen]), (ScaleBy::Ml, None, 0.0));
         let ratio = scale.scale() / s0;
         within += usize::from((1.0 / 1.5..=1.5).contains(&ratio));
@@ -252,14 +253,15 @@ fn auto_ml_finds_the_scale_of_a_robot_under_a_ball_bar() {
 #[test]
 fn auto_ml_on_observations_without_noise_says_what_it_needs() {
     use super::kinds::{TOOL, ball_bar, options, puma};
-    use robocal::calibration::prior_scale::choose_kinds_prior_scale;
+    use robocal::calibration::{Kinds, prior_scale::choose_prior_scale};
     let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let mut data = ball_bar(&chain.with_errors(&vec![0.0; chain.params().len()]), &mut rng, 0.05);
     data.assumed_sigmas = data.observations.len();
     let auto = AutoPrior::parse("auto-ml:machined").unwrap().unwrap();
-    let e =
-        choose_kinds_prior_scale(&puma(), &data, &options(Estimator::Wls), &auto, 5).unwrap_err().to_string();
+    let e = choose_prior_scale(&Kinds(&puma()), &data, &options(Estimator::Wls), &auto, 5)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("needs the noise; give it (a sigma column in the observation file, or --joint-sigma-deg)"),
         "{e}"

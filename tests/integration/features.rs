@@ -13,12 +13,13 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use robocal::calibration::FeasibleOptions;
 use robocal::calibration::kinds::{
-    CameraSite, KindData, KindOptions, calibrate_kinds, calibrate_kinds_feasible, cross_validate_kinds,
+    CameraSite, KindCalibration, KindData, KindOptions, calibrate_kinds, calibrate_kinds_feasible,
+    cross_validate_kinds,
 };
 use robocal::calibration::selection::{
-    Choices, Criterion, calibrate_kinds_chosen, calibrate_kinds_selected, cross_validate_kinds_choices,
+    Choices, Criterion, SelectionPath, calibrate_chosen, cross_validate_choices,
 };
-use robocal::calibration::{Gauge, Loss};
+use robocal::calibration::{Gauge, Kinds, Loss};
 use robocal::estimation::{Estimator, MeasurementClass, PriorEntry};
 use robocal::kinematics::{Chain, ChainAt};
 
@@ -176,12 +177,13 @@ fn a_scaled_prior_works_on_every_kind_as_well_as_the_plain_fit() {
     let choices = Choices { auto_prior: Some((auto, 5)), select: None };
     for case in cases() {
         let plain = held_out(&case, &case.plain);
-        let chosen = calibrate_kinds_chosen(&puma(), &case.training, &case.plain, &choices)
+        let chosen = calibrate_chosen(&Kinds(&puma()), &case.training, &case.plain, &choices)
             .unwrap_or_else(|e| panic!("{}: {e}", case.name));
         assert!(chosen.scale.is_some(), "{}: a scale chosen", case.name);
         let found = chosen.calibration.score(&case.validation).unwrap().lengths.1;
         assert!(found < 1.2 * plain, "{} --prior auto: held out {found} mm, plain wls {plain} mm", case.name);
-        let nested = cross_validate_kinds_choices(&puma(), &case.training, &case.plain, &choices, 5).unwrap();
+        let nested =
+            cross_validate_choices(&Kinds(&puma()), &case.training, &case.plain, &choices, 5).unwrap();
         let nested = nested.lengths.1;
         assert!(
             nested < 1.5 * found && found < 1.5 * nested,
@@ -189,6 +191,18 @@ fn a_scaled_prior_works_on_every_kind_as_well_as_the_plain_fit() {
             case.name
         );
     }
+}
+
+/// `--select criterion` alone on the puma's observations `data`: the path, and the calibration
+/// of what it chose.
+fn selected(
+    data: &KindData,
+    options: &KindOptions,
+    criterion: Criterion,
+) -> Result<(SelectionPath, KindCalibration), robocal::calibration::CalibrationError> {
+    let choices = Choices { select: Some(criterion), auto_prior: None };
+    let chosen = calibrate_chosen(&Kinds(&puma()), data, options, &choices)?;
+    Ok((chosen.path.expect("a selection's path"), chosen.calibration))
 }
 
 /// `--select cv`, `bic` and `t` on every kind: each runs, chooses some of the joint parameters,
@@ -199,7 +213,7 @@ fn selection_works_on_every_kind_as_well_as_the_plain_fit() {
     for case in cases() {
         let plain = held_out(&case, &case.plain);
         for criterion in [Criterion::Cv { folds: 5 }, Criterion::Bic, Criterion::T] {
-            let (path, c) = calibrate_kinds_selected(&puma(), &case.training, &case.plain, criterion)
+            let (path, c) = selected(&case.training, &case.plain, criterion)
                 .unwrap_or_else(|e| panic!("{} {criterion:?}: {e}", case.name));
             let found = c.score(&case.validation).unwrap().lengths.1;
             let name = format!("{} --select {}", case.name, criterion.name());
@@ -210,7 +224,7 @@ fn selection_works_on_every_kind_as_well_as_the_plain_fit() {
         }
         let bic = Choices { select: Some(Criterion::Bic), auto_prior: None };
         let nested =
-            cross_validate_kinds_choices(&puma(), &case.training, &case.plain, &bic, 5).unwrap().lengths.1;
+            cross_validate_choices(&Kinds(&puma()), &case.training, &case.plain, &bic, 5).unwrap().lengths.1;
         assert!(
             nested < 1.5 * plain && plain < 1.5 * nested,
             "{}: nested 5-fold {nested} mm against held out {plain} mm",
@@ -238,7 +252,7 @@ fn selection_on_a_ball_bar_finds_the_few_parameters_in_error() {
     let plain = options(Estimator::Wls);
     let full = calibrate_kinds(&puma(), &training, &plain).unwrap().score(&exact).unwrap().lengths.1;
     for criterion in [Criterion::Cv { folds: 5 }, Criterion::Bic, Criterion::T] {
-        let (path, c) = calibrate_kinds_selected(&puma(), &training, &plain, criterion).unwrap();
+        let (path, c) = selected(&training, &plain, criterion).unwrap();
         let name = criterion.name();
         for t in &truth {
             assert!(path.selected.contains(t), "--select {name} left out {t}: {:?}", path.selected);

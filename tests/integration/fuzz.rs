@@ -446,13 +446,13 @@ proptest! {
         folds in 0usize..5,
         loss in loss(),
     ) {
-        use robocal::calibration::selection::{Criterion, select};
+        use robocal::calibration::{Markers, selection::{Criterion, select}};
         let Ok(data) = Measurements::from_csv_str(&mutate(&head(MEASUREMENTS, 12), &mutations), &puma(), None) else {
             return Ok(());
         };
         let criterion = [Criterion::T, Criterion::Bic, Criterion::Cv { folds }][criterion];
         let mut options = quick_options(loss, Vec::new());
         options.joints = JointParams::Named(vec!["j2.*".into(), "j3.a".into()]);
-        let _ = select(&puma(), &data, &options, criterion);
+        let _ = select(&Markers(&puma()), &data, &options, criterion);
     }
 }

@@ -10,8 +10,9 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
-use robocal::calibration::selection::{Criterion, SelectionPath, select, select_kinds};
+use robocal::calibration::selection::{Criterion, SelectionPath, select};
 use robocal::calibration::{self, Measurements, Options};
+use robocal::calibration::{Kinds, Markers};
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
 use robocal::kinematics::{Chain, ChainAt};
 use robocal::model::Placement;
@@ -674,8 +675,8 @@ fn a_marker_file_selects_as_calibrate_does() {
     let kind_options =
         KindOptions { joint_noise: Some(noise.joint.clone()), ..marker_options(Estimator::Wls) };
     for criterion in [Criterion::Bic, Criterion::Cv { folds: 4 }, Criterion::T] {
-        let expected = select(&model, &measurements, &options, criterion).unwrap();
-        let found = select_kinds(&model, &observations, &kind_options, criterion).unwrap();
+        let expected = select(&Markers(&model), &measurements, &options, criterion).unwrap();
+        let found = select(&Kinds(&model), &observations, &kind_options, criterion).unwrap();
         let names = |p: &SelectionPath| p.steps.iter().map(|s| s.parameter.clone()).collect::<Vec<_>>();
         // Every parameter is in error: the forward paths take many steps, t drops none.
         let steps = if criterion == Criterion::T { 1 } else { 11 };

@@ -5,7 +5,8 @@ use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
-use robocal::calibration::selection::{Criterion, cross_validate_selection, select};
+use robocal::calibration::Markers;
+use robocal::calibration::selection::{Choices, Criterion, cross_validate_choices, select};
 use robocal::calibration::{self, JointParams, Measurements, Options};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::kinematics::Chain;
@@ -99,11 +100,13 @@ fn cross_validation_after_selection_is_optimistic_and_the_nested_one_is_not() {
                 .collect();
             let train = measured(&x, 25, 0.5, 0.2, &mut rng);
             let test = measured(&x, 400, 0.5, 0.2, &mut rng);
-            let path = select(&model, &train, &options(), criterion).unwrap();
-            let chosen = path.options(&options());
+            let path = select(&Markers(&model), &train, &options(), criterion).unwrap();
+            let chosen = path.options(&Markers(&model), &options());
             let held = calibration::calibrate(&model, &train, &chosen).unwrap().validate(&test).1.rms;
             let after_selection = calibration::cross_validate(&model, &train, &chosen, folds).unwrap().1.rms;
-            let redone = cross_validate_selection(&model, &train, &options(), criterion, folds).unwrap();
+            let selection = Choices { select: Some(criterion), auto_prior: None };
+            let redone =
+                cross_validate_choices(&Markers(&model), &train, &options(), &selection, folds).unwrap();
             assert_eq!(redone.selected.len(), folds);
             plain.push(after_selection / held - 1.0);
             nested.push(redone.after.rms / held - 1.0);
@@ -208,9 +211,9 @@ fn prior_auto_scales_the_preset_with_the_robot() {
                 .collect();
             let train = measured(&x, 25, 0.5, 0.2, &mut rng);
             let test = measured(&x, 400, 0.5, 0.2, &mut rng);
-            let scale = choose_prior_scale(&model, &train, &o, &auto, 5).unwrap();
+            let scale = choose_prior_scale(&Markers(&model), &train, &o, &auto, 5).unwrap();
             let held = |s: f64| {
-                calibration::calibrate(&model, &train, &with_scale(&o, &auto, s))
+                calibration::calibrate(&model, &train, &with_scale::<Markers>(&o, &auto, s))
                     .unwrap()
                     .validate(&test)
                     .1

@@ -11,7 +11,7 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::calibration::selection::{Choices, Criterion, choose, cross_validate_choices};
-use robocal::calibration::{self, JointParams, Measurements, Options};
+use robocal::calibration::{self, JointParams, Markers, Measurements, Options};
 use robocal::kinematics::Chain;
 use robocal::model::{Placement, RobotModel, from_urdf_str};
 
@@ -165,9 +165,10 @@ fn the_choices_beat_the_full_fit_and_the_nested_figure_tells_the_truth() {
     let mut rows = Vec::new();
     for seed in 1..=10 {
         let robot = robot(&nominal, seed);
-        let chosen = |choices: &Choices| choose(&nominal, &robot.train, &full(), choices).unwrap();
+        let chosen = |choices: &Choices| choose(&Markers(&nominal), &robot.train, &full(), choices).unwrap();
         let (by_prior, by_select) = (chosen(&prior), chosen(&select));
-        let nested = cross_validate_choices(&nominal, &robot.train, &full(), &prior, folds).unwrap();
+        let nested =
+            cross_validate_choices(&Markers(&nominal), &robot.train, &full(), &prior, folds).unwrap();
         let scale = by_prior.scale.as_ref().unwrap();
         rows.push([
             held_out(&nominal, &robot, &full()),

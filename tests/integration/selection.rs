@@ -3,7 +3,7 @@
 
 use nalgebra::Vector3;
 use robocal::calibration::selection::{Criterion, SelectionPath, select};
-use robocal::calibration::{self, Calibration, Gauge, JointParams, Measurements, Options};
+use robocal::calibration::{self, Calibration, Gauge, JointParams, Markers, Measurements, Options};
 use robocal::calibration::{Confounder, Held};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::model::{ModelRef, RobotModel};
@@ -170,8 +170,8 @@ fn selected(
     options: &Options,
     criterion: Criterion,
 ) -> (SelectionPath, Calibration) {
-    let path = select(model, train, options, criterion).unwrap();
-    let c = calibration::calibrate(model, train, &path.options(options)).unwrap();
+    let path = select(&Markers(model), train, options, criterion).unwrap();
+    let c = calibration::calibrate(model, train, &path.options(&Markers(model), options)).unwrap();
     (path, c)
 }
 
@@ -211,7 +211,7 @@ fn select_cv_beats_every_parameter_and_the_offsets_on_held_out_poses() {
     assert!(path.steps[..path.chosen].iter().all(|s| s.score > best + best_se), "the smallest such model");
     let on = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| select(&model, &train, &options, Criterion::Cv { folds: 5 }).unwrap())
+        pool.install(|| select(&Markers(&model), &train, &options, Criterion::Cv { folds: 5 }).unwrap())
     };
     assert_eq!(on(1), path);
     assert_eq!(on(2), path);
@@ -380,7 +380,7 @@ fn the_t_rule_drops_a_stand_in_before_the_zero_it_stands_in_for() {
         prior: robocal::estimation::PriorEntry::parse_list("joint*.rz=2deg,joint*.theta=0.2deg").unwrap(),
         ..arm7_options(JointParams::Named(names))
     };
-    let path = select(&model, &train, &options, Criterion::T).unwrap();
+    let path = select(&Markers(&model), &train, &options, Criterion::T).unwrap();
     let dropped: Vec<&str> = path.steps[1..].iter().map(|s| s.parameter.as_deref().unwrap()).collect();
     assert_eq!(dropped[..3], ["joint4.rz", "joint5.rz", "joint3.rz"], "{dropped:?}");
     for (k, name) in dropped.iter().enumerate().filter(|(_, n)| n.ends_with(".theta")) {
@@ -406,16 +406,16 @@ fn the_t_rule_drops_a_stand_in_before_the_zero_it_stands_in_for() {
 #[test]
 fn forward_selection_scores_each_step_with_the_prior() {
     let (model, data, options) = puma(JointParams::All, Gauge::default());
-    let free = select(&model, &data, &options, Criterion::Bic).unwrap();
+    let free = select(&Markers(&model), &data, &options, Criterion::Bic).unwrap();
     assert!(!free.selected.is_empty());
     let tight = robocal::estimation::PriorEntry::parse_list(
         "lengths=0.000001mm,angles=0.000001deg,offsets=0.000001deg,offsets=0.000001mm",
     )
     .unwrap();
     let options = Options { prior: tight, ..options };
-    let bic = select(&model, &data, &options, Criterion::Bic).unwrap();
+    let bic = select(&Markers(&model), &data, &options, Criterion::Bic).unwrap();
     assert_eq!((bic.chosen, bic.selected.len()), (0, 0), "{:?}", bic.selected);
-    let cv = select(&model, &data, &options, Criterion::Cv { folds: 5 }).unwrap();
+    let cv = select(&Markers(&model), &data, &options, Criterion::Cv { folds: 5 }).unwrap();
     let first = cv.steps[0].score;
     // Each parameter moves by about 1e-6 of what the data ask: the scores by a few 1e-6 of theirs.
     assert!(cv.steps.iter().all(|s| (s.score - first).abs() < 1e-5 * first), "{:?}", cv.steps);
@@ -433,7 +433,7 @@ fn a_forward_path_reports_the_zero_it_traded() {
         prior: robocal::estimation::PriorEntry::parse_list("fabricated").unwrap(),
         ..arm7_options(JointParams::All)
     };
-    let path = select(&model, &train, &options, Criterion::Bic).unwrap();
+    let path = select(&Markers(&model), &train, &options, Criterion::Bic).unwrap();
     assert!(
         path.selected.contains(&"joint5.y".to_string())
             && !path.selected.contains(&"joint3.theta".to_string())

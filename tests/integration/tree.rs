@@ -879,7 +879,8 @@ fn a_tree_selects_its_parameters_by_the_t_rule() {
 #[test]
 fn auto_ml_finds_the_scale_of_a_tree() {
     use rand_distr::{Distribution, StandardNormal};
-    use robocal::calibration::prior_scale::{AutoPrior, choose_tree_prior_scale};
+    use robocal::calibration::Tree;
+    use robocal::calibration::prior_scale::{AutoPrior, choose_prior_scale};
     let nominal = torso();
     let params = TreeParams::new(&nominal);
     let (frames, placements) = frames(&nominal);
@@ -902,7 +903,7 @@ fn auto_ml_finds_the_scale_of_a_tree() {
             (nominal.uniform_configurations(40, &mut rng), nominal.uniform_configurations(40, &mut rng));
         let train = simulate_views(&truth, &frames, &placements, &PAIRS, &training, sigma, &mut rng);
         let test = simulate_views(&truth, &frames, &placements, &PAIRS, &held, sigma, &mut rng);
-        let scale = choose_tree_prior_scale(&nominal, &train, &plain, &auto, 5).unwrap();
+        let scale = choose_prior_scale(&Tree(&nominal), &train, &plain, &auto, 5).unwrap();
         assert_eq!((scale.folds, scale.log_evidence[scale.chosen]), (None, 0.0));
         within += usize::from((1.0 / 1.5..=1.5).contains(&(scale.scale() / s0)));
         let score =
@@ -929,7 +930,7 @@ fn auto_ml_finds_the_scale_of_a_tree() {
             &mut ChaCha8Rng::seed_from_u64(2),
         )
     };
-    let e = choose_tree_prior_scale(&nominal, &assumed, &plain, &auto, 5).unwrap_err().to_string();
+    let e = choose_prior_scale(&Tree(&nominal), &assumed, &plain, &auto, 5).unwrap_err().to_string();
     assert!(e.contains("the marginal likelihood needs the noise"), "{e}");
 }
 

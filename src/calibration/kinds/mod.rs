@@ -1674,12 +1674,11 @@ pub(super) fn start<'p>(
     Ok(Started { base, weights, before, before_setup, linearised, gauged })
 }
 
-/// What the marginal likelihood needs of observation files or a tree's views
-/// ([`kinds_scale_evidence`](super::prior_scale::kinds_scale_evidence),
-/// [`tree_scale_evidence`](super::prior_scale::tree_scale_evidence)): the system of what is
-/// asked for, whitened by `S` (`S V S^T = c^2 I`: each pose's block `V_k` of the observations'
-/// sigmas and the joint noise, divided by the normalisation `c`), its columns the robot's
-/// parameters `asked` (indices into `params`) then the set-up's.
+/// What the marginal likelihood needs of a calibration ([`Front::evidence`](super::Front::evidence)):
+/// the system of what is asked for, whitened by `S` (`S V S^T = c^2 I`: of observation files or
+/// a tree's views each pose's block `V_k` of the observations' sigmas and the joint noise,
+/// divided by the normalisation `c`), its columns the robot's parameters `asked` (indices into
+/// `params`) then the set-up's (none of a marker file).
 pub(crate) struct EvidenceSystem {
     /// The robot's (or tree's) parameters.
     pub(crate) params: Vec<crate::model::ParamInfo>,

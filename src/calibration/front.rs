@@ -1,0 +1,389 @@
+//! The three calibrations as the choices made from the data see them: a marker file
+//! ([`Markers`]), observation files ([`Kinds`]) and a tree's views ([`Tree`]), each a
+//! [`Front`]. The choices (`--prior auto`'s scale, [`choose_prior_scale`]; `--select`,
+//! [`select`]; both, [`choose`]; nested, [`cross_validate_choices`]) are written once over it;
+//! what differs between the fronts is here, side by side.
+//!
+//! [`choose_prior_scale`]: super::prior_scale::choose_prior_scale
+//! [`select`]: super::selection::select
+//! [`choose`]: super::selection::choose
+//! [`cross_validate_choices`]: super::selection::cross_validate_choices
+
+use super::kinds::EvidenceSystem;
+use super::kinds::{self, KindCalibration, KindData, KindOptions, Score};
+use super::prior_scale::{AutoPrior, needs_the_noise, system_evidence};
+use super::selection::{ChosenFit, Criterion, Fitted, LinearModel, SelectionPath, named_joints};
+use super::tree::{self, TreeCalibration, TreeData, TreeOptions, TreeScore};
+use super::{
+    Calibration, CalibrationError, ErrorStats, JointParams, Measurements, NestedCv, Options, RobotModel,
+    Whitening, calibrate_quietly, check_folds, errors, observed, selection,
+};
+use crate::estimation::evidence::Evidence;
+use crate::estimation::{Estimator, PointProblem, PriorEntry, Weights, linearise};
+use crate::kinematics::Measured;
+use crate::model::{RobotTree, Selection, name_matches};
+use std::borrow::Cow;
+
+/// A result of the choices' stages.
+type Result<T> = std::result::Result<T, CalibrationError>;
+
+/// Each fold's calibration of a nested cross-validation: the choices made on its training data
+/// with its options, and the model chosen calibrated
+/// ([`calibrate_chosen`](super::selection::calibrate_chosen)).
+pub type FoldFit<'f, F> =
+    &'f dyn Fn(&<F as Front>::Data, &<F as Front>::Options) -> Result<ChosenFit<<F as Front>::Fit>>;
+
+/// A calibration front-end: its data, options and calibration, and what the choices made from
+/// the data ask of them.
+pub trait Front: Sized {
+    /// The data calibrated from.
+    type Data;
+    /// How to calibrate.
+    type Options: Clone;
+    /// A calibration.
+    type Fit;
+    /// A nested cross-validation's report ([`Front::nested`]).
+    type Nested;
+
+    /// The data's poses (the folds at most).
+    fn poses(data: &Self::Data) -> usize;
+
+    /// The options' prior entries.
+    fn prior(options: &mut Self::Options) -> &mut Vec<PriorEntry>;
+
+    /// `options` with the prior `prior` makes of their own entries.
+    fn with_prior(
+        options: &Self::Options,
+        prior: impl FnOnce(&[PriorEntry]) -> Vec<PriorEntry>,
+    ) -> Self::Options {
+        let mut options = options.clone();
+        let own = Self::prior(&mut options);
+        *own = prior(own);
+        options
+    }
+
+    /// `options` asking for the joint parameters `names` only.
+    fn with_joints(&self, options: &Self::Options, names: &[String]) -> Self::Options;
+
+    /// Calibrate `data` with `options`.
+    fn calibrate(&self, data: &Self::Data, options: &Self::Options) -> Result<Self::Fit>;
+
+    /// What the `t` rule of `--select` reads of `fit`.
+    fn fitted(fit: &Self::Fit) -> Fitted<'_>;
+
+    /// The cross-validated RMS of `--prior auto`'s curve (mm), `folds` folds.
+    fn cv_rms(&self, data: &Self::Data, options: &Self::Options, folds: usize) -> Result<f64>;
+
+    /// The marginal likelihood's [`Evidence`] for `auto`'s scale, linearised about `about`
+    /// (`None`: the "before" fit).
+    fn evidence(
+        &self,
+        data: &Self::Data,
+        options: &Self::Options,
+        auto: &AutoPrior,
+        about: Option<&Self::Fit>,
+    ) -> Result<Evidence>;
+
+    /// Refuse `--select` on `data` before anything is done: a probe's orientations.
+    fn refuse_select(_data: &Self::Data) -> Result<()> {
+        Ok(())
+    }
+
+    /// The forward path of `criterion` (`cv`, `bic`) on one linearisation about "before".
+    fn forward(
+        &self,
+        data: &Self::Data,
+        options: &Self::Options,
+        criterion: Criterion,
+    ) -> Result<SelectionPath>;
+
+    /// The `folds`-fold cross-validation of `fit` (each fold's choices and calibration).
+    fn nested(
+        &self,
+        data: &Self::Data,
+        options: &Self::Options,
+        folds: usize,
+        fit: FoldFit<Self>,
+    ) -> Result<Self::Nested>;
+}
+
+/// A robot calibrated from a marker file ([`calibrate`](super::calibrate)).
+#[derive(Debug, Clone, Copy)]
+pub struct Markers<'a>(pub &'a RobotModel);
+
+impl Front for Markers<'_> {
+    type Data = Measurements;
+    type Options = Options;
+    type Fit = Calibration;
+    type Nested = NestedCv;
+
+    fn poses(data: &Measurements) -> usize {
+        data.len()
+    }
+
+    fn prior(options: &mut Options) -> &mut Vec<PriorEntry> {
+        &mut options.prior
+    }
+
+    fn with_joints(&self, options: &Options, names: &[String]) -> Options {
+        Options { joints: named_joints(names.to_vec()), ..options.clone() }
+    }
+
+    /// Without [`calibrate`](super::calibrate)'s check of the noise: inside a choice, nobody
+    /// reads its warnings.
+    fn calibrate(&self, data: &Measurements, options: &Options) -> Result<Calibration> {
+        calibrate_quietly(self.0, data, options)
+    }
+
+    fn fitted(c: &Calibration) -> Fitted<'_> {
+        let (params, values) =
+            (Cow::Borrowed(&c.params), (Cow::Borrowed(c.before.as_slice()), c.after.as_slice()));
+        Fitted { params, values, estimate: &c.refined.estimate, fixed: &c.fixed }
+    }
+
+    /// The marker positions' ([`cross_validate`](super::cross_validate)).
+    fn cv_rms(&self, data: &Measurements, options: &Options, folds: usize) -> Result<f64> {
+        Ok(super::cross_validate(self.0, data, options, folds)?.1.rms)
+    }
+
+    /// The system of the parameters `options` asks for, linearised about `about` (`None`: the
+    /// registration, the base and markers fitted as [`calibrate`](super::calibrate)'s "before")
+    /// and whitened by Gauss-Markov (`S V S^T = I`: the rows divided by the normalisation
+    /// `c = sigma_max`). A parameter with an entry of `options.prior` has that fixed prior, one
+    /// with the preset's only is scaled, the others are flat.
+    fn evidence(
+        &self,
+        data: &Measurements,
+        options: &Options,
+        auto: &AutoPrior,
+        about: Option<&Calibration>,
+    ) -> Result<Evidence> {
+        let frame =
+            calibrate_quietly(self.0, data, &Options { joints: JointParams::None, ..options.clone() })?;
+        let Whitening::Covariance(noise) = &frame.whitening else {
+            return Err(needs_the_noise(auto, "--sigma-mm with --joint-sigma-deg, or --noise"));
+        };
+        let params = &frame.params;
+        let (zero, nothing) = (vec![0.0; params.len()], Selection::from_indices(params, []));
+        let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
+        let (joints, observed) = (data.joints.clone(), observed(data));
+        let base_problem =
+            PointProblem::new(&frame.chains, &nothing, kind, joints, observed, zero, Some(noise))?;
+        let weights = Weights::for_problem(&base_problem, Estimator::Wls)?;
+        let asked = selection(params, &options.joints, options)?;
+        let problem = base_problem.reselect(&asked, about.map_or(&frame.before, |c| &c.after).clone())?;
+        let linearised = linearise(&problem, &weights, problem.start())?;
+        let (params, asked) = (params.iter().cloned().collect(), asked.indices().to_vec());
+        let c = weights.scale().unwrap_or(1.0);
+        system_evidence(auto, &options.prior, &EvidenceSystem { params, asked, linearised, c })
+    }
+
+    /// `--select` scores marker positions.
+    fn refuse_select(data: &Measurements) -> Result<()> {
+        match data.orientations {
+            Some(_) => Err(CalibrationError::Scoring(
+                "--select scores marker positions: a probe's orientations are not supported".into(),
+            )),
+            None => Ok(()),
+        }
+    }
+
+    fn forward(&self, data: &Measurements, options: &Options, criterion: Criterion) -> Result<SelectionPath> {
+        Ok(LinearModel::of_markers(self.0, data, options)?.forward(criterion))
+    }
+
+    /// Pose `i` held out in fold `i mod folds`, each fold's options [`Options::at_poses`]; the
+    /// held-out poses scored before and after, pose by pose, with each fold's selection and
+    /// scale.
+    fn nested(
+        &self,
+        data: &Measurements,
+        options: &Options,
+        folds: usize,
+        fit: FoldFit<Self>,
+    ) -> Result<NestedCv> {
+        check_folds(folds, data.len())?;
+        let (mut before, mut after) = (Vec::new(), Vec::new());
+        let (mut selected, mut scales, mut scored) = (Vec::new(), Vec::new(), Vec::new());
+        let name = format!("{folds}-fold cross-validation");
+        for fold in 0..folds {
+            let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
+            let chosen = fit(&data.subset(&train), &options.at_poses(&train))?;
+            let calibration = chosen.calibration;
+            let held_out = data.subset(&test);
+            before.extend(errors(&calibration.chains, &calibration.before, &held_out));
+            after.extend(errors(&calibration.chains, &calibration.after, &held_out));
+            let noise = options.noise.as_ref().map(|n| n.at_points(&test));
+            scored.push(calibration.evaluate(&name, &held_out, noise.as_ref())?);
+            selected.extend(chosen.path.map(|p| p.selected));
+            // A scale per class (auto-ml:PRESET:classes) is no one number: not listed.
+            scales.extend(chosen.scale.filter(|s| s.classes.is_empty()).map(|s| s.scale()));
+        }
+        let (before, after) = (ErrorStats::of(&before), ErrorStats::of(&after));
+        Ok(NestedCv { before, after, selected, scales, poses: super::evaluation::joined(&name, scored) })
+    }
+}
+
+/// A robot calibrated from observation files ([`kinds::calibrate_kinds`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Kinds<'a>(pub &'a RobotModel);
+
+impl Front for Kinds<'_> {
+    type Data = KindData;
+    type Options = KindOptions;
+    type Fit = KindCalibration;
+    type Nested = Score;
+
+    fn poses(data: &KindData) -> usize {
+        data.joints.len()
+    }
+
+    fn prior(options: &mut KindOptions) -> &mut Vec<PriorEntry> {
+        &mut options.prior
+    }
+
+    /// The patterns of `--params` that name no robot parameter (a set-up's, a marker's) kept.
+    fn with_joints(&self, options: &KindOptions, names: &[String]) -> KindOptions {
+        let robot = self.0.params();
+        let others = match &options.joints {
+            JointParams::Named(patterns) => {
+                patterns.iter().filter(|p| !robot.iter().any(|q| name_matches(p, &q.name))).cloned().collect()
+            }
+            _ => Vec::new(),
+        };
+        let joints = named_joints(names.iter().cloned().chain(others).collect());
+        KindOptions { joints, ..options.clone() }
+    }
+
+    fn calibrate(&self, data: &KindData, options: &KindOptions) -> Result<KindCalibration> {
+        kinds::calibrate_kinds(self.0, data, options)
+    }
+
+    fn fitted(c: &KindCalibration) -> Fitted<'_> {
+        let (params, values) =
+            (Cow::Borrowed(&c.params), (Cow::Borrowed(c.before.as_slice()), c.after.as_slice()));
+        Fitted { params, values, estimate: &c.refined.estimate, fixed: &c.fixed }
+    }
+
+    /// The length residuals' ([`kinds::cross_validate_kinds`]: every observation of a pose held
+    /// out together).
+    fn cv_rms(&self, data: &KindData, options: &KindOptions, folds: usize) -> Result<f64> {
+        Ok(kinds::cross_validate_kinds(self.0, data, options, folds)?.lengths.1)
+    }
+
+    /// Their system of what `options` asks for (the robot's parameters, then the set-up's,
+    /// flat), whitened by `V_k` (weighted least squares, `kinds::evidence_system`), about
+    /// `about`'s estimate (`None`: the "before" fit). The noise must be known: a sigma column or
+    /// the joint noise (`--joint-sigma-deg`).
+    fn evidence(
+        &self,
+        data: &KindData,
+        options: &KindOptions,
+        auto: &AutoPrior,
+        about: Option<&KindCalibration>,
+    ) -> Result<Evidence> {
+        if options.joint_noise.is_none() && data.assumed_sigmas == data.observations.len() {
+            return Err(needs_the_noise(
+                auto,
+                "a sigma column in the observation file, or --joint-sigma-deg",
+            ));
+        }
+        let options = KindOptions { estimator: Estimator::Wls, ..options.clone() };
+        let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
+        system_evidence(auto, &options.prior, &kinds::evidence_system(self.0, data, &options, about)?)
+    }
+
+    /// The CV RMS is of the lengths: observations that are all angles refuse `cv`.
+    fn forward(&self, data: &KindData, options: &KindOptions, criterion: Criterion) -> Result<SelectionPath> {
+        if matches!(criterion, Criterion::Cv { .. }) && data.observations.iter().all(|o| o.is_angle()) {
+            return Err(CalibrationError::Scoring(
+                "--select cv scores the held-out lengths (mm), and these observations are all angles: use \
+                 --select bic or t"
+                    .into(),
+            ));
+        }
+        Ok(LinearModel::of_kinds(self.0, data, options)?.forward(criterion))
+    }
+
+    fn nested(
+        &self,
+        data: &KindData,
+        options: &KindOptions,
+        folds: usize,
+        fit: FoldFit<Self>,
+    ) -> Result<Score> {
+        kinds::cross_validate_kinds_by(data, folds, |train| Ok(fit(train, options)?.calibration))
+    }
+}
+
+/// A tree calibrated from its views ([`tree::calibrate_tree`]).
+#[derive(Debug, Clone, Copy)]
+pub struct Tree<'a>(pub &'a RobotTree);
+
+impl Front for Tree<'_> {
+    type Data = TreeData;
+    type Options = TreeOptions;
+    type Fit = TreeCalibration;
+    type Nested = TreeScore;
+
+    fn poses(data: &TreeData) -> usize {
+        data.joints.len()
+    }
+
+    fn prior(options: &mut TreeOptions) -> &mut Vec<PriorEntry> {
+        &mut options.prior
+    }
+
+    fn with_joints(&self, options: &TreeOptions, names: &[String]) -> TreeOptions {
+        TreeOptions { joints: named_joints(names.to_vec()), ..options.clone() }
+    }
+
+    fn calibrate(&self, data: &TreeData, options: &TreeOptions) -> Result<TreeCalibration> {
+        tree::calibrate_tree(self.0, data, options)
+    }
+
+    /// "Before" is the nominal tree.
+    fn fitted(c: &TreeCalibration) -> Fitted<'_> {
+        let params = Cow::Owned(crate::model::ParamSet::from_params(c.params.params.clone()));
+        let values = (Cow::Owned(vec![0.0; c.after.len()]), c.after.as_slice());
+        Fitted { params, values, estimate: &c.refined.estimate, fixed: &c.fixed }
+    }
+
+    /// The views' positions' ([`tree::cross_validate_tree`]).
+    fn cv_rms(&self, data: &TreeData, options: &TreeOptions, folds: usize) -> Result<f64> {
+        Ok(tree::cross_validate_tree(self.0, data, options, folds)?.position.1)
+    }
+
+    /// As of observation files: the tree's parameters `options` asks for, then the cameras' and
+    /// targets' placements (flat), whitened by each view's `V_k` (`tree::evidence_system`).
+    /// The noise must be known: the views' sigma columns or the joint noise.
+    fn evidence(
+        &self,
+        data: &TreeData,
+        options: &TreeOptions,
+        auto: &AutoPrior,
+        about: Option<&TreeCalibration>,
+    ) -> Result<Evidence> {
+        if options.joint_noise.is_none() && data.assumed_sigmas {
+            let give = "sigma and sigma_angle columns in the views' file, or --joint-sigma-deg";
+            return Err(needs_the_noise(auto, give));
+        }
+        let options = TreeOptions { estimator: Estimator::Wls, ..options.clone() };
+        let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
+        system_evidence(auto, &options.prior, &tree::evidence_system(self.0, data, &options, about)?)
+    }
+
+    fn forward(&self, data: &TreeData, options: &TreeOptions, criterion: Criterion) -> Result<SelectionPath> {
+        Ok(tree::selection_model(self.0, data, options)?.forward(criterion))
+    }
+
+    fn nested(
+        &self,
+        data: &TreeData,
+        options: &TreeOptions,
+        folds: usize,
+        fit: FoldFit<Self>,
+    ) -> Result<TreeScore> {
+        tree::cross_validate_tree_by(data, folds, |train| Ok(fit(train, options)?.calibration))
+    }
+}
