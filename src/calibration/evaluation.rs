@@ -29,6 +29,7 @@ use crate::estimation::{NoiseModel, PointProblem, Residuals};
 use crate::kinematics::{Chain, Measured};
 use crate::model::Selection;
 use nalgebra::{DVector, Vector3};
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// A pose is flagged when a component of its whitened residual exceeds this (under a noise
@@ -284,6 +285,7 @@ fn pose_errors(
     let markers = scored.chains.len();
     let rows = per * markers;
     (0..data.len())
+        .into_par_iter()
         .map(|k| {
             let errors = residuals
                 .iter()

@@ -105,10 +105,7 @@ pub(crate) fn block_weights(
 ) -> Result<(DMatrix<f64>, DMatrix<f64>), EstimationError> {
     let (rows, width) = v.shape();
     let (mut s, mut noise) = (DMatrix::zeros(rows, width), DMatrix::zeros(rows, width));
-    let points = blocks.points(rows);
-    let parts: Vec<Range<usize>> =
-        (0..points).step_by(PART_POINTS).map(|p| p..(p + PART_POINTS).min(points)).collect();
-    let bounds: Vec<usize> = parts.iter().map(|p| blocks.range(p.start).start).chain([rows]).collect();
+    let (parts, bounds) = point_parts(blocks, rows);
     let (s_parts, noise_parts) = (column_parts(&mut s, &bounds), column_parts(&mut noise, &bounds));
     let weighed: Vec<Result<(), EstimationError>> = (parts.into_par_iter().zip(s_parts).zip(noise_parts))
         .map(|((points, mut s), mut noise)| {
@@ -130,21 +127,40 @@ pub(crate) fn block_weights(
     Ok((s, noise))
 }
 
-/// Points weighed by one task of [`block_weights`].
+/// Points in one task of the work on stacked blocks done on threads.
 const PART_POINTS: usize = 2048;
 
-/// The columns of `m` cut at the rows `bounds` (ascending, the last `m`'s rows): part `i` holds
-/// rows `bounds[i]..bounds[i + 1]` of every column, in order, so that parts of the stacked
-/// blocks can be written on threads of their own.
+/// The points of a system of `rows` rows laid out by `blocks`, in parts of [`PART_POINTS`]:
+/// each part's points, and the rows where the parts start (then `rows`).
+fn point_parts(blocks: &Blocks, rows: usize) -> (Vec<Range<usize>>, Vec<usize>) {
+    let points = blocks.points(rows);
+    let parts: Vec<Range<usize>> =
+        (0..points).step_by(PART_POINTS).map(|p| p..(p + PART_POINTS).min(points)).collect();
+    let bounds = parts.iter().map(|p| blocks.range(p.start).start).chain([rows]).collect();
+    (parts, bounds)
+}
+
+/// `rows` cut at `bounds` ([`point_parts`]): piece `i` holds `bounds[i]..bounds[i + 1]`.
+fn split_rows<'m>(rows: &'m mut [f64], bounds: &[usize]) -> Vec<&'m mut [f64]> {
+    let mut rest = rows;
+    let mut pieces = Vec::with_capacity(bounds.len().saturating_sub(1));
+    for w in bounds.windows(2) {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(w[1] - w[0]);
+        pieces.push(head);
+        rest = tail;
+    }
+    pieces
+}
+
+/// The columns of `m` cut at the rows `bounds` ([`split_rows`]): part `i` holds rows
+/// `bounds[i]..bounds[i + 1]` of every column, in order, so that parts of the stacked blocks
+/// can be written on threads of their own.
 fn column_parts<'m>(m: &'m mut DMatrix<f64>, bounds: &[usize]) -> Vec<Vec<&'m mut [f64]>> {
     let rows = m.nrows();
     let mut parts: Vec<Vec<&mut [f64]>> = bounds.windows(2).map(|_| Vec::new()).collect();
     for column in m.as_mut_slice().chunks_exact_mut(rows.max(1)) {
-        let mut rest = column;
-        for (part, w) in parts.iter_mut().zip(bounds.windows(2)) {
-            let (head, tail) = std::mem::take(&mut rest).split_at_mut(w[1] - w[0]);
-            part.push(head);
-            rest = tail;
+        for (part, piece) in parts.iter_mut().zip(split_rows(column, bounds)) {
+            part.push(piece);
         }
     }
     parts
@@ -182,31 +198,43 @@ pub(crate) fn whiten_in_place(
     blocks: &Blocks,
     z: &mut DVector<f64>,
 ) -> Result<(), EstimationError> {
-    for k in 0..blocks.points(v.nrows()) {
-        let r = blocks.range(k);
-        match r.len() {
-            3 => whiten_block(v, r.start, Const::<3>, k, z)?,
-            6 => whiten_block(v, r.start, Const::<6>, k, z)?,
-            n => whiten_block(v, r.start, Dyn(n), k, z)?,
-        }
-    }
+    let (parts, bounds) = point_parts(blocks, v.nrows());
+    let whitened: Vec<Result<(), EstimationError>> =
+        (parts.into_par_iter().zip(split_rows(z.as_mut_slice(), &bounds)))
+            .map(|(points, z)| {
+                let first = blocks.range(points.start).start;
+                for k in points {
+                    let r = blocks.range(k);
+                    let z_k = &mut z[r.start - first..r.end - first];
+                    match r.len() {
+                        3 => whiten_block(v, r.start, Const::<3>, k, z_k)?,
+                        6 => whiten_block(v, r.start, Const::<6>, k, z_k)?,
+                        n => whiten_block(v, r.start, Dyn(n), k, z_k)?,
+                    }
+                }
+                Ok(())
+            })
+            .collect();
+    // The first point's error, whatever the threads.
+    whitened.into_iter().collect::<Result<Vec<()>, _>>()?;
     Ok(())
 }
 
-/// [`whiten_in_place`] of the block of `d` rows at row `start` (point `k`).
+/// [`whiten_in_place`] of the block of `d` rows at row `start` of `v` (point `k`), whose rows
+/// of `z` are `z_k`.
 fn whiten_block<D: Dim>(
     v: &DMatrix<f64>,
     start: usize,
     d: D,
     k: usize,
-    z: &mut DVector<f64>,
+    z_k: &mut [f64],
 ) -> Result<(), EstimationError>
 where
     DefaultAllocator: Allocator<D, D> + Allocator<D>,
 {
     let s_k = block_whitener(v, start, d, Estimator::Wls, k)?.0;
-    let z_k = OMatrix::<f64, D, Const<1>>::from_fn_generic(d, Const::<1>, |i, _| z[start + i]);
-    z.rows_mut(start, d.value()).copy_from_slice((s_k * z_k).as_slice());
+    let column = OMatrix::<f64, D, Const<1>>::from_fn_generic(d, Const::<1>, |i, _| z_k[i]);
+    z_k.copy_from_slice((s_k * column).as_slice());
     Ok(())
 }
 
