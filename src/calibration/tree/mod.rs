@@ -59,7 +59,7 @@ use super::{
 };
 use crate::estimation::{
     Estimator, Linearisation, MeasurementClass, NoiseEstimate, NoiseLayout, POSE_SIGMAS, PriorEntry,
-    PriorRows, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds_of, refine_from,
+    PriorRows, Reduced, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds_of, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamInfo, ParamOwner, Placement, RobotTree, Selection, SelectionError};
@@ -508,44 +508,10 @@ impl Residuals for TreeProblem<'_> {
         let block = if h.is_some() { n * columns } else { 0 };
         let mut y = vec![0.0; n * views];
         let mut blocks = vec![0.0; block.max(1) * views];
-        let widest = self.branch_columns.iter().map(|(sel, _)| sel.len()).max().unwrap_or(0);
         (y.par_chunks_mut(n).zip(blocks.par_chunks_mut(block.max(1))).zip(&self.data.views)).for_each_init(
-            || (DMatrix::zeros(6, widest), DMatrix::zeros(6, widest)),
-            |(h_b, by_robot), ((y, rows), view)| {
-                let a = self.frame_at(&chains, &s, view.camera, view.pose);
-                let b = self.frame_at(&chains, &s, view.target, view.pose);
-                let relative = relative_view(&view.view, &a.frame, &b.frame);
-                y.copy_from_slice(&relative.residual.as_slice()[..n]);
-                if block == 0 {
-                    return;
-                }
-                let mut rows = DMatrixViewMut::from_slice(rows, n, columns);
-                rows.fill(0.0);
-                for (at, frame, by) in [(&a, view.camera, relative.by_a), (&b, view.target, relative.by_b)] {
-                    if let Some((branch, by_tip)) = at.on {
-                        let (selection, cols) = &self.branch_columns[branch];
-                        chains[branch].identification_jacobian(
-                            &self.values[branch][view.pose],
-                            selection,
-                            Measured::Pose,
-                            h_b.view_mut((0, 0), (6, selection.len())),
-                        );
-                        let out = h_b.view((0, 0), (6, selection.len()));
-                        let mut by_robot = by_robot.view_mut((0, 0), (n, selection.len()));
-                        by_robot.gemm(1.0, &(by * by_tip).rows(0, n), &out, 0.0);
-                        for (c, &col) in cols.iter().enumerate() {
-                            let mut column = rows.column_mut(col);
-                            column += by_robot.column(c);
-                        }
-                    }
-                    let by_own = by * at.by_own;
-                    for i in 0..6 {
-                        if let Some(col) = self.setup_columns[6 * frame + i] {
-                            let mut column = rows.column_mut(col);
-                            column += by_own.view((0, i), (n, 1));
-                        }
-                    }
-                }
+            || self.scratch(),
+            |scratch, ((y, rows), view)| {
+                self.view_rows(&chains, &s, view, scratch, y, (block > 0).then_some(rows));
             },
         );
         if let Some(h) = h {
@@ -554,6 +520,85 @@ impl Residuals for TreeProblem<'_> {
             }
         }
         DVector::from_vec(y)
+    }
+
+    /// Each view's rows built, whitened and reduced into the triangular factor in one go
+    /// ([`Reduced::reduce`]), `H` never held: the same arithmetic as the default's whole `H`.
+    fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
+        let (full, s) = self.full(x);
+        let chains = self.chains_at(&full);
+        let (n, p) = (self.data.rows(), self.parameters());
+        let mut y = DVector::zeros(self.equations());
+        let reduced = Reduced::reduce(
+            &self.blocks(),
+            p,
+            weights.noise(),
+            y.as_mut_slice(),
+            || self.scratch(),
+            |scratch, k, out| {
+                let (h, y_k) = out.split_at_mut(n * p);
+                self.view_rows(&chains, &s, &self.data.views[k], scratch, y_k, Some(h));
+                weights.apply_point(k, out);
+            },
+        );
+        (y, reduced)
+    }
+}
+
+impl TreeProblem<'_> {
+    /// The scratch of [`TreeProblem::view_rows`]: a branch's `6 x p_b` Jacobian and its
+    /// product by the view's derivative, for the widest branch.
+    fn scratch(&self) -> (DMatrix<f64>, DMatrix<f64>) {
+        let widest = self.branch_columns.iter().map(|(sel, _)| sel.len()).max().unwrap_or(0);
+        (DMatrix::zeros(6, widest), DMatrix::zeros(6, widest))
+    }
+
+    /// View `view`'s residual (its `n` rows: 6, or 3 for positions only) into `y` and, with
+    /// `rows`, its rows of `H` (`n x p` column-major, overwritten): each frame's branch
+    /// Jacobian `H_b` through the view's derivative by the frame and the tip's
+    /// (`by * by_tip * H_b`), and the frame's own 6 parameters (`by * by_own`).
+    fn view_rows(
+        &self,
+        chains: &[ChainAt],
+        s: &[f64],
+        view: &View,
+        (h_b, by_robot): &mut (DMatrix<f64>, DMatrix<f64>),
+        y: &mut [f64],
+        rows: Option<&mut [f64]>,
+    ) {
+        let n = self.data.rows();
+        let a = self.frame_at(chains, s, view.camera, view.pose);
+        let b = self.frame_at(chains, s, view.target, view.pose);
+        let relative = relative_view(&view.view, &a.frame, &b.frame);
+        y.copy_from_slice(&relative.residual.as_slice()[..n]);
+        let Some(rows) = rows else { return };
+        let mut rows = DMatrixViewMut::from_slice(rows, n, self.parameters());
+        rows.fill(0.0);
+        for (at, frame, by) in [(&a, view.camera, relative.by_a), (&b, view.target, relative.by_b)] {
+            if let Some((branch, by_tip)) = at.on {
+                let (selection, cols) = &self.branch_columns[branch];
+                chains[branch].identification_jacobian(
+                    &self.values[branch][view.pose],
+                    selection,
+                    Measured::Pose,
+                    h_b.view_mut((0, 0), (6, selection.len())),
+                );
+                let out = h_b.view((0, 0), (6, selection.len()));
+                let mut by_robot = by_robot.view_mut((0, 0), (n, selection.len()));
+                by_robot.gemm(1.0, &(by * by_tip).rows(0, n), &out, 0.0);
+                for (c, &col) in cols.iter().enumerate() {
+                    let mut column = rows.column_mut(col);
+                    column += by_robot.column(c);
+                }
+            }
+            let by_own = by * at.by_own;
+            for i in 0..6 {
+                if let Some(col) = self.setup_columns[6 * frame + i] {
+                    let mut column = rows.column_mut(col);
+                    column += by_own.view((0, i), (n, 1));
+                }
+            }
+        }
     }
 }
 
