@@ -96,7 +96,10 @@ pub fn calibration(error: &CalibrationError, data: &str) -> PyErr {
             raise(Kind::Input, robocal::error::chain(error), place)
         }
         CalibrationError::Point { field, .. } => {
-            let field = if field == "tool" { "tool" } else { "marker" };
+            let field = match field {
+                robocal::calibration::PointName::Tool => "tool",
+                _ => "marker",
+            };
             let place = Place { field: Some(field.into()), ..Place::default() };
             raise(Kind::Input, robocal::error::chain(error), place)
         }

@@ -240,8 +240,8 @@ pub enum CalibrationError {
         value[0], value[1], value[2], crate::limits::MAX_LENGTH_MM
     )]
     Point {
-        /// `tool`, or `marker 2` (numbered from 1).
-        field: String,
+        /// Which point: the tool, or a marker.
+        field: PointName,
         /// What was given (mm).
         value: [f64; 3],
     },
@@ -649,6 +649,25 @@ pub(crate) fn enough_equations(
     Err(CalibrationError::TooFewPoses { poses, equations, parameters: unanchored, needed })
 }
 
+/// A point of a calibration's options, as [`CalibrationError::Point`] names it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum PointName {
+    /// The tool point (`--tool`).
+    Tool,
+    /// Marker `m`, numbered from 1 as `--marker` gives them.
+    Marker(usize),
+}
+
+impl std::fmt::Display for PointName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Tool => write!(f, "tool"),
+            Self::Marker(m) => write!(f, "marker {m}"),
+        }
+    }
+}
+
 /// [`CalibrationError::Point`] unless the tool point `tool` (if any) and every marker of
 /// `markers` are finite and within [`MAX_LENGTH_MM`](crate::limits::MAX_LENGTH_MM): a NaN
 /// start never reaches the solver.
@@ -656,8 +675,8 @@ pub(crate) fn check_points(
     tool: Option<&Vector3<f64>>,
     markers: &[Vector3<f64>],
 ) -> Result<(), CalibrationError> {
-    let named = tool.map(|t| ("tool".to_string(), t));
-    let markers = markers.iter().enumerate().map(|(m, p)| (format!("marker {}", m + 1), p));
+    let named = tool.map(|t| (PointName::Tool, t));
+    let markers = markers.iter().enumerate().map(|(m, p)| (PointName::Marker(m + 1), p));
     for (field, p) in named.into_iter().chain(markers) {
         if !p.iter().all(|v| v.is_finite() && v.abs() <= crate::limits::MAX_LENGTH_MM) {
             return Err(CalibrationError::Point { field, value: [p.x, p.y, p.z] });
