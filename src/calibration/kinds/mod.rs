@@ -111,7 +111,8 @@ use super::{
 };
 use crate::estimation::{
     Blocks, Estimator, Linearisation, MeasurementClass, NoiseEstimate, NoiseLayout, POSE_SIGMAS, PriorEntry,
-    PriorRows, RANK_TOLERANCE, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds, refine_from,
+    PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds,
+    refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
@@ -1012,40 +1013,90 @@ impl Residuals for KindProblem<'_> {
     fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
         let (full, s) = self.full(x);
         let at: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
-        let columns = self.selection.len();
-        let rows = self.measured().rows();
-        let poses = self.data.joints.len();
+        let (rows, poses) = (self.measured().rows(), self.data.joints.len());
         // Each point's H_j at each pose (rows x columns, column-major) in one buffer, filled in
         // parallel.
-        let block = if h.is_some() { rows * columns } else { 0 };
-        let mut blocks = vec![0.0; block * poses * at.len()];
-        let frames = self.frames(&at, Some((&mut blocks, block)));
+        let block = if h.is_some() { rows * self.selection.len() } else { 0 };
+        let mut jacobians = vec![0.0; block * poses * at.len()];
+        let frames = self.frames(&at, Some((&mut jacobians, block)));
         let views = self.session_views(&s);
         let mut y = DVector::zeros(self.equations());
         let mut h = h;
-        for (k, o) in self.data.observations.iter().enumerate() {
-            let first = self.point_of(o) * poses;
-            let f = self.predict(o, &frames[first..first + poses], &views);
-            y[k] = f.residual;
-            if let Some(h) = h.as_deref_mut() {
-                // H_k = sum_j g_kj^T H_j + df_k/ds.
-                for c in 0..h.ncols() {
-                    h[(k, c)] = 0.0;
+        let mut row = vec![0.0; if h.is_some() { self.parameters() } else { 0 }];
+        for k in 0..self.data.observations.len() {
+            let at = (&frames[..], &views[..], &jacobians[..], block);
+            match h.as_deref_mut() {
+                Some(h) => {
+                    y[k] = self.observation_row(k, at, Some(&mut row));
+                    row.iter().enumerate().for_each(|(c, &v)| h[(k, c)] = v);
                 }
-                for (j, g) in &f.by_point[..f.poses] {
-                    let h_j = &blocks[(first + j) * block..(first + j + 1) * block];
-                    for (c, column) in h_j.chunks_exact(rows).enumerate() {
-                        h[(k, c)] += (0..rows).map(|r| g[r] * column[r]).sum::<f64>();
-                    }
-                }
-                for &(i, d) in &f.by_setup[..f.setups] {
-                    if let Some(c) = self.setup_selection.iter().position(|&e| e == i) {
-                        h[(k, columns + c)] += d;
-                    }
-                }
+                None => y[k] = self.observation_row(k, at, None),
             }
         }
         y
+    }
+
+    /// Each pose's observations built, whitened and reduced into the triangular factor in one
+    /// go ([`Reduced::reduce`]), `H` never held: the same arithmetic as the default's whole `H`.
+    fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
+        let (full, s) = self.full(x);
+        let at: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
+        let (rows, poses, p) = (self.measured().rows(), self.data.joints.len(), self.parameters());
+        let block = rows * self.selection.len();
+        let mut jacobians = vec![0.0; block * poses * at.len()];
+        let frames = self.frames(&at, Some((&mut jacobians, block)));
+        let views = self.session_views(&s);
+        let mut y = DVector::zeros(self.equations());
+        let layout = self.blocks();
+        let reduced = Reduced::reduce(
+            &layout,
+            p,
+            weights.noise(),
+            y.as_mut_slice(),
+            || vec![0.0; p],
+            |row, point, out| {
+                let r = layout.range(point);
+                let n = r.len();
+                for (i, k) in r.enumerate() {
+                    out[p * n + i] = self.observation_row(k, (&frames, &views, &jacobians, block), Some(row));
+                    row.iter().enumerate().for_each(|(c, &v)| out[c * n + i] = v);
+                }
+                weights.apply_point(point, out);
+            },
+        );
+        (y, reduced)
+    }
+}
+
+impl KindProblem<'_> {
+    /// Observation `k`'s residual `y_k`, and with `h` its row of `H` written over it (one
+    /// number a column): `H_k = sum_j g_kj^T H_j + df_k/ds`, from the frames of every point at
+    /// every pose, the sessions' views, and each point's `H_j` at each pose (`block` numbers
+    /// each, column-major: 0 when no robot parameter is estimated).
+    fn observation_row(
+        &self,
+        k: usize,
+        (frames, views, jacobians, block): (&[Isometry3<f64>], &[Vec<f64>], &[f64], usize),
+        h: Option<&mut [f64]>,
+    ) -> f64 {
+        let (o, poses) = (&self.data.observations[k], self.data.joints.len());
+        let (columns, rows) = (self.selection.len(), self.measured().rows());
+        let first = self.point_of(o) * poses;
+        let f = self.predict(o, &frames[first..first + poses], views);
+        let Some(h) = h else { return f.residual };
+        h.fill(0.0);
+        for (j, g) in &f.by_point[..f.poses] {
+            let h_j = &jacobians[(first + j) * block..(first + j + 1) * block];
+            for (c, column) in h_j.chunks_exact(rows).enumerate() {
+                h[c] += (0..rows).map(|r| g[r] * column[r]).sum::<f64>();
+            }
+        }
+        for &(i, d) in &f.by_setup[..f.setups] {
+            if let Some(c) = self.setup_selection.iter().position(|&e| e == i) {
+                h[columns + c] += d;
+            }
+        }
+        f.residual
     }
 }
 
