@@ -220,7 +220,7 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
     let robot = document.root_element();
     check_root(robot, base_link)?;
     let chain = chain(robot, base_link, tip_link)?;
-    let (model_joints, masses, tool) = moving_joints(robot, chain)?;
+    let MovingJoints { joints: model_joints, masses, tool } = moving_joints(robot, chain)?;
     if model_joints.is_empty() {
         return Err(invalid(
             "joints".into(),
@@ -256,13 +256,24 @@ fn check_root(robot: roxmltree::Node<'_, '_>, base_link: &str) -> Result<(), Mod
     Ok(())
 }
 
+/// What a chain's joints make of a model: its moving joints, the mass each carries, and the
+/// tool.
+struct MovingJoints {
+    /// The moving joints, base first.
+    joints: Vec<Joint>,
+    /// The mass each moving joint carries ([`carried_mass`]).
+    masses: Vec<LinkMass>,
+    /// The tool: the fixed joints after the last moving one, in its frame (mm).
+    tool: Isometry3<f64>,
+}
+
 /// The moving joints of `chain` (base first) as model joints, the mass each carries
 /// ([`carried_mass`]), and the tool: the fixed joints after the last moving one. A fixed
 /// joint's origin `F` is folded into the next moving joint's, `origin = F * origin`.
 fn moving_joints(
     robot: roxmltree::Node<'_, '_>,
     chain: Vec<roxmltree::Node<'_, '_>>,
-) -> Result<(Vec<Joint>, Vec<LinkMass>, Isometry3<f64>), ModelError> {
+) -> Result<MovingJoints, ModelError> {
     let mut model_joints = Vec::new();
     let mut masses = Vec::new();
     let mut pending = Isometry3::identity();
@@ -278,7 +289,7 @@ fn moving_joints(
         model_joints.push(model_joint(joint, &field, kind, &here)?);
         masses.push(carried_mass(robot, &link_of(&joint, "child"))?);
     }
-    Ok((model_joints, masses, pending))
+    Ok(MovingJoints { joints: model_joints, masses, tool: pending })
 }
 
 /// A joint's `type`: revolute (`revolute` or `continuous`), prismatic, or `None` for a fixed
