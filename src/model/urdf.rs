@@ -212,114 +212,29 @@ fn list(names: &[&str]) -> String {
     }
 }
 
-/// The chain of `text` from `base_link` to `tip_link`.
+/// The chain of `text` from `base_link` to `tip_link`: its moving joints (fixed joints folded
+/// into the next one's origin, or into the tool after the last), their carried masses and the
+/// base link's gravity, checked as a TOML model's.
 pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<RobotModel, ModelError> {
     let document = document(text)?;
     let robot = document.root_element();
-    if !robot.has_tag_name("robot") {
-        let found = robot.tag_name().name();
-        return Err(invalid("root element".into(), format!("<robot> in a URDF file, found <{found}>")));
-    }
-    if !robot.children().any(|n| n.has_tag_name("link") && n.attribute("name") == Some(base_link)) {
-        return Err(invalid("base link".into(), format!("a link named `{base_link}` in the file")));
-    }
+    check_root(robot, base_link)?;
     let chain = chain(robot, base_link, tip_link)?;
-
-    let mut model_joints = Vec::new();
-    let mut masses = Vec::new();
-    let mut pending = Isometry3::identity();
-    for joint in chain {
-        let name = joint.attribute("name").unwrap_or_default();
-        let field = format!("joint `{name}`");
-        let here = pending * origin(joint, &field)?;
-        let kind = match joint.attribute("type").unwrap_or_default() {
-            "fixed" => {
-                pending = here;
-                continue;
-            }
-            "revolute" | "continuous" => JointKind::Revolute,
-            "prismatic" => JointKind::Prismatic,
-            other => {
-                return Err(invalid(
-                    format!("{field}.type"),
-                    format!("revolute, continuous, prismatic or fixed, found `{other}`"),
-                ));
-            }
-        };
-        pending = Isometry3::identity();
-        let axis_node = joint.children().find(|c| c.has_tag_name("axis"));
-        let axis = Vector3::from(match axis_node {
-            Some(node) => numbers(node, "xyz", [1.0, 0.0, 0.0], &format!("{field}.axis"))?,
-            None => [1.0, 0.0, 0.0],
-        });
-        if axis.norm() < 1e-9 {
-            return Err(invalid(format!("{field}.axis"), "a non-zero axis"));
-        }
-        let continuous = joint.attribute("type") == Some("continuous");
-        let limit = joint.children().find(|c| c.has_tag_name("limit"));
-        let bound = |attribute: &str| -> Result<Option<f64>, ModelError> {
-            let Some(text) = limit.and_then(|l| l.attribute(attribute)) else { return Ok(None) };
-            let v: f64 = text.parse().map_err(|_| {
-                invalid(format!("{field}.limit.{attribute}"), format!("a number, found `{text}`"))
-            })?;
-            Ok(Some(if kind == JointKind::Prismatic { v * 1000.0 } else { v }))
-        };
-        let limits = match (continuous, bound("lower")?, bound("upper")?) {
-            (true, _, _) => [-std::f64::consts::TAU, std::f64::consts::TAU],
-            (false, Some(lower), Some(upper)) if lower < upper => [lower, upper],
-            _ => {
-                return Err(invalid(
-                    format!("{field}.limit"),
-                    "lower < upper limits for a revolute or prismatic joint",
-                ));
-            }
-        };
-        let mut model_joint =
-            Joint::urdf(name, kind, Placement::from_isometry(&here), axis.normalize(), limits);
-        if let Some(node) = joint.children().find(|c| c.has_tag_name(DEFLECTION)) {
-            // SI as URDF: rad/(N·m) or m/N, rad or m.
-            let per_mm = if kind == JointKind::Prismatic { 1000.0 } else { 1.0 };
-            let at = format!("{field}.{DEFLECTION}");
-            let revolute = kind == JointKind::Revolute;
-            let (compliance_unit, play_unit) = if revolute { ("rad/(N·m)", "rad") } else { ("m/N", "m") };
-            let compliance = numbers(node, "compliance", [0.0], &at)?[0];
-            let max_compliance = if revolute { MAX_COMPLIANCE } else { MAX_COMPLIANCE / 1000.0 };
-            check_range(compliance, -max_compliance, max_compliance, compliance_unit)
-                .map_err(|e| invalid(format!("{at}.compliance"), e))?;
-            let play = numbers(node, "play", [0.0], &at)?[0];
-            let max_play = if revolute { MAX_PLAY.to_radians() } else { MAX_PLAY / 1000.0 };
-            check_range(play, -max_play, max_play, play_unit)
-                .map_err(|e| invalid(format!("{at}.play"), e))?;
-            model_joint.compliance = compliance * per_mm;
-            model_joint.play = play * per_mm;
-        }
-        model_joints.push(model_joint);
-        masses.push(carried_mass(robot, &link_of(&joint, "child"))?);
-    }
+    let MovingJoints { joints: model_joints, masses, tool } = moving_joints(robot, chain)?;
     if model_joints.is_empty() {
         return Err(invalid(
             "joints".into(),
             format!("at least one moving joint between `{base_link}` and `{tip_link}`"),
         ));
     }
-    let base_node =
-        robot.children().find(|n| n.has_tag_name("link") && n.attribute("name") == Some(base_link));
-    let gravity = match base_node.and_then(|n| n.children().find(|c| c.has_tag_name(GRAVITY))) {
-        Some(node) => Vector3::from(numbers(
-            node,
-            "xyz",
-            [0.0, 0.0, -super::STANDARD_GRAVITY],
-            &format!("link `{base_link}`.{GRAVITY}"),
-        )?),
-        None => RobotModel::floor_gravity(),
-    };
+    let gravity = gravity(robot, base_link)?;
     let model = RobotModel {
         name: robot.attribute("name").unwrap_or("urdf").to_string(),
         description: format!("URDF chain from `{base_link}` to `{tip_link}`"),
         convention: Convention::Urdf,
         base: Placement::default(),
         joints: model_joints,
-        tool: Tool::Frame(Placement::from_isometry(&pending)),
+        tool: Tool::Frame(Placement::from_isometry(&tool)),
         // all masses, or none when no link on the chain declares one
         masses: if masses.iter().any(|m: &LinkMass| m.mass > 0.0) { masses } else { Vec::new() },
         gravity,
@@ -327,6 +242,154 @@ pub fn from_urdf_str(text: &str, base_link: &str, tip_link: &str) -> Result<Robo
     };
     // The names and limits pass the same checks as a TOML model's.
     super::RobotModel::from_toml_str(&model.to_toml_string())
+}
+
+/// The root element is `<robot>` and it has a link named `base_link`.
+fn check_root(robot: roxmltree::Node<'_, '_>, base_link: &str) -> Result<(), ModelError> {
+    if !robot.has_tag_name("robot") {
+        let found = robot.tag_name().name();
+        return Err(invalid("root element".into(), format!("<robot> in a URDF file, found <{found}>")));
+    }
+    if !robot.children().any(|n| n.has_tag_name("link") && n.attribute("name") == Some(base_link)) {
+        return Err(invalid("base link".into(), format!("a link named `{base_link}` in the file")));
+    }
+    Ok(())
+}
+
+/// What a chain's joints make of a model: its moving joints, the mass each carries, and the
+/// tool.
+struct MovingJoints {
+    /// The moving joints, base first.
+    joints: Vec<Joint>,
+    /// The mass each moving joint carries ([`carried_mass`]).
+    masses: Vec<LinkMass>,
+    /// The tool: the fixed joints after the last moving one, in its frame (mm).
+    tool: Isometry3<f64>,
+}
+
+/// The moving joints of `chain` (base first) as model joints, the mass each carries
+/// ([`carried_mass`]), and the tool: the fixed joints after the last moving one. A fixed
+/// joint's origin `F` is folded into the next moving joint's, `origin = F * origin`.
+fn moving_joints(
+    robot: roxmltree::Node<'_, '_>,
+    chain: Vec<roxmltree::Node<'_, '_>>,
+) -> Result<MovingJoints, ModelError> {
+    let mut model_joints = Vec::new();
+    let mut masses = Vec::new();
+    let mut pending = Isometry3::identity();
+    for joint in chain {
+        let name = joint.attribute("name").unwrap_or_default();
+        let field = format!("joint `{name}`");
+        let here = pending * origin(joint, &field)?;
+        let Some(kind) = joint_kind(joint, &field)? else {
+            pending = here;
+            continue;
+        };
+        pending = Isometry3::identity();
+        model_joints.push(model_joint(joint, &field, kind, &here)?);
+        masses.push(carried_mass(robot, &link_of(&joint, "child"))?);
+    }
+    Ok(MovingJoints { joints: model_joints, masses, tool: pending })
+}
+
+/// A joint's `type`: revolute (`revolute` or `continuous`), prismatic, or `None` for a fixed
+/// joint; any other type is refused.
+fn joint_kind(joint: roxmltree::Node<'_, '_>, field: &str) -> Result<Option<JointKind>, ModelError> {
+    match joint.attribute("type").unwrap_or_default() {
+        "fixed" => Ok(None),
+        "revolute" | "continuous" => Ok(Some(JointKind::Revolute)),
+        "prismatic" => Ok(Some(JointKind::Prismatic)),
+        other => Err(invalid(
+            format!("{field}.type"),
+            format!("revolute, continuous, prismatic or fixed, found `{other}`"),
+        )),
+    }
+}
+
+/// The model joint of a moving URDF joint of `kind` at origin `here` (mm): its axis, limits
+/// and [`DEFLECTION`], if any.
+fn model_joint(
+    joint: roxmltree::Node<'_, '_>,
+    field: &str,
+    kind: JointKind,
+    here: &Isometry3<f64>,
+) -> Result<Joint, ModelError> {
+    let name = joint.attribute("name").unwrap_or_default();
+    let axis = axis(joint, field)?;
+    let limits = limits(joint, field, kind)?;
+    let mut model_joint = Joint::urdf(name, kind, Placement::from_isometry(here), axis.normalize(), limits);
+    if let Some(node) = joint.children().find(|c| c.has_tag_name(DEFLECTION)) {
+        let (compliance, play) = deflection(node, field, kind)?;
+        model_joint.compliance = compliance;
+        model_joint.play = play;
+    }
+    Ok(model_joint)
+}
+
+/// A joint's `<axis xyz>` (default x), not normalised; a zero axis is refused.
+fn axis(joint: roxmltree::Node<'_, '_>, field: &str) -> Result<Vector3<f64>, ModelError> {
+    let axis_node = joint.children().find(|c| c.has_tag_name("axis"));
+    let axis = Vector3::from(match axis_node {
+        Some(node) => numbers(node, "xyz", [1.0, 0.0, 0.0], &format!("{field}.axis"))?,
+        None => [1.0, 0.0, 0.0],
+    });
+    if axis.norm() < 1e-9 {
+        return Err(invalid(format!("{field}.axis"), "a non-zero axis"));
+    }
+    Ok(axis)
+}
+
+/// A joint's `[lower, upper]` limits (rad, or mm for a prismatic joint, from metres): plus or
+/// minus one turn for a continuous joint, else the `<limit>`'s, with `lower < upper`.
+fn limits(joint: roxmltree::Node<'_, '_>, field: &str, kind: JointKind) -> Result<[f64; 2], ModelError> {
+    let continuous = joint.attribute("type") == Some("continuous");
+    let limit = joint.children().find(|c| c.has_tag_name("limit"));
+    let bound = |attribute: &str| -> Result<Option<f64>, ModelError> {
+        let Some(text) = limit.and_then(|l| l.attribute(attribute)) else { return Ok(None) };
+        let v: f64 = text.parse().map_err(|_| {
+            invalid(format!("{field}.limit.{attribute}"), format!("a number, found `{text}`"))
+        })?;
+        Ok(Some(if kind == JointKind::Prismatic { v * 1000.0 } else { v }))
+    };
+    match (continuous, bound("lower")?, bound("upper")?) {
+        (true, _, _) => Ok([-std::f64::consts::TAU, std::f64::consts::TAU]),
+        (false, Some(lower), Some(upper)) if lower < upper => Ok([lower, upper]),
+        _ => Err(invalid(format!("{field}.limit"), "lower < upper limits for a revolute or prismatic joint")),
+    }
+}
+
+/// A joint's compliance and play from its [`DEFLECTION`] element `node` (SI as URDF:
+/// rad/(N·m) and rad, or m/N and m for a prismatic joint, within [`MAX_COMPLIANCE`] and
+/// [`MAX_PLAY`]), in the model's units (a prismatic joint's times 1000: mm/N and mm).
+fn deflection(node: roxmltree::Node<'_, '_>, field: &str, kind: JointKind) -> Result<(f64, f64), ModelError> {
+    let per_mm = if kind == JointKind::Prismatic { 1000.0 } else { 1.0 };
+    let at = format!("{field}.{DEFLECTION}");
+    let revolute = kind == JointKind::Revolute;
+    let (compliance_unit, play_unit) = if revolute { ("rad/(N·m)", "rad") } else { ("m/N", "m") };
+    let compliance = numbers(node, "compliance", [0.0], &at)?[0];
+    let max_compliance = if revolute { MAX_COMPLIANCE } else { MAX_COMPLIANCE / 1000.0 };
+    check_range(compliance, -max_compliance, max_compliance, compliance_unit)
+        .map_err(|e| invalid(format!("{at}.compliance"), e))?;
+    let play = numbers(node, "play", [0.0], &at)?[0];
+    let max_play = if revolute { MAX_PLAY.to_radians() } else { MAX_PLAY / 1000.0 };
+    check_range(play, -max_play, max_play, play_unit).map_err(|e| invalid(format!("{at}.play"), e))?;
+    Ok((compliance * per_mm, play * per_mm))
+}
+
+/// The gravity of the link `base_link`'s [`GRAVITY`] element (m/s², default `-z`
+/// [`STANDARD_GRAVITY`](super::STANDARD_GRAVITY)); without one, [`RobotModel::floor_gravity`].
+fn gravity(robot: roxmltree::Node<'_, '_>, base_link: &str) -> Result<Vector3<f64>, ModelError> {
+    let base_node =
+        robot.children().find(|n| n.has_tag_name("link") && n.attribute("name") == Some(base_link));
+    Ok(match base_node.and_then(|n| n.children().find(|c| c.has_tag_name(GRAVITY))) {
+        Some(node) => Vector3::from(numbers(
+            node,
+            "xyz",
+            [0.0, 0.0, -super::STANDARD_GRAVITY],
+            &format!("link `{base_link}`.{GRAVITY}"),
+        )?),
+        None => RobotModel::floor_gravity(),
+    })
 }
 
 /// robocal's extension element of a URDF link: gravity (m/s²) in the link's frame,

@@ -1,7 +1,7 @@
 //! Reports of a simulated study: the paper's tables beside the paper's values, and every
 //! sample as CSV.
 
-use crate::simulation::{PoseChoice, Study, StudyResults, Summary};
+use crate::simulation::{Case, Compared, PoseChoice, Study, StudyResults, Summary};
 use std::fmt::Write;
 
 /// The study's tables in the paper's format (MEAN, SD, LOWEST, HIGHEST, % ABOVE ZERO of dE),
@@ -10,7 +10,29 @@ use std::fmt::Write;
 /// paper's row where the study has one.
 pub fn tables(study: &Study, results: &StudyResults) -> String {
     let mut out = String::new();
-    let baseline = study.estimators[0];
+    preamble(&mut out, study, results);
+    let poses = poses_column(study);
+    for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
+        table_header(&mut out, study, estimator, &poses);
+        for (c, case) in study.cases.iter().enumerate() {
+            case_row(&mut out, study, results, (c, case), e, &poses);
+        }
+    }
+    out
+}
+
+/// The `poses` column of a study's tables: `text` right-aligned in 8 characters and a space
+/// when some case plans its poses, else nothing (a study of random poses only has no such
+/// column).
+pub(super) fn poses_column(study: &Study) -> impl Fn(&str) -> String {
+    let planned = study.cases.iter().any(|c| c.poses != PoseChoice::Random);
+    move |text: &str| if planned { format!("{text:>8} ") } else { String::new() }
+}
+
+/// The lines above the tables: the study's name and description, its size, seed and
+/// estimate, the numerical rank of `H` over the runs, the error of the joint noise alone, and
+/// the measuring device.
+fn preamble(out: &mut String, study: &Study, results: &StudyResults) {
     let _ = writeln!(out, "{}: {}", study.name, study.description);
     let _ = writeln!(
         out,
@@ -46,64 +68,75 @@ pub fn tables(study: &Study, results: &StudyResults) -> String {
     if let Some(device) = &study.device {
         let _ = writeln!(out, "measurement device: {}, plus each case's sigma_me", device.describe());
     }
-    let planned = study.cases.iter().any(|c| c.poses != PoseChoice::Random);
-    let poses = |text: &str| if planned { format!("{text:>8} ") } else { String::new() };
-    for (e, estimator) in study.estimators.iter().enumerate().skip(1) {
-        let _ = writeln!(out, "\ndE (%) = 100 (E_p[{baseline}] - E_p[{estimator}]) / E_p[{baseline}]");
-        out += &poses("poses");
-        let _ = writeln!(
-            out,
-            "{:>5} {:>9} {:>10} {:>10} | {:>6} {:>7} {:>6} {:>7} {:>7} {:>6} {:>11} | {:>6} {:>6} {:>7} {:>7} {:>6}",
-            "N_p",
-            "sigma_me",
-            format!("E_p {baseline}"),
-            format!("E_p {estimator}"),
-            "MEAN",
-            "95% CI",
-            "SD",
-            "LOWEST",
-            "HIGHEST",
-            "% > 0",
-            "95% CI",
-            "paper",
-            "SD",
-            "LOWEST",
-            "HIGHEST",
-            "% > 0"
-        );
-        out += &poses("");
-        let _ = writeln!(out, "{:>5} {:>9} {:>10} {:>10} |", "", "mm", "mm", "mm");
-        for (c, case) in study.cases.iter().enumerate() {
-            let s = Summary::of_sets(&results.improvements_by_set(c, e));
-            out += &poses(case.poses.name());
-            let _ = write!(
+}
+
+/// The title of `estimator`'s table, `dE (%) = 100 (E_p[baseline] - E_p[estimator]) /
+/// E_p[baseline]`, and its column heads with their units.
+fn table_header(out: &mut String, study: &Study, estimator: &Compared, poses: &impl Fn(&str) -> String) {
+    let baseline = study.estimators[0];
+    let _ = writeln!(out, "\ndE (%) = 100 (E_p[{baseline}] - E_p[{estimator}]) / E_p[{baseline}]");
+    *out += &poses("poses");
+    let _ = writeln!(
+        out,
+        "{:>5} {:>9} {:>10} {:>10} | {:>6} {:>7} {:>6} {:>7} {:>7} {:>6} {:>11} | {:>6} {:>6} {:>7} {:>7} {:>6}",
+        "N_p",
+        "sigma_me",
+        format!("E_p {baseline}"),
+        format!("E_p {estimator}"),
+        "MEAN",
+        "95% CI",
+        "SD",
+        "LOWEST",
+        "HIGHEST",
+        "% > 0",
+        "95% CI",
+        "paper",
+        "SD",
+        "LOWEST",
+        "HIGHEST",
+        "% > 0"
+    );
+    *out += &poses("");
+    let _ = writeln!(out, "{:>5} {:>9} {:>10} {:>10} |", "", "mm", "mm", "mm");
+}
+
+/// Case `c`'s row of estimator `e`'s table: the mean `E_p` of the baseline and of `e`, the
+/// [`Summary::of_sets`] of dE with its intervals, and the paper's row where there is one.
+fn case_row(
+    out: &mut String,
+    study: &Study,
+    results: &StudyResults,
+    (c, case): (usize, &Case),
+    e: usize,
+    poses: &impl Fn(&str) -> String,
+) {
+    let s = Summary::of_sets(&results.improvements_by_set(c, e));
+    *out += &poses(case.poses.name());
+    let _ = write!(
+        out,
+        "{:>5} {:>9.3} {:>10.5} {:>10.5} | {:>6.2} {:>7} {:>6.2} {:>7.1} {:>7.1} {:>6.1} {:>11} |",
+        case.points,
+        case.sigma_me,
+        results.mean_error(c, 0),
+        results.mean_error(c, e),
+        s.mean,
+        mean_interval(&s),
+        s.sd,
+        s.lowest,
+        s.highest,
+        s.above_zero,
+        share_interval(&s)
+    );
+    match study.reference_for(case) {
+        Some(r) => {
+            let _ = writeln!(
                 out,
-                "{:>5} {:>9.3} {:>10.5} {:>10.5} | {:>6.2} {:>7} {:>6.2} {:>7.1} {:>7.1} {:>6.1} {:>11} |",
-                case.points,
-                case.sigma_me,
-                results.mean_error(c, 0),
-                results.mean_error(c, e),
-                s.mean,
-                mean_interval(&s),
-                s.sd,
-                s.lowest,
-                s.highest,
-                s.above_zero,
-                share_interval(&s)
+                " {:>6.2} {:>6.2} {:>7.1} {:>7.1} {:>6.1}",
+                r.mean, r.sd, r.lowest, r.highest, r.above_zero
             );
-            match study.reference_for(case) {
-                Some(r) => {
-                    let _ = writeln!(
-                        out,
-                        " {:>6.2} {:>6.2} {:>7.1} {:>7.1} {:>6.1}",
-                        r.mean, r.sd, r.lowest, r.highest, r.above_zero
-                    );
-                }
-                None => out.push('\n'),
-            }
         }
+        None => out.push('\n'),
     }
-    out
 }
 
 /// Planned against random poses, for every case with both: for each estimator the mean `E_p`

@@ -98,7 +98,7 @@ use crate::limits::{
     MAX_TEST_POINTS, check_magnitude,
 };
 use crate::model::{JointKind, ModelRef, RobotModel, Selection, Tool};
-use nalgebra::{DMatrix, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, Isometry3, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use rand::rngs::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Deserialize;
@@ -346,12 +346,20 @@ impl InstrumentStudy {
     /// kinematic evaluations in all. Errors name the study file's
     /// field (`instruments[1].sigma_mm`).
     pub fn check(&self) -> Result<(), StudyError> {
-        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         super::study::check_name(&self.name)?;
-        if self.joint_sigmas.len() != self.robot.dof() {
-            let expected = format!("{} values, one per joint of {}", self.robot.dof(), self.robot.name);
-            return invalid("noise.joint_sigma", expected);
+        self.check_noise_and_errors()?;
+        self.check_sizes()?;
+        for i in 0..self.instruments.len() {
+            self.check_instrument(i)?;
         }
+        self.check_work()
+    }
+
+    /// One joint sigma per joint, and the joint sigmas (deg; mm for a prismatic joint) and
+    /// the error sizes finite >= 0 within [`MAX_ANGLE_DEG`] or [`MAX_LENGTH_MM`], field by
+    /// field.
+    fn check_noise_and_errors(&self) -> Result<(), StudyError> {
+        super::study::check_joint_count(&self.robot, self.joint_sigmas.len())?;
         let joint = self.robot.joints.iter().zip(&self.joint_sigmas).map(|(j, &s)| match j.kind {
             JointKind::Revolute => ("noise.joint_sigma", s.to_degrees(), MAX_ANGLE_DEG, "deg"),
             JointKind::Prismatic => ("noise.joint_sigma", s, MAX_LENGTH_MM, "mm"),
@@ -362,11 +370,16 @@ impl InstrumentStudy {
             ("errors.length_mm", self.errors.length, MAX_LENGTH_MM, "mm"),
         ]);
         for (field, value, bound, unit) in magnitudes {
-            if !(value >= 0.0 && value.is_finite()) {
-                return invalid(field, format!("finite values >= 0, found {value}"));
-            }
+            super::study::check_non_negative(field, value)?;
             check_magnitude(value, bound, unit).map_err(|e| FieldError::new(field, e))?;
         }
+        Ok(())
+    }
+
+    /// 2 to [`MAX_RUNS_PER_CASE`] runs, 1 to [`MAX_TEST_POINTS`] test points, a finite time
+    /// budget > 0, and at least one instrument.
+    fn check_sizes(&self) -> Result<(), StudyError> {
+        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         for (field, count, low, high) in
             [("runs", self.runs, 2, MAX_RUNS_PER_CASE), ("test_points", self.test_points, 1, MAX_TEST_POINTS)]
         {
@@ -380,63 +393,51 @@ impl InstrumentStudy {
         if self.instruments.is_empty() {
             return invalid("instruments", "at least one `[[instruments]]`".into());
         }
-        for (i, instrument) in self.instruments.iter().enumerate() {
-            let field = |name: &str| format!("instruments[{i}].{name}");
-            if instrument.name.is_empty() || self.instruments[..i].iter().any(|o| o.name == instrument.name) {
-                let expected = format!("a name of its own, found {:?}", instrument.name);
-                return Err(FieldError::new(field("name"), expected).into());
-            }
-            let sigma = instrument.sigma;
-            if !(sigma >= 0.0 && sigma.is_finite()) {
-                return Err(
-                    FieldError::new(field("sigma_mm"), format!("a noise >= 0 mm, found {sigma}")).into()
-                );
-            }
-            check_magnitude(sigma, MAX_LENGTH_MM, "mm").map_err(|e| FieldError::new(field("sigma_mm"), e))?;
-            if let InstrumentKind::Camera { mounting, target, sigma_angle, .. } = &instrument.kind {
-                let degrees = sigma_angle.to_degrees();
-                if !(degrees >= 0.0 && degrees.is_finite()) {
-                    let expected = format!("a noise >= 0 deg, found {degrees}");
-                    return Err(FieldError::new(field("sigma_deg"), expected).into());
-                }
-                check_magnitude(degrees, MAX_ANGLE_DEG, "deg")
-                    .map_err(|e| FieldError::new(field("sigma_deg"), e))?;
-                for (name, frame) in [("camera_xyz_mm", mounting), ("target_xyz_mm", target)] {
-                    for &v in frame.translation.vector.iter() {
-                        check_magnitude(v, MAX_LENGTH_MM, "mm")
-                            .map_err(|e| FieldError::new(field(name), e))?;
-                    }
-                    if !frame.rotation.coords.iter().all(|v| v.is_finite()) {
-                        let name = name.replace("xyz_mm", "rpy_deg");
-                        return Err(FieldError::new(field(&name), "finite angles (deg)").into());
-                    }
-                }
-            }
-            // The set-up's lengths: a pivot or plane a kilometre out is no ball bar or table.
-            let lengths: Vec<(String, f64)> = match &instrument.kind {
-                InstrumentKind::BallBar { pivot } => pivot.iter().map(|&v| (field("pivot_mm"), v)).collect(),
-                InstrumentKind::Plane { planes } => (planes.iter().enumerate())
-                    .map(|(k, plane)| (field(&format!("planes[{k}].offset_mm")), plane.1))
-                    .collect(),
-                _ => Vec::new(),
-            };
-            for (name, v) in lengths {
-                check_magnitude(v, MAX_LENGTH_MM, "mm").map_err(|e| FieldError::new(name, e))?;
-            }
-            let seconds = instrument.seconds;
-            if !(seconds > 0.0 && seconds.is_finite()) {
-                let expected = format!("a time > 0 s, found {seconds}");
-                return Err(FieldError::new(field("seconds_per_observation"), expected).into());
-            }
-            let count = self.observations(i);
-            if !(2..=MAX_POINTS).contains(&count) {
-                let expected = format!(
-                    "from 2 to {MAX_POINTS} observations in time_budget_s ({} s), found {count}",
-                    self.time_budget
-                );
-                return Err(FieldError::new(field("seconds_per_observation"), expected).into());
-            }
+        Ok(())
+    }
+
+    /// Instrument `i`: a name of its own, a noise finite >= 0 within [`MAX_LENGTH_MM`], a
+    /// camera's set-up ([`check_camera`]), its pivot or planes within [`MAX_LENGTH_MM`], a
+    /// finite time per observation > 0 and from 2 to [`MAX_POINTS`] observations in the
+    /// budget. Errors name `instruments[i].<field>`.
+    fn check_instrument(&self, i: usize) -> Result<(), StudyError> {
+        let instrument = &self.instruments[i];
+        let field = |name: &str| format!("instruments[{i}].{name}");
+        if instrument.name.is_empty() || self.instruments[..i].iter().any(|o| o.name == instrument.name) {
+            let expected = format!("a name of its own, found {:?}", instrument.name);
+            return Err(FieldError::new(field("name"), expected).into());
         }
+        let sigma = instrument.sigma;
+        if !(sigma >= 0.0 && sigma.is_finite()) {
+            return Err(FieldError::new(field("sigma_mm"), format!("a noise >= 0 mm, found {sigma}")).into());
+        }
+        check_magnitude(sigma, MAX_LENGTH_MM, "mm").map_err(|e| FieldError::new(field("sigma_mm"), e))?;
+        check_camera(&instrument.kind, &field)?;
+        for (name, v) in setup_lengths(&instrument.kind, &field) {
+            check_magnitude(v, MAX_LENGTH_MM, "mm").map_err(|e| FieldError::new(name, e))?;
+        }
+        let seconds = instrument.seconds;
+        if !(seconds > 0.0 && seconds.is_finite()) {
+            let expected = format!("a time > 0 s, found {seconds}");
+            return Err(FieldError::new(field("seconds_per_observation"), expected).into());
+        }
+        let count = self.observations(i);
+        if !(2..=MAX_POINTS).contains(&count) {
+            let expected = format!(
+                "from 2 to {MAX_POINTS} observations in time_budget_s ({} s), found {count}",
+                self.time_budget
+            );
+            return Err(FieldError::new(field("seconds_per_observation"), expected).into());
+        }
+        Ok(())
+    }
+
+    /// The work of the whole study within bounds: at most [`MAX_STUDY_WORK`] kinematic
+    /// evaluations, `runs x sum_i (N_i + test_points)`, and at most [`MAX_INSTRUMENT_WORK`]
+    /// row-parameter products of the fits, `runs x sum_i N_i x 3 x parameters` (Jacobians of
+    /// about 3 rows an observation by the robot's parameters, factorised).
+    fn check_work(&self) -> Result<(), StudyError> {
+        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         let per_run = (0..self.instruments.len()).map(|i| (self.observations(i) + self.test_points) as u64);
         let work = per_run.sum::<u64>().saturating_mul(self.runs as u64);
         if work > MAX_STUDY_WORK {
@@ -486,119 +487,118 @@ impl InstrumentStudy {
 impl InstrumentFile {
     /// The instrument this entry describes; errors name the field within the entry.
     fn instrument(&self) -> Result<Instrument, FieldError> {
-        let unused = |field: &str, present: bool, kind: &str| match present {
-            true => Err(FieldError::new(field, format!("only for kind = \"{kind}\", not {:?}", self.kind))),
-            false => Ok(()),
-        };
         let kind = match self.kind.as_str() {
             "tracker" => InstrumentKind::Tracker,
-            "ball-bar" => {
-                let pivot = self
-                    .pivot_mm
-                    .ok_or_else(|| FieldError::new("pivot_mm", "the pivot [x, y, z] (mm, base frame)"))?;
-                if pivot.iter().any(|v| !v.is_finite()) {
-                    return Err(FieldError::new("pivot_mm", "finite numbers"));
-                }
-                InstrumentKind::BallBar { pivot: pivot.into() }
-            }
+            "ball-bar" => self.ball_bar()?,
             "artefact" => InstrumentKind::Artefact,
-            "plane" => {
-                let files = self.planes.as_deref().unwrap_or_default();
-                if files.is_empty() {
-                    let expected = "the planes touched: [{ normal = [x, y, z], offset_mm = d }, ...]";
-                    return Err(FieldError::new("planes", expected));
-                }
-                let mut planes = Vec::with_capacity(files.len());
-                for (k, plane) in files.iter().enumerate() {
-                    let normal = Vector3::from(plane.normal);
-                    if !(normal.iter().all(|v| v.is_finite()) && normal.norm() > 1e-9) {
-                        return Err(FieldError::new(
-                            format!("planes[{k}].normal"),
-                            "a finite non-zero vector",
-                        ));
-                    }
-                    if !plane.offset_mm.is_finite() {
-                        return Err(FieldError::new(
-                            format!("planes[{k}].offset_mm"),
-                            "a finite number (mm)",
-                        ));
-                    }
-                    planes.push((normal.normalize(), plane.offset_mm));
-                }
-                InstrumentKind::Plane { planes }
-            }
+            "plane" => self.plane()?,
             "height" => InstrumentKind::HeightGauge,
-            "camera" => {
-                let frame = |(xyz_field, xyz): (&str, Option<[f64; 3]>),
-                             (rpy_field, rpy): (&str, Option<[f64; 3]>),
-                             what: &str| {
-                    let xyz =
-                        xyz.ok_or_else(|| FieldError::new(xyz_field, format!("{what}: [x, y, z] (mm)")))?;
-                    let rpy = rpy.ok_or_else(|| {
-                        let expected =
-                            format!("{what}: [roll, pitch, yaw] (deg, R = Rz(yaw) Ry(pitch) Rx(roll))");
-                        FieldError::new(rpy_field, expected)
-                    })?;
-                    if xyz.iter().any(|v| !v.is_finite()) {
-                        return Err(FieldError::new(xyz_field, "finite numbers (mm)"));
-                    }
-                    if rpy.iter().any(|v| !v.is_finite()) {
-                        return Err(FieldError::new(rpy_field, "finite angles (deg)"));
-                    }
-                    let [roll, pitch, yaw] = rpy.map(f64::to_radians);
-                    Ok(Isometry3::from_parts(
-                        Translation3::new(xyz[0], xyz[1], xyz[2]),
-                        UnitQuaternion::from_euler_angles(roll, pitch, yaw),
-                    ))
-                };
-                let mounting = frame(
-                    ("camera_xyz_mm", self.camera_xyz_mm),
-                    ("camera_rpy_deg", self.camera_rpy_deg),
-                    "the camera's mounting in the tip frame",
-                )?;
-                let target = frame(
-                    ("target_xyz_mm", self.target_xyz_mm),
-                    ("target_rpy_deg", self.target_rpy_deg),
-                    "the target's placement in the base frame",
-                )?;
-                let sigma_deg = self
-                    .sigma_deg
-                    .ok_or_else(|| FieldError::new("sigma_deg", "the noise on each angle of a view (deg)"))?;
-                let sight = match (self.field_of_view_deg, self.range_mm, self.max_incidence_deg) {
-                    (None, None, None) => None,
-                    (Some(fov), Some(range), Some(incidence)) => {
-                        if !(fov > 0.0 && fov < 180.0) {
-                            let expected =
-                                format!("a full cone angle above 0 and below 180 deg, found {fov}");
-                            return Err(FieldError::new("field_of_view_deg", expected));
-                        }
-                        if !(range[0] >= 0.0 && range[0] < range[1] && range[1].is_finite()) {
-                            return Err(FieldError::new("range_mm", "[near, far] with 0 <= near < far (mm)"));
-                        }
-                        if !(incidence > 0.0 && incidence <= 90.0) {
-                            let expected = format!("an angle above 0 and at most 90 deg, found {incidence}");
-                            return Err(FieldError::new("max_incidence_deg", expected));
-                        }
-                        Some(Sight {
-                            half_angle: (fov / 2.0).to_radians(),
-                            range,
-                            incidence: incidence.to_radians(),
-                        })
-                    }
-                    _ => {
-                        return Err(FieldError::new(
-                            "field_of_view_deg",
-                            "field_of_view_deg, range_mm and max_incidence_deg together, or none of them",
-                        ));
-                    }
-                };
-                InstrumentKind::Camera { mounting, target, sigma_angle: sigma_deg.to_radians(), sight }
-            }
+            "camera" => self.camera()?,
             other => {
                 let expected =
                     format!("tracker, ball-bar, artefact, plane, height or camera, found {other:?}");
                 return Err(FieldError::new("kind", expected));
             }
+        };
+        self.check_unused(&kind)?;
+        Ok(Instrument {
+            name: self.name.clone(),
+            kind,
+            sigma: self.sigma_mm,
+            seconds: self.seconds_per_observation,
+        })
+    }
+
+    /// A ball bar about `pivot_mm`, given and finite.
+    fn ball_bar(&self) -> Result<InstrumentKind, FieldError> {
+        let pivot = self
+            .pivot_mm
+            .ok_or_else(|| FieldError::new("pivot_mm", "the pivot [x, y, z] (mm, base frame)"))?;
+        if pivot.iter().any(|v| !v.is_finite()) {
+            return Err(FieldError::new("pivot_mm", "finite numbers"));
+        }
+        Ok(InstrumentKind::BallBar { pivot: pivot.into() })
+    }
+
+    /// A plane probe on the `planes`, at least one, each with a finite non-zero normal
+    /// (normalised, `n / |n|`) and a finite offset.
+    fn plane(&self) -> Result<InstrumentKind, FieldError> {
+        let files = self.planes.as_deref().unwrap_or_default();
+        if files.is_empty() {
+            let expected = "the planes touched: [{ normal = [x, y, z], offset_mm = d }, ...]";
+            return Err(FieldError::new("planes", expected));
+        }
+        let mut planes = Vec::with_capacity(files.len());
+        for (k, plane) in files.iter().enumerate() {
+            let normal = Vector3::from(plane.normal);
+            if !(normal.iter().all(|v| v.is_finite()) && normal.norm() > 1e-9) {
+                return Err(FieldError::new(format!("planes[{k}].normal"), "a finite non-zero vector"));
+            }
+            if !plane.offset_mm.is_finite() {
+                return Err(FieldError::new(format!("planes[{k}].offset_mm"), "a finite number (mm)"));
+            }
+            planes.push((normal.normalize(), plane.offset_mm));
+        }
+        Ok(InstrumentKind::Plane { planes })
+    }
+
+    /// A wrist camera: its mounting and target frames ([`frame`]), its angle noise (deg in
+    /// the file, rad here) and its [`Sight`], if asked.
+    fn camera(&self) -> Result<InstrumentKind, FieldError> {
+        let mounting = frame(
+            ("camera_xyz_mm", self.camera_xyz_mm),
+            ("camera_rpy_deg", self.camera_rpy_deg),
+            "the camera's mounting in the tip frame",
+        )?;
+        let target = frame(
+            ("target_xyz_mm", self.target_xyz_mm),
+            ("target_rpy_deg", self.target_rpy_deg),
+            "the target's placement in the base frame",
+        )?;
+        let sigma_deg = self
+            .sigma_deg
+            .ok_or_else(|| FieldError::new("sigma_deg", "the noise on each angle of a view (deg)"))?;
+        let sight = self.sight()?;
+        Ok(InstrumentKind::Camera { mounting, target, sigma_angle: sigma_deg.to_radians(), sight })
+    }
+
+    /// A camera's [`Sight`] from `field_of_view_deg` (a full cone angle in (0, 180) deg,
+    /// halved), `range_mm` (`0 <= near < far`) and `max_incidence_deg` (in (0, 90] deg): all
+    /// three, or none (no sight: every view is kept).
+    fn sight(&self) -> Result<Option<Sight>, FieldError> {
+        match (self.field_of_view_deg, self.range_mm, self.max_incidence_deg) {
+            (None, None, None) => Ok(None),
+            (Some(fov), Some(range), Some(incidence)) => {
+                if !(fov > 0.0 && fov < 180.0) {
+                    let expected = format!("a full cone angle above 0 and below 180 deg, found {fov}");
+                    return Err(FieldError::new("field_of_view_deg", expected));
+                }
+                if !(range[0] >= 0.0 && range[0] < range[1] && range[1].is_finite()) {
+                    return Err(FieldError::new("range_mm", "[near, far] with 0 <= near < far (mm)"));
+                }
+                if !(incidence > 0.0 && incidence <= 90.0) {
+                    let expected = format!("an angle above 0 and at most 90 deg, found {incidence}");
+                    return Err(FieldError::new("max_incidence_deg", expected));
+                }
+                Ok(Some(Sight {
+                    half_angle: (fov / 2.0).to_radians(),
+                    range,
+                    incidence: incidence.to_radians(),
+                }))
+            }
+            _ => Err(FieldError::new(
+                "field_of_view_deg",
+                "field_of_view_deg, range_mm and max_incidence_deg together, or none of them",
+            )),
+        }
+    }
+
+    /// The fields of one kind given to another: `pivot_mm` only for a ball bar, `planes`
+    /// only for a plane probe, the camera's fields only for a camera.
+    fn check_unused(&self, kind: &InstrumentKind) -> Result<(), FieldError> {
+        let unused = |field: &str, present: bool, kind: &str| match present {
+            true => Err(FieldError::new(field, format!("only for kind = \"{kind}\", not {:?}", self.kind))),
+            false => Ok(()),
         };
         unused(
             "pivot_mm",
@@ -619,12 +619,68 @@ impl InstrumentFile {
         ] {
             unused(field, present && !camera, "camera")?;
         }
-        Ok(Instrument {
-            name: self.name.clone(),
-            kind,
-            sigma: self.sigma_mm,
-            seconds: self.seconds_per_observation,
-        })
+        Ok(())
+    }
+}
+
+/// A frame of a camera's set-up, `what`, from its position (`xyz_field`, mm) and rotation
+/// (`rpy_field`, deg, `R = Rz(yaw) Ry(pitch) Rx(roll)`), both given and finite.
+fn frame(
+    (xyz_field, xyz): (&str, Option<[f64; 3]>),
+    (rpy_field, rpy): (&str, Option<[f64; 3]>),
+    what: &str,
+) -> Result<Isometry3<f64>, FieldError> {
+    let xyz = xyz.ok_or_else(|| FieldError::new(xyz_field, format!("{what}: [x, y, z] (mm)")))?;
+    let rpy = rpy.ok_or_else(|| {
+        let expected = format!("{what}: [roll, pitch, yaw] (deg, R = Rz(yaw) Ry(pitch) Rx(roll))");
+        FieldError::new(rpy_field, expected)
+    })?;
+    if xyz.iter().any(|v| !v.is_finite()) {
+        return Err(FieldError::new(xyz_field, "finite numbers (mm)"));
+    }
+    if rpy.iter().any(|v| !v.is_finite()) {
+        return Err(FieldError::new(rpy_field, "finite angles (deg)"));
+    }
+    let [roll, pitch, yaw] = rpy.map(f64::to_radians);
+    Ok(Isometry3::from_parts(
+        Translation3::new(xyz[0], xyz[1], xyz[2]),
+        UnitQuaternion::from_euler_angles(roll, pitch, yaw),
+    ))
+}
+
+/// A camera's set-up (other kinds pass): an angle noise finite >= 0 within
+/// [`MAX_ANGLE_DEG`], and its mounting and target with positions within [`MAX_LENGTH_MM`]
+/// and finite rotations. `field` names a field of the instrument's entry.
+fn check_camera(kind: &InstrumentKind, field: &dyn Fn(&str) -> String) -> Result<(), StudyError> {
+    let InstrumentKind::Camera { mounting, target, sigma_angle, .. } = kind else { return Ok(()) };
+    let degrees = sigma_angle.to_degrees();
+    if !(degrees >= 0.0 && degrees.is_finite()) {
+        let expected = format!("a noise >= 0 deg, found {degrees}");
+        return Err(FieldError::new(field("sigma_deg"), expected).into());
+    }
+    check_magnitude(degrees, MAX_ANGLE_DEG, "deg").map_err(|e| FieldError::new(field("sigma_deg"), e))?;
+    for (name, frame) in [("camera_xyz_mm", mounting), ("target_xyz_mm", target)] {
+        for &v in frame.translation.vector.iter() {
+            check_magnitude(v, MAX_LENGTH_MM, "mm").map_err(|e| FieldError::new(field(name), e))?;
+        }
+        if !frame.rotation.coords.iter().all(|v| v.is_finite()) {
+            let name = name.replace("xyz_mm", "rpy_deg");
+            return Err(FieldError::new(field(&name), "finite angles (deg)").into());
+        }
+    }
+    Ok(())
+}
+
+/// The lengths of an instrument's set-up with their fields (a ball bar's pivot, a plane
+/// probe's plane offsets; none for other kinds): a pivot or plane a kilometre out is no ball
+/// bar or table.
+fn setup_lengths(kind: &InstrumentKind, field: &dyn Fn(&str) -> String) -> Vec<(String, f64)> {
+    match kind {
+        InstrumentKind::BallBar { pivot } => pivot.iter().map(|&v| (field("pivot_mm"), v)).collect(),
+        InstrumentKind::Plane { planes } => (planes.iter().enumerate())
+            .map(|(k, plane)| (field(&format!("planes[{k}].offset_mm")), plane.1))
+            .collect(),
+        _ => Vec::new(),
     }
 }
 
@@ -902,85 +958,36 @@ impl Campaign<'_> {
         declared: f64,
         rng: &mut ChaCha8Rng,
     ) -> Result<KindData, SimulationError> {
-        let robot = &self.study.robot;
         let (kind, sigma) = (&self.study.instruments[i].kind, self.study.instruments[i].sigma);
         let mut data = KindData::default();
         for k in 0..count {
             let pose = data.joints.len();
             let observation = match kind {
                 InstrumentKind::Camera { mounting, target, sigma_angle, sight } => {
-                    // The view from the real tip frame, the tool point's frame moved back to it;
-                    // a configuration the camera sees the target from, if that is asked.
-                    let seen = |q: &[f64]| -> Isometry3<f64> {
-                        let tip = real.pose(q) * Translation3::from(-self.study.tool());
-                        (tip * mounting).inverse() * target
-                    };
-                    let mut q = robot.uniform_configurations(1, rng).remove(0);
-                    if let Some(sight) = sight {
-                        let mut draws = 1;
-                        while !sight.sees(&seen(&q)) {
-                            if draws == MOST_DRAWS_PER_VIEW {
-                                let field = format!("instruments[{i}].field_of_view_deg");
-                                let expected = format!(
-                                    "a target the camera sees from some poses: none of {MOST_DRAWS_PER_VIEW} drawn did"
-                                );
-                                return Err(StudyError::from(FieldError::new(field, expected)).into());
-                            }
-                            q = robot.uniform_configurations(1, rng).remove(0);
-                            draws += 1;
-                        }
-                    }
-                    let read = self.noisy(&q, rng);
-                    let view = seen(&read);
-                    let mut z = || Vector3::new(normal(rng), normal(rng), normal(rng));
-                    let position = view.translation.vector + z() * sigma;
-                    let rotation = UnitQuaternion::from_scaled_axis(z() * *sigma_angle) * view.rotation;
-                    let view = placement(&Isometry3::from_parts(position.into(), rotation));
-                    let declared_angle =
-                        if *sigma_angle > 0.0 { *sigma_angle } else { EXACT_SIGMA_DEG.to_radians() };
-                    data.joints.push(q);
-                    for axis in 0..6 {
-                        let sigma = if axis < 3 { declared } else { declared_angle };
-                        data.observations.push(Observation::Camera {
-                            axis,
-                            pose,
-                            view,
-                            site: CameraSite::Hand,
-                            sigma,
-                        });
-                        data.lines.push(k + 1);
-                    }
+                    let seen = |q: &[f64]| self.view(real, mounting, target, q);
+                    let q = self.configuration_in_sight(i, sight.as_ref(), &seen, rng)?;
+                    let view = noisy_view(&seen(&self.noisy(&q, rng)), sigma, *sigma_angle, rng);
+                    push_views(&mut data, q, view, k + 1, declared, *sigma_angle);
                     continue;
                 }
                 &InstrumentKind::BallBar { pivot } => {
-                    let q = robot.uniform_configurations(1, rng).remove(0);
-                    let measured = (self.at_noisy(real, &q, rng) - pivot).norm() + sigma * normal(rng);
+                    let (q, measured) = self.ball_bar_length(real, pivot, sigma, rng);
                     data.joints.push(q);
                     Observation::ToPoint { pose, point: 0, measured, sigma: declared }
                 }
                 InstrumentKind::Artefact => {
-                    let ends = robot.uniform_configurations(2, rng);
-                    let (a, b) = (self.at_noisy(real, &ends[0], rng), self.at_noisy(real, &ends[1], rng));
+                    let (ends, measured) = self.artefact_length(real, sigma, rng);
                     data.joints.extend(ends);
-                    let measured = (a - b).norm() + sigma * normal(rng);
                     Observation::Distance { a: pose, b: pose + 1, measured, sigma: declared }
                 }
                 InstrumentKind::HeightGauge => {
-                    let q = robot.uniform_configurations(1, rng).remove(0);
-                    let measured = self.at_noisy(real, &q, rng).z + sigma * normal(rng);
+                    let (q, measured) = self.height(real, sigma, rng);
                     data.joints.push(q);
                     Observation::Coordinate { pose, axis: 2, measured, sigma: declared }
                 }
                 InstrumentKind::Plane { planes } => {
                     let plane = k % planes.len();
-                    let (n, offset) = planes[plane];
-                    let target = offset + sigma * normal(rng);
-                    let touching = self.touch(real, n, target, rng).ok_or_else(|| {
-                        let field = format!("instruments[{i}].planes[{plane}]");
-                        StudyError::from(FieldError::new(field, "a plane the robot's tool point reaches"))
-                    })?;
-                    // The joints read with their noise at the touching configuration.
-                    data.joints.push(self.noisy(&touching, rng));
+                    data.joints.push(self.contact(real, i, plane, planes[plane], sigma, rng)?);
                     Observation::Contact { pose, plane, sigma: declared }
                 }
                 InstrumentKind::Tracker => unreachable!("a tracker is calibrated from marker positions"),
@@ -989,6 +996,101 @@ impl Campaign<'_> {
             data.lines.push(k + 1);
         }
         Ok(data)
+    }
+
+    /// The view `(T(q) T_t^-1 C)^-1 W` of the target placed at `target` (`W`) from the camera
+    /// mounted at `mounting` (`C`) on the real robot at `q`: the tool point's frame `T(q)`
+    /// moved back to the tip frame by the tool point `t` (`T_t` the translation by `t`).
+    fn view(
+        &self,
+        real: &ChainAt,
+        mounting: &Isometry3<f64>,
+        target: &Isometry3<f64>,
+        q: &[f64],
+    ) -> Isometry3<f64> {
+        let tip = real.pose(q) * Translation3::from(-self.study.tool());
+        (tip * mounting).inverse() * target
+    }
+
+    /// A configuration uniform within the joint limits from which camera `i` sees its target
+    /// (`seen` the view at a configuration): drawn again until [`Sight::sees`] the view, at
+    /// most [`MOST_DRAWS_PER_VIEW`] times; the first drawn without a `sight`.
+    fn configuration_in_sight(
+        &self,
+        i: usize,
+        sight: Option<&Sight>,
+        seen: &dyn Fn(&[f64]) -> Isometry3<f64>,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<Vec<f64>, SimulationError> {
+        let robot = &self.study.robot;
+        let mut q = robot.uniform_configurations(1, rng).remove(0);
+        if let Some(sight) = sight {
+            let mut draws = 1;
+            while !sight.sees(&seen(&q)) {
+                if draws == MOST_DRAWS_PER_VIEW {
+                    let field = format!("instruments[{i}].field_of_view_deg");
+                    let expected = format!(
+                        "a target the camera sees from some poses: none of {MOST_DRAWS_PER_VIEW} drawn did"
+                    );
+                    return Err(StudyError::from(FieldError::new(field, expected)).into());
+                }
+                q = robot.uniform_configurations(1, rng).remove(0);
+                draws += 1;
+            }
+        }
+        Ok(q)
+    }
+
+    /// A ball bar's length at a uniform configuration `q`: `|p(q + n_q) - c| + n_m`, `c` the
+    /// pivot and `n_m ~ N(0, sigma^2)`; with `q`.
+    fn ball_bar_length(
+        &self,
+        real: &ChainAt,
+        pivot: Vector3<f64>,
+        sigma: f64,
+        rng: &mut ChaCha8Rng,
+    ) -> (Vec<f64>, f64) {
+        let q = self.study.robot.uniform_configurations(1, rng).remove(0);
+        let measured = (self.at_noisy(real, &q, rng) - pivot).norm() + sigma * normal(rng);
+        (q, measured)
+    }
+
+    /// A length artefact's length between two uniform configurations `a` and `b`:
+    /// `|p(a + n_q) - p(b + n_q')| + n_m`, `n_m ~ N(0, sigma^2)`; with `[a, b]`.
+    fn artefact_length(&self, real: &ChainAt, sigma: f64, rng: &mut ChaCha8Rng) -> (Vec<Vec<f64>>, f64) {
+        let ends = self.study.robot.uniform_configurations(2, rng);
+        let (a, b) = (self.at_noisy(real, &ends[0], rng), self.at_noisy(real, &ends[1], rng));
+        let measured = (a - b).norm() + sigma * normal(rng);
+        (ends, measured)
+    }
+
+    /// A height gauge's reading at a uniform configuration `q`: `e_z . p(q + n_q) + n_m`,
+    /// `n_m ~ N(0, sigma^2)`; with `q`.
+    fn height(&self, real: &ChainAt, sigma: f64, rng: &mut ChaCha8Rng) -> (Vec<f64>, f64) {
+        let q = self.study.robot.uniform_configurations(1, rng).remove(0);
+        let measured = self.at_noisy(real, &q, rng).z + sigma * normal(rng);
+        (q, measured)
+    }
+
+    /// The joints read (with their noise) at a configuration where the real tool point
+    /// touches plane `plane` of plane probe `i`, `n . p = d + n_m` (`n`, `d` that plane's) ([`Self::touch`]); an
+    /// error names the plane if the tool point cannot reach it.
+    fn contact(
+        &self,
+        real: &ChainAt,
+        i: usize,
+        plane: usize,
+        (n, offset): (Vector3<f64>, f64),
+        sigma: f64,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<Vec<f64>, SimulationError> {
+        let target = offset + sigma * normal(rng);
+        let touching = self.touch(real, n, target, rng).ok_or_else(|| {
+            let field = format!("instruments[{i}].planes[{plane}]");
+            StudyError::from(FieldError::new(field, "a plane the robot's tool point reaches"))
+        })?;
+        // The joints read with their noise at the touching configuration.
+        Ok(self.noisy(&touching, rng))
     }
 
     /// A configuration where the real robot's tool point lies on `n . p = d`: from uniform
@@ -1041,6 +1143,37 @@ impl Campaign<'_> {
             predicted.iter().zip(&truth).map(|(p, r)| (f(p) - r).norm()).sum::<f64>() / n
         };
         Scores { aligned: mean(&|p| t.transform_point(&(*p).into()).coords), unaligned: mean(&|p| *p) }
+    }
+}
+
+/// A camera's `view` with its noise: `n_m ~ N(0, sigma^2)` on each position number, and the
+/// rotation turned by `exp([n_r]x)`, `n_r ~ N(0, sigma_angle^2 I)`; as
+/// [`placement`] numbers.
+fn noisy_view(view: &Isometry3<f64>, sigma: f64, sigma_angle: f64, rng: &mut ChaCha8Rng) -> Vector6<f64> {
+    let mut z = || Vector3::new(normal(rng), normal(rng), normal(rng));
+    let position = view.translation.vector + z() * sigma;
+    let rotation = UnitQuaternion::from_scaled_axis(z() * sigma_angle) * view.rotation;
+    placement(&Isometry3::from_parts(position.into(), rotation))
+}
+
+/// A camera's `view` at the configuration `q` as the 6 observations of `data` (one per
+/// axis, line `line`): the position's declared `declared`, the rotation's `sigma_angle` (or
+/// [`EXACT_SIGMA_DEG`] for an exact camera).
+fn push_views(
+    data: &mut KindData,
+    q: Vec<f64>,
+    view: Vector6<f64>,
+    line: usize,
+    declared: f64,
+    sigma_angle: f64,
+) {
+    let pose = data.joints.len();
+    let declared_angle = if sigma_angle > 0.0 { sigma_angle } else { EXACT_SIGMA_DEG.to_radians() };
+    data.joints.push(q);
+    for axis in 0..6 {
+        let sigma = if axis < 3 { declared } else { declared_angle };
+        data.observations.push(Observation::Camera { axis, pose, view, site: CameraSite::Hand, sigma });
+        data.lines.push(line);
     }
 }
 

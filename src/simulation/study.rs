@@ -352,69 +352,21 @@ impl Study {
         load_robot: impl FnOnce(&ModelRef) -> Result<RobotModel, E>,
     ) -> Result<Self, StudyError> {
         let file: StudyFile = toml::from_str(text).map_err(StudyError::Syntax)?;
-        let reference = ModelRef {
-            name: file.robot.clone(),
-            base_link: file.base_link,
-            tip_link: file.tip_link,
-            payload: None,
-        };
-        if !reference.is_urdf() && (reference.base_link.is_some() || reference.tip_link.is_some()) {
-            let expected = "only with a URDF robot (a `.urdf` file)";
-            return Err(FieldError::new(
-                if reference.base_link.is_some() { "base_link" } else { "tip_link" },
-                expected,
-            )
-            .into());
-        }
+        let reference = model_ref(&file)?;
         let robot = load_robot(&reference).map_err(|e| StudyError::Robot(e.into()))?;
         let (robot, truth) = truth(robot, file.truth.as_ref())?;
-        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
-        let params = robot.params();
-        let selection = match &file.parameters {
-            Parameters::Named(name) if name == "joints" => Selection::joints(&params),
-            Parameters::Named(name) if name == "all" => Selection::all(&params),
-            Parameters::Named(name) if name == "offsets" => Selection::offsets(&params),
-            Parameters::Named(name) => Selection::by_names(&params, &[name]).map_err(selection_error)?,
-            Parameters::List(names) => Selection::by_names(&params, names).map_err(selection_error)?,
-        };
-        let estimators: Vec<Compared> = file
-            .estimators
-            .iter()
-            .map(|e| e.parse())
-            .collect::<Result<_, String>>()
-            .map_err(|e| FieldError::new("estimators", e))?;
-        if let Some(i) = (1..estimators.len()).find(|&i| estimators[..i].contains(&estimators[i])) {
-            let expected = format!("each estimator once, found {:?} twice", file.estimators[i]);
-            return invalid("estimators", expected);
-        }
+        let selection = selection(&robot, &file.parameters)?;
+        let estimators = estimators(&file.estimators)?;
         let joint_sigmas = joint_sigmas(&robot, &file.noise.joint_sigma)?;
         if file.cases.points.is_empty() || file.cases.sigma_me_mm.is_empty() {
-            return invalid("cases", "at least one value in `points` and in `sigma_me_mm`".into());
+            let expected = "at least one value in `points` and in `sigma_me_mm`";
+            return Err(FieldError::new("cases", expected).into());
         }
         let device = match &file.noise.device {
             Some(table) => Some(table.device("noise.device.")?),
             None => None,
         };
-        let choices = pose_choices(file.design.as_ref(), &file.cases.points)?;
-        let count = file
-            .cases
-            .points
-            .len()
-            .saturating_mul(file.cases.sigma_me_mm.len())
-            .saturating_mul(choices.len());
-        if count > MAX_CASES {
-            return invalid(
-                "cases",
-                format!("at most {MAX_CASES} cases (points x sigma_me_mm x design.poses), found {count}"),
-            );
-        }
-        let cases = file
-            .cases
-            .points
-            .iter()
-            .flat_map(|&points| file.cases.sigma_me_mm.iter().map(move |&sigma_me| (points, sigma_me)))
-            .flat_map(|(points, sigma_me)| choices.iter().map(move |&poses| Case { points, sigma_me, poses }))
-            .collect();
+        let cases = cases(&file.cases, file.design.as_ref())?;
         let study = Self {
             name: file.name,
             description: file.description,
@@ -453,8 +405,22 @@ impl Study {
     /// sets, runs, test points, iterations, the runs and the work of the whole study), at
     /// least 2 runs per case. Errors name the study file's field.
     pub fn check(&self) -> Result<(), StudyError> {
-        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         check_name(&self.name)?;
+        self.check_estimators()?;
+        self.check_truth()?;
+        check_joint_count(&self.robot, self.joint_sigmas.len())?;
+        self.check_noise_non_negative()?;
+        self.check_magnitudes()?;
+        self.check_sigmas()?;
+        self.check_counts()?;
+        self.check_cases()?;
+        self.check_work()
+    }
+
+    /// At least one parameter, at least two estimators, and a robot with masses for an
+    /// estimator that identifies compliances or plays.
+    fn check_estimators(&self) -> Result<(), StudyError> {
+        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         if self.selection.is_empty() {
             return invalid("parameters", "at least one parameter".into());
         }
@@ -473,7 +439,14 @@ impl Study {
                 ),
             );
         }
-        let dof = self.robot.dof();
+        Ok(())
+    }
+
+    /// The true compliances and plays: none, or one finite value per joint; not zero only on
+    /// a robot with masses, for gravity to load its joints.
+    fn check_truth(&self) -> Result<(), StudyError> {
+        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
+        let (masses, dof) = (self.robot.has_masses(), self.robot.dof());
         for (field, values) in
             [("truth.compliance", &self.truth.compliance), ("truth.play", &self.truth.play)]
         {
@@ -484,12 +457,12 @@ impl Study {
                 return invalid(field, "a robot with masses, for gravity to load its joints".into());
             }
         }
-        if self.joint_sigmas.len() != self.robot.dof() {
-            return invalid(
-                "noise.joint_sigma",
-                format!("{} values, one per joint of {}", self.robot.dof(), self.robot.name),
-            );
-        }
+        Ok(())
+    }
+
+    /// Every noise and error size finite >= 0 in its file's unit, field by field (a field of
+    /// several values by its smallest, or NaN: [`min_or_nan`]).
+    fn check_noise_non_negative(&self) -> Result<(), StudyError> {
         let sigma_me = self.cases.iter().map(|c| c.sigma_me);
         // (field, smallest value, in the file's unit)
         let joint_sigma = self.robot.joints.iter().zip(&self.joint_sigmas).map(|(j, &s)| match j.kind {
@@ -505,10 +478,14 @@ impl Study {
             ("cases.sigma_me_mm", sigma_me.fold(0.0, min_or_nan)),
         ];
         for (field, value) in non_negative {
-            if !(value >= 0.0 && value.is_finite()) {
-                return invalid(field, format!("finite values >= 0, found {value}"));
-            }
+            check_non_negative(field, value)?;
         }
+        Ok(())
+    }
+
+    /// Every noise and error size within [`MAX_ANGLE_DEG`] or [`MAX_LENGTH_MM`] in its file's
+    /// unit, and the joint sigmas and `sigma_me` finite.
+    fn check_magnitudes(&self) -> Result<(), StudyError> {
         let joint_sigma = self.robot.joints.iter().zip(&self.joint_sigmas).map(|(j, &s)| match j.kind {
             JointKind::Revolute => ("noise.joint_sigma", degrees(s), MAX_ANGLE_DEG, "deg"),
             JointKind::Prismatic => ("noise.joint_sigma", s, MAX_LENGTH_MM, "mm"),
@@ -527,9 +504,15 @@ impl Study {
         let all_finite =
             self.joint_sigmas.iter().chain(self.cases.iter().map(|c| &c.sigma_me)).all(|v| v.is_finite());
         if !all_finite {
-            return invalid("noise.joint_sigma / cases.sigma_me_mm", "finite values".into());
+            return Err(FieldError::new("noise.joint_sigma / cases.sigma_me_mm", "finite values").into());
         }
-        self.check_sigmas()?;
+        Ok(())
+    }
+
+    /// Point sets, runs per set, test points and iterations from 1 to their bounds in
+    /// [`crate::limits`], and at least 2 runs per case, `point_sets x runs_per_set`.
+    fn check_counts(&self) -> Result<(), StudyError> {
+        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         for (field, count, bound) in [
             ("point_sets", self.point_sets, MAX_RUNS_PER_CASE),
             ("runs_per_set", self.runs_per_set, MAX_RUNS_PER_CASE),
@@ -549,6 +532,12 @@ impl Study {
                 "at least 2 runs per case (point_sets x runs_per_set) for a spread".into(),
             );
         }
+        Ok(())
+    }
+
+    /// At least one case, each of 1 to [`MAX_POINTS`] points.
+    fn check_cases(&self) -> Result<(), StudyError> {
+        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         if self.cases.is_empty() {
             return invalid("cases", "at least one value in `points` and in `sigma_me_mm`".into());
         }
@@ -558,6 +547,13 @@ impl Study {
                 format!("point counts from 1 to {MAX_POINTS}, found {}", case.points),
             );
         }
+        Ok(())
+    }
+
+    /// The whole study within bounds: at most [`MAX_STUDY_WORK`] kinematic evaluations
+    /// ([`Study::work`]) and at most [`MAX_RUNS`] runs, `cases x point_sets x runs_per_set`.
+    fn check_work(&self) -> Result<(), StudyError> {
+        let invalid = |field: &str, expected: String| Err(FieldError::new(field, expected).into());
         let work = self.work();
         if work > MAX_STUDY_WORK {
             return invalid(
@@ -693,13 +689,92 @@ impl Study {
 /// The `noise.joint_sigma` of a study file (deg; mm for a prismatic joint), one per joint of
 /// `robot`, in rad and mm.
 pub(crate) fn joint_sigmas(robot: &RobotModel, sigmas: &[f64]) -> Result<Vec<f64>, StudyError> {
-    if sigmas.len() != robot.dof() {
-        let expected = format!("{} values, one per joint of {}", robot.dof(), robot.name);
-        return Err(FieldError::new("noise.joint_sigma", expected).into());
-    }
+    check_joint_count(robot, sigmas.len())?;
     Ok((robot.joints.iter().zip(sigmas))
         .map(|(j, &s)| if j.kind == JointKind::Revolute { s.to_radians() } else { s })
         .collect())
+}
+
+/// The robot a study file names: its `robot` and, for a URDF robot only, its `base_link` and
+/// `tip_link`.
+fn model_ref(file: &StudyFile) -> Result<ModelRef, StudyError> {
+    let reference = ModelRef {
+        name: file.robot.clone(),
+        base_link: file.base_link.clone(),
+        tip_link: file.tip_link.clone(),
+        payload: None,
+    };
+    if !reference.is_urdf() && (reference.base_link.is_some() || reference.tip_link.is_some()) {
+        let expected = "only with a URDF robot (a `.urdf` file)";
+        return Err(FieldError::new(
+            if reference.base_link.is_some() { "base_link" } else { "tip_link" },
+            expected,
+        )
+        .into());
+    }
+    Ok(reference)
+}
+
+/// The identified parameters of `robot` a study file's `parameters` names: `joints`, `all`,
+/// `offsets`, or a parameter's name or a list of names.
+fn selection(robot: &RobotModel, parameters: &Parameters) -> Result<Selection, StudyError> {
+    let params = robot.params();
+    Ok(match parameters {
+        Parameters::Named(name) if name == "joints" => Selection::joints(&params),
+        Parameters::Named(name) if name == "all" => Selection::all(&params),
+        Parameters::Named(name) if name == "offsets" => Selection::offsets(&params),
+        Parameters::Named(name) => Selection::by_names(&params, &[name]).map_err(selection_error)?,
+        Parameters::List(names) => Selection::by_names(&params, names).map_err(selection_error)?,
+    })
+}
+
+/// The calibrations a study file's `estimators` names, each once.
+fn estimators(names: &[String]) -> Result<Vec<Compared>, StudyError> {
+    let estimators: Vec<Compared> = names
+        .iter()
+        .map(|e| e.parse())
+        .collect::<Result<_, String>>()
+        .map_err(|e| FieldError::new("estimators", e))?;
+    if let Some(i) = (1..estimators.len()).find(|&i| estimators[..i].contains(&estimators[i])) {
+        let expected = format!("each estimator once, found {:?} twice", names[i]);
+        return Err(FieldError::new("estimators", expected).into());
+    }
+    Ok(estimators)
+}
+
+/// The cases of `[cases]` and `[design]`: every `N_p` with every `sigma_me` and every pose
+/// choice ([`pose_choices`]), in that order, at most [`MAX_CASES`] of them.
+fn cases(file: &CasesFile, design: Option<&DesignFile>) -> Result<Vec<Case>, StudyError> {
+    let choices = pose_choices(design, &file.points)?;
+    let count = file.points.len().saturating_mul(file.sigma_me_mm.len()).saturating_mul(choices.len());
+    if count > MAX_CASES {
+        let expected =
+            format!("at most {MAX_CASES} cases (points x sigma_me_mm x design.poses), found {count}");
+        return Err(FieldError::new("cases", expected).into());
+    }
+    Ok(file
+        .points
+        .iter()
+        .flat_map(|&points| file.sigma_me_mm.iter().map(move |&sigma_me| (points, sigma_me)))
+        .flat_map(|(points, sigma_me)| choices.iter().map(move |&poses| Case { points, sigma_me, poses }))
+        .collect())
+}
+
+/// `noise.joint_sigma` has `count` values, one per joint of `robot`.
+pub(crate) fn check_joint_count(robot: &RobotModel, count: usize) -> Result<(), StudyError> {
+    if count != robot.dof() {
+        let expected = format!("{} values, one per joint of {}", robot.dof(), robot.name);
+        return Err(FieldError::new("noise.joint_sigma", expected).into());
+    }
+    Ok(())
+}
+
+/// `value` of `field` is finite and `>= 0`.
+pub(crate) fn check_non_negative(field: &str, value: f64) -> Result<(), StudyError> {
+    if !(value >= 0.0 && value.is_finite()) {
+        return Err(FieldError::new(field, format!("finite values >= 0, found {value}")).into());
+    }
+    Ok(())
 }
 
 /// A study's name, which names its output folder: letters, digits, `-` or `_`.
