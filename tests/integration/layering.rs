@@ -248,8 +248,8 @@ fn without_literals(line: &str) -> String {
 }
 
 #[test]
-fn no_function_of_the_calibration_is_over_80_lines() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/calibration");
+fn no_function_of_the_library_is_over_80_lines() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut files = Vec::new();
     visit(&dir, &mut files);
     let mut seen = 0;
@@ -263,7 +263,7 @@ fn no_function_of_the_calibration_is_over_80_lines() {
             }
         }
     }
-    assert!(seen > 200, "the check read too few functions ({seen}): is it reading src/calibration?");
+    assert!(seen > 1000, "the check read too few functions ({seen}): is it reading src?");
     assert!(long.is_empty(), "functions over {MAX_FUNCTION_LINES} lines:\n{}", long.join("\n"));
 }
 

@@ -1024,7 +1024,7 @@ impl Residuals for KindProblem<'_> {
         let mut h = h;
         let mut row = vec![0.0; if h.is_some() { self.parameters() } else { 0 }];
         for k in 0..self.data.observations.len() {
-            let at = (&frames[..], &views[..], &jacobians[..], block);
+            let at = PointsAt { frames: &frames, views: &views, jacobians: &jacobians, block };
             match h.as_deref_mut() {
                 Some(h) => {
                     y[k] = self.observation_row(k, at, Some(&mut row));
@@ -1058,7 +1058,8 @@ impl Residuals for KindProblem<'_> {
                 let r = layout.range(point);
                 let n = r.len();
                 for (i, k) in r.enumerate() {
-                    out[p * n + i] = self.observation_row(k, (&frames, &views, &jacobians, block), Some(row));
+                    let at = PointsAt { frames: &frames, views: &views, jacobians: &jacobians, block };
+                    out[p * n + i] = self.observation_row(k, at, Some(row));
                     row.iter().enumerate().for_each(|(c, &v)| out[c * n + i] = v);
                 }
                 weights.apply_point(point, out);
@@ -1068,15 +1069,28 @@ impl Residuals for KindProblem<'_> {
     }
 }
 
+/// Every point at every pose, as an observation's row reads it
+/// ([`KindProblem::observation_row`]).
+#[derive(Clone, Copy)]
+struct PointsAt<'f> {
+    /// Each point's frame at each pose (point by point, then pose by pose).
+    frames: &'f [Isometry3<f64>],
+    /// Each session's set-up values.
+    views: &'f [Vec<f64>],
+    /// Each point's `H_j` at each pose, `block` numbers each (column-major).
+    jacobians: &'f [f64],
+    /// The numbers of one `H_j`: 0 when no robot parameter is estimated.
+    block: usize,
+}
+
 impl KindProblem<'_> {
     /// Observation `k`'s residual `y_k`, and with `h` its row of `H` written over it (one
-    /// number a column): `H_k = sum_j g_kj^T H_j + df_k/ds`, from the frames of every point at
-    /// every pose, the sessions' views, and each point's `H_j` at each pose (`block` numbers
-    /// each, column-major: 0 when no robot parameter is estimated).
+    /// number a column): `H_k = sum_j g_kj^T H_j + df_k/ds`, from every point at every pose
+    /// (`at`).
     fn observation_row(
         &self,
         k: usize,
-        (frames, views, jacobians, block): (&[Isometry3<f64>], &[Vec<f64>], &[f64], usize),
+        PointsAt { frames, views, jacobians, block }: PointsAt<'_>,
         h: Option<&mut [f64]>,
     ) -> f64 {
         let (o, poses) = (&self.data.observations[k], self.data.joints.len());
