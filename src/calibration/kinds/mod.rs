@@ -1037,7 +1037,7 @@ impl Residuals for KindProblem<'_> {
     }
 
     /// Each pose's observations built, whitened and reduced into the triangular factor in one
-    /// go ([`Reduced::reduce`]), `H` never held: the same arithmetic as the default's whole `H`.
+    /// go (`Reduced::reduce`), `H` never held: the same arithmetic as the default's whole `H`.
     fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
         let (full, s) = self.full(x);
         let at: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&full)).collect();

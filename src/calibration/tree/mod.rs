@@ -523,7 +523,7 @@ impl Residuals for TreeProblem<'_> {
     }
 
     /// Each view's rows built, whitened and reduced into the triangular factor in one go
-    /// ([`Reduced::reduce`]), `H` never held: the same arithmetic as the default's whole `H`.
+    /// (`Reduced::reduce`), `H` never held: the same arithmetic as the default's whole `H`.
     fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
         let (full, s) = self.full(x);
         let chains = self.chains_at(&full);
