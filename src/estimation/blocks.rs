@@ -105,26 +105,38 @@ pub(crate) fn block_weights(
 ) -> Result<(DMatrix<f64>, DMatrix<f64>), EstimationError> {
     let (rows, width) = v.shape();
     let (mut s, mut noise) = (DMatrix::zeros(rows, width), DMatrix::zeros(rows, width));
-    let (parts, bounds) = point_parts(blocks, rows);
-    let (s_parts, noise_parts) = (column_parts(&mut s, &bounds), column_parts(&mut noise, &bounds));
-    let weighed: Vec<Result<(), EstimationError>> = (parts.into_par_iter().zip(s_parts).zip(noise_parts))
-        .map(|((points, mut s), mut noise)| {
+    let bounds = point_parts(blocks, rows).1;
+    let pieces: Vec<_> =
+        column_parts(&mut s, &bounds).into_iter().zip(column_parts(&mut noise, &bounds)).collect();
+    on_parts(blocks, rows, pieces, |k, at, (s, noise)| {
+        let r = blocks.range(k);
+        let out = (at, &mut s[..], &mut noise[..]);
+        match r.len() {
+            3 => weigh_block(v, r.start, Const::<3>, estimator, k, out),
+            6 => weigh_block(v, r.start, Const::<6>, estimator, k, out),
+            n => weigh_block(v, r.start, Dyn(n), estimator, k, out),
+        }
+    })?;
+    Ok((s, noise))
+}
+
+/// `each(k, at, piece)` of every point `k` of a system of `rows` rows laid out by `blocks`, on
+/// rayon's threads in the parts of [`point_parts`], each part with its own `piece` (in order)
+/// and `at` the row of point `k` in it: the first point's error, whatever the threads.
+fn on_parts<T: Send>(
+    blocks: &Blocks,
+    rows: usize,
+    pieces: Vec<T>,
+    each: impl Fn(usize, usize, &mut T) -> Result<(), EstimationError> + Sync,
+) -> Result<(), EstimationError> {
+    let parts = point_parts(blocks, rows).0;
+    let done: Vec<Result<(), EstimationError>> = (parts.into_par_iter().zip(pieces))
+        .map(|(mut points, mut piece)| {
             let first = blocks.range(points.start).start;
-            for k in points {
-                let r = blocks.range(k);
-                let out = (r.start - first, &mut s[..], &mut noise[..]);
-                match r.len() {
-                    3 => weigh_block(v, r.start, Const::<3>, estimator, k, out)?,
-                    6 => weigh_block(v, r.start, Const::<6>, estimator, k, out)?,
-                    n => weigh_block(v, r.start, Dyn(n), estimator, k, out)?,
-                }
-            }
-            Ok(())
+            points.try_for_each(|k| each(k, blocks.range(k).start - first, &mut piece))
         })
         .collect();
-    // The first point's error, whatever the threads.
-    weighed.into_iter().collect::<Result<Vec<()>, _>>()?;
-    Ok((s, noise))
+    done.into_iter().collect()
 }
 
 /// Points in one task of the work on stacked blocks done on threads.
@@ -198,26 +210,16 @@ pub(crate) fn whiten_in_place(
     blocks: &Blocks,
     z: &mut DVector<f64>,
 ) -> Result<(), EstimationError> {
-    let (parts, bounds) = point_parts(blocks, v.nrows());
-    let whitened: Vec<Result<(), EstimationError>> =
-        (parts.into_par_iter().zip(split_rows(z.as_mut_slice(), &bounds)))
-            .map(|(points, z)| {
-                let first = blocks.range(points.start).start;
-                for k in points {
-                    let r = blocks.range(k);
-                    let z_k = &mut z[r.start - first..r.end - first];
-                    match r.len() {
-                        3 => whiten_block(v, r.start, Const::<3>, k, z_k)?,
-                        6 => whiten_block(v, r.start, Const::<6>, k, z_k)?,
-                        n => whiten_block(v, r.start, Dyn(n), k, z_k)?,
-                    }
-                }
-                Ok(())
-            })
-            .collect();
-    // The first point's error, whatever the threads.
-    whitened.into_iter().collect::<Result<Vec<()>, _>>()?;
-    Ok(())
+    let (rows, bounds) = (v.nrows(), point_parts(blocks, v.nrows()).1);
+    on_parts(blocks, rows, split_rows(z.as_mut_slice(), &bounds), |k, at, z| {
+        let r = blocks.range(k);
+        let z_k = &mut z[at..at + r.len()];
+        match r.len() {
+            3 => whiten_block(v, r.start, Const::<3>, k, z_k),
+            6 => whiten_block(v, r.start, Const::<6>, k, z_k),
+            n => whiten_block(v, r.start, Dyn(n), k, z_k),
+        }
+    })
 }
 
 /// [`whiten_in_place`] of the block of `d` rows at row `start` of `v` (point `k`), whose rows

@@ -172,6 +172,27 @@ pub(crate) fn h_matches_central_differences(
     }
     let entries = problem.equations() * problem.parameters();
     prop_assert!(wrapped * 50 <= entries, "{wrapped} of {entries} entries across the log's branch cut");
+    linearisation_is_the_whole_systems(problem, x0)
+}
+
+/// `problem`'s linearisation at `x0` (which may reduce its rows as they are built, `H` never
+/// held) is the least-squares system of its whole whitened `A = S H` and `b = S y`:
+/// `R^T R = A^T A` and `R^T z = A^T b` (ordinary least squares' weights: a view's rotation
+/// rows scaled to lengths).
+fn linearisation_is_the_whole_systems(
+    problem: &impl Residuals,
+    x0: &DVector<f64>,
+) -> Result<(), TestCaseError> {
+    let weights = robocal::estimation::Weights::for_problem(problem, Estimator::Ols).unwrap();
+    let linearised = robocal::estimation::linearise(problem, &weights, x0.clone()).unwrap();
+    let mut a = DMatrix::zeros(problem.equations(), problem.parameters());
+    let b = problem.evaluate_whitened(x0, &weights, Some(&mut a));
+    let r = linearised.system.r();
+    let (gram, rtz) = (r.transpose() * r, r.transpose() * linearised.system.z());
+    let (whole, atb) = (a.transpose() * &a, a.transpose() * &b);
+    prop_assert_eq!(&linearised.b, &b);
+    prop_assert!((&gram - &whole).amax() <= 1e-9 * whole.amax().max(1.0), "R^T R against A^T A");
+    prop_assert!((&rtz - &atb).amax() <= 1e-9 * atb.amax().max(1.0), "R^T z against A^T b");
     Ok(())
 }
 

@@ -1023,8 +1023,8 @@ impl Residuals for KindProblem<'_> {
         let mut y = DVector::zeros(self.equations());
         let mut h = h;
         let mut row = vec![0.0; if h.is_some() { self.parameters() } else { 0 }];
+        let at = PointsAt { frames: &frames, views: &views, jacobians: &jacobians, block };
         for k in 0..self.data.observations.len() {
-            let at = PointsAt { frames: &frames, views: &views, jacobians: &jacobians, block };
             match h.as_deref_mut() {
                 Some(h) => {
                     y[k] = self.observation_row(k, at, Some(&mut row));
@@ -1048,6 +1048,7 @@ impl Residuals for KindProblem<'_> {
         let views = self.session_views(&s);
         let mut y = DVector::zeros(self.equations());
         let layout = self.blocks();
+        let at = PointsAt { frames: &frames, views: &views, jacobians: &jacobians, block };
         let reduced = Reduced::reduce(
             &layout,
             p,
@@ -1058,7 +1059,6 @@ impl Residuals for KindProblem<'_> {
                 let r = layout.range(point);
                 let n = r.len();
                 for (i, k) in r.enumerate() {
-                    let at = PointsAt { frames: &frames, views: &views, jacobians: &jacobians, block };
                     out[p * n + i] = self.observation_row(k, at, Some(row));
                     row.iter().enumerate().for_each(|(c, &v)| out[c * n + i] = v);
                 }
