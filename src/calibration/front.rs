@@ -11,14 +11,13 @@
 
 use super::kinds::EvidenceSystem;
 use super::kinds::{self, KindCalibration, KindData, KindOptions, Score};
-use super::prior_scale::{AutoPrior, needs_the_noise, system_evidence};
+use super::prior_scale::{AutoPrior, FrontEvidence, needs_the_noise, system_evidence};
 use super::selection::{ChosenFit, Criterion, Fitted, LinearModel, SelectionPath, named_joints};
 use super::tree::{self, TreeCalibration, TreeData, TreeOptions, TreeScore};
 use super::{
     Calibration, CalibrationError, ErrorStats, JointParams, Measurements, NestedCv, Options, RobotModel,
-    Whitening, calibrate_quietly, check_folds, errors, observed, selection,
+    Whitening, calibrate_quietly, check_folds, errors, observed, ols_prior_spread, selection,
 };
-use crate::estimation::evidence::Evidence;
 use crate::estimation::{Estimator, PointProblem, PriorEntry, Weights, linearise};
 use crate::kinematics::Measured;
 use crate::model::{RobotTree, Selection, name_matches};
@@ -74,15 +73,15 @@ pub trait Front: Sized {
     /// The cross-validated RMS of `--prior auto`'s curve (mm), `folds` folds.
     fn cv_rms(&self, data: &Self::Data, options: &Self::Options, folds: usize) -> Result<f64>;
 
-    /// The marginal likelihood's [`Evidence`] for `auto`'s scale, linearised about `about`
-    /// (`None`: the "before" fit).
+    /// The marginal likelihood ([`FrontEvidence`]) for `auto`'s scale, linearised about `about`
+    /// (`None`: the "before" fit), and the noise level it took where none was given.
     fn evidence(
         &self,
         data: &Self::Data,
         options: &Self::Options,
         auto: &AutoPrior,
         about: Option<&Self::Fit>,
-    ) -> Result<Evidence>;
+    ) -> Result<FrontEvidence>;
 
     /// Refuse `--select` on `data` before anything is done: a probe's orientations.
     fn refuse_select(_data: &Self::Data) -> Result<()> {
@@ -151,31 +150,42 @@ impl Front for Markers<'_> {
     /// and whitened by Gauss-Markov (`S V S^T = I`: the rows divided by the normalisation
     /// `c = sigma_max`). A parameter with an entry of `options.prior` has that fixed prior, one
     /// with the preset's only is scaled, the others are flat.
+    /// Without a noise model (OLS), the noise is the residuals' spread that the fit's priors
+    /// weigh against ([`ols_prior_spread`](super::ols_prior_spread)), at the "before" values.
     fn evidence(
         &self,
         data: &Measurements,
         options: &Options,
         auto: &AutoPrior,
         about: Option<&Calibration>,
-    ) -> Result<Evidence> {
+    ) -> Result<FrontEvidence> {
         let frame =
             calibrate_quietly(self.0, data, &Options { joints: JointParams::None, ..options.clone() })?;
-        let Whitening::Covariance(noise) = &frame.whitening else {
-            return Err(needs_the_noise(auto, "--sigma-mm with --joint-sigma-deg, or --noise"));
+        let noise = match &frame.whitening {
+            Whitening::Covariance(noise) => Some(noise),
+            _ => None,
         };
         let params = &frame.params;
         let (zero, nothing) = (vec![0.0; params.len()], Selection::from_indices(params, []));
         let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
         let (joints, observed) = (data.joints.clone(), observed(data));
-        let base_problem =
-            PointProblem::new(&frame.chains, &nothing, kind, joints, observed, zero, Some(noise))?;
-        let weights = Weights::for_problem(&base_problem, Estimator::Wls)?;
+        let base_problem = PointProblem::new(&frame.chains, &nothing, kind, joints, observed, zero, noise)?;
+        let estimator = if noise.is_some() { Estimator::Wls } else { Estimator::Ols };
+        let weights = Weights::for_problem(&base_problem, estimator)?;
         let asked = selection(params, &options.joints, options)?;
+        let noise_spread = match weights.scale() {
+            Some(_) => None,
+            None => {
+                Some(ols_prior_spread(&base_problem, &weights, &asked, &frame.before, data, &options.gauge)?)
+            }
+        };
         let problem = base_problem.reselect(&asked, about.map_or(&frame.before, |c| &c.after).clone())?;
         let linearised = linearise(&problem, &weights, problem.start())?;
         let (params, asked) = (params.iter().cloned().collect(), asked.indices().to_vec());
-        let c = weights.scale().unwrap_or(1.0);
-        system_evidence(auto, &options.prior, &EvidenceSystem { params, asked, linearised, c })
+        let c = weights.scale().or(noise_spread).unwrap_or(1.0);
+        let evidence =
+            system_evidence(auto, &options.prior, &EvidenceSystem { params, asked, linearised, c })?;
+        Ok(FrontEvidence { evidence, noise_spread })
     }
 
     /// `--select` scores marker positions.
@@ -281,7 +291,7 @@ impl Front for Kinds<'_> {
         options: &KindOptions,
         auto: &AutoPrior,
         about: Option<&KindCalibration>,
-    ) -> Result<Evidence> {
+    ) -> Result<FrontEvidence> {
         if options.joint_noise.is_none() && data.assumed_sigmas == data.observations.len() {
             return Err(needs_the_noise(
                 auto,
@@ -290,7 +300,8 @@ impl Front for Kinds<'_> {
         }
         let options = KindOptions { estimator: Estimator::Wls, ..options.clone() };
         let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
-        system_evidence(auto, &options.prior, &kinds::evidence_system(self.0, data, &options, about)?)
+        let system = kinds::evidence_system(self.0, data, &options, about)?;
+        Ok(FrontEvidence { evidence: system_evidence(auto, &options.prior, &system)?, noise_spread: None })
     }
 
     /// The CV RMS is of the lengths: observations that are all angles refuse `cv`.
@@ -363,14 +374,15 @@ impl Front for Tree<'_> {
         options: &TreeOptions,
         auto: &AutoPrior,
         about: Option<&TreeCalibration>,
-    ) -> Result<Evidence> {
+    ) -> Result<FrontEvidence> {
         if options.joint_noise.is_none() && data.assumed_sigmas {
             let give = "sigma and sigma_angle columns in the views' file, or --joint-sigma-deg";
             return Err(needs_the_noise(auto, give));
         }
         let options = TreeOptions { estimator: Estimator::Wls, ..options.clone() };
         let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
-        system_evidence(auto, &options.prior, &tree::evidence_system(self.0, data, &options, about)?)
+        let system = tree::evidence_system(self.0, data, &options, about)?;
+        Ok(FrontEvidence { evidence: system_evidence(auto, &options.prior, &system)?, noise_spread: None })
     }
 
     fn forward(&self, data: &TreeData, options: &TreeOptions, criterion: Criterion) -> Result<SelectionPath> {

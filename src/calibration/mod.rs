@@ -910,14 +910,7 @@ fn identifiable(
         without_unloaded_responses(asked, &base_problem.chains()[0], before, &data.joints);
     let problem = base_problem.reselect(&asked, before.to_vec())?;
     let at_before = linearise(&problem, weights, problem.start())?;
-    let keep = if gauge.keep.is_empty() {
-        Selection::from_indices(params, [])
-    } else {
-        Selection::by_names(params, &gauge.keep)?
-    };
-    let priority: Vec<u32> = (asked.indices().iter())
-        .map(|&i| if keep.column(i).is_some() { 0 } else { 1 + gauge_class(params.get(i)) })
-        .collect();
+    let priority = gauge_priority(params, &asked, gauge)?;
     // With priors, what the data and the priors together cannot identify is held: a parameter
     // with a prior never is.
     let asked_sd: Vec<f64> =
@@ -1042,6 +1035,38 @@ fn finish(s: Stages<'_>, problem: &PointProblem<'_>) -> Result<Calibration, Cali
         robust: s.robust,
         chains: s.chains,
     })
+}
+
+/// The order in which the rank-revealing solve keeps the columns of `asked`: what
+/// `gauge.keep` names first, then by [`gauge_class`].
+fn gauge_priority(params: &ParamSet, asked: &Selection, gauge: &Gauge) -> Result<Vec<u32>, SelectionError> {
+    let keep = if gauge.keep.is_empty() {
+        Selection::from_indices(params, [])
+    } else {
+        Selection::by_names(params, &gauge.keep)?
+    };
+    Ok((asked.indices().iter())
+        .map(|&i| if keep.column(i).is_some() { 0 } else { 1 + gauge_class(params.get(i)) })
+        .collect())
+}
+
+/// The noise level that the priors of an OLS fit without a noise model weigh against, as
+/// [`calibrate`] takes it at the "before" values `before` ([`unregularised_spread`] of what
+/// the poses can load): the residuals' spread of the fit of `asked` without priors (mm).
+pub(crate) fn ols_prior_spread(
+    base_problem: &PointProblem<'_>,
+    weights: &Weights,
+    asked: &Selection,
+    before: &[f64],
+    data: &Measurements,
+    gauge: &Gauge,
+) -> Result<f64, CalibrationError> {
+    let params = base_problem.params();
+    let (asked, _) = without_unloaded_responses(asked, &base_problem.chains()[0], before, &data.joints);
+    let problem = base_problem.reselect(&asked, before.to_vec())?;
+    let at_before = linearise(&problem, weights, problem.start())?;
+    let priority = gauge_priority(params, &asked, gauge)?;
+    unregularised_spread(base_problem, params, &asked, before, weights, &at_before, &priority)
 }
 
 /// The scale of the rows of an OLS fit without a noise model, for its priors: the residuals'

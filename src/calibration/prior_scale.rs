@@ -16,6 +16,12 @@
 //! parameters without a preset's prior) integrated out under a flat prior
 //! ([`crate::estimation::evidence`]). It needs no refit: one linearisation, then `O(p)` a
 //! scale, on the grid [`evidence_scales`] (1/64 to 64 in steps of `2^(1/8)`).
+//!
+//! A marker file fitted by OLS has no noise model: its priors weigh against the residuals'
+//! spread of the fit without priors, `c = sqrt(|r|^2 / (N_m - rank))` (mm,
+//! [`prior`](crate::estimation::prior)'s rows). The evidence then takes the same `c` as the
+//! noise, `e ~ N(0, c^2 I)`, so that the scale it chooses is the one the fit applies, and
+//! reports it ([`PriorScale::noise_spread`]).
 
 use super::front::Front;
 use super::kinds::EvidenceSystem;
@@ -200,6 +206,21 @@ pub struct PriorScale {
     /// below 0 by what the scales per class gain).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub classes: Vec<ClassScale>,
+    /// By the marginal likelihood without a noise model (a marker file fitted by OLS): the
+    /// noise level it took, the one the fit's priors weigh against, the residuals' spread
+    /// `sqrt(|r|^2 / (N_m - rank))` of the fit without priors (mm).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_spread: Option<f64>,
+}
+
+/// A front's marginal likelihood ([`Front::evidence`]): the [`Evidence`] of its system, and
+/// the noise level it took where none was given ([`PriorScale::noise_spread`], mm).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrontEvidence {
+    /// The evidence as a function of the scales.
+    pub evidence: Evidence,
+    /// The residuals' spread taken as the noise, without a noise model.
+    pub noise_spread: Option<f64>,
 }
 
 /// One class's scale (`auto-ml:PRESET:classes`), chosen by the marginal likelihood with the
@@ -270,6 +291,7 @@ pub fn choose_prior_scale<F: Front>(
         log_evidence: Vec::new(),
         chosen,
         classes: Vec::new(),
+        noise_spread: None,
     })
 }
 
@@ -283,7 +305,8 @@ pub const EVIDENCE_ROUNDS: usize = 4;
 /// the registration (the "before" fit) first, then about the calibration at the scale chosen
 /// (MacKay's re-estimation: where the errors are large, the registration's linearisation
 /// leaves a second-order residual that a larger scale would explain), until the scale stays
-/// (at most [`EVIDENCE_ROUNDS`] linearisations). The noise must be known; `options.prior`
+/// (at most [`EVIDENCE_ROUNDS`] linearisations). The noise must be known, or for a marker
+/// file fitted by OLS is the residuals' spread its priors weigh against; `options.prior`
 /// applies unscaled, where both name a parameter instead of the preset's. With
 /// [`AutoPrior::by_class`], one scale per class, `argmax log p(y | s_1..s_n)` by
 /// [`Evidence::class_ascent`] from the one scale's choice, in the same rounds.
@@ -298,7 +321,7 @@ pub fn choose_prior_scale_ml<F: Front>(
     let mut last = None;
     for _ in 0..EVIDENCE_ROUNDS {
         let evidence = front.evidence(data, options, auto, about.as_ref())?;
-        let at = evidence_choice(&evidence, &grid, auto);
+        let at = evidence_choice(&evidence.evidence, &grid, auto);
         let stays = previous.as_ref() == Some(&at);
         last = Some((evidence, at.clone()));
         if stays {
@@ -310,7 +333,7 @@ pub fn choose_prior_scale_ml<F: Front>(
         previous = Some(at);
     }
     let (evidence, at) = last.expect("at least one round");
-    Ok(ml_scale(auto, &evidence, &grid, &at))
+    Ok(PriorScale { noise_spread: evidence.noise_spread, ..ml_scale(auto, &evidence.evidence, &grid, &at) })
 }
 
 /// The grid indices the evidence chooses: the one scale of the largest
@@ -362,6 +385,7 @@ fn ml_scale(auto: &AutoPrior, evidence: &Evidence, grid: &[f64], at: &[usize]) -
         log_evidence: curve.iter().map(|l| l - top).collect(),
         chosen,
         classes,
+        noise_spread: None,
     }
 }
 

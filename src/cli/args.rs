@@ -283,9 +283,11 @@ pub struct ModelChoiceArgs {
     /// standard deviations by one factor from 1/16 to 16, chosen by k-fold cross-validation
     /// on the training poses (--folds K, default 5); other --prior entries override it.
     /// `--prior auto-ml[:PRESET]` chooses the factor (1/64 to 64 in steps of 2^(1/8)) by the
-    /// marginal likelihood instead (type-II maximum likelihood), which needs the noise
-    /// (--sigma-mm with --joint-sigma-deg, or --noise; on observation files their sigma
-    /// columns or --joint-sigma-deg) and no refit per factor. `--prior auto-ml:PRESET:classes`
+    /// marginal likelihood instead (type-II maximum likelihood), with no refit per factor:
+    /// with the noise (--sigma-mm with --joint-sigma-deg, or --noise; on observation files
+    /// their sigma columns or --joint-sigma-deg), or on a marker file without it, the noise
+    /// taken as the residuals' spread of the fit without priors, which OLS's priors weigh
+    /// against (printed). `--prior auto-ml:PRESET:classes`
     /// (or `auto-ml:classes`) chooses one factor per class of the preset (lengths, angles,
     /// offsets, plays) by the marginal likelihood, each reported with the one factor's.
     #[arg(long, value_name = "PATTERN=SD,...", value_parser = parse_prior)]

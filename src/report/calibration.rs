@@ -291,7 +291,13 @@ pub(crate) fn prior_scale_method(scale: &PriorScale) -> String {
     match (scale.by, scale.folds) {
         (ScaleBy::Cv, Some(k)) => format!("{k}-fold cross-validation"),
         (ScaleBy::Cv, None) => "cross-validation".into(),
-        (ScaleBy::Ml, _) => "the marginal likelihood (type-II maximum likelihood, the noise as given)".into(),
+        (ScaleBy::Ml, _) => match scale.noise_spread {
+            None => "the marginal likelihood (type-II maximum likelihood, the noise as given)".into(),
+            Some(c) => format!(
+                "the marginal likelihood (type-II maximum likelihood, no noise given: the noise taken as the \
+                 residuals' spread without priors, {c:.4} mm, which the priors weigh against)"
+            ),
+        },
     }
 }
 

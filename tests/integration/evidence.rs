@@ -88,16 +88,43 @@ fn auto_ml_finds_the_scale_of_a_robot() {
     assert!(mean(4.0) - mean(1.0) > 4f64.ln() / 2.0, "{found:?}");
 }
 
-/// Without the noise the marginal likelihood is not defined: a clear error, naming the way out.
+/// Without a noise model (OLS), the marginal likelihood takes the noise the fit's priors weigh
+/// against, the residuals' spread of the fit without priors: on the robots of
+/// [`auto_ml_finds_the_scale_of_a_robot`] (0.2 mm of noise, not given), that spread is within
+/// 10% of 0.2 mm, and the scale chosen is within two steps of the grid (`2^(2/8)`, 19%) of the
+/// one chosen with the noise given, and within a factor 1.5 of `s0` on at least 8 of 10.
 #[test]
-fn auto_ml_without_noise_says_what_it_needs() {
+fn auto_ml_without_noise_takes_the_residuals_spread() {
     let model = RobotModel::preset("puma560").unwrap();
-    let auto = AutoPrior::parse("auto-ml").unwrap().unwrap();
-    let mut rng = ChaCha8Rng::seed_from_u64(7);
-    let x = vec![0.0; Chain::markers(&model, &[MARKER])[0].params().len()];
-    let train = measured(&x, 20, 0.8, 0.2, &mut rng);
-    let e = choose_prior_scale_ml(&Markers(&model), &train, &options(), &auto).unwrap_err().to_string();
-    assert!(e.contains("--prior auto-ml:fabricated: the marginal likelihood needs the noise"), "{e}");
+    let chain = Chain::markers(&model, &[MARKER]).remove(0);
+    let auto = AutoPrior::parse("auto-ml:machined").unwrap().unwrap();
+    let sd = robocal::estimation::prior_sds(&auto.entries, chain.params()).unwrap();
+    let given =
+        robocal::calibration::Options { estimator: Estimator::Wls, noise: Some(noise()), ..options() };
+    let (mut within, mut found) = (0, Vec::new());
+    for seed in 0..10 {
+        let s0 = if seed % 2 == 0 { 1.0 } else { 4.0 };
+        let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
+        let x: Vec<f64> = (chain.params().iter().zip(&sd))
+            .map(
+                |(p, s)| {
+                    if p.name.starts_with('j') && s.is_finite() { normal(&mut rng) * s * s0 } else { 0.0 }
+                },
+            )
+            .collect();
+        let train = measured(&x, 60, 0.8, 0.2, &mut rng);
+        let ols = choose_prior_scale_ml(&Markers(&model), &train, &options(), &auto).unwrap();
+        let known = choose_prior_scale_ml(&Markers(&model), &train, &given, &auto).unwrap();
+        let spread = ols.noise_spread.expect("the spread taken without the noise");
+        assert_eq!(known.noise_spread, None);
+        assert!((spread - 0.2).abs() < 0.02, "seed {seed}: spread {spread} mm against 0.2");
+        let steps = (ols.scale() / known.scale()).log2().abs() * 8.0;
+        assert!(steps <= 2.0 + 1e-9, "seed {seed}: {} against {} with the noise", ols.scale(), known.scale());
+        within += usize::from((1.0 / 1.5..=1.5).contains(&(ols.scale() / s0)));
+        found.push((s0, ols.scale(), known.scale(), spread));
+    }
+    eprintln!("without the noise: {found:?}");
+    assert!(within >= 8, "{within} of 10 within a factor 1.5: {found:?}");
 }
 
 /// `calibrate --prior auto-ml:machined` with the noise prints the scale it chose by the
@@ -125,6 +152,30 @@ fn the_report_gives_the_marginal_likelihood_scale() {
     );
     assert!(text.contains("log evidence") && text.contains("  <- chosen\n"), "{text}");
     assert_eq!(report["cross_validation"]["redone"], serde_json::json!(["--prior auto-ml:machined's scale"]));
+}
+
+/// `calibrate --prior auto-ml:machined` on a marker file without the noise (OLS) says the noise
+/// it took, the residuals' spread without priors, and `--json` has it as `noise_spread`, equal
+/// to the printed figure.
+#[test]
+fn the_report_gives_the_spread_taken_without_the_noise() {
+    let (text, report) = super::nested::calibrate_puma(&["--prior", "auto-ml:machined"]);
+    let spread = report["prior_scale"]["noise_spread"].as_f64().expect("noise_spread");
+    let said = format!(
+        "no noise given: the noise taken as the residuals' spread without priors, {spread:.4} mm, which the \
+         priors weigh against"
+    );
+    assert!(text.contains(&said), "{said}: {text}");
+    assert!(spread > 0.0 && spread < 1.0, "{spread}");
+    let (_, with) = super::nested::calibrate_puma(&[
+        "--sigma-mm",
+        "0.01",
+        "--joint-sigma-deg",
+        "0.007,0.007,0.007,0.007,0.007,0.007",
+        "--prior",
+        "auto-ml:machined",
+    ]);
+    assert!(with["prior_scale"].get("noise_spread").is_none(), "{}", with["prior_scale"]);
 }
 
 /// A PUMA 560 whose joint errors are drawn from the `machined` tolerances with a scale per
