@@ -151,7 +151,7 @@ impl Front for Markers<'_> {
     /// `c = sigma_max`). A parameter with an entry of `options.prior` has that fixed prior, one
     /// with the preset's only is scaled, the others are flat.
     /// Without a noise model (OLS), the noise is the residuals' spread that the fit's priors
-    /// weigh against ([`ols_prior_spread`](super::ols_prior_spread)), at the "before" values.
+    /// weigh against (`ols_prior_spread`), at the "before" values.
     fn evidence(
         &self,
         data: &Measurements,
