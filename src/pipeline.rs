@@ -2,21 +2,21 @@
 //! its inputs and writing its outputs, for the command line and the Python package alike, so
 //! that neither keeps a copy. Of marker data ([`calibrate_markers`]): the choices made from
 //! the data, the calibration, the held-out sets scored, the cross-validation, the accuracy
-//! predicted at the held-out poses, the report. Of observation files
-//! ([`calibrate_observations`]) and of views on a tree ([`calibrate_views`]): the sessions
-//! joined, the calibration (with `--select`'s choice for observations), the held-out sets
-//! scored, the (nested) cross-validation, the report. Above every other
+//! predicted at the held-out poses, the report. Of observation files and of views on a tree,
+//! one pipeline over both ([`calibrate_files`], what each needs in [`Files`]): the sessions
+//! joined, the calibration (the choices made from the data, or feasible GLS), the held-out
+//! sets scored, the (nested) cross-validation, the report. Above every other
 //! module: it joins the calibration, the design's accuracy prediction and the report.
 
 use crate::calibration::kinds::{KindCalibration, KindData, KindOptions, Score, calibrate_kinds_feasible};
 use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, TreeScore, calibrate_tree_feasible};
 use crate::calibration::{
-    self, Calibration, CalibrationError, Choices, ChosenFit, ErrorStats, FeasibleOptions, Kinds, Loss,
+    self, Calibration, CalibrationError, Choices, ChosenFit, ErrorStats, FeasibleOptions, Front, Kinds, Loss,
     Markers, Measurements, Options, SetEvaluation, Tree, calibrate_chosen, cross_validate_choices,
 };
 use crate::design::accuracy::{AccuracyModel, CovarianceError, ParameterCovariance};
-use crate::estimation::NoiseModel;
-use crate::model::{RobotModel, RobotTree};
+use crate::estimation::{Estimator, NoiseModel};
+use crate::model::RobotModel;
 use crate::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy, fold_label};
 use crate::report::observations::ObservationsReport;
 use crate::report::tree::TreeReport;
@@ -185,33 +185,177 @@ pub struct FilesError {
     pub source: CalibrationError,
 }
 
-/// A tree calibrated from views and its report (the command line's).
-#[derive(Debug, Clone)]
-pub struct TreeOutcome {
-    /// The calibration.
-    pub calibration: TreeCalibration,
-    /// The report: the training views and each held-out set scored, the files fitted.
-    pub report: TreeReport,
-}
-
 /// A function making a calibration's error a [`FilesError`] about `context`.
 fn in_context(context: &str) -> impl Fn(CalibrationError) -> FilesError + '_ {
     move |source| FilesError { context: context.to_string(), source }
 }
+
+/// What the files' pipeline ([`calibrate_files`]) needs of a calibration beyond its
+/// [`Front`]: of observation files ([`Kinds`]) and of a tree's views ([`Tree`]), how sessions
+/// join, how a held-out set is scored (as the cross-validation scores its folds,
+/// [`Front::Nested`]), feasible GLS, and the report.
+pub trait Files: Front {
+    /// The report of a calibration.
+    type Report;
+
+    /// The sessions' data joined into one set (an error naming the file that does not join).
+    fn join(sessions: &[(String, Self::Data)]) -> Result<Self::Data, FilesError>;
+
+    /// The observations (or views) and the poses of `data`.
+    fn counts(data: &Self::Data) -> (usize, usize);
+
+    /// `data` scored by `fit`, as calibrated.
+    fn score(fit: &Self::Fit, data: &Self::Data) -> Result<Self::Nested, CalibrationError>;
+
+    /// The estimator and the loss `options` ask for.
+    fn asked(options: &Self::Options) -> (Estimator, Loss);
+
+    /// Calibrate `data` by feasible GLS, the noise estimated from the residuals.
+    fn feasible(
+        &self,
+        data: &Self::Data,
+        options: &Self::Options,
+        feasible: &FeasibleOptions,
+    ) -> Result<Self::Fit, CalibrationError>;
+
+    /// The report of `chosen` fitted on `data` from the files `names` (and `files`, each with
+    /// its observations) by `estimator`, with the held-out sets' and the cross-validation's
+    /// `scores`.
+    fn report(
+        chosen: &ChosenFit<Self::Fit>,
+        fitted: (&Self::Data, &str, Vec<(String, usize)>),
+        estimator: &str,
+        scores: Vec<(String, Self::Nested)>,
+    ) -> Self::Report;
+}
+
+impl Files for Kinds<'_> {
+    type Report = ObservationsReport;
+
+    fn join(sessions: &[(String, KindData)]) -> Result<KindData, FilesError> {
+        Ok(sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file)))
+    }
+
+    fn counts(data: &KindData) -> (usize, usize) {
+        (data.observations.len(), data.joints.len())
+    }
+
+    fn score(fit: &KindCalibration, data: &KindData) -> Result<Score, CalibrationError> {
+        fit.score(data)
+    }
+
+    fn asked(options: &KindOptions) -> (Estimator, Loss) {
+        (options.estimator, options.loss)
+    }
+
+    fn feasible(
+        &self,
+        data: &KindData,
+        options: &KindOptions,
+        feasible: &FeasibleOptions,
+    ) -> Result<KindCalibration, CalibrationError> {
+        calibrate_kinds_feasible(self.0, data, options, feasible)
+    }
+
+    fn report(
+        chosen: &ChosenFit<KindCalibration>,
+        (data, names, files): (&KindData, &str, Vec<(String, usize)>),
+        estimator: &str,
+        scores: Vec<(String, Score)>,
+    ) -> ObservationsReport {
+        let c = &chosen.calibration;
+        let mut report = ObservationsReport::new(c, names, Self::counts(data), estimator, scores);
+        report = report.with_training_files(files);
+        if let Some(path) = &chosen.path {
+            report = report.with_selection(path, c);
+        }
+        match &chosen.scale {
+            Some(scale) => report.with_prior_scale(scale.clone()),
+            None => report,
+        }
+    }
+}
+
+impl Files for Tree<'_> {
+    type Report = TreeReport;
+
+    fn join(sessions: &[(String, TreeData)]) -> Result<TreeData, FilesError> {
+        let mut data = TreeData::default();
+        for (name, file) in sessions {
+            data = data.join(file).map_err(in_context(name))?;
+        }
+        Ok(data)
+    }
+
+    fn counts(data: &TreeData) -> (usize, usize) {
+        (data.views.len(), data.joints.len())
+    }
+
+    fn score(fit: &TreeCalibration, data: &TreeData) -> Result<TreeScore, CalibrationError> {
+        fit.score(data)
+    }
+
+    fn asked(options: &TreeOptions) -> (Estimator, Loss) {
+        (options.estimator, options.loss)
+    }
+
+    fn feasible(
+        &self,
+        data: &TreeData,
+        options: &TreeOptions,
+        feasible: &FeasibleOptions,
+    ) -> Result<TreeCalibration, CalibrationError> {
+        calibrate_tree_feasible(self.0, data, options, feasible)
+    }
+
+    fn report(
+        chosen: &ChosenFit<TreeCalibration>,
+        (data, names, files): (&TreeData, &str, Vec<(String, usize)>),
+        estimator: &str,
+        scores: Vec<(String, TreeScore)>,
+    ) -> TreeReport {
+        let c = &chosen.calibration;
+        let mut report = TreeReport::new(c, names, Self::counts(data), estimator, scores);
+        report = report.with_training_files(files);
+        if let Some(path) = &chosen.path {
+            report = report.with_selection(path);
+        }
+        match &chosen.scale {
+            Some(scale) => report.with_prior_scale(scale.clone()),
+            None => report,
+        }
+    }
+}
+
+/// A calibration of files and its report (the command line's): of observation files
+/// ([`ObservationOutcome`]) or of a tree's views ([`TreeOutcome`]).
+pub struct Outcome<F: Files> {
+    /// The calibration.
+    pub calibration: F::Fit,
+    /// The report: the training data, each held-out set and the cross-validation scored, the
+    /// files fitted, the choices made.
+    pub report: F::Report,
+}
+
+/// Observation files calibrated, and the report.
+pub type ObservationOutcome<'a> = Outcome<Kinds<'a>>;
+
+/// A tree calibrated from views, and the report.
+pub type TreeOutcome<'a> = Outcome<Tree<'a>>;
 
 /// How a calibration of observation files or of a tree's views is fitted: with the noise
 /// given (the files' sigmas and the joint noise), `choices` made from the data and `folds`
 /// cross-validating it; or by feasible GLS, the noise estimated from the residuals.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Fitting {
-    /// The noise given: [`calibrate_observations`], [`calibrate_views`].
+    /// The noise given.
     Given {
         /// The choices made from the data.
         choices: Choices,
         /// `--folds k`: the k-fold cross-validation of the training poses.
         folds: Option<usize>,
     },
-    /// The noise estimated: [`calibrate_observations_feasible`], [`calibrate_views_feasible`].
+    /// The noise estimated by feasible GLS ([`Files::feasible`]).
     Feasible(FeasibleOptions),
 }
 
@@ -226,210 +370,51 @@ impl Fitting {
     }
 }
 
-/// [`calibrate_views`] or [`calibrate_views_feasible`], as `fitting` says.
-pub fn calibrate_views_by(
-    tree: &RobotTree,
-    sessions: &[(String, TreeData)],
-    held_out: &[(String, TreeData)],
-    options: &TreeOptions,
+/// Calibrate `front`'s robot from the data of `sessions` (each a file's name and data) fitted
+/// together, as `fitting` says: with the noise given, the choices made from the data
+/// ([`calibrate_chosen`]: `--prior auto`'s scale, then `--select`'s parameters; none: every
+/// parameter asked for), and with `folds` the training poses cross-validated
+/// ([`cross_validate_choices`]; "nested" with a choice or a robust loss, each fold making them
+/// again); or by feasible GLS ([`Files::feasible`]: the joint noise and each kind's
+/// measurement noise estimated from the residuals). Each `held_out` set is scored with the
+/// robot and set-up as calibrated (whitened by the estimated noise with feasible GLS), and
+/// reported.
+pub fn calibrate_files<F: Files>(
+    front: &F,
+    sessions: &[(String, F::Data)],
+    held_out: &[(String, F::Data)],
+    options: &F::Options,
     fitting: &Fitting,
-) -> Result<TreeOutcome, FilesError> {
-    match fitting {
+) -> Result<Outcome<F>, FilesError> {
+    let data = F::join(sessions)?;
+    let names = sessions.iter().map(|(name, _)| name.as_str()).collect::<Vec<_>>().join(", ");
+    let (chosen, estimator, folds) = match fitting {
         Fitting::Given { choices, folds } => {
-            calibrate_views(tree, sessions, held_out, options, choices, *folds)
-        }
-        Fitting::Feasible(feasible) => calibrate_views_feasible(tree, sessions, held_out, options, feasible),
-    }
-}
-
-/// [`calibrate_observations`] or [`calibrate_observations_feasible`], as `fitting` says.
-pub fn calibrate_observations_by(
-    model: &RobotModel,
-    sessions: &[(String, KindData)],
-    held_out: &[(String, KindData)],
-    options: &KindOptions,
-    fitting: &Fitting,
-) -> Result<ObservationOutcome, FilesError> {
-    match fitting {
-        Fitting::Given { choices, folds } => {
-            calibrate_observations(model, sessions, held_out, options, choices, *folds)
+            let context = match choices_in_words(choices) {
+                words if words.is_empty() => names.clone(),
+                words => format!("{}: {names}", words.join(", ")),
+            };
+            let chosen = calibrate_chosen(front, &data, options, choices).map_err(in_context(&context))?;
+            (chosen, F::asked(options).0.name(), folds.map(|k| (k, choices)))
         }
         Fitting::Feasible(feasible) => {
-            calibrate_observations_feasible(model, sessions, held_out, options, feasible)
+            let calibration = front.feasible(&data, options, feasible).map_err(in_context(&names))?;
+            (ChosenFit { scale: None, path: None, calibration }, "fgls", None)
         }
-    }
-}
-
-/// Calibrate `tree` from the views of `sessions` (each a file's name and views) fitted
-/// together, with `choices` made from them ([`calibrate_chosen`]: `--prior auto`'s
-/// scale, then `--select`'s parameters; none: the tree as
-/// [`calibrate_tree`](crate::calibration::tree::calibrate_tree) calibrates it, which gives the
-/// model and its estimator), score each `held_out` set with the frames as calibrated, with
-/// `folds` cross-validate the training poses ([`cross_validate_choices`]; "nested" with a
-/// choice or a robust loss, each fold making them again), and report.
-pub fn calibrate_views(
-    tree: &RobotTree,
-    sessions: &[(String, TreeData)],
-    held_out: &[(String, TreeData)],
-    options: &TreeOptions,
-    choices: &Choices,
-    folds: Option<usize>,
-) -> Result<TreeOutcome, FilesError> {
-    let (data, names) = joined_views(sessions)?;
-    let chosen = calibrate_chosen(&Tree(tree), &data, options, choices).map_err(in_context(&names))?;
-    let c = chosen.calibration;
-    let mut scores = view_scores(&c, held_out)?;
-    if let Some(k) = folds {
-        let score = cross_validate_choices(&Tree(tree), &data, options, choices, k)
-            .map_err(in_context(&format!("--folds {k}: {names}")))?;
-        scores.push((fold_label(k, *choices != Choices::default() || options.loss != Loss::Squared), score));
-    }
-    let fitted = (data.views.len(), data.joints.len());
-    let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
-    let mut report =
-        TreeReport::new(&c, &names, fitted, options.estimator.name(), scores).with_training_files(files);
-    if let Some(scale) = chosen.scale {
-        report = report.with_prior_scale(scale);
-    }
-    if let Some(path) = &chosen.path {
-        report = report.with_selection(path);
-    }
-    Ok(TreeOutcome { calibration: c, report })
-}
-
-/// Calibrate `tree` from the views of `sessions` fitted together by feasible GLS
-/// ([`calibrate_tree_feasible`]: the tree's joint noise and the views' position and rotation
-/// noise estimated from the residuals), score each `held_out` set whitened by the estimate, and
-/// report, the estimate with it.
-pub fn calibrate_views_feasible(
-    tree: &RobotTree,
-    sessions: &[(String, TreeData)],
-    held_out: &[(String, TreeData)],
-    options: &TreeOptions,
-    feasible: &FeasibleOptions,
-) -> Result<TreeOutcome, FilesError> {
-    let (data, names) = joined_views(sessions)?;
-    let c = calibrate_tree_feasible(tree, &data, options, feasible).map_err(in_context(&names))?;
-    let scores = view_scores(&c, held_out)?;
-    let fitted = (data.views.len(), data.joints.len());
-    let files = sessions.iter().map(|(name, file)| (name.clone(), file.views.len())).collect();
-    let report = TreeReport::new(&c, &names, fitted, "fgls", scores).with_training_files(files);
-    Ok(TreeOutcome { calibration: c, report })
-}
-
-/// The views of `sessions` joined into one set (an error naming the file that does not join),
-/// and the sessions' names.
-fn joined_views(sessions: &[(String, TreeData)]) -> Result<(TreeData, String), FilesError> {
-    let mut data = TreeData::default();
-    for (name, file) in sessions {
-        data = data.join(file).map_err(in_context(name))?;
-    }
-    let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
-    Ok((data, names.join(", ")))
-}
-
-/// Each `held_out` set of views scored by `c`, with its name.
-fn view_scores(
-    c: &TreeCalibration,
-    held_out: &[(String, TreeData)],
-) -> Result<Vec<(String, TreeScore)>, FilesError> {
-    (held_out.iter()).map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?))).collect()
-}
-
-/// An observation files' calibration and its report (the command line's).
-#[derive(Debug, Clone)]
-pub struct ObservationOutcome {
-    /// The calibration.
-    pub calibration: KindCalibration,
-    /// The report: the training observations, each held-out set and the cross-validation
-    /// scored, the files fitted, the selection's path if one was made.
-    pub report: ObservationsReport,
-}
-
-/// Calibrate `model` from the observations of `sessions` (each a file's name and
-/// observations) fitted together, with `choices` made from them ([`calibrate_chosen`]:
-/// `--prior auto`'s scale, then `--select`'s parameters; none: every parameter asked for);
-/// score each `held_out` set with the calibrated robot and set-up; with `folds`,
-/// cross-validate the training poses, the choices and a robust loss's weights made again in
-/// each fold (labelled "nested"); and report.
-pub fn calibrate_observations(
-    model: &RobotModel,
-    sessions: &[(String, KindData)],
-    held_out: &[(String, KindData)],
-    options: &KindOptions,
-    choices: &Choices,
-    folds: Option<usize>,
-) -> Result<ObservationOutcome, FilesError> {
-    let (data, names) = joined(sessions);
-    let context = match choices_in_words(choices) {
-        words if words.is_empty() => names.clone(),
-        words => format!("{}: {names}", words.join(", ")),
     };
-    let chosen = calibrate_chosen(&Kinds(model), &data, options, choices).map_err(in_context(&context))?;
-    let mut scores = held_out_scores(&chosen.calibration, held_out)?;
-    if let Some(k) = folds {
-        let score = cross_validate_choices(&Kinds(model), &data, options, choices, k)
+    let scored = |(name, d): &(String, F::Data)| {
+        Ok((name.clone(), F::score(&chosen.calibration, d).map_err(in_context(name))?))
+    };
+    let mut scores = held_out.iter().map(scored).collect::<Result<Vec<_>, FilesError>>()?;
+    if let Some((k, choices)) = folds {
+        let score = cross_validate_choices(front, &data, options, choices, k)
             .map_err(in_context(&format!("--folds {k}: {names}")))?;
         // The choices and a robust loss's weights are made from the data: made again in each
         // fold.
-        scores.push((fold_label(k, *choices != Choices::default() || options.loss != Loss::Squared), score));
+        let redone = *choices != Choices::default() || F::asked(options).1 != Loss::Squared;
+        scores.push((fold_label(k, redone), score));
     }
-    let fitted = (data.observations.len(), data.joints.len());
-    Ok(observations_outcome(chosen, (sessions, &names, fitted), options.estimator.name(), scores))
-}
-
-/// Calibrate `model` from the observations of `sessions` fitted together by feasible GLS
-/// ([`calibrate_kinds_feasible`]: the joint noise and each kind of observation's measurement
-/// noise estimated from the residuals), score each `held_out` set with the calibrated robot
-/// and set-up, whitened by the estimated noise, and report, the estimate with it.
-pub fn calibrate_observations_feasible(
-    model: &RobotModel,
-    sessions: &[(String, KindData)],
-    held_out: &[(String, KindData)],
-    options: &KindOptions,
-    feasible: &FeasibleOptions,
-) -> Result<ObservationOutcome, FilesError> {
-    let (data, names) = joined(sessions);
-    let calibration =
-        calibrate_kinds_feasible(model, &data, options, feasible).map_err(in_context(&names))?;
-    let scores = held_out_scores(&calibration, held_out)?;
-    let chosen = ChosenFit { scale: None, path: None, calibration };
-    let fitted = (data.observations.len(), data.joints.len());
-    Ok(observations_outcome(chosen, (sessions, &names, fitted), "fgls", scores))
-}
-
-/// The observations of `sessions` as one set, and their names, joined by commas.
-fn joined(sessions: &[(String, KindData)]) -> (KindData, String) {
-    let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
-    let names: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
-    (data, names.join(", "))
-}
-
-/// Each `held_out` set scored by `c`, with its name.
-fn held_out_scores(
-    c: &KindCalibration,
-    held_out: &[(String, KindData)],
-) -> Result<Vec<(String, Score)>, FilesError> {
-    (held_out.iter()).map(|(name, d)| Ok((name.clone(), c.score(d).map_err(in_context(name))?))).collect()
-}
-
-/// The outcome of the calibration `chosen` of `sessions` (named `names`, with the observations
-/// and poses `fitted`) by `estimator`, with the `scores` of the held-out sets and the
-/// cross-validation.
-fn observations_outcome(
-    chosen: ChosenFit<KindCalibration>,
-    (sessions, names, fitted): (&[(String, KindData)], &str, (usize, usize)),
-    estimator: &str,
-    scores: Vec<(String, Score)>,
-) -> ObservationOutcome {
-    let c = chosen.calibration;
-    let files = sessions.iter().map(|(name, file)| (name.clone(), file.observations.len())).collect();
-    let mut report = ObservationsReport::new(&c, names, fitted, estimator, scores).with_training_files(files);
-    if let Some(path) = &chosen.path {
-        report = report.with_selection(path, &c);
-    }
-    if let Some(scale) = chosen.scale {
-        report = report.with_prior_scale(scale);
-    }
-    ObservationOutcome { calibration: c, report }
+    let files = sessions.iter().map(|(name, file)| (name.clone(), F::counts(file).0)).collect();
+    let report = F::report(&chosen, (&data, &names, files), estimator, scores);
+    Ok(Outcome { calibration: chosen.calibration, report })
 }

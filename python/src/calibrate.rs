@@ -11,7 +11,8 @@ use robocal::calibration::kinds::{KindData, KindOptions};
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::calibration::{
-    self, Choices, DataKind, Gauge, JointParams, Loss, Measurements, Options, ParamWords, SetEvaluation,
+    self, Choices, DataKind, Gauge, JointParams, Kinds, Loss, Measurements, Options, ParamWords,
+    SetEvaluation,
 };
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PriorEntry, RefineOptions};
 use robocal::model::{Joint, JointKind, RobotModel};
@@ -875,7 +876,7 @@ fn observations(
     let choices = Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
     let fitting = robocal::pipeline::Fitting::new(request.feasible, choices, flags.folds);
     let outcome = py
-        .detach(|| robocal::pipeline::calibrate_observations_by(model, &sessions, &held, &options, &fitting))
+        .detach(|| robocal::pipeline::calibrate_files(&Kinds(model), &sessions, &held, &options, &fitting))
         .map_err(|e| errors::calibration(&e.source, &e.context))?;
     let (c, report) = (outcome.calibration, outcome.report);
     let calibrated = Model::new(c.calibrated.clone(), robot.urdf.clone()).with_markers(c.marker_positions());

@@ -1,6 +1,6 @@
 //! `robocal.calibrate_tree`: a robot of several chains (a URDF tree) calibrated from views
 //! between its branches, as `robocal calibrate` calibrates view files
-//! ([`robocal::pipeline::calibrate_views`]).
+//! ([`robocal::pipeline::calibrate_files`]).
 
 use crate::calibrate::{Calibration, Flags, Source, data_error, joint_sigmas, require, text_of, units_for};
 use crate::errors::{self, Kind, Place};
@@ -8,7 +8,7 @@ use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 use pyo3::prelude::*;
 use robocal::calibration::tree::{TreeData, TreeOptions};
-use robocal::calibration::{CalibrationError, ParamWords};
+use robocal::calibration::{CalibrationError, ParamWords, Tree};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::model::RobotTree;
 use robocal::report::tree::TreeReport;
@@ -79,7 +79,7 @@ pub fn calibrate_tree(
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
     let fitting = robocal::pipeline::Fitting::new(request.feasible, choices, flags.folds);
     let outcome = py
-        .detach(|| robocal::pipeline::calibrate_views_by(&tree, &sessions, &held_out, &options, &fitting))
+        .detach(|| robocal::pipeline::calibrate_files(&Tree(&tree), &sessions, &held_out, &options, &fitting))
         .map_err(|e| match e.source {
             CalibrationError::Selection(_) | CalibrationError::Prior(_) => {
                 errors::calibration(&e.source, &e.context)

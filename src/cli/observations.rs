@@ -4,6 +4,7 @@
 
 use super::request::{CalibrateObservationsRequest, Method};
 use anyhow::{Context, Result, bail};
+use robocal::calibration::Kinds;
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, Score};
 use robocal::estimation::RefineOptions;
 use robocal::io;
@@ -28,7 +29,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds);
     let fitting = robocal::pipeline::Fitting::new(request.method == Method::Feasible, choices, request.folds);
     let outcome =
-        robocal::pipeline::calibrate_observations_by(&model, &sessions, &held_out, &options, &fitting)?;
+        robocal::pipeline::calibrate_files(&Kinds(&model), &sessions, &held_out, &options, &fitting)?;
     let (c, report) = (outcome.calibration, outcome.report);
     let text = report.text();
     print!("{text}");

@@ -5,6 +5,7 @@
 
 use super::request::CalibrateTreeRequest;
 use anyhow::{Context, Result};
+use robocal::calibration::Tree;
 use robocal::calibration::tree::{TreeData, TreeOptions, TreeScore};
 use robocal::estimation::RefineOptions;
 use robocal::io;
@@ -46,7 +47,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds);
     let fitting = robocal::pipeline::Fitting::new(request.feasible, choices, request.folds);
     let TreeOutcome { calibration: c, report } =
-        robocal::pipeline::calibrate_views_by(&tree, &sessions, &held_out, &options, &fitting)?;
+        robocal::pipeline::calibrate_files(&Tree(&tree), &sessions, &held_out, &options, &fitting)?;
     let text = report.text();
     print!("{text}");
     let mut outputs = io::Outputs::new();
