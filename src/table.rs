@@ -30,6 +30,13 @@ pub struct Units {
 }
 
 impl Units {
+    /// The units as a `# units:` line says them: `joints=deg, lengths=mm`.
+    pub fn words(&self) -> String {
+        let joints = if self.joints_in_degrees { "deg" } else { "rad" };
+        let lengths = if self.lengths_in_metres { "m" } else { "mm" };
+        format!("joints={joints}, lengths={lengths}")
+    }
+
     /// The factor that turns the file's lengths into mm: 1000 for metres, 1 for mm.
     pub fn length_scale(&self) -> f64 {
         if self.lengths_in_metres { 1000.0 } else { 1.0 }
@@ -136,16 +143,32 @@ impl Table {
         Ok(Self { declared, header, header_line, rows })
     }
 
-    /// The units: `given` by the caller, else the file's declared ones; `hint` says how else
-    /// the user can declare them.
+    /// The units: the file's declared ones, else `given` by the caller; `hint` says how else
+    /// the user can declare them. Units given that differ from the file's declaration are an
+    /// error (the declaration is the file's own word: a flag meant for other files must not
+    /// rescale this one).
     pub fn units(&self, given: Option<Units>, hint: &str) -> Result<Units, DataError> {
-        given.or(self.declared).ok_or_else(|| {
-            DataError::new(
+        match (self.declared, given) {
+            (Some(declared), Some(given)) if declared != given => Err(DataError::new(
                 1,
                 None,
-                format!("units not declared: start the file with `# units: joints=deg, lengths=mm` (or rad, m){hint}"),
-            )
-        })
+                format!(
+                    "the file declares `# units: {}`, and the units given are {}: give units only for files \
+                     that declare none, or the ones they declare",
+                    declared.words(),
+                    given.words()
+                ),
+            )),
+            (Some(declared), _) => Ok(declared),
+            (None, Some(given)) => Ok(given),
+            (None, None) => Err(DataError::new(
+                1,
+                None,
+                format!(
+                    "units not declared: start the file with `# units: joints=deg, lengths=mm` (or rad, m){hint}"
+                ),
+            )),
+        }
     }
 
     /// The column named `name`, if the header has one.
@@ -352,12 +375,31 @@ mod tests {
     }
 
     #[test]
-    fn units_given_by_the_caller_take_the_place_of_the_file_s() {
+    fn units_given_by_the_caller_serve_a_file_that_declares_none() {
         let table = Table::parse("j1\n1\n").unwrap();
         let given = Units { joints_in_degrees: false, lengths_in_metres: false };
         assert_eq!(table.units(Some(given), ""), Ok(given));
         assert!(table.units(None, " or say so").unwrap_err().message.ends_with("(or rad, m) or say so"));
         let bad = Table::parse("# units: joints=deg\nj1\n1\n").unwrap_err();
         assert_eq!(bad.line, 1);
+    }
+
+    /// A file's own `# units:` line is its word: units given that agree with it are taken,
+    /// units that differ are an error naming both, never a silent rescaling.
+    #[test]
+    fn units_given_never_override_the_file_s_line() {
+        let table = Table::parse("# units: joints=rad, lengths=m\nj1\n1\n").unwrap();
+        let declared = Units { joints_in_degrees: false, lengths_in_metres: true };
+        assert_eq!(table.units(None, ""), Ok(declared));
+        assert_eq!(table.units(Some(declared), ""), Ok(declared));
+        let other = Units { joints_in_degrees: true, lengths_in_metres: true };
+        let e = table.units(Some(other), "").unwrap_err();
+        assert_eq!(e.line, 1);
+        assert!(
+            e.message.starts_with(
+                "the file declares `# units: joints=rad, lengths=m`, and the units given are joints=deg, lengths=m"
+            ),
+            "{e}"
+        );
     }
 }

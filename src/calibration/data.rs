@@ -142,8 +142,9 @@ impl Measurements {
         })
     }
 
-    /// Read a measurement file's text for `model`. `units` declared by the caller take the
-    /// place of the file's `# units:` line; one of the two must declare them.
+    /// Read a measurement file's text for `model`, in the units of its `# units:` line, or
+    /// else the `units` declared by the caller (which must agree with the line where both
+    /// are given).
     pub fn from_csv_str(text: &str, model: &RobotModel, units: Option<Units>) -> Result<Self, DataError> {
         Self::from_table(&Table::parse(text)?, model, units)
     }

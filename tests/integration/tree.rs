@@ -522,10 +522,21 @@ fn what_no_view_sees_is_said_for_what_it_is() {
 
 #[test]
 fn calibrate_tree_warns_of_implausible_corrections_and_joints_beyond_their_limits() {
-    // The example's millimetres read as metres: the fit is nonsense, and says so.
+    // The example's millimetres read as metres (its units line dropped, the units given
+    // wrong): the fit is nonsense, and says so.
+    let dir = std::env::temp_dir().join(format!("robocal-tree-metres-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for name in ["views.csv", "views-2.csv"] {
+        let text = std::fs::read_to_string(format!("examples/torso/{name}")).unwrap();
+        let undeclared: Vec<&str> = text.lines().filter(|l| !l.starts_with("# units:")).collect();
+        std::fs::write(dir.join(name), undeclared.join("\n") + "\n").unwrap();
+    }
+    let (views, views_2) = (dir.join("views.csv"), dir.join("views-2.csv"));
     let mut args = TREE_EXAMPLE.to_vec();
+    (args[4], args[6]) = (views.to_str().unwrap(), views_2.to_str().unwrap());
     args.extend(["--joint-unit", "deg", "--length-unit", "m"]);
     let out = robocal(&args);
+    std::fs::remove_dir_all(&dir).unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     let warnings = &text[text.find("\nwarnings:\n").expect("warnings")..];
