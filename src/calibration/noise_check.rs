@@ -23,7 +23,7 @@ pub const RATIO_REJECTED: f64 = 3.841_458_820_694_124;
 pub const CHECK_FOLDS: usize = 5;
 
 /// Residual degrees of freedom below which nothing is checked: too few to tell.
-const MIN_DOF: usize = 10;
+pub(crate) const MIN_DOF: usize = 10;
 
 /// The poses the check reads at most: every `n / CHECK_POSES`-th (rounded up) of more. A
 /// factor 2 in a sigma shows in far fewer residuals (a variance is
@@ -40,16 +40,28 @@ pub(crate) fn noise_check(
     prior_sd: &[f64],
 ) -> Option<Warning> {
     let components = components(problem, x, noise)?;
+    let per = problem.measured().rows();
+    let scored = |_: usize, r: usize| r % per < 3;
+    check(&components, (x, prior_sd), (&scored, 3))
+}
+
+/// The check of the noise of `components` (the fit's points linearised about its estimate `x`,
+/// with the priors' standard deviations `prior_sd`): `None` when it agrees; else the
+/// [`Warning::NoiseDisagrees`] with the cross-validated error of the rows `scored` marks, in
+/// groups of `group` rows (a marker's 3 coordinates, or an observation alone).
+pub(crate) fn check(
+    components: &Components,
+    (x, prior_sd): (&DVector<f64>, &[f64]),
+    scored: (&dyn Fn(usize, usize) -> bool, usize),
+) -> Option<Warning> {
     let estimate = components.estimate()?;
     let (joint, measurement) = factors(&estimate, components.has_joint_noise());
     let off = |f: f64| !(1.0 / NOISE_FACTOR..=NOISE_FACTOR).contains(&f);
     if !(off(measurement) || joint.is_some_and(off)) {
         return None;
     }
-    let per = problem.measured().rows();
-    let scored: Vec<bool> = (0..problem.rows_per_point()).map(|r| r % per < 3).collect();
     let folds = CHECK_FOLDS.min(components.points());
-    let cv = |a: f64, b: f64| components.cv_rms((a, b), folds, (x, prior_sd), &scored);
+    let cv = |a: f64, b: f64| components.cv_rms((a, b), folds, (x, prior_sd), scored);
     let estimated = (joint.map_or(1.0, |f| f * f), measurement * measurement);
     Some(Warning::NoiseDisagrees(NoiseDisagrees {
         joint_factor: joint,
@@ -94,14 +106,17 @@ fn components(problem: &PointProblem<'_>, x: &DVector<f64>, noise: &NoiseModel) 
         NoiseModel { joint: DMatrix::zeros(dof, dof), measurement: noise.measurement.clone() };
     let rows = problem.rows_per_point();
     let points = (jacobians.iter().enumerate())
-        .map(|(k, j)| Point {
-            h: system.h.rows(k * rows, rows).into_owned(),
-            r: system.y.rows(k * rows, rows).into_owned(),
-            joint: joint_only.pose_covariance(sample[k], j, problem.measured()),
-            measurement: measurement_only.pose_covariance(sample[k], j, problem.measured()),
+        .map(|(k, j)| {
+            let point = Point {
+                h: system.h.rows(k * rows, rows).into_owned(),
+                r: system.y.rows(k * rows, rows).into_owned(),
+                joint: joint_only.pose_covariance(sample[k], j, problem.measured()),
+                measurement: measurement_only.pose_covariance(sample[k], j, problem.measured()),
+            };
+            (point, ())
         })
         .collect();
-    Components::new(without_outliers(points))
+    Components::new(without_outliers(points).into_iter().map(|(p, ())| p).collect())
 }
 
 /// A point whose whitened residual per row, `q_k = r_k^T V_k^-1 r_k / rows`, exceeds this many
@@ -112,9 +127,10 @@ pub const OUTLIER_FACTOR: f64 = 25.0;
 /// `points` without those whose `q_k` exceeds [`OUTLIER_FACTOR`] times the median `q` (the
 /// noise as given, `V_k = V_q,k + V_m,k`); a point whose `V_k` is not positive definite is kept
 /// (the check then declines).
-fn without_outliers(points: Vec<Point>) -> Vec<Point> {
+/// Each point comes with what its caller keeps of it (`T`).
+pub(crate) fn without_outliers<T>(points: Vec<(Point, T)>) -> Vec<(Point, T)> {
     let q: Vec<f64> = (points.iter())
-        .map(|p| {
+        .map(|(p, _)| {
             let v = &p.joint + &p.measurement;
             let whitened = v.cholesky().and_then(|l| l.l().solve_lower_triangular(&p.r));
             whitened.map_or(0.0, |w| w.norm_squared() / p.r.len().max(1) as f64)

@@ -496,7 +496,8 @@ pub struct CalibrateObservationsArgs {
 /// Where the report of scored poses goes, besides standard output.
 #[derive(Args, Debug, Clone, Default, PartialEq)]
 pub struct ReportArgs {
-    /// Write the report as JSON here (every pose of every set included).
+    /// Write the report as JSON here (every pose of every set included; `-`: standard output,
+    /// the text report then on standard error).
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write every pose of every set here (CSV; `-`: standard output): for a marker file one

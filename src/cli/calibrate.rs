@@ -58,7 +58,8 @@ pub fn run(request: &CalibrateRequest) -> Result<()> {
         .map_err(|e| marker_error(e, request, &marker_request.choices))?;
     let (report, result) = (outcome.report, outcome.calibration);
     let text = report.text();
-    print!("{text}");
+    let [json, poses, html] = super::report_outputs(&request.report);
+    super::show_report(&text, &[json, poses, html, request.out_model.as_ref(), request.out_urdf.as_ref()]);
     write(request, &robot, &report, &result, &text)
 }
 

@@ -74,7 +74,7 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
     if !sets.is_empty() {
         text.push_str(&markers_text(&model.name, &sets, pooled.as_ref()));
     }
-    print!("{text}");
+    super::show_report(&text, &super::report_outputs(&request.report));
     let report = EvaluationReport { model: model.name.clone(), sets, pooled, observations };
     let json = super::json_if_asked(&request.report, &report)?;
     let title = format!("{} scored as it stands", model.name);

@@ -56,7 +56,7 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
     let text = views_text(&tree.name, &views);
-    print!("{text}");
+    super::show_report(&text, &super::report_outputs(&request.report));
     let report = TreeEvaluation {
         model: tree.name.clone(),
         branches: tree.branches.iter().map(|b| b.tip.clone()).collect(),

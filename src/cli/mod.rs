@@ -33,7 +33,7 @@ use robocal::design::Design;
 use robocal::estimation::{MeasurementNoise, NoiseModel};
 use robocal::io;
 use robocal::model::{JointKind, RobotModel};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 pub use request::UsageError;
@@ -390,10 +390,30 @@ fn warn_joints_outside_limits<'a>(
     eprintln!("warning: {}: joint values outside the limits of {name} at line {lines}{more}", path.display(),);
 }
 
+/// Whether `path` is `-`: standard output.
+fn is_stdout(path: &Path) -> bool {
+    path.as_os_str() == "-"
+}
+
+/// The text report on standard output; on standard error instead (unless `--quiet`) when one
+/// of the command's `outputs` is `-`, whose contents then have standard output to themselves.
+fn show_report(text: &str, outputs: &[Option<&PathBuf>]) {
+    match outputs.iter().flatten().any(|p| is_stdout(p)) {
+        true => status_text(text),
+        false => print!("{text}"),
+    }
+}
+
+/// The report files of `report` that may be `-` (the JSON, the poses' CSV, the page).
+fn report_outputs(report: &args::ReportArgs) -> [Option<&PathBuf>; 3] {
+    [report.json.as_ref(), report.poses_csv.as_ref(), report.html.as_ref()]
+}
+
 /// Write the files of `outputs` (all or none) and say on standard error which were written, so
-/// that standard output stays the report.
+/// that standard output stays the report (`-`: standard output).
 fn commit(outputs: io::Outputs) -> Result<()> {
-    let written: Vec<String> = outputs.paths().map(|p| p.display().to_string()).collect();
+    let name = |p: &Path| if is_stdout(p) { "standard output".to_string() } else { p.display().to_string() };
+    let written: Vec<String> = outputs.paths().map(name).collect();
     outputs.commit()?;
     if !written.is_empty() {
         status(format_args!("wrote {}", written.join(", ")));

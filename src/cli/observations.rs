@@ -32,7 +32,8 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         robocal::pipeline::calibrate_files(&Kinds(&model), &sessions, &held_out, &options, &fitting)?;
     let (c, report) = (outcome.calibration, outcome.report);
     let text = report.text();
-    print!("{text}");
+    let [json, poses, html] = super::report_outputs(&request.report);
+    super::show_report(&text, &[json, poses, html, request.out_model.as_ref(), request.out_urdf.as_ref()]);
     let mut outputs = io::Outputs::new();
     if request.report != super::args::ReportArgs::default() {
         let content = super::ResidualContent {

@@ -49,7 +49,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     let TreeOutcome { calibration: c, report } =
         robocal::pipeline::calibrate_files(&Tree(&tree), &sessions, &held_out, &options, &fitting)?;
     let text = report.text();
-    print!("{text}");
+    super::show_report(&text, &super::report_outputs(&request.report));
     let mut outputs = io::Outputs::new();
     if request.report != super::args::ReportArgs::default() {
         let content = super::ResidualContent {

@@ -199,15 +199,15 @@ impl Components {
 
     /// The k-fold cross-validated RMS error of the fit with the components scaled by
     /// `(a, b)`, linearised about the estimate `x` with the priors' standard deviations `sd`
-    /// (infinite: none), over the rows `scored` marks (of a point's, in groups of 3: a
-    /// marker's position), as the RMS of their groups' norms. `None` where a block is not
-    /// positive definite.
+    /// (infinite: none), over the rows `scored(point, row)` marks, in groups of `group` (3: a
+    /// marker's position; 1: an observation), as the RMS of their groups' norms. `None` where
+    /// a block is not positive definite.
     pub fn cv_rms(
         &self,
         (a, b): (f64, f64),
         folds: usize,
         (x, sd): (&DVector<f64>, &[f64]),
-        scored: &[bool],
+        (scored, group): (&dyn Fn(usize, usize) -> bool, usize),
     ) -> Option<f64> {
         let precision = DVector::from_iterator(
             sd.len(),
@@ -219,13 +219,13 @@ impl Components {
             let m = sums.m + DMatrix::from_diagonal(&precision);
             let g = sums.g - precision.component_mul(x);
             let d = pseudo_inverse(&m) * g;
-            for point in self.points.iter().skip(fold).step_by(folds) {
+            for (k, point) in self.points.iter().enumerate().skip(fold).step_by(folds) {
                 let e = &point.r - &point.h * &d;
-                sse += (0..e.len()).filter(|&i| scored[i]).map(|i| e[i] * e[i]).sum::<f64>();
-                count += (0..e.len()).filter(|&i| scored[i]).count();
+                sse += (0..e.len()).filter(|&i| scored(k, i)).map(|i| e[i] * e[i]).sum::<f64>();
+                count += (0..e.len()).filter(|&i| scored(k, i)).count();
             }
         }
-        Some((sse / (count as f64 / 3.0).max(1.0)).sqrt())
+        Some((sse / (count as f64 / group as f64).max(1.0)).sqrt())
     }
 
     /// The sums of the points `take` keeps, whitened by `V_k = a V_q,k + b V_m,k`

@@ -35,12 +35,15 @@ pub struct Residual {
     pub deg: Option<(f64, f64)>,
     /// After, in standard deviations (a view's largest of its six).
     pub whitened: f64,
+    /// The whitened residual beyond which it is flagged: its set's
+    /// [`Score::flag_at`] for an observation, [`FLAG_AT`] for a view.
+    pub flag_at: f64,
 }
 
 impl Residual {
-    /// Whether it is flagged: more than [`FLAG_AT`] standard deviations out after calibration.
+    /// Whether it is flagged: its whitened residual beyond [`Residual::flag_at`].
     pub fn flagged(&self) -> bool {
-        self.whitened.abs() > FLAG_AT
+        self.whitened.abs() > self.flag_at
     }
 }
 
@@ -103,6 +106,7 @@ impl ResidualSet {
                     mm: (r.unit == "mm").then_some(values),
                     deg: (r.unit == "deg").then_some(values),
                     whitened: r.whitened,
+                    flag_at: score.flag_at,
                 });
             }
         }
@@ -141,6 +145,7 @@ impl ResidualSet {
                     mm: Some((r.before_mm, r.after_mm)),
                     deg: r.before_deg.zip(r.after_deg),
                     whitened: r.whitened,
+                    flag_at: FLAG_AT,
                 });
             }
         }

@@ -1122,3 +1122,41 @@ fn a_tool_or_marker_not_finite_is_refused_before_any_solve() {
     let refused = robocal::calibration::calibrate(&model, &measured, &markers).unwrap_err();
     assert!(matches!(&refused, CalibrationError::Point { field: PointName::Marker(1), .. }), "{refused}");
 }
+
+/// A ball bar's noise given four times too small (its sigma column a quarter of the 0.05 mm
+/// it was measured with, the joints exact): the residuals say so, once, the measurement
+/// sigmas' factor within 20% of 4 (a variance from about 150 residuals is within 12% at one
+/// standard deviation), with the cross-validated errors at the sigmas given and estimated; the
+/// observations are flagged against the set's robust spread, so the noise given too small
+/// flags none. Given right, the noise agrees and nothing is said.
+#[test]
+fn a_ball_bar_s_noise_is_checked_against_its_residuals() {
+    use robocal::calibration::Warning;
+    let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
+    let mut rng = ChaCha8Rng::seed_from_u64(41);
+    let names: Vec<String> = ["j2.a", "j3.a", "j2.theta", "j3.theta"].iter().map(|s| s.to_string()).collect();
+    let x = errors_on(&chain, &names, &mut rng);
+    let data = ball_bar(&chain.with_errors(&x), &mut rng, 0.05);
+    let small = KindData {
+        observations: data.observations.iter().map(|o| o.with_sigma(0.0125)).collect(),
+        ..data.clone()
+    };
+    let c = calibrate_kinds(&puma(), &small, &options(Estimator::Wls)).unwrap();
+    let said: Vec<_> = (c.warnings.iter())
+        .filter_map(|w| match w {
+            Warning::NoiseDisagrees(n) => Some(*n),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(said.len(), 1, "{:?}", c.warnings);
+    let n = &said[0];
+    assert!((n.measurement_factor / 4.0 - 1.0).abs() < 0.2, "factor {} against 4", n.measurement_factor);
+    assert_eq!(n.joint_factor, None);
+    assert!(n.cv_given > 0.0 && n.cv_estimated > 0.0, "{n:?}");
+    assert!(c.training.flag_at > 3.0 * 5.0, "flagged beyond {}", c.training.flag_at);
+    assert_eq!(c.training.flagged().count(), 0);
+    assert!(!c.warnings.iter().any(|w| matches!(w, Warning::FarOut { .. })), "{:?}", c.warnings);
+    let right = calibrate_kinds(&puma(), &data, &options(Estimator::Wls)).unwrap();
+    assert!(!right.warnings.iter().any(|w| matches!(w, Warning::NoiseDisagrees(_))), "{:?}", right.warnings);
+    assert!((right.training.flag_at - 5.0).abs() < 1.5, "{}", right.training.flag_at);
+}

@@ -724,6 +724,28 @@ fn a_symbolic_link_is_followed_and_its_target_replaced() {
     );
 }
 
+/// `--json -` (and `--out-model -`) has standard output to itself: the text report goes to
+/// standard error, so that the JSON parses; the status line names standard output, not `-`.
+#[test]
+fn a_dash_output_has_standard_output_to_itself() {
+    let dir = scratch("dash-alone");
+    file(&dir, "d.csv", MEASUREMENTS);
+    let (code, stdout, stderr) = run_in(&dir, &[&CALIBRATE[..], &["--json", "-"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    let report: serde_json::Value = serde_json::from_str(&stdout).expect("standard output is the JSON alone");
+    assert!(report["parameters"].is_array(), "{stdout}");
+    assert!(
+        stderr.contains("verdict, the marker position error") && stderr.contains("wrote standard output")
+    );
+    assert!(!stderr.contains("wrote -"), "{stderr}");
+    let (code, stdout, stderr) = run_in(&dir, &[&CALIBRATE[..], &["--out-model", "-"]].concat());
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stdout.starts_with(|c: char| c == '#' || c == '[' || c.is_alphabetic())
+            && !stdout.contains("verdict")
+    );
+}
+
 #[test]
 fn outputs_written_in_place_may_be_named_twice() {
     let dir = scratch("dash-twice");

@@ -144,7 +144,10 @@ fn a_ball_bar_writes_a_row_per_observation_and_its_figures() {
         "--poses-csv",
         "-",
     ]);
-    assert!(out.contains("\nset,file,line,kind,pose,pose_b,j1_deg"), "{out}");
+    assert!(
+        out.starts_with("set,file,line,kind,pose,pose_b,j1_deg"),
+        "standard output the rows alone: {out}"
+    );
     assert_eq!(out.lines().filter(|l| l.starts_with("training,")).count(), 150);
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -450,8 +453,10 @@ fn a_marker_files_folds_rows_are_each_pose_held_out_in_its_fold() {
 
 /// `evaluate` whitens an observation file's residuals by its sigma column and
 /// `--joint-sigma-deg`'s joint noise: the ball bar example, made with the paper's joint noise,
-/// scored on its true robot flags none of its 150 rows with the noise it was made with, most
-/// without the joints' share; a noise file is refused, naming the flag to give.
+/// scored on its true robot flags none of its 150 rows with the noise it was made with, their
+/// whitened RMS near 1, and without the joints' share several times that (flagged against the
+/// set's robust spread, as a marker file's poses: few); a noise file is refused, naming the
+/// flag to give.
 #[test]
 fn evaluate_whitens_an_observation_file_by_the_joint_noise() {
     let dir = scratch("evaluate-joint-noise");
@@ -464,11 +469,14 @@ fn evaluate_whitens_an_observation_file_by_the_joint_noise() {
         robocal(&args);
         let (_, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
         assert_eq!(rows.len(), 150);
-        rows.iter().filter(|r| r["flagged"] == "true").count()
+        let z2: f64 = rows.iter().map(|r| r["whitened"].parse::<f64>().unwrap().powi(2)).sum();
+        (rows.iter().filter(|r| r["flagged"] == "true").count(), (z2 / 150.0).sqrt())
     };
     let sigmas = "0.007,0.007,0.007,0.002,0.002,0.002";
-    assert_eq!(flagged(&["--joint-sigma-deg", sigmas]), 0);
-    assert!(flagged(&[]) > 75, "the joints' noise left out");
+    let (with, rms) = flagged(&["--joint-sigma-deg", sigmas]);
+    assert!(with == 0 && (0.7..1.4).contains(&rms), "{with} flagged, whitened RMS {rms}");
+    let (without, rms) = flagged(&[]);
+    assert!(rms > 4.0 && without < 15, "the joints' noise left out: {without} flagged, whitened RMS {rms}");
     std::fs::write(dir.join("noise.toml"), "").unwrap();
     let out = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()

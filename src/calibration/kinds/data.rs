@@ -185,7 +185,7 @@ impl Observation {
             Self::Contact { .. } => "plane contacts",
             Self::Coordinate { .. } => "coordinates",
             Self::Marker { .. } => "marker coordinates",
-            Self::Camera { .. } => "camera view rows",
+            Self::Camera { .. } => "numbers of camera views (6 a view)",
         }
     }
 

@@ -105,10 +105,12 @@ pub use data::{
     KindData, Observation,
 };
 
+use super::noise_check::{CHECK_POSES, MIN_DOF, check, without_outliers};
 use super::{
     CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
     gauge_class,
 };
+use crate::estimation::reml::{Components, Point};
 use crate::estimation::{
     Blocks, Estimator, Linearisation, MeasurementClass, NoiseEstimate, NoiseLayout, POSE_SIGMAS, PriorEntry,
     PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds,
@@ -1209,6 +1211,12 @@ pub struct Score {
     /// from.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub sessions: Vec<(String, SessionSetUp)>,
+    /// The whitened residual beyond which an observation is flagged, as a marker file's pose
+    /// is: [`FLAG_AT`] standard deviations times the set's robust spread when above 1,
+    /// `max(1, median |z_k| / sqrt(median chi^2(1)))` ([`Score::flagged`]): when every
+    /// observation lies further out than its `V_k` says (a noise given too small), one is
+    /// flagged only if it stands out from the others.
+    pub flag_at: f64,
 }
 
 /// Where a scored session's per-session set-up parameters come from.
@@ -1280,7 +1288,14 @@ impl Score {
         let lengths = rms(&|o| !o.is_angle(), 1.0).unwrap_or((0.0, 0.0));
         let angles = rms(&Observation::is_angle, 1.0);
         let markers = rms(&|o| matches!(o, Observation::Marker { .. }), 3f64.sqrt());
-        Self { observations, lengths, angles, markers, sessions: Vec::new() }
+        let whitened: Vec<f64> = observations.iter().map(|r| r.whitened.abs()).collect();
+        let flag_at = FLAG_AT * super::robust::robust_scale(&whitened, 1).max(1.0);
+        Self { observations, lengths, angles, markers, sessions: Vec::new(), flag_at }
+    }
+
+    /// The observations flagged ([`Score::flag_at`]), with their index.
+    pub fn flagged(&self) -> impl Iterator<Item = (usize, &ObservationResidual)> {
+        self.observations.iter().enumerate().filter(|(_, r)| r.whitened.abs() > self.flag_at)
     }
 }
 
@@ -1462,6 +1477,7 @@ pub fn calibrate_kinds(
             angles: None,
             markers: None,
             sessions: Vec::new(),
+            flag_at: FLAG_AT,
         },
         nothing,
         robust,
@@ -1476,8 +1492,67 @@ pub fn calibrate_kinds(
         noise_settled: None,
     };
     scored(&mut calibration, data)?;
+    calibration.warnings.extend(noise_check(&calibration, data, options.loss));
     calibration.warnings.extend(change);
     Ok(calibration)
+}
+
+/// Whether the noise given (the files' sigmas, the joint noise) agrees with the residuals of
+/// `c` on its training `data` ([`check`](super::noise_check::check), as for a marker file):
+/// each pose's block (of at most [`CHECK_POSES`] poses, evenly spread) linearised about the
+/// estimate, with its joint part `sum_j G_kj Sigma_q G_kj^T` and its measurement part
+/// `diag(sigma_i^2)`, the lengths cross-validated (angles not scored). `None` when it agrees,
+/// without a noise given (every sigma assumed and the joints exact: the residuals' spread
+/// scales the fit instead), with a robust loss, or with too few residuals to tell.
+fn noise_check(c: &KindCalibration, data: &KindData, loss: Loss) -> Option<Warning> {
+    let assumed = c.joint_noise.is_none() && data.assumed_sigmas == data.observations.len();
+    if loss != Loss::Squared || assumed {
+        return None;
+    }
+    let stride = data.joints.len().div_ceil(CHECK_POSES).max(1);
+    let sample = data.keeping(|o| o.pose() % stride == 0);
+    let names = &c.refined.estimate.names;
+    let kept = Selection::from_indices(&c.params, names.iter().filter_map(|n| c.params.index_by_name(n)));
+    let setup = c.setup.names();
+    let kept_setup: Vec<usize> = (names.iter())
+        .filter(|n| c.params.index_by_name(n).is_none())
+        .filter_map(|n| setup.iter().position(|s| s == n))
+        .collect();
+    let markers: Vec<usize> = c.markers.iter().map(|m| m.0).collect();
+    let (x, s) = (c.after.clone(), c.setup_values.1.clone());
+    let problem = KindProblem::of_points(&c.chains, &markers, &kept, &sample, &c.setup, x, s, kept_setup)
+        .with_noise(c.joint_noise.as_ref());
+    if problem.equations() < problem.parameters() + MIN_DOF {
+        return None;
+    }
+    let start = problem.start();
+    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+    let y = problem.evaluate(&start, Some(&mut h));
+    let v = problem.covariance()?;
+    let points = (problem.blocks().ranges(y.len()))
+        .map(|r| {
+            let sigma2 = |i: usize| sample.observations[r.start + i].sigma().powi(2);
+            let b = r.len();
+            let measurement = DMatrix::from_fn(b, b, |i, j| if i == j { sigma2(i) } else { 0.0 });
+            let joint = DMatrix::from_fn(b, b, |i, j| v[(r.start + i, j)]) - &measurement;
+            let lengths: Vec<bool> = r.clone().map(|i| !sample.observations[i].is_angle()).collect();
+            (
+                Point {
+                    h: h.rows(r.start, b).into_owned(),
+                    r: y.rows(r.start, b).into_owned(),
+                    joint,
+                    measurement,
+                },
+                lengths,
+            )
+        })
+        .collect();
+    let (points, lengths): (Vec<Point>, Vec<Vec<bool>>) = without_outliers(points).into_iter().unzip();
+    let components = Components::new(points)?;
+    let robot = kept.indices().iter().map(|&i| c.prior_sd[i]);
+    let prior_sd: Vec<f64> = robot.chain(std::iter::repeat(f64::INFINITY)).take(start.len()).collect();
+    let scored = |k: usize, i: usize| lengths[k][i];
+    check(&components, (&start, &prior_sd), (&scored, 1))
 }
 
 /// What [`fit_gauged`] gives: the fit (every step of every round in its history), the robust
@@ -1853,9 +1928,12 @@ fn scored(calibration: &mut KindCalibration, data: &KindData) -> Result<(), Cali
     calibration.warnings =
         super::implausible(calibration.params.iter(), (before, after), &se, Some(&calibration.calibrated));
     calibration.warnings.extend(super::not_converged(&calibration.refined));
-    let far_out = (calibration.training.observations.iter().enumerate())
-        .filter(|(_, r)| r.whitened.abs() > FLAG_AT)
-        .map(|(index, r)| FarOut { index, line: r.line, label: Some(r.label()), sd: r.whitened });
+    let far_out = (calibration.training.flagged()).map(|(index, r)| FarOut {
+        index,
+        line: r.line,
+        label: Some(r.label()),
+        sd: r.whitened,
+    });
     calibration.warnings.extend(Warning::far_out(Scored::Observation, far_out));
     Ok(())
 }
