@@ -9,7 +9,7 @@
 //! on the unit of length, and one radian never counts as one millimetre.
 
 use super::refine::Residuals;
-use super::{EstimationError, LinearSystem, NoiseModel, Reduced, Weights};
+use super::{EstimationError, LinearSystem, NoiseModel, PointRows, Reduced, Weights};
 use crate::kinematics::{
     Chain, ChainAt, HeldArm, Measured, end_positions, marker_jacobians_held, pose_error,
 };
@@ -437,8 +437,55 @@ impl PointProblem<'_> {
     }
 }
 
+/// The rows of [`PointProblem::system`] at one `x`, pose by pose ([`PointRows`]): each pose's
+/// `H_k` and `y_k` built where they are read, by the same code as the system's, never all of
+/// `H` at once.
+pub(crate) struct PoseRows<'p, 'a> {
+    problem: &'p PointProblem<'a>,
+    /// The chains at `x`.
+    at: Vec<ChainAt>,
+}
+
+impl PointProblem<'_> {
+    /// The rows of [`PointProblem::system`] about `x`, pose by pose.
+    pub(crate) fn rows_at(&self, x: &DVector<f64>) -> PoseRows<'_, '_> {
+        let full = self.full(x);
+        PoseRows { problem: self, at: self.chains.iter().map(|c| c.with_errors(&full)).collect() }
+    }
+
+    /// The same problem without its noise blocks `V_k`, which its rows do not depend on: for
+    /// what needs the rows alone once the weights are made.
+    pub(crate) fn without_noise(self) -> Self {
+        Self { v: None, ..self }
+    }
+}
+
+impl PointRows for PoseRows<'_, '_> {
+    type Scratch = Scratch;
+
+    fn shape(&self) -> (usize, usize) {
+        (self.problem.equations(), self.problem.selection.len())
+    }
+
+    fn scratch(&self) -> Scratch {
+        self.problem.scratch(self.at.len())
+    }
+
+    fn point(
+        &self,
+        scratch: &mut Scratch,
+        k: usize,
+        _: std::ops::Range<usize>,
+        h: &mut [f64],
+        y: &mut [f64],
+    ) {
+        self.problem.pose(k, &self.at, scratch, true, y);
+        h.copy_from_slice(scratch.block.as_slice());
+    }
+}
+
 /// The scratch space of one task of a linearisation: a pose's rows of `H`, the chains' ends.
-struct Scratch {
+pub(crate) struct Scratch {
     block: DMatrix<f64>,
     positions: Vec<Vector3<f64>>,
 }
