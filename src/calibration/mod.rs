@@ -1211,8 +1211,12 @@ pub fn calibrate_feasible(
     options: &Options,
     feasible: &FeasibleOptions,
 ) -> Result<Calibration, CalibrationError> {
-    let mut data = data.clone();
-    let ignored_sigma = data.sigma.take().is_some();
+    // Without its `sigma` column: a copy only if it has one.
+    let ignored_sigma = data.sigma.is_some();
+    let data = match ignored_sigma {
+        true => std::borrow::Cow::Owned(Measurements { sigma: None, ..data.clone() }),
+        false => std::borrow::Cow::Borrowed(data),
+    };
     let ols = Options { estimator: Estimator::Ols, noise: None, ..options.clone() };
     // The "before" fit of marker positions is by ordinary least squares whatever the noise:
     // the first round's serves every round. (A probe's OLS rows are scaled by the noise's

@@ -553,7 +553,7 @@ impl<P: PointRows> Shared<'_, P> {
         let h = self.task_rows(&mut scratch, task.clone(), r);
         let ht = h.transpose();
         let nht: Vec<DMatrix<f64>> = middles.iter().map(|n| n * &ht).collect();
-        let mut influence = Influence::default();
+        let (mut influence, mut products) = (Influence::default(), DesignScratch::default());
         for k in task {
             let range = blocks.range(k);
             let (b, at) = (range.len(), range.start - start..range.end - start);
@@ -565,15 +565,16 @@ impl<P: PointRows> Shared<'_, P> {
                 dof: self.layout.dof,
                 classes: &self.layout.classes[range],
             };
-            let designs = terms.designs(nht.iter().map(|n| n.columns(at.start, b)), self.joints);
             let out = &mut out[starts[k] - first..starts[k + 1] - first];
-            for (design, packed) in designs.iter().zip(out.chunks_exact_mut(triangle(b))) {
+            let nht = nht.iter().map(|n| n.columns(at.start, b));
+            terms.designs(nht, self.joints, &mut products, |c, design| {
+                let packed = &mut out[c * triangle(b)..(c + 1) * triangle(b)];
                 for col in 0..b {
                     for row in 0..=col {
-                        packed[triangle(col) + row] = design[(row, col)];
+                        packed[triangle(col) + row] = design.entry(row, col);
                     }
                 }
-            }
+            });
         }
     }
 }
@@ -777,7 +778,11 @@ pub(crate) fn residual_design(
                     classes: &layout.classes[range],
                 };
                 let nht = nht.iter().map(|n| n.columns(at.start, at.len()));
-                terms.designs(nht, joints)
+                let mut designs = Vec::new();
+                terms.designs(nht, joints, &mut DesignScratch::default(), |_, design| {
+                    designs.push(DMatrix::from_fn(at.len(), at.len(), |r, s| design.entry(r, s)));
+                });
+                designs
             };
             task.iter().map(|&k| point(k)).collect()
         })
@@ -826,57 +831,91 @@ struct PointTerms<'a> {
     classes: &'a [usize],
 }
 
+/// The products of [`PointTerms::designs`], kept from point to point: `H_k` (`b x p`),
+/// `P_k = H_k A_k`, `P_k J_k`, and of the component at hand `H_k N_c H_k^T`, `V_c,k` and
+/// `P_k V_c,k` (`b x b`).
+#[derive(Default)]
+struct DesignScratch {
+    h: DMatrix<f64>,
+    p: DMatrix<f64>,
+    pj: DMatrix<f64>,
+    hnh: DMatrix<f64>,
+    v: DMatrix<f64>,
+    pv: DMatrix<f64>,
+}
+
+impl DesignScratch {
+    /// The products' shapes for `b` rows, `p` parameters and a `J_k` of `jacobian` columns.
+    fn fit(&mut self, b: usize, p: usize, jacobian: usize) {
+        if self.h.shape() != (b, p) || self.pj.shape() != (b, jacobian) {
+            *self = Self {
+                h: DMatrix::zeros(b, p),
+                p: DMatrix::zeros(b, b),
+                pj: DMatrix::zeros(b, jacobian),
+                hnh: DMatrix::zeros(b, b),
+                v: DMatrix::zeros(b, b),
+                pv: DMatrix::zeros(b, b),
+            };
+        }
+    }
+
+    /// The entry `(r, s)` of `D_c,k = V_c,k - P_k V_c,k - (P_k V_c,k)^T + (H_k N_c H_k^T + its
+    /// transpose) / 2` of the component at hand.
+    fn entry(&self, r: usize, s: usize) -> f64 {
+        self.v[(r, s)] - self.pv[(r, s)] - self.pv[(s, r)] + (self.hnh[(r, s)] + self.hnh[(s, r)]) / 2.0
+    }
+}
+
 impl PointTerms<'_> {
     /// `D_c,k = V_c,k - P_k V_c,k - (P_k V_c,k)^T + (H_k N_c H_k^T + its transpose) / 2` of
-    /// every component, `nht` the `N_c H_k^T`, with `P_k = H_k A_k`: for a joint component
-    /// `(i, l)`, `V_c,k = sum_p (J^p_i (J^p_l)^T + J^p_l (J^p_i)^T)` (`J^p_i (J^p_i)^T` on the
-    /// diagonal) and `P V = sum_p ((P J^p)_i (J^p_l)^T + (P J^p)_l (J^p_i)^T)`, by rank-one
-    /// updates; for a measurement component, `V` the identity on the rows of its class and
-    /// `P V` the columns of `P` on them.
+    /// every component `c`, in order, each handed to `design(c, scratch)` to read by
+    /// [`DesignScratch::entry`]; `nht` the `N_c H_k^T`, with `P_k = H_k A_k`: for a joint
+    /// component `(i, l)`, `V_c,k = sum_p (J^p_i (J^p_l)^T + J^p_l (J^p_i)^T)` (`J^p_i (J^p_i)^T`
+    /// on the diagonal) and `P V = sum_p ((P J^p)_i (J^p_l)^T + (P J^p)_l (J^p_i)^T)`, by
+    /// rank-one updates; for a measurement component, `V` the identity on the rows of its
+    /// class and `P V` the columns of `P` on them.
     fn designs<'n>(
         &self,
         nht: impl Iterator<Item = nalgebra::DMatrixView<'n, f64>>,
         joints: JointComponents,
-    ) -> Vec<DMatrix<f64>> {
-        let b = self.jacobian.nrows();
-        let h = self.ht.transpose();
-        let mut p = DMatrix::zeros(b, b);
-        p.gemm(1.0, &h, &self.a, 0.0);
+        scratch: &mut DesignScratch,
+        mut design: impl FnMut(usize, &DesignScratch),
+    ) {
         let j = self.jacobian;
-        let pj = &p * j;
+        let b = j.nrows();
+        scratch.fit(b, self.ht.nrows(), j.ncols());
+        self.ht.transpose_to(&mut scratch.h);
+        scratch.p.gemm(1.0, &scratch.h, &self.a, 0.0);
+        scratch.pj.gemm(1.0, &scratch.p, j, 0.0);
         let (dof, poses) = (self.dof, j.ncols() / self.dof);
         let components = joints.entries(dof);
-        let (mut hnh, mut v, mut pv) = (DMatrix::zeros(b, b), DMatrix::zeros(b, b), DMatrix::zeros(b, b));
-        nht.enumerate()
-            .map(|(c, nht)| {
-                hnh.gemm(1.0, &h, &nht, 0.0);
-                v.fill(0.0);
-                pv.fill(0.0);
-                match components.get(c) {
-                    Some(&(i, l)) => {
-                        for q in 0..poses {
-                            let (ji, jl) = (j.column(q * dof + i), j.column(q * dof + l));
-                            v.ger(1.0, &ji, &jl, 1.0);
-                            pv.ger(1.0, &pj.column(q * dof + i), &jl, 1.0);
-                            if i != l {
-                                v.ger(1.0, &jl, &ji, 1.0);
-                                pv.ger(1.0, &pj.column(q * dof + l), &ji, 1.0);
-                            }
-                        }
-                    }
-                    None => {
-                        let class = c - components.len();
-                        for row in (0..b).filter(|&row| self.classes[row] == class) {
-                            v[(row, row)] = 1.0;
-                            pv.column_mut(row).copy_from(&p.column(row));
+        for (c, nht) in nht.enumerate() {
+            let DesignScratch { h, p, pj, hnh, v, pv } = &mut *scratch;
+            hnh.gemm(1.0, &*h, &nht, 0.0);
+            v.fill(0.0);
+            pv.fill(0.0);
+            match components.get(c) {
+                Some(&(i, l)) => {
+                    for q in 0..poses {
+                        let (ji, jl) = (j.column(q * dof + i), j.column(q * dof + l));
+                        v.ger(1.0, &ji, &jl, 1.0);
+                        pv.ger(1.0, &pj.column(q * dof + i), &jl, 1.0);
+                        if i != l {
+                            v.ger(1.0, &jl, &ji, 1.0);
+                            pv.ger(1.0, &pj.column(q * dof + l), &ji, 1.0);
                         }
                     }
                 }
-                DMatrix::from_fn(b, b, |r, s| {
-                    v[(r, s)] - pv[(r, s)] - pv[(s, r)] + (hnh[(r, s)] + hnh[(s, r)]) / 2.0
-                })
-            })
-            .collect()
+                None => {
+                    let class = c - components.len();
+                    for row in (0..b).filter(|&row| self.classes[row] == class) {
+                        v[(row, row)] = 1.0;
+                        pv.column_mut(row).copy_from(&p.column(row));
+                    }
+                }
+            }
+            design(c, scratch);
+        }
     }
 }
 
