@@ -677,28 +677,10 @@ impl<P: PointRows> Shared<'_, P> {
     fn task_middles(&self, task: Range<usize>) -> Vec<DMatrix<f64>> {
         let (layout, blocks) = (self.layout, self.weights.blocks());
         let (p, dof) = (self.c.nrows(), layout.dof);
-        let mut scratch = self.rows.scratch();
-        let width = blocks.width();
-        let (mut h_k, mut y_k) = (vec![0.0; width * p], vec![0.0; width]);
-        let mut influence = Influence::default();
-        // The task's `Z_jq` side by side (`p x` a column per pose seen and joint), and its
-        // columns of `A` by class: products of the task at once.
-        let influences: Vec<DMatrix<f64>> = (task.clone())
-            .map(|k| {
-                let range = blocks.range(k);
-                let b = range.len();
-                self.rows.point(&mut scratch, k, range, &mut h_k[..b * p], &mut y_k[..b]);
-                influence.of(self.weights, self.c, k, DMatrixView::from_slice(&h_k[..b * p], b, p)).clone()
-            })
-            .collect();
-        let z: Vec<DMatrix<f64>> =
-            task.clone().zip(&influences).map(|(k, a)| a * &layout.jacobians[k]).collect();
-        let replicas: Vec<(usize, usize)> = (z.iter().enumerate())
-            .flat_map(|(t, z)| (0..z.ncols() / dof).map(move |q| (t, q * dof)))
-            .collect();
-        let u: Vec<DMatrix<f64>> = (0..dof)
-            .map(|i| DMatrix::from_fn(p, replicas.len(), |r, n| z[replicas[n].0][(r, replicas[n].1 + i)]))
-            .collect();
+        let first = blocks.range(task.start).start;
+        let rows = first..blocks.range(task.end - 1).end;
+        // Products of the task at once: its `Z_jq` in `U_i`, its columns of `A` by class.
+        let (a, u) = self.task_influences(task);
         let mut sums: Vec<DMatrix<f64>> = (self.joints.entries(dof).iter())
             .map(|&(i, j)| {
                 let n = &u[i] * u[j].transpose();
@@ -706,17 +688,48 @@ impl<P: PointRows> Shared<'_, P> {
             })
             .collect();
         for class in 0..layout.class_count {
-            let columns: Vec<(usize, usize)> = (task.clone().enumerate())
-                .flat_map(|(t, k)| blocks.range(k).map(move |row| (t, row)))
-                .filter(|&(_, row)| layout.classes[row] == class)
-                .collect();
-            let selected = DMatrix::from_fn(p, columns.len(), |r, n| {
-                let (t, row) = columns[n];
-                influences[t][(r, row - blocks.range(task.start + t).start)]
-            });
+            let columns: Vec<usize> = rows.clone().filter(|&row| layout.classes[row] == class).collect();
+            let selected = DMatrix::from_fn(p, columns.len(), |r, n| a[(r, columns[n] - first)]);
             sums.push(&selected * selected.transpose());
         }
         sums
+    }
+
+    /// The columns `A_j` of the points `task` side by side (`p x` their rows), and `U_i`
+    /// (`p x R`) of every joint `i`: the column `i` of each `Z_jq = A_j J_j^q`, a column per
+    /// point `j` and pose `q` it sees, in order. Each point's rows are written by the rows'
+    /// source and its products kept for the next ([`Influence`]).
+    fn task_influences(&self, task: Range<usize>) -> (DMatrix<f64>, Vec<DMatrix<f64>>) {
+        let (layout, blocks) = (self.layout, self.weights.blocks());
+        let (p, dof) = (self.c.nrows(), layout.dof);
+        let first = blocks.range(task.start).start;
+        let rows = blocks.range(task.end - 1).end - first;
+        let replicas = task.clone().map(|k| layout.jacobians[k].ncols() / dof).sum();
+        let (mut a, mut u) = (DMatrix::zeros(p, rows), vec![DMatrix::zeros(p, replicas); dof]);
+        let mut scratch = self.rows.scratch();
+        let width = blocks.width();
+        let (mut h_k, mut y_k) = (vec![0.0; width * p], vec![0.0; width]);
+        let (mut influence, mut z) = (Influence::default(), DMatrix::zeros(0, 0));
+        let mut replica = 0;
+        for k in task {
+            let range = blocks.range(k);
+            let (b, at) = (range.len(), range.start - first);
+            self.rows.point(&mut scratch, k, range, &mut h_k[..b * p], &mut y_k[..b]);
+            let a_k = influence.of(self.weights, self.c, k, DMatrixView::from_slice(&h_k[..b * p], b, p));
+            a.columns_mut(at, b).copy_from(a_k);
+            let j = &layout.jacobians[k];
+            if z.shape() != (p, j.ncols()) {
+                z = DMatrix::zeros(p, j.ncols());
+            }
+            z.gemm(1.0, a_k, j, 0.0);
+            for q in 0..j.ncols() / dof {
+                for (i, u) in u.iter_mut().enumerate() {
+                    u.column_mut(replica).copy_from(&z.column(q * dof + i));
+                }
+                replica += 1;
+            }
+        }
+        (a, u)
     }
 }
 
