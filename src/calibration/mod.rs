@@ -1236,8 +1236,12 @@ pub fn calibrate_feasible(
     options: &Options,
     feasible: &FeasibleOptions,
 ) -> Result<Calibration, CalibrationError> {
-    let mut data = data.clone();
-    let ignored_sigma = data.sigma.take().is_some();
+    // Without its `sigma` column: a copy only if it has one.
+    let ignored_sigma = data.sigma.is_some();
+    let data = match ignored_sigma {
+        true => std::borrow::Cow::Owned(Measurements { sigma: None, ..data.clone() }),
+        false => std::borrow::Cow::Borrowed(data),
+    };
     let ols = Options { estimator: Estimator::Ols, noise: None, ..options.clone() };
     // The "before" fit of marker positions is by ordinary least squares whatever the noise:
     // the first round's serves every round. (A probe's OLS rows are scaled by the noise's
@@ -1337,17 +1341,17 @@ fn residual_noise(
         c.after.clone(),
         noise,
     )?;
-    let system = problem.system(&problem.start());
     let estimator = if noise.is_some() { Estimator::Wls } else { Estimator::Ols };
     let weights = Weights::for_problem(&problem, estimator)?;
     let jacobians = problem.manipulator_jacobians(&c.after);
-    // The covariance blocks are in the weights: the problem is done with.
-    drop(problem);
+    // The covariance blocks are in the weights: the rows, built pose by pose where they are
+    // needed, are all the problem is kept for.
+    let problem = problem.without_noise();
     let per = kind.rows();
     let layout = NoiseLayout::of_points(jacobians, per, weights.blocks());
-    let samples = residual_samples(&system.h, &system.y, &weights, &layout, joints)?;
+    let samples = residual_samples(&problem.rows_at(&problem.start()), &weights, &layout, joints)?;
     // The fit needs the packed samples alone.
-    drop((system, weights, layout));
+    drop((problem, weights, layout));
     Ok(NoiseEstimate::fit(&samples, joints, c.chains[0].dof(), MeasurementClass::of_points(per), previous)?)
 }
 

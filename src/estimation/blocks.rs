@@ -290,7 +290,8 @@ pub(crate) fn block_diagonal_mul<C: Dim, St: StorageMut<f64, Dyn, C> + IsContigu
 }
 
 /// The block of `size` rows at row `start` of the stacked `blocks` times each of `columns`
-/// (one block's height each).
+/// (one block's height each): blocks of one to four markers and of a pose on the stack, others
+/// through one product vector for all the columns (`gemv`, the arithmetic of `block * column`).
 pub(crate) fn block_mul<'c>(
     blocks: &DMatrix<f64>,
     start: usize,
@@ -300,10 +301,13 @@ pub(crate) fn block_mul<'c>(
     match size {
         3 => fixed_block_mul::<3>(blocks, start, columns),
         6 => fixed_block_mul::<6>(blocks, start, columns),
+        9 => fixed_block_mul::<9>(blocks, start, columns),
+        12 => fixed_block_mul::<12>(blocks, start, columns),
         b => {
             let block = blocks.view((start, 0), (b, b));
+            let mut product = DVector::zeros(b);
             for column in columns {
-                let product = block * DVector::from_column_slice(column);
+                product.gemv(1.0, &block, &nalgebra::DVectorView::from_slice(column, b), 0.0);
                 column.copy_from_slice(product.as_slice());
             }
         }

@@ -31,8 +31,9 @@
 
 use super::{EstimationError, Reduced};
 use nalgebra::allocator::Allocator;
-use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, Dyn, OMatrix};
+use nalgebra::{Const, DMatrix, DMatrixView, DVector, DefaultAllocator, Dim, Dyn, OMatrix};
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// One observed covariance: `S_k`, its degrees of freedom and the design of its expectation.
 #[derive(Debug, Clone, PartialEq)]
@@ -415,168 +416,249 @@ impl NoiseLayout {
     }
 }
 
+/// A system's rows point by point: what [`residual_samples`] reads of `H` and `y`, written
+/// where it is needed, so that `H` (`N_m x p`) is never held for all points at once.
+pub(crate) trait PointRows: Sync {
+    /// The scratch space of one task.
+    type Scratch;
+    /// `(N_m, p)`: the rows and columns of `H`.
+    fn shape(&self) -> (usize, usize);
+    /// A task's scratch space.
+    fn scratch(&self) -> Self::Scratch;
+    /// Point `k`'s rows `range`: `H_k` into `h` (column-major, `b_k x p`), `y_k` into `y`.
+    fn point(&self, scratch: &mut Self::Scratch, k: usize, range: Range<usize>, h: &mut [f64], y: &mut [f64]);
+}
+
+/// A system held whole, `H` (`N_m x p`) and `y`, read point by point.
+pub(crate) struct HeldRows<'a> {
+    /// `H`.
+    pub h: &'a DMatrix<f64>,
+    /// `y`, `N_m` long.
+    pub y: &'a DVector<f64>,
+}
+
+impl PointRows for HeldRows<'_> {
+    type Scratch = ();
+
+    fn shape(&self) -> (usize, usize) {
+        self.h.shape()
+    }
+
+    fn scratch(&self) {}
+
+    fn point(&self, _: &mut (), _: usize, range: Range<usize>, h: &mut [f64], y: &mut [f64]) {
+        let (n, b) = (self.h.nrows(), range.len());
+        for (j, column) in h.chunks_exact_mut(b).enumerate() {
+            column.copy_from_slice(&self.h.as_slice()[j * n + range.start..j * n + range.end]);
+        }
+        y.copy_from_slice(&self.y.as_slice()[range]);
+    }
+}
+
 /// The samples of feasible GLS, streamed: each point's residual `r_k` (of `y`, laid out by
 /// `weights`' blocks) with the designs `D_c,k = (M V_c M^T)_kk` of [`residual_design`], packed
 /// ([`ResidualSamples`]). The same arithmetic point by point, without holding what
-/// [`residual_design`] holds for all points at once: `R` of `S H` reduced row block by row
-/// block (no whitened copy of `H`), `A_k = C (S_k H_k)^T S_k` of each point computed where it
-/// is used (no `p x N_m` matrix `A`), `N_c = sum_j A_j V_c,j A_j^T` accumulated task by task
-/// ([`streamed_middles`]). Points are shared between
-/// threads in tasks of [`POINTS_PER_TASK`], the tasks' sums added in order: the result does
-/// not depend on the number of threads.
+/// [`residual_design`] holds for all points at once: `H` itself (`rows` writes each point's
+/// `H_k` and `y_k` where they are needed: in `R`, in `N_c`, in the designs), `R` of `S H`
+/// reduced row block by row block (no whitened copy of `H`), `A_k = C (S_k H_k)^T S_k` of
+/// each point computed where it is used (no `p x N_m` matrix `A`), `N_c = sum_j A_j V_c,j
+/// A_j^T` accumulated task by task ([`streamed_middles`]). Points are shared between threads
+/// in tasks of [`POINTS_PER_TASK`], the tasks' sums added in order: the result does not
+/// depend on the number of threads.
 pub(crate) fn residual_samples(
-    h: &DMatrix<f64>,
-    y: &DVector<f64>,
+    rows: &impl PointRows,
     weights: &super::Weights,
     layout: &NoiseLayout,
     joints: JointComponents,
 ) -> Result<ResidualSamples, EstimationError> {
     let blocks = weights.blocks();
-    let points = blocks.points(h.nrows());
-    if !layout.fits(blocks, h.nrows()) || y.len() != h.nrows() {
+    let n = rows.shape().0;
+    let points = blocks.points(n);
+    if !layout.fits(blocks, n) {
         return Err(EstimationError::Dimensions(format!(
-            "{} Jacobians, {} row classes and {} residuals for the {points} points and {} rows of the residual design",
+            "{} Jacobians and {} row classes for the {points} points and {n} rows of the residual design",
             layout.jacobians.len(),
             layout.classes.len(),
-            y.len(),
-            h.nrows()
         )));
     }
-    let c = spread(h, weights)?;
-    let middles = streamed_middles(h, weights, &c, layout, joints);
+    let c = spread(rows, weights)?;
+    let shared = Shared { rows, weights, c: &c, layout, joints };
+    let middles = streamed_middles(&shared);
     let m = middles.len();
     let mut starts = vec![0];
     for k in 0..points {
         starts.push(starts[k] + m * triangle(blocks.range(k).len()));
     }
     let mut packed = vec![0.0; starts[points]];
-    let tasks: Vec<std::ops::Range<usize>> =
+    let mut r = vec![0.0; n];
+    let tasks: Vec<Range<usize>> =
         (0..points).step_by(POINTS_PER_TASK).map(|s| s..(s + POINTS_PER_TASK).min(points)).collect();
     let mut slices = Vec::with_capacity(tasks.len());
-    let mut rest = packed.as_mut_slice();
+    let (mut rest, mut rest_r) = (packed.as_mut_slice(), r.as_mut_slice());
     for task in &tasks {
         let (mine, others) = rest.split_at_mut(starts[task.end] - starts[task.start]);
-        slices.push(mine);
-        rest = others;
+        let task_rows = blocks.range(task.end - 1).end - blocks.range(task.start).start;
+        let (mine_r, others_r) = rest_r.split_at_mut(task_rows);
+        slices.push((mine, mine_r));
+        (rest, rest_r) = (others, others_r);
     }
-    tasks.into_par_iter().zip(slices).for_each(|(task, out)| {
-        let rows = blocks.range(task.start).start..blocks.range(task.end - 1).end;
-        let ht = h.rows(rows.start, rows.len()).transpose();
-        let nht: Vec<DMatrix<f64>> = middles.iter().map(|n| n * &ht).collect();
-        for k in task.clone() {
-            let range = blocks.range(k);
-            let at = range.start - rows.start..range.end - rows.start;
-            let a_k = point_influence(h, weights, &c, k);
-            let terms = PointTerms {
-                ht: ht.columns(at.start, at.len()),
-                a: a_k.columns(0, a_k.ncols()),
-                jacobian: &layout.jacobians[k],
-                dof: layout.dof,
-                classes: &layout.classes[range.clone()],
-            };
-            let designs = terms.designs(nht.iter().map(|n| n.columns(at.start, at.len())), joints);
-            let b = range.len();
-            let out = &mut out[starts[k] - starts[task.start]..starts[k + 1] - starts[task.start]];
-            for (design, packed) in designs.iter().zip(out.chunks_exact_mut(triangle(b))) {
-                for col in 0..b {
-                    for row in 0..=col {
-                        packed[triangle(col) + row] = design[(row, col)];
-                    }
-                }
-            }
-        }
+    tasks.into_par_iter().zip(slices).for_each(|(task, (out, r))| {
+        let first = starts[task.start];
+        shared.task_designs(&middles, task, &starts, (first, out), r);
     });
-    let r = y.as_slice().to_vec();
     Ok(ResidualSamples { blocks: blocks.clone(), r, starts, packed, components: m })
 }
 
+/// What every task of [`residual_samples`] reads: the rows, the weights, `C = (H^T W H)^+`,
+/// the noise layout and the joint components.
+struct Shared<'a, P> {
+    rows: &'a P,
+    weights: &'a super::Weights,
+    c: &'a DMatrix<f64>,
+    layout: &'a NoiseLayout,
+    joints: JointComponents,
+}
+
+impl<P: PointRows> Shared<'_, P> {
+    /// The rows of the points `task`, `H` of them (`rows x p`) returned, `y` written to `y`.
+    fn task_rows(&self, scratch: &mut P::Scratch, task: Range<usize>, y: &mut [f64]) -> DMatrix<f64> {
+        let blocks = self.weights.blocks();
+        let first = blocks.range(task.start).start;
+        let (rows, p) = (blocks.range(task.end - 1).end - first, self.c.nrows());
+        let mut h = DMatrix::zeros(rows, p);
+        let mut h_k = vec![0.0; blocks.width() * p];
+        for k in task {
+            let range = blocks.range(k);
+            let (b, at) = (range.len(), range.start - first);
+            self.rows.point(scratch, k, range, &mut h_k[..b * p], &mut y[at..at + b]);
+            h.rows_mut(at, b).copy_from(&DMatrixView::from_slice(&h_k[..b * p], b, p));
+        }
+        h
+    }
+
+    /// The packed designs ([`PointTerms::designs`]) of the points `task` into `out` (which
+    /// starts at `first` of the packed designs, points starting at `starts`), their
+    /// residuals into `r`: `H^T` and `N_c H^T` of the task's rows at once (`p x rows`).
+    fn task_designs(
+        &self,
+        middles: &[DMatrix<f64>],
+        task: Range<usize>,
+        starts: &[usize],
+        (first, out): (usize, &mut [f64]),
+        r: &mut [f64],
+    ) {
+        let blocks = self.weights.blocks();
+        let start = blocks.range(task.start).start;
+        let mut scratch = self.rows.scratch();
+        let h = self.task_rows(&mut scratch, task.clone(), r);
+        let ht = h.transpose();
+        let nht: Vec<DMatrix<f64>> = middles.iter().map(|n| n * &ht).collect();
+        let (mut influence, mut products) = (Influence::default(), DesignScratch::default());
+        for k in task {
+            let range = blocks.range(k);
+            let (b, at) = (range.len(), range.start - start..range.end - start);
+            let a_k = influence.of(self.weights, self.c, k, h.rows(at.start, b));
+            let terms = PointTerms {
+                ht: ht.columns(at.start, b),
+                a: a_k.columns(0, b),
+                jacobian: &self.layout.jacobians[k],
+                dof: self.layout.dof,
+                classes: &self.layout.classes[range],
+            };
+            let out = &mut out[starts[k] - first..starts[k + 1] - first];
+            let nht = nht.iter().map(|n| n.columns(at.start, b));
+            terms.designs(nht, self.joints, &mut products, |c, design| {
+                let packed = &mut out[c * triangle(b)..(c + 1) * triangle(b)];
+                for col in 0..b {
+                    for row in 0..=col {
+                        packed[triangle(col) + row] = design.entry(row, col);
+                    }
+                }
+            });
+        }
+    }
+}
+
 /// `C = (H^T W H)^+ = pinv(R) pinv(R)^T`, `R` the triangular factor of `S H` reduced point by
-/// point (each point's rows whitened as they are copied).
-fn spread(h: &DMatrix<f64>, weights: &super::Weights) -> Result<DMatrix<f64>, EstimationError> {
+/// point (each point's rows written by `rows`, whitened in place).
+fn spread(rows: &impl PointRows, weights: &super::Weights) -> Result<DMatrix<f64>, EstimationError> {
     let blocks = weights.blocks();
-    let (n, p) = h.shape();
+    let (n, p) = rows.shape();
+    let width = blocks.width();
     let reduced = Reduced::reduce_rows(
         blocks,
         n,
         p,
         None,
         None,
-        || (),
-        |_, k, rows| {
-            let r = blocks.range(k);
-            let b = r.len();
-            for j in 0..p {
-                rows[j * b..(j + 1) * b].copy_from_slice(&h.as_slice()[j * n + r.start..j * n + r.end]);
-            }
-            weights.apply_point(k, &mut rows[..p * b]);
+        || (rows.scratch(), vec![0.0; width]),
+        |(scratch, y), k, out| {
+            let range = blocks.range(k);
+            let b = range.len();
+            rows.point(scratch, k, range, &mut out[..p * b], &mut y[..b]);
+            weights.apply_point(k, &mut out[..p * b]);
         },
     );
     let r_pinv = super::pseudo_inverse(&reduced.r().into_owned())?;
     Ok(&r_pinv * r_pinv.transpose())
 }
 
-/// `A_k = C (S_k H_k)^T S_k` (`p x b_k`), point `k`'s columns of `A = (H^T W H)^+ H^T W`.
-fn point_influence(h: &DMatrix<f64>, weights: &super::Weights, c: &DMatrix<f64>, k: usize) -> DMatrix<f64> {
-    let range = weights.blocks().range(k);
-    let mut sh_k = h.rows(range.start, range.len()).into_owned();
-    weights.apply_point(k, sh_k.as_mut_slice());
-    let mut s_k = DMatrix::identity(range.len(), range.len());
-    weights.apply_point(k, s_k.as_mut_slice());
-    c * sh_k.transpose() * s_k
+/// The products of `A_k = C (S_k H_k)^T S_k` ([`Influence::of`]), kept from point to point:
+/// `S_k H_k` (`b x p`), its transpose, `S_k` (`b x b`, as `S_k I`), `C (S_k H_k)^T` and `A_k`.
+#[derive(Default)]
+struct Influence {
+    sh: DMatrix<f64>,
+    sht: DMatrix<f64>,
+    s: DMatrix<f64>,
+    cs: DMatrix<f64>,
+    a: DMatrix<f64>,
+}
+
+impl Influence {
+    /// `A_k = C (S_k H_k)^T S_k` (`p x b_k`), point `k`'s columns of `A = (H^T W H)^+ H^T W`,
+    /// from its rows `h_k` (`b_k x p`): `(C (S_k H_k)^T) S_k`, in products kept for the next
+    /// point.
+    fn of<S>(
+        &mut self,
+        weights: &super::Weights,
+        c: &DMatrix<f64>,
+        k: usize,
+        h_k: nalgebra::Matrix<f64, Dyn, Dyn, S>,
+    ) -> &DMatrix<f64>
+    where
+        S: nalgebra::RawStorage<f64, Dyn, Dyn>,
+    {
+        let (b, p) = h_k.shape();
+        if self.s.nrows() != b || self.sh.ncols() != p {
+            *self = Self {
+                sh: DMatrix::zeros(b, p),
+                sht: DMatrix::zeros(p, b),
+                s: DMatrix::zeros(b, b),
+                cs: DMatrix::zeros(p, b),
+                a: DMatrix::zeros(p, b),
+            };
+        }
+        self.sh.copy_from(&h_k);
+        weights.apply_point(k, self.sh.as_mut_slice());
+        self.s.fill_with_identity();
+        weights.apply_point(k, self.s.as_mut_slice());
+        self.sh.transpose_to(&mut self.sht);
+        self.cs.gemm(1.0, c, &self.sht, 0.0);
+        self.a.gemm(1.0, &self.cs, &self.s, 0.0);
+        &self.a
+    }
 }
 
 /// `N_c = sum_j A_j V_c,j A_j^T` of every component ([`design_middles`]'s), accumulated in
-/// tasks of [`POINTS_PER_TASK`] points, the tasks' sums added in order: of each task, `U_i`
-/// (`p x R`, a column per point `j` and pose `q` it sees, the column `i` of `Z_jq = A_j J_j^q`)
-/// gives `U_i U_i^T` for `sigma_i^2` and `U_i U_j^T + U_j U_i^T` for a covariance; a class,
-/// the Gram matrix of the task's columns of `A` on its rows.
-fn streamed_middles(
-    h: &DMatrix<f64>,
-    weights: &super::Weights,
-    c: &DMatrix<f64>,
-    layout: &NoiseLayout,
-    joints: JointComponents,
-) -> Vec<DMatrix<f64>> {
-    let (p, dof) = (h.ncols(), layout.dof);
-    let blocks = weights.blocks();
-    let points = blocks.points(h.nrows());
-    let entries = joints.entries(dof);
-    let m = entries.len() + layout.class_count;
+/// tasks of [`POINTS_PER_TASK`] points ([`Shared::task_middles`]), the tasks' sums added in
+/// order.
+fn streamed_middles<P: PointRows>(shared: &Shared<'_, P>) -> Vec<DMatrix<f64>> {
+    let p = shared.c.nrows();
+    let points = shared.weights.blocks().points(shared.rows.shape().0);
+    let m = shared.joints.entries(shared.layout.dof).len() + shared.layout.class_count;
     let parts: Vec<Vec<DMatrix<f64>>> = (0..points.div_ceil(POINTS_PER_TASK))
         .into_par_iter()
-        .map(|task| {
-            let task = task * POINTS_PER_TASK..((task + 1) * POINTS_PER_TASK).min(points);
-            // The task's `Z_jq` side by side (`p x` a column per pose seen and joint), and its
-            // columns of `A` by class: products of the task at once.
-            let influences: Vec<DMatrix<f64>> =
-                task.clone().map(|k| point_influence(h, weights, c, k)).collect();
-            let z: Vec<DMatrix<f64>> =
-                task.clone().zip(&influences).map(|(k, a)| a * &layout.jacobians[k]).collect();
-            let replicas: Vec<(usize, usize)> = (z.iter().enumerate())
-                .flat_map(|(t, z)| (0..z.ncols() / dof).map(move |q| (t, q * dof)))
-                .collect();
-            let u: Vec<DMatrix<f64>> = (0..dof)
-                .map(|i| DMatrix::from_fn(p, replicas.len(), |r, n| z[replicas[n].0][(r, replicas[n].1 + i)]))
-                .collect();
-            let mut sums: Vec<DMatrix<f64>> = (entries.iter())
-                .map(|&(i, j)| {
-                    let n = &u[i] * u[j].transpose();
-                    if i == j { n } else { &n + n.transpose() }
-                })
-                .collect();
-            for class in 0..layout.class_count {
-                let columns: Vec<(usize, usize)> = (task.clone().enumerate())
-                    .flat_map(|(t, k)| blocks.range(k).map(move |row| (t, row)))
-                    .filter(|&(_, row)| layout.classes[row] == class)
-                    .collect();
-                let selected = DMatrix::from_fn(p, columns.len(), |r, n| {
-                    let (t, row) = columns[n];
-                    influences[t][(r, row - blocks.range(task.start + t).start)]
-                });
-                sums.push(&selected * selected.transpose());
-            }
-            sums
-        })
+        .map(|task| shared.task_middles(task * POINTS_PER_TASK..((task + 1) * POINTS_PER_TASK).min(points)))
         .collect();
     let mut middles = vec![DMatrix::zeros(p, p); m];
     for part in parts {
@@ -585,6 +667,70 @@ fn streamed_middles(
         }
     }
     middles
+}
+
+impl<P: PointRows> Shared<'_, P> {
+    /// The part of every `N_c` of the points `task`: `U_i` (`p x R`, a column per point `j`
+    /// and pose `q` it sees, the column `i` of `Z_jq = A_j J_j^q`) gives `U_i U_i^T` for
+    /// `sigma_i^2` and `U_i U_j^T + U_j U_i^T` for a covariance; a class, the Gram matrix of
+    /// the task's columns of `A` on its rows.
+    fn task_middles(&self, task: Range<usize>) -> Vec<DMatrix<f64>> {
+        let (layout, blocks) = (self.layout, self.weights.blocks());
+        let (p, dof) = (self.c.nrows(), layout.dof);
+        let first = blocks.range(task.start).start;
+        let rows = first..blocks.range(task.end - 1).end;
+        // Products of the task at once: its `Z_jq` in `U_i`, its columns of `A` by class.
+        let (a, u) = self.task_influences(task);
+        let mut sums: Vec<DMatrix<f64>> = (self.joints.entries(dof).iter())
+            .map(|&(i, j)| {
+                let n = &u[i] * u[j].transpose();
+                if i == j { n } else { &n + n.transpose() }
+            })
+            .collect();
+        for class in 0..layout.class_count {
+            let columns: Vec<usize> = rows.clone().filter(|&row| layout.classes[row] == class).collect();
+            let selected = DMatrix::from_fn(p, columns.len(), |r, n| a[(r, columns[n] - first)]);
+            sums.push(&selected * selected.transpose());
+        }
+        sums
+    }
+
+    /// The columns `A_j` of the points `task` side by side (`p x` their rows), and `U_i`
+    /// (`p x R`) of every joint `i`: the column `i` of each `Z_jq = A_j J_j^q`, a column per
+    /// point `j` and pose `q` it sees, in order. Each point's rows are written by the rows'
+    /// source and its products kept for the next ([`Influence`]).
+    fn task_influences(&self, task: Range<usize>) -> (DMatrix<f64>, Vec<DMatrix<f64>>) {
+        let (layout, blocks) = (self.layout, self.weights.blocks());
+        let (p, dof) = (self.c.nrows(), layout.dof);
+        let first = blocks.range(task.start).start;
+        let rows = blocks.range(task.end - 1).end - first;
+        let replicas = task.clone().map(|k| layout.jacobians[k].ncols() / dof).sum();
+        let (mut a, mut u) = (DMatrix::zeros(p, rows), vec![DMatrix::zeros(p, replicas); dof]);
+        let mut scratch = self.rows.scratch();
+        let width = blocks.width();
+        let (mut h_k, mut y_k) = (vec![0.0; width * p], vec![0.0; width]);
+        let (mut influence, mut z) = (Influence::default(), DMatrix::zeros(0, 0));
+        let mut replica = 0;
+        for k in task {
+            let range = blocks.range(k);
+            let (b, at) = (range.len(), range.start - first);
+            self.rows.point(&mut scratch, k, range, &mut h_k[..b * p], &mut y_k[..b]);
+            let a_k = influence.of(self.weights, self.c, k, DMatrixView::from_slice(&h_k[..b * p], b, p));
+            a.columns_mut(at, b).copy_from(a_k);
+            let j = &layout.jacobians[k];
+            if z.shape() != (p, j.ncols()) {
+                z = DMatrix::zeros(p, j.ncols());
+            }
+            z.gemm(1.0, a_k, j, 0.0);
+            for q in 0..j.ncols() / dof {
+                for (i, u) in u.iter_mut().enumerate() {
+                    u.column_mut(replica).copy_from(&z.column(q * dof + i));
+                }
+                replica += 1;
+            }
+        }
+        (a, u)
+    }
 }
 
 #[cfg(test)]
@@ -645,7 +791,11 @@ pub(crate) fn residual_design(
                     classes: &layout.classes[range],
                 };
                 let nht = nht.iter().map(|n| n.columns(at.start, at.len()));
-                terms.designs(nht, joints)
+                let mut designs = Vec::new();
+                terms.designs(nht, joints, &mut DesignScratch::default(), |_, design| {
+                    designs.push(DMatrix::from_fn(at.len(), at.len(), |r, s| design.entry(r, s)));
+                });
+                designs
             };
             task.iter().map(|&k| point(k)).collect()
         })
@@ -694,57 +844,91 @@ struct PointTerms<'a> {
     classes: &'a [usize],
 }
 
+/// The products of [`PointTerms::designs`], kept from point to point: `H_k` (`b x p`),
+/// `P_k = H_k A_k`, `P_k J_k`, and of the component at hand `H_k N_c H_k^T`, `V_c,k` and
+/// `P_k V_c,k` (`b x b`).
+#[derive(Default)]
+struct DesignScratch {
+    h: DMatrix<f64>,
+    p: DMatrix<f64>,
+    pj: DMatrix<f64>,
+    hnh: DMatrix<f64>,
+    v: DMatrix<f64>,
+    pv: DMatrix<f64>,
+}
+
+impl DesignScratch {
+    /// The products' shapes for `b` rows, `p` parameters and a `J_k` of `jacobian` columns.
+    fn fit(&mut self, b: usize, p: usize, jacobian: usize) {
+        if self.h.shape() != (b, p) || self.pj.shape() != (b, jacobian) {
+            *self = Self {
+                h: DMatrix::zeros(b, p),
+                p: DMatrix::zeros(b, b),
+                pj: DMatrix::zeros(b, jacobian),
+                hnh: DMatrix::zeros(b, b),
+                v: DMatrix::zeros(b, b),
+                pv: DMatrix::zeros(b, b),
+            };
+        }
+    }
+
+    /// The entry `(r, s)` of `D_c,k = V_c,k - P_k V_c,k - (P_k V_c,k)^T + (H_k N_c H_k^T + its
+    /// transpose) / 2` of the component at hand.
+    fn entry(&self, r: usize, s: usize) -> f64 {
+        self.v[(r, s)] - self.pv[(r, s)] - self.pv[(s, r)] + (self.hnh[(r, s)] + self.hnh[(s, r)]) / 2.0
+    }
+}
+
 impl PointTerms<'_> {
     /// `D_c,k = V_c,k - P_k V_c,k - (P_k V_c,k)^T + (H_k N_c H_k^T + its transpose) / 2` of
-    /// every component, `nht` the `N_c H_k^T`, with `P_k = H_k A_k`: for a joint component
-    /// `(i, l)`, `V_c,k = sum_p (J^p_i (J^p_l)^T + J^p_l (J^p_i)^T)` (`J^p_i (J^p_i)^T` on the
-    /// diagonal) and `P V = sum_p ((P J^p)_i (J^p_l)^T + (P J^p)_l (J^p_i)^T)`, by rank-one
-    /// updates; for a measurement component, `V` the identity on the rows of its class and
-    /// `P V` the columns of `P` on them.
+    /// every component `c`, in order, each handed to `design(c, scratch)` to read by
+    /// [`DesignScratch::entry`]; `nht` the `N_c H_k^T`, with `P_k = H_k A_k`: for a joint
+    /// component `(i, l)`, `V_c,k = sum_p (J^p_i (J^p_l)^T + J^p_l (J^p_i)^T)` (`J^p_i (J^p_i)^T`
+    /// on the diagonal) and `P V = sum_p ((P J^p)_i (J^p_l)^T + (P J^p)_l (J^p_i)^T)`, by
+    /// rank-one updates; for a measurement component, `V` the identity on the rows of its
+    /// class and `P V` the columns of `P` on them.
     fn designs<'n>(
         &self,
         nht: impl Iterator<Item = nalgebra::DMatrixView<'n, f64>>,
         joints: JointComponents,
-    ) -> Vec<DMatrix<f64>> {
-        let b = self.jacobian.nrows();
-        let h = self.ht.transpose();
-        let mut p = DMatrix::zeros(b, b);
-        p.gemm(1.0, &h, &self.a, 0.0);
+        scratch: &mut DesignScratch,
+        mut design: impl FnMut(usize, &DesignScratch),
+    ) {
         let j = self.jacobian;
-        let pj = &p * j;
+        let b = j.nrows();
+        scratch.fit(b, self.ht.nrows(), j.ncols());
+        self.ht.transpose_to(&mut scratch.h);
+        scratch.p.gemm(1.0, &scratch.h, &self.a, 0.0);
+        scratch.pj.gemm(1.0, &scratch.p, j, 0.0);
         let (dof, poses) = (self.dof, j.ncols() / self.dof);
         let components = joints.entries(dof);
-        let (mut hnh, mut v, mut pv) = (DMatrix::zeros(b, b), DMatrix::zeros(b, b), DMatrix::zeros(b, b));
-        nht.enumerate()
-            .map(|(c, nht)| {
-                hnh.gemm(1.0, &h, &nht, 0.0);
-                v.fill(0.0);
-                pv.fill(0.0);
-                match components.get(c) {
-                    Some(&(i, l)) => {
-                        for q in 0..poses {
-                            let (ji, jl) = (j.column(q * dof + i), j.column(q * dof + l));
-                            v.ger(1.0, &ji, &jl, 1.0);
-                            pv.ger(1.0, &pj.column(q * dof + i), &jl, 1.0);
-                            if i != l {
-                                v.ger(1.0, &jl, &ji, 1.0);
-                                pv.ger(1.0, &pj.column(q * dof + l), &ji, 1.0);
-                            }
-                        }
-                    }
-                    None => {
-                        let class = c - components.len();
-                        for row in (0..b).filter(|&row| self.classes[row] == class) {
-                            v[(row, row)] = 1.0;
-                            pv.column_mut(row).copy_from(&p.column(row));
+        for (c, nht) in nht.enumerate() {
+            let DesignScratch { h, p, pj, hnh, v, pv } = &mut *scratch;
+            hnh.gemm(1.0, &*h, &nht, 0.0);
+            v.fill(0.0);
+            pv.fill(0.0);
+            match components.get(c) {
+                Some(&(i, l)) => {
+                    for q in 0..poses {
+                        let (ji, jl) = (j.column(q * dof + i), j.column(q * dof + l));
+                        v.ger(1.0, &ji, &jl, 1.0);
+                        pv.ger(1.0, &pj.column(q * dof + i), &jl, 1.0);
+                        if i != l {
+                            v.ger(1.0, &jl, &ji, 1.0);
+                            pv.ger(1.0, &pj.column(q * dof + l), &ji, 1.0);
                         }
                     }
                 }
-                DMatrix::from_fn(b, b, |r, s| {
-                    v[(r, s)] - pv[(r, s)] - pv[(s, r)] + (hnh[(r, s)] + hnh[(s, r)]) / 2.0
-                })
-            })
-            .collect()
+                None => {
+                    let class = c - components.len();
+                    for row in (0..b).filter(|&row| self.classes[row] == class) {
+                        v[(row, row)] = 1.0;
+                        pv.column_mut(row).copy_from(&p.column(row));
+                    }
+                }
+            }
+            design(c, scratch);
+        }
     }
 }
 
@@ -1636,7 +1820,7 @@ mod tests {
             let n = h.nrows();
             let y = DVector::from_fn(n, |i, _| ((i * 5) % 13) as f64 / 6.0 - 1.0);
             let dense = residual_design(h, weights, layout, joints).unwrap();
-            let streamed = residual_samples(h, &y, weights, layout, joints).unwrap();
+            let streamed = residual_samples(&HeldRows { h, y: &y }, weights, layout, joints).unwrap();
             assert_eq!(streamed.count(), dense.len());
             let mut samples = Vec::new();
             let mut scratch = Vec::new();
@@ -1726,7 +1910,9 @@ mod tests {
         let weights = super::super::Weights::new(Some(&v), rows, super::super::Estimator::Wls, true).unwrap();
         let run = || {
             let layout = NoiseLayout::of_points(jacobians.clone(), 3, weights.blocks());
-            let samples = residual_samples(&h, &y, &weights, &layout, JointComponents::Full).unwrap();
+            let samples =
+                residual_samples(&HeldRows { h: &h, y: &y }, &weights, &layout, JointComponents::Full)
+                    .unwrap();
             let fit = fit_components(&samples, &[true, false, false, true, false, true, true], None).unwrap();
             (samples, fit)
         };

@@ -15,7 +15,7 @@ use super::{KindCalibration, KindData, KindOptions, KindProblem, calibrate_kinds
 use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
-use crate::estimation::{Estimator, NoiseEstimate, Residuals, Weights, residual_samples};
+use crate::estimation::{Estimator, HeldRows, NoiseEstimate, Residuals, Weights, residual_samples};
 use crate::model::{RobotModel, Selection};
 use nalgebra::DMatrix;
 
@@ -107,7 +107,7 @@ fn residual_noise(
     let y = problem.evaluate(&problem.start(), Some(&mut h));
     let (layout, classes) = problem.noise_layout();
     let dof = layout.dof;
-    let samples = residual_samples(&h, &y, &weights, &layout, joints)?;
+    let samples = residual_samples(&HeldRows { h: &h, y: &y }, &weights, &layout, joints)?;
     drop((h, y, weights, layout));
     Ok(NoiseEstimate::fit(&samples, joints, dof, classes, previous)?)
 }

@@ -9,7 +9,9 @@ use super::{TreeCalibration, TreeData, TreeOptions, TreeParams, TreeProblem, cal
 use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
-use crate::estimation::{Estimator, MeasurementClass, NoiseEstimate, Residuals, Weights, residual_samples};
+use crate::estimation::{
+    Estimator, HeldRows, MeasurementClass, NoiseEstimate, Residuals, Weights, residual_samples,
+};
 use crate::model::RobotTree;
 use nalgebra::DMatrix;
 
@@ -93,7 +95,7 @@ fn residual_noise(
     let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
     let y = problem.evaluate(&problem.start(), Some(&mut h));
     let (layout, classes) = problem.noise_layout(dof);
-    let samples = residual_samples(&h, &y, &weights, &layout, joints)?;
+    let samples = residual_samples(&HeldRows { h: &h, y: &y }, &weights, &layout, joints)?;
     drop((h, y, weights, layout));
     Ok(NoiseEstimate::fit(&samples, joints, dof, classes, previous)?)
 }
