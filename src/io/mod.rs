@@ -75,6 +75,14 @@ pub enum InputError {
         /// The preset names, comma-separated.
         presets: String,
     },
+    /// Neither an embedded study nor an existing file.
+    #[error("no study `{name}`: not an embedded one ({studies}) and no such file")]
+    UnknownStudy {
+        /// What was asked for.
+        name: String,
+        /// The embedded studies' names, comma-separated.
+        studies: String,
+    },
 }
 
 /// How a branch model written by `calibrate --out-dir` does not fit the tree it is read into.
@@ -499,9 +507,20 @@ pub fn load_study(name_or_path: &str) -> Result<Study, InputError> {
     if let Some((_, text)) = STUDIES.iter().find(|(n, _)| *n == name_or_path) {
         return Ok(Study::from_toml_str(text, robot).expect("embedded studies are valid"));
     }
-    let path = Path::new(name_or_path);
-    let text = read(path)?;
+    let (path, text) = study_file(name_or_path)?;
     Study::from_toml_str(&text, robot).map_err(|source| InputError::Study { path: path.into(), source })
+}
+
+/// The path and text of the study file `name_or_path`; an error listing the embedded studies
+/// where no such file exists.
+fn study_file(name_or_path: &str) -> Result<(&Path, String), InputError> {
+    let path = Path::new(name_or_path);
+    if !path.exists() {
+        let names = STUDIES.iter().chain(INSTRUMENT_STUDIES).map(|(n, _)| *n);
+        let studies = names.collect::<Vec<_>>().join(", ");
+        return Err(InputError::UnknownStudy { name: name_or_path.to_string(), studies });
+    }
+    Ok((path, read(path)?))
 }
 
 /// The instrument study named (an embedded one: [`INSTRUMENT_STUDIES`]) or in the file
@@ -515,8 +534,7 @@ pub fn load_instrument_study(name_or_path: &str) -> Result<Option<InstrumentStud
     if STUDIES.iter().any(|(n, _)| *n == name_or_path) {
         return Ok(None);
     }
-    let path = Path::new(name_or_path);
-    let text = read(path)?;
+    let (path, text) = study_file(name_or_path)?;
     if !is_instrument_study(&text) {
         return Ok(None);
     }
@@ -613,8 +631,8 @@ fn load_chain(model: &ModelRef) -> Result<RobotModel, InputError> {
     RobotModel::from_toml_str(&text).map_err(|source| InputError::Model { path: path.into(), source })
 }
 
-/// The joint values of a pose file (or of a measurement file) for `model`; `units` given by
-/// the caller replace the file's line.
+/// The joint values of a pose file (or of a measurement file) for `model`, in the units of
+/// its `# units:` line, else `units` given by the caller (which must agree with the line).
 pub fn load_poses(
     path: &Path,
     model: &RobotModel,

@@ -126,6 +126,16 @@ fn unknown_model_lists_the_presets() {
 }
 
 #[test]
+fn unknown_study_lists_the_embedded_ones() {
+    let message = stderr_of(&["simulate", "paper-table3"]);
+    assert!(
+        message.contains("no study `paper-table3`: not an embedded one (paper-table1, paper-table2, ")
+            && message.contains("instruments) and no such file"),
+        "{message}"
+    );
+}
+
+#[test]
 fn bad_model_file_is_named_with_the_field() {
     let dir = std::env::temp_dir().join(format!("robocal-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
