@@ -203,6 +203,14 @@ pub enum Warning {
         /// The gauges found after the start's.
         rounds: usize,
     },
+    /// Training poses with joint values outside the robot's limits (the model's or the URDF's):
+    /// a calibration there extrapolates the model.
+    OutsideLimits {
+        /// The robot's name.
+        robot: String,
+        /// Every one of them, in the files' order.
+        poses: Vec<OutsidePose>,
+    },
 }
 
 /// What the residuals say of the noise given ([`super::noise_check`]).
@@ -254,6 +262,8 @@ pub enum Cause {
     NoiseDisagrees,
     /// [`Warning::GaugeMoved`].
     GaugeMoved,
+    /// [`Warning::OutsideLimits`].
+    OutsideLimits,
 }
 
 impl Warning {
@@ -268,6 +278,7 @@ impl Warning {
             Self::SigmaIgnored => Cause::SigmaIgnored,
             Self::NoiseDisagrees(_) => Cause::NoiseDisagrees,
             Self::GaugeMoved { .. } => Cause::GaugeMoved,
+            Self::OutsideLimits { .. } => Cause::OutsideLimits,
         }
     }
 
@@ -277,6 +288,7 @@ impl Warning {
         match self {
             Self::Implausible { estimates, .. } => estimates.len(),
             Self::FarOut { observations, .. } => observations.len(),
+            Self::OutsideLimits { poses, .. } => poses.len(),
             _ => 1,
         }
     }
@@ -307,6 +319,10 @@ impl Warning {
             Self::SigmaIgnored => "feasible GLS ignored the sigma column".to_string(),
             Self::NoiseDisagrees(n) => format!("the residuals say {}", n.factors()),
             Self::GaugeMoved { .. } => "the gauge found again at the estimate".to_string(),
+            Self::OutsideLimits { robot, poses } => {
+                let poses = if poses.len() == 1 { "pose" } else { "poses" };
+                format!("training {poses} with joint values outside the limits of {robot}")
+            }
         }
     }
 
@@ -398,7 +414,53 @@ impl fmt::Display for Warning {
                     list(held)
                 )
             }
+            Self::OutsideLimits { robot, poses } => {
+                let listed: Vec<String> = poses
+                    .iter()
+                    .take(LISTED)
+                    .map(|p| format!("{} ({})", p.line, p.joints.join(", ")))
+                    .collect();
+                let more = if poses.len() > LISTED {
+                    format!(" and {} more", poses.len() - LISTED)
+                } else {
+                    String::new()
+                };
+                write!(
+                    f,
+                    "joint values outside the limits of {robot} at line {}{more}: the calibration extrapolates \
+                     the model there",
+                    listed.join(", ")
+                )
+            }
         }
+    }
+}
+
+/// A training pose with joint values outside the robot's limits.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct OutsidePose {
+    /// Its line in the file.
+    pub line: usize,
+    /// The joints outside their limits, by name.
+    pub joints: Vec<String>,
+}
+
+impl Warning {
+    /// The training poses (`(line, joint values)`, rad and mm) whose values of `joints` lie
+    /// outside their limits, of the robot `robot`; `None` if none does.
+    pub fn outside_limits<'a>(
+        robot: &str,
+        joints: &[crate::model::Joint],
+        poses: impl IntoIterator<Item = (usize, &'a [f64])>,
+    ) -> Option<Self> {
+        let poses: Vec<OutsidePose> = (poses.into_iter())
+            .filter_map(|(line, q)| {
+                let outside = crate::model::outside_limits(joints, q);
+                let joints = outside.iter().map(|j| j.to_string()).collect();
+                (!outside.is_empty()).then_some(OutsidePose { line, joints })
+            })
+            .collect();
+        (!poses.is_empty()).then(|| Self::OutsideLimits { robot: robot.to_string(), poses })
     }
 }
 

@@ -28,7 +28,7 @@ pub mod selection;
 pub mod tree;
 
 pub use data::{DataKind, Measurements};
-pub use diagnostics::{Cause, Confounder, FarOut, Held, Scored, Warning};
+pub use diagnostics::{Cause, Confounder, FarOut, Held, OutsidePose, Scored, Warning};
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
 pub use front::{Front, Kinds, Markers, Tree};
 pub use repeatability::{
@@ -773,6 +773,8 @@ fn calibrate_checking(
     };
     let fit = Fit { params, before, after, refined, fixed, noise, prior_sd, robust };
     let mut calibration = finish(start.stages(data, fit), &base_problem)?;
+    let poses = data.lines.iter().copied().zip(data.joints.iter().map(Vec::as_slice));
+    calibration.warnings.extend(Warning::outside_limits(&model.name, &model.joints, poses));
     calibration.warnings.extend(noise_warning);
     calibration.warnings.extend(change);
     Ok(calibration)

@@ -117,11 +117,6 @@ pub(super) fn load_model(model: &ModelRef) -> Result<Robot> {
 /// Load the measurements and the held-out files.
 fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
     let mut fit = io::load_measurements(&request.data, model, request.units)?;
-    super::warn_outside_limits(
-        &request.data,
-        model,
-        fit.lines.iter().copied().zip(fit.joints.iter().map(Vec::as_slice)),
-    );
     if !fit.ignored.is_empty() {
         super::status(format_args!(
             "note: {}: ignoring columns {}",

@@ -364,18 +364,10 @@ fn design(request: &DesignRequest) -> Result<Design> {
 }
 
 /// Warn, naming the lines (the first ten), about the poses of `path` (`(line, joint values)`)
-/// with joint values outside `model`'s limits: a calibration there extrapolates the model.
+/// with joint values outside `model`'s limits: a repeatability study there measures the arm
+/// where it does not go. (A calibration says so in its report: [`robocal::calibration::Warning`].)
 fn warn_outside_limits<'a>(path: &Path, model: &RobotModel, poses: impl Iterator<Item = (usize, &'a [f64])>) {
-    warn_joints_outside_limits(path, &model.name, &model.joints, poses);
-}
-
-/// [`warn_outside_limits`] of the robot `name` of `joints` (a tree's).
-fn warn_joints_outside_limits<'a>(
-    path: &Path,
-    name: &str,
-    joints: &[robocal::model::Joint],
-    poses: impl Iterator<Item = (usize, &'a [f64])>,
-) {
+    let (name, joints) = (&model.name, &model.joints);
     let outside: Vec<String> = poses
         .filter_map(|(line, q)| {
             let joints = robocal::model::outside_limits(joints, q);

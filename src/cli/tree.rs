@@ -23,12 +23,6 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     let mut sessions = Vec::with_capacity(request.data.len());
     for path in &request.data {
         let file = read(path, &tree, request)?;
-        super::warn_joints_outside_limits(
-            path,
-            &tree.name,
-            &tree.joints,
-            file.views.iter().zip(&file.lines).map(|(v, &line)| (line, file.joints[v.pose].as_slice())),
-        );
         sessions.push((path.display().to_string(), file));
     }
     let held_out = (request.validate.iter())

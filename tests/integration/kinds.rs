@@ -1160,3 +1160,23 @@ fn a_ball_bar_s_noise_is_checked_against_its_residuals() {
     assert!(!right.warnings.iter().any(|w| matches!(w, Warning::NoiseDisagrees(_))), "{:?}", right.warnings);
     assert!((right.training.flag_at - 5.0).abs() < 1.5, "{}", right.training.flag_at);
 }
+
+/// Training poses with joint values outside the robot's limits are a typed warning of the
+/// calibration (its line and the joints, each pose once), not a line on standard error alone.
+#[test]
+fn poses_outside_the_limits_are_a_warning_of_the_calibration() {
+    use robocal::calibration::{OutsidePose, Warning};
+    let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let mut data = ball_bar(&chain.with_errors(&vec![0.0; chain.params().len()]), &mut rng, 0.01);
+    let limits = puma().joints[0].limits;
+    data.joints[2][0] = limits[1] + 0.1;
+    let c = calibrate_kinds(&puma(), &data, &options(Estimator::Wls)).unwrap();
+    let outside: Vec<&Warning> =
+        c.warnings.iter().filter(|w| matches!(w, Warning::OutsideLimits { .. })).collect();
+    let expected = Warning::OutsideLimits {
+        robot: "puma560".into(),
+        poses: vec![OutsidePose { line: data.lines[2], joints: vec!["j1".into()] }],
+    };
+    assert_eq!(outside, [&expected], "{:?}", c.warnings);
+}

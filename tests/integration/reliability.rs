@@ -442,11 +442,12 @@ fn joint_values_outside_the_limits_are_warned_with_their_lines() {
         lines[line] = [&cells[..2], &["260.0"], &cells[3..]].concat().join(",");
     }
     file(&dir, "d.csv", &(lines.join("\n") + "\n"));
-    let (code, _, stderr) = run_in(&dir, &CALIBRATE);
+    let (code, stdout, stderr) = run_in(&dir, &CALIBRATE);
     assert_eq!(code, 0, "{stderr}");
+    assert!(stdout.contains("2  training poses with joint values outside the limits of puma560"), "{stdout}");
     assert!(
-        stderr.contains("warning: d.csv: joint values outside the limits of puma560 at line 4 (j3), 8 (j3)"),
-        "{stderr}"
+        stdout.contains("joint values outside the limits of puma560 at line 4 (j3), 8 (j3): the calibration"),
+        "{stdout}"
     );
 }
 

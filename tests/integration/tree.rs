@@ -555,9 +555,22 @@ fn calibrate_tree_warns_of_implausible_corrections_and_joints_beyond_their_limit
     lines[2] = cells.join(",");
     let file = dir.join("views.csv");
     std::fs::write(&file, lines.join("\n") + "\n").unwrap();
-    let out = robocal(&["calibrate", "--model", "presets/torso.urdf", "--data", file.to_str().unwrap()]);
-    let stderr = String::from_utf8(out.stderr).unwrap();
-    assert!(stderr.contains("joint values outside the limits of torso at line 3 (head_tilt)"), "{stderr}");
+    let json = dir.join("report.json");
+    let (file, json_arg) = (file.to_str().unwrap(), json.to_str().unwrap());
+    let out = robocal(&["calibrate", "--model", "presets/torso.urdf", "--data", file, "--json", json_arg]);
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.contains("1  training pose with joint values outside the limits of torso"), "{stdout}");
+    assert!(
+        stdout.contains("joint values outside the limits of torso at line 3 (head_tilt): the calibration")
+    );
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let warning = report["warnings"].as_array().unwrap().iter().find(|w| w["cause"] == "outside_limits");
+    assert_eq!(
+        warning.unwrap()["poses"],
+        serde_json::json!([{ "line": 3, "joints": ["head_tilt"] }]),
+        "{}",
+        report["warnings"]
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

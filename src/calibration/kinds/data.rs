@@ -324,6 +324,17 @@ impl KindData {
         }
     }
 
+    /// Each pose once, with the line of its first observation, in the file's order: `(line,
+    /// joint values)`.
+    pub fn pose_lines(&self) -> impl Iterator<Item = (usize, &[f64])> + '_ {
+        let mut seen = vec![false; self.joints.len()];
+        (self.observations.iter().zip(&self.lines)).filter_map(move |(o, &line)| {
+            let pose = o.pose();
+            let first = !std::mem::replace(&mut seen[pose], true);
+            first.then(|| (line, self.joints[pose].as_slice()))
+        })
+    }
+
     /// The number of sessions (at least 1).
     pub fn session_count(&self) -> usize {
         self.sessions.len().max(1)

@@ -1492,6 +1492,7 @@ pub fn calibrate_kinds(
         noise_settled: None,
     };
     scored(&mut calibration, data)?;
+    calibration.warnings.extend(Warning::outside_limits(&model.name, &model.joints, data.pose_lines()));
     calibration.warnings.extend(noise_check(&calibration, data, options.loss));
     calibration.warnings.extend(change);
     Ok(calibration)

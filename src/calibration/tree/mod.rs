@@ -1109,6 +1109,8 @@ pub fn calibrate_tree(
     };
     calibration.training = calibration.score(data)?;
     calibration.warnings = calibration.warnings();
+    let views = data.views.iter().zip(&data.lines).map(|(v, &line)| (line, data.joints[v.pose].as_slice()));
+    calibration.warnings.extend(Warning::outside_limits(&tree.name, &tree.joints, views));
     calibration.warnings.extend(r.change);
     Ok(calibration)
 }
