@@ -53,6 +53,18 @@ fn the_marginal_likelihood_finds_the_scale_the_truth_was_drawn_at() {
     assert!(ratios.iter().any(|r| *r < 1.0) && ratios.iter().any(|r| *r > 1.0), "{ratios:?}");
 }
 
+/// Robot `seed` of the marginal likelihood's tests: its joint errors drawn from the standard
+/// deviations `sd` times `s0` (1 for an even seed, 4 for an odd one), measured at 60 poses with
+/// 0.2 mm of noise; `s0` and the measurements.
+fn drawn_robot(chain: &Chain, sd: &[f64], seed: u64) -> (f64, robocal::calibration::Measurements) {
+    let s0 = if seed % 2 == 0 { 1.0 } else { 4.0 };
+    let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
+    let x: Vec<f64> = (chain.params().iter().zip(sd))
+        .map(|(p, s)| if p.name.starts_with('j') && s.is_finite() { normal(&mut rng) * s * s0 } else { 0.0 })
+        .collect();
+    (s0, measured(&x, 60, 0.8, 0.2, &mut rng))
+}
+
 /// A PUMA 560 whose joint errors are drawn from the `machined` tolerances times `s0` (1 or 4),
 /// 60 poses, 0.2 mm of known noise: `--prior auto-ml:machined`'s scale is within a factor 1.5 of `s0` on at least 8 of 10
 /// robots, and larger for the robots 4 times further off.
@@ -66,16 +78,7 @@ fn auto_ml_finds_the_scale_of_a_robot() {
     let o = robocal::calibration::Options { estimator: Estimator::Wls, noise: Some(noise()), ..options() };
     let (mut within, mut found) = (0, Vec::new());
     for seed in 0..10 {
-        let s0 = if seed % 2 == 0 { 1.0 } else { 4.0 };
-        let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
-        let x: Vec<f64> = (chain.params().iter().zip(&sd))
-            .map(
-                |(p, s)| {
-                    if p.name.starts_with('j') && s.is_finite() { normal(&mut rng) * s * s0 } else { 0.0 }
-                },
-            )
-            .collect();
-        let train = measured(&x, 60, 0.8, 0.2, &mut rng);
+        let (s0, train) = drawn_robot(&chain, &sd, seed);
         let scale = choose_prior_scale_ml(&Markers(&model), &train, &o, &auto).unwrap();
         assert_eq!((scale.log_evidence[scale.chosen], scale.folds), (0.0, None));
         assert!(scale.log_evidence.iter().all(|l| *l <= 0.0));
@@ -103,16 +106,7 @@ fn auto_ml_without_noise_takes_the_residuals_spread() {
         robocal::calibration::Options { estimator: Estimator::Wls, noise: Some(noise()), ..options() };
     let (mut within, mut found) = (0, Vec::new());
     for seed in 0..10 {
-        let s0 = if seed % 2 == 0 { 1.0 } else { 4.0 };
-        let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
-        let x: Vec<f64> = (chain.params().iter().zip(&sd))
-            .map(
-                |(p, s)| {
-                    if p.name.starts_with('j') && s.is_finite() { normal(&mut rng) * s * s0 } else { 0.0 }
-                },
-            )
-            .collect();
-        let train = measured(&x, 60, 0.8, 0.2, &mut rng);
+        let (s0, train) = drawn_robot(&chain, &sd, seed);
         let ols = choose_prior_scale_ml(&Markers(&model), &train, &options(), &auto).unwrap();
         let known = choose_prior_scale_ml(&Markers(&model), &train, &given, &auto).unwrap();
         let spread = ols.noise_spread.expect("the spread taken without the noise");

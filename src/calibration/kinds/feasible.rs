@@ -16,7 +16,7 @@ use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
 use crate::estimation::{Estimator, HeldRows, NoiseEstimate, Residuals, Weights, residual_samples};
-use crate::model::{RobotModel, Selection};
+use crate::model::RobotModel;
 use nalgebra::DMatrix;
 
 /// Feasible GLS of observation files: calibrate by ordinary least squares, fit the variance
@@ -88,13 +88,7 @@ fn residual_noise(
     joints: JointComponents,
     previous: Option<&NoiseEstimate>,
 ) -> Result<NoiseEstimate, CalibrationError> {
-    let names = &c.refined.estimate.names;
-    let kept = Selection::from_indices(&c.params, names.iter().filter_map(|n| c.params.index_by_name(n)));
-    let setup = c.setup.names();
-    let kept_setup: Vec<usize> = (names.iter())
-        .filter(|n| c.params.index_by_name(n).is_none())
-        .filter_map(|n| setup.iter().position(|s| s == n))
-        .collect();
+    let (kept, kept_setup) = c.estimated();
     let markers: Vec<usize> = c.markers.iter().map(|m| m.0).collect();
     let weighted = previous.map(|e| with_class_sigmas(data, e));
     let data = weighted.as_ref().unwrap_or(data);

@@ -1300,6 +1300,19 @@ impl Score {
 }
 
 impl KindCalibration {
+    /// What the fit estimated, by the names of its estimate: the robot's parameters, and the
+    /// indices of the set-up's.
+    fn estimated(&self) -> (Selection, Vec<usize>) {
+        let names = &self.refined.estimate.names;
+        let robot = names.iter().filter_map(|n| self.params.index_by_name(n));
+        let setup = self.setup.names();
+        let kept_setup = (names.iter())
+            .filter(|n| self.params.index_by_name(n).is_none())
+            .filter_map(|n| setup.iter().position(|s| s == n))
+            .collect();
+        (Selection::from_indices(&self.params, robot), kept_setup)
+    }
+
     /// `data` scored before and after, the set-up as calibrated, whitened by `V_k` with the
     /// calibration's joint noise (by feasible GLS, with the estimated noise: each observation's
     /// sigma its class's).
@@ -1512,13 +1525,7 @@ fn noise_check(c: &KindCalibration, data: &KindData, loss: Loss) -> Option<Warni
     }
     let stride = data.joints.len().div_ceil(CHECK_POSES).max(1);
     let sample = data.keeping(|o| o.pose() % stride == 0);
-    let names = &c.refined.estimate.names;
-    let kept = Selection::from_indices(&c.params, names.iter().filter_map(|n| c.params.index_by_name(n)));
-    let setup = c.setup.names();
-    let kept_setup: Vec<usize> = (names.iter())
-        .filter(|n| c.params.index_by_name(n).is_none())
-        .filter_map(|n| setup.iter().position(|s| s == n))
-        .collect();
+    let (kept, kept_setup) = c.estimated();
     let markers: Vec<usize> = c.markers.iter().map(|m| m.0).collect();
     let (x, s) = (c.after.clone(), c.setup_values.1.clone());
     let problem = KindProblem::of_points(&c.chains, &markers, &kept, &sample, &c.setup, x, s, kept_setup)
