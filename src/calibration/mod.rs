@@ -906,13 +906,8 @@ fn identifiable(
     prior_sd: Option<&[f64]>,
 ) -> Result<Identified, CalibrationError> {
     let params = base_problem.params();
-    // A compliance or play whose joint gravity does not load at these poses (a vertical axis)
-    // has no column: it is held, and said so.
-    let (asked, unloaded) =
-        without_unloaded_responses(asked, &base_problem.chains()[0], before, &data.joints);
-    let problem = base_problem.reselect(&asked, before.to_vec())?;
-    let at_before = linearise(&problem, weights, problem.start())?;
-    let priority = gauge_priority(params, &asked, gauge)?;
+    let Loaded { asked, unloaded, at_before, priority } =
+        loaded(base_problem, weights, asked, before, data, gauge)?;
     // With priors, what the data and the priors together cannot identify is held: a parameter
     // with a prior never is.
     let asked_sd: Vec<f64> =
@@ -1063,12 +1058,40 @@ pub(crate) fn ols_prior_spread(
     data: &Measurements,
     gauge: &Gauge,
 ) -> Result<f64, CalibrationError> {
-    let params = base_problem.params();
-    let (asked, _) = without_unloaded_responses(asked, &base_problem.chains()[0], before, &data.joints);
+    let Loaded { asked, at_before, priority, .. } =
+        loaded(base_problem, weights, asked, before, data, gauge)?;
+    unregularised_spread(base_problem, base_problem.params(), &asked, before, weights, &at_before, &priority)
+}
+
+/// What the poses can load of `asked` at the "before" values, linearised there: [`loaded`].
+struct Loaded {
+    /// `asked` without the unloaded compliances and plays.
+    asked: Selection,
+    /// Why each of those is held.
+    unloaded: Vec<Held>,
+    /// The system of `asked` linearised about `before`, weighted by the weights.
+    at_before: crate::estimation::Linearisation,
+    /// The order the rank-revealing solve keeps its columns in ([`gauge_priority`]).
+    priority: Vec<u32>,
+}
+
+/// `asked` without the compliances and plays whose joints gravity does not load at these
+/// poses (a vertical axis: no column, held and said so), linearised about `before` and weighted
+/// by `weights`, with the order of its columns for the rank-revealing solve.
+fn loaded(
+    base_problem: &PointProblem<'_>,
+    weights: &Weights,
+    asked: &Selection,
+    before: &[f64],
+    data: &Measurements,
+    gauge: &Gauge,
+) -> Result<Loaded, CalibrationError> {
+    let (asked, unloaded) =
+        without_unloaded_responses(asked, &base_problem.chains()[0], before, &data.joints);
     let problem = base_problem.reselect(&asked, before.to_vec())?;
     let at_before = linearise(&problem, weights, problem.start())?;
-    let priority = gauge_priority(params, &asked, gauge)?;
-    unregularised_spread(base_problem, params, &asked, before, weights, &at_before, &priority)
+    let priority = gauge_priority(base_problem.params(), &asked, gauge)?;
+    Ok(Loaded { asked, unloaded, at_before, priority })
 }
 
 /// The scale of the rows of an OLS fit without a noise model, for its priors: the residuals'
