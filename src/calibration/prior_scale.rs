@@ -399,6 +399,13 @@ pub(crate) fn system_evidence(
     let infos: Vec<&ParamInfo> = system.params.iter().collect();
     let extra = system.linearised.x.len() - system.asked.len();
     let (columns, classes) = evidence_columns(auto, own, &infos, &system.asked, extra)?;
+    if !columns.iter().any(|c| matches!(c, Column::Scaled(_))) {
+        return Err(CalibrationError::Scoring(format!(
+            "--prior {}: no parameter asked for takes the preset's prior (each has another --prior entry, \
+             or the preset has none for it): there is no scale to choose",
+            auto.label()
+        )));
+    }
     Ok(linear_evidence(&system.linearised, system.c * system.c, &columns, &classes))
 }
 

@@ -148,6 +148,21 @@ fn the_report_gives_the_marginal_likelihood_scale() {
     assert_eq!(report["cross_validation"]["redone"], serde_json::json!(["--prior auto-ml:machined's scale"]));
 }
 
+/// `--prior auto-ml:machined` when the user's own `--prior machined` covers every parameter
+/// the preset would scale: a clear error, where the evidence of no scaled column panicked.
+#[test]
+fn auto_ml_with_nothing_to_scale_says_so() {
+    let model = RobotModel::preset("puma560").unwrap();
+    let auto = AutoPrior::parse("auto-ml:machined").unwrap().unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let x = vec![0.0; Chain::markers(&model, &[MARKER])[0].params().len()];
+    let train = measured(&x, 30, 0.8, 0.2, &mut rng);
+    let own = robocal::estimation::PriorEntry::parse_list("machined").unwrap();
+    let o = robocal::calibration::Options { prior: own, ..options() };
+    let e = choose_prior_scale_ml(&Markers(&model), &train, &o, &auto).unwrap_err().to_string();
+    assert!(e.contains("--prior auto-ml:machined: no parameter asked for takes the preset's prior"), "{e}");
+}
+
 /// `calibrate --prior auto-ml:machined` on a marker file without the noise (OLS) says the noise
 /// it took, the residuals' spread without priors, and `--json` has it as `noise_spread`, equal
 /// to the printed figure.
