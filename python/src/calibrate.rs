@@ -7,7 +7,7 @@ use crate::model::Model;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
-use robocal::calibration::kinds::{KindData, KindOptions};
+use robocal::calibration::kinds::{KindData, KindOptions, Observation, RowSigmaDefaults};
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::calibration::{
@@ -259,11 +259,6 @@ impl Flags {
             "noise gives the measurement noise too: do not give sigma or sigma_orientation with it",
         )?;
         self.check_sigmas()?;
-        require(
-            !measurement || self.joint_sigma.is_some(),
-            "sigma",
-            "sigma needs joint_sigma too (zeros if the joints are exact)",
-        )?;
         let feasible = self.estimator.as_deref() == Some("fgls");
         let estimator = match self.estimator.as_deref() {
             Some("fgls") => {
@@ -370,6 +365,11 @@ impl Flags {
                 errors::from_error(Kind::Input, &e, Some(&format!("{path}: the device's covariance")))
             });
         }
+        require(
+            !self.measurement_sigmas() || self.joint_sigma.is_some(),
+            "sigma",
+            "sigma needs joint_sigma too with marker data (zeros if the joints are exact)",
+        )?;
         let Some(sigmas) = &self.joint_sigma else { return Ok(None) };
         let joint = joint_sigmas((&model.name, &model.joints), sigmas, request.noise_units)?;
         let scale = request.noise_units.length_scale();
@@ -813,23 +813,31 @@ fn observations(
     request: &Request,
 ) -> PyResult<Calibration> {
     let model = &robot.inner;
-    require(
-        flags.noise.is_none() && !flags.measurement_sigmas(),
-        "noise",
-        "observation files: each observation's sigma is its own; give joint_sigma only (or estimator fgls)",
-    )?;
-    let only_for_markers = |given: bool, field: &str, why: &str| {
-        let message =
-            format!("{field} is for a single file of marker positions; with observation files {why}");
-        require(!given, field, &message)
+    let spec = match &flags.noise {
+        Some(path) => {
+            let spec = robocal::io::load_noise(Path::new(path), model)
+                .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
+            require(
+                spec.device.is_none(),
+                "noise",
+                "a [device] model is for a single marker file with every cell measured; for observation files (or \
+                 several, or an empty marker cell) give sigma_me_mm",
+            )?;
+            Some(spec)
+        }
+        None => None,
     };
-    only_for_markers(
-        flags.fixed_base,
-        "fixed_base",
-        "the base is estimated where the data see it (markers, coordinates) and held otherwise",
-    )?;
-    only_for_markers(flags.fixed_markers, "fixed_markers", "the markers are always estimated")?;
-    only_for_markers(flags.markers.is_some(), "use_markers", "every marker of the files is fitted")?;
+    // A zero sigma is none, as for marker data.
+    let defaults = match &spec {
+        Some(spec) => RowSigmaDefaults {
+            length_mm: spec.sigma_me.filter(|&s| s > 0.0),
+            angle_rad: Some(spec.sigma_orientation).filter(|&s| s > 0.0),
+        },
+        None => RowSigmaDefaults {
+            length_mm: flags.sigma.filter(|&s| s > 0.0).map(|s| s * request.noise_units.length_scale()),
+            angle_rad: flags.sigma_orientation.filter(|&s| s > 0.0).map(|s| request.noise_units.angle(s)),
+        },
+    };
     require(
         flags.params_words()? != ParamWords::All,
         "params",
@@ -841,7 +849,7 @@ fn observations(
         "one value per observation file (each file a session): give two files or more",
     )?;
     let read = |s: &Source| -> PyResult<(String, KindData)> {
-        let data = KindData::from_csv_str(&text_of(s)?, model, units_for(s, request.units))
+        let data = KindData::from_csv_str_with(&text_of(s)?, model, units_for(s, request.units), defaults)
             .map_err(|e| data_error(s, &e))?;
         let stem =
             Path::new(&s.0).file_stem().map_or_else(|| s.0.clone(), |n| n.to_string_lossy().into_owned());
@@ -872,7 +880,28 @@ fn observations(
         return Err(errors::argument("marker", message));
     }
     let held: Vec<(String, KindData)> = validate.iter().map(read).collect::<PyResult<_>>()?;
-    let options = kind_options(model, flags, request)?;
+    let (sessions, held) = match &flags.markers {
+        Some(ids) => {
+            let have: Vec<usize> = sessions.iter().flat_map(|(_, d)| d.markers()).map(|m| m + 1).collect();
+            if let Some(id) = ids.iter().find(|id| !have.contains(id)) {
+                return Err(errors::argument("use_markers", format!("{id}: no file has marker {id}")));
+            }
+            let only = |(name, d): (String, KindData)| {
+                let kept = d.keeping(
+                    |o| !matches!(o, Observation::Marker { marker, .. } if !ids.contains(&(marker + 1))),
+                );
+                (name, kept)
+            };
+            (sessions.into_iter().map(only).collect(), held.into_iter().map(only).collect())
+        }
+        None => (sessions, held),
+    };
+    let mut options = kind_options(model, flags, request)?;
+    if let Some(spec) = spec {
+        // The noise file's joint noise, and its [prior] before the flags'.
+        options.joint_noise = Some(spec.joint);
+        options.prior = spec.prior.into_iter().chain(options.prior).collect();
+    }
     let choices = Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
     let fitting = robocal::pipeline::Fitting::new(request.feasible, choices, flags.folds);
     let outcome = py
@@ -963,6 +992,8 @@ fn kind_options(model: &RobotModel, flags: &Flags, request: &Request) -> PyResul
         joint_noise,
         joints: request.joints.clone(),
         estimate_tool: !flags.fixed_tool,
+        estimate_base: !flags.fixed_base,
+        estimate_markers: !flags.fixed_markers,
         tool: flags.tool.map_or_else(
             || model.tool_point_in_marker_frame(),
             |t| Vector3::from(t) * request.noise_units.length_scale(),

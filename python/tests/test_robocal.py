@@ -617,15 +617,35 @@ def test_sessions_of_one_name_are_refused(puma: robocal.Model, tmp_path: Path) -
     assert e.value.field == "per_session" and "`ballbar`" in str(e.value)
 
 
+def test_marker_options_with_a_ball_bar_are_the_command_lines(puma: robocal.Model, tmp_path: Path) -> None:
+    """use_markers, fixed_markers, fixed_base and sigma on a marker file fitted with a ball
+    bar: the command line's report, number for number."""
+    out = tmp_path / "report.json"
+    run_cli("calibrate", "--model", "puma560", "--data", str(DATA), "--data", str(BALLBAR), "--tool", "50,0,150",
+            "--marker", "50,0,150", "--marker=-40,60,120", "--markers", "2", "--fixed-markers",
+            "--sigma-mm", "0.05", "--json", str(out), "--quiet")
+    ours = robocal.calibrate(puma, [DATA, BALLBAR], tool=[50.0, 0.0, 150.0],
+                             marker=[[50.0, 0.0, 150.0], [-40.0, 60.0, 120.0]], use_markers=[2],
+                             fixed_markers=True, sigma=0.05, joint_unit="deg", length_unit="mm")
+    report = json.loads(ours.to_json())
+    assert not any(p["name"].startswith("marker") for p in report["parameters"])
+    assert_same(report, json.loads(out.read_text()))
+    # A noise file: its joint noise and sigma_me, as the command line reads it.
+    noise = EXAMPLES / "puma560-noise.toml"
+    run_cli("calibrate", "--model", "puma560", "--data", str(DATA), "--data", str(BALLBAR), "--tool", "50,0,150",
+            "--noise", str(noise), "--json", str(out), "--quiet")
+    ours = robocal.calibrate(puma, [DATA, BALLBAR], tool=[50.0, 0.0, 150.0], noise=str(noise), joint_unit="deg",
+                             length_unit="mm")
+    assert_same(json.loads(ours.to_json()), json.loads(out.read_text()))
+
+
 def test_what_the_command_line_refuses_python_refuses(puma: robocal.Model) -> None:
     """The command line's refusals of options that observation files cannot honour, of
     standard deviations out of range, and of counts, as InputErrors naming the field."""
     refused: list[tuple[dict[str, Any], str]] = [
-        (dict(fixed_base=True), "fixed_base"),
-        (dict(fixed_markers=True), "fixed_markers"),
         (dict(use_markers=[1]), "use_markers"),
         (dict(params="all"), "params"),
-        (dict(joint_sigma=[0.01], sigma_orientation=0.01), "noise"),
+        (dict(noise=str(EXAMPLES / "noise" / "laser-tracker-0.1mm.toml")), "noise"),
         (dict(marker=[[0.0, 0.0, 0.0]]), "marker"),
         (dict(tool=[float("nan"), 0.0, 0.0]), "tool"),
         (dict(joint_sigma=[-0.01]), "joint_sigma"),

@@ -37,10 +37,12 @@ pub enum DataKind {
 
 impl DataKind {
     /// The kind of the CSV `text`: a `target` column makes tree views, marker columns
-    /// (`x<k>`) a marker file, anything else observations (whose reader checks the rest).
+    /// (`x<k>`) a marker file, anything else observations (whose reader checks the rest). A
+    /// marker file with an empty marker cell (a marker not measured at a pose: an occlusion) is
+    /// read cell by cell, as observations ([`Observation::Marker`](super::kinds::Observation)).
     pub fn of_csv_str(text: &str) -> Result<Self, DataError> {
-        // The header alone (the comments and the units line before it): the rows are read
-        // once, by the calibration that takes the file.
+        // The header (the comments and the units line before it) parsed; the rows are only
+        // scanned for empty marker cells, and read once, by the calibration that takes the file.
         let mut end = 0;
         for line in text.split_inclusive('\n') {
             end += line.len();
@@ -49,8 +51,10 @@ impl DataKind {
             }
         }
         let table = Table::parse(&text[..end])?;
-        Ok(match (table.column("target"), marker_columns(&table)?.is_empty()) {
+        let markers = marker_columns(&table)?;
+        Ok(match (table.column("target"), markers.is_empty()) {
             (Some(_), _) => Self::TreeViews,
+            (None, false) if leaves_a_marker_cell_empty(&text[end..], &markers) => Self::Observations,
             (None, false) => Self::Markers,
             (None, true) => Self::Observations,
         })
@@ -64,6 +68,15 @@ impl DataKind {
             Self::TreeViews => "views between a tree's branches (camera, target)",
         }
     }
+}
+
+/// Whether a row of `rows` (a CSV's lines after its header) leaves one of the marker `columns`
+/// empty; comments and blank lines are no rows.
+fn leaves_a_marker_cell_empty(rows: &str, columns: &[(usize, [usize; 3])]) -> bool {
+    let is_marker = |i: usize| columns.iter().any(|(_, c)| c.contains(&i));
+    (rows.lines().map(str::trim))
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .any(|line| line.split(',').enumerate().any(|(i, cell)| cell.trim().is_empty() && is_marker(i)))
 }
 
 /// Measured poses, in mm and rad.

@@ -149,10 +149,13 @@ pub struct NoiseArgs {
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_parser = parse_sigma_deg)]
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// Measurement noise standard deviation (mm), with --joint-sigma-deg; a data file's `sigma`
-    /// column takes its place when it has one.
+    /// column takes its place when it has one. Observation files (calibrate): the sigma of every
+    /// row without its own `sigma` cell, in place of its kind's default (--joint-sigma-deg not
+    /// needed).
     #[arg(long, default_value_t = 0.0, value_parser = parse_sigma_mm)]
     pub sigma_mm: f64,
-    /// Orientation measurement noise (deg), for pose or orientation measurements.
+    /// Orientation measurement noise (deg), for pose or orientation measurements; observation
+    /// files: the sigma of every angle without its own `sigma_angle` cell.
     #[arg(long, default_value_t = 0.0, value_parser = parse_sigma_deg)]
     pub sigma_orientation_deg: f64,
 }
@@ -317,7 +320,8 @@ pub struct CalibrateArgs {
     #[arg(long)]
     pub estimator: Option<EstimatorName>,
     /// A noise file (TOML, see docs/formats.md): joint noise, sigma_me and the measuring
-    /// device. Replaces --joint-sigma-deg, --sigma-mm and --sigma-orientation-deg.
+    /// device (a single marker file's). Replaces --joint-sigma-deg, --sigma-mm and
+    /// --sigma-orientation-deg (observation files: sigma_me for the rows without a sigma cell).
     #[arg(long)]
     pub noise: Option<PathBuf>,
     #[command(flatten)]
@@ -329,10 +333,11 @@ pub struct CalibrateArgs {
     /// --fixed-markers say otherwise.
     #[arg(long, default_value = "joints", value_parser = parse_params)]
     pub params: ParamWords,
-    /// A marker file: do not estimate the base (the measuring frame is the model's base frame).
+    /// Marker files (and coordinates): do not estimate the base (the measuring frame is the
+    /// model's base frame).
     #[arg(long)]
     pub fixed_base: bool,
-    /// A marker file: do not estimate the marker positions.
+    /// Marker files: do not estimate the marker positions (held at --marker's).
     #[arg(long)]
     pub fixed_markers: bool,
     #[command(flatten)]
@@ -360,7 +365,7 @@ pub struct CalibrateArgs {
     /// folds too.
     #[arg(long, value_parser = parse_count::<2>)]
     pub folds: Option<usize>,
-    /// A marker file: fit with these markers only (their numbers, `x<k>` columns: `1,3`);
+    /// Marker files: fit with these markers only (their numbers, `x<k>` columns: `1,3`);
     /// held-out files are scored on those of them they hold. Default: every marker.
     #[arg(long, value_delimiter = ',', value_parser = parse_count::<1>)]
     pub markers: Option<Vec<usize>>,
@@ -449,10 +454,34 @@ pub struct CalibrateObservationsArgs {
     pub fixed_tool: bool,
     /// Nominal position of a marker of a marker file (x1,y1,z1, ...) on the last link, "x,y,z"
     /// in mm, in the tool frame, as `calibrate --marker` takes it: the k-th is marker k; repeat
-    /// per marker (missing ones start at that frame's origin). The markers are always
-    /// estimated.
+    /// per marker (missing ones start at that frame's origin).
     #[arg(long, allow_hyphen_values = true, value_name = "X,Y,Z", value_parser = parse_marker)]
     pub marker: Vec<Vector3<f64>>,
+    /// Marker files: fit with these markers only (their numbers: `1,3`); held-out files are
+    /// scored on those of them they hold. Default: every marker.
+    #[arg(long, value_delimiter = ',', value_parser = parse_count::<1>)]
+    pub markers: Option<Vec<usize>>,
+    /// Marker files and coordinates: do not estimate the base (the measuring frame is the
+    /// model's base frame; the markers are not registered).
+    #[arg(long)]
+    pub fixed_base: bool,
+    /// Marker files: do not estimate the marker positions (held at --marker's).
+    #[arg(long)]
+    pub fixed_markers: bool,
+    /// A noise file (TOML, see docs/formats.md): the joint noise (in place of
+    /// --joint-sigma-deg), `sigma_me_mm` and `sigma_orientation_deg` for the rows without their
+    /// own sigma (in place of --sigma-mm and --sigma-orientation-deg), its [prior] table before
+    /// --prior's. A [device] model is for a single marker file.
+    #[arg(long)]
+    pub noise: Option<PathBuf>,
+    /// The measurement standard deviation (mm) of every row without a `sigma` cell, in place
+    /// of its kind's default (0.01 mm; a camera's 0.5 mm).
+    #[arg(long, value_parser = parse_sigma_mm)]
+    pub sigma_mm: Option<f64>,
+    /// The standard deviation of an angle (deg) of every row without a `sigma_angle` cell, in
+    /// place of its kind's default (0.01 deg; a camera's 0.1 deg).
+    #[arg(long, value_parser = parse_sigma_deg)]
+    pub sigma_orientation_deg: Option<f64>,
     #[command(flatten)]
     pub choice: ModelChoiceArgs,
     /// Gauss-Newton steps at most (at least 1), damped in a trust region where they overshoot.

@@ -178,15 +178,10 @@ fn write_observation_files(
     super::write_residual_files(&request.report, content, outputs)
 }
 
-/// Whether `text` is a marker file: a header with marker columns (`x1`, `y2`, ...).
+/// Whether `text` is a marker file scored pose by pose ([`DataKind::Markers`]: marker columns,
+/// every cell measured); one with an empty marker cell is scored as observations.
 fn is_marker_file(text: &str) -> bool {
-    let header = text.lines().map(str::trim).find(|l| !l.is_empty() && !l.starts_with('#')).unwrap_or("");
-    header.split(',').map(str::trim).any(|c| {
-        let mut chars = c.chars();
-        matches!(chars.next(), Some('x' | 'y' | 'z'))
-            && !chars.as_str().is_empty()
-            && chars.all(|d| d.is_ascii_digit())
-    })
+    DataKind::of_csv_str(text).is_ok_and(|k| k == DataKind::Markers)
 }
 
 /// The residual table of the observation files, each scored with its set-up fitted and the

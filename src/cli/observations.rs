@@ -5,26 +5,35 @@
 use super::request::{CalibrateObservationsRequest, Method};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::Kinds;
-use robocal::calibration::kinds::{KindData, KindOptions, Observation, Score};
+use robocal::calibration::kinds::{KindData, KindOptions, Observation, RowSigmaDefaults, Score};
 use robocal::estimation::RefineOptions;
 use robocal::io;
 use robocal::model::{Joint, RobotModel};
 use robocal::report::residuals::ResidualSet;
+use robocal::table::Units;
 use std::path::Path;
 
 /// Calibrate, print the report, write the files asked for.
 pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     let robot = super::calibrate::load_model(&request.model)?;
     let model = robot.model.clone();
+    let noise = noise(request, &model)?;
+    let sigmas = noise.sigmas;
+    let read = |path: &Path| read(path, &model, request.units, sigmas);
     let sessions = (request.data.iter())
-        .map(|path| Ok((path.display().to_string(), read(path, &model, request)?)))
+        .map(|path| Ok((path.display().to_string(), read(path)?)))
         .collect::<Result<Vec<_>>>()?;
     let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
     check_and_warn(request, &data)?;
-    let options = kind_options(request, &model)?;
+    let sessions = chosen_markers(sessions, request.marker_ids.as_deref(), &data)?;
+    let options = kind_options(request, &model, noise)?;
     let held_out = (request.validate.iter())
-        .map(|path| Ok((path.display().to_string(), read(path, &model, request)?)))
+        .map(|path| Ok((path.display().to_string(), read(path)?)))
         .collect::<Result<Vec<_>>>()?;
+    let held_out = match &request.marker_ids {
+        Some(ids) => held_out.into_iter().map(|(name, d)| (name, only_markers(&d, ids))).collect(),
+        None => held_out,
+    };
     let choices =
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds);
     let fitting = robocal::pipeline::Fitting::new(request.method == Method::Feasible, choices, request.folds);
@@ -79,23 +88,96 @@ fn check_and_warn(request: &CalibrateObservationsRequest, data: &KindData) -> Re
     if !request.estimate_tool && !data.measures_the_tool_point() {
         eprintln!(
             "warning: --fixed-tool holds the tool point, which no observation here measures (markers are points of \
-             their own, always estimated; a camera's mounting is the set-up's): it changes nothing"
+             their own; a camera's mounting is the set-up's): it changes nothing"
+        );
+    }
+    if !request.estimate_markers && highest == 0 {
+        eprintln!("warning: --fixed-markers holds the markers, and no file here has any: it changes nothing");
+    }
+    if !request.estimate_base && !data.sees_the_base() {
+        eprintln!(
+            "warning: --fixed-base holds the base, which no observation here sees (only markers and coordinates \
+             do): it changes nothing"
         );
     }
     Ok(())
 }
 
-/// The options of the observation calibration `request` asks for on `model`.
-fn kind_options(request: &CalibrateObservationsRequest, model: &RobotModel) -> Result<KindOptions> {
+/// The files with the markers `--markers` names only (`ids`, numbers from 1), or as they are;
+/// a number that no file's marker has is refused (`data`: the files joined).
+fn chosen_markers(
+    sessions: Vec<(String, KindData)>,
+    ids: Option<&[usize]>,
+    data: &KindData,
+) -> Result<Vec<(String, KindData)>> {
+    let Some(ids) = ids else { return Ok(sessions) };
+    let have = data.markers();
+    if let Some(id) = ids.iter().find(|&&id| !have.contains(&(id - 1))) {
+        let numbers: Vec<String> = have.iter().map(|m| (m + 1).to_string()).collect();
+        bail!(
+            "--markers {id}: no data file has marker {id} (x{id}, y{id}, z{id}); their markers: {}",
+            if numbers.is_empty() { "none".to_string() } else { numbers.join(", ") }
+        );
+    }
+    Ok(sessions.into_iter().map(|(name, d)| (name, only_markers(&d, ids))).collect())
+}
+
+/// `data` with the markers numbered `ids` (from 1) only; its other observations all kept.
+fn only_markers(data: &KindData, ids: &[usize]) -> KindData {
+    data.keeping(|o| !matches!(o, Observation::Marker { marker, .. } if !ids.contains(&(marker + 1))))
+}
+
+/// The noise of observation files: the joint noise `Sigma_q` (if given), the sigmas of the rows
+/// that give none, and a noise file's prior; from `--noise`, else the flags.
+struct Noise {
+    joint: Option<nalgebra::DMatrix<f64>>,
+    sigmas: RowSigmaDefaults,
+    prior: Vec<robocal::estimation::PriorEntry>,
+}
+
+/// The noise `request` gives for `model`: a noise file's (its device model refused: it is
+/// for a single marker file), or the flags'.
+fn noise(request: &CalibrateObservationsRequest, model: &RobotModel) -> Result<Noise> {
+    let Some(path) = &request.noise else {
+        let joint = super::joint_covariance(&model.name, &model.joints, request.joint_sigma_deg.as_deref())?;
+        return Ok(Noise { joint, sigmas: request.sigmas, prior: Vec::new() });
+    };
+    let spec = io::load_noise(path, model)?;
+    if spec.device.is_some() {
+        bail!(
+            "{}: a [device] model (a covariance that varies over the workspace) is for a single marker file with \
+             every cell measured; with observation files, several files or an empty marker cell, give `sigma_me_mm` \
+             (or each file's sigma column)",
+            path.display()
+        );
+    }
+    let sigmas = RowSigmaDefaults {
+        length_mm: spec.sigma_me.filter(|&s| s > 0.0),
+        angle_rad: Some(spec.sigma_orientation).filter(|&s| s > 0.0),
+    };
+    Ok(Noise { joint: Some(spec.joint), sigmas, prior: spec.prior })
+}
+
+/// The options of the observation calibration `request` asks for on `model`, with `noise`
+/// (a noise file's prior before `--prior`'s).
+fn kind_options(
+    request: &CalibrateObservationsRequest,
+    model: &RobotModel,
+    noise: Noise,
+) -> Result<KindOptions> {
+    let mut prior = noise.prior;
+    prior.extend(request.prior.iter().cloned());
     Ok(KindOptions {
         per_session: request.per_session.clone(),
-        prior: request.prior.clone(),
+        prior,
         loss: request.loss,
         gauge: request.gauge.clone(),
         estimator: request.method.estimator(),
-        joint_noise: super::joint_covariance(&model.name, &model.joints, request.joint_sigma_deg.as_deref())?,
+        joint_noise: noise.joint,
         joints: request.joints.clone(),
         estimate_tool: request.estimate_tool,
+        estimate_base: request.estimate_base,
+        estimate_markers: request.estimate_markers,
         tool: request.tool.unwrap_or_else(|| model.tool_point_in_marker_frame()),
         markers: request.markers.clone(),
         refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
@@ -120,11 +202,11 @@ fn residual_sets(
         .collect()
 }
 
-/// One observation file.
-fn read(path: &Path, model: &RobotModel, request: &CalibrateObservationsRequest) -> Result<KindData> {
+/// One observation file, `sigmas` for its rows that give none.
+fn read(path: &Path, model: &RobotModel, units: Option<Units>, sigmas: RowSigmaDefaults) -> Result<KindData> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let data =
-        KindData::from_csv_str(&text, model, request.units).with_context(|| path.display().to_string())?;
+    let data = KindData::from_csv_str_with(&text, model, units, sigmas)
+        .with_context(|| path.display().to_string())?;
     super::status(format!("{}: read {}", path.display(), data.summary()));
     Ok(data.named(&super::request::session_name(path)))
 }

@@ -403,6 +403,16 @@ pub struct CalibrateObservationsRequest {
     pub estimate_tool: bool,
     /// Nominal marker positions (mm, tool frame): the k-th is marker k.
     pub markers: Vec<Vector3<f64>>,
+    /// The markers to fit (numbers), or every marker of the files.
+    pub marker_ids: Option<Vec<usize>>,
+    /// Estimate the base where the data see it (not `--fixed-base`).
+    pub estimate_base: bool,
+    /// Estimate the markers (not `--fixed-markers`).
+    pub estimate_markers: bool,
+    /// The sigmas of rows that give none (`--sigma-mm`, `--sigma-orientation-deg`).
+    pub sigmas: robocal::calibration::kinds::RowSigmaDefaults,
+    /// A noise file: the joint noise, the sigmas of rows that give none, a prior.
+    pub noise: Option<PathBuf>,
     /// Gauss-Newton steps at most (>= 1).
     pub iterations: usize,
     /// Held-out files.
@@ -464,9 +474,10 @@ impl CalibrateObservationsRequest {
             Some(EstimatorName::WlsDiag) => Method::Given(Estimator::WlsDiag),
             Some(EstimatorName::WlsSigma) => Method::Given(Estimator::WlsSigma),
             fgls @ Some(EstimatorName::Fgls) => {
-                method(fgls, args.joint_sigma_deg.is_some(), args.folds.is_some())?
+                method(fgls, args.joint_sigma_deg.is_some() || args.noise.is_some(), args.folds.is_some())?
             }
         };
+        let sigmas = observation_sigmas(&args)?;
         require(
             args.params != ParamWords::All,
             "--params all: the base and the set-up are chosen by the observations; give --params joints",
@@ -479,6 +490,7 @@ impl CalibrateObservationsRequest {
         let mut inputs = vec![("--model", Path::new(&model.name))];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
+        inputs.extend(args.noise.iter().map(|p| ("--noise", p.as_path())));
         require(args.out_urdf.is_none() || model.is_urdf(), "--out-urdf needs a URDF model")?;
         distinct_outputs(
             &inputs,
@@ -488,28 +500,18 @@ impl CalibrateObservationsRequest {
             ]
             .concat(),
         )?;
-        if !args.per_session.is_empty() {
-            require(
-                args.data.len() >= 2,
-                "--per-session: one value per --data file (each file a session): give two --data files or more",
-            )?;
-            for (k, a) in args.data.iter().enumerate() {
-                if let Some(b) = args.data[..k].iter().find(|b| session_name(b) == session_name(a)) {
-                    return Err(UsageError(format!(
-                        "--per-session: --data {} and {} have one stem, `{}`: each file's stem names its session",
-                        b.display(),
-                        a.display(),
-                        session_name(a)
-                    )));
-                }
-            }
-        }
+        sessions(&args.data, &args.per_session)?;
         if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
             return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
         }
         let (prior, auto_prior) = priors(args.choice.prior)?;
         Ok(Self {
             model,
+            marker_ids: args.markers,
+            noise: args.noise,
+            estimate_base: !args.fixed_base,
+            estimate_markers: !args.fixed_markers,
+            sigmas,
             per_session: args.per_session,
             folds: args.folds,
             select,
@@ -532,6 +534,43 @@ impl CalibrateObservationsRequest {
             out_urdf: args.out_urdf,
         })
     }
+}
+
+/// The sigmas of observation rows without their own (`--sigma-mm`, `--sigma-orientation-deg`;
+/// zero is none, as calibrate's default `--sigma-mm 0`), refused with `--noise`, which gives them.
+fn observation_sigmas(
+    args: &CalibrateObservationsArgs,
+) -> Result<robocal::calibration::kinds::RowSigmaDefaults, UsageError> {
+    let (mm, deg) = (args.sigma_mm.filter(|&s| s > 0.0), args.sigma_orientation_deg.filter(|&s| s > 0.0));
+    require(
+        args.noise.is_none() || (args.joint_sigma_deg.is_none() && mm.is_none() && deg.is_none()),
+        "--noise gives the joint noise and the measurement sigmas: do not give --joint-sigma-deg, --sigma-mm or \
+         --sigma-orientation-deg with it",
+    )?;
+    Ok(robocal::calibration::kinds::RowSigmaDefaults { length_mm: mm, angle_rad: deg.map(f64::to_radians) })
+}
+
+/// `--per-session` over the `data` files: two files at least, each of its own stem (its
+/// session's name).
+fn sessions(data: &[PathBuf], per_session: &[String]) -> Result<(), UsageError> {
+    if per_session.is_empty() {
+        return Ok(());
+    }
+    require(
+        data.len() >= 2,
+        "--per-session: one value per --data file (each file a session): give two --data files or more",
+    )?;
+    for (k, a) in data.iter().enumerate() {
+        if let Some(b) = data[..k].iter().find(|b| session_name(b) == session_name(a)) {
+            return Err(UsageError(format!(
+                "--per-session: --data {} and {} have one stem, `{}`: each file's stem names its session",
+                b.display(),
+                a.display(),
+                session_name(a)
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// A validated `robocal evaluate`.

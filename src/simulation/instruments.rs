@@ -870,6 +870,8 @@ impl Campaign<'_> {
                     joint_noise: Some(noise_q),
                     joints: JointParams::All,
                     estimate_tool: true,
+                    estimate_base: true,
+                    estimate_markers: true,
                     tool: study.tool(),
                     markers: Vec::new(),
                     refine: RefineOptions::default(),

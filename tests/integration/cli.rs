@@ -573,17 +573,18 @@ fn calibrate_selects_on_observation_files() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// `calibrate` refuses, before any work, a flag the data's pipeline has no meaning for, naming
-/// the flag and saying what holds instead (exit code 2, nothing written).
+/// `calibrate` refuses, before any work, flags that do not go together on observation files,
+/// naming them and saying what holds instead (exit code 2, nothing written).
 #[test]
-fn calibrate_refuses_marker_only_flags_on_observation_files() {
+fn calibrate_refuses_flags_that_do_not_go_together_on_observation_files() {
     let out = robocal()
-        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-ballbar.csv", "--fixed-base"])
+        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-ballbar.csv"])
+        .args(["--noise", "examples/puma560-noise.toml", "--sigma-mm", "0.01"])
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8(out.stderr).unwrap();
-    assert!(stderr.contains("--fixed-base is for a single file of marker positions"), "{stderr}");
+    assert!(stderr.contains("--noise gives the joint noise and the measurement sigmas"), "{stderr}");
     let out = robocal()
         .args([
             "calibrate",

@@ -184,6 +184,8 @@ proptest! {
                     joint_noise: None,
                     joints: JointParams::Offsets,
                     estimate_tool: true,
+                    estimate_base: true,
+                    estimate_markers: true,
                     tool: Vector3::new(50.0, 0.0, 150.0),
                     markers: Vec::new(),
                     refine: RefineOptions { max_iterations: 3, ..RefineOptions::default() },

@@ -174,6 +174,11 @@ fn markers_and_a_ball_bar_calibrate_the_robot_the_markers_the_base_and_the_pivot
 /// A marker file in `calibrate`'s format: `poses` random poses of `real`, the three markers'
 /// x, y, z with noise 0.01 mm, every cell measured.
 pub(crate) fn marker_csv(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng) -> String {
+    marker_csv_with(real, poses, rng, 0.01)
+}
+
+/// [`marker_csv`] with noise `sigma` (mm) on each coordinate.
+fn marker_csv_with(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng, sigma: f64) -> String {
     let mut text =
         String::from("# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,x2,y2,z2,x3,y3,z3\n");
     for _ in 0..poses {
@@ -183,7 +188,7 @@ pub(crate) fn marker_csv(real: &[ChainAt], poses: usize, rng: &mut ChaCha8Rng) -
             let p = at.position(&q);
             cells.extend(p.iter().map(|v| {
                 let z: f64 = StandardNormal.sample(&mut *rng);
-                format!("{:.6}", v + 0.01 * z)
+                format!("{:.9}", v + sigma * z)
             }));
         }
         text += &(cells.join(",") + "\n");
@@ -293,6 +298,57 @@ fn with_joint_noise_a_marker_file_weighs_each_pose_as_calibrate_does() {
     }
     let (rms, expected_rms) = (c.training.markers.unwrap(), expected.training);
     assert!((rms.1 - expected_rms.1.rms).abs() < 1e-9, "{rms:?} against {expected_rms:?}");
+}
+
+/// `--fixed-base` and `--fixed-markers` on observations: a robot measured in its own base
+/// frame by markers at known places, its joints' errors alone. Neither the base nor a marker is
+/// estimated nor registered; from noise-free data the calibrated robot fits every marker
+/// exactly (what the poses cannot tell apart held, its combination absorbed); the estimate is
+/// `calibrate`'s with the same flags (1e-6 relative).
+#[test]
+fn with_the_base_and_markers_fixed_a_marker_file_calibrates_as_calibrate_does() {
+    let mut rng = ChaCha8Rng::seed_from_u64(84);
+    let chains = chains();
+    let joints: Vec<String> =
+        chains[0].params().iter().filter(|p| p.name.starts_with('j')).map(|p| p.name.clone()).collect();
+    let truth = errors_on(&chains[0], &joints, &mut rng);
+    let real = true_chains_seen(&truth, TOOL, puma().base);
+    let text = marker_csv_with(&real, 40, &mut rng, 0.0);
+    let model = puma();
+    let measurements = Measurements::from_csv_str(&text, &model, None).unwrap();
+    let observations = KindData::from_csv_str(&text, &model, None).unwrap();
+    let refine = to_the_minimum();
+    let options = Options {
+        markers: MARKERS.to_vec(),
+        estimate_base: false,
+        estimate_markers: false,
+        refine,
+        ..Options::default()
+    };
+    let expected = calibration::calibrate(&model, &measurements, &options).unwrap();
+    let fixed = KindOptions {
+        refine,
+        estimate_base: false,
+        estimate_markers: false,
+        ..marker_options(Estimator::Ols)
+    };
+    let c = calibrate_kinds(&model, &observations, &fixed).unwrap();
+    assert!(c.registered_base.is_none());
+    let names = &c.refined.estimate.names;
+    assert_eq!(names, &expected.refined.estimate.names);
+    assert!(names.iter().all(|n| n.starts_with('j')), "only joints estimated: {names:?}");
+    for name in names {
+        let i = expected.params.index_by_name(name).unwrap();
+        let (a, b) = (c.after[i], expected.after[i]);
+        assert!((a - b).abs() <= 1e-6 * b.abs().max(1e-6), "{name}: {a} against calibrate's {b}");
+    }
+    let (before, after) = c.training.markers.unwrap();
+    assert!(before > 0.5 && after < 1e-6, "marker RMS {before} mm before, {after} mm after");
+    // Estimated (the default), the markers absorb the last joint's parameters: fixed, they do not.
+    let free =
+        calibrate_kinds(&model, &observations, &KindOptions { refine, ..marker_options(Estimator::Ols) });
+    let free = free.unwrap();
+    assert!(free.refined.estimate.names.len() > names.len() + 6, "{:?}", free.refined.estimate.names);
 }
 
 /// A marker file read as observations: one per cell, an empty cell not measured; the file's
@@ -414,6 +470,197 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
     assert_eq!(output.status.code(), Some(1));
     let message = String::from_utf8(output.stderr).unwrap();
     assert!(message.contains("bad.csv") && message.contains("line 4, column `z1`"), "{message}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The marker file's flags with a ball bar: `--markers 2` fits marker 2 alone (on the held-out
+/// file too), `--fixed-markers` holds it at `--marker`'s place, `--sigma-mm` is the sigma of the
+/// rows without their own (the markers'; the ball bar's own 0.005 mm stays), each seen in the
+/// JSON; a marker no file has, and `--fixed-base` with nothing that sees the base, are said.
+#[test]
+fn marker_flags_apply_to_marker_files_fitted_with_others() {
+    let dir = std::env::temp_dir().join(format!("robocal-marker-flags-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("report.json");
+    let run = |extra: &[&str]| {
+        assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["calibrate", "-q", "--model", "puma560", "--tool", "50,0,150"])
+            .args(["--marker", "50,0,150", "--marker=-40,60,120"])
+            .args(["--data", "examples/puma560-measurements.csv", "--data", "examples/puma560-ballbar.csv"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let output = run(&[
+        "--markers",
+        "2",
+        "--fixed-markers",
+        "--sigma-mm",
+        "0.05",
+        "--validate",
+        "examples/puma560-validation.csv",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let names: Vec<&str> =
+        report["parameters"].as_array().unwrap().iter().map(|p| p["name"].as_str().unwrap()).collect();
+    assert!(names.contains(&"tool.x") && names.contains(&"j2.a"), "{names:?}");
+    assert!(!names.iter().any(|n| n.starts_with("marker")), "the markers are held: {names:?}");
+    for set in [0, 1] {
+        let observations = report["sets"][set][1]["observations"].as_array().unwrap();
+        let markers: Vec<_> = observations.iter().filter(|o| o.get("marker").is_some()).collect();
+        assert!(!markers.is_empty() && markers.iter().all(|o| o["marker"] == 2), "set {set}: marker 2 alone");
+        // No joint noise: whitened = after / sigma.
+        for o in observations {
+            let sigma = o["after"].as_f64().unwrap() / o["whitened"].as_f64().unwrap();
+            let expected = if o.get("marker").is_some() { 0.05 } else { 0.005 };
+            assert!((sigma - expected).abs() < 1e-9 * expected, "{o}: sigma {sigma}, expected {expected}");
+        }
+    }
+    let output = run(&["--markers", "3"]);
+    assert_eq!(output.status.code(), Some(1));
+    let message = String::from_utf8(output.stderr).unwrap();
+    assert!(
+        message.contains("--markers 3: no data file has marker 3") && message.contains("1, 2"),
+        "{message}"
+    );
+
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "-q", "--model", "puma560", "--fixed-base"])
+        .args(["--data", "examples/puma560-ballbar.csv", "--data", "examples/puma560-ballbar-2.csv"])
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let message = String::from_utf8(output.stderr).unwrap();
+    assert!(message.contains("--fixed-base holds the base, which no observation here sees"), "{message}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `--noise` with a marker file and a ball bar: the file's joint sigmas and `sigma_me_mm` are
+/// the flags' (`--joint-sigma-deg`, `--sigma-mm`: the same report to 1e-12), its `[prior]`
+/// comes before `--prior`'s; a `[device]` model is refused naming the file, and `--noise` with
+/// the sigma flags is a usage error.
+#[test]
+fn a_noise_file_gives_observation_files_their_noise() {
+    let dir = std::env::temp_dir().join(format!("robocal-obs-noise-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let noise = dir.join("noise.toml");
+    std::fs::write(&noise, "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\nsigma_me_mm = 0.02\n")
+        .unwrap();
+    let run = |extra: &[&str], json: &std::path::Path| {
+        assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["calibrate", "-q", "--model", "puma560", "--tool", "50,0,150"])
+            .args(["--marker", "50,0,150", "--marker=-40,60,120"])
+            .args(["--data", "examples/puma560-measurements.csv", "--data", "examples/puma560-ballbar.csv"])
+            .args(["--json", json.to_str().unwrap()])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let report = |json: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap()
+    };
+    let (by_file, by_flags) = (dir.join("file.json"), dir.join("flags.json"));
+    let out = run(&["--noise", noise.to_str().unwrap()], &by_file);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let flags = ["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002", "--sigma-mm", "0.02"];
+    assert!(run(&flags, &by_flags).status.success());
+    let (a, b) = (report(&by_file), report(&by_flags));
+    let values = |r: &serde_json::Value, key: &str| -> Vec<f64> {
+        r["parameters"].as_array().unwrap().iter().map(|p| p[key].as_f64().unwrap()).collect()
+    };
+    for key in ["value", "std_error"] {
+        let (x, y) = (values(&a, key), values(&b, key));
+        assert_eq!(x.len(), y.len());
+        for (x, y) in x.iter().zip(&y) {
+            assert!((x - y).abs() <= 1e-12 * y.abs().max(1.0), "{key}: {x} by the file, {y} by the flags");
+        }
+    }
+    // The weights are the noise's, not the files' default sigmas'.
+    assert!(values(&a, "value") != values(&report_of(&dir, &run), "value"), "the noise changes the weights");
+
+    std::fs::write(&noise, "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\nsigma_me_mm = 0.02\n[prior]\n\"j2.a\" = \"0.001mm\"\n")
+        .unwrap();
+    let out = run(&["--noise", noise.to_str().unwrap()], &by_file);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let j2a =
+        report(&by_file)["parameters"].as_array().unwrap().iter().find(|p| p["name"] == "j2.a").cloned();
+    let j2a = j2a.unwrap();
+    assert!((j2a["prior_sd"].as_f64().unwrap() - 0.001).abs() < 1e-12, "{j2a}");
+
+    let out = run(&["--noise", "examples/noise/laser-tracker-0.1mm.toml"], &by_file);
+    assert_eq!(out.status.code(), Some(1));
+    let message = String::from_utf8(out.stderr).unwrap();
+    assert!(message.contains("laser-tracker-0.1mm.toml: a [device] model"), "{message}");
+    let out = run(&["--noise", noise.to_str().unwrap(), "--sigma-mm", "0.01"], &by_file);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8(out.stderr).unwrap().contains("--noise gives the joint noise"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The report of the plain run (the files' default sigmas, no joint noise) in `dir`.
+fn report_of(
+    dir: &std::path::Path,
+    run: &dyn Fn(&[&str], &std::path::Path) -> std::process::Output,
+) -> serde_json::Value {
+    let json = dir.join("plain.json");
+    assert!(run(&[], &json).status.success());
+    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+}
+
+/// A file's kind, from its header, is the calibration that reads it: marker columns a marker
+/// file, unless a marker cell is empty (an occlusion: read cell by cell, as observations);
+/// an empty cell of another column, or in a comment, changes nothing.
+#[test]
+fn a_marker_file_with_an_occlusion_is_read_cell_by_cell() {
+    use robocal::calibration::DataKind;
+    let head = "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,x2,y2,z2,sigma\n";
+    let kind = |rows: &str| DataKind::of_csv_str(&format!("{head}{rows}")).unwrap();
+    assert_eq!(kind("0,1,2,3,4,5,1,2,3,4,5,6,0.01\n"), DataKind::Markers);
+    assert_eq!(kind("0,1,2,3,4,5,1,2,3,4,5,6,\n# 0,1,2,3,4,5,,,,,,\n\n"), DataKind::Markers);
+    assert_eq!(kind("0,1,2,3,4,5,1,2,3,4,5,6,\n0,1,2,3,4,5,1,2,3, ,5,6,\n"), DataKind::Observations);
+    assert_eq!(kind("0,1,2,3,4,5,1,2,3,4,5,,\n"), DataKind::Observations);
+    let other = |text: &str| DataKind::of_csv_str(text).unwrap();
+    assert_eq!(other("j1,j2,j3,j4,j5,j6,distance\n0,1,2,3,4,5,100\n"), DataKind::Observations);
+    assert_eq!(other("j1,camera,target,x,y,z,roll,pitch,yaw\n"), DataKind::TreeViews);
+
+    // The command fits such a file alone, every measured cell.
+    let dir = std::env::temp_dir().join(format!("robocal-occluded-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    let occluded: Vec<String> = (text.lines().enumerate())
+        .map(|(i, line)| match i % 7 == 3 {
+            true => line.rsplitn(4, ',').last().unwrap().to_string() + ",,,",
+            false => line.to_string(),
+        })
+        .collect();
+    let path = dir.join("occluded.csv");
+    std::fs::write(&path, occluded.join("\n") + "\n").unwrap();
+    let out = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "--model", "puma560", "--data", path.to_str().unwrap()])
+        .args([
+            "--marker",
+            "50,0,150",
+            "--marker=-40,60,120",
+            "--validate",
+            "examples/puma560-validation.csv",
+        ])
+        .output()
+        .unwrap();
+    let report = String::from_utf8(out.stdout).unwrap();
+    assert!(out.status.success(), "{report}{}", String::from_utf8_lossy(&out.stderr));
+    let (poses, markers) = (text.lines().count() - 2, 2);
+    let cells = 3 * markers * poses - 3 * (0..text.lines().count()).filter(|i| i % 7 == 3).count();
+    assert!(report.contains(&format!("{cells} observations at {poses} poses")), "{report}");
+    let held_out = report.lines().find(|l| l.starts_with("examples/puma560-validation.csv markers")).unwrap();
+    let after: f64 = held_out.split_whitespace().last().unwrap().parse().unwrap();
+    assert!(after < 0.15, "held-out markers after: {held_out}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -42,6 +42,18 @@ pub const DEFAULT_CAMERA_SIGMA_MM: f64 = 0.5;
 /// A camera row's orientation standard deviation without a `sigma_angle` column (deg).
 pub const DEFAULT_CAMERA_SIGMA_DEG: f64 = 0.1;
 
+/// The standard deviations of rows that give none in a `sigma` or `sigma_angle` cell, where
+/// the user gave them (`--sigma-mm`, `--sigma-orientation-deg`); `None` leaves the kind's
+/// default ([`DEFAULT_SIGMA_MM`], [`DEFAULT_SIGMA_ANGLE_DEG`], a camera's own), which counts as
+/// assumed.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RowSigmaDefaults {
+    /// A length's standard deviation (mm).
+    pub length_mm: Option<f64>,
+    /// An angle's standard deviation (rad).
+    pub angle_rad: Option<f64>,
+}
+
 /// Where the camera is: on the arm looking at a target fixed in the world (hand-eye), or fixed
 /// in the world looking at a target on the arm (eye-to-hand).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -284,9 +296,21 @@ impl KindData {
     /// them all, a `kind` column naming each row's (`pair`, `point`, `contact`, `coordinates`).
     /// `units` from the caller take the place of the file's `# units:` line.
     pub fn from_csv_str(text: &str, model: &RobotModel, units: Option<Units>) -> Result<Self, DataError> {
+        Self::from_csv_str_with(text, model, units, RowSigmaDefaults::default())
+    }
+
+    /// [`from_csv_str`](Self::from_csv_str) with the standard deviations of rows that give
+    /// none taken from `defaults` where it has them (`--sigma-mm`, `--sigma-orientation-deg`):
+    /// those are the user's, not assumed.
+    pub fn from_csv_str_with(
+        text: &str,
+        model: &RobotModel,
+        units: Option<Units>,
+        defaults: RowSigmaDefaults,
+    ) -> Result<Self, DataError> {
         let table = Table::parse(text)?;
         let units = table.units(units, " or give --joint-unit and --length-unit")?;
-        let columns = KindColumns::resolve(&table, model)?;
+        let columns = KindColumns { defaults, ..KindColumns::resolve(&table, model)? };
         crate::calibration::data::check_markers_measured(&table, &columns.markers)?;
         let mut data = Self::default();
         for row in table.nonempty_rows()? {
@@ -405,7 +429,6 @@ impl KindData {
         counts
     }
 
-    /// Whether any observation sees the tool frame's orientation, an angle or a camera (then
     /// What the data hold, in words: each kind's count, in the order first seen
     /// (`150 distances to a fixed point`), so that a file read by its header says what was found.
     pub fn summary(&self) -> String {
@@ -844,6 +867,8 @@ struct KindColumns {
     /// The `kind` column, or the one kind of a file without it.
     kind: Option<usize>,
     file_kind: Option<RowKind>,
+    /// The sigmas of rows without a `sigma` (`sigma_angle`) cell, where the user gave them.
+    defaults: RowSigmaDefaults,
 }
 
 impl KindColumns {
@@ -869,6 +894,7 @@ impl KindColumns {
             markers: crate::calibration::data::marker_columns(table)?,
             kind: table.column("kind"),
             file_kind: None,
+            defaults: RowSigmaDefaults::default(),
         };
         if !columns.markers.is_empty() {
             use crate::calibration::data::{OTHER_KINDS, other_kinds_column};
@@ -986,17 +1012,21 @@ impl KindColumns {
             RowKind::Camera => (DEFAULT_CAMERA_SIGMA_MM, DEFAULT_CAMERA_SIGMA_DEG),
             _ => (DEFAULT_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG),
         };
+        let given = self.defaults;
         let (length, angle) = (self.optional(row, self.sigma), self.optional(row, self.sigma_angle));
         Ok(RowSigmas {
             length: match length {
                 Some(c) => positive(table, row, c, units.length_scale())?,
-                None => default_mm,
+                None => given.length_mm.unwrap_or(default_mm),
             },
             angle: match angle {
                 Some(c) => units.angle(positive(table, row, c, 1.0)?),
-                None => default_deg.to_radians(),
+                None => given.angle_rad.unwrap_or_else(|| default_deg.to_radians()),
             },
-            assumed: (length.is_none(), angle.is_none()),
+            assumed: (
+                length.is_none() && given.length_mm.is_none(),
+                angle.is_none() && given.angle_rad.is_none(),
+            ),
         })
     }
 

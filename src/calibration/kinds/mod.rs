@@ -102,7 +102,7 @@ pub use feasible::calibrate_kinds_feasible;
 
 pub use data::{
     CameraSite, DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM,
-    KindData, Observation,
+    KindData, Observation, RowSigmaDefaults,
 };
 
 use super::noise_check::{CHECK_POSES, MIN_DOF, check, without_outliers};
@@ -136,6 +136,13 @@ pub struct KindOptions {
     pub joints: JointParams,
     /// Estimate the tool point on the last link.
     pub estimate_tool: bool,
+    /// Estimate the base where the data see it (markers, coordinates), registered on the
+    /// markers first (`--fixed-base` clears it: the measuring frame is the model's base frame,
+    /// as [`Options::estimate_base`](super::Options::estimate_base)).
+    pub estimate_base: bool,
+    /// Estimate the markers' positions on the last link (`--fixed-markers` clears it, as
+    /// [`Options::estimate_markers`](super::Options::estimate_markers)).
+    pub estimate_markers: bool,
     /// The tool point's nominal position (mm) in the model's marker frame; unused when a
     /// camera's views are the only observations (the camera's or target's mounting is then in
     /// the marker frame itself).
@@ -170,6 +177,8 @@ impl Default for KindOptions {
             joint_noise: None,
             joints: JointParams::All,
             estimate_tool: true,
+            estimate_base: true,
+            estimate_markers: true,
             tool: Vector3::zeros(),
             markers: Vec::new(),
             refine: RefineOptions::default(),
@@ -1147,8 +1156,8 @@ pub struct KindCalibration {
     /// weight `f` of the residuals, by which the covariance and the whitening are scaled
     /// (standard errors from the residuals' spread); `None` when the sigmas were given.
     pub variance_factor: Option<f64>,
-    /// With markers: where their rigid registration placed the base (the measuring frame to
-    /// the robot's), which the `base.*` estimates correct.
+    /// With markers (and the base estimated): where their rigid registration placed the base
+    /// (the measuring frame to the robot's), which the `base.*` estimates correct.
     pub registered_base: Option<Placement>,
     joint_noise: Option<DMatrix<f64>>,
     /// One chain per point: the markers', then the tool's if observed.
@@ -1498,7 +1507,7 @@ pub fn calibrate_kinds(
         warnings: Vec::new(),
         markers: markers.iter().zip(&calibrated_points).map(|(&m, p)| (m, (frame * p).coords)).collect(),
         variance_factor: None,
-        registered_base: (!markers.is_empty()).then_some(registered.base),
+        registered_base: (!markers.is_empty() && options.estimate_base).then_some(registered.base),
         joint_noise: options.joint_noise.clone(),
         chains,
         noise_estimate: None,
@@ -1701,7 +1710,7 @@ pub(super) fn prepare(
     let markers = data.markers();
     let nominal_markers: Vec<Vector3<f64>> =
         markers.iter().map(|&m| options.markers.get(m).copied().unwrap_or_else(Vector3::zeros)).collect();
-    let registered = match markers.is_empty() {
+    let registered = match markers.is_empty() || !options.estimate_base {
         true => model.clone(),
         false => registered(model, data, &markers, &nominal_markers)?,
     };
@@ -2091,11 +2100,11 @@ fn asked(
     let joints = joints.select(params)?;
     let markers = data.markers().len();
     let extra = (0..params.len()).filter(|&i| match params.get(i).owner {
-        // The markers' points, always; the tool point's (after them) unless held. A camera's
+        // The markers' points unless held; the tool point's (after them) unless held. A camera's
         // mounting is the tool frame's, estimated as the set-up's.
-        ParamOwner::Marker(k) if k < markers => true,
+        ParamOwner::Marker(k) if k < markers => options.estimate_markers,
         ParamOwner::Marker(_) => options.estimate_tool && data.measures_the_tool_point(),
-        ParamOwner::Base => data.sees_the_base(),
+        ParamOwner::Base => options.estimate_base && data.sees_the_base(),
         _ => false,
     });
     let scale =

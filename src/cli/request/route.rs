@@ -42,34 +42,8 @@ impl CalibrationRequest {
     }
 }
 
-/// A usage error if `flag` is `given`: it is for one marker file (`instead`: what holds here).
-fn only_for_markers(given: bool, flag: &str, instead: &str) -> Result<(), UsageError> {
-    let message = format!(
-        "{flag} is for a single file of marker positions; with observation files or several files, {instead}"
-    );
-    require(!given, &message)
-}
-
-/// The flags of the observation calibration, or the first marker-only flag given.
+/// The flags of the observation calibration.
 fn observation_args(args: CalibrateArgs) -> Result<CalibrateObservationsArgs, UsageError> {
-    only_for_markers(
-        args.noise.is_some(),
-        "--noise",
-        "each file's sigma columns give the measurement noise, --joint-sigma-deg the joints'",
-    )?;
-    let sigmas = args.noise_flags.sigma_mm > 0.0 || args.noise_flags.sigma_orientation_deg > 0.0;
-    only_for_markers(
-        sigmas,
-        "--sigma-mm and --sigma-orientation-deg",
-        "each file's sigma and sigma_angle columns give them",
-    )?;
-    only_for_markers(
-        args.fixed_base,
-        "--fixed-base",
-        "the base is estimated where the data see it (markers, coordinates) and held otherwise",
-    )?;
-    only_for_markers(args.fixed_markers, "--fixed-markers", "the markers are always estimated")?;
-    only_for_markers(args.markers.is_some(), "--markers", "every marker of the files is fitted")?;
     Ok(CalibrateObservationsArgs {
         model: args.model,
         data: args.data,
@@ -80,6 +54,12 @@ fn observation_args(args: CalibrateArgs) -> Result<CalibrateObservationsArgs, Us
         tool: args.observations.tool,
         fixed_tool: args.observations.fixed_tool,
         marker: args.marker,
+        markers: args.markers,
+        fixed_base: args.fixed_base,
+        fixed_markers: args.fixed_markers,
+        noise: args.noise,
+        sigma_mm: Some(args.noise_flags.sigma_mm),
+        sigma_orientation_deg: Some(args.noise_flags.sigma_orientation_deg),
         choice: args.choice,
         iterations: args.iterations,
         validate: args.validate,

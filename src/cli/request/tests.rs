@@ -567,8 +567,27 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
         "an input overwritten"
     );
     assert!(refused(&[Observations], &["--html", "r.html", "--json", "r.html"]).contains("r.html"));
-    assert!(refused(&[Markers, Markers], &["--fixed-base"]).starts_with("--fixed-base"));
-    assert!(refused(&[Observations], &["--noise", "n.toml"]).contains("sigma columns"));
+    match route(
+        &[Markers, Observations],
+        &["--fixed-base", "--fixed-markers", "--markers", "2", "--sigma-mm", "0.05"],
+    )
+    .unwrap()
+    {
+        CalibrationRequest::Observations(r) => {
+            assert!(!r.estimate_base && !r.estimate_markers, "{r:?}");
+            assert_eq!(r.marker_ids, Some(vec![2]));
+            assert_eq!((r.sigmas.length_mm, r.sigmas.angle_rad), (Some(0.05), None));
+        }
+        other => panic!("{other:?}"),
+    }
+    match route(&[Observations], &["--noise", "n.toml"]).unwrap() {
+        CalibrationRequest::Observations(r) => assert_eq!(r.noise, Some("n.toml".into())),
+        other => panic!("{other:?}"),
+    }
+    assert!(
+        refused(&[Observations], &["--noise", "n.toml", "--joint-sigma-deg", "0.01"])
+            .starts_with("--noise gives the joint noise")
+    );
     assert!(refused(&[TreeViews, Observations], &[]).contains("fitted on their own"));
     assert!(refused(&[Observations], &["--tips", "a"]).starts_with("--model: a URDF file"), "--tips: a tree");
     assert_eq!(
