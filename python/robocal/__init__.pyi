@@ -299,9 +299,9 @@ def calibrate(
     reader as the files. As the command line routes them, one marker file alone is fitted by
     the marker calibration unless ``tool``, ``fixed_tool`` or ``per_session`` is given; then,
     and for several marker files or marker files among observation files, by the
-    observations' fit (where ``params="all"`` and a noise file's ``[device]`` are refused, as
-    the command refuses them, and ``sigma``, ``sigma_orientation`` or a noise file's
-    ``sigma_me_mm`` are the sigmas of the rows without their own).
+    observations' fit (where ``params="all"`` is refused, as the command refuses it, and
+    ``sigma``, ``sigma_orientation`` or a noise file's ``sigma_me_mm`` are the sigmas of the
+    rows without their own, its ``[device]``'s covariance taken at each point measured).
     ``params`` is read as ``--params``: a list is joined by commas.
 
     Units: ``joint_unit`` ``"rad"`` or ``"deg"`` and ``length_unit`` ``"m"`` or ``"mm"``, given

@@ -817,12 +817,6 @@ fn observations(
         Some(path) => {
             let spec = robocal::io::load_noise(Path::new(path), model)
                 .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
-            require(
-                spec.device.is_none(),
-                "noise",
-                "a [device] model is for a single marker file with every cell measured; for observation files (or \
-                 several, or an empty marker cell) give sigma_me_mm",
-            )?;
             Some(spec)
         }
         None => None,
@@ -848,9 +842,14 @@ fn observations(
         "per_session",
         "one value per observation file (each file a session): give two files or more",
     )?;
+    let device = spec.as_ref().and_then(|spec| spec.device.clone());
     let read = |s: &Source| -> PyResult<(String, KindData)> {
-        let data = KindData::from_csv_str_with(&text_of(s)?, model, units_for(s, request.units), defaults)
-            .map_err(|e| data_error(s, &e))?;
+        let mut data =
+            KindData::from_csv_str_with(&text_of(s)?, model, units_for(s, request.units), defaults)
+                .map_err(|e| data_error(s, &e))?;
+        if let Some(device) = &device {
+            data = data.with_device(|p| device.covariance(p)).map_err(|e| data_error(s, &e))?;
+        }
         let stem =
             Path::new(&s.0).file_stem().map_or_else(|| s.0.clone(), |n| n.to_string_lossy().into_owned());
         Ok((s.0.clone(), data.named(&stem)))

@@ -320,8 +320,8 @@ pub struct CalibrateArgs {
     #[arg(long)]
     pub estimator: Option<EstimatorName>,
     /// A noise file (TOML, see docs/formats.md): joint noise, sigma_me and the measuring
-    /// device (a single marker file's). Replaces --joint-sigma-deg, --sigma-mm and
-    /// --sigma-orientation-deg (observation files: sigma_me for the rows without a sigma cell).
+    /// device. Replaces --joint-sigma-deg, --sigma-mm and --sigma-orientation-deg (observation
+    /// files: sigma_me for the rows without a sigma cell).
     #[arg(long)]
     pub noise: Option<PathBuf>,
     #[command(flatten)]
@@ -470,8 +470,8 @@ pub struct CalibrateObservationsArgs {
     pub fixed_markers: bool,
     /// A noise file (TOML, see docs/formats.md): the joint noise (in place of
     /// --joint-sigma-deg), `sigma_me_mm` and `sigma_orientation_deg` for the rows without their
-    /// own sigma (in place of --sigma-mm and --sigma-orientation-deg), its [prior] table before
-    /// --prior's. A [device] model is for a single marker file.
+    /// own sigma (in place of --sigma-mm and --sigma-orientation-deg), a [device]'s covariance at
+    /// each point measured, its [prior] table before --prior's.
     #[arg(long)]
     pub noise: Option<PathBuf>,
     /// The measurement standard deviation (mm) of every row without a `sigma` cell, in place

@@ -6,7 +6,7 @@ use super::request::{CalibrateObservationsRequest, Method};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::Kinds;
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, RowSigmaDefaults, Score};
-use robocal::estimation::RefineOptions;
+use robocal::estimation::{Device, RefineOptions};
 use robocal::io;
 use robocal::model::{Joint, RobotModel};
 use robocal::report::residuals::ResidualSet;
@@ -18,8 +18,8 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     let robot = super::calibrate::load_model(&request.model)?;
     let model = robot.model.clone();
     let noise = noise(request, &model)?;
-    let sigmas = noise.sigmas;
-    let read = |path: &Path| read(path, &model, request.units, sigmas);
+    let (sigmas, device) = (noise.sigmas, noise.device.clone());
+    let read = |path: &Path| read(path, &model, request.units, sigmas, device.as_ref());
     let sessions = (request.data.iter())
         .map(|path| Ok((path.display().to_string(), read(path)?)))
         .collect::<Result<Vec<_>>>()?;
@@ -128,34 +128,26 @@ fn only_markers(data: &KindData, ids: &[usize]) -> KindData {
 }
 
 /// The noise of observation files: the joint noise `Sigma_q` (if given), the sigmas of the rows
-/// that give none, and a noise file's prior; from `--noise`, else the flags.
+/// that give none, a measuring device, and a noise file's prior; from `--noise`, else the flags.
 struct Noise {
     joint: Option<nalgebra::DMatrix<f64>>,
     sigmas: RowSigmaDefaults,
+    device: Option<Device>,
     prior: Vec<robocal::estimation::PriorEntry>,
 }
 
-/// The noise `request` gives for `model`: a noise file's (its device model refused: it is
-/// for a single marker file), or the flags'.
+/// The noise `request` gives for `model`: a noise file's, or the flags'.
 fn noise(request: &CalibrateObservationsRequest, model: &RobotModel) -> Result<Noise> {
     let Some(path) = &request.noise else {
         let joint = super::joint_covariance(&model.name, &model.joints, request.joint_sigma_deg.as_deref())?;
-        return Ok(Noise { joint, sigmas: request.sigmas, prior: Vec::new() });
+        return Ok(Noise { joint, sigmas: request.sigmas, device: None, prior: Vec::new() });
     };
     let spec = io::load_noise(path, model)?;
-    if spec.device.is_some() {
-        bail!(
-            "{}: a [device] model (a covariance that varies over the workspace) is for a single marker file with \
-             every cell measured; with observation files, several files or an empty marker cell, give `sigma_me_mm` \
-             (or each file's sigma column)",
-            path.display()
-        );
-    }
     let sigmas = RowSigmaDefaults {
         length_mm: spec.sigma_me.filter(|&s| s > 0.0),
         angle_rad: Some(spec.sigma_orientation).filter(|&s| s > 0.0),
     };
-    Ok(Noise { joint: Some(spec.joint), sigmas, prior: spec.prior })
+    Ok(Noise { joint: Some(spec.joint), sigmas, device: spec.device, prior: spec.prior })
 }
 
 /// The options of the observation calibration `request` asks for on `model`, with `noise`
@@ -202,11 +194,21 @@ fn residual_sets(
         .collect()
 }
 
-/// One observation file, `sigmas` for its rows that give none.
-fn read(path: &Path, model: &RobotModel, units: Option<Units>, sigmas: RowSigmaDefaults) -> Result<KindData> {
+/// One observation file, `sigmas` for its rows that give none, `device`'s covariance at each
+/// point measured.
+fn read(
+    path: &Path,
+    model: &RobotModel,
+    units: Option<Units>,
+    sigmas: RowSigmaDefaults,
+    device: Option<&Device>,
+) -> Result<KindData> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    let data = KindData::from_csv_str_with(&text, model, units, sigmas)
+    let mut data = KindData::from_csv_str_with(&text, model, units, sigmas)
         .with_context(|| path.display().to_string())?;
+    if let Some(device) = device {
+        data = data.with_device(|p| device.covariance(p)).with_context(|| path.display().to_string())?;
+    }
     super::status(format!("{}: read {}", path.display(), data.summary()));
     Ok(data.named(&super::request::session_name(path)))
 }

@@ -351,6 +351,69 @@ fn with_the_base_and_markers_fixed_a_marker_file_calibrates_as_calibrate_does() 
     assert!(free.refined.estimate.names.len() > names.len() + 6, "{:?}", free.refined.estimate.names);
 }
 
+/// A laser tracker's covariance (anisotropic, varying over the workspace) at each measured
+/// marker: a marker file fitted as observations with the device's rows in `V_k`
+/// ([`KindData::with_device`]) gives `calibrate`'s estimate with the same noise file (its
+/// per-pose device blocks), to 1e-6 relative, and its standard errors to 1e-5; without the
+/// device's rows (`sigma_me` alone) the estimate differs by more. A point measured along some
+/// axes only is refused, naming its line.
+#[test]
+fn a_devices_covariance_weighs_marker_observations_as_calibrate_does() {
+    use robocal::estimation::NoiseSpec;
+    let (model, measurements, observations) = marker_file(85, 40);
+    let spec = NoiseSpec::from_toml_str(
+        "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\nsigma_me_mm = 0.005\n[device]\n\
+         kind = \"laser-tracker\"\nposition_mm = [0.0, 0.0, 0.0]\nsigma_r_mm = 0.04\nk_ppm = 20.0\n\
+         sigma_angle_arcsec = 8.0\n",
+        &model,
+    )
+    .unwrap();
+    let device = spec.device.clone().unwrap();
+    let refine = to_the_minimum();
+    let noise = calibration::noise_from_spec(&spec, &measurements).unwrap();
+    let options = Options {
+        estimator: Estimator::Wls,
+        noise: Some(noise),
+        markers: MARKERS.to_vec(),
+        refine,
+        ..Options::default()
+    };
+    let expected = calibration::calibrate(&model, &measurements, &options).unwrap();
+    let sigma_me = spec.sigma_me.unwrap();
+    let read = observations.keeping(|_| true);
+    let read = KindData {
+        observations: read.observations.iter().map(|o| o.with_sigma(sigma_me)).collect(),
+        assumed_sigmas: 0,
+        ..read
+    };
+    let with_device = read.clone().with_device(|p| device.covariance(p)).unwrap();
+    let kinds =
+        KindOptions { refine, joint_noise: Some(spec.joint.clone()), ..marker_options(Estimator::Wls) };
+    let c = calibrate_kinds(&model, &with_device, &kinds).unwrap();
+    let se = expected.refined.estimate.standard_errors();
+    let found_se = c.refined.estimate.standard_errors();
+    assert_eq!(c.refined.estimate.names, expected.refined.estimate.names);
+    let mut largest_without = 0.0_f64;
+    let without = calibrate_kinds(&model, &read, &kinds).unwrap();
+    for (k, name) in expected.refined.estimate.names.iter().enumerate() {
+        let i = expected.params.index_by_name(name).unwrap();
+        let (a, b) = (c.after[i], expected.after[i]);
+        assert!(
+            (a - b).abs() <= 1e-6 * b.abs().max(se[k]),
+            "{name}: {a} against calibrate's {b}, SE {}",
+            se[k]
+        );
+        assert!((found_se[k] - se[k]).abs() <= 1e-5 * se[k], "{name}: SE {} against {}", found_se[k], se[k]);
+        largest_without = largest_without.max((without.after[i] - b).abs() / se[k]);
+    }
+    assert!(largest_without > 0.05, "without the device: {largest_without} SE at most from calibrate's");
+
+    let partial =
+        observations.keeping(|o| !matches!(o, Observation::Marker { marker: 0, axis: 2, pose: 3, .. }));
+    let e = partial.with_device(|p| device.covariance(p)).unwrap_err();
+    assert!(e.to_string().starts_with("line 6") && e.to_string().contains("x, y and z"), "{e}");
+}
+
 /// A marker file read as observations: one per cell, an empty cell not measured; the file's
 /// units; its errors name the line and the column.
 #[test]
@@ -542,8 +605,9 @@ fn marker_flags_apply_to_marker_files_fitted_with_others() {
 
 /// `--noise` with a marker file and a ball bar: the file's joint sigmas and `sigma_me_mm` are
 /// the flags' (`--joint-sigma-deg`, `--sigma-mm`: the same report to 1e-12), its `[prior]`
-/// comes before `--prior`'s; a `[device]` model is refused naming the file, and `--noise` with
-/// the sigma flags is a usage error.
+/// comes before `--prior`'s, a `[device]` weighs the markers; a marker measured along some axes
+/// only (an empty cell) cannot take a device's covariance, which is said naming the file and
+/// line; `--noise` with the sigma flags is a usage error.
 #[test]
 fn a_noise_file_gives_observation_files_their_noise() {
     let dir = std::env::temp_dir().join(format!("robocal-obs-noise-{}", std::process::id()));
@@ -593,10 +657,29 @@ fn a_noise_file_gives_observation_files_their_noise() {
     let j2a = j2a.unwrap();
     assert!((j2a["prior_sd"].as_f64().unwrap() - 0.001).abs() < 1e-12, "{j2a}");
 
-    let out = run(&["--noise", "examples/noise/laser-tracker-0.1mm.toml"], &by_file);
+    // A device: its covariance at each marker measured (the ball bar's rows keep their sigma).
+    let tracker = dir.join("tracker.json");
+    let out = run(&["--noise", "examples/noise/laser-tracker-0.1mm.toml"], &tracker);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(values(&report(&tracker), "value") != values(&b, "value"), "the device weighs the markers");
+    let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    let partial: Vec<String> = (text.lines().enumerate())
+        .map(|(i, l)| if i == 4 { l.rsplit_once(',').unwrap().0.to_string() + "," } else { l.to_string() })
+        .collect();
+    let partial_file = dir.join("partial.csv");
+    std::fs::write(&partial_file, partial.join("\n")).unwrap();
+    let out = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "-q", "--model", "puma560", "--data", partial_file.to_str().unwrap()])
+        .args(["--noise", "examples/noise/laser-tracker-0.1mm.toml"])
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(1));
     let message = String::from_utf8(out.stderr).unwrap();
-    assert!(message.contains("laser-tracker-0.1mm.toml: a [device] model"), "{message}");
+    assert!(
+        message.contains("partial.csv") && message.contains("line 5") && message.contains("x, y and z"),
+        "{message}"
+    );
     let out = run(&["--noise", noise.to_str().unwrap(), "--sigma-mm", "0.01"], &by_file);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8(out.stderr).unwrap().contains("--noise gives the joint noise"));

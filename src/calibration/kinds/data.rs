@@ -27,7 +27,7 @@ use crate::estimation::MeasurementClass;
 use crate::limits::MAX_LENGTH_MM;
 use crate::model::RobotModel;
 use crate::table::{DataError, Row, Table, Units};
-use nalgebra::{DMatrix, DVector, Isometry3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, UnitQuaternion, Vector3, Vector6};
 
 /// The measurement standard deviation of a row without a `sigma` column (mm).
 pub const DEFAULT_SIGMA_MM: f64 = 0.01;
@@ -271,6 +271,16 @@ impl Observation {
     }
 }
 
+/// A point measured at a pose: a marker's or the tool's (by coordinates).
+struct MeasuredPoint {
+    /// The pose, and the marker (`None`: the tool point).
+    key: (usize, Option<usize>),
+    /// Its x, y, z measured (mm; NaN where not).
+    position: [f64; 3],
+    /// The observations of its x, y, z (`usize::MAX` where none).
+    observations: [usize; 3],
+}
+
 /// Observations of distances, contacts and coordinates, with the poses they were made at.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct KindData {
@@ -287,6 +297,12 @@ pub struct KindData {
     /// from one to the next are its. Empty: one session, `1`. Set-up parameters made per session
     /// ([`KindOptions::per_session`](super::KindOptions::per_session)) take one value per session.
     pub sessions: Vec<(String, usize)>,
+    /// A measuring device's covariance at each observation's point, empty for none: for a
+    /// marker's or the tool point's x, y or z (`axis` a) at a pose, row a of
+    /// `Sigma_device(p)` (mm²) at the point `p` measured there ([`with_device`](Self::with_device)),
+    /// zeros for the others. `V_k` adds it between the coordinates of one point at one pose,
+    /// to `sigma^2` on the diagonal ([`measurement_covariance`](Self::measurement_covariance)).
+    pub device: Vec<[f64; 3]>,
 }
 
 impl KindData {
@@ -345,6 +361,86 @@ impl KindData {
             lines: kept.iter().map(|&k| self.lines[k]).collect(),
             assumed_sigmas: if all_assumed { kept.len() } else { 0 },
             sessions: self.sessions.clone(),
+            device: match self.device.is_empty() {
+                true => Vec::new(),
+                false => kept.iter().map(|&k| self.device[k]).collect(),
+            },
+        }
+    }
+
+    /// The same data with a measuring device's covariance `covariance(p)` (mm², at a point `p`
+    /// measured in the measuring frame, mm) at each marker's and the tool point's measured
+    /// position ([`KindData::device`]). A point measured at a pose along some of x, y and z only
+    /// is refused, naming its line: the covariance is taken where it was measured.
+    pub fn with_device<E: std::fmt::Display>(
+        mut self,
+        covariance: impl Fn(&Vector3<f64>) -> Result<Matrix3<f64>, E>,
+    ) -> Result<Self, DataError> {
+        let mut device = vec![[0.0; 3]; self.observations.len()];
+        for point in self.measured_points() {
+            let members = point.observations;
+            let line = self.lines[members.into_iter().find(|&k| k != usize::MAX).expect("one observation")];
+            let [Some(x), Some(y), Some(z)] = members.map(|k| Some(k).filter(|&k| k != usize::MAX)) else {
+                let message = "a device's covariance needs the point's x, y and z where it was measured: this row \
+                               measures some of them only";
+                return Err(DataError::new(line, None, message));
+            };
+            let p = Vector3::from(point.position);
+            let c = covariance(&p).map_err(|e| DataError::new(line, None, e.to_string()))?;
+            for (a, k) in [x, y, z].into_iter().enumerate() {
+                device[k] = [c[(a, 0)], c[(a, 1)], c[(a, 2)]];
+            }
+        }
+        self.device = device;
+        Ok(self)
+    }
+
+    /// Each point measured at a pose (a marker's, or the tool's by coordinates), in the order
+    /// of its first observation.
+    fn measured_points(&self) -> Vec<MeasuredPoint> {
+        let mut points: Vec<MeasuredPoint> = Vec::new();
+        for (k, o) in self.observations.iter().enumerate() {
+            let (key, axis, m) = match *o {
+                Observation::Marker { marker, axis, pose, measured, .. } => {
+                    ((pose, Some(marker)), axis, measured)
+                }
+                Observation::Coordinate { axis: axis @ 0..3, pose, measured, .. } => {
+                    ((pose, None), axis, measured)
+                }
+                _ => continue,
+            };
+            let at = match points.iter().rposition(|p| p.key == key) {
+                Some(at) => at,
+                None => {
+                    points.push(MeasuredPoint {
+                        key,
+                        position: [f64::NAN; 3],
+                        observations: [usize::MAX; 3],
+                    });
+                    points.len() - 1
+                }
+            };
+            points[at].position[axis] = m;
+            points[at].observations[axis] = k;
+        }
+        points
+    }
+
+    /// The measurement covariance of observations `i` and `j` (mm², rad²): `sigma_i^2` if they
+    /// are one, plus the device's between two coordinates of one point at one pose
+    /// ([`KindData::device`]).
+    pub fn measurement_covariance(&self, i: usize, j: usize) -> f64 {
+        let own = if i == j { self.observations[i].sigma().powi(2) } else { 0.0 };
+        let point = |o: &Observation| match *o {
+            Observation::Marker { marker, axis, pose, .. } => Some((pose, Some(marker), axis)),
+            Observation::Coordinate { axis: axis @ 0..3, pose, .. } => Some((pose, None, axis)),
+            _ => None,
+        };
+        match (self.device.is_empty(), point(&self.observations[i]), point(&self.observations[j])) {
+            (false, Some((p, m, _)), Some((p2, m2, axis))) if (p, m) == (p2, m2) => {
+                own + self.device[i][axis]
+            }
+            _ => own,
         }
     }
 
@@ -389,6 +485,12 @@ impl KindData {
                     self.sessions.extend(other.sessions.iter().map(|(n, first)| (n.clone(), first + offset)))
                 }
             }
+        }
+        if !self.device.is_empty() || !other.device.is_empty() {
+            // One device row per observation: zeros for those of data without a device.
+            self.device.resize(self.observations.len(), [0.0; 3]);
+            self.device.extend(other.device.iter().copied());
+            self.device.resize(self.observations.len() + other.observations.len(), [0.0; 3]);
         }
         self.joints.extend(other.joints.iter().cloned());
         self.lines.extend(&other.lines);
@@ -639,6 +741,13 @@ impl KindData {
         if self.lines.len() != self.observations.len() {
             return bad(format!("{} lines for {} observations", self.lines.len(), self.observations.len()));
         }
+        if !self.device.is_empty() && self.device.len() != self.observations.len() {
+            return bad(format!(
+                "{} device rows for {} observations",
+                self.device.len(),
+                self.observations.len()
+            ));
+        }
         if let Some(k) = self.joints.iter().position(|q| q.len() != dof || q.iter().any(|v| !v.is_finite())) {
             return bad(format!("pose {k}: expected {dof} finite joint values"));
         }
@@ -688,6 +797,9 @@ impl KindData {
             if !(o.sigma().is_finite() && o.sigma() > 0.0 && o.measured().is_finite()) {
                 return bad(format!("line {line}: a finite value and a sigma above 0 expected"));
             }
+        }
+        if self.device.iter().flatten().any(|v| !v.is_finite()) {
+            return bad("a device covariance not finite".into());
         }
         Ok(())
     }

@@ -76,7 +76,8 @@ pub(super) fn with_class_sigmas(data: &KindData, estimate: &NoiseEstimate) -> Ki
         false => o.sigma(),
     };
     let observations = data.observations.iter().map(|o| o.with_sigma(sigma(o))).collect();
-    KindData { observations, assumed_sigmas: 0, ..data.clone() }
+    // The classes' variances in place of the sigmas and of any device's covariance.
+    KindData { observations, assumed_sigmas: 0, device: Vec::new(), ..data.clone() }
 }
 
 /// The variance components fitted to the residuals of `c` on its training `data`, each pose's

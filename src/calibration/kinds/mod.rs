@@ -842,7 +842,9 @@ impl<'a> KindProblem<'a> {
 
     /// The blocks `V_k` of every pose's observations (consecutive observations made at one
     /// pose, [`pose_blocks`]), stacked: entry `(i, i')` of a block is
-    /// `sum_j (g_ij^T J_ij) Sigma_q (g_i'j^T J_i'j)^T + delta_ii' sigma_i^2`, `j` over the poses
+    /// `sum_j (g_ij^T J_ij) Sigma_q (g_i'j^T J_i'j)^T + delta_ii' sigma_i^2` (plus a device's
+    /// covariance between two coordinates of one point, [`KindData::measurement_covariance`]),
+    /// `j` over the poses
     /// both observations see, `J_ij` the manipulator Jacobian of observation `i`'s point at
     /// pose `j`: the joint noise of a pose moves every point seen there at once. At the start
     /// values; without `joint_noise`, the measurement variances alone.
@@ -864,11 +866,10 @@ impl<'a> KindProblem<'a> {
                     let common = weighted[i].iter().flat_map(|(j, g)| {
                         rows[i2].iter().filter(move |(j2, _)| j2 == j).map(move |(_, g2)| g.dot(g2))
                     });
-                    let joint: f64 = common.sum();
+                    let joint: f64 = common.sum::<f64>() + self.data.measurement_covariance(i, i2);
                     v[(i, b)] = joint;
                     v[(i2, a)] = joint;
                 }
-                v[(i, a)] += observations[i].sigma().powi(2);
             }
         }
         v
@@ -1548,9 +1549,9 @@ fn noise_check(c: &KindCalibration, data: &KindData, loss: Loss) -> Option<Warni
     let v = problem.covariance()?;
     let points = (problem.blocks().ranges(y.len()))
         .map(|r| {
-            let sigma2 = |i: usize| sample.observations[r.start + i].sigma().powi(2);
             let b = r.len();
-            let measurement = DMatrix::from_fn(b, b, |i, j| if i == j { sigma2(i) } else { 0.0 });
+            let measurement =
+                DMatrix::from_fn(b, b, |i, j| sample.measurement_covariance(r.start + i, r.start + j));
             let joint = DMatrix::from_fn(b, b, |i, j| v[(r.start + i, j)]) - &measurement;
             let lengths: Vec<bool> = r.clone().map(|i| !sample.observations[i].is_angle()).collect();
             (
