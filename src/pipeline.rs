@@ -156,14 +156,27 @@ fn predicted_accuracy(
         sets.iter().find(|s| s.name != "training").and_then(|s| s.pooled.last()).map_or(0.0, |s| s.rms);
     let estimate = &result.refined.estimate;
     let covariance = ParameterCovariance::new(estimate.names.clone(), &estimate.covariance, floor_mm);
-    let with_floor = AccuracyModel::new(&result.calibrated, &covariance)?;
-    let alone = AccuracyModel::new(&result.calibrated, &ParameterCovariance { floor_mm: 0.0, ..covariance })?;
-    Ok((held_out.iter())
-        .map(|(name, d, _)| {
-            let (all, params) = (with_floor.map(&d.joints), alone.map(&d.joints));
+    let poses = held_out.iter().map(|(name, d, _)| (name.as_str(), d.joints.as_slice()));
+    predicted_at(&result.calibrated, covariance, poses)
+}
+
+/// The tool's position error predicted from `covariance` (its floor in quadrature, and
+/// without it) at the poses of each set, `(name, joint values)`, on `model`:
+/// `sigma_p^2 = tr(J_p C J_p^T) + floor^2` ([`AccuracyModel`]), its mean and maximum.
+fn predicted_at<'a>(
+    model: &RobotModel,
+    covariance: ParameterCovariance,
+    sets: impl Iterator<Item = (&'a str, &'a [Vec<f64>])>,
+) -> Result<Vec<PredictedAccuracy>, CovarianceError> {
+    let floor_mm = covariance.floor_mm;
+    let with_floor = AccuracyModel::new(model, &covariance)?;
+    let alone = AccuracyModel::new(model, &ParameterCovariance { floor_mm: 0.0, ..covariance })?;
+    Ok(sets
+        .map(|(name, joints)| {
+            let (all, params) = (with_floor.map(joints), alone.map(joints));
             let n = all.len().max(1) as f64;
             PredictedAccuracy {
-                set: name.clone(),
+                set: name.to_string(),
                 mean_mm: all.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
                 max_mm: all.iter().map(|p| p.1.position_mm).fold(0.0, f64::max),
                 parameters_mm: params.iter().map(|p| p.1.position_mm).sum::<f64>() / n,
@@ -171,6 +184,33 @@ fn predicted_accuracy(
             }
         })
         .collect())
+}
+
+/// The tool point's position error predicted at each held-out set's poses from an observation
+/// calibration's covariance of the robot's parameters (the markers' and the set-up's left out:
+/// they do not move the tool), with `floor_mm` (the first held-out set's marker RMS after
+/// calibration; 0 without markers: no position measured).
+fn predicted_for_kinds(
+    c: &KindCalibration,
+    held_out: &[(String, KindData)],
+    floor_mm: f64,
+) -> Result<Vec<PredictedAccuracy>, CovarianceError> {
+    let estimate = &c.refined.estimate;
+    let kept: Vec<usize> = (0..estimate.names.len())
+        .filter(|&k| {
+            c.params.index_by_name(&estimate.names[k]).is_some() && !estimate.names[k].starts_with("marker")
+        })
+        .collect();
+    let names = kept.iter().map(|&k| estimate.names[k].clone()).collect();
+    let covariance = nalgebra::DMatrix::from_fn(kept.len(), kept.len(), |r, col| {
+        estimate.covariance[(kept[r], kept[col])]
+    });
+    let covariance = ParameterCovariance::new(names, &covariance, floor_mm);
+    predicted_at(
+        &c.calibrated,
+        covariance,
+        held_out.iter().map(|(name, d)| (name.as_str(), d.joints.as_slice())),
+    )
 }
 
 /// Why a calibration of observation files or of views on a tree failed: the calibration's
@@ -227,6 +267,16 @@ pub trait Files: Front {
         estimator: &str,
         scores: Vec<(String, Self::Nested)>,
     ) -> Self::Report;
+
+    /// `report` with the tool's position error predicted at the `held_out` sets' poses from
+    /// `fit`'s parameter covariance; as it is where the kind predicts none.
+    fn with_predicted(
+        report: Self::Report,
+        _fit: &Self::Fit,
+        _held_out: &[(String, Self::Data)],
+    ) -> Result<Self::Report, CalibrationError> {
+        Ok(report)
+    }
 }
 
 impl Files for Kinds<'_> {
@@ -273,6 +323,19 @@ impl Files for Kinds<'_> {
             Some(scale) => report.with_prior_scale(scale.clone()),
             None => report,
         }
+    }
+
+    fn with_predicted(
+        report: ObservationsReport,
+        fit: &KindCalibration,
+        held_out: &[(String, KindData)],
+    ) -> Result<ObservationsReport, CalibrationError> {
+        // The sets: the training observations first, then the held-out files.
+        let floor_mm = report.sets.get(1).filter(|_| !held_out.is_empty()).and_then(|(_, s)| s.markers);
+        let predicted = predicted_for_kinds(fit, held_out, floor_mm.map_or(0.0, |m| m.1)).map_err(|e| {
+            CalibrationError::Scoring(format!("the accuracy predicted at the held-out poses: {e}"))
+        })?;
+        Ok(report.with_predicted(predicted))
     }
 }
 
@@ -416,5 +479,6 @@ pub fn calibrate_files<F: Files>(
     }
     let files = sessions.iter().map(|(name, file)| (name.clone(), F::counts(file).0)).collect();
     let report = F::report(&chosen, (&data, &names, files), estimator, scores);
+    let report = F::with_predicted(report, &chosen.calibration, held_out).map_err(in_context(&names))?;
     Ok(Outcome { calibration: chosen.calibration, report })
 }

@@ -173,6 +173,37 @@ impl CrossValidationReport {
     }
 }
 
+/// The accuracy `predicted` at the held-out poses, a line each, under its heading (nothing
+/// without held-out sets).
+pub(super) fn predicted_text(predicted: &[PredictedAccuracy]) -> String {
+    let mut out = String::new();
+    match predicted.first() {
+        Some(first) if first.floor_mm > 0.0 => {
+            let _ = writeln!(
+                out,
+                "predicted position error SD at the held-out poses (parameter covariance, floor {:.4} mm in quadrature):",
+                first.floor_mm
+            );
+        }
+        Some(_) => {
+            let _ = writeln!(
+                out,
+                "predicted position error SD of the tool point at the held-out poses (parameter covariance; no floor: no \
+                 position measured held out):"
+            );
+        }
+        None => {}
+    }
+    for p in predicted {
+        let _ = writeln!(
+            out,
+            "  {}: mean {:.4} mm, max {:.4} mm; from the parameters alone {:.4} mm",
+            p.set, p.mean_mm, p.max_mm, p.parameters_mm
+        );
+    }
+    out
+}
+
 /// The tool's position error predicted at a set's poses: `sqrt(trace(J_x Sigma_x J_x^T))` of
 /// the calibration's parameter covariance, with and without the floor (the first held-out
 /// set's RMS after calibration) added in quadrature.
@@ -858,22 +889,7 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
 
     /// The accuracy predicted at the held-out poses, if any.
     fn predicted_text(&self) -> String {
-        let mut out = String::new();
-        if let Some(first) = self.predicted.first() {
-            let _ = writeln!(
-                out,
-                "predicted position error SD at the held-out poses (parameter covariance, floor {:.4} mm in quadrature):",
-                first.floor_mm
-            );
-        }
-        for p in &self.predicted {
-            let _ = writeln!(
-                out,
-                "  {}: mean {:.4} mm, max {:.4} mm; from the parameters alone {:.4} mm",
-                p.set, p.mean_mm, p.max_mm, p.parameters_mm
-            );
-        }
-        out
+        predicted_text(&self.predicted)
     }
 
     /// The report as text, at fixed precision: the verdict, the parameters, what was held,

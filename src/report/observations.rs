@@ -78,6 +78,11 @@ pub struct ObservationsReport {
     /// (cross-validated RMS of the length residuals, mm) it was chosen from.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub prior_scale: Option<PriorScale>,
+    /// The tool point's position error predicted at each held-out set's poses from the
+    /// parameter covariance (the floor: the first held-out set's marker RMS after, 0 without
+    /// markers).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub predicted: Vec<super::calibration::PredictedAccuracy>,
 }
 
 /// `text` with the points on the last link named as the files name them: each marker by its
@@ -166,6 +171,7 @@ impl ObservationsReport {
             }),
             selection: None,
             prior_scale: None,
+            predicted: Vec::new(),
         }
     }
 
@@ -188,6 +194,12 @@ impl ObservationsReport {
     /// The report with the scale `--prior auto` chose and its curve.
     pub fn with_prior_scale(mut self, scale: PriorScale) -> Self {
         self.prior_scale = Some(scale);
+        self
+    }
+
+    /// The report with the accuracy predicted at the held-out sets' poses.
+    pub fn with_predicted(mut self, predicted: Vec<super::calibration::PredictedAccuracy>) -> Self {
+        self.predicted = predicted;
         self
     }
 
@@ -327,6 +339,9 @@ impl ObservationsReport {
             "observation",
         );
         out.push_str(&super::calibration::choices_text(self.prior_scale.as_ref(), self.selection.as_ref()));
+        if !self.predicted.is_empty() {
+            let _ = write!(out, "\n{}", super::calibration::predicted_text(&self.predicted));
+        }
         self.write_held(&mut out);
         self.write_worst(&mut out);
         self.write_notes(&mut out);

@@ -206,3 +206,54 @@ fn calibrate_reports_the_accuracy_predicted_at_its_held_out_poses() {
     assert!(mean <= (alone * alone * 4.0 + floor * floor).sqrt(), "{predicted}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// An observation calibration predicts the tool point's position error at the held-out poses
+/// from its covariance, as a marker calibration does: on 40 ball-bar calibrations (150
+/// distances, 0.02 mm) of a robot with errors on the parameters a ball bar identifies, the
+/// predicted variance (from the parameters alone: no position measured, no floor) averaged
+/// over the runs is the calibrated tool's squared position error against the truth at the
+/// held-out poses, to 25% (40 runs x 150 poses: a few % of sampling spread, the rest the
+/// linearisation).
+#[test]
+fn an_observation_calibration_predicts_its_tool_points_error() {
+    use crate::kinds::{TOOL, ball_bar, errors_on, options, puma, robot_estimates};
+    use robocal::calibration::kinds::{KindData, calibrate_kinds};
+    use robocal::calibration::{Choices, Kinds};
+    use robocal::pipeline::{Fitting, calibrate_files};
+    let mut rng = ChaCha8Rng::seed_from_u64(91);
+    let model = puma();
+    let chain = Chain::markers(&model, &[TOOL]).remove(0);
+    let zero = vec![0.0; chain.params().len()];
+    let first = calibrate_kinds(
+        &model,
+        &ball_bar(&chain.with_errors(&zero), &mut rng, 0.0),
+        &options(Estimator::Ols),
+    );
+    let identified = robot_estimates(&first.unwrap().refined.estimate.names, &chain);
+    let truth = chain.with_errors(&errors_on(&chain, &identified, &mut rng));
+    let (mut predicted, mut actual) = (0.0, 0.0);
+    let runs = 40;
+    for _ in 0..runs {
+        let fit: KindData = ball_bar(&truth, &mut rng, 0.02);
+        let held = ball_bar(&truth, &mut rng, 0.02);
+        let fitting = Fitting::new(false, Choices::default(), None);
+        let outcome = calibrate_files(
+            &Kinds(&model),
+            &[("fit".into(), fit)],
+            &[("held".into(), held.clone())],
+            &options(Estimator::Wls),
+            &fitting,
+        )
+        .unwrap();
+        let p = &outcome.report.predicted[0];
+        assert_eq!((p.set.as_str(), p.floor_mm, p.mean_mm), ("held", 0.0, p.parameters_mm));
+        predicted += p.parameters_mm.powi(2) / runs as f64;
+        let calibrated = Chain::new(&outcome.calibration.calibrated);
+        let calibrated = calibrated.with_errors(&vec![0.0; calibrated.params().len()]);
+        let errors: f64 =
+            held.joints.iter().map(|q| (calibrated.position(q) - truth.position(q)).norm_squared()).sum();
+        actual += errors / (held.joints.len() * runs) as f64;
+    }
+    let ratio = (predicted / actual).sqrt();
+    assert!((0.8..1.25).contains(&ratio), "predicted {} mm, actual {} mm", predicted.sqrt(), actual.sqrt());
+}
