@@ -600,31 +600,59 @@ impl Held {
     /// `j1.d - 0.5 point1.z`.
     pub fn text(&self) -> String {
         match self {
-            Self::ByUser { parameter, setup: false } => {
-                format!("{parameter}: held at its nominal value by --hold")
+            Self::Combination { parameter, terms } | Self::Confounded { parameter, terms, .. } => {
+                let terms = terms.iter().map(|(name, c)| (name.as_str(), *c));
+                let combination = crate::estimation::combination_text(parameter, terms);
+                match self {
+                    Self::Confounded { with, .. } => format!("{combination}: {}", with.advice(parameter)),
+                    _ => combination,
+                }
             }
-            Self::ByUser { parameter, setup: true } => format!("{parameter}: held at its start by --hold"),
-            Self::Unmoved { parameter } => format!("{parameter}: the observations do not move it"),
-            Self::Unseen { parameter, why } => format!("{parameter}: {why}"),
-            Self::Combination { parameter, terms } => crate::estimation::combination_text(
+            _ => self.reason().map(|(parameter, why)| format!("{parameter}: {why}")).unwrap_or_default(),
+        }
+    }
+
+    /// Of a parameter held alone, not in a combination: the parameter and why, in words.
+    fn reason(&self) -> Option<(&str, String)> {
+        let (parameter, why) = match self {
+            Self::ByUser { parameter, setup: false } => (parameter, "held at its nominal value by --hold".into()),
+            Self::ByUser { parameter, setup: true } => (parameter, "held at its start by --hold".into()),
+            Self::Unmoved { parameter } => (parameter, "the observations do not move it".into()),
+            Self::Unseen { parameter, why } => (parameter, why.clone()),
+            Self::Scale { parameter } => (
                 parameter,
-                terms.iter().map(|(name, c)| (name.as_str(), *c)),
+                "held at its nominal value: contacts alone cannot see the robot's scale, which this longest length \
+                 sets"
+                    .into(),
             ),
-            Self::Scale { parameter } => format!(
-                "{parameter}: held at its nominal value: contacts alone cannot see the robot's scale, which this \
-                 longest length sets"
-            ),
-            Self::Confounded { parameter, terms, with } => {
-                let combination = crate::estimation::combination_text(
-                    parameter,
-                    terms.iter().map(|(name, c)| (name.as_str(), *c)),
-                );
-                format!("{combination}: {}", with.advice(parameter))
-            }
             Self::Unloaded { parameter } => {
-                format!("{parameter}: gravity does not load its joint at these poses (a vertical axis?)")
+                (parameter, "gravity does not load its joint at these poses (a vertical axis?)".into())
+            }
+            Self::Combination { .. } | Self::Confounded { .. } => return None,
+        };
+        Some((parameter.as_str(), why))
+    }
+
+    /// `held` in words, a line each, those held alone for one reason on one line, their
+    /// parameters listed in order (`torso.x, torso.y: its joint is on the way ...`), where the
+    /// reason's first parameter was; a combination a line of its own.
+    pub fn lines(held: &[Held]) -> Vec<String> {
+        let mut lines: Vec<(Option<String>, Vec<&str>, String)> = Vec::new();
+        for h in held {
+            match h.reason() {
+                Some((parameter, why)) => match lines.iter_mut().find(|l| l.0.as_ref() == Some(&why)) {
+                    Some(line) => line.1.push(parameter),
+                    None => lines.push((Some(why), vec![parameter], String::new())),
+                },
+                None => lines.push((None, Vec::new(), h.text())),
             }
         }
+        (lines.into_iter())
+            .map(|(why, parameters, text)| match why {
+                Some(why) => format!("{}: {why}", parameters.join(", ")),
+                None => text,
+            })
+            .collect()
     }
 }
 

@@ -154,7 +154,7 @@ impl ObservationsReport {
             noise: c.noise_estimate.as_ref().map(|e| super::calibration::noise_rows(&c.calibrated.joints, e)),
             parameters,
             unseen: c.unseen.clone(),
-            fixed: held.iter().map(crate::calibration::Held::text).collect(),
+            fixed: crate::calibration::Held::lines(&held),
             held,
             sets,
             warnings: c.warnings.clone(),

@@ -113,7 +113,7 @@ impl TreeReport {
             parameters,
             frames,
             unseen: c.unseen.clone(),
-            fixed: held.iter().map(crate::calibration::Held::text).collect(),
+            fixed: crate::calibration::Held::lines(&held),
             held,
             sets,
             warnings: c.warnings.clone(),

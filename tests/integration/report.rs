@@ -650,3 +650,30 @@ fn parse_page(html: &str) -> roxmltree::Document<'_> {
     )
     .expect("well-formed")
 }
+
+/// What a fit held, in words: the parameters held alone for one reason on one line, in order
+/// where the first of them was (a tree's joint that no view sees prints once, not once per
+/// parameter); each combination a line of its own.
+#[test]
+fn parameters_held_for_one_reason_are_one_line() {
+    use robocal::calibration::Held;
+    let unseen = |p: &str| Held::Unseen { parameter: p.into(), why: "not seen".into() };
+    let held = [
+        unseen("torso.x"),
+        Held::Combination { parameter: "j1.d".into(), terms: vec![("point1.z".into(), -1.0)] },
+        unseen("torso.y"),
+        Held::ByUser { parameter: "j2.a".into(), setup: false },
+        Held::ByUser { parameter: "plane1.d".into(), setup: true },
+        Held::ByUser { parameter: "j3.a".into(), setup: false },
+    ];
+    assert_eq!(
+        Held::lines(&held),
+        [
+            "torso.x, torso.y: not seen",
+            "j1.d - point1.z",
+            "j2.a, j3.a: held at its nominal value by --hold",
+            "plane1.d: held at its start by --hold",
+        ]
+    );
+    assert_eq!(held[0].text(), "torso.x: not seen");
+}
