@@ -101,6 +101,24 @@ fn point_names(text: &str, c: &KindCalibration) -> String {
 /// Observations listed per set in the text, the worst first.
 pub const WORST: usize = 5;
 
+/// A scored set's rows of the verdict, `(label, (before, after), decimals)`: each group's RMS
+/// in a set of lengths of several groups ([`Score::by_group`]), else the lengths' (mm) and the
+/// angles' (deg); the markers' positions' (mm) either way.
+fn set_rows(name: &str, score: &Score) -> Vec<(String, (f64, f64), usize)> {
+    let digits = |unit: &str| if unit == "deg" { 5 } else { 4 };
+    let markers = score.markers.map(|rms| (format!("{name} markers (mm)"), rms, 4));
+    if !score.by_group.is_empty() {
+        let groups = score
+            .by_group
+            .iter()
+            .map(|g| (format!("{name} {} ({})", g.group, g.unit), g.rms, digits(g.unit)));
+        return groups.chain(markers).collect();
+    }
+    let lengths = Some((format!("{name} (mm)"), score.lengths, 4));
+    let angles = score.angles.map(|rms| (format!("{name} (deg)"), rms, 5));
+    lengths.into_iter().chain(markers).chain(angles).collect()
+}
+
 impl ObservationsReport {
     /// The report of `c`, fitted on `data` (names) with `estimator`; `held_out` are the held-out
     /// files' RMS residuals, before and after.
@@ -206,19 +224,14 @@ impl ObservationsReport {
     /// The verdict: the RMS residuals of each set before and after, the warnings by cause.
     fn verdict_text(&self) -> String {
         let mut out = String::new();
+        let rows: Vec<(String, (f64, f64), usize)> =
+            self.sets.iter().flat_map(|(name, s)| set_rows(name, s)).collect();
         let label = |score: &Score| if score.markers.is_some() { 17 } else { 9 };
-        let width = self.sets.iter().map(|r| r.0.len() + label(&r.1)).max().unwrap_or(0).max(24);
+        let widest_name = self.sets.iter().map(|r| r.0.len() + label(&r.1)).max().unwrap_or(0);
+        let width = rows.iter().map(|r| r.0.len()).max().unwrap_or(0).max(widest_name).max(24);
         let _ = writeln!(out, "{:<width$} {:>10} {:>10}", "residuals, RMS", "before", "after");
-        for (name, score) in &self.sets {
-            let (before, after) = score.lengths;
-            let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
-            if let Some((before, after)) = score.markers {
-                let _ =
-                    writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} markers (mm)"));
-            }
-            if let Some((before, after)) = score.angles {
-                let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
-            }
+        for (label, (before, after), digits) in rows {
+            let _ = writeln!(out, "{label:<width$} {before:>10.digits$} {after:>10.digits$}");
         }
         out + &super::verdict::count_warnings(&self.warnings)
     }

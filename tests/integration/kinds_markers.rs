@@ -505,6 +505,20 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
     assert!(before > 0.5 && after < 0.08, "held-out ball bar: {before} mm before, {after} mm after\n{text}");
     assert_eq!(report["sets"][1][1]["observations"][0]["kind"], "marker x");
     assert_eq!(report["sets"][1][1]["observations"][0]["marker"], 1);
+    // The training set's distances are a row of their own, not pooled with the markers'
+    // coordinates: their RMS is the distances' alone.
+    let training = &report["sets"][0][1];
+    let distances: Vec<f64> = (training["observations"].as_array().unwrap().iter())
+        .filter(|o| o["kind"] == "point")
+        .map(|o| o["after"].as_f64().unwrap())
+        .collect();
+    let rms = (distances.iter().map(|d| d * d).sum::<f64>() / distances.len() as f64).sqrt();
+    let group = &training["by_group"][0];
+    assert_eq!((group["group"].as_str(), group["unit"].as_str()), (Some("distances"), Some("mm")), "{group}");
+    assert!((group["rms"][1].as_f64().unwrap() - rms).abs() < 1e-12, "{group} against {rms}");
+    assert_eq!(training["by_group"].as_array().unwrap().len(), 1, "the markers are their own row");
+    assert!(report["sets"][1][1].get("by_group").is_none(), "a set of markers alone is one group");
+    assert!(text.contains("\ntraining distances (mm) ") && !text.contains("\ntraining (mm)"), "{text}");
     let calibrated = std::fs::read_to_string(&model).unwrap();
     assert_eq!(calibrated.matches("[[markers]]").count(), 2, "{calibrated}");
 

@@ -201,6 +201,20 @@ impl Observation {
         }
     }
 
+    /// Its group in a report's rows: `distances` (between poses or to a point), `contacts`,
+    /// `coordinates`, `angles`, `markers`, `camera positions`, `camera rotations`.
+    pub fn group(&self) -> &'static str {
+        match *self {
+            Self::Distance { .. } | Self::ToPoint { .. } => "distances",
+            Self::Contact { .. } => "contacts",
+            Self::Coordinate { axis: 3.., .. } => "angles",
+            Self::Coordinate { .. } => "coordinates",
+            Self::Marker { .. } => "markers",
+            Self::Camera { axis: 3.., .. } => "camera rotations",
+            Self::Camera { .. } => "camera positions",
+        }
+    }
+
     /// Whether it is an angle (rad).
     pub fn is_angle(&self) -> bool {
         matches!(self, Self::Coordinate { axis: 3.., .. } | Self::Camera { axis: 3.., .. })

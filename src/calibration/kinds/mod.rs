@@ -1217,6 +1217,12 @@ pub struct Score {
     /// position errors `|e|` when every coordinate is measured (as `calibrate` reports it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub markers: Option<(f64, f64)>,
+    /// In a set of lengths of several groups ([`Observation::group`]: distances and marker
+    /// coordinates, say), each group's RMS residuals before and after, in its unit, but the
+    /// markers' (their positions' RMS is [`Score::markers`]); empty otherwise, the lengths'
+    /// and the angles' RMS then one each.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub by_group: Vec<GroupRms>,
     /// With per-session set-up parameters: each session of the set and where its set-up came
     /// from.
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -1227,6 +1233,17 @@ pub struct Score {
     /// observation lies further out than its `V_k` says (a noise given too small), one is
     /// flagged only if it stands out from the others.
     pub flag_at: f64,
+}
+
+/// One group's RMS residuals in a set of several ([`Score::by_group`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct GroupRms {
+    /// The group: `distances`, `coordinates`, `camera rotations`, ... ([`Observation::group`]).
+    pub group: &'static str,
+    /// `mm`, or `deg` for angles.
+    pub unit: &'static str,
+    /// The RMS residual before and after, in `unit`.
+    pub rms: (f64, f64),
 }
 
 /// Where a scored session's per-session set-up parameters come from.
@@ -1298,9 +1315,26 @@ impl Score {
         let lengths = rms(&|o| !o.is_angle(), 1.0).unwrap_or((0.0, 0.0));
         let angles = rms(&Observation::is_angle, 1.0);
         let markers = rms(&|o| matches!(o, Observation::Marker { .. }), 3f64.sqrt());
+        let mut groups: Vec<(&'static str, bool)> = Vec::new();
+        for o in kinds {
+            if !groups.iter().any(|g| g.0 == o.group()) {
+                groups.push((o.group(), o.is_angle()));
+            }
+        }
+        // Lengths of several groups (a ball bar's distances and markers' coordinates) are not
+        // pooled in the report's rows: each group is a row of its own.
+        let by_group = match groups.iter().filter(|g| !g.1).count() > 1 {
+            true => (groups.into_iter().filter(|g| g.0 != "markers"))
+                .filter_map(|(group, angle)| {
+                    let unit = if angle { "deg" } else { "mm" };
+                    rms(&|o| o.group() == group, 1.0).map(|rms| GroupRms { group, unit, rms })
+                })
+                .collect(),
+            false => Vec::new(),
+        };
         let whitened: Vec<f64> = observations.iter().map(|r| r.whitened.abs()).collect();
         let flag_at = FLAG_AT * super::robust::robust_scale(&whitened, 1).max(1.0);
-        Self { observations, lengths, angles, markers, sessions: Vec::new(), flag_at }
+        Self { observations, lengths, angles, markers, by_group, sessions: Vec::new(), flag_at }
     }
 
     /// The observations flagged ([`Score::flag_at`]), with their index.
@@ -1499,6 +1533,7 @@ pub fn calibrate_kinds(
             lengths: (0.0, 0.0),
             angles: None,
             markers: None,
+            by_group: Vec::new(),
             sessions: Vec::new(),
             flag_at: FLAG_AT,
         },
