@@ -315,7 +315,7 @@ impl Files for Kinds<'_> {
     ) -> ObservationsReport {
         let c = &chosen.calibration;
         let mut report = ObservationsReport::new(c, names, Self::counts(data), estimator, scores);
-        report = report.with_training_files(files);
+        report = report.with_training_files(files).with_assumed_sigmas(data.assumed_sigmas);
         if let Some(path) = &chosen.path {
             report = report.with_selection(path, c);
         }

@@ -387,7 +387,8 @@ def rows(path: Path) -> np.ndarray:
 
 
 def as_files(report: str, paths: list[Path]) -> Any:
-    """A JSON report of observations named by their files' stems, named by the files."""
+    """A JSON report of observations named by their files' stems, named by the files (stems that
+    are no other string of the report: not `coordinates`, a group's name)."""
     report = report.replace(json.dumps(", ".join(p.stem for p in paths)), json.dumps(", ".join(map(str, paths))))
     for path in paths:
         report = report.replace(json.dumps(path.stem), json.dumps(str(path)))
@@ -487,9 +488,9 @@ def test_every_kind_of_observation_from_arrays_reads_as_its_file(puma: robocal.M
           "distance": pair, "sigma": 0.02}),
         (robocal.PointDistances(q, point, point=[1, 2] * 6, name="points", **units),
          {**joints, "distance": point, "point": np.array([1, 2] * 6)}),
-        (robocal.Coordinates(q, x=xyz[:, 0], y=y, z=xyz[:, 2], name="coordinates", **units),
+        (robocal.Coordinates(q, x=xyz[:, 0], y=y, z=xyz[:, 2], name="xyz", **units),
          {**joints, "x": xyz[:, 0], "y": y, "z": xyz[:, 2]}),
-        (robocal.PlaneContacts(q, [1, 2, 3] * 4, sigma=np.full(12, 0.03), name="contacts", **units),
+        (robocal.PlaneContacts(q, [1, 2, 3] * 4, sigma=np.full(12, 0.03), name="touches", **units),
          {**joints, "plane": np.array([1, 2, 3] * 4), "sigma": 0.03}),
         (robocal.CameraViews(q, np.hstack([xyz, rpy]), camera="world", sigma_angle=0.2, name="camera", **units),
          {**joints, **{c: v for c, v in zip(["x", "y", "z", "roll", "pitch", "yaw"], np.hstack([xyz, rpy]).T)},

@@ -191,7 +191,7 @@ fn observations_text(model: &str, scores: &[(String, Score)]) -> String {
     let width = scores.iter().map(|(n, _)| n.len() + 6).max().unwrap_or(0).max(24);
     let _ = writeln!(
         text,
-        "{model} scored as it stands on {} observation file{}: each file's set-up (fixed points, planes, camera and target; with markers the base and the markers) fitted, the robot and its tool point held\n",
+        "{model} scored as it stands on {} observation file{}: each file's set-up (fixed points, planes, camera and target; with markers the base and the markers) fitted, the robot and its tool point held (calibrate --validate scores with the calibrated set-up instead: its figure can be larger)\n",
         scores.len(),
         if scores.len() == 1 { "" } else { "s" }
     );

@@ -102,7 +102,7 @@ fn views_text(model: &str, scores: &[(String, TreeScore)]) -> String {
     let mut text = String::new();
     let _ = writeln!(
         text,
-        "{model} scored as it stands on {} view file{}: each file's cameras and targets fitted, the tree's joints held\n",
+        "{model} scored as it stands on {} view file{}: each file's cameras and targets fitted, the tree's joints held (calibrate --validate scores with the calibrated cameras and targets instead: its figure can be larger)\n",
         scores.len(),
         if scores.len() == 1 { "" } else { "s" }
     );

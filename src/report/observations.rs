@@ -6,7 +6,10 @@
 
 use super::calibration::{DownWeighted, ParameterRow, by_number};
 use crate::calibration::Warning;
-use crate::calibration::kinds::{KindCalibration, ObservationResidual, Score, SessionSetUp};
+use crate::calibration::kinds::{
+    DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM,
+    KindCalibration, ObservationResidual, Score, SessionSetUp,
+};
 use crate::calibration::prior_scale::PriorScale;
 use crate::calibration::selection::SelectionPath;
 use serde::Serialize;
@@ -83,6 +86,9 @@ pub struct ObservationsReport {
     /// markers).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub predicted: Vec<super::calibration::PredictedAccuracy>,
+    /// The training observations whose row gave no sigma (the kinds' defaults weigh them).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub assumed_sigmas: usize,
 }
 
 /// `text` with the points on the last link named as the files name them: each marker by its
@@ -100,6 +106,11 @@ fn point_names(text: &str, c: &KindCalibration) -> String {
 
 /// Observations listed per set in the text, the worst first.
 pub const WORST: usize = 5;
+
+/// Whether `n` is 0 (a count left out of the JSON).
+fn is_zero(n: &usize) -> bool {
+    *n == 0
+}
 
 /// A scored set's rows of the verdict, `(label, (before, after), decimals)`: each group's RMS
 /// in a set of lengths of several groups ([`Score::by_group`]), else the lengths' (mm) and the
@@ -190,6 +201,7 @@ impl ObservationsReport {
             selection: None,
             prior_scale: None,
             predicted: Vec::new(),
+            assumed_sigmas: 0,
         }
     }
 
@@ -212,6 +224,12 @@ impl ObservationsReport {
     /// The report with the scale `--prior auto` chose and its curve.
     pub fn with_prior_scale(mut self, scale: PriorScale) -> Self {
         self.prior_scale = Some(scale);
+        self
+    }
+
+    /// The report saying how many of the training observations took a default sigma.
+    pub fn with_assumed_sigmas(mut self, count: usize) -> Self {
+        self.assumed_sigmas = count;
         self
     }
 
@@ -293,6 +311,19 @@ impl ObservationsReport {
             *out,
             "\nbefore: the set-up (points, planes, camera and target) and the tool point fitted with the robot nominal; after: the robot and the set-up"
         );
+        if self.assumed_sigmas > 0 {
+            let _ = writeln!(
+                out,
+                "{} of {} observations gave no sigma: weighed by the defaults, {} mm and {} deg ({} mm and {} deg a camera's view; \
+                 --sigma-mm and --sigma-orientation-deg set them)",
+                self.assumed_sigmas,
+                self.observations,
+                DEFAULT_SIGMA_MM,
+                DEFAULT_SIGMA_ANGLE_DEG,
+                DEFAULT_CAMERA_SIGMA_MM,
+                DEFAULT_CAMERA_SIGMA_DEG
+            );
+        }
         if let Some(f) = self.variance_factor {
             let _ = writeln!(
                 out,

@@ -586,6 +586,7 @@ fn marker_flags_apply_to_marker_files_fitted_with_others() {
         report["parameters"].as_array().unwrap().iter().map(|p| p["name"].as_str().unwrap()).collect();
     assert!(names.contains(&"tool.x") && names.contains(&"j2.a"), "{names:?}");
     assert!(!names.iter().any(|n| n.starts_with("marker")), "the markers are held: {names:?}");
+    assert!(report.get("assumed_sigmas").is_none(), "every sigma given (--sigma-mm, the ball bar's column)");
     for set in [0, 1] {
         let observations = report["sets"][set][1]["observations"].as_array().unwrap();
         let markers: Vec<_> = observations.iter().filter(|o| o.get("marker").is_some()).collect();
@@ -660,7 +661,11 @@ fn a_noise_file_gives_observation_files_their_noise() {
         }
     }
     // The weights are the noise's, not the files' default sigmas'.
-    assert!(values(&a, "value") != values(&report_of(&dir, &run), "value"), "the noise changes the weights");
+    let plain = report_of(&dir, &run);
+    assert!(values(&a, "value") != values(&plain, "value"), "the noise changes the weights");
+    // Without it the markers' 600 coordinates took the default sigma, and the report says so.
+    assert_eq!(plain["assumed_sigmas"], 600, "{}", plain["assumed_sigmas"]);
+    assert!(a.get("assumed_sigmas").is_none(), "sigma_me_mm given");
 
     std::fs::write(&noise, "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\nsigma_me_mm = 0.02\n[prior]\n\"j2.a\" = \"0.001mm\"\n")
         .unwrap();
