@@ -550,6 +550,19 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `robocal calibrate -q` of the example's marker file and ball bar fitted together (the tool
+/// point and the two markers given) with `extra`.
+fn with_a_ball_bar(extra: &[&str]) -> std::process::Output {
+    assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "-q", "--model", "puma560", "--tool", "50,0,150"])
+        .args(["--marker", "50,0,150", "--marker=-40,60,120"])
+        .args(["--data", "examples/puma560-measurements.csv", "--data", "examples/puma560-ballbar.csv"])
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
 /// The marker file's flags with a ball bar: `--markers 2` fits marker 2 alone (on the held-out
 /// file too), `--fixed-markers` holds it at `--marker`'s place, `--sigma-mm` is the sigma of the
 /// rows without their own (the markers'; the ball bar's own 0.005 mm stays), each seen in the
@@ -559,16 +572,7 @@ fn marker_flags_apply_to_marker_files_fitted_with_others() {
     let dir = std::env::temp_dir().join(format!("robocal-marker-flags-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let json = dir.join("report.json");
-    let run = |extra: &[&str]| {
-        assert_cmd::Command::cargo_bin("robocal")
-            .unwrap()
-            .args(["calibrate", "-q", "--model", "puma560", "--tool", "50,0,150"])
-            .args(["--marker", "50,0,150", "--marker=-40,60,120"])
-            .args(["--data", "examples/puma560-measurements.csv", "--data", "examples/puma560-ballbar.csv"])
-            .args(extra)
-            .output()
-            .unwrap()
-    };
+    let run = with_a_ball_bar;
     let output = run(&[
         "--markers",
         "2",
@@ -631,15 +635,7 @@ fn a_noise_file_gives_observation_files_their_noise() {
     std::fs::write(&noise, "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\nsigma_me_mm = 0.02\n")
         .unwrap();
     let run = |extra: &[&str], json: &std::path::Path| {
-        assert_cmd::Command::cargo_bin("robocal")
-            .unwrap()
-            .args(["calibrate", "-q", "--model", "puma560", "--tool", "50,0,150"])
-            .args(["--marker", "50,0,150", "--marker=-40,60,120"])
-            .args(["--data", "examples/puma560-measurements.csv", "--data", "examples/puma560-ballbar.csv"])
-            .args(["--json", json.to_str().unwrap()])
-            .args(extra)
-            .output()
-            .unwrap()
+        with_a_ball_bar(&[&["--json", json.to_str().unwrap()], extra].concat())
     };
     let report = |json: &std::path::Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap()
