@@ -117,7 +117,9 @@ fn is_zero(n: &usize) -> bool {
 /// angles' (deg); the markers' positions' (mm) either way.
 fn set_rows(name: &str, score: &Score) -> Vec<(String, (f64, f64), usize)> {
     let digits = |unit: &str| if unit == "deg" { 5 } else { 4 };
-    let markers = score.markers.map(|rms| (format!("{name} markers (mm)"), rms, 4));
+    let each = score.by_marker.iter().map(|m| (format!("{name} marker {} (mm)", m.marker), m.rms, 4));
+    let markers: Vec<_> =
+        score.markers.map(|rms| (format!("{name} markers (mm)"), rms, 4)).into_iter().chain(each).collect();
     if !score.by_group.is_empty() {
         let groups = score
             .by_group

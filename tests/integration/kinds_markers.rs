@@ -518,6 +518,19 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
     assert!((group["rms"][1].as_f64().unwrap() - rms).abs() < 1e-12, "{group} against {rms}");
     assert_eq!(training["by_group"].as_array().unwrap().len(), 1, "the markers are their own row");
     assert!(report["sets"][1][1].get("by_group").is_none(), "a set of markers alone is one group");
+    // Each marker's position RMS, as the markers' of all: sqrt(3 mean e_c^2) of its coordinates.
+    for (k, m) in training["by_marker"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(m["marker"], k + 1, "{m}");
+        let e: Vec<f64> = (training["observations"].as_array().unwrap().iter())
+            .filter(|o| o["marker"] == k + 1)
+            .map(|o| o["before"].as_f64().unwrap())
+            .collect();
+        let rms = (3.0 * e.iter().map(|v| v * v).sum::<f64>() / e.len() as f64).sqrt();
+        assert_eq!(m["coordinates"], e.len(), "{m}");
+        assert!((m["rms"][0].as_f64().unwrap() - rms).abs() < 1e-12, "{m} against {rms}");
+    }
+    assert_eq!(training["by_marker"].as_array().unwrap().len(), 2);
+    assert!(text.contains("\ntraining marker 2 (mm) "), "{text}");
     assert!(text.contains("\ntraining distances (mm) ") && !text.contains("\ntraining (mm)"), "{text}");
     let calibrated = std::fs::read_to_string(&model).unwrap();
     assert_eq!(calibrated.matches("[[markers]]").count(), 2, "{calibrated}");

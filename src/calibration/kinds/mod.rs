@@ -1223,6 +1223,10 @@ pub struct Score {
     /// and the angles' RMS then one each.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub by_group: Vec<GroupRms>,
+    /// With several markers, each one's position RMS before and after (mm), as
+    /// [`Score::markers`] takes it of all: a marker coming loose stands out.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub by_marker: Vec<MarkerRms>,
     /// With per-session set-up parameters: each session of the set and where its set-up came
     /// from.
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -1246,6 +1250,17 @@ pub struct GroupRms {
     pub rms: (f64, f64),
 }
 
+/// One marker's position RMS in a set of several markers ([`Score::by_marker`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct MarkerRms {
+    /// The marker's number (1, 2, ...).
+    pub marker: usize,
+    /// Its coordinates measured.
+    pub coordinates: usize,
+    /// The RMS of its positions' errors before and after (mm).
+    pub rms: (f64, f64),
+}
+
 /// Where a scored session's per-session set-up parameters come from.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -1255,6 +1270,19 @@ pub enum SessionSetUp {
     Training(String),
     /// Fitted on the scored set alone, the robot held at its calibration.
     Fitted,
+}
+
+/// The RMS of `residuals` before and after, each residual times `scale` (`sqrt 3` makes a
+/// marker's coordinates' RMS its position's); `None` for none.
+fn rms_of<'r>(
+    residuals: impl Iterator<Item = &'r ObservationResidual> + Clone,
+    scale: f64,
+) -> Option<(f64, f64)> {
+    let n = residuals.clone().count();
+    let of = |f: fn(&ObservationResidual) -> f64| {
+        (residuals.clone().map(|r| (f(r) * scale).powi(2)).sum::<f64>() / n as f64).sqrt()
+    };
+    (n > 0).then(|| (of(|r| r.before), of(|r| r.after)))
 }
 
 impl ObservationResidual {
@@ -1304,13 +1332,7 @@ impl Score {
     /// The RMS residuals of `observations`, of the observations `kinds`.
     fn of(observations: Vec<ObservationResidual>, kinds: &[Observation]) -> Self {
         let rms = |chosen: &dyn Fn(&Observation) -> bool, scale: f64| {
-            let chosen: Vec<&ObservationResidual> =
-                (observations.iter().zip(kinds)).filter(|(_, o)| chosen(o)).map(|(r, _)| r).collect();
-            let n = chosen.len().max(1) as f64;
-            let of = |f: fn(&ObservationResidual) -> f64| {
-                (chosen.iter().map(|r| (f(r) * scale).powi(2)).sum::<f64>() / n).sqrt()
-            };
-            (!chosen.is_empty()).then(|| (of(|r| r.before), of(|r| r.after)))
+            rms_of((observations.iter().zip(kinds)).filter(|(_, o)| chosen(o)).map(|(r, _)| r), scale)
         };
         let lengths = rms(&|o| !o.is_angle(), 1.0).unwrap_or((0.0, 0.0));
         let angles = rms(&Observation::is_angle, 1.0);
@@ -1332,9 +1354,23 @@ impl Score {
                 .collect(),
             false => Vec::new(),
         };
+        let mut numbers: Vec<usize> = observations.iter().filter_map(|r| r.marker).collect();
+        numbers.sort_unstable();
+        numbers.dedup();
+        let by_marker = match numbers.len() > 1 {
+            true => (numbers.into_iter())
+                .filter_map(|m| {
+                    let of = |o: &ObservationResidual| o.marker == Some(m);
+                    let coordinates = observations.iter().filter(|o| of(o)).count();
+                    let rms = rms_of(observations.iter().filter(|o| of(o)), 3f64.sqrt())?;
+                    Some(MarkerRms { marker: m, coordinates, rms })
+                })
+                .collect(),
+            false => Vec::new(),
+        };
         let whitened: Vec<f64> = observations.iter().map(|r| r.whitened.abs()).collect();
         let flag_at = FLAG_AT * super::robust::robust_scale(&whitened, 1).max(1.0);
-        Self { observations, lengths, angles, markers, by_group, sessions: Vec::new(), flag_at }
+        Self { observations, lengths, angles, markers, by_group, by_marker, sessions: Vec::new(), flag_at }
     }
 
     /// The observations flagged ([`Score::flag_at`]), with their index.
@@ -1534,6 +1570,7 @@ pub fn calibrate_kinds(
             angles: None,
             markers: None,
             by_group: Vec::new(),
+            by_marker: Vec::new(),
             sessions: Vec::new(),
             flag_at: FLAG_AT,
         },
