@@ -587,7 +587,7 @@ pub struct EvaluateArgs {
     pub data: Vec<PathBuf>,
     #[command(flatten)]
     pub units: UnitArgs,
-    /// A noise file (TOML) for the whitened residuals.
+    /// A noise file (TOML) for the whitened residuals (marker and observation files; not view files).
     #[arg(long)]
     pub noise: Option<PathBuf>,
     #[command(flatten)]

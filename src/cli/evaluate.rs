@@ -2,10 +2,11 @@
 //! `calibrate` (pooled, per marker, worst poses) and its files (JSON, poses, figures, page).
 
 use super::calibrate::noise_for;
+use super::observations::Noise;
 use super::request::{EvaluateRequest, NoiseSource};
 use super::{ReportContent, write_report_files};
 use anyhow::{Context, Result, bail};
-use robocal::calibration::kinds::{KindData, KindOptions, Score, evaluate_kinds};
+use robocal::calibration::kinds::{KindData, KindOptions, RowSigmaDefaults, Score, evaluate_kinds};
 use robocal::calibration::{DataKind, SetEvaluation, evaluate_model, pool};
 use robocal::io;
 use robocal::report::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
@@ -108,26 +109,43 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
 }
 
 /// An observation file read and scored as it stands, its set-up fitted, the model held, its
-/// whitened residuals under its sigma column and `--joint-sigma-deg`'s joint noise: its name,
-/// its observations and their residuals.
+/// whitened residuals under its sigma column (or `--sigma-mm`'s, a noise file's `sigma_me_mm`
+/// and device for rows without) and the joint noise: its name, its observations and their
+/// residuals.
 fn observation_file(
     path: &Path,
     model: &robocal::model::RobotModel,
     request: &EvaluateRequest,
 ) -> Result<(String, KindData, Score)> {
-    let data = KindData::from_csv_str(&read(path)?, model, request.units)
-        .with_context(|| path.display().to_string())?;
-    let joint_noise = observation_joint_noise(request, (&model.name, &model.joints))
-        .with_context(|| path.display().to_string())?;
+    let noise = observation_noise(request, model)?;
+    let data = super::observations::read(path, model, request.units, noise.sigmas, noise.device.as_ref())?;
     let tool = model.tool_point_in_marker_frame();
-    let options = KindOptions { tool, joint_noise, ..KindOptions::default() };
+    let options = KindOptions { tool, joint_noise: noise.joint, ..KindOptions::default() };
     let score = evaluate_kinds(model, &data, &options).with_context(|| path.display().to_string())?;
     Ok((path.display().to_string(), data, score))
 }
 
-/// The joint noise `--joint-sigma-deg` gives for scoring observation or view files (of the
-/// robot `name` with `joints`); `--noise`, `--sigma-mm` and `--sigma-orientation-deg` refused:
-/// such a file's sigma columns are its measurement noise.
+/// The noise of observation files as `calibrate` reads it ([`Noise::of`]): a noise file's, or
+/// the flags' (`--joint-sigma-deg`, and `--sigma-mm` and `--sigma-orientation-deg` for rows
+/// without their own sigma).
+fn observation_noise(request: &EvaluateRequest, model: &robocal::model::RobotModel) -> Result<Noise> {
+    let positive = |s: f64| Some(s).filter(|&s| s > 0.0);
+    match &request.noise {
+        None => Noise::of(None, None, RowSigmaDefaults::default(), model),
+        Some(NoiseSource::Flags(flags)) => {
+            let sigmas = RowSigmaDefaults {
+                length_mm: positive(flags.sigma_mm),
+                angle_rad: positive(flags.sigma_orientation_deg).map(f64::to_radians),
+            };
+            Noise::of(None, Some(&flags.joint_sigma_deg), sigmas, model)
+        }
+        Some(NoiseSource::File(path)) => Noise::of(Some(path), None, RowSigmaDefaults::default(), model),
+    }
+}
+
+/// The joint noise `--joint-sigma-deg` gives for scoring view files (of the tree `name` with
+/// `joints`); `--noise`, `--sigma-mm` and `--sigma-orientation-deg` refused: a view file's sigma
+/// columns are its measurement noise.
 pub(super) fn observation_joint_noise(
     request: &EvaluateRequest,
     (name, joints): (&str, &[robocal::model::Joint]),
@@ -136,16 +154,16 @@ pub(super) fn observation_joint_noise(
         None => Ok(None),
         Some(NoiseSource::Flags(flags)) if flags.sigma_mm != 0.0 || flags.sigma_orientation_deg != 0.0 => {
             bail!(
-                "--sigma-mm and --sigma-orientation-deg are for marker files: the sigma and sigma_angle columns give \
-             the measurement noise here, --joint-sigma-deg the joints'"
+                "--sigma-mm and --sigma-orientation-deg are not for view files: the sigma and sigma_angle columns \
+                 give the measurement noise here, --joint-sigma-deg the joints'"
             )
         }
         Some(NoiseSource::Flags(flags)) => {
             super::joint_covariance(name, joints, Some(&flags.joint_sigma_deg))
         }
         Some(NoiseSource::File(_)) => bail!(
-            "--noise is for marker files: the sigma and sigma_angle columns give the measurement noise here; give \
-             the joint noise by --joint-sigma-deg"
+            "--noise is not for view files: the sigma and sigma_angle columns give the measurement noise here; \
+             give the joint noise by --joint-sigma-deg"
         ),
     }
 }

@@ -17,7 +17,8 @@ use std::path::Path;
 pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     let robot = super::calibrate::load_model(&request.model)?;
     let model = robot.model.clone();
-    let noise = noise(request, &model)?;
+    let noise =
+        Noise::of(request.noise.as_deref(), request.joint_sigma_deg.as_deref(), request.sigmas, &model)?;
     let (sigmas, device) = (noise.sigmas, noise.device.clone());
     let read = |path: &Path| read(path, &model, request.units, sigmas, device.as_ref());
     let sessions = (request.data.iter())
@@ -129,25 +130,33 @@ fn only_markers(data: &KindData, ids: &[usize]) -> KindData {
 
 /// The noise of observation files: the joint noise `Sigma_q` (if given), the sigmas of the rows
 /// that give none, a measuring device, and a noise file's prior; from `--noise`, else the flags.
-struct Noise {
-    joint: Option<nalgebra::DMatrix<f64>>,
-    sigmas: RowSigmaDefaults,
-    device: Option<Device>,
+pub(super) struct Noise {
+    pub(super) joint: Option<nalgebra::DMatrix<f64>>,
+    pub(super) sigmas: RowSigmaDefaults,
+    pub(super) device: Option<Device>,
     prior: Vec<robocal::estimation::PriorEntry>,
 }
 
-/// The noise `request` gives for `model`: a noise file's, or the flags'.
-fn noise(request: &CalibrateObservationsRequest, model: &RobotModel) -> Result<Noise> {
-    let Some(path) = &request.noise else {
-        let joint = super::joint_covariance(&model.name, &model.joints, request.joint_sigma_deg.as_deref())?;
-        return Ok(Noise { joint, sigmas: request.sigmas, device: None, prior: Vec::new() });
-    };
-    let spec = io::load_noise(path, model)?;
-    let sigmas = RowSigmaDefaults {
-        length_mm: spec.sigma_me.filter(|&s| s > 0.0),
-        angle_rad: Some(spec.sigma_orientation).filter(|&s| s > 0.0),
-    };
-    Ok(Noise { joint: Some(spec.joint), sigmas, device: spec.device, prior: spec.prior })
+impl Noise {
+    /// The noise of the noise file `file` for `model`, else of the flags: `--joint-sigma-deg`'s
+    /// `joint_sigma_deg`, and the rows' `sigmas`.
+    pub(super) fn of(
+        file: Option<&Path>,
+        joint_sigma_deg: Option<&[f64]>,
+        sigmas: RowSigmaDefaults,
+        model: &RobotModel,
+    ) -> Result<Self> {
+        let Some(path) = file else {
+            let joint = super::joint_covariance(&model.name, &model.joints, joint_sigma_deg)?;
+            return Ok(Self { joint, sigmas, device: None, prior: Vec::new() });
+        };
+        let spec = io::load_noise(path, model)?;
+        let sigmas = RowSigmaDefaults {
+            length_mm: spec.sigma_me.filter(|&s| s > 0.0),
+            angle_rad: Some(spec.sigma_orientation).filter(|&s| s > 0.0),
+        };
+        Ok(Self { joint: Some(spec.joint), sigmas, device: spec.device, prior: spec.prior })
+    }
 }
 
 /// The options of the observation calibration `request` asks for on `model`, with `noise`
@@ -196,7 +205,7 @@ fn residual_sets(
 
 /// One observation file, `sigmas` for its rows that give none, `device`'s covariance at each
 /// point measured.
-fn read(
+pub(super) fn read(
     path: &Path,
     model: &RobotModel,
     units: Option<Units>,

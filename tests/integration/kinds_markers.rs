@@ -772,6 +772,24 @@ fn a_marker_file_with_an_occlusion_is_read_cell_by_cell() {
     let held_out = report.lines().find(|l| l.starts_with("examples/puma560-validation.csv markers")).unwrap();
     let after: f64 = held_out.split_whitespace().last().unwrap().parse().unwrap();
     assert!(after < 0.15, "held-out markers after: {held_out}");
+
+    // evaluate scores it as calibrate reads it: --sigma-mm the sigma of its rows (no sigma
+    // column), the joints exact: each whitened residual is the residual over 0.05 mm.
+    let json = dir.join("evaluated.json");
+    let out = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["evaluate", "-q", "--model", "puma560", "--data", path.to_str().unwrap()])
+        .args(["--joint-sigma-deg", "0", "--sigma-mm", "0.05", "--json", json.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let scored: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = scored["observations"][0][1]["observations"].as_array().unwrap();
+    assert_eq!(rows.len(), cells);
+    for o in rows {
+        let sigma = o["after"].as_f64().unwrap() / o["whitened"].as_f64().unwrap();
+        assert!((sigma - 0.05).abs() < 1e-9, "{o}");
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -458,8 +458,8 @@ fn a_marker_files_folds_rows_are_each_pose_held_out_in_its_fold() {
 /// `--joint-sigma-deg`'s joint noise: the ball bar example, made with the paper's joint noise,
 /// scored on its true robot flags none of its 150 rows with the noise it was made with, their
 /// whitened RMS near 1, and without the joints' share several times that (flagged against the
-/// set's robust spread, as a marker file's poses: few); a noise file is refused, naming the
-/// flag to give.
+/// set's robust spread, as a marker file's poses: few); a noise file of those sigmas is the same
+/// noise, and `--sigma-mm` leaves rows with their own sigma as they are.
 #[test]
 fn evaluate_whitens_an_observation_file_by_the_joint_noise() {
     let dir = scratch("evaluate-joint-noise");
@@ -480,26 +480,14 @@ fn evaluate_whitens_an_observation_file_by_the_joint_noise() {
     assert!(with == 0 && (0.7..1.4).contains(&rms), "{with} flagged, whitened RMS {rms}");
     let (without, rms) = flagged(&[]);
     assert!(rms > 4.0 && without < 15, "the joints' noise left out: {without} flagged, whitened RMS {rms}");
-    std::fs::write(dir.join("noise.toml"), "").unwrap();
-    let out = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .args(truth)
-        .args(["--noise", s(&dir.join("noise.toml"))])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("give the joint noise by --joint-sigma-deg"));
-    // The file's sigma column is the measurement noise: --sigma-mm is refused, not ignored.
-    let out = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .args(truth)
-        .args(["--joint-sigma-deg", sigmas, "--sigma-mm", "0.005"])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    assert!(
-        String::from_utf8_lossy(&out.stderr)
-            .contains("--sigma-mm and --sigma-orientation-deg are for marker files")
+    // A noise file with those joint sigmas is the same noise; --sigma-mm is for rows without a
+    // sigma cell, and every row of this file has one: neither changes a whitened residual.
+    let noise = dir.join("noise.toml");
+    std::fs::write(&noise, format!("joint_sigma = [{sigmas}]\n")).unwrap();
+    assert_eq!(flagged(&["--noise", s(&noise)]), (with, flagged(&["--joint-sigma-deg", sigmas]).1));
+    assert_eq!(
+        flagged(&["--joint-sigma-deg", sigmas, "--sigma-mm", "0.5"]).1,
+        flagged(&["--noise", s(&noise)]).1
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
