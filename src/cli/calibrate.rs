@@ -160,6 +160,7 @@ fn load_data(request: &CalibrateRequest, model: &RobotModel) -> Result<Data> {
 /// markers, the folds against the poses. (The joint sigmas are counted by [`noise_model`].)
 fn check_against_the_files(request: &CalibrateRequest, data: &Data) -> Result<()> {
     check_marker_count(request.markers.len(), &request.data, data.highest_marker)?;
+    super::warn_unplaced_fixed_markers(!request.estimate_markers, request.markers.len(), data.highest_marker);
     if let Some((name, _)) =
         data.held_out.iter().find(|(_, d)| d.orientations.is_some() != data.fit.orientations.is_some())
     {

@@ -413,6 +413,20 @@ fn commit(outputs: io::Outputs) -> Result<()> {
     Ok(())
 }
 
+/// Warn when `--fixed-markers` holds markers that no `--marker` placed (`given` of the
+/// `highest` number the files have): they are held at the tool frame's origin.
+fn warn_unplaced_fixed_markers(fixed: bool, given: usize, highest: usize) {
+    if fixed && given < highest {
+        let unplaced: Vec<String> = (given + 1..=highest).map(|k| k.to_string()).collect();
+        let (markers, are) = if unplaced.len() == 1 { ("marker", "is") } else { ("markers", "are") };
+        eprintln!(
+            "warning: --fixed-markers: {markers} {} {are} held at the tool frame's origin, as no --marker gives {}",
+            unplaced.join(", "),
+            if unplaced.len() == 1 { "its position" } else { "their positions" }
+        );
+    }
+}
+
 /// At most as many `--marker`s as the data file has markers.
 fn check_marker_count(given: usize, data: &Path, in_file: usize) -> Result<()> {
     if given > in_file {

@@ -92,6 +92,7 @@ fn check_and_warn(request: &CalibrateObservationsRequest, data: &KindData) -> Re
              their own; a camera's mounting is the set-up's): it changes nothing"
         );
     }
+    super::warn_unplaced_fixed_markers(!request.estimate_markers, request.markers.len(), highest);
     if !request.estimate_markers && highest == 0 {
         eprintln!("warning: --fixed-markers holds the markers, and no file here has any: it changes nothing");
     }

@@ -632,6 +632,22 @@ fn marker_flags_apply_to_marker_files_fitted_with_others() {
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let message = String::from_utf8(output.stderr).unwrap();
     assert!(message.contains("--fixed-base holds the base, which no observation here sees"), "{message}");
+    // Markers held where no --marker placed them: said, in either pipeline.
+    for extra in [&[][..], &["--data", "examples/puma560-ballbar.csv"][..]] {
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["calibrate", "-q", "--model", "puma560", "--fixed-markers", "--marker", "50,0,150"])
+            .args(["--data", "examples/puma560-measurements.csv"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let message = String::from_utf8(output.stderr).unwrap();
+        assert!(
+            message.contains("--fixed-markers: marker 2 is held at the tool frame's origin"),
+            "{message}"
+        );
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
