@@ -412,6 +412,30 @@ fn a_devices_covariance_weighs_marker_observations_as_calibrate_does() {
         observations.keeping(|o| !matches!(o, Observation::Marker { marker: 0, axis: 2, pose: 3, .. }));
     let e = partial.with_device(|p| device.covariance(p)).unwrap_err();
     assert!(e.to_string().starts_with("line 6") && e.to_string().contains("x, y and z"), "{e}");
+
+    // Coordinates: a row of x, y and z takes the device's covariance there; a height (z alone)
+    // is another instrument's, its sigma alone.
+    let coordinate = |axis, pose, measured| Observation::Coordinate { axis, pose, measured, sigma: 0.01 };
+    let p = Vector3::new(1000.0, -200.0, 300.0);
+    let rows = KindData {
+        joints: vec![vec![0.0; 6]; 2],
+        observations: vec![
+            coordinate(0, 0, p.x),
+            coordinate(1, 0, p.y),
+            coordinate(2, 0, p.z),
+            coordinate(2, 1, 5.0),
+        ],
+        lines: vec![3, 3, 3, 4],
+        ..KindData::default()
+    };
+    let rows = rows.with_device(|p| device.covariance(p)).unwrap();
+    let c = device.covariance(&p).unwrap();
+    assert!(c[(0, 0)] > 1e-4 && c[(0, 1)].abs() > 1e-8, "an anisotropic covariance: {c}");
+    for (k, row) in rows.device.iter().enumerate().take(3) {
+        assert_eq!(*row, [c[(k, 0)], c[(k, 1)], c[(k, 2)]]);
+        assert_eq!(rows.measurement_covariance(k, (k + 1) % 3), c[(k, (k + 1) % 3)]);
+    }
+    assert_eq!((rows.device[3], rows.measurement_covariance(3, 3)), ([0.0; 3], 0.01 * 0.01));
 }
 
 /// A marker file read as observations: one per cell, an empty cell not measured; the file's

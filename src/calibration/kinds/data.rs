@@ -383,9 +383,11 @@ impl KindData {
     }
 
     /// The same data with a measuring device's covariance `covariance(p)` (mm², at a point `p`
-    /// measured in the measuring frame, mm) at each marker's and the tool point's measured
-    /// position ([`KindData::device`]). A point measured at a pose along some of x, y and z only
-    /// is refused, naming its line: the covariance is taken where it was measured.
+    /// measured in the measuring frame, mm) at each marker's measured position, and at the tool
+    /// point's where a row of coordinates measures its x, y and z ([`KindData::device`]). A
+    /// marker measured at a pose along some of x, y and z only is refused, naming its line: the
+    /// covariance is taken where it was measured. Coordinates measured in part (a height gauge's
+    /// z) are another instrument's: their own sigma alone weighs them.
     pub fn with_device<E: std::fmt::Display>(
         mut self,
         covariance: impl Fn(&Vector3<f64>) -> Result<Matrix3<f64>, E>,
@@ -395,7 +397,10 @@ impl KindData {
             let members = point.observations;
             let line = self.lines[members.into_iter().find(|&k| k != usize::MAX).expect("one observation")];
             let [Some(x), Some(y), Some(z)] = members.map(|k| Some(k).filter(|&k| k != usize::MAX)) else {
-                let message = "a device's covariance needs the point's x, y and z where it was measured: this row \
+                if point.key.1.is_none() {
+                    continue;
+                }
+                let message = "a device's covariance needs the marker's x, y and z where it was measured: this row \
                                measures some of them only";
                 return Err(DataError::new(line, None, message));
             };
