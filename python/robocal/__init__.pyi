@@ -397,7 +397,8 @@ def evaluate(
     DataFrame, a file, ``Observations``), as ``robocal evaluate`` scores it: for marker data, the set pose by pose
     as its JSON has it (``pooled``: before, ``poses``, ``per_marker``; joint values in
     degrees); for an observation file, its score with the set-up fitted and the robot held, its
-    residuals whitened by the file's sigma column and ``joint_sigma``. A
+    residuals whitened by the file's sigma column (``sigma``, ``sigma_orientation`` or a
+    ``noise`` file's for rows without, its device included) and ``joint_sigma``. A
     model read from a file with ``[[markers]]``, or a calibration's model, brings its markers."""
 
 class Compensation:

@@ -813,25 +813,7 @@ fn observations(
     request: &Request,
 ) -> PyResult<Calibration> {
     let model = &robot.inner;
-    let spec = match &flags.noise {
-        Some(path) => {
-            let spec = robocal::io::load_noise(Path::new(path), model)
-                .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
-            Some(spec)
-        }
-        None => None,
-    };
-    // A zero sigma is none, as for marker data.
-    let defaults = match &spec {
-        Some(spec) => RowSigmaDefaults {
-            length_mm: spec.sigma_me.filter(|&s| s > 0.0),
-            angle_rad: Some(spec.sigma_orientation).filter(|&s| s > 0.0),
-        },
-        None => RowSigmaDefaults {
-            length_mm: flags.sigma.filter(|&s| s > 0.0).map(|s| s * request.noise_units.length_scale()),
-            angle_rad: flags.sigma_orientation.filter(|&s| s > 0.0).map(|s| request.noise_units.angle(s)),
-        },
-    };
+    let (spec, defaults) = observation_noise(model, flags, request)?;
     require(
         flags.params_words()? != ParamWords::All,
         "params",
@@ -842,14 +824,8 @@ fn observations(
         "per_session",
         "one value per observation file (each file a session): give two files or more",
     )?;
-    let device = spec.as_ref().and_then(|spec| spec.device.clone());
     let read = |s: &Source| -> PyResult<(String, KindData)> {
-        let mut data =
-            KindData::from_csv_str_with(&text_of(s)?, model, units_for(s, request.units), defaults)
-                .map_err(|e| data_error(s, &e))?;
-        if let Some(device) = &device {
-            data = data.with_device(|p| device.covariance(p)).map_err(|e| data_error(s, &e))?;
-        }
+        let data = observation_data(s, model, request, (spec.as_ref(), defaults))?;
         let stem =
             Path::new(&s.0).file_stem().map_or_else(|| s.0.clone(), |n| n.to_string_lossy().into_owned());
         Ok((s.0.clone(), data.named(&stem)))
@@ -920,6 +896,48 @@ fn observations(
     )
 }
 
+/// Observation files' noise file, if given, and the sigmas of their rows without their own:
+/// the noise file's `sigma_me_mm` and `sigma_orientation_deg`, else `sigma` and
+/// `sigma_orientation` (a zero one is none, as for marker data), as the command line reads them.
+fn observation_noise(
+    model: &RobotModel,
+    flags: &Flags,
+    request: &Request,
+) -> PyResult<(Option<robocal::estimation::NoiseSpec>, RowSigmaDefaults)> {
+    let positive = |s: Option<f64>| s.filter(|&s| s > 0.0);
+    let Some(path) = &flags.noise else {
+        let defaults = RowSigmaDefaults {
+            length_mm: positive(flags.sigma).map(|s| s * request.noise_units.length_scale()),
+            angle_rad: positive(flags.sigma_orientation).map(|s| request.noise_units.angle(s)),
+        };
+        return Ok((None, defaults));
+    };
+    let spec = robocal::io::load_noise(Path::new(path), model)
+        .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
+    let defaults = RowSigmaDefaults {
+        length_mm: positive(spec.sigma_me),
+        angle_rad: positive(Some(spec.sigma_orientation)),
+    };
+    Ok((Some(spec), defaults))
+}
+
+/// An observation file's data read as the command line reads it: `defaults` for its rows
+/// without a sigma, `spec`'s device (if any) at each point measured.
+fn observation_data(
+    source: &Source,
+    model: &RobotModel,
+    request: &Request,
+    (spec, defaults): (Option<&robocal::estimation::NoiseSpec>, RowSigmaDefaults),
+) -> PyResult<KindData> {
+    let data =
+        KindData::from_csv_str_with(&text_of(source)?, model, units_for(source, request.units), defaults)
+            .map_err(|e| data_error(source, &e))?;
+    match spec.and_then(|s| s.device.as_ref()) {
+        Some(device) => data.with_device(|p| device.covariance(p)).map_err(|e| data_error(source, &e)),
+        None => Ok(data),
+    }
+}
+
 /// The model scored as it stands on `source`, as `robocal evaluate` scores it: marker data
 /// pose by pose (the JSON of its set, joint values in degrees), observation files with their
 /// set-up fitted and the robot held (the JSON of their score).
@@ -944,15 +962,14 @@ pub fn evaluate(model: &Model, source: Source, flags: Flags) -> PyResult<String>
             serde_json::to_string(&robocal::report::poses::in_degrees(&set, &robot.joints))
         }
         "observations" => {
-            let data = KindData::from_csv_str(&text_of(&source)?, robot, units_for(&source, request.units))
-                .map_err(|e| data_error(&source, &e))?;
-            // Whitened by the file's sigma column and the joint noise, as `robocal evaluate`.
-            require(
-                flags.noise.is_none() && !flags.measurement_sigmas(),
-                "noise",
-                "observation files: each observation's sigma is its own; give joint_sigma only",
-            )?;
-            let joint_noise = kind_options(robot, &flags, &request)?.joint_noise;
+            // Whitened by the file's sigma column (or the noise's for rows without) and the
+            // joint noise, as `robocal evaluate`.
+            let (spec, defaults) = observation_noise(robot, &flags, &request)?;
+            let data = observation_data(&source, robot, &request, (spec.as_ref(), defaults))?;
+            let joint_noise = match spec {
+                Some(spec) => Some(spec.joint),
+                None => kind_options(robot, &flags, &request)?.joint_noise,
+            };
             let tool = robot.tool_point_in_marker_frame();
             let options = KindOptions { tool, joint_noise, ..KindOptions::default() };
             let score = robocal::calibration::kinds::evaluate_kinds(robot, &data, &options)

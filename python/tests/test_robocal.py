@@ -560,8 +560,16 @@ def test_evaluate_whitens_an_observation_file_as_the_command_line_does(puma: rob
     ours = robocal.evaluate(puma, BALLBAR, joint_sigma=sigmas, joint_unit="deg", length_unit="mm")
     assert_same(ours, theirs)
     assert ours != robocal.evaluate(puma, BALLBAR), "the joint noise changes the whitened residuals"
-    with pytest.raises(robocal.InputError):
-        robocal.evaluate(puma, BALLBAR, joint_sigma=sigmas, sigma=0.005, joint_unit="deg", length_unit="mm")
+    # sigma is for rows without their own (the ball bar has its column: unchanged); a noise file
+    # of the same joint sigmas is the same noise, as the command line reads it.
+    with_sigma = robocal.evaluate(puma, BALLBAR, joint_sigma=sigmas, sigma=0.5, joint_unit="deg", length_unit="mm")
+    assert_same(with_sigma, theirs)
+    noise = tmp_path / "noise.toml"
+    noise.write_text(f"joint_sigma = {sigmas}\n")
+    run_cli("evaluate", "--model", "puma560", "--data", str(BALLBAR), "--noise", str(noise), "--json", str(out),
+            "--quiet")
+    assert_same(robocal.evaluate(puma, BALLBAR, noise=str(noise)), json.loads(out.read_text())["observations"][0][1])
+    assert_same(robocal.evaluate(puma, BALLBAR, noise=str(noise)), theirs)
 
 
 def test_evaluate_tree_scores_views_as_the_command_line_does(tmp_path: Path) -> None:
