@@ -284,18 +284,7 @@ fn with_joint_noise_a_marker_file_weighs_each_pose_as_calibrate_does() {
         &KindOptions { refine, joint_noise, ..marker_options(Estimator::Wls) },
     )
     .unwrap();
-    assert_eq!(c.refined.estimate.names, expected.refined.estimate.names);
-    let (se, found_se) = (expected.refined.estimate.standard_errors(), c.refined.estimate.standard_errors());
-    for (k, name) in expected.refined.estimate.names.iter().enumerate() {
-        let i = expected.params.index_by_name(name).unwrap();
-        let (a, b) = (c.after[i], expected.after[i]);
-        assert!(
-            (a - b).abs() <= 1e-6 * b.abs().max(se[k]),
-            "{name}: {a} against calibrate's {b}, SE {}",
-            se[k]
-        );
-        assert!((found_se[k] - se[k]).abs() <= 1e-5 * se[k], "{name}: SE {} against {}", found_se[k], se[k]);
-    }
+    assert_as_calibrate(&c, &expected);
     let (rms, expected_rms) = (c.training.markers.unwrap(), expected.training);
     assert!((rms.1 - expected_rms.1.rms).abs() < 1e-9, "{rms:?} against {expected_rms:?}");
 }
@@ -390,22 +379,15 @@ fn a_devices_covariance_weighs_marker_observations_as_calibrate_does() {
     let kinds =
         KindOptions { refine, joint_noise: Some(spec.joint.clone()), ..marker_options(Estimator::Wls) };
     let c = calibrate_kinds(&model, &with_device, &kinds).unwrap();
+    assert_as_calibrate(&c, &expected);
     let se = expected.refined.estimate.standard_errors();
-    let found_se = c.refined.estimate.standard_errors();
-    assert_eq!(c.refined.estimate.names, expected.refined.estimate.names);
-    let mut largest_without = 0.0_f64;
     let without = calibrate_kinds(&model, &read, &kinds).unwrap();
-    for (k, name) in expected.refined.estimate.names.iter().enumerate() {
-        let i = expected.params.index_by_name(name).unwrap();
-        let (a, b) = (c.after[i], expected.after[i]);
-        assert!(
-            (a - b).abs() <= 1e-6 * b.abs().max(se[k]),
-            "{name}: {a} against calibrate's {b}, SE {}",
-            se[k]
-        );
-        assert!((found_se[k] - se[k]).abs() <= 1e-5 * se[k], "{name}: SE {} against {}", found_se[k], se[k]);
-        largest_without = largest_without.max((without.after[i] - b).abs() / se[k]);
-    }
+    let largest_without = (expected.refined.estimate.names.iter().enumerate())
+        .map(|(k, name)| {
+            let i = expected.params.index_by_name(name).unwrap();
+            (without.after[i] - expected.after[i]).abs() / se[k]
+        })
+        .fold(0.0_f64, f64::max);
     assert!(largest_without > 0.05, "without the device: {largest_without} SE at most from calibrate's");
 
     let partial =
@@ -436,6 +418,26 @@ fn a_devices_covariance_weighs_marker_observations_as_calibrate_does() {
         assert_eq!(rows.measurement_covariance(k, (k + 1) % 3), c[(k, (k + 1) % 3)]);
     }
     assert_eq!((rows.device[3], rows.measurement_covariance(3, 3)), ([0.0; 3], 0.01 * 0.01));
+}
+
+/// `c` estimated what `calibrate` estimated (`expected`): the same parameters, each value to
+/// 1e-6 relative (of its standard error near 0), each standard error to 1e-5.
+fn assert_as_calibrate(
+    c: &robocal::calibration::kinds::KindCalibration,
+    expected: &calibration::Calibration,
+) {
+    assert_eq!(c.refined.estimate.names, expected.refined.estimate.names);
+    let (se, found_se) = (expected.refined.estimate.standard_errors(), c.refined.estimate.standard_errors());
+    for (k, name) in expected.refined.estimate.names.iter().enumerate() {
+        let i = expected.params.index_by_name(name).unwrap();
+        let (a, b) = (c.after[i], expected.after[i]);
+        assert!(
+            (a - b).abs() <= 1e-6 * b.abs().max(se[k]),
+            "{name}: {a} against calibrate's {b}, SE {}",
+            se[k]
+        );
+        assert!((found_se[k] - se[k]).abs() <= 1e-5 * se[k], "{name}: SE {} against {}", found_se[k], se[k]);
+    }
 }
 
 /// A marker file read as observations: one per cell, an empty cell not measured; the file's
