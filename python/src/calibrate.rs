@@ -914,10 +914,7 @@ fn observation_noise(
     };
     let spec = robocal::io::load_noise(Path::new(path), model)
         .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
-    let defaults = RowSigmaDefaults {
-        length_mm: positive(spec.sigma_me),
-        angle_rad: positive(Some(spec.sigma_orientation)),
-    };
+    let defaults = RowSigmaDefaults::of_noise(&spec);
     Ok((Some(spec), defaults))
 }
 

@@ -152,10 +152,7 @@ impl Noise {
             return Ok(Self { joint, sigmas, device: None, prior: Vec::new() });
         };
         let spec = io::load_noise(path, model)?;
-        let sigmas = RowSigmaDefaults {
-            length_mm: spec.sigma_me.filter(|&s| s > 0.0),
-            angle_rad: Some(spec.sigma_orientation).filter(|&s| s > 0.0),
-        };
+        let sigmas = RowSigmaDefaults::of_noise(&spec);
         Ok(Self { joint: Some(spec.joint), sigmas, device: spec.device, prior: spec.prior })
     }
 }

@@ -54,6 +54,15 @@ pub struct RowSigmaDefaults {
     pub angle_rad: Option<f64>,
 }
 
+impl RowSigmaDefaults {
+    /// A noise file's: its `sigma_me_mm` and `sigma_orientation_deg` where above 0 (a zero one
+    /// is none, as the flags' default 0).
+    pub fn of_noise(spec: &crate::estimation::NoiseSpec) -> Self {
+        let positive = |s: f64| Some(s).filter(|&s| s > 0.0);
+        Self { length_mm: spec.sigma_me.and_then(positive), angle_rad: positive(spec.sigma_orientation) }
+    }
+}
+
 /// Where the camera is: on the arm looking at a target fixed in the world (hand-eye), or fixed
 /// in the world looking at a target on the arm (eye-to-hand).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -418,6 +427,7 @@ impl KindData {
     /// of its first observation.
     fn measured_points(&self) -> Vec<MeasuredPoint> {
         let mut points: Vec<MeasuredPoint> = Vec::new();
+        let mut at_key = std::collections::HashMap::new();
         for (k, o) in self.observations.iter().enumerate() {
             let (key, axis, m) = match *o {
                 Observation::Marker { marker, axis, pose, measured, .. } => {
@@ -428,17 +438,10 @@ impl KindData {
                 }
                 _ => continue,
             };
-            let at = match points.iter().rposition(|p| p.key == key) {
-                Some(at) => at,
-                None => {
-                    points.push(MeasuredPoint {
-                        key,
-                        position: [f64::NAN; 3],
-                        observations: [usize::MAX; 3],
-                    });
-                    points.len() - 1
-                }
-            };
+            let at = *at_key.entry(key).or_insert_with(|| {
+                points.push(MeasuredPoint { key, position: [f64::NAN; 3], observations: [usize::MAX; 3] });
+                points.len() - 1
+            });
             points[at].position[axis] = m;
             points[at].observations[axis] = k;
         }
