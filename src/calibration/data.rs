@@ -295,23 +295,7 @@ impl Columns {
             );
             return Err(at_header(Some(name), message));
         }
-        let quaternion = ["qw", "qx", "qy", "qz"].map(|c| table.column(c));
-        let rpy = ["roll", "pitch", "yaw"].map(|c| table.column(c));
-        let orientation: Vec<usize> = match (quaternion, rpy) {
-            ([Some(w), Some(x), Some(y), Some(z)], [None, None, None]) => vec![w, x, y, z],
-            ([None, None, None, None], [Some(r), Some(p), Some(y)]) => vec![r, p, y],
-            ([None, None, None, None], [None, None, None]) => Vec::new(),
-            _ => {
-                let message =
-                    "orientation: give all of qw,qx,qy,qz or all of roll,pitch,yaw, not parts or both";
-                return Err(at_header(None, message.into()));
-            }
-        };
-        if !orientation.is_empty() && markers.len() != 1 {
-            let message =
-                "orientation columns need exactly one marker (x1,y1,z1): the measured frame's origin";
-            return Err(at_header(None, message.into()));
-        }
+        let orientation = orientation_columns(table, &markers)?;
         Ok(Self { joints, markers, sigma: table.column("sigma"), orientation })
     }
 
@@ -353,18 +337,57 @@ impl Columns {
         table.within(row, column, s * units.length_scale(), MAX_LENGTH_MM, "mm")
     }
 
-    /// The row's measured orientation: a unit quaternion (norm within 1e-3 of 1) or
-    /// roll-pitch-yaw in the joints' angle unit, `R = Rz(yaw) Ry(pitch) Rx(roll)`.
+    /// The row's measured orientation ([`orientation`]).
     fn orientation(&self, table: &Table, row: &Row, units: Units) -> Result<UnitQuaternion<f64>, DataError> {
-        let v = self.orientation.iter().map(|&c| table.number(row, c)).collect::<Result<Vec<_>, _>>()?;
-        if let [w, x, y, z] = v[..] {
-            let q = nalgebra::Quaternion::new(w, x, y, z);
-            if (q.norm() - 1.0).abs() > 1e-3 {
-                let message = format!("a unit quaternion, its norm is {:.6}", q.norm());
-                return Err(DataError::new(row.line, Some("qw"), message));
-            }
-            return Ok(UnitQuaternion::from_quaternion(q));
-        }
-        Ok(UnitQuaternion::from_euler_angles(units.angle(v[0]), units.angle(v[1]), units.angle(v[2])))
+        orientation(table, row, &self.orientation, units)
     }
+}
+
+/// A probe's orientation columns in a marker file's header: `qw,qx,qy,qz` or
+/// `roll,pitch,yaw` (in that order), or none; with exactly one marker (`markers`, from
+/// [`marker_columns`]), the measured frame's origin.
+pub(crate) fn orientation_columns(
+    table: &Table,
+    markers: &[(usize, [usize; 3])],
+) -> Result<Vec<usize>, DataError> {
+    let at_header = |message: &str| DataError::new(table.header_line, None, message);
+    let quaternion = ["qw", "qx", "qy", "qz"].map(|c| table.column(c));
+    let rpy = ["roll", "pitch", "yaw"].map(|c| table.column(c));
+    let orientation: Vec<usize> = match (quaternion, rpy) {
+        ([Some(w), Some(x), Some(y), Some(z)], [None, None, None]) => vec![w, x, y, z],
+        ([None, None, None, None], [Some(r), Some(p), Some(y)]) => vec![r, p, y],
+        ([None, None, None, None], [None, None, None]) => Vec::new(),
+        _ => {
+            return Err(at_header(
+                "orientation: give all of qw,qx,qy,qz or all of roll,pitch,yaw, not parts or both",
+            ));
+        }
+    };
+    if !orientation.is_empty() && markers.len() != 1 {
+        return Err(at_header(
+            "orientation columns need exactly one marker (x1,y1,z1): the measured frame's origin",
+        ));
+    }
+    Ok(orientation)
+}
+
+/// A probe's measured orientation in `row`'s `columns` (from [`orientation_columns`]): a unit
+/// quaternion (norm within 1e-3 of 1) or roll-pitch-yaw in the joints' angle unit,
+/// `R = Rz(yaw) Ry(pitch) Rx(roll)`.
+pub(crate) fn orientation(
+    table: &Table,
+    row: &Row,
+    columns: &[usize],
+    units: Units,
+) -> Result<UnitQuaternion<f64>, DataError> {
+    let v = columns.iter().map(|&c| table.number(row, c)).collect::<Result<Vec<_>, _>>()?;
+    if let [w, x, y, z] = v[..] {
+        let q = nalgebra::Quaternion::new(w, x, y, z);
+        if (q.norm() - 1.0).abs() > 1e-3 {
+            let message = format!("a unit quaternion, its norm is {:.6}", q.norm());
+            return Err(DataError::new(row.line, Some("qw"), message));
+        }
+        return Ok(UnitQuaternion::from_quaternion(q));
+    }
+    Ok(UnitQuaternion::from_euler_angles(units.angle(v[0]), units.angle(v[1]), units.angle(v[2])))
 }

@@ -571,7 +571,7 @@ impl Start {
         let probe = data
             .orientations
             .as_ref()
-            .map(|measured| probe_mounting(&registered, markers[0], data, measured));
+            .map(|measured| probe_mounting(&registered, markers[0], data.joints.iter().zip(measured)));
         let chains = match &probe {
             Some(probe) => vec![Chain::probe(&registered, probe)],
             None => Chain::markers(&registered, &markers),
@@ -1474,19 +1474,19 @@ fn noise_for(noise: Option<NoiseModel>, data: &Measurements, rows: usize) -> Opt
     Some(noise)
 }
 
-/// The probe's placement on the last link: at the nominal marker position, turned by the
-/// chordal mean of what each pose says the mounting rotation is, `R_arm(q)^-1 R_measured`.
-fn probe_mounting(
+/// The probe's placement on the last link: at the nominal marker position `at`, turned by the
+/// chordal mean of what each pose (joints `q`, measured rotation `R_measured`) says the
+/// mounting rotation is, `R_arm(q)^-1 R_measured`.
+pub(crate) fn probe_mounting<'a>(
     model: &RobotModel,
     at: Vector3<f64>,
-    data: &Measurements,
-    measured: &[UnitQuaternion<f64>],
+    poses: impl Iterator<Item = (&'a Vec<f64>, &'a UnitQuaternion<f64>)>,
 ) -> Placement {
     let unturned = Placement { xyz: at, rpy: Vector3::zeros() };
     let chain = Chain::probe(model, &unturned);
     let arm = chain.with_errors(&vec![0.0; chain.params().len()]);
     let mut sum = Matrix3::zeros();
-    for (q, r) in data.joints.iter().zip(measured) {
+    for (q, r) in poses {
         sum += (arm.pose(q).rotation.inverse() * r).to_rotation_matrix().into_inner();
     }
     let rotation = UnitQuaternion::from_rotation_matrix(&nearest_rotation(&sum));

@@ -297,6 +297,34 @@ impl Builder {
     }
 }
 
+/// What a chain of [`Chain::marker_ends`] ends at on the robot's last link, in the model's
+/// [marker frame](RobotModel::marker_frame).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MarkerEnd {
+    /// A marker: a point (mm), its position estimated.
+    Point(Vector3<f64>),
+    /// A measured frame (a 6-DOF probe), its position and rotation estimated.
+    Frame(Placement),
+}
+
+impl MarkerEnd {
+    /// Where it is (mm): the point, or the frame's origin.
+    pub fn origin(&self) -> Vector3<f64> {
+        match self {
+            Self::Point(p) => *p,
+            Self::Frame(f) => f.xyz,
+        }
+    }
+
+    /// Its error parameters: 3 for a point, 6 for a frame.
+    pub fn parameters(&self) -> usize {
+        match self {
+            Self::Point(_) => 3,
+            Self::Frame(_) => 6,
+        }
+    }
+}
+
 /// A robot model compiled for fast kinematics; see the [module documentation](self).
 #[derive(Debug, Clone)]
 pub struct Chain {
@@ -332,7 +360,8 @@ impl Chain {
     /// share the base and joint parameters, and each has its own `marker<k>.x/y/z` (along the
     /// marker frame's axes). The tool frame is fixed; its error parameters are not used.
     pub fn markers(model: &RobotModel, markers: &[Vector3<f64>]) -> Vec<Self> {
-        Self::points(model, ParamSet::with_markers(model, markers.len()), markers)
+        let ends: Vec<MarkerEnd> = markers.iter().map(|&p| MarkerEnd::Point(p)).collect();
+        Self::marker_ends(model, &ends)
     }
 
     /// [`Chain::markers`] and, after them, the chain of a measured frame (a 6-DOF probe) at
@@ -340,24 +369,28 @@ impl Chain {
     /// [`ParamSet::with_markers_and_probe`]: the probe's errors are `marker<n + 1>.x` ...
     /// `.rz` of `n` markers.
     pub fn markers_and_probe(model: &RobotModel, markers: &[Vector3<f64>], probe: &Placement) -> Vec<Self> {
-        let params = ParamSet::with_markers_and_probe(model, markers.len());
-        let mut chains = Self::points(model, params.clone(), markers);
-        let mut builder = Self::arm(model, params);
-        builder.placement(ParamOwner::Tool, &model.marker_frame(), &[]);
-        let arm = builder.steps.len();
-        builder.placement(ParamOwner::Marker(markers.len()), probe, &ParamKind::PLACEMENT);
-        chains.push(builder.finish(arm, model));
-        chains
+        let points = markers.iter().map(|&p| MarkerEnd::Point(p));
+        let ends: Vec<MarkerEnd> = points.chain([MarkerEnd::Frame(*probe)]).collect();
+        Self::marker_ends(model, &ends)
     }
 
-    /// One chain per point of `markers`, indexed by `params` (their errors `Marker(k)`).
-    fn points(model: &RobotModel, params: ParamSet, markers: &[Vector3<f64>]) -> Vec<Self> {
-        (0..markers.len())
-            .map(|k| {
+    /// One chain per end of `ends` on the last link, in the model's
+    /// [marker frame](RobotModel::marker_frame): a point (a marker: 3 errors
+    /// `marker<k>.x/y/z`) or a measured frame (a 6-DOF probe: 6 errors `marker<k>.x` ...
+    /// `.rz`), `k` counting from 1, all indexed by [`ParamSet::with_marker_ends`]. The tool
+    /// frame is fixed; its error parameters are not used.
+    pub fn marker_ends(model: &RobotModel, ends: &[MarkerEnd]) -> Vec<Self> {
+        let counts: Vec<usize> = ends.iter().map(MarkerEnd::parameters).collect();
+        let params = ParamSet::with_marker_ends(model, &counts);
+        (ends.iter().enumerate())
+            .map(|(k, end)| {
                 let mut builder = Self::arm(model, params.clone());
                 builder.placement(ParamOwner::Tool, &model.marker_frame(), &[]);
                 let arm = builder.steps.len();
-                builder.point(ParamOwner::Marker(k), &markers[k]);
+                match end {
+                    MarkerEnd::Point(p) => builder.point(ParamOwner::Marker(k), p),
+                    MarkerEnd::Frame(f) => builder.placement(ParamOwner::Marker(k), f, &ParamKind::PLACEMENT),
+                }
                 builder.finish(arm, model)
             })
             .collect()
@@ -367,11 +400,7 @@ impl Chain {
     /// [marker frame](RobotModel::marker_frame), indexed by [`ParamSet::with_probe`]: its 6
     /// errors are `marker1.x` ... `marker1.rz`.
     pub fn probe(model: &RobotModel, probe: &Placement) -> Self {
-        let mut builder = Self::arm(model, ParamSet::with_probe(model));
-        builder.placement(ParamOwner::Tool, &model.marker_frame(), &[]);
-        let arm = builder.steps.len();
-        builder.placement(ParamOwner::Marker(0), probe, &ParamKind::PLACEMENT);
-        builder.finish(arm, model)
+        Self::marker_ends(model, &[MarkerEnd::Frame(*probe)]).remove(0)
     }
 
     /// The steps of the base and the joints.

@@ -175,6 +175,13 @@ impl ParamSet {
         Self::build(model, Some(&each))
     }
 
+    /// The parameters of `model` with points and frames on its last link, `counts[k]` the
+    /// parameters of `marker<k + 1>`: 3 for a point (`.x`, `.y`, `.z`, mm), 6 for a measured
+    /// frame (then `.rx`, `.ry`, `.rz`, rad).
+    pub fn with_marker_ends(model: &RobotModel, counts: &[usize]) -> Self {
+        Self::build(model, Some(counts))
+    }
+
     /// `markers`: how many parameters each has (3 for a point, 6 for a frame).
     fn build(model: &RobotModel, markers: Option<&[usize]>) -> Self {
         let mut params = Vec::new();

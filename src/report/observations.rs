@@ -307,6 +307,34 @@ impl ObservationsReport {
         }
     }
 
+    /// The largest marker position errors of each set after calibration, as a marker file's
+    /// pose table gives them ([`Score::positions`]); nothing without markers.
+    fn write_worst_positions(&self, out: &mut String) {
+        if self.sets.iter().all(|(_, score)| score.positions.is_empty()) {
+            return;
+        }
+        let _ = writeln!(
+            *out,
+            "\nlargest marker position errors after calibration ({WORST} per set; every one in --json, `positions`):"
+        );
+        for (set, (name, score)) in self.sets.iter().enumerate() {
+            let mut worst: Vec<&crate::calibration::kinds::PositionError> = score.positions.iter().collect();
+            worst.sort_by(|a, b| b.error.1.total_cmp(&a.error.1));
+            let files: &[(String, usize)] = if set == 0 { &self.training_files } else { &[] };
+            for p in worst.iter().take(WORST) {
+                let _ = writeln!(
+                    out,
+                    "  {name}, {} marker {}: {:.4} mm before, {:.4} mm after, {:.1} sd",
+                    super::line_in(files, p.index, p.line),
+                    p.marker,
+                    p.error.0,
+                    p.error.1,
+                    p.whitened
+                );
+            }
+        }
+    }
+
     /// What before and after mean, the sigmas' scale, and the warnings.
     fn write_notes(&self, out: &mut String) {
         let _ = writeln!(
@@ -390,6 +418,7 @@ impl ObservationsReport {
         }
         self.write_held(&mut out);
         self.write_worst(&mut out);
+        self.write_worst_positions(&mut out);
         self.write_notes(&mut out);
         out
     }

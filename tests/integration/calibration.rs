@@ -14,13 +14,13 @@ use robocal::table::Units;
 
 const DEGREES: [f64; 6] = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002];
 
-fn joint_sigmas() -> Vec<f64> {
+pub(crate) fn joint_sigmas() -> Vec<f64> {
     DEGREES.iter().map(|d| d.to_radians()).collect()
 }
 
 /// The nominal model with errors of the sizes folded in, and a base far from the
 /// measuring frame (a tracker 1.5 m away, turned 34 degrees).
-fn true_robot(nominal: &RobotModel, rng: &mut ChaCha8Rng) -> RobotModel {
+pub(crate) fn true_robot(nominal: &RobotModel, rng: &mut ChaCha8Rng) -> RobotModel {
     let mut n = || -> f64 { StandardNormal.sample(&mut *rng) };
     let mut truth = nominal.clone();
     for joint in &mut truth.joints {
@@ -295,6 +295,17 @@ fn probe_file(
     sigmas: &[f64],
     rng: &mut ChaCha8Rng,
 ) -> Measurements {
+    Measurements::from_csv_str(&probe_csv(nominal, real, count, sigmas, rng), nominal, None).unwrap()
+}
+
+/// The text of [`probe_file`].
+pub(crate) fn probe_csv(
+    nominal: &RobotModel,
+    real: &ChainAt,
+    count: usize,
+    sigmas: &[f64],
+    rng: &mut ChaCha8Rng,
+) -> String {
     let mut text = String::from(PROBE_HEADER);
     for q in poses(nominal, count, rng) {
         let noisy: Vec<f64> = q
@@ -308,7 +319,7 @@ fn probe_file(
         let pose = real.pose(&noisy);
         text += &probe_row(&q, &pose.translation.vector, &pose.rotation);
     }
-    Measurements::from_csv_str(&text, nominal, None).unwrap()
+    text
 }
 
 /// The header of a 6-DOF probe's file on a 6-joint arm: the joints, marker 1, the quaternion.

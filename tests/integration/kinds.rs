@@ -68,21 +68,24 @@ fn check_kind_jacobians(model: &RobotModel, u: &[f64], angles: bool) -> Result<(
 /// and yaw too, the tool a frame ([`Chain::markers_and_probe`]); with `camera`, a camera's
 /// views at two poses too (the tool's frame, the rotation rows of every point's `H_j`); with
 /// `tracker`, the markers read in a tracker frame placed away from the measuring frame
-/// ([`SetUp::with_tracker`]).
+/// ([`SetUp::with_tracker`]); with `probe`, marker 1 a 6-DOF probe's frame
+/// ([`Chain::marker_ends`]), its orientation measured at two poses too.
 fn check_marker_jacobians(
     model: &RobotModel,
     u: &[f64],
     angles: bool,
-    (camera, tracker): (Option<CameraSite>, bool),
+    (camera, tracker, probe): (Option<CameraSite>, bool, bool),
 ) -> Result<(), TestCaseError> {
+    use robocal::kinematics::MarkerEnd;
     let points = [0, 7, 3].map(|i| Vector3::new(u[i], u[i + 1], u[i + 2]) * 200.0);
-    let chains = match angles || camera.is_some() {
-        true => {
-            let probe = Placement { xyz: points[2], rpy: Vector3::new(u[10], u[11], u[12]) };
-            Chain::markers_and_probe(model, &points[..2], &probe)
-        }
-        false => Chain::markers(model, &points),
+    let frame = |at: usize, rpy: usize| Placement {
+        xyz: points[at],
+        rpy: Vector3::new(u[rpy], u[rpy + 1], u[rpy + 2]),
     };
+    let first = if probe { MarkerEnd::Frame(frame(0, 13)) } else { MarkerEnd::Point(points[0]) };
+    let tool =
+        if angles || camera.is_some() { MarkerEnd::Frame(frame(2, 10)) } else { MarkerEnd::Point(points[2]) };
+    let chains = Chain::marker_ends(model, &[first, MarkerEnd::Point(points[1]), tool]);
     let params = chains[0].params();
     let (_, x) = point(model, &u[20..]);
     let x: Vec<f64> = (0..params.len()).map(|i| x[i % x.len()]).collect();
@@ -92,6 +95,20 @@ fn check_marker_jacobians(
             let measured = 100.0 * u[axis + 30];
             data.observations.push(Observation::Marker { marker, axis, pose, measured, sigma: 0.01 });
             data.lines.push(data.lines.len() + 2);
+        }
+        if probe && marker == 0 {
+            let measured =
+                nalgebra::UnitQuaternion::from_scaled_axis(Vector3::new(u[34], u[35], u[36]) * 2.0);
+            for axis in 0..3 {
+                data.observations.push(Observation::Orientation {
+                    marker,
+                    axis,
+                    pose,
+                    measured,
+                    sigma: 1e-4,
+                });
+                data.lines.push(data.lines.len() + 2);
+            }
         }
     }
     let mut setup = SetUp::new(1, &[Vector3::new(u[3], u[4], 1.0), Vector3::new(1.0, u[5], u[6])]);
@@ -211,37 +228,47 @@ proptest! {
 
     #[test]
     fn marker_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, false, (None, false))?;
+        check_marker_jacobians(&model, &u, false, (None, false, false))?;
     }
 
     #[test]
     fn marker_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, false, (None, false))?;
+        check_marker_jacobians(&model, &u, false, (None, false, false))?;
     }
 
     #[test]
     fn tracker_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, false, (None, true))?;
+        check_marker_jacobians(&model, &u, false, (None, true, false))?;
     }
 
     #[test]
     fn tracker_and_camera_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, true, (Some(CameraSite::World), true))?;
+        check_marker_jacobians(&model, &u, true, (Some(CameraSite::World), true, false))?;
     }
 
     #[test]
     fn marker_and_angle_jacobians_match_finite_differences_modified_dh(model in robot(Convention::ModifiedDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, true, (None, false))?;
+        check_marker_jacobians(&model, &u, true, (None, false, false))?;
     }
 
     #[test]
     fn marker_and_camera_jacobians_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, false, (Some(CameraSite::Hand), false))?;
+        check_marker_jacobians(&model, &u, false, (Some(CameraSite::Hand), false, false))?;
     }
 
     #[test]
     fn marker_and_camera_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
-        check_marker_jacobians(&model, &u, true, (Some(CameraSite::World), false))?;
+        check_marker_jacobians(&model, &u, true, (Some(CameraSite::World), false, false))?;
+    }
+
+    #[test]
+    fn probe_jacobians_match_finite_differences_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, false, (None, false, true))?;
+    }
+
+    #[test]
+    fn probe_and_tracker_jacobians_match_finite_differences_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 96)) {
+        check_marker_jacobians(&model, &u, true, (None, true, true))?;
     }
 
     #[test]

@@ -146,6 +146,22 @@ pub enum Observation {
         /// Its standard deviation (mm).
         sigma: f64,
     },
+    /// One of the three rows of the measured orientation of marker `marker`'s frame at `pose`
+    /// (a 6-DOF probe: a marker file's `qw,qx,qy,qz` or `roll,pitch,yaw` with marker 1, the
+    /// frame's origin): row `axis` of the rotation vector `log(R_m R^T)` (rad, measuring
+    /// frame), `R_m` measured, `R` predicted. The three rows carry the whole rotation.
+    Orientation {
+        /// The marker's number less one (its frame's origin is the marker).
+        marker: usize,
+        /// 0 to 2: the rotation vector's x, y, z.
+        axis: usize,
+        /// The pose.
+        pose: usize,
+        /// The measured rotation `R_m`.
+        measured: UnitQuaternion<f64>,
+        /// Its standard deviation (rad), each row alike.
+        sigma: f64,
+    },
     /// One of the six numbers of a camera's view of the target at `pose`: the target's pose
     /// in the camera's frame, `T_camera^-1 T_target`, its position (`axis` 0, 1, 2; mm) and
     /// its rotation vector (3, 4, 5; rad). Each of the six rows carries the whole view.
@@ -173,6 +189,9 @@ impl Observation {
             | Self::Marker { measured, .. } => measured,
             Self::Contact { .. } => 0.0,
             Self::Camera { view, axis, .. } => view.get(axis).copied().unwrap_or(f64::NAN),
+            Self::Orientation { measured, axis, .. } => {
+                measured.scaled_axis().get(axis).copied().unwrap_or(f64::NAN)
+            }
         }
     }
 
@@ -188,6 +207,9 @@ impl Observation {
             }
             Self::Coordinate { axis, .. } => {
                 ["x", "y", "z", "roll", "pitch", "yaw"].get(axis).copied().unwrap_or("?")
+            }
+            Self::Orientation { axis, .. } => {
+                ["probe rx", "probe ry", "probe rz"].get(axis).copied().unwrap_or("?")
             }
             Self::Camera { axis, .. } => {
                 ["camera x", "camera y", "camera z", "camera rx", "camera ry", "camera rz"]
@@ -206,6 +228,7 @@ impl Observation {
             Self::Contact { .. } => "plane contacts",
             Self::Coordinate { .. } => "coordinates",
             Self::Marker { .. } => "marker coordinates",
+            Self::Orientation { .. } => "numbers of a probe's orientations (3 a pose)",
             Self::Camera { .. } => "numbers of camera views (6 a view)",
         }
     }
@@ -219,6 +242,7 @@ impl Observation {
             Self::Coordinate { axis: 3.., .. } => "angles",
             Self::Coordinate { .. } => "coordinates",
             Self::Marker { .. } => "markers",
+            Self::Orientation { .. } => "probe orientations",
             Self::Camera { axis: 3.., .. } => "camera rotations",
             Self::Camera { .. } => "camera positions",
         }
@@ -226,7 +250,10 @@ impl Observation {
 
     /// Whether it is an angle (rad).
     pub fn is_angle(&self) -> bool {
-        matches!(self, Self::Coordinate { axis: 3.., .. } | Self::Camera { axis: 3.., .. })
+        matches!(
+            self,
+            Self::Coordinate { axis: 3.., .. } | Self::Camera { axis: 3.., .. } | Self::Orientation { .. }
+        )
     }
 
     /// The pose it was made at (the first of a pair).
@@ -237,6 +264,7 @@ impl Observation {
             | Self::Contact { pose, .. }
             | Self::Coordinate { pose, .. }
             | Self::Marker { pose, .. }
+            | Self::Orientation { pose, .. }
             | Self::Camera { pose, .. } => pose,
         }
     }
@@ -263,6 +291,7 @@ impl Observation {
             Self::Coordinate { axis: 3.., .. } => MeasurementClass::Angle,
             Self::Coordinate { .. } => MeasurementClass::Coordinate,
             Self::Marker { .. } => MeasurementClass::Marker,
+            Self::Orientation { .. } => MeasurementClass::Orientation,
             Self::Camera { axis: 3.., .. } => MeasurementClass::CameraRotation,
             Self::Camera { .. } => MeasurementClass::CameraPosition,
         }
@@ -276,6 +305,7 @@ impl Observation {
             | Self::Contact { sigma, .. }
             | Self::Coordinate { sigma, .. }
             | Self::Marker { sigma, .. }
+            | Self::Orientation { sigma, .. }
             | Self::Camera { sigma, .. } => *sigma = to,
         }
         self
@@ -289,7 +319,16 @@ impl Observation {
             | Self::Contact { sigma, .. }
             | Self::Coordinate { sigma, .. }
             | Self::Marker { sigma, .. }
+            | Self::Orientation { sigma, .. }
             | Self::Camera { sigma, .. } => sigma,
+        }
+    }
+
+    /// The marker whose point or frame it sees (its number less one), if a marker's.
+    pub fn marker(&self) -> Option<usize> {
+        match *self {
+            Self::Marker { marker, .. } | Self::Orientation { marker, .. } => Some(marker),
+            _ => None,
         }
     }
 }
@@ -533,6 +572,9 @@ impl KindData {
             Observation::Marker { marker, axis, pose, measured, sigma } => {
                 Observation::Marker { marker, axis, pose: pose + offset, measured, sigma }
             }
+            Observation::Orientation { marker, axis, pose, measured, sigma } => {
+                Observation::Orientation { marker, axis, pose: pose + offset, measured, sigma }
+            }
             Observation::Camera { pose, axis, view, site, sigma } => {
                 Observation::Camera { pose: pose + offset, axis, view, site, sigma }
             }
@@ -567,7 +609,8 @@ impl KindData {
         format!("{} at {} poses", kinds.join(", "), self.joints.len())
     }
 
-    /// the tool is a frame).
+    /// Whether any observation is an angle of the tool frame (a roll, pitch or yaw, a
+    /// camera's view: the tool is a frame).
     pub fn has_angles(&self) -> bool {
         self.observations
             .iter()
@@ -585,36 +628,81 @@ impl KindData {
     /// Whether any observation sees the measuring frame's coordinates, a coordinate or a
     /// marker's (then the base is estimated; distances and contacts alone cannot see it).
     pub fn sees_the_base(&self) -> bool {
-        self.observations
-            .iter()
-            .any(|o| matches!(o, Observation::Coordinate { .. } | Observation::Marker { .. }))
+        self.observations.iter().any(|o| matches!(o, Observation::Coordinate { .. }) || o.marker().is_some())
     }
 
     /// The markers observed (their numbers less one), ascending: one point each on the last
     /// link.
     pub fn markers(&self) -> Vec<usize> {
-        let mut markers: Vec<usize> = (self.observations.iter())
-            .filter_map(|o| match *o {
-                Observation::Marker { marker, .. } => Some(marker),
-                _ => None,
-            })
-            .collect();
+        let mut markers: Vec<usize> = self.observations.iter().filter_map(Observation::marker).collect();
         markers.sort_unstable();
         markers.dedup();
         markers
     }
 
+    /// The noise ordinary least squares assumes, where every sigma is assumed (`None` if one
+    /// is given, or if no row is an angle): every row alike in its metric, an angle (rad)
+    /// counting `w = sigma_position / sigma_orientation` of [`POSE_SIGMAS`] mm
+    /// ([`Residuals::ols_row_scale`]), so that an angle's sigma is its kind's default length
+    /// sigma over `w`. The residuals' spread then scales the covariance as `calibrate`'s
+    /// ordinary least squares without a noise model: `s^2 (H^T S^2 H)^-1`.
+    ///
+    /// [`POSE_SIGMAS`]: crate::estimation::POSE_SIGMAS
+    /// [`Residuals::ols_row_scale`]: crate::estimation::Residuals::ols_row_scale
+    pub(crate) fn with_ols_sigmas(&self) -> Option<Self> {
+        let all_assumed = self.assumed_sigmas == self.observations.len();
+        if !all_assumed || !self.observations.iter().any(Observation::is_angle) {
+            return None;
+        }
+        let w = crate::estimation::POSE_SIGMAS.0 / crate::estimation::POSE_SIGMAS.1;
+        let mut data = self.clone();
+        for o in &mut data.observations {
+            if o.is_angle() {
+                let length = if matches!(o, Observation::Camera { .. }) {
+                    DEFAULT_CAMERA_SIGMA_MM
+                } else {
+                    DEFAULT_SIGMA_MM
+                };
+                *o = o.with_sigma(length / w);
+            }
+        }
+        Some(data)
+    }
+
+    /// Each pose's joints and measured rotation of marker `marker`'s frame, where measured.
+    pub(crate) fn orientations_of(
+        &self,
+        marker: usize,
+    ) -> impl Iterator<Item = (&Vec<f64>, &UnitQuaternion<f64>)> + '_ {
+        self.observations.iter().filter_map(move |o| match o {
+            Observation::Orientation { marker: m, axis: 0, pose, measured, .. } if *m == marker => {
+                Some((&self.joints[*pose], measured))
+            }
+            _ => None,
+        })
+    }
+
+    /// The markers whose frame's orientation is measured (a 6-DOF probe's), ascending: a frame
+    /// each on the last link, its origin the marker.
+    pub fn probes(&self) -> Vec<usize> {
+        let mut probes: Vec<usize> = (self.observations.iter())
+            .filter(|o| matches!(o, Observation::Orientation { .. }))
+            .filter_map(Observation::marker)
+            .collect();
+        probes.sort_unstable();
+        probes.dedup();
+        probes
+    }
+
     /// Whether any observation is of the tool point (or frame): any but a marker's.
     pub fn sees_the_tool(&self) -> bool {
-        self.observations.iter().any(|o| !matches!(o, Observation::Marker { .. }))
+        self.observations.iter().any(|o| o.marker().is_none())
     }
 
     /// Whether any observation sees the tool point on its own: any but a marker's or a
     /// camera's (a camera's mounting is the tool frame's, its placement the set-up's).
     pub fn measures_the_tool_point(&self) -> bool {
-        self.observations
-            .iter()
-            .any(|o| !matches!(o, Observation::Marker { .. } | Observation::Camera { .. }))
+        self.observations.iter().any(|o| o.marker().is_none() && !matches!(o, Observation::Camera { .. }))
     }
 
     /// Whether any observation is a length (a distance, a coordinate): contacts alone cannot
@@ -790,8 +878,12 @@ impl KindData {
                 Observation::Distance { a, b, .. } => [a, b],
                 Observation::ToPoint { pose, .. } | Observation::Contact { pose, .. } => [pose, pose],
                 Observation::Coordinate { pose, axis, .. } if axis < 6 => [pose, pose],
-                Observation::Marker { pose, axis, .. } if axis < 3 => [pose, pose],
-                Observation::Marker { axis, .. } => {
+                Observation::Marker { pose, axis, .. } | Observation::Orientation { pose, axis, .. }
+                    if axis < 3 =>
+                {
+                    [pose, pose]
+                }
+                Observation::Marker { axis, .. } | Observation::Orientation { axis, .. } => {
                     return bad(format!("line {line}: a marker's axis {axis}, expected 0 to 2"));
                 }
                 Observation::Camera { pose, axis, view, .. } if axis < 6 => {
@@ -998,6 +1090,9 @@ struct KindColumns {
     camera: Option<usize>,
     /// Each marker's number and its `x<k>, y<k>, z<k>` columns.
     markers: Vec<(usize, [usize; 3])>,
+    /// A probe's orientation, `qw,qx,qy,qz` or `roll,pitch,yaw` (a marker file's, with one
+    /// marker), or none.
+    orientation: Vec<usize>,
     /// The `kind` column, or the one kind of a file without it.
     kind: Option<usize>,
     file_kind: Option<RowKind>,
@@ -1026,26 +1121,23 @@ impl KindColumns {
             sigma_angle: table.column("sigma_angle"),
             camera: table.column("camera"),
             markers: crate::calibration::data::marker_columns(table)?,
+            orientation: Vec::new(),
             kind: table.column("kind"),
             file_kind: None,
             defaults: RowSigmaDefaults::default(),
         };
         if !columns.markers.is_empty() {
-            use crate::calibration::data::{OTHER_KINDS, other_kinds_column};
-            // A marker file's own columns of other kinds, and a probe's orientation.
-            let others: Vec<&str> = ["qw", "qx", "qy", "qz"]
-                .into_iter()
-                .chain(OTHER_KINDS)
-                .chain(["roll", "pitch", "yaw"])
-                .collect();
-            if let Some(name) = other_kinds_column(table, &columns.joints, &others) {
+            use crate::calibration::data::{OTHER_KINDS, orientation_columns, other_kinds_column};
+            // A marker file's own columns of other kinds; a probe's orientation is its own.
+            if let Some(name) = other_kinds_column(table, &columns.joints, &OTHER_KINDS) {
                 return Err(header(
                     Some(name),
-                    "a marker file (x1,y1,z1, ...) has marker positions only: give the other kinds, and a \
-                     probe's orientation, in files of their own",
+                    "a marker file (x1,y1,z1, ...) has marker positions and a probe's orientation only: give \
+                     the other kinds in files of their own",
                 ));
             }
-            return Ok(Self { file_kind: Some(RowKind::Markers), ..columns });
+            let orientation = orientation_columns(table, &columns.markers)?;
+            return Ok(Self { file_kind: Some(RowKind::Markers), orientation, ..columns });
         }
         if columns.kind.is_some() {
             return Ok(columns);
@@ -1123,7 +1215,7 @@ impl KindColumns {
                 vec![Observation::Contact { pose, plane: id(table, row, c)?, sigma: s }]
             }
             RowKind::Camera => self.camera_row(table, row, pose, &sigmas, units, data.camera())?,
-            RowKind::Markers => self.marker_row(table, row, pose, s, units)?,
+            RowKind::Markers => self.marker_row(table, row, (pose, &sigmas), units)?,
             RowKind::Coordinates => self.coordinate_row(table, row, pose, &sigmas, units)?,
         };
         for o in observations {
@@ -1213,13 +1305,14 @@ impl KindColumns {
             .collect())
     }
 
-    /// The marker coordinates of `row` (its non-empty cells: at least one), each with `sigma`.
+    /// The marker coordinates of `row` (its non-empty cells: at least one), each with the
+    /// length sigma; and a probe's orientation, three rows with the angle sigma, unless its
+    /// cells are all empty.
     fn marker_row(
         &self,
         table: &Table,
         row: &Row,
-        pose: usize,
-        sigma: f64,
+        (pose, sigmas): (usize, &RowSigmas),
         units: Units,
     ) -> Result<Vec<Observation>, DataError> {
         let mut observations = Vec::new();
@@ -1228,8 +1321,20 @@ impl KindColumns {
                 let Some(c) = self.optional(row, Some(c)) else { continue };
                 let v = table.number(row, c)? * units.length_scale();
                 let measured = table.within(row, c, v, MAX_LENGTH_MM, "mm")?;
+                let sigma = sigmas.length;
                 observations.push(Observation::Marker { marker: k - 1, axis, pose, measured, sigma });
             }
+        }
+        if self.orientation.iter().any(|&c| !row.cells[c].is_empty()) {
+            let measured = crate::calibration::data::orientation(table, row, &self.orientation, units)?;
+            let (marker, sigma) = (self.markers[0].0 - 1, sigmas.angle);
+            observations.extend((0..3).map(|axis| Observation::Orientation {
+                marker,
+                axis,
+                pose,
+                measured,
+                sigma,
+            }));
         }
         if observations.is_empty() {
             return Err(DataError::new(row.line, None, "no marker coordinate: every cell is empty"));

@@ -21,6 +21,11 @@
 //!   estimated too ([`Chain::markers_and_probe`]); with a camera's views, the camera's (or
 //!   target's) mounting is in the last link's frame itself, as without markers (that frame
 //!   held). Every point's `H_j` then has its rotation rows.
+//! - a 6-DOF probe's orientation (a marker file's `qw,qx,qy,qz` or `roll,pitch,yaw`): marker
+//!   1 is then a frame on the last link (6 parameters, [`Chain::marker_ends`]), its rotation
+//!   started from the data as `calibrate` starts it; three rows a pose, the rotation vector
+//!   `y = log(R_m R^T)` (rad), whose derivative by the frame's rotation vector is `J_r^-1(y)`
+//!   (`orientation_prediction`), where `calibrate` takes its first order `I`.
 //! - a distance between two poses `a`, `b`: `f_k = |p_a - p_b|`, with `p_a = p(q_a, x)`;
 //! - a distance to fixed point `i` (a ball bar's pivot `c_i`, 3 parameters):
 //!   `f_k = |p(q_k, x) - c_i|`;
@@ -108,7 +113,7 @@ pub use data::{
 use super::noise_check::{CHECK_POSES, MIN_DOF, check, without_outliers};
 use super::{
     CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
-    gauge_class,
+    gauge_class, probe_mounting,
 };
 use crate::estimation::reml::{Components, Point};
 use crate::estimation::{
@@ -116,7 +121,7 @@ use crate::estimation::{
     PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds,
     refine_from,
 };
-use crate::kinematics::{Chain, ChainAt, Measured};
+use crate::kinematics::{Chain, ChainAt, MarkerEnd, Measured};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
 use nalgebra::{
     DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, RowDVector, UnitQuaternion, Vector3,
@@ -484,18 +489,19 @@ fn by_setup<const N: usize>(derivatives: [(usize, f64); N]) -> ([(usize, f64); 1
     (out, N)
 }
 
-/// Coordinate `axis` (x, y, z) of the point of frame `T = frames[pose]` read in a frame `D`
-/// placed by the set-up values `s[at..at + 6]` (a device's, a tracker's): the row of the view
-/// `D^-1 T` ([`relative_view`]), its derivatives by the point's twist and by the placement.
+/// Row `axis` of the frame `T = frames[pose]` read in a frame `D` placed by the set-up values
+/// `s[at..at + 6]` (a device's, a tracker's): the row of the view `D^-1 T` ([`relative_view`])
+/// against the `measured` view (position mm, rotation vector rad; a position row reads its own
+/// coordinate only), its derivatives by the point's twist and by the placement.
 fn placed_row(
     at: usize,
     s: &[f64],
     (frames, pose): (&[Isometry3<f64>], usize),
     axis: usize,
-    measured: f64,
+    measured: &Vector6<f64>,
 ) -> Prediction {
     let (frame, by_placement) = camera::placed(&s[at..at + 6]);
-    let view = relative_view(&Vector6::ith(axis, measured), &frame, &frames[pose]);
+    let view = relative_view(measured, &frame, &frames[pose]);
     let by_frame = view.by_a * by_placement;
     let (by_setup, setups) = by_setup(std::array::from_fn::<_, 6, _>(|i| (at + i, by_frame[(axis, i)])));
     Prediction {
@@ -549,11 +555,14 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
         }
         Observation::Coordinate { pose, axis, measured, .. } if axis < 3 && setup.device => {
             // In the device's frame D: the row of the view D^-1 T of the point's frame T.
-            placed_row(setup.device_at(), s, (frames, pose), axis, measured)
+            placed_row(setup.device_at(), s, (frames, pose), axis, &Vector6::ith(axis, measured))
         }
         Observation::Marker { pose, axis, measured, .. } if setup.tracker => {
             // Read in the session's tracker frame P: the row of the view P^-1 T.
-            placed_row(setup.tracker_at(), s, (frames, pose), axis, measured)
+            placed_row(setup.tracker_at(), s, (frames, pose), axis, &Vector6::ith(axis, measured))
+        }
+        Observation::Orientation { pose, axis, measured, .. } => {
+            orientation_prediction((frames, pose), (axis, &measured), setup, s)
         }
         Observation::Coordinate { pose, axis, .. } | Observation::Marker { pose, axis, .. } if axis < 3 => {
             Prediction {
@@ -580,6 +589,32 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
         Observation::Camera { pose, axis, view, site, .. } => {
             camera_prediction((frames, pose), (axis, &view, site), setup, s)
         }
+    }
+}
+
+/// Row `axis` of a probe's measured orientation `R_m` of the frame `T = frames[pose]`:
+/// `y = log(R_m R^T)`, the rotation row of the view of `T` from the measuring frame
+/// ([`relative_view`]), whose derivative by the frame's rotation vector is `J_r^-1(y)`
+/// (`I` to first order in `y`). Read in a session's tracker frame `P`, the view `P^-1 T`
+/// ([`placed_row`]).
+fn orientation_prediction(
+    (frames, pose): (&[Isometry3<f64>], usize),
+    (axis, measured): (usize, &UnitQuaternion<f64>),
+    setup: &SetUp,
+    s: &[f64],
+) -> Prediction {
+    let r = measured.scaled_axis();
+    let view = Vector6::new(0.0, 0.0, 0.0, r.x, r.y, r.z);
+    if setup.tracker {
+        return placed_row(setup.tracker_at(), s, (frames, pose), 3 + axis, &view);
+    }
+    let seen = relative_view(&view, &Isometry3::identity(), &frames[pose]);
+    Prediction {
+        residual: seen.residual[3 + axis],
+        by_point: [(pose, seen.by_b.row(3 + axis).transpose()), (0, Vector6::zeros())],
+        poses: 1,
+        by_setup: by_setup([]).0,
+        setups: 0,
     }
 }
 
@@ -772,11 +807,9 @@ impl<'a> KindProblem<'a> {
 
     /// The chain (point) of observation `o`: its marker's, else the tool's, after the markers.
     fn point_of(&self, o: &Observation) -> usize {
-        match *o {
-            Observation::Marker { marker, .. } => {
-                self.markers.iter().position(|&m| m == marker).expect("a marker of the problem")
-            }
-            _ => self.markers.len(),
+        match o.marker() {
+            Some(marker) => self.markers.iter().position(|&m| m == marker).expect("a marker of the problem"),
+            None => self.markers.len(),
         }
     }
 
@@ -1227,6 +1260,10 @@ pub struct Score {
     /// [`Score::markers`] takes it of all: a marker coming loose stands out.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub by_marker: Vec<MarkerRms>,
+    /// Each marker's position error at each pose, as a marker file's pose table gives it
+    /// ([`PositionError`]), in the order of the observations.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub positions: Vec<PositionError>,
     /// With per-session set-up parameters: each session of the set and where its set-up came
     /// from.
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -1259,6 +1296,57 @@ pub struct MarkerRms {
     pub coordinates: usize,
     /// The RMS of its positions' errors before and after (mm).
     pub rms: (f64, f64),
+}
+
+/// One marker's position error at one pose ([`Score::positions`]): the norm of its measured
+/// coordinates' residuals, `|e| = sqrt(sum e_c^2)` (mm), before and after, and of their
+/// whitened residuals, `sqrt(sum z_c^2)` (each by its own variance, the pose's correlations
+/// left out).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct PositionError {
+    /// The index of its first coordinate among the set's observations.
+    pub index: usize,
+    /// Its line in the file.
+    pub line: usize,
+    /// The marker's number (1, 2, ...).
+    pub marker: usize,
+    /// Its coordinates measured (3, or fewer where a cell was empty).
+    pub coordinates: usize,
+    /// `|e|` before and after (mm).
+    pub error: (f64, f64),
+    /// `sqrt(sum z_c^2)` after.
+    pub whitened: f64,
+}
+
+/// The [`PositionError`]s of `observations` (of the observations `kinds`): each run of
+/// consecutive coordinates of one marker on one line.
+fn position_errors(observations: &[ObservationResidual], kinds: &[Observation]) -> Vec<PositionError> {
+    let mut positions: Vec<PositionError> = Vec::new();
+    for (index, (r, o)) in observations.iter().zip(kinds).enumerate() {
+        let Observation::Marker { marker, .. } = *o else { continue };
+        let (line, marker) = (r.line, marker + 1);
+        let same =
+            |p: &PositionError| p.line == line && p.marker == marker && p.index + p.coordinates == index;
+        if !positions.last().is_some_and(same) {
+            positions.push(PositionError {
+                index,
+                line,
+                marker,
+                coordinates: 0,
+                error: (0.0, 0.0),
+                whitened: 0.0,
+            });
+        }
+        let p = positions.last_mut().expect("pushed");
+        p.coordinates += 1;
+        // Sums of squares here, their roots below.
+        p.error = (p.error.0 + r.before * r.before, p.error.1 + r.after * r.after);
+        p.whitened += r.whitened * r.whitened;
+    }
+    for p in &mut positions {
+        (p.error, p.whitened) = ((p.error.0.sqrt(), p.error.1.sqrt()), p.whitened.sqrt());
+    }
+    positions
 }
 
 /// Where a scored session's per-session set-up parameters come from.
@@ -1315,10 +1403,7 @@ impl Score {
                 ObservationResidual {
                     line: data.lines[k],
                     kind: o.kind(),
-                    marker: match *o {
-                        Observation::Marker { marker, .. } => Some(marker + 1),
-                        _ => None,
-                    },
+                    marker: o.marker().map(|m| m + 1),
                     before: before[k] * scale,
                     after: after[k] * scale,
                     unit,
@@ -1360,17 +1445,24 @@ impl Score {
         let by_marker = match numbers.len() > 1 {
             true => (numbers.into_iter())
                 .filter_map(|m| {
-                    let of = |o: &ObservationResidual| o.marker == Some(m);
-                    let coordinates = observations.iter().filter(|o| of(o)).count();
-                    let rms = rms_of(observations.iter().filter(|o| of(o)), 3f64.sqrt())?;
+                    // Its position's coordinates (not a probe's orientation).
+                    let of =
+                        |o: &Observation| matches!(*o, Observation::Marker { marker, .. } if marker + 1 == m);
+                    let coordinates = kinds.iter().filter(|o| of(o)).count();
+                    let rms = rms(&of, 3f64.sqrt())?;
                     Some(MarkerRms { marker: m, coordinates, rms })
                 })
                 .collect(),
             false => Vec::new(),
         };
+        let positions = position_errors(&observations, kinds);
         let whitened: Vec<f64> = observations.iter().map(|r| r.whitened.abs()).collect();
         let flag_at = FLAG_AT * super::robust::robust_scale(&whitened, 1).max(1.0);
-        Self { observations, lengths, angles, markers, by_group, by_marker, sessions: Vec::new(), flag_at }
+        #[rustfmt::skip]
+        let score = Self {
+            observations, lengths, angles, markers, by_group, by_marker, positions, sessions: Vec::new(), flag_at,
+        };
+        score
     }
 
     /// The observations flagged ([`Score::flag_at`]), with their index.
@@ -1540,18 +1632,27 @@ pub fn calibrate_kinds(
     data: &KindData,
     options: &KindOptions,
 ) -> Result<KindCalibration, CalibrationError> {
+    let as_ols = (options.estimator == Estimator::Ols && options.joint_noise.is_none())
+        .then(|| data.with_ols_sigmas())
+        .flatten();
+    let data = as_ols.as_ref().unwrap_or(data);
     let prepared = prepare(model, data, options)?;
     let started = start(&prepared, data, options)?;
     let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
     let Fitted { refined: estimate, robust, fixed, after, after_setup, change } =
         fit_gauged(&prepared, started, options)?;
     let fixed = prepared.every_held(fixed);
-    let Prepared { registered, chains, params, probe, points, markers, setup, nothing, .. } = prepared;
-    let calibrated_points = calibrated_points(&params, &after, &points);
+    let Prepared { registered, chains, params, ends, markers, setup, nothing, .. } = prepared;
+    let calibrated_points = calibrated_points(&params, &after, &ends);
     // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
-    // 1, as `calibrate` makes it.
+    // 1 (a point, or a probe's frame), as `calibrate` makes it.
     let tool_point = if data.sees_the_tool() { markers.len() } else { 0 };
-    let calibrated = fold(&registered, &params, &after, (&points, tool_point), probe.as_ref());
+    let points: Vec<Vector3<f64>> = ends.iter().map(MarkerEnd::origin).collect();
+    let probe = match ends.get(tool_point) {
+        Some(MarkerEnd::Frame(f)) => Some(f),
+        _ => None,
+    };
+    let calibrated = fold(&registered, &params, &after, (&points, tool_point), probe);
     let frame = registered.marker_frame().isometry();
     let prior_sd = prior_sds(&options.prior, &params)?;
     let mut calibration = KindCalibration {
@@ -1571,6 +1672,7 @@ pub fn calibrate_kinds(
             markers: None,
             by_group: Vec::new(),
             by_marker: Vec::new(),
+            positions: Vec::new(),
             sessions: Vec::new(),
             flag_at: FLAG_AT,
         },
@@ -1731,8 +1833,8 @@ pub(super) struct Prepared {
     registered: RobotModel,
     pub(super) chains: Vec<Chain>,
     pub(super) params: ParamSet,
-    probe: Option<Placement>,
-    points: Vec<Vector3<f64>>,
+    /// What each chain ends at: the markers' points and frames, then the tool's.
+    ends: Vec<MarkerEnd>,
     markers: Vec<usize>,
     setup: SetUp,
     /// The set-up's start values, one per session where per session.
@@ -1792,14 +1894,22 @@ pub(super) fn prepare(
     // With markers, a camera's mounting is in the tool frame as well: the last point at its
     // origin, held.
     let tool = if data.measures_the_tool_point() { options.tool } else { Vector3::zeros() };
-    let probe = data.has_angles().then_some(Placement { xyz: tool, rpy: Vector3::zeros() });
-    // The markers' points, then the tool's (a point, or a frame for angles) if observed.
-    let points: Vec<Vector3<f64>> =
-        nominal_markers.iter().copied().chain(data.sees_the_tool().then_some(tool)).collect();
-    let chains = match &probe {
-        Some(probe) => Chain::markers_and_probe(&registered, &nominal_markers, probe),
-        None => Chain::markers(&registered, &points),
-    };
+    // The markers' points (a probe's frame, its rotation started from the data), then the
+    // tool's (a point, or a frame for angles) if observed.
+    let probes = data.probes();
+    let mut ends: Vec<MarkerEnd> = (markers.iter().zip(&nominal_markers))
+        .map(|(&m, &at)| match probes.contains(&m) {
+            true => MarkerEnd::Frame(probe_mounting(&registered, at, data.orientations_of(m))),
+            false => MarkerEnd::Point(at),
+        })
+        .collect();
+    if data.sees_the_tool() {
+        ends.push(match data.has_angles() {
+            true => MarkerEnd::Frame(Placement { xyz: tool, rpy: Vector3::zeros() }),
+            false => MarkerEnd::Point(tool),
+        });
+    }
+    let chains = Chain::marker_ends(&registered, &ends);
     let params = chains[0].params().clone();
     let zero = vec![0.0; params.len()];
     let nominal: Vec<Isometry3<f64>> = {
@@ -1825,7 +1935,7 @@ pub(super) fn prepare(
         (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, &params)).flatten();
     #[rustfmt::skip]
     let prepared = Prepared {
-        registered, chains, params, probe, points, markers, setup, setup_start, asked, asked_setup,
+        registered, chains, params, ends, markers, setup, setup_start, asked, asked_setup,
         held_words, every, scale, nothing,
     };
     Ok(prepared)
@@ -2131,12 +2241,17 @@ fn registered(
 
 /// Each point's calibrated position (mm) in the model's marker frame: its nominal position
 /// `p0` of `points` plus its estimate, `p0 + (x, y, z)`.
-fn calibrated_points(params: &ParamSet, x: &[f64], points: &[Vector3<f64>]) -> Vec<nalgebra::Point3<f64>> {
+fn calibrated_points(params: &ParamSet, x: &[f64], ends: &[MarkerEnd]) -> Vec<nalgebra::Point3<f64>> {
     use crate::model::ParamKind;
-    (points.iter().enumerate())
-        .map(|(k, p)| {
+    (ends.iter().enumerate())
+        .map(|(k, end)| {
             let value = |kind| params.index_of(ParamOwner::Marker(k), kind).map_or(0.0, |i| x[i]);
-            (p + Vector3::new(value(ParamKind::X), value(ParamKind::Y), value(ParamKind::Z))).into()
+            let shift = Vector3::new(value(ParamKind::X), value(ParamKind::Y), value(ParamKind::Z));
+            match end {
+                MarkerEnd::Point(p) => (p + shift).into(),
+                // A frame's errors displace it along its own axes.
+                MarkerEnd::Frame(f) => (f.xyz + f.isometry().rotation * shift).into(),
+            }
         })
         .collect()
 }
