@@ -38,8 +38,9 @@ pub enum DataKind {
 impl DataKind {
     /// The kind of the CSV `text`: a `target` column makes tree views, marker columns
     /// (`x<k>`) a marker file, anything else observations (whose reader checks the rest). A
-    /// marker file with an empty marker cell (a marker not measured at a pose: an occlusion) is
-    /// read cell by cell, as observations ([`Observation::Marker`](super::kinds::Observation)).
+    /// marker file with an empty marker or orientation cell (a marker not measured at a pose:
+    /// an occlusion) is read cell by cell, as observations
+    /// ([`Observation::Marker`](super::kinds::Observation)).
     pub fn of_csv_str(text: &str) -> Result<Self, DataError> {
         // The header (the comments and the units line before it) parsed; the rows are only
         // scanned for empty marker cells, and read once, by the calibration that takes the file.
@@ -52,9 +53,12 @@ impl DataKind {
         }
         let table = Table::parse(&text[..end])?;
         let markers = marker_columns(&table)?;
+        // A probe's orientation too (a header the readers refuse, they say why).
+        let orientation = orientation_columns(&table, &markers).unwrap_or_default();
+        let measured: Vec<usize> = markers.iter().flat_map(|(_, c)| *c).chain(orientation).collect();
         Ok(match (table.column("target"), markers.is_empty()) {
             (Some(_), _) => Self::TreeViews,
-            (None, false) if leaves_a_marker_cell_empty(&text[end..], &markers) => Self::Observations,
+            (None, false) if leaves_a_cell_empty(&text[end..], &measured) => Self::Observations,
             (None, false) => Self::Markers,
             (None, true) => Self::Observations,
         })
@@ -70,13 +74,12 @@ impl DataKind {
     }
 }
 
-/// Whether a row of `rows` (a CSV's lines after its header) leaves one of the marker `columns`
-/// empty; comments and blank lines are no rows.
-fn leaves_a_marker_cell_empty(rows: &str, columns: &[(usize, [usize; 3])]) -> bool {
-    let is_marker = |i: usize| columns.iter().any(|(_, c)| c.contains(&i));
-    (rows.lines().map(str::trim))
-        .filter(|l| !l.is_empty() && !l.starts_with('#'))
-        .any(|line| line.split(',').enumerate().any(|(i, cell)| cell.trim().is_empty() && is_marker(i)))
+/// Whether a row of `rows` (a CSV's lines after its header) leaves one of the `columns` (a
+/// marker's, a probe's orientation) empty; comments and blank lines are no rows.
+fn leaves_a_cell_empty(rows: &str, columns: &[usize]) -> bool {
+    (rows.lines().map(str::trim)).filter(|l| !l.is_empty() && !l.starts_with('#')).any(|line| {
+        line.split(',').enumerate().any(|(i, cell)| cell.trim().is_empty() && columns.contains(&i))
+    })
 }
 
 /// Measured poses, in mm and rad.

@@ -826,6 +826,10 @@ fn a_marker_file_with_an_occlusion_is_read_cell_by_cell() {
     let other = |text: &str| DataKind::of_csv_str(text).unwrap();
     assert_eq!(other("j1,j2,j3,j4,j5,j6,distance\n0,1,2,3,4,5,100\n"), DataKind::Observations);
     assert_eq!(other("j1,camera,target,x,y,z,roll,pitch,yaw\n"), DataKind::TreeViews);
+    // A probe's orientation not measured at a pose: read cell by cell too.
+    let probe = "j1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz\n0,1,2,3,4,5,1,2,3,1,0,0,0\n";
+    assert_eq!(other(probe), DataKind::Markers);
+    assert_eq!(other(&format!("{probe}0,1,2,3,4,5,1,2,3,,,,\n")), DataKind::Observations);
 
     // The command fits such a file alone, every measured cell.
     let dir = std::env::temp_dir().join(format!("robocal-occluded-{}", std::process::id()));
