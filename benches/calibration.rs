@@ -7,7 +7,8 @@
 //! torso preset (15 joints, 3 branches) from 500 poses of its head camera seeing both hands
 //! (1000 views, 6000 rows, 123 parameters asked for), WLS with joint noise, to convergence;
 //! and on the same 100 poses and 60 candidates the choices made from the data (`--prior auto`,
-//! `--prior auto-ml`, nested `--select cv --folds 5`) and `--loss huber` beside the plain fit.
+//! `--prior auto-ml`, nested `--select cv --folds 5`) and `--loss huber` beside the plain fit;
+//! and the marker files of 1000 and 10,000 poses fitted as observations (`calibrate_kinds`).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;
@@ -33,6 +34,19 @@ fn campaign_of(
     poses: usize,
     markers: usize,
 ) -> (RobotModel, Measurements, Options) {
+    let (nominal, text, options) = campaign_text(preset, compliance, params, poses, markers);
+    let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
+    (nominal, data, options)
+}
+
+/// [`campaign_of`] with its marker file's text.
+fn campaign_text(
+    preset: &str,
+    compliance: f64,
+    params: JointParams,
+    poses: usize,
+    markers: usize,
+) -> (RobotModel, String, Options) {
     let nominal = RobotModel::preset(preset).unwrap();
     let mut truth = nominal.clone();
     for (i, joint) in truth.joints.iter_mut().enumerate() {
@@ -53,7 +67,6 @@ fn campaign_of(
     let sigmas: Vec<f64> =
         [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
     let text = measurement_csv(&truth, &markers, &poses, &sigmas, 0.01, 2);
-    let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
     let options = Options {
         estimator: Estimator::Wls,
         noise: Some(NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0))),
@@ -66,7 +79,7 @@ fn campaign_of(
         refine: RefineOptions::default(),
         gauge: Default::default(),
     };
-    (nominal, data, options)
+    (nominal, text, options)
 }
 
 fn calibration(c: &mut Criterion) {
@@ -93,6 +106,30 @@ fn calibration(c: &mut Criterion) {
     group.bench_function("100,000 poses, 2 markers, 42 parameters, wls iterated", |b| {
         b.iter(|| calibration::calibrate(&nominal, &data, &options).unwrap())
     });
+    group.finish();
+}
+
+/// The marker files of [`campaign_of`] (1000 and 10,000 poses, 2 markers) read as observations
+/// and fitted by `calibrate_kinds`, WLS with the joint noise: the observation fit that is to
+/// take marker files over from `calibrate`, side by side with it above.
+fn observations(c: &mut Criterion) {
+    use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds};
+    let mut group = c.benchmark_group("calibrate observations");
+    group.sample_size(10);
+    for poses in [1000, 10_000] {
+        let (nominal, text, options) = campaign_text("puma560", 0.0, JointParams::All, poses, 2);
+        let data = KindData::from_csv_str(&text, &nominal, None).unwrap();
+        let kind_options = KindOptions {
+            estimator: Estimator::Wls,
+            joint_noise: options.noise.as_ref().map(|n| n.joint.clone()),
+            joints: JointParams::All,
+            markers: options.markers.clone(),
+            ..KindOptions::default()
+        };
+        group.bench_function(format!("{poses} poses, 2 markers, 42 parameters, wls iterated"), |b| {
+            b.iter(|| calibrate_kinds(&nominal, &data, &kind_options).unwrap())
+        });
+    }
     group.finish();
 }
 
@@ -243,5 +280,5 @@ fn tree(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, calibration, selection, choices, tree);
+criterion_group!(benches, calibration, observations, selection, choices, tree);
 criterion_main!(benches);

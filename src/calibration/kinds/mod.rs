@@ -726,6 +726,8 @@ pub struct KindProblem<'a> {
     /// The observations of each pose, one block `V_k` each ([`pose_blocks`]).
     blocks: Blocks,
     v: Option<DMatrix<f64>>,
+    /// What the chains' ends are ([`KindProblem::measured`]), found once: every row asks.
+    measured: Measured,
 }
 
 impl<'a> KindProblem<'a> {
@@ -768,7 +770,12 @@ impl<'a> KindProblem<'a> {
     ) -> Self {
         let markers = markers.to_vec();
         let used = Vec::new();
+        let measured = match chains.iter().all(Chain::ends_at_a_point) && !data.has_angles() {
+            true => Measured::Position,
+            false => Measured::Pose,
+        };
         let mut problem = Self {
+            measured,
             chains,
             markers,
             used,
@@ -985,10 +992,7 @@ impl<'a> KindProblem<'a> {
     /// frames ([`Measured::Pose`]; with markers, the points' frames, their rotation the last
     /// link's).
     pub fn measured(&self) -> Measured {
-        match self.chains.iter().all(Chain::ends_at_a_point) && !self.data.has_angles() {
-            true => Measured::Position,
-            false => Measured::Pose,
-        }
+        self.measured
     }
 
     /// The full robot parameter vector and the set-up values at `x`.
