@@ -24,9 +24,12 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     let sessions = (request.data.iter())
         .map(|path| Ok((path.display().to_string(), read(path)?)))
         .collect::<Result<Vec<_>>>()?;
-    let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
-    check_and_warn(request, &data)?;
-    let sessions = chosen_markers(sessions, request.marker_ids.as_deref(), &data)?;
+    let sessions = {
+        // The files joined for their checks only, not held while they calibrate.
+        let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
+        check_and_warn(request, &data)?;
+        chosen_markers(sessions, request.marker_ids.as_deref(), &data)?
+    };
     let options = kind_options(request, &model, noise)?;
     let held_out = (request.validate.iter())
         .map(|path| Ok((path.display().to_string(), read(path)?)))

@@ -788,16 +788,10 @@ impl<'a> KindProblem<'a> {
             blocks: pose_blocks(&data.observations),
             v: None,
         };
-        let poses = data.joints.len();
-        let mut used = vec![false; chains.len() * poses];
+        let mut used = vec![false; chains.len() * data.joints.len()];
         for o in &data.observations {
-            let first = problem.point_of(o) * poses;
-            let pair = match *o {
-                Observation::Distance { a, b, .. } => [a, b],
-                _ => [o.pose(), o.pose()],
-            };
-            for j in pair {
-                if let Some(u) = used.get_mut(first + j) {
+            for n in problem.seen(o) {
+                if let Some(u) = used.get_mut(n) {
                     *u = true;
                 }
             }
@@ -817,6 +811,16 @@ impl<'a> KindProblem<'a> {
         match o.marker() {
             Some(marker) => self.markers.iter().position(|&m| m == marker).expect("a marker of the problem"),
             None => self.markers.len(),
+        }
+    }
+
+    /// The points (`point * poses + pose`, as [`KindProblem::frames`] lays them out) that
+    /// observation `o` reads: its point at its pose, or at both of a pair's.
+    fn seen(&self, o: &Observation) -> [usize; 2] {
+        let first = self.point_of(o) * self.data.joints.len();
+        match *o {
+            Observation::Distance { a, b, .. } => [first + a, first + b],
+            _ => [first + o.pose(), first + o.pose()],
         }
     }
 
@@ -1072,7 +1076,7 @@ impl Residuals for KindProblem<'_> {
         let mut y = DVector::zeros(self.equations());
         let mut h = h;
         let mut row = vec![0.0; if h.is_some() { self.parameters() } else { 0 }];
-        let at = PointsAt { frames: &frames, views: &views, jacobians: &jacobians, block };
+        let at = PointsAt { frames: &frames, views: &views, jacobians: Jacobians::All(&jacobians), block };
         for k in 0..self.data.observations.len() {
             match h.as_deref_mut() {
                 Some(h) => {
@@ -1087,25 +1091,32 @@ impl Residuals for KindProblem<'_> {
 
     /// Each pose's observations built, whitened and reduced into the triangular factor in one
     /// go (`Reduced::reduce`), `H` never held: the same arithmetic as the default's whole `H`.
+    /// The `H_j` a block reads are computed as it is reduced ([`BlockJacobians`]), not held for
+    /// every point at every pose.
     fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
         let (full, s) = self.full(x);
-        let at: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
-        let (rows, poses, p) = (self.measured().rows(), self.data.joints.len(), self.parameters());
+        let chains: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
+        let (rows, p) = (self.measured().rows(), self.parameters());
         let block = rows * self.selection.len();
-        let mut jacobians = vec![0.0; block * poses * at.len()];
-        let frames = self.frames(&at, Some((&mut jacobians, block)));
+        let frames = self.frames(&chains, None);
         let views = self.session_views(&s);
         let mut y = DVector::zeros(self.equations());
         let layout = self.blocks();
-        let at = PointsAt { frames: &frames, views: &views, jacobians: &jacobians, block };
         let reduced = Reduced::reduce(
             &layout,
             p,
             weights.noise(),
             y.as_mut_slice(),
-            || vec![0.0; p],
-            |row, point, out| {
+            || (vec![0.0; p], BlockJacobians::default()),
+            |(row, jacobians), point, out| {
                 let r = layout.range(point);
+                jacobians.fill(self, &chains, r.clone(), block);
+                let at = PointsAt {
+                    frames: &frames,
+                    views: &views,
+                    jacobians: Jacobians::Block(jacobians),
+                    block,
+                };
                 let n = r.len();
                 for (i, k) in r.enumerate() {
                     out[p * n + i] = self.observation_row(k, at, Some(row));
@@ -1118,6 +1129,73 @@ impl Residuals for KindProblem<'_> {
     }
 }
 
+/// The `H_j` (`rows x columns`, column-major) of the points at the poses that one block of
+/// observations reads, by their index `point * poses + pose`; its buffers reused block after
+/// block.
+#[derive(Default)]
+struct BlockJacobians {
+    keys: Vec<usize>,
+    values: Vec<f64>,
+}
+
+impl BlockJacobians {
+    /// Compute the `H_j` of the observations `range` of `problem` at the parameters `at`
+    /// (`block` numbers each).
+    fn fill(
+        &mut self,
+        problem: &KindProblem<'_>,
+        at: &[ChainAt],
+        range: std::ops::Range<usize>,
+        block: usize,
+    ) {
+        self.keys.clear();
+        for o in &problem.data.observations[range] {
+            self.keys.extend(problem.seen(o));
+        }
+        self.keys.sort_unstable();
+        self.keys.dedup();
+        // Zeros: `identification_jacobian` leaves the columns of no step untouched.
+        self.values.clear();
+        self.values.resize(self.keys.len() * block, 0.0);
+        let (poses, rows, columns) =
+            (problem.data.joints.len(), problem.measured().rows(), problem.selection.len());
+        for (&n, h_j) in self.keys.iter().zip(self.values.chunks_exact_mut(block.max(1))) {
+            let view = DMatrixViewMut::from_slice(h_j, rows, columns);
+            at[n / poses].identification_jacobian(
+                &problem.data.joints[n % poses],
+                problem.selection,
+                problem.measured(),
+                view,
+            );
+        }
+    }
+
+    /// The `H_j` of point-and-pose `n`, one of those filled.
+    fn get(&self, n: usize, block: usize) -> &[f64] {
+        let i = self.keys.binary_search(&n).expect("a point the block reads");
+        &self.values[i * block..(i + 1) * block]
+    }
+}
+
+/// Where an observation's row reads its `H_j`: every point's at every pose, or a block's.
+#[derive(Clone, Copy)]
+enum Jacobians<'f> {
+    /// Every point at every pose, `block` numbers each, in the order of the frames.
+    All(&'f [f64]),
+    /// Those one block reads.
+    Block(&'f BlockJacobians),
+}
+
+impl Jacobians<'_> {
+    /// The `H_j` of point-and-pose `n` (`block` numbers).
+    fn of(&self, n: usize, block: usize) -> &[f64] {
+        match self {
+            Self::All(all) => &all[n * block..(n + 1) * block],
+            Self::Block(some) => some.get(n, block),
+        }
+    }
+}
+
 /// Every point at every pose, as an observation's row reads it
 /// ([`KindProblem::observation_row`]).
 #[derive(Clone, Copy)]
@@ -1126,8 +1204,9 @@ struct PointsAt<'f> {
     frames: &'f [Isometry3<f64>],
     /// Each session's set-up values.
     views: &'f [Vec<f64>],
-    /// Each point's `H_j` at each pose, `block` numbers each (column-major).
-    jacobians: &'f [f64],
+    /// Each point's `H_j` at each pose (or those of one block), `block` numbers each
+    /// (column-major).
+    jacobians: Jacobians<'f>,
     /// The numbers of one `H_j`: 0 when no robot parameter is estimated.
     block: usize,
 }
@@ -1149,7 +1228,7 @@ impl KindProblem<'_> {
         let Some(h) = h else { return f.residual };
         h.fill(0.0);
         for (j, g) in &f.by_point[..f.poses] {
-            let h_j = &jacobians[(first + j) * block..(first + j + 1) * block];
+            let h_j = jacobians.of(first + j, block);
             for (c, column) in h_j.chunks_exact(rows).enumerate() {
                 h[c] += (0..rows).map(|r| g[r] * column[r]).sum::<f64>();
             }
