@@ -1091,7 +1091,7 @@ impl Residuals for KindProblem<'_> {
 
     /// Each pose's observations built, whitened and reduced into the triangular factor in one
     /// go (`Reduced::reduce`), `H` never held: the same arithmetic as the default's whole `H`.
-    /// The `H_j` a block reads are computed as it is reduced ([`BlockJacobians`]), not held for
+    /// The `H_j` a block reads are computed as it is reduced (`BlockJacobians`), not held for
     /// every point at every pose.
     fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
         let (full, s) = self.full(x);
