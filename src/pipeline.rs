@@ -20,6 +20,7 @@ use crate::model::RobotModel;
 use crate::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy, fold_label};
 use crate::report::observations::ObservationsReport;
 use crate::report::tree::TreeReport;
+use std::borrow::Cow;
 
 /// A calibration of marker data as `robocal calibrate` asks for it.
 #[derive(Debug, Clone, Default)]
@@ -238,8 +239,9 @@ pub trait Files: Front {
     /// The report of a calibration.
     type Report;
 
-    /// The sessions' data joined into one set (an error naming the file that does not join).
-    fn join(sessions: &[(String, Self::Data)]) -> Result<Self::Data, FilesError>;
+    /// The sessions' data joined into one set (an error naming the file that does not join);
+    /// one session's data as it is, not copied.
+    fn join(sessions: &[(String, Self::Data)]) -> Result<Cow<'_, Self::Data>, FilesError>;
 
     /// The observations (or views) and the poses of `data`.
     fn counts(data: &Self::Data) -> (usize, usize);
@@ -282,8 +284,11 @@ pub trait Files: Front {
 impl Files for Kinds<'_> {
     type Report = ObservationsReport;
 
-    fn join(sessions: &[(String, KindData)]) -> Result<KindData, FilesError> {
-        Ok(sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file)))
+    fn join(sessions: &[(String, KindData)]) -> Result<Cow<'_, KindData>, FilesError> {
+        Ok(match sessions {
+            [(_, one)] => Cow::Borrowed(one),
+            _ => Cow::Owned(sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file))),
+        })
     }
 
     fn counts(data: &KindData) -> (usize, usize) {
@@ -342,12 +347,12 @@ impl Files for Kinds<'_> {
 impl Files for Tree<'_> {
     type Report = TreeReport;
 
-    fn join(sessions: &[(String, TreeData)]) -> Result<TreeData, FilesError> {
+    fn join(sessions: &[(String, TreeData)]) -> Result<Cow<'_, TreeData>, FilesError> {
         let mut data = TreeData::default();
         for (name, file) in sessions {
             data = data.join(file).map_err(in_context(name))?;
         }
-        Ok(data)
+        Ok(Cow::Owned(data))
     }
 
     fn counts(data: &TreeData) -> (usize, usize) {
@@ -450,6 +455,7 @@ pub fn calibrate_files<F: Files>(
     fitting: &Fitting,
 ) -> Result<Outcome<F>, FilesError> {
     let data = F::join(sessions)?;
+    let data: &F::Data = &data;
     let names = sessions.iter().map(|(name, _)| name.as_str()).collect::<Vec<_>>().join(", ");
     let (chosen, estimator, folds) = match fitting {
         Fitting::Given { choices, folds } => {
@@ -457,11 +463,11 @@ pub fn calibrate_files<F: Files>(
                 words if words.is_empty() => names.clone(),
                 words => format!("{}: {names}", words.join(", ")),
             };
-            let chosen = calibrate_chosen(front, &data, options, choices).map_err(in_context(&context))?;
+            let chosen = calibrate_chosen(front, data, options, choices).map_err(in_context(&context))?;
             (chosen, F::asked(options).0.name(), folds.map(|k| (k, choices)))
         }
         Fitting::Feasible(feasible) => {
-            let calibration = front.feasible(&data, options, feasible).map_err(in_context(&names))?;
+            let calibration = front.feasible(data, options, feasible).map_err(in_context(&names))?;
             (ChosenFit { scale: None, path: None, calibration }, "fgls", None)
         }
     };
@@ -470,7 +476,7 @@ pub fn calibrate_files<F: Files>(
     };
     let mut scores = held_out.iter().map(scored).collect::<Result<Vec<_>, FilesError>>()?;
     if let Some((k, choices)) = folds {
-        let score = cross_validate_choices(front, &data, options, choices, k)
+        let score = cross_validate_choices(front, data, options, choices, k)
             .map_err(in_context(&format!("--folds {k}: {names}")))?;
         // The choices and a robust loss's weights are made from the data: made again in each
         // fold.
@@ -478,7 +484,7 @@ pub fn calibrate_files<F: Files>(
         scores.push((fold_label(k, redone), score));
     }
     let files = sessions.iter().map(|(name, file)| (name.clone(), F::counts(file).0)).collect();
-    let report = F::report(&chosen, (&data, &names, files), estimator, scores);
+    let report = F::report(&chosen, (data, &names, files), estimator, scores);
     let report = F::with_predicted(report, &chosen.calibration, held_out).map_err(in_context(&names))?;
     Ok(Outcome { calibration: chosen.calibration, report })
 }

@@ -36,7 +36,7 @@ pub type FoldFit<'f, F> =
 /// the data ask of them.
 pub trait Front: Sized {
     /// The data calibrated from.
-    type Data;
+    type Data: Clone;
     /// How to calibrate.
     type Options: Clone;
     /// A calibration.
