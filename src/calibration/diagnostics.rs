@@ -632,28 +632,6 @@ impl Held {
         };
         Some((parameter.as_str(), why))
     }
-
-    /// `held` in words, a line each, those held alone for one reason on one line, their
-    /// parameters listed in order (`torso.x, torso.y: its joint is on the way ...`), where the
-    /// reason's first parameter was; a combination a line of its own.
-    pub fn lines(held: &[Held]) -> Vec<String> {
-        let mut lines: Vec<(Option<String>, Vec<&str>, String)> = Vec::new();
-        for h in held {
-            match h.reason() {
-                Some((parameter, why)) => match lines.iter_mut().find(|l| l.0.as_ref() == Some(&why)) {
-                    Some(line) => line.1.push(parameter),
-                    None => lines.push((Some(why), vec![parameter], String::new())),
-                },
-                None => lines.push((None, Vec::new(), h.text())),
-            }
-        }
-        (lines.into_iter())
-            .map(|(why, parameters, text)| match why {
-                Some(why) => format!("{}: {why}", parameters.join(", ")),
-                None => text,
-            })
-            .collect()
-    }
 }
 
 impl Confounder {

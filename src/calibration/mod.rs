@@ -933,8 +933,11 @@ fn identifiable(
             asked.len()
         )));
     }
-    let infos: Vec<&crate::model::ParamInfo> = asked.indices().iter().map(|&i| params.get(i)).collect();
-    let fixed = (diagnostics.not_identifiable.iter().map(|c| why_held(c, &infos))).chain(unloaded).collect();
+    let names: Vec<String> = asked.indices().iter().map(|&i| params.get(i).name.clone()).collect();
+    let owners: Vec<Option<ParamOwner>> =
+        asked.indices().iter().map(|&i| Some(params.get(i).owner)).collect();
+    let fixed =
+        (diagnostics.not_identifiable.iter().map(|c| why_held(c, &names, &owners))).chain(unloaded).collect();
     let kept = Selection::from_indices(params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
     let start = at_before.select(&diagnostics.identifiable);
     // The identifiability the report gives is the data's alone.
@@ -943,14 +946,25 @@ fn identifiable(
     Ok(Identified { kept, fixed, start, prior, data_alone })
 }
 
-/// A held parameter, typed: the combination `c` of the parameters `infos` (by column) that
-/// the poses cannot tell apart, and what it shares its effect with. A parameter confounded
-/// with the base alone only moves the whole robot as the base does; with the markers alone,
-/// the markers as their positions do ([`Confounder`]).
-fn why_held(c: &crate::estimation::Combination, infos: &[&crate::model::ParamInfo]) -> Held {
-    let owners: Vec<ParamOwner> = c.terms.iter().map(|&(t, _)| infos[t].owner).collect();
-    let only = |f: fn(&ParamOwner) -> bool| !owners.is_empty() && owners.iter().all(f);
-    let with = if !matches!(infos[c.column].owner, ParamOwner::Joint(_)) {
+/// A held parameter, typed: the combination `c` of the parameters `names` (by column) that
+/// the poses cannot tell apart, and what it shares its effect with, by the parameters'
+/// `owners` (`None`: a set-up parameter, a fixed point's, a plane's). A parameter confounded
+/// with the base alone only moves the whole robot as the base does; with the points on the
+/// last link alone (markers, the tool point), those points as their positions do
+/// ([`Confounder`]). A set-up parameter held is a plain [`Held::Combination`].
+pub(crate) fn why_held(
+    c: &crate::estimation::Combination,
+    names: &[String],
+    owners: &[Option<ParamOwner>],
+) -> Held {
+    let (parameter, terms) =
+        (names[c.column].clone(), c.terms.iter().map(|&(j, v)| (names[j].clone(), v)).collect());
+    let Some(owner) = owners[c.column] else { return Held::Combination { parameter, terms } };
+    let of_terms: Vec<Option<ParamOwner>> = c.terms.iter().map(|&(t, _)| owners[t]).collect();
+    let only = |f: fn(&ParamOwner) -> bool| {
+        !of_terms.is_empty() && of_terms.iter().all(|o| o.as_ref().is_some_and(f))
+    };
+    let with = if !matches!(owner, ParamOwner::Joint(_)) {
         Confounder::Keep
     } else if only(|o| *o == ParamOwner::Base) {
         Confounder::Base
@@ -959,11 +973,7 @@ fn why_held(c: &crate::estimation::Combination, infos: &[&crate::model::ParamInf
     } else {
         Confounder::Poses
     };
-    Held::Confounded {
-        parameter: infos[c.column].name.clone(),
-        terms: c.terms.iter().map(|&(j, v)| (infos[j].name.clone(), v)).collect(),
-        with,
-    }
+    Held::Confounded { parameter, terms, with }
 }
 
 /// The results of the stages of [`calibrate`], to be scored and gathered.

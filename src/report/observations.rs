@@ -43,8 +43,10 @@ pub struct ObservationsReport {
     pub parameters: Vec<ParameterRow>,
     /// What the observations cannot see, held, in words.
     pub unseen: Vec<String>,
-    /// What was held and why, in words (a line each).
+    /// Each parameter held, in words with its combination, as a marker file's report gives it.
     pub fixed: Vec<String>,
+    /// The parameters held, grouped by why ([`held_groups`](super::verdict::held_groups)).
+    pub held_groups: Vec<super::verdict::HeldGroup>,
     /// The same, typed: the kind, the parameter, a combination's terms.
     pub held: Vec<crate::calibration::Held>,
     /// The training observations scored, then each held-out file: every observation's
@@ -185,7 +187,8 @@ impl ObservationsReport {
             noise: c.noise_estimate.as_ref().map(|e| super::calibration::noise_rows(&c.calibrated.joints, e)),
             parameters,
             unseen: c.unseen.clone(),
-            fixed: crate::calibration::Held::lines(&held),
+            fixed: held.iter().map(crate::calibration::Held::text).collect(),
+            held_groups: super::verdict::held_groups(&held),
             held,
             sets,
             warnings: c.warnings.clone(),
@@ -264,13 +267,10 @@ impl ObservationsReport {
         for u in &self.unseen {
             let _ = writeln!(*out, "  {u}");
         }
-        if !self.fixed.is_empty() {
-            let gap = if self.unseen.is_empty() { "\n" } else { "" };
-            let _ = writeln!(*out, "{gap}held fixed, as these poses cannot tell them apart from the others:");
-            for f in &self.fixed {
-                let _ = writeln!(*out, "  {f}");
-            }
+        if !self.held.is_empty() && self.unseen.is_empty() {
+            out.push('\n');
         }
+        out.push_str(&super::verdict::held_text(&self.held));
         let sessions: Vec<String> = (self.sets.iter().skip(1))
             .flat_map(|(name, score)| score.sessions.iter().map(move |s| (name, s)))
             .map(|(name, (session, source))| match source {

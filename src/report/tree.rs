@@ -55,8 +55,10 @@ pub struct TreeReport {
     pub frames: Vec<FrameRow>,
     /// What the views cannot see, held, in words.
     pub unseen: Vec<String>,
-    /// What was held and why, in words (a line each).
+    /// Each parameter held, in words with its combination, as a marker file's report gives it.
     pub fixed: Vec<String>,
+    /// The parameters held, grouped by why ([`held_groups`](super::verdict::held_groups)).
+    pub held_groups: Vec<super::verdict::HeldGroup>,
     /// The same, typed: the kind, the parameter, a combination's terms.
     pub held: Vec<crate::calibration::Held>,
     /// The training views scored, then each held-out file's.
@@ -113,7 +115,8 @@ impl TreeReport {
             parameters,
             frames,
             unseen: c.unseen.clone(),
-            fixed: crate::calibration::Held::lines(&held),
+            fixed: held.iter().map(crate::calibration::Held::text).collect(),
+            held_groups: super::verdict::held_groups(&held),
             held,
             sets,
             warnings: c.warnings.clone(),
@@ -228,12 +231,7 @@ impl TreeReport {
         for u in &self.unseen {
             let _ = writeln!(out, "  {u}");
         }
-        if !self.fixed.is_empty() {
-            let _ = writeln!(out, "held fixed, as these poses cannot tell them apart from the others:");
-            for f in &self.fixed {
-                let _ = writeln!(out, "  {f}");
-            }
-        }
+        out.push_str(&super::verdict::held_text(&self.held));
         self.write_worst(&mut out);
         let _ = writeln!(
             out,

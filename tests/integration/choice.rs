@@ -137,7 +137,7 @@ fn the_command_takes_priors_losses_and_the_gauge() {
     assert!(output.status.success(), "{text}{}", String::from_utf8_lossy(&output.stderr));
     assert!(text.contains("prior SD") && text.contains("SD ratio"), "{text}");
     assert!(text.contains("robust loss huber:1.345: "), "{text}");
-    assert!(text.contains("j6.d: held at its nominal value by --hold"), "{text}");
+    assert!(text.contains("j6.d: held at their nominal values by --hold"), "{text}");
     assert!(
         text.contains("3-fold cross-validation, nested"),
         "the loss's weights redone in each fold: {text}"

@@ -563,6 +563,16 @@ fn the_command_fits_a_marker_file_and_a_ball_bar_together() {
     assert!(text.contains("  training, examples/puma560-"), "{text}");
     // The base the markers' registration placed, as calibrate reports it.
     assert!(text.contains("base registered at xyz (1499.880, -299.565, 200.231) mm"), "{text}");
+    // What was held, in calibrate's words (the README's marker report): grouped by why.
+    for group in [
+        "held fixed (12 parameters):\n",
+        "  j1.theta, j1.d, j1.beta: with the base estimated they only move the whole robot: --fixed-base",
+        "  j3.d, j3.beta, j4.beta, j5.beta: these poses cannot tell them from the others",
+        "  j6.theta, j6.d, j6.a, j6.alpha, j6.beta: with the markers estimated they only move the markers",
+        "the combinations held (the held parameter first; the others' estimates absorb it):\n  j1.theta - base.rz\n",
+    ] {
+        assert!(text.contains(group), "{group}: {text}");
+    }
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert!((report["registered_base"][0].as_f64().unwrap() - 1499.88).abs() < 1e-2, "{report}");
     let rms = |set: usize, what: &str| {

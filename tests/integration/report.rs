@@ -651,9 +651,10 @@ fn parse_page(html: &str) -> roxmltree::Document<'_> {
     .expect("well-formed")
 }
 
-/// What a fit held, in words: the parameters held alone for one reason on one line, in order
-/// where the first of them was (a tree's joint that no view sees prints once, not once per
-/// parameter); each combination a line of its own.
+/// What a fit held, in words, as every report says it (a marker file's, observations', a
+/// tree's: `held_text`): the parameters held for one reason on one line, in order where the
+/// first of them was (a tree's joint that no view sees prints once, not once per parameter);
+/// then each combination as algebra.
 #[test]
 fn parameters_held_for_one_reason_are_one_line() {
     use robocal::calibration::Held;
@@ -667,13 +668,14 @@ fn parameters_held_for_one_reason_are_one_line() {
         Held::ByUser { parameter: "j3.a".into(), setup: false },
     ];
     assert_eq!(
-        Held::lines(&held),
-        [
-            "torso.x, torso.y: not seen",
-            "j1.d - point1.z",
-            "j2.a, j3.a: held at its nominal value by --hold",
-            "plane1.d: held at its start by --hold",
-        ]
+        robocal::report::verdict::held_text(&held),
+        "held fixed (6 parameters):\n\
+         \x20 torso.x, torso.y: not seen\n\
+         \x20 j1.d: the observations cannot tell them from a combination of the others\n\
+         \x20 j2.a, j3.a: held at their nominal values by --hold\n\
+         \x20 plane1.d: held at their start by --hold\n\
+         the combinations held (the held parameter first; the others' estimates absorb it):\n\
+         \x20 j1.d - point1.z\n"
     );
     assert_eq!(held[0].text(), "torso.x: not seen");
 }

@@ -113,7 +113,7 @@ pub use data::{
 use super::noise_check::{CHECK_POSES, MIN_DOF, check, without_outliers};
 use super::{
     CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
-    gauge_class, probe_mounting,
+    gauge_class, probe_mounting, why_held,
 };
 use crate::estimation::reml::{Components, Point};
 use crate::estimation::{
@@ -2181,7 +2181,10 @@ fn gauge(
         })
         .collect();
     let prior = prior_rows(problem, asked, params, &options.prior, weights)?;
-    let (identifiable, fixed) = identifiable(linearised, &problem.names(), &priority, prior.as_ref())?;
+    let owners: Vec<Option<ParamOwner>> =
+        (0..problem.parameters()).map(|c| asked.indices().get(c).map(|&i| params.get(i).owner)).collect();
+    let (identifiable, fixed) =
+        identifiable(linearised, (&problem.names(), &owners), &priority, prior.as_ref())?;
     Ok(Gauged { identifiable, fixed, prior })
 }
 
@@ -2518,7 +2521,7 @@ pub(super) fn longest_length(model: &RobotModel, params: &ParamSet) -> Option<us
 /// combinations the rank-revealing solve holds, by `priority` ([`gauge_class`]).
 pub(super) fn identifiable(
     linearised: &Linearisation,
-    names: &[String],
+    (names, owners): (&[String], &[Option<ParamOwner>]),
     priority: &[u32],
     prior: Option<&PriorRows>,
 ) -> Result<(Vec<usize>, Vec<Held>), CalibrationError> {
@@ -2544,10 +2547,10 @@ pub(super) fn identifiable(
             .diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?,
         None => seen_system.diagnose_by_priority(RANK_TOLERANCE, &seen_priority)?,
     };
-    fixed.extend(diagnostics.not_identifiable.iter().map(|c| Held::Combination {
-        parameter: names[seen[c.column]].clone(),
-        terms: c.terms.iter().map(|&(j, v)| (names[seen[j]].clone(), v)).collect(),
-    }));
+    // The combinations of the columns seen, classified by their parameters' owners.
+    let (seen_names, seen_owners): (Vec<String>, Vec<Option<ParamOwner>>) =
+        seen.iter().map(|&c| (names[c].clone(), owners[c])).unzip();
+    fixed.extend(diagnostics.not_identifiable.iter().map(|c| why_held(c, &seen_names, &seen_owners)));
     Ok((diagnostics.identifiable.iter().map(|&c| seen[c]).collect(), fixed))
 }
 

@@ -928,7 +928,9 @@ fn tree_gauge(
         (0..problem.parameters()).map(|c| asked.get(c).map_or(f64::INFINITY, |&i| sd[i])).collect();
     let prior = (columns.iter().any(|s| s.is_finite()))
         .then(|| PriorRows::new(&columns, weights.scale().unwrap_or(1.0)));
-    let (identifiable, fixed) = identifiable(linearised, &names, &priority, prior.as_ref())?;
+    let owners: Vec<Option<crate::model::ParamOwner>> =
+        (0..problem.parameters()).map(|c| asked.get(c).map(|&i| params.params[i].owner)).collect();
+    let (identifiable, fixed) = identifiable(linearised, (&names, &owners), &priority, prior.as_ref())?;
     Ok(Gauged { identifiable, fixed, prior })
 }
 
