@@ -121,7 +121,7 @@ use crate::estimation::{
     PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds,
     refine_from,
 };
-use crate::kinematics::{Chain, ChainAt, MarkerEnd, Measured};
+use crate::kinematics::{Chain, ChainAt, MarkerEnd, Measured, end_positions, marker_jacobians};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
 use nalgebra::{
     DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, RowDVector, UnitQuaternion, Vector3,
@@ -844,6 +844,22 @@ impl<'a> KindProblem<'a> {
                     at.pose(q)
                 })
                 .collect(),
+            _ if measured == Measured::Position => {
+                // Points alone: every point of a pose from one walk of the arm they share.
+                let points = at.len();
+                let mut flat = vec![Vector3::zeros(); poses * points];
+                (flat.par_chunks_mut(points).enumerate())
+                    .for_each(|(j, chunk)| end_positions(at, &self.data.joints[j], chunk));
+                (0..points * poses)
+                    .map(|n| match self.used[n] {
+                        true => Isometry3::from_parts(
+                            flat[(n % poses) * points + n / poses].into(),
+                            Default::default(),
+                        ),
+                        false => Isometry3::identity(),
+                    })
+                    .collect()
+            }
             _ => (0..at.len() * poses)
                 .into_par_iter()
                 .map(|n| match self.used[n] {
@@ -1136,6 +1152,11 @@ impl Residuals for KindProblem<'_> {
 struct BlockJacobians {
     keys: Vec<usize>,
     values: Vec<f64>,
+    /// Of points alone: the poses of the block, every point's `H_j` at one of them stacked
+    /// 3 rows a point (column-major), and their positions.
+    poses: Vec<usize>,
+    stacked: Vec<f64>,
+    positions: Vec<Vector3<f64>>,
 }
 
 impl BlockJacobians {
@@ -1159,6 +1180,9 @@ impl BlockJacobians {
         self.values.resize(self.keys.len() * block, 0.0);
         let (poses, rows, columns) =
             (problem.data.joints.len(), problem.measured().rows(), problem.selection.len());
+        if problem.measured() == Measured::Position && block > 0 {
+            return self.fill_points(problem, at, columns);
+        }
         for (&n, h_j) in self.keys.iter().zip(self.values.chunks_exact_mut(block.max(1))) {
             let view = DMatrixViewMut::from_slice(h_j, rows, columns);
             at[n / poses].identification_jacobian(
@@ -1167,6 +1191,32 @@ impl BlockJacobians {
                 problem.measured(),
                 view,
             );
+        }
+    }
+
+    /// [`BlockJacobians::fill`] of points alone (markers and the tool point, no frame): every
+    /// point of a pose from one walk of the arm they share ([`marker_jacobians`]), each needed
+    /// one's 3 rows copied out.
+    fn fill_points(&mut self, problem: &KindProblem<'_>, at: &[ChainAt], columns: usize) {
+        let (poses, points) = (problem.data.joints.len(), at.len());
+        self.poses.clear();
+        self.poses.extend(self.keys.iter().map(|n| n % poses));
+        self.poses.sort_unstable();
+        self.poses.dedup();
+        self.stacked.resize(3 * points * columns, 0.0);
+        self.positions.resize(points, Vector3::zeros());
+        for &pose in &self.poses {
+            // Zeros: `marker_jacobians` writes the columns of its parameters only.
+            self.stacked.fill(0.0);
+            let h = DMatrixViewMut::from_slice(&mut self.stacked, 3 * points, columns);
+            marker_jacobians(at, &problem.data.joints[pose], problem.selection, h, &mut self.positions);
+            for (k, &n) in self.keys.iter().enumerate().filter(|(_, n)| *n % poses == pose) {
+                let at = 3 * (n / poses);
+                let h_j = &mut self.values[3 * columns * k..3 * columns * (k + 1)];
+                for (c, column) in h_j.chunks_exact_mut(3).enumerate() {
+                    column.copy_from_slice(&self.stacked[3 * points * c + at..3 * points * c + at + 3]);
+                }
+            }
         }
     }
 
