@@ -1631,7 +1631,8 @@ impl KindCalibration {
         data.check_points(&markers, self.chains.len() > markers.len())?;
         let noise = self.joint_noise.as_ref();
         // The weights only whiten the residuals after: the joint noise is for those alone.
-        let before = self.problem_on(data, &setup, (&self.before, &values.0), &[]).with_noise(None);
+        // Before: its residuals alone, no V_k.
+        let before = self.problem_on(data, &setup, (&self.before, &values.0), &[]);
         let after = self.problem_on(data, &setup, (&self.after, &values.1), &[]).with_noise(noise);
         let zero = DVector::zeros(0);
         // The assumed sigmas scaled by the residuals' spread, when they were.
@@ -2257,6 +2258,9 @@ fn scored(calibration: &mut KindCalibration, data: &KindData) -> Result<(), Cali
         let f = sum / (n - rank) as f64;
         calibration.refined.estimate.covariance *= f;
         calibration.variance_factor = Some(f);
+        // The first scores let go before the second are made (a large file's are large).
+        drop(std::mem::take(&mut calibration.training.observations));
+        drop(std::mem::take(&mut calibration.training.positions));
         calibration.training = calibration.score(data)?;
     }
     let se = super::standard_errors_of(calibration.params.iter(), &calibration.refined.estimate);
