@@ -74,27 +74,45 @@ fn observation_args(args: CalibrateArgs) -> Result<CalibrateObservationsArgs, Us
 
 /// The flags of the tree calibration, or the first flag it does not take.
 fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
+    // Each refusal says why: a meaning trees lack, or what gives it instead.
     let refused = [
-        (args.model.links.tip_link.is_some(), "--tip-link (a tree's branches are --tips)"),
-        (args.model.payload.payload_kg.is_some(), "--payload-kg"),
-        (args.noise.is_some(), "--noise (the views' sigma columns and --joint-sigma-deg give the noise)"),
-        (args.noise_flags.sigma_mm > 0.0 || args.noise_flags.sigma_orientation_deg > 0.0, "--sigma-mm"),
+        (args.model.links.tip_link.is_some(), "--tip-link: a tree's branches are --tips"),
+        (
+            args.model.payload.payload_kg.is_some(),
+            "--payload-kg: a tree carries no payload (not available for trees yet)",
+        ),
+        (
+            args.noise.is_some(),
+            "--noise: a tree's views take their noise from their sigma columns and --joint-sigma-deg",
+        ),
+        (
+            args.noise_flags.sigma_mm > 0.0 || args.noise_flags.sigma_orientation_deg > 0.0,
+            "--sigma-mm and --sigma-orientation-deg: a tree's views take their sigmas from their sigma columns",
+        ),
         (
             args.fixed_base || args.fixed_markers,
-            "--fixed-base and --fixed-markers (a tree's base is never estimated)",
+            "--fixed-base and --fixed-markers: a tree's base is never estimated (a view sees one frame from another), \
+             and views have no markers",
         ),
-        (!args.marker.is_empty() || args.markers.is_some(), "--marker and --markers"),
+        (
+            !args.marker.is_empty() || args.markers.is_some(),
+            "--marker and --markers: views between a tree's branches have no markers",
+        ),
         (
             args.out_model.is_some() || args.out_urdf.is_some(),
-            "--out-model and --out-urdf (a tree's branches go to --out-dir)",
+            "--out-model and --out-urdf: a tree's branches go to --out-dir",
         ),
-        (args.observations.tool.is_some() || args.observations.fixed_tool, "--tool and --fixed-tool"),
-        (!args.observations.per_session.is_empty(), "--per-session"),
+        (
+            args.observations.tool.is_some() || args.observations.fixed_tool,
+            "--tool and --fixed-tool: views between a tree's branches see its cameras' and targets' frames, no tool point",
+        ),
+        (
+            !args.observations.per_session.is_empty(),
+            "--per-session: a tree's cameras and targets are one set-up for every file (per session: not available for trees yet)",
+        ),
     ];
-    if let Some((_, flag)) = refused.iter().find(|(given, _)| *given) {
-        return Err(UsageError(format!(
-            "{flag}: not for views between a tree's branches (not available yet for trees)"
-        )));
+    if let Some((_, refusal)) = refused.iter().find(|(given, _)| *given) {
+        return Err(UsageError(refusal.to_string()));
     }
     Ok(CalibrateTreeArgs {
         model: PathBuf::from(args.model.model),

@@ -589,6 +589,15 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
             .starts_with("--noise gives the joint noise")
     );
     assert!(refused(&[TreeViews, Observations], &[]).contains("fitted on their own"));
+    // A flag a tree's views give no meaning says why; one not there yet says so.
+    let tree = |flag: &[&str]| refused(&[TreeViews], &[&["--tips", "a,b"], flag].concat());
+    assert!(
+        tree(&["--tool", "1,2,3"]).starts_with("--tool and --fixed-tool: views between"),
+        "{}",
+        tree(&["--tool", "1,2,3"])
+    );
+    assert!(tree(&["--fixed-base"]).contains("a tree's base is never estimated"));
+    assert!(tree(&["--per-session", "camera*"]).contains("not available for trees yet"));
     assert!(refused(&[Observations], &["--tips", "a"]).starts_with("--model: a URDF file"), "--tips: a tree");
     assert_eq!(
         is(route(&[TreeViews], &["--prior", "machined", "--loss", "huber", "--hold", "torso.z"])),
