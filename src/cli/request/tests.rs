@@ -524,6 +524,19 @@ fn route(kinds: &[DataKind], args: &[&str]) -> Result<CalibrationRequest, String
     })
 }
 
+/// A flag that a tree's views give no meaning is refused saying why; one not there yet for
+/// trees says so.
+#[test]
+fn a_tree_refuses_each_flag_saying_why() {
+    let tree =
+        |flag: &[&str]| route(&[DataKind::TreeViews], &[&["--tips", "a,b"], flag].concat()).unwrap_err();
+    let tool = tree(&["--tool", "1,2,3"]);
+    assert!(tool.starts_with("--tool and --fixed-tool: views between a tree's branches see"), "{tool}");
+    assert!(tree(&["--fixed-base"]).contains("a tree's base is never estimated"));
+    assert!(tree(&["--noise", "n.toml"]).contains("their sigma columns and --joint-sigma-deg"));
+    assert!(tree(&["--per-session", "camera*"]).contains("not available for trees yet"));
+}
+
 /// One command: one marker file takes the marker calibration, observation files or several
 /// files the observations', tree views the tree's; a flag the chosen one cannot honour is
 /// refused, naming it.
@@ -589,15 +602,6 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
             .starts_with("--noise gives the joint noise")
     );
     assert!(refused(&[TreeViews, Observations], &[]).contains("fitted on their own"));
-    // A flag a tree's views give no meaning says why; one not there yet says so.
-    let tree = |flag: &[&str]| refused(&[TreeViews], &[&["--tips", "a,b"], flag].concat());
-    assert!(
-        tree(&["--tool", "1,2,3"]).starts_with("--tool and --fixed-tool: views between"),
-        "{}",
-        tree(&["--tool", "1,2,3"])
-    );
-    assert!(tree(&["--fixed-base"]).contains("a tree's base is never estimated"));
-    assert!(tree(&["--per-session", "camera*"]).contains("not available for trees yet"));
     assert!(refused(&[Observations], &["--tips", "a"]).starts_with("--model: a URDF file"), "--tips: a tree");
     assert_eq!(
         is(route(&[TreeViews], &["--prior", "machined", "--loss", "huber", "--hold", "torso.z"])),
