@@ -648,6 +648,41 @@ def test_marker_options_with_a_ball_bar_are_the_command_lines(puma: robocal.Mode
         assert_same(json.loads(ours.to_json()), json.loads(out.read_text()))
 
 
+def _quaternion(r: np.ndarray) -> tuple[float, float, float, float]:
+    """The unit quaternion (w, x, y, z) of the rotation matrix ``r`` (Shepperd's method)."""
+    w = math.sqrt(max(0.0, 1.0 + r[0, 0] + r[1, 1] + r[2, 2])) / 2.0
+    x = math.copysign(math.sqrt(max(0.0, 1.0 + r[0, 0] - r[1, 1] - r[2, 2])) / 2.0, r[2, 1] - r[1, 2])
+    y = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] + r[1, 1] - r[2, 2])) / 2.0, r[0, 2] - r[2, 0])
+    z = math.copysign(math.sqrt(max(0.0, 1.0 - r[0, 0] - r[1, 1] + r[2, 2])) / 2.0, r[1, 0] - r[0, 1])
+    return w, x, y, z
+
+
+def test_a_probe_file_with_a_ball_bar_is_the_command_line(puma: robocal.Model, tmp_path: Path) -> None:
+    """A 6-DOF probe's file (marker 1 and a quaternion) of the example's true robot, fitted
+    with the example's ball bar: Python's report is the command line's, number for number, and
+    the probe's orientation is among the residuals."""
+    true = (EXAMPLES / "puma560-true.toml").read_text()
+    true = true.replace("[tool]\nxyz_mm = [52.0, 1.0, 148.0]", "[tool]\nxyz_mm = [60.0, 5.0, 140.0]\nrpy_deg = [11.0, -6.0, 17.0]")
+    truth = robocal.Model.from_toml(true)
+    rng = np.random.default_rng(7)
+    rows = ["# units: joints=deg, lengths=mm", "j1,j2,j3,j4,j5,j6,x1,y1,z1,qw,qx,qy,qz"]
+    for _ in range(60):
+        q = rng.uniform(-1.5, 1.5, 6)
+        t = truth.fk(q)
+        cells = [*np.degrees(q), *t[:3, 3], *_quaternion(t[:3, :3])]
+        rows.append(",".join(f"{c:.12f}" for c in cells))
+    probe = tmp_path / "probe.csv"
+    probe.write_text("\n".join(rows) + "\n")
+    out = tmp_path / "report.json"
+    run_cli("calibrate", "--model", "puma560", "--data", str(probe), "--data", str(BALLBAR),
+            "--marker", "60,5,140", "--json", str(out), "--quiet")
+    ours = robocal.calibrate(puma, [probe, BALLBAR], marker=[[60.0, 5.0, 140.0]], joint_unit="deg", length_unit="mm")
+    report = json.loads(ours.to_json())
+    assert any(p["name"] == "marker1.rz" for p in report["parameters"])
+    assert any(o["kind"] == "probe rz" for o in report["sets"][0][1]["observations"])
+    assert_same(report, json.loads(out.read_text()))
+
+
 def test_what_the_command_line_refuses_python_refuses(puma: robocal.Model) -> None:
     """The command line's refusals of options that observation files cannot honour, of
     standard deviations out of range, and of counts, as InputErrors naming the field."""
