@@ -7,7 +7,7 @@
 use super::calibration::{DownWeighted, ParameterRow, by_number};
 use crate::calibration::Warning;
 use crate::calibration::kinds::{
-    DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM,
+    DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM, GroupRms,
     KindCalibration, ObservationResidual, Score, SessionSetUp,
 };
 use crate::calibration::prior_scale::PriorScale;
@@ -114,24 +114,24 @@ fn is_zero(n: &usize) -> bool {
     *n == 0
 }
 
-/// A scored set's rows of the verdict, `(label, (before, after), decimals)`: each group's RMS
-/// in a set of lengths of several groups ([`Score::by_group`]), else the lengths' (mm) and the
-/// angles' (deg); the markers' positions' (mm) either way.
+/// A scored set's rows of the verdict, `(label, (before, after), decimals)`: in a set with
+/// markers or lengths of several groups (a ball bar's distances and markers), each group's
+/// RMS by name ([`Score::by_group`]) and the markers' positions' (each marker's with several),
+/// a marker's coordinates never pooled with the positions; else (one kind of file) its
+/// lengths' (mm) and its angles' (deg).
 fn set_rows(name: &str, score: &Score) -> Vec<(String, (f64, f64), usize)> {
-    let digits = |unit: &str| if unit == "deg" { 5 } else { 4 };
     let each = score.by_marker.iter().map(|m| (format!("{name} marker {} (mm)", m.marker), m.rms, 4));
-    let markers: Vec<_> =
-        score.markers.map(|rms| (format!("{name} markers (mm)"), rms, 4)).into_iter().chain(each).collect();
-    if !score.by_group.is_empty() {
-        let groups = score
-            .by_group
-            .iter()
-            .map(|g| (format!("{name} {} ({})", g.group, g.unit), g.rms, digits(g.unit)));
-        return groups.chain(markers).collect();
+    let markers = score.markers.map(|rms| (format!("{name} markers (mm)"), rms, 4)).into_iter().chain(each);
+    let (angles, lengths): (Vec<&GroupRms>, Vec<&GroupRms>) =
+        score.by_group.iter().partition(|g| g.unit == "deg");
+    if score.markers.is_some() || lengths.len() > 1 {
+        let row = |g: &GroupRms, digits| (format!("{name} {} ({})", g.group, g.unit), g.rms, digits);
+        let lengths = lengths.into_iter().map(|g| row(g, 4));
+        return lengths.chain(markers).chain(angles.into_iter().map(|g| row(g, 5))).collect();
     }
-    let lengths = Some((format!("{name} (mm)"), score.lengths, 4));
+    let lengths = (!lengths.is_empty()).then(|| (format!("{name} (mm)"), score.lengths, 4));
     let angles = score.angles.map(|rms| (format!("{name} (deg)"), rms, 5));
-    lengths.into_iter().chain(markers).chain(angles).collect()
+    lengths.into_iter().chain(angles).collect()
 }
 
 impl ObservationsReport {

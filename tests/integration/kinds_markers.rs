@@ -1264,7 +1264,7 @@ fn the_command_fits_a_probe_file_with_a_ball_bar() {
         let v: Vec<f64> = line.split_whitespace().rev().take(2).filter_map(|c| c.parse().ok()).collect();
         (v[1], v[0])
     };
-    let (positions, orientations) = (row("markers (mm)"), row("(deg)"));
+    let (positions, orientations) = (row("markers (mm)"), row("probe orientations (deg)"));
     assert!(positions.0 > 1.0 && positions.1 < 0.05, "{positions:?}\n{stdout}");
     assert!(orientations.0 > 0.1 && orientations.1 < 0.01, "{orientations:?}\n{stdout}");
     assert!(stdout.contains("training probe orientations (deg)"), "{stdout}");

@@ -1383,10 +1383,9 @@ pub struct Score {
     /// position errors `|e|` when every coordinate is measured (as `calibrate` reports it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub markers: Option<(f64, f64)>,
-    /// In a set of lengths of several groups ([`Observation::group`]: distances and marker
-    /// coordinates, say), each group's RMS residuals before and after, in its unit, but the
-    /// markers' (their positions' RMS is [`Score::markers`]); empty otherwise, the lengths'
-    /// and the angles' RMS then one each.
+    /// Each group's RMS residuals before and after ([`Observation::group`]: distances, probe
+    /// orientations, camera rotations, ...), in its unit, but the markers' (their positions'
+    /// RMS is [`Score::markers`]).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub by_group: Vec<GroupRms>,
     /// With several markers, each one's position RMS before and after (mm), as
@@ -1561,17 +1560,13 @@ impl Score {
                 groups.push((o.group(), o.is_angle()));
             }
         }
-        // Lengths of several groups (a ball bar's distances and markers' coordinates) are not
-        // pooled in the report's rows: each group is a row of its own.
-        let by_group = match groups.iter().filter(|g| !g.1).count() > 1 {
-            true => (groups.into_iter().filter(|g| g.0 != "markers"))
-                .filter_map(|(group, angle)| {
-                    let unit = if angle { "deg" } else { "mm" };
-                    rms(&|o| o.group() == group, 1.0).map(|rms| GroupRms { group, unit, rms })
-                })
-                .collect(),
-            false => Vec::new(),
-        };
+        // Every group's, the markers' coordinates aside (their positions' RMS is `markers`).
+        let by_group = (groups.into_iter().filter(|g| g.0 != "markers"))
+            .filter_map(|(group, angle)| {
+                let unit = if angle { "deg" } else { "mm" };
+                rms(&|o| o.group() == group, 1.0).map(|rms| GroupRms { group, unit, rms })
+            })
+            .collect();
         let mut numbers: Vec<usize> = observations.iter().filter_map(|r| r.marker).collect();
         numbers.sort_unstable();
         numbers.dedup();
