@@ -12,6 +12,7 @@ use crate::calibration::kinds::{
 };
 use crate::calibration::prior_scale::PriorScale;
 use crate::calibration::selection::SelectionPath;
+use crate::estimation::{Estimator, POSE_SIGMAS};
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -341,7 +342,16 @@ impl ObservationsReport {
             *out,
             "\nbefore: the set-up (points, planes, camera and target) and the tool point fitted with the robot nominal; after: the robot and the set-up"
         );
-        if self.assumed_sigmas > 0 {
+        if self.assumed_sigmas > 0 && self.estimator == Estimator::Ols.name() {
+            // Ordinary least squares weighs every row alike whatever its sigma.
+            let w = POSE_SIGMAS.0 / POSE_SIGMAS.1;
+            let _ = writeln!(
+                out,
+                "{} of {} observations gave no sigma: ols weighs every row alike (an angle as {w:.0} mm a radian), \
+                 whatever the sigmas",
+                self.assumed_sigmas, self.observations,
+            );
+        } else if self.assumed_sigmas > 0 {
             let _ = writeln!(
                 out,
                 "{} of {} observations gave no sigma: weighed by the defaults, {} mm and {} deg ({} mm and {} deg a camera's view; \

@@ -1282,3 +1282,22 @@ fn the_command_fits_a_probe_file_with_a_ball_bar() {
     assert!(after(section[5]) >= after(section[6]) && after(section[5]) >= positions.1, "{section:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Rows without a sigma are said to be weighed by the defaults under the weighted estimators,
+/// and alike under ordinary least squares (which weighs every row alike whatever its sigma):
+/// the report says which, and how many rows gave none (the marker file's 600 coordinates).
+#[test]
+fn the_report_says_how_rows_without_a_sigma_are_weighed() {
+    let note = |estimator: &str| {
+        let output = with_a_ball_bar(&["--estimator", estimator]);
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let text = String::from_utf8(output.stdout).unwrap();
+        text.lines().find(|l| l.contains("gave no sigma")).unwrap_or_else(|| panic!("{text}")).to_string()
+    };
+    let (wls, ols) = (note("wls"), note("ols"));
+    assert!(
+        wls.starts_with("600 of 750 observations gave no sigma: weighed by the defaults, 0.01 mm"),
+        "{wls}"
+    );
+    assert!(ols.starts_with("600 of 750 observations gave no sigma: ols weighs every row alike"), "{ols}");
+}
