@@ -904,12 +904,11 @@ fn observation_noise(
     flags: &Flags,
     request: &Request,
 ) -> PyResult<(Option<robocal::estimation::NoiseSpec>, RowSigmaDefaults)> {
-    let positive = |s: Option<f64>| s.filter(|&s| s > 0.0);
     let Some(path) = &flags.noise else {
-        let defaults = RowSigmaDefaults {
-            length_mm: positive(flags.sigma).map(|s| s * request.noise_units.length_scale()),
-            angle_rad: positive(flags.sigma_orientation).map(|s| request.noise_units.angle(s)),
-        };
+        let defaults = RowSigmaDefaults::positive(
+            flags.sigma.map(|s| s * request.noise_units.length_scale()),
+            flags.sigma_orientation.map(|s| request.noise_units.angle(s)),
+        );
         return Ok((None, defaults));
     };
     let spec = robocal::io::load_noise(Path::new(path), model)

@@ -129,14 +129,11 @@ fn observation_file(
 /// the flags' (`--joint-sigma-deg`, and `--sigma-mm` and `--sigma-orientation-deg` for rows
 /// without their own sigma).
 fn observation_noise(request: &EvaluateRequest, model: &robocal::model::RobotModel) -> Result<Noise> {
-    let positive = |s: f64| Some(s).filter(|&s| s > 0.0);
     match &request.noise {
         None => Noise::of(None, None, RowSigmaDefaults::default(), model),
         Some(NoiseSource::Flags(flags)) => {
-            let sigmas = RowSigmaDefaults {
-                length_mm: positive(flags.sigma_mm),
-                angle_rad: positive(flags.sigma_orientation_deg).map(f64::to_radians),
-            };
+            let angle = flags.sigma_orientation_deg.to_radians();
+            let sigmas = RowSigmaDefaults::positive(Some(flags.sigma_mm), Some(angle));
             Noise::of(None, Some(&flags.joint_sigma_deg), sigmas, model)
         }
         Some(NoiseSource::File(path)) => Noise::of(Some(path), None, RowSigmaDefaults::default(), model),

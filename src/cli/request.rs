@@ -547,7 +547,7 @@ fn observation_sigmas(
         "--noise gives the joint noise and the measurement sigmas: do not give --joint-sigma-deg, --sigma-mm or \
          --sigma-orientation-deg with it",
     )?;
-    Ok(robocal::calibration::kinds::RowSigmaDefaults { length_mm: mm, angle_rad: deg.map(f64::to_radians) })
+    Ok(robocal::calibration::kinds::RowSigmaDefaults::positive(mm, deg.map(f64::to_radians)))
 }
 
 /// `--per-session` over the `data` files: two files at least, each of its own stem (its

@@ -356,7 +356,7 @@ impl Chain {
 
     /// One chain per marker, each ending at its marker (nominal position `markers[k]`, mm, in
     /// the model's [marker frame](RobotModel::marker_frame): the tool frame of a URDF model's
-    /// tip link, else the last joint frame), all indexed by [`ParamSet::with_markers`]: they
+    /// tip link, else the last joint frame), all indexed by [`ParamSet::with_marker_ends`]: they
     /// share the base and joint parameters, and each has its own `marker<k>.x/y/z` (along the
     /// marker frame's axes). The tool frame is fixed; its error parameters are not used.
     pub fn markers(model: &RobotModel, markers: &[Vector3<f64>]) -> Vec<Self> {
@@ -366,7 +366,7 @@ impl Chain {
 
     /// [`Chain::markers`] and, after them, the chain of a measured frame (a 6-DOF probe) at
     /// `probe` in the marker frame, as [`Chain::probe`] is, all indexed by
-    /// [`ParamSet::with_markers_and_probe`]: the probe's errors are `marker<n + 1>.x` ...
+    /// [`ParamSet::with_marker_ends`]: the probe's errors are `marker<n + 1>.x` ...
     /// `.rz` of `n` markers.
     pub fn markers_and_probe(model: &RobotModel, markers: &[Vector3<f64>], probe: &Placement) -> Vec<Self> {
         let points = markers.iter().map(|&p| MarkerEnd::Point(p));
@@ -397,7 +397,7 @@ impl Chain {
     }
 
     /// The chain ending at a measured frame (a 6-DOF probe) placed at `probe` in the model's
-    /// [marker frame](RobotModel::marker_frame), indexed by [`ParamSet::with_probe`]: its 6
+    /// [marker frame](RobotModel::marker_frame), indexed by [`ParamSet::with_marker_ends`]: its 6
     /// errors are `marker1.x` ... `marker1.rz`.
     pub fn probe(model: &RobotModel, probe: &Placement) -> Self {
         Self::marker_ends(model, &[MarkerEnd::Frame(*probe)]).remove(0)

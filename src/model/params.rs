@@ -154,27 +154,6 @@ impl ParamSet {
         Self::build(model, None)
     }
 
-    /// The parameters of `model` with `markers` measured points on its last link in place of
-    /// its tool: `marker1.x`, `marker1.y`, `marker1.z`, `marker2.x`, ... (mm).
-    pub fn with_markers(model: &RobotModel, markers: usize) -> Self {
-        Self::build(model, Some(&vec![3; markers]))
-    }
-
-    /// The parameters of `model` with a measured frame (a 6-DOF probe) on its last link in
-    /// place of its tool: `marker1.x`, ..., `marker1.rz` (mm, rad).
-    pub fn with_probe(model: &RobotModel) -> Self {
-        Self::build(model, Some(&[6]))
-    }
-
-    /// The parameters of `model` with `markers` measured points on its last link and a
-    /// measured frame after them: `marker1.x`, ..., `marker<markers>.z` (mm), then
-    /// `marker<markers + 1>.x`, ..., `.rz` (mm, rad).
-    pub fn with_markers_and_probe(model: &RobotModel, markers: usize) -> Self {
-        let mut each = vec![3; markers];
-        each.push(6);
-        Self::build(model, Some(&each))
-    }
-
     /// The parameters of `model` with points and frames on its last link, `counts[k]` the
     /// parameters of `marker<k + 1>`: 3 for a point (`.x`, `.y`, `.z`, mm), 6 for a measured
     /// frame (then `.rx`, `.ry`, `.rz`, rad).

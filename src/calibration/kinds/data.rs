@@ -55,11 +55,16 @@ pub struct RowSigmaDefaults {
 }
 
 impl RowSigmaDefaults {
-    /// A noise file's: its `sigma_me_mm` and `sigma_orientation_deg` where above 0 (a zero one
-    /// is none, as the flags' default 0).
+    /// A length's sigma `length_mm` (mm) and an angle's `angle_rad` (rad), each where given
+    /// and above 0 (a zero one is none, as the flags' default 0).
+    pub fn positive(length_mm: Option<f64>, angle_rad: Option<f64>) -> Self {
+        let positive = |s: Option<f64>| s.filter(|&s| s > 0.0);
+        Self { length_mm: positive(length_mm), angle_rad: positive(angle_rad) }
+    }
+
+    /// A noise file's: its `sigma_me_mm` and `sigma_orientation_deg` ([`positive`](Self::positive)).
     pub fn of_noise(spec: &crate::estimation::NoiseSpec) -> Self {
-        let positive = |s: f64| Some(s).filter(|&s| s > 0.0);
-        Self { length_mm: spec.sigma_me.and_then(positive), angle_rad: positive(spec.sigma_orientation) }
+        Self::positive(spec.sigma_me, Some(spec.sigma_orientation))
     }
 }
 
@@ -634,10 +639,7 @@ impl KindData {
     /// The markers observed (their numbers less one), ascending: one point each on the last
     /// link.
     pub fn markers(&self) -> Vec<usize> {
-        let mut markers: Vec<usize> = self.observations.iter().filter_map(Observation::marker).collect();
-        markers.sort_unstable();
-        markers.dedup();
-        markers
+        distinct(self.observations.iter().filter_map(Observation::marker))
     }
 
     /// The noise ordinary least squares assumes, where every sigma is assumed (`None` if one
@@ -685,13 +687,11 @@ impl KindData {
     /// The markers whose frame's orientation is measured (a 6-DOF probe's), ascending: a frame
     /// each on the last link, its origin the marker.
     pub fn probes(&self) -> Vec<usize> {
-        let mut probes: Vec<usize> = (self.observations.iter())
-            .filter(|o| matches!(o, Observation::Orientation { .. }))
-            .filter_map(Observation::marker)
-            .collect();
-        probes.sort_unstable();
-        probes.dedup();
-        probes
+        distinct(
+            (self.observations.iter())
+                .filter(|o| matches!(o, Observation::Orientation { .. }))
+                .filter_map(Observation::marker),
+        )
     }
 
     /// Whether any observation is of the tool point (or frame): any but a marker's.
@@ -1038,6 +1038,14 @@ impl KindData {
         let one = measured.iter().filter(|&&m| m).count() == 1;
         (0..6).filter(|&i| if i < 3 { !measured[i] } else { one && measured[i - 3] }).collect()
     }
+}
+
+/// `numbers` ascending, each once.
+fn distinct(numbers: impl Iterator<Item = usize>) -> Vec<usize> {
+    let mut numbers: Vec<usize> = numbers.collect();
+    numbers.sort_unstable();
+    numbers.dedup();
+    numbers
 }
 
 /// The names of a device's placement parameters.

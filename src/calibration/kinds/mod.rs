@@ -1370,7 +1370,7 @@ pub struct ObservationResidual {
 
 /// A set of observations scored: each one, and the RMS residuals before and after of the
 /// lengths (mm) and of the angles (deg, if any).
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct Score {
     /// Every observation, in order.
     pub observations: Vec<ObservationResidual>,
@@ -1794,17 +1794,7 @@ pub fn calibrate_kinds(
         setup_values: (before_setup, after_setup),
         refined: estimate,
         fixed,
-        training: Score {
-            observations: Vec::new(),
-            lengths: (0.0, 0.0),
-            angles: None,
-            markers: None,
-            by_group: Vec::new(),
-            by_marker: Vec::new(),
-            positions: Vec::new(),
-            sessions: Vec::new(),
-            flag_at: FLAG_AT,
-        },
+        training: Score { flag_at: FLAG_AT, ..Score::default() },
         nothing,
         robust,
         prior_sd,
@@ -2254,8 +2244,7 @@ fn scored(calibration: &mut KindCalibration, data: &KindData) -> Result<(), Cali
         calibration.refined.estimate.covariance *= f;
         calibration.variance_factor = Some(f);
         // The first scores let go before the second are made (a large file's are large).
-        drop(std::mem::take(&mut calibration.training.observations));
-        drop(std::mem::take(&mut calibration.training.positions));
+        drop(std::mem::take(&mut calibration.training));
         calibration.training = calibration.score(data)?;
     }
     let se = super::standard_errors_of(calibration.params.iter(), &calibration.refined.estimate);
