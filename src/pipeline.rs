@@ -11,13 +11,14 @@
 use crate::calibration::kinds::{KindCalibration, KindData, KindOptions, Score, calibrate_kinds_feasible};
 use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, TreeScore, calibrate_tree_feasible};
 use crate::calibration::{
-    self, Calibration, CalibrationError, Choices, ChosenFit, ErrorStats, FeasibleOptions, Front, Kinds, Loss,
-    Markers, Measurements, Options, SetEvaluation, Tree, calibrate_chosen, cross_validate_choices,
+    self, Calibration, CalibrationError, Choices, ChosenFit, ErrorStats, FeasibleOptions, FoldChoices, Front,
+    Kinds, Loss, Markers, Measurements, Nested, Options, SetEvaluation, Tree, calibrate_chosen,
+    cross_validate_choices,
 };
 use crate::design::accuracy::{AccuracyModel, CovarianceError, ParameterCovariance};
 use crate::estimation::{Estimator, NoiseModel};
 use crate::model::RobotModel;
-use crate::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy, fold_label};
+use crate::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy};
 use crate::report::observations::ObservationsReport;
 use crate::report::tree::TreeReport;
 use std::borrow::Cow;
@@ -133,16 +134,22 @@ fn cross_validate(
     k: usize,
 ) -> Result<(ErrorStats, ErrorStats, CrossValidationReport), CalibrationError> {
     let (asked, choices) = (&request.options, &request.choices);
-    let mut redone = choices_in_words(choices);
-    if asked.loss != Loss::Squared {
-        redone.push(format!("--loss {}'s weights", asked.loss));
-    }
     // Without choices, each fold calibrates with the options asked ([`calibration::cross_validate`]'s folds).
     let cv = cross_validate_choices(&Markers(model), fit, asked, choices, k)?;
-    let poses = Some(crate::report::poses::in_degrees(&cv.poses, &model.joints));
-    let (selected, scales) = (cv.selected, cv.scales);
-    let how = CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales, poses };
+    let mut how = fold_report(k, choices, asked.loss, cv.choices);
+    how.poses = Some(crate::report::poses::in_degrees(&cv.poses, &model.joints));
     Ok((cv.before, cv.after, how))
+}
+
+/// How a `k`-fold cross-validation was made: nested when `choices` or a robust `loss`'s
+/// weights are made from the data (each fold made them again, `made` what they chose).
+fn fold_report(k: usize, choices: &Choices, loss: Loss, made: FoldChoices) -> CrossValidationReport {
+    let mut redone = choices_in_words(choices);
+    if loss != Loss::Squared {
+        redone.push(format!("--loss {loss}'s weights"));
+    }
+    let (selected, scales) = (made.selected, made.scales);
+    CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales, poses: None }
 }
 
 /// The position error predicted at each held-out set's poses from the calibration's
@@ -235,7 +242,9 @@ fn in_context(context: &str) -> impl Fn(CalibrationError) -> FilesError + '_ {
 /// [`Front`]: of observation files ([`Kinds`]) and of a tree's views ([`Tree`]), how sessions
 /// join, how a held-out set is scored (as the cross-validation scores its folds,
 /// [`Front::Nested`]), feasible GLS, and the report.
-pub trait Files: Front {
+pub trait Files: Front<Nested = Nested<Self::Score>> {
+    /// A set of observations scored.
+    type Score;
     /// The report of a calibration.
     type Report;
 
@@ -247,7 +256,7 @@ pub trait Files: Front {
     fn counts(data: &Self::Data) -> (usize, usize);
 
     /// `data` scored by `fit`, as calibrated.
-    fn score(fit: &Self::Fit, data: &Self::Data) -> Result<Self::Nested, CalibrationError>;
+    fn score(fit: &Self::Fit, data: &Self::Data) -> Result<Self::Score, CalibrationError>;
 
     /// The estimator and the loss `options` ask for.
     fn asked(options: &Self::Options) -> (Estimator, Loss);
@@ -262,12 +271,12 @@ pub trait Files: Front {
 
     /// The report of `chosen` fitted on `data` from the files `names` (and `files`, each with
     /// its observations) by `estimator`, with the held-out sets' and the cross-validation's
-    /// `scores`.
+    /// `scores`, and how the cross-validation was made (`cv`).
     fn report(
         chosen: &ChosenFit<Self::Fit>,
         fitted: (&Self::Data, &str, Vec<(String, usize)>),
         estimator: &str,
-        scores: Vec<(String, Self::Nested)>,
+        scores: (Vec<(String, Self::Score)>, Option<CrossValidationReport>),
     ) -> Self::Report;
 
     /// `report` with the tool's position error predicted at the `held_out` sets' poses from
@@ -282,6 +291,7 @@ pub trait Files: Front {
 }
 
 impl Files for Kinds<'_> {
+    type Score = Score;
     type Report = ObservationsReport;
 
     fn join(sessions: &[(String, KindData)]) -> Result<Cow<'_, KindData>, FilesError> {
@@ -316,10 +326,11 @@ impl Files for Kinds<'_> {
         chosen: &ChosenFit<KindCalibration>,
         (data, names, files): (&KindData, &str, Vec<(String, usize)>),
         estimator: &str,
-        scores: Vec<(String, Score)>,
+        (scores, cv): (Vec<(String, Score)>, Option<CrossValidationReport>),
     ) -> ObservationsReport {
         let c = &chosen.calibration;
         let mut report = ObservationsReport::new(c, names, Self::counts(data), estimator, scores);
+        report.cross_validation = cv;
         report = report.with_training_files(files).with_assumed_sigmas(data.assumed_sigmas);
         if let Some(path) = &chosen.path {
             report = report.with_selection(path, c);
@@ -345,6 +356,7 @@ impl Files for Kinds<'_> {
 }
 
 impl Files for Tree<'_> {
+    type Score = TreeScore;
     type Report = TreeReport;
 
     fn join(sessions: &[(String, TreeData)]) -> Result<Cow<'_, TreeData>, FilesError> {
@@ -380,10 +392,11 @@ impl Files for Tree<'_> {
         chosen: &ChosenFit<TreeCalibration>,
         (data, names, files): (&TreeData, &str, Vec<(String, usize)>),
         estimator: &str,
-        scores: Vec<(String, TreeScore)>,
+        (scores, cv): (Vec<(String, TreeScore)>, Option<CrossValidationReport>),
     ) -> TreeReport {
         let c = &chosen.calibration;
         let mut report = TreeReport::new(c, names, Self::counts(data), estimator, scores);
+        report.cross_validation = cv;
         report = report.with_training_files(files);
         if let Some(path) = &chosen.path {
             report = report.with_selection(path);
@@ -475,16 +488,16 @@ pub fn calibrate_files<F: Files>(
         Ok((name.clone(), F::score(&chosen.calibration, d).map_err(in_context(name))?))
     };
     let mut scores = held_out.iter().map(scored).collect::<Result<Vec<_>, FilesError>>()?;
+    let mut cv = None;
     if let Some((k, choices)) = folds {
-        let score = cross_validate_choices(front, data, options, choices, k)
+        let nested = cross_validate_choices(front, data, options, choices, k)
             .map_err(in_context(&format!("--folds {k}: {names}")))?;
-        // The choices and a robust loss's weights are made from the data: made again in each
-        // fold.
-        let redone = *choices != Choices::default() || F::asked(options).1 != Loss::Squared;
-        scores.push((fold_label(k, redone), score));
+        let how = fold_report(k, choices, F::asked(options).1, nested.choices);
+        scores.push((how.label(), nested.score));
+        cv = Some(how);
     }
     let files = sessions.iter().map(|(name, file)| (name.clone(), F::counts(file).0)).collect();
-    let report = F::report(&chosen, (data, &names, files), estimator, scores);
+    let report = F::report(&chosen, (data, &names, files), estimator, (scores, cv));
     let report = F::with_predicted(report, &chosen.calibration, held_out).map_err(in_context(&names))?;
     Ok(Outcome { calibration: chosen.calibration, report })
 }

@@ -222,8 +222,8 @@ pub(crate) fn joined(name: &str, folds: Vec<SetEvaluation>) -> SetEvaluation {
     let whitening = format!("each fold's own: {}", first.whitening);
     let (marker_ids, stage_names) = (first.marker_ids, first.stages);
     let poses: Vec<PoseErrors> = first.poses.into_iter().chain(folds.flat_map(|f| f.poses)).collect();
-    let index: Vec<usize> = (0..poses.len()).collect();
-    let poses = super::in_data_order(poses, &index, k);
+    let fold_of: Vec<usize> = (0..poses.len()).map(|p| p % k).collect();
+    let poses = super::in_data_order(poses, &fold_of, k);
     let (pooled, per_marker, orientation) = summaries(&poses, stages, markers, probe);
     SetEvaluation {
         name: name.to_string(),

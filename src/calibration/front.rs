@@ -12,7 +12,9 @@
 use super::kinds::EvidenceSystem;
 use super::kinds::{self, KindCalibration, KindData, KindOptions, Score};
 use super::prior_scale::{AutoPrior, FrontEvidence, needs_the_noise, system_evidence};
-use super::selection::{ChosenFit, Criterion, Fitted, LinearModel, SelectionPath, named_joints};
+use super::selection::{
+    ChosenFit, Criterion, Fitted, FoldChoices, LinearModel, Nested, SelectionPath, named_joints,
+};
 use super::tree::{self, TreeCalibration, TreeData, TreeOptions, TreeScore};
 use super::{
     Calibration, CalibrationError, ErrorStats, JointParams, Measurements, NestedCv, Options, RobotModel,
@@ -214,23 +216,21 @@ impl Front for Markers<'_> {
     ) -> Result<NestedCv> {
         check_folds(folds, data.len())?;
         let (mut before, mut after) = (Vec::new(), Vec::new());
-        let (mut selected, mut scales, mut scored) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut choices, mut scored) = (FoldChoices::default(), Vec::new());
         let name = format!("{folds}-fold cross-validation");
         for fold in 0..folds {
             let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
             let chosen = fit(&data.subset(&train), &options.at_poses(&train))?;
+            choices.push(&chosen);
             let calibration = chosen.calibration;
             let held_out = data.subset(&test);
             before.extend(errors(&calibration.chains, &calibration.before, &held_out));
             after.extend(errors(&calibration.chains, &calibration.after, &held_out));
             let noise = options.noise.as_ref().map(|n| n.at_points(&test));
             scored.push(calibration.evaluate(&name, &held_out, noise.as_ref())?);
-            selected.extend(chosen.path.map(|p| p.selected));
-            // A scale per class (auto-ml:PRESET:classes) is no one number: not listed.
-            scales.extend(chosen.scale.filter(|s| s.classes.is_empty()).map(|s| s.scale()));
         }
         let (before, after) = (ErrorStats::of(&before), ErrorStats::of(&after));
-        Ok(NestedCv { before, after, selected, scales, poses: super::evaluation::joined(&name, scored) })
+        Ok(NestedCv { before, after, choices, poses: super::evaluation::joined(&name, scored) })
     }
 }
 
@@ -242,10 +242,11 @@ impl Front for Kinds<'_> {
     type Data = KindData;
     type Options = KindOptions;
     type Fit = KindCalibration;
-    type Nested = Score;
+    type Nested = Nested<Score>;
 
+    /// The poses its observations hold (a fold's training data keeps the others' joints).
     fn poses(data: &KindData) -> usize {
-        data.joints.len()
+        data.pose_lines().count()
     }
 
     fn prior(options: &mut KindOptions) -> &mut Vec<PriorEntry> {
@@ -322,8 +323,14 @@ impl Front for Kinds<'_> {
         options: &KindOptions,
         folds: usize,
         fit: FoldFit<Self>,
-    ) -> Result<Score> {
-        kinds::cross_validate_kinds_by(data, folds, |train| Ok(fit(train, options)?.calibration))
+    ) -> Result<Nested<Score>> {
+        let mut choices = FoldChoices::default();
+        let score = kinds::cross_validate_kinds_by(data, folds, |train| {
+            let chosen = fit(train, options)?;
+            choices.push(&chosen);
+            Ok(chosen.calibration)
+        })?;
+        Ok(Nested { score, choices })
     }
 }
 
@@ -335,10 +342,13 @@ impl Front for Tree<'_> {
     type Data = TreeData;
     type Options = TreeOptions;
     type Fit = TreeCalibration;
-    type Nested = TreeScore;
+    type Nested = Nested<TreeScore>;
 
+    /// The poses its views hold (a fold's training data keeps the others' joints).
     fn poses(data: &TreeData) -> usize {
-        data.joints.len()
+        let mut held = vec![false; data.joints.len()];
+        data.views.iter().for_each(|v| held[v.pose] = true);
+        held.into_iter().filter(|&h| h).count()
     }
 
     fn prior(options: &mut TreeOptions) -> &mut Vec<PriorEntry> {
@@ -395,7 +405,13 @@ impl Front for Tree<'_> {
         options: &TreeOptions,
         folds: usize,
         fit: FoldFit<Self>,
-    ) -> Result<TreeScore> {
-        tree::cross_validate_tree_by(data, folds, |train| Ok(fit(train, options)?.calibration))
+    ) -> Result<Nested<TreeScore>> {
+        let mut choices = FoldChoices::default();
+        let score = tree::cross_validate_tree_by(data, folds, |train| {
+            let chosen = fit(train, options)?;
+            choices.push(&chosen);
+            Ok(chosen.calibration)
+        })?;
+        Ok(Nested { score, choices })
     }
 }

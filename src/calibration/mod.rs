@@ -36,8 +36,8 @@ pub use repeatability::{
 };
 pub use robust::{Loss, RobustFit};
 pub use selection::{
-    Choices, Chosen, ChosenFit, Criterion, NestedCv, SelectionPath, calibrate_chosen, choose,
-    cross_validate_choices, select,
+    Choices, Chosen, ChosenFit, Criterion, FoldChoices, Nested, NestedCv, SelectionPath, calibrate_chosen,
+    choose, cross_validate_choices, select,
 };
 
 use crate::estimation::{
@@ -1743,12 +1743,34 @@ pub(crate) fn check_folds(folds: usize, poses: usize) -> Result<(), CalibrationE
     }
 }
 
+/// The fold of each pose of a k-fold cross-validation, indexed by pose number (`poses` of
+/// them), `usize::MAX` for a pose `held` does not hold: the pose of rank `r` among those held
+/// (in number order) goes to fold `r mod folds`. A fold's training data keeps its poses'
+/// numbers and holds every other one of them, so a nested split by the numbers alone would
+/// leave a fold empty; by rank it splits as the whole data does. At least 2 folds, at most a
+/// fold per pose held.
+pub(crate) fn pose_folds(
+    held: impl Iterator<Item = usize>,
+    poses: usize,
+    folds: usize,
+) -> Result<Vec<usize>, CalibrationError> {
+    let mut fold = vec![usize::MAX; poses];
+    held.for_each(|p| fold[p] = 0);
+    let mut rank = 0;
+    for f in fold.iter_mut().filter(|f| **f == 0) {
+        *f = rank % folds.max(1);
+        rank += 1;
+    }
+    check_folds(folds, rank)?;
+    Ok(fold)
+}
+
 /// The held-out items of a k-fold cross-validation, scored fold by fold (`scored`: fold 0's in
-/// their order, then fold 1's, ...), put back in the data's order: item `k` of the data, of
-/// pose `pose_of[k]`, is held out in fold `pose_of[k] mod folds`.
-pub(crate) fn in_data_order<T>(scored: Vec<T>, pose_of: &[usize], folds: usize) -> Vec<T> {
-    debug_assert_eq!(scored.len(), pose_of.len(), "one scored item for each of the data's");
-    let order = (0..folds).flat_map(|f| (0..pose_of.len()).filter(move |&k| pose_of[k] % folds == f));
+/// their order, then fold 1's, ...), put back in the data's order: item `k` of the data was
+/// held out in fold `fold_of[k]`.
+pub(crate) fn in_data_order<T>(scored: Vec<T>, fold_of: &[usize], folds: usize) -> Vec<T> {
+    debug_assert_eq!(scored.len(), fold_of.len(), "one scored item for each of the data's");
+    let order = (0..folds).flat_map(|f| (0..fold_of.len()).filter(move |&k| fold_of[k] == f));
     let mut indexed: Vec<(usize, T)> = order.zip(scored).collect();
     indexed.sort_by_key(|(k, _)| *k);
     indexed.into_iter().map(|(_, item)| item).collect()
@@ -1766,8 +1788,20 @@ mod fold_tests {
     #[test]
     fn held_out_items_go_back_to_the_datas_order() {
         let pose_of = [0, 1, 1, 2, 3, 4];
+        let fold = super::pose_folds(pose_of.into_iter(), 5, 2).unwrap();
+        let fold_of: Vec<usize> = pose_of.iter().map(|&p| fold[p]).collect();
         let scored = vec!["p0", "p2", "p4", "p1a", "p1b", "p3"];
-        assert_eq!(super::in_data_order(scored, &pose_of, 2), ["p0", "p1a", "p1b", "p2", "p3", "p4"]);
+        assert_eq!(super::in_data_order(scored, &fold_of, 2), ["p0", "p1a", "p1b", "p2", "p3", "p4"]);
+    }
+
+    /// A fold's training poses (every other one, numbers kept) split again by their rank: both
+    /// inner folds hold poses, where their numbers' parity would put every one in one fold.
+    #[test]
+    fn a_training_folds_poses_split_by_rank() {
+        let fold = super::pose_folds([0, 2, 4, 6, 2].into_iter(), 8, 2).unwrap();
+        assert_eq!(fold, [0, usize::MAX, 1, usize::MAX, 0, usize::MAX, 1, usize::MAX]);
+        let refused = super::pose_folds([0, 2, 4].into_iter(), 8, 4).unwrap_err().to_string();
+        assert!(refused.contains('4') && refused.contains('3'), "{refused}");
     }
 }
 

@@ -268,18 +268,45 @@ pub fn cross_validate_choices<F: Front>(
     front.nested(data, options, folds, &|train, options| calibrate_chosen(front, train, options, choices))
 }
 
-/// A nested k-fold cross-validation ([`cross_validate_choices`]).
+/// What the folds of a nested cross-validation chose, fold by fold.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FoldChoices {
+    /// With a selection: the joint parameters each fold's selection chose.
+    pub selected: Vec<Vec<String>>,
+    /// With `--prior auto`: the scale each fold chose (none with a scale per class,
+    /// `auto-ml:PRESET:classes`).
+    pub scales: Vec<f64>,
+}
+
+impl FoldChoices {
+    /// The next fold's choices: its selection and its one prior scale, where it made them.
+    pub(crate) fn push<C>(&mut self, chosen: &ChosenFit<C>) {
+        self.selected.extend(chosen.path.as_ref().map(|p| p.selected.clone()));
+        // A scale per class (auto-ml:PRESET:classes) is no one number: not listed.
+        self.scales.extend(chosen.scale.as_ref().filter(|s| s.classes.is_empty()).map(|s| s.scale()));
+    }
+}
+
+/// A nested k-fold cross-validation of observation files or a tree's views
+/// ([`cross_validate_choices`]): the held-out observations scored, each with its fold's
+/// calibration, and what each fold chose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Nested<S> {
+    /// The held-out observations scored.
+    pub score: S,
+    /// What each fold chose.
+    pub choices: FoldChoices,
+}
+
+/// A nested k-fold cross-validation of a marker file ([`cross_validate_choices`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct NestedCv {
     /// The held-out poses' errors before calibration (the registration on the other folds).
     pub before: ErrorStats,
     /// Their errors after the choices and calibration on the other folds.
     pub after: ErrorStats,
-    /// With a selection: the joint parameters each fold's selection chose, fold by fold.
-    pub selected: Vec<Vec<String>>,
-    /// With `--prior auto`: the scale each fold chose, fold by fold (none with a scale per
-    /// class, `auto-ml:PRESET:classes`).
-    pub scales: Vec<f64>,
+    /// What each fold chose.
+    pub choices: FoldChoices,
     /// Every pose held out in its fold, scored pose by pose with that fold's calibration, in
     /// the data's order (`K-fold cross-validation`): "before" its registration, "after" its
     /// choices and calibration.

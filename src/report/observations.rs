@@ -80,6 +80,9 @@ pub struct ObservationsReport {
     /// `--select`: how the joint parameters were chosen, its path.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub selection: Option<super::calibration::SelectionReport>,
+    /// `--folds K`: how the cross-validation was made (nested, what each fold chose again).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cross_validation: Option<super::calibration::CrossValidationReport>,
     /// `--prior auto`: the scale chosen for the preset's standard deviations, and the curve
     /// (cross-validated RMS of the length residuals, mm) it was chosen from.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -206,6 +209,7 @@ impl ObservationsReport {
             }),
             selection: None,
             prior_scale: None,
+            cross_validation: None,
             predicted: Vec::new(),
             assumed_sigmas: 0,
         }
@@ -284,6 +288,14 @@ impl ObservationsReport {
         }
     }
 
+    /// The training files by which set `set`'s observations are numbered: the training set's and
+    /// the cross-validation's (the last set with `--folds`, the training observations in their
+    /// order), none for a held-out file's.
+    fn files_of(&self, set: usize) -> &[(String, usize)] {
+        let folds = self.cross_validation.is_some() && set + 1 == self.sets.len();
+        if set == 0 || folds { &self.training_files } else { &[] }
+    }
+
     /// The worst observations of each set after calibration, whitened.
     fn write_worst(&self, out: &mut String) {
         let _ =
@@ -292,7 +304,7 @@ impl ObservationsReport {
             let mut worst: Vec<(usize, &ObservationResidual)> =
                 score.observations.iter().enumerate().collect();
             worst.sort_by(|a, b| b.1.whitened.abs().total_cmp(&a.1.whitened.abs()));
-            let files: &[(String, usize)] = if set == 0 { &self.training_files } else { &[] };
+            let files = self.files_of(set);
             for (k, r) in worst.iter().take(WORST) {
                 let _ = writeln!(
                     out,
@@ -321,7 +333,7 @@ impl ObservationsReport {
         for (set, (name, score)) in self.sets.iter().enumerate() {
             let mut worst: Vec<&crate::calibration::kinds::PositionError> = score.positions.iter().collect();
             worst.sort_by(|a, b| b.error.1.total_cmp(&a.error.1));
-            let files: &[(String, usize)] = if set == 0 { &self.training_files } else { &[] };
+            let files = self.files_of(set);
             for p in worst.iter().take(WORST) {
                 let _ = writeln!(
                     out,
@@ -423,6 +435,9 @@ impl ObservationsReport {
             "observation",
         );
         out.push_str(&super::calibration::choices_text(self.prior_scale.as_ref(), self.selection.as_ref()));
+        if let Some(cv) = &self.cross_validation {
+            let _ = write!(out, "\n{}", cv.text());
+        }
         if !self.predicted.is_empty() {
             let _ = write!(out, "\n{}", super::calibration::predicted_text(&self.predicted));
         }

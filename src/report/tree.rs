@@ -74,6 +74,9 @@ pub struct TreeReport {
     /// The training views it weighted below 0.1, by line.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub down_weighted: Vec<super::calibration::DownWeighted>,
+    /// `--folds K`: how the cross-validation was made (nested, what each fold chose again).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cross_validation: Option<super::calibration::CrossValidationReport>,
     /// `--prior auto`: the scale chosen for the preset's standard deviations, and the curve
     /// (cross-validated RMS of the views' position residuals, mm) it was chosen from.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -131,6 +134,7 @@ impl TreeReport {
                     .collect()
             }),
             prior_scale: None,
+            cross_validation: None,
             selection: None,
         }
     }
@@ -166,13 +170,21 @@ impl TreeReport {
         out + &super::verdict::count_warnings(&self.warnings)
     }
 
+    /// The training files by which set `set`'s views are numbered: the training set's and
+    /// the cross-validation's (the last set with `--folds`, the training views in their
+    /// order), none for a held-out file's.
+    fn files_of(&self, set: usize) -> &[(String, usize)] {
+        let folds = self.cross_validation.is_some() && set + 1 == self.sets.len();
+        if set == 0 || folds { &self.training_files } else { &[] }
+    }
+
     /// The worst views of each set after calibration.
     fn write_worst(&self, out: &mut String) {
         let _ = writeln!(*out, "\nworst views after calibration ({WORST} per set; every one in --json):");
         for (set, (name, score)) in self.sets.iter().enumerate() {
             let mut worst: Vec<(usize, &ViewResidual)> = score.views.iter().enumerate().collect();
             worst.sort_by(|a, b| b.1.after_mm.total_cmp(&a.1.after_mm));
-            let files: &[(String, usize)] = if set == 0 { &self.training_files } else { &[] };
+            let files = self.files_of(set);
             for &(k, v) in worst.iter().take(WORST) {
                 let (before, after) = match (v.before_deg, v.after_deg) {
                     (Some(b), Some(a)) => (
@@ -216,6 +228,9 @@ impl TreeReport {
         }
         super::calibration::write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "view");
         out.push_str(&super::calibration::choices_text(self.prior_scale.as_ref(), self.selection.as_ref()));
+        if let Some(cv) = &self.cross_validation {
+            let _ = write!(out, "\n{}", cv.text());
+        }
         let _ = writeln!(out, "\ncameras and targets as calibrated (x, y, z mm; roll, pitch, yaw deg):");
         let width = self.frames.iter().map(|f| f.name.len()).max().unwrap_or(0);
         for f in &self.frames {

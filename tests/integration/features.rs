@@ -184,7 +184,7 @@ fn a_scaled_prior_works_on_every_kind_as_well_as_the_plain_fit() {
         assert!(found < 1.2 * plain, "{} --prior auto: held out {found} mm, plain wls {plain} mm", case.name);
         let nested =
             cross_validate_choices(&Kinds(&puma()), &case.training, &case.plain, &choices, 5).unwrap();
-        let nested = nested.lengths.1;
+        let nested = nested.score.lengths.1;
         assert!(
             nested < 1.5 * found && found < 1.5 * nested,
             "{}: nested 5-fold {nested} mm against held out {found} mm",
@@ -223,8 +223,11 @@ fn selection_works_on_every_kind_as_well_as_the_plain_fit() {
             assert_eq!(every, path.selected.len(), "{name}: calibrated what it chose");
         }
         let bic = Choices { select: Some(Criterion::Bic), auto_prior: None };
-        let nested =
-            cross_validate_choices(&Kinds(&puma()), &case.training, &case.plain, &bic, 5).unwrap().lengths.1;
+        let nested = cross_validate_choices(&Kinds(&puma()), &case.training, &case.plain, &bic, 5)
+            .unwrap()
+            .score
+            .lengths
+            .1;
         assert!(
             nested < 1.5 * plain && plain < 1.5 * nested,
             "{}: nested 5-fold {nested} mm against held out {plain} mm",

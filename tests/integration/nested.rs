@@ -107,7 +107,7 @@ fn cross_validation_after_selection_is_optimistic_and_the_nested_one_is_not() {
             let selection = Choices { select: Some(criterion), auto_prior: None };
             let redone =
                 cross_validate_choices(&Markers(&model), &train, &options(), &selection, folds).unwrap();
-            assert_eq!(redone.selected.len(), folds);
+            assert_eq!(redone.choices.selected.len(), folds);
             plain.push(after_selection / held - 1.0);
             nested.push(redone.after.rms / held - 1.0);
         }
@@ -285,4 +285,53 @@ pub(crate) fn calibrate_puma(extra: &[&str]) -> (String, serde_json::Value) {
     let report = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     std::fs::remove_dir_all(&dir).unwrap();
     (String::from_utf8(output.stdout).unwrap(), report)
+}
+
+/// A scale chosen inside each fold of an observation fit (two marker files fitted together)
+/// and of a tree's: a fold's training poses keep their numbers, so its own folds are split by
+/// rank, each with poses to fit (split by number, every pose in one inner fold, and the
+/// observation fit panicked). The report says what each fold chose, in the text and the JSON,
+/// and names the file of each held-out observation it lists.
+#[test]
+fn a_prior_scale_is_chosen_inside_each_fold_of_an_observation_fit() {
+    let dir = std::env::temp_dir().join(format!("robocal-nested-kinds-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("report.json");
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
+        .args(["--data", "examples/puma560-validation.csv", "--marker", "50,0,150", "--marker=-40,60,120"])
+        .args(["--params", "offsets", "--prior", "auto:machined", "--folds", "2", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let text = String::from_utf8(output.stdout).unwrap();
+    assert!(text.contains("\n2-fold cross-validation, nested markers (mm) "), "{text}");
+    assert!(text.contains(
+        "\n2-fold cross-validation, nested: --prior auto:machined's scale made again inside each fold (the folds' prior scales: "
+    ));
+    // A held-out observation's line is in the training file it is in, as the training set's.
+    let named = |file: &str| {
+        text.contains(&format!("\n  2-fold cross-validation, nested, examples/{file}.csv line "))
+    };
+    assert!(named("puma560-measurements") && named("puma560-validation"), "{text}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let cv = &report["cross_validation"];
+    assert_eq!((cv["folds"].as_u64(), cv["nested"].as_bool()), (Some(2), Some(true)));
+    assert_eq!(cv["redone"], serde_json::json!(["--prior auto:machined's scale"]));
+    assert_eq!(cv["scales"].as_array().map(Vec::len), Some(2));
+
+    // A tree's views likewise.
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "-q", "--model", "presets/torso.urdf", "--data", "examples/torso/views.csv"])
+        .args(["--params", "offsets", "--prior", "auto:machined", "--folds", "2", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(report["cross_validation"]["scales"].as_array().map(Vec::len), Some(2));
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -1516,15 +1516,6 @@ impl ObservationResidual {
 }
 
 impl Score {
-    /// The observations of several scores in one (k-fold cross-validation's held-out folds),
-    /// `kinds` the observations of each, in order.
-    fn pooled(scores: &[(Score, Vec<Observation>)]) -> Self {
-        let observations: Vec<ObservationResidual> =
-            scores.iter().flat_map(|(s, _)| s.observations.iter().copied()).collect();
-        let kinds: Vec<Observation> = scores.iter().flat_map(|(_, k)| k.iter().copied()).collect();
-        Self::of(observations, &kinds)
-    }
-
     /// `data`'s residuals before and after (`y`), and after whitened (`z`).
     /// `variances`: each observation's (the diagonal of its `V_k`).
     fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), variances: &[f64]) -> Self {
@@ -2295,22 +2286,22 @@ pub fn cross_validate_kinds(
 pub(crate) fn cross_validate_kinds_by(
     data: &KindData,
     folds: usize,
-    calibrate: impl Fn(&KindData) -> Result<KindCalibration, CalibrationError>,
+    mut calibrate: impl FnMut(&KindData) -> Result<KindCalibration, CalibrationError>,
 ) -> Result<Score, CalibrationError> {
-    super::check_folds(folds, data.joints.len())?;
-    let scores = (0..folds)
-        .map(|fold| {
-            let (test, train) =
-                (data.keeping(|o| o.pose() % folds == fold), data.keeping(|o| o.pose() % folds != fold));
-            let c = calibrate(&train)?;
-            Ok((c.score(&test)?, test.observations))
-        })
-        .collect::<Result<Vec<_>, CalibrationError>>()?;
-    // Scored fold by fold; listed in the data's order.
-    let mut pooled = Score::pooled(&scores);
-    let pose_of: Vec<usize> = data.observations.iter().map(Observation::pose).collect();
-    pooled.observations = super::in_data_order(pooled.observations, &pose_of, folds);
-    Ok(pooled)
+    let fold_of_pose =
+        super::pose_folds(data.observations.iter().map(Observation::pose), data.joints.len(), folds)?;
+    let mut scored = Vec::with_capacity(data.observations.len());
+    for fold in 0..folds {
+        let (test, train) = (
+            data.keeping(|o| fold_of_pose[o.pose()] == fold),
+            data.keeping(|o| fold_of_pose[o.pose()] != fold),
+        );
+        scored.extend(calibrate(&train)?.score(&test)?.observations);
+    }
+    // Scored fold by fold; summed up in the data's order (a marker position's index is its
+    // first coordinate's there).
+    let fold_of: Vec<usize> = data.observations.iter().map(|o| fold_of_pose[o.pose()]).collect();
+    Ok(Score::of(super::in_data_order(scored, &fold_of, folds), &data.observations))
 }
 
 /// `model` with its base placed by the rigid registration of the nominal markers (the

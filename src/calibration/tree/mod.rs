@@ -683,19 +683,21 @@ pub fn cross_validate_tree(
 pub fn cross_validate_tree_by(
     data: &TreeData,
     folds: usize,
-    calibrate: impl Fn(&TreeData) -> Result<TreeCalibration, CalibrationError>,
+    mut calibrate: impl FnMut(&TreeData) -> Result<TreeCalibration, CalibrationError>,
 ) -> Result<TreeScore, CalibrationError> {
-    super::check_folds(folds, data.joints.len())?;
+    let fold_of_pose = super::pose_folds(data.views.iter().map(|v| v.pose), data.joints.len(), folds)?;
     let mut views = Vec::with_capacity(data.views.len());
     for fold in 0..folds {
-        let (test, train) =
-            (data.keeping(|pose| pose % folds == fold), data.keeping(|pose| pose % folds != fold));
+        let (test, train) = (
+            data.keeping(|pose| fold_of_pose[pose] == fold),
+            data.keeping(|pose| fold_of_pose[pose] != fold),
+        );
         views.extend(calibrate(&train)?.score(&test)?.views);
     }
     // Scored fold by fold; listed in the data's order.
     let mut pooled = TreeScore::of(views, data.position_only);
-    let pose_of: Vec<usize> = data.views.iter().map(|v| v.pose).collect();
-    pooled.views = super::in_data_order(pooled.views, &pose_of, folds);
+    let fold_of: Vec<usize> = data.views.iter().map(|v| fold_of_pose[v.pose]).collect();
+    pooled.views = super::in_data_order(pooled.views, &fold_of, folds);
     Ok(pooled)
 }
 
