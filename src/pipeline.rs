@@ -195,14 +195,25 @@ fn predicted_at<'a>(
 }
 
 /// The tool point's position error predicted at each held-out set's poses from an observation
-/// calibration's covariance of the robot's parameters (the markers' and the set-up's left out:
-/// they do not move the tool), with `floor_mm` (the first held-out set's marker RMS after
-/// calibration; 0 without markers: no position measured).
+/// calibration's covariance of the robot's parameters ([`robot_covariance`]), with `floor_mm`
+/// (the first held-out set's marker RMS after calibration; 0 without markers: no position
+/// measured).
 fn predicted_for_kinds(
     c: &KindCalibration,
     held_out: &[(String, KindData)],
     floor_mm: f64,
 ) -> Result<Vec<PredictedAccuracy>, CovarianceError> {
+    predicted_at(
+        &c.calibrated,
+        robot_covariance(c, floor_mm),
+        held_out.iter().map(|(name, d)| (name.as_str(), d.joints.as_slice())),
+    )
+}
+
+/// An observation calibration's covariance of the robot's parameters, the markers' and the
+/// set-up's left out (they do not move the tool), with `floor_mm` in quadrature: what the
+/// accuracy at new poses is predicted from, and `--out-model`'s covariance sidecar holds.
+pub fn robot_covariance(c: &KindCalibration, floor_mm: f64) -> ParameterCovariance {
     let estimate = &c.refined.estimate;
     let kept: Vec<usize> = (0..estimate.names.len())
         .filter(|&k| {
@@ -213,12 +224,7 @@ fn predicted_for_kinds(
     let covariance = nalgebra::DMatrix::from_fn(kept.len(), kept.len(), |r, col| {
         estimate.covariance[(kept[r], kept[col])]
     });
-    let covariance = ParameterCovariance::new(names, &covariance, floor_mm);
-    predicted_at(
-        &c.calibrated,
-        covariance,
-        held_out.iter().map(|(name, d)| (name.as_str(), d.joints.as_slice())),
-    )
+    ParameterCovariance::new(names, &covariance, floor_mm)
 }
 
 /// Why a calibration of observation files or of views on a tree failed: the calibration's
@@ -346,9 +352,7 @@ impl Files for Kinds<'_> {
         fit: &KindCalibration,
         held_out: &[(String, KindData)],
     ) -> Result<ObservationsReport, CalibrationError> {
-        // The sets: the training observations first, then the held-out files.
-        let floor_mm = report.sets.get(1).filter(|_| !held_out.is_empty()).and_then(|(_, s)| s.markers);
-        let predicted = predicted_for_kinds(fit, held_out, floor_mm.map_or(0.0, |m| m.1)).map_err(|e| {
+        let predicted = predicted_for_kinds(fit, held_out, report.floor_mm()).map_err(|e| {
             CalibrationError::Scoring(format!("the accuracy predicted at the held-out poses: {e}"))
         })?;
         Ok(report.with_predicted(predicted))

@@ -61,6 +61,10 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     }
     if let Some(path) = &request.out_model {
         outputs.add(path, robocal::model::to_toml_with_markers(&c.calibrated, &c.marker_positions()));
+        if super::accuracy::has_a_sidecar(path) {
+            let sidecar = robocal::pipeline::robot_covariance(&c, report.floor_mm()).to_json();
+            outputs.add(super::accuracy::covariance_path(path), sidecar);
+        }
     }
     if let (Some(path), Some(urdf)) = (&request.out_urdf, &robot.urdf) {
         let text =

@@ -215,6 +215,15 @@ impl ObservationsReport {
         }
     }
 
+    /// The floor of the accuracy predicted from the parameter covariance: the first held-out
+    /// file's marker position RMS after calibration (mm), 0 without one (no position measured
+    /// held out).
+    pub fn floor_mm(&self) -> f64 {
+        let held_out = self.sets.len().saturating_sub(1 + usize::from(self.cross_validation.is_some()));
+        let first = self.sets.get(1).filter(|_| held_out > 0);
+        first.and_then(|(_, s)| s.markers).map_or(0.0, |m| m.1)
+    }
+
     /// The same report with the training files named (each one's name and number of
     /// observations, in the order fitted): its training rows say which file they are in.
     pub fn with_training_files(mut self, files: Vec<(String, usize)>) -> Self {

@@ -257,3 +257,49 @@ fn an_observation_calibration_predicts_its_tool_points_error() {
     let ratio = (predicted / actual).sqrt();
     assert!((0.8..1.25).contains(&ratio), "predicted {} mm, actual {} mm", predicted.sqrt(), actual.sqrt());
 }
+
+/// An observation calibration (markers with a ball bar) writes the covariance sidecar of the
+/// robot's parameters beside `--out-model`, the markers' and the ball bar's centre left out
+/// (they do not move the tool), the floor the held-out marker RMS; `robocal accuracy` reads it
+/// and predicts at the held-out poses what the report predicted there (to its CSV's digits).
+#[test]
+fn an_observation_calibration_writes_the_covariance_accuracy_reads() {
+    let dir = std::env::temp_dir().join(format!("robocal-kinds-sidecar-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (model, json, csv) = (dir.join("m.toml"), dir.join("r.json"), dir.join("a.csv"));
+    let output = Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
+        .args(["--data", "examples/puma560-ballbar.csv", "--marker", "50,0,150", "--marker=-40,60,120"])
+        .args(["--validate", "examples/puma560-validation.csv", "--out-model"])
+        .arg(&model)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let sidecar = std::fs::read_to_string(dir.join("m.toml.covariance.json")).unwrap();
+    let covariance = ParameterCovariance::from_json(&sidecar).unwrap();
+    assert!(covariance.names.iter().all(|n| !n.starts_with("marker") && !n.starts_with("point")));
+    assert!(covariance.names.iter().any(|n| n == "j2.theta"), "{:?}", covariance.names);
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let predicted = &report["predicted"][0];
+    assert_eq!(Some(covariance.floor_mm), predicted["floor_mm"].as_f64());
+    let output = Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["accuracy", "-q", "--poses", "examples/puma560-validation.csv", "--model"])
+        .arg(&model)
+        .arg("--out")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let sd: Vec<f64> =
+        text.lines().skip(2).map(|row| row.split(',').nth(12).unwrap().parse().unwrap()).collect();
+    let mean = sd.iter().sum::<f64>() / sd.len() as f64;
+    let expected = predicted["mean_mm"].as_f64().unwrap();
+    // The CSV's SDs to 6 decimals (mm): each within 5e-7 of the prediction.
+    assert!((mean - expected).abs() < 5e-7, "{mean} {expected}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
