@@ -478,11 +478,9 @@ impl CalibrateObservationsRequest {
             }
         };
         let sigmas = observation_sigmas(&args)?;
-        require(
-            args.params != ParamWords::All,
-            "--params all: the base and the set-up are chosen by the observations; give --params joints",
-        )?;
-        let joints = joint_params(args.params, false)?;
+        // `all`: the joints with the base and the markers, as for a marker file (the set-up is
+        // always estimated).
+        let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
         let select = selection(args.select, args.folds, &joints)?;
         if method == Method::Feasible {
             feasible_alone(select.is_some(), &args.choice)?;

@@ -489,9 +489,10 @@ fn calibrate_observations_weights_by_default_and_takes_every_estimator() {
     assert!(!request.estimate_tool);
     assert_eq!(observations(&["--estimator", "ols"]).unwrap().method, Method::Given(Estimator::Ols));
     assert_eq!(observations(&["--estimator", "fgls"]).unwrap().method, Method::Feasible);
+    assert_eq!(observations(&["--params", "all"]).unwrap().joints, JointParams::All);
     assert_eq!(
-        observations(&["--params", "all"]).unwrap_err(),
-        "--params all: the base and the set-up are chosen by the observations; give --params joints"
+        observations(&["--params", "all", "--fixed-base"]).unwrap_err(),
+        "--params all frees the base and the markers: with --fixed-base or --fixed-markers, give --params joints"
     );
     assert_eq!(observations(&["--estimator", "wls-diag"]).unwrap().method, Method::Given(Estimator::WlsDiag));
     assert_eq!(
