@@ -1516,6 +1516,15 @@ impl ObservationResidual {
 }
 
 impl Score {
+    /// The same residuals of `data` whitened by `V_k f`, each whitened residual over `sqrt(f)`,
+    /// and what is summed from them again.
+    fn whitened_by(self, f: f64, data: &KindData) -> Self {
+        let scale = f.sqrt();
+        let mut observations = self.observations;
+        observations.iter_mut().for_each(|r| r.whitened /= scale);
+        Self { sessions: self.sessions, ..Self::of(observations, &data.observations) }
+    }
+
     /// `data`'s residuals before and after (`y`), and after whitened (`z`).
     /// `variances`: each observation's (the diagonal of its `V_k`).
     fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), variances: &[f64]) -> Self {
@@ -2234,9 +2243,9 @@ fn scored(calibration: &mut KindCalibration, data: &KindData) -> Result<(), Cali
         let f = sum / (n - rank) as f64;
         calibration.refined.estimate.covariance *= f;
         calibration.variance_factor = Some(f);
-        // The first scores let go before the second are made (a large file's are large).
-        drop(std::mem::take(&mut calibration.training));
-        calibration.training = calibration.score(data)?;
+        // As `score` whitens with `V_k f`: each whitened residual over sqrt(f).
+        let training = std::mem::take(&mut calibration.training);
+        calibration.training = training.whitened_by(f, data);
     }
     let se = super::standard_errors_of(calibration.params.iter(), &calibration.refined.estimate);
     let (before, after) = (&calibration.before, &calibration.after);
