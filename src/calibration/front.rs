@@ -17,8 +17,8 @@ use super::selection::{
 };
 use super::tree::{self, TreeCalibration, TreeData, TreeOptions, TreeScore};
 use super::{
-    Calibration, CalibrationError, ErrorStats, JointParams, Measurements, NestedCv, Options, RobotModel,
-    Whitening, calibrate_quietly, check_folds, errors, observed, ols_prior_spread, selection,
+    Calibration, CalibrationError, ErrorStats, JointParams, Loss, Measurements, NestedCv, Options,
+    RobotModel, Whitening, calibrate_quietly, check_folds, errors, observed, ols_prior_spread, selection,
 };
 use crate::estimation::{Estimator, PointProblem, PriorEntry, Weights, linearise};
 use crate::kinematics::Measured;
@@ -284,8 +284,11 @@ impl Front for Kinds<'_> {
 
     /// Their system of what `options` asks for (the robot's parameters, then the set-up's,
     /// flat), whitened by `V_k` (weighted least squares, `kinds::evidence_system`), about
-    /// `about`'s estimate (`None`: the "before" fit). The noise must be known: a sigma column or
-    /// the joint noise (`--joint-sigma-deg`).
+    /// `about`'s estimate (`None`: the "before" fit). Without the noise (no sigma given, the
+    /// joints exact) the noise is taken, as a marker file's is, from the residuals' spread of
+    /// the fit without priors: the whitening's scale times `sqrt(f)`, `f` that fit's variance
+    /// of unit weight ([`KindCalibration::variance_factor`](kinds::KindCalibration)), said
+    /// in mm as a length row's sigma times `sqrt(f)` ([`FrontEvidence::noise_spread`]).
     fn evidence(
         &self,
         data: &KindData,
@@ -293,16 +296,21 @@ impl Front for Kinds<'_> {
         auto: &AutoPrior,
         about: Option<&KindCalibration>,
     ) -> Result<FrontEvidence> {
-        if options.joint_noise.is_none() && data.assumed_sigmas == data.observations.len() {
-            return Err(needs_the_noise(
-                auto,
-                "a sigma column in the observation file, or --joint-sigma-deg",
-            ));
-        }
         let options = KindOptions { estimator: Estimator::Wls, ..options.clone() };
+        let spread = match options.joint_noise.is_none() && data.assumed_sigmas == data.observations.len() {
+            true => {
+                let plain = KindOptions { prior: Vec::new(), loss: Loss::Squared, ..options.clone() };
+                let f = kinds::calibrate_kinds(self.0, data, &plain)?.variance_factor.unwrap_or(1.0);
+                let length = data.observations.iter().find(|o| !o.is_angle()).map_or(1.0, |o| o.sigma());
+                Some((f.sqrt(), f.sqrt() * length))
+            }
+            false => None,
+        };
         let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
-        let system = kinds::evidence_system(self.0, data, &options, about)?;
-        Ok(FrontEvidence { evidence: system_evidence(auto, &options.prior, &system)?, noise_spread: None })
+        let mut system = kinds::evidence_system(self.0, data, &options, about)?;
+        system.c *= spread.map_or(1.0, |s| s.0);
+        let evidence = system_evidence(auto, &options.prior, &system)?;
+        Ok(FrontEvidence { evidence, noise_spread: spread.map(|s| s.1) })
     }
 
     /// The CV RMS is of the lengths: observations that are all angles refuse `cv`.
