@@ -118,24 +118,47 @@ fn is_zero(n: &usize) -> bool {
     *n == 0
 }
 
-/// A scored set's rows of the verdict, `(label, (before, after), decimals)`: in a set with
-/// markers or lengths of several groups (a ball bar's distances and markers), each group's
-/// RMS by name ([`Score::by_group`]) and the markers' positions' (each marker's with several),
-/// a marker's coordinates never pooled with the positions; else (one kind of file) its
-/// lengths' (mm) and its angles' (deg).
-fn set_rows(name: &str, score: &Score) -> Vec<(String, (f64, f64), usize)> {
-    let each = score.by_marker.iter().map(|m| (format!("{name} marker {} (mm)", m.marker), m.rms, 4));
-    let markers = score.markers.map(|rms| (format!("{name} markers (mm)"), rms, 4)).into_iter().chain(each);
+/// A scored set's rows of the verdict, `[label, count, RMS, max, flagged]`: in a set with
+/// markers or lengths of several groups (a ball bar's distances and markers), each group's by
+/// name ([`Score::by_group`], its observations) and the markers' positions (each marker's with
+/// several; a position counted, and flagged, as a marker file's pose is), a marker's coordinates
+/// never pooled with the positions; else (one kind of file) its lengths (mm) and its angles
+/// (deg).
+fn set_rows(name: &str, score: &Score) -> Vec<[String; 5]> {
     let (angles, lengths): (Vec<&GroupRms>, Vec<&GroupRms>) =
         score.by_group.iter().partition(|g| g.unit == "deg");
-    if score.markers.is_some() || lengths.len() > 1 {
-        let row = |g: &GroupRms, digits| (format!("{name} {} ({})", g.group, g.unit), g.rms, digits);
-        let lengths = lengths.into_iter().map(|g| row(g, 4));
-        return lengths.chain(markers).chain(angles.into_iter().map(|g| row(g, 5))).collect();
-    }
-    let lengths = (!lengths.is_empty()).then(|| (format!("{name} (mm)"), score.lengths, 4));
-    let angles = score.angles.map(|rms| (format!("{name} (deg)"), rms, 5));
-    lengths.into_iter().chain(angles).collect()
+    let by_name = score.markers.is_some() || lengths.len() > 1;
+    let several_angles = angles.len() > 1;
+    let group = |g: &GroupRms| {
+        let label = match by_name || (g.unit == "deg" && several_angles) {
+            true => format!("{name} {} ({})", g.group, g.unit),
+            false => format!("{name} ({})", g.unit),
+        };
+        let digits = if g.unit == "deg" { 5 } else { 4 };
+        row(label, (g.count, g.flagged), (g.rms, g.max), (g.unit, digits))
+    };
+    let positions = |label: String, rms: (f64, f64), marker: Option<usize>| {
+        let p = score.positions_of(marker);
+        row(label, (p.count, p.flagged), (rms, p.max), ("mm", 4))
+    };
+    let all = score.markers.map(|rms| positions(format!("{name} markers (mm)"), rms, None));
+    let each = score
+        .by_marker
+        .iter()
+        .map(|m| positions(format!("{name} marker {} (mm)", m.marker), m.rms, Some(m.marker)));
+    (lengths.into_iter().map(group)).chain(all).chain(each).chain(angles.into_iter().map(group)).collect()
+}
+
+/// A verdict row: `label`, its count and flagged, its RMS and max before -> after in `unit` to
+/// `digits` decimals.
+fn row(
+    label: String,
+    (count, flagged): (usize, usize),
+    (rms, max): ((f64, f64), (f64, f64)),
+    (unit, digits): (&str, usize),
+) -> [String; 5] {
+    let pair = |v: (f64, f64)| format!("{:.digits$} -> {:.digits$} {unit}", v.0, v.1);
+    [label, count.to_string(), pair(rms), pair(max), format!("{flagged} of {count}")]
 }
 
 impl ObservationsReport {
@@ -258,19 +281,15 @@ impl ObservationsReport {
         self
     }
 
-    /// The verdict: the RMS residuals of each set before and after, the warnings by cause.
+    /// The verdict: each set's errors before and after by group ([`set_rows`]), the warnings
+    /// by cause.
     fn verdict_text(&self) -> String {
-        let mut out = String::new();
-        let rows: Vec<(String, (f64, f64), usize)> =
-            self.sets.iter().flat_map(|(name, s)| set_rows(name, s)).collect();
-        let label = |score: &Score| if score.markers.is_some() { 17 } else { 9 };
-        let widest_name = self.sets.iter().map(|r| r.0.len() + label(&r.1)).max().unwrap_or(0);
-        let width = rows.iter().map(|r| r.0.len()).max().unwrap_or(0).max(widest_name).max(24);
-        let _ = writeln!(out, "{:<width$} {:>10} {:>10}", "residuals, RMS", "before", "after");
-        for (label, (before, after), digits) in rows {
-            let _ = writeln!(out, "{label:<width$} {before:>10.digits$} {after:>10.digits$}");
-        }
-        out + &super::verdict::count_warnings(&self.warnings)
+        let heading = ["set", "count", "RMS", "max", "flagged"].map(String::from);
+        let rows: Vec<[String; 5]> = std::iter::once(heading)
+            .chain(self.sets.iter().flat_map(|(name, s)| set_rows(name, s)))
+            .collect();
+        super::verdict::table("verdict, the errors before -> after calibration:", &rows)
+            + &super::verdict::count_warnings(&self.warnings)
     }
 
     /// What the observations do not see, what is held, and where each held-out session's set-up comes from.

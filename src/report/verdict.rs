@@ -170,26 +170,33 @@ impl Verdict {
                 rows.push([label, String::new(), pair(rms, "deg"), pair(max, "deg"), String::new()]);
             }
         }
-        let width = |c: usize| rows.iter().map(|r| r[c].len()).max().unwrap_or(0);
-        let w = [0, 1, 2, 3].map(width);
-        let mut out = String::from("verdict, the marker position error before -> after calibration:\n");
-        for r in &rows {
-            let line = format!(
-                "{:<a$}  {:>b$}  {:>c$}  {:>d$}  {}",
-                r[0],
-                r[1],
-                r[2],
-                r[3],
-                r[4],
-                a = w[0],
-                b = w[1],
-                c = w[2],
-                d = w[3]
-            );
-            let _ = writeln!(out, "{}", line.trim_end());
-        }
-        out + &warnings_text(&self.warnings)
+        table("verdict, the marker position error before -> after calibration:", &rows)
+            + &warnings_text(&self.warnings)
     }
+}
+
+/// A verdict's table under `title`: each row's label, count, RMS, max and flagged, the first row
+/// the heading, in columns as wide as their widest cell.
+pub(super) fn table(title: &str, rows: &[[String; 5]]) -> String {
+    let width = |c: usize| rows.iter().map(|r| r[c].len()).max().unwrap_or(0);
+    let w = [0, 1, 2, 3].map(width);
+    let mut out = format!("{title}\n");
+    for r in rows {
+        let line = format!(
+            "{:<a$}  {:>b$}  {:>c$}  {:>d$}  {}",
+            r[0],
+            r[1],
+            r[2],
+            r[3],
+            r[4],
+            a = w[0],
+            b = w[1],
+            c = w[2],
+            d = w[3]
+        );
+        let _ = writeln!(out, "{}", line.trim_end());
+    }
+    out
 }
 
 /// The warnings counted by cause as text: `warnings: none`, or a line per cause with its count.

@@ -871,7 +871,7 @@ fn a_marker_file_with_an_occlusion_is_read_cell_by_cell() {
     let cells = 3 * markers * poses - 3 * (0..text.lines().count()).filter(|i| i % 7 == 3).count();
     assert!(report.contains(&format!("{cells} observations at {poses} poses")), "{report}");
     let held_out = report.lines().find(|l| l.starts_with("examples/puma560-validation.csv markers")).unwrap();
-    let after: f64 = held_out.split_whitespace().last().unwrap().parse().unwrap();
+    let after = crate::verdict_rms(held_out).1;
     assert!(after < 0.15, "held-out markers after: {held_out}");
 
     // evaluate scores it as calibrate reads it: --sigma-mm the sigma of its rows (no sigma
@@ -1104,7 +1104,7 @@ fn heights_with_markers_are_read_in_their_own_device_frame() {
     let held_out = |text: &str| -> f64 {
         let line =
             text.lines().find(|l| l.starts_with("examples/puma560-validation.csv markers (mm)")).unwrap();
-        line.split_whitespace().last().unwrap().parse().unwrap()
+        crate::verdict_rms(line).1
     };
     let alone = run(&["examples/puma560-measurements.csv"]);
     let with_heights = run(&["examples/puma560-measurements.csv", file.to_str().unwrap()]);
@@ -1261,8 +1261,7 @@ fn the_command_fits_a_probe_file_with_a_ball_bar() {
             .lines()
             .find(|l| l.contains(&format!("probe-2.csv {name}")))
             .unwrap_or_else(|| panic!("{stdout}"));
-        let v: Vec<f64> = line.split_whitespace().rev().take(2).filter_map(|c| c.parse().ok()).collect();
-        (v[1], v[0])
+        crate::verdict_rms(line)
     };
     let (positions, orientations) = (row("markers (mm)"), row("probe orientations (deg)"));
     assert!(positions.0 > 1.0 && positions.1 < 0.05, "{positions:?}\n{stdout}");
@@ -1300,4 +1299,65 @@ fn the_report_says_how_rows_without_a_sigma_are_weighed() {
         "{wls}"
     );
     assert!(ols.starts_with("600 of 750 observations gave no sigma: ols weighs every row alike"), "{ols}");
+}
+
+/// The observation report's verdict gives a marker file what the marker report's gives it: the
+/// markers' row (their positions, a marker at a pose) has the marker report's RMS and largest
+/// error before -> after, cell for cell, and flags the position a 3 mm slip moved where the
+/// marker report flags its pose; a group's row (the ball bar's) its observations' count,
+/// largest residual and flags, as the JSON's observations give them.
+#[test]
+fn the_verdict_gives_a_marker_file_the_marker_reports_figures() {
+    let dir = std::env::temp_dir().join(format!("robocal-kinds-verdict-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let example = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    // Line 40's marker 1 x moved by 3 mm.
+    let mut lines: Vec<String> = example.lines().map(String::from).collect();
+    let header: Vec<&str> = lines[1].split(',').collect();
+    let x1 = header.iter().position(|&h| h == "x1").unwrap();
+    let mut cells: Vec<String> = lines[39].split(',').map(String::from).collect();
+    cells[x1] = format!("{}", cells[x1].parse::<f64>().unwrap() + 3.0);
+    lines[39] = cells.join(",");
+    let (slipped, json) = (dir.join("slipped.csv"), dir.join("r.json"));
+    std::fs::write(&slipped, lines.join("\n") + "\n").unwrap();
+    let run = |extra: &[&str]| {
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["calibrate", "-q", "--model", "puma560", "--data"])
+            .arg(&slipped)
+            .args(["--marker", "50,0,150", "--marker=-40,60,120"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        String::from_utf8(output.stdout).unwrap()
+    };
+    let cells_of = |text: &str, start: &str| -> Vec<String> {
+        let row = text.lines().find(|l| l.starts_with(start)).unwrap_or_else(|| panic!("{start}: {text}"));
+        row.split_whitespace().map(String::from).collect()
+    };
+    let marker_report = run(&[]);
+    let observations =
+        run(&["--tool", "0,0,0", "--data", "examples/puma560-ballbar.csv", "--json", json.to_str().unwrap()]);
+    let alone = run(&["--tool", "0,0,0"]);
+    let (m, k) =
+        (cells_of(&marker_report, "training (fitted, in-sample)"), cells_of(&alone, "training markers (mm)"));
+    // training (fitted, in-sample) 100 b -> a mm b -> a mm 1 of 100; training markers (mm) 200 ...
+    assert_eq!(m[4..12], k[4..12], "{marker_report}\n{alone}");
+    assert_eq!((m[12].as_str(), m[14].as_str()), ("1", "100"), "{marker_report}");
+    assert_eq!((k[12].as_str(), k[14].as_str()), ("1", "200"), "{alone}");
+    // The ball bar's row against its observations in the JSON.
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let training = &report["sets"][0][1];
+    let distances: Vec<&serde_json::Value> =
+        (training["observations"].as_array().unwrap().iter()).filter(|o| o["kind"] == "point").collect();
+    let group = &training["by_group"][0];
+    assert_eq!(group["count"].as_u64(), Some(distances.len() as u64));
+    let largest =
+        |stage: &str| distances.iter().map(|o| o[stage].as_f64().unwrap().abs()).fold(0.0, f64::max);
+    assert_eq!(group["max"], serde_json::json!([largest("before"), largest("after")]));
+    assert_eq!(group["flagged"].as_u64(), Some(0));
+    let row = cells_of(&observations, "training distances (mm)");
+    assert_eq!(row[3], distances.len().to_string(), "{observations}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -43,3 +43,12 @@ mod shards;
 mod simulation;
 mod tree;
 mod urdf;
+
+/// The RMS before and after of the verdict row of an observation report (`label  count  b ->
+/// a unit  max  flagged`): the first `b -> a` of `row`.
+pub(crate) fn verdict_rms(row: &str) -> (f64, f64) {
+    let cells: Vec<&str> = row.split_whitespace().collect();
+    let arrow = cells.iter().position(|&c| c == "->").unwrap_or_else(|| panic!("no `->` in {row}"));
+    let number = |c: &str| c.parse::<f64>().unwrap_or_else(|_| panic!("`{c}` in {row}"));
+    (number(cells[arrow - 1]), number(cells[arrow + 1]))
+}

@@ -175,7 +175,7 @@ fn the_command_models_sessions_from_the_files() {
     let rms = |line: &str| -> f64 {
         let row =
             text.lines().find(|l| l.contains(line) && l.contains("(mm)")).unwrap_or_else(|| panic!("{text}"));
-        row.split_whitespace().last().unwrap().parse().unwrap()
+        crate::verdict_rms(row).1
     };
     for name in ["monday.csv", "tuesday.csv", "wednesday.csv", "thursday.csv", "4-fold cross-validation"] {
         assert!(rms(name) < 2.0 * SIGMA, "{name}\n{text}");
@@ -387,7 +387,7 @@ fn the_command_models_a_tracker_moved_between_marker_files() {
         let row = (text.lines())
             .find(|l| l.contains(file) && l.contains("markers (mm)"))
             .unwrap_or_else(|| panic!("{file}:\n{text}"));
-        row.split_whitespace().last().unwrap().parse().unwrap()
+        crate::verdict_rms(row).1
     };
     let shared = run(&[]).1;
     for file in ["test/monday.csv", "test/tuesday.csv"] {

@@ -1417,6 +1417,12 @@ pub struct GroupRms {
     pub unit: &'static str,
     /// The RMS residual before and after, in `unit`.
     pub rms: (f64, f64),
+    /// Its observations.
+    pub count: usize,
+    /// The largest residual's size before and after, in `unit`.
+    pub max: (f64, f64),
+    /// Its observations flagged after calibration (beyond [`Score::flag_at`]).
+    pub flagged: usize,
 }
 
 /// One marker's position RMS in a set of several markers ([`Score::by_marker`]).
@@ -1560,11 +1566,20 @@ impl Score {
                 groups.push((o.group(), o.is_angle()));
             }
         }
+        let whitened: Vec<f64> = observations.iter().map(|r| r.whitened.abs()).collect();
+        let flag_at = FLAG_AT * super::robust::robust_scale(&whitened, 1).max(1.0);
         // Every group's, the markers' coordinates aside (their positions' RMS is `markers`).
         let by_group = (groups.into_iter().filter(|g| g.0 != "markers"))
             .filter_map(|(group, angle)| {
                 let unit = if angle { "deg" } else { "mm" };
-                rms(&|o| o.group() == group, 1.0).map(|rms| GroupRms { group, unit, rms })
+                let rms = rms(&|o| o.group() == group, 1.0)?;
+                let members = || (observations.iter().zip(kinds)).filter(|(_, o)| o.group() == group);
+                let max = members().fold((0.0, 0.0), |m: (f64, f64), (r, _)| {
+                    (m.0.max(r.before.abs()), m.1.max(r.after.abs()))
+                });
+                let (count, flagged) =
+                    (members().count(), members().filter(|(r, _)| r.whitened.abs() > flag_at).count());
+                Some(GroupRms { group, unit, rms, count, max, flagged })
             })
             .collect();
         let mut numbers: Vec<usize> = observations.iter().filter_map(|r| r.marker).collect();
@@ -1584,8 +1599,6 @@ impl Score {
             false => Vec::new(),
         };
         let positions = position_errors(&observations, kinds);
-        let whitened: Vec<f64> = observations.iter().map(|r| r.whitened.abs()).collect();
-        let flag_at = FLAG_AT * super::robust::robust_scale(&whitened, 1).max(1.0);
         #[rustfmt::skip]
         let score = Self {
             observations, lengths, angles, markers, by_group, by_marker, positions, sessions: Vec::new(), flag_at,
@@ -1597,6 +1610,34 @@ impl Score {
     pub fn flagged(&self) -> impl Iterator<Item = (usize, &ObservationResidual)> {
         self.observations.iter().enumerate().filter(|(_, r)| r.whitened.abs() > self.flag_at)
     }
+
+    /// Marker `marker`'s positions (every marker's: `None`), as a marker file's pose table
+    /// counts them: how many, the largest error, and those flagged (a coordinate beyond
+    /// [`Score::flag_at`]).
+    pub fn positions_of(&self, marker: Option<usize>) -> PositionSummary {
+        let chosen = self.positions.iter().filter(|p| marker.is_none_or(|m| p.marker == m));
+        let flagged = |p: &&PositionError| {
+            self.observations[p.index..p.index + p.coordinates]
+                .iter()
+                .any(|r| r.whitened.abs() > self.flag_at)
+        };
+        PositionSummary {
+            count: chosen.clone().count(),
+            max: chosen.clone().fold((0.0, 0.0), |m, p| (m.0.max(p.error.0), m.1.max(p.error.1))),
+            flagged: chosen.filter(flagged).count(),
+        }
+    }
+}
+
+/// Marker positions summed up ([`Score::positions_of`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionSummary {
+    /// The positions (a marker at a pose).
+    pub count: usize,
+    /// The largest position error `|e|` before and after (mm).
+    pub max: (f64, f64),
+    /// The positions flagged after calibration.
+    pub flagged: usize,
 }
 
 impl KindCalibration {
