@@ -157,17 +157,37 @@ impl TreeReport {
 
     /// The verdict: the views' RMS errors of each set before and after, the warnings by cause.
     fn verdict_text(&self) -> String {
-        let mut out = String::new();
-        let width = self.sets.iter().map(|r| r.0.len() + 9).max().unwrap_or(0).max(24);
-        let _ = writeln!(out, "{:<width$} {:>10} {:>10}", "view errors, RMS", "before", "after");
+        let mut rows = vec![["set", "views", "RMS", "max", "flagged"].map(String::from)];
         for (name, score) in &self.sets {
-            let (before, after) = score.position;
-            let _ = writeln!(out, "{:<width$} {before:>10.4} {after:>10.4}", format!("{name} (mm)"));
-            if let Some((before, after)) = score.rotation {
-                let _ = writeln!(out, "{:<width$} {before:>10.5} {after:>10.5}", format!("{name} (deg)"));
+            let largest = |f: fn(&ViewResidual) -> f64| score.views.iter().map(f).fold(0.0, f64::max);
+            let views = score.views.len().to_string();
+            let pair = |v: (f64, f64), digits: usize, unit: &str| {
+                format!("{:.digits$} -> {:.digits$} {unit}", v.0, v.1)
+            };
+            let max = (largest(|v| v.before_mm), largest(|v| v.after_mm));
+            // A view flagged as the warnings flag it: its largest whitened residual beyond FLAG_AT.
+            let flagged = score.views.iter().filter(|v| v.whitened > crate::calibration::FLAG_AT).count();
+            let flagged = format!("{flagged} of {views}");
+            rows.push([
+                format!("{name} (mm)"),
+                views.clone(),
+                pair(score.position, 4, "mm"),
+                pair(max, 4, "mm"),
+                flagged,
+            ]);
+            if let Some(rms) = score.rotation {
+                let max = (largest(|v| v.before_deg.unwrap_or(0.0)), largest(|v| v.after_deg.unwrap_or(0.0)));
+                rows.push([
+                    format!("{name} (deg)"),
+                    views,
+                    pair(rms, 5, "deg"),
+                    pair(max, 5, "deg"),
+                    String::new(),
+                ]);
             }
         }
-        out + &super::verdict::count_warnings(&self.warnings)
+        let title = "verdict, the view errors (|y_t| mm, |y_r| deg) before -> after calibration:";
+        super::verdict::table(title, &rows) + &super::verdict::count_warnings(&self.warnings)
     }
 
     /// The training files by which set `set`'s views are numbered: the training set's and

@@ -352,8 +352,7 @@ const TREE_EXAMPLE: [&str; 7] = [
 /// The held-out line's RMS (mm or deg) before and after, from the report's text.
 fn held_out(text: &str, unit: &str) -> (f64, f64) {
     let line = text.lines().find(|l| l.starts_with(&format!("examples/torso/views-2.csv ({unit})"))).unwrap();
-    let v: Vec<f64> = line.split_whitespace().rev().take(2).map(|v| v.parse().unwrap()).collect();
-    (v[1], v[0])
+    crate::verdict_rms(line)
 }
 
 #[test]
