@@ -24,6 +24,16 @@ pub(super) struct Robot {
     pub(super) urdf: Option<UrdfChain>,
 }
 
+impl Robot {
+    /// The `calibrated` robot as `--out-model` writes it: as it is, without the payload of
+    /// this session (`model`'s `--payload-kg`), with the model file's own (its estimated mass
+    /// if the file carries one).
+    pub(super) fn as_written(&self, calibrated: &RobotModel, model: &ModelRef) -> RobotModel {
+        let payload = if model.payload.is_some() { self.own_payload } else { calibrated.payload };
+        RobotModel { payload, ..calibrated.clone() }
+    }
+}
+
 /// The measurements to calibrate on and the held-out files, by name.
 struct Data {
     /// The calibration data (its markers chosen by `--markers`).
@@ -273,11 +283,7 @@ fn write(
     write_report_files(&request.report, content, &mut outputs)?;
     let markers = result.marker_positions();
     if let Some(path) = &request.out_model {
-        // The robot as it is, without the payload of this session (with its estimated mass if
-        // the model file carries it).
-        let payload =
-            if request.model.payload.is_some() { robot.own_payload } else { result.calibrated.payload };
-        let calibrated = RobotModel { payload, ..result.calibrated.clone() };
+        let calibrated = robot.as_written(&result.calibrated, &request.model);
         outputs.add(path, robocal::model::to_toml_with_markers(&calibrated, &markers));
         if super::accuracy::has_a_sidecar(path) {
             let sidecar = super::accuracy::covariance_sidecar(&report.sets, result);

@@ -60,7 +60,8 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         super::write_residual_files(&request.report, content, &mut outputs)?;
     }
     if let Some(path) = &request.out_model {
-        outputs.add(path, robocal::model::to_toml_with_markers(&c.calibrated, &c.marker_positions()));
+        let calibrated = robot.as_written(&c.calibrated, &request.model);
+        outputs.add(path, robocal::model::to_toml_with_markers(&calibrated, &c.marker_positions()));
         if super::accuracy::has_a_sidecar(path) {
             let sidecar = robocal::pipeline::robot_covariance(&c, report.floor_mm()).to_json();
             outputs.add(super::accuracy::covariance_path(path), sidecar);
