@@ -207,7 +207,8 @@ fn linearisation_is_the_whole_systems(
     let r = linearised.system.r();
     let (gram, rtz) = (r.transpose() * r, r.transpose() * linearised.system.z());
     let (whole, atb) = (a.transpose() * &a, a.transpose() * &b);
-    prop_assert_eq!(&linearised.b, &b);
+    // The points' positions come from the walk that gives their H_j: the residuals to rounding.
+    prop_assert!((&linearised.b - &b).amax() <= 1e-12 * b.amax().max(1.0), "y against the whole y");
     prop_assert!((&gram - &whole).amax() <= 1e-9 * whole.amax().max(1.0), "R^T R against A^T A");
     prop_assert!((&rtz - &atb).amax() <= 1e-9 * atb.amax().max(1.0), "R^T z against A^T b");
     Ok(())

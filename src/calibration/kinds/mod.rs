@@ -483,6 +483,12 @@ struct Prediction {
 }
 
 /// `by_setup` of a [`Prediction`] of `n` derivatives.
+/// A point's frames indexed by pose: all of them (a slice), or those one block of
+/// observations reads ([`BlockFrames`]).
+trait Frames: std::ops::Index<usize, Output = Isometry3<f64>> {}
+
+impl Frames for [Isometry3<f64>] {}
+
 fn by_setup<const N: usize>(derivatives: [(usize, f64); N]) -> ([(usize, f64); 12], usize) {
     let mut out = [(0, 0.0); 12];
     out[..N].copy_from_slice(&derivatives);
@@ -493,10 +499,10 @@ fn by_setup<const N: usize>(derivatives: [(usize, f64); N]) -> ([(usize, f64); 1
 /// `s[at..at + 6]` (a device's, a tracker's): the row of the view `D^-1 T` ([`relative_view`])
 /// against the `measured` view (position mm, rotation vector rad; a position row reads its own
 /// coordinate only), its derivatives by the point's twist and by the placement.
-fn placed_row(
+fn placed_row<F: Frames + ?Sized>(
     at: usize,
     s: &[f64],
-    (frames, pose): (&[Isometry3<f64>], usize),
+    (frames, pose): (&F, usize),
     axis: usize,
     measured: &Vector6<f64>,
 ) -> Prediction {
@@ -517,7 +523,7 @@ fn placed_row(
 /// (their rotations used by angles only). The derivatives `g_kj` are with respect to the pose
 /// error of the tool at pose `j`: its position (mm), then its rotation vector (rad, measuring
 /// frame), as [`ChainAt::identification_jacobian`] gives them.
-fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64]) -> Prediction {
+fn predict<F: Frames + ?Sized>(o: &Observation, frames: &F, setup: &SetUp, s: &[f64]) -> Prediction {
     let none = (0, Vector6::zeros());
     let point = |g: Vector3<f64>| Vector6::new(g.x, g.y, g.z, 0.0, 0.0, 0.0);
     let p = |j: usize| frames[j].translation.vector;
@@ -597,8 +603,8 @@ fn predict(o: &Observation, frames: &[Isometry3<f64>], setup: &SetUp, s: &[f64])
 /// ([`relative_view`]), whose derivative by the frame's rotation vector is `J_r^-1(y)`
 /// (`I` to first order in `y`). Read in a session's tracker frame `P`, the view `P^-1 T`
 /// ([`placed_row`]).
-fn orientation_prediction(
-    (frames, pose): (&[Isometry3<f64>], usize),
+fn orientation_prediction<F: Frames + ?Sized>(
+    (frames, pose): (&F, usize),
     (axis, measured): (usize, &UnitQuaternion<f64>),
     setup: &SetUp,
     s: &[f64],
@@ -644,8 +650,8 @@ fn contact_prediction(
 /// Row `axis` of the camera's view `view` (at `site`) of the target at `frames[pose]`
 /// ([`camera::view_row`]), its derivatives by the tool's twist and by the camera's mounting
 /// and the target's placement, the set-up values `s`.
-fn camera_prediction(
-    (frames, pose): (&[Isometry3<f64>], usize),
+fn camera_prediction<F: Frames + ?Sized>(
+    (frames, pose): (&F, usize),
     (axis, view, site): (usize, &Vector6<f64>, CameraSite),
     setup: &SetUp,
     s: &[f64],
@@ -877,7 +883,7 @@ impl<'a> KindProblem<'a> {
 
     /// [`predict`] of `o` in its pose's session, from that session's values of `views`
     /// ([`KindProblem::session_views`]); its set-up derivatives by slot of every session's values.
-    fn predict(&self, o: &Observation, frames: &[Isometry3<f64>], views: &[Vec<f64>]) -> Prediction {
+    fn predict<F: Frames + ?Sized>(&self, o: &Observation, frames: &F, views: &[Vec<f64>]) -> Prediction {
         let k = self.data.session_of(o.pose()).min(views.len() - 1);
         let mut f = predict(o, frames, self.setup, &views[k]);
         for (i, _) in &mut f.by_setup[..f.setups] {
@@ -1092,7 +1098,7 @@ impl Residuals for KindProblem<'_> {
         let mut y = DVector::zeros(self.equations());
         let mut h = h;
         let mut row = vec![0.0; if h.is_some() { self.parameters() } else { 0 }];
-        let at = PointsAt { frames: &frames, views: &views, jacobians: Jacobians::All(&jacobians), block };
+        let at = PointsAt { views: &views, jacobians: Jacobians::All(&frames, &jacobians), block };
         for k in 0..self.data.observations.len() {
             match h.as_deref_mut() {
                 Some(h) => {
@@ -1106,15 +1112,15 @@ impl Residuals for KindProblem<'_> {
     }
 
     /// Each pose's observations built, whitened and reduced into the triangular factor in one
-    /// go (`Reduced::reduce`), `H` never held: the same arithmetic as the default's whole `H`.
-    /// The `H_j` a block reads are computed as it is reduced (`BlockJacobians`), not held for
-    /// every point at every pose.
+    /// go (`Reduced::reduce`), `H` never held: the default's whole system, to rounding. The
+    /// frames and `H_j` a block reads are computed as it is reduced (`BlockJacobians`: a
+    /// point's position from the walk that gives its `H_j`), not held for every point at every
+    /// pose.
     fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
         let (full, s) = self.full(x);
         let chains: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
         let (rows, p) = (self.measured().rows(), self.parameters());
         let block = rows * self.selection.len();
-        let frames = self.frames(&chains, None);
         let views = self.session_views(&s);
         let mut y = DVector::zeros(self.equations());
         let layout = self.blocks();
@@ -1127,12 +1133,7 @@ impl Residuals for KindProblem<'_> {
             |(row, jacobians), point, out| {
                 let r = layout.range(point);
                 jacobians.fill(self, &chains, r.clone(), block);
-                let at = PointsAt {
-                    frames: &frames,
-                    views: &views,
-                    jacobians: Jacobians::Block(jacobians),
-                    block,
-                };
+                let at = PointsAt { views: &views, jacobians: Jacobians::Block(jacobians), block };
                 let n = r.len();
                 for (i, k) in r.enumerate() {
                     out[p * n + i] = self.observation_row(k, at, Some(row));
@@ -1152,6 +1153,8 @@ impl Residuals for KindProblem<'_> {
 struct BlockJacobians {
     keys: Vec<usize>,
     values: Vec<f64>,
+    /// The frame of each key's point at its pose.
+    frames: Vec<Isometry3<f64>>,
     /// Of points alone: the poses of the block, every point's `H_j` at one of them stacked
     /// 3 rows a point (column-major), and their positions.
     poses: Vec<usize>,
@@ -1160,8 +1163,8 @@ struct BlockJacobians {
 }
 
 impl BlockJacobians {
-    /// Compute the `H_j` of the observations `range` of `problem` at the parameters `at`
-    /// (`block` numbers each).
+    /// Compute the frames and the `H_j` of the observations `range` of `problem` at the
+    /// parameters `at` (`block` numbers each).
     fn fill(
         &mut self,
         problem: &KindProblem<'_>,
@@ -1178,19 +1181,20 @@ impl BlockJacobians {
         // Zeros: `identification_jacobian` leaves the columns of no step untouched.
         self.values.clear();
         self.values.resize(self.keys.len() * block, 0.0);
+        self.frames.clear();
         let (poses, rows, columns) =
             (problem.data.joints.len(), problem.measured().rows(), problem.selection.len());
-        if problem.measured() == Measured::Position && block > 0 {
+        if problem.measured() == Measured::Position {
             return self.fill_points(problem, at, columns);
         }
-        for (&n, h_j) in self.keys.iter().zip(self.values.chunks_exact_mut(block.max(1))) {
-            let view = DMatrixViewMut::from_slice(h_j, rows, columns);
-            at[n / poses].identification_jacobian(
-                &problem.data.joints[n % poses],
-                problem.selection,
-                problem.measured(),
-                view,
-            );
+        for (k, &n) in self.keys.iter().enumerate() {
+            let (at, q) = (&at[n / poses], &problem.data.joints[n % poses]);
+            if block > 0 {
+                let view =
+                    DMatrixViewMut::from_slice(&mut self.values[k * block..(k + 1) * block], rows, columns);
+                at.identification_jacobian(q, problem.selection, problem.measured(), view);
+            }
+            self.frames.push(at.pose(q));
         }
     }
 
@@ -1205,19 +1209,33 @@ impl BlockJacobians {
         self.poses.dedup();
         self.stacked.resize(3 * points * columns, 0.0);
         self.positions.resize(points, Vector3::zeros());
+        self.frames.resize(self.keys.len(), Isometry3::identity());
         for &pose in &self.poses {
-            // Zeros: `marker_jacobians` writes the columns of its parameters only.
-            self.stacked.fill(0.0);
-            let h = DMatrixViewMut::from_slice(&mut self.stacked, 3 * points, columns);
-            marker_jacobians(at, &problem.data.joints[pose], problem.selection, h, &mut self.positions);
+            let q = &problem.data.joints[pose];
+            match columns {
+                // No robot parameter: the points' positions alone.
+                0 => end_positions(at, q, &mut self.positions),
+                _ => {
+                    // Zeros: `marker_jacobians` writes the columns of its parameters only.
+                    self.stacked.fill(0.0);
+                    let h = DMatrixViewMut::from_slice(&mut self.stacked, 3 * points, columns);
+                    marker_jacobians(at, q, problem.selection, h, &mut self.positions);
+                }
+            }
             for (k, &n) in self.keys.iter().enumerate().filter(|(_, n)| *n % poses == pose) {
                 let at = 3 * (n / poses);
+                self.frames[k] = Isometry3::from_parts(self.positions[n / poses].into(), Default::default());
                 let h_j = &mut self.values[3 * columns * k..3 * columns * (k + 1)];
                 for (c, column) in h_j.chunks_exact_mut(3).enumerate() {
                     column.copy_from_slice(&self.stacked[3 * points * c + at..3 * points * c + at + 3]);
                 }
             }
         }
+    }
+
+    /// The frame of point-and-pose `n`, one of those filled.
+    fn frame(&self, n: usize) -> &Isometry3<f64> {
+        &self.frames[self.keys.binary_search(&n).expect("a point the block reads")]
     }
 
     /// The `H_j` of point-and-pose `n`, one of those filled.
@@ -1227,11 +1245,13 @@ impl BlockJacobians {
     }
 }
 
-/// Where an observation's row reads its `H_j`: every point's at every pose, or a block's.
+/// Where an observation's row reads its points' frames and `H_j`: every point's at every
+/// pose, or a block's.
 #[derive(Clone, Copy)]
 enum Jacobians<'f> {
-    /// Every point at every pose, `block` numbers each, in the order of the frames.
-    All(&'f [f64]),
+    /// Every point at every pose: the frames (point by point, then pose by pose) and their
+    /// `H_j`, `block` numbers each, in the order of the frames.
+    All(&'f [Isometry3<f64>], &'f [f64]),
     /// Those one block reads.
     Block(&'f BlockJacobians),
 }
@@ -1240,18 +1260,33 @@ impl Jacobians<'_> {
     /// The `H_j` of point-and-pose `n` (`block` numbers).
     fn of(&self, n: usize, block: usize) -> &[f64] {
         match self {
-            Self::All(all) => &all[n * block..(n + 1) * block],
+            Self::All(_, all) => &all[n * block..(n + 1) * block],
             Self::Block(some) => some.get(n, block),
         }
     }
 }
 
+/// One point's frames at the poses a block reads (its `first` point-and-pose number, `point *
+/// poses`), indexed by pose.
+struct BlockFrames<'f> {
+    block: &'f BlockJacobians,
+    first: usize,
+}
+
+impl std::ops::Index<usize> for BlockFrames<'_> {
+    type Output = Isometry3<f64>;
+
+    fn index(&self, pose: usize) -> &Isometry3<f64> {
+        self.block.frame(self.first + pose)
+    }
+}
+
+impl Frames for BlockFrames<'_> {}
+
 /// Every point at every pose, as an observation's row reads it
 /// ([`KindProblem::observation_row`]).
 #[derive(Clone, Copy)]
 struct PointsAt<'f> {
-    /// Each point's frame at each pose (point by point, then pose by pose).
-    frames: &'f [Isometry3<f64>],
     /// Each session's set-up values.
     views: &'f [Vec<f64>],
     /// Each point's `H_j` at each pose (or those of one block), `block` numbers each
@@ -1268,13 +1303,16 @@ impl KindProblem<'_> {
     fn observation_row(
         &self,
         k: usize,
-        PointsAt { frames, views, jacobians, block }: PointsAt<'_>,
+        PointsAt { views, jacobians, block }: PointsAt<'_>,
         h: Option<&mut [f64]>,
     ) -> f64 {
         let (o, poses) = (&self.data.observations[k], self.data.joints.len());
         let (columns, rows) = (self.selection.len(), self.measured().rows());
         let first = self.point_of(o) * poses;
-        let f = self.predict(o, &frames[first..first + poses], views);
+        let f = match jacobians {
+            Jacobians::All(frames, _) => self.predict(o, &frames[first..first + poses], views),
+            Jacobians::Block(block) => self.predict(o, &BlockFrames { block, first }, views),
+        };
         let Some(h) = h else { return f.residual };
         h.fill(0.0);
         for (j, g) in &f.by_point[..f.poses] {
