@@ -1,8 +1,8 @@
 //! The report of a calibration from observation files ([`ObservationsReport`]) or from a
 //! tree's views ([`TreeReport`]) as a designed, self-contained page, as
 //! [`calibration_page`](super::calibration_page) makes the marker report's: the verdict as a
-//! card (each set's RMS residuals before and after calibration, by quantity, the warnings by
-//! cause), the parameters with their 95% intervals drawn, the choices made from the data (a
+//! card (the text's verdict rows: each set's errors before and after calibration by quantity,
+//! counted and flagged; the warnings by cause), the parameters with their 95% intervals drawn, the choices made from the data (a
 //! prior's scale, a selection's path), what was held, the figures inline, what the data cannot
 //! see, and the text report in full in a collapsible section. No script, no address.
 
@@ -11,24 +11,9 @@ use super::calibration_page::{held_section, parameter_table, prior_scale, select
 use super::html::{Cell, Row, escape, table};
 use super::observations::ObservationsReport;
 use super::tree::TreeReport;
-use super::verdict::WarningCount;
+use super::verdict::{QuantityRow, WarningCount};
 use crate::calibration::{Held, Warning};
 use std::fmt::Write;
-
-/// One quantity of one set in the verdict: the RMS residual before and after calibration.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ResidualRow {
-    /// The set: `training`, a held-out file, the k-fold cross-validation.
-    pub set: String,
-    /// What is measured: `residuals` (lengths and positions), `marker positions`, `angles`.
-    pub quantity: &'static str,
-    /// Its unit: `mm` or `deg`.
-    pub unit: &'static str,
-    /// The RMS before calibration.
-    pub before: f64,
-    /// The RMS after calibration.
-    pub after: f64,
-}
 
 /// What a page of observation files or views shows ([`page`]).
 #[derive(Debug, Clone)]
@@ -36,7 +21,7 @@ pub struct FilesPage<'a> {
     /// The fit in one line (the text report's first).
     pub meta: &'a str,
     /// The verdict's rows, the training set's first.
-    pub residuals: Vec<ResidualRow>,
+    pub residuals: Vec<QuantityRow>,
     /// Whether the fit converged.
     pub converged: bool,
     /// The warnings.
@@ -127,31 +112,33 @@ fn summary(report: &FilesPage<'_>) -> String {
     let mut out = format!("<section id=\"summary\" class=\"{class}\">\n<h2>Verdict</h2>\n");
     let headline = (report.residuals.iter().find(|r| r.set != "training")).or(report.residuals.first());
     if let Some(h) = headline {
-        let (value, unit) = (h.quantity, h.unit);
+        let unit = h.unit;
         let role = if h.set == "training" { "training" } else { "held out" };
         let _ = writeln!(
             out,
-            "<p class=\"headline\"><span class=\"big\">{:.4} {unit}</span> RMS of the {value} after calibration on \
-             {} ({role}), {:.4} {unit} before: {:.1} times lower.</p>",
-            h.after,
-            escape(&h.set),
-            h.before,
-            h.before / h.after.max(f64::MIN_POSITIVE)
+            "<p class=\"headline\"><span class=\"big\">{:.4} {unit}</span> RMS after calibration on {} ({role}), \
+             {:.4} {unit} before: {:.1} times lower.</p>",
+            h.rms[1],
+            escape(format!("{} {}", h.set, h.quantity).trim_end()),
+            h.rms[0],
+            h.rms[0] / h.rms[1].max(f64::MIN_POSITIVE)
         );
     }
     let rows: Vec<Row> = (report.residuals.iter())
         .map(|r| {
+            let [label, count, rms, max, flagged] = r.cells();
             let cells = vec![
-                Cell::name(&r.set),
-                Cell::name(&format!("{} ({})", r.quantity, r.unit)),
-                Cell::text(&format!("{:.4}", r.before)),
-                Cell::html(format!("{:.4}", r.after), "good"),
+                Cell::name(&label),
+                Cell::text(&count),
+                Cell::html(escape(&rms), "good"),
+                Cell::text(&max),
+                Cell::text(&flagged),
             ];
             cells.into()
         })
         .collect();
-    let head = ["set", "residuals", "RMS before", "RMS after"];
-    out.push_str(&table("verdict small", None, "Residuals before and after calibration", &head, &rows));
+    let head = ["set", "count", "RMS before -> after", "max before -> after", "flagged"];
+    out.push_str(&table("verdict small", None, "Errors before and after calibration", &head, &rows));
     if !report.converged {
         out.push_str("<p><strong>The fit did not converge</strong>: see the warnings.</p>\n");
     }
@@ -166,15 +153,6 @@ fn summary(report: &FilesPage<'_>) -> String {
     }
     out.push_str("</section>\n");
     out
-}
-
-/// `(before, after)` of `set` measured as `quantity` in `unit`, if there is one.
-fn row(
-    set: &str,
-    (quantity, unit): (&'static str, &'static str),
-    v: Option<(f64, f64)>,
-) -> Option<ResidualRow> {
-    v.map(|(before, after)| ResidualRow { set: set.to_string(), quantity, unit, before, after })
 }
 
 /// The page of a report of observation files or views (`$report`, whose text is `$text`), its
@@ -202,17 +180,7 @@ impl ObservationsReport {
     /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
     /// `figures` the figures it shows inline (`(file name, SVG)`).
     pub fn page(&self, title: &str, text: &str, figures: &[(String, String)]) -> String {
-        let residuals = (self.sets.iter())
-            .flat_map(|(set, s)| {
-                [
-                    row(set, ("residuals", "mm"), Some(s.lengths)),
-                    row(set, ("marker positions", "mm"), s.markers),
-                    row(set, ("angles", "deg"), s.angles),
-                ]
-            })
-            .flatten()
-            .collect();
-        page(&files_page!(self, text, residuals, self.selection.as_ref(), figures), title)
+        page(&files_page!(self, text, self.verdict_rows(), self.selection.as_ref(), figures), title)
     }
 }
 
@@ -220,15 +188,6 @@ impl TreeReport {
     /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
     /// `figures` the figures it shows inline (`(file name, SVG)`).
     pub fn page(&self, title: &str, text: &str, figures: &[(String, String)]) -> String {
-        let residuals = (self.sets.iter())
-            .flat_map(|(set, s)| {
-                [
-                    row(set, ("view positions", "mm"), Some(s.position)),
-                    row(set, ("view rotations", "deg"), s.rotation),
-                ]
-            })
-            .flatten()
-            .collect();
-        page(&files_page!(self, text, residuals, self.selection.as_ref(), figures), title)
+        page(&files_page!(self, text, self.verdict_rows(), self.selection.as_ref(), figures), title)
     }
 }

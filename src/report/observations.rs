@@ -5,6 +5,7 @@
 //! content.
 
 use super::calibration::{DownWeighted, ParameterRow, by_number};
+use super::verdict::QuantityRow;
 use crate::calibration::Warning;
 use crate::calibration::kinds::{
     DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM, GroupRms,
@@ -118,47 +119,39 @@ fn is_zero(n: &usize) -> bool {
     *n == 0
 }
 
-/// A scored set's rows of the verdict, `[label, count, RMS, max, flagged]`: in a set with
-/// markers or lengths of several groups (a ball bar's distances and markers), each group's by
-/// name ([`Score::by_group`], its observations) and the markers' positions (each marker's with
-/// several; a position counted, and flagged, as a marker file's pose is), a marker's coordinates
-/// never pooled with the positions; else (one kind of file) its lengths (mm) and its angles
-/// (deg).
-fn set_rows(name: &str, score: &Score) -> Vec<[String; 5]> {
+/// A scored set's rows of the verdict ([`QuantityRow`]): in a set with markers or lengths of
+/// several groups (a ball bar's distances and markers), each group's by name
+/// ([`Score::by_group`], its observations) and the markers' positions (each marker's with
+/// several; a position counted, and flagged, as a marker file's pose is), a marker's
+/// coordinates never pooled with the positions; else (one kind of file) its lengths (mm) and
+/// its angles (deg).
+fn set_rows(name: &str, score: &Score) -> Vec<QuantityRow> {
     let (angles, lengths): (Vec<&GroupRms>, Vec<&GroupRms>) =
         score.by_group.iter().partition(|g| g.unit == "deg");
     let by_name = score.markers.is_some() || lengths.len() > 1;
     let several_angles = angles.len() > 1;
+    let row = |quantity: String, unit, (count, flagged), (rms, max): ((f64, f64), (f64, f64))| QuantityRow {
+        set: name.to_string(),
+        quantity,
+        unit,
+        count,
+        rms: [rms.0, rms.1],
+        max: [max.0, max.1],
+        flagged: Some(flagged),
+    };
     let group = |g: &GroupRms| {
-        let label = match by_name || (g.unit == "deg" && several_angles) {
-            true => format!("{name} {} ({})", g.group, g.unit),
-            false => format!("{name} ({})", g.unit),
-        };
-        let digits = if g.unit == "deg" { 5 } else { 4 };
-        row(label, (g.count, g.flagged), (g.rms, g.max), (g.unit, digits))
+        let named = by_name || (g.unit == "deg" && several_angles);
+        let quantity = if named { g.group.to_string() } else { String::new() };
+        row(quantity, g.unit, (g.count, g.flagged), (g.rms, g.max))
     };
-    let positions = |label: String, rms: (f64, f64), marker: Option<usize>| {
+    let positions = |quantity: String, rms: (f64, f64), marker: Option<usize>| {
         let p = score.positions_of(marker);
-        row(label, (p.count, p.flagged), (rms, p.max), ("mm", 4))
+        row(quantity, "mm", (p.count, p.flagged), (rms, p.max))
     };
-    let all = score.markers.map(|rms| positions(format!("{name} markers (mm)"), rms, None));
-    let each = score
-        .by_marker
-        .iter()
-        .map(|m| positions(format!("{name} marker {} (mm)", m.marker), m.rms, Some(m.marker)));
+    let all = score.markers.map(|rms| positions("markers".into(), rms, None));
+    let each =
+        (score.by_marker.iter()).map(|m| positions(format!("marker {}", m.marker), m.rms, Some(m.marker)));
     (lengths.into_iter().map(group)).chain(all).chain(each).chain(angles.into_iter().map(group)).collect()
-}
-
-/// A verdict row: `label`, its count and flagged, its RMS and max before -> after in `unit` to
-/// `digits` decimals.
-fn row(
-    label: String,
-    (count, flagged): (usize, usize),
-    (rms, max): ((f64, f64), (f64, f64)),
-    (unit, digits): (&str, usize),
-) -> [String; 5] {
-    let pair = |v: (f64, f64)| format!("{:.digits$} -> {:.digits$} {unit}", v.0, v.1);
-    [label, count.to_string(), pair(rms), pair(max), format!("{flagged} of {count}")]
 }
 
 impl ObservationsReport {
@@ -281,14 +274,15 @@ impl ObservationsReport {
         self
     }
 
-    /// The verdict: each set's errors before and after by group ([`set_rows`]), the warnings
-    /// by cause.
+    /// The verdict's rows: each set's errors before and after by group and marker.
+    pub fn verdict_rows(&self) -> Vec<QuantityRow> {
+        self.sets.iter().flat_map(|(name, s)| set_rows(name, s)).collect()
+    }
+
+    /// The verdict: its rows as a table, the warnings by cause.
     fn verdict_text(&self) -> String {
-        let heading = ["set", "count", "RMS", "max", "flagged"].map(String::from);
-        let rows: Vec<[String; 5]> = std::iter::once(heading)
-            .chain(self.sets.iter().flat_map(|(name, s)| set_rows(name, s)))
-            .collect();
-        super::verdict::table("verdict, the errors before -> after calibration:", &rows)
+        let title = "verdict, the errors before -> after calibration:";
+        super::verdict::quantity_table(title, "count", &self.verdict_rows())
             + &super::verdict::count_warnings(&self.warnings)
     }
 

@@ -157,37 +157,37 @@ impl TreeReport {
 
     /// The verdict: the views' RMS errors of each set before and after, the warnings by cause.
     fn verdict_text(&self) -> String {
-        let mut rows = vec![["set", "views", "RMS", "max", "flagged"].map(String::from)];
+        let title = "verdict, the view errors (|y_t| mm, |y_r| deg) before -> after calibration:";
+        super::verdict::quantity_table(title, "views", &self.verdict_rows())
+            + &super::verdict::count_warnings(&self.warnings)
+    }
+
+    /// The verdict's rows: each set's view positions (mm) and rotations (deg), the norms of
+    /// their residuals, the views flagged as the warnings flag them (the largest whitened
+    /// residual beyond [`FLAG_AT`](crate::calibration::FLAG_AT)) on the position's row.
+    pub fn verdict_rows(&self) -> Vec<super::verdict::QuantityRow> {
+        let mut rows = Vec::new();
         for (name, score) in &self.sets {
-            let largest = |f: fn(&ViewResidual) -> f64| score.views.iter().map(f).fold(0.0, f64::max);
-            let views = score.views.len().to_string();
-            let pair = |v: (f64, f64), digits: usize, unit: &str| {
-                format!("{:.digits$} -> {:.digits$} {unit}", v.0, v.1)
-            };
-            let max = (largest(|v| v.before_mm), largest(|v| v.after_mm));
-            // A view flagged as the warnings flag it: its largest whitened residual beyond FLAG_AT.
-            let flagged = score.views.iter().filter(|v| v.whitened > crate::calibration::FLAG_AT).count();
-            let flagged = format!("{flagged} of {views}");
-            rows.push([
-                format!("{name} (mm)"),
-                views.clone(),
-                pair(score.position, 4, "mm"),
-                pair(max, 4, "mm"),
+            let largest = |f: &dyn Fn(&ViewResidual) -> f64| score.views.iter().map(f).fold(0.0, f64::max);
+            let row = |unit, rms: (f64, f64), max: [f64; 2], flagged| super::verdict::QuantityRow {
+                set: name.clone(),
+                quantity: String::new(),
+                unit,
+                count: score.views.len(),
+                rms: [rms.0, rms.1],
+                max,
                 flagged,
-            ]);
+            };
+            let flagged = score.views.iter().filter(|v| v.whitened > crate::calibration::FLAG_AT).count();
+            let max = [largest(&|v| v.before_mm), largest(&|v| v.after_mm)];
+            rows.push(row("mm", score.position, max, Some(flagged)));
             if let Some(rms) = score.rotation {
-                let max = (largest(|v| v.before_deg.unwrap_or(0.0)), largest(|v| v.after_deg.unwrap_or(0.0)));
-                rows.push([
-                    format!("{name} (deg)"),
-                    views,
-                    pair(rms, 5, "deg"),
-                    pair(max, 5, "deg"),
-                    String::new(),
-                ]);
+                let max =
+                    [largest(&|v| v.before_deg.unwrap_or(0.0)), largest(&|v| v.after_deg.unwrap_or(0.0))];
+                rows.push(row("deg", rms, max, None));
             }
         }
-        let title = "verdict, the view errors (|y_t| mm, |y_r| deg) before -> after calibration:";
-        super::verdict::table(title, &rows) + &super::verdict::count_warnings(&self.warnings)
+        rows
     }
 
     /// The training files by which set `set`'s views are numbered: the training set's and

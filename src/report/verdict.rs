@@ -175,6 +175,56 @@ impl Verdict {
     }
 }
 
+/// One row of the verdict of observation files or a tree's views: one quantity of one set (a
+/// group of observations, the markers' positions, one marker's, a view's position or
+/// rotation), typed, as the text, the page and the JSON render it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct QuantityRow {
+    /// The set: `training`, a held-out file, the k-fold cross-validation.
+    pub set: String,
+    /// What of it: `distances`, `markers`, `marker 2`, `probe orientations`; empty where the
+    /// set has one quantity of its unit (one kind of file).
+    pub quantity: String,
+    /// `mm` or `deg`.
+    pub unit: &'static str,
+    /// The observations (positions: a marker at a pose; views).
+    pub count: usize,
+    /// The RMS before and after calibration.
+    pub rms: [f64; 2],
+    /// The largest before and after.
+    pub max: [f64; 2],
+    /// Those flagged after calibration; none where another row of the same observations
+    /// counts them (a view's rotation).
+    pub flagged: Option<usize>,
+}
+
+impl QuantityRow {
+    /// Its label: `training distances (mm)`, `training (deg)`.
+    pub fn label(&self) -> String {
+        match self.quantity.is_empty() {
+            true => format!("{} ({})", self.set, self.unit),
+            false => format!("{} {} ({})", self.set, self.quantity, self.unit),
+        }
+    }
+
+    /// Its cells in a verdict table: label, count, RMS and max before -> after (4 decimals in
+    /// mm, 5 in deg), flagged.
+    pub fn cells(&self) -> [String; 5] {
+        let digits = if self.unit == "deg" { 5 } else { 4 };
+        let pair = |v: [f64; 2]| format!("{:.digits$} -> {:.digits$} {}", v[0], v[1], self.unit);
+        let flagged = self.flagged.map_or_else(String::new, |f| format!("{f} of {}", self.count));
+        [self.label(), self.count.to_string(), pair(self.rms), pair(self.max), flagged]
+    }
+}
+
+/// The verdict table of `rows` under `title`, the count's column headed `count`.
+pub fn quantity_table(title: &str, count: &str, rows: &[QuantityRow]) -> String {
+    let heading = ["set", count, "RMS", "max", "flagged"].map(String::from);
+    let rows: Vec<[String; 5]> =
+        std::iter::once(heading).chain(rows.iter().map(QuantityRow::cells)).collect();
+    table(title, &rows)
+}
+
 /// A verdict's table under `title`: each row's label, count, RMS, max and flagged, the first row
 /// the heading, in columns as wide as their widest cell.
 pub(super) fn table(title: &str, rows: &[[String; 5]]) -> String {

@@ -609,8 +609,9 @@ fn files_page(args: &[&str], name: &str) -> (Vec<String>, String, String) {
     (sections.collect(), verdict, tables)
 }
 
-/// Observation files and a tree's views get the designed page too: the verdict first (a row per
-/// set and quantity, the held-out file's), the robot's parameters apart from the set-up's, the
+/// Observation files and a tree's views get the designed page too: the verdict first (the text
+/// verdict's rows: a row per set and quantity, counted and flagged, the held-out file's), the
+/// robot's parameters apart from the set-up's, the
 /// prior's curve when `--prior auto` chose it, the text report in full.
 #[test]
 fn observation_files_and_trees_have_a_page_that_leads_with_the_verdict() {
@@ -622,9 +623,14 @@ fn observation_files_and_trees_have_a_page_that_leads_with_the_verdict() {
             .collect();
     let (sections, verdict, tables) = files_page(&ball_bar, "ballbar-page");
     assert_eq!(sections, ["summary", "parameters", "held", "unseen", "figures", "report"]);
-    for row in
-        ["training", "examples/puma560-ballbar-2.csv", "3-fold cross-validation, nested", "residuals (mm)"]
-    {
+    // The text's verdict rows: label, count, RMS and max before -> after, flagged.
+    for row in [
+        "training (mm)150",
+        "examples/puma560-ballbar-2.csv (mm)60",
+        "3-fold cross-validation, nested (mm)150",
+        "0 of 150",
+        " mm0 of 60",
+    ] {
         assert!(verdict.contains(row), "{row}: {verdict}");
     }
     assert!(
@@ -637,7 +643,7 @@ fn observation_files_and_trees_have_a_page_that_leads_with_the_verdict() {
             .collect();
     let (sections, verdict, _) = files_page(&torso, "tree-page");
     assert_eq!(sections[0], "summary");
-    for row in ["examples/torso/views-2.csv", "view positions (mm)", "view rotations (deg)"] {
+    for row in ["examples/torso/views-2.csv (mm)80", "examples/torso/views-2.csv (deg)80", "0 of 80"] {
         assert!(verdict.contains(row), "{row}: {verdict}");
     }
 }
