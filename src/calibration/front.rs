@@ -234,6 +234,22 @@ impl Front for Markers<'_> {
     }
 }
 
+/// A nested cross-validation's score, as `cross` makes it calibrating each fold's training data
+/// by `fit` (`options` before any choice), with what each fold chose.
+fn with_choices<F: Front, S>(
+    options: &F::Options,
+    fit: FoldFit<F>,
+    cross: impl FnOnce(&mut dyn FnMut(&F::Data) -> Result<F::Fit>) -> Result<S>,
+) -> Result<Nested<S>> {
+    let mut choices = FoldChoices::default();
+    let score = cross(&mut |train| {
+        let chosen = fit(train, options)?;
+        choices.push(&chosen);
+        Ok(chosen.calibration)
+    })?;
+    Ok(Nested { score, choices })
+}
+
 /// A robot calibrated from observation files ([`kinds::calibrate_kinds`]).
 #[derive(Debug, Clone, Copy)]
 pub struct Kinds<'a>(pub &'a RobotModel);
@@ -332,13 +348,9 @@ impl Front for Kinds<'_> {
         folds: usize,
         fit: FoldFit<Self>,
     ) -> Result<Nested<Score>> {
-        let mut choices = FoldChoices::default();
-        let score = kinds::cross_validate_kinds_by(data, folds, |train| {
-            let chosen = fit(train, options)?;
-            choices.push(&chosen);
-            Ok(chosen.calibration)
-        })?;
-        Ok(Nested { score, choices })
+        with_choices::<Self, _>(options, fit, |calibrate| {
+            kinds::cross_validate_kinds_by(data, folds, calibrate)
+        })
     }
 }
 
@@ -414,12 +426,8 @@ impl Front for Tree<'_> {
         folds: usize,
         fit: FoldFit<Self>,
     ) -> Result<Nested<TreeScore>> {
-        let mut choices = FoldChoices::default();
-        let score = tree::cross_validate_tree_by(data, folds, |train| {
-            let chosen = fit(train, options)?;
-            choices.push(&chosen);
-            Ok(chosen.calibration)
-        })?;
-        Ok(Nested { score, choices })
+        with_choices::<Self, _>(options, fit, |calibrate| {
+            tree::cross_validate_tree_by(data, folds, calibrate)
+        })
     }
 }

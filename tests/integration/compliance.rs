@@ -271,36 +271,35 @@ fn calibrate_with_a_payload_writes_the_robot_without_it() {
     let dir = std::env::temp_dir().join(format!("robocal-payload-calibrate-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("calibrated.toml");
-    let output = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .args(["calibrate", "--model", "examples/arm7/arm7.urdf", "--data", "examples/arm7/train.csv"])
-        .args(["--marker", "40,0,25", "--marker=-20,35,25", "--marker=-20,-35,25"])
-        .args(["--params", "joint*.compliance", "--payload-kg", "2", "--payload-com-mm", "0,0,40"])
-        .arg("--out-model")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    let written = RobotModel::from_toml_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
     let own = robocal::io::load_model(&robocal::model::ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
-    assert_eq!((&written.masses, written.payload), (&own.masses, None));
-    assert!(written.joints[1].compliance != 0.0);
-    // Two marker files, fitted as observations: the same (the session's payload was written).
-    let output = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .args(["calibrate", "-q", "--model", "examples/arm7/arm7.urdf", "--data", "examples/arm7/train.csv"])
-        .args(["--data", "examples/arm7/session1.csv"])
-        .args(["--marker", "40,0,25", "--marker=-20,35,25", "--marker=-20,-35,25"])
-        .args(["--params", "joint*.compliance", "--payload-kg", "2", "--payload-com-mm", "0,0,40"])
-        .arg("--out-model")
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    assert!(String::from_utf8_lossy(&output.stdout).contains("observations at 97 poses"));
-    let written = RobotModel::from_toml_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
-    assert_eq!((&written.masses, written.payload), (&own.masses, None));
-    assert!(written.joints[1].compliance != 0.0);
+    // A marker file; two marker files, fitted as observations (they wrote the session's payload).
+    for (data, fitted) in [
+        (&[][..], "37 poses, 3 markers"),
+        (&["--data", "examples/arm7/session1.csv"][..], "observations at 97 poses"),
+    ] {
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args([
+                "calibrate",
+                "-q",
+                "--model",
+                "examples/arm7/arm7.urdf",
+                "--data",
+                "examples/arm7/train.csv",
+            ])
+            .args(data)
+            .args(["--marker", "40,0,25", "--marker=-20,35,25", "--marker=-20,-35,25"])
+            .args(["--params", "joint*.compliance", "--payload-kg", "2", "--payload-com-mm", "0,0,40"])
+            .arg("--out-model")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        assert!(String::from_utf8_lossy(&output.stdout).contains(fitted), "{fitted}");
+        let written = RobotModel::from_toml_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+        assert_eq!((&written.masses, written.payload), (&own.masses, None));
+        assert!(written.joints[1].compliance != 0.0);
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
