@@ -180,7 +180,7 @@ impl ObservationsReport {
     /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
     /// `figures` the figures it shows inline (`(file name, SVG)`).
     pub fn page(&self, title: &str, text: &str, figures: &[(String, String)]) -> String {
-        page(&files_page!(self, text, self.verdict_rows(), self.selection.as_ref(), figures), title)
+        page(&files_page!(self, text, self.verdict.clone(), self.selection.as_ref(), figures), title)
     }
 }
 
@@ -188,6 +188,6 @@ impl TreeReport {
     /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
     /// `figures` the figures it shows inline (`(file name, SVG)`).
     pub fn page(&self, title: &str, text: &str, figures: &[(String, String)]) -> String {
-        page(&files_page!(self, text, self.verdict_rows(), self.selection.as_ref(), figures), title)
+        page(&files_page!(self, text, self.verdict.clone(), self.selection.as_ref(), figures), title)
     }
 }

@@ -51,6 +51,9 @@ pub struct ObservationsReport {
     pub held_groups: Vec<super::verdict::HeldGroup>,
     /// The same, typed: the kind, the parameter, a combination's terms.
     pub held: Vec<crate::calibration::Held>,
+    /// What the report leads with: each set's errors before and after calibration, a row per
+    /// quantity, counted and flagged (the text's and the page's verdict table).
+    pub verdict: Vec<super::verdict::QuantityRow>,
     /// The training observations scored, then each held-out file: every observation's
     /// residual, and the RMS of the lengths (mm), of the angles (deg) and of the marker
     /// positions (mm).
@@ -195,7 +198,7 @@ impl ObservationsReport {
         sets.extend(held_out);
         let held: Vec<crate::calibration::Held> =
             c.fixed.iter().map(|f| f.clone().renamed(|n| point_names(n, c))).collect();
-        Self {
+        let mut report = Self {
             model: c.calibrated.name.clone(),
             data: data.to_string(),
             observations: fitted.0,
@@ -210,6 +213,7 @@ impl ObservationsReport {
             fixed: held.iter().map(crate::calibration::Held::text).collect(),
             held_groups: super::verdict::held_groups(&held),
             held,
+            verdict: Vec::new(),
             sets,
             warnings: c.warnings.clone(),
             variance_factor: c.variance_factor,
@@ -228,7 +232,9 @@ impl ObservationsReport {
             cross_validation: None,
             predicted: Vec::new(),
             assumed_sigmas: 0,
-        }
+        };
+        report.verdict = report.verdict_rows();
+        report
     }
 
     /// The floor of the accuracy predicted from the parameter covariance: the first held-out
@@ -275,14 +281,14 @@ impl ObservationsReport {
     }
 
     /// The verdict's rows: each set's errors before and after by group and marker.
-    pub fn verdict_rows(&self) -> Vec<QuantityRow> {
+    fn verdict_rows(&self) -> Vec<QuantityRow> {
         self.sets.iter().flat_map(|(name, s)| set_rows(name, s)).collect()
     }
 
     /// The verdict: its rows as a table, the warnings by cause.
     fn verdict_text(&self) -> String {
         let title = "verdict, the errors before -> after calibration:";
-        super::verdict::quantity_table(title, "count", &self.verdict_rows())
+        super::verdict::quantity_table(title, "count", &self.verdict)
             + &super::verdict::count_warnings(&self.warnings)
     }
 

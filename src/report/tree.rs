@@ -61,6 +61,9 @@ pub struct TreeReport {
     pub held_groups: Vec<super::verdict::HeldGroup>,
     /// The same, typed: the kind, the parameter, a combination's terms.
     pub held: Vec<crate::calibration::Held>,
+    /// What the report leads with: each set's errors before and after calibration, a row per
+    /// quantity, counted and flagged (the text's and the page's verdict table).
+    pub verdict: Vec<super::verdict::QuantityRow>,
     /// The training views scored, then each held-out file's.
     pub sets: Vec<(String, TreeScore)>,
     /// Implausible results, one per cause.
@@ -103,7 +106,7 @@ impl TreeReport {
         let mut sets = vec![("training".to_string(), c.training.clone())];
         sets.extend(held_out);
         let held: Vec<crate::calibration::Held> = c.fixed.clone();
-        Self {
+        let mut report = Self {
             model: c.calibrated.name.clone(),
             branches: c.calibrated.branches.iter().map(|b| b.tip.clone()).collect(),
             joints: c.calibrated.joints.iter().map(|j| j.name.clone()).collect(),
@@ -121,6 +124,7 @@ impl TreeReport {
             fixed: held.iter().map(crate::calibration::Held::text).collect(),
             held_groups: super::verdict::held_groups(&held),
             held,
+            verdict: Vec::new(),
             sets,
             warnings: c.warnings.clone(),
             training_files: Vec::new(),
@@ -136,7 +140,9 @@ impl TreeReport {
             prior_scale: None,
             cross_validation: None,
             selection: None,
-        }
+        };
+        report.verdict = report.verdict_rows();
+        report
     }
 
     /// The same report with the training files named (each one's name and number of views, in
@@ -158,14 +164,14 @@ impl TreeReport {
     /// The verdict: the views' RMS errors of each set before and after, the warnings by cause.
     fn verdict_text(&self) -> String {
         let title = "verdict, the view errors (|y_t| mm, |y_r| deg) before -> after calibration:";
-        super::verdict::quantity_table(title, "views", &self.verdict_rows())
+        super::verdict::quantity_table(title, "views", &self.verdict)
             + &super::verdict::count_warnings(&self.warnings)
     }
 
     /// The verdict's rows: each set's view positions (mm) and rotations (deg), the norms of
     /// their residuals, the views flagged as the warnings flag them (the largest whitened
     /// residual beyond [`FLAG_AT`](crate::calibration::FLAG_AT)) on the position's row.
-    pub fn verdict_rows(&self) -> Vec<super::verdict::QuantityRow> {
+    fn verdict_rows(&self) -> Vec<super::verdict::QuantityRow> {
         let mut rows = Vec::new();
         for (name, score) in &self.sets {
             let largest = |f: &dyn Fn(&ViewResidual) -> f64| score.views.iter().map(f).fold(0.0, f64::max);

@@ -1361,3 +1361,40 @@ fn the_verdict_gives_a_marker_file_the_marker_reports_figures() {
     assert_eq!(row[3], distances.len().to_string(), "{observations}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The verdict is typed data that the text renders: `--json`'s `verdict` rows are the text's
+/// table, row for row (label, count, RMS and max before and after, flagged).
+#[test]
+fn the_verdict_in_the_json_is_the_texts_table() {
+    let dir = std::env::temp_dir().join(format!("robocal-kinds-verdict-json-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("r.json");
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
+        .args(["--data", "examples/puma560-ballbar.csv", "--marker", "50,0,150", "--marker=-40,60,120"])
+        .args(["--validate", "examples/puma560-validation.csv", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let text = String::from_utf8(output.stdout).unwrap();
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = report["verdict"].as_array().unwrap();
+    assert_eq!(rows.len(), 7, "distances, markers, 2 markers; held out: markers, 2 markers");
+    for row in rows {
+        let (set, quantity, unit) =
+            (row["set"].as_str().unwrap(), row["quantity"].as_str().unwrap(), row["unit"].as_str().unwrap());
+        let label = format!("{set} {quantity} ({unit})");
+        let line =
+            text.lines().find(|l| l.starts_with(&format!("{label} "))).unwrap_or_else(|| panic!("{label}"));
+        let pair = |v: &serde_json::Value| {
+            format!("{:.4} -> {:.4} {unit}", v[0].as_f64().unwrap(), v[1].as_f64().unwrap())
+        };
+        let count = row["count"].as_u64().unwrap();
+        for cell in [pair(&row["rms"]), pair(&row["max"]), format!("{} of {count}", row["flagged"])] {
+            assert!(line.contains(&cell), "{cell}: {line}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
