@@ -1398,3 +1398,36 @@ fn the_verdict_in_the_json_is_the_texts_table() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// With nothing to estimate (`--params none`, the base and the markers fixed, no set-up) the
+/// observation fit scores the model as it stands, as a marker file's calibration does: the same
+/// markers' RMS and largest error, before and after alike, no step taken.
+#[test]
+fn with_nothing_to_estimate_the_model_is_scored_as_it_stands() {
+    let run = |extra: &[&str]| {
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
+            .args(["--marker", "50,0,150", "--marker=-40,60,120", "--params", "none", "--fixed-base"])
+            .args(["--fixed-markers"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&output.stderr));
+        String::from_utf8(output.stdout).unwrap()
+    };
+    // `--tool` sends the file to the observation fit; no observation measures the tool point.
+    let (markers, observations) = (run(&[]), run(&["--tool", "0,0,0"]));
+    assert!(
+        observations.contains("600 observations at 100 poses, wls (0 steps, converged)"),
+        "{observations}"
+    );
+    let cells = |text: &str, start: &str| -> Vec<String> {
+        let row = text.lines().find(|l| l.starts_with(start)).unwrap_or_else(|| panic!("{start}: {text}"));
+        row.split_whitespace().map(String::from).collect()
+    };
+    let (m, k) =
+        (cells(&markers, "training (fitted, in-sample)"), cells(&observations, "training markers (mm)"));
+    assert_eq!(m[4..12], k[4..12], "{markers}\n{observations}");
+    assert_eq!(k[4], k[6], "before and after alike: {observations}");
+}

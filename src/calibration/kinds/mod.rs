@@ -1985,6 +1985,13 @@ fn fit_gauged(
     let whole = base.reselect(asked, before, before_setup, asked_setup.clone());
     let x0: Vec<f64> = whole.start().iter().copied().collect();
     let names = whole.names();
+    if names.is_empty() {
+        // Nothing asked for (`--params none`, the base, markers and tool fixed, no set-up): the
+        // model as it stands is scored, as a marker file's is.
+        let refined = Refined { estimate: super::nothing_estimated(), history: Vec::new(), converged: true };
+        let (after, after_setup) = whole.full(&DVector::zeros(0));
+        return Ok(Fitted { refined, robust: None, fixed: gauged.fixed, after, after_setup, change: None });
+    }
     let mut first = Some(linearised);
     type Out = (Option<RobustFit>, Vec<f64>, Vec<f64>);
     let fit = |g: &mut Gauged, at: &[f64], steps: usize| -> Result<(Refined, Out), CalibrationError> {
@@ -2642,6 +2649,10 @@ pub(super) fn identifiable(
     priority: &[u32],
     prior: Option<&PriorRows>,
 ) -> Result<(Vec<usize>, Vec<Held>), CalibrationError> {
+    if names.is_empty() {
+        // Nothing asked for: nothing to identify, nothing held.
+        return Ok((Vec::new(), Vec::new()));
+    }
     let norms: Vec<f64> = linearised.column_norms();
     let largest = norms.iter().copied().fold(0.0, f64::max);
     let (seen, unseen): (Vec<usize>, Vec<usize>) =
