@@ -21,7 +21,7 @@ pub struct FilesPage<'a> {
     /// The fit in one line (the text report's first).
     pub meta: &'a str,
     /// The verdict's rows, the training set's first.
-    pub residuals: Vec<QuantityRow>,
+    pub residuals: &'a [QuantityRow],
     /// Whether the fit converged.
     pub converged: bool,
     /// The warnings.
@@ -155,21 +155,20 @@ fn summary(report: &FilesPage<'_>) -> String {
     out
 }
 
-/// The page of a report of observation files or views (`$report`, whose text is `$text`), its
-/// verdict's rows `$residuals` and its selection `$selection`: the fields both reports share
-/// by name, taken once.
+/// The page of a report of observation files or views (`$report`, whose text is `$text`):
+/// the fields both reports share by name (its verdict's rows, its selection, ...), taken once.
 macro_rules! files_page {
-    ($report:expr, $text:expr, $residuals:expr, $selection:expr, $figures:expr) => {
+    ($report:expr, $text:expr, $figures:expr) => {
         FilesPage {
             meta: $text.lines().next().unwrap_or(""),
-            residuals: $residuals,
+            residuals: &$report.verdict,
             converged: $report.converged,
             warnings: &$report.warnings,
             parameters: &$report.parameters,
             held: &$report.held,
             unseen: &$report.unseen,
             prior_scale: $report.prior_scale.as_ref(),
-            selection: $selection,
+            selection: $report.selection.as_ref(),
             text: $text,
             figures: $figures,
         }
@@ -180,7 +179,7 @@ impl ObservationsReport {
     /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
     /// `figures` the figures it shows inline (`(file name, SVG)`).
     pub fn page(&self, title: &str, text: &str, figures: &[(String, String)]) -> String {
-        page(&files_page!(self, text, self.verdict.clone(), self.selection.as_ref(), figures), title)
+        page(&files_page!(self, text, figures), title)
     }
 }
 
@@ -188,6 +187,6 @@ impl TreeReport {
     /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
     /// `figures` the figures it shows inline (`(file name, SVG)`).
     pub fn page(&self, title: &str, text: &str, figures: &[(String, String)]) -> String {
-        page(&files_page!(self, text, self.verdict.clone(), self.selection.as_ref(), figures), title)
+        page(&files_page!(self, text, figures), title)
     }
 }

@@ -35,6 +35,19 @@ pub(crate) fn line_in(files: &[(String, usize)], k: usize, line: usize) -> Strin
     format!("line {line}")
 }
 
+/// The training files by which set `set` of `sets` is numbered (`files`: each training file's
+/// name and number of rows): the training set's (the first) and, with `--folds` (`folds`), the
+/// cross-validation's (the last, the training rows in their order); none for a held-out
+/// file's.
+pub(crate) fn files_of(
+    files: &[(String, usize)],
+    set: usize,
+    sets: usize,
+    folds: bool,
+) -> &[(String, usize)] {
+    if set == 0 || (folds && set + 1 == sets) { files } else { &[] }
+}
+
 /// The tool pose at joint values `q` (rad or mm) as a person checks it against a controller:
 /// position (mm), roll-pitch-yaw (deg, `R = Rz(yaw) Ry(pitch) Rx(roll)`), quaternion and the
 /// homogeneous transform.

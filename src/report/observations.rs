@@ -316,14 +316,6 @@ impl ObservationsReport {
         }
     }
 
-    /// The training files by which set `set`'s observations are numbered: the training set's and
-    /// the cross-validation's (the last set with `--folds`, the training observations in their
-    /// order), none for a held-out file's.
-    fn files_of(&self, set: usize) -> &[(String, usize)] {
-        let folds = self.cross_validation.is_some() && set + 1 == self.sets.len();
-        if set == 0 || folds { &self.training_files } else { &[] }
-    }
-
     /// The worst observations of each set after calibration, whitened.
     fn write_worst(&self, out: &mut String) {
         let _ =
@@ -332,7 +324,8 @@ impl ObservationsReport {
             let mut worst: Vec<(usize, &ObservationResidual)> =
                 score.observations.iter().enumerate().collect();
             worst.sort_by(|a, b| b.1.whitened.abs().total_cmp(&a.1.whitened.abs()));
-            let files = self.files_of(set);
+            let files =
+                super::files_of(&self.training_files, set, self.sets.len(), self.cross_validation.is_some());
             for (k, r) in worst.iter().take(WORST) {
                 let _ = writeln!(
                     out,
@@ -361,7 +354,8 @@ impl ObservationsReport {
         for (set, (name, score)) in self.sets.iter().enumerate() {
             let mut worst: Vec<&crate::calibration::kinds::PositionError> = score.positions.iter().collect();
             worst.sort_by(|a, b| b.error.1.total_cmp(&a.error.1));
-            let files = self.files_of(set);
+            let files =
+                super::files_of(&self.training_files, set, self.sets.len(), self.cross_validation.is_some());
             for p in worst.iter().take(WORST) {
                 let _ = writeln!(
                     out,

@@ -196,21 +196,14 @@ impl TreeReport {
         rows
     }
 
-    /// The training files by which set `set`'s views are numbered: the training set's and
-    /// the cross-validation's (the last set with `--folds`, the training views in their
-    /// order), none for a held-out file's.
-    fn files_of(&self, set: usize) -> &[(String, usize)] {
-        let folds = self.cross_validation.is_some() && set + 1 == self.sets.len();
-        if set == 0 || folds { &self.training_files } else { &[] }
-    }
-
     /// The worst views of each set after calibration.
     fn write_worst(&self, out: &mut String) {
         let _ = writeln!(*out, "\nworst views after calibration ({WORST} per set; every one in --json):");
         for (set, (name, score)) in self.sets.iter().enumerate() {
             let mut worst: Vec<(usize, &ViewResidual)> = score.views.iter().enumerate().collect();
             worst.sort_by(|a, b| b.1.after_mm.total_cmp(&a.1.after_mm));
-            let files = self.files_of(set);
+            let files =
+                super::files_of(&self.training_files, set, self.sets.len(), self.cross_validation.is_some());
             for &(k, v) in worst.iter().take(WORST) {
                 let (before, after) = match (v.before_deg, v.after_deg) {
                     (Some(b), Some(a)) => (

@@ -266,23 +266,19 @@ fn an_observation_calibration_predicts_its_tool_points_error() {
 fn an_observation_calibration_writes_the_covariance_accuracy_reads() {
     let dir = std::env::temp_dir().join(format!("robocal-kinds-sidecar-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let (model, json, csv) = (dir.join("m.toml"), dir.join("r.json"), dir.join("a.csv"));
-    let output = Command::cargo_bin("robocal")
-        .unwrap()
-        .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
-        .args(["--data", "examples/puma560-ballbar.csv", "--marker", "50,0,150", "--marker=-40,60,120"])
-        .args(["--validate", "examples/puma560-validation.csv", "--out-model"])
-        .arg(&model)
-        .arg("--json")
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let (model, csv) = (dir.join("m.toml"), dir.join("a.csv"));
+    let (_, report) = crate::nested::calibrate_puma(&[
+        "--data",
+        "examples/puma560-ballbar.csv",
+        "--validate",
+        "examples/puma560-validation.csv",
+        "--out-model",
+        model.to_str().unwrap(),
+    ]);
     let sidecar = std::fs::read_to_string(dir.join("m.toml.covariance.json")).unwrap();
     let covariance = ParameterCovariance::from_json(&sidecar).unwrap();
     assert!(covariance.names.iter().all(|n| !n.starts_with("marker") && !n.starts_with("point")));
     assert!(covariance.names.iter().any(|n| n == "j2.theta"), "{:?}", covariance.names);
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let predicted = &report["predicted"][0];
     assert_eq!(Some(covariance.floor_mm), predicted["floor_mm"].as_f64());
     let output = Command::cargo_bin("robocal")

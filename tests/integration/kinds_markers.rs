@@ -1366,20 +1366,12 @@ fn the_verdict_gives_a_marker_file_the_marker_reports_figures() {
 /// table, row for row (label, count, RMS and max before and after, flagged).
 #[test]
 fn the_verdict_in_the_json_is_the_texts_table() {
-    let dir = std::env::temp_dir().join(format!("robocal-kinds-verdict-json-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let json = dir.join("r.json");
-    let output = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
-        .args(["--data", "examples/puma560-ballbar.csv", "--marker", "50,0,150", "--marker=-40,60,120"])
-        .args(["--validate", "examples/puma560-validation.csv", "--json"])
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    let text = String::from_utf8(output.stdout).unwrap();
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let (text, report) = crate::nested::calibrate_puma(&[
+        "--data",
+        "examples/puma560-ballbar.csv",
+        "--validate",
+        "examples/puma560-validation.csv",
+    ]);
     let rows = report["verdict"].as_array().unwrap();
     assert_eq!(rows.len(), 7, "distances, markers, 2 markers; held out: markers, 2 markers");
     for row in rows {
@@ -1396,7 +1388,6 @@ fn the_verdict_in_the_json_is_the_texts_table() {
             assert!(line.contains(&cell), "{cell}: {line}");
         }
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// With nothing to estimate (`--params none`, the base and the markers fixed, no set-up) the

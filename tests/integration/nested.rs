@@ -294,19 +294,16 @@ pub(crate) fn calibrate_puma(extra: &[&str]) -> (String, serde_json::Value) {
 /// and names the file of each held-out observation it lists.
 #[test]
 fn a_prior_scale_is_chosen_inside_each_fold_of_an_observation_fit() {
-    let dir = std::env::temp_dir().join(format!("robocal-nested-kinds-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let json = dir.join("report.json");
-    let output = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
-        .args(["--data", "examples/puma560-validation.csv", "--marker", "50,0,150", "--marker=-40,60,120"])
-        .args(["--params", "offsets", "--prior", "auto:machined", "--folds", "2", "--json"])
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    let text = String::from_utf8(output.stdout).unwrap();
+    let (text, report) = calibrate_puma(&[
+        "--data",
+        "examples/puma560-validation.csv",
+        "--params",
+        "offsets",
+        "--prior",
+        "auto:machined",
+        "--folds",
+        "2",
+    ]);
     assert!(text.contains("\n2-fold cross-validation, nested markers (mm) "), "{text}");
     assert!(text.contains(
         "\n2-fold cross-validation, nested: --prior auto:machined's scale made again inside each fold (the folds' prior scales: "
@@ -316,13 +313,15 @@ fn a_prior_scale_is_chosen_inside_each_fold_of_an_observation_fit() {
         text.contains(&format!("\n  2-fold cross-validation, nested, examples/{file}.csv line "))
     };
     assert!(named("puma560-measurements") && named("puma560-validation"), "{text}");
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let cv = &report["cross_validation"];
     assert_eq!((cv["folds"].as_u64(), cv["nested"].as_bool()), (Some(2), Some(true)));
     assert_eq!(cv["redone"], serde_json::json!(["--prior auto:machined's scale"]));
     assert_eq!(cv["scales"].as_array().map(Vec::len), Some(2));
 
     // A tree's views likewise.
+    let dir = std::env::temp_dir().join(format!("robocal-nested-tree-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("report.json");
     let output = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
         .args(["calibrate", "-q", "--model", "presets/torso.urdf", "--data", "examples/torso/views.csv"])
