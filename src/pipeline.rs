@@ -210,14 +210,18 @@ fn predicted_for_kinds(
     )
 }
 
-/// An observation calibration's covariance of the robot's parameters, the markers' and the
-/// set-up's left out (they do not move the tool), with `floor_mm` in quadrature: what the
-/// accuracy at new poses is predicted from, and `--out-model`'s covariance sidecar holds.
+/// An observation calibration's covariance of the robot's parameters with `floor_mm` in
+/// quadrature: what the accuracy at new poses is predicted from, and `--out-model`'s
+/// covariance sidecar holds. The set-up is left out (it does not move the tool); the markers
+/// are kept unless a tool point was estimated, since marker 1 is then the written model's tool
+/// ([`AccuracyModel`] reads `marker1.*` as `tool.*`).
 pub fn robot_covariance(c: &KindCalibration, floor_mm: f64) -> ParameterCovariance {
     let estimate = &c.refined.estimate;
+    let tool = estimate.names.iter().any(|n| n.starts_with("tool."));
     let kept: Vec<usize> = (0..estimate.names.len())
         .filter(|&k| {
-            c.params.index_by_name(&estimate.names[k]).is_some() && !estimate.names[k].starts_with("marker")
+            let name = &estimate.names[k];
+            c.params.index_by_name(name).is_some() && !(tool && name.starts_with("marker"))
         })
         .collect();
     let names = kept.iter().map(|&k| estimate.names[k].clone()).collect();
@@ -228,20 +232,30 @@ pub fn robot_covariance(c: &KindCalibration, floor_mm: f64) -> ParameterCovarian
 }
 
 /// Why a calibration of observation files or of views on a tree failed: the calibration's
-/// error, and the file (or files) it concerns.
+/// error, and the file (or files) or the flags it concerns.
 #[derive(Debug, thiserror::Error)]
 #[error("{context}")]
 pub struct FilesError {
-    /// The file or files: a session that cannot be joined, the sessions fitted, a held-out set.
+    /// The file or files (a session that cannot be joined, the sessions fitted, a held-out
+    /// set), or the flags: a name that matches no parameter is `--params`', `--hold`'s or
+    /// `--keep`'s, a bad prior `--prior`'s.
     pub context: String,
     /// The calibration's error.
     #[source]
     pub source: CalibrationError,
 }
 
-/// A function making a calibration's error a [`FilesError`] about `context`.
-fn in_context(context: &str) -> impl Fn(CalibrationError) -> FilesError + '_ {
-    move |source| FilesError { context: context.to_string(), source }
+/// A function making a calibration's error a [`FilesError`] about `files`, or about the flags
+/// where the error is theirs.
+fn in_context(files: &str) -> impl Fn(CalibrationError) -> FilesError + '_ {
+    move |source| {
+        let context = match source {
+            CalibrationError::Selection(_) => "--params, --hold or --keep",
+            CalibrationError::Prior(_) => "--prior",
+            _ => files,
+        };
+        FilesError { context: context.to_string(), source }
+    }
 }
 
 /// What the files' pipeline ([`calibrate_files`]) needs of a calibration beyond its

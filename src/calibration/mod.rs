@@ -696,14 +696,26 @@ fn check_enough_poses(
 ) -> Result<(), CalibrationError> {
     let unanchored = asked.indices().iter().filter(|&&i| !prior_sd[i].is_finite()).count();
     enough_equations(data.len(), data.len() * rows, unanchored)?;
-    if !asked.is_empty() && data.joints.first().is_some_and(|q| data.joints.iter().all(|other| other == q)) {
-        let line = data.lines.first().copied().unwrap_or(0);
-        return Err(CalibrationError::NothingIdentified(format!(
-            "all {} poses have the joint values of line {line}: measure the robot at different poses",
-            data.len()
-        )));
+    match asked.is_empty() {
+        true => Ok(()),
+        false => different_poses(data.lines.iter().copied().zip(data.joints.iter().map(Vec::as_slice))),
     }
-    Ok(())
+}
+
+/// Refused when every one of the `poses` (file line, joint values) has the joint values of the
+/// first: nothing can then be identified.
+fn different_poses<'q>(mut poses: impl Iterator<Item = (usize, &'q [f64])>) -> Result<(), CalibrationError> {
+    let Some((line, first)) = poses.next() else { return Ok(()) };
+    let mut count = 1;
+    for (_, q) in poses {
+        if q != first {
+            return Ok(());
+        }
+        count += 1;
+    }
+    Err(CalibrationError::NothingIdentified(format!(
+        "all {count} poses have the joint values of line {line}: measure the robot at different poses"
+    )))
 }
 
 /// [`calibrate`], the noise checked if `check_noise`: the [`Start`], one problem (and its

@@ -259,8 +259,9 @@ fn an_observation_calibration_predicts_its_tool_points_error() {
 }
 
 /// An observation calibration (markers with a ball bar) writes the covariance sidecar of the
-/// robot's parameters beside `--out-model`, the markers' and the ball bar's centre left out
-/// (they do not move the tool), the floor the held-out marker RMS; `robocal accuracy` reads it
+/// robot's parameters beside `--out-model`, the ball bar's centre left out (it does not move
+/// the tool), the markers kept (marker 1 is the written tool), the floor the held-out marker
+/// RMS; `robocal accuracy` reads it
 /// and predicts at the held-out poses what the report predicted there (to its CSV's digits).
 #[test]
 fn an_observation_calibration_writes_the_covariance_accuracy_reads() {
@@ -277,7 +278,8 @@ fn an_observation_calibration_writes_the_covariance_accuracy_reads() {
     ]);
     let sidecar = std::fs::read_to_string(dir.join("m.toml.covariance.json")).unwrap();
     let covariance = ParameterCovariance::from_json(&sidecar).unwrap();
-    assert!(covariance.names.iter().all(|n| !n.starts_with("marker") && !n.starts_with("point")));
+    assert!(covariance.names.iter().all(|n| !n.starts_with("point")), "{:?}", covariance.names);
+    assert!(covariance.names.iter().any(|n| n == "marker1.x"), "{:?}", covariance.names);
     assert!(covariance.names.iter().any(|n| n == "j2.theta"), "{:?}", covariance.names);
     let predicted = &report["predicted"][0];
     assert_eq!(Some(covariance.floor_mm), predicted["floor_mm"].as_f64());
@@ -298,4 +300,34 @@ fn an_observation_calibration_writes_the_covariance_accuracy_reads() {
     // The CSV's SDs to 6 decimals (mm): each within 5e-7 of the prediction.
     assert!((mean - expected).abs() < 5e-7, "{mean} {expected}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A marker file's predicted held-out accuracy is the same whichever fit makes it: the marker
+/// calibration's, and the observation fit's (`--tool 0,0,0` sends the file there), whose
+/// covariance keeps the markers (marker 1 is the tool the prediction moves).
+#[test]
+fn a_marker_files_predicted_accuracy_is_the_same_through_the_observation_fit() {
+    let predicted = |extra: &[&str]| -> String {
+        let output = Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
+            .args([
+                "--validate",
+                "examples/puma560-validation.csv",
+                "--marker",
+                "50,0,150",
+                "--marker=-40,60,120",
+            ])
+            .args(["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002", "--sigma-mm", "0.01"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let text = String::from_utf8(output.stdout).unwrap();
+        let at = text.find("predicted position error SD").unwrap_or_else(|| panic!("{text}"));
+        text[at..].lines().take(2).collect::<Vec<_>>().join("\n")
+    };
+    let markers = predicted(&[]);
+    assert!(markers.contains("from the parameters alone 0.0201 mm"), "{markers}");
+    assert_eq!(predicted(&["--tool", "0,0,0"]), markers);
 }

@@ -503,7 +503,11 @@ fn calibrate_select_prints_and_writes_its_path() {
     for flag in ["--hold", "--keep"] {
         let mut args: Vec<&str> = arm7.to_vec();
         args.extend([flag, "joint9.x"]);
-        assert!(stderr_of(&args).contains("no parameter matches `joint9.x`"), "{flag}");
+        let message = stderr_of(&args);
+        assert!(
+            message.contains("error: --params, --hold or --keep: no parameter matches `joint9.x`"),
+            "{message}"
+        );
     }
 }
 

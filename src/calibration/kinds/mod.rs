@@ -2092,7 +2092,11 @@ pub(super) fn prepare(
         markers.iter().map(|&m| options.markers.get(m).copied().unwrap_or_else(Vector3::zeros)).collect();
     let registered = match markers.is_empty() || !options.estimate_base {
         true => model.clone(),
-        false => registered(model, data, &markers, &nominal_markers)?,
+        false => {
+            // Poses all alike cannot place the measuring frame, nor identify anything.
+            super::different_poses(data.pose_lines())?;
+            registered(model, data, &markers, &nominal_markers)?
+        }
     };
     // Angles need a tool frame: the tool point, turned as the marker frame to start with.
     // Cameras alone: their mounting is in the tool (tip link's) frame itself, no tool point.
@@ -2131,6 +2135,9 @@ pub(super) fn prepare(
     let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
     let (asked, asked_setup, held_words) =
         without_held(&params, asked, asked_setup, &setup, &options.gauge.hold)?;
+    if !asked.is_empty() {
+        super::different_poses(data.pose_lines())?;
+    }
     let every: Vec<usize> = (0..setup.len())
         .filter(|&i| {
             !setup.is_fixed_frame(i) && (!setup.is_zero(setup.base_of(i)) || asked_setup.contains(&i))
