@@ -107,6 +107,32 @@ pub struct CalibrationReport {
     pub sets: Vec<SetEvaluation>,
 }
 
+/// How many `parameters` were estimated, and how well the data determine them: the rank and
+/// the condition number `s_1 / s_r` of the whitened, column-scaled `H` (`(rank, condition)`),
+/// said as "identified" only when the fit (`(converged, iterations)`) converged; with priors,
+/// those of the data alone.
+pub fn identified_text(
+    parameters: &[ParameterRow],
+    (converged, iterations): (bool, usize),
+    (rank, condition): (usize, f64),
+) -> String {
+    let n = parameters.len();
+    if n == 0 {
+        "nothing estimated: the model is scored as it stands\n".to_string()
+    } else if parameters.iter().any(|p| p.prior_sd.is_some()) {
+        format!(
+            "{n} parameters estimated with their priors; the data alone: rank {rank}, condition number {condition:.3e}\n"
+        )
+    } else if !converged && iterations > 1 {
+        format!(
+            "{n} parameters estimated, not converged (rank {rank}, condition number {condition:.3e}): not identified \
+             estimates; their standard errors are those of where the fit stopped\n"
+        )
+    } else {
+        format!("{n} parameters identified (rank {rank}), condition number {condition:.3e}\n")
+    }
+}
+
 /// The label of a k-fold cross-validation's row: `5-fold cross-validation`, and `, nested`
 /// when every choice made from the data was made again inside each fold.
 pub fn fold_label(folds: usize, nested: bool) -> String {
@@ -836,38 +862,11 @@ worst poses after calibration ({} per set; every pose in --poses-csv, --json, --
         out
     }
 
-    /// How many parameters were estimated, and how well the data determine them.
+    /// How many parameters were estimated, and how well the data determine them
+    /// ([`identified_text`]).
     pub(super) fn identified_text(&self) -> String {
-        let mut out = String::new();
-        if self.parameters.is_empty() {
-            let _ = writeln!(out, "nothing estimated: the model is scored as it stands");
-        } else if self.parameters.iter().any(|p| p.prior_sd.is_some()) {
-            let _ = writeln!(
-                out,
-                "{} parameters estimated with their priors; the data alone: rank {}, condition number {:.3e}",
-                self.parameters.len(),
-                self.rank,
-                self.condition_number
-            );
-        } else if !self.converged && self.iterations > 1 {
-            let _ = writeln!(
-                out,
-                "{} parameters estimated, not converged (rank {}, condition number {:.3e}): not identified \
-                 estimates; their standard errors are those of where the fit stopped",
-                self.parameters.len(),
-                self.rank,
-                self.condition_number
-            );
-        } else {
-            let _ = writeln!(
-                out,
-                "{} parameters identified (rank {}), condition number {:.3e}",
-                self.parameters.len(),
-                self.rank,
-                self.condition_number
-            );
-        }
-        out
+        let fit = (self.converged, self.iterations);
+        identified_text(&self.parameters, fit, (self.rank, self.condition_number))
     }
 
     /// The parameters: the table, the stiffnesses, how well they are identified, the robust

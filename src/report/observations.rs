@@ -43,6 +43,11 @@ pub struct ObservationsReport {
     pub noise: Option<Vec<super::calibration::NoiseRow>>,
     /// The estimated parameters, the robot's then the set-up's (`point1.x`, `plane1.d`, ...).
     pub parameters: Vec<ParameterRow>,
+    /// Numerical rank and condition number of the weighted, column-scaled `H` (of the data
+    /// alone, when a prior anchors some parameters).
+    pub rank: usize,
+    /// `s_1 / s_r` of the same.
+    pub condition_number: f64,
     /// What the observations cannot see, held, in words.
     pub unseen: Vec<String>,
     /// Each parameter held, in words with its combination, as a marker file's report gives it.
@@ -209,6 +214,8 @@ impl ObservationsReport {
             noise_settled: c.noise_settled,
             noise: c.noise_estimate.as_ref().map(|e| super::calibration::noise_rows(&c.calibrated.joints, e)),
             parameters,
+            rank: c.refined.estimate.diagnostics.rank,
+            condition_number: c.refined.estimate.diagnostics.condition_number,
             unseen: c.unseen.clone(),
             fixed: held.iter().map(crate::calibration::Held::text).collect(),
             held_groups: super::verdict::held_groups(&held),
@@ -446,6 +453,10 @@ impl ObservationsReport {
         }
         let _ = writeln!(out, "\n{}", self.verdict_text());
         super::calibration::write_parameters(&mut out, &self.parameters);
+        let fit = (self.converged, self.iterations);
+        let identified =
+            super::calibration::identified_text(&self.parameters, fit, (self.rank, self.condition_number));
+        let _ = write!(out, "\n{identified}");
         if let Some(noise) = &self.noise {
             let table = super::calibration::noise_table(noise);
             let _ = write!(out, "\nnoise estimated from the residuals (feasible GLS):\n{table}");

@@ -51,6 +51,11 @@ pub struct TreeReport {
     pub noise: Option<Vec<super::calibration::NoiseRow>>,
     /// The estimated parameters, the tree's then the cameras' and targets'.
     pub parameters: Vec<ParameterRow>,
+    /// Numerical rank and condition number of the weighted, column-scaled `H` (of the data
+    /// alone, when a prior anchors some parameters).
+    pub rank: usize,
+    /// `s_1 / s_r` of the same.
+    pub condition_number: f64,
     /// The cameras and targets as calibrated.
     pub frames: Vec<FrameRow>,
     /// What the views cannot see, held, in words.
@@ -119,6 +124,8 @@ impl TreeReport {
             noise_settled: c.noise_settled,
             noise: c.noise_estimate.as_ref().map(|e| super::calibration::noise_rows(&c.calibrated.joints, e)),
             parameters,
+            rank: c.refined.estimate.diagnostics.rank,
+            condition_number: c.refined.estimate.diagnostics.condition_number,
             frames,
             unseen: c.unseen.clone(),
             fixed: held.iter().map(crate::calibration::Held::text).collect(),
@@ -241,6 +248,10 @@ impl TreeReport {
         for p in &self.parameters {
             let _ = writeln!(out, "{:<width$} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
         }
+        let fit = (self.converged, self.iterations);
+        let identified =
+            super::calibration::identified_text(&self.parameters, fit, (self.rank, self.condition_number));
+        let _ = write!(out, "\n{identified}");
         if let Some(noise) = &self.noise {
             let table = super::calibration::noise_table(noise);
             let _ = write!(out, "\nnoise estimated from the residuals (feasible GLS):\n{table}");

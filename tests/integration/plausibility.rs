@@ -73,21 +73,37 @@ fn corrections_past_a_physical_bound_are_warned_for_every_kind() {
 }
 
 /// `calibrate --iterations 2` stops before converging: the report warns with the steps and
-/// the last step's size, and calls its parameters estimated, not identified.
+/// the last step's size, and calls its parameters estimated, not identified: the marker
+/// calibration's, and the observation fit's (`--tool 0,0,0` sends the file there), whose
+/// line is the marker calibration's; converged, both say the same "identified" line.
 #[test]
 fn an_unconverged_calibration_is_warned_and_not_called_identified() {
-    let output = assert_cmd::Command::cargo_bin("robocal")
-        .unwrap()
-        .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
-        .args(["--marker", "50,0,150", "--marker=-40,60,120", "--iterations", "2"])
-        .output()
-        .unwrap();
-    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    let text = String::from_utf8(output.stdout).unwrap();
-    assert!(text.contains("(2 steps, not converged)"), "{text}");
-    assert!(text.contains(" parameters estimated, not converged (rank "), "{text}");
-    assert!(!text.contains("parameters identified"), "{text}");
-    let warning =
-        text.lines().find(|l| l.trim_start().starts_with("not converged in 2 steps: the last moved"));
-    assert!(warning.is_some_and(|w| w.contains("standard deviations and lowered the cost by")), "{text}");
+    let run = |extra: &[&str]| {
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
+            .args(["--marker", "50,0,150", "--marker=-40,60,120"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        String::from_utf8(output.stdout).unwrap()
+    };
+    let line = |text: &str, part: &str| -> String {
+        text.lines().find(|l| l.contains(part)).unwrap_or_else(|| panic!("{part}: {text}")).to_string()
+    };
+    let markers = run(&["--iterations", "2"]);
+    let observations = run(&["--iterations", "2", "--tool", "0,0,0"]);
+    for text in [&markers, &observations] {
+        assert!(text.contains("(2 steps, not converged)"), "{text}");
+        assert!(text.contains(" parameters estimated, not converged (rank "), "{text}");
+        assert!(!text.contains("parameters identified"), "{text}");
+        let warning =
+            text.lines().find(|l| l.trim_start().starts_with("not converged in 2 steps: the last moved"));
+        assert!(warning.is_some_and(|w| w.contains("standard deviations and lowered the cost by")), "{text}");
+    }
+    let unconverged = " parameters estimated, not converged";
+    assert_eq!(line(&markers, unconverged), line(&observations, unconverged));
+    let identified = " parameters identified (rank ";
+    assert_eq!(line(&run(&[]), identified), line(&run(&["--tool", "0,0,0"]), identified));
 }

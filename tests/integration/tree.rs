@@ -594,6 +594,11 @@ fn calibrate_tree_fits_several_files_of_chosen_tips_and_writes_the_frames() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("200 views at 200 poses, wls"), "{text}");
+    // How many were identified, with the rank and condition number the JSON holds too.
+    let identified = text.lines().find(|l| l.contains(" parameters identified (rank ")).unwrap_or_default();
+    let count =
+        text.lines().skip_while(|l| !l.starts_with("parameter ")).skip(1).take_while(|l| !l.is_empty());
+    assert!(identified.starts_with(&format!("{} parameters identified", count.count())), "{text}");
     // Several training files: each worst view says which file it is in.
     assert!(text.contains("  training, examples/torso/views"), "{text}");
     let stderr = String::from_utf8(out.stderr).unwrap();
