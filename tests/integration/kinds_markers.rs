@@ -1422,3 +1422,40 @@ fn with_nothing_to_estimate_the_model_is_scored_as_it_stands() {
     assert_eq!(m[4..12], k[4..12], "{markers}\n{observations}");
     assert_eq!(k[4], k[6], "before and after alike: {observations}");
 }
+
+/// Without the noise (no sigma given, the joints exact), a prior weighs against the data's own
+/// spread, not against the assumed sigmas: `--prior auto:machined`'s cross-validated curve of a
+/// marker file through the observation fit (`--tool 0,0,0`) is the marker calibration's (its
+/// coordinates' RMS times sqrt(3) is their positions': the mean of `|e|^2` is three times the
+/// mean of a coordinate's square), to the two fits' agreement, and chooses the same scale. (Weighed against the
+/// default 0.01 mm, the prior was drowned: the curve flat, the smallest scale chosen.)
+#[test]
+fn a_prior_weighs_against_the_residuals_spread_when_no_sigma_is_given() {
+    let dir = std::env::temp_dir().join(format!("robocal-kinds-prior-spread-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let curve = |extra: &[&str]| -> (Vec<f64>, u64) {
+        let json = dir.join("r.json");
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
+            .args(["--marker", "50,0,150", "--marker=-40,60,120", "--params", "offsets"])
+            .args(["--prior", "auto:machined", "--json", json.to_str().unwrap()])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let scale = &report["prior_scale"];
+        let rms = scale["cv_rms"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        (rms, scale["chosen"].as_u64().unwrap())
+    };
+    let (markers, chosen) = curve(&[]);
+    let (observations, chosen_there) = curve(&["--tool", "0,0,0"]);
+    assert_eq!(chosen, chosen_there);
+    assert!(markers[0] > 1.05 * markers[4], "the prior at 1/16 of its scale costs: {markers:?}");
+    for (m, o) in markers.iter().zip(&observations) {
+        assert!((o * 3f64.sqrt() / m - 1.0).abs() < 1e-6, "{markers:?}\n{observations:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

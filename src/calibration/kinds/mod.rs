@@ -1980,7 +1980,7 @@ fn fit_gauged(
     started: Started<'_>,
     options: &KindOptions,
 ) -> Result<Fitted, CalibrationError> {
-    let Started { base, weights, before, before_setup, linearised, gauged } = started;
+    let Started { base, weights, before, before_setup, linearised, prior_scale, gauged } = started;
     let (asked, asked_setup) = (&prepared.asked, &prepared.asked_setup);
     let whole = base.reselect(asked, before, before_setup, asked_setup.clone());
     let x0: Vec<f64> = whole.start().iter().copied().collect();
@@ -2020,7 +2020,7 @@ fn fit_gauged(
         let (full, full_setup) = whole.full(&DVector::from_column_slice(x));
         let problem = base.reselect(asked, full, full_setup, asked_setup.clone());
         let there = linearise(&problem, &weights, problem.start())?;
-        let g = gauge(&problem, &there, (&prepared.params, asked), options, &weights)?;
+        let g = gauge(&problem, &there, (&prepared.params, asked), options, prior_scale)?;
         let prior = g.prior.as_ref().map(|p| p.select(&g.identifiable));
         let weakest = super::regauge::weakest(&there.select(&g.identifiable), prior.as_ref());
         Ok((g, weakest))
@@ -2188,6 +2188,8 @@ pub(super) struct Started<'p> {
     pub(super) before_setup: Vec<f64>,
     /// `A = S H`, `b = S y` of what is asked for, about "before".
     pub(super) linearised: Linearisation,
+    /// The standard deviation of a whitened row the priors weigh against ([`prior_scale`]).
+    pub(super) prior_scale: f64,
     pub(super) gauged: Gauged,
 }
 
@@ -2222,8 +2224,35 @@ pub(super) fn start<'p>(
     let unanchored = problem.parameters() - asked.indices().iter().filter(|&&i| sd[i].is_finite()).count();
     super::enough_equations(data.joints.len(), problem.equations(), unanchored)?;
     let linearised = linearise(&problem, &weights, problem.start())?;
-    let gauged = gauge(&problem, &linearised, (params, asked), options, &weights)?;
-    Ok(Started { base, weights, before, before_setup, linearised, gauged })
+    let prior_scale = prior_scale((prepared, &problem), &linearised, &weights, data, options)?;
+    let gauged = gauge(&problem, &linearised, (params, asked), options, prior_scale)?;
+    Ok(Started { base, weights, before, before_setup, linearised, prior_scale, gauged })
+}
+
+/// The standard deviation of a whitened row that the priors weigh against
+/// ([`PriorRows::new`]): the weights' own when the noise is known; when every sigma is assumed
+/// and the joints are exact (the fit then takes its scale from the residuals, [`scored`]), the
+/// residuals' spread `sqrt(|r|^2 / (N_m - rank))` of the fit of `problem` (about
+/// `linearised`) without priors, as a marker file's ordinary least squares takes it: a prior
+/// then weighs against the data's own noise, not against the assumed sigmas.
+fn prior_scale(
+    (prepared, problem): (&Prepared, &KindProblem<'_>),
+    linearised: &Linearisation,
+    weights: &Weights,
+    data: &KindData,
+    options: &KindOptions,
+) -> Result<f64, CalibrationError> {
+    let assumed = options.joint_noise.is_none() && data.assumed_sigmas == data.observations.len();
+    if options.prior.is_empty() || !assumed || problem.parameters() == 0 {
+        return Ok(weights.scale().unwrap_or(1.0));
+    }
+    let identifiable = linearised.diagnose(RANK_TOLERANCE)?.identifiable;
+    let (kept, kept_setup) = prepared.kept(&identifiable);
+    let (at, at_setup) = problem.full(&problem.start());
+    let plain = problem.reselect(&kept, at, at_setup, kept_setup);
+    let fitted = refine_from(&plain, weights, linearised.select(&identifiable), &RefineOptions::default())?;
+    let dof = plain.equations().saturating_sub(fitted.estimate.diagnostics.rank).max(1);
+    Ok((fitted.estimate.cost / dof as f64).sqrt())
 }
 
 /// What the marginal likelihood needs of a calibration ([`Front::evidence`](super::Front::evidence)):
@@ -2300,7 +2329,7 @@ fn gauge(
     linearised: &Linearisation,
     (params, asked): (&ParamSet, &Selection),
     options: &KindOptions,
-    weights: &Weights,
+    prior_scale: f64,
 ) -> Result<Gauged, CalibrationError> {
     let keep = problem_columns(problem, &options.gauge.keep)?;
     let priority: Vec<u32> = (0..problem.parameters())
@@ -2309,7 +2338,7 @@ fn gauge(
             false => 1 + asked.indices().get(c).map_or(0, |&i| gauge_class(params.get(i))),
         })
         .collect();
-    let prior = prior_rows(problem, asked, params, &options.prior, weights)?;
+    let prior = prior_rows(problem, asked, params, &options.prior, prior_scale)?;
     let owners: Vec<Option<ParamOwner>> =
         (0..problem.parameters()).map(|c| asked.indices().get(c).map(|&i| params.get(i).owner)).collect();
     let (identifiable, fixed) =
@@ -2585,14 +2614,14 @@ fn without_held(
 }
 
 /// The prior rows of `problem`'s columns: the robot's asked parameters' standard deviations
-/// of `entries`, none for the set-up; scaled by the weights' row scale `c`; `None` when no
-/// column has a prior.
+/// of `entries`, none for the set-up; scaled by `scale`, the standard deviation of a whitened
+/// row ([`prior_scale`]); `None` when no column has a prior.
 fn prior_rows(
     problem: &KindProblem<'_>,
     asked: &Selection,
     params: &ParamSet,
     entries: &[PriorEntry],
-    weights: &Weights,
+    scale: f64,
 ) -> Result<Option<PriorRows>, CalibrationError> {
     if entries.is_empty() {
         return Ok(None);
@@ -2603,7 +2632,6 @@ fn prior_rows(
     if columns.iter().all(|s| !s.is_finite()) {
         return Ok(None);
     }
-    let scale = weights.scale().unwrap_or(1.0);
     Ok(Some(PriorRows::new(&columns, scale)))
 }
 
