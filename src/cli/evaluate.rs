@@ -184,7 +184,7 @@ fn write_observation_files(
         .collect::<Result<Vec<_>>>()?;
     let content = super::ResidualContent {
         json,
-        page: &|figures| robocal::report::html::page(title, text, &[], figures),
+        page: &|figures, sets| robocal::report::html::page(title, text, (&[], sets), figures),
         sets,
         joints: &model.joints,
         prior_scale: None,

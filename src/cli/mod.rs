@@ -235,7 +235,7 @@ fn write_report_files(
             Some(report) => {
                 robocal::report::calibration_page::calibration_page(report, content.title, &figures)
             }
-            None => robocal::report::html::page(content.title, content.text, &sets, &figures),
+            None => robocal::report::html::page(content.title, content.text, (&sets, &[]), &figures),
         };
         outputs.add(path, page);
     }
@@ -252,7 +252,7 @@ fn json_if_asked<T: serde::Serialize>(report: &ReportArgs, value: &T) -> Result<
 }
 
 /// A page of the figures (`(file name, SVG)`) it embeds.
-type PageOf<'a> = &'a dyn Fn(&[(String, String)]) -> String;
+type PageOf<'a> = &'a dyn Fn(&[(String, String)], &[&robocal::report::residuals::ResidualSet]) -> String;
 
 /// What a calibration of observation files or of a tree's views reports: its JSON and page,
 /// each scored set's residuals (the training files', each held-out file's) and the choices
@@ -298,7 +298,7 @@ fn write_residual_files(
         all.push(figures::selection_figure(selection)?);
     }
     if let Some(path) = &report.html {
-        outputs.add(path, (content.page)(&all));
+        outputs.add(path, (content.page)(&all, &sets));
     }
     if let Some(folder) = &report.figures {
         outputs.add_folder(folder, &all);

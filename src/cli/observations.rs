@@ -51,7 +51,9 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     if request.report != super::args::ReportArgs::default() {
         let content = super::ResidualContent {
             json: super::json_if_asked(&request.report, &report)?,
-            page: &|figures| report.page(&format!("Calibration of {}", report.model), &text, figures),
+            page: &|figures, sets| {
+                report.page(&format!("Calibration of {}", report.model), &text, figures, sets)
+            },
             sets: residual_sets(&report.sets, &sessions, &held_out, &model.joints)?,
             joints: &model.joints,
             prior_scale: report.prior_scale.as_ref(),

@@ -4,12 +4,14 @@
 //! card (the text's verdict rows: each set's errors before and after calibration by quantity,
 //! counted and flagged; the warnings by cause), the parameters with their 95% intervals drawn, the choices made from the data (a
 //! prior's scale, a selection's path), what was held, the figures inline, what the data cannot
-//! see, and the text report in full in a collapsible section. No script, no address.
+//! see, every residual of each set and the warnings in full, and the text report in full in a
+//! collapsible section. No script, no address.
 
 use super::calibration::ParameterRow;
 use super::calibration_page::{held_section, parameter_table, prior_scale, selection_table};
 use super::html::{Cell, Row, escape, table};
 use super::observations::ObservationsReport;
+use super::residuals::ResidualSet;
 use super::tree::TreeReport;
 use super::verdict::{QuantityRow, WarningCount};
 use crate::calibration::{Held, Warning};
@@ -40,6 +42,11 @@ pub struct FilesPage<'a> {
     pub text: &'a str,
     /// The figures, inline: `(file name, SVG)` ([`super::html::figures`]).
     pub figures: &'a [(String, String)],
+    /// Every residual of each set ([`super::html::residual_details`]).
+    pub residuals_of_sets: &'a [&'a ResidualSet],
+    /// With several training files: each one's name and number of observations (a warning's
+    /// row named in its file).
+    pub training_files: &'a [(String, usize)],
 }
 
 /// The page of `report`, titled `title`.
@@ -86,11 +93,35 @@ pub fn page(report: &FilesPage<'_>, title: &str) -> String {
     }
     let _ = writeln!(
         out,
+        "<section id=\"poses\">\n<h2>Every observation</h2>\n<p class=\"note\">Each set's residuals, one row \
+         per observation (also in --poses-csv and --json); flagged rows are shaded.</p>\n{}</section>",
+        super::html::residual_details(report.residuals_of_sets)
+    );
+    out.push_str(&warnings(report));
+    let _ = writeln!(
+        out,
         "<section id=\"report\">\n<h2>The report in full</h2>\n<details>\n<summary>The text report (every \
          residual is in --json)</summary>\n<pre>{}</pre>\n</details>\n</section>",
         escape(report.text)
     );
     out.push_str(super::html::end());
+    out
+}
+
+/// Every warning in full, its rows named in their files.
+fn warnings(report: &FilesPage<'_>) -> String {
+    let mut out = String::from("<section id=\"warnings\">\n<h2>Warnings</h2>\n");
+    if report.warnings.is_empty() {
+        out.push_str("<p>None.</p>\n");
+    } else {
+        out.push_str("<ul>\n");
+        for w in report.warnings {
+            let text = w.render(&|k, line| super::line_in(report.training_files, k, line));
+            let _ = writeln!(out, "<li>{}</li>", escape(&text));
+        }
+        out.push_str("</ul>\n");
+    }
+    out.push_str("</section>\n");
     out
 }
 
@@ -158,7 +189,7 @@ fn summary(report: &FilesPage<'_>) -> String {
 /// The page of a report of observation files or views (`$report`, whose text is `$text`):
 /// the fields both reports share by name (its verdict's rows, its selection, ...), taken once.
 macro_rules! files_page {
-    ($report:expr, $text:expr, $figures:expr) => {
+    ($report:expr, $text:expr, $figures:expr, $residuals:expr) => {
         FilesPage {
             meta: $text.lines().next().unwrap_or(""),
             residuals: &$report.verdict,
@@ -171,22 +202,38 @@ macro_rules! files_page {
             selection: $report.selection.as_ref(),
             text: $text,
             figures: $figures,
+            residuals_of_sets: $residuals,
+            training_files: &$report.training_files,
         }
     };
 }
 
 impl ObservationsReport {
     /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
-    /// `figures` the figures it shows inline (`(file name, SVG)`).
-    pub fn page(&self, title: &str, text: &str, figures: &[(String, String)]) -> String {
-        page(&files_page!(self, text, figures), title)
+    /// `figures` the figures it shows inline (`(file name, SVG)`), `residuals` every residual
+    /// of each set.
+    pub fn page(
+        &self,
+        title: &str,
+        text: &str,
+        figures: &[(String, String)],
+        residuals: &[&ResidualSet],
+    ) -> String {
+        page(&files_page!(self, text, figures, residuals), title)
     }
 }
 
 impl TreeReport {
     /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
-    /// `figures` the figures it shows inline (`(file name, SVG)`).
-    pub fn page(&self, title: &str, text: &str, figures: &[(String, String)]) -> String {
-        page(&files_page!(self, text, figures), title)
+    /// `figures` the figures it shows inline (`(file name, SVG)`), `residuals` every residual
+    /// of each set.
+    pub fn page(
+        &self,
+        title: &str,
+        text: &str,
+        figures: &[(String, String)],
+        residuals: &[&ResidualSet],
+    ) -> String {
+        page(&files_page!(self, text, figures, residuals), title)
     }
 }

@@ -7,6 +7,7 @@
 //! address), so it opens in any browser without a network and prints; it is written as
 //! well-formed XML (XHTML-compatible markup) so that an XML parser reads it.
 
+use super::residuals::ResidualSet;
 use crate::calibration::SetEvaluation;
 use std::fmt::Write;
 
@@ -297,9 +298,68 @@ pub fn poses(sets: &[&SetEvaluation]) -> String {
     out
 }
 
+/// Every residual of each set of observations or views (`sets`), a collapsible section per
+/// set: its file and line, what it is, each stage's residual (mm for a length, deg for an
+/// angle: signed for an observation, a norm for a view), whitened, and the flag; flagged rows
+/// shaded.
+pub fn residual_details(sets: &[&ResidualSet]) -> String {
+    let mut out = String::new();
+    for set in sets.iter().filter(|s| !s.residuals.is_empty()) {
+        let flagged = set.residuals.iter().filter(|r| r.flagged()).count();
+        let _ = writeln!(
+            out,
+            "<details class=\"poses\">\n<summary>{}: {} {}s, {} flagged</summary>",
+            escape(&set.name),
+            set.residuals.len(),
+            set.item,
+            flagged
+        );
+        let (mm, deg) =
+            (set.residuals.iter().any(|r| r.mm.is_some()), set.residuals.iter().any(|r| r.deg.is_some()));
+        let mut head: Vec<String> = vec!["file".into(), "line".into(), "kind".into()];
+        for stage in &set.stages {
+            head.extend(
+                (mm.then(|| format!("{stage} mm")).into_iter()).chain(deg.then(|| format!("{stage} deg"))),
+            );
+        }
+        head.extend(["whitened".into(), "flagged".into()]);
+        // One stage drawn (a model as it stands): the residuals' "after".
+        let stages: Vec<usize> = if set.stages.len() == 1 { vec![1] } else { vec![0, 1] };
+        let value = |v: Option<(f64, f64)>, s: usize| {
+            v.map_or(String::new(), |v| format!("{:.4}", if s == 0 { v.0 } else { v.1 }))
+        };
+        let rows: Vec<Row> = (set.residuals.iter())
+            .map(|r| {
+                let mut cells =
+                    vec![Cell::text(&r.file), Cell::name(&r.line.to_string()), Cell::text(&r.kind)];
+                for &s in &stages {
+                    cells.extend(
+                        (mm.then(|| Cell::text(&value(r.mm, s))))
+                            .into_iter()
+                            .chain(deg.then(|| Cell::text(&value(r.deg, s)))),
+                    );
+                }
+                cells.push(Cell::text(&format!("{:.2}", r.whitened)));
+                cells.push(Cell::text(if r.flagged() { "yes" } else { "no" }));
+                Row { cells, class: if r.flagged() { "flagged" } else { "" } }
+            })
+            .collect();
+        let head: Vec<&str> = head.iter().map(String::as_str).collect();
+        out.push_str(&table("poses", Some(&set.name), "", &head, &rows));
+        out.push_str("</details>\n");
+    }
+    out
+}
+
 /// The page of a report that has only text (`evaluate`'s): `text` as printed, then the
-/// `figures` (`(file name, SVG text)`) inline with their captions, then every pose of `sets`.
-pub fn page(title: &str, text: &str, sets: &[&SetEvaluation], figures: &[(String, String)]) -> String {
+/// `figures` (`(file name, SVG text)`) inline with their captions, then every pose of `sets`
+/// (a marker file's) and every residual of `residuals` (observations', views').
+pub fn page(
+    title: &str,
+    text: &str,
+    (sets, residuals): (&[&SetEvaluation], &[&ResidualSet]),
+    figures: &[(String, String)],
+) -> String {
     let mut out = start(title, "");
     let _ =
         writeln!(out, "<section id=\"report\">\n<h2>Report</h2>\n<pre>{}</pre>\n</section>", escape(text));
@@ -307,7 +367,8 @@ pub fn page(title: &str, text: &str, sets: &[&SetEvaluation], figures: &[(String
         let _ =
             writeln!(out, "<section id=\"figures\">\n<h2>Figures</h2>\n{}</section>", self::figures(figures));
     }
-    let _ = writeln!(out, "<section id=\"poses\">\n<h2>Every pose</h2>\n{}</section>", poses(sets));
+    let every = poses(sets) + &residual_details(residuals);
+    let _ = writeln!(out, "<section id=\"poses\">\n<h2>Every pose</h2>\n{every}</section>");
     out.push_str(end());
     out
 }

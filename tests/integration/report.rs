@@ -622,7 +622,24 @@ fn observation_files_and_trees_have_a_page_that_leads_with_the_verdict() {
             .split_whitespace()
             .collect();
     let (sections, verdict, tables) = files_page(&ball_bar, "ballbar-page");
-    assert_eq!(sections, ["summary", "parameters", "held", "unseen", "figures", "report"]);
+    assert_eq!(
+        sections,
+        ["summary", "parameters", "held", "unseen", "figures", "poses", "warnings", "report"]
+    );
+    // Every observation of each set, a table each: a row per observation and the head's.
+    let html = std::fs::read_to_string(scratch("ballbar-page").join("report.html")).unwrap();
+    let document = parse_page(&html);
+    let rows_of = |set: &str| {
+        let table = document
+            .descendants()
+            .find(|n| n.attribute("data-set") == Some(set) && n.attribute("class") == Some("poses"));
+        table.unwrap_or_else(|| panic!("{set}")).descendants().filter(|n| n.has_tag_name("tr")).count()
+    };
+    let sets =
+        [("training", 150), ("examples/puma560-ballbar-2.csv", 60), ("3-fold cross-validation, nested", 150)];
+    for (set, observations) in sets {
+        assert_eq!(rows_of(set), observations + 1, "{set}");
+    }
     // The text's verdict rows: label, count, RMS and max before -> after, flagged.
     for row in [
         "training (mm)150",

@@ -236,6 +236,10 @@ fn an_observation_files_written_model_rescores_its_training_file() {
     let html = std::fs::read_to_string(&page).unwrap();
     let figures_section = html.split("<section id=\"figures\"").nth(1).expect("a figures section");
     assert_eq!(figures_section.matches("<svg").count(), 8, "the eight figures on the page");
+    // Every observation on the page, as it stands: one stage, a row each below the head.
+    let poses_section = html.split("<section id=\"poses\"").nth(1).expect("a poses section");
+    assert!(poses_section.contains("<th>as it stands mm</th>"), "{poses_section}");
+    assert_eq!(poses_section.split("</section>").next().unwrap().matches("<tr").count(), 151);
     // Marker and observation files together: their files apart, in two runs.
     let markers = dir.join("one-marker.csv");
     let one_marker: Vec<String> = (std::fs::read_to_string("examples/puma560-measurements.csv").unwrap())
