@@ -187,6 +187,7 @@ fn write_observation_files(
         page: &|figures, sets| robocal::report::html::page(title, text, (&[], sets), figures),
         sets,
         joints: &model.joints,
+        model: Some(model),
         prior_scale: None,
         selection: None,
     };

@@ -75,6 +75,7 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
         page: &|figures, sets| robocal::report::html::page(&title, &text, (&[], sets), figures),
         sets,
         joints: &tree.joints,
+        model: None,
         prior_scale: None,
         selection: None,
     };

@@ -265,6 +265,9 @@ struct ResidualContent<'a> {
     sets: Vec<robocal::report::residuals::ResidualSet>,
     /// The robot's (the tree's) joints, in the order of each residual's joint values.
     joints: &'a [robocal::model::Joint],
+    /// The calibrated robot, whose masses (if any) give each pose's gravity loads to draw the
+    /// residuals against; none for a tree.
+    model: Option<&'a robocal::model::RobotModel>,
     /// `--prior auto`'s scale and curve, if it chose one.
     prior_scale: Option<&'a robocal::calibration::prior_scale::PriorScale>,
     /// `--select`'s path, if it chose the parameters.
@@ -291,6 +294,9 @@ fn write_residual_files(
         return Ok(());
     }
     let mut all = residuals::residual_figures(&sets, content.joints)?;
+    if let Some(model) = content.model {
+        all.extend(residuals::residual_torque_figures(&sets, model)?);
+    }
     if let Some(scale) = content.prior_scale {
         all.push(figures::prior_scale_figure(scale)?);
     }

@@ -56,6 +56,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
             },
             sets: residual_sets(&report.sets, &sessions, &held_out, &model.joints)?,
             joints: &model.joints,
+            model: Some(&c.calibrated),
             prior_scale: report.prior_scale.as_ref(),
             selection: report.selection.as_ref(),
         };

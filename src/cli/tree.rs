@@ -53,6 +53,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
             },
             sets: residual_sets(&report.sets, &sessions, &held_out, &tree.joints)?,
             joints: &tree.joints,
+            model: None,
             prior_scale: report.prior_scale.as_ref(),
             selection: report.selection.as_ref(),
         };

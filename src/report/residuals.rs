@@ -235,9 +235,7 @@ pub fn residual_figures(
     joints: &[Joint],
 ) -> Result<Vec<(String, String)>, FigureError> {
     let sets: Vec<&ResidualSet> = sets.iter().copied().filter(|s| !s.residuals.is_empty()).collect();
-    let units: Vec<&str> = (["mm", "deg"].into_iter())
-        .filter(|&u| sets.iter().any(|s| s.residuals.iter().any(|r| in_unit(r, u).is_some())))
-        .collect();
+    let units = units_of(&sets);
     let mut figures = Vec::new();
     for (i, set) in sets.iter().enumerate() {
         let twice = sets[..i]
@@ -296,47 +294,103 @@ fn joint_figures(
     joints: &[Joint],
     units: &[&str],
 ) -> Result<Vec<(String, String)>, FigureError> {
-    let signed = sets.iter().all(|s| s.signed);
-    let components: Vec<(&str, &str)> = (units.iter())
-        .map(|&u| {
-            (
-                if signed {
-                    "residual"
-                } else if u == "mm" {
-                    "|position error|"
-                } else {
-                    "|rotation error|"
-                },
-                u,
-            )
-        })
-        .collect();
     let mut figures = Vec::new();
     for (j, joint) in joints.iter().enumerate() {
         let name = format!("error-vs-{}.svg", super::figures::file_stem(&joint.name));
         let unit = if joint.kind == JointKind::Revolute { "deg" } else { "mm" };
-        let x_label = format!("{} ({unit})", joint.name);
-        let points = (units.iter())
-            .map(|&u| {
-                (sets.iter())
-                    .map(|s| {
-                        s.residuals.iter().filter_map(|r| Some((r.joints[j], in_unit(r, u)?.1))).collect()
-                    })
-                    .collect()
-            })
-            .collect();
-        let what = if signed { "residuals (measured - predicted)" } else { "view errors" };
-        let against = Against {
-            title: format!("{what}, {}, against {x_label}", stage(sets)),
-            sets: sets.iter().map(|s| s.name.as_str()).collect(),
-            components: &components,
-            points,
-            x_label: &x_label,
-            signed,
-        };
-        figures.push((name.clone(), against_figure(&against).map_err(|m| error(&name, m))?));
+        let xs: Vec<Vec<f64>> =
+            sets.iter().map(|s| s.residuals.iter().map(|r| r.joints[j]).collect()).collect();
+        let figure = against_each(sets, units, &xs, &format!("{} ({unit})", joint.name));
+        figures.push((name.clone(), figure.map_err(|m| error(&name, m))?));
     }
     Ok(figures)
+}
+
+/// For a model with masses, `error-vs-torque-<joint>.svg` per joint: each residual at the last
+/// stage against the load gravity puts on the joint at its pose (N·m; N for a prismatic
+/// joint), computed with `model` (the calibrated one), as a marker file's
+/// [`torque_figures`](super::figures::torque_figures): a compliance left out of the model shows
+/// as a slope. Nothing without masses, nor for a joint no pose loads (a vertical first axis).
+pub fn residual_torque_figures(
+    sets: &[&ResidualSet],
+    model: &crate::model::RobotModel,
+) -> Result<Vec<(String, String)>, FigureError> {
+    let sets: Vec<&ResidualSet> = sets.iter().copied().filter(|s| !s.residuals.is_empty()).collect();
+    let chain = crate::kinematics::Chain::new(model).with_errors(&vec![0.0; model.params().len()]);
+    if sets.is_empty() || !chain.has_masses() {
+        return Ok(Vec::new());
+    }
+    let units = units_of(&sets);
+    let (mut q, mut tau) = (vec![0.0; model.dof()], vec![0.0; model.dof()]);
+    // loads[set][residual][joint]
+    let loads: Vec<Vec<Vec<f64>>> = (sets.iter())
+        .map(|s| {
+            (s.residuals.iter())
+                .map(|r| {
+                    for ((q, joint), &v) in q.iter_mut().zip(&model.joints).zip(&r.joints) {
+                        *q = if joint.kind == JointKind::Revolute { v.to_radians() } else { v };
+                    }
+                    chain.gravity_torques(&q, &mut tau);
+                    tau.clone()
+                })
+                .collect()
+        })
+        .collect();
+    let mut figures = Vec::new();
+    for (j, joint) in model.joints.iter().enumerate() {
+        let xs: Vec<Vec<f64>> = loads.iter().map(|s| s.iter().map(|tau| tau[j]).collect()).collect();
+        if xs.iter().flatten().all(|t| t.abs() < 1e-6) {
+            continue; // no load at any pose (a vertical first axis): nothing to plot against
+        }
+        let name = format!("error-vs-torque-{}.svg", super::figures::file_stem(&joint.name));
+        let unit = if joint.kind == JointKind::Revolute { "N·m" } else { "N" };
+        let figure = against_each(&sets, &units, &xs, &format!("gravity load on {} ({unit})", joint.name));
+        figures.push((name.clone(), figure.map_err(|m| error(&name, m))?));
+    }
+    Ok(figures)
+}
+
+/// The units (`mm`, `deg`) some residual of `sets` has, in that order.
+fn units_of(sets: &[&ResidualSet]) -> Vec<&'static str> {
+    (["mm", "deg"].into_iter())
+        .filter(|&u| sets.iter().any(|s| s.residuals.iter().any(|r| in_unit(r, u).is_some())))
+        .collect()
+}
+
+/// Each residual of `sets` at the last stage against a value of its own (`xs[set][residual]`:
+/// its pose's joint value, a gravity load), a panel per unit, as [`against_figure`] draws it.
+fn against_each(
+    sets: &[&ResidualSet],
+    units: &[&str],
+    xs: &[Vec<f64>],
+    x_label: &str,
+) -> Result<String, String> {
+    let signed = sets.iter().all(|s| s.signed);
+    let components: Vec<(&str, &str)> = (units.iter())
+        .map(|&u| match (signed, u) {
+            (true, _) => ("residual", u),
+            (false, "mm") => ("|position error|", u),
+            _ => ("|rotation error|", u),
+        })
+        .collect();
+    let points = (units.iter())
+        .map(|&u| {
+            (sets.iter().zip(xs))
+                .map(|(s, xs)| {
+                    s.residuals.iter().zip(xs).filter_map(|(r, &x)| Some((x, in_unit(r, u)?.1))).collect()
+                })
+                .collect()
+        })
+        .collect();
+    let what = if signed { "residuals (measured - predicted)" } else { "view errors" };
+    against_figure(&Against {
+        title: format!("{what}, {}, against {x_label}", stage(sets)),
+        sets: sets.iter().map(|s| s.name.as_str()).collect(),
+        components: &components,
+        points,
+        x_label,
+        signed,
+    })
 }
 
 /// The last stage of `sets` (`after`; `as it stands`), which the histogram and the figures

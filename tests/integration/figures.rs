@@ -46,6 +46,14 @@ fn a_model_with_masses_adds_the_errors_against_each_loaded_joints_gravity_load()
     );
     let svg = std::fs::read_to_string(dir.join("error-vs-torque-j2.svg")).unwrap();
     assert!(svg.contains("gravity load on j2 (N·m)"), "the load's unit on the axis");
+    // Through the observation fit (`--tool 0,0,0` sends the file there): the same joints'
+    // figures, each residual against its pose's load.
+    let (names, there) = figures_of("puma560-masses", &[&VALIDATE[..], &["--tool", "0,0,0"]].concat());
+    let loads: Vec<&str> = names.iter().map(String::as_str).filter(|n| n.contains("torque")).collect();
+    assert_eq!(loads, torques);
+    let svg = std::fs::read_to_string(there.join("error-vs-torque-j3.svg")).unwrap();
+    assert!(svg.contains("residuals (measured - predicted), after, against gravity load on j3 (N·m)"));
+    std::fs::remove_dir_all(&there).unwrap();
     let against_joint = std::fs::read_to_string(dir.join("error-vs-j2.svg")).unwrap();
     for panel in ["x (mm)", "y (mm)", "z (mm)"] {
         assert!(against_joint.contains(panel), "the signed component {panel}");
