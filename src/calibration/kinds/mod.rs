@@ -121,13 +121,14 @@ use crate::estimation::{
     PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds,
     refine_from,
 };
-use crate::kinematics::{Chain, ChainAt, MarkerEnd, Measured, end_positions, marker_jacobians};
+use crate::kinematics::{Chain, ChainAt, HeldArm, MarkerEnd, Measured, end_positions, marker_jacobians_held};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
 use nalgebra::{
     DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, RowDVector, UnitQuaternion, Vector3,
     Vector6,
 };
 use rayon::prelude::*;
+use std::sync::{Arc, OnceLock};
 
 /// How to calibrate from distances, contacts, coordinates, cameras and markers.
 #[derive(Debug, Clone, PartialEq)]
@@ -734,6 +735,9 @@ pub struct KindProblem<'a> {
     v: Option<DMatrix<f64>>,
     /// What the chains' ends are ([`KindProblem::measured`]), found once: every row asks.
     measured: Measured,
+    /// The points' arm steps no selected parameter moves, undone at each pose once for every
+    /// linearisation ([`KindProblem::held`]).
+    held: OnceLock<Option<Arc<Vec<HeldArm>>>>,
 }
 
 impl<'a> KindProblem<'a> {
@@ -793,6 +797,7 @@ impl<'a> KindProblem<'a> {
             setup_selection,
             blocks: pose_blocks(&data.observations),
             v: None,
+            held: OnceLock::new(),
         };
         let mut used = vec![false; chains.len() * data.joints.len()];
         for o in &data.observations {
@@ -903,7 +908,30 @@ impl<'a> KindProblem<'a> {
     where
         'a: 'b,
     {
-        KindProblem { selection, fixed, setup_values, setup_selection, v: self.v.clone(), ..self.clone() }
+        let held = OnceLock::new();
+        KindProblem {
+            selection,
+            fixed,
+            setup_values,
+            setup_selection,
+            held,
+            v: self.v.clone(),
+            ..self.clone()
+        }
+    }
+
+    /// The points' arm steps that no selected parameter moves, undone at every pose
+    /// ([`HeldArm`]), found at the first linearisation and kept for the problem's others, as
+    /// a marker file's problem keeps them: the parameters it does not select are fixed, so
+    /// those steps are the same at any `x`. `at`: the point chains at the current `x`; `None`
+    /// for one point, or nothing to hold.
+    fn held(&self, at: &[ChainAt]) -> Option<&[HeldArm]> {
+        let held = self.held.get_or_init(|| {
+            let from = at.first().filter(|_| at.len() > 1)?.held_from(self.selection)?;
+            let chain = self.chains[0].with_errors(&self.fixed);
+            Some(Arc::new(self.data.joints.par_iter().map(|q| chain.held_arm(q, from)).collect()))
+        });
+        held.as_deref().map(Vec::as_slice)
     }
 
     /// The blocks `V_k` of every pose's observations (consecutive observations made at one
@@ -1199,9 +1227,10 @@ impl BlockJacobians {
     }
 
     /// [`BlockJacobians::fill`] of points alone (markers and the tool point, no frame): every
-    /// point of a pose from one walk of the arm they share ([`marker_jacobians`]), each needed
-    /// one's 3 rows copied out.
+    /// point of a pose from one walk of the arm they share, from its held steps on
+    /// ([`marker_jacobians_held`], [`KindProblem::held`]), each needed one's 3 rows copied out.
     fn fill_points(&mut self, problem: &KindProblem<'_>, at: &[ChainAt], columns: usize) {
+        let held = if columns > 0 { problem.held(at) } else { None };
         let (poses, points) = (problem.data.joints.len(), at.len());
         self.poses.clear();
         self.poses.extend(self.keys.iter().map(|n| n % poses));
@@ -1216,10 +1245,11 @@ impl BlockJacobians {
                 // No robot parameter: the points' positions alone.
                 0 => end_positions(at, q, &mut self.positions),
                 _ => {
-                    // Zeros: `marker_jacobians` writes the columns of its parameters only.
+                    // Zeros: `marker_jacobians_held` writes the columns of its parameters only.
                     self.stacked.fill(0.0);
                     let h = DMatrixViewMut::from_slice(&mut self.stacked, 3 * points, columns);
-                    marker_jacobians(at, q, problem.selection, h, &mut self.positions);
+                    let held = held.map(|held| &held[pose]);
+                    marker_jacobians_held(at, q, problem.selection, h, &mut self.positions, held);
                 }
             }
             for (k, &n) in self.keys.iter().enumerate().filter(|(_, n)| *n % poses == pose) {
