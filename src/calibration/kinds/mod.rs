@@ -732,7 +732,8 @@ pub struct KindProblem<'a> {
     setup_selection: Vec<usize>,
     /// The observations of each pose, one block `V_k` each ([`pose_blocks`]).
     blocks: Blocks,
-    v: Option<DMatrix<f64>>,
+    /// The blocks `V_k`, shared by the problems [`KindProblem::reselect`] makes.
+    v: Option<Arc<DMatrix<f64>>>,
     /// What the chains' ends are ([`KindProblem::measured`]), found once: every row asks.
     measured: Measured,
     /// The points' arm steps no selected parameter moves, undone at each pose once for every
@@ -813,7 +814,7 @@ impl<'a> KindProblem<'a> {
 
     /// The same problem with `V_k` computed at its values, with `joint_noise` if given.
     pub fn with_noise(mut self, joint_noise: Option<&DMatrix<f64>>) -> Self {
-        self.v = Some(self.covariance_blocks(joint_noise));
+        self.v = Some(Arc::new(self.covariance_blocks(joint_noise)));
         self
     }
 
@@ -909,15 +910,7 @@ impl<'a> KindProblem<'a> {
         'a: 'b,
     {
         let held = OnceLock::new();
-        KindProblem {
-            selection,
-            fixed,
-            setup_values,
-            setup_selection,
-            held,
-            v: self.v.clone(),
-            ..self.clone()
-        }
+        KindProblem { selection, fixed, setup_values, setup_selection, held, ..self.clone() }
     }
 
     /// The points' arm steps that no selected parameter moves, undone at every pose
@@ -1095,7 +1088,7 @@ impl Residuals for KindProblem<'_> {
     }
 
     fn covariance(&self) -> Option<&DMatrix<f64>> {
-        self.v.as_ref()
+        self.v.as_deref()
     }
 
     /// Angles (rad) count as lengths for ordinary least squares: times
