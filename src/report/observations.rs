@@ -9,12 +9,13 @@ use super::verdict::QuantityRow;
 use crate::calibration::Warning;
 use crate::calibration::kinds::{
     DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM, GroupRms,
-    KindCalibration, ObservationResidual, Score, SessionSetUp,
+    KindCalibration, Score, SessionSetUp,
 };
 use crate::calibration::prior_scale::PriorScale;
 use crate::calibration::selection::SelectionPath;
 use crate::estimation::{Estimator, POSE_SIGMAS};
 use serde::Serialize;
+use std::cmp::Ordering;
 use std::fmt::Write;
 
 /// Everything the report says. Angles in degrees, lengths in millimetres.
@@ -328,12 +329,12 @@ impl ObservationsReport {
         let _ =
             writeln!(*out, "\nworst observations after calibration ({WORST} per set; every one in --json):");
         for (set, (name, score)) in self.sets.iter().enumerate() {
-            let mut worst: Vec<(usize, &ObservationResidual)> =
-                score.observations.iter().enumerate().collect();
-            worst.sort_by(|a, b| b.1.whitened.abs().total_cmp(&a.1.whitened.abs()));
+            let worst = first_by(score.observations.iter().enumerate(), WORST, |a, b| {
+                b.1.whitened.abs().total_cmp(&a.1.whitened.abs())
+            });
             let files =
                 super::files_of(&self.training_files, set, self.sets.len(), self.cross_validation.is_some());
-            for (k, r) in worst.iter().take(WORST) {
+            for (k, r) in &worst {
                 let _ = writeln!(
                     out,
                     "  {name}, {} ({}): {:.4} {unit} before, {:.4} {unit} after, {:.1} sd",
@@ -359,11 +360,10 @@ impl ObservationsReport {
             "\nlargest marker position errors after calibration ({WORST} per set; every one in --json, `positions`):"
         );
         for (set, (name, score)) in self.sets.iter().enumerate() {
-            let mut worst: Vec<&crate::calibration::kinds::PositionError> = score.positions.iter().collect();
-            worst.sort_by(|a, b| b.error.1.total_cmp(&a.error.1));
+            let worst = first_by(score.positions.iter(), WORST, |a, b| b.error.1.total_cmp(&a.error.1));
             let files =
                 super::files_of(&self.training_files, set, self.sets.len(), self.cross_validation.is_some());
-            for p in worst.iter().take(WORST) {
+            for p in &worst {
                 let _ = writeln!(
                     out,
                     "  {name}, {} marker {}: {:.4} mm before, {:.4} mm after, {:.1} sd",
@@ -480,4 +480,18 @@ impl ObservationsReport {
         self.write_notes(&mut out);
         out
     }
+}
+
+/// The first `n` of `items` in the order of `order`, as a stable sort would give them (ties in
+/// the order the items come), found without sorting every item: a set's worst few of a
+/// hundred thousand.
+fn first_by<T>(items: impl Iterator<Item = T>, n: usize, order: impl Fn(&T, &T) -> Ordering) -> Vec<T> {
+    let mut ranked: Vec<(usize, T)> = items.enumerate().collect();
+    let order = |a: &(usize, T), b: &(usize, T)| order(&a.1, &b.1).then(a.0.cmp(&b.0));
+    if ranked.len() > n {
+        ranked.select_nth_unstable_by(n, order);
+        ranked.truncate(n);
+    }
+    ranked.sort_by(order);
+    ranked.into_iter().map(|(_, item)| item).collect()
 }

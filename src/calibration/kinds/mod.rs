@@ -1117,17 +1117,17 @@ impl Residuals for KindProblem<'_> {
         let frames = self.frames(&at, Some((&mut jacobians, block)));
         let views = self.session_views(&s);
         let mut y = DVector::zeros(self.equations());
-        let mut h = h;
-        let mut row = vec![0.0; if h.is_some() { self.parameters() } else { 0 }];
         let at = PointsAt { views: &views, jacobians: Jacobians::All(&frames, &jacobians), block };
+        let Some(h) = h else {
+            // The residuals alone: each its own, in parallel.
+            let residuals = y.as_mut_slice().par_iter_mut().enumerate();
+            residuals.for_each(|(k, y_k)| *y_k = self.observation_row(k, at, None));
+            return y;
+        };
+        let mut row = vec![0.0; self.parameters()];
         for k in 0..self.data.observations.len() {
-            match h.as_deref_mut() {
-                Some(h) => {
-                    y[k] = self.observation_row(k, at, Some(&mut row));
-                    row.iter().enumerate().for_each(|(c, &v)| h[(k, c)] = v);
-                }
-                None => y[k] = self.observation_row(k, at, None),
-            }
+            y[k] = self.observation_row(k, at, Some(&mut row));
+            row.iter().enumerate().for_each(|(c, &v)| h[(k, c)] = v);
         }
         y
     }
@@ -1643,9 +1643,9 @@ impl Score {
                 Some(GroupRms { group, unit, rms, count, max, flagged })
             })
             .collect();
-        let mut numbers: Vec<usize> = observations.iter().filter_map(|r| r.marker).collect();
-        numbers.sort_unstable();
-        numbers.dedup();
+        // A set, ascending: a few numbers among every coordinate's.
+        let numbers: std::collections::BTreeSet<usize> =
+            observations.iter().filter_map(|r| r.marker).collect();
         let by_marker = match numbers.len() > 1 {
             true => (numbers.into_iter())
                 .filter_map(|m| {
@@ -2147,7 +2147,7 @@ pub(super) fn prepare(
     let nominal: Vec<Isometry3<f64>> = {
         // The tool's chain, the last (any chain when only markers are observed: no set-up).
         let at = chains[chains.len() - 1].with_errors(&zero);
-        data.joints.iter().map(|q| at.pose(q)).collect()
+        data.joints.par_iter().map(|q| at.pose(q)).collect()
     };
     let (setup, start) = with_tracker(data.initial_setup(&nominal)?, data, options)?;
     let sessions = (0..data.session_count()).map(|k| data.session_name(k)).collect();
