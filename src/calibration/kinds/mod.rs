@@ -1559,6 +1559,17 @@ pub enum SessionSetUp {
     Fitted,
 }
 
+/// [`rms_of`] the residuals among `observations` of the observations `kinds` that are
+/// `chosen`.
+fn rms_where(
+    observations: &[ObservationResidual],
+    kinds: &[Observation],
+    chosen: &dyn Fn(&Observation) -> bool,
+    scale: f64,
+) -> Option<(f64, f64)> {
+    rms_of((observations.iter().zip(kinds)).filter(|(_, o)| chosen(o)).map(|(r, _)| r), scale)
+}
+
 /// The RMS of `residuals` before and after, each residual times `scale` (`sqrt 3` makes a
 /// marker's coordinates' RMS its position's); `None` for none.
 fn rms_of<'r>(
@@ -1589,7 +1600,7 @@ impl Score {
         let scale = f.sqrt();
         let mut observations = self.observations;
         observations.iter_mut().for_each(|r| r.whitened /= scale);
-        Self { sessions: self.sessions, ..Self::of(observations, &data.observations) }
+        Self { observations, ..self }.flagged_anew(&data.observations)
     }
 
     /// `data`'s residuals before and after (`y`), and after whitened (`z`).
@@ -1616,33 +1627,11 @@ impl Score {
     /// The RMS residuals of `observations`, of the observations `kinds`.
     fn of(observations: Vec<ObservationResidual>, kinds: &[Observation]) -> Self {
         let rms = |chosen: &dyn Fn(&Observation) -> bool, scale: f64| {
-            rms_of((observations.iter().zip(kinds)).filter(|(_, o)| chosen(o)).map(|(r, _)| r), scale)
+            rms_where(&observations, kinds, chosen, scale)
         };
         let lengths = rms(&|o| !o.is_angle(), 1.0).unwrap_or((0.0, 0.0));
         let angles = rms(&Observation::is_angle, 1.0);
         let markers = rms(&|o| matches!(o, Observation::Marker { .. }), 3f64.sqrt());
-        let mut groups: Vec<(&'static str, bool)> = Vec::new();
-        for o in kinds {
-            if !groups.iter().any(|g| g.0 == o.group()) {
-                groups.push((o.group(), o.is_angle()));
-            }
-        }
-        let whitened: Vec<f64> = observations.iter().map(|r| r.whitened.abs()).collect();
-        let flag_at = FLAG_AT * super::robust::robust_scale(&whitened, 1).max(1.0);
-        // Every group's, the markers' coordinates aside (their positions' RMS is `markers`).
-        let by_group = (groups.into_iter().filter(|g| g.0 != "markers"))
-            .filter_map(|(group, angle)| {
-                let unit = if angle { "deg" } else { "mm" };
-                let rms = rms(&|o| o.group() == group, 1.0)?;
-                let members = || (observations.iter().zip(kinds)).filter(|(_, o)| o.group() == group);
-                let max = members().fold((0.0, 0.0), |m: (f64, f64), (r, _)| {
-                    (m.0.max(r.before.abs()), m.1.max(r.after.abs()))
-                });
-                let (count, flagged) =
-                    (members().count(), members().filter(|(r, _)| r.whitened.abs() > flag_at).count());
-                Some(GroupRms { group, unit, rms, count, max, flagged })
-            })
-            .collect();
         // A set, ascending: a few numbers among every coordinate's.
         let numbers: std::collections::BTreeSet<usize> =
             observations.iter().filter_map(|r| r.marker).collect();
@@ -1659,12 +1648,43 @@ impl Score {
                 .collect(),
             false => Vec::new(),
         };
-        let positions = position_errors(&observations, kinds);
         #[rustfmt::skip]
         let score = Self {
-            observations, lengths, angles, markers, by_group, by_marker, positions, sessions: Vec::new(), flag_at,
+            observations, lengths, angles, markers, by_group: Vec::new(), by_marker, positions: Vec::new(),
+            sessions: Vec::new(), flag_at: 0.0,
         };
-        score
+        score.flagged_anew(kinds)
+    }
+
+    /// The same score with what its whitened residuals decide found again: where it flags
+    /// ([`Score::flag_at`]), each group's row (its count flagged), the marker positions (their
+    /// whitened norms). The RMS residuals do not change with the whitening: kept.
+    fn flagged_anew(self, kinds: &[Observation]) -> Self {
+        let observations = &self.observations;
+        let mut groups: Vec<(&'static str, bool)> = Vec::new();
+        for o in kinds {
+            if !groups.iter().any(|g| g.0 == o.group()) {
+                groups.push((o.group(), o.is_angle()));
+            }
+        }
+        let whitened: Vec<f64> = observations.iter().map(|r| r.whitened.abs()).collect();
+        let flag_at = FLAG_AT * super::robust::robust_scale(&whitened, 1).max(1.0);
+        // Every group's, the markers' coordinates aside (their positions' RMS is `markers`).
+        let by_group = (groups.into_iter().filter(|g| g.0 != "markers"))
+            .filter_map(|(group, angle)| {
+                let unit = if angle { "deg" } else { "mm" };
+                let rms = rms_where(observations, kinds, &|o| o.group() == group, 1.0)?;
+                let members = || (observations.iter().zip(kinds)).filter(|(_, o)| o.group() == group);
+                let max = members().fold((0.0, 0.0), |m: (f64, f64), (r, _)| {
+                    (m.0.max(r.before.abs()), m.1.max(r.after.abs()))
+                });
+                let (count, flagged) =
+                    (members().count(), members().filter(|(r, _)| r.whitened.abs() > flag_at).count());
+                Some(GroupRms { group, unit, rms, count, max, flagged })
+            })
+            .collect();
+        let positions = position_errors(observations, kinds);
+        Self { flag_at, by_group, positions, ..self }
     }
 
     /// The observations flagged ([`Score::flag_at`]), with their index.
