@@ -73,6 +73,10 @@ pub struct TreeReport {
     pub sets: Vec<(String, TreeScore)>,
     /// Implausible results, one per cause.
     pub warnings: Vec<Warning>,
+    /// When no view gave its sigmas and the joints are exact: the residuals' variance of unit
+    /// weight, by which the standard errors and the whitening are scaled.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub variance_factor: Option<f64>,
     /// With several training files: each one's name and number of views, in order.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub training_files: Vec<(String, usize)>,
@@ -134,6 +138,7 @@ impl TreeReport {
             verdict: Vec::new(),
             sets,
             warnings: c.warnings.clone(),
+            variance_factor: c.variance_factor,
             training_files: Vec::new(),
             loss: c.robust.as_ref().map(|r| r.loss.to_string()),
             down_weighted: c.robust.as_ref().map_or_else(Vec::new, |r| {
@@ -282,6 +287,16 @@ impl TreeReport {
             out,
             "\nbefore: the cameras and targets fitted with the tree nominal; after: the tree's joints with them"
         );
+        if let Some(f) = self.variance_factor {
+            let _ = writeln!(
+                out,
+                "no sigma given and the joints exact: standard errors and flags from the residuals' spread (the default \
+                 sigmas, {} mm and {} deg, times {:.4})",
+                crate::calibration::kinds::DEFAULT_CAMERA_SIGMA_MM,
+                crate::calibration::kinds::DEFAULT_CAMERA_SIGMA_DEG,
+                f.sqrt()
+            );
+        }
         if !self.warnings.is_empty() {
             let _ = writeln!(out, "\nwarnings:");
             for w in &self.warnings {

@@ -1023,3 +1023,51 @@ fn calibrate_tree_with_fgls_prints_the_estimated_noise() {
     assert!(position[1] <= 0.2 && 0.2 <= position[2], "{position:?}");
     assert!(rotation[1] <= 0.05 && 0.05 <= rotation[2], "{rotation:?}");
 }
+
+/// Views without sigma columns take the camera's default sigmas (0.5 mm, 0.1 deg) and, the
+/// joints exact, their standard errors from the residuals' spread, said in the report and the
+/// JSON (`variance_factor`), as observation files do: the example's views (their noise 0.2 mm
+/// and 0.05 deg, as their sigma columns say) give, stripped of those columns, standard errors
+/// within a few tenths of the columns' (the defaults' 5 mm a degree weighs the rotations a
+/// little otherwise than the columns' 4), where the assumed sigmas made them 2.3 times too large.
+#[test]
+fn views_without_sigmas_take_their_standard_errors_from_the_residuals_spread() {
+    let dir = std::env::temp_dir().join(format!("robocal-tree-assumed-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string("examples/torso/views.csv").unwrap();
+    let stripped: Vec<String> = (text.lines())
+        .map(|l| match l.starts_with('#') {
+            true => l.to_string(),
+            false => l.split(',').collect::<Vec<_>>()[..l.split(',').count() - 2].join(","),
+        })
+        .collect();
+    assert!(text.lines().nth(1).unwrap().ends_with("sigma,sigma_angle"));
+    let assumed = dir.join("views.csv");
+    std::fs::write(&assumed, stripped.join("\n") + "\n").unwrap();
+    let run = |data: &str| -> (String, serde_json::Value) {
+        let json = dir.join("r.json");
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["calibrate", "-q", "--model", "presets/torso.urdf", "--data", data, "--json"])
+            .arg(&json)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let report = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        (String::from_utf8(output.stdout).unwrap(), report)
+    };
+    let (_, given) = run("examples/torso/views.csv");
+    let (text, report) = run(assumed.to_str().unwrap());
+    assert!(given.get("variance_factor").is_none());
+    let f = report["variance_factor"].as_f64().expect("the variance of unit weight");
+    assert!(
+        text.contains(&format!("the default sigmas, 0.5 mm and 0.1 deg, times {:.4})", f.sqrt())),
+        "{text}"
+    );
+    let se = |r: &serde_json::Value| -> Vec<f64> {
+        r["parameters"].as_array().unwrap().iter().map(|p| p["std_error"].as_f64().unwrap()).collect()
+    };
+    let ratios: Vec<f64> = se(&report).iter().zip(se(&given)).map(|(a, b)| a / b).collect();
+    assert!(ratios.iter().all(|r| (0.8..1.25).contains(r)), "{ratios:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

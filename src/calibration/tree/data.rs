@@ -265,6 +265,11 @@ impl TreeData {
                 "views with rotations and positions only cannot be fitted together".into(),
             ));
         }
+        // The noise is assumed only where every file's is.
+        self.assumed_sigmas = match self.views.is_empty() {
+            true => other.assumed_sigmas,
+            false => self.assumed_sigmas && other.assumed_sigmas,
+        };
         if self.views.is_empty() {
             self.position_only = other.position_only;
         }

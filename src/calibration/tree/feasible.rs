@@ -62,7 +62,8 @@ pub fn calibrate_tree_feasible(
 /// `data` with every view's sigmas the estimate's ([`NoiseEstimate::weighting_sigma`]; its own
 /// where the estimate has none).
 pub(super) fn with_estimated_sigmas(data: &TreeData, estimate: &NoiseEstimate) -> TreeData {
-    let mut data = data.clone();
+    // The sigmas estimated, no longer assumed.
+    let mut data = TreeData { assumed_sigmas: false, ..data.clone() };
     for view in &mut data.views {
         for (s, class) in
             view.sigma.iter_mut().zip([MeasurementClass::CameraPosition, MeasurementClass::CameraRotation])

@@ -733,6 +733,11 @@ pub struct TreeCalibration {
     pub noise_estimate: Option<NoiseEstimate>,
     /// Feasible GLS: whether its variance components settled.
     pub noise_settled: Option<bool>,
+    /// When no view gave its sigmas (the defaults assumed) and the joints are exact: the
+    /// variance of unit weight `f = sum z_i^2 / (N - rank)` of the training residuals (`z_i`
+    /// a row whitened by its assumed sigma), by which the covariance and the whitening are
+    /// scaled (standard errors from the residuals' spread); `None` when the noise was given.
+    pub variance_factor: Option<f64>,
     joint_noise: Option<DMatrix<f64>>,
 }
 
@@ -743,8 +748,16 @@ impl TreeCalibration {
     }
 
     /// `data` scored before and after: its views' residuals with the frames as calibrated
-    /// (every camera and target of `data` must be one of the calibration's).
+    /// (every camera and target of `data` must be one of the calibration's), whitened by
+    /// `V_k f` with [`TreeCalibration::variance_factor`] `f` where the noise was assumed.
     pub fn score(&self, data: &TreeData) -> Result<TreeScore, CalibrationError> {
+        Ok(self.score_rows(data)?.0)
+    }
+
+    /// [`TreeCalibration::score`], and the sum of the squares of the rows' residuals after,
+    /// each whitened by its own variance in `V_k` (without the factor): what the variance of
+    /// unit weight is found from.
+    fn score_rows(&self, data: &TreeData) -> Result<(TreeScore, f64), CalibrationError> {
         let estimated = self.noise_estimate.as_ref().map(|e| feasible::with_estimated_sigmas(data, e));
         let data = estimated.as_ref().unwrap_or(data);
         data.check(&self.params)?;
@@ -779,16 +792,20 @@ impl TreeCalibration {
         let norms = |y: &DVector<f64>, k: usize| {
             (y.rows(n * k, 3).norm(), (n == 6).then(|| y.rows(n * k + 3, 3).norm().to_degrees()))
         };
+        let whitened_row = |k: usize, r: usize| after[n * k + r] / v[(n * k + r, r)].sqrt();
+        let spread = self.variance_factor.unwrap_or(1.0).sqrt();
         let views: Vec<ViewResidual> = (0..data.views.len())
             .map(|k| {
                 let (before_mm, before_deg) = norms(&before, k);
                 let (after_mm, after_deg) = norms(&after, k);
-                let whitened =
-                    (0..n).map(|r| (after[n * k + r] / v[(n * k + r, r)].sqrt()).abs()).fold(0.0, f64::max);
+                let whitened = (0..n).map(|r| whitened_row(k, r).abs()).fold(0.0, f64::max) / spread;
                 ViewResidual { line: data.lines[k], before_mm, after_mm, before_deg, after_deg, whitened }
             })
             .collect();
-        Ok(TreeScore::of(views, data.position_only))
+        let squares = (0..data.views.len())
+            .flat_map(|k| (0..n).map(move |r| (k, r)))
+            .map(|(k, r)| whitened_row(k, r).powi(2));
+        Ok((TreeScore::of(views, data.position_only), squares.sum()))
     }
 
     /// Estimates past a physical bound (a joint length corrected by more than 10 mm: a wrong
@@ -1109,14 +1126,32 @@ pub fn calibrate_tree(
         robust,
         noise_estimate: None,
         noise_settled: None,
+        variance_factor: None,
         joint_noise: options.joint_noise.clone(),
     };
-    calibration.training = calibration.score(data)?;
+    scored(&mut calibration, data)?;
     calibration.warnings = calibration.warnings();
     let views = data.views.iter().zip(&data.lines).map(|(v, &line)| (line, data.joints[v.pose].as_slice()));
     calibration.warnings.extend(Warning::outside_limits(&tree.name, &tree.joints, views));
     calibration.warnings.extend(r.change);
     Ok(calibration)
+}
+
+/// `calibration` scored on its training `data`; with every sigma assumed and the joints
+/// exact, the covariance and the whitening scaled by the residuals' variance of unit weight
+/// `f = sum z_i^2 / (N - rank)`, as observation files' are ([`TreeCalibration::variance_factor`]).
+fn scored(calibration: &mut TreeCalibration, data: &TreeData) -> Result<(), CalibrationError> {
+    let (training, squares) = calibration.score_rows(data)?;
+    calibration.training = training;
+    let (n, rank) = (data.rows() * data.views.len(), calibration.refined.estimate.diagnostics.rank);
+    if calibration.joint_noise.is_none() && data.assumed_sigmas && n > rank {
+        let f = squares / (n - rank) as f64;
+        calibration.refined.estimate.covariance *= f;
+        calibration.variance_factor = Some(f);
+        // As `score` whitens with `V_k f`: each whitened residual over sqrt(f).
+        calibration.training.views.iter_mut().for_each(|v| v.whitened /= f.sqrt());
+    }
+    Ok(())
 }
 
 /// The robust fit's record, the tree's and the placements' values after.
