@@ -1029,7 +1029,8 @@ fn calibrate_tree_with_fgls_prints_the_estimated_noise() {
 /// JSON (`variance_factor`), as observation files do: the example's views (their noise 0.2 mm
 /// and 0.05 deg, as their sigma columns say) give, stripped of those columns, standard errors
 /// within a few tenths of the columns' (the defaults' 5 mm a degree weighs the rotations a
-/// little otherwise than the columns' 4), where the assumed sigmas made them 2.3 times too large.
+/// little otherwise than the columns' 4), where the assumed sigmas made them 2.3 times too large;
+/// and a prior weighs against that spread.
 #[test]
 fn views_without_sigmas_take_their_standard_errors_from_the_residuals_spread() {
     let dir = std::env::temp_dir().join(format!("robocal-tree-assumed-{}", std::process::id()));
@@ -1069,5 +1070,25 @@ fn views_without_sigmas_take_their_standard_errors_from_the_residuals_spread() {
     };
     let ratios: Vec<f64> = se(&report).iter().zip(se(&given)).map(|(a, b)| a / b).collect();
     assert!(ratios.iter().all(|r| (0.8..1.25).contains(r)), "{ratios:?}");
+    // A prior weighs against the residuals' spread too, not against the assumed sigmas: the
+    // cross-validated curve of `--prior auto:machined` follows the known sigmas' (weighed
+    // against 0.5 mm, the prior was as if 2.5 times stronger: 1.74 times the CV RMS at 1/2).
+    let curve = |data: &str| -> Vec<f64> {
+        let json = dir.join("p.json");
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args(["calibrate", "-q", "--model", "presets/torso.urdf", "--data", data])
+            .args(["--params", "joints", "--prior", "auto:machined", "--json"])
+            .arg(&json)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        report["prior_scale"]["cv_rms"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect()
+    };
+    let (known, guessed) = (curve("examples/torso/views.csv"), curve(assumed.to_str().unwrap()));
+    let ratios: Vec<f64> = guessed.iter().zip(&known).map(|(g, k)| g / k).collect();
+    assert!(ratios.iter().all(|r| (0.9..1.15).contains(r)), "{ratios:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

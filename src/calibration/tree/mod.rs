@@ -59,7 +59,8 @@ use super::{
 };
 use crate::estimation::{
     Estimator, Linearisation, MeasurementClass, NoiseEstimate, NoiseLayout, POSE_SIGMAS, PriorEntry,
-    PriorRows, Reduced, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds_of, refine_from,
+    PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds_of,
+    refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
 use crate::model::{ParamInfo, ParamOwner, Placement, RobotTree, Selection, SelectionError};
@@ -931,7 +932,7 @@ fn tree_gauge(
     linearised: &Linearisation,
     (params, asked): (&TreeParams, &[usize]),
     options: &TreeOptions,
-    weights: &Weights,
+    prior_scale: f64,
 ) -> Result<Gauged, CalibrationError> {
     let names = problem.names();
     let keep = matching(&names, &options.gauge.keep)?;
@@ -945,8 +946,7 @@ fn tree_gauge(
     let sd = prior_sds_of(&options.prior, &infos)?;
     let columns: Vec<f64> =
         (0..problem.parameters()).map(|c| asked.get(c).map_or(f64::INFINITY, |&i| sd[i])).collect();
-    let prior = (columns.iter().any(|s| s.is_finite()))
-        .then(|| PriorRows::new(&columns, weights.scale().unwrap_or(1.0)));
+    let prior = (columns.iter().any(|s| s.is_finite())).then(|| PriorRows::new(&columns, prior_scale));
     let owners: Vec<Option<crate::model::ParamOwner>> =
         (0..problem.parameters()).map(|c| asked.get(c).map(|&i| params.params[i].owner)).collect();
     let (identifiable, fixed) = identifiable(linearised, (&names, &owners), &priority, prior.as_ref())?;
@@ -1053,8 +1053,9 @@ pub(crate) fn selection_model(
     let (asked, held) = asked(&params, options)?;
     let whole = base_problem.reselect(asked.clone(), zero.clone(), before.clone(), every.clone());
     let linearised = linearise(&whole, &weights, whole.start())?;
+    let prior_scale = tree_prior_scale((&whole, &asked), &weights, data, options)?;
     let Gauged { identifiable, mut fixed, prior } =
-        tree_gauge(&whole, &linearised, (&params, &asked), options, &weights)?;
+        tree_gauge(&whole, &linearised, (&params, &asked), options, prior_scale)?;
     let robot = asked.len();
     let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
     let kept_setup: Vec<usize> = identifiable.iter().filter(|&&c| c >= robot).map(|&c| c - robot).collect();
@@ -1106,7 +1107,8 @@ pub fn calibrate_tree(
     let sd = prior_sds_of(&options.prior, &params.params.iter().collect::<Vec<_>>())?;
     let unanchored = problem.parameters() - asked.iter().filter(|&&i| sd[i].is_finite()).count();
     super::enough_equations(data.joints.len(), problem.equations(), unanchored)?;
-    let r = fit_tree_gauged(&problem, &weights, (&params, &asked), options)?;
+    let prior_scale = tree_prior_scale((&problem, &asked), &weights, data, options)?;
+    let r = fit_tree_gauged(&problem, (&weights, prior_scale), (&params, &asked), options)?;
     let (estimate, (robust, after, after_setup), mut fixed) = (r.refined, r.fitted, r.gauge.fixed);
     say_why_unseen(&mut fixed, &params, data);
     fixed.extend(held);
@@ -1154,6 +1156,35 @@ fn scored(calibration: &mut TreeCalibration, data: &TreeData) -> Result<(), Cali
     Ok(())
 }
 
+/// The standard deviation of a whitened row that the priors weigh against
+/// ([`PriorRows::new`]): the weights' own when the noise is known; when no view gave its
+/// sigmas and the joints are exact, the residuals' spread `sqrt(|r|^2 / (N_m - rank))` of the
+/// fit of `whole` (its columns the tree's `asked`, then the placements) from its start
+/// without priors, as observation files' ([`kinds::prior_scale`](super::kinds)): a prior
+/// weighs against the data's own noise, not against the assumed sigmas.
+fn tree_prior_scale(
+    (whole, asked): (&TreeProblem<'_>, &[usize]),
+    weights: &Weights,
+    data: &TreeData,
+    options: &TreeOptions,
+) -> Result<f64, CalibrationError> {
+    let assumed = options.joint_noise.is_none() && data.assumed_sigmas;
+    if options.prior.is_empty() || !assumed || whole.parameters() == 0 {
+        return Ok(weights.scale().unwrap_or(1.0));
+    }
+    let linearised = linearise(whole, weights, whole.start())?;
+    let identifiable = linearised.diagnose(RANK_TOLERANCE)?.identifiable;
+    let robot = asked.len();
+    let kept = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
+    let kept_setup =
+        identifiable.iter().filter(|&&c| c >= robot).map(|&c| whole.setup_selection[c - robot]).collect();
+    let (full, setup) = whole.full(&whole.start());
+    let plain = whole.reselect(kept, full, setup, kept_setup);
+    let fitted = refine_from(&plain, weights, linearised.select(&identifiable), &RefineOptions::default())?;
+    let dof = plain.equations().saturating_sub(fitted.estimate.diagnostics.rank).max(1);
+    Ok((fitted.estimate.cost / dof as f64).sqrt())
+}
+
 /// The robust fit's record, the tree's and the placements' values after.
 type TreeFitted = (Option<super::RobustFit>, Vec<f64>, Vec<f64>);
 
@@ -1162,7 +1193,7 @@ type TreeFitted = (Option<super::RobustFit>, Vec<f64>, Vec<f64>);
 /// estimate ([`super::regauge`]).
 fn fit_tree_gauged(
     whole: &TreeProblem<'_>,
-    weights: &Weights,
+    (weights, prior_scale): (&Weights, f64),
     (params, asked): (&TreeParams, &[usize]),
     options: &TreeOptions,
 ) -> Result<super::regauge::Regauged<Gauged, TreeFitted>, CalibrationError> {
@@ -1171,7 +1202,7 @@ fn fit_tree_gauged(
         let (full, setup) = whole.full(&DVector::from_column_slice(at));
         let problem = whole.reselect(asked.to_vec(), full, setup, placements.clone());
         let there = linearise(&problem, weights, problem.start())?;
-        Ok((tree_gauge(&problem, &there, (params, asked), options, weights)?, there))
+        Ok((tree_gauge(&problem, &there, (params, asked), options, prior_scale)?, there))
     };
     let x0: Vec<f64> = whole.start().iter().copied().collect();
     let (first, linearised) = gauge_at(&x0)?;
