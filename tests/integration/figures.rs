@@ -6,8 +6,10 @@ use assert_cmd::Command;
 /// The names of the figures `calibrate --model MODEL` writes for the README's data (with the
 /// `extra` flags), and the folder (to be removed by the caller).
 fn figures_of(model: &str, extra: &[&str]) -> (Vec<String>, std::path::PathBuf) {
-    let dir =
-        std::env::temp_dir().join(format!("robocal-figures-{}-{model}{}", std::process::id(), extra.len()));
+    // A folder of its own for each call: the tests run at once, some with the same flags.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("robocal-figures-{}-{model}-{call}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let output = Command::cargo_bin("robocal")
         .unwrap()
