@@ -923,20 +923,10 @@ pub fn torque_figures(
     if sets.is_empty() || !chain.has_masses() {
         return Ok(Vec::new());
     }
-    let (mut q, mut tau) = (vec![0.0; model.dof()], vec![0.0; model.dof()]);
     // loads[set][pose][joint]
-    let loads: Vec<Vec<Vec<f64>>> = (sets.iter())
-        .map(|s| {
-            (s.poses.iter())
-                .map(|p| {
-                    for ((q, joint), &v) in q.iter_mut().zip(&model.joints).zip(&p.joints) {
-                        *q = if joint.kind == JointKind::Revolute { v.to_radians() } else { v };
-                    }
-                    chain.gravity_torques(&q, &mut tau);
-                    tau.clone()
-                })
-                .collect()
-        })
+    let loads: Vec<Vec<Vec<f64>>> = sets
+        .iter()
+        .map(|s| gravity_loads(&chain, model, s.poses.iter().map(|p| p.joints.as_slice())))
         .collect();
     let mut figures = Vec::new();
     for (j, joint) in model.joints.iter().enumerate() {
@@ -950,6 +940,25 @@ pub fn torque_figures(
         figures.push((name.clone(), against(&sets, &values, &x_label).map_err(|m| error(&name, m))?));
     }
     Ok(figures)
+}
+
+/// The load gravity puts on each joint of `model` (`chain` at its errors) at each of `poses`
+/// (joint values in degrees, mm for a prismatic joint): N·m, N for a prismatic joint.
+pub(super) fn gravity_loads<'q>(
+    chain: &crate::kinematics::ChainAt,
+    model: &crate::model::RobotModel,
+    poses: impl Iterator<Item = &'q [f64]>,
+) -> Vec<Vec<f64>> {
+    let (mut q, mut tau) = (vec![0.0; model.dof()], vec![0.0; model.dof()]);
+    poses
+        .map(|values| {
+            for ((q, joint), &v) in q.iter_mut().zip(&model.joints).zip(values) {
+                *q = if joint.kind == JointKind::Revolute { v.to_radians() } else { v };
+            }
+            chain.gravity_torques(&q, &mut tau);
+            tau.clone()
+        })
+        .collect()
 }
 
 /// Each marker's signed error at the last stage (measured minus predicted, x, y, z in mm; with

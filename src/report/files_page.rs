@@ -208,32 +208,25 @@ macro_rules! files_page {
     };
 }
 
-impl ObservationsReport {
-    /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
-    /// `figures` the figures it shows inline (`(file name, SVG)`), `residuals` every residual
-    /// of each set.
-    pub fn page(
-        &self,
-        title: &str,
-        text: &str,
-        figures: &[(String, String)],
-        residuals: &[&ResidualSet],
-    ) -> String {
-        page(&files_page!(self, text, figures, residuals), title)
-    }
+/// `page` for each report of observation files or views: the designed page of its fields
+/// ([`files_page!`]).
+macro_rules! files_page_of {
+    ($($report:ty),*) => {$(
+        impl $report {
+            /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
+            /// `figures` the figures it shows inline (`(file name, SVG)`), `residuals` every
+            /// residual of each set.
+            pub fn page(
+                &self,
+                title: &str,
+                text: &str,
+                figures: &[(String, String)],
+                residuals: &[&ResidualSet],
+            ) -> String {
+                page(&files_page!(self, text, figures, residuals), title)
+            }
+        }
+    )*};
 }
 
-impl TreeReport {
-    /// The report as a designed page titled `title` ([`page`]); `text` is [`Self::text`],
-    /// `figures` the figures it shows inline (`(file name, SVG)`), `residuals` every residual
-    /// of each set.
-    pub fn page(
-        &self,
-        title: &str,
-        text: &str,
-        figures: &[(String, String)],
-        residuals: &[&ResidualSet],
-    ) -> String {
-        page(&files_page!(self, text, figures, residuals), title)
-    }
-}
+files_page_of!(ObservationsReport, TreeReport);

@@ -321,19 +321,10 @@ pub fn residual_torque_figures(
         return Ok(Vec::new());
     }
     let units = units_of(&sets);
-    let (mut q, mut tau) = (vec![0.0; model.dof()], vec![0.0; model.dof()]);
     // loads[set][residual][joint]
     let loads: Vec<Vec<Vec<f64>>> = (sets.iter())
         .map(|s| {
-            (s.residuals.iter())
-                .map(|r| {
-                    for ((q, joint), &v) in q.iter_mut().zip(&model.joints).zip(&r.joints) {
-                        *q = if joint.kind == JointKind::Revolute { v.to_radians() } else { v };
-                    }
-                    chain.gravity_torques(&q, &mut tau);
-                    tau.clone()
-                })
-                .collect()
+            super::figures::gravity_loads(&chain, model, s.residuals.iter().map(|r| r.joints.as_slice()))
         })
         .collect();
     let mut figures = Vec::new();
