@@ -939,21 +939,26 @@ impl<'a> KindProblem<'a> {
         let blocks = &self.blocks;
         let observations = &self.data.observations;
         let mut v = DMatrix::zeros(observations.len(), blocks.width());
-        let rows = self.joint_rows(joint_noise.is_some());
+        let rows = joint_noise.map_or_else(Vec::new, |_| self.joint_rows(true));
         // Each row times Sigma_q once: an entry is then dot products, without allocating.
         let weighted: Vec<Vec<(usize, RowDVector<f64>)>> = match joint_noise {
             Some(sigma_q) => {
                 rows.iter().map(|r| r.iter().map(|(j, g)| (*j, g * sigma_q)).collect()).collect()
             }
-            None => rows.clone(),
+            None => Vec::new(),
+        };
+        // The joint noise's part of entry (i, i2): none without it.
+        let through_joints = |i: usize, i2: usize| -> f64 {
+            let Some(row) = weighted.get(i) else { return 0.0 };
+            let common = row.iter().flat_map(|(j, g)| {
+                rows[i2].iter().filter(move |(j2, _)| j2 == j).map(move |(_, g2)| g.dot(g2))
+            });
+            common.sum()
         };
         for r in blocks.ranges(observations.len()) {
             for (a, i) in r.clone().enumerate() {
                 for (b, i2) in r.clone().enumerate().take(a + 1) {
-                    let common = weighted[i].iter().flat_map(|(j, g)| {
-                        rows[i2].iter().filter(move |(j2, _)| j2 == j).map(move |(_, g2)| g.dot(g2))
-                    });
-                    let joint: f64 = common.sum::<f64>() + self.data.measurement_covariance(i, i2);
+                    let joint: f64 = through_joints(i, i2) + self.data.measurement_covariance(i, i2);
                     v[(i, b)] = joint;
                     v[(i2, a)] = joint;
                 }
