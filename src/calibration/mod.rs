@@ -1131,12 +1131,18 @@ fn unregularised_spread(
     let diagnostics = at_before.diagnose_by_priority(RANK_TOLERANCE, priority)?;
     let kept = Selection::from_indices(params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
     let problem = base_problem.reselect(&kept, before.to_vec())?;
-    let fitted = refine_from(
-        &problem,
-        weights,
-        at_before.select(&diagnostics.identifiable),
-        &RefineOptions::default(),
-    )?;
+    spread_of_fit(&problem, weights, at_before.select(&diagnostics.identifiable))
+}
+
+/// The residuals' spread `sqrt(|r|^2 / (N_m - rank))` of `problem` fitted without priors from
+/// `start` (its identifiable columns, linearised with `weights`): the standard deviation of a
+/// row that the priors weigh against when the noise is a guess (every calibration's, one rule).
+pub(crate) fn spread_of_fit(
+    problem: &impl crate::estimation::Residuals,
+    weights: &Weights,
+    start: crate::estimation::Linearisation,
+) -> Result<f64, CalibrationError> {
+    let fitted = refine_from(problem, weights, start, &RefineOptions::default())?;
     let dof = problem.equations().saturating_sub(fitted.estimate.diagnostics.rank).max(1);
     Ok((fitted.estimate.cost / dof as f64).sqrt())
 }

@@ -308,22 +308,9 @@ fn an_observation_calibration_writes_the_covariance_accuracy_reads() {
 #[test]
 fn a_marker_files_predicted_accuracy_is_the_same_through_the_observation_fit() {
     let predicted = |extra: &[&str]| -> String {
-        let output = Command::cargo_bin("robocal")
-            .unwrap()
-            .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
-            .args([
-                "--validate",
-                "examples/puma560-validation.csv",
-                "--marker",
-                "50,0,150",
-                "--marker=-40,60,120",
-            ])
-            .args(["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002", "--sigma-mm", "0.01"])
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-        let text = String::from_utf8(output.stdout).unwrap();
+        let noise = ["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002", "--sigma-mm", "0.01"];
+        let validate = ["--validate", "examples/puma560-validation.csv"];
+        let (text, _) = crate::nested::calibrate_puma(&[&validate[..], &noise, extra].concat());
         let at = text.find("predicted position error SD").unwrap_or_else(|| panic!("{text}"));
         text[at..].lines().take(2).collect::<Vec<_>>().join("\n")
     };

@@ -1431,21 +1431,9 @@ fn with_nothing_to_estimate_the_model_is_scored_as_it_stands() {
 /// default 0.01 mm, the prior was drowned: the curve flat, the smallest scale chosen.)
 #[test]
 fn a_prior_weighs_against_the_residuals_spread_when_no_sigma_is_given() {
-    let dir = std::env::temp_dir().join(format!("robocal-kinds-prior-spread-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
     let curve = |extra: &[&str]| -> (Vec<f64>, u64) {
-        let json = dir.join("r.json");
-        let output = assert_cmd::Command::cargo_bin("robocal")
-            .unwrap()
-            .args(["calibrate", "-q", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
-            .args(["--marker", "50,0,150", "--marker=-40,60,120", "--params", "offsets"])
-            .args(["--prior", "auto:machined", "--json", json.to_str().unwrap()])
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-        let report: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let prior = ["--params", "offsets", "--prior", "auto:machined"];
+        let (_, report) = crate::nested::calibrate_puma(&[&prior[..], extra].concat());
         let scale = &report["prior_scale"];
         let rms = scale["cv_rms"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
         (rms, scale["chosen"].as_u64().unwrap())
@@ -1457,5 +1445,4 @@ fn a_prior_weighs_against_the_residuals_spread_when_no_sigma_is_given() {
     for (m, o) in markers.iter().zip(&observations) {
         assert!((o * 3f64.sqrt() / m - 1.0).abs() < 1e-6, "{markers:?}\n{observations:?}");
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -269,8 +269,10 @@ fn the_report_gives_the_prior_scale_and_its_curve() {
 /// `calibrate` of the PUMA 560 example (its two markers) with `extra`, the report as JSON:
 /// the text printed and the JSON.
 pub(crate) fn calibrate_puma(extra: &[&str]) -> (String, serde_json::Value) {
-    let tag = extra.join("").replace(|c: char| !c.is_ascii_alphanumeric(), "");
-    let dir = std::env::temp_dir().join(format!("robocal-puma-{tag}-{}", std::process::id()));
+    // A folder of its own for each call: the tests run at once, some with the same flags.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("robocal-puma-{call}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let json = dir.join("report.json");
     let output = assert_cmd::Command::cargo_bin("robocal")

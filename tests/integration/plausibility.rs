@@ -78,17 +78,7 @@ fn corrections_past_a_physical_bound_are_warned_for_every_kind() {
 /// line is the marker calibration's; converged, both say the same "identified" line.
 #[test]
 fn an_unconverged_calibration_is_warned_and_not_called_identified() {
-    let run = |extra: &[&str]| {
-        let output = assert_cmd::Command::cargo_bin("robocal")
-            .unwrap()
-            .args(["calibrate", "--model", "puma560", "--data", "examples/puma560-measurements.csv"])
-            .args(["--marker", "50,0,150", "--marker=-40,60,120"])
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-        String::from_utf8(output.stdout).unwrap()
-    };
+    let run = |extra: &[&str]| crate::nested::calibrate_puma(extra).0;
     let line = |text: &str, part: &str| -> String {
         text.lines().find(|l| l.contains(part)).unwrap_or_else(|| panic!("{part}: {text}")).to_string()
     };

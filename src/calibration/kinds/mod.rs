@@ -483,13 +483,13 @@ struct Prediction {
     setups: usize,
 }
 
-/// `by_setup` of a [`Prediction`] of `n` derivatives.
 /// A point's frames indexed by pose: all of them (a slice), or those one block of
 /// observations reads ([`BlockFrames`]).
 trait Frames: std::ops::Index<usize, Output = Isometry3<f64>> {}
 
 impl Frames for [Isometry3<f64>] {}
 
+/// `by_setup` of a [`Prediction`] of `n` derivatives.
 fn by_setup<const N: usize>(derivatives: [(usize, f64); N]) -> ([(usize, f64); 12], usize) {
     let mut out = [(0, 0.0); 12];
     out[..N].copy_from_slice(&derivatives);
@@ -2298,9 +2298,7 @@ fn prior_scale(
     let (kept, kept_setup) = prepared.kept(&identifiable);
     let (at, at_setup) = problem.full(&problem.start());
     let plain = problem.reselect(&kept, at, at_setup, kept_setup);
-    let fitted = refine_from(&plain, weights, linearised.select(&identifiable), &RefineOptions::default())?;
-    let dof = plain.equations().saturating_sub(fitted.estimate.diagnostics.rank).max(1);
-    Ok((fitted.estimate.cost / dof as f64).sqrt())
+    super::spread_of_fit(&plain, weights, linearised.select(&identifiable))
 }
 
 /// What the marginal likelihood needs of a calibration ([`Front::evidence`](super::Front::evidence)):

@@ -1180,9 +1180,7 @@ fn tree_prior_scale(
         identifiable.iter().filter(|&&c| c >= robot).map(|&c| whole.setup_selection[c - robot]).collect();
     let (full, setup) = whole.full(&whole.start());
     let plain = whole.reselect(kept, full, setup, kept_setup);
-    let fitted = refine_from(&plain, weights, linearised.select(&identifiable), &RefineOptions::default())?;
-    let dof = plain.equations().saturating_sub(fitted.estimate.diagnostics.rank).max(1);
-    Ok((fitted.estimate.cost / dof as f64).sqrt())
+    super::spread_of_fit(&plain, weights, linearised.select(&identifiable))
 }
 
 /// The robust fit's record, the tree's and the placements' values after.
