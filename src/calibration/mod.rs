@@ -953,7 +953,7 @@ fn identifiable(
     let kept = Selection::from_indices(params, diagnostics.identifiable.iter().map(|&c| asked.indices()[c]));
     let start = at_before.select(&diagnostics.identifiable);
     // The identifiability the report gives is the data's alone.
-    let data_alone = prior.as_ref().map(|_| start.diagnose(RANK_TOLERANCE)).transpose()?;
+    let data_alone = prior.as_ref().map(|_| start.diagnose_data_alone(RANK_TOLERANCE, &[])).transpose()?;
     let prior = prior.map(|p| p.select(&diagnostics.identifiable));
     Ok(Identified { kept, fixed, start, prior, data_alone })
 }

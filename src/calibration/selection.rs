@@ -585,7 +585,7 @@ impl LinearModel {
     ) -> Result<Self, CalibrationError> {
         let prepared = kinds::prepare(model, data, options)?;
         let started = kinds::start(&prepared, data, options)?;
-        let kinds::Gauged { identifiable, fixed, prior } = &started.gauged;
+        let kinds::Gauged { identifiable, fixed, prior, .. } = &started.gauged;
         let (kept, kept_setup) = prepared.kept(identifiable);
         let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
         let problem = started.base.reselect(&kept, before, before_setup, kept_setup);

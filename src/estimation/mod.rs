@@ -495,7 +495,7 @@ pub fn diagnose(
     let weights = Weights::new(system.v.as_ref(), system.rows_per_point, estimator, true)?;
     let w = weights.whiten(system);
     let reduced = Reduced::of_whitened(&w.a, &w.b, &w.blocks, None);
-    solve::diagnose_reduced(&reduced, rank_tolerance, &[])
+    solve::diagnose_reduced(&reduced, rank_tolerance, &[], false)
 }
 
 /// The pseudoinverse `pinv(A)` by the same rank-revealing factorisation as every estimate.

@@ -270,6 +270,17 @@ impl PriorRows {
         Self { weights: sd.iter().map(|s| if s.is_finite() { scale / s } else { 0.0 }).collect(), scale }
     }
 
+    /// These rows weighing against `spread` instead of the data rows' `scale`: each weight
+    /// `spread / s_j` (the residuals' standard deviation where the noise was a guess, so that a
+    /// prior weighs against the data's own noise), the information still that of rows of
+    /// standard deviation `scale`, so that the covariance scaled by `(spread / scale)^2` with
+    /// the data's is the posterior `spread^2 (A^T A + P^T P)^-1`.
+    pub fn weighed_against(mut self, spread: f64) -> Self {
+        let ratio = spread / self.scale;
+        self.weights.iter_mut().for_each(|w| *w *= ratio);
+        self
+    }
+
     /// Whether no column has a prior.
     pub fn is_empty(&self) -> bool {
         self.weights.iter().all(|&w| w == 0.0)

@@ -160,7 +160,7 @@ impl Linearisation {
     /// What the system can identify: rank, identifiable subset, non-identifiable combinations
     /// (as [`super::diagnose`], which starts from an unweighted system).
     pub fn diagnose(&self, rank_tolerance: f64) -> Result<Diagnostics, EstimationError> {
-        diagnose_reduced(&self.system, rank_tolerance, &[])
+        diagnose_reduced(&self.system, rank_tolerance, &[], false)
     }
 
     /// [`Linearisation::diagnose`], with the identifiable columns chosen class by class of
@@ -171,7 +171,18 @@ impl Linearisation {
         rank_tolerance: f64,
         priority: &[u32],
     ) -> Result<Diagnostics, EstimationError> {
-        diagnose_reduced(&self.system, rank_tolerance, priority)
+        diagnose_reduced(&self.system, rank_tolerance, priority, false)
+    }
+
+    /// [`Linearisation::diagnose_by_priority`] of the data alone of a fit anchored by priors:
+    /// fewer equations than parameters are diagnosed (the rank is then at most the number of
+    /// equations), not refused, as the priors identify the rest.
+    pub fn diagnose_data_alone(
+        &self,
+        rank_tolerance: f64,
+        priority: &[u32],
+    ) -> Result<Diagnostics, EstimationError> {
+        diagnose_reduced(&self.system, rank_tolerance, priority, true)
     }
 }
 

@@ -206,7 +206,8 @@ fn from_svd(
     m: usize,
     tolerance: f64,
 ) -> Result<FromSvd, EstimationError> {
-    let (diagnostics, null_basis) = rank_revealed(svd, d, m, tolerance, &[])?;
+    let (diagnostics, null_basis) = rank_revealed(svd, d, tolerance, &[]);
+    enough_rows(m, d.nrows(), diagnostics.rank)?;
     let rank = diagnostics.rank;
     let projector = complement_projector(&null_basis)?;
     let pdv = &projector * d * svd.v.columns(0, rank);
@@ -240,16 +241,32 @@ fn scaled_svd(system: &Reduced) -> Result<(crate::linalg::Svd, DMatrix<f64>), Es
     Ok((svd, DMatrix::from_diagonal(&DVector::from_column_slice(&scales))))
 }
 
-/// [`diagnose_rank_by_priority`] of a [`Reduced`] system, from its triangular factor.
+/// [`diagnose_rank_by_priority`] of a [`Reduced`] system, from its triangular factor;
+/// refused when it has fewer rows than columns and they all count (`short` allows it: the
+/// data alone of a fit anchored by priors).
 pub(crate) fn diagnose_reduced(
     system: &Reduced,
     tolerance: f64,
     priority: &[u32],
+    short: bool,
 ) -> Result<Diagnostics, EstimationError> {
     let m = system.rows();
     check_sizes(m, system.parameters(), tolerance)?;
     let (svd, d) = scaled_svd(system)?;
-    Ok(rank_revealed(&svd, &d, m, tolerance, priority)?.0)
+    let (diagnostics, _) = rank_revealed(&svd, &d, tolerance, priority);
+    if !short {
+        enough_rows(m, system.parameters(), diagnostics.rank)?;
+    }
+    Ok(diagnostics)
+}
+
+/// Refused when `m` rows of rank `rank` cannot tell `p` parameters' structure from the lack of
+/// rows: fewer rows than parameters, each of them counting.
+fn enough_rows(m: usize, p: usize, rank: usize) -> Result<(), EstimationError> {
+    match m < p && rank >= m {
+        true => Err(EstimationError::TooFewEquations { equations: m, parameters: p, rank }),
+        false => Ok(()),
+    }
 }
 
 /// `1 / |a_j|` for each column (1 for a zero column), as a list and as the diagonal `D`.
@@ -265,16 +282,12 @@ fn column_scales(a: &DMatrix<f64>) -> (Vec<f64>, DMatrix<f64>) {
 fn rank_revealed(
     svd: &crate::linalg::Svd,
     d: &DMatrix<f64>,
-    m: usize,
     tolerance: f64,
     priority: &[u32],
-) -> Result<(Diagnostics, DMatrix<f64>), EstimationError> {
+) -> (Diagnostics, DMatrix<f64>) {
     let p = d.nrows();
     let largest = svd.s[0];
     let rank = svd.s.iter().take_while(|&&s| s > tolerance * largest && s > 0.0).count();
-    if m < p && rank >= m {
-        return Err(EstimationError::TooFewEquations { equations: m, parameters: p, rank });
-    }
     let null_basis = d * svd.v.columns(rank, p - rank);
     // A_s = U (S V^T) with U orthonormal: S V^T has the same column norms and inner products,
     // so pivoting on it picks the same columns at p x p cost.
@@ -284,7 +297,7 @@ fn rank_revealed(
     let not_identifiable = combinations(&null_basis, &identifiable);
     let condition_number = if rank > 0 { largest / singular_values[rank - 1] } else { f64::INFINITY };
     let diagnostics = Diagnostics { rank, singular_values, condition_number, identifiable, not_identifiable };
-    Ok((diagnostics, null_basis))
+    (diagnostics, null_basis)
 }
 
 /// Largest condition number of the column-scaled matrix for which

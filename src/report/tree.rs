@@ -248,11 +248,7 @@ impl TreeReport {
         );
         let _ = writeln!(out, "joints: {}\n", self.joints.join(", "));
         let _ = writeln!(out, "{}", self.verdict_text());
-        let width = self.parameters.iter().map(|p| p.name.len()).max().unwrap_or(0).max(9);
-        let _ = writeln!(out, "{:<width$} {:>12} {:>12}  unit", "parameter", "estimate", "std. error");
-        for p in &self.parameters {
-            let _ = writeln!(out, "{:<width$} {:>12.5} {:>12.5}  {}", p.name, p.value, p.std_error, p.unit);
-        }
+        super::calibration::write_parameters(&mut out, &self.parameters);
         let fit = (self.converged, self.iterations);
         let identified =
             super::calibration::identified_text(&self.parameters, fit, (self.rank, self.condition_number));
@@ -315,7 +311,8 @@ fn parameter_rows(c: &TreeCalibration) -> Vec<ParameterRow> {
     let frame_names = c.frame_names();
     (c.refined.estimate.names.iter().enumerate())
         .map(|(k, name)| {
-            let (value, angle) = match c.params.params.iter().position(|p| p.name == *name) {
+            let index = c.params.params.iter().position(|p| p.name == *name);
+            let (value, angle) = match index {
                 Some(i) => (c.after[i], c.params.params[i].is_angle()),
                 None => {
                     let (frame, axis) = name.rsplit_once('.').expect("a frame's parameter");
@@ -326,13 +323,14 @@ fn parameter_rows(c: &TreeCalibration) -> Vec<ParameterRow> {
                 }
             };
             let scale = if angle { 180.0 / std::f64::consts::PI } else { 1.0 };
+            let prior = index.map(|i| c.prior_sd[i]).filter(|s| s.is_finite());
             ParameterRow {
                 name: name.clone(),
                 value: value * scale,
                 std_error: se[k] * scale,
                 unit: if angle { "deg" } else { "mm" },
-                prior_sd: None,
-                sd_ratio: None,
+                prior_sd: prior.map(|s| s * scale),
+                sd_ratio: prior.map(|s| se[k] / s),
             }
         })
         .collect()

@@ -1446,3 +1446,30 @@ fn a_prior_weighs_against_the_residuals_spread_when_no_sigma_is_given() {
         assert!((o * 3f64.sqrt() / m - 1.0).abs() < 1e-6, "{markers:?}\n{observations:?}");
     }
 }
+
+/// Without the noise, a prior's posterior standard deviations through the observation fit
+/// are the marker calibration's, to the two fits' agreement: a parameter the data cannot see
+/// keeps its prior SD (`j6.theta`: SD ratio 1; scaled by the residuals' variance of unit
+/// weight a second time, it came out 7.3 times the prior's), and the rank said is the data's
+/// alone (30, where the fit with its priors has 42).
+#[test]
+fn a_priors_posterior_sds_and_the_datas_rank_are_the_marker_calibrations() {
+    let with = ["--prior", "machined"];
+    let (_, markers) = crate::nested::calibrate_puma(&with);
+    let (text, observations) = crate::nested::calibrate_puma(&[&with[..], &["--tool", "0,0,0"]].concat());
+    assert!(text.contains("42 parameters estimated with their priors; the data alone: rank 30"), "{text}");
+    assert_eq!(observations["rank"], markers["rank"]);
+    let sds = |report: &serde_json::Value| -> Vec<(String, f64)> {
+        (report["parameters"].as_array().unwrap().iter())
+            .map(|p| (p["name"].as_str().unwrap().to_string(), p["std_error"].as_f64().unwrap()))
+            .collect()
+    };
+    let (m, o) = (sds(&markers), sds(&observations));
+    assert_eq!(m.len(), o.len());
+    for ((name, a), (other, b)) in m.iter().zip(&o) {
+        assert_eq!(name, other);
+        assert!((a / b - 1.0).abs() < 1e-6, "{name}: {a} against {b}");
+    }
+    let j6 = o.iter().find(|(n, _)| n == "j6.theta").unwrap().1;
+    assert!((j6 / 0.5 - 1.0).abs() < 1e-9, "{j6}");
+}

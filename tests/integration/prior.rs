@@ -292,4 +292,8 @@ fn priors_anchor_what_too_few_poses_cannot() {
     assert_eq!(code, Some(0), "{stderr}");
     let (before, after) = held_out_rms(&text, "examples/puma560-ballbar-2.csv (mm)", 0);
     assert!(after < 0.5 * before, "held out {before} -> {after} mm\n{text}");
+    // The data alone, twenty readings, identify at most twenty directions: said, not refused.
+    let line = text.lines().find(|l| l.contains("estimated with their priors")).expect(&text);
+    let rank: usize = line.split("rank ").nth(1).and_then(|r| r.split(',').next()?.parse().ok()).expect(line);
+    assert!(line.starts_with("36 parameters") && (1..=20).contains(&rank), "{line}");
 }

@@ -1090,5 +1090,23 @@ fn views_without_sigmas_take_their_standard_errors_from_the_residuals_spread() {
     let (known, guessed) = (curve("examples/torso/views.csv"), curve(assumed.to_str().unwrap()));
     let ratios: Vec<f64> = guessed.iter().zip(&known).map(|(g, k)| g / k).collect();
     assert!(ratios.iter().all(|r| (0.9..1.15).contains(r)), "{ratios:?}");
+    // A parameter the views cannot see keeps its prior SD, and the rank said is the views'
+    // alone (scaled by the residuals' variance a second time, that SD came out 0.6 times the
+    // prior's, and the report called all 116 identified).
+    let json = dir.join("m.json");
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "--model", "presets/torso.urdf", "--data", assumed.to_str().unwrap()])
+        .args(["--params", "joints", "--prior", "machined", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    let text = String::from_utf8(output.stdout).unwrap();
+    assert!(text.contains("116 parameters estimated with their priors; the data alone: rank 74"), "{text}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let params = report["parameters"].as_array().unwrap();
+    let tilt = params.iter().find(|p| p["name"] == "head_tilt.theta").unwrap();
+    assert!((tilt["std_error"].as_f64().unwrap() / 0.5 - 1.0).abs() < 1e-9, "{tilt}");
+    assert_eq!(tilt["prior_sd"], 0.5);
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -1895,6 +1895,7 @@ pub fn calibrate_kinds(
     let prepared = prepare(model, data, options)?;
     let started = start(&prepared, data, options)?;
     let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
+    let spread = started.prior_spread.map(|s| s / started.weights.scale().unwrap_or(1.0));
     let Fitted { refined: estimate, robust, fixed, after, after_setup, change } =
         fit_gauged(&prepared, started, options)?;
     let fixed = prepared.every_held(fixed);
@@ -1934,7 +1935,7 @@ pub fn calibrate_kinds(
         noise_estimate: None,
         noise_settled: None,
     };
-    scored(&mut calibration, data)?;
+    scored(&mut calibration, data, spread)?;
     calibration.warnings.extend(Warning::outside_limits(&model.name, &model.joints, data.pose_lines()));
     calibration.warnings.extend(noise_check(&calibration, data, options.loss));
     calibration.warnings.extend(change);
@@ -2028,7 +2029,8 @@ fn fit_gauged(
     started: Started<'_>,
     options: &KindOptions,
 ) -> Result<Fitted, CalibrationError> {
-    let Started { base, weights, before, before_setup, linearised, prior_scale, gauged } = started;
+    let Started { base, weights, before, before_setup, linearised, prior_spread, gauged } = started;
+    let weigh = (weights.scale().unwrap_or(1.0), prior_spread);
     let (asked, asked_setup) = (&prepared.asked, &prepared.asked_setup);
     let whole = base.reselect(asked, before, before_setup, asked_setup.clone());
     let x0: Vec<f64> = whole.start().iter().copied().collect();
@@ -2068,13 +2070,16 @@ fn fit_gauged(
         let (full, full_setup) = whole.full(&DVector::from_column_slice(x));
         let problem = base.reselect(asked, full, full_setup, asked_setup.clone());
         let there = linearise(&problem, &weights, problem.start())?;
-        let g = gauge(&problem, &there, (&prepared.params, asked), options, prior_scale)?;
+        let g = gauge(&problem, &there, (&prepared.params, asked), options, weigh)?;
         let prior = g.prior.as_ref().map(|p| p.select(&g.identifiable));
         let weakest = super::regauge::weakest(&there.select(&g.identifiable), prior.as_ref());
         Ok((g, weakest))
     };
     let limit = options.refine.max_iterations;
-    let r = super::regauge::fit_regauged((&x0, &names), gauged, limit, fit, gauge_at)?;
+    let mut r = super::regauge::fit_regauged((&x0, &names), gauged, limit, fit, gauge_at)?;
+    if let Some(data_alone) = r.gauge.data_alone {
+        r.refined.estimate.diagnostics = data_alone;
+    }
     let (robust, after, after_setup) = r.fitted;
     Ok(Fitted { refined: r.refined, robust, fixed: r.gauge.fixed, after, after_setup, change: r.change })
 }
@@ -2236,8 +2241,9 @@ pub(super) struct Started<'p> {
     pub(super) before_setup: Vec<f64>,
     /// `A = S H`, `b = S y` of what is asked for, about "before".
     pub(super) linearised: Linearisation,
-    /// The standard deviation of a whitened row the priors weigh against ([`prior_scale`]).
-    pub(super) prior_scale: f64,
+    /// Where every sigma is assumed and the joints are exact: the residuals' spread the priors
+    /// weigh against ([`prior_spread`]).
+    pub(super) prior_spread: Option<f64>,
     pub(super) gauged: Gauged,
 }
 
@@ -2272,33 +2278,35 @@ pub(super) fn start<'p>(
     let unanchored = problem.parameters() - asked.indices().iter().filter(|&&i| sd[i].is_finite()).count();
     super::enough_equations(data.joints.len(), problem.equations(), unanchored)?;
     let linearised = linearise(&problem, &weights, problem.start())?;
-    let prior_scale = prior_scale((prepared, &problem), &linearised, &weights, data, options)?;
-    let gauged = gauge(&problem, &linearised, (params, asked), options, prior_scale)?;
-    Ok(Started { base, weights, before, before_setup, linearised, prior_scale, gauged })
+    let prior_spread = prior_spread((prepared, &problem), &linearised, &weights, data, options)?;
+    let weigh = (weights.scale().unwrap_or(1.0), prior_spread);
+    let gauged = gauge(&problem, &linearised, (params, asked), options, weigh)?;
+    Ok(Started { base, weights, before, before_setup, linearised, prior_spread, gauged })
 }
 
-/// The standard deviation of a whitened row that the priors weigh against
-/// ([`PriorRows::new`]): the weights' own when the noise is known; when every sigma is assumed
-/// and the joints are exact (the fit then takes its scale from the residuals, [`scored`]), the
-/// residuals' spread `sqrt(|r|^2 / (N_m - rank))` of the fit of `problem` (about
-/// `linearised`) without priors, as a marker file's ordinary least squares takes it: a prior
-/// then weighs against the data's own noise, not against the assumed sigmas.
-fn prior_scale(
+/// What the priors weigh against when every sigma is assumed and the joints are exact (the
+/// fit then takes its scale from the residuals, [`scored`]): the residuals' spread
+/// `sqrt(|r|^2 / (N_m - rank))` of the fit of `problem` (about `linearised`) without priors,
+/// as a marker file's ordinary least squares takes it, so that a prior weighs against the
+/// data's own noise, not against the assumed sigmas ([`PriorRows::weighed_against`]); `None`
+/// when the noise is known (the priors weigh against the weights' own scale) or no prior is
+/// given.
+fn prior_spread(
     (prepared, problem): (&Prepared, &KindProblem<'_>),
     linearised: &Linearisation,
     weights: &Weights,
     data: &KindData,
     options: &KindOptions,
-) -> Result<f64, CalibrationError> {
+) -> Result<Option<f64>, CalibrationError> {
     let assumed = options.joint_noise.is_none() && data.assumed_sigmas == data.observations.len();
     if options.prior.is_empty() || !assumed || problem.parameters() == 0 {
-        return Ok(weights.scale().unwrap_or(1.0));
+        return Ok(None);
     }
     let identifiable = linearised.diagnose(RANK_TOLERANCE)?.identifiable;
     let (kept, kept_setup) = prepared.kept(&identifiable);
     let (at, at_setup) = problem.full(&problem.start());
     let plain = problem.reselect(&kept, at, at_setup, kept_setup);
-    super::spread_of_fit(&plain, weights, linearised.select(&identifiable))
+    super::spread_of_fit(&plain, weights, linearised.select(&identifiable)).map(Some)
 }
 
 /// What the marginal likelihood needs of a calibration ([`Front::evidence`](super::Front::evidence)):
@@ -2375,7 +2383,7 @@ fn gauge(
     linearised: &Linearisation,
     (params, asked): (&ParamSet, &Selection),
     options: &KindOptions,
-    prior_scale: f64,
+    weigh: (f64, Option<f64>),
 ) -> Result<Gauged, CalibrationError> {
     let keep = problem_columns(problem, &options.gauge.keep)?;
     let priority: Vec<u32> = (0..problem.parameters())
@@ -2384,12 +2392,16 @@ fn gauge(
             false => 1 + asked.indices().get(c).map_or(0, |&i| gauge_class(params.get(i))),
         })
         .collect();
-    let prior = prior_rows(problem, asked, params, &options.prior, prior_scale)?;
+    let prior = prior_rows(problem, asked, params, &options.prior, weigh)?;
     let owners: Vec<Option<ParamOwner>> =
         (0..problem.parameters()).map(|c| asked.indices().get(c).map(|&i| params.get(i).owner)).collect();
     let (identifiable, fixed) =
         identifiable(linearised, (&problem.names(), &owners), &priority, prior.as_ref())?;
-    Ok(Gauged { identifiable, fixed, prior })
+    let data_alone = match prior {
+        Some(_) => Some(linearised.diagnose_data_alone(RANK_TOLERANCE, &priority)?),
+        None => None,
+    };
+    Ok(Gauged { identifiable, fixed, prior, data_alone })
 }
 
 /// What [`gauge`] finds: the identifiable columns, the held ones in words, the prior rows.
@@ -2397,18 +2409,25 @@ pub(super) struct Gauged {
     pub(super) identifiable: Vec<usize>,
     pub(super) fixed: Vec<Held>,
     pub(super) prior: Option<PriorRows>,
+    /// With priors, the identifiability of the data alone, to report.
+    pub(super) data_alone: Option<crate::estimation::Diagnostics>,
 }
 
 /// `calibration` scored on its training `data`; with every sigma assumed and the joints exact,
 /// the covariance and the whitening scaled by the residuals' variance of unit weight
 /// `f = sum z_k^2 / (N - rank)` (`z_k` whitened by the assumed sigmas), as ordinary least
-/// squares without a noise model takes it; then its warnings.
-fn scored(calibration: &mut KindCalibration, data: &KindData) -> Result<(), CalibrationError> {
+/// squares without a noise model takes it, or with priors by `f = spread^2`, the spread (in
+/// the assumed sigmas) they weighed against ([`prior_spread`]); then its warnings.
+fn scored(
+    calibration: &mut KindCalibration,
+    data: &KindData,
+    spread: Option<f64>,
+) -> Result<(), CalibrationError> {
     calibration.training = calibration.score(data)?;
     let (n, rank) = (data.observations.len(), calibration.refined.estimate.diagnostics.rank);
     if calibration.joint_noise.is_none() && data.assumed_sigmas == n && n > rank {
         let sum: f64 = calibration.training.observations.iter().map(|r| r.whitened * r.whitened).sum();
-        let f = sum / (n - rank) as f64;
+        let f = spread.map_or(sum / (n - rank) as f64, |s| s * s);
         calibration.refined.estimate.covariance *= f;
         calibration.variance_factor = Some(f);
         // As `score` whitens with `V_k f`: each whitened residual over sqrt(f).
@@ -2660,14 +2679,15 @@ fn without_held(
 }
 
 /// The prior rows of `problem`'s columns: the robot's asked parameters' standard deviations
-/// of `entries`, none for the set-up; scaled by `scale`, the standard deviation of a whitened
-/// row ([`prior_scale`]); `None` when no column has a prior.
+/// of `entries`, none for the set-up; for whitened rows of standard deviation `scale`,
+/// weighed against the residuals' `spread` where the noise is a guess ([`prior_spread`]);
+/// `None` when no column has a prior.
 fn prior_rows(
     problem: &KindProblem<'_>,
     asked: &Selection,
     params: &ParamSet,
     entries: &[PriorEntry],
-    scale: f64,
+    (scale, spread): (f64, Option<f64>),
 ) -> Result<Option<PriorRows>, CalibrationError> {
     if entries.is_empty() {
         return Ok(None);
@@ -2678,7 +2698,11 @@ fn prior_rows(
     if columns.iter().all(|s| !s.is_finite()) {
         return Ok(None);
     }
-    Ok(Some(PriorRows::new(&columns, scale)))
+    let rows = PriorRows::new(&columns, scale);
+    Ok(Some(match spread {
+        Some(spread) => rows.weighed_against(spread),
+        None => rows,
+    }))
 }
 
 /// The indices of `names` that the `patterns` match (`*` as in [`Selection::by_names`]); a

@@ -739,6 +739,8 @@ pub struct TreeCalibration {
     /// a row whitened by its assumed sigma), by which the covariance and the whitening are
     /// scaled (standard errors from the residuals' spread); `None` when the noise was given.
     pub variance_factor: Option<f64>,
+    /// The prior standard deviation of each of the tree's parameters (infinite: none).
+    pub prior_sd: Vec<f64>,
     joint_noise: Option<DMatrix<f64>>,
 }
 
@@ -932,7 +934,7 @@ fn tree_gauge(
     linearised: &Linearisation,
     (params, asked): (&TreeParams, &[usize]),
     options: &TreeOptions,
-    prior_scale: f64,
+    (scale, spread): (f64, Option<f64>),
 ) -> Result<Gauged, CalibrationError> {
     let names = problem.names();
     let keep = matching(&names, &options.gauge.keep)?;
@@ -946,11 +948,18 @@ fn tree_gauge(
     let sd = prior_sds_of(&options.prior, &infos)?;
     let columns: Vec<f64> =
         (0..problem.parameters()).map(|c| asked.get(c).map_or(f64::INFINITY, |&i| sd[i])).collect();
-    let prior = (columns.iter().any(|s| s.is_finite())).then(|| PriorRows::new(&columns, prior_scale));
+    let prior = (columns.iter().any(|s| s.is_finite())).then(|| match spread {
+        Some(spread) => PriorRows::new(&columns, scale).weighed_against(spread),
+        None => PriorRows::new(&columns, scale),
+    });
     let owners: Vec<Option<crate::model::ParamOwner>> =
         (0..problem.parameters()).map(|c| asked.get(c).map(|&i| params.params[i].owner)).collect();
     let (identifiable, fixed) = identifiable(linearised, (&names, &owners), &priority, prior.as_ref())?;
-    Ok(Gauged { identifiable, fixed, prior })
+    let data_alone = match prior {
+        Some(_) => Some(linearised.diagnose_data_alone(RANK_TOLERANCE, &priority)?),
+        None => None,
+    };
+    Ok(Gauged { identifiable, fixed, prior, data_alone })
 }
 
 /// Each of `fixed` that no observation moves, said why where the data say it: a point's
@@ -1053,9 +1062,14 @@ pub(crate) fn selection_model(
     let (asked, held) = asked(&params, options)?;
     let whole = base_problem.reselect(asked.clone(), zero.clone(), before.clone(), every.clone());
     let linearised = linearise(&whole, &weights, whole.start())?;
-    let prior_scale = tree_prior_scale((&whole, &asked), &weights, data, options)?;
-    let Gauged { identifiable, mut fixed, prior } =
-        tree_gauge(&whole, &linearised, (&params, &asked), options, prior_scale)?;
+    let spread = tree_prior_spread((&whole, &asked), &weights, data, options)?;
+    let Gauged { identifiable, mut fixed, prior, .. } = tree_gauge(
+        &whole,
+        &linearised,
+        (&params, &asked),
+        options,
+        (weights.scale().unwrap_or(1.0), spread),
+    )?;
     let robot = asked.len();
     let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
     let kept_setup: Vec<usize> = identifiable.iter().filter(|&&c| c >= robot).map(|&c| c - robot).collect();
@@ -1107,8 +1121,11 @@ pub fn calibrate_tree(
     let sd = prior_sds_of(&options.prior, &params.params.iter().collect::<Vec<_>>())?;
     let unanchored = problem.parameters() - asked.iter().filter(|&&i| sd[i].is_finite()).count();
     super::enough_equations(data.joints.len(), problem.equations(), unanchored)?;
-    let prior_scale = tree_prior_scale((&problem, &asked), &weights, data, options)?;
-    let r = fit_tree_gauged(&problem, (&weights, prior_scale), (&params, &asked), options)?;
+    let spread = tree_prior_spread((&problem, &asked), &weights, data, options)?;
+    let mut r = fit_tree_gauged(&problem, (&weights, spread), (&params, &asked), options)?;
+    if let Some(data_alone) = r.gauge.data_alone {
+        r.refined.estimate.diagnostics = data_alone;
+    }
     let (estimate, (robust, after, after_setup), mut fixed) = (r.refined, r.fitted, r.gauge.fixed);
     say_why_unseen(&mut fixed, &params, data);
     fixed.extend(held);
@@ -1129,9 +1146,10 @@ pub fn calibrate_tree(
         noise_estimate: None,
         noise_settled: None,
         variance_factor: None,
+        prior_sd: sd,
         joint_noise: options.joint_noise.clone(),
     };
-    scored(&mut calibration, data)?;
+    scored(&mut calibration, data, spread.map(|s| s / weights.scale().unwrap_or(1.0)))?;
     calibration.warnings = calibration.warnings();
     let views = data.views.iter().zip(&data.lines).map(|(v, &line)| (line, data.joints[v.pose].as_slice()));
     calibration.warnings.extend(Warning::outside_limits(&tree.name, &tree.joints, views));
@@ -1141,13 +1159,19 @@ pub fn calibrate_tree(
 
 /// `calibration` scored on its training `data`; with every sigma assumed and the joints
 /// exact, the covariance and the whitening scaled by the residuals' variance of unit weight
-/// `f = sum z_i^2 / (N - rank)`, as observation files' are ([`TreeCalibration::variance_factor`]).
-fn scored(calibration: &mut TreeCalibration, data: &TreeData) -> Result<(), CalibrationError> {
+/// `f = sum z_i^2 / (N - rank)`, as observation files' are ([`TreeCalibration::variance_factor`]),
+/// or with priors by `f = spread^2`, the spread (in the assumed sigmas) they weighed against
+/// ([`tree_prior_spread`]).
+fn scored(
+    calibration: &mut TreeCalibration,
+    data: &TreeData,
+    spread: Option<f64>,
+) -> Result<(), CalibrationError> {
     let (training, squares) = calibration.score_rows(data)?;
     calibration.training = training;
     let (n, rank) = (data.rows() * data.views.len(), calibration.refined.estimate.diagnostics.rank);
     if calibration.joint_noise.is_none() && data.assumed_sigmas && n > rank {
-        let f = squares / (n - rank) as f64;
+        let f = spread.map_or(squares / (n - rank) as f64, |s| s * s);
         calibration.refined.estimate.covariance *= f;
         calibration.variance_factor = Some(f);
         // As `score` whitens with `V_k f`: each whitened residual over sqrt(f).
@@ -1156,21 +1180,21 @@ fn scored(calibration: &mut TreeCalibration, data: &TreeData) -> Result<(), Cali
     Ok(())
 }
 
-/// The standard deviation of a whitened row that the priors weigh against
-/// ([`PriorRows::new`]): the weights' own when the noise is known; when no view gave its
-/// sigmas and the joints are exact, the residuals' spread `sqrt(|r|^2 / (N_m - rank))` of the
-/// fit of `whole` (its columns the tree's `asked`, then the placements) from its start
-/// without priors, as observation files' ([`kinds::prior_scale`](super::kinds)): a prior
-/// weighs against the data's own noise, not against the assumed sigmas.
-fn tree_prior_scale(
+/// What the priors weigh against when no view gave its sigmas and the joints are exact: the
+/// residuals' spread `sqrt(|r|^2 / (N_m - rank))` of the fit of `whole` (its columns the
+/// tree's `asked`, then the placements) from its start without priors, as observation files'
+/// ([`kinds::prior_spread`](super::kinds)), so that a prior weighs against the data's own
+/// noise, not against the assumed sigmas ([`PriorRows::weighed_against`]); `None` when the
+/// noise is known or no prior is given.
+fn tree_prior_spread(
     (whole, asked): (&TreeProblem<'_>, &[usize]),
     weights: &Weights,
     data: &TreeData,
     options: &TreeOptions,
-) -> Result<f64, CalibrationError> {
+) -> Result<Option<f64>, CalibrationError> {
     let assumed = options.joint_noise.is_none() && data.assumed_sigmas;
     if options.prior.is_empty() || !assumed || whole.parameters() == 0 {
-        return Ok(weights.scale().unwrap_or(1.0));
+        return Ok(None);
     }
     let linearised = linearise(whole, weights, whole.start())?;
     let identifiable = linearised.diagnose(RANK_TOLERANCE)?.identifiable;
@@ -1180,7 +1204,7 @@ fn tree_prior_scale(
         identifiable.iter().filter(|&&c| c >= robot).map(|&c| whole.setup_selection[c - robot]).collect();
     let (full, setup) = whole.full(&whole.start());
     let plain = whole.reselect(kept, full, setup, kept_setup);
-    super::spread_of_fit(&plain, weights, linearised.select(&identifiable))
+    super::spread_of_fit(&plain, weights, linearised.select(&identifiable)).map(Some)
 }
 
 /// The robust fit's record, the tree's and the placements' values after.
@@ -1191,7 +1215,7 @@ type TreeFitted = (Option<super::RobustFit>, Vec<f64>, Vec<f64>);
 /// estimate ([`super::regauge`]).
 fn fit_tree_gauged(
     whole: &TreeProblem<'_>,
-    (weights, prior_scale): (&Weights, f64),
+    (weights, spread): (&Weights, Option<f64>),
     (params, asked): (&TreeParams, &[usize]),
     options: &TreeOptions,
 ) -> Result<super::regauge::Regauged<Gauged, TreeFitted>, CalibrationError> {
@@ -1200,7 +1224,8 @@ fn fit_tree_gauged(
         let (full, setup) = whole.full(&DVector::from_column_slice(at));
         let problem = whole.reselect(asked.to_vec(), full, setup, placements.clone());
         let there = linearise(&problem, weights, problem.start())?;
-        Ok((tree_gauge(&problem, &there, (params, asked), options, prior_scale)?, there))
+        let weigh = (weights.scale().unwrap_or(1.0), spread);
+        Ok((tree_gauge(&problem, &there, (params, asked), options, weigh)?, there))
     };
     let x0: Vec<f64> = whole.start().iter().copied().collect();
     let (first, linearised) = gauge_at(&x0)?;
