@@ -96,11 +96,7 @@ impl Table {
     pub fn parse(text: &str) -> Result<Self, DataError> {
         let text = normalised(text);
         let declared = declared_units(&text)?;
-        let mut reader = csv::ReaderBuilder::new()
-            .comment(Some(b'#'))
-            .trim(csv::Trim::All)
-            .flexible(true)
-            .from_reader(text.as_bytes());
+        let mut reader = reader_of(text.as_bytes(), true);
         let header: Vec<String> = reader
             .headers()
             .map_err(|e| DataError::new(1, None, format!("no header row: {e}")))?
@@ -118,28 +114,9 @@ impl Table {
                 format!("a column named once, `{name}` is column {} and {}", position(&header, name), i + 1);
             return Err(DataError::new(header_line, Some(name), message));
         }
-        // The csv reader counts neither blank lines nor comments, and a record's position can
-        // be that of the blank or comment lines before it: lines come from byte offsets.
-        let newlines: Vec<usize> = text.match_indices('\n').map(|(i, _)| i).collect();
-        let lines: Vec<&str> = text.split('\n').collect();
-        let line_of = |position: Option<&csv::Position>| {
-            let Some(p) = position else { return 0 };
-            let mut line = newlines.partition_point(|&n| n < p.byte() as usize);
-            while lines.get(line).is_some_and(|l| l.trim().is_empty() || l.trim_start().starts_with('#')) {
-                line += 1;
-            }
-            line + 1
-        };
-        let mut rows = Vec::new();
-        for record in reader.records() {
-            let record = record.map_err(|e| DataError::new(line_of(e.position()), None, e.to_string()))?;
-            let line = line_of(record.position());
-            if record.len() != header.len() {
-                let message = format!("{} values, the header has {}", record.len(), header.len());
-                return Err(DataError::new(line, None, message));
-            }
-            rows.push(Row { line, cells: record });
-        }
+        // The rows after the header: where the reader stands once it has read it.
+        let body = usize::try_from(reader.position().byte()).unwrap_or(text.len()).min(text.len());
+        let rows = rows_of(&text, body, header.len())?;
         Ok(Self { declared, header, header_line, rows })
     }
 
@@ -291,6 +268,93 @@ fn normalised(text: &str) -> Cow<'_, str> {
     }
 }
 
+/// Bytes of a CSV's rows that one task of [`Table::parse`] reads: whole lines, about this many.
+const ROWS_PER_TASK_BYTES: usize = 1 << 16;
+
+/// The CSV reader of every table: `#` comments, cells trimmed, rows of any length (the
+/// reader's callers check them against the header), with or without a header.
+fn reader_of(bytes: &[u8], headers: bool) -> csv::Reader<&[u8]> {
+    csv::ReaderBuilder::new()
+        .comment(Some(b'#'))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .has_headers(headers)
+        .from_reader(bytes)
+}
+
+/// `text` cut into pieces of whole lines of about `size` bytes at least (the last one shorter),
+/// each with its byte offset in `text`.
+pub(crate) fn line_chunks(text: &str, size: usize) -> Vec<(usize, &str)> {
+    let (bytes, mut chunks, mut start) = (text.as_bytes(), Vec::new(), 0);
+    while start < text.len() {
+        let newline = bytes.get(start + size..).and_then(|rest| rest.iter().position(|&b| b == b'\n'));
+        let end = newline.map_or(text.len(), |i| start + size + i + 1);
+        chunks.push((start, &text[start..end]));
+        start = end;
+    }
+    chunks
+}
+
+/// The rows of the table `text` from byte `body` on (after its header), each of `width`
+/// cells. Read on rayon's threads in pieces of whole lines when no cell is quoted (a quoted
+/// cell may hold a line break), in order; where a piece fails, read again in one piece, so
+/// that the error is the one reader's, whatever the threads.
+fn rows_of(text: &str, body: usize, width: usize) -> Result<Vec<Row>, DataError> {
+    use rayon::prelude::*;
+    let rest = &text[body..];
+    let pieces = match rest.contains('"') {
+        true => vec![(0, rest)],
+        false => line_chunks(rest, ROWS_PER_TASK_BYTES),
+    };
+    // The lines before each piece.
+    let counts: Vec<usize> = pieces.par_iter().map(|(_, piece)| piece.matches('\n').count()).collect();
+    let header_lines = text[..body].matches('\n').count();
+    let starts: Vec<usize> = (counts.iter())
+        .scan(header_lines, |before, n| {
+            let first = *before;
+            *before += n;
+            Some(first)
+        })
+        .collect();
+    let read: Vec<Result<Vec<Row>, DataError>> = (pieces.into_par_iter().zip(starts))
+        .map(|((_, piece), first)| rows_of_piece(piece, first, width))
+        .collect();
+    if !read.iter().all(Result::is_ok) {
+        return rows_of_piece(rest, header_lines, width);
+    }
+    // Sized once: a growing vector of 100k rows would hold up to twice their room at its peak.
+    let mut rows = Vec::with_capacity(read.iter().map(|r| r.as_ref().map_or(0, Vec::len)).sum());
+    read.into_iter().for_each(|piece| rows.extend(piece.unwrap_or_default()));
+    Ok(rows)
+}
+
+/// The rows of `piece`, whole lines of a table after its header, the first its line `first + 1`.
+fn rows_of_piece(piece: &str, first: usize, width: usize) -> Result<Vec<Row>, DataError> {
+    // The csv reader counts neither blank lines nor comments, and a record's position can
+    // be that of the blank or comment lines before it: lines come from byte offsets.
+    let newlines: Vec<usize> = piece.match_indices('\n').map(|(i, _)| i).collect();
+    let lines: Vec<&str> = piece.split('\n').collect();
+    let line_of = |position: Option<&csv::Position>| {
+        let Some(p) = position else { return 0 };
+        let mut line = newlines.partition_point(|&n| n < p.byte() as usize);
+        while lines.get(line).is_some_and(|l| l.trim().is_empty() || l.trim_start().starts_with('#')) {
+            line += 1;
+        }
+        first + line + 1
+    };
+    let mut rows = Vec::new();
+    for record in reader_of(piece.as_bytes(), false).records() {
+        let record = record.map_err(|e| DataError::new(line_of(e.position()), None, e.to_string()))?;
+        let line = line_of(record.position());
+        if record.len() != width {
+            let message = format!("{} values, the header has {width}", record.len());
+            return Err(DataError::new(line, None, message));
+        }
+        rows.push(Row { line, cells: record });
+    }
+    Ok(rows)
+}
+
 /// The units of a `# units: joints=deg, lengths=mm` line among the leading comments, if the
 /// file has one.
 fn declared_units(text: &str) -> Result<Option<Units>, DataError> {
@@ -342,6 +406,36 @@ mod tests {
         assert_eq!(Table::parse(&format!("\u{feff}{TEXT}")).unwrap(), plain);
         assert_eq!(Table::parse(&TEXT.replace('\n', "\r\n")).unwrap(), plain);
         assert_eq!(Table::parse(&TEXT.replace('\n', "\r")).unwrap(), plain);
+    }
+
+    /// A table of many pieces ([`ROWS_PER_TASK_BYTES`]), comments and blank lines among its
+    /// rows, is read as in one piece, on any number of threads: the same rows, the same lines,
+    /// the same first error (a row of three cells late in the file).
+    #[test]
+    fn a_long_table_is_read_in_pieces_as_in_one() {
+        let mut text = String::from("# units: joints=deg, lengths=mm\nj1,x1\n");
+        for k in 0..40_000 {
+            text.push_str(&format!("{k}.25,{}\n", k % 7));
+            if k % 997 == 0 {
+                text.push_str("\n# a comment\n");
+            }
+        }
+        let body = text.find("0.25").unwrap();
+        let one = rows_of_piece(&text[body..], 2, 2).unwrap();
+        let on = |threads: usize, text: &str| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| Table::parse(text))
+        };
+        for threads in [1, 2, 3] {
+            let table = on(threads, &text).unwrap();
+            assert_eq!(table.rows, one, "{threads} threads");
+        }
+        assert_eq!(one[1000].line, 2 + 1000 + 1 + 2 * 2);
+        assert_eq!(one[1000].cells.get(0), Some("1000.25"));
+        text.push_str("1,2,3\n4,5\n");
+        let late = on(2, &text).unwrap_err();
+        assert_eq!(late, rows_of_piece(&text[body..], 2, 2).unwrap_err());
+        assert_eq!(late.message, "3 values, the header has 2");
     }
 
     #[test]

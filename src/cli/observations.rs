@@ -25,10 +25,17 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         .map(|path| Ok((path.display().to_string(), read(path)?)))
         .collect::<Result<Vec<_>>>()?;
     let sessions = {
-        // The files joined for their checks only, not held while they calibrate.
-        let data = sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file));
-        check_and_warn(request, &data)?;
-        chosen_markers(sessions, request.marker_ids.as_deref(), &data)?
+        // The files joined for their checks only, not held while they calibrate; one file as
+        // it is (joined alone, it is itself).
+        let joined = match sessions.as_slice() {
+            [_] => None,
+            _ => Some(sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file))),
+        };
+        let data = joined.as_ref().unwrap_or(&sessions[0].1);
+        check_and_warn(request, data)?;
+        let ids = request.marker_ids.as_deref();
+        let markers = ids.map(|_| data.markers()).unwrap_or_default();
+        chosen_markers(sessions, ids, &markers)?
     };
     let options = kind_options(request, &model, noise)?;
     let held_out = (request.validate.iter())
@@ -117,14 +124,13 @@ fn check_and_warn(request: &CalibrateObservationsRequest, data: &KindData) -> Re
 }
 
 /// The files with the markers `--markers` names only (`ids`, numbers from 1), or as they are;
-/// a number that no file's marker has is refused (`data`: the files joined).
+/// a number that no file's marker has is refused (`have`: the files' markers, less one).
 fn chosen_markers(
     sessions: Vec<(String, KindData)>,
     ids: Option<&[usize]>,
-    data: &KindData,
+    have: &[usize],
 ) -> Result<Vec<(String, KindData)>> {
     let Some(ids) = ids else { return Ok(sessions) };
-    let have = data.markers();
     if let Some(id) = ids.iter().find(|&&id| !have.contains(&(id - 1))) {
         let numbers: Vec<String> = have.iter().map(|m| (m + 1).to_string()).collect();
         bail!(
