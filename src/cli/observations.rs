@@ -6,7 +6,7 @@ use super::request::{CalibrateObservationsRequest, Method};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::Kinds;
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, RowSigmaDefaults, Score};
-use robocal::estimation::{Device, RefineOptions};
+use robocal::estimation::{Device, Estimator, RefineOptions};
 use robocal::io;
 use robocal::model::{Joint, RobotModel};
 use robocal::report::residuals::ResidualSet;
@@ -24,6 +24,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     let sessions = (request.data.iter())
         .map(|path| Ok((path.display().to_string(), read(path)?)))
         .collect::<Result<Vec<_>>>()?;
+    let method;
     let sessions = {
         // The files joined for their checks only, not held while they calibrate; one file as
         // it is (joined alone, it is itself).
@@ -33,11 +34,13 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         };
         let data = joined.as_ref().unwrap_or(&sessions[0].1);
         check_and_warn(request, data)?;
+        method =
+            estimator_for(request, noise.joint.is_some() || data.assumed_sigmas < data.observations.len())?;
         let ids = request.marker_ids.as_deref();
         let markers = ids.map(|_| data.markers()).unwrap_or_default();
         chosen_markers(sessions, ids, &markers)?
     };
-    let options = kind_options(request, &model, noise)?;
+    let options = kind_options(request, &model, noise, method)?;
     let held_out = (request.validate.iter())
         .map(|path| Ok((path.display().to_string(), read(path)?)))
         .collect::<Result<Vec<_>>>()?;
@@ -47,7 +50,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
     };
     let choices =
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds);
-    let fitting = robocal::pipeline::Fitting::new(request.method == Method::Feasible, choices, request.folds);
+    let fitting = robocal::pipeline::Fitting::new(method == Method::Feasible, choices, request.folds);
     let outcome =
         robocal::pipeline::calibrate_files(&Kinds(&model), &sessions, &held_out, &options, &fitting)?;
     let (c, report) = (outcome.calibration, outcome.report);
@@ -83,6 +86,23 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         outputs.add(path, robocal::model::with_urdf_markers(&text, &c.marker_positions())?);
     }
     super::commit(outputs)
+}
+
+/// The estimator of `request` where the noise is `known` (a joint noise or a sigma given) or
+/// not: the default wls is ordinary least squares without a noise (every row alike, the
+/// residuals' spread their sigma), and a weighted estimator given then is a usage error.
+fn estimator_for(request: &CalibrateObservationsRequest, known: bool) -> Result<Method> {
+    match request.method {
+        Method::Given(estimator) if !known && estimator != Estimator::Ols => match request.estimator_given {
+            false => Ok(Method::Given(Estimator::Ols)),
+            true => Err(super::UsageError(format!(
+                "--estimator {estimator} needs the noise: give --noise or --joint-sigma-deg (and --sigma-mm or a sigma \
+                 column), or use --estimator fgls"
+            ))
+            .into()),
+        },
+        method => Ok(method),
+    }
 }
 
 /// The markers given against the files' (an error if more `--marker` than markers), and the
@@ -180,6 +200,7 @@ fn kind_options(
     request: &CalibrateObservationsRequest,
     model: &RobotModel,
     noise: Noise,
+    method: Method,
 ) -> Result<KindOptions> {
     let mut prior = noise.prior;
     prior.extend(request.prior.iter().cloned());
@@ -188,7 +209,7 @@ fn kind_options(
         prior,
         loss: request.loss,
         gauge: request.gauge.clone(),
-        estimator: request.method.estimator(),
+        estimator: method.estimator(),
         joint_noise: noise.joint,
         joints: request.joints.clone(),
         estimate_tool: request.estimate_tool,

@@ -393,6 +393,10 @@ pub struct CalibrateObservationsRequest {
     pub units: Option<Units>,
     /// The estimator (wls by default: the files' sigma columns are the noise), or feasible GLS.
     pub method: Method,
+    /// Whether `--estimator` was given: the default wls is ols where the data and the flags
+    /// give no noise at all, and a weighted estimator given then is refused
+    /// ([`crate::cli::observations`]).
+    pub estimator_given: bool,
     /// Joint sigmas (deg; mm for prismatic joints), if given.
     pub joint_sigma_deg: Option<Vec<f64>>,
     /// The joint parameters to identify.
@@ -520,6 +524,7 @@ impl CalibrateObservationsRequest {
             data: args.data,
             units: args.units.units()?,
             method,
+            estimator_given: args.estimator.is_some(),
             joint_sigma_deg: args.joint_sigma_deg,
             joints,
             tool: args.tool,

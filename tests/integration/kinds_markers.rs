@@ -1408,9 +1408,10 @@ fn with_nothing_to_estimate_the_model_is_scored_as_it_stands() {
         String::from_utf8(output.stdout).unwrap()
     };
     // `--tool` sends the file to the observation fit; no observation measures the tool point.
+    // No noise is given: ordinary least squares, as the marker file's calibration.
     let (markers, observations) = (run(&[]), run(&["--tool", "0,0,0"]));
     assert!(
-        observations.contains("600 observations at 100 poses, wls (0 steps, converged)"),
+        observations.contains("600 observations at 100 poses, ols (0 steps, converged)"),
         "{observations}"
     );
     let cells = |text: &str, start: &str| -> Vec<String> {
@@ -1421,6 +1422,39 @@ fn with_nothing_to_estimate_the_model_is_scored_as_it_stands() {
         (cells(&markers, "training (fitted, in-sample)"), cells(&observations, "training markers (mm)"));
     assert_eq!(m[4..12], k[4..12], "{markers}\n{observations}");
     assert_eq!(k[4], k[6], "before and after alike: {observations}");
+}
+
+/// Without any noise (no sigma column, no sigma flag, the joints exact) the observation fit is
+/// ordinary least squares, as a marker file's calibration, and a weighted estimator asked for
+/// is a usage error (exit 2) that says what gives the noise; a sigma column is a noise.
+#[test]
+fn a_weighted_estimator_needs_a_noise_and_without_one_the_fit_is_ols() {
+    let run = |data: &[&str], extra: &[&str]| {
+        (assert_cmd::Command::cargo_bin("robocal").unwrap())
+            .args(["calibrate", "-q", "--model", "puma560", "--tool", "50,0,150"])
+            .args(data.iter().flat_map(|d| ["--data", d]))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let markers = ["examples/puma560-measurements.csv"];
+    for estimator in ["wls", "wls-diag", "wls-sigma"] {
+        let output = run(&markers, &["--estimator", estimator]);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{estimator}: {stderr}");
+        assert!(
+            stderr.contains(&format!("--estimator {estimator} needs the noise: give --noise or")),
+            "{stderr}"
+        );
+    }
+    let header = |output: std::process::Output| {
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        String::from_utf8(output.stdout).unwrap().lines().next().unwrap().to_string()
+    };
+    assert!(header(run(&markers, &[])).ends_with("600 observations at 100 poses, ols (3 steps, converged)"));
+    let with_sigmas = ["examples/puma560-ballbar.csv"];
+    assert!(header(run(&with_sigmas, &[])).contains(", wls ("), "the ball bar's sigma column");
+    assert!(header(run(&with_sigmas, &["--estimator", "wls"])).contains(", wls ("));
 }
 
 /// Without the noise (no sigma given, the joints exact), a prior weighs against the data's own
