@@ -292,10 +292,10 @@ impl Front for Kinds<'_> {
         Fitted { params, values, estimate: &c.refined.estimate, fixed: &c.fixed }
     }
 
-    /// The length residuals' ([`kinds::cross_validate_kinds`]: every observation of a pose held
-    /// out together).
+    /// The length errors' ([`kinds::cross_validate_kinds`]: every observation of a pose held
+    /// out together; [`kinds::Score::length_errors`]: a marker's position one error).
     fn cv_rms(&self, data: &KindData, options: &KindOptions, folds: usize) -> Result<f64> {
-        Ok(kinds::cross_validate_kinds(self.0, data, options, folds)?.lengths.1)
+        Ok(kinds::cross_validate_kinds(self.0, data, options, folds)?.length_errors(&data.observations).1)
     }
 
     /// Their system of what `options` asks for (the robot's parameters, then the set-up's,

@@ -576,8 +576,9 @@ impl LinearModel {
 
     /// The "before" fit of `data` (the set-up, the tool point; with markers the base and the
     /// markers), then the gauge of `options`' parameters and the system about it. Its rows are
-    /// the observations, each in the fold of its pose (a pair by its first); a length counts
-    /// one error, an angle none (its unweighted row is zero: the CV RMS is of lengths, mm).
+    /// the observations, each in the fold of its pose (a pair by its first), each counting its
+    /// [`Observation::error_share`](kinds::Observation::error_share) of an error: a marker's
+    /// position one, an angle none (its unweighted row is zero: the CV RMS is of lengths, mm).
     pub(crate) fn of_kinds(
         model: &RobotModel,
         data: &KindData,
@@ -590,8 +591,7 @@ impl LinearModel {
         let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
         let problem = started.base.reselect(&kept, before, before_setup, kept_setup);
         let start = started.linearised.select(identifiable);
-        let rows: Vec<(usize, f64)> =
-            data.observations.iter().map(|o| (o.pose(), if o.is_angle() { 0.0 } else { 1.0 })).collect();
+        let rows: Vec<(usize, f64)> = data.observations.iter().map(|o| (o.pose(), o.error_share())).collect();
         let prior = prior.as_ref().map(|p| p.select(identifiable));
         let parts = LinearParts::of_problem(&problem, (&start.x, &started.weights, prior), rows);
         // The robot's kept parameters, then the set-up's.

@@ -1134,8 +1134,8 @@ fn a_fixed_tool_with_markers_alone_is_said_to_change_nothing() {
 
 /// `--select` on a marker file, by `calibrate` and by the observation pipeline: the same
 /// linear model about the same registration, so the same forward paths (each step's parameter;
-/// BIC and |t| to 1e-6, and the CV RMS times sqrt(3), the observation pipeline's being per coordinate
-/// and `calibrate`'s per marker), and the `t` rule's same choice.
+/// BIC, |t| and the CV RMS of the marker positions to 1e-6: a marker's three coordinates count
+/// one error in both), and the `t` rule's same choice.
 #[test]
 fn a_marker_file_selects_as_calibrate_does() {
     let (model, measurements, observations) = marker_file(84, 40);
@@ -1161,9 +1161,8 @@ fn a_marker_file_selects_as_calibrate_does() {
         assert!(expected.selected.len() > 10, "{criterion:?}: {:?}", expected.selected);
         assert_eq!(names(&found), names(&expected), "{criterion:?}");
         assert_eq!((found.chosen, &found.selected), (expected.chosen, &expected.selected), "{criterion:?}");
-        let factor = if matches!(criterion, Criterion::Cv { .. }) { 3f64.sqrt() } else { 1.0 };
         for (a, b) in found.steps.iter().zip(&expected.steps).filter(|(a, _)| !a.score.is_nan()) {
-            let (a, b) = (a.score * factor, b.score);
+            let (a, b) = (a.score, b.score);
             assert!((a - b).abs() <= 1e-6 * b.abs(), "{criterion:?}: {a} against calibrate's {b}");
         }
     }
@@ -1459,9 +1458,9 @@ fn a_weighted_estimator_needs_a_noise_and_without_one_the_fit_is_ols() {
 
 /// Without the noise (no sigma given, the joints exact), a prior weighs against the data's own
 /// spread, not against the assumed sigmas: `--prior auto:machined`'s cross-validated curve of a
-/// marker file through the observation fit (`--tool 0,0,0`) is the marker calibration's (its
-/// coordinates' RMS times sqrt(3) is their positions': the mean of `|e|^2` is three times the
-/// mean of a coordinate's square), to the two fits' agreement, and chooses the same scale. (Weighed against the
+/// marker file through the observation fit (`--tool 0,0,0`) is the marker calibration's (the
+/// RMS of the marker positions' errors in both), to the two fits' agreement, and chooses the
+/// same scale. (Weighed against the
 /// default 0.01 mm, the prior was drowned: the curve flat, the smallest scale chosen.)
 #[test]
 fn a_prior_weighs_against_the_residuals_spread_when_no_sigma_is_given() {
@@ -1477,7 +1476,7 @@ fn a_prior_weighs_against_the_residuals_spread_when_no_sigma_is_given() {
     assert_eq!(chosen, chosen_there);
     assert!(markers[0] > 1.05 * markers[4], "the prior at 1/16 of its scale costs: {markers:?}");
     for (m, o) in markers.iter().zip(&observations) {
-        assert!((o * 3f64.sqrt() / m - 1.0).abs() < 1e-6, "{markers:?}\n{observations:?}");
+        assert!((o / m - 1.0).abs() < 1e-6, "{markers:?}\n{observations:?}");
     }
 }
 

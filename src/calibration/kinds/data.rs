@@ -261,6 +261,18 @@ impl Observation {
         )
     }
 
+    /// Its share of one length error in a set's RMS error (cross-validation's, the selection
+    /// path's): a marker's coordinate a third of its position's error (three make the
+    /// position error `|e|`, as a marker file's calibration counts it), any other length one
+    /// error, an angle none (the RMS error is of lengths, mm).
+    pub fn error_share(&self) -> f64 {
+        match self {
+            _ if self.is_angle() => 0.0,
+            Self::Marker { .. } => 1.0 / 3.0,
+            _ => 1.0,
+        }
+    }
+
     /// The pose it was made at (the first of a pair).
     pub fn pose(&self) -> usize {
         match *self {

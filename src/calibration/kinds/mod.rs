@@ -1599,6 +1599,20 @@ impl ObservationResidual {
 }
 
 impl Score {
+    /// The RMS length error before and after (mm) of the observations `kinds` scored here:
+    /// `sqrt(sum e_i^2 / sum s_i)` over the lengths, `s_i` each one's share of an error
+    /// ([`Observation::error_share`]): a marker's position error `|e|` counts once, as a marker
+    /// file's calibration counts it, a distance or a coordinate once.
+    pub fn length_errors(&self, kinds: &[Observation]) -> (f64, f64) {
+        let (mut before, mut after, mut errors) = (0.0, 0.0, 0.0);
+        for (r, o) in self.observations.iter().zip(kinds).filter(|(_, o)| !o.is_angle()) {
+            (before, after, errors) =
+                (before + r.before * r.before, after + r.after * r.after, errors + o.error_share());
+        }
+        let rms = |sum: f64| if errors > 0.0 { (sum / errors).sqrt() } else { 0.0 };
+        (rms(before), rms(after))
+    }
+
     /// The same residuals of `data` whitened by `V_k f`, each whitened residual over `sqrt(f)`,
     /// and what is summed from them again.
     fn whitened_by(self, f: f64, data: &KindData) -> Self {
