@@ -105,6 +105,48 @@ pub struct ObservationsReport {
     /// The training observations whose row gave no sigma (the kinds' defaults weigh them).
     #[serde(skip_serializing_if = "is_zero")]
     pub assumed_sigmas: usize,
+    /// What the "before" and "after" of every figure are.
+    pub fits: Fits,
+}
+
+/// What the report's two fits are, in words: "before" (the set-up and the points on the last
+/// link fitted with the joints nominal) and "after" (the calibration).
+#[derive(Debug, Clone, Serialize)]
+pub struct Fits {
+    /// The "before" fit.
+    pub before: String,
+    /// The "after" fit.
+    pub after: String,
+}
+
+impl Fits {
+    /// The fits of `c` by `estimator`: with markers the base, the markers and the set-up by
+    /// ordinary least squares whatever the estimator (it minimises the very errors reported),
+    /// else the set-up and the tool point by the estimator's weights, the joints nominal; after,
+    /// every parameter asked for that the observations (and the priors) identify.
+    fn of(c: &KindCalibration, estimator: &str) -> Self {
+        let before = match (c.markers.is_empty(), c.setup.names().is_empty()) {
+            (false, true) => {
+                "base and markers fitted by ols (unweighted), joints nominal, whatever the estimator".into()
+            }
+            (false, false) => {
+                "base, markers and set-up fitted by ols (unweighted), joints nominal, whatever the estimator"
+                    .into()
+            }
+            (true, _) => format!("set-up and tool point fitted by {estimator}, joints nominal"),
+        };
+        let priors = c.prior_sd.iter().any(|s| s.is_finite());
+        let after = format!(
+            "{estimator}{}{}: every parameter asked for {}",
+            if priors { " with priors (maximum a posteriori)" } else { "" },
+            c.robust.as_ref().map_or(String::new(), |r| format!(", robust loss {}", r.loss)),
+            match priors {
+                true => "with a prior, and those without one that the observations identify",
+                false => "that the observations identify",
+            }
+        );
+        Self { before, after }
+    }
 }
 
 /// `text` with the points on the last link named as the files name them: each marker by its
@@ -240,6 +282,7 @@ impl ObservationsReport {
             cross_validation: None,
             predicted: Vec::new(),
             assumed_sigmas: 0,
+            fits: Fits::of(c, estimator),
         };
         report.verdict = report.verdict_rows();
         report
@@ -266,6 +309,16 @@ impl ObservationsReport {
     pub fn with_selection(mut self, path: &SelectionPath, c: &KindCalibration) -> Self {
         let mut selection = super::calibration::SelectionReport::of(path);
         selection.held = selection.held.iter().map(|h| point_names(h, c)).collect();
+        let with = match (c.markers.is_empty(), c.setup.names().is_empty()) {
+            (true, _) => "the set-up",
+            (false, true) => "the base and the markers",
+            (false, false) => "the base, the markers and the set-up",
+        };
+        self.fits.after = format!(
+            "{}: the joint parameters --select {} chose, with {with}",
+            self.estimator,
+            path.criterion.name()
+        );
         self.selection = Some(selection);
         self
     }
@@ -379,10 +432,7 @@ impl ObservationsReport {
 
     /// What before and after mean, the sigmas' scale, and the warnings.
     fn write_notes(&self, out: &mut String) {
-        let _ = writeln!(
-            *out,
-            "\nbefore: the set-up (points, planes, camera and target) and the tool point fitted with the robot nominal; after: the robot and the set-up"
-        );
+        let _ = write!(out, "\nbefore:    {}\nafter:     {}\n", self.fits.before, self.fits.after);
         if self.assumed_sigmas > 0 && self.estimator == Estimator::Ols.name() {
             // Ordinary least squares weighs every row alike whatever its sigma.
             let w = POSE_SIGMAS.0 / POSE_SIGMAS.1;

@@ -1456,6 +1456,52 @@ fn a_weighted_estimator_needs_a_noise_and_without_one_the_fit_is_ols() {
     assert!(header(run(&with_sigmas, &["--estimator", "wls"])).contains(", wls ("));
 }
 
+/// The observation report says what "before" and "after" are, as a marker file's does, in
+/// its text and its JSON (`fits`): with markers, the base and the markers fitted by ols
+/// whatever the estimator; without, the set-up and the tool point by the estimator; after, the
+/// estimator with its priors and robust loss, or the selection's choice.
+#[test]
+fn the_report_says_what_before_and_after_are() {
+    let dir = std::env::temp_dir().join(format!("robocal-kinds-fits-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("r.json");
+    let run = |data: &str, extra: &[&str]| {
+        let output = (assert_cmd::Command::cargo_bin("robocal").unwrap())
+            .args(["calibrate", "-q", "--model", "puma560", "--tool", "50,0,150", "--data", data])
+            .args(["--json", json.to_str().unwrap()])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let text = String::from_utf8(output.stdout).unwrap();
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let line = |start: &str| text.lines().find(|l| l.starts_with(start)).expect(&text).to_string();
+        assert_eq!(line("before: "), format!("before:    {}", report["fits"]["before"].as_str().unwrap()));
+        assert_eq!(line("after: "), format!("after:     {}", report["fits"]["after"].as_str().unwrap()));
+        (line("before: "), line("after: "))
+    };
+    let markers = "examples/puma560-measurements.csv";
+    let (before, after) = run(markers, &["--marker", "50,0,150", "--marker=-40,60,120"]);
+    assert_eq!(
+        before,
+        "before:    base and markers fitted by ols (unweighted), joints nominal, whatever the estimator"
+    );
+    assert_eq!(after, "after:     ols: every parameter asked for that the observations identify");
+    let (_, after) = run(markers, &["--params", "joints", "--select", "bic"]);
+    assert_eq!(
+        after,
+        "after:     ols: the joint parameters --select bic chose, with the base and the markers"
+    );
+    let (before, after) = run("examples/puma560-ballbar.csv", &["--prior", "machined", "--loss", "huber"]);
+    assert_eq!(before, "before:    set-up and tool point fitted by wls, joints nominal");
+    assert!(
+        after.starts_with("after:     wls with priors (maximum a posteriori), robust loss huber"),
+        "{after}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// Without the noise (no sigma given, the joints exact), a prior weighs against the data's own
 /// spread, not against the assumed sigmas: `--prior auto:machined`'s cross-validated curve of a
 /// marker file through the observation fit (`--tool 0,0,0`) is the marker calibration's (the
