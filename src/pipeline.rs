@@ -469,6 +469,9 @@ impl Fitting {
     }
 }
 
+/// The name of the set of several held-out files pooled, after each file's.
+pub const HELD_OUT_POOLED: &str = "held out, pooled";
+
 /// Calibrate `front`'s robot from the data of `sessions` (each a file's name and data) fitted
 /// together, as `fitting` says: with the noise given, the choices made from the data
 /// ([`calibrate_chosen`]: `--prior auto`'s scale, then `--select`'s parameters; none: every
@@ -476,8 +479,8 @@ impl Fitting {
 /// ([`cross_validate_choices`]; "nested" with a choice or a robust loss, each fold making them
 /// again); or by feasible GLS ([`Files::feasible`]: the joint noise and each kind's
 /// measurement noise estimated from the residuals). Each `held_out` set is scored with the
-/// robot and set-up as calibrated (whitened by the estimated noise with feasible GLS), and
-/// reported.
+/// robot and set-up as calibrated (whitened by the estimated noise with feasible GLS), several
+/// of distinct stems (sessions) pooled too ([`HELD_OUT_POOLED`]), and reported.
 pub fn calibrate_files<F: Files>(
     front: &F,
     sessions: &[(String, F::Data)],
@@ -506,6 +509,14 @@ pub fn calibrate_files<F: Files>(
         Ok((name.clone(), F::score(&chosen.calibration, d).map_err(in_context(name))?))
     };
     let mut scores = held_out.iter().map(scored).collect::<Result<Vec<_>, FilesError>>()?;
+    let stems: std::collections::BTreeSet<_> =
+        held_out.iter().map(|(name, _)| std::path::Path::new(name).file_stem()).collect();
+    if held_out.len() > 1 && stems.len() == held_out.len() {
+        // Several held-out files, each its own session (a stem names a file's session): their
+        // observations pooled too, as a marker file's are.
+        let pooled = F::join(held_out)?;
+        scores.push(scored(&(HELD_OUT_POOLED.to_string(), pooled.into_owned()))?);
+    }
     let mut cv = None;
     if let Some((k, choices)) = folds {
         let nested = cross_validate_choices(front, data, options, choices, k)

@@ -231,7 +231,10 @@ fn residual_sets(
     joints: &[Joint],
 ) -> Result<Vec<ResidualSet>> {
     let training = || std::iter::once(super::by_name(sessions));
-    let files = training().chain(held_out.chunks(1).map(super::by_name)).chain(training());
+    // Each held-out file, the held-out files pooled when the report pools them, the folds.
+    let pooled = scores.iter().any(|(name, _)| name == robocal::pipeline::HELD_OUT_POOLED);
+    let pooled = pooled.then(|| super::by_name(held_out));
+    let files = training().chain(held_out.chunks(1).map(super::by_name)).chain(pooled).chain(training());
     (files.zip(scores))
         .map(|(files, (name, score))| {
             ResidualSet::of_observations(name, score, &files, joints).map_err(anyhow::Error::msg)

@@ -1502,6 +1502,55 @@ fn the_report_says_what_before_and_after_are() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Several held-out files of their own sessions are pooled too, as a marker file's are: the
+/// validation file cut in two scores, pooled, as it does whole (its markers' row, cell for
+/// cell), each half on a row of its own; two files of one stem (one session) are not pooled.
+#[test]
+fn several_held_out_files_are_pooled_too() {
+    let dir = std::env::temp_dir().join(format!("robocal-kinds-pooled-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("other")).unwrap();
+    let text = std::fs::read_to_string("examples/puma560-validation.csv").unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    let (head, rows) = (&lines[..2], &lines[2..]);
+    assert!(head[1].starts_with("j1,"), "{head:?}");
+    let (a, b, c) = (dir.join("a.csv"), dir.join("b.csv"), dir.join("other").join("a.csv"));
+    let half = rows.len() / 2;
+    for (path, part) in [(&a, &rows[..half]), (&b, &rows[half..]), (&c, &rows[half..])] {
+        std::fs::write(path, [head, part].concat().join("\n") + "\n").unwrap();
+    }
+    let run = |validate: &[&std::path::Path]| {
+        let output = (assert_cmd::Command::cargo_bin("robocal").unwrap())
+            .args(["calibrate", "-q", "--model", "puma560", "--tool", "0,0,0"])
+            .args([
+                "--data",
+                "examples/puma560-measurements.csv",
+                "--marker",
+                "50,0,150",
+                "--marker=-40,60,120",
+            ])
+            .args(validate.iter().flat_map(|v| [std::ffi::OsStr::new("--validate"), v.as_os_str()]))
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        String::from_utf8(output.stdout).unwrap()
+    };
+    let cells = |text: &str, start: &str| -> Vec<String> {
+        let row = text.lines().find(|l| l.starts_with(start)).unwrap_or_else(|| panic!("{start}: {text}"));
+        row[start.len()..].split_whitespace().map(String::from).collect()
+    };
+    let whole = run(&[std::path::Path::new("examples/puma560-validation.csv")]);
+    let split = run(&[&a, &b]);
+    assert_eq!(
+        cells(&split, "held out, pooled markers (mm)"),
+        cells(&whole, "examples/puma560-validation.csv markers (mm)"),
+        "{split}"
+    );
+    // Two markers a pose: the first half's positions on its own row.
+    assert_eq!(cells(&split, &format!("{} markers (mm)", a.display()))[0], (2 * half).to_string());
+    assert!(!run(&[&a, &c]).contains("held out, pooled"), "one stem, one session");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// Without the noise (no sigma given, the joints exact), a prior weighs against the data's own
 /// spread, not against the assumed sigmas: `--prior auto:machined`'s cross-validated curve of a
 /// marker file through the observation fit (`--tool 0,0,0`) is the marker calibration's (the
