@@ -877,6 +877,20 @@ fn observations(
         options.joint_noise = Some(spec.joint);
         options.prior = spec.prior.into_iter().chain(options.prior).collect();
     }
+    // No noise at all: ordinary least squares, as the command line; a weighted one refused.
+    let joined = sessions.iter().fold(KindData::default(), |data, (_, d)| data.join(d));
+    if !request.feasible && !joined.noise_given(options.joint_noise.is_some()) {
+        match request.estimator {
+            None | Some(Estimator::Ols) => options.estimator = Estimator::Ols,
+            Some(estimator) => {
+                let message = format!(
+                    "{estimator} needs the noise: give joint_sigma or noise (and sigma or a sigma column), or use \
+                     estimator fgls"
+                );
+                return Err(errors::argument("estimator", message));
+            }
+        }
+    }
     let choices = Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
     let fitting = robocal::pipeline::Fitting::new(request.feasible, choices, flags.folds);
     let outcome = py

@@ -215,6 +215,10 @@ def test_a_bad_model_file_names_its_line_and_an_unknown_option_its_name(tmp_path
     with pytest.raises(robocal.InputError) as e:
         robocal.calibrate(robocal.Model.preset("puma560"), DATA, estimator="wls")
     assert e.value.field == "estimator" and "needs the noise" in str(e.value)
+    # Through the observation fit (a tool point) alike: no sigma given, no joint noise.
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate(robocal.Model.preset("puma560"), DATA, estimator="wls", tool=[0.0, 0.0, 100.0])
+    assert e.value.field == "estimator" and "needs the noise" in str(e.value)
 
 
 def test_too_few_poses_is_an_estimation_error(puma: robocal.Model) -> None:

@@ -34,8 +34,7 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         };
         let data = joined.as_ref().unwrap_or(&sessions[0].1);
         check_and_warn(request, data)?;
-        method =
-            estimator_for(request, noise.joint.is_some() || data.assumed_sigmas < data.observations.len())?;
+        method = estimator_for(request, data.noise_given(noise.joint.is_some()))?;
         let ids = request.marker_ids.as_deref();
         let markers = ids.map(|_| data.markers()).unwrap_or_default();
         chosen_markers(sessions, ids, &markers)?

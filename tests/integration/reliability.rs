@@ -1360,7 +1360,8 @@ fn messages_name_what_is_wrong_and_come_before_the_work() {
         run_in(&dir, &["calibrate-observations", "--model", "puma560", "--data", "pairs.csv"]);
     assert_eq!(code, 1, "{stderr}");
     assert!(
-        stderr.contains("pairs.csv: nothing can be identified: the observations move none of the")
+        stderr.contains("pairs.csv: nothing can be identified: the identification Jacobian of the ")
+            && stderr.contains("is zero at these poses: the observations move none of them")
             && stderr.contains("pairs of identical poses"),
         "{stderr}"
     );

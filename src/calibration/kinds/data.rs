@@ -385,6 +385,14 @@ pub struct KindData {
 }
 
 impl KindData {
+    /// Whether a noise is given for these observations: the joints' (`joint_noise`), or one
+    /// observation's own sigma (a column, a flag, a noise file). Without one, every sigma is
+    /// assumed: the fit is ordinary least squares, its noise the residuals' spread, and a
+    /// weighted estimator has nothing to weigh by.
+    pub fn noise_given(&self, joint_noise: bool) -> bool {
+        joint_noise || self.assumed_sigmas < self.observations.len()
+    }
+
     /// Read a file of distances (pairs `<joint>,<joint>_b,distance`, or to fixed points
     /// `<joint>,point,distance`), contacts (`<joint>,plane`) or coordinates (any of
     /// `x,y,z,roll,pitch,yaw`, empty cells for coordinates not measured) for `model`; or of

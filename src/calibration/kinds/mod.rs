@@ -2778,8 +2778,8 @@ pub(super) fn identifiable(
         (0..norms.len()).partition(|&c| norms[c] > 1e-10 * largest);
     if seen.is_empty() {
         return Err(CalibrationError::NothingIdentified(format!(
-            "the observations move none of the {} parameters asked for (pairs of identical poses, for one, \
-             measure no change): measure at poses that differ",
+            "the identification Jacobian of the {} parameters asked for is zero at these poses: the observations \
+             move none of them (pairs of identical poses, for one, measure no change); measure at poses that differ",
             names.len()
         )));
     }
