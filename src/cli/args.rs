@@ -315,8 +315,9 @@ pub struct CalibrateArgs {
     pub data: Vec<PathBuf>,
     #[command(flatten)]
     pub units: UnitArgs,
-    /// The estimator. Default: wls when the noise is given (--noise or --joint-sigma-deg), ols
-    /// otherwise (observation files: wls, each row weighted by its sigma).
+    /// The estimator. Default: wls when a noise is given (--noise, --joint-sigma-deg, or an
+    /// observation file's sigma column or --sigma-mm), ols otherwise (every row alike, the
+    /// residuals' spread their sigma).
     #[arg(long)]
     pub estimator: Option<EstimatorName>,
     /// A noise file (TOML, see docs/formats.md): joint noise, sigma_me and the measuring
@@ -432,8 +433,10 @@ pub struct CalibrateObservationsArgs {
     pub data: Vec<PathBuf>,
     #[command(flatten)]
     pub units: UnitArgs,
-    /// The estimator: wls (default; each pose's observations weighted by their sigmas and,
-    /// with --joint-sigma-deg, the joint noise they share), wls-diag, wls-sigma or ols.
+    /// The estimator: wls (default where a noise is given; each pose's observations weighted
+    /// by their sigmas and, with --joint-sigma-deg, the joint noise they share), wls-diag,
+    /// wls-sigma or ols (the default without any noise: no sigma column or flag, the joints
+    /// exact).
     #[arg(long, hide_possible_values = true)]
     pub estimator: Option<EstimatorName>,
     /// Joint noise standard deviations, one per joint or one for every joint (deg; mm for
