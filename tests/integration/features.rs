@@ -1,5 +1,5 @@
 //! Every tool of the one calibration pipeline on every kind of observation: a simulated PUMA
-//! 560 with known joint errors measured by markers, a ball bar, a length artefact, plane
+//! 560 with known joint errors measured by markers, a 6-DOF probe, a ball bar, a length artefact, plane
 //! contacts, a height gauge, a wrist camera and a fixed camera; each calibrated plainly (wls), with a prior,
 //! a robust loss, a held parameter, the diagonal weights and feasible GLS, and cross-validated. Each tool's
 //! held-out error is within 1.2 times the plain fit's or better (the tools must not cost
@@ -9,12 +9,13 @@
 use crate::camera::{flange, truth, views};
 use crate::kinds::{TOOL, ball_bar, contacts, errors_on, heights, options, pairs, puma};
 use crate::kinds_markers::{chains, marker_options, markers, true_chains};
+use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use robocal::calibration::FeasibleOptions;
 use robocal::calibration::kinds::{
-    CameraSite, KindCalibration, KindData, KindOptions, calibrate_kinds, calibrate_kinds_feasible,
-    cross_validate_kinds,
+    CameraSite, KindCalibration, KindData, KindOptions, RowSigmaDefaults, calibrate_kinds,
+    calibrate_kinds_feasible, cross_validate_kinds,
 };
 use robocal::calibration::selection::{
     Choices, Criterion, SelectionPath, calibrate_chosen, cross_validate_choices,
@@ -22,6 +23,7 @@ use robocal::calibration::selection::{
 use robocal::calibration::{Gauge, Kinds, Loss};
 use robocal::estimation::{Estimator, MeasurementClass, PriorEntry};
 use robocal::kinematics::{Chain, ChainAt};
+use robocal::model::Placement;
 
 /// A kind's training and held-out data of one true robot, and its plain options.
 struct Case {
@@ -66,6 +68,41 @@ fn camera_case(name: &'static str, site: CameraSite, seed: u64) -> Case {
     }
 }
 
+/// A 6-DOF probe (marker 1's position and its frame's orientation, a quaternion) mounted
+/// turned, on a robot with errors on every joint parameter and a far base, read with 0.01 mm
+/// and 0.01 deg of noise (each row's sigma given): 80 poses to train, 60 held out.
+fn probe_case(seed: u64) -> Case {
+    use rand::RngExt;
+    use rand_distr::{Distribution, StandardNormal};
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let nominal = puma();
+    let truth = crate::calibration::true_robot(&nominal, &mut rng);
+    let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
+    let chain = Chain::probe(&truth, &mounting);
+    let real = chain.with_errors(&vec![0.0; chain.params().len()]);
+    let defaults = RowSigmaDefaults { length_mm: Some(0.01), angle_rad: Some(0.01f64.to_radians()) };
+    let mut read = |count: usize| {
+        let mut text = String::from(crate::calibration::PROBE_HEADER);
+        for _ in 0..count {
+            let q: Vec<f64> =
+                nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect();
+            let pose = real.pose(&q);
+            let mut normal = |s: f64| -> f64 {
+                let z: f64 = StandardNormal.sample(&mut rng);
+                s * z
+            };
+            let p = pose.translation.vector + Vector3::new(normal(0.01), normal(0.01), normal(0.01));
+            let turn = Vector3::new(normal(1.0), normal(1.0), normal(1.0)) * 0.01f64.to_radians();
+            let r = pose.rotation * nalgebra::UnitQuaternion::from_scaled_axis(turn);
+            text += &crate::calibration::probe_row(&q, &p, &r);
+        }
+        KindData::from_csv_str_with(&text, &nominal, None, defaults).unwrap()
+    };
+    let (training, validation) = (read(80), read(60));
+    let plain = KindOptions { markers: vec![Vector3::new(50.0, 0.0, 150.0)], ..options(Estimator::Wls) };
+    Case { name: "6-DOF probe", training, validation, plain }
+}
+
 /// Three markers seen by a tracker: 40 poses to train, 40 held out.
 fn marker_case(seed: u64) -> Case {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -77,6 +114,7 @@ fn marker_case(seed: u64) -> Case {
 fn cases() -> Vec<Case> {
     vec![
         marker_case(61),
+        probe_case(69),
         tool_point_case("ball bar", 62, &|real, rng| ball_bar(real, rng, 0.01)),
         tool_point_case("length artefact", 63, &|real, rng| pairs(real, rng, 0.01)),
         tool_point_case("plane contacts", 64, &|real, rng| contacts(3)(real, rng, 0.01)),
@@ -134,7 +172,7 @@ fn every_tool_works_on_every_kind_as_well_as_the_plain_fit() {
 /// estimated from the residuals, settled, and the held-out error within 1.2 times the plain
 /// fit's (which is given each row's true sigma). These data have no joint noise: at least 90%
 /// of the components (each joint's zero, each kind's sigma: 0.01 mm; the camera's 0.05 mm and
-/// 0.01 deg) in their 95% intervals. (What a kind barely sees is barely determined: plane
+/// 0.01 deg, the probe's orientation 0.01 deg) in their 95% intervals. (What a kind barely sees is barely determined: plane
 /// contacts put the sixth joint's sigma anywhere up to 0.02 deg.)
 #[test]
 fn fgls_works_on_every_kind_as_well_as_the_plain_fit() {
@@ -152,7 +190,7 @@ fn fgls_works_on_every_kind_as_well_as_the_plain_fit() {
         let classes = estimate.measurement_sigmas().into_iter().map(|(class, s)| {
             let truth = match class {
                 MeasurementClass::CameraPosition => 0.05,
-                MeasurementClass::CameraRotation => 0.01f64.to_radians(),
+                MeasurementClass::CameraRotation | MeasurementClass::Orientation => 0.01f64.to_radians(),
                 _ => 0.01,
             };
             (class.name().to_string(), s, truth)
