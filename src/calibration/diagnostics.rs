@@ -144,6 +144,45 @@ impl Scored {
     }
 }
 
+/// A variance component of feasible GLS that moved in its last re-weighting by more than the
+/// tolerance ([`Warning::NoiseUnsettled`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ComponentMove {
+    /// Its name: `joint 2`, a joint pair's covariance `joint 2, joint 3`, a measurement class's
+    /// `sigma_*`.
+    pub component: String,
+    /// The change `|theta_after - theta_before|` over its standard error.
+    pub by: f64,
+    /// Whether its estimate lies within one standard error of 0: the data barely determine it.
+    pub barely_determined: bool,
+}
+
+impl ComponentMove {
+    /// [`Warning::NoiseUnsettled`] in full: the re-weightings made, then each component that
+    /// `moving` says moved by more than `tolerance` of its standard error.
+    fn unsettled_text(reweightings: usize, tolerance: f64, moving: &[Self]) -> String {
+        let moves: Vec<String> = moving.iter().map(Self::text).collect();
+        let why = match moves.is_empty() {
+            true => String::new(),
+            false => format!(
+                "; in the last one moved by more than {tolerance} of their standard error: {}",
+                moves.join(", ")
+            ),
+        };
+        format!("feasible GLS: the variance components did not settle in {reweightings} re-weightings{why}")
+    }
+
+    /// In words: `sigma_orientation (by 0.09; within one standard error of 0: the data barely
+    /// determine it)`.
+    fn text(&self) -> String {
+        let barely = match self.barely_determined {
+            true => "; within one standard error of 0: the data barely determine it",
+            false => "",
+        };
+        format!("{} (by {:.2}{barely})", self.component, self.by)
+    }
+}
+
 /// A warning about a calibration: one per cause.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "cause", rename_all = "snake_case")]
@@ -186,6 +225,10 @@ pub enum Warning {
     NoiseUnsettled {
         /// The re-weightings made.
         reweightings: usize,
+        /// The largest change allowed a settled component, in its standard errors.
+        tolerance: f64,
+        /// The components that still moved by more in the last re-weighting.
+        moving: Vec<ComponentMove>,
     },
     /// Feasible GLS ignored the data's sigma column (of observation files, their sigma columns).
     SigmaIgnored,
@@ -313,8 +356,16 @@ impl Warning {
                     super::CONDITION_WARNING
                 )
             }
-            Self::NoiseUnsettled { reweightings } => {
-                format!("feasible GLS: variance components not settled in {reweightings} re-weightings")
+            Self::NoiseUnsettled { reweightings, moving, .. } => {
+                let names: Vec<&str> = moving.iter().map(|m| m.component.as_str()).collect();
+                let still = if names.is_empty() {
+                    String::new()
+                } else {
+                    format!(" ({} still moving)", names.join(", "))
+                };
+                format!(
+                    "feasible GLS: variance components not settled in {reweightings} re-weightings{still}"
+                )
             }
             Self::SigmaIgnored => "feasible GLS ignored the sigma column".to_string(),
             Self::NoiseDisagrees(n) => format!("the residuals say {}", n.factors()),
@@ -382,11 +433,8 @@ impl fmt::Display for Warning {
                 "the identified system's scaled condition number is {condition_number:.3e}, above {:e}: the estimates are poorly determined; measure more varied poses or identify fewer parameters",
                 super::CONDITION_WARNING
             ),
-            Self::NoiseUnsettled { reweightings } => {
-                write!(
-                    f,
-                    "feasible GLS: the variance components did not settle in {reweightings} re-weightings"
-                )
+            Self::NoiseUnsettled { reweightings, tolerance, moving } => {
+                f.write_str(&ComponentMove::unsettled_text(*reweightings, *tolerance, moving))
             }
             Self::SigmaIgnored => f.write_str(
                 "feasible GLS ignored the sigma column: it estimates the measurement noise itself",

@@ -28,7 +28,7 @@ pub mod selection;
 pub mod tree;
 
 pub use data::{DataKind, Measurements};
-pub use diagnostics::{Cause, Confounder, FarOut, Held, OutsidePose, Scored, Warning};
+pub use diagnostics::{Cause, ComponentMove, Confounder, FarOut, Held, OutsidePose, Scored, Warning};
 pub use evaluation::{FLAG_AT, PoseErrors, SetEvaluation, Whitening, pool};
 pub use front::{Front, Kinds, Markers, Tree};
 pub use repeatability::{
@@ -1316,9 +1316,11 @@ pub fn calibrate_feasible(
         let noise = previous.map(NoiseEstimate::noise_model);
         residual_noise(c, &data, noise.as_ref(), feasible.joints, previous)
     };
-    let Reweighted { mut calibration, estimate, settled } = reweighted(feasible, calibrate, estimate)?;
+    let rounds = reweighted(feasible, calibrate, estimate)?;
+    let warning = unsettled(feasible, &rounds);
+    let Reweighted { mut calibration, estimate, settled, .. } = rounds;
     calibration.noise_settled = Some(settled);
-    calibration.warnings.extend(unsettled(feasible, settled));
+    calibration.warnings.extend(warning);
     if ignored_sigma {
         calibration.warnings.push(Warning::SigmaIgnored);
     }
@@ -1333,6 +1335,8 @@ pub(crate) struct Reweighted<C> {
     pub(crate) calibration: C,
     pub(crate) estimate: NoiseEstimate,
     pub(crate) settled: bool,
+    /// Unsettled: the components that moved in the last re-weighting.
+    pub(crate) moving: Vec<ComponentMove>,
 }
 
 /// The rounds of feasible GLS over any calibration `C`: `calibrate(None)` by ordinary least
@@ -1347,28 +1351,45 @@ pub(crate) fn reweighted<C>(
     estimate: impl Fn(&C, Option<&NoiseEstimate>) -> Result<NoiseEstimate, CalibrationError>,
 ) -> Result<Reweighted<C>, CalibrationError> {
     let mut calibration = calibrate(None)?;
-    let mut previous: Option<NoiseEstimate> = None;
+    let (mut previous, mut moving): (Option<NoiseEstimate>, Vec<ComponentMove>) = (None, Vec::new());
     for _ in 0..feasible.max_iterations.max(1) {
         let next = estimate(&calibration, previous.as_ref())?;
-        let settled = previous.as_ref().is_some_and(|p| {
-            (0..next.fit.values.len()).all(|c| {
-                let change = (p.fit.values[c] - next.fit.values[c]).abs();
-                change <= feasible.tolerance * next.fit.standard_error(c)
-            })
-        });
-        if settled {
-            return Ok(Reweighted { calibration, estimate: next, settled: true });
+        if let Some(p) = &previous {
+            moving = moved(p, &next, feasible.tolerance);
+            if moving.is_empty() {
+                return Ok(Reweighted { calibration, estimate: next, settled: true, moving });
+            }
         }
         calibration = calibrate(Some(&next))?;
         previous = Some(next);
     }
     let estimate = previous.expect("at least one round");
-    Ok(Reweighted { calibration, estimate, settled: false })
+    Ok(Reweighted { calibration, estimate, settled: false, moving })
 }
 
-/// [`Warning::NoiseUnsettled`] unless `settled`.
-pub(crate) fn unsettled(feasible: &FeasibleOptions, settled: bool) -> Option<Warning> {
-    (!settled).then_some(Warning::NoiseUnsettled { reweightings: feasible.max_iterations.max(1) })
+/// The components of `next` that moved from `previous` by more than `tolerance` of their
+/// standard error: `|theta_next - theta_previous| > tolerance * SE(theta_next)`.
+fn moved(previous: &NoiseEstimate, next: &NoiseEstimate, tolerance: f64) -> Vec<ComponentMove> {
+    (0..next.fit.values.len())
+        .filter_map(|c| {
+            let (se, value) = (next.fit.standard_error(c), next.fit.values[c]);
+            let change = (previous.fit.values[c] - value).abs();
+            (change > tolerance * se).then(|| ComponentMove {
+                component: next.component_name(c),
+                by: change / se,
+                barely_determined: value.abs() < se,
+            })
+        })
+        .collect()
+}
+
+/// [`Warning::NoiseUnsettled`] unless `r` settled, with the components still moving.
+pub(crate) fn unsettled<C>(feasible: &FeasibleOptions, r: &Reweighted<C>) -> Option<Warning> {
+    (!r.settled).then(|| Warning::NoiseUnsettled {
+        reweightings: feasible.max_iterations.max(1),
+        tolerance: feasible.tolerance,
+        moving: r.moving.clone(),
+    })
 }
 
 /// The variance components fitted to the residuals of `c` (calibrated with `noise`, or by

@@ -1318,6 +1318,17 @@ impl NoiseEstimate {
         Ok(Self { fit, joints, dof, measurement })
     }
 
+    /// The name of component `c`: `joint i` (its variance, joints from 1), `joint i, joint k`
+    /// (a covariance), a measurement class's `sigma_*` ([`MeasurementClass::name`]).
+    pub fn component_name(&self, c: usize) -> String {
+        let entries = self.joints.entries(self.dof);
+        match entries.get(c) {
+            Some(&(i, j)) if i == j => format!("joint {}", i + 1),
+            Some(&(i, j)) => format!("joint {}, joint {}", i + 1, j + 1),
+            None => self.measurement[c - entries.len()].name().to_string(),
+        }
+    }
+
     /// Index of component `sigma_j^2` of joint `j`.
     fn joint_index(&self, j: usize) -> usize {
         self.joints.entries(self.dof).iter().position(|&(a, b)| a == j && b == j).expect("every joint")

@@ -194,3 +194,66 @@ fn calibrate_reads_a_noise_file_with_a_device() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Feasible GLS that does not settle says why, in the text and the JSON: a 6-DOF probe read
+/// exactly but for the joints' noise leaves its measurement sigmas at about 0, where their
+/// estimates swing from one re-weighting to the next by more than the tolerance (a hundredth
+/// of their standard error); the warning names each component still moving, by how much, and
+/// that the data barely determine it. The same through the marker path and the observation fit.
+#[test]
+fn fgls_that_does_not_settle_names_the_components_still_moving() {
+    let mut rng = ChaCha8Rng::seed_from_u64(69);
+    let nominal = RobotModel::preset("puma560").unwrap();
+    let truth = crate::calibration::true_robot(&nominal, &mut rng);
+    let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
+    let chain = Chain::probe(&truth, &mounting);
+    let real = chain.with_errors(&vec![0.0; chain.params().len()]);
+    let sigmas = crate::calibration::joint_sigmas();
+    let dir = std::env::temp_dir().join(format!("robocal-fgls-unsettled-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (data, json) = (dir.join("probe.csv"), dir.join("report.json"));
+    std::fs::write(&data, crate::calibration::probe_csv(&nominal, &real, 80, &sigmas, &mut rng)).unwrap();
+    for (route, class) in [(&[][..], "sigma_me"), (&["--tool", "0,0,0"][..], "sigma_marker")] {
+        let output = assert_cmd::Command::cargo_bin("robocal")
+            .unwrap()
+            .args([
+                "calibrate",
+                "--model",
+                "puma560",
+                "--marker",
+                "50,0,150",
+                "--estimator",
+                "fgls",
+                "--data",
+            ])
+            .arg(&data)
+            .arg("--json")
+            .arg(&json)
+            .args(route)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let text = String::from_utf8(output.stdout).unwrap();
+        let line = text.lines().find(|l| l.contains("did not settle in 20 re-weightings;")).expect(&text);
+        assert!(
+            line.contains("; in the last one moved by more than 0.01 of their standard error: "),
+            "{line}"
+        );
+        for name in [class, "sigma_orientation"] {
+            let said = format!("{name} (by ");
+            let at = line.find(&said).unwrap_or_else(|| panic!("{name}: {line}"));
+            assert!(line[at..].contains("the data barely determine it"), "{line}");
+        }
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let warning = (report["warnings"].as_array().unwrap().iter())
+            .find(|w| w["cause"] == "noise_unsettled")
+            .unwrap_or_else(|| panic!("{}", report["warnings"]))
+            .clone();
+        assert_eq!((warning["reweightings"].as_u64(), warning["tolerance"].as_f64()), (Some(20), Some(0.01)));
+        let moving = warning["moving"].as_array().unwrap();
+        let orientation = moving.iter().find(|m| m["component"] == "sigma_orientation").expect("moving");
+        assert!(orientation["by"].as_f64().unwrap() > 0.01 && orientation["barely_determined"] == true);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -57,9 +57,11 @@ pub fn calibrate_kinds_feasible(
     let estimate = |c: &KindCalibration, previous: Option<&NoiseEstimate>| {
         residual_noise(c, data, feasible.joints, previous)
     };
-    let Reweighted { mut calibration, estimate, settled } = reweighted(feasible, calibrate, estimate)?;
+    let rounds = reweighted(feasible, calibrate, estimate)?;
+    let warning = unsettled(feasible, &rounds);
+    let Reweighted { mut calibration, estimate, settled, .. } = rounds;
     calibration.noise_settled = Some(settled);
-    calibration.warnings.extend(unsettled(feasible, settled));
+    calibration.warnings.extend(warning);
     if data.assumed_sigmas < data.observations.len() {
         calibration.warnings.push(Warning::SigmaIgnored);
     }

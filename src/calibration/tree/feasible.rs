@@ -51,9 +51,11 @@ pub fn calibrate_tree_feasible(
     let estimate = |c: &TreeCalibration, previous: Option<&NoiseEstimate>| {
         residual_noise(c, data, (tree.dof(), feasible.joints), previous)
     };
-    let Reweighted { mut calibration, estimate, settled } = reweighted(feasible, calibrate, estimate)?;
+    let rounds = reweighted(feasible, calibrate, estimate)?;
+    let warning = unsettled(feasible, &rounds);
+    let Reweighted { mut calibration, estimate, settled, .. } = rounds;
     calibration.noise_settled = Some(settled);
-    calibration.warnings.extend(unsettled(feasible, settled));
+    calibration.warnings.extend(warning);
     calibration.warnings.push(Warning::SigmaIgnored);
     calibration.noise_estimate = Some(estimate);
     Ok(calibration)
