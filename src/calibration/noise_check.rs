@@ -41,18 +41,19 @@ pub(crate) fn noise_check(
 ) -> Option<Warning> {
     let components = components(problem, x, noise)?;
     let per = problem.measured().rows();
-    let scored = |_: usize, r: usize| r % per < 3;
-    check(&components, (x, prior_sd), (&scored, 3))
+    // A marker's position is one error (a probe's orientation rows none).
+    let share = |_: usize, r: usize| if r % per < 3 { 1.0 / 3.0 } else { 0.0 };
+    check(&components, (x, prior_sd), &share)
 }
 
 /// The check of the noise of `components` (the fit's points linearised about its estimate `x`,
 /// with the priors' standard deviations `prior_sd`): `None` when it agrees; else the
-/// [`Warning::NoiseDisagrees`] with the cross-validated error of the rows `scored` marks, in
-/// groups of `group` rows (a marker's 3 coordinates, or an observation alone).
+/// [`Warning::NoiseDisagrees`] with the cross-validated error of the rows, each counting its
+/// `share` of an error ([`Components::cv_rms`]).
 pub(crate) fn check(
     components: &Components,
     (x, prior_sd): (&DVector<f64>, &[f64]),
-    scored: (&dyn Fn(usize, usize) -> bool, usize),
+    share: &dyn Fn(usize, usize) -> f64,
 ) -> Option<Warning> {
     let estimate = components.estimate()?;
     let (joint, measurement) = factors(&estimate, components.has_joint_noise());
@@ -61,7 +62,7 @@ pub(crate) fn check(
         return None;
     }
     let folds = CHECK_FOLDS.min(components.points());
-    let cv = |a: f64, b: f64| components.cv_rms((a, b), folds, (x, prior_sd), scored);
+    let cv = |a: f64, b: f64| components.cv_rms((a, b), folds, (x, prior_sd), share);
     let estimated = (joint.map_or(1.0, |f| f * f), measurement * measurement);
     Some(Warning::NoiseDisagrees(NoiseDisagrees {
         joint_factor: joint,

@@ -199,21 +199,22 @@ impl Components {
 
     /// The k-fold cross-validated RMS error of the fit with the components scaled by
     /// `(a, b)`, linearised about the estimate `x` with the priors' standard deviations `sd`
-    /// (infinite: none), over the rows `scored(point, row)` marks, in groups of `group` (3: a
-    /// marker's position; 1: an observation), as the RMS of their groups' norms. `None` where
-    /// a block is not positive definite.
+    /// (infinite: none), over the rows `share(point, row)` counts: each row that share of one
+    /// error (a marker's coordinate a third of its position's, another length one, an angle
+    /// none), `sqrt(sum e_i^2 / sum share_i)`, the RMS of the errors' norms. `None` where a
+    /// block is not positive definite.
     pub fn cv_rms(
         &self,
         (a, b): (f64, f64),
         folds: usize,
         (x, sd): (&DVector<f64>, &[f64]),
-        (scored, group): (&dyn Fn(usize, usize) -> bool, usize),
+        share: &dyn Fn(usize, usize) -> f64,
     ) -> Option<f64> {
         let precision = DVector::from_iterator(
             sd.len(),
             sd.iter().map(|s| if s.is_finite() { 1.0 / (s * s) } else { 0.0 }),
         );
-        let (mut sse, mut count) = (0.0, 0usize);
+        let (mut sse, mut count) = (0.0, 0.0);
         for fold in 0..folds {
             let sums = self.sums(a, b, |k| k % folds != fold)?;
             let m = sums.m + DMatrix::from_diagonal(&precision);
@@ -221,11 +222,11 @@ impl Components {
             let d = pseudo_inverse(&m) * g;
             for (k, point) in self.points.iter().enumerate().skip(fold).step_by(folds) {
                 let e = &point.r - &point.h * &d;
-                sse += (0..e.len()).filter(|&i| scored(k, i)).map(|i| e[i] * e[i]).sum::<f64>();
-                count += (0..e.len()).filter(|&i| scored(k, i)).count();
+                sse += (0..e.len()).filter(|&i| share(k, i) > 0.0).map(|i| e[i] * e[i]).sum::<f64>();
+                count += (0..e.len()).map(|i| share(k, i)).sum::<f64>();
             }
         }
-        Some((sse / (count as f64 / group as f64).max(1.0)).sqrt())
+        Some((sse / count.max(1.0)).sqrt())
     }
 
     /// The sums of the points `take` keeps, whitened by `V_k = a V_q,k + b V_m,k`

@@ -1551,6 +1551,24 @@ fn several_held_out_files_are_pooled_too() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// The noise check's cross-validated errors of a marker file through the observation fit are
+/// the marker calibration's (a marker's position one error in both), with the sigmas given and
+/// with the estimated ones, to the two fits' agreement; its factors too.
+#[test]
+fn the_noise_checks_cv_figures_are_the_marker_calibrations() {
+    let noise = ["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002", "--sigma-mm", "0.05"];
+    let warning = |extra: &[&str]| {
+        let (_, report) = crate::nested::calibrate_puma(&[&noise[..], extra].concat());
+        let warnings = report["warnings"].as_array().unwrap().clone();
+        warnings.into_iter().find(|w| w["cause"] == "noise_disagrees").expect("a sigma 5 times too large")
+    };
+    let (markers, observations) = (warning(&[]), warning(&["--tool", "0,0,0"]));
+    for key in ["cv_given", "cv_estimated", "measurement_factor"] {
+        let (m, o) = (markers[key].as_f64().unwrap(), observations[key].as_f64().unwrap());
+        assert!((o / m - 1.0).abs() < 1e-4, "{key}: {m} against {o}\n{markers}\n{observations}");
+    }
+}
+
 /// Without the noise (no sigma given, the joints exact), a prior weighs against the data's own
 /// spread, not against the assumed sigmas: `--prior auto:machined`'s cross-validated curve of a
 /// marker file through the observation fit (`--tool 0,0,0`) is the marker calibration's (the

@@ -1960,7 +1960,8 @@ pub fn calibrate_kinds(
 /// `c` on its training `data` ([`check`](super::noise_check::check), as for a marker file):
 /// each pose's block (of at most [`CHECK_POSES`] poses, evenly spread) linearised about the
 /// estimate, with its joint part `sum_j G_kj Sigma_q G_kj^T` and its measurement part
-/// `diag(sigma_i^2)`, the lengths cross-validated (angles not scored). `None` when it agrees,
+/// `diag(sigma_i^2)`, the lengths cross-validated (a marker's position one error, angles not
+/// scored: [`Observation::error_share`]). `None` when it agrees,
 /// without a noise given (every sigma assumed and the joints exact: the residuals' spread
 /// scales the fit instead), with a robust loss, or with too few residuals to tell.
 fn noise_check(c: &KindCalibration, data: &KindData, loss: Loss) -> Option<Warning> {
@@ -1988,7 +1989,7 @@ fn noise_check(c: &KindCalibration, data: &KindData, loss: Loss) -> Option<Warni
             let measurement =
                 DMatrix::from_fn(b, b, |i, j| sample.measurement_covariance(r.start + i, r.start + j));
             let joint = DMatrix::from_fn(b, b, |i, j| v[(r.start + i, j)]) - &measurement;
-            let lengths: Vec<bool> = r.clone().map(|i| !sample.observations[i].is_angle()).collect();
+            let shares: Vec<f64> = r.clone().map(|i| sample.observations[i].error_share()).collect();
             (
                 Point {
                     h: h.rows(r.start, b).into_owned(),
@@ -1996,16 +1997,16 @@ fn noise_check(c: &KindCalibration, data: &KindData, loss: Loss) -> Option<Warni
                     joint,
                     measurement,
                 },
-                lengths,
+                shares,
             )
         })
         .collect();
-    let (points, lengths): (Vec<Point>, Vec<Vec<bool>>) = without_outliers(points).into_iter().unzip();
+    let (points, shares): (Vec<Point>, Vec<Vec<f64>>) = without_outliers(points).into_iter().unzip();
     let components = Components::new(points)?;
     let robot = kept.indices().iter().map(|&i| c.prior_sd[i]);
     let prior_sd: Vec<f64> = robot.chain(std::iter::repeat(f64::INFINITY)).take(start.len()).collect();
-    let scored = |k: usize, i: usize| lengths[k][i];
-    check(&components, (&start, &prior_sd), (&scored, 1))
+    let share = |k: usize, i: usize| shares[k][i];
+    check(&components, (&start, &prior_sd), &share)
 }
 
 /// What [`fit_gauged`] gives: the fit (every step of every round in its history), the robust
