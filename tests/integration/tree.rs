@@ -516,7 +516,9 @@ fn what_no_view_sees_is_said_for_what_it_is() {
     };
     assert!(said("r_elbow.x").contains("no view has a camera or target past its joint"), "{:?}", c.fixed);
     assert!(said("torso.z").contains("on the way to both frames of every view past it"), "{:?}", c.fixed);
-    assert!(c.warnings.is_empty(), "{:?}", c.warnings);
+    // Exact views: the only warning is the noise check's, their sigmas far above the residuals.
+    let exact = |w: &Warning| matches!(w, Warning::NoiseDisagrees(n) if n.measurement_factor < 1e-3);
+    assert!(c.warnings.iter().all(exact) && c.warnings.len() == 1, "{:?}", c.warnings);
 }
 
 #[test]
@@ -1108,5 +1110,49 @@ fn views_without_sigmas_take_their_standard_errors_from_the_residuals_spread() {
     let tilt = params.iter().find(|p| p["name"] == "head_tilt.theta").unwrap();
     assert!((tilt["std_error"].as_f64().unwrap() / 0.5 - 1.0).abs() < 1e-9, "{tilt}");
     assert_eq!(tilt["prior_sd"], 0.5);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A tree's views are checked against their residuals as marker and observation files are:
+/// the torso's views with their sigmas cut tenfold are warned of (the REML factor about 10),
+/// the views as measured are not.
+#[test]
+fn a_trees_noise_is_checked_against_its_residuals() {
+    let dir = std::env::temp_dir().join(format!("robocal-tree-noise-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string("examples/torso/views.csv").unwrap();
+    let cut: Vec<String> = (text.lines())
+        .map(|l| match l.starts_with('#') || l.starts_with("camera") || l.is_empty() {
+            true => l.to_string(),
+            false => {
+                let mut cells: Vec<String> = l.split(',').map(String::from).collect();
+                let n = cells.len();
+                for c in &mut cells[n - 2..] {
+                    *c = (c.parse::<f64>().unwrap() / 10.0).to_string();
+                }
+                cells.join(",")
+            }
+        })
+        .collect();
+    let (small, json) = (dir.join("small.csv"), dir.join("r.json"));
+    std::fs::write(&small, cut.join("\n") + "\n").unwrap();
+    let warning = |data: &std::path::Path| {
+        let output = (assert_cmd::Command::cargo_bin("robocal").unwrap())
+            .args(["calibrate", "-q", "--model", "presets/torso.urdf", "--data"])
+            .arg(data)
+            .arg("--json")
+            .arg(&json)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let warnings = report["warnings"].as_array().unwrap().clone();
+        warnings.into_iter().find(|w| w["cause"] == "noise_disagrees")
+    };
+    assert!(warning(std::path::Path::new("examples/torso/views.csv")).is_none());
+    let found = warning(&small).expect("sigmas cut tenfold");
+    let factor = found["measurement_factor"].as_f64().unwrap();
+    assert!((8.0..12.0).contains(&factor), "{found}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

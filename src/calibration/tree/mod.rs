@@ -47,6 +47,7 @@
 
 mod data;
 mod feasible;
+mod noise_check;
 
 pub use data::{Frame, Role, TreeData, View};
 pub use feasible::calibrate_tree_feasible;
@@ -1153,6 +1154,7 @@ pub fn calibrate_tree(
     calibration.warnings = calibration.warnings();
     let views = data.views.iter().zip(&data.lines).map(|(v, &line)| (line, data.joints[v.pose].as_slice()));
     calibration.warnings.extend(Warning::outside_limits(&tree.name, &tree.joints, views));
+    calibration.warnings.extend(noise_check::tree_noise_check(&calibration, data, options.loss));
     calibration.warnings.extend(r.change);
     Ok(calibration)
 }

@@ -1,0 +1,80 @@
+//! Whether the noise given to a tree's views (their sigmas, the joint noise) agrees with the
+//! residuals of its calibration, as for marker and observation files
+//! ([`check`](super::super::noise_check::check)): each view's block (of at most
+//! [`CHECK_POSES`] views, evenly spread) linearised about the estimate, its joint part
+//! `G_k Sigma_q G_k^T` and its measurement part `diag(sigma_position^2, sigma_rotation^2)`,
+//! the views' positions cross-validated (a view's position one error, its rotation none).
+
+use super::{TreeCalibration, TreeData, TreeProblem};
+use crate::calibration::noise_check::{CHECK_POSES, MIN_DOF, check, without_outliers};
+use crate::calibration::{Loss, Warning};
+use crate::estimation::Residuals;
+use crate::estimation::reml::{Components, Point};
+use nalgebra::DMatrix;
+
+/// The check of `c`'s noise on its training `data`: `None` when it agrees, without a noise
+/// given (every sigma assumed and the joints exact: the residuals' spread scales the fit
+/// instead), with a robust loss, or with too few residuals to tell.
+pub(super) fn tree_noise_check(c: &TreeCalibration, data: &TreeData, loss: Loss) -> Option<Warning> {
+    if loss != Loss::Squared || (c.joint_noise.is_none() && data.assumed_sigmas) {
+        return None;
+    }
+    let stride = data.views.len().div_ceil(CHECK_POSES).max(1);
+    let mut sample = data.clone();
+    sample.views = data.views.iter().step_by(stride).cloned().collect();
+    sample.lines = data.lines.iter().step_by(stride).copied().collect();
+    let (selection, setup_selection) = estimated(c);
+    let problem = TreeProblem::new(
+        &c.params,
+        &sample,
+        selection,
+        c.after.clone(),
+        c.setup_values.1.clone(),
+        setup_selection,
+        c.joint_noise.as_ref(),
+    );
+    if problem.equations() < problem.parameters() + MIN_DOF {
+        return None;
+    }
+    let start = problem.start();
+    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+    let y = problem.evaluate(&start, Some(&mut h));
+    let v = problem.covariance()?;
+    let n = sample.rows();
+    let points = (sample.views.iter().enumerate())
+        .map(|(k, view)| {
+            let sigmas = (0..n).map(|r| view.sigma[usize::from(r >= 3)].powi(2));
+            let measurement = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(n, sigmas));
+            let joint = DMatrix::from_fn(n, n, |i, j| v[(n * k + i, j)]) - &measurement;
+            let point = Point {
+                h: h.rows(n * k, n).into_owned(),
+                r: y.rows(n * k, n).into_owned(),
+                joint,
+                measurement,
+            };
+            (point, ())
+        })
+        .collect();
+    let components = Components::new(without_outliers(points).into_iter().map(|(p, ())| p).collect())?;
+    let prior_sd: Vec<f64> = (c.refined.estimate.names.iter())
+        .map(|name| {
+            c.params.params.iter().position(|p| &p.name == name).map_or(f64::INFINITY, |i| c.prior_sd[i])
+        })
+        .collect();
+    // A view's position is one error, its rotation none.
+    let share = |_: usize, r: usize| if r < 3 { 1.0 / 3.0 } else { 0.0 };
+    check(&components, (&start, &prior_sd), &share)
+}
+
+/// The robot's parameters `c` estimated (their indices among its parameters) and the
+/// placements' (among the frames' six each), by the names of its estimate.
+fn estimated(c: &TreeCalibration) -> (Vec<usize>, Vec<usize>) {
+    let frames = c.frame_names();
+    let setup: Vec<String> = (frames.iter())
+        .flat_map(|name| ["x", "y", "z", "rx", "ry", "rz"].map(move |a| format!("{name}.{a}")))
+        .collect();
+    let names = &c.refined.estimate.names;
+    let robot = names.iter().filter_map(|n| c.params.params.iter().position(|p| &p.name == n)).collect();
+    let placed = names.iter().filter_map(|n| setup.iter().position(|s| s == n)).collect();
+    (robot, placed)
+}
