@@ -74,6 +74,21 @@ pub(crate) fn check(
     }))
 }
 
+/// `problem`'s identification Jacobian `H` and residuals `y` at its estimate `x`, with its
+/// stacked covariance blocks `V_k`; `None` with fewer than [`MIN_DOF`] residual degrees of
+/// freedom (too few to tell) or no covariance.
+pub(crate) fn at_estimate<'p>(
+    problem: &'p impl Residuals,
+    x: &DVector<f64>,
+) -> Option<(DMatrix<f64>, DVector<f64>, &'p DMatrix<f64>)> {
+    if problem.equations() < problem.parameters() + MIN_DOF {
+        return None;
+    }
+    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+    let y = problem.evaluate(x, Some(&mut h));
+    Some((h, y, problem.covariance()?))
+}
+
 /// The sigmas' factors the residuals say, `(joint, measurement)`: `sqrt(a)` and `sqrt(b)` where
 /// the ratio given is rejected ([`RATIO_REJECTED`]), else the whitened residual's `sqrt(b(1))`
 /// for both; no joint factor without joint noise.

@@ -110,7 +110,7 @@ pub use data::{
     KindData, Observation, RowSigmaDefaults,
 };
 
-use super::noise_check::{CHECK_POSES, MIN_DOF, check, without_outliers};
+use super::noise_check::{CHECK_POSES, at_estimate, check, without_outliers};
 use super::{
     CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
     gauge_class, probe_mounting, why_held,
@@ -1976,13 +1976,8 @@ fn noise_check(c: &KindCalibration, data: &KindData, loss: Loss) -> Option<Warni
     let (x, s) = (c.after.clone(), c.setup_values.1.clone());
     let problem = KindProblem::of_points(&c.chains, &markers, &kept, &sample, &c.setup, x, s, kept_setup)
         .with_noise(c.joint_noise.as_ref());
-    if problem.equations() < problem.parameters() + MIN_DOF {
-        return None;
-    }
     let start = problem.start();
-    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
-    let y = problem.evaluate(&start, Some(&mut h));
-    let v = problem.covariance()?;
+    let (h, y, v) = at_estimate(&problem, &start)?;
     let points = (problem.blocks().ranges(y.len()))
         .map(|r| {
             let b = r.len();

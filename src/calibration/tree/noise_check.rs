@@ -6,9 +6,8 @@
 //! the views' positions cross-validated (a view's position one error, its rotation none).
 
 use super::{TreeCalibration, TreeData, TreeProblem};
-use crate::calibration::noise_check::{CHECK_POSES, MIN_DOF, check, without_outliers};
+use crate::calibration::noise_check::{CHECK_POSES, at_estimate, check, without_outliers};
 use crate::calibration::{Loss, Warning};
-use crate::estimation::Residuals;
 use crate::estimation::reml::{Components, Point};
 use nalgebra::DMatrix;
 
@@ -33,13 +32,8 @@ pub(super) fn tree_noise_check(c: &TreeCalibration, data: &TreeData, loss: Loss)
         setup_selection,
         c.joint_noise.as_ref(),
     );
-    if problem.equations() < problem.parameters() + MIN_DOF {
-        return None;
-    }
     let start = problem.start();
-    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
-    let y = problem.evaluate(&start, Some(&mut h));
-    let v = problem.covariance()?;
+    let (h, y, v) = at_estimate(&problem, &start)?;
     let n = sample.rows();
     let points = (sample.views.iter().enumerate())
         .map(|(k, view)| {
