@@ -878,8 +878,8 @@ fn observations(
         options.prior = spec.prior.into_iter().chain(options.prior).collect();
     }
     // No noise at all: ordinary least squares, as the command line; a weighted one refused.
-    let joined = sessions.iter().fold(KindData::default(), |data, (_, d)| data.join(d));
-    if !request.feasible && !joined.noise_given(options.joint_noise.is_some()) {
+    let joint_noise = options.joint_noise.is_some();
+    if !request.feasible && !sessions.iter().any(|(_, d)| d.noise_given(joint_noise)) {
         match request.estimator {
             None | Some(Estimator::Ols) => options.estimator = Estimator::Ols,
             Some(estimator) => {

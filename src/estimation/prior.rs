@@ -274,8 +274,10 @@ impl PriorRows {
     /// `spread / s_j` (the residuals' standard deviation where the noise was a guess, so that a
     /// prior weighs against the data's own noise), the information still that of rows of
     /// standard deviation `scale`, so that the covariance scaled by `(spread / scale)^2` with
-    /// the data's is the posterior `spread^2 (A^T A + P^T P)^-1`.
-    pub fn weighed_against(mut self, spread: f64) -> Self {
+    /// the data's is the posterior `spread^2 (A^T A + P^T P)^-1`; as they are without one
+    /// (`None`: the noise known, the rows' own `scale`).
+    pub fn weighed_against(mut self, spread: Option<f64>) -> Self {
+        let Some(spread) = spread else { return self };
         let ratio = spread / self.scale;
         self.weights.iter_mut().for_each(|w| *w *= ratio);
         self

@@ -2708,11 +2708,7 @@ fn prior_rows(
     if columns.iter().all(|s| !s.is_finite()) {
         return Ok(None);
     }
-    let rows = PriorRows::new(&columns, scale);
-    Ok(Some(match spread {
-        Some(spread) => rows.weighed_against(spread),
-        None => rows,
-    }))
+    Ok(Some(PriorRows::new(&columns, scale).weighed_against(spread)))
 }
 
 /// The indices of `names` that the `patterns` match (`*` as in [`Selection::by_names`]); a

@@ -949,10 +949,8 @@ fn tree_gauge(
     let sd = prior_sds_of(&options.prior, &infos)?;
     let columns: Vec<f64> =
         (0..problem.parameters()).map(|c| asked.get(c).map_or(f64::INFINITY, |&i| sd[i])).collect();
-    let prior = (columns.iter().any(|s| s.is_finite())).then(|| match spread {
-        Some(spread) => PriorRows::new(&columns, scale).weighed_against(spread),
-        None => PriorRows::new(&columns, scale),
-    });
+    let prior = (columns.iter().any(|s| s.is_finite()))
+        .then(|| PriorRows::new(&columns, scale).weighed_against(spread));
     let owners: Vec<Option<crate::model::ParamOwner>> =
         (0..problem.parameters()).map(|c| asked.get(c).map(|&i| params.params[i].owner)).collect();
     let (identifiable, fixed) = identifiable(linearised, (&names, &owners), &priority, prior.as_ref())?;
