@@ -4,7 +4,6 @@
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use robocal::calibration::{Calibration, SetEvaluation};
 use robocal::design::accuracy::{AccuracyModel, ParameterCovariance, joint_grid};
 use robocal::model::ModelRef;
 use robocal::report;
@@ -51,18 +50,6 @@ pub(super) fn covariance_path(model: &Path) -> PathBuf {
 /// Whether `path` names a regular file to write (or one to create), not `-` or a device.
 pub(super) fn has_a_sidecar(path: &Path) -> bool {
     path != Path::new("-") && std::fs::metadata(path).map_or(true, |m| m.is_file())
-}
-
-/// The covariance sidecar of `result`: its refined estimate's covariance, and as the floor the
-/// rms distance after calibration on the first held-out set of `sets` (0 without one).
-pub(super) fn covariance_sidecar(sets: &[SetEvaluation], result: &Calibration) -> String {
-    let floor = sets
-        .iter()
-        .find(|s| s.name != "training")
-        .and_then(|s| s.pooled.last())
-        .map_or(0.0, |stats| stats.rms);
-    let estimate = &result.refined.estimate;
-    ParameterCovariance::new(estimate.names.clone(), &estimate.covariance, floor).to_json()
 }
 
 /// Predict; write the CSV, the summary and the figures.

@@ -1,14 +1,15 @@
 //! `robocal evaluate`: a model scored as it stands on measurement files, with the tables of
 //! `calibrate` (pooled, per marker, worst poses) and its files (JSON, poses, figures, page).
 
-use super::calibrate::noise_for;
 use super::observations::Noise;
 use super::request::{EvaluateRequest, NoiseSource};
-use super::{ReportContent, write_report_files};
+use super::{ReportContent, noise_model, write_report_files};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::kinds::{KindData, KindOptions, RowSigmaDefaults, Score, evaluate_kinds};
-use robocal::calibration::{DataKind, SetEvaluation, evaluate_model, pool};
+use robocal::calibration::{self, DataKind, Measurements, SetEvaluation, evaluate_model, pool};
+use robocal::estimation::NoiseModel;
 use robocal::io;
+use robocal::model::RobotModel;
 use robocal::report::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
 use robocal::report::residuals::ResidualSet;
 use serde::Serialize;
@@ -259,4 +260,23 @@ fn markers_text(model: &str, sets: &[SetEvaluation], pooled: Option<&SetEvaluati
 /// A file's text.
 fn read(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))
+}
+
+/// The noise of `source` at the poses of `data`: the flags' everywhere, a noise file's device
+/// at each measured marker.
+fn noise_for(
+    source: Option<&NoiseSource>,
+    model: &RobotModel,
+    data: &Measurements,
+) -> Result<Option<NoiseModel>> {
+    Ok(match source {
+        None => None,
+        Some(NoiseSource::Flags(flags)) => Some(noise_model(model, flags)?),
+        Some(NoiseSource::File(path)) => {
+            let spec = io::load_noise(path, model)?;
+            let noise = calibration::noise_from_spec(&spec, data)
+                .with_context(|| format!("{}: the device's covariance", path.display()))?;
+            Some(noise)
+        }
+    })
 }

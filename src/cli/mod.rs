@@ -3,7 +3,6 @@
 
 mod accuracy;
 mod args;
-mod calibrate;
 mod compensate;
 mod evaluate;
 mod evaluate_tree;
@@ -15,6 +14,7 @@ mod observations;
 mod plan;
 mod repeatability;
 mod request;
+mod robot;
 mod shard;
 mod simulate;
 mod tree;
@@ -186,7 +186,6 @@ fn status_text(text: &str) {
 fn calibrate_any(args: args::CalibrateArgs) -> Result<()> {
     let kinds = (args.data.iter()).map(|path| robocal::io::data_kind(path)).collect::<Result<Vec<_>, _>>()?;
     match CalibrationRequest::from_args(args, &kinds)? {
-        CalibrationRequest::Markers(request) => calibrate::run(&request),
         CalibrationRequest::Observations(request) => observations::run(&request),
         CalibrationRequest::Tree(request) => tree::run(&request),
     }

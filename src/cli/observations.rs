@@ -1,5 +1,5 @@
-//! `robocal calibrate-observations`: a robot calibrated from distances, plane contacts,
-//! partial coordinates, cameras' views and marker positions ([`robocal::calibration::kinds`]); every file read and the fit made
+//! `robocal calibrate`: a robot calibrated from marker positions, a probe's poses, distances,
+//! plane contacts, partial coordinates and cameras' views ([`robocal::calibration::kinds`]); every file read and the fit made
 //! before anything is written.
 
 use super::request::{CalibrateObservationsRequest, Method};
@@ -15,7 +15,7 @@ use std::path::Path;
 
 /// Calibrate, print the report, write the files asked for.
 pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
-    let robot = super::calibrate::load_model(&request.model)?;
+    let robot = super::robot::load_model(&request.model)?;
     let model = robot.model.clone();
     let noise =
         Noise::of(request.noise.as_deref(), request.joint_sigma_deg.as_deref(), request.sigmas, &model)?;
@@ -33,6 +33,12 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
             _ => Some(sessions.iter().fold(KindData::default(), |data, (_, file)| data.join(file))),
         };
         let data = joined.as_ref().unwrap_or(&sessions[0].1);
+        let what = format!(
+            "calibrating the {} observations at {} poses",
+            data.observations.len(),
+            data.joints.len()
+        );
+        io::check_memory(data.memory_estimate(model.params().len()), &what, "calibrate on fewer poses")?;
         check_and_warn(request, data)?;
         method = estimator_for(request, data.noise_given(noise.joint.is_some()))?;
         let ids = request.marker_ids.as_deref();

@@ -3,9 +3,9 @@
 //! contents are the commands' own.
 
 use super::args::{
-    CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs, DesignArgs, EstimatorName, EvaluateArgs,
-    Excluded, JointUnit, LengthUnit, LinkArgs, MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs,
-    PayloadArgs, PlanArgs, PriorArg, RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
+    CalibrateObservationsArgs, CalibrateTreeArgs, DesignArgs, EstimatorName, EvaluateArgs, Excluded,
+    JointUnit, LengthUnit, LinkArgs, MeasuredName, ModelArgs, NoiseArgs, ObservabilityArgs, PayloadArgs,
+    PlanArgs, PriorArg, RepeatabilityArgs, ReportArgs, SelectName, ToolBox, UnitArgs,
 };
 use nalgebra::Vector3;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
@@ -272,113 +272,6 @@ impl Method {
             Self::Given(estimator) => estimator,
             Self::Feasible => Estimator::Ols,
         }
-    }
-}
-
-/// A validated `robocal calibrate`.
-#[derive(Debug, Clone, PartialEq)]
-pub struct CalibrateRequest {
-    /// The nominal robot.
-    pub model: ModelRef,
-    /// The measurement file.
-    pub data: PathBuf,
-    /// The files' units, if given.
-    pub units: Option<Units>,
-    /// The estimator.
-    pub method: Method,
-    /// The noise, if given.
-    pub noise: Option<NoiseSource>,
-    /// The joint parameters to identify.
-    pub joints: JointParams,
-    /// Estimate the base.
-    pub estimate_base: bool,
-    /// Estimate the markers.
-    pub estimate_markers: bool,
-    /// Parameters held at nominal (names and patterns).
-    pub hold: Vec<String>,
-    /// Parameters kept free first by the gauge (names and patterns).
-    pub keep: Vec<String>,
-    /// How to choose the joint parameters, if asked.
-    pub select: Option<Criterion>,
-    /// Nominal marker positions (mm).
-    pub markers: Vec<Vector3<f64>>,
-    /// Prior entries from the flags, in order (a noise file's come first).
-    pub prior: Vec<robocal::estimation::PriorEntry>,
-    /// `--prior auto[:PRESET]`, `auto-ml[:PRESET]` or `auto-ml[:PRESET]:classes`: the preset whose scale is chosen from
-    /// the data.
-    pub auto_prior: Option<robocal::calibration::prior_scale::AutoPrior>,
-    /// The loss of each pose.
-    pub loss: robocal::calibration::Loss,
-    /// Gauss-Newton steps at most (>= 1).
-    pub iterations: usize,
-    /// Held-out measurement files.
-    pub validate: Vec<PathBuf>,
-    /// k of the k-fold cross-validation (>= 2).
-    pub folds: Option<usize>,
-    /// The markers to fit (numbers), or every marker of the data.
-    pub marker_ids: Option<Vec<usize>>,
-    /// Where the JSON, CSV, figures and HTML go.
-    pub report: ReportArgs,
-    /// Where the calibrated model TOML goes.
-    pub out_model: Option<PathBuf>,
-    /// Where the calibrated URDF goes (URDF models only).
-    pub out_urdf: Option<PathBuf>,
-}
-
-impl CalibrateRequest {
-    /// The request, or the first rule between `args`' flags that it breaks.
-    pub fn from_args(args: CalibrateArgs) -> Result<Self, UsageError> {
-        let model = args.model.model_ref()?;
-        let [data] = <[PathBuf; 1]>::try_from(args.data)
-            .map_err(|_| UsageError("--data: one file of marker positions here".into()))?;
-        require(args.out_urdf.is_none() || model.is_urdf(), "--out-urdf needs a URDF model")?;
-        let noise = noise_source(args.noise, &args.noise_flags)?;
-        let method = method(args.estimator, noise.is_some(), args.folds.is_some())?;
-        let joints = joint_params(args.params, args.fixed_base || args.fixed_markers)?;
-        let select = selection(args.select, args.folds, &joints)?;
-        if method == Method::Feasible {
-            feasible_alone(select.is_some(), &args.choice)?;
-        }
-        if let Some(name) = args.choice.hold.iter().find(|h| args.choice.keep.contains(h)) {
-            return Err(UsageError(format!("`{name}` is given to both --hold and --keep: choose one")));
-        }
-        let (prior, auto_prior) = priors(args.choice.prior)?;
-        // With --select cv, --folds is both the selection's folds and the nested
-        // cross-validation's.
-        let folds = args.folds;
-        let mut inputs = vec![("--model", Path::new(&model.name)), ("--data", data.as_path())];
-        if let Some(NoiseSource::File(path)) = &noise {
-            inputs.push(("--noise", path));
-        }
-        inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
-        let mut outputs = args.report.outputs();
-        outputs
-            .extend([("--out-model", args.out_model.as_deref()), ("--out-urdf", args.out_urdf.as_deref())]);
-        distinct_outputs(&inputs, &outputs)?;
-        Ok(Self {
-            model,
-            data,
-            units: args.units.units()?,
-            method,
-            noise,
-            joints,
-            estimate_base: !args.fixed_base,
-            estimate_markers: !args.fixed_markers,
-            hold: args.choice.hold,
-            keep: args.choice.keep,
-            select,
-            markers: args.marker,
-            prior,
-            auto_prior,
-            loss: args.choice.loss,
-            iterations: args.iterations,
-            validate: args.validate,
-            folds,
-            marker_ids: args.markers,
-            report: args.report,
-            out_model: args.out_model,
-            out_urdf: args.out_urdf,
-        })
     }
 }
 

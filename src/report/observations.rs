@@ -18,9 +18,20 @@ use serde::Serialize;
 use std::cmp::Ordering;
 use std::fmt::Write;
 
-/// Everything the report says. Angles in degrees, lengths in millimetres.
+/// The version of the calibration report's JSON: 3, the one report of every calibration
+/// (version 2 was a marker file's own report, version 1 had no `schema`).
+pub const SCHEMA: u32 = 3;
+
+/// Everything the report says, in the order the JSON writes it: the verdict first, then what
+/// was fitted, the parameters, what was held, and the detail. Angles in degrees, lengths in
+/// millimetres.
 #[derive(Debug, Clone, Serialize)]
 pub struct ObservationsReport {
+    /// The JSON's version: [`SCHEMA`], for the order and keys of docs/formats.md.
+    pub schema: u32,
+    /// What the report leads with: each set's errors before and after calibration, a row per
+    /// quantity, counted and flagged (the text's and the page's verdict table).
+    pub verdict: Vec<super::verdict::QuantityRow>,
     /// The model's name.
     pub model: String,
     /// The observation files.
@@ -29,6 +40,11 @@ pub struct ObservationsReport {
     pub observations: usize,
     /// Poses they were made at.
     pub poses: usize,
+    /// With marker positions alone (and a probe's orientations): how many markers were
+    /// fitted, as the headline counts them (`100 poses, 2 markers`); `None` when other
+    /// observations are fitted too.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub markers: Option<usize>,
     /// The estimator's name.
     pub estimator: String,
     /// Gauss-Newton steps taken.
@@ -38,10 +54,10 @@ pub struct ObservationsReport {
     /// Feasible GLS: whether its variance components settled.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub noise_settled: Option<bool>,
-    /// Feasible GLS: the noise estimated from the residuals, the joints' then each measurement
-    /// class's, with 95% intervals.
+    /// With markers: the base their registration placed, `[x, y, z]` mm then roll, pitch, yaw
+    /// deg, which the `base.*` estimates correct.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub noise: Option<Vec<super::calibration::NoiseRow>>,
+    pub registered_base: Option<[f64; 6]>,
     /// The estimated parameters, the robot's then the set-up's (`point1.x`, `plane1.d`, ...).
     pub parameters: Vec<ParameterRow>,
     /// Numerical rank and condition number of the weighted, column-scaled `H` (of the data
@@ -49,64 +65,62 @@ pub struct ObservationsReport {
     pub rank: usize,
     /// `s_1 / s_r` of the same.
     pub condition_number: f64,
+    /// A robust loss (`huber:1.345`), if one was used.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub loss: Option<String>,
+    /// The training poses it weighted below 0.1 (a pose's observations weigh as one), by
+    /// line: the line of each pose's first observation.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub down_weighted: Vec<DownWeighted>,
+    /// `--prior auto`: the scale chosen for the preset's standard deviations, and the curve
+    /// (cross-validated RMS of the length residuals, mm) it was chosen from.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub prior_scale: Option<PriorScale>,
+    /// `--select`: how the joint parameters were chosen, its path.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub selection: Option<super::calibration::SelectionReport>,
     /// What the observations cannot see, held, in words.
     pub unseen: Vec<String>,
-    /// Each parameter held, in words with its combination, as a marker file's report gives it.
-    pub fixed: Vec<String>,
     /// The parameters held, grouped by why ([`held_groups`](super::verdict::held_groups)).
     pub held_groups: Vec<super::verdict::HeldGroup>,
+    /// Each parameter held, in words with its combination, as a marker file's report gives it.
+    pub fixed: Vec<String>,
     /// The same, typed: the kind, the parameter, a combination's terms.
     pub held: Vec<crate::calibration::Held>,
-    /// What the report leads with: each set's errors before and after calibration, a row per
-    /// quantity, counted and flagged (the text's and the page's verdict table).
-    pub verdict: Vec<super::verdict::QuantityRow>,
-    /// The training observations scored, then each held-out file: every observation's
-    /// residual, and the RMS of the lengths (mm), of the angles (deg) and of the marker
-    /// positions (mm).
-    pub sets: Vec<(String, Score)>,
+    /// What the "before" and "after" of every figure are.
+    pub fits: Fits,
+    /// The training observations whose row gave no sigma (the kinds' defaults weigh them).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub assumed_sigmas: usize,
+    /// When no sigma was given and the joints are exact: the residuals' variance of unit
+    /// weight, by which the standard errors and the whitening are scaled.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub variance_factor: Option<f64>,
+    /// With several training files: each one's name and number of observations, in order.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub training_files: Vec<(String, usize)>,
+    /// `--folds K`: how the cross-validation was made (nested, what each fold chose again).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cross_validation: Option<super::calibration::CrossValidationReport>,
+    /// The tool point's position error predicted at each held-out set's poses from the
+    /// parameter covariance (the floor: the first held-out set's marker RMS after, 0 without
+    /// markers).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub predicted: Vec<super::calibration::PredictedAccuracy>,
+    /// Feasible GLS: the noise estimated from the residuals, the joints' then each measurement
+    /// class's, with 95% intervals.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise: Option<Vec<super::calibration::NoiseRow>>,
     /// What to look at, one per cause: estimates past a physical bound (a length corrected by
     /// more than 10 mm, an angle by more than 5 deg, a compliance or play no joint has), an
     /// unconverged fit, the
     /// training observations more than [`FLAG_AT`](crate::calibration::FLAG_AT) standard deviations out after
     /// calibration.
     pub warnings: Vec<Warning>,
-    /// When no sigma was given and the joints are exact: the residuals' variance of unit
-    /// weight, by which the standard errors and the whitening are scaled.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub variance_factor: Option<f64>,
-    /// With markers: the base their registration placed, `[x, y, z]` mm then roll, pitch, yaw
-    /// deg, which the `base.*` estimates correct.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub registered_base: Option<[f64; 6]>,
-    /// With several training files: each one's name and number of observations, in order.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub training_files: Vec<(String, usize)>,
-    /// A robust loss (`huber:1.345`), if one was used.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub loss: Option<String>,
-    /// The training observations it weighted below 0.1, by line.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub down_weighted: Vec<DownWeighted>,
-    /// `--select`: how the joint parameters were chosen, its path.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub selection: Option<super::calibration::SelectionReport>,
-    /// `--folds K`: how the cross-validation was made (nested, what each fold chose again).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub cross_validation: Option<super::calibration::CrossValidationReport>,
-    /// `--prior auto`: the scale chosen for the preset's standard deviations, and the curve
-    /// (cross-validated RMS of the length residuals, mm) it was chosen from.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub prior_scale: Option<PriorScale>,
-    /// The tool point's position error predicted at each held-out set's poses from the
-    /// parameter covariance (the floor: the first held-out set's marker RMS after, 0 without
-    /// markers).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub predicted: Vec<super::calibration::PredictedAccuracy>,
-    /// The training observations whose row gave no sigma (the kinds' defaults weigh them).
-    #[serde(skip_serializing_if = "is_zero")]
-    pub assumed_sigmas: usize,
-    /// What the "before" and "after" of every figure are.
-    pub fits: Fits,
+    /// The training observations scored, then each held-out file: every observation's
+    /// residual, and the RMS of the lengths (mm), of the angles (deg) and of the marker
+    /// positions (mm).
+    pub sets: Vec<(String, Score)>,
 }
 
 /// What the report's two fits are, in words: "before" (the set-up and the points on the last
@@ -117,6 +131,8 @@ pub struct Fits {
     pub before: String,
     /// The "after" fit.
     pub after: String,
+    /// The rule an observation (a marker's position) is flagged by.
+    pub flagged: String,
 }
 
 impl Fits {
@@ -145,7 +161,12 @@ impl Fits {
                 false => "that the observations identify",
             }
         );
-        Self { before, after }
+        let flagged = format!(
+            "an observation (a marker's position) whose whitened residual exceeds {} standard deviations \
+             times its set's robust spread, if above 1",
+            crate::calibration::FLAG_AT
+        );
+        Self { before, after, flagged }
     }
 }
 
@@ -205,6 +226,50 @@ fn set_rows(name: &str, score: &Score) -> Vec<QuantityRow> {
     (lengths.into_iter().map(group)).chain(all).chain(each).chain(angles.into_iter().map(group)).collect()
 }
 
+/// The rows of `c`'s estimated parameters, the robot's then the set-up's, in degrees and
+/// millimetres, with each prior's SD and the posterior / prior SD ratio where there is one.
+fn parameter_rows(c: &KindCalibration) -> Vec<ParameterRow> {
+    let se = c.refined.estimate.standard_errors();
+    let setup = c.setup.names();
+    (c.refined.estimate.names.iter().enumerate())
+        .map(|(k, name)| {
+            let (value, angle, unit) = match c.params.index_by_name(name) {
+                Some(i) => {
+                    let p = c.params.get(i);
+                    (c.after[i], p.kind.is_angle(), if p.kind.is_angle() { "deg" } else { p.unit() })
+                }
+                None => {
+                    let i = setup.iter().position(|n| n == name).expect("a robot or set-up parameter");
+                    let angle = c.setup.is_angle(i);
+                    (c.setup_values.1[i], angle, if angle { "deg" } else { "mm" })
+                }
+            };
+            let scale = if angle { 180.0 / std::f64::consts::PI } else { 1.0 };
+            let prior = c.params.index_by_name(name).map(|i| c.prior_sd[i]).filter(|s| s.is_finite());
+            ParameterRow {
+                name: point_names(name, c),
+                value: value * scale,
+                std_error: se[k] * scale,
+                unit,
+                prior_sd: prior.map(|s| s * scale),
+                sd_ratio: prior.map(|s| se[k] / s),
+            }
+        })
+        .collect()
+}
+
+/// The training poses `c`'s robust loss weighted below 0.1, by the line of each pose's first
+/// observation (a pose's observations come together, each with the pose's weight).
+fn down_weighted(c: &KindCalibration) -> Vec<DownWeighted> {
+    c.robust.as_ref().map_or_else(Vec::new, |r| {
+        let mut down: Vec<DownWeighted> = (r.down_weighted())
+            .map(|(k, weight)| DownWeighted { line: c.training.observations[k].line, weight })
+            .collect();
+        down.dedup_by_key(|d| d.line);
+        down
+    })
+}
+
 impl ObservationsReport {
     /// The report of `c`, fitted on `data` (names) with `estimator`; `held_out` are the held-out
     /// files' RMS residuals, before and after.
@@ -215,38 +280,13 @@ impl ObservationsReport {
         estimator: &str,
         held_out: Vec<(String, Score)>,
     ) -> Self {
-        let se = c.refined.estimate.standard_errors();
-        let setup = c.setup.names();
-        let parameters = (c.refined.estimate.names.iter().enumerate())
-            .map(|(k, name)| {
-                let (value, angle, unit) = match c.params.index_by_name(name) {
-                    Some(i) => {
-                        let p = c.params.get(i);
-                        (c.after[i], p.kind.is_angle(), if p.kind.is_angle() { "deg" } else { p.unit() })
-                    }
-                    None => {
-                        let i = setup.iter().position(|n| n == name).expect("a robot or set-up parameter");
-                        let angle = c.setup.is_angle(i);
-                        (c.setup_values.1[i], angle, if angle { "deg" } else { "mm" })
-                    }
-                };
-                let scale = if angle { 180.0 / std::f64::consts::PI } else { 1.0 };
-                let prior = c.params.index_by_name(name).map(|i| c.prior_sd[i]).filter(|s| s.is_finite());
-                ParameterRow {
-                    name: point_names(name, c),
-                    value: value * scale,
-                    std_error: se[k] * scale,
-                    unit,
-                    prior_sd: prior.map(|s| s * scale),
-                    sd_ratio: prior.map(|s| se[k] / s),
-                }
-            })
-            .collect();
+        let parameters = parameter_rows(c);
         let mut sets = vec![("training".to_string(), c.training.clone())];
         sets.extend(held_out);
         let held: Vec<crate::calibration::Held> =
             c.fixed.iter().map(|f| f.clone().renamed(|n| point_names(n, c))).collect();
         let mut report = Self {
+            schema: SCHEMA,
             model: c.calibrated.name.clone(),
             data: data.to_string(),
             observations: fitted.0,
@@ -272,17 +312,14 @@ impl ObservationsReport {
             }),
             training_files: Vec::new(),
             loss: c.robust.as_ref().map(|r| r.loss.to_string()),
-            down_weighted: c.robust.as_ref().map_or_else(Vec::new, |r| {
-                r.down_weighted()
-                    .map(|(k, weight)| DownWeighted { line: c.training.observations[k].line, weight })
-                    .collect()
-            }),
+            down_weighted: down_weighted(c),
             selection: None,
             prior_scale: None,
             cross_validation: None,
             predicted: Vec::new(),
             assumed_sigmas: 0,
             fits: Fits::of(c, estimator),
+            markers: marker_count(&c.training.observations),
         };
         report.verdict = report.verdict_rows();
         report
@@ -379,6 +416,9 @@ impl ObservationsReport {
 
     /// The worst observations of each set after calibration, whitened.
     fn write_worst(&self, out: &mut String) {
+        if self.markers.is_some() {
+            return; // marker positions alone: their largest errors say it (write_worst_positions)
+        }
         let _ =
             writeln!(*out, "\nworst observations after calibration ({WORST} per set; every one in --json):");
         for (set, (name, score)) in self.sets.iter().enumerate() {
@@ -432,7 +472,8 @@ impl ObservationsReport {
 
     /// What before and after mean, the sigmas' scale, and the warnings.
     fn write_notes(&self, out: &mut String) {
-        let _ = write!(out, "\nbefore:    {}\nafter:     {}\n", self.fits.before, self.fits.after);
+        let f = &self.fits;
+        let _ = write!(out, "\nbefore:    {}\nafter:     {}\nflagged:   {}\n", f.before, f.after, f.flagged);
         if self.assumed_sigmas > 0 && self.estimator == Estimator::Ols.name() {
             // Ordinary least squares weighs every row alike whatever its sigma.
             let w = POSE_SIGMAS.0 / POSE_SIGMAS.1;
@@ -480,20 +521,27 @@ impl ObservationsReport {
         }
     }
 
+    /// What was fitted and how: `100 poses, 2 markers, wls (3 steps, converged)` for marker
+    /// files, `150 observations at 50 poses, ...` otherwise.
+    fn fit_summary(&self) -> String {
+        let plural = |n: usize| if n == 1 { "" } else { "s" };
+        let what = match self.markers {
+            Some(n) => format!("{} pose{}, {n} marker{}", self.poses, plural(self.poses), plural(n)),
+            None => format!("{} observations at {} poses", self.observations, self.poses),
+        };
+        format!(
+            "{what}, {} ({} step{}, {})",
+            self.estimator,
+            self.iterations,
+            plural(self.iterations),
+            super::calibration::convergence(self.converged, self.noise_settled)
+        )
+    }
+
     /// The report as text, at fixed precision.
     pub fn text(&self) -> String {
         let mut out = String::new();
-        let _ = writeln!(
-            out,
-            "calibration of {} from {}: {} observations at {} poses, {} ({} steps, {})",
-            self.model,
-            self.data,
-            self.observations,
-            self.poses,
-            self.estimator,
-            self.iterations,
-            super::calibration::convergence(self.converged, self.noise_settled)
-        );
+        let _ = writeln!(out, "calibration of {} from {}: {}", self.model, self.data, self.fit_summary());
         if let Some(b) = &self.registered_base {
             let _ = writeln!(
                 out,
@@ -511,12 +559,7 @@ impl ObservationsReport {
             let table = super::calibration::noise_table(noise);
             let _ = write!(out, "\nnoise estimated from the residuals (feasible GLS):\n{table}");
         }
-        super::calibration::write_down_weighted(
-            &mut out,
-            self.loss.as_deref(),
-            &self.down_weighted,
-            "observation",
-        );
+        super::calibration::write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "pose");
         out.push_str(&super::calibration::choices_text(self.prior_scale.as_ref(), self.selection.as_ref()));
         if let Some(cv) = &self.cross_validation {
             let _ = write!(out, "\n{}", cv.text());
@@ -530,6 +573,16 @@ impl ObservationsReport {
         self.write_notes(&mut out);
         out
     }
+}
+
+/// The number of markers of `observations` if every one is a marker's (a position's coordinate
+/// or a probe's orientation), else `None`.
+fn marker_count(observations: &[crate::calibration::kinds::ObservationResidual]) -> Option<usize> {
+    let markers: Option<Vec<usize>> = observations.iter().map(|o| o.marker).collect();
+    let mut markers = markers.filter(|m| !m.is_empty())?;
+    markers.sort_unstable();
+    markers.dedup();
+    Some(markers.len())
 }
 
 /// The first `n` of `items` in the order of `order`, as a stable sort would give them (ties in

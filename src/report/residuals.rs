@@ -348,8 +348,41 @@ fn units_of(sets: &[&ResidualSet]) -> Vec<&'static str> {
         .collect()
 }
 
+/// The panels a signed residual of `kind` is drawn in, in order: a coordinate's axis (`marker
+/// 2 z`, `z`, `camera rx`: `z`, `rx`; `roll`, `pitch`, `yaw`), so that a marker file's
+/// residuals fall into `x`, `y` and `z` panels; any other (a distance, a contact) `residual`.
+const PANELS: [&str; 10] = ["residual", "x", "y", "z", "rx", "ry", "rz", "roll", "pitch", "yaw"];
+
+/// The panel of a signed residual of `kind` ([`PANELS`]).
+fn panel_of(kind: &str) -> &'static str {
+    let axis = kind.rsplit(' ').next().unwrap_or(kind);
+    PANELS.iter().copied().find(|&p| p == axis).unwrap_or(PANELS[0])
+}
+
+/// The panels of `sets` and what each residual is drawn in: signed residuals by component
+/// ([`panel_of`]), each unit's in [`PANELS`]' order; sizes (a view's) one per unit.
+fn panels_of<'a>(sets: &[&ResidualSet], units: &[&'a str], signed: bool) -> Vec<(&'static str, &'a str)> {
+    let size = |u: &str| if u == "mm" { "|position error|" } else { "|rotation error|" };
+    (units.iter())
+        .flat_map(|&u| {
+            let seen = |p: &str| {
+                sets.iter()
+                    .flat_map(|s| &s.residuals)
+                    .any(|r| in_unit(r, u).is_some() && panel_of(&r.kind) == p)
+            };
+            let panels: Vec<(&'static str, &'a str)> = if signed {
+                PANELS.iter().copied().filter(|p| seen(p)).map(|p| (p, u)).collect()
+            } else {
+                vec![(size(u), u)]
+            };
+            panels
+        })
+        .collect()
+}
+
 /// Each residual of `sets` at the last stage against a value of its own (`xs[set][residual]`:
-/// its pose's joint value, a gravity load), a panel per unit, as [`against_figure`] draws it.
+/// its pose's joint value, a gravity load), a panel per component and unit ([`panels_of`]),
+/// as [`against_figure`] draws it.
 fn against_each(
     sets: &[&ResidualSet],
     units: &[&str],
@@ -357,18 +390,16 @@ fn against_each(
     x_label: &str,
 ) -> Result<String, String> {
     let signed = sets.iter().all(|s| s.signed);
-    let components: Vec<(&str, &str)> = (units.iter())
-        .map(|&u| match (signed, u) {
-            (true, _) => ("residual", u),
-            (false, "mm") => ("|position error|", u),
-            _ => ("|rotation error|", u),
-        })
-        .collect();
-    let points = (units.iter())
-        .map(|&u| {
+    let components = panels_of(sets, units, signed);
+    let points = (components.iter())
+        .map(|&(panel, u)| {
+            let drawn = |r: &Residual| !signed || panel_of(&r.kind) == panel;
             (sets.iter().zip(xs))
                 .map(|(s, xs)| {
-                    s.residuals.iter().zip(xs).filter_map(|(r, &x)| Some((x, in_unit(r, u)?.1))).collect()
+                    (s.residuals.iter().zip(xs))
+                        .filter(|(r, _)| drawn(r))
+                        .filter_map(|(r, &x)| Some((x, in_unit(r, u)?.1)))
+                        .collect()
                 })
                 .collect()
         })

@@ -217,9 +217,11 @@ fn calibrate_the_example_report_json_and_model() {
     insta::assert_snapshot!(report);
     let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     assert_eq!(json["parameters"].as_array().unwrap().len(), 30);
-    assert_eq!(json["validation"][0][0], "examples/puma560-validation.csv");
-    let after = json["validation"][0][2]["rms"].as_f64().unwrap();
-    let before = json["validation"][0][1]["rms"].as_f64().unwrap();
+    assert_eq!(json["sets"][1][0], "examples/puma560-validation.csv");
+    let (before, after) = (
+        json["sets"][1][1]["markers"][0].as_f64().unwrap(),
+        json["sets"][1][1]["markers"][1].as_f64().unwrap(),
+    );
     assert!(before / after > 5.0, "held out: {before} mm before, {after} mm after");
     // The calibrated model predicts the held-out marker 1 as well as the report says.
     let calibrated =
@@ -342,34 +344,44 @@ fn the_readme_calibration_example_is_the_real_output() {
         .collect();
     let output = robocal().args(&args).output().unwrap();
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-    let printed = String::from_utf8(output.stdout).unwrap() + &String::from_utf8(output.stderr).unwrap();
+    // As a terminal shows it: the files read (standard error), the report, the files written.
+    let (stdout, stderr) =
+        (String::from_utf8(output.stdout).unwrap(), String::from_utf8(output.stderr).unwrap());
+    let (read, wrote) = stderr.split_at(stderr.find("wrote ").unwrap_or(stderr.len()));
+    let printed = format!("{read}{stdout}{wrote}");
     // The files written, named as the README's command names them.
     let printed = printed.replace(&format!("{}{}", dir.display(), std::path::MAIN_SEPARATOR), "");
     assert_eq!(printed.trim_end(), expected.trim_end(), "regenerate the README example");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// Joint noise alone can leave a pose's covariance singular: an error naming the pose's line
-/// and the remedy, whatever the estimator (OLS scores its poses whitened too), never a panic.
+/// Joint noise alone leaves no pose's covariance singular: the marker coordinates, which give
+/// no sigma, are weighed by the default measurement sigma, and the report says so, whatever
+/// the estimator.
 #[test]
-fn joint_noise_alone_is_an_error_naming_the_line_not_a_panic() {
-    for estimator in ["ols", "wls"] {
-        let message = stderr_of(&[
-            "calibrate",
-            "--model",
-            "puma560",
-            "--data",
-            "examples/puma560-measurements.csv",
-            "--estimator",
-            estimator,
-            "--joint-sigma-deg",
-            "0.007,0.007,0.007,0.002,0.002,0.002",
-        ]);
-        assert!(
-            message.contains("the covariance V_k of the pose at line 3 is not positive definite"),
-            "{message}"
-        );
-        assert!(message.contains("--sigma-mm above 0"), "{message}");
+fn joint_noise_alone_weighs_the_markers_by_the_default_sigma_and_says_so() {
+    for (estimator, said) in [
+        ("ols", "600 of 600 observations gave no sigma: ols weighs every row alike"),
+        ("wls", "600 of 600 observations gave no sigma: weighed by the defaults, 0.01 mm"),
+    ] {
+        let output = robocal()
+            .args([
+                "calibrate",
+                "--model",
+                "puma560",
+                "--data",
+                "examples/puma560-measurements.csv",
+                "--estimator",
+                estimator,
+                "--joint-sigma-deg",
+                "0.007,0.007,0.007,0.002,0.002,0.002",
+            ])
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let text = String::from_utf8(output.stdout).unwrap();
+        assert!(text.contains(&format!("100 poses, 2 markers, {estimator} (")), "{text}");
+        assert!(text.contains(said), "{text}");
     }
 }
 
@@ -384,7 +396,7 @@ fn markers_chosen_with_positions_for_every_marker_of_the_file() {
     assert!(String::from_utf8(output.stdout).unwrap().contains("100 poses, 1 marker,"));
     let message = stderr_of(&[&example[..], &["--marker=1,2,3"]].concat());
     assert!(
-        message.contains("3 --marker given, examples/puma560-measurements.csv has 2 markers"),
+        message.contains("3 --marker given, the files (examples/puma560-measurements.csv) have 2 markers"),
         "{message}"
     );
 }

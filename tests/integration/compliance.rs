@@ -272,10 +272,10 @@ fn calibrate_with_a_payload_writes_the_robot_without_it() {
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("calibrated.toml");
     let own = robocal::io::load_model(&robocal::model::ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
-    // A marker file; two marker files, fitted as observations (they wrote the session's payload).
+    // One marker file and two (they wrote the session's payload).
     for (data, fitted) in [
         (&[][..], "37 poses, 3 markers"),
-        (&["--data", "examples/arm7/session1.csv"][..], "observations at 97 poses"),
+        (&["--data", "examples/arm7/session1.csv"][..], "97 poses, 3 markers"),
     ] {
         let output = assert_cmd::Command::cargo_bin("robocal")
             .unwrap()

@@ -409,23 +409,17 @@ fn the_readme_classes_example_is_the_real_output() {
     );
 }
 
-/// `--prior auto-ml` on observation files without the noise takes it, as a marker file does,
-/// from the residuals' spread of the fit without priors: the example's marker file through the
-/// observation fit (`--tool` sends it there) takes the marker calibration's spread (1e-9) and
-/// chooses its scale; with a sigma column given (a ball bar's) the noise is as given.
+/// `--prior auto-ml` without the noise takes it from the residuals' spread of the fit without
+/// priors: on the example's marker file, the spread by which ordinary least squares without a
+/// prior scales its covariance (`variance_factor`, per the default 0.01 mm sigma), to 1e-9;
+/// with a sigma column given (a ball bar's) the noise is as given.
 #[test]
-fn observation_files_take_the_spread_without_the_noise_as_a_marker_file_does() {
-    let (_, markers) = super::nested::calibrate_puma(&["--prior", "auto-ml:machined"]);
-    let (text, kinds) = super::nested::calibrate_puma(&["--prior", "auto-ml:machined", "--tool", "0,0,0"]);
-    assert!(text.contains("observations at 100 poses"), "the observation fit: {text}");
-    let spread = |r: &serde_json::Value| r["prior_scale"]["noise_spread"].as_f64().expect("noise_spread");
-    assert!(
-        (spread(&kinds) / spread(&markers) - 1.0).abs() < 1e-9,
-        "{} {}",
-        spread(&kinds),
-        spread(&markers)
-    );
-    assert_eq!(kinds["prior_scale"]["chosen"], markers["prior_scale"]["chosen"]);
+fn without_the_noise_auto_ml_takes_the_spread_of_the_fit_without_priors() {
+    let (_, scaled) = super::nested::calibrate_puma(&["--prior", "auto-ml:machined"]);
+    let (_, plain) = super::nested::calibrate_puma(&[]);
+    let spread = scaled["prior_scale"]["noise_spread"].as_f64().expect("noise_spread");
+    let factor = plain["variance_factor"].as_f64().expect("the residuals' variance of unit weight");
+    assert!((spread / (factor.sqrt() * 0.01) - 1.0).abs() < 1e-9, "{spread} mm, {factor}");
     let (_, given) = super::nested::calibrate_puma(&[
         "--prior",
         "auto-ml:machined",

@@ -199,7 +199,7 @@ fn calibrate_reads_a_noise_file_with_a_device() {
 /// exactly but for the joints' noise leaves its measurement sigmas at about 0, where their
 /// estimates swing from one re-weighting to the next by more than the tolerance (a hundredth
 /// of their standard error); the warning names each component still moving, by how much, and
-/// that the data barely determine it. The same through the marker path and the observation fit.
+/// that the data barely determine it.
 #[test]
 fn fgls_that_does_not_settle_names_the_components_still_moving() {
     let mut rng = ChaCha8Rng::seed_from_u64(69);
@@ -213,7 +213,8 @@ fn fgls_that_does_not_settle_names_the_components_still_moving() {
     std::fs::create_dir_all(&dir).unwrap();
     let (data, json) = (dir.join("probe.csv"), dir.join("report.json"));
     std::fs::write(&data, crate::calibration::probe_csv(&nominal, &real, 80, &sigmas, &mut rng)).unwrap();
-    for (route, class) in [(&[][..], "sigma_me"), (&["--tool", "0,0,0"][..], "sigma_marker")] {
+    {
+        let class = "sigma_marker";
         let output = assert_cmd::Command::cargo_bin("robocal")
             .unwrap()
             .args([
@@ -229,7 +230,6 @@ fn fgls_that_does_not_settle_names_the_components_still_moving() {
             .arg(&data)
             .arg("--json")
             .arg(&json)
-            .args(route)
             .output()
             .unwrap();
         assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));

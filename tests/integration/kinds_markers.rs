@@ -865,11 +865,12 @@ fn a_marker_file_with_an_occlusion_is_read_cell_by_cell() {
         ])
         .output()
         .unwrap();
-    let report = String::from_utf8(out.stdout).unwrap();
-    assert!(out.status.success(), "{report}{}", String::from_utf8_lossy(&out.stderr));
+    let (report, stderr) = (String::from_utf8(out.stdout).unwrap(), String::from_utf8(out.stderr).unwrap());
+    assert!(out.status.success(), "{report}{stderr}");
     let (poses, markers) = (text.lines().count() - 2, 2);
     let cells = 3 * markers * poses - 3 * (0..text.lines().count()).filter(|i| i % 7 == 3).count();
-    assert!(report.contains(&format!("{cells} observations at {poses} poses")), "{report}");
+    assert!(stderr.contains(&format!("read {cells} marker coordinates at {poses} poses")), "{stderr}");
+    assert!(report.contains(&format!("{poses} poses, 2 markers")), "{report}");
     let held_out = report.lines().find(|l| l.starts_with("examples/puma560-validation.csv markers")).unwrap();
     let after = crate::verdict_rms(held_out).1;
     assert!(after < 0.15, "held-out markers after: {held_out}");
@@ -1300,13 +1301,11 @@ fn the_report_says_how_rows_without_a_sigma_are_weighed() {
     assert!(ols.starts_with("600 of 750 observations gave no sigma: ols weighs every row alike"), "{ols}");
 }
 
-/// The observation report's verdict gives a marker file what the marker report's gives it: the
-/// markers' row (their positions, a marker at a pose) has the marker report's RMS and largest
-/// error before -> after, cell for cell, and flags the position a 3 mm slip moved where the
-/// marker report flags its pose; a group's row (the ball bar's) its observations' count,
-/// largest residual and flags, as the JSON's observations give them.
+/// The verdict of a marker file flags the position a 3 mm slip moved, one of the 200, in its
+/// marker's row only; a group's row (the ball bar's) has its observations' count, largest
+/// residual and flags, as the JSON's observations give them.
 #[test]
-fn the_verdict_gives_a_marker_file_the_marker_reports_figures() {
+fn the_verdict_flags_a_slipped_markers_position_and_a_groups_row_is_its_observations() {
     let dir = std::env::temp_dir().join(format!("robocal-kinds-verdict-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let example = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
@@ -1335,16 +1334,17 @@ fn the_verdict_gives_a_marker_file_the_marker_reports_figures() {
         let row = text.lines().find(|l| l.starts_with(start)).unwrap_or_else(|| panic!("{start}: {text}"));
         row.split_whitespace().map(String::from).collect()
     };
-    let marker_report = run(&[]);
-    let observations =
-        run(&["--tool", "0,0,0", "--data", "examples/puma560-ballbar.csv", "--json", json.to_str().unwrap()]);
-    let alone = run(&["--tool", "0,0,0"]);
-    let (m, k) =
-        (cells_of(&marker_report, "training (fitted, in-sample)"), cells_of(&alone, "training markers (mm)"));
-    // training (fitted, in-sample) 100 b -> a mm b -> a mm 1 of 100; training markers (mm) 200 ...
-    assert_eq!(m[4..12], k[4..12], "{marker_report}\n{alone}");
-    assert_eq!((m[12].as_str(), m[14].as_str()), ("1", "100"), "{marker_report}");
-    assert_eq!((k[12].as_str(), k[14].as_str()), ("1", "200"), "{alone}");
+    let observations = run(&["--data", "examples/puma560-ballbar.csv", "--json", json.to_str().unwrap()]);
+    let alone = run(&[]);
+    // training markers (mm) 200 b -> a mm b -> a mm 1 of 200: the slipped marker's pose, one
+    // position of the 200, flagged, and in marker 1's row, not marker 2's.
+    let flagged = |start: &str| {
+        let k = cells_of(&alone, start);
+        (k[k.len() - 3].clone(), k[k.len() - 1].clone())
+    };
+    assert_eq!(flagged("training markers (mm)"), ("1".into(), "200".into()), "{alone}");
+    assert_eq!(flagged("training marker 1 (mm)"), ("1".into(), "100".into()), "{alone}");
+    assert_eq!(flagged("training marker 2 (mm)"), ("0".into(), "100".into()), "{alone}");
     // The ball bar's row against its observations in the JSON.
     let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let training = &report["sets"][0][1];
@@ -1390,8 +1390,7 @@ fn the_verdict_in_the_json_is_the_texts_table() {
 }
 
 /// With nothing to estimate (`--params none`, the base and the markers fixed, no set-up) the
-/// observation fit scores the model as it stands, as a marker file's calibration does: the same
-/// markers' RMS and largest error, before and after alike, no step taken.
+/// model is scored as it stands, and said so: before and after alike, no step taken.
 #[test]
 fn with_nothing_to_estimate_the_model_is_scored_as_it_stands() {
     let run = |extra: &[&str]| {
@@ -1406,21 +1405,15 @@ fn with_nothing_to_estimate_the_model_is_scored_as_it_stands() {
         assert!(output.status.success(), "{extra:?}: {}", String::from_utf8_lossy(&output.stderr));
         String::from_utf8(output.stdout).unwrap()
     };
-    // `--tool` sends the file to the observation fit; no observation measures the tool point.
-    // No noise is given: ordinary least squares, as the marker file's calibration.
-    let (markers, observations) = (run(&[]), run(&["--tool", "0,0,0"]));
-    assert!(
-        observations.contains("600 observations at 100 poses, ols (0 steps, converged)"),
-        "{observations}"
-    );
-    let cells = |text: &str, start: &str| -> Vec<String> {
-        let row = text.lines().find(|l| l.starts_with(start)).unwrap_or_else(|| panic!("{start}: {text}"));
-        row.split_whitespace().map(String::from).collect()
-    };
-    let (m, k) =
-        (cells(&markers, "training (fitted, in-sample)"), cells(&observations, "training markers (mm)"));
-    assert_eq!(m[4..12], k[4..12], "{markers}\n{observations}");
-    assert_eq!(k[4], k[6], "before and after alike: {observations}");
+    // No noise is given: ordinary least squares.
+    let text = run(&[]);
+    assert!(text.contains("100 poses, 2 markers, ols (0 steps, converged)"), "{text}");
+    assert!(text.contains("nothing estimated: the model is scored as it stands"), "{text}");
+    let row =
+        text.lines().find(|l| l.starts_with("training markers (mm)")).unwrap_or_else(|| panic!("{text}"));
+    let k: Vec<&str> = row.split_whitespace().collect();
+    // training markers (mm) 200 b -> a mm b -> a mm 0 of 200
+    assert_eq!((k[4], k[8]), (k[6], k[10]), "before and after alike: {text}");
 }
 
 /// Without any noise (no sigma column, no sigma flag, the joints exact) the observation fit is
@@ -1450,7 +1443,7 @@ fn a_weighted_estimator_needs_a_noise_and_without_one_the_fit_is_ols() {
         assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
         String::from_utf8(output.stdout).unwrap().lines().next().unwrap().to_string()
     };
-    assert!(header(run(&markers, &[])).ends_with("600 observations at 100 poses, ols (3 steps, converged)"));
+    assert!(header(run(&markers, &[])).ends_with("100 poses, 2 markers, ols (3 steps, converged)"));
     let with_sigmas = ["examples/puma560-ballbar.csv"];
     assert!(header(run(&with_sigmas, &[])).contains(", wls ("), "the ball bar's sigma column");
     assert!(header(run(&with_sigmas, &["--estimator", "wls"])).contains(", wls ("));

@@ -155,7 +155,7 @@ fn the_report_says_nested_and_a_validation_file_chooses_nothing() {
     let json = dir.join("report.json");
     let select = ["--params", "joints", "--select", "bic", "--folds", "5"];
     let (text, report) = calibrate_arm7(&select, &json);
-    assert!(text.contains("\n5-fold cross-validation, nested, after "), "{text}");
+    assert!(text.contains("\n5-fold cross-validation, nested markers (mm) "), "{text}");
     assert!(text.contains(
         "5-fold cross-validation, nested: --select bic made again inside each fold (the folds chose"
     ));
@@ -174,7 +174,7 @@ fn the_report_says_nested_and_a_validation_file_chooses_nothing() {
     assert_eq!(validated["cross_validation"], report["cross_validation"]);
 
     let (text, report) = calibrate_arm7(&["--params", "offsets", "--folds", "5"], &json);
-    assert!(text.contains("\n5-fold cross-validation, after "), "{text}");
+    assert!(text.contains("\n5-fold cross-validation markers (mm) "), "{text}");
     assert!(text.contains("5-fold cross-validation: nothing is chosen from the data"), "{text}");
     assert_eq!(report["cross_validation"]["nested"], false);
     let (text, report) = calibrate_arm7(&["--params", "offsets", "--folds", "5", "--loss", "huber"], &json);

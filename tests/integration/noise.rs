@@ -334,7 +334,7 @@ fn a_noise_files_covariances_follow_the_poses_into_each_fold() {
             let row = text.lines().find(|l| l.starts_with(label))?;
             row.split_whitespace().skip_while(|w| *w != "->").nth(1)?.parse().ok()
         };
-        let held_out = after("examples/puma560-validation.csv (held out)").expect("the held-out row");
+        let held_out = after("examples/puma560-validation.csv markers (mm)").expect("the held-out row");
         if let Some(folds) = after("2-fold cross-validation").or(after("3-fold cross-validation")) {
             assert!(
                 (folds - held_out).abs() < 0.25 * held_out,

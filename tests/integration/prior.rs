@@ -278,7 +278,7 @@ fn priors_anchor_what_too_few_poses_cannot() {
     let with_prior = [&markers[..], &["--prior", "fabricated"]].concat();
     let (code, text, stderr) = on_few_poses(file, 5, validation, &with_prior);
     assert_eq!(code, Some(0), "{stderr}");
-    let (before, after) = held_out_rms(&text, "examples/puma560-validation.csv (held out)", 1);
+    let (before, after) = held_out_rms(&text, "examples/puma560-validation.csv markers (mm)", 1);
     assert!(after < 0.5 * before, "held out {before} -> {after} mm\n{text}");
 
     let ball_bar = ["--tool", "50,0,150", "--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002"];

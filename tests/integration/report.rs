@@ -7,6 +7,7 @@ use assert_cmd::Command;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use robocal::model::{RobotModel, Tool};
 use serde_json::Value;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 fn robocal() -> Command {
@@ -64,7 +65,7 @@ fn literal_position(model: &RobotModel, q: &[f64], marker: &Vector3<f64>) -> Vec
     t.transform_point(&(*marker).into()).coords
 }
 
-/// The errors `[stage][marker]` of pose `k` of set `s` in a JSON report.
+/// The errors `[stage][marker]` of pose `k` of set `s` in `evaluate`'s JSON report.
 fn pose_errors(report: &Value, s: usize, k: usize, stage: usize) -> Vec<Vector3<f64>> {
     report["sets"][s]["poses"][k]["errors"][stage]
         .as_array()
@@ -72,6 +73,34 @@ fn pose_errors(report: &Value, s: usize, k: usize, stage: usize) -> Vec<Vector3<
         .iter()
         .map(|e| Vector3::new(e[0].as_f64().unwrap(), e[1].as_f64().unwrap(), e[2].as_f64().unwrap()))
         .collect()
+}
+
+/// Each marker's position error (measured - predicted, mm) at `stage` (`before`, `after`) in
+/// set `s` of `calibrate`'s JSON report, from its observations, by line and marker number.
+fn calibrated_errors(report: &Value, s: usize, stage: &str) -> BTreeMap<(u64, u64), Vector3<f64>> {
+    let mut errors = BTreeMap::new();
+    for o in report["sets"][s][1]["observations"].as_array().unwrap() {
+        let Some(axis) = o["kind"].as_str().unwrap().strip_prefix("marker ") else { continue };
+        let axis = ["x", "y", "z"].iter().position(|a| *a == axis).unwrap();
+        let key = (o["line"].as_u64().unwrap(), o["marker"].as_u64().unwrap());
+        errors.entry(key).or_insert_with(Vector3::zeros)[axis] = o[stage].as_f64().unwrap();
+    }
+    errors
+}
+
+/// Each marker's position error in set `s` of `evaluate`'s JSON report, by line and marker
+/// number, as [`calibrated_errors`] gives `calibrate`'s.
+fn evaluated_errors(report: &Value, s: usize) -> BTreeMap<(u64, u64), Vector3<f64>> {
+    let ids: Vec<u64> =
+        report["sets"][s]["marker_ids"].as_array().unwrap().iter().map(|m| m.as_u64().unwrap()).collect();
+    let poses = report["sets"][s]["poses"].as_array().unwrap();
+    let mut errors = BTreeMap::new();
+    for (k, pose) in poses.iter().enumerate() {
+        for (id, e) in ids.iter().zip(pose_errors(report, s, k, 0)) {
+            errors.insert((pose["line"].as_u64().unwrap(), *id), e);
+        }
+    }
+    errors
 }
 
 /// `calibrate`'s own report is snapshot-tested in `cli.rs` (and is the README's example); this
@@ -103,14 +132,13 @@ fn json_errors_per_pose_are_the_written_models_forward_kinematics() {
         ["examples/puma560-measurements.csv", "examples/puma560-validation.csv"].iter().enumerate()
     {
         let data = robocal::io::load_measurements(Path::new(file), &model, None).unwrap();
-        assert_eq!(report["sets"][s]["poses"].as_array().unwrap().len(), data.len());
+        let errors = calibrated_errors(&report, s, "after");
+        assert_eq!(errors.len(), 2 * data.len());
         let mut worst = 0.0f64;
         for k in 0..data.len() {
-            assert_eq!(report["sets"][s]["poses"][k]["line"].as_u64().unwrap() as usize, data.lines[k]);
-            let after = pose_errors(&report, s, k, 1);
-            for (m, (_, marker)) in markers.iter().enumerate() {
+            for (m, (id, marker)) in markers.iter().enumerate() {
                 let expected = data.markers[k][m] - literal_position(&model, &data.joints[k], marker);
-                worst = worst.max((after[m] - expected).norm());
+                worst = worst.max((errors[&(data.lines[k] as u64, *id as u64)] - expected).norm());
             }
         }
         assert!(worst < 1e-9, "{file}: the report and the written model differ by {worst} mm");
@@ -136,10 +164,8 @@ fn evaluate_reproduces_calibrates_validation_from_the_written_toml_and_urdf() {
     assert!(text.contains("examples/puma560-validation.csv, model"), "{text}");
     let scored = json(&scored);
     assert_same_errors(&calibrated, 1, &scored, 0);
-    for key in ["mean", "rms", "max"] {
-        let (a, b) = (&calibrated["sets"][1]["pooled"][1][key], &scored["sets"][0]["pooled"][0][key]);
-        assert!((a.as_f64().unwrap() - b.as_f64().unwrap()).abs() < 1e-9, "{key}: {a} and {b}");
-    }
+    let (a, b) = (&calibrated["sets"][1][1]["markers"][1], &scored["sets"][0]["pooled"][0]["rms"]);
+    assert!((a.as_f64().unwrap() - b.as_f64().unwrap()).abs() < 1e-9, "rms: {a} and {b}");
 
     // The same from a URDF robot written back by --out-urdf, its markers as links.
     let (urdf, data, out) = (dir.join("arm.urdf"), dir.join("arm.csv"), dir.join("calibrated.urdf"));
@@ -198,16 +224,12 @@ fn evaluate_reproduces_calibrates_validation_from_the_written_toml_and_urdf() {
     assert_same_errors(&json(&report), 1, &json(&scored), 0);
 }
 
-/// Every pose's errors "after" in set `a` of `calibrated` equal set `b` of `scored`, to 1e-9 mm.
+/// Every marker position's error "after" in set `a` of `calibrated` equals set `b` of `scored`'s,
+/// to 1e-9 mm.
 fn assert_same_errors(calibrated: &Value, a: usize, scored: &Value, b: usize) {
-    let poses = calibrated["sets"][a]["poses"].as_array().unwrap().len();
-    assert_eq!(poses, scored["sets"][b]["poses"].as_array().unwrap().len());
-    let mut worst = 0.0f64;
-    for k in 0..poses {
-        for (x, y) in pose_errors(calibrated, a, k, 1).iter().zip(pose_errors(scored, b, k, 0)) {
-            worst = worst.max((x - y).norm());
-        }
-    }
+    let (x, y) = (calibrated_errors(calibrated, a, "after"), evaluated_errors(scored, b));
+    assert_eq!(x.keys().collect::<Vec<_>>(), y.keys().collect::<Vec<_>>(), "the same poses and markers");
+    let worst = x.iter().map(|(key, e)| (e - y[key]).norm()).fold(0.0, f64::max);
     assert!(worst < 1e-9, "evaluate differs from calibrate by {worst} mm");
 }
 
@@ -221,26 +243,17 @@ fn the_before_numbers_do_not_depend_on_the_estimator() {
         reports.push(json(&path));
     }
     for r in &reports[1..] {
-        assert_eq!(r["training"][0], reports[0]["training"][0], "training, before");
-        assert_eq!(r["validation"][0][1], reports[0]["validation"][0][1], "held out, before");
         for s in 0..2 {
-            for k in 0..reports[0]["sets"][s]["poses"].as_array().unwrap().len() {
-                assert_eq!(
-                    r["sets"][s]["poses"][k]["errors"][0],
-                    reports[0]["sets"][s]["poses"][k]["errors"][0]
-                );
-            }
+            assert_eq!(
+                r["sets"][s][1]["markers"][0], reports[0]["sets"][s][1]["markers"][0],
+                "set {s}, before"
+            );
+            assert_eq!(calibrated_errors(r, s, "before"), calibrated_errors(&reports[0], s, "before"));
         }
     }
-    assert_ne!(reports[1]["training"][1], reports[0]["training"][1], "after does depend on it");
-    assert!(reports[1]["weighting"]["before"].as_str().unwrap().contains("ols"));
-}
-
-#[test]
-fn params_none_with_fixed_base_and_markers_scores_the_model() {
-    let text = calibrate(&["--params", "none", "--fixed-base", "--fixed-markers"]);
-    assert!(text.contains("nothing estimated: the model is scored as it stands"), "{text}");
-    assert!(text.contains("training, after"), "{text}");
+    let after = |r: &Value| r["sets"][0][1]["markers"][1].as_f64().unwrap();
+    assert_ne!(after(&reports[1]), after(&reports[0]), "after does depend on it");
+    assert!(reports[1]["fits"]["before"].as_str().unwrap().contains("ols"));
 }
 
 #[test]
@@ -278,26 +291,22 @@ fn markers_chosen_by_the_user_fit_and_score_a_subset() {
     );
     let report = json(&report);
     for s in 0..3 {
-        assert_eq!(report["sets"][s]["marker_ids"], serde_json::json!([2]), "set {s}");
+        let positions = report["sets"][s][1]["positions"].as_array().unwrap();
+        assert_eq!(positions.len(), [100, 50, 50][s], "set {s}");
+        assert!(positions.iter().all(|p| p["marker"] == 2), "set {s}: marker 2 alone");
     }
     // Marker 2 of the full held-out file and the file with marker 2 alone score the same.
-    assert_eq!(report["sets"][1]["pooled"], report["sets"][2]["pooled"]);
+    assert_eq!(report["sets"][1][1]["markers"], report["sets"][2][1]["markers"]);
     // Fitted on both markers, a file with marker 2 alone is scored on marker 2.
     let both = dir.join("both.json");
     calibrate(&["--validate", held_out.to_str().unwrap(), "--json", both.to_str().unwrap()]);
     let both = json(&both);
-    assert_eq!(both["sets"][2]["marker_ids"], serde_json::json!([2]));
-    assert_eq!(both["sets"][2]["pooled"], both["sets"][1]["per_marker"][1]);
+    assert!(both["sets"][2][1]["positions"].as_array().unwrap().iter().all(|p| p["marker"] == 2));
+    assert_eq!(both["sets"][2][1]["markers"], both["sets"][1][1]["by_marker"][1]["rms"]);
 }
 
 #[test]
-fn several_held_out_files_are_pooled_too() {
-    let text = calibrate(&["--validate", "examples/puma560-validation.csv"]);
-    assert!(text.contains("held out, pooled, after"), "{text}");
-}
-
-#[test]
-fn poses_csv_has_a_row_per_pose_and_marker() {
+fn poses_csv_has_a_row_per_marker_coordinate() {
     let dir = scratch("csv");
     let csv = dir.join("poses.csv");
     calibrate(&["--poses-csv", csv.to_str().unwrap()]);
@@ -305,14 +314,18 @@ fn poses_csv_has_a_row_per_pose_and_marker() {
     let mut lines = text.lines();
     let header = lines.next().unwrap();
     assert!(
-        header.starts_with("set,line,j1_deg,") && header.contains("before_mm") && header.ends_with("flagged")
+        header.starts_with("set,file,line,kind,pose,pose_b,j1_deg,")
+            && header.contains("before_mm,after_mm")
+            && header.ends_with("whitened,flagged"),
+        "{header}"
     );
-    assert_eq!(lines.count(), 2 * 100 + 2 * 50);
+    // A row per marker coordinate: 3 of each of 2 markers at 100 and 50 poses.
+    assert_eq!(lines.count(), 3 * 2 * (100 + 50));
 }
 
-/// The page leads with the verdict as a card, has a table per set, every figure inline with a
-/// caption that says what to look for, the combinations held and every pose in collapsible
-/// sections, and refers to nothing outside itself.
+/// The page leads with the verdict as a card, has every figure inline with a caption that says
+/// what to look for, the combinations held and every observation in collapsible sections, and
+/// refers to nothing outside itself.
 #[test]
 fn the_page_is_one_well_formed_file_with_every_table_and_figure() {
     let dir = scratch("html");
@@ -324,12 +337,15 @@ fn the_page_is_one_well_formed_file_with_every_table_and_figure() {
     let body = document.descendants().find(|n| n.has_tag_name("body")).unwrap();
     let sections: Vec<&str> =
         body.children().filter(|n| n.has_tag_name("section")).filter_map(|n| n.attribute("id")).collect();
-    assert_eq!(sections, ["summary", "parameters", "held", "errors", "figures", "poses", "warnings"]);
+    assert_eq!(sections, ["summary", "parameters", "held", "figures", "poses", "warnings", "report"]);
     let summary = body.children().find(|n| n.attribute("id") == Some("summary")).unwrap();
     assert_eq!(summary.attribute("class"), Some("card"));
     let verdict = summary.descendants().find(|n| n.has_tag_name("table")).expect("the verdict's table");
-    let verdict_text: String = verdict.descendants().filter_map(|n| n.text()).collect();
-    assert!(verdict_text.contains("examples/puma560-validation.csv") && verdict_text.contains("held out"));
+    let card: String = summary.descendants().filter_map(|n| n.text()).collect();
+    assert!(
+        card.contains("RMS after calibration on examples/puma560-validation.csv markers (held out)"),
+        "{card}"
+    );
     let mut names: Vec<String> = std::fs::read_dir(&figures)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -348,20 +364,26 @@ fn the_page_is_one_well_formed_file_with_every_table_and_figure() {
         let svg = std::fs::read_to_string(figures.join(name)).unwrap();
         assert!(svg.contains("<svg"), "{name}");
     }
-    // A table per set (pooled and per marker), the parameters with their intervals drawn.
+    // The verdict's rows: each set's markers and each marker, the parameters with their
+    // intervals drawn, every observation of each set in a table.
     let tables: Vec<roxmltree::Node> = document.descendants().filter(|n| n.has_tag_name("table")).collect();
+    assert_eq!(
+        verdict.descendants().filter(|n| n.has_tag_name("tr")).count(),
+        1 + 2 * 3,
+        "a head, 3 rows a set"
+    );
     for set in ["training", "examples/puma560-validation.csv"] {
         let table = tables
             .iter()
-            .find(|t| t.attribute("data-set") == Some(set) && t.attribute("class") == Some("set small"));
+            .find(|t| t.attribute("data-set") == Some(set) && t.attribute("class") == Some("poses"));
         let rows = table
             .unwrap_or_else(|| panic!("a table of {set}"))
             .descendants()
             .filter(|n| n.has_tag_name("tr"));
         assert_eq!(
             rows.count(),
-            1 + 2 * 3,
-            "{set}: a head, before and after for every marker, marker 1, marker 2"
+            1 + if set == "training" { 600 } else { 300 },
+            "{set}: a head, a row per observation"
         );
     }
     let parameters = tables.iter().find(|t| t.attribute("class") == Some("parameters")).unwrap();
@@ -381,7 +403,7 @@ fn the_page_is_one_well_formed_file_with_every_table_and_figure() {
     if let Some(output) = browser {
         let dom = String::from_utf8_lossy(&output.stdout);
         assert_eq!(dom.matches("<svg").count(), names.len() + 30, "the browser sees every figure and bar");
-        assert!(dom.contains("worst poses"), "and the tables");
+        assert!(dom.contains("Every observation"), "and the tables");
     }
 }
 
@@ -402,8 +424,12 @@ fn documented_keys() -> Vec<(String, bool)> {
         .collect()
 }
 
-/// Whether `path` (`a.b[].c`) names something in `json` (in some element of an array).
+/// Whether `path` (`a.b[].c`) names something in `json` (in some element of an array; in a
+/// `[name, value]` pair, as `sets` holds its scores, in the value).
 fn has(json: &Value, path: &str) -> bool {
+    if let Some([Value::String(_), value]) = json.as_array().map(Vec::as_slice) {
+        return has(value, path);
+    }
     match path.split_once('.') {
         None => match path.strip_suffix("[]") {
             Some(key) => json.get(key).is_some_and(Value::is_array),
@@ -418,13 +444,14 @@ fn has(json: &Value, path: &str) -> bool {
     }
 }
 
-/// The JSON of a calibration is schema 2: every key it writes is documented, in the documented
-/// order, the verdict first; every key documented is in real output (a probe's and `--prior
-/// auto`'s in their own tests); the verdict's numbers are the tables'.
+/// The JSON of a calibration is schema 3: every key it writes is documented, in the documented
+/// order, the verdict first; every key documented is in real output (those of a probe, of
+/// several groups, of sessions and of `--prior auto` in their own tests); the verdict's numbers
+/// are the sets' scores.
 #[test]
 fn the_json_schema_is_documented_and_every_documented_key_is_real() {
     let dir = scratch("schema");
-    let (a, b) = (dir.join("a.json"), dir.join("b.json"));
+    let (a, b, c) = (dir.join("a.json"), dir.join("b.json"), dir.join("c.json"));
     // The README's file with marker 1 of line 10 moved by 20 mm: an outlier a robust loss
     // weighs down.
     let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
@@ -448,20 +475,18 @@ fn the_json_schema_is_documented_and_every_documented_key_is_real() {
     run(&args);
     let arm7 = ["--params", "joint*.theta,joint*.compliance", "--estimator", "fgls"];
     super::nested::calibrate_arm7(&arm7, &b);
+    // Without any noise: ordinary least squares, scaled by the residuals' spread.
+    calibrate(&["--json", c.to_str().unwrap()]);
     let documented = documented_keys();
     let top: Vec<&str> = documented.iter().map(|(k, _)| k.as_str()).filter(|k| !k.contains('.')).collect();
     assert_eq!(&top[..2], ["schema", "verdict"]);
-    // A probe's keys are checked by calibration.rs's probe test, `--prior auto`'s by nested.rs.
-    let elsewhere = [
-        "tip_frame",
-        "verdict.sets[].orientation_rms_deg",
-        "verdict.sets[].orientation_max_deg",
-        "prior_scale",
-    ];
+    // A probe's angles: kinds_markers.rs; groups: its verdict test; sessions: kinds.rs's
+    // per-session tests; `--prior auto`: nested.rs.
+    let elsewhere = ["sets[].angles", "sets[].by_group", "sets[].sessions", "prior_scale"];
     let reports: Vec<(String, Value)> =
-        [&a, &b].iter().map(|p| (std::fs::read_to_string(p).unwrap(), json(p))).collect();
+        [&a, &b, &c].iter().map(|p| (std::fs::read_to_string(p).unwrap(), json(p))).collect();
     for (text, report) in &reports {
-        assert_eq!(report["schema"], 2);
+        assert_eq!(report["schema"], 3);
         // Every top-level key documented, in the documented order.
         let keys: Vec<&String> = report.as_object().unwrap().keys().collect();
         for key in &keys {
@@ -479,15 +504,17 @@ fn the_json_schema_is_documented_and_every_documented_key_is_real() {
     for (key, _) in documented.iter().filter(|(k, _)| !elsewhere.contains(&k.as_str())) {
         assert!(reports.iter().any(|(_, r)| has(r, key)), "`{key}` documented, in no real output");
     }
-    // The verdict's numbers are the error tables'.
+    // The verdict's numbers are the sets' scores.
     let report = &reports[0].1;
-    let sets = report["verdict"]["sets"].as_array().unwrap();
-    let roles: Vec<&str> = sets.iter().map(|s| s["role"].as_str().unwrap()).collect();
-    assert_eq!(roles, ["training", "held_out", "held_out", "pooled", "cross_validation"]);
-    assert_eq!(sets[0]["rms_mm"][1], report["training"][1]["rms"]);
-    assert_eq!(sets[1]["max_mm"][0], report["validation"][0][1]["max"]);
-    assert_eq!(sets[4]["rms_mm"][1], report["validation"][2][2]["rms"]);
-    assert_eq!(sets[3]["poses"], 100);
+    let sets = report["sets"].as_array().unwrap();
+    let names: Vec<&str> = sets.iter().map(|s| s[0].as_str().unwrap()).collect();
+    assert_eq!(names, ["training", validation, validation, "2-fold cross-validation, nested"]);
+    let rows = report["verdict"].as_array().unwrap();
+    for (name, score) in sets.iter().map(|s| (&s[0], &s[1])) {
+        let row = rows.iter().find(|r| r["set"] == *name && r["quantity"] == "markers").expect("a row");
+        assert_eq!(row["rms"], score["markers"], "{name}");
+        assert_eq!(row["count"].as_u64().unwrap() as usize, score["positions"].as_array().unwrap().len());
+    }
 }
 
 #[test]

@@ -426,11 +426,12 @@ fn the_folds_rows_are_each_observation_held_out_in_its_fold() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// A marker file's `--folds K`: each training pose's markers once more in `--poses-csv`, held
-/// out in its fold, in the file's order (its line and joint values the training row's), their
-/// RMS the verdict's cross-validation row, before and after; the figures draw them as a set.
+/// A marker file's `--folds K`: each training coordinate once more in `--poses-csv`, held out
+/// in its fold, in the file's order (its line, kind and joint values the training row's); the
+/// verdict's cross-validation row is their positions' RMS (`sqrt(3)` times the coordinates'
+/// RMS, every coordinate measured), before and after; the figures draw them as a set.
 #[test]
-fn a_marker_files_folds_rows_are_each_pose_held_out_in_its_fold() {
+fn a_marker_files_folds_rows_are_each_coordinate_held_out_in_its_fold() {
     let dir = scratch("marker-folds-rows");
     let (poses, report, folder) = (dir.join("poses.csv"), dir.join("report.json"), dir.join("figures"));
     let data = "examples/puma560-measurements.csv";
@@ -442,19 +443,21 @@ fn a_marker_files_folds_rows_are_each_pose_held_out_in_its_fold() {
     let (_, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
     let training: Vec<_> = rows.iter().filter(|r| r["set"] == "training").collect();
     let folds: Vec<_> = rows.iter().filter(|r| r["set"] == "3-fold cross-validation").collect();
-    assert_eq!((training.len(), folds.len()), (200, 200), "100 poses, 2 markers");
+    assert_eq!((training.len(), folds.len()), (600, 600), "100 poses, 2 markers, 3 coordinates");
     for (t, f) in training.iter().zip(&folds) {
-        assert_eq!((&t["line"], &t["marker"], &t["j2_deg"]), (&f["line"], &f["marker"], &f["j2_deg"]));
+        assert_eq!((&t["line"], &t["kind"], &t["j2_deg"]), (&f["line"], &f["kind"], &f["j2_deg"]));
     }
-    let row = json(&report)["verdict"]["sets"][1].clone();
-    assert_eq!(row["set"], "3-fold cross-validation");
+    let report = json(&report);
+    let verdict = report["verdict"].as_array().unwrap();
+    let row = verdict.iter().find(|r| r["set"] == "3-fold cross-validation" && r["quantity"] == "markers");
+    let row = row.expect("the cross-validation's markers row");
     for (stage, column) in [(0, "before_mm"), (1, "after_mm")] {
-        let rms_mm = row["rms_mm"][stage].as_f64().unwrap();
-        assert!(relative(rms(&folds, column), rms_mm) < 1e-9, "{column}: {rms_mm} mm");
+        let rms_mm = row["rms"][stage].as_f64().unwrap();
+        assert!(relative(3f64.sqrt() * rms(&folds, column), rms_mm) < 1e-9, "{column}: {rms_mm} mm");
     }
     assert!(rms(&folds, "after_mm") > rms(&training, "after_mm"), "held out, worse than in training");
     let names = figures(&folder);
-    assert!(names.contains(&"errors-by-pose-3-fold-cross-validation.svg".to_string()), "{names:?}");
+    assert!(names.contains(&"errors-by-observation-3-fold-cross-validation.svg".to_string()), "{names:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

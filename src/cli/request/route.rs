@@ -1,8 +1,8 @@
-//! `robocal calibrate`'s one command over three pipelines: the data files' kinds (read from
-//! their headers) and the flags choose marker calibration, observation calibration or a
-//! tree's; a flag the chosen one cannot honour is refused, saying why, before any work.
+//! `robocal calibrate`'s one command: the data files' kinds (read from their headers) and the
+//! flags choose the observation calibration (marker files among them) or a tree's; a flag the
+//! chosen one cannot honour is refused, saying why, before any work.
 
-use super::{CalibrateObservationsRequest, CalibrateRequest, CalibrateTreeRequest, UsageError, require};
+use super::{CalibrateObservationsRequest, CalibrateTreeRequest, UsageError, require};
 use crate::cli::args::{CalibrateArgs, CalibrateObservationsArgs, CalibrateTreeArgs};
 use robocal::calibration::DataKind;
 use std::path::PathBuf;
@@ -10,10 +10,8 @@ use std::path::PathBuf;
 /// A validated `robocal calibrate`: the calibration its data and flags call for.
 #[derive(Debug, Clone, PartialEq)]
 pub enum CalibrationRequest {
-    /// One file of marker positions or a probe's poses, no observation flag: every tool of
-    /// the marker calibration (selection, fgls, figures, HTML).
-    Markers(Box<CalibrateRequest>),
-    /// Observation files, or several files of markers and observations fitted together.
+    /// Marker positions, a probe's poses and observation files (distances, contacts,
+    /// coordinates, a camera's views), one or several fitted together.
     Observations(Box<CalibrateObservationsRequest>),
     /// Views between the branches of a URDF tree.
     Tree(Box<CalibrateTreeRequest>),
@@ -31,12 +29,6 @@ impl CalibrationRequest {
                  give the other files to another calibration (--tips and --out-dir are for tree views)",
             )?;
             return Ok(Self::Tree(Box::new(CalibrateTreeRequest::from_args(tree_args(args)?)?)));
-        }
-        let observation_flags = args.observations.tool.is_some()
-            || args.observations.fixed_tool
-            || !args.observations.per_session.is_empty();
-        if kinds == [DataKind::Markers] && !observation_flags {
-            return Ok(Self::Markers(Box::new(CalibrateRequest::from_args(args)?)));
         }
         Ok(Self::Observations(Box::new(CalibrateObservationsRequest::from_args(observation_args(args)?)?)))
     }

@@ -22,15 +22,18 @@ fn request<R>(
     build(parse(&[base, args].concat())?).map_err(|e| e.0)
 }
 
-/// `robocal calibrate --model puma560 --data d.csv` with `args`.
-fn calibrate(args: &[&str]) -> Result<CalibrateRequest, String> {
+/// `robocal calibrate --model puma560 --data d.csv` with `args`, `d.csv` a marker file.
+fn calibrate(args: &[&str]) -> Result<CalibrateObservationsRequest, String> {
     calibrate_model("puma560", args)
 }
 
-/// `robocal calibrate --model MODEL --data d.csv` with `args`.
-fn calibrate_model(model: &str, args: &[&str]) -> Result<CalibrateRequest, String> {
+/// `robocal calibrate --model MODEL --data d.csv` with `args`, `d.csv` a marker file.
+fn calibrate_model(model: &str, args: &[&str]) -> Result<CalibrateObservationsRequest, String> {
     request(&["calibrate", "--model", model, "--data", "d.csv"], args, |command| match command {
-        Command::Calibrate(args) => CalibrateRequest::from_args(*args),
+        Command::Calibrate(args) => match CalibrationRequest::from_args(*args, &[DataKind::Markers])? {
+            CalibrationRequest::Observations(request) => Ok(*request),
+            other => panic!("routed as {other:?}"),
+        },
         other => panic!("parsed as {other:?}"),
     })
 }
@@ -67,10 +70,11 @@ fn refused<T: std::fmt::Debug>(result: Result<T, String>) -> String {
 const SIGMAS: &str = "0.007,0.007,0.007,0.002,0.002,0.002";
 
 #[test]
-fn the_default_calibration_is_ols_of_the_joints_base_and_markers() {
+fn the_default_calibration_fits_the_joints_base_and_markers_by_the_default_estimator() {
     let request = calibrate(&[]).unwrap();
     assert_eq!(request.model, ModelRef::named("puma560"));
-    assert_eq!(request.method, Method::Given(Estimator::Ols));
+    // wls unless asked: ols where the data and flags give no noise at all (cli::observations).
+    assert_eq!((request.method, request.estimator_given), (Method::Given(Estimator::Wls), false));
     assert_eq!(request.joints, JointParams::All);
     assert!(request.estimate_base && request.estimate_markers);
     assert_eq!((request.noise, request.units, request.iterations, request.folds), (None, None, 200, None));
@@ -91,24 +95,25 @@ fn joint_unit_and_length_unit_go_together() {
 }
 
 #[test]
-fn a_noise_file_or_joint_sigmas_not_both() {
-    let message = refused(calibrate(&["--noise", "n.toml", "--joint-sigma-deg", SIGMAS]));
-    assert_eq!(message, "--noise and --joint-sigma-deg: give one of the two");
+fn a_noise_file_gives_every_sigma_so_takes_no_sigma_flag() {
+    for flags in [["--joint-sigma-deg", SIGMAS], ["--sigma-mm", "0.5"], ["--sigma-orientation-deg", "0.1"]] {
+        let message = refused(calibrate(&[&["--noise", "n.toml"], &flags[..]].concat()));
+        assert!(message.starts_with("--noise gives the joint noise and the measurement sigmas"), "{message}");
+    }
     let request = calibrate(&["--noise", "n.toml"]).unwrap();
-    assert_eq!(request.noise, Some(NoiseSource::File("n.toml".into())));
+    assert_eq!(request.noise, Some("n.toml".into()));
     assert_eq!(request.method, Method::Given(Estimator::Wls), "wls when the noise is given");
 }
 
 #[test]
-fn measurement_sigmas_go_with_the_joint_sigmas_not_with_a_noise_file() {
-    let message = refused(calibrate(&["--noise", "n.toml", "--sigma-mm", "0.5"]));
-    assert!(message.starts_with("--noise gives the measurement noise too"), "{message}");
-    let message = refused(calibrate(&["--noise", "n.toml", "--sigma-orientation-deg", "0.1"]));
-    assert!(message.starts_with("--noise gives the measurement noise too"), "{message}");
-    let message = refused(calibrate(&["--sigma-mm", "0.5"]));
-    assert!(message.starts_with("--sigma-mm needs --joint-sigma-deg too"), "{message}");
+fn measurement_sigmas_are_the_sigmas_of_rows_that_give_none_with_or_without_joint_sigmas() {
+    let request = calibrate(&["--sigma-mm", "0.5"]).unwrap();
+    assert_eq!((request.sigmas.length_mm, request.joint_sigma_deg), (Some(0.5), None));
     let request = calibrate(&["--joint-sigma-deg", SIGMAS, "--sigma-mm", "0.5"]).unwrap();
-    assert!(matches!(request.noise, Some(NoiseSource::Flags(f)) if f.sigma_mm == 0.5));
+    assert_eq!(request.sigmas.length_mm, Some(0.5));
+    assert_eq!(request.joint_sigma_deg, Some(vec![0.007, 0.007, 0.007, 0.002, 0.002, 0.002]));
+    // Zero is none, as the flags' default.
+    assert_eq!(calibrate(&["--sigma-mm", "0"]).unwrap().sigmas.length_mm, None);
 }
 
 #[test]
@@ -122,23 +127,18 @@ fn fgls_estimates_the_noise_so_none_is_given() {
 }
 
 #[test]
-fn a_weighted_estimator_needs_the_noise() {
-    for name in ["wls", "wls-diag", "wls-sigma"] {
-        let message = refused(calibrate(&["--estimator", name]));
-        assert!(
-            message.starts_with(&format!("--estimator {name} needs the noise: give --noise")),
-            "{message}"
-        );
+fn every_estimator_is_taken_and_said_to_be_given() {
+    // Whether the data give a noise is known only once they are read: a weighted estimator
+    // without one is refused then (kinds_markers::a_weighted_estimator_needs_a_noise...).
+    for (name, estimator) in [
+        ("ols", Estimator::Ols),
+        ("wls", Estimator::Wls),
+        ("wls-diag", Estimator::WlsDiag),
+        ("wls-sigma", Estimator::WlsSigma),
+    ] {
+        let request = calibrate(&["--estimator", name]).unwrap();
+        assert_eq!((request.method, request.estimator_given), (Method::Given(estimator), true), "{name}");
     }
-    let request =
-        calibrate(&["--estimator", "wls-diag", "--joint-sigma-deg", SIGMAS, "--sigma-mm", "0.01"]).unwrap();
-    assert_eq!(request.method, Method::Given(Estimator::WlsDiag));
-    let flags = NoiseFlags {
-        joint_sigma_deg: vec![0.007, 0.007, 0.007, 0.002, 0.002, 0.002],
-        sigma_mm: 0.01,
-        sigma_orientation_deg: 0.0,
-    };
-    assert_eq!(request.noise, Some(NoiseSource::Flags(flags)));
     assert!(
         refused(calibrate(&["--estimator", "gls"]))
             .contains("[possible values: ols, wls, wls-diag, wls-sigma, fgls]")
@@ -425,11 +425,11 @@ fn select_takes_its_criterion_and_cv_the_folds() {
 fn hold_and_keep_take_names_and_patterns() {
     let request = calibrate(&["--hold", "j*.beta,j2.d", "--keep", "j1.theta"]).unwrap();
     assert_eq!(
-        (request.hold, request.keep),
+        (request.gauge.hold, request.gauge.keep),
         (vec!["j*.beta".to_string(), "j2.d".into()], vec!["j1.theta".to_string()])
     );
     let request = calibrate(&[]).unwrap();
-    assert!(request.hold.is_empty() && request.keep.is_empty());
+    assert!(request.gauge.hold.is_empty() && request.gauge.keep.is_empty());
     assert_eq!(
         refused(calibrate(&["--hold", "j1.theta", "--keep", "j1.theta"])),
         "`j1.theta` is given to both --hold and --keep: choose one"
@@ -538,18 +538,17 @@ fn a_tree_refuses_each_flag_saying_why() {
     assert!(tree(&["--per-session", "camera*"]).contains("not available for trees yet"));
 }
 
-/// One command: one marker file takes the marker calibration, observation files or several
-/// files the observations', tree views the tree's; a flag the chosen one cannot honour is
+/// One command: marker and observation files, one or several, take the one observation
+/// calibration, tree views the tree's; a flag the chosen one cannot honour is
 /// refused, naming it.
 #[test]
 fn calibrate_routes_by_the_files_kinds_and_the_flags() {
     use DataKind::{Markers, Observations, TreeViews};
     let is = |r: Result<CalibrationRequest, String>| match r.unwrap() {
-        CalibrationRequest::Markers(_) => "markers",
         CalibrationRequest::Observations(_) => "observations",
         CalibrationRequest::Tree(_) => "tree",
     };
-    assert_eq!(is(route(&[Markers], &["--select", "cv"])), "markers");
+    assert_eq!(is(route(&[Markers], &["--select", "cv"])), "observations");
     assert_eq!(is(route(&[Observations], &[])), "observations");
     assert_eq!(is(route(&[Markers, Markers], &[])), "observations");
     assert_eq!(is(route(&[Markers, Observations], &["--prior", "machined"])), "observations");
