@@ -123,12 +123,14 @@ class Calibration:
 
     @property
     def sets(self) -> list[str]:
-        """The scored sets: ``training``, then each held-out set (marker data)."""
+        """The scored sets, as the JSON report's ``sets``: ``training``, then each held-out
+        set, the held-out sets pooled (several) and the cross-validation (``folds``)."""
         return self._inner.sets
 
     def pose_errors(self, set: str = "training") -> tuple[np.ndarray, np.ndarray]:
-        """The poses' lines and their position errors (mm): poses x (before, after) x 3 for
-        one marker, poses x (2 markers) x 3 in general (stage-major)."""
+        """The poses' lines and their marker position errors (mm): poses x (before, after) x 3
+        for one marker, poses x (2 markers) x 3 in general (stage-major); NaN where not
+        measured; no poses for a set without markers."""
         return self._inner.pose_errors(set)
 
     def model_toml(self) -> str:

@@ -116,11 +116,19 @@ class Calibration:
         chain)."""
     @property
     def sets(self) -> list[str]:
-        """The scored sets: ``training``, then each held-out set (marker data only)."""
+        """The scored sets, named as in the JSON report's ``sets``: ``training``, then each
+        held-out set (its path, or ``validate[k]`` for arrays and DataFrames), then ``held out,
+        pooled`` (with several held-out sets) and the cross-validation (``3-fold
+        cross-validation``, with ``folds``); empty for a tree."""
     def pose_errors(self, set: str = "training") -> tuple[npt.NDArray[np.uint64], FloatArray]:
-        """The poses' lines (in the file, or in the table the arrays make: header on line 1)
-        and their position errors, measured minus predicted (mm): poses x (stages x markers)
-        x 3, stage-major (before, after)."""
+        """The marker positions' errors of a set (one of ``sets``) pose by pose: the poses'
+        lines (in the file, or in the table the arrays make: header on line 1) and the errors,
+        measured minus predicted (mm): poses x (stages x markers) x 3, stage-major (before,
+        after), the markers every one the set measures (numbered from 1, in order), NaN where a
+        pose's coordinate was not measured. The poses with markers only: a set without markers
+        has none (shape 0 x 0 x 3); a probe's orientations and other kinds are in ``to_json()``'s
+        ``sets``. Before: the base and markers fitted with the joints nominal (the report's
+        ``fits``)."""
     def model_toml(self) -> str:
         """The calibrated model as TOML with its markers, as ``--out-model`` writes it (a
         chain's)."""
@@ -296,12 +304,12 @@ def calibrate(
     ``observations``: observation files' paths (distances, plane contacts, coordinates, camera
     views) and ``Observations`` (built from arrays or a DataFrame), each a session, fitted
     together (a list of them as ``joints`` too). Arrays and DataFrames go through the same
-    reader as the files. As the command line routes them, one marker file alone is fitted by
-    the marker calibration unless ``tool``, ``fixed_tool`` or ``per_session`` is given; then,
-    and for several marker files or marker files among observation files, by the
-    observations' fit (where ``params="all"`` is refused, as the command refuses it, and
-    ``sigma``, ``sigma_orientation`` or a noise file's ``sigma_me_mm`` are the sigmas of the
-    rows without their own, its ``[device]``'s covariance taken at each point measured).
+    reader as the files. Every kind, marker data and a probe's among them, is read as
+    observations and fitted by the command line's one observation calibration, any mix of
+    them together, each a session: the same numbers as ``robocal calibrate`` for the same
+    inputs. ``sigma``, ``sigma_orientation`` or a noise file's ``sigma_me_mm`` are the sigmas of
+    the rows without their own (``pose_sigma``, a ``sigma`` column), its ``[device]``'s
+    covariance taken at each point measured; ``sigma`` needs no ``joint_sigma``.
     ``params`` is read as ``--params``: a list is joined by commas.
 
     Units: ``joint_unit`` ``"rad"`` or ``"deg"`` and ``length_unit`` ``"m"`` or ``"mm"``, given

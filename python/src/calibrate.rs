@@ -1,23 +1,22 @@
 //! `robocal.calibrate`: the library's calibration of marker data (arrays, a DataFrame or a
-//! file, all read by the library's own reader) and of observation files, with the command
-//! line's options and its report.
+//! file, all read by the library's own reader), a probe's and observation files, every kind
+//! through the command line's one observation calibration
+//! ([`robocal::pipeline::calibrate_files`]), with its options and its report.
 
 use crate::errors::{self, Kind, Place};
 use crate::model::Model;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
-use robocal::calibration::kinds::{KindData, KindOptions, Observation, RowSigmaDefaults};
+use robocal::calibration::kinds::{KindData, KindOptions, Observation, RowSigmaDefaults, Score};
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::calibration::{
-    self, Choices, DataKind, Gauge, JointParams, Kinds, Loss, Measurements, Options, ParamWords,
-    SetEvaluation,
+    self, Choices, DataKind, Gauge, JointParams, Kinds, Loss, Measurements, ParamWords,
 };
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PriorEntry, RefineOptions};
 use robocal::model::{Joint, JointKind, RobotModel};
-use robocal::pipeline::{MarkerError, MarkerRequest, calibrate_markers};
-use robocal::report::calibration::{CalibrationReport, ParameterRow};
+use robocal::report::calibration::ParameterRow;
 use robocal::report::observations::ObservationsReport;
 use robocal::table::Units;
 use std::path::Path;
@@ -351,7 +350,8 @@ impl Flags {
         Ok(())
     }
 
-    /// The noise of the flags, or of a noise file, at the poses of `data`.
+    /// The noise of the flags, or of a noise file, at the poses of the marker data `data`, as
+    /// `robocal evaluate` scores a marker file with it.
     fn noise(
         &self,
         request: &Request,
@@ -427,21 +427,21 @@ pub struct Calibration {
     covariance_names: Vec<String>,
     rank: usize,
     held: Vec<String>,
-    sets: Vec<SetEvaluation>,
+    sets: Vec<(String, Score)>,
     calibrated: Option<(Py<Model>, String)>,
     branches: Vec<(String, Py<Model>)>,
 }
 
 impl Calibration {
     /// The calibration of `report` (the command line's, text and JSON), its `estimate`'s
-    /// covariance, the scored `sets` (marker data) and the `calibrated` model (of a chain) or
-    /// the calibrated `branches` by tip (of a tree).
+    /// covariance, the scored `sets` (the report's, of a chain) and the `calibrated` model (of
+    /// a chain) or the calibrated `branches` by tip (of a tree).
     pub(crate) fn new<R: ReportRows>(
         py: Python<'_>,
         report: &R,
         estimate: &robocal::estimation::LinearEstimate,
         rank: usize,
-        sets: Vec<SetEvaluation>,
+        sets: Vec<(String, Score)>,
         calibrated: Option<Model>,
         branches: Vec<(String, Model)>,
     ) -> PyResult<Self> {
@@ -514,12 +514,42 @@ macro_rules! report_rows {
 }
 pub(crate) use report_rows;
 
-report_rows!(CalibrationReport);
 report_rows!(ObservationsReport);
 
 /// A pose set's lines and errors (poses x stages x markers x 3, flattened to poses x
 /// (stages x markers) x 3).
 type PoseErrorArrays<'py> = (Bound<'py, PyArray1<usize>>, Bound<'py, PyArray3<f64>>);
+
+/// The marker positions' errors of a scored set pose by pose, from its observations: each
+/// pose's line, the markers' numbers (1, 2, ..., every one the set measures), and the errors
+/// (measured minus predicted, mm) as poses x (before, after) x markers x 3, flattened
+/// stage-major, NaN where a coordinate was not measured. A pose is a run of the set's marker
+/// positions ([`Score::positions`]) on one line, each marker once.
+fn pose_error_table(score: &Score) -> (Vec<usize>, Vec<usize>, Vec<f64>) {
+    let mut markers: Vec<usize> = score.positions.iter().map(|p| p.marker).collect();
+    markers.sort_unstable();
+    markers.dedup();
+    let width = 2 * markers.len() * 3;
+    let (mut lines, mut errors, mut seen) = (Vec::new(), Vec::new(), Vec::new());
+    for p in &score.positions {
+        if lines.last() != Some(&p.line) || seen.contains(&p.marker) {
+            lines.push(p.line);
+            errors.resize(errors.len() + width, f64::NAN);
+            seen.clear();
+        }
+        seen.push(p.marker);
+        let pose = errors.len() - width;
+        let m = markers.binary_search(&p.marker).expect("among the set's markers");
+        for r in &score.observations[p.index..p.index + p.coordinates] {
+            let Some(axis) = ["marker x", "marker y", "marker z"].iter().position(|k| *k == r.kind) else {
+                continue;
+            };
+            errors[pose + m * 3 + axis] = r.before;
+            errors[pose + (markers.len() + m) * 3 + axis] = r.after;
+        }
+    }
+    (lines, markers, errors)
+}
 
 #[pymethods]
 impl Calibration {
@@ -601,26 +631,24 @@ impl Calibration {
         self.branches.iter().map(|(tip, m)| (tip.clone(), m.clone_ref(py))).collect()
     }
 
-    /// The names of the scored sets: `training`, then each held-out set (marker data only).
+    /// The names of the scored sets, as the JSON report's `sets`: `training`, then each
+    /// held-out set, then the held-out sets pooled (several of them) and the cross-validation
+    /// (with folds); none for a tree.
     #[getter]
     fn sets(&self) -> Vec<String> {
-        self.sets.iter().map(|s| s.name.clone()).collect()
+        self.sets.iter().map(|(name, _)| name.clone()).collect()
     }
 
-    /// The position errors (measured minus predicted, mm) of each pose of a set: poses x
-    /// stages (before, after) x markers x 3, with the poses' lines.
+    /// The marker position errors (measured minus predicted, mm) of each pose of a set: poses x
+    /// (stages (before, after) x markers) x 3, stage-major, NaN where not measured, with the
+    /// poses' lines (none for a set without markers).
     #[pyo3(signature = (set="training"))]
     fn pose_errors<'py>(&self, py: Python<'py>, set: &str) -> PyResult<PoseErrorArrays<'py>> {
-        let Some(s) = self.sets.iter().find(|s| s.name == set) else {
+        let Some((_, score)) = self.sets.iter().find(|(name, _)| name == set) else {
             return Err(errors::argument("set", format!("`{set}`: expected one of {:?}", self.sets())));
         };
-        let lines: Vec<usize> = s.poses.iter().map(|p| p.line).collect();
-        let stages = s.stages.len();
-        let markers = s.marker_ids.len();
-        let flat: Vec<f64> = (s.poses.iter())
-            .flat_map(|p| p.errors.iter().flat_map(|stage| stage.iter().flat_map(|e| e.iter().copied())))
-            .collect();
-        let errors = PyArray1::from_vec(py, flat).reshape([s.poses.len(), stages * markers, 3])?;
+        let (lines, markers, flat) = pose_error_table(score);
+        let errors = PyArray1::from_vec(py, flat).reshape([lines.len(), 2 * markers.len(), 3])?;
         Ok((PyArray1::from_vec(py, lines), errors))
     }
 
@@ -629,7 +657,9 @@ impl Calibration {
     }
 }
 
-/// Calibrate `model` on `source` (marker data or observation files), with `validate` held out.
+/// Calibrate `model` on `sources` (marker data, a probe's, observation files: any mix, each a
+/// session), with `validate` held out, as `robocal calibrate` does: every kind through the one
+/// observation calibration ([`robocal::pipeline::calibrate_files`]).
 #[pyfunction]
 #[pyo3(signature = (model, sources, validate, flags))]
 pub fn calibrate_source(
@@ -640,170 +670,26 @@ pub fn calibrate_source(
     flags: Flags,
 ) -> PyResult<Calibration> {
     let request = flags.request()?;
-    let kinds = sources.iter().map(|s| data_kind(s.clone())).collect::<PyResult<Vec<_>>>()?;
-    // As the command routes them: one marker file alone is `calibrate`'s, unless a flag of the
-    // observations' (a tool point, per-session parameters) asks for their fit, which takes
-    // several marker files and any mix with observation files too.
-    let observation_flags = flags.tool.is_some() || flags.fixed_tool || !flags.per_session.is_empty();
-    match kinds[..] {
-        ["markers"] if !observation_flags => markers(py, model, &sources[0], &validate, &flags, &request),
-        _ if kinds.iter().all(|&k| k == "observations" || k == "markers") => {
-            observations(py, model, &sources, &validate, &flags, &request)
+    for source in &sources {
+        if !matches!(data_kind(source.clone())?, "observations" | "markers") {
+            return Err(errors::input(format!(
+                "{}: files of marker positions or observations; views on a tree are calibrated by \
+                 calibrate_tree",
+                sources.iter().map(|s| s.0.as_str()).collect::<Vec<_>>().join(", ")
+            )));
         }
-        _ => Err(errors::input(format!(
-            "{}: files of marker positions or observations; views on a tree are calibrated by \
-             calibrate_tree",
-            sources.iter().map(|s| s.0.as_str()).collect::<Vec<_>>().join(", ")
-        ))),
     }
+    observations(py, model, &sources, &validate, &flags, &request)
 }
 
-/// The marker data of `source`, its markers chosen by `ids`.
+/// The marker data of `source`, as `robocal evaluate` reads a marker file.
 fn read_markers(source: &Source, model: &RobotModel, units: Option<Units>) -> PyResult<Measurements> {
     Measurements::from_csv_str(&text_of(source)?, model, units).map_err(|e| data_error(source, &e))
 }
 
-/// The command line's `calibrate` of a marker file, without writing anything.
-fn markers(
-    py: Python<'_>,
-    robot: &Model,
-    source: &Source,
-    validate: &[Source],
-    flags: &Flags,
-    request: &Request,
-) -> PyResult<Calibration> {
-    let model = &robot.inner;
-    require(
-        flags.per_session.is_empty(),
-        "per_session",
-        "observation files only: marker data are one session",
-    )?;
-    let (fit, held_out) = marker_sets(model, source, validate, flags, request)?;
-    let what = format!("calibrating the {} poses of {}", fit.len(), source.0);
-    robocal::io::check_memory(fit.memory_estimate(model.params().len()), &what, "calibrate on fewer poses")
-        .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
-    let options = marker_options(model, &fit, flags, request)?;
-    let choices = Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
-    // Each held-out set scored with the noise at its own poses (a noise file's device), or
-    // with the noise feasible GLS estimated.
-    let held_out = (held_out.into_iter())
-        .map(|(name, d)| {
-            let noise = flags.noise(request, model, &d)?;
-            Ok((name, d, noise))
-        })
-        .collect::<PyResult<Vec<_>>>()?;
-    let asked = MarkerRequest {
-        data: source.0.clone(),
-        options,
-        choices,
-        feasible: request.feasible,
-        held_out,
-        folds: flags.folds,
-    };
-    let outcome = py.detach(|| calibrate_markers(model, &fit, &asked)).map_err(|e| match e {
-        MarkerError::Accuracy(e) => errors::from_error(Kind::Estimation, &e, Some(&source.0)),
-        MarkerError::Choice(e)
-        | MarkerError::Calibration(e)
-        | MarkerError::Validation(e)
-        | MarkerError::CrossValidation(e) => errors::calibration(&e, &source.0),
-    })?;
-    let (report, result) = (outcome.report, outcome.calibration);
-    let markers = result.marker_positions();
-    let calibrated = Model::new(result.calibrated.clone(), robot.urdf.clone()).with_markers(markers);
-    let (estimate, sets) = (&result.refined.estimate, report.sets.clone());
-    Calibration::new(py, &report, estimate, report.rank, sets, Some(calibrated), Vec::new())
-}
-
-/// The fitted marker data (its markers chosen by `flags.markers`) and the held-out sets,
-/// scored on the same markers; the rules between them and the flags checked.
-fn marker_sets(
-    model: &RobotModel,
-    source: &Source,
-    validate: &[Source],
-    flags: &Flags,
-    request: &Request,
-) -> PyResult<(Measurements, Vec<(String, Measurements)>)> {
-    let mut fit = read_markers(source, model, request.units)?;
-    let highest = fit.marker_ids.iter().copied().max().unwrap_or(0);
-    if let Some(ids) = &flags.markers {
-        let missing = ids.iter().find(|id| !fit.marker_ids.contains(id));
-        fit = match (fit.with_markers(ids), missing) {
-            (Some(chosen), None) => chosen,
-            _ => {
-                let message = format!("{ids:?}: {} has markers {:?}", source.0, fit.marker_ids);
-                return Err(errors::argument("markers", message));
-            }
-        };
-    }
-    let given = flags.marker.len();
-    require(given <= highest, "marker", &format!("{given} given, {} has {highest} markers", source.0))?;
-    let held_out = validate
-        .iter()
-        .map(|v| {
-            let all = read_markers(v, model, request.units)?;
-            let scored = all.with_markers(&fit.marker_ids).ok_or_else(|| {
-                errors::input(format!("{}: none of the fitted markers {:?}", v.0, fit.marker_ids))
-            })?;
-            require(
-                scored.orientations.is_some() == fit.orientations.is_some(),
-                "validate",
-                &format!("{}: orientation columns must be as in {}", v.0, source.0),
-            )?;
-            Ok((v.0.clone(), scored))
-        })
-        .collect::<PyResult<Vec<_>>>()?;
-    if let Some(k) = flags.folds.filter(|&k| k > fit.len()) {
-        let message = format!("{k}: expected 2 to {} (the number of poses)", fit.len());
-        return Err(errors::argument("folds", message));
-    }
-    Ok((fit, held_out))
-}
-
-/// The library's options for the marker data `fit`: the noise (the flags' or a noise file's,
-/// with its prior first), the estimator, the parameters, the markers and the iterations.
-fn marker_options(
-    model: &RobotModel,
-    fit: &Measurements,
-    flags: &Flags,
-    request: &Request,
-) -> PyResult<Options> {
-    let noise = flags.noise(request, model, fit)?;
-    // Weighted with the noise, OLS without; a weighted estimator needs the noise.
-    let estimator =
-        request.estimator.unwrap_or(if noise.is_some() { Estimator::Wls } else { Estimator::Ols });
-    if estimator != Estimator::Ols && noise.is_none() && !request.feasible {
-        let message =
-            format!("{estimator} needs the noise: give joint_sigma or noise, or use estimator fgls");
-        return Err(errors::argument("estimator", message));
-    }
-    let mut prior = match &flags.noise {
-        Some(path) => {
-            robocal::io::load_noise(Path::new(path), model)
-                .map_err(|e| errors::from_error(Kind::Input, &e, None))?
-                .prior
-        }
-        None => Vec::new(),
-    };
-    prior.extend(request.prior.iter().cloned());
-    // The k-th `marker` is marker k of the data; the fitted ones are picked by number.
-    let markers_mm = flags.marker_mm(request.noise_units);
-    Ok(Options {
-        estimator: if request.feasible { Estimator::Ols } else { estimator },
-        noise,
-        joints: request.joints.clone(),
-        estimate_base: !flags.fixed_base,
-        estimate_markers: !flags.fixed_markers,
-        markers: (fit.marker_ids.iter())
-            .map(|&id| markers_mm.get(id - 1).copied().unwrap_or_default())
-            .collect(),
-        prior,
-        loss: request.loss,
-        refine: RefineOptions { max_iterations: flags.iterations, ..RefineOptions::default() },
-        gauge: Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
-    })
-}
-
-/// The command line's `calibrate` of observation files, without writing anything.
+/// The command line's `calibrate` of marker data, a probe's and observation files, without
+/// writing anything: every file read as observations, as the command reads them, fitted
+/// together through [`robocal::pipeline::calibrate_files`].
 fn observations(
     py: Python<'_>,
     robot: &Model,
@@ -815,11 +701,6 @@ fn observations(
     let model = &robot.inner;
     let (spec, defaults) = observation_noise(model, flags, request)?;
     require(
-        flags.params_words()? != ParamWords::All,
-        "params",
-        "all: the base and the set-up are chosen by the observations; give params=\"joints\"",
-    )?;
-    require(
         flags.per_session.is_empty() || sources.len() >= 2,
         "per_session",
         "one value per observation file (each file a session): give two files or more",
@@ -830,47 +711,10 @@ fn observations(
             Path::new(&s.0).file_stem().map_or_else(|| s.0.clone(), |n| n.to_string_lossy().into_owned());
         Ok((s.0.clone(), data.named(&stem)))
     };
-    let sessions: Vec<(String, KindData)> = sources.iter().map(read).collect::<PyResult<_>>()?;
-    if !flags.per_session.is_empty() {
-        let stems: Vec<&str> = sessions.iter().map(|(_, d)| d.sessions[0].0.as_str()).collect();
-        let twice =
-            (1..stems.len()).find_map(|k| stems[..k].iter().position(|s| *s == stems[k]).map(|f| (f, k)));
-        if let Some((first, k)) = twice {
-            let stem = stems[k];
-            let message = format!(
-                "{} and {} have one name, `{stem}`: each session's file stem (or name) names it",
-                sessions[first].0, sessions[k].0
-            );
-            return Err(errors::argument("per_session", message));
-        }
-    }
-    let highest = sessions.iter().filter_map(|(_, d)| d.markers().last().map(|m| m + 1)).max().unwrap_or(0);
-    if flags.marker.len() > highest {
-        let files: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
-        let message = format!(
-            "{} marker given, the files ({}) have {highest} markers: the k-th marker is marker k of a marker file",
-            flags.marker.len(),
-            files.join(", ")
-        );
-        return Err(errors::argument("marker", message));
-    }
-    let held: Vec<(String, KindData)> = validate.iter().map(read).collect::<PyResult<_>>()?;
-    let (sessions, held) = match &flags.markers {
-        Some(ids) => {
-            let have: Vec<usize> = sessions.iter().flat_map(|(_, d)| d.markers()).map(|m| m + 1).collect();
-            if let Some(id) = ids.iter().find(|id| !have.contains(id)) {
-                return Err(errors::argument("use_markers", format!("{id}: no file has marker {id}")));
-            }
-            let only = |(name, d): (String, KindData)| {
-                let kept = d.keeping(
-                    |o| !matches!(o, Observation::Marker { marker, .. } if !ids.contains(&(marker + 1))),
-                );
-                (name, kept)
-            };
-            (sessions.into_iter().map(only).collect(), held.into_iter().map(only).collect())
-        }
-        None => (sessions, held),
-    };
+    let sessions: Files = sources.iter().map(read).collect::<PyResult<_>>()?;
+    check_sessions(model, &sessions, flags)?;
+    let held: Files = validate.iter().map(read).collect::<PyResult<_>>()?;
+    let (sessions, held) = chosen_markers(sessions, held, flags.markers.as_deref())?;
     let mut options = kind_options(model, flags, request)?;
     if let Some(spec) = spec {
         // The noise file's joint noise, and its [prior] before the flags'.
@@ -898,16 +742,65 @@ fn observations(
         .map_err(|e| errors::calibration(&e.source, &e.context))?;
     let (c, report) = (outcome.calibration, outcome.report);
     let calibrated = Model::new(c.calibrated.clone(), robot.urdf.clone()).with_markers(c.marker_positions());
-    let estimate = &c.refined.estimate;
-    Calibration::new(
-        py,
-        &report,
-        estimate,
-        estimate.diagnostics.rank,
-        Vec::new(),
-        Some(calibrated),
-        Vec::new(),
-    )
+    let sets = report.sets.clone();
+    Calibration::new(py, &report, &c.refined.estimate, report.rank, sets, Some(calibrated), Vec::new())
+}
+
+/// The rules between the training `sessions` and the flags, as the command line's: sessions
+/// of distinct names with `per_session`, no more `marker` than the files' markers, and the
+/// memory the fit holds (`KindData::memory_estimate`, summed over the files) available.
+fn check_sessions(model: &RobotModel, sessions: &[(String, KindData)], flags: &Flags) -> PyResult<()> {
+    if !flags.per_session.is_empty() {
+        let stems: Vec<&str> = sessions.iter().map(|(_, d)| d.sessions[0].0.as_str()).collect();
+        let twice =
+            (1..stems.len()).find_map(|k| stems[..k].iter().position(|s| *s == stems[k]).map(|f| (f, k)));
+        if let Some((first, k)) = twice {
+            let stem = stems[k];
+            let message = format!(
+                "{} and {} have one name, `{stem}`: each session's file stem (or name) names it",
+                sessions[first].0, sessions[k].0
+            );
+            return Err(errors::argument("per_session", message));
+        }
+    }
+    let files: Vec<&str> = sessions.iter().map(|(name, _)| name.as_str()).collect();
+    let highest = sessions.iter().filter_map(|(_, d)| d.markers().last().map(|m| m + 1)).max().unwrap_or(0);
+    if flags.marker.len() > highest {
+        let message = format!(
+            "{} marker given, the files ({}) have {highest} markers: the k-th marker is marker k of a marker file",
+            flags.marker.len(),
+            files.join(", ")
+        );
+        return Err(errors::argument("marker", message));
+    }
+    let params = model.params().len();
+    let bytes = sessions.iter().map(|(_, d)| d.memory_estimate(params)).fold(0, u64::saturating_add);
+    let (observations, poses) =
+        sessions.iter().fold((0, 0), |(o, p), (_, d)| (o + d.observations.len(), p + d.joints.len()));
+    let what =
+        format!("calibrating the {observations} observations at {poses} poses of {}", files.join(", "));
+    robocal::io::check_memory(bytes, &what, "calibrate on fewer poses")
+        .map_err(|e| errors::from_error(Kind::Input, &e, None))
+}
+
+/// Data files by name: sessions, or held-out sets.
+type Files = Vec<(String, KindData)>;
+
+/// The training and held-out files with the markers `ids` names only (numbers from 1; their
+/// other observations all kept), or as they are; a number no training file's marker has is
+/// refused.
+fn chosen_markers(sessions: Files, held: Files, ids: Option<&[usize]>) -> PyResult<(Files, Files)> {
+    let Some(ids) = ids else { return Ok((sessions, held)) };
+    let have: Vec<usize> = sessions.iter().flat_map(|(_, d)| d.markers()).map(|m| m + 1).collect();
+    if let Some(id) = ids.iter().find(|id| !have.contains(id)) {
+        return Err(errors::argument("use_markers", format!("{id}: no file has marker {id}")));
+    }
+    let only = |(name, d): (String, KindData)| {
+        let kept =
+            d.keeping(|o| !matches!(o, Observation::Marker { marker, .. } if !ids.contains(&(marker + 1))));
+        (name, kept)
+    };
+    Ok((sessions.into_iter().map(only).collect(), held.into_iter().map(only).collect()))
 }
 
 /// Observation files' noise file, if given, and the sigmas of their rows without their own:

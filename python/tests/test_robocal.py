@@ -224,8 +224,12 @@ def test_a_bad_model_file_names_its_line_and_an_unknown_option_its_name(tmp_path
 def test_too_few_poses_is_an_estimation_error(puma: robocal.Model) -> None:
     joints, markers = table(DATA)
     with pytest.raises(robocal.EstimationError) as e:
+        robocal.calibrate(puma, joints[:5], markers[:5], joint_unit="deg", length_unit="mm")
+    assert "5 poses give 30 equations" in str(e.value) and "measure more poses" in str(e.value)
+    # Too few to place the measuring frame at all (the markers' registration), as the command says.
+    with pytest.raises(robocal.EstimationError) as e:
         robocal.calibrate(puma, joints[:2], markers[:2], joint_unit="deg", length_unit="mm")
-    assert "poses" in str(e.value)
+    assert "to place the measuring frame" in str(e.value)
 
 
 SMALL_STUDY = """
@@ -692,7 +696,7 @@ def test_what_the_command_line_refuses_python_refuses(puma: robocal.Model) -> No
     standard deviations out of range, and of counts, as InputErrors naming the field."""
     refused: list[tuple[dict[str, Any], str]] = [
         (dict(use_markers=[1]), "use_markers"),
-        (dict(params="all"), "params"),
+        (dict(params="all", fixed_base=True), "params"),
         (dict(marker=[[0.0, 0.0, 0.0]]), "marker"),
         (dict(tool=[float("nan"), 0.0, 0.0]), "tool"),
         (dict(joint_sigma=[-0.01]), "joint_sigma"),
