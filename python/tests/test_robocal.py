@@ -141,6 +141,42 @@ def test_calibrate_from_arrays_is_the_command_lines_report(puma: robocal.Model, 
     assert lines[0] == 2 and errors.shape == (100, 4, 3)  # 100 poses, (before, after) x 2 markers
 
 
+def test_marker_data_from_python_is_the_command_lines_fit_to_1e9(puma: robocal.Model, tmp_path: Path) -> None:
+    """The README's example (its nominal markers, its noise): the held-out RMS and the
+    parameters from Python, read from its own attributes, are the command line's ``--json`` to
+    1e-9, the data given as a file and as arrays, through the one observation fit (#23)."""
+    out = tmp_path / "report.json"
+    sigmas = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]
+    run_cli("calibrate", "--model", "puma560", "--data", str(DATA), "--validate", str(VALIDATION),
+            "--marker", "50,0,150", "--marker=-40,60,120", "--joint-sigma-deg", ",".join(map(str, sigmas)),
+            "--sigma-mm", "0.01", "--json", str(out), "--quiet")
+    theirs = json.loads(out.read_text())
+    held_out = dict(theirs["sets"])[str(VALIDATION)]["markers"]
+    options: dict[str, Any] = dict(marker=[[50.0, 0.0, 150.0], [-40.0, 60.0, 120.0]], joint_sigma=sigmas, sigma=0.01,
+                                   joint_unit="deg", length_unit="mm")
+    joints, markers = table(DATA)
+    held_joints, held_markers = table(VALIDATION)
+    from_file = robocal.calibrate(puma, DATA, validate=[VALIDATION], **options)
+    from_arrays = robocal.calibrate(puma, joints, markers, validate=[(held_joints, held_markers)], **options)
+    for c, held in ((from_file, str(VALIDATION)), (from_arrays, "validate[0]")):
+        assert c.sets == ["training", held]
+        lines, errors = c.pose_errors(held)
+        assert errors.shape == (50, 4, 3) and not np.isnan(errors).any()
+        # The RMS of the marker positions' errors after calibration, pose by pose.
+        after = np.linalg.norm(errors[:, 2:, :], axis=2)
+        assert math.isclose(math.sqrt(np.mean(after**2)), held_out[1], rel_tol=1e-9, abs_tol=1e-9)
+        before = np.linalg.norm(errors[:, :2, :], axis=2)
+        assert math.isclose(math.sqrt(np.mean(before**2)), held_out[0], rel_tol=1e-9, abs_tol=1e-9)
+        p = c.parameters
+        assert p.names == [row["name"] for row in theirs["parameters"]]
+        np.testing.assert_allclose(p.estimates, [row["value"] for row in theirs["parameters"]], rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(p.standard_errors, [row["std_error"] for row in theirs["parameters"]], rtol=1e-9,
+                                   atol=1e-9)
+        assert c.rank == theirs["rank"] and c.held == theirs["fixed"]
+    assert list(from_file.pose_errors(str(VALIDATION))[0]) == [row["line"] for row in
+                                                              dict(theirs["sets"])[str(VALIDATION)]["positions"][::2]]
+
+
 def close(ours: Any, theirs: Any, tol: float, where: str = "") -> None:
     if isinstance(theirs, dict):
         for key in theirs:
