@@ -306,6 +306,13 @@ fn pseudo_inverse(m: &DMatrix<f64>) -> DMatrix<f64> {
 /// `E^-1 m E^-1`.
 fn scaled_eigen(m: &DMatrix<f64>) -> (Vec<f64>, SymmetricEigen<f64, nalgebra::Dyn>) {
     let n = m.nrows();
+    if n == 0 {
+        // Nothing estimated: no direction (nalgebra's decomposition refuses an empty matrix).
+        return (
+            Vec::new(),
+            SymmetricEigen { eigenvectors: DMatrix::zeros(0, 0), eigenvalues: DVector::zeros(0) },
+        );
+    }
     let e: Vec<f64> = (0..n).map(|i| if m[(i, i)] > 0.0 { m[(i, i)].sqrt() } else { 1.0 }).collect();
     (e.clone(), SymmetricEigen::new(DMatrix::from_fn(n, n, |i, j| m[(i, j)] / (e[i] * e[j]))))
 }

@@ -1390,7 +1390,8 @@ fn the_verdict_in_the_json_is_the_texts_table() {
 }
 
 /// With nothing to estimate (`--params none`, the base and the markers fixed, no set-up) the
-/// model is scored as it stands, and said so: before and after alike, no step taken.
+/// model is scored as it stands, and said so: before and after alike, no step taken; with the
+/// joint noise too.
 #[test]
 fn with_nothing_to_estimate_the_model_is_scored_as_it_stands() {
     let run = |extra: &[&str]| {
@@ -1414,6 +1415,10 @@ fn with_nothing_to_estimate_the_model_is_scored_as_it_stands() {
     let k: Vec<&str> = row.split_whitespace().collect();
     // training markers (mm) 200 b -> a mm b -> a mm 0 of 200
     assert_eq!((k[4], k[8]), (k[6], k[10]), "before and after alike: {text}");
+    // With the joint noise too: the noise check has no parameter to linearise about (it
+    // panicked on an empty eigen-decomposition).
+    let noisy = run(&["--joint-sigma-deg", "0.007,0.007,0.007,0.002,0.002,0.002", "--sigma-mm", "0.01"]);
+    assert!(noisy.contains("100 poses, 2 markers, wls (0 steps, converged)"), "{noisy}");
 }
 
 /// Without any noise (no sigma column, no sigma flag, the joints exact) the observation fit is
