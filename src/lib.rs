@@ -30,9 +30,9 @@
 //!   1-8), studies as data, reproducible on any number of threads.
 //! - [`io`]: reading files, with errors that name the file. [`report`], beside it: text
 //!   reports at fixed precision, CSV and SVG figures.
-//! - [`pipeline`]: the calibration of marker data (the choices, the calibration, the held-out
-//!   sets, the cross-validation, the report) and of views on a tree, each in one call as the
-//!   command runs it, for the command line and the Python package alike.
+//! - [`pipeline`]: the calibration of files of every kind and of views on a tree (the choices,
+//!   the calibration, the held-out sets, the cross-validation, the report), in one call as
+//!   the command runs it, for the command line and the Python package alike.
 //!
 //! The PUMA 560 of the paper at its "ready" pose:
 //!
@@ -50,20 +50,24 @@
 //!
 //! A calibration from the example's marker file, judged on poses it did not see (what
 //! `robocal calibrate --model puma560 --data examples/puma560-measurements.csv --validate
-//! examples/puma560-validation.csv --marker 50,0,150 --marker=-40,60,120` prints):
+//! examples/puma560-validation.csv --marker 50,0,150 --marker=-40,60,120` prints): every kind
+//! of file (markers, a probe's poses, distances, contacts, coordinates, camera views) is read
+//! into [`KindData`] and calibrated by [`calibrate_kinds`], one pipeline for all.
 //!
 //! ```
-//! use robocal::{Measurements, Options, RobotModel, calibrate};
+//! use nalgebra::Vector3;
+//! use robocal::{KindData, KindOptions, RobotModel, calibrate_kinds};
 //!
 //! let model = RobotModel::preset("puma560").ok_or("no preset puma560")?;
-//! let read = |path: &str| Measurements::from_csv_str(&std::fs::read_to_string(path)?, &model, None)
+//! let read = |path: &str| KindData::from_csv_str(&std::fs::read_to_string(path)?, &model, None)
 //!     .map_err(Box::<dyn std::error::Error>::from);
 //! let (training, held_out) =
 //!     (read("examples/puma560-measurements.csv")?, read("examples/puma560-validation.csv")?);
-//! let markers = vec![nalgebra::Vector3::new(50.0, 0.0, 150.0), nalgebra::Vector3::new(-40.0, 60.0, 120.0)];
-//! let calibration = calibrate(&model, &training, &Options { markers, ..Options::default() })?;
-//! let (before, after) = calibration.validate(&held_out); // RMS marker distances: 2.21 and 0.124 mm
-//! assert!(before.rms > 2.0 && after.rms < 0.13, "held out: {} mm before, {} mm after", before.rms, after.rms);
+//! let markers = vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
+//! let calibration = calibrate_kinds(&model, &training, &KindOptions { markers, ..KindOptions::default() })?;
+//! // The RMS of the held-out marker positions' errors, before and after: 2.21 and 0.12 mm.
+//! let (before, after) = calibration.score(&held_out)?.markers.ok_or("markers measured")?;
+//! assert!(before > 2.0 && after < 0.13, "held out: {before} mm before, {after} mm after");
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!

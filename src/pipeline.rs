@@ -1,9 +1,7 @@
 //! The calibrations as one library call each: what `robocal calibrate` does between reading
 //! its inputs and writing its outputs, for the command line and the Python package alike, so
-//! that neither keeps a copy. Of marker data ([`calibrate_markers`]): the choices made from
-//! the data, the calibration, the held-out sets scored, the cross-validation, the accuracy
-//! predicted at the held-out poses, the report. Of observation files and of views on a tree,
-//! one pipeline over both ([`calibrate_files`], what each needs in [`Files`]): the sessions
+//! that neither keeps a copy. Of every kind of file (markers, a probe's poses, distances,
+//! contacts, coordinates, camera views) and of views on a tree, one pipeline over both ([`calibrate_files`], what each needs in [`Files`]): the sessions
 //! joined, the calibration (the choices made from the data, or feasible GLS), the held-out
 //! sets scored, the (nested) cross-validation, the report. Above every other
 //! module: it joins the calibration, the design's accuracy prediction and the report.
@@ -11,134 +9,22 @@
 use crate::calibration::kinds::{KindCalibration, KindData, KindOptions, Score, calibrate_kinds_feasible};
 use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, TreeScore, calibrate_tree_feasible};
 use crate::calibration::{
-    self, Calibration, CalibrationError, Choices, ChosenFit, ErrorStats, FeasibleOptions, FoldChoices, Front,
-    Kinds, Loss, Markers, Measurements, Nested, Options, SetEvaluation, Tree, calibrate_chosen,
-    cross_validate_choices,
+    CalibrationError, Choices, ChosenFit, FeasibleOptions, FoldChoices, Front, Kinds, Loss, Nested, Tree,
+    calibrate_chosen, cross_validate_choices,
 };
 use crate::design::accuracy::{AccuracyModel, CovarianceError, ParameterCovariance};
-use crate::estimation::{Estimator, NoiseModel};
+use crate::estimation::Estimator;
 use crate::model::RobotModel;
-use crate::report::calibration::{CalibrationReport, CrossValidationReport, PredictedAccuracy};
+use crate::report::calibration::{CrossValidationReport, PredictedAccuracy};
 use crate::report::observations::ObservationsReport;
 use crate::report::tree::TreeReport;
 use std::borrow::Cow;
-
-/// A calibration of marker data as `robocal calibrate` asks for it.
-#[derive(Debug, Clone, Default)]
-pub struct MarkerRequest {
-    /// The data's name in the report (its file).
-    pub data: String,
-    /// The options before any choice is made from the data.
-    pub options: Options,
-    /// The choices made from the data (`--prior auto`, `--select`).
-    pub choices: Choices,
-    /// Feasible GLS (`--estimator fgls`): the noise estimated from the residuals, the
-    /// held-out sets scored with it.
-    pub feasible: bool,
-    /// The held-out sets: name, data, and the noise at their poses (unused with `feasible`
-    /// when the noise was estimated).
-    pub held_out: Vec<(String, Measurements, Option<NoiseModel>)>,
-    /// `--folds k`: the k-fold cross-validation of the training poses.
-    pub folds: Option<usize>,
-}
-
-/// Why a calibration of marker data failed, by the step that failed.
-#[derive(Debug, thiserror::Error)]
-pub enum MarkerError {
-    /// Making the choices from the data ([`calibration::choose`]).
-    #[error(transparent)]
-    Choice(CalibrationError),
-    /// The calibration itself.
-    #[error(transparent)]
-    Calibration(CalibrationError),
-    /// Scoring a held-out set.
-    #[error(transparent)]
-    Validation(CalibrationError),
-    /// The cross-validation.
-    #[error(transparent)]
-    CrossValidation(CalibrationError),
-    /// The accuracy predicted from the parameter covariance.
-    #[error(transparent)]
-    Accuracy(#[from] CovarianceError),
-}
-
-/// A finished calibration of marker data and its report (the command line's).
-#[derive(Debug, Clone)]
-pub struct MarkerOutcome {
-    /// The calibration, of the chosen options.
-    pub calibration: Calibration,
-    /// The report: the sets scored, the cross-validation, the choices, the accuracy predicted.
-    pub report: CalibrationReport,
-}
 
 /// The choices of `choices` as the command line's flags: `--prior auto:fabricated's scale`,
 /// `--select bic`.
 pub fn choices_in_words(choices: &Choices) -> Vec<String> {
     let auto = choices.auto_prior.iter().map(|(a, _)| format!("--prior {}'s scale", a.label()));
     auto.chain(choices.select.map(|c| format!("--select {}", c.name()))).collect()
-}
-
-/// Calibrate `model` on `fit` as `request` asks: make its choices on `fit`
-/// ([`calibration::choose`]), calibrate with the chosen options (by feasible GLS if asked),
-/// score each held-out set pose by pose, cross-validate (nested when a choice is made from
-/// the data or the loss is robust), predict the position error at the held-out poses from the
-/// parameter covariance `C` (`sigma_p^2 = tr(J_p C J_p^T) + floor^2`, the floor the first
-/// held-out set's rms after calibration), and report.
-pub fn calibrate_markers(
-    model: &RobotModel,
-    fit: &Measurements,
-    request: &MarkerRequest,
-) -> Result<MarkerOutcome, MarkerError> {
-    let chosen = calibration::choose(&Markers(model), fit, &request.options, &request.choices)
-        .map_err(MarkerError::Choice)?;
-    let result = if request.feasible {
-        calibration::calibrate_feasible(model, fit, &chosen.options, &FeasibleOptions::default())
-    } else {
-        calibration::calibrate(model, fit, &chosen.options)
-    }
-    .map_err(MarkerError::Calibration)?;
-    let estimated = result.noise_estimate.as_ref().filter(|_| request.feasible).map(|e| e.noise_model());
-    let sets = (request.held_out.iter())
-        .map(|(name, d, noise)| result.evaluate(name, d, estimated.as_ref().or(noise.as_ref())))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(MarkerError::Validation)?;
-    let cv = match request.folds {
-        Some(k) => Some(cross_validate(model, fit, request, k).map_err(MarkerError::CrossValidation)?),
-        None => None,
-    };
-    let folds = cv.as_ref().map(|(before, after, how)| (how.label(), *before, *after));
-    let name = if request.feasible { "fgls" } else { request.options.estimator.name() };
-    let mut report = CalibrationReport::new(&result, &request.data, name, sets, folds);
-    if let Some((_, _, how)) = cv {
-        report = report.with_cross_validation(how);
-    }
-    if let Some(path) = &chosen.path {
-        report = report.with_selection(path);
-    }
-    if let Some(scale) = chosen.scale {
-        report = report.with_prior_scale(scale);
-    }
-    let predicted = predicted_accuracy(&report.sets, &result, &request.held_out)?;
-    let report = report.with_predicted(predicted);
-    Ok(MarkerOutcome { calibration: result, report })
-}
-
-/// The k-fold cross-validation of `fit` with the options asked (before any choice), nested
-/// when a choice is made from the data: with `--select` or `--prior auto` the choice is made
-/// again on each fold's training poses (a robust loss's weights always are). Before, after,
-/// and how it was made.
-fn cross_validate(
-    model: &RobotModel,
-    fit: &Measurements,
-    request: &MarkerRequest,
-    k: usize,
-) -> Result<(ErrorStats, ErrorStats, CrossValidationReport), CalibrationError> {
-    let (asked, choices) = (&request.options, &request.choices);
-    // Without choices, each fold calibrates with the options asked ([`calibration::cross_validate`]'s folds).
-    let cv = cross_validate_choices(&Markers(model), fit, asked, choices, k)?;
-    let mut how = fold_report(k, choices, asked.loss, cv.choices);
-    how.poses = Some(crate::report::poses::in_degrees(&cv.poses, &model.joints));
-    Ok((cv.before, cv.after, how))
 }
 
 /// How a `k`-fold cross-validation was made: nested when `choices` or a robust `loss`'s
@@ -150,22 +36,6 @@ fn fold_report(k: usize, choices: &Choices, loss: Loss, made: FoldChoices) -> Cr
     }
     let (selected, scales) = (made.selected, made.scales);
     CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales, poses: None }
-}
-
-/// The position error predicted at each held-out set's poses from the calibration's
-/// parameter covariance, with the floor (the first held-out set's rms after calibration) and
-/// without it, as `robocal accuracy` predicts it from the covariance sidecar.
-fn predicted_accuracy(
-    sets: &[SetEvaluation],
-    result: &Calibration,
-    held_out: &[(String, Measurements, Option<NoiseModel>)],
-) -> Result<Vec<PredictedAccuracy>, CovarianceError> {
-    let floor_mm =
-        sets.iter().find(|s| s.name != "training").and_then(|s| s.pooled.last()).map_or(0.0, |s| s.rms);
-    let estimate = &result.refined.estimate;
-    let covariance = ParameterCovariance::new(estimate.names.clone(), &estimate.covariance, floor_mm);
-    let poses = held_out.iter().map(|(name, d, _)| (name.as_str(), d.joints.as_slice()));
-    predicted_at(&result.calibrated, covariance, poses)
 }
 
 /// The tool's position error predicted from `covariance` (its floor in quadrature, and

@@ -402,9 +402,10 @@ def evaluate(
     use_markers: Optional[Sequence[int]] = None,
 ) -> dict[str, Any]:
     """``model`` scored as it stands on ``data`` (as ``calibrate`` takes it: arrays, a
-    DataFrame, a file, ``Observations``), as ``robocal evaluate`` scores it: for marker data, the set pose by pose
-    as its JSON has it (``pooled``: before, ``poses``, ``per_marker``; joint values in
-    degrees); for an observation file, its score with the set-up fitted and the robot held, its
+    DataFrame, a file, ``Observations``), as ``robocal evaluate`` scores it, the robot held:
+    marker data with the model's base and markers, an observation file with its set-up fitted.
+    The score as the JSON's ``observations[i][1]`` has it (``observations``, ``markers``,
+    ``by_marker``, ``positions``, ``lengths``; ``before`` and ``after`` the same), its
     residuals whitened by the file's sigma column (``sigma``, ``sigma_orientation`` or a
     ``noise`` file's for rows without, its device included) and ``joint_sigma``. A
     model read from a file with ``[[markers]]``, or a calibration's model, brings its markers."""

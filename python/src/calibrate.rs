@@ -11,10 +11,8 @@ use pyo3::prelude::*;
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, RowSigmaDefaults, Score};
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
-use robocal::calibration::{
-    self, Choices, DataKind, Gauge, JointParams, Kinds, Loss, Measurements, ParamWords,
-};
-use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PriorEntry, RefineOptions};
+use robocal::calibration::{Choices, DataKind, Gauge, JointParams, Kinds, Loss, ParamWords};
+use robocal::estimation::{Estimator, PriorEntry, RefineOptions};
 use robocal::model::{Joint, JointKind, RobotModel};
 use robocal::report::calibration::ParameterRow;
 use robocal::report::observations::ObservationsReport;
@@ -350,34 +348,6 @@ impl Flags {
         Ok(())
     }
 
-    /// The noise of the flags, or of a noise file, at the poses of the marker data `data`, as
-    /// `robocal evaluate` scores a marker file with it.
-    fn noise(
-        &self,
-        request: &Request,
-        model: &RobotModel,
-        data: &Measurements,
-    ) -> PyResult<Option<NoiseModel>> {
-        if let Some(path) = &self.noise {
-            let spec = robocal::io::load_noise(Path::new(path), model)
-                .map_err(|e| errors::from_error(Kind::Input, &e, None))?;
-            return calibration::noise_from_spec(&spec, data).map(Some).map_err(|e| {
-                errors::from_error(Kind::Input, &e, Some(&format!("{path}: the device's covariance")))
-            });
-        }
-        require(
-            !self.measurement_sigmas() || self.joint_sigma.is_some(),
-            "sigma",
-            "sigma needs joint_sigma too with marker data (zeros if the joints are exact)",
-        )?;
-        let Some(sigmas) = &self.joint_sigma else { return Ok(None) };
-        let joint = joint_sigmas((&model.name, &model.joints), sigmas, request.noise_units)?;
-        let scale = request.noise_units.length_scale();
-        let orientation = request.noise_units.angle(self.sigma_orientation.unwrap_or(0.0));
-        let measurement = MeasurementNoise::isotropic(self.sigma.unwrap_or(0.0) * scale, orientation);
-        Ok(Some(NoiseModel::diagonal(&joint, measurement)))
-    }
-
     /// The nominal marker positions (mm).
     fn marker_mm(&self, units: Units) -> Vec<Vector3<f64>> {
         self.marker.iter().map(|m| Vector3::from(*m) * units.length_scale()).collect()
@@ -682,11 +652,6 @@ pub fn calibrate_source(
     observations(py, model, &sources, &validate, &flags, &request)
 }
 
-/// The marker data of `source`, as `robocal evaluate` reads a marker file.
-fn read_markers(source: &Source, model: &RobotModel, units: Option<Units>) -> PyResult<Measurements> {
-    Measurements::from_csv_str(&text_of(source)?, model, units).map_err(|e| data_error(source, &e))
-}
-
 /// The command line's `calibrate` of marker data, a probe's and observation files, without
 /// writing anything: every file read as observations, as the command reads them, fitted
 /// together through [`robocal::pipeline::calibrate_files`].
@@ -841,52 +806,38 @@ fn observation_data(
     }
 }
 
-/// The model scored as it stands on `source`, as `robocal evaluate` scores it: marker data
-/// pose by pose (the JSON of its set, joint values in degrees), observation files with their
-/// set-up fitted and the robot held (the JSON of their score).
+/// The model scored as it stands on `source`, as `robocal evaluate` scores it: through the
+/// one observation pipeline ([`KindOptions::as_it_stands`]), marker data with the model's base
+/// and markers, other files with their set-up fitted, the robot held; whitened by the file's
+/// sigma column (or the noise's for rows without) and the joint noise. The JSON of its score.
 #[pyfunction]
 pub fn evaluate(model: &Model, source: Source, flags: Flags) -> PyResult<String> {
     let request = flags.request()?;
     let robot = &model.inner;
-    let json = match data_kind(source.clone())? {
-        "markers" => {
-            let mut data = read_markers(&source, robot, request.units)?;
-            if let Some(ids) = &flags.markers {
-                data = data.with_markers(ids).ok_or_else(|| {
-                    errors::argument(
-                        "markers",
-                        format!("{ids:?}: {} has markers {:?}", source.0, data.marker_ids),
-                    )
-                })?;
-            }
-            let noise = flags.noise(&request, robot, &data)?;
-            let set = calibration::evaluate_model(robot, &model.markers, &source.0, &data, noise.as_ref())
-                .map_err(|e| errors::calibration(&e, &source.0))?;
-            serde_json::to_string(&robocal::report::poses::in_degrees(&set, &robot.joints))
-        }
-        "observations" => {
-            // Whitened by the file's sigma column (or the noise's for rows without) and the
-            // joint noise, as `robocal evaluate`.
-            let (spec, defaults) = observation_noise(robot, &flags, &request)?;
-            let data = observation_data(&source, robot, &request, (spec.as_ref(), defaults))?;
-            let joint_noise = match spec {
-                Some(spec) => Some(spec.joint),
-                None => kind_options(robot, &flags, &request)?.joint_noise,
-            };
-            let tool = robot.tool_point_in_marker_frame();
-            let options = KindOptions { tool, joint_noise, ..KindOptions::default() };
-            let score = robocal::calibration::kinds::evaluate_kinds(robot, &data, &options)
-                .map_err(|e| errors::calibration(&e, &source.0))?;
-            serde_json::to_string(&score)
-        }
-        _ => {
-            return Err(errors::input(format!(
-                "{}: views on a tree are not evaluated from Python yet",
-                source.0
-            )));
-        }
+    if data_kind(source.clone())? == "tree-views" {
+        return Err(errors::input(format!(
+            "{}: views on a tree are not evaluated from Python yet",
+            source.0
+        )));
+    }
+    let (spec, defaults) = observation_noise(robot, &flags, &request)?;
+    let mut data = observation_data(&source, robot, &request, (spec.as_ref(), defaults))?;
+    if let Some(ids) = &flags.markers {
+        data = data.with_markers(ids).ok_or_else(|| {
+            let have: Vec<usize> = data.markers().iter().map(|m| m + 1).collect();
+            errors::argument("markers", format!("{ids:?}: {} has markers {have:?}", source.0))
+        })?;
+    }
+    let joint_noise = match spec {
+        Some(spec) => Some(spec.joint),
+        None => kind_options(robot, &flags, &request)?.joint_noise,
     };
-    Ok(json.expect("a set serialises"))
+    let options = KindOptions::as_it_stands(robot, &model.markers, &data)
+        .map_err(|e| errors::calibration(&e, &source.0))?;
+    let options = KindOptions { joint_noise, ..options };
+    let score = robocal::calibration::kinds::evaluate_kinds(robot, &data, &options)
+        .map_err(|e| errors::calibration(&e, &source.0))?;
+    Ok(serde_json::to_string(&score).expect("a score serialises"))
 }
 
 /// The library's options for observation files: the joint noise (`Sigma_q`, rad² and mm²),

@@ -315,7 +315,7 @@ def test_evaluate_scores_a_calibrated_model_as_the_command_line_does(puma: roboc
     model.write_text(c.model_toml())
     out = tmp_path / "evaluation.json"
     run_cli("evaluate", "--model", str(model), "--data", str(VALIDATION), "--json", str(out), "--quiet")
-    theirs = json.loads(out.read_text())["sets"][0]
+    theirs = json.loads(out.read_text())["observations"][0][1]
     # The model read back from its file brings its markers, and is scored as the command line
     # scores it.
     assert_same(robocal.evaluate(robocal.Model.from_toml(str(model)), VALIDATION), theirs)

@@ -548,13 +548,6 @@ pub struct ReportArgs {
     pub html: Option<PathBuf>,
 }
 
-impl ReportArgs {
-    /// Whether it asks for files of every pose (`--poses-csv`, `--figures` or `--html`).
-    pub fn wants_files(&self) -> bool {
-        self.poses_csv.is_some() || self.figures.is_some() || self.html.is_some()
-    }
-}
-
 /// The flags of `robocal evaluate`.
 #[derive(Args, Debug)]
 pub struct EvaluateArgs {

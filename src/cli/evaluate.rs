@@ -1,127 +1,109 @@
-//! `robocal evaluate`: a model scored as it stands on measurement files, with the tables of
-//! `calibrate` (pooled, per marker, worst poses) and its files (JSON, poses, figures, page).
+//! `robocal evaluate`: a model scored as it stands on measurement files of any kind, through
+//! the one observation pipeline ([`KindOptions::as_it_stands`]): marker files with the model's
+//! base and markers, other files with their set-up fitted; the robot held in both.
 
 use super::observations::Noise;
 use super::request::{EvaluateRequest, NoiseSource};
-use super::{ReportContent, noise_model, write_report_files};
 use anyhow::{Context, Result, bail};
+use nalgebra::Vector3;
+use robocal::calibration::DataKind;
 use robocal::calibration::kinds::{KindData, KindOptions, RowSigmaDefaults, Score, evaluate_kinds};
-use robocal::calibration::{self, DataKind, Measurements, SetEvaluation, evaluate_model, pool};
-use robocal::estimation::NoiseModel;
 use robocal::io;
 use robocal::model::RobotModel;
-use robocal::report::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
 use robocal::report::residuals::ResidualSet;
 use serde::Serialize;
-use std::fmt::Write;
 use std::path::Path;
 
-/// What `evaluate` reports: the model, each file scored, and the files pooled.
+/// What `evaluate` reports: the model and each file scored.
 #[derive(Serialize)]
 struct EvaluationReport {
     /// The model's name.
     model: String,
-    /// Each file, pose by pose (joint values in degrees, mm for prismatic joints).
-    sets: Vec<SetEvaluation>,
-    /// With several files, all their poses pooled (summaries only).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pooled: Option<SetEvaluation>,
-    /// The files of other kinds, each scored with its set-up fitted, the robot held.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
+    /// Each file, its name and its score.
     observations: Vec<(String, Score)>,
 }
 
-/// Score the model on every file, print the tables, write the files asked for.
+/// Score the model on every file, print the table, write the files asked for.
 pub fn run(request: &EvaluateRequest) -> Result<()> {
     let kinds = (request.data.iter()).map(|path| io::data_kind(path)).collect::<Result<Vec<_>, _>>()?;
     if !request.tips.is_empty() || request.branches.is_some() || kinds.contains(&DataKind::TreeViews) {
         return super::evaluate_tree::run(request, &kinds);
     }
     let model = io::load_model(&request.model)?;
+    let markers = model_markers(request)?;
+    let noise = observation_noise(request, &model)?;
+    let read = |path: &std::path::PathBuf| {
+        super::observations::read(path, &model, request.units, noise.sigmas, noise.device.as_ref())
+    };
+    let files =
+        (request.data.iter()).map(|path| Ok((path.as_path(), read(path)?))).collect::<Result<Vec<_>>>()?;
+    let observed = (chosen_markers(files, request.marker_ids.as_deref())?.into_iter())
+        .map(|(path, data)| scored(path, data, &model, &markers, noise.joint.clone()))
+        .collect::<Result<Vec<_>>>()?;
+    let observations: Vec<(String, Score)> =
+        observed.iter().map(|(name, _, score)| (name.clone(), score.clone())).collect();
+    let text = robocal::report::observations::as_it_stands_text(&model.name, &observations);
+    super::show_report(&text, &super::report_outputs(&request.report));
+    let report = EvaluationReport { model: model.name.clone(), observations };
+    let json = super::json_if_asked(&request.report, &report)?;
+    let title = format!("{} scored as it stands", model.name);
+    let mut outputs = io::Outputs::new();
+    write_observation_files(request, &model, &observed, json, &title, &text, &mut outputs)?;
+    super::commit(outputs)
+}
+
+/// The markers of the model file (numbered from 1, mm in the last joint frame): a TOML model's
+/// `[[markers]]`, a URDF's marker links; none for a built-in model.
+fn model_markers(request: &EvaluateRequest) -> Result<Vec<(usize, Vector3<f64>)>> {
     let path = Path::new(&request.model.name);
-    let markers = if request.model.is_urdf() {
+    Ok(if request.model.is_urdf() {
         robocal::model::markers_from_urdf_str(&read(path)?).with_context(|| path.display().to_string())?
     } else if path.exists() {
         robocal::model::markers_from_toml_str(&read(path)?).with_context(|| path.display().to_string())?
     } else {
         Vec::new()
-    };
-    // Marker files are scored as they are; any other kind with its set-up fitted.
-    let (marker_files, others): (Vec<&std::path::PathBuf>, Vec<&std::path::PathBuf>) =
-        request.data.iter().partition(|p| read(p).is_ok_and(|t| is_marker_file(&t)));
-    let observed =
-        others.iter().map(|path| observation_file(path, &model, request)).collect::<Result<Vec<_>>>()?;
-    let observations: Vec<(String, Score)> =
-        observed.iter().map(|(name, _, score)| (name.clone(), score.clone())).collect();
-    let mut sets = Vec::new();
-    for path in marker_files {
-        let mut data = io::load_measurements(path, &model, request.units)?;
-        if let Some(ids) = &request.marker_ids {
-            data = data.with_markers(ids).with_context(|| {
-                format!("{}: none of the markers {ids:?} (it has {:?})", path.display(), data.marker_ids)
-            })?;
-        }
-        let noise = noise_for(request.noise.as_ref(), &model, &data)?;
-        let name = path.display().to_string();
-        let set = evaluate_model(&model, &markers, &name, &data, noise.as_ref())
-            .with_context(|| path.display().to_string())?;
-        sets.push(in_degrees(&set, &model.joints));
-    }
-    let refs: Vec<&SetEvaluation> = sets.iter().collect();
-    let pooled = if sets.len() > 1 { pool("all files, pooled", &refs) } else { None };
-    let mut text = String::new();
-    if !observations.is_empty() {
-        text.push_str(&observations_text(&model.name, &observations));
-    }
-    if !sets.is_empty() {
-        text.push_str(&markers_text(&model.name, &sets, pooled.as_ref()));
-    }
-    super::show_report(&text, &super::report_outputs(&request.report));
-    let report = EvaluationReport { model: model.name.clone(), sets, pooled, observations };
-    let json = super::json_if_asked(&request.report, &report)?;
-    let title = format!("{} scored as it stands", model.name);
-    let mut outputs = io::Outputs::new();
-    if report.sets.is_empty() {
-        write_observation_files(request, &model, &observed, json, &title, &text, &mut outputs)?;
-        return super::commit(outputs);
-    }
-    if !observed.is_empty() && request.report.wants_files() {
-        bail!(
-            "--poses-csv, --figures and --html: marker files and observation files have files of their own; \
-             evaluate them in two runs"
-        );
-    }
-    let extra_figures = if request.report.figures.is_some() || request.report.html.is_some() {
-        robocal::report::figures::torque_figures(&report.sets.iter().collect::<Vec<_>>(), &model)?
-    } else {
-        Vec::new()
-    };
-    let content = ReportContent {
-        title: &title,
-        text: &text,
-        json,
-        sets: &report.sets,
-        joints: &model.joints,
-        extra_figures,
-        calibration: None,
-    };
-    write_report_files(&request.report, content, &mut outputs)?;
-    super::commit(outputs)
+    })
 }
 
-/// An observation file read and scored as it stands, its set-up fitted, the model held, its
-/// whitened residuals under its sigma column (or `--sigma-mm`'s, a noise file's `sigma_me_mm`
-/// and device for rows without) and the joint noise: its name, its observations and their
-/// residuals.
-fn observation_file(
+/// The files with the markers `--markers` names only (`ids`, numbers from 1), their other
+/// observations kept; a number that no file's marker has is refused, and so is a file with
+/// markers, none of them named.
+fn chosen_markers<'a>(
+    files: Vec<(&'a Path, KindData)>,
+    ids: Option<&[usize]>,
+) -> Result<Vec<(&'a Path, KindData)>> {
+    let Some(ids) = ids else { return Ok(files) };
+    let have: std::collections::BTreeSet<usize> =
+        files.iter().flat_map(|(_, d)| d.markers()).map(|m| m + 1).collect();
+    if let Some(id) = ids.iter().find(|id| !have.contains(id)) {
+        let have: Vec<String> = have.iter().map(usize::to_string).collect();
+        bail!(
+            "--markers {id}: no data file has marker {id} (x{id}, y{id}, z{id}); their markers: {}",
+            have.join(", ")
+        );
+    }
+    let chosen = |(path, data): (&'a Path, KindData)| match data.with_markers(ids) {
+        Some(kept) => Ok((path, kept)),
+        None => bail!("{}: --markers {ids:?} names none of its markers", path.display()),
+    };
+    files.into_iter().map(chosen).collect()
+}
+
+/// A file's data scored as it stands ([`KindOptions::as_it_stands`]: a marker file with the
+/// model's base and `markers`, any other with its set-up fitted; the robot and its tool point
+/// held), whitened under its sigma column (or `--sigma-mm`'s, a noise file's `sigma_me_mm`
+/// and device for rows without) and the joint noise `joint`: its name, its observations and
+/// their residuals.
+fn scored(
     path: &Path,
-    model: &robocal::model::RobotModel,
-    request: &EvaluateRequest,
+    data: KindData,
+    model: &RobotModel,
+    markers: &[(usize, Vector3<f64>)],
+    joint: Option<nalgebra::DMatrix<f64>>,
 ) -> Result<(String, KindData, Score)> {
-    let noise = observation_noise(request, model)?;
-    let data = super::observations::read(path, model, request.units, noise.sigmas, noise.device.as_ref())?;
-    let tool = model.tool_point_in_marker_frame();
-    let options = KindOptions { tool, joint_noise: noise.joint, ..KindOptions::default() };
+    let options =
+        KindOptions::as_it_stands(model, markers, &data).with_context(|| path.display().to_string())?;
+    let options = KindOptions { joint_noise: joint, ..options };
     let score = evaluate_kinds(model, &data, &options).with_context(|| path.display().to_string())?;
     Ok((path.display().to_string(), data, score))
 }
@@ -195,88 +177,7 @@ fn write_observation_files(
     super::write_residual_files(&request.report, content, outputs)
 }
 
-/// Whether `text` is a marker file scored pose by pose ([`DataKind::Markers`]: marker columns,
-/// every cell measured); one with an empty marker cell is scored as observations.
-fn is_marker_file(text: &str) -> bool {
-    DataKind::of_csv_str(text).is_ok_and(|k| k == DataKind::Markers)
-}
-
-/// The residual table of the observation files, each scored with its set-up fitted and the
-/// model held.
-fn observations_text(model: &str, scores: &[(String, Score)]) -> String {
-    let mut text = String::new();
-    let width = scores.iter().map(|(n, _)| n.len() + 6).max().unwrap_or(0).max(24);
-    let _ = writeln!(
-        text,
-        "{model} scored as it stands on {} observation file{}: each file's set-up (fixed points, planes, camera and target; with markers the base and the markers) fitted, the robot and its tool point held (calibrate --validate scores with the calibrated set-up instead: its figure can be larger)\n",
-        scores.len(),
-        if scores.len() == 1 { "" } else { "s" }
-    );
-    let _ = writeln!(text, "{:<width$} {:>10}", "residuals, RMS", "as it stands");
-    for (name, score) in scores {
-        let _ = writeln!(text, "{:<width$} {:>10.4}", format!("{name} (mm)"), score.lengths.1);
-        if let Some((_, after)) = score.markers {
-            let _ = writeln!(text, "{:<width$} {after:>10.4}", format!("{name} markers (mm)"));
-        }
-        if let Some((_, after)) = score.angles {
-            let _ = writeln!(text, "{:<width$} {after:>10.5}", format!("{name} (deg)"));
-        }
-    }
-    text
-}
-
-/// The tables of the marker files, scored as they stand.
-fn markers_text(model: &str, sets: &[SetEvaluation], pooled: Option<&SetEvaluation>) -> String {
-    let refs: Vec<&SetEvaluation> = sets.iter().collect();
-    let mut text = String::new();
-    let _ = writeln!(
-        text,
-        "{} scored as it stands on {} file{}: no registration, no fit",
-        model,
-        sets.len(),
-        if sets.len() == 1 { "" } else { "s" }
-    );
-    let _ = writeln!(
-        text,
-        "errors:    distances and their x, y, z components, unweighted\nwhitened:  {}\n",
-        sets[0].whitening
-    );
-    let mut tables: Vec<&SetEvaluation> = refs.clone();
-    tables.extend(pooled);
-    text.push_str(&pooled_table(&tables, &[]));
-    if sets.iter().any(|s| s.marker_ids.len() > 1) {
-        let _ = writeln!(text);
-        text.push_str(&per_marker_table(&tables));
-    }
-    let _ = writeln!(
-        text,
-        "\nworst poses ({} per file; every pose in --poses-csv, --json, --html):",
-        robocal::report::poses::WORST
-    );
-    text.push_str(&worst_poses(&refs));
-    text
-}
-
 /// A file's text.
 fn read(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))
-}
-
-/// The noise of `source` at the poses of `data`: the flags' everywhere, a noise file's device
-/// at each measured marker.
-fn noise_for(
-    source: Option<&NoiseSource>,
-    model: &RobotModel,
-    data: &Measurements,
-) -> Result<Option<NoiseModel>> {
-    Ok(match source {
-        None => None,
-        Some(NoiseSource::Flags(flags)) => Some(noise_model(model, flags)?),
-        Some(NoiseSource::File(path)) => {
-            let spec = io::load_noise(path, model)?;
-            let noise = calibration::noise_from_spec(&spec, data)
-                .with_context(|| format!("{}: the device's covariance", path.display()))?;
-            Some(noise)
-        }
-    })
 }

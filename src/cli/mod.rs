@@ -191,56 +191,6 @@ fn calibrate_any(args: args::CalibrateArgs) -> Result<()> {
     }
 }
 
-/// What a command reports: the text and JSON, the poses scored, and figures beyond the
-/// per-pose ones (the selection path of `calibrate --select`).
-struct ReportContent<'a> {
-    title: &'a str,
-    text: &'a str,
-    /// The JSON report, built only if `--json` asks for it ([`json_if_asked`]).
-    json: Option<String>,
-    /// With their joint values in degrees (mm for prismatic joints).
-    sets: &'a [robocal::calibration::SetEvaluation],
-    joints: &'a [robocal::model::Joint],
-    /// `(file name, SVG)`.
-    extra_figures: Vec<(String, String)>,
-    /// A calibration's report, for its designed page; without one the page shows `text`.
-    calibration: Option<&'a robocal::report::calibration::CalibrationReport>,
-}
-
-/// Stage in `outputs` the files of `report` that were asked for: the JSON, the poses (CSV),
-/// the figures (SVG) and the HTML page with the text's tables and the figures inline.
-fn write_report_files(
-    report: &ReportArgs,
-    content: ReportContent<'_>,
-    outputs: &mut io::Outputs,
-) -> Result<()> {
-    if let (Some(path), Some(json)) = (&report.json, content.json) {
-        outputs.add(path, json);
-    }
-    let sets: Vec<&robocal::calibration::SetEvaluation> = content.sets.iter().collect();
-    if let Some(path) = &report.poses_csv {
-        outputs.add(path, robocal::report::poses::poses_csv(&sets, content.joints));
-    }
-    if report.figures.is_none() && report.html.is_none() {
-        return Ok(());
-    }
-    let mut figures = robocal::report::figures::pose_figures(&sets, content.joints)?;
-    figures.extend(content.extra_figures);
-    if let Some(folder) = &report.figures {
-        outputs.add_folder(folder, &figures);
-    }
-    if let Some(path) = &report.html {
-        let page = match content.calibration {
-            Some(report) => {
-                robocal::report::calibration_page::calibration_page(report, content.title, &figures)
-            }
-            None => robocal::report::html::page(content.title, content.text, (&sets, &[]), &figures),
-        };
-        outputs.add(path, page);
-    }
-    Ok(())
-}
-
 /// `value` as the JSON report (pretty, one trailing newline) if `report` asks for one: a
 /// large campaign's JSON is many times its input, and is not built for nothing.
 fn json_if_asked<T: serde::Serialize>(report: &ReportArgs, value: &T) -> Result<Option<String>> {
@@ -274,8 +224,7 @@ struct ResidualContent<'a> {
 }
 
 /// Stage in `outputs` the files of `report` that were asked for: the JSON, every residual
-/// (CSV), the figures (SVG) and the page with the figures inline, as [`write_report_files`]
-/// stages a marker file's.
+/// (CSV), the figures (SVG) and the page with the figures inline.
 fn write_residual_files(
     report: &ReportArgs,
     content: ResidualContent<'_>,

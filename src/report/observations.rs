@@ -161,13 +161,17 @@ impl Fits {
                 false => "that the observations identify",
             }
         );
-        let flagged = format!(
-            "an observation (a marker's position) whose whitened residual exceeds {} standard deviations \
-             times its set's robust spread, if above 1",
-            crate::calibration::FLAG_AT
-        );
-        Self { before, after, flagged }
+        Self { before, after, flagged: flag_rule() }
     }
+}
+
+/// The rule an observation is flagged by, in words.
+fn flag_rule() -> String {
+    format!(
+        "an observation (a marker's position) whose whitened residual exceeds {} standard deviations \
+         times its set's robust spread, if above 1",
+        crate::calibration::FLAG_AT
+    )
 }
 
 /// `text` with the points on the last link named as the files name them: each marker by its
@@ -385,7 +389,12 @@ impl ObservationsReport {
 
     /// The verdict: its rows as a table, the warnings by cause.
     fn verdict_text(&self) -> String {
-        let title = "verdict, the errors before -> after calibration:";
+        let title = match self.sets.len() {
+            1 => "verdict, the errors before -> after calibration:",
+            _ => {
+                "verdict, the errors before -> after calibration (training: the poses fitted; every other set held out):"
+            }
+        };
         super::verdict::quantity_table(title, "count", &self.verdict)
             + &super::verdict::count_warnings(&self.warnings)
     }
@@ -597,4 +606,56 @@ fn first_by<T>(items: impl Iterator<Item = T>, n: usize, order: impl Fn(&T, &T) 
     }
     ranked.sort_by(order);
     ranked.into_iter().map(|(_, item)| item).collect()
+}
+
+/// The text of `model` scored as it stands on each file of `scores` (`robocal evaluate`): a
+/// table of each file's rows as the verdict's ([`QuantityRow`]: by group and marker), after
+/// only, and each file's worst positions (marker files) or worst observations, whitened.
+pub fn as_it_stands_text(model: &str, scores: &[(String, Score)]) -> String {
+    let plural = if scores.len() == 1 { "" } else { "s" };
+    let mut out = format!(
+        "{model} scored as it stands on {} file{plural}: the robot and its tool point held; a marker file with the \
+         model's base and markers, any other with its set-up (fixed points, planes, camera and target; with markers \
+         the base and the markers) fitted (calibrate --validate scores with the calibrated set-up instead)\n\n",
+        scores.len()
+    );
+    let heading = ["set", "count", "RMS", "max", "flagged"].map(String::from);
+    let cells = |r: &QuantityRow| {
+        let digits = if r.unit == "deg" { 5 } else { 4 };
+        let flagged = r.flagged.map_or_else(String::new, |f| format!("{f} of {}", r.count));
+        let one = |v: [f64; 2]| format!("{:.digits$} {}", v[1], r.unit);
+        [r.label(), r.count.to_string(), one(r.rms), one(r.max), flagged]
+    };
+    let rows: Vec<[String; 5]> = std::iter::once(heading)
+        .chain(scores.iter().flat_map(|(name, s)| set_rows(name, s)).map(|r| cells(&r)))
+        .collect();
+    out.push_str(&super::verdict::table("residuals as it stands:", &rows));
+    let _ =
+        writeln!(out, "\nlargest errors ({WORST} per file, with their whitened size; every one in --json):");
+    for (name, score) in scores {
+        if score.positions.is_empty() {
+            let worst = first_by(score.observations.iter(), WORST, |a, b| {
+                b.whitened.abs().total_cmp(&a.whitened.abs())
+            });
+            for r in worst {
+                let (label, unit) = (r.label(), r.unit);
+                let _ = writeln!(
+                    out,
+                    "  {name}, line {} ({label}): {:.4} {unit}, {:.1} sd",
+                    r.line, r.after, r.whitened
+                );
+            }
+        } else {
+            let worst = first_by(score.positions.iter(), WORST, |a, b| b.error.1.total_cmp(&a.error.1));
+            for p in worst {
+                let _ = writeln!(
+                    out,
+                    "  {name}, line {} marker {}: {:.4} mm, {:.1} sd",
+                    p.line, p.marker, p.error.1, p.whitened
+                );
+            }
+        }
+    }
+    let _ = writeln!(out, "\nflagged:   {}", flag_rule());
+    out
 }

@@ -65,21 +65,17 @@ fn literal_position(model: &RobotModel, q: &[f64], marker: &Vector3<f64>) -> Vec
     t.transform_point(&(*marker).into()).coords
 }
 
-/// The errors `[stage][marker]` of pose `k` of set `s` in `evaluate`'s JSON report.
-fn pose_errors(report: &Value, s: usize, k: usize, stage: usize) -> Vec<Vector3<f64>> {
-    report["sets"][s]["poses"][k]["errors"][stage]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| Vector3::new(e[0].as_f64().unwrap(), e[1].as_f64().unwrap(), e[2].as_f64().unwrap()))
-        .collect()
-}
-
 /// Each marker's position error (measured - predicted, mm) at `stage` (`before`, `after`) in
 /// set `s` of `calibrate`'s JSON report, from its observations, by line and marker number.
 fn calibrated_errors(report: &Value, s: usize, stage: &str) -> BTreeMap<(u64, u64), Vector3<f64>> {
+    marker_errors(&report["sets"][s][1], stage)
+}
+
+/// Each marker's position error at `stage` in a scored set of observations (a JSON `Score`),
+/// by line and marker number.
+fn marker_errors(score: &Value, stage: &str) -> BTreeMap<(u64, u64), Vector3<f64>> {
     let mut errors = BTreeMap::new();
-    for o in report["sets"][s][1]["observations"].as_array().unwrap() {
+    for o in score["observations"].as_array().unwrap() {
         let Some(axis) = o["kind"].as_str().unwrap().strip_prefix("marker ") else { continue };
         let axis = ["x", "y", "z"].iter().position(|a| *a == axis).unwrap();
         let key = (o["line"].as_u64().unwrap(), o["marker"].as_u64().unwrap());
@@ -88,25 +84,16 @@ fn calibrated_errors(report: &Value, s: usize, stage: &str) -> BTreeMap<(u64, u6
     errors
 }
 
-/// Each marker's position error in set `s` of `evaluate`'s JSON report, by line and marker
+/// Each marker's position error in file `s` of `evaluate`'s JSON report, by line and marker
 /// number, as [`calibrated_errors`] gives `calibrate`'s.
 fn evaluated_errors(report: &Value, s: usize) -> BTreeMap<(u64, u64), Vector3<f64>> {
-    let ids: Vec<u64> =
-        report["sets"][s]["marker_ids"].as_array().unwrap().iter().map(|m| m.as_u64().unwrap()).collect();
-    let poses = report["sets"][s]["poses"].as_array().unwrap();
-    let mut errors = BTreeMap::new();
-    for (k, pose) in poses.iter().enumerate() {
-        for (id, e) in ids.iter().zip(pose_errors(report, s, k, 0)) {
-            errors.insert((pose["line"].as_u64().unwrap(), *id), e);
-        }
-    }
-    errors
+    marker_errors(&report["observations"][s][1], "after")
 }
 
 /// `calibrate`'s own report is snapshot-tested in `cli.rs` (and is the README's example); this
-/// is `evaluate`'s on two sessions: pooled, per marker, all files pooled, the worst poses.
+/// is `evaluate`'s on two sessions: each file's markers and each marker, the worst positions.
 #[test]
-fn the_evaluate_report_has_per_marker_tables_and_the_worst_poses() {
+fn the_evaluate_report_has_per_marker_rows_and_the_worst_positions() {
     let dir = scratch("snapshot");
     let model = dir.join("calibrated.toml");
     calibrate_weighted(&["--out-model", model.to_str().unwrap()]);
@@ -161,10 +148,10 @@ fn evaluate_reproduces_calibrates_validation_from_the_written_toml_and_urdf() {
         "--json",
         scored.to_str().unwrap(),
     ]);
-    assert!(text.contains("examples/puma560-validation.csv, model"), "{text}");
+    assert!(text.contains("examples/puma560-validation.csv markers (mm)     100  0.1"), "{text}");
     let scored = json(&scored);
     assert_same_errors(&calibrated, 1, &scored, 0);
-    let (a, b) = (&calibrated["sets"][1][1]["markers"][1], &scored["sets"][0]["pooled"][0]["rms"]);
+    let (a, b) = (&calibrated["sets"][1][1]["markers"][1], &scored["observations"][0][1]["markers"][1]);
     assert!((a.as_f64().unwrap() - b.as_f64().unwrap()).abs() < 1e-9, "rms: {a} and {b}");
 
     // The same from a URDF robot written back by --out-urdf, its markers as links.

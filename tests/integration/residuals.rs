@@ -240,7 +240,7 @@ fn an_observation_files_written_model_rescores_its_training_file() {
     let poses_section = html.split("<section id=\"poses\"").nth(1).expect("a poses section");
     assert!(poses_section.contains("<th>as it stands mm</th>"), "{poses_section}");
     assert_eq!(poses_section.split("</section>").next().unwrap().matches("<tr").count(), 151);
-    // Marker and observation files together: their files apart, in two runs.
+    // Marker and observation files together: one run, one page, their rows side by side.
     let markers = dir.join("one-marker.csv");
     let one_marker: Vec<String> = (std::fs::read_to_string("examples/puma560-measurements.csv").unwrap())
         .lines()
@@ -257,11 +257,16 @@ fn an_observation_files_written_model_rescores_its_training_file() {
     let out = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
         .args(["evaluate", "--model", s(&model), "--data", BALL_BAR, "--data", s(&markers)])
-        .args(["--html", s(&page)])
+        .args(["--html", s(&page), "--poses-csv", s(&poses)])
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("evaluate them in two runs"));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (_, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
+    let sets: Vec<&str> = rows.iter().map(|r| r["set"].as_str()).collect();
+    assert_eq!(sets.iter().filter(|&&set| set == BALL_BAR).count(), 150);
+    assert_eq!(sets.iter().filter(|&&set| set == s(&markers)).count(), 3 * 100, "marker 1's x, y, z at 100 poses");
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(html.contains(BALL_BAR) && html.contains(s(&markers)), "both files on the page");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

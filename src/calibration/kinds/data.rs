@@ -665,6 +665,17 @@ impl KindData {
         self.observations.iter().any(|o| matches!(o, Observation::Coordinate { .. }) || o.marker().is_some())
     }
 
+    /// These data with the markers numbered `ids` (from 1) only, their positions and
+    /// orientations; every other observation kept. `None` where they have markers and `ids`
+    /// names none of them.
+    pub fn with_markers(&self, ids: &[usize]) -> Option<Self> {
+        let have = self.markers();
+        if !have.is_empty() && !have.iter().any(|m| ids.contains(&(m + 1))) {
+            return None;
+        }
+        Some(self.keeping(|o| o.marker().is_none_or(|m| ids.contains(&(m + 1)))))
+    }
+
     /// The markers observed (their numbers less one), ascending: one point each on the last
     /// link.
     pub fn markers(&self) -> Vec<usize> {

@@ -2472,6 +2472,60 @@ pub fn evaluate_kinds(
     Ok(calibrate_kinds(model, data, &held)?.training)
 }
 
+/// Whether `data` are a marker file's with every cell measured: every observation a marker's
+/// (a position's coordinate or a probe's orientation), each marker's three coordinates at
+/// every pose.
+fn every_marker_measured(data: &KindData) -> bool {
+    let mut coordinates = vec![0; data.markers().last().map_or(0, |m| m + 1)];
+    for o in &data.observations {
+        match o {
+            Observation::Marker { marker, .. } => coordinates[*marker] += 1,
+            Observation::Orientation { .. } => {}
+            _ => return false,
+        }
+    }
+    !data.observations.is_empty() && data.markers().iter().all(|&m| coordinates[m] == 3 * data.joints.len())
+}
+
+impl KindOptions {
+    /// The options that score `model` as it stands on `data` ([`evaluate_kinds`]): its tool
+    /// point, and, where the data are a marker file's (every observation a marker's, every
+    /// marker measured at every pose), its base and its markers held as the model gives them:
+    /// `markers` numbered from 1 (mm, in the last joint frame, as a model file's
+    /// `[[markers]]`), each taken into the marker frame `F` as `F^-1 p`; none given, the tool
+    /// point is marker 1. Any other data (a marker file with empty cells among them) have their
+    /// set-up, with markers the base and the markers too, fitted.
+    ///
+    /// # Errors
+    /// A marker of `data` that `markers` lacks.
+    pub fn as_it_stands(
+        model: &RobotModel,
+        markers: &[(usize, Vector3<f64>)],
+        data: &KindData,
+    ) -> Result<Self, CalibrationError> {
+        let tool = model.tool_point_in_marker_frame();
+        let as_it_stands = Self { tool, ..Self::default() };
+        if !every_marker_measured(data) {
+            return Ok(as_it_stands);
+        }
+        let frame = model.marker_frame().isometry();
+        let given: Vec<(usize, Vector3<f64>)> = if markers.is_empty() {
+            vec![(1, tool)]
+        } else {
+            markers.iter().map(|(id, p)| (*id, frame.inverse_transform_point(&(*p).into()).coords)).collect()
+        };
+        let mut held = vec![Vector3::zeros(); data.markers().last().map_or(0, |m| m + 1)];
+        for marker in data.markers() {
+            let id = marker + 1;
+            held[marker] = given.iter().find(|(m, _)| *m == id).map(|(_, p)| *p).ok_or_else(|| {
+                let known: Vec<usize> = given.iter().map(|(m, _)| *m).collect();
+                CalibrationError::Scoring(format!("the model has no marker {id} (it has {known:?})"))
+            })?;
+        }
+        Ok(Self { markers: held, estimate_base: false, estimate_markers: false, ..as_it_stands })
+    }
+}
+
 /// k-fold cross-validation of [`calibrate_kinds`]: the observations of pose `p` (every row of
 /// a view, every marker of a pose; a pair by its first pose) are held out in fold `p mod
 /// folds`, the others calibrated with `options` (every choice, the prior's and the loss's,
