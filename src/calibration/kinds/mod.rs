@@ -98,6 +98,7 @@
 //! [`tree`](super::tree)'s: a camera's view with both its frames on branches.
 
 pub mod camera;
+mod covariance;
 mod data;
 mod feasible;
 
@@ -123,10 +124,7 @@ use crate::estimation::{
 };
 use crate::kinematics::{Chain, ChainAt, HeldArm, MarkerEnd, Measured, end_positions, marker_jacobians_held};
 use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
-use nalgebra::{
-    DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, Matrix6xX, RowDVector, UnitQuaternion, Vector3,
-    Vector6,
-};
+use nalgebra::{DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 use std::sync::{Arc, OnceLock};
 
@@ -927,82 +925,6 @@ impl<'a> KindProblem<'a> {
         held.as_deref().map(Vec::as_slice)
     }
 
-    /// The blocks `V_k` of every pose's observations (consecutive observations made at one
-    /// pose, [`pose_blocks`]), stacked: entry `(i, i')` of a block is
-    /// `sum_j (g_ij^T J_ij) Sigma_q (g_i'j^T J_i'j)^T + delta_ii' sigma_i^2` (plus a device's
-    /// covariance between two coordinates of one point, [`KindData::measurement_covariance`]),
-    /// `j` over the poses
-    /// both observations see, `J_ij` the manipulator Jacobian of observation `i`'s point at
-    /// pose `j`: the joint noise of a pose moves every point seen there at once. At the start
-    /// values; without `joint_noise`, the measurement variances alone.
-    fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
-        let blocks = &self.blocks;
-        let observations = &self.data.observations;
-        let mut v = DMatrix::zeros(observations.len(), blocks.width());
-        let rows = joint_noise.map_or_else(Vec::new, |_| self.joint_rows(true));
-        // Each row times Sigma_q once: an entry is then dot products, without allocating.
-        let weighted: Vec<Vec<(usize, RowDVector<f64>)>> = match joint_noise {
-            Some(sigma_q) => {
-                rows.iter().map(|r| r.iter().map(|(j, g)| (*j, g * sigma_q)).collect()).collect()
-            }
-            None => Vec::new(),
-        };
-        // The joint noise's part of entry (i, i2): none without it.
-        let through_joints = |i: usize, i2: usize| -> f64 {
-            let Some(row) = weighted.get(i) else { return 0.0 };
-            let common = row.iter().flat_map(|(j, g)| {
-                rows[i2].iter().filter(move |(j2, _)| j2 == j).map(move |(_, g2)| g.dot(g2))
-            });
-            common.sum()
-        };
-        for r in blocks.ranges(observations.len()) {
-            for (a, i) in r.clone().enumerate() {
-                for (b, i2) in r.clone().enumerate().take(a + 1) {
-                    let joint: f64 = through_joints(i, i2) + self.data.measurement_covariance(i, i2);
-                    v[(i, b)] = joint;
-                    v[(i2, a)] = joint;
-                }
-            }
-        }
-        v
-    }
-
-    /// Every observation's joint-noise rows `g_kj^T J_kj` (`1 x dof`), one per pose `j` it
-    /// sees, at the start values; none unless `wanted`.
-    fn joint_rows(&self, wanted: bool) -> Vec<Vec<(usize, RowDVector<f64>)>> {
-        if !wanted {
-            return vec![Vec::new(); self.data.observations.len()];
-        }
-        let at: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&self.fixed)).collect();
-        let dof = self.chains[0].dof();
-        let rows = self.measured().rows();
-        let poses = self.data.joints.len();
-        let jacobians: Vec<(Isometry3<f64>, DMatrix<f64>)> = (0..at.len() * poses)
-            .into_par_iter()
-            .map_init(
-                || Matrix6xX::zeros(dof),
-                |j, n| {
-                    if !self.used[n] {
-                        return (Isometry3::identity(), DMatrix::zeros(0, 0));
-                    }
-                    let (at, q) = (&at[n / poses], &self.data.joints[n % poses]);
-                    at.manipulator_jacobian(q, j);
-                    (at.pose(q), DMatrix::from_fn(rows, dof, |r, c| j[(r, c)]))
-                },
-            )
-            .collect();
-        let frames: Vec<Isometry3<f64>> = jacobians.iter().map(|(f, _)| *f).collect();
-        let views = self.session_views(&self.setup_values);
-        let row = |o: &Observation| {
-            let first = self.point_of(o) * poses;
-            let f = self.predict(o, &frames[first..first + poses], &views);
-            (f.by_point[..f.poses].iter())
-                .map(|(j, g)| (*j, g.rows(0, rows).transpose() * &jacobians[first + *j].1))
-                .collect()
-        };
-        self.data.observations.iter().map(row).collect()
-    }
-
     /// How the noise enters the rows, for feasible GLS ([`residual_samples`]): each pose
     /// block's joint-noise Jacobian, its observations' rows `g_kj^T J_kj` by the distinct poses
     /// `j` they see, side by side (a distance between two poses sees both), at the problem's
@@ -1018,25 +940,7 @@ impl<'a> KindProblem<'a> {
         let classes = (observations.iter())
             .map(|o| present.iter().position(|&c| c == o.class()).expect("present"))
             .collect();
-        let rows = self.joint_rows(true);
-        let dof = self.chains[0].dof();
-        let jacobians = (self.blocks.ranges(observations.len()))
-            .map(|range| {
-                let mut poses: Vec<usize> =
-                    range.clone().flat_map(|i| rows[i].iter().map(|(j, _)| *j)).collect();
-                poses.sort_unstable();
-                poses.dedup();
-                let mut block = DMatrix::zeros(range.len(), poses.len() * dof);
-                for (r, i) in range.enumerate() {
-                    for (j, g) in &rows[i] {
-                        let p = poses.binary_search(j).expect("a pose of the block");
-                        let mut at = block.view_mut((r, p * dof), (1, dof));
-                        at += g;
-                    }
-                }
-                block
-            })
-            .collect();
+        let (jacobians, dof) = (self.noise_jacobians(), self.chains[0].dof());
         (NoiseLayout { jacobians, dof, classes, class_count: present.len() }, present)
     }
 
@@ -1769,12 +1673,12 @@ impl KindCalibration {
         // The weights only whiten the residuals after: the joint noise is for those alone.
         // Before: its residuals alone, no V_k.
         let before = self.problem_on(data, &setup, (&self.before, &values.0), &[]);
-        let after = self.problem_on(data, &setup, (&self.after, &values.1), &[]).with_noise(noise);
+        let after = self.problem_on(data, &setup, (&self.after, &values.1), &[]);
         let zero = DVector::zeros(0);
-        // The assumed sigmas scaled by the residuals' spread, when they were.
-        let v = after.covariance().expect("always built");
+        // The assumed sigmas scaled by the residuals' spread, when they were; the diagonal of
+        // `V_k` alone.
         let factor = self.variance_factor.unwrap_or(1.0);
-        let variances: Vec<f64> = after.blocks.diagonal(v).into_iter().map(|d| d * factor).collect();
+        let variances: Vec<f64> = after.variances(noise).into_iter().map(|d| d * factor).collect();
         let mut score = Score::new(data, (&before.residuals(&zero), &after.residuals(&zero)), &variances);
         score.sessions = sessions;
         Ok(score)
@@ -2184,10 +2088,15 @@ pub(super) fn prepare(
     let chains = Chain::marker_ends(&registered, &ends);
     let params = chains[0].params().clone();
     let zero = vec![0.0; params.len()];
-    let nominal: Vec<Isometry3<f64>> = {
-        // The tool's chain, the last (any chain when only markers are observed: no set-up).
-        let at = chains[chains.len() - 1].with_errors(&zero);
-        data.joints.par_iter().map(|q| at.pose(q)).collect()
+    // The tool's frames at every pose, where the set-up starts from them (fixed points,
+    // planes, a camera): the tool's chain, the last.
+    let (points, planes) = data.setup_counts();
+    let nominal: Vec<Isometry3<f64>> = match points + planes > 0 || data.camera().is_some() {
+        true => {
+            let at = chains[chains.len() - 1].with_errors(&zero);
+            data.joints.par_iter().map(|q| at.pose(q)).collect()
+        }
+        false => Vec::new(),
     };
     let (setup, start) = with_tracker(data.initial_setup(&nominal)?, data, options)?;
     let sessions = (0..data.session_count()).map(|k| data.session_name(k)).collect();
