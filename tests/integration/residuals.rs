@@ -264,7 +264,11 @@ fn an_observation_files_written_model_rescores_its_training_file() {
     let (_, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
     let sets: Vec<&str> = rows.iter().map(|r| r["set"].as_str()).collect();
     assert_eq!(sets.iter().filter(|&&set| set == BALL_BAR).count(), 150);
-    assert_eq!(sets.iter().filter(|&&set| set == s(&markers)).count(), 3 * 100, "marker 1's x, y, z at 100 poses");
+    assert_eq!(
+        sets.iter().filter(|&&set| set == s(&markers)).count(),
+        3 * 100,
+        "marker 1's x, y, z at 100 poses"
+    );
     let html = std::fs::read_to_string(&page).unwrap();
     assert!(html.contains(BALL_BAR) && html.contains(s(&markers)), "both files on the page");
     std::fs::remove_dir_all(&dir).unwrap();
