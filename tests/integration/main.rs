@@ -38,6 +38,7 @@ mod report;
 mod residuals;
 mod robust;
 mod selection;
+mod selection_physics;
 mod sessions;
 mod shards;
 mod simulation;
