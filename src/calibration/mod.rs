@@ -776,8 +776,8 @@ fn calibrate_checking(
     let mut fixed = gauged.gauge.fixed;
     fixed.extend(held_by_flags);
     let problem = base_problem.reselect(&kept, after.clone())?;
-    let noise_warning = match (&noise, options.loss) {
-        (Some(given), Loss::Squared) if check_noise => {
+    let noise_warning = match &noise {
+        Some(given) if check_noise => {
             let kept_sd: Vec<f64> = kept.indices().iter().map(|&i| prior_sd[i]).collect();
             noise_check::noise_check(&problem, &refined.estimate.x, given, &kept_sd)
         }

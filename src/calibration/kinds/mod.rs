@@ -1951,7 +1951,7 @@ pub fn calibrate_kinds(
     };
     scored(&mut calibration, data, spread)?;
     calibration.warnings.extend(Warning::outside_limits(&model.name, &model.joints, data.pose_lines()));
-    calibration.warnings.extend(noise_check(&calibration, data, options.loss));
+    calibration.warnings.extend(noise_check(&calibration, data));
     calibration.warnings.extend(change);
     Ok(calibration)
 }
@@ -1963,10 +1963,11 @@ pub fn calibrate_kinds(
 /// `diag(sigma_i^2)`, the lengths cross-validated (a marker's position one error, angles not
 /// scored: [`Observation::error_share`]). `None` when it agrees,
 /// without a noise given (every sigma assumed and the joints exact: the residuals' spread
-/// scales the fit instead), with a robust loss, or with too few residuals to tell.
-fn noise_check(c: &KindCalibration, data: &KindData, loss: Loss) -> Option<Warning> {
+/// scales the fit instead), or with too few residuals to tell. Under a robust loss too: the
+/// points far out are left out of the check ([`without_outliers`]) as the loss leaves them out.
+fn noise_check(c: &KindCalibration, data: &KindData) -> Option<Warning> {
     let assumed = c.joint_noise.is_none() && data.assumed_sigmas == data.observations.len();
-    if loss != Loss::Squared || assumed {
+    if assumed {
         return None;
     }
     let stride = data.joints.len().div_ceil(CHECK_POSES).max(1);
