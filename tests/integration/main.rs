@@ -42,6 +42,7 @@ mod selection_physics;
 mod sessions;
 mod shards;
 mod simulation;
+mod solver;
 mod tree;
 mod urdf;
 
