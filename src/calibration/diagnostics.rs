@@ -271,9 +271,31 @@ pub struct NoiseDisagrees {
     pub cv_given: f64,
     /// The same with the sigmas times their factors.
     pub cv_estimated: f64,
+    /// How far the estimate moves from the sigmas given to the estimated ones: the largest
+    /// change of a parameter over its standard error (linearised about the fit).
+    pub estimate_shift: f64,
 }
 
+/// An estimate moving by less than this many of its standard errors with the noise barely
+/// moves ([`NoiseDisagrees::shift_text`]).
+pub const BARELY_MOVES: f64 = 0.1;
+
 impl NoiseDisagrees {
+    /// Whether the estimate moves with the noise, in words: `the estimate moves with them by up
+    /// to 1.52 standard errors`, or below [`BARELY_MOVES`] `the estimate barely moves with them
+    /// (by at most 0.03 standard errors)`.
+    pub fn shift_text(&self) -> String {
+        match self.estimate_shift < BARELY_MOVES {
+            true => format!(
+                "the estimate barely moves with them (by at most {:.3} standard errors)",
+                self.estimate_shift
+            ),
+            false => {
+                format!("the estimate moves with them by up to {:.2} standard errors", self.estimate_shift)
+            }
+        }
+    }
+
     /// `the joint sigmas x0.45 and the measurement sigmas x2.31`.
     fn factors(&self) -> String {
         let measurement = format!("the measurement sigmas x{:.3}", self.measurement_factor);
@@ -443,13 +465,15 @@ impl fmt::Display for Warning {
                 f,
                 "the noise given disagrees with the residuals: their REML estimate is {} (whitened residual SD \
                  {:.3}, 1 if the noise were right); the weights and every prior's strength follow the sigmas: \
-                 {}-fold CV RMS {:.4} mm with the sigmas given, {:.4} mm with the estimated ones (linearised about \
-                 the fit); give the noise measured (robocal repeatability) or estimate it (--estimator fgls)",
+                 {}-fold CV RMS {:.4} mm with the sigmas given, {:.4} mm with the estimated ones, and {} \
+                 (linearised about the fit); give the noise measured (robocal repeatability) or estimate it \
+                 (--estimator fgls)",
                 n.factors(),
                 n.whitened_sd,
                 n.folds,
                 n.cv_given,
-                n.cv_estimated
+                n.cv_estimated,
+                n.shift_text()
             ),
             Self::GaugeMoved { freed, held, rounds } => {
                 let list = |v: &[String]| if v.is_empty() { "nothing".to_string() } else { v.join(", ") };

@@ -776,8 +776,8 @@ fn calibrate_checking(
     let mut fixed = gauged.gauge.fixed;
     fixed.extend(held_by_flags);
     let problem = base_problem.reselect(&kept, after.clone())?;
-    let noise_warning = match (&noise, options.loss) {
-        (Some(given), Loss::Squared) if check_noise => {
+    let noise_warning = match &noise {
+        Some(given) if check_noise => {
             let kept_sd: Vec<f64> = kept.indices().iter().map(|&i| prior_sd[i]).collect();
             noise_check::noise_check(&problem, &refined.estimate.x, given, &kept_sd)
         }
@@ -1149,8 +1149,37 @@ pub(crate) fn spread_of_fit(
 
 /// `asked` without the compliances and plays of joints that gravity does not load at the poses
 /// `joints` (every load below 1e-9 of the largest: a vertical axis, a joint carrying no mass)
-/// on `chain` with errors `x`, and why each of those is held.
+/// on `chain` with errors `x`, and why each of those is held; the payload's mass too where
+/// every compliance is zero at `x` (its column vanishes: [`without_unloaded_joints`] keeps it,
+/// for the gauge found again at the estimate to free).
 pub(crate) fn without_unloaded_responses(
+    asked: &Selection,
+    chain: &Chain,
+    x: &[f64],
+    joints: &[Vec<f64>],
+) -> (Selection, Vec<Held>) {
+    let (asked, mut why) = without_unloaded_joints(asked, chain, x, joints);
+    let params = chain.params();
+    // The payload's mass moves the arm only through the compliances: with every one zero at
+    // `x`, its column vanishes.
+    let payload =
+        params.index_of(ParamOwner::Payload, ParamKind::Mass).filter(|&i| asked.column(i).is_some());
+    let Some(i) = payload.filter(|_| !chain.with_errors(x).deflects()) else { return (asked, why) };
+    why.push(Held::Unseen {
+        parameter: params.get(i).name.clone(),
+        why: "the payload is seen only through the joints' compliances, all zero here: calibrate the \
+              compliances first (with a known payload or none), then its mass with the calibrated model"
+            .into(),
+    });
+    let kept = asked.indices().iter().copied().filter(|&k| k != i);
+    (Selection::from_indices(params, kept), why)
+}
+
+/// `asked` without the compliances and plays of joints that gravity does not load at the poses
+/// `joints` (every load below 1e-9 of the largest: a vertical axis, a joint carrying no mass)
+/// on `chain` with errors `x`, each held as [`Held::Unloaded`]: what no load can ever move,
+/// wherever the estimate goes.
+pub(crate) fn without_unloaded_joints(
     asked: &Selection,
     chain: &Chain,
     x: &[f64],
@@ -1163,8 +1192,7 @@ pub(crate) fn without_unloaded_responses(
             _ => None,
         })
         .collect();
-    let weighs = |i: usize| params.get(i).owner == ParamOwner::Payload;
-    if responses.is_empty() && !asked.indices().iter().any(|&i| weighs(i)) {
+    if responses.is_empty() {
         return (asked.clone(), Vec::new());
     }
     let at = chain.with_errors(x);
@@ -1178,23 +1206,8 @@ pub(crate) fn without_unloaded_responses(
     let heaviest = largest.iter().copied().fold(0.0, f64::max);
     let unloaded: Vec<usize> =
         responses.iter().filter(|&&(_, j)| largest[j] <= 1e-9 * heaviest).map(|&(i, _)| i).collect();
-    let mut why: Vec<Held> =
-        unloaded.iter().map(|&i| Held::Unloaded { parameter: params.get(i).name.clone() }).collect();
-    // The payload's mass moves the arm only through the compliances: with every one zero at
-    // `x`, its column vanishes.
-    let payload =
-        params.index_of(ParamOwner::Payload, ParamKind::Mass).filter(|&i| asked.column(i).is_some());
-    let mut held = unloaded;
-    if let Some(i) = payload.filter(|_| !at.deflects()) {
-        held.push(i);
-        why.push(Held::Unseen {
-            parameter: params.get(i).name.clone(),
-            why: "the payload is seen only through the joints' compliances, all zero here: calibrate the \
-                  compliances first (with a known payload or none), then its mass with the calibrated model"
-                .into(),
-        });
-    }
-    let kept = asked.indices().iter().copied().filter(|i| !held.contains(i));
+    let why = unloaded.iter().map(|&i| Held::Unloaded { parameter: params.get(i).name.clone() }).collect();
+    let kept = asked.indices().iter().copied().filter(|i| !unloaded.contains(i));
     (Selection::from_indices(params, kept), why)
 }
 

@@ -2,8 +2,12 @@
 //! joint and measurement variance components estimated by REML about the fit
 //! ([`crate::estimation::reml`]), and where a sigma is off by more than a factor
 //! [`NOISE_FACTOR`], a [`Warning::NoiseDisagrees`] with the k-fold cross-validated error at the
-//! sigmas given and at the estimated ones (linearised about the fit: no refit). The weights
-//! and every prior's strength follow the sigmas, so a guess off by a factor moves the estimate.
+//! sigmas given and at the estimated ones, and how far the estimate moves between them in its
+//! standard errors (linearised about the fit: no refit). The weights and every prior's
+//! strength follow the sigmas, so a guess off by a factor may move the estimate; the warning
+//! says whether it does. The check is made under any loss: a point whose whitened residual is
+//! far beyond the others' is left out of it ([`OUTLIER_FACTOR`]), as a robust loss leaves it
+//! out of the fit.
 
 use super::Warning;
 use super::diagnostics::NoiseDisagrees;
@@ -71,6 +75,7 @@ pub(crate) fn check(
         folds,
         cv_given: cv(1.0, 1.0)?,
         cv_estimated: cv(estimated.0, estimated.1)?,
+        estimate_shift: components.estimate_shift(estimated, (x, prior_sd))?,
     }))
 }
 

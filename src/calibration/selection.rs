@@ -103,7 +103,104 @@ pub struct Step {
     /// Why this parameter, when not by its score alone (`t`: a stand-in dropped before the
     /// joint's zero or play it stands in for).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub note: Option<String>,
+    pub note: Option<StandInFirst>,
+}
+
+impl Step {
+    /// Its note in words ([`StandInFirst::text`]), if it has one.
+    pub fn note_text(&self) -> Option<String> {
+        let parameter = self.parameter.as_deref().unwrap_or("");
+        self.note.as_ref().map(|n| n.text(parameter, self.score))
+    }
+}
+
+/// Why the `t` rule dropped a parameter that is not the weakest: it stands in (alone, or in a
+/// group of up to [`STAND_IN_GROUP`]) for a joint's zero or play that is weaker still, and
+/// a joint's zero and play go last.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct StandInFirst {
+    /// The joint's zero or play it stands in for.
+    pub stands_in_for: String,
+    /// The other parameters of its group, if it stands in with others (empty: alone).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub with: Vec<String>,
+    /// The correlation of the zero's or play's estimate with the group's: signed for one
+    /// parameter, the multiple correlation (0 to 1) of a group.
+    pub correlation: f64,
+}
+
+impl StandInFirst {
+    /// In words, of the step that dropped `parameter` at `|t|` `t`: `joint4.rz (|t| 0.12)
+    /// before joint4.theta, for which it stands in (correlation -1.00): a joint's zero and play
+    /// go last`.
+    pub fn text(&self, parameter: &str, t: f64) -> String {
+        let how = match self.with.is_empty() {
+            true => format!("for which it stands in (correlation {:+.2})", self.correlation),
+            false => format!(
+                "for which it stands in with {} (multiple correlation {:.2})",
+                self.with.join(", "),
+                self.correlation
+            ),
+        };
+        format!(
+            "{parameter} (|t| {t:.2}) before {}, {how}: a joint's zero and play go last",
+            self.stands_in_for
+        )
+    }
+}
+
+/// A joint's zero or play left out of the chosen model (a forward path), or dropped by the `t`
+/// rule, while chosen parameters that can only stand in for it are in: their estimates
+/// correlated with its own by [`STANDS_IN`] or more (one parameter, or the multiple
+/// correlation of a group of up to [`STAND_IN_GROUP`]). They carry its error.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Trade {
+    /// The joint's zero or play left out.
+    pub parameter: String,
+    /// Its `|t|` when the `t` rule dropped it; none on a forward path.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t: Option<f64>,
+    /// The chosen parameters that stand in for it, one to [`STAND_IN_GROUP`].
+    pub stand_ins: Vec<String>,
+    /// Their `|t|`, in the same order, under the `t` rule; empty on a forward path.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub stand_in_t: Vec<f64>,
+    /// The correlation of its estimate with theirs: signed for one parameter, the multiple
+    /// correlation (0 to 1) of a group.
+    pub correlation: f64,
+}
+
+impl std::fmt::Display for Trade {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (one, named) = (self.stand_ins.len() == 1, self.stand_ins.join(", "));
+        let named_t = || -> Vec<String> {
+            (self.stand_ins.iter().zip(&self.stand_in_t))
+                .map(|(n, t)| format!("{n} (|t| = {t:.2})"))
+                .collect()
+        };
+        let who = match self.t {
+            None if one => format!("{} left out while {named} is in", self.parameter),
+            None => format!("{} left out while {named} are in", self.parameter),
+            Some(t) if one => {
+                format!("{} dropped at |t| = {t:.2} while {} stays", self.parameter, named_t()[0])
+            }
+            Some(t) => {
+                format!("{} dropped at |t| = {t:.2} while {} stay", self.parameter, named_t().join(", "))
+            }
+        };
+        match one {
+            true => write!(
+                f,
+                "{who}, which stands in for it (correlation {:+.2}): {named} carries its error",
+                self.correlation
+            ),
+            false => write!(
+                f,
+                "{who}, which together stand in for it (multiple correlation {:.2}): they carry its error",
+                self.correlation
+            ),
+        }
+    }
 }
 
 /// The path of a selection and the parameters it chose.
@@ -121,10 +218,9 @@ pub struct SelectionPath {
     /// gauge's (the poses cannot tell them apart from the others, with the combination), an
     /// unloaded compliance's, and for `t` those of `--hold`.
     pub held: Vec<String>,
-    /// A joint's zero or play left out while a chosen parameter that stands in for it (their
-    /// estimates correlated by [`STANDS_IN`] or more) is in, each in words: the error the
-    /// zero or play would carry is carried by the other.
-    pub trades: Vec<String>,
+    /// Each joint's zero or play left out while chosen parameters that stand in for it are in
+    /// ([`Trade`]): the error the zero or play would carry is carried by them.
+    pub trades: Vec<Trade>,
 }
 
 impl SelectionPath {
@@ -315,9 +411,10 @@ pub struct NestedCv {
 
 /// Backward elimination by `|t|` ([`Criterion::T`]), `t = estimate / SE` with the SE of the
 /// calibration as it is made (the posterior's where there are priors). A joint's zero or play
-/// whose estimate a kept parameter can stand in for ([`stand_in`]) is not dropped while that
-/// parameter's `|t|` is below 2 too: the stand-in goes first (the step says so); when the
-/// stand-in is strong, the zero goes and the path records the trade.
+/// whose estimate kept parameters can stand in for ([`stand_in`]: one, or a group of up to
+/// [`STAND_IN_GROUP`]) is not dropped while one of them has `|t|` below 2 too: the weakest of
+/// those goes first (the step says so, [`StandInFirst`]); when every one is strong, the zero goes
+/// and the path records the [`Trade`].
 fn backward<F: Front>(
     calibrate: impl Fn(Option<&[String]>) -> Result<F::Fit, CalibrationError>,
 ) -> Result<SelectionPath, CalibrationError> {
@@ -334,48 +431,107 @@ fn backward<F: Front>(
             .filter(|&i| matches!(params.get(i).owner, ParamOwner::Joint(_)))
             .collect();
         let t = |i: usize| (after[i] - before[i]).abs() / se[i];
-        let weak = |i: usize| t(i) < 2.0 || t(i).is_nan();
         // The smallest |t|, ties to the earlier parameter; a NaN (no standard error) is dropped.
-        let weakest = joints
-            .iter()
-            .copied()
-            .min_by(|&i, &j| t(i).partial_cmp(&t(j)).unwrap_or(std::cmp::Ordering::Less));
-        let Some(i) = weakest.filter(|&i| weak(i)) else {
-            let selected = joints.iter().map(|&j| params.get(j).name.clone()).collect();
+        let weakest = joints.iter().copied().min_by(|&i, &j| by_t(t(i), t(j)));
+        let Some(i) = weakest.filter(|&i| is_weak(t(i))) else {
+            let selected: Vec<String> = joints.iter().map(|&j| params.get(j).name.clone()).collect();
+            let dropped: Vec<String> = (steps.iter().filter_map(|s| s.parameter.clone()))
+                .filter(|n| params.index_by_name(n).is_some_and(|i| is_zero_or_play(params.get(i))))
+                .collect();
+            traded_at_the_end::<F>(&calibrate, &selected, &dropped, &mut trades)?;
             let chosen = steps.len() - 1;
             let held = std::mem::take(held);
             return Ok(SelectionPath { criterion: Criterion::T, steps, chosen, selected, held, trades });
         };
-        let name = |i: usize| params.get(i).name.clone();
         let covariance = |a: usize, b: usize| estimate_covariance(params, estimate, a, b);
-        let (drop, note) = match stand_in(params, i, &joints, &covariance) {
-            Some((k, r)) if weak(k) => {
-                let note = format!(
-                    "{} (|t| {:.2}) before {}, for which it stands in (correlation {r:+.2}): a joint's zero \
-                     and play go last",
-                    name(k),
-                    t(k),
-                    name(i)
-                );
-                (k, Some(note))
-            }
-            Some((k, r)) => {
-                trades.push(format!(
-                    "{} dropped at |t| = {:.2} while {} (|t| = {:.2}) stays, which stands in for it \
-                     (correlation {r:+.2}): {} carries its error",
-                    name(i),
-                    t(i),
-                    name(k),
-                    t(k),
-                    name(k)
-                ));
-                (i, None)
-            }
-            None => (i, None),
-        };
-        steps.push(Step { parameter: Some(name(drop)), score: t(drop), se: f64::NAN, note });
-        current = Some(joints.iter().filter(|&&j| j != drop).map(|&j| name(j)).collect());
+        let (drop, note, trade) = t_drop(params, i, &joints, &covariance, &t);
+        trades.extend(trade);
+        steps.push(Step {
+            parameter: Some(params.get(drop).name.clone()),
+            score: t(drop),
+            se: f64::NAN,
+            note,
+        });
+        current = Some(joints.iter().filter(|&&j| j != drop).map(|&j| params.get(j).name.clone()).collect());
     }
+}
+
+/// Whether a `|t|` is below 2 (or NaN: no standard error).
+fn is_weak(t: f64) -> bool {
+    t < 2.0 || t.is_nan()
+}
+
+/// `|t|` values in the `t` rule's order: smallest first, a NaN before any.
+fn by_t(a: f64, b: f64) -> std::cmp::Ordering {
+    a.partial_cmp(&b).unwrap_or(if a.is_nan() {
+        std::cmp::Ordering::Less
+    } else {
+        std::cmp::Ordering::Greater
+    })
+}
+
+/// What the `t` rule drops when `i` (of `kept`) is the weakest, by `|t|` `t`: `i` itself,
+/// unless kept parameters stand in for it ([`stand_in`]) and one of them is weak too, then the
+/// weakest of those, with why; with strong stand-ins `i`, and the trade.
+fn t_drop(
+    params: &crate::model::ParamSet,
+    i: usize,
+    kept: &[usize],
+    covariance: &dyn Fn(usize, usize) -> f64,
+    t: &dyn Fn(usize) -> f64,
+) -> (usize, Option<StandInFirst>, Option<Trade>) {
+    let Some(group) = stand_in(params, i, kept, covariance) else { return (i, None, None) };
+    let name = |k: usize| params.get(k).name.clone();
+    let weak = group.members.iter().copied().filter(|&k| is_weak(t(k))).min_by(|&a, &b| by_t(t(a), t(b)));
+    match weak {
+        Some(k) => {
+            let with = group.members.iter().filter(|&&m| m != k).map(|&m| name(m)).collect();
+            (k, Some(StandInFirst { stands_in_for: name(i), with, correlation: group.correlation }), None)
+        }
+        None => (i, None, Some(t_trade(params, i, &group, t))),
+    }
+}
+
+/// The trade of the `t` rule leaving `i` out while `group` stands in for it, with their `|t|`.
+fn t_trade(params: &crate::model::ParamSet, i: usize, group: &StandIn, t: &dyn Fn(usize) -> f64) -> Trade {
+    Trade {
+        parameter: params.get(i).name.clone(),
+        t: Some(t(i)),
+        stand_ins: group.members.iter().map(|&k| params.get(k).name.clone()).collect(),
+        stand_in_t: group.members.iter().map(|&k| t(k)).collect(),
+        correlation: group.correlation,
+    }
+}
+
+/// The trades of the `t` rule's last model `selected`, checked at its end: the path judged
+/// each stand-in against the model of its step, and later steps change what stands in. Each
+/// joint's zero or play it dropped (`dropped`) and did not trade as it went is calibrated back
+/// into the last model: where chosen parameters stand in for it there ([`stand_in`]), the trade
+/// (its `|t|` and theirs of that fit).
+fn traded_at_the_end<F: Front>(
+    calibrate: &impl Fn(Option<&[String]>) -> Result<F::Fit, CalibrationError>,
+    selected: &[String],
+    dropped: &[String],
+    trades: &mut Vec<Trade>,
+) -> Result<(), CalibrationError> {
+    for zero in dropped {
+        if trades.iter().any(|t| &t.parameter == zero) {
+            continue;
+        }
+        let names: Vec<String> = selected.iter().cloned().chain([zero.clone()]).collect();
+        let c = calibrate(Some(&names))?;
+        let Fitted { params, values: (before, after), estimate, .. } = F::fitted(&c);
+        let params: &crate::model::ParamSet = &params;
+        let Some(i) = params.index_by_name(zero) else { continue };
+        let se = standard_errors_of(params.iter(), estimate);
+        let t = |k: usize| (after[k] - before[k]).abs() / se[k];
+        let kept: Vec<usize> = selected.iter().filter_map(|n| params.index_by_name(n)).collect();
+        let covariance = |a: usize, b: usize| estimate_covariance(params, estimate, a, b);
+        if let Some(group) = stand_in(params, i, &kept, &covariance) {
+            trades.push(t_trade(params, i, &group, &t));
+        }
+    }
+    Ok(())
 }
 
 /// A calibration as the `t` rule of [`select`] reads it ([`Front::fitted`]).
@@ -390,9 +546,21 @@ pub struct Fitted<'a> {
     pub fixed: &'a [Held],
 }
 
-/// The correlation above which one parameter's estimate stands in for a joint's zero or play:
-/// the poses (and priors) barely tell the two apart.
+/// The correlation above which parameters' estimates stand in for a joint's zero or play:
+/// the poses (and priors) barely tell the zero from them. Of a group, the multiple correlation.
 pub const STANDS_IN: f64 = 0.9;
+
+/// The most parameters that stand in together for a joint's zero or play: its error may be
+/// carried by a few (a length and a twist of the next joint), never by the model at large.
+pub const STAND_IN_GROUP: usize = 3;
+
+/// Groups of two or more are drawn from this many of the kept parameters, those most
+/// correlated with the zero or play (the work stays `O(POOL^3)` per zero on any model).
+const GROUP_POOL: usize = 24;
+
+/// Relative slack of the comparison with [`STANDS_IN`]: a group's multiple correlation is
+/// found by a small solve whose rounding must not decide a case at the threshold itself.
+const STAND_IN_SLACK: f64 = 1e-9;
 
 /// Whether `p` is a joint's zero (its offset) or its play: kept before what can only stand in
 /// for it.
@@ -400,25 +568,92 @@ fn is_zero_or_play(p: &crate::model::ParamInfo) -> bool {
     matches!(p.owner, ParamOwner::Joint(_)) && (p.is_offset || p.kind == crate::model::ParamKind::Play)
 }
 
-/// The parameter among `kept` (full-vector indices) that stands in for `i`, a joint's zero or
-/// play, with their estimates' correlation (`covariance(a, b)` of the estimates, or of the
-/// inverse normal equations): the most correlated one, at least [`STANDS_IN`] in magnitude,
-/// that is not itself a zero or a play. `None` for any other `i`.
+/// Kept parameters that stand in for a joint's zero or play ([`stand_in`]).
+#[derive(Debug, Clone, PartialEq)]
+struct StandIn {
+    /// The parameters (full-vector indices), in the order of `kept`.
+    members: Vec<usize>,
+    /// Signed for one, the multiple correlation of a group.
+    correlation: f64,
+}
+
+/// The parameters among `kept` (full-vector indices) that stand in for `i`, a joint's zero or
+/// play, by their estimates' covariance (`covariance(a, b)` of the estimates, or of the inverse
+/// normal equations): the smallest group (one parameter, then two, up to [`STAND_IN_GROUP`]),
+/// none of them itself a zero or a play, whose (multiple) correlation with `i` is at least
+/// [`STANDS_IN`] in magnitude, the most correlated of that size. A group is minimal: no part of
+/// it stands in alone. `None` for any other `i`, or where nothing does.
 fn stand_in(
     params: &crate::model::ParamSet,
     i: usize,
     kept: &[usize],
     covariance: &dyn Fn(usize, usize) -> f64,
-) -> Option<(usize, f64)> {
-    if !is_zero_or_play(params.get(i)) {
+) -> Option<StandIn> {
+    if !is_zero_or_play(params.get(i))
+        || covariance(i, i).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
+    {
         return None;
     }
-    let correlation = |k: usize| covariance(i, k) / (covariance(i, i) * covariance(k, k)).sqrt();
-    (kept.iter().copied())
-        .filter(|&k| k != i && !is_zero_or_play(params.get(k)))
-        .map(|k| (k, correlation(k)))
-        .filter(|(_, r)| r.abs() >= STANDS_IN)
-        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+    let mut others: Vec<usize> = (kept.iter().copied())
+        .filter(|&k| k != i && !is_zero_or_play(params.get(k)) && covariance(k, k) > 0.0)
+        .collect();
+    // The correlations among `i` (first) and the others, once.
+    let all: Vec<usize> = std::iter::once(i).chain(others.iter().copied()).collect();
+    let r = DMatrix::from_fn(all.len(), all.len(), |a, b| {
+        covariance(all[a], all[b]) / (covariance(all[a], all[a]) * covariance(all[b], all[b])).sqrt()
+    });
+    let position = |k: usize| all.iter().position(|&a| a == k).expect("kept");
+    let stands = |c: f64| c.abs() >= STANDS_IN * (1.0 - STAND_IN_SLACK);
+    let best = |groups: Vec<Vec<usize>>| -> Option<StandIn> {
+        (groups.into_iter())
+            .filter_map(|g| {
+                let at: Vec<usize> = g.iter().map(|&k| position(k)).collect();
+                multiple_correlation(&r, &at).map(|c| StandIn { members: g, correlation: c })
+            })
+            .filter(|s| stands(s.correlation))
+            .max_by(|a, b| a.correlation.abs().total_cmp(&b.correlation.abs()))
+    };
+    if let Some(one) = best(others.iter().map(|&k| vec![k]).collect()) {
+        return Some(one);
+    }
+    // Groups from the most correlated others, each group in the order of `kept`.
+    others.sort_by(|&a, &b| r[(0, position(b))].abs().total_cmp(&r[(0, position(a))].abs()));
+    others.truncate(GROUP_POOL);
+    let order = |mut g: Vec<usize>| {
+        g.sort_by_key(|k| kept.iter().position(|x| x == k));
+        g
+    };
+    (2..=STAND_IN_GROUP).find_map(|size| best(subsets(&others, size).into_iter().map(order).collect()))
+}
+
+/// Every subset of `size` of `items`, in lexicographic order of positions.
+fn subsets(items: &[usize], size: usize) -> Vec<Vec<usize>> {
+    if size == 0 {
+        return vec![Vec::new()];
+    }
+    (0..items.len())
+        .flat_map(|first| {
+            subsets(&items[first + 1..], size - 1).into_iter().map(move |mut rest| {
+                rest.insert(0, items[first]);
+                rest
+            })
+        })
+        .collect()
+}
+
+/// The correlation of the estimate of the first row of the correlation matrix `r` with the
+/// group `at` (positions in `r`): the signed correlation for one, for more the multiple
+/// correlation `sqrt(r_0G^T R_GG^-1 r_G0)`; `None` where the group's own correlations are
+/// singular (one of them the others' combination: a smaller group says as much).
+fn multiple_correlation(r: &DMatrix<f64>, at: &[usize]) -> Option<f64> {
+    if let [k] = at {
+        return Some(r[(0, *k)]).filter(|c| c.is_finite());
+    }
+    let inner = DMatrix::from_fn(at.len(), at.len(), |a, b| r[(at[a], at[b])]);
+    let cross = DVector::from_fn(at.len(), |a, _| r[(0, at[a])]);
+    let solved = inner.cholesky()?.solve(&cross);
+    let r2 = cross.dot(&solved);
+    (r2.is_finite()).then(|| r2.clamp(0.0, 1.0).sqrt())
 }
 
 /// The covariance in `estimate` of parameters `a` and `b` (indices of `params`).
@@ -575,7 +810,9 @@ impl LinearModel {
     }
 
     /// The "before" fit of `data` (the set-up, the tool point; with markers the base and the
-    /// markers), then the gauge of `options`' parameters and the system about it. Its rows are
+    /// markers; with coordinates and no markers the calibration of no joint parameter, which
+    /// places the base: [`kinds::start_registered`]), then the gauge of `options`' parameters and
+    /// the system about it. Its rows are
     /// the observations, each in the fold of its pose (a pair by its first), each counting its
     /// [`Observation::error_share`](kinds::Observation::error_share) of an error: a marker's
     /// position one, an angle none (its unweighted row is zero: the CV RMS is of lengths, mm).
@@ -585,7 +822,7 @@ impl LinearModel {
         options: &KindOptions,
     ) -> Result<Self, CalibrationError> {
         let prepared = kinds::prepare(model, data, options)?;
-        let started = kinds::start(&prepared, data, options)?;
+        let started = kinds::start_registered(model, &prepared, data, options)?;
         let kinds::Gauged { identifiable, fixed, prior, .. } = &started.gauged;
         let (kept, kept_setup) = prepared.kept(identifiable);
         let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
@@ -601,14 +838,15 @@ impl LinearModel {
     }
 
     /// The trades of the model of the registration and the `chosen` columns: each candidate
-    /// joint zero or play left out for which a chosen parameter stands in ([`stand_in`]), from
+    /// joint zero or play left out for which chosen parameters stand in ([`stand_in`]), from
     /// the inverse normal equations on every pose (priors in place) with it added.
-    fn trades(&self, chosen: &[usize]) -> Vec<String> {
+    fn trades(&self, chosen: &[usize]) -> Vec<Trade> {
         let all = Fit::new(&self.whitened, None);
         let registration = (0..self.columns.len()).filter(|&c| self.is_registration(c));
         let model: Vec<usize> = registration.chain(chosen.iter().copied()).collect();
         let index = |c: usize| self.columns[c];
         let zero_or_play = |c: usize| index(c).is_some_and(|i| is_zero_or_play(self.params.get(i)));
+        let kept: Vec<usize> = chosen.iter().filter_map(|&c| index(c)).collect();
         let mut out = Vec::new();
         for o in (0..self.columns.len()).filter(|&c| !model.contains(&c) && zero_or_play(c)) {
             let columns: Vec<usize> = model.iter().copied().chain([o]).collect();
@@ -617,14 +855,15 @@ impl LinearModel {
             let Some(inverse) = gram.cholesky().map(|c| c.inverse()) else { continue };
             let at = |i: usize| columns.iter().position(|&c| index(c) == Some(i)).expect("a column");
             let covariance = |a: usize, b: usize| inverse[(at(a), at(b))];
-            let kept: Vec<usize> = chosen.iter().filter_map(|&c| index(c)).collect();
             let Some(o) = index(o) else { continue };
-            if let Some((k, r)) = stand_in(&self.params, o, &kept, &covariance) {
-                let (zero, other) = (&self.params.get(o).name, &self.params.get(k).name);
-                out.push(format!(
-                    "{zero} left out while {other} is in, which stands in for it (correlation {r:+.2}): {other} \
-                     carries its error"
-                ));
+            if let Some(group) = stand_in(&self.params, o, &kept, &covariance) {
+                out.push(Trade {
+                    parameter: self.params.get(o).name.clone(),
+                    t: None,
+                    stand_ins: group.members.iter().map(|&k| self.params.get(k).name.clone()).collect(),
+                    stand_in_t: Vec::new(),
+                    correlation: group.correlation,
+                });
             }
         }
         out
@@ -1023,16 +1262,55 @@ mod tests {
             }
         };
         let kept = [length, twist, other_zero];
-        assert_eq!(stand_in(&params, zero, &kept, &correlation), Some((length, -0.95)));
-        assert_eq!(stand_in(&params, zero, &[twist, other_zero], &correlation), Some((twist, 0.92)));
+        let one = |k: usize, c: f64| Some(StandIn { members: vec![k], correlation: c });
+        assert_eq!(stand_in(&params, zero, &kept, &correlation), one(length, -0.95));
+        assert_eq!(stand_in(&params, zero, &[twist, other_zero], &correlation), one(twist, 0.92));
         assert_eq!(stand_in(&params, zero, &[other_zero], &correlation), None, "another zero is no stand-in");
         assert_eq!(
             stand_in(&params, length, &[zero, twist], &correlation),
             None,
             "only a zero or a play has one"
         );
+        // Halved, no one parameter reaches 0.9; the length and the twist together (uncorrelated
+        // with each other here) reach sqrt(0.475^2 + 0.46^2) = 0.66: still none.
         let weak = |a: usize, b: usize| correlation(a, b) * if a == b { 1.0 } else { 0.5 };
         assert_eq!(stand_in(&params, zero, &kept, &weak), None, "below 0.9");
+    }
+
+    /// A group stands in where no one parameter does: a zero correlated by 0.7 with a length
+    /// and by -0.65 with a twist, the two uncorrelated, has the multiple correlation
+    /// `sqrt(0.7^2 + 0.65^2) = 0.955` with them; a third parameter correlated by 0.3 with the
+    /// zero does not join (the pair is the smallest group). A group whose own correlations are
+    /// singular is no group; with groups of one allowed, one strong parameter is taken first.
+    #[test]
+    fn a_group_stands_in_where_no_one_parameter_does() {
+        let model = RobotModel::preset("puma560").unwrap();
+        let params = model.params();
+        let at = |name: &str| params.index_by_name(name).unwrap();
+        let (zero, length, twist, third) = (at("j2.theta"), at("j2.a"), at("j3.alpha"), at("j4.d"));
+        let correlation = |a: usize, b: usize| -> f64 {
+            let pair = |x: usize, y: usize| (a == x && b == y) || (a == y && b == x);
+            match () {
+                _ if a == b => 4.0,
+                _ if pair(zero, length) => 0.7 * 4.0,
+                _ if pair(zero, twist) => -0.65 * 4.0,
+                _ if pair(zero, third) => 0.3 * 4.0,
+                _ => 0.0,
+            }
+        };
+        let found = stand_in(&params, zero, &[third, twist, length], &correlation).expect("a group");
+        assert_eq!(found.members, [twist, length], "in the order kept");
+        let expected = (0.7f64.powi(2) + 0.65f64.powi(2)).sqrt();
+        assert!((found.correlation - expected).abs() < 1e-12, "{}", found.correlation);
+        assert_eq!(stand_in(&params, zero, &[third, length], &correlation), None, "0.76 with the pair");
+        // A group at the threshold itself, to rounding: it stands in.
+        let at_threshold = |a: usize, b: usize| {
+            let c = correlation(a, b);
+            if c.abs() == 0.65 * 4.0 { -(0.81f64 - 0.49).sqrt() * 4.0 } else { c }
+        };
+        let found = stand_in(&params, zero, &[twist, length], &at_threshold).expect("at 0.9");
+        assert!((found.correlation - STANDS_IN).abs() < 1e-12, "{}", found.correlation);
+        assert_eq!(subsets(&[1, 2, 3], 2), [vec![1, 2], vec![1, 3], vec![2, 3]]);
     }
 
     /// The CV RMS pools the folds' squared errors; its standard error is the spread of the

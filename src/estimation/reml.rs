@@ -229,6 +229,32 @@ impl Components {
         Some((sse / count.max(1.0)).sqrt())
     }
 
+    /// How far the estimate moves when the components given are scaled by `(a, b)`: the fit
+    /// on every point, linearised about the estimate `x` with the priors' standard deviations
+    /// `sd` (infinite: none), `d(a, b) = (M(a, b) + P^2)^+ (g(a, b) - P^2 x)` against `d(1, 1)`,
+    /// each parameter's change over its standard error with the components scaled
+    /// (`sqrt` of the diagonal of `(M(a, b) + P^2)^+`); the largest. `None` where a block is not
+    /// positive definite.
+    pub fn estimate_shift(&self, (a, b): (f64, f64), (x, sd): (&DVector<f64>, &[f64])) -> Option<f64> {
+        let precision = DVector::from_iterator(
+            sd.len(),
+            sd.iter().map(|s| if s.is_finite() { 1.0 / (s * s) } else { 0.0 }),
+        );
+        let fit = |a: f64, b: f64| -> Option<(DVector<f64>, DMatrix<f64>)> {
+            let sums = self.sums(a, b, |_| true)?;
+            let inverse = pseudo_inverse(&(sums.m + DMatrix::from_diagonal(&precision)));
+            let d = &inverse * (sums.g - precision.component_mul(x));
+            Some((d, inverse))
+        };
+        let (given, _) = fit(1.0, 1.0)?;
+        let (scaled, covariance) = fit(a, b)?;
+        let shift = (0..given.len())
+            .filter(|&j| covariance[(j, j)] > 0.0)
+            .map(|j| (scaled[j] - given[j]).abs() / covariance[(j, j)].sqrt())
+            .fold(0.0, f64::max);
+        Some(shift)
+    }
+
     /// The sums of the points `take` keeps, whitened by `V_k = a V_q,k + b V_m,k`
     /// ([`Rotated::new`]): one product of the stacked rows, each scaled by
     /// `1 / sqrt(a lambda + b)`. `None` where a block is not positive definite.

@@ -5,7 +5,7 @@
 use super::poses::{in_degrees, per_marker_table, pooled_table, worst_poses};
 use super::verdict::{HeldGroup, Role, SetVerdict, Verdict, held_groups, held_text};
 use crate::calibration::prior_scale::{PriorScale, ScaleBy};
-use crate::calibration::selection::{Criterion, SelectionPath, Step};
+use crate::calibration::selection::{Criterion, SelectionPath, Step, Trade};
 use crate::calibration::{Calibration, ErrorStats, SetEvaluation, Warning, pool, standard_errors};
 use crate::estimation::{NoiseEstimate, SigmaInterval};
 use crate::model::{Joint, JointKind};
@@ -400,10 +400,10 @@ pub struct SelectionReport {
     /// The parameters asked for that the gauge holds, not candidates: each with its
     /// combination in words.
     pub held: Vec<String>,
-    /// A joint's zero or play left out while a chosen parameter that stands in for it is in,
-    /// in words.
+    /// Each joint's zero or play left out while chosen parameters that stand in for it are in
+    /// (the text's `trade:` lines).
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub trades: Vec<String>,
+    pub trades: Vec<Trade>,
 }
 
 impl SelectionReport {
@@ -456,7 +456,7 @@ impl SelectionReport {
         let _ = writeln!(out, "selected ({}): {}", self.selected.len(), self.selected.join(", "));
         let _ = writeln!(out, "path scores: {}", self.scores);
         for (k, step) in self.steps.iter().enumerate() {
-            if let Some(note) = &step.note {
+            if let Some(note) = step.note_text() {
                 let _ = writeln!(out, "step {k}: {note}");
             }
         }

@@ -293,7 +293,7 @@ pub(super) fn selection_table(selection: &super::calibration::SelectionReport) -
                 Cell::name(&k.to_string()),
                 Cell::name(step.parameter.as_deref().unwrap_or(start)),
                 Cell::text(&score),
-                Cell::name(step.note.as_deref().unwrap_or("")),
+                Cell::name(&step.note_text().unwrap_or_default()),
             ];
             Row { cells, class: if k == selection.chosen { "flagged" } else { "" } }
         })
@@ -308,7 +308,7 @@ pub(super) fn selection_table(selection: &super::calibration::SelectionReport) -
         escape(&selection.scores)
     );
     for trade in &selection.trades {
-        let _ = writeln!(out, "<p>Trade: {}</p>", escape(trade));
+        let _ = writeln!(out, "<p>Trade: {}</p>", escape(&trade.to_string()));
     }
     if !selection.held.is_empty() {
         let items: Vec<String> = selection.held.iter().map(|h| format!("<li>{}</li>", escape(h))).collect();

@@ -38,9 +38,11 @@ mod report;
 mod residuals;
 mod robust;
 mod selection;
+mod selection_physics;
 mod sessions;
 mod shards;
 mod simulation;
+mod solver;
 mod tree;
 mod urdf;
 

@@ -37,7 +37,7 @@ fn held(c: &Calibration) -> Vec<String> {
 }
 
 /// The arm7 benchmark's model and files of `dir` (the training file and three sessions).
-fn arm7(dir: &str) -> (RobotModel, Measurements, Vec<Measurements>) {
+pub(crate) fn arm7(dir: &str) -> (RobotModel, Measurements, Vec<Measurements>) {
     let model = robocal::io::load_model(&ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
     let read = |name: &str| {
         robocal::io::load_measurements(Path::new(&format!("{dir}/{name}")), &model, None).unwrap()
@@ -387,7 +387,7 @@ fn the_t_rule_drops_a_stand_in_before_the_zero_it_stands_in_for() {
         let turn = name.replace(".theta", ".rz");
         assert!(dropped[..k].contains(&turn.as_str()), "{name} dropped with {turn} in: {dropped:?}");
     }
-    let note = path.steps[1].note.as_deref().unwrap();
+    let note = path.steps[1].note_text().unwrap();
     assert!(
         note.starts_with(
             "joint4.rz (|t| 0.12) before joint4.theta, for which it stands in (correlation -1.00)"
@@ -439,7 +439,7 @@ fn a_forward_path_reports_the_zero_it_traded() {
             && !path.selected.contains(&"joint3.theta".to_string())
     );
     assert_eq!(
-        path.trades,
+        path.trades.iter().map(ToString::to_string).collect::<Vec<_>>(),
         [
             "joint3.theta left out while joint5.y is in, which stands in for it (correlation -0.92): joint5.y carries its error"
         ]

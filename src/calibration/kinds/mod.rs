@@ -1855,7 +1855,7 @@ pub fn calibrate_kinds(
     };
     scored(&mut calibration, data, spread)?;
     calibration.warnings.extend(Warning::outside_limits(&model.name, &model.joints, data.pose_lines()));
-    calibration.warnings.extend(noise_check(&calibration, data, options.loss));
+    calibration.warnings.extend(noise_check(&calibration, data));
     calibration.warnings.extend(change);
     Ok(calibration)
 }
@@ -1867,10 +1867,11 @@ pub fn calibrate_kinds(
 /// `diag(sigma_i^2)`, the lengths cross-validated (a marker's position one error, angles not
 /// scored: [`Observation::error_share`]). `None` when it agrees,
 /// without a noise given (every sigma assumed and the joints exact: the residuals' spread
-/// scales the fit instead), with a robust loss, or with too few residuals to tell.
-fn noise_check(c: &KindCalibration, data: &KindData, loss: Loss) -> Option<Warning> {
+/// scales the fit instead), or with too few residuals to tell. Under a robust loss too: the
+/// points far out are left out of the check ([`without_outliers`]) as the loss leaves them out.
+fn noise_check(c: &KindCalibration, data: &KindData) -> Option<Warning> {
     let assumed = c.joint_noise.is_none() && data.assumed_sigmas == data.observations.len();
-    if loss != Loss::Squared || assumed {
+    if assumed {
         return None;
     }
     let stride = data.joints.len().div_ceil(CHECK_POSES).max(1);
@@ -2105,8 +2106,11 @@ pub(super) fn prepare(
     let setup_start = setup.expand(&start);
     let nothing = Selection::from_indices(&params, []);
     let (asked, asked_setup) = asked(model, &params, &setup, data, options)?;
-    let (asked, asked_setup, held_words) =
+    let (asked, asked_setup, mut held_words) =
         without_held(&params, asked, asked_setup, &setup, &options.gauge.hold)?;
+    // What no gravity load moves at these poses is held, wherever the estimate goes.
+    let (asked, unloaded) = super::without_unloaded_joints(&asked, &chains[0], &zero, &data.joints);
+    held_words.extend(unloaded);
     if !asked.is_empty() {
         super::different_poses(data.pose_lines())?;
     }
@@ -2175,6 +2179,38 @@ pub(super) fn start<'p>(
     data: &'p KindData,
     options: &KindOptions,
 ) -> Result<Started<'p>, CalibrationError> {
+    start_about(prepared, data, options, None)
+}
+
+/// [`start`] about the registration where coordinates (a height gauge's) see the base without
+/// markers: the base, the tool point and the set-up fitted by the calibration of no joint
+/// parameter (`model`'s), the point a selection's linear model is linearised about
+/// ([`selection`](super::selection)); the nominal base of a gauge on a tilted table is off by
+/// more than a linearisation bears. Other data: [`start`].
+pub(super) fn start_registered<'p>(
+    model: &RobotModel,
+    prepared: &'p Prepared,
+    data: &'p KindData,
+    options: &KindOptions,
+) -> Result<Started<'p>, CalibrationError> {
+    let coordinates =
+        (data.observations.iter()).any(|o| matches!(o, Observation::Coordinate { axis: ..3, .. }));
+    if !coordinates || !prepared.markers.is_empty() {
+        return start(prepared, data, options);
+    }
+    let registration = KindOptions { joints: JointParams::None, loss: Loss::Squared, ..options.clone() };
+    let c = calibrate_kinds(model, data, &registration)?;
+    start_about(prepared, data, options, Some((c.after, c.setup_values.1)))
+}
+
+/// [`start`], about `about` (the robot's full vector and the set-up's values) instead of the
+/// "before" fit if given.
+fn start_about<'p>(
+    prepared: &'p Prepared,
+    data: &'p KindData,
+    options: &KindOptions,
+    about: Option<(Vec<f64>, Vec<f64>)>,
+) -> Result<Started<'p>, CalibrationError> {
     let Prepared { chains, markers, params, setup, asked, asked_setup, nothing, .. } = prepared;
     let zero = vec![0.0; params.len()];
     let (start, every) = (prepared.setup_start.clone(), prepared.every.clone());
@@ -2189,7 +2225,10 @@ pub(super) fn start<'p>(
             _ => !markers.is_empty(),
         }),
     );
-    let (before, before_setup) = before_fit(&base, &frame, every, &weights, markers.is_empty())?;
+    let (before, before_setup) = match about {
+        Some(about) => about,
+        None => before_fit(&base, &frame, every, &weights, markers.is_empty())?,
+    };
     // "After": what was asked for that the observations identify.
     let problem = base.reselect(asked, before.clone(), before_setup.clone(), asked_setup.clone());
     // A parameter with a prior is anchored by it: only the others need the data's equations.
@@ -2738,8 +2777,7 @@ pub(super) fn identifiable(
             names.len()
         )));
     }
-    let mut fixed: Vec<Held> =
-        unseen.iter().map(|&c| Held::Unmoved { parameter: names[c].clone() }).collect();
+    let mut fixed: Vec<Held> = unseen.iter().map(|&c| unmoved(&names[c], owners[c])).collect();
     let seen_priority: Vec<u32> = seen.iter().map(|&c| priority[c]).collect();
     let seen_system = linearised.select(&seen);
     let diagnostics = match prior {
@@ -2754,6 +2792,23 @@ pub(super) fn identifiable(
         seen.iter().map(|&c| (names[c].clone(), owners[c])).unzip();
     fixed.extend(diagnostics.not_identifiable.iter().map(|c| why_held(c, &seen_names, &seen_owners)));
     Ok((diagnostics.identifiable.iter().map(|&c| seen[c]).collect(), fixed))
+}
+
+/// Why a parameter no observation moves at the start is held: the observations do not move
+/// it ([`Held::Unmoved`], never freed by the gauge found at the estimate), or, of the payload's
+/// mass, that it is seen only through compliances zero at the start ([`Held::Unseen`]: where
+/// the estimate's compliances see it, the gauge found there frees it, [`super::regauge`]).
+fn unmoved(name: &str, owner: Option<ParamOwner>) -> Held {
+    match owner {
+        Some(ParamOwner::Payload) => Held::Unseen {
+            parameter: name.to_string(),
+            why:
+                "the payload is seen only through the joints' compliances, all zero at the start: estimated \
+                  where the fitted compliances see it (the gauge found again at the estimate)"
+                    .into(),
+        },
+        _ => Held::Unmoved { parameter: name.to_string() },
+    }
 }
 
 #[cfg(test)]

@@ -1152,7 +1152,7 @@ pub fn calibrate_tree(
     calibration.warnings = calibration.warnings();
     let views = data.views.iter().zip(&data.lines).map(|(v, &line)| (line, data.joints[v.pose].as_slice()));
     calibration.warnings.extend(Warning::outside_limits(&tree.name, &tree.joints, views));
-    calibration.warnings.extend(noise_check::tree_noise_check(&calibration, data, options.loss));
+    calibration.warnings.extend(noise_check::tree_noise_check(&calibration, data));
     calibration.warnings.extend(r.change);
     Ok(calibration)
 }

@@ -6,16 +6,17 @@
 //! the views' positions cross-validated (a view's position one error, its rotation none).
 
 use super::{TreeCalibration, TreeData, TreeProblem};
+use crate::calibration::Warning;
 use crate::calibration::noise_check::{CHECK_POSES, at_estimate, check, without_outliers};
-use crate::calibration::{Loss, Warning};
 use crate::estimation::reml::{Components, Point};
 use nalgebra::DMatrix;
 
 /// The check of `c`'s noise on its training `data`: `None` when it agrees, without a noise
 /// given (every sigma assumed and the joints exact: the residuals' spread scales the fit
-/// instead), with a robust loss, or with too few residuals to tell.
-pub(super) fn tree_noise_check(c: &TreeCalibration, data: &TreeData, loss: Loss) -> Option<Warning> {
-    if loss != Loss::Squared || (c.joint_noise.is_none() && data.assumed_sigmas) {
+/// instead), or with too few residuals to tell; under any loss (the views far out are left out
+/// of the check, as a robust loss leaves them out of the fit).
+pub(super) fn tree_noise_check(c: &TreeCalibration, data: &TreeData) -> Option<Warning> {
+    if c.joint_noise.is_none() && data.assumed_sigmas {
         return None;
     }
     let stride = data.views.len().div_ceil(CHECK_POSES).max(1);
