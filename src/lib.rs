@@ -91,8 +91,12 @@ pub mod report;
 pub mod simulation;
 pub mod table;
 
-// The types a calibration starts from, at the crate root.
-pub use calibration::kinds::{KindCalibration, KindData, KindOptions, calibrate_kinds};
-pub use calibration::{Calibration, DataKind, Measurements, Options, calibrate};
+// The one calibration, at the crate root: any kind of file read into a [`KindData`],
+// calibrated by [`calibrate_kinds`] under [`KindOptions`], held-out data scored by
+// [`KindCalibration::score`] into a [`Score`]; [`evaluate_kinds`] scores a model as it stands.
+pub use calibration::kinds::{
+    KindCalibration, KindData, KindOptions, Score, calibrate_kinds, evaluate_kinds,
+};
+pub use calibration::{CalibrationError, DataKind};
 pub use estimation::Estimator;
 pub use model::RobotModel;

@@ -614,9 +614,10 @@ fn first_by<T>(items: impl Iterator<Item = T>, n: usize, order: impl Fn(&T, &T) 
 pub fn as_it_stands_text(model: &str, scores: &[(String, Score)]) -> String {
     let plural = if scores.len() == 1 { "" } else { "s" };
     let mut out = format!(
-        "{model} scored as it stands on {} file{plural}: the robot and its tool point held; a marker file with the \
-         model's base and markers, any other with its set-up (fixed points, planes, camera and target; with markers \
-         the base and the markers) fitted (calibrate --validate scores with the calibrated set-up instead)\n\n",
+        "{model} scored as it stands on {} file{plural}, the robot and its tool point held:\n  \
+         a marker file with the model's base and markers; any other with its set-up fitted (fixed points, planes,\n  \
+         camera and target; with markers the base and the markers): calibrate --validate scores with the\n  \
+         calibrated set-up instead\n\n",
         scores.len()
     );
     let heading = ["set", "count", "RMS", "max", "flagged"].map(String::from);

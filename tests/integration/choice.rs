@@ -189,7 +189,7 @@ fn evaluate_scores_a_written_model_on_a_ball_bar() {
         .unwrap();
     let text = String::from_utf8(evaluated.stdout).unwrap();
     assert!(evaluated.status.success(), "{text}{}", String::from_utf8_lossy(&evaluated.stderr));
-    assert!(text.contains("on 2 files: the robot and its tool point held"), "{text}");
+    assert!(text.contains("on 2 files, the robot and its tool point held"), "{text}");
     let scored: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let again = scored["observations"][0][1]["lengths"][1].as_f64().unwrap();
     assert!((again - training).abs() < 1e-6 * training, "re-scored {again} mm, calibrated {training} mm");
