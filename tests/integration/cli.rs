@@ -472,20 +472,9 @@ fn calibrate_select_prints_and_writes_its_path() {
     let dir = std::env::temp_dir().join(format!("robocal-select-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (json, figures) = (dir.join("report.json"), dir.join("figures"));
-    let arm7 = [
-        "calibrate",
-        "--model",
-        "examples/arm7/arm7.urdf",
-        "--data",
-        "examples/arm7/train.csv",
-        "--marker",
-        "40,0,25",
-        "--marker=-20,35,25",
-        "--marker=-20,-35,25",
-        "--params",
-        "joint*.*",
-    ];
-    let mut args: Vec<&str> = arm7.to_vec();
+    let arm7: Vec<&str> =
+        ["calibrate"].iter().chain(&super::nested::ARM7).chain(&["--params", "joint*.*"]).copied().collect();
+    let mut args = arm7.clone();
     let page = dir.join("report.html");
     args.extend(["--select", "cv", "--json", json.to_str().unwrap(), "--figures", figures.to_str().unwrap()]);
     args.extend(["--html", page.to_str().unwrap()]);
@@ -513,7 +502,7 @@ fn calibrate_select_prints_and_writes_its_path() {
     std::fs::remove_dir_all(&dir).unwrap();
 
     for flag in ["--hold", "--keep"] {
-        let mut args: Vec<&str> = arm7.to_vec();
+        let mut args = arm7.clone();
         args.extend([flag, "joint9.x"]);
         let message = stderr_of(&args);
         assert!(

@@ -121,22 +121,25 @@ fn cross_validation_after_selection_is_optimistic_and_the_nested_one_is_not() {
     }
 }
 
+/// The arm7 example as `calibrate` takes it: its model, its training file and the design
+/// markers (mm, on its plate).
+pub(crate) const ARM7: [&str; 8] = [
+    "--model",
+    "examples/arm7/arm7.urdf",
+    "--data",
+    "examples/arm7/train.csv",
+    "--marker",
+    "40,0,25",
+    "--marker=-20,35,25",
+    "--marker=-20,-35,25",
+];
+
 /// Run `robocal calibrate` on the arm7 benchmark with `extra` flags, writing its JSON report to
 /// `json`; its standard output and the report.
 pub(crate) fn calibrate_arm7(extra: &[&str], json: &std::path::Path) -> (String, serde_json::Value) {
-    let mut args = vec![
-        "calibrate",
-        "--model",
-        "examples/arm7/arm7.urdf",
-        "--data",
-        "examples/arm7/train.csv",
-        "--marker",
-        "40,0,25",
-        "--marker=-20,35,25",
-        "--marker=-20,-35,25",
-        "--json",
-        json.to_str().unwrap(),
-    ];
+    let mut args = vec!["calibrate"];
+    args.extend(ARM7);
+    args.extend(["--json", json.to_str().unwrap()]);
     args.extend(extra);
     let output = assert_cmd::Command::cargo_bin("robocal").unwrap().args(&args).output().unwrap();
     assert!(output.status.success(), "{args:?}: {}", String::from_utf8_lossy(&output.stderr));

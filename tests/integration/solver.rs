@@ -29,18 +29,8 @@ fn every_example_converges_within_the_default_limit() {
     let joint = "--joint-sigma-deg=0.007,0.007,0.007,0.002,0.002,0.002";
     let puma = ["--model", "puma560", "--marker", "50,0,150", "--marker=-40,60,120", "--tool", "50,0,150"];
     let tool = ["--model", "puma560", "--tool", "50,0,150"];
-    let arm7 = [
-        "--model",
-        "examples/arm7/arm7.urdf",
-        "--data",
-        "examples/arm7/train.csv",
-        "--marker",
-        "40,0,25",
-        "--marker=-20,35,25",
-        "--marker=-20,-35,25",
-        "--params",
-        "joint*.*",
-    ];
+    let arm7: Vec<&'static str> =
+        super::nested::ARM7.iter().chain(&["--params", "joint*.*"]).copied().collect();
     let with = |base: &[&'static str], more: &[&'static str]| -> Vec<&'static str> {
         base.iter().chain(more).copied().collect()
     };
