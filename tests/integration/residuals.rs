@@ -213,7 +213,10 @@ fn an_observation_files_written_model_rescores_its_training_file() {
     let text =
         robocal(&["evaluate", "-q", "--model", s(&model), "--data", BALL_BAR, "--json", s(&evaluated)]);
     // Why its figure is not calibrate --validate's: the set-up is fitted on the file.
-    assert!(text.contains("set-up (fixed points") && text.contains("calibrated set-up instead"), "{text}");
+    assert!(
+        text.contains("set-up fitted (fixed points") && text.contains("calibrated set-up instead"),
+        "{text}"
+    );
     robocal(&["evaluate", "-q", "--model", s(&model), "--data", BALL_BAR, "--poses-csv", s(&poses)]);
     robocal(&["evaluate", "-q", "--model", s(&model), "--data", BALL_BAR, "--figures", s(&folder)]);
     robocal(&["evaluate", "-q", "--model", s(&model), "--data", BALL_BAR, "--html", s(&page)]);
