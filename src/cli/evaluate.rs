@@ -73,15 +73,8 @@ fn chosen_markers<'a>(
     ids: Option<&[usize]>,
 ) -> Result<Vec<(&'a Path, KindData)>> {
     let Some(ids) = ids else { return Ok(files) };
-    let have: std::collections::BTreeSet<usize> =
-        files.iter().flat_map(|(_, d)| d.markers()).map(|m| m + 1).collect();
-    if let Some(id) = ids.iter().find(|id| !have.contains(id)) {
-        let have: Vec<String> = have.iter().map(usize::to_string).collect();
-        bail!(
-            "--markers {id}: no data file has marker {id} (x{id}, y{id}, z{id}); their markers: {}",
-            have.join(", ")
-        );
-    }
+    let have: std::collections::BTreeSet<usize> = files.iter().flat_map(|(_, d)| d.markers()).collect();
+    super::observations::marker_ids_known(ids, &have.into_iter().collect::<Vec<_>>())?;
     let chosen = |(path, data): (&'a Path, KindData)| match data.with_markers(ids) {
         Some(kept) => Ok((path, kept)),
         None => bail!("{}: --markers {ids:?} names none of its markers", path.display()),

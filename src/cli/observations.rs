@@ -156,6 +156,13 @@ fn chosen_markers(
     have: &[usize],
 ) -> Result<Vec<(String, KindData)>> {
     let Some(ids) = ids else { return Ok(sessions) };
+    marker_ids_known(ids, have)?;
+    Ok(sessions.into_iter().map(|(name, d)| (name, only_markers(&d, ids))).collect())
+}
+
+/// `--markers ids` (numbers from 1) against the files' markers `have` (numbers less one): a
+/// number that no file's marker has is refused.
+pub(super) fn marker_ids_known(ids: &[usize], have: &[usize]) -> Result<()> {
     if let Some(id) = ids.iter().find(|&&id| !have.contains(&(id - 1))) {
         let numbers: Vec<String> = have.iter().map(|m| (m + 1).to_string()).collect();
         bail!(
@@ -163,7 +170,7 @@ fn chosen_markers(
             if numbers.is_empty() { "none".to_string() } else { numbers.join(", ") }
         );
     }
-    Ok(sessions.into_iter().map(|(name, d)| (name, only_markers(&d, ids))).collect())
+    Ok(())
 }
 
 /// `data` with the markers numbered `ids` (from 1) only; its other observations all kept.

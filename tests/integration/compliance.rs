@@ -76,7 +76,7 @@ fn recovers(nominal: &RobotModel, truth: &RobotModel, expected: &[&str]) {
 }
 
 /// The PUMA 560 with link masses; its first axis is vertical: gravity never loads it.
-fn puma_with_masses() -> RobotModel {
+pub(crate) fn puma_with_masses() -> RobotModel {
     let mut model = RobotModel::preset("puma560").unwrap();
     let masses = [
         (0.0, [0.0, 0.0, 0.0]),

@@ -14,21 +14,12 @@ use robocal::calibration::selection::{Criterion, select};
 use robocal::calibration::{Held, JointParams, Markers, Measurements, Options, Warning};
 use robocal::estimation::{Estimator, PriorEntry};
 use robocal::kinematics::Chain;
-use robocal::model::{LinkMass, Payload, RobotModel};
+use robocal::model::{Payload, RobotModel};
 
 /// The PUMA 560 with link masses (its first axis vertical: gravity never loads it), no
 /// compliance, a nominal payload of 2 kg.
 fn rigid_puma() -> RobotModel {
-    let mut model = RobotModel::preset("puma560").unwrap();
-    let masses = [
-        (0.0, [0.0, 0.0, 0.0]),
-        (17.4, [68.0, 6.0, -16.0]),
-        (4.8, [0.0, -70.0, 14.0]),
-        (0.82, [0.0, 0.0, -19.0]),
-        (0.34, [0.0, 0.0, 0.0]),
-        (0.09, [0.0, 0.0, 32.0]),
-    ];
-    model.masses = masses.iter().map(|&(mass, c)| LinkMass { mass, com: Vector3::from(c) }).collect();
+    let mut model = crate::compliance::puma_with_masses();
     model.payload = Some(Payload { mass: 2.0, com: Vector3::new(0.0, 20.0, 80.0) });
     model
 }

@@ -2424,7 +2424,8 @@ pub fn evaluate_kinds(
 /// (a position's coordinate or a probe's orientation), each marker's three coordinates at
 /// every pose.
 fn every_marker_measured(data: &KindData) -> bool {
-    let mut coordinates = vec![0; data.markers().last().map_or(0, |m| m + 1)];
+    let markers = data.markers();
+    let mut coordinates = vec![0; markers.last().map_or(0, |m| m + 1)];
     for o in &data.observations {
         match o {
             Observation::Marker { marker, .. } => coordinates[*marker] += 1,
@@ -2432,7 +2433,7 @@ fn every_marker_measured(data: &KindData) -> bool {
             _ => return false,
         }
     }
-    !data.observations.is_empty() && data.markers().iter().all(|&m| coordinates[m] == 3 * data.joints.len())
+    !data.observations.is_empty() && markers.iter().all(|&m| coordinates[m] == 3 * data.joints.len())
 }
 
 impl KindOptions {
@@ -2462,8 +2463,9 @@ impl KindOptions {
         } else {
             markers.iter().map(|(id, p)| (*id, frame.inverse_transform_point(&(*p).into()).coords)).collect()
         };
-        let mut held = vec![Vector3::zeros(); data.markers().last().map_or(0, |m| m + 1)];
-        for marker in data.markers() {
+        let markers_seen = data.markers();
+        let mut held = vec![Vector3::zeros(); markers_seen.last().map_or(0, |m| m + 1)];
+        for marker in markers_seen {
             let id = marker + 1;
             held[marker] = given.iter().find(|(m, _)| *m == id).map(|(_, p)| *p).ok_or_else(|| {
                 let known: Vec<usize> = given.iter().map(|(m, _)| *m).collect();
