@@ -54,3 +54,39 @@ pub(crate) fn verdict_rms(row: &str) -> (f64, f64) {
     let number = |c: &str| c.parse::<f64>().unwrap_or_else(|_| panic!("`{c}` in {row}"));
     (number(cells[arrow - 1]), number(cells[arrow + 1]))
 }
+
+/// A marker or 6-DOF probe file `text` for `model`, read as `robocal calibrate` reads it, the
+/// rows' sigmas from `noise`'s measurement part where it has one (a per-axis noise's x sigma for
+/// the positions, its rx sigma for the orientations; a per-point noise is a device's and goes
+/// through [`KindData::with_device`](robocal::calibration::kinds::KindData::with_device)).
+pub(crate) fn marker_data(
+    text: &str,
+    model: &robocal::model::RobotModel,
+    noise: Option<&robocal::estimation::NoiseModel>,
+) -> robocal::calibration::kinds::KindData {
+    use robocal::calibration::kinds::{KindData, RowSigmaDefaults};
+    use robocal::estimation::MeasurementNoise;
+    let sigmas = match noise.map(|n| &n.measurement) {
+        Some(MeasurementNoise::PerAxis(s)) => RowSigmaDefaults::positive(Some(s[0]), Some(s[3])),
+        _ => RowSigmaDefaults::default(),
+    };
+    KindData::from_csv_str_with(text, model, None, sigmas).unwrap()
+}
+
+/// The options of a marker calibration of `model` as `robocal calibrate` sets them: the
+/// `estimator`, the joint noise of `noise` (none: the joints exact), the nominal `markers` (mm,
+/// the marker frame), the tool point the model's.
+pub(crate) fn marker_options(
+    model: &robocal::model::RobotModel,
+    estimator: robocal::estimation::Estimator,
+    noise: Option<&robocal::estimation::NoiseModel>,
+    markers: &[nalgebra::Vector3<f64>],
+) -> robocal::calibration::kinds::KindOptions {
+    robocal::calibration::kinds::KindOptions {
+        estimator,
+        joint_noise: noise.map(|n| n.joint.clone()),
+        tool: model.tool_point_in_marker_frame(),
+        markers: markers.to_vec(),
+        ..Default::default()
+    }
+}
