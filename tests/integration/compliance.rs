@@ -5,28 +5,43 @@ use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use robocal::calibration::Held;
-use robocal::calibration::{self, JointParams, Measurements, Options};
-use robocal::estimation::{Estimator, RefineOptions};
+use robocal::calibration::JointParams;
+use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds, evaluate_kinds};
+use robocal::estimation::Estimator;
 use robocal::kinematics::Chain;
-use robocal::model::{LinkMass, ParamOwner, RobotModel};
+use robocal::model::{LinkMass, ModelRef, ParamOwner, RobotModel};
 
-/// Noise-free marker positions of `truth` at `n` poses drawn within its limits.
-fn measured(truth: &RobotModel, markers: &[Vector3<f64>], n: usize, seed: u64) -> Measurements {
+/// Noise-free marker positions of `truth` at `n` poses drawn within its limits, as a marker
+/// file's coordinates (their sigmas not given).
+fn measured(truth: &RobotModel, markers: &[Vector3<f64>], n: usize, seed: u64) -> KindData {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let joints: Vec<Vec<f64>> = (0..n)
         .map(|_| truth.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())
         .collect();
     let chains = Chain::markers(truth, markers);
     let at: Vec<_> = chains.iter().map(|c| c.with_errors(&vec![0.0; c.params().len()])).collect();
-    Measurements {
-        markers: joints.iter().map(|q| at.iter().map(|a| a.position(q)).collect()).collect(),
-        marker_ids: (1..=markers.len()).collect(),
-        sigma: None,
-        orientations: None,
-        lines: (0..n).map(|k| k + 3).collect(),
-        ignored: Vec::new(),
-        joints,
-    }
+    let positions: Vec<Vec<Vector3<f64>>> =
+        joints.iter().map(|q| at.iter().map(|a| a.position(q)).collect()).collect();
+    crate::nested::marker_kind_data(joints, &positions)
+}
+
+/// The arm7 benchmark (`examples/arm7`, or a copy in `dir`) as `robocal calibrate` reads it:
+/// its model, its training file and its three sessions.
+pub(crate) fn arm7(dir: &str) -> (RobotModel, KindData, Vec<KindData>) {
+    let model = robocal::io::load_model(&ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
+    let read = |name: &str| {
+        crate::marker_data(&std::fs::read_to_string(format!("{dir}/{name}")).unwrap(), &model, None)
+    };
+    let sessions = (1..=3).map(|k| read(&format!("session{k}.csv"))).collect();
+    (model.clone(), read("train.csv"), sessions)
+}
+
+/// The arm7 benchmark's calibration of `joints` (`model` the arm's): ordinary least squares, the
+/// base and the design markers estimated.
+pub(crate) fn arm7_options(model: &RobotModel, joints: JointParams) -> KindOptions {
+    let design =
+        [Vector3::new(40.0, 0.0, 25.0), Vector3::new(-20.0, 35.0, 25.0), Vector3::new(-20.0, -35.0, 25.0)];
+    KindOptions { joints, ..crate::marker_options(model, Estimator::Ols, None, &design) }
 }
 
 /// Calibrates `nominal` on noise-free data of `truth` (which differs from it in its compliances,
@@ -36,21 +51,15 @@ fn recovers(nominal: &RobotModel, truth: &RobotModel, expected: &[&str]) {
     let true_markers =
         [Vector3::new(40.0, 0.0, 25.0), Vector3::new(-20.0, 35.0, 25.0), Vector3::new(0.0, -30.0, 60.0)];
     let data = measured(truth, &true_markers, 80, 7);
-    let options = Options {
-        estimator: Estimator::Ols,
-        noise: None,
+    let design: Vec<Vector3<f64>> = true_markers.iter().map(|m| m + Vector3::new(0.3, -0.2, 0.1)).collect();
+    let options = KindOptions {
         joints: JointParams::Named(vec!["*.*".into()]),
-        estimate_base: true,
-        estimate_markers: true,
-        markers: true_markers.iter().map(|m| m + Vector3::new(0.3, -0.2, 0.1)).collect(),
-        refine: RefineOptions::default(),
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-        gauge: Default::default(),
+        ..crate::marker_options(nominal, Estimator::Ols, None, &design)
     };
-    let result = calibration::calibrate(nominal, &data, &options).unwrap();
+    let result = calibrate_kinds(nominal, &data, &options).unwrap();
     assert!(result.refined.converged);
-    assert!(result.training.1.max < 1e-7, "training error {:e} mm", result.training.1.max);
+    let max = result.training.positions_of(None).max.1;
+    assert!(max < 1e-7, "training error {max:e} mm");
     let mut checked = Vec::new();
     for name in &result.refined.estimate.names {
         let i = result.params.index_by_name(name).unwrap();
@@ -319,24 +328,18 @@ fn a_payload_mass_is_estimated_where_the_compliances_show_it() {
     };
     let markers = [Vector3::new(40.0, 0.0, 25.0), Vector3::new(-20.0, 35.0, 25.0)];
     let data = measured(&truth, &markers, 60, 11);
-    let options = Options {
-        estimator: Estimator::Ols,
-        noise: None,
+    let options = KindOptions {
         joints: JointParams::Named(vec!["payload.mass".into(), "j*.theta".into()]),
         estimate_base: false,
         estimate_markers: false,
-        markers: markers.to_vec(),
-        refine: RefineOptions::default(),
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-        gauge: Default::default(),
+        ..crate::marker_options(&nominal, Estimator::Ols, None, &markers)
     };
-    let result = calibration::calibrate(&nominal, &data, &options).unwrap();
+    let result = calibrate_kinds(&nominal, &data, &options).unwrap();
     let mass = result.calibrated.payload.unwrap().mass;
     assert!((mass - 3.5).abs() < 1e-6, "payload {mass} kg, truth 3.5");
 
     let rigid = RobotModel { joints: RobotModel::preset("puma560").unwrap().joints, ..nominal.clone() };
-    let result = calibration::calibrate(&rigid, &data, &options).unwrap();
+    let result = calibrate_kinds(&rigid, &data, &options).unwrap();
     assert!(
         result
             .fixed
@@ -361,29 +364,21 @@ fn a_written_urdf_with_compliances_scores_as_the_fit() {
     let (base, tip) = chain_links(&text, None, None).unwrap();
     let model = from_urdf_str(&text, &base, &tip).unwrap();
     let read = |name: &str| {
-        robocal::io::load_measurements(std::path::Path::new(&format!("examples/arm7/{name}")), &model, None)
-            .unwrap()
+        crate::marker_data(&std::fs::read_to_string(format!("examples/arm7/{name}")).unwrap(), &model, None)
     };
     let (train, session) = (read("train.csv"), read("session1.csv"));
-    let options = super::urdf::arm7_options(JointParams::Named(vec!["joint*.*".into()]));
-    let result = calibration::calibrate(&model, &train, &options).unwrap();
+    let options = arm7_options(&model, JointParams::Named(vec!["joint*.*".into()]));
+    let result = calibrate_kinds(&model, &train, &options).unwrap();
     let written = to_urdf_string(&text, &base, &tip, &result.calibrated).unwrap();
     let written = with_urdf_markers(&written, &result.marker_positions()).unwrap();
     assert_eq!(written.matches(GRAVITY).count(), 1);
     let reread = from_urdf_str(&written, "measuring_frame", "tool").unwrap();
     let markers = markers_from_urdf_str(&written).unwrap();
-    let scored = calibration::evaluate_model(&reread, &markers, "session1", &session, None).unwrap();
-    let fitted = result.validate(&session).1;
-    assert!(
-        (scored.pooled[0].rms - fitted.rms).abs() < 1e-9,
-        "{} against {}",
-        scored.pooled[0].rms,
-        fitted.rms
-    );
-    assert!(
-        (scored.pooled[0].max - fitted.max).abs() < 1e-9,
-        "{} against {}",
-        scored.pooled[0].max,
-        fitted.max
-    );
+    let as_it_stands = KindOptions::as_it_stands(&reread, &markers, &session).unwrap();
+    let scored = evaluate_kinds(&reread, &session, &as_it_stands).unwrap();
+    let fitted = result.score(&session).unwrap();
+    let (rms, fitted_rms) = (scored.markers.unwrap().1, fitted.markers.unwrap().1);
+    assert!((rms - fitted_rms).abs() < 1e-9, "{rms} against {fitted_rms}");
+    let (max, fitted_max) = (scored.positions_of(None).max.1, fitted.positions_of(None).max.1);
+    assert!((max - fitted_max).abs() < 1e-9, "{max} against {fitted_max}");
 }

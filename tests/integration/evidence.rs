@@ -1,14 +1,14 @@
 //! The prior's scale by the marginal likelihood (`--prior auto-ml`): type-II maximum
 //! likelihood against a Monte Carlo whose truth is drawn from a prior of known scale.
 
-use super::nested::{MARKER, measured, noise, options};
+use super::nested::{MARKER, given, held_out_rms, measured, options, wls_options};
 use nalgebra::{DMatrix, DVector};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
-use robocal::calibration::Markers;
+use robocal::calibration::Kinds;
+use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds};
 use robocal::calibration::prior_scale::{AutoPrior, ScaleBy, choose_prior_scale_ml};
-use robocal::estimation::Estimator;
 use robocal::estimation::evidence::{Column, Evidence, arg_max, evidence_scales};
 use robocal::kinematics::Chain;
 use robocal::model::RobotModel;
@@ -55,8 +55,8 @@ fn the_marginal_likelihood_finds_the_scale_the_truth_was_drawn_at() {
 
 /// Robot `seed` of the marginal likelihood's tests: its joint errors drawn from the standard
 /// deviations `sd` times `s0` (1 for an even seed, 4 for an odd one), measured at 60 poses with
-/// 0.2 mm of noise; `s0` and the measurements.
-fn drawn_robot(chain: &Chain, sd: &[f64], seed: u64) -> (f64, robocal::calibration::Measurements) {
+/// 0.2 mm of noise (not given); `s0` and the measurements.
+fn drawn_robot(chain: &Chain, sd: &[f64], seed: u64) -> (f64, KindData) {
     let s0 = if seed % 2 == 0 { 1.0 } else { 4.0 };
     let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
     let x: Vec<f64> = (chain.params().iter().zip(sd))
@@ -75,11 +75,11 @@ fn auto_ml_finds_the_scale_of_a_robot() {
     let auto = AutoPrior::parse("auto-ml:machined").unwrap().unwrap();
     assert_eq!(auto.by, ScaleBy::Ml);
     let sd = robocal::estimation::prior_sds(&auto.entries, chain.params()).unwrap();
-    let o = robocal::calibration::Options { estimator: Estimator::Wls, noise: Some(noise()), ..options() };
+    let o = wls_options();
     let (mut within, mut found) = (0, Vec::new());
     for seed in 0..10 {
         let (s0, train) = drawn_robot(&chain, &sd, seed);
-        let scale = choose_prior_scale_ml(&Markers(&model), &train, &o, &auto).unwrap();
+        let scale = choose_prior_scale_ml(&Kinds(&model), &given(&train, 0.2), &o, &auto).unwrap();
         assert_eq!((scale.log_evidence[scale.chosen], scale.folds), (0.0, None));
         assert!(scale.log_evidence.iter().all(|l| *l <= 0.0));
         let ratio = scale.scale() / s0;
@@ -102,13 +102,12 @@ fn auto_ml_without_noise_takes_the_residuals_spread() {
     let chain = Chain::markers(&model, &[MARKER]).remove(0);
     let auto = AutoPrior::parse("auto-ml:machined").unwrap().unwrap();
     let sd = robocal::estimation::prior_sds(&auto.entries, chain.params()).unwrap();
-    let given =
-        robocal::calibration::Options { estimator: Estimator::Wls, noise: Some(noise()), ..options() };
     let (mut within, mut found) = (0, Vec::new());
     for seed in 0..10 {
         let (s0, train) = drawn_robot(&chain, &sd, seed);
-        let ols = choose_prior_scale_ml(&Markers(&model), &train, &options(), &auto).unwrap();
-        let known = choose_prior_scale_ml(&Markers(&model), &train, &given, &auto).unwrap();
+        let ols = choose_prior_scale_ml(&Kinds(&model), &train, &options(), &auto).unwrap();
+        let known =
+            choose_prior_scale_ml(&Kinds(&model), &given(&train, 0.2), &wls_options(), &auto).unwrap();
         let spread = ols.noise_spread.expect("the spread taken without the noise");
         assert_eq!(known.noise_spread, None);
         assert!((spread - 0.2).abs() < 0.02, "seed {seed}: spread {spread} mm against 0.2");
@@ -158,8 +157,8 @@ fn auto_ml_with_nothing_to_scale_says_so() {
     let x = vec![0.0; Chain::markers(&model, &[MARKER])[0].params().len()];
     let train = measured(&x, 30, 0.8, 0.2, &mut rng);
     let own = robocal::estimation::PriorEntry::parse_list("machined").unwrap();
-    let o = robocal::calibration::Options { prior: own, ..options() };
-    let e = choose_prior_scale_ml(&Markers(&model), &train, &o, &auto).unwrap_err().to_string();
+    let o = KindOptions { prior: own, ..options() };
+    let e = choose_prior_scale_ml(&Kinds(&model), &train, &o, &auto).unwrap_err().to_string();
     assert!(e.contains("--prior auto-ml:machined: no parameter asked for takes the preset's prior"), "{e}");
 }
 
@@ -212,7 +211,7 @@ fn auto_ml_by_class_finds_each_class_scale() {
         "angles" => 0.25,
         _ => 1.0,
     };
-    let o = robocal::calibration::Options { estimator: Estimator::Wls, noise: Some(noise()), ..options() };
+    let o = wls_options();
     let (mut within, mut pairs, mut found, mut ratios) = (0, 0, Vec::new(), Vec::new());
     for seed in 0..16 {
         let mut rng = ChaCha8Rng::seed_from_u64(500 + seed);
@@ -223,7 +222,8 @@ fn auto_ml_by_class_finds_each_class_scale() {
             })
             .collect();
         let (train, held) = (measured(&x, 60, 0.8, 0.2, &mut rng), measured(&x, 60, 0.8, 0.2, &mut rng));
-        let scale = choose_prior_scale_ml(&Markers(&model), &train, &o, &by_class).unwrap();
+        let (train, held) = (given(&train, 0.2), given(&held, 0.2));
+        let scale = choose_prior_scale_ml(&Kinds(&model), &train, &o, &by_class).unwrap();
         let names: Vec<&str> = scale.classes.iter().map(|c| c.class.as_str()).collect();
         assert_eq!(names, ["lengths", "angles", "offsets"], "{scale:?}");
         for c in &scale.classes {
@@ -234,10 +234,10 @@ fn auto_ml_by_class_finds_each_class_scale() {
         }
         // The scales per class explain the data at least as well as the one scale.
         assert!(scale.log_evidence.iter().all(|l| *l <= 0.0), "{:?}", scale.log_evidence);
-        let single = choose_prior_scale_ml(&Markers(&model), &train, &o, &one).unwrap();
+        let single = choose_prior_scale_ml(&Kinds(&model), &train, &o, &one).unwrap();
         let held_out = |auto: &AutoPrior, chosen| {
-            let options = robocal::calibration::Options { prior: auto.chosen(&[], chosen), ..o.clone() };
-            robocal::calibration::calibrate(&model, &train, &options).unwrap().validate(&held).1.rms
+            let options = KindOptions { prior: auto.chosen(&[], chosen), ..o.clone() };
+            held_out_rms(&calibrate_kinds(&model, &train, &options).unwrap(), &held)
         };
         ratios.push(held_out(&by_class, &scale) / held_out(&one, &single));
     }
@@ -269,7 +269,8 @@ fn auto_ml_by_class_finds_each_class_scale() {
 #[test]
 fn auto_ml_finds_the_scale_of_a_robot_under_a_ball_bar() {
     use super::kinds::{TOOL, ball_bar, options, puma};
-    use robocal::calibration::{Kinds, prior_scale::choose_prior_scale};
+    use robocal::calibration::prior_scale::choose_prior_scale;
+    use robocal::estimation::Estimator;
     let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
     let auto = AutoPrior::parse("auto-ml:machined").unwrap().unwrap();
     let sd = robocal::estimation::prior_sds(&auto.entries, chain.params()).unwrap();
@@ -291,12 +292,9 @@ fn auto_ml_finds_the_scale_of_a_robot_under_a_ball_bar() {
         assert_eq!((scale.by, scale.folds, scale.log_evidence[scale.chosen]), (ScaleBy::Ml, None, 0.0));
         let ratio = scale.scale() / s0;
         within += usize::from((1.0 / 1.5..=1.5).contains(&ratio));
-        let held = |o: &robocal::calibration::kinds::KindOptions| {
-            let c = robocal::calibration::kinds::calibrate_kinds(&puma(), &train, o).unwrap();
-            c.score(&test).unwrap().lengths.1
-        };
-        let chosen =
-            robocal::calibration::kinds::KindOptions { prior: auto.chosen(&[], &scale), ..plain.clone() };
+        let held =
+            |o: &KindOptions| calibrate_kinds(&puma(), &train, o).unwrap().score(&test).unwrap().lengths.1;
+        let chosen = KindOptions { prior: auto.chosen(&[], &scale), ..plain.clone() };
         let (at, wls) = (held(&chosen), held(&plain));
         found.push((s0, scale.scale(), at, wls));
         assert!(
@@ -316,7 +314,8 @@ fn auto_ml_finds_the_scale_of_a_robot_under_a_ball_bar() {
 #[test]
 fn auto_ml_on_observations_without_noise_takes_the_residuals_spread() {
     use super::kinds::{TOOL, ball_bar, options, puma};
-    use robocal::calibration::{Kinds, prior_scale::choose_prior_scale};
+    use robocal::calibration::prior_scale::choose_prior_scale;
+    use robocal::estimation::Estimator;
     let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let mut data = ball_bar(&chain.with_errors(&vec![0.0; chain.params().len()]), &mut rng, 0.05);

@@ -5,8 +5,11 @@ use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
-use robocal::calibration::{self, Calibration, FeasibleOptions, JointParams, Measurements, Options};
-use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
+use robocal::calibration::FeasibleOptions;
+use robocal::calibration::kinds::{
+    KindCalibration, KindData, KindOptions, calibrate_kinds, calibrate_kinds_feasible,
+};
+use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel};
 use robocal::kinematics::Chain;
 use robocal::model::{Placement, RobotModel};
 use robocal::simulation::measurement_csv;
@@ -18,8 +21,14 @@ const TRUE_MARKER: [f64; 3] = [52.0, 1.0, 148.0];
 struct Campaign {
     nominal: RobotModel,
     truth: RobotModel,
-    data: Measurements,
-    options: Options,
+    /// The marker file, its sigmas given (the true noise's).
+    data: KindData,
+    /// Gauss-Markov with the true noise.
+    options: KindOptions,
+    /// The marker file without its sigmas (no noise given).
+    plain: KindData,
+    /// Ordinary least squares.
+    ols: KindOptions,
 }
 
 fn configurations(model: &RobotModel, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
@@ -46,25 +55,18 @@ fn campaign(seed: u64, poses: usize) -> Campaign {
     let sigmas: Vec<f64> = DEGREES.iter().map(|d| d.to_radians()).collect();
     let joints = configurations(&nominal, poses, &mut rng);
     let text = measurement_csv(&truth, &[Vector3::from(TRUE_MARKER)], &joints, &sigmas, SIGMA_ME, seed + 1);
-    let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
-    let options = Options {
-        estimator: Estimator::Wls,
-        noise: Some(NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(SIGMA_ME, 0.0))),
-        joints: JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-        refine: RefineOptions::default(),
-        gauge: Default::default(),
-    };
-    Campaign { nominal, truth, data, options }
+    let noise = NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(SIGMA_ME, 0.0));
+    let markers = [Vector3::new(50.0, 0.0, 150.0)];
+    let data = crate::marker_data(&text, &nominal, Some(&noise));
+    let options = crate::marker_options(&nominal, Estimator::Wls, Some(&noise), &markers);
+    let plain = crate::marker_data(&text, &nominal, None);
+    let ols = crate::marker_options(&nominal, Estimator::Ols, None, &markers);
+    Campaign { nominal, truth, data, options, plain, ols }
 }
 
 /// `E_p`: the mean distance between the calibrated model's marker and the true one over 500
 /// configurations spread over the workspace.
-fn position_error(c: &Campaign, calibration: &Calibration) -> f64 {
+fn position_error(c: &Campaign, calibration: &KindCalibration) -> f64 {
     let mut rng = ChaCha8Rng::seed_from_u64(99);
     let truth = &Chain::markers(&c.truth, &[Vector3::from(TRUE_MARKER)])[0];
     let truth = truth.with_errors(&vec![0.0; truth.params().len()]);
@@ -83,16 +85,10 @@ fn feasible_gls_recovers_the_noise_and_the_accuracy_of_the_true_v() {
     let (mut e_wls, mut e_fgls, mut e_ols) = (0.0, 0.0, 0.0);
     for seed in 0..6 {
         let c = campaign(100 + seed, 150);
-        let wls = calibration::calibrate(&c.nominal, &c.data, &c.options).unwrap();
-        let ols = calibration::calibrate(
-            &c.nominal,
-            &c.data,
-            &Options { estimator: Estimator::Ols, noise: None, ..c.options.clone() },
-        )
-        .unwrap();
+        let wls = calibrate_kinds(&c.nominal, &c.data, &c.options).unwrap();
+        let ols = calibrate_kinds(&c.nominal, &c.plain, &c.ols).unwrap();
         let fgls =
-            calibration::calibrate_feasible(&c.nominal, &c.data, &c.options, &FeasibleOptions::default())
-                .unwrap();
+            calibrate_kinds_feasible(&c.nominal, &c.plain, &c.ols, &FeasibleOptions::default()).unwrap();
         let estimate = fgls.noise_estimate.as_ref().unwrap();
         for (j, d) in DEGREES.iter().enumerate() {
             let s = estimate.joint_sigma(j);
@@ -118,16 +114,18 @@ fn feasible_gls_recovers_the_noise_and_the_accuracy_of_the_true_v() {
     assert!((e_fgls / e_wls - 1.0).abs() < 0.05, "E_p: fgls {e_fgls}, wls {e_wls}");
 }
 
+/// The report of feasible GLS gives the noise it estimated: the 6 joints' sigmas and the
+/// markers' (`sigma_marker`, the marker class's).
 #[test]
 fn feasible_gls_reports_its_estimate() {
     let c = campaign(7, 60);
-    let fgls = calibration::calibrate_feasible(&c.nominal, &c.data, &c.options, &FeasibleOptions::default())
-        .unwrap();
+    let fgls = calibrate_kinds_feasible(&c.nominal, &c.plain, &c.ols, &FeasibleOptions::default()).unwrap();
+    let fitted = (c.plain.observations.len(), c.plain.joints.len());
     let report =
-        robocal::report::calibration::CalibrationReport::new(&fgls, "data.csv", "fgls", Vec::new(), None);
+        robocal::report::observations::ObservationsReport::new(&fgls, "data.csv", fitted, "fgls", Vec::new());
     let text = report.text();
     assert!(text.contains("noise estimated from the residuals (feasible GLS):"), "{text}");
-    assert!(text.contains("sigma_me"), "{text}");
+    assert!(text.contains("sigma_marker"), "{text}");
     let json = serde_json::to_value(&report).unwrap();
     assert_eq!(json["noise"].as_array().unwrap().len(), 7, "{json}");
 }

@@ -5,10 +5,13 @@ use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
-use robocal::calibration::Markers;
+use robocal::calibration::Kinds;
+use robocal::calibration::kinds::{
+    DEFAULT_SIGMA_MM, KindCalibration, KindData, KindOptions, Observation, calibrate_kinds,
+    cross_validate_kinds,
+};
 use robocal::calibration::selection::{Choices, Criterion, cross_validate_choices, select};
-use robocal::calibration::{self, JointParams, Measurements, Options};
-use robocal::estimation::{Estimator, RefineOptions};
+use robocal::estimation::Estimator;
 use robocal::kinematics::Chain;
 use robocal::model::RobotModel;
 
@@ -16,8 +19,9 @@ use robocal::model::RobotModel;
 pub(crate) const MARKER: Vector3<f64> = Vector3::new(30.0, -20.0, 100.0);
 
 /// `n` poses of a PUMA 560 whose joints carry the errors `x` (full parameter vector of the
-/// marker's chain), within the middle `band` of each joint's range, measured with `sigma` mm.
-pub(crate) fn measured(x: &[f64], n: usize, band: f64, sigma: f64, rng: &mut ChaCha8Rng) -> Measurements {
+/// marker's chain), within the middle `band` of each joint's range, measured with `sigma` mm:
+/// a marker file's coordinates, their sigmas not given ([`given`] gives them).
+pub(crate) fn measured(x: &[f64], n: usize, band: f64, sigma: f64, rng: &mut ChaCha8Rng) -> KindData {
     let model = RobotModel::preset("puma560").unwrap();
     let chain = Chain::markers(&model, &[MARKER]).remove(0);
     let at = chain.with_errors(x);
@@ -39,30 +43,53 @@ pub(crate) fn measured(x: &[f64], n: usize, band: f64, sigma: f64, rng: &mut Cha
             sigma * z
         })
     };
-    Measurements {
-        markers: joints.iter().map(|q| vec![at.position(q) + noise()]).collect(),
-        marker_ids: vec![1],
-        sigma: None,
-        orientations: None,
-        lines: (0..n).map(|k| k + 2).collect(),
-        ignored: Vec::new(),
-        joints,
-    }
+    let positions: Vec<Vec<Vector3<f64>>> = joints.iter().map(|q| vec![at.position(q) + noise()]).collect();
+    marker_kind_data(joints, &positions)
 }
 
-pub(crate) fn options() -> Options {
-    Options {
-        estimator: Estimator::Ols,
-        noise: None,
-        joints: JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![MARKER],
-        refine: RefineOptions::default(),
-        prior: Vec::new(),
-        loss: calibration::Loss::Squared,
-        gauge: Default::default(),
+/// A marker file's observations: at pose `k` (joints `joints[k]`, line `k + 2`) the coordinates
+/// `positions[k][m]` of marker `m + 1` (mm), x, y, z, their sigmas not given (assumed, as a
+/// file's without a sigma column).
+pub(crate) fn marker_kind_data(joints: Vec<Vec<f64>>, positions: &[Vec<Vector3<f64>>]) -> KindData {
+    let mut data = KindData::default();
+    for (pose, points) in positions.iter().enumerate() {
+        for (marker, p) in points.iter().enumerate() {
+            for axis in 0..3 {
+                let sigma = DEFAULT_SIGMA_MM;
+                data.observations.push(Observation::Marker { marker, axis, pose, measured: p[axis], sigma });
+                data.lines.push(pose + 2);
+            }
+        }
     }
+    data.assumed_sigmas = data.observations.len();
+    data.joints = joints;
+    data
+}
+
+/// `data` with each coordinate's sigma given: `sigma` mm (as a noise model's per-axis
+/// measurement sigma gives it, [`crate::marker_data`]).
+pub(crate) fn given(data: &KindData, sigma: f64) -> KindData {
+    let observations = data.observations.iter().map(|o| o.with_sigma(sigma)).collect();
+    KindData { observations, assumed_sigmas: 0, ..data.clone() }
+}
+
+/// The options of [`measured`]'s calibration: ordinary least squares, every joint parameter,
+/// the base and [`MARKER`] estimated.
+pub(crate) fn options() -> KindOptions {
+    let model = RobotModel::preset("puma560").unwrap();
+    crate::marker_options(&model, Estimator::Ols, None, &[MARKER])
+}
+
+/// [`options`] by Gauss-Markov with the noise of [`noise`] (0.2 mm per axis, exact joints);
+/// the data must carry its sigma ([`given`]).
+pub(crate) fn wls_options() -> KindOptions {
+    let model = RobotModel::preset("puma560").unwrap();
+    crate::marker_options(&model, Estimator::Wls, Some(&noise()), &[MARKER])
+}
+
+/// The held-out RMS of the marker positions (mm) of `c` on `test`.
+pub(crate) fn held_out_rms(c: &KindCalibration, test: &KindData) -> f64 {
+    c.score(test).unwrap().markers.unwrap().1
 }
 
 /// The mean and the standard error of the mean of `values`.
@@ -100,16 +127,17 @@ fn cross_validation_after_selection_is_optimistic_and_the_nested_one_is_not() {
                 .collect();
             let train = measured(&x, 25, 0.5, 0.2, &mut rng);
             let test = measured(&x, 400, 0.5, 0.2, &mut rng);
-            let path = select(&Markers(&model), &train, &options(), criterion).unwrap();
-            let chosen = path.options(&Markers(&model), &options());
-            let held = calibration::calibrate(&model, &train, &chosen).unwrap().validate(&test).1.rms;
-            let after_selection = calibration::cross_validate(&model, &train, &chosen, folds).unwrap().1.rms;
+            let path = select(&Kinds(&model), &train, &options(), criterion).unwrap();
+            let chosen = path.options(&Kinds(&model), &options());
+            let held = held_out_rms(&calibrate_kinds(&model, &train, &chosen).unwrap(), &test);
+            let after_selection =
+                cross_validate_kinds(&model, &train, &chosen, folds).unwrap().markers.unwrap().1;
             let selection = Choices { select: Some(criterion), auto_prior: None };
             let redone =
-                cross_validate_choices(&Markers(&model), &train, &options(), &selection, folds).unwrap();
+                cross_validate_choices(&Kinds(&model), &train, &options(), &selection, folds).unwrap();
             assert_eq!(redone.choices.selected.len(), folds);
             plain.push(after_selection / held - 1.0);
-            nested.push(redone.after.rms / held - 1.0);
+            nested.push(redone.score.markers.unwrap().1 / held - 1.0);
         }
         let ((p, p_se), (n, n_se)) = (mean_se(&plain), mean_se(&nested));
         let name = criterion.name();
@@ -201,7 +229,7 @@ fn prior_auto_scales_the_preset_with_the_robot() {
     let chain = Chain::markers(&model, &[MARKER]).remove(0);
     let auto = AutoPrior::parse("auto:machined").unwrap().unwrap();
     let sd = robocal::estimation::prior_sds(&auto.entries, chain.params()).unwrap();
-    let o = Options { estimator: Estimator::Wls, noise: Some(noise()), ..options() };
+    let o = wls_options();
     for seed in 0..4 {
         let mut chosen = Vec::new();
         for truth in [0.25, 4.0] {
@@ -212,15 +240,14 @@ fn prior_auto_scales_the_preset_with_the_robot() {
                     if p.name.starts_with('j') && s.is_finite() { z * s * truth } else { 0.0 }
                 })
                 .collect();
-            let train = measured(&x, 25, 0.5, 0.2, &mut rng);
-            let test = measured(&x, 400, 0.5, 0.2, &mut rng);
-            let scale = choose_prior_scale(&Markers(&model), &train, &o, &auto, 5).unwrap();
+            let train = given(&measured(&x, 25, 0.5, 0.2, &mut rng), 0.2);
+            let test = given(&measured(&x, 400, 0.5, 0.2, &mut rng), 0.2);
+            let scale = choose_prior_scale(&Kinds(&model), &train, &o, &auto, 5).unwrap();
             let held = |s: f64| {
-                calibration::calibrate(&model, &train, &with_scale::<Markers>(&o, &auto, s))
-                    .unwrap()
-                    .validate(&test)
-                    .1
-                    .rms
+                held_out_rms(
+                    &calibrate_kinds(&model, &train, &with_scale::<Kinds>(&o, &auto, s)).unwrap(),
+                    &test,
+                )
             };
             let all: Vec<f64> = SCALES.iter().map(|&s| held(s)).collect();
             let (found, best) = (all[scale.chosen], all.iter().copied().fold(f64::INFINITY, f64::min));

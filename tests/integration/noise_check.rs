@@ -1,10 +1,12 @@
 //! The noise given against the residuals: a guess off by more than a factor 2 is warned of,
 //! with the factor the residuals say and the cross-validated error at both.
 
-use super::nested::{MARKER, measured, options};
+use super::nested::{MARKER, given, measured, options};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
-use robocal::calibration::{self, Cause, Warning};
+use robocal::calibration::kinds::KindData;
+use robocal::calibration::kinds::{KindOptions, calibrate_kinds};
+use robocal::calibration::{Cause, Loss, Warning};
 use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel};
 use robocal::kinematics::Chain;
 use robocal::model::RobotModel;
@@ -15,6 +17,13 @@ fn noise(sigma: f64) -> NoiseModel {
         joint: nalgebra::DMatrix::zeros(6, 6),
         measurement: MeasurementNoise::PerAxis([sigma, sigma, sigma, 0.0, 0.0, 0.0]),
     }
+}
+
+/// Gauss-Markov with the noise said to be `sigma` mm per axis: the options, and `data` with
+/// that sigma on each coordinate (as `--noise` gives it).
+fn said(data: &KindData, sigma: f64) -> (KindOptions, KindData) {
+    let model = RobotModel::preset("puma560").unwrap();
+    (crate::marker_options(&model, Estimator::Wls, Some(&noise(sigma)), &[MARKER]), given(data, sigma))
 }
 
 /// A PUMA 560 measured with 0.2 mm of noise (60 poses), calibrated by Gauss-Markov with the
@@ -28,8 +37,8 @@ fn a_guessed_noise_off_by_a_factor_4_is_warned_of() {
     let x: Vec<f64> = (0..chain.params().len()).map(|i| if i % 3 == 0 { 1e-3 } else { 0.0 }).collect();
     let data = measured(&x, 60, 0.8, 0.2, &mut ChaCha8Rng::seed_from_u64(5));
     let disagreement = |sigma: f64| {
-        let o = calibration::Options { estimator: Estimator::Wls, noise: Some(noise(sigma)), ..options() };
-        let c = calibration::calibrate(&model, &data, &o).unwrap();
+        let (o, data) = said(&data, sigma);
+        let c = calibrate_kinds(&model, &data, &o).unwrap();
         let found: Vec<&Warning> = c.warnings.iter().filter(|w| w.cause() == Cause::NoiseDisagrees).collect();
         assert!(found.len() <= 1, "{found:?}");
         found.first().map(|w| match w {
@@ -63,7 +72,7 @@ fn nothing_given_nothing_checked() {
         0.2,
         &mut ChaCha8Rng::seed_from_u64(6),
     );
-    let c = calibration::calibrate(&model, &data, &options()).unwrap();
+    let c = calibrate_kinds(&model, &data, &options()).unwrap();
     assert!(c.warnings.iter().all(|w| w.cause() != Cause::NoiseDisagrees), "{:?}", c.warnings);
 }
 
@@ -80,15 +89,15 @@ fn the_noise_is_checked_under_a_robust_loss_and_says_whether_the_estimate_moves(
     let chain = Chain::markers(&model, &[MARKER]).remove(0);
     let x: Vec<f64> = (0..chain.params().len()).map(|i| if i % 3 == 0 { 1e-3 } else { 0.0 }).collect();
     let data = measured(&x, 60, 0.8, 0.2, &mut ChaCha8Rng::seed_from_u64(5));
-    let disagreement = |o: calibration::Options| {
-        let c = calibration::calibrate(&model, &data, &o).unwrap();
+    let (given, data) = said(&data, 0.05);
+    let disagreement = |o: KindOptions| {
+        let c = calibrate_kinds(&model, &data, &o).unwrap();
         c.warnings.iter().find_map(|w| match w {
             Warning::NoiseDisagrees(n) => Some((*n, w.to_string())),
             _ => None,
         })
     };
-    let given = calibration::Options { estimator: Estimator::Wls, noise: Some(noise(0.05)), ..options() };
-    let huber = calibration::Options { loss: calibration::Loss::Huber(1.345), ..given.clone() };
+    let huber = KindOptions { loss: Loss::Huber(1.345), ..given.clone() };
     let (n, text) = disagreement(huber).expect("checked under Huber's loss");
     assert!((n.measurement_factor / 4.0 - 1.0).abs() < 0.2, "{n:?}");
     assert!(text.contains("the estimate barely moves with them"), "{text}");
@@ -102,7 +111,7 @@ fn the_noise_is_checked_under_a_robust_loss_and_says_whether_the_estimate_moves(
     let prior =
         robocal::estimation::PriorEntry::parse_list("lengths=0.05mm,angles=0.005deg,offsets=0.005deg")
             .unwrap();
-    let (n, text) = disagreement(calibration::Options { prior, ..given }).unwrap();
+    let (n, text) = disagreement(KindOptions { prior, ..given }).unwrap();
     println!("with priors: {n:?}");
     assert!(n.estimate_shift > 0.1, "{n:?}");
     assert!(

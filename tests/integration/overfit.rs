@@ -9,9 +9,11 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
+use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds};
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::calibration::selection::{Choices, Criterion, choose, cross_validate_choices};
-use robocal::calibration::{self, JointParams, Markers, Measurements, Options};
+use robocal::calibration::{JointParams, Kinds};
+use robocal::estimation::Estimator;
 use robocal::kinematics::Chain;
 use robocal::model::{Placement, RobotModel, from_urdf_str};
 
@@ -68,7 +70,7 @@ fn measure(
     joints: Vec<Vec<f64>>,
     instrument: &Isometry3<f64>,
     rng: &mut ChaCha8Rng,
-) -> Measurements {
+) -> KindData {
     let markers: Vec<Vector3<f64>> = TRUE.iter().map(|m| Vector3::from(*m)).collect();
     let chains = Chain::markers(truth, &markers);
     let at: Vec<_> = chains.iter().map(|c| c.with_errors(&vec![0.0; c.params().len()])).collect();
@@ -78,30 +80,21 @@ fn measure(
             SIGMA_MM * z
         })
     };
-    let measured = (joints.iter())
+    let measured: Vec<Vec<Vector3<f64>>> = (joints.iter())
         .map(|q| {
             at.iter()
                 .map(|c| instrument.inverse_transform_point(&c.position(q).into()).coords + noise())
                 .collect()
         })
         .collect();
-    let n = joints.len();
-    Measurements {
-        markers: measured,
-        marker_ids: vec![1, 2, 3],
-        sigma: None,
-        orientations: None,
-        lines: (0..n).map(|k| k + 2).collect(),
-        ignored: Vec::new(),
-        joints,
-    }
+    crate::nested::marker_kind_data(joints, &measured)
 }
 
 /// One robot of the benchmark: its training poses and its three held-out sessions, the third
 /// measured by an instrument shifted by 0.3 mm and turned by 0.01 deg after the training.
 struct Robot {
-    train: Measurements,
-    sessions: Vec<Measurements>,
+    train: KindData,
+    sessions: Vec<KindData>,
 }
 
 fn robot(nominal: &RobotModel, seed: u64) -> Robot {
@@ -124,24 +117,26 @@ fn robot(nominal: &RobotModel, seed: u64) -> Robot {
     Robot { train, sessions }
 }
 
-/// The held-out RMS of the calibration of `robot` with `options`, the sessions pooled.
-fn held_out(model: &RobotModel, robot: &Robot, options: &Options) -> f64 {
-    let c = calibration::calibrate(model, &robot.train, options).unwrap();
+/// The held-out RMS of the marker positions of the calibration of `robot` with `options`, the
+/// sessions pooled.
+fn held_out(model: &RobotModel, robot: &Robot, options: &KindOptions) -> f64 {
+    let c = calibrate_kinds(model, &robot.train, options).unwrap();
     let (mut sse, mut n) = (0.0, 0.0);
     for s in &robot.sessions {
-        let after = c.validate(s).1;
-        sse += after.rms * after.rms * after.count as f64;
-        n += after.count as f64;
+        let after = c.score(s).unwrap().markers.unwrap().1;
+        let count = s.observations.len() as f64;
+        sse += after * after * count;
+        n += count;
     }
     (sse / n).sqrt()
 }
 
-/// The full model with gravity terms, OLS, the design markers.
-fn full() -> Options {
-    Options {
+/// The full model with gravity terms, OLS, the base and the design markers estimated.
+fn full(model: &RobotModel) -> KindOptions {
+    let design: Vec<Vector3<f64>> = DESIGN.iter().map(|m| Vector3::from(*m)).collect();
+    KindOptions {
         joints: JointParams::Named(vec!["joint*.*".into()]),
-        markers: DESIGN.iter().map(|m| Vector3::from(*m)).collect(),
-        ..Options::default()
+        ..crate::marker_options(model, Estimator::Ols, None, &design)
     }
 }
 
@@ -172,21 +167,24 @@ fn the_choices_beat_the_full_fit_and_the_nested_figure_tells_the_truth() {
     let prior = Choices { auto_prior: Some((auto, folds)), select: None };
     let by_class = Choices { auto_prior: Some((classes, folds)), select: None };
     let select = Choices { auto_prior: None, select: Some(Criterion::Cv { folds }) };
-    let offsets = Options { joints: JointParams::Offsets, ..full() };
+    let full = full(&nominal);
+    let offsets = KindOptions { joints: JointParams::Offsets, ..full.clone() };
     let mut rows = Vec::new();
     for seed in 1..=10 {
         let robot = robot(&nominal, seed);
-        let chosen = |choices: &Choices| choose(&Markers(&nominal), &robot.train, &full(), choices).unwrap();
+        let chosen = |choices: &Choices| choose(&Kinds(&nominal), &robot.train, &full, choices).unwrap();
         let (by_prior, by_select, by_classes) = (chosen(&prior), chosen(&select), chosen(&by_class));
         let nested = |choices: &Choices| {
-            cross_validate_choices(&Markers(&nominal), &robot.train, &full(), choices, folds)
+            cross_validate_choices(&Kinds(&nominal), &robot.train, &full, choices, folds)
                 .unwrap()
-                .after
-                .rms
+                .score
+                .markers
+                .unwrap()
+                .1
         };
         let scale = by_prior.scale.as_ref().unwrap();
         rows.push([
-            held_out(&nominal, &robot, &full()),
+            held_out(&nominal, &robot, &full),
             held_out(&nominal, &robot, &offsets),
             held_out(&nominal, &robot, &by_prior.options),
             held_out(&nominal, &robot, &by_select.options),

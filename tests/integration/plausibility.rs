@@ -5,13 +5,12 @@ use crate::kinds::{TOOL, ball_bar, options, puma};
 use nalgebra::Vector3;
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
+use robocal::calibration::Warning;
 use robocal::calibration::diagnostics::Bound;
 use robocal::calibration::kinds::calibrate_kinds;
-use robocal::calibration::{self, JointParams, Options, Warning};
-use robocal::estimation::{Estimator, RefineOptions};
+use robocal::estimation::Estimator;
 use robocal::kinematics::Chain;
 use robocal::model::RobotModel;
-use std::path::Path;
 
 /// The parameters of each implausible warning of `warnings`, by bound.
 fn implausible(warnings: &[Warning]) -> Vec<(Bound, Vec<String>)> {
@@ -34,24 +33,14 @@ fn corrections_past_a_physical_bound_are_warned_for_every_kind() {
     let mut wrong = RobotModel::preset("puma560").unwrap();
     wrong.joints[1].a += 30.0;
     wrong.joints[2].theta += 8f64.to_radians();
-    let data =
-        robocal::io::load_measurements(Path::new("examples/puma560-measurements.csv"), &wrong, None).unwrap();
-    let markers = Options {
-        estimator: Estimator::Ols,
-        noise: None,
-        joints: JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
-        refine: RefineOptions::default(),
-        prior: Vec::new(),
-        loss: calibration::Loss::Squared,
-        gauge: Default::default(),
-    };
+    let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    let data = crate::marker_data(&text, &wrong, None);
+    let design = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
+    let markers = crate::marker_options(&wrong, Estimator::Ols, None, &design);
     let right = RobotModel::preset("puma560").unwrap();
-    let plain = calibration::calibrate(&right, &data, &markers).unwrap();
+    let plain = calibrate_kinds(&right, &data, &markers).unwrap();
     assert_eq!(implausible(&plain.warnings), []);
-    let c = calibration::calibrate(&wrong, &data, &markers).unwrap();
+    let c = calibrate_kinds(&wrong, &data, &markers).unwrap();
     assert!(c.refined.converged);
     assert_eq!(
         implausible(&c.warnings),

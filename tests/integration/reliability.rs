@@ -577,7 +577,10 @@ fn each_error_is_printed_once_naming_file_and_line_once() {
 }
 
 /// Poses within `spread` rad of one pose, measured without noise with two markers.
-fn clustered(spread: f64, poses: usize) -> (robocal::model::RobotModel, robocal::calibration::Measurements) {
+fn clustered(
+    spread: f64,
+    poses: usize,
+) -> (robocal::model::RobotModel, robocal::calibration::kinds::KindData) {
     use rand::{RngExt, SeedableRng};
     let model = robocal::model::RobotModel::preset("puma560").unwrap();
     let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(5);
@@ -587,7 +590,7 @@ fn clustered(spread: f64, poses: usize) -> (robocal::model::RobotModel, robocal:
         .collect();
     let markers = [nalgebra::Vector3::new(50.0, 0.0, 150.0), nalgebra::Vector3::new(-40.0, 60.0, 120.0)];
     let text = robocal::simulation::measurement_csv(&model, &markers, &joints, &[0.0; 6], 0.0, 1);
-    let data = robocal::calibration::Measurements::from_csv_str(&text, &model, None).unwrap();
+    let data = crate::marker_data(&text, &model, None);
     (model, data)
 }
 
@@ -595,25 +598,18 @@ fn clustered(spread: f64, poses: usize) -> (robocal::model::RobotModel, robocal:
 /// one below it without.
 #[test]
 fn a_badly_conditioned_system_is_warned() {
-    use robocal::calibration::{JointParams, Options};
+    use robocal::calibration::JointParams;
+    use robocal::calibration::kinds::{KindOptions, calibrate_kinds};
     for (spread, warned) in [(1e-3, false), (1e-7, true)] {
         let (model, data) = clustered(spread, 60);
-        let options = Options {
-            estimator: robocal::estimation::Estimator::Ols,
-            noise: None,
+        let markers = [nalgebra::Vector3::new(50.0, 0.0, 150.0), nalgebra::Vector3::new(-40.0, 60.0, 120.0)];
+        let options = KindOptions {
             joints: JointParams::Offsets,
             estimate_base: false,
             estimate_markers: false,
-            markers: vec![
-                nalgebra::Vector3::new(50.0, 0.0, 150.0),
-                nalgebra::Vector3::new(-40.0, 60.0, 120.0),
-            ],
-            prior: Vec::new(),
-            loss: robocal::calibration::Loss::Squared,
-            refine: robocal::estimation::RefineOptions::default(),
-            gauge: Default::default(),
+            ..crate::marker_options(&model, robocal::estimation::Estimator::Ols, None, &markers)
         };
-        let result = robocal::calibration::calibrate(&model, &data, &options).unwrap();
+        let result = calibrate_kinds(&model, &data, &options).unwrap();
         let diagnostics = &result.refined.estimate.diagnostics;
         assert_eq!(diagnostics.rank, 6, "rank-full");
         let warning = (result.warnings.iter())
@@ -1013,20 +1009,16 @@ fn calibrate_loaded(edit: impl Fn(&mut robocal::model::RobotModel)) -> Result<()
     model.joints[2].compliance = 8e-5;
     model.payload = Some(Payload { mass: 2.0, com: Vector3::new(0.0, 20.0, 80.0) });
     edit(&mut model);
-    let data = robocal::calibration::Measurements::from_csv_str(MEASUREMENTS, &model, None).unwrap();
-    let options = robocal::calibration::Options {
-        estimator: robocal::estimation::Estimator::Ols,
-        noise: None,
+    let data = crate::marker_data(MEASUREMENTS, &model, None);
+    let markers = [Vector3::new(50.0, 0.0, 150.0)];
+    let options = robocal::calibration::kinds::KindOptions {
         joints: robocal::calibration::JointParams::Named(vec!["j*.*".into(), "payload.mass".into()]),
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
         refine: robocal::estimation::RefineOptions { max_iterations: 5, ..Default::default() },
-        gauge: Default::default(),
+        ..crate::marker_options(&model, robocal::estimation::Estimator::Ols, None, &markers)
     };
-    robocal::calibration::calibrate(&model, &data, &options).map(|_| ()).map_err(|e| e.to_string())
+    robocal::calibration::kinds::calibrate_kinds(&model, &data, &options)
+        .map(|_| ())
+        .map_err(|e| e.to_string())
 }
 
 #[test]

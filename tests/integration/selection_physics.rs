@@ -4,14 +4,13 @@
 //! while parameters that can only stand in for it (one, or a group) are chosen, unless the
 //! report says the trade.
 
-use crate::selection::arm7;
-use crate::urdf::arm7_options;
+use crate::compliance::{arm7, arm7_options};
 use nalgebra::{DMatrix, DVector, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
 use robocal::calibration::selection::{Criterion, select};
-use robocal::calibration::{Held, JointParams, Markers, Measurements, Options, Warning};
+use robocal::calibration::{Held, JointParams, Kinds, Warning};
 use robocal::estimation::{Estimator, PriorEntry};
 use robocal::kinematics::Chain;
 use robocal::model::{Payload, RobotModel};
@@ -114,18 +113,15 @@ fn correlation(c: &DMatrix<f64>, z: usize, g: &[usize]) -> f64 {
 /// the calibration of `chosen` with `zero` added back; `None` if the zero is not estimated there.
 fn strongest_stand_in(
     model: &RobotModel,
-    train: &Measurements,
-    options: &Options,
+    train: &KindData,
+    options: &KindOptions,
     chosen: &[String],
     zero: &str,
 ) -> Option<f64> {
     let names: Vec<String> = chosen.iter().cloned().chain([zero.to_string()]).collect();
-    let c = robocal::calibration::calibrate(
-        model,
-        train,
-        &Options { joints: JointParams::Named(names), ..options.clone() },
-    )
-    .unwrap();
+    let c =
+        calibrate_kinds(model, train, &KindOptions { joints: JointParams::Named(names), ..options.clone() })
+            .unwrap();
     let e = &c.refined.estimate;
     let at = |n: &str| e.names.iter().position(|m| m == n);
     let z = at(zero)?;
@@ -161,12 +157,12 @@ fn no_zero_or_play_is_left_to_a_stand_in_unsaid() {
     let (model, train, _) = arm7("examples/arm7");
     let (mut groups, mut group_notes) = (0, 0);
     for prior in ["", "fabricated", "machined"] {
-        let options = Options {
+        let options = KindOptions {
             prior: if prior.is_empty() { Vec::new() } else { PriorEntry::parse_list(prior).unwrap() },
-            ..arm7_options(JointParams::Named(vec!["joint*.*".into()]))
+            ..arm7_options(&model, JointParams::Named(vec!["joint*.*".into()]))
         };
         for criterion in [Criterion::Bic, Criterion::Cv { folds: 5 }, Criterion::T] {
-            let path = select(&Markers(&model), &train, &options, criterion).unwrap();
+            let path = select(&Kinds(&model), &train, &options, criterion).unwrap();
             let chosen = &path.selected;
             for trade in &path.trades {
                 assert!(!chosen.contains(&trade.parameter), "{prior} {criterion:?}: {trade}");
@@ -204,7 +200,6 @@ fn no_zero_or_play_is_left_to_a_stand_in_unsaid() {
 #[test]
 fn a_height_gauges_selection_is_linearised_about_its_registration() {
     use crate::kinds::{TOOL, errors_on, heights, options, puma};
-    use robocal::calibration::Kinds;
     use robocal::calibration::kinds::cross_validate_kinds;
     let mut rng = ChaCha8Rng::seed_from_u64(68);
     let chain = Chain::markers(&puma(), &[TOOL]).remove(0);
