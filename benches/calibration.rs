@@ -8,21 +8,51 @@
 //! (1000 views, 6000 rows, 123 parameters asked for), WLS with joint noise, to convergence;
 //! and on the same 100 poses and 60 candidates the choices made from the data (`--prior auto`,
 //! `--prior auto-ml`, nested `--select cv --folds 5`) and `--loss huber` beside the plain fit;
-//! and the marker files of 1000 and 10,000 poses fitted as observations (`calibrate_kinds`).
+//! and a marker file of 10,000 poses. Every fit is the one pipeline's (`calibrate_kinds`, its
+//! choices by the `Kinds` front), a marker file read as `robocal calibrate` reads it.
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
+use robocal::calibration::kinds::{
+    KindData, KindOptions, RowSigmaDefaults, calibrate_kinds, calibrate_kinds_feasible,
+};
 use robocal::calibration::selection::{self, Criterion as Select};
-use robocal::calibration::{self, JointParams, Measurements, Options};
-use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
+use robocal::calibration::{FeasibleOptions, JointParams, Kinds};
+use robocal::estimation::Estimator;
 use robocal::model::{Placement, RobotModel};
 use robocal::simulation::measurement_csv;
 
+/// A marker file's `text` for `model` as `robocal calibrate` reads it, each coordinate's sigma
+/// `sigma_mm` where given (`--sigma-mm`), else assumed.
+fn read(text: &str, model: &RobotModel, sigma_mm: Option<f64>) -> KindData {
+    KindData::from_csv_str_with(text, model, None, RowSigmaDefaults::positive(sigma_mm, None)).unwrap()
+}
+
+/// The options of a marker calibration of `model` by `estimator`: the joints' standard
+/// deviations `joint_sigmas` (rad; none: exact), the design `markers`, every joint parameter.
+fn marker_options(
+    model: &RobotModel,
+    estimator: Estimator,
+    joint_sigmas: Option<&[f64]>,
+    markers: Vec<Vector3<f64>>,
+) -> KindOptions {
+    let variances = |s: &[f64]| {
+        nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(s.len(), s.iter().map(|v| v * v)))
+    };
+    KindOptions {
+        estimator,
+        joint_noise: joint_sigmas.map(variances),
+        tool: model.tool_point_in_marker_frame(),
+        markers,
+        ..KindOptions::default()
+    }
+}
+
 /// The data of 1000 poses of a PUMA 560 (`preset`) whose joints 2 and 3 have `compliance`,
 /// and the options of a WLS calibration of `params`.
-fn campaign(preset: &str, compliance: f64, params: JointParams) -> (RobotModel, Measurements, Options) {
+fn campaign(preset: &str, compliance: f64, params: JointParams) -> (RobotModel, KindData, KindOptions) {
     campaign_of(preset, compliance, params, 1000, 2)
 }
 
@@ -33,20 +63,7 @@ fn campaign_of(
     params: JointParams,
     poses: usize,
     markers: usize,
-) -> (RobotModel, Measurements, Options) {
-    let (nominal, text, options) = campaign_text(preset, compliance, params, poses, markers);
-    let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
-    (nominal, data, options)
-}
-
-/// [`campaign_of`] with its marker file's text.
-fn campaign_text(
-    preset: &str,
-    compliance: f64,
-    params: JointParams,
-    poses: usize,
-    markers: usize,
-) -> (RobotModel, String, Options) {
+) -> (RobotModel, KindData, KindOptions) {
     let nominal = RobotModel::preset(preset).unwrap();
     let mut truth = nominal.clone();
     for (i, joint) in truth.joints.iter_mut().enumerate() {
@@ -67,19 +84,10 @@ fn campaign_text(
     let sigmas: Vec<f64> =
         [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
     let text = measurement_csv(&truth, &markers, &poses, &sigmas, 0.01, 2);
-    let options = Options {
-        estimator: Estimator::Wls,
-        noise: Some(NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0))),
-        joints: params,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: designs,
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-        refine: RefineOptions::default(),
-        gauge: Default::default(),
-    };
-    (nominal, text, options)
+    let data = read(&text, &nominal, Some(0.01));
+    let options =
+        KindOptions { joints: params, ..marker_options(&nominal, Estimator::Wls, Some(&sigmas), designs) };
+    (nominal, data, options)
 }
 
 fn calibration(c: &mut Criterion) {
@@ -87,56 +95,34 @@ fn calibration(c: &mut Criterion) {
     group.sample_size(10);
     let (nominal, data, options) = campaign("puma560", 0.0, JointParams::All);
     group.bench_function("1000 poses, 2 markers, 42 parameters, wls iterated", |b| {
-        b.iter(|| calibration::calibrate(&nominal, &data, &options).unwrap())
+        b.iter(|| calibrate_kinds(&nominal, &data, &options).unwrap())
     });
     let names = ["theta", "d", "a", "alpha", "beta", "compliance"].map(|k| format!("j*.{k}"));
     let (nominal, data, options) = campaign("puma560-masses", 5e-5, JointParams::Named(names.to_vec()));
     group.bench_function("1000 poses, 2 markers, 48 parameters with compliances, wls iterated", |b| {
-        b.iter(|| calibration::calibrate(&nominal, &data, &options).unwrap())
+        b.iter(|| calibrate_kinds(&nominal, &data, &options).unwrap())
     });
     let (nominal, data, options) = campaign_of("puma560", 0.0, JointParams::All, 1000, 4);
+    // Feasible GLS estimates the noise (the file's sigmas and the joint noise are not used).
     group.bench_function("1000 poses, 4 markers, fgls (the noise from the residuals)", |b| {
-        b.iter(|| {
-            let feasible = calibration::FeasibleOptions::default();
-            calibration::calibrate_feasible(&nominal, &data, &options, &feasible).unwrap()
-        })
+        b.iter(|| calibrate_kinds_feasible(&nominal, &data, &options, &FeasibleOptions::default()).unwrap())
+    });
+    let (nominal, data, options) = campaign_of("puma560", 0.0, JointParams::All, 10_000, 2);
+    group.bench_function("10,000 poses, 2 markers, 42 parameters, wls iterated", |b| {
+        b.iter(|| calibrate_kinds(&nominal, &data, &options).unwrap())
     });
     // Peak memory: benches/calibrate-memory.sh (the whole command under /usr/bin/time -v).
     let (nominal, data, options) = campaign_of("puma560", 0.0, JointParams::All, 100_000, 2);
     group.bench_function("100,000 poses, 2 markers, 42 parameters, wls iterated", |b| {
-        b.iter(|| calibration::calibrate(&nominal, &data, &options).unwrap())
+        b.iter(|| calibrate_kinds(&nominal, &data, &options).unwrap())
     });
-    group.finish();
-}
-
-/// The marker files of [`campaign_of`] (1000 and 10,000 poses, 2 markers) read as observations
-/// and fitted by `calibrate_kinds`, WLS with the joint noise: the observation fit that is to
-/// take marker files over from `calibrate`, side by side with it above.
-fn observations(c: &mut Criterion) {
-    use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds};
-    let mut group = c.benchmark_group("calibrate observations");
-    group.sample_size(10);
-    for poses in [1000, 10_000] {
-        let (nominal, text, options) = campaign_text("puma560", 0.0, JointParams::All, poses, 2);
-        let data = KindData::from_csv_str(&text, &nominal, None).unwrap();
-        let kind_options = KindOptions {
-            estimator: Estimator::Wls,
-            joint_noise: options.noise.as_ref().map(|n| n.joint.clone()),
-            joints: JointParams::All,
-            markers: options.markers.clone(),
-            ..KindOptions::default()
-        };
-        group.bench_function(format!("{poses} poses, 2 markers, 42 parameters, wls iterated"), |b| {
-            b.iter(|| calibrate_kinds(&nominal, &data, &kind_options).unwrap())
-        });
-    }
     group.finish();
 }
 
 /// Two PUMA 560 arms end to end (12 DH joints, 60 candidate joint parameters) off by a
 /// little, 100 poses seen by 3 markers with 0.05 mm of noise, and the options of an OLS
-/// calibration of every joint parameter.
-fn two_pumas() -> (RobotModel, Measurements, Options) {
+/// calibration of every joint parameter; the marker file's text.
+fn two_pumas() -> (RobotModel, KindData, KindOptions, String) {
     let puma = RobotModel::preset("puma560").unwrap();
     let mut nominal = puma.clone();
     nominal.joints.extend(puma.joints.iter().cloned().map(|mut j| {
@@ -158,33 +144,22 @@ fn two_pumas() -> (RobotModel, Measurements, Options) {
         .map(|_| nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())
         .collect();
     let text = measurement_csv(&truth, &markers, &poses, &[1e-5; 12], 0.05, 4);
-    let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
-    let options = Options {
-        estimator: Estimator::Ols,
-        noise: None,
-        joints: JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![
-            Vector3::new(50.0, 0.0, 150.0),
-            Vector3::new(-40.0, 60.0, 120.0),
-            Vector3::new(0.0, -60.0, 90.0),
-        ],
-        refine: RefineOptions::default(),
-        gauge: Default::default(),
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-    };
+    let data = read(&text, &nominal, None);
+    let designs = vec![
+        Vector3::new(50.0, 0.0, 150.0),
+        Vector3::new(-40.0, 60.0, 120.0),
+        Vector3::new(0.0, -60.0, 90.0),
+    ];
+    let options = marker_options(&nominal, Estimator::Ols, None, designs);
     assert_eq!(robocal::model::Selection::joints(&nominal.params()).len(), 60);
-    (nominal, data, options)
+    (nominal, data, options, text)
 }
 
 /// `select` by 5-fold cross-validation: 100 poses, 3 markers, 60 candidate joint parameters
 /// (12 DH joints), by OLS; the registration, the linearisation, the gauge and the whole path.
 fn selection(c: &mut Criterion) {
-    let (nominal, data, options) = two_pumas();
-    let path =
-        selection::select(&calibration::Markers(&nominal), &data, &options, Select::Cv { folds: 5 }).unwrap();
+    let (nominal, data, options, _) = two_pumas();
+    let path = selection::select(&Kinds(&nominal), &data, &options, Select::Cv { folds: 5 }).unwrap();
     eprintln!(
         "the path: {} steps (the candidates the poses identify), {} chosen",
         path.steps.len() - 1,
@@ -193,10 +168,7 @@ fn selection(c: &mut Criterion) {
     let mut group = c.benchmark_group("select");
     group.sample_size(10);
     group.bench_function("cv, 5 folds, 100 poses, 3 markers, 60 candidates", |b| {
-        b.iter(|| {
-            selection::select(&calibration::Markers(&nominal), &data, &options, Select::Cv { folds: 5 })
-                .unwrap()
-        })
+        b.iter(|| selection::select(&Kinds(&nominal), &data, &options, Select::Cv { folds: 5 }).unwrap())
     });
     group.finish();
 }
@@ -210,44 +182,46 @@ fn selection(c: &mut Criterion) {
 fn choices(c: &mut Criterion) {
     use robocal::calibration::prior_scale::AutoPrior;
     use robocal::calibration::selection::{Choices, choose, cross_validate_choices};
-    let (nominal, data, options) = two_pumas();
+    let (nominal, data, options, text) = two_pumas();
     let auto = |text: &str| Choices {
         auto_prior: Some((AutoPrior::parse(text).unwrap().unwrap(), 5)),
         select: None,
     };
     let (cv, ml) = (auto("auto"), auto("auto-ml"));
-    let noise = NoiseModel::diagonal(&[1e-5; 12], MeasurementNoise::isotropic(0.05, 0.0));
-    let with_noise = Options { estimator: Estimator::Wls, noise: Some(noise), ..options.clone() };
+    // The noise given: 1e-5 rad on each joint, 0.05 mm on each coordinate.
+    let given = read(&text, &nominal, Some(0.05));
+    let with_noise = KindOptions {
+        estimator: Estimator::Wls,
+        ..marker_options(&nominal, Estimator::Wls, Some(&[1e-5; 12]), options.markers.clone())
+    };
     let select = Choices { auto_prior: None, select: Some(Select::Cv { folds: 5 }) };
-    let huber = Options { loss: "huber".parse().unwrap(), ..options.clone() };
+    let huber = KindOptions { loss: "huber".parse().unwrap(), ..options.clone() };
     let mut group = c.benchmark_group("choices");
     group.sample_size(10);
     group.bench_function("--prior auto, 5 folds, 100 poses, 60 candidates, then calibrate", |b| {
         b.iter(|| {
-            let chosen = choose(&calibration::Markers(&nominal), &data, &options, &cv).unwrap();
-            calibration::calibrate(&nominal, &data, &chosen.options).unwrap()
+            let chosen = choose(&Kinds(&nominal), &data, &options, &cv).unwrap();
+            calibrate_kinds(&nominal, &data, &chosen.options).unwrap()
         })
     });
     group.bench_function("--prior auto-ml, 100 poses, 60 candidates, then calibrate", |b| {
         b.iter(|| {
-            let chosen = choose(&calibration::Markers(&nominal), &data, &with_noise, &ml).unwrap();
-            calibration::calibrate(&nominal, &data, &chosen.options).unwrap()
+            let chosen = choose(&Kinds(&nominal), &given, &with_noise, &ml).unwrap();
+            calibrate_kinds(&nominal, &given, &chosen.options).unwrap()
         })
     });
     group.bench_function("--select cv --folds 5 nested, 100 poses, 60 candidates", |b| {
-        b.iter(|| {
-            cross_validate_choices(&calibration::Markers(&nominal), &data, &options, &select, 5).unwrap()
-        })
+        b.iter(|| cross_validate_choices(&Kinds(&nominal), &data, &options, &select, 5).unwrap())
     });
     group.bench_function("plain calibration, 100 poses, 60 candidates", |b| {
-        b.iter(|| calibration::calibrate(&nominal, &data, &options).unwrap())
+        b.iter(|| calibrate_kinds(&nominal, &data, &options).unwrap())
     });
     group.bench_function(
         "plain wls calibration, the noise given (and checked), 100 poses, 60 candidates",
-        |b| b.iter(|| calibration::calibrate(&nominal, &data, &with_noise).unwrap()),
+        |b| b.iter(|| calibrate_kinds(&nominal, &given, &with_noise).unwrap()),
     );
     group.bench_function("--loss huber, 100 poses, 60 candidates", |b| {
-        b.iter(|| calibration::calibrate(&nominal, &data, &huber).unwrap())
+        b.iter(|| calibrate_kinds(&nominal, &data, &huber).unwrap())
     });
     group.finish();
 }
@@ -280,5 +254,5 @@ fn tree(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, calibration, observations, selection, choices, tree);
+criterion_group!(benches, calibration, selection, choices, tree);
 criterion_main!(benches);
