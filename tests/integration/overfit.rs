@@ -142,7 +142,7 @@ fn full(model: &RobotModel) -> KindOptions {
 
 /// On 10 robots (24 training poses in a narrow band, three sessions of 30 held out), what
 /// holds (measured on this benchmark, seeds 1-10, held-out RMS mm on average: full 0.581,
-/// offsets 0.999, `--prior auto` 0.550, `--select cv` 0.588, `--prior auto-ml:classes` 0.500):
+/// offsets 0.999, `--prior auto` 0.550, `--select cv` 0.588, `--prior auto-ml:classes` 0.501):
 ///
 /// - the preset's scale chosen by cross-validation (`--prior auto:fabricated`, 3 folds) beats
 ///   the plain full fit and the offsets alone held out on average (on 7 of the 10 robots both,
