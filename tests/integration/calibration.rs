@@ -5,9 +5,15 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::Held;
-use robocal::calibration::{self, JointParams, Measurements, Options, Scored, Warning};
-use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, PointProblem, RefineOptions, refine};
-use robocal::kinematics::{Chain, ChainAt, Measured};
+use robocal::calibration::kinds::{
+    KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
+    calibrate_kinds_feasible, evaluate_kinds,
+};
+use robocal::calibration::{JointParams, Measurements, Options, Scored, Warning};
+use robocal::estimation::{
+    Estimator, MeasurementNoise, NoiseModel, RefineOptions, Weights, linearise, refine_from,
+};
+use robocal::kinematics::{Chain, ChainAt};
 use robocal::model::{ParamKind, ParamOwner, Placement, RobotModel, Selection, Tool};
 use robocal::simulation::measurement_csv;
 use robocal::table::Units;
@@ -40,21 +46,16 @@ fn poses(model: &RobotModel, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// The marker path's campaign: robust.rs's (another port's file, #23) until it is ported;
+/// delete it then, with [`campaign_of`].
 pub(crate) struct Campaign {
     pub nominal: RobotModel,
-    pub truth: RobotModel,
-    pub true_markers: Vec<Vector3<f64>>,
     pub training: Measurements,
     pub validation: Measurements,
     pub options: Options,
 }
 
-fn campaign(seed: u64) -> Campaign {
-    campaign_of(seed, 120)
-}
-
-/// A PUMA 560 with errors, an unknown base and two markers, measured at `poses` training poses
-/// and 60 held-out ones, calibrated by Gauss-Markov with its true noise.
+/// [`kind_campaign_of`] on the marker path, for robust.rs alone until it is ported (#23).
 pub(crate) fn campaign_of(seed: u64, poses_: usize) -> Campaign {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let nominal = RobotModel::preset("puma560").unwrap();
@@ -79,20 +80,52 @@ pub(crate) fn campaign_of(seed: u64, poses_: usize) -> Campaign {
         refine: RefineOptions::default(),
         gauge: Default::default(),
     };
-    Campaign { nominal, truth, true_markers, training, validation, options }
+    Campaign { nominal, training, validation, options }
 }
 
+/// [`campaign_of`] on the one pipeline: the same files read as `robocal calibrate` reads them,
+/// with the options it sets.
+pub(crate) struct KindCampaign {
+    pub nominal: RobotModel,
+    pub truth: RobotModel,
+    pub true_markers: Vec<Vector3<f64>>,
+    pub training: KindData,
+    pub validation: KindData,
+    pub options: KindOptions,
+}
+
+fn kind_campaign(seed: u64) -> KindCampaign {
+    kind_campaign_of(seed, 120)
+}
+
+/// A PUMA 560 with errors, an unknown base and two markers, measured at `poses` training poses
+/// and 60 held-out ones, calibrated by Gauss-Markov with its true noise.
+pub(crate) fn kind_campaign_of(seed: u64, poses_: usize) -> KindCampaign {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let nominal = RobotModel::preset("puma560").unwrap();
+    let truth = true_robot(&nominal, &mut rng);
+    let true_markers = vec![Vector3::new(52.0, 1.0, 148.0), Vector3::new(-38.0, 61.0, 121.0)];
+    let sigma_me = 0.01;
+    let noise = NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(sigma_me, 0.0));
+    let read = |joints: &[Vec<f64>], seed| {
+        let text = measurement_csv(&truth, &true_markers, joints, &joint_sigmas(), sigma_me, seed);
+        crate::marker_data(&text, &nominal, Some(&noise))
+    };
+    let training = read(&poses(&nominal, poses_, &mut rng), 1);
+    let validation = read(&poses(&nominal, 60, &mut rng), 2);
+    let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
+    let options = crate::marker_options(&nominal, Estimator::Wls, Some(&noise), &markers);
+    KindCampaign { nominal, truth, true_markers, training, validation, options }
+}
+
+/// Held out, the marker positions' RMS falls at least five-fold; the positions cannot separate
+/// 12 of the 42 parameters, which are held, `j1.theta - base.rz` first.
 #[test]
 fn held_out_accuracy_improves_at_least_five_fold() {
-    let c = campaign(11);
-    let calibration = calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap();
-    let (before, after) = calibration.validate(&c.validation);
-    assert!(
-        before.rms / after.rms >= 5.0,
-        "held-out RMS {:.4} mm before, {:.4} mm after",
-        before.rms,
-        after.rms
-    );
+    let c = kind_campaign(11);
+    let calibration = calibrate_kinds(&c.nominal, &c.training, &c.options).unwrap();
+    let (before, after) = calibration.score(&c.validation).unwrap().markers.unwrap();
+    assert!(before / after >= 5.0, "held-out RMS {before:.4} mm before, {after:.4} mm after");
     assert!(calibration.refined.converged);
     // 6 base + 30 joint + 6 marker parameters; the 12 that positions cannot separate (e.g.
     // `j1.theta - base.rz`: both turn the whole arm about joint 1's axis) are held fixed.
@@ -100,7 +133,9 @@ fn held_out_accuracy_improves_at_least_five_fold() {
     assert!(
         calibration.fixed[0]
             .text()
-            .starts_with("j1.theta - base.rz: with the base estimated it only moves the whole robot")
+            .starts_with("j1.theta - base.rz: with the base estimated it only moves the whole robot"),
+        "{}",
+        calibration.fixed[0].text()
     );
     assert_eq!(calibration.refined.estimate.names.len(), 42 - 12);
 }
@@ -109,7 +144,7 @@ fn held_out_accuracy_improves_at_least_five_fold() {
 /// same numbers, to the bit, on 1 and 3 threads.
 #[test]
 fn calibration_is_the_same_on_any_number_of_threads() {
-    let mut c = campaign(12);
+    let mut c = kind_campaign(12);
     let mut rng = ChaCha8Rng::seed_from_u64(12);
     let text = measurement_csv(
         &c.truth,
@@ -119,10 +154,11 @@ fn calibration_is_the_same_on_any_number_of_threads() {
         0.01,
         3,
     );
-    c.training = Measurements::from_csv_str(&text, &c.nominal, None).unwrap();
+    let noise = NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(0.01, 0.0));
+    c.training = crate::marker_data(&text, &c.nominal, Some(&noise));
     let on = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap())
+        pool.install(|| calibrate_kinds(&c.nominal, &c.training, &c.options).unwrap())
     };
     let (one, three) = (on(1), on(3));
     assert_eq!(one.after, three.after);
@@ -133,7 +169,7 @@ fn calibration_is_the_same_on_any_number_of_threads() {
 
 /// The true parameter errors, in the calibration's parameter vector: the base as the
 /// displacement from the registered base, the markers from their nominal positions.
-fn true_vector(c: &Campaign, calibration: &calibration::Calibration) -> Vec<f64> {
+fn true_vector(c: &KindCampaign, calibration: &KindCalibration) -> Vec<f64> {
     let params = &calibration.params;
     let mut x = vec![0.0; params.len()];
     let set = |x: &mut Vec<f64>, owner, kind, v| x[params.index_of(owner, kind).unwrap()] = v;
@@ -145,7 +181,8 @@ fn true_vector(c: &Campaign, calibration: &calibration::Calibration) -> Vec<f64>
         set(&mut x, o, ParamKind::Alpha, t.alpha - n.alpha);
         set(&mut x, o, ParamKind::Beta, t.beta - n.beta);
     }
-    let base = displacement_parameters(&calibration.registered.base.isometry(), &c.truth.base.isometry());
+    let registered = calibration.registered_base.expect("the base registered on the markers");
+    let base = displacement_parameters(&registered.isometry(), &c.truth.base.isometry());
     for (kind, v) in ParamKind::PLACEMENT.into_iter().zip(base) {
         set(&mut x, ParamOwner::Base, kind, v);
     }
@@ -160,23 +197,46 @@ fn true_vector(c: &Campaign, calibration: &calibration::Calibration) -> Vec<f64>
 /// Within 3 predicted standard errors in the identifiable directions. The truth (a full
 /// parameter vector) is first expressed in the identified parameters, exactly: those values
 /// of them, the others held where the calibration held them, that reproduce the true robot's
-/// noise-free marker positions at the same poses (a nonlinear fit). The estimate must lie
-/// within 3 of its predicted standard errors of that, parameter by parameter.
+/// noise-free marker positions at the same poses (a nonlinear fit of the kinds problem on the
+/// registered base, the `markers` nominal). The estimate must lie within 3 of its predicted
+/// standard errors of that, parameter by parameter.
 pub fn assert_within_three_standard_errors(
-    calibration: &calibration::Calibration,
+    model: &RobotModel,
+    markers: &[Vector3<f64>],
+    calibration: &KindCalibration,
     truth: &[f64],
-    data: &Measurements,
+    data: &KindData,
 ) {
     let params = &calibration.params;
-    let chains = Chain::markers(&calibration.registered, &calibration.markers);
+    let registered = RobotModel { base: calibration.registered_base.unwrap_or(model.base), ..model.clone() };
+    let ids = data.markers();
+    let nominal: Vec<Vector3<f64>> = ids.iter().map(|&m| markers[m]).collect();
+    let chains = Chain::markers(&registered, &nominal);
     let kept = Selection::by_names(params, &calibration.refined.estimate.names).unwrap();
     let real: Vec<_> = chains.iter().map(|c| c.with_errors(truth)).collect();
-    let observed: Vec<nalgebra::Isometry3<f64>> =
-        data.joints.iter().flat_map(|q| real.iter().map(move |r| r.pose(q))).collect();
-    let (joints, fixed) = (data.joints.clone(), calibration.after.clone());
-    let problem =
-        PointProblem::new(&chains, &kept, Measured::Position, joints, observed, fixed, None).unwrap();
-    let equivalent = refine(&problem, Estimator::Ols, problem.start(), &RefineOptions::default()).unwrap();
+    // The data with each marker's coordinate the true robot's, noise-free.
+    let mut exact = data.clone();
+    for o in &mut exact.observations {
+        if let Observation::Marker { marker, axis, pose, measured, .. } = o {
+            let k = ids.iter().position(|m| m == marker).unwrap();
+            *measured = real[k].pose(&data.joints[*pose]).translation.vector[*axis];
+        }
+    }
+    let setup = SetUp::new(0, &[]);
+    let problem = KindProblem::of_points(
+        &chains,
+        &ids,
+        &kept,
+        &exact,
+        &setup,
+        calibration.after.clone(),
+        Vec::new(),
+        Vec::new(),
+    )
+    .with_noise(None);
+    let weights = Weights::for_problem(&problem, Estimator::Ols).unwrap();
+    let start = linearise(&problem, &weights, problem.start()).unwrap();
+    let equivalent = refine_from(&problem, &weights, start, &RefineOptions::default()).unwrap();
     assert!(equivalent.estimate.cost < 1e-12, "the truth is reproduced by the identified parameters");
     let delta = &calibration.refined.estimate.x - &equivalent.estimate.x;
     let se = calibration.refined.estimate.standard_errors();
@@ -199,31 +259,34 @@ pub fn displacement_parameters(from: &nalgebra::Isometry3<f64>, to: &nalgebra::I
 
 #[test]
 fn identified_parameters_lie_within_three_standard_errors_of_the_truth() {
-    let c = campaign(12);
-    let calibration = calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap();
-    assert_within_three_standard_errors(&calibration, &true_vector(&c, &calibration), &c.training);
+    let c = kind_campaign(12);
+    let calibration = calibrate_kinds(&c.nominal, &c.training, &c.options).unwrap();
+    let truth = true_vector(&c, &calibration);
+    assert_within_three_standard_errors(&c.nominal, &c.options.markers, &calibration, &truth, &c.training);
 }
 
+/// A marker file in metres and radians reads as in millimetres and degrees, with its units
+/// line or with the units given; a column that is neither a joint nor a marker's is left.
 #[test]
 fn units_in_metres_and_radians_read_the_same() {
-    let c = campaign(13);
+    let c = kind_campaign(13);
     let model = &c.nominal;
     let text = "# units: joints=rad, lengths=m\nj1,j2,j3,j4,j5,j6,x1,y1,z1,note\n0.1,0.2,0.3,0.4,0.5,0.6,1.5,-0.25,0.125,hello\n";
-    let data = Measurements::from_csv_str(text, model, None).unwrap();
+    let data = KindData::from_csv_str(text, model, None).unwrap();
     assert_eq!(data.joints[0], vec![0.1, 0.2, 0.3, 0.4, 0.5, 0.6]);
-    assert_eq!(data.markers[0][0], Vector3::new(1500.0, -250.0, 125.0));
-    assert_eq!(data.ignored, ["note"]);
+    let measured: Vec<f64> = data.observations.iter().map(Observation::measured).collect();
+    assert_eq!(measured, [1500.0, -250.0, 125.0]);
     let flagged = Units { joints_in_degrees: false, lengths_in_metres: true };
     let without_line = text.lines().skip(1).collect::<Vec<_>>().join("\n");
     assert_eq!(
-        Measurements::from_csv_str(&without_line, model, Some(flagged)).unwrap(),
-        Measurements { lines: vec![2], ..data }
+        KindData::from_csv_str(&without_line, model, Some(flagged)).unwrap(),
+        KindData { lines: vec![2; 3], ..data }
     );
 }
 
 fn data_error(text: &str) -> String {
     let model = RobotModel::preset("puma560").unwrap();
-    Measurements::from_csv_str(text, &model, None).unwrap_err().to_string()
+    KindData::from_csv_str(text, &model, None).unwrap_err().to_string()
 }
 
 #[test]
@@ -257,18 +320,41 @@ fn bad_measurement_files_name_the_line_and_column() {
     assert_eq!(data_error(head), "line 2: no poses after the header");
 }
 
+/// `data` with `by` added to the coordinate `axis` of marker `marker` (less one) at `pose`; its
+/// line.
+fn bump(data: &mut KindData, (pose, marker, axis): (usize, usize, usize), by: f64) -> usize {
+    let k = (data.observations.iter())
+        .position(|o| matches!(*o, Observation::Marker { marker: m, axis: a, pose: p, .. } if (p, m, a) == (pose, marker, axis)))
+        .expect("the coordinate measured");
+    if let Observation::Marker { measured, .. } = &mut data.observations[k] {
+        *measured += by;
+    }
+    data.lines[k]
+}
+
+/// The far-out observations of `warnings`, each warning's.
+fn far_out(warnings: &[Warning]) -> Vec<(&Scored, &Vec<robocal::calibration::FarOut>)> {
+    (warnings.iter())
+        .filter_map(|w| match w {
+            Warning::FarOut { scored, observations } => Some((scored, observations)),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Clean data give no warning; a marker's coordinate 2 mm off is flagged, by its line, the
+/// worst first, with at most two neighbours it pulled near the threshold.
 #[test]
 fn an_outlier_is_flagged_with_its_line_and_clean_data_is_not() {
-    let c = campaign(15);
-    let clean = calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap();
+    let c = kind_campaign(15);
+    let clean = calibrate_kinds(&c.nominal, &c.training, &c.options).unwrap();
     assert!(clean.warnings.is_empty(), "{:?}", clean.warnings);
     let mut bumped = c.training.clone();
-    bumped.markers[40][1].z += 2.0;
-    let flagged = calibration::calibrate(&c.nominal, &bumped, &c.options).unwrap();
+    let line = bump(&mut bumped, (40, 1, 2), 2.0);
+    let flagged = calibrate_kinds(&c.nominal, &bumped, &c.options).unwrap();
     // The outlier pulls the fit, so a neighbour may come near the threshold; it stands out.
-    let line = bumped.lines[40];
-    let [Warning::FarOut { scored: Scored::Pose, observations }] = flagged.warnings.as_slice() else {
-        panic!("one warning of far-out poses: {:?}", flagged.warnings)
+    let [(_, observations)] = far_out(&flagged.warnings)[..] else {
+        panic!("one warning of far-out observations: {:?}", flagged.warnings)
     };
     assert_eq!(observations[0].line, line, "the worst first: {observations:?}");
     assert!(observations.len() <= 3, "{observations:?}");
@@ -276,26 +362,28 @@ fn an_outlier_is_flagged_with_its_line_and_clean_data_is_not() {
 
 #[test]
 fn fewer_poses_than_identifiable_parameters_is_an_error() {
-    let c = campaign(14);
-    let few = c.training.subset(&[0, 1, 2, 3, 4, 5]);
-    let err = calibration::calibrate(&c.nominal, &few, &c.options).unwrap_err();
+    let c = kind_campaign(14);
+    let mut few = c.training.keeping(|o| o.pose() < 6);
+    few.joints.truncate(6);
+    let err = calibrate_kinds(&c.nominal, &few, &c.options).unwrap_err();
     assert_eq!(
         err.to_string(),
         "6 poses give 36 equations for 42 parameters: measure more poses (at least 8) or identify fewer parameters"
     );
 }
 
-/// A measurement file of a 6-DOF probe on `real` (position of marker 1 and the frame's
-/// orientation, quaternion) at `count` random poses of `nominal`, the joints read with
-/// standard deviations `sigmas` (rad).
+/// A 6-DOF probe's measurement file (position of marker 1 and the frame's orientation,
+/// quaternion) on `real` at `count` random poses of `nominal`, the joints read with standard
+/// deviations `sigmas` (rad), read as `robocal calibrate` reads it with `noise`.
 fn probe_file(
     nominal: &RobotModel,
     real: &ChainAt,
     count: usize,
     sigmas: &[f64],
     rng: &mut ChaCha8Rng,
-) -> Measurements {
-    Measurements::from_csv_str(&probe_csv(nominal, real, count, sigmas, rng), nominal, None).unwrap()
+    noise: Option<&NoiseModel>,
+) -> KindData {
+    crate::marker_data(&probe_csv(nominal, real, count, sigmas, rng), nominal, noise)
 }
 
 /// The text of [`probe_file`].
@@ -353,29 +441,20 @@ fn a_probe_with_orientation_calibrates_its_mounting_too() {
     let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
     let chain = Chain::probe(&truth, &mounting);
     let real = chain.with_errors(&vec![0.0; chain.params().len()]);
-    let file = |count: usize, rng: &mut ChaCha8Rng| probe_file(&nominal, &real, count, &joint_sigmas(), rng);
-    let (training, validation) = (file(120, &mut rng), file(60, &mut rng));
-    assert!(training.orientations.is_some());
-    let options = Options {
-        estimator: Estimator::Wls,
-        noise: Some(NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(1e-3, 1e-6))),
-        joints: JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-        refine: RefineOptions::default(),
-        gauge: Default::default(),
-    };
-    let calibration = calibration::calibrate(&nominal, &training, &options).unwrap();
-    let (before, after) = calibration.validate(&validation);
-    assert!(
-        before.rms / after.rms >= 5.0,
-        "held-out RMS {:.4} mm before, {:.4} mm after",
-        before.rms,
-        after.rms
+    let noise = NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(1e-3, 1e-6));
+    let texts = (
+        probe_csv(&nominal, &real, 120, &joint_sigmas(), &mut rng),
+        probe_csv(&nominal, &real, 60, &joint_sigmas(), &mut rng),
     );
+    let read = |text: &str| crate::marker_data(text, &nominal, Some(&noise));
+    let (training, validation) = (read(&texts.0), read(&texts.1));
+    assert_eq!(training.probes(), [0]);
+    let options =
+        crate::marker_options(&nominal, Estimator::Wls, Some(&noise), &[Vector3::new(50.0, 0.0, 150.0)]);
+    let calibration = calibrate_kinds(&nominal, &training, &options).unwrap();
+    let held_out = calibration.score(&validation).unwrap();
+    let (before, after) = held_out.markers.unwrap();
+    assert!(before / after >= 5.0, "held-out RMS {before:.4} mm before, {after:.4} mm after");
     let robocal::model::Tool::Frame(found) = calibration.calibrated.tool else {
         panic!("a probe gives a tool frame")
     };
@@ -385,29 +464,26 @@ fn a_probe_with_orientation_calibrates_its_mounting_too() {
     let q = &validation.joints[0];
     let angle = fitted.pose(q).rotation.angle_to(&real.pose(q).rotation).to_degrees();
     assert!(angle < 0.01, "the calibrated frame is turned {angle} deg from the true one ({found:?})");
-    // Pose by pose, with the orientation error; the calibrated model scored as it stands
-    // gives the same numbers.
-    let held_out = calibration.evaluate("validation", &validation, options.noise.as_ref()).unwrap();
-    assert_eq!(held_out.pooled[1], after);
-    let orientation = held_out.orientation.as_ref().expect("a probe's orientation errors");
-    assert!(orientation[1].rms < orientation[0].rms, "orientation error falls: {orientation:?}");
-    // The per-pose table: the angle and the rotation vector of each stage, in degrees.
-    let csv = robocal::report::poses::poses_csv(&[&held_out], &nominal.joints);
-    let (head, row) = (csv.lines().next().unwrap(), csv.lines().nth(1).unwrap());
-    assert!(head.contains("after_orientation_deg,after_rx_deg,after_ry_deg,after_rz_deg"), "{head}");
-    let cells: Vec<f64> = row.split(',').skip(2).filter_map(|c| c.parse().ok()).collect();
-    let at = head.split(',').position(|h| h == "after_rx_deg").unwrap() - 2;
-    let turn = Vector3::from(held_out.poses[0].orientation.as_ref().unwrap()[1]);
-    assert_eq!(cells[at], turn.x);
-    assert!((cells[at - 1] - turn.norm()).abs() < 1e-12);
-    let scored =
-        calibration::evaluate_model(&calibration.calibrated, &[], "validation", &validation, None).unwrap();
-    for (a, b) in held_out.poses.iter().zip(&scored.poses) {
-        let position = (Vector3::from(a.errors[1][0]) - Vector3::from(b.errors[0][0])).norm();
-        let turn = (Vector3::from(a.orientation.as_ref().unwrap()[1])
-            - Vector3::from(b.orientation.as_ref().unwrap()[0]))
-        .norm();
-        assert!(position < 1e-9 && turn < 1e-9, "line {}: {position} mm, {turn} deg", a.line);
+    // The probe's orientation error falls too.
+    let orientation = held_out.angles.expect("a probe's orientation errors");
+    assert!(orientation.1 < orientation.0, "orientation error falls: {orientation:?}");
+    // The calibrated model scored as it stands gives the same position residuals, observation
+    // by observation. (Its orientations are not compared: scoring as it stands starts a probe's
+    // rotation from the held-out data, not from the model's tool frame.)
+    let as_it_stands =
+        KindOptions::as_it_stands(&calibration.calibrated, &calibration.marker_positions(), &validation)
+            .unwrap();
+    let scored = evaluate_kinds(&calibration.calibrated, &validation, &as_it_stands).unwrap();
+    assert_eq!(held_out.observations.len(), scored.observations.len());
+    for (a, b) in held_out.observations.iter().zip(&scored.observations).filter(|(a, _)| a.kind == "marker") {
+        assert!(
+            (a.after - b.before).abs() < 1e-9,
+            "line {} {}: {} against {}",
+            a.line,
+            a.kind,
+            a.after,
+            b.before
+        );
     }
 }
 
@@ -415,8 +491,15 @@ fn a_probe_with_orientation_calibrates_its_mounting_too() {
 fn orientation_columns_read_and_their_errors() {
     let model = RobotModel::preset("puma560").unwrap();
     let text = "# units: joints=deg, lengths=mm\nj1,j2,j3,j4,j5,j6,x1,y1,z1,roll,pitch,yaw\n1,2,3,4,5,6,7,8,9,90,0,0\n";
-    let data = Measurements::from_csv_str(text, &model, None).unwrap();
-    let r = data.orientations.unwrap()[0];
+    let data = KindData::from_csv_str(text, &model, None).unwrap();
+    let orientations: Vec<_> = (data.observations.iter())
+        .filter_map(|o| match *o {
+            Observation::Orientation { measured, .. } => Some(measured),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(orientations.len(), 3, "the three rows of one orientation");
+    let r = orientations[0];
     assert!((r.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-12 && r.axis().unwrap().x > 0.999);
     let head = "# units: joints=deg, lengths=mm\n";
     assert_eq!(
@@ -436,15 +519,14 @@ fn orientation_columns_read_and_their_errors() {
     // A file that fits two kinds (marker columns and a distance) is read as neither, said why.
     assert_eq!(
         data_error(&format!("{head}j1,j2,j3,j4,j5,j6,x1,y1,z1,distance\n1,2,3,4,5,6,7,8,9,500\n")),
-        "line 2, column `distance`: a marker file (x1,y1,z1, ...) holds marker positions and a probe's \
-         orientation only: `distance` is an observation file's column (distances, contacts, coordinates, \
-         camera views); give those in a file of their own"
+        "line 2, column `distance`: a marker file (x1,y1,z1, ...) has marker positions and a probe's \
+         orientation only: give the other kinds in files of their own"
     );
     // A joint named as one of those columns (a gantry's `x`) is the joint's.
     let mut gantry = RobotModel::preset("puma560").unwrap();
     gantry.joints[0].name = "x".into();
     let text = format!("{head}x,j2,j3,j4,j5,j6,x1,y1,z1\n1,2,3,4,5,6,7,8,9\n");
-    assert_eq!(Measurements::from_csv_str(&text, &gantry, None).unwrap().joints[0][0], 1f64.to_radians());
+    assert_eq!(KindData::from_csv_str(&text, &gantry, None).unwrap().joints[0][0], 1f64.to_radians());
 }
 
 /// The gauge is physical: of every combination the poses cannot tell apart, the joint
@@ -457,8 +539,8 @@ fn orientation_columns_read_and_their_errors() {
 #[test]
 fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
     for seed in [11, 12, 13] {
-        let c = campaign(seed);
-        let calibration = calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap();
+        let c = kind_campaign(seed);
+        let calibration = calibrate_kinds(&c.nominal, &c.training, &c.options).unwrap();
         let held: Vec<&str> = calibration.fixed.iter().map(Held::parameter).collect();
         let expected = [
             "j1.theta", "j1.d", "j1.beta", "j3.d", "j3.beta", "j4.beta", "j5.beta", "j6.theta", "j6.d",
@@ -472,32 +554,23 @@ fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
     }
 }
 
-/// A probe's campaign: the true robot's probe chain, a training and a validation file.
-fn probe_campaign(seed: u64) -> (RobotModel, ChainAt, Measurements, Measurements) {
+/// A probe's campaign: the true robot's probe chain, the texts of a training and a validation
+/// file.
+fn probe_campaign(seed: u64) -> (RobotModel, ChainAt, String, String) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let nominal = RobotModel::preset("puma560").unwrap();
     let truth = true_robot(&nominal, &mut rng);
     let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
     let chain = Chain::probe(&truth, &mounting);
     let real = chain.with_errors(&vec![0.0; chain.params().len()]);
-    let training = probe_file(&nominal, &real, 80, &joint_sigmas(), &mut rng);
-    let validation = probe_file(&nominal, &real, 60, &joint_sigmas(), &mut rng);
+    let training = probe_csv(&nominal, &real, 80, &joint_sigmas(), &mut rng);
+    let validation = probe_csv(&nominal, &real, 60, &joint_sigmas(), &mut rng);
     (nominal, real, training, validation)
 }
 
-fn probe_options(estimator: Estimator, noise: Option<NoiseModel>) -> Options {
-    Options {
-        estimator,
-        noise,
-        joints: JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
-        refine: RefineOptions::default(),
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-        gauge: Default::default(),
-    }
+/// The probe's options as `robocal calibrate` sets them: marker 1 at its nominal mounting.
+fn probe_options(nominal: &RobotModel, estimator: Estimator, noise: Option<&NoiseModel>) -> KindOptions {
+    crate::marker_options(nominal, estimator, noise, &[Vector3::new(50.0, 0.0, 150.0)])
 }
 
 /// The probe's noise: the joints', 0.01 mm and 0.002 deg.
@@ -506,8 +579,9 @@ fn probe_noise() -> NoiseModel {
 }
 
 /// On 6-DOF data, ordinary least squares (with and without a noise model) and Gauss-Markov
-/// both lower the orientation error of held-out poses, and OLS, its orientation rows weighted
-/// by `sigma_position / sigma_orientation`, comes within a factor of 2 of WLS.
+/// both lower the orientation and position errors of held-out poses, and OLS, its orientation
+/// rows counted as lengths by `sigma_position / sigma_orientation` of the default pose sigmas,
+/// comes within a factor of 2 of WLS.
 #[test]
 fn ols_and_wls_on_probe_data_lower_the_held_out_orientation_error() {
     let (nominal, _, training, validation) = probe_campaign(41);
@@ -515,16 +589,17 @@ fn ols_and_wls_on_probe_data_lower_the_held_out_orientation_error() {
     for (estimator, noise) in
         [(Estimator::Ols, None), (Estimator::Ols, Some(probe_noise())), (Estimator::Wls, Some(probe_noise()))]
     {
-        let options = probe_options(estimator, noise.clone());
-        let calibration = calibration::calibrate(&nominal, &training, &options).unwrap();
-        let held_out = calibration.evaluate("validation", &validation, noise.as_ref()).unwrap();
-        let orientation = held_out.orientation.as_ref().expect("a probe's orientation errors");
-        let (before, after) = (orientation[0].rms, orientation[1].rms);
+        let read = |text: &str| crate::marker_data(text, &nominal, noise.as_ref());
+        let options = probe_options(&nominal, estimator, noise.as_ref());
+        let calibration = calibrate_kinds(&nominal, &read(&training), &options).unwrap();
+        let held_out = calibration.score(&read(&validation)).unwrap();
+        let (before, after) = held_out.angles.expect("a probe's orientation errors");
         assert!(
             after * 5.0 < before,
             "{estimator:?}: held-out orientation RMS {before:.5} deg before, {after:.5} deg after"
         );
-        assert!(held_out.pooled[1].rms * 5.0 < held_out.pooled[0].rms, "{estimator:?}: positions");
+        let positions = held_out.markers.unwrap();
+        assert!(positions.1 * 5.0 < positions.0, "{estimator:?}: positions {positions:?}");
         rms.push(after);
     }
     assert!(rms[0] < 2.0 * rms[2] && rms[1] < 2.0 * rms[2], "OLS against WLS (deg): {rms:?}");
@@ -545,64 +620,17 @@ pub(crate) fn in_metres(model: &RobotModel) -> RobotModel {
     m
 }
 
-/// The robot, the data and the noise in metres instead of millimetres give the same ordinary
-/// least-squares estimate (lengths a thousand times smaller, angles equal): OLS on poses
-/// weights its orientation rows by `sigma_position / sigma_orientation`, which has the unit of
-/// length; with one radian counted as one length unit it would not.
-#[test]
-fn rescaling_the_length_unit_does_not_change_the_ols_estimate() {
-    let (nominal, _, training, _) = probe_campaign(43);
-    let mut data_m = training.clone();
-    data_m.markers.iter_mut().flatten().for_each(|p| *p /= 1000.0);
-    let in_mm = probe_options(Estimator::Ols, Some(probe_noise()));
-    let noise_m = NoiseModel::diagonal(
-        &joint_sigmas(),
-        MeasurementNoise::isotropic(0.01 / 1000.0, 0.002f64.to_radians()),
-    );
-    let in_m = Options { noise: Some(noise_m), markers: vec![in_mm.markers[0] / 1000.0], ..in_mm.clone() };
-    let mm = calibration::calibrate(&nominal, &training, &in_mm).unwrap();
-    let m = calibration::calibrate(&in_metres(&nominal), &data_m, &in_m).unwrap();
-    let se = calibration::standard_errors(&mm);
-    assert_eq!(mm.refined.estimate.names, m.refined.estimate.names);
-    let mut checked = 0;
-    for (i, p) in mm.params.iter().enumerate() {
-        if se[i].is_nan() {
-            continue;
-        }
-        let scale = if p.kind.is_angle() { 1.0 } else { 1000.0 };
-        let gap = (m.after[i] * scale - mm.after[i]).abs();
-        assert!(
-            gap < 1e-3 * se[i],
-            "{}: {} (m) against {} (mm), SE {}",
-            p.name,
-            m.after[i],
-            mm.after[i],
-            se[i]
-        );
-        checked += 1;
-    }
-    assert!(checked >= 25, "{checked} parameters compared");
+/// The standard error of each of `c`'s parameters (NaN: not estimated).
+pub(crate) fn standard_errors(c: &KindCalibration) -> Vec<f64> {
+    let estimate = &c.refined.estimate;
+    let se = estimate.standard_errors();
+    let at = |name: &String| estimate.names.iter().position(|n| n == name).map_or(f64::NAN, |k| se[k]);
+    c.params.iter().map(|p| at(&p.name)).collect()
 }
 
-/// A noise model without an orientation sigma cannot weight pose data: the error names the
-/// flag and the field to give.
-#[test]
-fn pose_data_without_an_orientation_sigma_is_refused_naming_it() {
-    let (nominal, _, training, _) = probe_campaign(45);
-    let noise = NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(0.01, 0.0));
-    for estimator in [Estimator::Ols, Estimator::Wls] {
-        let err = calibration::calibrate(&nominal, &training, &probe_options(estimator, Some(noise.clone())))
-            .unwrap_err()
-            .to_string();
-        assert!(
-            err.contains("--sigma-orientation-deg") && err.contains("sigma_orientation_deg"),
-            "{estimator:?}: {err}"
-        );
-    }
-}
-
-/// The probe's frame is reported absolutely, in the tip link's frame: with only the base and
-/// the probe estimated on exact data, it is the true mounting, whatever the data-derived start.
+/// The probe's frame is found absolutely, in the tip link's frame: with only the base and the
+/// probe estimated on exact data, the calibrated tool frame is the true mounting, whatever the
+/// data-derived start.
 #[test]
 fn the_probe_frame_is_reported_absolutely_in_the_tip_link_frame() {
     let mut rng = ChaCha8Rng::seed_from_u64(47);
@@ -612,48 +640,36 @@ fn the_probe_frame_is_reported_absolutely_in_the_tip_link_frame() {
     let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
     let chain = Chain::probe(&truth, &mounting);
     let real = chain.with_errors(&vec![0.0; chain.params().len()]);
-    let training = probe_file(&nominal, &real, 30, &[0.0; 6], &mut rng);
-    let options = Options { joints: JointParams::None, ..probe_options(Estimator::Ols, None) };
-    let calibration = calibration::calibrate(&nominal, &training, &options).unwrap();
-    let found = calibration.tip_frame().expect("a probe's frame");
+    let training = probe_file(&nominal, &real, 30, &[0.0; 6], &mut rng, None);
+    let options = KindOptions { joints: JointParams::None, ..probe_options(&nominal, Estimator::Ols, None) };
+    let calibration = calibrate_kinds(&nominal, &training, &options).unwrap();
+    let Tool::Frame(found) = calibration.calibrated.tool else { panic!("a probe's frame") };
     assert!((found.xyz - mounting.xyz).norm() < 1e-4, "{:?} against {:?}", found.xyz, mounting.xyz);
     let angle = found.isometry().rotation.angle_to(&mounting.isometry().rotation);
     assert!(angle < 1e-8, "turned {angle} rad from the true mounting");
-    let report =
-        robocal::report::calibration::CalibrationReport::new(&calibration, "probe.csv", "ols", vec![], None);
-    let t = report.tip_frame.expect("in the report");
-    assert!((t[0] - 52.0).abs() < 1e-4 && (t[5] - 0.5f64.to_degrees()).abs() < 1e-6, "{t:?}");
-    assert!(report.text().contains("probe frame in the tip link's frame: xyz (52.000, 1.000, 148.000) mm"));
-    // The JSON's keys of a probe (docs/formats.md, "Calibration report (JSON)").
-    let json = serde_json::to_value(&report).unwrap();
-    assert!(json["tip_frame"].is_array(), "{json}");
-    let training = &json["verdict"]["sets"][0];
-    assert_eq!(training["role"], "training");
-    for key in ["orientation_rms_deg", "orientation_max_deg"] {
-        assert_eq!(training[key].as_array().map(Vec::len), Some(2), "{key}: {training}");
-    }
 }
 
 /// Without a noise model the training residuals are whitened by their spread, a pose's
-/// orientation rows counted as lengths by the OLS weight: a pose whose orientation is 1 degree
-/// off (its position right) is flagged.
+/// orientation rows by the default orientation sigma: a pose whose orientation is 1 degree
+/// off (its position right) is flagged, by its line, alone.
 #[test]
 fn a_probe_pose_turned_off_is_flagged_without_a_noise_model() {
-    let (nominal, _, mut training, _) = probe_campaign(49);
+    let (nominal, _, training, _) = probe_campaign(49);
+    let mut data = crate::marker_data(&training, &nominal, None);
     let turned = nalgebra::UnitQuaternion::from_euler_angles(0.0, 1f64.to_radians(), 0.0);
-    let orientations = training.orientations.as_mut().unwrap();
-    orientations[7] = turned * orientations[7];
+    let mut line = None;
+    for (k, o) in data.observations.iter_mut().enumerate() {
+        if let Observation::Orientation { pose: 7, measured, .. } = o {
+            *measured = turned * *measured;
+            line = Some(k);
+        }
+    }
+    let line = data.lines[line.expect("pose 7's orientation")];
     let calibration =
-        calibration::calibrate(&nominal, &training, &probe_options(Estimator::Ols, None)).unwrap();
-    let line = training.lines[7];
-    let flagged: Vec<&Vec<robocal::calibration::FarOut>> = (calibration.warnings.iter())
-        .filter_map(|w| match w {
-            Warning::FarOut { observations, .. } => Some(observations),
-            _ => None,
-        })
-        .collect();
+        calibrate_kinds(&nominal, &data, &probe_options(&nominal, Estimator::Ols, None)).unwrap();
+    let flagged = far_out(&calibration.warnings);
     assert!(
-        matches!(flagged.as_slice(), [o] if o.len() == 1 && o[0].line == line),
+        matches!(flagged.as_slice(), [(_, o)] if !o.is_empty() && o.iter().all(|f| f.line == line)),
         "{:?}",
         calibration.warnings
     );
@@ -665,66 +681,34 @@ fn a_probe_pose_turned_off_is_flagged_without_a_noise_model() {
 #[test]
 fn feasible_gls_on_probe_data_estimates_the_orientation_sigma() {
     let (nominal, _, training, validation) = probe_campaign(51);
-    let options = probe_options(Estimator::Ols, None);
-    let c = calibration::calibrate_feasible(&nominal, &training, &options, &Default::default()).unwrap();
+    let options = probe_options(&nominal, Estimator::Ols, None);
+    let read = |text: &str| crate::marker_data(text, &nominal, None);
+    let c = calibrate_kinds_feasible(&nominal, &read(&training), &options, &Default::default()).unwrap();
     let estimate = c.noise_estimate.as_ref().expect("the estimated noise");
     // The probe's readings are exact here (only the joints are noisy): the estimate is at
     // the bound 0, and the weights use what the data cannot rule out, above 0.
     let orientation = estimate.sigma_orientation().expect("an orientation sigma");
     assert!(orientation.high < 1e-4, "{orientation:?}");
     assert!(estimate.weighting_sigmas().1 > 0.0);
-    let held_out = c.evaluate("validation", &validation, Some(&estimate.noise_model())).unwrap();
-    let o = held_out.orientation.as_ref().unwrap();
-    assert!(o[1].rms * 5.0 < o[0].rms, "orientation RMS {} -> {} deg", o[0].rms, o[1].rms);
-}
-
-/// A noise file with a device and no `sigma_orientation_deg` gives a probe's orientation rows
-/// the device's typical figure (a laser tracker's 6-DOF probe: 0.01 deg); its own value wins
-/// when given; without a device nothing is made up, and the calibration says what is missing.
-#[test]
-fn a_devices_orientation_sigma_is_the_default_for_a_probe() {
-    let (nominal, _, training, _) = probe_campaign(53);
-    let file = |extra: &str| {
-        let text = format!(
-            "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\n{extra}\n[device]\nkind = \"laser-tracker\"\n\
-             position_mm = [2500.0, 0.0, 300.0]\nsigma_r_mm = 0.01\nk_ppm = 5.0\nsigma_angle_arcsec = 2.0\n"
-        );
-        robocal::estimation::NoiseSpec::from_toml_str(&text, &nominal).unwrap()
-    };
-    let orientation = |spec: &robocal::estimation::NoiseSpec| {
-        let noise = calibration::noise_from_spec(spec, &training).unwrap();
-        let MeasurementNoise::PerPoint(blocks) = &noise.measurement else { panic!("per pose") };
-        blocks[0][(4, 4)].sqrt().to_degrees()
-    };
-    assert!((orientation(&file("")) - 0.01).abs() < 1e-12);
-    assert!((orientation(&file("sigma_orientation_deg = 0.003")) - 0.003).abs() < 1e-12);
-    let spec = robocal::estimation::NoiseSpec::from_toml_str(
-        "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\nsigma_me_mm = 0.01\n",
-        &nominal,
-    )
-    .unwrap();
-    let noise = calibration::noise_from_spec(&spec, &training).unwrap();
-    let err =
-        calibration::calibrate(&nominal, &training, &probe_options(Estimator::Wls, Some(noise))).unwrap_err();
-    assert!(err.to_string().contains("sigma_orientation_deg in the noise file"), "{err}");
+    let o = c.score(&read(&validation)).unwrap().angles.expect("orientation errors");
+    assert!(o.1 * 5.0 < o.0, "orientation RMS {} -> {} deg", o.0, o.1);
 }
 
 /// On the example's marker file (the README's calibration, by ordinary least squares and
 /// Gauss-Markov with the paper's noise) every step of the trust region is Gauss-Newton's,
-/// undamped: the iterates, the estimate and the printed figures are those of the Gauss-Newton
-/// before it, to the bit (the README's outputs, tested against the code, are unchanged).
+/// undamped.
 #[test]
 fn the_example_calibrations_take_gauss_newton_steps_alone() {
     let model = RobotModel::preset("puma560").unwrap();
     let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
-    let data = Measurements::from_csv_str(&text, &model, None).unwrap();
     let markers = vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
     let sigmas: Vec<f64> =
         [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
     let noise = NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0));
     for (estimator, noise) in [(Estimator::Ols, None), (Estimator::Wls, Some(noise))] {
-        let options = Options { markers: markers.clone(), estimator, noise, ..Options::default() };
-        let c = calibration::calibrate(&model, &data, &options).unwrap();
+        let data = crate::marker_data(&text, &model, noise.as_ref());
+        let options = crate::marker_options(&model, estimator, noise.as_ref(), &markers);
+        let c = calibrate_kinds(&model, &data, &options).unwrap();
         let history = &c.refined.history;
         assert!(c.refined.converged && history.len() >= 3, "{history:?}");
         assert!(history.iter().all(|step| step.damping == 0.0), "{estimator:?}: {history:?}");

@@ -1,40 +1,41 @@
 //! Priors: maximum a posteriori calibration.
 
-use super::calibration::campaign_of;
+use super::calibration::{kind_campaign_of, standard_errors};
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use robocal::calibration::{self, JointParams, Measurements, Options};
+use robocal::calibration::JointParams;
+use robocal::calibration::kinds::{KindCalibration, KindOptions, calibrate_kinds};
 use robocal::estimation::{
     Estimator, PriorEntry, PriorRows, RefineOptions, Residuals, Weights, linearise, refine_map,
 };
 
-fn with_prior(options: &Options, entries: &str) -> Options {
-    Options { prior: PriorEntry::parse_list(entries).unwrap(), ..options.clone() }
+fn with_prior(options: &KindOptions, entries: &str) -> KindOptions {
+    KindOptions { prior: PriorEntry::parse_list(entries).unwrap(), ..options.clone() }
 }
 
 /// Priors with standard deviations of 1e12 change nothing: the same parameters held, the same
 /// estimates and standard errors to 1e-9.
 #[test]
 fn infinitely_wide_priors_give_the_unregularised_fit() {
-    let mut c = campaign_of(41, 60);
+    let mut c = kind_campaign_of(41, 60);
     // Both fits iterated to the minimum: with the default tolerances where a fit stops is
     // decided by the rounding of its cost (near 1e-11 of 6 here), which leaves it up to 2e-8
     // from the minimum.
     c.options.refine.cost_tolerance = 1e-15;
     c.options.refine.step_tolerance = 1e-14;
-    let plain = calibration::calibrate(&c.nominal, &c.training, &c.options).unwrap();
+    let plain = calibrate_kinds(&c.nominal, &c.training, &c.options).unwrap();
     let wide = with_prior(&c.options, "j*.*=1e12mm,j*.*=1e12deg");
-    let map = calibration::calibrate(&c.nominal, &c.training, &wide).unwrap();
+    let map = calibrate_kinds(&c.nominal, &c.training, &wide).unwrap();
     // The same held parameters and combinations (their coefficients to rounding).
-    let text = |c: &calibration::Calibration| c.fixed.iter().map(|h| h.text()).collect::<Vec<_>>();
+    let text = |c: &KindCalibration| c.fixed.iter().map(|h| h.text()).collect::<Vec<_>>();
     assert_eq!(text(&map), text(&plain));
     assert_eq!(map.refined.estimate.names, plain.refined.estimate.names);
     for (a, b) in map.after.iter().zip(&plain.after) {
         assert!((a - b).abs() < 1e-9, "{a} against {b}");
     }
-    let (sa, sb) = (calibration::standard_errors(&map), calibration::standard_errors(&plain));
+    let (sa, sb) = (standard_errors(&map), standard_errors(&plain));
     for (a, b) in sa.iter().zip(&sb).filter(|(a, _)| a.is_finite()) {
         assert!((a - b).abs() < 1e-9 * b.max(1e-3), "{a} against {b}");
     }
@@ -45,15 +46,15 @@ fn infinitely_wide_priors_give_the_unregularised_fit() {
 /// are still estimated.
 #[test]
 fn a_prior_sd_near_zero_keeps_the_parameter_nominal() {
-    let c = campaign_of(42, 60);
+    let c = kind_campaign_of(42, 60);
     let options = with_prior(&c.options, "j2.a=1e-12mm,j1.theta=1e-12deg");
-    let map = calibration::calibrate(&c.nominal, &c.training, &options).unwrap();
+    let map = calibrate_kinds(&c.nominal, &c.training, &options).unwrap();
     let at = |name: &str| map.after[map.params.index_by_name(name).unwrap()];
     assert!(map.refined.estimate.names.iter().any(|n| n == "j1.theta"), "kept with its prior");
     assert!(!map.fixed.iter().any(|f| f.parameter() == "j1.theta"), "{:?}", map.fixed);
     assert!(at("j2.a").abs() < 1e-9 && at("j1.theta").abs() < 1e-9, "{} {}", at("j2.a"), at("j1.theta"));
     assert!(at("j3.a").abs() > 1e-3, "the others move: {}", at("j3.a"));
-    let se = calibration::standard_errors(&map);
+    let se = standard_errors(&map);
     assert!(se[map.params.index_by_name("j2.a").unwrap()] < 1e-11);
 }
 
@@ -174,8 +175,9 @@ fn the_posterior_covariance_is_the_spread_of_the_map_estimate() {
 /// posterior covariance is the MAP's spread.
 #[test]
 fn the_posterior_covariance_is_the_spread_of_the_map_estimate_on_the_puma() {
-    use robocal::estimation::{MeasurementNoise, NoiseModel, PointProblem, prior_sds};
-    use robocal::kinematics::{Chain, Measured};
+    use robocal::calibration::kinds::{KindProblem, SetUp};
+    use robocal::estimation::{MeasurementNoise, NoiseModel, prior_sds};
+    use robocal::kinematics::Chain;
     use robocal::model::{RobotModel, Selection};
     let model = RobotModel::preset("puma560").unwrap();
     let markers = [nalgebra::Vector3::new(50.0, 0.0, 150.0), nalgebra::Vector3::new(-40.0, 60.0, 120.0)];
@@ -184,36 +186,35 @@ fn the_posterior_covariance_is_the_spread_of_the_map_estimate_on_the_puma() {
     let all = Selection::from_indices(&params, 0..params.len());
     let mut rng = ChaCha8Rng::seed_from_u64(8);
     let joints = model.uniform_configurations(12, &mut rng);
-    let observed: Vec<nalgebra::Isometry3<f64>> = joints
-        .iter()
-        .flat_map(|q| chains.iter().map(move |c| c.with_errors(&vec![0.0; c.params().len()]).pose(q)))
-        .collect();
     let sigmas: Vec<f64> =
         [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
     let noise = NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0));
+    // The nominal robot's marker positions, exact, each coordinate's sigma 0.01 mm.
+    let text = robocal::simulation::measurement_csv(&model, &markers, &joints, &[0.0; 6], 0.0, 1);
+    let data = crate::marker_data(&text, &model, Some(&noise));
     let zero = vec![0.0; params.len()];
-    let problem =
-        PointProblem::new(&chains, &all, Measured::Position, joints, observed, zero, Some(&noise)).unwrap();
-    let system = problem.system(&problem.start());
-    let v = system.v.unwrap();
+    let setup = SetUp::new(0, &[]);
+    let problem = KindProblem::of_points(&chains, &[0, 1], &all, &data, &setup, zero, Vec::new(), Vec::new())
+        .with_noise(Some(&noise.joint));
+    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
+    problem.evaluate(&DVector::zeros(params.len()), Some(&mut h));
+    let v = problem.covariance().unwrap().clone();
+    assert_eq!((h.nrows(), v.ncols()), (12 * 6, 6), "one block of 6 rows a pose");
     let sd = prior_sds(&PriorEntry::parse_list("machined").unwrap(), &params).unwrap();
-    check_posterior_by_monte_carlo(&system.h, &v, &sd, 2000, 9);
+    check_posterior_by_monte_carlo(&h, &v, &sd, 2000, 9);
 }
 
 /// The arm7 benchmark's files (seed 7), calibrated by OLS with `joints` and priors `prior`.
 fn arm7_held_out(joints: JointParams, prior: &str) -> f64 {
     let model = robocal::io::load_model(&robocal::model::ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
-    let read = |name: &str| {
-        robocal::io::load_measurements(std::path::Path::new(&format!("examples/arm7/{name}")), &model, None)
-            .unwrap()
-    };
-    let train = read("train.csv");
-    let sessions: Vec<Measurements> = (1..=3).map(|k| read(&format!("session{k}.csv"))).collect();
+    let train = super::urdf::arm7_file(&model, "train.csv");
+    let sessions: Vec<_> =
+        (1..=3).map(|k| super::urdf::arm7_file(&model, &format!("session{k}.csv"))).collect();
+    let prior = PriorEntry::parse_list(prior).unwrap();
     let options =
-        Options { prior: PriorEntry::parse_list(prior).unwrap(), ..super::urdf::arm7_options(joints) };
-    let result = calibration::calibrate(&model, &train, &options).unwrap();
-    let squares: f64 = sessions.iter().map(|s| result.validate(s).1.rms.powi(2)).sum();
-    (squares / 3.0).sqrt()
+        KindOptions { prior: prior.clone(), ..super::urdf::arm7_kind_options(&model, joints.clone()) };
+    let result = calibrate_kinds(&model, &train, &options).unwrap();
+    super::urdf::arm7_held_out(&result, &sessions)
 }
 
 /// The smallest gains of the priors over seeds 1 to 10 of the benchmark's generator, less a
