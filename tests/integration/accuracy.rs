@@ -7,9 +7,9 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
-use robocal::calibration::{self, JointParams, Measurements, Options};
+use robocal::calibration::kinds::calibrate_kinds;
 use robocal::design::accuracy::{AccuracyModel, ParameterCovariance};
-use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
+use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel};
 use robocal::kinematics::Chain;
 use robocal::model::{Placement, RobotModel};
 use robocal::simulation::measurement_csv;
@@ -48,25 +48,16 @@ fn predicted_accuracy_matches_the_spread_of_200_calibrations() {
     let (training, test) = (draw(40, &mut rng), draw(50, &mut rng));
     let sigmas: Vec<f64> =
         [0.007, 0.007, 0.007, 0.002, 0.002, 0.002].iter().map(|d: &f64| d.to_radians()).collect();
-    let options = Options {
-        estimator: Estimator::Wls,
-        noise: Some(NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0))),
-        joints: JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
-        prior: Vec::new(),
-        loss: calibration::Loss::Squared,
-        refine: RefineOptions::default(),
-        gauge: Default::default(),
-    };
+    let noise = NoiseModel::diagonal(&sigmas, MeasurementNoise::isotropic(0.01, 0.0));
+    let options =
+        crate::marker_options(&nominal, Estimator::Wls, Some(&noise), &[Vector3::new(50.0, 0.0, 150.0)]);
     let truth_at_test = positions(&truth, &test);
     let runs: Vec<Run> = (0..200u64)
         .into_par_iter()
         .map(|run| {
             let text = measurement_csv(&truth, &[marker], &training, &sigmas, 0.01, 100 + run);
-            let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
-            let c = calibration::calibrate(&nominal, &data, &options).unwrap();
+            let data = crate::marker_data(&text, &nominal, Some(&noise));
+            let c = calibrate_kinds(&nominal, &data, &options).unwrap();
             let errors =
                 positions(&c.calibrated, &test).iter().zip(&truth_at_test).map(|(a, b)| a - b).collect();
             let predicted = (run == 0).then(|| {

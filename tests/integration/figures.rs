@@ -122,9 +122,11 @@ fn shares_above(panel: &(f64, Vec<(f64, f64)>)) -> (f64, f64) {
 fn a_sign_flip_against_a_joint_shows_in_its_signed_components() {
     use nalgebra::{UnitQuaternion, Vector3};
     use rand::{RngExt, SeedableRng};
-    use robocal::calibration::{self, Measurements, Options};
+    use robocal::calibration::kinds::calibrate_kinds;
+    use robocal::estimation::Estimator;
     use robocal::kinematics::Chain;
     use robocal::model::{Placement, RobotModel};
+    use robocal::report::residuals::{ResidualSet, residual_figures};
     let model = RobotModel::preset("puma560").unwrap();
     let mounting = Placement { xyz: Vector3::new(50.0, 0.0, 150.0), rpy: Vector3::zeros() };
     let chain = Chain::probe(&model, &mounting);
@@ -140,14 +142,15 @@ fn a_sign_flip_against_a_joint_shows_in_its_signed_components() {
         let r = UnitQuaternion::from_euler_angles(0.0, 0.0, (0.1 * step).to_radians()) * pose.rotation;
         text += &crate::calibration::probe_row(&q, &p, &r);
     }
-    let data = Measurements::from_csv_str(&text, &model, None).unwrap();
-    let options = Options { markers: vec![mounting.xyz], ..Options::default() };
-    let result = calibration::calibrate(&model, &data, &options).unwrap();
-    // The figures take the joints in the files' units (deg).
+    let data = crate::marker_data(&text, &model, None);
+    let options = crate::marker_options(&model, Estimator::Ols, None, &[mounting.xyz]);
+    let result = calibrate_kinds(&model, &data, &options).unwrap();
     let set =
-        robocal::report::poses::in_degrees(&result.evaluate("training", &data, None).unwrap(), &model.joints);
-    let figures = robocal::report::figures::pose_figures(&[&set], &model.joints).unwrap();
+        ResidualSet::of_observations("training", &result.training, &[("probe.csv", &data)], &model.joints)
+            .unwrap();
+    let figures = residual_figures(&[&set], &model.joints).unwrap();
     let svg = &figures.iter().find(|(name, _)| name == "error-vs-j2.svg").unwrap().1;
+    std::fs::write("/tmp/port36-error-vs-j2.svg", svg).unwrap();
     for label in ["x (mm)", "y (mm)", "z (mm)", "rx (deg)", "ry (deg)", "rz (deg)", "j2 (deg)"] {
         assert!(svg.contains(label), "the panel or axis `{label}`");
     }

@@ -1144,17 +1144,10 @@ fn a_tool_or_marker_not_finite_is_refused_before_any_solve() {
             other => panic!("{field}: {:?}", other.map(|c| c.training.lengths)),
         }
     }
-    let markers = robocal::calibration::Options {
-        markers: vec![Vector3::new(f64::NAN, 0.0, 0.0)],
-        ..robocal::calibration::Options::default()
-    };
-    let measured = robocal::calibration::Measurements::from_csv_str(
-        &std::fs::read_to_string("examples/puma560-measurements.csv").unwrap(),
-        &model,
-        None,
-    )
-    .unwrap();
-    let refused = robocal::calibration::calibrate(&model, &measured, &markers).unwrap_err();
+    let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    let measured = crate::marker_data(&text, &model, None);
+    let options = crate::marker_options(&model, Estimator::Ols, None, &[Vector3::new(f64::NAN, 0.0, 0.0)]);
+    let refused = calibrate_kinds(&model, &measured, &options).unwrap_err();
     assert!(matches!(&refused, CalibrationError::Point { field: PointName::Marker(1), .. }), "{refused}");
 }
 
