@@ -2,41 +2,48 @@
 //! user's `hold` and `keep`) and the selection of parameters by held-out error (`--select`).
 
 use nalgebra::Vector3;
+use robocal::calibration::front::Kinds;
+use robocal::calibration::kinds::{KindCalibration, KindData, KindOptions, calibrate_kinds};
 use robocal::calibration::selection::{Criterion, SelectionPath, select};
-use robocal::calibration::{self, Calibration, Gauge, JointParams, Markers, Measurements, Options};
+use robocal::calibration::{self, Gauge, JointParams, Measurements};
 use robocal::calibration::{Confounder, Held};
-use robocal::estimation::{Estimator, RefineOptions};
+use robocal::estimation::Estimator;
 use robocal::model::{ModelRef, RobotModel};
 use std::path::Path;
 
-use super::urdf::arm7_options;
+use super::urdf::arm7_kind_options;
 
-/// The example PUMA 560 (unknown base, two unknown markers), by OLS.
-fn puma(joints: JointParams, gauge: Gauge) -> (RobotModel, Measurements, Options) {
+/// The example PUMA 560 (unknown base, two unknown markers), by OLS, as `robocal calibrate`
+/// reads and sets it.
+fn puma(joints: JointParams, gauge: Gauge) -> (RobotModel, KindData, KindOptions) {
     let model = RobotModel::preset("puma560").unwrap();
-    let data =
-        robocal::io::load_measurements(Path::new("examples/puma560-measurements.csv"), &model, None).unwrap();
-    let options = Options {
-        estimator: Estimator::Ols,
-        noise: None,
-        joints,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
-        refine: RefineOptions::default(),
-        gauge,
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-    };
+    let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    let data = crate::marker_data(&text, &model, None);
+    let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
+    let options =
+        KindOptions { joints, gauge, ..crate::marker_options(&model, Estimator::Ols, None, &markers) };
     (model, data, options)
 }
 
 /// The names of the held parameters: the first word of each of `c.fixed`.
-fn held(c: &Calibration) -> Vec<String> {
+fn held(c: &KindCalibration) -> Vec<String> {
     c.fixed.iter().map(|h| h.parameter().to_string()).collect()
 }
 
-/// The arm7 benchmark's model and files of `dir` (the training file and three sessions).
+/// The arm7 benchmark's model and files of `dir` (the training file and three sessions), read
+/// as `robocal calibrate` reads them.
+pub(crate) fn arm7_kinds(dir: &str) -> (RobotModel, KindData, Vec<KindData>) {
+    let model = robocal::io::load_model(&ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
+    let read = |name: &str| {
+        crate::marker_data(&std::fs::read_to_string(format!("{dir}/{name}")).unwrap(), &model, None)
+    };
+    let sessions = (1..=3).map(|k| read(&format!("session{k}.csv"))).collect();
+    (model.clone(), read("train.csv"), sessions)
+}
+
+/// The arm7 benchmark's model and files of `dir` (the training file and three sessions) on the
+/// marker path: selection_physics.rs's (another port's file, #23) until it is ported; delete it
+/// then ([`arm7_kinds`] is the one pipeline's).
 pub(crate) fn arm7(dir: &str) -> (RobotModel, Measurements, Vec<Measurements>) {
     let model = robocal::io::load_model(&ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
     let read = |name: &str| {
@@ -88,7 +95,7 @@ const ARM7_HELD: [&str; 27] = [
 #[test]
 fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
     let (model, data, options) = puma(JointParams::All, Gauge::default());
-    let c = calibration::calibrate(&model, &data, &options).unwrap();
+    let c = calibrate_kinds(&model, &data, &options).unwrap();
     assert_eq!(
         held(&c),
         [
@@ -114,11 +121,11 @@ fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
         c.fixed[3]
     );
 
-    let (model, train, _) = arm7("examples/arm7");
-    let c = calibration::calibrate(&model, &train, &arm7_options(JointParams::All)).unwrap();
+    let (model, train, _) = arm7_kinds("examples/arm7");
+    let c = calibrate_kinds(&model, &train, &arm7_kind_options(&model, JointParams::All)).unwrap();
     assert_eq!(held(&c), ARM7_HELD);
-    let named = arm7_options(JointParams::Named(vec!["joint*.*".into()]));
-    let c = calibration::calibrate(&model, &train, &named).unwrap();
+    let named = arm7_kind_options(&model, JointParams::Named(vec!["joint*.*".into()]));
+    let c = calibrate_kinds(&model, &train, &named).unwrap();
     let mut expected: Vec<&str> = ARM7_HELD.to_vec();
     expected.extend(["joint1.compliance", "joint1.play"]);
     assert_eq!(held(&c), expected, "and the compliance and play of the vertical first joint");
@@ -131,14 +138,14 @@ fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
 fn hold_and_keep_override_the_gauge() {
     let (model, data, options) =
         puma(JointParams::All, Gauge { hold: vec![], keep: vec!["j1.theta".into()] });
-    let c = calibration::calibrate(&model, &data, &options).unwrap();
+    let c = calibrate_kinds(&model, &data, &options).unwrap();
     assert!(c.refined.estimate.names.contains(&"j1.theta".to_string()));
     assert_eq!(held(&c)[0], "base.rz");
     assert_eq!(c.fixed[0].text(), "base.rz - j1.theta: held so that the parameters of --keep stay free");
 
     let hold = Gauge { hold: vec!["j*.beta".into(), "j2.d".into()], keep: vec![] };
     let (model, data, options) = puma(JointParams::All, hold);
-    let c = calibration::calibrate(&model, &data, &options).unwrap();
+    let c = calibrate_kinds(&model, &data, &options).unwrap();
     for name in ["j1.beta", "j2.beta", "j3.beta", "j4.beta", "j5.beta", "j6.beta", "j2.d"] {
         let i = c.params.index_by_name(name).unwrap();
         assert!(!c.refined.estimate.names.contains(&name.to_string()) && c.after[i] == 0.0, "{name}");
@@ -153,25 +160,25 @@ fn hold_and_keep_override_the_gauge() {
         Gauge { hold: vec![], keep: vec!["base.q".into()] },
     ] {
         let (model, data, options) = puma(JointParams::All, gauge);
-        let err = calibration::calibrate(&model, &data, &options).unwrap_err();
+        let err = calibrate_kinds(&model, &data, &options).unwrap_err();
         assert!(matches!(err, calibration::CalibrationError::Selection(_)), "{err}");
     }
 }
 
 /// The held-out RMS of `c` over the three sessions pooled (mm).
-fn held_out(c: &Calibration, sessions: &[Measurements]) -> f64 {
-    (sessions.iter().map(|s| c.validate(s).1.rms.powi(2)).sum::<f64>() / sessions.len() as f64).sqrt()
+fn held_out(c: &KindCalibration, sessions: &[KindData]) -> f64 {
+    crate::urdf::arm7_held_out(c, sessions)
 }
 
 /// `select`, then calibrate the selection.
 fn selected(
     model: &RobotModel,
-    train: &Measurements,
-    options: &Options,
+    train: &KindData,
+    options: &KindOptions,
     criterion: Criterion,
-) -> (SelectionPath, Calibration) {
-    let path = select(&Markers(model), train, options, criterion).unwrap();
-    let c = calibration::calibrate(model, train, &path.options(&Markers(model), options)).unwrap();
+) -> (SelectionPath, KindCalibration) {
+    let path = select(&Kinds(model), train, options, criterion).unwrap();
+    let c = calibrate_kinds(model, train, &path.options(&Kinds(model), options)).unwrap();
     (path, c)
 }
 
@@ -184,18 +191,13 @@ fn selected(
 /// standard error of the best, and it is the same on one thread and on two.
 #[test]
 fn select_cv_beats_every_parameter_and_the_offsets_on_held_out_poses() {
-    let (model, train, sessions) = arm7("examples/arm7");
-    let options = arm7_options(JointParams::Named(vec!["joint*.*".into()]));
+    let (model, train, sessions) = arm7_kinds("examples/arm7");
+    let options = arm7_kind_options(&model, JointParams::Named(vec!["joint*.*".into()]));
     let (path, c) = selected(&model, &train, &options, Criterion::Cv { folds: 5 });
     let cv = held_out(&c, &sessions);
-    let all = held_out(
-        &calibration::calibrate(&model, &train, &arm7_options(JointParams::All)).unwrap(),
-        &sessions,
-    );
-    let offsets = held_out(
-        &calibration::calibrate(&model, &train, &arm7_options(JointParams::Offsets)).unwrap(),
-        &sessions,
-    );
+    let fit = |joints| calibrate_kinds(&model, &train, &arm7_kind_options(&model, joints)).unwrap();
+    let all = held_out(&fit(JointParams::All), &sessions);
+    let offsets = held_out(&fit(JointParams::Offsets), &sessions);
     assert!((all - 0.710).abs() < 5e-4 && (offsets - 1.071).abs() < 5e-4, "{all} {offsets}");
     assert!(cv < all - 0.1 && cv < offsets - 0.1, "cv {cv:.4}, all {all:.4}, offsets {offsets:.4}");
     assert!((cv - 0.4455).abs() < 5e-4, "the figure given for seed 7: {cv:.4}");
@@ -211,7 +213,7 @@ fn select_cv_beats_every_parameter_and_the_offsets_on_held_out_poses() {
     assert!(path.steps[..path.chosen].iter().all(|s| s.score > best + best_se), "the smallest such model");
     let on = |threads| {
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        pool.install(|| select(&Markers(&model), &train, &options, Criterion::Cv { folds: 5 }).unwrap())
+        pool.install(|| select(&Kinds(&model), &train, &options, Criterion::Cv { folds: 5 }).unwrap())
     };
     assert_eq!(on(1), path);
     assert_eq!(on(2), path);
@@ -222,8 +224,8 @@ fn select_cv_beats_every_parameter_and_the_offsets_on_held_out_poses() {
 /// it keeps is estimated beyond 2 standard errors.
 #[test]
 fn select_bic_and_t_choose_what_they_say() {
-    let (model, train, _) = arm7("examples/arm7");
-    let options = arm7_options(JointParams::All);
+    let (model, train, _) = arm7_kinds("examples/arm7");
+    let options = arm7_kind_options(&model, JointParams::All);
     let (path, _) = selected(&model, &train, &options, Criterion::Bic);
     let lowest =
         (0..path.steps.len()).min_by(|&a, &b| path.steps[a].score.total_cmp(&path.steps[b].score)).unwrap();
@@ -233,7 +235,7 @@ fn select_bic_and_t_choose_what_they_say() {
     let (path, c) = selected(&model, &train, &options, Criterion::T);
     assert!(path.steps[1..].iter().all(|s| s.score < 2.0), "{:?}", path.steps);
     assert_eq!(path.chosen, path.steps.len() - 1);
-    let se = calibration::standard_errors(&c);
+    let se = crate::calibration::standard_errors(&c);
     for name in &path.selected {
         let i = c.params.index_by_name(name).unwrap();
         assert!(c.after[i].abs() >= 2.0 * se[i], "{name}: {} with SE {}", c.after[i], se[i]);
@@ -283,9 +285,9 @@ fn the_gauge_holds_a_prismatic_first_joints_zero() {
         .map(|_| model.joints.iter().map(|j| j.limits[0] + (j.limits[1] - j.limits[0]) * uniform()).collect())
         .collect();
     let text = robocal::simulation::measurement_csv(&model, &markers, &poses, &[1e-5; 5], 0.01, 3);
-    let data = Measurements::from_csv_str(&text, &model, None).unwrap();
-    let options = Options { markers: markers.to_vec(), ..arm7_options(JointParams::All) };
-    let c = calibration::calibrate(&model, &data, &options).unwrap();
+    let data = crate::marker_data(&text, &model, None);
+    let options = crate::marker_options(&model, Estimator::Ols, None, &markers);
+    let c = calibrate_kinds(&model, &data, &options).unwrap();
     assert_eq!(
         held(&c),
         [
@@ -346,13 +348,13 @@ fn every_criterion_finds_the_parameters_that_are_wrong() {
         })
         .collect();
     let text = robocal::simulation::measurement_csv(&truth, &markers, &poses, &[1e-9; 6], 0.01, 5);
-    let data = Measurements::from_csv_str(&text, &nominal, None).unwrap();
+    let data = crate::marker_data(&text, &nominal, None);
     let (_, _, options) = puma(JointParams::All, Gauge::default());
     let wrong = ["j2.theta", "j3.a", "j4.alpha", "j5.d"];
     for criterion in [Criterion::Cv { folds: 5 }, Criterion::Bic, Criterion::T] {
         let (path, c) = selected(&nominal, &data, &options, criterion);
         assert_eq!(path.selected, wrong, "{criterion:?}: {:?}", path.steps);
-        let se = calibration::standard_errors(&c);
+        let se = crate::calibration::standard_errors(&c);
         let truth = [0.1f64.to_radians(), 0.5, 0.05f64.to_radians(), 0.5];
         for (name, value) in wrong.iter().zip(truth) {
             let i = c.params.index_by_name(name).unwrap();
@@ -373,14 +375,12 @@ fn every_criterion_finds_the_parameters_that_are_wrong() {
 /// its joint's turn is in.
 #[test]
 fn the_t_rule_drops_a_stand_in_before_the_zero_it_stands_in_for() {
-    let (model, train, _) = arm7("examples/arm7");
+    let (model, train, _) = arm7_kinds("examples/arm7");
     let names: Vec<String> =
         (3..=5).flat_map(|k| [format!("joint{k}.rz"), format!("joint{k}.theta")]).collect();
-    let options = Options {
-        prior: robocal::estimation::PriorEntry::parse_list("joint*.rz=2deg,joint*.theta=0.2deg").unwrap(),
-        ..arm7_options(JointParams::Named(names))
-    };
-    let path = select(&Markers(&model), &train, &options, Criterion::T).unwrap();
+    let prior = robocal::estimation::PriorEntry::parse_list("joint*.rz=2deg,joint*.theta=0.2deg").unwrap();
+    let options = KindOptions { prior, ..arm7_kind_options(&model, JointParams::Named(names)) };
+    let path = select(&Kinds(&model), &train, &options, Criterion::T).unwrap();
     let dropped: Vec<&str> = path.steps[1..].iter().map(|s| s.parameter.as_deref().unwrap()).collect();
     assert_eq!(dropped[..3], ["joint4.rz", "joint5.rz", "joint3.rz"], "{dropped:?}");
     for (k, name) in dropped.iter().enumerate().filter(|(_, n)| n.ends_with(".theta")) {
@@ -406,16 +406,16 @@ fn the_t_rule_drops_a_stand_in_before_the_zero_it_stands_in_for() {
 #[test]
 fn forward_selection_scores_each_step_with_the_prior() {
     let (model, data, options) = puma(JointParams::All, Gauge::default());
-    let free = select(&Markers(&model), &data, &options, Criterion::Bic).unwrap();
+    let free = select(&Kinds(&model), &data, &options, Criterion::Bic).unwrap();
     assert!(!free.selected.is_empty());
     let tight = robocal::estimation::PriorEntry::parse_list(
         "lengths=0.000001mm,angles=0.000001deg,offsets=0.000001deg,offsets=0.000001mm",
     )
     .unwrap();
-    let options = Options { prior: tight, ..options };
-    let bic = select(&Markers(&model), &data, &options, Criterion::Bic).unwrap();
+    let options = KindOptions { prior: tight, ..options };
+    let bic = select(&Kinds(&model), &data, &options, Criterion::Bic).unwrap();
     assert_eq!((bic.chosen, bic.selected.len()), (0, 0), "{:?}", bic.selected);
-    let cv = select(&Markers(&model), &data, &options, Criterion::Cv { folds: 5 }).unwrap();
+    let cv = select(&Kinds(&model), &data, &options, Criterion::Cv { folds: 5 }).unwrap();
     let first = cv.steps[0].score;
     // Each parameter moves by about 1e-6 of what the data ask: the scores by a few 1e-6 of theirs.
     assert!(cv.steps.iter().all(|s| (s.score - first).abs() < 1e-5 * first), "{:?}", cv.steps);
@@ -425,23 +425,24 @@ fn forward_selection_scores_each_step_with_the_prior() {
 
 /// A forward path that leaves a joint's zero out while a chosen parameter stands in for it
 /// says so: on the arm7 benchmark with the `fabricated` priors, BIC leaves `joint3.theta` out
-/// and takes `joint5.y`, whose estimate would carry it (correlation -0.92).
+/// and takes `joint4.z`, whose estimate would carry it (correlation +0.92). (`joint4.z` and
+/// `joint5.y` move the arm alike: either adds the same to the BIC, and the path takes one.)
 #[test]
 fn a_forward_path_reports_the_zero_it_traded() {
-    let (model, train, _) = arm7("examples/arm7");
-    let options = Options {
-        prior: robocal::estimation::PriorEntry::parse_list("fabricated").unwrap(),
-        ..arm7_options(JointParams::All)
-    };
-    let path = select(&Markers(&model), &train, &options, Criterion::Bic).unwrap();
+    let (model, train, _) = arm7_kinds("examples/arm7");
+    let prior = robocal::estimation::PriorEntry::parse_list("fabricated").unwrap();
+    let options = KindOptions { prior, ..arm7_kind_options(&model, JointParams::All) };
+    let path = select(&Kinds(&model), &train, &options, Criterion::Bic).unwrap();
     assert!(
-        path.selected.contains(&"joint5.y".to_string())
-            && !path.selected.contains(&"joint3.theta".to_string())
+        path.selected.contains(&"joint4.z".to_string())
+            && !path.selected.contains(&"joint3.theta".to_string()),
+        "{:?}",
+        path.selected
     );
     assert_eq!(
         path.trades.iter().map(ToString::to_string).collect::<Vec<_>>(),
         [
-            "joint3.theta left out while joint5.y is in, which stands in for it (correlation -0.92): joint5.y carries its error"
+            "joint3.theta left out while joint4.z is in, which stands in for it (correlation +0.92): joint4.z carries its error"
         ]
     );
 }
