@@ -12,7 +12,8 @@
 use nalgebra::Vector3;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
-use robocal::calibration::{self, JointParams, Measurements, Options, RepeatabilityData};
+use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds, evaluate_kinds};
+use robocal::calibration::{JointParams, RepeatabilityData};
 use robocal::estimation::{Estimator, NoiseSpec, RefineOptions};
 use robocal::model::{ModelError, RobotModel, from_urdf_str};
 use robocal::simulation::{Study, StudyError};
@@ -158,7 +159,7 @@ proptest! {
     #[test]
     fn measurement_files_read_or_name_the_line(mutations in prop::collection::vec(mutation(), 1..6)) {
         let text = mutate(&head(MEASUREMENTS, 8), &mutations);
-        if let Err(e) = Measurements::from_csv_str(&text, &puma(), None) {
+        if let Err(e) = KindData::from_csv_str(&text, &puma(), None) {
             prop_assert!(e.line >= 1 && e.line <= text.lines().count().max(1) + 1, "{e} in {text:?}");
             let prefix = format!("line {}", e.line);
             prop_assert!(e.to_string().starts_with(&prefix), "{e}");
@@ -171,11 +172,11 @@ proptest! {
         mixed in any::<bool>(),
     ) {
         let text = mutate(&head(if mixed { OBSERVATIONS } else { BALL_BAR }, 30), &mutations);
-        match robocal::calibration::kinds::KindData::from_csv_str(&text, &puma(), None) {
+        match KindData::from_csv_str(&text, &puma(), None) {
             Ok(data) => {
                 prop_assert!(data.check(6).is_ok(), "{text:?}");
                 // A fit of what reads: a calibration or an error, never a panic.
-                let options = robocal::calibration::kinds::KindOptions {
+                let options = KindOptions {
                     per_session: Vec::new(),
                     prior: Vec::new(),
                     loss: Default::default(),
@@ -190,7 +191,7 @@ proptest! {
                     markers: Vec::new(),
                     refine: RefineOptions { max_iterations: 3, ..RefineOptions::default() },
                 };
-                let _ = robocal::calibration::kinds::calibrate_kinds(&puma(), &data, &options);
+                let _ = calibrate_kinds(&puma(), &data, &options);
             }
             Err(e) => {
                 let prefix = format!("line {}", e.line);
@@ -285,7 +286,7 @@ proptest! {
             text += &angles.chain(coordinates).collect::<Vec<_>>().join(",");
             text += "\n";
         }
-        let data = match Measurements::from_csv_str(&text, &puma(), None) {
+        let data = match KindData::from_csv_str(&text, &puma(), None) {
             Ok(data) => data,
             Err(e) => {
                 // A row's line (3 on), or the header's (2) for a marker never measured.
@@ -293,19 +294,11 @@ proptest! {
                 return Ok(());
             }
         };
-        let options = Options {
-            estimator: Estimator::Ols,
-            noise: None,
-            joints: JointParams::All,
-            estimate_base: true,
-            estimate_markers: true,
-            markers: vec![Vector3::new(50.0, 0.0, 150.0)],
-            prior: Vec::new(),
-            loss: robocal::calibration::Loss::Squared,
+        let options = KindOptions {
             refine: RefineOptions { max_iterations: 5, ..RefineOptions::default() },
-            gauge: Default::default(),
+            ..crate::marker_options(&puma(), Estimator::Ols, None, &[Vector3::new(50.0, 0.0, 150.0)])
         };
-        if let Err(e) = calibration::calibrate(&puma(), &data, &options) {
+        if let Err(e) = calibrate_kinds(&puma(), &data, &options) {
             prop_assert!(!e.to_string().is_empty());
         }
     }
@@ -326,18 +319,17 @@ fn torso() -> robocal::model::RobotTree {
 }
 
 /// Calibration options for the fuzzed fits: few steps, the loss and priors given.
-fn quick_options(loss: robocal::calibration::Loss, prior: Vec<robocal::estimation::PriorEntry>) -> Options {
-    Options {
-        estimator: Estimator::Ols,
-        noise: None,
+fn quick_options(
+    model: &RobotModel,
+    loss: robocal::calibration::Loss,
+    prior: Vec<robocal::estimation::PriorEntry>,
+) -> KindOptions {
+    KindOptions {
         joints: JointParams::Named(vec!["j*.*".into()]),
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0)],
         prior,
         loss,
         refine: RefineOptions { max_iterations: 3, ..RefineOptions::default() },
-        gauge: Default::default(),
+        ..crate::marker_options(model, Estimator::Ols, None, &[Vector3::new(50.0, 0.0, 150.0)])
     }
 }
 
@@ -381,11 +373,13 @@ proptest! {
         data_mutations in prop::collection::vec(mutation(), 0..4),
     ) {
         let Ok(model) = RobotModel::from_toml_str(&mutate(MASSES_MODEL, &model_mutations)) else { return Ok(()) };
-        let Ok(data) = Measurements::from_csv_str(&mutate(&head(MEASUREMENTS, 10), &data_mutations), &model, None) else {
+        let Ok(data) = KindData::from_csv_str(&mutate(&head(MEASUREMENTS, 10), &data_mutations), &model, None) else {
             return Ok(());
         };
         let markers = [(1, Vector3::new(50.0, 0.0, 150.0))];
-        let _ = calibration::evaluate_model(&model, &markers, "fuzz", &data, None);
+        if let Ok(options) = KindOptions::as_it_stands(&model, &markers, &data) {
+            let _ = evaluate_kinds(&model, &data, &options);
+        }
     }
 
     /// `--prior` and a `[prior]` entry list: parsed or refused naming the entry; what parses
@@ -399,8 +393,8 @@ proptest! {
         match robocal::estimation::PriorEntry::parse_list(&text) {
             Ok(prior) => {
                 let model = RobotModel::from_toml_str(MASSES_MODEL).unwrap();
-                let data = Measurements::from_csv_str(&head(MEASUREMENTS, 14), &model, None).unwrap();
-                let _ = calibration::calibrate(&model, &data, &quick_options(loss, prior));
+                let data = KindData::from_csv_str(&head(MEASUREMENTS, 14), &model, None).unwrap();
+                let _ = calibrate_kinds(&model, &data, &quick_options(&model, loss, prior));
             }
             Err(e) => prop_assert!(e.to_string().starts_with("prior `"), "{e}"),
         }
@@ -416,8 +410,8 @@ proptest! {
         let text = mutate(MASSES_MODEL, &mutations);
         match RobotModel::from_toml_str(&text) {
             Ok(model) => {
-                let Ok(data) = Measurements::from_csv_str(&head(MEASUREMENTS, 14), &model, None) else { return Ok(()) };
-                let _ = calibration::calibrate(&model, &data, &quick_options(loss, Vec::new()));
+                let Ok(data) = KindData::from_csv_str(&head(MEASUREMENTS, 14), &model, None) else { return Ok(()) };
+                let _ = calibrate_kinds(&model, &data, &quick_options(&model, loss, Vec::new()));
             }
             Err(e) => prop_assert!(model_error_says_where(&e), "{e}"),
         }
@@ -448,13 +442,13 @@ proptest! {
         folds in 0usize..5,
         loss in loss(),
     ) {
-        use robocal::calibration::{Markers, selection::{Criterion, select}};
-        let Ok(data) = Measurements::from_csv_str(&mutate(&head(MEASUREMENTS, 12), &mutations), &puma(), None) else {
+        use robocal::calibration::{front::Kinds, selection::{Criterion, select}};
+        let Ok(data) = KindData::from_csv_str(&mutate(&head(MEASUREMENTS, 12), &mutations), &puma(), None) else {
             return Ok(());
         };
         let criterion = [Criterion::T, Criterion::Bic, Criterion::Cv { folds }][criterion];
-        let mut options = quick_options(loss, Vec::new());
+        let mut options = quick_options(&puma(), loss, Vec::new());
         options.joints = JointParams::Named(vec!["j2.*".into(), "j3.a".into()]);
-        let _ = select(&Markers(&puma()), &data, &options, criterion);
+        let _ = select(&Kinds(&puma()), &data, &options, criterion);
     }
 }
