@@ -211,8 +211,7 @@ fn arm7_held_out(joints: JointParams, prior: &str) -> f64 {
     let sessions: Vec<_> =
         (1..=3).map(|k| super::urdf::arm7_file(&model, &format!("session{k}.csv"))).collect();
     let prior = PriorEntry::parse_list(prior).unwrap();
-    let options =
-        KindOptions { prior: prior.clone(), ..super::urdf::arm7_kind_options(&model, joints.clone()) };
+    let options = KindOptions { prior, ..super::urdf::arm7_kind_options(&model, joints) };
     let result = calibrate_kinds(&model, &train, &options).unwrap();
     super::urdf::arm7_held_out(&result, &sessions)
 }

@@ -497,7 +497,7 @@ fn the_arm7_benchmark_calibrates_as_its_readme_says() {
     let train = arm7_file(&model, "train.csv");
     let sessions: Vec<KindData> = (1..=3).map(|k| arm7_file(&model, &format!("session{k}.csv"))).collect();
     let held_out = |joints: JointParams| {
-        let result = calibrate_kinds(&model, &train, &arm7_kind_options(&model, joints.clone())).unwrap();
+        let result = calibrate_kinds(&model, &train, &arm7_kind_options(&model, joints)).unwrap();
         arm7_held_out(&result, &sessions)
     };
     let (none, offsets, joints) =
