@@ -9,7 +9,7 @@ use robocal::calibration::kinds::{
     KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
     calibrate_kinds_feasible, evaluate_kinds,
 };
-use robocal::calibration::{JointParams, Measurements, Options, Scored, Warning};
+use robocal::calibration::{JointParams, Scored, Warning};
 use robocal::estimation::{
     Estimator, MeasurementNoise, NoiseModel, RefineOptions, Weights, linearise, refine_from,
 };
@@ -46,46 +46,9 @@ fn poses(model: &RobotModel, n: usize, rng: &mut ChaCha8Rng) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// The marker path's campaign: robust.rs's (another port's file, #23) until it is ported;
-/// delete it then, with [`campaign_of`].
+/// A calibration campaign ([`campaign_of`]): the models, the files read as `robocal calibrate`
+/// reads them, and the options it sets.
 pub(crate) struct Campaign {
-    pub nominal: RobotModel,
-    pub training: Measurements,
-    pub validation: Measurements,
-    pub options: Options,
-}
-
-/// [`kind_campaign_of`] on the marker path, for robust.rs alone until it is ported (#23).
-pub(crate) fn campaign_of(seed: u64, poses_: usize) -> Campaign {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let nominal = RobotModel::preset("puma560").unwrap();
-    let truth = true_robot(&nominal, &mut rng);
-    let true_markers = vec![Vector3::new(52.0, 1.0, 148.0), Vector3::new(-38.0, 61.0, 121.0)];
-    let sigma_me = 0.01;
-    let read = |joints: &[Vec<f64>], seed| {
-        let text = measurement_csv(&truth, &true_markers, joints, &joint_sigmas(), sigma_me, seed);
-        Measurements::from_csv_str(&text, &nominal, None).unwrap()
-    };
-    let training = read(&poses(&nominal, poses_, &mut rng), 1);
-    let validation = read(&poses(&nominal, 60, &mut rng), 2);
-    let options = Options {
-        estimator: Estimator::Wls,
-        noise: Some(NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(sigma_me, 0.0))),
-        joints: JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-        refine: RefineOptions::default(),
-        gauge: Default::default(),
-    };
-    Campaign { nominal, training, validation, options }
-}
-
-/// [`campaign_of`] on the one pipeline: the same files read as `robocal calibrate` reads them,
-/// with the options it sets.
-pub(crate) struct KindCampaign {
     pub nominal: RobotModel,
     pub truth: RobotModel,
     pub true_markers: Vec<Vector3<f64>>,
@@ -94,13 +57,13 @@ pub(crate) struct KindCampaign {
     pub options: KindOptions,
 }
 
-fn kind_campaign(seed: u64) -> KindCampaign {
-    kind_campaign_of(seed, 120)
+fn campaign(seed: u64) -> Campaign {
+    campaign_of(seed, 120)
 }
 
 /// A PUMA 560 with errors, an unknown base and two markers, measured at `poses` training poses
 /// and 60 held-out ones, calibrated by Gauss-Markov with its true noise.
-pub(crate) fn kind_campaign_of(seed: u64, poses_: usize) -> KindCampaign {
+pub(crate) fn campaign_of(seed: u64, poses_: usize) -> Campaign {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let nominal = RobotModel::preset("puma560").unwrap();
     let truth = true_robot(&nominal, &mut rng);
@@ -115,14 +78,14 @@ pub(crate) fn kind_campaign_of(seed: u64, poses_: usize) -> KindCampaign {
     let validation = read(&poses(&nominal, 60, &mut rng), 2);
     let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
     let options = crate::marker_options(&nominal, Estimator::Wls, Some(&noise), &markers);
-    KindCampaign { nominal, truth, true_markers, training, validation, options }
+    Campaign { nominal, truth, true_markers, training, validation, options }
 }
 
 /// Held out, the marker positions' RMS falls at least five-fold; the positions cannot separate
 /// 12 of the 42 parameters, which are held, `j1.theta - base.rz` first.
 #[test]
 fn held_out_accuracy_improves_at_least_five_fold() {
-    let c = kind_campaign(11);
+    let c = campaign(11);
     let calibration = calibrate_kinds(&c.nominal, &c.training, &c.options).unwrap();
     let (before, after) = calibration.score(&c.validation).unwrap().markers.unwrap();
     assert!(before / after >= 5.0, "held-out RMS {before:.4} mm before, {after:.4} mm after");
@@ -144,7 +107,7 @@ fn held_out_accuracy_improves_at_least_five_fold() {
 /// same numbers, to the bit, on 1 and 3 threads.
 #[test]
 fn calibration_is_the_same_on_any_number_of_threads() {
-    let mut c = kind_campaign(12);
+    let mut c = campaign(12);
     let mut rng = ChaCha8Rng::seed_from_u64(12);
     let text = measurement_csv(
         &c.truth,
@@ -169,7 +132,7 @@ fn calibration_is_the_same_on_any_number_of_threads() {
 
 /// The true parameter errors, in the calibration's parameter vector: the base as the
 /// displacement from the registered base, the markers from their nominal positions.
-fn true_vector(c: &KindCampaign, calibration: &KindCalibration) -> Vec<f64> {
+fn true_vector(c: &Campaign, calibration: &KindCalibration) -> Vec<f64> {
     let params = &calibration.params;
     let mut x = vec![0.0; params.len()];
     let set = |x: &mut Vec<f64>, owner, kind, v| x[params.index_of(owner, kind).unwrap()] = v;
@@ -259,7 +222,7 @@ pub fn displacement_parameters(from: &nalgebra::Isometry3<f64>, to: &nalgebra::I
 
 #[test]
 fn identified_parameters_lie_within_three_standard_errors_of_the_truth() {
-    let c = kind_campaign(12);
+    let c = campaign(12);
     let calibration = calibrate_kinds(&c.nominal, &c.training, &c.options).unwrap();
     let truth = true_vector(&c, &calibration);
     assert_within_three_standard_errors(&c.nominal, &c.options.markers, &calibration, &truth, &c.training);
@@ -269,7 +232,7 @@ fn identified_parameters_lie_within_three_standard_errors_of_the_truth() {
 /// line or with the units given; a column that is neither a joint nor a marker's is left.
 #[test]
 fn units_in_metres_and_radians_read_the_same() {
-    let c = kind_campaign(13);
+    let c = campaign(13);
     let model = &c.nominal;
     let text = "# units: joints=rad, lengths=m\nj1,j2,j3,j4,j5,j6,x1,y1,z1,note\n0.1,0.2,0.3,0.4,0.5,0.6,1.5,-0.25,0.125,hello\n";
     let data = KindData::from_csv_str(text, model, None).unwrap();
@@ -346,7 +309,7 @@ fn far_out(warnings: &[Warning]) -> Vec<(&Scored, &Vec<robocal::calibration::Far
 /// worst first, with at most two neighbours it pulled near the threshold.
 #[test]
 fn an_outlier_is_flagged_with_its_line_and_clean_data_is_not() {
-    let c = kind_campaign(15);
+    let c = campaign(15);
     let clean = calibrate_kinds(&c.nominal, &c.training, &c.options).unwrap();
     assert!(clean.warnings.is_empty(), "{:?}", clean.warnings);
     let mut bumped = c.training.clone();
@@ -362,7 +325,7 @@ fn an_outlier_is_flagged_with_its_line_and_clean_data_is_not() {
 
 #[test]
 fn fewer_poses_than_identifiable_parameters_is_an_error() {
-    let c = kind_campaign(14);
+    let c = campaign(14);
     let mut few = c.training.keeping(|o| o.pose() < 6);
     few.joints.truncate(6);
     let err = calibrate_kinds(&c.nominal, &few, &c.options).unwrap_err();
@@ -539,7 +502,7 @@ fn orientation_columns_read_and_their_errors() {
 #[test]
 fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
     for seed in [11, 12, 13] {
-        let c = kind_campaign(seed);
+        let c = campaign(seed);
         let calibration = calibrate_kinds(&c.nominal, &c.training, &c.options).unwrap();
         let held: Vec<&str> = calibration.fixed.iter().map(Held::parameter).collect();
         let expected = [

@@ -1,6 +1,6 @@
 //! Priors: maximum a posteriori calibration.
 
-use super::calibration::{kind_campaign_of, standard_errors};
+use super::calibration::{campaign_of, standard_errors};
 use nalgebra::{DMatrix, DVector};
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
@@ -19,7 +19,7 @@ fn with_prior(options: &KindOptions, entries: &str) -> KindOptions {
 /// estimates and standard errors to 1e-9.
 #[test]
 fn infinitely_wide_priors_give_the_unregularised_fit() {
-    let mut c = kind_campaign_of(41, 60);
+    let mut c = campaign_of(41, 60);
     // Both fits iterated to the minimum: with the default tolerances where a fit stops is
     // decided by the rounding of its cost (near 1e-11 of 6 here), which leaves it up to 2e-8
     // from the minimum.
@@ -46,7 +46,7 @@ fn infinitely_wide_priors_give_the_unregularised_fit() {
 /// are still estimated.
 #[test]
 fn a_prior_sd_near_zero_keeps_the_parameter_nominal() {
-    let c = kind_campaign_of(42, 60);
+    let c = campaign_of(42, 60);
     let options = with_prior(&c.options, "j2.a=1e-12mm,j1.theta=1e-12deg");
     let map = calibrate_kinds(&c.nominal, &c.training, &options).unwrap();
     let at = |name: &str| map.after[map.params.index_by_name(name).unwrap()];
@@ -211,7 +211,7 @@ fn arm7_held_out(joints: JointParams, prior: &str) -> f64 {
     let sessions: Vec<_> =
         (1..=3).map(|k| super::urdf::arm7_file(&model, &format!("session{k}.csv"))).collect();
     let prior = PriorEntry::parse_list(prior).unwrap();
-    let options = KindOptions { prior, ..super::urdf::arm7_kind_options(&model, joints) };
+    let options = KindOptions { prior, ..super::urdf::arm7_options(&model, joints) };
     let result = calibrate_kinds(&model, &train, &options).unwrap();
     super::urdf::arm7_held_out(&result, &sessions)
 }

@@ -5,13 +5,12 @@ use nalgebra::Vector3;
 use robocal::calibration::front::Kinds;
 use robocal::calibration::kinds::{KindCalibration, KindData, KindOptions, calibrate_kinds};
 use robocal::calibration::selection::{Criterion, SelectionPath, select};
-use robocal::calibration::{self, Gauge, JointParams, Measurements};
+use robocal::calibration::{self, Gauge, JointParams};
 use robocal::calibration::{Confounder, Held};
 use robocal::estimation::Estimator;
 use robocal::model::{ModelRef, RobotModel};
-use std::path::Path;
 
-use super::urdf::arm7_kind_options;
+use super::urdf::arm7_options;
 
 /// The example PUMA 560 (unknown base, two unknown markers), by OLS, as `robocal calibrate`
 /// reads and sets it.
@@ -32,22 +31,10 @@ fn held(c: &KindCalibration) -> Vec<String> {
 
 /// The arm7 benchmark's model and files of `dir` (the training file and three sessions), read
 /// as `robocal calibrate` reads them.
-pub(crate) fn arm7_kinds(dir: &str) -> (RobotModel, KindData, Vec<KindData>) {
+pub(crate) fn arm7(dir: &str) -> (RobotModel, KindData, Vec<KindData>) {
     let model = robocal::io::load_model(&ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
     let read = |name: &str| {
         crate::marker_data(&std::fs::read_to_string(format!("{dir}/{name}")).unwrap(), &model, None)
-    };
-    let sessions = (1..=3).map(|k| read(&format!("session{k}.csv"))).collect();
-    (model.clone(), read("train.csv"), sessions)
-}
-
-/// The arm7 benchmark's model and files of `dir` (the training file and three sessions) on the
-/// marker path: selection_physics.rs's (another port's file, #23) until it is ported; delete it
-/// then ([`arm7_kinds`] is the one pipeline's).
-pub(crate) fn arm7(dir: &str) -> (RobotModel, Measurements, Vec<Measurements>) {
-    let model = robocal::io::load_model(&ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
-    let read = |name: &str| {
-        robocal::io::load_measurements(Path::new(&format!("{dir}/{name}")), &model, None).unwrap()
     };
     let sessions = (1..=3).map(|k| read(&format!("session{k}.csv"))).collect();
     (model.clone(), read("train.csv"), sessions)
@@ -121,10 +108,10 @@ fn the_gauge_holds_joint_parameters_never_the_base_or_the_markers() {
         c.fixed[3]
     );
 
-    let (model, train, _) = arm7_kinds("examples/arm7");
-    let c = calibrate_kinds(&model, &train, &arm7_kind_options(&model, JointParams::All)).unwrap();
+    let (model, train, _) = arm7("examples/arm7");
+    let c = calibrate_kinds(&model, &train, &arm7_options(&model, JointParams::All)).unwrap();
     assert_eq!(held(&c), ARM7_HELD);
-    let named = arm7_kind_options(&model, JointParams::Named(vec!["joint*.*".into()]));
+    let named = arm7_options(&model, JointParams::Named(vec!["joint*.*".into()]));
     let c = calibrate_kinds(&model, &train, &named).unwrap();
     let mut expected: Vec<&str> = ARM7_HELD.to_vec();
     expected.extend(["joint1.compliance", "joint1.play"]);
@@ -191,11 +178,11 @@ fn selected(
 /// standard error of the best, and it is the same on one thread and on two.
 #[test]
 fn select_cv_beats_every_parameter_and_the_offsets_on_held_out_poses() {
-    let (model, train, sessions) = arm7_kinds("examples/arm7");
-    let options = arm7_kind_options(&model, JointParams::Named(vec!["joint*.*".into()]));
+    let (model, train, sessions) = arm7("examples/arm7");
+    let options = arm7_options(&model, JointParams::Named(vec!["joint*.*".into()]));
     let (path, c) = selected(&model, &train, &options, Criterion::Cv { folds: 5 });
     let cv = held_out(&c, &sessions);
-    let fit = |joints| calibrate_kinds(&model, &train, &arm7_kind_options(&model, joints)).unwrap();
+    let fit = |joints| calibrate_kinds(&model, &train, &arm7_options(&model, joints)).unwrap();
     let all = held_out(&fit(JointParams::All), &sessions);
     let offsets = held_out(&fit(JointParams::Offsets), &sessions);
     assert!((all - 0.710).abs() < 5e-4 && (offsets - 1.071).abs() < 5e-4, "{all} {offsets}");
@@ -224,8 +211,8 @@ fn select_cv_beats_every_parameter_and_the_offsets_on_held_out_poses() {
 /// it keeps is estimated beyond 2 standard errors.
 #[test]
 fn select_bic_and_t_choose_what_they_say() {
-    let (model, train, _) = arm7_kinds("examples/arm7");
-    let options = arm7_kind_options(&model, JointParams::All);
+    let (model, train, _) = arm7("examples/arm7");
+    let options = arm7_options(&model, JointParams::All);
     let (path, _) = selected(&model, &train, &options, Criterion::Bic);
     let lowest =
         (0..path.steps.len()).min_by(|&a, &b| path.steps[a].score.total_cmp(&path.steps[b].score)).unwrap();
@@ -375,11 +362,11 @@ fn every_criterion_finds_the_parameters_that_are_wrong() {
 /// its joint's turn is in.
 #[test]
 fn the_t_rule_drops_a_stand_in_before_the_zero_it_stands_in_for() {
-    let (model, train, _) = arm7_kinds("examples/arm7");
+    let (model, train, _) = arm7("examples/arm7");
     let names: Vec<String> =
         (3..=5).flat_map(|k| [format!("joint{k}.rz"), format!("joint{k}.theta")]).collect();
     let prior = robocal::estimation::PriorEntry::parse_list("joint*.rz=2deg,joint*.theta=0.2deg").unwrap();
-    let options = KindOptions { prior, ..arm7_kind_options(&model, JointParams::Named(names)) };
+    let options = KindOptions { prior, ..arm7_options(&model, JointParams::Named(names)) };
     let path = select(&Kinds(&model), &train, &options, Criterion::T).unwrap();
     let dropped: Vec<&str> = path.steps[1..].iter().map(|s| s.parameter.as_deref().unwrap()).collect();
     assert_eq!(dropped[..3], ["joint4.rz", "joint5.rz", "joint3.rz"], "{dropped:?}");
@@ -429,9 +416,9 @@ fn forward_selection_scores_each_step_with_the_prior() {
 /// `joint5.y` move the arm alike: either adds the same to the BIC, and the path takes one.)
 #[test]
 fn a_forward_path_reports_the_zero_it_traded() {
-    let (model, train, _) = arm7_kinds("examples/arm7");
+    let (model, train, _) = arm7("examples/arm7");
     let prior = robocal::estimation::PriorEntry::parse_list("fabricated").unwrap();
-    let options = KindOptions { prior, ..arm7_kind_options(&model, JointParams::All) };
+    let options = KindOptions { prior, ..arm7_options(&model, JointParams::All) };
     let path = select(&Kinds(&model), &train, &options, Criterion::Bic).unwrap();
     assert!(
         path.selected.contains(&"joint4.z".to_string())

@@ -7,8 +7,8 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::Held;
 use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds, evaluate_kinds};
-use robocal::calibration::{self, JointParams, Options};
-use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
+use robocal::calibration::{self, JointParams};
+use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel};
 use robocal::kinematics::Chain;
 use robocal::model::{JointKind, Placement, RobotModel, from_urdf_str, to_urdf_string};
 use robocal::simulation::measurement_csv;
@@ -443,30 +443,9 @@ fn urdf_inertials_are_folded_into_the_mass_each_joint_moves() {
     );
 }
 
-/// OLS calibration options of the arm7 benchmark on the marker path: its README's markers,
-/// base and markers free. For compliance.rs and selection_physics.rs (another port's files,
-/// #23) until they are ported; delete it then ([`arm7_kind_options`] is the one pipeline's).
-pub(crate) fn arm7_options(joints: JointParams) -> Options {
-    Options {
-        estimator: Estimator::Ols,
-        noise: None,
-        joints,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![
-            Vector3::new(40.0, 0.0, 25.0),
-            Vector3::new(-20.0, 35.0, 25.0),
-            Vector3::new(-20.0, -35.0, 25.0),
-        ],
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-        refine: RefineOptions::default(),
-        gauge: Default::default(),
-    }
-}
-
-/// [`arm7_options`] on the one pipeline, as `robocal calibrate` sets them for `model`.
-pub(crate) fn arm7_kind_options(model: &RobotModel, joints: JointParams) -> KindOptions {
+/// OLS calibration options of the arm7 benchmark, as `robocal calibrate` sets them for `model`:
+/// its README's markers, base and markers free.
+pub(crate) fn arm7_options(model: &RobotModel, joints: JointParams) -> KindOptions {
     let markers =
         [Vector3::new(40.0, 0.0, 25.0), Vector3::new(-20.0, 35.0, 25.0), Vector3::new(-20.0, -35.0, 25.0)];
     KindOptions { joints, ..crate::marker_options(model, Estimator::Ols, None, &markers) }
@@ -497,7 +476,7 @@ fn the_arm7_benchmark_calibrates_as_its_readme_says() {
     let train = arm7_file(&model, "train.csv");
     let sessions: Vec<KindData> = (1..=3).map(|k| arm7_file(&model, &format!("session{k}.csv"))).collect();
     let held_out = |joints: JointParams| {
-        let result = calibrate_kinds(&model, &train, &arm7_kind_options(&model, joints)).unwrap();
+        let result = calibrate_kinds(&model, &train, &arm7_options(&model, joints)).unwrap();
         arm7_held_out(&result, &sessions)
     };
     let (none, offsets, joints) =
@@ -509,7 +488,7 @@ fn the_arm7_benchmark_calibrates_as_its_readme_says() {
     // likelihood, the noise the residuals' spread (OLS).
     let auto = calibration::prior_scale::AutoPrior::parse("auto-ml:classes").unwrap().unwrap();
     let choices = calibration::Choices { auto_prior: Some((auto, 5)), select: None };
-    let every = arm7_kind_options(&model, JointParams::Named(vec!["joint*.*".into()]));
+    let every = arm7_options(&model, JointParams::Named(vec!["joint*.*".into()]));
     let chosen = calibration::choose(&calibration::front::Kinds(&model), &train, &every, &choices).unwrap();
     let result = calibrate_kinds(&model, &train, &chosen.options).unwrap();
     let by_class = arm7_held_out(&result, &sessions);
@@ -540,8 +519,8 @@ fn compliances_are_calibrated_and_lower_the_held_out_error() {
     assert!(geometric.indices().iter().all(|&i| params.get(i).kind != robocal::model::ParamKind::Compliance));
     let train = arm7_file(&model, "train.csv");
     let sessions: Vec<KindData> = (1..=3).map(|k| arm7_file(&model, &format!("session{k}.csv"))).collect();
-    let rigid = calibrate_kinds(&model, &train, &arm7_kind_options(&model, JointParams::All)).unwrap();
-    let options = arm7_kind_options(&model, JointParams::Named(vec!["joint*.*".into()]));
+    let rigid = calibrate_kinds(&model, &train, &arm7_options(&model, JointParams::All)).unwrap();
+    let options = arm7_options(&model, JointParams::Named(vec!["joint*.*".into()]));
     let compliant = calibrate_kinds(&model, &train, &options).unwrap();
     let (rigid, flexible) = (arm7_held_out(&rigid, &sessions), arm7_held_out(&compliant, &sessions));
     assert!(flexible < 0.7 * rigid, "held-out RMS {flexible:.4} mm with compliances, {rigid:.4} without");
