@@ -35,7 +35,7 @@ fn fold_report(k: usize, choices: &Choices, loss: Loss, made: FoldChoices) -> Cr
         redone.push(format!("--loss {loss}'s weights"));
     }
     let (selected, scales) = (made.selected, made.scales);
-    CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales, poses: None }
+    CrossValidationReport { folds: k, nested: !redone.is_empty(), redone, selected, scales }
 }
 
 /// The tool's position error predicted from `covariance` (its floor in quadrature, and
@@ -297,7 +297,7 @@ impl Files for Tree<'_> {
 }
 
 /// A calibration of files and its report (the command line's): of observation files
-/// ([`ObservationOutcome`]) or of a tree's views ([`TreeOutcome`]).
+/// or of a tree's views ([`TreeOutcome`]).
 pub struct Outcome<F: Files> {
     /// The calibration.
     pub calibration: F::Fit,
@@ -305,9 +305,6 @@ pub struct Outcome<F: Files> {
     /// files fitted, the choices made.
     pub report: F::Report,
 }
-
-/// Observation files calibrated, and the report.
-pub type ObservationOutcome<'a> = Outcome<Kinds<'a>>;
 
 /// A tree calibrated from views, and the report.
 pub type TreeOutcome<'a> = Outcome<Tree<'a>>;

@@ -14,6 +14,13 @@ pub const LARGE_ANGLE_DEG: f64 = 5.0;
 /// A revolute joint's play beyond this (deg) is suspect: it absorbs something else.
 pub const LARGE_PLAY_DEG: f64 = 1.0;
 
+/// An observation is flagged when its whitened residual `z = r / sigma` (`sigma` from
+/// `V_k`) exceeds this many standard deviations times the set's robust scale when above 1
+/// (`median(|z|) / 0.6745`, [`robust`](super::robust)): when every observation lies further
+/// out than `V_k` says, as when a gross error pulls the fit, one is flagged only if it stands
+/// out from the others.
+pub const FLAG_AT: f64 = 5.0;
+
 /// Far-out observations listed in the text (the worst first; every one in the JSON).
 pub const LISTED: usize = 5;
 
@@ -207,7 +214,7 @@ pub enum Warning {
         /// The cost's fall in that step, as a fraction of the cost.
         last_fall: f64,
     },
-    /// Training observations more than [`FLAG_AT`](super::FLAG_AT) standard deviations out after
+    /// Training observations more than [`FLAG_AT`] standard deviations out after
     /// calibration, the worst first.
     FarOut {
         /// What they are.

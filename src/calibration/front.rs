@@ -1,5 +1,5 @@
-//! The three calibrations as the choices made from the data see them: a marker file
-//! ([`Markers`]), observation files ([`Kinds`]) and a tree's views ([`Tree`]), each a
+//! The calibrations as the choices made from the data see them: observation files of every
+//! kind, marker files among them ([`Kinds`]), and a tree's views ([`Tree`]), each a
 //! [`Front`]. The choices (`--prior auto`'s scale, [`choose_prior_scale`]; `--select`,
 //! [`select`]; both, [`choose`]; nested, [`cross_validate_choices`]) are written once over it;
 //! what differs between the fronts is here, side by side.
@@ -9,20 +9,15 @@
 //! [`choose`]: super::selection::choose
 //! [`cross_validate_choices`]: super::selection::cross_validate_choices
 
-use super::kinds::EvidenceSystem;
 use super::kinds::{self, KindCalibration, KindData, KindOptions, Score};
 use super::prior_scale::{AutoPrior, FrontEvidence, needs_the_noise, system_evidence};
 use super::selection::{
     ChosenFit, Criterion, Fitted, FoldChoices, LinearModel, Nested, SelectionPath, named_joints,
 };
 use super::tree::{self, TreeCalibration, TreeData, TreeOptions, TreeScore};
-use super::{
-    Calibration, CalibrationError, ErrorStats, JointParams, Loss, Measurements, NestedCv, Options,
-    RobotModel, Whitening, calibrate_quietly, check_folds, errors, observed, ols_prior_spread, selection,
-};
-use crate::estimation::{Estimator, PointProblem, PriorEntry, Weights, linearise};
-use crate::kinematics::Measured;
-use crate::model::{RobotTree, Selection, name_matches};
+use super::{CalibrationError, JointParams, Loss, RobotModel};
+use crate::estimation::{Estimator, PriorEntry};
+use crate::model::{RobotTree, name_matches};
 use std::borrow::Cow;
 
 /// A result of the choices' stages.
@@ -106,132 +101,6 @@ pub trait Front: Sized {
         folds: usize,
         fit: FoldFit<Self>,
     ) -> Result<Self::Nested>;
-}
-
-/// A robot calibrated from a marker file ([`calibrate`](super::calibrate)).
-#[derive(Debug, Clone, Copy)]
-pub struct Markers<'a>(pub &'a RobotModel);
-
-impl Front for Markers<'_> {
-    type Data = Measurements;
-    type Options = Options;
-    type Fit = Calibration;
-    type Nested = NestedCv;
-
-    fn poses(data: &Measurements) -> usize {
-        data.len()
-    }
-
-    fn prior(options: &mut Options) -> &mut Vec<PriorEntry> {
-        &mut options.prior
-    }
-
-    fn with_joints(&self, options: &Options, names: &[String]) -> Options {
-        Options { joints: named_joints(names.to_vec()), ..options.clone() }
-    }
-
-    /// Without [`calibrate`](super::calibrate)'s check of the noise: inside a choice, nobody
-    /// reads its warnings.
-    fn calibrate(&self, data: &Measurements, options: &Options) -> Result<Calibration> {
-        calibrate_quietly(self.0, data, options)
-    }
-
-    fn fitted(c: &Calibration) -> Fitted<'_> {
-        let (params, values) =
-            (Cow::Borrowed(&c.params), (Cow::Borrowed(c.before.as_slice()), c.after.as_slice()));
-        Fitted { params, values, estimate: &c.refined.estimate, fixed: &c.fixed }
-    }
-
-    /// The marker positions' ([`cross_validate`](super::cross_validate)).
-    fn cv_rms(&self, data: &Measurements, options: &Options, folds: usize) -> Result<f64> {
-        Ok(super::cross_validate(self.0, data, options, folds)?.1.rms)
-    }
-
-    /// The system of the parameters `options` asks for, linearised about `about` (`None`: the
-    /// registration, the base and markers fitted as [`calibrate`](super::calibrate)'s "before")
-    /// and whitened by Gauss-Markov (`S V S^T = I`: the rows divided by the normalisation
-    /// `c = sigma_max`). A parameter with an entry of `options.prior` has that fixed prior, one
-    /// with the preset's only is scaled, the others are flat.
-    /// Without a noise model (OLS), the noise is the residuals' spread that the fit's priors
-    /// weigh against (`ols_prior_spread`), at the "before" values.
-    fn evidence(
-        &self,
-        data: &Measurements,
-        options: &Options,
-        auto: &AutoPrior,
-        about: Option<&Calibration>,
-    ) -> Result<FrontEvidence> {
-        let frame =
-            calibrate_quietly(self.0, data, &Options { joints: JointParams::None, ..options.clone() })?;
-        let noise = match &frame.whitening {
-            Whitening::Covariance(noise) => Some(noise),
-            _ => None,
-        };
-        let params = &frame.params;
-        let (zero, nothing) = (vec![0.0; params.len()], Selection::from_indices(params, []));
-        let kind = if data.orientations.is_some() { Measured::Pose } else { Measured::Position };
-        let (joints, observed) = (data.joints.clone(), observed(data));
-        let base_problem = PointProblem::new(&frame.chains, &nothing, kind, joints, observed, zero, noise)?;
-        let estimator = if noise.is_some() { Estimator::Wls } else { Estimator::Ols };
-        let weights = Weights::for_problem(&base_problem, estimator)?;
-        let asked = selection(params, &options.joints, options)?;
-        let noise_spread = match weights.scale() {
-            Some(_) => None,
-            None => {
-                Some(ols_prior_spread(&base_problem, &weights, &asked, &frame.before, data, &options.gauge)?)
-            }
-        };
-        let problem = base_problem.reselect(&asked, about.map_or(&frame.before, |c| &c.after).clone())?;
-        let linearised = linearise(&problem, &weights, problem.start())?;
-        let (params, asked) = (params.iter().cloned().collect(), asked.indices().to_vec());
-        let c = weights.scale().or(noise_spread).unwrap_or(1.0);
-        let evidence =
-            system_evidence(auto, &options.prior, &EvidenceSystem { params, asked, linearised, c })?;
-        Ok(FrontEvidence { evidence, noise_spread })
-    }
-
-    /// `--select` scores marker positions.
-    fn refuse_select(data: &Measurements) -> Result<()> {
-        match data.orientations {
-            Some(_) => Err(CalibrationError::Scoring(
-                "--select scores marker positions: a probe's orientations are not supported".into(),
-            )),
-            None => Ok(()),
-        }
-    }
-
-    fn forward(&self, data: &Measurements, options: &Options, criterion: Criterion) -> Result<SelectionPath> {
-        Ok(LinearModel::of_markers(self.0, data, options)?.forward(criterion))
-    }
-
-    /// Pose `i` held out in fold `i mod folds`, each fold's options [`Options::at_poses`]; the
-    /// held-out poses scored before and after, pose by pose, with each fold's selection and
-    /// scale.
-    fn nested(
-        &self,
-        data: &Measurements,
-        options: &Options,
-        folds: usize,
-        fit: FoldFit<Self>,
-    ) -> Result<NestedCv> {
-        check_folds(folds, data.len())?;
-        let (mut before, mut after) = (Vec::new(), Vec::new());
-        let (mut choices, mut scored) = (FoldChoices::default(), Vec::new());
-        let name = format!("{folds}-fold cross-validation");
-        for fold in 0..folds {
-            let (test, train): (Vec<usize>, Vec<usize>) = (0..data.len()).partition(|i| i % folds == fold);
-            let chosen = fit(&data.subset(&train), &options.at_poses(&train))?;
-            choices.push(&chosen);
-            let calibration = chosen.calibration;
-            let held_out = data.subset(&test);
-            before.extend(errors(&calibration.chains, &calibration.before, &held_out));
-            after.extend(errors(&calibration.chains, &calibration.after, &held_out));
-            let noise = options.noise.as_ref().map(|n| n.at_points(&test));
-            scored.push(calibration.evaluate(&name, &held_out, noise.as_ref())?);
-        }
-        let (before, after) = (ErrorStats::of(&before), ErrorStats::of(&after));
-        Ok(NestedCv { before, after, choices, poses: super::evaluation::joined(&name, scored) })
-    }
 }
 
 /// A nested cross-validation's score, as `cross` makes it calibrating each fold's training data

@@ -11,8 +11,8 @@
 
 use super::Warning;
 use super::diagnostics::NoiseDisagrees;
+use crate::estimation::Residuals;
 use crate::estimation::reml::{ComponentEstimate, Components, Point};
-use crate::estimation::{MeasurementNoise, NoiseModel, PointProblem, Residuals};
 use nalgebra::{DMatrix, DVector};
 
 /// A sigma off by more than this factor (either way) is warned of.
@@ -33,22 +33,6 @@ pub(crate) const MIN_DOF: usize = 10;
 /// factor 2 in a sigma shows in far fewer residuals (a variance is
 /// within about 8% of its value at 120 poses of 3 rows), and the check then costs the same on any campaign.
 pub const CHECK_POSES: usize = 120;
-
-/// The check of `noise` against the fit `x` of `problem` (its selected parameters, with the
-/// priors' standard deviations `prior_sd`, infinite: none); `None` when it agrees, or too few
-/// residuals tell.
-pub(crate) fn noise_check(
-    problem: &PointProblem<'_>,
-    x: &DVector<f64>,
-    noise: &NoiseModel,
-    prior_sd: &[f64],
-) -> Option<Warning> {
-    let components = components(problem, x, noise)?;
-    let per = problem.measured().rows();
-    // A marker's position is one error (a probe's orientation rows none).
-    let share = |_: usize, r: usize| if r % per < 3 { 1.0 / 3.0 } else { 0.0 };
-    check(&components, (x, prior_sd), &share)
-}
 
 /// The check of the noise of `components` (the fit's points linearised about its estimate `x`,
 /// with the priors' standard deviations `prior_sd`): `None` when it agrees; else the
@@ -104,40 +88,6 @@ fn factors(estimate: &ComponentEstimate, joint_noise: bool) -> (Option<f64>, f64
         (true, true) => (Some(estimate.joint.sqrt()), estimate.measurement.sqrt()),
         (true, false) => (Some(both), both),
     }
-}
-
-/// The points of `problem` linearised about `x` (at most [`CHECK_POSES`] of its poses, evenly
-/// spread), each with its joint part `J_k Sigma_q J_k^T`
-/// and its measurement part `Sigma_m,k` of `noise`; `None` with too few residual degrees of
-/// freedom or a block not positive definite.
-fn components(problem: &PointProblem<'_>, x: &DVector<f64>, noise: &NoiseModel) -> Option<Components> {
-    let poses = problem.poses();
-    let stride = poses.div_ceil(CHECK_POSES).max(1);
-    let sample: Vec<usize> = (0..poses).step_by(stride).collect();
-    let problem = &problem.at_poses(&sample);
-    let system = problem.system(x);
-    if system.h.nrows() < system.h.ncols() + MIN_DOF {
-        return None;
-    }
-    let jacobians = problem.manipulator_jacobians(&problem.full(x));
-    let joint_only =
-        NoiseModel { joint: noise.joint.clone(), measurement: MeasurementNoise::PerAxis([0.0; 6]) };
-    let dof = noise.joint.nrows();
-    let measurement_only =
-        NoiseModel { joint: DMatrix::zeros(dof, dof), measurement: noise.measurement.clone() };
-    let rows = problem.rows_per_point();
-    let points = (jacobians.iter().enumerate())
-        .map(|(k, j)| {
-            let point = Point {
-                h: system.h.rows(k * rows, rows).into_owned(),
-                r: system.y.rows(k * rows, rows).into_owned(),
-                joint: joint_only.pose_covariance(sample[k], j, problem.measured()),
-                measurement: measurement_only.pose_covariance(sample[k], j, problem.measured()),
-            };
-            (point, ())
-        })
-        .collect();
-    Components::new(without_outliers(points).into_iter().map(|(p, ())| p).collect())
 }
 
 /// A point whose whitened residual per row, `q_k = r_k^T V_k^-1 r_k / rows`, exceeds this many

@@ -3,9 +3,9 @@
 //! A real robot has errors no geometric model holds (deflection, backlash, a device's own
 //! error); a fit that drives every weakly identified parameter absorbs them into terms the
 //! training poses barely see, and loses on the poses it did not see. The candidates are the
-//! joint parameters [`Options::joints`] names that the poses identify (the gauge of
-//! [`calibrate`](super::calibrate) holds the others); the base and the markers (the registration) are always
-//! estimated. Three criteria:
+//! joint parameters [`KindOptions::joints`](super::kinds::KindOptions::joints) names that the
+//! poses identify (the calibration's gauge holds the others); the set-up (the base and the
+//! markers, the registration) is always estimated. Three criteria:
 //!
 //! - [`Criterion::Cv`]: forward stepwise selection by `F`-fold cross-validation. Pose `k` is
 //!   held out in fold `k mod F` (`k` numbered among the poses the data have, so that inside an
@@ -22,7 +22,7 @@
 //!   `BIC = N ln(RSS / N) + p ln N` (`N` equations, `p` parameters with the registration's);
 //!   the step of the lowest BIC is chosen.
 //! - [`Criterion::T`]: backward elimination from every candidate: calibrate (Gauss-Newton, as
-//!   [`calibrate`](super::calibrate)), drop the candidate of the smallest `|t| = |estimate| / SE` while it is
+//!   [`calibrate_kinds`](super::kinds::calibrate_kinds)), drop the candidate of the smallest `|t| = |estimate| / SE` while it is
 //!   below 2, and calibrate again.
 //!
 //! Each candidate is one parameter, for a URDF joint too: its origin's six numbers are not one
@@ -46,13 +46,9 @@
 use super::front::Front;
 use super::kinds::{self, KindData, KindOptions};
 use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale};
-use super::{
-    CalibrationError, ErrorStats, Held, Identified, JointParams, Measurements, Options, RobotModel,
-    Whitening, calibrate_quietly, check_folds, identifiable, observed, selection, standard_errors_of,
-};
-use crate::estimation::{LinearEstimate, PointProblem, Residuals, Weights};
-use crate::kinematics::Measured;
-use crate::model::{ParamOwner, Selection};
+use super::{CalibrationError, Held, JointParams, RobotModel, check_folds, standard_errors_of};
+use crate::estimation::{LinearEstimate, Residuals, Weights};
+use crate::model::ParamOwner;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use std::borrow::Cow;
@@ -352,8 +348,7 @@ pub fn calibrate_chosen<F: Front>(
 /// own on them); the held-out poses are scored ([`Front::nested`]: of a marker file before and
 /// after, pose by pose, with each fold's choices; of observation files or a tree's views as
 /// their `--folds` scores them). Choices made on every pose have seen the held-out ones, so
-/// cross-validating only what they chose ([`cross_validate`](super::cross_validate) with
-/// [`Chosen::options`]) is optimistic; this is the figure to expect on new poses.
+/// cross-validating only what they chose (with [`Chosen::options`]) is optimistic; this is the figure to expect on new poses.
 pub fn cross_validate_choices<F: Front>(
     front: &F,
     data: &F::Data,
@@ -392,21 +387,6 @@ pub struct Nested<S> {
     pub score: S,
     /// What each fold chose.
     pub choices: FoldChoices,
-}
-
-/// A nested k-fold cross-validation of a marker file ([`cross_validate_choices`]).
-#[derive(Debug, Clone, PartialEq)]
-pub struct NestedCv {
-    /// The held-out poses' errors before calibration (the registration on the other folds).
-    pub before: ErrorStats,
-    /// Their errors after the choices and calibration on the other folds.
-    pub after: ErrorStats,
-    /// What each fold chose.
-    pub choices: FoldChoices,
-    /// Every pose held out in its fold, scored pose by pose with that fold's calibration, in
-    /// the data's order (`K-fold cross-validation`): "before" its registration, "after" its
-    /// choices and calibration.
-    pub poses: super::SetEvaluation,
 }
 
 /// Backward elimination by `|t|` ([`Criterion::T`]), `t = estimate / SE` with the SE of the
@@ -753,60 +733,6 @@ impl LinearModel {
             pose_of_row: dense(&pose_of_row),
             share,
         }
-    }
-
-    /// The registration of `data` (base and markers fitted by [`calibrate`](super::calibrate)), then the gauge
-    /// of `options`' parameters and the system about it.
-    pub(crate) fn of_markers(
-        model: &RobotModel,
-        data: &Measurements,
-        options: &Options,
-    ) -> Result<Self, CalibrationError> {
-        let frame =
-            calibrate_quietly(model, data, &Options { joints: JointParams::None, ..options.clone() })?;
-        let noise = match &frame.whitening {
-            Whitening::Covariance(noise) => Some(noise),
-            Whitening::Spread(_) => None,
-        };
-        let params = &frame.params;
-        let nothing = Selection::from_indices(params, []);
-        let zero = vec![0.0; params.len()];
-        let (joints, observed) = (data.joints.clone(), observed(data));
-        let base_problem =
-            PointProblem::new(&frame.chains, &nothing, Measured::Position, joints, observed, zero, noise)?;
-        let weights = Weights::for_problem(&base_problem, options.estimator)?;
-        let asked = selection(params, &options.joints, options)?;
-        // With priors, the path is fitted and scored with them in place (maximum a posteriori):
-        // a parameter with a prior is never held, and its prior's rows join the whitened
-        // training rows of every fold (never a held-out row).
-        let prior_sd = crate::estimation::prior_sds(&options.prior, params)?;
-        let Identified { kept, start, fixed: held, prior, .. } = identifiable(
-            &base_problem,
-            &weights,
-            &asked,
-            &frame.before,
-            data,
-            &options.gauge,
-            Some(&prior_sd),
-        )?;
-        let system = base_problem.reselect(&kept, frame.before.clone())?.system(&start.x);
-        let rows = base_problem.rows_per_point();
-        // The whitened system of `start`, held whole: the path fits it fold by fold.
-        let mut a = system.h.clone();
-        weights.apply(&mut a);
-        let whitened = match &prior {
-            Some(prior) => prior.augment(&a, &start.b, &start.x),
-            None => (a, start.b.clone()),
-        };
-        let parts = LinearParts {
-            whitened,
-            unweighted: (system.h, system.y),
-            rows: (0..data.len() * rows).map(|r| (r / rows, 1.0 / 3.0)).collect(),
-        };
-        let columns = kept.indices().iter().map(|&i| Some(i)).collect();
-        let names = kept.indices().iter().map(|&i| params.get(i).name.clone()).collect();
-        let held = held.iter().map(Held::text).collect();
-        Ok(Self::new(params, (columns, names), held, parts))
     }
 
     /// The "before" fit of `data` (the set-up, the tool point; with markers the base and the

@@ -160,7 +160,7 @@ fn write_observation_files(
         .collect::<Result<Vec<_>>>()?;
     let content = super::ResidualContent {
         json,
-        page: &|figures, sets| robocal::report::html::page(title, text, (&[], sets), figures),
+        page: &|figures, sets| robocal::report::html::page(title, text, sets, figures),
         sets,
         joints: &model.joints,
         model: Some(model),

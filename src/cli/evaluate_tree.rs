@@ -72,7 +72,7 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
     let title = format!("{} scored as it stands", tree.name);
     let content = super::ResidualContent {
         json: super::json_if_asked(&request.report, &report)?,
-        page: &|figures, sets| robocal::report::html::page(&title, &text, (&[], sets), figures),
+        page: &|figures, sets| robocal::report::html::page(&title, &text, sets, figures),
         sets,
         joints: &tree.joints,
         model: None,

@@ -202,44 +202,6 @@ where
     Ok(())
 }
 
-/// `z` (`N_m` rows) multiplied in place by the Gauss-Markov whitening `S_k = L_k^-1` of the
-/// blocks `v`, point by point, `S` never stored: what [`super::Weights::apply`] does with
-/// unnormalised [`Estimator::Wls`] weights, to the bit.
-pub(crate) fn whiten_in_place(
-    v: &DMatrix<f64>,
-    blocks: &Blocks,
-    z: &mut DVector<f64>,
-) -> Result<(), EstimationError> {
-    let (rows, bounds) = (v.nrows(), point_parts(blocks, v.nrows()).1);
-    on_parts(blocks, rows, split_rows(z.as_mut_slice(), &bounds), |k, at, z| {
-        let r = blocks.range(k);
-        let z_k = &mut z[at..at + r.len()];
-        match r.len() {
-            3 => whiten_block(v, r.start, Const::<3>, k, z_k),
-            6 => whiten_block(v, r.start, Const::<6>, k, z_k),
-            n => whiten_block(v, r.start, Dyn(n), k, z_k),
-        }
-    })
-}
-
-/// [`whiten_in_place`] of the block of `d` rows at row `start` of `v` (point `k`), whose rows
-/// of `z` are `z_k`.
-fn whiten_block<D: Dim>(
-    v: &DMatrix<f64>,
-    start: usize,
-    d: D,
-    k: usize,
-    z_k: &mut [f64],
-) -> Result<(), EstimationError>
-where
-    DefaultAllocator: Allocator<D, D> + Allocator<D>,
-{
-    let s_k = block_whitener(v, start, d, Estimator::Wls, k)?.0;
-    let column = OMatrix::<f64, D, Const<1>>::from_fn_generic(d, Const::<1>, |i, _| z_k[i]);
-    z_k.copy_from_slice((s_k * column).as_slice());
-    Ok(())
-}
-
 /// `S_k` of `estimator` and `V_k` of the block of `d` rows at row `start` of `v` (point `k`).
 #[allow(clippy::type_complexity)]
 fn block_whitener<D: Dim>(

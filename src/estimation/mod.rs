@@ -32,7 +32,7 @@ pub(crate) use variance::Z_95;
 
 pub use blocks::Blocks;
 use blocks::block_weights;
-pub(crate) use blocks::{block_diagonal_mul, check_covariance, whiten_in_place};
+pub(crate) use blocks::{block_diagonal_mul, check_covariance};
 pub use device::{Device, DeviceError};
 pub use noise::{MeasurementNoise, NoiseModel};
 pub(crate) use noise_file::DeviceTable;
@@ -51,9 +51,7 @@ pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE, combin
 pub use variance::{
     ComponentFit, JointComponents, MeasurementClass, NoiseEstimate, SigmaInterval, sample_covariance,
 };
-pub(crate) use variance::{
-    CovarianceSample, HeldRows, NoiseLayout, PointRows, noise_design, residual_samples,
-};
+pub(crate) use variance::{CovarianceSample, HeldRows, NoiseLayout, noise_design, residual_samples};
 
 use nalgebra::storage::{IsContiguous, StorageMut};
 use nalgebra::{DMatrix, DVector, Dim, Dyn, Matrix};

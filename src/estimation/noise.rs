@@ -36,18 +36,6 @@ pub struct NoiseModel {
 }
 
 impl NoiseModel {
-    /// The same noise at the points `points` only (indices into this model's): per-point
-    /// measurement covariances follow their points, a fold's or a sample's.
-    pub fn at_points(&self, points: &[usize]) -> Self {
-        let measurement = match &self.measurement {
-            MeasurementNoise::PerPoint(blocks) => {
-                MeasurementNoise::PerPoint(points.iter().map(|&k| blocks[k].clone()).collect())
-            }
-            per_axis => per_axis.clone(),
-        };
-        Self { joint: self.joint.clone(), measurement }
-    }
-
     /// Uncorrelated joint noise with these standard deviations (rad, or mm), the paper's
     /// `Sigma_q = diag(sigma_1^2, ..., sigma_N^2)` (Eq. 14).
     pub fn diagonal(joint_sigmas: &[f64], measurement: MeasurementNoise) -> Self {

@@ -9,7 +9,7 @@
 //! on the unit of length, and one radian never counts as one millimetre.
 
 use super::refine::Residuals;
-use super::{EstimationError, LinearSystem, NoiseModel, PointRows, Reduced, Weights};
+use super::{EstimationError, LinearSystem, NoiseModel, Reduced, Weights};
 use crate::kinematics::{
     Chain, ChainAt, HeldArm, Measured, end_positions, marker_jacobians_held, pose_error,
 };
@@ -168,24 +168,6 @@ impl<'a> PointProblem<'a> {
     /// The number of poses (points).
     pub fn poses(&self) -> usize {
         self.joints.len()
-    }
-
-    /// The same problem at the poses `poses` only (indices into this one's), without its
-    /// noise blocks `V_k`: the rows `H_k`, `y_k` and Jacobians of a sample of the poses, for a
-    /// check that needs no more.
-    pub fn at_poses(&self, poses: &[usize]) -> PointProblem<'a> {
-        let m = self.chains.len();
-        let joints = poses.iter().map(|&k| self.joints[k].clone()).collect();
-        let observed =
-            poses.iter().flat_map(|&k| (0..m).map(move |c| k * m + c)).map(|i| self.observed[i]).collect();
-        let (joints, observed) = (Arc::new(joints), Arc::new(observed));
-        PointProblem { joints, observed, v: None, held: OnceLock::new(), ..self.clone() }
-    }
-
-    /// The measured rows of the manipulator Jacobians `J_k` of every pose (`rows x dof`:
-    /// 3 per marker, or 6 for a tool pose), at the full parameter vector `at`.
-    pub fn manipulator_jacobians(&self, at: &[f64]) -> Vec<DMatrix<f64>> {
-        self.jacobians_of(at, 0..self.joints.len())
     }
 
     /// [`PointProblem::manipulator_jacobians`] of the poses `poses`.
@@ -437,53 +419,6 @@ impl PointProblem<'_> {
     }
 }
 
-/// The rows of [`PointProblem::system`] at one `x`, pose by pose ([`PointRows`]): each pose's
-/// `H_k` and `y_k` built where they are read, by the same code as the system's, never all of
-/// `H` at once.
-pub(crate) struct PoseRows<'p, 'a> {
-    problem: &'p PointProblem<'a>,
-    /// The chains at `x`.
-    at: Vec<ChainAt>,
-}
-
-impl PointProblem<'_> {
-    /// The rows of [`PointProblem::system`] about `x`, pose by pose.
-    pub(crate) fn rows_at(&self, x: &DVector<f64>) -> PoseRows<'_, '_> {
-        let full = self.full(x);
-        PoseRows { problem: self, at: self.chains.iter().map(|c| c.with_errors(&full)).collect() }
-    }
-
-    /// The same problem without its noise blocks `V_k`, which its rows do not depend on: for
-    /// what needs the rows alone once the weights are made.
-    pub(crate) fn without_noise(self) -> Self {
-        Self { v: None, ..self }
-    }
-}
-
-impl PointRows for PoseRows<'_, '_> {
-    type Scratch = Scratch;
-
-    fn shape(&self) -> (usize, usize) {
-        (self.problem.equations(), self.problem.selection.len())
-    }
-
-    fn scratch(&self) -> Scratch {
-        self.problem.scratch(self.at.len())
-    }
-
-    fn point(
-        &self,
-        scratch: &mut Scratch,
-        k: usize,
-        _: std::ops::Range<usize>,
-        h: &mut [f64],
-        y: &mut [f64],
-    ) {
-        self.problem.pose(k, &self.at, scratch, true, y);
-        h.copy_from_slice(scratch.block.as_slice());
-    }
-}
-
 /// The scratch space of one task of a linearisation: a pose's rows of `H`, the chains' ends.
 pub(crate) struct Scratch {
     block: DMatrix<f64>,
@@ -522,48 +457,4 @@ fn row_parts(h: &mut DMatrix<f64>, rows: usize) -> Vec<Vec<&mut [f64]>> {
         }
     }
     parts
-}
-
-#[cfg(test)]
-mod rows_tests {
-    use super::*;
-    use crate::kinematics::Chain;
-    use crate::model::RobotModel;
-
-    /// Each pose's rows from [`PointProblem::rows_at`] are bit for bit the system's, `H_k` and
-    /// `y_k`, for markers on an arm walked from its held steps, over more poses than one task
-    /// of the system's linearisation.
-    #[test]
-    fn the_pose_rows_are_the_systems() {
-        let model = RobotModel::preset("puma560").unwrap();
-        let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
-        let chains = Chain::markers(&model, &markers);
-        let params = chains[0].params().clone();
-        let x: Vec<f64> = (0..params.len()).map(|i| 1e-3 * ((i * 7 % 11) as f64 - 5.0)).collect();
-        let selection = Selection::by_names(&params, &["base.*", "marker*.*", "j2.*", "j3.*"]).unwrap();
-        let poses = POSES_PER_TASK + 6;
-        let joints: Vec<Vec<f64>> =
-            (0..poses).map(|k| (0..6).map(|j| 0.05 * k as f64 - 0.2 * j as f64).collect()).collect();
-        let observed =
-            (0..poses * markers.len()).map(|i| Isometry3::translation(i as f64, 1.0, 2.0)).collect();
-        let problem =
-            PointProblem::new(&chains, &selection, Measured::Position, joints, observed, x, None).unwrap();
-        let start = problem.start();
-        let system = problem.system(&start);
-        assert!(problem.held.get().is_some_and(Option::is_some), "the arm is walked from held steps");
-        let rows = problem.rows_at(&start);
-        let (b, p) = (problem.rows_per_point(), selection.len());
-        assert_eq!(rows.shape(), system.h.shape());
-        let mut scratch = rows.scratch();
-        let (mut h, mut y) = (vec![0.0; b * p], vec![0.0; b]);
-        for k in 0..poses {
-            rows.point(&mut scratch, k, k * b..(k + 1) * b, &mut h, &mut y);
-            assert_eq!(
-                DMatrix::from_column_slice(b, p, &h),
-                system.h.rows(k * b, b).into_owned(),
-                "pose {k}"
-            );
-            assert_eq!(y.as_slice(), &system.y.as_slice()[k * b..(k + 1) * b], "pose {k}");
-        }
-    }
 }

@@ -391,16 +391,6 @@ pub(crate) struct NoiseLayout {
 }
 
 impl NoiseLayout {
-    /// The layout of points of `per` rows a measured item (a marker's position, 3; a probe's
-    /// pose, 6: [`noise_design`]'s classes), each seeing its pose through its manipulator
-    /// Jacobian `jacobians[k]` (`b_k x dof`), laid out by `blocks`.
-    pub(crate) fn of_points(jacobians: Vec<DMatrix<f64>>, per: usize, blocks: &super::Blocks) -> Self {
-        let dof = jacobians.first().map_or(0, DMatrix::ncols);
-        let rows = (0..jacobians.len()).map(|k| blocks.range(k)).map(|r| r.len());
-        let classes = rows.flat_map(|b| (0..b).map(|r| point_row_class(per, r))).collect();
-        Self { jacobians, dof, classes, class_count: if per == 6 { 2 } else { 1 } }
-    }
-
     /// Whether it fits a system of `rows` rows laid out by `blocks`: one `J_k` per point, of
     /// its rows and a whole number of poses, and a class below `class_count` per row.
     fn fits(&self, blocks: &super::Blocks, rows: usize) -> bool {
@@ -1544,6 +1534,20 @@ pub(crate) fn nnls(a: &DMatrix<f64>, b: &DVector<f64>, constrained: &[bool]) -> 
 mod tests {
     use super::*;
 
+    /// The layout of points of `per` rows a measured item (a marker's position, 3; a probe's
+    /// pose, 6: [`noise_design`]'s classes), each seeing its pose through its manipulator
+    /// Jacobian `jacobians[k]` (`b_k x dof`), laid out by `blocks`.
+    fn layout_of_points(
+        jacobians: Vec<DMatrix<f64>>,
+        per: usize,
+        blocks: &crate::estimation::Blocks,
+    ) -> NoiseLayout {
+        let dof = jacobians.first().map_or(0, DMatrix::ncols);
+        let rows = (0..jacobians.len()).map(|k| blocks.range(k)).map(|r| r.len());
+        let classes = rows.flat_map(|b| (0..b).map(|r| point_row_class(per, r))).collect();
+        NoiseLayout { jacobians, dof, classes, class_count: if per == 6 { 2 } else { 1 } }
+    }
+
     #[test]
     fn nnls_matches_the_bound_solution() {
         // min |b - A x|, x >= 0: the unconstrained solution has x2 < 0, so x2 = 0 and x1 = its
@@ -1588,7 +1592,7 @@ mod tests {
         for (per, joints) in [(3, JointComponents::Full), (6, JointComponents::Diagonal)] {
             for estimator in [super::super::Estimator::Ols, super::super::Estimator::Wls] {
                 let weights = super::super::Weights::new(Some(&v), rows, estimator, true).unwrap();
-                let layout = NoiseLayout::of_points(jacobians.clone(), per, weights.blocks());
+                let layout = layout_of_points(jacobians.clone(), per, weights.blocks());
                 let designs = residual_design(&h, &weights, &layout, joints).unwrap();
                 let mut s = DMatrix::identity(n, n);
                 weights.apply(&mut s);
@@ -1739,7 +1743,7 @@ mod tests {
             .collect();
         let weights = super::super::Weights::new(None, rows, super::super::Estimator::Ols, false).unwrap();
         let run = || {
-            let layout = NoiseLayout::of_points(jacobians.clone(), 3, weights.blocks());
+            let layout = layout_of_points(jacobians.clone(), 3, weights.blocks());
             let designs = residual_design(&h, &weights, &layout, JointComponents::Diagonal).unwrap();
             let samples: Vec<CovarianceSample> = designs
                 .into_iter()
@@ -1870,7 +1874,7 @@ mod tests {
         for (per, joints) in [(3, JointComponents::Full), (6, JointComponents::Diagonal)] {
             for estimator in [super::super::Estimator::Ols, super::super::Estimator::Wls] {
                 let weights = super::super::Weights::new(Some(&v), rows, estimator, true).unwrap();
-                let layout = NoiseLayout::of_points(jacobians.clone(), per, weights.blocks());
+                let layout = layout_of_points(jacobians.clone(), per, weights.blocks());
                 check(&h, &weights, &layout, joints);
             }
         }
@@ -1920,7 +1924,7 @@ mod tests {
         }
         let weights = super::super::Weights::new(Some(&v), rows, super::super::Estimator::Wls, true).unwrap();
         let run = || {
-            let layout = NoiseLayout::of_points(jacobians.clone(), 3, weights.blocks());
+            let layout = layout_of_points(jacobians.clone(), 3, weights.blocks());
             let samples =
                 residual_samples(&HeldRows { h: &h, y: &y }, &weights, &layout, JointComponents::Full)
                     .unwrap();

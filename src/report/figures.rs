@@ -1,9 +1,8 @@
 //! Figures of a study, and of scored pose sets, as SVG text (plotters, without any font library: the SVG names the
 //! font and the viewer draws the text).
 
-use crate::calibration::{PoseErrors, SetEvaluation};
 use crate::limits::MAX_BINS;
-use crate::model::{Joint, JointKind};
+use crate::model::JointKind;
 use crate::simulation::{PoseChoice, Replications, Statistic, Study, StudyResults, Summary};
 use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
@@ -650,57 +649,10 @@ fn shown_tick(v: f64) -> String {
     text.to_string()
 }
 
-/// The figures of scored pose sets (joint values in degrees, mm for prismatic joints), as
-/// `(file name, SVG text)`:
-/// - `errors-by-pose-<set>.svg`: each pose's error (RMS over its markers) at every stage on
-///   one scale, bars in the file's order, and the last stage on its own scale (the ratio
-///   written) when it is under a third of the first;
-/// - `histogram.svg`: the density of the markers' errors at the last stage, each set on the
-///   same bins;
-/// - `error-vs-<joint>.svg`: each marker's signed error (x, y, z; a probe's rotation too) at the
-///   last stage against the joint's value (compliance, backlash and sign flips show as trends
-///   and steps), one colour per set.
-///
-/// Sets without poses (pooled summaries) are skipped.
-pub fn pose_figures(sets: &[&SetEvaluation], joints: &[Joint]) -> Result<Vec<(String, String)>, FigureError> {
-    let sets: Vec<&SetEvaluation> = sets.iter().copied().filter(|s| !s.poses.is_empty()).collect();
-    let mut figures = Vec::new();
-    for (i, set) in sets.iter().enumerate() {
-        // Two sets of one name (a file given twice) get two figures.
-        let twice = sets[..i].iter().any(|s| file_stem(&s.name) == file_stem(&set.name));
-        let suffix = if twice { format!("-{}", i + 1) } else { String::new() };
-        let name = format!("errors-by-pose-{}{suffix}.svg", file_stem(&set.name));
-        let svg = pose_bars(set).map_err(|m| error(&name, m))?;
-        figures.push((name, svg));
-    }
-    if sets.is_empty() {
-        return Ok(figures);
-    }
-    let name = "histogram.svg".to_string();
-    let svg = error_histogram(&sets).map_err(|m| error(&name, m))?;
-    figures.push((name, svg));
-    for (j, joint) in joints.iter().enumerate() {
-        let name = format!("error-vs-{}.svg", file_stem(&joint.name));
-        let unit = if joint.kind == JointKind::Revolute { "deg" } else { "mm" };
-        let values: Vec<Vec<f64>> =
-            sets.iter().map(|s| s.poses.iter().map(|p| p.joints[j]).collect()).collect();
-        let svg =
-            against(&sets, &values, &format!("{} ({unit})", joint.name)).map_err(|m| error(&name, m))?;
-        figures.push((name, svg));
-    }
-    Ok(figures)
-}
-
 /// A name made of letters, digits and `-` only, for a file name.
 pub(crate) fn file_stem(name: &str) -> String {
     let stem: String = name.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '-' }).collect();
     stem.trim_matches('-').to_string()
-}
-
-/// The error of pose `p` at stage `s`: the RMS of its markers' distances (mm).
-fn pose_rms(p: &PoseErrors, s: usize) -> f64 {
-    let n = p.errors[s].len().max(1) as f64;
-    ((0..p.errors[s].len()).map(|m| p.distance(s, m).powi(2)).sum::<f64>() / n).sqrt()
 }
 
 /// The bars of one set's items (a pose of markers, an observation, a view), each one's size at
@@ -721,20 +673,6 @@ pub(crate) struct Bars<'a> {
     pub values: Vec<Vec<f64>>,
     /// The items flagged at the last stage.
     pub flagged: Vec<bool>,
-}
-
-/// The bars of `set`'s poses: each pose's error, the RMS over its markers, at every stage.
-fn pose_bars(set: &SetEvaluation) -> Result<String, String> {
-    let stages = set.stages.len();
-    bar_figure(&Bars {
-        title: format!("error of each pose, {} (RMS over its markers)", set.name),
-        stages: &set.stages,
-        item: "pose",
-        unit: "mm",
-        lines: set.poses.iter().map(|p| p.line).collect(),
-        values: (0..stages).map(|s| set.poses.iter().map(|p| pose_rms(p, s)).collect()).collect(),
-        flagged: set.poses.iter().map(|p| p.flagged).collect(),
-    })
 }
 
 /// One panel with every stage's bar per item on one scale, in the file's order, labelled by
@@ -851,22 +789,6 @@ fn densities(values: &[f64], width: f64, bins: usize) -> Vec<f64> {
     counts.into_iter().map(|c| c as f64 / total).collect()
 }
 
-/// The markers' errors at the last stage: each set's density on the same bins, as an outline
-/// (the sets overlaid, not interleaved).
-fn error_histogram(sets: &[&SetEvaluation]) -> Result<String, String> {
-    let values: Vec<(&str, Vec<f64>)> = sets
-        .iter()
-        .map(|set| {
-            let last = set.stages.len() - 1;
-            let errors =
-                set.poses.iter().flat_map(|p| (0..p.errors[last].len()).map(move |m| p.distance(last, m)));
-            (set.name.as_str(), errors.collect())
-        })
-        .collect();
-    let stage = &sets[0].stages[sets[0].stages.len() - 1];
-    density_figure(&format!("marker errors, {stage}"), &values, "mm")
-}
-
 /// The sizes `values` (`(set, sizes)`, at least 0, in `unit`) titled `what`: each set's
 /// density on the same bins, as an outline (the sets overlaid, not interleaved).
 pub(crate) fn density_figure(what: &str, values: &[(&str, Vec<f64>)], unit: &str) -> Result<String, String> {
@@ -908,40 +830,6 @@ pub(crate) fn density_figure(what: &str, values: &[(&str, Vec<f64>)], unit: &str
     })
 }
 
-/// For a model with masses, `error-vs-torque-<joint>.svg` per joint: each marker's signed
-/// error at the last stage (as in `error-vs-<joint>.svg`) against the load gravity puts on the
-/// joint at the pose (N·m; N for a prismatic joint), computed with `model` (the calibrated
-/// one): a compliance left out of the model shows as a slope. Nothing without masses, nor for
-/// a joint that carries no load at any pose (a vertical first axis). The
-/// sets' joint values are in degrees (mm for prismatic joints), as [`pose_figures`] takes them.
-pub fn torque_figures(
-    sets: &[&SetEvaluation],
-    model: &crate::model::RobotModel,
-) -> Result<Vec<(String, String)>, FigureError> {
-    let sets: Vec<&SetEvaluation> = sets.iter().copied().filter(|s| !s.poses.is_empty()).collect();
-    let chain = crate::kinematics::Chain::new(model).with_errors(&vec![0.0; model.params().len()]);
-    if sets.is_empty() || !chain.has_masses() {
-        return Ok(Vec::new());
-    }
-    // loads[set][pose][joint]
-    let loads: Vec<Vec<Vec<f64>>> = sets
-        .iter()
-        .map(|s| gravity_loads(&chain, model, s.poses.iter().map(|p| p.joints.as_slice())))
-        .collect();
-    let mut figures = Vec::new();
-    for (j, joint) in model.joints.iter().enumerate() {
-        let name = format!("error-vs-torque-{}.svg", file_stem(&joint.name));
-        let unit = if joint.kind == JointKind::Revolute { "N·m" } else { "N" };
-        let x_label = format!("gravity load on {} ({unit})", joint.name);
-        let values: Vec<Vec<f64>> = loads.iter().map(|s| s.iter().map(|tau| tau[j]).collect()).collect();
-        if values.iter().flatten().all(|t| t.abs() < 1e-6) {
-            continue; // no load at any pose (a vertical first axis): nothing to plot against
-        }
-        figures.push((name.clone(), against(&sets, &values, &x_label).map_err(|m| error(&name, m))?));
-    }
-    Ok(figures)
-}
-
 /// The load gravity puts on each joint of `model` (`chain` at its errors) at each of `poses`
 /// (joint values in degrees, mm for a prismatic joint): N·m, N for a prismatic joint.
 pub(super) fn gravity_loads<'q>(
@@ -959,30 +847,6 @@ pub(super) fn gravity_loads<'q>(
             tau.clone()
         })
         .collect()
-}
-
-/// Each marker's signed error at the last stage (measured minus predicted, x, y, z in mm; with
-/// a probe its orientation error's rx, ry, rz in deg) against a value of each pose (`xs[set][pose]`:
-/// a joint's value, its gravity load), as [`against_figure`] draws it. A sign that changes
-/// with the joint (backlash, gravity) shows here, and not in the norm.
-fn against(sets: &[&SetEvaluation], xs: &[Vec<f64>], x_label: &str) -> Result<String, String> {
-    let probe = sets.iter().any(|s| s.poses.iter().any(|p| p.orientation.is_some()));
-    let components: &[(&str, &str)] = if probe {
-        &[("x", "mm"), ("y", "mm"), ("z", "mm"), ("rx", "deg"), ("ry", "deg"), ("rz", "deg")]
-    } else {
-        &[("x", "mm"), ("y", "mm"), ("z", "mm")]
-    };
-    let stage = &sets[0].stages[sets[0].stages.len() - 1];
-    against_figure(&Against {
-        title: format!("marker errors (measured - predicted), {stage}, against {x_label}"),
-        sets: sets.iter().map(|s| s.name.as_str()).collect(),
-        components,
-        points: (0..components.len())
-            .map(|c| sets.iter().enumerate().map(|(s, set)| component_points(set, &xs[s], c)).collect())
-            .collect(),
-        x_label,
-        signed: true,
-    })
 }
 
 /// Values of each set's items against a value of each item (a joint's), one panel per
@@ -1061,24 +925,6 @@ pub(crate) fn against_figure(a: &Against<'_>) -> Result<String, String> {
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(svg)
-}
-
-/// `(xs[pose], component c of the error)` of every marker (c < 3: x, y, z, mm) or of the
-/// orientation (c >= 3: rx, ry, rz, deg) of `set`'s poses at the last stage.
-fn component_points(set: &SetEvaluation, xs: &[f64], c: usize) -> Vec<(f64, f64)> {
-    let last = set.stages.len() - 1;
-    set.poses
-        .iter()
-        .zip(xs)
-        .flat_map(|(p, &x)| {
-            let errors: Vec<f64> = match (c, &p.orientation) {
-                (0..3, _) => p.errors[last].iter().map(|e| e[c]).collect(),
-                (_, Some(o)) => vec![o[last][c - 3]],
-                (_, None) => Vec::new(),
-            };
-            errors.into_iter().map(move |e| (x, e))
-        })
-        .collect()
 }
 
 /// The path of a parameter selection (`selection-path.svg`): the score after each step (CV RMS
@@ -1294,72 +1140,6 @@ mod tests {
         assert_eq!(shown_tick(0.1 + 0.2), "0.3");
         assert_eq!(shown_tick(192.0), "192");
         assert_eq!(shown_tick(-0.025), "-0.025");
-    }
-
-    /// A set of 12 poses: before, errors of about 3 mm; after, `after(k, q)` at joint 1's
-    /// value `q` (deg); with `probe`, orientation errors too.
-    fn set(after: fn(usize, f64) -> [f64; 3], probe: bool) -> SetEvaluation {
-        let poses = (0..12)
-            .map(|k| {
-                let q = -90.0 + 15.0 * k as f64;
-                PoseErrors {
-                    line: k + 3,
-                    joints: vec![q, 0.0],
-                    errors: vec![vec![[3.0, -1.0, 0.5 * k as f64 / 12.0]], vec![after(k, q)]],
-                    orientation: probe.then(|| vec![[0.1, 0.0, 0.0], [0.01, -0.02, 0.0]]),
-                    whitened: 1.0,
-                    worst: 1.0,
-                    flagged: k == 4,
-                }
-            })
-            .collect();
-        SetEvaluation {
-            name: "training".into(),
-            stages: vec!["before".into(), "after".into()],
-            marker_ids: vec![1],
-            poses,
-            pooled: Vec::new(),
-            per_marker: Vec::new(),
-            orientation: None,
-            whitening: String::new(),
-        }
-    }
-
-    #[test]
-    fn errors_against_a_joint_keep_their_sign_per_component() {
-        // A backlash-like step in x with the sign of q, a constant offset in -y.
-        let s = set(|_, q| [0.1 * q.signum(), -0.2, 0.0], false);
-        let q: Vec<f64> = s.poses.iter().map(|p| p.joints[0]).collect();
-        let x = component_points(&s, &q, 0);
-        assert!(x.iter().all(|&(q, e)| e == 0.1 * q.signum()), "{x:?}");
-        assert!(component_points(&s, &q, 1).iter().all(|&(_, e)| e == -0.2));
-        let svg = against(&[&s], std::slice::from_ref(&q), "j1 (deg)").unwrap();
-        for label in ["x (mm)", "y (mm)", "z (mm)", "j1 (deg)", "\n-0.2\n"] {
-            assert!(svg.contains(label), "`{label}` in the figure");
-        }
-        assert!(!svg.contains("rx (deg)"), "no orientation panels without a probe");
-        let probe = set(|_, _| [0.0, 0.0, 0.0], true);
-        assert_eq!(
-            component_points(&probe, &q, 4),
-            vec![(-90.0 + 15.0 * 0.0, -0.02)]
-                .into_iter()
-                .chain((1..12).map(|k| (-90.0 + 15.0 * k as f64, -0.02)))
-                .collect::<Vec<_>>()
-        );
-        let svg = against(&[&probe], &[q], "j1 (deg)").unwrap();
-        assert!(svg.contains("rx (deg)") && svg.contains("rz (deg)"), "a probe's rotation panels");
-    }
-
-    #[test]
-    fn before_and_after_share_one_scale_and_a_finer_one_says_how_much_finer() {
-        let s = set(|k, _| [0.05 + 0.01 * k as f64, 0.0, 0.0], false);
-        let svg = pose_bars(&s).unwrap();
-        assert!(svg.contains("before and after: one scale, 0 to 3.51 mm"), "{svg}");
-        assert!(svg.contains("after alone: 0 to 0.176 mm, a scale 20 times finer than above"), "{svg}");
-        // After close to before: one panel, one scale, no zoom.
-        let close = set(|_, _| [2.0, -1.0, 0.0], false);
-        let svg = pose_bars(&close).unwrap();
-        assert!(svg.contains("one scale") && !svg.contains("alone"), "{svg}");
     }
 
     #[test]

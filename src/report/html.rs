@@ -8,7 +8,6 @@
 //! well-formed XML (XHTML-compatible markup) so that an XML parser reads it.
 
 use super::residuals::ResidualSet;
-use crate::calibration::SetEvaluation;
 use std::fmt::Write;
 
 /// `text` with `&`, `<`, `>` and `"` escaped for HTML and XML.
@@ -250,54 +249,6 @@ pub fn figures(figures: &[(String, String)]) -> String {
     out
 }
 
-/// Every pose of each set, a collapsible section per set: line, marker, the error at each
-/// stage (distance and x, y, z in mm; a probe's orientation error in deg), the whitened
-/// residual, its worst component and the flag.
-pub fn poses(sets: &[&SetEvaluation]) -> String {
-    let mut out = String::new();
-    for set in sets.iter().filter(|s| !s.poses.is_empty()) {
-        let flagged = set.flagged().count();
-        let _ = writeln!(
-            out,
-            "<details class=\"poses\">\n<summary>{}: {} poses, {} flagged</summary>",
-            escape(&set.name),
-            set.poses.len(),
-            flagged
-        );
-        let probe = set.orientation.is_some();
-        let mut head: Vec<String> = vec!["line".into(), "marker".into()];
-        for stage in &set.stages {
-            head.extend(["mm", "x", "y", "z"].map(|part| format!("{stage} {part}")));
-            if probe {
-                head.push(format!("{stage} deg"));
-            }
-        }
-        head.extend(["whitened".into(), "worst (sd)".into(), "flagged".into()]);
-        let rows: Vec<Row> = (set.poses.iter())
-            .flat_map(|p| set.marker_ids.iter().enumerate().map(move |(m, id)| (p, m, id)))
-            .map(|(p, m, id)| {
-                let mut cells = vec![Cell::name(&p.line.to_string()), Cell::text(&id.to_string())];
-                for s in 0..set.stages.len() {
-                    let e = p.errors[s][m];
-                    cells.push(Cell::text(&format!("{:.4}", p.distance(s, m))));
-                    cells.extend(e.iter().map(|v| Cell::text(&format!("{v:.4}"))));
-                    if let Some(o) = &p.orientation {
-                        cells.push(Cell::text(&format!("{:.4}", nalgebra::Vector3::from(o[s]).norm())));
-                    }
-                }
-                cells.push(Cell::text(&format!("{:.2}", p.whitened)));
-                cells.push(Cell::text(&format!("{:.2}", p.worst)));
-                cells.push(Cell::text(if p.flagged { "yes" } else { "no" }));
-                Row { cells, class: if p.flagged { "flagged" } else { "" } }
-            })
-            .collect();
-        let head: Vec<&str> = head.iter().map(String::as_str).collect();
-        out.push_str(&table("poses", Some(&set.name), "", &head, &rows));
-        out.push_str("</details>\n");
-    }
-    out
-}
-
 /// Every residual of each set of observations or views (`sets`), a collapsible section per
 /// set: its file and line, what it is, each stage's residual (mm for a length, deg for an
 /// angle: signed for an observation, a norm for a view), whitened, and the flag; flagged rows
@@ -352,14 +303,9 @@ pub fn residual_details(sets: &[&ResidualSet]) -> String {
 }
 
 /// The page of a report that has only text (`evaluate`'s): `text` as printed, then the
-/// `figures` (`(file name, SVG text)`) inline with their captions, then every pose of `sets`
-/// (a marker file's) and every residual of `residuals` (observations', views').
-pub fn page(
-    title: &str,
-    text: &str,
-    (sets, residuals): (&[&SetEvaluation], &[&ResidualSet]),
-    figures: &[(String, String)],
-) -> String {
+/// `figures` (`(file name, SVG text)`) inline with their captions, then every residual of
+/// `residuals` (markers', observations', views').
+pub fn page(title: &str, text: &str, residuals: &[&ResidualSet], figures: &[(String, String)]) -> String {
     let mut out = start(title, "");
     let _ =
         writeln!(out, "<section id=\"report\">\n<h2>Report</h2>\n<pre>{}</pre>\n</section>", escape(text));
@@ -367,7 +313,7 @@ pub fn page(
         let _ =
             writeln!(out, "<section id=\"figures\">\n<h2>Figures</h2>\n{}</section>", self::figures(figures));
     }
-    let every = poses(sets) + &residual_details(residuals);
+    let every = residual_details(residuals);
     let _ = writeln!(out, "<section id=\"poses\">\n<h2>Every pose</h2>\n{every}</section>");
     out.push_str(end());
     out

@@ -11,7 +11,6 @@ pub mod files_page;
 pub mod html;
 pub mod instruments;
 pub mod observations;
-pub mod poses;
 pub mod replication;
 pub mod residuals;
 pub mod study;

@@ -1,8 +1,7 @@
 //! The residuals of a calibration from observation files ([`crate::calibration::kinds`]) or
 //! from a tree's views ([`crate::calibration::tree`]), one row per observation or view, where
 //! it is in its file and at which joint values: the CSV of `--poses-csv` and the figures of
-//! `--figures`, as [`poses`](super::poses) and [`figures`](super::figures) give them for a
-//! marker file.
+//! `--figures`.
 
 use super::figures::{Against, Bars, FigureError, against_figure, bar_figure, density_figure};
 use crate::calibration::FLAG_AT;
@@ -189,10 +188,10 @@ pub fn residuals_csv(sets: &[&ResidualSet], joints: &[Joint]) -> String {
     for set in sets {
         for r in &set.residuals {
             let mut cells = vec![
-                super::poses::csv_cell(&set.name),
-                super::poses::csv_cell(&r.file),
+                csv_cell(&set.name),
+                csv_cell(&r.file),
                 r.line.to_string(),
-                super::poses::csv_cell(&r.kind),
+                csv_cell(&r.kind),
                 r.pose.to_string(),
                 r.pose_b.map_or_else(String::new, |b| b.to_string()),
             ];
@@ -308,8 +307,7 @@ fn joint_figures(
 
 /// For a model with masses, `error-vs-torque-<joint>.svg` per joint: each residual at the last
 /// stage against the load gravity puts on the joint at its pose (N·m; N for a prismatic
-/// joint), computed with `model` (the calibrated one), as a marker file's
-/// [`torque_figures`](super::figures::torque_figures): a compliance left out of the model shows
+/// joint), computed with `model` (the calibrated one): a compliance left out of the model shows
 /// as a slope. Nothing without masses, nor for a joint no pose loads (a vertical first axis).
 pub fn residual_torque_figures(
     sets: &[&ResidualSet],
@@ -424,4 +422,13 @@ fn stage(sets: &[&ResidualSet]) -> String {
 /// A figure that could not be drawn.
 fn error(name: &str, message: String) -> FigureError {
     FigureError { name: name.to_string(), message }
+}
+
+/// A CSV cell, quoted if it holds a comma or a quote.
+pub(crate) fn csv_cell(text: &str) -> String {
+    if text.contains([',', '"', '\n']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
 }

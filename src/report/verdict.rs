@@ -3,104 +3,9 @@
 //! plain words, grouped by why, before the algebraic combinations. Typed, so that text, JSON
 //! and HTML render the same data.
 
-use crate::calibration::{Cause, Confounder, ErrorStats, Held, SetEvaluation, Warning};
+use crate::calibration::{Cause, Confounder, Held, Warning};
 use serde::Serialize;
 use std::fmt::Write;
-
-/// What a scored set is to the calibration.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Role {
-    /// The poses fitted: an in-sample figure.
-    Training,
-    /// A held-out file (`--validate`), scored only.
-    HeldOut,
-    /// Every held-out file pooled.
-    Pooled,
-    /// K-fold cross-validation of the training poses (`--folds`): each pose scored by the fit
-    /// of the others.
-    CrossValidation,
-}
-
-impl Role {
-    /// In words, after the set's name.
-    pub fn words(self) -> &'static str {
-        match self {
-            Self::Training => "fitted, in-sample",
-            Self::HeldOut => "held out",
-            Self::Pooled => "the held-out files together",
-            Self::CrossValidation => "each pose held out once",
-        }
-    }
-}
-
-/// One set's verdict: the marker position error before and after calibration, `[before,
-/// after]`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct SetVerdict {
-    /// The set (`training`, a file, `held out, pooled`, `5-fold cross-validation, nested`).
-    pub set: String,
-    /// What it is to the calibration.
-    pub role: Role,
-    /// Its poses (for cross-validation, the training poses, each held out once).
-    pub poses: usize,
-    /// RMS of the marker distances, before and after (mm).
-    pub rms_mm: [f64; 2],
-    /// Largest marker distance, before and after (mm).
-    pub max_mm: [f64; 2],
-    /// A probe's orientation error's RMS, before and after (deg).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub orientation_rms_deg: Option<[f64; 2]>,
-    /// Its largest, before and after (deg).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub orientation_max_deg: Option<[f64; 2]>,
-    /// The poses flagged after calibration ([`crate::calibration::FLAG_AT`] standard
-    /// deviations out); none for cross-validation, which keeps no poses.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub flagged: Option<usize>,
-}
-
-impl SetVerdict {
-    /// The verdict of `set` (its first stage before, its last after) in `role`, of `poses`
-    /// poses (a pooled set keeps none of its own).
-    pub fn of(set: &SetEvaluation, role: Role, poses: usize) -> Self {
-        let ends = |stats: &[ErrorStats]| match (stats.first(), stats.last()) {
-            (Some(b), Some(a)) => ([b.rms, a.rms], [b.max, a.max]),
-            _ => ([f64::NAN; 2], [f64::NAN; 2]),
-        };
-        let (rms_mm, max_mm) = ends(&set.pooled);
-        let orientation = set.orientation.as_deref().map(ends);
-        Self {
-            set: set.name.clone(),
-            role,
-            poses,
-            rms_mm,
-            max_mm,
-            orientation_rms_deg: orientation.map(|o| o.0),
-            orientation_max_deg: orientation.map(|o| o.1),
-            flagged: (role != Role::Pooled).then(|| set.flagged().count()),
-        }
-    }
-
-    /// A cross-validation's verdict, `poses` the training poses.
-    pub fn cross_validation(label: &str, poses: usize, before: &ErrorStats, after: &ErrorStats) -> Self {
-        Self {
-            set: label.to_string(),
-            role: Role::CrossValidation,
-            poses,
-            rms_mm: [before.rms, after.rms],
-            max_mm: [before.max, after.max],
-            orientation_rms_deg: None,
-            orientation_max_deg: None,
-            flagged: None,
-        }
-    }
-
-    /// The RMS's fall, before over after.
-    pub fn improvement(&self) -> f64 {
-        self.rms_mm[0] / self.rms_mm[1]
-    }
-}
 
 /// The warnings of one cause, counted.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -117,61 +22,6 @@ impl WarningCount {
     /// The count of `warning`.
     pub fn of(warning: &Warning) -> Self {
         Self { cause: warning.cause(), count: warning.count(), about: warning.headline() }
-    }
-}
-
-/// What a report leads with.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Verdict {
-    /// Whether the fit converged (a stopping rule met).
-    pub converged: bool,
-    /// The sets: training, each held-out file, the held-out files pooled, cross-validation.
-    pub sets: Vec<SetVerdict>,
-    /// The poses flagged, over every set that keeps its poses.
-    pub flagged: usize,
-    /// Each warning's cause and count, in the report's order.
-    pub warnings: Vec<WarningCount>,
-}
-
-impl Verdict {
-    /// The verdict of `sets`, the warnings `warnings`.
-    pub fn new(converged: bool, sets: Vec<SetVerdict>, warnings: &[Warning]) -> Self {
-        let flagged = sets.iter().filter_map(|s| s.flagged).sum();
-        Self { converged, sets, flagged, warnings: warnings.iter().map(WarningCount::of).collect() }
-    }
-
-    /// The set a user decides from: the last held-out one (the pooled files, else the one
-    /// file), else cross-validation, else training.
-    pub fn headline(&self) -> Option<&SetVerdict> {
-        let held = |role| self.sets.iter().rev().find(|s| s.role == role);
-        held(Role::Pooled)
-            .or_else(|| held(Role::HeldOut))
-            .or_else(|| held(Role::CrossValidation))
-            .or_else(|| held(Role::Training))
-    }
-
-    /// The verdict as text: a table of the sets, the flags, the warnings by cause.
-    pub fn text(&self) -> String {
-        let pair = |v: [f64; 2], unit: &str| format!("{:.4} -> {:.4} {unit}", v[0], v[1]);
-        // (label, poses, RMS, max, flagged) per row: a set's position, a probe's orientation
-        let mut rows: Vec<[String; 5]> = vec![["set", "poses", "RMS", "max", "flagged"].map(String::from)];
-        for s in &self.sets {
-            let label = format!("{} ({})", s.set, s.role.words());
-            let flagged = s.flagged.map_or("-".to_string(), |f| format!("{f} of {}", s.poses));
-            rows.push([
-                label.clone(),
-                s.poses.to_string(),
-                pair(s.rms_mm, "mm"),
-                pair(s.max_mm, "mm"),
-                flagged,
-            ]);
-            if let (Some(rms), Some(max)) = (s.orientation_rms_deg, s.orientation_max_deg) {
-                let label = format!("{label}, orientation");
-                rows.push([label, String::new(), pair(rms, "deg"), pair(max, "deg"), String::new()]);
-            }
-        }
-        table("verdict, the marker position error before -> after calibration:", &rows)
-            + &warnings_text(&self.warnings)
     }
 }
 
@@ -420,35 +270,5 @@ mod tests {
         let text = held_text(&held);
         assert!(text.starts_with("held fixed (5 parameters):\n  j1.theta, j1.beta: with the base"), "{text}");
         assert!(text.ends_with("absorb it):\n  j1.theta - base.rz\n  j1.beta - base.rz\n"), "{text}");
-    }
-
-    /// The headline set is the pooled held-out one, else a held-out file, else k-fold, else
-    /// training; flags are summed over the sets that keep poses.
-    #[test]
-    fn the_headline_is_the_most_held_out_set() {
-        let set = |name: &str, role, flagged| SetVerdict {
-            set: name.into(),
-            role,
-            poses: 10,
-            rms_mm: [2.0, 0.5],
-            max_mm: [4.0, 1.0],
-            orientation_rms_deg: None,
-            orientation_max_deg: None,
-            flagged,
-        };
-        let mut sets =
-            vec![set("training", Role::Training, Some(2)), set("5-fold", Role::CrossValidation, None)];
-        let v = Verdict::new(true, sets.clone(), &[]);
-        assert_eq!((v.headline().unwrap().set.as_str(), v.flagged), ("5-fold", 2));
-        sets.push(set("a.csv", Role::HeldOut, Some(1)));
-        let v = Verdict::new(true, sets.clone(), &[Warning::SigmaIgnored]);
-        assert_eq!((v.headline().unwrap().set.as_str(), v.flagged), ("a.csv", 3));
-        assert_eq!(v.sets[0].improvement(), 4.0);
-        assert_eq!(v.warnings[0].cause, Cause::SigmaIgnored);
-        let text = v.text();
-        assert!(text.contains("training (fitted, in-sample)"), "{text}");
-        assert!(text.contains("2.0000 -> 0.5000 mm"), "{text}");
-        assert!(text.contains("2 of 10"), "{text}");
-        assert!(text.contains("     1  feasible GLS ignored the sigma column"), "{text}");
     }
 }

@@ -15,7 +15,7 @@
 //!    Sigma_q)` (drawn anew at every pose), and the instrument's own noise `n_m ~ N(0,
 //!    sigma_i^2)` on each measured number:
 //!    - a laser tracker: the tool point's position `p + n_m` (3 numbers), calibrated by
-//!      [`calibrate`] (registration, base, marker and joints; the tracker's frame is the
+//!      [`calibrate_kinds`] as a marker file (registration, base, marker and joints; the tracker's frame is the
 //!      robot's base frame, which the calibration does not know);
 //!    - a ball bar (or any distance to a fixed pivot `c`): `|p - c| + n_m`;
 //!    - a length artefact: `|p_a - p_b| + n_m` between two configurations;
@@ -87,11 +87,9 @@
 use super::{ErrorSizes, Redraw, SimulationError, StudyError, TEST_STREAM, draw_errors, normal, rng, stats};
 use crate::calibration::kinds::camera::{isometry, placement};
 use crate::calibration::kinds::{CameraSite, KindData, KindOptions, Observation, calibrate_kinds};
-use crate::calibration::{
-    CalibrationError, Gauge, JointParams, Loss, Measurements, Options, calibrate, register,
-};
+use crate::calibration::{CalibrationError, JointParams, register};
 use crate::error::FieldError;
-use crate::estimation::{Estimator, MeasurementNoise, NoiseModel, RefineOptions};
+use crate::estimation::{Estimator, RefineOptions};
 use crate::kinematics::{Chain, ChainAt};
 use crate::limits::{
     MAX_ANGLE_DEG, MAX_INSTRUMENT_WORK, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS_PER_CASE, MAX_STUDY_WORK,
@@ -840,23 +838,14 @@ impl Campaign<'_> {
         let predicted: Vec<Vector3<f64>> = match &instrument.kind {
             InstrumentKind::Tracker => {
                 let data = self.tracker(&real, count, instrument.sigma, declared, &mut rng);
-                let options = Options {
-                    estimator: Estimator::Wls,
-                    noise: Some(NoiseModel::diagonal(
-                        &study.joint_sigmas,
-                        MeasurementNoise::isotropic(declared, 0.0),
-                    )),
-                    joints: JointParams::All,
-                    estimate_base: true,
-                    estimate_markers: true,
+                let options = KindOptions {
+                    joint_noise: Some(noise_q),
                     markers: vec![study.tool()],
-                    refine: RefineOptions::default(),
-                    prior: Vec::new(),
-                    loss: Loss::Squared,
-                    gauge: Gauge::default(),
+                    tool: study.tool(),
+                    ..KindOptions::default()
                 };
                 let calibrated =
-                    calibrate(&study.robot, &data, &options).map_err(calibration_error)?.calibrated;
+                    calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?.calibrated;
                 self.tool_points(&calibrated, &Isometry3::identity())
             }
             kind => {
@@ -930,24 +919,26 @@ impl Campaign<'_> {
         sigma: f64,
         declared: f64,
         rng: &mut ChaCha8Rng,
-    ) -> Measurements {
+    ) -> KindData {
         let joints = self.study.robot.uniform_configurations(count, rng);
-        let markers = joints
-            .iter()
-            .map(|q| {
-                let p = self.at_noisy(real, q, rng);
-                vec![p + Vector3::new(normal(rng), normal(rng), normal(rng)) * sigma]
-            })
-            .collect();
-        Measurements {
-            joints,
-            markers,
-            marker_ids: vec![1],
-            sigma: Some(vec![declared; count]),
-            orientations: None,
-            lines: (1..=count).collect(),
-            ignored: Vec::new(),
+        let mut data = KindData::default();
+        for (pose, q) in joints.iter().enumerate() {
+            let p = self.at_noisy(real, q, rng);
+            let measured = p + Vector3::new(normal(rng), normal(rng), normal(rng)) * sigma;
+            for axis in 0..3 {
+                let sigma = declared;
+                data.observations.push(Observation::Marker {
+                    marker: 0,
+                    axis,
+                    pose,
+                    measured: measured[axis],
+                    sigma,
+                });
+                data.lines.push(pose + 1);
+            }
         }
+        data.joints = joints;
+        data
     }
 
     /// `count` observations of instrument `i` (not a tracker) with its noise, declared

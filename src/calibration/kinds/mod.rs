@@ -15,7 +15,7 @@
 //!   coordinate is: `f_k = e_c . p_m(q_k, x)`, `g_k = e_c`. The tool point (of every other
 //!   kind) is then one more point after the markers. Markers see the measuring frame: the base
 //!   is estimated, and starts where the rigid registration (Kabsch) of the nominal markers onto
-//!   the measured ones puts it, as in [`calibrate`](super::calibrate); the "before" fit then
+//!   the measured ones puts it; the "before" fit then
 //!   fits the base and the points on the last link with the set-up, the robot's joints nominal.
 //!   With angles (roll, pitch, yaw) the tool after the markers is a frame, its rotation
 //!   estimated too ([`Chain::markers_and_probe`]); with a camera's views, the camera's (or
@@ -141,19 +141,16 @@ pub struct KindOptions {
     /// Estimate the tool point on the last link.
     pub estimate_tool: bool,
     /// Estimate the base where the data see it (markers, coordinates), registered on the
-    /// markers first (`--fixed-base` clears it: the measuring frame is the model's base frame,
-    /// as [`Options::estimate_base`](super::Options::estimate_base)).
+    /// markers first (`--fixed-base` clears it: the measuring frame is the model's base frame).
     pub estimate_base: bool,
-    /// Estimate the markers' positions on the last link (`--fixed-markers` clears it, as
-    /// [`Options::estimate_markers`](super::Options::estimate_markers)).
+    /// Estimate the markers' positions on the last link (`--fixed-markers` clears it).
     pub estimate_markers: bool,
     /// The tool point's nominal position (mm) in the model's marker frame; unused when a
     /// camera's views are the only observations (the camera's or target's mounting is then in
     /// the marker frame itself).
     pub tool: Vector3<f64>,
     /// The markers' nominal positions (mm) in the model's marker frame, the `k`-th marker
-    /// number `k + 1` (as `calibrate`'s [`Options::markers`](super::Options::markers));
-    /// missing ones start at its origin. Used only with marker observations.
+    /// number `k + 1` (`--marker`); missing ones start at its origin. Used only with marker observations.
     pub markers: Vec<Vector3<f64>>,
     /// Gauss-Newton settings.
     pub refine: RefineOptions,
@@ -1778,7 +1775,7 @@ impl KindCalibration {
 
 /// Calibrate `model` from distances, contacts, coordinates, cameras' views and marker
 /// positions: with markers, the base first placed by the rigid registration of the nominal
-/// markers onto the measured ones (Kabsch, as [`calibrate`](super::calibrate) does); the
+/// markers onto the measured ones (Kabsch); the
 /// set-up fitted with the robot nominal, with markers the base and the points on the last link
 /// too ("before"), then the robot's parameters asked for and the set-up together ("after");
 /// what the observations cannot see held and said ([`KindCalibration::unseen`]), what the

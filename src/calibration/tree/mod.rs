@@ -33,7 +33,7 @@
 //! every branch's next joint origin (`O -> G O` for the head's first joint and each arm's)
 //! leaves every view too: 6 combinations of those origins, which the rank-revealing solve
 //! holds, with what each mounting cannot be told from (the set-up is held last, as the gauge of
-//! [`calibrate`](super::calibrate) orders it). What is recovered is every branch's motion
+//! [`calibrate_kinds`](super::kinds::calibrate_kinds) orders it). What is recovered is every branch's motion
 //! relative to the others: on held-out poses, every view, and the pose of any camera or target
 //! relative to any other (one hand's target from the other's, never measured).
 //!
