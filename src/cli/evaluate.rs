@@ -2,7 +2,7 @@
 //! the one observation pipeline ([`KindOptions::as_it_stands`]): marker files with the model's
 //! base and markers, other files with their set-up fitted; the robot held in both.
 
-use super::observations::Noise;
+use super::observations::{Noise, marker_ids_known, named_markers};
 use super::request::{EvaluateRequest, NoiseSource};
 use anyhow::{Context, Result, bail};
 use nalgebra::Vector3;
@@ -65,21 +65,17 @@ fn model_markers(request: &EvaluateRequest) -> Result<Vec<(usize, Vector3<f64>)>
     })
 }
 
-/// The files with the markers `--markers` names only (`ids`, numbers from 1), their other
-/// observations kept; a number that no file's marker has is refused, and so is a file with
-/// markers, none of them named.
+/// The files with the markers `--markers` names only ([`named_markers`]); a number that no
+/// file's marker has is refused.
 fn chosen_markers<'a>(
     files: Vec<(&'a Path, KindData)>,
     ids: Option<&[usize]>,
 ) -> Result<Vec<(&'a Path, KindData)>> {
-    let Some(ids) = ids else { return Ok(files) };
-    let have: std::collections::BTreeSet<usize> = files.iter().flat_map(|(_, d)| d.markers()).collect();
-    super::observations::marker_ids_known(ids, &have.into_iter().collect::<Vec<_>>())?;
-    let chosen = |(path, data): (&'a Path, KindData)| match data.with_markers(ids) {
-        Some(kept) => Ok((path, kept)),
-        None => bail!("{}: --markers {ids:?} names none of its markers", path.display()),
-    };
-    files.into_iter().map(chosen).collect()
+    if let Some(ids) = ids {
+        let have: std::collections::BTreeSet<usize> = files.iter().flat_map(|(_, d)| d.markers()).collect();
+        marker_ids_known(ids, &have.into_iter().collect::<Vec<_>>())?;
+    }
+    named_markers(files, ids)
 }
 
 /// A file's data scored as it stands ([`KindOptions::as_it_stands`]: a marker file with the

@@ -41,18 +41,16 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
         io::check_memory(data.memory_estimate(model.params().len()), &what, "calibrate on fewer poses")?;
         check_and_warn(request, data)?;
         method = estimator_for(request, data.noise_given(noise.joint.is_some()))?;
-        let ids = request.marker_ids.as_deref();
-        let markers = ids.map(|_| data.markers()).unwrap_or_default();
-        chosen_markers(sessions, ids, &markers)?
+        if let Some(ids) = &request.marker_ids {
+            marker_ids_known(ids, &data.markers())?;
+        }
+        named_markers(sessions, request.marker_ids.as_deref())?
     };
     let options = kind_options(request, &model, noise, method)?;
     let held_out = (request.validate.iter())
         .map(|path| Ok((path.display().to_string(), read(path)?)))
         .collect::<Result<Vec<_>>>()?;
-    let held_out = match &request.marker_ids {
-        Some(ids) => held_out.into_iter().map(|(name, d)| (name, only_markers(&d, ids))).collect(),
-        None => held_out,
-    };
+    let held_out = named_markers(held_out, request.marker_ids.as_deref())?;
     let choices =
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds);
     let fitting = robocal::pipeline::Fitting::new(method == Method::Feasible, choices, request.folds);
@@ -148,16 +146,19 @@ fn check_and_warn(request: &CalibrateObservationsRequest, data: &KindData) -> Re
     Ok(())
 }
 
-/// The files with the markers `--markers` names only (`ids`, numbers from 1), or as they are;
-/// a number that no file's marker has is refused (`have`: the files' markers, less one).
-fn chosen_markers(
-    sessions: Vec<(String, KindData)>,
+/// The files with the markers `--markers` names only (`ids`, numbers from 1: their positions
+/// and orientations, [`KindData::with_markers`]), their other observations kept, or as they
+/// are; a file with markers, none of them named, is refused.
+pub(super) fn named_markers<N: AsRef<Path>>(
+    files: Vec<(N, KindData)>,
     ids: Option<&[usize]>,
-    have: &[usize],
-) -> Result<Vec<(String, KindData)>> {
-    let Some(ids) = ids else { return Ok(sessions) };
-    marker_ids_known(ids, have)?;
-    Ok(sessions.into_iter().map(|(name, d)| (name, only_markers(&d, ids))).collect())
+) -> Result<Vec<(N, KindData)>> {
+    let Some(ids) = ids else { return Ok(files) };
+    let chosen = |(name, data): (N, KindData)| match data.with_markers(ids) {
+        Some(kept) => Ok((name, kept)),
+        None => bail!("{}: --markers {ids:?} names none of its markers", name.as_ref().display()),
+    };
+    files.into_iter().map(chosen).collect()
 }
 
 /// `--markers ids` (numbers from 1) against the files' markers `have` (numbers less one): a
@@ -171,11 +172,6 @@ pub(super) fn marker_ids_known(ids: &[usize], have: &[usize]) -> Result<()> {
         );
     }
     Ok(())
-}
-
-/// `data` with the markers numbered `ids` (from 1) only; its other observations all kept.
-fn only_markers(data: &KindData, ids: &[usize]) -> KindData {
-    data.keeping(|o| !matches!(o, Observation::Marker { marker, .. } if !ids.contains(&(marker + 1))))
 }
 
 /// The noise of observation files: the joint noise `Sigma_q` (if given), the sigmas of the rows
