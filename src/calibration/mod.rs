@@ -1,15 +1,17 @@
-//! Calibrating a real robot from measured marker positions.
+//! Calibrating a real robot from what was measured: marker positions, a probe's poses,
+//! distances, plane contacts, coordinates and camera views through one pipeline ([`kinds`]),
+//! a tree's views ([`tree`]), and the choices made from the data over both ([`front`]:
+//! [`selection`], [`prior_scale`], [`robust`] losses).
 //!
-//! 1. Registration: the measuring device never shares the robot's frame, so the base is first
-//!    placed by the best rigid fit (Kabsch 1976) of the nominal marker positions onto the
-//!    measured ones.
-//! 2. "Before": the base and the markers fitted, the joints nominal. This is the robot as it
-//!    is, seen from the device; its errors are what calibration has to beat. It is fitted by
-//!    ordinary least squares whatever the estimator, so that it minimises the very distances
-//!    it reports and does not depend on the weighting chosen for step 3.
-//! 3. "After": the joint parameters estimated with the base and markers, by Gauss-Newton on
-//!    the chosen estimator. Parameters that the poses cannot tell apart are found by the
-//!    rank-revealing solve and held at their values, deterministically (QR with column
+//! 1. Registration: the measuring device never shares the robot's frame, so where markers are
+//!    measured the base is first placed by the best rigid fit (Kabsch 1976) of the nominal
+//!    marker positions onto the measured ones.
+//! 2. "Before": the set-up (base, markers, tool point, pivots, planes, cameras' mountings)
+//!    fitted with the robot's joints nominal. This is the robot as it is, seen from the
+//!    device; its errors are what calibration has to beat.
+//! 3. "After": the joint parameters estimated with the set-up, by Gauss-Newton (a trust
+//!    region) on the chosen estimator. Parameters that the poses cannot tell apart are found by
+//!    the rank-revealing solve and held at their values, deterministically (QR with column
 //!    pivoting, ties to the earlier parameter); their combinations are reported.
 //!
 //! Errors are in mm and rad inside, and are folded into a calibrated model at the end.
