@@ -504,27 +504,20 @@ fn the_json_schema_is_documented_and_every_documented_key_is_real() {
     }
 }
 
+/// Feasible GLS stopped after one reweighting has not settled: the report's first line says so,
+/// and the report is not called converged.
 #[test]
 fn fgls_says_when_its_variance_components_did_not_settle() {
     let model = RobotModel::preset("puma560").unwrap();
-    let data =
-        robocal::io::load_measurements(Path::new("examples/puma560-measurements.csv"), &model, None).unwrap();
-    let options = robocal::calibration::Options {
-        estimator: robocal::estimation::Estimator::Ols,
-        noise: None,
-        joints: robocal::calibration::JointParams::All,
-        estimate_base: true,
-        estimate_markers: true,
-        markers: vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)],
-        prior: Vec::new(),
-        loss: robocal::calibration::Loss::Squared,
-        refine: Default::default(),
-        gauge: Default::default(),
-    };
+    let text = std::fs::read_to_string("examples/puma560-measurements.csv").unwrap();
+    let data = crate::marker_data(&text, &model, None);
+    let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
+    let options = crate::marker_options(&model, robocal::estimation::Estimator::Ols, None, &markers);
     let feasible = robocal::calibration::FeasibleOptions { max_iterations: 1, ..Default::default() };
-    let c = robocal::calibration::calibrate_feasible(&model, &data, &options, &feasible).unwrap();
+    let c = robocal::calibration::kinds::calibrate_kinds_feasible(&model, &data, &options, &feasible).unwrap();
     assert_eq!(c.noise_settled, Some(false));
-    let report = robocal::report::calibration::CalibrationReport::new(&c, "data", "fgls", Vec::new(), None);
+    let counts = (data.observations.len(), data.joints.len());
+    let report = robocal::report::observations::ObservationsReport::new(&c, "data", counts, "fgls", Vec::new());
     assert!(!report.converged);
     let text = report.text();
     assert!(
