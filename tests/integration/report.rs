@@ -514,10 +514,12 @@ fn fgls_says_when_its_variance_components_did_not_settle() {
     let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
     let options = crate::marker_options(&model, robocal::estimation::Estimator::Ols, None, &markers);
     let feasible = robocal::calibration::FeasibleOptions { max_iterations: 1, ..Default::default() };
-    let c = robocal::calibration::kinds::calibrate_kinds_feasible(&model, &data, &options, &feasible).unwrap();
+    let c =
+        robocal::calibration::kinds::calibrate_kinds_feasible(&model, &data, &options, &feasible).unwrap();
     assert_eq!(c.noise_settled, Some(false));
     let counts = (data.observations.len(), data.joints.len());
-    let report = robocal::report::observations::ObservationsReport::new(&c, "data", counts, "fgls", Vec::new());
+    let report =
+        robocal::report::observations::ObservationsReport::new(&c, "data", counts, "fgls", Vec::new());
     assert!(!report.converged);
     let text = report.text();
     assert!(
