@@ -869,6 +869,7 @@ fn kind_options(model: &RobotModel, flags: &Flags, request: &Request) -> PyResul
             |t| Vector3::from(t) * request.noise_units.length_scale(),
         ),
         markers: flags.marker_mm(request.noise_units),
+        probe: None,
         refine: RefineOptions { max_iterations: flags.iterations, ..RefineOptions::default() },
     })
 }

@@ -225,6 +225,7 @@ fn kind_options(
         estimate_markers: request.estimate_markers,
         tool: request.tool.unwrap_or_else(|| model.tool_point_in_marker_frame()),
         markers: request.markers.clone(),
+        probe: None,
         refine: RefineOptions { max_iterations: request.iterations, ..RefineOptions::default() },
     })
 }

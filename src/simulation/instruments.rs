@@ -863,6 +863,7 @@ impl Campaign<'_> {
                     estimate_markers: true,
                     tool: study.tool(),
                     markers: Vec::new(),
+                    probe: None,
                     refine: RefineOptions::default(),
                 };
                 let c = calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?;

@@ -6,8 +6,8 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::Held;
 use robocal::calibration::kinds::{
-    KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
-    calibrate_kinds_feasible, evaluate_kinds,
+    DEFAULT_SIGMA_ANGLE_DEG, KindCalibration, KindData, KindOptions, KindProblem, Observation,
+    RowSigmaDefaults, SetUp, calibrate_kinds, calibrate_kinds_feasible, evaluate_kinds,
 };
 use robocal::calibration::{JointParams, Scored, Warning};
 use robocal::estimation::{
@@ -430,15 +430,16 @@ fn a_probe_with_orientation_calibrates_its_mounting_too() {
     // The probe's orientation error falls too.
     let orientation = held_out.angles.expect("a probe's orientation errors");
     assert!(orientation.1 < orientation.0, "orientation error falls: {orientation:?}");
-    // The calibrated model scored as it stands gives the same position residuals, observation
-    // by observation. (Its orientations are not compared: scoring as it stands starts a probe's
-    // rotation from the held-out data, not from the model's tool frame.)
+    // The calibrated model scored as it stands gives the same residuals, observation by
+    // observation, its orientations too: the probe's frame is the model's tool frame, not one
+    // turned to the held-out data.
     let as_it_stands =
         KindOptions::as_it_stands(&calibration.calibrated, &calibration.marker_positions(), &validation)
             .unwrap();
     let scored = evaluate_kinds(&calibration.calibrated, &validation, &as_it_stands).unwrap();
     assert_eq!(held_out.observations.len(), scored.observations.len());
-    for (a, b) in held_out.observations.iter().zip(&scored.observations).filter(|(a, _)| a.kind == "marker") {
+    assert!(held_out.observations.iter().any(|a| a.kind != "marker"), "orientations are scored");
+    for (a, b) in held_out.observations.iter().zip(&scored.observations) {
         assert!(
             (a.after - b.before).abs() < 1e-9,
             "line {} {}: {} against {}",
@@ -539,6 +540,32 @@ fn probe_options(nominal: &RobotModel, estimator: Estimator, noise: Option<&Nois
 /// The probe's noise: the joints', 0.01 mm and 0.002 deg.
 fn probe_noise() -> NoiseModel {
     NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(0.01, 0.002f64.to_radians()))
+}
+
+/// A noise file with a device and no `sigma_orientation_deg` gives a probe's orientation rows
+/// the device's typical figure (a laser tracker's 6-DOF probe: 0.01 deg); its own value wins
+/// when given; without a device nothing is given, and the rows keep the default, counted as
+/// assumed.
+#[test]
+fn a_devices_orientation_sigma_is_the_default_for_a_probe() {
+    let (nominal, _, training, _) = probe_campaign(53);
+    let spec = |text: &str| robocal::estimation::NoiseSpec::from_toml_str(text, &nominal).unwrap();
+    let joints = "joint_sigma = [0.007, 0.007, 0.007, 0.002, 0.002, 0.002]\nsigma_me_mm = 0.01\n";
+    let device = "[device]\nkind = \"laser-tracker\"\nposition_mm = [2500.0, 0.0, 300.0]\nsigma_r_mm = 0.01\n\
+                  k_ppm = 5.0\nsigma_angle_arcsec = 2.0\n";
+    let orientation_sigmas = |text: &str| -> Vec<f64> {
+        let defaults = RowSigmaDefaults::of_noise(&spec(text));
+        let data = KindData::from_csv_str_with(&training, &nominal, None, defaults).unwrap();
+        data.observations.iter().filter(|o| o.is_angle()).map(|o| o.sigma().to_degrees()).collect()
+    };
+    let with_device = orientation_sigmas(&format!("{joints}{device}"));
+    assert_eq!(with_device.len(), 3 * 80, "three orientation rows a pose");
+    assert!(with_device.iter().all(|s| (s - 0.01).abs() < 1e-12), "{:?}", &with_device[..3]);
+    let given = orientation_sigmas(&format!("{joints}sigma_orientation_deg = 0.003\n{device}"));
+    assert!(given.iter().all(|s| (s - 0.003).abs() < 1e-12), "{:?}", &given[..3]);
+    assert_eq!(RowSigmaDefaults::of_noise(&spec(joints)).angle_rad, None);
+    let default = orientation_sigmas(joints);
+    assert!(default.iter().all(|s| (s - DEFAULT_SIGMA_ANGLE_DEG).abs() < 1e-12), "{:?}", &default[..3]);
 }
 
 /// On 6-DOF data, ordinary least squares (with and without a noise model) and Gauss-Markov

@@ -177,19 +177,10 @@ proptest! {
                 prop_assert!(data.check(6).is_ok(), "{text:?}");
                 // A fit of what reads: a calibration or an error, never a panic.
                 let options = KindOptions {
-                    per_session: Vec::new(),
-                    prior: Vec::new(),
-                    loss: Default::default(),
-                    gauge: Default::default(),
-                    estimator: Estimator::Wls,
-                    joint_noise: None,
                     joints: JointParams::Offsets,
-                    estimate_tool: true,
-                    estimate_base: true,
-                    estimate_markers: true,
                     tool: Vector3::new(50.0, 0.0, 150.0),
-                    markers: Vec::new(),
                     refine: RefineOptions { max_iterations: 3, ..RefineOptions::default() },
+                    ..KindOptions::default()
                 };
                 let _ = calibrate_kinds(&puma(), &data, &options);
             }

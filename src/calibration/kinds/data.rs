@@ -62,9 +62,15 @@ impl RowSigmaDefaults {
         Self { length_mm: positive(length_mm), angle_rad: positive(angle_rad) }
     }
 
-    /// A noise file's: its `sigma_me_mm` and `sigma_orientation_deg` ([`positive`](Self::positive)).
+    /// A noise file's: its `sigma_me_mm`, and its `sigma_orientation_deg` or, where that is 0,
+    /// its device's typical orientation sigma ([`Device::sigma_orientation`](crate::estimation::Device::sigma_orientation));
+    /// each where above 0 ([`positive`](Self::positive)).
     pub fn of_noise(spec: &crate::estimation::NoiseSpec) -> Self {
-        Self::positive(spec.sigma_me, Some(spec.sigma_orientation))
+        let orientation = match (&spec.device, spec.sigma_orientation) {
+            (Some(device), 0.0) => device.sigma_orientation(),
+            (_, given) => given,
+        };
+        Self::positive(spec.sigma_me, Some(orientation))
     }
 }
 

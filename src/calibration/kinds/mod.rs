@@ -152,6 +152,11 @@ pub struct KindOptions {
     /// The markers' nominal positions (mm) in the model's marker frame, the `k`-th marker
     /// number `k + 1` (`--marker`); missing ones start at its origin. Used only with marker observations.
     pub markers: Vec<Vector3<f64>>,
+    /// Marker 1's frame on the last link (in the model's marker frame), where it is known (a
+    /// model's tool frame, scored as it stands): a 6-DOF probe's frame starts there. `None`: at
+    /// its nominal position, turned by the chordal mean of what each pose says the rotation is
+    /// (`R_arm(q)^-1 R_measured`).
+    pub probe: Option<Placement>,
     /// Gauss-Newton settings.
     pub refine: RefineOptions,
     /// Set-up parameters (names or patterns of [`SetUp::base_names`]: `point1.zero`,
@@ -182,6 +187,7 @@ impl Default for KindOptions {
             estimate_markers: true,
             tool: Vector3::zeros(),
             markers: Vec::new(),
+            probe: None,
             refine: RefineOptions::default(),
             per_session: Vec::new(),
             prior: Vec::new(),
@@ -2077,7 +2083,10 @@ pub(super) fn prepare(
     let probes = data.probes();
     let mut ends: Vec<MarkerEnd> = (markers.iter().zip(&nominal_markers))
         .map(|(&m, &at)| match probes.contains(&m) {
-            true => MarkerEnd::Frame(probe_mounting(&registered, at, data.orientations_of(m))),
+            true => MarkerEnd::Frame(match options.probe.filter(|_| m == 0) {
+                Some(given) => given,
+                None => probe_mounting(&registered, at, data.orientations_of(m)),
+            }),
             false => MarkerEnd::Point(at),
         })
         .collect();
@@ -2443,8 +2452,10 @@ impl KindOptions {
     /// marker measured at every pose), its base and its markers held as the model gives them:
     /// `markers` numbered from 1 (mm, in the last joint frame, as a model file's
     /// `[[markers]]`), each taken into the marker frame `F` as `F^-1 p`; none given, the tool
-    /// point is marker 1. Any other data (a marker file with empty cells among them) have their
-    /// set-up, with markers the base and the markers too, fitted.
+    /// point is marker 1; a 6-DOF probe's frame is the model's tool frame, where it has one,
+    /// taken into the marker frame as `F^-1 T` ([`KindOptions::probe`]). Any other data (a
+    /// marker file with empty cells among them) have their set-up, with markers the base and
+    /// the markers too, fitted.
     ///
     /// # Errors
     /// A marker of `data` that `markers` lacks.
@@ -2473,7 +2484,13 @@ impl KindOptions {
                 CalibrationError::Scoring(format!("the model has no marker {id} (it has {known:?})"))
             })?;
         }
-        Ok(Self { markers: held, estimate_base: false, estimate_markers: false, ..as_it_stands })
+        let probe = match &model.tool {
+            crate::model::Tool::Frame(t) if !data.probes().is_empty() => {
+                Some(Placement::from_isometry(&(frame.inverse() * t.isometry())))
+            }
+            _ => None,
+        };
+        Ok(Self { markers: held, probe, estimate_base: false, estimate_markers: false, ..as_it_stands })
     }
 }
 
