@@ -1090,6 +1090,11 @@ struct BlockJacobians {
     poses: Vec<usize>,
     stacked: Vec<f64>,
     positions: Vec<Vector3<f64>>,
+    /// Of points alone, for `V_k`: every point's manipulator Jacobian and pose at one pose,
+    /// and the walk's scratch ([`crate::kinematics::points_manipulator`]).
+    manipulators: Vec<nalgebra::Matrix6xX<f64>>,
+    ends: Vec<Isometry3<f64>>,
+    walked: Vec<Vector3<f64>>,
 }
 
 impl BlockJacobians {
