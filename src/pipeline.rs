@@ -161,9 +161,11 @@ pub trait Files: Front<Nested = Nested<Self::Score>> {
 
     /// The report of `chosen` fitted on `data` from the files `names` (and `files`, each with
     /// its observations) by `estimator`, with the held-out sets' and the cross-validation's
-    /// `scores`, and how the cross-validation was made (`cv`).
+    /// `scores`, and how the cross-validation was made (`cv`). The report may take what it
+    /// shows out of `chosen` rather than copy it: of observation files, the training score
+    /// (a residual per observation), the outcome's calibration then holding an empty one.
     fn report(
-        chosen: &ChosenFit<Self::Fit>,
+        chosen: &mut ChosenFit<Self::Fit>,
         fitted: (&Self::Data, &str, Vec<(String, usize)>),
         estimator: &str,
         scores: (Vec<(String, Self::Score)>, Option<CrossValidationReport>),
@@ -212,14 +214,17 @@ impl Files for Kinds<'_> {
         calibrate_kinds_feasible(self.0, data, options, feasible)
     }
 
+    /// The report of `chosen`, its training score moved into it (the calibration's left empty).
     fn report(
-        chosen: &ChosenFit<KindCalibration>,
+        chosen: &mut ChosenFit<KindCalibration>,
         (data, names, files): (&KindData, &str, Vec<(String, usize)>),
         estimator: &str,
         (scores, cv): (Vec<(String, Score)>, Option<CrossValidationReport>),
     ) -> ObservationsReport {
+        let training = std::mem::take(&mut chosen.calibration.training);
         let c = &chosen.calibration;
-        let mut report = ObservationsReport::new(c, names, Self::counts(data), estimator, scores);
+        let counts = Self::counts(data);
+        let mut report = ObservationsReport::with_training(c, training, names, counts, estimator, scores);
         report.cross_validation = cv;
         report = report.with_training_files(files).with_assumed_sigmas(data.assumed_sigmas);
         if let Some(path) = &chosen.path {
@@ -277,7 +282,7 @@ impl Files for Tree<'_> {
     }
 
     fn report(
-        chosen: &ChosenFit<TreeCalibration>,
+        chosen: &mut ChosenFit<TreeCalibration>,
         (data, names, files): (&TreeData, &str, Vec<(String, usize)>),
         estimator: &str,
         (scores, cv): (Vec<(String, TreeScore)>, Option<CrossValidationReport>),
@@ -299,7 +304,8 @@ impl Files for Tree<'_> {
 /// A calibration of files and its report (the command line's): of observation files
 /// or of a tree's views ([`TreeOutcome`]).
 pub struct Outcome<F: Files> {
-    /// The calibration.
+    /// The calibration (of observation files, its training score moved into the report's
+    /// first set, [`Files::report`]).
     pub calibration: F::Fit,
     /// The report: the training data, each held-out set and the cross-validation scored, the
     /// files fitted, the choices made.
@@ -358,7 +364,7 @@ pub fn calibrate_files<F: Files>(
     let data = F::join(sessions)?;
     let data: &F::Data = &data;
     let names = sessions.iter().map(|(name, _)| name.as_str()).collect::<Vec<_>>().join(", ");
-    let (chosen, estimator, folds) = match fitting {
+    let (mut chosen, estimator, folds) = match fitting {
         Fitting::Given { choices, folds } => {
             let context = match choices_in_words(choices) {
                 words if words.is_empty() => names.clone(),
@@ -393,7 +399,7 @@ pub fn calibrate_files<F: Files>(
         cv = Some(how);
     }
     let files = sessions.iter().map(|(name, file)| (name.clone(), F::counts(file).0)).collect();
-    let report = F::report(&chosen, (data, &names, files), estimator, (scores, cv));
+    let report = F::report(&mut chosen, (data, &names, files), estimator, (scores, cv));
     let report = F::with_predicted(report, &chosen.calibration, held_out).map_err(in_context(&names))?;
     Ok(Outcome { calibration: chosen.calibration, report })
 }

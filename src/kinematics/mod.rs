@@ -778,6 +778,89 @@ pub fn end_positions(chains: &[ChainAt], q: &[f64], positions: &mut [Vector3<f64
     });
 }
 
+/// The manipulator Jacobians `J_m = d(pose_m)/dq` and the poses of points that share their
+/// arm (one model's markers, [`Chain::ends_at_a_point`], with the same errors applied) at `q`,
+/// from one walk of the arm each way: `jacobians[m]` and `poses[m]` as
+/// [`ChainAt::manipulator_jacobian`] and [`ChainAt::pose`] of `chains[m]` give them, bit for
+/// bit. The walk back keeps one rotation `R` (a point's tail only translates, so `R` is every
+/// point's) and a position `p_m` per point (`walked`, scratch): each step does to `R` and to
+/// each `p_m` what it does to one point's frame, `p_m += R e_k v` for a translation, and a
+/// joint's column is the screw `(u x (0 - p_m), u)`, `u = R e_k`, turned into the world by
+/// `R^T`. The walk forwards is the arm's once, then each point's tail from its end frame
+/// (`end_positions`), the rotation the arm's.
+///
+/// # Panics
+/// If a point's tail rotates, the arms differ, or a size does not match.
+pub(crate) fn points_manipulator(
+    chains: &[ChainAt],
+    q: &[f64],
+    jacobians: &mut [Matrix6xX<f64>],
+    poses: &mut [Isometry3<f64>],
+    walked: &mut [Vector3<f64>],
+) {
+    let first = &chains[0];
+    assert_eq!(q.len(), first.dof, "q has one value per joint");
+    assert!(jacobians.len() == chains.len() && poses.len() == chains.len() && walked.len() == chains.len());
+    first.at_reached(q, |q| {
+        let mut r = Matrix3::identity();
+        for (p, at) in walked.iter_mut().zip(chains) {
+            assert_eq!(at.arm, first.arm, "points of one arm");
+            let mut frame = Frame::IDENTITY;
+            // The tail, undone: translations alone.
+            for resolved in at.steps[at.arm..].iter().rev() {
+                let Motion::Translate(k) = resolved.step.motion else {
+                    panic!("a point's tail only translates")
+                };
+                frame.translate(k, -(resolved.value + resolved.step.joint.map_or(0.0, |j| q[j])));
+            }
+            *p = frame.p;
+        }
+        for resolved in first.steps[..first.arm].iter().rev() {
+            let step = &resolved.step;
+            if let Some(col) = step.joint {
+                for (p, j) in walked.iter().zip(jacobians.iter_mut()) {
+                    let (linear, angular) = Frame { r, p: *p }.screw(step.motion, &Vector3::zeros());
+                    j.fixed_view_mut::<3, 1>(0, col).copy_from(&linear);
+                    j.fixed_view_mut::<3, 1>(3, col).copy_from(&angular);
+                }
+            }
+            undo_shared(resolved, q, &mut r, walked);
+        }
+        let end = seen_from_the_end(Frame { r, p: Vector3::zeros() });
+        for j in jacobians.iter_mut() {
+            to_world(&end.r, j);
+        }
+        let arm = walk(&first.steps[..first.arm], q, Frame::IDENTITY);
+        let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(arm.r));
+        for (pose, at) in poses.iter_mut().zip(chains) {
+            let end = walk(&at.steps[at.arm..], q, arm);
+            *pose = Isometry3::from_parts(Translation3::from(end.p), rotation);
+        }
+    });
+}
+
+/// Step `resolved` undone at `q` on frames that share their rotation `r` and differ in their
+/// positions `walked`, as [`back_from`] undoes it on each: a rotation turns `r` alone (once), a
+/// translation by `v` moves each position along `r`'s axis `k`, `p_m += R e_k (-v)`.
+fn undo_shared(resolved: &Resolved, q: &[f64], r: &mut Matrix3<f64>, walked: &mut [Vector3<f64>]) {
+    let mut frame = Frame { r: *r, p: Vector3::zeros() };
+    match (resolved.step.motion, resolved.step.joint) {
+        (Motion::Translate(k), joint) => {
+            let v = -(resolved.value + joint.map_or(0.0, |j| q[j]));
+            for p in walked.iter_mut() {
+                *p += r.column(k) * v;
+            }
+            return;
+        }
+        (Motion::Rotate(k), None) => frame.rotate(k, -resolved.sin_cos.0, resolved.sin_cos.1),
+        (Motion::Rotate(k), Some(j)) => {
+            let (s, c) = (resolved.value + q[j]).sin_cos();
+            frame.rotate(k, -s, c);
+        }
+    }
+    *r = frame.r;
+}
+
 /// Walk `steps` forwards at `q` from `frame`: the frame at their end.
 fn walk(steps: &[Resolved], q: &[f64], mut frame: Frame) -> Frame {
     for resolved in steps {

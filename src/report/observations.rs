@@ -263,11 +263,12 @@ fn parameter_rows(c: &KindCalibration) -> Vec<ParameterRow> {
 }
 
 /// The training poses `c`'s robust loss weighted below 0.1, by the line of each pose's first
-/// observation (a pose's observations come together, each with the pose's weight).
-fn down_weighted(c: &KindCalibration) -> Vec<DownWeighted> {
+/// observation (a pose's observations come together, each with the pose's weight) in
+/// `training` (`c`'s training score).
+fn down_weighted(c: &KindCalibration, training: &Score) -> Vec<DownWeighted> {
     c.robust.as_ref().map_or_else(Vec::new, |r| {
         let mut down: Vec<DownWeighted> = (r.down_weighted())
-            .map(|(k, weight)| DownWeighted { line: c.training.observations[k].line, weight })
+            .map(|(k, weight)| DownWeighted { line: training.observations[k].line, weight })
             .collect();
         down.dedup_by_key(|d| d.line);
         down
@@ -284,8 +285,23 @@ impl ObservationsReport {
         estimator: &str,
         held_out: Vec<(String, Score)>,
     ) -> Self {
+        Self::with_training(c, c.training.clone(), data, fitted, estimator, held_out)
+    }
+
+    /// [`ObservationsReport::new`] with `c`'s training score given (`training`, moved out of
+    /// `c` by the caller: a score holds a residual per observation, 48 MB at 100,000 poses of
+    /// two markers, and is not copied).
+    pub fn with_training(
+        c: &KindCalibration,
+        training: Score,
+        data: &str,
+        fitted: (usize, usize),
+        estimator: &str,
+        held_out: Vec<(String, Score)>,
+    ) -> Self {
         let parameters = parameter_rows(c);
-        let mut sets = vec![("training".to_string(), c.training.clone())];
+        let (down_weighted, markers) = (down_weighted(c, &training), marker_count(&training.observations));
+        let mut sets = vec![("training".to_string(), training)];
         sets.extend(held_out);
         let held: Vec<crate::calibration::Held> =
             c.fixed.iter().map(|f| f.clone().renamed(|n| point_names(n, c))).collect();
@@ -316,14 +332,14 @@ impl ObservationsReport {
             }),
             training_files: Vec::new(),
             loss: c.robust.as_ref().map(|r| r.loss.to_string()),
-            down_weighted: down_weighted(c),
+            down_weighted,
             selection: None,
             prior_scale: None,
             cross_validation: None,
             predicted: Vec::new(),
             assumed_sigmas: 0,
             fits: Fits::of(c, estimator),
-            markers: marker_count(&c.training.observations),
+            markers,
         };
         report.verdict = report.verdict_rows();
         report

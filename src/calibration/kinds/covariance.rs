@@ -5,8 +5,8 @@
 //! blocks are filled in parallel, each entry by the same arithmetic on any number of threads.
 
 use super::{BlockFrames, BlockJacobians, KindProblem};
-use crate::kinematics::ChainAt;
-use nalgebra::{DMatrix, Matrix6xX};
+use crate::kinematics::{ChainAt, Measured, points_manipulator};
+use nalgebra::{DMatrix, Isometry3, Matrix6xX, Vector3};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -123,6 +123,9 @@ impl BlockJacobians {
         let (poses, rows) = (problem.data.joints.len(), problem.measured().rows());
         self.values.clear();
         self.frames.clear();
+        if problem.measured() == Measured::Position && at.len() > 1 {
+            return self.fill_manipulator_points(problem, at, jacobian.ncols());
+        }
         for &n in &self.keys {
             let (at, q) = (&at[n / poses], &problem.data.joints[n % poses]);
             at.manipulator_jacobian(q, jacobian);
@@ -130,6 +133,35 @@ impl BlockJacobians {
                 self.values.extend(column.iter().take(rows));
             }
             self.frames.push(at.pose(q));
+        }
+    }
+
+    /// [`BlockJacobians::fill_manipulator`] of points alone (markers and the tool point, no
+    /// frame): every point of a pose from one walk of the arm they share each way
+    /// ([`points_manipulator`]: bit for bit each point's own `J` and pose), each needed one's
+    /// first 3 rows (`3 x dof`, column-major) copied out.
+    fn fill_manipulator_points(&mut self, problem: &KindProblem<'_>, at: &[ChainAt], dof: usize) {
+        let (poses, points) = (problem.data.joints.len(), at.len());
+        self.poses.clear();
+        self.poses.extend(self.keys.iter().map(|n| n % poses));
+        self.poses.sort_unstable();
+        self.poses.dedup();
+        self.manipulators.resize_with(points, || Matrix6xX::zeros(dof));
+        self.ends.resize(points, Isometry3::identity());
+        self.walked.resize(points, Vector3::zeros());
+        self.values.resize(self.keys.len() * 3 * dof, 0.0);
+        self.frames.resize(self.keys.len(), Isometry3::identity());
+        for &pose in &self.poses {
+            let q = &problem.data.joints[pose];
+            points_manipulator(at, q, &mut self.manipulators, &mut self.ends, &mut self.walked);
+            for (k, &n) in self.keys.iter().enumerate().filter(|(_, n)| *n % poses == pose) {
+                let jacobian = self.manipulators[n / poses].as_slice();
+                let out = &mut self.values[3 * dof * k..3 * dof * (k + 1)];
+                for (c, into) in out.chunks_exact_mut(3).enumerate() {
+                    into.copy_from_slice(&jacobian[6 * c..6 * c + 3]);
+                }
+                self.frames[k] = self.ends[n / poses];
+            }
         }
     }
 }

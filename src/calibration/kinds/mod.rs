@@ -838,25 +838,31 @@ impl<'a> KindProblem<'a> {
     }
 
     /// The frame of every point at every pose, point by point (`frames[i * poses + j]`), at the
-    /// parameters `at`; with `blocks`, each one's `H_j` too (`rows x columns`, column-major);
-    /// those no observation sees left at the identity and 0.
+    /// parameters `at`, those no observation sees left at the identity; with `blocks`, the
+    /// `H_j` (`rows x columns`, column-major) of those some observation sees, packed in their
+    /// order ([`KindProblem::slots`]): a noise check's sample of a few poses holds theirs alone.
     fn frames(&self, at: &[ChainAt], blocks: Option<(&mut [f64], usize)>) -> Vec<Isometry3<f64>> {
         let poses = self.data.joints.len();
         let (measured, rows) = (self.measured(), self.measured().rows());
         let columns = self.selection.len();
         let frame = |n: usize| (&at[n / poses], &self.data.joints[n % poses]);
         match blocks {
-            Some((blocks, block)) if block > 0 => (blocks.par_chunks_mut(block).enumerate())
-                .map(|(n, h_j)| {
-                    if !self.used[n] {
-                        return Isometry3::identity();
-                    }
-                    let (at, q) = frame(n);
-                    let view = DMatrixViewMut::from_slice(h_j, rows, columns);
-                    at.identification_jacobian(q, self.selection, measured, view);
-                    at.pose(q)
-                })
-                .collect(),
+            Some((blocks, block)) if block > 0 => {
+                let seen: Vec<usize> = (0..self.used.len()).filter(|&n| self.used[n]).collect();
+                let computed: Vec<Isometry3<f64>> = (blocks.par_chunks_mut(block).zip(seen.par_iter()))
+                    .map(|(h_j, &n)| {
+                        let (at, q) = frame(n);
+                        let view = DMatrixViewMut::from_slice(h_j, rows, columns);
+                        at.identification_jacobian(q, self.selection, measured, view);
+                        at.pose(q)
+                    })
+                    .collect();
+                let mut frames = vec![Isometry3::identity(); self.used.len()];
+                for (&n, f) in seen.iter().zip(computed) {
+                    frames[n] = f;
+                }
+                frames
+            }
             _ if measured == Measured::Position => {
                 // Points alone: every point of a pose from one walk of the arm they share.
                 let points = at.len();
@@ -881,6 +887,20 @@ impl<'a> KindProblem<'a> {
                 })
                 .collect(),
         }
+    }
+
+    /// Where each point-and-pose `n` (`point * poses + pose`) has its `H_j` among those packed
+    /// by [`KindProblem::frames`]: the number of points seen before it, `slot_n = sum_{m < n}
+    /// used_m` (for one seen, its place).
+    fn slots(&self) -> Vec<usize> {
+        let mut next = 0;
+        (self.used.iter())
+            .map(|&u| {
+                let slot = next;
+                next += usize::from(u);
+                slot
+            })
+            .collect()
     }
 
     /// The set-up values `s` of every session, each in the one-session layout.
@@ -1018,18 +1038,23 @@ impl Residuals for KindProblem<'_> {
         robot.chain(self.setup_selection.iter().map(|&i| setup[i].clone())).collect()
     }
 
+    /// `y_k` at `x` and with `h` the rows `H_k = sum_j g_kj^T H_j + df_k/ds`
+    /// (`KindProblem::observation_row`), from the `H_j` of the points some observation sees
+    /// (a sample of a few poses holds theirs alone, not every pose's).
     fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
         let (full, s) = self.full(x);
         let at: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
-        let (rows, poses) = (self.measured().rows(), self.data.joints.len());
-        // Each point's H_j at each pose (rows x columns, column-major) in one buffer, filled in
-        // parallel.
+        let rows = self.measured().rows();
+        // Each seen point's H_j at each pose (rows x columns, column-major) in one buffer,
+        // filled in parallel.
         let block = if h.is_some() { rows * self.selection.len() } else { 0 };
-        let mut jacobians = vec![0.0; block * poses * at.len()];
+        let seen = self.used.iter().filter(|&&u| u).count();
+        let mut jacobians = vec![0.0; if block > 0 { block * seen } else { 0 }];
         let frames = self.frames(&at, Some((&mut jacobians, block)));
+        let slots = if block > 0 { self.slots() } else { Vec::new() };
         let views = self.session_views(&s);
         let mut y = DVector::zeros(self.equations());
-        let at = PointsAt { views: &views, jacobians: Jacobians::All(&frames, &jacobians), block };
+        let at = PointsAt { views: &views, jacobians: Jacobians::All(&frames, &jacobians, &slots), block };
         let Some(h) = h else {
             // The residuals alone: each its own, in parallel.
             let residuals = y.as_mut_slice().par_iter_mut().enumerate();
@@ -1093,6 +1118,11 @@ struct BlockJacobians {
     poses: Vec<usize>,
     stacked: Vec<f64>,
     positions: Vec<Vector3<f64>>,
+    /// Of points alone, for `V_k`: every point's manipulator Jacobian and pose at one pose,
+    /// and the walk's scratch ([`crate::kinematics::points_manipulator`]).
+    manipulators: Vec<nalgebra::Matrix6xX<f64>>,
+    ends: Vec<Isometry3<f64>>,
+    walked: Vec<Vector3<f64>>,
 }
 
 impl BlockJacobians {
@@ -1184,9 +1214,9 @@ impl BlockJacobians {
 /// pose, or a block's.
 #[derive(Clone, Copy)]
 enum Jacobians<'f> {
-    /// Every point at every pose: the frames (point by point, then pose by pose) and their
-    /// `H_j`, `block` numbers each, in the order of the frames.
-    All(&'f [Isometry3<f64>], &'f [f64]),
+    /// Every point at every pose: the frames (point by point, then pose by pose), the `H_j` of
+    /// those seen, `block` numbers each, and where each one's is ([`KindProblem::slots`]).
+    All(&'f [Isometry3<f64>], &'f [f64], &'f [usize]),
     /// Those one block reads.
     Block(&'f BlockJacobians),
 }
@@ -1195,7 +1225,9 @@ impl Jacobians<'_> {
     /// The `H_j` of point-and-pose `n` (`block` numbers).
     fn of(&self, n: usize, block: usize) -> &[f64] {
         match self {
-            Self::All(_, all) => &all[n * block..(n + 1) * block],
+            // No robot parameter estimated: no `H_j`, nor their places.
+            Self::All(..) if block == 0 => &[],
+            Self::All(_, all, slots) => &all[slots[n] * block..(slots[n] + 1) * block],
             Self::Block(some) => some.get(n, block),
         }
     }
@@ -1245,13 +1277,21 @@ impl KindProblem<'_> {
         let (columns, rows) = (self.selection.len(), self.measured().rows());
         let first = self.point_of(o) * poses;
         let f = match jacobians {
-            Jacobians::All(frames, _) => self.predict(o, &frames[first..first + poses], views),
+            Jacobians::All(frames, ..) => self.predict(o, &frames[first..first + poses], views),
             Jacobians::Block(block) => self.predict(o, &BlockFrames { block, first }, views),
         };
         let Some(h) = h else { return f.residual };
         h.fill(0.0);
         for (j, g) in &f.by_point[..f.poses] {
             let h_j = jacobians.of(first + j, block);
+            if let (1, Some(axis)) = (f.poses, unit_axis(g, rows)) {
+                // One coordinate of one point (a marker's): `g^T H_j` is row `axis` of `H_j`,
+                // `0 + (0 + h_axis)` to the bit as the sum below gives it.
+                for (c, column) in h_j.chunks_exact(rows).enumerate() {
+                    h[c] += column[axis] + 0.0;
+                }
+                continue;
+            }
             for (c, column) in h_j.chunks_exact(rows).enumerate() {
                 h[c] += (0..rows).map(|r| g[r] * column[r]).sum::<f64>();
             }
@@ -1263,6 +1303,13 @@ impl KindProblem<'_> {
         }
         f.residual
     }
+}
+
+/// The axis `a` where `g`'s first `rows` entries are the unit vector `e_a` (`g_a = 1`, every
+/// other `0`), if they are: then `g^T H_j` is row `a` of `H_j`.
+fn unit_axis(g: &Vector6<f64>, rows: usize) -> Option<usize> {
+    let axis = (0..rows).find(|&r| g[r] == 1.0)?;
+    (0..rows).all(|r| r == axis || g[r] == 0.0).then_some(axis)
 }
 
 /// A calibration from distances and contacts.
