@@ -61,23 +61,42 @@ fn campaign(seed: u64) -> Campaign {
     campaign_of(seed, 120)
 }
 
-/// A PUMA 560 with errors, an unknown base and two markers, measured at `poses` training poses
-/// and 60 held-out ones, calibrated by Gauss-Markov with its true noise.
-pub(crate) fn campaign_of(seed: u64, poses_: usize) -> Campaign {
+/// The measurement noise of [`campaign_files`]: the joints' and 0.01 mm.
+pub(crate) fn campaign_noise() -> NoiseModel {
+    NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(0.01, 0.0))
+}
+
+/// A PUMA 560 with errors, an unknown base and two markers, measured with [`campaign_noise`]
+/// at `poses` training poses and 60 held-out ones: the nominal model, the true one, its
+/// markers, and the two marker files' text.
+pub(crate) fn campaign_files(
+    seed: u64,
+    poses_: usize,
+) -> (RobotModel, RobotModel, Vec<Vector3<f64>>, [String; 2]) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let nominal = RobotModel::preset("puma560").unwrap();
     let truth = true_robot(&nominal, &mut rng);
     let true_markers = vec![Vector3::new(52.0, 1.0, 148.0), Vector3::new(-38.0, 61.0, 121.0)];
-    let sigma_me = 0.01;
-    let noise = NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(sigma_me, 0.0));
-    let read = |joints: &[Vec<f64>], seed| {
-        let text = measurement_csv(&truth, &true_markers, joints, &joint_sigmas(), sigma_me, seed);
-        crate::marker_data(&text, &nominal, Some(&noise))
+    let mut file = |n: usize, seed| {
+        let joints = poses(&nominal, n, &mut rng);
+        measurement_csv(&truth, &true_markers, &joints, &joint_sigmas(), 0.01, seed)
     };
-    let training = read(&poses(&nominal, poses_, &mut rng), 1);
-    let validation = read(&poses(&nominal, 60, &mut rng), 2);
-    let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
-    let options = crate::marker_options(&nominal, Estimator::Wls, Some(&noise), &markers);
+    let files = [file(poses_, 1), file(60, 2)];
+    (nominal, truth, true_markers, files)
+}
+
+/// The design markers of [`campaign_files`] (mm, the marker frame).
+pub(crate) const CAMPAIGN_MARKERS: [Vector3<f64>; 2] =
+    [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
+
+/// [`campaign_files`] read as `robocal calibrate` reads them, calibrated by Gauss-Markov with
+/// the true noise.
+pub(crate) fn campaign_of(seed: u64, poses_: usize) -> Campaign {
+    let (nominal, truth, true_markers, [training, validation]) = campaign_files(seed, poses_);
+    let noise = campaign_noise();
+    let read = |text: &str| crate::marker_data(text, &nominal, Some(&noise));
+    let (training, validation) = (read(&training), read(&validation));
+    let options = crate::marker_options(&nominal, Estimator::Wls, Some(&noise), &CAMPAIGN_MARKERS);
     Campaign { nominal, truth, true_markers, training, validation, options }
 }
 

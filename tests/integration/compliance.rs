@@ -9,7 +9,7 @@ use robocal::calibration::JointParams;
 use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds, evaluate_kinds};
 use robocal::estimation::Estimator;
 use robocal::kinematics::Chain;
-use robocal::model::{LinkMass, ModelRef, ParamOwner, RobotModel};
+use robocal::model::{LinkMass, ParamOwner, RobotModel};
 
 /// Noise-free marker positions of `truth` at `n` poses drawn within its limits, as a marker
 /// file's coordinates (their sigmas not given).
@@ -23,25 +23,6 @@ fn measured(truth: &RobotModel, markers: &[Vector3<f64>], n: usize, seed: u64) -
     let positions: Vec<Vec<Vector3<f64>>> =
         joints.iter().map(|q| at.iter().map(|a| a.position(q)).collect()).collect();
     crate::nested::marker_kind_data(joints, &positions)
-}
-
-/// The arm7 benchmark (`examples/arm7`, or a copy in `dir`) as `robocal calibrate` reads it:
-/// its model, its training file and its three sessions.
-pub(crate) fn arm7(dir: &str) -> (RobotModel, KindData, Vec<KindData>) {
-    let model = robocal::io::load_model(&ModelRef::named("examples/arm7/arm7.urdf")).unwrap();
-    let read = |name: &str| {
-        crate::marker_data(&std::fs::read_to_string(format!("{dir}/{name}")).unwrap(), &model, None)
-    };
-    let sessions = (1..=3).map(|k| read(&format!("session{k}.csv"))).collect();
-    (model.clone(), read("train.csv"), sessions)
-}
-
-/// The arm7 benchmark's calibration of `joints` (`model` the arm's): ordinary least squares, the
-/// base and the design markers estimated.
-pub(crate) fn arm7_options(model: &RobotModel, joints: JointParams) -> KindOptions {
-    let design =
-        [Vector3::new(40.0, 0.0, 25.0), Vector3::new(-20.0, 35.0, 25.0), Vector3::new(-20.0, -35.0, 25.0)];
-    KindOptions { joints, ..crate::marker_options(model, Estimator::Ols, None, &design) }
 }
 
 /// Calibrates `nominal` on noise-free data of `truth` (which differs from it in its compliances,
@@ -367,7 +348,7 @@ fn a_written_urdf_with_compliances_scores_as_the_fit() {
         crate::marker_data(&std::fs::read_to_string(format!("examples/arm7/{name}")).unwrap(), &model, None)
     };
     let (train, session) = (read("train.csv"), read("session1.csv"));
-    let options = arm7_options(&model, JointParams::Named(vec!["joint*.*".into()]));
+    let options = crate::urdf::arm7_options(&model, JointParams::Named(vec!["joint*.*".into()]));
     let result = calibrate_kinds(&model, &train, &options).unwrap();
     let written = to_urdf_string(&text, &base, &tip, &result.calibrated).unwrap();
     let written = with_urdf_markers(&written, &result.marker_positions()).unwrap();

@@ -1,14 +1,10 @@
 //! Robust fitting: one gross error among 100 poses, under OLS and Gauss-Markov.
 
-use super::calibration::{joint_sigmas, true_robot};
 use nalgebra::Vector3;
-use rand::rngs::ChaCha8Rng;
-use rand::{RngExt, SeedableRng};
 use robocal::calibration::Loss;
 use robocal::calibration::kinds::{KindCalibration, KindData, KindOptions, Observation, calibrate_kinds};
-use robocal::estimation::{Estimator, MeasurementNoise, NoiseModel};
+use robocal::estimation::Estimator;
 use robocal::model::RobotModel;
-use robocal::simulation::measurement_csv;
 
 /// Calibration's campaign (`campaign_of`: a PUMA 560 with errors, an unknown base and two
 /// markers, 0.01 mm of noise and its joint noise) as `robocal calibrate` reads its marker files:
@@ -22,26 +18,15 @@ struct Campaign {
 }
 
 fn campaign(seed: u64, poses: usize) -> Campaign {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let nominal = RobotModel::preset("puma560").unwrap();
-    let truth = true_robot(&nominal, &mut rng);
-    let true_markers = vec![Vector3::new(52.0, 1.0, 148.0), Vector3::new(-38.0, 61.0, 121.0)];
-    let mut file = |n: usize, seed| {
-        let joints: Vec<Vec<f64>> = (0..n)
-            .map(|_| nominal.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())
-            .collect();
-        measurement_csv(&truth, &true_markers, &joints, &joint_sigmas(), 0.01, seed)
-    };
-    let (training, validation) = (file(poses, 1), file(60, 2));
-    let markers = vec![Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
-    Campaign { nominal, training, validation, markers }
+    let (nominal, _, _, [training, validation]) = crate::calibration::campaign_files(seed, poses);
+    Campaign { nominal, training, validation, markers: crate::calibration::CAMPAIGN_MARKERS.to_vec() }
 }
 
 impl Campaign {
     /// Its training and held-out data and its options: by Gauss-Markov with the true noise, or
     /// (`ols`) by ordinary least squares with no noise given.
     fn read(&self, ols: bool) -> (KindData, KindData, KindOptions) {
-        let noise = NoiseModel::diagonal(&joint_sigmas(), MeasurementNoise::isotropic(0.01, 0.0));
+        let noise = crate::calibration::campaign_noise();
         let (estimator, noise) = if ols { (Estimator::Ols, None) } else { (Estimator::Wls, Some(&noise)) };
         let read = |text: &str| crate::marker_data(text, &self.nominal, noise);
         let options = crate::marker_options(&self.nominal, estimator, noise, &self.markers);

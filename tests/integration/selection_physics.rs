@@ -4,7 +4,8 @@
 //! while parameters that can only stand in for it (one, or a group) are chosen, unless the
 //! report says the trade.
 
-use crate::compliance::{arm7, arm7_options};
+use crate::selection::arm7;
+use crate::urdf::arm7_options;
 use nalgebra::{DMatrix, DVector, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
