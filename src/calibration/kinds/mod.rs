@@ -2101,6 +2101,36 @@ impl Prepared {
     }
 }
 
+/// The ends of the chains on the last link of `registered`: the markers' points (`markers`,
+/// their numbers less one, at `nominal`; a probe's frame, [`KindOptions::probe`] or its
+/// rotation started from the data), then the tool's (a point at `tool`, or a frame for angles)
+/// if observed.
+fn marker_ends(
+    registered: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    (markers, nominal): (&[usize], &[Vector3<f64>]),
+    tool: Vector3<f64>,
+) -> Vec<MarkerEnd> {
+    let probes = data.probes();
+    let mut ends: Vec<MarkerEnd> = (markers.iter().zip(nominal))
+        .map(|(&m, &at)| match probes.contains(&m) {
+            true => MarkerEnd::Frame(match options.probe.filter(|_| m == 0) {
+                Some(given) => given,
+                None => probe_mounting(registered, at, data.orientations_of(m)),
+            }),
+            false => MarkerEnd::Point(at),
+        })
+        .collect();
+    if data.sees_the_tool() {
+        ends.push(match data.has_angles() {
+            true => MarkerEnd::Frame(Placement { xyz: tool, rpy: Vector3::zeros() }),
+            false => MarkerEnd::Point(tool),
+        });
+    }
+    ends
+}
+
 /// [`Prepared`] of `data` on `model` with `options`.
 pub(super) fn prepare(
     model: &RobotModel,
@@ -2125,24 +2155,7 @@ pub(super) fn prepare(
     // With markers, a camera's mounting is in the tool frame as well: the last point at its
     // origin, held.
     let tool = if data.measures_the_tool_point() { options.tool } else { Vector3::zeros() };
-    // The markers' points (a probe's frame, its rotation started from the data), then the
-    // tool's (a point, or a frame for angles) if observed.
-    let probes = data.probes();
-    let mut ends: Vec<MarkerEnd> = (markers.iter().zip(&nominal_markers))
-        .map(|(&m, &at)| match probes.contains(&m) {
-            true => MarkerEnd::Frame(match options.probe.filter(|_| m == 0) {
-                Some(given) => given,
-                None => probe_mounting(&registered, at, data.orientations_of(m)),
-            }),
-            false => MarkerEnd::Point(at),
-        })
-        .collect();
-    if data.sees_the_tool() {
-        ends.push(match data.has_angles() {
-            true => MarkerEnd::Frame(Placement { xyz: tool, rpy: Vector3::zeros() }),
-            false => MarkerEnd::Point(tool),
-        });
-    }
+    let ends = marker_ends(&registered, data, options, (&markers, &nominal_markers), tool);
     let chains = Chain::marker_ends(&registered, &ends);
     let params = chains[0].params().clone();
     let zero = vec![0.0; params.len()];
