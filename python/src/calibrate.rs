@@ -8,7 +8,7 @@ use crate::model::Model;
 use nalgebra::Vector3;
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2};
 use pyo3::prelude::*;
-use robocal::calibration::kinds::{KindData, KindOptions, Observation, RowSigmaDefaults, Score};
+use robocal::calibration::kinds::{KindData, KindOptions, RowSigmaDefaults, Score};
 use robocal::calibration::prior_scale::AutoPrior;
 use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::calibration::{Choices, DataKind, Gauge, JointParams, Kinds, Loss, ParamWords};
@@ -751,21 +751,22 @@ fn check_sessions(model: &RobotModel, sessions: &[(String, KindData)], flags: &F
 /// Data files by name: sessions, or held-out sets.
 type Files = Vec<(String, KindData)>;
 
-/// The training and held-out files with the markers `ids` names only (numbers from 1; their
-/// other observations all kept), or as they are; a number no training file's marker has is
-/// refused.
+/// The training and held-out files with the markers `ids` names only (numbers from 1: their
+/// positions and orientations, [`KindData::with_markers`]; their other observations all kept),
+/// or as they are, as the command line's `--markers`; a number no training file's marker has
+/// is refused, and so is a file with markers, none of them named.
 fn chosen_markers(sessions: Files, held: Files, ids: Option<&[usize]>) -> PyResult<(Files, Files)> {
     let Some(ids) = ids else { return Ok((sessions, held)) };
     let have: Vec<usize> = sessions.iter().flat_map(|(_, d)| d.markers()).map(|m| m + 1).collect();
     if let Some(id) = ids.iter().find(|id| !have.contains(id)) {
         return Err(errors::argument("use_markers", format!("{id}: no file has marker {id}")));
     }
-    let only = |(name, d): (String, KindData)| {
-        let kept =
-            d.keeping(|o| !matches!(o, Observation::Marker { marker, .. } if !ids.contains(&(marker + 1))));
-        (name, kept)
+    let only = |(name, d): (String, KindData)| match d.with_markers(ids) {
+        Some(kept) => Ok((name, kept)),
+        None => Err(errors::argument("use_markers", format!("{ids:?}: {name} has none of these markers"))),
     };
-    Ok((sessions.into_iter().map(only).collect(), held.into_iter().map(only).collect()))
+    let sessions = sessions.into_iter().map(only).collect::<PyResult<Files>>()?;
+    Ok((sessions, held.into_iter().map(only).collect::<PyResult<Files>>()?))
 }
 
 /// Observation files' noise file, if given, and the sigmas of their rows without their own:
