@@ -403,18 +403,7 @@ fn markers_chosen_with_positions_for_every_marker_of_the_file() {
     let dir = std::env::temp_dir().join(format!("robocal-cli-markers-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let first = dir.join("marker1.csv");
-    let text = std::fs::read_to_string("examples/puma560-validation.csv").unwrap();
-    let only_first: Vec<String> = text
-        .lines()
-        .map(|l| {
-            if l.starts_with('#') {
-                l.to_string()
-            } else {
-                l.split(',').take(9).collect::<Vec<_>>().join(",")
-            }
-        })
-        .collect();
-    std::fs::write(&first, only_first.join("\n") + "\n").unwrap();
+    crate::write_first_marker_only("examples/puma560-validation.csv", &first);
     let held_out = first.display().to_string();
     let message = stderr_of(&[&example[..], &["--markers", "2", "--validate", &held_out]].concat());
     assert!(message.contains(&format!("{held_out}: --markers [2] names none of its markers")), "{message}");

@@ -90,3 +90,19 @@ pub(crate) fn marker_options(
         ..Default::default()
     }
 }
+
+/// Writes to `to` the marker file `from` with its first marker's columns only (`j1..j6,x1,y1,z1`
+/// of a six-joint arm's file).
+pub(crate) fn write_first_marker_only(from: &str, to: &std::path::Path) {
+    let text = std::fs::read_to_string(from).unwrap();
+    let kept: Vec<String> = (text.lines())
+        .map(|l| {
+            if l.starts_with('#') {
+                l.to_string()
+            } else {
+                l.split(',').take(9).collect::<Vec<_>>().join(",")
+            }
+        })
+        .collect();
+    std::fs::write(to, kept.join("\n") + "\n").unwrap();
+}

@@ -245,17 +245,7 @@ fn an_observation_files_written_model_rescores_its_training_file() {
     assert_eq!(poses_section.split("</section>").next().unwrap().matches("<tr").count(), 151);
     // Marker and observation files together: one run, one page, their rows side by side.
     let markers = dir.join("one-marker.csv");
-    let one_marker: Vec<String> = (std::fs::read_to_string("examples/puma560-measurements.csv").unwrap())
-        .lines()
-        .map(|l| {
-            if l.starts_with('#') {
-                l.to_string()
-            } else {
-                l.split(',').take(9).collect::<Vec<_>>().join(",")
-            }
-        })
-        .collect();
-    std::fs::write(&markers, one_marker.join("\n")).unwrap();
+    crate::write_first_marker_only("examples/puma560-measurements.csv", &markers);
     robocal(&["evaluate", "-q", "--model", s(&model), "--data", s(&markers)]);
     let out = assert_cmd::Command::cargo_bin("robocal")
         .unwrap()
