@@ -87,9 +87,8 @@
 use super::{ErrorSizes, Redraw, SimulationError, StudyError, TEST_STREAM, draw_errors, normal, rng, stats};
 use crate::calibration::kinds::camera::{isometry, placement};
 use crate::calibration::kinds::{CameraSite, KindData, KindOptions, Observation, calibrate_kinds};
-use crate::calibration::{CalibrationError, JointParams, register};
+use crate::calibration::{CalibrationError, register};
 use crate::error::FieldError;
-use crate::estimation::{Estimator, RefineOptions};
 use crate::kinematics::{Chain, ChainAt};
 use crate::limits::{
     MAX_ANGLE_DEG, MAX_INSTRUMENT_WORK, MAX_LENGTH_MM, MAX_POINTS, MAX_RUNS_PER_CASE, MAX_STUDY_WORK,
@@ -835,51 +834,28 @@ impl Campaign<'_> {
             study.joint_sigmas.len(),
             study.joint_sigmas.iter().map(|s| s * s),
         ));
-        let predicted: Vec<Vector3<f64>> = match &instrument.kind {
-            InstrumentKind::Tracker => {
-                let data = self.tracker(&real, count, instrument.sigma, declared, &mut rng);
-                let options = KindOptions {
-                    joint_noise: Some(noise_q),
-                    markers: vec![study.tool()],
-                    tool: study.tool(),
-                    ..KindOptions::default()
-                };
-                let calibrated =
-                    calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?.calibrated;
-                self.tool_points(&calibrated, &Isometry3::identity())
-            }
-            kind => {
-                let data = self.kinds(&real, i, count, declared, &mut rng)?;
-                let options = KindOptions {
-                    per_session: Vec::new(),
-                    prior: Vec::new(),
-                    loss: Default::default(),
-                    gauge: Default::default(),
-                    estimator: Estimator::Wls,
-                    joint_noise: Some(noise_q),
-                    joints: JointParams::All,
-                    estimate_tool: true,
-                    estimate_base: true,
-                    estimate_markers: true,
-                    tool: study.tool(),
-                    markers: Vec::new(),
-                    probe: None,
-                    refine: RefineOptions::default(),
-                };
-                let c = calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?;
-                let tool = match kind {
-                    // The calibrated camera's mounting in the calibrated tip frame; the tool
-                    // point at its nominal offset from the camera.
-                    InstrumentKind::Camera { mounting, .. } => {
-                        let at =
-                            c.setup.names().iter().position(|n| n == "camera.x").expect("a camera's set-up");
-                        isometry(&c.setup_values.1[at..at + 6]) * mounting.inverse()
-                    }
-                    _ => Isometry3::identity(),
-                };
-                self.tool_points(&c.calibrated, &tool)
-            }
+        let data = match &instrument.kind {
+            InstrumentKind::Tracker => self.tracker(&real, count, instrument.sigma, declared, &mut rng),
+            _ => self.kinds(&real, i, count, declared, &mut rng)?,
         };
+        // The tracker's marker is the tool point; the other kinds see the tool point itself.
+        let options = KindOptions {
+            joint_noise: Some(noise_q),
+            markers: vec![study.tool()],
+            tool: study.tool(),
+            ..KindOptions::default()
+        };
+        let c = calibrate_kinds(&study.robot, &data, &options).map_err(calibration_error)?;
+        let tool = match &instrument.kind {
+            // The calibrated camera's mounting in the calibrated tip frame; the tool point at
+            // its nominal offset from the camera.
+            InstrumentKind::Camera { mounting, .. } => {
+                let at = c.setup.names().iter().position(|n| n == "camera.x").expect("a camera's set-up");
+                isometry(&c.setup_values.1[at..at + 6]) * mounting.inverse()
+            }
+            _ => Isometry3::identity(),
+        };
+        let predicted = self.tool_points(&c.calibrated, &tool);
         Ok(self.score(&predicted, &real))
     }
 
