@@ -13,7 +13,7 @@ use robocal::model::{LinkMass, ParamOwner, RobotModel};
 
 /// Noise-free marker positions of `truth` at `n` poses drawn within its limits, as a marker
 /// file's coordinates (their sigmas not given).
-fn measured(truth: &RobotModel, markers: &[Vector3<f64>], n: usize, seed: u64) -> KindData {
+pub(crate) fn measured(truth: &RobotModel, markers: &[Vector3<f64>], n: usize, seed: u64) -> KindData {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let joints: Vec<Vec<f64>> = (0..n)
         .map(|_| truth.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect())

@@ -7,9 +7,9 @@
 use crate::selection::arm7;
 use crate::urdf::arm7_options;
 use nalgebra::{DMatrix, DVector, Vector3};
+use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
-use rand::{RngExt, SeedableRng};
-use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
+use robocal::calibration::kinds::{KindData, KindOptions, calibrate_kinds};
 use robocal::calibration::selection::{Criterion, select};
 use robocal::calibration::{Held, JointParams, Kinds, Warning};
 use robocal::estimation::{Estimator, PriorEntry};
@@ -22,32 +22,6 @@ fn rigid_puma() -> RobotModel {
     let mut model = crate::compliance::puma_with_masses();
     model.payload = Some(Payload { mass: 2.0, com: Vector3::new(0.0, 20.0, 80.0) });
     model
-}
-
-/// Noise-free marker coordinates of `truth` at `n` poses within its limits, as observations.
-fn marker_observations(truth: &RobotModel, markers: &[Vector3<f64>], n: usize, seed: u64) -> KindData {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let at: Vec<_> =
-        Chain::markers(truth, markers).iter().map(|c| c.with_errors(&vec![0.0; c.params().len()])).collect();
-    let mut data = KindData::default();
-    for pose in 0..n {
-        let q: Vec<f64> = truth.joints.iter().map(|j| rng.random_range(j.limits[0]..j.limits[1])).collect();
-        for (marker, chain) in at.iter().enumerate() {
-            let p = chain.position(&q);
-            for axis in 0..3 {
-                data.observations.push(Observation::Marker {
-                    marker,
-                    axis,
-                    pose,
-                    measured: p[axis],
-                    sigma: 0.01,
-                });
-                data.lines.push(pose + 3);
-            }
-        }
-        data.joints.push(q);
-    }
-    data
 }
 
 /// On the observation path (every marker file's calibration), the first joint's compliance and
@@ -64,7 +38,7 @@ fn unloaded_responses_are_held_and_a_payloads_mass_is_freed_at_the_estimate() {
     truth.joints[2].compliance = 8e-5;
     truth.payload = Some(Payload { mass: 3.5, com: Vector3::new(0.0, 20.0, 80.0) });
     let markers = [Vector3::new(40.0, 0.0, 25.0), Vector3::new(-20.0, 35.0, 25.0)];
-    let data = marker_observations(&truth, &markers, 60, 11);
+    let data = crate::nested::given(&crate::compliance::measured(&truth, &markers, 60, 11), 0.01);
     let asked = ["payload.mass", "j1.compliance", "j1.play", "j2.compliance", "j3.compliance", "j*.theta"];
     let options = KindOptions {
         estimator: Estimator::Ols,
