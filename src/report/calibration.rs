@@ -433,6 +433,80 @@ pub struct ParameterRow {
     pub sd_ratio: Option<f64>,
 }
 
+/// A joint's estimated compliance `c` as a stiffness `k = 1 / c`, with the 95% interval
+/// `[1 / (c + 1.96 SE), 1 / (c - 1.96 SE)]`, open above when `c - 1.96 SE <= 0` (the data do
+/// not bound the stiffness). A compliance that is not positive has no stiffness: it absorbs
+/// something else (the warnings say so).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StiffnessRow {
+    /// The joint (`joint2`).
+    pub joint: String,
+    /// `1 / c`: N·m/rad for a revolute joint, N/mm for a prismatic one; `None` when `c <= 0`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stiffness: Option<f64>,
+    /// Lower end of the 95% interval: `1 / (c + 1.96 SE)`; `None` when `c + 1.96 SE <= 0`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub low: Option<f64>,
+    /// Upper end of the 95% interval, `1 / (c - 1.96 SE)`; `None` when unbounded.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub high: Option<f64>,
+    /// `N·m/rad` or `N/mm`.
+    pub unit: &'static str,
+}
+
+/// The stiffness rows of the estimated compliances among `rows` (their values and standard
+/// errors, in rad/N·m or mm/N): [`StiffnessRow`].
+pub(super) fn stiffness_rows(rows: &[ParameterRow]) -> Vec<StiffnessRow> {
+    rows.iter()
+        .filter_map(|p| Some((p.name.strip_suffix(".compliance")?, p)))
+        .map(|(joint, p)| {
+            let (c, margin) = (p.value, crate::estimation::Z_95 * p.std_error);
+            let inverse = |v: f64| (v > 0.0).then(|| 1.0 / v);
+            StiffnessRow {
+                joint: joint.to_string(),
+                stiffness: inverse(c),
+                low: inverse(c + margin),
+                high: inverse(c).and(inverse(c - margin)),
+                unit: if p.unit == "mm/N" { "N/mm" } else { "N·m/rad" },
+            }
+        })
+        .collect()
+}
+
+/// The stiffness of each estimated compliance ([`stiffness_rows`]) as a table, after a blank
+/// line; nothing without one.
+pub(super) fn stiffness_text(rows: &[StiffnessRow]) -> String {
+    let mut out = String::new();
+    if rows.is_empty() {
+        return out;
+    }
+    let _ = writeln!(
+        out,
+        "\n{:<18} {:>12} {:>12} {:>12}  unit (1 / compliance, its 95% interval)",
+        "joint stiffness", "estimate", "low", "high"
+    );
+    let number = |v: Option<f64>, none: &str| v.map_or(none.to_string(), |v| format!("{v:.4e}"));
+    for r in rows {
+        let open = if r.stiffness.is_some() { "unbounded" } else { "-" };
+        let _ = writeln!(
+            out,
+            "{:<18} {:>12} {:>12} {:>12}  {}",
+            r.joint,
+            number(r.stiffness, "none"),
+            number(r.low, "-"),
+            number(r.high, open),
+            r.unit
+        );
+    }
+    if rows.iter().any(|r| r.stiffness.is_none()) {
+        let _ = writeln!(
+            out,
+            "(none: a compliance estimated at or below 0 gives no stiffness; low is still the least stiffness the data allow)"
+        );
+    }
+    out
+}
+
 /// A training pose that a robust loss weighted below [`crate::calibration::robust::LISTED_BELOW`].
 #[derive(Debug, Clone, Serialize)]
 pub struct DownWeighted {
@@ -502,5 +576,40 @@ pub(crate) fn convergence(converged: bool, noise_settled: Option<bool>) -> &'sta
         (true, _) => "converged",
         (false, Some(false)) => "not converged: the variance components did not settle",
         (false, _) => "not converged",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(value: f64, std_error: f64) -> ParameterRow {
+        ParameterRow {
+            name: "joint2.compliance".into(),
+            value,
+            std_error,
+            unit: "rad/N·m",
+            prior_sd: None,
+            sd_ratio: None,
+        }
+    }
+
+    /// A compliance's stiffness and its interval: bounded, open above, or none when the
+    /// compliance is not positive; other parameters give none.
+    #[test]
+    fn stiffness_is_the_inverse_compliance_with_its_interval() {
+        let rows = stiffness_rows(&[row(5e-5, 1e-5), row(5e-5, 5e-5), row(-1e-4, 1e-5), row(0.1, 0.0)]);
+        assert_eq!(rows[0].joint, "joint2");
+        assert!((rows[0].stiffness.unwrap() - 2e4).abs() < 1e-6);
+        let z = crate::estimation::Z_95;
+        assert!((rows[0].low.unwrap() - 1.0 / (5e-5 + z * 1e-5)).abs() < 1e-6);
+        assert!((rows[0].high.unwrap() - 1.0 / (5e-5 - z * 1e-5)).abs() < 1e-6);
+        assert_eq!((rows[1].stiffness.is_some(), rows[1].high), (true, None), "open above");
+        assert_eq!((rows[2].stiffness, rows[2].low, rows[2].high), (None, None, None));
+        assert_eq!(rows.len(), 4);
+        assert_eq!(stiffness_rows(&[ParameterRow { name: "joint2.a".into(), ..row(1.0, 0.1) }]).len(), 0);
+        let text = stiffness_text(&rows);
+        assert!(text.contains("joint2") && text.contains("unbounded") && text.contains("(none:"), "{text}");
+        assert_eq!(stiffness_text(&[]), "");
     }
 }

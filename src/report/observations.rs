@@ -60,6 +60,9 @@ pub struct ObservationsReport {
     pub registered_base: Option<[f64; 6]>,
     /// The estimated parameters, the robot's then the set-up's (`point1.x`, `plane1.d`, ...).
     pub parameters: Vec<ParameterRow>,
+    /// Each estimated compliance as a stiffness with its 95% interval.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub stiffness: Vec<super::calibration::StiffnessRow>,
     /// Numerical rank and condition number of the weighted, column-scaled `H` (of the data
     /// alone, when a prior anchors some parameters).
     pub rank: usize,
@@ -316,6 +319,7 @@ impl ObservationsReport {
             converged: c.refined.converged && c.noise_settled != Some(false),
             noise_settled: c.noise_settled,
             noise: c.noise_estimate.as_ref().map(|e| super::calibration::noise_rows(&c.calibrated.joints, e)),
+            stiffness: super::calibration::stiffness_rows(&parameters),
             parameters,
             rank: c.refined.estimate.diagnostics.rank,
             condition_number: c.refined.estimate.diagnostics.condition_number,
@@ -576,6 +580,7 @@ impl ObservationsReport {
         }
         let _ = writeln!(out, "\n{}", self.verdict_text());
         super::calibration::write_parameters(&mut out, &self.parameters);
+        out.push_str(&super::calibration::stiffness_text(&self.stiffness));
         let fit = (self.converged, self.iterations);
         let identified =
             super::calibration::identified_text(&self.parameters, fit, (self.rank, self.condition_number));

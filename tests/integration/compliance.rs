@@ -293,6 +293,47 @@ fn calibrate_with_a_payload_writes_the_robot_without_it() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// `calibrate` reports each estimated compliance as a stiffness `1 / c` with its 95% interval
+/// `[1 / (c + 1.96 SE), 1 / (c - 1.96 SE)]`, in the text and the JSON (docs/formats.md).
+#[test]
+fn the_report_gives_each_compliance_as_a_stiffness() {
+    let dir = std::env::temp_dir().join(format!("robocal-stiffness-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("report.json");
+    let output = assert_cmd::Command::cargo_bin("robocal")
+        .unwrap()
+        .args(["calibrate", "--model", "examples/arm7/arm7.urdf", "--data", "examples/arm7/train.csv"])
+        .args(["--marker", "40,0,25", "--marker=-20,35,25", "--marker=-20,-35,25"])
+        .args(["--params", "joint2.compliance,joint4.compliance", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(text.contains("joint stiffness") && text.contains("N·m/rad"), "{text}");
+    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = report["stiffness"].as_array().expect("a stiffness table");
+    assert_eq!(rows.len(), 2, "{rows:?}");
+    for row in rows {
+        let joint = row["joint"].as_str().unwrap();
+        let p = (report["parameters"].as_array().unwrap().iter())
+            .find(|p| p["name"] == format!("{joint}.compliance"))
+            .unwrap();
+        let (c, se) = (p["value"].as_f64().unwrap(), p["std_error"].as_f64().unwrap());
+        let near = |key: &str, v: f64| {
+            let got = row[key].as_f64().unwrap_or(f64::NAN);
+            assert!((got - v).abs() <= 1e-9 * v.abs(), "{joint} {key}: {got} against {v}");
+        };
+        if c > 0.0 {
+            near("stiffness", 1.0 / c);
+        }
+        if c + 1.96 * se > 0.0 {
+            near("low", 1.0 / (c + 1.959_963_984_540_054 * se));
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// A payload's mass is seen through the joints' compliances: with a model whose compliances
 /// are known (calibrated), `payload.mass` is recovered exactly from noise-free data; with every
 /// compliance zero it is held, and said why.
