@@ -58,6 +58,10 @@ pub struct ObservationsReport {
     /// deg, which the `base.*` estimates correct.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub registered_base: Option<[f64; 6]>,
+    /// A 6-DOF probe's calibrated frame, absolute, in the tip link's frame (the model's marker
+    /// frame; the last joint's frame of a DH model): `[x, y, z]` mm then roll, pitch, yaw deg.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tip_frame: Option<[f64; 6]>,
     /// The estimated parameters, the robot's then the set-up's (`point1.x`, `plane1.d`, ...).
     pub parameters: Vec<ParameterRow>,
     /// Each estimated compliance as a stiffness with its 95% interval.
@@ -331,9 +335,8 @@ impl ObservationsReport {
             sets,
             warnings: c.warnings.clone(),
             variance_factor: c.variance_factor,
-            registered_base: c.registered_base.map(|b| {
-                [b.xyz.x, b.xyz.y, b.xyz.z, b.rpy.x.to_degrees(), b.rpy.y.to_degrees(), b.rpy.z.to_degrees()]
-            }),
+            registered_base: c.registered_base.as_ref().map(mm_deg),
+            tip_frame: c.tip_frame.as_ref().map(mm_deg),
             training_files: Vec::new(),
             loss: c.robust.as_ref().map(|r| r.loss.to_string()),
             down_weighted,
@@ -578,6 +581,14 @@ impl ObservationsReport {
                 b[0], b[1], b[2], b[3], b[4], b[5]
             );
         }
+        if let Some(t) = &self.tip_frame {
+            let _ = writeln!(
+                out,
+                "probe frame in the tip link's frame: xyz ({:.3}, {:.3}, {:.3}) mm, rpy ({:.4}, {:.4}, {:.4}) deg \
+                 (the marker1.* parameters below are its corrections)",
+                t[0], t[1], t[2], t[3], t[4], t[5]
+            );
+        }
         let _ = writeln!(out, "\n{}", self.verdict_text());
         super::calibration::write_parameters(&mut out, &self.parameters);
         out.push_str(&super::calibration::stiffness_text(&self.stiffness));
@@ -603,6 +614,11 @@ impl ObservationsReport {
         self.write_notes(&mut out);
         out
     }
+}
+
+/// A placement as `[x, y, z]` (mm) then roll, pitch, yaw (deg).
+fn mm_deg(p: &crate::model::Placement) -> [f64; 6] {
+    [p.xyz.x, p.xyz.y, p.xyz.z, p.rpy.x.to_degrees(), p.rpy.y.to_degrees(), p.rpy.z.to_degrees()]
 }
 
 /// The number of markers of `observations` if every one is a marker's (a position's coordinate

@@ -587,6 +587,39 @@ fn a_devices_orientation_sigma_is_the_default_for_a_probe() {
     assert!(default.iter().all(|s| (s - DEFAULT_SIGMA_ANGLE_DEG).abs() < 1e-12), "{:?}", &default[..3]);
 }
 
+/// Ordinary least squares counts a probe's angle rows as lengths by the noise's
+/// `sigma_position / sigma_orientation`: with exact joints and one sigma per class, it
+/// minimises the weighted cost itself, so its estimate is the WLS estimate (to 1e-9), for a
+/// ratio far from the default pose sigmas' (here 22.9 mm/rad against 286).
+#[test]
+fn ols_weighs_a_probes_angles_by_the_noises_sigma_ratio() {
+    let mut rng = ChaCha8Rng::seed_from_u64(59);
+    let nominal = RobotModel::preset("puma560").unwrap();
+    let truth = true_robot(&nominal, &mut rng);
+    let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
+    let chain = Chain::probe(&truth, &mounting);
+    let real = chain.with_errors(&vec![0.0; chain.params().len()]);
+    // Exact joints; every position and orientation measured with noise, so that the
+    // weighting matters.
+    let mut text = String::from(PROBE_HEADER);
+    for q in poses(&nominal, 40, &mut rng) {
+        let pose = real.pose(&q);
+        let mut draw = || Vector3::from_fn(|_, _| StandardNormal.sample(&mut rng));
+        let p = pose.translation.vector + 0.02 * draw();
+        let turn = nalgebra::UnitQuaternion::from_scaled_axis(0.05f64.to_radians() * draw());
+        text += &probe_row(&q, &p, &(turn * pose.rotation));
+    }
+    let noise = NoiseModel::diagonal(&[0.0; 6], MeasurementNoise::isotropic(0.02, 0.05f64.to_radians()));
+    let data = crate::marker_data(&text, &nominal, Some(&noise));
+    let fit = |estimator| {
+        let c = calibrate_kinds(&nominal, &data, &probe_options(&nominal, estimator, Some(&noise))).unwrap();
+        c.refined.estimate.x.clone()
+    };
+    let (ols, wls) = (fit(Estimator::Ols), fit(Estimator::Wls));
+    let gap = (&ols - &wls).amax() / wls.amax();
+    assert!(gap < 1e-9, "ols {ols} against wls {wls}: {gap:e}");
+}
+
 /// On 6-DOF data, ordinary least squares (with and without a noise model) and Gauss-Markov
 /// both lower the orientation and position errors of held-out poses, and OLS, its orientation
 /// rows counted as lengths by `sigma_position / sigma_orientation` of the default pose sigmas,
@@ -639,11 +672,13 @@ pub(crate) fn standard_errors(c: &KindCalibration) -> Vec<f64> {
 
 /// The probe's frame is found absolutely, in the tip link's frame: with only the base and the
 /// probe estimated on exact data, the calibrated tool frame is the true mounting, whatever the
-/// data-derived start.
+/// data-derived start; the report gives it in the tip link's frame `F` (the model's tool
+/// frame, here 66 mm past the last joint and turned), `F^-1 T`, in its text and JSON.
 #[test]
 fn the_probe_frame_is_reported_absolutely_in_the_tip_link_frame() {
     let mut rng = ChaCha8Rng::seed_from_u64(47);
-    let nominal = RobotModel::preset("puma560").unwrap();
+    let tip = Placement { xyz: Vector3::new(0.0, 0.0, 66.0), rpy: Vector3::new(0.0, 0.3, 0.0) };
+    let nominal = RobotModel { tool: Tool::Frame(tip), ..RobotModel::preset("puma560").unwrap() };
     let mut truth = nominal.clone();
     truth.base = Placement { xyz: Vector3::new(1500.0, -300.0, 200.0), rpy: Vector3::new(0.1, -0.05, 0.6) };
     let mounting = Placement { xyz: Vector3::new(52.0, 1.0, 148.0), rpy: Vector3::new(0.3, -0.2, 0.5) };
@@ -652,10 +687,24 @@ fn the_probe_frame_is_reported_absolutely_in_the_tip_link_frame() {
     let training = probe_file(&nominal, &real, 30, &[0.0; 6], &mut rng, None);
     let options = KindOptions { joints: JointParams::None, ..probe_options(&nominal, Estimator::Ols, None) };
     let calibration = calibrate_kinds(&nominal, &training, &options).unwrap();
-    let Tool::Frame(found) = calibration.calibrated.tool else { panic!("a probe's frame") };
+    let found = calibration.tip_frame.expect("a probe's frame");
     assert!((found.xyz - mounting.xyz).norm() < 1e-4, "{:?} against {:?}", found.xyz, mounting.xyz);
     let angle = found.isometry().rotation.angle_to(&mounting.isometry().rotation);
     assert!(angle < 1e-8, "turned {angle} rad from the true mounting");
+    let Tool::Frame(tool) = calibration.calibrated.tool else { panic!("a probe's frame") };
+    let through_tip = tip.isometry() * mounting.isometry();
+    assert!((tool.xyz - through_tip.translation.vector).norm() < 1e-4, "the tool in the last joint's frame");
+    let report = robocal::report::observations::ObservationsReport::new(
+        &calibration,
+        "probe.csv",
+        (240, 40),
+        "ols",
+        vec![],
+    );
+    let t = report.tip_frame.expect("in the report");
+    assert!((t[0] - 52.0).abs() < 1e-4 && (t[3] - 0.3f64.to_degrees()).abs() < 1e-6, "{t:?}");
+    assert!(report.text().contains("probe frame in the tip link's frame: xyz (52.000, 1.000, 148.000) mm"));
+    assert!(serde_json::to_value(&report).unwrap()["tip_frame"].is_array());
 }
 
 /// Without a noise model the training residuals are whitened by their spread, a pose's

@@ -123,7 +123,9 @@ use crate::estimation::{
     refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, HeldArm, MarkerEnd, Measured, end_positions, marker_jacobians_held};
-use crate::model::{ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, name_matches};
+use crate::model::{
+    ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool, name_matches,
+};
 use nalgebra::{DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 use std::sync::{Arc, OnceLock};
@@ -813,6 +815,28 @@ impl<'a> KindProblem<'a> {
         problem
     }
 
+    /// The length one radian of an angle counts as under ordinary least squares (mm/rad): the
+    /// noise's `w = sqrt(mean_l V_ll / mean_a V_aa)`, the means of `V_k`'s diagonal over the
+    /// length rows `l` and the angle rows `a` (with exact joints, `sigma_length /
+    /// sigma_angle`; with every sigma assumed, [`POSE_SIGMAS`]' ratio, which
+    /// `KindData::with_ols_sigmas` gives the angles); [`POSE_SIGMAS`]' ratio without `V_k`.
+    fn angle_weight(&self) -> f64 {
+        let fixed = POSE_SIGMAS.0 / POSE_SIGMAS.1;
+        let Some(v) = self.v.as_deref() else { return fixed };
+        let (mut sums, mut counts) = ([0.0; 2], [0usize; 2]);
+        for range in self.blocks.ranges(self.data.observations.len()) {
+            for r in range.clone() {
+                let angle = usize::from(self.data.observations[r].is_angle());
+                sums[angle] += v[(r, r - range.start)];
+                counts[angle] += 1;
+            }
+        }
+        match counts[0] > 0 && counts[1] > 0 && sums[1] > 0.0 {
+            true => ((sums[0] / counts[0] as f64) / (sums[1] / counts[1] as f64)).sqrt(),
+            false => fixed,
+        }
+    }
+
     /// The same problem with `V_k` computed at its values, with `joint_noise` if given.
     pub fn with_noise(mut self, joint_noise: Option<&DMatrix<f64>>) -> Self {
         self.v = Some(Arc::new(self.covariance_blocks(joint_noise)));
@@ -1023,13 +1047,15 @@ impl Residuals for KindProblem<'_> {
         self.v.as_deref()
     }
 
-    /// Angles (rad) count as lengths for ordinary least squares: times
-    /// `sigma_position / sigma_orientation` of [`POSE_SIGMAS`] (mm/rad), as a pose's
-    /// orientation rows do.
+    /// Angles (rad) count as lengths for ordinary least squares: times the noise's
+    /// `w = sigma_length / sigma_angle` ([`KindProblem::angle_weight`], mm/rad), so that an
+    /// angle's row weighs as the noise makes it whatever the units.
     fn ols_row_scale(&self) -> Option<Vec<f64>> {
-        let w = POSE_SIGMAS.0 / POSE_SIGMAS.1;
-        let angles = self.data.observations.iter().any(Observation::is_angle);
-        angles.then(|| self.data.observations.iter().map(|o| if o.is_angle() { w } else { 1.0 }).collect())
+        let observations = &self.data.observations;
+        observations.iter().any(Observation::is_angle).then(|| {
+            let w = self.angle_weight();
+            observations.iter().map(|o| if o.is_angle() { w } else { 1.0 }).collect()
+        })
     }
 
     fn names(&self) -> Vec<String> {
@@ -1346,6 +1372,11 @@ pub struct KindCalibration {
     /// With markers (and the base estimated): where their rigid registration placed the base
     /// (the measuring frame to the robot's), which the `base.*` estimates correct.
     pub registered_base: Option<Placement>,
+    /// A 6-DOF probe's calibrated frame, absolute, in the model's
+    /// [marker frame](RobotModel::marker_frame) (a URDF's tip link, else the last joint's
+    /// frame): `F^-1 T`, `F` that frame and `T` the calibrated tool frame; `None` without a
+    /// probe.
+    pub tip_frame: Option<Placement>,
     joint_noise: Option<DMatrix<f64>>,
     /// One chain per point: the markers', then the tool's if observed.
     chains: Vec<Chain>,
@@ -1879,6 +1910,12 @@ pub fn calibrate_kinds(
     };
     let calibrated = fold(&registered, &params, &after, (&points, tool_point), probe);
     let frame = registered.marker_frame().isometry();
+    let tip_frame = match calibrated.tool {
+        Tool::Frame(t) if !data.probes().is_empty() => {
+            Some(Placement::from_isometry(&(frame.inverse() * t.isometry())))
+        }
+        _ => None,
+    };
     let prior_sd = prior_sds(&options.prior, &params)?;
     let mut calibration = KindCalibration {
         calibrated,
@@ -1898,6 +1935,7 @@ pub fn calibrate_kinds(
         markers: markers.iter().zip(&calibrated_points).map(|(&m, p)| (m, (frame * p).coords)).collect(),
         variance_factor: None,
         registered_base: (!markers.is_empty() && options.estimate_base).then_some(registered.base),
+        tip_frame,
         joint_noise: options.joint_noise.clone(),
         chains,
         noise_estimate: None,
