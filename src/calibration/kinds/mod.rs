@@ -1048,7 +1048,7 @@ impl Residuals for KindProblem<'_> {
     }
 
     /// Angles (rad) count as lengths for ordinary least squares: times the noise's
-    /// `w = sigma_length / sigma_angle` ([`KindProblem::angle_weight`], mm/rad), so that an
+    /// `w = sigma_length / sigma_angle` (`KindProblem::angle_weight`, mm/rad), so that an
     /// angle's row weighs as the noise makes it whatever the units.
     fn ols_row_scale(&self) -> Option<Vec<f64>> {
         let observations = &self.data.observations;
