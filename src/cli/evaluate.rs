@@ -4,7 +4,7 @@
 
 use super::observations::{Noise, marker_ids_known, named_markers};
 use super::request::{EvaluateRequest, NoiseSource};
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use nalgebra::Vector3;
 use robocal::calibration::DataKind;
 use robocal::calibration::kinds::{KindData, KindOptions, RowSigmaDefaults, Score, evaluate_kinds};
@@ -109,31 +109,6 @@ fn observation_noise(request: &EvaluateRequest, model: &robocal::model::RobotMod
             Noise::of(None, Some(&flags.joint_sigma_deg), sigmas, model)
         }
         Some(NoiseSource::File(path)) => Noise::of(Some(path), None, RowSigmaDefaults::default(), model),
-    }
-}
-
-/// The joint noise `--joint-sigma-deg` gives for scoring view files (of the tree `name` with
-/// `joints`); `--noise`, `--sigma-mm` and `--sigma-orientation-deg` refused: a view file's sigma
-/// columns are its measurement noise.
-pub(super) fn observation_joint_noise(
-    request: &EvaluateRequest,
-    (name, joints): (&str, &[robocal::model::Joint]),
-) -> Result<Option<nalgebra::DMatrix<f64>>> {
-    match &request.noise {
-        None => Ok(None),
-        Some(NoiseSource::Flags(flags)) if flags.sigma_mm != 0.0 || flags.sigma_orientation_deg != 0.0 => {
-            bail!(
-                "--sigma-mm and --sigma-orientation-deg are not for view files: the sigma and sigma_angle columns \
-                 give the measurement noise here, --joint-sigma-deg the joints'"
-            )
-        }
-        Some(NoiseSource::Flags(flags)) => {
-            super::joint_covariance(name, joints, Some(&flags.joint_sigma_deg))
-        }
-        Some(NoiseSource::File(_)) => bail!(
-            "--noise is not for view files: the sigma and sigma_angle columns give the measurement noise here; \
-             give the joint noise by --joint-sigma-deg"
-        ),
     }
 }
 

@@ -2,7 +2,7 @@
 //! with the branches `calibrate --out-dir` wrote (`--branches`), scored on files of views
 //! between its branches, each file's cameras and targets fitted to it, the tree held.
 
-use super::request::EvaluateRequest;
+use super::request::{EvaluateRequest, NoiseSource};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::DataKind;
 use robocal::calibration::tree::{TreeData, TreeOptions, TreeScore, ViewResidual, evaluate_tree};
@@ -47,7 +47,7 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
             Ok((path.display().to_string(), data))
         })
         .collect::<Result<Vec<_>>>()?;
-    let joint_noise = super::evaluate::observation_joint_noise(request, (&tree.name, &tree.joints))?;
+    let joint_noise = observation_joint_noise(request, (&tree.name, &tree.joints))?;
     let options = TreeOptions { joint_noise, ..TreeOptions::default() };
     let views = (files.iter())
         .map(|(name, data)| {
@@ -128,4 +128,29 @@ fn views_text(model: &str, scores: &[(String, TreeScore)]) -> String {
         }
     }
     text
+}
+
+/// The joint noise `--joint-sigma-deg` gives for scoring view files (of the tree `name` with
+/// `joints`); `--noise`, `--sigma-mm` and `--sigma-orientation-deg` refused: a view file's sigma
+/// columns are its measurement noise.
+fn observation_joint_noise(
+    request: &EvaluateRequest,
+    (name, joints): (&str, &[robocal::model::Joint]),
+) -> Result<Option<nalgebra::DMatrix<f64>>> {
+    match &request.noise {
+        None => Ok(None),
+        Some(NoiseSource::Flags(flags)) if flags.sigma_mm != 0.0 || flags.sigma_orientation_deg != 0.0 => {
+            bail!(
+                "--sigma-mm and --sigma-orientation-deg are not for view files: the sigma and sigma_angle columns \
+                 give the measurement noise here, --joint-sigma-deg the joints'"
+            )
+        }
+        Some(NoiseSource::Flags(flags)) => {
+            super::joint_covariance(name, joints, Some(&flags.joint_sigma_deg))
+        }
+        Some(NoiseSource::File(_)) => bail!(
+            "--noise is not for view files: the sigma and sigma_angle columns give the measurement noise here; \
+             give the joint noise by --joint-sigma-deg"
+        ),
+    }
 }

@@ -125,7 +125,10 @@ pub fn run(cli: Cli) -> Result<()> {
     QUIET.store(cli.quiet, Ordering::Relaxed);
     match cli.command {
         Command::Reproduce(output) => simulate::reproduce(&output),
-        Command::Simulate(args) => simulate::simulate(&args),
+        Command::Simulate(args) => match args.shard {
+            Some(part) => shard::simulate(&args, part),
+            None => simulate::simulate(&args),
+        },
         Command::Merge(args) => shard::merge(&args),
         Command::Repeatability(args) => repeatability::run(&RepeatabilityRequest::from_args(*args)?),
         Command::Fk(args) => fk::run(&args),

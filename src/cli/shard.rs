@@ -108,6 +108,7 @@ fn fingerprint(study: &dyn std::fmt::Debug) -> String {
 
 /// `robocal simulate STUDY --shard I/N`.
 pub fn simulate(args: &SimulateArgs, shard: Shard) -> Result<()> {
+    simulate::check_outputs(args)?;
     let loaded = simulate::load(&args.study, args.noise.as_deref())?;
     let mut file = ShardFile {
         format: FORMAT.into(),

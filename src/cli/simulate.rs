@@ -34,17 +34,20 @@ pub fn reproduce(output: &StudyOutputArgs) -> Result<()> {
     Ok(())
 }
 
-/// `robocal simulate`: one study, its noise replaced by a noise file if one is given; or an
-/// instrument study (`instruments`, a file with `[[instruments]]`).
-pub fn simulate(args: &SimulateArgs) -> Result<()> {
+/// Refuse a `simulate` whose `--out` folder would take an input's place.
+pub(super) fn check_outputs(args: &SimulateArgs) -> Result<()> {
     let mut inputs = vec![("the study", Path::new(&args.study))];
     inputs.extend(args.noise.as_deref().map(|p| ("--noise", p)));
     // `<out>/<study name>/`: tables and replications (.txt), samples (.csv), figures (.svg).
     let writes: fn(&str) -> bool = |name| [".txt", ".csv", ".svg"].iter().any(|e| name.ends_with(e));
     super::request::distinct_outputs_and_folders(&inputs, &[], &[("--out", Some(&args.output.out), writes)])?;
-    if let Some(shard) = args.shard {
-        return super::shard::simulate(args, shard);
-    }
+    Ok(())
+}
+
+/// `robocal simulate` without `--shard`: one study, its noise replaced by a noise file if one
+/// is given; or an instrument study (`instruments`, a file with `[[instruments]]`).
+pub fn simulate(args: &SimulateArgs) -> Result<()> {
+    check_outputs(args)?;
     match load(&args.study, args.noise.as_deref())? {
         Loaded::Instruments(study) => instruments(&study, args),
         Loaded::Study(study) => {

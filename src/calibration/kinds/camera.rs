@@ -50,9 +50,28 @@
 //! Only `A^-1 B` is seen: a rigid motion of the base with the world's placement leaves every
 //! view, so the base is held and the world placement absorbs it.
 
-use super::data::CameraSite;
 use crate::calibration::CalibrationError;
 use nalgebra::{Isometry3, Matrix3, Matrix6, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
+
+/// Where the camera is: on the arm looking at a target fixed in the world (hand-eye), or fixed
+/// in the world looking at a target on the arm (eye-to-hand).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CameraSite {
+    /// On the tool (`camera` mounted in the tool frame, `target` placed in the base frame).
+    Hand,
+    /// Fixed (`camera` placed in the base frame, `target` mounted in the tool frame).
+    World,
+}
+
+impl CameraSite {
+    /// `hand` or `world`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Hand => "hand",
+            Self::World => "world",
+        }
+    }
+}
 
 /// The frame of a placement `(x, y, z, rx, ry, rz)`: position (mm), rotation vector (rad).
 pub fn isometry(v: &[f64]) -> Isometry3<f64> {

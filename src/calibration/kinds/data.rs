@@ -21,7 +21,7 @@
 //! its defaults are [`DEFAULT_CAMERA_SIGMA_MM`] and [`DEFAULT_CAMERA_SIGMA_DEG`].
 
 use super::SetUp;
-use super::camera::{camera_start, isometry};
+use super::camera::{CameraSite, camera_start, isometry};
 use crate::calibration::CalibrationError;
 use crate::estimation::MeasurementClass;
 use crate::limits::MAX_LENGTH_MM;
@@ -71,26 +71,6 @@ impl RowSigmaDefaults {
             (_, given) => given,
         };
         Self::positive(spec.sigma_me, Some(orientation))
-    }
-}
-
-/// Where the camera is: on the arm looking at a target fixed in the world (hand-eye), or fixed
-/// in the world looking at a target on the arm (eye-to-hand).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CameraSite {
-    /// On the tool (`camera` mounted in the tool frame, `target` placed in the base frame).
-    Hand,
-    /// Fixed (`camera` placed in the base frame, `target` mounted in the tool frame).
-    World,
-}
-
-impl CameraSite {
-    /// `hand` or `world`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Hand => "hand",
-            Self::World => "world",
-        }
     }
 }
 

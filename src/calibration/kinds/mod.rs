@@ -106,9 +106,10 @@ use camera::relative_view;
 
 pub use feasible::calibrate_kinds_feasible;
 
+pub use camera::CameraSite;
 pub use data::{
-    CameraSite, DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM,
-    KindData, Observation, RowSigmaDefaults,
+    DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM, KindData,
+    Observation, RowSigmaDefaults,
 };
 
 use super::noise_check::{CHECK_POSES, at_estimate, check, without_outliers};
