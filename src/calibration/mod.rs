@@ -632,6 +632,13 @@ pub(crate) fn fold(
     out
 }
 
+/// A [`Warning::IllConditioned`] when the identified system's column-scaled condition number
+/// is above [`CONDITION_WARNING`].
+pub(crate) fn ill_conditioned(refined: &Refined) -> Option<Warning> {
+    let condition_number = refined.estimate.diagnostics.condition_number;
+    (condition_number > CONDITION_WARNING).then_some(Warning::IllConditioned { condition_number })
+}
+
 /// A [`Warning::NotConverged`] for a fit that stopped at its step limit, with its last step;
 /// not for the paper's one-step estimate (`--iterations 1`, a single step is all it takes: a
 /// limit above 1 stops at 2 steps at least).

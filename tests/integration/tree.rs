@@ -3,8 +3,8 @@
 
 use nalgebra::{DMatrix, DVector, Isometry3};
 use proptest::prelude::*;
-use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use robocal::calibration::Held;
 use robocal::calibration::tree::{
     Frame, Role, TreeCalibration, TreeData, TreeOptions, TreeParams, TreeProblem, calibrate_tree,
@@ -189,6 +189,41 @@ fn one_fit_of_a_head_camera_seeing_both_hands_recovers_every_chain() {
     // Each arm and the head are estimated.
     for joint in ["head_tilt", "l_elbow", "r_wrist_pitch"] {
         assert!(c.refined.estimate.names.iter().any(|n| n.starts_with(&format!("{joint}."))), "{joint}");
+    }
+}
+
+/// A tree's fit warns of an ill-conditioned system as a serial arm's does: views at poses
+/// spread over the joints' range calibrate without the warning; views at poses clustered
+/// within 1e-7 rad of one configuration, rank-full in the joint offsets, with it.
+#[test]
+fn a_badly_conditioned_tree_is_warned() {
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let nominal = torso();
+    let truth = perturbed_tree(&nominal, 1.0, 0.005, &mut rng);
+    let (frames, placements) = frames(&nominal);
+    let spread = nominal.uniform_configurations(60, &mut rng);
+    let centre = spread[0].clone();
+    let clustered: Vec<Vec<f64>> =
+        (0..60).map(|_| centre.iter().map(|c| c + 1e-7 * rng.random_range(-1.0..1.0)).collect()).collect();
+    for (poses, warned) in [(spread, false), (clustered, true)] {
+        let data = simulate_views(&truth, &frames, &placements, &PAIRS, &poses, [0.0; 2], &mut rng);
+        let offsets = TreeOptions { joints: JointParams::Offsets, ..options(Estimator::Ols) };
+        let c = calibrate_tree(&nominal, &data, &offsets).unwrap();
+        let warning = (c.warnings.iter())
+            .find(|w| matches!(w, robocal::calibration::Warning::IllConditioned { .. }))
+            .map(ToString::to_string);
+        let d = &c.refined.estimate.diagnostics;
+        assert_eq!(
+            warning.is_some(),
+            warned,
+            "condition {:e}, rank {}: {:?}",
+            d.condition_number,
+            d.rank,
+            c.warnings
+        );
+        if let Some(warning) = warning {
+            assert!(warning.contains("above 1e6: the estimates are poorly determined"), "{warning}");
+        }
     }
 }
 

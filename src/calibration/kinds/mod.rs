@@ -1946,10 +1946,7 @@ pub fn calibrate_kinds(
     calibration.warnings.extend(Warning::outside_limits(&model.name, &model.joints, data.pose_lines()));
     calibration.warnings.extend(noise_check(&calibration, data));
     calibration.warnings.extend(change);
-    let condition_number = calibration.refined.estimate.diagnostics.condition_number;
-    if condition_number > super::CONDITION_WARNING {
-        calibration.warnings.push(Warning::IllConditioned { condition_number });
-    }
+    calibration.warnings.extend(super::ill_conditioned(&calibration.refined));
     Ok(calibration)
 }
 

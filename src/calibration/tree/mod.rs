@@ -1154,6 +1154,7 @@ pub fn calibrate_tree(
     calibration.warnings.extend(Warning::outside_limits(&tree.name, &tree.joints, views));
     calibration.warnings.extend(noise_check::tree_noise_check(&calibration, data));
     calibration.warnings.extend(r.change);
+    calibration.warnings.extend(super::ill_conditioned(&calibration.refined));
     Ok(calibration)
 }
 
