@@ -9,99 +9,17 @@
 //! [`choose`]: super::selection::choose
 //! [`cross_validate_choices`]: super::selection::cross_validate_choices
 
+use super::choice::{Criterion, Fitted, FoldChoices, FoldFit, Front, Nested, SelectionPath};
 use super::kinds::{self, KindCalibration, KindData, KindOptions, Score};
 use super::prior_scale::{AutoPrior, FrontEvidence, needs_the_noise, system_evidence};
-use super::selection::{
-    ChosenFit, Criterion, Fitted, FoldChoices, LinearModel, Nested, SelectionPath, named_joints,
-};
+use super::selection::{LinearModel, named_joints};
 use super::tree::{self, TreeCalibration, TreeData, TreeOptions, TreeScore};
 use super::{CalibrationError, JointParams, Loss, RobotModel};
 use crate::estimation::{Estimator, PriorEntry};
 use crate::model::{RobotTree, name_matches};
 use std::borrow::Cow;
 
-/// A result of the choices' stages.
 type Result<T> = std::result::Result<T, CalibrationError>;
-
-/// Each fold's calibration of a nested cross-validation: the choices made on its training data
-/// with its options, and the model chosen calibrated
-/// ([`calibrate_chosen`](super::selection::calibrate_chosen)).
-pub type FoldFit<'f, F> =
-    &'f dyn Fn(&<F as Front>::Data, &<F as Front>::Options) -> Result<ChosenFit<<F as Front>::Fit>>;
-
-/// A calibration front-end: its data, options and calibration, and what the choices made from
-/// the data ask of them.
-pub trait Front: Sized {
-    /// The data calibrated from.
-    type Data: Clone;
-    /// How to calibrate.
-    type Options: Clone;
-    /// A calibration.
-    type Fit;
-    /// A nested cross-validation's report ([`Front::nested`]).
-    type Nested;
-
-    /// The data's poses (the folds at most).
-    fn poses(data: &Self::Data) -> usize;
-
-    /// The options' prior entries.
-    fn prior(options: &mut Self::Options) -> &mut Vec<PriorEntry>;
-
-    /// `options` with the prior `prior` makes of their own entries.
-    fn with_prior(
-        options: &Self::Options,
-        prior: impl FnOnce(&[PriorEntry]) -> Vec<PriorEntry>,
-    ) -> Self::Options {
-        let mut options = options.clone();
-        let own = Self::prior(&mut options);
-        *own = prior(own);
-        options
-    }
-
-    /// `options` asking for the joint parameters `names` only.
-    fn with_joints(&self, options: &Self::Options, names: &[String]) -> Self::Options;
-
-    /// Calibrate `data` with `options`.
-    fn calibrate(&self, data: &Self::Data, options: &Self::Options) -> Result<Self::Fit>;
-
-    /// What the `t` rule of `--select` reads of `fit`.
-    fn fitted(fit: &Self::Fit) -> Fitted<'_>;
-
-    /// The cross-validated RMS of `--prior auto`'s curve (mm), `folds` folds.
-    fn cv_rms(&self, data: &Self::Data, options: &Self::Options, folds: usize) -> Result<f64>;
-
-    /// The marginal likelihood ([`FrontEvidence`]) for `auto`'s scale, linearised about `about`
-    /// (`None`: the "before" fit), and the noise level it took where none was given.
-    fn evidence(
-        &self,
-        data: &Self::Data,
-        options: &Self::Options,
-        auto: &AutoPrior,
-        about: Option<&Self::Fit>,
-    ) -> Result<FrontEvidence>;
-
-    /// Refuse `--select` on `data` before anything is done: a probe's orientations.
-    fn refuse_select(_data: &Self::Data) -> Result<()> {
-        Ok(())
-    }
-
-    /// The forward path of `criterion` (`cv`, `bic`) on one linearisation about "before".
-    fn forward(
-        &self,
-        data: &Self::Data,
-        options: &Self::Options,
-        criterion: Criterion,
-    ) -> Result<SelectionPath>;
-
-    /// The `folds`-fold cross-validation of `fit` (each fold's choices and calibration).
-    fn nested(
-        &self,
-        data: &Self::Data,
-        options: &Self::Options,
-        folds: usize,
-        fit: FoldFit<Self>,
-    ) -> Result<Self::Nested>;
-}
 
 /// A nested cross-validation's score, as `cross` makes it calibrating each fold's training data
 /// by `fit` (`options` before any choice), with what each fold chose.

@@ -16,6 +16,7 @@
 //!
 //! Errors are in mm and rad inside, and are folded into a calibrated model at the end.
 
+pub mod choice;
 mod data;
 pub mod diagnostics;
 pub mod front;
@@ -28,11 +29,12 @@ pub mod robust;
 pub mod selection;
 pub mod tree;
 
+pub use choice::Front;
 pub use data::{DataKind, Measurements};
 pub use diagnostics::{
     Cause, ComponentMove, Confounder, FLAG_AT, FarOut, Held, OutsidePose, Scored, Warning,
 };
-pub use front::{Front, Kinds, Tree};
+pub use front::{Kinds, Tree};
 pub use repeatability::{
     Repeatability, RepeatabilityData, RepeatabilityOptions, RepeatedPose, repeatability,
 };

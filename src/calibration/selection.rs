@@ -43,7 +43,10 @@
 //! is the same on any number of threads. The selected model is then calibrated by
 //! Gauss-Newton as any other.
 
-use super::front::Front;
+use super::choice::Front;
+pub use super::choice::{
+    ChosenFit, Criterion, Fitted, FoldChoices, Nested, SelectionPath, StandInFirst, Step, Trade,
+};
 use super::kinds::{self, KindData, KindOptions};
 use super::prior_scale::{AutoPrior, PriorScale, choose_prior_scale};
 use super::{CalibrationError, Held, JointParams, RobotModel, check_folds, standard_errors_of};
@@ -51,7 +54,6 @@ use crate::estimation::{LinearEstimate, Residuals, Weights};
 use crate::model::ParamOwner;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
-use std::borrow::Cow;
 
 /// Folds of `--select cv` unless told.
 pub const DEFAULT_FOLDS: usize = 5;
@@ -59,172 +61,6 @@ pub const DEFAULT_FOLDS: usize = 5;
 /// A candidate's squared distance to the span of the others, relative to its squared norm,
 /// below which it is not added (a sine of 1e-6: the normal equations would lose every digit).
 pub const COLLINEAR: f64 = 1e-12;
-
-/// How the joint parameters are chosen.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Criterion {
-    /// Forward selection by `folds`-fold cross-validated RMS, one-standard-error rule.
-    Cv {
-        /// Number of folds (at least 2, at most the number of poses).
-        folds: usize,
-    },
-    /// Forward selection by the Bayesian information criterion.
-    Bic,
-    /// Backward elimination of the estimates within 2 standard errors of zero.
-    T,
-}
-
-impl Criterion {
-    /// The name on the command line: `cv`, `bic`, `t`.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Cv { .. } => "cv",
-            Self::Bic => "bic",
-            Self::T => "t",
-        }
-    }
-}
-
-/// One step of a selection path.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct Step {
-    /// The parameter added (forward) or dropped (`t`); `None` for the start: the registration
-    /// alone (forward), every candidate (`t`).
-    pub parameter: Option<String>,
-    /// The model's score after the step: its CV RMS (mm), its BIC, or for `t` the dropped
-    /// parameter's `|t|` (NaN at the start).
-    pub score: f64,
-    /// The CV RMS's standard error (mm); NaN for the other criteria.
-    pub se: f64,
-    /// Why this parameter, when not by its score alone (`t`: a stand-in dropped before the
-    /// joint's zero or play it stands in for).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub note: Option<StandInFirst>,
-}
-
-impl Step {
-    /// Its note in words ([`StandInFirst::text`]), if it has one.
-    pub fn note_text(&self) -> Option<String> {
-        let parameter = self.parameter.as_deref().unwrap_or("");
-        self.note.as_ref().map(|n| n.text(parameter, self.score))
-    }
-}
-
-/// Why the `t` rule dropped a parameter that is not the weakest: it stands in (alone, or in a
-/// group of up to [`STAND_IN_GROUP`]) for a joint's zero or play that is weaker still, and
-/// a joint's zero and play go last.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct StandInFirst {
-    /// The joint's zero or play it stands in for.
-    pub stands_in_for: String,
-    /// The other parameters of its group, if it stands in with others (empty: alone).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub with: Vec<String>,
-    /// The correlation of the zero's or play's estimate with the group's: signed for one
-    /// parameter, the multiple correlation (0 to 1) of a group.
-    pub correlation: f64,
-}
-
-impl StandInFirst {
-    /// In words, of the step that dropped `parameter` at `|t|` `t`: `joint4.rz (|t| 0.12)
-    /// before joint4.theta, for which it stands in (correlation -1.00): a joint's zero and play
-    /// go last`.
-    pub fn text(&self, parameter: &str, t: f64) -> String {
-        let how = match self.with.is_empty() {
-            true => format!("for which it stands in (correlation {:+.2})", self.correlation),
-            false => format!(
-                "for which it stands in with {} (multiple correlation {:.2})",
-                self.with.join(", "),
-                self.correlation
-            ),
-        };
-        format!(
-            "{parameter} (|t| {t:.2}) before {}, {how}: a joint's zero and play go last",
-            self.stands_in_for
-        )
-    }
-}
-
-/// A joint's zero or play left out of the chosen model (a forward path), or dropped by the `t`
-/// rule, while chosen parameters that can only stand in for it are in: their estimates
-/// correlated with its own by [`STANDS_IN`] or more (one parameter, or the multiple
-/// correlation of a group of up to [`STAND_IN_GROUP`]). They carry its error.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct Trade {
-    /// The joint's zero or play left out.
-    pub parameter: String,
-    /// Its `|t|` when the `t` rule dropped it; none on a forward path.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub t: Option<f64>,
-    /// The chosen parameters that stand in for it, one to [`STAND_IN_GROUP`].
-    pub stand_ins: Vec<String>,
-    /// Their `|t|`, in the same order, under the `t` rule; empty on a forward path.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub stand_in_t: Vec<f64>,
-    /// The correlation of its estimate with theirs: signed for one parameter, the multiple
-    /// correlation (0 to 1) of a group.
-    pub correlation: f64,
-}
-
-impl std::fmt::Display for Trade {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let (one, named) = (self.stand_ins.len() == 1, self.stand_ins.join(", "));
-        let named_t = || -> Vec<String> {
-            (self.stand_ins.iter().zip(&self.stand_in_t))
-                .map(|(n, t)| format!("{n} (|t| = {t:.2})"))
-                .collect()
-        };
-        let who = match self.t {
-            None if one => format!("{} left out while {named} is in", self.parameter),
-            None => format!("{} left out while {named} are in", self.parameter),
-            Some(t) if one => {
-                format!("{} dropped at |t| = {t:.2} while {} stays", self.parameter, named_t()[0])
-            }
-            Some(t) => {
-                format!("{} dropped at |t| = {t:.2} while {} stay", self.parameter, named_t().join(", "))
-            }
-        };
-        match one {
-            true => write!(
-                f,
-                "{who}, which stands in for it (correlation {:+.2}): {named} carries its error",
-                self.correlation
-            ),
-            false => write!(
-                f,
-                "{who}, which together stand in for it (multiple correlation {:.2}): they carry its error",
-                self.correlation
-            ),
-        }
-    }
-}
-
-/// The path of a selection and the parameters it chose.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SelectionPath {
-    /// How they were chosen.
-    pub criterion: Criterion,
-    /// Every step, the start first.
-    pub steps: Vec<Step>,
-    /// The step chosen: the model is the start and the steps up to it.
-    pub chosen: usize,
-    /// The joint parameters of the chosen model, in canonical order.
-    pub selected: Vec<String>,
-    /// The parameters asked for that are held, not candidates, each with why in words: the
-    /// gauge's (the poses cannot tell them apart from the others, with the combination), an
-    /// unloaded compliance's, and for `t` those of `--hold`.
-    pub held: Vec<String>,
-    /// Each joint's zero or play left out while chosen parameters that stand in for it are in
-    /// ([`Trade`]): the error the zero or play would carry is carried by them.
-    pub trades: Vec<Trade>,
-}
-
-impl SelectionPath {
-    /// `options` of `front` asking for the selected parameters only ([`Front::with_joints`]).
-    pub fn options<F: Front>(&self, front: &F, options: &F::Options) -> F::Options {
-        front.with_joints(options, &self.selected)
-    }
-}
 
 /// The joint parameters `names`; none when empty.
 pub(crate) fn named_joints(names: Vec<String>) -> JointParams {
@@ -320,17 +156,6 @@ pub fn choose<F: Front>(
     Ok(chosen)
 }
 
-/// A calibration with the choices made from its data ([`calibrate_chosen`]).
-#[derive(Debug, Clone)]
-pub struct ChosenFit<C> {
-    /// The scale of the preset, and its curve.
-    pub scale: Option<PriorScale>,
-    /// The selection's path.
-    pub path: Option<SelectionPath>,
-    /// The calibration with the options chosen.
-    pub calibration: C,
-}
-
 /// Make `choices` on `data` ([`choose`]) and calibrate with them ([`Front::calibrate`]).
 pub fn calibrate_chosen<F: Front>(
     front: &F,
@@ -357,36 +182,6 @@ pub fn cross_validate_choices<F: Front>(
     folds: usize,
 ) -> Result<F::Nested, CalibrationError> {
     front.nested(data, options, folds, &|train, options| calibrate_chosen(front, train, options, choices))
-}
-
-/// What the folds of a nested cross-validation chose, fold by fold.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct FoldChoices {
-    /// With a selection: the joint parameters each fold's selection chose.
-    pub selected: Vec<Vec<String>>,
-    /// With `--prior auto`: the scale each fold chose (none with a scale per class,
-    /// `auto-ml:PRESET:classes`).
-    pub scales: Vec<f64>,
-}
-
-impl FoldChoices {
-    /// The next fold's choices: its selection and its one prior scale, where it made them.
-    pub(crate) fn push<C>(&mut self, chosen: &ChosenFit<C>) {
-        self.selected.extend(chosen.path.as_ref().map(|p| p.selected.clone()));
-        // A scale per class (auto-ml:PRESET:classes) is no one number: not listed.
-        self.scales.extend(chosen.scale.as_ref().filter(|s| s.classes.is_empty()).map(|s| s.scale()));
-    }
-}
-
-/// A nested k-fold cross-validation of observation files or a tree's views
-/// ([`cross_validate_choices`]): the held-out observations scored, each with its fold's
-/// calibration, and what each fold chose.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Nested<S> {
-    /// The held-out observations scored.
-    pub score: S,
-    /// What each fold chose.
-    pub choices: FoldChoices,
 }
 
 /// Backward elimination by `|t|` ([`Criterion::T`]), `t = estimate / SE` with the SE of the
@@ -512,18 +307,6 @@ fn traded_at_the_end<F: Front>(
         }
     }
     Ok(())
-}
-
-/// A calibration as the `t` rule of [`select`] reads it ([`Front::fitted`]).
-pub struct Fitted<'a> {
-    /// Its parameters.
-    pub params: Cow<'a, crate::model::ParamSet>,
-    /// Their values before and after (full vectors).
-    pub values: (Cow<'a, [f64]>, &'a [f64]),
-    /// Its estimate.
-    pub estimate: &'a LinearEstimate,
-    /// What it held.
-    pub fixed: &'a [Held],
 }
 
 /// The correlation above which parameters' estimates stand in for a joint's zero or play:

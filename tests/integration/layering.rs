@@ -171,6 +171,97 @@ fn the_check_sees_grouped_and_inline_paths() {
     assert_eq!(without_comments("a // crate::report\n/// crate::io\nb"), "a \n\nb");
 }
 
+/// The sibling modules of `calibration` (its files and folders, `mod.rs` its face) that the
+/// module at `path` (its names from `calibration`: `["kinds", "data"]`; a folder's `mod.rs` is
+/// the folder's) uses: by `crate::calibration::x`, or by the supers that climb to
+/// `calibration` (one from a file of its own, two from a file in a folder).
+fn calibration_siblings(text: &str, path: &[String]) -> Vec<String> {
+    let mut used: Vec<String> = (text.match_indices("crate::calibration::"))
+        .flat_map(|(i, _)| names_after(&text[i + "crate::calibration::".len()..]))
+        .collect();
+    let mut at = 0;
+    while let Some(i) = text[at..].find("super::") {
+        let mut rest = &text[at + i..];
+        let mut climbs = 0;
+        while let Some(r) = rest.strip_prefix("super::") {
+            climbs += 1;
+            rest = r;
+        }
+        at = text.len() - rest.len();
+        if climbs == path.len() {
+            used.extend(names_after(rest));
+        }
+    }
+    used.retain(|m| *m != path[0]);
+    used
+}
+
+/// A cycle of `edges` (`from -> to`), as the names along it, if there is one.
+fn a_cycle(edges: &[(String, String)]) -> Option<Vec<String>> {
+    fn visit(
+        at: &str,
+        edges: &[(String, String)],
+        stack: &mut Vec<String>,
+        done: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        if let Some(k) = stack.iter().position(|s| s == at) {
+            return Some(stack[k..].iter().cloned().chain([at.to_string()]).collect());
+        }
+        if done.iter().any(|d| d == at) {
+            return None;
+        }
+        stack.push(at.to_string());
+        for (_, to) in edges.iter().filter(|(from, _)| from == at) {
+            if let Some(cycle) = visit(to, edges, stack, done) {
+                return Some(cycle);
+            }
+        }
+        done.push(stack.pop().unwrap());
+        None
+    }
+    let mut done = Vec::new();
+    edges.iter().find_map(|(from, _)| visit(from, edges, &mut Vec::new(), &mut done))
+}
+
+/// The calibration's modules use each other one way: no cycle among its files and folders
+/// (a folder, `kinds/`, is one module; `mod.rs` is the face that names them).
+#[test]
+fn the_calibrations_modules_use_each_other_one_way() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/calibration");
+    let mut files = Vec::new();
+    visit(&root, &mut files);
+    let mut edges: Vec<(String, String)> = Vec::new();
+    for file in &files {
+        let mut path: Vec<String> = (file.strip_prefix(&root).unwrap().iter())
+            .map(|c| c.to_str().unwrap().trim_end_matches(".rs").to_string())
+            .collect();
+        if path.len() > 1 && path.last().is_some_and(|l| l == "mod") {
+            path.pop();
+        }
+        if path == ["mod"] {
+            continue;
+        }
+        let siblings = |name: &String| root.join(format!("{name}.rs")).exists() || root.join(name).is_dir();
+        let text = without_comments(&std::fs::read_to_string(file).unwrap());
+        for used in calibration_siblings(&text, &path).into_iter().filter(siblings) {
+            if !edges.contains(&(path[0].clone(), used.clone())) {
+                edges.push((path[0].clone(), used));
+            }
+        }
+    }
+    assert!(edges.len() > 20, "too few uses read ({}): is it reading src/calibration?", edges.len());
+    assert_eq!(a_cycle(&edges), None, "a cycle among the calibration's modules");
+    // The check finds one.
+    let looped = [("a", "b"), ("b", "c"), ("c", "a")].map(|(a, b)| (a.to_string(), b.to_string()));
+    assert_eq!(a_cycle(&looped).unwrap(), ["a", "b", "c", "a"]);
+    let path: Vec<String> = ["kinds", "data"].map(String::from).to_vec();
+    assert_eq!(
+        calibration_siblings("use super::super::{selection::X,\n front::Y};", &path),
+        ["selection", "front"]
+    );
+    assert!(calibration_siblings("use super::camera::Z;", &path).is_empty(), "inside its own folder");
+}
+
 /// The longest function a module of the calibration may have: a longer one is several steps
 /// that want names of their own.
 const MAX_FUNCTION_LINES: usize = 80;
