@@ -11,13 +11,14 @@
 //! (rad), marker coordinates (mm), a camera view's position (mm) and rotation (rad), one
 //! component for each class the data hold.
 
-use super::{KindCalibration, KindData, KindOptions, KindProblem, calibrate_kinds};
+use super::{KindCalibration, KindData, KindOptions, KindProblem, Unscored, fit_kinds};
 use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
 use crate::estimation::{Estimator, HeldRows, NoiseEstimate, Residuals, Weights, residual_samples};
 use crate::model::RobotModel;
 use nalgebra::DMatrix;
+use std::sync::OnceLock;
 
 /// Feasible GLS of observation files: calibrate by ordinary least squares, fit the variance
 /// components (the joint variances, or every entry of `Sigma_q`, and each measurement class's
@@ -43,23 +44,33 @@ pub fn calibrate_kinds_feasible(
         ));
     }
     let ols = KindOptions { estimator: Estimator::Ols, joint_noise: None, ..options.clone() };
+    // The first round's "before" fit, which the others share where it is the same; each
+    // round's calibration scored only if it is the last.
+    let first: OnceLock<(Vec<f64>, Vec<f64>)> = OnceLock::new();
     let calibrate = |estimate: Option<&NoiseEstimate>| match estimate {
-        None => calibrate_kinds(model, data, &ols),
+        None => {
+            let fitted = fit_kinds(model, data, &ols, None)?;
+            first.get_or_init(|| fitted.calibration.before_values());
+            Ok(fitted)
+        }
         Some(e) => {
             let weighted = KindOptions {
                 estimator: Estimator::Wls,
                 joint_noise: Some(e.joint_covariance()),
                 ..ols.clone()
             };
-            calibrate_kinds(model, &with_class_sigmas(data, e), &weighted)
+            let sigmas = with_class_sigmas(data, e);
+            let fitted = fit_kinds(model, &sigmas, &weighted, first.get().cloned())?;
+            Ok(Unscored { fitted_on: Some(sigmas), ..fitted })
         }
     };
-    let estimate = |c: &KindCalibration, previous: Option<&NoiseEstimate>| {
-        residual_noise(c, data, feasible.joints, previous)
+    let estimate = |c: &Unscored, previous: Option<&NoiseEstimate>| {
+        residual_noise(&c.calibration, data, feasible.joints, previous)
     };
     let rounds = reweighted(feasible, calibrate, estimate)?;
     let warning = unsettled(feasible, &rounds);
-    let Reweighted { mut calibration, estimate, settled, .. } = rounds;
+    let Reweighted { calibration, estimate, settled, .. } = rounds;
+    let mut calibration = calibration.scored(model, data)?;
     calibration.noise_settled = Some(settled);
     calibration.warnings.extend(warning);
     if data.assumed_sigmas < data.observations.len() {

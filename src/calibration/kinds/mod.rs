@@ -1740,6 +1740,11 @@ impl KindCalibration {
         (Selection::from_indices(&self.params, robot), kept_setup)
     }
 
+    /// The robot's full vector and the set-up's values of the "before" fit.
+    pub(super) fn before_values(&self) -> (Vec<f64>, Vec<f64>) {
+        (self.before.clone(), self.setup_values.0.clone())
+    }
+
     /// `data` scored before and after, the set-up as calibrated, whitened by `V_k` with the
     /// calibration's joint noise (by feasible GLS, with the estimated noise: each observation's
     /// sigma its class's).
@@ -1888,12 +1893,65 @@ pub fn calibrate_kinds(
     data: &KindData,
     options: &KindOptions,
 ) -> Result<KindCalibration, CalibrationError> {
+    fit_kinds(model, data, options, None)?.scored(model, data)
+}
+
+/// A calibration fitted but not yet scored on its training data nor warned about
+/// ([`Unscored::scored`]): what feasible GLS fits round after round, scoring only the last.
+pub(super) struct Unscored {
+    /// The calibration, its training score and warnings not yet made.
+    pub(super) calibration: KindCalibration,
+    /// The data it was fitted to, where not the data given: with the sigmas ordinary least
+    /// squares takes, or a feasible GLS round's.
+    pub(super) fitted_on: Option<KindData>,
+    /// The spread the priors weighed against ([`prior_spread`]), in the assumed sigmas.
+    spread: Option<f64>,
+    /// What the gauge found at the estimate changed.
+    change: Option<Warning>,
+}
+
+impl Unscored {
+    /// The calibration scored on the data it was fitted to (`data`, where
+    /// [`Unscored::fitted_on`] does not hold others), and its warnings, as [`calibrate_kinds`]
+    /// gives it.
+    pub(super) fn scored(
+        self,
+        model: &RobotModel,
+        data: &KindData,
+    ) -> Result<KindCalibration, CalibrationError> {
+        let Unscored { mut calibration, fitted_on, spread, change } = self;
+        let data = fitted_on.as_ref().unwrap_or(data);
+        scored(&mut calibration, data, spread)?;
+        calibration.warnings.extend(Warning::outside_limits(&model.name, &model.joints, data.pose_lines()));
+        calibration.warnings.extend(noise_check(&calibration, data));
+        calibration.warnings.extend(change);
+        calibration.warnings.extend(super::ill_conditioned(&calibration.refined));
+        Ok(calibration)
+    }
+}
+
+/// [`calibrate_kinds`] but its scoring ([`Unscored::scored`]), the "before" fit taken from
+/// `earlier`'s (a calibration's robot vector and set-up values before,
+/// [`KindCalibration::before_values`]) where it would be made again the same: with markers it
+/// is ordinary least squares without the noise ([`before_fit`]), whatever the estimator and
+/// the sigmas, so a calibration of the same data that differs only in those (a round of
+/// feasible GLS) has the same "before" fit to the bit. Without markers it is weighted, and
+/// made again; with angles (a probe's) too, as ordinary least squares weighs them by the
+/// sigmas' ratio ([`KindProblem::angle_weight`]).
+pub(super) fn fit_kinds(
+    model: &RobotModel,
+    data: &KindData,
+    options: &KindOptions,
+    earlier: Option<(Vec<f64>, Vec<f64>)>,
+) -> Result<Unscored, CalibrationError> {
     let as_ols = (options.estimator == Estimator::Ols && options.joint_noise.is_none())
         .then(|| data.with_ols_sigmas())
         .flatten();
     let data = as_ols.as_ref().unwrap_or(data);
     let prepared = prepare(model, data, options)?;
-    let started = start(&prepared, data, options)?;
+    let angles = data.observations.iter().any(Observation::is_angle);
+    let about = earlier.filter(|_| !prepared.markers.is_empty() && !angles);
+    let started = start_about(&prepared, data, options, about)?;
     let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
     let spread = started.prior_spread.map(|s| s / started.weights.scale().unwrap_or(1.0));
     let Fitted { refined: estimate, robust, fixed, after, after_setup, change } =
@@ -1918,7 +1976,7 @@ pub fn calibrate_kinds(
         _ => None,
     };
     let prior_sd = prior_sds(&options.prior, &params)?;
-    let mut calibration = KindCalibration {
+    let calibration = KindCalibration {
         calibrated,
         before,
         after,
@@ -1942,12 +2000,7 @@ pub fn calibrate_kinds(
         noise_estimate: None,
         noise_settled: None,
     };
-    scored(&mut calibration, data, spread)?;
-    calibration.warnings.extend(Warning::outside_limits(&model.name, &model.joints, data.pose_lines()));
-    calibration.warnings.extend(noise_check(&calibration, data));
-    calibration.warnings.extend(change);
-    calibration.warnings.extend(super::ill_conditioned(&calibration.refined));
-    Ok(calibration)
+    Ok(Unscored { calibration, fitted_on: as_ols, spread, change })
 }
 
 /// Whether the noise given (the files' sigmas, the joint noise) agrees with the residuals of
@@ -2648,7 +2701,8 @@ fn registered(
     let chains = Chain::markers(model, nominal);
     let zero = vec![0.0; chains[0].params().len()];
     let at: Vec<ChainAt> = chains.iter().map(|c| c.with_errors(&zero)).collect();
-    let (predicted, measured): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = (measured.iter().enumerate())
+    // Each pose's markers in parallel, in order.
+    let pairs: Vec<(Vector3<f64>, Vector3<f64>)> = (measured.par_iter().enumerate())
         .filter_map(|(n, m)| match *m {
             [Some(x), Some(y), Some(z)] => {
                 let (pose, k) = (n / markers.len(), n % markers.len());
@@ -2656,7 +2710,8 @@ fn registered(
             }
             _ => None,
         })
-        .unzip();
+        .collect();
+    let (predicted, measured): (Vec<Vector3<f64>>, Vec<Vector3<f64>>) = pairs.into_iter().unzip();
     let too_few = || {
         CalibrationError::Observations(format!(
             "marker positions: {} with x, y and z all measured, expected at least 3 not on one line to place the \
