@@ -1,7 +1,8 @@
 //! Calibrating a real robot from what was measured: marker positions, a probe's poses,
 //! distances, plane contacts, coordinates and camera views through one pipeline ([`kinds`]),
 //! a tree's views ([`tree`]), and the choices made from the data over both ([`front`]:
-//! [`selection`], [`prior_scale`], [`robust`] losses).
+//! [`selection`], [`prior_scale`], [`robust`] losses, over the types and the trait of
+//! [`choice`]).
 //!
 //! 1. Registration: the measuring device never shares the robot's frame, so where markers are
 //!    measured the base is first placed by the best rigid fit (Kabsch 1976) of the nominal
