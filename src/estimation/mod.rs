@@ -41,6 +41,7 @@ pub use prior::{
     PRESETS as PRIOR_PRESETS, PriorEntry, PriorError, PriorRows, PriorUnit, prior_entry_of, prior_sds,
     prior_sds_of,
 };
+pub(crate) use problem::length_per_radian;
 pub use problem::{POSE_SIGMAS, PointProblem};
 pub use reduced::Reduced;
 pub(crate) use refine::refine_within;

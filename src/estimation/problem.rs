@@ -425,16 +425,24 @@ pub(crate) struct Scratch {
     positions: Vec<Vector3<f64>>,
 }
 
-/// `sigma_position / sigma_orientation` of pose blocks `V_k` stacked (`6N x 6`): the square
-/// root of the ratio of the mean variances of the position rows and of the orientation rows,
-/// `w = sqrt(sum_k tr V_k,pp / sum_k tr V_k,oo)`.
+/// `sigma_position / sigma_orientation` of pose blocks `V_k` stacked (`6N x 6`)
+/// ([`length_per_radian`] of their diagonals).
 fn orientation_weight(v: &DMatrix<f64>) -> f64 {
-    let (mut position, mut orientation) = (0.0, 0.0);
-    for r in 0..v.nrows() {
-        let variance = v[(r, r % 6)];
-        if r % 6 < 3 { position += variance } else { orientation += variance }
+    length_per_radian((0..v.nrows()).map(|r| (r % 6 >= 3, v[(r, r % 6)])))
+}
+
+/// `w = sigma_length / sigma_angle` (mm/rad) of rows given as (whether an angle, its
+/// variance): the square root of the ratio of the mean variances of the length rows `l` and
+/// of the angle rows `a`, `w = sqrt((sum_l V_ll / sum_a V_aa) (n_a / n_l))` (as many of each:
+/// `sqrt(sum_l V_ll / sum_a V_aa)` to the bit). Not finite without a row of either, or without
+/// an angle's variance.
+pub(crate) fn length_per_radian(rows: impl IntoIterator<Item = (bool, f64)>) -> f64 {
+    let (mut sums, mut counts) = ([0.0; 2], [0.0f64; 2]);
+    for (angle, variance) in rows {
+        sums[usize::from(angle)] += variance;
+        counts[usize::from(angle)] += 1.0;
     }
-    (position / orientation).sqrt()
+    ((sums[0] / sums[1]) * (counts[1] / counts[0])).sqrt()
 }
 
 /// Poses whose covariance blocks `V_k` are computed at once, before they are stacked.

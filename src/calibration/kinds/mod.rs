@@ -120,8 +120,8 @@ use super::{
 use crate::estimation::reml::{Components, Point};
 use crate::estimation::{
     Blocks, Estimator, Linearisation, MeasurementClass, NoiseEstimate, NoiseLayout, POSE_SIGMAS, PriorEntry,
-    PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds,
-    refine_from,
+    PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, length_per_radian,
+    linearise, prior_sds, refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, HeldArm, MarkerEnd, Measured, end_positions, marker_jacobians_held};
 use crate::model::{
@@ -817,24 +817,19 @@ impl<'a> KindProblem<'a> {
     }
 
     /// The length one radian of an angle counts as under ordinary least squares (mm/rad): the
-    /// noise's `w = sqrt(mean_l V_ll / mean_a V_aa)`, the means of `V_k`'s diagonal over the
-    /// length rows `l` and the angle rows `a` (with exact joints, `sigma_length /
+    /// noise's `w = sqrt(mean_l V_ll / mean_a V_aa)` of `V_k`'s diagonal over the length rows
+    /// `l` and the angle rows `a` ([`length_per_radian`]; with exact joints, `sigma_length /
     /// sigma_angle`; with every sigma assumed, [`POSE_SIGMAS`]' ratio, which
     /// `KindData::with_ols_sigmas` gives the angles); [`POSE_SIGMAS`]' ratio without `V_k`.
     fn angle_weight(&self) -> f64 {
         let fixed = POSE_SIGMAS.0 / POSE_SIGMAS.1;
         let Some(v) = self.v.as_deref() else { return fixed };
-        let (mut sums, mut counts) = ([0.0; 2], [0usize; 2]);
-        for range in self.blocks.ranges(self.data.observations.len()) {
-            for r in range.clone() {
-                let angle = usize::from(self.data.observations[r].is_angle());
-                sums[angle] += v[(r, r - range.start)];
-                counts[angle] += 1;
-            }
-        }
-        match counts[0] > 0 && counts[1] > 0 && sums[1] > 0.0 {
-            true => ((sums[0] / counts[0] as f64) / (sums[1] / counts[1] as f64)).sqrt(),
-            false => fixed,
+        let rows = (self.blocks.ranges(self.data.observations.len()))
+            .flat_map(|range| range.clone().map(move |r| (r, r - range.start)))
+            .map(|(r, column)| (self.data.observations[r].is_angle(), v[(r, column)]));
+        match length_per_radian(rows) {
+            w if w.is_finite() && w > 0.0 => w,
+            _ => fixed,
         }
     }
 
