@@ -10,7 +10,7 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::Kinds;
-use robocal::calibration::kinds::{KindData, KindOptions, Observation, calibrate_kinds};
+use robocal::calibration::kinds::{KindCalibration, KindData, KindOptions, Observation, calibrate_kinds};
 use robocal::calibration::selection::{Criterion, select};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::kinematics::{Chain, ChainAt};
@@ -323,22 +323,31 @@ fn with_joint_noise_a_marker_file_weighs_each_pose_as_one_block() {
     let plain =
         calibrate_kinds(&model, &observations, &KindOptions { joint_noise: None, ..weighted.clone() })
             .unwrap();
-    assert_eq!(c.refined.estimate.names, plain.refined.estimate.names);
-    let (se, plain_se) = (c.refined.estimate.standard_errors(), plain.refined.estimate.standard_errors());
-    let mut moved = 0.0f64;
-    for (k, name) in c.refined.estimate.names.iter().enumerate() {
-        assert!(
-            se[k] >= plain_se[k] * (1.0 - 1e-9),
-            "{name}: SE {} with the joint noise, {} without",
-            se[k],
-            plain_se[k]
-        );
-        let i = c.params.index_by_name(name).unwrap();
-        moved = moved.max((c.after[i] - plain.after[i]).abs() / se[k]);
-    }
+    let moved = more_noise_raises_every_se(&c, &plain, "the joint noise");
     assert!(moved > 0.01, "the joint noise moves no estimate: {moved} SE at most");
     let error = largest_error(&c, &real);
     assert!(error < 0.05, "marker 1 within {error} mm of the truth");
+}
+
+/// Asserts that `with`, a calibration weighted by more noise (`what`) than `without`, estimates
+/// the same parameters, each with a standard error at least `without`'s; returns how far the
+/// estimates moved, at most, in `with`'s standard errors.
+fn more_noise_raises_every_se(with: &KindCalibration, without: &KindCalibration, what: &str) -> f64 {
+    assert_eq!(with.refined.estimate.names, without.refined.estimate.names);
+    let (se, without_se) =
+        (with.refined.estimate.standard_errors(), without.refined.estimate.standard_errors());
+    let mut moved = 0.0f64;
+    for (k, name) in with.refined.estimate.names.iter().enumerate() {
+        assert!(
+            se[k] >= without_se[k] * (1.0 - 1e-9),
+            "{name}: SE {} with {what}, {} without",
+            se[k],
+            without_se[k]
+        );
+        let i = with.params.index_by_name(name).unwrap();
+        moved = moved.max((with.after[i] - without.after[i]).abs() / se[k]);
+    }
+    moved
 }
 
 /// `--fixed-base` and `--fixed-markers` on observations: a robot measured in its own base
@@ -416,19 +425,7 @@ fn a_devices_covariance_weighs_marker_observations() {
     let with_device = read.clone().with_device(|p| device.covariance(p)).unwrap();
     let c = calibrate_kinds(&model, &with_device, &kinds).unwrap();
     let without = calibrate_kinds(&model, &read, &kinds).unwrap();
-    assert_eq!(c.refined.estimate.names, without.refined.estimate.names);
-    let (se, without_se) = (c.refined.estimate.standard_errors(), without.refined.estimate.standard_errors());
-    let mut largest_without = 0.0f64;
-    for (k, name) in c.refined.estimate.names.iter().enumerate() {
-        assert!(
-            se[k] >= without_se[k] * (1.0 - 1e-9),
-            "{name}: SE {} with the device, {} without",
-            se[k],
-            without_se[k]
-        );
-        let i = c.params.index_by_name(name).unwrap();
-        largest_without = largest_without.max((without.after[i] - c.after[i]).abs() / se[k]);
-    }
+    let largest_without = more_noise_raises_every_se(&c, &without, "the device");
     assert!(largest_without > 0.05, "without the device: {largest_without} SE at most from the fit with it");
 
     let partial =

@@ -33,6 +33,21 @@ fn used_modules(text: &str) -> Vec<String> {
 /// file's own. Chains that climb above the root (an inline `mod tests`) are left out.
 fn super_modules(text: &str, path: &[String]) -> Vec<(usize, String)> {
     let mut used = Vec::new();
+    for (start, climbs, rest) in super_chains(text) {
+        let names = match path.len().checked_sub(climbs) {
+            Some(0) => names_after(rest),
+            Some(_) => vec![path[0].clone()],
+            None => Vec::new(),
+        };
+        used.extend(names.into_iter().map(|m| (start, m)));
+    }
+    used
+}
+
+/// Each chain of `super::` in `text`: where it starts, how many levels it climbs, and the text
+/// after it.
+fn super_chains(text: &str) -> Vec<(usize, usize, &str)> {
+    let mut chains = Vec::new();
     let mut at = 0;
     while let Some(i) = text[at..].find("super::") {
         let start = at + i;
@@ -43,14 +58,9 @@ fn super_modules(text: &str, path: &[String]) -> Vec<(usize, String)> {
             rest = r;
         }
         at = text.len() - rest.len();
-        let names = match path.len().checked_sub(climbs) {
-            Some(0) => names_after(rest),
-            Some(_) => vec![path[0].clone()],
-            None => Vec::new(),
-        };
-        used.extend(names.into_iter().map(|m| (start, m)));
+        chains.push((start, climbs, rest));
     }
-    used
+    chains
 }
 
 /// The first name of the path after `crate::` or a chain of supers: of each item of a group
@@ -179,15 +189,7 @@ fn calibration_siblings(text: &str, path: &[String]) -> Vec<String> {
     let mut used: Vec<String> = (text.match_indices("crate::calibration::"))
         .flat_map(|(i, _)| names_after(&text[i + "crate::calibration::".len()..]))
         .collect();
-    let mut at = 0;
-    while let Some(i) = text[at..].find("super::") {
-        let mut rest = &text[at + i..];
-        let mut climbs = 0;
-        while let Some(r) = rest.strip_prefix("super::") {
-            climbs += 1;
-            rest = r;
-        }
-        at = text.len() - rest.len();
+    for (_, climbs, rest) in super_chains(text) {
         if climbs == path.len() {
             used.extend(names_after(rest));
         }
