@@ -403,6 +403,35 @@ impl Chain {
         Self::marker_ends(model, &[MarkerEnd::Frame(*probe)]).remove(0)
     }
 
+    /// The chain as a branch of a tree: the same steps, its parameter `i` the tree's
+    /// `params[map[i]]` (`None`: not one of the tree's, held at nominal) and its joint `j` the
+    /// tree's `joints[j]` of `dof`, so that it is evaluated at the tree's error vector `x` and
+    /// joint values `q` directly: `T_b(q, x) = T(q_{joints}, x_{map})`. Its identification
+    /// Jacobian has the tree's parameter columns (those of other branches left untouched) and
+    /// its manipulator Jacobian the tree's joint columns.
+    ///
+    /// # Panics
+    /// If `map` or `joints` is shorter than the chain's parameters or joints, or a joint is
+    /// past `dof`.
+    pub fn on_tree(&self, params: ParamSet, map: &[Option<usize>], joints: &[usize], dof: usize) -> Self {
+        let to_tree = |i: Option<usize>| i.and_then(|i| map[i]);
+        let steps = (self.steps.iter())
+            .map(|s| Step {
+                joint: s.joint.map(|j| joints[j]),
+                param: to_tree(s.param),
+                compliance: to_tree(s.compliance),
+                play: to_tree(s.play),
+                ..*s
+            })
+            .collect();
+        let mut deflection = vec![Deflection::default(); dof];
+        for (j, d) in self.deflection.iter().enumerate() {
+            deflection[joints[j]] = *d;
+        }
+        let payload = to_tree(self.payload);
+        Self { steps, params, dof, deflection, payload, ..self.clone() }
+    }
+
     /// The steps of the base and the joints.
     fn arm(model: &RobotModel, params: ParamSet) -> Builder {
         let mut builder = Builder { params, steps: Vec::new(), ends: gravity::LinkEnds::default() };

@@ -440,6 +440,82 @@ proptest! {
     }
 }
 
+/// A chain put on a tree ([`Chain::on_tree`]) is the chain at the values it maps: its parameter
+/// `i` the tree's `2 i + 1` (of twice as many, the others another branch's), its joint `j` the
+/// tree's `2 j + 1`. Its pose is the chain's to the bit, and its identification and manipulator
+/// Jacobians have the chain's columns at the mapped places and zero in the others; with masses,
+/// a payload, compliances and plays (the gravity loads indexed by the tree's joints).
+fn check_chain_on_tree(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
+    let mut model = model.clone();
+    model.masses = (0..model.dof())
+        .map(|j| robocal::model::LinkMass {
+            mass: 10.0 * (u[3 * j] + 1.0),
+            com: Vector3::new(u[3 * j + 1], u[3 * j + 2], u[3 * j + 3]) * 200.0,
+        })
+        .collect();
+    model.payload =
+        Some(robocal::model::Payload { mass: 5.0 * (u[50] + 1.0), com: Vector3::new(u[51], 0.0, 50.0) });
+    let (q, mut x) = point(&model, u);
+    let chain = Chain::new(&model);
+    let params = chain.params();
+    for i in 0..params.len() {
+        match params.get(i).unit() {
+            "rad/N·m" => x[i] = 1e-4 * u[(i + 7) % u.len()],
+            "mm/N" => x[i] = 1e-3 * u[(i + 7) % u.len()],
+            _ => {}
+        }
+    }
+    let (n, dof) = (params.len(), model.dof());
+    let tree_params =
+        robocal::model::ParamSet::from_params(params.iter().flat_map(|p| [p.clone(), p.clone()]).collect());
+    let map: Vec<Option<usize>> = (0..n).map(|i| Some(2 * i + 1)).collect();
+    let joints: Vec<usize> = (0..dof).map(|j| 2 * j + 1).collect();
+    let on_tree = chain.on_tree(tree_params.clone(), &map, &joints, 2 * dof + 1);
+    let mut tree_x = vec![0.0; 2 * n];
+    let mut tree_q: Vec<f64> = (0..=2 * dof).map(|k| u[(k + 20) % u.len()]).collect();
+    for i in 0..n {
+        tree_x[2 * i + 1] = x[i];
+    }
+    for j in 0..dof {
+        tree_q[2 * j + 1] = q[j];
+    }
+    let (at, tree_at) = (chain.with_errors(&x), on_tree.with_errors(&tree_x));
+    prop_assert_eq!(at.pose(&q), tree_at.pose(&tree_q));
+    let (all, tree_all) = (Selection::all(params), Selection::all(&tree_params));
+    let mut h = DMatrix::zeros(6, n);
+    at.identification_jacobian(&q, &all, Measured::Pose, h.as_view_mut());
+    let mut tree_h = DMatrix::zeros(6, 2 * n);
+    tree_at.identification_jacobian(&tree_q, &tree_all, Measured::Pose, tree_h.as_view_mut());
+    for i in 0..n {
+        prop_assert_eq!(h.column(i), tree_h.column(2 * i + 1), "parameter {}", params.get(i).name);
+        prop_assert!(tree_h.column(2 * i).iter().all(|&v| v == 0.0));
+    }
+    let (mut j, mut tree_j) = (Matrix6xX::zeros(dof), Matrix6xX::zeros(2 * dof + 1));
+    at.manipulator_jacobian(&q, &mut j);
+    tree_at.manipulator_jacobian(&tree_q, &mut tree_j);
+    for k in 0..=2 * dof {
+        match k % 2 {
+            1 => prop_assert_eq!(j.column(k / 2), tree_j.column(k)),
+            _ => prop_assert!(tree_j.column(k).iter().all(|&v| v == 0.0)),
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(100))]
+
+    #[test]
+    fn a_chain_on_a_tree_is_the_chain_at_the_values_it_maps_urdf(model in robot(Convention::Urdf, false), u in prop::collection::vec(-1.0..1.0f64, 64)) {
+        check_chain_on_tree(&model, &u)?;
+    }
+
+    #[test]
+    fn a_chain_on_a_tree_is_the_chain_at_the_values_it_maps_standard_dh(model in robot(Convention::StandardDh, true), u in prop::collection::vec(-1.0..1.0f64, 64)) {
+        check_chain_on_tree(&model, &u)?;
+    }
+}
+
 /// One horizontal link of 1 kg, its centre of mass 1 m out along x from a joint turning about
 /// y: gravity (-z) turns it about +y by 9.80665 N·m; vertical (q = -90 deg), by nothing; a
 /// model without masses has no load.

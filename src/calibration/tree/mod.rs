@@ -64,7 +64,7 @@ use crate::estimation::{
     refine_from,
 };
 use crate::kinematics::{Chain, ChainAt, Measured};
-use crate::model::{ParamInfo, ParamOwner, Placement, RobotTree, Selection, SelectionError};
+use crate::model::{ParamInfo, ParamOwner, ParamSet, Placement, RobotTree, Selection, SelectionError};
 use nalgebra::{
     DMatrix, DMatrixView, DMatrixViewMut, DVector, Isometry3, Matrix6, Matrix6xX, Vector3, Vector6,
 };
@@ -110,8 +110,13 @@ impl Default for TreeOptions {
 pub struct TreeParams {
     /// The parameters (a joint's `owner` is its index on the first branch that has it).
     pub params: Vec<ParamInfo>,
-    /// Each branch's chain to its tip link's frame.
+    /// Each branch's chain to its tip link's frame, on the tree ([`Chain::on_tree`]): at the
+    /// tree's parameters and joints.
     chains: Vec<Chain>,
+    /// Each branch's own parameters, as a serial robot's.
+    local: Vec<ParamSet>,
+    /// The tree's parameters, as a set the chains index.
+    set: ParamSet,
     /// Each branch's parameters' tree parameter (`None`: the chain's own end frame's, unused).
     maps: Vec<Vec<Option<usize>>>,
     /// Each branch's joints' tree joints ([`Branch::joints`](crate::model::Branch::joints)).
@@ -126,12 +131,12 @@ impl TreeParams {
     /// The parameters of `tree`.
     pub fn new(tree: &RobotTree) -> Self {
         let mut params: Vec<ParamInfo> = Vec::new();
-        let mut chains = Vec::with_capacity(tree.branches.len());
+        let mut chains: Vec<Chain> = Vec::with_capacity(tree.branches.len());
         let mut maps = Vec::with_capacity(tree.branches.len());
         let mut joint_of = Vec::new();
         for branch in &tree.branches {
             let chain = Chain::probe(&branch.model, &Placement::default());
-            let map = (chain.params().iter())
+            let map: Vec<Option<usize>> = (chain.params().iter())
                 .map(|p| match p.owner {
                     ParamOwner::Base | ParamOwner::Joint(_) => {
                         Some(params.iter().position(|t| t.name == p.name).unwrap_or_else(|| {
@@ -149,9 +154,14 @@ impl TreeParams {
             chains.push(chain);
             maps.push(map);
         }
-        let joints = tree.branches.iter().map(|b| b.joints.clone()).collect();
+        let joints: Vec<Vec<usize>> = tree.branches.iter().map(|b| b.joints.clone()).collect();
         let tips = tree.branches.iter().map(|b| b.tip.clone()).collect();
-        Self { params, chains, maps, joints, tips, joint_of }
+        let set = ParamSet::from_params(params.clone());
+        let local = chains.iter().map(|c| c.params().clone()).collect();
+        let chains = (chains.iter().zip(&maps).zip(&joints))
+            .map(|((c, map), joints)| c.on_tree(set.clone(), map, joints, tree.dof()))
+            .collect();
+        Self { params, chains, local, set, maps, joints, tips, joint_of }
     }
 
     /// The number of parameters.
@@ -187,7 +197,7 @@ impl TreeParams {
         for (b, branch) in tree.branches.iter().enumerate() {
             let identity = Placement::default();
             let x_b = self.branch_values(b, x);
-            let folded = fold(&branch.model, self.chains[b].params(), &x_b, (&[], 0), Some(&identity));
+            let folded = fold(&branch.model, &self.local[b], &x_b, (&[], 0), Some(&identity));
             for (joint, &j) in folded.joints.into_iter().zip(&branch.joints) {
                 joints[j] = joint;
             }
@@ -235,8 +245,8 @@ impl TreeParams {
                 }
             }
             other => {
-                for (chain, map) in self.chains.iter().zip(&self.maps) {
-                    for &i in other.select(chain.params())?.indices() {
+                for (local, map) in self.local.iter().zip(&self.maps) {
+                    for &i in other.select(local)?.indices() {
                         if let Some(t) = map[i] {
                             chosen[t] = true;
                         }
@@ -260,12 +270,10 @@ pub struct TreeProblem<'a> {
     fixed: Vec<f64>,
     setup_values: Vec<f64>,
     setup_selection: Vec<usize>,
-    /// Each branch's selected parameters and the column of `x` of each.
-    branch_columns: Vec<(Selection, Vec<usize>)>,
+    /// The selected tree parameters, the columns of `H` every branch's chain writes.
+    robot: Selection,
     /// The column of `x` of each set-up parameter, if estimated.
     setup_columns: Vec<Option<usize>>,
-    /// Each branch's joint values at each pose.
-    values: Vec<Vec<Vec<f64>>>,
     v: Option<DMatrix<f64>>,
 }
 
@@ -290,9 +298,6 @@ impl<'a> TreeProblem<'a> {
         setup_selection: Vec<usize>,
         joint_noise: Option<&DMatrix<f64>>,
     ) -> Self {
-        let values = (params.joints.iter())
-            .map(|joints| data.joints.iter().map(|q| joints.iter().map(|&j| q[j]).collect()).collect())
-            .collect();
         let mut problem = Self {
             params,
             data,
@@ -300,9 +305,8 @@ impl<'a> TreeProblem<'a> {
             fixed,
             setup_values,
             setup_selection: Vec::new(),
-            branch_columns: Vec::new(),
+            robot: Selection::empty(),
             setup_columns: Vec::new(),
-            values,
             v: None,
         };
         problem.select(selection, setup_selection);
@@ -323,19 +327,11 @@ impl<'a> TreeProblem<'a> {
         problem
     }
 
-    /// Estimate `selection` and `setup_selection`.
+    /// Estimate `selection` (ascending: the columns of `H` are in the tree's parameter order)
+    /// and `setup_selection`.
     fn select(&mut self, selection: Vec<usize>, setup_selection: Vec<usize>) {
-        self.branch_columns = (self.params.chains.iter().zip(&self.params.maps))
-            .map(|(chain, map)| {
-                let mine: Vec<usize> =
-                    (0..map.len()).filter(|&i| map[i].is_some_and(|t| selection.contains(&t))).collect();
-                let columns = mine
-                    .iter()
-                    .map(|&i| selection.iter().position(|&t| Some(t) == map[i]).expect("selected"))
-                    .collect();
-                (Selection::from_indices(chain.params(), mine), columns)
-            })
-            .collect();
+        debug_assert!(selection.windows(2).all(|w| w[0] < w[1]), "tree parameters in ascending order");
+        self.robot = Selection::from_indices(&self.params.set, selection.iter().copied());
         self.setup_columns = vec![None; self.setup_values.len()];
         for (c, &i) in setup_selection.iter().enumerate() {
             self.setup_columns[i] = Some(selection.len() + c);
@@ -366,9 +362,7 @@ impl<'a> TreeProblem<'a> {
 
     /// Each branch's chain at the tree's parameter values `full`.
     fn chains_at(&self, full: &[f64]) -> Vec<ChainAt> {
-        (0..self.params.chains.len())
-            .map(|b| self.params.chains[b].with_errors(&self.params.branch_values(b, full)))
-            .collect()
+        self.params.chains.iter().map(|c| c.with_errors(full)).collect()
     }
 
     /// Frame `f` of the data at `pose`.
@@ -376,7 +370,7 @@ impl<'a> TreeProblem<'a> {
         let own = &s[6 * f..6 * f + 6];
         match self.data.frames[f].on {
             Some(b) => {
-                let (frame, by_tip, by_own) = mounted(&chains[b].pose(&self.values[b][pose]), own);
+                let (frame, by_tip, by_own) = mounted(&chains[b].pose(&self.data.joints[pose]), own);
                 FrameAt { frame, on: Some((b, by_tip)), by_own }
             }
             None => {
@@ -422,13 +416,13 @@ impl<'a> TreeProblem<'a> {
         let mut g = DMatrix::zeros(6, dof);
         for (at, by) in [(&a, relative.by_a), (&b, relative.by_b)] {
             let Some((branch, by_tip)) = at.on else { continue };
-            let q = &self.values[branch][view.pose];
-            let mut j = Matrix6xX::zeros(q.len());
-            chains[branch].manipulator_jacobian(q, &mut j);
-            let gj = by * by_tip * j;
-            for (c, &t) in self.params.joints[branch].iter().enumerate() {
-                let mut column = g.column_mut(t);
-                column += gj.column(c);
+            // The branch's chain writes its joints' columns, of the tree's.
+            let mut j = Matrix6xX::zeros(dof);
+            chains[branch].manipulator_jacobian(&self.data.joints[view.pose], &mut j);
+            let by_tip = by * by_tip;
+            for (t, column) in j.column_iter().enumerate() {
+                let mut into = g.column_mut(t);
+                into += by_tip * column;
             }
         }
         g
@@ -548,23 +542,23 @@ impl Residuals for TreeProblem<'_> {
 }
 
 impl TreeProblem<'_> {
-    /// The scratch of [`TreeProblem::view_rows`]: a branch's `6 x p_b` Jacobian and its
-    /// product by the view's derivative, for the widest branch.
-    fn scratch(&self) -> (DMatrix<f64>, DMatrix<f64>) {
-        let widest = self.branch_columns.iter().map(|(sel, _)| sel.len()).max().unwrap_or(0);
-        (DMatrix::zeros(6, widest), DMatrix::zeros(6, widest))
+    /// The scratch of [`TreeProblem::view_rows`]: a branch's `6 x p` Jacobian in the tree's
+    /// selected parameters.
+    fn scratch(&self) -> DMatrix<f64> {
+        DMatrix::zeros(6, self.robot.len())
     }
 
     /// View `view`'s residual (its `n` rows: 6, or 3 for positions only) into `y` and, with
     /// `rows`, its rows of `H` (`n x p` column-major, overwritten): each frame's branch
-    /// Jacobian `H_b` through the view's derivative by the frame and the tip's
-    /// (`by * by_tip * H_b`), and the frame's own 6 parameters (`by * by_own`).
+    /// Jacobian `H_b` (the tree's columns, zero for another branch's parameters) through the
+    /// view's derivative by the frame and the tip's (`by * by_tip * H_b`), and the frame's own
+    /// 6 parameters (`by * by_own`).
     fn view_rows(
         &self,
         chains: &[ChainAt],
         s: &[f64],
         view: &View,
-        (h_b, by_robot): &mut (DMatrix<f64>, DMatrix<f64>),
+        h_b: &mut DMatrix<f64>,
         y: &mut [f64],
         rows: Option<&mut [f64]>,
     ) {
@@ -577,20 +571,17 @@ impl TreeProblem<'_> {
         let mut rows = DMatrixViewMut::from_slice(rows, n, self.parameters());
         rows.fill(0.0);
         for (at, frame, by) in [(&a, view.camera, relative.by_a), (&b, view.target, relative.by_b)] {
-            if let Some((branch, by_tip)) = at.on {
-                let (selection, cols) = &self.branch_columns[branch];
-                chains[branch].identification_jacobian(
-                    &self.values[branch][view.pose],
-                    selection,
-                    Measured::Pose,
-                    h_b.view_mut((0, 0), (6, selection.len())),
-                );
-                let out = h_b.view((0, 0), (6, selection.len()));
-                let mut by_robot = by_robot.view_mut((0, 0), (n, selection.len()));
-                by_robot.gemm(1.0, &(by * by_tip).rows(0, n), &out, 0.0);
-                for (c, &col) in cols.iter().enumerate() {
-                    let mut column = rows.column_mut(col);
-                    column += by_robot.column(c);
+            let robot = self.robot.len();
+            if let Some((branch, by_tip)) = at.on.filter(|_| robot > 0) {
+                h_b.fill(0.0);
+                let q = &self.data.joints[view.pose];
+                chains[branch].identification_jacobian(q, &self.robot, Measured::Pose, h_b.as_view_mut());
+                let by_tip = by * by_tip;
+                // Another branch's parameters' columns are zero: nothing to add.
+                for c in (0..robot).filter(|&c| h_b.column(c).iter().any(|&v| v != 0.0)) {
+                    let column = by_tip * h_b.fixed_view::<6, 1>(0, c);
+                    let mut into = rows.column_mut(c);
+                    into += column.rows(0, n);
                 }
             }
             let by_own = by * at.by_own;
@@ -846,7 +837,7 @@ fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, Calib
         TreeProblem::new(params, data, Vec::new(), zero, vec![0.0; 6 * data.frames.len()], Vec::new(), None);
     let chains = problem.chains_at(&problem.fixed);
     let tip = |f: usize, pose: usize| -> Isometry3<f64> {
-        data.frames[f].on.map_or(Isometry3::identity(), |b| chains[b].pose(&problem.values[b][pose]))
+        data.frames[f].on.map_or(Isometry3::identity(), |b| chains[b].pose(&data.joints[pose]))
     };
     let mut values = vec![0.0; 6 * data.frames.len()];
     let mut placed = vec![false; data.frames.len()];
