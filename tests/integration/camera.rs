@@ -90,6 +90,7 @@ pub(crate) fn truth(site: CameraSite) -> Vec<f64> {
     match site {
         CameraSite::Hand => vec![30.0, -20.0, 60.0, 0.1, -0.2, 0.3, 700.0, 100.0, -300.0, 0.2, 1.4, -0.1],
         CameraSite::World => vec![1200.0, -600.0, 500.0, 1.2, -0.8, 0.4, 10.0, 15.0, 40.0, -0.3, 0.1, 0.2],
+        CameraSite::Tree { .. } => unreachable!("a serial arm's camera"),
     }
 }
 
@@ -112,6 +113,7 @@ pub(crate) fn views(
         let m = match site {
             CameraSite::Hand => (tool * camera).inverse() * target,
             CameraSite::World => camera.inverse() * tool * target,
+            CameraSite::Tree { .. } => unreachable!("a serial arm's camera"),
         };
         let z = |rng: &mut ChaCha8Rng| Vector3::from_fn(|_, _| StandardNormal.sample(&mut *rng));
         let turn = UnitQuaternion::from_scaled_axis(z(rng) * sigma.1.to_radians());

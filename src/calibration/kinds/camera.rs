@@ -54,21 +54,78 @@ use crate::calibration::CalibrationError;
 use nalgebra::{Isometry3, Matrix3, Matrix6, Rotation3, Translation3, UnitQuaternion, Vector3, Vector6};
 
 /// Where the camera is: on the arm looking at a target fixed in the world (hand-eye), or fixed
-/// in the world looking at a target on the arm (eye-to-hand).
+/// in the world looking at a target on the arm (eye-to-hand), the two cases of a serial arm;
+/// or, on a tree, each of the camera and the target fixed to a branch's tip or placed in the
+/// root link's frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CameraSite {
     /// On the tool (`camera` mounted in the tool frame, `target` placed in the base frame).
     Hand,
     /// Fixed (`camera` placed in the base frame, `target` mounted in the tool frame).
     World,
+    /// Between the frames of a tree: the camera's and the target's branch (its number among
+    /// the tree's), `None` for one placed in the root link's frame.
+    Tree {
+        /// The camera's branch.
+        camera: Option<u16>,
+        /// The target's branch.
+        target: Option<u16>,
+    },
 }
 
 impl CameraSite {
-    /// `hand` or `world`.
+    /// `hand`, `world` or `tree`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Hand => "hand",
             Self::World => "world",
+            Self::Tree { .. } => "tree",
+        }
+    }
+
+    /// The camera's and the target's frames ([`Frame`]): a serial arm's tool is branch 0.
+    pub fn frames(self) -> [Frame; 2] {
+        let on = |b: Option<u16>| b.map(usize::from);
+        let (camera, target) = match self {
+            Self::Hand => (Some(0), None),
+            Self::World => (None, Some(0)),
+            Self::Tree { camera, target } => (on(camera), on(target)),
+        };
+        [Frame { role: Role::Camera, on: camera }, Frame { role: Role::Target, on: target }]
+    }
+}
+
+/// What a [`Frame`] is: a camera or a target.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// A camera.
+    Camera,
+    /// A target it sees.
+    Target,
+}
+
+/// A camera or a target, fixed to a branch's tip link (a serial arm's tool: branch 0) or placed
+/// in the base (root link's) frame: 6 set-up parameters, its placement `(x, y, z, rx, ry, rz)`
+/// (mm, rotation vector rad) in that frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Frame {
+    /// A camera or a target.
+    pub role: Role,
+    /// The branch whose tip it is fixed to; `None`: fixed in the root link's frame.
+    pub on: Option<usize>,
+}
+
+impl Frame {
+    /// `camera.<tip>` or `target.<tip>` (`world` for the root link's frame), `tips` the
+    /// branches' tip links; `camera` or `target` without tips (a serial arm's).
+    pub fn name(&self, tips: &[String]) -> String {
+        let role = match self.role {
+            Role::Camera => "camera",
+            Role::Target => "target",
+        };
+        match tips.is_empty() {
+            true => role.to_string(),
+            false => format!("{role}.{}", self.on.map_or("world", |b| tips[b].as_str())),
         }
     }
 }
@@ -98,18 +155,6 @@ pub fn left_jacobian(v: &Vector3<f64>) -> Matrix3<f64> {
         ((1.0 - t.cos()) / (t * t), (t - t.sin()) / (t * t * t))
     };
     Matrix3::identity() + k * a + k * k * b
-}
-
-/// A camera row's residual and derivatives, before they are attached to parameters.
-pub(super) struct ViewRow {
-    /// `y` of the [module](self) for this row.
-    pub residual: f64,
-    /// Its derivative (`-dy`) with respect to the tool frame's error `(dp, omega)`.
-    pub by_tool: Vector6<f64>,
-    /// With respect to the mounting's `(x, y, z, rx, ry, rz)`.
-    pub by_mounting: Vector6<f64>,
-    /// With respect to the world placement's `(x, y, z, rx, ry, rz)`.
-    pub by_world: Vector6<f64>,
 }
 
 /// The view `M = A^-1 B` of the target's frame `B` from the camera's frame `A` against the
@@ -173,37 +218,29 @@ pub fn placed(world: &[f64]) -> (Isometry3<f64>, Matrix6<f64>) {
     (isometry(world), by_world)
 }
 
-/// Row `axis` of the view `view` (position mm, rotation vector rad) predicted at the tool frame
-/// `tool` with the camera at `site`, the mounting `mounting` and the world placement `world`
-/// (each `x, y, z, rx, ry, rz`): its residual and its `H` row by the [module](self)'s equations.
-pub(super) fn view_row(
-    view: &Vector6<f64>,
-    axis: usize,
-    tool: &Isometry3<f64>,
-    site: CameraSite,
-    mounting: &[f64],
-    world: &[f64],
-) -> ViewRow {
-    let (mounted, from_tool, from_mounting) = mounted(tool, mounting);
-    let (placed, from_world) = placed(world);
-    let (v, mounted_is_a) = match site {
-        CameraSite::Hand => (relative_view(view, &mounted, &placed), true),
-        CameraSite::World => (relative_view(view, &placed, &mounted), false),
-    };
-    let (row_a, row_b) = (v.by_a.row(axis).transpose(), v.by_b.row(axis).transpose());
-    let (row_mounted, row_placed) = if mounted_is_a { (row_a, row_b) } else { (row_b, row_a) };
-    let residual = v.residual[axis];
-    ViewRow {
-        residual,
-        by_tool: from_tool.tr_mul(&row_mounted),
-        by_mounting: from_mounting.tr_mul(&row_mounted),
-        by_world: from_world.tr_mul(&row_placed),
+/// One end of a view, the camera's or the target's frame `X`: mounted on a tip, `X = T C`
+/// ([`mounted`]), or placed in the base frame, `X = W` ([`placed`]), its placement `own`
+/// `(x, y, z, rx, ry, rz)`; with the derivatives of its twist by the tip's error (`E_T`, if
+/// on a tip) and by its own 6 parameters (`E_C` or `E_W`).
+pub fn view_end(
+    tip: Option<&Isometry3<f64>>,
+    own: &[f64],
+) -> (Isometry3<f64>, Option<Matrix6<f64>>, Matrix6<f64>) {
+    match tip {
+        Some(tip) => {
+            let (frame, by_tip, by_own) = mounted(tip, own);
+            (frame, Some(by_tip), by_own)
+        }
+        None => {
+            let (frame, by_own) = placed(own);
+            (frame, None, by_own)
+        }
     }
 }
 
 /// The camera's and the target's placements `(camera, target)` that best explain the views
 /// `(T_k, M_k)` (the tool frame on the nominal robot, the view), by the [module](self)'s
-/// closed form.
+/// closed form: hand-eye where `site`'s camera is on a tip, else eye-to-hand.
 pub fn camera_start(
     views: &[(Isometry3<f64>, Isometry3<f64>)],
     site: CameraSite,
@@ -217,13 +254,9 @@ pub fn camera_start(
     if views.len() < 3 {
         return Err(too_few("too few"));
     }
-    let n: Vec<Isometry3<f64>> = views
-        .iter()
-        .map(|(_, m)| match site {
-            CameraSite::Hand => m.inverse(),
-            CameraSite::World => *m,
-        })
-        .collect();
+    // Hand-eye: the camera is the one on the tool.
+    let hand = site.frames()[0].on.is_some();
+    let n: Vec<Isometry3<f64>> = views.iter().map(|(_, m)| if hand { m.inverse() } else { *m }).collect();
     let pairs: Vec<(Isometry3<f64>, Isometry3<f64>)> = (0..views.len())
         .flat_map(|i| ((i + 1)..views.len().min(i + 31)).map(move |j| (i, j)))
         .map(|(i, j)| (views[j].0.inverse() * views[i].0, n[j].inverse() * n[i]))
@@ -261,10 +294,7 @@ pub fn camera_start(
         Translation3::from(position),
         UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(nearest_rotation(&mean))),
     );
-    Ok(match site {
-        CameraSite::Hand => (mounting, world),
-        CameraSite::World => (world, mounting),
-    })
+    Ok(if hand { (mounting, world) } else { (world, mounting) })
 }
 
 /// The rotation `R` maximising `trace(R^T m)`: `U diag(1, 1, det(U V^T)) V^T`, `m = U S V^T`.

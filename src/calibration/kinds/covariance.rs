@@ -60,10 +60,9 @@ impl JointRows {
         self.weighted.clear();
         for o in &problem.data.observations[range] {
             self.starts.push(self.poses.len());
-            let first = problem.point_of(o) * poses;
-            let f = problem.predict(o, &BlockFrames { block: &self.frames, first }, views);
-            for (j, g) in &f.by_point[..f.poses] {
-                let jacobian = self.frames.get(first + j, rows * dof);
+            let f = problem.predict(o, &BlockFrames { block: &self.frames }, views);
+            for &(n, g) in &f.by_point[..f.poses] {
+                let jacobian = self.frames.get(n, rows * dof);
                 let at = self.rows.len();
                 for column in jacobian.chunks_exact(rows) {
                     let mut sum = g[0] * column[0];
@@ -72,7 +71,7 @@ impl JointRows {
                     }
                     self.rows.push(sum);
                 }
-                self.poses.push(*j);
+                self.poses.push(n % poses);
                 let Some(sigma_q) = sigma_q else { continue };
                 for c in 0..dof {
                     let mut sum = self.rows[at] * sigma_q[(0, c)];

@@ -106,7 +106,7 @@ use camera::relative_view;
 
 pub use feasible::calibrate_kinds_feasible;
 
-pub use camera::CameraSite;
+pub use camera::{CameraSite, Frame, Role};
 pub use data::{
     DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM, KindData,
     Observation, RowSigmaDefaults,
@@ -200,16 +200,21 @@ impl Default for KindOptions {
     }
 }
 
-/// The set-up's parameters: fixed points and planes, each 3 numbers; a camera and its target,
-/// each 6 ([`camera`]).
+/// The set-up's parameters: fixed points and planes, each 3 numbers; the cameras and targets of
+/// views, each 6 ([`camera`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SetUp {
     /// The number of fixed points (their coordinates are values, mm, base frame).
     pub points: usize,
     /// The planes: the nominal normal `n0` and two tangents `t1, t2` of each.
     bases: Vec<[Vector3<f64>; 3]>,
-    /// Where the camera is, if there is one.
+    /// Where the camera is, if there is one camera on a serial arm.
     camera: Option<CameraSite>,
+    /// The views' cameras and targets, 6 parameters each: a serial arm's camera and target
+    /// ([`SetUp::with_camera`]), or a tree's ([`SetUp::with_views`]).
+    views: Vec<Frame>,
+    /// The tree's branches' tip links, naming its frames; empty for a serial arm.
+    tips: Vec<String>,
     /// Whether the coordinates (x, y, z) are read in a device frame of their own (with
     /// markers: a height gauge's, placed in the markers' measuring frame).
     device: bool,
@@ -242,6 +247,8 @@ impl SetUp {
             points,
             bases,
             camera: None,
+            views: Vec::new(),
+            tips: Vec::new(),
             device: false,
             tracker: false,
             pair_zero: false,
@@ -358,7 +365,24 @@ impl SetUp {
     /// The same set-up with a camera at `site` and its target: 12 parameters more,
     /// `camera.x, y, z, rx, ry, rz` then `target.*` ([`camera`]).
     pub fn with_camera(self, site: CameraSite) -> Self {
-        Self { camera: Some(site), ..self }
+        Self { camera: Some(site), views: site.frames().to_vec(), ..self }
+    }
+
+    /// The same set-up with the cameras and targets `frames` of a tree's views, 6 parameters
+    /// each, named after the branches' tip links `tips` ([`Frame::name`]).
+    pub fn with_views(self, frames: Vec<Frame>, tips: Vec<String>) -> Self {
+        Self { views: frames, tips, ..self }
+    }
+
+    /// Where the placements of the camera and the target of a view at `site` start.
+    ///
+    /// # Panics
+    /// If the set-up has no such frame.
+    fn view_slots(&self, site: CameraSite) -> [usize; 2] {
+        site.frames().map(|f| {
+            let i = self.views.iter().position(|&g| g == f).expect("a frame of the set-up");
+            self.camera_at() + 6 * i
+        })
     }
 
     /// Where the camera is, if there is one.
@@ -377,8 +401,8 @@ impl SetUp {
         self.device
     }
 
-    /// Parameters: 3 per point, then 3 per plane (`alpha, beta, d`), then 6 for the camera
-    /// and 6 for its target, then 6 for the coordinates' device, 6 for the markers' tracker,
+    /// Parameters: 3 per point, then 3 per plane (`alpha, beta, d`), then 6 for each camera
+    /// and target of the views, then 6 for the coordinates' device, 6 for the markers' tracker,
     /// then each point's length
     /// zero and the pairs'; then, with sessions, the per-session ones of every session after
     /// the first ([`SetUp::slot`]).
@@ -388,10 +412,10 @@ impl SetUp {
 
     /// Where the device's parameters start.
     fn device_at(&self) -> usize {
-        self.camera_at() + if self.camera.is_some() { 12 } else { 0 }
+        self.camera_at() + 6 * self.views.len()
     }
 
-    /// Where the camera's parameters start (the target's 6 later).
+    /// Where the views' cameras' and targets' parameters start.
     fn camera_at(&self) -> usize {
         3 * (self.points + self.bases.len())
     }
@@ -426,13 +450,9 @@ impl SetUp {
         let points = (1..=self.points).flat_map(|i| ["x", "y", "z"].map(|c| format!("point{i}.{c}")));
         let planes =
             (1..=self.bases.len()).flat_map(|i| ["alpha", "beta", "d"].map(|c| format!("plane{i}.{c}")));
-        let placements = ["camera", "target", "device", "tracker"]
-            .into_iter()
-            .filter(|f| match *f {
-                "device" => self.device,
-                "tracker" => self.tracker,
-                _ => self.camera.is_some(),
-            })
+        let frames = self.views.iter().map(|f| f.name(&self.tips));
+        let devices = [("device", self.device), ("tracker", self.tracker)];
+        let placements = (frames.chain(devices.into_iter().filter(|d| d.1).map(|d| d.0.to_string())))
             .flat_map(|f| ["x", "y", "z", "rx", "ry", "rz"].map(|c| format!("{f}.{c}")));
         let zeros = (1..=self.points).map(|i| format!("point{i}.zero"));
         let pair = self.pair_zero.then(|| "pair.zero".to_string());
@@ -477,8 +497,8 @@ impl SetUp {
 }
 
 /// One observation's residual `y_k` (of its prediction `f_k`), the derivatives `g_kj` of `f_k`
-/// with respect to the point at each of its poses (`(pose, g)`, one or two) and with respect to
-/// the set-up (`(index, value)`).
+/// with respect to each point-and-pose `j` it reads (`(j, g)`, one or two: a point at two poses,
+/// or two points at one) and with respect to the set-up (`(index, value)`).
 struct Prediction {
     residual: f64,
     by_point: [(usize, Vector6<f64>); 2],
@@ -487,8 +507,8 @@ struct Prediction {
     setups: usize,
 }
 
-/// A point's frames indexed by pose: all of them (a slice), or those one block of
-/// observations reads ([`BlockFrames`]).
+/// The points' frames indexed by point-and-pose (`point * poses + pose`): all of them (a
+/// slice), or those one block of observations reads ([`BlockFrames`]).
 trait Frames: std::ops::Index<usize, Output = Isometry3<f64>> {}
 
 impl Frames for [Isometry3<f64>] {}
@@ -507,34 +527,43 @@ fn by_setup<const N: usize>(derivatives: [(usize, f64); N]) -> ([(usize, f64); 1
 fn placed_row<F: Frames + ?Sized>(
     at: usize,
     s: &[f64],
-    (frames, pose): (&F, usize),
+    (frames, point): (&F, usize),
     axis: usize,
     measured: &Vector6<f64>,
 ) -> Prediction {
     let (frame, by_placement) = camera::placed(&s[at..at + 6]);
-    let view = relative_view(measured, &frame, &frames[pose]);
+    let view = relative_view(measured, &frame, &frames[point]);
     let by_frame = view.by_a * by_placement;
     let (by_setup, setups) = by_setup(std::array::from_fn::<_, 6, _>(|i| (at + i, by_frame[(axis, i)])));
     Prediction {
         residual: view.residual[axis],
-        by_point: [(pose, view.by_b.row(axis).transpose()), (0, Vector6::zeros())],
+        by_point: [(point, view.by_b.row(axis).transpose()), (0, Vector6::zeros())],
         poses: 1,
         by_setup,
         setups,
     }
 }
 
-/// `f_k` of the [module](self) and its derivatives, at the tool frames `frames` of every pose
-/// (their rotations used by angles only). The derivatives `g_kj` are with respect to the pose
-/// error of the tool at pose `j`: its position (mm), then its rotation vector (rad, measuring
-/// frame), as [`ChainAt::identification_jacobian`] gives them.
-fn predict<F: Frames + ?Sized>(o: &Observation, frames: &F, setup: &SetUp, s: &[f64]) -> Prediction {
+/// `f_k` of the [module](self) and its derivatives, at the points' frames `frames` (their
+/// rotations used by angles and views only), of which observation `o` reads `seen`
+/// ([`KindProblem::seen`]: its point at its pose, at a pair's two poses, or a view's camera's
+/// and target's). The derivatives `g_kj` are with respect to the pose error of point-and-pose
+/// `j`: its position (mm), then its rotation vector (rad, measuring frame), as
+/// [`ChainAt::identification_jacobian`] gives them.
+fn predict<F: Frames + ?Sized>(
+    o: &Observation,
+    (frames, seen): (&F, [usize; 2]),
+    setup: &SetUp,
+    s: &[f64],
+) -> Prediction {
     let none = (0, Vector6::zeros());
     let point = |g: Vector3<f64>| Vector6::new(g.x, g.y, g.z, 0.0, 0.0, 0.0);
     let p = |j: usize| frames[j].translation.vector;
     let none_s = by_setup([]);
+    let [at, other] = seen;
     match *o {
-        Observation::Distance { a, b, .. } => {
+        Observation::Distance { .. } => {
+            let (a, b) = (at, other);
             // f = |p_a - p_b| + zero: df/dzero = 1.
             let d = p(a) - p(b);
             let u = d / d.norm().max(f64::MIN_POSITIVE);
@@ -550,55 +579,53 @@ fn predict<F: Frames + ?Sized>(o: &Observation, frames: &F, setup: &SetUp, s: &[
                 setups,
             }
         }
-        Observation::ToPoint { pose, point: fixed, .. } => {
+        Observation::ToPoint { point: fixed, .. } => {
             // f = |p - c| + zero: df/dc = -u, df/dzero = 1.
-            let d = p(pose) - setup.point(s, fixed);
+            let d = p(at) - setup.point(s, fixed);
             let u = d / d.norm().max(f64::MIN_POSITIVE);
-            let (at, z) = (3 * fixed, setup.point_zero(fixed));
-            let (by_setup, setups) = by_setup([(at, -u.x), (at + 1, -u.y), (at + 2, -u.z), (z, 1.0)]);
+            let (c, z) = (3 * fixed, setup.point_zero(fixed));
+            let (by_setup, setups) = by_setup([(c, -u.x), (c + 1, -u.y), (c + 2, -u.z), (z, 1.0)]);
             Prediction {
                 residual: o.residual(d.norm() + s[z]),
-                by_point: [(pose, point(u)), none],
+                by_point: [(at, point(u)), none],
                 poses: 1,
                 by_setup,
                 setups,
             }
         }
-        Observation::Coordinate { pose, axis, measured, .. } if axis < 3 && setup.device => {
+        Observation::Coordinate { axis, measured, .. } if axis < 3 && setup.device => {
             // In the device's frame D: the row of the view D^-1 T of the point's frame T.
-            placed_row(setup.device_at(), s, (frames, pose), axis, &Vector6::ith(axis, measured))
+            placed_row(setup.device_at(), s, (frames, at), axis, &Vector6::ith(axis, measured))
         }
-        Observation::Marker { pose, axis, measured, .. } if setup.tracker => {
+        Observation::Marker { axis, measured, .. } if setup.tracker => {
             // Read in the session's tracker frame P: the row of the view P^-1 T.
-            placed_row(setup.tracker_at(), s, (frames, pose), axis, &Vector6::ith(axis, measured))
+            placed_row(setup.tracker_at(), s, (frames, at), axis, &Vector6::ith(axis, measured))
         }
-        Observation::Orientation { pose, axis, measured, .. } => {
-            orientation_prediction((frames, pose), (axis, &measured), setup, s)
+        Observation::Orientation { axis, measured, .. } => {
+            orientation_prediction((frames, at), (axis, &measured), setup, s)
         }
-        Observation::Coordinate { pose, axis, .. } | Observation::Marker { pose, axis, .. } if axis < 3 => {
-            Prediction {
-                residual: o.residual(p(pose)[axis]),
-                by_point: [(pose, Vector6::ith(axis, 1.0)), none],
-                poses: 1,
-                by_setup: none_s.0,
-                setups: 0,
-            }
-        }
-        Observation::Coordinate { pose, axis, .. } | Observation::Marker { pose, axis, .. } => {
+        Observation::Coordinate { axis, .. } | Observation::Marker { axis, .. } if axis < 3 => Prediction {
+            residual: o.residual(p(at)[axis]),
+            by_point: [(at, Vector6::ith(axis, 1.0)), none],
+            poses: 1,
+            by_setup: none_s.0,
+            setups: 0,
+        },
+        Observation::Coordinate { axis, .. } | Observation::Marker { axis, .. } => {
             // A marker's axis is below 3 ([`KindData::check`]).
-            let (rpy, rates) = angles(&frames[pose].rotation);
+            let (rpy, rates) = angles(&frames[at].rotation);
             let g = rates.row(axis - 3);
             Prediction {
                 residual: o.residual(rpy[axis - 3]),
-                by_point: [(pose, Vector6::new(0.0, 0.0, 0.0, g[0], g[1], g[2])), none],
+                by_point: [(at, Vector6::new(0.0, 0.0, 0.0, g[0], g[1], g[2])), none],
                 poses: 1,
                 by_setup: none_s.0,
                 setups: 0,
             }
         }
-        Observation::Contact { pose, plane, .. } => contact_prediction(o, (p(pose), pose), plane, setup, s),
-        Observation::Camera { pose, axis, view, site, .. } => {
-            camera_prediction((frames, pose), (axis, &view, site), setup, s)
+        Observation::Contact { plane, .. } => contact_prediction(o, (p(at), at), plane, setup, s),
+        Observation::Camera { axis, view, site, .. } => {
+            camera_prediction((frames, seen), (axis, &view, site), setup, s)
         }
     }
 }
@@ -609,7 +636,7 @@ fn predict<F: Frames + ?Sized>(o: &Observation, frames: &F, setup: &SetUp, s: &[
 /// (`I` to first order in `y`). Read in a session's tracker frame `P`, the view `P^-1 T`
 /// ([`placed_row`]).
 fn orientation_prediction<F: Frames + ?Sized>(
-    (frames, pose): (&F, usize),
+    (frames, point): (&F, usize),
     (axis, measured): (usize, &UnitQuaternion<f64>),
     setup: &SetUp,
     s: &[f64],
@@ -617,19 +644,19 @@ fn orientation_prediction<F: Frames + ?Sized>(
     let r = measured.scaled_axis();
     let view = Vector6::new(0.0, 0.0, 0.0, r.x, r.y, r.z);
     if setup.tracker {
-        return placed_row(setup.tracker_at(), s, (frames, pose), 3 + axis, &view);
+        return placed_row(setup.tracker_at(), s, (frames, point), 3 + axis, &view);
     }
-    let seen = relative_view(&view, &Isometry3::identity(), &frames[pose]);
+    let seen = relative_view(&view, &Isometry3::identity(), &frames[point]);
     Prediction {
         residual: seen.residual[3 + axis],
-        by_point: [(pose, seen.by_b.row(3 + axis).transpose()), (0, Vector6::zeros())],
+        by_point: [(point, seen.by_b.row(3 + axis).transpose()), (0, Vector6::zeros())],
         poses: 1,
         by_setup: by_setup([]).0,
         setups: 0,
     }
 }
 
-/// A contact of the tool point `p` at `pose` with plane `plane`, its signed distance
+/// A contact of the tool point `p` (point-and-pose `pose`) with plane `plane`, its signed distance
 /// `f = n . p - d` (0 measured) and its derivatives: `n` by the point, `dn/dalpha . p`,
 /// `dn/dbeta . p` and `-1` by the plane's tilts and offset.
 fn contact_prediction(
@@ -652,34 +679,38 @@ fn contact_prediction(
     }
 }
 
-/// Row `axis` of the camera's view `view` (at `site`) of the target at `frames[pose]`
-/// ([`camera::view_row`]), its derivatives by the tool's twist and by the camera's mounting
-/// and the target's placement, the set-up values `s`.
+/// Row `axis` of the view `view` (at `site`) between the camera's frame `A` and the target's
+/// `B` ([`camera`]'s model): each mounted on its tip's frame (`frames[seen[0]]`, the camera's;
+/// `frames[seen[1]]`, the target's) or placed in the base frame ([`camera::view_end`]), the
+/// set-up values `s` their placements; the row of `S_A` by `E_T` (by the camera's tip) and by
+/// `E_C` or `E_W` (by its own placement), and `B`'s likewise.
 fn camera_prediction<F: Frames + ?Sized>(
-    (frames, pose): (&F, usize),
+    (frames, seen): (&F, [usize; 2]),
     (axis, view, site): (usize, &Vector6<f64>, CameraSite),
     setup: &SetUp,
     s: &[f64],
 ) -> Prediction {
-    let c = setup.camera_at();
-    let (mounted, placed) = match site {
-        CameraSite::Hand => (c, c + 6),
-        CameraSite::World => (c + 6, c),
-    };
-    let row =
-        camera::view_row(view, axis, &frames[pose], site, &s[mounted..mounted + 6], &s[placed..placed + 6]);
+    let slots = setup.view_slots(site);
+    let [a, b] = [0, 1].map(|e| {
+        let tip = site.frames()[e].on.map(|_| &frames[seen[e]]);
+        camera::view_end(tip, &s[slots[e]..slots[e] + 6])
+    });
+    let v = relative_view(view, &a.0, &b.0);
+    let rows = [v.by_a.row(axis).transpose(), v.by_b.row(axis).transpose()];
+    let mut by_point = [(0, Vector6::zeros()); 2];
+    let mut poses = 0;
     let mut out = [(0, 0.0); 12];
-    for i in 0..6 {
-        out[i] = (mounted + i, row.by_mounting[i]);
-        out[6 + i] = (placed + i, row.by_world[i]);
+    for (e, (_, by_tip, by_own)) in [a, b].iter().enumerate() {
+        if let Some(by_tip) = by_tip {
+            by_point[poses] = (seen[e], by_tip.tr_mul(&rows[e]));
+            poses += 1;
+        }
+        let by_own = by_own.tr_mul(&rows[e]);
+        for i in 0..6 {
+            out[6 * e + i] = (slots[e] + i, by_own[i]);
+        }
     }
-    Prediction {
-        residual: row.residual,
-        by_point: [(pose, row.by_tool), (0, Vector6::zeros())],
-        poses: 1,
-        by_setup: out,
-        setups: 12,
-    }
+    Prediction { residual: v.residual[axis], by_point, poses, by_setup: out, setups: 12 }
 }
 
 /// Roll, pitch and yaw of `r` (`R = Rz(yaw) Ry(pitch) Rx(roll)`) and their derivatives with
@@ -719,12 +750,16 @@ pub fn pose_blocks(observations: &[Observation]) -> Blocks {
 /// The calibration problem of distances and contacts: `y_k(x, s) = m_k - f_k(x, s)` for the
 /// selected robot parameters `x` and set-up parameters `s` (others held), one row per
 /// observation, `V_k` of the [module](self) computed once at the start. Its points on the last
-/// link are one chain each: the markers' (in the order of their numbers), then the tool's.
+/// link are one chain each: the markers' (in the order of their numbers), then the tool's; or,
+/// on a tree, each branch's tip ([`KindProblem::of_branches`]).
 #[derive(Debug, Clone)]
 pub struct KindProblem<'a> {
     chains: &'a [Chain],
     /// The markers' numbers less one, of the chains in order; the tool point's chain follows.
     markers: Vec<usize>,
+    /// Whether the chains are a tree's branches, each its own arm ([`Chain::on_tree`]), not
+    /// points on one arm's last link.
+    branches: bool,
     /// Whether an observation sees point `i` at pose `j` (`used[i * poses + j]`): the others
     /// are not computed.
     used: Vec<bool>,
@@ -793,6 +828,7 @@ impl<'a> KindProblem<'a> {
             measured,
             chains,
             markers,
+            branches: false,
             used,
             selection,
             data,
@@ -804,16 +840,42 @@ impl<'a> KindProblem<'a> {
             v: None,
             held: OnceLock::new(),
         };
-        let mut used = vec![false; chains.len() * data.joints.len()];
-        for o in &data.observations {
-            for n in problem.seen(o) {
+        problem.used = problem.points_used();
+        problem
+    }
+
+    /// The problem of views between the frames of a tree (camera observations at
+    /// [`CameraSite::Tree`]): `chains` each branch's tip's ([`Chain::on_tree`]: all at the
+    /// tree's parameters and joints), the rest as of [`KindProblem::of_points`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn of_branches(
+        chains: &'a [Chain],
+        selection: &'a Selection,
+        data: &'a KindData,
+        setup: &'a SetUp,
+        fixed: Vec<f64>,
+        setup_values: Vec<f64>,
+        setup_selection: Vec<usize>,
+    ) -> Self {
+        let mut problem =
+            Self::of_points(chains, &[], selection, data, setup, fixed, setup_values, setup_selection);
+        problem.branches = true;
+        problem.measured = Measured::Pose;
+        problem.used = problem.points_used();
+        problem
+    }
+
+    /// Whether an observation sees each point-and-pose ([`KindProblem::seen`]).
+    fn points_used(&self) -> Vec<bool> {
+        let mut used = vec![false; self.chains.len() * self.data.joints.len()];
+        for o in &self.data.observations {
+            for n in self.seen(o) {
                 if let Some(u) = used.get_mut(n) {
                     *u = true;
                 }
             }
         }
-        problem.used = used;
-        problem
+        used
     }
 
     /// The length one radian of an angle counts as under ordinary least squares (mm/rad): the
@@ -847,13 +909,26 @@ impl<'a> KindProblem<'a> {
         }
     }
 
+    /// The chain of the tip of branch `b` (a view's camera's or target's): a tree's branch's
+    /// own; a serial arm's one branch ends at the tool, after the markers.
+    fn chain_of_branch(&self, b: usize) -> usize {
+        if self.branches { b } else { self.markers.len() }
+    }
+
     /// The points (`point * poses + pose`, as [`KindProblem::frames`] lays them out) that
-    /// observation `o` reads: its point at its pose, or at both of a pair's.
+    /// observation `o` reads: its point at its pose, at both of a pair's, or a view's camera's
+    /// and target's tips (one placed in the base frame reads none: the other's twice).
     fn seen(&self, o: &Observation) -> [usize; 2] {
-        let first = self.point_of(o) * self.data.joints.len();
+        let poses = self.data.joints.len();
         match *o {
-            Observation::Distance { a, b, .. } => [first + a, first + b],
-            _ => [first + o.pose(), first + o.pose()],
+            Observation::Distance { a, b, .. } => [a, b].map(|j| self.point_of(o) * poses + j),
+            Observation::Camera { pose, site, .. } => {
+                let [camera, target] =
+                    site.frames().map(|f| f.on.map(|b| self.chain_of_branch(b) * poses + pose));
+                let either = camera.or(target).unwrap_or(pose);
+                [camera.unwrap_or(either), target.unwrap_or(either)]
+            }
+            _ => [self.point_of(o) * poses + o.pose(); 2],
         }
     }
 
@@ -932,7 +1007,7 @@ impl<'a> KindProblem<'a> {
     /// ([`KindProblem::session_views`]); its set-up derivatives by slot of every session's values.
     fn predict<F: Frames + ?Sized>(&self, o: &Observation, frames: &F, views: &[Vec<f64>]) -> Prediction {
         let k = self.data.session_of(o.pose()).min(views.len() - 1);
-        let mut f = predict(o, frames, self.setup, &views[k]);
+        let mut f = predict(o, (frames, self.seen(o)), self.setup, &views[k]);
         for (i, _) in &mut f.by_setup[..f.setups] {
             *i = self.setup.slot(*i, k);
         }
@@ -961,7 +1036,7 @@ impl<'a> KindProblem<'a> {
     /// for one point, or nothing to hold.
     fn held(&self, at: &[ChainAt]) -> Option<&[HeldArm]> {
         let held = self.held.get_or_init(|| {
-            let from = at.first().filter(|_| at.len() > 1)?.held_from(self.selection)?;
+            let from = at.first().filter(|_| at.len() > 1 && !self.branches)?.held_from(self.selection)?;
             let chain = self.chains[0].with_errors(&self.fixed);
             Some(Arc::new(self.data.joints.par_iter().map(|q| chain.held_arm(q, from)).collect()))
         });
@@ -1255,18 +1330,16 @@ impl Jacobians<'_> {
     }
 }
 
-/// One point's frames at the poses a block reads (its `first` point-and-pose number, `point *
-/// poses`), indexed by pose.
+/// The points' frames at the poses a block reads, indexed by point-and-pose.
 struct BlockFrames<'f> {
     block: &'f BlockJacobians,
-    first: usize,
 }
 
 impl std::ops::Index<usize> for BlockFrames<'_> {
     type Output = Isometry3<f64>;
 
-    fn index(&self, pose: usize) -> &Isometry3<f64> {
-        self.block.frame(self.first + pose)
+    fn index(&self, n: usize) -> &Isometry3<f64> {
+        self.block.frame(n)
     }
 }
 
@@ -1295,18 +1368,17 @@ impl KindProblem<'_> {
         PointsAt { views, jacobians, block }: PointsAt<'_>,
         h: Option<&mut [f64]>,
     ) -> f64 {
-        let (o, poses) = (&self.data.observations[k], self.data.joints.len());
+        let o = &self.data.observations[k];
         let (columns, rows) = (self.selection.len(), self.measured().rows());
-        let first = self.point_of(o) * poses;
         let f = match jacobians {
-            Jacobians::All(frames, ..) => self.predict(o, &frames[first..first + poses], views),
-            Jacobians::Block(block) => self.predict(o, &BlockFrames { block, first }, views),
+            Jacobians::All(frames, ..) => self.predict(o, frames, views),
+            Jacobians::Block(block) => self.predict(o, &BlockFrames { block }, views),
         };
         let Some(h) = h else { return f.residual };
         h.fill(0.0);
-        for (j, g) in &f.by_point[..f.poses] {
-            let h_j = jacobians.of(first + j, block);
-            if let (1, Some(axis)) = (f.poses, unit_axis(g, rows)) {
+        for &(n, g) in &f.by_point[..f.poses] {
+            let h_j = jacobians.of(n, block);
+            if let (1, Some(axis)) = (f.poses, unit_axis(&g, rows)) {
                 // One coordinate of one point (a marker's): `g^T H_j` is row `axis` of `H_j`,
                 // `0 + (0 + h_axis)` to the bit as the sum below gives it.
                 for (c, column) in h_j.chunks_exact(rows).enumerate() {

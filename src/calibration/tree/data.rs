@@ -19,44 +19,12 @@
 //! branch, its `x, y, z` in the device's frame; the targets' placements are then points.
 
 use crate::calibration::CalibrationError;
+pub use crate::calibration::kinds::camera::{Frame, Role};
 use crate::calibration::kinds::{DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM};
 use crate::limits::MAX_LENGTH_MM;
 use crate::model::RobotTree;
 use crate::table::{DataError, Row, Table, Units};
 use nalgebra::{UnitQuaternion, Vector6};
-
-/// What a [`Frame`] is: a camera or a target.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Role {
-    /// A camera.
-    Camera,
-    /// A target it sees.
-    Target,
-}
-
-/// A camera or a target, fixed to a branch's tip link or placed in the root link's frame:
-/// 6 set-up parameters, its placement `(x, y, z, rx, ry, rz)` (mm, rotation vector rad) in
-/// that frame.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Frame {
-    /// A camera or a target.
-    pub role: Role,
-    /// The branch whose tip it is fixed to; `None`: fixed in the root link's frame.
-    pub on: Option<usize>,
-}
-
-impl Frame {
-    /// `camera.<tip>` or `target.<tip>` (`world` for the root link's frame), `tips` the
-    /// branches' tip links.
-    pub fn name(&self, tips: &[String]) -> String {
-        let role = match self.role {
-            Role::Camera => "camera",
-            Role::Target => "target",
-        };
-        let on = self.on.map_or("world", |b| tips[b].as_str());
-        format!("{role}.{on}")
-    }
-}
 
 /// One camera view: the target's pose in the camera's frame at one pose of the tree.
 #[derive(Debug, Clone, Copy, PartialEq)]
