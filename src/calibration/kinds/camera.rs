@@ -55,21 +55,21 @@ use nalgebra::{Isometry3, Matrix3, Matrix6, Rotation3, Translation3, UnitQuatern
 
 /// Where the camera is: on the arm looking at a target fixed in the world (hand-eye), or fixed
 /// in the world looking at a target on the arm (eye-to-hand), the two cases of a serial arm;
-/// or, on a tree, each of the camera and the target fixed to a branch's tip or placed in the
-/// root link's frame.
+/// or, on a tree, between two of its cameras and targets, each fixed to a branch's tip or
+/// placed in the root link's frame ([`Frame`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CameraSite {
     /// On the tool (`camera` mounted in the tool frame, `target` placed in the base frame).
     Hand,
     /// Fixed (`camera` placed in the base frame, `target` mounted in the tool frame).
     World,
-    /// Between the frames of a tree: the camera's and the target's branch (its number among
-    /// the tree's), `None` for one placed in the root link's frame.
+    /// Between the frames of a tree: the camera's and the target's, their numbers among the
+    /// set-up's ([`SetUp::with_views`](super::SetUp::with_views)).
     Tree {
-        /// The camera's branch.
-        camera: Option<u16>,
-        /// The target's branch.
-        target: Option<u16>,
+        /// The camera's frame.
+        camera: u16,
+        /// The target's frame.
+        target: u16,
     },
 }
 
@@ -83,13 +83,12 @@ impl CameraSite {
         }
     }
 
-    /// The camera's and the target's frames ([`Frame`]): a serial arm's tool is branch 0.
-    pub fn frames(self) -> [Frame; 2] {
-        let on = |b: Option<u16>| b.map(usize::from);
+    /// The camera's and the target's frames ([`Frame`]) of a serial arm's camera (its tool is
+    /// branch 0), the set-up's first two; a tree's view's are the set-up's `Tree` names.
+    pub fn serial_frames(self) -> [Frame; 2] {
         let (camera, target) = match self {
             Self::Hand => (Some(0), None),
-            Self::World => (None, Some(0)),
-            Self::Tree { camera, target } => (on(camera), on(target)),
+            _ => (None, Some(0)),
         };
         [Frame { role: Role::Camera, on: camera }, Frame { role: Role::Target, on: target }]
     }
@@ -240,7 +239,7 @@ pub fn view_end(
 
 /// The camera's and the target's placements `(camera, target)` that best explain the views
 /// `(T_k, M_k)` (the tool frame on the nominal robot, the view), by the [module](self)'s
-/// closed form: hand-eye where `site`'s camera is on a tip, else eye-to-hand.
+/// closed form: hand-eye at [`CameraSite::Hand`], else eye-to-hand.
 pub fn camera_start(
     views: &[(Isometry3<f64>, Isometry3<f64>)],
     site: CameraSite,
@@ -255,7 +254,7 @@ pub fn camera_start(
         return Err(too_few("too few"));
     }
     // Hand-eye: the camera is the one on the tool.
-    let hand = site.frames()[0].on.is_some();
+    let hand = site == CameraSite::Hand;
     let n: Vec<Isometry3<f64>> = views.iter().map(|(_, m)| if hand { m.inverse() } else { *m }).collect();
     let pairs: Vec<(Isometry3<f64>, Isometry3<f64>)> = (0..views.len())
         .flat_map(|i| ((i + 1)..views.len().min(i + 31)).map(move |j| (i, j)))

@@ -127,6 +127,8 @@ impl BlockJacobians {
         }
         for &n in &self.keys {
             let (at, q) = (&at[n / poses], &problem.data.joints[n % poses]);
+            // Zeros: a tree's branch writes its own joints' columns only.
+            jacobian.fill(0.0);
             at.manipulator_jacobian(q, jacobian);
             for column in jacobian.column_iter() {
                 self.values.extend(column.iter().take(rows));
@@ -252,7 +254,7 @@ impl KindProblem<'_> {
 
     /// The diagonal of the blocks `V_k` ([`KindProblem::covariance_blocks`]): each
     /// observation's variance, without building the blocks.
-    pub(super) fn variances(&self, joint_noise: Option<&DMatrix<f64>>) -> Vec<f64> {
+    pub(crate) fn variances(&self, joint_noise: Option<&DMatrix<f64>>) -> Vec<f64> {
         let mut variances = vec![0.0; self.data.observations.len()];
         let parts = self.parts();
         let mut pieces = Vec::with_capacity(parts.len());

@@ -932,6 +932,7 @@ impl KindData {
                 }
             };
             if let Observation::Camera { site, .. } = *o
+                && !matches!(site, CameraSite::Tree { .. })
                 && Some(site) != self.camera()
             {
                 return bad(format!(

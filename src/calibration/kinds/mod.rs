@@ -365,7 +365,7 @@ impl SetUp {
     /// The same set-up with a camera at `site` and its target: 12 parameters more,
     /// `camera.x, y, z, rx, ry, rz` then `target.*` ([`camera`]).
     pub fn with_camera(self, site: CameraSite) -> Self {
-        Self { camera: Some(site), views: site.frames().to_vec(), ..self }
+        Self { camera: Some(site), views: site.serial_frames().to_vec(), ..self }
     }
 
     /// The same set-up with the cameras and targets `frames` of a tree's views, 6 parameters
@@ -374,15 +374,19 @@ impl SetUp {
         Self { views: frames, tips, ..self }
     }
 
-    /// Where the placements of the camera and the target of a view at `site` start.
+    /// Where the placements of the camera and the target of a view at `site` start, and the
+    /// branch each is fixed to (`None`: placed in the base frame): a serial arm's camera and
+    /// target are the set-up's first two frames ([`SetUp::with_camera`]), a tree's view names
+    /// its own.
     ///
     /// # Panics
     /// If the set-up has no such frame.
-    fn view_slots(&self, site: CameraSite) -> [usize; 2] {
-        site.frames().map(|f| {
-            let i = self.views.iter().position(|&g| g == f).expect("a frame of the set-up");
-            self.camera_at() + 6 * i
-        })
+    fn view_ends(&self, site: CameraSite) -> [(usize, Option<usize>); 2] {
+        let frames = match site {
+            CameraSite::Tree { camera, target } => [camera, target].map(usize::from),
+            _ => [0, 1],
+        };
+        frames.map(|f| (self.camera_at() + 6 * f, self.views[f].on))
     }
 
     /// Where the camera is, if there is one.
@@ -690,9 +694,10 @@ fn camera_prediction<F: Frames + ?Sized>(
     setup: &SetUp,
     s: &[f64],
 ) -> Prediction {
-    let slots = setup.view_slots(site);
+    let ends = setup.view_ends(site);
+    let slots = ends.map(|(slot, _)| slot);
     let [a, b] = [0, 1].map(|e| {
-        let tip = site.frames()[e].on.map(|_| &frames[seen[e]]);
+        let tip = ends[e].1.map(|_| &frames[seen[e]]);
         camera::view_end(tip, &s[slots[e]..slots[e] + 6])
     });
     let v = relative_view(view, &a.0, &b.0);
@@ -923,8 +928,8 @@ impl<'a> KindProblem<'a> {
         match *o {
             Observation::Distance { a, b, .. } => [a, b].map(|j| self.point_of(o) * poses + j),
             Observation::Camera { pose, site, .. } => {
-                let [camera, target] =
-                    site.frames().map(|f| f.on.map(|b| self.chain_of_branch(b) * poses + pose));
+                let ends = self.setup.view_ends(site);
+                let [camera, target] = ends.map(|(_, on)| on.map(|b| self.chain_of_branch(b) * poses + pose));
                 let either = camera.or(target).unwrap_or(pose);
                 [camera.unwrap_or(either), target.unwrap_or(either)]
             }
@@ -1058,7 +1063,8 @@ impl<'a> KindProblem<'a> {
         let classes = (observations.iter())
             .map(|o| present.iter().position(|&c| c == o.class()).expect("present"))
             .collect();
-        let (jacobians, dof) = (self.noise_jacobians(), self.chains[0].dof());
+        let (mut jacobians, dof) = (self.noise_jacobians(), self.chains[0].dof());
+        without_unmoved_joints(&mut jacobians, dof);
         (NoiseLayout { jacobians, dof, classes, class_count: present.len() }, present)
     }
 
@@ -1396,6 +1402,27 @@ impl KindProblem<'_> {
             }
         }
         f.residual
+    }
+}
+
+/// The noise Jacobians `jacobians` (each block's, `dof` columns per pose it sees) with the
+/// columns of every joint that moves no observation zeroed: those whose largest entry is below
+/// `1e-9` of the largest of any joint's, rounding alone (a tree's torso joint under a head
+/// camera looking at a hand moves both frames alike). Its variance is then left unestimated.
+fn without_unmoved_joints(jacobians: &mut [DMatrix<f64>], dof: usize) {
+    let largest = |jacobians: &[DMatrix<f64>], t: usize| {
+        let columns =
+            |j: &DMatrix<f64>| (t..j.ncols()).step_by(dof).map(|c| j.column(c).amax()).fold(0.0, f64::max);
+        jacobians.iter().map(columns).fold(0.0, f64::max)
+    };
+    let each: Vec<f64> = (0..dof).map(|t| largest(jacobians, t)).collect();
+    let overall = each.iter().copied().fold(0.0, f64::max);
+    for t in (0..dof).filter(|&t| each[t] <= 1e-9 * overall) {
+        for j in jacobians.iter_mut() {
+            for c in (t..j.ncols()).step_by(dof) {
+                j.column_mut(c).fill(0.0);
+            }
+        }
     }
 }
 

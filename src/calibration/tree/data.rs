@@ -20,7 +20,9 @@
 
 use crate::calibration::CalibrationError;
 pub use crate::calibration::kinds::camera::{Frame, Role};
-use crate::calibration::kinds::{DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM};
+use crate::calibration::kinds::{
+    CameraSite, DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, KindData, Observation,
+};
 use crate::limits::MAX_LENGTH_MM;
 use crate::model::RobotTree;
 use crate::table::{DataError, Row, Table, Units};
@@ -202,6 +204,39 @@ impl TreeData {
             }
         }
         Ok(())
+    }
+
+    /// The views as observations of the one problem ([`KindProblem::of_branches`]): each
+    /// view's rows ([`TreeData::rows`]), camera observations at [`CameraSite::Tree`] of its
+    /// camera's and target's numbers among `frames` (each of the data's frames is one of
+    /// them), in order, each with the view's line.
+    ///
+    /// # Panics
+    /// If a frame of the data is not among `frames`, or there are 65536 or more.
+    ///
+    /// [`KindProblem::of_branches`]: crate::calibration::kinds::KindProblem::of_branches
+    pub fn observations(&self, frames: &[Frame]) -> KindData {
+        let rows = self.rows();
+        let number = |f: usize| {
+            let at = frames.iter().position(|g| *g == self.frames[f]).expect("a frame among those given");
+            u16::try_from(at).expect("fewer than 65536 frames")
+        };
+        let observations: Vec<Observation> = (self.views.iter())
+            .flat_map(|v| {
+                let site = CameraSite::Tree { camera: number(v.camera), target: number(v.target) };
+                let (pose, view) = (v.pose, v.view);
+                (0..rows).map(move |axis| Observation::Camera {
+                    axis,
+                    pose,
+                    view,
+                    site,
+                    sigma: v.sigma[axis / 3],
+                })
+            })
+            .collect();
+        let lines = self.lines.iter().flat_map(|&l| std::iter::repeat_n(l, rows)).collect();
+        let assumed_sigmas = if self.assumed_sigmas { observations.len() } else { 0 };
+        KindData { joints: self.joints.clone(), observations, lines, assumed_sigmas, ..KindData::default() }
     }
 
     /// The rows of a view: 6 (position, rotation), or 3 for positions only.

@@ -5,7 +5,7 @@
 //! `V_k = G_k Sigma_q G_k^T + diag(sigma_p^2 I, sigma_r^2 I)`, `G_k` the derivative of its six
 //! rows by the tree's joints (both its frames moved by their branches).
 
-use super::{TreeCalibration, TreeData, TreeOptions, TreeParams, TreeProblem, calibrate_tree};
+use super::{TreeCalibration, TreeData, TreeOptions, TreeParams, TreeRows, calibrate_tree};
 use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
@@ -92,12 +92,14 @@ fn residual_noise(
     let data = weighted.as_ref().unwrap_or(data);
     let noise = previous.map(NoiseEstimate::joint_covariance);
     let (x, s) = (c.after.clone(), c.setup_values.1.clone());
-    let problem = TreeProblem::new(&c.params, data, selection, x, s, setup_selection, noise.as_ref());
+    let observed = TreeRows::new(&c.params, data, &c.frames)?;
+    let selection = c.params.selection(&selection);
+    let problem = observed.problem(&c.params, &selection, (x, s, setup_selection), noise.as_ref());
     let estimator = if previous.is_some() { Estimator::Wls } else { Estimator::Ols };
     let weights = Weights::for_problem(&problem, estimator)?;
     let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
     let y = problem.evaluate(&problem.start(), Some(&mut h));
-    let (layout, classes) = problem.noise_layout(dof);
+    let (layout, classes) = problem.noise_layout();
     let samples = residual_samples(&HeldRows { h: &h, y: &y }, &weights, &layout, joints)?;
     drop((h, y, weights, layout));
     Ok(NoiseEstimate::fit(&samples, joints, dof, classes, previous)?)

@@ -12,18 +12,23 @@
 //! `H_k = S_A dA/dx + S_B dB/dx`,
 //!
 //! `S_A`, `S_B` the derivatives of the view by the frames' twists
-//! ([`relative_view`]), `dX/dx = E_T H_b` by the robot's
+//! ([`relative_view`](super::kinds::camera::relative_view)), `dX/dx = E_T H_b` by the robot's
 //! parameters (`H_b` the identification Jacobian of branch `b`'s tip,
 //! [`ChainAt::identification_jacobian`], its columns those of the tree's parameters: a shared
 //! joint's parameter has one column, to which both frames add) and `E_C`, `E_W` by the
-//! mounting's or placement's 6 ([`mounted`], [`placed`]). With the joint noise `Sigma_q` (tree joints)
-//! the view's 6 x 6 covariance block is
+//! mounting's or placement's 6 ([`mounted`](super::kinds::camera::mounted),
+//! [`placed`](super::kinds::camera::placed)). Each branch's chain is put on the tree
+//! ([`Chain::on_tree`]): it reads the tree's parameters and joints, so `H_b` has the tree's
+//! columns. The views are observations of the one problem of every kind
+//! ([`KindProblem::of_branches`], [`TreeRows`]): with the joint noise `Sigma_q` (tree joints)
+//! every view at one pose is in one block,
 //!
-//! `V_k = G_k Sigma_q G_k^T + diag(sigma_t^2 I_3, sigma_r^2 I_3)`,
-//! `G_k = S_A E_T J_a(q) P_a + S_B E_T J_b(q) P_b`,
+//! `V_k = G_k Sigma_q G_k^T + diag(sigma_t^2 I_3, sigma_r^2 I_3, ...)`,
+//! `G_k` stacking each view's `S_A E_T J_a(q) + S_B E_T J_b(q)`,
 //!
-//! `J_b` the manipulator Jacobian of branch `b` and `P_b` the 0/1 matrix taking its joints to
-//! the tree's: the joints two branches share move both frames, so their noise partly cancels.
+//! `J_b` the manipulator Jacobian of branch `b` in the tree's joints: the joints two branches
+//! share move both frames, so their noise partly cancels, and the views of one pose are
+//! correlated through the joints they share.
 //!
 //! # What the views cannot see
 //!
@@ -52,23 +57,19 @@ mod noise_check;
 pub use data::{Frame, Role, TreeData, View};
 pub use feasible::calibrate_tree_feasible;
 
-use super::kinds::camera::{camera_start, isometry, mounted, placed, placement, relative_view};
-use super::kinds::{Gauged, identifiable, matching};
+use super::kinds::camera::{camera_start, isometry, placement};
+use super::kinds::{Gauged, KindData, KindProblem, SetUp, identifiable, matching};
 use super::{
     CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
     gauge_class,
 };
 use crate::estimation::{
-    Estimator, Linearisation, MeasurementClass, NoiseEstimate, NoiseLayout, POSE_SIGMAS, PriorEntry,
-    PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, linearise, prior_sds_of,
-    refine_from,
+    Estimator, Linearisation, NoiseEstimate, PriorEntry, PriorRows, RANK_TOLERANCE, RefineOptions, Refined,
+    Residuals, Weights, linearise, prior_sds_of, refine_from,
 };
-use crate::kinematics::{Chain, ChainAt, Measured};
+use crate::kinematics::{Chain, ChainAt};
 use crate::model::{ParamInfo, ParamOwner, ParamSet, Placement, RobotTree, Selection, SelectionError};
-use nalgebra::{
-    DMatrix, DMatrixView, DMatrixViewMut, DVector, Isometry3, Matrix6, Matrix6xX, Vector3, Vector6,
-};
-use rayon::prelude::*;
+use nalgebra::{DMatrix, DVector, Isometry3, Vector3};
 
 /// How to calibrate a tree.
 #[derive(Debug, Clone, PartialEq)]
@@ -227,6 +228,11 @@ impl TreeParams {
         self.maps[b].iter().map(|m| m.map_or(0.0, |i| x[i])).collect()
     }
 
+    /// The selection of the tree parameters `indices` (ascending).
+    pub fn selection(&self, indices: &[usize]) -> Selection {
+        Selection::from_indices(&self.set, indices.iter().copied())
+    }
+
     /// The tree parameters `joints` selects, in order: on each branch as for a serial arm
     /// (every geometric joint parameter, the offsets, none) or, by name, every parameter a
     /// name or pattern matches (each must match one). Never the base.
@@ -259,339 +265,39 @@ impl TreeParams {
     }
 }
 
-/// The calibration problem of a tree's views: `y_k(x, s)` of the [module](self) for the
-/// selected tree parameters `x` and set-up parameters `s` (6 per frame), 6 rows per view,
-/// `V_k` computed once at the start.
-#[derive(Debug, Clone)]
-pub struct TreeProblem<'a> {
-    params: &'a TreeParams,
-    data: &'a TreeData,
-    selection: Vec<usize>,
-    fixed: Vec<f64>,
-    setup_values: Vec<f64>,
-    setup_selection: Vec<usize>,
-    /// The selected tree parameters, the columns of `H` every branch's chain writes.
-    robot: Selection,
-    /// The column of `x` of each set-up parameter, if estimated.
-    setup_columns: Vec<Option<usize>>,
-    v: Option<DMatrix<f64>>,
+/// A tree's views on the one observation problem ([`KindProblem::of_branches`]): their rows
+/// ([`TreeData::observations`]), the set-up of the cameras' and targets' placements (6
+/// parameters each, [`SetUp::with_views`]) and the selection of no tree parameter, which the
+/// problems borrow.
+pub struct TreeRows {
+    /// The views' rows.
+    pub rows: KindData,
+    /// The cameras' and targets' placements.
+    pub setup: SetUp,
+    nothing: Selection,
 }
 
-/// A frame of a view at one pose: where it is, the derivative of its twist by its branch's tip
-/// error (`E_T`, if on a branch) and by its own 6 parameters (`E_C` or `E_W`).
-struct FrameAt {
-    frame: Isometry3<f64>,
-    on: Option<(usize, Matrix6<f64>)>,
-    by_own: Matrix6<f64>,
-}
+impl TreeRows {
+    /// The views of `data` (checked against `params`) with the frames `frames` (the data's,
+    /// or a calibration's that has every one of the data's).
+    pub fn new(params: &TreeParams, data: &TreeData, frames: &[Frame]) -> Result<Self, CalibrationError> {
+        data.check(params)?;
+        let setup = SetUp::new(0, &[]).with_views(frames.to_vec(), params.tips.clone());
+        Ok(Self { rows: data.observations(frames), setup, nothing: params.selection(&[]) })
+    }
 
-impl<'a> TreeProblem<'a> {
-    /// The problem of `data` on the tree of `params`, its parameters at `fixed` (full vector)
-    /// and the frames at `setup_values`, estimating `selection` (tree parameters, in order) and
-    /// the set-up parameters `setup_selection`; with `joint_noise`, `V_k` has the joint noise.
-    pub fn new(
+    /// The problem estimating `selection` (of `params`) and the placements `setup_selection`,
+    /// the tree at `fixed` and the placements at `setup_values`; `V_k` with `joint_noise`.
+    pub fn problem<'a>(
+        &'a self,
         params: &'a TreeParams,
-        data: &'a TreeData,
-        selection: Vec<usize>,
-        fixed: Vec<f64>,
-        setup_values: Vec<f64>,
-        setup_selection: Vec<usize>,
+        selection: &'a Selection,
+        (fixed, setup_values, setup_selection): (Vec<f64>, Vec<f64>, Vec<usize>),
         joint_noise: Option<&DMatrix<f64>>,
-    ) -> Self {
-        let mut problem = Self {
-            params,
-            data,
-            selection: Vec::new(),
-            fixed,
-            setup_values,
-            setup_selection: Vec::new(),
-            robot: Selection::empty(),
-            setup_columns: Vec::new(),
-            v: None,
-        };
-        problem.select(selection, setup_selection);
-        problem.v = Some(problem.covariance_blocks(joint_noise));
-        problem
-    }
-
-    /// The same problem estimating other parameters from other values, sharing `V_k`.
-    pub fn reselect(
-        &self,
-        selection: Vec<usize>,
-        fixed: Vec<f64>,
-        setup_values: Vec<f64>,
-        setup_selection: Vec<usize>,
-    ) -> Self {
-        let mut problem = Self { fixed, setup_values, ..self.clone() };
-        problem.select(selection, setup_selection);
-        problem
-    }
-
-    /// Estimate `selection` (ascending: the columns of `H` are in the tree's parameter order)
-    /// and `setup_selection`.
-    fn select(&mut self, selection: Vec<usize>, setup_selection: Vec<usize>) {
-        debug_assert!(selection.windows(2).all(|w| w[0] < w[1]), "tree parameters in ascending order");
-        self.robot = Selection::from_indices(&self.params.set, selection.iter().copied());
-        self.setup_columns = vec![None; self.setup_values.len()];
-        for (c, &i) in setup_selection.iter().enumerate() {
-            self.setup_columns[i] = Some(selection.len() + c);
-        }
-        self.selection = selection;
-        self.setup_selection = setup_selection;
-    }
-
-    /// The full tree parameter vector and the set-up values at `x`.
-    pub fn full(&self, x: &DVector<f64>) -> (Vec<f64>, Vec<f64>) {
-        let mut full = self.fixed.clone();
-        for (&i, &v) in self.selection.iter().zip(x.iter()) {
-            full[i] = v;
-        }
-        let mut s = self.setup_values.clone();
-        for (&i, &v) in self.setup_selection.iter().zip(x.iter().skip(self.selection.len())) {
-            s[i] = v;
-        }
-        (full, s)
-    }
-
-    /// The estimated parameters' values: where iterations start.
-    pub fn start(&self) -> DVector<f64> {
-        let robot = self.selection.iter().map(|&i| self.fixed[i]);
-        let setup = self.setup_selection.iter().map(|&i| self.setup_values[i]);
-        DVector::from_iterator(self.parameters(), robot.chain(setup))
-    }
-
-    /// Each branch's chain at the tree's parameter values `full`.
-    fn chains_at(&self, full: &[f64]) -> Vec<ChainAt> {
-        self.params.chains.iter().map(|c| c.with_errors(full)).collect()
-    }
-
-    /// Frame `f` of the data at `pose`.
-    fn frame_at(&self, chains: &[ChainAt], s: &[f64], f: usize, pose: usize) -> FrameAt {
-        let own = &s[6 * f..6 * f + 6];
-        match self.data.frames[f].on {
-            Some(b) => {
-                let (frame, by_tip, by_own) = mounted(&chains[b].pose(&self.data.joints[pose]), own);
-                FrameAt { frame, on: Some((b, by_tip)), by_own }
-            }
-            None => {
-                let (frame, by_own) = placed(own);
-                FrameAt { frame, on: None, by_own }
-            }
-        }
-    }
-
-    /// `V_k` of the [module](self) at the start values, 6 x 6 per view (3 x 3, its position
-    /// rows, for positions only), stacked.
-    fn covariance_blocks(&self, joint_noise: Option<&DMatrix<f64>>) -> DMatrix<f64> {
-        let (full, s) = self.full(&self.start());
-        let chains = self.chains_at(&full);
-        let rows = self.data.rows();
-        let mut v = DMatrix::zeros(rows * self.data.views.len(), rows);
-        for (k, view) in self.data.views.iter().enumerate() {
-            let mut block = Matrix6::from_diagonal(&Vector6::new(
-                view.sigma[0].powi(2),
-                view.sigma[0].powi(2),
-                view.sigma[0].powi(2),
-                view.sigma[1].powi(2),
-                view.sigma[1].powi(2),
-                view.sigma[1].powi(2),
-            ));
-            if let Some(sigma_q) = joint_noise {
-                let g = self.view_jacobian(&chains, &s, view, sigma_q.nrows());
-                block += Matrix6::from_iterator((&g * sigma_q * g.transpose()).iter().copied());
-            }
-            v.view_mut((rows * k, 0), (rows, rows)).copy_from(&block.view((0, 0), (rows, rows)));
-        }
-        v
-    }
-
-    /// `G = dy/dq` of `view` (6 x `dof`, the tree's joints): the joint noise of its pose moves
-    /// both its frames, each through its branch's manipulator Jacobian.
-    fn view_jacobian(&self, chains: &[ChainAt], s: &[f64], view: &View, dof: usize) -> DMatrix<f64> {
-        let (a, b) = (
-            self.frame_at(chains, s, view.camera, view.pose),
-            self.frame_at(chains, s, view.target, view.pose),
-        );
-        let relative = relative_view(&view.view, &a.frame, &b.frame);
-        let mut g = DMatrix::zeros(6, dof);
-        for (at, by) in [(&a, relative.by_a), (&b, relative.by_b)] {
-            let Some((branch, by_tip)) = at.on else { continue };
-            // The branch's chain writes its joints' columns, of the tree's.
-            let mut j = Matrix6xX::zeros(dof);
-            chains[branch].manipulator_jacobian(&self.data.joints[view.pose], &mut j);
-            let by_tip = by * by_tip;
-            for (t, column) in j.column_iter().enumerate() {
-                let mut into = g.column_mut(t);
-                into += by_tip * column;
-            }
-        }
-        g
-    }
-
-    /// How the noise enters the rows, for feasible GLS: each view's `G` (its rows) at the
-    /// problem's values, the tree's `dof` joints; its position rows of the class
-    /// [`MeasurementClass::CameraPosition`], its rotation rows of
-    /// [`MeasurementClass::CameraRotation`] (none for positions only). A joint that moves no
-    /// view's frames relative to each other has a zero column: its variance stays at 0,
-    /// unbounded.
-    pub(crate) fn noise_layout(&self, dof: usize) -> (NoiseLayout, Vec<MeasurementClass>) {
-        let (full, s) = self.full(&self.start());
-        let chains = self.chains_at(&full);
-        let rows = self.data.rows();
-        let mut jacobians: Vec<DMatrix<f64>> = (self.data.views.iter())
-            .map(|view| self.view_jacobian(&chains, &s, view, dof).rows(0, rows).into_owned())
-            .collect();
-        // A joint on the way to both frames of every view moves none (`torso` under a head
-        // camera): its column is rounding alone, zeroed, and its variance left unestimated.
-        let largest = |t: usize| jacobians.iter().map(|j| j.column(t).amax()).fold(0.0, f64::max);
-        let overall = (0..dof).map(largest).fold(0.0, f64::max);
-        for t in (0..dof).filter(|&t| largest(t) <= 1e-9 * overall).collect::<Vec<_>>() {
-            jacobians.iter_mut().for_each(|j| j.column_mut(t).fill(0.0));
-        }
-        let classes = (0..rows * self.data.views.len()).map(|r| usize::from(r % rows >= 3)).collect();
-        let present = match rows {
-            6 => vec![MeasurementClass::CameraPosition, MeasurementClass::CameraRotation],
-            _ => vec![MeasurementClass::CameraPosition],
-        };
-        (NoiseLayout { jacobians, dof, classes, class_count: present.len() }, present)
-    }
-}
-
-impl Residuals for TreeProblem<'_> {
-    fn rows_per_point(&self) -> usize {
-        self.data.rows()
-    }
-
-    fn equations(&self) -> usize {
-        self.data.rows() * self.data.views.len()
-    }
-
-    fn parameters(&self) -> usize {
-        self.selection.len() + self.setup_selection.len()
-    }
-
-    fn covariance(&self) -> Option<&DMatrix<f64>> {
-        self.v.as_ref()
-    }
-
-    /// A view's rotation rows (rad) count as lengths for ordinary least squares: times
-    /// `sigma_position / sigma_orientation` of [`POSE_SIGMAS`] (mm/rad), as a pose's do.
-    fn ols_row_scale(&self) -> Option<Vec<f64>> {
-        let w = POSE_SIGMAS.0 / POSE_SIGMAS.1;
-        (!self.data.position_only)
-            .then(|| (0..self.equations()).map(|r| if r % 6 < 3 { 1.0 } else { w }).collect())
-    }
-
-    fn names(&self) -> Vec<String> {
-        let robot = self.selection.iter().map(|&i| self.params.params[i].name.clone());
-        let frames: Vec<String> = (self.data.frames.iter())
-            .flat_map(|f| {
-                let name = f.name(&self.params.tips);
-                ["x", "y", "z", "rx", "ry", "rz"].map(move |c| format!("{name}.{c}"))
-            })
-            .collect();
-        robot.chain(self.setup_selection.iter().map(|&i| frames[i].clone())).collect()
-    }
-
-    fn evaluate(&self, x: &DVector<f64>, h: Option<&mut DMatrix<f64>>) -> DVector<f64> {
-        let (full, s) = self.full(x);
-        let chains = self.chains_at(&full);
-        let columns = self.parameters();
-        let views = self.data.views.len();
-        // Each view's residuals (6, or 3 for positions only) and its rows of H (column-major)
-        // in one buffer each.
-        let n = self.data.rows();
-        let block = if h.is_some() { n * columns } else { 0 };
-        let mut y = vec![0.0; n * views];
-        let mut blocks = vec![0.0; block.max(1) * views];
-        (y.par_chunks_mut(n).zip(blocks.par_chunks_mut(block.max(1))).zip(&self.data.views)).for_each_init(
-            || self.scratch(),
-            |scratch, ((y, rows), view)| {
-                self.view_rows(&chains, &s, view, scratch, y, (block > 0).then_some(rows));
-            },
-        );
-        if let Some(h) = h {
-            for (k, rows) in blocks.chunks_exact(block).enumerate() {
-                h.view_mut((n * k, 0), (n, columns)).copy_from(&DMatrixView::from_slice(rows, n, columns));
-            }
-        }
-        DVector::from_vec(y)
-    }
-
-    /// Each view's rows built, whitened and reduced into the triangular factor in one go
-    /// (`Reduced::reduce`), `H` never held: the same arithmetic as the default's whole `H`.
-    fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
-        let (full, s) = self.full(x);
-        let chains = self.chains_at(&full);
-        let (n, p) = (self.data.rows(), self.parameters());
-        let mut y = DVector::zeros(self.equations());
-        let reduced = Reduced::reduce(
-            &self.blocks(),
-            p,
-            weights.noise(),
-            y.as_mut_slice(),
-            || self.scratch(),
-            |scratch, k, out| {
-                let (h, y_k) = out.split_at_mut(n * p);
-                self.view_rows(&chains, &s, &self.data.views[k], scratch, y_k, Some(h));
-                weights.apply_point(k, out);
-            },
-        );
-        (y, reduced)
-    }
-}
-
-impl TreeProblem<'_> {
-    /// The scratch of [`TreeProblem::view_rows`]: a branch's `6 x p` Jacobian in the tree's
-    /// selected parameters.
-    fn scratch(&self) -> DMatrix<f64> {
-        DMatrix::zeros(6, self.robot.len())
-    }
-
-    /// View `view`'s residual (its `n` rows: 6, or 3 for positions only) into `y` and, with
-    /// `rows`, its rows of `H` (`n x p` column-major, overwritten): each frame's branch
-    /// Jacobian `H_b` (the tree's columns, zero for another branch's parameters) through the
-    /// view's derivative by the frame and the tip's (`by * by_tip * H_b`), and the frame's own
-    /// 6 parameters (`by * by_own`).
-    fn view_rows(
-        &self,
-        chains: &[ChainAt],
-        s: &[f64],
-        view: &View,
-        h_b: &mut DMatrix<f64>,
-        y: &mut [f64],
-        rows: Option<&mut [f64]>,
-    ) {
-        let n = self.data.rows();
-        let a = self.frame_at(chains, s, view.camera, view.pose);
-        let b = self.frame_at(chains, s, view.target, view.pose);
-        let relative = relative_view(&view.view, &a.frame, &b.frame);
-        y.copy_from_slice(&relative.residual.as_slice()[..n]);
-        let Some(rows) = rows else { return };
-        let mut rows = DMatrixViewMut::from_slice(rows, n, self.parameters());
-        rows.fill(0.0);
-        for (at, frame, by) in [(&a, view.camera, relative.by_a), (&b, view.target, relative.by_b)] {
-            let robot = self.robot.len();
-            if let Some((branch, by_tip)) = at.on.filter(|_| robot > 0) {
-                h_b.fill(0.0);
-                let q = &self.data.joints[view.pose];
-                chains[branch].identification_jacobian(q, &self.robot, Measured::Pose, h_b.as_view_mut());
-                let by_tip = by * by_tip;
-                // Another branch's parameters' columns are zero: nothing to add.
-                for c in (0..robot).filter(|&c| h_b.column(c).iter().any(|&v| v != 0.0)) {
-                    let column = by_tip * h_b.fixed_view::<6, 1>(0, c);
-                    let mut into = rows.column_mut(c);
-                    into += column.rows(0, n);
-                }
-            }
-            let by_own = by * at.by_own;
-            for i in 0..6 {
-                if let Some(col) = self.setup_columns[6 * frame + i] {
-                    let mut column = rows.column_mut(col);
-                    column += by_own.view((0, i), (n, 1));
-                }
-            }
-        }
+    ) -> KindProblem<'a> {
+        let (rows, setup) = (&self.rows, &self.setup);
+        KindProblem::of_branches(&params.chains, selection, rows, setup, fixed, setup_values, setup_selection)
+            .with_noise(joint_noise)
     }
 }
 
@@ -755,39 +461,38 @@ impl TreeCalibration {
     fn score_rows(&self, data: &TreeData) -> Result<(TreeScore, f64), CalibrationError> {
         let estimated = self.noise_estimate.as_ref().map(|e| feasible::with_estimated_sigmas(data, e));
         let data = estimated.as_ref().unwrap_or(data);
-        data.check(&self.params)?;
-        // Every view's frames as the calibration's.
-        let mut index = Vec::with_capacity(data.frames.len());
-        for frame in &data.frames {
-            index.push(self.frames.iter().position(|g| g == frame).ok_or_else(|| {
-                CalibrationError::Scoring(format!(
-                    "{}: not a camera or target of the calibration ({})",
-                    frame.name(&self.params.tips),
-                    self.frame_names().join(", ")
-                ))
-            })?);
+        // Every view's frames among the calibration's.
+        if let Some(frame) = data.frames.iter().find(|f| !self.frames.contains(f)) {
+            return Err(CalibrationError::Scoring(format!(
+                "{}: not a camera or target of the calibration ({})",
+                frame.name(&self.params.tips),
+                self.frame_names().join(", ")
+            )));
         }
-        let mut remapped = data.clone();
-        remapped.frames = self.frames.clone();
-        for view in remapped.views.iter_mut() {
-            view.camera = index[view.camera];
-            view.target = index[view.target];
-        }
-        // The weights only whiten the residuals after: the joint noise is for those alone.
-        let problem = |x: &[f64], s: &[f64], noise: Option<&DMatrix<f64>>| {
-            TreeProblem::new(&self.params, &remapped, Vec::new(), x.to_vec(), s.to_vec(), Vec::new(), noise)
+        let observed = TreeRows::new(&self.params, data, &self.frames)?;
+        let problem = |x: &[f64], s: &[f64]| {
+            let values = (x.to_vec(), s.to_vec(), Vec::new());
+            KindProblem::of_branches(
+                &self.params.chains,
+                &observed.nothing,
+                &observed.rows,
+                &observed.setup,
+                values.0,
+                values.1,
+                values.2,
+            )
         };
         let nothing = DVector::zeros(0);
-        let before =
-            problem(&vec![0.0; self.params.len()], &self.setup_values.0, None).evaluate(&nothing, None);
-        let after_problem = problem(&self.after, &self.setup_values.1, self.joint_noise.as_ref());
-        let after = after_problem.evaluate(&nothing, None);
-        let v = after_problem.covariance().expect("always built");
+        let before = problem(&vec![0.0; self.params.len()], &self.setup_values.0).residuals(&nothing);
+        let after_problem = problem(&self.after, &self.setup_values.1);
+        let after = after_problem.residuals(&nothing);
+        // The weights only whiten the residuals after: the joint noise is for those alone.
+        let variances = after_problem.variances(self.joint_noise.as_ref());
         let n = data.rows();
         let norms = |y: &DVector<f64>, k: usize| {
             (y.rows(n * k, 3).norm(), (n == 6).then(|| y.rows(n * k + 3, 3).norm().to_degrees()))
         };
-        let whitened_row = |k: usize, r: usize| after[n * k + r] / v[(n * k + r, r)].sqrt();
+        let whitened_row = |k: usize, r: usize| after[n * k + r] / variances[n * k + r].sqrt();
         let spread = self.variance_factor.unwrap_or(1.0).sqrt();
         let views: Vec<ViewResidual> = (0..data.views.len())
             .map(|k| {
@@ -833,9 +538,7 @@ impl TreeCalibration {
 /// form.
 fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, CalibrationError> {
     let zero = vec![0.0; params.len()];
-    let problem =
-        TreeProblem::new(params, data, Vec::new(), zero, vec![0.0; 6 * data.frames.len()], Vec::new(), None);
-    let chains = problem.chains_at(&problem.fixed);
+    let chains: Vec<ChainAt> = params.chains.iter().map(|c| c.with_errors(&zero)).collect();
     let tip = |f: usize, pose: usize| -> Isometry3<f64> {
         data.frames[f].on.map_or(Isometry3::identity(), |b| chains[b].pose(&data.joints[pose]))
     };
@@ -922,7 +625,7 @@ fn asked(params: &TreeParams, options: &TreeOptions) -> Result<(Vec<usize>, Vec<
 /// class; with priors, what the data and the priors together cannot identify is held. The
 /// identifiable columns, the held ones, and the prior rows of every column.
 fn tree_gauge(
-    problem: &TreeProblem<'_>,
+    problem: &KindProblem<'_>,
     linearised: &Linearisation,
     (params, asked): (&TreeParams, &[usize]),
     options: &TreeOptions,
@@ -996,39 +699,41 @@ pub(crate) fn evidence_system(
     about: Option<(&[f64], &[f64])>,
 ) -> Result<super::kinds::EvidenceSystem, CalibrationError> {
     let params = TreeParams::new(tree);
-    let (base_problem, weights) = placements_problem(&params, data, options)?;
-    let (zero, every) = (vec![0.0; params.len()], base_problem.setup_selection.clone());
+    let observed = TreeRows::new(&params, data, &data.frames)?;
+    let (base_problem, weights, every) = placements_problem(&params, &observed, data, options)?;
+    let zero = vec![0.0; params.len()];
     let (fixed, setup) = match about {
         Some((fixed, setup)) => (fixed.to_vec(), setup.to_vec()),
         None => (zero, before_setup(&base_problem, &weights)?),
     };
     let (asked, _) = asked(&params, options)?;
-    let problem = base_problem.reselect(asked.clone(), fixed, setup, every);
+    let selection = params.selection(&asked);
+    let problem = base_problem.reselect(&selection, fixed, setup, every);
     let linearised = linearise(&problem, &weights, problem.start())?;
     let c = weights.scale().unwrap_or(1.0);
     Ok(super::kinds::EvidenceSystem { params: params.params.clone(), asked, linearised, c })
 }
 
 /// The problem of `data`'s placements alone (every camera's and target's, from their start
-/// [`initial_setup`], the tree at `params`' nominal), where every fit of the views starts, and
-/// its weights.
+/// [`initial_setup`], the tree at `params`' nominal), where every fit of the views starts, its
+/// weights, and its placements (every one).
 fn placements_problem<'a>(
     params: &'a TreeParams,
-    data: &'a TreeData,
+    observed: &'a TreeRows,
+    data: &TreeData,
     options: &TreeOptions,
-) -> Result<(TreeProblem<'a>, Weights), CalibrationError> {
-    data.check(params)?;
+) -> Result<(KindProblem<'a>, Weights, Vec<usize>), CalibrationError> {
     let start = initial_setup(params, data)?;
     let every: Vec<usize> = (0..start.len()).collect();
-    let (zero, noise) = (vec![0.0; params.len()], options.joint_noise.as_ref());
-    let problem = TreeProblem::new(params, data, Vec::new(), zero, start, every, noise);
+    let values = (vec![0.0; params.len()], start, every.clone());
+    let problem = observed.problem(params, &observed.nothing, values, options.joint_noise.as_ref());
     let weights = Weights::for_problem(&problem, options.estimator)?;
-    Ok((problem, weights))
+    Ok((problem, weights, every))
 }
 
 /// "Before": the cameras' and targets' placements of `base_problem` (which estimates them
 /// alone) fitted with the tree nominal.
-fn before_setup(base_problem: &TreeProblem<'_>, weights: &Weights) -> Result<Vec<f64>, CalibrationError> {
+fn before_setup(base_problem: &KindProblem<'_>, weights: &Weights) -> Result<Vec<f64>, CalibrationError> {
     let fit = linearise(base_problem, weights, base_problem.start())?;
     let refined = refine_from(base_problem, weights, fit, &RefineOptions::default())?;
     Ok(base_problem.full(&refined.estimate.x).1)
@@ -1046,13 +751,15 @@ pub(crate) fn selection_model(
     options: &TreeOptions,
 ) -> Result<super::selection::LinearModel, CalibrationError> {
     let params = TreeParams::new(tree);
-    let (base_problem, weights) = placements_problem(&params, data, options)?;
-    let (zero, every) = (vec![0.0; params.len()], base_problem.setup_selection.clone());
+    let observed = TreeRows::new(&params, data, &data.frames)?;
+    let (base_problem, weights, every) = placements_problem(&params, &observed, data, options)?;
+    let zero = vec![0.0; params.len()];
     let before = before_setup(&base_problem, &weights)?;
     let (asked, held) = asked(&params, options)?;
-    let whole = base_problem.reselect(asked.clone(), zero.clone(), before.clone(), every.clone());
+    let asked_selection = params.selection(&asked);
+    let whole = base_problem.reselect(&asked_selection, zero.clone(), before.clone(), every);
     let linearised = linearise(&whole, &weights, whole.start())?;
-    let spread = tree_prior_spread((&whole, &asked), &weights, data, options)?;
+    let spread = tree_prior_spread((&whole, &asked, &params), &weights, data, options)?;
     let Gauged { identifiable, mut fixed, prior, .. } = tree_gauge(
         &whole,
         &linearised,
@@ -1063,7 +770,8 @@ pub(crate) fn selection_model(
     let robot = asked.len();
     let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
     let kept_setup: Vec<usize> = identifiable.iter().filter(|&&c| c >= robot).map(|&c| c - robot).collect();
-    let problem = whole.reselect(kept.clone(), zero, before, kept_setup);
+    let kept_selection = params.selection(&kept);
+    let problem = whole.reselect(&kept_selection, zero, before, kept_setup);
     let x = problem.start();
     let n = data.rows();
     let rows: Vec<(usize, f64)> = (data.views.iter())
@@ -1089,7 +797,7 @@ pub fn calibrate_tree(
     options: &TreeOptions,
 ) -> Result<TreeCalibration, CalibrationError> {
     let params = TreeParams::new(tree);
-    data.check(&params)?;
+    let observed = TreeRows::new(&params, data, &data.frames)?;
     if let Some(noise) = &options.joint_noise
         && noise.shape() != (tree.dof(), tree.dof())
     {
@@ -1101,17 +809,18 @@ pub fn calibrate_tree(
             tree.dof()
         )));
     }
-    let (base_problem, weights) = placements_problem(&params, data, options)?;
-    let (zero, every) = (vec![0.0; params.len()], base_problem.setup_selection.clone());
+    let (base_problem, weights, every) = placements_problem(&params, &observed, data, options)?;
     let before_setup = before_setup(&base_problem, &weights)?;
     // "After": the joint parameters asked for, less --hold's, with the cameras and targets.
     let (asked, held) = asked(&params, options)?;
-    let problem = base_problem.reselect(asked.clone(), zero.clone(), before_setup.clone(), every.clone());
+    let asked_selection = params.selection(&asked);
+    let zero = vec![0.0; params.len()];
+    let problem = base_problem.reselect(&asked_selection, zero, before_setup.clone(), every);
     // A parameter with a prior is anchored by it: only the others need the views' equations.
     let sd = prior_sds_of(&options.prior, &params.params.iter().collect::<Vec<_>>())?;
     let unanchored = problem.parameters() - asked.iter().filter(|&&i| sd[i].is_finite()).count();
     super::enough_equations(data.joints.len(), problem.equations(), unanchored)?;
-    let spread = tree_prior_spread((&problem, &asked), &weights, data, options)?;
+    let spread = tree_prior_spread((&problem, &asked, &params), &weights, data, options)?;
     let mut r = fit_tree_gauged(&problem, (&weights, spread), (&params, &asked), options)?;
     if let Some(data_alone) = r.gauge.data_alone {
         r.refined.estimate.diagnostics = data_alone;
@@ -1179,7 +888,7 @@ fn scored(
 /// noise, not against the assumed sigmas ([`PriorRows::weighed_against`]); `None` when the
 /// noise is known or no prior is given.
 fn tree_prior_spread(
-    (whole, asked): (&TreeProblem<'_>, &[usize]),
+    (whole, asked, params): (&KindProblem<'_>, &[usize], &TreeParams),
     weights: &Weights,
     data: &TreeData,
     options: &TreeOptions,
@@ -1191,11 +900,12 @@ fn tree_prior_spread(
     let linearised = linearise(whole, weights, whole.start())?;
     let identifiable = linearised.diagnose(RANK_TOLERANCE)?.identifiable;
     let robot = asked.len();
-    let kept = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
-    let kept_setup =
-        identifiable.iter().filter(|&&c| c >= robot).map(|&c| whole.setup_selection[c - robot]).collect();
+    let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
+    // The placements are every frame's, in order.
+    let kept_setup = identifiable.iter().filter(|&&c| c >= robot).map(|&c| c - robot).collect();
     let (full, setup) = whole.full(&whole.start());
-    let plain = whole.reselect(kept, full, setup, kept_setup);
+    let kept = params.selection(&kept);
+    let plain = whole.reselect(&kept, full, setup, kept_setup);
     super::spread_of_fit(&plain, weights, linearised.select(&identifiable)).map(Some)
 }
 
@@ -1206,15 +916,18 @@ type TreeFitted = (Option<super::RobustFit>, Vec<f64>, Vec<f64>);
 /// placement, about "before"), the gauge found at "before" ([`tree_gauge`]), then again at the
 /// estimate ([`super::regauge`]).
 fn fit_tree_gauged(
-    whole: &TreeProblem<'_>,
+    whole: &KindProblem<'_>,
     (weights, spread): (&Weights, Option<f64>),
     (params, asked): (&TreeParams, &[usize]),
     options: &TreeOptions,
 ) -> Result<super::regauge::Regauged<Gauged, TreeFitted>, CalibrationError> {
-    let (robot, placements) = (asked.len(), whole.setup_selection.clone());
+    // The placements are every frame's, in order.
+    let robot = asked.len();
+    let placements: Vec<usize> = (0..whole.parameters() - robot).collect();
+    let asked_selection = params.selection(asked);
     let gauge_at = |at: &[f64]| -> Result<(Gauged, Linearisation), CalibrationError> {
         let (full, setup) = whole.full(&DVector::from_column_slice(at));
-        let problem = whole.reselect(asked.to_vec(), full, setup, placements.clone());
+        let problem = whole.reselect(&asked_selection, full, setup, placements.clone());
         let there = linearise(&problem, weights, problem.start())?;
         let weigh = (weights.scale().unwrap_or(1.0), spread);
         Ok((tree_gauge(&problem, &there, (params, asked), options, weigh)?, there))
@@ -1227,7 +940,8 @@ fn fit_tree_gauged(
         let kept: Vec<usize> = g.identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
         let kept_setup: Vec<usize> =
             g.identifiable.iter().filter(|&&c| c >= robot).map(|&c| placements[c - robot]).collect();
-        let problem = whole.reselect(kept, full, setup, kept_setup);
+        let kept = params.selection(&kept);
+        let problem = whole.reselect(&kept, full, setup, kept_setup);
         let start = match linearised.take() {
             Some(at_before) => at_before.select(&g.identifiable),
             None => linearise(&problem, weights, problem.start())?,

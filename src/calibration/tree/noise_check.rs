@@ -1,13 +1,15 @@
 //! Whether the noise given to a tree's views (their sigmas, the joint noise) agrees with the
 //! residuals of its calibration, as for marker and observation files
 //! ([`check`](super::super::noise_check::check)): each view's block (of at most
-//! [`CHECK_POSES`] views, evenly spread) linearised about the estimate, its joint part
-//! `G_k Sigma_q G_k^T` and its measurement part `diag(sigma_position^2, sigma_rotation^2)`,
-//! the views' positions cross-validated (a view's position one error, its rotation none).
+//! [`CHECK_POSES`] views, evenly spread) linearised about the estimate, each pose's views one
+//! block with its joint part `G_k Sigma_q G_k^T` and its measurement part
+//! `diag(sigma_position^2, sigma_rotation^2)`, the views' positions cross-validated (a view's
+//! position one error, its rotation none).
 
-use super::{TreeCalibration, TreeData, TreeProblem};
+use super::{TreeCalibration, TreeData, TreeRows};
 use crate::calibration::Warning;
 use crate::calibration::noise_check::{CHECK_POSES, at_estimate, check, without_outliers};
+use crate::estimation::Residuals;
 use crate::estimation::reml::{Components, Point};
 use nalgebra::DMatrix;
 
@@ -24,41 +26,39 @@ pub(super) fn tree_noise_check(c: &TreeCalibration, data: &TreeData) -> Option<W
     sample.views = data.views.iter().step_by(stride).cloned().collect();
     sample.lines = data.lines.iter().step_by(stride).copied().collect();
     let (selection, setup_selection) = estimated(c);
-    let problem = TreeProblem::new(
-        &c.params,
-        &sample,
-        selection,
-        c.after.clone(),
-        c.setup_values.1.clone(),
-        setup_selection,
-        c.joint_noise.as_ref(),
-    );
+    let observed = TreeRows::new(&c.params, &sample, &c.frames).ok()?;
+    let selection = c.params.selection(&selection);
+    let values = (c.after.clone(), c.setup_values.1.clone(), setup_selection);
+    let problem = observed.problem(&c.params, &selection, values, c.joint_noise.as_ref());
     let start = problem.start();
     let (h, y, v) = at_estimate(&problem, &start)?;
-    let n = sample.rows();
-    let points = (sample.views.iter().enumerate())
-        .map(|(k, view)| {
-            let sigmas = (0..n).map(|r| view.sigma[usize::from(r >= 3)].powi(2));
-            let measurement = DMatrix::from_diagonal(&nalgebra::DVector::from_iterator(n, sigmas));
-            let joint = DMatrix::from_fn(n, n, |i, j| v[(n * k + i, j)]) - &measurement;
+    let rows = &observed.rows;
+    // A view's position is one error, its rotation none.
+    let share = |i: usize| if rows.observations[i].is_angle() { 0.0 } else { 1.0 / 3.0 };
+    let points = (problem.blocks().ranges(y.len()))
+        .map(|r| {
+            let b = r.len();
+            let measurement =
+                DMatrix::from_fn(b, b, |i, j| rows.measurement_covariance(r.start + i, r.start + j));
+            let joint = DMatrix::from_fn(b, b, |i, j| v[(r.start + i, j)]) - &measurement;
+            let shares: Vec<f64> = r.clone().map(share).collect();
             let point = Point {
-                h: h.rows(n * k, n).into_owned(),
-                r: y.rows(n * k, n).into_owned(),
+                h: h.rows(r.start, b).into_owned(),
+                r: y.rows(r.start, b).into_owned(),
                 joint,
                 measurement,
             };
-            (point, ())
+            (point, shares)
         })
         .collect();
-    let components = Components::new(without_outliers(points).into_iter().map(|(p, ())| p).collect())?;
+    let (points, shares): (Vec<Point>, Vec<Vec<f64>>) = without_outliers(points).into_iter().unzip();
+    let components = Components::new(points)?;
     let prior_sd: Vec<f64> = (c.refined.estimate.names.iter())
         .map(|name| {
             c.params.params.iter().position(|p| &p.name == name).map_or(f64::INFINITY, |i| c.prior_sd[i])
         })
         .collect();
-    // A view's position is one error, its rotation none.
-    let share = |_: usize, r: usize| if r < 3 { 1.0 / 3.0 } else { 0.0 };
-    check(&components, (&start, &prior_sd), &share)
+    check(&components, (&start, &prior_sd), &|k: usize, i: usize| shares[k][i])
 }
 
 /// The robot's parameters `c` estimated (their indices among its parameters) and the
