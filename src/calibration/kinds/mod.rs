@@ -2118,32 +2118,40 @@ fn noise_check(c: &KindCalibration, data: &KindData) -> Option<Warning> {
     let (x, s) = (c.after.clone(), c.setup_values.1.clone());
     let problem = KindProblem::of_points(&c.chains, &markers, &kept, &sample, &c.setup, x, s, kept_setup)
         .with_noise(c.joint_noise.as_ref());
+    let robot: Vec<f64> = kept.indices().iter().map(|&i| c.prior_sd[i]).collect();
+    check_noise(&problem, Observation::error_share, &robot)
+}
+
+/// The check of the noise `problem` was weighted by ([`check`]) at its start (a calibration's
+/// estimate, its estimated parameters selected): each pose's block one sample, its joint part
+/// `sum_j G_kj Sigma_q G_kj^T` and its measurement part, every row scored by its `share` of
+/// one error; `prior_sd` the prior standard deviations of its robot parameters (the set-up's
+/// have none). `None` when the noise agrees or the residuals are too few to tell; the blocks
+/// far out are left out ([`without_outliers`]), as a robust loss leaves them out.
+pub(in crate::calibration) fn check_noise(
+    problem: &KindProblem<'_>,
+    share: impl Fn(&Observation) -> f64,
+    prior_sd: &[f64],
+) -> Option<Warning> {
     let start = problem.start();
-    let (h, y, v) = at_estimate(&problem, &start)?;
+    let (h, y, v) = at_estimate(problem, &start)?;
+    let data = problem.data;
     let points = (problem.blocks().ranges(y.len()))
         .map(|r| {
             let b = r.len();
             let measurement =
-                DMatrix::from_fn(b, b, |i, j| sample.measurement_covariance(r.start + i, r.start + j));
+                DMatrix::from_fn(b, b, |i, j| data.measurement_covariance(r.start + i, r.start + j));
             let joint = DMatrix::from_fn(b, b, |i, j| v[(r.start + i, j)]) - &measurement;
-            let shares: Vec<f64> = r.clone().map(|i| sample.observations[i].error_share()).collect();
-            (
-                Point {
-                    h: h.rows(r.start, b).into_owned(),
-                    r: y.rows(r.start, b).into_owned(),
-                    joint,
-                    measurement,
-                },
-                shares,
-            )
+            let (h, r_k) = (h.rows(r.start, b).into_owned(), y.rows(r.start, b).into_owned());
+            let shares: Vec<f64> = r.map(|i| share(&data.observations[i])).collect();
+            (Point { h, r: r_k, joint, measurement }, shares)
         })
         .collect();
     let (points, shares): (Vec<Point>, Vec<Vec<f64>>) = without_outliers(points).into_iter().unzip();
     let components = Components::new(points)?;
-    let robot = kept.indices().iter().map(|&i| c.prior_sd[i]);
-    let prior_sd: Vec<f64> = robot.chain(std::iter::repeat(f64::INFINITY)).take(start.len()).collect();
-    let share = |k: usize, i: usize| shares[k][i];
-    check(&components, (&start, &prior_sd), &share)
+    let prior_sd: Vec<f64> =
+        prior_sd.iter().copied().chain(std::iter::repeat(f64::INFINITY)).take(start.len()).collect();
+    check(&components, (&start, &prior_sd), &|k: usize, i: usize| shares[k][i])
 }
 
 /// What [`fit_gauged`] gives: the fit (every step of every round in its history), the robust

@@ -5,7 +5,7 @@
 //! `V_k = G_k Sigma_q G_k^T + diag(sigma_p^2 I, sigma_r^2 I)`, `G_k` the derivative of its six
 //! rows by the tree's joints (both its frames moved by their branches).
 
-use super::{TreeCalibration, TreeData, TreeOptions, TreeParams, TreeRows, calibrate_tree};
+use super::{TreeCalibration, TreeData, TreeOptions, TreeRows, calibrate_tree};
 use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
@@ -87,7 +87,7 @@ fn residual_noise(
     (dof, joints): (usize, JointComponents),
     previous: Option<&NoiseEstimate>,
 ) -> Result<NoiseEstimate, CalibrationError> {
-    let (selection, setup_selection) = selected(&c.params, c, data);
+    let (selection, setup_selection) = super::noise_check::estimated(c);
     let weighted = previous.map(|e| with_estimated_sigmas(data, e));
     let data = weighted.as_ref().unwrap_or(data);
     let noise = previous.map(NoiseEstimate::joint_covariance);
@@ -103,21 +103,4 @@ fn residual_noise(
     let samples = residual_samples(&HeldRows { h: &h, y: &y }, &weights, &layout, joints)?;
     drop((h, y, weights, layout));
     Ok(NoiseEstimate::fit(&samples, joints, dof, classes, previous)?)
-}
-
-/// The tree parameters and the frame parameters `c` estimated, as indices, from its names.
-fn selected(params: &TreeParams, c: &TreeCalibration, data: &TreeData) -> (Vec<usize>, Vec<usize>) {
-    let frames: Vec<String> = (data.frames.iter())
-        .flat_map(|f| {
-            let name = f.name(&params.tips);
-            ["x", "y", "z", "rx", "ry", "rz"].map(move |a| format!("{name}.{a}"))
-        })
-        .collect();
-    let names = &c.refined.estimate.names;
-    let tree = names.iter().filter_map(|n| params.params.iter().position(|p| &p.name == n)).collect();
-    let setup = (names.iter())
-        .filter(|n| !params.params.iter().any(|p| &p.name == *n))
-        .filter_map(|n| frames.iter().position(|f| f == n))
-        .collect();
-    (tree, setup)
 }

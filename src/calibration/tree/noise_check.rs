@@ -1,17 +1,15 @@
 //! Whether the noise given to a tree's views (their sigmas, the joint noise) agrees with the
 //! residuals of its calibration, as for marker and observation files
 //! ([`check`](super::super::noise_check::check)): each view's block (of at most
-//! [`CHECK_POSES`] views, evenly spread) linearised about the estimate, each pose's views one
-//! block with its joint part `G_k Sigma_q G_k^T` and its measurement part
-//! `diag(sigma_position^2, sigma_rotation^2)`, the views' positions cross-validated (a view's
-//! position one error, its rotation none).
+//! [`CHECK_POSES`] views, evenly spread) linearised about the estimate, by the check of every
+//! kind ([`check_noise`]): each pose's views one block with its joint part
+//! `G_k Sigma_q G_k^T` and its measurement part `diag(sigma_position^2, sigma_rotation^2)`,
+//! the views' positions cross-validated (a view's position one error, its rotation none).
 
 use super::{TreeCalibration, TreeData, TreeRows};
 use crate::calibration::Warning;
-use crate::calibration::noise_check::{CHECK_POSES, at_estimate, check, without_outliers};
-use crate::estimation::Residuals;
-use crate::estimation::reml::{Components, Point};
-use nalgebra::DMatrix;
+use crate::calibration::kinds::check_noise;
+use crate::calibration::noise_check::CHECK_POSES;
 
 /// The check of `c`'s noise on its training `data`: `None` when it agrees, without a noise
 /// given (every sigma assumed and the joints exact: the residuals' spread scales the fit
@@ -30,40 +28,16 @@ pub(super) fn tree_noise_check(c: &TreeCalibration, data: &TreeData) -> Option<W
     let selection = c.params.selection(&selection);
     let values = (c.after.clone(), c.setup_values.1.clone(), setup_selection);
     let problem = observed.problem(&c.params, &selection, values, c.joint_noise.as_ref());
-    let start = problem.start();
-    let (h, y, v) = at_estimate(&problem, &start)?;
-    let rows = &observed.rows;
-    // A view's position is one error, its rotation none.
-    let share = |i: usize| if rows.observations[i].is_angle() { 0.0 } else { 1.0 / 3.0 };
-    let points = (problem.blocks().ranges(y.len()))
-        .map(|r| {
-            let b = r.len();
-            let measurement =
-                DMatrix::from_fn(b, b, |i, j| rows.measurement_covariance(r.start + i, r.start + j));
-            let joint = DMatrix::from_fn(b, b, |i, j| v[(r.start + i, j)]) - &measurement;
-            let shares: Vec<f64> = r.clone().map(share).collect();
-            let point = Point {
-                h: h.rows(r.start, b).into_owned(),
-                r: y.rows(r.start, b).into_owned(),
-                joint,
-                measurement,
-            };
-            (point, shares)
-        })
-        .collect();
-    let (points, shares): (Vec<Point>, Vec<Vec<f64>>) = without_outliers(points).into_iter().unzip();
-    let components = Components::new(points)?;
     let prior_sd: Vec<f64> = (c.refined.estimate.names.iter())
-        .map(|name| {
-            c.params.params.iter().position(|p| &p.name == name).map_or(f64::INFINITY, |i| c.prior_sd[i])
-        })
+        .filter_map(|name| c.params.params.iter().position(|p| &p.name == name).map(|i| c.prior_sd[i]))
         .collect();
-    check(&components, (&start, &prior_sd), &|k: usize, i: usize| shares[k][i])
+    // A view's position is one error, its rotation none.
+    check_noise(&problem, |o| if o.is_angle() { 0.0 } else { 1.0 / 3.0 }, &prior_sd)
 }
 
 /// The robot's parameters `c` estimated (their indices among its parameters) and the
 /// placements' (among the frames' six each), by the names of its estimate.
-fn estimated(c: &TreeCalibration) -> (Vec<usize>, Vec<usize>) {
+pub(super) fn estimated(c: &TreeCalibration) -> (Vec<usize>, Vec<usize>) {
     let frames = c.frame_names();
     let setup: Vec<String> = (frames.iter())
         .flat_map(|name| ["x", "y", "z", "rx", "ry", "rz"].map(move |a| format!("{name}.{a}")))
