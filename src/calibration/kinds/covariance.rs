@@ -4,7 +4,7 @@
 //! entries of `V_k` from them. Nothing is held for every observation but the result, and the
 //! blocks are filled in parallel, each entry by the same arithmetic on any number of threads.
 
-use super::{BlockFrames, BlockJacobians, KindProblem};
+use super::{BlockFrames, BlockJacobians, KindProblem, ViewMemo};
 use crate::kinematics::{ChainAt, Measured, points_manipulator};
 use nalgebra::{DMatrix, Isometry3, Matrix6xX, Vector3};
 use rayon::prelude::*;
@@ -18,6 +18,8 @@ const BLOCKS_PER_PART: usize = 256;
 /// per pose `j` it sees (`poses`), and the same times `Sigma_q` (`weighted`).
 struct JointRows {
     frames: BlockJacobians,
+    /// A camera view's rows, computed once for its six.
+    memo: ViewMemo,
     /// The manipulator Jacobian of one point at one pose.
     jacobian: Matrix6xX<f64>,
     starts: Vec<usize>,
@@ -32,6 +34,7 @@ impl JointRows {
         let (starts, poses, rows, weighted) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         Self {
             frames: BlockJacobians::default(),
+            memo: ViewMemo::default(),
             jacobian: Matrix6xX::zeros(dof),
             starts,
             poses,
@@ -60,7 +63,7 @@ impl JointRows {
         self.weighted.clear();
         for o in &problem.data.observations[range] {
             self.starts.push(self.poses.len());
-            let f = problem.predict(o, &BlockFrames { block: &self.frames }, views);
+            let f = problem.predict(o, &BlockFrames { block: &self.frames }, views, &mut self.memo);
             for &(n, g) in &f.by_point[..f.poses] {
                 let jacobian = self.frames.get(n, rows * dof);
                 let at = self.rows.len();

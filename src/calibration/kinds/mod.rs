@@ -503,6 +503,7 @@ impl SetUp {
 /// One observation's residual `y_k` (of its prediction `f_k`), the derivatives `g_kj` of `f_k`
 /// with respect to each point-and-pose `j` it reads (`(j, g)`, one or two: a point at two poses,
 /// or two points at one) and with respect to the set-up (`(index, value)`).
+#[derive(Clone, Copy, Default)]
 struct Prediction {
     residual: f64,
     by_point: [(usize, Vector6<f64>); 2],
@@ -629,7 +630,7 @@ fn predict<F: Frames + ?Sized>(
         }
         Observation::Contact { plane, .. } => contact_prediction(o, (p(at), at), plane, setup, s),
         Observation::Camera { axis, view, site, .. } => {
-            camera_prediction((frames, seen), (axis, &view, site), setup, s)
+            camera_rows((frames, seen), (&view, site), setup, s)[axis]
         }
     }
 }
@@ -683,17 +684,19 @@ fn contact_prediction(
     }
 }
 
-/// Row `axis` of the view `view` (at `site`) between the camera's frame `A` and the target's
-/// `B` ([`camera`]'s model): each mounted on its tip's frame (`frames[seen[0]]`, the camera's;
-/// `frames[seen[1]]`, the target's) or placed in the base frame ([`camera::view_end`]), the
-/// set-up values `s` their placements; the row of `S_A` by `E_T` (by the camera's tip) and by
-/// `E_C` or `E_W` (by its own placement), and `B`'s likewise.
-fn camera_prediction<F: Frames + ?Sized>(
+/// The six rows of the view `view` (at `site`) between the camera's frame `A` and the
+/// target's `B` ([`camera`]'s model): each mounted on its tip's frame (`frames[seen[0]]`, the
+/// camera's; `frames[seen[1]]`, the target's) or placed in the base frame
+/// ([`camera::view_end`]), the set-up values `s` their placements; row `axis`'s derivatives the
+/// row of `S_A` by `E_T` (by the camera's tip) and by `E_C` or `E_W` (by its own placement),
+/// and `B`'s likewise. The frames, their derivatives and the relative view are computed once
+/// for the six.
+fn camera_rows<F: Frames + ?Sized>(
     (frames, seen): (&F, [usize; 2]),
-    (axis, view, site): (usize, &Vector6<f64>, CameraSite),
+    (view, site): (&Vector6<f64>, CameraSite),
     setup: &SetUp,
     s: &[f64],
-) -> Prediction {
+) -> [Prediction; 6] {
     let ends = setup.view_ends(site);
     let slots = ends.map(|(slot, _)| slot);
     let [a, b] = [0, 1].map(|e| {
@@ -701,21 +704,31 @@ fn camera_prediction<F: Frames + ?Sized>(
         camera::view_end(tip, &s[slots[e]..slots[e] + 6])
     });
     let v = relative_view(view, &a.0, &b.0);
-    let rows = [v.by_a.row(axis).transpose(), v.by_b.row(axis).transpose()];
-    let mut by_point = [(0, Vector6::zeros()); 2];
-    let mut poses = 0;
-    let mut out = [(0, 0.0); 12];
-    for (e, (_, by_tip, by_own)) in [a, b].iter().enumerate() {
-        if let Some(by_tip) = by_tip {
-            by_point[poses] = (seen[e], by_tip.tr_mul(&rows[e]));
-            poses += 1;
+    std::array::from_fn(|axis| {
+        let rows = [v.by_a.row(axis).transpose(), v.by_b.row(axis).transpose()];
+        let mut f = Prediction { residual: v.residual[axis], setups: 12, ..Prediction::default() };
+        for (e, (_, by_tip, by_own)) in [&a, &b].into_iter().enumerate() {
+            if let Some(by_tip) = by_tip {
+                f.by_point[f.poses] = (seen[e], by_tip.tr_mul(&rows[e]));
+                f.poses += 1;
+            }
+            let by_own = by_own.tr_mul(&rows[e]);
+            for i in 0..6 {
+                f.by_setup[6 * e + i] = (slots[e] + i, by_own[i]);
+            }
         }
-        let by_own = by_own.tr_mul(&rows[e]);
-        for i in 0..6 {
-            out[6 * e + i] = (slots[e] + i, by_own[i]);
-        }
-    }
-    Prediction { residual: v.residual[axis], by_point, poses, by_setup: out, setups: 12 }
+        f
+    })
+}
+
+/// The rows of the last camera view predicted, kept for the view's other rows
+/// ([`camera_rows`] gives all six at once): `key`, what they are a function of within one
+/// evaluation (the frames and the set-up values being its own): the points read, the site,
+/// the measured view and the session.
+#[derive(Default)]
+struct ViewMemo {
+    key: Option<([usize; 2], CameraSite, [u64; 6], usize)>,
+    rows: [Prediction; 6],
 }
 
 /// Roll, pitch and yaw of `r` (`R = Rz(yaw) Ry(pitch) Rx(roll)`) and their derivatives with
@@ -1009,10 +1022,28 @@ impl<'a> KindProblem<'a> {
     }
 
     /// [`predict`] of `o` in its pose's session, from that session's values of `views`
-    /// ([`KindProblem::session_views`]); its set-up derivatives by slot of every session's values.
-    fn predict<F: Frames + ?Sized>(&self, o: &Observation, frames: &F, views: &[Vec<f64>]) -> Prediction {
+    /// ([`KindProblem::session_views`]); its set-up derivatives by slot of every session's
+    /// values. A camera's row from `memo`, the view's six rows computed at its first.
+    fn predict<F: Frames + ?Sized>(
+        &self,
+        o: &Observation,
+        frames: &F,
+        views: &[Vec<f64>],
+        memo: &mut ViewMemo,
+    ) -> Prediction {
         let k = self.data.session_of(o.pose()).min(views.len() - 1);
-        let mut f = predict(o, (frames, self.seen(o)), self.setup, &views[k]);
+        let seen = self.seen(o);
+        let mut f = match *o {
+            Observation::Camera { axis, view, site, .. } => {
+                let key = Some((seen, site, std::array::from_fn(|i| view[i].to_bits()), k));
+                if memo.key != key {
+                    memo.rows = camera_rows((frames, seen), (&view, site), self.setup, &views[k]);
+                    memo.key = key;
+                }
+                memo.rows[axis]
+            }
+            _ => predict(o, (frames, seen), self.setup, &views[k]),
+        };
         for (i, _) in &mut f.by_setup[..f.setups] {
             *i = self.setup.slot(*i, k);
         }
@@ -1161,12 +1192,14 @@ impl Residuals for KindProblem<'_> {
         let Some(h) = h else {
             // The residuals alone: each its own, in parallel.
             let residuals = y.as_mut_slice().par_iter_mut().enumerate();
-            residuals.for_each(|(k, y_k)| *y_k = self.observation_row(k, at, None));
+            residuals.for_each_init(ViewMemo::default, |memo, (k, y_k)| {
+                *y_k = self.observation_row(k, at, None, memo);
+            });
             return y;
         };
-        let mut row = vec![0.0; self.parameters()];
+        let (mut row, mut memo) = (vec![0.0; self.parameters()], ViewMemo::default());
         for k in 0..self.data.observations.len() {
-            y[k] = self.observation_row(k, at, Some(&mut row));
+            y[k] = self.observation_row(k, at, Some(&mut row), &mut memo);
             row.iter().enumerate().for_each(|(c, &v)| h[(k, c)] = v);
         }
         y
@@ -1190,14 +1223,14 @@ impl Residuals for KindProblem<'_> {
             p,
             weights.noise(),
             y.as_mut_slice(),
-            || (vec![0.0; p], BlockJacobians::default()),
-            |(row, jacobians), point, out| {
+            || (vec![0.0; p], BlockJacobians::default(), ViewMemo::default()),
+            |(row, jacobians, memo), point, out| {
                 let r = layout.range(point);
                 jacobians.fill(self, &chains, r.clone(), block);
                 let at = PointsAt { views: &views, jacobians: Jacobians::Block(jacobians), block };
                 let n = r.len();
                 for (i, k) in r.enumerate() {
-                    out[p * n + i] = self.observation_row(k, at, Some(row));
+                    out[p * n + i] = self.observation_row(k, at, Some(row), memo);
                     row.iter().enumerate().for_each(|(c, &v)| out[c * n + i] = v);
                 }
                 weights.apply_point(point, out);
@@ -1367,18 +1400,19 @@ struct PointsAt<'f> {
 impl KindProblem<'_> {
     /// Observation `k`'s residual `y_k`, and with `h` its row of `H` written over it (one
     /// number a column): `H_k = sum_j g_kj^T H_j + df_k/ds`, from every point at every pose
-    /// (`at`).
+    /// (`at`); a camera's view's rows through `memo`.
     fn observation_row(
         &self,
         k: usize,
         PointsAt { views, jacobians, block }: PointsAt<'_>,
         h: Option<&mut [f64]>,
+        memo: &mut ViewMemo,
     ) -> f64 {
         let o = &self.data.observations[k];
         let (columns, rows) = (self.selection.len(), self.measured().rows());
         let f = match jacobians {
-            Jacobians::All(frames, ..) => self.predict(o, frames, views),
-            Jacobians::Block(block) => self.predict(o, &BlockFrames { block }, views),
+            Jacobians::All(frames, ..) => self.predict(o, frames, views, memo),
+            Jacobians::Block(block) => self.predict(o, &BlockFrames { block }, views, memo),
         };
         let Some(h) = h else { return f.residual };
         h.fill(0.0);
