@@ -401,6 +401,8 @@ impl PointProblem<'_> {
         let (rows, p) = (self.rows_per_point(), self.selection.len());
         let full = self.full(x);
         let at: Vec<_> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
+        // Found here, on every thread, not by the first pose's task while the others wait.
+        self.held(&at);
         let mut y = DVector::zeros(self.equations());
         let reduced = Reduced::reduce(
             &self.blocks(),

@@ -1218,6 +1218,10 @@ impl Residuals for KindProblem<'_> {
         let views = self.session_views(&s);
         let mut y = DVector::zeros(self.equations());
         let layout = self.blocks();
+        // Found here, on every thread, not by the first block's task while the others wait.
+        if self.measured() == Measured::Position && !self.selection.is_empty() {
+            self.held(&chains);
+        }
         let reduced = Reduced::reduce(
             &layout,
             p,
