@@ -474,3 +474,18 @@ fn the_covariance_of_a_view_is_the_joint_noise_of_its_pose() {
         assert!(strongest.fold(0.0, f64::max) > 0.5, "{site:?}: the view's rows are correlated: {v}");
     }
 }
+
+/// A view between a tree's frames in data for a serial arm is refused by name, not fitted.
+#[test]
+fn a_trees_view_in_a_serial_arms_data_is_refused() {
+    let model = puma();
+    let mut rng = ChaCha8Rng::seed_from_u64(84);
+    let at = flange(&model).with_errors(&vec![0.0; flange(&model).params().len()]);
+    let mut data = views(&at, CameraSite::Hand, &truth(CameraSite::Hand), 4, (0.0, 0.0), &mut rng);
+    if let Observation::Camera { site, .. } = &mut data.observations[6] {
+        *site = CameraSite::Tree { camera: 0, target: 1 };
+    }
+    let options = KindOptions { tool: Vector3::zeros(), ..KindOptions::default() };
+    let e = calibrate_kinds(&model, &data, &options).unwrap_err().to_string();
+    assert!(e.contains(&format!("line {}", data.lines[6])) && e.contains("tree"), "{e}");
+}

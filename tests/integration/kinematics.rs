@@ -362,14 +362,20 @@ fn puma560_thirty_parameter_position_rank_is_23() {
 /// `U(q) = -sum_j m_j g . c_j(q)` of the links and a payload, each centre of mass `c_j` from a
 /// model cut after joint `j` with its tool at the centre of mass: a path through the forward
 /// kinematics alone.
-fn check_gravity_torques(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
-    let mut model = model.clone();
-    model.masses = (0..model.dof())
+/// A mass of 0 to 20 kg on each of `dof` links, its centre within 200 mm of the joint's frame
+/// on each axis, from the numbers `u` (in -1..1).
+fn link_masses(dof: usize, u: &[f64]) -> Vec<robocal::model::LinkMass> {
+    (0..dof)
         .map(|j| robocal::model::LinkMass {
             mass: 10.0 * (u[3 * j] + 1.0),
             com: Vector3::new(u[3 * j + 1], u[3 * j + 2], u[3 * j + 3]) * 200.0,
         })
-        .collect();
+        .collect()
+}
+
+fn check_gravity_torques(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
+    let mut model = model.clone();
+    model.masses = link_masses(model.dof(), u);
     model.gravity = Vector3::new(u[30], u[31], u[32] - 1.5).normalize() * robocal::model::STANDARD_GRAVITY;
     let payload =
         robocal::model::Payload { mass: 3.0 * (u[33] + 1.0), com: Vector3::new(u[34], u[35], u[36]) * 100.0 };
@@ -447,12 +453,7 @@ proptest! {
 /// a payload, compliances and plays (the gravity loads indexed by the tree's joints).
 fn check_chain_on_tree(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
     let mut model = model.clone();
-    model.masses = (0..model.dof())
-        .map(|j| robocal::model::LinkMass {
-            mass: 10.0 * (u[3 * j] + 1.0),
-            com: Vector3::new(u[3 * j + 1], u[3 * j + 2], u[3 * j + 3]) * 200.0,
-        })
-        .collect();
+    model.masses = link_masses(model.dof(), u);
     model.payload =
         Some(robocal::model::Payload { mass: 5.0 * (u[50] + 1.0), com: Vector3::new(u[51], 0.0, 50.0) });
     let (q, mut x) = point(&model, u);
@@ -552,12 +553,7 @@ fn a_horizontal_link_of_one_kilogram_at_one_metre_weighs_9_81_newton_metres() {
 fn check_load_responses(model: &RobotModel, u: &[f64]) -> Result<(), TestCaseError> {
     use robocal::model::ParamKind;
     let mut model = model.clone();
-    model.masses = (0..model.dof())
-        .map(|j| robocal::model::LinkMass {
-            mass: 10.0 * (u[3 * j] + 1.0),
-            com: Vector3::new(u[3 * j + 1], u[3 * j + 2], u[3 * j + 3]) * 200.0,
-        })
-        .collect();
+    model.masses = link_masses(model.dof(), u);
     model.payload = Some(robocal::model::Payload {
         mass: 5.0 * (u[50] + 1.0),
         com: Vector3::new(u[51], u[52], u[53]) * 100.0,

@@ -880,7 +880,8 @@ impl KindData {
 
     /// Refuse observations that do not fit (for data built by hand rather than read): a pose
     /// that does not exist, joint values not one finite value per joint of a robot with
-    /// `dof` joints, a sigma not finite and above 0, an axis beyond 5, a line missing.
+    /// `dof` joints, a sigma not finite and above 0, an axis beyond 5, a line missing, a view
+    /// between a tree's frames (a tree's calibration reads those).
     pub fn check(&self, dof: usize) -> Result<(), CalibrationError> {
         let bad = |what: String| Err(CalibrationError::Observations(what));
         if self.lines.len() != self.observations.len() {
@@ -931,8 +932,12 @@ impl KindData {
                     return bad(format!("line {line}: axis {axis}, expected 0 to 5"));
                 }
             };
+            if let Observation::Camera { site: CameraSite::Tree { .. }, .. } = *o {
+                return bad(format!(
+                    "line {line}: a view between a tree's frames: calibrate it on the tree (a URDF with --tips)"
+                ));
+            }
             if let Observation::Camera { site, .. } = *o
-                && !matches!(site, CameraSite::Tree { .. })
                 && Some(site) != self.camera()
             {
                 return bad(format!(

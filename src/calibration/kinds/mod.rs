@@ -836,18 +836,41 @@ impl<'a> KindProblem<'a> {
         setup_values: Vec<f64>,
         setup_selection: Vec<usize>,
     ) -> Self {
-        let markers = markers.to_vec();
-        let used = Vec::new();
-        let measured = match chains.iter().all(Chain::ends_at_a_point) && !data.has_angles() {
-            true => Measured::Position,
-            false => Measured::Pose,
-        };
+        let values = (fixed, setup_values, setup_selection);
+        Self::on_chains(chains, (markers.to_vec(), false), (selection, data, setup), values)
+    }
+
+    /// The problem of views between the frames of a tree (camera observations at
+    /// [`CameraSite::Tree`]): `chains` each branch's tip's ([`Chain::on_tree`]: all at the
+    /// tree's parameters and joints), the rest as of [`KindProblem::of_points`], the values
+    /// `(fixed, setup_values, setup_selection)`.
+    pub fn of_branches(
+        chains: &'a [Chain],
+        selection: &'a Selection,
+        data: &'a KindData,
+        setup: &'a SetUp,
+        values: (Vec<f64>, Vec<f64>, Vec<usize>),
+    ) -> Self {
+        Self::on_chains(chains, (Vec::new(), true), (selection, data, setup), values)
+    }
+
+    /// The problem on `chains`: points on one arm's last link (`markers` first), or a tree's
+    /// branches; its frames are points alone ([`Measured::Position`]) when every chain ends at a
+    /// point on one arm and no observation is an angle.
+    fn on_chains(
+        chains: &'a [Chain],
+        (markers, branches): (Vec<usize>, bool),
+        (selection, data, setup): (&'a Selection, &'a KindData, &'a SetUp),
+        (fixed, setup_values, setup_selection): (Vec<f64>, Vec<f64>, Vec<usize>),
+    ) -> Self {
+        let points = !branches && chains.iter().all(Chain::ends_at_a_point) && !data.has_angles();
+        let measured = if points { Measured::Position } else { Measured::Pose };
         let mut problem = Self {
             measured,
             chains,
             markers,
-            branches: false,
-            used,
+            branches,
+            used: Vec::new(),
             selection,
             data,
             setup,
@@ -858,27 +881,6 @@ impl<'a> KindProblem<'a> {
             v: None,
             held: OnceLock::new(),
         };
-        problem.used = problem.points_used();
-        problem
-    }
-
-    /// The problem of views between the frames of a tree (camera observations at
-    /// [`CameraSite::Tree`]): `chains` each branch's tip's ([`Chain::on_tree`]: all at the
-    /// tree's parameters and joints), the rest as of [`KindProblem::of_points`].
-    #[allow(clippy::too_many_arguments)]
-    pub fn of_branches(
-        chains: &'a [Chain],
-        selection: &'a Selection,
-        data: &'a KindData,
-        setup: &'a SetUp,
-        fixed: Vec<f64>,
-        setup_values: Vec<f64>,
-        setup_selection: Vec<usize>,
-    ) -> Self {
-        let mut problem =
-            Self::of_points(chains, &[], selection, data, setup, fixed, setup_values, setup_selection);
-        problem.branches = true;
-        problem.measured = Measured::Pose;
         problem.used = problem.points_used();
         problem
     }

@@ -286,18 +286,18 @@ impl TreeRows {
         Ok(Self { rows: data.observations(frames), setup, nothing: params.selection(&[]) })
     }
 
-    /// The problem estimating `selection` (of `params`) and the placements `setup_selection`,
-    /// the tree at `fixed` and the placements at `setup_values`; `V_k` with `joint_noise`.
+    /// The problem estimating `selection` (of `params`) and, of the `values` `(fixed,
+    /// setup_values, setup_selection)`, the placements `setup_selection`, the tree at `fixed`
+    /// and the placements at `setup_values`; `V_k` with `joint_noise`.
     pub fn problem<'a>(
         &'a self,
         params: &'a TreeParams,
         selection: &'a Selection,
-        (fixed, setup_values, setup_selection): (Vec<f64>, Vec<f64>, Vec<usize>),
+        values: (Vec<f64>, Vec<f64>, Vec<usize>),
         joint_noise: Option<&DMatrix<f64>>,
     ) -> KindProblem<'a> {
         let (rows, setup) = (&self.rows, &self.setup);
-        KindProblem::of_branches(&params.chains, selection, rows, setup, fixed, setup_values, setup_selection)
-            .with_noise(joint_noise)
+        KindProblem::of_branches(&params.chains, selection, rows, setup, values).with_noise(joint_noise)
     }
 }
 
@@ -470,16 +470,14 @@ impl TreeCalibration {
             )));
         }
         let observed = TreeRows::new(&self.params, data, &self.frames)?;
+        let (rows, setup, nothing) = (&observed.rows, &observed.setup, &observed.nothing);
         let problem = |x: &[f64], s: &[f64]| {
-            let values = (x.to_vec(), s.to_vec(), Vec::new());
             KindProblem::of_branches(
                 &self.params.chains,
-                &observed.nothing,
-                &observed.rows,
-                &observed.setup,
-                values.0,
-                values.1,
-                values.2,
+                nothing,
+                rows,
+                setup,
+                (x.to_vec(), s.to_vec(), Vec::new()),
             )
         };
         let nothing = DVector::zeros(0);
