@@ -530,20 +530,33 @@ impl LinearModel {
         data: &KindData,
         options: &KindOptions,
     ) -> Result<Self, CalibrationError> {
-        let prepared = kinds::prepare(model, data, options)?;
+        let (_, prepared) = kinds::prepare(model, data, options)?;
         let started = kinds::start_registered(model, &prepared, data, options)?;
-        let kinds::Gauged { identifiable, fixed, prior, .. } = &started.gauged;
+        let rows: Vec<(usize, f64)> = data.observations.iter().map(|o| (o.pose(), o.error_share())).collect();
+        let fixed = started.gauged.fixed.clone();
+        Ok(Self::of_started(&prepared, &started, rows, fixed))
+    }
+
+    /// The model of what `prepared` asks for, `started` (linearised about its "before" fit,
+    /// the columns its gauge keeps): `rows` each row's pose (its fold) and its share of one
+    /// scored error; `fixed` what the gauge held, in words.
+    pub(super) fn of_started(
+        prepared: &kinds::Prepared,
+        started: &kinds::Started<'_>,
+        rows: Vec<(usize, f64)>,
+        fixed: Vec<Held>,
+    ) -> Self {
+        let kinds::Gauged { identifiable, prior, .. } = &started.gauged;
         let (kept, kept_setup) = prepared.kept(identifiable);
         let (before, before_setup) = (started.before.clone(), started.before_setup.clone());
         let problem = started.base.reselect(&kept, before, before_setup, kept_setup);
         let start = started.linearised.select(identifiable);
-        let rows: Vec<(usize, f64)> = data.observations.iter().map(|o| (o.pose(), o.error_share())).collect();
         let prior = prior.as_ref().map(|p| p.select(identifiable));
         let parts = LinearParts::of_problem(&problem, (&start.x, &started.weights, prior), rows);
         // The robot's kept parameters, then the set-up's.
         let columns = (0..problem.parameters()).map(|c| kept.indices().get(c).copied()).collect();
-        let held = prepared.every_held(fixed.clone()).iter().map(Held::text).collect();
-        Ok(Self::new(&prepared.params, (columns, problem.names()), held, parts))
+        let held = prepared.every_held(fixed).iter().map(Held::text).collect();
+        Self::new(&prepared.params, (columns, problem.names()), held, parts)
     }
 
     /// The trades of the model of the registration and the `chosen` columns: each candidate

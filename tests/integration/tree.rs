@@ -776,6 +776,19 @@ fn a_tree_takes_priors_robust_losses_and_held_parameters() {
             assert!(c.robust.is_some(), "{name}: its weights");
         }
     }
+    // A view far out: the robust loss weighs its pose's views down, and says so view by view
+    // (one weight per view, not per pose: a pose here has several).
+    let mut bad = noisy.clone();
+    let several = |k: usize| bad.views.iter().filter(|v| v.pose == bad.views[k].pose).count() > 1;
+    let k = (0..bad.views.len()).rev().find(|&k| several(k)).unwrap();
+    bad.views[k].view[0] += 5.0;
+    let huber = TreeOptions { loss: Loss::Huber(1.345), ..wls.clone() };
+    let robust = calibrate_tree(&nominal, &bad, &huber).unwrap().robust.unwrap();
+    assert_eq!(robust.weights.len(), bad.views.len(), "one weight per view");
+    let down: Vec<usize> = robust.down_weighted().map(|(j, _)| j).collect();
+    let of_its_pose: Vec<usize> =
+        (0..bad.views.len()).filter(|&j| bad.views[j].pose == bad.views[k].pose).collect();
+    assert_eq!(down, of_its_pose, "the far view {k}'s pose's views down-weighted: {:?}", robust.weights);
     let freed = held_combination.parameter().to_string();
     let keep = TreeOptions { gauge: Gauge { hold: vec![], keep: vec![freed.clone()] }, ..wls.clone() };
     let c = calibrate_tree(&nominal, &noisy, &keep).unwrap();

@@ -857,7 +857,7 @@ impl<'a> KindProblem<'a> {
     /// The problem on `chains`: points on one arm's last link (`markers` first), or a tree's
     /// branches; its frames are points alone ([`Measured::Position`]) when every chain ends at a
     /// point on one arm and no observation is an angle.
-    fn on_chains(
+    pub(super) fn on_chains(
         chains: &'a [Chain],
         (markers, branches): (Vec<usize>, bool),
         (selection, data, setup): (&'a Selection, &'a KindData, &'a SetUp),
@@ -2082,7 +2082,7 @@ pub(super) fn fit_kinds(
         .then(|| data.with_ols_sigmas())
         .flatten();
     let data = as_ols.as_ref().unwrap_or(data);
-    let prepared = prepare(model, data, options)?;
+    let (Arm { registered, ends }, prepared) = prepare(model, data, options)?;
     let angles = data.observations.iter().any(Observation::is_angle);
     let about = earlier.filter(|_| !prepared.markers.is_empty() && !angles);
     let started = start_about(&prepared, data, options, about)?;
@@ -2091,7 +2091,7 @@ pub(super) fn fit_kinds(
     let Fitted { refined: estimate, robust, fixed, after, after_setup, change } =
         fit_gauged(&prepared, started, options)?;
     let fixed = prepared.every_held(fixed);
-    let Prepared { registered, chains, params, ends, markers, setup, nothing, .. } = prepared;
+    let Prepared { chains, params, markers, setup, nothing, .. } = prepared;
     let calibrated_points = calibrated_points(&params, &after, &ends);
     // The model's tool is the tool point (or frame), after the markers; of markers alone, marker
     // 1 (a point, or a probe's frame), as `calibrate` makes it.
@@ -2197,13 +2197,14 @@ pub(in crate::calibration) fn check_noise(
 /// What [`fit_gauged`] gives: the fit (every step of every round in its history), the robust
 /// fit's record, what the last gauge held, the robot's and the set-up's values after, and what
 /// the gauge found at the estimate changed.
-struct Fitted {
-    refined: Refined,
-    robust: Option<RobustFit>,
-    fixed: Vec<Held>,
-    after: Vec<f64>,
-    after_setup: Vec<f64>,
-    change: Option<Warning>,
+pub(super) struct Fitted {
+    pub(super) refined: Refined,
+    /// With a robust loss: its final weights, one per observation (its pose's).
+    pub(super) robust: Option<RobustFit>,
+    pub(super) fixed: Vec<Held>,
+    pub(super) after: Vec<f64>,
+    pub(super) after_setup: Vec<f64>,
+    pub(super) change: Option<Warning>,
 }
 
 impl super::regauge::Kept for Gauged {
@@ -2224,7 +2225,7 @@ impl super::regauge::Kept for Gauged {
 /// The fit of what `prepared` asks for from `started`, the gauge found again at the estimate
 /// ([`super::regauge`]): with the start's gauge from "before", then, while the gauge found at
 /// the estimate's settled point keeps other columns, with it from the estimate.
-fn fit_gauged(
+pub(super) fn fit_gauged(
     prepared: &Prepared,
     started: Started<'_>,
     options: &KindOptions,
@@ -2288,11 +2289,10 @@ fn fit_gauged(
 /// base registered on the markers, the chains of its points (the markers', then the tool's),
 /// the set-up and its start, and what is asked for.
 pub(super) struct Prepared {
-    registered: RobotModel,
     pub(super) chains: Vec<Chain>,
+    /// Whether the chains are a tree's branches ([`Chain::on_tree`]), not points on one arm.
+    branches: bool,
     pub(super) params: ParamSet,
-    /// What each chain ends at: the markers' points and frames, then the tool's.
-    ends: Vec<MarkerEnd>,
     markers: Vec<usize>,
     setup: SetUp,
     /// The set-up's start values, one per session where per session.
@@ -2323,6 +2323,30 @@ impl Prepared {
         (kept, setup.collect())
     }
 
+    /// [`Prepared`] of a tree's branches: `chains` each a branch's tip's, on the tree's
+    /// parameters `params` ([`Chain::on_tree`]); `setup` the views' cameras' and targets'
+    /// placements ([`SetUp::with_views`]) from `start`, every one estimated (no registration,
+    /// no length held for a scale: a view sees lengths); the tree's parameters `asked`; what
+    /// `hold` names (the tree's or the set-up's) held.
+    pub(super) fn of_branches(
+        chains: Vec<Chain>,
+        params: ParamSet,
+        (setup, start): (SetUp, Vec<f64>),
+        asked: Selection,
+        hold: &[String],
+    ) -> Result<Self, CalibrationError> {
+        let every: Vec<usize> = (0..setup.len()).collect();
+        let (asked, asked_setup, held_words) = without_held(&params, asked, every.clone(), &setup, hold)?;
+        let nothing = Selection::from_indices(&params, []);
+        let setup_start = setup.expand(&start);
+        #[rustfmt::skip]
+        let prepared = Self {
+            chains, branches: true, params, markers: Vec::new(), setup, setup_start, asked, asked_setup,
+            held_words, every, scale: None, nothing,
+        };
+        Ok(prepared)
+    }
+
     /// What the gauge held (`fixed`), then what `--hold` held, then the length held for the
     /// scale.
     pub(super) fn every_held(&self, mut fixed: Vec<Held>) -> Vec<Held> {
@@ -2330,6 +2354,13 @@ impl Prepared {
         fixed.extend(self.scale.map(|i| Held::Scale { parameter: self.params.get(i).name.clone() }));
         fixed
     }
+}
+
+/// An arm's side of [`Prepared`]: the model with its base registered on the markers, and what
+/// each chain ends at (the markers' points and frames, then the tool's).
+pub(super) struct Arm {
+    registered: RobotModel,
+    ends: Vec<MarkerEnd>,
 }
 
 /// The ends of the chains on the last link of `registered`: the markers' points (`markers`,
@@ -2362,12 +2393,12 @@ fn marker_ends(
     ends
 }
 
-/// [`Prepared`] of `data` on `model` with `options`.
+/// [`Prepared`] of `data` on `model` with `options`, and the arm it is on.
 pub(super) fn prepare(
     model: &RobotModel,
     data: &KindData,
     options: &KindOptions,
-) -> Result<Prepared, CalibrationError> {
+) -> Result<(Arm, Prepared), CalibrationError> {
     data.check(model.dof())?;
     super::check_points(Some(&options.tool), &options.markers)?;
     let markers = data.markers();
@@ -2424,10 +2455,10 @@ pub(super) fn prepare(
         (!data.sees_the_scale() && setup.planes() > 0).then(|| longest_length(model, &params)).flatten();
     #[rustfmt::skip]
     let prepared = Prepared {
-        registered, chains, params, ends, markers, setup, setup_start, asked, asked_setup,
+        chains, branches: false, params, markers, setup, setup_start, asked, asked_setup,
         held_words, every, scale, nothing,
     };
-    Ok(prepared)
+    Ok((Arm { registered, ends }, prepared))
 }
 
 /// The set-up `(setup, start)` with a tracker frame per session ([`SetUp::with_tracker`], its
@@ -2512,10 +2543,11 @@ fn start_about<'p>(
     options: &KindOptions,
     about: Option<(Vec<f64>, Vec<f64>)>,
 ) -> Result<Started<'p>, CalibrationError> {
-    let Prepared { chains, markers, params, setup, asked, asked_setup, nothing, .. } = prepared;
+    let Prepared { chains, branches, markers, params, setup, asked, asked_setup, nothing, .. } = prepared;
     let zero = vec![0.0; params.len()];
     let (start, every) = (prepared.setup_start.clone(), prepared.every.clone());
-    let base = KindProblem::of_points(chains, markers, nothing, data, setup, zero, start, every.clone())
+    let values = (zero, start, every.clone());
+    let base = KindProblem::on_chains(chains, (markers.clone(), *branches), (nothing, data, setup), values)
         .with_noise(options.joint_noise.as_ref());
     let weights = Weights::for_problem(&base, options.estimator)?;
     let frame = Selection::from_indices(
@@ -2593,8 +2625,19 @@ pub(crate) fn evidence_system(
     options: &KindOptions,
     about: Option<(&[f64], &[f64])>,
 ) -> Result<EvidenceSystem, CalibrationError> {
-    let prepared = prepare(model, data, options)?;
+    let (_, prepared) = prepare(model, data, options)?;
     let started = start(&prepared, data, options)?;
+    evidence_of(&prepared, started, about)
+}
+
+/// The [`EvidenceSystem`] of what `prepared` asks for, `started` (its "before" fit and
+/// weights), linearised about `about` (the robot's full vector and the set-up's values) or,
+/// `None`, about "before".
+pub(super) fn evidence_of(
+    prepared: &Prepared,
+    started: Started<'_>,
+    about: Option<(&[f64], &[f64])>,
+) -> Result<EvidenceSystem, CalibrationError> {
     let c = started.weights.scale().unwrap_or(1.0);
     let linearised = match about {
         None => started.linearised,

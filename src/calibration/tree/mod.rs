@@ -58,15 +58,11 @@ pub use data::{Frame, Role, TreeData, View};
 pub use feasible::calibrate_tree_feasible;
 
 use super::kinds::camera::{camera_start, isometry, placement};
-use super::kinds::{Gauged, KindData, KindProblem, SetUp, identifiable, matching};
+use super::kinds::{self, KindData, KindOptions, KindProblem, Prepared, SetUp};
 use super::{
     CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
-    gauge_class,
 };
-use crate::estimation::{
-    Estimator, Linearisation, NoiseEstimate, PriorEntry, PriorRows, RANK_TOLERANCE, RefineOptions, Refined,
-    Residuals, Weights, linearise, prior_sds_of, refine_from,
-};
+use crate::estimation::{Estimator, NoiseEstimate, PriorEntry, RefineOptions, Refined, prior_sds_of};
 use crate::kinematics::{Chain, ChainAt};
 use crate::model::{ParamInfo, ParamOwner, ParamSet, Placement, RobotTree, Selection, SelectionError};
 use nalgebra::{DMatrix, DVector, Isometry3, Vector3};
@@ -89,6 +85,15 @@ pub struct TreeOptions {
     pub prior: Vec<PriorEntry>,
     /// The loss of each pose's views (`--loss`): squared, or robust by reweighting.
     pub loss: Loss,
+}
+
+impl TreeOptions {
+    /// The options of the one pipeline ([`KindOptions`]) that these are: nothing of a tool
+    /// point, markers or a registration (a tree's views have none).
+    fn as_kinds(&self) -> KindOptions {
+        let TreeOptions { estimator, joint_noise, joints, refine, gauge, prior, loss } = self.clone();
+        KindOptions { estimator, joint_noise, joints, refine, gauge, prior, loss, ..KindOptions::default() }
+    }
 }
 
 impl Default for TreeOptions {
@@ -607,50 +612,19 @@ fn initial_setup(params: &TreeParams, data: &TreeData) -> Result<Vec<f64>, Calib
     Ok(values)
 }
 
-/// The tree parameters `options.joints` asks for, less those `--hold` names (each held one
-/// typed); a `--hold` pattern that names no parameter of the tree is refused.
-fn asked(params: &TreeParams, options: &TreeOptions) -> Result<(Vec<usize>, Vec<Held>), SelectionError> {
-    let asked = params.select(&options.joints)?;
-    let names: Vec<String> = params.params.iter().map(|p| p.name.clone()).collect();
-    let hold = matching(&names, &options.gauge.hold)?;
-    let (held, kept): (Vec<usize>, Vec<usize>) = asked.into_iter().partition(|i| hold.contains(i));
-    let words = held.iter().map(|&i| Held::ByUser { parameter: names[i].clone(), setup: false });
-    Ok((kept, words.collect()))
-}
-
-/// The gauge of `problem` linearised in `linearised` (its columns: `asked` of `params`, then
-/// the cameras' and targets' placements): `--keep`'s columns free first, then by gauge
-/// class; with priors, what the data and the priors together cannot identify is held. The
-/// identifiable columns, the held ones, and the prior rows of every column.
-fn tree_gauge(
-    problem: &KindProblem<'_>,
-    linearised: &Linearisation,
-    (params, asked): (&TreeParams, &[usize]),
-    options: &TreeOptions,
-    (scale, spread): (f64, Option<f64>),
-) -> Result<Gauged, CalibrationError> {
-    let names = problem.names();
-    let keep = matching(&names, &options.gauge.keep)?;
-    let priority: Vec<u32> = (0..problem.parameters())
-        .map(|c| match keep.contains(&c) {
-            true => 0,
-            false => 1 + asked.get(c).map_or(0, |&i| gauge_class(&params.params[i])),
-        })
-        .collect();
-    let infos: Vec<&ParamInfo> = params.params.iter().collect();
-    let sd = prior_sds_of(&options.prior, &infos)?;
-    let columns: Vec<f64> =
-        (0..problem.parameters()).map(|c| asked.get(c).map_or(f64::INFINITY, |&i| sd[i])).collect();
-    let prior = (columns.iter().any(|s| s.is_finite()))
-        .then(|| PriorRows::new(&columns, scale).weighed_against(spread));
-    let owners: Vec<Option<crate::model::ParamOwner>> =
-        (0..problem.parameters()).map(|c| asked.get(c).map(|&i| params.params[i].owner)).collect();
-    let (identifiable, fixed) = identifiable(linearised, (&names, &owners), &priority, prior.as_ref())?;
-    let data_alone = match prior {
-        Some(_) => Some(linearised.diagnose_data_alone(RANK_TOLERANCE, &priority)?),
-        None => None,
-    };
-    Ok(Gauged { identifiable, fixed, prior, data_alone })
+/// The one pipeline's preparation of `data`'s views (`observed`) on the tree of `params`: the
+/// cameras' and targets' placements started by the [module](self)'s closed form
+/// ([`initial_setup`]), the tree's parameters `options` asks for, `--hold`'s held.
+fn prepared(
+    params: &TreeParams,
+    observed: &TreeRows,
+    data: &TreeData,
+    options: &KindOptions,
+) -> Result<Prepared, CalibrationError> {
+    let start = initial_setup(params, data)?;
+    let asked = params.selection(&params.select(&options.joints)?);
+    let setup = (observed.setup.clone(), start);
+    Prepared::of_branches(params.chains.clone(), params.set.clone(), setup, asked, &options.gauge.hold)
 }
 
 /// Each of `fixed` that no observation moves, said why where the data say it: a point's
@@ -698,51 +672,17 @@ pub(crate) fn evidence_system(
 ) -> Result<super::kinds::EvidenceSystem, CalibrationError> {
     let params = TreeParams::new(tree);
     let observed = TreeRows::new(&params, data, &data.frames)?;
-    let (base_problem, weights, every) = placements_problem(&params, &observed, data, options)?;
-    let zero = vec![0.0; params.len()];
-    let (fixed, setup) = match about {
-        Some((fixed, setup)) => (fixed.to_vec(), setup.to_vec()),
-        None => (zero, before_setup(&base_problem, &weights)?),
-    };
-    let (asked, _) = asked(&params, options)?;
-    let selection = params.selection(&asked);
-    let problem = base_problem.reselect(&selection, fixed, setup, every);
-    let linearised = linearise(&problem, &weights, problem.start())?;
-    let c = weights.scale().unwrap_or(1.0);
-    Ok(super::kinds::EvidenceSystem { params: params.params.clone(), asked, linearised, c })
+    let options = options.as_kinds();
+    let prepared = prepared(&params, &observed, data, &options)?;
+    let started = kinds::start(&prepared, &observed.rows, &options)?;
+    kinds::evidence_of(&prepared, started, about)
 }
 
-/// The problem of `data`'s placements alone (every camera's and target's, from their start
-/// [`initial_setup`], the tree at `params`' nominal), where every fit of the views starts, its
-/// weights, and its placements (every one).
-fn placements_problem<'a>(
-    params: &'a TreeParams,
-    observed: &'a TreeRows,
-    data: &TreeData,
-    options: &TreeOptions,
-) -> Result<(KindProblem<'a>, Weights, Vec<usize>), CalibrationError> {
-    let start = initial_setup(params, data)?;
-    let every: Vec<usize> = (0..start.len()).collect();
-    let values = (vec![0.0; params.len()], start, every.clone());
-    let problem = observed.problem(params, &observed.nothing, values, options.joint_noise.as_ref());
-    let weights = Weights::for_problem(&problem, options.estimator)?;
-    Ok((problem, weights, every))
-}
-
-/// "Before": the cameras' and targets' placements of `base_problem` (which estimates them
-/// alone) fitted with the tree nominal.
-fn before_setup(base_problem: &KindProblem<'_>, weights: &Weights) -> Result<Vec<f64>, CalibrationError> {
-    let fit = linearise(base_problem, weights, base_problem.start())?;
-    let refined = refine_from(base_problem, weights, fit, &RefineOptions::default())?;
-    Ok(base_problem.full(&refined.estimate.x).1)
-}
-
-/// The linear model of `--select cv` and `bic` ([`super::selection`]) of a tree's views:
-/// linearised once about "before" (the placements fitted, the tree nominal), the columns the
-/// gauge there keeps (the joint parameters asked for, then the placements, the registration),
-/// whitened by the estimator (with the prior's rows) to fit, unweighted to score. Each view's
-/// rows are in the fold of its pose; a position coordinate counts a third of one scored error,
-/// a rotation none: the CV RMS is of the view positions (mm), as `--folds` scores them.
+/// The linear model of `--select cv` and `bic` ([`super::selection`]) of a tree's views, as of
+/// observation files ([`LinearModel::of_started`](super::selection::LinearModel)): linearised
+/// once about "before" (the placements fitted, the tree nominal). Each view's rows are in the
+/// fold of its pose; a position coordinate counts a third of one scored error, a rotation
+/// none: the CV RMS is of the view positions (mm), as `--folds` scores them.
 pub(crate) fn selection_model(
     tree: &RobotTree,
     data: &TreeData,
@@ -750,45 +690,23 @@ pub(crate) fn selection_model(
 ) -> Result<super::selection::LinearModel, CalibrationError> {
     let params = TreeParams::new(tree);
     let observed = TreeRows::new(&params, data, &data.frames)?;
-    let (base_problem, weights, every) = placements_problem(&params, &observed, data, options)?;
-    let zero = vec![0.0; params.len()];
-    let before = before_setup(&base_problem, &weights)?;
-    let (asked, held) = asked(&params, options)?;
-    let asked_selection = params.selection(&asked);
-    let whole = base_problem.reselect(&asked_selection, zero.clone(), before.clone(), every);
-    let linearised = linearise(&whole, &weights, whole.start())?;
-    let spread = tree_prior_spread((&whole, &asked, &params), &weights, data, options)?;
-    let Gauged { identifiable, mut fixed, prior, .. } = tree_gauge(
-        &whole,
-        &linearised,
-        (&params, &asked),
-        options,
-        (weights.scale().unwrap_or(1.0), spread),
-    )?;
-    let robot = asked.len();
-    let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
-    let kept_setup: Vec<usize> = identifiable.iter().filter(|&&c| c >= robot).map(|&c| c - robot).collect();
-    let kept_selection = params.selection(&kept);
-    let problem = whole.reselect(&kept_selection, zero, before, kept_setup);
-    let x = problem.start();
+    let options = options.as_kinds();
+    let prepared = prepared(&params, &observed, data, &options)?;
+    let started = kinds::start(&prepared, &observed.rows, &options)?;
     let n = data.rows();
     let rows: Vec<(usize, f64)> = (data.views.iter())
         .flat_map(|v| (0..n).map(move |r| (v.pose, if r < 3 { 1.0 / 3.0 } else { 0.0 })))
         .collect();
-    let prior = prior.map(|p| p.select(&identifiable));
-    let parts = super::selection::LinearParts::of_problem(&problem, (&x, &weights, prior), rows);
+    let mut fixed = started.gauged.fixed.clone();
     say_why_unseen(&mut fixed, &params, data);
-    fixed.extend(held);
-    let columns = (0..problem.parameters()).map(|c| kept.get(c).copied()).collect();
-    let held = fixed.iter().map(Held::text).collect();
-    let set = crate::model::ParamSet::from_params(params.params.clone());
-    Ok(super::selection::LinearModel::new(&set, (columns, problem.names()), held, parts))
+    Ok(super::selection::LinearModel::of_started(&prepared, &started, rows, fixed))
 }
 
-/// Calibrate `tree` from camera views between its branches: the cameras and targets fitted
-/// with the tree nominal ("before"), then the joint parameters asked for with them ("after");
-/// the base and what the views cannot see held and said ([`TreeCalibration::unseen`]), what
-/// the poses cannot tell apart held by the rank-revealing solve ([`TreeCalibration::fixed`]).
+/// Calibrate `tree` from camera views between its branches by the one pipeline of every
+/// observation (as [`kinds::calibrate_kinds`] fits): the cameras and targets fitted with
+/// the tree nominal ("before"), then the joint parameters asked for with them ("after"); the
+/// base and what the views cannot see held and said ([`TreeCalibration::unseen`]), what the
+/// poses cannot tell apart held by the rank-revealing solve ([`TreeCalibration::fixed`]).
 pub fn calibrate_tree(
     tree: &RobotTree,
     data: &TreeData,
@@ -807,51 +725,41 @@ pub fn calibrate_tree(
             tree.dof()
         )));
     }
-    let (base_problem, weights, every) = placements_problem(&params, &observed, data, options)?;
-    let before_setup = before_setup(&base_problem, &weights)?;
-    // "After": the joint parameters asked for, less --hold's, with the cameras and targets.
-    let (asked, held) = asked(&params, options)?;
-    let asked_selection = params.selection(&asked);
-    let zero = vec![0.0; params.len()];
-    let problem = base_problem.reselect(&asked_selection, zero, before_setup.clone(), every);
-    // A parameter with a prior is anchored by it: only the others need the views' equations.
-    let sd = prior_sds_of(&options.prior, &params.params.iter().collect::<Vec<_>>())?;
-    let unanchored = problem.parameters() - asked.iter().filter(|&&i| sd[i].is_finite()).count();
-    super::enough_equations(data.joints.len(), problem.equations(), unanchored)?;
-    let spread = tree_prior_spread((&problem, &asked, &params), &weights, data, options)?;
-    let mut r = fit_tree_gauged(&problem, (&weights, spread), (&params, &asked), options)?;
-    if let Some(data_alone) = r.gauge.data_alone {
-        r.refined.estimate.diagnostics = data_alone;
-    }
-    let (estimate, (robust, after, after_setup), mut fixed) = (r.refined, r.fitted, r.gauge.fixed);
+    let kind_options = options.as_kinds();
+    let prepared = prepared(&params, &observed, data, &kind_options)?;
+    let started = kinds::start(&prepared, &observed.rows, &kind_options)?;
+    let spread = started.prior_spread.map(|s| s / started.weights.scale().unwrap_or(1.0));
+    let before_setup = started.before_setup.clone();
+    let kinds::Fitted { refined, robust, mut fixed, after, after_setup, change } =
+        kinds::fit_gauged(&prepared, started, &kind_options)?;
     say_why_unseen(&mut fixed, &params, data);
-    fixed.extend(held);
-    let calibrated = params.fold(tree, &after);
-    let unseen = vec![base_unseen(&params, data)];
+    // A pose's weight is each of its views' (every row of a view has it).
+    let robust =
+        robust.map(|r| RobustFit { weights: r.weights.iter().step_by(data.rows()).copied().collect(), ..r });
     let mut calibration = TreeCalibration {
-        calibrated,
-        params: params.clone(),
+        calibrated: params.fold(tree, &after),
         after,
         frames: data.frames.clone(),
         setup_values: (before_setup, after_setup),
-        refined: estimate,
-        unseen,
-        fixed,
+        refined,
+        unseen: vec![base_unseen(&params, data)],
+        fixed: prepared.every_held(fixed),
         training: TreeScore { views: Vec::new(), position: (0.0, 0.0), rotation: None },
         warnings: Vec::new(),
         robust,
         noise_estimate: None,
         noise_settled: None,
         variance_factor: None,
-        prior_sd: sd,
+        prior_sd: prior_sds_of(&options.prior, &params.params.iter().collect::<Vec<_>>())?,
         joint_noise: options.joint_noise.clone(),
+        params,
     };
-    scored(&mut calibration, data, spread.map(|s| s / weights.scale().unwrap_or(1.0)))?;
+    scored(&mut calibration, data, spread)?;
     calibration.warnings = calibration.warnings();
     let views = data.views.iter().zip(&data.lines).map(|(v, &line)| (line, data.joints[v.pose].as_slice()));
     calibration.warnings.extend(Warning::outside_limits(&tree.name, &tree.joints, views));
     calibration.warnings.extend(noise_check::tree_noise_check(&calibration, data));
-    calibration.warnings.extend(r.change);
+    calibration.warnings.extend(change);
     calibration.warnings.extend(super::ill_conditioned(&calibration.refined));
     Ok(calibration)
 }
@@ -859,8 +767,7 @@ pub fn calibrate_tree(
 /// `calibration` scored on its training `data`; with every sigma assumed and the joints
 /// exact, the covariance and the whitening scaled by the residuals' variance of unit weight
 /// `f = sum z_i^2 / (N - rank)`, as observation files' are ([`TreeCalibration::variance_factor`]),
-/// or with priors by `f = spread^2`, the spread (in the assumed sigmas) they weighed against
-/// ([`tree_prior_spread`]).
+/// or with priors by `f = spread^2`, the spread (in the assumed sigmas) they weighed against.
 fn scored(
     calibration: &mut TreeCalibration,
     data: &TreeData,
@@ -877,87 +784,4 @@ fn scored(
         calibration.training.views.iter_mut().for_each(|v| v.whitened /= f.sqrt());
     }
     Ok(())
-}
-
-/// What the priors weigh against when no view gave its sigmas and the joints are exact: the
-/// residuals' spread `sqrt(|r|^2 / (N_m - rank))` of the fit of `whole` (its columns the
-/// tree's `asked`, then the placements) from its start without priors, as observation files'
-/// ([`kinds::prior_spread`](super::kinds)), so that a prior weighs against the data's own
-/// noise, not against the assumed sigmas ([`PriorRows::weighed_against`]); `None` when the
-/// noise is known or no prior is given.
-fn tree_prior_spread(
-    (whole, asked, params): (&KindProblem<'_>, &[usize], &TreeParams),
-    weights: &Weights,
-    data: &TreeData,
-    options: &TreeOptions,
-) -> Result<Option<f64>, CalibrationError> {
-    let assumed = options.joint_noise.is_none() && data.assumed_sigmas;
-    if options.prior.is_empty() || !assumed || whole.parameters() == 0 {
-        return Ok(None);
-    }
-    let linearised = linearise(whole, weights, whole.start())?;
-    let identifiable = linearised.diagnose(RANK_TOLERANCE)?.identifiable;
-    let robot = asked.len();
-    let kept: Vec<usize> = identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
-    // The placements are every frame's, in order.
-    let kept_setup = identifiable.iter().filter(|&&c| c >= robot).map(|&c| c - robot).collect();
-    let (full, setup) = whole.full(&whole.start());
-    let kept = params.selection(&kept);
-    let plain = whole.reselect(&kept, full, setup, kept_setup);
-    super::spread_of_fit(&plain, weights, linearised.select(&identifiable)).map(Some)
-}
-
-/// The robust fit's record, the tree's and the placements' values after.
-type TreeFitted = (Option<super::RobustFit>, Vec<f64>, Vec<f64>);
-
-/// The fit of the parameters of `whole` (the tree's `asked` of `params`, then every
-/// placement, about "before"), the gauge found at "before" ([`tree_gauge`]), then again at the
-/// estimate ([`super::regauge`]).
-fn fit_tree_gauged(
-    whole: &KindProblem<'_>,
-    (weights, spread): (&Weights, Option<f64>),
-    (params, asked): (&TreeParams, &[usize]),
-    options: &TreeOptions,
-) -> Result<super::regauge::Regauged<Gauged, TreeFitted>, CalibrationError> {
-    // The placements are every frame's, in order.
-    let robot = asked.len();
-    let placements: Vec<usize> = (0..whole.parameters() - robot).collect();
-    let asked_selection = params.selection(asked);
-    let gauge_at = |at: &[f64]| -> Result<(Gauged, Linearisation), CalibrationError> {
-        let (full, setup) = whole.full(&DVector::from_column_slice(at));
-        let problem = whole.reselect(&asked_selection, full, setup, placements.clone());
-        let there = linearise(&problem, weights, problem.start())?;
-        let weigh = (weights.scale().unwrap_or(1.0), spread);
-        Ok((tree_gauge(&problem, &there, (params, asked), options, weigh)?, there))
-    };
-    let x0: Vec<f64> = whole.start().iter().copied().collect();
-    let (first, linearised) = gauge_at(&x0)?;
-    let mut linearised = Some(linearised);
-    let fit = |g: &mut Gauged, at: &[f64], steps: usize| -> Result<(Refined, TreeFitted), CalibrationError> {
-        let (full, setup) = whole.full(&DVector::from_column_slice(at));
-        let kept: Vec<usize> = g.identifiable.iter().filter(|&&c| c < robot).map(|&c| asked[c]).collect();
-        let kept_setup: Vec<usize> =
-            g.identifiable.iter().filter(|&&c| c >= robot).map(|&c| placements[c - robot]).collect();
-        let kept = params.selection(&kept);
-        let problem = whole.reselect(&kept, full, setup, kept_setup);
-        let start = match linearised.take() {
-            Some(at_before) => at_before.select(&g.identifiable),
-            None => linearise(&problem, weights, problem.start())?,
-        };
-        let prior = g.prior.as_ref().map(|p| p.select(&g.identifiable));
-        let refine = RefineOptions { max_iterations: steps, ..options.refine };
-        let (refined, robust) =
-            super::robust::fit(&problem, weights, start, &refine, prior.as_ref(), options.loss)?;
-        let (after, after_setup) = problem.full(&refined.estimate.x);
-        Ok((refined, (robust, after, after_setup)))
-    };
-    let names = whole.names();
-    let limit = options.refine.max_iterations;
-    let weakest = |at: &[f64]| -> Result<(Gauged, f64), CalibrationError> {
-        let (g, there) = gauge_at(at)?;
-        let prior = g.prior.as_ref().map(|p| p.select(&g.identifiable));
-        let weakest = super::regauge::weakest(&there.select(&g.identifiable), prior.as_ref());
-        Ok((g, weakest))
-    };
-    super::regauge::fit_regauged((&x0, &names), first, limit, fit, weakest)
 }
