@@ -251,7 +251,7 @@ fn the_calibrations_modules_use_each_other_one_way() {
             }
         }
     }
-    assert!(edges.len() > 20, "too few uses read ({}): is it reading src/calibration?", edges.len());
+    assert!(edges.len() > 15, "too few uses read ({}): is it reading src/calibration?", edges.len());
     assert_eq!(a_cycle(&edges), None, "a cycle among the calibration's modules");
     // The check finds one.
     let looped = [("a", "b"), ("b", "c"), ("c", "a")].map(|(a, b)| (a.to_string(), b.to_string()));
