@@ -74,6 +74,7 @@ pub fn calibrate_tree(
         gauge: robocal::calibration::Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
         prior: request.prior.clone(),
         loss: request.loss,
+        per_session: Vec::new(),
     };
     let choices =
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);

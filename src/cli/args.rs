@@ -402,7 +402,8 @@ pub struct ObservationArgs {
     /// instrument re-zeroed or moved between sessions. A length zero (`point<i>.zero`,
     /// `pair.zero`, mm: distance = |p - c| + zero) is held unless named here or in --params.
     /// `tracker.*`: marker files measured by a tracker moved between sessions, each later
-    /// session's tracker placed in the first one's frame (mm, rotation vector in deg).
+    /// session's tracker placed in the first one's frame (mm, rotation vector in deg). A
+    /// tree's views: its cameras' and targets' placements (`target.l_hand.*`).
     #[arg(long, value_delimiter = ',', value_name = "NAMES")]
     pub per_session: Vec<String>,
 }
@@ -869,9 +870,15 @@ pub struct CalibrateTreeArgs {
     #[arg(long, default_value_t = RefineOptions::default().max_iterations, value_parser = parse_iterations)]
     pub iterations: usize,
     /// A held-out file of views to validate on (the cameras and targets as calibrated);
-    /// repeatable.
+    /// repeatable. With --per-session, a file of a training file's stem takes that session's
+    /// placements; any other has its per-session placements fitted on it alone, the tree held.
     #[arg(long)]
     pub validate: Vec<PathBuf>,
+    /// Cameras' and targets' placement parameters with one value per --data file (each file a
+    /// session, named by its stem), estimated: names or patterns (`target.l_hand.*`), for a
+    /// camera or target moved or re-mounted between sessions.
+    #[arg(long, value_delimiter = ',', value_name = "NAMES")]
+    pub per_session: Vec<String>,
     /// Choose the joint parameters among those --params names by `t`: backward elimination of
     /// the estimates below 2 standard errors, as for a marker file (`cv` and `bic` are not for a
     /// tree's views yet).

@@ -812,6 +812,8 @@ pub struct CalibrateTreeRequest {
     pub loss: robocal::calibration::Loss,
     /// Held-out files.
     pub validate: Vec<PathBuf>,
+    /// Placement parameters with one value per --data file.
+    pub per_session: Vec<String>,
     /// `--folds k`: the k-fold cross-validation of the training poses.
     pub folds: Option<usize>,
     /// Where the JSON report, the CSV of every residual, the figures and the HTML page go.
@@ -845,6 +847,7 @@ impl CalibrateTreeRequest {
             feasible_alone(select.is_some(), &args.choice)?;
         }
         let (prior, auto_prior) = priors(args.choice.prior)?;
+        sessions(&args.data, &args.per_session)?;
         let mut inputs = vec![("--model", args.model.as_path())];
         inputs.extend(args.data.iter().map(|p| ("--data", p.as_path())));
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
@@ -869,6 +872,7 @@ impl CalibrateTreeRequest {
             select,
             loss: args.choice.loss,
             validate: args.validate,
+            per_session: args.per_session,
             folds: args.folds,
             report: args.report,
             out_dir: args.out_dir,

@@ -36,6 +36,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         gauge: request.gauge.clone(),
         prior: request.prior.clone(),
         loss: request.loss,
+        per_session: request.per_session.clone(),
     };
     let choices =
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds);
@@ -98,5 +99,7 @@ fn residual_sets(
 /// One view file.
 fn read(path: &Path, tree: &RobotTree, request: &CalibrateTreeRequest) -> Result<TreeData> {
     let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-    TreeData::from_csv_str(&text, tree, request.units).with_context(|| path.display().to_string())
+    let data =
+        TreeData::from_csv_str(&text, tree, request.units).with_context(|| path.display().to_string())?;
+    Ok(data.named(&super::request::session_name(path)))
 }

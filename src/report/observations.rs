@@ -434,16 +434,8 @@ impl ObservationsReport {
             out.push('\n');
         }
         out.push_str(&super::verdict::held_text(&self.held));
-        let sessions: Vec<String> = (self.sets.iter().skip(1))
-            .flat_map(|(name, score)| score.sessions.iter().map(move |s| (name, s)))
-            .map(|(name, (session, source))| match source {
-                SessionSetUp::Training(t) => format!("  {name}: the per-session set-up of training session `{t}`"),
-                _ => format!("  {name}: session `{session}` is no training file's: its per-session set-up fitted on it, the robot held"),
-            })
-            .collect();
-        if !sessions.is_empty() {
-            let _ = writeln!(*out, "\nheld-out sessions:\n{}", sessions.join("\n"));
-        }
+        let sets = self.sets.iter().skip(1).map(|(name, score)| (name.as_str(), score.sessions.as_slice()));
+        out.push_str(&held_out_sessions(sets));
     }
 
     /// The worst observations of each set after calibration, whitened.
@@ -696,4 +688,25 @@ pub fn as_it_stands_text(model: &str, scores: &[(String, Score)]) -> String {
     }
     let _ = writeln!(out, "\nflagged:   {}", flag_rule());
     out
+}
+
+/// Where each held-out set's per-session set-up came from (`sets`: each one's name and its
+/// sessions), in words: the training session of its name's, or fitted on it, the robot held;
+/// empty without per-session parameters.
+pub(super) fn held_out_sessions<'a>(
+    sets: impl Iterator<Item = (&'a str, &'a [(String, SessionSetUp)])>,
+) -> String {
+    let sessions: Vec<String> = sets
+        .flat_map(|(name, sessions)| sessions.iter().map(move |s| (name, s)))
+        .map(|(name, (session, source))| match source {
+            SessionSetUp::Training(t) => format!("  {name}: the per-session set-up of training session `{t}`"),
+            _ => format!(
+                "  {name}: session `{session}` is no training file's: its per-session set-up fitted on it, the robot held"
+            ),
+        })
+        .collect();
+    match sessions.is_empty() {
+        true => String::new(),
+        false => format!("\nheld-out sessions:\n{}\n", sessions.join("\n")),
+    }
 }

@@ -278,6 +278,8 @@ impl TreeReport {
             let _ = writeln!(out, "  {u}");
         }
         out.push_str(&super::verdict::held_text(&self.held));
+        let sets = self.sets.iter().skip(1).map(|(name, score)| (name.as_str(), score.sessions.as_slice()));
+        out.push_str(&super::observations::held_out_sessions(sets));
         self.write_worst(&mut out);
         let _ = writeln!(
             out,
@@ -308,19 +310,17 @@ impl TreeReport {
 /// error, angles in degrees.
 fn parameter_rows(c: &TreeCalibration) -> Vec<ParameterRow> {
     let se = c.refined.estimate.standard_errors();
-    let frame_names = c.frame_names();
+    let setup_names = c.setup.names();
     (c.refined.estimate.names.iter().enumerate())
         .map(|(k, name)| {
             let index = c.params.params.iter().position(|p| p.name == *name);
+            // Not the tree's: a placement's (of a session, `@` its name).
             let (value, angle) = match index {
                 Some(i) => (c.after[i], c.params.params[i].is_angle()),
-                None => {
-                    let (frame, axis) = name.rsplit_once('.').expect("a frame's parameter");
-                    let f = frame_names.iter().position(|n| n == frame).expect("a frame");
-                    let a =
-                        ["x", "y", "z", "rx", "ry", "rz"].iter().position(|n| *n == axis).expect("an axis");
-                    (c.setup_values.1[6 * f + a], a >= 3)
-                }
+                None => match setup_names.iter().position(|n| n == name) {
+                    Some(i) => (c.setup_values.1[i], c.setup.is_angle(i)),
+                    None => (f64::NAN, false),
+                },
             };
             let scale = if angle { 180.0 / std::f64::consts::PI } else { 1.0 };
             let prior = index.map(|i| c.prior_sd[i]).filter(|s| s.is_finite());
@@ -336,18 +336,22 @@ fn parameter_rows(c: &TreeCalibration) -> Vec<ParameterRow> {
         .collect()
 }
 
-/// Each frame's placement after calibration: xyz (mm) and roll, pitch, yaw (deg).
+/// Each frame's placement after calibration: xyz (mm) and roll, pitch, yaw (deg); then, with
+/// per-session placements, each later session's frames that are its own, `@` its name.
 fn frame_rows(c: &TreeCalibration) -> Vec<FrameRow> {
-    (c.frame_names().iter().enumerate())
-        .map(|(f, name)| {
-            let placement = c.frame(f);
+    let names = c.frame_names();
+    let per_session = c.setup.per_session();
+    let own = |f: usize| (6 * f..6 * f + 6).any(|i| per_session.contains(&i));
+    let later = (1..c.setup.session_count())
+        .flat_map(|k| (0..names.len()).filter(move |&f| own(f)).map(move |f| (f, k)))
+        .map(|(f, k)| (f, k, format!("{}@{}", names[f], c.setup.session_names()[k])));
+    let first = (0..names.len()).map(|f| (f, 0, names[f].clone()));
+    (first.chain(later))
+        .map(|(f, session, name)| {
+            let placement = c.frame_in(f, session);
             let (roll, pitch, yaw) = placement.rotation.euler_angles();
             let t = placement.translation.vector;
-            FrameRow {
-                name: name.clone(),
-                xyz_mm: [t.x, t.y, t.z],
-                rpy_deg: [roll, pitch, yaw].map(f64::to_degrees),
-            }
+            FrameRow { name, xyz_mm: [t.x, t.y, t.z], rpy_deg: [roll, pitch, yaw].map(f64::to_degrees) }
         })
         .collect()
 }

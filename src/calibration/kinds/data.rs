@@ -370,6 +370,42 @@ pub struct KindData {
     pub device: Vec<[f64; 3]>,
 }
 
+/// The sessions `sessions` of data of `offset` poses, then those of `other` (its sessions and
+/// poses) after them: a session unnamed is numbered (`1`, `2`, ...), each from its first pose.
+pub(crate) fn join_sessions(
+    sessions: &mut Vec<(String, usize)>,
+    offset: usize,
+    (other, poses): (&[(String, usize)], usize),
+) {
+    if offset > 0 && sessions.is_empty() {
+        sessions.push(("1".to_string(), 0));
+    }
+    if poses > 0 {
+        let count = sessions.len();
+        match other.is_empty() {
+            true => sessions.push(((count + 1).to_string(), offset)),
+            false => sessions.extend(other.iter().map(|(n, first)| (n.clone(), first + offset))),
+        }
+    }
+}
+
+/// Refuse `sessions` (names and first poses) that do not start at pose 0 and ascend, or name a
+/// session twice.
+pub(crate) fn check_sessions(sessions: &[(String, usize)]) -> Result<(), CalibrationError> {
+    let bad = |what: String| Err(CalibrationError::Observations(what));
+    let firsts: Vec<usize> = sessions.iter().map(|s| s.1).collect();
+    if firsts.first().is_some_and(|&f| f != 0) || firsts.windows(2).any(|w| w[1] <= w[0]) {
+        return bad(format!("sessions starting at poses {firsts:?}: expected 0 first, then ascending"));
+    }
+    if let Some(k) = (1..sessions.len()).find(|&k| sessions[..k].iter().any(|s| s.0 == sessions[k].0)) {
+        return bad(format!(
+            "session `{}` named twice: each data file's stem names its session",
+            sessions[k].0
+        ));
+    }
+    Ok(())
+}
+
 impl KindData {
     /// Whether a noise is given for these observations: the joints' (`joint_noise`), or one
     /// observation's own sigma (a column, a flag, a noise file). Without one, every sigma is
@@ -555,18 +591,7 @@ impl KindData {
     /// same point or plane); `other`'s sessions follow these.
     pub fn join(mut self, other: &Self) -> Self {
         let offset = self.joints.len();
-        if offset > 0 && self.sessions.is_empty() {
-            self.sessions.push(("1".to_string(), 0));
-        }
-        if !other.joints.is_empty() {
-            let count = self.sessions.len();
-            match other.sessions.is_empty() {
-                true => self.sessions.push(((count + 1).to_string(), offset)),
-                false => {
-                    self.sessions.extend(other.sessions.iter().map(|(n, first)| (n.clone(), first + offset)))
-                }
-            }
-        }
+        join_sessions(&mut self.sessions, offset, (&other.sessions, other.joints.len()));
         if !self.device.is_empty() || !other.device.is_empty() {
             // One device row per observation: zeros for those of data without a device.
             self.device.resize(self.observations.len(), [0.0; 3]);
@@ -897,18 +922,7 @@ impl KindData {
         if let Some(k) = self.joints.iter().position(|q| q.len() != dof || q.iter().any(|v| !v.is_finite())) {
             return bad(format!("pose {k}: expected {dof} finite joint values"));
         }
-        let firsts: Vec<usize> = self.sessions.iter().map(|s| s.1).collect();
-        if firsts.first().is_some_and(|&f| f != 0) || firsts.windows(2).any(|w| w[1] <= w[0]) {
-            return bad(format!("sessions starting at poses {firsts:?}: expected 0 first, then ascending"));
-        }
-        if let Some(k) =
-            (1..self.sessions.len()).find(|&k| self.sessions[..k].iter().any(|s| s.0 == self.sessions[k].0))
-        {
-            return bad(format!(
-                "session `{}` named twice: each data file's stem names its session",
-                self.sessions[k].0
-            ));
-        }
+        check_sessions(&self.sessions)?;
         for (o, line) in self.observations.iter().zip(&self.lines) {
             let poses = match *o {
                 Observation::Distance { a, b, .. } => [a, b],

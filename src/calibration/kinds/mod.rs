@@ -111,6 +111,7 @@ pub use data::{
     DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM, KindData,
     Observation, RowSigmaDefaults,
 };
+pub(crate) use data::{check_sessions, join_sessions};
 
 use super::noise_check::{CHECK_POSES, at_estimate, check, without_outliers};
 use super::{
@@ -1927,57 +1928,15 @@ impl KindCalibration {
         )
     }
 
-    /// The set-up to score `data` with, and its values before and after: this calibration's,
-    /// or with per-session parameters, over `data`'s sessions, each one the training session's
-    /// of its name where there is one ([`SessionSetUp::Training`]), else fitted on `data` with
-    /// the robot held ([`SessionSetUp::Fitted`]).
+    /// The set-up to score `data` with, and its values before and after ([`setup_for`]).
     #[allow(clippy::type_complexity)]
     fn setup_for(
         &self,
         data: &KindData,
     ) -> Result<(SetUp, (Vec<f64>, Vec<f64>), Vec<(String, SessionSetUp)>), CalibrationError> {
-        let per_session = self.setup.per_session().to_vec();
-        if per_session.is_empty() {
-            return Ok((self.setup.clone(), self.setup_values.clone(), Vec::new()));
-        }
-        let names: Vec<String> = (0..data.session_count()).map(|k| data.session_name(k)).collect();
-        let trained = |name: &String| self.setup.session_names().iter().position(|n| n == name);
-        let setup = self.setup.clone().with_sessions(names.clone(), per_session.clone());
-        // Each session's values: the training session's of its name, else the first's to start.
-        let values = |s: &[f64]| -> Vec<f64> {
-            let view = |k: usize| self.setup.session_values(s, trained(&names[k]).unwrap_or(0));
-            let first = view(0);
-            let later = (1..setup.session_count()).flat_map(|k| {
-                let v = view(k);
-                per_session.iter().map(move |&i| v[i]).collect::<Vec<_>>()
-            });
-            first.iter().copied().chain(later).collect()
-        };
-        let free: Vec<usize> = (0..names.len())
-            .filter(|k| trained(&names[*k]).is_none())
-            .flat_map(|k| per_session.iter().map(move |&i| (i, k)))
-            .map(|(i, k)| setup.slot(i, k))
-            .collect();
-        let mut fitted = (values(&self.setup_values.0), values(&self.setup_values.1));
-        if !free.is_empty() {
-            for (x, s) in [(&self.before, &mut fitted.0), (&self.after, &mut fitted.1)] {
-                let problem = self.problem_on(data, &setup, (x, s), &free).with_noise(None);
-                let weights = Weights::for_problem(&problem, Estimator::Ols)?;
-                let start = linearise(&problem, &weights, problem.start())?;
-                let refined = refine_from(&problem, &weights, start, &RefineOptions::default())?;
-                *s = problem.full(&refined.estimate.x).1;
-            }
-        }
-        let sessions = names
-            .iter()
-            .map(|n| {
-                let source = trained(n).map_or(SessionSetUp::Fitted, |t| {
-                    SessionSetUp::Training(self.setup.session_names()[t].clone())
-                });
-                (n.clone(), source)
-            })
-            .collect();
-        Ok((setup, fitted, sessions))
+        let markers: Vec<usize> = self.markers.iter().map(|m| m.0).collect();
+        let points = (self.chains.as_slice(), (markers, false), &self.nothing);
+        setup_for((&self.setup, &self.setup_values), (&self.before, &self.after), points, data)
     }
 
     /// RMS of the length residuals of `data` (mm) before and after ([`KindCalibration::score`]).
@@ -1995,6 +1954,65 @@ impl KindCalibration {
     pub fn plane(&self, i: usize) -> (Vector3<f64>, f64) {
         self.setup.plane(&self.setup.session_values(&self.setup_values.1, 0), i)
     }
+}
+
+/// The set-up to score `data` with, and its values before and after, of a calibration whose
+/// set-up is `setup` at `values` (before, after) and the robot at `robot` (before, after), on
+/// `chains` (points `(markers, branches)`, [`KindProblem::on_chains`]; `nothing` the selection
+/// of no robot parameter): the calibration's, or with per-session parameters, over `data`'s
+/// sessions, each one the training session's of its name where there is one
+/// ([`SessionSetUp::Training`]), else fitted on `data` by ordinary least squares with the
+/// robot held ([`SessionSetUp::Fitted`]).
+#[allow(clippy::type_complexity)]
+pub(super) fn setup_for(
+    (setup, values): (&SetUp, &(Vec<f64>, Vec<f64>)),
+    robot: (&[f64], &[f64]),
+    (chains, points, nothing): (&[Chain], (Vec<usize>, bool), &Selection),
+    data: &KindData,
+) -> Result<(SetUp, (Vec<f64>, Vec<f64>), Vec<(String, SessionSetUp)>), CalibrationError> {
+    let per_session = setup.per_session().to_vec();
+    if per_session.is_empty() {
+        return Ok((setup.clone(), values.clone(), Vec::new()));
+    }
+    let names: Vec<String> = (0..data.session_count()).map(|k| data.session_name(k)).collect();
+    let trained = |name: &String| setup.session_names().iter().position(|n| n == name);
+    let scored = setup.clone().with_sessions(names.clone(), per_session.clone());
+    // Each session's values: the training session's of its name, else the first's to start.
+    let of_sessions = |s: &[f64]| -> Vec<f64> {
+        let view = |k: usize| setup.session_values(s, trained(&names[k]).unwrap_or(0));
+        let first = view(0);
+        let later = (1..scored.session_count()).flat_map(|k| {
+            let v = view(k);
+            per_session.iter().map(move |&i| v[i]).collect::<Vec<_>>()
+        });
+        first.iter().copied().chain(later).collect()
+    };
+    let free: Vec<usize> = (0..names.len())
+        .filter(|k| trained(&names[*k]).is_none())
+        .flat_map(|k| per_session.iter().map(move |&i| (i, k)))
+        .map(|(i, k)| scored.slot(i, k))
+        .collect();
+    let mut fitted = (of_sessions(&values.0), of_sessions(&values.1));
+    if !free.is_empty() {
+        for (x, s) in [(robot.0, &mut fitted.0), (robot.1, &mut fitted.1)] {
+            let held = (x.to_vec(), s.clone(), free.clone());
+            let problem = KindProblem::on_chains(chains, points.clone(), (nothing, data, &scored), held)
+                .with_noise(None);
+            let weights = Weights::for_problem(&problem, Estimator::Ols)?;
+            let start = linearise(&problem, &weights, problem.start())?;
+            let refined = refine_from(&problem, &weights, start, &RefineOptions::default())?;
+            *s = problem.full(&refined.estimate.x).1;
+        }
+    }
+    let sessions = names
+        .iter()
+        .map(|n| {
+            let source = trained(n)
+                .map_or(SessionSetUp::Fitted, |t| SessionSetUp::Training(setup.session_names()[t].clone()));
+            (n.clone(), source)
+        })
+        .collect();
+    Ok((scored, fitted, sessions))
 }
 
 /// Calibrate `model` from distances, contacts, coordinates, cameras' views and marker
@@ -2294,7 +2312,7 @@ pub(super) struct Prepared {
     branches: bool,
     pub(super) params: ParamSet,
     markers: Vec<usize>,
-    setup: SetUp,
+    pub(super) setup: SetUp,
     /// The set-up's start values, one per session where per session.
     setup_start: Vec<f64>,
     /// The robot's parameters asked for (`--params`, the registration's), less `--hold`'s.

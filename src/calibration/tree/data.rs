@@ -60,6 +60,11 @@ pub struct TreeData {
     /// Whether every view's sigmas are the defaults (the file has neither a `sigma` nor a
     /// `sigma_angle` column): the noise assumed, not known.
     pub assumed_sigmas: bool,
+    /// The measuring sessions (one per file), each its name and its first pose, as
+    /// [`KindData::sessions`]: a camera's or target's placement made per session
+    /// ([`TreeOptions::per_session`](super::TreeOptions::per_session)) takes one value per
+    /// session. Empty: one session.
+    pub sessions: Vec<(String, usize)>,
 }
 
 impl TreeData {
@@ -182,6 +187,7 @@ impl TreeData {
         if let Some(k) = self.joints.iter().position(|q| q.len() != dof || q.iter().any(|v| !v.is_finite())) {
             return bad(format!("pose {k}: expected {dof} finite joint values"));
         }
+        crate::calibration::kinds::check_sessions(&self.sessions)?;
         if let Some(f) = self.frames.iter().position(|f| f.on.is_some_and(|b| b >= params.branches())) {
             return bad(format!("frame {f}: on a branch the tree does not have"));
         }
@@ -236,7 +242,20 @@ impl TreeData {
             .collect();
         let lines = self.lines.iter().flat_map(|&l| std::iter::repeat_n(l, rows)).collect();
         let assumed_sigmas = if self.assumed_sigmas { observations.len() } else { 0 };
-        KindData { joints: self.joints.clone(), observations, lines, assumed_sigmas, ..KindData::default() }
+        let sessions = self.sessions.clone();
+        KindData {
+            joints: self.joints.clone(),
+            observations,
+            lines,
+            assumed_sigmas,
+            sessions,
+            ..KindData::default()
+        }
+    }
+
+    /// The same views as one session named `name` (a file's stem).
+    pub fn named(self, name: &str) -> Self {
+        Self { sessions: vec![(name.to_string(), 0)], ..self }
     }
 
     /// The rows of a view: 6 (position, rotation), or 3 for positions only.
@@ -277,6 +296,11 @@ impl TreeData {
             self.position_only = other.position_only;
         }
         let offset = self.joints.len();
+        crate::calibration::kinds::join_sessions(
+            &mut self.sessions,
+            offset,
+            (&other.sessions, other.joints.len()),
+        );
         self.joints.extend(other.joints.iter().cloned());
         self.lines.extend(&other.lines);
         let mut index = Vec::with_capacity(other.frames.len());

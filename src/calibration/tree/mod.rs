@@ -85,14 +85,23 @@ pub struct TreeOptions {
     pub prior: Vec<PriorEntry>,
     /// The loss of each pose's views (`--loss`): squared, or robust by reweighting.
     pub loss: Loss,
+    /// Cameras' and targets' placement parameters (names or patterns: `target.l_hand.*`)
+    /// with one value per session ([`TreeData::sessions`]), estimated: a camera or target
+    /// moved or re-mounted between sessions (`--per-session`).
+    pub per_session: Vec<String>,
 }
 
 impl TreeOptions {
     /// The options of the one pipeline ([`KindOptions`]) that these are: nothing of a tool
     /// point, markers or a registration (a tree's views have none).
     fn as_kinds(&self) -> KindOptions {
-        let TreeOptions { estimator, joint_noise, joints, refine, gauge, prior, loss } = self.clone();
-        KindOptions { estimator, joint_noise, joints, refine, gauge, prior, loss, ..KindOptions::default() }
+        let TreeOptions { estimator, joint_noise, joints, refine, gauge, prior, loss, per_session } =
+            self.clone();
+        #[rustfmt::skip]
+        let options = KindOptions {
+            estimator, joint_noise, joints, refine, gauge, prior, loss, per_session, ..KindOptions::default()
+        };
+        options
     }
 }
 
@@ -106,6 +115,7 @@ impl Default for TreeOptions {
             gauge: Gauge::default(),
             prior: Vec::new(),
             loss: Loss::Squared,
+            per_session: Vec::new(),
         }
     }
 }
@@ -334,6 +344,10 @@ pub struct TreeScore {
     pub position: (f64, f64),
     /// RMS of `|y_r|` (deg), before and after, if rotations were measured.
     pub rotation: Option<(f64, f64)>,
+    /// With per-session placements: each session of the set and where its placements came
+    /// from.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sessions: Vec<(String, kinds::SessionSetUp)>,
 }
 
 impl TreeScore {
@@ -345,7 +359,7 @@ impl TreeScore {
         };
         let rotation = (!position_only)
             .then(|| (rms(|v| v.before_deg.unwrap_or(0.0)), rms(|v| v.after_deg.unwrap_or(0.0))));
-        Self { position: (rms(|v| v.before_mm), rms(|v| v.after_mm)), rotation, views }
+        Self { position: (rms(|v| v.before_mm), rms(|v| v.after_mm)), rotation, views, sessions: Vec::new() }
     }
 }
 
@@ -416,8 +430,12 @@ pub struct TreeCalibration {
     pub after: Vec<f64>,
     /// The cameras and targets ([`Frame::name`]).
     pub frames: Vec<Frame>,
-    /// Their placements `(x, y, z, rx, ry, rz)` (mm, rad), 6 per frame, fitted with the tree
-    /// nominal ("before") and with the tree calibrated ("after").
+    /// Their placements' set-up ([`SetUp::with_views`]), over the training sessions where some
+    /// are per session ([`TreeOptions::per_session`]).
+    pub setup: SetUp,
+    /// Their placements `(x, y, z, rx, ry, rz)` (mm, rad), 6 per frame, then each later
+    /// session's per-session ones ([`SetUp::slot`]), fitted with the tree nominal ("before")
+    /// and with the tree calibrated ("after").
     pub setup_values: (Vec<f64>, Vec<f64>),
     /// The refined estimate (names, values, covariance, diagnostics).
     pub refined: Refined,
@@ -448,9 +466,14 @@ pub struct TreeCalibration {
 }
 
 impl TreeCalibration {
-    /// The placement of frame `f` as calibrated.
+    /// The placement of frame `f` as calibrated (in the first session).
     pub fn frame(&self, f: usize) -> Isometry3<f64> {
-        isometry(&self.setup_values.1[6 * f..6 * f + 6])
+        self.frame_in(f, 0)
+    }
+
+    /// The placement of frame `f` as calibrated in training session `session`.
+    pub fn frame_in(&self, f: usize, session: usize) -> Isometry3<f64> {
+        isometry(&self.setup.session_values(&self.setup_values.1, session)[6 * f..6 * f + 6])
     }
 
     /// `data` scored before and after: its views' residuals with the frames as calibrated
@@ -475,19 +498,20 @@ impl TreeCalibration {
             )));
         }
         let observed = TreeRows::new(&self.params, data, &self.frames)?;
-        let (rows, setup, nothing) = (&observed.rows, &observed.setup, &observed.nothing);
+        let (rows, nothing) = (&observed.rows, &observed.nothing);
+        // The set-up of `data`'s sessions: the training session's of each one's name, else
+        // fitted on it with the tree held.
+        let zero = vec![0.0; self.params.len()];
+        let branches = (self.params.chains.as_slice(), (Vec::new(), true), nothing);
+        let fitted = (&self.setup, &self.setup_values);
+        let (setup, values, sessions) = kinds::setup_for(fitted, (&zero, &self.after), branches, rows)?;
         let problem = |x: &[f64], s: &[f64]| {
-            KindProblem::of_branches(
-                &self.params.chains,
-                nothing,
-                rows,
-                setup,
-                (x.to_vec(), s.to_vec(), Vec::new()),
-            )
+            let values = (x.to_vec(), s.to_vec(), Vec::new());
+            KindProblem::of_branches(&self.params.chains, nothing, rows, &setup, values)
         };
         let nothing = DVector::zeros(0);
-        let before = problem(&vec![0.0; self.params.len()], &self.setup_values.0).residuals(&nothing);
-        let after_problem = problem(&self.after, &self.setup_values.1);
+        let before = problem(&zero, &values.0).residuals(&nothing);
+        let after_problem = problem(&self.after, &values.1);
         let after = after_problem.residuals(&nothing);
         // The weights only whiten the residuals after: the joint noise is for those alone.
         let variances = after_problem.variances(self.joint_noise.as_ref());
@@ -508,7 +532,8 @@ impl TreeCalibration {
         let squares = (0..data.views.len())
             .flat_map(|k| (0..n).map(move |r| (k, r)))
             .map(|(k, r)| whitened_row(k, r).powi(2));
-        Ok((TreeScore::of(views, data.position_only), squares.sum()))
+        let score = TreeScore { sessions, ..TreeScore::of(views, data.position_only) };
+        Ok((score, squares.sum()))
     }
 
     /// Estimates past a physical bound (a joint length corrected by more than 10 mm: a wrong
@@ -623,7 +648,10 @@ fn prepared(
 ) -> Result<Prepared, CalibrationError> {
     let start = initial_setup(params, data)?;
     let asked = params.selection(&params.select(&options.joints)?);
-    let setup = (observed.setup.clone(), start);
+    let rows = &observed.rows;
+    let sessions = (0..rows.session_count()).map(|k| rows.session_name(k)).collect();
+    let per_session = kinds::matching(&observed.setup.base_names(), &options.per_session)?;
+    let setup = (observed.setup.clone().with_sessions(sessions, per_session), start);
     Prepared::of_branches(params.chains.clone(), params.set.clone(), setup, asked, &options.gauge.hold)
 }
 
@@ -744,7 +772,8 @@ pub fn calibrate_tree(
         refined,
         unseen: vec![base_unseen(&params, data)],
         fixed: prepared.every_held(fixed),
-        training: TreeScore { views: Vec::new(), position: (0.0, 0.0), rotation: None },
+        training: TreeScore::of(Vec::new(), true),
+        setup: prepared.setup.clone(),
         warnings: Vec::new(),
         robust,
         noise_estimate: None,

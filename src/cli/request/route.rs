@@ -98,10 +98,6 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
             args.observations.tool.is_some() || args.observations.fixed_tool,
             "--tool and --fixed-tool: views between a tree's branches see its cameras' and targets' frames, no tool point",
         ),
-        (
-            !args.observations.per_session.is_empty(),
-            "--per-session: a tree's cameras and targets are one set-up for every file (per session: not available for trees yet)",
-        ),
     ];
     if let Some((_, refusal)) = refused.iter().find(|(given, _)| *given) {
         return Err(UsageError(refusal.to_string()));
@@ -118,6 +114,7 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
         choice: args.choice,
         iterations: args.iterations,
         validate: args.validate,
+        per_session: args.observations.per_session,
         select: args.select,
         folds: args.folds,
         report: args.report,

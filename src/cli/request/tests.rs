@@ -535,7 +535,8 @@ fn a_tree_refuses_each_flag_saying_why() {
     assert!(tool.starts_with("--tool and --fixed-tool: views between a tree's branches see"), "{tool}");
     assert!(tree(&["--fixed-base"]).contains("a tree's base is never estimated"));
     assert!(tree(&["--noise", "n.toml"]).contains("their sigma columns and --joint-sigma-deg"));
-    assert!(tree(&["--per-session", "camera*"]).contains("not available for trees yet"));
+    // Per session: for a tree too, over two files or more.
+    assert!(tree(&["--per-session", "camera*"]).contains("give two --data files or more"));
 }
 
 /// One command: marker and observation files, one or several, take the one observation
