@@ -7,7 +7,7 @@
 //! module: it joins the calibration, the design's accuracy prediction and the report.
 
 use crate::calibration::kinds::{KindCalibration, KindData, KindOptions, Score, calibrate_kinds_feasible};
-use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, TreeScore, calibrate_tree_feasible};
+use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree_feasible};
 use crate::calibration::{
     CalibrationError, Choices, ChosenFit, FeasibleOptions, FoldChoices, Front, Kinds, Loss, Nested, Tree,
     calibrate_chosen, cross_validate_choices,
@@ -249,7 +249,7 @@ impl Files for Kinds<'_> {
 }
 
 impl Files for Tree<'_> {
-    type Score = TreeScore;
+    type Score = Score;
     type Report = TreeReport;
 
     fn join(sessions: &[(String, TreeData)]) -> Result<Cow<'_, TreeData>, FilesError> {
@@ -264,7 +264,7 @@ impl Files for Tree<'_> {
         (data.views.len(), data.joints.len())
     }
 
-    fn score(fit: &TreeCalibration, data: &TreeData) -> Result<TreeScore, CalibrationError> {
+    fn score(fit: &TreeCalibration, data: &TreeData) -> Result<Score, CalibrationError> {
         fit.score(data)
     }
 
@@ -285,7 +285,7 @@ impl Files for Tree<'_> {
         chosen: &mut ChosenFit<TreeCalibration>,
         (data, names, files): (&TreeData, &str, Vec<(String, usize)>),
         estimator: &str,
-        (scores, cv): (Vec<(String, TreeScore)>, Option<CrossValidationReport>),
+        (scores, cv): (Vec<(String, Score)>, Option<CrossValidationReport>),
     ) -> TreeReport {
         let c = &chosen.calibration;
         let mut report = TreeReport::new(c, names, Self::counts(data), estimator, scores);

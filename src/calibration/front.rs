@@ -13,7 +13,7 @@ use super::choice::{Criterion, Fitted, FoldChoices, FoldFit, Front, Nested, Sele
 use super::kinds::{self, KindCalibration, KindData, KindOptions, Score};
 use super::prior_scale::{AutoPrior, FrontEvidence, needs_the_noise, system_evidence};
 use super::selection::{LinearModel, named_joints};
-use super::tree::{self, TreeCalibration, TreeData, TreeOptions, TreeScore};
+use super::tree::{self, TreeCalibration, TreeData, TreeOptions};
 use super::{CalibrationError, JointParams, Loss, RobotModel};
 use crate::estimation::{Estimator, PriorEntry};
 use crate::model::{RobotTree, name_matches};
@@ -149,7 +149,7 @@ impl Front for Tree<'_> {
     type Data = TreeData;
     type Options = TreeOptions;
     type Fit = TreeCalibration;
-    type Nested = Nested<TreeScore>;
+    type Nested = Nested<Score>;
 
     /// The poses its views hold (a fold's training data keeps the others' joints).
     fn poses(data: &TreeData) -> usize {
@@ -179,7 +179,7 @@ impl Front for Tree<'_> {
 
     /// The views' positions' ([`tree::cross_validate_tree`]).
     fn cv_rms(&self, data: &TreeData, options: &TreeOptions, folds: usize) -> Result<f64> {
-        Ok(tree::cross_validate_tree(self.0, data, options, folds)?.position.1)
+        Ok(tree::cross_validate_tree(self.0, data, options, folds)?.view_position.map_or(0.0, |p| p.1))
     }
 
     /// As of observation files: the tree's parameters `options` asks for, then the cameras' and
@@ -212,7 +212,7 @@ impl Front for Tree<'_> {
         options: &TreeOptions,
         folds: usize,
         fit: FoldFit<Self>,
-    ) -> Result<Nested<TreeScore>> {
+    ) -> Result<Nested<Score>> {
         with_choices::<Self, _>(options, fit, |calibrate| {
             tree::cross_validate_tree_by(data, folds, calibrate)
         })

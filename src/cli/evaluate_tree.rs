@@ -5,7 +5,8 @@
 use super::request::{EvaluateRequest, NoiseSource};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::DataKind;
-use robocal::calibration::tree::{TreeData, TreeOptions, TreeScore, ViewResidual, evaluate_tree};
+use robocal::calibration::kinds::{Score, ViewResidual};
+use robocal::calibration::tree::{TreeData, TreeOptions, evaluate_tree};
 use robocal::io;
 use robocal::model::RobotTree;
 use robocal::report::residuals::ResidualSet;
@@ -26,7 +27,7 @@ struct TreeEvaluation {
     joints: Vec<String>,
     /// Each file, its cameras and targets fitted, the tree held: every view's residual (its
     /// `after`; `before` is the same), and their RMS.
-    views: Vec<(String, TreeScore)>,
+    views: Vec<(String, Score)>,
 }
 
 /// Score the tree on every file, print the tables, write the files asked for.
@@ -99,7 +100,7 @@ fn load_tree(request: &EvaluateRequest) -> Result<RobotTree> {
 
 /// The view errors of each file, as the tree's calibration report gives them after
 /// calibration, then the worst views of each.
-fn views_text(model: &str, scores: &[(String, TreeScore)]) -> String {
+fn views_text(model: &str, scores: &[(String, Score)]) -> String {
     let mut text = String::new();
     let _ = writeln!(
         text,
@@ -110,8 +111,13 @@ fn views_text(model: &str, scores: &[(String, TreeScore)]) -> String {
     let width = scores.iter().map(|(n, _)| n.len() + 6).max().unwrap_or(0).max(24);
     let _ = writeln!(text, "{:<width$} {:>12}", "view errors, RMS", "as it stands");
     for (name, score) in scores {
-        let _ = writeln!(text, "{:<width$} {:>12.4}", format!("{name} (mm)"), score.position.1);
-        if let Some((_, after)) = score.rotation {
+        let _ = writeln!(
+            text,
+            "{:<width$} {:>12.4}",
+            format!("{name} (mm)"),
+            score.view_position.unwrap_or_default().1
+        );
+        if let Some((_, after)) = score.view_rotation {
             let _ = writeln!(text, "{:<width$} {after:>12.5}", format!("{name} (deg)"));
         }
     }

@@ -6,7 +6,8 @@
 use super::request::CalibrateTreeRequest;
 use anyhow::{Context, Result};
 use robocal::calibration::Tree;
-use robocal::calibration::tree::{TreeData, TreeOptions, TreeScore};
+use robocal::calibration::kinds::Score;
+use robocal::calibration::tree::{TreeData, TreeOptions};
 use robocal::estimation::RefineOptions;
 use robocal::io;
 use robocal::model::{Joint, RobotModel, RobotTree};
@@ -79,7 +80,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
 /// file's, then any cross-validation's, each training view held out in its fold) with their
 /// files.
 fn residual_sets(
-    scores: &[(String, TreeScore)],
+    scores: &[(String, Score)],
     sessions: &[(String, TreeData)],
     held_out: &[(String, TreeData)],
     joints: &[Joint],

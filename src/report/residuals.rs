@@ -6,7 +6,7 @@
 use super::figures::{Against, Bars, FigureError, against_figure, bar_figure, density_figure};
 use crate::calibration::FLAG_AT;
 use crate::calibration::kinds::{KindData, Observation, Score};
-use crate::calibration::tree::{TreeData, TreeScore};
+use crate::calibration::tree::TreeData;
 use crate::model::{Joint, JointKind};
 use std::fmt::Write;
 
@@ -122,7 +122,7 @@ impl ResidualSet {
     /// were scored) scored by `score`, the tree's joints `joints`.
     pub fn of_views(
         name: &str,
-        score: &TreeScore,
+        score: &Score,
         files: &[(&str, &TreeData)],
         joints: &[Joint],
     ) -> Result<Self, String> {

@@ -5,7 +5,8 @@
 
 use super::calibration::ParameterRow;
 use crate::calibration::Warning;
-use crate::calibration::tree::{TreeCalibration, TreeScore, ViewResidual};
+use crate::calibration::kinds::{Score, ViewResidual};
+use crate::calibration::tree::TreeCalibration;
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -70,7 +71,7 @@ pub struct TreeReport {
     /// quantity, counted and flagged (the text's and the page's verdict table).
     pub verdict: Vec<super::verdict::QuantityRow>,
     /// The training views scored, then each held-out file's.
-    pub sets: Vec<(String, TreeScore)>,
+    pub sets: Vec<(String, Score)>,
     /// Implausible results, one per cause.
     pub warnings: Vec<Warning>,
     /// When no view gave its sigmas and the joints are exact: the residuals' variance of unit
@@ -109,7 +110,7 @@ impl TreeReport {
         data: &str,
         fitted: (usize, usize),
         estimator: &str,
-        held_out: Vec<(String, TreeScore)>,
+        held_out: Vec<(String, Score)>,
     ) -> Self {
         let (parameters, frames) = (parameter_rows(c), frame_rows(c));
         let mut sets = vec![("training".to_string(), c.training.clone())];
@@ -198,8 +199,8 @@ impl TreeReport {
             };
             let flagged = score.views.iter().filter(|v| v.whitened > crate::calibration::FLAG_AT).count();
             let max = [largest(&|v| v.before_mm), largest(&|v| v.after_mm)];
-            rows.push(row("mm", score.position, max, Some(flagged)));
-            if let Some(rms) = score.rotation {
+            rows.push(row("mm", score.view_position.unwrap_or_default(), max, Some(flagged)));
+            if let Some(rms) = score.view_rotation {
                 let max =
                     [largest(&|v| v.before_deg.unwrap_or(0.0)), largest(&|v| v.after_deg.unwrap_or(0.0))];
                 rows.push(row("deg", rms, max, None));

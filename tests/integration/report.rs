@@ -468,8 +468,17 @@ fn the_json_schema_is_documented_and_every_documented_key_is_real() {
     let top: Vec<&str> = documented.iter().map(|(k, _)| k.as_str()).filter(|k| !k.contains('.')).collect();
     assert_eq!(&top[..2], ["schema", "verdict"]);
     // A probe's angles: kinds_markers.rs; groups: its verdict test; sessions: kinds.rs's
-    // per-session tests; `--prior auto`: nested.rs.
-    let elsewhere = ["sets[].angles", "sets[].by_group", "sets[].sessions", "prior_scale"];
+    // per-session tests; `--prior auto`: nested.rs; views: a tree's reports (tree.rs,
+    // residuals.rs).
+    let elsewhere = [
+        "sets[].angles",
+        "sets[].by_group",
+        "sets[].sessions",
+        "prior_scale",
+        "sets[].views",
+        "sets[].view_position",
+        "sets[].view_rotation",
+    ];
     let reports: Vec<(String, Value)> =
         [&a, &b, &c].iter().map(|p| (std::fs::read_to_string(p).unwrap(), json(p))).collect();
     for (text, report) in &reports {

@@ -307,8 +307,8 @@ fn a_tree_writes_a_row_per_view_and_its_branches_rescore_its_views() {
     let calibrated = json(&report);
     let score =
         |set: usize, what: &str, stage: usize| calibrated["sets"][set][1][what][stage].as_f64().unwrap();
-    assert!(relative(rms(&training, "after_mm"), score(0, "position", 1)) < 1e-9);
-    assert!(relative(rms(&held_out, "after_deg"), score(1, "rotation", 1)) < 1e-9);
+    assert!(relative(rms(&training, "after_mm"), score(0, "view_position", 1)) < 1e-9);
+    assert!(relative(rms(&held_out, "after_deg"), score(1, "view_rotation", 1)) < 1e-9);
     let names = figures(&folder);
     for name in [
         "errors-by-view-training.svg",
@@ -351,8 +351,16 @@ fn a_tree_writes_a_row_per_view_and_its_branches_rescore_its_views() {
     assert!(bars.contains("as it stands: 0 to") && !bars.contains("before"), "one stage");
     let again = json(&evaluated);
     let view = |what: &str| again["views"][0][1][what][1].as_f64().unwrap();
-    assert!(relative(view("position"), score(0, "position", 1)) < 1e-9, "{} mm", view("position"));
-    assert!(relative(view("rotation"), score(0, "rotation", 1)) < 1e-9, "{} deg", view("rotation"));
+    assert!(
+        relative(view("view_position"), score(0, "view_position", 1)) < 1e-9,
+        "{} mm",
+        view("view_position")
+    );
+    assert!(
+        relative(view("view_rotation"), score(0, "view_rotation", 1)) < 1e-9,
+        "{} deg",
+        view("view_rotation")
+    );
     robocal(&[
         "evaluate",
         "--model",
@@ -364,8 +372,8 @@ fn a_tree_writes_a_row_per_view_and_its_branches_rescore_its_views() {
         "--json",
         s(&evaluated),
     ]);
-    let nominal = json(&evaluated)["views"][0][1]["position"][1].as_f64().unwrap();
-    assert!(relative(nominal, score(0, "position", 0)) < 1e-9, "{nominal} mm as it stands");
+    let nominal = json(&evaluated)["views"][0][1]["view_position"][1].as_f64().unwrap();
+    assert!(relative(nominal, score(0, "view_position", 0)) < 1e-9, "{nominal} mm as it stands");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -405,7 +413,7 @@ fn the_folds_rows_are_each_observation_held_out_in_its_fold() {
     let (poses, report) = (dir.join("residuals.csv"), dir.join("report.json"));
     let ball_bar = ["calibrate", "-q", "--model", "puma560", "--tool", "50,0,150", "--data", BALL_BAR];
     let views = ["calibrate", "-q", "--model", TORSO, "--data", VIEWS];
-    for (args, quantity, n) in [(&ball_bar[..], "lengths", 150), (&views[..], "position", 120)] {
+    for (args, quantity, n) in [(&ball_bar[..], "lengths", 150), (&views[..], "view_position", 120)] {
         let mut args = args.to_vec();
         args.extend(["--folds", "3", "--json", s(&report), "--poses-csv", s(&poses)]);
         robocal(&args);

@@ -160,8 +160,12 @@ fn one_fit_of_a_head_camera_seeing_both_hands_recovers_every_chain() {
     let training = nominal.uniform_configurations(60, &mut rng);
     let data = simulate_views(&truth, &frames, &placements, &PAIRS, &training, [0.0; 2], &mut rng);
     let c = calibrate_tree(&nominal, &data, &options(Estimator::Ols)).unwrap();
-    assert!(c.training.position.1 < 1e-7, "training {:?} mm", c.training.position);
-    assert!(c.training.position.0 > 1.0, "the nominal tree is off: {:?} mm", c.training.position);
+    assert!(c.training.view_position.unwrap().1 < 1e-7, "training {:?} mm", c.training.view_position);
+    assert!(
+        c.training.view_position.unwrap().0 > 1.0,
+        "the nominal tree is off: {:?} mm",
+        c.training.view_position
+    );
     // Held out: every view, and the two hands relative to each other, which no view measures.
     let held_out = nominal.uniform_configurations(40, &mut rng);
     let (mm, rad) = largest_gap(&c, &truth, &placements, &held_out);
@@ -478,7 +482,7 @@ fn a_head_camera_seeing_each_hand_only_in_view_recovers_every_chain() {
         .join(&simulate_views(&truth, &frames, &placements, &[(0, 2)], &right, [0.0; 2], &mut rng))
         .unwrap();
     let c = calibrate_tree(&nominal, &data, &options(Estimator::Ols)).unwrap();
-    assert!(c.training.position.1 < 1e-7, "training {:?} mm", c.training.position);
+    assert!(c.training.view_position.unwrap().1 < 1e-7, "training {:?} mm", c.training.view_position);
     let held_out: Vec<Vec<f64>> = held_left.into_iter().chain(held_right).collect();
     let (mm, rad) = largest_gap(&c, &truth, &placements, &held_out);
     assert!(mm < 1e-6 && rad < 1e-9, "held-out gap {mm} mm, {rad} rad");
@@ -498,7 +502,7 @@ fn a_fixed_camera_seeing_both_hands_sees_the_torso_too() {
     let data = simulate_views(&truth, &frames, &placements, &PAIRS, &training, [0.0; 2], &mut rng);
     let c = calibrate_tree(&nominal, &data, &options(Estimator::Ols)).unwrap();
     assert_eq!(c.frame_names(), ["camera.world", "target.l_hand", "target.r_hand"]);
-    assert!(c.training.position.1 < 1e-7, "training {:?} mm", c.training.position);
+    assert!(c.training.view_position.unwrap().1 < 1e-7, "training {:?} mm", c.training.view_position);
     let (mm, rad) = largest_gap(&c, &truth, &placements, &nominal.uniform_configurations(30, &mut rng));
     assert!(mm < 1e-6 && rad < 1e-9, "held-out gap {mm} mm, {rad} rad");
     // The torso's joint now moves the hands and not the camera; its placement, the tree's
@@ -676,8 +680,8 @@ fn a_tracker_measuring_points_on_every_branch_recovers_every_chain() {
     let data =
         simulate_views(&truth, &frames, &placements, &pairs, &training, [0.0; 2], &mut rng).positions_only();
     let c = calibrate_tree(&nominal, &data, &options(Estimator::Ols)).unwrap();
-    assert!(c.training.position.1 < 1e-7, "training {:?} mm", c.training.position);
-    assert!(c.training.rotation.is_none());
+    assert!(c.training.view_position.unwrap().1 < 1e-7, "training {:?} mm", c.training.view_position);
+    assert!(c.training.view_rotation.is_none());
     // Held out: each point seen from the tracker.
     let mut largest = 0.0f64;
     for q in nominal.uniform_configurations(30, &mut rng) {
@@ -746,7 +750,7 @@ fn a_tree_takes_priors_robust_losses_and_held_parameters() {
     let wls = options(Estimator::Wls);
     let held_out = |o: &TreeOptions| {
         let c = calibrate_tree(&nominal, &noisy, o).unwrap();
-        (c.score(&validation).unwrap().position.1, c)
+        (c.score(&validation).unwrap().view_position.unwrap().1, c)
     };
     let (reference, _) = held_out(&wls);
     assert!(reference < 0.1, "plain wls: {reference} mm held out");
@@ -824,12 +828,17 @@ fn a_tree_cross_validates_each_view_once_by_a_fit_without_it() {
     let mut all = data.lines.clone();
     all.sort_unstable();
     assert_eq!(lines, all, "every view held out once");
-    let held_out = c.score(&validation).unwrap().position.1;
-    assert!(cv.position.1 > c.training.position.1, "{:?} against {:?}", cv.position, c.training.position);
+    let held_out = c.score(&validation).unwrap().view_position.unwrap().1;
     assert!(
-        (cv.position.1 / held_out - 1.0).abs() < 0.25,
+        cv.view_position.unwrap().1 > c.training.view_position.unwrap().1,
+        "{:?} against {:?}",
+        cv.view_position,
+        c.training.view_position
+    );
+    assert!(
+        (cv.view_position.unwrap().1 / held_out - 1.0).abs() < 0.25,
         "k-fold {} mm, held out {held_out} mm",
-        cv.position.1
+        cv.view_position.unwrap().1
     );
     assert!(cross_validate_tree(&nominal, &data, &wls, 61).is_err(), "more folds than poses");
     let output = assert_cmd::Command::cargo_bin("robocal")
@@ -907,7 +916,7 @@ fn a_tree_selects_its_parameters_by_the_t_rule() {
             report,
         )
     };
-    let held_out = |report: &serde_json::Value| report["sets"][1][1]["position"][1].as_f64().unwrap();
+    let held_out = |report: &serde_json::Value| report["sets"][1][1]["view_position"][1].as_f64().unwrap();
     let (code, _, stderr, plain) = run(&[]);
     assert_eq!(code, Some(0), "{stderr}");
     let plain = held_out(&plain.unwrap());
@@ -983,8 +992,9 @@ fn auto_ml_finds_the_scale_of_a_tree() {
         let scale = choose_prior_scale(&Tree(&nominal), &train, &plain, &auto, 5).unwrap();
         assert_eq!((scale.folds, scale.log_evidence[scale.chosen]), (None, 0.0));
         within += usize::from((1.0 / 1.5..=1.5).contains(&(scale.scale() / s0)));
-        let score =
-            |o: &TreeOptions| calibrate_tree(&nominal, &train, o).unwrap().score(&test).unwrap().position.1;
+        let score = |o: &TreeOptions| {
+            calibrate_tree(&nominal, &train, o).unwrap().score(&test).unwrap().view_position.unwrap().1
+        };
         let chosen = TreeOptions { prior: auto.chosen(&[], &scale), ..plain.clone() };
         let (at, wls) = (score(&chosen), score(&plain));
         found.push((s0, scale.scale(), at, wls));
@@ -1047,11 +1057,18 @@ fn feasible_gls_of_a_trees_views_finds_their_noise() {
         assert_eq!(estimate.joint_sigma(j).low, 0.0, "joint {j}: {:?}", estimate.joint_sigma(j));
     }
     let wls = calibrate_tree(&nominal, &noisy, &options(Estimator::Wls)).unwrap();
-    let (f, w) = (fgls.score(&exact).unwrap().position.1, wls.score(&exact).unwrap().position.1);
+    let (f, w) = (
+        fgls.score(&exact).unwrap().view_position.unwrap().1,
+        wls.score(&exact).unwrap().view_position.unwrap().1,
+    );
     assert!(f < 1.2 * w, "held out: fgls {f} mm, wls with the true sigmas {w} mm");
     let c = calibrate_tree_feasible(&nominal, &exact, &options(Estimator::Ols), &FeasibleOptions::default())
         .unwrap();
-    assert!(c.training.position.1 < 1e-6 && c.training.position.0 > 0.1, "{:?}", c.training.position);
+    assert!(
+        c.training.view_position.unwrap().1 < 1e-6 && c.training.view_position.unwrap().0 > 0.1,
+        "{:?}",
+        c.training.view_position
+    );
 }
 
 /// `calibrate --estimator fgls` of the example's views prints the estimated noise: each tree
@@ -1256,7 +1273,7 @@ fn every_tool_works_on_a_trees_views_and_points_as_well_as_the_plain_fit() {
         let (nominal, training, validation) = machined_case(tracker, seed);
         let held_out = |options: &TreeOptions| {
             let c = calibrate_tree(&nominal, &training, options).unwrap();
-            c.score(&validation).unwrap().position.1
+            c.score(&validation).unwrap().view_position.unwrap().1
         };
         let plain = options(Estimator::Wls);
         let base = held_out(&plain);
@@ -1279,12 +1296,12 @@ fn every_tool_works_on_a_trees_views_and_points_as_well_as_the_plain_fit() {
         ];
         let mut found: Vec<(&str, f64)> = features.iter().map(|(name, o)| (*name, held_out(o))).collect();
         let fgls = calibrate_tree_feasible(&nominal, &training, &plain, &Default::default()).unwrap();
-        found.push(("fgls", fgls.score(&validation).unwrap().position.1));
+        found.push(("fgls", fgls.score(&validation).unwrap().view_position.unwrap().1));
         eprintln!("tracker {tracker}: plain {base:.5} mm, {found:?}");
         for (feature, mm) in found {
             assert!(mm < 1.2 * base, "tracker {tracker} {feature}: held out {mm} mm, plain wls {base} mm");
         }
-        let folds = cross_validate_tree(&nominal, &training, &plain, 5).unwrap().position.1;
+        let folds = cross_validate_tree(&nominal, &training, &plain, 5).unwrap().view_position.unwrap().1;
         assert!(
             folds < 1.5 * base && base < 1.5 * folds,
             "tracker {tracker}: 5-fold {folds} mm, held out {base}"
@@ -1341,17 +1358,36 @@ fn a_target_remounted_between_sessions_is_placed_per_session() {
     assert_eq!(score.sessions, vec![("b".to_string(), SessionSetUp::Training("b".into()))]);
     // The noise level: the same robot measured as often without a jump, held out likewise.
     let reference = calibrate_tree(&nominal, &unmoved, &plain).unwrap().score(&unmoved_held_out).unwrap();
-    let (with, noise) = (score.position.1, reference.position.1);
-    let without = calibrate_tree(&nominal, &training, &plain).unwrap().score(&held_out).unwrap().position.1;
+    let (with, noise) = (score.view_position.unwrap().1, reference.view_position.unwrap().1);
+    let without = calibrate_tree(&nominal, &training, &plain)
+        .unwrap()
+        .score(&held_out)
+        .unwrap()
+        .view_position
+        .unwrap()
+        .1;
     eprintln!("held out: per session {with} mm, one placement {without} mm, without a jump {noise} mm");
     assert!(with < 1.2 * noise, "per session {with} mm, without a jump {noise} mm");
     assert!(without > 4.0 * with, "per session {with} mm, one placement {without} mm");
     // A session of no training file's name: its target placed on it alone, the tree held.
     let fitted = c.score(&elsewhere).unwrap();
     assert_eq!(fitted.sessions, vec![("d".to_string(), SessionSetUp::Fitted)]);
-    assert!(fitted.position.1 < 1.2 * noise, "session d: {} mm", fitted.position.1);
+    assert!(
+        fitted.view_position.unwrap().1 < 1.2 * noise,
+        "session d: {} mm",
+        fitted.view_position.unwrap().1
+    );
+    // Feasible GLS weighs the same set-up: its placements per session too.
+    let fgls = robocal::calibration::tree::calibrate_tree_feasible(
+        &nominal,
+        &training,
+        &per_session,
+        &Default::default(),
+    );
+    let fgls = fgls.unwrap().score(&held_out).unwrap().view_position.unwrap().1;
+    assert!(fgls < 1.2 * noise, "fgls per session {fgls} mm, without a jump {noise} mm");
     // Every fold keeps each session's placement.
-    let folds = cross_validate_tree(&nominal, &training, &per_session, 5).unwrap().position.1;
+    let folds = cross_validate_tree(&nominal, &training, &per_session, 5).unwrap().view_position.unwrap().1;
     assert!(folds < 1.5 * noise && noise < 1.5 * folds, "5-fold {folds} mm, without a jump {noise} mm");
 }
 

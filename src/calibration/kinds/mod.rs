@@ -1583,6 +1583,18 @@ pub struct Score {
     /// ([`PositionError`]), in the order of the observations.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub positions: Vec<PositionError>,
+    /// Each camera view (a camera's or a tree's, its rows together), in the order of the
+    /// observations: the norms of its position and rotation residuals ([`ViewResidual`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub views: Vec<ViewResidual>,
+    /// RMS of the views' position residual norms `|y_t|` (mm), before and after, if views
+    /// were scored.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub view_position: Option<(f64, f64)>,
+    /// RMS of the views' rotation residual norms `|y_r|` (deg), before and after, if their
+    /// rotations were measured.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub view_rotation: Option<(f64, f64)>,
     /// With per-session set-up parameters: each session of the set and where its set-up came
     /// from.
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -1641,6 +1653,86 @@ pub struct PositionError {
     pub error: (f64, f64),
     /// `sqrt(sum z_c^2)` after.
     pub whitened: f64,
+}
+
+/// One camera view scored ([`Score::views`]): the norms of its position residuals `|y_t|`
+/// (mm) and of its rotation residuals `|y_r|` (deg), before and after, and its largest
+/// whitened residual after.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ViewResidual {
+    /// The index of its first row among the set's observations.
+    pub index: usize,
+    /// Its line in the file.
+    pub line: usize,
+    /// `|y_t|` before (mm).
+    pub before_mm: f64,
+    /// `|y_t|` after (mm).
+    pub after_mm: f64,
+    /// `|y_r|` before (deg), if rotations were measured.
+    pub before_deg: Option<f64>,
+    /// `|y_r|` after (deg), if rotations were measured.
+    pub after_deg: Option<f64>,
+    /// After, the largest of its rows' residuals divided by its standard deviation (`sqrt`
+    /// of `V_k`'s diagonal).
+    pub whitened: f64,
+}
+
+/// The [`ViewResidual`]s of `observations` (of the observations `kinds`): each run of a
+/// camera's rows from its first axis on one line.
+fn view_residuals(observations: &[ObservationResidual], kinds: &[Observation]) -> Vec<ViewResidual> {
+    let mut views: Vec<ViewResidual> = Vec::new();
+    // Sums of squares of the position's and the rotation's rows here, their roots below.
+    let mut squares: Vec<[f64; 4]> = Vec::new();
+    for (index, (r, o)) in observations.iter().zip(kinds).enumerate() {
+        let Observation::Camera { axis, .. } = *o else { continue };
+        if axis == 0 || views.last().is_none_or(|v| v.line != r.line) {
+            let (before_deg, after_deg) = (None, None);
+            let whitened = 0.0;
+            views.push(ViewResidual {
+                index,
+                line: r.line,
+                before_mm: 0.0,
+                after_mm: 0.0,
+                before_deg,
+                after_deg,
+                whitened,
+            });
+            squares.push([0.0; 4]);
+        }
+        let (v, sum) = (views.last_mut().expect("pushed"), squares.last_mut().expect("pushed"));
+        let at = if axis < 3 { 0 } else { 2 };
+        sum[at] += r.before * r.before;
+        sum[at + 1] += r.after * r.after;
+        v.whitened = v.whitened.max(r.whitened.abs());
+        if axis >= 3 {
+            (v.before_deg, v.after_deg) = (Some(0.0), Some(0.0));
+        }
+    }
+    for (v, sum) in views.iter_mut().zip(&squares) {
+        (v.before_mm, v.after_mm) = (sum[0].sqrt(), sum[1].sqrt());
+        if v.after_deg.is_some() {
+            (v.before_deg, v.after_deg) = (Some(sum[2].sqrt()), Some(sum[3].sqrt()));
+        }
+    }
+    views
+}
+
+/// The RMS of `views`' position norms (mm) and, where every view has them, rotation norms
+/// (deg), before and after; `None` without views.
+#[allow(clippy::type_complexity)]
+fn view_rms(views: &[ViewResidual]) -> (Option<(f64, f64)>, Option<(f64, f64)>) {
+    if views.is_empty() {
+        return (None, None);
+    }
+    let rms = |f: fn(&ViewResidual) -> f64| {
+        (views.iter().map(|v| f(v).powi(2)).sum::<f64>() / views.len() as f64).sqrt()
+    };
+    let position = (rms(|v| v.before_mm), rms(|v| v.after_mm));
+    let rotation = views
+        .iter()
+        .all(|v| v.after_deg.is_some())
+        .then(|| (rms(|v| v.before_deg.unwrap_or(0.0)), rms(|v| v.after_deg.unwrap_or(0.0))));
+    (Some(position), rotation)
 }
 
 /// The [`PositionError`]s of `observations` (of the observations `kinds`): each run of
@@ -1736,7 +1828,7 @@ impl Score {
 
     /// The same residuals of `data` whitened by `V_k f`, each whitened residual over `sqrt(f)`,
     /// and what is summed from them again.
-    fn whitened_by(self, f: f64, data: &KindData) -> Self {
+    pub(super) fn whitened_by(self, f: f64, data: &KindData) -> Self {
         let scale = f.sqrt();
         let mut observations = self.observations;
         observations.iter_mut().for_each(|r| r.whitened /= scale);
@@ -1745,7 +1837,11 @@ impl Score {
 
     /// `data`'s residuals before and after (`y`), and after whitened (`z`).
     /// `variances`: each observation's (the diagonal of its `V_k`).
-    fn new(data: &KindData, (before, after): (&DVector<f64>, &DVector<f64>), variances: &[f64]) -> Self {
+    pub(super) fn new(
+        data: &KindData,
+        (before, after): (&DVector<f64>, &DVector<f64>),
+        variances: &[f64],
+    ) -> Self {
         let observations: Vec<ObservationResidual> = (data.observations.iter().enumerate())
             .map(|(k, o)| {
                 // The residuals of angles are in radians: reported in degrees, as every angle.
@@ -1765,7 +1861,7 @@ impl Score {
     }
 
     /// The RMS residuals of `observations`, of the observations `kinds`.
-    fn of(observations: Vec<ObservationResidual>, kinds: &[Observation]) -> Self {
+    pub(super) fn of(observations: Vec<ObservationResidual>, kinds: &[Observation]) -> Self {
         let rms = |chosen: &dyn Fn(&Observation) -> bool, scale: f64| {
             rms_where(&observations, kinds, chosen, scale)
         };
@@ -1791,7 +1887,7 @@ impl Score {
         #[rustfmt::skip]
         let score = Self {
             observations, lengths, angles, markers, by_group: Vec::new(), by_marker, positions: Vec::new(),
-            sessions: Vec::new(), flag_at: 0.0,
+            views: Vec::new(), view_position: None, view_rotation: None, sessions: Vec::new(), flag_at: 0.0,
         };
         score.flagged_anew(kinds)
     }
@@ -1824,7 +1920,9 @@ impl Score {
             })
             .collect();
         let positions = position_errors(observations, kinds);
-        Self { flag_at, by_group, positions, ..self }
+        let views = view_residuals(observations, kinds);
+        let (view_position, view_rotation) = view_rms(&views);
+        Self { flag_at, by_group, positions, views, view_position, view_rotation, ..self }
     }
 
     /// The observations flagged ([`Score::flag_at`]), with their index.

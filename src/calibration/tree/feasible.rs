@@ -94,7 +94,7 @@ fn residual_noise(
     let (x, s) = (c.after.clone(), c.setup_values.1.clone());
     let observed = TreeRows::new(&c.params, data, &c.frames)?;
     let selection = c.params.selection(&selection);
-    let problem = observed.problem(&c.params, &selection, (x, s, setup_selection), noise.as_ref());
+    let problem = c.problem_on(&observed.rows, &selection, (x, s, setup_selection), noise.as_ref());
     let estimator = if previous.is_some() { Estimator::Wls } else { Estimator::Ols };
     let weights = Weights::for_problem(&problem, estimator)?;
     let mut h = DMatrix::zeros(problem.equations(), problem.parameters());

@@ -58,7 +58,7 @@ pub use data::{Frame, Role, TreeData, View};
 pub use feasible::calibrate_tree_feasible;
 
 use super::kinds::camera::{camera_start, isometry, placement};
-use super::kinds::{self, KindData, KindOptions, KindProblem, Prepared, SetUp};
+use super::kinds::{self, KindData, KindOptions, KindProblem, Prepared, Score, SetUp};
 use super::{
     CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
 };
@@ -316,53 +316,6 @@ impl TreeRows {
     }
 }
 
-/// A view's residual norms: position (mm) and rotation (deg), before and after calibration.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct ViewResidual {
-    /// Its line in the file.
-    pub line: usize,
-    /// `|y_t|` before (mm).
-    pub before_mm: f64,
-    /// `|y_t|` after (mm).
-    pub after_mm: f64,
-    /// `|y_r|` before (deg), if rotations were measured.
-    pub before_deg: Option<f64>,
-    /// `|y_r|` after (deg), if rotations were measured.
-    pub after_deg: Option<f64>,
-    /// After, the largest of its six residuals divided by its standard deviation
-    /// (`sqrt` of `V_k`'s diagonal: the view's sigmas and, if given, the joint noise).
-    pub whitened: f64,
-}
-
-/// A set of views scored: each one, and the RMS of their position (mm) and rotation (deg)
-/// residual norms, before and after.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct TreeScore {
-    /// Every view, in order.
-    pub views: Vec<ViewResidual>,
-    /// RMS of `|y_t|` (mm), before and after.
-    pub position: (f64, f64),
-    /// RMS of `|y_r|` (deg), before and after, if rotations were measured.
-    pub rotation: Option<(f64, f64)>,
-    /// With per-session placements: each session of the set and where its placements came
-    /// from.
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub sessions: Vec<(String, kinds::SessionSetUp)>,
-}
-
-impl TreeScore {
-    /// `views` scored: the RMS of their position (mm) and, unless `position_only`, rotation
-    /// (deg) residual norms, before and after.
-    fn of(views: Vec<ViewResidual>, position_only: bool) -> Self {
-        let rms = |f: fn(&ViewResidual) -> f64| {
-            (views.iter().map(|v| f(v).powi(2)).sum::<f64>() / views.len().max(1) as f64).sqrt()
-        };
-        let rotation = (!position_only)
-            .then(|| (rms(|v| v.before_deg.unwrap_or(0.0)), rms(|v| v.after_deg.unwrap_or(0.0))));
-        Self { position: (rms(|v| v.before_mm), rms(|v| v.after_mm)), rotation, views, sessions: Vec::new() }
-    }
-}
-
 /// `tree` scored as it stands on `data`: the cameras and targets fitted to it (the "before"
 /// fit of [`calibrate_tree`]) with the tree's joints held as they are; the views' residuals
 /// after that fit. What `robocal evaluate` reports of a file of views: a tree calibrated on
@@ -372,7 +325,7 @@ pub fn evaluate_tree(
     tree: &RobotTree,
     data: &TreeData,
     options: &TreeOptions,
-) -> Result<TreeScore, CalibrationError> {
+) -> Result<Score, CalibrationError> {
     let held = TreeOptions {
         joints: JointParams::None,
         prior: Vec::new(),
@@ -392,7 +345,7 @@ pub fn cross_validate_tree(
     data: &TreeData,
     options: &TreeOptions,
     folds: usize,
-) -> Result<TreeScore, CalibrationError> {
+) -> Result<Score, CalibrationError> {
     cross_validate_tree_by(data, folds, |train| calibrate_tree(tree, train, options))
 }
 
@@ -402,21 +355,20 @@ pub fn cross_validate_tree_by(
     data: &TreeData,
     folds: usize,
     mut calibrate: impl FnMut(&TreeData) -> Result<TreeCalibration, CalibrationError>,
-) -> Result<TreeScore, CalibrationError> {
+) -> Result<Score, CalibrationError> {
     let fold_of_pose = super::pose_folds(data.views.iter().map(|v| v.pose), data.joints.len(), folds)?;
-    let mut views = Vec::with_capacity(data.views.len());
+    let rows = data.observations(&data.frames);
+    let mut scored = Vec::with_capacity(rows.observations.len());
     for fold in 0..folds {
         let (test, train) = (
             data.keeping(|pose| fold_of_pose[pose] == fold),
             data.keeping(|pose| fold_of_pose[pose] != fold),
         );
-        views.extend(calibrate(&train)?.score(&test)?.views);
+        scored.extend(calibrate(&train)?.score(&test)?.observations);
     }
-    // Scored fold by fold; listed in the data's order.
-    let mut pooled = TreeScore::of(views, data.position_only);
-    let fold_of: Vec<usize> = data.views.iter().map(|v| fold_of_pose[v.pose]).collect();
-    pooled.views = super::in_data_order(pooled.views, &fold_of, folds);
-    Ok(pooled)
+    // Scored fold by fold; summed up in the data's order.
+    let fold_of: Vec<usize> = rows.observations.iter().map(|o| fold_of_pose[o.pose()]).collect();
+    Ok(Score::of(super::in_data_order(scored, &fold_of, folds), &rows.observations))
 }
 
 /// A tree calibrated from camera views.
@@ -444,7 +396,7 @@ pub struct TreeCalibration {
     /// What was held and why: unseen, combinations the poses cannot tell apart.
     pub fixed: Vec<Held>,
     /// The training views scored, before and after.
-    pub training: TreeScore,
+    pub training: Score,
     /// Implausible results, one per cause: joint lengths corrected by more than 10 mm, training
     /// views more than [`FLAG_AT`] standard deviations out after calibration.
     pub warnings: Vec<Warning>,
@@ -479,14 +431,7 @@ impl TreeCalibration {
     /// `data` scored before and after: its views' residuals with the frames as calibrated
     /// (every camera and target of `data` must be one of the calibration's), whitened by
     /// `V_k f` with [`TreeCalibration::variance_factor`] `f` where the noise was assumed.
-    pub fn score(&self, data: &TreeData) -> Result<TreeScore, CalibrationError> {
-        Ok(self.score_rows(data)?.0)
-    }
-
-    /// [`TreeCalibration::score`], and the sum of the squares of the rows' residuals after,
-    /// each whitened by its own variance in `V_k` (without the factor): what the variance of
-    /// unit weight is found from.
-    fn score_rows(&self, data: &TreeData) -> Result<(TreeScore, f64), CalibrationError> {
+    pub fn score(&self, data: &TreeData) -> Result<Score, CalibrationError> {
         let estimated = self.noise_estimate.as_ref().map(|e| feasible::with_estimated_sigmas(data, e));
         let data = estimated.as_ref().unwrap_or(data);
         // Every view's frames among the calibration's.
@@ -512,28 +457,13 @@ impl TreeCalibration {
         let nothing = DVector::zeros(0);
         let before = problem(&zero, &values.0).residuals(&nothing);
         let after_problem = problem(&self.after, &values.1);
+        // The weights only whiten the residuals after: the joint noise is for those alone; the
+        // assumed sigmas scaled by the residuals' spread, when they were.
+        let factor = self.variance_factor.unwrap_or(1.0);
+        let variances: Vec<f64> =
+            after_problem.variances(self.joint_noise.as_ref()).into_iter().map(|d| d * factor).collect();
         let after = after_problem.residuals(&nothing);
-        // The weights only whiten the residuals after: the joint noise is for those alone.
-        let variances = after_problem.variances(self.joint_noise.as_ref());
-        let n = data.rows();
-        let norms = |y: &DVector<f64>, k: usize| {
-            (y.rows(n * k, 3).norm(), (n == 6).then(|| y.rows(n * k + 3, 3).norm().to_degrees()))
-        };
-        let whitened_row = |k: usize, r: usize| after[n * k + r] / variances[n * k + r].sqrt();
-        let spread = self.variance_factor.unwrap_or(1.0).sqrt();
-        let views: Vec<ViewResidual> = (0..data.views.len())
-            .map(|k| {
-                let (before_mm, before_deg) = norms(&before, k);
-                let (after_mm, after_deg) = norms(&after, k);
-                let whitened = (0..n).map(|r| whitened_row(k, r).abs()).fold(0.0, f64::max) / spread;
-                ViewResidual { line: data.lines[k], before_mm, after_mm, before_deg, after_deg, whitened }
-            })
-            .collect();
-        let squares = (0..data.views.len())
-            .flat_map(|k| (0..n).map(move |r| (k, r)))
-            .map(|(k, r)| whitened_row(k, r).powi(2));
-        let score = TreeScore { sessions, ..TreeScore::of(views, data.position_only) };
-        Ok((score, squares.sum()))
+        Ok(Score { sessions, ..Score::new(rows, (&before, &after), &variances) })
     }
 
     /// Estimates past a physical bound (a joint length corrected by more than 10 mm: a wrong
@@ -549,6 +479,21 @@ impl TreeCalibration {
             .map(|(index, v)| FarOut { index, line: v.line, label: None, sd: v.whitened });
         out.extend(Warning::far_out(Scored::View, far_out));
         out
+    }
+
+    /// The problem of `rows` (views of this calibration's frames) on its branches and its
+    /// set-up (over its training sessions), estimating `selection` and, of the `values`
+    /// `(fixed, setup_values, setup_selection)`, the placements `setup_selection`; `V_k` with
+    /// `joint_noise`.
+    fn problem_on<'a>(
+        &'a self,
+        rows: &'a KindData,
+        selection: &'a Selection,
+        values: (Vec<f64>, Vec<f64>, Vec<usize>),
+        joint_noise: Option<&DMatrix<f64>>,
+    ) -> KindProblem<'a> {
+        KindProblem::of_branches(&self.params.chains, selection, rows, &self.setup, values)
+            .with_noise(joint_noise)
     }
 
     /// The frames' names.
@@ -772,7 +717,7 @@ pub fn calibrate_tree(
         refined,
         unseen: vec![base_unseen(&params, data)],
         fixed: prepared.every_held(fixed),
-        training: TreeScore::of(Vec::new(), true),
+        training: Score::default(),
         setup: prepared.setup.clone(),
         warnings: Vec::new(),
         robust,
@@ -802,15 +747,16 @@ fn scored(
     data: &TreeData,
     spread: Option<f64>,
 ) -> Result<(), CalibrationError> {
-    let (training, squares) = calibration.score_rows(data)?;
-    calibration.training = training;
-    let (n, rank) = (data.rows() * data.views.len(), calibration.refined.estimate.diagnostics.rank);
+    calibration.training = calibration.score(data)?;
+    let (n, rank) = (calibration.training.observations.len(), calibration.refined.estimate.diagnostics.rank);
     if calibration.joint_noise.is_none() && data.assumed_sigmas && n > rank {
-        let f = spread.map_or(squares / (n - rank) as f64, |s| s * s);
+        let training = std::mem::take(&mut calibration.training);
+        let sum: f64 = training.observations.iter().map(|r| r.whitened * r.whitened).sum();
+        let f = spread.map_or(sum / (n - rank) as f64, |s| s * s);
         calibration.refined.estimate.covariance *= f;
         calibration.variance_factor = Some(f);
         // As `score` whitens with `V_k f`: each whitened residual over sqrt(f).
-        calibration.training.views.iter_mut().for_each(|v| v.whitened /= f.sqrt());
+        calibration.training = training.whitened_by(f, &data.observations(&calibration.frames));
     }
     Ok(())
 }

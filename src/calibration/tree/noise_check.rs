@@ -27,7 +27,7 @@ pub(super) fn tree_noise_check(c: &TreeCalibration, data: &TreeData) -> Option<W
     let observed = TreeRows::new(&c.params, &sample, &c.frames).ok()?;
     let selection = c.params.selection(&selection);
     let values = (c.after.clone(), c.setup_values.1.clone(), setup_selection);
-    let problem = observed.problem(&c.params, &selection, values, c.joint_noise.as_ref());
+    let problem = c.problem_on(&observed.rows, &selection, values, c.joint_noise.as_ref());
     let prior_sd: Vec<f64> = (c.refined.estimate.names.iter())
         .filter_map(|name| c.params.params.iter().position(|p| &p.name == name).map(|i| c.prior_sd[i]))
         .collect();
@@ -36,12 +36,10 @@ pub(super) fn tree_noise_check(c: &TreeCalibration, data: &TreeData) -> Option<W
 }
 
 /// The robot's parameters `c` estimated (their indices among its parameters) and the
-/// placements' (among the frames' six each), by the names of its estimate.
+/// placements' (among its set-up's: the frames' six each, then the later sessions' own), by
+/// the names of its estimate.
 pub(super) fn estimated(c: &TreeCalibration) -> (Vec<usize>, Vec<usize>) {
-    let frames = c.frame_names();
-    let setup: Vec<String> = (frames.iter())
-        .flat_map(|name| ["x", "y", "z", "rx", "ry", "rz"].map(move |a| format!("{name}.{a}")))
-        .collect();
+    let setup = c.setup.names();
     let names = &c.refined.estimate.names;
     let robot = names.iter().filter_map(|n| c.params.params.iter().position(|p| &p.name == n)).collect();
     let placed = names.iter().filter_map(|n| setup.iter().position(|s| s == n)).collect();
