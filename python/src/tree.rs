@@ -99,7 +99,7 @@ pub fn calibrate_tree(
 /// cameras and targets fitted to it, the tree held, whitened by the views' sigmas and
 /// `joint_sigma`; its joints those of the branch models in `branches` if given (as
 /// `--branches`: the `<tip>.toml` that `calibrate --out-dir` wrote). The score as JSON
-/// (`views`, `position`, `rotation`).
+/// (`views`, `view_position`, `view_rotation` and every row, as `Score`).
 #[pyfunction]
 #[pyo3(signature = (urdf, tips, base_link, branches, source, flags))]
 pub fn evaluate_tree(

@@ -640,7 +640,7 @@ def test_evaluate_tree_scores_written_branches_as_the_command_line_does(tmp_path
     ours = robocal.evaluate_tree(urdf, held, tips=tips, branches=branches, joint_unit="deg", length_unit="mm")
     assert_same(ours, theirs)
     nominal = robocal.evaluate_tree(urdf, held, tips=tips, joint_unit="deg", length_unit="mm")
-    assert ours["position"][1] < nominal["position"][1]
+    assert ours["view_position"][1] < nominal["view_position"][1]
     # A branch of another robot is refused, naming its file.
     (branches / "head_camera.toml").write_text((EXAMPLES / "puma560-true.toml").read_text())
     with pytest.raises(robocal.InputError) as e:
