@@ -11,7 +11,7 @@
 use super::refine::Residuals;
 use super::{EstimationError, LinearSystem, NoiseModel, Reduced, Weights};
 use crate::kinematics::{
-    Chain, ChainAt, HeldArm, Measured, end_positions, marker_jacobians_held, pose_error,
+    Chain, ChainAt, HeldArm, JointTrig, Measured, end_positions, marker_jacobians_held, pose_error,
 };
 use crate::model::Selection;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX, Vector3};
@@ -362,7 +362,7 @@ impl PointProblem<'_> {
             if at.len() > 1 {
                 // Markers: the arm walked once for all of them, from its held steps on.
                 let held = self.held(at).map(|held| &held[k]);
-                marker_jacobians_held(at, q, self.selection, view, positions, held);
+                marker_jacobians_held(at, JointTrig::plain(q), self.selection, view, positions, held);
             } else {
                 positions[0] = at[0].identification_jacobian(q, self.selection, self.measured, view);
             }

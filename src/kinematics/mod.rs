@@ -27,8 +27,11 @@
 
 mod batch;
 mod gravity;
+mod trig;
 
 pub use batch::{BATCH, Configurations, Frames};
+use trig::Angles;
+pub(crate) use trig::{JointTrig, joint_sin_cos};
 
 use crate::limits::MAX_JOINTS;
 
@@ -575,6 +578,16 @@ impl ChainAt {
         f(reached)
     }
 
+    /// [`ChainAt::at_reached`] of joint values with, perhaps, their sines and cosines: `f` of
+    /// `q` itself when no joint deflects; of the values reached, plain, when one does (their
+    /// sines and cosines are not `q`'s).
+    fn at_reached_trig<R>(&self, q: JointTrig<'_>, f: impl FnOnce(JointTrig<'_>) -> R) -> R {
+        if self.deflection.is_none() {
+            return f(q);
+        }
+        self.at_reached(q.q(), |reached| f(JointTrig::plain(reached)))
+    }
+
     /// Pose of the tool frame: `base * T_1(q_1) * ... * T_n(q_n) * tool`.
     pub fn pose(&self, q: &[f64]) -> Isometry3<f64> {
         assert_eq!(q.len(), self.dof, "q has one value per joint");
@@ -718,21 +731,22 @@ pub fn marker_jacobians(
     h: DMatrixViewMut<'_, f64>,
     positions: &mut [Vector3<f64>],
 ) {
-    marker_jacobians_held(markers, q, selection, h, positions, None);
+    marker_jacobians_held(markers, JointTrig::plain(q), selection, h, positions, None);
 }
 
 /// [`marker_jacobians`], the walk back starting at `held`'s frame if given (this pose's, from
-/// [`ChainAt::held_arm`]; the steps it holds are not visited: no selected parameter moves them).
+/// [`ChainAt::held_arm`]; the steps it holds are not visited: no selected parameter moves them),
+/// the joints turned by `q`'s sines and cosines if it has them ([`JointTrig`]).
 pub(crate) fn marker_jacobians_held(
     markers: &[ChainAt],
-    q: &[f64],
+    q: JointTrig<'_>,
     selection: &Selection,
     mut h: DMatrixViewMut<'_, f64>,
     positions: &mut [Vector3<f64>],
     held: Option<&HeldArm>,
 ) {
     let first = &markers[0];
-    assert_eq!(q.len(), first.dof, "q has one value per joint");
+    assert_eq!(q.q().len(), first.dof, "q has one value per joint");
     assert_eq!(h.shape(), (3 * markers.len(), selection.len()), "H block is 3 per marker x selected");
     assert_eq!(positions.len(), markers.len(), "one position per marker");
     // Each marker's offset in the last joint frame: its tail is translations only.
@@ -749,7 +763,7 @@ pub(crate) fn marker_jacobians_held(
     if let Some(c) = first.payload.and_then(|i| selection.column(i)) {
         h.column_mut(c).fill(0.0);
     }
-    let mut visit = |loads: &Loads<'_>, q: &[f64]| {
+    let mut visit = |loads: &Loads<'_>, q: JointTrig<'_>| {
         let (steps, start) = match held {
             Some(held) => (&first.steps[..held.from], held.frame),
             None => (&first.steps[..first.arm], Frame::IDENTITY),
@@ -773,7 +787,8 @@ pub(crate) fn marker_jacobians_held(
         });
         seen_from_the_end(walked)
     };
-    let end = first.with_loads(selection, q, |loads| first.at_reached(q, |reached| visit(loads, reached)));
+    let end =
+        first.with_loads(selection, q.q(), |loads| first.at_reached_trig(q, |reached| visit(loads, reached)));
     for (m, at) in markers.iter().enumerate() {
         assert_eq!(at.arm, first.arm, "markers of one arm");
         for s in &at.steps[at.arm..] {
@@ -795,10 +810,16 @@ pub(crate) fn marker_jacobians_held(
 /// # Panics
 /// If the chains' arms differ in length, or a size does not match.
 pub fn end_positions(chains: &[ChainAt], q: &[f64], positions: &mut [Vector3<f64>]) {
+    end_positions_trig(chains, JointTrig::plain(q), positions);
+}
+
+/// [`end_positions`], the joints turned by `q`'s sines and cosines if it has them
+/// ([`JointTrig`]).
+pub(crate) fn end_positions_trig(chains: &[ChainAt], q: JointTrig<'_>, positions: &mut [Vector3<f64>]) {
     let first = &chains[0];
-    assert_eq!(q.len(), first.dof, "q has one value per joint");
+    assert_eq!(q.q().len(), first.dof, "q has one value per joint");
     assert_eq!(positions.len(), chains.len(), "one position per chain");
-    first.at_reached(q, |q| {
+    first.at_reached_trig(q, |q| {
         let arm = walk(&first.steps[..first.arm], q, Frame::IDENTITY);
         for (p, at) in positions.iter_mut().zip(chains) {
             assert_eq!(at.arm, first.arm, "chains of one arm");
@@ -816,21 +837,22 @@ pub fn end_positions(chains: &[ChainAt], q: &[f64], positions: &mut [Vector3<f64
 /// each `p_m` what it does to one point's frame, `p_m += R e_k v` for a translation, and a
 /// joint's column is the screw `(u x (0 - p_m), u)`, `u = R e_k`, turned into the world by
 /// `R^T`. The walk forwards is the arm's once, then each point's tail from its end frame
-/// (`end_positions`), the rotation the arm's.
+/// (`end_positions`), the rotation the arm's. The joints turn by `q`'s sines and cosines if it
+/// has them ([`JointTrig`]).
 ///
 /// # Panics
 /// If a point's tail rotates, the arms differ, or a size does not match.
 pub(crate) fn points_manipulator(
     chains: &[ChainAt],
-    q: &[f64],
+    q: JointTrig<'_>,
     jacobians: &mut [Matrix6xX<f64>],
     poses: &mut [Isometry3<f64>],
     walked: &mut [Vector3<f64>],
 ) {
     let first = &chains[0];
-    assert_eq!(q.len(), first.dof, "q has one value per joint");
+    assert_eq!(q.q().len(), first.dof, "q has one value per joint");
     assert!(jacobians.len() == chains.len() && poses.len() == chains.len() && walked.len() == chains.len());
-    first.at_reached(q, |q| {
+    first.at_reached_trig(q, |q| {
         let mut r = Matrix3::identity();
         for (p, at) in walked.iter_mut().zip(chains) {
             assert_eq!(at.arm, first.arm, "points of one arm");
@@ -840,7 +862,7 @@ pub(crate) fn points_manipulator(
                 let Motion::Translate(k) = resolved.step.motion else {
                     panic!("a point's tail only translates")
                 };
-                frame.translate(k, -(resolved.value + resolved.step.joint.map_or(0.0, |j| q[j])));
+                frame.translate(k, -(resolved.value + resolved.step.joint.map_or(0.0, |j| q.value(j))));
             }
             *p = frame.p;
         }
@@ -871,11 +893,11 @@ pub(crate) fn points_manipulator(
 /// Step `resolved` undone at `q` on frames that share their rotation `r` and differ in their
 /// positions `walked`, as [`back_from`] undoes it on each: a rotation turns `r` alone (once), a
 /// translation by `v` moves each position along `r`'s axis `k`, `p_m += R e_k (-v)`.
-fn undo_shared(resolved: &Resolved, q: &[f64], r: &mut Matrix3<f64>, walked: &mut [Vector3<f64>]) {
+fn undo_shared(resolved: &Resolved, q: impl Angles, r: &mut Matrix3<f64>, walked: &mut [Vector3<f64>]) {
     let mut frame = Frame { r: *r, p: Vector3::zeros() };
     match (resolved.step.motion, resolved.step.joint) {
         (Motion::Translate(k), joint) => {
-            let v = -(resolved.value + joint.map_or(0.0, |j| q[j]));
+            let v = -(resolved.value + joint.map_or(0.0, |j| q.value(j)));
             for p in walked.iter_mut() {
                 *p += r.column(k) * v;
             }
@@ -883,7 +905,7 @@ fn undo_shared(resolved: &Resolved, q: &[f64], r: &mut Matrix3<f64>, walked: &mu
         }
         (Motion::Rotate(k), None) => frame.rotate(k, -resolved.sin_cos.0, resolved.sin_cos.1),
         (Motion::Rotate(k), Some(j)) => {
-            let (s, c) = (resolved.value + q[j]).sin_cos();
+            let (s, c) = q.sin_cos(resolved, j);
             frame.rotate(k, -s, c);
         }
     }
@@ -891,7 +913,7 @@ fn undo_shared(resolved: &Resolved, q: &[f64], r: &mut Matrix3<f64>, walked: &mu
 }
 
 /// Walk `steps` forwards at `q` from `frame`: the frame at their end.
-fn walk(steps: &[Resolved], q: &[f64], mut frame: Frame) -> Frame {
+fn walk(steps: &[Resolved], q: impl Angles, mut frame: Frame) -> Frame {
     for resolved in steps {
         advance(&mut frame, resolved, q);
     }
@@ -899,13 +921,15 @@ fn walk(steps: &[Resolved], q: &[f64], mut frame: Frame) -> Frame {
 }
 
 /// Move `frame` by one step at `q`.
-fn advance(frame: &mut Frame, resolved: &Resolved, q: &[f64]) {
+fn advance(frame: &mut Frame, resolved: &Resolved, q: impl Angles) {
     let step = &resolved.step;
     match (step.motion, step.joint) {
-        (Motion::Translate(k), joint) => frame.translate(k, resolved.value + joint.map_or(0.0, |j| q[j])),
+        (Motion::Translate(k), joint) => {
+            frame.translate(k, resolved.value + joint.map_or(0.0, |j| q.value(j)))
+        }
         (Motion::Rotate(k), None) => frame.rotate(k, resolved.sin_cos.0, resolved.sin_cos.1),
         (Motion::Rotate(k), Some(j)) => {
-            let (s, c) = (resolved.value + q[j]).sin_cos();
+            let (s, c) = q.sin_cos(resolved, j);
             frame.rotate(k, s, c);
         }
     }
@@ -915,23 +939,28 @@ fn advance(frame: &mut Frame, resolved: &Resolved, q: &[f64]) {
 /// acts in, expressed in the end frame's coordinates (where the end point is the origin);
 /// returns the end frame in world coordinates. A step's axis and, for a rotation, its origin
 /// are the same before and after it, so each frame is the one left by undoing the later steps.
-fn walk_back(steps: &[Resolved], q: &[f64], visit: impl FnMut(&Step, &Frame)) -> Frame {
+fn walk_back(steps: &[Resolved], q: impl Angles, visit: impl FnMut(&Step, &Frame)) -> Frame {
     seen_from_the_end(back_from(steps, q, Frame::IDENTITY, visit))
 }
 
 /// [`walk_back`]'s loop from `frame` (the frame after the later steps were undone, `IDENTITY`
 /// at the end): the frame after undoing `steps` too, still in the end frame's coordinates.
-fn back_from(steps: &[Resolved], q: &[f64], mut frame: Frame, mut visit: impl FnMut(&Step, &Frame)) -> Frame {
+fn back_from(
+    steps: &[Resolved],
+    q: impl Angles,
+    mut frame: Frame,
+    mut visit: impl FnMut(&Step, &Frame),
+) -> Frame {
     for resolved in steps.iter().rev() {
         let step = &resolved.step;
         visit(step, &frame);
         match (step.motion, step.joint) {
             (Motion::Translate(k), joint) => {
-                frame.translate(k, -(resolved.value + joint.map_or(0.0, |j| q[j])))
+                frame.translate(k, -(resolved.value + joint.map_or(0.0, |j| q.value(j))))
             }
             (Motion::Rotate(k), None) => frame.rotate(k, -resolved.sin_cos.0, resolved.sin_cos.1),
             (Motion::Rotate(k), Some(j)) => {
-                let (s, c) = (resolved.value + q[j]).sin_cos();
+                let (s, c) = q.sin_cos(resolved, j);
                 frame.rotate(k, -s, c);
             }
         }
@@ -1006,7 +1035,7 @@ mod held_tests {
                 );
                 let arm = at[0].held_arm(&q, from);
                 let view = held.view_mut((0, 0), (rows, selection.len()));
-                marker_jacobians_held(&at, &q, &selection, view, &mut p_held, Some(&arm));
+                marker_jacobians_held(&at, JointTrig::plain(&q), &selection, view, &mut p_held, Some(&arm));
                 assert_eq!((whole, p), (held, p_held), "from step {from}");
             }
         }
@@ -1014,5 +1043,52 @@ mod held_tests {
             [&["base.*"][..], &["j1.*"], &["marker*.*"]].map(|n| at[0].held_from(&named(n))).to_vec();
         // The markers' parameters are past the arm: with them alone, the whole arm is held.
         assert!(froms[2] == Some(0) && froms[0] > froms[2] && froms[1] > froms[0], "{froms:?}");
+    }
+
+    /// The walks with the joints' sines and cosines ([`JointTrig::with`]: the angle-sum
+    /// identity) agree with those of the plain joint values to rounding: the markers'
+    /// positions, their Jacobians and the points' manipulator Jacobians.
+    #[test]
+    fn the_trig_walk_is_the_plain_walk_to_rounding() {
+        let model = RobotModel::preset("puma560").unwrap();
+        let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
+        let chains = Chain::markers(&model, &markers);
+        let params = chains[0].params().clone();
+        let x: Vec<f64> = (0..params.len()).map(|i| 1e-3 * ((i * 7 % 11) as f64 - 5.0)).collect();
+        let at: Vec<ChainAt> = chains.iter().map(|c| c.with_errors(&x)).collect();
+        let selection = Selection::by_names(&params, &["base.*", "marker*.*", "j1.*", "j2.a"]).unwrap();
+        let joints: Vec<Vec<f64>> =
+            (0..5).map(|k| (0..6).map(|j| 0.9 * (k as f64) - 0.7 * j as f64).collect()).collect();
+        let table = joint_sin_cos(&joints);
+        let close =
+            |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(a, b)| (a - b).abs() <= 1e-12 * (1.0 + a.abs()));
+        for (k, q) in joints.iter().enumerate() {
+            let trig = JointTrig::with(q, &table[6 * k..6 * (k + 1)]);
+            let (mut plain, mut turned) = ([Vector3::zeros(); 2], [Vector3::zeros(); 2]);
+            end_positions(&at, q, &mut plain);
+            end_positions_trig(&at, trig, &mut turned);
+            assert!(
+                close(plain[0].as_slice(), turned[0].as_slice())
+                    && close(plain[1].as_slice(), turned[1].as_slice())
+            );
+            let mut h = [DMatrix::zeros(6, selection.len()), DMatrix::zeros(6, selection.len())];
+            for (h, q) in h.iter_mut().zip([JointTrig::plain(q), trig]) {
+                marker_jacobians_held(
+                    &at,
+                    q,
+                    &selection,
+                    h.view_mut((0, 0), (6, selection.len())),
+                    &mut plain,
+                    None,
+                );
+            }
+            assert!(close(h[0].as_slice(), h[1].as_slice()), "pose {k}");
+            let mut manipulators = [vec![Matrix6xX::zeros(6); 2], vec![Matrix6xX::zeros(6); 2]];
+            let (mut ends, mut walked) = (vec![Isometry3::identity(); 2], vec![Vector3::zeros(); 2]);
+            for (m, q) in manipulators.iter_mut().zip([JointTrig::plain(q), trig]) {
+                points_manipulator(&at, q, m, &mut ends, &mut walked);
+            }
+            assert!((0..2).all(|m| close(manipulators[0][m].as_slice(), manipulators[1][m].as_slice())));
+        }
     }
 }

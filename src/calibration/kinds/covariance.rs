@@ -156,7 +156,7 @@ impl BlockJacobians {
         self.values.resize(self.keys.len() * 3 * dof, 0.0);
         self.frames.resize(self.keys.len(), Isometry3::identity());
         for &pose in &self.poses {
-            let q = &problem.data.joints[pose];
+            let q = problem.joint_trig(pose);
             points_manipulator(at, q, &mut self.manipulators, &mut self.ends, &mut self.walked);
             for (k, &n) in self.keys.iter().enumerate().filter(|(_, n)| *n % poses == pose) {
                 let jacobian = self.manipulators[n / poses].as_slice();
@@ -184,7 +184,12 @@ impl KindProblem<'_> {
     }
 
     /// The chains at the problem's values and each session's set-up values.
+    /// The joints' sines and cosines too, found here before the parallel walks
+    /// ([`KindProblem::trig_table`]) for the points alone that walk with them.
     fn at_start(&self) -> (Vec<ChainAt>, Vec<Vec<f64>>) {
+        if self.measured() == Measured::Position {
+            self.trig_table();
+        }
         let at = self.chains.iter().map(|c| c.with_errors(&self.fixed)).collect();
         (at, self.session_views(&self.setup_values))
     }

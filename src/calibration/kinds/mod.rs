@@ -124,13 +124,21 @@ use crate::estimation::{
     PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, length_per_radian,
     linearise, prior_sds, refine_from,
 };
-use crate::kinematics::{Chain, ChainAt, HeldArm, MarkerEnd, Measured, end_positions, marker_jacobians_held};
+use crate::kinematics::{
+    Chain, ChainAt, HeldArm, JointTrig, MarkerEnd, Measured, end_positions_trig, joint_sin_cos,
+    marker_jacobians_held,
+};
 use crate::model::{
     ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool, name_matches,
 };
 use nalgebra::{DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 use std::sync::{Arc, OnceLock};
+
+/// Every pose's joints' `(sin q_j, cos q_j)` ([`joint_sin_cos`]), made once by the first
+/// problem that walks the poses and shared by those [`KindProblem::reselect`] makes; `None`
+/// where a pose has not the chains' number of joints.
+type SharedTrig = Arc<OnceLock<Option<Vec<(f64, f64)>>>>;
 
 /// How to calibrate from distances, contacts, coordinates, cameras and markers.
 #[derive(Debug, Clone, PartialEq)]
@@ -797,6 +805,10 @@ pub struct KindProblem<'a> {
     /// The points' arm steps no selected parameter moves, undone at each pose once for every
     /// linearisation ([`KindProblem::held`]).
     held: OnceLock<Option<Arc<Vec<HeldArm>>>>,
+    /// Each pose's joints' sines and cosines ([`joint_sin_cos`]), computed at the first walk
+    /// of the points and shared by the problems [`KindProblem::reselect`] makes: the walks of
+    /// the points turn the joints by the angle-sum identity ([`KindProblem::joint_trig`]).
+    trig: SharedTrig,
 }
 
 impl<'a> KindProblem<'a> {
@@ -881,6 +893,7 @@ impl<'a> KindProblem<'a> {
             blocks: pose_blocks(&data.observations),
             v: None,
             held: OnceLock::new(),
+            trig: Arc::default(),
         };
         problem.used = problem.points_used();
         problem
@@ -981,10 +994,11 @@ impl<'a> KindProblem<'a> {
             }
             _ if measured == Measured::Position => {
                 // Points alone: every point of a pose from one walk of the arm they share.
+                self.trig_table();
                 let points = at.len();
                 let mut flat = vec![Vector3::zeros(); poses * points];
                 (flat.par_chunks_mut(points).enumerate())
-                    .for_each(|(j, chunk)| end_positions(at, &self.data.joints[j], chunk));
+                    .for_each(|(j, chunk)| end_positions_trig(at, self.joint_trig(j), chunk));
                 (0..points * poses)
                     .map(|n| match self.used[n] {
                         true => Isometry3::from_parts(
@@ -1066,6 +1080,31 @@ impl<'a> KindProblem<'a> {
     {
         let held = OnceLock::new();
         KindProblem { selection, fixed, setup_values, setup_selection, held, ..self.clone() }
+    }
+
+    /// Every pose's joints' `(sin q_j, cos q_j)`, pose after pose ([`joint_sin_cos`]),
+    /// computed at the first call and shared by the problems [`KindProblem::reselect`] makes;
+    /// `None` if a pose has not the chains' number of joints (the walk then fails as it would
+    /// without them). Called before a parallel walk of the poses, so that the table is made
+    /// on every thread, not by one task while the others wait for it.
+    fn trig_table(&self) -> Option<&[(f64, f64)]> {
+        let dof = self.chains[0].dof();
+        let trig = self.trig.get_or_init(|| {
+            let every = self.data.joints.iter().all(|q| q.len() == dof);
+            every.then(|| joint_sin_cos(&self.data.joints))
+        });
+        trig.as_deref()
+    }
+
+    /// Pose `pose`'s joint values with their sines and cosines ([`JointTrig::with`], from
+    /// [`KindProblem::trig_table`]); plain without the table.
+    fn joint_trig(&self, pose: usize) -> JointTrig<'_> {
+        let dof = self.chains[0].dof();
+        let q = &self.data.joints[pose];
+        match self.trig_table() {
+            Some(trig) => JointTrig::with(q, &trig[pose * dof..(pose + 1) * dof]),
+            None => JointTrig::plain(q),
+        }
     }
 
     /// The points' arm steps that no selected parameter moves, undone at every pose
@@ -1222,8 +1261,11 @@ impl Residuals for KindProblem<'_> {
         let mut y = DVector::zeros(self.equations());
         let layout = self.blocks();
         // Found here, on every thread, not by the first block's task while the others wait.
-        if self.measured() == Measured::Position && !self.selection.is_empty() {
-            self.held(&chains);
+        if self.measured() == Measured::Position {
+            self.trig_table();
+            if !self.selection.is_empty() {
+                self.held(&chains);
+            }
         }
         let reduced = Reduced::reduce(
             &layout,
@@ -1318,10 +1360,10 @@ impl BlockJacobians {
         self.positions.resize(points, Vector3::zeros());
         self.frames.resize(self.keys.len(), Isometry3::identity());
         for &pose in &self.poses {
-            let q = &problem.data.joints[pose];
+            let q = problem.joint_trig(pose);
             match columns {
                 // No robot parameter: the points' positions alone.
-                0 => end_positions(at, q, &mut self.positions),
+                0 => end_positions_trig(at, q, &mut self.positions),
                 _ => {
                     // Zeros: `marker_jacobians_held` writes the columns of its parameters only.
                     self.stacked.fill(0.0);
@@ -1993,7 +2035,8 @@ impl KindCalibration {
         // The weights only whiten the residuals after: the joint noise is for those alone.
         // Before: its residuals alone, no V_k.
         let before = self.problem_on(data, &setup, (&self.before, &values.0), &[]);
-        let after = self.problem_on(data, &setup, (&self.after, &values.1), &[]);
+        // The same problem at other values: one table of the joints' sines and cosines.
+        let after = before.reselect(&self.nothing, self.after.clone(), values.1.clone(), Vec::new());
         let zero = DVector::zeros(0);
         // The assumed sigmas scaled by the residuals' spread, when they were; the diagonal of
         // `V_k` alone.
