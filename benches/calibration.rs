@@ -229,7 +229,7 @@ fn choices(c: &mut Criterion) {
 /// `calibrate_tree`: the torso of `presets/torso.urdf`, every joint origin off by about 1 mm
 /// and 0.3 deg, its head camera's views of both hands at 500 poses (0.2 mm, 0.05 deg).
 fn tree(c: &mut Criterion) {
-    use robocal::calibration::tree::{TreeOptions, calibrate_tree};
+    use robocal::calibration::tree::calibrate_tree;
     use robocal::model::RobotTree;
     use robocal::simulation::tree::{head_camera_and_hands, perturbed_tree, simulate_views};
     let nominal = RobotTree::from_urdf_str(include_str!("../presets/torso.urdf"), None, &[]).unwrap();
@@ -240,11 +240,11 @@ fn tree(c: &mut Criterion) {
     let sigma = [0.2, 0.05f64.to_radians()];
     let data = simulate_views(&truth, &frames, &placements, &[(0, 1), (0, 2)], &q, sigma, &mut rng);
     let sigma_q = 0.01f64.to_radians().powi(2);
-    let options = TreeOptions {
+    let options = KindOptions {
         estimator: Estimator::Wls,
         joint_noise: Some(nalgebra::DMatrix::from_diagonal_element(nominal.dof(), nominal.dof(), sigma_q)),
         joints: JointParams::All,
-        ..TreeOptions::default()
+        ..KindOptions::default()
     };
     let mut group = c.benchmark_group("calibrate-tree");
     group.sample_size(10);

@@ -7,7 +7,7 @@
 //! module: it joins the calibration, the design's accuracy prediction and the report.
 
 use crate::calibration::kinds::{KindCalibration, KindData, KindOptions, Score, calibrate_kinds_feasible};
-use crate::calibration::tree::{TreeCalibration, TreeData, TreeOptions, calibrate_tree_feasible};
+use crate::calibration::tree::{TreeCalibration, TreeData, calibrate_tree_feasible};
 use crate::calibration::{
     CalibrationError, Choices, ChosenFit, FeasibleOptions, FoldChoices, Front, Kinds, Loss, Nested, Tree,
     calibrate_chosen, cross_validate_choices,
@@ -268,14 +268,14 @@ impl Files for Tree<'_> {
         fit.score(data)
     }
 
-    fn asked(options: &TreeOptions) -> (Estimator, Loss) {
+    fn asked(options: &KindOptions) -> (Estimator, Loss) {
         (options.estimator, options.loss)
     }
 
     fn feasible(
         &self,
         data: &TreeData,
-        options: &TreeOptions,
+        options: &KindOptions,
         feasible: &FeasibleOptions,
     ) -> Result<TreeCalibration, CalibrationError> {
         calibrate_tree_feasible(self.0, data, options, feasible)

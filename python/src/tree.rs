@@ -7,7 +7,8 @@ use crate::errors::{self, Kind, Place};
 use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 use pyo3::prelude::*;
-use robocal::calibration::tree::{TreeData, TreeOptions};
+use robocal::calibration::kinds::KindOptions;
+use robocal::calibration::tree::TreeData;
 use robocal::calibration::{CalibrationError, ParamWords, Tree};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::model::RobotTree;
@@ -66,7 +67,7 @@ pub fn calibrate_tree(
         Some(sigmas) => Some(joint_noise(&tree, sigmas, request.noise_units)?),
         None => None,
     };
-    let options = TreeOptions {
+    let options = KindOptions {
         estimator,
         joint_noise,
         joints: request.joints.clone(),
@@ -74,7 +75,7 @@ pub fn calibrate_tree(
         gauge: robocal::calibration::Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
         prior: request.prior.clone(),
         loss: request.loss,
-        per_session: Vec::new(),
+        ..KindOptions::default()
     };
     let choices =
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, flags.folds);
@@ -129,7 +130,7 @@ pub fn evaluate_tree(
         Some(sigmas) => Some(joint_noise(&tree, sigmas, request.noise_units)?),
         None => None,
     };
-    let options = TreeOptions { joint_noise, ..TreeOptions::default() };
+    let options = KindOptions { joint_noise, ..KindOptions::default() };
     let score = py
         .detach(|| robocal::calibration::tree::evaluate_tree(&tree, &data, &options))
         .map_err(|e| errors::calibration(&e, &source.0))?;

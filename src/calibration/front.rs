@@ -13,7 +13,7 @@ use super::choice::{Criterion, Fitted, FoldChoices, FoldFit, Front, Nested, Sele
 use super::kinds::{self, KindCalibration, KindData, KindOptions, Score};
 use super::prior_scale::{AutoPrior, FrontEvidence, needs_the_noise, system_evidence};
 use super::selection::{LinearModel, named_joints};
-use super::tree::{self, TreeCalibration, TreeData, TreeOptions};
+use super::tree::{self, TreeCalibration, TreeData};
 use super::{CalibrationError, JointParams, Loss, RobotModel};
 use crate::estimation::{Estimator, PriorEntry};
 use crate::model::{RobotTree, name_matches};
@@ -147,7 +147,7 @@ pub struct Tree<'a>(pub &'a RobotTree);
 
 impl Front for Tree<'_> {
     type Data = TreeData;
-    type Options = TreeOptions;
+    type Options = KindOptions;
     type Fit = TreeCalibration;
     type Nested = Nested<Score>;
 
@@ -158,15 +158,15 @@ impl Front for Tree<'_> {
         held.into_iter().filter(|&h| h).count()
     }
 
-    fn prior(options: &mut TreeOptions) -> &mut Vec<PriorEntry> {
+    fn prior(options: &mut KindOptions) -> &mut Vec<PriorEntry> {
         &mut options.prior
     }
 
-    fn with_joints(&self, options: &TreeOptions, names: &[String]) -> TreeOptions {
-        TreeOptions { joints: named_joints(names.to_vec()), ..options.clone() }
+    fn with_joints(&self, options: &KindOptions, names: &[String]) -> KindOptions {
+        KindOptions { joints: named_joints(names.to_vec()), ..options.clone() }
     }
 
-    fn calibrate(&self, data: &TreeData, options: &TreeOptions) -> Result<TreeCalibration> {
+    fn calibrate(&self, data: &TreeData, options: &KindOptions) -> Result<TreeCalibration> {
         tree::calibrate_tree(self.0, data, options)
     }
 
@@ -178,7 +178,7 @@ impl Front for Tree<'_> {
     }
 
     /// The views' positions' ([`tree::cross_validate_tree`]).
-    fn cv_rms(&self, data: &TreeData, options: &TreeOptions, folds: usize) -> Result<f64> {
+    fn cv_rms(&self, data: &TreeData, options: &KindOptions, folds: usize) -> Result<f64> {
         Ok(tree::cross_validate_tree(self.0, data, options, folds)?.view_position.map_or(0.0, |p| p.1))
     }
 
@@ -188,7 +188,7 @@ impl Front for Tree<'_> {
     fn evidence(
         &self,
         data: &TreeData,
-        options: &TreeOptions,
+        options: &KindOptions,
         auto: &AutoPrior,
         about: Option<&TreeCalibration>,
     ) -> Result<FrontEvidence> {
@@ -196,20 +196,20 @@ impl Front for Tree<'_> {
             let give = "sigma and sigma_angle columns in the views' file, or --joint-sigma-deg";
             return Err(needs_the_noise(auto, give));
         }
-        let options = TreeOptions { estimator: Estimator::Wls, ..options.clone() };
+        let options = KindOptions { estimator: Estimator::Wls, ..options.clone() };
         let about = about.map(|c| (c.after.as_slice(), c.setup_values.1.as_slice()));
         let system = tree::evidence_system(self.0, data, &options, about)?;
         Ok(FrontEvidence { evidence: system_evidence(auto, &options.prior, &system)?, noise_spread: None })
     }
 
-    fn forward(&self, data: &TreeData, options: &TreeOptions, criterion: Criterion) -> Result<SelectionPath> {
+    fn forward(&self, data: &TreeData, options: &KindOptions, criterion: Criterion) -> Result<SelectionPath> {
         Ok(tree::selection_model(self.0, data, options)?.forward(criterion))
     }
 
     fn nested(
         &self,
         data: &TreeData,
-        options: &TreeOptions,
+        options: &KindOptions,
         folds: usize,
         fit: FoldFit<Self>,
     ) -> Result<Nested<Score>> {

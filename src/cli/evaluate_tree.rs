@@ -5,8 +5,8 @@
 use super::request::{EvaluateRequest, NoiseSource};
 use anyhow::{Context, Result, bail};
 use robocal::calibration::DataKind;
-use robocal::calibration::kinds::{Score, ViewResidual};
-use robocal::calibration::tree::{TreeData, TreeOptions, evaluate_tree};
+use robocal::calibration::kinds::{KindOptions, Score, ViewResidual};
+use robocal::calibration::tree::{TreeData, evaluate_tree};
 use robocal::io;
 use robocal::model::RobotTree;
 use robocal::report::residuals::ResidualSet;
@@ -49,7 +49,7 @@ pub fn run(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
     let joint_noise = observation_joint_noise(request, (&tree.name, &tree.joints))?;
-    let options = TreeOptions { joint_noise, ..TreeOptions::default() };
+    let options = KindOptions { joint_noise, ..KindOptions::default() };
     let views = (files.iter())
         .map(|(name, data)| {
             let score = evaluate_tree(&tree, data, &options).with_context(|| name.clone())?;

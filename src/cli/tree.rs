@@ -6,8 +6,9 @@
 use super::request::CalibrateTreeRequest;
 use anyhow::{Context, Result};
 use robocal::calibration::Tree;
+use robocal::calibration::kinds::KindOptions;
 use robocal::calibration::kinds::Score;
-use robocal::calibration::tree::{TreeData, TreeOptions};
+use robocal::calibration::tree::TreeData;
 use robocal::estimation::RefineOptions;
 use robocal::io;
 use robocal::model::{Joint, RobotModel, RobotTree};
@@ -29,7 +30,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     let held_out = (request.validate.iter())
         .map(|path| Ok((path.display().to_string(), read(path, &tree, request)?)))
         .collect::<Result<Vec<_>>>()?;
-    let options = TreeOptions {
+    let options = KindOptions {
         estimator: request.estimator,
         joint_noise: super::joint_covariance(&tree.name, &tree.joints, request.joint_sigma_deg.as_deref())?,
         joints: request.joints.clone(),
@@ -38,6 +39,7 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         prior: request.prior.clone(),
         loss: request.loss,
         per_session: request.per_session.clone(),
+        ..KindOptions::default()
     };
     let choices =
         robocal::calibration::Choices::from_flags(request.auto_prior.clone(), request.select, request.folds);

@@ -342,7 +342,7 @@ proptest! {
         let text = mutate(&head(TORSO_VIEWS, 14), &mutations);
         match robocal::calibration::tree::TreeData::from_csv_str(&text, &tree, None) {
             Ok(data) => {
-                let options = robocal::calibration::tree::TreeOptions {
+                let options = robocal::calibration::kinds::KindOptions {
                     estimator: Estimator::Ols,
                     joint_noise: None,
                     joints: JointParams::Offsets,

@@ -6,9 +6,9 @@ use proptest::prelude::*;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use robocal::calibration::Held;
+use robocal::calibration::kinds::KindOptions;
 use robocal::calibration::tree::{
-    Frame, Role, TreeCalibration, TreeData, TreeOptions, TreeParams, TreeRows, calibrate_tree,
-    cross_validate_tree,
+    Frame, Role, TreeCalibration, TreeData, TreeParams, TreeRows, calibrate_tree, cross_validate_tree,
 };
 use robocal::calibration::{Gauge, JointParams, Loss, Warning};
 use robocal::estimation::{Estimator, MeasurementClass, PriorEntry, Residuals, SigmaInterval};
@@ -42,8 +42,8 @@ fn frames(tree: &RobotTree) -> (Vec<Frame>, Vec<f64>) {
 /// The head camera sees each hand's target.
 const PAIRS: [(usize, usize); 2] = [(0, 1), (0, 2)];
 
-fn options(estimator: Estimator) -> TreeOptions {
-    TreeOptions { estimator, joint_noise: None, joints: JointParams::All, ..TreeOptions::default() }
+fn options(estimator: Estimator) -> KindOptions {
+    KindOptions { estimator, joint_noise: None, joints: JointParams::All, ..KindOptions::default() }
 }
 
 #[test]
@@ -174,7 +174,7 @@ fn one_fit_of_a_head_camera_seeing_both_hands_recovers_every_chain() {
         let nothing = calibrate_tree(
             &nominal,
             &data,
-            &TreeOptions { joints: JointParams::None, ..options(Estimator::Ols) },
+            &KindOptions { joints: JointParams::None, ..options(Estimator::Ols) },
         )
         .unwrap();
         largest_gap(&nothing, &truth, &placements, &held_out)
@@ -214,7 +214,7 @@ fn a_badly_conditioned_tree_is_warned() {
         (0..60).map(|_| centre.iter().map(|c| c + 1e-7 * rng.random_range(-1.0..1.0)).collect()).collect();
     for (poses, warned) in [(spread, false), (clustered, true)] {
         let data = simulate_views(&truth, &frames, &placements, &PAIRS, &poses, [0.0; 2], &mut rng);
-        let offsets = TreeOptions { joints: JointParams::Offsets, ..options(Estimator::Ols) };
+        let offsets = KindOptions { joints: JointParams::Offsets, ..options(Estimator::Ols) };
         let c = calibrate_tree(&nominal, &data, &offsets).unwrap();
         let warning = (c.warnings.iter())
             .find(|w| matches!(w, robocal::calibration::Warning::IllConditioned { .. }))
@@ -748,7 +748,7 @@ fn a_tree_takes_priors_robust_losses_and_held_parameters() {
     let held_q = nominal.uniform_configurations(80, &mut rng);
     let validation = simulate_views(&truth, &frames, &placements, &PAIRS, &held_q, sigma, &mut rng);
     let wls = options(Estimator::Wls);
-    let held_out = |o: &TreeOptions| {
+    let held_out = |o: &KindOptions| {
         let c = calibrate_tree(&nominal, &noisy, o).unwrap();
         (c.score(&validation).unwrap().view_position.unwrap().1, c)
     };
@@ -759,10 +759,10 @@ fn a_tree_takes_priors_robust_losses_and_held_parameters() {
     let cases = [
         (
             "--prior machined",
-            TreeOptions { prior: PriorEntry::parse_list("machined").unwrap(), ..wls.clone() },
+            KindOptions { prior: PriorEntry::parse_list("machined").unwrap(), ..wls.clone() },
         ),
-        ("--loss huber", TreeOptions { loss: Loss::Huber(1.345), ..wls.clone() }),
-        ("--hold", TreeOptions { gauge: Gauge { hold: vec![hold.clone()], keep: vec![] }, ..wls.clone() }),
+        ("--loss huber", KindOptions { loss: Loss::Huber(1.345), ..wls.clone() }),
+        ("--hold", KindOptions { gauge: Gauge { hold: vec![hold.clone()], keep: vec![] }, ..wls.clone() }),
     ];
     for (name, o) in &cases {
         let (found, c) = held_out(o);
@@ -786,7 +786,7 @@ fn a_tree_takes_priors_robust_losses_and_held_parameters() {
     let several = |k: usize| bad.views.iter().filter(|v| v.pose == bad.views[k].pose).count() > 1;
     let k = (0..bad.views.len()).rev().find(|&k| several(k)).unwrap();
     bad.views[k].view[0] += 5.0;
-    let huber = TreeOptions { loss: Loss::Huber(1.345), ..wls.clone() };
+    let huber = KindOptions { loss: Loss::Huber(1.345), ..wls.clone() };
     let robust = calibrate_tree(&nominal, &bad, &huber).unwrap().robust.unwrap();
     assert_eq!(robust.weights.len(), bad.views.len(), "one weight per view");
     let down: Vec<usize> = robust.down_weighted().map(|(j, _)| j).collect();
@@ -794,10 +794,10 @@ fn a_tree_takes_priors_robust_losses_and_held_parameters() {
         (0..bad.views.len()).filter(|&j| bad.views[j].pose == bad.views[k].pose).collect();
     assert_eq!(down, of_its_pose, "the far view {k}'s pose's views down-weighted: {:?}", robust.weights);
     let freed = held_combination.parameter().to_string();
-    let keep = TreeOptions { gauge: Gauge { hold: vec![], keep: vec![freed.clone()] }, ..wls.clone() };
+    let keep = KindOptions { gauge: Gauge { hold: vec![], keep: vec![freed.clone()] }, ..wls.clone() };
     let c = calibrate_tree(&nominal, &noisy, &keep).unwrap();
     assert!(c.refined.estimate.names.contains(&freed), "--keep {freed}: {:?}", c.fixed);
-    let nothing = TreeOptions { gauge: Gauge { hold: vec!["no_such.x".into()], keep: vec![] }, ..wls };
+    let nothing = KindOptions { gauge: Gauge { hold: vec!["no_such.x".into()], keep: vec![] }, ..wls };
     let error = calibrate_tree(&nominal, &noisy, &nothing).unwrap_err().to_string();
     assert!(error.contains("no_such.x"), "{error}");
 }
@@ -992,10 +992,10 @@ fn auto_ml_finds_the_scale_of_a_tree() {
         let scale = choose_prior_scale(&Tree(&nominal), &train, &plain, &auto, 5).unwrap();
         assert_eq!((scale.folds, scale.log_evidence[scale.chosen]), (None, 0.0));
         within += usize::from((1.0 / 1.5..=1.5).contains(&(scale.scale() / s0)));
-        let score = |o: &TreeOptions| {
+        let score = |o: &KindOptions| {
             calibrate_tree(&nominal, &train, o).unwrap().score(&test).unwrap().view_position.unwrap().1
         };
-        let chosen = TreeOptions { prior: auto.chosen(&[], &scale), ..plain.clone() };
+        let chosen = KindOptions { prior: auto.chosen(&[], &scale), ..plain.clone() };
         let (at, wls) = (score(&chosen), score(&plain));
         found.push((s0, scale.scale(), at, wls));
         assert!(
@@ -1271,7 +1271,7 @@ fn every_tool_works_on_a_trees_views_and_points_as_well_as_the_plain_fit() {
     use robocal::calibration::tree::calibrate_tree_feasible;
     for (tracker, seed) in [(false, 71), (true, 72)] {
         let (nominal, training, validation) = machined_case(tracker, seed);
-        let held_out = |options: &TreeOptions| {
+        let held_out = |options: &KindOptions| {
             let c = calibrate_tree(&nominal, &training, options).unwrap();
             c.score(&validation).unwrap().view_position.unwrap().1
         };
@@ -1282,12 +1282,12 @@ fn every_tool_works_on_a_trees_views_and_points_as_well_as_the_plain_fit() {
         let features = [
             (
                 "--prior machined",
-                TreeOptions { prior: PriorEntry::parse_list("machined").unwrap(), ..plain.clone() },
+                KindOptions { prior: PriorEntry::parse_list("machined").unwrap(), ..plain.clone() },
             ),
-            ("--loss huber", TreeOptions { loss: Loss::Huber(1.345), ..plain.clone() }),
+            ("--loss huber", KindOptions { loss: Loss::Huber(1.345), ..plain.clone() }),
             (
                 "--hold l_elbow.theta",
-                TreeOptions {
+                KindOptions {
                     gauge: Gauge { hold: vec!["l_elbow.theta".into()], keep: Vec::new() },
                     ..plain.clone()
                 },
@@ -1337,7 +1337,7 @@ fn a_target_remounted_between_sessions_is_placed_per_session() {
     let elsewhere = session(2, 40, "d");
     let training = (sessions.iter()).try_fold(TreeData::default(), |all, s| all.join(s)).unwrap();
     let plain = options(Estimator::Wls);
-    let per_session = TreeOptions { per_session: vec!["target.l_hand.*".into()], ..plain.clone() };
+    let per_session = KindOptions { per_session: vec!["target.l_hand.*".into()], ..plain.clone() };
     let c = calibrate_tree(&nominal, &training, &per_session).unwrap();
     // Each jump: the session's value less the first's, against the truth's, within 3 SE.
     let estimate = &c.refined.estimate;

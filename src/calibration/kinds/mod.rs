@@ -140,7 +140,11 @@ use std::sync::{Arc, OnceLock};
 /// where a pose has not the chains' number of joints.
 type SharedTrig = Arc<OnceLock<Option<Vec<(f64, f64)>>>>;
 
-/// How to calibrate from distances, contacts, coordinates, cameras and markers.
+/// How to calibrate from distances, contacts, coordinates, cameras and markers on a serial
+/// arm, or from the views of a tree ([`calibrate_tree`](super::tree::calibrate_tree)): one
+/// options type for every kind and shape. A tree has no tool point, markers nor registration:
+/// those fields are not used for it, `joint_noise` is over the tree's joints and
+/// `per_session` names cameras' and targets' placements (`target.l_hand.*`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct KindOptions {
     /// The estimator; the weighted ones use `V_k` of the [module](self).

@@ -62,7 +62,7 @@ pub struct TreeData {
     pub assumed_sigmas: bool,
     /// The measuring sessions (one per file), each its name and its first pose, as
     /// [`KindData::sessions`]: a camera's or target's placement made per session
-    /// ([`TreeOptions::per_session`](super::TreeOptions::per_session)) takes one value per
+    /// ([`KindOptions::per_session`](super::KindOptions::per_session)) takes one value per
     /// session. Empty: one session.
     pub sessions: Vec<(String, usize)>,
 }

@@ -5,7 +5,7 @@
 //! `V_k = G_k Sigma_q G_k^T + diag(sigma_p^2 I, sigma_r^2 I)`, `G_k` the derivative of its six
 //! rows by the tree's joints (both its frames moved by their branches).
 
-use super::{TreeCalibration, TreeData, TreeOptions, TreeRows, calibrate_tree};
+use super::{KindOptions, TreeCalibration, TreeData, TreeRows, calibrate_tree};
 use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
@@ -26,7 +26,7 @@ use nalgebra::DMatrix;
 pub fn calibrate_tree_feasible(
     tree: &RobotTree,
     data: &TreeData,
-    options: &TreeOptions,
+    options: &KindOptions,
     feasible: &FeasibleOptions,
 ) -> Result<TreeCalibration, CalibrationError> {
     if !options.prior.is_empty() || options.loss != Loss::Squared {
@@ -36,11 +36,11 @@ pub fn calibrate_tree_feasible(
                 .into(),
         ));
     }
-    let ols = TreeOptions { estimator: Estimator::Ols, joint_noise: None, ..options.clone() };
+    let ols = KindOptions { estimator: Estimator::Ols, joint_noise: None, ..options.clone() };
     let calibrate = |estimate: Option<&NoiseEstimate>| match estimate {
         None => calibrate_tree(tree, data, &ols),
         Some(e) => {
-            let weighted = TreeOptions {
+            let weighted = KindOptions {
                 estimator: Estimator::Wls,
                 joint_noise: Some(e.joint_covariance()),
                 ..ols.clone()

@@ -59,66 +59,11 @@ pub use feasible::calibrate_tree_feasible;
 
 use super::kinds::camera::{camera_start, isometry, placement};
 use super::kinds::{self, KindData, KindOptions, KindProblem, Prepared, Score, SetUp};
-use super::{
-    CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
-};
-use crate::estimation::{Estimator, NoiseEstimate, PriorEntry, RefineOptions, Refined, prior_sds_of};
+use super::{CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, RobustFit, Scored, Warning, fold};
+use crate::estimation::{NoiseEstimate, Refined, prior_sds_of};
 use crate::kinematics::{Chain, ChainAt};
 use crate::model::{ParamInfo, ParamOwner, ParamSet, Placement, RobotTree, Selection, SelectionError};
 use nalgebra::{DMatrix, DVector, Isometry3, Vector3};
-
-/// How to calibrate a tree.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TreeOptions {
-    /// The estimator: ols, or wls with the `V_k` of the [module](self).
-    pub estimator: Estimator,
-    /// `Sigma_q` over the tree's joints (rad², mm²), if the joint noise is known.
-    pub joint_noise: Option<DMatrix<f64>>,
-    /// The joint parameters to identify (names and patterns over the tree's).
-    pub joints: JointParams,
-    /// Gauss-Newton settings.
-    pub refine: RefineOptions,
-    /// Parameters held at their nominal values (`--hold`) and kept free first (`--keep`).
-    pub gauge: Gauge,
-    /// Prior standard deviations of the tree's parameters (`--prior`): a maximum a posteriori
-    /// fit, as of a marker file.
-    pub prior: Vec<PriorEntry>,
-    /// The loss of each pose's views (`--loss`): squared, or robust by reweighting.
-    pub loss: Loss,
-    /// Cameras' and targets' placement parameters (names or patterns: `target.l_hand.*`)
-    /// with one value per session ([`TreeData::sessions`]), estimated: a camera or target
-    /// moved or re-mounted between sessions (`--per-session`).
-    pub per_session: Vec<String>,
-}
-
-impl TreeOptions {
-    /// The options of the one pipeline ([`KindOptions`]) that these are: nothing of a tool
-    /// point, markers or a registration (a tree's views have none).
-    fn as_kinds(&self) -> KindOptions {
-        let TreeOptions { estimator, joint_noise, joints, refine, gauge, prior, loss, per_session } =
-            self.clone();
-        #[rustfmt::skip]
-        let options = KindOptions {
-            estimator, joint_noise, joints, refine, gauge, prior, loss, per_session, ..KindOptions::default()
-        };
-        options
-    }
-}
-
-impl Default for TreeOptions {
-    fn default() -> Self {
-        Self {
-            estimator: Estimator::Wls,
-            joint_noise: None,
-            joints: JointParams::All,
-            refine: RefineOptions::default(),
-            gauge: Gauge::default(),
-            prior: Vec::new(),
-            loss: Loss::Squared,
-            per_session: Vec::new(),
-        }
-    }
-}
 
 /// The tree's error parameters: the base's, then each joint's once (named after it), and how
 /// each branch's parameters map onto them.
@@ -324,9 +269,9 @@ impl TreeRows {
 pub fn evaluate_tree(
     tree: &RobotTree,
     data: &TreeData,
-    options: &TreeOptions,
+    options: &KindOptions,
 ) -> Result<Score, CalibrationError> {
-    let held = TreeOptions {
+    let held = KindOptions {
         joints: JointParams::None,
         prior: Vec::new(),
         gauge: Gauge::default(),
@@ -343,7 +288,7 @@ pub fn evaluate_tree(
 pub fn cross_validate_tree(
     tree: &RobotTree,
     data: &TreeData,
-    options: &TreeOptions,
+    options: &KindOptions,
     folds: usize,
 ) -> Result<Score, CalibrationError> {
     cross_validate_tree_by(data, folds, |train| calibrate_tree(tree, train, options))
@@ -383,7 +328,7 @@ pub struct TreeCalibration {
     /// The cameras and targets ([`Frame::name`]).
     pub frames: Vec<Frame>,
     /// Their placements' set-up ([`SetUp::with_views`]), over the training sessions where some
-    /// are per session ([`TreeOptions::per_session`]).
+    /// are per session ([`KindOptions::per_session`]).
     pub setup: SetUp,
     /// Their placements `(x, y, z, rx, ry, rz)` (mm, rad), 6 per frame, then each later
     /// session's per-session ones ([`SetUp::slot`]), fitted with the tree nominal ("before")
@@ -640,14 +585,13 @@ fn base_unseen(params: &TreeParams, data: &TreeData) -> String {
 pub(crate) fn evidence_system(
     tree: &RobotTree,
     data: &TreeData,
-    options: &TreeOptions,
+    options: &KindOptions,
     about: Option<(&[f64], &[f64])>,
 ) -> Result<super::kinds::EvidenceSystem, CalibrationError> {
     let params = TreeParams::new(tree);
     let observed = TreeRows::new(&params, data, &data.frames)?;
-    let options = options.as_kinds();
-    let prepared = prepared(&params, &observed, data, &options)?;
-    let started = kinds::start(&prepared, &observed.rows, &options)?;
+    let prepared = prepared(&params, &observed, data, options)?;
+    let started = kinds::start(&prepared, &observed.rows, options)?;
     kinds::evidence_of(&prepared, started, about)
 }
 
@@ -659,13 +603,12 @@ pub(crate) fn evidence_system(
 pub(crate) fn selection_model(
     tree: &RobotTree,
     data: &TreeData,
-    options: &TreeOptions,
+    options: &KindOptions,
 ) -> Result<super::selection::LinearModel, CalibrationError> {
     let params = TreeParams::new(tree);
     let observed = TreeRows::new(&params, data, &data.frames)?;
-    let options = options.as_kinds();
-    let prepared = prepared(&params, &observed, data, &options)?;
-    let started = kinds::start(&prepared, &observed.rows, &options)?;
+    let prepared = prepared(&params, &observed, data, options)?;
+    let started = kinds::start(&prepared, &observed.rows, options)?;
     let n = data.rows();
     let rows: Vec<(usize, f64)> = (data.views.iter())
         .flat_map(|v| (0..n).map(move |r| (v.pose, if r < 3 { 1.0 / 3.0 } else { 0.0 })))
@@ -683,7 +626,7 @@ pub(crate) fn selection_model(
 pub fn calibrate_tree(
     tree: &RobotTree,
     data: &TreeData,
-    options: &TreeOptions,
+    options: &KindOptions,
 ) -> Result<TreeCalibration, CalibrationError> {
     let params = TreeParams::new(tree);
     let observed = TreeRows::new(&params, data, &data.frames)?;
@@ -698,13 +641,12 @@ pub fn calibrate_tree(
             tree.dof()
         )));
     }
-    let kind_options = options.as_kinds();
-    let prepared = prepared(&params, &observed, data, &kind_options)?;
-    let started = kinds::start(&prepared, &observed.rows, &kind_options)?;
+    let prepared = prepared(&params, &observed, data, options)?;
+    let started = kinds::start(&prepared, &observed.rows, options)?;
     let spread = started.prior_spread.map(|s| s / started.weights.scale().unwrap_or(1.0));
     let before_setup = started.before_setup.clone();
     let kinds::Fitted { refined, robust, mut fixed, after, after_setup, change } =
-        kinds::fit_gauged(&prepared, started, &kind_options)?;
+        kinds::fit_gauged(&prepared, started, options)?;
     say_why_unseen(&mut fixed, &params, data);
     // A pose's weight is each of its views' (every row of a view has it).
     let robust =
