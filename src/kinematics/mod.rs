@@ -1002,17 +1002,23 @@ mod held_tests {
     use super::*;
     use crate::model::RobotModel;
 
-    /// The markers' Jacobians walked back from the held steps are bit for bit the whole walk's,
-    /// for a registration (base and markers), with early joint parameters selected too, and
-    /// with none of the base: the steps held differ, the numbers do not.
-    #[test]
-    fn the_held_walk_is_the_whole_walk() {
+    /// Two markers on the PUMA 560, its parameters, and the chains at small errors.
+    fn two_markers() -> ([Vector3<f64>; 2], ParamSet, Vec<ChainAt>) {
         let model = RobotModel::preset("puma560").unwrap();
         let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
         let chains = Chain::markers(&model, &markers);
         let params = chains[0].params().clone();
         let x: Vec<f64> = (0..params.len()).map(|i| 1e-3 * ((i * 7 % 11) as f64 - 5.0)).collect();
         let at: Vec<ChainAt> = chains.iter().map(|c| c.with_errors(&x)).collect();
+        (markers, params, at)
+    }
+
+    /// The markers' Jacobians walked back from the held steps are bit for bit the whole walk's,
+    /// for a registration (base and markers), with early joint parameters selected too, and
+    /// with none of the base: the steps held differ, the numbers do not.
+    #[test]
+    fn the_held_walk_is_the_whole_walk() {
+        let (markers, params, at) = two_markers();
         let named = |names: &[&str]| Selection::by_names(&params, names).unwrap();
         for selection in [
             named(&["base.*", "marker*.*"]),
@@ -1050,12 +1056,7 @@ mod held_tests {
     /// positions, their Jacobians and the points' manipulator Jacobians.
     #[test]
     fn the_trig_walk_is_the_plain_walk_to_rounding() {
-        let model = RobotModel::preset("puma560").unwrap();
-        let markers = [Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)];
-        let chains = Chain::markers(&model, &markers);
-        let params = chains[0].params().clone();
-        let x: Vec<f64> = (0..params.len()).map(|i| 1e-3 * ((i * 7 % 11) as f64 - 5.0)).collect();
-        let at: Vec<ChainAt> = chains.iter().map(|c| c.with_errors(&x)).collect();
+        let (_, params, at) = two_markers();
         let selection = Selection::by_names(&params, &["base.*", "marker*.*", "j1.*", "j2.a"]).unwrap();
         let joints: Vec<Vec<f64>> =
             (0..5).map(|k| (0..6).map(|j| 0.9 * (k as f64) - 0.7 * j as f64).collect()).collect();
