@@ -473,6 +473,7 @@ def calibrate_tree(
     params: Union[str, Sequence[str]] = "joints",
     hold: Sequence[str] = (),
     keep: Sequence[str] = (),
+    per_session: Sequence[str] = (),
     prior: Union[str, Sequence[str], None] = None,
     select: Optional[str] = None,
     loss: Optional[str] = None,
@@ -485,8 +486,8 @@ def calibrate_tree(
     sources = [_view_source(v, f"views[{k}]") for k, v in enumerate(views)]
     held_out = [_view_source(v, f"validate[{k}]") for k, v in enumerate(validate)]
     flags = _flags(joint_unit=joint_unit, length_unit=length_unit, estimator=estimator, joint_sigma=joint_sigma,
-                   params=params, hold=hold, keep=keep, prior=prior, loss=loss, iterations=iterations,
-                   folds=folds, select=select)
+                   params=params, hold=hold, keep=keep, per_session=per_session, prior=prior, loss=loss,
+                   iterations=iterations, folds=folds, select=select)
     return Calibration(_calibrate_tree(os.fspath(urdf), list(tips), base_link, sources, held_out, flags))
 
 

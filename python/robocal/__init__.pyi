@@ -347,6 +347,7 @@ def calibrate_tree(
     params: Union[str, Sequence[str]] = "joints",
     hold: Sequence[str] = (),
     keep: Sequence[str] = (),
+    per_session: Sequence[str] = (),
     prior: Union[str, Sequence[str], None] = None,
     select: Optional[str] = None,
     loss: Optional[str] = None,
@@ -362,7 +363,8 @@ def calibrate_tree(
     ``joint_sigma`` one per tree joint or one for all, in ``joint_unit`` (rad unless given);
     ``params`` the joint parameters (not ``all``: the base is never seen); ``prior`` standard
     deviations or a preset; ``select`` cv, bic or t; ``folds`` k-fold cross-validation of the
-    poses.
+    poses; ``per_session`` cameras' and targets' placements (``target.l_hand.*``) with one value
+    per views file (two or more, each a session named by its file's stem).
     The result's ``branches`` are the calibrated chains; its report and JSON are the command
     line's."""
 

@@ -8,6 +8,7 @@ use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 use pyo3::prelude::*;
 use robocal::calibration::kinds::KindOptions;
+use std::path::Path;
 use robocal::calibration::tree::TreeData;
 use robocal::calibration::{CalibrationError, ParamWords, Tree};
 use robocal::estimation::{Estimator, RefineOptions};
@@ -55,11 +56,18 @@ pub fn calibrate_tree(
         "params",
         "all: the base is never estimated from views; give joints",
     )?;
+    require(
+        flags.per_session.is_empty() || sources.len() >= 2,
+        "per_session",
+        "one value per views file (each file a session): give two files or more",
+    )?;
     let tree = read_tree(&urdf, base_link.as_deref(), &tips)?;
     let read = |s: &Source| -> PyResult<(String, TreeData)> {
         let data = TreeData::from_csv_str(&text_of(s)?, &tree, units_for(s, request.units))
             .map_err(|e| data_error(s, &e))?;
-        Ok((s.0.clone(), data))
+        let stem =
+            Path::new(&s.0).file_stem().map_or_else(|| s.0.clone(), |n| n.to_string_lossy().into_owned());
+        Ok((s.0.clone(), data.named(&stem)))
     };
     let sessions = sources.iter().map(read).collect::<PyResult<Vec<_>>>()?;
     let held_out = validate.iter().map(read).collect::<PyResult<Vec<_>>>()?;
@@ -75,6 +83,7 @@ pub fn calibrate_tree(
         gauge: robocal::calibration::Gauge { hold: flags.hold.clone(), keep: flags.keep.clone() },
         prior: request.prior.clone(),
         loss: request.loss,
+        per_session: flags.per_session.clone(),
         ..KindOptions::default()
     };
     let choices =

@@ -575,6 +575,19 @@ def test_calibrate_tree_is_the_command_lines_report(tmp_path: Path) -> None:
     assert np.array_equal(d.parameters.estimates, robocal.calibrate_tree(urdf, [views]).parameters.estimates)
 
 
+def test_a_trees_per_session_placements_are_the_command_lines(tmp_path: Path) -> None:
+    out = tmp_path / "report.json"
+    urdf, views, held = ROOT / "presets" / "torso.urdf", EXAMPLES / "torso" / "views.csv", EXAMPLES / "torso" / "views-2.csv"
+    text = run_cli("calibrate", "--model", str(urdf), "--data", str(views), "--data", str(held), "--per-session",
+                   "target.l_hand.*", "--validate", str(held), "--json", str(out), "--quiet")
+    c = robocal.calibrate_tree(urdf, [views, held], validate=[held], per_session=["target.l_hand.*"])
+    assert "target.l_hand@views-2" in text and c.report() == text
+    assert_same(json.loads(c.to_json()), json.loads(out.read_text()))
+    with pytest.raises(robocal.InputError) as e:
+        robocal.calibrate_tree(urdf, [views], per_session=["target.l_hand.*"])
+    assert e.value.field == "per_session"
+
+
 def test_a_trees_cross_validation_is_the_command_lines(tmp_path: Path) -> None:
     out = tmp_path / "report.json"
     urdf, views = ROOT / "presets" / "torso.urdf", EXAMPLES / "torso" / "views.csv"
