@@ -107,8 +107,8 @@ pub fn robot_covariance(c: &KindCalibration, floor_mm: f64) -> ParameterCovarian
 #[error("{context}")]
 pub struct FilesError {
     /// The file or files (a session that cannot be joined, the sessions fitted, a held-out
-    /// set), or the flags: a name that matches no parameter is `--params`', `--hold`'s or
-    /// `--keep`'s, a bad prior `--prior`'s.
+    /// set), or the flags: a name that matches no parameter is `--params`', `--hold`'s,
+    /// `--keep`'s or `--per-session`'s, a bad prior `--prior`'s.
     pub context: String,
     /// The calibration's error.
     #[source]
@@ -120,7 +120,7 @@ pub struct FilesError {
 fn in_context(files: &str) -> impl Fn(CalibrationError) -> FilesError + '_ {
     move |source| {
         let context = match source {
-            CalibrationError::Selection(_) => "--params, --hold or --keep",
+            CalibrationError::Selection(_) => "--params, --hold, --keep or --per-session",
             CalibrationError::Prior(_) => "--prior",
             _ => files,
         };

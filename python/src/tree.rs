@@ -8,13 +8,13 @@ use crate::model::Model;
 use nalgebra::{DMatrix, DVector};
 use pyo3::prelude::*;
 use robocal::calibration::kinds::KindOptions;
-use std::path::Path;
 use robocal::calibration::tree::TreeData;
 use robocal::calibration::{CalibrationError, ParamWords, Tree};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::model::RobotTree;
 use robocal::report::tree::TreeReport;
 use robocal::table::Units;
+use std::path::Path;
 
 crate::calibrate::report_rows!(TreeReport);
 

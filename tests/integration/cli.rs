@@ -515,7 +515,9 @@ fn calibrate_select_prints_and_writes_its_path() {
         args.extend([flag, "joint9.x"]);
         let message = stderr_of(&args);
         assert!(
-            message.contains("error: --params, --hold or --keep: no parameter matches `joint9.x`"),
+            message.contains(
+                "error: --params, --hold, --keep or --per-session: no parameter matches `joint9.x`"
+            ),
             "{message}"
         );
     }
