@@ -117,7 +117,8 @@ impl FromStr for Loss {
 pub struct RobustFit {
     /// The loss.
     pub loss: Loss,
-    /// The final weight of every training pose, in the file's order.
+    /// The final weights, in the file's order: of each training observation (its pose's:
+    /// every observation made at a pose shares its weight), or for a tree of each view.
     pub weights: Vec<f64>,
     /// Reweighted fits after the first.
     pub reweightings: usize,
@@ -126,7 +127,8 @@ pub struct RobustFit {
 }
 
 impl RobustFit {
-    /// The poses weighted below [`LISTED_BELOW`]: their index among the training poses and weight.
+    /// The observations (a tree's views) weighted below [`LISTED_BELOW`]: their index among
+    /// [`RobustFit::weights`] and their weight.
     pub fn down_weighted(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
         self.weights.iter().copied().enumerate().filter(|(_, w)| *w < LISTED_BELOW)
     }

@@ -345,7 +345,8 @@ pub struct TreeCalibration {
     /// Implausible results, one per cause: joint lengths corrected by more than 10 mm, training
     /// views more than [`FLAG_AT`] standard deviations out after calibration.
     pub warnings: Vec<Warning>,
-    /// With a robust loss: its final weights, one per view (block of rows).
+    /// With a robust loss: its final weights, one per view (its pose's: a pose's views are
+    /// one block).
     pub robust: Option<RobustFit>,
     /// Feasible GLS ([`calibrate_tree_feasible`]): the noise estimated from the residuals, the
     /// tree's joints' and the views' position and rotation sigmas, with which it was weighted.
