@@ -172,8 +172,8 @@ impl Front for Tree<'_> {
 
     /// "Before" is the nominal tree.
     fn fitted(c: &TreeCalibration) -> Fitted<'_> {
-        let params = Cow::Owned(crate::model::ParamSet::from_params(c.params.params.clone()));
-        let values = (Cow::Owned(vec![0.0; c.after.len()]), c.after.as_slice());
+        let (params, values) =
+            (Cow::Borrowed(&c.params), (Cow::Borrowed(c.before.as_slice()), c.after.as_slice()));
         Fitted { params, values, estimate: &c.refined.estimate, fixed: &c.fixed }
     }
 

@@ -314,10 +314,10 @@ fn parameter_rows(c: &TreeCalibration) -> Vec<ParameterRow> {
     let setup_names = c.setup.names();
     (c.refined.estimate.names.iter().enumerate())
         .map(|(k, name)| {
-            let index = c.params.params.iter().position(|p| p.name == *name);
+            let index = c.params.index_by_name(name);
             // Not the tree's: a placement's (of a session, `@` its name).
             let (value, angle) = match index {
-                Some(i) => (c.after[i], c.params.params[i].is_angle()),
+                Some(i) => (c.after[i], c.params.get(i).is_angle()),
                 None => match setup_names.iter().position(|n| n == name) {
                     Some(i) => (c.setup_values.1[i], c.setup.is_angle(i)),
                     None => (f64::NAN, false),

@@ -140,8 +140,8 @@ fn largest_gap(
 ) -> (f64, f64) {
     let (mut mm, mut rad) = (0.0f64, 0.0f64);
     for q in configurations {
-        let real = relative_frames(truth, &c.frames, placements, q);
-        let found = relative_frames(&c.calibrated, &c.frames, &c.setup_values.1, q);
+        let real = relative_frames(truth, c.frames(), placements, q);
+        let found = relative_frames(&c.calibrated, c.frames(), &c.setup_values.1, q);
         for (r, f) in real.iter().zip(&found) {
             let gap = r.inverse() * f;
             mm = mm.max(gap.translation.vector.norm());

@@ -1007,7 +1007,9 @@ impl KindData {
             )));
         }
 
-        if self.camera().is_some() && self.camera() != setup.camera() {
+        // A tree's views name their frames, each among the set-up's (checked with its views).
+        let serial = |site: &CameraSite| !matches!(site, CameraSite::Tree { .. });
+        if self.camera().is_some_and(|s| serial(&s)) && self.camera() != setup.camera() {
             return Err(CalibrationError::Observations(format!(
                 "a camera on the {}, the calibration's is {}",
                 self.camera().map_or("?", CameraSite::name),

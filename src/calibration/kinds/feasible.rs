@@ -11,7 +11,7 @@
 //! (rad), marker coordinates (mm), a camera view's position (mm) and rotation (rad), one
 //! component for each class the data hold.
 
-use super::{KindCalibration, KindData, KindOptions, KindProblem, Unscored, fit_kinds};
+use super::{Calibration, KindCalibration, KindData, KindOptions, Robot, Unscored, fit_kinds};
 use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
@@ -70,7 +70,7 @@ pub fn calibrate_kinds_feasible(
     let rounds = reweighted(feasible, calibrate, estimate)?;
     let warning = unsettled(feasible, &rounds);
     let Reweighted { calibration, estimate, settled, .. } = rounds;
-    let mut calibration = calibration.scored(model, data)?;
+    let mut calibration = calibration.scored((&model.name, &model.joints), data)?;
     calibration.noise_settled = Some(settled);
     calibration.warnings.extend(warning);
     if data.assumed_sigmas < data.observations.len() {
@@ -93,22 +93,20 @@ pub(super) fn with_class_sigmas(data: &KindData, estimate: &NoiseEstimate) -> Ki
     KindData { observations, assumed_sigmas: 0, device: Vec::new(), ..data.clone() }
 }
 
-/// The variance components fitted to the residuals of `c` on its training `data`, each pose's
-/// block one sample: calibrated by ordinary least squares without `previous`, else weighted
+/// The variance components fitted to the residuals of `c` on its training `data` (its rows:
+/// an arm's observations or a tree's views), each pose's block one sample: calibrated by ordinary least squares without `previous`, else weighted
 /// with it (where the fit of the components starts).
-fn residual_noise(
-    c: &KindCalibration,
+pub(in crate::calibration) fn residual_noise<R: Robot>(
+    c: &Calibration<R>,
     data: &KindData,
     joints: JointComponents,
     previous: Option<&NoiseEstimate>,
 ) -> Result<NoiseEstimate, CalibrationError> {
     let (kept, kept_setup) = c.estimated();
-    let markers: Vec<usize> = c.markers.iter().map(|m| m.0).collect();
     let weighted = previous.map(|e| with_class_sigmas(data, e));
     let data = weighted.as_ref().unwrap_or(data);
-    let (x, s) = (c.after.clone(), c.setup_values.1.clone());
-    let problem = KindProblem::of_points(&c.chains, &markers, &kept, data, &c.setup, x, s, kept_setup);
-    let problem = problem.with_noise(previous.map(NoiseEstimate::joint_covariance).as_ref());
+    let noise = previous.map(NoiseEstimate::joint_covariance);
+    let problem = c.problem_at_estimate(data, &kept, kept_setup, noise.as_ref());
     let estimator = if previous.is_some() { Estimator::Wls } else { Estimator::Ols };
     let weights = Weights::for_problem(&problem, estimator)?;
     let mut h = DMatrix::zeros(problem.equations(), problem.parameters());

@@ -105,6 +105,7 @@ mod feasible;
 use camera::relative_view;
 
 pub use feasible::calibrate_kinds_feasible;
+pub(super) use feasible::residual_noise;
 
 pub use camera::{CameraSite, Frame, Role};
 pub use data::{
@@ -129,10 +130,11 @@ use crate::kinematics::{
     marker_jacobians_held,
 };
 use crate::model::{
-    ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool, name_matches,
+    Joint, ParamOwner, ParamSet, Placement, RobotModel, Selection, SelectionError, Tool, name_matches,
 };
 use nalgebra::{DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::sync::{Arc, OnceLock};
 
 /// Every pose's joints' `(sin q_j, cos q_j)` ([`joint_sin_cos`]), made once by the first
@@ -385,6 +387,17 @@ impl SetUp {
     /// each, named after the branches' tip links `tips` ([`Frame::name`]).
     pub fn with_views(self, frames: Vec<Frame>, tips: Vec<String>) -> Self {
         Self { views: frames, tips, ..self }
+    }
+
+    /// The cameras and targets of its views (a tree's, or a serial arm's camera and target).
+    pub fn frames(&self) -> &[Frame] {
+        &self.views
+    }
+
+    /// The tree's branches' tip links, naming its frames ([`Frame::name`]); empty for a serial
+    /// arm.
+    pub fn tips(&self) -> &[String] {
+        &self.tips
     }
 
     /// Where the placements of the camera and the target of a view at `site` start, and the
@@ -1520,15 +1533,19 @@ fn unit_axis(g: &Vector6<f64>, rows: usize) -> Option<usize> {
     (0..rows).all(|r| r == axis || g[r] == 0.0).then_some(axis)
 }
 
-/// A calibration from distances and contacts.
+/// A robot calibrated by the one pipeline: a serial arm ([`KindCalibration`], its observations
+/// points and frames on its tip) or a tree ([`TreeCalibration`](super::tree::TreeCalibration),
+/// its views between frames on its branches). `R` is the robot as calibrated; everything else
+/// is the same for both.
 #[derive(Debug, Clone)]
-pub struct KindCalibration {
-    /// The calibrated model: the estimates folded in, the tool point calibrated.
-    pub calibrated: RobotModel,
-    /// The robot's parameters.
+pub struct Calibration<R> {
+    /// The robot as calibrated: the estimates folded in (an arm's tool point calibrated; a
+    /// tree's base not folded, which a view never sees).
+    pub calibrated: R,
+    /// The robot's parameters (a tree's: the base's, then each joint's once).
     pub params: ParamSet,
     /// Robot parameter errors after the set-up and the tool point (with markers, the base and
-    /// the markers too) fitted with the robot's joints nominal ("before").
+    /// the markers too) fitted with the robot's joints nominal ("before"; a tree's: all zero).
     pub before: Vec<f64>,
     /// Robot parameter errors after the full calibration ("after").
     pub after: Vec<f64>,
@@ -1559,11 +1576,13 @@ pub struct KindCalibration {
     /// frame): `F^-1 T`, `F` that frame and `T` the calibrated tool frame; `None` without a
     /// probe.
     pub tip_frame: Option<Placement>,
-    joint_noise: Option<DMatrix<f64>>,
-    /// One chain per point: the markers', then the tool's if observed.
-    chains: Vec<Chain>,
+    pub(super) joint_noise: Option<DMatrix<f64>>,
+    /// One chain per point: the markers', then the tool's if observed; or a tree's branches'.
+    pub(super) chains: Vec<Chain>,
+    /// Whether the chains are a tree's branches ([`Chain::on_tree`]).
+    pub(super) branches: bool,
     /// No robot parameter: the selection of a problem that scores.
-    nothing: Selection,
+    pub(super) nothing: Selection,
     /// With a robust loss: each observation's final weight and how the reweighting went.
     pub robust: Option<RobustFit>,
     /// The prior standard deviation of each robot parameter (infinite: none).
@@ -1577,6 +1596,9 @@ pub struct KindCalibration {
     /// Feasible GLS: whether its variance components settled.
     pub noise_settled: Option<bool>,
 }
+
+/// A serial arm calibrated from its observation files.
+pub type KindCalibration = Calibration<RobotModel>;
 
 /// One observation scored: its residual `m_k - f_k` before and after (mm; rad for an angle),
 /// and after whitened by `sqrt(V_k)`.
@@ -2005,7 +2027,40 @@ pub struct PositionSummary {
     pub flagged: usize,
 }
 
-impl KindCalibration {
+/// A robot the one pipeline calibrates ([`Calibration`]): the data it is calibrated from, as
+/// the rows of observations a calibration of it scores.
+pub trait Robot: Clone + std::fmt::Debug {
+    /// Its data: an arm's observation files, a tree's views.
+    type Data;
+
+    /// `data` as the rows of observations of `c` (checked against it): an arm's as they are;
+    /// a tree's views each a camera observation between `c`'s frames.
+    fn rows<'d>(c: &Calibration<Self>, data: &'d Self::Data) -> Result<Cow<'d, KindData>, CalibrationError>;
+
+    /// The serial arm's model, where it is one (its joints' physical bounds checked).
+    fn arm(&self) -> Option<&RobotModel> {
+        None
+    }
+}
+
+impl Robot for RobotModel {
+    type Data = KindData;
+
+    /// `data` as they are, checked: one value per joint at each pose, and only the points `c`
+    /// calibrated (its markers; the tool point where it was calibrated).
+    fn rows<'d>(c: &KindCalibration, data: &'d KindData) -> Result<Cow<'d, KindData>, CalibrationError> {
+        data.check(c.calibrated.dof())?;
+        let markers: Vec<usize> = c.markers.iter().map(|m| m.0).collect();
+        data.check_points(&markers, c.chains.len() > markers.len())?;
+        Ok(Cow::Borrowed(data))
+    }
+
+    fn arm(&self) -> Option<&RobotModel> {
+        Some(self)
+    }
+}
+
+impl<R: Robot> Calibration<R> {
     /// What the fit estimated, by the names of its estimate: the robot's parameters, and the
     /// indices of the set-up's.
     fn estimated(&self) -> (Selection, Vec<usize>) {
@@ -2024,17 +2079,21 @@ impl KindCalibration {
         (self.before.clone(), self.setup_values.0.clone())
     }
 
-    /// `data` scored before and after, the set-up as calibrated, whitened by `V_k` with the
-    /// calibration's joint noise (by feasible GLS, with the estimated noise: each observation's
-    /// sigma its class's).
-    pub fn score(&self, data: &KindData) -> Result<Score, CalibrationError> {
+    /// `data` scored before and after, the set-up as calibrated (with per-session parameters,
+    /// each session's: a training session's of the same name, else fitted on `data` with the
+    /// robot held), whitened by `V_k f` with the calibration's joint noise
+    /// and [`Calibration::variance_factor`] `f` where the noise was assumed (by feasible GLS,
+    /// with the estimated noise: each observation's sigma its class's).
+    pub fn score(&self, data: &R::Data) -> Result<Score, CalibrationError> {
+        self.score_rows(R::rows(self, data)?.as_ref())
+    }
+
+    /// [`Calibration::score`] of the rows `data`.
+    fn score_rows(&self, data: &KindData) -> Result<Score, CalibrationError> {
         let estimated = self.noise_estimate.as_ref().map(|e| feasible::with_class_sigmas(data, e));
         let data = estimated.as_ref().unwrap_or(data);
-        data.check(self.chains[0].dof())?;
         let (setup, values, sessions) = self.setup_for(data)?;
         data.check_against(&setup)?;
-        let markers: Vec<usize> = self.markers.iter().map(|m| m.0).collect();
-        data.check_points(&markers, self.chains.len() > markers.len())?;
         let noise = self.joint_noise.as_ref();
         // The weights only whiten the residuals after: the joint noise is for those alone.
         // Before: its residuals alone, no V_k.
@@ -2051,8 +2110,8 @@ impl KindCalibration {
         Ok(score)
     }
 
-    /// The problem of `data` on this calibration's points, the robot at `x` and the set-up
-    /// `setup` at `s`, estimating the set-up values `free` only.
+    /// The problem of `data` on this calibration's points (or branches), the robot at `x` and
+    /// the set-up `setup` at `s`, estimating the set-up values `free` only.
     fn problem_on<'b>(
         &'b self,
         data: &'b KindData,
@@ -2060,17 +2119,29 @@ impl KindCalibration {
         (x, s): (&[f64], &[f64]),
         free: &[usize],
     ) -> KindProblem<'b> {
-        let markers: Vec<usize> = self.markers.iter().map(|m| m.0).collect();
-        KindProblem::of_points(
+        let points = (self.markers.iter().map(|m| m.0).collect(), self.branches);
+        KindProblem::on_chains(
             &self.chains,
-            &markers,
-            &self.nothing,
-            data,
-            setup,
-            x.to_vec(),
-            s.to_vec(),
-            free.to_vec(),
+            points,
+            (&self.nothing, data, setup),
+            (x.to_vec(), s.to_vec(), free.to_vec()),
         )
+    }
+
+    /// The problem of `data` (rows of this calibration's observations) on its points or
+    /// branches and its set-up, estimating what it estimated, from its estimate; `V_k` with
+    /// `joint_noise`: what feasible GLS and the check of the noise linearise.
+    fn problem_at_estimate<'b>(
+        &'b self,
+        data: &'b KindData,
+        kept: &'b Selection,
+        kept_setup: Vec<usize>,
+        joint_noise: Option<&DMatrix<f64>>,
+    ) -> KindProblem<'b> {
+        let points = (self.markers.iter().map(|m| m.0).collect(), self.branches);
+        let values = (self.after.clone(), self.setup_values.1.clone(), kept_setup);
+        KindProblem::on_chains(&self.chains, points, (kept, data, &self.setup), values)
+            .with_noise(joint_noise)
     }
 
     /// The set-up to score `data` with, and its values before and after ([`setup_for`]).
@@ -2080,12 +2151,12 @@ impl KindCalibration {
         data: &KindData,
     ) -> Result<(SetUp, (Vec<f64>, Vec<f64>), Vec<(String, SessionSetUp)>), CalibrationError> {
         let markers: Vec<usize> = self.markers.iter().map(|m| m.0).collect();
-        let points = (self.chains.as_slice(), (markers, false), &self.nothing);
+        let points = (self.chains.as_slice(), (markers, self.branches), &self.nothing);
         setup_for((&self.setup, &self.setup_values), (&self.before, &self.after), points, data)
     }
 
-    /// RMS of the length residuals of `data` (mm) before and after ([`KindCalibration::score`]).
-    pub fn validate(&self, data: &KindData) -> Result<(f64, f64), CalibrationError> {
+    /// RMS of the length residuals of `data` (mm) before and after ([`Calibration::score`]).
+    pub fn validate(&self, data: &R::Data) -> Result<(f64, f64), CalibrationError> {
         Ok(self.score(data)?.lengths)
     }
 
@@ -2098,6 +2169,11 @@ impl KindCalibration {
     /// Plane `i`'s calibrated unit normal and offset (mm).
     pub fn plane(&self, i: usize) -> (Vector3<f64>, f64) {
         self.setup.plane(&self.setup.session_values(&self.setup_values.1, 0), i)
+    }
+
+    /// The joint noise the calibration weighted by, if any.
+    pub fn joint_noise(&self) -> Option<&DMatrix<f64>> {
+        self.joint_noise.as_ref()
     }
 }
 
@@ -2190,36 +2266,36 @@ pub fn calibrate_kinds(
     data: &KindData,
     options: &KindOptions,
 ) -> Result<KindCalibration, CalibrationError> {
-    fit_kinds(model, data, options, None)?.scored(model, data)
+    fit_kinds(model, data, options, None)?.scored((&model.name, &model.joints), data)
 }
 
 /// A calibration fitted but not yet scored on its training data nor warned about
 /// ([`Unscored::scored`]): what feasible GLS fits round after round, scoring only the last.
-pub(super) struct Unscored {
+pub(super) struct Unscored<R = RobotModel> {
     /// The calibration, its training score and warnings not yet made.
-    pub(super) calibration: KindCalibration,
+    pub(super) calibration: Calibration<R>,
     /// The data it was fitted to, where not the data given: with the sigmas ordinary least
     /// squares takes, or a feasible GLS round's.
     pub(super) fitted_on: Option<KindData>,
     /// The spread the priors weighed against ([`prior_spread`]), in the assumed sigmas.
-    spread: Option<f64>,
+    pub(super) spread: Option<f64>,
     /// What the gauge found at the estimate changed.
-    change: Option<Warning>,
+    pub(super) change: Option<Warning>,
 }
 
-impl Unscored {
-    /// The calibration scored on the data it was fitted to (`data`, where
-    /// [`Unscored::fitted_on`] does not hold others), and its warnings, as [`calibrate_kinds`]
-    /// gives it.
+impl<R: Robot> Unscored<R> {
+    /// The calibration scored on the rows it was fitted to (`data`, where
+    /// [`Unscored::fitted_on`] does not hold others), and its warnings (the poses outside the
+    /// limits of the robot `(name, joints)` among them), as [`calibrate_kinds`] gives it.
     pub(super) fn scored(
         self,
-        model: &RobotModel,
+        (name, joints): (&str, &[Joint]),
         data: &KindData,
-    ) -> Result<KindCalibration, CalibrationError> {
+    ) -> Result<Calibration<R>, CalibrationError> {
         let Unscored { mut calibration, fitted_on, spread, change } = self;
         let data = fitted_on.as_ref().unwrap_or(data);
         scored(&mut calibration, data, spread)?;
-        calibration.warnings.extend(Warning::outside_limits(&model.name, &model.joints, data.pose_lines()));
+        calibration.warnings.extend(Warning::outside_limits(name, joints, data.pose_lines()));
         calibration.warnings.extend(noise_check(&calibration, data));
         calibration.warnings.extend(change);
         calibration.warnings.extend(super::ill_conditioned(&calibration.refined));
@@ -2294,6 +2370,7 @@ pub(super) fn fit_kinds(
         tip_frame,
         joint_noise: options.joint_noise.clone(),
         chains,
+        branches: false,
         noise_estimate: None,
         noise_settled: None,
     };
@@ -2309,7 +2386,7 @@ pub(super) fn fit_kinds(
 /// without a noise given (every sigma assumed and the joints exact: the residuals' spread
 /// scales the fit instead), or with too few residuals to tell. Under a robust loss too: the
 /// points far out are left out of the check ([`without_outliers`]) as the loss leaves them out.
-fn noise_check(c: &KindCalibration, data: &KindData) -> Option<Warning> {
+fn noise_check<R: Robot>(c: &Calibration<R>, data: &KindData) -> Option<Warning> {
     let assumed = c.joint_noise.is_none() && data.assumed_sigmas == data.observations.len();
     if assumed {
         return None;
@@ -2317,12 +2394,14 @@ fn noise_check(c: &KindCalibration, data: &KindData) -> Option<Warning> {
     let stride = data.joints.len().div_ceil(CHECK_POSES).max(1);
     let sample = data.keeping(|o| o.pose() % stride == 0);
     let (kept, kept_setup) = c.estimated();
-    let markers: Vec<usize> = c.markers.iter().map(|m| m.0).collect();
-    let (x, s) = (c.after.clone(), c.setup_values.1.clone());
-    let problem = KindProblem::of_points(&c.chains, &markers, &kept, &sample, &c.setup, x, s, kept_setup)
-        .with_noise(c.joint_noise.as_ref());
+    let problem = c.problem_at_estimate(&sample, &kept, kept_setup, c.joint_noise.as_ref());
     let robot: Vec<f64> = kept.indices().iter().map(|&i| c.prior_sd[i]).collect();
-    check_noise(&problem, Observation::error_share, &robot)
+    // A tree's view's position is one error (a marker's is), its rotation none.
+    let view_share = |o: &Observation| if o.is_angle() { 0.0 } else { 1.0 / 3.0 };
+    match c.branches {
+        true => check_noise(&problem, view_share, &robot),
+        false => check_noise(&problem, Observation::error_share, &robot),
+    }
 }
 
 /// The check of the noise `problem` was weighted by ([`check`]) at its start (a calibration's
@@ -2878,17 +2957,19 @@ pub(super) struct Gauged {
     pub(super) data_alone: Option<crate::estimation::Diagnostics>,
 }
 
-/// `calibration` scored on its training `data`; with every sigma assumed and the joints exact,
-/// the covariance and the whitening scaled by the residuals' variance of unit weight
-/// `f = sum z_k^2 / (N - rank)` (`z_k` whitened by the assumed sigmas), as ordinary least
+/// `calibration` scored on its training `data` (its rows); with every sigma assumed and the
+/// joints exact, the covariance and the whitening scaled by the residuals' variance of unit
+/// weight `f = sum z_k^2 / (N - rank)` (`z_k` whitened by the assumed sigmas), as ordinary least
 /// squares without a noise model takes it, or with priors by `f = spread^2`, the spread (in
-/// the assumed sigmas) they weighed against ([`prior_spread`]); then its warnings.
-fn scored(
-    calibration: &mut KindCalibration,
+/// the assumed sigmas) they weighed against ([`prior_spread`]); then its warnings: estimates
+/// past a physical bound, an unconverged fit, the training observations (a tree's views) more
+/// than [`FLAG_AT`] standard deviations out.
+pub(super) fn scored<R: Robot>(
+    calibration: &mut Calibration<R>,
     data: &KindData,
     spread: Option<f64>,
 ) -> Result<(), CalibrationError> {
-    calibration.training = calibration.score(data)?;
+    calibration.training = calibration.score_rows(data)?;
     let (n, rank) = (data.observations.len(), calibration.refined.estimate.diagnostics.rank);
     if calibration.joint_noise.is_none() && data.assumed_sigmas == n && n > rank {
         let sum: f64 = calibration.training.observations.iter().map(|r| r.whitened * r.whitened).sum();
@@ -2899,18 +2980,28 @@ fn scored(
         let training = std::mem::take(&mut calibration.training);
         calibration.training = training.whitened_by(f, data);
     }
-    let se = super::standard_errors_of(calibration.params.iter(), &calibration.refined.estimate);
-    let (before, after) = (&calibration.before, &calibration.after);
-    calibration.warnings =
-        super::implausible(calibration.params.iter(), (before, after), &se, Some(&calibration.calibrated));
-    calibration.warnings.extend(super::not_converged(&calibration.refined));
-    let far_out = (calibration.training.flagged()).map(|(index, r)| FarOut {
-        index,
-        line: r.line,
-        label: Some(r.label()),
-        sd: r.whitened,
+    let c = &*calibration;
+    let se = super::standard_errors_of(c.params.iter(), &c.refined.estimate);
+    let mut warnings = super::implausible(c.params.iter(), (&c.before, &c.after), &se, c.calibrated.arm());
+    warnings.extend(super::not_converged(&c.refined));
+    warnings.extend(match c.branches {
+        true => Warning::far_out(
+            Scored::View,
+            (c.training.views.iter().enumerate())
+                .filter(|(_, v)| v.whitened > FLAG_AT)
+                .map(|(index, v)| FarOut { index, line: v.line, label: None, sd: v.whitened }),
+        ),
+        false => Warning::far_out(
+            Scored::Observation,
+            (c.training.flagged()).map(|(index, r)| FarOut {
+                index,
+                line: r.line,
+                label: Some(r.label()),
+                sd: r.whitened,
+            }),
+        ),
     });
-    calibration.warnings.extend(Warning::far_out(Scored::Observation, far_out));
+    calibration.warnings = warnings;
     Ok(())
 }
 

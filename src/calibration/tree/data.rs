@@ -177,10 +177,9 @@ impl TreeData {
     /// Refuse views that do not fit (for data built by hand rather than read): a pose or a
     /// frame that does not exist, joint values not one finite value per tree joint, a view not
     /// finite, a sigma not finite and above 0, a view whose camera and target are on one
-    /// branch, a line missing.
-    pub fn check(&self, params: &super::TreeParams) -> Result<(), CalibrationError> {
+    /// branch, a line missing; `dof` the tree's joints, `branches` its branches.
+    pub fn check(&self, dof: usize, branches: usize) -> Result<(), CalibrationError> {
         let bad = |what: String| Err(CalibrationError::Observations(what));
-        let dof = params.dof();
         if self.lines.len() != self.views.len() {
             return bad(format!("{} lines for {} views", self.lines.len(), self.views.len()));
         }
@@ -188,7 +187,7 @@ impl TreeData {
             return bad(format!("pose {k}: expected {dof} finite joint values"));
         }
         crate::calibration::kinds::check_sessions(&self.sessions)?;
-        if let Some(f) = self.frames.iter().position(|f| f.on.is_some_and(|b| b >= params.branches())) {
+        if let Some(f) = self.frames.iter().position(|f| f.on.is_some_and(|b| b >= branches)) {
             return bad(format!("frame {f}: on a branch the tree does not have"));
         }
         for (view, line) in self.views.iter().zip(&self.lines) {

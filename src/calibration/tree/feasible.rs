@@ -5,15 +5,13 @@
 //! `V_k = G_k Sigma_q G_k^T + diag(sigma_p^2 I, sigma_r^2 I)`, `G_k` the derivative of its six
 //! rows by the tree's joints (both its frames moved by their branches).
 
-use super::{KindOptions, TreeCalibration, TreeData, TreeRows, calibrate_tree};
+use super::{KindOptions, TreeCalibration, TreeData, calibrate_tree};
+use crate::calibration::kinds::residual_noise;
 use crate::calibration::{
-    CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
+    CalibrationError, FeasibleOptions, Loss, Reweighted, Warning, reweighted, unsettled,
 };
-use crate::estimation::{
-    Estimator, HeldRows, MeasurementClass, NoiseEstimate, Residuals, Weights, residual_samples,
-};
+use crate::estimation::{Estimator, MeasurementClass, NoiseEstimate};
 use crate::model::RobotTree;
-use nalgebra::DMatrix;
 
 /// Feasible GLS of a tree's views: calibrate by ordinary least squares, fit the tree's joint
 /// variances (or every entry of `Sigma_q`) and the views' position (mm) and rotation (rad)
@@ -48,8 +46,9 @@ pub fn calibrate_tree_feasible(
             calibrate_tree(tree, &with_estimated_sigmas(data, e), &weighted)
         }
     };
+    let rows = data.observations(&data.frames);
     let estimate = |c: &TreeCalibration, previous: Option<&NoiseEstimate>| {
-        residual_noise(c, data, (tree.dof(), feasible.joints), previous)
+        residual_noise(c, &rows, feasible.joints, previous)
     };
     let rounds = reweighted(feasible, calibrate, estimate)?;
     let warning = unsettled(feasible, &rounds);
@@ -63,7 +62,7 @@ pub fn calibrate_tree_feasible(
 
 /// `data` with every view's sigmas the estimate's ([`NoiseEstimate::weighting_sigma`]; its own
 /// where the estimate has none).
-pub(super) fn with_estimated_sigmas(data: &TreeData, estimate: &NoiseEstimate) -> TreeData {
+fn with_estimated_sigmas(data: &TreeData, estimate: &NoiseEstimate) -> TreeData {
     // The sigmas estimated, no longer assumed.
     let mut data = TreeData { assumed_sigmas: false, ..data.clone() };
     for view in &mut data.views {
@@ -76,31 +75,4 @@ pub(super) fn with_estimated_sigmas(data: &TreeData, estimate: &NoiseEstimate) -
         }
     }
     data
-}
-
-/// The variance components fitted to the residuals of `c` on its training `data` (`dof` tree
-/// joints), each view one sample: calibrated by ordinary least squares without `previous`,
-/// else weighted with it (where the fit of the components starts).
-fn residual_noise(
-    c: &TreeCalibration,
-    data: &TreeData,
-    (dof, joints): (usize, JointComponents),
-    previous: Option<&NoiseEstimate>,
-) -> Result<NoiseEstimate, CalibrationError> {
-    let (selection, setup_selection) = super::noise_check::estimated(c);
-    let weighted = previous.map(|e| with_estimated_sigmas(data, e));
-    let data = weighted.as_ref().unwrap_or(data);
-    let noise = previous.map(NoiseEstimate::joint_covariance);
-    let (x, s) = (c.after.clone(), c.setup_values.1.clone());
-    let observed = TreeRows::new(&c.params, data, &c.frames)?;
-    let selection = c.params.selection(&selection);
-    let problem = c.problem_on(&observed.rows, &selection, (x, s, setup_selection), noise.as_ref());
-    let estimator = if previous.is_some() { Estimator::Wls } else { Estimator::Ols };
-    let weights = Weights::for_problem(&problem, estimator)?;
-    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
-    let y = problem.evaluate(&problem.start(), Some(&mut h));
-    let (layout, classes) = problem.noise_layout();
-    let samples = residual_samples(&HeldRows { h: &h, y: &y }, &weights, &layout, joints)?;
-    drop((h, y, weights, layout));
-    Ok(NoiseEstimate::fit(&samples, joints, dof, classes, previous)?)
 }

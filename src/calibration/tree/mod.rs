@@ -52,18 +52,20 @@
 
 mod data;
 mod feasible;
-mod noise_check;
 
 pub use data::{Frame, Role, TreeData, View};
 pub use feasible::calibrate_tree_feasible;
 
 use super::kinds::camera::{camera_start, isometry, placement};
-use super::kinds::{self, KindData, KindOptions, KindProblem, Prepared, Score, SetUp};
-use super::{CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, RobustFit, Scored, Warning, fold};
-use crate::estimation::{NoiseEstimate, Refined, prior_sds_of};
+use super::kinds::{
+    self, Calibration, KindData, KindOptions, KindProblem, Prepared, Robot, Score, SetUp, Unscored,
+};
+use super::{CalibrationError, Gauge, Held, JointParams, RobustFit, fold};
+use crate::estimation::prior_sds_of;
 use crate::kinematics::{Chain, ChainAt};
 use crate::model::{ParamInfo, ParamOwner, ParamSet, Placement, RobotTree, Selection, SelectionError};
-use nalgebra::{DMatrix, DVector, Isometry3, Vector3};
+use nalgebra::{DMatrix, Isometry3, Vector3};
+use std::borrow::Cow;
 
 /// The tree's error parameters: the base's, then each joint's once (named after it), and how
 /// each branch's parameters map onto them.
@@ -227,23 +229,21 @@ impl TreeParams {
 
 /// A tree's views on the one observation problem ([`KindProblem::of_branches`]): their rows
 /// ([`TreeData::observations`]), the set-up of the cameras' and targets' placements (6
-/// parameters each, [`SetUp::with_views`]) and the selection of no tree parameter, which the
-/// problems borrow.
+/// parameters each, [`SetUp::with_views`]), which the problems borrow.
 pub struct TreeRows {
     /// The views' rows.
     pub rows: KindData,
     /// The cameras' and targets' placements.
     pub setup: SetUp,
-    nothing: Selection,
 }
 
 impl TreeRows {
     /// The views of `data` (checked against `params`) with the frames `frames` (the data's,
     /// or a calibration's that has every one of the data's).
     pub fn new(params: &TreeParams, data: &TreeData, frames: &[Frame]) -> Result<Self, CalibrationError> {
-        data.check(params)?;
+        data.check(params.dof(), params.branches())?;
         let setup = SetUp::new(0, &[]).with_views(frames.to_vec(), params.tips.clone());
-        Ok(Self { rows: data.observations(frames), setup, nothing: params.selection(&[]) })
+        Ok(Self { rows: data.observations(frames), setup })
     }
 
     /// The problem estimating `selection` (of `params`) and, of the `values` `(fixed,
@@ -316,54 +316,36 @@ pub fn cross_validate_tree_by(
     Ok(Score::of(super::in_data_order(scored, &fold_of, folds), &rows.observations))
 }
 
-/// A tree calibrated from camera views.
-#[derive(Debug, Clone)]
-pub struct TreeCalibration {
-    /// The tree as calibrated: the estimates folded into its joints ([`TreeParams::fold`]).
-    pub calibrated: RobotTree,
-    /// The tree's parameters.
-    pub params: TreeParams,
-    /// The tree's parameter errors after the calibration (before: all zero).
-    pub after: Vec<f64>,
-    /// The cameras and targets ([`Frame::name`]).
-    pub frames: Vec<Frame>,
-    /// Their placements' set-up ([`SetUp::with_views`]), over the training sessions where some
-    /// are per session ([`KindOptions::per_session`]).
-    pub setup: SetUp,
-    /// Their placements `(x, y, z, rx, ry, rz)` (mm, rad), 6 per frame, then each later
-    /// session's per-session ones ([`SetUp::slot`]), fitted with the tree nominal ("before")
-    /// and with the tree calibrated ("after").
-    pub setup_values: (Vec<f64>, Vec<f64>),
-    /// The refined estimate (names, values, covariance, diagnostics).
-    pub refined: Refined,
-    /// What the views cannot see, in words: held and reported.
-    pub unseen: Vec<String>,
-    /// What was held and why: unseen, combinations the poses cannot tell apart.
-    pub fixed: Vec<Held>,
-    /// The training views scored, before and after.
-    pub training: Score,
-    /// Implausible results, one per cause: joint lengths corrected by more than 10 mm, training
-    /// views more than [`FLAG_AT`] standard deviations out after calibration.
-    pub warnings: Vec<Warning>,
-    /// With a robust loss: its final weights, one per view (its pose's: a pose's views are
-    /// one block).
-    pub robust: Option<RobustFit>,
-    /// Feasible GLS ([`calibrate_tree_feasible`]): the noise estimated from the residuals, the
-    /// tree's joints' and the views' position and rotation sigmas, with which it was weighted.
-    pub noise_estimate: Option<NoiseEstimate>,
-    /// Feasible GLS: whether its variance components settled.
-    pub noise_settled: Option<bool>,
-    /// When no view gave its sigmas (the defaults assumed) and the joints are exact: the
-    /// variance of unit weight `f = sum z_i^2 / (N - rank)` of the training residuals (`z_i`
-    /// a row whitened by its assumed sigma), by which the covariance and the whitening are
-    /// scaled (standard errors from the residuals' spread); `None` when the noise was given.
-    pub variance_factor: Option<f64>,
-    /// The prior standard deviation of each of the tree's parameters (infinite: none).
-    pub prior_sd: Vec<f64>,
-    joint_noise: Option<DMatrix<f64>>,
+/// A tree calibrated from camera views: its `calibrated` the tree with the estimates folded
+/// into its joints ([`TreeParams::fold`]), its set-up the cameras' and targets' placements
+/// ([`SetUp::with_views`], `(x, y, z, rx, ry, rz)` mm and rad, 6 per frame, then each later
+/// session's own: [`SetUp::slot`]); "before" the nominal tree (its errors all zero).
+pub type TreeCalibration = Calibration<RobotTree>;
+
+impl Robot for RobotTree {
+    type Data = TreeData;
+
+    /// The views of `data`, each a camera observation between the calibration's frames (every
+    /// camera and target of `data` must be one of them).
+    fn rows<'d>(c: &TreeCalibration, data: &'d TreeData) -> Result<Cow<'d, KindData>, CalibrationError> {
+        if let Some(frame) = data.frames.iter().find(|f| !c.frames().contains(f)) {
+            return Err(CalibrationError::Scoring(format!(
+                "{}: not a camera or target of the calibration ({})",
+                frame.name(c.setup.tips()),
+                c.frame_names().join(", ")
+            )));
+        }
+        data.check(c.calibrated.dof(), c.calibrated.branches.len())?;
+        Ok(Cow::Owned(data.observations(c.frames())))
+    }
 }
 
 impl TreeCalibration {
+    /// The cameras and targets ([`Frame::name`]).
+    pub fn frames(&self) -> &[Frame] {
+        self.setup.frames()
+    }
+
     /// The placement of frame `f` as calibrated (in the first session).
     pub fn frame(&self, f: usize) -> Isometry3<f64> {
         self.frame_in(f, 0)
@@ -374,82 +356,9 @@ impl TreeCalibration {
         isometry(&self.setup.session_values(&self.setup_values.1, session)[6 * f..6 * f + 6])
     }
 
-    /// `data` scored before and after: its views' residuals with the frames as calibrated
-    /// (every camera and target of `data` must be one of the calibration's), whitened by
-    /// `V_k f` with [`TreeCalibration::variance_factor`] `f` where the noise was assumed.
-    pub fn score(&self, data: &TreeData) -> Result<Score, CalibrationError> {
-        let estimated = self.noise_estimate.as_ref().map(|e| feasible::with_estimated_sigmas(data, e));
-        let data = estimated.as_ref().unwrap_or(data);
-        // Every view's frames among the calibration's.
-        if let Some(frame) = data.frames.iter().find(|f| !self.frames.contains(f)) {
-            return Err(CalibrationError::Scoring(format!(
-                "{}: not a camera or target of the calibration ({})",
-                frame.name(&self.params.tips),
-                self.frame_names().join(", ")
-            )));
-        }
-        let observed = TreeRows::new(&self.params, data, &self.frames)?;
-        let (rows, nothing) = (&observed.rows, &observed.nothing);
-        // The set-up of `data`'s sessions: the training session's of each one's name, else
-        // fitted on it with the tree held.
-        let zero = vec![0.0; self.params.len()];
-        let branches = (self.params.chains.as_slice(), (Vec::new(), true), nothing);
-        let fitted = (&self.setup, &self.setup_values);
-        let (setup, values, sessions) = kinds::setup_for(fitted, (&zero, &self.after), branches, rows)?;
-        let problem = |x: &[f64], s: &[f64]| {
-            let values = (x.to_vec(), s.to_vec(), Vec::new());
-            KindProblem::of_branches(&self.params.chains, nothing, rows, &setup, values)
-        };
-        let nothing = DVector::zeros(0);
-        let before = problem(&zero, &values.0).residuals(&nothing);
-        let after_problem = problem(&self.after, &values.1);
-        // The weights only whiten the residuals after: the joint noise is for those alone; the
-        // assumed sigmas scaled by the residuals' spread, when they were.
-        let factor = self.variance_factor.unwrap_or(1.0);
-        let variances: Vec<f64> =
-            after_problem.variances(self.joint_noise.as_ref()).into_iter().map(|d| d * factor).collect();
-        let after = after_problem.residuals(&nothing);
-        Ok(Score { sessions, ..Score::new(rows, (&before, &after), &variances) })
-    }
-
-    /// Estimates past a physical bound (a joint length corrected by more than 10 mm: a wrong
-    /// model or wrong units; an angle by more than 5 deg), an unconverged fit, and training
-    /// views whose residual is more than [`FLAG_AT`] standard deviations out.
-    fn warnings(&self) -> Vec<Warning> {
-        let before = vec![0.0; self.after.len()];
-        let se = super::standard_errors_of(self.params.params.iter(), &self.refined.estimate);
-        let mut out = super::implausible(self.params.params.iter(), (&before, &self.after), &se, None);
-        out.extend(super::not_converged(&self.refined));
-        let far_out = (self.training.views.iter().enumerate())
-            .filter(|(_, v)| v.whitened > FLAG_AT)
-            .map(|(index, v)| FarOut { index, line: v.line, label: None, sd: v.whitened });
-        out.extend(Warning::far_out(Scored::View, far_out));
-        out
-    }
-
-    /// The problem of `rows` (views of this calibration's frames) on its branches and its
-    /// set-up (over its training sessions), estimating `selection` and, of the `values`
-    /// `(fixed, setup_values, setup_selection)`, the placements `setup_selection`; `V_k` with
-    /// `joint_noise`.
-    fn problem_on<'a>(
-        &'a self,
-        rows: &'a KindData,
-        selection: &'a Selection,
-        values: (Vec<f64>, Vec<f64>, Vec<usize>),
-        joint_noise: Option<&DMatrix<f64>>,
-    ) -> KindProblem<'a> {
-        KindProblem::of_branches(&self.params.chains, selection, rows, &self.setup, values)
-            .with_noise(joint_noise)
-    }
-
     /// The frames' names.
     pub fn frame_names(&self) -> Vec<String> {
-        self.frames.iter().map(|f| f.name(&self.params.tips)).collect()
-    }
-
-    /// The joint noise the calibration weighted by, if any.
-    pub fn joint_noise(&self) -> Option<&DMatrix<f64>> {
-        self.joint_noise.as_ref()
+        self.frames().iter().map(|f| f.name(self.setup.tips())).collect()
     }
 }
 
@@ -652,54 +561,31 @@ pub fn calibrate_tree(
     // A pose's weight is each of its views' (every row of a view has it).
     let robust =
         robust.map(|r| RobustFit { weights: r.weights.iter().step_by(data.rows()).copied().collect(), ..r });
-    let mut calibration = TreeCalibration {
+    let calibration = Calibration {
         calibrated: params.fold(tree, &after),
+        before: vec![0.0; after.len()],
         after,
-        frames: data.frames.clone(),
         setup_values: (before_setup, after_setup),
         refined,
         unseen: vec![base_unseen(&params, data)],
         fixed: prepared.every_held(fixed),
         training: Score::default(),
         setup: prepared.setup.clone(),
-        warnings: Vec::new(),
+        markers: Vec::new(),
+        variance_factor: None,
+        registered_base: None,
+        tip_frame: None,
+        joint_noise: options.joint_noise.clone(),
+        chains: params.chains.clone(),
+        branches: true,
+        nothing: params.selection(&[]),
         robust,
+        prior_sd: prior_sds_of(&options.prior, &params.params.iter().collect::<Vec<_>>())?,
+        warnings: Vec::new(),
         noise_estimate: None,
         noise_settled: None,
-        variance_factor: None,
-        prior_sd: prior_sds_of(&options.prior, &params.params.iter().collect::<Vec<_>>())?,
-        joint_noise: options.joint_noise.clone(),
-        params,
+        params: params.set,
     };
-    scored(&mut calibration, data, spread)?;
-    calibration.warnings = calibration.warnings();
-    let views = data.views.iter().zip(&data.lines).map(|(v, &line)| (line, data.joints[v.pose].as_slice()));
-    calibration.warnings.extend(Warning::outside_limits(&tree.name, &tree.joints, views));
-    calibration.warnings.extend(noise_check::tree_noise_check(&calibration, data));
-    calibration.warnings.extend(change);
-    calibration.warnings.extend(super::ill_conditioned(&calibration.refined));
-    Ok(calibration)
-}
-
-/// `calibration` scored on its training `data`; with every sigma assumed and the joints
-/// exact, the covariance and the whitening scaled by the residuals' variance of unit weight
-/// `f = sum z_i^2 / (N - rank)`, as observation files' are ([`TreeCalibration::variance_factor`]),
-/// or with priors by `f = spread^2`, the spread (in the assumed sigmas) they weighed against.
-fn scored(
-    calibration: &mut TreeCalibration,
-    data: &TreeData,
-    spread: Option<f64>,
-) -> Result<(), CalibrationError> {
-    calibration.training = calibration.score(data)?;
-    let (n, rank) = (calibration.training.observations.len(), calibration.refined.estimate.diagnostics.rank);
-    if calibration.joint_noise.is_none() && data.assumed_sigmas && n > rank {
-        let training = std::mem::take(&mut calibration.training);
-        let sum: f64 = training.observations.iter().map(|r| r.whitened * r.whitened).sum();
-        let f = spread.map_or(sum / (n - rank) as f64, |s| s * s);
-        calibration.refined.estimate.covariance *= f;
-        calibration.variance_factor = Some(f);
-        // As `score` whitens with `V_k f`: each whitened residual over sqrt(f).
-        calibration.training = training.whitened_by(f, &data.observations(&calibration.frames));
-    }
-    Ok(())
+    let unscored = Unscored { calibration, fitted_on: None, spread, change };
+    unscored.scored((&tree.name, &tree.joints), &observed.rows)
 }
