@@ -16,8 +16,7 @@ use crate::design::accuracy::{AccuracyModel, CovarianceError, ParameterCovarianc
 use crate::estimation::Estimator;
 use crate::model::RobotModel;
 use crate::report::calibration::{CrossValidationReport, PredictedAccuracy};
-use crate::report::observations::ObservationsReport;
-use crate::report::tree::TreeReport;
+use crate::report::observations::{ObservationsReport, Reported};
 use std::borrow::Cow;
 
 /// The choices of `choices` as the command line's flags: `--prior auto:fabricated's scale`,
@@ -214,26 +213,13 @@ impl Files for Kinds<'_> {
         calibrate_kinds_feasible(self.0, data, options, feasible)
     }
 
-    /// The report of `chosen`, its training score moved into it (the calibration's left empty).
     fn report(
         chosen: &mut ChosenFit<KindCalibration>,
         (data, names, files): (&KindData, &str, Vec<(String, usize)>),
         estimator: &str,
-        (scores, cv): (Vec<(String, Score)>, Option<CrossValidationReport>),
+        scores: (Vec<(String, Score)>, Option<CrossValidationReport>),
     ) -> ObservationsReport {
-        let training = std::mem::take(&mut chosen.calibration.training);
-        let c = &chosen.calibration;
-        let counts = Self::counts(data);
-        let mut report = ObservationsReport::with_training(c, training, names, counts, estimator, scores);
-        report.cross_validation = cv;
-        report = report.with_training_files(files).with_assumed_sigmas(data.assumed_sigmas);
-        if let Some(path) = &chosen.path {
-            report = report.with_selection(path, c);
-        }
-        match &chosen.scale {
-            Some(scale) => report.with_prior_scale(scale.clone()),
-            None => report,
-        }
+        report_of(chosen, (names, files), (Self::counts(data), data.assumed_sigmas), estimator, scores)
     }
 
     fn with_predicted(
@@ -248,9 +234,34 @@ impl Files for Kinds<'_> {
     }
 }
 
+/// The report of `chosen` (of an arm or a tree), fitted on `(observations, poses)` with
+/// `assumed` observations of no sigma, from the files `names` (each with its observations,
+/// `files`), by `estimator`, with the held-out sets' and the cross-validation's `scores`; its
+/// training score moved into it (the calibration's left empty).
+fn report_of<R: Reported>(
+    chosen: &mut ChosenFit<crate::calibration::kinds::Calibration<R>>,
+    (names, files): (&str, Vec<(String, usize)>),
+    (counts, assumed): ((usize, usize), usize),
+    estimator: &str,
+    (scores, cv): (Vec<(String, Score)>, Option<CrossValidationReport>),
+) -> ObservationsReport {
+    let training = std::mem::take(&mut chosen.calibration.training);
+    let c = &chosen.calibration;
+    let mut report = ObservationsReport::with_training(c, training, names, counts, estimator, scores);
+    report.cross_validation = cv;
+    report = report.with_training_files(files).with_assumed_sigmas(assumed);
+    if let Some(path) = &chosen.path {
+        report = report.with_selection(path, c);
+    }
+    match &chosen.scale {
+        Some(scale) => report.with_prior_scale(scale.clone()),
+        None => report,
+    }
+}
+
 impl Files for Tree<'_> {
     type Score = Score;
-    type Report = TreeReport;
+    type Report = ObservationsReport;
 
     fn join(sessions: &[(String, TreeData)]) -> Result<Cow<'_, TreeData>, FilesError> {
         let mut data = TreeData::default();
@@ -281,23 +292,15 @@ impl Files for Tree<'_> {
         calibrate_tree_feasible(self.0, data, options, feasible)
     }
 
+    /// Its views counted as its observations.
     fn report(
         chosen: &mut ChosenFit<TreeCalibration>,
         (data, names, files): (&TreeData, &str, Vec<(String, usize)>),
         estimator: &str,
-        (scores, cv): (Vec<(String, Score)>, Option<CrossValidationReport>),
-    ) -> TreeReport {
-        let c = &chosen.calibration;
-        let mut report = TreeReport::new(c, names, Self::counts(data), estimator, scores);
-        report.cross_validation = cv;
-        report = report.with_training_files(files);
-        if let Some(path) = &chosen.path {
-            report = report.with_selection(path);
-        }
-        match &chosen.scale {
-            Some(scale) => report.with_prior_scale(scale.clone()),
-            None => report,
-        }
+        scores: (Vec<(String, Score)>, Option<CrossValidationReport>),
+    ) -> ObservationsReport {
+        let assumed = if data.assumed_sigmas { data.views.len() } else { 0 };
+        report_of(chosen, (names, files), (Self::counts(data), assumed), estimator, scores)
     }
 }
 

@@ -14,7 +14,6 @@ use robocal::calibration::selection::{Criterion, DEFAULT_FOLDS};
 use robocal::calibration::{Choices, DataKind, Gauge, JointParams, Kinds, Loss, ParamWords};
 use robocal::estimation::{Estimator, PriorEntry, RefineOptions};
 use robocal::model::{Joint, JointKind, RobotModel};
-use robocal::report::calibration::ParameterRow;
 use robocal::report::observations::ObservationsReport;
 use robocal::table::Units;
 use std::path::Path;
@@ -406,19 +405,19 @@ impl Calibration {
     /// The calibration of `report` (the command line's, text and JSON), its `estimate`'s
     /// covariance, the scored `sets` (the report's, of a chain) and the `calibrated` model (of
     /// a chain) or the calibrated `branches` by tip (of a tree).
-    pub(crate) fn new<R: ReportRows>(
+    pub(crate) fn new(
         py: Python<'_>,
-        report: &R,
+        report: &ObservationsReport,
         estimate: &robocal::estimation::LinearEstimate,
         rank: usize,
         sets: Vec<(String, Score)>,
         calibrated: Option<Model>,
         branches: Vec<(String, Model)>,
     ) -> PyResult<Self> {
-        let rows = report.rows();
+        let rows = &report.parameters;
         Ok(Self {
             text: report.text(),
-            json: report.json(),
+            json: serde_json::to_string_pretty(report).expect("a report serialises") + "\n",
             names: rows.iter().map(|p| p.name.clone()).collect(),
             values: rows.iter().map(|p| p.value).collect(),
             std_errors: rows.iter().map(|p| p.std_error).collect(),
@@ -426,7 +425,7 @@ impl Calibration {
             covariance: estimate.covariance.clone(),
             covariance_names: estimate.names.clone(),
             rank,
-            held: report.held().to_vec(),
+            held: report.fixed.clone(),
             sets,
             calibrated: match calibrated {
                 Some(m) => {
@@ -448,43 +447,6 @@ impl Calibration {
         errors::input("a tree's calibration has a model per branch: see branches")
     }
 }
-
-/// What a [`Calibration`] takes from a report: its parameter rows, its held combinations and
-/// its text.
-pub(crate) trait ReportRows {
-    /// The parameter rows.
-    fn rows(&self) -> &[ParameterRow];
-    /// The combinations held.
-    fn held(&self) -> &[String];
-    /// The report's text.
-    fn text(&self) -> String;
-    /// The report's JSON, as the command line writes it.
-    fn json(&self) -> String;
-}
-
-/// [`ReportRows`] of a report type with `parameters`, `fixed` and `text()`, serialised as the
-/// command line writes it.
-macro_rules! report_rows {
-    ($report:ty) => {
-        impl $crate::calibrate::ReportRows for $report {
-            fn rows(&self) -> &[robocal::report::calibration::ParameterRow] {
-                &self.parameters
-            }
-            fn held(&self) -> &[String] {
-                &self.fixed
-            }
-            fn text(&self) -> String {
-                <$report>::text(self)
-            }
-            fn json(&self) -> String {
-                serde_json::to_string_pretty(self).expect("a report serialises") + "\n"
-            }
-        }
-    };
-}
-pub(crate) use report_rows;
-
-report_rows!(ObservationsReport);
 
 /// A pose set's lines and errors (poses x stages x markers x 3, flattened to poses x
 /// (stages x markers) x 3).

@@ -12,11 +12,8 @@ use robocal::calibration::tree::TreeData;
 use robocal::calibration::{CalibrationError, ParamWords, Tree};
 use robocal::estimation::{Estimator, RefineOptions};
 use robocal::model::RobotTree;
-use robocal::report::tree::TreeReport;
 use robocal::table::Units;
 use std::path::Path;
-
-crate::calibrate::report_rows!(TreeReport);
 
 /// `Sigma_q` of the tree's joints (rad², mm²) from `sigmas` in `units` (the joint unit, the
 /// length unit for prismatic joints): one per joint, or one for all.

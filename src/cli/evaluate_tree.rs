@@ -14,7 +14,7 @@ use serde::Serialize;
 use std::fmt::Write;
 
 /// Views listed per file in the text, the worst first (as the tree's calibration report).
-const WORST: usize = robocal::report::tree::WORST;
+const WORST: usize = robocal::report::observations::WORST;
 
 /// What `evaluate` reports of a tree: its name, branches and joints, each file scored.
 #[derive(Serialize)]

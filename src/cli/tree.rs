@@ -72,7 +72,8 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
                 (format!("{}.toml", b.tip), robocal::model::to_toml_with_markers(&model, &[]))
             })
             .collect();
-        files.push(("frames.json".to_string(), serde_json::to_string_pretty(&report.frames)? + "\n"));
+        let frames = report.tree.as_ref().map_or(&[][..], |t| t.frames.as_slice());
+        files.push(("frames.json".to_string(), serde_json::to_string_pretty(frames)? + "\n"));
         outputs.add_folder(folder, &files);
     }
     super::commit(outputs)

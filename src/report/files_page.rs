@@ -1,5 +1,5 @@
-//! The report of a calibration from observation files ([`ObservationsReport`]) or from a
-//! tree's views ([`TreeReport`]) as a designed, self-contained page, as
+//! The report of a calibration from observation files or from a tree's views
+//! ([`ObservationsReport`]) as a designed, self-contained page, as
 //! [`calibration_page`](super::calibration_page) makes the marker report's: the verdict as a
 //! card (the text's verdict rows: each set's errors before and after calibration by quantity,
 //! counted and flagged; the warnings by cause), the parameters with their 95% intervals drawn, the choices made from the data (a
@@ -12,7 +12,6 @@ use super::calibration_page::{held_section, parameter_table, prior_scale, select
 use super::html::{Cell, Row, escape, table};
 use super::observations::ObservationsReport;
 use super::residuals::ResidualSet;
-use super::tree::TreeReport;
 use super::verdict::{QuantityRow, WarningCount};
 use crate::calibration::{Held, Warning};
 use std::fmt::Write;
@@ -229,4 +228,4 @@ macro_rules! files_page_of {
     )*};
 }
 
-files_page_of!(ObservationsReport, TreeReport);
+files_page_of!(ObservationsReport);

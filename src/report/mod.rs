@@ -14,7 +14,6 @@ pub mod observations;
 pub mod replication;
 pub mod residuals;
 pub mod study;
-pub mod tree;
 pub mod verdict;
 
 use crate::model::{JointKind, RobotModel, degrees};

@@ -1,19 +1,23 @@
-//! The report of a calibration from distances, contacts and coordinates
-//! ([`crate::calibration::kinds`]): parameters with their standard errors (the set-up's too),
-//! what the observations cannot see, the RMS residuals before and after on the training and
-//! the held-out files, the worst observations and those flagged. Text and JSON carry the same
-//! content.
+//! The report of every calibration ([`Calibration`]): of an arm from markers, a probe,
+//! distances, contacts, coordinates and cameras' views ([`crate::calibration::kinds`]), or of a
+//! tree from views between its branches ([`crate::calibration::tree`]). Parameters with their
+//! standard errors (the set-up's too), what the observations cannot see, the RMS residuals
+//! before and after on the training and the held-out files, the worst observations (a tree's
+//! views) and those flagged; a tree's cameras and targets as calibrated. Text and JSON carry
+//! the same content.
 
 use super::calibration::{DownWeighted, ParameterRow, by_number};
 use super::verdict::QuantityRow;
 use crate::calibration::Warning;
 use crate::calibration::kinds::{
-    DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG, DEFAULT_SIGMA_MM, GroupRms,
-    KindCalibration, Score, SessionSetUp,
+    Calibration, DEFAULT_CAMERA_SIGMA_DEG, DEFAULT_CAMERA_SIGMA_MM, DEFAULT_SIGMA_ANGLE_DEG,
+    DEFAULT_SIGMA_MM, GroupRms, Robot, Score, SessionSetUp, ViewResidual,
 };
 use crate::calibration::prior_scale::PriorScale;
 use crate::calibration::selection::SelectionPath;
+use crate::calibration::tree::TreeCalibration;
 use crate::estimation::{Estimator, POSE_SIGMAS};
+use crate::model::{Joint, RobotModel, RobotTree};
 use serde::Serialize;
 use std::cmp::Ordering;
 use std::fmt::Write;
@@ -34,9 +38,12 @@ pub struct ObservationsReport {
     pub verdict: Vec<super::verdict::QuantityRow>,
     /// The model's name.
     pub model: String,
+    /// A tree's: its branches, its joints, and its cameras and targets as calibrated.
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    pub tree: Option<TreeParts>,
     /// The observation files.
     pub data: String,
-    /// Observations fitted.
+    /// Observations fitted (a tree's: views).
     pub observations: usize,
     /// Poses they were made at.
     pub poses: usize,
@@ -130,6 +137,92 @@ pub struct ObservationsReport {
     pub sets: Vec<(String, Score)>,
 }
 
+/// A tree's parts of the report ([`ObservationsReport::tree`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct TreeParts {
+    /// Its branches' tip links.
+    pub branches: Vec<String>,
+    /// Its joints, in the order of the view files' columns and of `--joint-sigma-deg`.
+    pub joints: Vec<String>,
+    /// The cameras and targets as calibrated.
+    pub frames: Vec<FrameRow>,
+}
+
+/// A camera or target as calibrated: its placement in its tip link's frame (or the root
+/// link's, for `world`).
+#[derive(Debug, Clone, Serialize)]
+pub struct FrameRow {
+    /// `camera.head_camera`, `target.l_hand`; a later session's own `@` its name.
+    pub name: String,
+    /// Position (mm).
+    pub xyz_mm: [f64; 3],
+    /// Roll, pitch, yaw (deg; `R = Rz(yaw) Ry(pitch) Rx(roll)`).
+    pub rpy_deg: [f64; 3],
+}
+
+/// What the report reads of the robot calibrated ([`Robot`]): its name and joints, and a
+/// tree's parts.
+pub trait Reported: Robot {
+    /// Its name.
+    fn name(&self) -> &str;
+
+    /// Its joints.
+    fn joints(&self) -> &[Joint];
+
+    /// A tree's parts of the report of `c`; `None` for an arm.
+    fn tree_parts(_c: &Calibration<Self>) -> Option<TreeParts> {
+        None
+    }
+}
+
+impl Reported for RobotModel {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn joints(&self) -> &[Joint] {
+        &self.joints
+    }
+}
+
+impl Reported for RobotTree {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn joints(&self) -> &[Joint] {
+        &self.joints
+    }
+
+    fn tree_parts(c: &TreeCalibration) -> Option<TreeParts> {
+        Some(TreeParts {
+            branches: c.calibrated.branches.iter().map(|b| b.tip.clone()).collect(),
+            joints: c.calibrated.joints.iter().map(|j| j.name.clone()).collect(),
+            frames: frame_rows(c),
+        })
+    }
+}
+
+/// Each frame's placement after calibration: xyz (mm) and roll, pitch, yaw (deg); then, with
+/// per-session placements, each later session's frames that are its own, `@` its name.
+fn frame_rows(c: &TreeCalibration) -> Vec<FrameRow> {
+    let names = c.frame_names();
+    let per_session = c.setup.per_session();
+    let own = |f: usize| (6 * f..6 * f + 6).any(|i| per_session.contains(&i));
+    let later = (1..c.setup.session_count())
+        .flat_map(|k| (0..names.len()).filter(move |&f| own(f)).map(move |f| (f, k)))
+        .map(|(f, k)| (f, k, format!("{}@{}", names[f], c.setup.session_names()[k])));
+    let first = (0..names.len()).map(|f| (f, 0, names[f].clone()));
+    (first.chain(later))
+        .map(|(f, session, name)| {
+            let placement = c.frame_in(f, session);
+            let (roll, pitch, yaw) = placement.rotation.euler_angles();
+            let t = placement.translation.vector;
+            FrameRow { name, xyz_mm: [t.x, t.y, t.z], rpy_deg: [roll, pitch, yaw].map(f64::to_degrees) }
+        })
+        .collect()
+}
+
 /// What the report's two fits are, in words: "before" (the set-up and the points on the last
 /// link fitted with the joints nominal) and "after" (the calibration).
 #[derive(Debug, Clone, Serialize)]
@@ -145,10 +238,13 @@ pub struct Fits {
 impl Fits {
     /// The fits of `c` by `estimator`: with markers the base, the markers and the set-up by
     /// ordinary least squares whatever the estimator (it minimises the very errors reported),
-    /// else the set-up and the tool point by the estimator's weights, the joints nominal; after,
-    /// every parameter asked for that the observations (and the priors) identify.
-    fn of(c: &KindCalibration, estimator: &str) -> Self {
+    /// else the set-up and the tool point (a tree's cameras and targets) by the estimator's
+    /// weights, the joints nominal; after, every parameter asked for that the observations (and
+    /// the priors) identify.
+    fn of<R: Reported>(c: &Calibration<R>, estimator: &str) -> Self {
+        let tree = R::tree_parts(c).is_some();
         let before = match (c.markers.is_empty(), c.setup.names().is_empty()) {
+            _ if tree => format!("cameras and targets fitted by {estimator}, the tree's joints nominal"),
             (false, true) => {
                 "base and markers fitted by ols (unweighted), joints nominal, whatever the estimator".into()
             }
@@ -168,7 +264,14 @@ impl Fits {
                 false => "that the observations identify",
             }
         );
-        Self { before, after, flagged: flag_rule() }
+        let flagged = match tree {
+            true => format!(
+                "a view whose rows' largest whitened residual exceeds {} standard deviations",
+                crate::calibration::FLAG_AT
+            ),
+            false => flag_rule(),
+        };
+        Self { before, after, flagged }
     }
 }
 
@@ -184,7 +287,7 @@ fn flag_rule() -> String {
 /// `text` with the points on the last link named as the files name them: each marker by its
 /// number (`marker1.x` of markers 2 and 3 is `marker2.x`) and the tool point, the point after
 /// them (the first without markers), `tool.x`, in every fit.
-fn point_names(text: &str, c: &KindCalibration) -> String {
+fn point_names<R>(text: &str, c: &Calibration<R>) -> String {
     let tool = format!("marker{}.", c.markers.len() + 1);
     let text: Vec<String> = text
         .split(' ')
@@ -237,9 +340,34 @@ fn set_rows(name: &str, score: &Score) -> Vec<QuantityRow> {
     (lengths.into_iter().map(group)).chain(all).chain(each).chain(angles.into_iter().map(group)).collect()
 }
 
+/// A tree's set's rows of the verdict ([`QuantityRow`]): its view positions (mm) and
+/// rotations (deg), the norms of their residuals, the views flagged as the warnings flag them
+/// (the largest whitened residual beyond [`FLAG_AT`](crate::calibration::FLAG_AT)) on the
+/// position's row.
+fn view_rows(name: &str, score: &Score) -> Vec<QuantityRow> {
+    let largest = |f: &dyn Fn(&ViewResidual) -> f64| score.views.iter().map(f).fold(0.0, f64::max);
+    let row = |unit, rms: (f64, f64), max: [f64; 2], flagged| QuantityRow {
+        set: name.to_string(),
+        quantity: String::new(),
+        unit,
+        count: score.views.len(),
+        rms: [rms.0, rms.1],
+        max,
+        flagged,
+    };
+    let flagged = score.views.iter().filter(|v| v.whitened > crate::calibration::FLAG_AT).count();
+    let max = [largest(&|v| v.before_mm), largest(&|v| v.after_mm)];
+    let mut rows = vec![row("mm", score.view_position.unwrap_or_default(), max, Some(flagged))];
+    if let Some(rms) = score.view_rotation {
+        let max = [largest(&|v| v.before_deg.unwrap_or(0.0)), largest(&|v| v.after_deg.unwrap_or(0.0))];
+        rows.push(row("deg", rms, max, None));
+    }
+    rows
+}
+
 /// The rows of `c`'s estimated parameters, the robot's then the set-up's, in degrees and
 /// millimetres, with each prior's SD and the posterior / prior SD ratio where there is one.
-fn parameter_rows(c: &KindCalibration) -> Vec<ParameterRow> {
+fn parameter_rows<R>(c: &Calibration<R>) -> Vec<ParameterRow> {
     let se = c.refined.estimate.standard_errors();
     let setup = c.setup.names();
     (c.refined.estimate.names.iter().enumerate())
@@ -271,12 +399,12 @@ fn parameter_rows(c: &KindCalibration) -> Vec<ParameterRow> {
 
 /// The training poses `c`'s robust loss weighted below 0.1, by the line of each pose's first
 /// observation (a pose's observations come together, each with the pose's weight) in
-/// `training` (`c`'s training score).
-fn down_weighted(c: &KindCalibration, training: &Score) -> Vec<DownWeighted> {
+/// `training` (`c`'s training score); a tree's views, one weight each, by their lines.
+fn down_weighted<R>(c: &Calibration<R>, training: &Score, tree: bool) -> Vec<DownWeighted> {
     c.robust.as_ref().map_or_else(Vec::new, |r| {
-        let mut down: Vec<DownWeighted> = (r.down_weighted())
-            .map(|(k, weight)| DownWeighted { line: training.observations[k].line, weight })
-            .collect();
+        let line = |k: usize| if tree { training.views[k].line } else { training.observations[k].line };
+        let mut down: Vec<DownWeighted> =
+            (r.down_weighted()).map(|(k, weight)| DownWeighted { line: line(k), weight }).collect();
         down.dedup_by_key(|d| d.line);
         down
     })
@@ -285,8 +413,8 @@ fn down_weighted(c: &KindCalibration, training: &Score) -> Vec<DownWeighted> {
 impl ObservationsReport {
     /// The report of `c`, fitted on `data` (names) with `estimator`; `held_out` are the held-out
     /// files' RMS residuals, before and after.
-    pub fn new(
-        c: &KindCalibration,
+    pub fn new<R: Reported>(
+        c: &Calibration<R>,
         data: &str,
         fitted: (usize, usize),
         estimator: &str,
@@ -298,23 +426,25 @@ impl ObservationsReport {
     /// [`ObservationsReport::new`] with `c`'s training score given (`training`, moved out of
     /// `c` by the caller: a score holds a residual per observation, 48 MB at 100,000 poses of
     /// two markers, and is not copied).
-    pub fn with_training(
-        c: &KindCalibration,
+    pub fn with_training<R: Reported>(
+        c: &Calibration<R>,
         training: Score,
         data: &str,
         fitted: (usize, usize),
         estimator: &str,
         held_out: Vec<(String, Score)>,
     ) -> Self {
-        let parameters = parameter_rows(c);
-        let (down_weighted, markers) = (down_weighted(c, &training), marker_count(&training.observations));
+        let (parameters, tree) = (parameter_rows(c), R::tree_parts(c));
+        let down_weighted = down_weighted(c, &training, tree.is_some());
+        let markers = marker_count(&training.observations);
         let mut sets = vec![("training".to_string(), training)];
         sets.extend(held_out);
         let held: Vec<crate::calibration::Held> =
             c.fixed.iter().map(|f| f.clone().renamed(|n| point_names(n, c))).collect();
         let mut report = Self {
             schema: SCHEMA,
-            model: c.calibrated.name.clone(),
+            model: c.calibrated.name().to_string(),
+            tree,
             data: data.to_string(),
             observations: fitted.0,
             poses: fitted.1,
@@ -322,7 +452,10 @@ impl ObservationsReport {
             iterations: c.refined.history.len(),
             converged: c.refined.converged && c.noise_settled != Some(false),
             noise_settled: c.noise_settled,
-            noise: c.noise_estimate.as_ref().map(|e| super::calibration::noise_rows(&c.calibrated.joints, e)),
+            noise: c
+                .noise_estimate
+                .as_ref()
+                .map(|e| super::calibration::noise_rows(c.calibrated.joints(), e)),
             stiffness: super::calibration::stiffness_rows(&parameters),
             parameters,
             rank: c.refined.estimate.diagnostics.rank,
@@ -370,10 +503,11 @@ impl ObservationsReport {
 
     /// The report with the path of the selection that chose the joint parameters of `c`, its
     /// held parameters named as the report names them.
-    pub fn with_selection(mut self, path: &SelectionPath, c: &KindCalibration) -> Self {
+    pub fn with_selection<R>(mut self, path: &SelectionPath, c: &Calibration<R>) -> Self {
         let mut selection = super::calibration::SelectionReport::of(path);
         selection.held = selection.held.iter().map(|h| point_names(h, c)).collect();
         let with = match (c.markers.is_empty(), c.setup.names().is_empty()) {
+            _ if self.tree.is_some() => "the cameras and targets",
             (true, _) => "the set-up",
             (false, true) => "the base and the markers",
             (false, false) => "the base, the markers and the set-up",
@@ -405,27 +539,38 @@ impl ObservationsReport {
         self
     }
 
-    /// The verdict's rows: each set's errors before and after by group and marker.
+    /// The verdict's rows: each set's errors before and after by group and marker; a tree's
+    /// by its views ([`view_rows`]).
     fn verdict_rows(&self) -> Vec<QuantityRow> {
-        self.sets.iter().flat_map(|(name, s)| set_rows(name, s)).collect()
+        let rows = if self.tree.is_some() { view_rows } else { set_rows };
+        self.sets.iter().flat_map(|(name, s)| rows(name, s)).collect()
     }
 
     /// The verdict: its rows as a table, the warnings by cause.
     fn verdict_text(&self) -> String {
-        let title = match self.sets.len() {
-            1 => "verdict, the errors before -> after calibration:",
-            _ => {
-                "verdict, the errors before -> after calibration (training: the poses fitted; every other set held out):"
+        let (title, count) = match self.sets.len() {
+            _ if self.tree.is_some() => {
+                ("verdict, the view errors (|y_t| mm, |y_r| deg) before -> after calibration:", "views")
             }
+            1 => ("verdict, the errors before -> after calibration:", "count"),
+            _ => (
+                "verdict, the errors before -> after calibration (training: the poses fitted; every other set held out):",
+                "count",
+            ),
         };
-        super::verdict::quantity_table(title, "count", &self.verdict)
+        super::verdict::quantity_table(title, count, &self.verdict)
             + &super::verdict::count_warnings(&self.warnings)
+    }
+
+    /// What was fitted: `observations`, or a tree's `views`.
+    fn fitted_word(&self) -> &'static str {
+        if self.tree.is_some() { "views" } else { "observations" }
     }
 
     /// What the observations do not see, what is held, and where each held-out session's set-up comes from.
     fn write_held(&self, out: &mut String) {
         if !self.unseen.is_empty() {
-            let _ = writeln!(*out, "\nnot seen by these observations, held:");
+            let _ = writeln!(*out, "\nnot seen by these {}, held:", self.fitted_word());
         }
         for u in &self.unseen {
             let _ = writeln!(*out, "  {u}");
@@ -438,10 +583,14 @@ impl ObservationsReport {
         out.push_str(&held_out_sessions(sets));
     }
 
-    /// The worst observations of each set after calibration, whitened.
+    /// The worst observations of each set after calibration, whitened (a tree's views, by
+    /// their position's residual: [`ObservationsReport::write_worst_views`]).
     fn write_worst(&self, out: &mut String) {
         if self.markers.is_some() {
             return; // marker positions alone: their largest errors say it (write_worst_positions)
+        }
+        if self.tree.is_some() {
+            return self.write_worst_views(out);
         }
         let _ =
             writeln!(*out, "\nworst observations after calibration ({WORST} per set; every one in --json):");
@@ -463,6 +612,43 @@ impl ObservationsReport {
                     unit = r.unit
                 );
             }
+        }
+    }
+
+    /// The worst views of each set after calibration, by the norm of their position's residual.
+    fn write_worst_views(&self, out: &mut String) {
+        let _ = writeln!(*out, "\nworst views after calibration ({WORST} per set; every one in --json):");
+        for (set, (name, score)) in self.sets.iter().enumerate() {
+            let worst =
+                first_by(score.views.iter().enumerate(), WORST, |a, b| b.1.after_mm.total_cmp(&a.1.after_mm));
+            let files =
+                super::files_of(&self.training_files, set, self.sets.len(), self.cross_validation.is_some());
+            for (k, v) in worst {
+                let (before, after) = match (v.before_deg, v.after_deg) {
+                    (Some(b), Some(a)) => (
+                        format!("{:.4} mm / {b:.5} deg", v.before_mm),
+                        format!("{:.4} mm / {a:.5} deg", v.after_mm),
+                    ),
+                    _ => (format!("{:.4} mm", v.before_mm), format!("{:.4} mm", v.after_mm)),
+                };
+                let at = super::line_in(files, k, v.line);
+                let _ = writeln!(*out, "  {name}, {at}: {before} before, {after} after");
+            }
+        }
+    }
+
+    /// A tree's cameras and targets as calibrated; nothing for an arm.
+    fn write_frames(&self, out: &mut String) {
+        let Some(tree) = &self.tree else { return };
+        let _ = writeln!(*out, "\ncameras and targets as calibrated (x, y, z mm; roll, pitch, yaw deg):");
+        let width = tree.frames.iter().map(|f| f.name.len()).max().unwrap_or(0);
+        for f in &tree.frames {
+            let ([x, y, z], [roll, pitch, yaw]) = (f.xyz_mm, f.rpy_deg);
+            let _ = writeln!(
+                *out,
+                "  {:<width$} {x:>10.3} {y:>10.3} {z:>10.3}   {roll:>9.4} {pitch:>9.4} {yaw:>9.4}",
+                f.name
+            );
         }
     }
 
@@ -507,6 +693,13 @@ impl ObservationsReport {
                  whatever the sigmas",
                 self.assumed_sigmas, self.observations,
             );
+        } else if self.assumed_sigmas > 0 && self.tree.is_some() {
+            let _ = writeln!(
+                out,
+                "{} of {} views gave no sigma: weighed by the defaults, {DEFAULT_CAMERA_SIGMA_MM} mm and \
+                 {DEFAULT_CAMERA_SIGMA_DEG} deg",
+                self.assumed_sigmas, self.observations,
+            );
         } else if self.assumed_sigmas > 0 {
             let _ = writeln!(
                 out,
@@ -521,9 +714,14 @@ impl ObservationsReport {
             );
         }
         if let Some(f) = self.variance_factor {
+            let defaults = match self.tree {
+                Some(_) => format!(", {DEFAULT_CAMERA_SIGMA_MM} mm and {DEFAULT_CAMERA_SIGMA_DEG} deg,"),
+                None => String::new(),
+            };
             let _ = writeln!(
                 out,
-                "no sigma given and the joints exact: standard errors and flags from the residuals' spread (the default sigmas times {:.4})",
+                "no sigma given and the joints exact: standard errors and flags from the residuals' spread (the default \
+                 sigmas{defaults} times {:.4})",
                 f.sqrt()
             );
         }
@@ -551,7 +749,7 @@ impl ObservationsReport {
         let plural = |n: usize| if n == 1 { "" } else { "s" };
         let what = match self.markers {
             Some(n) => format!("{} pose{}, {n} marker{}", self.poses, plural(self.poses), plural(n)),
-            None => format!("{} observations at {} poses", self.observations, self.poses),
+            None => format!("{} {} at {} poses", self.observations, self.fitted_word(), self.poses),
         };
         format!(
             "{what}, {} ({} step{}, {})",
@@ -565,7 +763,16 @@ impl ObservationsReport {
     /// The report as text, at fixed precision.
     pub fn text(&self) -> String {
         let mut out = String::new();
-        let _ = writeln!(out, "calibration of {} from {}: {}", self.model, self.data, self.fit_summary());
+        let model = match &self.tree {
+            Some(t) => {
+                format!("{} (branches {}; {} joints)", self.model, t.branches.join(", "), t.joints.len())
+            }
+            None => self.model.clone(),
+        };
+        let _ = writeln!(out, "calibration of {model} from {}: {}", self.data, self.fit_summary());
+        if let Some(t) = &self.tree {
+            let _ = writeln!(out, "joints: {}", t.joints.join(", "));
+        }
         if let Some(b) = &self.registered_base {
             let _ = writeln!(
                 out,
@@ -592,7 +799,8 @@ impl ObservationsReport {
             let table = super::calibration::noise_table(noise);
             let _ = write!(out, "\nnoise estimated from the residuals (feasible GLS):\n{table}");
         }
-        super::calibration::write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, "pose");
+        let unit = if self.tree.is_some() { "view" } else { "pose" };
+        super::calibration::write_down_weighted(&mut out, self.loss.as_deref(), &self.down_weighted, unit);
         out.push_str(&super::calibration::choices_text(self.prior_scale.as_ref(), self.selection.as_ref()));
         if let Some(cv) = &self.cross_validation {
             let _ = write!(out, "\n{}", cv.text());
@@ -600,6 +808,7 @@ impl ObservationsReport {
         if !self.predicted.is_empty() {
             let _ = write!(out, "\n{}", super::calibration::predicted_text(&self.predicted));
         }
+        self.write_frames(&mut out);
         self.write_held(&mut out);
         self.write_worst(&mut out);
         self.write_worst_positions(&mut out);
