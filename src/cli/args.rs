@@ -377,7 +377,8 @@ pub struct CalibrateArgs {
     pub out_model: Option<PathBuf>,
     /// Write the calibrated model as URDF here (URDF input only): the original file with the
     /// calibrated joint origins, a `measuring_frame` link, a `tool` link (marker 1) and a
-    /// `marker_<k>` link per fitted marker (what `evaluate` reads).
+    /// `marker_<k>` link per fitted marker (what `evaluate` reads); of a tree, the original file
+    /// with every joint's calibrated origin.
     #[arg(long)]
     pub out_urdf: Option<PathBuf>,
     #[command(flatten)]
@@ -897,4 +898,8 @@ pub struct CalibrateTreeArgs {
     /// views cannot see, held.
     #[arg(long, value_name = "DIR")]
     pub out_dir: Option<PathBuf>,
+    /// Write the calibrated tree as URDF here: the original file with every joint's calibrated
+    /// origin (the cameras and targets go to `--out-dir`'s `frames.json`).
+    #[arg(long)]
+    pub out_urdf: Option<PathBuf>,
 }

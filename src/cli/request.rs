@@ -820,6 +820,8 @@ pub struct CalibrateTreeRequest {
     pub report: ReportArgs,
     /// Where the calibrated branches go.
     pub out_dir: Option<PathBuf>,
+    /// Where the calibrated tree goes, as URDF.
+    pub out_urdf: Option<PathBuf>,
 }
 
 impl CalibrateTreeRequest {
@@ -853,7 +855,11 @@ impl CalibrateTreeRequest {
         inputs.extend(args.validate.iter().map(|p| ("--validate", p.as_path())));
         distinct_outputs(
             &inputs,
-            &[args.report.outputs().as_slice(), &[("--out-dir", args.out_dir.as_deref())]].concat(),
+            &[
+                args.report.outputs().as_slice(),
+                &[("--out-dir", args.out_dir.as_deref()), ("--out-urdf", args.out_urdf.as_deref())],
+            ]
+            .concat(),
         )?;
         Ok(Self {
             model: args.model,
@@ -876,6 +882,7 @@ impl CalibrateTreeRequest {
             folds: args.folds,
             report: args.report,
             out_dir: args.out_dir,
+            out_urdf: args.out_urdf,
         })
     }
 }

@@ -19,9 +19,10 @@ use std::path::Path;
 /// Calibrate, print the report, write the files asked for.
 pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
     let name = request.model.display().to_string();
-    let text = std::fs::read_to_string(&request.model).with_context(|| format!("{name}: cannot read"))?;
-    let tree =
-        RobotTree::from_urdf_str(&text, request.base_link.as_deref(), &request.tips).with_context(|| name)?;
+    let text_of_model =
+        std::fs::read_to_string(&request.model).with_context(|| format!("{name}: cannot read"))?;
+    let tree = RobotTree::from_urdf_str(&text_of_model, request.base_link.as_deref(), &request.tips)
+        .with_context(|| name)?;
     let mut sessions = Vec::with_capacity(request.data.len());
     for path in &request.data {
         let file = read(path, &tree, request)?;
@@ -75,6 +76,9 @@ pub fn run(request: &CalibrateTreeRequest) -> Result<()> {
         let frames = report.tree.as_ref().map_or(&[][..], |t| t.frames.as_slice());
         files.push(("frames.json".to_string(), serde_json::to_string_pretty(frames)? + "\n"));
         outputs.add_folder(folder, &files);
+    }
+    if let Some(path) = &request.out_urdf {
+        outputs.add(path, robocal::model::tree_to_urdf_string(&text_of_model, &c.calibrated)?);
     }
     super::commit(outputs)
 }

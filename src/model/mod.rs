@@ -31,7 +31,8 @@ pub use params::{ParamInfo, ParamKind, ParamOwner, ParamSet, Selection, Selectio
 pub use tree::{Branch, RobotTree};
 pub use ur_kinematics::{UR_JOINTS, UR_SEGMENTS, from_ur_kinematics, to_ur_kinematics};
 pub use urdf::{
-    DEFLECTION, GRAVITY, chain_links, from_urdf_str, markers_from_urdf_str, to_urdf_string, with_urdf_markers,
+    DEFLECTION, GRAVITY, chain_links, from_urdf_str, markers_from_urdf_str, to_urdf_string,
+    tree_to_urdf_string, with_urdf_markers,
 };
 pub use urdf_export::{UrdfExport, UrdfOptions, to_urdf};
 

@@ -429,34 +429,14 @@ pub fn to_urdf_string(
     let mut moving = calibrated.joints.iter();
     let mut last_moving_link = base_link.to_string();
     for joint in chain {
-        let here = origin(joint, "joint")?;
         if joint.attribute("type") == Some("fixed") {
-            fixed_before *= here;
+            fixed_before *= origin(joint, "joint")?;
             continue;
         }
         let j = moving.next().ok_or_else(|| invalid("joints".into(), "the model read from this URDF"))?;
-        let new_origin = fixed_before.inverse() * j.origin.isometry();
+        edits.extend(joint_edits(joint, &fixed_before, j));
         fixed_before = Isometry3::identity();
         last_moving_link = link_of(&joint, "child");
-        let mut element = origin_element(&new_origin);
-        if let Some(old) = joint.children().find(|c| c.has_tag_name(DEFLECTION)) {
-            edits.push((old.range(), String::new()));
-        }
-        if j.compliance != 0.0 || j.play != 0.0 {
-            let per_m = if j.kind == JointKind::Prismatic { 1e-3 } else { 1.0 };
-            element += &format!(
-                "\n    <{DEFLECTION} compliance=\"{:?}\" play=\"{:?}\"/>",
-                j.compliance * per_m,
-                j.play * per_m
-            );
-        }
-        match joint.children().find(|c| c.has_tag_name("origin")) {
-            Some(node) => edits.push((node.range(), element)),
-            None => {
-                let at = joint.children().next().map_or(joint.range().end, |c| c.range().start);
-                edits.push((at..at, element));
-            }
-        }
     }
     let tool = match &calibrated.tool {
         Tool::Point(p) => Isometry3::translation(p.x, p.y, p.z),
@@ -475,6 +455,74 @@ pub fn to_urdf_string(
     );
     let end = robot.range().end - "</robot>".len();
     edits.push((end..end, extra));
+    edits.sort_by_key(|(range, _)| std::cmp::Reverse(range.start));
+    let mut out = original.to_string();
+    for (range, text) in edits {
+        out.replace_range(range, &text);
+    }
+    Ok(out)
+}
+
+/// The edits that write the calibrated joint `j` into the URDF element `joint` (a moving
+/// joint): its origin, `fixed_before^-1 X_j` (`X_j` the model's origin, which holds the fixed
+/// joints `fixed_before` between the last moving joint and this one, as the URDF is read), and
+/// its compliance and play in a [`DEFLECTION`] element where either is not zero (an earlier
+/// one removed).
+fn joint_edits(
+    joint: roxmltree::Node<'_, '_>,
+    fixed_before: &Isometry3<f64>,
+    j: &Joint,
+) -> Vec<(std::ops::Range<usize>, String)> {
+    let mut edits = Vec::new();
+    let mut element = origin_element(&(fixed_before.inverse() * j.origin.isometry()));
+    if let Some(old) = joint.children().find(|c| c.has_tag_name(DEFLECTION)) {
+        edits.push((old.range(), String::new()));
+    }
+    if j.compliance != 0.0 || j.play != 0.0 {
+        let per_m = if j.kind == JointKind::Prismatic { 1e-3 } else { 1.0 };
+        element += &format!(
+            "\n    <{DEFLECTION} compliance=\"{:?}\" play=\"{:?}\"/>",
+            j.compliance * per_m,
+            j.play * per_m
+        );
+    }
+    match joint.children().find(|c| c.has_tag_name("origin")) {
+        Some(node) => edits.push((node.range(), element)),
+        None => {
+            let at = joint.children().next().map_or(joint.range().end, |c| c.range().start);
+            edits.push((at..at, element));
+        }
+    }
+    edits
+}
+
+/// `original` (the URDF `tree` was read from) with the origins of the tree's moving joints
+/// replaced by `tree`'s (a calibrated tree, its joints' errors folded in), each once however
+/// many branches share it, as [`to_urdf_string`] writes a chain's. Everything
+/// else is kept as written: the tree's placement in its root link, which views never see, and
+/// its cameras' and targets' placements, which are a calibration's set-up, not links of the
+/// robot.
+pub fn tree_to_urdf_string(original: &str, tree: &super::RobotTree) -> Result<String, ModelError> {
+    let document = document(original)?;
+    let robot = document.root_element();
+    let mut edits: Vec<(std::ops::Range<usize>, String)> = Vec::new();
+    let mut written: Vec<usize> = Vec::new();
+    for branch in &tree.branches {
+        let mut fixed_before = Isometry3::identity();
+        let mut moving = branch.joints.iter().map(|&j| &tree.joints[j]);
+        for joint in chain(robot, &tree.root, &branch.tip)? {
+            if joint.attribute("type") == Some("fixed") {
+                fixed_before *= origin(joint, "joint")?;
+                continue;
+            }
+            let j = moving.next().ok_or_else(|| invalid("joints".into(), "the tree read from this URDF"))?;
+            if !written.contains(&joint.range().start) {
+                written.push(joint.range().start);
+                edits.extend(joint_edits(joint, &fixed_before, j));
+            }
+            fixed_before = Isometry3::identity();
+        }
+    }
     edits.sort_by_key(|(range, _)| std::cmp::Reverse(range.start));
     let mut out = original.to_string();
     for (range, text) in edits {

@@ -322,8 +322,8 @@ fn a_tree_writes_a_row_per_view_and_its_branches_rescore_its_views() {
         assert!(names.contains(&name.to_string()), "{name}: {names:?}");
     }
     assert_eq!(names.len(), 6 + 15, "{names:?}");
-    // The written branches re-score the training views as calibrated; the URDF as it stands,
-    // as before calibration.
+    // The written branches re-score the training views as calibrated (and the tree written as
+    // URDF); the URDF as it stands, as before calibration.
     let evaluated = dir.join("evaluated.json");
     let text = robocal(&[
         "evaluate",
@@ -361,6 +361,15 @@ fn a_tree_writes_a_row_per_view_and_its_branches_rescore_its_views() {
         "{} deg",
         view("view_rotation")
     );
+    // The tree written as URDF re-scores them too.
+    let urdf = dir.join("torso-calibrated.urdf");
+    robocal(&["calibrate", "-q", "--model", TORSO, "--data", VIEWS, "--out-urdf", s(&urdf)]);
+    robocal(&["evaluate", "--model", s(&urdf), "--data", VIEWS, "--json", s(&evaluated)]);
+    let from_urdf = json(&evaluated);
+    for (what, stage) in [("view_position", 1), ("view_rotation", 1)] {
+        let again = from_urdf["views"][0][1][what][stage].as_f64().unwrap();
+        assert!(relative(again, score(0, what, stage)) < 1e-9, "{what}: {again}");
+    }
     robocal(&[
         "evaluate",
         "--model",

@@ -459,6 +459,37 @@ fn the_readme_tree_example_is_the_real_output() {
     crate::cli::the_readme_block_is_printed("$ robocal calibrate --model presets/torso.urdf", &TREE_EXAMPLE);
 }
 
+/// A calibrated tree written into its URDF ([`tree_to_urdf_string`]) reads back as that tree:
+/// every joint's origin to 1e-9 (mm, rad), each shared joint written once; the rest of the file
+/// (every element but the moving joints' origins) as it was.
+#[test]
+fn a_calibrated_tree_written_as_urdf_reads_back_as_calibrated() {
+    let mut rng = ChaCha8Rng::seed_from_u64(16);
+    let nominal = torso();
+    let truth = perturbed_tree(&nominal, 1.0, 0.005, &mut rng);
+    let (frames, placements) = frames(&nominal);
+    let training = nominal.uniform_configurations(60, &mut rng);
+    let data = simulate_views(&truth, &frames, &placements, &PAIRS, &training, [0.0; 2], &mut rng);
+    let c = calibrate_tree(&nominal, &data, &options(Estimator::Ols)).unwrap();
+    let written = robocal::model::tree_to_urdf_string(TORSO, &c.calibrated).unwrap();
+    let read = RobotTree::from_urdf_str(&written, None, &[]).unwrap();
+    assert_eq!(read.joints.len(), c.calibrated.joints.len());
+    let mut moved = 0;
+    for (a, b) in read.joints.iter().zip(&c.calibrated.joints) {
+        let gap = a.origin.isometry().inverse() * b.origin.isometry();
+        assert!(gap.translation.vector.norm() < 1e-9 && gap.rotation.angle() < 1e-9, "{}: {gap}", a.name);
+        let nominal = nominal.joints.iter().find(|n| n.name == a.name).unwrap();
+        moved += usize::from(
+            (nominal.origin.isometry().inverse() * a.origin.isometry()).translation.vector.norm() > 1e-3,
+        );
+    }
+    assert!(moved > 10, "the calibration moved the joints' origins: {moved} of 15");
+    let without_origins = |text: &str| -> Vec<String> {
+        text.lines().filter(|l| !l.trim_start().starts_with("<origin")).map(str::to_string).collect()
+    };
+    assert_eq!(without_origins(&written), without_origins(TORSO));
+}
+
 /// The same with a camera that sees a hand only where it is in view (70 deg, 200 to 1200 mm,
 /// facing it at 60 deg at most): every chain is still recovered on held-out poses in view.
 #[test]

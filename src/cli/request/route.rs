@@ -91,8 +91,8 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
             "--marker and --markers: views between a tree's branches have no markers",
         ),
         (
-            args.out_model.is_some() || args.out_urdf.is_some(),
-            "--out-model and --out-urdf: a tree's branches go to --out-dir",
+            args.out_model.is_some(),
+            "--out-model: a tree's branches go to --out-dir (a model file each), the whole tree to --out-urdf",
         ),
         (
             args.observations.tool.is_some() || args.observations.fixed_tool,
@@ -119,5 +119,6 @@ fn tree_args(args: CalibrateArgs) -> Result<CalibrateTreeArgs, UsageError> {
         folds: args.folds,
         report: args.report,
         out_dir: args.tree.out_dir,
+        out_urdf: args.out_urdf,
     })
 }

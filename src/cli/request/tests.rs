@@ -613,6 +613,10 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
         other => panic!("{other:?}"),
     }
     assert!(refused(&[TreeViews], &["--out-model", "m.toml"]).contains("--out-dir"));
+    match route(&[TreeViews], &["--out-urdf", "calibrated.urdf"]).unwrap() {
+        CalibrationRequest::Tree(r) => assert_eq!(r.out_urdf, Some("calibrated.urdf".into())),
+        other => panic!("{other:?}"),
+    }
 }
 
 /// `robocal calibrate-tree --model MODEL --data v.csv` with `args`.
