@@ -92,11 +92,14 @@ pub mod simulation;
 pub mod table;
 
 // The one calibration, at the crate root: any kind of file read into a [`KindData`],
-// calibrated by [`calibrate_kinds`] under [`KindOptions`], held-out data scored by
-// [`KindCalibration::score`] into a [`Score`]; [`evaluate_kinds`] scores a model as it stands.
+// calibrated by [`calibrate_kinds`] under [`KindOptions`] (a tree's views, [`TreeData`], by
+// [`calibrate_tree`] under the same options), the one result [`Calibration`] of either,
+// held-out data scored by [`Calibration::score`] into a [`Score`]; [`evaluate_kinds`] scores
+// a model as it stands.
 pub use calibration::kinds::{
-    KindCalibration, KindData, KindOptions, Score, calibrate_kinds, evaluate_kinds,
+    Calibration, KindCalibration, KindData, KindOptions, Score, calibrate_kinds, evaluate_kinds,
 };
+pub use calibration::tree::{TreeCalibration, TreeData, calibrate_tree};
 pub use calibration::{CalibrationError, DataKind};
 pub use estimation::Estimator;
-pub use model::RobotModel;
+pub use model::{RobotModel, RobotTree};
