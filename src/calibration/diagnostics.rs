@@ -734,3 +734,103 @@ impl Confounder {
         }
     }
 }
+
+/// What a calibration's observations cannot see as a whole, held, and why (a parameter held
+/// alone is a [`Held`]): typed, so that the JSON carries the kind and its values and the text
+/// is rendered from them ([`fmt::Display`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum Unseen {
+    /// An arm's base placement (6 parameters), held at its nominal value: what the
+    /// observations are relative to absorbs it.
+    Base {
+        /// What absorbs it.
+        absorbed_by: BaseAbsorber,
+    },
+    /// The robot's scale: contacts alone cannot see it (every length and plane offset times one
+    /// factor leaves every contact); its longest length is held.
+    Scale,
+    /// A plane's motions within it (translations along it, rotation about its normal).
+    Plane {
+        /// The plane's number, from 1.
+        plane: usize,
+        /// Its calibrated unit normal.
+        normal: [f64; 3],
+        /// Its calibrated offset (mm).
+        offset_mm: f64,
+    },
+    /// The coordinates' device placement along the axes it does not measure, held at the
+    /// markers' frame.
+    Device {
+        /// The parameters held (`device.x`, `device.rz`, ...).
+        parameters: Vec<String>,
+    },
+    /// A tree's base placement (`base.*`), held: a view sees one frame relative to another.
+    TreeBase {
+        /// The frame placed in the root link's frame, which absorbs the tree's placement, if
+        /// one is (`camera.world`).
+        world: Option<String>,
+    },
+}
+
+/// What absorbs an arm's base placement ([`Unseen::Base`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum BaseAbsorber {
+    /// A camera on the arm sees the target relative to the robot only: the target's placement.
+    Target,
+    /// A fixed camera sees the robot relative to itself only: the camera's placement.
+    Camera,
+    /// Distances: a rigid motion of the whole set-up changes none.
+    Distances,
+    /// Plane contacts: the planes.
+    Planes,
+}
+
+impl fmt::Display for Unseen {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Base { absorbed_by } => {
+                let why = match absorbed_by {
+                    BaseAbsorber::Target => {
+                        "a camera on the arm sees the target relative to the robot only (base^-1 target): the target \
+                         placement absorbs the base placement"
+                    }
+                    BaseAbsorber::Camera => {
+                        "a fixed camera sees the robot relative to itself only (camera^-1 base): the camera placement \
+                         absorbs the base placement"
+                    }
+                    BaseAbsorber::Distances => {
+                        "distances cannot see the base placement (a rigid motion of the whole set-up changes no distance)"
+                    }
+                    BaseAbsorber::Planes => "the planes absorb the base placement",
+                };
+                write!(f, "base (6 parameters): {why}; held at its nominal value")
+            }
+            Self::Scale => f.write_str(
+                "scale: contacts alone cannot see it (every length and plane offset times one factor leaves every \
+                 contact); the robot's longest length is held at its nominal value: add a distance to see it",
+            ),
+            Self::Plane { plane, normal: [x, y, z], offset_mm } => write!(
+                f,
+                "plane {plane}: normal ({x:.4}, {y:.4}, {z:.4}), offset {offset_mm:.3} mm; contacts cannot see motions \
+                 within it (translations along it, rotation about its normal)"
+            ),
+            Self::Device { parameters } => write!(
+                f,
+                "{}: the coordinates' device (its placement in the markers' frame) is seen only along the axes it \
+                 measures; held at the markers' frame",
+                parameters.join(", ")
+            ),
+            Self::TreeBase { world: Some(frame) } => write!(
+                f,
+                "base.*: {frame} is placed in the root link's frame, which absorbs the tree's placement: the base is held"
+            ),
+            Self::TreeBase { world: None } => f.write_str(
+                "base.*: a view sees one frame relative to another, never the tree's placement: the base is held",
+            ),
+        }
+    }
+}

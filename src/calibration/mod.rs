@@ -33,7 +33,8 @@ pub mod tree;
 pub use choice::Front;
 pub use data::{DataKind, Measurements};
 pub use diagnostics::{
-    Cause, ComponentMove, Confounder, FLAG_AT, FarOut, Held, OutsidePose, Scored, Warning,
+    BaseAbsorber, Cause, ComponentMove, Confounder, FLAG_AT, FarOut, Held, OutsidePose, Scored, Unseen,
+    Warning,
 };
 pub use front::{Kinds, Tree};
 pub use repeatability::{

@@ -31,8 +31,8 @@ pub struct FilesPage<'a> {
     pub parameters: &'a [ParameterRow],
     /// What was held, typed.
     pub held: &'a [Held],
-    /// What the data cannot see, in words.
-    pub unseen: &'a [String],
+    /// What the data cannot see as a whole.
+    pub unseen: &'a [crate::calibration::Unseen],
     /// `--prior auto`'s scale and curve.
     pub prior_scale: Option<&'a crate::calibration::prior_scale::PriorScale>,
     /// `--select`'s path.
@@ -79,7 +79,7 @@ pub fn page(report: &FilesPage<'_>, title: &str) -> String {
     if !report.unseen.is_empty() {
         out.push_str("<section id=\"unseen\">\n<h2>Not seen by these data, held</h2>\n<ul>\n");
         for u in report.unseen {
-            let _ = writeln!(out, "<li>{}</li>", escape(u));
+            let _ = writeln!(out, "<li>{}</li>", escape(&u.to_string()));
         }
         out.push_str("</ul>\n</section>\n");
     }

@@ -93,8 +93,9 @@ pub struct ObservationsReport {
     /// `--select`: how the joint parameters were chosen, its path.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub selection: Option<super::calibration::SelectionReport>,
-    /// What the observations cannot see, held, in words.
-    pub unseen: Vec<String>,
+    /// What the observations cannot see as a whole, held ([`Unseen`](crate::calibration::Unseen):
+    /// its `kind` and values).
+    pub unseen: Vec<crate::calibration::Unseen>,
     /// The parameters held, grouped by why ([`held_groups`](super::verdict::held_groups)).
     pub held_groups: Vec<super::verdict::HeldGroup>,
     /// Each parameter held, in words with its combination, as a marker file's report gives it.

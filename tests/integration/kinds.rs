@@ -11,7 +11,7 @@ use rand_distr::{Distribution, StandardNormal};
 use robocal::calibration::kinds::{
     CameraSite, KindCalibration, KindData, KindOptions, KindProblem, Observation, SetUp, calibrate_kinds,
 };
-use robocal::calibration::{Held, Loss, PointName};
+use robocal::calibration::{BaseAbsorber, Held, Loss, PointName, Unseen};
 use robocal::estimation::{Estimator, RefineOptions, Residuals};
 use robocal::kinematics::{Chain, ChainAt};
 use robocal::model::{Convention, Placement, RobotModel, Selection};
@@ -422,11 +422,9 @@ pub(crate) fn pairs(real: &ChainAt, rng: &mut ChaCha8Rng, sigma: f64) -> KindDat
 fn a_ball_bar_calibrates_the_robot_and_its_pivot_without_the_base() {
     let pivot = [400.0, 200.0, 300.0];
     let c = recovers(&ball_bar, Some(&pivot), true, 61);
-    assert!(
-        c.unseen[0].starts_with("base (6 parameters): distances cannot see the base placement"),
-        "{:?}",
-        c.unseen
-    );
+    assert_eq!(c.unseen, [Unseen::Base { absorbed_by: BaseAbsorber::Distances }]);
+    let words = c.unseen[0].to_string();
+    assert!(words.starts_with("base (6 parameters): distances cannot see the base placement"), "{words}");
     assert!(c.refined.estimate.names.iter().all(|n| !n.starts_with("base.")));
     assert!(c.refined.estimate.names.iter().any(|n| n == "point1.x"));
 }
@@ -434,7 +432,7 @@ fn a_ball_bar_calibrates_the_robot_and_its_pivot_without_the_base() {
 #[test]
 fn distances_between_poses_calibrate_the_robot_without_the_base() {
     let c = recovers(&pairs, None, true, 62);
-    assert!(c.unseen[0].contains("distances cannot see the base placement"), "{:?}", c.unseen);
+    assert_eq!(c.unseen, [Unseen::Base { absorbed_by: BaseAbsorber::Distances }]);
     assert!(c.refined.estimate.names.iter().all(|n| !n.starts_with("base.")));
 }
 
@@ -532,13 +530,14 @@ fn plane_contacts_calibrate_the_robot_and_the_planes() {
         assert!((n - Vector3::from(*normal) * side).norm() < 1e-3, "plane {}: normal {n:?}", i + 1);
         assert!((offset - d * side).abs() < 0.5, "plane {}: offset {offset}", i + 1);
     }
-    assert!(c.unseen.iter().any(|u| u.starts_with("base (6 parameters)")));
-    assert!(!c.unseen.iter().any(|u| u.starts_with("scale")), "{:?}", c.unseen);
+    assert!(matches!(c.unseen[0], Unseen::Base { .. }), "{:?}", c.unseen);
+    assert!(!c.unseen.contains(&Unseen::Scale), "{:?}", c.unseen);
+    let plane = c.unseen.iter().find(|u| matches!(u, Unseen::Plane { plane: 1, .. })).expect("plane 1");
+    let words = plane.to_string();
     assert!(
-        c.unseen.iter().any(|u| u.starts_with("plane 1: normal (0.0000, 0.0000, 1.0000)")
-            && u.contains("contacts cannot see motions within it")),
-        "{:?}",
-        c.unseen
+        words.starts_with("plane 1: normal (0.0000, 0.0000, 1.0000)")
+            && words.contains("contacts cannot see motions within it"),
+        "{words}"
     );
 }
 
@@ -558,17 +557,13 @@ fn a_table_alone_cannot_see_turns_about_its_normal() {
         "{:?}",
         c.fixed
     );
-    assert!(
-        c.unseen[0].starts_with("base (6 parameters): the planes absorb the base placement"),
-        "{:?}",
-        c.unseen
-    );
-    assert!(c.unseen[1].starts_with("scale: contacts alone cannot see it"), "{:?}", c.unseen);
-    assert!(
-        c.unseen[2].starts_with("plane 1: normal (0.0000, 0.0000, 1.0000), offset -350.000 mm"),
-        "{:?}",
-        c.unseen
-    );
+    assert_eq!(c.unseen[..2], [Unseen::Base { absorbed_by: BaseAbsorber::Planes }, Unseen::Scale]);
+    assert!(c.unseen[1].to_string().starts_with("scale: contacts alone cannot see it"));
+    let Unseen::Plane { plane: 1, normal, offset_mm } = c.unseen[2] else { panic!("{:?}", c.unseen) };
+    assert_eq!(normal, [0.0, 0.0, 1.0]);
+    assert!((offset_mm + 350.0).abs() < 5e-4, "{offset_mm} mm");
+    let words = c.unseen[2].to_string();
+    assert!(words.starts_with("plane 1: normal (0.0000, 0.0000, 1.0000), offset -350.000 mm"), "{words}");
     // Not collapsed: exact contacts are fitted by a robot of the nominal scale.
     assert!(c.training.lengths.1 < 1e-7, "{:?}", c.training.lengths);
     let fitted = chain.with_errors(&c.after);

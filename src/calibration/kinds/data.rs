@@ -22,7 +22,7 @@
 
 use super::SetUp;
 use super::camera::{CameraSite, camera_start, isometry};
-use crate::calibration::CalibrationError;
+use crate::calibration::{BaseAbsorber, CalibrationError, Unseen};
 use crate::estimation::MeasurementClass;
 use crate::limits::MAX_LENGTH_MM;
 use crate::model::RobotModel;
@@ -1026,57 +1026,38 @@ impl KindData {
         Ok(())
     }
 
-    /// What these observations cannot see, in words: the base for distances and contacts, the
-    /// in-plane motions of every plane (its normal at the set-up values `s`).
-    pub(super) fn unseen(&self, setup: &SetUp, s: &[f64]) -> Vec<String> {
+    /// What these observations cannot see: the base for distances, contacts and a camera, the
+    /// scale for contacts alone, the in-plane motions of every plane (its normal at the set-up
+    /// values `s`), a device's placement along the axes it does not measure.
+    pub(super) fn unseen(&self, setup: &SetUp, s: &[f64]) -> Vec<Unseen> {
         let mut out = Vec::new();
         let distances = self
             .observations
             .iter()
             .any(|o| matches!(o, Observation::Distance { .. } | Observation::ToPoint { .. }));
         if !self.sees_the_base() {
-            let why = if self.camera() == Some(CameraSite::Hand) {
-                "a camera on the arm sees the target relative to the robot only (base^-1 target): the target \
-                 placement absorbs the base placement"
-            } else if self.camera() == Some(CameraSite::World) {
-                "a fixed camera sees the robot relative to itself only (camera^-1 base): the camera placement \
-                 absorbs the base placement"
-            } else if distances {
-                "distances cannot see the base placement (a rigid motion of the whole set-up changes no distance)"
-            } else {
-                "the planes absorb the base placement"
+            let absorbed_by = match self.camera() {
+                Some(CameraSite::Hand) => BaseAbsorber::Target,
+                Some(CameraSite::World) => BaseAbsorber::Camera,
+                _ if distances => BaseAbsorber::Distances,
+                _ => BaseAbsorber::Planes,
             };
-            out.push(format!("base (6 parameters): {why}; held at its nominal value"));
+            out.push(Unseen::Base { absorbed_by });
         }
         if !self.sees_the_scale() && setup.planes() > 0 {
-            out.push(
-                "scale: contacts alone cannot see it (every length and plane offset times one factor leaves every \
-                 contact); the robot's longest length is held at its nominal value: add a distance to see it"
-                    .into(),
-            );
+            out.push(Unseen::Scale);
         }
         for i in 0..setup.planes() {
             let (n, d) = setup.plane(s, i);
             // Rounded first, so that a tiny negative prints as 0.0000, not -0.0000.
             let n = n.map(|v| (v * 1e4).round() / 1e4 + 0.0);
-            out.push(format!(
-                "plane {}: normal ({:.4}, {:.4}, {:.4}), offset {d:.3} mm; contacts cannot see motions within it \
-                 (translations along it, rotation about its normal)",
-                i + 1,
-                n.x,
-                n.y,
-                n.z
-            ));
+            out.push(Unseen::Plane { plane: i + 1, normal: [n.x, n.y, n.z], offset_mm: d });
         }
         if setup.device() {
             let held = self.device_unseen();
             if !held.is_empty() {
-                let names: Vec<String> = held.iter().map(|&i| format!("device.{}", DEVICE_AXES[i])).collect();
-                out.push(format!(
-                    "{}: the coordinates' device (its placement in the markers' frame) is seen only along the \
-                     axes it measures; held at the markers' frame",
-                    names.join(", ")
-                ));
+                let parameters = held.iter().map(|&i| format!("device.{}", DEVICE_AXES[i])).collect();
+                out.push(Unseen::Device { parameters });
             }
         }
         out

@@ -116,8 +116,8 @@ pub(crate) use data::{check_sessions, join_sessions};
 
 use super::noise_check::{CHECK_POSES, at_estimate, check, without_outliers};
 use super::{
-    CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Warning, fold,
-    gauge_class, probe_mounting, why_held,
+    CalibrationError, FLAG_AT, FarOut, Gauge, Held, JointParams, Loss, RobustFit, Scored, Unseen, Warning,
+    fold, gauge_class, probe_mounting, why_held,
 };
 use crate::estimation::reml::{Components, Point};
 use crate::estimation::{
@@ -1555,8 +1555,8 @@ pub struct Calibration<R> {
     pub setup_values: (Vec<f64>, Vec<f64>),
     /// The refined estimate (names, values, covariance, diagnostics).
     pub refined: Refined,
-    /// What the measurements cannot see, by kind, in words: held and reported.
-    pub unseen: Vec<String>,
+    /// What the measurements cannot see as a whole, by kind: held and reported.
+    pub unseen: Vec<Unseen>,
     /// What was held and why: by `--hold`, unmoved, combinations the poses cannot tell apart.
     pub fixed: Vec<Held>,
     /// The training observations scored, before and after.

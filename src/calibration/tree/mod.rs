@@ -60,7 +60,7 @@ use super::kinds::camera::{camera_start, isometry, placement};
 use super::kinds::{
     self, Calibration, KindData, KindOptions, KindProblem, Prepared, Robot, Score, SetUp, Unscored,
 };
-use super::{CalibrationError, Gauge, Held, JointParams, RobustFit, fold};
+use super::{CalibrationError, Gauge, Held, JointParams, RobustFit, Unseen, fold};
 use crate::estimation::prior_sds_of;
 use crate::kinematics::{Chain, ChainAt};
 use crate::model::{ParamInfo, ParamOwner, ParamSet, Placement, RobotTree, Selection, SelectionError};
@@ -472,19 +472,11 @@ fn say_why_unseen(fixed: &mut [Held], params: &TreeParams, data: &TreeData) {
     }
 }
 
-/// Why views cannot see the tree's base, in words: a frame in the world absorbs it, or views
-/// see only frames relative to each other.
-fn base_unseen(params: &TreeParams, data: &TreeData) -> String {
-    match data.frames.iter().find(|f| f.on.is_none()) {
-        Some(world) => format!(
-            "base.*: {} is placed in the root link's frame, which absorbs the tree's placement: the base is held",
-            world.name(&params.tips)
-        ),
-        None => {
-            "base.*: a view sees one frame relative to another, never the tree's placement: the base is held"
-                .to_string()
-        }
-    }
+/// Why views cannot see the tree's base: a frame in the world absorbs it, or views see only
+/// frames relative to each other.
+fn base_unseen(params: &TreeParams, data: &TreeData) -> Unseen {
+    let world = data.frames.iter().find(|f| f.on.is_none()).map(|f| f.name(&params.tips));
+    Unseen::TreeBase { world }
 }
 
 /// The [`EvidenceSystem`](super::kinds::EvidenceSystem) of a tree's views with `options`
