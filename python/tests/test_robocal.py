@@ -635,7 +635,7 @@ def test_evaluate_tree_scores_views_as_the_command_line_does(tmp_path: Path) -> 
     tips = ["head_camera", "l_hand", "r_hand"]
     run_cli("evaluate", "--model", str(urdf), "--tips", ",".join(tips), "--data", str(views), "--joint-sigma-deg", "0.05",
             "--json", str(out), "--quiet")
-    theirs = json.loads(out.read_text())["views"][0][1]
+    theirs = json.loads(out.read_text())["observations"][0][1]
     ours = robocal.evaluate_tree(urdf, views, tips=tips, joint_sigma=[0.05], joint_unit="deg", length_unit="mm")
     assert_same(ours, theirs)
     assert len(ours["views"]) == 120
@@ -649,7 +649,7 @@ def test_evaluate_tree_scores_written_branches_as_the_command_line_does(tmp_path
             "--quiet")
     run_cli("evaluate", "--model", str(urdf), "--branches", str(branches), "--data", str(held), "--json", str(out),
             "--quiet")
-    theirs = json.loads(out.read_text())["views"][0][1]
+    theirs = json.loads(out.read_text())["observations"][0][1]
     ours = robocal.evaluate_tree(urdf, held, tips=tips, branches=branches, joint_unit="deg", length_unit="mm")
     assert_same(ours, theirs)
     nominal = robocal.evaluate_tree(urdf, held, tips=tips, joint_unit="deg", length_unit="mm")

@@ -1,15 +1,18 @@
 //! `robocal evaluate`: a model scored as it stands on measurement files of any kind, through
 //! the one observation pipeline ([`KindOptions::as_it_stands`]): marker files with the model's
-//! base and markers, other files with their set-up fitted; the robot held in both.
+//! base and markers, other files with their set-up fitted; the robot held in both. A tree (a
+//! URDF with `--tips`, or the branches `calibrate --out-dir` wrote) is scored on its views the
+//! same way ([`evaluate_tree`]: each file's cameras and targets fitted), into the same report.
 
 use super::observations::{Noise, marker_ids_known, named_markers};
 use super::request::{EvaluateRequest, NoiseSource};
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use nalgebra::Vector3;
 use robocal::calibration::DataKind;
 use robocal::calibration::kinds::{KindData, KindOptions, RowSigmaDefaults, Score, evaluate_kinds};
+use robocal::calibration::tree::{TreeData, evaluate_tree};
 use robocal::io;
-use robocal::model::RobotModel;
+use robocal::model::{RobotModel, RobotTree};
 use robocal::report::residuals::ResidualSet;
 use serde::Serialize;
 use std::path::Path;
@@ -19,15 +22,28 @@ use std::path::Path;
 struct EvaluationReport {
     /// The model's name.
     model: String,
-    /// Each file, its name and its score.
+    /// A tree's branches (their tip links) and joints, in the order of the view files' columns.
+    #[serde(skip_serializing_if = "Option::is_none", flatten)]
+    tree: Option<TreeNames>,
+    /// Each file, its name and its score (of a tree's: its views, their `after`; `before` the
+    /// same).
     observations: Vec<(String, Score)>,
+}
+
+/// A tree's branches and joints, by name ([`EvaluationReport::tree`]).
+#[derive(Serialize)]
+struct TreeNames {
+    /// Its branches' tip links.
+    branches: Vec<String>,
+    /// Its joints.
+    joints: Vec<String>,
 }
 
 /// Score the model on every file, print the table, write the files asked for.
 pub fn run(request: &EvaluateRequest) -> Result<()> {
     let kinds = (request.data.iter()).map(|path| io::data_kind(path)).collect::<Result<Vec<_>, _>>()?;
     if !request.tips.is_empty() || request.branches.is_some() || kinds.contains(&DataKind::TreeViews) {
-        return super::evaluate_tree::run(request, &kinds);
+        return run_tree(request, &kinds);
     }
     let model = io::load_model(&request.model)?;
     let markers = model_markers(request)?;
@@ -42,9 +58,9 @@ pub fn run(request: &EvaluateRequest) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     let observations: Vec<(String, Score)> =
         observed.iter().map(|(name, _, score)| (name.clone(), score.clone())).collect();
-    let text = robocal::report::observations::as_it_stands_text(&model.name, &observations);
+    let text = robocal::report::observations::as_it_stands_text(&model.name, &observations, false);
     super::show_report(&text, &super::report_outputs(&request.report));
-    let report = EvaluationReport { model: model.name.clone(), observations };
+    let report = EvaluationReport { model: model.name.clone(), tree: None, observations };
     let json = super::json_if_asked(&request.report, &report)?;
     let title = format!("{} scored as it stands", model.name);
     let mut outputs = io::Outputs::new();
@@ -144,4 +160,99 @@ fn write_observation_files(
 /// A file's text.
 fn read(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))
+}
+
+/// Score the tree on every view file, print the table, write the files asked for.
+fn run_tree(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
+    if let Some((path, _)) = request.data.iter().zip(kinds).find(|(_, k)| **k != DataKind::TreeViews) {
+        bail!(
+            "{}: not a file of views between a tree's branches (camera, target columns): a tree is scored on its views",
+            path.display()
+        );
+    }
+    let tree = load_tree(request)?;
+    let files = (request.data.iter())
+        .map(|path| {
+            let text =
+                std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+            let data = TreeData::from_csv_str(&text, &tree, request.units)
+                .with_context(|| path.display().to_string())?;
+            Ok((path.display().to_string(), data))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let joint_noise = observation_joint_noise(request, (&tree.name, &tree.joints))?;
+    let options = KindOptions { joint_noise, ..KindOptions::default() };
+    let views = (files.iter())
+        .map(|(name, data)| {
+            let score = evaluate_tree(&tree, data, &options).with_context(|| name.clone())?;
+            Ok((name.clone(), score))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let text = robocal::report::observations::as_it_stands_text(&tree.name, &views, true);
+    super::show_report(&text, &super::report_outputs(&request.report));
+    let report = EvaluationReport {
+        model: tree.name.clone(),
+        tree: Some(TreeNames {
+            branches: tree.branches.iter().map(|b| b.tip.clone()).collect(),
+            joints: tree.joints.iter().map(|j| j.name.clone()).collect(),
+        }),
+        observations: views,
+    };
+    let sets = (files.iter().zip(&report.observations))
+        .map(|((name, data), (_, score))| {
+            let set = ResidualSet::of_views(name, score, &[(name.as_str(), data)], &tree.joints);
+            Ok(set.map_err(anyhow::Error::msg)?.at_one_stage("as it stands"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let title = format!("{} scored as it stands", tree.name);
+    let content = super::ResidualContent {
+        json: super::json_if_asked(&request.report, &report)?,
+        page: &|figures, sets| robocal::report::html::page(&title, &text, sets, figures),
+        sets,
+        joints: &tree.joints,
+        model: None,
+        prior_scale: None,
+        selection: None,
+    };
+    let mut outputs = io::Outputs::new();
+    super::write_residual_files(&request.report, content, &mut outputs)?;
+    super::commit(outputs)
+}
+
+/// The tree of `--model` and `--tips`, its joints those of the branches in `--branches` if
+/// given ([`io::load_branches`]).
+fn load_tree(request: &EvaluateRequest) -> Result<RobotTree> {
+    let name = request.model.name.as_str();
+    let text = std::fs::read_to_string(name).with_context(|| format!("{name}: cannot read"))?;
+    let tree = RobotTree::from_urdf_str(&text, request.tree_root.as_deref(), &request.tips)
+        .with_context(|| name.to_string())?;
+    match &request.branches {
+        Some(folder) => Ok(io::load_branches(&tree, folder)?),
+        None => Ok(tree),
+    }
+}
+
+/// The joint noise `--joint-sigma-deg` gives for scoring view files (of the tree `name` with
+/// `joints`); `--noise`, `--sigma-mm` and `--sigma-orientation-deg` refused: a view file's sigma
+/// columns are its measurement noise.
+fn observation_joint_noise(
+    request: &EvaluateRequest,
+    (name, joints): (&str, &[robocal::model::Joint]),
+) -> Result<Option<nalgebra::DMatrix<f64>>> {
+    match &request.noise {
+        None => Ok(None),
+        Some(NoiseSource::Flags(flags)) if flags.sigma_mm != 0.0 || flags.sigma_orientation_deg != 0.0 => {
+            bail!(
+                "--sigma-mm and --sigma-orientation-deg are not for view files: the sigma and sigma_angle columns \
+                 give the measurement noise here, --joint-sigma-deg the joints'"
+            )
+        }
+        Some(NoiseSource::Flags(flags)) => {
+            super::joint_covariance(name, joints, Some(&flags.joint_sigma_deg))
+        }
+        Some(NoiseSource::File(_)) => bail!(
+            "--noise is not for view files: the sigma and sigma_angle columns give the measurement noise here; \
+             give the joint noise by --joint-sigma-deg"
+        ),
+    }
 }

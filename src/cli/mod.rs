@@ -5,7 +5,6 @@ mod accuracy;
 mod args;
 mod compensate;
 mod evaluate;
-mod evaluate_tree;
 mod fk;
 mod manual;
 mod model;

@@ -265,14 +265,16 @@ impl Fits {
                 false => "that the observations identify",
             }
         );
-        let flagged = match tree {
-            true => format!(
-                "a view whose rows' largest whitened residual exceeds {} standard deviations",
-                crate::calibration::FLAG_AT
-            ),
-            false => flag_rule(),
-        };
+        let flagged = if tree { Self::view_rule() } else { flag_rule() };
         Self { before, after, flagged }
+    }
+
+    /// The rule a tree's view is flagged by, in words.
+    fn view_rule() -> String {
+        format!(
+            "a view whose rows' largest whitened residual exceeds {} standard deviations",
+            crate::calibration::FLAG_AT
+        )
     }
 }
 
@@ -848,55 +850,83 @@ fn first_by<T>(items: impl Iterator<Item = T>, n: usize, order: impl Fn(&T, &T) 
 }
 
 /// The text of `model` scored as it stands on each file of `scores` (`robocal evaluate`): a
-/// table of each file's rows as the verdict's ([`QuantityRow`]: by group and marker), after
-/// only, and each file's worst positions (marker files) or worst observations, whitened.
-pub fn as_it_stands_text(model: &str, scores: &[(String, Score)]) -> String {
+/// table of each file's rows as the verdict's ([`QuantityRow`]: by group and marker; of a
+/// `tree`'s views, their norms), after only, and each file's worst positions (marker files),
+/// views (a tree's) or observations, whitened.
+pub fn as_it_stands_text(model: &str, scores: &[(String, Score)], tree: bool) -> String {
     let plural = if scores.len() == 1 { "" } else { "s" };
-    let mut out = format!(
-        "{model} scored as it stands on {} file{plural}, the robot and its tool point held:\n  \
-         a marker file with the model's base and markers; any other with its set-up fitted (fixed points, planes,\n  \
-         camera and target; with markers the base and the markers): calibrate --validate scores with the\n  \
-         calibrated set-up instead\n\n",
-        scores.len()
-    );
-    let heading = ["set", "count", "RMS", "max", "flagged"].map(String::from);
+    let mut out = match tree {
+        true => format!(
+            "{model} scored as it stands on {} view file{plural}: each file's cameras and targets fitted, the tree's \
+             joints held (calibrate --validate scores with the calibrated cameras and targets instead: its figure can \
+             be larger)\n\n",
+            scores.len()
+        ),
+        false => format!(
+            "{model} scored as it stands on {} file{plural}, the robot and its tool point held:\n  \
+             a marker file with the model's base and markers; any other with its set-up fitted (fixed points, planes,\n  \
+             camera and target; with markers the base and the markers): calibrate --validate scores with the\n  \
+             calibrated set-up instead\n\n",
+            scores.len()
+        ),
+    };
+    let heading = ["set", if tree { "views" } else { "count" }, "RMS", "max", "flagged"].map(String::from);
     let cells = |r: &QuantityRow| {
         let digits = if r.unit == "deg" { 5 } else { 4 };
         let flagged = r.flagged.map_or_else(String::new, |f| format!("{f} of {}", r.count));
         let one = |v: [f64; 2]| format!("{:.digits$} {}", v[1], r.unit);
         [r.label(), r.count.to_string(), one(r.rms), one(r.max), flagged]
     };
+    let rows = if tree { view_rows } else { set_rows };
     let rows: Vec<[String; 5]> = std::iter::once(heading)
-        .chain(scores.iter().flat_map(|(name, s)| set_rows(name, s)).map(|r| cells(&r)))
+        .chain(scores.iter().flat_map(|(name, s)| rows(name, s)).map(|r| cells(&r)))
         .collect();
     out.push_str(&super::verdict::table("residuals as it stands:", &rows));
     let _ =
         writeln!(out, "\nlargest errors ({WORST} per file, with their whitened size; every one in --json):");
     for (name, score) in scores {
-        if score.positions.is_empty() {
-            let worst = first_by(score.observations.iter(), WORST, |a, b| {
-                b.whitened.abs().total_cmp(&a.whitened.abs())
-            });
-            for r in worst {
-                let (label, unit) = (r.label(), r.unit);
-                let _ = writeln!(
-                    out,
-                    "  {name}, line {} ({label}): {:.4} {unit}, {:.1} sd",
-                    r.line, r.after, r.whitened
-                );
-            }
-        } else {
-            let worst = first_by(score.positions.iter(), WORST, |a, b| b.error.1.total_cmp(&a.error.1));
-            for p in worst {
-                let _ = writeln!(
-                    out,
-                    "  {name}, line {} marker {}: {:.4} mm, {:.1} sd",
-                    p.line, p.marker, p.error.1, p.whitened
-                );
-            }
+        out.push_str(&largest_errors(name, score, tree));
+    }
+    let rule = if tree { Fits::view_rule() } else { flag_rule() };
+    let _ = writeln!(out, "\nflagged:   {rule}");
+    out
+}
+
+/// The largest errors of one file scored as it stands, a line each with its whitened size: a
+/// tree's views (position and rotation norms), a marker file's positions, or any other file's
+/// observations.
+fn largest_errors(name: &str, score: &Score, tree: bool) -> String {
+    let mut out = String::new();
+    if tree {
+        let worst = first_by(score.views.iter(), WORST, |a, b| b.after_mm.total_cmp(&a.after_mm));
+        for v in worst {
+            let error = match v.after_deg {
+                Some(deg) => format!("{:.4} mm / {deg:.5} deg", v.after_mm),
+                None => format!("{:.4} mm", v.after_mm),
+            };
+            let _ = writeln!(out, "  {name}, line {}: {error}, {:.1} sd", v.line, v.whitened);
+        }
+    } else if score.positions.is_empty() {
+        let worst =
+            first_by(score.observations.iter(), WORST, |a, b| b.whitened.abs().total_cmp(&a.whitened.abs()));
+        for r in worst {
+            let (label, unit) = (r.label(), r.unit);
+            let _ = writeln!(
+                out,
+                "  {name}, line {} ({label}): {:.4} {unit}, {:.1} sd",
+                r.line, r.after, r.whitened
+            );
+        }
+    } else {
+        let worst = first_by(score.positions.iter(), WORST, |a, b| b.error.1.total_cmp(&a.error.1));
+        for p in worst {
+            let _ = writeln!(
+                out,
+                "  {name}, line {} marker {}: {:.4} mm, {:.1} sd",
+                p.line, p.marker, p.error.1, p.whitened
+            );
         }
     }
-    let _ = writeln!(out, "\nflagged:   {}", flag_rule());
     out
 }
 

@@ -340,7 +340,10 @@ fn a_tree_writes_a_row_per_view_and_its_branches_rescore_its_views() {
         "--figures",
         s(&dir.join("evaluated")),
     ]);
-    assert!(text.contains("view errors, RMS") && text.contains("as it stands"), "{text}");
+    assert!(
+        text.contains("residuals as it stands:") && text.contains("view file: each file's cameras"),
+        "{text}"
+    );
     let (_, rows) = csv(&std::fs::read_to_string(&poses).unwrap());
     assert_eq!(rows.len(), 120);
     assert!(rows.iter().all(|r| r["set"] == VIEWS && r["before_mm"] == r["after_mm"]), "as it stands");
@@ -350,7 +353,7 @@ fn a_tree_writes_a_row_per_view_and_its_branches_rescore_its_views() {
         std::fs::read_to_string(dir.join("evaluated/errors-by-view-examples-torso-views-csv.svg")).unwrap();
     assert!(bars.contains("as it stands: 0 to") && !bars.contains("before"), "one stage");
     let again = json(&evaluated);
-    let view = |what: &str| again["views"][0][1][what][1].as_f64().unwrap();
+    let view = |what: &str| again["observations"][0][1][what][1].as_f64().unwrap();
     assert!(
         relative(view("view_position"), score(0, "view_position", 1)) < 1e-9,
         "{} mm",
@@ -367,7 +370,7 @@ fn a_tree_writes_a_row_per_view_and_its_branches_rescore_its_views() {
     robocal(&["evaluate", "--model", s(&urdf), "--data", VIEWS, "--json", s(&evaluated)]);
     let from_urdf = json(&evaluated);
     for (what, stage) in [("view_position", 1), ("view_rotation", 1)] {
-        let again = from_urdf["views"][0][1][what][stage].as_f64().unwrap();
+        let again = from_urdf["observations"][0][1][what][stage].as_f64().unwrap();
         assert!(relative(again, score(0, what, stage)) < 1e-9, "{what}: {again}");
     }
     robocal(&[
@@ -381,7 +384,7 @@ fn a_tree_writes_a_row_per_view_and_its_branches_rescore_its_views() {
         "--json",
         s(&evaluated),
     ]);
-    let nominal = json(&evaluated)["views"][0][1]["view_position"][1].as_f64().unwrap();
+    let nominal = json(&evaluated)["observations"][0][1]["view_position"][1].as_f64().unwrap();
     assert!(relative(nominal, score(0, "view_position", 0)) < 1e-9, "{nominal} mm as it stands");
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -531,7 +534,7 @@ fn evaluate_of_a_tree_whitens_by_the_joint_noise() {
         args.extend(["--data", VIEWS, "--json", s(&report)]);
         args.extend(extra);
         robocal(&args);
-        let views = json(&report)["views"][0][1]["views"].as_array().unwrap().clone();
+        let views = json(&report)["observations"][0][1]["views"].as_array().unwrap().clone();
         views.iter().map(|v| v["whitened"].as_f64().unwrap().abs()).fold(0.0, f64::max)
     };
     let (noisy, alone) = (largest(&["--joint-sigma-deg", "1"]), largest(&[]));
