@@ -131,12 +131,7 @@ fn in_context(files: &str) -> impl Fn(CalibrationError) -> FilesError + '_ {
 /// [`Front`]: of observation files ([`Kinds`]) and of a tree's views ([`Tree`]), how sessions
 /// join, how a held-out set is scored (as the cross-validation scores its folds,
 /// [`Front::Nested`]), feasible GLS, and the report.
-pub trait Files: Front<Nested = Nested<Self::Score>> {
-    /// A set of observations scored.
-    type Score;
-    /// The report of a calibration.
-    type Report;
-
+pub trait Files: Front<Nested = Nested<Score>> {
     /// The sessions' data joined into one set (an error naming the file that does not join);
     /// one session's data as it is, not copied.
     fn join(sessions: &[(String, Self::Data)]) -> Result<Cow<'_, Self::Data>, FilesError>;
@@ -145,7 +140,7 @@ pub trait Files: Front<Nested = Nested<Self::Score>> {
     fn counts(data: &Self::Data) -> (usize, usize);
 
     /// `data` scored by `fit`, as calibrated.
-    fn score(fit: &Self::Fit, data: &Self::Data) -> Result<Self::Score, CalibrationError>;
+    fn score(fit: &Self::Fit, data: &Self::Data) -> Result<Score, CalibrationError>;
 
     /// The estimator and the loss `options` ask for.
     fn asked(options: &Self::Options) -> (Estimator, Loss);
@@ -167,24 +162,21 @@ pub trait Files: Front<Nested = Nested<Self::Score>> {
         chosen: &mut ChosenFit<Self::Fit>,
         fitted: (&Self::Data, &str, Vec<(String, usize)>),
         estimator: &str,
-        scores: (Vec<(String, Self::Score)>, Option<CrossValidationReport>),
-    ) -> Self::Report;
+        scores: (Vec<(String, Score)>, Option<CrossValidationReport>),
+    ) -> ObservationsReport;
 
     /// `report` with the tool's position error predicted at the `held_out` sets' poses from
     /// `fit`'s parameter covariance; as it is where the kind predicts none.
     fn with_predicted(
-        report: Self::Report,
+        report: ObservationsReport,
         _fit: &Self::Fit,
         _held_out: &[(String, Self::Data)],
-    ) -> Result<Self::Report, CalibrationError> {
+    ) -> Result<ObservationsReport, CalibrationError> {
         Ok(report)
     }
 }
 
 impl Files for Kinds<'_> {
-    type Score = Score;
-    type Report = ObservationsReport;
-
     fn join(sessions: &[(String, KindData)]) -> Result<Cow<'_, KindData>, FilesError> {
         Ok(match sessions {
             [(_, one)] => Cow::Borrowed(one),
@@ -260,9 +252,6 @@ fn report_of<R: Reported>(
 }
 
 impl Files for Tree<'_> {
-    type Score = Score;
-    type Report = ObservationsReport;
-
     fn join(sessions: &[(String, TreeData)]) -> Result<Cow<'_, TreeData>, FilesError> {
         let mut data = TreeData::default();
         for (name, file) in sessions {
@@ -312,7 +301,7 @@ pub struct Outcome<F: Files> {
     pub calibration: F::Fit,
     /// The report: the training data, each held-out set and the cross-validation scored, the
     /// files fitted, the choices made.
-    pub report: F::Report,
+    pub report: ObservationsReport,
 }
 
 /// A tree calibrated from views, and the report.

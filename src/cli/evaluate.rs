@@ -173,9 +173,7 @@ fn run_tree(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
     let tree = load_tree(request)?;
     let files = (request.data.iter())
         .map(|path| {
-            let text =
-                std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
-            let data = TreeData::from_csv_str(&text, &tree, request.units)
+            let data = TreeData::from_csv_str(&read(path)?, &tree, request.units)
                 .with_context(|| path.display().to_string())?;
             Ok((path.display().to_string(), data))
         })
@@ -223,8 +221,7 @@ fn run_tree(request: &EvaluateRequest, kinds: &[DataKind]) -> Result<()> {
 /// given ([`io::load_branches`]).
 fn load_tree(request: &EvaluateRequest) -> Result<RobotTree> {
     let name = request.model.name.as_str();
-    let text = std::fs::read_to_string(name).with_context(|| format!("{name}: cannot read"))?;
-    let tree = RobotTree::from_urdf_str(&text, request.tree_root.as_deref(), &request.tips)
+    let tree = RobotTree::from_urdf_str(&read(Path::new(name))?, request.tree_root.as_deref(), &request.tips)
         .with_context(|| name.to_string())?;
     match &request.branches {
         Some(folder) => Ok(io::load_branches(&tree, folder)?),

@@ -240,10 +240,9 @@ impl Fits {
     /// The fits of `c` by `estimator`: with markers the base, the markers and the set-up by
     /// ordinary least squares whatever the estimator (it minimises the very errors reported),
     /// else the set-up and the tool point (a tree's cameras and targets) by the estimator's
-    /// weights, the joints nominal; after, every parameter asked for that the observations (and
-    /// the priors) identify.
-    fn of<R: Reported>(c: &Calibration<R>, estimator: &str) -> Self {
-        let tree = R::tree_parts(c).is_some();
+    /// weights, the joints nominal (of a `tree`: its cameras and targets); after, every
+    /// parameter asked for that the observations (and the priors) identify.
+    fn of<R>(c: &Calibration<R>, estimator: &str, tree: bool) -> Self {
         let before = match (c.markers.is_empty(), c.setup.names().is_empty()) {
             _ if tree => format!("cameras and targets fitted by {estimator}, the tree's joints nominal"),
             (false, true) => {
@@ -438,6 +437,7 @@ impl ObservationsReport {
         held_out: Vec<(String, Score)>,
     ) -> Self {
         let (parameters, tree) = (parameter_rows(c), R::tree_parts(c));
+        let fits = Fits::of(c, estimator, tree.is_some());
         let down_weighted = down_weighted(c, &training, tree.is_some());
         let markers = marker_count(&training.observations);
         let mut sets = vec![("training".to_string(), training)];
@@ -481,7 +481,7 @@ impl ObservationsReport {
             cross_validation: None,
             predicted: Vec::new(),
             assumed_sigmas: 0,
-            fits: Fits::of(c, estimator),
+            fits,
             markers,
         };
         report.verdict = report.verdict_rows();

@@ -2119,13 +2119,14 @@ impl<R: Robot> Calibration<R> {
         (x, s): (&[f64], &[f64]),
         free: &[usize],
     ) -> KindProblem<'b> {
-        let points = (self.markers.iter().map(|m| m.0).collect(), self.branches);
-        KindProblem::on_chains(
-            &self.chains,
-            points,
-            (&self.nothing, data, setup),
-            (x.to_vec(), s.to_vec(), free.to_vec()),
-        )
+        let values = (x.to_vec(), s.to_vec(), free.to_vec());
+        KindProblem::on_chains(&self.chains, self.points(), (&self.nothing, data, setup), values)
+    }
+
+    /// What its chains end at ([`KindProblem::on_chains`]): its markers' numbers (less one),
+    /// and whether they are a tree's branches.
+    fn points(&self) -> (Vec<usize>, bool) {
+        (self.markers.iter().map(|m| m.0).collect(), self.branches)
     }
 
     /// The problem of `data` (rows of this calibration's observations) on its points or
@@ -2138,9 +2139,8 @@ impl<R: Robot> Calibration<R> {
         kept_setup: Vec<usize>,
         joint_noise: Option<&DMatrix<f64>>,
     ) -> KindProblem<'b> {
-        let points = (self.markers.iter().map(|m| m.0).collect(), self.branches);
         let values = (self.after.clone(), self.setup_values.1.clone(), kept_setup);
-        KindProblem::on_chains(&self.chains, points, (kept, data, &self.setup), values)
+        KindProblem::on_chains(&self.chains, self.points(), (kept, data, &self.setup), values)
             .with_noise(joint_noise)
     }
 
@@ -2150,8 +2150,7 @@ impl<R: Robot> Calibration<R> {
         &self,
         data: &KindData,
     ) -> Result<(SetUp, (Vec<f64>, Vec<f64>), Vec<(String, SessionSetUp)>), CalibrationError> {
-        let markers: Vec<usize> = self.markers.iter().map(|m| m.0).collect();
-        let points = (self.chains.as_slice(), (markers, self.branches), &self.nothing);
+        let points = (self.chains.as_slice(), self.points(), &self.nothing);
         setup_for((&self.setup, &self.setup_values), (&self.before, &self.after), points, data)
     }
 
