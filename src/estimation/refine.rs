@@ -351,11 +351,12 @@ impl<P: Residuals> Context<'_, P> {
 
     /// The trials of one linearisation (`system`, the prior rows below it, factored as
     /// `factorised`) about `x` of cost `cost`, each damped by the trust `region` ([`super::trust`])
-    /// and the region moved by its gain, until one does not raise the cost; `None` if none does
-    /// where no step can: at the minimum (the Gauss-Newton step promises a fall below the cost
-    /// tolerance, so a failed step is rounding) or once the region has collapsed below the step
-    /// tolerance. Each trial is linearised at once, but at the minimum: an accepted one is the
-    /// next step's system.
+    /// and the region moved by its gain, until one does not raise the cost; `None` where no step
+    /// is taken: at the minimum, where the Gauss-Newton step promises a fall below the cost
+    /// tolerance (a step would move the estimate by rounding, and whether rounding lowers the
+    /// cost or raises it would decide whether it is taken), or once the region has collapsed
+    /// below the step tolerance. Each trial is linearised at once: an accepted one is the next
+    /// step's system.
     fn trials(
         &self,
         x: &DVector<f64>,
@@ -366,25 +367,22 @@ impl<P: Residuals> Context<'_, P> {
     ) -> Option<Accepted> {
         let steps = Steps::new(factorised, system);
         let promised = cost - system.cost_after(&steps.step(0.0));
-        let at_minimum = promised <= self.options.cost_tolerance * cost;
+        if promised <= self.options.cost_tolerance * cost {
+            return None;
+        }
         loop {
             let damping = region.damping(&steps.spectrum);
             let step = steps.step(damping);
             let moved_to = x + &step;
-            let (y, next) = if at_minimum {
-                (self.problem.evaluate_whitened(&moved_to, self.weights, None), None)
-            } else {
-                let (y, next) = self.problem.linearise_whitened(&moved_to, self.weights);
-                (y, Some(next))
-            };
+            let (y, next) = self.problem.linearise_whitened(&moved_to, self.weights);
             let cost_after = self.cost(&moved_to, &y);
             let gain = trust::gain(cost, cost_after, system.cost_after(&step));
             region.update(gain, steps.spectrum.length(damping));
             if cost_after <= cost {
                 let residual = Some((y, next));
-                return Some(Accepted { step, cost_after, damping, residual, gain, at_minimum });
+                return Some(Accepted { step, cost_after, damping, residual, gain });
             }
-            if at_minimum || region.collapsed(&steps.spectrum, self.options.step_tolerance) {
+            if region.collapsed(&steps.spectrum, self.options.step_tolerance) {
                 return None;
             }
         }
@@ -425,7 +423,7 @@ pub(crate) fn refine_within(
             // linearised residual's.
             let step = factorised.solve(ss);
             let cost_after = ss.cost_after(&step);
-            Some(Accepted { step, cost_after, damping: 0.0, residual: None, gain: 1.0, at_minimum: false })
+            Some(Accepted { step, cost_after, damping: 0.0, residual: None, gain: 1.0 })
         } else {
             context.trials(&x, cost, ss, &factorised, &mut region)
         };
@@ -445,11 +443,7 @@ pub(crate) fn refine_within(
             None => (true, cost, None),
         };
         match next {
-            Some((y, linearised)) if !converged && history.len() < budget => {
-                let (y, next) = match linearised {
-                    Some(next) => (y, next),
-                    None => problem.linearise_whitened(&x, weights),
-                };
+            Some((y, next)) if !converged && history.len() < budget => {
                 super::finite("y", y.as_slice(), y.len())?;
                 next.check_finite()?;
                 system = next;
@@ -474,30 +468,25 @@ struct Accepted {
     cost_after: f64,
     /// The trust region's damping (0: the Gauss-Newton step).
     damping: f64,
-    /// `S y` after the step, and the system linearised there if it was (not at the minimum);
-    /// `None` for the paper's one step.
-    residual: Option<(DVector<f64>, Option<Reduced>)>,
+    /// `S y` after the step and the system linearised there; `None` for the paper's one step.
+    residual: Option<(DVector<f64>, Reduced)>,
     /// Its gain ratio ([`trust::gain`]).
     gain: f64,
-    /// Whether it was taken at the minimum: the Gauss-Newton step promised a fall below the
-    /// cost tolerance.
-    at_minimum: bool,
 }
 
 impl Accepted {
     /// Whether the stopping rules are met after the step, of cost `cost` before it, that moved
-    /// a whitened prediction by `moved` at most: it moved none by more than the step tolerance,
-    /// or it lowered the cost by less than the cost tolerance (a fraction of it). A step the
-    /// region cut short (damped) is judged only at the minimum, and a small fall only where the
-    /// linearised system promised little: at the minimum, or after a Gauss-Newton step that kept
-    /// a quarter of its promise at least (a step that jumped across a valley to as high a cost
-    /// promised much and lowered little, and says nothing of a minimum).
+    /// a whitened prediction by `moved` at most: a Gauss-Newton step (undamped) that moved none
+    /// by more than the step tolerance, or that lowered the cost by less than the cost tolerance
+    /// (a fraction of it) and kept a quarter of its promise at least (a step that jumped across
+    /// a valley to as high a cost promised much and lowered little, and says nothing of a
+    /// minimum). A step the region cut short (damped) stops nothing: the next linearisation
+    /// finds the minimum ([`Context::trials`]).
     fn stops(&self, options: &RefineOptions, cost: f64, moved: f64) -> bool {
         let undamped = self.damping == 0.0;
-        let still = moved <= options.step_tolerance && (undamped || self.at_minimum);
-        let flat = cost - self.cost_after <= options.cost_tolerance * cost
-            && (self.at_minimum || (undamped && self.gain >= 0.25));
-        still || flat
+        let still = moved <= options.step_tolerance;
+        let flat = cost - self.cost_after <= options.cost_tolerance * cost && self.gain >= 0.25;
+        undamped && (still || flat)
     }
 }
 

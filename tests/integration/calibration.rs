@@ -768,7 +768,7 @@ fn the_example_calibrations_take_gauss_newton_steps_alone() {
         let options = crate::marker_options(&model, estimator, noise.as_ref(), &markers);
         let c = calibrate_kinds(&model, &data, &options).unwrap();
         let history = &c.refined.history;
-        assert!(c.refined.converged && history.len() >= 3, "{history:?}");
+        assert!(c.refined.converged && history.len() >= 2, "{history:?}");
         assert!(history.iter().all(|step| step.damping == 0.0), "{estimator:?}: {history:?}");
     }
 }

@@ -446,7 +446,19 @@ fn refining_the_identifiable_subset_from_its_linearisation_is_refining_it_afresh
     // the rows: the same to rounding.
     let scale = afresh.estimate.x.amax();
     assert!((&reused.estimate.x - &afresh.estimate.x).amax() <= 1e-9 * scale, "{}", reused.estimate.x);
-    assert_eq!(reused.history.len(), afresh.history.len());
+    // The same steps, but where the noise-free cost reaches the rounding floor: there a step
+    // more or less is rounding's choice.
+    let first = afresh.history[0].cost;
+    let above_rounding =
+        |r: &robocal::estimation::Refined| r.history.iter().filter(|s| s.cost > 1e-18 * first).count();
+    assert_eq!(
+        above_rounding(&reused),
+        above_rounding(&afresh),
+        "{:?}\n{:?}",
+        reused.history,
+        afresh.history
+    );
+    assert!(above_rounding(&afresh) >= 3, "{:?}", afresh.history);
     assert!(
         reused.converged && reused.estimate.cost < 1e-20,
         "noise-free data are fitted: {:?}",
@@ -631,18 +643,16 @@ fn the_trust_region_is_gauss_newton_where_gauss_newton_converges() {
 
     let one = RefineOptions { max_iterations: 1, ..RefineOptions::default() };
     let mut x = subset.start();
-    let mut last = None;
     for _ in 0..refined.history.len() {
-        let step = refine(&subset, Estimator::Wls, x, &one).unwrap();
-        x = step.estimate.x.clone();
-        last = Some(step);
+        x = refine(&subset, Estimator::Wls, x, &one).unwrap().estimate.x;
     }
     let se = refined.estimate.standard_errors();
     for (j, name) in refined.estimate.names.iter().enumerate() {
         let (lm, gn) = (refined.estimate.x[j], x[j]);
         assert!((lm - gn).abs() <= 1e-9 * lm.abs().max(se[j]), "{name}: {lm} against {gn}");
     }
-    let gauss_newton = last.unwrap().estimate.covariance;
+    // The covariance of the system linearised at the estimate: the next step's.
+    let gauss_newton = refine(&subset, Estimator::Wls, x, &one).unwrap().estimate.covariance;
     let spread = (&refined.estimate.covariance - &gauss_newton).amax() / gauss_newton.amax();
     assert!(spread < 1e-9, "{spread:e}");
 }

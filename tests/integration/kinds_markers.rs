@@ -1440,7 +1440,7 @@ fn a_weighted_estimator_needs_a_noise_and_without_one_the_fit_is_ols() {
         assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
         String::from_utf8(output.stdout).unwrap().lines().next().unwrap().to_string()
     };
-    assert!(header(run(&markers, &[])).ends_with("100 poses, 2 markers, ols (3 steps, converged)"));
+    assert!(header(run(&markers, &[])).ends_with("100 poses, 2 markers, ols (2 steps, converged)"));
     let with_sigmas = ["examples/puma560-ballbar.csv"];
     assert!(header(run(&with_sigmas, &[])).contains(", wls ("), "the ball bar's sigma column");
     assert!(header(run(&with_sigmas, &["--estimator", "wls"])).contains(", wls ("));
