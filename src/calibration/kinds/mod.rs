@@ -1910,7 +1910,7 @@ impl Score {
         (before, after): (&DVector<f64>, &DVector<f64>),
         variances: &[f64],
     ) -> Self {
-        let observations: Vec<ObservationResidual> = (data.observations.iter().enumerate())
+        let observations: Vec<ObservationResidual> = (data.observations.par_iter().enumerate())
             .map(|(k, o)| {
                 // The residuals of angles are in radians: reported in degrees, as every angle.
                 let (scale, unit) = if o.is_angle() { (1f64.to_degrees(), "deg") } else { (1.0, "mm") };

@@ -21,10 +21,20 @@ impl CalibrationRequest {
     /// The request for `args`, whose `--data` files hold `kinds` (one each, in order).
     pub fn from_args(args: CalibrateArgs, kinds: &[DataKind]) -> Result<Self, UsageError> {
         let trees = kinds.iter().filter(|&&k| k == DataKind::TreeViews).count();
-        if trees > 0 || !args.tree.tips.is_empty() || args.tree.out_dir.is_some() {
-            // Tree flags with files of no tree views: the tree's reader says what it expected.
+        let tree_flag = match (args.tree.tips.is_empty(), &args.tree.out_dir) {
+            (false, _) => Some("--tips"),
+            (true, Some(_)) => Some("--out-dir"),
+            (true, None) => None,
+        };
+        if let (0, Some(flag)) = (trees, tree_flag) {
+            return Err(UsageError(format!(
+                "{flag}: for views between a tree's branches (camera, target columns), and no --data file \
+                 holds them; an arm's calibrated model is written by --out-model or --out-urdf"
+            )));
+        }
+        if trees > 0 {
             require(
-                trees == 0 || trees == kinds.len(),
+                trees == kinds.len(),
                 "--data: views between a tree's branches (camera, target columns) are fitted on their own; \
                  give the other files to another calibration (--tips and --out-dir are for tree views)",
             )?;

@@ -603,7 +603,13 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
             .starts_with("--noise gives the joint noise")
     );
     assert!(refused(&[TreeViews, Observations], &[]).contains("fitted on their own"));
-    assert!(refused(&[Observations], &["--tips", "a"]).starts_with("--model: a URDF file"), "--tips: a tree");
+    assert!(refused(&[Observations], &["--tips", "a"]).starts_with("--tips: for views between"));
+    // A tree's flag with an arm's files is refused for what it is, not for another flag.
+    let out_dir = refused(&[Markers], &["--out-dir", "d", "--sigma-mm", "0.01"]);
+    assert!(
+        out_dir.starts_with("--out-dir: for views between") && out_dir.contains("--out-model"),
+        "{out_dir}"
+    );
     assert_eq!(
         is(route(&[TreeViews], &["--prior", "machined", "--loss", "huber", "--hold", "torso.z"])),
         "tree"
