@@ -81,7 +81,8 @@ pub struct RefineOptions {
     pub max_iterations: usize,
     /// Stop when no whitened residual moves by more than this in a step.
     pub step_tolerance: f64,
-    /// Stop when a step lowers the weighted cost by less than this fraction. The default, 1e-10,
+    /// Stop when a step lowers the weighted cost by less than this fraction, and take no step
+    /// where the linearised system promises a fall below it (the minimum). The default, 1e-10,
     /// stays clear of the cost's rounding (near 1e-12 for a thousand poses), so the number of
     /// steps does not depend on it.
     pub cost_tolerance: f64,
