@@ -881,7 +881,8 @@ fn an_input_inside_an_output_folder_under_a_name_written_there_is_refused_before
     std::fs::create_dir_all(dir.join("o/small")).unwrap();
     file(&dir, "o/small/tables.txt", &small_study(&[]));
     std::fs::create_dir(dir.join("d")).unwrap();
-    file(&dir, "d/frames.json", "{}\n");
+    // A file of views (its header says so) under the name a tree's calibration writes there.
+    file(&dir, "d/frames.json", "camera,target,torso\n");
     std::fs::create_dir(dir.join("figs")).unwrap();
     file(&dir, "figs/keep.csv", MEASUREMENTS);
     let torso = Path::new(env!("CARGO_MANIFEST_DIR")).join("presets/torso.urdf");
@@ -913,7 +914,7 @@ fn an_input_inside_an_output_folder_under_a_name_written_there_is_refused_before
         );
     }
     assert_eq!(std::fs::read_to_string(dir.join("o/small/tables.txt")).unwrap(), small_study(&[]));
-    assert_eq!(std::fs::read_to_string(dir.join("d/frames.json")).unwrap(), "{}\n");
+    assert_eq!(std::fs::read_to_string(dir.join("d/frames.json")).unwrap(), "camera,target,torso\n");
     // Under a name the command does not write there, an input may stay in the folder.
     let (code, _, stderr) = run_in(
         &dir,

@@ -539,6 +539,17 @@ fn a_tree_refuses_each_flag_saying_why() {
     assert!(tree(&["--per-session", "camera*"]).contains("give two --data files or more"));
 }
 
+/// A tree's flag with an arm's files is refused for what it is, not for another flag the
+/// tree's calibration does not take.
+#[test]
+fn a_trees_flag_with_an_arms_files_is_refused_for_what_it_is() {
+    let out_dir = route(&[DataKind::Markers], &["--out-dir", "d", "--sigma-mm", "0.01"]).unwrap_err();
+    assert!(
+        out_dir.starts_with("--out-dir: for views between") && out_dir.contains("--out-model"),
+        "{out_dir}"
+    );
+}
+
 /// One command: marker and observation files, one or several, take the one observation
 /// calibration, tree views the tree's; a flag the chosen one cannot honour is
 /// refused, naming it.
@@ -604,12 +615,6 @@ fn calibrate_routes_by_the_files_kinds_and_the_flags() {
     );
     assert!(refused(&[TreeViews, Observations], &[]).contains("fitted on their own"));
     assert!(refused(&[Observations], &["--tips", "a"]).starts_with("--tips: for views between"));
-    // A tree's flag with an arm's files is refused for what it is, not for another flag.
-    let out_dir = refused(&[Markers], &["--out-dir", "d", "--sigma-mm", "0.01"]);
-    assert!(
-        out_dir.starts_with("--out-dir: for views between") && out_dir.contains("--out-model"),
-        "{out_dir}"
-    );
     assert_eq!(
         is(route(&[TreeViews], &["--prior", "machined", "--loss", "huber", "--hold", "torso.z"])),
         "tree"
