@@ -734,6 +734,27 @@ pub fn marker_jacobians(
     marker_jacobians_held(markers, JointTrig::plain(q), selection, h, positions, None);
 }
 
+/// The column of `step`'s own parameter in `h` (3 rows a point at `positions`, in the end
+/// frame), if it is selected: the step's screw at `frame` moving each point, written as the
+/// walk with load responses writes it (`old * 0 + v * 1`, to the bit).
+fn own_column(
+    step: &Step,
+    frame: &Frame,
+    selection: &Selection,
+    positions: &[Vector3<f64>],
+    h: &mut DMatrixViewMut<'_, f64>,
+) {
+    let Some(c) = step.param.and_then(|i| selection.column(i)) else { return };
+    let (linear, angular) = frame.screw(step.motion, &Vector3::zeros());
+    let mut column = h.column_mut(c);
+    for (m, r) in positions.iter().enumerate() {
+        let moved = linear + angular.cross(r);
+        for i in 0..3 {
+            column[3 * m + i] = column[3 * m + i] * 0.0 + moved[i];
+        }
+    }
+}
+
 /// [`marker_jacobians`], the walk back starting at `held`'s frame if given (this pose's, from
 /// [`ChainAt::held_arm`]; the steps it holds are not visited: no selected parameter moves them),
 /// the joints turned by `q`'s sines and cosines if it has them ([`JointTrig`]).
@@ -769,6 +790,10 @@ pub(crate) fn marker_jacobians_held(
             None => (&first.steps[..first.arm], Frame::IDENTITY),
         };
         let walked = back_from(steps, q, start, |step, frame| {
+            if loads.payload.is_none() && step.compliance.is_none() && step.play.is_none() {
+                // No load response: the step's own column alone, scale 1, nothing kept.
+                return own_column(step, frame, selection, positions, &mut h);
+            }
             let column = step.param.and_then(|i| selection.column(i)).map(|c| (c, 1.0));
             // A load response moves its joint: its column is the joint's, scaled.
             let mut responses = step.load_columns(selection, loads).peekable();
