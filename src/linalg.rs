@@ -54,10 +54,9 @@ const REDUCE_ROWS: usize = 128;
 /// (`B_j` the column `j` of `B`), so the zeros below `R`'s diagonal are never touched (faer's
 /// general QR of the stacked block works on them too, and does 3 times fewer floating-point
 /// operations a second at these sizes: 3.2 against 10.4 GFLOP/s on one core of the
-/// development machine, 300,000 x 43). `R^T R = A^T A` and `R` has
-/// the singular values and right singular vectors of `A`, to the rounding of a Householder QR
-/// of `A` itself (unlike the Gram matrix, whose rounding is that of `A`'s condition number
-/// squared).
+/// development machine, 300,000 x 43). `R^T R = A^T A` and `R` has the singular values and
+/// right singular vectors of `A`, to the rounding of a Householder QR of `A` itself (unlike
+/// the Gram matrix, whose rounding is that of `A`'s condition number squared).
 ///
 /// The arithmetic depends only on the sequence of rows pushed, not on how it is cut into
 /// pushes, nor on the machine: every dot product is summed in [`LANES`] fixed lanes, then the
@@ -351,14 +350,15 @@ mod tests {
         assert!(direct.s.iter().zip(&scaled.small.s).all(|(x, y)| (x - y).abs() < 1e-13 * direct.s[0]));
     }
 
+    /// Test matrices of the sizes `(m, n)`: smooth entries, columns of growing scale.
+    fn matrices(sizes: &[(usize, usize)]) -> Vec<DMatrix<f64>> {
+        let entry = |r: usize, c: usize| ((r * 7 + c * 3) as f64 * 0.61).sin() * (c + 1) as f64;
+        sizes.iter().map(|&(m, n)| DMatrix::from_fn(m, n, entry)).collect()
+    }
+
     /// Several row parts (2500 rows), a single part, and fewer rows than columns.
     fn tall_matrices() -> Vec<DMatrix<f64>> {
-        [(2500, 7), (300, 7), (4, 7)]
-            .into_iter()
-            .map(|(m, n)| {
-                DMatrix::from_fn(m, n, |r, c| ((r * 7 + c * 3) as f64 * 0.61).sin() * (c + 1) as f64)
-            })
-            .collect()
+        matrices(&[(2500, 7), (300, 7), (4, 7)])
     }
 
     #[test]
@@ -394,12 +394,7 @@ mod tests {
 
     /// Tall, square, short and single-row matrices, gathered blocks whole and cut short.
     fn shapes() -> Vec<DMatrix<f64>> {
-        [(3 * REDUCE_ROWS, 7), (1000, 43), (300, 13), (7, 7), (4, 7), (1, 5)]
-            .into_iter()
-            .map(|(m, n)| {
-                DMatrix::from_fn(m, n, |r, c| ((r * 7 + c * 3) as f64 * 0.61).sin() * (c + 1) as f64)
-            })
-            .collect()
+        matrices(&[(3 * REDUCE_ROWS, 7), (1000, 43), (300, 13), (7, 7), (4, 7), (1, 5)])
     }
 
     /// `R` is the triangular factor of a Householder QR of `A`: upper triangular, `R^T R =

@@ -734,23 +734,21 @@ pub fn marker_jacobians(
     marker_jacobians_held(markers, JointTrig::plain(q), selection, h, positions, None);
 }
 
-/// The column of `step`'s own parameter in `h` (3 rows a point at `positions`, in the end
-/// frame), if it is selected: the step's screw at `frame` moving each point, written as the
-/// walk with load responses writes it (`old * 0 + v * 1`, to the bit).
-fn own_column(
-    step: &Step,
-    frame: &Frame,
-    selection: &Selection,
-    positions: &[Vector3<f64>],
+/// Column `c` of `h` (3 rows a point at `positions`, in the end frame) set to `keep` times
+/// itself plus `scale` times the screw `(linear, angular)` moving each point:
+/// `h_c <- keep h_c + scale (linear + angular x r_m)`.
+#[inline(always)]
+fn add_screw(
     h: &mut DMatrixViewMut<'_, f64>,
+    (c, keep, scale): (usize, f64, f64),
+    (linear, angular): (Vector3<f64>, Vector3<f64>),
+    positions: &[Vector3<f64>],
 ) {
-    let Some(c) = step.param.and_then(|i| selection.column(i)) else { return };
-    let (linear, angular) = frame.screw(step.motion, &Vector3::zeros());
     let mut column = h.column_mut(c);
     for (m, r) in positions.iter().enumerate() {
         let moved = linear + angular.cross(r);
         for i in 0..3 {
-            column[3 * m + i] = column[3 * m + i] * 0.0 + moved[i];
+            column[3 * m + i] = column[3 * m + i] * keep + moved[i] * scale;
         }
     }
 }
@@ -790,24 +788,30 @@ pub(crate) fn marker_jacobians_held(
             None => (&first.steps[..first.arm], Frame::IDENTITY),
         };
         let walked = back_from(steps, q, start, |step, frame| {
-            if loads.payload.is_none() && step.compliance.is_none() && step.play.is_none() {
-                // No load response: the step's own column alone, scale 1, nothing kept.
-                return own_column(step, frame, selection, positions, &mut h);
-            }
             let column = step.param.and_then(|i| selection.column(i)).map(|c| (c, 1.0));
+            if loads.payload.is_none() && step.compliance.is_none() && step.play.is_none() {
+                // No load response (the walk's common case, at every step of every pose): the
+                // step's own column alone, nothing kept, without the responses' iterator.
+                if let Some((c, scale)) = column {
+                    add_screw(
+                        &mut h,
+                        (c, 0.0, scale),
+                        frame.screw(step.motion, &Vector3::zeros()),
+                        positions,
+                    );
+                }
+                return;
+            }
             // A load response moves its joint: its column is the joint's, scaled.
             let mut responses = step.load_columns(selection, loads).peekable();
             if column.is_none() && responses.peek().is_none() {
                 return;
             }
-            let (linear, angular) = frame.screw(step.motion, &Vector3::zeros());
+            let screw = frame.screw(step.motion, &Vector3::zeros());
             for (c, scale) in column.into_iter().chain(responses) {
                 // The payload's mass moves every joint: its column sums over them.
                 let keep = if Some(c) == loads.payload { 1.0 } else { 0.0 };
-                for (m, r) in positions.iter().enumerate() {
-                    let moved = h.fixed_view::<3, 1>(3 * m, c) * keep + (linear + angular.cross(r)) * scale;
-                    h.fixed_view_mut::<3, 1>(3 * m, c).copy_from(&moved);
-                }
+                add_screw(&mut h, (c, keep, scale), screw, positions);
             }
         });
         seen_from_the_end(walked)
