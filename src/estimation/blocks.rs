@@ -7,12 +7,13 @@
 //! its joint noise, `V_k = G_k Sigma_q G_k^T + Sigma_m,k`). Blocks are stacked `N_m x w`, `w`
 //! the largest block: point `k`'s block is its rows' first `size_k` columns.
 
-use super::{EstimationError, Estimator};
+use super::{EstimationError, Estimator, RowCovariance};
 use nalgebra::allocator::Allocator;
-use nalgebra::storage::{IsContiguous, StorageMut};
+use nalgebra::storage::{IsContiguous, RawStorage, StorageMut};
 use nalgebra::{Const, DMatrix, DVector, DefaultAllocator, Dim, Dyn, Matrix, OMatrix, SMatrix};
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Where each point's rows lie in the stacked system.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -95,29 +96,68 @@ pub(crate) fn check_covariance(v: &DMatrix<f64>, blocks: &Blocks) -> Result<(), 
     Ok(())
 }
 
-/// `S_k` of every block (`L_k^-1` by Cholesky for Gauss-Markov, a diagonal for the others) and
-/// the covariance of the whitened errors, `S_k V_k S_k^T`, both stacked like `v`. Blocks of 3
-/// and 6 rows are kept on the stack.
+/// `S_k` of every block (`L_k^-1` by Cholesky for Gauss-Markov, a diagonal for the others),
+/// stacked like `v`, and the covariance of the whitened errors `S_k V_k S_k^T`: `c` alone
+/// when every block is `c I` to a relative 1e-9 ([`identity_multiple`]; Gauss-Markov's, `c = 1`
+/// to rounding), never written out; else the blocks stacked like `v`, from the `S_k` written.
+/// Blocks of 3 and 6 rows are kept on the stack.
 pub(crate) fn block_weights(
     v: &DMatrix<f64>,
     blocks: &Blocks,
     estimator: Estimator,
-) -> Result<(DMatrix<f64>, DMatrix<f64>), EstimationError> {
+) -> Result<(DMatrix<f64>, RowCovariance), EstimationError> {
     let (rows, width) = v.shape();
-    let (mut s, mut noise) = (DMatrix::zeros(rows, width), DMatrix::zeros(rows, width));
+    let mut s = DMatrix::zeros(rows, width);
     let bounds = point_parts(blocks, rows).1;
-    let pieces: Vec<_> =
-        column_parts(&mut s, &bounds).into_iter().zip(column_parts(&mut noise, &bounds)).collect();
-    on_parts(blocks, rows, pieces, |k, at, (s, noise)| {
+    // The first block's whitened variance `c`; unchecked blocks are `c I` until one is not.
+    let c = match blocks.points(rows) {
+        0 => 0.0,
+        _ => first_whitened_variance(v, blocks, estimator)?,
+    };
+    let multiple = AtomicBool::new(c > 0.0);
+    on_parts(blocks, rows, column_parts(&mut s, &bounds), |k, at, s| {
         let r = blocks.range(k);
-        let out = (at, &mut s[..], &mut noise[..]);
+        let (out, check) = ((at, &mut s[..]), (c, &multiple));
         match r.len() {
-            3 => weigh_block(v, r.start, Const::<3>, estimator, k, out),
-            6 => weigh_block(v, r.start, Const::<6>, estimator, k, out),
-            n => weigh_block(v, r.start, Dyn(n), estimator, k, out),
+            3 => weigh_block(v, (r.start, Const::<3>), (estimator, k), out, check),
+            6 => weigh_block(v, (r.start, Const::<6>), (estimator, k), out, check),
+            n => weigh_block(v, (r.start, Dyn(n)), (estimator, k), out, check),
         }
     })?;
-    Ok((s, noise))
+    if multiple.into_inner() {
+        return Ok((s, RowCovariance::Scale(c)));
+    }
+    let mut noise = DMatrix::zeros(rows, width);
+    on_parts(blocks, rows, column_parts(&mut noise, &bounds), |k, at, noise| {
+        let r = blocks.range(k);
+        match r.len() {
+            3 => write_block(&whiten_block(v, &s, (r.start, Const::<3>)), at, noise),
+            6 => write_block(&whiten_block(v, &s, (r.start, Const::<6>)), at, noise),
+            n => write_block(&whiten_block(v, &s, (r.start, Dyn(n))), at, noise),
+        }
+        Ok(())
+    })?;
+    Ok((s, RowCovariance::Blocks(noise)))
+}
+
+/// `S_0 V_0 S_0^T`'s first element: the whitened variance every block is compared with.
+fn first_whitened_variance(
+    v: &DMatrix<f64>,
+    blocks: &Blocks,
+    estimator: Estimator,
+) -> Result<f64, EstimationError> {
+    fn of<D: Dim>(v: &DMatrix<f64>, d: D, estimator: Estimator) -> Result<f64, EstimationError>
+    where
+        DefaultAllocator: Allocator<D, D> + Allocator<D>,
+    {
+        let (s_0, v_0) = block_whitener(v, 0, d, estimator, 0)?;
+        Ok((&s_0 * v_0 * s_0.transpose())[(0, 0)])
+    }
+    match blocks.range(0).len() {
+        3 => of(v, Const::<3>, estimator),
+        6 => of(v, Const::<6>, estimator),
+        n => of(v, Dyn(n), estimator),
+    }
 }
 
 /// `each(k, at, piece)` of every point `k` of a system of `rows` rows laid out by `blocks`, on
@@ -178,28 +218,48 @@ fn column_parts<'m>(m: &'m mut DMatrix<f64>, bounds: &[usize]) -> Vec<Vec<&'m mu
     parts
 }
 
-/// `S_k` and `S_k V_k S_k^T` of the block of `d` rows at row `start` of `v` (point `k`),
-/// written at row `at` of the column parts `s` and `noise` ([`column_parts`]).
+/// `S_k` of the block of `d` rows at row `start` of `v` (point `k`), written at row `at` of
+/// the column parts `s` ([`column_parts`]); `multiple` cleared if `S_k V_k S_k^T` is not `c I`
+/// (unless it is already).
 fn weigh_block<D: Dim>(
     v: &DMatrix<f64>,
-    start: usize,
-    d: D,
-    estimator: Estimator,
-    k: usize,
-    (at, s, noise): (usize, &mut [&mut [f64]], &mut [&mut [f64]]),
+    (start, d): (usize, D),
+    (estimator, k): (Estimator, usize),
+    (at, s): (usize, &mut [&mut [f64]]),
+    (c, multiple): (f64, &AtomicBool),
 ) -> Result<(), EstimationError>
 where
     DefaultAllocator: Allocator<D, D> + Allocator<D>,
 {
     let (s_k, v_k) = block_whitener(v, start, d, estimator, k)?;
-    let whitened = &s_k * v_k * s_k.transpose();
-    for (j, (s, noise)) in s.iter_mut().zip(noise.iter_mut()).take(d.value()).enumerate() {
-        for i in 0..d.value() {
-            s[at + i] = s_k[(i, j)];
-            noise[at + i] = whitened[(i, j)];
-        }
+    write_block(&s_k, at, s);
+    if multiple.load(Ordering::Relaxed) && !is_multiple(&(&s_k * v_k * s_k.transpose()), c) {
+        multiple.store(false, Ordering::Relaxed);
     }
     Ok(())
+}
+
+/// `S_k V_k S_k^T` of the block of `d` rows at row `start`, `S_k` read from the stacked `s`
+/// where [`weigh_block`] wrote it.
+fn whiten_block<D: Dim>(v: &DMatrix<f64>, s: &DMatrix<f64>, (start, d): (usize, D)) -> OMatrix<f64, D, D>
+where
+    DefaultAllocator: Allocator<D, D>,
+{
+    let s_k = OMatrix::<f64, D, D>::from_fn_generic(d, d, |i, j| s[(start + i, j)]);
+    let v_k = OMatrix::<f64, D, D>::from_fn_generic(d, d, |i, j| v[(start + i, j)]);
+    &s_k * v_k * s_k.transpose()
+}
+
+/// The square block `m` written at row `at` of the column parts `columns`.
+fn write_block<D: Dim>(m: &OMatrix<f64, D, D>, at: usize, columns: &mut [&mut [f64]])
+where
+    DefaultAllocator: Allocator<D, D>,
+{
+    for (j, column) in columns.iter_mut().take(m.ncols()).enumerate() {
+        for i in 0..m.nrows() {
+            column[at + i] = m[(i, j)];
+        }
+    }
 }
 
 /// `S_k` of `estimator` and `V_k` of the block of `d` rows at row `start` of `v` (point `k`).
@@ -294,10 +354,12 @@ fn fixed_block_mul<'c, const B: usize>(
 /// `c` if every stacked block is `c I` to a relative 1e-9, `c > 0`.
 pub(crate) fn identity_multiple(stacked: &DMatrix<f64>, blocks: &Blocks) -> Option<f64> {
     let c = *stacked.get((0, 0))?;
+    let multiple = (0..blocks.points(stacked.nrows())).all(|k| is_multiple(&blocks.block(stacked, k), c));
+    (c > 0.0 && multiple).then_some(c)
+}
+
+/// Whether the square block `m` is `c I` to a relative 1e-9: `|m_ij - c delta_ij| <= 1e-9 c`.
+fn is_multiple<R: Dim, C: Dim, S: RawStorage<f64, R, C>>(m: &Matrix<f64, R, C, S>, c: f64) -> bool {
     let close = |v: f64, target: f64| (v - target).abs() <= 1e-9 * c;
-    let identity = blocks.ranges(stacked.nrows()).all(|r| {
-        r.clone()
-            .all(|i| (0..r.len()).all(|j| close(stacked[(i, j)], if i - r.start == j { c } else { 0.0 })))
-    });
-    (c > 0.0 && identity).then_some(c)
+    (0..m.ncols()).all(|j| (0..m.nrows()).all(|i| close(m[(i, j)], if i == j { c } else { 0.0 })))
 }

@@ -260,6 +260,14 @@ impl RowCovariance {
         }
     }
 
+    /// Every block times `factor`.
+    fn scale(&mut self, factor: f64) {
+        match self {
+            Self::Scale(c) => *c *= factor,
+            Self::Blocks(stacked) => *stacked *= factor,
+        }
+    }
+
     /// The stacked blocks, `c I` written out for [`Self::Scale`] (`rows` rows).
     fn into_blocks(self, blocks: &Blocks, rows: usize) -> DMatrix<f64> {
         match self {
@@ -328,12 +336,11 @@ impl Weights {
             let c = if estimator == Estimator::WlsSigma { sigma_max.sqrt() } else { sigma_max };
             if c > 0.0 {
                 s *= c;
-                noise *= c * c;
+                noise.scale(c * c);
                 scale = sigma_max;
             }
         }
-        let noise = Some(RowCovariance::of(noise, &blocks));
-        Ok(Self { s: Some(s), noise, blocks, scale: Some(scale), whitened: true })
+        Ok(Self { s: Some(s), noise: Some(noise), blocks, scale: Some(scale), whitened: true })
     }
 
     /// The standard deviation `c` of a whitened row: `sigma_max` under the paper's

@@ -158,6 +158,26 @@ fn whitened_gauss_markov_noise_is_a_multiple_of_the_identity() {
     assert_eq!(identity_multiple((&DMatrix::zeros(6, 3), &Blocks::Uniform(3))), None, "zero noise");
 }
 
+/// The whitened noise `S_k V_k S_k^T` is written out, block by block, as soon as one block
+/// is not `c I`, however many before it were: here the first block is diagonal (WLS-diag
+/// whitens it to `I`) and the later ones correlated.
+#[test]
+fn whitened_noise_is_written_out_when_a_later_block_is_not_a_multiple() {
+    let mut v = small_system().v.unwrap();
+    for (i, j) in [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)] {
+        v[(i, j)] = 0.0;
+    }
+    let weights = Weights::new(Some(&v), 3, Estimator::WlsDiag, false).unwrap();
+    let noise = noise_blocks(&weights);
+    for k in 0..4 {
+        let v_k = v.rows(3 * k, 3);
+        let s_k = DMatrix::from_diagonal(&v_k.diagonal().map(|d| d.powf(-0.5)));
+        let by_hand = &s_k * v_k * &s_k;
+        assert!((noise.rows(3 * k, 3) - &by_hand).amax() < 1e-12, "block {k}: {by_hand}");
+        assert!(k == 0 || (by_hand - DMatrix::identity(3, 3)).amax() > 1e-3, "block {k} correlated");
+    }
+}
+
 /// Ordinary least squares with rows scaled by `S = diag(scale)` is the OLS of `S H`, `S y`,
 /// prepared or not, and the covariance of its whitened errors is `S_k V_k S_k`.
 #[test]
