@@ -52,7 +52,7 @@ pub use solve::{Combination, Diagnostics, LinearEstimate, RANK_TOLERANCE, combin
 pub use variance::{
     ComponentFit, JointComponents, MeasurementClass, NoiseEstimate, SigmaInterval, sample_covariance,
 };
-pub(crate) use variance::{CovarianceSample, HeldRows, NoiseLayout, noise_design, residual_samples};
+pub(crate) use variance::{CovarianceSample, NoiseLayout, PointRows, noise_design, residual_samples};
 
 use nalgebra::storage::{IsContiguous, StorageMut};
 use nalgebra::{DMatrix, DVector, Dim, Dyn, Matrix};

@@ -419,7 +419,9 @@ pub(crate) trait PointRows: Sync {
     fn point(&self, scratch: &mut Self::Scratch, k: usize, range: Range<usize>, h: &mut [f64], y: &mut [f64]);
 }
 
-/// A system held whole, `H` (`N_m x p`) and `y`, read point by point.
+/// A system held whole, `H` (`N_m x p`) and `y`, read point by point: the tests' reference
+/// for the streamed rows.
+#[cfg(test)]
 pub(crate) struct HeldRows<'a> {
     /// `H`.
     pub h: &'a DMatrix<f64>,
@@ -427,6 +429,7 @@ pub(crate) struct HeldRows<'a> {
     pub y: &'a DVector<f64>,
 }
 
+#[cfg(test)]
 impl PointRows for HeldRows<'_> {
     type Scratch = ();
 

@@ -15,9 +15,8 @@ use super::{Calibration, KindCalibration, KindData, KindOptions, Robot, Unscored
 use crate::calibration::{
     CalibrationError, FeasibleOptions, JointComponents, Loss, Reweighted, Warning, reweighted, unsettled,
 };
-use crate::estimation::{Estimator, HeldRows, NoiseEstimate, Residuals, Weights, residual_samples};
+use crate::estimation::{Estimator, NoiseEstimate, Weights, residual_samples};
 use crate::model::RobotModel;
-use nalgebra::DMatrix;
 use std::sync::OnceLock;
 
 /// Feasible GLS of observation files: calibrate by ordinary least squares, fit the variance
@@ -64,8 +63,10 @@ pub fn calibrate_kinds_feasible(
             Ok(Unscored { fitted_on: Some(sigmas), ..fitted })
         }
     };
-    let estimate = |c: &Unscored, previous: Option<&NoiseEstimate>| {
-        residual_noise(&c.calibration, data, feasible.joints, previous)
+    let estimate = |c: &Unscored, previous: Option<&NoiseEstimate>| match (previous, &c.fitted_on) {
+        // A weighted round's data, with the sigmas of `previous` it was fitted with: not copied again.
+        (Some(_), Some(fitted_on)) => residual_noise_on(&c.calibration, fitted_on, feasible.joints, previous),
+        _ => residual_noise(&c.calibration, data, feasible.joints, previous),
     };
     let rounds = reweighted(feasible, calibrate, estimate)?;
     let warning = unsettled(feasible, &rounds);
@@ -94,26 +95,38 @@ pub(super) fn with_class_sigmas(data: &KindData, estimate: &NoiseEstimate) -> Ki
 }
 
 /// The variance components fitted to the residuals of `c` on its training `data` (its rows:
-/// an arm's observations or a tree's views), each pose's block one sample: calibrated by ordinary least squares without `previous`, else weighted
-/// with it (where the fit of the components starts).
+/// an arm's observations or a tree's views), each pose's block one sample: calibrated by
+/// ordinary least squares without `previous`, else weighted with it (where the fit of the
+/// components starts).
 pub(in crate::calibration) fn residual_noise<R: Robot>(
     c: &Calibration<R>,
     data: &KindData,
     joints: JointComponents,
     previous: Option<&NoiseEstimate>,
 ) -> Result<NoiseEstimate, CalibrationError> {
-    let (kept, kept_setup) = c.estimated();
     let weighted = previous.map(|e| with_class_sigmas(data, e));
-    let data = weighted.as_ref().unwrap_or(data);
+    residual_noise_on(c, weighted.as_ref().unwrap_or(data), joints, previous)
+}
+
+/// [`residual_noise`] of `data` that carries the sigmas of `previous` already
+/// ([`with_class_sigmas`]; `data` itself without `previous`).
+fn residual_noise_on<R: Robot>(
+    c: &Calibration<R>,
+    data: &KindData,
+    joints: JointComponents,
+    previous: Option<&NoiseEstimate>,
+) -> Result<NoiseEstimate, CalibrationError> {
+    let (kept, kept_setup) = c.estimated();
     let noise = previous.map(NoiseEstimate::joint_covariance);
-    let problem = c.problem_at_estimate(data, &kept, kept_setup, noise.as_ref());
+    let mut problem = c.problem_at_estimate(data, &kept, kept_setup, noise.as_ref());
     let estimator = if previous.is_some() { Estimator::Wls } else { Estimator::Ols };
     let weights = Weights::for_problem(&problem, estimator)?;
-    let mut h = DMatrix::zeros(problem.equations(), problem.parameters());
-    let y = problem.evaluate(&problem.start(), Some(&mut h));
+    // `V_k` is in the weights now, not held through the samples.
+    problem.v = None;
     let (layout, classes) = problem.noise_layout();
     let dof = layout.dof;
-    let samples = residual_samples(&HeldRows { h: &h, y: &y }, &weights, &layout, joints)?;
-    drop((h, y, weights, layout));
+    // Each pose's rows built where the samples need them, `H` never held.
+    let samples = residual_samples(&problem.rows_at(&problem.start()), &weights, &layout, joints)?;
+    drop((weights, layout));
     Ok(NoiseEstimate::fit(&samples, joints, dof, classes, previous)?)
 }

@@ -121,9 +121,9 @@ use super::{
 };
 use crate::estimation::reml::{Components, Point};
 use crate::estimation::{
-    Blocks, Estimator, Linearisation, MeasurementClass, NoiseEstimate, NoiseLayout, POSE_SIGMAS, PriorEntry,
-    PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights, length_per_radian,
-    linearise, prior_sds, refine_from,
+    Blocks, Estimator, Linearisation, MeasurementClass, NoiseEstimate, NoiseLayout, POSE_SIGMAS, PointRows,
+    PriorEntry, PriorRows, RANK_TOLERANCE, Reduced, RefineOptions, Refined, Residuals, Weights,
+    length_per_radian, linearise, prior_sds, refine_from,
 };
 use crate::kinematics::{
     Chain, ChainAt, HeldArm, JointTrig, MarkerEnd, Measured, end_positions_trig, joint_sin_cos,
@@ -135,6 +135,7 @@ use crate::model::{
 use nalgebra::{DMatrix, DMatrixViewMut, DVector, Isometry3, Matrix3, UnitQuaternion, Vector3, Vector6};
 use rayon::prelude::*;
 use std::borrow::Cow;
+use std::ops::Range;
 use std::sync::{Arc, OnceLock};
 
 /// Every pose's joints' `(sin q_j, cos q_j)` ([`joint_sin_cos`]), made once by the first
@@ -1270,39 +1271,85 @@ impl Residuals for KindProblem<'_> {
     /// point's position from the walk that gives its `H_j`), not held for every point at every
     /// pose.
     fn linearise_whitened(&self, x: &DVector<f64>, weights: &Weights) -> (DVector<f64>, Reduced) {
+        let rows = self.rows_at(x);
+        let mut y = DVector::zeros(self.equations());
+        let (layout, p) = (self.blocks(), self.parameters());
+        let reduced = Reduced::reduce(
+            &layout,
+            p,
+            weights.noise(),
+            y.as_mut_slice(),
+            || rows.scratch(),
+            |scratch, point, out| {
+                let n = layout.range(point).len();
+                let (h, y) = out.split_at_mut(p * n);
+                rows.point(scratch, point, layout.range(point), h, y);
+                weights.apply_point(point, out);
+            },
+        );
+        (y, reduced)
+    }
+}
+
+impl KindProblem<'_> {
+    /// The rows at `x` point by point ([`RowsAt`]): its chains with the errors of `x` and its
+    /// sessions' set-up values, the joints' sines and cosines and the held steps found here,
+    /// on every thread, not by the first block's task while the others wait.
+    fn rows_at(&self, x: &DVector<f64>) -> RowsAt<'_, '_> {
         let (full, s) = self.full(x);
         let chains: Vec<ChainAt> = self.chains.iter().map(|c| c.with_errors(&full)).collect();
-        let (rows, p) = (self.measured().rows(), self.parameters());
-        let block = rows * self.selection.len();
-        let views = self.session_views(&s);
-        let mut y = DVector::zeros(self.equations());
-        let layout = self.blocks();
-        // Found here, on every thread, not by the first block's task while the others wait.
         if self.measured() == Measured::Position {
             self.trig_table();
             if !self.selection.is_empty() {
                 self.held(&chains);
             }
         }
-        let reduced = Reduced::reduce(
-            &layout,
-            p,
-            weights.noise(),
-            y.as_mut_slice(),
-            || (vec![0.0; p], BlockJacobians::default(), ViewMemo::default()),
-            |(row, jacobians, memo), point, out| {
-                let r = layout.range(point);
-                jacobians.fill(self, &chains, r.clone(), block);
-                let at = PointsAt { views: &views, jacobians: Jacobians::Block(jacobians), block };
-                let n = r.len();
-                for (i, k) in r.enumerate() {
-                    out[p * n + i] = self.observation_row(k, at, Some(row), memo);
-                    row.iter().enumerate().for_each(|(c, &v)| out[c * n + i] = v);
-                }
-                weights.apply_point(point, out);
-            },
-        );
-        (y, reduced)
+        let block = self.measured().rows() * self.selection.len();
+        RowsAt { problem: self, views: self.session_views(&s), chains, block }
+    }
+}
+
+/// A problem's rows `H_k` and residuals `y_k` at one `x`, built point by point where they are
+/// needed (a linearisation's reduction, the variance components' samples), `H` never held:
+/// each point's frames and `H_j` from one walk ([`BlockJacobians`]).
+struct RowsAt<'a, 'p> {
+    problem: &'a KindProblem<'p>,
+    /// Each session's set-up values.
+    views: Vec<Vec<f64>>,
+    /// The chains with the errors of `x`.
+    chains: Vec<ChainAt>,
+    /// The numbers of one `H_j`.
+    block: usize,
+}
+
+impl PointRows for RowsAt<'_, '_> {
+    /// A row of `H`, a block's `H_j` and the views' memo.
+    type Scratch = (Vec<f64>, BlockJacobians, ViewMemo);
+
+    fn shape(&self) -> (usize, usize) {
+        (self.problem.equations(), self.problem.parameters())
+    }
+
+    fn scratch(&self) -> Self::Scratch {
+        (vec![0.0; self.problem.parameters()], BlockJacobians::default(), ViewMemo::default())
+    }
+
+    fn point(
+        &self,
+        scratch: &mut Self::Scratch,
+        _: usize,
+        range: Range<usize>,
+        h: &mut [f64],
+        y: &mut [f64],
+    ) {
+        let (row, jacobians, memo) = scratch;
+        jacobians.fill(self.problem, &self.chains, range.clone(), self.block);
+        let at = PointsAt { views: &self.views, jacobians: Jacobians::Block(jacobians), block: self.block };
+        let n = range.len();
+        for (i, k) in range.enumerate() {
+            y[i] = self.problem.observation_row(k, at, Some(row), memo);
+            row.iter().enumerate().for_each(|(c, &v)| h[c * n + i] = v);
+        }
     }
 }
 
@@ -3423,6 +3470,82 @@ fn unmoved(name: &str, owner: Option<ParamOwner>) -> Held {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each point's rows as [`RowsAt`] builds them (what a linearisation reduces and the
+    /// variance components' samples read) against the whole system's `H` and `y`
+    /// ([`Residuals::evaluate`]) to rounding: two markers' coordinates and, with the tool
+    /// frame measured, a camera's views, at poses and parameter errors off the nominal.
+    #[test]
+    fn rows_point_by_point_are_the_whole_systems() {
+        let model = RobotModel::preset("puma560").unwrap();
+        let joints: Vec<Vec<f64>> =
+            (0..5).map(|k| (0..6).map(|j| 0.3 * ((k * 7 + j * 3) % 11) as f64 - 1.4).collect()).collect();
+        let marker =
+            |marker, axis, pose| Observation::Marker { marker, axis, pose, measured: 100.0, sigma: 0.01 };
+        let view = Vector6::new(10.0, -20.0, 900.0, 0.1, -0.2, 0.3);
+        let camera =
+            |axis, pose| Observation::Camera { axis, pose, view, site: CameraSite::World, sigma: 0.1 };
+        let data = |observations: Vec<Observation>| KindData {
+            joints: joints.clone(),
+            lines: (0..observations.len()).collect(),
+            observations,
+            ..KindData::default()
+        };
+        let markers = data((0..5).flat_map(|p| (0..6).map(move |i| marker(i / 3, i % 3, p))).collect());
+        let cameras = data((0..5).flat_map(|p| (0..6).map(move |axis| camera(axis, p))).collect());
+        let chains =
+            Chain::markers(&model, &[Vector3::new(50.0, 0.0, 150.0), Vector3::new(-40.0, 60.0, 120.0)]);
+        let probe =
+            Chain::probe(&model, &Placement { xyz: Vector3::new(0.0, 0.0, 100.0), rpy: Vector3::zeros() });
+        let selection = Selection::all(chains[0].params());
+        let errors = |n: usize| (0..n).map(|i| 1e-3 * ((i * 5) % 7) as f64 - 2e-3).collect::<Vec<f64>>();
+        let (none, with_camera) = (SetUp::new(0, &[]), SetUp::new(0, &[]).with_camera(CameraSite::World));
+        let camera_values: Vec<f64> =
+            (0..12).map(|i| [300.0, -200.0, 100.0, 0.1, 0.2, -0.3][i % 6]).collect();
+        let problems = [
+            KindProblem::of_points(
+                &chains,
+                &[0, 1],
+                &selection,
+                &markers,
+                &none,
+                errors(selection.len()),
+                vec![],
+                vec![],
+            ),
+            KindProblem::new(
+                &probe,
+                &selection,
+                &cameras,
+                &with_camera,
+                errors(selection.len()),
+                camera_values,
+                (0..12).collect(),
+                None,
+            ),
+        ];
+        for problem in &problems {
+            let (n, p) = (problem.equations(), problem.parameters());
+            let x = problem.start();
+            let mut h = DMatrix::zeros(n, p);
+            let y = problem.evaluate(&x, Some(&mut h));
+            let rows = problem.rows_at(&x);
+            let mut scratch = rows.scratch();
+            let blocks = problem.blocks();
+            for (k, r) in blocks.ranges(n).enumerate() {
+                let b = r.len();
+                let (mut h_k, mut y_k) = (vec![0.0; b * p], vec![0.0; b]);
+                rows.point(&mut scratch, k, r.clone(), &mut h_k, &mut y_k);
+                let whole = h.rows(r.start, b);
+                let scale = whole.amax().max(1.0);
+                assert!(
+                    (DMatrix::from_column_slice(b, p, &h_k) - whole).amax() < 1e-12 * scale,
+                    "H of point {k}"
+                );
+                assert!(r.clone().all(|i| (y_k[i - r.start] - y[i]).abs() < 1e-9), "y of point {k}");
+            }
+        }
+    }
 
     /// A block per run of one pose's observations, at most [`MAX_BLOCK`] rows each.
     #[test]
