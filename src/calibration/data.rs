@@ -118,18 +118,6 @@ impl Measurements {
         self.joints.is_empty()
     }
 
-    /// The memory a calibration of these poses will need at most, in bytes, for a model with
-    /// `params` parameters: the stacked `H` of every marker (`3` rows a marker, `6` with
-    /// orientations) over the joint, base and marker parameters, held about six times (`H`,
-    /// its whitened and column-scaled copies, the QR's workspace and the covariance blocks):
-    /// `48 rows (params + 6 + 3 markers)`. A bound to refuse absurd files before allocating.
-    pub fn memory_estimate(&self, params: usize) -> u64 {
-        let per_marker = if self.orientations.is_some() { 6 } else { 3 };
-        let rows = (self.len() * self.marker_count() * per_marker) as u64;
-        let columns = (params + 6 + 3 * self.marker_count()) as u64;
-        rows.saturating_mul(columns).saturating_mul(48)
-    }
-
     /// Number of markers per pose.
     pub fn marker_count(&self) -> usize {
         self.markers.first().map_or(0, Vec::len)

@@ -654,13 +654,16 @@ impl KindData {
         format!("{} at {} poses", kinds.join(", "), self.joints.len())
     }
 
-    /// The bytes a calibration on these data holds, roughly and from above: 16 bytes for each
-    /// entry of the rows x columns Jacobian, its columns the robot's `params` and the base's
-    /// and markers' (`6 + 3 m`). Measured on 100,000 poses of two markers (600,000 rows, 48
-    /// columns): 334 MB at the peak, 12 bytes an entry.
+    /// The bytes a calibration on these data holds, roughly and from above, whatever the
+    /// estimator: 24 bytes for each entry of the rows x columns Jacobian, its columns the
+    /// robot's `params` and the base's and markers' (`6 + 3 m`). Measured at the peak (the
+    /// process's resident set): WLS on 100,000 poses of two markers (600,000 rows, 48 columns)
+    /// 224 MB, 7.8 bytes an entry; feasible GLS on 20,000 poses of four markers (240,000 rows,
+    /// 54 columns) 263 MB, 20 bytes an entry, the variance components' samples most of the
+    /// difference.
     pub fn memory_estimate(&self, params: usize) -> u64 {
         let columns = (params + 6 + 3 * self.markers().len()) as u64;
-        (self.observations.len() as u64).saturating_mul(columns).saturating_mul(16)
+        (self.observations.len() as u64).saturating_mul(columns).saturating_mul(24)
     }
 
     /// Whether any observation is an angle of the tool frame (a roll, pitch or yaw, a
