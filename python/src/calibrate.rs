@@ -701,7 +701,9 @@ fn check_sessions(model: &RobotModel, sessions: &[(String, KindData)], flags: &F
         return Err(errors::argument("marker", message));
     }
     let params = model.params().len();
-    let bytes = sessions.iter().map(|(_, d)| d.memory_estimate(params)).fold(0, u64::saturating_add);
+    let feasible = flags.estimator.as_deref() == Some("fgls");
+    let bytes =
+        sessions.iter().map(|(_, d)| d.memory_estimate(params, feasible)).fold(0, u64::saturating_add);
     let (observations, poses) =
         sessions.iter().fold((0, 0), |(o, p), (_, d)| (o + d.observations.len(), p + d.joints.len()));
     let what =

@@ -38,9 +38,10 @@ pub fn run(request: &CalibrateObservationsRequest) -> Result<()> {
             data.observations.len(),
             data.joints.len()
         );
-        io::check_memory(data.memory_estimate(model.params().len()), &what, "calibrate on fewer poses")?;
-        check_and_warn(request, data)?;
         method = estimator_for(request, data.noise_given(noise.joint.is_some()))?;
+        let needed = data.memory_estimate(model.params().len(), method == Method::Feasible);
+        io::check_memory(needed, &what, "calibrate on fewer poses")?;
+        check_and_warn(request, data)?;
         if let Some(ids) = &request.marker_ids {
             marker_ids_known(ids, &data.markers())?;
         }

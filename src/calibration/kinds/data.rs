@@ -654,16 +654,33 @@ impl KindData {
         format!("{} at {} poses", kinds.join(", "), self.joints.len())
     }
 
-    /// The bytes a calibration on these data holds, roughly and from above, whatever the
-    /// estimator: 24 bytes for each entry of the rows x columns Jacobian, its columns the
-    /// robot's `params` and the base's and markers' (`6 + 3 m`). Measured at the peak (the
-    /// process's resident set): WLS on 100,000 poses of two markers (600,000 rows, 48 columns)
-    /// 224 MB, 7.8 bytes an entry; feasible GLS on 20,000 poses of four markers (240,000 rows,
-    /// 54 columns) 263 MB, 20 bytes an entry, the variance components' samples most of the
-    /// difference.
-    pub fn memory_estimate(&self, params: usize) -> u64 {
+    /// The bytes a calibration on these data holds, roughly and from above: 16 bytes for each
+    /// entry of the rows x columns Jacobian, its columns the robot's `params` and the base's
+    /// and markers' (`6 + 3 m`); with `feasible` GLS, its variance components' samples too,
+    /// `8 (c b (b + 1) / 2 + b + b dof)` bytes for each pose's block of `b` rows, `c` the joints'
+    /// variances and the measurement classes (its packed designs, residuals and the joints'
+    /// Jacobians). Measured at the peak (the process's resident set): WLS on 100,000 poses of
+    /// two markers (600,000 rows, 48 columns) 224 MB, 7.8 bytes an entry; feasible GLS on
+    /// 20,000 poses of four markers 263 MB against an estimate of 308 MB, and on 100,000 of two
+    /// 448 MB against 612 MB.
+    pub fn memory_estimate(&self, params: usize, feasible: bool) -> u64 {
         let columns = (params + 6 + 3 * self.markers().len()) as u64;
-        (self.observations.len() as u64).saturating_mul(columns).saturating_mul(24)
+        let rows = (self.observations.len() as u64).saturating_mul(columns).saturating_mul(16);
+        rows.saturating_add(if feasible { self.samples_estimate() } else { 0 })
+    }
+
+    /// The bytes of feasible GLS's samples ([`KindData::memory_estimate`]).
+    fn samples_estimate(&self) -> u64 {
+        let dof = self.joints.first().map_or(0, Vec::len) as u64;
+        let mut classes: Vec<_> = self.observations.iter().map(Observation::class).collect();
+        classes.sort();
+        classes.dedup();
+        let components = dof + classes.len() as u64;
+        let blocks = super::pose_blocks(&self.observations);
+        (blocks.ranges(self.observations.len()))
+            .map(|r| r.len() as u64)
+            .map(|b| 8 * (components * b * (b + 1) / 2 + b + b * dof))
+            .fold(0, u64::saturating_add)
     }
 
     /// Whether any observation is an angle of the tool frame (a roll, pitch or yaw, a
