@@ -3498,6 +3498,10 @@ mod tests {
         let probe =
             Chain::probe(&model, &Placement { xyz: Vector3::new(0.0, 0.0, 100.0), rpy: Vector3::zeros() });
         let selection = Selection::all(chains[0].params());
+        // The first half alone: the steps after the last it moves held, each walk back starting
+        // there.
+        let count = chains[0].params().len();
+        let first = Selection::from_indices(chains[0].params(), 0..count / 2);
         let errors = |n: usize| (0..n).map(|i| 1e-3 * ((i * 5) % 7) as f64 - 2e-3).collect::<Vec<f64>>();
         let (none, with_camera) = (SetUp::new(0, &[]), SetUp::new(0, &[]).with_camera(CameraSite::World));
         let camera_values: Vec<f64> =
@@ -3513,6 +3517,7 @@ mod tests {
                 vec![],
                 vec![],
             ),
+            KindProblem::of_points(&chains, &[0, 1], &first, &markers, &none, errors(count), vec![], vec![]),
             KindProblem::new(
                 &probe,
                 &selection,
@@ -3530,6 +3535,8 @@ mod tests {
             let mut h = DMatrix::zeros(n, p);
             let y = problem.evaluate(&x, Some(&mut h));
             let rows = problem.rows_at(&x);
+            let held = problem.held.get().is_some_and(Option::is_some);
+            assert_eq!(held, problem.selection.len() < count, "steps held for the first half alone");
             let mut scratch = rows.scratch();
             let blocks = problem.blocks();
             for (k, r) in blocks.ranges(n).enumerate() {
