@@ -669,13 +669,19 @@ impl KindData {
         rows.saturating_add(if feasible { self.samples_estimate() } else { 0 })
     }
 
+    /// The measurement classes of the observations ([`Observation::class`]), each once, in
+    /// order.
+    pub(crate) fn classes(&self) -> Vec<MeasurementClass> {
+        let mut classes: Vec<MeasurementClass> = self.observations.iter().map(Observation::class).collect();
+        classes.sort();
+        classes.dedup();
+        classes
+    }
+
     /// The bytes of feasible GLS's samples ([`KindData::memory_estimate`]).
     fn samples_estimate(&self) -> u64 {
         let dof = self.joints.first().map_or(0, Vec::len) as u64;
-        let mut classes: Vec<_> = self.observations.iter().map(Observation::class).collect();
-        classes.sort();
-        classes.dedup();
-        let components = dof + classes.len() as u64;
+        let components = dof + self.classes().len() as u64;
         let blocks = super::pose_blocks(&self.observations);
         (blocks.ranges(self.observations.len()))
             .map(|r| r.len() as u64)

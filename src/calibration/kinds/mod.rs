@@ -1147,11 +1147,8 @@ impl<'a> KindProblem<'a> {
     ///
     /// [`residual_samples`]: crate::estimation::residual_samples
     pub(crate) fn noise_layout(&self) -> (NoiseLayout, Vec<MeasurementClass>) {
-        let observations = &self.data.observations;
-        let mut present: Vec<MeasurementClass> = observations.iter().map(Observation::class).collect();
-        present.sort();
-        present.dedup();
-        let classes = (observations.iter())
+        let present = self.data.classes();
+        let classes = (self.data.observations.iter())
             .map(|o| present.iter().position(|&c| c == o.class()).expect("present"))
             .collect();
         let (mut jacobians, dof) = (self.noise_jacobians(), self.chains[0].dof());
@@ -1281,9 +1278,9 @@ impl Residuals for KindProblem<'_> {
             y.as_mut_slice(),
             || rows.scratch(),
             |scratch, point, out| {
-                let n = layout.range(point).len();
-                let (h, y) = out.split_at_mut(p * n);
-                rows.point(scratch, point, layout.range(point), h, y);
+                let r = layout.range(point);
+                let (h, y) = out.split_at_mut(p * r.len());
+                rows.point(scratch, point, r, h, y);
                 weights.apply_point(point, out);
             },
         );
